@@ -1,0 +1,51 @@
+"""Exceptions that carry a user-facing message and the process exit status (DESIGN.md "Command line").
+
+Anything raised as a `UserError` is printed by the CLI as one short paragraph, never as a traceback.
+"""
+
+from __future__ import annotations
+
+EXIT_OK = 0
+EXIT_INVALID_INPUT = 2
+EXIT_HARDWARE_UNAVAILABLE = 3
+EXIT_STOPPED_BY_CHECK = 4
+EXIT_INTERRUPTED = 130
+
+
+class UserError(Exception):
+    """An error caused by the user's input or environment, with a plain message and an exit status."""
+
+    exit_code: int = EXIT_INVALID_INPUT
+
+    def __init__(self, message: str, exit_code: int | None = None) -> None:
+        super().__init__(message)
+        self.message = message
+        if exit_code is not None:
+            self.exit_code = exit_code
+
+    def __str__(self) -> str:
+        return self.message
+
+
+class InvalidInput(UserError):
+    """A protocol file, an argument or an archive is wrong (exit 2)."""
+
+    exit_code = EXIT_INVALID_INPUT
+
+
+class HardwareUnavailable(UserError):
+    """The DAQ boards are absent, busy, or not permitted (exit 3)."""
+
+    exit_code = EXIT_HARDWARE_UNAVAILABLE
+
+
+class StoppedByCheck(UserError):
+    """A safety envelope or calibration check stopped the session (exit 4)."""
+
+    exit_code = EXIT_STOPPED_BY_CHECK
+
+
+class Interrupted(UserError):
+    """The session was interrupted by a signal; it is resumable (exit 130)."""
+
+    exit_code = EXIT_INTERRUPTED
