@@ -1,0 +1,223 @@
+"""Physical model of the knee brace springs (thesis §6.1, Eq 13-18) — geometry reconstructed here.
+
+The thesis prints Eq 15-16 garbled (the radius of the lower attachment's circle reads
+``sqrt((a cos α + b)² + (b sin α)²)`` and Eq 16 has a stray ``t``). The geometry below is a
+**reconstruction** from the description of Figures 47-50, chosen so that it reproduces every stated fact:
+the spring is shortest (its force smallest) at θ = α = 20° (Figure 50), its deflection grows on both sides,
+and the torque of Eq 13 (with λ from Eq 18) is zero at 20° and grows with bending (Figure 51).
+The full derivation, with a sketch, is in ``docs/hardware-model.md``. In short::
+
+                 x  ("vertical": along the thigh, towards the shank at full extension)
+                 ^
+                 |         A  lower attachment, on a circle of radius r = a + b about O,
+                 |        /   at angle θ (the brace bending angle) from the vertical
+                 |  b+δ  /
+                 |      /     spring: from U to A, direction λ from the vertical (Eq 18)
+                 |     /
+                 |    U   upper attachment, |OU| = a, at angle α from the vertical
+                 |   /
+                 |  / a
+                 | /
+                 O ----------------> -y      O: the brace's axis of rotation
+
+    O = (0, 0),  U = (a cos α, -a sin α),  A = (r cos θ, -r sin θ)        (Eq 15, with r = a + b)
+    length L(θ) = |A - U| = sqrt(r² + a² - 2 a r cos(θ - α))
+    deflection δ(θ) = L(θ) - b  >= 0, zero at θ = α                        (Eq 16)
+    λ = atan2(y_A + a sin α, x_A - a cos α)                                (Eq 18; atan2 for the quadrant)
+    T = -n_springs * F * a * sin(λ + α) = n_springs * F * a * r * sin(θ - α) / L     (Eq 13)
+
+At θ = α the spring line passes through O, so it has no lever arm: the zero-torque angle is α = 20°
+("the joint was adjusted to cross the zero torque value at an angle of 20°", thesis §5). Choosing
+r = a + b makes b the spring's length at that angle (the undeflected length), so the screw preload of
+Eq 17 is the only tension there. The thesis's printed radius would instead give a residual 7.7 mm
+extension at 20°; that constant is absorbed by ``max_preload_mm``, which is itself a fitted/chosen value.
+
+Sign convention (docs/hardware-model.md, notes/apis.md): a positive torque is the torque the robot must
+apply in the flexion (+angle) direction, i.e. the brace resists flexion with positive torque above its
+zero-torque angle and resists extension (negative torque) below it. Eq 13 has exactly this sign with the
+geometry above.
+
+Force (Eq 14): F = K (Initial_Load + δ), K in N/mm, lengths in mm. The springs are extension springs: a
+slack spring (negative extension, only possible with a preload chosen below zero) pulls with zero force.
+Initial load (Eq 17): Initial_Load = Max_Preload - c * preload_angle_step * π/180 * n, for screw position
+n = 1..5 (n = 0 would be the maximum preload; the load falls as n grows).
+
+DEFAULT_MAX_PRELOAD_MM = 32 mm is a documented *choice* (the thesis does not give Max_Preload): with it the
+initial load stays positive for n = 1..5 (29.4 mm at n = 1 down to 18.9 mm at n = 5) and the medium
+spring K2 (13 N/mm) at the centre preload (n = 3) gives about 40 N·m at 100° and 43 N·m at 110° — the order
+of magnitude that, added to the shank's gravity torque and the brace friction, meets the robot's 84.8 N·m
+limit near 110° (thesis §5.2: the robot cannot pass about 110° with K2 fitted).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from protocol_runner.errors import InvalidInput
+
+FloatArray = npt.NDArray[np.float64]
+ArrayLike = npt.ArrayLike
+
+PRELOAD_POSITIONS: tuple[int, ...] = (1, 2, 3, 4, 5)
+"""Screw positions of the preload piece (Eq 17): 1 = most preload, 5 = least."""
+
+
+@dataclass(frozen=True)
+class SpringGeometry:
+    """Fixed dimensions of the brace's spring mechanism (thesis §6.1.1, Figure 47).
+
+    a_m: distance from the centre of rotation to the spring's upper attachment.
+    b_m: undeflected spring length.
+    c_m: lever of the preload piece (its pivot to the spring's lower attachment).
+    alpha_deg: angle between the vertical and the upper attachment (the zero-torque angle).
+    preload_step_deg: angle between two screw positions of the preload piece.
+    n_springs: number of springs in parallel (the factor 2 of Eq 13).
+    """
+
+    a_m: float = 0.03
+    b_m: float = 0.19
+    c_m: float = 0.055
+    alpha_deg: float = 20.0
+    preload_step_deg: float = 2.73
+    n_springs: int = 2
+
+    def __post_init__(self) -> None:
+        for name in ("a_m", "b_m", "c_m"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise InvalidInput(
+                    f"spring geometry: {name} must be a positive length in metres, got {value!r}"
+                )
+        if not math.isfinite(self.alpha_deg) or not math.isfinite(self.preload_step_deg):
+            raise InvalidInput("spring geometry: alpha_deg and preload_step_deg must be finite")
+        if self.n_springs < 0:
+            raise InvalidInput(f"spring geometry: n_springs must be >= 0, got {self.n_springs}")
+
+    @property
+    def lower_radius_m(self) -> float:
+        """Radius r = a + b of the circle the lower attachment moves on (reconstructed Eq 15)."""
+        return self.a_m + self.b_m
+
+    @property
+    def preload_step_m(self) -> float:
+        """Change of spring extension per screw position: c * step * π/180 (Eq 17)."""
+        return self.c_m * math.radians(self.preload_step_deg)
+
+
+THESIS_GEOMETRY = SpringGeometry()
+"""The values of thesis §6.1.1: a = 0.03 m, b = 0.19 m, c = 0.055 m, α = 20°, step = 2.73°, 2 springs."""
+
+DEFAULT_MAX_PRELOAD_MM: float = 32.0
+"""Max_Preload of Eq 17 (spring extension at screw position n = 0), in mm. A documented choice: see the
+module docstring and docs/hardware-model.md."""
+
+STIFFNESS_N_PER_MM: dict[str, float] = {"K0": 0.0, "K1": 4.4, "K2": 13.0, "K3": 20.0}
+"""Spring constants of the test matrix (thesis Appendix A, "Stiffness"); K0 = no spring."""
+
+
+def _attachment_geometry(
+    angle_deg: ArrayLike, geometry: SpringGeometry
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Return (x_A, y_A, L): lower attachment coordinates (Eq 15) and spring length, all in metres."""
+    theta = np.radians(np.asarray(angle_deg, dtype=np.float64))
+    alpha = math.radians(geometry.alpha_deg)
+    r = geometry.lower_radius_m
+    a = geometry.a_m
+    x_a = r * np.cos(theta)
+    y_a = -r * np.sin(theta)
+    length = np.hypot(x_a - a * math.cos(alpha), y_a + a * math.sin(alpha))
+    return x_a, y_a, length
+
+
+def spring_deflection_m(angle_deg: ArrayLike, geometry: SpringGeometry = THESIS_GEOMETRY) -> FloatArray:
+    """Spring extension beyond its undeflected length b at brace angle θ (Eq 15-16, reconstructed).
+
+    δ(θ) = sqrt(r² + a² - 2 a r cos(θ - α)) - b with r = a + b: zero at θ = α, growing on both sides.
+    Vectorised over `angle_deg`; returns metres.
+    """
+    _, _, length = _attachment_geometry(angle_deg, geometry)
+    result: FloatArray = length - geometry.b_m
+    return result
+
+
+def _check_preload_position(preload_position: int) -> int:
+    if isinstance(preload_position, bool) or not isinstance(preload_position, int | np.integer):
+        raise InvalidInput(f"spring preload position must be an integer 1-5, got {preload_position!r}")
+    n = int(preload_position)
+    if n not in PRELOAD_POSITIONS:
+        raise InvalidInput(f"spring preload position must be 1-5 (1 = most preload), got {n}")
+    return n
+
+
+def spring_initial_load_m(
+    preload_position: int,
+    max_preload_mm: float = DEFAULT_MAX_PRELOAD_MM,
+    geometry: SpringGeometry = THESIS_GEOMETRY,
+) -> float:
+    """Initial spring extension set by the preload screw (Eq 17), in metres.
+
+    Initial_Load = Max_Preload - c * preload_angle_step * π/180 * n, n = `preload_position` in 1..5
+    (1 = most preload). Can be negative for a small `max_preload_mm` (the spring is then slack near α).
+    """
+    n = _check_preload_position(preload_position)
+    if not math.isfinite(max_preload_mm):
+        raise InvalidInput(f"max_preload_mm must be finite, got {max_preload_mm!r}")
+    return max_preload_mm * 1e-3 - geometry.preload_step_m * n
+
+
+def spring_force_n(
+    angle_deg: ArrayLike,
+    stiffness_n_per_mm: float,
+    preload_position: int,
+    *,
+    max_preload_mm: float = DEFAULT_MAX_PRELOAD_MM,
+    geometry: SpringGeometry = THESIS_GEOMETRY,
+) -> FloatArray:
+    """Tension of one spring at brace angle θ (Eq 14): F = K (Initial_Load + δ(θ)), in newtons.
+
+    `stiffness_n_per_mm` is K in N/mm (0 = no spring, K0). Extension springs cannot push: a negative
+    extension gives zero force. Vectorised over `angle_deg`.
+    """
+    if not (math.isfinite(stiffness_n_per_mm) and stiffness_n_per_mm >= 0.0):
+        raise InvalidInput(f"spring stiffness must be a finite value >= 0 N/mm, got {stiffness_n_per_mm!r}")
+    extension_m = spring_initial_load_m(preload_position, max_preload_mm, geometry) + spring_deflection_m(
+        angle_deg, geometry
+    )
+    force: FloatArray = stiffness_n_per_mm * 1e3 * np.maximum(extension_m, 0.0)
+    return force
+
+
+def spring_torque_nm(
+    angle_deg: ArrayLike,
+    stiffness_n_per_mm: float,
+    preload_position: int,
+    *,
+    max_preload_mm: float = DEFAULT_MAX_PRELOAD_MM,
+    zero_offset_deg: float = 0.0,
+    geometry: SpringGeometry = THESIS_GEOMETRY,
+) -> FloatArray:
+    """Torque of the brace springs about the joint axis at joint angle `angle_deg` (Eq 13, 14, 18), N·m.
+
+    T = -n_springs * F * a * (cos λ sin α + sin λ cos α), λ from Eq 18 (evaluated with atan2 so that the
+    quadrant is right beyond θ ≈ 90°). Positive = the robot must push in flexion (the brace resists
+    flexion above the zero-torque angle). `zero_offset_deg` shifts the curve: the brace angle is
+    θ = angle_deg - zero_offset_deg, so the zero-torque angle becomes α + zero_offset_deg (thesis §6.1.6:
+    the zero crossing moves when the springs change). Stiffness 0 (K0) gives zeros. Vectorised.
+    """
+    if not math.isfinite(zero_offset_deg):
+        raise InvalidInput(f"zero_offset_deg must be finite, got {zero_offset_deg!r}")
+    theta_deg = np.asarray(angle_deg, dtype=np.float64) - zero_offset_deg
+    force = spring_force_n(
+        theta_deg, stiffness_n_per_mm, preload_position, max_preload_mm=max_preload_mm, geometry=geometry
+    )
+    x_a, y_a, _ = _attachment_geometry(theta_deg, geometry)
+    alpha = math.radians(geometry.alpha_deg)
+    a = geometry.a_m
+    lam = np.arctan2(y_a + a * math.sin(alpha), x_a - a * math.cos(alpha))  # Eq 18
+    lever = np.cos(lam) * math.sin(alpha) + np.sin(lam) * math.cos(alpha)  # = sin(λ + α)
+    torque: FloatArray = -geometry.n_springs * force * a * lever  # Eq 13
+    return torque
