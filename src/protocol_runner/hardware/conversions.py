@@ -1,0 +1,180 @@
+"""Linear conversions between joint quantities, volts and board codes (thesis §2.4.1, Eq 1-3, Tables 1-3).
+
+- Eq 1: commanded joint angle -> output volts, linear over the joint's angle range (Table 2) onto ±10 V.
+- Eq 2: angle telemetry volts -> joint angle (the inverse map of Eq 1).
+- Eq 3: torque telemetry volts -> joint torque, linear over the joint's torque range (Table 3).
+- Board codes (reference/daq-usb-protocols.md):
+  USB-3105 analog output, 16-bit ±10 V: ideal code k = 32768 + 3276.8 V, rounded, clamped to 0..65535.
+  DT9814 analog input, 12-bit ±10 V two's complement: V = 20 * code / 4096, code in -2048..2047.
+  USB-1608FS-Plus analog input, 16-bit ±10 V offset binary: V = (k - 32768) * 10 / 32768.
+
+All functions are vectorised (arrays in, arrays out) and never clamp angles or torques: range safety is the
+job of `hardware/safety.py`. Only the code conversions clamp, because a board cannot represent more.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from protocol_runner.errors import InvalidInput
+
+FloatArray = npt.NDArray[np.float64]
+ArrayLike = npt.ArrayLike
+
+VOLTS_RANGE: tuple[float, float] = (-10.0, 10.0)
+"""Analog range of the RSST's VME command inputs and telemetry outputs (thesis §2.2)."""
+
+AO16_ZERO_CODE = 32768
+AO16_CODES_PER_VOLT = 3276.8  # USB-3105 ±10 V: LSB = 305.2 µV
+AO16_MAX_CODE = 65535
+AI12_MIN_CODE = -2048
+AI12_MAX_CODE = 2047
+AI12_VOLTS_PER_CODE = 20.0 / 4096.0  # DT9814 ±10 V: LSB = 4.883 mV
+AI16_ZERO_CODE = 32768
+AI16_VOLTS_PER_CODE = 10.0 / 32768.0  # USB-1608FS-Plus ±10 V: LSB = 305.2 µV
+AI16_MAX_CODE = 65535
+
+
+@dataclass(frozen=True)
+class RsstJoint:
+    """One actuated RSST joint (thesis Tables 1-3): its number, name, Eq 1-2 angle range and Eq 3
+    torque range."""
+
+    number: int
+    name: str
+    range_deg: tuple[float, float]
+    torque_range_nm: tuple[float, float]
+
+
+RSST_JOINTS: dict[int, RsstJoint] = {
+    j.number: j
+    for j in (
+        RsstJoint(1, "Shoulder Flexion", (-15.0, 180.0), (-45.2, 39.6)),
+        RsstJoint(2, "Shoulder Abduction", (0.0, 90.0), (-45.2, 39.6)),
+        RsstJoint(3, "Humerus Rotation", (-90.0, 90.0), (-28.3, 28.3)),
+        RsstJoint(4, "Elbow Flexion", (0.0, 130.0), (-39.6, 31.0)),
+        RsstJoint(5, "Wrist Rotation", (-90.0, 90.0), (-102.0, 56.5)),
+        RsstJoint(6, "Hip Flexion", (0.0, 100.0), (-147.0, 147.0)),
+        RsstJoint(7, "Hip Abduction", (0.0, 45.0), (-45.2, 226.0)),
+        RsstJoint(8, "Thigh rotation", (-22.0, 22.0), (-56.5, 56.5)),
+        RsstJoint(9, "Knee Flexion", (0.0, 130.0), (-84.8, 84.8)),
+        RsstJoint(10, "Ankle Rotation", (-20.0, 20.0), (-56.5, 56.5)),
+        RsstJoint(11, "Ankle Flexion", (-45.0, 30.0), (-79.1, 79.1)),
+        RsstJoint(12, "Ankle Inversion", (-20.0, 20.0), (-56.5, 56.5)),
+    )
+}
+"""The 12 actuated RSST joints by number (thesis Tables 1, 2 and 3)."""
+
+
+def rsst_joint_by_name(name: str) -> RsstJoint:
+    """Look a joint up by its Table 1 description, case- and separator-insensitively ("knee_flexion")."""
+    key = name.strip().lower().replace("_", " ").replace("-", " ")
+    for joint in RSST_JOINTS.values():
+        if joint.name.lower() == key:
+            return joint
+    known = ", ".join(j.name for j in RSST_JOINTS.values())
+    raise InvalidInput(f"unknown RSST joint {name!r}; known joints: {known}")
+
+
+def _check_range(pair: tuple[float, float], what: str) -> tuple[float, float]:
+    lo, hi = float(pair[0]), float(pair[1])
+    if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):
+        raise InvalidInput(
+            f"{what} must be two finite numbers (minimum, maximum) with maximum > minimum, got {pair!r}"
+        )
+    return lo, hi
+
+
+def _linear_map(values: ArrayLike, src: tuple[float, float], dst: tuple[float, float]) -> FloatArray:
+    x = np.asarray(values, dtype=np.float64)
+    s0, s1 = src
+    d0, d1 = dst
+    result: FloatArray = d0 + (x - s0) * ((d1 - d0) / (s1 - s0))
+    return result
+
+
+def angle_to_volts(
+    angle_deg: ArrayLike, range_deg: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
+) -> FloatArray:
+    """Eq 1: V = V_min + (θ - θ_min) / (θ_max - θ_min) * (V_max - V_min). Not clamped."""
+    return _linear_map(
+        angle_deg, _check_range(range_deg, "range_deg"), _check_range(volts_range, "volts_range")
+    )
+
+
+def volts_to_angle(
+    volts: ArrayLike, range_deg: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
+) -> FloatArray:
+    """Eq 2: θ = θ_min + (V - V_min) / (V_max - V_min) * (θ_max - θ_min)."""
+    return _linear_map(volts, _check_range(volts_range, "volts_range"), _check_range(range_deg, "range_deg"))
+
+
+def volts_to_torque(
+    volts: ArrayLike, torque_range_nm: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
+) -> FloatArray:
+    """Eq 3: T = T_min + (V - V_min) / (V_max - V_min) * (T_max - T_min)."""
+    return _linear_map(
+        volts, _check_range(volts_range, "volts_range"), _check_range(torque_range_nm, "torque_range_nm")
+    )
+
+
+def torque_to_volts(
+    torque_nm: ArrayLike, torque_range_nm: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
+) -> FloatArray:
+    """Eq 3 inverted (what the robot's torque telemetry outputs for a torque). Not clamped."""
+    return _linear_map(
+        torque_nm, _check_range(torque_range_nm, "torque_range_nm"), _check_range(volts_range, "volts_range")
+    )
+
+
+def volts_to_ao16_code(volts: ArrayLike) -> npt.NDArray[np.uint16]:
+    """USB-3105 ±10 V ideal code: k = round(32768 + 3276.8 V), clamped to 0..65535 (so +10 V -> 65535,
+    i.e. +9.99969 V). NaN is rejected rather than sent."""
+    v = np.asarray(volts, dtype=np.float64)
+    if np.isnan(v).any():
+        raise InvalidInput("cannot convert NaN volts to an analog output code")
+    k = np.rint(AO16_ZERO_CODE + AO16_CODES_PER_VOLT * v)
+    result: npt.NDArray[np.uint16] = np.clip(k, 0, AO16_MAX_CODE).astype(np.uint16)
+    return result
+
+
+def ao16_code_to_volts(code: ArrayLike) -> FloatArray:
+    """Volts of a USB-3105 ±10 V code: V = (k - 32768) / 3276.8."""
+    k = np.asarray(code, dtype=np.float64)
+    result: FloatArray = (k - AO16_ZERO_CODE) / AO16_CODES_PER_VOLT
+    return result
+
+
+def volts_to_ai12_code(volts: ArrayLike) -> npt.NDArray[np.int32]:
+    """DT9814 12-bit ±10 V two's-complement code: round(V * 4096 / 20), clamped to -2048..2047."""
+    v = np.asarray(volts, dtype=np.float64)
+    if np.isnan(v).any():
+        raise InvalidInput("cannot convert NaN volts to an analog input code")
+    k = np.rint(v / AI12_VOLTS_PER_CODE)
+    result: npt.NDArray[np.int32] = np.clip(k, AI12_MIN_CODE, AI12_MAX_CODE).astype(np.int32)
+    return result
+
+
+def ai12_code_to_volts(code: ArrayLike) -> FloatArray:
+    """DT9814 12-bit ±10 V: V = 20 * code / 4096."""
+    result: FloatArray = np.asarray(code, dtype=np.float64) * AI12_VOLTS_PER_CODE
+    return result
+
+
+def volts_to_ai16_code(volts: ArrayLike) -> npt.NDArray[np.int32]:
+    """USB-1608FS-Plus 16-bit ±10 V offset-binary code: round(32768 + V * 32768 / 10), clamped 0..65535."""
+    v = np.asarray(volts, dtype=np.float64)
+    if np.isnan(v).any():
+        raise InvalidInput("cannot convert NaN volts to an analog input code")
+    k = np.rint(AI16_ZERO_CODE + v / AI16_VOLTS_PER_CODE)
+    result: npt.NDArray[np.int32] = np.clip(k, 0, AI16_MAX_CODE).astype(np.int32)
+    return result
+
+
+def ai16_code_to_volts(code: ArrayLike) -> FloatArray:
+    """USB-1608FS-Plus 16-bit ±10 V: V = (k - 32768) * 10 / 32768."""
+    result: FloatArray = (np.asarray(code, dtype=np.float64) - AI16_ZERO_CODE) * AI16_VOLTS_PER_CODE
+    return result
