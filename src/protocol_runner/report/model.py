@@ -1,0 +1,246 @@
+"""What the report shows: immutable data read from one archive (docs/archive.md), nothing else.
+
+The report is regenerated from an archive alone (DESIGN.md "Data flow"), so everything a figure, a table
+or a finding needs is gathered here once by `protocol_runner.report.load.load_report_data`. Plot series
+are already decimated (a processed trial is smooth after the pipeline's low-pass filter, thesis §4.4),
+while summary numbers (angle range, torque-angle slope) are computed from the full-rate data.
+
+Arrays are numpy arrays marked read-only; units are in the field names.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+FloatArray = np.ndarray
+
+
+@dataclass(frozen=True)
+class SessionEvent:
+    """One line of `/session/events`: an interruption, a resume, a re-run calibration, ..."""
+
+    t_utc: str
+    kind: str
+    detail: str
+
+
+@dataclass(frozen=True)
+class ChecklistAnswer:
+    """One operator checklist of `/session/checklists/<step>` and how it was answered."""
+
+    step_id: str
+    title: str
+    items: tuple[str, ...]
+    answer: str
+    answered_utc: str
+    automatic: bool
+
+
+@dataclass(frozen=True)
+class SessionInfo:
+    """The archive's root attributes (docs/archive.md "Root") plus the session log."""
+
+    archive_path: str
+    protocol_name: str
+    protocol_sha256: str
+    schema_version: int
+    software_version: str
+    mode: str
+    seed: int
+    created_utc: str
+    finished_utc: str
+    status: str
+    joint: str
+    only: tuple[int, ...]
+    events: tuple[SessionEvent, ...] = ()
+    checklists: tuple[ChecklistAnswer, ...] = ()
+
+    @property
+    def complete(self) -> bool:
+        """True when the session ran to its end (root `status` is "complete")."""
+        return self.status == "complete"
+
+    @property
+    def interruptions(self) -> tuple[SessionEvent, ...]:
+        """The interruption and resume events, in the order they happened."""
+        return tuple(e for e in self.events if e.kind in ("interrupted", "resumed"))
+
+
+@dataclass(frozen=True)
+class CalibrationCheck:
+    """A calibration step response (`/calibration/<set>/<when>`, Appendix A "Calibration": a 45° step)."""
+
+    set_name: str
+    when: str
+    step_id: str
+    verdict: str
+    step_deg: float
+    settle_error_deg: float
+    time_constant_s: float
+    limits: str
+    message: str
+    time_s: FloatArray
+    angle_deg: FloatArray
+    command_time_s: FloatArray
+    command_deg: FloatArray
+
+
+@dataclass(frozen=True)
+class Recording:
+    """One brace-on or brace-off acquisition, decimated for plotting (angle and torque vs time)."""
+
+    time_s: FloatArray
+    angle_deg: FloatArray
+    torque_nm: FloatArray
+    command_time_s: FloatArray
+    command_deg: FloatArray
+    tick_lateness_p99_s: float
+
+
+@dataclass(frozen=True)
+class ProcessedTrial:
+    """The brace's own torque against angle after transition removal, filtering and subtraction (§3.3)."""
+
+    time_s: FloatArray
+    angle_deg: FloatArray
+    brace_torque_nm: FloatArray
+    subtraction: str
+
+
+@dataclass(frozen=True)
+class Trial:
+    """Trial `number` of a configuration: its brace-on and brace-off runs and the processed result."""
+
+    number: int
+    brace_on: Recording | None
+    brace_off: Recording | None
+    processed: ProcessedTrial | None
+
+
+@dataclass(frozen=True)
+class BoucWenFit:
+    """The generalised Bouc-Wen fit of one configuration (thesis §6.2, Eq 19-25)."""
+
+    A: float
+    n: float
+    beta: tuple[float, ...]
+    rmse_nm: float
+    r2: float
+    A_std: float
+    n_std: float
+    beta_std: tuple[float, ...]
+    cv_rmse_nm: tuple[float, ...]
+    n_starts: int
+    angle_deg: FloatArray
+    torque_nm: FloatArray
+    model_torque_nm: FloatArray
+
+    @property
+    def cv_rmse_mean_nm(self) -> float:
+        """Mean held-out-trial RMSE (NaN when there was a single trial)."""
+        return float(np.mean(self.cv_rmse_nm)) if self.cv_rmse_nm else float("nan")
+
+
+@dataclass(frozen=True)
+class SpringFit:
+    """The physical spring model fitted to one configuration (thesis §6.1, Eq 13-18)."""
+
+    applicable: bool
+    max_preload_mm: float
+    zero_offset_deg: float
+    rmse_nm: float
+    angle_deg: FloatArray
+    model_torque_nm: FloatArray
+
+
+@dataclass(frozen=True)
+class Configuration:
+    """One row of the test matrix (Appendix A, Table 5) with its trials and results."""
+
+    name: str
+    key: int
+    run: int
+    set_name: str
+    condition: str
+    profile: str
+    status: str
+    n_trials_planned: int
+    settings: dict[str, object]
+    trials: tuple[Trial, ...]
+    energy_loss_j: FloatArray
+    energy_cycle_trial: FloatArray
+    bouc_wen: BoucWenFit | None
+    spring: SpringFit | None
+    angle_min_deg: float
+    angle_max_deg: float
+    torque_slope_nm_per_deg: float
+
+    @property
+    def energy_mean_j(self) -> float:
+        """Mean energy lost per cycle over every cycle of every trial (Eq 10-12); NaN if none."""
+        return float(np.mean(self.energy_loss_j)) if self.energy_loss_j.size else float("nan")
+
+    @property
+    def energy_std_j(self) -> float:
+        """Sample standard deviation of the energy per cycle (spread across cycles and trials)."""
+        return float(np.std(self.energy_loss_j, ddof=1)) if self.energy_loss_j.size > 1 else float("nan")
+
+    @property
+    def has_data(self) -> bool:
+        """True when at least one trial was processed."""
+        return any(t.processed is not None for t in self.trials)
+
+    def setting(self, name: str, default: object = None) -> object:
+        """A configuration attribute (e.g. `friction_nm`, `stiffness`), or `default`."""
+        return self.settings.get(name, default)
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """A group of configurations that differ by one parameter (`/comparisons/<name>` or the thesis's)."""
+
+    name: str
+    parameter: str
+    section: str
+    title: str
+    configurations: tuple[int, ...]
+    from_archive: bool
+
+
+@dataclass(frozen=True)
+class ReferenceDataset:
+    """An external torque-angle dataset to compare with (the EMU data of §5.6)."""
+
+    source: str
+    title: str
+    angle_deg: FloatArray
+    torque_nm: FloatArray
+
+
+@dataclass(frozen=True)
+class ReportData:
+    """Everything the report shows, read from one archive."""
+
+    session: SessionInfo
+    configurations: tuple[Configuration, ...]
+    calibration: tuple[CalibrationCheck, ...]
+    comparisons: tuple[Comparison, ...]
+    references: tuple[ReferenceDataset, ...] = ()
+    protocol_text: str = ""
+    notes: tuple[str, ...] = field(default=())
+
+    def configuration(self, key: int) -> Configuration | None:
+        """The configuration with matrix key `key`, or None if the archive has none."""
+        for cfg in self.configurations:
+            if cfg.key == key:
+                return cfg
+        return None
+
+    def comparison(self, name: str) -> Comparison | None:
+        """The comparison called `name`, or None."""
+        for comp in self.comparisons:
+            if comp.name == name:
+                return comp
+        return None
