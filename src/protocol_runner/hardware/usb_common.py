@@ -1,0 +1,280 @@
+"""What the USB drivers share: the error types (all exit status 3), pyusb error mapping, device lookup,
+interface claiming, and a real monotonic clock.
+
+Every USB failure reaches the user as a `protocol_runner.errors.HardwareUnavailable` subclass whose
+message names the board and says what to do about it. The libusb backend reports failures as
+`usb.core.USBError` with an `errno`; the numbers below are the Linux ones libusb maps to:
+
+=====  ===============================  ==========================
+errno  libusb meaning                   error raised here
+=====  ===============================  ==========================
+13     LIBUSB_ERROR_ACCESS              `BoardPermissionDenied`
+16     LIBUSB_ERROR_BUSY                `BoardBusy`
+19     LIBUSB_ERROR_NO_DEVICE           `DeviceGone`
+110    LIBUSB_ERROR_TIMEOUT             `BoardTimeout`
+other  anything else                    `BoardIoError`
+=====  ===============================  ==========================
+"""
+
+from __future__ import annotations
+
+import errno as errno_codes
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, TypeVar
+
+import usb.core
+import usb.util
+
+from protocol_runner.errors import HardwareUnavailable
+
+UDEV_RULE_FILENAME = "60-protocol-runner-daq.rules"
+"""The udev rule shipped in `packaging/udev/` that lets a non-root user open the boards."""
+
+UDEV_INSTALL_HINT = (
+    f"install the udev rule: sudo cp packaging/udev/{UDEV_RULE_FILENAME} /etc/udev/rules.d/ && "
+    "sudo udevadm control --reload-rules && sudo udevadm trigger, then unplug and replug the board "
+    "(see docs/hardware.md)"
+)
+
+DRY_RUN_HINT = "use --dry-run to rehearse without the rig"
+
+MCC_VENDOR_ID = 0x09DB
+"""Measurement Computing's USB vendor id (USB-3105, USB-1608FS-Plus)."""
+
+DT_VENDOR_ID = 0x0867
+"""Data Translation's USB vendor id (DT9814)."""
+
+
+# --------------------------------------------------------------------------------------------------------
+# Errors (all HardwareUnavailable: exit 3)
+# --------------------------------------------------------------------------------------------------------
+
+
+class BoardNotFound(HardwareUnavailable):
+    """No board with the wanted vendor/product id (and serial) is attached."""
+
+
+class BoardBusy(HardwareUnavailable):
+    """Another program (or another protocol-runner) holds the board's interface (errno 16)."""
+
+
+class BoardPermissionDenied(HardwareUnavailable):
+    """The operating system refused access to the board: the udev rule is missing (errno 13)."""
+
+
+class BoardTimeout(HardwareUnavailable):
+    """The board did not answer in time (errno 110)."""
+
+
+class DeviceGone(HardwareUnavailable):
+    """The board disappeared (unplugged, powered off, re-enumerated) while in use (errno 19).
+
+    The session catches this to mark the running trial failed and park the joint.
+    """
+
+
+class BoardIoError(HardwareUnavailable):
+    """Any other USB failure."""
+
+
+class UnexpectedReply(HardwareUnavailable):
+    """The board answered with bytes that do not match the command sent (protocol mismatch)."""
+
+
+class ScanOverrun(HardwareUnavailable):
+    """The input board's FIFO overflowed because the host did not read the scan data fast enough."""
+
+
+class NoUsbBackend(HardwareUnavailable):
+    """pyusb found no libusb library on this computer."""
+
+
+# --------------------------------------------------------------------------------------------------------
+# Error mapping
+# --------------------------------------------------------------------------------------------------------
+
+
+def map_usb_error(exc: BaseException, board: str, action: str) -> HardwareUnavailable:
+    """Translate a pyusb exception met while doing `action` on `board` into a clear `HardwareUnavailable`.
+
+    `board` is a human name such as ``"USB-3105 serial 01ABCDEF"``; `action` says what was being done
+    (``"claiming the interface"``). The original exception is kept as ``__cause__`` by the callers
+    (``raise map_usb_error(e, ...) from e``).
+    """
+    if isinstance(exc, HardwareUnavailable):
+        return exc
+    code = getattr(exc, "errno", None)
+    if isinstance(exc, usb.core.USBTimeoutError) or code == errno_codes.ETIMEDOUT:
+        return BoardTimeout(
+            f"{board} did not answer in time while {action} (USB timeout). Check the cable and the "
+            "board's power; unplug and replug it, then retry."
+        )
+    if code == errno_codes.EACCES:
+        return BoardPermissionDenied(
+            f"permission denied while {action} on the {board}: this user may not open the board. "
+            f"To fix it, {UDEV_INSTALL_HINT}."
+        )
+    if code == errno_codes.EBUSY:
+        return BoardBusy(
+            f"the {board} is busy while {action}: another program (or another protocol-runner) is "
+            "using it. Close that program, or unplug and replug the board, then retry."
+        )
+    if code == errno_codes.ENODEV:
+        return DeviceGone(
+            f"the {board} disappeared while {action} (unplugged or powered off). Reconnect it; the "
+            "running trial is marked failed and can be redone by resuming the session."
+        )
+    return BoardIoError(f"USB error while {action} on the {board}: {exc}. Unplug and replug the board.")
+
+
+T = TypeVar("T")
+
+
+def usb_call(board: str, action: str, fn: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+    """Run one pyusb call, mapping its failures with `map_usb_error`."""
+    try:
+        return fn(*args, **kwargs)
+    except usb.core.USBError as exc:
+        raise map_usb_error(exc, board, action) from exc
+
+
+# --------------------------------------------------------------------------------------------------------
+# Finding and claiming devices
+# --------------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class FoundDevice:
+    """A matching USB device and its serial number (None when it could not be read)."""
+
+    device: usb.core.Device
+    serial: str | None
+
+
+def find_devices(
+    vendor_id: int, product_id: int | None, backend: Any | None, board_kind: str
+) -> list[usb.core.Device]:
+    """Every attached device with the given ids (`product_id` None: any product of the vendor).
+
+    Raises `NoUsbBackend` when pyusb finds no libusb library.
+    """
+    criteria: dict[str, int] = {"idVendor": vendor_id}
+    if product_id is not None:
+        criteria["idProduct"] = product_id
+    try:
+        return list(usb.core.find(find_all=True, backend=backend, **criteria))
+    except usb.core.NoBackendError as exc:
+        raise NoUsbBackend(
+            f"cannot look for the {board_kind}: no libusb library was found on this computer. "
+            "Install libusb-1.0 (e.g. `sudo apt install libusb-1.0-0`), or "
+            f"{DRY_RUN_HINT}."
+        ) from exc
+    except usb.core.USBError as exc:
+        raise map_usb_error(exc, board_kind, "listing USB devices") from exc
+
+
+def read_serial(device: usb.core.Device, board_kind: str) -> str:
+    """The board's serial number string (the USB iSerialNumber descriptor), errors mapped."""
+    try:
+        serial = usb_call(board_kind, "reading the serial number", lambda: device.serial_number)
+    except ValueError as exc:
+        # pyusb reports "no langid" when it could not open the device to read the string descriptors:
+        # with libusb that is a permission problem (the open failed with errno 13).
+        raise BoardPermissionDenied(
+            f"cannot read the {board_kind}'s serial number: this user may not open the board. "
+            f"To fix it, {UDEV_INSTALL_HINT}."
+        ) from exc
+    return (serial or "").strip("\x00 ")
+
+
+def select_device(
+    devices: list[usb.core.Device],
+    serial: str | None,
+    board_kind: str,
+    ids: str,
+    serial_reader: Callable[[usb.core.Device], str] | None = None,
+) -> FoundDevice:
+    """Pick the device with `serial` (or the first one when `serial` is None); clear error otherwise.
+
+    `ids` is the id text for the not-found message, e.g. ``"VID 0x09DB PID 0x009E"``.
+    `serial_reader` reads a device's serial (default: the USB string descriptor).
+    """
+    reader = serial_reader or (lambda d: read_serial(d, board_kind))
+    if not devices:
+        raise BoardNotFound(f"no {board_kind} found ({ids}); is it plugged in? {DRY_RUN_HINT}")
+    if serial is None:
+        return FoundDevice(devices[0], None)
+    seen: list[str] = []
+    for dev in devices:
+        found = reader(dev)
+        if found == serial:
+            return FoundDevice(dev, found)
+        seen.append(found)
+    raise BoardNotFound(
+        f"no {board_kind} with serial {serial!r} found ({ids}); attached: "
+        f"{', '.join(repr(s) for s in seen)}. Check the serial in the protocol file, or {DRY_RUN_HINT}"
+    )
+
+
+def claim_interface(device: usb.core.Device, interface: int, board: str) -> bool:
+    """Detach the kernel driver (usbhid for the HID boards) if it holds `interface`, then claim it.
+
+    Returns True when a kernel driver was detached. Errors are mapped (busy, permission, gone).
+    """
+    detached = False
+    try:
+        active = bool(device.is_kernel_driver_active(interface))
+    except NotImplementedError:  # backends without the call (e.g. on some platforms)
+        active = False
+    except usb.core.USBError as exc:
+        raise map_usb_error(exc, board, "checking for a kernel driver") from exc
+    if active:
+        usb_call(board, "detaching the kernel driver", device.detach_kernel_driver, interface)
+        detached = True
+    usb_call(board, "claiming the USB interface", usb.util.claim_interface, device, interface)
+    return detached
+
+
+def release_device(device: usb.core.Device, interface: int) -> None:
+    """Release `interface` and free pyusb's resources; never raises (used on close and error paths)."""
+    try:
+        usb.util.release_interface(device, interface)
+    except (usb.core.USBError, ValueError):
+        pass
+    try:
+        usb.util.dispose_resources(device)
+    except (usb.core.USBError, ValueError):
+        pass
+
+
+def bcd_to_text(bcd: int) -> str:
+    """USB bcdDevice (binary-coded decimal major.minor) as text: 0x0102 -> ``"1.02"``."""
+    return f"{(bcd >> 8) & 0xFF:x}.{bcd & 0xFF:02x}"
+
+
+# --------------------------------------------------------------------------------------------------------
+# Real clock
+# --------------------------------------------------------------------------------------------------------
+
+
+class MonotonicClock:
+    """The real clock for hardware runs (satisfies `interfaces.Clock`): `time.monotonic` seconds.
+
+    `sleep_until` sleeps in the kernel until `spin_s` before the deadline, then polls the clock, which
+    keeps tick lateness well under a millisecond at the cost of a short busy wait per tick.
+    """
+
+    def __init__(self, spin_s: float = 0.0005) -> None:
+        self.spin_s = spin_s
+
+    def now_s(self) -> float:
+        return time.monotonic()
+
+    def sleep_until(self, t_s: float) -> None:
+        remaining = t_s - time.monotonic()
+        if remaining > self.spin_s:
+            time.sleep(remaining - self.spin_s)
+        while time.monotonic() < t_s:
+            pass
