@@ -1,0 +1,98 @@
+"""Identification of complete cycles in a multi-cycle trial (thesis §5.7.1).
+
+The thesis counts crossings between the angle and a linear fit of it: a cycle spans two crossings and
+ends at the third. Here a complete cycle runs from one *upward* crossing of the reference level (the
+trial's mean angle, or its linear trend) to the next upward crossing. Two things make this robust:
+
+- hysteresis (a Schmitt trigger): after an upward crossing, another upward crossing only counts once the
+  angle has gone below `reference - hysteresis` in between, so noise wiggling around the reference never
+  creates extra cycles;
+- only complete cycles are returned: data before the first upward crossing and after the last one (the
+  partial first and last cycles) are left out.
+"""
+
+from __future__ import annotations
+
+import itertools
+from typing import Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal
+
+Reference = Literal["mean", "linear"]
+
+DEFAULT_HYSTERESIS_FRACTION = 0.1
+
+
+def reference_level(angle_deg: npt.ArrayLike, reference: Reference = "mean") -> FloatArray:
+    """The level crossings are counted against: the mean angle, or a least-squares line over the samples."""
+    x = as_signal("angle_deg", angle_deg)
+    if reference == "mean":
+        return np.full_like(x, x.mean())
+    if reference == "linear":
+        k = np.arange(x.shape[0], dtype=np.float64)
+        slope, intercept = np.polyfit(k, x, 1)
+        return np.asarray(intercept + slope * k, dtype=np.float64)
+    raise AnalysisError(f"unknown cycle reference {reference!r}: use 'mean' or 'linear'")
+
+
+def upward_crossings(
+    angle_deg: npt.ArrayLike,
+    *,
+    hysteresis_deg: float | None = None,
+    reference: Reference = "mean",
+) -> npt.NDArray[np.int64]:
+    """Index of the first sample at/above the reference after each hysteresis-qualified upward crossing.
+
+    An upward crossing counts when the angle, having been below `reference - hysteresis_deg`, rises to
+    `reference + hysteresis_deg`; its index is the sample where it last passed the reference itself on the
+    way up. `hysteresis_deg=None` uses 10 % of the angle's robust peak-to-peak range (1st-99th
+    percentile).
+    """
+    x = as_signal("angle_deg", angle_deg)
+    ref = reference_level(x, reference)
+    d = x - ref
+    if hysteresis_deg is None:
+        p1, p99 = np.percentile(x, [1.0, 99.0])
+        hysteresis_deg = DEFAULT_HYSTERESIS_FRACTION * float(p99 - p1)
+    if hysteresis_deg < 0:
+        raise AnalysisError(f"cycle hysteresis must not be negative, got {hysteresis_deg} deg")
+    # Schmitt trigger: state -1 (low) once d < -h, +1 (high) once d > +h (d >= 0 when h = 0).
+    low = d < -hysteresis_deg if hysteresis_deg > 0 else d < 0
+    high = d > hysteresis_deg if hysteresis_deg > 0 else d >= 0
+    event = np.zeros(x.shape[0], dtype=np.int8)
+    event[low] = -1
+    event[high] = 1
+    marks = np.flatnonzero(event)
+    if marks.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    states = event[marks]
+    # state switches: a high mark right after a low mark is an upward crossing
+    switch_up = np.flatnonzero((states[1:] == 1) & (states[:-1] == -1)) + 1
+    found: list[int] = []
+    for m in switch_up.tolist():
+        lo_idx = int(marks[m - 1])
+        hi_idx = int(marks[m])
+        # last sample in (lo_idx, hi_idx] where the angle passed from below the reference to at/above it
+        segment = d[lo_idx : hi_idx + 1]
+        up = np.flatnonzero((segment[1:] >= 0) & (segment[:-1] < 0))
+        found.append(lo_idx + 1 + int(up[-1]))
+    return np.asarray(found, dtype=np.int64)
+
+
+def complete_cycles(
+    angle_deg: npt.ArrayLike,
+    *,
+    hysteresis_deg: float | None = None,
+    reference: Reference = "mean",
+) -> list[tuple[int, int]]:
+    """(start, stop) sample indices of every complete cycle (thesis §5.7.1).
+
+    A complete cycle runs from one upward crossing of the reference to the next (`upward_crossings`);
+    `angle_deg[start:stop + 1]` holds the cycle, both ends at or just above the reference. Partial first
+    and last cycles are not returned.
+    """
+    ups = upward_crossings(angle_deg, hysteresis_deg=hysteresis_deg, reference=reference)
+    return [(int(a), int(b)) for a, b in itertools.pairwise(ups.tolist())]

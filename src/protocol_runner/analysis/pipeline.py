@@ -1,0 +1,351 @@
+"""Processing of one configuration's trials: the thesis's procedure end to end (§3.2-3.3, §4.4, §5.7, §6.1).
+
+For each trial pair (the brace-on recording and its brace-off counterpart):
+
+1. bring the command onto the input time base (`transition.command_on_input_base`) if it has its own;
+2. cut the start-up transition of each recording (§3.3.1, `transition.remove_transition`);
+3. low-pass filter angle and torque, zero phase (§3.2, §4.4, `filters`);
+4. subtract the robot's torque at equal angles on the same branch (§3.3, §5.6, `subtraction`), or at
+   equal times if the settings ask for the (wrong, §5.6) comparison method;
+5. energy lost per complete cycle (§5.7, Eq 10-12, `energy`), and the trial's centred loop (§6.2.3 note,
+   `centring`) for the Bouc-Wen fit, which the caller runs (`models.bouc_wen`).
+
+Then, over all trials: every cycle's energy in trial order, their summary, and the spring model fit
+(§6.1, `spring_fit`) when the configuration's spring is given. `process_configuration` is a pure function:
+arrays in, dataclasses of arrays out; it reads and writes nothing.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field
+from typing import Any, Literal
+
+import numpy as np
+import numpy.typing as npt
+
+from protocol_runner.analysis.branches import Outside
+from protocol_runner.analysis.centring import CentredLoop, centre
+from protocol_runner.analysis.cycles import Reference
+from protocol_runner.analysis.energy import EnergySummary, energy_per_cycle, summarize_energy
+from protocol_runner.analysis.filters import FILTER_KINDS, FilterKind, design_lowpass, filter_zero_phase
+from protocol_runner.analysis.spring_fit import FitTarget, SpringFit, fit_spring_model
+from protocol_runner.analysis.subtraction import robot_torque_at_equal_angle, subtract_equal_time
+from protocol_runner.analysis.transition import (
+    Resampling,
+    TrialSegment,
+    command_on_input_base,
+    remove_transition,
+)
+from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal, same_length
+from protocol_runner.errors import InvalidInput
+
+Subtraction = Literal["equal_angle", "equal_time"]
+Centring = Literal["trial_mean", "none"]
+
+
+@dataclass(frozen=True)
+class Recording:
+    """One trial's recorded data, as archived under `trials/<n>/brace_on` or `brace_off`.
+
+    `time_s`, `angle_deg`, `torque_nm` are on the input time base (1 kHz). `command_deg` is either on that
+    same time base (`command_time_s=None`) or on its own output ticks `command_time_s` (100 Hz).
+    """
+
+    time_s: FloatArray
+    angle_deg: FloatArray
+    torque_nm: FloatArray
+    command_deg: FloatArray
+    command_time_s: FloatArray | None = None
+
+
+@dataclass(frozen=True)
+class TrialPair:
+    """A brace-on trial and the brace-off trial run for it (same configuration, same trial number)."""
+
+    brace_on: Recording
+    brace_off: Recording
+    trial: int = 1
+
+
+@dataclass(frozen=True)
+class ProcessingSettings:
+    """Every choice of the processing, with the thesis's values as defaults (§3.2, §3.3.1, §4.4).
+
+    filter_cutoff is a fraction of the Nyquist frequency (thesis: 0.1); chebyshev_ripple_db is used only
+    with filter_kind="chebyshev". bin_width_deg and reversal_deg tune the equal-angle subtraction's
+    per-branch curves; outside says what brace-on angles beyond the brace-off range get ("clip" = the
+    nearest covered angle's torque). cycle_hysteresis_deg=None uses 10 % of the angle range.
+    """
+
+    transition_tolerance_deg: float = 5.0
+    transition_points: int = 3
+    command_resampling: Resampling = "hold"
+    filter_kind: FilterKind = "butterworth"
+    filter_order: int = 10
+    filter_cutoff: float = 0.1
+    chebyshev_ripple_db: float = 0.5
+    subtraction: Subtraction = "equal_angle"
+    bin_width_deg: float = 0.5
+    reversal_deg: float = 1.0
+    outside: Outside = "clip"
+    cycle_reference: Reference = "mean"
+    cycle_hysteresis_deg: float | None = None
+    centring: Centring = "trial_mean"
+    spring_fit_target: FitTarget = "branch_mean"
+
+    def __post_init__(self) -> None:
+        def bad(field_name: str, why: str) -> InvalidInput:
+            return InvalidInput(f"processing settings: {field_name} {why}, got {getattr(self, field_name)!r}")
+
+        if not self.transition_tolerance_deg > 0:
+            raise bad("transition_tolerance_deg", "must be positive")
+        if isinstance(self.transition_points, bool) or self.transition_points < 1:
+            raise bad("transition_points", "must be a whole number >= 1")
+        if self.command_resampling not in ("hold", "linear"):
+            raise bad("command_resampling", "must be 'hold' or 'linear'")
+        if self.filter_kind not in FILTER_KINDS:
+            raise bad("filter_kind", f"must be one of {', '.join(FILTER_KINDS)}")
+        if (
+            isinstance(self.filter_order, bool)
+            or int(self.filter_order) != self.filter_order
+            or self.filter_order < 1
+        ):
+            raise bad("filter_order", "must be a whole number >= 1")
+        if not 0 < self.filter_cutoff < 1:
+            raise bad("filter_cutoff", "must be a fraction of the Nyquist frequency strictly between 0 and 1")
+        if not self.chebyshev_ripple_db > 0:
+            raise bad("chebyshev_ripple_db", "must be positive")
+        if self.subtraction not in ("equal_angle", "equal_time"):
+            raise bad("subtraction", "must be 'equal_angle' or 'equal_time'")
+        if not self.bin_width_deg > 0:
+            raise bad("bin_width_deg", "must be positive")
+        if not self.reversal_deg > 0:
+            raise bad("reversal_deg", "must be positive")
+        if self.outside not in ("clip", "nan"):
+            raise bad("outside", "must be 'clip' or 'nan'")
+        if self.cycle_reference not in ("mean", "linear"):
+            raise bad("cycle_reference", "must be 'mean' or 'linear'")
+        if self.cycle_hysteresis_deg is not None and not self.cycle_hysteresis_deg >= 0:
+            raise bad("cycle_hysteresis_deg", "must be >= 0 (or None for automatic)")
+        if self.centring not in ("trial_mean", "none"):
+            raise bad("centring", "must be 'trial_mean' or 'none'")
+        if self.spring_fit_target not in ("branch_mean", "all_samples"):
+            raise bad("spring_fit_target", "must be 'branch_mean' or 'all_samples'")
+
+    def filter_description(self) -> dict[str, Any]:
+        """The filter settings as a plain dict (for the archive's `filter` JSON attribute)."""
+        out: dict[str, Any] = {
+            "kind": self.filter_kind,
+            "order": self.filter_order,
+            "cutoff": self.filter_cutoff,
+        }
+        if self.filter_kind == "chebyshev":
+            out["ripple_db"] = self.chebyshev_ripple_db
+        out["zero_phase"] = True
+        return out
+
+    def as_dict(self) -> dict[str, Any]:
+        """All settings as a plain dict (JSON-serialisable)."""
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class ProcessedTrial:
+    """One trial after processing (the archive's `trials/<n>/processed`)."""
+
+    trial: int
+    time_s: FloatArray  # brace-on input times from its transition point on
+    angle_deg: FloatArray  # filtered brace-on angle
+    brace_torque_nm: FloatArray  # filtered brace-on torque minus the robot's torque (equal angle/time)
+    robot_torque_nm: FloatArray  # the brace-off torque that was subtracted, per sample
+    transition_index_on: int
+    transition_index_off: int
+    coverage: float  # fraction of samples whose angle the brace-off branch curves covered (1.0 equal-time)
+    energy_j: FloatArray  # energy lost per complete cycle of this trial
+    centred: CentredLoop  # the loop centred per trial (§6.2.3), or uncentred when centring="none"
+
+
+@dataclass(frozen=True)
+class ConfigurationResult:
+    """Everything `process_configuration` produces for one configuration."""
+
+    trials: tuple[ProcessedTrial, ...]
+    energy_loss_j: FloatArray  # one value per complete cycle over all trials, in trial order
+    energy_cycle_trial: npt.NDArray[np.int64]  # the trial number of each energy_loss_j value
+    energy: EnergySummary
+    spring: SpringFit | None  # None when the configuration's spring was not given
+    settings: ProcessingSettings = field(repr=False)
+
+    @property
+    def centred_segments(self) -> tuple[tuple[FloatArray, FloatArray], ...]:
+        """(angle_deg, torque_nm) of each trial's centred loop, in trial order: the Bouc-Wen fit's input."""
+        return tuple((t.centred.angle_deg, t.centred.torque_nm) for t in self.trials)
+
+
+def _segment(rec: Recording, settings: ProcessingSettings, label: str) -> TrialSegment:
+    t = as_signal(f"{label} time_s", rec.time_s)
+    angle = as_signal(f"{label} angle_deg", rec.angle_deg)
+    torque = as_signal(f"{label} torque_nm", rec.torque_nm)
+    same_length(**{f"{label}_time_s": t, f"{label}_angle_deg": angle, f"{label}_torque_nm": torque})
+    if rec.command_time_s is None:
+        command = as_signal(f"{label} command_deg", rec.command_deg)
+        same_length(**{f"{label}_time_s": t, f"{label}_command_deg": command})
+    else:
+        command = command_on_input_base(rec.command_time_s, rec.command_deg, t, settings.command_resampling)
+    try:
+        return remove_transition(
+            t,
+            command,
+            angle,
+            torque,
+            tolerance_deg=settings.transition_tolerance_deg,
+            points=settings.transition_points,
+        )
+    except AnalysisError as exc:
+        raise AnalysisError(f"{label}: {exc.message}") from None
+
+
+def process_trial(pair: TrialPair, settings: ProcessingSettings) -> ProcessedTrial:
+    """Steps 1-5 of the module docstring for one trial pair."""
+    on = _segment(pair.brace_on, settings, f"trial {pair.trial} brace-on")
+    off = _segment(pair.brace_off, settings, f"trial {pair.trial} brace-off")
+    sos = design_lowpass(
+        settings.filter_kind, settings.filter_order, settings.filter_cutoff, settings.chebyshev_ripple_db
+    )
+    angle_on = filter_zero_phase(on.angle_deg, sos, name=f"trial {pair.trial} brace-on angle_deg")
+    torque_on = filter_zero_phase(on.torque_nm, sos, name=f"trial {pair.trial} brace-on torque_nm")
+    angle_off = filter_zero_phase(off.angle_deg, sos, name=f"trial {pair.trial} brace-off angle_deg")
+    torque_off = filter_zero_phase(off.torque_nm, sos, name=f"trial {pair.trial} brace-off torque_nm")
+    if settings.subtraction == "equal_angle":
+        try:
+            robot, covered = robot_torque_at_equal_angle(
+                angle_on,
+                angle_off,
+                torque_off,
+                bin_width_deg=settings.bin_width_deg,
+                reversal_deg=settings.reversal_deg,
+                outside=settings.outside,
+            )
+        except AnalysisError as exc:
+            raise AnalysisError(f"trial {pair.trial} brace-off: {exc.message}") from None
+        coverage = float(np.mean(covered))
+    else:
+        robot = torque_on - subtract_equal_time(on.time_s, torque_on, off.time_s, torque_off)
+        coverage = 1.0
+    brace = torque_on - robot
+    finite = np.isfinite(brace)
+    if np.all(finite):
+        energy = energy_per_cycle(
+            angle_on, brace, hysteresis_deg=settings.cycle_hysteresis_deg, reference=settings.cycle_reference
+        )
+        loop = (
+            centre(angle_on, brace)
+            if settings.centring == "trial_mean"
+            else CentredLoop(angle_on, brace, 0.0, 0.0)
+        )
+    else:
+        # outside="nan": only complete cycles inside stretches where the brace torque is defined count.
+        energy = _energy_of_covered(angle_on, brace, settings)
+        kept = centre(angle_on[finite], brace[finite])
+        loop = (
+            kept
+            if settings.centring == "trial_mean"
+            else CentredLoop(angle_on[finite], brace[finite], 0.0, 0.0)
+        )
+    return ProcessedTrial(
+        trial=pair.trial,
+        time_s=on.time_s,
+        angle_deg=angle_on,
+        brace_torque_nm=brace,
+        robot_torque_nm=robot,
+        transition_index_on=on.start_index,
+        transition_index_off=off.start_index,
+        coverage=coverage,
+        energy_j=energy,
+        centred=loop,
+    )
+
+
+def _energy_of_covered(angle: FloatArray, brace: FloatArray, settings: ProcessingSettings) -> FloatArray:
+    """Energy of the complete cycles lying wholly in stretches where the brace torque is defined."""
+    finite = np.isfinite(brace)
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], finite.astype(np.int8), [0]))))
+    parts: list[FloatArray] = []
+    for start, stop in zip(edges[0::2], edges[1::2], strict=True):
+        if stop - start >= 3:
+            parts.append(
+                energy_per_cycle(
+                    angle[start:stop],
+                    brace[start:stop],
+                    hysteresis_deg=settings.cycle_hysteresis_deg,
+                    reference=settings.cycle_reference,
+                )
+            )
+    return np.concatenate(parts) if parts else np.zeros(0, dtype=np.float64)
+
+
+def process_configuration(
+    trials: Sequence[TrialPair],
+    settings: ProcessingSettings | None = None,
+    *,
+    stiffness_n_per_mm: float | None = None,
+    preload_position: int | None = None,
+) -> ConfigurationResult:
+    """Process every trial pair of one configuration and pool the results (thesis §3-§6.1).
+
+    Returns per-trial processed loops (`trials[i].angle_deg`, `.brace_torque_nm`: the archive's
+    `trials/<n>/processed`), `energy_loss_j` (every complete cycle of every trial, in trial order, with
+    `energy_cycle_trial`), its summary, each trial's centred loop (`centred_segments`, for the Bouc-Wen
+    fit the caller runs), and the spring model fit when `stiffness_n_per_mm` and `preload_position` are
+    given (K0 gives a "not applicable" fit; a fit the data cannot support is also "not applicable", with
+    the reason). Raises `AnalysisError` (an `InvalidInput`) naming the trial when a step cannot be done.
+    """
+    settings = settings if settings is not None else ProcessingSettings()
+    if not trials:
+        raise AnalysisError("a configuration needs at least one trial pair to process")
+    numbers = [p.trial for p in trials]
+    if len(set(numbers)) != len(numbers):
+        raise AnalysisError(f"trial numbers must be distinct, got {numbers}")
+    processed = tuple(process_trial(pair, settings) for pair in trials)
+    energy = np.concatenate([t.energy_j for t in processed])
+    cycle_trial = np.concatenate([np.full(t.energy_j.shape[0], t.trial, dtype=np.int64) for t in processed])
+    spring: SpringFit | None = None
+    if stiffness_n_per_mm is not None and preload_position is not None:
+        angle_all = np.concatenate([t.angle_deg for t in processed])
+        brace_all = np.concatenate([t.brace_torque_nm for t in processed])
+        keep = np.isfinite(brace_all)
+        try:
+            spring = fit_spring_model(
+                angle_all[keep],
+                brace_all[keep],
+                stiffness_n_per_mm,
+                preload_position,
+                target=settings.spring_fit_target,
+                reversal_deg=settings.reversal_deg,
+            )
+        except AnalysisError as exc:
+            nan = float("nan")
+            empty = np.zeros(0, dtype=np.float64)
+            spring = SpringFit(
+                applicable=False,
+                reason=f"not applicable: {exc.message}",
+                max_preload_mm=nan,
+                zero_offset_deg=nan,
+                rmse_nm=nan,
+                rmse_all_samples_nm=nan,
+                stiffness_n_per_mm=float(stiffness_n_per_mm),
+                preload_position=int(preload_position),
+                target=settings.spring_fit_target,
+                curve_angle_deg=empty,
+                curve_torque_nm=empty,
+                model_torque_nm=empty,
+            )
+    return ConfigurationResult(
+        trials=processed,
+        energy_loss_j=energy,
+        energy_cycle_trial=cycle_trial,
+        energy=summarize_energy(energy),
+        spring=spring,
+        settings=settings,
+    )

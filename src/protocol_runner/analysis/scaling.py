@@ -1,0 +1,181 @@
+"""Brace-off input scaling (thesis §3.3.2, Eq 8, and a replacement for the lost Eq 9).
+
+To compare torques at the same angles, the brace-off trial should sweep the same output angles as the
+brace-on trial. Its input is therefore rescaled so that its output range matches the brace-on output
+range. Eq 8 gives the scale:
+
+    Scale = (Max_angle_with_joint - Min_angle_with_joint)
+            / (Max_angle_without_joint - Min_angle_without_joint)
+
+and the thesis found the new brace-off input "by the following iterative procedure" (Eq 9), whose text is
+lost; only its note survives ("index 0 corresponds to the transition point"). The procedure here:
+
+Write the input as an affine image of the original trajectory u(t) (the first brace-off input):
+input_k(t) = c_k + s_k · (u(t) - c_u) with c_u the mid-range of u, s_0 = 1, c_0 = c_u. Each iteration runs
+the robot with input_k, cuts the transition (§3.3.1: index 0 is the transition point), and measures the
+output range [m_k, M_k]. With the brace-on target range [m*, M*]:
+
+    scale_k   = (M* - m*) / (M_k - m_k)                          (Eq 8, on the current brace-off output)
+    s_{k+1}   = s_k · scale_k                                    (amplitude correction)
+    c_{k+1}   = c_k + ((M* + m*) - (M_k + m_k)) / 2              (mid-range correction)
+
+until both ends of the output range are within `tolerance_deg` of the target (error
+max(|M_k - M*|, |m_k - m*|)) or `max_iterations` runs were made. For a plant that is affine in amplitude
+and offset (a linear lag plus gain and offset) one correction is exact; a saturating plant needs a few.
+The input is kept inside `input_limits_deg` (the joint's safety range) by clipping; a target that cannot
+be reached inside it ends without convergence (`converged=False`), and the best iteration is returned.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+import numpy.typing as npt
+
+from protocol_runner.analysis.transition import transition_index
+from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal, same_length
+
+
+def range_scale(angle_on_deg: npt.ArrayLike, angle_off_deg: npt.ArrayLike) -> float:
+    """Eq 8: brace-on output range divided by brace-off output range (both from the transition point on)."""
+    on = as_signal("angle_on_deg", angle_on_deg)
+    off = as_signal("angle_off_deg", angle_off_deg)
+    span_off = float(off.max() - off.min())
+    if span_off <= 0:
+        raise AnalysisError("brace-off angle does not move: its range is zero, the Eq 8 scale is undefined")
+    return float(on.max() - on.min()) / span_off
+
+
+@dataclass(frozen=True)
+class ScalingIteration:
+    """One brace-off run of the scaling procedure."""
+
+    iteration: int  # 0 = the unscaled input
+    input_range_deg: tuple[float, float]  # (min, max) of the input that was run
+    output_range_deg: tuple[float, float]  # (min, max) of its output from the transition point on
+    scale: float  # Eq 8 scale of this output against the target
+    range_error_deg: float  # max(|out_min - target_min|, |out_max - target_max|)
+    transition_index: int
+
+
+@dataclass(frozen=True)
+class ScalingResult:
+    """Outcome of `scale_brace_off_input`: the input to use, its output, and every iteration."""
+
+    input_deg: FloatArray  # the input of the best iteration (smallest range error)
+    output_deg: FloatArray  # what `run` returned for it
+    converged: bool
+    history: tuple[ScalingIteration, ...]
+    target_range_deg: tuple[float, float]
+
+    @property
+    def best(self) -> ScalingIteration:
+        return min(self.history, key=lambda it: it.range_error_deg)
+
+
+def scale_brace_off_input(
+    input_deg: npt.ArrayLike,
+    target_range_deg: tuple[float, float],
+    run: Callable[[FloatArray], FloatArray],
+    *,
+    tolerance_deg: float = 1.0,
+    max_iterations: int = 6,
+    transition_tolerance_deg: float = 5.0,
+    transition_points: int = 3,
+    input_limits_deg: tuple[float, float] | None = None,
+) -> ScalingResult:
+    """Iterate the brace-off input until its output range matches the brace-on output range (§3.3.2).
+
+    `run(input_deg)` runs the robot without the brace and returns the measured angle on the same time
+    base as `input_deg` (one value per input sample; see `rig_runner` for a rig). `target_range_deg` is
+    (min, max) of the brace-on output from its transition point on. The output range of each run is
+    measured from its own transition point (`transition_index` against that run's input). Up to
+    `max_iterations` runs are made (the first with `input_deg` unchanged); see the module docstring for
+    the update rule (Eq 8 applied to amplitude, plus a mid-range correction). Returns the input of the
+    best run, whether it met `tolerance_deg`, and the history.
+    """
+    u = as_signal("input_deg", input_deg, min_length=2)
+    lo_t, hi_t = float(target_range_deg[0]), float(target_range_deg[1])
+    if not (np.isfinite(lo_t) and np.isfinite(hi_t) and hi_t > lo_t):
+        raise AnalysisError(f"target range must be (min, max) with max > min, got {target_range_deg}")
+    if not tolerance_deg > 0:
+        raise AnalysisError(f"scaling tolerance must be positive, got {tolerance_deg} deg")
+    if max_iterations < 1:
+        raise AnalysisError(f"scaling needs at least one iteration, got {max_iterations}")
+    if input_limits_deg is not None and not input_limits_deg[1] > input_limits_deg[0]:
+        raise AnalysisError(f"input limits must be (min, max) with max > min, got {input_limits_deg}")
+    u_mid = 0.5 * float(u.max() + u.min())
+    if not float(u.max() - u.min()) > 0:
+        raise AnalysisError("input_deg does not move: a constant trajectory cannot be scaled")
+    shape = u - u_mid
+    centre, amplitude = u_mid, 1.0
+    history: list[ScalingIteration] = []
+    runs: list[tuple[FloatArray, FloatArray]] = []
+    converged = False
+    for k in range(max_iterations):
+        trial_input = centre + amplitude * shape
+        if input_limits_deg is not None:
+            trial_input = np.clip(trial_input, input_limits_deg[0], input_limits_deg[1])
+        measured = as_signal("measured angle returned by run()", run(trial_input.copy()))
+        same_length(input_deg=trial_input, measured_deg=measured)
+        start = transition_index(trial_input, measured, transition_tolerance_deg, transition_points)
+        out = measured[start:]
+        lo_k, hi_k = float(out.min()), float(out.max())
+        span_k = hi_k - lo_k
+        if not span_k > 0:
+            raise AnalysisError(
+                f"scaling iteration {k}: the brace-off output does not move after the transition"
+            )
+        scale = (hi_t - lo_t) / span_k
+        error = max(abs(lo_k - lo_t), abs(hi_k - hi_t))
+        history.append(
+            ScalingIteration(
+                iteration=k,
+                input_range_deg=(float(trial_input.min()), float(trial_input.max())),
+                output_range_deg=(lo_k, hi_k),
+                scale=scale,
+                range_error_deg=error,
+                transition_index=start,
+            )
+        )
+        runs.append((trial_input, measured))
+        if error <= tolerance_deg:
+            converged = True
+            break
+        amplitude *= scale
+        centre += 0.5 * ((hi_t + lo_t) - (hi_k + lo_k))
+    best = min(range(len(history)), key=lambda i: history[i].range_error_deg)
+    return ScalingResult(
+        input_deg=runs[best][0],
+        output_deg=runs[best][1],
+        converged=converged,
+        history=tuple(history),
+        target_range_deg=(lo_t, hi_t),
+    )
+
+
+class _RecordingLike(Protocol):
+    command_time_s: FloatArray
+    input_time_s: FloatArray
+    angle_deg: FloatArray
+
+
+def rig_runner(run_trajectory: Callable[[FloatArray], _RecordingLike]) -> Callable[[FloatArray], FloatArray]:
+    """Adapt a rig (`lambda cmd: rig.run_trajectory(cmd, where=...)`) to the `run` of `scale_brace_off_input`.
+
+    The recording's 1 kHz angle is brought onto the 100 Hz command ticks by linear interpolation, so the
+    returned angle has one value per commanded sample.
+    """
+
+    def run(input_deg: FloatArray) -> FloatArray:
+        rec = run_trajectory(input_deg)
+        return np.interp(
+            np.asarray(rec.command_time_s, dtype=np.float64),
+            np.asarray(rec.input_time_s, dtype=np.float64),
+            np.asarray(rec.angle_deg, dtype=np.float64),
+        )
+
+    return run

@@ -1,0 +1,51 @@
+"""Input checks shared by the analysis functions, and the error they raise.
+
+Analysis runs on archived data with settings from the protocol file; when the two do not fit (a trial
+shorter than the filter's padding, a transition that is never reached, a brace-off trial without a
+loading branch, ...) the user gets an `AnalysisError` naming the quantity and the reason, never a
+traceback. `AnalysisError` is an `InvalidInput` (exit status 2): the archive or the settings are wrong for
+the requested processing.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import numpy.typing as npt
+
+from protocol_runner.errors import InvalidInput
+
+FloatArray = npt.NDArray[np.float64]
+
+
+class AnalysisError(InvalidInput):
+    """The data or the processing settings do not allow the requested analysis step."""
+
+
+def as_signal(
+    name: str, values: npt.ArrayLike, *, min_length: int = 1, allow_nan: bool = False
+) -> FloatArray:
+    """Return `values` as a 1-D float64 array, or raise `AnalysisError` naming `name`.
+
+    Checks: one dimension, at least `min_length` samples, and (unless `allow_nan`) only finite values.
+    """
+    try:
+        array = np.asarray(values, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise AnalysisError(f"{name}: expected numbers, got {type(values).__name__} ({exc})") from None
+    if array.ndim != 1:
+        raise AnalysisError(f"{name}: expected a 1-D array of samples, got shape {array.shape}")
+    if array.shape[0] < min_length:
+        raise AnalysisError(f"{name}: needs at least {min_length} samples, got {array.shape[0]}")
+    if not allow_nan and not np.all(np.isfinite(array)):
+        bad = int(np.flatnonzero(~np.isfinite(array))[0])
+        raise AnalysisError(f"{name}: sample {bad} is not a finite number ({array[bad]})")
+    return array
+
+
+def same_length(**signals: FloatArray) -> int:
+    """Return the common length of the named signals, or raise `AnalysisError` listing the lengths."""
+    lengths = {name: int(s.shape[0]) for name, s in signals.items()}
+    if len(set(lengths.values())) > 1:
+        detail = ", ".join(f"{name}={n}" for name, n in lengths.items())
+        raise AnalysisError(f"signals must have the same number of samples: {detail}")
+    return next(iter(lengths.values()))
