@@ -1,0 +1,197 @@
+"""`run-protocol`: argument parsing and exit codes only; the work happens in the modules it calls.
+
+Exit status (DESIGN.md): 0 done; 2 invalid input; 3 hardware unavailable; 4 stopped by a safety or
+calibration check; 130 interrupted (resumable).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from . import __version__
+from .errors import EXIT_INTERRUPTED, EXIT_INVALID_INPUT, EXIT_OK, InvalidInput, UserError
+
+DESCRIPTION = """\
+Run a declarative test protocol for space-suit joint testing on the RSST robot.
+
+modes:
+  run-protocol PROTOCOL [--dry-run] [--session DIR] [--seed N] [--yes] [--only KEYS]
+      run a campaign; --dry-run rehearses it against the DAQ simulator in simulated time
+  run-protocol --resume SESSION_DIR [--yes]
+      continue an interrupted session without redoing finished steps
+  run-protocol --report SESSION_DIR|ARCHIVE.h5 [--output FILE] [--reprocess] [--export-mat DIR]
+      (re)generate the HTML report from an archive alone
+  run-protocol --plan PROTOCOL [--json]
+      print the expanded plan (steps in execution order with their stable ids)
+  run-protocol --validate PROTOCOL
+      check a protocol file and report every problem with file, line and field
+  run-protocol --hardware-check [PROTOCOL]
+      list the DAQ boards attached, blink them, and check the protocol's channels
+
+PROTOCOL is a path, or a bare file name looked up in ./protocols/ and then among the protocols shipped
+with the package, so `run-protocol knee_phase1.yaml --dry-run` works from any directory.
+"""
+
+EPILOG = """\
+examples:
+  run-protocol knee_phase1.yaml --dry-run --yes          full rehearsal: archive.h5 + report.html
+  run-protocol knee_phase1.yaml --dry-run --only 4,5,6,7 just the friction configurations
+  run-protocol --plan knee_phase1.yaml --json > plan.json
+  run-protocol --validate my_campaign.yaml
+  run-protocol --resume sessions/knee_phase1-20261121T101500Z
+  run-protocol --report sessions/knee_phase1-20261121T101500Z/archive.h5 --output report.html
+
+exit status: 0 done, 2 invalid input, 3 hardware unavailable, 4 stopped by a safety or calibration
+check, 130 interrupted (the session is resumable with --resume).
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="run-protocol",
+        description=DESCRIPTION,
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument("protocol", nargs="?", metavar="PROTOCOL", help="protocol file to run")
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--resume", metavar="SESSION_DIR", help="resume an interrupted session")
+    mode.add_argument("--report", metavar="PATH", help="regenerate the report of a session directory or archive")
+    mode.add_argument("--plan", metavar="PROTOCOL", help="print the expanded plan of a protocol")
+    mode.add_argument("--validate", metavar="PROTOCOL", help="validate a protocol file")
+    mode.add_argument(
+        "--hardware-check", nargs="?", const="", metavar="PROTOCOL", help="check the DAQ boards (and a protocol's channels)"
+    )
+    run = parser.add_argument_group("running")
+    run.add_argument("--dry-run", action="store_true", help="run against the DAQ simulator (simulated time)")
+    run.add_argument("--realtime", action="store_true", help="with --dry-run: pace the simulator like the hardware")
+    run.add_argument("--session", metavar="DIR", help="session directory (default: sessions/<protocol>-<UTC time>/)")
+    run.add_argument("--seed", type=int, default=None, help="seed of the simulator's random draws (default 0)")
+    run.add_argument("--yes", action="store_true", help="answer operator prompts automatically (checklists done)")
+    run.add_argument("--only", metavar="KEYS", help="run only these configuration keys, e.g. 4,5,6,7 or 12-14")
+    run.add_argument(
+        "--force", action="store_true", help="with --resume: accept a protocol whose text changed since the session began"
+    )
+    out = parser.add_argument_group("output")
+    out.add_argument("--json", action="store_true", help="with --plan: print the plan as JSON (the contract shape)")
+    out.add_argument("--output", metavar="FILE", help="with --report: where to write the HTML")
+    out.add_argument("--reprocess", action="store_true", help="with --report: redo processing and fits from raw data")
+    out.add_argument("--protocol-file", metavar="PROTOCOL", help="with --reprocess: take processing settings from this file")
+    out.add_argument("--export-mat", metavar="DIR", help="with --report: write each configuration's processed data as .mat")
+    parser.add_argument("--version", action="version", version=f"protocol-runner {__version__}")
+    return parser
+
+
+def parse_only(text: str | None) -> list[int] | None:
+    """`--only 4,5,6,7` or `--only 12-14,27` -> sorted unique keys."""
+    if text is None:
+        return None
+    keys: set[int] = set()
+    for part in text.replace(" ", "").split(","):
+        if not part:
+            continue
+        try:
+            if "-" in part:
+                lo, hi = (int(x) for x in part.split("-", 1))
+                if hi < lo:
+                    raise ValueError
+                keys.update(range(lo, hi + 1))
+            else:
+                keys.add(int(part))
+        except ValueError:
+            raise InvalidInput(f"--only: {part!r} is not a configuration key or range (e.g. --only 4,5,6,7 or 12-14)") from None
+    if not keys:
+        raise InvalidInput("--only: give at least one configuration key, e.g. --only 4,5,6,7")
+    return sorted(keys)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return _dispatch(parser, args)
+    except UserError as exc:
+        print(f"run-protocol: {exc.message}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("run-protocol: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    if args.plan is not None:
+        return _cmd_plan(args)
+    if args.validate is not None:
+        return _cmd_validate(args)
+    if args.hardware_check is not None:
+        from .commands import hardware_check
+
+        return hardware_check(args.hardware_check or None)
+    if args.report is not None:
+        from .commands import report
+
+        return report(
+            Path(args.report),
+            output=Path(args.output) if args.output else None,
+            reprocess=args.reprocess,
+            protocol_file=args.protocol_file,
+            export_mat=Path(args.export_mat) if args.export_mat else None,
+        )
+    if args.resume is not None:
+        from .commands import resume
+
+        return resume(Path(args.resume), yes=args.yes, force=args.force, realtime=args.realtime)
+    if args.protocol is None:
+        parser.print_usage(sys.stderr)
+        print("run-protocol: give a PROTOCOL to run, or one of --plan, --validate, --resume, --report", file=sys.stderr)
+        return EXIT_INVALID_INPUT
+    from .commands import run
+
+    return run(
+        args.protocol,
+        dry_run=args.dry_run,
+        session=Path(args.session) if args.session else None,
+        seed=args.seed,
+        yes=args.yes,
+        only=parse_only(args.only),
+        realtime=args.realtime,
+    )
+
+
+def _cmd_validate(args: argparse.Namespace) -> int:
+    from .protocol.loader import find_protocol, load_protocol
+    from .protocol.plan import expand
+
+    path = find_protocol(args.validate)
+    loaded = load_protocol(path, display_name=args.validate if Path(args.validate).exists() else str(path))
+    plan = expand(loaded)
+    trials = sum(1 for s in plan.steps if s.kind == "trial")
+    n_cfg = len(loaded.protocol.configurations())
+    print(
+        f"{path}: valid. {loaded.protocol.name}: {len(loaded.protocol.sets)} sets, {n_cfg} configurations, "
+        f"{trials} trials, {len(plan)} steps, about {plan.robot_time_s / 3600:.1f} h of robot time. "
+        f"sha256 {loaded.sha256[:16]}..."
+    )
+    return EXIT_OK
+
+
+def _cmd_plan(args: argparse.Namespace) -> int:
+    from .protocol.loader import find_protocol, load_protocol
+    from .protocol.plan import expand
+    from .protocol.plan_table import format_plan_table
+
+    path = find_protocol(args.plan)
+    loaded = load_protocol(path, display_name=args.plan if Path(args.plan).exists() else str(path))
+    plan = expand(loaded, only=parse_only(args.only))
+    if args.json:
+        sys.stdout.write(plan.dumps() + "\n")
+    else:
+        sys.stdout.write(format_plan_table(plan) + "\n")
+    return EXIT_OK
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

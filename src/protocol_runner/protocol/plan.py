@@ -1,0 +1,404 @@
+"""Expansion of a protocol into a Plan: plain immutable data, ordered as executed, with stable step ids.
+
+Order (thesis Appendix A "Data collection": the brace is removed only after each set):
+
+    for each set, in test-run order:
+        calibration check before (45 deg step)
+        for each configuration: operator checklist (brace settings), brace-on trials 1..n
+        operator checklist: remove the brace
+        for each configuration: brace-off trials 1..n (input derived at run time from the brace-on output,
+                                §3.3.2), each the twin of the brace-on trial with the same number
+        calibration check after
+        for each configuration: processing, then model fits      (results as soon as the data exist)
+    cross-configuration comparisons
+    report
+
+Step ids are the resume keys: they depend only on the protocol's names and keys, never on time or on
+`--only`, so the same step has the same id in every run.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from ..errors import InvalidInput
+from .levels import Settings, resolve_settings
+from .loader import LoadedProtocol
+from .schema import ConfigurationSpec, Protocol, SetSpec
+from .trajectories import load_trajectory_file, sinusoid_period_s
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """What to command during a trial (JSON shape of the plan contract)."""
+
+    profile: str
+    duration_s: float
+    mean_deg: float | None = None
+    amplitude_deg: float | None = None
+    period_s: float | None = None
+    source: str | None = None
+    params: tuple[tuple[str, float], ...] = ()
+
+    def to_json(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"profile": self.profile}
+        if self.profile == "sinusoid":
+            out.update(mean_deg=self.mean_deg, amplitude_deg=self.amplitude_deg, period_s=self.period_s)
+        if self.source is not None:
+            out["source"] = self.source
+        out.update(dict(self.params))
+        out["duration_s"] = self.duration_s
+        return out
+
+
+@dataclass(frozen=True)
+class Step:
+    id: str
+    kind: str
+
+    def to_json(self) -> dict[str, Any]:
+        return {"id": self.id, "kind": self.kind}
+
+    @property
+    def robot_time_s(self) -> float:
+        """Time the robot moves during this step (for ETAs); 0 for steps that do not move it."""
+        return 0.0
+
+
+@dataclass(frozen=True)
+class CalibrationCheckStep(Step):
+    set: str
+    when: str  # "before" / "after"
+    trajectory: Trajectory
+
+    def to_json(self) -> dict[str, Any]:
+        return {**super().to_json(), "set": self.set, "when": self.when, "trajectory": self.trajectory.to_json()}
+
+    @property
+    def robot_time_s(self) -> float:
+        return self.trajectory.duration_s
+
+
+@dataclass(frozen=True)
+class ChecklistStep(Step):
+    set: str
+    title: str
+    items: tuple[str, ...]
+    brace: str  # the brace state after this checklist: "on" / "off"
+    configuration: int | None = None
+    settings: Settings | None = None
+
+    def to_json(self) -> dict[str, Any]:
+        out = {**super().to_json(), "set": self.set, "title": self.title, "items": list(self.items), "brace": self.brace}
+        if self.configuration is not None:
+            out["configuration"] = self.configuration
+        if self.settings is not None:
+            out["settings"] = self.settings.to_json()
+        return out
+
+
+@dataclass(frozen=True)
+class TrialStep(Step):
+    set: str
+    configuration: int
+    run: int
+    trial: int
+    brace: str  # "on" / "off"
+    settings: Settings
+    trajectory: Trajectory
+    twin: str | None = None  # brace-off trials: the id of the brace-on trial whose output they follow
+
+    def to_json(self) -> dict[str, Any]:
+        out = {
+            **super().to_json(),
+            "set": self.set,
+            "configuration": self.configuration,
+            "run": self.run,
+            "trial": self.trial,
+            "brace": self.brace,
+            "settings": self.settings.to_json(),
+            "trajectory": self.trajectory.to_json(),
+        }
+        if self.twin is not None:
+            out["derived_from"] = self.twin
+        return out
+
+    @property
+    def robot_time_s(self) -> float:
+        return self.trajectory.duration_s
+
+
+@dataclass(frozen=True)
+class ProcessStep(Step):
+    set: str
+    configuration: int
+    trials: tuple[tuple[str, str], ...]  # (brace-on id, brace-off id) per trial
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            **super().to_json(),
+            "set": self.set,
+            "configuration": self.configuration,
+            "trials": [list(t) for t in self.trials],
+        }
+
+
+@dataclass(frozen=True)
+class FitStep(Step):
+    set: str
+    configuration: int
+    models: tuple[str, ...]
+
+    def to_json(self) -> dict[str, Any]:
+        return {**super().to_json(), "set": self.set, "configuration": self.configuration, "models": list(self.models)}
+
+
+@dataclass(frozen=True)
+class CompareStep(Step):
+    name: str
+    parameter: str
+    title: str
+    section: str
+    configurations: tuple[int, ...]
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            **super().to_json(),
+            "name": self.name,
+            "parameter": self.parameter,
+            "title": self.title,
+            "section": self.section,
+            "configurations": list(self.configurations),
+        }
+
+
+@dataclass(frozen=True)
+class ReportStep(Step):
+    pass
+
+
+@dataclass(frozen=True)
+class Plan:
+    protocol_name: str
+    protocol_sha256: str
+    steps: tuple[Step, ...]
+    only: tuple[int, ...] = ()
+    _index: dict[str, int] = field(default_factory=dict, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        self._index.update({s.id: i for i, s in enumerate(self.steps)})
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "protocol": self.protocol_name,
+            "protocol_sha256": self.protocol_sha256,
+            "steps": [s.to_json() for s in self.steps],
+        }
+
+    def dumps(self) -> str:
+        return json.dumps(self.to_json(), indent=2)
+
+    def step(self, step_id: str) -> Step:
+        return self.steps[self._index[step_id]]
+
+    def __len__(self) -> int:
+        return len(self.steps)
+
+    @property
+    def robot_time_s(self) -> float:
+        return sum(s.robot_time_s for s in self.steps)
+
+    def of_kind(self, kind: type[Step]) -> list[Any]:
+        return [s for s in self.steps if isinstance(s, kind)]
+
+
+# ----------------------------------------------------------------------------------------- ids
+
+
+def calibration_id(set_name: str, when: str) -> str:
+    return f"cal:{set_name}:{when}"
+
+
+def trial_id(key: int, brace: str, trial: int) -> str:
+    return f"trial:k{key:02d}:{brace}:{trial}"
+
+
+def configuration_name(key: int) -> str:
+    """The archive group name of a configuration (docs/archive.md)."""
+    return f"config_{key:02d}"
+
+
+# -------------------------------------------------------------------------------------- expansion
+
+
+def trajectory_for(p: Protocol, loaded: LoadedProtocol | None, cfg: ConfigurationSpec, settings: Settings) -> Trajectory:
+    if cfg.profile == "sinusoid":
+        lo, hi = settings.robot_rom_deg
+        amplitude = (hi - lo) / 2.0
+        period = sinusoid_period_s(amplitude, settings.speed_deg_s)
+        return Trajectory(
+            profile="sinusoid",
+            mean_deg=(hi + lo) / 2.0,
+            amplitude_deg=amplitude,
+            period_s=period,
+            duration_s=p.trajectories.sinusoid.periods * period,
+        )
+    if cfg.profile == "human":
+        assert cfg.trajectory is not None
+        spec = p.trajectories.human[cfg.trajectory]
+        duration = 0.0
+        if loaded is not None:
+            duration = load_trajectory_file(loaded.base_dir / spec.file).duration_s
+        return Trajectory(profile="human", source=spec.file, duration_s=duration, params=(("name", cfg.trajectory),))  # type: ignore[arg-type]
+    ident = p.trajectories.identification
+    assert ident is not None
+    return Trajectory(
+        profile="identification",
+        duration_s=ident.total_s,
+        params=(
+            ("min_deg", ident.range_deg[0]),
+            ("max_deg", ident.range_deg[1]),
+            ("repetition_s", ident.repetition_s),
+            ("initial_period_s", ident.initial_period_s),
+            ("final_period_s", ident.final_period_s),
+        ),
+    )
+
+
+def calibration_trajectory(p: Protocol) -> Trajectory:
+    s = p.trajectories.calibration_step
+    return Trajectory(
+        profile="step",
+        duration_s=s.settle_s + s.ramp_s + s.hold_s,
+        params=(("from_deg", s.from_deg), ("step_deg", s.step_deg), ("settle_s", s.settle_s), ("ramp_s", s.ramp_s)),
+    )
+
+
+def _setup_items(p: Protocol, cfg: ConfigurationSpec, st: Settings) -> tuple[str, ...]:
+    stiff = p.levels.stiffness[cfg.stiffness]
+    fric = p.levels.friction[cfg.friction]
+    desc_s = stiff.description or p.levels.stiffness.get(stiff.same_as or "", stiff).description
+    desc_f = fric.description or p.levels.friction.get(fric.same_as or "", fric).description
+    spring = (
+        "Remove both springs (no spring)"
+        if st.stiffness_n_per_mm == 0
+        else f"Fit both springs: {cfg.stiffness} = {st.stiffness_n_per_mm:g} N/mm ({desc_s})"
+    )
+    items = [
+        spring,
+        f"Set the spring preload screw to position {st.preload_position} ({cfg.preload})",
+        f"Set the brake: {st.friction_screw_turns:g} turns per brake screw, both sides "
+        f"(friction {cfg.friction} = {st.friction_nm:g} N*m{'; ' + desc_f if desc_f else ''})",
+        f"Set the four ROM screws to {st.brace_rom_deg[0]:g}-{st.brace_rom_deg[1]:g} deg ({cfg.brace_rom})",
+    ]
+    items += [f"Tighten {b.bolts} to {b.torque_ft_lb:g} ft-lb" for b in p.bolt_torques]
+    items.append("Brace on the robot leg, secured (saddle extension, foam, hose clamp) and not shifting")
+    return tuple(items)
+
+
+def expand(loaded: LoadedProtocol, only: Iterable[int] | None = None) -> Plan:
+    """Expand a validated protocol into its Plan; `only` restricts it to those configuration keys."""
+    p = loaded.protocol
+    all_keys = [c.key for _, c in p.configurations()]
+    selected: set[int] | None = None
+    if only is not None:
+        selected = set(only)
+        unknown = sorted(selected - set(all_keys))
+        if unknown:
+            raise InvalidInput(
+                f"--only: no configuration has key {', '.join(map(str, unknown))} "
+                f"(keys in {loaded.path.name}: {min(all_keys)}-{max(all_keys)})"
+            )
+    steps: list[Step] = []
+    cal_traj = calibration_trajectory(p)
+    for s in p.sets:
+        cfgs = [c for c in s.configurations if selected is None or c.key in selected]
+        if cfgs:
+            steps += _expand_set(p, loaded, s, cfgs, cal_traj)
+    chosen = [k for k in all_keys if selected is None or k in selected]
+    for comp in p.report.comparisons:
+        keys = tuple(k for k in comp.configurations if k in chosen)
+        if len(keys) >= 2:
+            steps.append(
+                CompareStep(
+                    id=f"compare:{comp.name}",
+                    kind="compare",
+                    name=comp.name,
+                    parameter=comp.parameter,
+                    title=comp.title,
+                    section=comp.section,
+                    configurations=keys,
+                )
+            )
+    steps.append(ReportStep(id="report", kind="report"))
+    return Plan(
+        protocol_name=p.name,
+        protocol_sha256=loaded.sha256,
+        steps=tuple(steps),
+        only=tuple(sorted(selected)) if selected is not None else (),
+    )
+
+
+def _expand_set(
+    p: Protocol, loaded: LoadedProtocol, s: SetSpec, cfgs: list[ConfigurationSpec], cal_traj: Trajectory
+) -> list[Step]:
+    steps: list[Step] = [
+        CalibrationCheckStep(id=calibration_id(s.name, "before"), kind="calibration_check", set=s.name, when="before", trajectory=cal_traj)
+    ]
+    resolved = [(c, resolve_settings(p.levels, c)) for c in cfgs]
+    trajectories = {c.key: trajectory_for(p, loaded, c, st) for c, st in resolved}
+    for cfg, st in resolved:
+        steps.append(
+            ChecklistStep(
+                id=f"check:{s.name}:k{cfg.key:02d}",
+                kind="operator_checklist",
+                set=s.name,
+                title=f"Configuration {cfg.key} (test run {cfg.run}): set up the brace",
+                items=_setup_items(p, cfg, st),
+                brace="on",
+                configuration=cfg.key,
+                settings=st,
+            )
+        )
+        for n in range(1, cfg.trials + 1):
+            steps.append(
+                TrialStep(
+                    id=trial_id(cfg.key, "on", n), kind="trial", set=s.name, configuration=cfg.key, run=cfg.run,
+                    trial=n, brace="on", settings=st, trajectory=trajectories[cfg.key],
+                )
+            )
+    steps.append(
+        ChecklistStep(
+            id=f"check:{s.name}:brace-off",
+            kind="operator_checklist",
+            set=s.name,
+            title=f"Set {s.name}: remove the brace; the robot runs the same conditions without it",
+            items=(
+                "Remove the brace from the robot leg (keep its settings untouched)",
+                "Robot leg free of straps, foam and clamps",
+            ),
+            brace="off",
+        )
+    )
+    for cfg, st in resolved:
+        for n in range(1, cfg.trials + 1):
+            steps.append(
+                TrialStep(
+                    id=trial_id(cfg.key, "off", n), kind="trial", set=s.name, configuration=cfg.key, run=cfg.run,
+                    trial=n, brace="off", settings=st, trajectory=trajectories[cfg.key],
+                    twin=trial_id(cfg.key, "on", n),
+                )
+            )
+    steps.append(
+        CalibrationCheckStep(id=calibration_id(s.name, "after"), kind="calibration_check", set=s.name, when="after", trajectory=cal_traj)
+    )
+    models = tuple(m for m, on in (("spring", p.fits.spring.enabled), ("bouc_wen", p.fits.bouc_wen.enabled)) if on)
+    for cfg, _ in resolved:
+        pairs = tuple((trial_id(cfg.key, "on", n), trial_id(cfg.key, "off", n)) for n in range(1, cfg.trials + 1))
+        steps.append(ProcessStep(id=f"process:k{cfg.key:02d}", kind="process", set=s.name, configuration=cfg.key, trials=pairs))
+        if models:
+            steps.append(FitStep(id=f"fit:k{cfg.key:02d}", kind="fit", set=s.name, configuration=cfg.key, models=models))
+    return steps

@@ -1,0 +1,187 @@
+"""Trajectories of the protocol (thesis Appendix A and §3.1.1): pure functions of time.
+
+- Sinusoid (Eq 24): angle = mean + amplitude * sin(2*pi*t/p); its maximum speed is amplitude * 2*pi/p
+  (Eq 25), so for a range and a maximum speed the period is p = 2*pi*amplitude / max_speed. The periods of
+  Table 6 (8.17, 16.34, 3.14, 5.65, 6.91, 13.82 s) follow from this; they are never typed in.
+- Human trajectories: angle-vs-time files (CSV or MATLAB .mat), see `load_trajectory_file`.
+- Model identification (Eq 4-7): an exponential envelope times cos^2 with a period that changes linearly.
+- The calibration step (Appendix A "Calibration"): a 45 deg step, ramped over a few tens of ms.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import numpy.typing as npt
+
+from ..errors import InvalidInput
+
+FloatArray = npt.NDArray[np.float64]
+
+
+def sinusoid_period_s(amplitude_deg: float, max_speed_deg_s: float) -> float:
+    """Period of the Eq 24 sinusoid whose maximum speed (Eq 25: amplitude * 2*pi/p) is `max_speed_deg_s`."""
+    if amplitude_deg <= 0 or max_speed_deg_s <= 0:
+        raise ValueError("amplitude and maximum speed must be positive")
+    return 2.0 * math.pi * amplitude_deg / max_speed_deg_s
+
+
+def sinusoid_deg(time_s: FloatArray, mean_deg: float, amplitude_deg: float, period_s: float) -> FloatArray:
+    """Eq 24: mean + amplitude * sin(2*pi*t/p)."""
+    return mean_deg + amplitude_deg * np.sin(2.0 * np.pi * np.asarray(time_s, dtype=np.float64) / period_s)
+
+
+def identification_deg(
+    time_s: FloatArray,
+    min_deg: float,
+    max_deg: float,
+    repetition_s: float,
+    initial_period_s: float,
+    final_period_s: float,
+) -> FloatArray:
+    """Eq 4-7: y = min + exp(ln(max - min) * tau / t_rep) * cos^2(pi * tau / Period(tau)), tau = t mod t_rep.
+
+    Period(tau) = t_final * tau/t_rep + t_initial * (t_rep - tau)/t_rep (Eq 5). The envelope reaches
+    max - min at the repetition time (Eq 4); the pattern repeats every `repetition_s`.
+    """
+    tau = np.mod(np.asarray(time_s, dtype=np.float64), repetition_s)
+    envelope = np.exp(math.log(max_deg - min_deg) * tau / repetition_s)
+    period = final_period_s * tau / repetition_s + initial_period_s * (repetition_s - tau) / repetition_s
+    return min_deg + envelope * np.cos(np.pi * tau / period) ** 2
+
+
+def calibration_step_deg(
+    time_s: FloatArray, from_deg: float, step_deg: float, settle_s: float, ramp_s: float
+) -> FloatArray:
+    """Hold `from_deg` for `settle_s`, then move by `step_deg` over `ramp_s`, then hold.
+
+    The move is a raised-cosine ramp (peak speed pi/2 * step/ramp, peak acceleration pi^2/2 * step/ramp^2)
+    so the step stays inside the rig's rate and acceleration envelope; `ramp_s = 0` is a true step.
+    """
+    t = np.asarray(time_s, dtype=np.float64)
+    if ramp_s <= 0:
+        frac = (t >= settle_s).astype(np.float64)
+    else:
+        x = np.clip((t - settle_s) / ramp_s, 0.0, 1.0)
+        frac = 0.5 - 0.5 * np.cos(np.pi * x)
+    return from_deg + step_deg * frac
+
+
+def calibration_step_peak_speed_deg_s(step_deg: float, ramp_s: float) -> float:
+    return math.inf if ramp_s <= 0 else math.pi / 2 * abs(step_deg) / ramp_s
+
+
+@dataclass(frozen=True)
+class TrajectoryFile:
+    """An angle-vs-time trajectory read from a file."""
+
+    path: Path
+    time_s: FloatArray
+    angle_deg: FloatArray
+    header: str
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.time_s[-1] - self.time_s[0])
+
+    def at(self, time_s: FloatArray) -> FloatArray:
+        """Linear interpolation at the given times (held at the ends)."""
+        return np.interp(time_s, self.time_s - self.time_s[0], self.angle_deg)
+
+
+_TIME_NAMES = ("time_s", "t", "time")
+_ANGLE_NAMES = ("angle_deg", "angle", "knee_deg", "theta_deg")
+
+
+def load_trajectory_file(path: Path) -> TrajectoryFile:
+    """Read a trajectory file.
+
+    CSV: any number of comment lines starting with '#' (the header says what the trajectory is and where
+    it comes from), then a row of column names containing `time_s` and `angle_deg`, then numbers.
+    MATLAB .mat: variables `time_s` and `angle_deg` (vectors of equal length).
+    Time must start at 0 or later and increase strictly. Errors name the file and line.
+    """
+    if not path.exists():
+        raise InvalidInput(f"{path}: trajectory file not found")
+    if path.is_dir():
+        raise InvalidInput(f"{path}: is a directory, expected a trajectory file (.csv or .mat)")
+    suffix = path.suffix.lower()
+    if suffix == ".mat":
+        time_s, angle_deg, header = _load_mat(path)
+    elif suffix in (".csv", ".txt"):
+        time_s, angle_deg, header = _load_csv(path)
+    else:
+        raise InvalidInput(f"{path}: unsupported trajectory file type {suffix!r} (use .csv or .mat)")
+    if time_s.size < 2:
+        raise InvalidInput(f"{path}: a trajectory needs at least two samples")
+    if not (np.all(np.isfinite(time_s)) and np.all(np.isfinite(angle_deg))):
+        raise InvalidInput(f"{path}: trajectory contains non-finite values")
+    bad = np.flatnonzero(np.diff(time_s) <= 0)
+    if bad.size:
+        raise InvalidInput(f"{path}: time must increase strictly (sample {int(bad[0]) + 2} does not)")
+    return TrajectoryFile(path=path, time_s=time_s, angle_deg=angle_deg, header=header)
+
+
+def _load_csv(path: Path) -> tuple[FloatArray, FloatArray, str]:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise InvalidInput(f"{path}: not a text file (cannot be read as UTF-8)") from None
+    header_lines: list[str] = []
+    columns: list[str] | None = None
+    time_col = angle_col = -1
+    times: list[float] = []
+    angles: list[float] = []
+    for lineno, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line:
+            continue
+        if line.startswith("#"):
+            header_lines.append(line.lstrip("#").strip())
+            continue
+        cells = [c.strip() for c in line.split(",")]
+        if columns is None:
+            columns = [c.lower() for c in cells]
+            time_col = next((columns.index(n) for n in _TIME_NAMES if n in columns), -1)
+            angle_col = next((columns.index(n) for n in _ANGLE_NAMES if n in columns), -1)
+            if time_col < 0 or angle_col < 0:
+                raise InvalidInput(
+                    f"{path}:{lineno}: the column row must name `time_s` and `angle_deg` (found: {line})"
+                )
+            continue
+        try:
+            times.append(float(cells[time_col]))
+            angles.append(float(cells[angle_col]))
+        except (ValueError, IndexError):
+            raise InvalidInput(f"{path}:{lineno}: expected numbers in columns time_s, angle_deg: {line!r}") from None
+    if columns is None:
+        raise InvalidInput(f"{path}: no column row and no data")
+    return np.asarray(times, dtype=np.float64), np.asarray(angles, dtype=np.float64), "\n".join(header_lines)
+
+
+def _load_mat(path: Path) -> tuple[FloatArray, FloatArray, str]:
+    from scipy.io import loadmat
+
+    try:
+        contents = loadmat(str(path), squeeze_me=True)
+    except Exception as exc:  # scipy raises several types for a broken file
+        raise InvalidInput(f"{path}: not a readable MATLAB .mat file ({exc})") from None
+    time_name = next((n for n in _TIME_NAMES if n in contents), None)
+    angle_name = next((n for n in _ANGLE_NAMES if n in contents), None)
+    if time_name is None or angle_name is None:
+        names = ", ".join(sorted(k for k in contents if not k.startswith("__")))
+        raise InvalidInput(f"{path}: needs variables `time_s` and `angle_deg` (found: {names or 'none'})")
+    time_s = np.asarray(contents[time_name], dtype=np.float64).ravel()
+    angle_deg = np.asarray(contents[angle_name], dtype=np.float64).ravel()
+    if time_s.shape != angle_deg.shape:
+        raise InvalidInput(f"{path}: `{time_name}` and `{angle_name}` have different lengths")
+    header = str(contents.get("description", contents.get("__header__", b"")))
+    return time_s, angle_deg, header
+
+
+def max_speed_deg_s(time_s: FloatArray, angle_deg: FloatArray) -> float:
+    """Largest |d angle / dt| of a sampled trajectory (first differences)."""
+    return float(np.max(np.abs(np.diff(angle_deg) / np.diff(time_s)))) if len(time_s) > 1 else 0.0
