@@ -59,28 +59,56 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("protocol", nargs="?", metavar="PROTOCOL", help="protocol file to run")
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--resume", metavar="SESSION_DIR", help="resume an interrupted session")
-    mode.add_argument("--report", metavar="PATH", help="regenerate the report of a session directory or archive")
+    mode.add_argument(
+        "--report", metavar="PATH", help="regenerate the report of a session directory or archive"
+    )
     mode.add_argument("--plan", metavar="PROTOCOL", help="print the expanded plan of a protocol")
     mode.add_argument("--validate", metavar="PROTOCOL", help="validate a protocol file")
     mode.add_argument(
-        "--hardware-check", nargs="?", const="", metavar="PROTOCOL", help="check the DAQ boards (and a protocol's channels)"
+        "--hardware-check",
+        nargs="?",
+        const="",
+        metavar="PROTOCOL",
+        help="check the DAQ boards (and a protocol's channels)",
     )
     run = parser.add_argument_group("running")
     run.add_argument("--dry-run", action="store_true", help="run against the DAQ simulator (simulated time)")
-    run.add_argument("--realtime", action="store_true", help="with --dry-run: pace the simulator like the hardware")
-    run.add_argument("--session", metavar="DIR", help="session directory (default: sessions/<protocol>-<UTC time>/)")
-    run.add_argument("--seed", type=int, default=None, help="seed of the simulator's random draws (default 0)")
-    run.add_argument("--yes", action="store_true", help="answer operator prompts automatically (checklists done)")
-    run.add_argument("--only", metavar="KEYS", help="run only these configuration keys, e.g. 4,5,6,7 or 12-14")
     run.add_argument(
-        "--force", action="store_true", help="with --resume: accept a protocol whose text changed since the session began"
+        "--realtime", action="store_true", help="with --dry-run: pace the simulator like the hardware"
+    )
+    run.add_argument(
+        "--session", metavar="DIR", help="session directory (default: sessions/<protocol>-<UTC time>/)"
+    )
+    run.add_argument(
+        "--seed", type=int, default=None, help="seed of the simulator's random draws (default 0)"
+    )
+    run.add_argument(
+        "--yes", action="store_true", help="answer operator prompts automatically (checklists done)"
+    )
+    run.add_argument(
+        "--only", metavar="KEYS", help="run only these configuration keys, e.g. 4,5,6,7 or 12-14"
+    )
+    run.add_argument(
+        "--force",
+        action="store_true",
+        help="with --resume: accept a protocol whose text changed since the session began",
     )
     out = parser.add_argument_group("output")
-    out.add_argument("--json", action="store_true", help="with --plan: print the plan as JSON (the contract shape)")
+    out.add_argument(
+        "--json", action="store_true", help="with --plan: print the plan as JSON (the contract shape)"
+    )
     out.add_argument("--output", metavar="FILE", help="with --report: where to write the HTML")
-    out.add_argument("--reprocess", action="store_true", help="with --report: redo processing and fits from raw data")
-    out.add_argument("--protocol-file", metavar="PROTOCOL", help="with --reprocess: take processing settings from this file")
-    out.add_argument("--export-mat", metavar="DIR", help="with --report: write each configuration's processed data as .mat")
+    out.add_argument(
+        "--reprocess", action="store_true", help="with --report: redo processing and fits from raw data"
+    )
+    out.add_argument(
+        "--protocol-file",
+        metavar="PROTOCOL",
+        help="with --reprocess: take processing settings from this file",
+    )
+    out.add_argument(
+        "--export-mat", metavar="DIR", help="with --report: write each configuration's processed data as .mat"
+    )
     parser.add_argument("--version", action="version", version=f"protocol-runner {__version__}")
     return parser
 
@@ -102,7 +130,9 @@ def parse_only(text: str | None) -> list[int] | None:
             else:
                 keys.add(int(part))
         except ValueError:
-            raise InvalidInput(f"--only: {part!r} is not a configuration key or range (e.g. --only 4,5,6,7 or 12-14)") from None
+            raise InvalidInput(
+                f"--only: {part!r} is not a configuration key or range (e.g. --only 4,5,6,7 or 12-14)"
+            ) from None
     if not keys:
         raise InvalidInput("--only: give at least one configuration key, e.g. --only 4,5,6,7")
     return sorted(keys)
@@ -146,7 +176,10 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         return resume(Path(args.resume), yes=args.yes, force=args.force, realtime=args.realtime)
     if args.protocol is None:
         parser.print_usage(sys.stderr)
-        print("run-protocol: give a PROTOCOL to run, or one of --plan, --validate, --resume, --report", file=sys.stderr)
+        print(
+            "run-protocol: give a PROTOCOL to run, or one of --plan, --validate, --resume, --report",
+            file=sys.stderr,
+        )
         return EXIT_INVALID_INPUT
     from .commands import run
 

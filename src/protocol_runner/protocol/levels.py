@@ -6,9 +6,9 @@ and stiffness `K-EMU` = `K2`. Resolution assumes a validated protocol (see `prot
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-
-from pydantic import BaseModel
+from typing import TypeVar
 
 from .schema import ConfigurationSpec, Levels
 
@@ -50,12 +50,14 @@ class Settings:
         }
 
 
-def resolve_level(family: dict[str, BaseModel], name: str) -> BaseModel:
+L = TypeVar("L")
+
+
+def resolve_level(family: Mapping[str, L], name: str) -> L:
     """Follow `same_as` links to the level that carries the values (cycles are rejected by validation)."""
     level = family[name]
     seen = {name}
-    while getattr(level, "same_as", None) is not None:
-        target: str = level.same_as  # type: ignore[attr-defined]
+    while (target := getattr(level, "same_as", None)) is not None:
         if target in seen or target not in family:
             raise KeyError(target)
         seen.add(target)
@@ -63,25 +65,34 @@ def resolve_level(family: dict[str, BaseModel], name: str) -> BaseModel:
     return level
 
 
+T = TypeVar("T")
+
+
+def _present(value: T | None, what: str) -> T:
+    if value is None:  # validation guarantees a value; this guards direct use of unvalidated data
+        raise ValueError(f"level has no {what}")
+    return value
+
+
 def resolve_settings(levels: Levels, cfg: ConfigurationSpec) -> Settings:
-    brace = resolve_level(levels.brace_rom, cfg.brace_rom)  # type: ignore[arg-type]
-    robot = resolve_level(levels.robot_rom, cfg.robot_rom)  # type: ignore[arg-type]
-    friction = resolve_level(levels.friction, cfg.friction)  # type: ignore[arg-type]
-    stiffness = resolve_level(levels.stiffness, cfg.stiffness)  # type: ignore[arg-type]
-    preload = resolve_level(levels.preload, cfg.preload)  # type: ignore[arg-type]
-    speed = resolve_level(levels.speed, cfg.speed)  # type: ignore[arg-type]
+    brace = _present(resolve_level(levels.brace_rom, cfg.brace_rom).range_deg, "range_deg")
+    robot = _present(resolve_level(levels.robot_rom, cfg.robot_rom).range_deg, "range_deg")
+    friction = resolve_level(levels.friction, cfg.friction)
+    stiffness = resolve_level(levels.stiffness, cfg.stiffness)
+    preload = resolve_level(levels.preload, cfg.preload)
+    speed = resolve_level(levels.speed, cfg.speed)
     return Settings(
         brace_rom=cfg.brace_rom,
-        brace_rom_deg=tuple(brace.range_deg),  # type: ignore[attr-defined,arg-type]
+        brace_rom_deg=(float(brace[0]), float(brace[1])),
         robot_rom=cfg.robot_rom,
-        robot_rom_deg=tuple(robot.range_deg),  # type: ignore[attr-defined,arg-type]
+        robot_rom_deg=(float(robot[0]), float(robot[1])),
         friction_level=cfg.friction,
-        friction_nm=float(friction.torque_nm),  # type: ignore[attr-defined]
-        friction_screw_turns=float(friction.screw_turns or 0.0),  # type: ignore[attr-defined]
+        friction_nm=float(_present(friction.torque_nm, "torque_nm")),
+        friction_screw_turns=float(friction.screw_turns or 0.0),
         stiffness=cfg.stiffness,
-        stiffness_n_per_mm=float(stiffness.n_per_mm),  # type: ignore[attr-defined]
+        stiffness_n_per_mm=float(_present(stiffness.n_per_mm, "n_per_mm")),
         preload=cfg.preload,
-        preload_position=int(preload.position),  # type: ignore[attr-defined]
+        preload_position=int(_present(preload.position, "position")),
         speed=cfg.speed,
-        speed_deg_s=float(speed.max_deg_s),  # type: ignore[attr-defined]
+        speed_deg_s=float(_present(speed.max_deg_s, "max_deg_s")),
     )

@@ -83,7 +83,9 @@ def read_protocol_text(path: Path, shown: str) -> str:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
         line = raw[: exc.start].count(b"\n") + 1
-        raise InvalidInput(f"{shown}:{line}: not valid UTF-8 text (byte {exc.start}); is this a protocol file?") from None
+        raise InvalidInput(
+            f"{shown}:{line}: not valid UTF-8 text (byte {exc.start}); is this a protocol file?"
+        ) from None
     return text
 
 
@@ -92,7 +94,9 @@ def parse_protocol_text(
 ) -> LoadedProtocol:
     shown = display_name or str(path)
     if not text.strip() or all(ln.strip().startswith("#") or not ln.strip() for ln in text.splitlines()):
-        raise InvalidInput(f"{shown}: the file is empty; a protocol needs at least `schema_version`, `name`, `rig`, ...")
+        raise InvalidInput(
+            f"{shown}: the file is empty; a protocol needs at least `schema_version`, `name`, `rig`, ..."
+        )
     try:
         node = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.YAMLError as exc:
@@ -110,7 +114,9 @@ def parse_protocol_text(
         raise InvalidInput(_yaml_error(shown, exc)) from None
     if not isinstance(data, dict):
         kind = type(data).__name__
-        raise InvalidInput(f"{shown}:1: the top level must be a mapping of keys (schema_version, name, rig, ...), got {kind}")
+        raise InvalidInput(
+            f"{shown}:1: the top level must be a mapping of keys (schema_version, name, rig, ...), got {kind}"
+        )
     try:
         protocol = Protocol.model_validate(data)
     except ValidationError as exc:

@@ -41,7 +41,7 @@ class Trajectory:
     amplitude_deg: float | None = None
     period_s: float | None = None
     source: str | None = None
-    params: tuple[tuple[str, float], ...] = ()
+    params: tuple[tuple[str, float | str], ...] = ()
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"profile": self.profile}
@@ -75,7 +75,12 @@ class CalibrationCheckStep(Step):
     trajectory: Trajectory
 
     def to_json(self) -> dict[str, Any]:
-        return {**super().to_json(), "set": self.set, "when": self.when, "trajectory": self.trajectory.to_json()}
+        return {
+            **super().to_json(),
+            "set": self.set,
+            "when": self.when,
+            "trajectory": self.trajectory.to_json(),
+        }
 
     @property
     def robot_time_s(self) -> float:
@@ -92,7 +97,13 @@ class ChecklistStep(Step):
     settings: Settings | None = None
 
     def to_json(self) -> dict[str, Any]:
-        out = {**super().to_json(), "set": self.set, "title": self.title, "items": list(self.items), "brace": self.brace}
+        out = {
+            **super().to_json(),
+            "set": self.set,
+            "title": self.title,
+            "items": list(self.items),
+            "brace": self.brace,
+        }
         if self.configuration is not None:
             out["configuration"] = self.configuration
         if self.settings is not None:
@@ -153,7 +164,12 @@ class FitStep(Step):
     models: tuple[str, ...]
 
     def to_json(self) -> dict[str, Any]:
-        return {**super().to_json(), "set": self.set, "configuration": self.configuration, "models": list(self.models)}
+        return {
+            **super().to_json(),
+            "set": self.set,
+            "configuration": self.configuration,
+            "models": list(self.models),
+        }
 
 
 @dataclass(frozen=True)
@@ -234,7 +250,9 @@ def configuration_name(key: int) -> str:
 # -------------------------------------------------------------------------------------- expansion
 
 
-def trajectory_for(p: Protocol, loaded: LoadedProtocol | None, cfg: ConfigurationSpec, settings: Settings) -> Trajectory:
+def trajectory_for(
+    p: Protocol, loaded: LoadedProtocol | None, cfg: ConfigurationSpec, settings: Settings
+) -> Trajectory:
     if cfg.profile == "sinusoid":
         lo, hi = settings.robot_rom_deg
         amplitude = (hi - lo) / 2.0
@@ -252,7 +270,9 @@ def trajectory_for(p: Protocol, loaded: LoadedProtocol | None, cfg: Configuratio
         duration = 0.0
         if loaded is not None:
             duration = load_trajectory_file(loaded.base_dir / spec.file).duration_s
-        return Trajectory(profile="human", source=spec.file, duration_s=duration, params=(("name", cfg.trajectory),))  # type: ignore[arg-type]
+        return Trajectory(
+            profile="human", source=spec.file, duration_s=duration, params=(("name", cfg.trajectory),)
+        )
     ident = p.trajectories.identification
     assert ident is not None
     return Trajectory(
@@ -273,7 +293,12 @@ def calibration_trajectory(p: Protocol) -> Trajectory:
     return Trajectory(
         profile="step",
         duration_s=s.settle_s + s.ramp_s + s.hold_s,
-        params=(("from_deg", s.from_deg), ("step_deg", s.step_deg), ("settle_s", s.settle_s), ("ramp_s", s.ramp_s)),
+        params=(
+            ("from_deg", s.from_deg),
+            ("step_deg", s.step_deg),
+            ("settle_s", s.settle_s),
+            ("ramp_s", s.ramp_s),
+        ),
     )
 
 
@@ -346,7 +371,13 @@ def _expand_set(
     p: Protocol, loaded: LoadedProtocol, s: SetSpec, cfgs: list[ConfigurationSpec], cal_traj: Trajectory
 ) -> list[Step]:
     steps: list[Step] = [
-        CalibrationCheckStep(id=calibration_id(s.name, "before"), kind="calibration_check", set=s.name, when="before", trajectory=cal_traj)
+        CalibrationCheckStep(
+            id=calibration_id(s.name, "before"),
+            kind="calibration_check",
+            set=s.name,
+            when="before",
+            trajectory=cal_traj,
+        )
     ]
     resolved = [(c, resolve_settings(p.levels, c)) for c in cfgs]
     trajectories = {c.key: trajectory_for(p, loaded, c, st) for c, st in resolved}
@@ -366,8 +397,15 @@ def _expand_set(
         for n in range(1, cfg.trials + 1):
             steps.append(
                 TrialStep(
-                    id=trial_id(cfg.key, "on", n), kind="trial", set=s.name, configuration=cfg.key, run=cfg.run,
-                    trial=n, brace="on", settings=st, trajectory=trajectories[cfg.key],
+                    id=trial_id(cfg.key, "on", n),
+                    kind="trial",
+                    set=s.name,
+                    configuration=cfg.key,
+                    run=cfg.run,
+                    trial=n,
+                    brace="on",
+                    settings=st,
+                    trajectory=trajectories[cfg.key],
                 )
             )
     steps.append(
@@ -387,18 +425,43 @@ def _expand_set(
         for n in range(1, cfg.trials + 1):
             steps.append(
                 TrialStep(
-                    id=trial_id(cfg.key, "off", n), kind="trial", set=s.name, configuration=cfg.key, run=cfg.run,
-                    trial=n, brace="off", settings=st, trajectory=trajectories[cfg.key],
+                    id=trial_id(cfg.key, "off", n),
+                    kind="trial",
+                    set=s.name,
+                    configuration=cfg.key,
+                    run=cfg.run,
+                    trial=n,
+                    brace="off",
+                    settings=st,
+                    trajectory=trajectories[cfg.key],
                     twin=trial_id(cfg.key, "on", n),
                 )
             )
     steps.append(
-        CalibrationCheckStep(id=calibration_id(s.name, "after"), kind="calibration_check", set=s.name, when="after", trajectory=cal_traj)
+        CalibrationCheckStep(
+            id=calibration_id(s.name, "after"),
+            kind="calibration_check",
+            set=s.name,
+            when="after",
+            trajectory=cal_traj,
+        )
     )
-    models = tuple(m for m, on in (("spring", p.fits.spring.enabled), ("bouc_wen", p.fits.bouc_wen.enabled)) if on)
+    models = tuple(
+        m for m, on in (("spring", p.fits.spring.enabled), ("bouc_wen", p.fits.bouc_wen.enabled)) if on
+    )
     for cfg, _ in resolved:
-        pairs = tuple((trial_id(cfg.key, "on", n), trial_id(cfg.key, "off", n)) for n in range(1, cfg.trials + 1))
-        steps.append(ProcessStep(id=f"process:k{cfg.key:02d}", kind="process", set=s.name, configuration=cfg.key, trials=pairs))
+        pairs = tuple(
+            (trial_id(cfg.key, "on", n), trial_id(cfg.key, "off", n)) for n in range(1, cfg.trials + 1)
+        )
+        steps.append(
+            ProcessStep(
+                id=f"process:k{cfg.key:02d}", kind="process", set=s.name, configuration=cfg.key, trials=pairs
+            )
+        )
         if models:
-            steps.append(FitStep(id=f"fit:k{cfg.key:02d}", kind="fit", set=s.name, configuration=cfg.key, models=models))
+            steps.append(
+                FitStep(
+                    id=f"fit:k{cfg.key:02d}", kind="fit", set=s.name, configuration=cfg.key, models=models
+                )
+            )
     return steps

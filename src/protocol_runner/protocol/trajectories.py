@@ -156,7 +156,9 @@ def _load_csv(path: Path) -> tuple[FloatArray, FloatArray, str]:
             times.append(float(cells[time_col]))
             angles.append(float(cells[angle_col]))
         except (ValueError, IndexError):
-            raise InvalidInput(f"{path}:{lineno}: expected numbers in columns time_s, angle_deg: {line!r}") from None
+            raise InvalidInput(
+                f"{path}:{lineno}: expected numbers in columns time_s, angle_deg: {line!r}"
+            ) from None
     if columns is None:
         raise InvalidInput(f"{path}: no column row and no data")
     return np.asarray(times, dtype=np.float64), np.asarray(angles, dtype=np.float64), "\n".join(header_lines)

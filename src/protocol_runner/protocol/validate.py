@@ -70,21 +70,33 @@ def _check_levels(p: Protocol) -> Iterator[Problem]:
             value = getattr(level, value_field)
             if level.same_as is not None:
                 if value is not None:
-                    yield (*loc, value_field), f"a level is either an alias (`same_as`) or has `{value_field}`, not both"
+                    yield (
+                        (*loc, value_field),
+                        f"a level is either an alias (`same_as`) or has `{value_field}`, not both",
+                    )
                 target = family.get(level.same_as)
                 if target is None:
                     known = ", ".join(family)
                     yield (*loc, "same_as"), f"unknown level {level.same_as!r} (known: {known})"
                 elif target.same_as is not None:
-                    yield (*loc, "same_as"), f"{level.same_as!r} is itself an alias; point at the level that has the values"
+                    yield (
+                        (*loc, "same_as"),
+                        f"{level.same_as!r} is itself an alias; point at the level that has the values",
+                    )
             elif value is None:
                 yield loc, f"missing `{value_field}` (or `same_as: <another {family_name} level>`)"
             elif value_field == "range_deg":
                 lo, hi = value
                 if not lo < hi:
-                    yield (*loc, "range_deg"), f"range must be [low, high] with low < high, got [{lo:g}, {hi:g}]"
+                    yield (
+                        (*loc, "range_deg"),
+                        f"range must be [low, high] with low < high, got [{lo:g}, {hi:g}]",
+                    )
                 elif not _within(value, joint):
-                    yield (*loc, "range_deg"), f"{_fmt_range(value)} is outside the joint's range {_fmt_range(joint)}"
+                    yield (
+                        (*loc, "range_deg"),
+                        f"{_fmt_range(value)} is outside the joint's range {_fmt_range(joint)}",
+                    )
 
 
 def _check_rig(p: Protocol) -> Iterator[Problem]:
@@ -93,8 +105,11 @@ def _check_rig(p: Protocol) -> Iterator[Problem]:
     if rig.input.angle_channel == rig.input.torque_channel:
         yield ("rig", "input", "torque_channel"), "angle and torque cannot use the same input channel"
     if not joint[0] <= rig.safety.park_angle_deg <= joint[1]:
-        yield ("rig", "safety", "park_angle_deg"), (
-            f"park angle {rig.safety.park_angle_deg:g} deg is outside the joint's range {_fmt_range(joint)}"
+        yield (
+            ("rig", "safety", "park_angle_deg"),
+            (
+                f"park angle {rig.safety.park_angle_deg:g} deg is outside the joint's range {_fmt_range(joint)}"
+            ),
         )
     if rig.joint.rsst_joint is not None:
         try:
@@ -105,9 +120,12 @@ def _check_rig(p: Protocol) -> Iterator[Problem]:
         if spec is not None:
             table_range = tuple(spec.range_deg)
             if not _within(joint, table_range):  # type: ignore[arg-type]
-                yield ("rig", "joint", "range_deg"), (
-                    f"{_fmt_range(joint)} exceeds RSST joint {rig.joint.rsst_joint}'s range "
-                    f"{_fmt_range(table_range)} (thesis Table 2)"  # type: ignore[arg-type]
+                yield (
+                    ("rig", "joint", "range_deg"),
+                    (
+                        f"{_fmt_range(joint)} exceeds RSST joint {rig.joint.rsst_joint}'s range "
+                        f"{_fmt_range(table_range)} (thesis Table 2)"  # type: ignore[arg-type]
+                    ),
                 )
 
 
@@ -148,7 +166,10 @@ def _check_configuration_trajectory(p: Protocol, cfg: ConfigurationSpec, loc: Lo
     limits = p.rig.safety
     if cfg.profile == "human":
         if cfg.trajectory is None:
-            yield (*loc, "trajectory"), "a human profile needs `trajectory: <name of a trajectories.human entry>`"
+            yield (
+                (*loc, "trajectory"),
+                "a human profile needs `trajectory: <name of a trajectories.human entry>`",
+            )
         elif cfg.trajectory not in p.trajectories.human:
             known = ", ".join(p.trajectories.human) or "none defined"
             yield (*loc, "trajectory"), f"unknown trajectory {cfg.trajectory!r} (known: {known})"
@@ -169,17 +190,23 @@ def _check_configuration_trajectory(p: Protocol, cfg: ConfigurationSpec, loc: Lo
     if robot_range is None or speed_deg_s is None:
         return
     if speed_deg_s > limits.max_rate_deg_s:
-        yield (*loc, "speed"), (
-            f"{speed_deg_s:g} deg/s exceeds the rig's rate limit rig.safety.max_rate_deg_s = {limits.max_rate_deg_s:g}"
+        yield (
+            (*loc, "speed"),
+            (
+                f"{speed_deg_s:g} deg/s exceeds the rig's rate limit rig.safety.max_rate_deg_s = {limits.max_rate_deg_s:g}"
+            ),
         )
     amplitude = (robot_range[1] - robot_range[0]) / 2.0
     if amplitude > 0:
         period = sinusoid_period_s(amplitude, speed_deg_s)
         accel = amplitude * (2 * math.pi / period) ** 2
         if accel > limits.max_accel_deg_s2:
-            yield (*loc, "speed"), (
-                f"the sinusoid's peak acceleration {accel:.0f} deg/s^2 exceeds rig.safety.max_accel_deg_s2 = "
-                f"{limits.max_accel_deg_s2:g}"
+            yield (
+                (*loc, "speed"),
+                (
+                    f"the sinusoid's peak acceleration {accel:.0f} deg/s^2 exceeds rig.safety.max_accel_deg_s2 = "
+                    f"{limits.max_accel_deg_s2:g}"
+                ),
             )
 
 
@@ -194,19 +221,26 @@ def _check_trajectories(p: Protocol) -> Iterator[Problem]:
     step = p.trajectories.calibration_step
     for value, field in ((step.from_deg, "from_deg"), (step.from_deg + step.step_deg, "step_deg")):
         if not joint[0] <= value <= joint[1]:
-            yield ("trajectories", "calibration_step", field), (
-                f"the calibration step reaches {value:g} deg, outside the joint's range {_fmt_range(joint)}"
+            yield (
+                ("trajectories", "calibration_step", field),
+                (
+                    f"the calibration step reaches {value:g} deg, outside the joint's range {_fmt_range(joint)}"
+                ),
             )
     peak = calibration_step_peak_speed_deg_s(step.step_deg, step.ramp_s)
     if peak > p.rig.safety.max_rate_deg_s:
-        yield ("trajectories", "calibration_step", "ramp_s"), (
-            f"a {abs(step.step_deg):g} deg step over {step.ramp_s:g} s peaks at {peak:.0f} deg/s, above "
-            f"rig.safety.max_rate_deg_s = {p.rig.safety.max_rate_deg_s:g}; lengthen ramp_s"
+        yield (
+            ("trajectories", "calibration_step", "ramp_s"),
+            (
+                f"a {abs(step.step_deg):g} deg step over {step.ramp_s:g} s peaks at {peak:.0f} deg/s, above "
+                f"rig.safety.max_rate_deg_s = {p.rig.safety.max_rate_deg_s:g}; lengthen ramp_s"
+            ),
         )
     ident = p.trajectories.identification
     if ident is not None and not _within(ident.range_deg, joint):
-        yield ("trajectories", "identification", "range_deg"), (
-            f"{_fmt_range(ident.range_deg)} is outside the joint's range {_fmt_range(joint)}"
+        yield (
+            ("trajectories", "identification", "range_deg"),
+            (f"{_fmt_range(ident.range_deg)} is outside the joint's range {_fmt_range(joint)}"),
         )
 
 
@@ -222,10 +256,16 @@ def _check_files(p: Protocol, base: Path) -> Iterator[Problem]:
             continue
         lo, hi = float(np.min(traj.angle_deg)), float(np.max(traj.angle_deg))
         if not _within((lo, hi), joint):
-            yield loc, f"{spec.file} goes to [{lo:.1f}, {hi:.1f}] deg, outside the joint's range {_fmt_range(joint)}"
+            yield (
+                loc,
+                f"{spec.file} goes to [{lo:.1f}, {hi:.1f}] deg, outside the joint's range {_fmt_range(joint)}",
+            )
         speed = max_speed_deg_s(traj.time_s, traj.angle_deg)
         if speed > limits.max_rate_deg_s:
-            yield loc, f"{spec.file} moves at up to {speed:.0f} deg/s, above rig.safety.max_rate_deg_s = {limits.max_rate_deg_s:g}"
+            yield (
+                loc,
+                f"{spec.file} moves at up to {speed:.0f} deg/s, above rig.safety.max_rate_deg_s = {limits.max_rate_deg_s:g}",
+            )
     for field in ("command_table", "angle_table", "torque_table"):
         rel = getattr(p.rig.calibration, field)
         if rel is None:
