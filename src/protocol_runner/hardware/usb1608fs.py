@@ -109,7 +109,9 @@ class Usb1608FsPlus:
     n_channels = N_CHANNELS
     channels_per_board = N_CHANNELS
 
-    def __init__(self, device: usb.core.Device, serial: str, settings: Usb1608FsSettings, clock: Clock) -> None:
+    def __init__(
+        self, device: usb.core.Device, serial: str, settings: Usb1608FsSettings, clock: Clock
+    ) -> None:
         self._dev = device
         self._usb_serial = serial
         self.settings = settings
@@ -118,7 +120,9 @@ class Usb1608FsPlus:
         self._closed = False
         self._board_serial = serial
         # calibration[range][channel] = (slope, intercept)
-        self.calibration: list[list[tuple[float, float]]] = [[(1.0, 0.0)] * N_CHANNELS for _ in range(N_RANGES)]
+        self.calibration: list[list[tuple[float, float]]] = [
+            [(1.0, 0.0)] * N_CHANNELS for _ in range(N_RANGES)
+        ]
         self.calibration_valid = False
         self._scanning = False
         self._channels: list[int] = []
@@ -173,14 +177,21 @@ class Usb1608FsPlus:
         for rng in range(N_RANGES):
             for ch in range(N_CHANNELS):
                 slope, intercept = struct.unpack_from("<ff", mem, (rng * N_CHANNELS + ch) * 8)
-                if math.isfinite(slope) and math.isfinite(intercept) and 0.8 < slope < 1.2 and abs(intercept) < 4096:
+                if (
+                    math.isfinite(slope)
+                    and math.isfinite(intercept)
+                    and 0.8 < slope < 1.2
+                    and abs(intercept) < 4096
+                ):
                     self.calibration[rng][ch] = (float(slope), float(intercept))
                 else:
                     valid = False
                     self.calibration[rng][ch] = (1.0, 0.0)
         self.calibration_valid = valid
         if not valid:
-            log.warning("%s: calibration memory holds implausible values; using slope 1, intercept 0", self.name)
+            log.warning(
+                "%s: calibration memory holds implausible values; using slope 1, intercept 0", self.name
+            )
 
     # ---- wire helpers ----------------------------------------------------------------------------
     def _ctrl_in(self, request: int, value: int, length: int, action: str) -> Any:
@@ -244,7 +255,9 @@ class Usb1608FsPlus:
         if not chans:
             raise InvalidInput(f"{KIND}: give at least one input channel to scan")
         if len(set(chans)) != len(chans) or any(not 0 <= c < N_CHANNELS for c in chans):
-            raise InvalidInput(f"{KIND}: scan channels must be distinct numbers 0-{N_CHANNELS - 1}; got {chans}")
+            raise InvalidInput(
+                f"{KIND}: scan channels must be distinct numbers 0-{N_CHANNELS - 1}; got {chans}"
+            )
         if not (math.isfinite(rate_hz) and PACER_CLOCK_HZ / 2**32 < rate_hz <= MAX_RATE_HZ):
             raise InvalidInput(f"{KIND}: scan rate must be between 0.01 Hz and 100 kHz; got {rate_hz!r}")
         if self._scanning:

@@ -18,6 +18,7 @@ other  anything else                    `BoardIoError`
 
 from __future__ import annotations
 
+import contextlib
 import errno as errno_codes
 import time
 from collections.abc import Callable
@@ -239,14 +240,10 @@ def claim_interface(device: usb.core.Device, interface: int, board: str) -> bool
 
 def release_device(device: usb.core.Device, interface: int) -> None:
     """Release `interface` and free pyusb's resources; never raises (used on close and error paths)."""
-    try:
+    with contextlib.suppress(usb.core.USBError, ValueError):
         usb.util.release_interface(device, interface)
-    except (usb.core.USBError, ValueError):
-        pass
-    try:
+    with contextlib.suppress(usb.core.USBError, ValueError):
         usb.util.dispose_resources(device)
-    except (usb.core.USBError, ValueError):
-        pass
 
 
 def bcd_to_text(bcd: int) -> str:

@@ -54,7 +54,7 @@ def pipe_error() -> usb.core.USBError:
     return usb.core.USBError("Pipe error", LIBUSB_ERROR_PIPE, errno.EPIPE)
 
 
-class Stall(Exception):  # noqa: N818 - USB vocabulary: the device stalls the request
+class Stall(Exception):
     """Raised by a device model to stall a request (the host sees a pipe error, errno 32)."""
 
 
@@ -134,11 +134,15 @@ class FakeUsbDevice:
         self.keep_transfer_log = True
 
     # ---- overridable behaviour -------------------------------------------------------------------
-    def handle_control_in(self, request_type: int, request: int, value: int, index: int, length: int) -> bytes:
+    def handle_control_in(
+        self, request_type: int, request: int, value: int, index: int, length: int
+    ) -> bytes:
         """Answer an IN control request (non-standard). Raise `Stall` to refuse it."""
         raise Stall()
 
-    def handle_control_out(self, request_type: int, request: int, value: int, index: int, data: bytes) -> None:
+    def handle_control_out(
+        self, request_type: int, request: int, value: int, index: int, data: bytes
+    ) -> None:
         """Accept an OUT control request (non-standard). Raise `Stall` to refuse it."""
         raise Stall()
 
@@ -396,10 +400,14 @@ class FakeBackend(usb.backend.IBackend):
             dev.transfer_log.append(("read", ep, bytes(data[:n])))
         return n
 
-    def bulk_write(self, dev_handle: _Handle, ep: int, intf: int, data: array.array[int], timeout: int) -> int:
+    def bulk_write(
+        self, dev_handle: _Handle, ep: int, intf: int, data: array.array[int], timeout: int
+    ) -> int:
         return self._write(dev_handle, ep, intf, data)
 
-    def intr_write(self, dev_handle: _Handle, ep: int, intf: int, data: array.array[int], timeout: int) -> int:
+    def intr_write(
+        self, dev_handle: _Handle, ep: int, intf: int, data: array.array[int], timeout: int
+    ) -> int:
         return self._write(dev_handle, ep, intf, data)
 
     def bulk_read(self, dev_handle: _Handle, ep: int, intf: int, buff: array.array[int], timeout: int) -> int:
@@ -411,10 +419,10 @@ class FakeBackend(usb.backend.IBackend):
     def ctrl_transfer(
         self,
         dev_handle: _Handle,
-        bmRequestType: int,  # noqa: N803 - pyusb's parameter names
-        bRequest: int,  # noqa: N803
-        wValue: int,  # noqa: N803
-        wIndex: int,  # noqa: N803
+        bmRequestType: int,
+        bRequest: int,
+        wValue: int,
+        wIndex: int,
         data: array.array[int],
         timeout: int,
     ) -> int:

@@ -21,8 +21,8 @@ from dataclasses import dataclass
 from protocol_runner.hardware.fakeusb.backend import (
     ENDPOINT_BULK,
     EndpointSpec,
-    Faults,
     FakeUsbDevice,
+    Faults,
     InterfaceSpec,
     Stall,
 )
@@ -151,7 +151,9 @@ class Usb1608FsModel(FakeUsbDevice):
         return struct.pack(f"<{n}H", *codes)
 
     # ---- the wire --------------------------------------------------------------------------------
-    def handle_control_in(self, request_type: int, request: int, value: int, index: int, length: int) -> bytes:
+    def handle_control_in(
+        self, request_type: int, request: int, value: int, index: int, length: int
+    ) -> bytes:
         if request_type != 0xC0:
             raise Stall()
         if request == STATUS:
@@ -171,7 +173,9 @@ class Usb1608FsModel(FakeUsbDevice):
             return struct.pack("<H", self.raw_code(self.signal(self.clock(), ch), ch))
         raise Stall()
 
-    def handle_control_out(self, request_type: int, request: int, value: int, index: int, data: bytes) -> None:
+    def handle_control_out(
+        self, request_type: int, request: int, value: int, index: int, data: bytes
+    ) -> None:
         if request_type != 0x40:
             raise Stall()
         if request == AIN_CONFIG:

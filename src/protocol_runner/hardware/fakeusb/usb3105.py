@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 from protocol_runner.hardware.fakeusb.backend import (
     ENDPOINT_INTERRUPT,
     EndpointSpec,
-    Faults,
     FakeUsbDevice,
+    Faults,
     InterfaceSpec,
     Stall,
 )
@@ -85,7 +85,9 @@ class Usb3105Model(FakeUsbDevice):
         self.config_count = [0] * N_CHANNELS
 
     # ---- test helpers ------------------------------------------------------------------------------
-    def set_calibration(self, channel: int, slope: float, offset: float, range_code: int = RANGE_PM10V) -> None:
+    def set_calibration(
+        self, channel: int, slope: float, offset: float, range_code: int = RANGE_PM10V
+    ) -> None:
         """Store a calibration pair in the board memory (float32 little-endian)."""
         addr = calibration_address(channel, range_code)
         self.memory[addr : addr + 8] = struct.pack("<ff", slope, offset)
@@ -115,7 +117,9 @@ class Usb3105Model(FakeUsbDevice):
             raise Stall()
         self._report(data)
 
-    def handle_control_out(self, request_type: int, request: int, value: int, index: int, data: bytes) -> None:
+    def handle_control_out(
+        self, request_type: int, request: int, value: int, index: int, data: bytes
+    ) -> None:
         # HID SET_REPORT (output report): 0x21, 0x09, wValue = 0x0200 | report id, wIndex = interface
         if request_type == 0x21 and request == 0x09 and (value >> 8) == 0x02:
             if not data or data[0] != (value & 0xFF):
