@@ -48,14 +48,14 @@ def upward_crossings(
 
     An upward crossing counts when the angle, having been below `reference - hysteresis_deg`, rises to
     `reference + hysteresis_deg`; its index is the sample where it last passed the reference itself on the
-    way up. `hysteresis_deg=None` uses 10 % of the angle's robust peak-to-peak range (1st-99th
-    percentile).
+    way up. `hysteresis_deg=None` uses 10 % of the robust peak-to-peak range (1st-99th percentile)
+    of the angle about the reference (so a drift does not inflate it).
     """
     x = as_signal("angle_deg", angle_deg)
     ref = reference_level(x, reference)
     d = x - ref
     if hysteresis_deg is None:
-        p1, p99 = np.percentile(x, [1.0, 99.0])
+        p1, p99 = np.percentile(d, [1.0, 99.0])
         hysteresis_deg = DEFAULT_HYSTERESIS_FRACTION * float(p99 - p1)
     if hysteresis_deg < 0:
         raise AnalysisError(f"cycle hysteresis must not be negative, got {hysteresis_deg} deg")

@@ -35,8 +35,9 @@ def design_lowpass(
 
     `cutoff` is the normalised cut-off: a fraction of the Nyquist frequency, strictly between 0 and 1
     (thesis: 10 % = 0.1). `ripple_db` is the pass-band ripple of the Chebyshev type I filter (ignored for
-    Butterworth). Raises `AnalysisError` for an unknown kind, order < 1, a cut-off outside (0, 1) or a
-    non-positive ripple.
+    Butterworth). The sections are normalised to unit gain at DC (this matters for an even-order
+    Chebyshev, whose DC gain is otherwise the bottom of the ripple). Raises `AnalysisError` for an
+    unknown kind, order < 1, a cut-off outside (0, 1) or a non-positive ripple.
     """
     if kind not in FILTER_KINDS:
         raise AnalysisError(f"unknown filter kind {kind!r}: use one of {', '.join(FILTER_KINDS)}")
@@ -53,7 +54,12 @@ def design_lowpass(
         if not ripple_db > 0:
             raise AnalysisError(f"Chebyshev pass-band ripple must be positive (dB), got {ripple_db}")
         sos = signal.cheby1(int(order), ripple_db, cutoff, btype="lowpass", output="sos")
-    return np.asarray(sos, dtype=np.float64)
+    sections = np.array(sos, dtype=np.float64)
+    # Unit DC gain: an even-order Chebyshev type I sits at the bottom of its ripple at DC (gain
+    # 10^(-ripple/20)); a constant torque must pass unchanged, so the first section is rescaled.
+    dc_gain = float(np.prod(sections[:, :3].sum(axis=1) / sections[:, 3:].sum(axis=1)))
+    sections[0, :3] /= dc_gain
+    return sections
 
 
 def padding_length(sos: npt.ArrayLike) -> int:
