@@ -7,18 +7,23 @@ the spring is shortest (its force smallest) at θ = α = 20° (Figure 50), its d
 and the torque of Eq 13 (with λ from Eq 18) is zero at 20° and grows with bending (Figure 51).
 The full derivation, with a sketch, is in ``docs/hardware-model.md``. In short::
 
-                 x  ("vertical": along the thigh, towards the shank at full extension)
-                 ^
-                 |         A  lower attachment, on a circle of radius r = a + b about O,
-                 |        /   at angle θ (the brace bending angle) from the vertical
-                 |  b+δ  /
-                 |      /     spring: from U to A, direction λ from the vertical (Eq 18)
-                 |     /
-                 |    U   upper attachment, |OU| = a, at angle α from the vertical
-                 |   /
-                 |  / a
-                 | /
-                 O ----------------> -y      O: the brace's axis of rotation
+            O ───────────────────────────▶ -y        (horizontal)
+            │╲  ╲
+            │ ╲     ╲
+            │α ╲  a     ╲   θ
+            │   U           ╲
+            │    ╲ ·             ╲         r = a + b
+            │     ╲   ·               ╲
+            │      ╲     · spring U→A      ╲
+            │       ╲       ·  (length b+δ)     ╲
+            ▼ x      A0        · · · · · · · · · · A
+       (vertical)
+          O : the brace's axis of rotation
+          U : upper spring attachment, |OU| = a, at angle α from the vertical (fixed)
+          A : lower spring attachment, |OA| = r = a + b, at angle θ (the bending angle) from the vertical;
+              it turns with the shank about O
+          A0: where A is at θ = α: the spring (length b) lies on the ray OU and its line passes through O,
+              so it is shortest and has no lever arm (zero torque)
 
     O = (0, 0),  U = (a cos α, -a sin α),  A = (r cos θ, -r sin θ)        (Eq 15, with r = a + b)
     length L(θ) = |A - U| = sqrt(r² + a² - 2 a r cos(θ - α))
@@ -30,7 +35,7 @@ At θ = α the spring line passes through O, so it has no lever arm: the zero-to
 ("the joint was adjusted to cross the zero torque value at an angle of 20°", thesis §5). Choosing
 r = a + b makes b the spring's length at that angle (the undeflected length), so the screw preload of
 Eq 17 is the only tension there. The thesis's printed radius would instead give a residual 7.7 mm
-extension at 20°; that constant is absorbed by ``max_preload_mm``, which is itself a fitted/chosen value.
+extension at 20°, mostly equivalent to a larger ``max_preload_mm`` (itself a chosen or fitted value).
 
 Sign convention (docs/hardware-model.md, notes/apis.md): a positive torque is the torque the robot must
 apply in the flexion (+angle) direction, i.e. the brace resists flexion with positive torque above its
