@@ -1,0 +1,384 @@
+"""The DAQ simulator: a clock, an analog output and an analog input scan that satisfy
+`hardware.interfaces` and drive a physical model of the rig (`plant.py`) instead of the RSST.
+
+Signal path, mirroring the real rig (DESIGN.md "The DAQ simulator", thesis §2.4-2.5):
+
+    Rig ── volts ──▶ SimulatedAnalogOutput: USB-3105 16-bit code, recorded with its time
+        ──▶ the robot's VME reads the code's volts ──▶ Eq 2 (the inverse of Eq 1) over the joint range
+        ──▶ the robot's own nonlinearity (the inverse of the protocol's command table, thesis §2.5.1)
+        ──▶ JointPlant (servo + loads), integrated lazily up to the clock when the scan is read
+        ──▶ real angle / load torque ──▶ the robot's sensor nonlinearity (inverses of the angle and torque
+            tables) ──▶ Eq 1 / Eq 3 inverted ──▶ volts + noise ──▶ DT9814 12-bit ±10 V codes at the scan rate
+
+so that, after the rig applies its calibration tables, measured ≈ real. With no table the robot is linear.
+
+Determinism (DESIGN.md): `SimulatedRig.begin_step(step_id)` reseeds the noise generator from
+sha256(session seed, step id), puts the joint at rest at the park angle and restarts the plant's time grid
+at the current clock. The plant advances on a fixed grid whatever the pattern of reads, commands take effect
+from the first grid step at or after their write time, and noise is drawn row by row, so the same seed and
+step id give identical arrays however often the scan is read. (`realtime=True` paces with the wall clock;
+write times then jitter, so only simulated time is bit-for-bit reproducible.)
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from typing import TYPE_CHECKING
+
+import numpy as np
+import numpy.typing as npt
+
+from protocol_runner.errors import InvalidInput
+from protocol_runner.hardware.conversions import (
+    ai12_code_to_volts,
+    angle_to_volts,
+    ao16_code_to_volts,
+    torque_to_volts,
+    volts_to_ai12_code,
+    volts_to_angle,
+    volts_to_ao16_code,
+)
+from protocol_runner.hardware.interfaces import ScanBlock
+from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, BraceSetup, SimulatorParams
+from protocol_runner.hardware.simulator.plant import JointPlant
+
+if TYPE_CHECKING:
+    from protocol_runner.hardware.calibration import CalibrationTable
+    from protocol_runner.hardware.rig import JointConfig, Rig
+
+FloatArray = npt.NDArray[np.float64]
+
+AO_CHANNELS = 16
+"""USB-3105: 16 analog outputs (thesis §2.3)."""
+AI_CHANNELS = 24
+"""DT9814-10V: 24 analog inputs (thesis §2.3)."""
+AI_MAX_RATE_HZ = 50_000.0
+"""DT9814 maximum aggregate rate (thesis §2.3)."""
+
+# Grid rounding tolerance, in grid steps: absorbs the float error of (t - origin) / dt so that a write or a
+# sample exactly on a grid point lands on it whatever the clock's absolute value.
+_GRID_TOL = 1e-6
+
+
+def step_seed(seed: int, step_id: str) -> int:
+    """The 128-bit seed of one step's noise generator: sha256 of the session seed and the step id
+    (stable across processes and Python versions, unlike `hash()`)."""
+    digest = hashlib.sha256(f"{int(seed)}\x1f{step_id}".encode()).digest()
+    return int.from_bytes(digest[:16], "little")
+
+
+class SimulatedClock:
+    """Simulated time: `sleep_until` jumps instead of sleeping. With `realtime=True` it is the wall clock
+    (time.monotonic from construction, plus `start_s`) and `sleep_until` really sleeps (`--realtime`)."""
+
+    def __init__(self, *, realtime: bool = False, start_s: float = 0.0) -> None:
+        self.realtime = realtime
+        self._now_s = float(start_s)
+        self._start_s = float(start_s)
+        self._wall0 = time.monotonic()
+
+    def now_s(self) -> float:
+        if self.realtime:
+            return self._start_s + (time.monotonic() - self._wall0)
+        return self._now_s
+
+    def sleep_until(self, t_s: float) -> None:
+        if self.realtime:
+            while True:
+                remaining = t_s - self.now_s()
+                if remaining <= 0.0:
+                    return
+                time.sleep(remaining)
+        elif t_s > self._now_s:
+            self._now_s = float(t_s)
+
+    def advance(self, dt_s: float) -> None:
+        """Let `dt_s` seconds pass (jump, or sleep in real time)."""
+        self.sleep_until(self.now_s() + max(0.0, dt_s))
+
+
+def _check_channel(channel: int, n_channels: int, board: str) -> int:
+    if (
+        isinstance(channel, bool)
+        or not isinstance(channel, int | np.integer)
+        or not 0 <= channel < n_channels
+    ):
+        raise InvalidInput(f"{board}: channel must be an integer 0-{n_channels - 1}, got {channel!r}")
+    return int(channel)
+
+
+class SimulatedAnalogOutput:
+    """A USB-3105 stand-in: quantises volts to its 16-bit ±10 V ideal code (clamped), records every update
+    as (time, channel, code) and hands it to `listener` (the simulated robot)."""
+
+    def __init__(
+        self, clock: SimulatedClock, *, listener: Callable[[float, int, int], None] | None = None
+    ) -> None:
+        self._clock = clock
+        self._listener = listener
+        self._t: list[float] = []
+        self._channel: list[int] = []
+        self._code: list[int] = []
+        self._closed = False
+
+    def _emit(self, t_s: float, channel: int, code: int) -> None:
+        self._t.append(t_s)
+        self._channel.append(channel)
+        self._code.append(code)
+        if self._listener is not None:
+            self._listener(t_s, channel, code)
+
+    def configure_channel(self, channel: int) -> None:
+        """±10 V range; like the real board this also drives the output to 0 V (code 32768)."""
+        ch = _check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
+        self._emit(self._clock.now_s(), ch, 32768)
+
+    def write_volts(self, channel: int, volts: float) -> int:
+        ch = _check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
+        code = int(volts_to_ao16_code(volts))
+        self._emit(self._clock.now_s(), ch, code)
+        return code
+
+    def write_volts_sync(self, volts_by_channel: Mapping[int, float]) -> dict[int, int]:
+        t_s = self._clock.now_s()
+        codes: dict[int, int] = {}
+        for channel, volts in volts_by_channel.items():
+            ch = _check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
+            codes[ch] = int(volts_to_ao16_code(volts))
+        for ch, code in codes.items():
+            self._emit(t_s, ch, code)
+        return codes
+
+    def records(self) -> tuple[FloatArray, npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+        """Every update since the last `clear_records`: (time_s, channel, code) arrays."""
+        return (
+            np.asarray(self._t, dtype=np.float64),
+            np.asarray(self._channel, dtype=np.int64),
+            np.asarray(self._code, dtype=np.int64),
+        )
+
+    def clear_records(self) -> None:
+        self._t.clear()
+        self._channel.clear()
+        self._code.clear()
+
+    def close(self) -> None:
+        self._closed = True
+
+
+class _RigModel:
+    """The simulated robot behind the boards: command decoding, the plant, sensors and noise."""
+
+    def __init__(self, joint: JointConfig, params: SimulatorParams, seed: int, clock: SimulatedClock) -> None:
+        self.joint = joint
+        self.params = params
+        self.seed = int(seed)
+        self.clock = clock
+        self.range_deg = (float(joint.range_deg[0]), float(joint.range_deg[1]))
+        self.torque_range_nm = (float(joint.torque_range_nm[0]), float(joint.torque_range_nm[1]))
+        self.plant = JointPlant(params, self.range_deg, self.torque_range_nm)
+        self.command_nonlinearity: CalibrationTable | None = (
+            joint.command_table.inverse() if joint.command_table is not None else None
+        )
+        self.angle_nonlinearity: CalibrationTable | None = (
+            joint.angle_table.inverse() if joint.angle_table is not None else None
+        )
+        self.torque_nonlinearity: CalibrationTable | None = (
+            joint.torque_table.inverse() if joint.torque_table is not None else None
+        )
+        # What the robot does with each of the 65536 output codes: code -> volts (USB-3105) -> Eq 2 over the
+        # joint range -> the robot's own nonlinearity (inverse of the command table). Tabulated once, so a
+        # write costs a list look-up.
+        input_deg = volts_to_angle(ao16_code_to_volts(np.arange(65536)), self.range_deg)
+        if self.command_nonlinearity is not None:
+            input_deg = self.command_nonlinearity(input_deg)
+        self.target_by_code: list[float] = input_deg.tolist()
+        # The sensor chains, real value -> the robot's sensor nonlinearity (inverse of the protocol's output
+        # table) -> Eq 1 / Eq 3 inverted -> volts, are piecewise linear: tabulate them on the table's knots
+        # (plus two far knots that carry the tables' linear extrapolation) so a read costs one np.interp.
+        self.angle_knots, self.angle_knot_volts = self._sensor_chain(
+            self.angle_nonlinearity, self.range_deg, lambda x: angle_to_volts(x, self.range_deg)
+        )
+        self.torque_knots, self.torque_knot_volts = self._sensor_chain(
+            self.torque_nonlinearity,
+            self.torque_range_nm,
+            lambda x: torque_to_volts(x, self.torque_range_nm),
+        )
+        volts_span = 20.0
+        self.angle_noise_v = params.angle_noise_deg * volts_span / (self.range_deg[1] - self.range_deg[0])
+        self.torque_noise_v = (
+            params.torque_noise_nm * volts_span / (self.torque_range_nm[1] - self.torque_range_nm[0])
+        )
+        self.origin_s = 0.0
+        self.step_id = ""
+        self.rng = np.random.default_rng(step_seed(self.seed, ""))
+
+    @staticmethod
+    def _sensor_chain(
+        nonlinearity: CalibrationTable | None,
+        span: tuple[float, float],
+        to_volts: Callable[[FloatArray], FloatArray],
+    ) -> tuple[FloatArray, FloatArray]:
+        width = span[1] - span[0]
+        far = 1000.0 * width
+        if nonlinearity is None:
+            knots = np.array([span[0] - far, span[1] + far], dtype=np.float64)
+            return knots, to_volts(knots)
+        knots = np.concatenate([[nonlinearity.x[0] - far], nonlinearity.x, [nonlinearity.x[-1] + far]])
+        return knots, to_volts(nonlinearity(knots))
+
+    def begin_step(self, step_id: str) -> None:
+        self.step_id = step_id
+        self.rng = np.random.default_rng(step_seed(self.seed, step_id))
+        self.origin_s = self.clock.now_s()
+        self.plant.reset(self.joint.limits.park_angle_deg)
+
+    def _grid_floor(self, t_s: float) -> int:
+        return math.floor((t_s - self.origin_s) / self.params.plant_step_s + _GRID_TOL)
+
+    def on_write(self, t_s: float, channel: int, code: int) -> None:
+        if channel != self.joint.output_channel:
+            return
+        step = math.ceil((t_s - self.origin_s) / self.params.plant_step_s - _GRID_TOL)
+        self.plant.push_command(step, self.target_by_code[code])
+
+    def acquire(
+        self, row_times_s: FloatArray, channels: Sequence[int], now_s: float
+    ) -> tuple[npt.NDArray[np.int32], FloatArray]:
+        """Integrate up to `now_s` and return (codes, volts) of the leading rows of `row_times_s` whose
+        grid step has been reached (all of them, unless the last ones fall inside the current step)."""
+        dt = self.params.plant_step_s
+        steps = np.floor((row_times_s - self.origin_s) / dt + _GRID_TOL).astype(np.int64)
+        np.maximum(steps, 0, out=steps)
+        angle_deg, torque_nm = self.plant.advance(self._grid_floor(now_s), steps)
+        n = angle_deg.shape[0]
+        noise = self.rng.standard_normal((n, len(channels)))
+        volts = np.empty((n, len(channels)), dtype=np.float64)
+        angle_v: FloatArray | None = None
+        torque_v: FloatArray | None = None
+        for j, ch in enumerate(channels):
+            if ch == self.joint.angle_input_channel:
+                if angle_v is None:
+                    angle_v = np.interp(angle_deg, self.angle_knots, self.angle_knot_volts)
+                volts[:, j] = angle_v + self.angle_noise_v * noise[:, j]
+            elif ch == self.joint.torque_input_channel:
+                if torque_v is None:
+                    torque_v = np.interp(torque_nm, self.torque_knots, self.torque_knot_volts)
+                volts[:, j] = torque_v + self.torque_noise_v * noise[:, j]
+            else:
+                volts[:, j] = self.params.idle_channel_noise_v * noise[:, j]
+        codes = volts_to_ai12_code(volts)
+        return codes, ai12_code_to_volts(codes)
+
+
+class SimulatedAnalogInput:
+    """A DT9814 stand-in: a hardware-paced scan of 12-bit ±10 V two's-complement codes. Reading it
+    integrates the simulated robot up to the clock (lazily) and returns the rows acquired since."""
+
+    def __init__(self, model: _RigModel, clock: SimulatedClock) -> None:
+        self._model = model
+        self._clock = clock
+        self._channels: tuple[int, ...] = ()
+        self._rate_hz = 0.0
+        self._t0_s = 0.0
+        self._rows_read = 0
+        self._running = False
+
+    @property
+    def resolution_bits(self) -> int:
+        return 12
+
+    def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
+        if len(channels) == 0:
+            raise InvalidInput("DT9814 (simulated): a scan needs at least one channel")
+        chans = tuple(_check_channel(c, AI_CHANNELS, "DT9814 (simulated)") for c in channels)
+        if not (math.isfinite(rate_hz) and 0.0 < rate_hz * len(chans) <= AI_MAX_RATE_HZ):
+            raise InvalidInput(
+                f"DT9814 (simulated): scan rate must be > 0 and at most {AI_MAX_RATE_HZ:g} samples/s over "
+                f"all channels, got {rate_hz!r} Hz x {len(chans)} channels"
+            )
+        self._channels = chans
+        self._rate_hz = float(rate_hz)
+        self._t0_s = self._clock.now_s()
+        self._rows_read = 0
+        self._running = True
+
+    def _read(self, now_s: float) -> ScanBlock:
+        n_ch = len(self._channels)
+        if not self._running:
+            return ScanBlock.empty(n_ch)
+        n_due = math.floor((now_s - self._t0_s) * self._rate_hz + 1e-9) + 1
+        if n_due <= self._rows_read:
+            return ScanBlock.empty(n_ch)
+        t_s = self._t0_s + np.arange(self._rows_read, n_due, dtype=np.float64) / self._rate_hz
+        codes, volts = self._model.acquire(t_s, self._channels, now_s)
+        n = codes.shape[0]
+        self._rows_read += n
+        return ScanBlock(t_s=t_s[:n], codes=codes, volts=volts)
+
+    def read_available(self) -> ScanBlock:
+        return self._read(self._clock.now_s())
+
+    def stop_scan(self) -> ScanBlock:
+        block = self._read(self._clock.now_s())
+        self._running = False
+        return block
+
+    def close(self) -> None:
+        self._running = False
+
+
+class SimulatedRig:
+    """The rig in a box for dry runs: a simulated clock, USB-3105 and DT9814 wired to a model of the RSST
+    joint named by `joint` (its ranges, channels, calibration tables and park angle) with or without the
+    brace. Hand `make_rig()` to the steps exactly as the hardware rig would be."""
+
+    def __init__(
+        self,
+        joint: JointConfig,
+        *,
+        seed: int = 0,
+        params: SimulatorParams = DEFAULT_PARAMS,
+        realtime: bool = False,
+    ) -> None:
+        self.joint = joint
+        self.seed = int(seed)
+        self.params = params
+        self.clock = SimulatedClock(realtime=realtime)
+        self._model = _RigModel(joint, params, self.seed, self.clock)
+        self.ao = SimulatedAnalogOutput(self.clock, listener=self._model.on_write)
+        self.ai = SimulatedAnalogInput(self._model, self.clock)
+        self.begin_step("")
+
+    @property
+    def plant(self) -> JointPlant:
+        """The physical model (its real angle and load, for tests and diagnostics)."""
+        return self._model.plant
+
+    @property
+    def brace(self) -> BraceSetup | None:
+        return self._model.plant.brace
+
+    @property
+    def step_id(self) -> str:
+        return self._model.step_id
+
+    def begin_step(self, step_id: str) -> None:
+        """Start step `step_id`: reseed the noise from (seed, step id), put the joint at rest at the park
+        angle with its friction states relaxed, restart the plant's time grid now and clear the output
+        records. The brace stays as fitted."""
+        self.ao.clear_records()
+        self._model.begin_step(step_id)
+
+    def set_brace(self, brace: BraceSetup | None) -> None:
+        """The operator fits the brace set up as `brace` (or removes it, with None)."""
+        self._model.plant.set_brace(brace)
+
+    def make_rig(self) -> Rig:
+        """A `hardware.rig.Rig` bound to this simulator's boards and clock."""
+        from protocol_runner.hardware.rig import Rig
+
+        return Rig(self.joint, self.ao, self.ai, self.clock)

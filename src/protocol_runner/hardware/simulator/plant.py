@@ -1,0 +1,381 @@
+"""The rig's physics: the RSST knee joint (hydraulic position servo) and the brace, integrated by numba.
+
+Model (DESIGN.md "The DAQ simulator"; every constant is in `params.py`; docs/simulator.md):
+
+Servo (thesis §2.2, §2.4.2). The hydraulic boards run a PD position loop whose complete response is a
+first-order lag of about 0.2 s. A hydraulic actuator is a flow (speed) source: its valve opens in
+proportion to the position error e = target - angle, and the flow through the orifice is proportional to
+sqrt(supply pressure - load pressure). So the joint speed is
+
+    dθ/dt = (e / τ) · g(1 - τ_load / τ_limit),     g(x) = x / sqrt(|x| + ε) · sqrt(1 + ε)
+
+with τ_limit the actuator's torque limit in the direction it pushes (Table 3: ±84.8 N·m for the knee,
+taken from the joint's torque range). Unloaded it is exactly the first-order lag; as the load approaches
+the limit the speed collapses to zero (the joint stalls where the load reaches the limit, thesis §5), and
+a load beyond the limit back-drives the joint (plus a relief term for loads beyond the limit with no
+error). The torque the load cell reports is the load the actuator holds (inertia neglected: at the
+test speeds J·dω/dt is well under 1 N·m).
+
+Loads, in the sign convention of `models.spring` (positive = the robot must push towards flexion):
+
+- shank gravity: G · sin(θ - θ_0) (the robot stands: the straight knee hangs);
+- robot friction: a Dahl state z_r (Coulomb level F_r, rounded reversals) + viscous c·dθ/dt;
+- brace (when fitted): springs (Eq 13-18, table precomputed with `models.spring.spring_torque_nm`),
+  brake + hinge friction as a Dahl state z_b whose level has a Stribeck excess at low speed, range-of-motion
+  stops with misalignment slack then a stiff end (§5.2), and the low-angle "bump" (§5.1, §5.4).
+
+The integrator is explicit Euler on a fixed grid (`plant_step_s`); Dahl states use the exact exponential
+update over each step, so they are unconditionally stable. Everything inside is deterministic.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+from numba import njit
+
+from protocol_runner.hardware.simulator.params import BraceSetup, SimulatorParams
+from protocol_runner.models.spring import spring_force_n, spring_torque_nm
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+# Indices into the float parameter vector handed to the kernel.
+P_DT = 0
+P_TAU = 1
+P_EPS = 2
+P_RELIEF = 3
+P_T_HI = 4
+P_T_LO = 5
+P_GRAVITY = 6
+P_GRAVITY_ZERO = 7
+P_ROBOT_F = 8
+P_ROBOT_TRANS = 9
+P_ROBOT_VISC = 10
+P_BRACE_ON = 11
+P_BRACE_F = 12
+P_BRACE_TRANS = 13
+P_STATIC_EXCESS = 14
+P_STRIBECK_V = 15
+P_ROM_LO = 16
+P_ROM_HI = 17
+P_SLACK = 18
+P_SLACK_K = 19
+P_STOP_K = 20
+P_BUMP_ANGLE = 21
+P_BUMP_WIDTH = 22
+P_BUMP_TORQUE = 23
+P_BUMP_V = 24
+P_SPRING_X0 = 25
+P_SPRING_DX = 26
+N_PARAMS = 27
+
+# Indices into the float state vector.
+S_ANGLE = 0
+S_SPEED = 1
+S_Z_ROBOT = 2
+S_Z_BRACE = 3
+S_LOAD = 4
+N_STATE = 5
+
+# Indices into the integer state vector.
+I_STEP = 0
+I_CMD = 1
+N_ISTATE = 2
+
+
+@njit(cache=True)
+def _stop_torque_nm(penetration_deg: float, p: FloatArray) -> float:
+    """Torque of one range-of-motion stop penetrated by `penetration_deg` (> 0): slack, then stiff."""
+    slack = p[P_SLACK]
+    if penetration_deg <= slack:
+        return p[P_SLACK_K] * penetration_deg
+    return p[P_SLACK_K] * slack + p[P_STOP_K] * (penetration_deg - slack)
+
+
+@njit(cache=True)
+def _load_nm(
+    angle_deg: float, speed_deg_s: float, z_robot: float, z_brace: float, p: FloatArray, spring: FloatArray
+) -> float:
+    """Total load torque the actuator holds at this state (positive = the robot pushes to flex)."""
+    load = p[P_GRAVITY] * math.sin(math.radians(angle_deg - p[P_GRAVITY_ZERO]))
+    load += z_robot + p[P_ROBOT_VISC] * speed_deg_s
+    if p[P_BRACE_ON] > 0.5:
+        # springs: linear interpolation in the precomputed table, clamped at its ends
+        u = (angle_deg - p[P_SPRING_X0]) / p[P_SPRING_DX]
+        n = spring.shape[0]
+        if u <= 0.0:
+            load += spring[0]
+        elif u >= n - 1:
+            load += spring[n - 1]
+        else:
+            i = int(u)
+            f = u - i
+            load += spring[i] * (1.0 - f) + spring[i + 1] * f
+        load += z_brace
+        pen_lo = p[P_ROM_LO] - angle_deg
+        if pen_lo > 0.0:
+            load -= _stop_torque_nm(pen_lo, p)
+        pen_hi = angle_deg - p[P_ROM_HI]
+        if pen_hi > 0.0:
+            load += _stop_torque_nm(pen_hi, p)
+        if p[P_BUMP_TORQUE] > 0.0:
+            d = (angle_deg - p[P_BUMP_ANGLE]) / p[P_BUMP_WIDTH]
+            if d * d < 30.0:
+                v = min(abs(speed_deg_s) / p[P_BUMP_V], 3.0)
+                load += p[P_BUMP_TORQUE] * v * math.exp(-d * d)
+    return load
+
+
+@njit(cache=True)
+def _dahl(z: float, level: float, step_deg: float, transition_deg: float) -> float:
+    """Exact Dahl update over a displacement `step_deg`: z relaxes towards sign(step)·level."""
+    if level <= 0.0:
+        return 0.0
+    if step_deg == 0.0:
+        return z
+    target = level if step_deg > 0.0 else -level
+    return target + (z - target) * math.exp(-abs(step_deg) / transition_deg)
+
+
+@njit(cache=True)
+def integrate(
+    state: FloatArray,
+    istate: IntArray,
+    p: FloatArray,
+    spring: FloatArray,
+    cmd_step: IntArray,
+    cmd_target_deg: FloatArray,
+    n_cmd: int,
+    step_end: int,
+    sample_step: IntArray,
+    out_angle_deg: FloatArray,
+    out_torque_nm: FloatArray,
+) -> int:
+    """Advance the joint from its current grid step to `step_end`, recording samples on the way.
+
+    `cmd_step[:n_cmd]` / `cmd_target_deg[:n_cmd]` is the zero-order-hold command history: target i holds
+    from grid step cmd_step[i] on (sorted). `sample_step` lists the grid steps (sorted) at which to record
+    the real angle and the load torque into the outputs; samples at steps beyond `step_end` are left.
+    Returns how many samples were written. `state` / `istate` are updated in place.
+    """
+    dt = p[P_DT]
+    inv_tau = 1.0 / p[P_TAU]
+    eps = p[P_EPS]
+    norm = math.sqrt(1.0 + eps)
+    t_hi = p[P_T_HI]
+    t_lo = p[P_T_LO]
+    angle = state[S_ANGLE]
+    speed = state[S_SPEED]
+    z_r = state[S_Z_ROBOT]
+    z_b = state[S_Z_BRACE]
+    load = state[S_LOAD]
+    k = istate[I_STEP]
+    ptr = istate[I_CMD]
+    n_samples = sample_step.shape[0]
+    j = 0
+    while j < n_samples and sample_step[j] <= k:
+        out_angle_deg[j] = angle
+        out_torque_nm[j] = load
+        j += 1
+    while k < step_end:
+        while ptr + 1 < n_cmd and cmd_step[ptr + 1] <= k:
+            ptr += 1
+        err = cmd_target_deg[ptr] - angle
+        r = load / t_hi if err >= 0.0 else load / t_lo
+        x = 1.0 - r
+        if x < -1.0:
+            x = -1.0
+        elif x > 2.0:
+            x = 2.0
+        speed = err * inv_tau * (x / math.sqrt(abs(x) + eps)) * norm
+        if load > t_hi:
+            speed -= (load - t_hi) * p[P_RELIEF]
+        elif load < t_lo:
+            speed += (t_lo - load) * p[P_RELIEF]
+        step = speed * dt
+        angle += step
+        z_r = _dahl(z_r, p[P_ROBOT_F], step, p[P_ROBOT_TRANS])
+        if p[P_BRACE_ON] > 0.5:
+            vs = speed / p[P_STRIBECK_V]
+            level = p[P_BRACE_F] * (1.0 + p[P_STATIC_EXCESS] * math.exp(-vs * vs))
+            z_b = _dahl(z_b, level, step, p[P_BRACE_TRANS])
+        load = _load_nm(angle, speed, z_r, z_b, p, spring)
+        k += 1
+        while j < n_samples and sample_step[j] <= k:
+            out_angle_deg[j] = angle
+            out_torque_nm[j] = load
+            j += 1
+    state[S_ANGLE] = angle
+    state[S_SPEED] = speed
+    state[S_Z_ROBOT] = z_r
+    state[S_Z_BRACE] = z_b
+    state[S_LOAD] = load
+    istate[I_STEP] = k
+    istate[I_CMD] = ptr
+    return j
+
+
+def spring_table_nm(
+    brace: BraceSetup, range_deg: tuple[float, float], step_deg: float
+) -> tuple[float, FloatArray]:
+    """Spring torque (Eq 13-18, `models.spring.spring_torque_nm`) tabulated every `step_deg` over the
+    joint range widened by 60° on both sides; returns (first angle, torques)."""
+    lo = float(range_deg[0]) - 60.0
+    hi = float(range_deg[1]) + 60.0
+    n = math.ceil((hi - lo) / step_deg) + 1
+    angles = lo + step_deg * np.arange(n, dtype=np.float64)
+    if brace.stiffness_n_per_mm == 0.0:
+        return lo, np.zeros(n, dtype=np.float64)
+    torque = spring_torque_nm(angles, brace.stiffness_n_per_mm, brace.preload_position)
+    return lo, np.ascontiguousarray(torque, dtype=np.float64)
+
+
+class JointPlant:
+    """One simulated joint (with or without the brace) on a fixed time grid of `params.plant_step_s`.
+
+    Time is counted in grid steps from the last `reset`. Commands are real target angles (the robot's own
+    input nonlinearity already applied by the caller) holding from a grid step on; `advance` integrates up
+    to a grid step and returns the real angle and load torque at the requested sample steps.
+    """
+
+    def __init__(
+        self,
+        params: SimulatorParams,
+        range_deg: tuple[float, float],
+        torque_range_nm: tuple[float, float],
+    ) -> None:
+        self.params = params
+        self.range_deg = (float(range_deg[0]), float(range_deg[1]))
+        t_lo, t_hi = float(torque_range_nm[0]), float(torque_range_nm[1])
+        if not (t_lo < 0.0 < t_hi):
+            raise ValueError(f"torque range must straddle 0 N·m, got {torque_range_nm!r}")
+        p = np.zeros(N_PARAMS, dtype=np.float64)
+        p[P_DT] = params.plant_step_s
+        p[P_TAU] = params.lag_time_constant_s
+        p[P_EPS] = params.valve_regularisation
+        p[P_RELIEF] = params.relief_speed_deg_s_per_nm
+        p[P_T_HI] = t_hi
+        p[P_T_LO] = t_lo
+        p[P_GRAVITY] = params.gravity_torque_max_nm
+        p[P_GRAVITY_ZERO] = params.gravity_zero_angle_deg
+        p[P_ROBOT_F] = params.robot_friction_nm
+        p[P_ROBOT_TRANS] = params.robot_friction_transition_deg
+        p[P_ROBOT_VISC] = params.robot_viscous_nm_per_deg_s
+        p[P_BRACE_TRANS] = params.brake_friction_transition_deg
+        p[P_STATIC_EXCESS] = params.brake_static_excess
+        p[P_STRIBECK_V] = params.brake_stribeck_speed_deg_s
+        p[P_SLACK] = params.rom_slack_deg
+        p[P_SLACK_K] = params.rom_slack_stiffness_nm_per_deg
+        p[P_STOP_K] = params.rom_stop_stiffness_nm_per_deg
+        p[P_BUMP_ANGLE] = params.bump_angle_deg
+        p[P_BUMP_WIDTH] = params.bump_width_deg
+        p[P_BUMP_V] = params.bump_reference_speed_deg_s
+        p[P_SPRING_DX] = params.spring_table_step_deg
+        self._p = p
+        self._spring = np.zeros(2, dtype=np.float64)
+        self.brace: BraceSetup | None = None
+        self._state = np.zeros(N_STATE, dtype=np.float64)
+        self._istate = np.zeros(N_ISTATE, dtype=np.int64)
+        self._cmd_step = np.zeros(1024, dtype=np.int64)
+        self._cmd_target = np.zeros(1024, dtype=np.float64)
+        self._n_cmd = 0
+        self.set_brace(None)
+        self.reset(0.5 * (self.range_deg[0] + self.range_deg[1]))
+
+    # --- set-up ---------------------------------------------------------------------------------------
+    def set_brace(self, brace: BraceSetup | None) -> None:
+        """Fit (or remove, with None) the brace. Resets the brace's friction state; keeps the joint's."""
+        p = self._p
+        self.brace = brace
+        if brace is None:
+            p[P_BRACE_ON] = 0.0
+            p[P_BRACE_F] = 0.0
+            p[P_BUMP_TORQUE] = 0.0
+            self._spring = np.zeros(2, dtype=np.float64)
+            p[P_SPRING_X0] = 0.0
+        else:
+            params = self.params
+            p[P_BRACE_ON] = 1.0
+            p[P_BRACE_F] = brace.friction_nm + params.brace_pivot_friction_nm
+            p[P_ROM_LO] = float(brace.rom_deg[0])
+            p[P_ROM_HI] = float(brace.rom_deg[1])
+            x0, table = spring_table_nm(brace, self.range_deg, params.spring_table_step_deg)
+            p[P_SPRING_X0] = x0
+            self._spring = table
+            force_n = 0.0
+            if brace.stiffness_n_per_mm > 0.0:
+                force_n = float(
+                    spring_force_n(params.bump_angle_deg, brace.stiffness_n_per_mm, brace.preload_position)
+                )
+            ref = params.bump_reference_force_n
+            p[P_BUMP_TORQUE] = params.bump_torque_nm * (ref / (ref + force_n) if ref > 0.0 else 0.0)
+        self._state[S_Z_BRACE] = 0.0
+        self._refresh_load()
+
+    def reset(self, angle_deg: float) -> None:
+        """Put the joint at rest at `angle_deg`, friction states relaxed, holding that angle as its command,
+        at grid step 0."""
+        self._state[:] = 0.0
+        self._state[S_ANGLE] = float(angle_deg)
+        self._istate[:] = 0
+        self._n_cmd = 0
+        self.push_command(0, float(angle_deg))
+        self._refresh_load()
+
+    def _refresh_load(self) -> None:
+        s = self._state
+        s[S_LOAD] = _load_nm(s[S_ANGLE], s[S_SPEED], s[S_Z_ROBOT], s[S_Z_BRACE], self._p, self._spring)
+
+    # --- running --------------------------------------------------------------------------------------
+    @property
+    def step(self) -> int:
+        """The grid step the joint has been integrated to."""
+        return int(self._istate[I_STEP])
+
+    @property
+    def angle_deg(self) -> float:
+        """The joint's real angle now."""
+        return float(self._state[S_ANGLE])
+
+    @property
+    def load_nm(self) -> float:
+        """The load torque the actuator holds now (what the load cell sees)."""
+        return float(self._state[S_LOAD])
+
+    def push_command(self, step: int, target_deg: float) -> None:
+        """Hold `target_deg` (a real angle) from grid step `step` on. Steps must not go backwards; a step
+        already integrated past is applied from the current step; of several commands for the same step the
+        last one holds."""
+        step = max(int(step), self.step)
+        if self._n_cmd and step < self._cmd_step[self._n_cmd - 1]:
+            raise ValueError("commands must be pushed in time order")
+        if self._n_cmd == self._cmd_step.shape[0]:
+            self._cmd_step = np.concatenate([self._cmd_step, np.zeros_like(self._cmd_step)])
+            self._cmd_target = np.concatenate([self._cmd_target, np.zeros_like(self._cmd_target)])
+        self._cmd_step[self._n_cmd] = step
+        self._cmd_target[self._n_cmd] = target_deg
+        self._n_cmd += 1
+
+    def advance(self, step_end: int, sample_step: IntArray) -> tuple[FloatArray, FloatArray]:
+        """Integrate to grid step `step_end`; return (real angle, load torque) at each of the sorted
+        `sample_step` that is <= step_end (the prefix of `sample_step` that could be sampled)."""
+        n = sample_step.shape[0]
+        angle = np.empty(n, dtype=np.float64)
+        torque = np.empty(n, dtype=np.float64)
+        got = integrate(
+            self._state,
+            self._istate,
+            self._p,
+            self._spring,
+            self._cmd_step,
+            self._cmd_target,
+            self._n_cmd,
+            int(step_end),
+            np.ascontiguousarray(sample_step, dtype=np.int64),
+            angle,
+            torque,
+        )
+        return angle[:got], torque[:got]

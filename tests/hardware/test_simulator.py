@@ -1,0 +1,265 @@
+"""The DAQ simulator behaves like the rig (DESIGN.md "The DAQ simulator"), end to end through `Rig`.
+
+Each test states a physical or contractual fact of the thesis (§2.4.2 lag, Table 3 torque limit, §3.3.1
+start-up transition, §2.5 calibration) or of the DAQ interfaces, and would fail if the model were wrong.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+
+from protocol_runner.errors import InvalidInput
+from protocol_runner.hardware.calibration import CalibrationTable
+from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
+from protocol_runner.hardware.rig import JointConfig, Rig
+from protocol_runner.hardware.safety import SafetyLimits
+from protocol_runner.hardware.simulator import (
+    BraceSetup,
+    SimulatedClock,
+    SimulatedRig,
+    SimulatorParams,
+    step_seed,
+)
+
+KNEE_TORQUE_LIMIT_NM = 84.8  # thesis Table 3
+PARK_DEG = 20.0
+OUTPUT_RATE_HZ = 100.0
+INPUT_RATE_HZ = 1000.0
+
+
+def knee_joint(**tables: CalibrationTable | None) -> JointConfig:
+    """The knee (RSST joint 9): Eq 1 range 0-130°, ±84.8 N·m, park at 20°, generous rate limits."""
+    return JointConfig(
+        name="knee",
+        range_deg=(0.0, 130.0),
+        torque_range_nm=(-KNEE_TORQUE_LIMIT_NM, KNEE_TORQUE_LIMIT_NM),
+        output_channel=8,
+        angle_input_channel=8,
+        torque_input_channel=20,
+        output_rate_hz=OUTPUT_RATE_HZ,
+        input_rate_hz=INPUT_RATE_HZ,
+        limits=SafetyLimits(
+            range_deg=(0.0, 130.0),
+            max_rate_deg_s=100_000.0,
+            max_accel_deg_s2=1e9,
+            park_angle_deg=PARK_DEG,
+            park_rate_deg_s=30.0,
+        ),
+        **tables,
+    )
+
+
+@pytest.fixture
+def knee() -> JointConfig:
+    return knee_joint()
+
+
+def hold(angle_deg: float, duration_s: float) -> np.ndarray:
+    """A constant command: a step from the park angle to `angle_deg` (thesis Appendix A calibration)."""
+    return np.full(round(duration_s * OUTPUT_RATE_HZ), float(angle_deg))
+
+
+def run(sim: SimulatedRig, rig: Rig, command_deg: np.ndarray, step_id: str = "step") -> tuple:
+    sim.begin_step(step_id)
+    rec = rig.run_trajectory(command_deg, where=step_id)
+    return rec.input_time_s, rec.angle_deg, rec.torque_nm, rec
+
+
+def test_simulated_boards_satisfy_the_daq_interfaces(knee: JointConfig) -> None:
+    sim = SimulatedRig(knee)
+    assert isinstance(sim.clock, Clock)
+    assert isinstance(sim.ao, AnalogOutput)
+    assert isinstance(sim.ai, AnalogInput)
+    assert sim.ai.resolution_bits == 12
+    assert isinstance(sim.make_rig(), Rig)
+
+
+def test_step_response_is_a_first_order_lag_of_0_2_s(knee: JointConfig) -> None:
+    """Thesis §2.4.2: the joint follows a step as a first-order lag with a 0.2 s time constant. The 45°
+    calibration step (Appendix A) from the 20° park angle, brace off: the 63 % time is 0.2 ± 0.05 s and the
+    joint settles at the command."""
+    sim = SimulatedRig(knee, seed=3)
+    t, angle, _, _ = run(sim, sim.make_rig(), hold(PARK_DEG + 45.0, 2.0))
+    reached = np.flatnonzero(angle >= PARK_DEG + 0.632 * 45.0)
+    t63 = t[reached[0]]
+    assert 0.15 <= t63 <= 0.25
+    assert abs(np.mean(angle[t > 1.5]) - (PARK_DEG + 45.0)) < 0.5
+    # first order, not a ramp: a quarter of the way is reached in well under a quarter of 4 t63
+    t25 = t[np.flatnonzero(angle >= PARK_DEG + 0.25 * 45.0)[0]]
+    assert t25 < 0.5 * t63
+
+
+def test_joint_stalls_where_the_load_reaches_the_torque_limit(knee: JointConfig) -> None:
+    """Thesis §5: "when the torque applied to the robot is greater than [±84.8 N·m] the robot cannot move
+    past that point". The stiffest springs at the most preload load the joint beyond the limit well before
+    130°: commanded to 130° it stops short and the load cell reads the limit; without the brace the same
+    command is reached."""
+    sim = SimulatedRig(knee, seed=4)
+    rig = sim.make_rig()
+    sim.set_brace(BraceSetup(rom_deg=(0.0, 130.0), friction_nm=6.25, stiffness_n_per_mm=20.0, preload_position=1))
+    t, angle, torque, _ = run(sim, rig, hold(130.0, 4.0), "stall")
+    late = t > 3.0
+    assert np.max(angle) < 100.0
+    assert np.ptp(angle[late]) < 1.0  # stopped, not creeping on
+    assert abs(np.mean(torque[late]) - KNEE_TORQUE_LIMIT_NM) < 1.5
+    assert sim.plant.load_nm <= KNEE_TORQUE_LIMIT_NM * 1.01  # the actuator never holds more than its limit
+
+    sim.set_brace(None)
+    t, angle, torque, _ = run(sim, rig, hold(130.0, 4.0), "free")
+    assert abs(np.mean(angle[t > 3.0]) - 130.0) < 1.0
+    assert np.mean(torque[t > 3.0]) < 0.6 * KNEE_TORQUE_LIMIT_NM
+
+
+def test_start_up_transition_emerges_from_the_lag(knee: JointConfig) -> None:
+    """Thesis §3.3.1: each trial starts with the leg at its park position while the trajectory starts
+    elsewhere, so the recording begins with a transition before the joint follows the command."""
+    sim = SimulatedRig(knee, seed=5)
+    p = 2.0 * np.pi * 65.0 / 50.0
+    tk = np.arange(round(1.5 * p * OUTPUT_RATE_HZ)) / OUTPUT_RATE_HZ
+    command = 65.0 + 65.0 * np.sin(2.0 * np.pi * tk / p)  # starts at 65°, the leg is at 20°
+    t, angle, _, rec = run(sim, sim.make_rig(), command, "transition")
+    assert abs(np.mean(angle[:5]) - PARK_DEG) < 1.0
+    cmd_at_input = np.interp(t, rec.command_time_s, rec.command_deg)
+    gap = np.abs(cmd_at_input - angle)
+    assert gap[t < 0.1].min() > 20.0  # far from the trajectory at first
+    assert np.max(gap[(t > 2.0) & (t < p)]) < 15.0  # then it follows, a lag behind
+
+
+def test_same_seed_and_step_give_identical_data_another_step_other_noise(knee: JointConfig) -> None:
+    """DESIGN.md: every random draw comes from a generator seeded by (session seed, step id), so a resumed
+    session reproduces an uninterrupted one bit for bit."""
+    command = hold(60.0, 1.0)
+    sim_a = SimulatedRig(knee, seed=11)
+    rig_a = sim_a.make_rig()
+    _, _, _, first = run(sim_a, rig_a, command, "set1/trial1")
+    _, _, _, other_step = run(sim_a, rig_a, command, "set1/trial2")
+    sim_b = SimulatedRig(knee, seed=11)  # a fresh process, after unrelated work in another step
+    _, _, _, _ = run(sim_b, sim_b.make_rig(), hold(90.0, 0.5), "set0/warm-up")
+    _, _, _, again = run(sim_b, sim_b.make_rig(), command, "set1/trial1")
+    other_seed = run(SimulatedRig(knee, seed=12), SimulatedRig(knee, seed=12).make_rig(), command, "x")[3]
+
+    assert np.array_equal(first.angle_codes, again.angle_codes)
+    assert np.array_equal(first.torque_codes, again.torque_codes)
+    assert not np.array_equal(first.torque_codes, other_step.torque_codes)
+    assert not np.array_equal(first.torque_codes, other_seed.torque_codes)
+    # other noise, same physics
+    assert np.max(np.abs(first.angle_deg - other_step.angle_deg)) < 1.5
+    assert step_seed(11, "set1/trial1") == step_seed(11, "set1/trial1") != step_seed(11, "set1/trial2")
+
+
+def test_data_do_not_depend_on_how_often_the_scan_is_read(knee: JointConfig) -> None:
+    """The plant integrates lazily up to the clock on a fixed grid: reading the scan every millisecond or
+    once a second yields the same rows (so a realtime or a differently paced loop sees the same rig)."""
+
+    def acquire(read_every_s: float) -> np.ndarray:
+        sim = SimulatedRig(knee, seed=21)
+        sim.begin_step("chunks")
+        sim.ai.start_scan([8, 20, 3], INPUT_RATE_HZ)
+        blocks = []
+        for k in range(300):
+            sim.ao.write_volts(8, -10.0 + 20.0 * (20.0 + 0.3 * k) / 130.0)
+            t_next = (k + 1) / OUTPUT_RATE_HZ
+            while sim.clock.now_s() < t_next - 1e-12:
+                sim.clock.sleep_until(min(t_next, sim.clock.now_s() + read_every_s))
+                blocks.append(sim.ai.read_available().codes)
+        blocks.append(sim.ai.stop_scan().codes)
+        return np.concatenate(blocks)
+
+    fine = acquire(0.001)
+    coarse = acquire(1.0)
+    assert fine.shape == coarse.shape == (3001, 3)
+    assert np.array_equal(fine, coarse)
+
+
+def test_brace_on_and_brace_off_trials_differ(knee: JointConfig) -> None:
+    """The brace's springs and brake add torque that resists flexion (thesis §5, Figure 36): with the
+    medium spring fitted the joint needs clearly more torque at 90° than the bare robot."""
+    sim = SimulatedRig(knee, seed=6)
+    rig = sim.make_rig()
+    _, _, torque_off, _ = run(sim, rig, hold(90.0, 2.0), "off")
+    sim.set_brace(BraceSetup(rom_deg=(0.0, 130.0), friction_nm=3.75, stiffness_n_per_mm=13.0))
+    _, _, torque_on, _ = run(sim, rig, hold(90.0, 2.0), "on")
+    # K2 at the centre preload pulls ~35 N·m at 90° (Eq 13-18), plus the brake
+    assert np.mean(torque_on[-500:]) - np.mean(torque_off[-500:]) > 25.0
+
+
+def test_calibration_tables_make_measured_match_real() -> None:
+    """Thesis §2.5: the robot has its own nonlinearity and the rig's look-up tables undo it. The simulated
+    robot's nonlinearity is the inverse of the protocol's tables, so after the rig's tables the measured
+    angle and torque match the real (plant) values, while the raw Eq 2 angle does not."""
+    real = np.linspace(0.0, 130.0, 14)
+    bend = real + 4.0 * np.sin(np.pi * real / 130.0)
+    command_table = CalibrationTable(real, bend, "real_deg", "input_deg")  # real -> what to command
+    angle_table = CalibrationTable(bend, real, "output_deg", "real_deg")  # shown -> real
+    torque_out = np.linspace(-84.8, 84.8, 9)
+    torque_table = CalibrationTable(torque_out, 0.95 * torque_out, "output_nm", "real_nm")
+    joint = knee_joint(command_table=command_table, angle_table=angle_table, torque_table=torque_table)
+    quiet = SimulatorParams(angle_noise_deg=0.0, torque_noise_nm=0.0)
+    sim = SimulatedRig(joint, seed=1, params=quiet)
+    _, angle, torque, rec = run(sim, sim.make_rig(), hold(65.0, 2.0), "lut")
+    assert abs(sim.plant.angle_deg - 65.0) < 0.3  # the robot went where the table asked
+    assert abs(angle[-1] - sim.plant.angle_deg) < 0.1  # 12-bit LSB is 0.032°
+    assert abs(torque[-1] - sim.plant.load_nm) < 0.1
+    raw_eq2 = -0.0 + (rec.angle_volts[-1] + 10.0) / 20.0 * 130.0
+    assert abs(raw_eq2 - angle[-1]) > 3.0  # the sensor's own nonlinearity is really there
+
+
+def test_analog_output_quantises_like_a_usb_3105(knee: JointConfig) -> None:
+    sim = SimulatedRig(knee)
+    assert sim.ao.write_volts(8, 0.0) == 32768
+    assert sim.ao.write_volts(8, 10.0) == 65535  # full scale is +9.99969 V
+    assert sim.ao.write_volts(8, -12.0) == 0  # clamped
+    sim.ao.configure_channel(3)  # also drives the output to 0 V
+    assert sim.ao.write_volts_sync({1: 1.0, 2: -1.0}) == {1: 36045, 2: 29491}
+    t, channel, code = sim.ao.records()
+    assert channel.tolist() == [8, 8, 8, 3, 1, 2]
+    assert code.tolist() == [32768, 65535, 0, 32768, 36045, 29491]
+    with pytest.raises(InvalidInput, match="channel"):
+        sim.ao.write_volts(16, 0.0)
+
+
+def test_analog_input_gives_12_bit_twos_complement_codes(knee: JointConfig) -> None:
+    """DT9814: V = 20 code / 4096, codes -2048..2047; unconnected channels read about 0 V."""
+    sim = SimulatedRig(knee, seed=2)
+    sim.begin_step("codes")
+    sim.ai.start_scan([8, 20, 0], INPUT_RATE_HZ)
+    sim.clock.sleep_until(sim.clock.now_s() + 0.5)
+    block = sim.ai.stop_scan()
+    assert block.n_samples == 501  # the first row at the start, then one per millisecond, ends included
+    assert block.codes.dtype == np.int32
+    assert block.codes.min() >= -2048 and block.codes.max() <= 2047
+    assert np.allclose(block.volts, 20.0 * block.codes / 4096.0)
+    park_volts = -10.0 + 20.0 * PARK_DEG / 130.0
+    assert abs(np.mean(block.volts[:, 0]) - park_volts) < 0.02
+    assert np.max(np.abs(block.volts[:, 2])) < 0.05
+    with pytest.raises(InvalidInput):
+        sim.ai.start_scan([24], INPUT_RATE_HZ)
+
+
+def test_simulated_clock_jumps_and_realtime_clock_sleeps() -> None:
+    clock = SimulatedClock()
+    wall = time.monotonic()
+    clock.sleep_until(3600.0)
+    assert clock.now_s() == 3600.0
+    assert time.monotonic() - wall < 1.0  # an hour of simulated time, no sleeping
+    clock.sleep_until(10.0)
+    assert clock.now_s() == 3600.0  # never goes back
+
+    real = SimulatedClock(realtime=True)
+    target = real.now_s() + 0.02
+    real.sleep_until(target)
+    assert real.now_s() >= target
+
+
+def test_brace_setup_rejects_impossible_settings() -> None:
+    with pytest.raises(InvalidInput, match="rom_deg"):
+        BraceSetup(rom_deg=(90.0, 40.0), friction_nm=0.0, stiffness_n_per_mm=0.0)
+    with pytest.raises(InvalidInput, match="friction"):
+        BraceSetup(rom_deg=(0.0, 130.0), friction_nm=-1.0, stiffness_n_per_mm=0.0)
+    with pytest.raises(InvalidInput, match="preload"):
+        BraceSetup(rom_deg=(0.0, 130.0), friction_nm=0.0, stiffness_n_per_mm=13.0, preload_position=6)
+    with pytest.raises(InvalidInput, match="lag_time_constant_s"):
+        SimulatorParams(lag_time_constant_s=0.0)
