@@ -217,3 +217,21 @@ def test_module_runs_with_python_dash_m() -> None:
     )
     assert proc.returncode == 0
     assert "--out-dir" in proc.stdout and "real_deg -> input_deg" in proc.stdout
+
+
+@settings(max_examples=60)
+@given(
+    steps=st.lists(st.floats(min_value=0.05, max_value=20.0), min_size=1, max_size=20),
+    slopes=st.lists(st.floats(min_value=0.1, max_value=5.0), min_size=20, max_size=20),
+    decreasing=st.booleans(),
+    probe=st.floats(min_value=-0.5, max_value=1.5),
+)
+def test_inverse_round_trip_property(
+    steps: list[float], slopes: list[float], decreasing: bool, probe: float
+) -> None:
+    """For any strictly monotonic table, inverse(table(x)) == x, inside and outside the table's span."""
+    x = np.concatenate([[0.0], np.cumsum(steps)])
+    dy = np.array(steps) * np.array(slopes[: len(steps)]) * (-1.0 if decreasing else 1.0)
+    table = CalibrationTable(x, np.concatenate([[0.0], np.cumsum(dy)]), "a", "b")
+    value = x[0] + probe * (x[-1] - x[0])
+    assert float(table.inverse()(table(value))) == pytest.approx(value, abs=1e-9)
