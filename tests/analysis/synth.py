@@ -95,3 +95,44 @@ def brace_pair(seed: int = 0, noise: bool = False, friction_nm: float = 3.0) -> 
         torque_on = torque_on + rng.normal(0.0, 0.3, on.shape)
         torque_off = torque_off + rng.normal(0.0, 0.3, off.shape)
     return PairData(t, cmd, on, torque_on, brace, off, torque_off)
+
+
+@dataclass(frozen=True)
+class RawTrial:
+    """One recorded trial as archived: 1 kHz time/angle/torque, 100 Hz command ticks."""
+
+    time_s: FloatArray
+    angle_deg: FloatArray
+    torque_nm: FloatArray
+    command_time_s: FloatArray
+    command_deg: FloatArray
+    brace_true_nm: FloatArray  # the brace's own torque per sample (zeros for brace-off)
+
+
+def raw_trial(*, brace: bool, seed: int, friction_nm: float = 3.0, duration_s: float = 34.0) -> RawTrial:
+    """A trial from the park angle (0 deg) through the start-up transition, with sensor noise.
+
+    The command is the Appendix A sinusoid 65 + 60 sin(2 pi t / 8) on 100 Hz ticks; the joint is a
+    first-order lag of the held command (0.2 s bare, 0.3 s and a range squeezed by 0.8 about 65 deg with
+    the brace). Torque: robot (gravity + friction per branch) plus, with the brace, `brace_torque_nm`.
+    """
+    t_cmd, cmd = sine_command(65.0, 60.0, 8.0, duration_s, OUTPUT_RATE_HZ)
+    t_in = np.arange(0.0, duration_s, 1.0 / INPUT_RATE_HZ)
+    held = cmd[np.clip(np.searchsorted(t_cmd, t_in, side="right") - 1, 0, cmd.shape[0] - 1)]
+    if brace:
+        lagged = first_order_lag(held, 1.0 / INPUT_RATE_HZ, 0.3, 0.0)
+        angle = 65.0 + 0.8 * (lagged - 65.0)
+    else:
+        angle = first_order_lag(held, 1.0 / INPUT_RATE_HZ, 0.2, 0.0)
+    sign = direction(angle)
+    brace_nm = brace_torque_nm(angle, sign, friction_nm) if brace else np.zeros_like(angle)
+    torque = robot_torque_nm(angle, sign) + brace_nm
+    rng = np.random.default_rng(seed)
+    return RawTrial(
+        time_s=t_in,
+        angle_deg=angle + rng.normal(0.0, 0.05, angle.shape),
+        torque_nm=torque + rng.normal(0.0, 0.3, angle.shape),
+        command_time_s=t_cmd,
+        command_deg=cmd,
+        brace_true_nm=brace_nm,
+    )

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pytest
 
@@ -28,7 +30,7 @@ def test_only_complete_cycles_are_returned(periods: float, start_phase: float) -
         assert angle[s - 1] < ref <= angle[s]
         assert angle[e - 1] < ref <= angle[e]
         assert e - s == pytest.approx(1000, abs=2)
-    assert all(e1 == s2 for (_, e1), (s2, _) in zip(cycles[:-1], cycles[1:], strict=True))
+    assert all(e1 == s2 for (_, e1), (s2, _) in itertools.pairwise(cycles))
 
 
 def test_noise_does_not_create_extra_cycles() -> None:

@@ -15,13 +15,16 @@ input_k(t) = c_k + s_k · (u(t) - c_u) with c_u the mid-range of u, s_0 = 1, c_0
 the robot with input_k, cuts the transition (§3.3.1: index 0 is the transition point), and measures the
 output range [m_k, M_k]. With the brace-on target range [m*, M*]:
 
-    scale_k   = (M* - m*) / (M_k - m_k)                          (Eq 8, on the current brace-off output)
-    s_{k+1}   = s_k · scale_k                                    (amplitude correction)
-    c_{k+1}   = c_k + ((M* + m*) - (M_k + m_k)) / 2              (mid-range correction)
+    scale_k   = (M* - m*) / (M_k - m_k)                    (Eq 8, on the current brace-off output)
+    s_{k+1}   = s_k · scale_k                              (amplitude correction)
+    g_k       = (M_k - m_k) / (max input_k - min input_k)  (the plant's observed range gain)
+    c_{k+1}   = c_k + ((M* + m*) - (M_k + m_k)) / (2 g_k)  (mid-range correction, a Newton step)
 
 until both ends of the output range are within `tolerance_deg` of the target (error
 max(|M_k - M*|, |m_k - m*|)) or `max_iterations` runs were made. For a plant that is affine in amplitude
-and offset (a linear lag plus gain and offset) one correction is exact; a saturating plant needs a few.
+and offset (a linear lag plus gain and offset) the amplitude is right after one correction and the
+mid-range after one or two (the lag's start-up shifts the measured mid-range a little with the amplitude);
+a saturating plant needs a few more. g_k is clipped to [0.2, 5] so a stalled run cannot blow the step up.
 The input is kept inside `input_limits_deg` (the joint's safety range) by clipping; a target that cannot
 be reached inside it ends without convergence (`converged=False`), and the best iteration is returned.
 """
@@ -146,7 +149,9 @@ def scale_brace_off_input(
             converged = True
             break
         amplitude *= scale
-        centre += 0.5 * ((hi_t + lo_t) - (hi_k + lo_k))
+        input_span = float(trial_input.max() - trial_input.min())
+        gain = float(np.clip(span_k / input_span, 0.2, 5.0))
+        centre += 0.5 * ((hi_t + lo_t) - (hi_k + lo_k)) / gain
     best = min(range(len(history)), key=lambda i: history[i].range_error_deg)
     return ScalingResult(
         input_deg=runs[best][0],
