@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -51,7 +52,7 @@ def test_iteration_converges_on_a_lagging_saturating_plant() -> None:
     assert len(result.history) <= 5
     # errors shrink from one run to the next (the update is a contraction on this plant)
     errors = [it.range_error_deg for it in result.history]
-    assert all(b < a for a, b in zip(errors[:-1], errors[1:], strict=True))
+    assert all(b < a for a, b in itertools.pairwise(errors))
     # the returned input really produces the target range when run again
     lo, hi = _output_range(result.input_deg, lagged_plant(result.input_deg))
     assert lo == pytest.approx(target[0], abs=0.5) and hi == pytest.approx(target[1], abs=0.5)
@@ -79,7 +80,7 @@ def test_unreachable_target_stops_at_the_iteration_limit_with_the_best_run() -> 
     assert result.best.range_error_deg == min(it.range_error_deg for it in result.history)
     np.testing.assert_array_equal(result.output_deg, lagged_plant(result.input_deg))
     for it in result.history:  # the safety range of the input is respected
-        assert 0.0 <= it.input_range_deg[0] and it.input_range_deg[1] <= 140.0
+        assert it.input_range_deg[0] >= 0.0 and it.input_range_deg[1] <= 140.0
 
 
 def test_bad_arguments_are_user_errors() -> None:

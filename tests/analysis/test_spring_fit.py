@@ -55,7 +55,7 @@ def test_all_samples_target_also_fits_a_symmetric_loop() -> None:
 
 
 def test_midline_is_the_mean_of_the_branches() -> None:
-    angle, torque, spring = _loop(friction_nm=5.0)
+    angle, torque, _spring = _loop(friction_nm=5.0)
     grid, mid = branch_midline(angle, torque, bin_width_deg=1.0)
     expected = spring_torque_nm(
         grid, 13.0, 3, max_preload_mm=TRUE_PRELOAD_MM, zero_offset_deg=TRUE_OFFSET_DEG

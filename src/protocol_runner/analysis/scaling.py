@@ -162,13 +162,18 @@ def scale_brace_off_input(
     )
 
 
-class _RecordingLike(Protocol):
-    command_time_s: FloatArray
-    input_time_s: FloatArray
-    angle_deg: FloatArray
+class RecordingLike(Protocol):
+    """What `rig_runner` needs of a trial recording (hardware.rig.TrialRecording satisfies it)."""
+
+    @property
+    def command_time_s(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def input_time_s(self) -> npt.NDArray[np.float64]: ...
+    @property
+    def angle_deg(self) -> npt.NDArray[np.float64]: ...
 
 
-def rig_runner(run_trajectory: Callable[[FloatArray], _RecordingLike]) -> Callable[[FloatArray], FloatArray]:
+def rig_runner(run_trajectory: Callable[[FloatArray], RecordingLike]) -> Callable[[FloatArray], FloatArray]:
     """Adapt a rig (`lambda cmd: rig.run_trajectory(cmd, where=...)`) to the `run` of `scale_brace_off_input`.
 
     The recording's 1 kHz angle is brought onto the 100 Hz command ticks by linear interpolation, so the
