@@ -1,0 +1,229 @@
+"""Render a `ReportData` as one self-contained HTML file (jinja2, autoescaped, figures inline).
+
+The file references nothing outside itself: figures are PNG data URIs, the CSS is inline, links are
+in-page anchors only; it prints (`@media print`) and reads offline. Regenerating it from the same archive
+gives the same bytes except the generation time, which is one element (`id="generated-utc"`).
+
+Public API:
+    render_report(data, output, *, generated_utc=None, workers=None) -> Path
+    generate_report(archive_path, output=None, *, reference=None, workers=None) -> Path
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+
+import jinja2
+
+from protocol_runner import __version__
+from protocol_runner.errors import InvalidInput
+from protocol_runner.report.figures import FigureSet, emu_comparison, model_comparisons, render_figures, slug
+from protocol_runner.report.findings import Finding, comparison_keys, evaluate_findings
+from protocol_runner.report.load import load_reference_dataset, load_report_data
+from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Comparison, Configuration, ReportData
+from protocol_runner.resources import templates_dir
+
+TEMPLATE = "report.html.j2"
+
+#: Section ids of the report, in document order (the table of contents links to these).
+SECTIONS: tuple[tuple[str, str], ...] = (
+    ("session", "Session"),
+    ("test-matrix", "Test matrix"),
+    ("calibration", "Calibration checks"),
+    ("configurations", "Configurations"),
+    ("comparisons", "Comparisons (§5.1-5.5)"),
+    ("energy-loss", "Energy loss (§5.7)"),
+    ("emu", "EMU comparison (§5.6)"),
+    ("models", "Models (Chapter 6)"),
+    ("findings", "Findings (Chapter 5)"),
+    ("protocol", "Protocol as run"),
+)
+
+
+@dataclass(frozen=True)
+class _CalibrationSet:
+    name: str
+    figure_id: str
+    checks: tuple[CalibrationCheck, ...]
+
+
+def generate_report(
+    archive_path: Path,
+    output: Path | None = None,
+    *,
+    reference: Path | None = None,
+    workers: int | None = None,
+) -> Path:
+    """Read `archive_path` (archive.h5 or its session directory) and write the HTML report.
+
+    `output` defaults to `report.html` next to the archive. `reference` is an optional EMU dataset
+    (CSV or .mat, see docs/report.md) added to those stored in the archive. Returns the report's path.
+    Raises `InvalidInput` for an unreadable archive or reference file.
+    """
+    archive_path = Path(archive_path)
+    data = load_report_data(archive_path)
+    if reference is not None:
+        ref = load_reference_dataset(Path(reference))
+        data = ReportData(
+            session=data.session,
+            configurations=data.configurations,
+            calibration=data.calibration,
+            comparisons=data.comparisons,
+            references=(*data.references, ref),
+            protocol_text=data.protocol_text,
+            notes=data.notes,
+        )
+    if output is None:
+        output = Path(data.session.archive_path).parent / "report.html"
+    return render_report(data, Path(output), workers=workers)
+
+
+def render_report(
+    data: ReportData,
+    output: Path,
+    *,
+    generated_utc: str | None = None,
+    workers: int | None = None,
+) -> Path:
+    """Write the report of `data` to `output` atomically (temporary file + rename); return `output`."""
+    html = render_html(data, generated_utc=generated_utc, workers=workers)
+    output = Path(output)
+    if output.exists() and output.is_dir():
+        raise InvalidInput(f"Report output {output} is a directory; give a file name such as report.html.")
+    if not output.parent.is_dir():
+        raise InvalidInput(f"Report output directory {output.parent} does not exist.")
+    fd, tmp = tempfile.mkstemp(prefix=".report-", suffix=".html.partial", dir=output.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(html)
+        os.replace(tmp, output)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return output
+
+
+def render_html(data: ReportData, *, generated_utc: str | None = None, workers: int | None = None) -> str:
+    """The report of `data` as an HTML string."""
+    figures = render_figures(data, workers=workers)
+    env = _environment()
+    template = env.get_template(TEMPLATE)
+    if generated_utc is None:
+        generated_utc = datetime.now(UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
+    return template.render(**_context(data, figures, generated_utc))
+
+
+def _environment() -> jinja2.Environment:
+    env = jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(templates_dir())),
+        autoescape=True,
+        undefined=jinja2.StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=True,
+    )
+    env.filters["num"] = _num
+    env.filters["pm"] = _pm
+    env.filters["slug"] = slug
+    env.filters["setting"] = _setting_text
+    return env
+
+
+def _num(value: object, digits: int = 2) -> str:
+    if value is None:
+        return "—"
+    try:
+        number = float(value)  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return str(value)
+    if not math.isfinite(number):
+        return "—"
+    return f"{number:.{digits}f}"
+
+
+def _pm(mean: float, std: float, digits: int = 2) -> str:
+    if not math.isfinite(mean):
+        return "—"
+    if not math.isfinite(std):
+        return _num(mean, digits)
+    return f"{mean:.{digits}f} ± {std:.{digits}f}"
+
+
+def _setting_text(cfg: Configuration, name: str) -> str:
+    value = cfg.setting(name)
+    if value is None:
+        return "—"
+    if isinstance(value, tuple):
+        return "–".join(_num(v, 0) if isinstance(v, int | float) else str(v) for v in value)
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
+
+
+def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[str, object]:
+    calibration_sets = []
+    for set_name in sorted({c.set_name for c in data.calibration}):
+        calibration_sets.append(
+            _CalibrationSet(
+                name=set_name,
+                figure_id=f"fig-calibration-{slug(set_name)}",
+                checks=tuple(c for c in data.calibration if c.set_name == set_name),
+            )
+        )
+    overlay_comparisons = [
+        c for c in data.comparisons if c is not emu_comparison(data) and _has_any(data, c)
+    ]
+    emu = emu_comparison(data)
+    findings: tuple[Finding, ...] = evaluate_findings(data)
+    restraint_keys = (comparison_keys(data, "brace_rom"), comparison_keys(data, "robot_rom"))
+    return {
+        "data": data,
+        "session": data.session,
+        "sections": SECTIONS,
+        "figures": figures,
+        "calibration_sets": calibration_sets,
+        "comparisons": overlay_comparisons,
+        "emu": emu,
+        "emu_configurations": [c for c in _configs(data, emu)] if emu is not None else [],
+        "spring_comparisons": model_comparisons(data),
+        "fitted": [c for c in data.configurations if c.bouc_wen is not None],
+        "spring_fitted": [c for c in data.configurations if c.spring is not None],
+        "findings": findings,
+        "restraint_keys": restraint_keys,
+        "generated_utc": generated_utc,
+        "software_version": __version__,
+        "verdict_class": _verdict_class,
+        "finding_class": _finding_class,
+        "configs_of": lambda comp: _configs(data, comp),
+        "beta_cell": _beta_cell,
+    }
+
+
+def _beta_cell(fit: BoucWenFit, index: int) -> str:
+    if index >= len(fit.beta):
+        return "—"
+    std = fit.beta_std[index] if index < len(fit.beta_std) else math.nan
+    return _pm(fit.beta[index], std, 4)
+
+
+def _has_any(data: ReportData, comparison: Comparison) -> bool:
+    return any(data.configuration(k) is not None for k in comparison.configurations)
+
+
+def _configs(data: ReportData, comparison: Comparison | None) -> list[Configuration]:
+    if comparison is None:
+        return []
+    return [c for k in comparison.configurations if (c := data.configuration(k)) is not None]
+
+
+def _verdict_class(verdict: str) -> str:
+    return {"pass": "ok", "fail": "bad", "accepted": "warn"}.get(verdict, "warn")
+
+
+def _finding_class(agrees: bool | None) -> str:
+    return "ok" if agrees is True else "bad" if agrees is False else "na"
