@@ -142,12 +142,7 @@ class Dt9814:
             raise BoardNotFound(f"no {KIND} found ({ids}); is it plugged in? {DRY_RUN_HINT}")
         seen: list[str] = []
         for dev in devices:
-            board = cls(dev, settings)
-            try:
-                board._setup()
-            except BaseException:
-                release_device(dev, settings.interface)
-                raise
+            board = cls.from_device(dev, settings)
             if serial is None or board.serial == serial:
                 return board
             seen.append(board.serial)
@@ -155,6 +150,18 @@ class Dt9814:
         raise BoardNotFound(
             f"no {KIND} with serial {serial!r} found ({ids}); attached: {', '.join(seen)}. {DRY_RUN_HINT}"
         )
+
+    @classmethod
+    def from_device(cls, device: usb.core.Device, settings: Dt9814Settings | None = None) -> Dt9814:
+        """Open an already found pyusb device (claim it, read its identity from flash)."""
+        settings = settings or Dt9814Settings()
+        board = cls(device, settings)
+        try:
+            board._setup()
+        except BaseException:
+            release_device(device, settings.interface)
+            raise
+        return board
 
     def _setup(self) -> None:
         log.warning("%s: %s", self.name, UNVERIFIED_WARNING)

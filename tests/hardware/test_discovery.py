@@ -1,0 +1,97 @@
+"""`hardware_check` / `format_report` against fake boards."""
+
+from __future__ import annotations
+
+import pytest
+
+from protocol_runner.errors import InvalidInput
+from protocol_runner.hardware.discovery import NOTHING_FOUND, format_report, hardware_check
+from protocol_runner.hardware.fakeusb import FakeBackend, Faults, make_usb3105
+from protocol_runner.hardware.fakeusb.dt9814 import make_dt9814
+from protocol_runner.hardware.fakeusb.usb1608fs import make_usb1608fs
+from protocol_runner.hardware.usb_common import UDEV_RULE_FILENAME
+
+
+def rig_backend() -> FakeBackend:
+    return FakeBackend(
+        make_usb3105(serial="AO000001"),
+        make_usb1608fs(serial="AI00000B"),
+        make_usb1608fs(serial="AI00000A"),
+        make_usb1608fs(serial="AI00000C"),
+    )
+
+
+def test_nothing_attached_says_what_to_do() -> None:
+    report = hardware_check(backend=FakeBackend())
+    assert report.boards == () and not report.ok
+    text = format_report(report)
+    assert NOTHING_FOUND in text
+    assert "No DAQ boards found" in text and UDEV_RULE_FILENAME in text and "--dry-run" in text
+    assert "NOT ready" in text
+
+
+def test_lists_boards_with_global_channels_and_blinks_them() -> None:
+    backend = rig_backend()
+    report = hardware_check(backend=backend, blink_count=2)
+    kinds = [(b.kind, b.serial, b.first_channel, b.n_channels) for b in report.boards]
+    assert kinds == [
+        ("USB-3105", "AO000001", 0, 16),
+        ("USB-1608FS-Plus", "AI00000A", 0, 8),
+        ("USB-1608FS-Plus", "AI00000B", 8, 8),
+        ("USB-1608FS-Plus", "AI00000C", 16, 8),
+    ]
+    assert all(b.blinked for b in report.boards)
+    assert all(getattr(m, "blinks") == 2 for m in backend.devices)  # noqa: B009
+    assert all(m.claimed == set() for m in backend.devices)  # everything closed again
+    assert report.ok
+    assert report.channel_count("analog_input") == 24
+    text = format_report(report)
+    assert "USB-3105 serial AO000001, firmware 1.02" in text
+    assert "calibration" in text
+    assert "analog inputs channels 0-23" in text
+    assert "Ready for a hardware run." in text
+
+
+def test_required_channels_are_located_or_reported_missing() -> None:
+    report = hardware_check({"analog_output": [8], "analog_input": [8, 20, 30]}, backend=rig_backend())
+    found = {(c.role, c.channel): (c.board.serial if c.board else None) for c in report.checks}
+    assert found == {
+        ("analog_output", 8): "AO000001",
+        ("analog_input", 8): "AI00000B",
+        ("analog_input", 20): "AI00000C",
+        ("analog_input", 30): None,
+    }
+    assert not report.ok
+    text = format_report(report)
+    assert "analog input 20: OK (USB-1608FS-Plus serial AI00000C, its channel 4)" in text
+    assert "analog input 30: MISSING (available analog inputs: channels 0-23)" in text
+
+
+def test_a_board_that_cannot_be_opened_is_a_problem_not_a_crash() -> None:
+    backend = FakeBackend(
+        make_usb3105(serial="AO000001", faults=Faults(busy_on_claim=True)),
+        make_usb1608fs(serial="AI00000A", faults=Faults(access_denied_on_open=True)),
+    )
+    report = hardware_check({"analog_output": [0]}, backend=backend)
+    assert report.boards == ()
+    kinds = sorted(p.kind for p in report.problems)
+    assert kinds == ["USB-1608FS-Plus", "USB-3105"]
+    text = format_report(report)
+    assert "busy" in text and UDEV_RULE_FILENAME in text
+    assert "analog output 0: MISSING" in text
+
+
+def test_dt9814_is_listed_as_unverified_after_the_1608_channels() -> None:
+    backend = FakeBackend(make_usb1608fs(serial="AI00000A"), make_dt9814(serial_number=4242))
+    report = hardware_check(backend=backend)
+    dt = [b for b in report.boards if b.kind == "DT9814"]
+    assert len(dt) == 1 and dt[0].first_channel == 8 and "UNVERIFIED" in dt[0].note and not dt[0].blinked
+    assert "UNVERIFIED" in format_report(report)
+
+
+@pytest.mark.parametrize(
+    "required", [{"analog_outputs": [1]}, {"analog_input": ["x"]}, {"analog_input": [-1]}]
+)
+def test_bad_requirements_are_invalid_input(required: dict[str, list[int]]) -> None:
+    with pytest.raises(InvalidInput):
+        hardware_check(required, backend=FakeBackend())
