@@ -99,7 +99,9 @@ def test_joint_stalls_where_the_load_reaches_the_torque_limit(knee: JointConfig)
     command is reached."""
     sim = SimulatedRig(knee, seed=4)
     rig = sim.make_rig()
-    sim.set_brace(BraceSetup(rom_deg=(0.0, 130.0), friction_nm=6.25, stiffness_n_per_mm=20.0, preload_position=1))
+    sim.set_brace(
+        BraceSetup(rom_deg=(0.0, 130.0), friction_nm=6.25, stiffness_n_per_mm=20.0, preload_position=1)
+    )
     t, angle, torque, _ = run(sim, rig, hold(130.0, 4.0), "stall")
     late = t > 3.0
     assert np.max(angle) < 100.0
@@ -215,6 +217,7 @@ def test_analog_output_quantises_like_a_usb_3105(knee: JointConfig) -> None:
     sim.ao.configure_channel(3)  # also drives the output to 0 V
     assert sim.ao.write_volts_sync({1: 1.0, 2: -1.0}) == {1: 36045, 2: 29491}
     t, channel, code = sim.ao.records()
+    assert np.all(t == sim.clock.now_s())  # stamped with the clock (simulated time stood still)
     assert channel.tolist() == [8, 8, 8, 3, 1, 2]
     assert code.tolist() == [32768, 65535, 0, 32768, 36045, 29491]
     with pytest.raises(InvalidInput, match="channel"):
