@@ -20,7 +20,7 @@ from typing import Any, Protocol
 
 import usb.core
 
-from protocol_runner.errors import HardwareUnavailable, InvalidInput
+from protocol_runner.errors import EXIT_HARDWARE_UNAVAILABLE, HardwareUnavailable, InvalidInput
 from protocol_runner.hardware import usb1608fs, usb3105
 from protocol_runner.hardware.dt9814 import KIND as DT9814_KIND
 from protocol_runner.hardware.dt9814 import Dt9814, Dt9814Settings
@@ -30,8 +30,10 @@ from protocol_runner.hardware.usb_common import (
     DT_VENDOR_ID,
     MCC_VENDOR_ID,
     UDEV_RULE_FILENAME,
+    NoUsbBackend,
     find_devices,
     read_serial,
+    udev_rule_text,
 )
 
 log = logging.getLogger(__name__)
@@ -213,6 +215,11 @@ def hardware_check(
     needed = _check_required(required)
     boards: list[BoardInfo] = []
     problems: list[BoardProblem] = []
+    try:
+        find_devices(MCC_VENDOR_ID, None, backend, "DAQ boards")
+    except NoUsbBackend as exc:  # no libusb: say it once, not once per board kind
+        missing = tuple(ChannelCheck(role, ch, None) for role, chans in needed.items() for ch in chans)
+        return HardwareReport((), (BoardProblem("USB", exc.message),), missing)
 
     ao_serials = _serials(MCC_VENDOR_ID, usb3105.PRODUCT_ID, usb3105.KIND, backend, problems)
     _survey(
@@ -307,3 +314,21 @@ def format_report(report: HardwareReport) -> str:
                 )
     lines += ["", "Ready for a hardware run." if report.ok else "NOT ready for a hardware run."]
     return "\n".join(lines)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m protocol_runner.hardware.discovery [--udev-rule]``: print the hardware check (exit 0 when
+    ready, 3 otherwise), or the udev rule text to install."""
+    import sys
+
+    args = list(sys.argv[1:] if argv is None else argv)
+    if "--udev-rule" in args:
+        print(udev_rule_text(), end="")
+        return 0
+    report = hardware_check()
+    print(format_report(report))
+    return 0 if report.ok else EXIT_HARDWARE_UNAVAILABLE
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

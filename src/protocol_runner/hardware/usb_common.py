@@ -47,6 +47,34 @@ MCC_VENDOR_ID = 0x09DB
 DT_VENDOR_ID = 0x0867
 """Data Translation's USB vendor id (DT9814)."""
 
+UDEV_BOARDS: tuple[tuple[str, int, int | None], ...] = (
+    ("MCC USB-3105 (analog output)", MCC_VENDOR_ID, 0x009E),
+    ("MCC USB-1608FS-Plus (analog input)", MCC_VENDOR_ID, 0x00EA),
+    (
+        "Data Translation DT9814 (analog input; its product id is not public: every DT device)",
+        DT_VENDOR_ID,
+        None,
+    ),
+)
+
+
+def udev_rule_text() -> str:
+    """The text of `packaging/udev/60-protocol-runner-daq.rules` (print it with
+    ``python -m protocol_runner.hardware.discovery --udev-rule`` where the source tree is not at hand)."""
+    lines = [
+        "# protocol-runner: let the logged-in user (uaccess) and the plugdev group open the DAQ boards",
+        "# through libusb, without root.",
+        f"# Install: sudo cp {UDEV_RULE_FILENAME} /etc/udev/rules.d/",
+        "#          sudo udevadm control --reload-rules && sudo udevadm trigger",
+        "#          then unplug and replug the boards. See docs/hardware.md.",
+    ]
+    for name, vid, pid in UDEV_BOARDS:
+        match = f'SUBSYSTEM=="usb", ENV{{DEVTYPE}}=="usb_device", ATTR{{idVendor}}=="{vid:04x}"'
+        if pid is not None:
+            match += f', ATTR{{idProduct}}=="{pid:04x}"'
+        lines += [f"# {name}", f'{match}, MODE="0660", GROUP="plugdev", TAG+="uaccess"']
+    return "\n".join(lines) + "\n"
+
 
 # --------------------------------------------------------------------------------------------------------
 # Errors (all HardwareUnavailable: exit 3)
