@@ -80,3 +80,26 @@ def test_bad_configuration_is_a_user_error() -> None:
         fit_spring_model(angle, torque, -1.0, 3)
     with pytest.raises(AnalysisError, match="unknown spring-fit target"):
         fit_spring_model(angle, torque, 13.0, 3, target="median")  # type: ignore[arg-type]
+
+
+def test_trimming_the_loop_ends_removes_the_rounded_corner_bias() -> None:
+    # friction that reverses gradually over 6 deg after each turn (Dahl-like rounded corners)
+    t = np.arange(0.0, 30.0, 2e-3)
+    angle = 62.0 + 40.0 * np.sin(2 * np.pi * t / 6.0)
+    spring = spring_torque_nm(angle, 13.0, 3, max_preload_mm=TRUE_PRELOAD_MM, zero_offset_deg=TRUE_OFFSET_DEG)
+    friction = np.empty_like(angle)
+    state, last = -3.0, angle[0]
+    for i, a in enumerate(angle):  # first-order relaxation of the friction towards +-3 N m per degree moved
+        step = a - last
+        target = 3.0 if step >= 0 else -3.0
+        state += (target - state) * min(1.0, abs(step) / 2.0)
+        friction[i], last = state, a
+    torque = spring + friction
+    trimmed = fit_spring_model(angle, torque, 13.0, 3, trim_deg=8.0)
+    untrimmed = fit_spring_model(angle, torque, 13.0, 3, trim_deg=0.0)
+    assert abs(trimmed.zero_offset_deg - TRUE_OFFSET_DEG) < 0.3
+    assert abs(trimmed.max_preload_mm - TRUE_PRELOAD_MM) < 0.5
+    assert abs(untrimmed.zero_offset_deg - TRUE_OFFSET_DEG) > 1.0  # the corners tilt the untrimmed fit
+    assert trimmed.rmse_nm < untrimmed.rmse_nm
+    with pytest.raises(AnalysisError, match="trim"):
+        branch_midline(angle, torque, trim_deg=-1.0)

@@ -9,7 +9,9 @@ The model has no friction or hysteresis (§6.1.5: "all that can be compared is t
 is fitted to the loop's *midline*, the mean of the loading and unloading branches at each angle
 (`target="branch_mean"`, the default): a symmetric friction torque cancels there, and the fit does not
 depend on how long the joint dwelt at each angle (a stall at the robot's torque limit would otherwise
-weigh heavily). `target="all_samples"` fits every sample instead, for comparison. With no spring (K0) the
+weigh heavily); `trim_deg` (5°) at each end of the loop are left out, because the friction is still
+reversing there (rounded loop corners) and would tilt the fitted curve. `target="all_samples"` fits every
+sample instead, for comparison. With no spring (K0) the
 model is identically zero and there is nothing to fit: the result says "not applicable".
 """
 
@@ -64,13 +66,24 @@ def branch_midline(
     *,
     bin_width_deg: float = 1.0,
     reversal_deg: float = 1.0,
+    trim_deg: float = 0.0,
 ) -> tuple[FloatArray, FloatArray]:
-    """Mean of the loading and unloading torque at each angle both branches cover (grid `bin_width_deg`)."""
+    """Mean of the loading and unloading torque at each angle both branches cover (grid `bin_width_deg`).
+
+    `trim_deg` leaves out that many degrees at each end of the common range: just after a reversal the
+    friction is still changing sign (rounded loop corners), so the midline there is biased towards the
+    branch that has already turned.
+    """
+    if not trim_deg >= 0:
+        raise AnalysisError(f"midline trim must be >= 0 deg, got {trim_deg}")
     curves = branch_curves(angle_deg, torque_nm, bin_width_deg=bin_width_deg, reversal_deg=reversal_deg)
-    lo = max(curves.loading_angle_deg[0], curves.unloading_angle_deg[0])
-    hi = min(curves.loading_angle_deg[-1], curves.unloading_angle_deg[-1])
+    lo = max(curves.loading_angle_deg[0], curves.unloading_angle_deg[0]) + trim_deg
+    hi = min(curves.loading_angle_deg[-1], curves.unloading_angle_deg[-1]) - trim_deg
     if not hi > lo:
-        raise AnalysisError("the loading and unloading branches share no angle range: no loop midline")
+        raise AnalysisError(
+            f"the loading and unloading branches share no angle range (after trimming {trim_deg} deg at "
+            "each end): no loop midline"
+        )
     grid = np.arange(lo, hi + 0.5 * bin_width_deg, bin_width_deg)
     grid = grid[grid <= hi]
     mid = 0.5 * (
@@ -90,6 +103,7 @@ def fit_spring_model(
     target: FitTarget = "branch_mean",
     bin_width_deg: float = 1.0,
     reversal_deg: float = 1.0,
+    trim_deg: float = 5.0,
 ) -> SpringFit:
     """Fit Max_Preload (Eq 17) and the zero-torque offset of the spring model (Eq 13-18) to a brace loop.
 
@@ -97,7 +111,8 @@ def fit_spring_model(
     or several trials concatenated. Minimises the squared difference between `spring_torque_nm(angle,
     stiffness_n_per_mm, preload_position, max_preload_mm=p, zero_offset_deg=o)` and the target (see the
     module docstring) over p in `MAX_PRELOAD_BOUNDS_MM`, o in `ZERO_OFFSET_BOUNDS_DEG`, from several
-    starts, keeping the best. Stiffness 0 (K0, no spring) returns `applicable=False`.
+    starts, keeping the best. The midline leaves out `trim_deg` at each end of the loop (where friction is
+    still reversing, see `branch_midline`). Stiffness 0 (K0, no spring) returns `applicable=False`.
     """
     a = as_signal("angle_deg", angle_deg, min_length=2)
     t = as_signal("brace_torque_nm", brace_torque_nm, min_length=2)
@@ -124,7 +139,9 @@ def fit_spring_model(
             model_torque_nm=empty,
         )
     if target == "branch_mean":
-        xs, ys = branch_midline(a, t, bin_width_deg=bin_width_deg, reversal_deg=reversal_deg)
+        xs, ys = branch_midline(
+            a, t, bin_width_deg=bin_width_deg, reversal_deg=reversal_deg, trim_deg=trim_deg
+        )
     else:
         xs, ys = a, t
 
