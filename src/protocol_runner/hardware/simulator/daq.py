@@ -39,11 +39,11 @@ from protocol_runner.hardware.conversions import (
     torque_to_volts,
     volts_to_ai12_code,
     volts_to_angle,
-    volts_to_ao16_code,
 )
 from protocol_runner.hardware.interfaces import ScanBlock
 from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, BraceSetup, SimulatorParams
 from protocol_runner.hardware.simulator.plant import JointPlant
+from protocol_runner.hardware.usb3105 import IDENTITY_CALIBRATION, calibrated_code
 
 if TYPE_CHECKING:
     from protocol_runner.hardware.calibration import CalibrationTable
@@ -101,6 +101,8 @@ class SimulatedClock:
 
 
 def _check_channel(channel: int, n_channels: int, board: str) -> int:
+    if type(channel) is int and 0 <= channel < n_channels:
+        return channel
     if (
         isinstance(channel, bool)
         or not isinstance(channel, int | np.integer)
@@ -108,6 +110,17 @@ def _check_channel(channel: int, n_channels: int, board: str) -> int:
     ):
         raise InvalidInput(f"{board}: channel must be an integer 0-{n_channels - 1}, got {channel!r}")
     return int(channel)
+
+
+def _ao_code(volts: float) -> int:
+    """The code a USB-3105 sends for `volts` on the ±10 V range with ideal calibration: the board driver's
+    own scalar rule (`usb3105.calibrated_code`, equal to `conversions.volts_to_ao16_code`)."""
+    v = float(volts)
+    if math.isnan(v):
+        raise InvalidInput("USB-3105 (simulated): cannot output NaN volts")
+    if math.isinf(v):
+        return 65535 if v > 0.0 else 0
+    return calibrated_code(v, IDENTITY_CALIBRATION)
 
 
 class SimulatedAnalogOutput:
@@ -138,7 +151,7 @@ class SimulatedAnalogOutput:
 
     def write_volts(self, channel: int, volts: float) -> int:
         ch = _check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
-        code = int(volts_to_ao16_code(volts))
+        code = _ao_code(volts)
         self._emit(self._clock.now_s(), ch, code)
         return code
 
@@ -147,7 +160,7 @@ class SimulatedAnalogOutput:
         codes: dict[int, int] = {}
         for channel, volts in volts_by_channel.items():
             ch = _check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
-            codes[ch] = int(volts_to_ao16_code(volts))
+            codes[ch] = _ao_code(volts)
         for ch, code in codes.items():
             self._emit(t_s, ch, code)
         return codes

@@ -282,6 +282,9 @@ class JointPlant:
         self._cmd_step = np.zeros(1024, dtype=np.int64)
         self._cmd_target = np.zeros(1024, dtype=np.float64)
         self._n_cmd = 0
+        self._pending_step: list[int] = []
+        self._pending_target: list[float] = []
+        self._last_cmd_step = 0
         self.set_brace(None)
         self.reset(0.5 * (self.range_deg[0] + self.range_deg[1]))
 
@@ -317,13 +320,39 @@ class JointPlant:
 
     def reset(self, angle_deg: float) -> None:
         """Put the joint at rest at `angle_deg`, friction states relaxed, holding that angle as its command,
-        at grid step 0."""
+        at grid step 0. If the load there exceeds the actuator's limit (a brace stop set beyond the park
+        angle), the joint rests instead where the load equals the limit: the stop pushed it that far."""
         self._state[:] = 0.0
-        self._state[S_ANGLE] = float(angle_deg)
+        self._state[S_ANGLE] = self._rest_angle_deg(float(angle_deg))
         self._istate[:] = 0
         self._n_cmd = 0
+        self._pending_step.clear()
+        self._pending_target.clear()
+        self._last_cmd_step = 0
         self.push_command(0, float(angle_deg))
         self._refresh_load()
+
+    def _static_load_nm(self, angle_deg: float) -> float:
+        return float(_load_nm(angle_deg, 0.0, 0.0, 0.0, self._p, self._spring))
+
+    def _rest_angle_deg(self, angle_deg: float) -> float:
+        t_lo, t_hi = self._p[P_T_LO], self._p[P_T_HI]
+        load = self._static_load_nm(angle_deg)
+        if t_lo <= load <= t_hi:
+            return angle_deg
+        # the load falls back inside the limits towards the middle of the brace's range
+        limit = t_hi if load > t_hi else t_lo
+        towards = 0.5 * (self._p[P_ROM_LO] + self._p[P_ROM_HI]) if self.brace is not None else angle_deg
+        a, b = angle_deg, towards
+        if (self._static_load_nm(b) - limit) * (load - limit) > 0.0:
+            return angle_deg  # no crossing: leave it (the relief term will act)
+        for _ in range(60):
+            mid = 0.5 * (a + b)
+            if (self._static_load_nm(mid) - limit) * (load - limit) > 0.0:
+                a = mid
+            else:
+                b = mid
+        return 0.5 * (a + b)
 
     def _refresh_load(self) -> None:
         s = self._state
@@ -348,20 +377,41 @@ class JointPlant:
     def push_command(self, step: int, target_deg: float) -> None:
         """Hold `target_deg` (a real angle) from grid step `step` on. Steps must not go backwards; a step
         already integrated past is applied from the current step; of several commands for the same step the
-        last one holds."""
+        last one holds. (Queued in Python lists, moved into the kernel's arrays at the next `advance`.)"""
         step = max(int(step), self.step)
-        if self._n_cmd and step < self._cmd_step[self._n_cmd - 1]:
+        last = self._pending_step[-1] if self._pending_step else self._last_cmd_step
+        if step < last:
             raise ValueError("commands must be pushed in time order")
-        if self._n_cmd == self._cmd_step.shape[0]:
-            self._cmd_step = np.concatenate([self._cmd_step, np.zeros_like(self._cmd_step)])
-            self._cmd_target = np.concatenate([self._cmd_target, np.zeros_like(self._cmd_target)])
-        self._cmd_step[self._n_cmd] = step
-        self._cmd_target[self._n_cmd] = target_deg
-        self._n_cmd += 1
+        self._pending_step.append(step)
+        self._pending_target.append(float(target_deg))
+
+    def _flush_commands(self) -> None:
+        n_new = len(self._pending_step)
+        if n_new == 0:
+            return
+        # Commands before the current one are never needed again: compact instead of growing forever.
+        keep_from = int(self._istate[I_CMD])
+        n_keep = self._n_cmd - keep_from
+        if keep_from > 0:
+            self._cmd_step[:n_keep] = self._cmd_step[keep_from : self._n_cmd]
+            self._cmd_target[:n_keep] = self._cmd_target[keep_from : self._n_cmd]
+            self._istate[I_CMD] = 0
+        needed = n_keep + n_new
+        if needed > self._cmd_step.shape[0]:
+            size = max(needed, 2 * self._cmd_step.shape[0])
+            self._cmd_step = np.concatenate([self._cmd_step[:n_keep], np.zeros(size - n_keep, np.int64)])
+            self._cmd_target = np.concatenate([self._cmd_target[:n_keep], np.zeros(size - n_keep)])
+        self._cmd_step[n_keep:needed] = self._pending_step
+        self._cmd_target[n_keep:needed] = self._pending_target
+        self._n_cmd = needed
+        self._last_cmd_step = self._pending_step[-1]
+        self._pending_step.clear()
+        self._pending_target.clear()
 
     def advance(self, step_end: int, sample_step: IntArray) -> tuple[FloatArray, FloatArray]:
         """Integrate to grid step `step_end`; return (real angle, load torque) at each of the sorted
         `sample_step` that is <= step_end (the prefix of `sample_step` that could be sampled)."""
+        self._flush_commands()
         n = sample_step.shape[0]
         angle = np.empty(n, dtype=np.float64)
         torque = np.empty(n, dtype=np.float64)

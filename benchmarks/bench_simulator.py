@@ -1,0 +1,133 @@
+"""Throughput of the DAQ simulator (target: >= 1,000,000 input samples per second on one core) and the
+cost of one whole simulated 65 s trial through `Rig.run_trajectory`.
+
+Measured, each as the median of several repeats (the numba kernel is compiled/loaded before timing):
+
+1. plant kernel only: `JointPlant.advance` over a 65 s sinusoid, samples/s;
+2. simulated boards as the Rig drives them: a USB-3105 write every 10 ms and a DT9814 scan read every
+   100 ms (100 rows of angle + torque per read), samples/s — and the same with 1 s reads;
+3. a whole trial: the knee's Appendix A sinusoid 65 + 65 sin(2πt/8.17) for 65 s, brace K2 / R3 / level 2,
+   through `Rig.run_trajectory` (safety check, LUTs, paced loop, conversions), in ms, compared against
+   the 65 s of robot time it simulates (DESIGN.md: a dry run must be >= 300x faster than the robot).
+
+Run: python benchmarks/bench_simulator.py [--repeats N]
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from protocol_runner.hardware.rig import JointConfig
+from protocol_runner.hardware.safety import SafetyLimits
+from protocol_runner.hardware.simulator import DEFAULT_PARAMS, BraceSetup, SimulatedRig
+from protocol_runner.hardware.simulator.plant import JointPlant
+
+TRIAL_S = 65.0
+OUTPUT_RATE_HZ = 100.0
+INPUT_RATE_HZ = 1000.0
+PERIOD_S = 8.17  # thesis Table 6, Rr3 at full speed
+
+
+def knee() -> JointConfig:
+    return JointConfig(
+        name="knee",
+        range_deg=(0.0, 130.0),
+        torque_range_nm=(-84.8, 84.8),
+        output_channel=8,
+        angle_input_channel=8,
+        torque_input_channel=20,
+        limits=SafetyLimits(
+            range_deg=(0.0, 130.0),
+            max_rate_deg_s=100.0,
+            max_accel_deg_s2=1000.0,
+            park_angle_deg=20.0,
+            park_rate_deg_s=30.0,
+        ),
+    )
+
+
+BRACE = BraceSetup(rom_deg=(0.0, 130.0), friction_nm=3.75, stiffness_n_per_mm=13.0, preload_position=3)
+COMMAND_DEG = 65.0 + 65.0 * np.sin(
+    2.0 * np.pi * np.arange(int(TRIAL_S * OUTPUT_RATE_HZ)) / OUTPUT_RATE_HZ / PERIOD_S
+)
+
+
+def median_s(fn: Callable[[], object], repeats: int) -> tuple[float, list[float]]:
+    fn()  # warm-up (numba cache load, first-call costs)
+    times = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times), times
+
+
+def bench_kernel() -> int:
+    plant = JointPlant(DEFAULT_PARAMS, (0.0, 130.0), (-84.8, 84.8))
+    plant.set_brace(BRACE)
+    plant.reset(20.0)
+    dt = DEFAULT_PARAMS.plant_step_s
+    per_tick = round(1.0 / OUTPUT_RATE_HZ / dt)
+    for k, c in enumerate(COMMAND_DEG):
+        plant.push_command(k * per_tick, float(c))
+    n = int(TRIAL_S * INPUT_RATE_HZ)
+    steps = np.round(np.arange(n) / INPUT_RATE_HZ / dt).astype(np.int64)
+    angle, _ = plant.advance(int(steps[-1]), steps)
+    return int(angle.shape[0])
+
+
+def bench_boards(read_every_ticks: int) -> int:
+    sim = SimulatedRig(knee(), seed=1)
+    sim.set_brace(BRACE)
+    sim.begin_step("bench")
+    volts = -10.0 + 20.0 * COMMAND_DEG / 130.0
+    sim.ai.start_scan([8, 20], INPUT_RATE_HZ)
+    n = 0
+    for k, v in enumerate(volts.tolist()):
+        sim.clock.sleep_until(k / OUTPUT_RATE_HZ)
+        sim.ao.write_volts(8, v)
+        if (k + 1) % read_every_ticks == 0:
+            n += sim.ai.read_available().n_samples
+    sim.clock.sleep_until(len(volts) / OUTPUT_RATE_HZ)
+    n += sim.ai.stop_scan().n_samples
+    return n
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=7)
+    args = parser.parse_args()
+    repeats = args.repeats
+
+    n_kernel = bench_kernel()
+    t, _ = median_s(bench_kernel, repeats)
+    print(f"plant kernel only:            {n_kernel / t / 1e6:6.2f} M samples/s  ({t * 1e3:7.1f} ms / 65 s)")
+
+    for every, label in ((10, "100 ms reads (as Rig)"), (100, "1 s reads")):
+        n = bench_boards(every)
+        t, _ = median_s(lambda every=every: bench_boards(every), repeats)  # type: ignore[misc]
+        print(f"boards, {label:22s} {n / t / 1e6:6.2f} M samples/s  ({t * 1e3:7.1f} ms / 65 s, {n} rows)")
+
+    sim = SimulatedRig(knee(), seed=1)
+    sim.set_brace(BRACE)
+    rig = sim.make_rig()
+
+    def whole_trial() -> int:
+        sim.begin_step("bench-trial")
+        return rig.run_trajectory(COMMAND_DEG, where="bench-trial").n_samples
+
+    n = whole_trial()
+    t, times = median_s(whole_trial, repeats)
+    print(
+        f"whole 65 s trial via Rig:     {n / t / 1e6:6.2f} M samples/s  ({t * 1e3:7.1f} ms median, "
+        f"min {min(times) * 1e3:.1f}, max {max(times) * 1e3:.1f}; {TRIAL_S / t:,.0f}x faster than the robot)"
+    )
+
+
+if __name__ == "__main__":
+    main()
