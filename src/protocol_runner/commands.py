@@ -1,13 +1,18 @@
 """The CLI's actions beyond planning: run, resume, report, hardware check.
 
-Each returns the process exit status; user mistakes raise `UserError` subclasses.
+Each returns the process exit status; user mistakes raise `UserError` subclasses (the CLI prints them).
 """
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
-from .errors import InvalidInput
+from .errors import EXIT_OK, InvalidInput
+
+
+def _say(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
 
 
 def run(
@@ -19,12 +24,76 @@ def run(
     yes: bool,
     only: list[int] | None,
     realtime: bool,
+    quiet: bool = False,
 ) -> int:
-    raise InvalidInput("running a protocol is not implemented yet (the session engine lands in issue #5)")
+    from .protocol.loader import find_protocol, load_protocol
+    from .protocol.plan import expand
+    from .session.runner import Runner
+    from .session.setup import create_session, default_session_dir, load_session_protocol
+
+    path = find_protocol(protocol)
+    loaded = load_protocol(path, display_name=protocol if Path(protocol).exists() else str(path))
+    expand(loaded, only=only)  # --only errors before anything is created
+    if realtime and not dry_run:
+        raise InvalidInput("--realtime paces the simulator: use it with --dry-run")
+    if not dry_run:
+        from .session.rigs import HardwareBench
+
+        hardware = HardwareBench(loaded)  # exit 3 with a plain message when the boards are absent
+    directory = session or default_session_dir(loaded.protocol.name)
+    info = create_session(
+        directory,
+        loaded,
+        mode="dry-run" if dry_run else "hardware",
+        seed=0 if seed is None else seed,
+        only=tuple(only or ()),
+        realtime=realtime,
+    )
+    stored, plan, _ = load_session_protocol(directory, info, force=False)
+    bench = _bench(stored, info) if dry_run else hardware
+    _say(
+        f"session {directory}: {loaded.protocol.name}, {len(plan)} steps, about "
+        f"{plan.robot_time_s / 3600:.1f} h of robot time ({info.mode}, seed {info.seed})"
+    )
+    operator = _operator(dry_run or yes)
+    result = Runner(directory, info, stored, plan, bench, operator, quiet=quiet).run()
+    _say(f"done: {result.archive}" + (f" and {result.report}" if result.report else ""))
+    return EXIT_OK
 
 
-def resume(session_dir: Path, *, yes: bool, force: bool, realtime: bool) -> int:
-    raise InvalidInput("--resume is not implemented yet (the session engine lands in issue #5)")
+def _bench(loaded, info):  # type: ignore[no-untyped-def]
+    if info.mode == "dry-run":
+        from .session.rigs import SimulatedBench
+
+        return SimulatedBench(loaded, seed=info.seed, realtime=info.realtime)
+    from .session.rigs import HardwareBench
+
+    return HardwareBench(loaded)
+
+
+def _operator(automatic: bool):  # type: ignore[no-untyped-def]
+    from .session.operator import AutoOperator, ConsoleOperator
+
+    return AutoOperator() if automatic else ConsoleOperator()
+
+
+def resume(session_dir: Path, *, yes: bool, force: bool, realtime: bool, quiet: bool = False) -> int:
+    from .session.runner import Runner
+    from .session.setup import load_session_protocol, read_session_info
+
+    info = read_session_info(session_dir)
+    loaded, plan, changed = load_session_protocol(session_dir, info, force=force)
+    bench = _bench(loaded, info)
+    operator = _operator(info.mode == "dry-run" or yes)
+    _say(f"resuming {session_dir}: {info.protocol_name} ({info.mode}, seed {info.seed})")
+    result = Runner(
+        session_dir, info, loaded, plan, bench, operator, resumed=True, protocol_changed=changed, quiet=quiet
+    ).run()
+    _say(
+        f"done: {result.steps_run} steps run, {result.steps_skipped} already complete; {result.archive}"
+        + (f" and {result.report}" if result.report else "")
+    )
+    return EXIT_OK
 
 
 def report(
@@ -35,8 +104,79 @@ def report(
     protocol_file: str | None,
     export_mat: Path | None,
 ) -> int:
-    raise InvalidInput("--report is not implemented yet (the report lands in issue #6)")
+    from .report.render import generate_report
+
+    archive = _archive_of(path)
+    if reprocess:
+        from .report.reprocess import reprocess_archive
+
+        archive = reprocess_archive(archive, protocol_file=protocol_file)
+        _say(f"reprocessed archive: {archive}")
+    if export_mat is not None:
+        from .report.export import export_mat as do_export
+
+        files = do_export(archive, export_mat)
+        _say(f"wrote {len(files)} .mat files to {export_mat}")
+    out = generate_report(archive, output)
+    _say(f"report: {out}")
+    return EXIT_OK
+
+
+def _archive_of(path: Path) -> Path:
+    """An archive path, or a session directory (consolidated first if it has none yet)."""
+    if path.is_dir():
+        candidate = path / "archive.h5"
+        if candidate.is_file():
+            return candidate
+        if (path / "session.json").is_file():
+            return _consolidate_unfinished(path)
+        raise InvalidInput(f"{path}: neither an archive.h5 nor a session directory")
+    if not path.exists():
+        raise InvalidInput(f"{path}: no such archive or session directory")
+    return path
+
+
+def _consolidate_unfinished(session_dir: Path) -> Path:
+    from .session.rigs import SimulatedBench  # noqa: F401  (import check only)
+    from .session.runner import Runner
+    from .session.setup import load_session_protocol, read_session_info
+
+    info = read_session_info(session_dir)
+    loaded, plan, _ = load_session_protocol(session_dir, info, force=True)
+    runner = Runner(session_dir, info, loaded, plan, _NoBench(), _operator(True), quiet=True)
+    return runner.consolidate("incomplete")
+
+
+class _NoBench:
+    """Stands in for a rig when only the archive is assembled (no step runs)."""
+
+    mode = "none"
+    rig = None
+
+    def begin_step(self, step_id: str) -> None:
+        return None
+
+    def fit_brace(self, settings: object) -> None:
+        return None
+
+    def close(self) -> None:
+        return None
 
 
 def hardware_check(protocol: str | None) -> int:
-    raise InvalidInput("--hardware-check is not implemented yet (the USB drivers land in issue #7)")
+    from .hardware.discovery import format_report
+    from .hardware.discovery import hardware_check as check
+
+    required = None
+    if protocol:
+        from .protocol.loader import find_protocol, load_protocol
+
+        loaded = load_protocol(find_protocol(protocol))
+        rig = loaded.protocol.rig
+        required = {
+            "analog_output": [rig.output.channel],
+            "analog_input": [rig.input.angle_channel, rig.input.torque_channel],
+        }
+    result = check(required)
+    print(format_report(result))
+    return EXIT_OK if getattr(result, "ok", True) else 3

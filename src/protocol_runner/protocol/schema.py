@@ -205,7 +205,7 @@ class TransitionSpec(_Model):
 
 
 class FilterSpec(_Model):
-    kind: Literal["butterworth", "chebyshev1", "none"]
+    kind: Literal["butterworth", "chebyshev"]
     order: int = Field(default=10, ge=1, le=20)
     cutoff: float = Field(default=0.1, gt=0, lt=1)
     ripple_db: float = Field(default=0.5, gt=0)

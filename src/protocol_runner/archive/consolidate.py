@@ -1,0 +1,89 @@
+"""Consolidation: merge every completed unit into one self-contained `archive.h5` (docs/archive.md).
+
+Units are fragments of the archive at their final paths; consolidation copies them in plan order into
+`archive.h5.partial`, adds the root provenance, `/protocol`, `/plan`, `/session/events` and each
+configuration's status, then renames atomically. Rerunning it gives the same archive content.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import h5py
+
+from .. import __version__
+from .h5util import SCHEMA_VERSION, put_lines, put_text, set_attrs
+from .units import COMPLETE_ATTR, _fsync_dir, _fsync_file
+
+
+@dataclass(frozen=True)
+class ArchiveMeta:
+    protocol_name: str
+    protocol_sha256: str
+    protocol_text: str
+    protocol_filename: str
+    plan_json: str
+    mode: str
+    seed: int
+    created_utc: str
+    finished_utc: str
+    status: str
+    joint: str
+    only: tuple[int, ...]
+    events: tuple[str, ...]
+    configuration_attrs: Mapping[str, Mapping[str, Any]]  # group name -> attrs (incl. status)
+
+
+def _merge(src: h5py.Group, dst: h5py.Group) -> None:
+    for key, value in src.attrs.items():
+        if key in ("unit_step_id", COMPLETE_ATTR):
+            continue
+        dst.attrs[key] = value
+    for name, obj in src.items():
+        if isinstance(obj, h5py.Group):
+            _merge(obj, dst.require_group(name))
+        else:
+            if name in dst:
+                del dst[name]
+            src.copy(obj, dst, name=name)
+
+
+def consolidate(archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> Path:
+    partial = archive.with_name(archive.name + ".partial")
+    if partial.exists():
+        partial.unlink()
+    with h5py.File(partial, "w") as out:
+        for path in unit_files:
+            with h5py.File(path, "r") as unit:
+                _merge(unit, out)
+        set_attrs(
+            out,
+            {
+                "protocol_name": meta.protocol_name,
+                "protocol_sha256": meta.protocol_sha256,
+                "schema_version": SCHEMA_VERSION,
+                "software_version": __version__,
+                "mode": meta.mode,
+                "seed": int(meta.seed),
+                "created_utc": meta.created_utc,
+                "finished_utc": meta.finished_utc,
+                "status": meta.status,
+                "joint": meta.joint,
+            },
+        )
+        out.attrs["only"] = list(meta.only) if meta.only else []
+        ds = put_text(out, "protocol", meta.protocol_text)
+        ds.attrs["filename"] = meta.protocol_filename
+        put_text(out, "plan", meta.plan_json)
+        put_lines(out.require_group("session"), "events", list(meta.events))
+        configs = out.require_group("configurations")
+        for name, attrs in meta.configuration_attrs.items():
+            set_attrs(configs.require_group(name), attrs)
+    _fsync_file(partial)
+    os.replace(partial, archive)
+    _fsync_dir(archive.parent)
+    return archive

@@ -1,0 +1,83 @@
+"""Small helpers for writing the archive's HDF5 objects with units and plain-typed attributes."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from typing import Any
+
+import h5py
+import numpy as np
+import numpy.typing as npt
+
+SCHEMA_VERSION = 1
+_STR = h5py.string_dtype("utf-8")
+
+
+def put(
+    group: h5py.Group,
+    name: str,
+    data: npt.ArrayLike,
+    units: str,
+    *,
+    dtype: npt.DTypeLike | None = None,
+    compress: bool = False,
+) -> h5py.Dataset:
+    """Write a numeric dataset with its `units` attribute (docs/archive.md: every numeric dataset has one)."""
+    arr = np.asarray(data, dtype=dtype) if dtype is not None else np.asarray(data)
+    if name in group:
+        del group[name]
+    kwargs: dict[str, Any] = {}
+    if compress and arr.size > 64:
+        kwargs = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+    ds = group.create_dataset(name, data=arr, **kwargs)
+    ds.attrs["units"] = units
+    return ds
+
+
+def put_text(group: h5py.Group, name: str, text: str) -> h5py.Dataset:
+    if name in group:
+        del group[name]
+    return group.create_dataset(name, data=text, dtype=_STR)
+
+
+def put_lines(group: h5py.Group, name: str, lines: list[str]) -> h5py.Dataset:
+    if name in group:
+        del group[name]
+    return group.create_dataset(name, data=np.array(lines, dtype=object), dtype=_STR)
+
+
+def set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:
+    """Attributes as HDF5/MATLAB-friendly types: str, int, float, bool, numeric arrays; dicts as JSON."""
+    for key, value in attrs.items():
+        if value is None:
+            continue
+        if isinstance(value, (dict, list)) and not _is_numeric_list(value):
+            obj.attrs[key] = json.dumps(value)
+        elif isinstance(value, (list, tuple)):
+            obj.attrs[key] = np.asarray(
+                value, dtype=np.float64 if any(isinstance(v, float) for v in value) else None
+            )
+        else:
+            obj.attrs[key] = value
+
+
+def _is_numeric_list(value: object) -> bool:
+    return isinstance(value, list) and all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
+    )
+
+
+def text_of(ds: h5py.Dataset) -> str:
+    value = ds[()]
+    return value.decode("utf-8") if isinstance(value, bytes) else str(value)
+
+
+def attr_str(obj: h5py.HLObject, key: str, default: str = "") -> str:
+    value = obj.attrs.get(key, default)
+    return value.decode("utf-8") if isinstance(value, bytes) else str(value)
+
+
+def group_name(step_id: str) -> str:
+    """Step ids as HDF5 names and file names: ':' -> '__' (docs/archive.md)."""
+    return step_id.replace(":", "__").replace("/", "_")

@@ -1,0 +1,114 @@
+"""The session journal: an append-only JSON-lines file, fsynced after every record.
+
+A unit is journaled as complete only after its file was atomically written (archive/units.py). Events
+(started, interrupted, resumed, ...) are journaled too and end up in the archive's `/session/events`.
+A crash can leave a torn last line: it is ignored on reading (it never described a complete unit).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from datetime import UTC, datetime
+from pathlib import Path
+from typing import Any
+
+from ..archive.units import UnitRecord
+
+
+def utc_now() -> str:
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+
+
+@dataclass(frozen=True)
+class Event:
+    t_utc: str
+    kind: str
+    detail: str
+
+    def to_json(self) -> dict[str, str]:
+        return {"t_utc": self.t_utc, "kind": self.kind, "detail": self.detail}
+
+
+class Journal:
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.units: dict[str, UnitRecord] = {}  # complete units: skipped on resume
+        self.failed: dict[
+            str, UnitRecord
+        ] = {}  # kept in the archive (e.g. a failed check) but redone on resume
+        self.events: list[Event] = []
+        self.answers: dict[str, dict[str, Any]] = {}
+        self.torn_lines = 0
+        if path.exists():
+            self._read()
+
+    def _read(self) -> None:
+        with self.path.open("r", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                line = line.strip()
+                if not line:
+                    continue
+                try:
+                    rec = json.loads(line)
+                except json.JSONDecodeError:
+                    self.torn_lines += 1
+                    continue
+                self._apply(rec)
+
+    def _apply(self, rec: dict[str, Any]) -> None:
+        kind = rec.get("record")
+        if kind == "unit":
+            record = UnitRecord(rec["step_id"], rec["file"], rec["sha256"], int(rec["size"]))
+            if rec.get("final", True):
+                self.units[record.step_id] = record
+                self.failed.pop(record.step_id, None)
+            else:
+                self.failed[record.step_id] = record
+                self.units.pop(record.step_id, None)
+        elif kind == "invalidate":
+            self.units.pop(rec["step_id"], None)
+            self.failed.pop(rec["step_id"], None)
+        elif kind == "event":
+            self.events.append(Event(rec["t_utc"], rec["kind"], rec.get("detail", "")))
+
+    def _append(self, rec: dict[str, Any]) -> None:
+        line = json.dumps(rec, sort_keys=True) + "\n"
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        try:
+            os.write(fd, line.encode("utf-8"))
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        self._apply(rec)
+
+    def unit_done(self, record: UnitRecord, *, final: bool = True) -> None:
+        self._append(
+            {
+                "record": "unit",
+                "final": final,
+                "step_id": record.step_id,
+                "file": record.file,
+                "sha256": record.sha256,
+                "size": record.size,
+                "t_utc": utc_now(),
+            }
+        )
+
+    def invalidate(self, step_id: str, why: str) -> None:
+        self._append({"record": "invalidate", "step_id": step_id, "why": why, "t_utc": utc_now()})
+
+    def event(self, kind: str, detail: str = "") -> Event:
+        ev = Event(utc_now(), kind, detail)
+        self._append({"record": "event", **ev.to_json()})
+        return ev
+
+    def ended_cleanly(self) -> bool:
+        """Did the last run of the session end with a recorded stop (finished, interrupted, stopped)?"""
+        for ev in reversed(self.events):
+            if ev.kind in ("started", "resumed"):
+                return False
+            if ev.kind in ("finished", "interrupted", "stopped", "aborted"):
+                return True
+        return True

@@ -1,0 +1,110 @@
+"""Building the rig a session runs on: the DAQ simulator (--dry-run) or the real boards."""
+
+from __future__ import annotations
+
+from ..errors import HardwareUnavailable
+from ..hardware.calibration import load_calibration_table
+from ..hardware.rig import JointConfig, Rig
+from ..hardware.safety import SafetyLimits
+from ..protocol.levels import Settings
+from ..protocol.loader import LoadedProtocol
+
+
+def joint_config(loaded: LoadedProtocol) -> JointConfig:
+    """The protocol's joint, channels, rates, look-up tables and safety envelope as a hardware JointConfig."""
+    rig = loaded.protocol.rig
+    base = loaded.base_dir
+    cal = rig.calibration
+    return JointConfig(
+        name=rig.joint.name,
+        range_deg=rig.joint.range_deg,
+        torque_range_nm=rig.joint.torque_range_nm,
+        output_channel=rig.output.channel,
+        angle_input_channel=rig.input.angle_channel,
+        torque_input_channel=rig.input.torque_channel,
+        output_rate_hz=rig.output.rate_hz,
+        input_rate_hz=rig.input.rate_hz,
+        command_table=load_calibration_table(base / cal.command_table) if cal.command_table else None,
+        angle_table=load_calibration_table(base / cal.angle_table) if cal.angle_table else None,
+        torque_table=load_calibration_table(base / cal.torque_table) if cal.torque_table else None,
+        limits=SafetyLimits(
+            range_deg=rig.joint.range_deg,
+            max_rate_deg_s=rig.safety.max_rate_deg_s,
+            max_accel_deg_s2=rig.safety.max_accel_deg_s2,
+            park_angle_deg=rig.safety.park_angle_deg,
+            park_rate_deg_s=rig.safety.park_rate_deg_s,
+        ),
+    )
+
+
+class SimulatedBench:
+    """The dry-run bench: the simulated rig plus the simulated operator's hands on the brace."""
+
+    def __init__(
+        self, loaded: LoadedProtocol, *, seed: int, realtime: bool = False, params: object = None
+    ) -> None:
+        from ..hardware.simulator.daq import SimulatedRig
+        from ..hardware.simulator.params import DEFAULT_PARAMS
+
+        self.sim = SimulatedRig(
+            joint_config(loaded), seed=seed, params=params or DEFAULT_PARAMS, realtime=realtime
+        )  # type: ignore[arg-type]
+        self.rig: Rig = self.sim.make_rig()
+        self.mode = "dry-run"
+
+    def begin_step(self, step_id: str) -> None:
+        self.sim.begin_step(step_id)
+
+    def fit_brace(self, settings: Settings | None) -> None:
+        from ..hardware.simulator.params import BraceSetup
+
+        if settings is None:
+            self.sim.set_brace(None)
+        else:
+            self.sim.set_brace(
+                BraceSetup(
+                    rom_deg=settings.brace_rom_deg,
+                    friction_nm=settings.friction_nm,
+                    stiffness_n_per_mm=settings.stiffness_n_per_mm,
+                    preload_position=settings.preload_position,
+                )
+            )
+
+    def close(self) -> None:
+        self.sim.ao.close()
+        self.sim.ai.close()
+
+
+class HardwareBench:
+    """The real rig: USB boards chosen by the protocol's rig section. The operator handles the brace."""
+
+    def __init__(self, loaded: LoadedProtocol) -> None:
+        self.mode = "hardware"
+        self.rig = open_hardware_rig(loaded)
+
+    def begin_step(self, step_id: str) -> None:
+        return None
+
+    def fit_brace(self, settings: Settings | None) -> None:
+        return None  # done by hand, confirmed through the operator checklist
+
+    def close(self) -> None:
+        for dev in (self.rig.ao, self.rig.ai):
+            close = getattr(dev, "close", None)
+            if close is not None:
+                close()
+
+
+def open_hardware_rig(loaded: LoadedProtocol) -> Rig:
+    """Open the boards the protocol names; HardwareUnavailable (exit 3) with a plain message if absent."""
+    rig_spec = loaded.protocol.rig
+    try:
+        from ..hardware import discovery
+    except ImportError:  # pragma: no cover
+        discovery = None  # type: ignore[assignment]
+    if discovery is None or not hasattr(discovery, "open_rig_boards"):
+        raise HardwareUnavailable(
+            "no DAQ boards found; use --dry-run to rehearse the campaign against the simulator"
+        )
+    ao, ai, clock = discovery.open_rig_boards(rig_spec)
+    return Rig(joint_config(loaded), ao, ai, clock)

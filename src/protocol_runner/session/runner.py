@@ -1,0 +1,284 @@
+"""The runner: executes a plan's steps against a bench, one atomic unit per finished step.
+
+For every step not yet journaled as complete: run it (steps/registry.py), write its unit atomically
+(archive/units.py), then journal it. A resume skips journaled units whose files verify, redoes corrupt
+or partial ones, re-runs the set's calibration check first when resuming inside a set (kept as a separate
+record), and asks the operator to confirm the brace's state. SIGINT/SIGTERM stop at the next safe point,
+park the joint, and exit 130 with the session resumable. At the end (and at every stop) the units are
+consolidated into `archive.h5`, and the report is rendered.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..archive.consolidate import ArchiveMeta, consolidate
+from ..archive.units import DiskFull, unit_is_complete, write_unit
+from ..errors import Interrupted, StoppedByCheck, UserError
+from ..protocol.loader import LoadedProtocol
+from ..protocol.plan import (
+    CalibrationCheckStep,
+    ChecklistStep,
+    Plan,
+    Step,
+    TrialStep,
+    calibration_id,
+    configuration_name,
+)
+from ..steps import calibration_check
+from ..steps.context import Bench, StepContext, StepOutcome, processing_settings
+from ..steps.registry import STEP_KINDS
+from .journal import Journal, utc_now
+from .operator import Operator
+from .progress import Progress
+from .setup import SessionInfo
+from .signals import StopFlag
+
+ARCHIVE_NAME = "archive.h5"
+REPORT_NAME = "report.html"
+
+
+@dataclass(frozen=True)
+class RunResult:
+    status: str  # "complete", "incomplete", "aborted"
+    archive: Path | None
+    report: Path | None
+    steps_run: int
+    steps_skipped: int
+
+
+class Runner:
+    def __init__(
+        self,
+        session_dir: Path,
+        info: SessionInfo,
+        loaded: LoadedProtocol,
+        plan: Plan,
+        bench: Bench,
+        operator: Operator,
+        *,
+        resumed: bool = False,
+        protocol_changed: bool = False,
+        quiet: bool = False,
+        stop: StopFlag | None = None,
+    ) -> None:
+        self.dir = session_dir
+        self.info = info
+        self.loaded = loaded
+        self.plan = plan
+        self.bench = bench
+        self.operator = operator
+        self.resumed = resumed
+        self.protocol_changed = protocol_changed
+        self.quiet = quiet
+        self.units_dir = session_dir / "units"
+        self.journal = Journal(session_dir / "journal.jsonl")
+        self.stop = stop or StopFlag()
+        self.steps_run = 0
+
+    # ------------------------------------------------------------------------------------------ run
+
+    def run(self) -> RunResult:
+        self.units_dir.mkdir(parents=True, exist_ok=True)
+        for stray in self.units_dir.glob("*.partial"):
+            stray.unlink()  # an unfinished unit from a crash: never complete, always redone
+        self.stop.install()
+        progress = Progress(self.plan, set(self.journal.units), self.dir / "session.log", quiet=self.quiet)
+        ctx = StepContext(
+            loaded=self.loaded,
+            plan=self.plan,
+            bench=self.bench,
+            operator=self.operator,
+            units_dir=self.units_dir,
+            journal=self.journal,
+            stop_requested=self.stop,
+            processing=processing_settings(self.loaded),
+        )
+        skipped = 0
+        try:
+            if self.resumed:
+                self._prepare_resume(ctx, progress)
+            else:
+                self.journal.event("started", f"{self.info.mode}, seed {self.info.seed}")
+            for step in self.plan.steps:
+                if step.id in self.journal.units:
+                    skipped += 1
+                    continue
+                if self.stop():
+                    raise Interrupted(f"stopped before {step.id} ({self.stop.signal_name})")
+                if step.kind == "report":
+                    return self._finish(progress, skipped)
+                progress.step_started(step)
+                outcome = STEP_KINDS[step.kind](step, ctx)
+                self._record(step.id, outcome)
+                progress.step_finished(step, outcome.summary)
+            return self._finish(progress, skipped)
+        except Interrupted as exc:
+            self._stopped("interrupted", exc.message, progress)
+            raise Interrupted(
+                f"{exc.message}. The session is resumable: run-protocol --resume {self.dir}"
+            ) from None
+        except KeyboardInterrupt:
+            with contextlib.suppress(Exception):
+                self.journal.event("interrupted", "stopped at once (second Ctrl-C)")
+            raise Interrupted(
+                f"stopped at once; every finished step is kept. Resume with: run-protocol --resume {self.dir}"
+            ) from None
+        except StoppedByCheck as exc:
+            self._stopped("aborted", exc.message, progress)
+            raise
+        except DiskFull:
+            with contextlib.suppress(Exception):
+                self.journal.event("interrupted", "disk full")
+            with contextlib.suppress(Exception):
+                self.bench.rig.park(where="park after disk full")
+            raise
+        except UserError as exc:
+            self._stopped("stopped", exc.message, progress)
+            raise type(exc)(
+                f"{exc.message}\nThe session is resumable: run-protocol --resume {self.dir}"
+            ) from None
+        finally:
+            self.stop.uninstall()
+            progress.close()
+            with contextlib.suppress(Exception):
+                self.bench.close()
+
+    def _record(self, step_id: str, outcome: StepOutcome) -> None:
+        if outcome.fill is not None:
+            record = write_unit(self.units_dir, step_id, outcome.fill)
+            self.journal.unit_done(record, final=outcome.stop is None)
+        self.steps_run += 1
+        if outcome.stop is not None:
+            raise outcome.stop
+
+    # --------------------------------------------------------------------------------------- resume
+
+    def _prepare_resume(self, ctx: StepContext, progress: Progress) -> None:
+        j = self.journal
+        if not j.ended_cleanly():
+            j.event(
+                "interrupted", "the previous run ended without a recorded stop (crash, kill or power cut)"
+            )
+        detail = "protocol text changed; accepted with --force" if self.protocol_changed else ""
+        j.event("resumed", detail)
+        if self.protocol_changed:
+            j.event("operator_override", "resumed with a changed protocol (--force)")
+        for step_id, record in list(j.units.items()):
+            if not unit_is_complete(self.units_dir, record):
+                j.invalidate(step_id, "unit file missing, truncated or corrupt")
+                progress.info(f"{step_id}: its unit file is missing or damaged; the step will be redone")
+        pending = [s for s in self.plan.steps if s.id not in j.units]
+        if not pending or pending[0].kind == "report":
+            return
+        first = pending[0]
+        self._confirm_brace(first)
+        set_name = getattr(first, "set", None)
+        before = calibration_id(set_name, "before") if set_name else None
+        set_trials_pending = any(isinstance(s, TrialStep) and s.set == set_name for s in pending)
+        if before and before in j.units and first.id != before and set_trials_pending:
+            n = 1 + sum(1 for k in list(j.units) + list(j.failed) if k.startswith(f"cal:{set_name}:resume-"))
+            check = self.plan.step(before)
+            assert isinstance(check, CalibrationCheckStep)
+            record_as = f"cal:{set_name}:resume-{n}"
+            j.event("calibration_rerun", f"{record_as} before continuing set {set_name} at {first.id}")
+            progress.info(
+                f"resuming inside set {set_name}: re-running its calibration check first ({record_as})"
+            )
+            outcome = calibration_check.run_check(check, ctx, record_as=record_as, when=f"resume_{n}")
+            self._record(record_as, outcome)
+            progress.info(f"{record_as}: {outcome.summary}")
+
+    def _confirm_brace(self, first: Step) -> None:
+        if isinstance(first, ChecklistStep):
+            return  # the checklist itself sets the brace up
+        index = self.plan.steps.index(first)
+        last = next((s for s in reversed(self.plan.steps[:index]) if isinstance(s, ChecklistStep)), None)
+        if last is None:
+            return
+        settings = last.settings if last.brace == "on" else None
+        if settings is not None:
+            state = (
+                f"ON, set up for configuration {last.configuration} ({settings.stiffness}, preload "
+                f"{settings.preload_position}, friction {settings.friction_level}, ROM {settings.brace_rom})"
+            )
+        else:
+            state = "OFF (removed from the robot leg)"
+        if not self.operator.confirm(f"Resuming at {first.id}: the brace should be {state}. Is it?"):
+            raise Interrupted(
+                f"the brace state was not confirmed; set it up as listed in {last.id}, then resume"
+            )
+        self.bench.fit_brace(settings)
+
+    # ------------------------------------------------------------------------------------ finishing
+
+    def _stopped(self, kind: str, message: str, progress: Progress) -> None:
+        with contextlib.suppress(Exception):
+            self.journal.event(kind, message)
+        with contextlib.suppress(Exception):
+            self.bench.rig.park(where="park on stop")
+        status = "aborted" if kind == "aborted" else "incomplete"
+        with contextlib.suppress(Exception):
+            self.consolidate(status)
+        with contextlib.suppress(Exception):
+            progress.info(f"session {kind}: {message}")
+
+    def _finish(self, progress: Progress, skipped: int) -> RunResult:
+        self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped")
+        archive = self.consolidate("complete")
+        report = self.render_report(archive)
+        progress.info(f"archive: {archive}")
+        if report is not None:
+            progress.info(f"report:  {report}")
+        return RunResult("complete", archive, report, self.steps_run, skipped)
+
+    def configuration_attrs(self) -> dict[str, dict[str, object]]:
+        out: dict[str, dict[str, object]] = {}
+        done = self.journal.units
+        for step in self.plan.steps:
+            if not isinstance(step, TrialStep):
+                continue
+            name = configuration_name(step.configuration)
+            entry = out.setdefault(name, {"key": step.configuration, "n_trials": 0, "_any": False})
+            if step.brace == "on":
+                entry["n_trials"] = int(entry["n_trials"]) + 1  # type: ignore[call-overload]
+            entry["_any"] = bool(entry["_any"]) or step.id in done
+        for name, entry in out.items():
+            key = int(entry["key"])  # type: ignore[call-overload]
+            fitted = f"fit:k{key:02d}" in done or (
+                f"process:k{key:02d}" in done and f"fit:k{key:02d}" not in self.plan._index
+            )
+            entry["status"] = "complete" if fitted else ("partial" if entry.pop("_any") else "not run")
+            entry.pop("_any", None)
+        return out
+
+    def consolidate(self, status: str) -> Path:
+        records = list(self.journal.units.values()) + list(self.journal.failed.values())
+        files = [self.units_dir / r.file for r in records if (self.units_dir / r.file).is_file()]
+        meta = ArchiveMeta(
+            protocol_name=self.info.protocol_name,
+            protocol_sha256=self.loaded.sha256,
+            protocol_text=self.loaded.text,
+            protocol_filename=self.loaded.path.name,
+            plan_json=json.dumps(self.plan.to_json()),
+            mode=self.info.mode,
+            seed=self.info.seed,
+            created_utc=self.info.created_utc,
+            finished_utc=utc_now(),
+            status=status,
+            joint=self.loaded.protocol.rig.joint.name,
+            only=self.info.only,
+            events=tuple(json.dumps(e.to_json()) for e in self.journal.events),
+            configuration_attrs=self.configuration_attrs(),
+        )
+        return consolidate(self.dir / ARCHIVE_NAME, files, meta)
+
+    def render_report(self, archive: Path) -> Path | None:
+        try:
+            from ..report.render import generate_report
+        except ImportError:  # the report module is optional until it lands
+            return None
+        return generate_report(archive, self.dir / REPORT_NAME)

@@ -1,0 +1,187 @@
+"""Calibration check (Appendix A "Calibration"): a 45 deg step before and after every set.
+
+The response is compared with a first-order lag (thesis §2.4.2: tau = 0.2 s): the settle error (final
+angle vs target) and the fitted time constant must lie within the protocol's `calibration_check`
+limits; the "after" check must also agree with the set's "before" check (drift of the settled angle and
+change of tau). A failing check stops the session (exit 4) unless the operator accepts it; the verdict is
+recorded either way in `/calibration/<set>/<when>`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+
+import h5py
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import minimize_scalar
+from scipy.signal import lfilter
+
+from ..analysis.transition import command_on_input_base
+from ..archive.h5util import put, set_attrs
+from ..errors import StoppedByCheck
+from ..hardware.rig import TrialRecording
+from ..protocol.plan import CalibrationCheckStep, calibration_id
+from ..protocol.trajectories import calibration_step_deg
+from .context import StepContext, StepOutcome
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class StepResponse:
+    settled_deg: float
+    settle_error_deg: float
+    time_constant_s: float
+
+
+def first_order_response(command_deg: FloatArray, dt_s: float, tau_s: float, y0_deg: float) -> FloatArray:
+    """Exact zero-order-hold discretisation of tau*dy/dt = c - y (§2.4.2's first-order response)."""
+    a = math.exp(-dt_s / tau_s)
+    zi = np.array([a * y0_deg])
+    y, _ = lfilter([1.0 - a], [1.0, -a], command_deg, zi=zi)
+    return np.concatenate(([y0_deg], y[:-1]))
+
+
+def analyse_step(
+    time_s: FloatArray,
+    command_deg: FloatArray,
+    angle_deg: FloatArray,
+    target_deg: float,
+    settle_window_s: float,
+) -> StepResponse:
+    """Settled angle over the last `settle_window_s`, its error, and the time constant that best fits the
+    response to the commanded move (least squares over tau in [0.02, 2] s)."""
+    dt = float(np.median(np.diff(time_s)))
+    settled = float(np.mean(angle_deg[time_s >= time_s[-1] - settle_window_s]))
+    y0 = float(np.mean(angle_deg[: max(1, int(0.2 / dt))]))
+
+    def sse(tau: float) -> float:
+        model = first_order_response(command_deg, dt, tau, y0)
+        # compare shapes: scale the move to the settled angle so a small calibration offset (judged by
+        # the settle error) does not bias tau
+        span = float(model[-1]) - y0
+        if abs(span) > 1e-9:
+            model = y0 + (model - y0) * (settled - y0) / span
+        return float(np.sum((angle_deg - model) ** 2))
+
+    res = minimize_scalar(sse, bounds=(0.02, 2.0), method="bounded", options={"xatol": 1e-4})
+    return StepResponse(
+        settled_deg=settled, settle_error_deg=abs(settled - target_deg), time_constant_s=float(res.x)
+    )
+
+
+def _command(step: CalibrationCheckStep, rate_hz: float) -> FloatArray:
+    p = dict(step.trajectory.params)
+    t = np.arange(0.0, step.trajectory.duration_s, 1.0 / rate_hz)
+    return calibration_step_deg(
+        t, float(p["from_deg"]), float(p["step_deg"]), float(p["settle_s"]), float(p["ramp_s"])
+    )
+
+
+def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, when: str) -> StepOutcome:
+    """Run the step and judge it; `record_as` is the id the unit is stored under (resume checks differ)."""
+    rig = ctx.bench.rig
+    ctx.bench.begin_step(record_as)
+    cmd = _command(step, rig.joint.output_rate_hz)
+    rec = rig.run_trajectory(cmd, where=record_as, stop_requested=ctx.stop_requested)
+    rig.park(where=f"{record_as} (park)")
+    p = dict(step.trajectory.params)
+    target = float(p["from_deg"]) + float(p["step_deg"])
+    limits = ctx.loaded.protocol.calibration_check
+    settle_window = min(1.0, float(ctx.loaded.protocol.trajectories.calibration_step.hold_s) / 2)
+    cmd_in = command_on_input_base(rec.command_time_s, rec.command_deg, rec.input_time_s)
+    resp = analyse_step(rec.input_time_s, cmd_in, rec.angle_deg, target, settle_window)
+    problems: list[str] = []
+    if resp.settle_error_deg > limits.max_settle_error_deg:
+        problems.append(f"settle error {resp.settle_error_deg:.2f} deg > {limits.max_settle_error_deg:g} deg")
+    lo, hi = limits.time_constant_s
+    if not lo <= resp.time_constant_s <= hi:
+        problems.append(f"time constant {resp.time_constant_s:.3f} s outside [{lo:g}, {hi:g}] s")
+    before = _before_response(ctx, step) if when != "before" else None
+    if before is not None:
+        drift = abs(resp.settled_deg - before.settled_deg)
+        dtau = abs(resp.time_constant_s - before.time_constant_s)
+        if drift > limits.max_drift_deg:
+            problems.append(
+                f"settled angle drifted {drift:.2f} deg since the set's first check (> {limits.max_drift_deg:g})"
+            )
+        if dtau > limits.max_time_constant_change_s:
+            problems.append(
+                f"time constant changed {dtau:.3f} s since the set's first check (> {limits.max_time_constant_change_s:g})"
+            )
+    verdict = "pass"
+    stop = None
+    message = "; ".join(problems)
+    if problems:
+        text = f"calibration check {record_as} failed: {message}"
+        if ctx.operator.accept_failed_check(text):
+            verdict = "accepted"
+        else:
+            verdict = "fail"
+            stop = StoppedByCheck(
+                f"{text}. The session stopped before the set's trials went on (exit 4). Check the robot's "
+                f"calibration, then continue with --resume (this check is redone first)."
+            )
+    fill = _fill(
+        step.set, when, record_as, rec, cmd, resp, verdict, message, limits.model_dump(), float(p["step_deg"])
+    )
+    summary = f"{verdict}: settle error {resp.settle_error_deg:.2f} deg, tau {resp.time_constant_s:.3f} s"
+    return StepOutcome(fill, summary, stop)
+
+
+def run(step: CalibrationCheckStep, ctx: StepContext) -> StepOutcome:
+    return run_check(step, ctx, record_as=step.id, when=step.when)
+
+
+def _before_response(ctx: StepContext, step: CalibrationCheckStep) -> StepResponse | None:
+    before_id = calibration_id(step.set, "before")
+    if before_id not in ctx.journal.units:
+        return None
+    with ctx.unit(before_id) as f:
+        g = f[f"calibration/{step.set}/before"]
+        return StepResponse(
+            settled_deg=float(g.attrs["settled_deg"]),
+            settle_error_deg=float(g.attrs["settle_error_deg"]),
+            time_constant_s=float(g.attrs["time_constant_s"]),
+        )
+
+
+def _fill(
+    set_name: str,
+    when: str,
+    step_id: str,
+    rec: TrialRecording,
+    cmd: FloatArray,
+    resp: StepResponse,
+    verdict: str,
+    message: str,
+    limits: dict[str, object],
+    step_deg: float,
+):  # type: ignore[no-untyped-def]
+    def fill(f: h5py.File) -> None:
+        g = f.require_group(f"calibration/{set_name}").create_group(when)
+        put(g, "time_s", rec.input_time_s, "s")
+        put(g, "angle_deg", rec.angle_deg, "deg")
+        put(g, "torque_nm", rec.torque_nm, "N*m")
+        put(g, "angle_codes", rec.angle_codes, "counts", dtype=np.int16, compress=True)
+        put(g, "torque_codes", rec.torque_codes, "counts", dtype=np.int16, compress=True)
+        put(g, "command_time_s", rec.command_time_s, "s")
+        put(g, "command_deg", cmd, "deg")
+        set_attrs(
+            g,
+            {
+                "step_id": step_id,
+                "verdict": verdict,
+                "step_deg": step_deg,
+                "settled_deg": resp.settled_deg,
+                "settle_error_deg": resp.settle_error_deg,
+                "time_constant_s": resp.time_constant_s,
+                "limits": json.dumps(limits),
+                "message": message,
+            },
+        )
+
+    return fill

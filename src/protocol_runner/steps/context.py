@@ -1,0 +1,83 @@
+"""What every step receives: the protocol, the plan, the bench (rig), the operator, the units, the journal.
+
+Passed explicitly to each step's `run(step, ctx)`; nothing is reached through globals.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
+
+import h5py
+
+from ..analysis.pipeline import ProcessingSettings
+from ..archive.units import open_unit
+from ..errors import UserError
+from ..hardware.rig import Rig
+from ..protocol.levels import Settings
+from ..protocol.loader import LoadedProtocol
+from ..protocol.plan import Plan
+
+if TYPE_CHECKING:
+    from ..session.journal import Journal
+    from ..session.operator import Operator
+
+
+class Bench(Protocol):
+    """The rig plus what the operator does by hand (fitting the brace); simulated or real."""
+
+    rig: Rig
+    mode: str
+
+    def begin_step(self, step_id: str) -> None: ...
+
+    def fit_brace(self, settings: Settings | None) -> None: ...
+
+    def close(self) -> None: ...
+
+
+@dataclass
+class StepContext:
+    loaded: LoadedProtocol
+    plan: Plan
+    bench: Bench
+    operator: Operator
+    units_dir: Path
+    journal: Journal
+    stop_requested: Callable[[], bool]
+    processing: ProcessingSettings
+
+    def unit(self, step_id: str) -> h5py.File:
+        """Open the completed unit of an earlier step (read-only)."""
+        return open_unit(self.units_dir, step_id)
+
+
+Fill = Callable[[h5py.File], None]
+
+
+@dataclass(frozen=True)
+class StepOutcome:
+    """What a step produced: how to write its unit, a one-line summary, and an optional stop.
+
+    `stop` set means: write the unit (so the record is kept) but stop the session with this error; the
+    step is redone on resume."""
+
+    fill: Fill | None
+    summary: str
+    stop: UserError | None = None
+
+
+def processing_settings(loaded: LoadedProtocol) -> ProcessingSettings:
+    proc = loaded.protocol.processing
+    return ProcessingSettings(
+        transition_tolerance_deg=proc.transition.tolerance_deg,
+        transition_points=proc.transition.points,
+        filter_kind=proc.filter.kind,
+        filter_order=proc.filter.order,
+        filter_cutoff=proc.filter.cutoff,
+        chebyshev_ripple_db=proc.filter.ripple_db,
+        subtraction=proc.subtraction,
+        centring="trial_mean" if proc.centre_for_fit else "none",
+    )

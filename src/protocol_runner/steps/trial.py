@@ -1,0 +1,207 @@
+"""Trial step: trajectory -> safety envelope -> 100 Hz output while acquiring inputs at 1 kHz.
+
+Brace-on trials command the plan's trajectory. A brace-off trial commands the brace-on trial's measured
+output (thesis §3.3.2: only then are torques compared at the same angles), rescaled by the Eq 8 iteration
+(analysis/scaling.py) until its output range matches the brace-on output range; every iteration is a
+robot run and is recorded (`brace_off/scaling`). Raw codes and converted values are kept.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import h5py
+import numpy as np
+import numpy.typing as npt
+
+from ..analysis.filters import lowpass
+from ..analysis.scaling import ScalingResult, scale_brace_off_input
+from ..analysis.transition import command_on_input_base, transition_index
+from ..archive.h5util import put, set_attrs
+from ..hardware.rig import TrialRecording
+from ..protocol.plan import Trajectory, TrialStep, configuration_name
+from ..protocol.trajectories import identification_deg, load_trajectory_file, sinusoid_deg
+from .context import StepContext, StepOutcome
+
+FloatArray = npt.NDArray[np.float64]
+COMMAND_SMOOTHING_HZ = 5.0
+
+
+def command_deg(trajectory: Trajectory, ctx: StepContext) -> FloatArray:
+    """Sample a plan trajectory at the output rate (real joint angles, one per tick)."""
+    rate = ctx.bench.rig.joint.output_rate_hz
+    t = np.arange(0.0, trajectory.duration_s, 1.0 / rate)
+    p = dict(trajectory.params)
+    if trajectory.profile == "sinusoid":
+        assert (
+            trajectory.mean_deg is not None and trajectory.amplitude_deg is not None and trajectory.period_s
+        )
+        return sinusoid_deg(t, trajectory.mean_deg, trajectory.amplitude_deg, trajectory.period_s)
+    if trajectory.profile == "human":
+        assert trajectory.source is not None
+        return load_trajectory_file(ctx.loaded.base_dir / trajectory.source).at(t)
+    if trajectory.profile == "identification":
+        return identification_deg(
+            t,
+            float(p["min_deg"]),
+            float(p["max_deg"]),
+            float(p["repetition_s"]),
+            float(p["initial_period_s"]),
+            float(p["final_period_s"]),
+        )
+    raise ValueError(f"unknown trajectory profile {trajectory.profile!r}")
+
+
+@dataclass(frozen=True)
+class _BraceOn:
+    time_s: FloatArray
+    angle_deg: FloatArray
+    command_time_s: FloatArray
+    command_deg: FloatArray
+
+
+def _read_brace_on(ctx: StepContext, step: TrialStep) -> _BraceOn:
+    assert step.twin is not None
+    path = f"configurations/{configuration_name(step.configuration)}/trials/{step.trial}/brace_on"
+    with ctx.unit(step.twin) as f:
+        g = f[path]
+        return _BraceOn(g["time_s"][:], g["angle_deg"][:], g["command_time_s"][:], g["command_deg"][:])
+
+
+def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
+    rig = ctx.bench.rig
+    ctx.bench.fit_brace(step.settings if step.brace == "on" else None)
+    ctx.bench.begin_step(step.id)
+    scaling: ScalingResult | None = None
+    if step.brace == "on":
+        rec = rig.run_trajectory(
+            command_deg(step.trajectory, ctx), where=step.id, stop_requested=ctx.stop_requested
+        )
+        rig.park(where=f"{step.id} (park)")
+    else:
+        rec, scaling = _run_brace_off(step, ctx)
+    fill = _fill(step, ctx, rec, scaling)
+    lo, hi = float(np.min(rec.angle_deg)), float(np.max(rec.angle_deg))
+    summary = (
+        f"angle {lo:.0f}-{hi:.0f} deg, torque {np.min(rec.torque_nm):.0f}..{np.max(rec.torque_nm):.0f} N*m"
+    )
+    if scaling is not None:
+        summary += f", scaling {len(scaling.history)} run(s){'' if scaling.converged else ' (not converged)'}"
+    return StepOutcome(fill, summary)
+
+
+def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, ScalingResult]:
+    rig = ctx.bench.rig
+    proc = ctx.processing
+    on = _read_brace_on(ctx, step)
+    # The brace-on output becomes the brace-off input. It is smoothed first (zero-phase, 4th order at
+    # COMMAND_SMOOTHING_HZ): the joint's 0.2 s lag passes nothing above ~1 Hz, and the sensor noise and
+    # the corners where the brace's stops bite would otherwise break the acceleration envelope.
+    nyquist = 0.5 * rig.joint.input_rate_hz
+    smooth = lowpass(
+        on.angle_deg,
+        kind="butterworth",
+        order=4,
+        cutoff=COMMAND_SMOOTHING_HZ / nyquist,
+        name=f"{step.twin} angle_deg",
+    )
+    cmd_in = command_on_input_base(on.command_time_s, on.command_deg, on.time_s)
+    start = transition_index(cmd_in, on.angle_deg, proc.transition_tolerance_deg, proc.transition_points)
+    # from the transition point on (§3.3.2: "index 0 corresponds to the transition point"); the rig moves
+    # from its park angle to the first sample exactly as a brace-on trial does (its own transition)
+    t_after = on.time_s[start:] - on.time_s[start]
+    ticks = np.arange(0.0, float(t_after[-1]), 1.0 / rig.joint.output_rate_hz)
+    u = np.interp(ticks, t_after, smooth[start:])
+    target = (float(np.min(smooth[start:])), float(np.max(smooth[start:])))
+    recordings: list[TrialRecording] = []
+
+    def run_once(input_deg: FloatArray) -> FloatArray:
+        k = len(recordings)
+        rec = rig.run_trajectory(
+            input_deg, where=f"{step.id} (scaling run {k + 1})", stop_requested=ctx.stop_requested
+        )
+        rig.park(where=f"{step.id} (park)")
+        recordings.append(rec)
+        return np.interp(rec.command_time_s, rec.input_time_s, rec.angle_deg)
+
+    scaling_spec = ctx.loaded.protocol.processing.brace_off_scaling
+    result = scale_brace_off_input(
+        u,
+        target,
+        run_once,
+        tolerance_deg=scaling_spec.tolerance_deg,
+        max_iterations=scaling_spec.max_iterations,
+        transition_tolerance_deg=proc.transition_tolerance_deg,
+        transition_points=proc.transition_points,
+        input_limits_deg=rig.joint.limits.range_deg,
+    )
+    return recordings[result.best.iteration], result
+
+
+def _fill(step: TrialStep, ctx: StepContext, rec: TrialRecording, scaling: ScalingResult | None):  # type: ignore[no-untyped-def]
+    st = step.settings
+    cfg_attrs = {
+        "key": step.configuration,
+        "run": step.run,
+        "set": step.set,
+        "condition": next(s.condition for s in ctx.loaded.protocol.sets if s.name == step.set),
+        "profile": step.trajectory.profile,
+        "brace_rom": st.brace_rom,
+        "brace_rom_deg": list(st.brace_rom_deg),
+        "robot_rom": st.robot_rom,
+        "robot_rom_deg": list(st.robot_rom_deg),
+        "friction": st.friction_level,
+        "friction_level": st.friction_level,
+        "friction_nm": st.friction_nm,
+        "stiffness": st.stiffness,
+        "stiffness_n_per_mm": st.stiffness_n_per_mm,
+        "speed": st.speed,
+        "speed_deg_s": st.speed_deg_s,
+        "preload": st.preload,
+        "preload_position": st.preload_position,
+    }
+    lateness = rec.tick_lateness_s
+
+    def fill(f: h5py.File) -> None:
+        cfg = f.require_group(f"configurations/{configuration_name(step.configuration)}")
+        set_attrs(cfg, cfg_attrs)
+        g = cfg.require_group(f"trials/{step.trial}").create_group(f"brace_{step.brace}")
+        put(g, "time_s", rec.input_time_s, "s")
+        put(g, "angle_deg", rec.angle_deg, "deg")
+        put(g, "torque_nm", rec.torque_nm, "N*m")
+        put(g, "angle_codes", rec.angle_codes, "counts", dtype=np.int16, compress=True)
+        put(g, "torque_codes", rec.torque_codes, "counts", dtype=np.int16, compress=True)
+        put(g, "command_time_s", rec.command_time_s, "s")
+        put(g, "command_deg", rec.command_deg, "deg")
+        put(g, "command_volts", rec.command_volts, "V")
+        put(g, "command_codes", rec.command_codes, "counts", dtype=np.uint16, compress=True)
+        put(g, "tick_lateness_s", lateness, "s")
+        set_attrs(
+            g,
+            {
+                "step_id": step.id,
+                "brace": step.brace,
+                "trajectory": json.dumps(step.trajectory.to_json()),
+                "tick_lateness_p99_s": float(np.percentile(lateness, 99)) if lateness.size else 0.0,
+                "tick_lateness_max_s": float(np.max(lateness)) if lateness.size else 0.0,
+            },
+        )
+        if scaling is not None:
+            s = g.create_group("scaling")
+            h = scaling.history
+            put(s, "iteration", [it.iteration + 1 for it in h], "1")
+            put(s, "scale", [it.scale for it in h], "1")
+            put(s, "input_range_deg", [list(it.input_range_deg) for it in h], "deg")
+            put(s, "output_range_deg", [list(it.output_range_deg) for it in h], "deg")
+            put(s, "range_error_deg", [it.range_error_deg for it in h], "deg")
+            set_attrs(
+                s,
+                {
+                    "converged": bool(scaling.converged),
+                    "target_range_deg": list(scaling.target_range_deg),
+                    "kept_iteration": scaling.best.iteration + 1,
+                },
+            )
+
+    return fill
