@@ -165,3 +165,20 @@ def test_settings_describe_themselves_as_json() -> None:
     s = ProcessingSettings()
     assert json.loads(json.dumps(s.as_dict()))["filter_order"] == 10
     assert s.filter_description() == {"kind": "butterworth", "order": 10, "cutoff": 0.1, "zero_phase": True}
+
+
+def test_brace_on_wider_than_brace_off_clip_or_nan(raw_pairs: list[tuple[RawTrial, RawTrial]]) -> None:
+    # roles swapped on purpose: the "brace-on" trial sweeps more than its reference
+    narrow, wide = raw_pairs[0]
+    pair = TrialPair(brace_on=_recording(wide), brace_off=_recording(narrow))
+    clipped = process_configuration([pair]).trials[0]
+    assert 0.5 < clipped.coverage < 1.0
+    assert np.all(np.isfinite(clipped.brace_torque_nm)) and clipped.energy_j.size > 0
+    marked = process_configuration([pair], ProcessingSettings(outside="nan")).trials[0]
+    assert marked.coverage == pytest.approx(clipped.coverage)
+    assert np.count_nonzero(np.isnan(marked.brace_torque_nm)) == round(
+        (1 - marked.coverage) * marked.angle_deg.size
+    )
+    # every cycle passes through the uncovered extremes: no complete cycle can be integrated
+    assert marked.energy_j.size == 0
+    assert np.all(np.isfinite(marked.centred.torque_nm))

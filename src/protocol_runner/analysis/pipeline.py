@@ -108,7 +108,7 @@ class ProcessingSettings:
             raise bad("filter_kind", f"must be one of {', '.join(FILTER_KINDS)}")
         if (
             isinstance(self.filter_order, bool)
-            or int(self.filter_order) != self.filter_order
+            or not isinstance(self.filter_order, int | np.integer)
             or self.filter_order < 1
         ):
             raise bad("filter_order", "must be a whole number >= 1")

@@ -144,6 +144,10 @@ def fit_spring_model(
         )
     else:
         xs, ys = a, t
+    if xs.shape[0] < 3:
+        raise AnalysisError(
+            f"the loop gives only {xs.shape[0]} points to fit the spring model's 2 parameters"
+        )
 
     def model(params: FloatArray, angles: FloatArray) -> FloatArray:
         return spring_torque_nm(
