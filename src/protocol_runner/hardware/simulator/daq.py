@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
+from numba import njit
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.conversions import (
@@ -182,6 +183,39 @@ class SimulatedAnalogOutput:
         self._closed = True
 
 
+_ROLE_ANGLE = 1
+_ROLE_TORQUE = 2
+
+
+@njit(cache=True)
+def _telemetry_volts(
+    angle_deg: FloatArray,
+    torque_nm: FloatArray,
+    roles: npt.NDArray[np.int64],
+    noise_v: FloatArray,
+    angle_knots: FloatArray,
+    angle_knot_volts: FloatArray,
+    torque_knots: FloatArray,
+    torque_knot_volts: FloatArray,
+    noise: FloatArray,
+) -> FloatArray:
+    """Volts on each scanned channel: the sensor chain (tabulated, piecewise linear) plus scaled noise."""
+    n = angle_deg.shape[0]
+    n_ch = roles.shape[0]
+    a_v = np.interp(angle_deg, angle_knots, angle_knot_volts)
+    t_v = np.interp(torque_nm, torque_knots, torque_knot_volts)
+    out = np.empty((n, n_ch), dtype=np.float64)
+    for i in range(n):
+        for j in range(n_ch):
+            v = noise_v[j] * noise[i, j]
+            if roles[j] == 1:
+                v += a_v[i]
+            elif roles[j] == 2:
+                v += t_v[i]
+            out[i, j] = v
+    return out
+
+
 class _RigModel:
     """The simulated robot behind the boards: command decoding, the plant, sensors and noise."""
 
@@ -225,6 +259,8 @@ class _RigModel:
         self.torque_noise_v = (
             params.torque_noise_nm * volts_span / (self.torque_range_nm[1] - self.torque_range_nm[0])
         )
+        self._roles_key: tuple[int, ...] = ()
+        self._roles = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float64))
         self.origin_s = 0.0
         self.step_id = ""
         self.rng = np.random.default_rng(step_seed(self.seed, ""))
@@ -258,6 +294,20 @@ class _RigModel:
         step = math.ceil((t_s - self.origin_s) / self.params.plant_step_s - _GRID_TOL)
         self.plant.push_command(step, self.target_by_code[code])
 
+    def _scan_roles(self, channels: Sequence[int]) -> tuple[npt.NDArray[np.int64], FloatArray]:
+        """Per scanned channel: what it carries (0 nothing, 1 angle, 2 torque) and its noise in volts."""
+        key = tuple(channels)
+        if key != self._roles_key:
+            roles = np.zeros(len(key), dtype=np.int64)
+            scales = np.full(len(key), self.params.idle_channel_noise_v, dtype=np.float64)
+            for j, ch in enumerate(key):
+                if ch == self.joint.angle_input_channel:
+                    roles[j], scales[j] = _ROLE_ANGLE, self.angle_noise_v
+                elif ch == self.joint.torque_input_channel:
+                    roles[j], scales[j] = _ROLE_TORQUE, self.torque_noise_v
+            self._roles_key, self._roles = key, (roles, scales)
+        return self._roles
+
     def acquire(
         self, row_times_s: FloatArray, channels: Sequence[int], now_s: float
     ) -> tuple[npt.NDArray[np.int32], FloatArray]:
@@ -268,21 +318,19 @@ class _RigModel:
         np.maximum(steps, 0, out=steps)
         angle_deg, torque_nm = self.plant.advance(self._grid_floor(now_s), steps)
         n = angle_deg.shape[0]
+        roles, scales = self._scan_roles(channels)
         noise = self.rng.standard_normal((n, len(channels)))
-        volts = np.empty((n, len(channels)), dtype=np.float64)
-        angle_v: FloatArray | None = None
-        torque_v: FloatArray | None = None
-        for j, ch in enumerate(channels):
-            if ch == self.joint.angle_input_channel:
-                if angle_v is None:
-                    angle_v = np.interp(angle_deg, self.angle_knots, self.angle_knot_volts)
-                volts[:, j] = angle_v + self.angle_noise_v * noise[:, j]
-            elif ch == self.joint.torque_input_channel:
-                if torque_v is None:
-                    torque_v = np.interp(torque_nm, self.torque_knots, self.torque_knot_volts)
-                volts[:, j] = torque_v + self.torque_noise_v * noise[:, j]
-            else:
-                volts[:, j] = self.params.idle_channel_noise_v * noise[:, j]
+        volts = _telemetry_volts(
+            angle_deg,
+            torque_nm,
+            roles,
+            scales,
+            self.angle_knots,
+            self.angle_knot_volts,
+            self.torque_knots,
+            self.torque_knot_volts,
+            noise,
+        )
         codes = volts_to_ai12_code(volts)
         return codes, ai12_code_to_volts(codes)
 
