@@ -50,7 +50,7 @@ class SpringFit:
     reason: str  # why not applicable, or a one-line description of the fit
     max_preload_mm: float
     zero_offset_deg: float
-    rmse_nm: float  # against the fitted target (the branch midline by default)
+    rmse_nm: float  # against the fitted target: the branch midline, or every sample (= rmse_all_samples_nm)
     rmse_all_samples_nm: float  # against every sample of the loop
     stiffness_n_per_mm: float
     preload_position: int
@@ -58,6 +58,20 @@ class SpringFit:
     curve_angle_deg: FloatArray = field(repr=False)  # the fitted target's angles
     curve_torque_nm: FloatArray = field(repr=False)  # the fitted target's torques
     model_torque_nm: FloatArray = field(repr=False)  # the model at curve_angle_deg
+
+
+def _fine_bins(
+    angle: FloatArray, torque: FloatArray, width_deg: float
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Mean angle, mean torque and sample count of each occupied `width_deg` angle bin."""
+    _, inverse, counts = np.unique(
+        np.floor(angle / width_deg).astype(np.int64), return_inverse=True, return_counts=True
+    )
+    return (
+        np.bincount(inverse, weights=angle) / counts,
+        np.bincount(inverse, weights=torque) / counts,
+        counts.astype(np.float64),
+    )
 
 
 def branch_midline(
@@ -142,8 +156,13 @@ def fit_spring_model(
         xs, ys = branch_midline(
             a, t, bin_width_deg=bin_width_deg, reversal_deg=reversal_deg, trim_deg=trim_deg
         )
+        weights = np.ones_like(xs)
     else:
-        xs, ys = a, t
+        # Every sample, condensed: the model depends on the angle only, so the sum of squares over the
+        # samples equals the count-weighted sum over fine angle bins (0.05 deg) of their means, plus a
+        # constant. The fit is the same, thousands of times cheaper on 1 kHz data.
+        xs, ys, counts = _fine_bins(a, t, 0.05)
+        weights = np.sqrt(counts)
     if xs.shape[0] < 3:
         raise AnalysisError(
             f"the loop gives only {xs.shape[0]} points to fit the spring model's 2 parameters"
@@ -160,7 +179,7 @@ def fit_spring_model(
         )
 
     def residual(params: FloatArray) -> FloatArray:
-        return model(params, xs) - ys
+        return weights * (model(params, xs) - ys)
 
     model(np.array([_STARTS[0][0], 0.0]), xs[:1])  # validates the preload position (InvalidInput) up front
     lower = (MAX_PRELOAD_BOUNDS_MM[0], ZERO_OFFSET_BOUNDS_DEG[0])
@@ -175,10 +194,10 @@ def fit_spring_model(
             best_cost, best_x = float(sol.cost), np.asarray(sol.x, dtype=np.float64)
     assert best_x is not None
     fitted = model(best_x, xs)
-    rmse = float(np.sqrt(np.mean((fitted - ys) ** 2)))
     # the model is smooth: evaluate it on a 0.05 deg grid and interpolate for every sample (fast on 1 kHz data)
     grid = np.linspace(a.min(), a.max(), max(2, int(np.ptp(a) / 0.05) + 2))
     rmse_all = float(np.sqrt(np.mean((np.interp(a, grid, model(best_x, grid)) - t) ** 2)))
+    rmse = float(np.sqrt(np.mean((fitted - ys) ** 2))) if target == "branch_mean" else rmse_all
     return SpringFit(
         applicable=True,
         reason=f"least squares on the {'loop midline' if target == 'branch_mean' else 'samples'}",
