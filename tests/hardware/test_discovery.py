@@ -2,13 +2,17 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+from typing import Any
+
 import pytest
 
-from protocol_runner.errors import InvalidInput
-from protocol_runner.hardware.discovery import NOTHING_FOUND, format_report, hardware_check
+from protocol_runner.errors import HardwareUnavailable, InvalidInput
+from protocol_runner.hardware.discovery import NOTHING_FOUND, format_report, hardware_check, open_rig_boards
 from protocol_runner.hardware.fakeusb import FakeBackend, Faults, make_usb3105
 from protocol_runner.hardware.fakeusb.dt9814 import make_dt9814
 from protocol_runner.hardware.fakeusb.usb1608fs import make_usb1608fs
+from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
 from protocol_runner.hardware.usb_common import UDEV_RULE_FILENAME
 
 
@@ -95,3 +99,53 @@ def test_dt9814_is_listed_as_unverified_after_the_1608_channels() -> None:
 def test_bad_requirements_are_invalid_input(required: dict[str, list[int]]) -> None:
     with pytest.raises(InvalidInput):
         hardware_check(required, backend=FakeBackend())
+
+
+# ---- opening the boards a protocol names -------------------------------------------------------------------
+
+
+def rig_spec(
+    board: str = "usb1608fs", angle: int = 8, torque: int = 20, serials: list[str] | None = None
+) -> Any:
+    return SimpleNamespace(
+        output=SimpleNamespace(board="usb3105", channel=8, serial=None, volts_range=(-10.0, 10.0)),
+        input=SimpleNamespace(
+            board=board,
+            angle_channel=angle,
+            torque_channel=torque,
+            serials=serials or [],
+            volts_range=(-10.0, 10.0),
+        ),
+    )
+
+
+def test_open_rig_boards_gives_a_3105_and_24_inputs() -> None:
+    ao, ai, clock = open_rig_boards(rig_spec(), backend=rig_backend())
+    assert isinstance(ao, AnalogOutput) and isinstance(ai, AnalogInput) and isinstance(clock, Clock)
+    assert ai.n_channels == 24
+    assert [b.serial for b in ai.boards] == ["AI00000A", "AI00000B", "AI00000C"]  # type: ignore[attr-defined]
+    ao.close()
+    ai.close()
+
+
+def test_open_rig_boards_follows_the_serials_order() -> None:
+    _, ai, _ = open_rig_boards(rig_spec(serials=["AI00000C", "AI00000A", "AI00000B"]), backend=rig_backend())
+    assert [b.serial for b in ai.boards] == ["AI00000C", "AI00000A", "AI00000B"]  # type: ignore[attr-defined]
+    ai.close()
+
+
+def test_open_rig_boards_names_a_missing_input_channel_and_closes_everything() -> None:
+    backend = FakeBackend(make_usb3105(serial="AO000001"), make_usb1608fs(serial="AI00000A"))
+    with pytest.raises(HardwareUnavailable, match=r"input channel 8.*channels 0-7"):
+        open_rig_boards(rig_spec(), backend=backend)
+    assert all(m.claimed == set() for m in backend.devices)
+
+
+def test_open_rig_boards_refuses_the_dt9814_plainly() -> None:
+    with pytest.raises(HardwareUnavailable, match="usb1608fs"):
+        open_rig_boards(rig_spec(board="dt9814"), backend=rig_backend())
+
+
+def test_open_rig_boards_without_output_board() -> None:
+    with pytest.raises(HardwareUnavailable, match="no USB-3105 found"):
+        open_rig_boards(rig_spec(), backend=FakeBackend(make_usb1608fs()))
