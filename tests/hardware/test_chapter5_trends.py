@@ -162,6 +162,9 @@ def test_energy_loss_grows_with_friction() -> None:
     energies = [brace_energy_j(R3, brace(R3, friction_nm=f)) for f in FRICTION_NM]
     assert all(e > 0.0 for e in energies)
     assert np.all(np.diff(energies) > 0.0), energies
+    # §5.3: "the range of motion decreases with increasing friction" (the torque limit is met earlier)
+    max_angles = [max_angle_deg(trial(R3, FULL_SPEED_DEG_S, brace(R3, friction_nm=f))) for f in FRICTION_NM]
+    assert np.all(np.diff(max_angles) < 0.0), max_angles
 
 
 def test_energy_loss_grows_with_range_of_motion() -> None:
@@ -206,3 +209,15 @@ def test_half_speed_loses_at_least_as_much_energy_as_full_speed() -> None:
     full = brace_energy_j(R3, brace(R3), FULL_SPEED_DEG_S)
     half = brace_energy_j(R3, brace(R3), HALF_SPEED_DEG_S)
     assert half >= full, (half, full)
+
+
+def test_energy_loss_decreases_with_greater_preload() -> None:
+    """§5.7.2 (configurations 8, 9 and 3): "the energy loss decreases with greater preloads", because the
+    torque limit is reached at a smaller angle. Screw position 1 is the most preload, 5 the least."""
+    setups = [
+        BraceSetup(rom_deg=R3, friction_nm=3.75, stiffness_n_per_mm=K2, preload_position=n) for n in (1, 3, 5)
+    ]
+    energies = [brace_energy_j(R3, b) for b in setups]
+    max_angles = [max_angle_deg(trial(R3, FULL_SPEED_DEG_S, b)) for b in setups]
+    assert np.all(np.diff(energies) > 0.0), energies
+    assert np.all(np.diff(max_angles) > 0.0), max_angles
