@@ -830,8 +830,18 @@ def _fit_segments(
         short.append((cost, u))
     short.sort(key=lambda t: t[0])
     # Stage 2: the best few are refined to convergence on the fitted samples; the lowest cost wins.
+    # A short solve that ended at the cost of one already chosen (within 0.1 %: the same valley) or
+    # clearly above the best (by 5 %) is not polished.
+    chosen: list[FloatArray] = []
+    chosen_cost: list[float] = []
+    for cost0, u0 in short:
+        if len(chosen) >= max(1, polish) or cost0 > 1.05 * short[0][0]:
+            break
+        if all(abs(cost0 - c) > 1e-3 * c for c in chosen_cost):
+            chosen.append(u0)
+            chosen_cost.append(cost0)
     best: tuple[float, FloatArray, bool] | None = None
-    for _, u0 in short[: max(1, polish)]:
+    for u0 in chosen:
         u, cost, ok = problem.solve(u0, max_nfev=_POLISH_NFEV, tol=1e-10)
         if best is None or cost < best[0]:
             best = (cost, u, ok)
@@ -856,8 +866,8 @@ def _fit_segments(
     )
 
 
-_SHORT_NFEV = 15
-_SCREEN_SAMPLES = 800
+_SHORT_NFEV = 10
+_SCREEN_SAMPLES = 400
 _TR_SOLVER = "exact"  # dense SVD of the Jacobian; cheap for 8 columns
 _POLISH_NFEV = 200
 
@@ -867,7 +877,7 @@ def fit(
     torque_nm: npt.ArrayLike,
     *,
     trials: Sequence[int] | None = None,
-    starts: int = 8,
+    starts: int = 4,
     initial: BoucWenParams | Sequence[BoucWenParams] | None = None,
     data_starts: bool = True,
     bounds: BoucWenBounds = DEFAULT_BOUNDS,
@@ -929,7 +939,7 @@ def fit(
 def fit_trials(
     segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]],
     *,
-    starts: int = 8,
+    starts: int = 4,
     initial: BoucWenParams | Sequence[BoucWenParams] | None = None,
     data_starts: bool = True,
     bounds: BoucWenBounds = DEFAULT_BOUNDS,
@@ -956,7 +966,7 @@ def fit_trials(
 def cross_validate(
     segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]],
     *,
-    starts: int = 8,
+    starts: int = 4,
     bounds: BoucWenBounds = DEFAULT_BOUNDS,
     seed: int = 0,
     max_samples_per_trial: int | None = 4000,
