@@ -7,12 +7,16 @@ start-up transition, §2.5 calibration) or of the DAQ interfaces, and would fail
 from __future__ import annotations
 
 import time
+from functools import cache
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.calibration import CalibrationTable
+from protocol_runner.hardware.conversions import volts_to_angle, volts_to_ao16_code
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
 from protocol_runner.hardware.rig import JointConfig, Rig
 from protocol_runner.hardware.safety import SafetyLimits
@@ -23,6 +27,7 @@ from protocol_runner.hardware.simulator import (
     SimulatorParams,
     step_seed,
 )
+from protocol_runner.hardware.simulator.plant import JointPlant
 
 KNEE_TORQUE_LIMIT_NM = 84.8  # thesis Table 3
 PARK_DEG = 20.0
@@ -205,7 +210,7 @@ def test_calibration_tables_make_measured_match_real() -> None:
     assert abs(sim.plant.angle_deg - 65.0) < 0.3  # the robot went where the table asked
     assert abs(angle[-1] - sim.plant.angle_deg) < 0.1  # 12-bit LSB is 0.032°
     assert abs(torque[-1] - sim.plant.load_nm) < 0.1
-    raw_eq2 = -0.0 + (rec.angle_volts[-1] + 10.0) / 20.0 * 130.0
+    raw_eq2 = float(volts_to_angle(rec.angle_volts[-1], joint.range_deg))
     assert abs(raw_eq2 - angle[-1]) > 3.0  # the sensor's own nonlinearity is really there
 
 
@@ -297,3 +302,67 @@ def test_docs_list_every_parameter_with_its_value() -> None:
     for f in fields(SimulatorParams):
         assert f.name in rows, f"docs/simulator.md lacks {f.name}"
         assert format(getattr(defaults, f.name), "g") in rows[f.name], f"{f.name}: value differs in the docs"
+
+
+@cache
+def _ao_sim() -> SimulatedRig:
+    return SimulatedRig(knee_joint())
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(min_value=-12.0, max_value=12.0, allow_nan=False))
+def test_output_codes_follow_the_conversion_module(volts: float) -> None:
+    """The simulated USB-3105 sends exactly the code of `conversions.volts_to_ao16_code`."""
+    assert _ao_sim().ao.write_volts(0, volts) == int(volts_to_ao16_code(volts))
+
+
+def test_unloaded_joint_is_exactly_a_first_order_lag() -> None:
+    """With no load (no gravity, no friction) the servo law reduces to dθ/dt = (θ_cmd − θ)/τ: the
+    response to a step is θ_cmd − Δ·exp(−t/τ) (explicit Euler on the 0.5 ms grid: within 0.1°)."""
+    params = SimulatorParams(gravity_torque_max_nm=0.0, robot_friction_nm=0.0, robot_viscous_nm_per_deg_s=0.0)
+    plant = JointPlant(params, (0.0, 130.0), (-84.8, 84.8))
+    plant.reset(20.0)
+    plant.push_command(0, 80.0)
+    steps = np.arange(0, 2001, 10, dtype=np.int64)  # 0 .. 1 s
+    angle, torque = plant.advance(2000, steps)
+    t = steps * params.plant_step_s
+    expected = 80.0 - 60.0 * np.exp(-t / params.lag_time_constant_s)
+    assert np.max(np.abs(angle - expected)) < 0.1
+    assert np.all(torque == 0.0)
+
+
+def test_torque_limit_comes_from_the_joint_not_from_the_knee() -> None:
+    """Nothing may assume the knee (DESIGN.md): an elbow (Table 3: -39.6..31 N·m) carrying the default
+    shank weight cannot lift it to 90°; it stalls where gravity + friction reach its own 31 N·m."""
+    elbow = JointConfig(
+        name="elbow",
+        range_deg=(0.0, 130.0),
+        torque_range_nm=(-39.6, 31.0),
+        output_channel=4,
+        angle_input_channel=4,
+        torque_input_channel=16,
+        limits=SafetyLimits(
+            range_deg=(0.0, 130.0),
+            max_rate_deg_s=100_000.0,
+            max_accel_deg_s2=1e9,
+            park_angle_deg=10.0,
+            park_rate_deg_s=30.0,
+        ),
+    )
+    sim = SimulatedRig(elbow, seed=9)
+    t, angle, torque, _ = run(sim, sim.make_rig(), hold(90.0, 4.0), "elbow")
+    late = t > 3.0
+    assert np.mean(angle[late]) < 70.0
+    assert abs(np.mean(torque[late]) - 31.0) < 1.0
+
+
+def test_realtime_clock_paces_a_short_trial(knee: JointConfig) -> None:
+    """`--realtime`: the same run, paced by the wall clock (a 0.2 s trial takes at least 0.2 s)."""
+    sim = SimulatedRig(knee, seed=10, realtime=True)
+    rig = sim.make_rig()
+    sim.begin_step("rt")
+    wall = time.monotonic()
+    rec = rig.run_trajectory(hold(25.0, 0.2), where="rt")
+    assert time.monotonic() - wall >= 0.2
+    assert rec.n_samples >= 200
+    assert abs(rec.angle_deg[0] - PARK_DEG) < 1.0
