@@ -145,3 +145,17 @@ def test_scaling_matches_the_brace_off_range_on_the_simulator(simulated: Simulat
     best = runs[min(range(len(runs)), key=lambda i: result.history[i].range_error_deg)]
     scaled = _process(simulated, "equal_angle", off=best).spring
     assert scaled is not None and scaled.rmse_nm < 0.3
+
+
+def test_energy_loss_grows_with_brake_friction(simulated: Simulated) -> None:
+    # thesis §5.7.2: "the energy loss increases with increasing friction of the brace"
+    energies = []
+    for level_nm in (0.0, 6.25):
+        brace = BraceSetup(
+            rom_deg=(0.0, 130.0), friction_nm=level_nm, stiffness_n_per_mm=13.0, preload_position=3
+        )
+        on = _run(_command(), brace, f"on/friction/{level_nm}")
+        pair = TrialPair(_recording(on), _recording(simulated.off))
+        energies.append(process_configuration([pair]).energy.mean_j)
+    assert energies[0] > 0.0
+    assert energies[1] > 2 * energies[0]
