@@ -366,3 +366,38 @@ def test_realtime_clock_paces_a_short_trial(knee: JointConfig) -> None:
     assert time.monotonic() - wall >= 0.2
     assert rec.n_samples >= 200
     assert abs(rec.angle_deg[0] - PARK_DEG) < 1.0
+
+
+_DIGEST_SCRIPT = """
+import hashlib, sys
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+from test_simulator import hold, knee_joint, run
+from protocol_runner.hardware.simulator import SimulatedRig
+sim = SimulatedRig(knee_joint(), seed=5)
+rec = run(sim, sim.make_rig(), hold(50.0, 0.3), "set2/trial3")[3]
+print(hashlib.sha256(rec.angle_codes.tobytes() + rec.torque_codes.tobytes()).hexdigest())
+"""
+
+
+def test_data_are_reproducible_in_another_process() -> None:
+    """A resumed session runs in a new process (another PYTHONHASHSEED): its data must be identical."""
+    import hashlib
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    sim = SimulatedRig(knee_joint(), seed=5)
+    rec = run(sim, sim.make_rig(), hold(50.0, 0.3), "set2/trial3")[3]
+    here = hashlib.sha256(rec.angle_codes.tobytes() + rec.torque_codes.tobytes()).hexdigest()
+    env = dict(os.environ, PYTHONHASHSEED="12345")
+    out = subprocess.run(
+        [sys.executable, "-c", _DIGEST_SCRIPT, str(Path(__file__).parent)],
+        capture_output=True,
+        text=True,
+        env=env,
+        check=True,
+        timeout=120,
+    )
+    assert out.stdout.strip() == here
