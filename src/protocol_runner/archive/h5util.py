@@ -11,6 +11,8 @@ import numpy as np
 import numpy.typing as npt
 
 SCHEMA_VERSION = 1
+COMPRESS_ABOVE = 256
+SIGNAL = np.float32  # measured and processed signals: 7 significant digits, far below sensor resolution
 _STR = h5py.string_dtype("utf-8")
 
 
@@ -21,14 +23,17 @@ def put(
     units: str,
     *,
     dtype: npt.DTypeLike | None = None,
-    compress: bool = False,
+    compress: bool = True,
 ) -> h5py.Dataset:
-    """Write a numeric dataset with its `units` attribute (docs/archive.md: every numeric dataset has one)."""
+    """Write a numeric dataset with its `units` attribute (docs/archive.md: every numeric dataset has one).
+
+    Arrays of more than COMPRESS_ABOVE elements are gzip-compressed with the byte shuffle filter (HDF5's
+    standard filters: h5py, HDFView and MATLAB read them without plug-ins)."""
     arr = np.asarray(data, dtype=dtype) if dtype is not None else np.asarray(data)
     if name in group:
         del group[name]
     kwargs: dict[str, Any] = {}
-    if compress and arr.size > 64:
+    if compress and arr.size > COMPRESS_ABOVE:
         kwargs = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
     ds = group.create_dataset(name, data=arr, **kwargs)
     ds.attrs["units"] = units

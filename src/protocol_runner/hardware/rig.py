@@ -297,14 +297,20 @@ class Rig:
                 f"expected {N_SCAN_CHANNELS} columns"
             )
         schedule_arr = np.asarray(schedule[:n], dtype=np.float64)
+        # Times relative to the trial start from sample indices (both boards are paced: output by the
+        # schedule, input by the scan clock), so they do not depend on where the clock stood: a trial
+        # recorded at another moment has bit-identical time bases. The scan's start offset is kept to 1 us.
+        n_in = int(scan.t_s.shape[0])
+        offset = round((float(scan.t_s[0]) - t0) * 1e6) / 1e6 if n_in else 0.0
+        input_time_s = offset + np.arange(n_in, dtype=np.float64) / joint.input_rate_hz
         angle_volts = np.ascontiguousarray(scan.volts[:, 0], dtype=np.float64)
         torque_volts = np.ascontiguousarray(scan.volts[:, 1], dtype=np.float64)
         return TrialRecording(
-            command_time_s=schedule_arr - t0,
+            command_time_s=np.arange(n, dtype=np.float64) * dt,
             command_deg=cmd,
             command_volts=volts,
             command_codes=np.asarray(codes, dtype=np.int32),
-            input_time_s=np.asarray(scan.t_s, dtype=np.float64) - t0,
+            input_time_s=input_time_s,
             angle_codes=np.ascontiguousarray(scan.codes[:, 0], dtype=np.int32),
             torque_codes=np.ascontiguousarray(scan.codes[:, 1], dtype=np.int32),
             angle_volts=angle_volts,

@@ -18,7 +18,7 @@ import numpy.typing as npt
 from ..analysis.filters import lowpass
 from ..analysis.scaling import ScalingResult, scale_brace_off_input
 from ..analysis.transition import command_on_input_base, transition_index
-from ..archive.h5util import put, set_attrs
+from ..archive.h5util import SIGNAL, put, set_attrs
 from ..hardware.rig import TrialRecording
 from ..protocol.plan import Trajectory, TrialStep, configuration_name
 from ..protocol.trajectories import identification_deg, load_trajectory_file, sinusoid_deg
@@ -168,13 +168,13 @@ def _fill(step: TrialStep, ctx: StepContext, rec: TrialRecording, scaling: Scali
         set_attrs(cfg, cfg_attrs)
         g = cfg.require_group(f"trials/{step.trial}").create_group(f"brace_{step.brace}")
         put(g, "time_s", rec.input_time_s, "s")
-        put(g, "angle_deg", rec.angle_deg, "deg")
-        put(g, "torque_nm", rec.torque_nm, "N*m")
+        put(g, "angle_deg", rec.angle_deg, "deg", dtype=SIGNAL)
+        put(g, "torque_nm", rec.torque_nm, "N*m", dtype=SIGNAL)
         put(g, "angle_codes", rec.angle_codes, "counts", dtype=np.int16, compress=True)
         put(g, "torque_codes", rec.torque_codes, "counts", dtype=np.int16, compress=True)
         put(g, "command_time_s", rec.command_time_s, "s")
         put(g, "command_deg", rec.command_deg, "deg")
-        put(g, "command_volts", rec.command_volts, "V")
+        put(g, "command_volts", rec.command_volts, "V", dtype=SIGNAL)
         put(g, "command_codes", rec.command_codes, "counts", dtype=np.uint16, compress=True)
         put(g, "tick_lateness_s", lateness, "s")
         set_attrs(
