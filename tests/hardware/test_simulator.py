@@ -157,6 +157,19 @@ def test_same_seed_and_step_give_identical_data_another_step_other_noise(knee: J
     assert step_seed(11, "set1/trial1") == step_seed(11, "set1/trial1") != step_seed(11, "set1/trial2")
 
 
+def test_data_do_not_depend_on_how_long_the_session_has_run(knee: JointConfig) -> None:
+    """A resumed session's clock starts afresh while the uninterrupted one has run for hours: the step's
+    data must not depend on the clock's absolute value (float rounding of write and row times)."""
+    command = 65.0 + 40.0 * np.sin(np.arange(300) / 30.0)
+    fresh = SimulatedRig(knee, seed=13)
+    _, _, _, a = run(fresh, fresh.make_rig(), command, "k4/on/2")
+    late = SimulatedRig(knee, seed=13)
+    late.clock.sleep_until(3 * 3600.0 + 0.123456789)
+    _, _, _, b = run(late, late.make_rig(), command, "k4/on/2")
+    assert np.array_equal(a.angle_codes, b.angle_codes)
+    assert np.array_equal(a.torque_codes, b.torque_codes)
+
+
 def test_data_do_not_depend_on_how_often_the_scan_is_read(knee: JointConfig) -> None:
     """The plant integrates lazily up to the clock on a fixed grid: reading the scan every millisecond or
     once a second yields the same rows (so a realtime or a differently paced loop sees the same rig)."""
