@@ -71,7 +71,6 @@ def one_trial(seconds: float, spin_s: float) -> tuple[np.ndarray, int, int]:
         n = round(seconds * 100.0)
         t = np.arange(n) / 100.0
         command = 65.0 + 40.0 * np.sin(2 * np.pi * t / 8.17)
-        command[: min(n, 300)] = 65.0  # start at rest so the acceleration limit holds
         rec = rig.run_trajectory(command, where="bench")
         return rec.tick_lateness_s, rec.n_samples, len(ao_model.reports_with_command(0x14))
     finally:

@@ -37,6 +37,7 @@ from protocol_runner.hardware.interfaces import AnalogInput, Clock, ScanBlock
 from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,
     BoardIoError,
+    BoardTimeout,
     MonotonicClock,
     ScanOverrun,
     bcd_to_text,
@@ -81,8 +82,9 @@ class Usb1608FsSettings:
     in_endpoint: int = 0x81
     packet_size: int = 64
     timeout_ms: int = 1000
-    read_timeout_ms: int = 2
+    read_timeout_ms: int = 20
     max_read_packets: int = 64
+    max_drain_packets: int = 1024
     cal_address: int = 0x0000
     scan_options: int = 0x00  # block transfer mode, no trigger, stall on overrun
 
@@ -130,6 +132,7 @@ class Usb1608FsPlus:
         self._rate_hz = 0.0
         self._t0 = 0.0
         self._rows_emitted = 0
+        self._bytes_received = 0
         self._pending = bytearray()
         self._slope = np.ones(0)
         self._intercept = np.zeros(0)
@@ -274,6 +277,7 @@ class Usb1608FsPlus:
         self._intercept = np.array([c[1] for c in cal])
         self._rate_hz = pacer_rate_hz(pacer)
         self._pending = bytearray()
+        self._bytes_received = 0
         self._rows_emitted = 0
         self._ctrl_out(CMD_AIN_SCAN_STOP, b"", "stopping a previous scan")
         self._ctrl_out(CMD_AIN_CLR_FIFO, b"", "clearing the scan FIFO")
@@ -289,29 +293,58 @@ class Usb1608FsPlus:
         self._t0 = 0.5 * (before + after)
         self._scanning = True
 
+    def _sure_packets(self) -> int:
+        """Full packets certainly produced by now, judged on the host clock with a safety margin.
+
+        A bulk read asking for more than the board has waits for its timeout and then loses what it got
+        (libusb reports a timeout, pyusb drops the partial data), so reads during a scan ask only for
+        packets that must exist: the host clock's rows, less 200 ppm for crystal tolerance, less 2 ms
+        for the start latency, less one packet of slack.
+        """
+        elapsed_s = self.clock.now_s() - self._t0
+        rows = math.floor(elapsed_s * self._rate_hz * (1.0 - 200e-6) - 0.002 * self._rate_hz) + 1
+        produced_bytes = max(0, rows) * 2 * len(self._channels)
+        return produced_bytes // self.settings.packet_size - 1
+
+    def _bulk_read(self, size: int, timeout_ms: int) -> bytes | None:
+        """One bulk read; None on timeout; an overrun stall becomes `ScanOverrun`."""
+        try:
+            data = self._dev.read(self.settings.in_endpoint, size, timeout_ms)
+        except usb.core.USBTimeoutError:
+            return None
+        except usb.core.USBError as exc:
+            if getattr(exc, "errno", None) == 32:  # stalled pipe: the board stalls it on overrun
+                self._raise_if_overrun()
+            raise map_usb_error(exc, self.name, "reading scan data") from exc
+        return bytes(data)
+
     def _read_packets(self) -> None:
-        """Move every complete packet waiting on the bulk pipe into `_pending`."""
+        """Move the packets surely waiting on the bulk pipe into `_pending`, without ever blocking."""
         s = self.settings
-        nbytes_row = 2 * len(self._channels)
-        due_rows = math.floor((self.clock.now_s() - self._t0) * self._rate_hz) + 1
-        received_rows = self._rows_emitted + len(self._pending) // nbytes_row
-        # one large read for the packets surely waiting (minus one for clock slack), then single packets
-        sure_packets = (due_rows - received_rows) * nbytes_row // s.packet_size - 1
-        first = max(1, min(s.max_read_packets, sure_packets))
-        size = first * s.packet_size
-        for _ in range(4 * s.max_read_packets):
-            try:
-                data = self._dev.read(s.in_endpoint, size, s.read_timeout_ms)
-            except usb.core.USBTimeoutError:
+        missing = self._sure_packets() - self._bytes_received // s.packet_size
+        while missing > 0:
+            n = min(missing, s.max_read_packets)
+            data = self._bulk_read(n * s.packet_size, s.timeout_ms)
+            if data is None:
+                raise BoardTimeout(
+                    f"the {self.name} sent less scan data than its pacer should have produced; the scan "
+                    "stream is no longer trustworthy. Unplug and replug the board, then redo the trial."
+                )
+            self._pending += data
+            self._bytes_received += len(data)
+            missing -= n
+
+    def _drain_packets(self) -> None:
+        """After AIN_SCAN_STOP: read single packets until the pipe is empty (a short packet ends it)."""
+        s = self.settings
+        for _ in range(s.max_drain_packets):
+            data = self._bulk_read(s.packet_size, s.read_timeout_ms)
+            if data is None:
                 return
-            except usb.core.USBError as exc:
-                if getattr(exc, "errno", None) == 32:  # stalled pipe: the board stalls it on overrun
-                    self._raise_if_overrun()
-                raise map_usb_error(exc, self.name, "reading scan data") from exc
-            self._pending += bytes(data)
-            if len(data) < size:
+            self._pending += data
+            self._bytes_received += len(data)
+            if len(data) < s.packet_size:
                 return
-            size = s.packet_size
 
     def _raise_if_overrun(self) -> None:
         if self.status() & STATUS_OVERRUN:
@@ -350,7 +383,7 @@ class Usb1608FsPlus:
             return ScanBlock.empty(len(self._channels))
         self._read_packets()
         self._ctrl_out(CMD_AIN_SCAN_STOP, b"", "stopping the scan")
-        self._read_packets()
+        self._drain_packets()
         self._scanning = False
         self._ctrl_out(CMD_AIN_CLR_FIFO, b"", "clearing the scan FIFO")
         return self._take_rows()

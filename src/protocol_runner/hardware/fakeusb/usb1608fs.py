@@ -98,6 +98,7 @@ class Usb1608FsModel(FakeUsbDevice):
         self.sent_samples = 0
         self.scan_starts = 0
         self.end_samples: int | None = None  # samples produced when the scan stopped
+        self.lost_samples = 0  # consumed by reads that timed out (a driver bug if ever non-zero)
 
     # ---- helpers ---------------------------------------------------------------------------------
     def set_calibration(self, channel: int, slope: float, intercept: float, range_code: int = 0) -> None:
@@ -224,19 +225,28 @@ class Usb1608FsModel(FakeUsbDevice):
             raise Stall()
 
     def handle_read(self, endpoint: int, size: int) -> bytes | None:
+        """Bulk IN like libusb sees it: a read completes when `size` bytes or a short packet arrived; a
+        read asking for more full packets than the board has while scanning times out, and the packets
+        it had received are lost (libusb reports the timeout; pyusb drops the partial data)."""
         if endpoint != 0x81:
             raise Stall()
         self._advance()
         if 0x81 in self.halted:
             raise Stall()
         avail_bytes = 2 * self._available_samples()
+        wanted_packets = max(1, size // PACKET)
         full_packets = avail_bytes // PACKET
-        n_bytes = min(full_packets, size // PACKET) * PACKET
-        if n_bytes == 0:
-            if not self.running and 0 < avail_bytes <= size:
-                n_bytes = avail_bytes  # the scan ended: the last short packet goes out
-            else:
-                return None
+        if full_packets >= wanted_packets:
+            n_bytes = wanted_packets * PACKET
+        elif self.running:
+            if full_packets:
+                self.lost_samples += full_packets * PACKET // 2
+                self.sent_samples += full_packets * PACKET // 2
+            return None
+        elif avail_bytes:
+            n_bytes = min(avail_bytes, full_packets * PACKET if full_packets else avail_bytes)
+        else:
+            return None
         n = n_bytes // 2
         data = self._sample_bytes(self.sent_samples, n)
         self.sent_samples += n
