@@ -589,15 +589,17 @@ class _Problem:
         return self.dz
 
     def jacobian(self, u: FloatArray) -> FloatArray:
+        """Chain rule from the physical sensitivities: every column of the dimensionless Jacobian is a
+        fixed linear combination of the physical ones, ``J_u = dz/dtheta @ T / Z``."""
         A, n, beta = self.physical(u)
         dz = self.physical_jacobian(A, n, beta)
-        jb = dz[:, 2:]
-        J = np.empty_like(dz)
-        J[:, 0] = dz[:, 0] * (self.Z / self.X)
-        J[:, 1] = dz[:, 1] - self.lnZ * (jb @ beta)
-        J[:, 2:] = (jb @ EQ25_BETA_MATRIX) / (self.X * self.Z ** (n - 1.0))
-        J /= self.Z
-        return J
+        T = np.zeros((8, 8))
+        T[0, 0] = self.Z / self.X  # dA/da
+        T[1, 1] = 1.0  # dn/dn
+        T[2:, 1] = -self.lnZ * beta  # dbeta/dn at fixed psi' (beta ~ Z^(1-n))
+        T[2:, 2:] = EQ25_BETA_MATRIX / (self.X * self.Z ** (n - 1.0))  # dbeta/dpsi'
+        result: FloatArray = dz @ (T / self.Z)
+        return result
 
     def solve(self, u0: FloatArray, max_nfev: int, tol: float) -> tuple[FloatArray, float, bool]:
         res = least_squares(
@@ -731,18 +733,6 @@ def _decimate(
     return np.concatenate(xs), np.concatenate(ys), seg, tuple(strides)
 
 
-def _concat(
-    segments: list[tuple[FloatArray, FloatArray]],
-) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int64]]:
-    seg = np.zeros(len(segments) + 1, dtype=np.int64)
-    seg[1:] = np.cumsum([x.size for x, _ in segments])
-    return (
-        np.concatenate([x for x, _ in segments]),
-        np.concatenate([y for _, y in segments]),
-        seg,
-    )
-
-
 def _param_std(problem: _Problem, params: BoucWenParams) -> FloatArray:
     """``sqrt(diag(s^2 (J^T J)^-1))`` with the physical Jacobian on the fitted samples; ``inf`` for
     parameters that mix with a (numerically) unidentifiable direction."""
@@ -768,17 +758,30 @@ def _param_std(problem: _Problem, params: BoucWenParams) -> FloatArray:
 def _evaluate(
     segments: list[tuple[FloatArray, FloatArray]], params: BoucWenParams, bound: float
 ) -> tuple[float, float, tuple[float, ...], bool]:
-    x, y, seg = _concat(segments)
-    z = np.empty_like(x)
-    bad = _recursion_kernel(
-        x, seg, np.ascontiguousarray(y[seg[:-1]]), params.A, params.n, np.array(params.beta), bound, True, z
-    )
-    r = z - y
-    rmse = math.sqrt(float(r @ r) / r.size)
-    sst = float(np.sum((y - y.mean()) ** 2))
-    r2 = 1.0 - float(r @ r) / sst if sst > 0.0 else math.nan
-    per = tuple(math.sqrt(float(np.mean(r[seg[k] : seg[k + 1]] ** 2))) for k in range(seg.size - 1))
-    return rmse, r2, per, bad >= 0
+    """RMSE, R^2, per-trial RMSE and divergence flag of ``params`` on every given sample, each trial's
+    recursion started at its own first torque (diverged samples held at +-bound, a finite error)."""
+    beta = np.array(params.beta)
+    sse: list[float] = []
+    total = 0.0
+    total_sq = 0.0
+    count = 0
+    diverged = False
+    for x, y in segments:
+        z = np.empty_like(x)
+        bad = _recursion_kernel(
+            x, np.array([0, x.size], dtype=np.int64), y[:1].copy(), params.A, params.n, beta, bound, True, z
+        )
+        diverged = diverged or bad >= 0
+        z -= y
+        sse.append(float(z @ z))
+        total += float(y.sum())
+        total_sq += float(y @ y)
+        count += y.size
+    rmse = math.sqrt(sum(sse) / count)
+    sst = total_sq - total * total / count
+    r2 = 1.0 - sum(sse) / sst if sst > 0.0 else math.nan
+    per = tuple(math.sqrt(e / x.size) for e, (x, _) in zip(sse, segments, strict=True))
+    return rmse, r2, per, diverged
 
 
 def _fit_segments(
