@@ -107,7 +107,8 @@ def _axes(kind: str) -> tuple[Figure, list[Axes]]:
 def to_data_uri(fig: Figure) -> str:
     """Encode `fig` as a PNG data URI (deterministic: no timestamp or software tag in the PNG)."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None})
+    # zlib level 1: about 3x faster to encode than the default 6, for slightly larger files
+    fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None}, pil_kwargs={"compress_level": 1})
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 

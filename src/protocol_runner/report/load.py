@@ -14,7 +14,7 @@ from __future__ import annotations
 import csv
 import json
 import math
-from collections.abc import Iterable
+import os
 from pathlib import Path
 from typing import Any
 
@@ -61,9 +61,11 @@ _HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 _IDENTITY_ATTRS = {"key", "run", "set", "condition", "profile", "status", "n_trials"}
 
 
-def load_report_data(path: Path) -> ReportData:
+def load_report_data(path: Path, *, workers: int | None = None) -> ReportData:
     """Read the archive at `path` (a file, or a session directory holding `archive.h5`).
 
+    `workers` > 1 reads the configurations on that many forked processes (decompressing a full
+    campaign's trials is most of the load time); None picks 2 for large archives on a multi-core machine.
     Raises `InvalidInput` when the file is missing, not HDF5, truncated or corrupt, not a protocol-runner
     archive (no root attribute `protocol_sha256`), or lacks the `/configurations` group.
     """
@@ -72,7 +74,11 @@ def load_report_data(path: Path) -> ReportData:
         raise InvalidInput(f"{archive} is not an HDF5 file (no HDF5 signature); expected a protocol-runner archive.")
     try:
         with h5py.File(archive, "r") as h5:
-            return _read(h5, archive)
+            names = _check_and_list(h5, archive)
+        # the file is closed before forking: HDF5 handles must not be shared across a fork
+        configurations = _load_configurations(archive, names, workers)
+        with h5py.File(archive, "r") as h5:
+            return _read(h5, archive, configurations)
     except InvalidInput:
         raise
     except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:
@@ -80,6 +86,37 @@ def load_report_data(path: Path) -> ReportData:
             f"{archive} is truncated or corrupt; it cannot be read as an archive ({_short(exc)}). "
             "Re-consolidate the session or use a backup copy."
         ) from exc
+
+
+def _check_and_list(h5: h5py.File, archive: Path) -> list[str]:
+    if _ROOT_MARKER not in h5.attrs:
+        raise InvalidInput(
+            f"{archive} is not a protocol-runner archive: missing root attribute {_ROOT_MARKER}."
+        )
+    if "configurations" not in h5 or not isinstance(h5["configurations"], h5py.Group):
+        raise InvalidInput(f"{archive} is incomplete: missing group /configurations (see docs/archive.md).")
+    return [name for name, grp in h5["configurations"].items() if _is_group(grp)]
+
+
+def _load_chunk(archive: Path, names: list[str]) -> list[Configuration]:
+    with h5py.File(archive, "r") as h5:
+        return [_read_configuration(name, h5["configurations"][name]) for name in names]
+
+
+def _load_configurations(archive: Path, names: list[str], workers: int | None) -> tuple[Configuration, ...]:
+    if workers is None:
+        workers = 2 if len(names) >= 12 and (os.cpu_count() or 1) >= 2 else 1
+    if workers <= 1 or len(names) < 2:
+        configs = _load_chunk(archive, names)
+    else:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        chunks = [names[i::workers] for i in range(workers)]
+        ctx = multiprocessing.get_context("fork")
+        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+            configs = [c for part in pool.map(_load_chunk, [archive] * len(chunks), chunks) for c in part]
+    return tuple(sorted(configs, key=lambda c: c.key))
 
 
 def load_reference_dataset(path: Path, title: str | None = None) -> ReferenceDataset:
@@ -157,20 +194,8 @@ def _short(exc: BaseException) -> str:
     return text if len(text) <= 160 else text[:157] + "..."
 
 
-def _read(h5: h5py.File, archive: Path) -> ReportData:
-    if _ROOT_MARKER not in h5.attrs:
-        raise InvalidInput(
-            f"{archive} is not a protocol-runner archive: missing root attribute {_ROOT_MARKER}."
-        )
-    if "configurations" not in h5 or not isinstance(h5["configurations"], h5py.Group):
-        raise InvalidInput(f"{archive} is incomplete: missing group /configurations (see docs/archive.md).")
+def _read(h5: h5py.File, archive: Path, configurations: tuple[Configuration, ...]) -> ReportData:
     session = _read_session(h5, archive)
-    configurations = tuple(
-        sorted(
-            (_read_configuration(name, grp) for name, grp in h5["configurations"].items() if _is_group(grp)),
-            key=lambda c: c.key,
-        )
-    )
     calibration = _read_calibration(h5)
     comparisons = _read_comparisons(h5)
     references = _read_references(h5)
@@ -406,11 +431,18 @@ def _read_configuration(name: str, grp: h5py.Group) -> Configuration:
     trials: list[Trial] = []
     angles: list[np.ndarray] = []
     torques: list[np.ndarray] = []
+    raw_loaded = False
     if "trials" in grp:
         for number, tname in _trial_numbers(grp["trials"]):
             tgrp = grp["trials"][tname]
-            on = _read_recording(tgrp["brace_on"]) if "brace_on" in tgrp else None
-            off = _read_recording(tgrp["brace_off"]) if "brace_off" in tgrp else None
+            on = off = None
+            has_raw = "brace_on" in tgrp or "brace_off" in tgrp
+            # Only the first recorded trial's raw data is plotted (angle/torque vs time): reading and
+            # decompressing the others would dominate the report's regeneration time.
+            if has_raw and not raw_loaded:
+                on = _read_recording(tgrp["brace_on"]) if "brace_on" in tgrp else None
+                off = _read_recording(tgrp["brace_off"]) if "brace_off" in tgrp else None
+                raw_loaded = True
             processed = None
             if "processed" in tgrp:
                 pgrp = tgrp["processed"]
@@ -418,18 +450,15 @@ def _read_configuration(name: str, grp: h5py.Group) -> Configuration:
                 torque = _float_ds(pgrp, "brace_torque_nm")
                 n = min(angle.size, torque.size)
                 angle, torque = angle[:n], torque[:n]
-                time = _float_ds(pgrp, "time_s")
-                if time.size != n:
-                    time = np.arange(n, dtype=float) * 1e-3  # documented 1 kHz brace-on time base
                 angles.append(angle)
                 torques.append(torque)
                 processed = ProcessedTrial(
-                    time_s=decimate_for_plot(time),
                     angle_deg=decimate_for_plot(angle),
                     brace_torque_nm=decimate_for_plot(torque),
                     subtraction=_attr_str(pgrp.attrs, "subtraction", "equal_angle"),
                 )
-            trials.append(Trial(number=number, brace_on=on, brace_off=off, processed=processed))
+            trials.append(Trial(number=number, brace_on=on, brace_off=off, processed=processed,
+                                recorded=has_raw))
     angle_min, angle_max, slope = _summary(angles, torques)
     energy = _float_ds(grp, "energy_loss_j")
     cycle_trial = _float_ds(grp, "energy_cycle_trial")
@@ -461,22 +490,28 @@ def _key_from_name(name: str) -> int:
     return int(digits) if digits else 0
 
 
-def _summary(angles: Iterable[np.ndarray], torques: Iterable[np.ndarray]) -> tuple[float, float, float]:
+def _summary(angles: list[np.ndarray], torques: list[np.ndarray]) -> tuple[float, float, float]:
     """Angle range reached and least-squares torque-angle slope (N*m/deg) over all processed samples."""
-    angle_parts = [a for a in angles if a.size]
-    torque_parts = [t for t in torques if t.size]
-    if not angle_parts:
+    # accumulate the sums of the normal equations trial by trial (no concatenated copy)
+    n = sx = sy = sxx = sxy = 0.0
+    lo, hi = math.inf, -math.inf
+    for angle, torque in zip(angles, torques, strict=True):
+        ok = np.isfinite(angle) & np.isfinite(torque)
+        if not ok.all():
+            angle, torque = angle[ok], torque[ok]
+        if angle.size == 0:
+            continue
+        n += angle.size
+        sx += float(angle.sum())
+        sy += float(torque.sum())
+        sxx += float(np.einsum("i,i->", angle, angle))
+        sxy += float(np.einsum("i,i->", angle, torque))
+        lo, hi = min(lo, float(angle.min())), max(hi, float(angle.max()))
+    if n < 2:
         return float("nan"), float("nan"), float("nan")
-    angle = np.concatenate(angle_parts)
-    torque = np.concatenate(torque_parts)
-    ok = np.isfinite(angle) & np.isfinite(torque)
-    angle, torque = angle[ok], torque[ok]
-    if angle.size < 2:
-        return float("nan"), float("nan"), float("nan")
-    da = angle - angle.mean()
-    denom = float(np.dot(da, da))
-    slope = float(np.dot(da, torque - torque.mean()) / denom) if denom > 0 else float("nan")
-    return float(angle.min()), float(angle.max()), slope
+    denom = sxx - sx * sx / n
+    slope = (sxy - sx * sy / n) / denom if denom > 1e-12 * max(sxx, 1.0) else float("nan")
+    return lo, hi, slope
 
 
 def _read_bouc_wen(grp: h5py.Group) -> BoucWenFit:

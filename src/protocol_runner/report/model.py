@@ -103,7 +103,6 @@ class Recording:
 class ProcessedTrial:
     """The brace's own torque against angle after transition removal, filtering and subtraction (§3.3)."""
 
-    time_s: FloatArray
     angle_deg: FloatArray
     brace_torque_nm: FloatArray
     subtraction: str
@@ -111,12 +110,17 @@ class ProcessedTrial:
 
 @dataclass(frozen=True)
 class Trial:
-    """Trial `number` of a configuration: its brace-on and brace-off runs and the processed result."""
+    """Trial `number` of a configuration: its brace-on and brace-off runs and the processed result.
+
+    `brace_on`/`brace_off` are read only for the configuration's first recorded trial (the one plotted
+    against time); `recorded` says whether the archive holds this trial's raw data at all.
+    """
 
     number: int
     brace_on: Recording | None
     brace_off: Recording | None
     processed: ProcessedTrial | None
+    recorded: bool = True
 
 
 @dataclass(frozen=True)
