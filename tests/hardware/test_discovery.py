@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from types import SimpleNamespace
-from typing import Any
+from typing import Any, cast
 
 import pytest
 
@@ -13,6 +13,7 @@ from protocol_runner.hardware.fakeusb import FakeBackend, Faults, make_usb3105
 from protocol_runner.hardware.fakeusb.dt9814 import make_dt9814
 from protocol_runner.hardware.fakeusb.usb1608fs import make_usb1608fs
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
+from protocol_runner.hardware.usb1608fs import Usb1608FsPlus
 from protocol_runner.hardware.usb_common import UDEV_RULE_FILENAME
 
 
@@ -123,14 +124,14 @@ def test_open_rig_boards_gives_a_3105_and_24_inputs() -> None:
     ao, ai, clock = open_rig_boards(rig_spec(), backend=rig_backend())
     assert isinstance(ao, AnalogOutput) and isinstance(ai, AnalogInput) and isinstance(clock, Clock)
     assert ai.n_channels == 24
-    assert [b.serial for b in ai.boards] == ["AI00000A", "AI00000B", "AI00000C"]  # type: ignore[attr-defined]
+    assert [cast(Usb1608FsPlus, b).serial for b in ai.boards] == ["AI00000A", "AI00000B", "AI00000C"]
     ao.close()
     ai.close()
 
 
 def test_open_rig_boards_follows_the_serials_order() -> None:
     _, ai, _ = open_rig_boards(rig_spec(serials=["AI00000C", "AI00000A", "AI00000B"]), backend=rig_backend())
-    assert [b.serial for b in ai.boards] == ["AI00000C", "AI00000A", "AI00000B"]  # type: ignore[attr-defined]
+    assert [cast(Usb1608FsPlus, b).serial for b in ai.boards] == ["AI00000C", "AI00000A", "AI00000B"]
     ai.close()
 
 

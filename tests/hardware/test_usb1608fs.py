@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable, Sequence
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 
 from protocol_runner.errors import InvalidInput
@@ -33,9 +35,14 @@ class RigClock:
         self.manual.t_s = max(self.manual.t_s, t_s)
 
 
-def ramp(t: float, ch: int) -> float:
+def ramp(t: npt.ArrayLike, ch: int) -> npt.NDArray[np.float64]:
     """A signal whose value says which channel and when: ch volts plus 1 V/s."""
-    return -8.0 + ch + t
+    return -8.0 + ch + np.asarray(t, dtype=np.float64)
+
+
+def level(volts: float) -> Callable[[float, int], float]:
+    """A board whose channel ch reads `volts` + 0.1 * ch."""
+    return lambda t, ch: volts + 0.1 * ch
 
 
 def open_board(model: Usb1608FsModel, clock: ManualClock) -> Usb1608FsPlus:
@@ -244,7 +251,7 @@ def test_not_found_names_the_board() -> None:
 
 def three_boards(clock: ManualClock) -> tuple[FakeBackend, list[Usb1608FsModel]]:
     models = [
-        make_usb1608fs(serial=s, signal=lambda t, ch, k=k: k + 0.1 * ch, clock=clock)
+        make_usb1608fs(serial=s, signal=level(k), clock=clock)
         for k, s in ((2.0, "0000000C"), (0.0, "0000000A"), (1.0, "0000000B"))
     ]
     return FakeBackend(*models), models
@@ -291,7 +298,7 @@ def test_multi_board_waits_for_the_slowest_board() -> None:
             self.rows = rows
             self.calls = 0
 
-        def start_scan(self, channels: list[int], rate_hz: float) -> None:
+        def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
             self.n = len(channels)
 
         def _block(self, n: int, start: int) -> ScanBlock:

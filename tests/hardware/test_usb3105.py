@@ -29,8 +29,8 @@ from protocol_runner.hardware.usb_common import (
 )
 
 
-def open_board(model: Usb3105Model, **kwargs: object) -> Usb3105:
-    return Usb3105.open(backend=FakeBackend(model), **kwargs)  # type: ignore[arg-type]
+def open_board(model: Usb3105Model, settings: Usb3105Settings | None = None) -> Usb3105:
+    return Usb3105.open(backend=FakeBackend(model), settings=settings)
 
 
 def ideal_code(volts: float) -> int:
@@ -323,7 +323,8 @@ def test_device_vanishing_mid_run_raises_device_gone() -> None:
             written += 1
     assert written == 5
     assert isinstance(err.value, HardwareUnavailable)
-    assert err.value.__cause__.errno == 19  # type: ignore[union-attr]
+    cause = err.value.__cause__
+    assert isinstance(cause, usb.core.USBError) and cause.errno == 19
     ao.close()  # closing a vanished board does not raise
 
 

@@ -17,6 +17,7 @@ import struct
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -51,7 +52,9 @@ SERIAL = 0x48
 STATUS_RUNNING = 0x02
 STATUS_OVERRUN = 0x04
 
-Signal = Callable[[float, int], float]
+Signal = Callable[[Any, int], Any]
+"""`signal(time_s, channel) -> volts`. Called with a float64 array of sample times (the result is broadcast to
+it); a function that only takes floats is called once per sample instead."""
 
 
 def cal_address(channel: int, range_code: int) -> int:
