@@ -12,8 +12,12 @@ and discretises it with the explicit first-order recursion of Eq 23::
     z_{i+1} = z_i + (x_{i+1} - x_i) [A - |z_i|^n Psi_i]
 
 where ``x`` is the joint angle in degrees and ``z`` is the torque in N*m (so ``A`` is in N*m/deg and each
-``beta_k`` in N*m^(1-n)/deg).  The six sign patterns met on a centred loop are the six phases of Table 4;
-their shape values ``psi = M24 @ beta`` (Eq 24) are inverted by Eq 25, ``beta = M25 @ psi``.
+``beta_k`` in N*m^(1-n)/deg).  (Eq 22 is garbled in the available copy of the thesis; the sign terms above
+are those of Eq 23, which Table 4 confirms.)  The six sign patterns met on a centred loop are the six
+phases of Table 4; their shape values ``psi = M24 @ beta`` (Eq 24) are inverted by Eq 25,
+``beta = M25 @ psi``.  The other two sign patterns, (x > 0, dx > 0, z < 0) and (x < 0, dx < 0, z > 0), are
+not phases of Table 4 but Eq 23 still applies there; with the Figure 57 parameters the second one is
+unstable (a recursion started there with a few N*m diverges), which is why divergence is detected.
 
 Units and conventions:
 
@@ -31,6 +35,12 @@ sensitivities, computed in the same numba pass as the torque).  §6.2.5 notes th
 lot on the initial conditions"; this implementation starts from the thesis's data-driven guess (Figure 56),
 from an equation-error least-squares guess, and from quasi-random points spread over the parameter bounds,
 and keeps the best optimum, so the result does not depend on any single starting point.
+
+Performance: the numba kernels are compiled once (cached on disk); a fit of one configuration (three 65 s
+trials at 1 kHz) takes about 0.1-0.2 s on a busy 2-core machine (``benchmarks/bench_bouc_wen.py``).  The
+solver's dense SVD of the tall 8-column Jacobian goes through OpenBLAS, whose worker threads make each
+call cost tens of milliseconds when the cores are busy: run with ``OPENBLAS_NUM_THREADS=1`` (set in the
+environment before numpy is imported).
 """
 
 from __future__ import annotations
@@ -449,8 +459,12 @@ class BoucWenBounds:
     * ``n_min <= n <= n_max`` (0.5-3): the exponent only shapes the knees of the loop; the thesis fitted
       1.2.
     * ``|psi'_k| <= psi_max`` for the six Table 4 phase values (hence ``|beta'_k| <= psi_max`` too, since
-      each row of Eq 25 has four entries of 1/4).  ``psi_max = 100`` allows a phase to reach the loop's
-      branch within 1 % of the angle range; the thesis's own fit (Figure 57) needs 57 on its data.
+      each row of Eq 25 has four entries of 1/4).  ``psi_max = 100`` allows slopes up to about
+      ``dz'/dx' = 100``, i.e. crossing the whole torque range within 1 % of the angle range; the Figure 57
+      parameters on a +-65 deg, 20 N*m loop have ``psi'_5 = -57``.  In physical units (X = 65 deg,
+      Z = 20 N*m, n = 1.2) this is about ``|psi_k| <= 0.83`` N*m^(1-n)/deg, against 0.47 for Figure 57.
+
+    The fitter also treats |z| > 10 Z as divergence (see :func:`fit`).
     """
 
     a_max: float = 20.0
@@ -492,6 +506,8 @@ class BoucWenFit:
     diverged: the fitted model's recursion left the data's torque range by a factor 10 on the given samples.
     trial_rmse_nm: RMSE of each trial; n_samples: samples given; n_samples_fitted: samples the optimiser
         used after decimation; stride: decimation step of each trial; nfev: residual evaluations in total.
+    angle_scale_deg, torque_scale_nm: the scales X and Z that make :class:`BoucWenBounds` physical.
+    message: the final least-squares solver's termination message.
     """
 
     params: BoucWenParams
@@ -506,6 +522,8 @@ class BoucWenFit:
     n_samples_fitted: int
     stride: tuple[int, ...]
     nfev: int
+    angle_scale_deg: float
+    torque_scale_nm: float
     bounds: BoucWenBounds = field(default=DEFAULT_BOUNDS)
     message: str = ""
 
@@ -601,7 +619,7 @@ class _Problem:
         result: FloatArray = dz @ (T / self.Z)
         return result
 
-    def solve(self, u0: FloatArray, max_nfev: int, tol: float) -> tuple[FloatArray, float, bool]:
+    def solve(self, u0: FloatArray, max_nfev: int, tol: float) -> tuple[FloatArray, float, bool, str]:
         res = least_squares(
             self.residuals,
             self.stabilise(np.clip(u0, self.lower, self.upper)),
@@ -615,7 +633,7 @@ class _Problem:
             gtol=tol,
             max_nfev=max_nfev,
         )
-        return np.asarray(res.x, dtype=np.float64), float(res.cost), bool(res.status > 0)
+        return np.asarray(res.x, dtype=np.float64), float(res.cost), bool(res.status > 0), str(res.message)
 
 
 def _thesis_start(x: FloatArray, y: FloatArray, seg: npt.NDArray[np.int64]) -> BoucWenParams:
@@ -829,7 +847,7 @@ def _fit_segments(
     # Stage 1: a short solve from every start on a coarse copy of the data picks the basin.
     short = []
     for u0 in candidates:
-        u, cost, _ = screen.solve(u0, max_nfev=_SHORT_NFEV, tol=1e-6)
+        u, cost, _, _ = screen.solve(u0, max_nfev=_SHORT_NFEV, tol=1e-6)
         short.append((cost, u))
     short.sort(key=lambda t: t[0])
     # Stage 2: the best few are refined to convergence on the fitted samples; the lowest cost wins.
@@ -843,11 +861,11 @@ def _fit_segments(
         if all(abs(cost0 - c) > 1e-3 * c for c in chosen_cost):
             chosen.append(u0)
             chosen_cost.append(cost0)
-    best: tuple[float, FloatArray, bool] | None = None
+    best: tuple[float, FloatArray, bool, str] | None = None
     for u0 in chosen:
-        u, cost, ok = problem.solve(u0, max_nfev=_POLISH_NFEV, tol=1e-10)
+        u, cost, ok, message = problem.solve(u0, max_nfev=_POLISH_NFEV, tol=1e-10)
         if best is None or cost < best[0]:
-            best = (cost, u, ok)
+            best = (cost, u, ok, message)
     assert best is not None
     params = problem.params(best[1])
     std = _param_std(problem, params)
@@ -865,7 +883,10 @@ def _fit_segments(
         n_samples_fitted=int(x.size),
         stride=strides,
         nfev=problem.nfev + (screen.nfev if screen is not problem else 0),
+        angle_scale_deg=angle_scale,
+        torque_scale_nm=torque_scale,
         bounds=bounds,
+        message=best[3],
     )
 
 
