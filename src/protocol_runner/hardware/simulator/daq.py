@@ -30,7 +30,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.conversions import (
@@ -43,7 +42,7 @@ from protocol_runner.hardware.conversions import (
 )
 from protocol_runner.hardware.interfaces import ScanBlock
 from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, BraceSetup, SimulatorParams
-from protocol_runner.hardware.simulator.plant import JointPlant
+from protocol_runner.hardware.simulator.plant import GRID_TOL, ROLE_ANGLE, ROLE_TORQUE, JointPlant
 from protocol_runner.hardware.usb3105 import IDENTITY_CALIBRATION, calibrated_code
 
 if TYPE_CHECKING:
@@ -59,9 +58,9 @@ AI_CHANNELS = 24
 AI_MAX_RATE_HZ = 50_000.0
 """DT9814 maximum aggregate rate (thesis §2.3)."""
 
-# Grid rounding tolerance, in grid steps: absorbs the float error of (t - origin) / dt so that a write or a
-# sample exactly on a grid point lands on it whatever the clock's absolute value.
-_GRID_TOL = 1e-6
+NOISE_BLOCK = 8192
+"""Standard normals drawn from the step's generator at a time; rows consume them in order, so the values a
+row gets do not depend on how the scan is read."""
 
 
 def step_seed(seed: int, step_id: str) -> int:
@@ -183,39 +182,6 @@ class SimulatedAnalogOutput:
         self._closed = True
 
 
-_ROLE_ANGLE = 1
-_ROLE_TORQUE = 2
-
-
-@njit(cache=True)
-def _telemetry_volts(
-    angle_deg: FloatArray,
-    torque_nm: FloatArray,
-    roles: npt.NDArray[np.int64],
-    noise_v: FloatArray,
-    angle_knots: FloatArray,
-    angle_knot_volts: FloatArray,
-    torque_knots: FloatArray,
-    torque_knot_volts: FloatArray,
-    noise: FloatArray,
-) -> FloatArray:
-    """Volts on each scanned channel: the sensor chain (tabulated, piecewise linear) plus scaled noise."""
-    n = angle_deg.shape[0]
-    n_ch = roles.shape[0]
-    a_v = np.interp(angle_deg, angle_knots, angle_knot_volts)
-    t_v = np.interp(torque_nm, torque_knots, torque_knot_volts)
-    out = np.empty((n, n_ch), dtype=np.float64)
-    for i in range(n):
-        for j in range(n_ch):
-            v = noise_v[j] * noise[i, j]
-            if roles[j] == 1:
-                v += a_v[i]
-            elif roles[j] == 2:
-                v += t_v[i]
-            out[i, j] = v
-    return out
-
-
 class _RigModel:
     """The simulated robot behind the boards: command decoding, the plant, sensors and noise."""
 
@@ -227,6 +193,7 @@ class _RigModel:
         self.range_deg = (float(joint.range_deg[0]), float(joint.range_deg[1]))
         self.torque_range_nm = (float(joint.torque_range_nm[0]), float(joint.torque_range_nm[1]))
         self.plant = JointPlant(params, self.range_deg, self.torque_range_nm)
+        self._inv_dt = 1.0 / params.plant_step_s
         self.command_nonlinearity: CalibrationTable | None = (
             joint.command_table.inverse() if joint.command_table is not None else None
         )
@@ -264,6 +231,8 @@ class _RigModel:
         self.origin_s = 0.0
         self.step_id = ""
         self.rng = np.random.default_rng(step_seed(self.seed, ""))
+        self._noise_buf = np.zeros(0, dtype=np.float64)
+        self._noise_pos = 0
 
     @staticmethod
     def _sensor_chain(
@@ -282,16 +251,18 @@ class _RigModel:
     def begin_step(self, step_id: str) -> None:
         self.step_id = step_id
         self.rng = np.random.default_rng(step_seed(self.seed, step_id))
+        self._noise_buf = np.zeros(0, dtype=np.float64)
+        self._noise_pos = 0
         self.origin_s = self.clock.now_s()
         self.plant.reset(self.joint.limits.park_angle_deg)
 
     def _grid_floor(self, t_s: float) -> int:
-        return math.floor((t_s - self.origin_s) / self.params.plant_step_s + _GRID_TOL)
+        return math.floor((t_s - self.origin_s) * self._inv_dt + GRID_TOL)
 
     def on_write(self, t_s: float, channel: int, code: int) -> None:
         if channel != self.joint.output_channel:
             return
-        step = math.ceil((t_s - self.origin_s) / self.params.plant_step_s - _GRID_TOL)
+        step = math.ceil((t_s - self.origin_s) * self._inv_dt - GRID_TOL)
         self.plant.push_command(step, self.target_by_code[code])
 
     def _scan_roles(self, channels: Sequence[int]) -> tuple[npt.NDArray[np.int64], FloatArray]:
@@ -302,35 +273,47 @@ class _RigModel:
             scales = np.full(len(key), self.params.idle_channel_noise_v, dtype=np.float64)
             for j, ch in enumerate(key):
                 if ch == self.joint.angle_input_channel:
-                    roles[j], scales[j] = _ROLE_ANGLE, self.angle_noise_v
+                    roles[j], scales[j] = ROLE_ANGLE, self.angle_noise_v
                 elif ch == self.joint.torque_input_channel:
-                    roles[j], scales[j] = _ROLE_TORQUE, self.torque_noise_v
+                    roles[j], scales[j] = ROLE_TORQUE, self.torque_noise_v
             self._roles_key, self._roles = key, (roles, scales)
         return self._roles
 
+    def _noise(self, count: int) -> FloatArray:
+        """The next `count` standard normals of the step's stream (drawn from the generator in blocks)."""
+        if self._noise_pos + count > self._noise_buf.shape[0]:
+            rest = self._noise_buf[self._noise_pos :]
+            fresh = self.rng.standard_normal(max(NOISE_BLOCK, count - rest.shape[0]))
+            self._noise_buf = np.concatenate([rest, fresh])
+            self._noise_pos = 0
+        return self._noise_buf[self._noise_pos : self._noise_pos + count]
+
     def acquire(
-        self, row_times_s: FloatArray, channels: Sequence[int], now_s: float
+        self, t0_s: float, rate_hz: float, first_row: int, n_rows: int, channels: Sequence[int], now_s: float
     ) -> tuple[npt.NDArray[np.int32], FloatArray]:
-        """Integrate up to `now_s` and return (codes, volts) of the leading rows of `row_times_s` whose
-        grid step has been reached (all of them, unless the last ones fall inside the current step)."""
-        dt = self.params.plant_step_s
-        steps = np.floor((row_times_s - self.origin_s) / dt + _GRID_TOL).astype(np.int64)
-        np.maximum(steps, 0, out=steps)
-        angle_deg, torque_nm = self.plant.advance(self._grid_floor(now_s), steps)
-        n = angle_deg.shape[0]
+        """Integrate up to `now_s` and return (codes, volts) of scan rows first_row .. + n_rows - 1 (row i
+        at t0 + i / rate) — the leading part of them whose grid step has been reached (all, unless the last
+        ones fall inside the current step)."""
         roles, scales = self._scan_roles(channels)
-        noise = self.rng.standard_normal((n, len(channels)))
-        volts = _telemetry_volts(
-            angle_deg,
-            torque_nm,
-            roles,
-            scales,
-            self.angle_knots,
-            self.angle_knot_volts,
-            self.torque_knots,
-            self.torque_knot_volts,
+        noise = self._noise(n_rows * len(channels))
+        volts = self.plant.advance_rows(
+            self._grid_floor(now_s),
+            t0_s,
+            self.origin_s,
+            rate_hz,
+            first_row,
+            n_rows,
+            (
+                roles,
+                scales,
+                self.angle_knots,
+                self.angle_knot_volts,
+                self.torque_knots,
+                self.torque_knot_volts,
+            ),
             noise,
         )
+        self._noise_pos += volts.shape[0] * len(channels)
         codes = volts_to_ai12_code(volts)
         return codes, ai12_code_to_volts(codes)
 
@@ -374,11 +357,13 @@ class SimulatedAnalogInput:
         n_due = math.floor((now_s - self._t0_s) * self._rate_hz + 1e-9) + 1
         if n_due <= self._rows_read:
             return ScanBlock.empty(n_ch)
-        t_s = self._t0_s + np.arange(self._rows_read, n_due, dtype=np.float64) / self._rate_hz
-        codes, volts = self._model.acquire(t_s, self._channels, now_s)
+        codes, volts = self._model.acquire(
+            self._t0_s, self._rate_hz, self._rows_read, n_due - self._rows_read, self._channels, now_s
+        )
         n = codes.shape[0]
+        t_s = self._t0_s + np.arange(self._rows_read, self._rows_read + n, dtype=np.float64) / self._rate_hz
         self._rows_read += n
-        return ScanBlock(t_s=t_s[:n], codes=codes, volts=volts)
+        return ScanBlock(t_s=t_s, codes=codes, volts=volts)
 
     def read_available(self) -> ScanBlock:
         return self._read(self._clock.now_s())

@@ -218,6 +218,93 @@ def integrate(
     return j
 
 
+ROLE_NONE = 0
+ROLE_ANGLE = 1
+ROLE_TORQUE = 2
+GRID_TOL = 1e-6
+"""Grid rounding tolerance, in grid steps: absorbs the float error of (t - origin) / dt so that a write or
+a sample exactly on a grid point lands on it whatever the clock's absolute value."""
+
+
+@njit(cache=True)
+def telemetry_volts(
+    angle_deg: FloatArray,
+    torque_nm: FloatArray,
+    roles: IntArray,
+    noise_v: FloatArray,
+    angle_knots: FloatArray,
+    angle_knot_volts: FloatArray,
+    torque_knots: FloatArray,
+    torque_knot_volts: FloatArray,
+    noise: FloatArray,
+) -> FloatArray:
+    """Volts on each scanned channel (row-major, n × channels): the sensor chain of the channel's role,
+    tabulated piecewise linear (angle or torque -> volts), plus `noise_v[j]` × the flat standard-normal
+    `noise` (consumed row by row)."""
+    n = angle_deg.shape[0]
+    n_ch = roles.shape[0]
+    a_v = np.interp(angle_deg, angle_knots, angle_knot_volts)
+    t_v = np.interp(torque_nm, torque_knots, torque_knot_volts)
+    out = np.empty((n, n_ch), dtype=np.float64)
+    for i in range(n):
+        for j in range(n_ch):
+            v = noise_v[j] * noise[i * n_ch + j]
+            if roles[j] == ROLE_ANGLE:
+                v += a_v[i]
+            elif roles[j] == ROLE_TORQUE:
+                v += t_v[i]
+            out[i, j] = v
+    return out
+
+
+@njit(cache=True)
+def integrate_rows(
+    state: FloatArray,
+    istate: IntArray,
+    p: FloatArray,
+    spring: FloatArray,
+    cmd_step: IntArray,
+    cmd_target_deg: FloatArray,
+    n_cmd: int,
+    step_end: int,
+    t0_s: float,
+    origin_s: float,
+    rate_hz: float,
+    first_row: int,
+    n_rows: int,
+    roles: IntArray,
+    noise_v: FloatArray,
+    angle_knots: FloatArray,
+    angle_knot_volts: FloatArray,
+    torque_knots: FloatArray,
+    torque_knot_volts: FloatArray,
+    noise: FloatArray,
+) -> FloatArray:
+    """`integrate` for scan rows first_row .. first_row + n_rows - 1 of a scan started at `t0_s` at
+    `rate_hz` (row i at t0 + i / rate, sampled on grid step floor((t - origin) / dt)), then
+    `telemetry_volts`. Returns the volts of the rows whose step was reached (a leading part)."""
+    inv_dt = 1.0 / p[P_DT]
+    steps = np.empty(n_rows, dtype=np.int64)
+    for i in range(n_rows):
+        t = t0_s + (first_row + i) / rate_hz
+        k = math.floor((t - origin_s) * inv_dt + GRID_TOL)
+        steps[i] = k if k > 0 else 0
+    angle = np.empty(n_rows, dtype=np.float64)
+    torque = np.empty(n_rows, dtype=np.float64)
+    got = integrate(state, istate, p, spring, cmd_step, cmd_target_deg, n_cmd, step_end, steps, angle, torque)
+    return telemetry_volts(
+        angle[:got],
+        torque[:got],
+        roles,
+        noise_v,
+        angle_knots,
+        angle_knot_volts,
+        torque_knots,
+        torque_knot_volts,
+        noise,
+    )
+
+
 def spring_table_nm(
     brace: BraceSetup, range_deg: tuple[float, float], step_deg: float
 ) -> tuple[float, FloatArray]:
@@ -282,6 +369,7 @@ class JointPlant:
         self._cmd_step = np.zeros(1024, dtype=np.int64)
         self._cmd_target = np.zeros(1024, dtype=np.float64)
         self._n_cmd = 0
+        self._integrated_step = 0
         self._pending_step: list[int] = []
         self._pending_target: list[float] = []
         self._last_cmd_step = 0
@@ -325,6 +413,7 @@ class JointPlant:
         self._state[:] = 0.0
         self._state[S_ANGLE] = self._rest_angle_deg(float(angle_deg))
         self._istate[:] = 0
+        self._integrated_step = 0
         self._n_cmd = 0
         self._pending_step.clear()
         self._pending_target.clear()
@@ -374,16 +463,17 @@ class JointPlant:
         """The load torque the actuator holds now (what the load cell sees)."""
         return float(self._state[S_LOAD])
 
-    def push_command(self, step: int, target_deg: float) -> None:
+    def push_command(self, step: int, target_deg: float) -> None:  # hot path: one call per output write
         """Hold `target_deg` (a real angle) from grid step `step` on. Steps must not go backwards; a step
         already integrated past is applied from the current step; of several commands for the same step the
         last one holds. (Queued in Python lists, moved into the kernel's arrays at the next `advance`.)"""
-        step = max(int(step), self.step)
+        if step < self._integrated_step:
+            step = self._integrated_step
         last = self._pending_step[-1] if self._pending_step else self._last_cmd_step
         if step < last:
             raise ValueError("commands must be pushed in time order")
         self._pending_step.append(step)
-        self._pending_target.append(float(target_deg))
+        self._pending_target.append(target_deg)
 
     def _flush_commands(self) -> None:
         n_new = len(self._pending_step)
@@ -408,6 +498,47 @@ class JointPlant:
         self._pending_step.clear()
         self._pending_target.clear()
 
+    def advance_rows(
+        self,
+        step_end: int,
+        t0_s: float,
+        origin_s: float,
+        rate_hz: float,
+        first_row: int,
+        n_rows: int,
+        sensors: tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+        noise: FloatArray,
+    ) -> FloatArray:
+        """Integrate to `step_end` and return the telemetry volts of scan rows first_row .. + n_rows - 1
+        (see `integrate_rows`); `sensors` = (roles, noise volts, angle knots, their volts, torque knots,
+        their volts); `noise` holds at least n_rows × channels standard normals, consumed row by row."""
+        self._flush_commands()
+        roles, noise_v, a_k, a_v, t_k, t_v = sensors
+        volts = integrate_rows(
+            self._state,
+            self._istate,
+            self._p,
+            self._spring,
+            self._cmd_step,
+            self._cmd_target,
+            self._n_cmd,
+            int(step_end),
+            float(t0_s),
+            float(origin_s),
+            float(rate_hz),
+            int(first_row),
+            int(n_rows),
+            roles,
+            noise_v,
+            a_k,
+            a_v,
+            t_k,
+            t_v,
+            noise,
+        )
+        self._integrated_step = int(self._istate[I_STEP])
+        return volts
+
     def advance(self, step_end: int, sample_step: IntArray) -> tuple[FloatArray, FloatArray]:
         """Integrate to grid step `step_end`; return (real angle, load torque) at each of the sorted
         `sample_step` that is <= step_end (the prefix of `sample_step` that could be sampled)."""
@@ -428,4 +559,5 @@ class JointPlant:
             angle,
             torque,
         )
+        self._integrated_step = int(self._istate[I_STEP])
         return angle[:got], torque[:got]
