@@ -11,6 +11,7 @@ report on a sibling board, UNVERIFIED for the 3105), which this benchmark cannot
 Reported, median over the repeats:
 - tick lateness (actual write time - scheduled tick time): p50, p99, max in ms, per trial;
 - baseline in the same run: the same pacing with no I/O at all (the operating system's floor);
+- the Rig loop again under the SCHED_FIFO real-time policy (`usb_common.realtime_priority`), when allowed;
 - the write path's cost: median µs of one `write_volts` through pyusb to the fake board, and of one
   `read_available` of the input scan.
 
@@ -34,7 +35,7 @@ from protocol_runner.hardware.rig import JointConfig, Rig
 from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.usb1608fs import Usb1608FsPlus
 from protocol_runner.hardware.usb3105 import Usb3105
-from protocol_runner.hardware.usb_common import MonotonicClock
+from protocol_runner.hardware.usb_common import MonotonicClock, realtime_priority
 
 SPIN_S = 0.0005  # MonotonicClock polls the last 0.5 ms before each tick
 
@@ -140,9 +141,17 @@ def main() -> None:
     print(f"Rig.run_trajectory at 100 Hz in real time, {args.seconds:g} s trials, {args.repeats} repeats")
     print("  writes: Usb3105 -> pyusb -> fake backend; scan: Usb1608FsPlus 2 ch at 1 kHz from the fake board")
     print(f"  machine: {os.cpu_count()} CPUs, load average {load[0]:.2f} (1 min) at start")
+
+    def fifo_trial() -> np.ndarray:
+        with realtime_priority() as granted:
+            if not granted:
+                print("    (SCHED_FIFO refused: this run is at normal priority)")
+            return one_trial(args.seconds, SPIN_S)[0]
+
     variants: dict[str, Callable[[], np.ndarray]] = {
         "Rig loop + fake USB boards": lambda: one_trial(args.seconds, SPIN_S)[0],
         "baseline: pacing only, no I/O": lambda: pacing_only(args.seconds, SPIN_S),
+        "Rig loop + fake USB boards, SCHED_FIFO": fifo_trial,
     }
     results: dict[str, list[tuple[float, float, float]]] = {}
     for label, run in variants.items():

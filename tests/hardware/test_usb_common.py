@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import errno
+import os
 from pathlib import Path
 
 import pytest
@@ -27,6 +28,7 @@ from protocol_runner.hardware.usb_common import (
     NoUsbBackend,
     bcd_to_text,
     map_usb_error,
+    realtime_priority,
     udev_rule_text,
 )
 
@@ -143,3 +145,13 @@ def test_driver_modules_document_what_is_unverified() -> None:
     assert "UNVERIFIED" in (usb3105.__doc__ or "")
     assert "UNVERIFIED" in (dt9814.__doc__ or "")
     assert "UNVERIFIED" in (usb1608fs.__doc__ or "")
+
+
+def test_realtime_priority_restores_the_previous_policy() -> None:
+    before = os.sched_getscheduler(0) if hasattr(os, "sched_getscheduler") else None
+    with realtime_priority(10) as granted:
+        assert isinstance(granted, bool)
+        if granted:
+            assert os.sched_getscheduler(0) == os.SCHED_FIFO
+    if before is not None:
+        assert os.sched_getscheduler(0) == before
