@@ -91,20 +91,26 @@ def bench_kernel() -> int:
     return int(angle.shape[0])
 
 
+_BOARDS = SimulatedRig(knee(), seed=1)
+_BOARDS.set_brace(BRACE)
+_VOLTS = (-10.0 + 20.0 * COMMAND_DEG / 130.0).tolist()
+
+
 def bench_boards(read_every_ticks: int) -> int:
-    sim = SimulatedRig(knee(), seed=1)
-    sim.set_brace(BRACE)
+    """The boards driven as the Rig drives them, without the Rig: write, sleep, read every N ticks."""
+    sim = _BOARDS
     sim.begin_step("bench")
-    volts = -10.0 + 20.0 * COMMAND_DEG / 130.0
-    sim.ai.start_scan([8, 20], INPUT_RATE_HZ)
+    clock, ao, ai = sim.clock, sim.ao, sim.ai
+    t0 = clock.now_s()
+    ai.start_scan([8, 20], INPUT_RATE_HZ)
     n = 0
-    for k, v in enumerate(volts.tolist()):
-        sim.clock.sleep_until(k / OUTPUT_RATE_HZ)
-        sim.ao.write_volts(8, v)
+    for k, v in enumerate(_VOLTS):
+        clock.sleep_until(t0 + k / OUTPUT_RATE_HZ)
+        ao.write_volts(8, v)
         if (k + 1) % read_every_ticks == 0:
-            n += sim.ai.read_available().n_samples
-    sim.clock.sleep_until(len(volts) / OUTPUT_RATE_HZ)
-    n += sim.ai.stop_scan().n_samples
+            n += ai.read_available().n_samples
+    clock.sleep_until(t0 + len(_VOLTS) / OUTPUT_RATE_HZ)
+    n += ai.stop_scan().n_samples
     return n
 
 
