@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import struct
 
+import numpy as np
 import pytest
 import usb.core
 
@@ -360,3 +361,13 @@ def test_calibration_memory_layout_matches_the_documented_addresses() -> None:
     model = make_usb3105()
     model.set_calibration(6, 1.25, 3.5)
     assert struct.unpack_from("<ff", model.memory, 0x108 + 0x10 * 6) == (1.25, 3.5)
+
+
+def test_numpy_numbers_are_accepted() -> None:
+    model = make_usb3105()
+    ao = open_board(model)
+    ao.configure_channel(np.int64(2))  # type: ignore[arg-type]
+    code = ao.write_volts(np.int64(2), np.float64(-2.5))  # type: ignore[arg-type]
+    assert type(code) is int and code == ideal_code(-2.5)
+    assert model.reports[-1] == bytes([0x14, 2, code & 0xFF, code >> 8, 0])
+    ao.close()

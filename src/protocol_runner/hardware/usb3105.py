@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import logging
 import math
+import operator
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -298,12 +299,17 @@ class Usb3105:
     # AnalogOutput
     # ------------------------------------------------------------------------------------------------
     def _check_channel(self, channel: int) -> None:
-        if not isinstance(channel, int) or not 0 <= channel < N_CHANNELS:
+        try:
+            ok = 0 <= operator.index(channel) < N_CHANNELS
+        except TypeError:
+            ok = False
+        if not ok:
             raise InvalidInput(f"the {KIND} has output channels 0-{N_CHANNELS - 1}; got {channel!r}")
 
     def configure_channel(self, channel: int) -> None:
         """Set `channel` to +-10 V (AOUT_CONFIG). This drives the pin to 0 V: call once before a run."""
         self._check_channel(channel)
+        channel = operator.index(channel)
         self._send(bytes((CMD_AOUT_CONFIG, channel, RANGE_PM10V)), f"configuring output channel {channel}")
         self._configured.add(channel)
 
@@ -314,6 +320,7 @@ class Usb3105:
     def code_for(self, channel: int, volts: float) -> int:
         """The calibrated code `write_volts` would send (no I/O)."""
         self._check_channel(channel)
+        volts = float(volts)
         if not math.isfinite(volts):
             raise InvalidInput(f"output channel {channel}: volts must be a finite number, got {volts!r}")
         return calibrated_code(volts, self.calibration[channel])
