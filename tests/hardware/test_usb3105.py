@@ -366,8 +366,8 @@ def test_calibration_memory_layout_matches_the_documented_addresses() -> None:
 def test_numpy_numbers_are_accepted() -> None:
     model = make_usb3105()
     ao = open_board(model)
-    ao.configure_channel(np.int64(2))  # type: ignore[arg-type]
-    code = ao.write_volts(np.int64(2), np.float64(-2.5))  # type: ignore[arg-type]
+    ao.configure_channel(np.int64(2))
+    code = ao.write_volts(np.int64(2), np.float64(-2.5))
     assert type(code) is int and code == ideal_code(-2.5)
     assert model.reports[-1] == bytes([0x14, 2, code & 0xFF, code >> 8, 0])
     ao.close()
