@@ -108,12 +108,14 @@ def report(
 
     archive = _archive_of(path)
     if reprocess:
-        from .report.reprocess import reprocess_archive
+        from .archive.reprocess import reprocess_archive
 
         archive = reprocess_archive(archive, protocol_file=protocol_file)
         _say(f"reprocessed archive: {archive}")
+        if output is None:
+            output = archive.with_suffix(".html")
     if export_mat is not None:
-        from .report.export import export_mat as do_export
+        from .archive.export import export_mat as do_export
 
         files = do_export(archive, export_mat)
         _say(f"wrote {len(files)} .mat files to {export_mat}")

@@ -141,6 +141,10 @@ class Runner:
             raise type(exc)(
                 f"{exc.message}\nThe session is resumable: run-protocol --resume {self.dir}"
             ) from None
+        except Exception as exc:  # a bug: keep what was finished, record it, and let the traceback show
+            progress.logger.exception("internal error")
+            self._stopped("stopped", f"internal error: {exc!r} (traceback in session.log)", progress)
+            raise
         finally:
             self.stop.uninstall()
             progress.close()
@@ -246,7 +250,7 @@ class Runner:
             if step.brace == "on":
                 entry["n_trials"] = int(entry["n_trials"]) + 1  # type: ignore[call-overload]
             entry["_any"] = bool(entry["_any"]) or step.id in done
-        for name, entry in out.items():
+        for entry in out.values():
             key = int(entry["key"])  # type: ignore[call-overload]
             fitted = f"fit:k{key:02d}" in done or (
                 f"process:k{key:02d}" in done and f"fit:k{key:02d}" not in self.plan._index

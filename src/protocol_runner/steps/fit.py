@@ -11,6 +11,7 @@ from ..analysis.centring import centre
 from ..archive.h5util import put, set_attrs
 from ..models.bouc_wen import BoucWenFit, cross_validate, fit_trials, simulate
 from ..protocol.plan import FitStep, configuration_name
+from ..protocol.schema import BoucWenFitSpec
 from .context import StepContext, StepOutcome
 
 PLOT_POINTS_PER_TRIAL = 2000
@@ -23,22 +24,33 @@ def centred_segments(ctx: StepContext, step: FitStep) -> list[tuple[np.ndarray, 
         trials = f[f"configurations/{name}/trials"]
         for n in sorted(trials, key=int):
             g = trials[n]["processed"]
-            angle, torque = g["angle_deg"][:], g["brace_torque_nm"][:]
-            keep = np.isfinite(torque)
-            loop = centre(angle[keep], torque[keep])
-            segments.append((loop.angle_deg, loop.torque_nm))
+            segments.append(centred_loop(g["angle_deg"][:], g["brace_torque_nm"][:]))
     return segments
+
+
+def centred_loop(angle_deg: np.ndarray, torque_nm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A processed trial centred on (0, 0) (§6.2.3 note), undefined samples dropped."""
+    keep = np.isfinite(torque_nm)
+    loop = centre(angle_deg[keep], torque_nm[keep])
+    return loop.angle_deg, loop.torque_nm
+
+
+def fit_bouc_wen(
+    segments: list[tuple[np.ndarray, np.ndarray]], spec: BoucWenFitSpec
+) -> tuple[BoucWenFit, list[float]]:
+    """The joint fit over a configuration's trials, and leave-one-trial-out RMSEs when asked and possible."""
+    result = fit_trials(segments, starts=spec.starts)
+    cv: list[float] = []
+    if spec.cross_validate and len(segments) >= 2:
+        cv = cross_validate(segments, starts=max(2, spec.starts // 2))
+    return result, cv
 
 
 def run(step: FitStep, ctx: StepContext) -> StepOutcome:
     if "bouc_wen" not in step.models:
         return StepOutcome(None, "no Bouc-Wen fit asked")
-    spec = ctx.loaded.protocol.fits.bouc_wen
     segments = centred_segments(ctx, step)
-    result = fit_trials(segments, starts=spec.starts)
-    cv: list[float] = []
-    if spec.cross_validate and len(segments) >= 2:
-        cv = cross_validate(segments, starts=max(2, spec.starts // 2))
+    result, cv = fit_bouc_wen(segments, ctx.loaded.protocol.fits.bouc_wen)
     name = configuration_name(step.configuration)
     fill = bouc_wen_fill(name, result, segments, cv)
     summary = f"Bouc-Wen RMSE {result.rmse_nm:.2f} N*m, R2 {result.r2:.3f}"
