@@ -13,7 +13,10 @@ Compared, on exactly the same samples:
   n), no bounds.  It sees the decimated samples ``fit_trials`` fits (every ``stride``-th sample of
   each trial).
 
-Both RMSEs are computed on every 1 kHz sample.  Numba compilation is excluded (warm-up first).
+Both RMSEs are computed on every 1 kHz sample, and both timings include that computation (``fit_trials``
+returns it, with R^2 and the parameter uncertainties; the baseline computes it after its solve).  Numba
+compilation is excluded (warm-up first).  The fitters take turns within each repeat so that changes in the
+machine's load hit both alike.
 
 BLAS threads: unless the environment already says otherwise, this script runs OpenBLAS single-threaded
 (set before numpy is imported).  On a loaded 2-core machine the multi-threaded SVD of a tall 8-column
@@ -36,7 +39,6 @@ import math
 import statistics
 import time
 from collections.abc import Callable
-from typing import TypeVar
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -53,7 +55,6 @@ NOISE_NM = 0.2
 SEED = 2007
 
 Segments = list[tuple[np.ndarray, np.ndarray]]
-T = TypeVar("T")
 
 
 def make_configuration(seed: int = SEED) -> Segments:
@@ -84,9 +85,10 @@ def rmse_all_samples(segments: Segments, params: BoucWenParams) -> float:
 
 def baseline_fit(
     segments: Segments, stride: tuple[int, ...], start: BoucWenParams | None = None
-) -> tuple[BoucWenParams, int]:
+) -> tuple[BoucWenParams, int, float]:
     """Plain baseline: numba recursion + least_squares with its default 2-point Jacobian, from
-    A = n = 1, betas = 0 unless ``start`` is given."""
+    A = n = 1, betas = 0 unless ``start`` is given.  Returns the parameters, the number of residual
+    evaluations and the RMSE on every given sample (the deliverable ``fit_trials`` also computes)."""
     xs = np.concatenate([x[::k] for (x, _), k in zip(segments, stride, strict=True)])
     ys = np.concatenate([y[::k] for (_, y), k in zip(segments, stride, strict=True)])
     seg = np.zeros(len(segments) + 1, dtype=np.int64)
@@ -101,16 +103,21 @@ def baseline_fit(
 
     x0 = np.array([1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]) if start is None else start.as_array()
     res = least_squares(residuals, x0)
-    return BoucWenParams.from_array(res.x), int(res.nfev)
+    params = BoucWenParams.from_array(res.x)
+    return params, int(res.nfev), rmse_all_samples(segments, params)
 
 
-def timed(fn: Callable[[], T], repeats: int) -> tuple[float, T]:
-    times = []
+def timed_interleaved(fns: list[Callable[[], object]], repeats: int) -> list[tuple[float, object]]:
+    """Median wall time of each function; the functions take turns within every repeat, so that a change
+    in the machine's load (other processes) affects all of them alike."""
+    times: list[list[float]] = [[] for _ in fns]
+    outs: list[object] = [None] * len(fns)
     for _ in range(repeats):
-        t0 = time.perf_counter()
-        out = fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times), out
+        for k, fn in enumerate(fns):
+            t0 = time.perf_counter()
+            outs[k] = fn()
+            times[k].append(time.perf_counter() - t0)
+    return [(statistics.median(t), out) for t, out in zip(times, outs, strict=True)]
 
 
 def main() -> int:
@@ -127,17 +134,30 @@ def main() -> int:
     ours0 = fit_trials(segments)
     baseline_fit(segments, ours0.stride)
 
-    t_ours, ours = timed(lambda: fit_trials(segments), args.repeats)
-    t_base, (base_params, base_nfev) = timed(lambda: baseline_fit(segments, ours.stride), args.repeats)
+    stride = ours0.stride
     # for information: the thesis's own procedure, Figure 56's data-driven start + the same plain solver
-    xs, ys, seg, _ = bw._decimate(segments, max(x[:: ours.stride[0]].size for x, _ in segments))
+    xs, ys, seg, _ = bw._decimate(segments, max(x[:: stride[0]].size for x, _ in segments))
     fig56 = bw._thesis_start(xs, ys, seg)
-    t_f56, (f56_params, f56_nfev) = timed(lambda: baseline_fit(segments, ours.stride, fig56), args.repeats)
+    (t_ours, ours_out), (t_base, base_out), (t_f56, f56_out) = timed_interleaved(
+        [
+            lambda: fit_trials(segments),
+            lambda: baseline_fit(segments, stride),
+            lambda: baseline_fit(segments, stride, fig56),
+        ],
+        args.repeats,
+    )
+    ours = ours_out
+    assert isinstance(ours, bw.BoucWenFit) and ours.stride == stride
+    assert isinstance(base_out, tuple) and isinstance(f56_out, tuple)
+    base_params: BoucWenParams = base_out[0]
+    base_nfev: int = base_out[1]
+    rmse_base: float = base_out[2]
+    f56_nfev: int = f56_out[1]
+    rmse_f56: float = f56_out[2]
 
     rmse_ours = rmse_all_samples(segments, ours.params)
-    rmse_base = rmse_all_samples(segments, base_params)
+    assert abs(rmse_ours - ours.rmse_nm) <= 1e-9 * rmse_ours
     rmse_truth = rmse_all_samples(segments, FIG57)
-    rmse_f56 = rmse_all_samples(segments, f56_params)
 
     print(f"BLAS threads: OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', '(default)')}")
     print(

@@ -907,7 +907,7 @@ def fit(
     bounds: BoucWenBounds = DEFAULT_BOUNDS,
     seed: int = 0,
     max_samples_per_trial: int | None = 4000,
-    polish: int = 2,
+    polish: int = 1,
 ) -> BoucWenFit:
     """Fit the generalised Bouc-Wen model (Eq 23) to angle/torque samples by least squares (§6.2.3).
 
@@ -969,7 +969,7 @@ def fit_trials(
     bounds: BoucWenBounds = DEFAULT_BOUNDS,
     seed: int = 0,
     max_samples_per_trial: int | None = 4000,
-    polish: int = 2,
+    polish: int = 1,
 ) -> BoucWenFit:
     """Fit one model jointly to several trials ``[(angle_deg, torque_nm), ...]`` of one configuration.
 
@@ -1011,7 +1011,7 @@ def cross_validate(
             bounds=bounds,
             seed=seed,
             max_samples_per_trial=max_samples_per_trial,
-            polish=2,
+            polish=1,
         )
         scale = max(float(np.max(np.abs(y))), max(float(np.max(np.abs(yy))) for _, yy in others))
         rmse, _, _, _ = _evaluate([(x, y)], result.params, _DIVERGENCE_FACTOR * scale)
