@@ -18,9 +18,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests" / "report"))
+sys.path.insert(0, str(ROOT))
 
-from report_archive_builder import ArchiveSpec, ConfigSpec, write_archive  # noqa: E402
+from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, write_archive  # noqa: E402
 
 from protocol_runner.report.figures import default_workers, figure_ids  # noqa: E402
 from protocol_runner.report.load import load_report_data  # noqa: E402
@@ -32,9 +32,14 @@ def campaign_spec() -> ArchiveSpec:
     configs = []
     for key in range(1, 29):
         n_trials = 1 if key in (15, 16, 17) or key >= 24 else 3
-        configs.append(ConfigSpec(key=key, energy_j=2.0 + 0.2 * key, n_trials=n_trials,
-                                  slope_nm_per_deg=0.1 + 0.01 * key))
-    return ArchiveSpec(configs=configs, duration_s=65.0, reference=True, interrupted=True, compress_floats=True)
+        configs.append(
+            ConfigSpec(
+                key=key, energy_j=2.0 + 0.2 * key, n_trials=n_trials, slope_nm_per_deg=0.1 + 0.01 * key
+            )
+        )
+    return ArchiveSpec(
+        configs=configs, duration_s=65.0, reference=True, interrupted=True, compress_floats=True
+    )
 
 
 def _time(fn: object, repeats: int) -> list[float]:
@@ -59,9 +64,11 @@ def main() -> None:
         spec = campaign_spec()
         write_archive(archive, spec)
         n_trials = sum(c.n_trials for c in spec.configs)
-        print(f"archive: {len(spec.configs)} configurations, {n_trials} brace-on trials of "
-              f"{spec.duration_s:.0f} s at {spec.rate_hz:.0f} Hz, {archive.stat().st_size / 1e6:.1f} MB "
-              f"(built in {time.perf_counter() - t0:.1f} s)")
+        print(
+            f"archive: {len(spec.configs)} configurations, {n_trials} brace-on trials of "
+            f"{spec.duration_s:.0f} s at {spec.rate_hz:.0f} Hz, {archive.stat().st_size / 1e6:.1f} MB "
+            f"(built in {time.perf_counter() - t0:.1f} s)"
+        )
         load = _time(lambda: load_report_data(archive), args.repeats)
         data = load_report_data(archive)
         n_figures = len(figure_ids(data))
@@ -70,10 +77,14 @@ def main() -> None:
         single = _time(lambda: generate_report(archive, report, workers=1), args.repeats)
         workers = default_workers(n_figures)
         multi = _time(lambda: generate_report(archive, report, workers=workers), args.repeats)
-        print(f"generate_report, 1 process : median {statistics.median(single):.2f} s "
-              f"(min {min(single):.2f}, max {max(single):.2f})")
-        print(f"generate_report, {workers} processes: median {statistics.median(multi):.2f} s "
-              f"(min {min(multi):.2f}, max {max(multi):.2f})  <- default; target < 10 s")
+        print(
+            f"generate_report, 1 process : median {statistics.median(single):.2f} s "
+            f"(min {min(single):.2f}, max {max(single):.2f})"
+        )
+        print(
+            f"generate_report, {workers} processes: median {statistics.median(multi):.2f} s "
+            f"(min {min(multi):.2f}, max {max(multi):.2f})  <- default; target < 10 s"
+        )
         print(f"report: {report.stat().st_size / 1e6:.2f} MB, {n_figures} inline figures")
 
 

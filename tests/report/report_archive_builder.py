@@ -11,12 +11,12 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
 
 # key: (run, set, condition, profile, brace_rom, robot_rom, friction, stiffness, speed, preload)
-TABLE5: dict[int, tuple[int, str, str, str, str, str, str, str, str, str]] = {}
 _ROWS = [
     (1, 5, "brace_rom", "Range of motion of the brace", "sinusoid", "R1", "Rr3", "2", "K2", "full", "center"),
     (2, 6, "brace_rom", "Range of motion of the brace", "sinusoid", "R2", "Rr3", "2", "K2", "full", "center"),
@@ -47,8 +47,7 @@ _ROWS = [
     (27, 27, "emu", "Direct comparison", "sinusoid", "RE", "RrE", "EMU", "K2", "full", "first"),
     (28, 28, "emu", "Direct comparison", "sinusoid", "RE", "RrE", "EMU", "K2", "half", "first"),
 ]
-for _row in _ROWS:
-    TABLE5[_row[0]] = _row[1:]  # type: ignore[assignment]
+TABLE5: dict[int, tuple[Any, ...]] = {row[0]: row[1:] for row in _ROWS}
 
 ROM_DEG = {"R1": (40.0, 90.0), "R2": (20.0, 110.0), "R3": (0.0, 130.0), "RE": (0.0, 110.0)}
 ROBOT_ROM_DEG = {"Rr1": (40.0, 90.0), "Rr2": (20.0, 110.0), "Rr3": (0.0, 130.0), "RrE": (0.0, 110.0)}
@@ -103,8 +102,9 @@ _COMPRESS_FLOATS = False
 
 def _ds(group: h5py.Group, name: str, data: np.ndarray, units: str, *, gzip: bool = False) -> h5py.Dataset:
     compress = gzip or (_COMPRESS_FLOATS and np.asarray(data).size > 1000)
-    ds = group.create_dataset(name, data=data, compression="gzip" if compress else None,
-                              shuffle=compress and not gzip)
+    ds = group.create_dataset(
+        name, data=data, compression="gzip" if compress else None, shuffle=compress and not gzip
+    )
     ds.attrs["units"] = units
     return ds
 
@@ -142,9 +142,9 @@ def write_archive(path: Path, spec: ArchiveSpec) -> Path:
     global _COMPRESS_FLOATS
     _COMPRESS_FLOATS = spec.compress_floats
     rng = np.random.default_rng(spec.seed)
-    n = int(round(spec.duration_s * spec.rate_hz))
+    n = round(spec.duration_s * spec.rate_hz)
     time_s = np.arange(n) / spec.rate_hz
-    n_cmd = int(round(spec.duration_s * 100.0))
+    n_cmd = round(spec.duration_s * 100.0)
     cmd_time = np.arange(n_cmd) / 100.0
     with h5py.File(path, "w") as f:
         f.attrs["protocol_name"] = "knee_synthetic"
@@ -214,9 +214,10 @@ def write_archive(path: Path, spec: ArchiveSpec) -> Path:
                 g.attrs[name] = value
             g.attrs["n_trials"] = c.n_trials
             g.attrs["status"] = c.status
-            lo, hi = c.angle_range_deg or tuple(float(v) for v in s["robot_rom_deg"])  # type: ignore[misc]
+            robot_rom = np.asarray(s["robot_rom_deg"], dtype=float)
+            lo, hi = c.angle_range_deg or (float(robot_rom[0]), float(robot_rom[1]))
             mid, amp = (lo + hi) / 2.0, (hi - lo) / 2.0
-            period = 2.0 * math.pi * amp / float(s["speed_deg_s"])  # type: ignore[arg-type]  # Eq 25
+            period = 2.0 * math.pi * amp / SPEED_DEG_S[str(s["speed"])]  # Eq 25
             b = ellipse_b_for_energy(c.energy_j, amp)
             energies: list[float] = []
             cycle_trial: list[int] = []
@@ -239,8 +240,13 @@ def write_archive(path: Path, spec: ArchiveSpec) -> Path:
                     _ds(rg, "command_time_s", cmd_time, "s")
                     _ds(rg, "command_deg", cmd, "deg")
                     _ds(rg, "command_volts", cmd / 13.0 - 5.0, "V")
-                    _ds(rg, "command_codes", np.round(32768 + 3276.8 * (cmd / 13.0 - 5.0)).astype(np.uint16),
-                        "counts", gzip=True)
+                    _ds(
+                        rg,
+                        "command_codes",
+                        np.round(32768 + 3276.8 * (cmd / 13.0 - 5.0)).astype(np.uint16),
+                        "counts",
+                        gzip=True,
+                    )
                     _ds(rg, "tick_lateness_s", np.zeros(n_cmd), "s")
                     rg.attrs["step_id"] = f"{s['set']}:config_{c.key:02d}:trial_{trial}:{side}"
                     rg.attrs["brace"] = side.split("_")[1]
@@ -321,11 +327,46 @@ def write_archive(path: Path, spec: ArchiveSpec) -> Path:
 
 def thesis_like_specs(n_trials: int = 2) -> list[ConfigSpec]:
     """Configurations 1-14 with energies, ranges and slopes that follow every Chapter 5 finding."""
-    energy = {1: 4.0, 2: 5.5, 3: 6.0, 4: 3.0, 5: 4.0, 6: 6.0, 7: 8.0, 8: 5.0, 9: 7.0, 10: 6.0, 11: 6.5,
-              12: 2.0, 13: 4.5, 14: 6.0}
+    energy = {
+        1: 4.0,
+        2: 5.5,
+        3: 6.0,
+        4: 3.0,
+        5: 4.0,
+        6: 6.0,
+        7: 8.0,
+        8: 5.0,
+        9: 7.0,
+        10: 6.0,
+        11: 6.5,
+        12: 2.0,
+        13: 4.5,
+        14: 6.0,
+    }
     ranges = {1: (25.0, 105.0), 2: (8.0, 110.0), 3: (5.0, 109.0)}
-    specs = [ConfigSpec(key=k, energy_j=e, n_trials=n_trials, angle_range_deg=ranges.get(k))
-             for k, e in energy.items()]
+    specs = [
+        ConfigSpec(key=k, energy_j=e, n_trials=n_trials, angle_range_deg=ranges.get(k))
+        for k, e in energy.items()
+    ]
     for k in (4, 5, 6, 7, 8, 9, 10, 11, 14):
         specs[k - 1].angle_range_deg = (5.0, 109.0)
     return specs
+
+
+# Energies (J per cycle) of the four friction configurations of Appendix A (keys 4-7).
+FRICTION_ENERGY_J = {4: 1.5, 5: 2.5, 6: 4.0, 7: 6.0}
+
+
+def small_spec(**overrides: object) -> ArchiveSpec:
+    """4 configurations (the friction set, keys 4-7) x 2 trials of 17 s (2 cycles each), with fits, events, checklists."""
+    spec = ArchiveSpec(
+        configs=[
+            ConfigSpec(key=k, energy_j=e, n_trials=2, angle_range_deg=(5.0, 109.0))
+            for k, e in FRICTION_ENERGY_J.items()
+        ],
+        duration_s=17.0,
+        interrupted=True,
+    )
+    for name, value in overrides.items():
+        setattr(spec, name, value)
+    return spec

@@ -130,9 +130,10 @@ def _label(cfg: Configuration) -> str:
     return f"config {cfg.key}"
 
 
-def _legend(ax: Axes, loc: str = "upper left") -> None:
+def _legend(ax: Axes) -> None:
+    # a fixed corner: loc="best" costs a search over every plotted point
     if ax.get_legend_handles_labels()[0]:
-        ax.legend(fontsize=6.5, frameon=False, loc=loc)
+        ax.legend(fontsize=6.5, frameon=False, loc="upper left")
 
 
 def config_label(cfg: Configuration, parameter: str) -> str:
@@ -181,7 +182,13 @@ def hysteresis_figure(cfg: Configuration) -> str:
         if trial.processed is None:
             continue
         p = trial.processed
-        ax.plot(p.angle_deg, p.brace_torque_nm, lw=0.7, color=COLORS[i % len(COLORS)], label=f"trial {trial.number}")
+        ax.plot(
+            p.angle_deg,
+            p.brace_torque_nm,
+            lw=0.7,
+            color=COLORS[i % len(COLORS)],
+            label=f"trial {trial.number}",
+        )
         drawn = True
     if cfg.spring is not None and cfg.spring.applicable and cfg.spring.angle_deg.size:
         ax.plot(cfg.spring.angle_deg, cfg.spring.model_torque_nm, "k--", lw=0.9, label="spring model")
@@ -200,14 +207,23 @@ def time_series_figure(cfg: Configuration) -> str:
         _empty(ax_a, "no trial")
         _empty(ax_t, "no trial")
     else:
-        for rec, name, color in ((trial.brace_on, "brace on", COLORS[0]), (trial.brace_off, "brace off", COLORS[1])):
+        for rec, name, color in (
+            (trial.brace_on, "brace on", COLORS[0]),
+            (trial.brace_off, "brace off", COLORS[1]),
+        ):
             if rec is None:
                 continue
             ax_a.plot(rec.time_s, rec.angle_deg, lw=0.6, color=color, label=name)
             ax_t.plot(rec.time_s, rec.torque_nm, lw=0.6, color=color, label=name)
         if trial.brace_on is not None and trial.brace_on.command_deg.size:
-            ax_a.plot(trial.brace_on.command_time_s, trial.brace_on.command_deg, ":", lw=0.8, color="k",
-                      label="command")
+            ax_a.plot(
+                trial.brace_on.command_time_s,
+                trial.brace_on.command_deg,
+                ":",
+                lw=0.8,
+                color="k",
+                label="command",
+            )
     number = trial.number if trial is not None else 1
     _style(ax_a, TIME_LABEL, ANGLE_LABEL, f"Angle, trial {number}")
     _style(ax_t, TIME_LABEL, TORQUE_LABEL, f"Joint torque, trial {number}")
@@ -227,7 +243,9 @@ def energy_cycles_figure(cfg: Configuration) -> str:
         index = np.arange(1, e.size + 1)
         for i, number in enumerate(sorted(set(trials.tolist()))):
             sel = trials == number
-            ax.plot(index[sel], e[sel], "o", ms=3.5, color=COLORS[i % len(COLORS)], label=f"trial {int(number)}")
+            ax.plot(
+                index[sel], e[sel], "o", ms=3.5, color=COLORS[i % len(COLORS)], label=f"trial {int(number)}"
+            )
         mean, std = cfg.energy_mean_j, cfg.energy_std_j
         ax.axhline(mean, color="k", lw=0.8, label=f"mean {mean:.2f} J")
         if math.isfinite(std):
@@ -291,8 +309,13 @@ def comparison_overlay_figure(data: ReportData, comparison: Comparison) -> str:
         trial = next((t for t in cfg.trials if t.processed is not None), None)
         if trial is None or trial.processed is None:
             continue
-        ax.plot(trial.processed.angle_deg, trial.processed.brace_torque_nm, lw=0.7,
-                color=COLORS[i % len(COLORS)], label=config_label(cfg, comparison.parameter))
+        ax.plot(
+            trial.processed.angle_deg,
+            trial.processed.brace_torque_nm,
+            lw=0.7,
+            color=COLORS[i % len(COLORS)],
+            label=config_label(cfg, comparison.parameter),
+        )
         drawn = True
     if not drawn:
         _empty(ax, "none of these configurations has data")
@@ -311,8 +334,14 @@ def energy_bars_figure(data: ReportData, comparison: Comparison) -> str:
         x = np.arange(len(cfgs))
         means = [c.energy_mean_j for c in cfgs]
         stds = [c.energy_std_j if math.isfinite(c.energy_std_j) else 0.0 for c in cfgs]
-        ax.bar(x, means, yerr=stds, capsize=3, color=[COLORS[i % len(COLORS)] for i in range(len(cfgs))],
-               width=0.6)
+        ax.bar(
+            x,
+            means,
+            yerr=stds,
+            capsize=3,
+            color=[COLORS[i % len(COLORS)] for i in range(len(cfgs))],
+            width=0.6,
+        )
         ax.set_xticks(x, [config_label(c, comparison.parameter) for c in cfgs], fontsize=6.5)
     _style(ax, "", ENERGY_LABEL, f"Energy loss: {comparison.title}")
     return to_data_uri(fig)
@@ -326,14 +355,22 @@ def restraint_bars_figure(data: ReportData) -> str:
     if not restrained and not trajectory:
         _empty(ax, "no energy data")
     else:
-        for offset, group, name, color in ((-0.2, restrained, "stops (brace ROM)", COLORS[0]),
-                                           (0.2, trajectory, "trajectory (robot ROM)", COLORS[1])):
+        for offset, group, name, color in (
+            (-0.2, restrained, "stops (brace ROM)", COLORS[0]),
+            (0.2, trajectory, "trajectory (robot ROM)", COLORS[1]),
+        ):
             if not group:
                 continue
             x = np.arange(len(group)) + offset
-            ax.bar(x, [c.energy_mean_j for c in group],
-                   yerr=[c.energy_std_j if math.isfinite(c.energy_std_j) else 0.0 for c in group],
-                   width=0.38, capsize=3, color=color, label=name)
+            ax.bar(
+                x,
+                [c.energy_mean_j for c in group],
+                yerr=[c.energy_std_j if math.isfinite(c.energy_std_j) else 0.0 for c in group],
+                width=0.38,
+                capsize=3,
+                color=color,
+                label=name,
+            )
             for xi, c in zip(x, group, strict=True):
                 ax.text(xi, 0.0, str(c.key), ha="center", va="bottom", fontsize=6.5, color="white")
         n = max(len(restrained), len(trajectory))
@@ -350,8 +387,13 @@ def emu_figure(data: ReportData, comparison: Comparison) -> str:
         trial = next((t for t in cfg.trials if t.processed is not None), None)
         if trial is None or trial.processed is None:
             continue
-        ax.plot(trial.processed.angle_deg, trial.processed.brace_torque_nm, lw=0.7,
-                color=COLORS[i % len(COLORS)], label=f"config {cfg.key} ({cfg.profile})")
+        ax.plot(
+            trial.processed.angle_deg,
+            trial.processed.brace_torque_nm,
+            lw=0.7,
+            color=COLORS[i % len(COLORS)],
+            label=f"config {cfg.key} ({cfg.profile})",
+        )
     for ref in data.references:
         ax.plot(ref.angle_deg, ref.torque_nm, ".", ms=1.5, color="k", alpha=0.6, label=ref.title)
     _style(ax, ANGLE_LABEL, TORQUE_LABEL, "EMU condition vs reference data")
@@ -367,11 +409,19 @@ def spring_model_figure(data: ReportData, comparison: Comparison) -> str:
         color = COLORS[i % len(COLORS)]
         trial = next((t for t in cfg.trials if t.processed is not None), None)
         if trial is not None and trial.processed is not None:
-            ax.plot(trial.processed.angle_deg, trial.processed.brace_torque_nm, lw=0.5, color=color, alpha=0.55)
+            ax.plot(
+                trial.processed.angle_deg, trial.processed.brace_torque_nm, lw=0.5, color=color, alpha=0.55
+            )
             drawn = True
         if cfg.spring is not None and cfg.spring.applicable and cfg.spring.angle_deg.size:
-            ax.plot(cfg.spring.angle_deg, cfg.spring.model_torque_nm, "--", lw=1.2, color=color,
-                    label=f"model, {config_label(cfg, comparison.parameter)}")
+            ax.plot(
+                cfg.spring.angle_deg,
+                cfg.spring.model_torque_nm,
+                "--",
+                lw=1.2,
+                color=color,
+                label=f"model, {config_label(cfg, comparison.parameter)}",
+            )
             drawn = True
     if not drawn:
         _empty(ax, "no data")
@@ -407,9 +457,13 @@ def _tasks(data: ReportData) -> list[tuple[str, Callable[[], str]]]:
             continue
         if not _present(data, comp.configurations):
             continue
-        tasks.append((f"fig-comparison-{slug(comp.name)}-overlay", _bind(comparison_overlay_figure, data, comp)))
+        tasks.append(
+            (f"fig-comparison-{slug(comp.name)}-overlay", _bind(comparison_overlay_figure, data, comp))
+        )
         tasks.append((f"fig-comparison-{slug(comp.name)}-energy", _bind(energy_bars_figure, data, comp)))
-    if _present(data, comparison_keys(data, "brace_rom")) or _present(data, comparison_keys(data, "robot_rom")):
+    if _present(data, comparison_keys(data, "brace_rom")) or _present(
+        data, comparison_keys(data, "robot_rom")
+    ):
         tasks.append(("fig-energy-restraint", _bind(restraint_bars_figure, data)))
     emu = emu_comparison(data)
     if emu is not None and (data.references or _present(data, emu.configurations)):
@@ -501,8 +555,9 @@ def render_figures(data: ReportData, workers: int | None = None) -> FigureSet:
         ids = [task_id for task_id, _ in tasks]
         chunks = [ids[i::workers] for i in range(workers)]
         ctx = multiprocessing.get_context("fork")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=_init_worker,
-                                 initargs=(data,)) as pool:
+        with ProcessPoolExecutor(
+            max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=(data,)
+        ) as pool:
             for part in pool.map(_run_chunk, chunks):
                 results.extend(part)
     for task_id, uri, error in results:

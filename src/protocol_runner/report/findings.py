@@ -15,6 +15,9 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from itertools import pairwise
+
+import numpy as np
 
 from protocol_runner.report.model import Configuration, ReportData
 
@@ -118,11 +121,8 @@ def _num(cfg: Configuration, name: str, default: float = math.nan) -> float:
 
 
 def _span(value: object) -> float:
-    try:
-        lo, hi = value  # type: ignore[misc]
-        return float(hi) - float(lo)
-    except (TypeError, ValueError):
-        return math.nan
+    stop = _stop(value)
+    return stop[1] - stop[0] if stop else math.nan
 
 
 def _sorted_by(cfgs: list[Configuration], key: Callable[[Configuration], float]) -> list[Configuration]:
@@ -137,7 +137,7 @@ def _energy_text(cfg: Configuration, label: str) -> str:
 
 
 def _increasing(values: Sequence[float]) -> bool:
-    return all(b > a for a, b in zip(values, values[1:], strict=False))
+    return all(b > a for a, b in pairwise(values))
 
 
 def _not_enough(title: str, statement: str, section: str, keys: Sequence[int], need: str) -> Finding:
@@ -213,7 +213,9 @@ def _speed(data: ReportData) -> Finding:
     keys = comparison_keys(data, "speed")
     cfgs = _sorted_by(_with_energy(data, keys), lambda c: _num(c, "speed_deg_s"))
     if len(cfgs) < 2:
-        return _not_enough(title, statement, "5.1, 5.7.2", keys, "a half-speed and a full-speed configuration")
+        return _not_enough(
+            title, statement, "5.1, 5.7.2", keys, "a half-speed and a full-speed configuration"
+        )
     slow, fast = cfgs[0], cfgs[-1]
     # "at least as much": equal within one combined standard error of the means still agrees
     tolerance = math.hypot(_sem(slow), _sem(fast))
@@ -240,10 +242,11 @@ def _energy_preload(data: ReportData) -> Finding:
     if len(cfgs) < 2:
         return _not_enough(title, statement, "5.7.2", keys, "two or more preload positions with energies")
     energies = [c.energy_mean_j for c in cfgs]
-    agrees = all(b < a for a, b in zip(energies, energies[1:], strict=False))
-    text = "; ".join(
-        _energy_text(c, f"preload position {_num(c, 'preload_position'):.0f}") for c in cfgs
-    ) + " (ordered from the least to the greatest preload, Eq 17)"
+    agrees = all(b < a for a, b in pairwise(energies))
+    text = (
+        "; ".join(_energy_text(c, f"preload position {_num(c, 'preload_position'):.0f}") for c in cfgs)
+        + " (ordered from the least to the greatest preload, Eq 17)"
+    )
     return Finding(title, statement, "5.5, 5.7.2", agrees, text, tuple(keys))
 
 
@@ -276,9 +279,11 @@ def _energy_springs(data: ReportData) -> Finding:
 
     def clear(sign: float) -> bool:
         # a clear relation: every step between successive springs goes the same way by more than the spread
-        for a, b in zip(cfgs, cfgs[1:], strict=False):
-            spread = math.hypot(a.energy_std_j if math.isfinite(a.energy_std_j) else 0.0,
-                                b.energy_std_j if math.isfinite(b.energy_std_j) else 0.0)
+        for a, b in pairwise(cfgs):
+            spread = math.hypot(
+                a.energy_std_j if math.isfinite(a.energy_std_j) else 0.0,
+                b.energy_std_j if math.isfinite(b.energy_std_j) else 0.0,
+            )
             if sign * (b.energy_mean_j - a.energy_mean_j) <= spread:
                 return False
         return True
@@ -300,8 +305,9 @@ def _stiffness_slope(data: ReportData) -> Finding:
         f"config {c.key} ({_num(c, 'stiffness_n_per_mm'):.1f} N/mm): {c.torque_slope_nm_per_deg:.3f} N·m/deg"
         for c in cfgs
     )
-    return Finding(title, statement, "5.4", _increasing([c.torque_slope_nm_per_deg for c in cfgs]), text,
-                   tuple(keys))
+    return Finding(
+        title, statement, "5.4", _increasing([c.torque_slope_nm_per_deg for c in cfgs]), text, tuple(keys)
+    )
 
 
 def _stiffness_range(data: ReportData) -> Finding:
@@ -316,7 +322,7 @@ def _stiffness_range(data: ReportData) -> Finding:
         return _not_enough(title, statement, "5.4", keys, "two or more springs with processed data")
     ranges = [c.angle_max_deg - c.angle_min_deg for c in cfgs]
     # non-increasing within 1° of measurement slack, and the stiffest clearly below the softest
-    agrees = all(b <= a + 1.0 for a, b in zip(ranges, ranges[1:], strict=False)) and ranges[-1] < ranges[0]
+    agrees = all(b <= a + 1.0 for a, b in pairwise(ranges)) and ranges[-1] < ranges[0]
     text = "; ".join(
         f"config {c.key} ({_num(c, 'stiffness_n_per_mm'):.1f} N/mm): {c.angle_min_deg:.1f}-{c.angle_max_deg:.1f}°"
         for c in cfgs
@@ -331,13 +337,11 @@ def _k2_upper_limit(data: ReportData) -> Finding:
         "joint is reached at this point (§5.2, ranges [20°, 110°] and [0°, 130°])."
     )
     keys = comparison_keys(data, "brace_rom")
-    cfgs = [
-        c
-        for c in _with_angles(data, keys)
-        if _is_k2(c) and _upper(c.setting("brace_rom_deg")) >= 110.0
-    ]
+    cfgs = [c for c in _with_angles(data, keys) if _is_k2(c) and _upper(c.setting("brace_rom_deg")) >= 110.0]
     if not cfgs:
-        return _not_enough(title, statement, "5.2", keys, "a K2 configuration with a brace stop at 110° or more")
+        return _not_enough(
+            title, statement, "5.2", keys, "a K2 configuration with a brace stop at 110° or more"
+        )
     agrees = all(c.angle_max_deg <= 110.0 + ANGLE_TOLERANCE_DEG for c in cfgs)
     text = "; ".join(f"config {c.key}: maximum angle reached {c.angle_max_deg:.1f}°" for c in cfgs)
     return Finding(title, statement, "5.2", agrees, text, tuple(c.key for c in cfgs))
@@ -356,9 +360,12 @@ def _r1_actual_range(data: ReportData) -> Finding:
         if _stop(c.setting("brace_rom_deg")) == (40.0, 90.0) and _span(c.setting("robot_rom_deg")) > 50.0
     ]
     if not cfgs:
-        return _not_enough(title, statement, "5.2", keys, "a configuration with a 40-90° stop and a wider trajectory")
+        return _not_enough(
+            title, statement, "5.2", keys, "a configuration with a 40-90° stop and a wider trajectory"
+        )
     agrees = all(
-        abs(c.angle_min_deg - 25.0) <= ANGLE_TOLERANCE_DEG and abs(c.angle_max_deg - 105.0) <= ANGLE_TOLERANCE_DEG
+        abs(c.angle_min_deg - 25.0) <= ANGLE_TOLERANCE_DEG
+        and abs(c.angle_max_deg - 105.0) <= ANGLE_TOLERANCE_DEG
         for c in cfgs
     )
     text = "; ".join(f"config {c.key}: reached {c.angle_min_deg:.1f}-{c.angle_max_deg:.1f}°" for c in cfgs)
@@ -378,8 +385,10 @@ def _upper(value: object) -> float:
 
 
 def _stop(value: object) -> tuple[float, float] | None:
+    """A (low, high) pair of degrees from a 2-element setting, or None."""
+    if not isinstance(value, tuple | list | np.ndarray) or len(value) != 2:
+        return None
     try:
-        lo, hi = value  # type: ignore[misc]
-        return float(lo), float(hi)
+        return float(value[0]), float(value[1])
     except (TypeError, ValueError):
         return None

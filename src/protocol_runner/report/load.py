@@ -71,7 +71,9 @@ def load_report_data(path: Path, *, workers: int | None = None) -> ReportData:
     """
     archive = _resolve_archive(Path(path))
     if not _has_hdf5_signature(archive):
-        raise InvalidInput(f"{archive} is not an HDF5 file (no HDF5 signature); expected a protocol-runner archive.")
+        raise InvalidInput(
+            f"{archive} is not an HDF5 file (no HDF5 signature); expected a protocol-runner archive."
+        )
     try:
         with h5py.File(archive, "r") as h5:
             names = _check_and_list(h5, archive)
@@ -457,8 +459,9 @@ def _read_configuration(name: str, grp: h5py.Group) -> Configuration:
                     brace_torque_nm=decimate_for_plot(torque),
                     subtraction=_attr_str(pgrp.attrs, "subtraction", "equal_angle"),
                 )
-            trials.append(Trial(number=number, brace_on=on, brace_off=off, processed=processed,
-                                recorded=has_raw))
+            trials.append(
+                Trial(number=number, brace_on=on, brace_off=off, processed=processed, recorded=has_raw)
+            )
     angle_min, angle_max, slope = _summary(angles, torques)
     energy = _float_ds(grp, "energy_loss_j")
     cycle_trial = _float_ds(grp, "energy_cycle_trial")
@@ -603,7 +606,9 @@ def _read_reference_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise InvalidInput(f"Reference dataset {path} cannot be read: {exc}.") from exc
-    rows = [(i + 1, line) for i, line in enumerate(text.splitlines()) if line.strip() and not line.startswith("#")]
+    rows = [
+        (i + 1, line) for i, line in enumerate(text.splitlines()) if line.strip() and not line.startswith("#")
+    ]
     if not rows:
         raise InvalidInput(f"Reference dataset {path} has no header row.")
     header_line, header_text = rows[0]
@@ -623,7 +628,9 @@ def _read_reference_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
             angle.append(float(cells[angle_col]))
             torque.append(float(cells[torque_col]))
         except (IndexError, ValueError) as exc:
-            raise InvalidInput(f"Reference dataset {path}, line {line_no}: not a number row ({line!r}).") from exc
+            raise InvalidInput(
+                f"Reference dataset {path}, line {line_no}: not a number row ({line!r})."
+            ) from exc
     return np.asarray(angle), np.asarray(torque)
 
 
@@ -633,7 +640,9 @@ def _read_reference_mat(path: Path) -> tuple[np.ndarray, np.ndarray]:
     try:
         content = loadmat(str(path))
     except (OSError, ValueError, NotImplementedError, TypeError) as exc:
-        raise InvalidInput(f"Reference dataset {path} is not a readable MATLAB .mat file ({_short(exc)}).") from exc
+        raise InvalidInput(
+            f"Reference dataset {path} is not a readable MATLAB .mat file ({_short(exc)})."
+        ) from exc
     names = [k for k in content if not k.startswith("__")]
     angle_name = next((k for k in names if k.lower().startswith("angle")), None)
     torque_name = next((k for k in names if k.lower().startswith("torque")), None)

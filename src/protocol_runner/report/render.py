@@ -175,9 +175,7 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
                 checks=tuple(c for c in data.calibration if c.set_name == set_name),
             )
         )
-    overlay_comparisons = [
-        c for c in data.comparisons if c is not emu_comparison(data) and _has_any(data, c)
-    ]
+    overlay_comparisons = [c for c in data.comparisons if c is not emu_comparison(data) and _has_any(data, c)]
     emu = emu_comparison(data)
     findings: tuple[Finding, ...] = evaluate_findings(data)
     restraint_keys = (comparison_keys(data, "brace_rom"), comparison_keys(data, "robot_rom"))

@@ -1,0 +1,88 @@
+"""Figures: PNG data URIs, reuse of canvases without leaking state, serial and parallel drawing agree."""
+
+from __future__ import annotations
+
+import base64
+import struct
+from pathlib import Path
+
+from protocol_runner.report.figures import (
+    DPI,
+    bouc_wen_figure,
+    config_label,
+    energy_bars_figure,
+    energy_cycles_figure,
+    figure_ids,
+    hysteresis_figure,
+    render_figures,
+)
+from protocol_runner.report.load import load_report_data
+from protocol_runner.report.model import Configuration
+
+
+def _png(uri: str) -> bytes:
+    prefix = "data:image/png;base64,"
+    assert uri.startswith(prefix)
+    raw = base64.b64decode(uri[len(prefix) :], validate=True)
+    assert raw[:8] == b"\x89PNG\r\n\x1a\n"
+    return raw
+
+
+def _size(raw: bytes) -> tuple[int, int]:
+    width, height = struct.unpack(">II", raw[16:24])
+    return width, height
+
+
+def _config(small_archive: Path, key: int) -> Configuration:
+    cfg = load_report_data(small_archive).configuration(key)
+    assert cfg is not None
+    return cfg
+
+
+def test_hysteresis_figure_is_a_small_png_at_report_resolution(small_archive: Path) -> None:
+    width, height = _size(_png(hysteresis_figure(_config(small_archive, 4))))
+    assert (width, height) == (round(4.6 * DPI), round(3.3 * DPI))
+
+
+def test_reused_canvas_does_not_leak_one_figure_into_the_next(small_archive: Path) -> None:
+    a, b = _config(small_archive, 4), _config(small_archive, 7)
+    first = hysteresis_figure(a)
+    other = hysteresis_figure(b)
+    energy_cycles_figure(b)  # same canvas kind, different content and axis limits
+    again = hysteresis_figure(a)
+    assert first == again
+    assert first != other
+
+
+def test_two_panel_figures_reuse_cleanly(small_archive: Path) -> None:
+    a, b = _config(small_archive, 5), _config(small_archive, 6)
+    first = bouc_wen_figure(a)
+    bouc_wen_figure(b)
+    assert bouc_wen_figure(a) == first
+
+
+def test_bar_chart_after_a_line_chart_restores_numeric_ticks(small_archive: Path) -> None:
+    data = load_report_data(small_archive)
+    friction = data.comparison("friction")
+    assert friction is not None
+    bars = energy_bars_figure(data, friction)
+    hysteresis_figure(_config(small_archive, 4))
+    assert energy_bars_figure(data, friction) == bars
+
+
+def test_serial_and_parallel_rendering_give_identical_images(small_archive: Path) -> None:
+    data = load_report_data(small_archive)
+    serial = render_figures(data, workers=1)
+    parallel = render_figures(data, workers=2)
+    assert serial.missing == {} and parallel.missing == {}
+    assert set(serial.images) == set(figure_ids(data))
+    assert serial.images == parallel.images
+
+
+def test_legend_labels_carry_the_compared_value_with_units(small_archive: Path) -> None:
+    cfg = _config(small_archive, 7)
+    assert config_label(cfg, "friction") == "7: 6.25 N·m"
+    assert config_label(cfg, "stiffness") == "7: 13 N/mm"
+    assert config_label(cfg, "speed") == "7: 50 deg/s"
+    assert config_label(cfg, "brace_rom") == "7: 0-130°"
+    assert config_label(cfg, "preload") == "7: position 3"

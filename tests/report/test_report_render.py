@@ -1,0 +1,224 @@
+"""The HTML report: sections, figures, self-containment, escaping, banners and reproducibility."""
+
+from __future__ import annotations
+
+import base64
+import re
+import struct
+from html.parser import HTMLParser
+from pathlib import Path
+
+import pytest
+
+from protocol_runner.errors import InvalidInput
+from protocol_runner.report.figures import figure_ids
+from protocol_runner.report.load import load_report_data
+from protocol_runner.report.render import SECTIONS, generate_report, render_report
+from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, small_spec, write_archive
+
+VOID = {"area", "base", "br", "col", "embed", "hr", "img", "input", "link", "meta", "source", "track", "wbr"}
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+class _Checker(HTMLParser):
+    """Collects ids, <img> sources, every src/href, and unbalanced tags."""
+
+    def __init__(self) -> None:
+        super().__init__(convert_charrefs=True)
+        self.stack: list[str] = []
+        self.errors: list[str] = []
+        self.ids: set[str] = set()
+        self.images: list[str] = []
+        self.links: list[str] = []
+
+    def handle_starttag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        a = dict(attrs)
+        if a.get("id"):
+            self.ids.add(str(a["id"]))
+        if tag == "img":
+            self.images.append(str(a.get("src")))
+        for name in ("src", "href"):
+            if name in a:
+                self.links.append(str(a[name]))
+        if tag not in VOID:
+            self.stack.append(tag)
+
+    def handle_startendtag(self, tag: str, attrs: list[tuple[str, str | None]]) -> None:
+        self.handle_starttag(tag, attrs)
+        if tag not in VOID:
+            self.stack.pop()
+
+    def handle_endtag(self, tag: str) -> None:
+        if tag in VOID:
+            return
+        if not self.stack or self.stack[-1] != tag:
+            self.errors.append(f"</{tag}> closes {self.stack[-1] if self.stack else 'nothing'}")
+            return
+        self.stack.pop()
+
+
+def _parse(html: str) -> _Checker:
+    checker = _Checker()
+    checker.feed(html)
+    checker.close()
+    return checker
+
+
+def _png_size(uri: str) -> tuple[int, int]:
+    assert uri.startswith("data:image/png;base64,")
+    raw = base64.b64decode(uri.split(",", 1)[1], validate=True)
+    assert raw[:8] == PNG_SIGNATURE and raw[12:16] == b"IHDR"
+    width, height = struct.unpack(">II", raw[16:24])
+    return width, height
+
+
+def _strip_generated(html: str) -> str:
+    return re.sub(r'<span id="generated-utc">[^<]*</span>', "", html)
+
+
+def test_html_parses_with_balanced_tags(small_report: str) -> None:
+    checker = _parse(small_report)
+    assert checker.errors == []
+    assert checker.stack == []
+    assert small_report.startswith("<!DOCTYPE html>")
+
+
+def test_every_section_and_the_table_of_contents_are_present(small_report: str) -> None:
+    checker = _parse(small_report)
+    for section_id, _title in SECTIONS:
+        assert section_id in checker.ids
+        assert f'href="#{section_id}"' in small_report
+    assert {"toc", "interruptions", "operator", "models-physical", "models-bouc-wen"} <= checker.ids
+    assert {f"config-{k}" for k in (4, 5, 6, 7)} <= checker.ids
+    assert {f"matrix-{k}" for k in (4, 5, 6, 7)} <= checker.ids
+
+
+def test_every_expected_figure_is_an_inline_png_that_decodes(small_archive: Path, small_report: str) -> None:
+    checker = _parse(small_report)
+    expected = figure_ids(load_report_data(small_archive))
+    per_config = {
+        f"fig-config-{k}-{kind}" for k in (4, 5, 6, 7) for kind in ("hysteresis", "time", "energy", "boucwen")
+    }
+    assert per_config <= set(expected)
+    assert {
+        "fig-calibration-friction",
+        "fig-comparison-friction-overlay",
+        "fig-comparison-friction-energy",
+        "fig-energy-restraint",
+        "fig-spring-stiffness",
+    } & set(expected)
+    for figure_id in expected:
+        assert figure_id in checker.ids, figure_id
+    assert len(checker.images) == len(expected)
+    for uri in checker.images:
+        width, height = _png_size(uri)
+        assert width > 0 and height > 0
+
+
+def test_nothing_outside_the_file_is_referenced(small_report: str) -> None:
+    checker = _parse(small_report)
+    for link in checker.links:
+        assert link.startswith("#") or link.startswith("data:"), link
+    assert not re.search(r"""\b(src|href)\s*=\s*["'](?!#|data:)""", small_report)
+    assert not re.search(r"""\b(src|href)\s*=\s*(?!["'#]|data:)""", small_report)
+    assert "http://" not in small_report and "https://" not in small_report
+    assert "@import" not in small_report and "url(" not in small_report
+    assert "<link" not in small_report and "<script src" not in small_report
+
+
+def test_header_shows_the_session_and_operator_answers_escaped(small_report: str) -> None:
+    assert "knee_synthetic" in small_report and "ab" * 32 in small_report
+    assert "dry-run" in small_report and "<td>7</td>" in small_report  # seed
+    assert "2026-11-21T10:15:00Z" in small_report
+    # the checklist title contains markup characters: they are escaped, not interpreted
+    assert "Fit the brace &lt;R1&gt; &amp; check bolts" in small_report
+    assert "<R1>" not in small_report
+    assert "SIGINT" in small_report and "resumed" in small_report
+    assert "@media print" in small_report
+
+
+def test_matrix_rows_show_energy_and_fit_results(small_archive: Path, small_report: str) -> None:
+    data = load_report_data(small_archive)
+    for cfg in data.configurations:
+        row = re.search(rf'<tr id="matrix-{cfg.key}">(.*?)</tr>', small_report, re.S)
+        assert row is not None
+        assert f"{cfg.energy_mean_j:.2f} ± {cfg.energy_std_j:.2f}" in row.group(1)
+        assert cfg.bouc_wen is not None and f"{cfg.bouc_wen.rmse_nm:.2f}" in row.group(1)
+        assert f"{cfg.angle_max_deg:.1f}" in row.group(1)
+
+
+def test_calibration_verdicts_and_findings_are_shown(small_report: str) -> None:
+    calibration = small_report[
+        small_report.index('id="calibration"') : small_report.index('id="configurations"')
+    ]
+    assert calibration.count('class="ok">pass<') == 2
+    findings = small_report[small_report.index('id="findings"') :]
+    assert "Energy loss grows with friction" in findings
+    assert 'class="ok">agrees<' in findings and "not enough data" in findings
+
+
+def test_complete_session_has_no_incomplete_banner(small_report: str) -> None:
+    assert 'id="incomplete-banner"' not in small_report
+
+
+def test_unfinished_session_report_is_produced_and_marked_incomplete(tmp_path: Path) -> None:
+    spec = small_spec(status="incomplete", duration_s=9.0, calibration_fail_set="friction")
+    spec.configs[-1].status = "not run"
+    archive = write_archive(tmp_path / "archive.h5", spec)
+    html = generate_report(archive).read_text(encoding="utf-8")
+    assert 'id="incomplete-banner"' in html and "This session is incomplete" in html
+    assert "Not run: no trial in the archive." in html
+    assert 'class="bad">fail<' in html
+
+
+def test_regenerating_gives_the_same_html_apart_from_the_generation_time(
+    small_archive: Path, tmp_path: Path
+) -> None:
+    first = generate_report(small_archive, tmp_path / "a.html").read_text(encoding="utf-8")
+    second = generate_report(small_archive, tmp_path / "b.html", workers=2).read_text(encoding="utf-8")
+    assert _strip_generated(first) == _strip_generated(second)
+    assert first.count('id="generated-utc"') == 1
+
+
+def test_explicit_generation_time_makes_the_output_byte_identical(
+    small_archive: Path, tmp_path: Path
+) -> None:
+    data = load_report_data(small_archive)
+    a = render_report(data, tmp_path / "a.html", generated_utc="2026-11-21T12:00:00Z").read_bytes()
+    b = render_report(data, tmp_path / "b.html", generated_utc="2026-11-21T12:00:00Z").read_bytes()
+    assert a == b
+
+
+def test_default_output_is_report_html_next_to_the_archive(tmp_path: Path) -> None:
+    archive = write_archive(tmp_path / "archive.h5", small_spec(duration_s=9.0))
+    assert generate_report(tmp_path) == tmp_path / "report.html"
+    assert (tmp_path / "report.html").stat().st_size > 0
+    assert not list(tmp_path.glob("*.partial"))
+    assert archive.exists()
+
+
+def test_output_into_a_missing_directory_is_invalid_input(small_archive: Path, tmp_path: Path) -> None:
+    with pytest.raises(InvalidInput, match="does not exist"):
+        generate_report(small_archive, tmp_path / "missing" / "report.html")
+
+
+def test_emu_section_says_when_there_is_no_reference(small_report: str) -> None:
+    assert 'id="emu-no-reference"' in small_report
+
+
+def test_emu_section_plots_the_archived_reference(tmp_path: Path) -> None:
+    spec = ArchiveSpec(
+        configs=[ConfigSpec(key=27, n_trials=1), ConfigSpec(key=28, n_trials=1)],
+        duration_s=9.0,
+        reference=True,
+    )
+    html = generate_report(write_archive(tmp_path / "archive.h5", spec)).read_text(encoding="utf-8")
+    assert 'id="emu-no-reference"' not in html
+    assert "Schmidt EMU data" in html and 'id="fig-emu"' in html
+
+
+def test_emu_reference_file_given_at_generation_is_plotted(small_archive: Path, tmp_path: Path) -> None:
+    ref = tmp_path / "emu.csv"
+    ref.write_text("angle_deg,torque_nm\n" + "\n".join(f"{a},{0.2 * (a - 20):.3f}" for a in range(5, 106, 5)))
+    html = generate_report(small_archive, tmp_path / "r.html", reference=ref).read_text(encoding="utf-8")
+    assert 'id="emu-no-reference"' not in html and "emu.csv" in html
