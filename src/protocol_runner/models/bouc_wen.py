@@ -890,7 +890,7 @@ def _fit_segments(
     )
 
 
-_SHORT_NFEV = 10
+_SHORT_NFEV = 6
 _SCREEN_SAMPLES = 400
 _TR_SOLVER = "exact"  # dense SVD of the Jacobian; cheap for 8 columns
 _POLISH_NFEV = 200
