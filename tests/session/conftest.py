@@ -1,4 +1,4 @@
-"""Fixtures for the session tests: a reference (uninterrupted) dry run and archive comparison."""
+"""Helpers for the session tests: dry runs in-process and in a subprocess, archive comparison."""
 
 from __future__ import annotations
 
@@ -9,7 +9,6 @@ from pathlib import Path
 
 import h5py
 import numpy as np
-import pytest
 
 from protocol_runner.commands import run
 
@@ -32,13 +31,6 @@ def run_dry(session: Path, *, only: list[int] | None = None, seed: int = SEED, p
         realtime=False,
         quiet=True,
     )
-
-
-@pytest.fixture(scope="session")
-def reference_archive(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    session = tmp_path_factory.mktemp("reference") / "session"
-    assert run_dry(session) == 0
-    return session / "archive.h5"
 
 
 class Cli:
