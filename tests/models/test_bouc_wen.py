@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import pytest
@@ -10,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from protocol_runner.errors import InvalidInput
+from protocol_runner.models import bouc_wen
 from protocol_runner.models.bouc_wen import (
     DEFAULT_BOUNDS,
     EQ24_PHASE_MATRIX,
@@ -214,8 +216,47 @@ def test_divergent_parameters_are_reported_not_raised() -> None:
     assert result.rmse_nm < 1e-6
 
 
-def test_fitted_model_that_diverges_reports_a_finite_error() -> None:
-    """Data a stable model cannot follow (torque exploding) must still give a finite RMSE and a flag."""
+def test_fitter_penalises_a_divergent_simulation_with_finite_residuals() -> None:
+    """Inside the optimiser a diverging recursion is held at 10x the data's torque scale: the residuals
+    stay finite (no exception, no NaN for least_squares) and cost far more than a good model."""
+    x = centred_sinusoid(1, 0.05)
+    torque = simulate(x, FIG57, z0=0.0)
+    segments = np.array([0, x.size], dtype=np.int64)
+    problem = bouc_wen._Problem(
+        x, torque, segments, DEFAULT_BOUNDS, np.max(np.abs(x)), np.max(np.abs(torque))
+    )
+    unstable = BoucWenParams(A=0.3, n=2.0, beta=(0.0, 0.0, 0.0, 0.0, 0.0, -1.0))
+    u_bad = problem.to_u(unstable)
+    r_bad = problem.residuals(u_bad)
+    assert problem.diverged_at > 0
+    assert np.all(np.isfinite(r_bad))
+    assert np.all(np.isfinite(problem.jacobian(u_bad)))
+    r_good = problem.residuals(problem.to_u(FIG57))
+    assert problem.diverged_at == -1
+    assert r_bad @ r_bad > 1e6 * max(float(r_good @ r_good), 1e-12)
+
+
+def test_optimiser_jacobian_matches_finite_differences_of_its_residuals() -> None:
+    """The fitter works in data-scaled parameters (a, n, psi'); its chain-rule Jacobian must match."""
+    x = centred_sinusoid(1.5, 0.05)
+    torque = simulate(x, FIG57, z0=0.0) + 0.3
+    segments = np.array([0, x.size // 2, x.size], dtype=np.int64)
+    problem = bouc_wen._Problem(
+        x, torque, segments, DEFAULT_BOUNDS, np.max(np.abs(x)), np.max(np.abs(torque))
+    )
+    u = problem.to_u(BoucWenParams(A=0.25, n=1.4, beta=(0.02, 0.1, -0.1, -0.05, 0.08, 0.01)))
+    J = problem.jacobian(u)
+    for k in range(8):
+        h = 1e-6 * max(abs(u[k]), 1.0)
+        up, down = u.copy(), u.copy()
+        up[k] += h
+        down[k] -= h
+        fd = (problem.residuals(up) - problem.residuals(down)) / (2 * h)
+        assert np.max(np.abs(J[:, k] - fd)) < 1e-5 * np.max(np.abs(fd)), PARAM_NAMES[k]
+
+
+def test_fit_of_data_no_model_can_follow_still_reports_finite_numbers() -> None:
+    """Torque flipping sign at every sample: no hysteresis model fits it, but the result is finite."""
     x = centred_sinusoid(1, 0.05)
     torque = np.where(np.arange(x.size) % 2 == 0, 1.0, -1.0) * 50.0
     result = fit(x, torque, starts=2)
@@ -272,10 +313,13 @@ def test_decimation_keeps_the_reported_error_on_every_sample() -> None:
     assert result.rmse_nm == pytest.approx(float(np.sqrt(np.mean((prediction - torque) ** 2))), rel=1e-9)
 
 
+TWO_BETAS: Any = (0.0, 0.0)  # deliberately the wrong length
+
+
 @pytest.mark.parametrize(
     ("call", "message"),
     [
-        (lambda: BoucWenParams(A=1.0, n=1.0, beta=(0.0, 0.0)), "6 values"),  # type: ignore[arg-type]
+        (lambda: BoucWenParams(A=1.0, n=1.0, beta=TWO_BETAS), "6 values"),
         (lambda: BoucWenParams(A=1.0, n=0.0, beta=(0.0,) * 6), "positive"),
         (lambda: BoucWenParams(A=math.nan, n=1.0, beta=(0.0,) * 6), "finite"),
         (lambda: simulate(np.array([0.0, np.inf]), FIG57), "non-finite"),
