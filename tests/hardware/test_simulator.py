@@ -414,3 +414,43 @@ def test_data_are_reproducible_in_another_process() -> None:
         timeout=120,
     )
     assert out.stdout.strip() == here
+
+
+def _plant(brace: BraceSetup | None) -> JointPlant:
+    plant = JointPlant(SimulatorParams(), (0.0, 130.0), (-84.8, 84.8))
+    plant.set_brace(brace)
+    return plant
+
+
+def test_brace_springs_are_the_physical_model_of_eq_13_18() -> None:
+    """The brace's spring torque in the plant is `models.spring.spring_torque_nm` (thesis Eq 13-18)."""
+    from protocol_runner.models.spring import spring_torque_nm
+
+    bare = _plant(None)
+    for k, n in ((4.4, 1), (13.0, 3), (20.0, 5)):
+        braced = _plant(
+            BraceSetup(rom_deg=(0.0, 130.0), friction_nm=0.0, stiffness_n_per_mm=k, preload_position=n)
+        )
+        for angle in (5.0, 47.3, 90.0, 118.0):
+            spring = braced.load_at_nm(angle) - bare.load_at_nm(angle)
+            assert spring == pytest.approx(float(spring_torque_nm(angle, k, n)), abs=0.01)
+
+
+def test_low_angle_bump_grows_with_speed_and_shrinks_with_spring_force() -> None:
+    """Thesis §5.1/§5.4/§5.5: the brace's instability near 40° is enhanced by speed and reduced by stiffer
+    springs or more preload. Away from it, speed only adds the robot's viscous torque."""
+
+    def bump(brace: BraceSetup, angle: float, speed: float) -> float:
+        plant, bare = _plant(brace), _plant(None)
+        return (plant.load_at_nm(angle, speed) - plant.load_at_nm(angle)) - (
+            bare.load_at_nm(angle, speed) - bare.load_at_nm(angle)
+        )
+
+    def setup(k: float, n: int = 3) -> BraceSetup:
+        return BraceSetup(rom_deg=(0.0, 130.0), friction_nm=0.0, stiffness_n_per_mm=k, preload_position=n)
+
+    assert bump(setup(0.0), 35.0, 50.0) > bump(setup(0.0), 35.0, 25.0) > 0.5
+    assert bump(setup(0.0), 35.0, 50.0) > bump(setup(4.4), 35.0, 50.0) > bump(setup(13.0), 35.0, 50.0)
+    assert bump(setup(13.0), 35.0, 50.0) > bump(setup(20.0), 35.0, 50.0)
+    assert bump(setup(13.0, n=5), 35.0, 50.0) > bump(setup(13.0, n=1), 35.0, 50.0)  # 1 = most preload
+    assert abs(bump(setup(0.0), 80.0, 50.0)) < 1e-3

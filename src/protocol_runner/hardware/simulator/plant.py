@@ -421,8 +421,13 @@ class JointPlant:
         self.push_command(0, float(angle_deg))
         self._refresh_load()
 
+    def load_at_nm(self, angle_deg: float, speed_deg_s: float = 0.0) -> float:
+        """The load torque at `angle_deg` moving at `speed_deg_s` with the friction states relaxed (z = 0):
+        gravity + viscous + the brace's springs, stops and bump (for diagnostics and tests)."""
+        return float(_load_nm(float(angle_deg), float(speed_deg_s), 0.0, 0.0, self._p, self._spring))
+
     def _static_load_nm(self, angle_deg: float) -> float:
-        return float(_load_nm(angle_deg, 0.0, 0.0, 0.0, self._p, self._spring))
+        return self.load_at_nm(angle_deg)
 
     def _rest_angle_deg(self, angle_deg: float) -> float:
         t_lo, t_hi = self._p[P_T_LO], self._p[P_T_HI]
