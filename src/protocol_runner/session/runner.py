@@ -231,7 +231,9 @@ class Runner:
             progress.info(f"session {kind}: {message}")
 
     def _finish(self, progress: Progress, skipped: int) -> RunResult:
-        self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped")
+        clock = getattr(getattr(self.bench, "sim", None), "clock", None)
+        robot = f"; {clock.now_s():.1f} s of robot time simulated" if clock is not None else ""
+        self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped{robot}")
         archive = self.consolidate("complete")
         report = self.render_report(archive)
         progress.info(f"archive: {archive}")

@@ -1,0 +1,102 @@
+"""Full campaign dry run against the robot time it simulates (DESIGN.md target: >= 300x faster).
+
+    python benchmarks/bench_dry_run.py [--repeats 3] [--only KEYS] [--profile]
+
+Each repeat runs `run-protocol knee_phase1.yaml --dry-run --yes` in a fresh subprocess (so numba's
+compilation cache and imports count as they do for a user) and reports the median wall time, the robot
+time simulated (trajectories of every run the rig made, including the brace-off scaling runs and the
+calibration checks and the parking moves between them: the simulator's clock at the end), their ratio,
+and the archive and report sizes. --profile prints where the time goes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import h5py
+
+
+def simulated_time_s(archive: Path) -> float | None:
+    """The simulator's clock at the end of the session (every motion: trials, scaling runs, checks, parking)."""
+    with h5py.File(archive, "r") as f:
+        for line in f["session/events"].asstr()[:]:
+            event = json.loads(line)
+            if event["kind"] == "finished" and "robot time simulated" in event["detail"]:
+                return float(event["detail"].rsplit(";", 1)[1].split()[0])
+    return None
+
+
+def robot_time_s(archive: Path) -> float:
+    """Seconds of commanded motion recorded in the archive (every trial, kept scaling runs, checks)."""
+    total = 0.0
+    with h5py.File(archive, "r") as f:
+        def visit(name: str, obj: object) -> None:
+            nonlocal total
+            if isinstance(obj, h5py.Dataset) and name.endswith("command_time_s"):
+                t = obj[:]
+                if t.size > 1:
+                    total += float(t[-1] - t[0] + (t[1] - t[0]))
+            if isinstance(obj, h5py.Group) and name.endswith("brace_off/scaling"):
+                # scaling runs that were not kept also moved the robot: count them by their length
+                runs = int(obj["iteration"].shape[0])
+                t = f[name.rsplit("/", 1)[0]]["command_time_s"][:]
+                total += (runs - 1) * float(t[-1] - t[0])
+
+        f.visititems(visit)
+    return total
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--only", default=None)
+    ap.add_argument("--profile", action="store_true")
+    args = ap.parse_args()
+    walls: list[float] = []
+    robot = 0.0
+    sizes: tuple[int, int] = (0, 0)
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(args.repeats):
+            session = Path(tmp) / f"s{i}"
+            cmd = [sys.executable]
+            if args.profile and i == 0:
+                cmd += ["-m", "cProfile", "-o", str(Path(tmp) / "prof")]
+            cmd += ["-m", "protocol_runner.cli", "knee_phase1.yaml", "--dry-run", "--yes", "--session", str(session)]
+            if args.only:
+                cmd += ["--only", args.only]
+            t0 = time.perf_counter()
+            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            wall = time.perf_counter() - t0
+            if not (args.profile and i == 0):
+                walls.append(wall)
+            robot = simulated_time_s(session / "archive.h5") or robot_time_s(session / "archive.h5")
+            sizes = ((session / "archive.h5").stat().st_size, (session / "report.html").stat().st_size)
+            print(f"run {i + 1}: {wall:.1f} s wall", flush=True)
+        if args.profile:
+            import pstats
+
+            pstats.Stats(str(Path(tmp) / "prof")).sort_stats("cumulative").print_stats(30)
+    median = statistics.median(walls) if walls else float("nan")
+    ratio = robot / median
+    print(json.dumps({
+        "wall_s_median": round(median, 2),
+        "wall_s_runs": [round(w, 2) for w in walls],
+        "robot_time_s": round(robot, 1),
+        "speedup": round(ratio, 1),
+        "target_speedup": 300,
+        "archive_mb": round(sizes[0] / 1e6, 1),
+        "report_mb": round(sizes[1] / 1e6, 1),
+    }, indent=2))
+    print("PASS" if ratio >= 300 else "FAIL", f"speed-up {ratio:.0f}x (target 300x)")
+    print("PASS" if sizes[0] < 100e6 else "FAIL", f"archive {sizes[0] / 1e6:.1f} MB (target < 100 MB)")
+
+
+if __name__ == "__main__":
+    main()
