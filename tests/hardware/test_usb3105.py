@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import struct
+from typing import Any
 
 import numpy as np
 import pytest
@@ -366,8 +367,9 @@ def test_calibration_memory_layout_matches_the_documented_addresses() -> None:
 def test_numpy_numbers_are_accepted() -> None:
     model = make_usb3105()
     ao = open_board(model)
-    ao.configure_channel(np.int64(2))
-    code = ao.write_volts(np.int64(2), np.float64(-2.5))
+    channel: Any = np.int64(2)  # what a channel read from an array looks like
+    ao.configure_channel(channel)
+    code = ao.write_volts(channel, np.float64(-2.5))
     assert type(code) is int and code == ideal_code(-2.5)
     assert model.reports[-1] == bytes([0x14, 2, code & 0xFF, code >> 8, 0])
     ao.close()
