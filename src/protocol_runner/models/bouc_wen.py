@@ -906,7 +906,7 @@ def fit(
     data_starts: bool = True,
     bounds: BoucWenBounds = DEFAULT_BOUNDS,
     seed: int = 0,
-    max_samples_per_trial: int | None = 4000,
+    max_samples_per_trial: int | None = 8000,
     polish: int = 1,
 ) -> BoucWenFit:
     """Fit the generalised Bouc-Wen model (Eq 23) to angle/torque samples by least squares (§6.2.3).
@@ -968,7 +968,7 @@ def fit_trials(
     data_starts: bool = True,
     bounds: BoucWenBounds = DEFAULT_BOUNDS,
     seed: int = 0,
-    max_samples_per_trial: int | None = 4000,
+    max_samples_per_trial: int | None = 8000,
     polish: int = 1,
 ) -> BoucWenFit:
     """Fit one model jointly to several trials ``[(angle_deg, torque_nm), ...]`` of one configuration.
@@ -993,7 +993,7 @@ def cross_validate(
     starts: int = 4,
     bounds: BoucWenBounds = DEFAULT_BOUNDS,
     seed: int = 0,
-    max_samples_per_trial: int | None = 4000,
+    max_samples_per_trial: int | None = 8000,
 ) -> list[float]:
     """Leave-one-trial-out RMSE (N*m): for each trial, fit the others with :func:`fit_trials` and predict
     the held-out trial from its own first torque (Eq 23).  Needs at least two trials."""
