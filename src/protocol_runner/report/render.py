@@ -62,11 +62,13 @@ def generate_report(
     """Read `archive_path` (archive.h5 or its session directory) and write the HTML report.
 
     `output` defaults to `report.html` next to the archive. `reference` is an optional EMU dataset
-    (CSV or .mat, see docs/report.md) added to those stored in the archive. Returns the report's path.
+    (CSV or .mat, see docs/report.md) added to those stored in the archive. `workers` is the number of
+    processes reading the archive and drawing figures (None: 2 for a large archive on 2+ cores, else 1).
+    Returns the report's path.
     Raises `InvalidInput` for an unreadable archive or reference file.
     """
     archive_path = Path(archive_path)
-    data = load_report_data(archive_path)
+    data = load_report_data(archive_path, workers=workers)
     if reference is not None:
         ref = load_reference_dataset(Path(reference))
         data = ReportData(
