@@ -135,18 +135,23 @@ class BoucWenParams:
     beta: tuple[float, float, float, float, float, float]
 
     def __post_init__(self) -> None:
-        beta = tuple(float(b) for b in self.beta)
+        try:
+            A = float(self.A)
+            n = float(self.n)
+            beta = tuple(float(b) for b in self.beta)
+        except (TypeError, ValueError):
+            raise InvalidInput(
+                f"BoucWenParams needs numbers: A, n and 6 betas, got A={self.A!r}, n={self.n!r}, "
+                f"beta={self.beta!r}"
+            ) from None
         if len(beta) != 6:
             raise InvalidInput(f"BoucWenParams.beta needs exactly 6 values (Eq 22), got {len(beta)}")
-        values = (float(self.A), float(self.n), *beta)
-        if not all(math.isfinite(v) for v in values):
-            raise InvalidInput(
-                f"BoucWenParams must be finite numbers, got A={self.A}, n={self.n}, beta={beta}"
-            )
-        if not float(self.n) > 0.0:
-            raise InvalidInput(f"BoucWenParams.n must be positive (|z|^n in Eq 23), got {self.n}")
-        object.__setattr__(self, "A", float(self.A))
-        object.__setattr__(self, "n", float(self.n))
+        if not all(math.isfinite(v) for v in (A, n, *beta)):
+            raise InvalidInput(f"BoucWenParams must be finite numbers, got A={A}, n={n}, beta={beta}")
+        if not n > 0.0:
+            raise InvalidInput(f"BoucWenParams.n must be positive (|z|^n in Eq 23), got {n}")
+        object.__setattr__(self, "A", A)
+        object.__setattr__(self, "n", n)
         object.__setattr__(self, "beta", beta)
 
     def as_array(self) -> FloatArray:
@@ -198,6 +203,10 @@ def phase_of_samples(x_deg: npt.ArrayLike, z_nm: npt.ArrayLike) -> npt.NDArray[n
     """
     x = np.asarray(x_deg, dtype=np.float64)
     z = np.asarray(z_nm, dtype=np.float64)
+    if x.ndim != 1 or x.shape != z.shape:
+        raise InvalidInput(
+            f"phase_of_samples needs two 1-D arrays of one length, got {x.shape} and {z.shape}"
+        )
     sx = np.sign(x[:-1])
     sd = np.sign(np.diff(x))
     sz = np.sign(z[:-1])
@@ -529,6 +538,10 @@ class BoucWenFit:
 
 
 _DIVERGENCE_FACTOR = 10.0  # the fitter holds |z| at 10 x the data's torque scale once it diverges
+_SCREEN_SAMPLES = 400  # samples per trial of the coarse copy on which every start gets a short solve
+_SHORT_NFEV = 6  # residual evaluations of each short solve (stage 1)
+_POLISH_NFEV = 200  # limit of the final solve (stage 2)
+_TR_SOLVER = "exact"  # least_squares' dense SVD of the Jacobian; cheap for 8 columns
 
 
 class _Problem:
@@ -888,12 +901,6 @@ def _fit_segments(
         bounds=bounds,
         message=best[3],
     )
-
-
-_SHORT_NFEV = 6
-_SCREEN_SAMPLES = 400
-_TR_SOLVER = "exact"  # dense SVD of the Jacobian; cheap for 8 columns
-_POLISH_NFEV = 200
 
 
 def fit(
