@@ -222,3 +222,14 @@ def test_emu_reference_file_given_at_generation_is_plotted(small_archive: Path, 
     ref.write_text("angle_deg,torque_nm\n" + "\n".join(f"{a},{0.2 * (a - 20):.3f}" for a in range(5, 106, 5)))
     html = generate_report(small_archive, tmp_path / "r.html", reference=ref).read_text(encoding="utf-8")
     assert 'id="emu-no-reference"' not in html and "emu.csv" in html
+
+
+def test_emu_falls_back_to_the_thesis_keys_when_the_archive_compares_other_things(tmp_path: Path) -> None:
+    spec = ArchiveSpec(
+        configs=[ConfigSpec(key=4, n_trials=1), ConfigSpec(key=27, n_trials=1)],
+        duration_s=9.0,
+        reference=True,
+    )
+    html = generate_report(write_archive(tmp_path / "archive.h5", spec)).read_text(encoding="utf-8")
+    assert 'id="comparison-friction"' in html  # the archive's own comparison
+    assert 'id="fig-emu"' in html and "EMU-condition configurations: 24, 25, 26, 27, 28" in html

@@ -453,7 +453,7 @@ def _tasks(data: ReportData) -> list[tuple[str, Callable[[], str]]]:
         if cfg.bouc_wen is not None:
             tasks.append((f"{base}-boucwen", _bind(bouc_wen_figure, cfg)))
     for comp in data.comparisons:
-        if comp.parameter == "emu" or comp.name == "emu":
+        if is_emu(comp):
             continue
         if not _present(data, comp.configurations):
             continue
@@ -466,19 +466,28 @@ def _tasks(data: ReportData) -> list[tuple[str, Callable[[], str]]]:
     ):
         tasks.append(("fig-energy-restraint", _bind(restraint_bars_figure, data)))
     emu = emu_comparison(data)
-    if emu is not None and (data.references or _present(data, emu.configurations)):
+    if data.references or _present(data, emu.configurations):
         tasks.append(("fig-emu", _bind(emu_figure, data, emu)))
     for comp in model_comparisons(data):
         tasks.append((f"fig-spring-{slug(comp.name)}", _bind(spring_model_figure, data, comp)))
     return tasks
 
 
-def emu_comparison(data: ReportData) -> Comparison | None:
-    """The comparison of the EMU-condition configurations (§5.6), if any."""
+def is_emu(comparison: Comparison) -> bool:
+    """True for the EMU comparison of §5.6 (by parameter, name or section)."""
+    return (
+        comparison.parameter.lower() == "emu"
+        or comparison.name.lower() == "emu"
+        or comparison.section.strip("§ ") == "5.6"
+    )
+
+
+def emu_comparison(data: ReportData) -> Comparison:
+    """The EMU-condition configurations (§5.6): the archive's comparison, else the thesis's keys 24-28."""
     for comp in data.comparisons:
-        if comp.parameter.lower() == "emu" or comp.name.lower() == "emu" or comp.section.strip("§ ") == "5.6":
+        if is_emu(comp):
             return comp
-    return None
+    return Comparison("emu", "emu", "5.6", "EMU comparison", (24, 25, 26, 27, 28), from_archive=False)
 
 
 def model_comparisons(data: ReportData) -> list[Comparison]:

@@ -22,7 +22,14 @@ import jinja2
 
 from protocol_runner import __version__
 from protocol_runner.errors import InvalidInput
-from protocol_runner.report.figures import FigureSet, emu_comparison, model_comparisons, render_figures, slug
+from protocol_runner.report.figures import (
+    FigureSet,
+    emu_comparison,
+    is_emu,
+    model_comparisons,
+    render_figures,
+    slug,
+)
 from protocol_runner.report.findings import Finding, comparison_keys, evaluate_findings
 from protocol_runner.report.load import load_reference_dataset, load_report_data
 from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Comparison, Configuration, ReportData
@@ -177,7 +184,7 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
                 checks=tuple(c for c in data.calibration if c.set_name == set_name),
             )
         )
-    overlay_comparisons = [c for c in data.comparisons if c is not emu_comparison(data) and _has_any(data, c)]
+    overlay_comparisons = [c for c in data.comparisons if not is_emu(c) and _has_any(data, c)]
     emu = emu_comparison(data)
     findings: tuple[Finding, ...] = evaluate_findings(data)
     restraint_keys = (comparison_keys(data, "brace_rom"), comparison_keys(data, "robot_rom"))
@@ -189,7 +196,7 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
         "calibration_sets": calibration_sets,
         "comparisons": overlay_comparisons,
         "emu": emu,
-        "emu_configurations": [c for c in _configs(data, emu)] if emu is not None else [],
+        "emu_configurations": _configs(data, emu),
         "spring_comparisons": model_comparisons(data),
         "fitted": [c for c in data.configurations if c.bouc_wen is not None],
         "spring_fitted": [c for c in data.configurations if c.spring is not None],
