@@ -7,8 +7,15 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .errors import EXIT_OK, InvalidInput
+
+if TYPE_CHECKING:
+    from .protocol.loader import LoadedProtocol
+    from .session.operator import Operator
+    from .session.setup import SessionInfo
+    from .steps.context import Bench
 
 
 def _say(message: str) -> None:
@@ -61,7 +68,7 @@ def run(
     return EXIT_OK
 
 
-def _bench(loaded, info):  # type: ignore[no-untyped-def]
+def _bench(loaded: LoadedProtocol, info: SessionInfo) -> Bench:
     if info.mode == "dry-run":
         from .session.rigs import SimulatedBench
 
@@ -71,7 +78,7 @@ def _bench(loaded, info):  # type: ignore[no-untyped-def]
     return HardwareBench(loaded)
 
 
-def _operator(automatic: bool):  # type: ignore[no-untyped-def]
+def _operator(automatic: bool) -> Operator:
     from .session.operator import AutoOperator, ConsoleOperator
 
     return AutoOperator() if automatic else ConsoleOperator()
@@ -145,7 +152,7 @@ def _consolidate_unfinished(session_dir: Path) -> Path:
 
     info = read_session_info(session_dir)
     loaded, plan, _ = load_session_protocol(session_dir, info, force=True)
-    runner = Runner(session_dir, info, loaded, plan, _NoBench(), _operator(True), quiet=True)
+    runner = Runner(session_dir, info, loaded, plan, _NoBench(), _operator(True), quiet=True)  # type: ignore[arg-type]
     return runner.consolidate("incomplete")
 
 

@@ -163,6 +163,8 @@ class Rig:
         self.clock = clock
         self._prepared = False
         self._last_command_deg: float | None = None
+        # Entered around every paced loop; the hardware bench sets it to real-time scheduling.
+        self.loop_context: Callable[[], contextlib.AbstractContextManager[object]] = contextlib.nullcontext
 
     @property
     def scan_channels(self) -> tuple[int, int]:
@@ -203,7 +205,8 @@ class Rig:
             command_table=joint.command_table,
             volts_range_deg=joint.range_deg,
         )
-        return self._run_checked(cmd, where=where, stop_requested=stop_requested)
+        with self.loop_context():
+            return self._run_checked(cmd, where=where, stop_requested=stop_requested)
 
     def park(self, *, from_deg: float | None = None, where: str = "park") -> TrialRecording:
         """Ramp the joint to `limits.park_angle_deg` at `limits.park_rate_deg_s` (trapezoidal, within the
@@ -233,7 +236,8 @@ class Rig:
             command_table=self.joint.command_table,
             volts_range_deg=self.joint.range_deg,
         )
-        return self._run_checked(ramp, where=where, stop_requested=None)
+        with self.loop_context():
+            return self._run_checked(ramp, where=where, stop_requested=None)
 
     def read_angle_deg(self, duration_s: float = 0.05) -> float:
         """Measure the joint's current real angle: a short scan, averaged (Eq 2 + angle look-up table)."""
@@ -282,10 +286,14 @@ class Rig:
                     t_stop = schedule[min(start + READ_EVERY_TICKS, n) - 1] - t0
                     raise Interrupted(f"{where}: stopped on request at t = {t_stop:.2f} s")
             sleep_until(schedule[n])  # one more tick: the scan covers the response to the last command
-        except BaseException:
+        except BaseException as exc:
             self._note_last_written(cmd, codes)
             with contextlib.suppress(Exception):  # the original error matters more than a failing stop
-                self.ai.stop_scan()
+                append(self.ai.stop_scan())
+            # keep the data recorded so far with the error (a board that vanished mid-trial: the session
+            # archives it as a failed trial)
+            with contextlib.suppress(Exception):
+                exc.partial_recording = self._partial(cmd, volts, codes, actual, blocks, t0, where)  # type: ignore[attr-defined]
             raise
         append(self.ai.stop_scan())
         self._last_command_deg = float(cmd[-1])
@@ -321,6 +329,45 @@ class Rig:
             where=where,
             t0_s=t0,
             output_rate_hz=rate,
+            input_rate_hz=joint.input_rate_hz,
+        )
+
+    def _partial(
+        self,
+        cmd: FloatArray,
+        volts: FloatArray,
+        codes: list[int],
+        actual: list[float],
+        blocks: list[ScanBlock],
+        t0: float,
+        where: str,
+    ) -> TrialRecording:
+        """What an aborted trial recorded before it stopped: the ticks written and the rows scanned."""
+        joint = self.joint
+        try:
+            n = codes.index(-1)
+        except ValueError:
+            n = len(codes)
+        scan = ScanBlock.concatenate(blocks, N_SCAN_CHANNELS)
+        dt = 1.0 / joint.output_rate_hz
+        angle_volts = np.ascontiguousarray(scan.volts[:, 0], dtype=np.float64)
+        torque_volts = np.ascontiguousarray(scan.volts[:, 1], dtype=np.float64)
+        return TrialRecording(
+            command_time_s=np.arange(n, dtype=np.float64) * dt,
+            command_deg=cmd[:n],
+            command_volts=volts[:n],
+            command_codes=np.asarray(codes[:n], dtype=np.int32),
+            input_time_s=np.arange(scan.t_s.shape[0], dtype=np.float64) / joint.input_rate_hz,
+            angle_codes=np.ascontiguousarray(scan.codes[:, 0], dtype=np.int32),
+            torque_codes=np.ascontiguousarray(scan.codes[:, 1], dtype=np.int32),
+            angle_volts=angle_volts,
+            torque_volts=torque_volts,
+            angle_deg=joint.angle_from_volts(angle_volts),
+            torque_nm=joint.torque_from_volts(torque_volts),
+            tick_lateness_s=np.asarray(actual[:n], dtype=np.float64) - (t0 + np.arange(n) * dt),
+            where=where,
+            t0_s=t0,
+            output_rate_hz=joint.output_rate_hz,
             input_rate_hz=joint.input_rate_hz,
         )
 

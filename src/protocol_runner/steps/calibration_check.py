@@ -25,7 +25,7 @@ from ..errors import StoppedByCheck
 from ..hardware.rig import TrialRecording
 from ..protocol.plan import CalibrationCheckStep, calibration_id
 from ..protocol.trajectories import calibration_step_deg
-from .context import StepContext, StepOutcome
+from .context import Fill, StepContext, StepOutcome
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -160,7 +160,7 @@ def _fill(
     message: str,
     limits: dict[str, object],
     step_deg: float,
-):  # type: ignore[no-untyped-def]
+) -> Fill:
     def fill(f: h5py.File) -> None:
         g = f.require_group(f"calibration/{set_name}").create_group(when)
         put(g, "time_s", rec.input_time_s, "s")

@@ -12,7 +12,7 @@ from ..archive.h5util import put, set_attrs
 from ..models.bouc_wen import BoucWenFit, cross_validate, fit_trials, simulate
 from ..protocol.plan import FitStep, configuration_name
 from ..protocol.schema import BoucWenFitSpec
-from .context import StepContext, StepOutcome
+from .context import Fill, StepContext, StepOutcome
 
 PLOT_POINTS_PER_TRIAL = 2000
 
@@ -59,7 +59,7 @@ def run(step: FitStep, ctx: StepContext) -> StepOutcome:
     return StepOutcome(fill, summary)
 
 
-def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]):  # type: ignore[no-untyped-def]
+def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> Fill:
     p = result.params
     std = np.asarray(result.param_std, dtype=np.float64)
     angles, torques, models = [], [], []

@@ -19,7 +19,7 @@ from ..analysis.pipeline import (
 )
 from ..archive.h5util import SIGNAL, put, set_attrs
 from ..protocol.plan import ProcessStep, configuration_name
-from .context import StepContext, StepOutcome
+from .context import Fill, StepContext, StepOutcome
 
 # The processed loops are stored at 200 Hz: they are low-passed far below 100 Hz (thesis filter: 10 % of
 # the 500 Hz Nyquist frequency, order 10), so nothing is lost, and the campaign's archive stays < 100 MB.
@@ -71,7 +71,7 @@ def run(step: ProcessStep, ctx: StepContext) -> StepOutcome:
     return StepOutcome(processed_fill(name, result, ctx.processing), summary)
 
 
-def processed_fill(name: str, result: ConfigurationResult, settings: ProcessingSettings):  # type: ignore[no-untyped-def]
+def processed_fill(name: str, result: ConfigurationResult, settings: ProcessingSettings) -> Fill:
     import json
 
     def fill(f: h5py.File) -> None:

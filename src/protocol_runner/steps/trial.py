@@ -19,6 +19,7 @@ from ..analysis.filters import lowpass
 from ..analysis.scaling import ScalingResult, scale_brace_off_input
 from ..analysis.transition import command_on_input_base, transition_index
 from ..archive.h5util import SIGNAL, put, set_attrs
+from ..errors import HardwareUnavailable
 from ..hardware.rig import TrialRecording
 from ..protocol.plan import Trajectory, TrialStep, configuration_name
 from ..protocol.trajectories import identification_deg, load_trajectory_file, sinusoid_deg
@@ -74,13 +75,22 @@ def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
     ctx.bench.fit_brace(step.settings if step.brace == "on" else None)
     ctx.bench.begin_step(step.id)
     scaling: ScalingResult | None = None
-    if step.brace == "on":
-        rec = rig.run_trajectory(
-            command_deg(step.trajectory, ctx), where=step.id, stop_requested=ctx.stop_requested
-        )
-        rig.park(where=f"{step.id} (park)")
-    else:
-        rec, scaling = _run_brace_off(step, ctx)
+    try:
+        if step.brace == "on":
+            rec = rig.run_trajectory(
+                command_deg(step.trajectory, ctx), where=step.id, stop_requested=ctx.stop_requested
+            )
+            rig.park(where=f"{step.id} (park)")
+        else:
+            rec, scaling = _run_brace_off(step, ctx)
+    except HardwareUnavailable as exc:
+        partial = getattr(exc, "partial_recording", None)
+        if partial is None:
+            raise
+        # A board failed mid-trial (e.g. unplugged): keep what was recorded as a failed trial (it is redone
+        # on resume), then stop the session; the runner parks the joint if the output board still answers.
+        summary = f"failed after {partial.input_time_s.size} samples: {exc.message}"
+        return StepOutcome(_fill(step, ctx, partial, None, status="failed"), summary, stop=exc)
     fill = _fill(step, ctx, rec, scaling)
     lo, hi = float(np.min(rec.angle_deg)), float(np.max(rec.angle_deg))
     summary = (
@@ -139,7 +149,14 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
     return recordings[result.best.iteration], result
 
 
-def _fill(step: TrialStep, ctx: StepContext, rec: TrialRecording, scaling: ScalingResult | None):  # type: ignore[no-untyped-def]
+def _fill(
+    step: TrialStep,
+    ctx: StepContext,
+    rec: TrialRecording,
+    scaling: ScalingResult | None,
+    *,
+    status: str = "complete",
+):
     st = step.settings
     cfg_attrs = {
         "key": step.configuration,
@@ -182,6 +199,7 @@ def _fill(step: TrialStep, ctx: StepContext, rec: TrialRecording, scaling: Scali
             {
                 "step_id": step.id,
                 "brace": step.brace,
+                "status": status,
                 "trajectory": json.dumps(step.trajectory.to_json()),
                 "tick_lateness_p99_s": float(np.percentile(lateness, 99)) if lateness.size else 0.0,
                 "tick_lateness_max_s": float(np.max(lateness)) if lateness.size else 0.0,
