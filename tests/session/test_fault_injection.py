@@ -30,12 +30,17 @@ def journal_units(session: Path) -> int:
     return len(Journal(path).units) if path.exists() else 0
 
 
-def wait_for_units(proc, session: Path, n: int, timeout_s: float = 120.0) -> None:  # type: ignore[no-untyped-def]
+def wait_for_units(proc, session: Path, n: int, timeout_s: float = 120.0) -> bool:  # type: ignore[no-untyped-def]
+    """Wait until `n` units are journaled; False if the run finished first (exit 0) before that."""
     deadline = time.monotonic() + timeout_s
     while journal_units(session) < n:
-        assert proc.poll() is None, proc.stderr()
+        code = proc.poll()
+        if code is not None:
+            assert code == 0, proc.stderr()
+            return False
         assert time.monotonic() < deadline, "the run made no progress"
         time.sleep(0.02)
+    return True
 
 
 def test_sigkill_at_random_points_then_resume_gives_identical_archive(tmp_path: Path, reference_archive: Path) -> None:
@@ -47,7 +52,8 @@ def test_sigkill_at_random_points_then_resume_gives_identical_archive(tmp_path: 
     kills = 0
     for round_ in range(4):
         target = journal_units(session) + rng.randint(1, 3)
-        wait_for_units(proc, session, target)
+        if not wait_for_units(proc, session, target):
+            break
         time.sleep(rng.uniform(0.0, 0.3))  # somewhere inside the next step: mid-trial, mid-write, ...
         if proc.poll() is not None:
             break
@@ -71,7 +77,7 @@ def test_sigint_exits_130_resumable_and_nothing_lost(tmp_path: Path, reference_a
     session = tmp_path / "sigint"
     only = ",".join(map(str, ONLY))
     proc = cli("knee_phase1.yaml", "--dry-run", "--yes", "--only", only, "--seed", str(SEED), "--session", str(session), log=tmp_path / "err.log")
-    wait_for_units(proc, session, 4)
+    assert wait_for_units(proc, session, 4)
     proc.send_signal(signal.SIGINT)
     proc.wait(timeout=120)
     err = proc.stderr()
@@ -105,7 +111,7 @@ def test_resume_refuses_a_changed_protocol_unless_forced(tmp_path: Path, capsys:
 
     session = tmp_path / "changed"
     proc = cli("knee_phase1.yaml", "--dry-run", "--yes", "--only", "12", "--session", str(session), log=tmp_path / "err.log")
-    wait_for_units(proc, session, 2)
+    assert wait_for_units(proc, session, 2)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     stored = next((session / "protocol").glob("*.yaml"))
