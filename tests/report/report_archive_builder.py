@@ -94,6 +94,8 @@ class ArchiveSpec:
     calibration_fail_set: str | None = None
     interrupted: bool = False
     extra_root_attrs: dict[str, object] = field(default_factory=dict)
+    # more /comparisons groups: name -> (parameter, section, title, keys), written even without data
+    extra_comparisons: dict[str, tuple[str, str, str, tuple[int, ...]]] = field(default_factory=dict)
     compress_floats: bool = False  # gzip the float datasets too (as a space-conscious writer would)
 
 
@@ -305,8 +307,11 @@ def write_archive(path: Path, spec: ArchiveSpec) -> Path:
         if spec.comparisons:
             keys_present = {c.key for c in spec.configs}
             comps = f.create_group("comparisons")
-            for name, (parameter, section, title, keys) in THESIS_COMPARISONS.items():
-                if not set(keys) & keys_present:
+            for name, (parameter, section, title, keys) in {
+                **THESIS_COMPARISONS,
+                **spec.extra_comparisons,
+            }.items():
+                if not set(keys) & keys_present and name not in spec.extra_comparisons:
                     continue
                 cg = comps.create_group(name)
                 cg.attrs["parameter"] = parameter

@@ -145,3 +145,10 @@ def test_thesis_keys_are_the_fallback_without_comparisons(tmp_path: Path) -> Non
     assert comparison_keys(data, "friction") == (4, 5, 6, 7)
     assert comparison_keys(data, "stiffness") == (17, 20, 14, 23)
     assert comparison_keys(data, "preload") == (8, 3, 9)
+
+
+def test_the_closest_archive_comparison_wins_when_several_share_a_parameter(tmp_path: Path) -> None:
+    # knee_phase1.yaml lists brace_rom [1, 2, 3] and energy_restraint (also brace_rom) [1, 2, 3, 12, 13, 14]
+    restraint = ("brace_rom", "5.2", "Restraint", (1, 2, 3, 12, 13, 14))  # listed first (same §, name)
+    data = _load(tmp_path, [ConfigSpec(key=1)], extra_comparisons={"a_restraint": restraint})
+    assert comparison_keys(data, "brace_rom") == (1, 2, 3)

@@ -233,3 +233,22 @@ def test_emu_falls_back_to_the_thesis_keys_when_the_archive_compares_other_thing
     html = generate_report(write_archive(tmp_path / "archive.h5", spec)).read_text(encoding="utf-8")
     assert 'id="comparison-friction"' in html  # the archive's own comparison
     assert 'id="fig-emu"' in html and "EMU-condition configurations: 24, 25, 26, 27, 28" in html
+
+
+def test_the_same_configurations_compared_twice_are_drawn_once(tmp_path: Path) -> None:
+    spec = small_spec(duration_s=9.0)
+    spec.extra_comparisons = {
+        "energy_friction": ("friction", "5.7.2", "Energy loss vs friction", (4, 5, 6, 7))
+    }
+    html = generate_report(write_archive(tmp_path / "archive.h5", spec)).read_text(encoding="utf-8")
+    assert 'id="fig-comparison-friction-overlay"' in html
+    assert "fig-comparison-energy-friction" not in html
+
+
+def test_report_file_gets_ordinary_permissions(small_archive: Path, tmp_path: Path) -> None:
+    import os
+
+    umask = os.umask(0)
+    os.umask(umask)
+    out = generate_report(small_archive, tmp_path / "report.html")
+    assert out.stat().st_mode & 0o777 == 0o666 & ~umask

@@ -70,7 +70,7 @@ class _Canvas:
         for ax in self.axes:
             # fixed label positions: matplotlib otherwise measures every tick label to place them
             ax.xaxis.set_label_coords(0.5, -0.11)
-            ax.yaxis.set_label_coords(-0.11 if len(rects) == 1 else -0.15, 0.5)
+            ax.yaxis.set_label_coords(-0.11 if len(rects) == 1 else -0.17, 0.5)
 
     def reset(self) -> list[Axes]:
         for ax in self.axes:
@@ -92,7 +92,7 @@ _CANVASES: dict[str, _Canvas] = {}
 _LAYOUTS: dict[str, tuple[float, float, tuple[tuple[float, float, float, float], ...]]] = {
     "single": (4.6, 3.3, ((0.14, 0.14, 0.82, 0.76),)),
     "bars": (4.6, 3.0, ((0.14, 0.2, 0.82, 0.68),)),
-    "double": (6.4, 3.3, ((0.08, 0.14, 0.40, 0.76), (0.58, 0.14, 0.40, 0.76))),
+    "double": (6.4, 3.3, ((0.10, 0.14, 0.38, 0.76), (0.60, 0.14, 0.38, 0.76))),
 }
 
 
@@ -452,11 +452,7 @@ def _tasks(data: ReportData) -> list[tuple[str, Callable[[], str]]]:
         tasks.append((f"{base}-energy", _bind(energy_cycles_figure, cfg)))
         if cfg.bouc_wen is not None:
             tasks.append((f"{base}-boucwen", _bind(bouc_wen_figure, cfg)))
-    for comp in data.comparisons:
-        if is_emu(comp):
-            continue
-        if not _present(data, comp.configurations):
-            continue
+    for comp in distinct_comparisons(data):
         tasks.append(
             (f"fig-comparison-{slug(comp.name)}-overlay", _bind(comparison_overlay_figure, data, comp))
         )
@@ -471,6 +467,20 @@ def _tasks(data: ReportData) -> list[tuple[str, Callable[[], str]]]:
     for comp in model_comparisons(data):
         tasks.append((f"fig-spring-{slug(comp.name)}", _bind(spring_model_figure, data, comp)))
     return tasks
+
+
+def distinct_comparisons(data: ReportData) -> list[Comparison]:
+    """Comparisons drawn as overlays and energy bars: not the EMU one (own section), with data present,
+    and each set of configurations once (a protocol may list the same keys under §5.x and §5.7.2)."""
+    seen: set[tuple[int, ...]] = set()
+    out = []
+    for comp in data.comparisons:
+        key = tuple(sorted(comp.configurations))
+        if is_emu(comp) or key in seen or not _present(data, comp.configurations):
+            continue
+        seen.add(key)
+        out.append(comp)
+    return out
 
 
 def is_emu(comparison: Comparison) -> bool:

@@ -62,15 +62,18 @@ def comparison_keys(data: ReportData, parameter: str) -> tuple[int, ...]:
     fallback = _FALLBACK[parameter]
     aliases = _ALIASES[parameter]
     best: tuple[int, ...] | None = None
-    best_overlap = -1
+    best_score = (-1, 0)
     for comp in data.comparisons:
         if not comp.from_archive:
             continue
         if comp.parameter.lower() not in aliases and comp.name.lower() not in aliases:
             continue
-        overlap = len(set(comp.configurations) & set(fallback))
-        if overlap > best_overlap:
-            best, best_overlap = comp.configurations, overlap
+        keys = set(comp.configurations)
+        # most keys in common with the thesis's, then fewest others (brace_rom [1, 2, 3] beats the
+        # restraint comparison [1, 2, 3, 12, 13, 14] that shares its parameter)
+        score = (len(keys & set(fallback)), -len(keys - set(fallback)))
+        if score > best_score:
+            best, best_score = comp.configurations, score
     return best if best is not None else fallback
 
 

@@ -310,9 +310,8 @@ def _read_session(h5: h5py.File, archive: Path) -> SessionInfo:
         sess = h5["session"]
         if "events" in sess:
             raw = _decode(sess["events"][()])
-            lines = raw if isinstance(raw, list) else [raw]
-            for line in lines:
-                events.append(_parse_event(str(line)))
+            lines = raw if isinstance(raw, list) else str(raw).splitlines()
+            events.extend(_parse_event(str(line)) for line in lines if str(line).strip())
         if "checklists" in sess:
             for name, grp in sess["checklists"].items():
                 if not _is_group(grp):

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -24,8 +23,8 @@ from protocol_runner import __version__
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.figures import (
     FigureSet,
+    distinct_comparisons,
     emu_comparison,
-    is_emu,
     model_comparisons,
     render_figures,
     slug,
@@ -106,13 +105,14 @@ def render_report(
         raise InvalidInput(f"Report output {output} is a directory; give a file name such as report.html.")
     if not output.parent.is_dir():
         raise InvalidInput(f"Report output directory {output.parent} does not exist.")
-    fd, tmp = tempfile.mkstemp(prefix=".report-", suffix=".html.partial", dir=output.parent)
+    # a plain open() so the file gets the usual permissions (umask), unlike mkstemp's 0600
+    tmp = output.with_name(f".{output.name}.{os.getpid()}.partial")
     try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        with tmp.open("w", encoding="utf-8") as fh:
             fh.write(html)
         os.replace(tmp, output)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        tmp.unlink(missing_ok=True)
         raise
     return output
 
@@ -184,7 +184,7 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
                 checks=tuple(c for c in data.calibration if c.set_name == set_name),
             )
         )
-    overlay_comparisons = [c for c in data.comparisons if not is_emu(c) and _has_any(data, c)]
+    overlay_comparisons = distinct_comparisons(data)
     emu = emu_comparison(data)
     findings: tuple[Finding, ...] = evaluate_findings(data)
     restraint_keys = (comparison_keys(data, "brace_rom"), comparison_keys(data, "robot_rom"))
@@ -216,10 +216,6 @@ def _beta_cell(fit: BoucWenFit, index: int) -> str:
         return "—"
     std = fit.beta_std[index] if index < len(fit.beta_std) else math.nan
     return _pm(fit.beta[index], std, 4)
-
-
-def _has_any(data: ReportData, comparison: Comparison) -> bool:
-    return any(data.configuration(k) is not None for k in comparison.configurations)
 
 
 def _configs(data: ReportData, comparison: Comparison | None) -> list[Configuration]:
