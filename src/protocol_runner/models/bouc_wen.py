@@ -277,8 +277,10 @@ def _recursion_kernel(x, seg, z0, A, n, beta, bound, freeze, z):  # pragma: no c
 
 
 @njit(cache=True)
-def _sensitivity_kernel(x, seg, z0, A, n, beta, bound, freeze, z, dz):  # pragma: no cover
-    """Eq 23 and its exact derivatives ``dz[i, k] = d z_i / d theta_k``, theta = (A, n, beta1..6).
+def _sensitivity_kernel(x, seg, z0, A, n, beta, bound, freeze, z, dz, T):  # pragma: no cover
+    """Eq 23 and its exact derivatives ``d z_i / d theta_k``, theta = (A, n, beta1..6), written as
+    ``dz[i, :] = (d z_i / d theta) @ T`` (``T`` = identity for the plain derivatives; the fitter passes its
+    chain-rule matrix so that no separate pass over the Jacobian is needed).
 
     Differentiating Eq 23 (the signs are piecewise constant, so their derivative is zero almost
     everywhere) gives, with ``g_i = |z_i|^n`` and ``s_i`` the six signs of Eq 23::
@@ -305,8 +307,11 @@ def _sensitivity_kernel(x, seg, z0, A, n, beta, bound, freeze, z, dz):  # pragma
         for i in range(i0, i1 - 1):
             if dead:
                 z[i + 1] = zi
-                for k in range(8):
-                    dz[i + 1, k] = sens[k]
+                for c in range(8):
+                    acc = 0.0
+                    for k in range(8):
+                        acc += sens[k] * T[k, c]
+                    dz[i + 1, c] = acc
                 continue
             xi = x[i]
             d = x[i + 1] - xi
@@ -355,14 +360,46 @@ def _sensitivity_kernel(x, seg, z0, A, n, beta, bound, freeze, z, dz):  # pragma
                     for k in range(8):
                         sens[k] = np.nan
             z[i + 1] = zi
-            for k in range(8):
-                dz[i + 1, k] = sens[k]
+            for c in range(8):
+                acc = 0.0
+                for k in range(8):
+                    acc += sens[k] * T[k, c]
+                dz[i + 1, c] = acc
     return first_bad
+
+
+@njit(cache=True)
+def _gram(J):  # pragma: no cover
+    """``J.T @ J`` in plain loops."""
+    k = J.shape[1]
+    G = np.zeros((k, k))
+    for i in range(J.shape[0]):
+        for a in range(k):
+            ja = J[i, a]
+            for b in range(a, k):
+                G[a, b] += ja * J[i, b]
+    for a in range(k):
+        for b in range(a):
+            G[a, b] = G[b, a]
+    return G
+
+
+@njit(cache=True)
+def _sum_sq_diff(z, y):  # pragma: no cover
+    """``sum((z - y)**2)`` in a plain loop."""
+    acc = 0.0
+    for i in range(z.size):
+        d = z[i] - y[i]
+        acc += d * d
+    return acc
 
 
 # --------------------------------------------------------------------------------------------------------
 # public simulation
 # --------------------------------------------------------------------------------------------------------
+
+
+_IDENTITY8 = np.eye(8)
 
 
 def _as_angle(x_deg: npt.ArrayLike, name: str = "x_deg") -> FloatArray:
@@ -445,6 +482,7 @@ def simulate_sensitivity(
         False,
         z,
         dz,
+        _IDENTITY8,
     )
     return z, dz
 
@@ -569,7 +607,6 @@ class _Problem:
         self.lower = bounds.lower()
         self.upper = bounds.upper()
         self.z = np.empty_like(x)
-        self.dz = np.empty((x.size, 8))
         self.nfev = 0
         self.diverged_at = -1
 
@@ -615,22 +652,24 @@ class _Problem:
         r = self.residuals(u)
         return 0.5 * float(r @ r)
 
-    def physical_jacobian(self, A: float, n: float, beta: FloatArray) -> FloatArray:
-        _sensitivity_kernel(self.x, self.seg, self.z0, A, n, beta, self.bound, True, self.z, self.dz)
-        return self.dz
+    def physical_jacobian(
+        self, A: float, n: float, beta: FloatArray, transform: FloatArray = _IDENTITY8
+    ) -> FloatArray:
+        """``dz/dtheta @ transform`` on the fitted samples, in a new array (least_squares keeps it)."""
+        out = np.empty((self.x.size, 8))
+        _sensitivity_kernel(self.x, self.seg, self.z0, A, n, beta, self.bound, True, self.z, out, transform)
+        return out
 
     def jacobian(self, u: FloatArray) -> FloatArray:
         """Chain rule from the physical sensitivities: every column of the dimensionless Jacobian is a
         fixed linear combination of the physical ones, ``J_u = dz/dtheta @ T / Z``."""
         A, n, beta = self.physical(u)
-        dz = self.physical_jacobian(A, n, beta)
         T = np.zeros((8, 8))
         T[0, 0] = self.Z / self.X  # dA/da
         T[1, 1] = 1.0  # dn/dn
         T[2:, 1] = -self.lnZ * beta  # dbeta/dn at fixed psi' (beta ~ Z^(1-n))
         T[2:, 2:] = EQ25_BETA_MATRIX / (self.X * self.Z ** (n - 1.0))  # dbeta/dpsi'
-        result: FloatArray = dz @ (T / self.Z)
-        return result
+        return self.physical_jacobian(A, n, beta, T / self.Z)
 
     def solve(self, u0: FloatArray, max_nfev: int, tol: float) -> tuple[FloatArray, float, bool, str]:
         res = least_squares(
@@ -765,24 +804,31 @@ def _decimate(
 
 
 def _param_std(problem: _Problem, params: BoucWenParams) -> FloatArray:
-    """``sqrt(diag(s^2 (J^T J)^-1))`` with the physical Jacobian on the fitted samples; ``inf`` for
-    parameters that mix with a (numerically) unidentifiable direction."""
+    """``sqrt(diag(s^2 (J^T J)^-1))`` with the physical Jacobian on the fitted samples; ``inf`` for a
+    parameter that has no effect or mixes with a (numerically) unidentifiable direction.
+
+    ``J^T J`` is formed with its columns scaled to unit norm and inverted on the subspace whose
+    eigenvalues exceed 1e-12 of the largest (singular values 1e-6 of the largest)."""
     dz = problem.physical_jacobian(params.A, params.n, np.array(params.beta))
-    r = problem.z - problem.y
-    m = r.size
+    m = problem.y.size
     std = np.full(8, np.inf)
     if m <= 8 or not np.all(np.isfinite(dz)):
         return std
-    s2 = float(r @ r) / (m - 8)
-    _, sv, vt = np.linalg.svd(dz, full_matrices=False)
-    if sv[0] == 0.0:
+    s2 = float(_sum_sq_diff(problem.z, problem.y)) / (m - 8)
+    G = _gram(dz)
+    norm = np.sqrt(np.diag(G))
+    active = norm > 0.0
+    if not np.any(active):
         return std
-    good = sv > sv[0] * 1e-10
-    cov = (vt[good].T / sv[good] ** 2) @ vt[good] * s2
-    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
-    null = vt[~good]
+    Gs = G[np.ix_(active, active)] / np.outer(norm[active], norm[active])
+    eigval, eigvec = np.linalg.eigh(Gs)
+    good = eigval > eigval[-1] * 1e-12
+    cov_s = (eigvec[:, good] / eigval[good]) @ eigvec[:, good].T
+    std_active = np.sqrt(np.clip(np.diag(cov_s), 0.0, None) * s2) / norm[active]
+    null = eigvec[:, ~good]
     if null.size:
-        std[np.any(np.abs(null) > 1e-8, axis=0)] = np.inf
+        std_active[np.any(np.abs(null) > 1e-8, axis=1)] = np.inf
+    std[active] = std_active
     return std
 
 
@@ -803,10 +849,9 @@ def _evaluate(
             x, np.array([0, x.size], dtype=np.int64), y[:1].copy(), params.A, params.n, beta, bound, True, z
         )
         diverged = diverged or bad >= 0
-        z -= y
-        sse.append(float(z @ z))
-        total += float(y.sum())
-        total_sq += float(y @ y)
+        sse.append(float(_sum_sq_diff(z, y)))
+        total += float(np.sum(y))
+        total_sq += float(np.sum(np.square(y)))
         count += y.size
     rmse = math.sqrt(sum(sse) / count)
     sst = total_sq - total * total / count
