@@ -37,10 +37,12 @@ from an equation-error least-squares guess, and from quasi-random points spread 
 and keeps the best optimum, so the result does not depend on any single starting point.
 
 Performance: the numba kernels are compiled once (cached on disk); a fit of one configuration (three 65 s
-trials at 1 kHz) takes about 0.1-0.2 s on a busy 2-core machine (``benchmarks/bench_bouc_wen.py``).  The
-solver's dense SVD of the tall 8-column Jacobian goes through OpenBLAS, whose worker threads make each
-call cost tens of milliseconds when the cores are busy: run with ``OPENBLAS_NUM_THREADS=1`` (set in the
-environment before numpy is imported).
+trials at 1 kHz) takes about 0.1 s on a busy 2-core machine (``benchmarks/bench_bouc_wen.py``) - provided
+BLAS runs single-threaded.  The solver's linear algebra on the tall 8-column Jacobian (SVD, products) goes
+through OpenBLAS, whose worker threads make each call cost milliseconds when the cores are busy: the same
+fit then takes about 1.2 s.  Set ``OPENBLAS_NUM_THREADS=1`` in the environment before numpy is imported.
+This module keeps its own tall-matrix work (Jacobian chain rule, Gram matrix, sums of squares) in numba
+loops for that reason.
 """
 
 from __future__ import annotations
