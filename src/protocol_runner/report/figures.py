@@ -19,7 +19,6 @@ import io
 import math
 import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,6 +29,7 @@ from matplotlib.ticker import MaxNLocator, ScalarFormatter
 
 from protocol_runner.report.findings import comparison_keys
 from protocol_runner.report.model import CalibrationCheck, Comparison, Configuration, ReportData
+from protocol_runner.report.parallel import map_in_processes
 
 DPI = 80
 ANGLE_LABEL = "Angle (deg)"
@@ -503,7 +503,7 @@ def emu_comparison(data: ReportData) -> Comparison:
 def model_comparisons(data: ReportData) -> list[Comparison]:
     """The preload and stiffness comparisons whose configurations have spring fits (Figures 52-53)."""
     out = []
-    for comp in data.comparisons:
+    for comp in distinct_comparisons(data):
         p = comp.parameter.lower()
         if ("preload" in p or "stiff" in p or "spring" in p) and any(
             c.spring is not None for c in _present(data, comp.configurations)
@@ -533,17 +533,16 @@ def _bind(fn: Callable[..., str], *args: object) -> Callable[[], str]:
     return _Bound(fn, *args)
 
 
-_WORKER_DATA: ReportData | None = None
+_WORKER_TASKS: dict[str, Callable[[], str]] = {}
 
 
-def _run_chunk(ids: list[str]) -> list[tuple[str, str | None, str | None]]:
-    assert _WORKER_DATA is not None
-    wanted = set(ids)
-    out = []
-    for task_id, task in _tasks(_WORKER_DATA):
-        if task_id in wanted:
-            out.append(_safe(task_id, task))
-    return out
+def _init_worker(data: ReportData) -> None:
+    _WORKER_TASKS.clear()
+    _WORKER_TASKS.update(_tasks(data))
+
+
+def _run_one(task_id: str) -> tuple[str, str | None, str | None]:
+    return _safe(task_id, _WORKER_TASKS[task_id])
 
 
 def _safe(task_id: str, task: Callable[[], str]) -> tuple[str, str | None, str | None]:
@@ -553,32 +552,26 @@ def _safe(task_id: str, task: Callable[[], str]) -> tuple[str, str | None, str |
         return task_id, None, f"{type(exc).__name__}: {exc}"
 
 
-def _init_worker(data: ReportData) -> None:
-    global _WORKER_DATA
-    _WORKER_DATA = data
-
-
 def render_figures(data: ReportData, workers: int | None = None) -> FigureSet:
-    """Draw every figure of the report. `workers` > 1 draws on that many processes (fork start)."""
+    """Draw every figure of the report. `workers` > 1 draws on that many forked processes."""
     tasks = _tasks(data)
     if workers is None:
         workers = default_workers(len(tasks))
+    results: list[tuple[str, str | None, str | None]] | None = None
+    if workers > 1 and len(tasks) >= 8:
+        # small chunks keep both workers busy: two-panel figures cost about twice a one-panel one
+        results = map_in_processes(
+            _run_one,
+            [task_id for task_id, _ in tasks],
+            workers,
+            initializer=_init_worker,
+            initargs=(data,),
+            chunksize=4,
+        )
+    if results is None:
+        results = [_safe(task_id, task) for task_id, task in tasks]
     images: dict[str, str] = {}
     missing: dict[str, str] = {}
-    results: list[tuple[str, str | None, str | None]] = []
-    if workers <= 1 or len(tasks) < 8:
-        results = [_safe(task_id, task) for task_id, task in tasks]
-    else:
-        import multiprocessing
-
-        ids = [task_id for task_id, _ in tasks]
-        chunks = [ids[i::workers] for i in range(workers)]
-        ctx = multiprocessing.get_context("fork")
-        with ProcessPoolExecutor(
-            max_workers=workers, mp_context=ctx, initializer=_init_worker, initargs=(data,)
-        ) as pool:
-            for part in pool.map(_run_chunk, chunks):
-                results.extend(part)
     for task_id, uri, error in results:
         if uri is not None:
             images[task_id] = uri

@@ -37,6 +37,7 @@ from protocol_runner.report.model import (
     SpringFit,
     Trial,
 )
+from protocol_runner.report.parallel import map_in_processes
 
 #: Most points drawn per line: the processed data is low-pass filtered (thesis §4.4), so ~250 points per
 #: sinusoid cycle of a 65 s, 8-cycle trial still draw it exactly at report resolution.
@@ -108,17 +109,18 @@ def _load_chunk(archive: Path, names: list[str]) -> list[Configuration]:
 def _load_configurations(archive: Path, names: list[str], workers: int | None) -> tuple[Configuration, ...]:
     if workers is None:
         workers = 2 if len(names) >= 12 and (os.cpu_count() or 1) >= 2 else 1
-    if workers <= 1 or len(names) < 2:
+    configs: list[Configuration] | None = None
+    if workers > 1 and len(names) >= 2:
+        parts = map_in_processes(_load_one, [(archive, name) for name in names], workers, chunksize=2)
+        configs = parts
+    if configs is None:
         configs = _load_chunk(archive, names)
-    else:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
-        chunks = [names[i::workers] for i in range(workers)]
-        ctx = multiprocessing.get_context("fork")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-            configs = [c for part in pool.map(_load_chunk, [archive] * len(chunks), chunks) for c in part]
     return tuple(sorted(configs, key=lambda c: c.key))
+
+
+def _load_one(item: tuple[Path, str]) -> Configuration:
+    archive, name = item
+    return _load_chunk(archive, [name])[0]
 
 
 def load_reference_dataset(path: Path, title: str | None = None) -> ReferenceDataset:
