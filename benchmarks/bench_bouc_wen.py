@@ -170,17 +170,17 @@ def main() -> int:
     )
     print()
     print(f"{'fitter':<34}{'median time (s)':>16}{'RMSE (N*m)':>14}{'nfev':>8}")
-    print(f"{'ours: fit_trials (analytic J)':<34}{t_ours:>16.3f}{rmse_ours:>14.5f}{ours.nfev:>8d}")
-    print(f"{'baseline: least_squares 2-point J':<34}{t_base:>16.3f}{rmse_base:>14.5f}{base_nfev:>8d}")
-    print(f"{'(info) Figure 56 start + 2-point J':<34}{t_f56:>16.3f}{rmse_f56:>14.5f}{f56_nfev:>8d}")
+    print(f"{'ours: fit_trials (analytic J)':<34}{t_ours:>16.3f}{rmse_ours:>14.6f}{ours.nfev:>8d}")
+    print(f"{'baseline: least_squares 2-point J':<34}{t_base:>16.3f}{rmse_base:>14.6f}{base_nfev:>8d}")
+    print(f"{'(info) Figure 56 start + 2-point J':<34}{t_f56:>16.3f}{rmse_f56:>14.6f}{f56_nfev:>8d}")
     if args.full:
         t0 = time.perf_counter()
         full = fit_trials(segments, max_samples_per_trial=None)
         t_full = time.perf_counter() - t0
         print(
-            f"{'(info) ours on every sample, 1 run':<34}{t_full:>16.3f}{full.rmse_nm:>14.5f}{full.nfev:>8d}"
+            f"{'(info) ours on every sample, 1 run':<34}{t_full:>16.3f}{full.rmse_nm:>14.6f}{full.nfev:>8d}"
         )
-    print(f"{'(info) true Figure 57 parameters':<34}{'':>16}{rmse_truth:>14.5f}")
+    print(f"{'(info) true Figure 57 parameters':<34}{'':>16}{rmse_truth:>14.6f}")
     print()
     print("fitted (ours):   ", np.array2string(ours.params.as_array(), precision=5))
     print("fitted (baseline):", np.array2string(base_params.as_array(), precision=5))
