@@ -364,3 +364,18 @@ TWO_BETAS: Any = (0.0, 0.0)  # deliberately the wrong length
 def test_bad_input_gets_a_clear_error(call: object, message: str) -> None:
     with pytest.raises(InvalidInput, match=message):
         call()  # type: ignore[operator]
+
+
+def test_cross_validation_warm_started_from_the_full_fit_reaches_the_same_errors() -> None:
+    p = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
+    rng = np.random.default_rng(3)
+    segments = []
+    for k in range(3):
+        t = np.arange(0.0, 20.0, 0.01)
+        x = 40.0 * np.sin(2 * np.pi * t / 8.17 + 0.2 * k)
+        segments.append((x, simulate(x, p, z0=0.0) + rng.normal(0.0, 0.2, x.size)))
+    full = fit_trials(segments)
+    cold = cross_validate(segments)
+    warm = cross_validate(segments, initial=full.params)
+    np.testing.assert_allclose(warm, cold, rtol=1e-3)
+    assert all(0.15 < e < 0.3 for e in warm)  # the held-out error is the noise level, not a failed fit

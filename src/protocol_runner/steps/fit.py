@@ -42,7 +42,7 @@ def fit_bouc_wen(
     result = fit_trials(segments, starts=spec.starts)
     cv: list[float] = []
     if spec.cross_validate and len(segments) >= 2:
-        cv = cross_validate(segments, starts=max(2, spec.starts // 2))
+        cv = cross_validate(segments, initial=result.params)
     return result, cv
 
 
