@@ -5,7 +5,9 @@ trials of 65 s at 1 kHz, brace-off trials, calibration checks, fits) in a tempor
 `generate_report` over several repeats, single-process and with the default worker count, and prints the
 medians, the archive size and the report size.
 
-    python benchmarks/bench_report.py [--repeats N] [--keep DIR]
+    python benchmarks/bench_report.py [--repeats N] [--keep DIR] [--archive ARCHIVE.h5]
+
+`--archive` times an existing archive instead (e.g. the one of a full `--dry-run` of knee_phase1).
 """
 
 from __future__ import annotations

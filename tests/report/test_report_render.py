@@ -252,3 +252,12 @@ def test_report_file_gets_ordinary_permissions(small_archive: Path, tmp_path: Pa
     os.umask(umask)
     out = generate_report(small_archive, tmp_path / "report.html")
     assert out.stat().st_mode & 0o777 == 0o666 & ~umask
+
+
+def test_aborted_session_without_configurations_still_reports(tmp_path: Path) -> None:
+    spec = ArchiveSpec(configs=[], status="aborted", duration_s=5.0)
+    html = generate_report(write_archive(tmp_path / "archive.h5", spec)).read_text(encoding="utf-8")
+    assert "This session is aborted" in html
+    assert _parse(html).errors == []
+    assert "<img" not in html and "Figure not drawn" not in html
+    assert "No comparison has data in this archive." in html
