@@ -57,20 +57,25 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--keep", type=Path, default=None, help="write the archive and report here")
+    parser.add_argument("--archive", type=Path, default=None, help="time this archive instead")
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         folder = args.keep or Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
-        archive = folder / "archive.h5"
-        t0 = time.perf_counter()
-        spec = campaign_spec()
-        write_archive(archive, spec)
-        n_trials = sum(c.n_trials for c in spec.configs)
-        print(
-            f"archive: {len(spec.configs)} configurations, {n_trials} brace-on trials of "
-            f"{spec.duration_s:.0f} s at {spec.rate_hz:.0f} Hz, {archive.stat().st_size / 1e6:.1f} MB "
-            f"(built in {time.perf_counter() - t0:.1f} s)"
-        )
+        if args.archive is not None:
+            archive = args.archive
+            print(f"archive: {archive} ({archive.stat().st_size / 1e6:.1f} MB)")
+        else:
+            archive = folder / "archive.h5"
+            t0 = time.perf_counter()
+            spec = campaign_spec()
+            write_archive(archive, spec)
+            n_trials = sum(c.n_trials for c in spec.configs)
+            print(
+                f"archive: {len(spec.configs)} configurations, {n_trials} brace-on trials of "
+                f"{spec.duration_s:.0f} s at {spec.rate_hz:.0f} Hz, {archive.stat().st_size / 1e6:.1f} MB "
+                f"(built in {time.perf_counter() - t0:.1f} s)"
+            )
         load = _time(lambda: load_report_data(archive), args.repeats)
         data = load_report_data(archive)
         n_figures = len(figure_ids(data))
