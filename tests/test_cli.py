@@ -1,0 +1,97 @@
+"""The command line: modes, exit statuses and plain messages (DESIGN.md "Command line")."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from protocol_runner.cli import main, parse_only
+from protocol_runner.errors import InvalidInput
+
+
+def run_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "protocol_runner.cli", *args],
+        cwd=cwd,
+        capture_output=True,
+        text=True,
+        env=dict(os.environ),
+    )
+
+
+def test_plan_json_from_an_empty_directory_uses_the_packaged_protocol(tmp_path: Path) -> None:
+    done = run_cli("--plan", "knee_phase1.yaml", "--json", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr
+    plan = json.loads(done.stdout)
+    assert plan["protocol"] == "knee_phase1"
+    assert sum(1 for s in plan["steps"] if s["kind"] == "trial") == 136
+    assert not any(tmp_path.iterdir())  # planning writes nothing
+
+
+def test_help_explains_every_mode_with_an_example(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as info:
+        main(["--help"])
+    assert info.value.code == 0
+    out = capsys.readouterr().out
+    for mode in (
+        "--dry-run",
+        "--resume",
+        "--report",
+        "--plan",
+        "--validate",
+        "--hardware-check",
+        "--only",
+        "examples:",
+    ):
+        assert mode in out
+
+
+def test_running_without_boards_exits_3_with_a_plain_message(tmp_path: Path) -> None:
+    done = run_cli("knee_phase1.yaml", "--session", str(tmp_path / "s"), cwd=tmp_path)
+    assert done.returncode == 3
+    assert "--dry-run" in done.stderr and "Traceback" not in done.stderr
+    assert not (tmp_path / "s").exists()  # nothing is created before the boards are found
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (["--report", "{tmp}/garbage.h5"], "not an HDF5 file"),
+        (["--resume", "{tmp}/nowhere"], "no such session directory"),
+        (["knee_phase1.yaml", "--dry-run", "--only", "99"], "no configuration has key 99"),
+        (["knee_phase1.yaml", "--dry-run", "--only", "x"], "not a configuration key"),
+        (["no_such_protocol.yaml", "--dry-run"], "protocol file not found"),
+        (["knee_phase1.yaml", "--realtime"], "--realtime paces the simulator"),
+    ],
+)
+def test_bad_input_exits_2_without_traceback(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], args: list[str], needle: str
+) -> None:
+    (tmp_path / "garbage.h5").write_bytes(b"not hdf5 at all" * 10)
+    argv = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert needle in err and "Traceback" not in err
+
+
+def test_second_session_in_the_same_directory_is_refused(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = tmp_path / "s"
+    session.mkdir()
+    (session / "session.json").write_text("{}")
+    assert main(["knee_phase1.yaml", "--dry-run", "--yes", "--only", "12", "--session", str(session)]) == 2
+    assert "--resume" in capsys.readouterr().err
+
+
+def test_parse_only_accepts_lists_and_ranges() -> None:
+    assert parse_only("4,5,6,7") == [4, 5, 6, 7]
+    assert parse_only("12-14,27") == [12, 13, 14, 27]
+    assert parse_only(None) is None
+    with pytest.raises(InvalidInput):
+        parse_only("14-12")
