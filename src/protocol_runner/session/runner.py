@@ -12,11 +12,15 @@ from __future__ import annotations
 
 import contextlib
 import json
+import multiprocessing
+import os
+import signal
+from concurrent.futures import Future, ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..archive.consolidate import ArchiveMeta, consolidate
-from ..archive.units import DiskFull, unit_is_complete, write_unit
+from ..archive.units import DiskFull, UnitRecord, unit_is_complete, write_unit
 from ..errors import Interrupted, StoppedByCheck, UserError
 from ..protocol.loader import LoadedProtocol
 from ..protocol.plan import (
@@ -39,6 +43,35 @@ from .signals import StopFlag
 
 ARCHIVE_NAME = "archive.h5"
 REPORT_NAME = "report.html"
+
+# Steps that only read finished units (never the rig): on a machine with two cores or more they run in a
+# worker process while the main process goes on with the next set's trials. They are journaled, like any
+# step, only once their unit is on disk; a stop waits for the one in progress and redoes the rest.
+BACKGROUND_KINDS = frozenset({"process", "fit"})
+
+
+def _ignore_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process decides when to stop
+
+
+def run_analysis_step(
+    loaded: LoadedProtocol, plan: Plan, units_dir: Path, step_id: str
+) -> tuple[UnitRecord | None, str]:
+    """Run one analysis step from the archived units and write its unit (in a worker process)."""
+    step = plan.step(step_id)
+    ctx = StepContext(
+        loaded=loaded,
+        plan=plan,
+        bench=None,  # type: ignore[arg-type]  # analysis steps never touch the rig
+        operator=None,  # type: ignore[arg-type]
+        units_dir=units_dir,
+        journal=None,  # type: ignore[arg-type]
+        stop_requested=lambda: False,
+        processing=processing_settings(loaded),
+    )
+    outcome = STEP_KINDS[step.kind](step, ctx)
+    record = write_unit(units_dir, step.id, outcome.fill) if outcome.fill is not None else None
+    return record, outcome.summary
 
 
 @dataclass(frozen=True)
@@ -64,6 +97,7 @@ class Runner:
         protocol_changed: bool = False,
         quiet: bool = False,
         stop: StopFlag | None = None,
+        background: bool | None = None,
     ) -> None:
         self.dir = session_dir
         self.info = info
@@ -78,6 +112,9 @@ class Runner:
         self.journal = Journal(session_dir / "journal.jsonl")
         self.stop = stop or StopFlag()
         self.steps_run = 0
+        self.background = background if background is not None else (os.cpu_count() or 1) >= 2
+        self._pool: ProcessPoolExecutor | None = None
+        self._pending: list[tuple[Step, Future[tuple[UnitRecord | None, str]]]] = []
 
     # ------------------------------------------------------------------------------------------ run
 
@@ -104,17 +141,23 @@ class Runner:
             else:
                 self.journal.event("started", f"{self.info.mode}, seed {self.info.seed}")
             for step in self.plan.steps:
+                self._collect(progress, wait=False)
                 if step.id in self.journal.units:
                     skipped += 1
                     continue
                 if self.stop():
                     raise Interrupted(f"stopped before {step.id} ({self.stop.signal_name})")
+                if self.background and step.kind in BACKGROUND_KINDS:
+                    self._submit(step)
+                    continue
+                self._collect(progress, wait=True)  # later steps (comparisons, report) need the analyses
                 if step.kind == "report":
                     return self._finish(progress, skipped)
                 progress.step_started(step)
                 outcome = STEP_KINDS[step.kind](step, ctx)
                 self._record(step.id, outcome)
                 progress.step_finished(step, outcome.summary)
+            self._collect(progress, wait=True)
             return self._finish(progress, skipped)
         except Interrupted as exc:
             self._stopped("interrupted", exc.message, progress)
@@ -146,10 +189,47 @@ class Runner:
             self._stopped("stopped", f"internal error: {exc!r} (traceback in session.log)", progress)
             raise
         finally:
+            self._shutdown_pool(progress)
             self.stop.uninstall()
             progress.close()
             with contextlib.suppress(Exception):
                 self.bench.close()
+
+    def _submit(self, step: Step) -> None:
+        if self._pool is None:
+            self._pool = ProcessPoolExecutor(
+                max_workers=1, mp_context=multiprocessing.get_context("spawn"), initializer=_ignore_sigint
+            )
+        future = self._pool.submit(run_analysis_step, self.loaded, self.plan, self.units_dir, step.id)
+        self._pending.append((step, future))
+
+    def _collect(self, progress: Progress, *, wait: bool) -> None:
+        """Journal the background steps that finished (all of them, in order, when `wait`)."""
+        while self._pending and (wait or self._pending[0][1].done()):
+            step, future = self._pending[0]
+            record, summary = future.result()  # a worker's error is raised here, in the main process
+            self._pending.pop(0)
+            if record is not None:
+                self.journal.unit_done(record)
+            self.steps_run += 1
+            progress.step_finished(step, summary)
+
+    def _shutdown_pool(self, progress: Progress) -> None:
+        """On any exit: keep the background steps that completed, drop the queued ones (redone on resume)."""
+        if self._pool is None:
+            return
+        for _, future in self._pending:
+            future.cancel()
+        with contextlib.suppress(Exception):
+            self._collect(progress, wait=False)
+        self._pool.shutdown(wait=True, cancel_futures=True)
+        with contextlib.suppress(Exception):
+            while self._pending and self._pending[0][1].done() and not self._pending[0][1].cancelled():
+                self._collect(progress, wait=False)
+                if self._pending and self._pending[0][1].exception() is not None:
+                    break
+        self._pending.clear()
+        self._pool = None
 
     def _record(self, step_id: str, outcome: StepOutcome) -> None:
         if outcome.fill is not None:
