@@ -250,7 +250,8 @@ def energy_cycles_figure(cfg: Configuration) -> str:
         ax.axhline(mean, color="k", lw=0.8, label=f"mean {mean:.2f} J")
         if math.isfinite(std):
             ax.axhspan(mean - std, mean + std, color="k", alpha=0.08, lw=0)
-        ax.set_ylim(bottom=0.0)
+        top = float(np.nanmax(e)) if np.isfinite(e).any() else 1.0
+        ax.set_ylim(0.0, max(top, mean + (std if math.isfinite(std) else 0.0)) * 1.15 or 1.0)
     _style(ax, "Cycle (all trials in order)", ENERGY_LABEL, f"Configuration {cfg.key}: energy lost per cycle")
     _legend(ax)
     return to_data_uri(fig)
