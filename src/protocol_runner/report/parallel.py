@@ -9,6 +9,7 @@ available (Windows) or the pool breaks, `map_in_processes` returns None and the 
 from __future__ import annotations
 
 import multiprocessing
+import warnings
 from collections.abc import Callable, Iterable
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -37,9 +38,13 @@ def map_in_processes(
     except ValueError:  # no fork on this platform
         return None
     try:
-        with ProcessPoolExecutor(
-            max_workers=workers, mp_context=ctx, initializer=initializer, initargs=initargs
-        ) as pool:
-            return list(pool.map(fn, items, chunksize=chunksize))
+        with warnings.catch_warnings():
+            # Python >= 3.12 warns that forking a multi-threaded process (BLAS threads count) may
+            # deadlock; the workers only compute and never take a lock another thread could hold.
+            warnings.simplefilter("ignore", DeprecationWarning)
+            with ProcessPoolExecutor(
+                max_workers=workers, mp_context=ctx, initializer=initializer, initargs=initargs
+            ) as pool:
+                return list(pool.map(fn, items, chunksize=chunksize))
     except (BrokenProcessPool, OSError):
         return None
