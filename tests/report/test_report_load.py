@@ -16,6 +16,7 @@ from protocol_runner.report.load import (
     decimate_for_plot,
     load_reference_dataset,
     load_report_data,
+    validate_archive,
 )
 from tests.report.report_archive_builder import (
     FRICTION_ENERGY_J,
@@ -215,3 +216,18 @@ def test_reference_groups_in_the_archive_are_read(tmp_path: Path) -> None:
     data = load_report_data(write_archive(tmp_path / "archive.h5", spec))
     assert [r.title for r in data.references] == ["Schmidt EMU data"]
     assert data.references[0].angle_deg.size == 300
+
+
+def test_validate_archive_accepts_a_good_archive_and_rejects_a_foreign_one(
+    small_archive: Path, tmp_path: Path
+) -> None:
+    assert validate_archive(small_archive.parent) == small_archive
+    foreign = tmp_path / "foreign.h5"
+    with h5py.File(foreign, "w") as f:
+        f.attrs["creator"] = "someone else"
+    with pytest.raises(InvalidInput, match="missing root attribute protocol_sha256"):
+        validate_archive(foreign)
+    truncated = tmp_path / "archive.h5"
+    truncated.write_bytes(small_archive.read_bytes()[:4096])
+    with pytest.raises(InvalidInput, match="is truncated or corrupt"):
+        validate_archive(truncated)

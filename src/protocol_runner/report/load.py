@@ -91,6 +91,30 @@ def load_report_data(path: Path, *, workers: int | None = None) -> ReportData:
         ) from exc
 
 
+def validate_archive(path: Path) -> Path:
+    """Check cheaply that `path` (a file or session directory) is a readable protocol-runner archive.
+
+    Reads only the root attributes and the `/configurations` listing; returns the archive's path.
+    Raises `InvalidInput` with the same messages as `load_report_data`.
+    """
+    archive = _resolve_archive(Path(path))
+    if not _has_hdf5_signature(archive):
+        raise InvalidInput(
+            f"{archive} is not an HDF5 file (no HDF5 signature); expected a protocol-runner archive."
+        )
+    try:
+        with h5py.File(archive, "r") as h5:
+            _check_and_list(h5, archive)
+    except InvalidInput:
+        raise
+    except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:
+        raise InvalidInput(
+            f"{archive} is truncated or corrupt; it cannot be read as an archive ({_short(exc)}). "
+            "Re-consolidate the session or use a backup copy."
+        ) from exc
+    return archive
+
+
 def _check_and_list(h5: h5py.File, archive: Path) -> list[str]:
     if _ROOT_MARKER not in h5.attrs:
         raise InvalidInput(
