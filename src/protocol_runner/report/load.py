@@ -71,10 +71,7 @@ def load_report_data(path: Path, *, workers: int | None = None) -> ReportData:
     archive (no root attribute `protocol_sha256`), or lacks the `/configurations` group.
     """
     archive = _resolve_archive(Path(path))
-    if not _has_hdf5_signature(archive):
-        raise InvalidInput(
-            f"{archive} is not an HDF5 file (no HDF5 signature); expected a protocol-runner archive."
-        )
+    _require_hdf5(archive)
     try:
         with h5py.File(archive, "r") as h5:
             names = _check_and_list(h5, archive)
@@ -85,10 +82,7 @@ def load_report_data(path: Path, *, workers: int | None = None) -> ReportData:
     except InvalidInput:
         raise
     except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:
-        raise InvalidInput(
-            f"{archive} is truncated or corrupt; it cannot be read as an archive ({_short(exc)}). "
-            "Re-consolidate the session or use a backup copy."
-        ) from exc
+        raise _corrupt(archive, exc) from exc
 
 
 def validate_archive(path: Path) -> Path:
@@ -98,20 +92,14 @@ def validate_archive(path: Path) -> Path:
     Raises `InvalidInput` with the same messages as `load_report_data`.
     """
     archive = _resolve_archive(Path(path))
-    if not _has_hdf5_signature(archive):
-        raise InvalidInput(
-            f"{archive} is not an HDF5 file (no HDF5 signature); expected a protocol-runner archive."
-        )
+    _require_hdf5(archive)
     try:
         with h5py.File(archive, "r") as h5:
             _check_and_list(h5, archive)
     except InvalidInput:
         raise
     except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:
-        raise InvalidInput(
-            f"{archive} is truncated or corrupt; it cannot be read as an archive ({_short(exc)}). "
-            "Re-consolidate the session or use a backup copy."
-        ) from exc
+        raise _corrupt(archive, exc) from exc
     return archive
 
 
@@ -198,6 +186,20 @@ def _resolve_archive(path: Path) -> Path:
     if not path.exists():
         raise InvalidInput(f"{path} does not exist.")
     return path
+
+
+def _corrupt(archive: Path, exc: BaseException) -> InvalidInput:
+    return InvalidInput(
+        f"{archive} is truncated or corrupt; it cannot be read as an archive ({_short(exc)}). "
+        "Re-consolidate the session or use a backup copy."
+    )
+
+
+def _require_hdf5(archive: Path) -> None:
+    if not _has_hdf5_signature(archive):
+        raise InvalidInput(
+            f"{archive} is not an HDF5 file (no HDF5 signature); expected a protocol-runner archive."
+        )
 
 
 def _has_hdf5_signature(path: Path) -> bool:
