@@ -31,9 +31,9 @@ def _attrs(obj: h5py.HLObject) -> dict[str, Any]:
 
 
 def export_mat(archive: Path, out_dir: Path) -> list[Path]:
-    from ..report.load import load_report_data  # validates the archive with clear messages
+    from ..report.load import validate_archive  # clear messages for foreign or damaged files
 
-    load_report_data(archive)
+    validate_archive(archive)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

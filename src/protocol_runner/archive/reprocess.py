@@ -45,9 +45,9 @@ def new_archive_path(archive: Path) -> Path:
 
 
 def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output: Path | None = None) -> Path:
-    from ..report.load import load_report_data  # validates the archive with clear messages
+    from ..report.load import validate_archive  # clear messages for foreign or damaged files
 
-    load_report_data(archive)
+    validate_archive(archive)
     out = output or new_archive_path(archive)
     with tempfile.NamedTemporaryFile(dir=out.parent, suffix=".partial", delete=False) as tmp:
         partial = Path(tmp.name)
