@@ -15,6 +15,7 @@ the data as in §6.1.5 (Figures 52-53) and the Bouc-Wen model against the data a
 from __future__ import annotations
 
 import base64
+import functools
 import io
 import math
 import os
@@ -124,10 +125,6 @@ def _style(ax: Axes, xlabel: str, ylabel: str, title: str | None = None) -> None
 
 def _empty(ax: Axes, text: str) -> None:
     ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, fontsize=8, color="#666666")
-
-
-def _label(cfg: Configuration) -> str:
-    return f"config {cfg.key}"
 
 
 def _legend(ax: Axes) -> None:
@@ -519,19 +516,8 @@ def slug(text: str) -> str:
     return out or "x"
 
 
-class _Bound:
-    """A picklable call: function and arguments (worker processes receive these)."""
-
-    def __init__(self, fn: Callable[..., str], *args: object) -> None:
-        self.fn = fn
-        self.args = args
-
-    def __call__(self) -> str:
-        return self.fn(*self.args)
-
-
 def _bind(fn: Callable[..., str], *args: object) -> Callable[[], str]:
-    return _Bound(fn, *args)
+    return functools.partial(fn, *args)
 
 
 _WORKER_TASKS: dict[str, Callable[[], str]] = {}
