@@ -96,14 +96,18 @@ class ArchiveSpec:
     extra_root_attrs: dict[str, object] = field(default_factory=dict)
     # more /comparisons groups: name -> (parameter, section, title, keys), written even without data
     extra_comparisons: dict[str, tuple[str, str, str, tuple[int, ...]]] = field(default_factory=dict)
-    compress_floats: bool = False  # gzip the float datasets too (as a space-conscious writer would)
+    # store like archive/h5util.py: large float datasets gzip+shuffle, measured/processed signals float32
+    compress_floats: bool = False
 
 
 _COMPRESS_FLOATS = False
+_SIGNALS = {"angle_deg", "torque_nm", "brace_torque_nm", "command_volts"}
 
 
 def _ds(group: h5py.Group, name: str, data: np.ndarray, units: str, *, gzip: bool = False) -> h5py.Dataset:
-    compress = gzip or (_COMPRESS_FLOATS and np.asarray(data).size > 1000)
+    compress = gzip or (_COMPRESS_FLOATS and np.asarray(data).size > 256)
+    if _COMPRESS_FLOATS and name in _SIGNALS:
+        data = np.asarray(data, dtype=np.float32)
     ds = group.create_dataset(
         name, data=data, compression="gzip" if compress else None, shuffle=compress and not gzip
     )
