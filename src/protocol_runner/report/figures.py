@@ -546,6 +546,7 @@ def render_figures(data: ReportData, workers: int | None = None) -> FigureSet:
         workers = default_workers(len(tasks))
     results: list[tuple[str, str | None, str | None]] | None = None
     if workers > 1 and len(tasks) >= 8:
+        _warm_up()
         # small chunks keep both workers busy: two-panel figures cost about twice a one-panel one
         results = map_in_processes(
             _run_one,
@@ -565,6 +566,17 @@ def render_figures(data: ReportData, workers: int | None = None) -> FigureSet:
         else:
             missing[task_id] = error or "not drawn"
     return FigureSet(images=images, missing=missing)
+
+
+def _warm_up() -> None:
+    """Create every canvas and render text once, so that forked workers inherit warm font caches."""
+    for kind in _LAYOUTS:
+        fig, axes = _axes(kind)
+        for ax in axes:
+            ax.plot([0.0, 1.0], [0.0, 1.0], label="warm-up")
+            _style(ax, ANGLE_LABEL, TORQUE_LABEL, "warm-up 0123456789")
+            _legend(ax)
+        to_data_uri(fig)
 
 
 def default_workers(n_tasks: int) -> int:
