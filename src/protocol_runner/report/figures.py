@@ -225,7 +225,6 @@ def time_series_figure(cfg: Configuration) -> str:
     _style(ax_a, TIME_LABEL, ANGLE_LABEL, f"Angle, trial {number}")
     _style(ax_t, TIME_LABEL, TORQUE_LABEL, f"Joint torque, trial {number}")
     _legend(ax_a)
-    _legend(ax_t)
     return to_data_uri(fig)
 
 
@@ -270,7 +269,6 @@ def bouc_wen_figure(cfg: Configuration) -> str:
     _style(ax_l, "Centred angle (deg)", "Centred torque (N·m)", "Hysteresis: model vs data")
     _style(ax_s, "Sample (decimated)", "Centred torque (N·m)", "Torque: model vs data")
     _legend(ax_l)
-    _legend(ax_s)
     return to_data_uri(fig)
 
 
