@@ -537,6 +537,7 @@ class BoucWenBounds:
 
 
 DEFAULT_BOUNDS = BoucWenBounds()
+FULL_REFIT_R2 = 0.5  # below this on every sample, a decimated fit is redone on every sample (fit_trials)
 
 
 @dataclass(frozen=True)
@@ -1032,9 +1033,15 @@ def fit_trials(
     """Fit one model jointly to several trials ``[(angle_deg, torque_nm), ...]`` of one configuration.
 
     Each trial starts its own Eq 23 recursion at its own first torque.  Options as in :func:`fit`.
+
+    Decimation guard: where a fit on decimated samples does not carry over to every sample (R^2 below
+    FULL_REFIT_R2 or divergence, e.g. a range-of-motion stop that makes the loop nearly vertical, where
+    explicit Euler steps of a few degrees misbehave), the fit is redone on every sample and the better
+    of the two (by RMSE on every sample) is returned.
     """
-    return _fit_segments(
-        _validate_segments(segments),
+    checked = _validate_segments(segments)
+    result = _fit_segments(
+        checked,
         starts=starts,
         initial=initial,
         data_starts=data_starts,
@@ -1043,6 +1050,21 @@ def fit_trials(
         max_samples_per_trial=max_samples_per_trial,
         polish=polish,
     )
+    decimated = any(s > 1 for s in result.stride)
+    if decimated and (result.diverged or not result.r2 >= FULL_REFIT_R2):
+        full = _fit_segments(
+            checked,
+            starts=0,
+            initial=result.params,
+            data_starts=False,
+            bounds=bounds,
+            seed=seed,
+            max_samples_per_trial=None,
+            polish=1,
+        )
+        if full.rmse_nm < result.rmse_nm:
+            return full
+    return result
 
 
 def cross_validate(

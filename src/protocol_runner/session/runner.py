@@ -27,6 +27,7 @@ from ..protocol.plan import (
     CalibrationCheckStep,
     ChecklistStep,
     Plan,
+    ProcessStep,
     Step,
     TrialStep,
     calibration_id,
@@ -54,11 +55,10 @@ def _ignore_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process decides when to stop
 
 
-def run_analysis_step(
-    loaded: LoadedProtocol, plan: Plan, units_dir: Path, step_id: str
-) -> tuple[UnitRecord | None, str]:
-    """Run one analysis step from the archived units and write its unit (in a worker process)."""
-    step = plan.step(step_id)
+def run_analysis_steps(
+    loaded: LoadedProtocol, plan: Plan, units_dir: Path, step_ids: tuple[str, ...]
+) -> list[tuple[UnitRecord | None, str]]:
+    """Run analysis steps (in order) from the archived units and write their units (in a worker process)."""
     ctx = StepContext(
         loaded=loaded,
         plan=plan,
@@ -69,9 +69,13 @@ def run_analysis_step(
         stop_requested=lambda: False,
         processing=processing_settings(loaded),
     )
-    outcome = STEP_KINDS[step.kind](step, ctx)
-    record = write_unit(units_dir, step.id, outcome.fill) if outcome.fill is not None else None
-    return record, outcome.summary
+    done: list[tuple[UnitRecord | None, str]] = []
+    for step_id in step_ids:
+        step = plan.step(step_id)
+        outcome = STEP_KINDS[step.kind](step, ctx)
+        record = write_unit(units_dir, step.id, outcome.fill) if outcome.fill is not None else None
+        done.append((record, outcome.summary))
+    return done
 
 
 @dataclass(frozen=True)
@@ -114,7 +118,8 @@ class Runner:
         self.steps_run = 0
         self.background = background if background is not None else (os.cpu_count() or 1) >= 2
         self._pool: ProcessPoolExecutor | None = None
-        self._pending: list[tuple[Step, Future[tuple[UnitRecord | None, str]]]] = []
+        self._pending: list[tuple[tuple[Step, ...], Future[list[tuple[UnitRecord | None, str]]]]] = []
+        self._submitted: set[str] = set()
 
     # ------------------------------------------------------------------------------------------ run
 
@@ -147,6 +152,8 @@ class Runner:
                     continue
                 if self.stop():
                     raise Interrupted(f"stopped before {step.id} ({self.stop.signal_name})")
+                if step.id in self._submitted:
+                    continue
                 if self.background and step.kind in BACKGROUND_KINDS:
                     self._submit(step)
                     continue
@@ -196,23 +203,39 @@ class Runner:
                 self.bench.close()
 
     def _submit(self, step: Step) -> None:
+        """Queue a configuration's processing together with its fit (one task: the fit needs its unit)."""
         if self._pool is None:
+            workers = min(2, os.cpu_count() or 1)
             self._pool = ProcessPoolExecutor(
-                max_workers=1, mp_context=multiprocessing.get_context("spawn"), initializer=_ignore_sigint
+                max_workers=workers,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=_ignore_sigint,
             )
-        future = self._pool.submit(run_analysis_step, self.loaded, self.plan, self.units_dir, step.id)
-        self._pending.append((step, future))
+        chain = [step]
+        if isinstance(step, ProcessStep):
+            fit = f"fit:k{step.configuration:02d}"
+            if fit in self.plan._index and fit not in self.journal.units:
+                chain.append(self.plan.step(fit))
+        self._submitted.update(s.id for s in chain)
+        future = self._pool.submit(
+            run_analysis_steps, self.loaded, self.plan, self.units_dir, tuple(s.id for s in chain)
+        )
+        self._pending.append((tuple(chain), future))
 
     def _collect(self, progress: Progress, *, wait: bool) -> None:
-        """Journal the background steps that finished (all of them, in order, when `wait`)."""
-        while self._pending and (wait or self._pending[0][1].done()):
-            step, future = self._pending[0]
-            record, summary = future.result()  # a worker's error is raised here, in the main process
-            self._pending.pop(0)
-            if record is not None:
-                self.journal.unit_done(record)
-            self.steps_run += 1
-            progress.step_finished(step, summary)
+        """Journal the background steps that finished (all of them when `wait`)."""
+        still: list[tuple[tuple[Step, ...], Future[list[tuple[UnitRecord | None, str]]]]] = []
+        for chain, future in self._pending:
+            if not (wait or future.done()):
+                still.append((chain, future))
+                continue
+            results = future.result()  # a worker's error is raised here, in the main process
+            for step, (record, summary) in zip(chain, results, strict=True):
+                if record is not None:
+                    self.journal.unit_done(record)
+                self.steps_run += 1
+                progress.step_finished(step, summary)
+        self._pending = still
 
     def _shutdown_pool(self, progress: Progress) -> None:
         """On any exit: keep the background steps that completed, drop the queued ones (redone on resume)."""
@@ -220,14 +243,15 @@ class Runner:
             return
         for _, future in self._pending:
             future.cancel()
-        with contextlib.suppress(Exception):
-            self._collect(progress, wait=False)
         self._pool.shutdown(wait=True, cancel_futures=True)
-        with contextlib.suppress(Exception):
-            while self._pending and self._pending[0][1].done() and not self._pending[0][1].cancelled():
-                self._collect(progress, wait=False)
-                if self._pending and self._pending[0][1].exception() is not None:
-                    break
+        for chain, future in self._pending:
+            if future.cancelled() or future.exception() is not None:
+                continue
+            with contextlib.suppress(Exception):
+                for step, (record, summary) in zip(chain, future.result(), strict=True):
+                    if record is not None:
+                        self.journal.unit_done(record)
+                    progress.step_finished(step, summary)
         self._pending.clear()
         self._pool = None
 

@@ -42,6 +42,7 @@ def fit_bouc_wen(
     result = fit_trials(segments, starts=spec.starts)
     cv: list[float] = []
     if spec.cross_validate and len(segments) >= 2:
+        # warm-started from the joint fit (the held-out error is measured on every sample of the trial)
         cv = cross_validate(segments, initial=result.params)
     return result, cv
 
