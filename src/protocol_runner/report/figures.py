@@ -25,7 +25,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.container import Container
 from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator, ScalarFormatter
 
 from protocol_runner.report.findings import comparison_keys
@@ -127,10 +130,41 @@ def _empty(ax: Axes, text: str) -> None:
     ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, fontsize=8, color="#666666")
 
 
-def _legend(ax: Axes) -> None:
-    # a fixed corner: loc="best" costs a search over every plotted point
-    if ax.get_legend_handles_labels()[0]:
-        ax.legend(fontsize=6.5, frameon=False, loc="upper left")
+def _legend(ax: Axes, *, bottom: bool = False) -> None:
+    """A colour key in the top-left (or bottom-left) corner: one coloured text line per labelled artist.
+
+    Cheaper than `Axes.legend` (whose box layout was a fifth of the report's drawing time) and
+    deterministic in position (loc="best" would search the data)."""
+    handles, labels = ax.get_legend_handles_labels()
+    n = len(labels)
+    for i, (handle, label) in enumerate(zip(handles, labels, strict=True)):
+        color, glyph = _swatch(handle)
+        ax.text(
+            0.02,
+            (0.03 + 0.066 * (n - 1 - i)) if bottom else (0.97 - 0.066 * i),
+            f"{glyph} {label}",
+            color=color,
+            transform=ax.transAxes,
+            fontsize=6.5,
+            ha="left",
+            va="bottom" if bottom else "top",
+        )
+
+
+def _swatch(handle: object) -> tuple[object, str]:
+    """Colour and a glyph standing for the artist's line style, marker or fill."""
+    if isinstance(handle, Line2D):
+        style = handle.get_linestyle()
+        marker = handle.get_marker()
+        if style in ("None", "", " ") and marker not in (None, "None", "", " "):
+            return handle.get_color(), "●"
+        glyph = {"--": "- -", ":": "···", "-.": "-·-"}.get(str(style), "—")
+        return handle.get_color(), glyph
+    if isinstance(handle, Patch):
+        return handle.get_facecolor(), "■"
+    if isinstance(handle, Container) and len(handle) and isinstance(handle[0], Patch):
+        return handle[0].get_facecolor(), "■"
+    return "k", "—"
 
 
 def config_label(cfg: Configuration, parameter: str) -> str:
@@ -249,7 +283,7 @@ def energy_cycles_figure(cfg: Configuration) -> str:
         top = float(np.nanmax(e)) if np.isfinite(e).any() else 1.0
         ax.set_ylim(0.0, max(top, mean + (std if math.isfinite(std) else 0.0)) * 1.15 or 1.0)
     _style(ax, "Cycle (all trials in order)", ENERGY_LABEL, f"Configuration {cfg.key}: energy lost per cycle")
-    _legend(ax)
+    _legend(ax, bottom=True)
     return to_data_uri(fig)
 
 
