@@ -16,7 +16,7 @@ from typing import Any
 import h5py
 
 from .. import __version__
-from .h5util import SCHEMA_VERSION, put_lines, put_text, set_attrs
+from .h5util import SCHEMA_VERSION, put, put_lines, put_text, set_attrs
 from .units import COMPLETE_ATTR, _fsync_dir, _fsync_file
 
 
@@ -36,6 +36,8 @@ class ArchiveMeta:
     only: tuple[int, ...]
     events: tuple[str, ...]
     configuration_attrs: Mapping[str, Mapping[str, Any]]  # group name -> attrs (incl. status)
+    # the EMU comparison's reference data (§5.6), if the protocol names one: (name, source, angle, torque)
+    reference: tuple[str, str, Any, Any] | None = None
 
 
 def _merge(src: h5py.Group, dst: h5py.Group) -> None:
@@ -80,6 +82,12 @@ def consolidate(archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta) ->
         ds.attrs["filename"] = meta.protocol_filename
         put_text(out, "plan", meta.plan_json)
         put_lines(out.require_group("session"), "events", list(meta.events))
+        if meta.reference is not None:
+            name, source, angle_deg, torque_nm = meta.reference
+            ref = out.require_group(f"reference/{name}")
+            put(ref, "angle_deg", angle_deg, "deg")
+            put(ref, "torque_nm", torque_nm, "N*m")
+            set_attrs(ref, {"source": source, "title": name})
         configs = out.require_group("configurations")
         for name, attrs in meta.configuration_attrs.items():
             set_attrs(configs.require_group(name), attrs)

@@ -383,8 +383,19 @@ class Runner:
             only=self.info.only,
             events=tuple(json.dumps(e.to_json()) for e in self.journal.events),
             configuration_attrs=self.configuration_attrs(),
+            reference=self.reference_dataset(),
         )
         return consolidate(self.dir / ARCHIVE_NAME, files, meta)
+
+    def reference_dataset(self) -> tuple[str, str, object, object] | None:
+        """The protocol's EMU reference dataset (§5.6), copied into the archive so the report needs nothing else."""
+        rel = self.loaded.protocol.report.reference_dataset
+        if rel is None:
+            return None
+        from ..report.load import load_reference_dataset
+
+        ref = load_reference_dataset(self.loaded.base_dir / rel)
+        return (Path(rel).stem, rel, ref.angle_deg, ref.torque_nm)
 
     def render_report(self, archive: Path) -> Path | None:
         try:

@@ -203,6 +203,8 @@ def _fill(
                 "trajectory": json.dumps(step.trajectory.to_json()),
                 "tick_lateness_p99_s": float(np.percentile(lateness, 99)) if lateness.size else 0.0,
                 "tick_lateness_max_s": float(np.max(lateness)) if lateness.size else 0.0,
+                # output-to-input alignment: when the first input row was taken, relative to the first tick
+                "input_start_offset_s": float(rec.input_time_s[0]) if rec.input_time_s.size else 0.0,
             },
         )
         if scaling is not None:
