@@ -41,7 +41,6 @@ TORQUE_LABEL = "Torque (N·m)"
 TIME_LABEL = "Time (s)"
 ENERGY_LABEL = "Energy per cycle (J)"
 COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
-_RC = {"font.size": 8.0}
 
 
 @dataclass(frozen=True)
