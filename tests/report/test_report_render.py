@@ -147,6 +147,11 @@ def test_matrix_rows_show_energy_and_fit_results(small_archive: Path, small_repo
         assert f"{cfg.angle_max_deg:.1f}" in row.group(1)
 
 
+def test_configuration_sections_say_how_the_robot_torque_was_removed(small_report: str) -> None:
+    section = small_report[small_report.index('id="config-4"') : small_report.index('id="config-5"')]
+    assert "Robot torque removed at equal angles (§3.3)." in section
+
+
 def test_calibration_verdicts_and_findings_are_shown(small_report: str) -> None:
     calibration = small_report[
         small_report.index('id="calibration"') : small_report.index('id="configurations"')
