@@ -47,7 +47,10 @@ def _merge(src: h5py.Group, dst: h5py.Group) -> None:
         dst.attrs[key] = value
     for name, obj in src.items():
         if isinstance(obj, h5py.Group):
-            _merge(obj, dst.require_group(name))
+            if name in dst:
+                _merge(obj, dst[name])
+            else:
+                src.copy(obj, dst, name=name)  # whole subtree in one HDF5 call (chunks copied as stored)
         else:
             if name in dst:
                 del dst[name]
