@@ -266,3 +266,14 @@ def test_aborted_session_without_configurations_still_reports(tmp_path: Path) ->
     assert _parse(html).errors == []
     assert "<img" not in html and "Figure not drawn" not in html
     assert "No comparison has data in this archive." in html
+
+
+def test_each_configuration_shows_its_output_loop_timing(small_report: str) -> None:
+    # issue 7: tick jitter is measured per trial, stored in the archive and shown in the report
+    import re
+
+    timings = re.findall(
+        r'<span class="loop-timing">Output loop, trial (\d+): tick lateness p99\s+([0-9.]+) ms', small_report
+    )
+    assert timings, "no loop timing in the report"
+    assert all(float(ms) >= 0.0 for _, ms in timings)
