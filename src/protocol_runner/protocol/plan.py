@@ -367,6 +367,24 @@ def expand(loaded: LoadedProtocol, only: Iterable[int] | None = None) -> Plan:
     )
 
 
+def _trial(
+    s: SetSpec, cfg: ConfigurationSpec, st: Settings, trajectory: Trajectory, brace: str, n: int
+) -> TrialStep:
+    """Trial n of a configuration; a brace-off trial names its brace-on twin (its input comes from it)."""
+    return TrialStep(
+        id=trial_id(cfg.key, brace, n),
+        kind="trial",
+        set=s.name,
+        configuration=cfg.key,
+        run=cfg.run,
+        trial=n,
+        brace=brace,
+        settings=st,
+        trajectory=trajectory,
+        twin=trial_id(cfg.key, "on", n) if brace == "off" else None,
+    )
+
+
 def _expand_set(
     p: Protocol, loaded: LoadedProtocol, s: SetSpec, cfgs: list[ConfigurationSpec], cal_traj: Trajectory
 ) -> list[Step]:
@@ -394,20 +412,7 @@ def _expand_set(
                 settings=st,
             )
         )
-        for n in range(1, cfg.trials + 1):
-            steps.append(
-                TrialStep(
-                    id=trial_id(cfg.key, "on", n),
-                    kind="trial",
-                    set=s.name,
-                    configuration=cfg.key,
-                    run=cfg.run,
-                    trial=n,
-                    brace="on",
-                    settings=st,
-                    trajectory=trajectories[cfg.key],
-                )
-            )
+        steps += [_trial(s, cfg, st, trajectories[cfg.key], "on", n) for n in range(1, cfg.trials + 1)]
     steps.append(
         ChecklistStep(
             id=f"check:{s.name}:brace-off",
@@ -422,21 +427,7 @@ def _expand_set(
         )
     )
     for cfg, st in resolved:
-        for n in range(1, cfg.trials + 1):
-            steps.append(
-                TrialStep(
-                    id=trial_id(cfg.key, "off", n),
-                    kind="trial",
-                    set=s.name,
-                    configuration=cfg.key,
-                    run=cfg.run,
-                    trial=n,
-                    brace="off",
-                    settings=st,
-                    trajectory=trajectories[cfg.key],
-                    twin=trial_id(cfg.key, "on", n),
-                )
-            )
+        steps += [_trial(s, cfg, st, trajectories[cfg.key], "off", n) for n in range(1, cfg.trials + 1)]
     steps.append(
         CalibrationCheckStep(
             id=calibration_id(s.name, "after"),

@@ -20,12 +20,13 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
 from ..analysis.transition import command_on_input_base
-from ..archive.h5util import SIGNAL, put, set_attrs
+from ..archive.h5util import set_attrs
 from ..errors import StoppedByCheck
 from ..hardware.rig import TrialRecording
 from ..protocol.plan import CalibrationCheckStep, calibration_id
 from ..protocol.trajectories import calibration_step_deg
 from .context import Fill, StepContext, StepOutcome
+from .recording import put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -163,13 +164,8 @@ def _fill(
 ) -> Fill:
     def fill(f: h5py.File) -> None:
         g = f.require_group(f"calibration/{set_name}").create_group(when)
-        put(g, "time_s", rec.input_time_s, "s")
-        put(g, "angle_deg", rec.angle_deg, "deg", dtype=SIGNAL)
-        put(g, "torque_nm", rec.torque_nm, "N*m", dtype=SIGNAL)
-        put(g, "angle_codes", rec.angle_codes, "counts", dtype=np.int16, compress=True)
-        put(g, "torque_codes", rec.torque_codes, "counts", dtype=np.int16, compress=True)
-        put(g, "command_time_s", rec.command_time_s, "s")
-        put(g, "command_deg", cmd, "deg")
+        put_scan(g, rec)
+        put_commands(g, rec, full=False)
         set_attrs(
             g,
             {

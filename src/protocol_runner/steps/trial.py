@@ -18,12 +18,13 @@ import numpy.typing as npt
 from ..analysis.filters import lowpass
 from ..analysis.scaling import ScalingResult, scale_brace_off_input
 from ..analysis.transition import command_on_input_base, transition_index
-from ..archive.h5util import SIGNAL, put, set_attrs
+from ..archive.h5util import put, set_attrs
 from ..errors import HardwareUnavailable
 from ..hardware.rig import TrialRecording
 from ..protocol.plan import Trajectory, TrialStep, configuration_name
 from ..protocol.trajectories import identification_deg, load_trajectory_file, sinusoid_deg
 from .context import StepContext, StepOutcome
+from .recording import put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]
 COMMAND_SMOOTHING_HZ = 5.0
@@ -184,16 +185,8 @@ def _fill(
         cfg = f.require_group(f"configurations/{configuration_name(step.configuration)}")
         set_attrs(cfg, cfg_attrs)
         g = cfg.require_group(f"trials/{step.trial}").create_group(f"brace_{step.brace}")
-        put(g, "time_s", rec.input_time_s, "s")
-        put(g, "angle_deg", rec.angle_deg, "deg", dtype=SIGNAL)
-        put(g, "torque_nm", rec.torque_nm, "N*m", dtype=SIGNAL)
-        put(g, "angle_codes", rec.angle_codes, "counts", dtype=np.int16, compress=True)
-        put(g, "torque_codes", rec.torque_codes, "counts", dtype=np.int16, compress=True)
-        put(g, "command_time_s", rec.command_time_s, "s")
-        put(g, "command_deg", rec.command_deg, "deg")
-        put(g, "command_volts", rec.command_volts, "V", dtype=SIGNAL)
-        put(g, "command_codes", rec.command_codes, "counts", dtype=np.uint16, compress=True)
-        put(g, "tick_lateness_s", lateness, "s")
+        put_scan(g, rec)
+        put_commands(g, rec, full=True)
         set_attrs(
             g,
             {

@@ -1,0 +1,31 @@
+"""Writing a rig recording (raw codes and converted values) into a unit: shared by trials and checks."""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+
+from ..archive.h5util import SIGNAL, put
+from ..hardware.rig import TrialRecording
+
+
+def put_scan(g: h5py.Group, rec: TrialRecording) -> None:
+    """The input scan (1 kHz): times, angle and torque, and the raw ADC codes.
+
+    Codes are stored as int32 whatever the board: the DT9814's are signed 12-bit, the USB-1608FS-Plus's
+    unsigned 16-bit; the byte-shuffle filter makes the unused high bytes cost almost nothing."""
+    put(g, "time_s", rec.input_time_s, "s")
+    put(g, "angle_deg", rec.angle_deg, "deg", dtype=SIGNAL)
+    put(g, "torque_nm", rec.torque_nm, "N*m", dtype=SIGNAL)
+    put(g, "angle_codes", rec.angle_codes, "counts", dtype=np.int32)
+    put(g, "torque_codes", rec.torque_codes, "counts", dtype=np.int32)
+
+
+def put_commands(g: h5py.Group, rec: TrialRecording, *, full: bool) -> None:
+    """The output ticks (100 Hz): times and commanded angles; with `full`, volts, DAC codes and timing."""
+    put(g, "command_time_s", rec.command_time_s, "s")
+    put(g, "command_deg", rec.command_deg, "deg")
+    if full:
+        put(g, "command_volts", rec.command_volts, "V", dtype=SIGNAL)
+        put(g, "command_codes", rec.command_codes, "counts", dtype=np.uint16)
+        put(g, "tick_lateness_s", rec.tick_lateness_s, "s")
