@@ -10,7 +10,7 @@ import sys
 import time
 from pathlib import Path
 
-from ..protocol.plan import Plan, Step
+from ..protocol.plan import CalibrationCheckStep, Plan, Step, TrialStep
 
 
 def _fmt_s(seconds: float) -> str:
@@ -20,6 +20,22 @@ def _fmt_s(seconds: float) -> str:
     if seconds >= 60:
         return f"{seconds / 60:.0f} min"
     return f"{seconds:.1f} s"
+
+
+def describe(step: Step) -> str:
+    """Set, configuration and trial of a step, for the progress line."""
+    set_name = getattr(step, "set", None)
+    parts = [f"set {set_name}"] if set_name else []
+    configuration = getattr(step, "configuration", None)
+    if configuration is not None:
+        parts.append(f"config {configuration}")
+    if isinstance(step, TrialStep):
+        parts.append(f"trial {step.trial} brace {step.brace}")
+    elif isinstance(step, CalibrationCheckStep):
+        parts.append(f"calibration check {step.when}")
+    else:
+        parts.append(step.kind.replace("_", " "))
+    return " · ".join(parts)
 
 
 class Progress:
@@ -71,7 +87,7 @@ class Progress:
     def step_started(self, step: Step) -> None:
         self.logger.info("start %s", step.id)
         if self._rich is not None and self._task is not None:
-            self._rich.update(self._task, description=step.id, eta=self._eta())
+            self._rich.update(self._task, description=describe(step), eta=self._eta())
 
     def step_finished(self, step: Step, summary: str) -> None:
         self.n_done += 1
