@@ -454,3 +454,41 @@ def test_low_angle_bump_grows_with_speed_and_shrinks_with_spring_force() -> None
     assert bump(setup(13.0), 35.0, 50.0) > bump(setup(20.0), 35.0, 50.0)
     assert bump(setup(13.0, n=5), 35.0, 50.0) > bump(setup(13.0, n=1), 35.0, 50.0)  # 1 = most preload
     assert abs(bump(setup(0.0), 80.0, 50.0)) < 1e-3
+
+
+def test_fused_scan_kernel_quantises_like_the_dt9814_conversions() -> None:
+    """One scan read runs integration, sensor chain and ADC in a single kernel (`JointPlant.scan`); its
+    codes, volts and row times must be exactly the two-step path's: `advance_rows` volts through
+    `conversions.volts_to_ai12_code` / `ai12_code_to_volts`, rows at t0 + i / rate (DT9814, §2.3)."""
+    from protocol_runner.hardware.conversions import (
+        AI12_MAX_CODE,
+        AI12_MIN_CODE,
+        AI12_VOLTS_PER_CODE,
+        ai12_code_to_volts,
+        volts_to_ai12_code,
+    )
+
+    plants = []
+    for _ in range(2):
+        plant = JointPlant(SimulatorParams(), (0.0, 130.0), (-84.8, 84.8))
+        plant.set_brace(BraceSetup(rom_deg=(0.0, 130.0), friction_nm=3.75, stiffness_n_per_mm=13.0))
+        plant.reset(20.0)
+        for k in range(0, 4000, 20):  # a 100 Hz ramp 20 -> 120 deg, held beyond the joint's range
+            plant.push_command(k, 20.0 + 0.05 * k)
+        plants.append(plant)
+    roles = np.array([1, 2, 0], dtype=np.int64)  # angle, torque, an idle channel
+    scales = np.array([0.01, 0.02, 0.005])
+    knots = np.array([-1e6, 1e6])
+    sensors = (roles, scales, knots, knots * 20.0 / 130.0, knots, knots * 10.0 / 84.8)
+    noise = np.random.default_rng(3).standard_normal(3 * 1500) * 3.0
+    t0, origin, rate = 0.25, 0.0, 1000.0
+    raw = plants[0].advance_rows(3000, t0, origin, rate, 7, 1500, sensors, noise)
+    t_s, codes, volts, any_nan = plants[1].scan(
+        3000, t0, origin, rate, 7, 1500, sensors, noise, (AI12_VOLTS_PER_CODE, AI12_MIN_CODE, AI12_MAX_CODE)
+    )
+    assert not any_nan
+    assert raw.shape == codes.shape == volts.shape and 0 < raw.shape[0] < 1500  # only rows reached
+    assert np.array_equal(codes, volts_to_ai12_code(raw)) and codes.dtype == np.int32
+    assert np.array_equal(volts, ai12_code_to_volts(codes))
+    assert np.array_equal(t_s, t0 + np.arange(7, 7 + raw.shape[0], dtype=np.float64) / rate)
+    assert np.ptp(codes[:, 0]) > 100  # the joint really moved: not a comparison of constants

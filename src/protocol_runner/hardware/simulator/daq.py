@@ -33,11 +33,12 @@ import numpy.typing as npt
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.conversions import (
-    ai12_code_to_volts,
+    AI12_MAX_CODE,
+    AI12_MIN_CODE,
+    AI12_VOLTS_PER_CODE,
     angle_to_volts,
     ao16_code_to_volts,
     torque_to_volts,
-    volts_to_ai12_code,
     volts_to_angle,
 )
 from protocol_runner.hardware.interfaces import ScanBlock
@@ -57,6 +58,9 @@ AI_CHANNELS = 24
 """DT9814-10V: 24 analog inputs (thesis §2.3)."""
 AI_MAX_RATE_HZ = 50_000.0
 """DT9814 maximum aggregate rate (thesis §2.3)."""
+
+_AI12 = (AI12_VOLTS_PER_CODE, AI12_MIN_CODE, AI12_MAX_CODE)
+"""The DT9814's 12-bit ±10 V two's-complement quantisation, as `plant.scan_rows` applies it."""
 
 NOISE_BLOCK = 8192
 """Standard normals drawn from the step's generator at a time; rows consume them in order, so the values a
@@ -149,10 +153,23 @@ class SimulatedAnalogOutput:
         ch = _check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
         self._emit(self._clock.now_s(), ch, 32768)
 
-    def write_volts(self, channel: int, volts: float) -> int:
-        ch = _check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
-        code = _ao_code(volts)
-        self._emit(self._clock.now_s(), ch, code)
+    def write_volts(self, channel: int, volts: float) -> int:  # hot path: one call per output tick
+        ch = (
+            channel
+            if type(channel) is int and 0 <= channel < AO_CHANNELS
+            else _check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
+        )
+        # `_ao_code` inlined for the usual in-range value (NaN, infinities and clamping take the full rule)
+        if type(volts) is float and 0.0 <= (k := 32768.0 + 3276.8 * volts) <= 65535.0:
+            code = round(k)
+        else:
+            code = _ao_code(volts)
+        t_s = self._clock.now_s()
+        self._t.append(t_s)
+        self._channel.append(ch)
+        self._code.append(code)
+        if self._listener is not None:
+            self._listener(t_s, ch, code)
         return code
 
     def write_volts_sync(self, volts_by_channel: Mapping[int, float]) -> dict[int, int]:
@@ -193,6 +210,8 @@ class _RigModel:
         self.range_deg = (float(joint.range_deg[0]), float(joint.range_deg[1]))
         self.torque_range_nm = (float(joint.torque_range_nm[0]), float(joint.torque_range_nm[1]))
         self.plant = JointPlant(params, self.range_deg, self.torque_range_nm)
+        self._push = self.plant.push_command
+        self._output_channel = joint.output_channel
         self._inv_dt = 1.0 / params.plant_step_s
         self.command_nonlinearity: CalibrationTable | None = (
             joint.command_table.inverse() if joint.command_table is not None else None
@@ -226,6 +245,14 @@ class _RigModel:
         self.torque_noise_v = (
             params.torque_noise_nm * volts_span / (self.torque_range_nm[1] - self.torque_range_nm[0])
         )
+        self._sensors = (
+            np.zeros(0, dtype=np.int64),
+            np.zeros(0, dtype=np.float64),
+            self.angle_knots,
+            self.angle_knot_volts,
+            self.torque_knots,
+            self.torque_knot_volts,
+        )
         self._roles_key: tuple[int, ...] = ()
         self._roles = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float64))
         self.origin_s = 0.0
@@ -256,14 +283,9 @@ class _RigModel:
         self.origin_s = self.clock.now_s()
         self.plant.reset(self.joint.limits.park_angle_deg)
 
-    def _grid_floor(self, t_s: float) -> int:
-        return math.floor((t_s - self.origin_s) * self._inv_dt + GRID_TOL)
-
-    def on_write(self, t_s: float, channel: int, code: int) -> None:
-        if channel != self.joint.output_channel:
-            return
-        step = math.ceil((t_s - self.origin_s) * self._inv_dt - GRID_TOL)
-        self.plant.push_command(step, self.target_by_code[code])
+    def on_write(self, t_s: float, channel: int, code: int) -> None:  # hot path: one call per output tick
+        if channel == self._output_channel:
+            self._push(math.ceil((t_s - self.origin_s) * self._inv_dt - GRID_TOL), self.target_by_code[code])
 
     def _scan_roles(self, channels: Sequence[int]) -> tuple[npt.NDArray[np.int64], FloatArray]:
         """Per scanned channel: what it carries (0 nothing, 1 angle, 2 torque) and its noise in volts."""
@@ -277,6 +299,7 @@ class _RigModel:
                 elif ch == self.joint.torque_input_channel:
                     roles[j], scales[j] = ROLE_TORQUE, self.torque_noise_v
             self._roles_key, self._roles = key, (roles, scales)
+            self._sensors = (roles, scales, *self._sensors[2:])
         return self._roles
 
     def _noise(self, count: int) -> FloatArray:
@@ -290,32 +313,29 @@ class _RigModel:
 
     def acquire(
         self, t0_s: float, rate_hz: float, first_row: int, n_rows: int, channels: Sequence[int], now_s: float
-    ) -> tuple[npt.NDArray[np.int32], FloatArray]:
-        """Integrate up to `now_s` and return (codes, volts) of scan rows first_row .. + n_rows - 1 (row i
-        at t0 + i / rate) — the leading part of them whose grid step has been reached (all, unless the last
-        ones fall inside the current step)."""
-        roles, scales = self._scan_roles(channels)
-        noise = self._noise(n_rows * len(channels))
-        volts = self.plant.advance_rows(
-            self._grid_floor(now_s),
+    ) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray]:
+        """Integrate up to `now_s` and return (times, codes, volts) of scan rows first_row .. + n_rows - 1
+        (row i at t0 + i / rate) — the leading part of them whose grid step has been reached (all, unless
+        the last ones fall inside the current step). Codes and volts are the DT9814's (12-bit ±10 V:
+        `conversions.volts_to_ai12_code` / `ai12_code_to_volts`), computed in the plant's kernel."""
+        self._scan_roles(channels)  # refreshes self._sensors for this channel list
+        n_ch = len(channels)
+        noise = self._noise(n_rows * n_ch)
+        t_s, codes, volts, any_nan = self.plant.scan(
+            math.floor((now_s - self.origin_s) * self._inv_dt + GRID_TOL),
             t0_s,
             self.origin_s,
             rate_hz,
             first_row,
             n_rows,
-            (
-                roles,
-                scales,
-                self.angle_knots,
-                self.angle_knot_volts,
-                self.torque_knots,
-                self.torque_knot_volts,
-            ),
+            self._sensors,
             noise,
+            _AI12,
         )
-        self._noise_pos += volts.shape[0] * len(channels)
-        codes = volts_to_ai12_code(volts)
-        return codes, ai12_code_to_volts(codes)
+        if any_nan:
+            raise InvalidInput("cannot convert NaN volts to an analog input code")
+        self._noise_pos += codes.shape[0] * n_ch
+        return t_s, codes, volts
 
 
 class SimulatedAnalogInput:
@@ -357,12 +377,10 @@ class SimulatedAnalogInput:
         n_due = math.floor((now_s - self._t0_s) * self._rate_hz + 1e-9) + 1
         if n_due <= self._rows_read:
             return ScanBlock.empty(n_ch)
-        codes, volts = self._model.acquire(
+        t_s, codes, volts = self._model.acquire(
             self._t0_s, self._rate_hz, self._rows_read, n_due - self._rows_read, self._channels, now_s
         )
-        n = codes.shape[0]
-        t_s = self._t0_s + np.arange(self._rows_read, self._rows_read + n, dtype=np.float64) / self._rate_hz
-        self._rows_read += n
+        self._rows_read += codes.shape[0]
         return ScanBlock(t_s=t_s, codes=codes, volts=volts)
 
     def read_available(self) -> ScanBlock:

@@ -305,6 +305,87 @@ def integrate_rows(
     )
 
 
+@njit(cache=True)
+def scan_rows(
+    state: FloatArray,
+    istate: IntArray,
+    p: FloatArray,
+    spring: FloatArray,
+    cmd_step: IntArray,
+    cmd_target_deg: FloatArray,
+    n_cmd: int,
+    step_end: int,
+    t0_s: float,
+    origin_s: float,
+    rate_hz: float,
+    first_row: int,
+    n_rows: int,
+    roles: IntArray,
+    noise_v: FloatArray,
+    angle_knots: FloatArray,
+    angle_knot_volts: FloatArray,
+    torque_knots: FloatArray,
+    torque_knot_volts: FloatArray,
+    noise: FloatArray,
+    volts_per_code: float,
+    min_code: int,
+    max_code: int,
+) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
+    """`integrate_rows`, then what the input board makes of those volts, in the same compiled call (one
+    read of the scan costs one kernel call): each row's time t0 + i / rate, the ADC code
+    rint(V / volts_per_code) clamped to min_code..max_code, and the code's volts code · volts_per_code —
+    the same arithmetic as `conversions.volts_to_ai12_code` / `ai12_code_to_volts`. Returns
+    (t_s, codes, volts, any_nan); with any_nan the codes are meaningless (the caller raises)."""
+    raw = integrate_rows(
+        state,
+        istate,
+        p,
+        spring,
+        cmd_step,
+        cmd_target_deg,
+        n_cmd,
+        step_end,
+        t0_s,
+        origin_s,
+        rate_hz,
+        first_row,
+        n_rows,
+        roles,
+        noise_v,
+        angle_knots,
+        angle_knot_volts,
+        torque_knots,
+        torque_knot_volts,
+        noise,
+    )
+    got = raw.shape[0]
+    n_ch = raw.shape[1]
+    t_s = np.empty(got, dtype=np.float64)
+    codes = np.empty((got, n_ch), dtype=np.int32)
+    volts = np.empty((got, n_ch), dtype=np.float64)
+    any_nan = False
+    lo = float(min_code)
+    hi = float(max_code)
+    for i in range(got):
+        t_s[i] = t0_s + float(first_row + i) / rate_hz
+        for j in range(n_ch):
+            v = raw[i, j]
+            if math.isnan(v):
+                any_nan = True
+                codes[i, j] = 0
+                volts[i, j] = 0.0
+                continue
+            k = np.rint(v / volts_per_code)
+            if k < lo:
+                k = lo
+            elif k > hi:
+                k = hi
+            c = np.int32(k)
+            codes[i, j] = c
+            volts[i, j] = float(c) * volts_per_code
+    return t_s, codes, volts, any_nan
+
+
 def spring_table_nm(
     brace: BraceSetup, range_deg: tuple[float, float], step_deg: float
 ) -> tuple[float, FloatArray]:
@@ -543,6 +624,52 @@ class JointPlant:
         )
         self._integrated_step = int(self._istate[I_STEP])
         return volts
+
+    def scan(
+        self,
+        step_end: int,
+        t0_s: float,
+        origin_s: float,
+        rate_hz: float,
+        first_row: int,
+        n_rows: int,
+        sensors: tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+        noise: FloatArray,
+        adc: tuple[float, int, int],
+    ) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
+        """`advance_rows` followed by the input board's quantisation (see `scan_rows`); `adc` = (volts per
+        code, lowest code, highest code). Returns (row times, codes, their volts, whether any volts were
+        NaN)."""
+        self._flush_commands()
+        roles, noise_v, a_k, a_v, t_k, t_v = sensors
+        volts_per_code, min_code, max_code = adc
+        out = scan_rows(
+            self._state,
+            self._istate,
+            self._p,
+            self._spring,
+            self._cmd_step,
+            self._cmd_target,
+            self._n_cmd,
+            step_end,
+            t0_s,
+            origin_s,
+            rate_hz,
+            first_row,
+            n_rows,
+            roles,
+            noise_v,
+            a_k,
+            a_v,
+            t_k,
+            t_v,
+            noise,
+            volts_per_code,
+            min_code,
+            max_code,
+        )
+        self._integrated_step = int(self._istate[I_STEP])
+        return out
 
     def advance(self, step_end: int, sample_step: IntArray) -> tuple[FloatArray, FloatArray]:
         """Integrate to grid step `step_end`; return (real angle, load torque) at each of the sorted
