@@ -14,11 +14,12 @@ import tempfile
 from pathlib import Path
 
 import h5py
-import numpy as np
 
 from ..analysis.pipeline import TrialPair, process_configuration
 from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, find_protocol, load_protocol, parse_protocol_text
+from ..protocol.plan import configuration_name
+from ..steps.compare import comparison_values
 from ..steps.context import processing_settings
 from ..steps.fit import bouc_wen_fill, centred_loop, fit_bouc_wen
 from ..steps.process import processed_fill, read_recording
@@ -74,10 +75,10 @@ def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output
 
 
 def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
+    """Redo what the session's process, fit and compare steps did, from the raw trials in `f`, with the
+    same functions, so that unchanged settings reproduce the session's values exactly."""
     settings = processing_settings(loaded)
     fits = loaded.protocol.fits
-    energies: dict[int, np.ndarray] = {}
-    max_angle: dict[int, float] = {}
     for name, cfg in f["configurations"].items():
         trials = cfg.get("trials")
         if trials is None:
@@ -85,12 +86,21 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
         pairs = []
         for n in sorted(trials, key=int):
             g = trials[n]
-            if "brace_on" in g and "brace_off" in g:
-                pairs.append(
-                    TrialPair(read_recording(g["brace_on"]), read_recording(g["brace_off"]), trial=int(n))
-                )
             if "processed" in g:
                 del g["processed"]
+            complete = all(
+                b in g and attr_str(g[b], "status", "complete") == "complete"
+                for b in ("brace_on", "brace_off")
+            )
+            if complete:  # a trial cut short by a board failure is not processed
+                try:
+                    pairs.append(
+                        TrialPair(read_recording(g["brace_on"]), read_recording(g["brace_off"]), trial=int(n))
+                    )
+                except KeyError as exc:
+                    raise InvalidInput(
+                        f"{name}/trials/{n}: the raw data lack {exc}; cannot reprocess"
+                    ) from None
         for stale in ("energy_loss_j", "energy_cycle_trial", "fits"):
             if stale in cfg:
                 del cfg[stale]
@@ -105,28 +115,23 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
             preload_position=preload if fits.spring.enabled else None,
         )
         processed_fill(name, result, settings)(f)
-        key = int(cfg.attrs["key"])
-        energies[key] = result.energy_loss_j
-        max_angle[key] = max(float(np.max(t.angle_deg)) for t in result.trials)
         if fits.bouc_wen.enabled:
-            segments = [centred_loop(t.angle_deg, t.brace_torque_nm) for t in result.trials]
+            # the session fits the stored (200 Hz) processed loops: so does this
+            segments = [
+                centred_loop(
+                    trials[str(t.trial)]["processed/angle_deg"][:],
+                    trials[str(t.trial)]["processed/brace_torque_nm"][:],
+                )
+                for t in result.trials
+            ]
             bw, cv = fit_bouc_wen(segments, fits.bouc_wen)
             bouc_wen_fill(name, bw, segments, cv)(f)
-    if "comparisons" in f:
-        for comp in f["comparisons"].values():
-            keys = [int(k) for k in comp.attrs["configurations"]]
-            if not all(k in energies for k in keys):
-                continue
-            means = [float(np.mean(energies[k])) if energies[k].size else float("nan") for k in keys]
-            stds = [
-                float(np.std(energies[k], ddof=1)) if energies[k].size > 1 else float("nan") for k in keys
-            ]
-            set_attrs(
-                comp,
-                {
-                    "energy_mean_j": means,
-                    "energy_std_j": stds,
-                    "energy_cycles": [int(energies[k].size) for k in keys],
-                    "max_angle_deg": [max_angle[k] for k in keys],
-                },
-            )
+    for comp in f.get("comparisons", {}).values():
+        names = [configuration_name(int(k)) for k in comp.attrs["configurations"]]
+        groups = [f["configurations"][n] for n in names if n in f["configurations"]]
+        if len(groups) == len(names):
+            set_attrs(comp, comparison_values(groups))
+        else:  # never leave numbers from the old processing beside the new
+            for key in ("energy_mean_j", "energy_std_j", "energy_cycles", "max_angle_deg"):
+                if key in comp.attrs:
+                    del comp.attrs[key]
