@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import zlib
 from collections.abc import Mapping
 from typing import Any
 
@@ -12,6 +13,16 @@ import numpy.typing as npt
 
 SCHEMA_VERSION = 1
 COMPRESS_ABOVE = 256
+GZIP_LEVEL = 1
+"""zlib level of the gzip filter. Level 1 writes ~1.5x faster than 4 and, with the chunks and shuffle rule
+below, the archive is smaller than level 4 with HDF5's default chunks and shuffle everywhere."""
+CHUNK_BYTES = 64 * 1024
+"""Target chunk size of compressed 1-D datasets (HDF5's default guess makes ~8 KB chunks for a trial's
+arrays: more per-chunk overhead and a worse ratio)."""
+SHUFFLE_PROBE = 8192
+"""Elements of a float32 dataset deflated both with and without the byte shuffle to choose the filter
+chain: a signal converted from ADC codes (few distinct 4-byte patterns) deflates ~25 % smaller, and faster,
+unshuffled; a smooth processed signal is smaller shuffled."""
 SIGNAL = np.float32  # measured and processed signals: 7 significant digits, far below sensor resolution
 _STR = h5py.string_dtype("utf-8")
 
@@ -27,17 +38,32 @@ def put(
 ) -> h5py.Dataset:
     """Write a numeric dataset with its `units` attribute (docs/archive.md: every numeric dataset has one).
 
-    Arrays of more than COMPRESS_ABOVE elements are gzip-compressed with the byte shuffle filter (HDF5's
-    standard filters: h5py, HDFView and MATLAB read them without plug-ins)."""
+    Arrays of more than COMPRESS_ABOVE elements are gzip-compressed (HDF5's standard filters: h5py, HDFView
+    and MATLAB read them without plug-ins), with the byte shuffle filter where `_shuffle_helps`; 1-D ones in
+    chunks of about CHUNK_BYTES. The layout depends only on the data, never on when or where it is written."""
     arr = np.asarray(data, dtype=dtype) if dtype is not None else np.asarray(data)
     if name in group:
         del group[name]
     kwargs: dict[str, Any] = {}
     if compress and arr.size > COMPRESS_ABOVE:
-        kwargs = {"compression": "gzip", "compression_opts": 4, "shuffle": True}
+        kwargs = {"compression": "gzip", "compression_opts": GZIP_LEVEL, "shuffle": _shuffle_helps(arr)}
+        if arr.ndim == 1:
+            kwargs["chunks"] = (min(arr.shape[0], max(1, CHUNK_BYTES // max(1, arr.itemsize))),)
     ds = group.create_dataset(name, data=arr, **kwargs)
     ds.attrs["units"] = units
     return ds
+
+
+def _shuffle_helps(arr: npt.NDArray[Any]) -> bool:
+    """Whether the byte shuffle makes `arr` deflate smaller. Always for integers and float64 (codes, times:
+    their high bytes barely change); for float32 it is decided on the first SHUFFLE_PROBE values, deflated
+    both ways. Depends on the values only (deterministic)."""
+    if arr.dtype != np.float32:
+        return True
+    head = np.ascontiguousarray(arr.reshape(-1)[:SHUFFLE_PROBE])
+    plain = head.view(np.uint8)
+    shuffled = np.ascontiguousarray(plain.reshape(-1, head.itemsize).T)
+    return len(zlib.compress(shuffled.tobytes(), GZIP_LEVEL)) < len(zlib.compress(plain.tobytes(), GZIP_LEVEL))
 
 
 def put_text(group: h5py.Group, name: str, text: str) -> h5py.Dataset:
