@@ -181,6 +181,8 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return EXIT_INVALID_INPUT
+    if args.seed is not None and not 0 <= args.seed < 2**63:
+        raise InvalidInput(f"--seed: {args.seed} is out of range (0 to 2**63 - 1)")
     from .commands import run
 
     return run(

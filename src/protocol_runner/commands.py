@@ -58,9 +58,11 @@ def run(
     )
     stored, plan, _ = load_session_protocol(directory, info, force=False)
     bench = _bench(stored, info) if dry_run else hardware
+    robot_min = plan.robot_time_s / 60
+    robot = f"{robot_min / 60:.1f} h" if robot_min >= 90 else f"{robot_min:.0f} min"
     _say(
-        f"session {directory}: {loaded.protocol.name}, {len(plan)} steps, about "
-        f"{plan.robot_time_s / 3600:.1f} h of robot time ({info.mode}, seed {info.seed})"
+        f"session {directory}: {loaded.protocol.name}, {len(plan)} steps, about {robot} of robot motion "
+        f"({info.mode}, seed {info.seed})"
     )
     operator = _operator(dry_run or yes)
     result = Runner(directory, info, stored, plan, bench, operator, quiet=quiet).run()
@@ -146,14 +148,16 @@ def _archive_of(path: Path) -> Path:
 
 
 def _consolidate_unfinished(session_dir: Path) -> Path:
-    from .session.rigs import SimulatedBench  # noqa: F401  (import check only)
     from .session.runner import Runner
     from .session.setup import load_session_protocol, read_session_info
 
     info = read_session_info(session_dir)
     loaded, plan, _ = load_session_protocol(session_dir, info, force=True)
+    from .session.lock import session_lock
+
     runner = Runner(session_dir, info, loaded, plan, _NoBench(), _operator(True), quiet=True)  # type: ignore[arg-type]
-    return runner.consolidate("incomplete")
+    with session_lock(session_dir):
+        return runner.consolidate("incomplete")
 
 
 class _NoBench:

@@ -133,6 +133,12 @@ CASES = [
         "configurations: [10, 99]}",
     ),
     (
+        "boolean where a key belongs",
+        lambda t: t.replace("{key: 10, run: 1,", "{key: true, run: 1,"),
+        r"sets\[0\]\.configurations\[0\]\.key: input should be a valid integer \(got True\)",
+        "{key: true, run: 1,",
+    ),
+    (
         "unknown profile",
         lambda t: t.replace("{key: 27, run: 27, profile: sinusoid", "{key: 27, run: 27, profile: triangle"),
         r"profile: input should be 'sinusoid', 'human' or 'identification'",

@@ -437,9 +437,8 @@ def _expand_set(
             trajectory=cal_traj,
         )
     )
-    models = tuple(
-        m for m, on in (("spring", p.fits.spring.enabled), ("bouc_wen", p.fits.bouc_wen.enabled)) if on
-    )
+    # the spring model is fitted by the processing step; the fit step is the Bouc-Wen model's
+    models = ("bouc_wen",) if p.fits.bouc_wen.enabled else ()
     for cfg, _ in resolved:
         pairs = tuple(
             (trial_id(cfg.key, "on", n), trial_id(cfg.key, "off", n)) for n in range(1, cfg.trials + 1)

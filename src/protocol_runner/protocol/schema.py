@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictInt, field_validator
 
 
 def _int_to_str(value: object) -> object:
@@ -245,8 +245,8 @@ Profile = Literal["sinusoid", "human", "identification"]
 
 
 class ConfigurationSpec(_Model):
-    key: int = Field(ge=1)
-    run: int = Field(ge=1)
+    key: StrictInt = Field(ge=1)
+    run: StrictInt = Field(ge=1)
     profile: Profile
     trajectory: Identifier | None = None
     brace_rom: LevelName
@@ -255,7 +255,7 @@ class ConfigurationSpec(_Model):
     stiffness: LevelName
     speed: LevelName
     preload: LevelName
-    trials: int = Field(ge=1, le=50)
+    trials: StrictInt = Field(ge=1, le=50)
 
 
 class SetSpec(_Model):
@@ -274,7 +274,7 @@ class ComparisonSpec(_Model):
     parameter: ComparisonParameter
     section: str = ""
     title: str
-    configurations: list[int] = Field(min_length=2)
+    configurations: list[StrictInt] = Field(min_length=2)
 
 
 class ReportSpec(_Model):

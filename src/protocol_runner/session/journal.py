@@ -42,7 +42,21 @@ class Journal:
         self.answers: dict[str, dict[str, Any]] = {}
         self.torn_lines = 0
         if path.exists():
+            self._repair_torn_tail()
             self._read()
+
+    def _repair_torn_tail(self) -> None:
+        """A crash mid-append can leave a last line without its newline: cut it off (it never described a
+        complete unit), so the next record starts on a line of its own instead of being glued to it."""
+        with self.path.open("rb+") as f:
+            data = f.read()
+            if not data or data.endswith(b"\n"):
+                return
+            keep = data.rfind(b"\n") + 1
+            f.truncate(keep)
+            f.flush()
+            os.fsync(f.fileno())
+        self.torn_lines += 1
 
     def _read(self) -> None:
         with self.path.open("r", encoding="utf-8", errors="replace") as f:
@@ -52,10 +66,9 @@ class Journal:
                     continue
                 try:
                     rec = json.loads(line)
-                except json.JSONDecodeError:
-                    self.torn_lines += 1
-                    continue
-                self._apply(rec)
+                    self._apply(rec)
+                except (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError):
+                    self.torn_lines += 1  # damaged or foreign line: ignored, never a complete unit
 
     def _apply(self, rec: dict[str, Any]) -> None:
         kind = rec.get("record")

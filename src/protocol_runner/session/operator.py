@@ -53,10 +53,15 @@ class ConsoleOperator:
 
         self.console = Console(stderr=True)
 
-    def _ask(self, question: str) -> str:
+    def _ask(self, question: str, *, default: str | None = None) -> str:
         from rich.prompt import Prompt
 
-        return Prompt.ask(question, choices=["y", "n", "q"], default="y", console=self.console)
+        try:
+            if default is None:
+                return Prompt.ask(question, choices=["y", "n", "q"], console=self.console)
+            return Prompt.ask(question, choices=["y", "n", "q"], default=default, console=self.console)
+        except EOFError:
+            raise Interrupted("no answer from the operator (end of input)") from None
 
     def checklist(self, step: ChecklistStep) -> Answer:
         from rich.panel import Panel
@@ -64,7 +69,7 @@ class ConsoleOperator:
         body = "\n".join(f"[ ] {item}" for item in step.items)
         while True:
             self.console.print(Panel(body, title=step.title, subtitle=step.id))
-            reply = self._ask("All done? (y = done, n = show again, q = stop here, resumable)")
+            reply = self._ask("All done? (y = done, n = show again, q = stop here, resumable)", default="y")
             if reply == "y":
                 return Answer("done", utc_now(), automatic=False)
             if reply == "q":
@@ -72,7 +77,10 @@ class ConsoleOperator:
 
     def accept_failed_check(self, message: str) -> bool:
         self.console.print(f"[bold red]{message}[/]")
-        return self._ask("Accept this result and continue? (y/n; q = stop, resumable)") == "y"
+        reply = self._ask("Accept this result and continue? (y/n; q = stop here, resumable)")
+        if reply == "q":
+            raise Interrupted("stopped by the operator after a failed calibration check")
+        return reply == "y"
 
     def confirm(self, question: str) -> bool:
         reply = self._ask(question + " (y/n; q = stop, resumable)")

@@ -37,6 +37,7 @@ from ..steps import calibration_check
 from ..steps.context import Bench, StepContext, StepOutcome, processing_settings
 from ..steps.registry import STEP_KINDS
 from .journal import Journal, utc_now
+from .lock import session_lock
 from .operator import Operator
 from .progress import Progress
 from .setup import SessionInfo
@@ -51,8 +52,17 @@ REPORT_NAME = "report.html"
 BACKGROUND_KINDS = frozenset({"process", "fit"})
 
 
-def _ignore_sigint() -> None:
+def _worker_init() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process decides when to stop
+    # Linux: die with the session process, so a killed session leaves no worker behind writing units
+    with contextlib.suppress(Exception):
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        pr_set_pdeathsig = 1
+        libc.prctl(pr_set_pdeathsig, signal.SIGKILL)
+        if os.getppid() == 1:  # the parent died before prctl took effect
+            os._exit(1)
 
 
 def run_analysis_steps(
@@ -124,6 +134,10 @@ class Runner:
     # ------------------------------------------------------------------------------------------ run
 
     def run(self) -> RunResult:
+        with session_lock(self.dir):
+            return self._run()
+
+    def _run(self) -> RunResult:
         self.units_dir.mkdir(parents=True, exist_ok=True)
         for stray in self.units_dir.glob("*.partial"):
             stray.unlink()  # an unfinished unit from a crash: never complete, always redone
@@ -209,7 +223,7 @@ class Runner:
             self._pool = ProcessPoolExecutor(
                 max_workers=workers,
                 mp_context=multiprocessing.get_context("spawn"),
-                initializer=_ignore_sigint,
+                initializer=_worker_init,
             )
         chain = [step]
         if isinstance(step, ProcessStep):
@@ -324,6 +338,8 @@ class Runner:
     # ------------------------------------------------------------------------------------ finishing
 
     def _stopped(self, kind: str, message: str, progress: Progress) -> None:
+        with contextlib.suppress(Exception):
+            self._shutdown_pool(progress)  # keep the analyses that finish meanwhile, before consolidating
         with contextlib.suppress(Exception):
             self.journal.event(kind, message)
         with contextlib.suppress(Exception):

@@ -72,6 +72,8 @@ def referenced_files(loaded: LoadedProtocol) -> list[str]:
 def create_session(
     directory: Path, loaded: LoadedProtocol, *, mode: str, seed: int, only: tuple[int, ...], realtime: bool
 ) -> SessionInfo:
+    if directory.exists() and not directory.is_dir():
+        raise InvalidInput(f"--session {directory}: is a file, not a directory")
     if (directory / SESSION_FILE).exists():
         raise InvalidInput(
             f"{directory} already holds a session; continue it with: run-protocol --resume {directory}"
@@ -79,7 +81,12 @@ def create_session(
     if directory.exists() and any(directory.iterdir()):
         raise InvalidInput(f"{directory} exists and is not empty; choose another --session directory")
     proto_dir = directory / "protocol"
-    proto_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        proto_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InvalidInput(
+            f"--session {directory}: cannot create the session directory ({exc.strerror})"
+        ) from None
     (directory / "units").mkdir(exist_ok=True)
     target = proto_dir / loaded.path.name
     target.write_text(loaded.text, encoding="utf-8")
@@ -114,6 +121,11 @@ def write_session_info(directory: Path, info: SessionInfo) -> None:
     with tmp.open("rb") as f:
         os.fsync(f.fileno())
     os.replace(tmp, directory / SESSION_FILE)
+    fd = os.open(directory, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
 
 
 def read_session_info(directory: Path) -> SessionInfo:
