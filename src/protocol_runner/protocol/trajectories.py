@@ -5,7 +5,8 @@
   Table 6 (8.17, 16.34, 3.14, 5.65, 6.91, 13.82 s) follow from this; they are never typed in.
 - Human trajectories: angle-vs-time files (CSV or MATLAB .mat), see `load_trajectory_file`.
 - Model identification (Eq 4-7): an exponential envelope times cos^2 with a period that changes linearly.
-- The calibration step (Appendix A "Calibration"): a 45 deg step, ramped over a few tens of ms.
+- The calibration step (Appendix A "Calibration"): a 45 deg step, as a raised-cosine move whose length
+  the protocol sets (0.6 s in knee_phase1.yaml, to stay inside the rate limit).
 """
 
 from __future__ import annotations
