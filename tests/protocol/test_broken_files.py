@@ -215,3 +215,12 @@ def test_cli_prints_one_paragraph_and_exits_2(
     assert "unknown level '5'" in err and "Traceback" not in err
     line = line_of(path.read_text(), 'friction: "5"')
     assert f":{line}:" in err
+
+
+def test_park_angle_outside_a_brace_range_is_refused(workdir: Path) -> None:
+    text = KNEE_TEXT.replace("park_angle_deg: 45 ", "park_angle_deg: 20 ")
+    assert text != KNEE_TEXT
+    message = error_of(write(workdir, text))
+    assert re.search(
+        r"levels\.brace_rom\.R1\.range_deg: the park angle .* 20 deg is outside this brace range", message
+    ), message

@@ -97,6 +97,12 @@ def _check_levels(p: Protocol) -> Iterator[Problem]:
                         (*loc, "range_deg"),
                         f"{_fmt_range(value)} is outside the joint's range {_fmt_range(joint)}",
                     )
+                elif family_name == "brace_rom" and not lo <= p.rig.safety.park_angle_deg <= hi:
+                    yield (
+                        (*loc, "range_deg"),
+                        f"the park angle rig.safety.park_angle_deg = {p.rig.safety.park_angle_deg:g} deg is outside "
+                        f"this brace range {_fmt_range(value)}: between trials the joint would rest against the stop",
+                    )
 
 
 def _check_rig(p: Protocol) -> Iterator[Problem]:

@@ -26,6 +26,7 @@ from ..hardware.rig import TrialRecording
 from ..protocol.plan import CalibrationCheckStep, calibration_id
 from ..protocol.trajectories import calibration_step_deg
 from .context import Fill, StepContext, StepOutcome
+from .motion import approach
 from .recording import put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]
@@ -87,6 +88,7 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
     rig = ctx.bench.rig
     ctx.bench.begin_step(record_as)
     cmd = _command(step, rig.joint.output_rate_hz)
+    approach(rig, float(cmd[0]), where=record_as, stop_requested=ctx.stop_requested)
     rec = rig.run_trajectory(cmd, where=record_as, stop_requested=ctx.stop_requested)
     rig.park(where=f"{record_as} (park)")
     p = dict(step.trajectory.params)

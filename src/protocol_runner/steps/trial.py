@@ -24,6 +24,7 @@ from ..hardware.rig import TrialRecording
 from ..protocol.plan import Trajectory, TrialStep, configuration_name
 from ..protocol.trajectories import identification_deg, load_trajectory_file, sinusoid_deg
 from .context import StepContext, StepOutcome
+from .motion import approach
 from .recording import put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]
@@ -78,9 +79,9 @@ def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
     scaling: ScalingResult | None = None
     try:
         if step.brace == "on":
-            rec = rig.run_trajectory(
-                command_deg(step.trajectory, ctx), where=step.id, stop_requested=ctx.stop_requested
-            )
+            cmd = command_deg(step.trajectory, ctx)
+            approach(rig, float(cmd[0]), where=step.id, stop_requested=ctx.stop_requested)
+            rec = rig.run_trajectory(cmd, where=step.id, stop_requested=ctx.stop_requested)
             rig.park(where=f"{step.id} (park)")
         else:
             rec, scaling = _run_brace_off(step, ctx)
@@ -129,6 +130,12 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
 
     def run_once(input_deg: FloatArray) -> FloatArray:
         k = len(recordings)
+        approach(
+            rig,
+            float(input_deg[0]),
+            where=f"{step.id} (scaling run {k + 1})",
+            stop_requested=ctx.stop_requested,
+        )
         rec = rig.run_trajectory(
             input_deg, where=f"{step.id} (scaling run {k + 1})", stop_requested=ctx.stop_requested
         )
