@@ -293,6 +293,8 @@ class Runner:
             if not unit_is_complete(self.units_dir, record):
                 j.invalidate(step_id, "unit file missing, truncated or corrupt")
                 progress.info(f"{step_id}: its unit file is missing or damaged; the step will be redone")
+        if self.bench.mode == "hardware":  # after a crash the joint may be anywhere: bring it to rest first
+            self.bench.rig.park(where="park before resuming")
         pending = [s for s in self.plan.steps if s.id not in j.units]
         if not pending or pending[0].kind == "report":
             return
