@@ -863,6 +863,18 @@ def _evaluate(
     return rmse, r2, per, diverged
 
 
+def _diverges_when_decimated(u: FloatArray, screen: _Problem, problem: _Problem) -> bool:
+    """True when the recursion with parameters `u` stays bounded on the coarse screening copy but diverges
+    on the (finer) fitted samples."""
+    screen.residuals(u)
+    screen.nfev -= 1  # checks, not steps of a solve
+    if screen.diverged_at >= 0:
+        return False
+    problem.residuals(u)
+    problem.nfev -= 1
+    return problem.diverged_at >= 0
+
+
 def _fit_segments(
     segments: list[tuple[FloatArray, FloatArray]],
     *,
@@ -912,6 +924,17 @@ def _fit_segments(
         u, cost, _, _ = screen.solve(u0, max_nfev=_SHORT_NFEV, tol=1e-6)
         short.append((cost, u))
     short.sort(key=lambda t: t[0])
+    if (
+        problem is not screen
+        and any(s > 1 for s in strides)
+        and _diverges_when_decimated(short[0][1], screen, problem)
+    ):
+        # The best start is stable on the coarse copy but its recursion diverges on the decimated samples:
+        # explicit-Euler steps of the decimated data misbehave for this loop (a range-of-motion stop makes
+        # it nearly vertical), so a fit there would not carry over to every sample. Polish on every
+        # sample instead (fit_trials' guard would otherwise redo it there, after a wasted decimated fit).
+        x, y, seg, strides = _decimate(segments, None)
+        problem = _Problem(x, y, seg, bounds, angle_scale, torque_scale)
     # Stage 2: the best few are refined to convergence on the fitted samples; the lowest cost wins.
     # A short solve that ended at the cost of one already chosen (within 0.1 %: the same valley) or
     # clearly above the best (by 5 %) is not polished.
@@ -989,10 +1012,12 @@ def fit(
 
     Procedure: every start gets a short trust-region solve (``scipy.optimize.least_squares``, analytic
     Jacobian, bounds) on a coarse copy of the data (at most 400 samples per trial); the best ``polish``
-    distinct ones are refined on the fitted samples and the lowest cost wins.  A start whose recursion
-    diverges is first pulled toward a straight line of the loop's mean slope until it no longer does.
-    Unstable parameter sets met during the solve are not errors: the simulated torque is held at 10x the
-    data's torque scale from the divergence on, a large finite penalty.
+    distinct ones are refined on the fitted samples and the lowest cost wins.  If the best start's recursion
+    stays bounded on the coarse copy but diverges on the decimated samples (explicit-Euler steps too long
+    for the loop: range-of-motion stops), the refinement runs on every sample instead.  A start whose
+    recursion diverges is first pulled toward a straight line of the loop's mean slope until it no longer
+    does.  Unstable parameter sets met during the solve are not errors: the simulated torque is held at
+    10x the data's torque scale from the divergence on, a large finite penalty.
     """
     x = _as_angle(x_deg)
     y = _as_angle(torque_nm, "torque_nm")
@@ -1035,10 +1060,11 @@ def fit_trials(
 
     Each trial starts its own Eq 23 recursion at its own first torque.  Options as in :func:`fit`.
 
-    Decimation guard: where a fit on decimated samples does not carry over to every sample (R^2 below
-    FULL_REFIT_R2 or divergence, e.g. a range-of-motion stop that makes the loop nearly vertical, where
-    explicit Euler steps of a few degrees misbehave), the fit is redone on every sample and the better
-    of the two (by RMSE on every sample) is returned.
+    Decimation guard: a loop on which the best start already diverges when decimated is polished on every
+    sample from the start (see :func:`fit`).  Where a fit on decimated samples does not carry over to every
+    sample (R^2 below FULL_REFIT_R2 or divergence, e.g. a range-of-motion stop that makes the loop nearly
+    vertical, where explicit Euler steps of a few degrees misbehave), the fit is redone on every sample and
+    the better of the two (by RMSE on every sample) is returned.
     """
     checked = _validate_segments(segments)
     result = _fit_segments(
