@@ -28,7 +28,7 @@ def test_large_datasets_use_only_standard_filters_and_round_trip_exactly(tmp_pat
     angle_deg = volts_to_angle(ai12_code_to_volts(codes), (0.0, 130.0))  # a converted 12-bit signal
     smooth = np.cumsum(rng.standard_normal(65_000))  # a filtered, continuous signal
     time_s = 0.0005 + np.arange(65_000) / 1000.0
-    arrays = {
+    arrays: dict[str, tuple[np.ndarray, np.dtype | None]] = {
         "codes": (codes, np.dtype(np.int32)),
         "angle_deg": (angle_deg, np.dtype(SIGNAL)),
         "smooth": (smooth, np.dtype(SIGNAL)),
@@ -60,7 +60,7 @@ def test_shuffle_is_left_out_only_for_quantised_float_signals(tmp_path: Path) ->
     unshuffled; integer codes, times and continuous signals keep the byte shuffle."""
     rng = np.random.default_rng(1)
     codes = rng.integers(-2048, 2048, 20_000).astype(np.int32)
-    arrays = {
+    arrays: dict[str, tuple[np.ndarray, np.dtype | None]] = {
         "angle_deg": (volts_to_angle(ai12_code_to_volts(codes), (0.0, 130.0)), np.dtype(SIGNAL)),
         "codes": (codes, np.dtype(np.int32)),
         "smooth": (np.cumsum(rng.standard_normal(20_000)), np.dtype(SIGNAL)),
@@ -77,3 +77,25 @@ def test_small_datasets_are_stored_contiguous(tmp_path: Path) -> None:
     path = _write_and_read(tmp_path, {"small": (np.arange(COMPRESS_ABOVE, dtype=np.float64), None)})
     with h5py.File(path, "r") as f:
         assert f["small"].compression is None and f["small"].chunks is None
+
+
+def test_chunks_compressed_here_read_back_through_hdf5s_own_filters(tmp_path: Path) -> None:
+    """Multi-chunk datasets are compressed by `put` itself (shuffle + deflate, like HDF5's pipeline) and
+    written as raw chunks: HDF5 must decode them with its standard filters to exactly the written values,
+    including the partial last chunk, and the file must match one HDF5 compressed itself."""
+    rng = np.random.default_rng(2)
+    n = 3 * (CHUNK_BYTES // 8) + 123  # three full float64 chunks and a partial one
+    values = np.cumsum(rng.standard_normal(n))
+    path = _write_and_read(tmp_path, {"x": (values, None)})
+    with h5py.File(path, "r") as f:
+        ds = f["x"]
+        assert ds.chunks == (CHUNK_BYTES // 8,) and ds.shuffle and ds.compression_opts == 1
+        assert np.array_equal(ds[()], values)
+        assert np.array_equal(ds[n - 200 :], values[n - 200 :])  # a read of the partial chunk alone
+        stored = ds.id.get_storage_size()
+    reference = tmp_path / "ref.h5"
+    with h5py.File(reference, "w") as f:
+        f.create_dataset(
+            "x", data=values, chunks=(CHUNK_BYTES // 8,), compression="gzip", compression_opts=1, shuffle=True
+        )
+        assert f["x"].id.get_storage_size() == stored
