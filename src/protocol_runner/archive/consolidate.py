@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 import h5py
+import numpy as np
 
 from .. import __version__
 from .h5util import SCHEMA_VERSION, put, put_lines, put_text, set_attrs
@@ -40,15 +41,34 @@ class ArchiveMeta:
     reference: tuple[str, str, Any, Any] | None = None
 
 
-def _merge(src: h5py.Group, dst: h5py.Group) -> None:
+def _same(a: object, b: object) -> bool:
+    """Whether attribute values `a` and `b` are the same value of the same type (arrays: dtype and items)."""
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, np.ndarray):
+        assert isinstance(b, np.ndarray)
+        return a.dtype == b.dtype and a.shape == b.shape and bool(np.array_equal(a, b))
+    return bool(a == b)
+
+
+def _merge(src: h5py.Group, dst: h5py.Group, written: dict[str, dict[str, object]] | None = None) -> None:
+    """Merge `src` into `dst`. `written` remembers the attributes already set on each destination group
+    during this consolidation (every trial unit repeats its configuration's attributes): an attribute whose
+    value is already there is not rewritten. The result is the same as rewriting it."""
+    if written is None:
+        written = {}
+    seen = written.setdefault(dst.name, {})
     for key, value in src.attrs.items():
         if key in ("unit_step_id", COMPLETE_ATTR):
             continue
+        if key in seen and _same(seen[key], value):
+            continue
         dst.attrs[key] = value
+        seen[key] = value
     for name, obj in src.items():
         if isinstance(obj, h5py.Group):
             if name in dst:
-                _merge(obj, dst[name])
+                _merge(obj, dst[name], written)
             else:
                 src.copy(obj, dst, name=name)  # whole subtree in one HDF5 call (chunks copied as stored)
         else:
@@ -62,9 +82,10 @@ def consolidate(archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta) ->
     if partial.exists():
         partial.unlink()
     with h5py.File(partial, "w") as out:
+        written: dict[str, dict[str, object]] = {}
         for path in unit_files:
             with h5py.File(path, "r") as unit:
-                _merge(unit, out)
+                _merge(unit, out, written)
         set_attrs(
             out,
             {

@@ -1,0 +1,40 @@
+"""`archive.consolidate._merge`: units merged in plan order; a later unit's attribute value wins, whether or
+not an earlier unit already set the same value (repeated attributes are written once, never skipped when
+they change)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from protocol_runner.archive.consolidate import _merge
+
+
+def _unit(path: Path, attrs: dict[str, object], trial: str) -> Path:
+    with h5py.File(path, "w") as f:
+        cfg = f.require_group("configurations/config_01")
+        for key, value in attrs.items():
+            cfg.attrs[key] = value
+        cfg.create_group(f"trials/{trial}").attrs["status"] = "complete"
+    return path
+
+
+def test_later_units_attributes_win_and_repeats_are_kept(tmp_path: Path) -> None:
+    units = [
+        _unit(tmp_path / "a.h5", {"key": 1, "rom_deg": np.array([0.0, 90.0]), "status": "partial"}, "1"),
+        _unit(tmp_path / "b.h5", {"key": 1, "rom_deg": np.array([0.0, 90.0]), "status": "partial"}, "2"),
+        _unit(tmp_path / "c.h5", {"key": 1, "rom_deg": np.array([0.0, 95.0]), "status": "complete"}, "3"),
+        _unit(tmp_path / "d.h5", {"key": 1, "rom_deg": np.array([0, 95]), "status": "complete"}, "4"),
+    ]
+    with h5py.File(tmp_path / "out.h5", "w") as out:
+        written: dict[str, dict[str, object]] = {}
+        for path in units:
+            with h5py.File(path, "r") as unit:
+                _merge(unit, out, written)
+        cfg = out["configurations/config_01"]
+        assert cfg.attrs["key"] == 1 and cfg.attrs["status"] == "complete"
+        # the last unit's value, with its own dtype (integers), not the equal-valued floats before it
+        assert cfg.attrs["rom_deg"].dtype.kind == "i" and list(cfg.attrs["rom_deg"]) == [0, 95]
+        assert sorted(cfg["trials"], key=int) == ["1", "2", "3", "4"]
