@@ -171,7 +171,8 @@ class Runner:
                 if self.background and step.kind in BACKGROUND_KINDS:
                     self._submit(step)
                     continue
-                self._collect(progress, wait=True)  # later steps (comparisons, report) need the analyses
+                if step.kind in ("compare", "report"):
+                    self._collect(progress, wait=True)  # these read the analyses' units
                 if step.kind == "report":
                     return self._finish(progress, skipped)
                 progress.step_started(step)
