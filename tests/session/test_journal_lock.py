@@ -29,14 +29,19 @@ def test_a_record_appended_after_a_torn_line_is_kept(tmp_path: Path) -> None:
 
 def test_foreign_lines_are_ignored_not_fatal(tmp_path: Path) -> None:
     path = tmp_path / "journal.jsonl"
-    path.write_text('{"record": "unit", "step_id": "x"}\n[1, 2]\n"text"\n{"record": "event", "t_utc": "t", "kind": "started"}\n')
+    path.write_text(
+        '{"record": "unit", "step_id": "x"}\n[1, 2]\n"text"\n{"record": "event", "t_utc": "t", "kind": "started"}\n'
+    )
     j = Journal(path)
     assert j.units == {} and [e.kind for e in j.events] == ["started"] and j.torn_lines == 3
 
 
 def test_a_session_directory_is_locked_while_in_use(tmp_path: Path) -> None:
-    with session_lock(tmp_path):
-        with pytest.raises(InvalidInput, match="in use by another run-protocol"), session_lock(tmp_path):
-            pass
+    with (
+        session_lock(tmp_path),
+        pytest.raises(InvalidInput, match="in use by another run-protocol"),
+        session_lock(tmp_path),
+    ):
+        pass
     with session_lock(tmp_path):  # released when the holder is done
         pass
