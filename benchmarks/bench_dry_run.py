@@ -37,6 +37,7 @@ def robot_time_s(archive: Path) -> float:
     """Seconds of commanded motion recorded in the archive (every trial, kept scaling runs, checks)."""
     total = 0.0
     with h5py.File(archive, "r") as f:
+
         def visit(name: str, obj: object) -> None:
             nonlocal total
             if isinstance(obj, h5py.Dataset) and name.endswith("command_time_s"):
@@ -68,7 +69,15 @@ def main() -> None:
             cmd = [sys.executable]
             if args.profile and i == 0:
                 cmd += ["-m", "cProfile", "-o", str(Path(tmp) / "prof")]
-            cmd += ["-m", "protocol_runner.cli", "knee_phase1.yaml", "--dry-run", "--yes", "--session", str(session)]
+            cmd += [
+                "-m",
+                "protocol_runner.cli",
+                "knee_phase1.yaml",
+                "--dry-run",
+                "--yes",
+                "--session",
+                str(session),
+            ]
             if args.only:
                 cmd += ["--only", args.only]
             t0 = time.perf_counter()
@@ -85,15 +94,20 @@ def main() -> None:
             pstats.Stats(str(Path(tmp) / "prof")).sort_stats("cumulative").print_stats(30)
     median = statistics.median(walls) if walls else float("nan")
     ratio = robot / median
-    print(json.dumps({
-        "wall_s_median": round(median, 2),
-        "wall_s_runs": [round(w, 2) for w in walls],
-        "robot_time_s": round(robot, 1),
-        "speedup": round(ratio, 1),
-        "target_speedup": 300,
-        "archive_mb": round(sizes[0] / 1e6, 1),
-        "report_mb": round(sizes[1] / 1e6, 1),
-    }, indent=2))
+    print(
+        json.dumps(
+            {
+                "wall_s_median": round(median, 2),
+                "wall_s_runs": [round(w, 2) for w in walls],
+                "robot_time_s": round(robot, 1),
+                "speedup": round(ratio, 1),
+                "target_speedup": 300,
+                "archive_mb": round(sizes[0] / 1e6, 1),
+                "report_mb": round(sizes[1] / 1e6, 1),
+            },
+            indent=2,
+        )
+    )
     print("PASS" if ratio >= 300 else "FAIL", f"speed-up {ratio:.0f}x (target 300x)")
     print("PASS" if sizes[0] < 100e6 else "FAIL", f"archive {sizes[0] / 1e6:.1f} MB (target < 100 MB)")
 

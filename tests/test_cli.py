@@ -97,12 +97,19 @@ def test_parse_only_accepts_lists_and_ranges() -> None:
         parse_only("14-12")
 
 
-def test_seed_out_of_range_is_refused_before_running(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
-    assert main(["knee_phase1.yaml", "--dry-run", "--seed", str(2**70), "--session", str(tmp_path / "s")]) == 2
+def test_seed_out_of_range_is_refused_before_running(
+    capsys: pytest.CaptureFixture[str], tmp_path: Path
+) -> None:
+    assert (
+        main(["knee_phase1.yaml", "--dry-run", "--seed", str(2**70), "--session", str(tmp_path / "s")]) == 2
+    )
     assert "--seed" in capsys.readouterr().err and not (tmp_path / "s").exists()
 
 
 def test_session_that_is_a_file_is_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     (tmp_path / "afile").write_text("x")
-    assert main(["knee_phase1.yaml", "--dry-run", "--yes", "--only", "12", "--session", str(tmp_path / "afile")]) == 2
+    assert (
+        main(["knee_phase1.yaml", "--dry-run", "--yes", "--only", "12", "--session", str(tmp_path / "afile")])
+        == 2
+    )
     assert "is a file" in capsys.readouterr().err

@@ -27,9 +27,14 @@ def archive_alone(reference_archive: Path, tmp_path_factory: pytest.TempPathFact
     return target
 
 
-def test_reprocess_with_other_cutoff_changes_processed_data_and_nothing_else(archive_alone: Path, tmp_path: Path) -> None:
+def test_reprocess_with_other_cutoff_changes_processed_data_and_nothing_else(
+    archive_alone: Path, tmp_path: Path
+) -> None:
     text = (REPO / "protocols" / "knee_phase1.yaml").read_text()
-    other = text.replace("filter: {kind: butterworth, order: 10, cutoff: 0.10}", "filter: {kind: butterworth, order: 10, cutoff: 0.02}")
+    other = text.replace(
+        "filter: {kind: butterworth, order: 10, cutoff: 0.10}",
+        "filter: {kind: butterworth, order: 10, cutoff: 0.02}",
+    )
     assert other != text
     proto = tmp_path / "other_cutoff.yaml"
     proto.write_text(other)
@@ -52,7 +57,9 @@ def test_reprocess_with_archived_settings_reproduces_the_session(archive_alone: 
     out = reprocess_archive(archive_alone, output=tmp_path / "same.h5")
     before = archive_contents(archive_alone)
     after = archive_contents(out)
-    derived = [k for k in before if any(d in k for d in ("/processed/", "energy_loss_j", "/fits/", "comparisons/"))]
+    derived = [
+        k for k in before if any(d in k for d in ("/processed/", "energy_loss_j", "/fits/", "comparisons/"))
+    ]
     assert any("/fits/bouc_wen" in k for k in derived)
     different = sorted(k for k in derived if before[k] != after.get(k))
     assert not different, different[:10]
@@ -74,5 +81,7 @@ def test_export_mat_writes_each_configuration(archive_alone: Path, tmp_path: Pat
         cfg = f["configurations/config_12"]
         assert int(m["configuration"].key) == 12
         np.testing.assert_allclose(m["energy_loss_j"], cfg["energy_loss_j"][:])
-        np.testing.assert_allclose(m["trial_1"].brace_torque_nm, cfg["trials/1/processed/brace_torque_nm"][:], rtol=1e-6)
+        np.testing.assert_allclose(
+            m["trial_1"].brace_torque_nm, cfg["trials/1/processed/brace_torque_nm"][:], rtol=1e-6
+        )
         assert float(m["bouc_wen"].A) == pytest.approx(float(cfg["fits/bouc_wen"].attrs["A"]))

@@ -20,7 +20,9 @@ VOLATILE_ATTRS = {"created_utc", "finished_utc", "answered_utc"}
 VOLATILE_PATHS = ("session/events",)
 
 
-def run_dry(session: Path, *, only: list[int] | None = None, seed: int = SEED, protocol: str = "knee_phase1.yaml") -> int:
+def run_dry(
+    session: Path, *, only: list[int] | None = None, seed: int = SEED, protocol: str = "knee_phase1.yaml"
+) -> int:
     return run(
         protocol,
         dry_run=True,

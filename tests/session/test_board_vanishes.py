@@ -40,7 +40,9 @@ class VanishingInput:
         return block
 
 
-def test_board_vanishing_mid_trial_keeps_data_stops_with_3_and_resumes(tmp_path: Path, reference_archive: Path) -> None:
+def test_board_vanishing_mid_trial_keeps_data_stops_with_3_and_resumes(
+    tmp_path: Path, reference_archive: Path
+) -> None:
     loaded = load_protocol(find_protocol("knee_phase1.yaml"))
     session = tmp_path / "vanish"
     info = create_session(session, loaded, mode="dry-run", seed=SEED, only=tuple(ONLY), realtime=False)

@@ -43,12 +43,25 @@ def wait_for_units(proc, session: Path, n: int, timeout_s: float = 120.0) -> boo
     return True
 
 
-def test_sigkill_at_random_points_then_resume_gives_identical_archive(tmp_path: Path, reference_archive: Path) -> None:
+def test_sigkill_at_random_points_then_resume_gives_identical_archive(
+    tmp_path: Path, reference_archive: Path
+) -> None:
     rng = random.Random(20071001)
     session = tmp_path / "killed"
     only = ",".join(map(str, ONLY))
     log = tmp_path / "stderr.log"
-    proc = cli("knee_phase1.yaml", "--dry-run", "--yes", "--only", only, "--seed", str(SEED), "--session", str(session), log=log)
+    proc = cli(
+        "knee_phase1.yaml",
+        "--dry-run",
+        "--yes",
+        "--only",
+        only,
+        "--seed",
+        str(SEED),
+        "--session",
+        str(session),
+        log=log,
+    )
     kills = 0
     for round_ in range(4):
         target = journal_units(session) + rng.randint(1, 3)
@@ -69,7 +82,9 @@ def test_sigkill_at_random_points_then_resume_gives_identical_archive(tmp_path: 
     assert proc.returncode == 0, proc.stderr()
     assert kills >= 2
     assert_same_data(reference_archive, session / "archive.h5")
-    events = [json.loads(e)["kind"] for e in h5py.File(session / "archive.h5", "r")["session/events"].asstr()[:]]
+    events = [
+        json.loads(e)["kind"] for e in h5py.File(session / "archive.h5", "r")["session/events"].asstr()[:]
+    ]
     # the resumes noticed the unclean stops (a run killed while still starting up leaves no trace, and one
     # killed while writing the final report had already recorded "finished", so counts can be below kills)
     assert events.count("resumed") >= 1 and events.count("interrupted") >= 1
@@ -79,7 +94,18 @@ def test_sigkill_at_random_points_then_resume_gives_identical_archive(tmp_path: 
 def test_sigint_exits_130_resumable_and_nothing_lost(tmp_path: Path, reference_archive: Path) -> None:
     session = tmp_path / "sigint"
     only = ",".join(map(str, ONLY))
-    proc = cli("knee_phase1.yaml", "--dry-run", "--yes", "--only", only, "--seed", str(SEED), "--session", str(session), log=tmp_path / "err.log")
+    proc = cli(
+        "knee_phase1.yaml",
+        "--dry-run",
+        "--yes",
+        "--only",
+        only,
+        "--seed",
+        str(SEED),
+        "--session",
+        str(session),
+        log=tmp_path / "err.log",
+    )
     assert wait_for_units(proc, session, 4)
     proc.send_signal(signal.SIGINT)
     proc.wait(timeout=120)
@@ -109,11 +135,22 @@ def test_truncated_unit_is_detected_and_redone(tmp_path: Path, reference_archive
     assert_same_data(reference_archive, session / "archive.h5")
 
 
-def test_resume_refuses_a_changed_protocol_unless_forced(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_resume_refuses_a_changed_protocol_unless_forced(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from protocol_runner.cli import main
 
     session = tmp_path / "changed"
-    proc = cli("knee_phase1.yaml", "--dry-run", "--yes", "--only", "12", "--session", str(session), log=tmp_path / "err.log")
+    proc = cli(
+        "knee_phase1.yaml",
+        "--dry-run",
+        "--yes",
+        "--only",
+        "12",
+        "--session",
+        str(session),
+        log=tmp_path / "err.log",
+    )
     assert wait_for_units(proc, session, 2)
     proc.send_signal(signal.SIGKILL)
     proc.wait()
@@ -128,7 +165,9 @@ def test_resume_refuses_a_changed_protocol_unless_forced(tmp_path: Path, capsys:
         assert "operator_override" in kinds
 
 
-def test_disk_full_stops_cleanly_and_resume_finishes(tmp_path: Path, reference_archive: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_disk_full_stops_cleanly_and_resume_finishes(
+    tmp_path: Path, reference_archive: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     session = tmp_path / "full"
     real = units_module._fsync_file
     calls = {"n": 0}

@@ -19,7 +19,9 @@ def test_without_bouc_wen_configurations_complete(tmp_path: Path) -> None:
     work = tmp_path / "protocols"
     shutil.copytree(REPO / "protocols", work)
     text = (work / "knee_phase1.yaml").read_text()
-    edited = text.replace("bouc_wen: {enabled: true, starts: 8, cross_validate: true}", "bouc_wen: {enabled: false}")
+    edited = text.replace(
+        "bouc_wen: {enabled: true, starts: 8, cross_validate: true}", "bouc_wen: {enabled: false}"
+    )
     assert edited != text
     (work / "nobw.yaml").write_text(edited)
     plan = expand(load_protocol(work / "nobw.yaml"), only=[12])

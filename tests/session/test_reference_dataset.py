@@ -19,7 +19,9 @@ def test_reference_dataset_is_archived_and_reported(tmp_path: Path) -> None:
     angle = np.linspace(5.0, 100.0, 50)
     torque = 0.3 * (angle - 20.0)
     rows = "\n".join(f"{a:.3f},{t:.3f}" for a, t in zip(angle, torque, strict=True))
-    (work / "emu_reference.csv").write_text("# test reference (not EMU data)\nangle_deg,torque_nm\n" + rows + "\n")
+    (work / "emu_reference.csv").write_text(
+        "# test reference (not EMU data)\nangle_deg,torque_nm\n" + rows + "\n"
+    )
     text = (work / "knee_phase1.yaml").read_text()
     edited = text.replace("reference_dataset: null", "reference_dataset: emu_reference.csv")
     assert edited != text
