@@ -129,7 +129,7 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
                 f"calibration, then continue with --resume (this check is redone first)."
             )
     fill = _fill(
-        step.set, when, record_as, rec, cmd, resp, verdict, message, limits.model_dump(), float(p["step_deg"])
+        step.set, when, record_as, rec, resp, verdict, message, limits.model_dump(), float(p["step_deg"])
     )
     summary = f"{verdict}: settle error {resp.settle_error_deg:.2f} deg, tau {resp.time_constant_s:.3f} s"
     return StepOutcome(fill, summary, stop)
@@ -157,7 +157,6 @@ def _fill(
     when: str,
     step_id: str,
     rec: TrialRecording,
-    cmd: FloatArray,
     resp: StepResponse,
     verdict: str,
     message: str,
