@@ -44,6 +44,7 @@ from protocol_runner.hardware.usb_common import (
     find_devices,
     map_usb_error,
     release_device,
+    set_up_or_release,
 )
 
 log = logging.getLogger(__name__)
@@ -156,11 +157,7 @@ class Dt9814:
         """Open an already found pyusb device (claim it, read its identity from flash)."""
         settings = settings or Dt9814Settings()
         board = cls(device, settings)
-        try:
-            board._setup()
-        except BaseException:
-            release_device(device, settings.interface)
-            raise
+        set_up_or_release(board._setup, device, settings.interface)
         return board
 
     def _setup(self) -> None:

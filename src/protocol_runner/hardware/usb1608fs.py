@@ -42,11 +42,13 @@ from protocol_runner.hardware.usb_common import (
     ScanOverrun,
     bcd_to_text,
     claim_interface,
+    find_board,
     find_devices,
     map_usb_error,
     read_serial,
     release_device,
     select_device,
+    set_up_or_release,
 )
 
 log = logging.getLogger(__name__)
@@ -150,15 +152,9 @@ class Usb1608FsPlus:
         """Find the board (VID 0x09DB PID 0x00EA, optionally by serial), claim it, read its serial and
         calibration, and make sure no scan is left running. Errors are clear `HardwareUnavailable`s."""
         settings = settings or Usb1608FsSettings()
-        ids = f"VID 0x{MCC_VENDOR_ID:04X} PID 0x{PRODUCT_ID:04X}"
-        found = select_device(find_devices(MCC_VENDOR_ID, PRODUCT_ID, backend, KIND), serial, KIND, ids)
-        usb_serial = found.serial if found.serial is not None else read_serial(found.device, KIND)
-        board = cls(found.device, usb_serial, settings, clock or MonotonicClock())
-        try:
-            board._setup()
-        except BaseException:
-            release_device(found.device, settings.interface)
-            raise
+        device, usb_serial = find_board(MCC_VENDOR_ID, PRODUCT_ID, serial, backend, KIND)
+        board = cls(device, usb_serial, settings, clock or MonotonicClock())
+        set_up_or_release(board._setup, device, settings.interface)
         return board
 
     def _setup(self) -> None:

@@ -38,11 +38,10 @@ from protocol_runner.hardware.usb_common import (
     UnexpectedReply,
     bcd_to_text,
     claim_interface,
-    find_devices,
+    find_board,
     map_usb_error,
-    read_serial,
     release_device,
-    select_device,
+    set_up_or_release,
     usb_call,
 )
 
@@ -169,17 +168,9 @@ class Usb3105:
         permission denied, timeout, gone).
         """
         settings = settings or Usb3105Settings()
-        ids = f"VID 0x{MCC_VENDOR_ID:04X} PID 0x{PRODUCT_ID:04X}"
-        devices = find_devices(MCC_VENDOR_ID, PRODUCT_ID, backend, KIND)
-        found = select_device(devices, serial, KIND, ids)
-        dev = found.device
-        board_serial = found.serial if found.serial is not None else read_serial(dev, KIND)
-        board = cls(dev, board_serial, settings)
-        try:
-            board._setup()
-        except BaseException:
-            release_device(dev, settings.interface)
-            raise
+        device, board_serial = find_board(MCC_VENDOR_ID, PRODUCT_ID, serial, backend, KIND)
+        board = cls(device, board_serial, settings)
+        set_up_or_release(board._setup, device, settings.interface)
         return board
 
     def _setup(self) -> None:

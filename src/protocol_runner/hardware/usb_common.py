@@ -249,6 +249,30 @@ def select_device(
     )
 
 
+def find_board(
+    vendor_id: int, product_id: int, serial: str | None, backend: Any | None, board_kind: str
+) -> tuple[usb.core.Device, str]:
+    """Find the attached board with these ids (and `serial`, None: the first one) and read its serial.
+
+    Returns the device and its USB serial number. Raises `BoardNotFound` (none attached, or none with
+    `serial`), `NoUsbBackend`, or the mapped USB error met while listing or reading the serial.
+    """
+    ids = f"VID 0x{vendor_id:04X} PID 0x{product_id:04X}"
+    found = select_device(find_devices(vendor_id, product_id, backend, board_kind), serial, board_kind, ids)
+    usb_serial = found.serial if found.serial is not None else read_serial(found.device, board_kind)
+    return found.device, usb_serial
+
+
+def set_up_or_release(setup: Callable[[], None], device: usb.core.Device, interface: int) -> None:
+    """Run a freshly opened board's `setup` (claim, configure, read calibration); on any failure release
+    `interface` and free the device before the error propagates, so that the board can be opened again."""
+    try:
+        setup()
+    except BaseException:
+        release_device(device, interface)
+        raise
+
+
 def claim_interface(device: usb.core.Device, interface: int, board: str) -> bool:
     """Detach the kernel driver (usbhid for the HID boards) if it holds `interface`, then claim it.
 
