@@ -17,15 +17,21 @@ from __future__ import annotations
 
 import argparse
 import statistics
+import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
-from protocol_runner.hardware.rig import JointConfig
-from protocol_runner.hardware.safety import SafetyLimits
-from protocol_runner.hardware.simulator import DEFAULT_PARAMS, BraceSetup, SimulatedRig
-from protocol_runner.hardware.simulator.plant import JointPlant
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from tests.knee_rig import knee_joint_config  # noqa: E402
+
+from protocol_runner.hardware.rig import JointConfig  # noqa: E402
+from protocol_runner.hardware.simulator import DEFAULT_PARAMS, BraceSetup, SimulatedRig  # noqa: E402
+from protocol_runner.hardware.simulator.plant import JointPlant  # noqa: E402
 
 TRIAL_S = 65.0
 OUTPUT_RATE_HZ = 100.0
@@ -34,21 +40,7 @@ PERIOD_S = 8.17  # thesis Table 6, Rr3 at full speed
 
 
 def knee() -> JointConfig:
-    return JointConfig(
-        name="knee",
-        range_deg=(0.0, 130.0),
-        torque_range_nm=(-84.8, 84.8),
-        output_channel=8,
-        angle_input_channel=8,
-        torque_input_channel=20,
-        limits=SafetyLimits(
-            range_deg=(0.0, 130.0),
-            max_rate_deg_s=100.0,
-            max_accel_deg_s2=1000.0,
-            park_angle_deg=20.0,
-            park_rate_deg_s=30.0,
-        ),
-    )
+    return knee_joint_config(max_rate_deg_s=100.0, max_accel_deg_s2=1000.0)
 
 
 BRACE = BraceSetup(rom_deg=(0.0, 130.0), friction_nm=3.75, stiffness_n_per_mm=13.0, preload_position=3)

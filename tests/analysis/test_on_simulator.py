@@ -24,9 +24,10 @@ from protocol_runner.analysis.pipeline import (
 from protocol_runner.analysis.scaling import rig_runner, scale_brace_off_input
 from protocol_runner.analysis.transition import command_on_input_base, transition_index
 from protocol_runner.hardware.rig import JointConfig, TrialRecording
-from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.simulator import BraceSetup, SimulatedRig, SimulatorParams
 from protocol_runner.models.spring import DEFAULT_MAX_PRELOAD_MM
+
+from ..knee_rig import knee_joint_config
 
 PARAMS = SimulatorParams(bump_torque_nm=0.0)
 BRACE = BraceSetup(rom_deg=(0.0, 130.0), friction_nm=3.75, stiffness_n_per_mm=13.0, preload_position=3)
@@ -34,21 +35,7 @@ DEG = np.pi / 180.0
 
 
 def _joint() -> JointConfig:
-    return JointConfig(
-        name="knee",
-        range_deg=(0.0, 130.0),
-        torque_range_nm=(-84.8, 84.8),
-        output_channel=8,
-        angle_input_channel=8,
-        torque_input_channel=20,
-        limits=SafetyLimits(
-            range_deg=(0.0, 130.0),
-            max_rate_deg_s=1000.0,
-            max_accel_deg_s2=100_000.0,
-            park_angle_deg=20.0,
-            park_rate_deg_s=30.0,
-        ),
-    )
+    return knee_joint_config(max_rate_deg_s=1000.0, max_accel_deg_s2=100_000.0)
 
 
 def _command() -> np.ndarray:

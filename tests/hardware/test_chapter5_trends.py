@@ -19,8 +19,9 @@ from functools import cache
 import numpy as np
 
 from protocol_runner.hardware.rig import JointConfig
-from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.simulator import BraceSetup, SimulatedRig
+
+from ..knee_rig import knee_joint_config
 
 OUTPUT_RATE_HZ = 100.0
 INPUT_RATE_HZ = 1000.0
@@ -34,22 +35,11 @@ K1, K2, K3 = 4.4, 13.0, 20.0  # N/mm
 
 
 def knee_joint() -> JointConfig:
-    return JointConfig(
-        name="knee",
-        range_deg=(0.0, 130.0),
-        torque_range_nm=(-84.8, 84.8),
-        output_channel=8,
-        angle_input_channel=8,
-        torque_input_channel=20,
+    return knee_joint_config(
+        max_rate_deg_s=1000.0,
+        max_accel_deg_s2=100_000.0,
         output_rate_hz=OUTPUT_RATE_HZ,
         input_rate_hz=INPUT_RATE_HZ,
-        limits=SafetyLimits(
-            range_deg=(0.0, 130.0),
-            max_rate_deg_s=1000.0,
-            max_accel_deg_s2=100_000.0,
-            park_angle_deg=20.0,
-            park_rate_deg_s=30.0,
-        ),
     )
 
 

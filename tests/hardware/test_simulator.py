@@ -29,30 +29,20 @@ from protocol_runner.hardware.simulator import (
 )
 from protocol_runner.hardware.simulator.plant import JointPlant
 
-KNEE_TORQUE_LIMIT_NM = 84.8  # thesis Table 3
-PARK_DEG = 20.0
+from ..knee_rig import KNEE_PARK_DEG, KNEE_TORQUE_LIMIT_NM, knee_joint_config
+
+PARK_DEG = KNEE_PARK_DEG
 OUTPUT_RATE_HZ = 100.0
 INPUT_RATE_HZ = 1000.0
 
 
 def knee_joint(**tables: CalibrationTable | None) -> JointConfig:
     """The knee (RSST joint 9): Eq 1 range 0-130°, ±84.8 N·m, park at 20°, generous rate limits."""
-    return JointConfig(
-        name="knee",
-        range_deg=(0.0, 130.0),
-        torque_range_nm=(-KNEE_TORQUE_LIMIT_NM, KNEE_TORQUE_LIMIT_NM),
-        output_channel=8,
-        angle_input_channel=8,
-        torque_input_channel=20,
+    return knee_joint_config(
+        max_rate_deg_s=100_000.0,
+        max_accel_deg_s2=1e9,
         output_rate_hz=OUTPUT_RATE_HZ,
         input_rate_hz=INPUT_RATE_HZ,
-        limits=SafetyLimits(
-            range_deg=(0.0, 130.0),
-            max_rate_deg_s=100_000.0,
-            max_accel_deg_s2=1e9,
-            park_angle_deg=PARK_DEG,
-            park_rate_deg_s=30.0,
-        ),
         **tables,
     )
 
@@ -385,7 +375,7 @@ _DIGEST_SCRIPT = """
 import hashlib, sys
 import numpy as np
 sys.path.insert(0, sys.argv[1])
-from test_simulator import hold, knee_joint, run
+from tests.hardware.test_simulator import hold, knee_joint, run
 from protocol_runner.hardware.simulator import SimulatedRig
 sim = SimulatedRig(knee_joint(), seed=5)
 rec = run(sim, sim.make_rig(), hold(50.0, 0.3), "set2/trial3")[3]
@@ -406,7 +396,7 @@ def test_data_are_reproducible_in_another_process() -> None:
     here = hashlib.sha256(rec.angle_codes.tobytes() + rec.torque_codes.tobytes()).hexdigest()
     env = dict(os.environ, PYTHONHASHSEED="12345")
     out = subprocess.run(
-        [sys.executable, "-c", _DIGEST_SCRIPT, str(Path(__file__).parent)],
+        [sys.executable, "-c", _DIGEST_SCRIPT, str(Path(__file__).resolve().parents[2])],
         capture_output=True,
         text=True,
         env=env,
