@@ -186,33 +186,25 @@ def check_trajectory(
     if initial_deg is not None:
         series = np.concatenate([[float(initial_deg)], cmd])
         offset = -1
-    if series.size >= 2:
-        rate = np.diff(series) * rate_hz
-        i = int(np.argmax(np.abs(rate)))
-        if abs(rate[i]) > limits.max_rate_deg_s * (1 + _REL_TOL):
+    # rate (first difference) and acceleration (second difference), each against its limit
+    for order, limit_name, limit_value, units in (
+        (1, "angular rate", limits.max_rate_deg_s, "deg/s"),
+        (2, "angular acceleration", limits.max_accel_deg_s2, "deg/s²"),
+    ):
+        if series.size <= order:
+            continue
+        derivative = np.diff(series, order) * rate_hz**order
+        i = int(np.argmax(np.abs(derivative)))
+        if abs(derivative[i]) > limit_value * (1 + _REL_TOL):
             index = i + 1 + offset
             raise SafetyViolation(
                 where=where,
-                limit="angular rate",
-                value=float(rate[i]),
-                limit_value=limits.max_rate_deg_s,
+                limit=limit_name,
+                value=float(derivative[i]),
+                limit_value=limit_value,
                 index=index,
                 time_s=index * dt,
-                units="deg/s",
-            )
-    if series.size >= 3:
-        accel = np.diff(series, 2) * (rate_hz * rate_hz)
-        i = int(np.argmax(np.abs(accel)))
-        if abs(accel[i]) > limits.max_accel_deg_s2 * (1 + _REL_TOL):
-            index = i + 1 + offset
-            raise SafetyViolation(
-                where=where,
-                limit="angular acceleration",
-                value=float(accel[i]),
-                limit_value=limits.max_accel_deg_s2,
-                index=index,
-                time_s=index * dt,
-                units="deg/s²",
+                units=units,
             )
 
 

@@ -423,6 +423,13 @@ def _check_bound(bound_nm: float) -> float:
     return b
 
 
+def _check_z0(z0: float) -> float:
+    z0f = float(z0)
+    if not math.isfinite(z0f):
+        raise InvalidInput(f"z0 must be a finite torque, got {z0}")
+    return z0f
+
+
 def simulate(
     x_deg: npt.ArrayLike,
     params: BoucWenParams,
@@ -436,10 +443,7 @@ def simulate(
     ``bound_nm`` or stops being finite, which unstable parameter sets do) the remaining samples are NaN;
     ``np.isnan(z[-1])`` is the divergence flag.
     """
-    x = _as_angle(x_deg)
-    z0f = float(z0)
-    if not math.isfinite(z0f):
-        raise InvalidInput(f"z0 must be a finite torque, got {z0}")
+    x, z0f = _as_angle(x_deg), _check_z0(z0)
     z = np.empty_like(x)
     _recursion_kernel(
         x,
@@ -467,10 +471,7 @@ def simulate_sensitivity(
     Columns follow :data:`PARAM_NAMES` (A, n, beta1..beta6); ``z0`` is held fixed so row 0 is zero.
     Diverged samples are NaN in both outputs, as in :func:`simulate`.
     """
-    x = _as_angle(x_deg)
-    z0f = float(z0)
-    if not math.isfinite(z0f):
-        raise InvalidInput(f"z0 must be a finite torque, got {z0}")
+    x, z0f = _as_angle(x_deg), _check_z0(z0)
     z = np.empty_like(x)
     dz = np.empty((x.size, 8))
     _sensitivity_kernel(
