@@ -330,11 +330,10 @@ def _present(data: ReportData, keys: Sequence[int]) -> list[Configuration]:
     return [c for k in keys if (c := data.configuration(k)) is not None]
 
 
-def comparison_overlay_figure(data: ReportData, comparison: Comparison) -> str:
-    """Hysteresis loops of the compared configurations overlaid (thesis Figures 32-37), trial 1 each."""
-    fig, (ax,) = _axes("single")
+def _overlay_loops(ax: Axes, configs: Sequence[Configuration], label: Callable[[Configuration], str]) -> bool:
+    """The first processed trial of each configuration as a brace-torque loop; False if none had data."""
     drawn = False
-    for i, cfg in enumerate(_present(data, comparison.configurations)):
+    for i, cfg in enumerate(configs):
         trial = next((t for t in cfg.trials if t.processed is not None), None)
         if trial is None or trial.processed is None:
             continue
@@ -343,9 +342,18 @@ def comparison_overlay_figure(data: ReportData, comparison: Comparison) -> str:
             trial.processed.brace_torque_nm,
             lw=0.7,
             color=COLORS[i % len(COLORS)],
-            label=config_label(cfg, comparison.parameter),
+            label=label(cfg),
         )
         drawn = True
+    return drawn
+
+
+def comparison_overlay_figure(data: ReportData, comparison: Comparison) -> str:
+    """Hysteresis loops of the compared configurations overlaid (thesis Figures 32-37), trial 1 each."""
+    fig, (ax,) = _axes("single")
+    drawn = _overlay_loops(
+        ax, _present(data, comparison.configurations), lambda c: config_label(c, comparison.parameter)
+    )
     if not drawn:
         _empty(ax, "none of these configurations has data")
     _style(ax, ANGLE_LABEL, TORQUE_LABEL, f"§{comparison.section} {comparison.title}")
@@ -412,17 +420,7 @@ def restraint_bars_figure(data: ReportData) -> str:
 def emu_figure(data: ReportData, comparison: Comparison) -> str:
     """The EMU-condition configurations against the reference dataset (thesis §5.6, Figure 38)."""
     fig, (ax,) = _axes("single")
-    for i, cfg in enumerate(_present(data, comparison.configurations)):
-        trial = next((t for t in cfg.trials if t.processed is not None), None)
-        if trial is None or trial.processed is None:
-            continue
-        ax.plot(
-            trial.processed.angle_deg,
-            trial.processed.brace_torque_nm,
-            lw=0.7,
-            color=COLORS[i % len(COLORS)],
-            label=f"config {cfg.key} ({cfg.profile})",
-        )
+    _overlay_loops(ax, _present(data, comparison.configurations), lambda c: f"config {c.key} ({c.profile})")
     for ref in data.references:
         ax.plot(ref.angle_deg, ref.torque_nm, ".", ms=1.5, color="k", alpha=0.6, label=ref.title)
     _style(ax, ANGLE_LABEL, TORQUE_LABEL, "EMU condition vs reference data")
