@@ -45,6 +45,9 @@ from scipy.optimize import least_squares
 
 from protocol_runner.models import bouc_wen as bw
 from protocol_runner.models.bouc_wen import BoucWenParams, fit_trials, simulate
+from protocol_runner.models.bouc_wen import fitting as bw_fitting
+from protocol_runner.models.bouc_wen import kernels as bw_kernels
+from protocol_runner.models.bouc_wen import starts as bw_starts
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 RATE_HZ = 1000.0
@@ -98,7 +101,7 @@ def baseline_fit(
     z = np.empty_like(xs)
 
     def residuals(theta: np.ndarray) -> np.ndarray:
-        bw._recursion_kernel(xs, seg, z0, theta[0], theta[1], theta[2:], bound, True, z)
+        bw_kernels.recursion_kernel(xs, seg, z0, theta[0], theta[1], theta[2:], bound, True, z)
         return z - ys
 
     x0 = np.array([1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]) if start is None else start.as_array()
@@ -139,8 +142,8 @@ def main() -> int:
 
     stride = ours0.stride
     # for information: the thesis's own procedure, Figure 56's data-driven start + the same plain solver
-    xs, ys, seg, _ = bw._decimate(segments, max(x[:: stride[0]].size for x, _ in segments))
-    fig56 = bw._thesis_start(xs, ys, seg)
+    xs, ys, seg, _ = bw_fitting.decimate(segments, max(x[:: stride[0]].size for x, _ in segments))
+    fig56 = bw_starts.thesis_start(xs, ys, seg)
     (t_ours, ours_out), (t_base, base_out), (t_f56, f56_out) = timed_interleaved(
         [
             lambda: fit_trials(segments),

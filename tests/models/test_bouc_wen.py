@@ -11,7 +11,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models import bouc_wen
 from protocol_runner.models.bouc_wen import (
     DEFAULT_BOUNDS,
     EQ24_PHASE_MATRIX,
@@ -28,6 +27,8 @@ from protocol_runner.models.bouc_wen import (
     simulate,
     simulate_sensitivity,
 )
+from protocol_runner.models.bouc_wen import fitting as bw_fitting
+from protocol_runner.models.bouc_wen.problem import Problem
 
 # Figure 57 / 58: knee joint, K_spring = 13 N/mm, braking torque 3.75 N*m.
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
@@ -252,9 +253,7 @@ def test_fitter_penalises_a_divergent_simulation_with_finite_residuals() -> None
     x = centred_sinusoid(1, 0.05)
     torque = simulate(x, FIG57, z0=0.0)
     segments = np.array([0, x.size], dtype=np.int64)
-    problem = bouc_wen._Problem(
-        x, torque, segments, DEFAULT_BOUNDS, np.max(np.abs(x)), np.max(np.abs(torque))
-    )
+    problem = Problem(x, torque, segments, DEFAULT_BOUNDS, np.max(np.abs(x)), np.max(np.abs(torque)))
     unstable = BoucWenParams(A=0.3, n=2.0, beta=(0.0, 0.0, 0.0, 0.0, 0.0, -1.0))
     u_bad = problem.to_u(unstable)
     r_bad = problem.residuals(u_bad)
@@ -271,9 +270,7 @@ def test_optimiser_jacobian_matches_finite_differences_of_its_residuals() -> Non
     x = centred_sinusoid(1.5, 0.05)
     torque = simulate(x, FIG57, z0=0.0) + 0.3
     segments = np.array([0, x.size // 2, x.size], dtype=np.int64)
-    problem = bouc_wen._Problem(
-        x, torque, segments, DEFAULT_BOUNDS, np.max(np.abs(x)), np.max(np.abs(torque))
-    )
+    problem = Problem(x, torque, segments, DEFAULT_BOUNDS, np.max(np.abs(x)), np.max(np.abs(torque)))
     u = problem.to_u(BoucWenParams(A=0.25, n=1.4, beta=(0.02, 0.1, -0.1, -0.05, 0.08, 0.01)))
     J = problem.jacobian(u)
     for k in range(8):
@@ -397,6 +394,6 @@ def test_loop_whose_decimated_recursion_diverges_is_fitted_on_every_sample(
     assert result.stride == (1,) and result.n_samples_fitted == x.size
     assert not result.diverged and result.r2 > 0.9
 
-    monkeypatch.setattr(bouc_wen, "_diverges_when_decimated", lambda *args: False)
+    monkeypatch.setattr(bw_fitting, "_diverges_when_decimated", lambda *args: False)
     guarded = fit_trials([(x, y)], starts=8)  # decimated fit, then the guard's refit on every sample
     assert result.rmse_nm <= guarded.rmse_nm

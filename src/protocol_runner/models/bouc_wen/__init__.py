@@ -1,0 +1,82 @@
+"""Generalised Bouc-Wen hysteresis model of a joint's torque-angle loop (thesis §6.2, Eq 19-25).
+
+The thesis extends the Bouc-Wen model (Eq 20, ``dz = dx [A - |z|^n Psi]``) with a shape function that also
+depends on the sign of the angle, so that asymmetric loops (a joint that behaves differently when stretched
+and compressed) can be represented (§6.2.3, Eq 22)::
+
+    Psi = b1 sgn(dx z) + b2 sgn(dx x) + b3 sgn(x z) + b4 sgn(dx) + b5 sgn(z) + b6 sgn(x)
+
+and discretises it with the explicit first-order recursion of Eq 23::
+
+    z_0 = initial torque
+    z_{i+1} = z_i + (x_{i+1} - x_i) [A - |z_i|^n Psi_i]
+
+where ``x`` is the joint angle in degrees and ``z`` is the torque in N*m (so ``A`` is in N*m/deg and each
+``beta_k`` in N*m^(1-n)/deg).  (Eq 22 is garbled in the available copy of the thesis; the sign terms above
+are those of Eq 23, which Table 4 confirms.)  The six sign patterns met on a centred loop are the six
+phases of Table 4; their shape values ``psi = M24 @ beta`` (Eq 24) are inverted by Eq 25,
+``beta = M25 @ psi``.  The other two sign patterns, (x > 0, dx > 0, z < 0) and (x < 0, dx < 0, z > 0), are
+not phases of Table 4 but Eq 23 still applies there; with the Figure 57 parameters the second one is
+unstable (a recursion started there with a few N*m diverges), which is why divergence is detected.
+
+Units and conventions:
+
+* ``sgn(0) = 0``, exactly as the signum function in Eq 23; a sample where the angle does not move leaves the
+  torque unchanged.
+* The recursion depends only on the sequence of angle increments, not on time (it is rate-independent), so
+  fitting a decimated copy of smooth data is legitimate; the explicit-Euler error of Eq 23 grows with the
+  step size, which is why only already-filtered data should be decimated (see :func:`fit`).
+* The thesis centres each trial on (0, 0) before fitting (note under Table 4).  :func:`fit` does *not*
+  centre: the caller (the analysis pipeline) does, and the model is fitted to the samples exactly as given.
+
+Fitting (§6.2.3, Figure 56) minimises the squared difference between measured and simulated torque with
+``scipy.optimize.least_squares`` and an analytic Jacobian obtained by differentiating Eq 23 (forward
+sensitivities, computed in the same numba pass as the torque).  §6.2.5 notes that the thesis fit "depends a
+lot on the initial conditions"; this implementation starts from the thesis's data-driven guess (Figure 56),
+from an equation-error least-squares guess, and from quasi-random points spread over the parameter bounds,
+and keeps the best optimum, so the result does not depend on any single starting point.
+
+Performance: the numba kernels are compiled once (cached on disk); a fit of one configuration (three 65 s
+trials at 1 kHz) takes about 0.1 s on a busy 2-core machine (``benchmarks/bench_bouc_wen.py``) - provided
+BLAS runs single-threaded.  The solver's linear algebra on the tall 8-column Jacobian (SVD, products) goes
+through OpenBLAS, whose worker threads make each call cost milliseconds when the cores are busy: the same
+fit then takes about 1.2 s.  Set ``OPENBLAS_NUM_THREADS=1`` in the environment before numpy is imported.
+This module keeps its own tall-matrix work (Jacobian chain rule, Gram matrix, sums of squares) in numba
+loops for that reason.
+"""
+
+from __future__ import annotations
+
+from .fitting import cross_validate, fit, fit_trials
+from .params import (
+    DEFAULT_SIMULATION_BOUND_NM,
+    EQ24_PHASE_MATRIX,
+    EQ25_BETA_MATRIX,
+    PARAM_NAMES,
+    BoucWenParams,
+    betas_from_phases,
+    phase_of_samples,
+    phase_values,
+)
+from .problem import DEFAULT_BOUNDS, FULL_REFIT_R2, BoucWenBounds, BoucWenFit
+from .simulation import simulate, simulate_sensitivity
+
+__all__ = [
+    "DEFAULT_BOUNDS",
+    "DEFAULT_SIMULATION_BOUND_NM",
+    "EQ24_PHASE_MATRIX",
+    "EQ25_BETA_MATRIX",
+    "FULL_REFIT_R2",
+    "PARAM_NAMES",
+    "BoucWenBounds",
+    "BoucWenFit",
+    "BoucWenParams",
+    "betas_from_phases",
+    "cross_validate",
+    "fit",
+    "fit_trials",
+    "phase_of_samples",
+    "phase_values",
+    "simulate",
+    "simulate_sensitivity",
+]

@@ -1,0 +1,270 @@
+"""The least-squares problem of the Bouc-Wen fit: bounds, the fit record, residuals, Jacobian,
+uncertainties and evaluation on every sample (thesis §6.2.3, Figure 56)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+from scipy.optimize import least_squares
+
+from protocol_runner.errors import InvalidInput
+
+from .kernels import IDENTITY8, gram, recursion_kernel, sensitivity_kernel, sum_sq_diff
+from .params import EQ25_BETA_MATRIX, BoucWenParams, FloatArray, phase_values
+
+
+@dataclass(frozen=True)
+class BoucWenBounds:
+    """Bounds of the fitted parameters, expressed relative to the data so that they suit any joint.
+
+    With ``X`` the largest |angle| (deg) and ``Z`` the largest |torque| (N*m) of the fitted data, Eq 20
+    becomes ``dz'/dx' = a - |z'|^n psi'`` for ``z' = z/Z`` and ``x' = x/X``, with ``a = A X / Z`` and
+    ``psi' = psi X Z^(n-1)``.  The bounds are on these dimensionless numbers:
+
+    * ``0 <= a <= a_max`` - ``A >= 0`` makes the torque rise with the angle near ``z = 0`` (a passive joint
+      resists the motion); ``a_max = 20`` lets the initial slope be 20 times the loop's mean secant slope
+      ``Z/X`` (for X = 65 deg, Z = 20 N*m: A <= 6.2 N*m/deg).
+    * ``n_min <= n <= n_max`` (0.5-3): the exponent only shapes the knees of the loop; the thesis fitted
+      1.2.
+    * ``|psi'_k| <= psi_max`` for the six Table 4 phase values (hence ``|beta'_k| <= psi_max`` too, since
+      each row of Eq 25 has four entries of 1/4).  ``psi_max = 100`` allows slopes up to about
+      ``dz'/dx' = 100``, i.e. crossing the whole torque range within 1 % of the angle range; the Figure 57
+      parameters on a +-65 deg, 20 N*m loop have ``psi'_5 = -57``.  In physical units (X = 65 deg,
+      Z = 20 N*m, n = 1.2) this is about ``|psi_k| <= 0.83`` N*m^(1-n)/deg, against 0.47 for Figure 57.
+
+    The fitter also treats |z| > 10 Z as divergence (see :func:`fit`).
+    """
+
+    a_max: float = 20.0
+    n_min: float = 0.5
+    n_max: float = 3.0
+    psi_max: float = 100.0
+
+    def __post_init__(self) -> None:
+        if not (0.0 < self.a_max < math.inf):
+            raise InvalidInput(f"BoucWenBounds.a_max must be positive and finite, got {self.a_max}")
+        if not (0.0 < self.n_min < self.n_max < math.inf):
+            raise InvalidInput(f"BoucWenBounds needs 0 < n_min < n_max, got {self.n_min}, {self.n_max}")
+        if not (0.0 < self.psi_max < math.inf):
+            raise InvalidInput(f"BoucWenBounds.psi_max must be positive and finite, got {self.psi_max}")
+
+    def lower(self) -> FloatArray:
+        return np.array([0.0, self.n_min, *([-self.psi_max] * 6)])
+
+    def upper(self) -> FloatArray:
+        return np.array([self.a_max, self.n_max, *([self.psi_max] * 6)])
+
+
+DEFAULT_BOUNDS = BoucWenBounds()
+FULL_REFIT_R2 = 0.5  # below this on every sample, a decimated fit is redone on every sample (fit_trials)
+
+
+@dataclass(frozen=True)
+class BoucWenFit:
+    """Result of :func:`fit` / :func:`fit_trials`.
+
+    params: best-fitting parameters (physical units, see :class:`BoucWenParams`).
+    rmse_nm: root-mean-square torque error over every given sample of every trial, with each trial's
+        recursion started at its own first torque.
+    r2: coefficient of determination over the same samples.
+    param_std: 1-sigma uncertainties of (A, n, beta1..6) from the Jacobian at the optimum,
+        ``sqrt(diag(s^2 (J^T J)^-1))`` on the fitted samples; ``inf`` for a direction the data cannot
+        determine (e.g. a Table 4 phase never visited).  Filtered data has correlated residuals, which makes
+        these optimistic.
+    n_starts: number of starting points tried; converged: the final local solve met its tolerance;
+    diverged: the fitted model's recursion left the data's torque range by a factor 10 on the given samples.
+    trial_rmse_nm: RMSE of each trial; n_samples: samples given; n_samples_fitted: samples the optimiser
+        used after decimation; stride: decimation step of each trial; nfev: residual evaluations in total.
+    angle_scale_deg, torque_scale_nm: the scales X and Z that make :class:`BoucWenBounds` physical.
+    message: the final least-squares solver's termination message.
+    """
+
+    params: BoucWenParams
+    rmse_nm: float
+    r2: float
+    param_std: FloatArray
+    n_starts: int
+    converged: bool
+    diverged: bool
+    trial_rmse_nm: tuple[float, ...]
+    n_samples: int
+    n_samples_fitted: int
+    stride: tuple[int, ...]
+    nfev: int
+    angle_scale_deg: float
+    torque_scale_nm: float
+    bounds: BoucWenBounds = field(default=DEFAULT_BOUNDS)
+    message: str = ""
+
+
+DIVERGENCE_FACTOR = 10.0  # the fitter holds |z| at 10 x the data's torque scale once it diverges
+_SCREEN_SAMPLES = 400  # samples per trial of the coarse copy on which every start gets a short solve
+_SHORT_NFEV = 6  # residual evaluations of each short solve (stage 1)
+_POLISH_NFEV = 200  # limit of the final solve (stage 2)
+_TR_SOLVER = "exact"  # least_squares' dense SVD of the Jacobian; cheap for 8 columns
+
+
+class Problem:
+    """Least-squares problem on concatenated (decimated) trials in the dimensionless parameters
+    ``u = (a, n, psi'_1..psi'_6)`` of :class:`BoucWenBounds`; residuals are ``(z - y) / Z``."""
+
+    def __init__(
+        self,
+        x: FloatArray,
+        y: FloatArray,
+        seg: npt.NDArray[np.int64],
+        bounds: BoucWenBounds,
+        angle_scale_deg: float,
+        torque_scale_nm: float,
+    ):
+        self.x = x
+        self.y = y
+        self.seg = seg
+        self.z0 = np.ascontiguousarray(y[seg[:-1]])
+        self.X = angle_scale_deg
+        self.Z = torque_scale_nm
+        self.lnZ = math.log(self.Z)
+        self.bound = DIVERGENCE_FACTOR * self.Z
+        self.bounds = bounds
+        self.lower = bounds.lower()
+        self.upper = bounds.upper()
+        self.z = np.empty_like(x)
+        self.nfev = 0
+        self.diverged_at = -1
+
+    def physical(self, u: FloatArray) -> tuple[float, float, FloatArray]:
+        n = float(u[1])
+        A = float(u[0]) * self.Z / self.X
+        beta = (EQ25_BETA_MATRIX @ u[2:]) / (self.X * self.Z ** (n - 1.0))
+        return A, n, beta
+
+    def to_u(self, params: BoucWenParams) -> FloatArray:
+        n = params.n
+        psi_scaled = phase_values(params.beta) * (self.X * self.Z ** (n - 1.0))
+        u = np.array([params.A * self.X / self.Z, n, *psi_scaled])
+        return np.clip(u, self.lower, self.upper)
+
+    def params(self, u: FloatArray) -> BoucWenParams:
+        A, n, beta = self.physical(u)
+        return BoucWenParams(A=A, n=n, beta=(beta[0], beta[1], beta[2], beta[3], beta[4], beta[5]))
+
+    def residuals(self, u: FloatArray) -> FloatArray:
+        A, n, beta = self.physical(u)
+        self.nfev += 1
+        self.diverged_at = recursion_kernel(self.x, self.seg, self.z0, A, n, beta, self.bound, True, self.z)
+        return (self.z - self.y) / self.Z
+
+    def stabilise(self, u: FloatArray) -> FloatArray:
+        """Contract a start whose recursion diverges toward the neutral point ``a = 1, psi' = 0`` (a
+        straight line of the loop's mean slope, which cannot diverge) by halving the distance until it
+        stays within range.  From inside the divergent region no gradient points back out, so without
+        this a local solve from such a start stalls on the penalty plateau."""
+        centre = u.copy()
+        centre[0] = min(max(1.0, self.lower[0]), self.upper[0])
+        centre[2:] = 0.0
+        v = u.copy()
+        for _ in range(60):
+            self.residuals(v)
+            if self.diverged_at < 0:
+                return v
+            v = centre + 0.5 * (v - centre)
+        return centre
+
+    def cost(self, u: FloatArray) -> float:
+        r = self.residuals(u)
+        return 0.5 * float(r @ r)
+
+    def physical_jacobian(
+        self, A: float, n: float, beta: FloatArray, transform: FloatArray = IDENTITY8
+    ) -> FloatArray:
+        """``dz/dtheta @ transform`` on the fitted samples, in a new array (least_squares keeps it)."""
+        out = np.empty((self.x.size, 8))
+        sensitivity_kernel(self.x, self.seg, self.z0, A, n, beta, self.bound, True, self.z, out, transform)
+        return out
+
+    def jacobian(self, u: FloatArray) -> FloatArray:
+        """Chain rule from the physical sensitivities: every column of the dimensionless Jacobian is a
+        fixed linear combination of the physical ones, ``J_u = dz/dtheta @ T / Z``."""
+        A, n, beta = self.physical(u)
+        T = np.zeros((8, 8))
+        T[0, 0] = self.Z / self.X  # dA/da
+        T[1, 1] = 1.0  # dn/dn
+        T[2:, 1] = -self.lnZ * beta  # dbeta/dn at fixed psi' (beta ~ Z^(1-n))
+        T[2:, 2:] = EQ25_BETA_MATRIX / (self.X * self.Z ** (n - 1.0))  # dbeta/dpsi'
+        return self.physical_jacobian(A, n, beta, T / self.Z)
+
+    def solve(self, u0: FloatArray, max_nfev: int, tol: float) -> tuple[FloatArray, float, bool, str]:
+        res = least_squares(
+            self.residuals,
+            self.stabilise(np.clip(u0, self.lower, self.upper)),
+            jac=self.jacobian,
+            bounds=(self.lower, self.upper),
+            x_scale="jac",
+            method="trf",
+            tr_solver=_TR_SOLVER,
+            ftol=tol,
+            xtol=tol,
+            gtol=tol,
+            max_nfev=max_nfev,
+        )
+        return np.asarray(res.x, dtype=np.float64), float(res.cost), bool(res.status > 0), str(res.message)
+
+
+def param_std(problem: Problem, params: BoucWenParams) -> FloatArray:
+    """``sqrt(diag(s^2 (J^T J)^-1))`` with the physical Jacobian on the fitted samples; ``inf`` for a
+    parameter that has no effect or mixes with a (numerically) unidentifiable direction.
+
+    ``J^T J`` is formed with its columns scaled to unit norm and inverted on the subspace whose
+    eigenvalues exceed 1e-12 of the largest (singular values 1e-6 of the largest)."""
+    dz = problem.physical_jacobian(params.A, params.n, np.array(params.beta))
+    m = problem.y.size
+    std = np.full(8, np.inf)
+    if m <= 8 or not np.all(np.isfinite(dz)):
+        return std
+    s2 = float(sum_sq_diff(problem.z, problem.y)) / (m - 8)
+    G = gram(dz)
+    norm = np.sqrt(np.diag(G))
+    active = norm > 0.0
+    if not np.any(active):
+        return std
+    Gs = G[np.ix_(active, active)] / np.outer(norm[active], norm[active])
+    eigval, eigvec = np.linalg.eigh(Gs)
+    good = eigval > eigval[-1] * 1e-12
+    cov_s = (eigvec[:, good] / eigval[good]) @ eigvec[:, good].T
+    std_active = np.sqrt(np.clip(np.diag(cov_s), 0.0, None) * s2) / norm[active]
+    null = eigvec[:, ~good]
+    if null.size:
+        std_active[np.any(np.abs(null) > 1e-8, axis=1)] = np.inf
+    std[active] = std_active
+    return std
+
+
+def evaluate(
+    segments: list[tuple[FloatArray, FloatArray]], params: BoucWenParams, bound: float
+) -> tuple[float, float, tuple[float, ...], bool]:
+    """RMSE, R^2, per-trial RMSE and divergence flag of ``params`` on every given sample, each trial's
+    recursion started at its own first torque (diverged samples held at +-bound, a finite error)."""
+    beta = np.array(params.beta)
+    sse: list[float] = []
+    total = 0.0
+    total_sq = 0.0
+    count = 0
+    diverged = False
+    for x, y in segments:
+        z = np.empty_like(x)
+        bad = recursion_kernel(
+            x, np.array([0, x.size], dtype=np.int64), y[:1].copy(), params.A, params.n, beta, bound, True, z
+        )
+        diverged = diverged or bad >= 0
+        sse.append(float(sum_sq_diff(z, y)))
+        total += float(np.sum(y))
+        total_sq += float(np.sum(np.square(y)))
+        count += y.size
+    rmse = math.sqrt(sum(sse) / count)
+    sst = total_sq - total * total / count
+    r2 = 1.0 - sum(sse) / sst if sst > 0.0 else math.nan
+    per = tuple(math.sqrt(e / x.size) for e, (x, _) in zip(sse, segments, strict=True))
+    return rmse, r2, per, diverged
