@@ -24,7 +24,7 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -143,6 +143,11 @@ class TrialRecording:
     t0_s: float = 0.0
     output_rate_hz: float = 100.0
     input_rate_hz: float = 1000.0
+    # the whole commanded stream of a planned motion (hardware/stream.py), times from the first trajectory
+    # tick; empty for a bare run_trajectory
+    stream_time_s: FloatArray = field(default_factory=lambda: np.zeros(0, dtype=np.float64))
+    stream_deg: FloatArray = field(default_factory=lambda: np.zeros(0, dtype=np.float64))
+    stream_segment: npt.NDArray[np.int8] = field(default_factory=lambda: np.zeros(0, dtype=np.int8))
 
     @property
     def n_ticks(self) -> int:
@@ -206,7 +211,7 @@ class Rig:
             volts_range_deg=joint.range_deg,
         )
         with self.loop_context():
-            return self._run_checked(cmd, where=where, stop_requested=stop_requested)
+            return self.send(cmd, where=where, stop_requested=stop_requested)
 
     def park(self, *, from_deg: float | None = None, where: str = "park") -> TrialRecording:
         """Ramp the joint to `limits.park_angle_deg` at `limits.park_rate_deg_s` (trapezoidal, within the
@@ -237,7 +242,7 @@ class Rig:
             volts_range_deg=self.joint.range_deg,
         )
         with self.loop_context():
-            return self._run_checked(ramp, where=where, stop_requested=None)
+            return self.send(ramp, where=where, stop_requested=None)
 
     def read_angle_deg(self, duration_s: float = 0.05) -> float:
         """Measure the joint's current real angle: a short scan, averaged (Eq 2 + angle look-up table)."""
@@ -250,9 +255,16 @@ class Rig:
             raise InvalidInput("could not measure the joint angle: the input scan returned no samples")
         return float(np.mean(self.joint.angle_from_volts(block.volts[:, 0])))
 
-    def _run_checked(
-        self, cmd: FloatArray, *, where: str, stop_requested: Callable[[], bool] | None
+    def send(
+        self,
+        cmd: FloatArray,
+        *,
+        where: str,
+        stop_requested: Callable[[], bool] | None,
+        on_stop: Callable[[int], FloatArray] | None = None,
     ) -> TrialRecording:
+        """The paced loop over samples already checked against the envelope. On a stop request, `on_stop(written)` (if given) returns the samples to send
+        next, in the same loop, before `Interrupted` is raised with the whole recording attached."""
         joint = self.joint
         volts = joint.command_to_volts(cmd)
         self.prepare()
@@ -275,17 +287,30 @@ class Rig:
         self.ai.start_scan(self.scan_channels, joint.input_rate_hz)
         t0 = now()
         schedule: list[float] = (t0 + np.arange(n + 1, dtype=np.float64) * dt).tolist()
+        stopped = ""
         try:
-            for start in range(0, n, READ_EVERY_TICKS):
-                for k in range(start, min(start + READ_EVERY_TICKS, n)):
+            start = 0
+            while start < n:
+                end = min(start + READ_EVERY_TICKS, n)
+                for k in range(start, end):
                     sleep_until(schedule[k])
                     actual[k] = now()
                     codes[k] = write(channel, volts_list[k])
                 append(read())
-                if stop_requested is not None and stop_requested():
-                    t_stop = schedule[min(start + READ_EVERY_TICKS, n) - 1] - t0
-                    raise Interrupted(f"{where}: stopped on request at t = {t_stop:.2f} s")
+                start = end
+                if not stopped and stop_requested is not None and stop_requested():
+                    stopped = f"{where}: stopped on request at t = {schedule[end - 1] - t0:.2f} s"
+                    if on_stop is None:
+                        raise Interrupted(stopped)
+                    # continue in the same loop with what the stop sends (no pause: the output would hold)
+                    cmd = np.concatenate([cmd[:end], on_stop(end)])
+                    volts = np.concatenate([volts[:end], joint.command_to_volts(cmd[end:])])
+                    volts_list = volts.tolist()
+                    codes, actual, n = codes[:end] + [-1] * (cmd.size - end), actual[:end] + [0.0] * (cmd.size - end), int(cmd.size)
+                    schedule = (t0 + np.arange(n + 1, dtype=np.float64) * dt).tolist()
             sleep_until(schedule[n])  # one more tick: the scan covers the response to the last command
+            if stopped:
+                raise Interrupted(stopped)
         except BaseException as exc:
             self._note_last_written(cmd, codes)
             with contextlib.suppress(Exception):  # the original error matters more than a failing stop

@@ -118,6 +118,7 @@ def check_trajectory(
     command_table: CalibrationTable | None = None,
     volts_range_deg: tuple[float, float] | None = None,
     initial_deg: float | None = None,
+    derivatives: bool = True,
 ) -> None:
     """Raise `SafetyViolation` if the trajectory (real joint angles, one per output tick at `rate_hz`)
     leaves the envelope; return None if it is safe.
@@ -126,7 +127,7 @@ def check_trajectory(
     Minimum/Maximum_Position) enable the check that the volts sent stay within ±10 V. `initial_deg`, if
     given, is prepended for the rate and acceleration checks (times then count from that sample, at -1/rate).
     Checks run in the order range, volts, rate, acceleration; the first violated one is reported with its
-    worst sample.
+    worst sample. `derivatives=False` checks range and volts only (for a set of points, not a sequence).
     """
     if not (math.isfinite(rate_hz) and rate_hz > 0):
         raise InvalidInput(f"{where}: output rate must be a positive number of Hz, got {rate_hz!r}")
@@ -181,6 +182,8 @@ def check_trajectory(
                 units="V",
             )
 
+    if not derivatives:
+        return
     offset = 0
     series = cmd
     if initial_deg is not None:
