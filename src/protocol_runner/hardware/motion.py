@@ -29,9 +29,7 @@ def plan_motion(rig: Rig, trajectory_deg: npt.ArrayLike) -> CommandStream:
     """The stream the rig will send for `trajectory_deg`: from the last commanded angle (the park angle if
     nothing was sent yet: every step starts and ends parked) at rest."""
     joint = rig.joint
-    return build_stream(
-        trajectory_deg, joint.limits, joint.output_rate_hz, from_deg=rig.last_command_deg
-    )
+    return build_stream(trajectory_deg, joint.limits, joint.output_rate_hz, from_deg=rig.last_command_deg)
 
 
 def run_motion(
@@ -54,8 +52,8 @@ def run_stream(
 ) -> TrialRecording:
     """Check the whole stream (and its first sample against where the joint was left), then send it."""
     joint = rig.joint
-    tables = {"command_table": joint.command_table, "volts_range_deg": joint.range_deg}
-    check_stream(stream, joint.limits, where=where, **tables)
+    table, volts_range = joint.command_table, joint.range_deg
+    check_stream(stream, joint.limits, where=where, command_table=table, volts_range_deg=volts_range)
     here = rig.last_command_deg
     if here is not None:  # the junction with what was sent before
         check_trajectory(
@@ -67,7 +65,14 @@ def run_stream(
         tail, codes = stream.stop_after(written, joint.limits)
         # defence in depth: check_stream has already checked the stop from every sample
         junction = stream.command_deg[max(0, written - 2) : written]
-        check_trajectory(np.concatenate([junction, tail]), stream.rate_hz, joint.limits, where=where, **tables)
+        check_trajectory(
+            np.concatenate([junction, tail]),
+            stream.rate_hz,
+            joint.limits,
+            where=where,
+            command_table=table,
+            volts_range_deg=volts_range,
+        )
         segments[0] = np.concatenate([stream.segment[:written], codes])
         return tail
 
@@ -96,10 +101,11 @@ def trajectory_part(rec: TrialRecording, segment: npt.NDArray[np.int8], first: i
     lo, hi = (int(ticks[0]), int(ticks[-1]) + 1) if ticks.size else (min(first, n), min(first, n))
     half_row = 0.5 / rec.input_rate_hz
     rel = rec.input_time_s - t_first
-    keep = np.flatnonzero((rel > -half_row) & (rel <= (hi - first) * dt + half_row)) if ticks.size else []
-    rows = slice(int(keep[0]), int(keep[-1]) + 1) if len(keep) else slice(0, 0)
+    inside = (rel > -half_row) & (rel <= (hi - first) * dt + half_row)
+    keep = np.flatnonzero(inside) if ticks.size else np.zeros(0, dtype=np.int64)
+    rows = slice(int(keep[0]), int(keep[-1]) + 1) if keep.size else slice(0, 0)
     # the same form as a bare run's time base (offset to 1 us + index / rate): bit-identical across trials
-    offset = round(float(rel[rows.start]) * 1e6) / 1e6 if len(keep) else 0.0
+    offset = round(float(rel[rows.start]) * 1e6) / 1e6 if keep.size else 0.0
     input_time_s = offset + np.arange(rows.stop - rows.start, dtype=np.float64) / rec.input_rate_hz
     return replace(
         rec,

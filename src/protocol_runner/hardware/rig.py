@@ -1,6 +1,7 @@
 """The rig: one joint's analog output, analog input scan and clock, bound to its channels and calibration.
 
-`Rig.run_trajectory` is the acquisition loop of a trial (thesis §2.4-2.5, DESIGN.md "Data flow"):
+`Rig.run_trajectory` is the acquisition loop (thesis §2.4-2.5, DESIGN.md "Data flow"); trials and checks
+send through `hardware/motion.py`, which adds the approach and the exit in the same loop (`Rig.send`):
 
 1. safety envelope (`hardware/safety.py`) on the whole trajectory — a violation raises before any write;
 2. command look-up table, real -> input angle (thesis §2.5.1);
@@ -143,8 +144,7 @@ class TrialRecording:
     t0_s: float = 0.0
     output_rate_hz: float = 100.0
     input_rate_hz: float = 1000.0
-    # the whole commanded stream of a planned motion (hardware/stream.py), times from the first trajectory
-    # tick; empty for a bare run_trajectory
+    # a planned motion's whole commanded stream (hardware/motion.py); empty for a bare run_trajectory
     stream_time_s: FloatArray = field(default_factory=lambda: np.zeros(0, dtype=np.float64))
     stream_deg: FloatArray = field(default_factory=lambda: np.zeros(0, dtype=np.float64))
     stream_segment: npt.NDArray[np.int8] = field(default_factory=lambda: np.zeros(0, dtype=np.int8))
@@ -263,8 +263,8 @@ class Rig:
         stop_requested: Callable[[], bool] | None,
         on_stop: Callable[[int], FloatArray] | None = None,
     ) -> TrialRecording:
-        """The paced loop over samples already checked against the envelope. On a stop request, `on_stop(written)` (if given) returns the samples to send
-        next, in the same loop, before `Interrupted` is raised with the whole recording attached."""
+        """The paced loop over samples already checked. On a stop request `on_stop(written)`, if given,
+        returns the samples to send next in the same loop; then `Interrupted` carries the whole recording."""
         joint = self.joint
         volts = joint.command_to_volts(cmd)
         self.prepare()
@@ -305,8 +305,8 @@ class Rig:
                     # continue in the same loop with what the stop sends (no pause: the output would hold)
                     cmd = np.concatenate([cmd[:end], on_stop(end)])
                     volts = np.concatenate([volts[:end], joint.command_to_volts(cmd[end:])])
-                    volts_list = volts.tolist()
-                    codes, actual, n = codes[:end] + [-1] * (cmd.size - end), actual[:end] + [0.0] * (cmd.size - end), int(cmd.size)
+                    volts_list, n = volts.tolist(), int(cmd.size)
+                    codes, actual = codes[:end] + [-1] * (n - end), actual[:end] + [0.0] * (n - end)
                     schedule = (t0 + np.arange(n + 1, dtype=np.float64) * dt).tolist()
             sleep_until(schedule[n])  # one more tick: the scan covers the response to the last command
             if stopped:
@@ -369,10 +369,7 @@ class Rig:
     ) -> TrialRecording:
         """What an aborted trial recorded before it stopped: the ticks written and the rows scanned."""
         joint = self.joint
-        try:
-            n = codes.index(-1)
-        except ValueError:
-            n = len(codes)
+        n = codes.index(-1) if -1 in codes else len(codes)
         scan = ScanBlock.concatenate(blocks, N_SCAN_CHANNELS)
         dt = 1.0 / joint.output_rate_hz
         angle_volts = np.ascontiguousarray(scan.volts[:, 0], dtype=np.float64)
@@ -398,9 +395,6 @@ class Rig:
 
     def _note_last_written(self, cmd: FloatArray, codes: list[int]) -> None:
         """After an aborted loop, remember the last angle actually written (for parking)."""
-        try:
-            written = codes.index(-1)
-        except ValueError:
-            written = len(codes)
+        written = codes.index(-1) if -1 in codes else len(codes)
         if written > 0:
             self._last_command_deg = float(cmd[written - 1])

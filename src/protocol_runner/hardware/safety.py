@@ -32,6 +32,7 @@ FloatArray = npt.NDArray[np.float64]
 
 # Tolerance for rounding in the limit comparisons (a ramp at exactly the limit must pass).
 _REL_TOL = 1e-9
+_RANGE_TOL_DEG = 1e-9  # rounding of a brake or ramp that ends exactly on a range limit
 
 
 @dataclass(frozen=True)
@@ -154,7 +155,7 @@ def check_trajectory(
     lo, hi = limits.range_deg
     excess = np.maximum(lo - cmd, cmd - hi)
     i = int(np.argmax(excess))
-    if excess[i] > 0:
+    if excess[i] > _RANGE_TOL_DEG:
         raise SafetyViolation(
             where=where,
             limit="joint angle",
@@ -243,7 +244,7 @@ def parking_ramp_deg(from_deg: float, limits: SafetyLimits, rate_hz: float) -> F
         t_acc = v / a
         t_cruise = (distance - v * t_acc) / v
     total = 2.0 * t_acc + t_cruise
-    n = math.ceil(total * rate_hz - 1e-9)
+    n = max(1, math.ceil(total * rate_hz - 1e-9))  # at least one step: the last sample is the target
     t = np.arange(n + 1, dtype=np.float64) / rate_hz
     s = np.where(
         t < t_acc,
@@ -257,4 +258,5 @@ def parking_ramp_deg(from_deg: float, limits: SafetyLimits, rate_hz: float) -> F
     s = np.clip(s, 0.0, distance)
     s[-1] = distance
     result: FloatArray = from_deg + math.copysign(1.0, target - from_deg) * s
+    result[-1] = target  # exactly, whatever the rounding of from + (target - from)
     return result

@@ -128,7 +128,9 @@ class CommandStream:
         """What to send after the first `written` samples when a stop is requested: the rest of the exit if
         it has begun, else the brake and parking ramp from the last written sample's position and velocity.
         Returns the samples and their segment codes."""
-        if written >= self.exit_start or written <= 0:
+        if written <= 0:  # nothing sent yet: the joint is still at rest where it was
+            return np.zeros(0, dtype=np.float64), np.zeros(0, dtype=np.int8)
+        if written >= self.exit_start:
             return self.command_deg[written:], self.segment[written:]
         cur = float(self.command_deg[written - 1])
         prev = float(self.command_deg[written - 2]) if written >= 2 else cur

@@ -81,10 +81,10 @@ def _problem(
         stream = build_stream(samples, limits, rate_hz)
         check_stream(stream, limits, where="stream", command_table=table, volts_range_deg=volts_range_deg)
     except SafetyViolation as exc:
-        t = f"t = {exc.time_s:.2f} s from the trajectory's start"
+        part = exc.where.removeprefix("stream").strip(" ()")
         return (
-            f"the commanded stream {exc.where.removeprefix('stream ')} breaks rig.safety: {exc.limit} "
-            f"{exc.value:.6g} {exc.units} at {t}, allowed {_bound(exc)}"
+            f"its commanded stream ({part}) breaks rig.safety: {exc.limit} {exc.value:.4g} {exc.units} "
+            f"at t = {exc.time_s:.2f} s from the trajectory's start, allowed {_bound(exc)}"
         )
     except InvalidInput as exc:
         return exc.message

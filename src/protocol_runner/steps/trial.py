@@ -20,11 +20,11 @@ from ..analysis.scaling import ScalingResult, scale_brace_off_input
 from ..analysis.transition import command_on_input_base, transition_index
 from ..archive.h5util import put, set_attrs
 from ..errors import HardwareUnavailable
+from ..hardware.motion import run_motion
 from ..hardware.rig import TrialRecording
 from ..protocol.plan import Trajectory, TrialStep, configuration_name
 from ..protocol.sampling import sample_trajectory
 from .context import StepContext, StepOutcome
-from ..hardware.motion import run_motion
 from .recording import put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]
