@@ -12,8 +12,8 @@ value, its sample index and time. `clamp_volts` is the second line of defence at
 ramp (`parking_ramp_deg`) moves the joint to its rest angle within the rate and acceleration limits.
 
 The move from wherever the joint is to the first sample is not part of the trajectory; pass `initial_deg`
-to check it too (a step from the park angle, as in the thesis's transition phase §3.3.1, usually violates
-the rate limit on purpose and is then left out).
+to check it too. Trials and calibration checks never send a bare trajectory: `hardware/stream.py` adds the
+approach and the exit (and a stop from any sample) and checks the whole stream, junctions included.
 """
 
 from __future__ import annotations
