@@ -12,9 +12,11 @@ import math
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, event, given, note, settings
 from hypothesis import strategies as st
 
+from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.safety import SafetyLimits, SafetyViolation, check_trajectory
 from protocol_runner.hardware.stream import (
     APPROACH,
@@ -190,3 +192,19 @@ def test_trajectories_inside_the_limits_are_never_refused(data: st.DataObject) -
     _, cmd = data.draw(trajectories(limits, rate_hz, ("sinusoid", "step", "hold")))
     stream = plan(cmd, limits, rate_hz)
     assert isinstance(stream, CommandStream), str(stream)
+
+
+@pytest.mark.parametrize(
+    ("trajectory", "message"),
+    [
+        (np.full(10, 100.0), "parking ramp: moving 55 deg .* would take"),  # from rest: the ramp
+        (np.linspace(50.0, 51.0, 10), "braking from 11.1111 deg/s .* takes more than"),  # moving: the brake
+    ],
+)
+def test_limits_too_small_to_move_the_joint_are_refused_with_bounded_work(
+    trajectory: np.ndarray, message: str
+) -> None:
+    """max_accel_deg_s2 = 1e-9 would need a ramp of 10^10 samples: refused at once, nothing allocated."""
+    limits = SafetyLimits((0.0, 130.0), 120.0, 1e-9, 45.0, 20.0)
+    with pytest.raises(InvalidInput, match=message):
+        build_stream(trajectory, limits, 100.0)

@@ -33,6 +33,8 @@ FloatArray = npt.NDArray[np.float64]
 # Tolerance for rounding in the limit comparisons (a ramp at exactly the limit must pass).
 _REL_TOL = 1e-9
 _RANGE_TOL_DEG = 1e-9  # rounding of a brake or ramp that ends exactly on a range limit
+MAX_RAMP_SAMPLES = 1_000_000
+"""A parking ramp longer than this (almost 3 h at 100 Hz) means limits that cannot move the joint."""
 
 
 @dataclass(frozen=True)
@@ -244,6 +246,11 @@ def parking_ramp_deg(from_deg: float, limits: SafetyLimits, rate_hz: float) -> F
         t_acc = v / a
         t_cruise = (distance - v * t_acc) / v
     total = 2.0 * t_acc + t_cruise
+    if total * rate_hz > MAX_RAMP_SAMPLES:  # bounded work whatever the limits say
+        raise InvalidInput(
+            f"parking ramp: moving {distance:g} deg at park_rate_deg_s = {limits.park_rate_deg_s:g} and "
+            f"max_accel_deg_s2 = {limits.max_accel_deg_s2:g} would take {total:.0f} s; raise the limits"
+        )
     n = max(1, math.ceil(total * rate_hz - 1e-9))  # at least one step: the last sample is the target
     t = np.arange(n + 1, dtype=np.float64) / rate_hz
     s = np.where(

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 
 from ..errors import InvalidInput
 from ..hardware.calibration import CalibrationTable, load_calibration_table
-from ..hardware.safety import SafetyLimits, SafetyViolation
+from ..hardware.safety import SafetyLimits, SafetyViolation, check_trajectory
 from ..hardware.stream import build_stream, check_stream
 from .levels import resolve_settings
 from .plan import Trajectory, calibration_trajectory, trajectory_for
@@ -78,6 +78,7 @@ def _problem(
 ) -> str | None:
     try:
         samples = sample_trajectory(traj, rate_hz, loaded.base_dir)
+        check_trajectory(samples, rate_hz, limits, where="stream (trajectory)")
         stream = build_stream(samples, limits, rate_hz)
         check_stream(stream, limits, where="stream", command_table=table, volts_range_deg=volts_range_deg)
     except SafetyViolation as exc:
