@@ -1,6 +1,7 @@
 """The rig: one joint's analog output, analog input scan and clock, bound to its channels and calibration.
 
-`Rig.run_trajectory` is the acquisition loop of a trial (thesis §2.4-2.5, DESIGN.md "Data flow"):
+`Rig.run_trajectory` is the acquisition loop (thesis §2.4-2.5, DESIGN.md "Data flow"); trials and checks
+send through `hardware/motion.py`, which adds the approach and the exit in the same loop (`Rig.send`):
 
 1. safety envelope (`hardware/safety.py`) on the whole trajectory — a violation raises before any write;
 2. command look-up table, real -> input angle (thesis §2.5.1);
@@ -24,7 +25,7 @@ from __future__ import annotations
 import contextlib
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
@@ -143,6 +144,10 @@ class TrialRecording:
     t0_s: float = 0.0
     output_rate_hz: float = 100.0
     input_rate_hz: float = 1000.0
+    # a planned motion's whole commanded stream (hardware/motion.py); empty for a bare run_trajectory
+    stream_time_s: FloatArray = field(default_factory=lambda: np.zeros(0, dtype=np.float64))
+    stream_deg: FloatArray = field(default_factory=lambda: np.zeros(0, dtype=np.float64))
+    stream_segment: npt.NDArray[np.int8] = field(default_factory=lambda: np.zeros(0, dtype=np.int8))
 
     @property
     def n_ticks(self) -> int:
@@ -206,7 +211,7 @@ class Rig:
             volts_range_deg=joint.range_deg,
         )
         with self.loop_context():
-            return self._run_checked(cmd, where=where, stop_requested=stop_requested)
+            return self.send(cmd, where=where, stop_requested=stop_requested)
 
     def park(self, *, from_deg: float | None = None, where: str = "park") -> TrialRecording:
         """Ramp the joint to `limits.park_angle_deg` at `limits.park_rate_deg_s` (trapezoidal, within the
@@ -237,7 +242,7 @@ class Rig:
             volts_range_deg=self.joint.range_deg,
         )
         with self.loop_context():
-            return self._run_checked(ramp, where=where, stop_requested=None)
+            return self.send(ramp, where=where, stop_requested=None)
 
     def read_angle_deg(self, duration_s: float = 0.05) -> float:
         """Measure the joint's current real angle: a short scan, averaged (Eq 2 + angle look-up table)."""
@@ -250,9 +255,16 @@ class Rig:
             raise InvalidInput("could not measure the joint angle: the input scan returned no samples")
         return float(np.mean(self.joint.angle_from_volts(block.volts[:, 0])))
 
-    def _run_checked(
-        self, cmd: FloatArray, *, where: str, stop_requested: Callable[[], bool] | None
+    def send(
+        self,
+        cmd: FloatArray,
+        *,
+        where: str,
+        stop_requested: Callable[[], bool] | None,
+        on_stop: Callable[[int], FloatArray] | None = None,
     ) -> TrialRecording:
+        """The paced loop over samples already checked. On a stop request `on_stop(written)`, if given,
+        returns the samples to send next in the same loop; then `Interrupted` carries the whole recording."""
         joint = self.joint
         volts = joint.command_to_volts(cmd)
         self.prepare()
@@ -275,17 +287,30 @@ class Rig:
         self.ai.start_scan(self.scan_channels, joint.input_rate_hz)
         t0 = now()
         schedule: list[float] = (t0 + np.arange(n + 1, dtype=np.float64) * dt).tolist()
+        stopped = ""
         try:
-            for start in range(0, n, READ_EVERY_TICKS):
-                for k in range(start, min(start + READ_EVERY_TICKS, n)):
+            start = 0
+            while start < n:
+                end = min(start + READ_EVERY_TICKS, n)
+                for k in range(start, end):
                     sleep_until(schedule[k])
                     actual[k] = now()
                     codes[k] = write(channel, volts_list[k])
                 append(read())
-                if stop_requested is not None and stop_requested():
-                    t_stop = schedule[min(start + READ_EVERY_TICKS, n) - 1] - t0
-                    raise Interrupted(f"{where}: stopped on request at t = {t_stop:.2f} s")
+                start = end
+                if not stopped and stop_requested is not None and stop_requested():
+                    stopped = f"{where}: stopped on request at t = {schedule[end - 1] - t0:.2f} s"
+                    if on_stop is None:
+                        raise Interrupted(stopped)
+                    # continue in the same loop with what the stop sends (no pause: the output would hold)
+                    cmd = np.concatenate([cmd[:end], on_stop(end)])
+                    volts = np.concatenate([volts[:end], joint.command_to_volts(cmd[end:])])
+                    volts_list, n = volts.tolist(), int(cmd.size)
+                    codes, actual = codes[:end] + [-1] * (n - end), actual[:end] + [0.0] * (n - end)
+                    schedule = (t0 + np.arange(n + 1, dtype=np.float64) * dt).tolist()
             sleep_until(schedule[n])  # one more tick: the scan covers the response to the last command
+            if stopped:
+                raise Interrupted(stopped)
         except BaseException as exc:
             self._note_last_written(cmd, codes)
             with contextlib.suppress(Exception):  # the original error matters more than a failing stop
@@ -344,10 +369,7 @@ class Rig:
     ) -> TrialRecording:
         """What an aborted trial recorded before it stopped: the ticks written and the rows scanned."""
         joint = self.joint
-        try:
-            n = codes.index(-1)
-        except ValueError:
-            n = len(codes)
+        n = codes.index(-1) if -1 in codes else len(codes)
         scan = ScanBlock.concatenate(blocks, N_SCAN_CHANNELS)
         dt = 1.0 / joint.output_rate_hz
         angle_volts = np.ascontiguousarray(scan.volts[:, 0], dtype=np.float64)
@@ -373,9 +395,6 @@ class Rig:
 
     def _note_last_written(self, cmd: FloatArray, codes: list[int]) -> None:
         """After an aborted loop, remember the last angle actually written (for parking)."""
-        try:
-            written = codes.index(-1)
-        except ValueError:
-            written = len(codes)
+        written = codes.index(-1) if -1 in codes else len(codes)
         if written > 0:
             self._last_command_deg = float(cmd[written - 1])

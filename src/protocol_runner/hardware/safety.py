@@ -12,8 +12,8 @@ value, its sample index and time. `clamp_volts` is the second line of defence at
 ramp (`parking_ramp_deg`) moves the joint to its rest angle within the rate and acceleration limits.
 
 The move from wherever the joint is to the first sample is not part of the trajectory; pass `initial_deg`
-to check it too (a step from the park angle, as in the thesis's transition phase §3.3.1, usually violates
-the rate limit on purpose and is then left out).
+to check it too. Trials and calibration checks never send a bare trajectory: `hardware/stream.py` adds the
+approach and the exit (and a stop from any sample) and checks the whole stream, junctions included.
 """
 
 from __future__ import annotations
@@ -32,6 +32,9 @@ FloatArray = npt.NDArray[np.float64]
 
 # Tolerance for rounding in the limit comparisons (a ramp at exactly the limit must pass).
 _REL_TOL = 1e-9
+_RANGE_TOL_DEG = 1e-9  # rounding of a brake or ramp that ends exactly on a range limit
+MAX_RAMP_SAMPLES = 1_000_000
+"""A parking ramp longer than this (almost 3 h at 100 Hz) means limits that cannot move the joint."""
 
 
 @dataclass(frozen=True)
@@ -118,6 +121,7 @@ def check_trajectory(
     command_table: CalibrationTable | None = None,
     volts_range_deg: tuple[float, float] | None = None,
     initial_deg: float | None = None,
+    derivatives: bool = True,
 ) -> None:
     """Raise `SafetyViolation` if the trajectory (real joint angles, one per output tick at `rate_hz`)
     leaves the envelope; return None if it is safe.
@@ -126,7 +130,7 @@ def check_trajectory(
     Minimum/Maximum_Position) enable the check that the volts sent stay within ±10 V. `initial_deg`, if
     given, is prepended for the rate and acceleration checks (times then count from that sample, at -1/rate).
     Checks run in the order range, volts, rate, acceleration; the first violated one is reported with its
-    worst sample.
+    worst sample. `derivatives=False` checks range and volts only (for a set of points, not a sequence).
     """
     if not (math.isfinite(rate_hz) and rate_hz > 0):
         raise InvalidInput(f"{where}: output rate must be a positive number of Hz, got {rate_hz!r}")
@@ -153,7 +157,7 @@ def check_trajectory(
     lo, hi = limits.range_deg
     excess = np.maximum(lo - cmd, cmd - hi)
     i = int(np.argmax(excess))
-    if excess[i] > 0:
+    if excess[i] > _RANGE_TOL_DEG:
         raise SafetyViolation(
             where=where,
             limit="joint angle",
@@ -181,6 +185,8 @@ def check_trajectory(
                 units="V",
             )
 
+    if not derivatives:
+        return
     offset = 0
     series = cmd
     if initial_deg is not None:
@@ -240,7 +246,12 @@ def parking_ramp_deg(from_deg: float, limits: SafetyLimits, rate_hz: float) -> F
         t_acc = v / a
         t_cruise = (distance - v * t_acc) / v
     total = 2.0 * t_acc + t_cruise
-    n = math.ceil(total * rate_hz - 1e-9)
+    if total * rate_hz > MAX_RAMP_SAMPLES:  # bounded work whatever the limits say
+        raise InvalidInput(
+            f"parking ramp: moving {distance:g} deg at park_rate_deg_s = {limits.park_rate_deg_s:g} and "
+            f"max_accel_deg_s2 = {limits.max_accel_deg_s2:g} would take {total:.0f} s; raise the limits"
+        )
+    n = max(1, math.ceil(total * rate_hz - 1e-9))  # at least one step: the last sample is the target
     t = np.arange(n + 1, dtype=np.float64) / rate_hz
     s = np.where(
         t < t_acc,
@@ -254,4 +265,5 @@ def parking_ramp_deg(from_deg: float, limits: SafetyLimits, rate_hz: float) -> F
     s = np.clip(s, 0.0, distance)
     s[-1] = distance
     result: FloatArray = from_deg + math.copysign(1.0, target - from_deg) * s
+    result[-1] = target  # exactly, whatever the rounding of from + (target - from)
     return result

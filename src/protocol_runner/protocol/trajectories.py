@@ -6,7 +6,10 @@
 - Human trajectories: angle-vs-time files (CSV or MATLAB .mat), see `load_trajectory_file`.
 - Model identification (Eq 4-7): an exponential envelope times cos^2 with a period that changes linearly.
 - The calibration step (Appendix A "Calibration"): a 45 deg step, as a raised-cosine move whose length
-  the protocol sets (0.6 s in knee_phase1.yaml, to stay inside the rate limit).
+  the protocol sets (0.6 s in knee_phase1.yaml: 118 deg/s and 616 deg/s² at most). Every sample sent must
+  satisfy the rig's envelope, so the step is never sent as a jump: a `ramp_s` too short for the rate or
+  acceleration limit (0 included) is refused at plan time. The time-constant fit models the response to
+  the commanded move, so the ramp does not bias tau (steps/calibration_check.py).
 """
 
 from __future__ import annotations
@@ -60,7 +63,8 @@ def calibration_step_deg(
     """Hold `from_deg` for `settle_s`, then move by `step_deg` over `ramp_s`, then hold.
 
     The move is a raised-cosine ramp (peak speed pi/2 * step/ramp, peak acceleration pi^2/2 * step/ramp^2)
-    so the step stays inside the rig's rate and acceleration envelope; `ramp_s = 0` is a true step.
+    so the step stays inside the rig's rate and acceleration envelope; `ramp_s = 0` is a true step, which
+    the plan-time stream check refuses.
     """
     t = np.asarray(time_s, dtype=np.float64)
     if ramp_s <= 0:

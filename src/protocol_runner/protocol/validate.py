@@ -49,6 +49,10 @@ def cross_check(loaded: LoadedProtocol, *, check_files: bool = True) -> list[Pro
     if check_files:
         problems += list(_check_files(p, loaded.base_dir))
     problems += list(_check_report(p))
+    if not problems:  # every motion's complete commanded stream, approach and exit included
+        from .stream_check import check_streams
+
+        problems += list(check_streams(loaded, check_files=check_files))
     return problems
 
 

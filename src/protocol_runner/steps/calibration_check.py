@@ -22,11 +22,11 @@ from scipy.signal import lfilter
 from ..analysis.transition import command_on_input_base
 from ..archive.h5util import set_attrs
 from ..errors import StoppedByCheck
+from ..hardware.motion import run_motion
 from ..hardware.rig import TrialRecording
 from ..protocol.plan import CalibrationCheckStep, calibration_id
-from ..protocol.trajectories import calibration_step_deg
+from ..protocol.sampling import sample_trajectory
 from .context import Fill, StepContext, StepOutcome
-from .motion import approach
 from .recording import put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]
@@ -75,22 +75,12 @@ def analyse_step(
     )
 
 
-def _command(step: CalibrationCheckStep, rate_hz: float) -> FloatArray:
-    p = dict(step.trajectory.params)
-    t = np.arange(0.0, step.trajectory.duration_s, 1.0 / rate_hz)
-    return calibration_step_deg(
-        t, float(p["from_deg"]), float(p["step_deg"]), float(p["settle_s"]), float(p["ramp_s"])
-    )
-
-
 def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, when: str) -> StepOutcome:
     """Run the step and judge it; `record_as` is the id the unit is stored under (resume checks differ)."""
     rig = ctx.bench.rig
     ctx.bench.begin_step(record_as)
-    cmd = _command(step, rig.joint.output_rate_hz)
-    approach(rig, float(cmd[0]), where=record_as, stop_requested=ctx.stop_requested)
-    rec = rig.run_trajectory(cmd, where=record_as, stop_requested=ctx.stop_requested)
-    rig.park(where=f"{record_as} (park)")
+    cmd = sample_trajectory(step.trajectory, rig.joint.output_rate_hz, ctx.loaded.base_dir)
+    rec = run_motion(rig, cmd, where=record_as, stop_requested=ctx.stop_requested)
     p = dict(step.trajectory.params)
     target = float(p["from_deg"]) + float(p["step_deg"])
     limits = ctx.loaded.protocol.calibration_check

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import json
+
 import h5py
 import numpy as np
 
 from ..archive.h5util import SIGNAL, put
 from ..hardware.rig import TrialRecording
+from ..hardware.stream import SEGMENT_NAMES
 
 
 def put_scan(g: h5py.Group, rec: TrialRecording) -> None:
@@ -29,3 +32,14 @@ def put_commands(g: h5py.Group, rec: TrialRecording, *, full: bool) -> None:
         put(g, "command_volts", rec.command_volts, "V", dtype=SIGNAL)
         put(g, "command_codes", rec.command_codes, "counts", dtype=np.uint16)
         put(g, "tick_lateness_s", rec.tick_lateness_s, "s")
+    if rec.stream_deg.size:
+        put_stream(g.create_group("stream"), rec)
+
+
+def put_stream(g: h5py.Group, rec: TrialRecording) -> None:
+    """Every sample the motion commanded (approach, trajectory, exit or stop), its time from the first
+    trajectory tick (negative during the approach) and its segment code (`hardware/stream.py`)."""
+    put(g, "command_time_s", rec.stream_time_s, "s")
+    put(g, "command_deg", rec.stream_deg, "deg")
+    put(g, "segment", rec.stream_segment, "1", dtype=np.int8)
+    g.attrs["segments"] = json.dumps({str(k): v for k, v in SEGMENT_NAMES.items()})

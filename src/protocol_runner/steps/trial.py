@@ -20,11 +20,11 @@ from ..analysis.scaling import ScalingResult, scale_brace_off_input
 from ..analysis.transition import command_on_input_base, transition_index
 from ..archive.h5util import put, set_attrs
 from ..errors import HardwareUnavailable
+from ..hardware.motion import run_motion
 from ..hardware.rig import TrialRecording
 from ..protocol.plan import Trajectory, TrialStep, configuration_name
-from ..protocol.trajectories import identification_deg, load_trajectory_file, sinusoid_deg
+from ..protocol.sampling import sample_trajectory
 from .context import StepContext, StepOutcome
-from .motion import approach
 from .recording import put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]
@@ -33,27 +33,7 @@ COMMAND_SMOOTHING_HZ = 5.0
 
 def command_deg(trajectory: Trajectory, ctx: StepContext) -> FloatArray:
     """Sample a plan trajectory at the output rate (real joint angles, one per tick)."""
-    rate = ctx.bench.rig.joint.output_rate_hz
-    t = np.arange(0.0, trajectory.duration_s, 1.0 / rate)
-    p = dict(trajectory.params)
-    if trajectory.profile == "sinusoid":
-        assert (
-            trajectory.mean_deg is not None and trajectory.amplitude_deg is not None and trajectory.period_s
-        )
-        return sinusoid_deg(t, trajectory.mean_deg, trajectory.amplitude_deg, trajectory.period_s)
-    if trajectory.profile == "human":
-        assert trajectory.source is not None
-        return load_trajectory_file(ctx.loaded.base_dir / trajectory.source).at(t)
-    if trajectory.profile == "identification":
-        return identification_deg(
-            t,
-            float(p["min_deg"]),
-            float(p["max_deg"]),
-            float(p["repetition_s"]),
-            float(p["initial_period_s"]),
-            float(p["final_period_s"]),
-        )
-    raise ValueError(f"unknown trajectory profile {trajectory.profile!r}")
+    return sample_trajectory(trajectory, ctx.bench.rig.joint.output_rate_hz, ctx.loaded.base_dir)
 
 
 @dataclass(frozen=True)
@@ -80,9 +60,7 @@ def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
     try:
         if step.brace == "on":
             cmd = command_deg(step.trajectory, ctx)
-            approach(rig, float(cmd[0]), where=step.id, stop_requested=ctx.stop_requested)
-            rec = rig.run_trajectory(cmd, where=step.id, stop_requested=ctx.stop_requested)
-            rig.park(where=f"{step.id} (park)")
+            rec = run_motion(rig, cmd, where=step.id, stop_requested=ctx.stop_requested)
         else:
             rec, scaling = _run_brace_off(step, ctx)
     except HardwareUnavailable as exc:
@@ -130,16 +108,9 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
 
     def run_once(input_deg: FloatArray) -> FloatArray:
         k = len(recordings)
-        approach(
-            rig,
-            float(input_deg[0]),
-            where=f"{step.id} (scaling run {k + 1})",
-            stop_requested=ctx.stop_requested,
+        rec = run_motion(
+            rig, input_deg, where=f"{step.id} (scaling run {k + 1})", stop_requested=ctx.stop_requested
         )
-        rec = rig.run_trajectory(
-            input_deg, where=f"{step.id} (scaling run {k + 1})", stop_requested=ctx.stop_requested
-        )
-        rig.park(where=f"{step.id} (park)")
         recordings.append(rec)
         return np.interp(rec.command_time_s, rec.input_time_s, rec.angle_deg)
 

@@ -1,0 +1,98 @@
+"""Plan-time envelope check of every motion the protocol commands (part of the preflight).
+
+For each configuration's trajectory and the calibration step, the complete commanded stream the rig will
+send - approach from the park angle, the trajectory sampled at the output rate, exit to the park angle -
+and a stop after any of its samples are checked against `rig.safety` and the joint's range
+(`hardware/stream.py`: range, ±10 V after the command table, rate and acceleration across the junctions).
+A protocol whose stream breaks the envelope is refused before anything is created (exit 2), naming the
+configuration. Brace-off commands come from brace-on measurements; the rig checks them before sending.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from typing import TYPE_CHECKING
+
+from ..errors import InvalidInput
+from ..hardware.calibration import CalibrationTable, load_calibration_table
+from ..hardware.safety import SafetyLimits, SafetyViolation, check_trajectory
+from ..hardware.stream import build_stream, check_stream
+from .levels import resolve_settings
+from .plan import Trajectory, calibration_trajectory, trajectory_for
+from .sampling import sample_trajectory
+
+if TYPE_CHECKING:
+    from .loader import LoadedProtocol, Loc
+
+Problem = tuple["Loc", str]
+
+
+def check_streams(loaded: LoadedProtocol, *, check_files: bool = True) -> Iterator[Problem]:
+    """(location, message) for every configuration, or the calibration step, whose stream is unsafe.
+    Human-motion files are only read when `check_files`."""
+    p = loaded.protocol
+    rig = p.rig
+    try:
+        limits = SafetyLimits(
+            range_deg=rig.joint.range_deg,
+            max_rate_deg_s=rig.safety.max_rate_deg_s,
+            max_accel_deg_s2=rig.safety.max_accel_deg_s2,
+            park_angle_deg=rig.safety.park_angle_deg,
+            park_rate_deg_s=rig.safety.park_rate_deg_s,
+        )
+    except InvalidInput as exc:
+        yield ("rig", "safety"), exc.message
+        return
+    table: CalibrationTable | None = None
+    if check_files and rig.calibration.command_table is not None:
+        try:
+            table = load_calibration_table(loaded.base_dir / rig.calibration.command_table)
+        except InvalidInput:
+            return  # reported by the file checks
+    motions: list[tuple[Loc, str, Trajectory]] = [
+        (("trajectories", "calibration_step"), "the calibration step", calibration_trajectory(p))
+    ]
+    for i, s in enumerate(p.sets):
+        for j, cfg in enumerate(s.configurations):
+            if cfg.profile == "human" and not check_files:
+                continue
+            traj = trajectory_for(p, loaded, cfg, resolve_settings(p.levels, cfg))
+            motions.append((("sets", i, "configurations", j), f"configuration {cfg.key}", traj))
+    verdicts: dict[str, str | None] = {}
+    for loc, name, traj in motions:
+        key = repr(traj.to_json())
+        if key not in verdicts:
+            verdicts[key] = _problem(traj, loaded, limits, table, rig.output.rate_hz, rig.joint.range_deg)
+        message = verdicts[key]
+        if message is not None:
+            yield loc, f"{name} ({traj.profile}): {message}"
+
+
+def _problem(
+    traj: Trajectory,
+    loaded: LoadedProtocol,
+    limits: SafetyLimits,
+    table: CalibrationTable | None,
+    rate_hz: float,
+    volts_range_deg: tuple[float, float],
+) -> str | None:
+    try:
+        samples = sample_trajectory(traj, rate_hz, loaded.base_dir)
+        check_trajectory(samples, rate_hz, limits, where="stream (trajectory)")
+        stream = build_stream(samples, limits, rate_hz)
+        check_stream(stream, limits, where="stream", command_table=table, volts_range_deg=volts_range_deg)
+    except SafetyViolation as exc:
+        part = exc.where.removeprefix("stream").strip(" ()")
+        return (
+            f"its commanded stream ({part}) breaks rig.safety: {exc.limit} {exc.value:.4g} {exc.units} "
+            f"at t = {exc.time_s:.2f} s from the trajectory's start, allowed {_bound(exc)}"
+        )
+    except InvalidInput as exc:
+        return exc.message
+    return None
+
+
+def _bound(exc: SafetyViolation) -> str:
+    if isinstance(exc.limit_value, tuple):
+        return f"{exc.limit_value[0]:g} to {exc.limit_value[1]:g} {exc.units}"
+    return f"±{exc.limit_value:g} {exc.units}"
