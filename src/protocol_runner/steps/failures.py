@@ -46,10 +46,9 @@ def explain(step: Step, message: str, ctx: StepContext) -> str:
     return (
         f"{where}: {message}\n"
         f"Every recording is kept in {session}; a resume would redo this step on the same data and fail "
-        f"the same way. Check the trial's raw data (run-protocol --report {session} shows it). If the "
-        f"processing settings do not suit these data, change `processing` in {stored} and resume with "
-        f"--force, or re-analyse the archive: run-protocol --report {session} --reprocess "
-        "--protocol-file FIXED.yaml"
+        f"the same way. Look at the raw data (run-protocol --report {session}). If the processing "
+        f"settings do not suit these data, change `processing` in {stored} and resume with --force, or "
+        f"re-analyse the archive: run-protocol --report {session} --reprocess --protocol-file FIXED.yaml"
     )
 
 
