@@ -54,3 +54,34 @@ def test_flat_recording_stops_with_a_message_naming_configuration_trial_and_step
     assert "fail the same way" in err and "--reprocess" in err and "--force" in err, err
     assert messages[1] == messages[0]
     assert (session / "archive.h5").is_file()  # what was recorded is kept in the archive
+
+
+def test_brace_off_trial_failure_names_its_trial_and_the_recording_it_follows(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A brace-off trial derives its input from the brace-on recording (scaling, transition): when that
+    analysis fails, the message names the trial and the brace-on recording to check."""
+    from protocol_runner.analysis.validation import AnalysisError
+    from protocol_runner.protocol.loader import find_protocol, load_protocol
+    from protocol_runner.protocol.plan import TrialStep, expand
+    from protocol_runner.steps import failures
+    from protocol_runner.steps.context import StepContext
+
+    loaded = load_protocol(find_protocol("knee_phase1.yaml"))
+    plan = expand(loaded, only=[KEY])
+    step = plan.step(f"trial:k{KEY:02d}:off:2")
+    assert isinstance(step, TrialStep)
+
+    def flat(step: TrialStep, ctx: StepContext) -> None:
+        raise AnalysisError("input_deg does not move (range 2e-12 deg)")
+
+    monkeypatch.setitem(failures.STEP_KINDS, "trial", flat)
+    ctx = StepContext(loaded, plan, None, None, tmp_path / "s" / "units", None, lambda: False, None)  # type: ignore[arg-type]
+    with pytest.raises(failures.AnalysisStepFailed) as info:
+        failures.run_step(step, ctx)
+    message = info.value.message
+    assert message.startswith(
+        f"configuration {KEY}, trial 2 (brace off), step trial:k{KEY:02d}:off:2: input_deg does not move"
+    ), message
+    assert f"brace-on recording trial:k{KEY:02d}:on:2" in message and "resumable" not in message
+    assert info.value.exit_code == 2
