@@ -198,3 +198,16 @@ def test_only_is_checked_against_the_matrix_without_materialising_ranges(
     err = capsys.readouterr().err
     assert needle in err and "Traceback" not in err, err
     assert not session.exists()
+
+
+def test_alias_count_and_depth_through_aliases_are_capped(workdir: Path) -> None:
+    from protocol_runner.errors import InvalidInput
+    from protocol_runner.protocol.yaml_limits import MAX_ALIASES, check_yaml_limits
+
+    many = "a: &a 1\nb: [" + ", ".join(["*a"] * (MAX_ALIASES + 1)) + "]\n"
+    with pytest.raises(InvalidInput, match=rf"^many\.yaml:2: more than {MAX_ALIASES} YAML aliases"):
+        check_yaml_limits(many, "many.yaml")
+    deep = "a: &a " + "[" * 30 + "]" * 30 + "\n" + "b: " + "[" * 20 + "*a" + "]" * 20 + "\n"
+    with pytest.raises(InvalidInput, match=r"^deep\.yaml:2: the YAML nests deeper than 40 levels \(through"):
+        check_yaml_limits(deep, "deep.yaml")
+    check_yaml_limits(KNEE_TEXT, "knee_phase1.yaml")  # the shipped protocol is far inside every limit
