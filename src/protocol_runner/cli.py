@@ -13,6 +13,7 @@ from pathlib import Path
 
 from . import __version__
 from .errors import EXIT_INTERRUPTED, EXIT_INVALID_INPUT, EXIT_OK, InvalidInput, UserError
+from .protocol.only import KeySelection
 
 DESCRIPTION = """\
 Run a declarative test protocol for space-suit joint testing on the RSST robot.
@@ -113,29 +114,9 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def parse_only(text: str | None) -> list[int] | None:
-    """`--only 4,5,6,7` or `--only 12-14,27` -> sorted unique keys."""
-    if text is None:
-        return None
-    keys: set[int] = set()
-    for part in text.replace(" ", "").split(","):
-        if not part:
-            continue
-        try:
-            if "-" in part:
-                lo, hi = (int(x) for x in part.split("-", 1))
-                if hi < lo:
-                    raise ValueError
-                keys.update(range(lo, hi + 1))
-            else:
-                keys.add(int(part))
-        except ValueError:
-            raise InvalidInput(
-                f"--only: {part!r} is not a configuration key or range (e.g. --only 4,5,6,7 or 12-14)"
-            ) from None
-    if not keys:
-        raise InvalidInput("--only: give at least one configuration key, e.g. --only 4,5,6,7")
-    return sorted(keys)
+def parse_only(text: str | None) -> KeySelection | None:
+    """`--only 4,5,6,7` or `--only 12-14,27` -> the keys and ranges (checked against the protocol later)."""
+    return None if text is None else KeySelection.parse(text)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -197,12 +178,12 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
+    from .preflight import preflight
     from .protocol.loader import find_protocol, load_protocol
-    from .protocol.plan import expand
 
     path = find_protocol(args.validate)
     loaded = load_protocol(path, display_name=args.validate if Path(args.validate).exists() else str(path))
-    plan = expand(loaded)
+    plan = preflight(loaded)  # exactly the run's checks before it creates a session
     trials = sum(1 for s in plan.steps if s.kind == "trial")
     n_cfg = len(loaded.protocol.configurations())
     print(
@@ -214,13 +195,13 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
+    from .preflight import preflight
     from .protocol.loader import find_protocol, load_protocol
-    from .protocol.plan import expand
     from .protocol.plan_table import format_plan_table
 
     path = find_protocol(args.plan)
     loaded = load_protocol(path, display_name=args.plan if Path(args.plan).exists() else str(path))
-    plan = expand(loaded, only=parse_only(args.only))
+    plan = preflight(loaded, only=parse_only(args.only))
     if args.json:
         sys.stdout.write(plan.dumps() + "\n")
     else:

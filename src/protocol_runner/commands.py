@@ -12,7 +12,10 @@ from typing import TYPE_CHECKING
 from .errors import EXIT_OK, InvalidInput
 
 if TYPE_CHECKING:
+    from collections.abc import Iterable
+
     from .protocol.loader import LoadedProtocol
+    from .protocol.only import KeySelection
     from .session.operator import Operator
     from .session.setup import SessionInfo
     from .steps.context import Bench
@@ -29,18 +32,18 @@ def run(
     session: Path | None,
     seed: int | None,
     yes: bool,
-    only: list[int] | None,
+    only: KeySelection | Iterable[int] | None,
     realtime: bool,
     quiet: bool = False,
 ) -> int:
+    from .preflight import preflight
     from .protocol.loader import find_protocol, load_protocol
-    from .protocol.plan import expand
     from .session.runner import Runner
     from .session.setup import create_session, default_session_dir, load_session_protocol
 
     path = find_protocol(protocol)
     loaded = load_protocol(path, display_name=protocol if Path(protocol).exists() else str(path))
-    expand(loaded, only=only)  # --only errors before anything is created
+    planned = preflight(loaded, only=only)  # everything --validate checks, before anything is created
     if realtime and not dry_run:
         raise InvalidInput("--realtime paces the simulator: use it with --dry-run")
     if not dry_run:
@@ -53,7 +56,7 @@ def run(
         loaded,
         mode="dry-run" if dry_run else "hardware",
         seed=0 if seed is None else seed,
-        only=tuple(only or ()),
+        only=planned.only,
         realtime=realtime,
     )
     stored, plan, _ = load_session_protocol(directory, info, force=False)

@@ -122,3 +122,17 @@ def test_rig_runner_brings_the_1khz_angle_onto_the_command_ticks() -> None:
     out = run(np.zeros(50))
     assert out.shape == (50,)
     np.testing.assert_allclose(out, 2.0 * np.arange(50) / 100.0)
+
+
+def test_flat_brace_on_recording_is_an_analysis_error_not_a_crash() -> None:
+    """A flat brace-on output (stuck joint) leaves nothing to scale: a clear AnalysisError, not a
+    ZeroDivisionError from the collapsed input (issue 14, finding 8)."""
+    t = np.arange(0.0, 40.0, 1.0 / RATE_HZ)
+    flat = 65.0 + 1e-12 * np.sin(2.0 * np.pi * t / 8.0)  # flat to float precision after filtering
+    rng = np.random.default_rng(0)
+
+    def noisy_offset_plant(input_deg: np.ndarray) -> np.ndarray:
+        return input_deg + 2.0 + rng.normal(0.0, 0.01, input_deg.size)
+
+    with pytest.raises(AnalysisError, match="does not move"):
+        scale_brace_off_input(flat, (65.0, 65.0 + 1e-12), noisy_offset_plant, input_limits_deg=(0.0, 130.0))

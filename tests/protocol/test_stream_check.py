@@ -90,7 +90,7 @@ def test_a_human_file_over_the_acceleration_limit_is_refused_with_its_configurat
     with pytest.raises(InvalidInput) as info:
         load_protocol(path, display_name="edited.yaml")
     message = info.value.message
-    assert "configuration 24 (human)" in message and "angular acceleration" in message
+    assert "configuration 24 (human trajectories/corner.csv)" in message and "angular acceleration" in message
     assert message.startswith("edited.yaml:") and "sets[8].configurations[0]" in message
     assert main(["--validate", str(path)]) == 2
 

@@ -41,6 +41,9 @@ import numpy.typing as npt
 from protocol_runner.analysis.transition import transition_index
 from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal, same_length
 
+_FLAT_DEG = 1e-9
+"""A trajectory whose range is below this fraction of (1 + its mid-range) is flat to float precision."""
+
 
 def range_scale(angle_on_deg: npt.ArrayLike, angle_off_deg: npt.ArrayLike) -> float:
     """Eq 8: brace-on output range divided by brace-off output range (both from the transition point on)."""
@@ -124,8 +127,11 @@ def scale_brace_off_input(
     if input_limits_deg is not None and not input_limits_deg[1] > input_limits_deg[0]:
         raise AnalysisError(f"input limits must be (min, max) with max > min, got {input_limits_deg}")
     u_mid = 0.5 * float(u.max() + u.min())
-    if not float(u.max() - u.min()) > 0:
-        raise AnalysisError("input_deg does not move: a constant trajectory cannot be scaled")
+    if not float(u.max() - u.min()) > _FLAT_DEG * (1.0 + abs(u_mid)):
+        raise AnalysisError(
+            f"input_deg does not move (range {float(u.max() - u.min()):.3g} deg): a flat recording cannot "
+            "be followed; check the brace-on recording it comes from"
+        )
     shape = u - u_mid
     centre, amplitude = u_mid, 1.0
     history: list[ScalingIteration] = []
@@ -135,6 +141,13 @@ def scale_brace_off_input(
         trial_input = centre + amplitude * shape
         if input_limits_deg is not None:
             trial_input = np.clip(trial_input, input_limits_deg[0], input_limits_deg[1])
+        input_span = float(trial_input.max() - trial_input.min())
+        if not input_span > 0:  # nothing to run: the iteration has lost the trajectory's shape
+            raise AnalysisError(
+                f"scaling iteration {k}: the scaled brace-off input is constant at {float(trial_input[0]):.1f} "
+                f"deg (clipped to the joint's limits, or the target range {lo_t:.1f}-{hi_t:.1f} deg is too "
+                "small to follow); check the brace-on recording"
+            )
         measured = as_signal("measured angle returned by run()", run(trial_input.copy()))
         same_length(input_deg=trial_input, measured_deg=measured)
         start = transition_index(trial_input, measured, transition_tolerance_deg, transition_points)
@@ -162,7 +175,6 @@ def scale_brace_off_input(
             converged = True
             break
         amplitude *= scale
-        input_span = float(trial_input.max() - trial_input.min())
         gain = float(np.clip(span_k / input_span, 0.2, 5.0))
         centre += 0.5 * ((hi_t + lo_t) - (hi_k + lo_k)) / gain
     best = min(range(len(history)), key=lambda i: history[i].range_error_deg)

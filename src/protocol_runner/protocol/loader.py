@@ -23,6 +23,7 @@ from pydantic import BaseModel, ValidationError
 from ..errors import InvalidInput
 from ..resources import packaged_protocols_dir
 from .schema import Protocol
+from .yaml_limits import MAX_PROTOCOL_BYTES, check_size, check_yaml_limits
 
 Loc = tuple[str | int, ...]
 MAX_ERRORS_SHOWN = 8
@@ -37,6 +38,7 @@ class LoadedProtocol:
     text: str
     sha256: str
     lines: dict[Loc, int] = field(default_factory=dict, repr=False, compare=False)
+    shown: str = field(default="", repr=False, compare=False)  # the file's name in messages
 
     @property
     def base_dir(self) -> Path:
@@ -76,7 +78,12 @@ def read_protocol_text(path: Path, shown: str) -> str:
         raise InvalidInput(f"{shown}: protocol file not found")
     if path.is_dir():
         raise InvalidInput(f"{shown}: is a directory, expected a protocol file (.yaml)")
-    raw = path.read_bytes()
+    try:
+        with path.open("rb") as f:
+            raw = f.read(MAX_PROTOCOL_BYTES + 1)  # bounded even for a device or a huge file
+    except OSError as exc:
+        raise InvalidInput(f"{shown}: cannot read the protocol file ({exc.strerror})") from None
+    check_size(len(raw), shown)
     if b"\x00" in raw:
         raise InvalidInput(f"{shown}: is a binary file, not a YAML protocol")
     try:
@@ -97,6 +104,8 @@ def parse_protocol_text(
         raise InvalidInput(
             f"{shown}: the file is empty; a protocol needs at least `schema_version`, `name`, `rig`, ..."
         )
+    check_size(len(text), shown)  # characters: a lower bound of the bytes
+    check_yaml_limits(text, shown)  # before anything is composed or expanded
     try:
         node = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.YAMLError as exc:
@@ -123,7 +132,7 @@ def parse_protocol_text(
         problems = [(tuple(e["loc"]), _pydantic_message(e)) for e in exc.errors()]
         raise InvalidInput(format_problems(shown, lines, problems)) from None
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
-    loaded = LoadedProtocol(protocol=protocol, path=path, text=text, sha256=sha, lines=lines)
+    loaded = LoadedProtocol(protocol=protocol, path=path, text=text, sha256=sha, lines=lines, shown=shown)
     from .validate import cross_check  # local import: validate uses LoadedProtocol
 
     problems = cross_check(loaded, check_files=check_files)

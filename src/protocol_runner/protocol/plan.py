@@ -24,9 +24,9 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-from ..errors import InvalidInput
 from .levels import Settings, resolve_settings
 from .loader import LoadedProtocol
+from .only import KeySelection
 from .schema import ConfigurationSpec, Protocol, SetSpec
 from .trajectories import load_trajectory_file, sinusoid_period_s
 
@@ -324,19 +324,14 @@ def _setup_items(p: Protocol, cfg: ConfigurationSpec, st: Settings) -> tuple[str
     return tuple(items)
 
 
-def expand(loaded: LoadedProtocol, only: Iterable[int] | None = None) -> Plan:
+def expand(loaded: LoadedProtocol, only: KeySelection | Iterable[int] | None = None) -> Plan:
     """Expand a validated protocol into its Plan; `only` restricts it to those configuration keys."""
     p = loaded.protocol
     all_keys = [c.key for _, c in p.configurations()]
     selected: set[int] | None = None
     if only is not None:
-        selected = set(only)
-        unknown = sorted(selected - set(all_keys))
-        if unknown:
-            raise InvalidInput(
-                f"--only: no configuration has key {', '.join(map(str, unknown))} "
-                f"(keys in {loaded.path.name}: {min(all_keys)}-{max(all_keys)})"
-            )
+        chosen_keys = only if isinstance(only, KeySelection) else _as_selection(only)
+        selected = set(chosen_keys.select(all_keys, loaded.path.name))
     steps: list[Step] = []
     cal_traj = calibration_trajectory(p)
     for s in p.sets:
@@ -365,6 +360,10 @@ def expand(loaded: LoadedProtocol, only: Iterable[int] | None = None) -> Plan:
         steps=tuple(steps),
         only=tuple(sorted(selected)) if selected is not None else (),
     )
+
+
+def _as_selection(keys: Iterable[int]) -> KeySelection:
+    return KeySelection(tuple((int(k), int(k)) for k in keys))
 
 
 def _trial(

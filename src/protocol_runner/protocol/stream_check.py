@@ -26,6 +26,9 @@ if TYPE_CHECKING:
 
 Problem = tuple["Loc", str]
 
+MAX_COMMAND_SAMPLES = 5_000_000
+"""Longest commanded trajectory (samples at the output rate): about 14 h at 100 Hz."""
+
 
 def check_streams(loaded: LoadedProtocol, *, check_files: bool = True) -> Iterator[Problem]:
     """(location, message) for every configuration, or the calibration step, whose stream is unsafe.
@@ -65,7 +68,8 @@ def check_streams(loaded: LoadedProtocol, *, check_files: bool = True) -> Iterat
             verdicts[key] = _problem(traj, loaded, limits, table, rig.output.rate_hz, rig.joint.range_deg)
         message = verdicts[key]
         if message is not None:
-            yield loc, f"{name} ({traj.profile}): {message}"
+            what = f"{traj.profile} {traj.source}" if traj.source else traj.profile
+            yield loc, f"{name} ({what}): {message}"
 
 
 def _problem(
@@ -76,6 +80,12 @@ def _problem(
     rate_hz: float,
     volts_range_deg: tuple[float, float],
 ) -> str | None:
+    n_samples = traj.duration_s * rate_hz
+    if n_samples > MAX_COMMAND_SAMPLES:
+        return (
+            f"it lasts {traj.duration_s:.0f} s: {n_samples:,.0f} samples at {rate_hz:g} Hz, more than the "
+            f"{MAX_COMMAND_SAMPLES:,} a trajectory may have"
+        )
     try:
         samples = sample_trajectory(traj, rate_hz, loaded.base_dir)
         check_trajectory(samples, rate_hz, limits, where="stream (trajectory)")

@@ -3,7 +3,7 @@
 Each check returns (location, message) pairs so the loader can name the file line of the offending field.
 Checks: levels and their aliases; every referenced level and trajectory exists; ranges lie inside the
 joint's range; trajectories respect the joint's range, speed and acceleration limits; keys, run numbers and
-names are unique; referenced files exist and are readable.
+names are unique; referenced files lie in the protocol's folder, exist and load.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import InvalidInput
+from .paths import OutsideFolder, confined_path
 from .schema import LEVEL_FAMILIES, ConfigurationSpec, Protocol
 from .trajectories import (
     calibration_step_peak_speed_deg_s,
@@ -255,12 +256,16 @@ def _check_trajectories(p: Protocol) -> Iterator[Problem]:
 
 
 def _check_files(p: Protocol, base: Path) -> Iterator[Problem]:
+    """Every referenced file: confined to the protocol's folder (protocol/paths.py), then loaded and checked."""
     joint = p.rig.joint.range_deg
     limits = p.rig.safety
     for name, spec in p.trajectories.human.items():
         loc: Loc = ("trajectories", "human", name, "file")
         try:
-            traj = load_trajectory_file(base / spec.file)
+            traj = load_trajectory_file(confined_path(base, spec.file))
+        except OutsideFolder as exc:
+            yield loc, str(exc)
+            continue
         except InvalidInput as exc:
             yield loc, _relative_message(exc.message, base)
             continue
@@ -278,24 +283,33 @@ def _check_files(p: Protocol, base: Path) -> Iterator[Problem]:
             )
     for field in ("command_table", "angle_table", "torque_table"):
         rel = getattr(p.rig.calibration, field)
-        if rel is None:
-            continue
-        loc = ("rig", "calibration", field)
-        path = base / rel
-        if not path.is_file():
-            yield loc, f"calibration table {rel} not found (looked in {path.parent})"
-            continue
-        try:
-            from ..hardware.calibration import load_calibration_table
-        except ImportError:  # pragma: no cover
-            continue
-        try:
-            load_calibration_table(path)
-        except InvalidInput as exc:
-            yield loc, _relative_message(exc.message, base)
+        if rel is not None:
+            yield from _check_loadable(("rig", "calibration", field), base, rel, "calibration table")
     ref = p.report.reference_dataset
-    if ref is not None and not (base / ref).is_file():
-        yield ("report", "reference_dataset"), f"reference dataset {ref} not found"
+    if ref is not None:
+        yield from _check_loadable(("report", "reference_dataset"), base, ref, "reference dataset")
+
+
+def _check_loadable(loc: Loc, base: Path, rel: str, what: str) -> Iterator[Problem]:
+    try:
+        path = confined_path(base, rel)
+    except OutsideFolder as exc:
+        yield loc, str(exc)
+        return
+    if not path.is_file():
+        yield loc, f"{what} {rel} not found (looked in {path.parent})"
+        return
+    try:
+        if what == "calibration table":
+            from ..hardware.calibration import load_calibration_table
+
+            load_calibration_table(path)
+        else:
+            from ..report.load import load_reference_dataset
+
+            load_reference_dataset(path)
+    except InvalidInput as exc:
+        yield loc, _relative_message(exc.message, base)
 
 
 def _relative_message(message: str, base: Path) -> str:

@@ -35,7 +35,7 @@ from ..protocol.plan import (
 )
 from ..steps import calibration_check
 from ..steps.context import Bench, StepContext, StepOutcome, processing_settings
-from ..steps.registry import STEP_KINDS
+from ..steps.failures import run_step
 from .journal import Journal, utc_now
 from .lock import session_lock
 from .operator import Operator
@@ -82,7 +82,7 @@ def run_analysis_steps(
     done: list[tuple[UnitRecord | None, str]] = []
     for step_id in step_ids:
         step = plan.step(step_id)
-        outcome = STEP_KINDS[step.kind](step, ctx)
+        outcome = run_step(step, ctx)
         record = write_unit(units_dir, step.id, outcome.fill) if outcome.fill is not None else None
         done.append((record, outcome.summary))
     return done
@@ -176,7 +176,7 @@ class Runner:
                 if step.kind == "report":
                     return self._finish(progress, skipped)
                 progress.step_started(step)
-                outcome = STEP_KINDS[step.kind](step, ctx)
+                outcome = run_step(step, ctx)
                 self._record(step.id, outcome)
                 progress.step_finished(step, outcome.summary)
             self._collect(progress, wait=True)
@@ -203,6 +203,8 @@ class Runner:
             raise
         except UserError as exc:
             self._stopped("stopped", exc.message, progress)
+            if not getattr(exc, "resumable", True):
+                raise  # its message says what to do (steps/failures.py)
             raise type(exc)(
                 f"{exc.message}\nThe session is resumable: run-protocol --resume {self.dir}"
             ) from None

@@ -23,6 +23,7 @@ from pathlib import Path
 from .. import __version__
 from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, load_protocol
+from ..protocol.paths import is_stored_with_session
 from ..protocol.plan import Plan, expand
 
 SESSION_FILE = "session.json"
@@ -91,6 +92,8 @@ def create_session(
     target = proto_dir / loaded.path.name
     target.write_text(loaded.text, encoding="utf-8")
     for rel in referenced_files(loaded):
+        if not is_stored_with_session(rel):
+            continue  # an absolute path into the shipped protocols (protocol/paths.py): read from there
         src = loaded.base_dir / rel
         dst = proto_dir / rel
         if not dst.resolve().is_relative_to(proto_dir.resolve()):

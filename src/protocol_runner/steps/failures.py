@@ -1,0 +1,62 @@
+"""An analysis that cannot be done reaches the user as one message naming configuration, trial and step.
+
+Analysis runs on recorded data (processing and fits in worker processes, the brace-off input derived from
+the brace-on recording in the trial step). When the data or the processing settings do not allow it,
+the analysis raises `AnalysisError`; `run_step` turns that into `AnalysisStepFailed`, whose message says
+where it happened and what the user can do. Redoing such a step on the same data fails the same way, so
+the message does not promise that a plain resume helps (the runner adds no "resumable" line).
+"""
+
+from __future__ import annotations
+
+import re
+
+from ..analysis.validation import AnalysisError
+from ..errors import InvalidInput
+from ..protocol.plan import FitStep, ProcessStep, Step, TrialStep
+from .context import StepContext, StepOutcome
+from .registry import STEP_KINDS
+
+
+class AnalysisStepFailed(InvalidInput):
+    """An analysis step failed on the recorded data (exit 2); a resume alone would fail the same way."""
+
+    resumable = False
+
+
+def run_step(step: Step, ctx: StepContext) -> StepOutcome:
+    """Run one step; an `AnalysisError` becomes `AnalysisStepFailed` naming the step and what to do."""
+    try:
+        return STEP_KINDS[step.kind](step, ctx)
+    except AnalysisError as exc:
+        raise AnalysisStepFailed(explain(step, exc.message, ctx)) from None
+
+
+def explain(step: Step, message: str, ctx: StepContext) -> str:
+    session = ctx.units_dir.parent
+    stored = ctx.loaded.path  # the session's own copy of the protocol (session/setup.py)
+    where = _where(step, message)
+    if isinstance(step, TrialStep):
+        return (
+            f"{where}: {message}\n"
+            f"Every finished recording is kept in {session}. This brace-off trial follows the brace-on "
+            f"recording {step.twin}: check it (run-protocol --report {session} shows it). A resume redoes "
+            "this trial; if that recording is at fault it fails the same way."
+        )
+    return (
+        f"{where}: {message}\n"
+        f"Every recording is kept in {session}; a resume would redo this step on the same data and fail "
+        f"the same way. Look at the raw data (run-protocol --report {session}). If the processing "
+        f"settings do not suit these data, change `processing` in {stored} and resume with --force, or "
+        f"re-analyse the archive: run-protocol --report {session} --reprocess --protocol-file FIXED.yaml"
+    )
+
+
+def _where(step: Step, message: str) -> str:
+    if isinstance(step, TrialStep):
+        return f"configuration {step.configuration}, trial {step.trial} (brace {step.brace}), step {step.id}"
+    if isinstance(step, (ProcessStep, FitStep)):
+        trial = re.search(r"\btrial (\d+)\b", message)
+        which = f"trial {trial.group(1)}" if trial else "all its trials"
+        return f"configuration {step.configuration}, {which}, step {step.id}"
+    return f"step {step.id}"
