@@ -146,6 +146,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UserError as exc:
         print(f"run-protocol: {exc.message}", file=sys.stderr)
         return exc.exit_code
+    except OSError as exc:
+        from .archive.diskfull import is_disk_full
+
+        if not is_disk_full(exc):
+            raise
+        print(
+            f"run-protocol: disk full ({exc.filename or exc.strerror or exc}): nothing finished is lost. Free "
+            "some space, then run the command again (a session continues with run-protocol --resume DIR)",
+            file=sys.stderr,
+        )
+        return EXIT_INTERRUPTED
     except KeyboardInterrupt:
         print("run-protocol: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED

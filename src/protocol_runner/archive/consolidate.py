@@ -17,6 +17,8 @@ import h5py
 import numpy as np
 
 from .. import __version__
+from .checksums import mark
+from .diskfull import DiskFull, is_disk_full, resume_hint
 from .h5util import SCHEMA_VERSION, put, put_lines, put_text, set_attrs
 from .units import COMPLETE_ATTR, _fsync_dir, _fsync_file
 
@@ -78,9 +80,24 @@ def _merge(src: h5py.Group, dst: h5py.Group, written: dict[str, dict[str, object
 
 
 def consolidate(archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> Path:
+    """Write `archive` from the units; on a full disk raise `DiskFull`, leaving the previous archive (if
+    any) and no partial file behind."""
     partial = archive.with_name(archive.name + ".partial")
-    if partial.exists():
-        partial.unlink()
+    try:
+        _write(partial, unit_files, meta)
+        _fsync_file(partial)
+        os.replace(partial, archive)
+        _fsync_dir(archive.parent)
+    except OSError as exc:
+        partial.unlink(missing_ok=True)
+        if is_disk_full(exc):
+            raise DiskFull(f"disk full while writing {archive}. {resume_hint(archive.parent)}") from None
+        raise
+    return archive
+
+
+def _write(partial: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> None:
+    partial.unlink(missing_ok=True)
     with h5py.File(partial, "w") as out:
         written: dict[str, dict[str, object]] = {}
         for path in unit_files:
@@ -115,7 +132,4 @@ def consolidate(archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta) ->
         configs = out.require_group("configurations")
         for name, attrs in meta.configuration_attrs.items():
             set_attrs(configs.require_group(name), attrs)
-    _fsync_file(partial)
-    os.replace(partial, archive)
-    _fsync_dir(archive.parent)
-    return archive
+        mark(out)  # every dataset, copied from a unit or written here, carries its checksum
