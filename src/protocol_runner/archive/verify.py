@@ -180,22 +180,30 @@ class Verdict:
 def verify_path(path: Path) -> Verdict:
     """`--verify`: an archive file, or a session directory (its archive.h5 and its units/*.h5)."""
     path = Path(path)
-    if path.is_dir():
-        files = [path / "archive.h5"] if (path / "archive.h5").is_file() else []
-        files += sorted((path / "units").glob("*.h5"))
-        if not files:
-            raise InvalidInput(f"{path}: neither an archive.h5 nor a session directory with units")
-    elif path.is_file():
-        files = [path]
-    else:
-        raise InvalidInput(f"{path}: no such archive or session directory")
     verdict = Verdict()
-    for file in files:
-        _verify_file(file, verdict)
+    if path.is_file():
+        _verify_file(path, verdict)
+        return verdict
+    if not path.is_dir():
+        raise InvalidInput(f"{path}: no such archive or session directory")
+    units = sorted((path / "units").glob("*.h5"))
+    if not (path / "archive.h5").is_file() and not units:
+        raise InvalidInput(f"{path}: neither an archive.h5 nor a session directory with units")
+    if (path / "archive.h5").is_file():
+        _verify_file(path / "archive.h5", verdict)
+    if units:
+        each = Verdict()
+        datasets = sum(_verify_file(unit, each) for unit in units)
+        verdict.problems.extend(each.problems)
+        if not each.problems:
+            verdict.lines.append(
+                f"{path / 'units'}: {len(units)} units, {datasets} datasets, every checksum matches"
+            )
     return verdict
 
 
-def _verify_file(file: Path, verdict: Verdict) -> None:
+def _verify_file(file: Path, verdict: Verdict) -> int:
+    """Check `file`, adding its summary or its problems to `verdict`; the number of datasets verified."""
     try:
         require_hdf5(file)
         with h5py.File(file, "r") as h5:
@@ -208,14 +216,16 @@ def _verify_file(file: Path, verdict: Verdict) -> None:
             found = checker.problems(h5)
     except InvalidInput as exc:
         verdict.problems.append(exc.message)
-        return
+        return 0
     except _READ_ERRORS as exc:
         verdict.problems.append(corrupt(file, exc).message)
-        return
+        return 0
     verdict.problems.extend(found)
-    if not checker.strict and checker.checked == 0:
+    if checker.unsummed and not checker.checked:
         verdict.problems.append(
             f"{file}: has no checksums (written by a protocol-runner older than --verify); cannot be verified"
         )
     elif not found:
-        verdict.lines.append(f"{file}: {checker.checked} datasets, every checksum matches")
+        unsummed = f" ({checker.unsummed} written without one)" if checker.unsummed else ""
+        verdict.lines.append(f"{file}: {checker.checked} datasets, every checksum matches{unsummed}")
+    return checker.checked
