@@ -53,6 +53,13 @@ def resume_hint(session_dir: Path) -> str:
     )
 
 
+def disk_full_error(exc: BaseException, session_dir: Path) -> DiskFull:
+    """The `DiskFull` to raise for `exc`, a write of the session refused for lack of space."""
+    filename = getattr(exc, "filename", None)
+    where = f" while writing {filename}" if filename else ""
+    return DiskFull(f"disk full{where}. {resume_hint(session_dir)}")
+
+
 def creates_session_directory(create: Callable[P, R]) -> Callable[P, R]:
     """Decorate `create_session(directory, ...)`: if it fails writing (a full disk, no permission), remove
     what it wrote, so that no half-made session is left behind, and raise one clear error."""

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..archive.consolidate import ArchiveMeta, consolidate
-from ..archive.diskfull import DiskFull, is_disk_full, resume_hint
+from ..archive.diskfull import DiskFull, disk_full_error, is_disk_full, resume_hint
 from ..archive.units import UnitRecord, checked_unit_files, unit_is_complete, write_unit
 from ..errors import Interrupted, StoppedByCheck, UserError
 from ..protocol.loader import LoadedProtocol
@@ -358,9 +358,7 @@ class Runner:
             self.journal.event("interrupted", "disk full")
         with contextlib.suppress(Exception):
             self.bench.rig.park(where="park after disk full")
-        if isinstance(exc, DiskFull):
-            return exc
-        return DiskFull(f"disk full ({getattr(exc, 'strerror', None) or exc}). {resume_hint(self.dir)}")
+        return exc if isinstance(exc, DiskFull) else disk_full_error(exc, self.dir)
 
     def _finish(self, progress: Progress, skipped: int) -> RunResult:
         clock = getattr(getattr(self.bench, "sim", None), "clock", None)
@@ -430,4 +428,10 @@ class Runner:
             from ..report.render import generate_report
         except ImportError:  # the report module is optional until it lands
             return None
-        return generate_report(archive, self.dir / REPORT_NAME)
+        try:
+            return generate_report(archive, self.dir / REPORT_NAME)
+        except OSError as exc:
+            if not is_disk_full(exc):
+                raise
+            where = f"{self.dir / REPORT_NAME} (the archive is complete)"
+            raise DiskFull(f"disk full while writing {where}. {resume_hint(self.dir)}") from None
