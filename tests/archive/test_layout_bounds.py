@@ -1,5 +1,6 @@
 """A crafted archive declaring a 10^12-element dataset gets a clear exit 2 naming it, after bounded work
-(archive/layout.py): shapes are checked against the layout before anything is read (issue 14, finding 7)."""
+(archive/layout.py): shapes are checked against the layout before anything is read, by --verify, the
+report, --reprocess and --export-mat (issue 14, finding 7)."""
 
 from __future__ import annotations
 
@@ -47,6 +48,7 @@ def test_a_dataset_declaring_a_huge_shape_gets_exit_2_before_any_read(
         ("--verify", str(archive)),
         ("--report", str(archive), "--output", str(tmp_path / "r.html")),
         ("--report", str(archive), "--reprocess"),
+        ("--report", str(archive), "--export-mat", str(tmp_path / "mat")),
     ):
         t0 = time.monotonic()
         code = main(list(args))

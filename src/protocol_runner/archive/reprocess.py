@@ -24,7 +24,7 @@ from ..steps.context import processing_settings
 from ..steps.fit import bouc_wen_fill, centred_loop, fit_bouc_wen
 from ..steps.process import processed_fill, read_recording
 from .h5util import attr_str, set_attrs, text_of
-from .verify import verify_archive
+from .verify import validate_archive
 
 
 def _archived_protocol(f: h5py.File, archive: Path) -> LoadedProtocol:
@@ -47,7 +47,7 @@ def new_archive_path(archive: Path) -> Path:
 
 
 def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output: Path | None = None) -> Path:
-    verify_archive(archive)  # every dataset within bounds and intact, or a clear message naming it
+    validate_archive(archive)  # every dataset within bounds and intact, or a clear message naming it
     out = output or new_archive_path(archive)
     with tempfile.NamedTemporaryFile(dir=out.parent, suffix=".partial", delete=False) as tmp:
         partial = Path(tmp.name)

@@ -1,10 +1,10 @@
 """Is this file an intact protocol-runner archive? Clear answers for foreign, damaged or hostile files.
 
-- `resolve_archive`, `validate_archive`: the path names an HDF5 file with the archive's root marker and
-  `/configurations` (cheap: nothing but the root is read).
 - `Checker`: each dataset's layout (archive/layout.py) is checked before it is read, then its values
-  against its recorded checksum (archive/checksums.py). The report and `--reprocess` use it on every
-  dataset they read, and refuse a damaged one by name (exit 2).
+  against its recorded checksum (archive/checksums.py). The report checks every dataset with it before
+  using any, and refuses a damaged one by name (exit 2).
+- `validate_archive`: the path names an HDF5 file with the archive's root marker and `/configurations`,
+  and every dataset passes `Checker` (used by `--reprocess` and `--export-mat` before they read).
 - `verify_path`: `run-protocol --verify SESSION_DIR|ARCHIVE.h5`, every dataset of the archive (and of a
   session's units), listing every damaged one.
 """
@@ -80,14 +80,15 @@ def check_root(h5: h5py.File, archive: Path) -> list[str]:
 
 
 def validate_archive(path: Path) -> Path:
-    """Check cheaply that `path` (a file or session directory) is a readable protocol-runner archive.
-
-    Reads only the root attributes and the `/configurations` listing; returns the archive's path."""
+    """Check that `path` (a file or session directory) is a readable, intact protocol-runner archive:
+    its root, then every dataset's layout and checksum (`Checker`). Returns the archive's path; raises
+    `InvalidInput` naming the file, and the dataset, at the first problem."""
     archive = resolve_archive(Path(path))
     require_hdf5(archive)
     try:
         with h5py.File(archive, "r") as h5:
             check_root(h5, archive)
+            Checker.of(h5, archive).check_tree(h5)
     except InvalidInput:
         raise
     except _READ_ERRORS as exc:
@@ -156,19 +157,6 @@ class Checker:
 
         group.visititems(visit)
         return found
-
-
-def verify_archive(path: Path) -> Path:
-    """Every dataset of the archive `path` checked (first damage raises `InvalidInput`); its path."""
-    archive = validate_archive(path)
-    try:
-        with h5py.File(archive, "r") as h5:
-            Checker.of(h5, archive).check_tree(h5)
-    except InvalidInput:
-        raise
-    except _READ_ERRORS as exc:
-        raise corrupt(archive, exc) from exc
-    return archive
 
 
 @dataclass
