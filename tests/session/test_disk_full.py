@@ -97,6 +97,25 @@ def test_enospc_inside_a_unit_write(
     resume_matches(session, reference_archive, capsys)
 
 
+def test_enospc_while_journaling_a_finished_unit(
+    tmp_path: Path,
+    reference_archive: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    parks: list[str],
+) -> None:
+    """The unit is on disk but could not be journaled: it counts as not done, and is redone on resume."""
+    session = tmp_path / "s"
+    monkeypatch.setattr(Journal, "unit_done", after(4, Journal.unit_done))
+    code = main([*RUN, "--session", str(session)])
+    err = capsys.readouterr().err
+    stopped_cleanly(code, err, session)
+    assert "--resume" in err and len(Journal(session / "journal.jsonl").units) == 3
+    assert parks[-1] == "park after disk full"
+    monkeypatch.undo()
+    resume_matches(session, reference_archive, capsys)
+
+
 def test_enospc_while_consolidating(
     tmp_path: Path,
     reference_archive: Path,
