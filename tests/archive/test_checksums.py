@@ -171,3 +171,26 @@ def test_consolidation_refuses_a_damaged_unit_and_resume_redoes_it(
     assert main(["--resume", str(session), "--yes"]) == 0
     assert_same_data(reference_archive, session / "archive.h5")
     assert main(["--verify", str(session)]) == 0
+
+
+def test_a_unit_seals_datasets_written_without_the_archive_helpers(tmp_path: Path) -> None:
+    from protocol_runner.archive.units import write_unit
+
+    def fill(f: h5py.File) -> None:
+        f.create_dataset("configurations/config_01/extra", data=np.arange(10.0))  # plain h5py
+
+    record = write_unit(tmp_path, "trial:k01:on:1", fill)
+    with h5py.File(tmp_path / record.file, "r") as f:
+        ds = f["configurations/config_01/extra"]
+        assert ds.attrs[DIGEST_ATTR] == digest_of_stored(ds)
+        assert f.attrs[MARKER_ATTR] == "sha256"
+
+
+def test_reprocessing_keeps_every_dataset_checksummed(
+    archive: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from protocol_runner.archive.reprocess import reprocess_archive
+
+    out = reprocess_archive(archive)
+    assert main(["--verify", str(out)]) == 0
+    assert "every checksum matches" in capsys.readouterr().out

@@ -23,6 +23,7 @@ from ..steps.compare import comparison_values
 from ..steps.context import processing_settings
 from ..steps.fit import bouc_wen_fill, centred_loop, fit_bouc_wen
 from ..steps.process import processed_fill, read_recording
+from .checksums import is_marked, seal_missing
 from .h5util import attr_str, set_attrs, text_of
 from .verify import validate_archive
 
@@ -59,6 +60,8 @@ def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output
             if protocol_file is not None:
                 settings_source = load_protocol(find_protocol(protocol_file), check_files=False)
             _reprocess(f, settings_source)
+            if is_marked(f):
+                seal_missing(f)  # the new results carry checksums like everything else
             set_attrs(
                 f,
                 {

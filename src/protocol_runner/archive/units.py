@@ -18,7 +18,7 @@ from pathlib import Path
 import h5py
 
 from ..errors import InvalidInput
-from .checksums import mark
+from .checksums import mark, seal_missing
 from .diskfull import DiskFull as DiskFull  # re-exported: the unit writer's error
 from .diskfull import is_disk_full, resume_hint
 from .h5util import group_name
@@ -73,7 +73,8 @@ def write_unit(units_dir: Path, step_id: str, fill: Callable[[h5py.File], None])
         with h5py.File(partial, "w") as f:
             fill(f)
             f.attrs["unit_step_id"] = step_id
-            mark(f)  # every dataset was written by archive/h5util.py, with its checksum
+            seal_missing(f)  # datasets written without archive/h5util.py get their checksum too
+            mark(f)
             f.attrs[COMPLETE_ATTR] = True
         _fsync_file(partial)
         digest = sha256_of(partial)
