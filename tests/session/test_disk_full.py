@@ -209,6 +209,21 @@ def test_enospc_while_creating_the_session(
     assert_same_data(reference_archive, session / "archive.h5")
 
 
+def test_another_write_error_while_creating_the_session_is_exit_2_and_leaves_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    def denied(src: object, dst: object, **_: object) -> None:
+        raise PermissionError(errno.EACCES, "Permission denied", str(dst))
+
+    monkeypatch.setattr(session_setup.shutil, "copy2", denied)
+    session = tmp_path / "s"
+    code = main([*RUN, "--session", str(session)])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err
+    assert f"--session {session}: cannot create the session (Permission denied: {session}" in err
+    assert not session.exists()
+
+
 def _can_mount_tmpfs(where: Path) -> bool:
     if shutil.which("unshare") is None or not sys.platform.startswith("linux"):
         return False

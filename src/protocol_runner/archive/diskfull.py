@@ -83,9 +83,10 @@ def creates_session_directory(create: Callable[P, R]) -> Callable[P, R]:
                     f"disk full while creating the session {directory}: nothing was recorded. "
                     "Free some space, then run the same command again."
                 ) from None
-            raise InvalidInput(
-                f"--session {directory}: cannot write the session ({exc.strerror or exc})"
-            ) from None
+            what = (
+                f"{exc.strerror}: {exc.filename}" if exc.strerror and exc.filename else (exc.strerror or exc)
+            )
+            raise InvalidInput(f"--session {directory}: cannot create the session ({what})") from None
 
     return wrapper
 
