@@ -1,7 +1,7 @@
 """`run-protocol`: argument parsing and exit codes only; the work happens in the modules it calls.
 
 Exit status (DESIGN.md): 0 done; 2 invalid input; 3 hardware unavailable; 4 stopped by a safety or
-calibration check; 130 interrupted (resumable).
+calibration check; 130 interrupted or disk full (resumable).
 """
 
 from __future__ import annotations
@@ -25,6 +25,8 @@ modes:
       continue an interrupted session without redoing finished steps
   run-protocol --report SESSION_DIR|ARCHIVE.h5 [--output FILE] [--reprocess] [--export-mat DIR]
       (re)generate the HTML report from an archive alone
+  run-protocol --verify SESSION_DIR|ARCHIVE.h5
+      check every dataset against its checksum; exit 2 naming each damaged one
   run-protocol --plan PROTOCOL [--json]
       print the expanded plan (steps in execution order with their stable ids)
   run-protocol --validate PROTOCOL
@@ -45,8 +47,8 @@ examples:
   run-protocol --resume sessions/knee_phase1-20261121T101500Z
   run-protocol --report sessions/knee_phase1-20261121T101500Z/archive.h5 --output report.html
 
-exit status: 0 done, 2 invalid input, 3 hardware unavailable, 4 stopped by a safety or calibration
-check, 130 interrupted (the session is resumable with --resume).
+exit status: 0 done, 2 invalid input (or a damaged archive), 3 hardware unavailable, 4 stopped by a
+safety or calibration check, 130 interrupted or disk full (the session is resumable with --resume).
 """
 
 
@@ -62,6 +64,9 @@ def build_parser() -> argparse.ArgumentParser:
     mode.add_argument("--resume", metavar="SESSION_DIR", help="resume an interrupted session")
     mode.add_argument(
         "--report", metavar="PATH", help="regenerate the report of a session directory or archive"
+    )
+    mode.add_argument(
+        "--verify", metavar="PATH", help="check the checksums of a session directory's or archive's datasets"
     )
     mode.add_argument("--plan", metavar="PROTOCOL", help="print the expanded plan of a protocol")
     mode.add_argument("--validate", metavar="PROTOCOL", help="validate a protocol file")
@@ -127,6 +132,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     except UserError as exc:
         print(f"run-protocol: {exc.message}", file=sys.stderr)
         return exc.exit_code
+    except OSError as exc:
+        from .archive.diskfull import is_disk_full
+
+        if not is_disk_full(exc):
+            raise
+        print(
+            f"run-protocol: disk full ({exc.filename or exc.strerror or exc}): nothing finished is lost. Free "
+            "some space, then run the command again (a session continues with run-protocol --resume DIR)",
+            file=sys.stderr,
+        )
+        return EXIT_INTERRUPTED
     except KeyboardInterrupt:
         print("run-protocol: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
@@ -151,6 +167,10 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
             protocol_file=args.protocol_file,
             export_mat=Path(args.export_mat) if args.export_mat else None,
         )
+    if args.verify is not None:
+        from .commands import verify
+
+        return verify(Path(args.verify))
     if args.resume is not None:
         from .commands import resume
 
@@ -158,7 +178,7 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     if args.protocol is None:
         parser.print_usage(sys.stderr)
         print(
-            "run-protocol: give a PROTOCOL to run, or one of --plan, --validate, --resume, --report",
+            "run-protocol: give a PROTOCOL to run, or one of --plan, --validate, --resume, --report, --verify",
             file=sys.stderr,
         )
         return EXIT_INVALID_INPUT

@@ -1,4 +1,4 @@
-"""The CLI's actions beyond planning: run, resume, report, hardware check.
+"""The CLI's actions beyond planning: run, resume, report, verify, hardware check.
 
 Each returns the process exit status; user mistakes raise `UserError` subclasses (the CLI prints them).
 """
@@ -133,6 +133,24 @@ def report(
         _say(f"wrote {len(files)} .mat files to {export_mat}")
     out = generate_report(archive, output)
     _say(f"report: {out}")
+    return EXIT_OK
+
+
+def verify(path: Path) -> int:
+    """`--verify`: every dataset of an archive (or of a session's archive and units) against its checksum."""
+    from .archive.verify import verify_path
+
+    verdict = verify_path(path)
+    for line in verdict.lines:
+        print(line)
+    if verdict.problems:
+        shown = verdict.problems[:20]
+        more = len(verdict.problems) - len(shown)
+        raise InvalidInput(
+            f"{len(verdict.problems)} problem(s) found:\n  "
+            + "\n  ".join(shown)
+            + (f"\n  ... and {more} more" if more else "")
+        )
     return EXIT_OK
 
 

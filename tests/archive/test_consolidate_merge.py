@@ -38,3 +38,47 @@ def test_later_units_attributes_win_and_repeats_are_kept(tmp_path: Path) -> None
         # the last unit's value, with its own dtype (integers), not the equal-valued floats before it
         assert cfg.attrs["rom_deg"].dtype.kind == "i" and list(cfg.attrs["rom_deg"]) == [0, 95]
         assert sorted(cfg["trials"], key=int) == ["1", "2", "3", "4"]
+
+
+def test_the_archive_declares_checksums_only_when_every_unit_had_them(tmp_path: Path) -> None:
+    """A session begun before checksums existed and resumed after: its old units have none, so the
+    archive does not claim them (the report then reads it with the bounds checked only)."""
+    from protocol_runner.archive.checksums import MARKER_ATTR, mark
+    from protocol_runner.archive.consolidate import ArchiveMeta, consolidate
+    from protocol_runner.archive.h5util import put
+    from protocol_runner.report.load import load_report_data
+
+    def unit(name: str, *, summed: bool) -> Path:
+        path = tmp_path / f"{name}.h5"
+        with h5py.File(path, "w") as f:
+            grp = f.require_group(f"configurations/config_01/trials/{name}/brace_on")
+            if summed:
+                put(grp, "angle_deg", np.linspace(0.0, 90.0, 500), "deg")
+                mark(f)
+            else:
+                grp.create_dataset("angle_deg", data=np.linspace(0.0, 90.0, 500)).attrs["units"] = "deg"
+        return path
+
+    meta = ArchiveMeta(
+        "p",
+        "0" * 64,
+        "name: p\n",
+        "p.yaml",
+        '{"steps": []}',
+        "dry-run",
+        0,
+        "t0",
+        "t1",
+        "complete",
+        "knee",
+        (),
+        (),
+        {"config_01": {"key": 1}},
+    )
+    new = consolidate(tmp_path / "new.h5", [unit("1", summed=True), unit("2", summed=True)], meta)
+    mixed = consolidate(tmp_path / "mixed.h5", [unit("3", summed=False), unit("4", summed=True)], meta)
+    with h5py.File(new, "r") as f:
+        assert f.attrs[MARKER_ATTR] == "sha256"
+    with h5py.File(mixed, "r") as f:
+        assert MARKER_ATTR not in f.attrs
+    assert len(load_report_data(mixed).configurations[0].trials) == 2

@@ -17,6 +17,8 @@ import h5py
 import numpy as np
 
 from .. import __version__
+from .checksums import MARKER_ATTR, is_marked, mark
+from .diskfull import DiskFull, is_disk_full, resume_hint
 from .h5util import SCHEMA_VERSION, put, put_lines, put_text, set_attrs
 from .units import COMPLETE_ATTR, _fsync_dir, _fsync_file
 
@@ -59,7 +61,7 @@ def _merge(src: h5py.Group, dst: h5py.Group, written: dict[str, dict[str, object
         written = {}
     seen = written.setdefault(dst.name, {})
     for key, value in src.attrs.items():
-        if key in ("unit_step_id", COMPLETE_ATTR):
+        if key in ("unit_step_id", COMPLETE_ATTR, MARKER_ATTR):
             continue
         if key in seen and _same(seen[key], value):
             continue
@@ -78,13 +80,30 @@ def _merge(src: h5py.Group, dst: h5py.Group, written: dict[str, dict[str, object
 
 
 def consolidate(archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> Path:
+    """Write `archive` from the units; on a full disk raise `DiskFull`, leaving the previous archive (if
+    any) and no partial file behind."""
     partial = archive.with_name(archive.name + ".partial")
-    if partial.exists():
-        partial.unlink()
+    try:
+        _write(partial, unit_files, meta)
+        _fsync_file(partial)
+        os.replace(partial, archive)
+        _fsync_dir(archive.parent)
+    except OSError as exc:
+        partial.unlink(missing_ok=True)
+        if is_disk_full(exc):
+            raise DiskFull(f"disk full while writing {archive}. {resume_hint(archive.parent)}") from None
+        raise
+    return archive
+
+
+def _write(partial: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> None:
+    partial.unlink(missing_ok=True)
     with h5py.File(partial, "w") as out:
         written: dict[str, dict[str, object]] = {}
+        summed = True  # units written before checksums existed (a session resumed across versions): not
         for path in unit_files:
             with h5py.File(path, "r") as unit:
+                summed = summed and is_marked(unit)
                 _merge(unit, out, written)
         set_attrs(
             out,
@@ -115,7 +134,5 @@ def consolidate(archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta) ->
         configs = out.require_group("configurations")
         for name, attrs in meta.configuration_attrs.items():
             set_attrs(configs.require_group(name), attrs)
-    _fsync_file(partial)
-    os.replace(partial, archive)
-    _fsync_dir(archive.parent)
-    return archive
+        if summed:
+            mark(out)  # every dataset, copied from a unit or written here, carries its checksum

@@ -13,6 +13,8 @@ import h5py
 import numpy as np
 import numpy.typing as npt
 
+from .checksums import seal
+
 SCHEMA_VERSION = 1
 COMPRESS_ABOVE = 256
 GZIP_LEVEL = 1
@@ -42,7 +44,8 @@ def put(
 
     Arrays of more than COMPRESS_ABOVE elements are gzip-compressed (HDF5's standard filters: h5py, HDFView
     and MATLAB read them without plug-ins), with the byte shuffle filter where `_shuffle_helps`; 1-D ones in
-    chunks of about CHUNK_BYTES. The layout depends only on the data, never on when or where it is written."""
+    chunks of about CHUNK_BYTES. The layout depends only on the data, never on when or where it is written.
+    Like every dataset, it carries the sha256 checksum of its values (archive/checksums.py)."""
     arr = np.asarray(data, dtype=dtype) if dtype is not None else np.asarray(data)
     if name in group:
         del group[name]
@@ -57,9 +60,11 @@ def put(
                 ds = group.create_dataset(name, shape=arr.shape, dtype=arr.dtype, **kwargs)
                 _write_chunks(ds, arr, chunk, shuffle)
                 ds.attrs["units"] = units
+                seal(ds, arr)
                 return ds
     ds = group.create_dataset(name, data=arr, **kwargs)
     ds.attrs["units"] = units
+    seal(ds, arr)
     return ds
 
 
@@ -119,13 +124,17 @@ def _shuffle_helps(arr: npt.NDArray[Any]) -> bool:
 def put_text(group: h5py.Group, name: str, text: str) -> h5py.Dataset:
     if name in group:
         del group[name]
-    return group.create_dataset(name, data=text, dtype=_STR)
+    ds = group.create_dataset(name, data=text, dtype=_STR)
+    seal(ds, text)
+    return ds
 
 
 def put_lines(group: h5py.Group, name: str, lines: list[str]) -> h5py.Dataset:
     if name in group:
         del group[name]
-    return group.create_dataset(name, data=np.array(lines, dtype=object), dtype=_STR)
+    ds = group.create_dataset(name, data=np.array(lines, dtype=object), dtype=_STR)
+    seal(ds, lines)
+    return ds
 
 
 def set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:

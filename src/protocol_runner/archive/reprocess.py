@@ -23,7 +23,9 @@ from ..steps.compare import comparison_values
 from ..steps.context import processing_settings
 from ..steps.fit import bouc_wen_fill, centred_loop, fit_bouc_wen
 from ..steps.process import processed_fill, read_recording
+from .checksums import is_marked, seal_missing
 from .h5util import attr_str, set_attrs, text_of
+from .verify import validate_archive
 
 
 def _archived_protocol(f: h5py.File, archive: Path) -> LoadedProtocol:
@@ -46,9 +48,7 @@ def new_archive_path(archive: Path) -> Path:
 
 
 def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output: Path | None = None) -> Path:
-    from ..report.load import validate_archive  # clear messages for foreign or damaged files
-
-    validate_archive(archive)
+    validate_archive(archive)  # every dataset within bounds and intact, or a clear message naming it
     out = output or new_archive_path(archive)
     with tempfile.NamedTemporaryFile(dir=out.parent, suffix=".partial", delete=False) as tmp:
         partial = Path(tmp.name)
@@ -60,6 +60,8 @@ def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output
             if protocol_file is not None:
                 settings_source = load_protocol(find_protocol(protocol_file), check_files=False)
             _reprocess(f, settings_source)
+            if is_marked(f):
+                seal_missing(f)  # the new results carry checksums like everything else
             set_attrs(
                 f,
                 {

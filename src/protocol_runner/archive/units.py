@@ -9,25 +9,21 @@ unit from a truncated or foreign one. "The file exists" never means "complete".
 from __future__ import annotations
 
 import contextlib
-import errno
 import hashlib
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
 
-from ..errors import EXIT_INTERRUPTED, UserError
+from ..errors import InvalidInput
+from .checksums import mark, seal_missing
+from .diskfull import DiskFull as DiskFull  # re-exported: the unit writer's error
+from .diskfull import is_disk_full, resume_hint
 from .h5util import group_name
 
 COMPLETE_ATTR = "unit_complete"
-
-
-class DiskFull(UserError):
-    """No space left while writing a unit: nothing completed is lost; free space and --resume."""
-
-    exit_code = EXIT_INTERRUPTED
 
 
 @dataclass(frozen=True)
@@ -77,6 +73,8 @@ def write_unit(units_dir: Path, step_id: str, fill: Callable[[h5py.File], None])
         with h5py.File(partial, "w") as f:
             fill(f)
             f.attrs["unit_step_id"] = step_id
+            seal_missing(f)  # datasets written without archive/h5util.py get their checksum too
+            mark(f)
             f.attrs[COMPLETE_ATTR] = True
         _fsync_file(partial)
         digest = sha256_of(partial)
@@ -85,11 +83,9 @@ def write_unit(units_dir: Path, step_id: str, fill: Callable[[h5py.File], None])
     except OSError as exc:
         with contextlib.suppress(OSError):
             partial.unlink()
-        if exc.errno == errno.ENOSPC or "No space left" in str(exc):
+        if is_disk_full(exc):
             raise DiskFull(
-                f"disk full while saving {step_id} in {units_dir}: every step finished before it is kept. "
-                "Free some space, then continue with: run-protocol --resume "
-                f"{units_dir.parent}"
+                f"disk full while saving {step_id} in {units_dir}. {resume_hint(units_dir.parent)}"
             ) from None
         raise
     return UnitRecord(step_id=step_id, file=final.name, sha256=digest, size=final.stat().st_size)
@@ -107,6 +103,24 @@ def unit_is_complete(units_dir: Path, record: UnitRecord) -> bool:
             return bool(f.attrs.get(COMPLETE_ATTR, False)) and f.attrs.get("unit_step_id") == record.step_id
     except (OSError, KeyError):
         return False
+
+
+def checked_unit_files(units_dir: Path, records: Iterable[UnitRecord]) -> list[Path]:
+    """The files of the journaled units, each checked against its journaled size and sha256 before it is
+    consolidated: a unit damaged on disk since it was written is named (exit 2) instead of being copied
+    into the archive; `--resume` then redoes its step."""
+    files = []
+    for record in records:
+        path = units_dir / record.file
+        if not path.is_file():
+            continue  # a unit removed since: its step is redone on resume
+        if path.stat().st_size != record.size or sha256_of(path) != record.sha256:
+            raise InvalidInput(
+                f"{path} is damaged: it no longer matches the sha256 journaled when it was written, so it is "
+                f"not put into the archive. run-protocol --resume {units_dir.parent} redoes its step"
+            )
+        files.append(path)
+    return files
 
 
 def open_unit(units_dir: Path, step_id: str) -> h5py.File:

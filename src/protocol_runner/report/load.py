@@ -1,7 +1,7 @@
 """Read an archive (docs/archive.md) into a `ReportData`, with clear errors for anything that is not one.
 
 `load_report_data(path)` accepts `archive.h5` or the session directory holding it. A corrupt, truncated
-or foreign file raises `protocol_runner.errors.InvalidInput` naming the file and what is wrong; an
+or foreign file, or a dataset outside the layout's bounds or not matching its checksum, raises `protocol_runner.errors.InvalidInput` naming the file and what is wrong; an
 archive of an unfinished session (root `status` other than "complete") loads normally and the report
 marks it incomplete.
 
@@ -21,6 +21,15 @@ from typing import Any
 import h5py
 import numpy as np
 
+from protocol_runner.archive.verify import (
+    Checker,
+    check_root,
+    corrupt,
+    require_hdf5,
+    resolve_archive,
+    short,
+)
+from protocol_runner.archive.verify import validate_archive as validate_archive  # its former home
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.model import (
     BoucWenFit,
@@ -55,8 +64,6 @@ THESIS_COMPARISONS: tuple[tuple[str, str, str, str, tuple[int, ...]], ...] = (
     ("emu", "emu", "5.6", "EMU comparison", (24, 25, 26, 27, 28)),
 )
 
-_ROOT_MARKER = "protocol_sha256"
-_HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
 # Configuration attributes shown as the row of the test matrix, not settings.
 _IDENTITY_ATTRS = {"key", "run", "set", "condition", "profile", "status", "n_trials"}
@@ -68,54 +75,34 @@ def load_report_data(path: Path, *, workers: int | None = None) -> ReportData:
     `workers` > 1 reads the configurations on that many forked processes (decompressing a full
     campaign's trials is most of the load time); None picks 2 for large archives on a multi-core machine.
     Raises `InvalidInput` when the file is missing, not HDF5, truncated or corrupt, not a protocol-runner
-    archive (no root attribute `protocol_sha256`), or lacks the `/configurations` group.
+    archive (no root attribute `protocol_sha256`), lacks the `/configurations` group, or holds a dataset
+    outside the layout's bounds or whose checksum does not match (archive/verify.py): every dataset is
+    checked before the report uses anything.
     """
-    archive = _resolve_archive(Path(path))
-    _require_hdf5(archive)
+    archive = resolve_archive(Path(path))
+    require_hdf5(archive)
     try:
         with h5py.File(archive, "r") as h5:
-            names = _check_and_list(h5, archive)
+            names = check_root(h5, archive)
         # the file is closed before forking: HDF5 handles must not be shared across a fork
         configurations = _load_configurations(archive, names, workers)
         with h5py.File(archive, "r") as h5:
+            Checker.of(h5, archive).check_tree(h5, skip=("configurations",))
             return _read(h5, archive, configurations)
     except InvalidInput:
         raise
     except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:
-        raise _corrupt(archive, exc) from exc
-
-
-def validate_archive(path: Path) -> Path:
-    """Check cheaply that `path` (a file or session directory) is a readable protocol-runner archive.
-
-    Reads only the root attributes and the `/configurations` listing; returns the archive's path.
-    Raises `InvalidInput` with the same messages as `load_report_data`.
-    """
-    archive = _resolve_archive(Path(path))
-    _require_hdf5(archive)
-    try:
-        with h5py.File(archive, "r") as h5:
-            _check_and_list(h5, archive)
-    except InvalidInput:
-        raise
-    except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:
-        raise _corrupt(archive, exc) from exc
-    return archive
-
-
-def _check_and_list(h5: h5py.File, archive: Path) -> list[str]:
-    if _ROOT_MARKER not in h5.attrs:
-        raise InvalidInput(
-            f"{archive} is not a protocol-runner archive: missing root attribute {_ROOT_MARKER}."
-        )
-    if "configurations" not in h5 or not isinstance(h5["configurations"], h5py.Group):
-        raise InvalidInput(f"{archive} is incomplete: missing group /configurations (see docs/archive.md).")
-    return [name for name, grp in h5["configurations"].items() if _is_group(grp)]
+        raise corrupt(archive, exc) from exc
 
 
 def _load_chunk(archive: Path, names: list[str]) -> list[Configuration]:
     with h5py.File(archive, "r") as h5:
-        return [_read_configuration(name, h5["configurations"][name]) for name in names]
+        checker = Checker.of(h5, archive)
+        out = []
+        for name in names:
+            checker.check_tree(h5["configurations"][name])  # all of it, read or not: damage is named
+            out.append(_read_configuration(name, h5["configurations"][name]))
+        return out
 
 
 def _load_configurations(archive: Path, names: list[str], workers: int | None) -> tuple[Configuration, ...]:
@@ -175,53 +162,6 @@ def decimate_for_plot(values: np.ndarray, max_points: int = MAX_PLOT_POINTS) -> 
 
 
 # --------------------------------------------------------------------------------------------- internals
-
-
-def _resolve_archive(path: Path) -> Path:
-    if path.is_dir():
-        candidate = path / "archive.h5"
-        if not candidate.is_file():
-            raise InvalidInput(f"{path} is a directory without an archive.h5 (is it a session directory?).")
-        return candidate
-    if not path.exists():
-        raise InvalidInput(f"{path} does not exist.")
-    return path
-
-
-def _corrupt(archive: Path, exc: BaseException) -> InvalidInput:
-    return InvalidInput(
-        f"{archive} is truncated or corrupt; it cannot be read as an archive ({_short(exc)}). "
-        "Re-consolidate the session or use a backup copy."
-    )
-
-
-def _require_hdf5(archive: Path) -> None:
-    if not _has_hdf5_signature(archive):
-        raise InvalidInput(
-            f"{archive} is not an HDF5 file (no HDF5 signature); expected a protocol-runner archive."
-        )
-
-
-def _has_hdf5_signature(path: Path) -> bool:
-    # The signature sits at offset 0, or 512, 1024, 2048, ... when the file has a user block.
-    try:
-        with path.open("rb") as fh:
-            offset = 0
-            while True:
-                fh.seek(offset)
-                head = fh.read(8)
-                if len(head) < 8:
-                    return False
-                if head == _HDF5_SIGNATURE:
-                    return True
-                offset = 512 if offset == 0 else offset * 2
-    except OSError as exc:
-        raise InvalidInput(f"{path} cannot be read: {exc.strerror or exc}.") from exc
-
-
-def _short(exc: BaseException) -> str:
-    text = str(exc).strip() or type(exc).__name__
-    return text if len(text) <= 160 else text[:157] + "..."
 
 
 def _read(h5: h5py.File, archive: Path, configurations: tuple[Configuration, ...]) -> ReportData:
@@ -668,7 +608,7 @@ def _read_reference_mat(path: Path) -> tuple[np.ndarray, np.ndarray]:
         content = loadmat(str(path))
     except (OSError, ValueError, NotImplementedError, TypeError) as exc:
         raise InvalidInput(
-            f"Reference dataset {path} is not a readable MATLAB .mat file ({_short(exc)})."
+            f"Reference dataset {path} is not a readable MATLAB .mat file ({short(exc)})."
         ) from exc
     names = [k for k in content if not k.startswith("__")]
     angle_name = next((k for k in names if k.lower().startswith("angle")), None)

@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+from ..archive.diskfull import QuietFileHandler
 from ..protocol.plan import CalibrationCheckStep, Plan, Step, TrialStep
 
 
@@ -49,7 +50,7 @@ class Progress:
         self.logger = logging.getLogger(f"protocol_runner.session.{id(self)}")
         self.logger.setLevel(logging.INFO)
         self.logger.propagate = False
-        self._file = logging.FileHandler(log_path, encoding="utf-8")
+        self._file = QuietFileHandler(log_path, encoding="utf-8")  # a full disk: no traceback per line
         self._file.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
         self.logger.addHandler(self._file)
         self.quiet = quiet

@@ -20,7 +20,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..archive.consolidate import ArchiveMeta, consolidate
-from ..archive.units import DiskFull, UnitRecord, unit_is_complete, write_unit
+from ..archive.diskfull import DiskFull, disk_full_error, is_disk_full, resume_hint
+from ..archive.units import UnitRecord, checked_unit_files, unit_is_complete, write_unit
 from ..errors import Interrupted, StoppedByCheck, UserError
 from ..protocol.loader import LoadedProtocol
 from ..protocol.plan import (
@@ -195,12 +196,8 @@ class Runner:
         except StoppedByCheck as exc:
             self._stopped("aborted", exc.message, progress)
             raise
-        except DiskFull:
-            with contextlib.suppress(Exception):
-                self.journal.event("interrupted", "disk full")
-            with contextlib.suppress(Exception):
-                self.bench.rig.park(where="park after disk full")
-            raise
+        except DiskFull as exc:
+            raise self._disk_full(exc) from None
         except UserError as exc:
             self._stopped("stopped", exc.message, progress)
             if not getattr(exc, "resumable", True):
@@ -209,6 +206,8 @@ class Runner:
                 f"{exc.message}\nThe session is resumable: run-protocol --resume {self.dir}"
             ) from None
         except Exception as exc:  # a bug: keep what was finished, record it, and let the traceback show
+            if is_disk_full(exc):  # not a bug: the journal or the report could not be written either
+                raise self._disk_full(exc) from None
             progress.logger.exception("internal error")
             self._stopped("stopped", f"internal error: {exc!r} (traceback in session.log)", progress)
             raise
@@ -355,6 +354,14 @@ class Runner:
         with contextlib.suppress(Exception):
             progress.info(f"session {kind}: {message}")
 
+    def _disk_full(self, exc: Exception) -> DiskFull:
+        """Park, journal the stop if there is room for it, and the error to raise (archive/diskfull.py)."""
+        with contextlib.suppress(Exception):
+            self.journal.event("interrupted", "disk full")
+        with contextlib.suppress(Exception):
+            self.bench.rig.park(where="park after disk full")
+        return exc if isinstance(exc, DiskFull) else disk_full_error(exc, self.dir)
+
     def _finish(self, progress: Progress, skipped: int) -> RunResult:
         clock = getattr(getattr(self.bench, "sim", None), "clock", None)
         robot = f"; {clock.now_s():.1f} s of robot time simulated" if clock is not None else ""
@@ -388,7 +395,7 @@ class Runner:
 
     def consolidate(self, status: str) -> Path:
         records = list(self.journal.units.values()) + list(self.journal.failed.values())
-        files = [self.units_dir / r.file for r in records if (self.units_dir / r.file).is_file()]
+        files = checked_unit_files(self.units_dir, records)
         meta = ArchiveMeta(
             protocol_name=self.info.protocol_name,
             protocol_sha256=self.loaded.sha256,
@@ -423,4 +430,10 @@ class Runner:
             from ..report.render import generate_report
         except ImportError:  # the report module is optional until it lands
             return None
-        return generate_report(archive, self.dir / REPORT_NAME)
+        try:
+            return generate_report(archive, self.dir / REPORT_NAME)
+        except OSError as exc:
+            if not is_disk_full(exc):
+                raise
+            where = f"{self.dir / REPORT_NAME} (the archive is complete)"
+            raise DiskFull(f"disk full while writing {where}. {resume_hint(self.dir)}") from None

@@ -21,6 +21,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 from .. import __version__
+from ..archive.diskfull import creates_session_directory
 from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, load_protocol
 from ..protocol.paths import is_stored_with_session
@@ -70,6 +71,7 @@ def referenced_files(loaded: LoadedProtocol) -> list[str]:
     return files
 
 
+@creates_session_directory  # a full disk or a write error leaves no half-made session behind
 def create_session(
     directory: Path, loaded: LoadedProtocol, *, mode: str, seed: int, only: tuple[int, ...], realtime: bool
 ) -> SessionInfo:

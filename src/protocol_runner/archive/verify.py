@@ -1,0 +1,219 @@
+"""Is this file an intact protocol-runner archive? Clear answers for foreign, damaged or hostile files.
+
+- `Checker`: each dataset's layout (archive/layout.py) is checked before it is read, then its values
+  against its recorded checksum (archive/checksums.py). The report checks every dataset with it before
+  using any, and refuses a damaged one by name (exit 2).
+- `validate_archive`: the path names an HDF5 file with the archive's root marker and `/configurations`,
+  and every dataset passes `Checker` (used by `--reprocess` and `--export-mat` before they read).
+- `verify_path`: `run-protocol --verify SESSION_DIR|ARCHIVE.h5`, every dataset of the archive (and of a
+  session's units), listing every damaged one.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import h5py
+
+from ..errors import InvalidInput
+from .checksums import digest_of_stored, is_marked, recorded_digest
+from .layout import check_layout, element_cap
+from .units import COMPLETE_ATTR
+
+ROOT_MARKER = "protocol_sha256"
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+_READ_ERRORS = (OSError, KeyError, ValueError, TypeError, RuntimeError, UnicodeDecodeError)
+
+
+def short(exc: BaseException) -> str:
+    text = str(exc).strip() or type(exc).__name__
+    return text if len(text) <= 160 else text[:157] + "..."
+
+
+def corrupt(archive: Path, exc: BaseException) -> InvalidInput:
+    return InvalidInput(
+        f"{archive} is truncated or corrupt; it cannot be read as an archive ({short(exc)}). "
+        "Re-consolidate the session or use a backup copy."
+    )
+
+
+def resolve_archive(path: Path) -> Path:
+    """`path` itself, or the `archive.h5` of the session directory `path`."""
+    if path.is_dir():
+        candidate = path / "archive.h5"
+        if not candidate.is_file():
+            raise InvalidInput(f"{path} is a directory without an archive.h5 (is it a session directory?).")
+        return candidate
+    if not path.exists():
+        raise InvalidInput(f"{path} does not exist.")
+    return path
+
+
+def require_hdf5(path: Path) -> None:
+    """The HDF5 signature sits at offset 0, or 512, 1024, 2048, ... when the file has a user block."""
+    try:
+        with path.open("rb") as fh:
+            offset = 0
+            while True:
+                fh.seek(offset)
+                head = fh.read(8)
+                if len(head) < 8:
+                    break
+                if head == HDF5_SIGNATURE:
+                    return
+                offset = 512 if offset == 0 else offset * 2
+    except OSError as exc:
+        raise InvalidInput(f"{path} cannot be read: {exc.strerror or exc}.") from exc
+    raise InvalidInput(f"{path} is not an HDF5 file (no HDF5 signature); expected a protocol-runner archive.")
+
+
+def check_root(h5: h5py.File, archive: Path) -> list[str]:
+    """The names of the archive's configuration groups, after checking its root."""
+    if ROOT_MARKER not in h5.attrs:
+        raise InvalidInput(
+            f"{archive} is not a protocol-runner archive: missing root attribute {ROOT_MARKER}."
+        )
+    if "configurations" not in h5 or not isinstance(h5["configurations"], h5py.Group):
+        raise InvalidInput(f"{archive} is incomplete: missing group /configurations (see docs/archive.md).")
+    return [name for name, grp in h5["configurations"].items() if isinstance(grp, h5py.Group)]
+
+
+def validate_archive(path: Path) -> Path:
+    """Check that `path` (a file or session directory) is a readable, intact protocol-runner archive:
+    its root, then every dataset's layout and checksum (`Checker`). Returns the archive's path; raises
+    `InvalidInput` naming the file, and the dataset, at the first problem."""
+    archive = resolve_archive(Path(path))
+    require_hdf5(archive)
+    try:
+        with h5py.File(archive, "r") as h5:
+            check_root(h5, archive)
+            Checker.of(h5, archive).check_tree(h5)
+    except InvalidInput:
+        raise
+    except _READ_ERRORS as exc:
+        raise corrupt(archive, exc) from exc
+    return archive
+
+
+@dataclass
+class Checker:
+    """Checks datasets of one open file: layout first, then the checksum. `strict` (the file declares
+    checksums) makes a dataset without one an error; otherwise (an archive written before checksums)
+    only the layout is checked."""
+
+    label: str
+    cap: int
+    strict: bool
+    checked: int = 0
+    unsummed: int = 0
+
+    @classmethod
+    def of(cls, f: h5py.File, label: object) -> Checker:
+        return cls(str(label), element_cap(f), is_marked(f))
+
+    def check(self, ds: h5py.Dataset) -> None:
+        """Raise `InvalidInput` naming the file and the dataset unless it is within bounds and intact."""
+        where = f"{self.label}: dataset {ds.name}"
+        check_layout(ds, self.cap, where)
+        recorded = recorded_digest(ds)
+        if recorded is None:
+            if self.strict:
+                raise InvalidInput(f"{where} has no checksum although the file declares one on every dataset")
+            self.unsummed += 1
+            return
+        try:
+            actual = digest_of_stored(ds)
+        except _READ_ERRORS as exc:
+            raise InvalidInput(f"{where} is damaged: it cannot be read ({short(exc)})") from None
+        if actual != recorded:
+            raise InvalidInput(
+                f"{where} is damaged: its data no longer match the sha256 checksum recorded when it was "
+                "written. Check the file with run-protocol --verify; use a backup copy, or re-consolidate "
+                "the session from its units"
+            )
+        self.checked += 1
+
+    def check_tree(self, group: h5py.Group, skip: tuple[str, ...] = ()) -> None:
+        """Check every dataset under `group` (names in `skip`, directly under it, excluded)."""
+        for name, obj in group.items():
+            if name in skip:
+                continue
+            if isinstance(obj, h5py.Dataset):
+                self.check(obj)
+            elif isinstance(obj, h5py.Group):
+                self.check_tree(obj)
+
+    def problems(self, group: h5py.Group) -> list[str]:
+        """Every dataset under `group` that fails `check`, as messages (for --verify)."""
+        found: list[str] = []
+
+        def visit(_: str, obj: object) -> None:
+            if isinstance(obj, h5py.Dataset):
+                try:
+                    self.check(obj)
+                except InvalidInput as exc:
+                    found.append(exc.message)
+
+        group.visititems(visit)
+        return found
+
+
+@dataclass
+class Verdict:
+    lines: list[str] = field(default_factory=list)  # one summary per file
+    problems: list[str] = field(default_factory=list)
+
+
+def verify_path(path: Path) -> Verdict:
+    """`--verify`: an archive file, or a session directory (its archive.h5 and its units/*.h5)."""
+    path = Path(path)
+    verdict = Verdict()
+    if path.is_file():
+        _verify_file(path, verdict)
+        return verdict
+    if not path.is_dir():
+        raise InvalidInput(f"{path}: no such archive or session directory")
+    units = sorted((path / "units").glob("*.h5"))
+    if not (path / "archive.h5").is_file() and not units:
+        raise InvalidInput(f"{path}: neither an archive.h5 nor a session directory with units")
+    if (path / "archive.h5").is_file():
+        _verify_file(path / "archive.h5", verdict)
+    if units:
+        each = Verdict()
+        datasets = sum(_verify_file(unit, each) for unit in units)
+        verdict.problems.extend(each.problems)
+        if not each.problems:
+            verdict.lines.append(
+                f"{path / 'units'}: {len(units)} units, {datasets} datasets, every checksum matches"
+            )
+    return verdict
+
+
+def _verify_file(file: Path, verdict: Verdict) -> int:
+    """Check `file`, adding its summary or its problems to `verdict`; the number of datasets verified."""
+    try:
+        require_hdf5(file)
+        with h5py.File(file, "r") as h5:
+            if "unit_step_id" in h5.attrs:  # a unit: a fragment of the archive, no root of its own
+                if not h5.attrs.get(COMPLETE_ATTR, False):
+                    raise InvalidInput(f"{file}: not a complete unit (resume redoes its step)")
+            else:
+                check_root(h5, file)
+            checker = Checker.of(h5, file)
+            found = checker.problems(h5)
+    except InvalidInput as exc:
+        verdict.problems.append(exc.message)
+        return 0
+    except _READ_ERRORS as exc:
+        verdict.problems.append(corrupt(file, exc).message)
+        return 0
+    verdict.problems.extend(found)
+    if checker.unsummed and not checker.checked:
+        verdict.problems.append(
+            f"{file}: has no checksums (written by a protocol-runner older than --verify); cannot be verified"
+        )
+    elif not found:
+        unsummed = f" ({checker.unsummed} written without one)" if checker.unsummed else ""
+        verdict.lines.append(f"{file}: {checker.checked} datasets, every checksum matches{unsummed}")
+    return checker.checked
