@@ -105,42 +105,43 @@ def _trial_order(name: str) -> tuple[int, int, str]:
 def _configuration(f: h5py.File, cfg: h5py.Group, meta: dict[str, Any], where: str) -> dict[str, Any]:
     units = Units(where)
     content: dict[str, Any] = {"meta": meta, "configuration": attrs_struct(cfg, where)}
-    trials = cfg.get("trials")
-    if isinstance(trials, h5py.Group):
-        for n in sorted(trials, key=_trial_order):
-            group = trials[n]
-            if not isinstance(group, h5py.Group):
-                continue
-            trial: dict[str, Any] = {}
-            processed = group.get("processed")
-            if isinstance(processed, h5py.Group):
-                trial.update(group_struct(processed, units, where))
-            for sub, obj in group.items():
-                if sub != "processed" and isinstance(obj, h5py.Group):
-                    put_field(trial, sub, group_struct(obj, units, where))
-            put_field(content, n, trial, prefix="trial")
-    _energies(cfg, content, units, where)
-    fits = cfg.get("fits")
-    if isinstance(fits, h5py.Group):
-        for name, fit in fits.items():
-            if isinstance(fit, h5py.Group):
-                put_field(content, name, group_struct(fit, units, where))
+    for name, obj in cfg.items():
+        if name == "trials" and isinstance(obj, h5py.Group):
+            for n in sorted(obj, key=_trial_order):
+                if isinstance(obj[n], h5py.Group):
+                    put_field(content, n, _trial(obj[n], units, where), prefix="trial")
+        elif name == "fits" and isinstance(obj, h5py.Group):
+            for fit, group in obj.items():
+                if isinstance(group, h5py.Group):
+                    put_field(content, fit, group_struct(group, units, where))
+        elif isinstance(obj, h5py.Group):
+            put_field(content, name, group_struct(obj, units, where))
+        elif isinstance(obj, h5py.Dataset):
+            units.add(put_field(content, name, dataset_value(obj, where)), obj)
+    _energy_stats(cfg, content, units, where)
     calibration = f.get("calibration")
     cal_set = cfg.attrs.get("set")
     if isinstance(calibration, h5py.Group) and cal_set is not None:
         records = calibration.get(text(cal_set))
         if isinstance(records, h5py.Group):
-            content["calibration"] = group_struct(records, units, where)
+            put_field(content, "calibration", group_struct(records, units, where))
     content["units"] = units.struct()
     return content
 
 
-def _energies(cfg: h5py.Group, content: dict[str, Any], units: Units, where: str) -> None:
-    for name in ("energy_loss_j", "energy_cycle_trial"):
-        ds = cfg.get(name)
-        if isinstance(ds, h5py.Dataset):
-            content[name] = dataset_value(ds, where)
-            units.add(name, ds)
+def _trial(group: h5py.Group, units: Units, where: str) -> dict[str, Any]:
+    """A trial: its processed data and their attributes as its own fields, raw recordings as structs."""
+    trial: dict[str, Any] = {}
+    processed = group.get("processed")
+    if isinstance(processed, h5py.Group):
+        trial.update(group_struct(processed, units, where))
+    for sub, obj in group.items():
+        if sub != "processed" and isinstance(obj, h5py.Group):
+            put_field(trial, sub, group_struct(obj, units, where))
+    return trial
+
+
+def _energy_stats(cfg: h5py.Group, content: dict[str, Any], units: Units, where: str) -> None:
     loss = cfg.get("energy_loss_j")
     if isinstance(loss, h5py.Dataset):
         for stat in ("mean_j", "std_j"):
