@@ -169,7 +169,8 @@ def test_numbers_are_double_1d_arrays_columns_and_names_valid(exported: tuple[Pa
 
 
 def test_old_archives_transition_index_and_big_integers(exported: tuple[Path, Path], tmp_path: Path) -> None:
-    """An archive written before the `_index0` rename is exported the same; a seed beyond 2**53 stays exact."""
+    """An archive written before the `_index0` rename and the fixed-length text is exported the same; a seed
+    beyond 2**53 stays exact."""
     archive, out = exported
     old = tmp_path / "old.h5"
     shutil.copyfile(archive, old)
@@ -177,7 +178,15 @@ def test_old_archives_transition_index_and_big_integers(exported: tuple[Path, Pa
         g = f["configurations/config_12/trials/1/processed"]
         g.attrs["transition_index_on"] = g.attrs.pop("transition_index0_on")
         f.attrs["seed"] = np.int64(2**60 + 1)
+        text = f["protocol"][()].decode()
+        del f["protocol"]  # text as variable-length strings, as archives were written before
+        f.create_dataset("protocol", data=text, dtype=h5py.string_dtype())
+        events = [e.decode() for e in f["session/events"][()]]
+        del f["session/events"]
+        f["session"].create_dataset("events", data=events, dtype=h5py.string_dtype())
     export_mat(old, tmp_path / "mat")
+    session = _load(tmp_path / "mat" / "session.mat")
+    assert session["protocol"] == text and list(session["session"].events) == events
     m = _load(tmp_path / "mat" / "config_12.mat")
     assert m["trial_1"].transition_index1_on == _load(out / "config_12.mat")["trial_1"].transition_index1_on
     assert isinstance(m["meta"].seed, int) and m["meta"].seed == 2**60 + 1  # int64, not a rounded double
