@@ -118,6 +118,7 @@ def test_every_attribute_is_exported_with_indices_made_one_based(exported: tuple
 
         f.visititems(visit)
         cfg = f["configurations/config_12"]
+        assert {"transition_index0_on", "transition_index0_off"} <= set(cfg["trials/1/processed"].attrs)
         mat = files["config_12.mat"]
         assert mat["energy_mean_j"] == cfg["energy_loss_j"].attrs["mean_j"]
         assert mat["energy_std_j"] == cfg["energy_loss_j"].attrs["std_j"]
