@@ -113,7 +113,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --reprocess: take processing settings from this file",
     )
     out.add_argument(
-        "--export-mat", metavar="DIR", help="with --report: write each configuration's processed data as .mat"
+        "--export-mat", metavar="DIR", help="with --report: write the archive as .mat files (docs/matlab.md)"
     )
     parser.add_argument("--version", action="version", version=f"protocol-runner {__version__}")
     return parser

@@ -75,7 +75,7 @@ def test_reprocess_refuses_a_foreign_file(tmp_path: Path) -> None:
 
 def test_export_mat_writes_each_configuration(archive_alone: Path, tmp_path: Path) -> None:
     files = export_mat(archive_alone, tmp_path / "mat")
-    assert [p.name for p in files] == ["config_12.mat"]
+    assert [p.name for p in files] == ["config_12.mat", "session.mat"]
     m = loadmat(files[0], squeeze_me=True, struct_as_record=False)
     with h5py.File(archive_alone, "r") as f:
         cfg = f["configurations/config_12"]

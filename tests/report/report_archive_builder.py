@@ -272,8 +272,8 @@ def write_archive(path: Path, spec: ArchiveSpec) -> Path:
                 _ds(pg, "time_s", time_s, "s")
                 _ds(pg, "angle_deg", angle, "deg")
                 _ds(pg, "brace_torque_nm", brace, "N*m")
-                pg.attrs["transition_index_on"] = 0
-                pg.attrs["transition_index_off"] = 0
+                pg.attrs["transition_index0_on"] = 0
+                pg.attrs["transition_index0_off"] = 0
                 pg.attrs["subtraction"] = "equal_angle"
                 pg.attrs["filter"] = json.dumps({"kind": "butterworth", "order": 10})
                 n_cycles = int(spec.duration_s // period)

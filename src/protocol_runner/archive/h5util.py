@@ -28,7 +28,6 @@ SHUFFLE_PROBE = 8192
 chain: a signal converted from ADC codes (few distinct 4-byte patterns) deflates ~25 % smaller, and faster,
 unshuffled; a smooth processed signal is smaller shuffled."""
 SIGNAL = np.float32  # measured and processed signals: 7 significant digits, far below sensor resolution
-_STR = h5py.string_dtype("utf-8")
 
 
 def put(
@@ -121,19 +120,34 @@ def _shuffle_helps(arr: npt.NDArray[Any]) -> bool:
     )
 
 
+def fixed_text(text: str | list[str]) -> npt.NDArray[np.bytes_]:
+    """`text` (one string, or a list of lines) as fixed-length byte strings of its UTF-8 encoding.
+
+    The archive's text datasets use this type because GNU Octave's built-in `load` reads it: Octave
+    cannot read variable-length strings nor the HDF5 UTF-8 character set, and one unreadable dataset
+    stops its `load` for the rest of the file (docs/matlab.md). An empty list is stored as one empty
+    line: Octave cannot read a string array of length 0."""
+    if isinstance(text, str):
+        return np.array(text.encode("utf-8"), dtype="S")
+    encoded = [line.encode("utf-8") for line in text] or [b""]
+    return np.array(encoded, dtype=f"S{max(1, *(len(b) for b in encoded))}")
+
+
 def put_text(group: h5py.Group, name: str, text: str) -> h5py.Dataset:
     if name in group:
         del group[name]
-    ds = group.create_dataset(name, data=text, dtype=_STR)
-    seal(ds, text)
+    data = fixed_text(text)
+    ds = group.create_dataset(name, data=data)
+    seal(ds, data)
     return ds
 
 
 def put_lines(group: h5py.Group, name: str, lines: list[str]) -> h5py.Dataset:
     if name in group:
         del group[name]
-    ds = group.create_dataset(name, data=np.array(lines, dtype=object), dtype=_STR)
-    seal(ds, lines)
+    data = fixed_text(lines)
+    ds = group.create_dataset(name, data=data)
+    seal(ds, data)
     return ds
 
 

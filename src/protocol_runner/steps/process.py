@@ -94,8 +94,8 @@ def processed_fill(name: str, result: ConfigurationResult, settings: ProcessingS
             set_attrs(
                 g,
                 {
-                    "transition_index_on": int(t.transition_index_on),
-                    "transition_index_off": int(t.transition_index_off),
+                    "transition_index0_on": int(t.transition_index_on),
+                    "transition_index0_off": int(t.transition_index_off),
                     "subtraction": settings.subtraction,
                     "filter": json.dumps(settings.filter_description()),
                     "coverage": float(t.coverage),
