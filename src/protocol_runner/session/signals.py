@@ -3,15 +3,32 @@
 The first signal sets a flag that the runner checks between steps and the rig's loop polls during a
 trial (~every 100 ms); the session then parks the joint, writes its journal and exits 130, resumable.
 A second SIGINT raises KeyboardInterrupt immediately: only complete units stay behind (units are atomic).
+
+Ctrl-C on a terminal signals the whole process group, worker processes included: `sigint_blocked` keeps
+SIGINT blocked while a worker is started, so the worker inherits the block (and then ignores SIGINT) instead
+of dying with a traceback while it is still importing; the parent receives the signal once unblocked.
 """
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import sys
 import threading
+from collections.abc import Iterator
 from types import FrameType
 from typing import Any
+
+
+@contextlib.contextmanager
+def sigint_blocked() -> Iterator[None]:
+    """Block SIGINT in this thread for the duration (one that arrives meanwhile is delivered at the end, not
+    lost); processes started meanwhile inherit the block. SIGTERM stays open: the pool may need it."""
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 class StopFlag:
