@@ -15,6 +15,7 @@ import multiprocessing
 import os
 import signal
 from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import wait as futures_wait
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -184,6 +185,7 @@ class Runner:
                 f"{exc.message}. The session is resumable: run-protocol --resume {self.dir}"
             ) from None
         except KeyboardInterrupt:
+            self._kill_pool()
             with contextlib.suppress(Exception):
                 self.journal.event("interrupted", "stopped at once (second Ctrl-C)")
             raise Interrupted(
@@ -208,7 +210,10 @@ class Runner:
             self._stopped("stopped", f"internal error: {exc!r} (traceback in session.log)", progress)
             raise
         finally:
-            self._shutdown_pool(progress)
+            try:
+                self._shutdown_pool(progress)
+            except KeyboardInterrupt:  # Ctrl-C while waiting for the analyses: stop them now
+                self._kill_pool()
             self.stop.uninstall()
             progress.close()
             with contextlib.suppress(Exception):
@@ -256,6 +261,9 @@ class Runner:
             return
         for _, future in self._pending:
             future.cancel()
+        # wait for the running ones here, not inside the pool's shutdown: a second Ctrl-C meanwhile must not
+        # interrupt the pool's own bookkeeping (see _kill_pool)
+        futures_wait([future for _, future in self._pending])
         self._pool.shutdown(wait=True, cancel_futures=True)
         for chain, future in self._pending:
             if future.cancelled() or future.exception() is not None:
@@ -265,6 +273,18 @@ class Runner:
                     if record is not None:
                         self.journal.unit_done(record)
                     progress.step_finished(step, summary)
+        self._pending.clear()
+        self._pool = None
+
+    def _kill_pool(self) -> None:
+        """Stop at once: end the analysis workers (units are atomic: an unfinished one is redone on resume)."""
+        if self._pool is None:
+            return
+        for proc in list(getattr(self._pool, "_processes", {}).values()):
+            with contextlib.suppress(Exception):
+                proc.kill()
+        with contextlib.suppress(Exception):  # quick with the workers gone; its thread must end before exit
+            self._pool.shutdown(wait=True, cancel_futures=True)
         self._pending.clear()
         self._pool = None
 
@@ -292,6 +312,7 @@ class Runner:
             try:
                 action()
             except KeyboardInterrupt:
+                self._kill_pool()
                 with contextlib.suppress(Exception):
                     self.journal.event("interrupted", "stopped at once (second Ctrl-C)")
                 return

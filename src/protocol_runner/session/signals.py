@@ -36,6 +36,7 @@ class StopFlag:
         self._event = threading.Event()
         self.signal_name = ""
         self._previous: dict[int, Any] = {}
+        self._signalled = False
 
     def __call__(self) -> bool:
         return self._event.is_set()
@@ -46,6 +47,7 @@ class StopFlag:
 
     def _handler(self, signum: int, frame: FrameType | None) -> None:
         name = signal.Signals(signum).name
+        self._signalled = True
         if self._event.is_set() and signum == signal.SIGINT:
             raise KeyboardInterrupt
         self.request(name)
@@ -63,6 +65,9 @@ class StopFlag:
             self._previous[sig] = signal.signal(sig, self._handler)
 
     def uninstall(self) -> None:
+        """Restore the previous handlers; after a stop by signal, ignore SIGINT instead: the process is on
+        its way out, and another Ctrl-C during its exit would only print a traceback."""
         for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
+            stopping = self._signalled and sig == signal.SIGINT
+            signal.signal(sig, signal.SIG_IGN if stopping else handler)
         self._previous.clear()
