@@ -155,3 +155,29 @@ def test_quitting_at_a_resume_prompt_stops_resumable(tmp_path: Path, monkeypatch
         resume(session, yes=True, force=False, realtime=False, quiet=True)
     assert "--resume" in info.value.message
     assert set(Journal(session / "journal.jsonl").units) == done  # nothing ran, nothing lost
+
+
+def test_resume_in_the_second_set_with_the_first_sets_analysis_to_redo(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Two sets (--only 12,21). The stop falls inside the second set (largest springs) and the first set's
+    processing must be redone too (its unit lost, as after a kill -9 while a worker wrote it): the rig is
+    still set up for the second set's next trial, after its re-check with the brace off."""
+    only = [12, 21]
+    reference = tmp_path / "uninterrupted"
+    assert run_dry(reference, only=only) == 0
+    session = tmp_path / "resumed"
+    with monkeypatch.context() as m:
+        interrupt_after(m, "trial:k21:on:1")
+        with pytest.raises(Interrupted):
+            run_dry(session, only=only)
+    (session / "units" / "process__k12.h5").write_bytes(b"")  # damaged: redone on resume
+    seen = brace_at_each_step(monkeypatch)
+    assert resume(session, yes=True, force=False, realtime=False, quiet=True) == 0
+
+    steps = dict(seen)
+    assert steps["cal:rom_large_spring:resume-1"] is None
+    fitted = steps["trial:k21:on:2"]
+    assert fitted is not None and fitted.stiffness_n_per_mm > 0  # before: the brace-off state of set 1
+    assert [a["as_in"] for a in answers(session)][-1] == "check:rom_large_spring:k21"
+    assert_same_data(reference / "archive.h5", session / "archive.h5")
