@@ -3,8 +3,8 @@
 For every step not yet journaled as complete: run it (steps/registry.py), write its unit atomically
 (archive/units.py), then journal it. A resume skips journaled units whose files verify, redoes corrupt
 or partial ones, and sets the rig up for the step it continues with (session/resume.py). SIGINT/SIGTERM
-stop at the next safe point, park the joint, and exit 130 with the session resumable. At the end (and at every stop) the units are
-consolidated into `archive.h5`, and the report is rendered.
+stop at the next safe point, park the joint, and exit 130 with the session resumable. At the end (and at
+every stop) the units are consolidated into `archive.h5`, and the report is rendered.
 """
 
 from __future__ import annotations
