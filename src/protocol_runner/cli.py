@@ -21,7 +21,7 @@ Run a declarative test protocol for space-suit joint testing on the RSST robot.
 modes:
   run-protocol PROTOCOL [--dry-run] [--session DIR] [--seed N] [--yes] [--only KEYS]
       run a campaign; --dry-run rehearses it against the DAQ simulator in simulated time
-  run-protocol --resume SESSION_DIR [--yes]
+  run-protocol --resume SESSION_DIR [--yes] [--force]
       continue an interrupted session without redoing finished steps
   run-protocol --report SESSION_DIR|ARCHIVE.h5 [--output FILE] [--reprocess] [--export-mat DIR]
       (re)generate the HTML report from an archive alone
@@ -97,7 +97,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument(
         "--force",
         action="store_true",
-        help="with --resume: accept a protocol whose text changed since the session began",
+        help="with --resume: accept a changed protocol or referenced file, or a missing journal (recorded)",
     )
     out = parser.add_argument_group("output")
     out.add_argument(
@@ -174,7 +174,16 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     if args.resume is not None:
         from .commands import resume
 
-        return resume(Path(args.resume), yes=args.yes, force=args.force, realtime=args.realtime)
+        if args.protocol is not None:
+            raise InvalidInput("--resume continues a session with its own stored protocol: drop PROTOCOL")
+        return resume(
+            Path(args.resume),
+            yes=args.yes,
+            force=args.force,
+            realtime=args.realtime,
+            seed=args.seed,
+            only=parse_only(args.only),
+        )
     if args.protocol is None:
         parser.print_usage(sys.stderr)
         print(

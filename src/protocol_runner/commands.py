@@ -89,12 +89,27 @@ def _operator(automatic: bool) -> Operator:
     return AutoOperator() if automatic else ConsoleOperator()
 
 
-def resume(session_dir: Path, *, yes: bool, force: bool, realtime: bool, quiet: bool = False) -> int:
+def resume(
+    session_dir: Path,
+    *,
+    yes: bool,
+    force: bool,
+    realtime: bool,
+    quiet: bool = False,
+    seed: int | None = None,
+    only: KeySelection | None = None,
+) -> int:
+    from .session.resume import check_resume_arguments, resume_preflight
     from .session.runner import Runner
     from .session.setup import load_session_protocol, read_session_info
 
     info = read_session_info(session_dir)
+    check_resume_arguments(info, seed=seed, only=only)
     loaded, plan, changed = load_session_protocol(session_dir, info, force=force)
+    complete = resume_preflight(session_dir, plan, force=force)
+    if complete is not None:
+        _say(complete)
+        return EXIT_OK
     bench = _bench(loaded, info)
     operator = _operator(info.mode == "dry-run" or yes)
     _say(f"resuming {session_dir}: {info.protocol_name} ({info.mode}, seed {info.seed})")

@@ -69,6 +69,12 @@ def _assert_same(got: Any, stored: Any, what: str) -> None:
         )
 
 
+def _datasets(group: h5py.Group) -> list[tuple[str, h5py.Dataset]]:
+    found: list[tuple[str, h5py.Dataset]] = []
+    group.visititems(lambda n, o: found.append((n, o)) if isinstance(o, h5py.Dataset) else None)
+    return found
+
+
 def test_every_dataset_is_exported_with_its_value_and_unit(exported: tuple[Path, Path]) -> None:
     archive, out = exported
     files = {p.name: _load(p) for p in sorted(out.glob("*.mat"))}
@@ -91,8 +97,7 @@ def test_every_dataset_is_exported_with_its_value_and_unit(exported: tuple[Path,
         cfg = files["config_12.mat"]
         cal = f[f"calibration/{f['configurations/config_12'].attrs['set']}"]
         for when, group in cal.items():
-            datasets: list[tuple[str, h5py.Dataset]] = []
-            group.visititems(lambda n, o: datasets.append((n, o)) if isinstance(o, h5py.Dataset) else None)
+            datasets = _datasets(group)
             assert datasets
             for name, ds in datasets:
                 path = ["calibration", when, *name.split("/")]

@@ -46,6 +46,10 @@ class KeySelection:
             raise InvalidInput("--only: give at least one configuration key, e.g. --only 4,5,6,7")
         return cls(tuple(ranges))
 
+    def text(self) -> str:
+        """The selection as `--only` takes it, e.g. "4,5,12-14"."""
+        return ",".join(str(lo) if lo == hi else f"{lo}-{hi}" for lo, hi in self.ranges)
+
     def select(self, keys: Iterable[int], file_name: str) -> list[int]:
         """The protocol keys chosen, sorted; `InvalidInput` naming the unknown ones if any is not a key."""
         known = sorted(set(keys))

@@ -1,18 +1,21 @@
 """Operator prompts: the checklists a person works through at the rig, and decisions on failed checks.
 
 `AutoOperator` answers for a dry run or `--yes` (checklists done; a failed calibration check is NOT
-accepted automatically: safety first). `ConsoleOperator` asks on the terminal with rich.
+accepted automatically: safety first). `ConsoleOperator` asks on the terminal with rich: protocol text
+shown verbatim, explicit answers only.
 """
 
 from __future__ import annotations
 
 import sys
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol, TextIO
 
 from ..errors import Interrupted, InvalidInput
 from ..protocol.plan import ChecklistStep
 from .journal import utc_now
+
+ANSWERS = {"y": "y", "yes": "y", "n": "n", "no": "n", "q": "q", "quit": "q"}  # nothing else counts
 
 
 @dataclass(frozen=True)
@@ -44,39 +47,48 @@ class AutoOperator:
 
 
 class ConsoleOperator:
-    """Asks on the terminal. Without a terminal it refuses to guess: use --yes or --dry-run."""
+    """Asks on the terminal. Without a terminal it refuses to guess: use --yes or --dry-run.
 
-    def __init__(self) -> None:
-        if not sys.stdin.isatty():
+    Text from the protocol is shown exactly as written (never read as rich markup: `[K3]` stays `[K3]`),
+    and a question is answered only by an explicit y, n or q: Enter alone asks again."""
+
+    def __init__(self, console: Any = None, stdin: TextIO | None = None) -> None:
+        if stdin is None and not sys.stdin.isatty():
             raise InvalidInput("operator prompts need a terminal; answer them automatically with --yes")
         from rich.console import Console
 
-        self.console = Console(stderr=True)
+        self.console = console if console is not None else Console(stderr=True)
+        self.stdin = stdin if stdin is not None else sys.stdin
 
-    def _ask(self, question: str, *, default: str | None = None) -> str:
-        from rich.prompt import Prompt
-
-        try:
-            if default is None:
-                return Prompt.ask(question, choices=["y", "n", "q"], console=self.console)
-            return Prompt.ask(question, choices=["y", "n", "q"], default=default, console=self.console)
-        except EOFError:
-            raise Interrupted("no answer from the operator (end of input)") from None
+    def _ask(self, question: str) -> str:
+        """An explicit y/n/q; anything else (Enter alone included) asks again. End of input stops."""
+        while True:
+            self.console.print(question + " ", end="", markup=False, highlight=False)
+            line = self.stdin.readline()
+            if not line:
+                raise Interrupted("no answer from the operator (end of input)")
+            reply = ANSWERS.get(line.strip().lower())
+            if reply is not None:
+                return reply
+            self.console.print("Please answer y, n or q.", markup=False, highlight=False)
 
     def checklist(self, step: ChecklistStep) -> Answer:
         from rich.panel import Panel
+        from rich.text import Text
 
-        body = "\n".join(f"[ ] {item}" for item in step.items)
+        body = Text("\n".join(f"[ ] {item}" for item in step.items))
         while True:
-            self.console.print(Panel(body, title=step.title, subtitle=step.id))
-            reply = self._ask("All done? (y = done, n = show again, q = stop here, resumable)", default="y")
+            self.console.print(Panel(body, title=Text(step.title), subtitle=Text(step.id)))
+            reply = self._ask("All done? (y = done, n = show again, q = stop here, resumable)")
             if reply == "y":
                 return Answer("done", utc_now(), automatic=False)
             if reply == "q":
                 raise Interrupted(f"stopped by the operator at {step.id}")
 
     def accept_failed_check(self, message: str) -> bool:
-        self.console.print(f"[bold red]{message}[/]")
+        from rich.text import Text
+
+        self.console.print(Text(message, style="bold red"))
         reply = self._ask("Accept this result and continue? (y/n; q = stop here, resumable)")
         if reply == "q":
             raise Interrupted("stopped by the operator after a failed calibration check")

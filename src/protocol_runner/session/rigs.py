@@ -109,8 +109,27 @@ class HardwareBench:
                 close()
 
 
+def refuse_unsupported_input(loaded: LoadedProtocol) -> None:
+    """A protocol naming the DT9814 as its input board: say where, why, and what to do instead (exit 3)."""
+    rig_spec = loaded.protocol.rig
+    if rig_spec.input.board != "dt9814":
+        return
+    line = loaded.line_of(("rig", "input", "board"))
+    where = f"{loaded.path}" + (f" line {line}" if line else "")
+    raise HardwareUnavailable(
+        f"{where}: rig.input.board is dt9814. protocol-runner cannot record with a DT9814 on Linux: the only "
+        "known protocol for it (the DT9812's, UNVERIFIED for the DT9814) has no hardware-paced scan and reaches "
+        "8 channels, so there is no opt-in to try it. To run on the rig: connect the inputs to three MCC "
+        "USB-1608FS-Plus boards (board k gives channels 8k to 8k+7, so the channel numbers stay), copy the "
+        "protocol's folder and set rig.input.board: usb1608fs in the copy (docs/hardware.md, \"Opening the "
+        'rig from a protocol"); check the boards with run-protocol --hardware-check COPY. Or rehearse '
+        "with --dry-run."
+    )
+
+
 def open_hardware_rig(loaded: LoadedProtocol) -> Rig:
     """Open the boards the protocol names; HardwareUnavailable (exit 3) with a plain message if absent."""
+    refuse_unsupported_input(loaded)
     rig_spec = loaded.protocol.rig
     try:
         from ..hardware import discovery

@@ -2,10 +2,9 @@
 
 For every step not yet journaled as complete: run it (steps/registry.py), write its unit atomically
 (archive/units.py), then journal it. A resume skips journaled units whose files verify, redoes corrupt
-or partial ones, re-runs the set's calibration check first when resuming inside a set (kept as a separate
-record), and asks the operator to confirm the brace's state. SIGINT/SIGTERM stop at the next safe point,
-park the joint, and exit 130 with the session resumable. At the end (and at every stop) the units are
-consolidated into `archive.h5`, and the report is rendered.
+or partial ones, and sets the rig up for the step it continues with (session/resume.py). SIGINT/SIGTERM
+stop at the next safe point, park the joint, and exit 130 with the session resumable. At the end (and at
+every stop) the units are consolidated into `archive.h5`, and the report is rendered.
 """
 
 from __future__ import annotations
@@ -16,33 +15,31 @@ import multiprocessing
 import os
 import signal
 from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import wait as futures_wait
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..archive.consolidate import ArchiveMeta, consolidate
 from ..archive.diskfull import DiskFull, disk_full_error, is_disk_full, resume_hint
-from ..archive.units import UnitRecord, checked_unit_files, unit_is_complete, write_unit
+from ..archive.units import UnitRecord, checked_unit_files, write_unit
 from ..errors import Interrupted, StoppedByCheck, UserError
 from ..protocol.loader import LoadedProtocol
 from ..protocol.plan import (
-    CalibrationCheckStep,
-    ChecklistStep,
     Plan,
     ProcessStep,
     Step,
     TrialStep,
-    calibration_id,
     configuration_name,
 )
-from ..steps import calibration_check
 from ..steps.context import Bench, StepContext, StepOutcome, processing_settings
 from ..steps.failures import run_step
 from .journal import Journal, utc_now
 from .lock import session_lock
 from .operator import Operator
 from .progress import Progress
+from .resume import prepare_resume
 from .setup import SessionInfo
-from .signals import StopFlag
+from .signals import StopFlag, sigint_blocked
 
 ARCHIVE_NAME = "archive.h5"
 REPORT_NAME = "report.html"
@@ -157,9 +154,10 @@ class Runner:
         skipped = 0
         try:
             if self.resumed:
-                self._prepare_resume(ctx, progress)
+                prepare_resume(self, ctx, progress)  # session/resume.py
             else:
                 self.journal.event("started", f"{self.info.mode}, seed {self.info.seed}")
+                self.journal.event("referenced_files", json.dumps(self.info.files_sha256, sort_keys=True))
             for step in self.plan.steps:
                 self._collect(progress, wait=False)
                 if step.id in self.journal.units:
@@ -188,6 +186,7 @@ class Runner:
                 f"{exc.message}. The session is resumable: run-protocol --resume {self.dir}"
             ) from None
         except KeyboardInterrupt:
+            self._kill_pool()
             with contextlib.suppress(Exception):
                 self.journal.event("interrupted", "stopped at once (second Ctrl-C)")
             raise Interrupted(
@@ -212,7 +211,10 @@ class Runner:
             self._stopped("stopped", f"internal error: {exc!r} (traceback in session.log)", progress)
             raise
         finally:
-            self._shutdown_pool(progress)
+            try:
+                self._shutdown_pool(progress)
+            except KeyboardInterrupt:  # Ctrl-C while waiting for the analyses: stop them now
+                self._kill_pool()
             self.stop.uninstall()
             progress.close()
             with contextlib.suppress(Exception):
@@ -233,9 +235,10 @@ class Runner:
             if fit in self.plan._index and fit not in self.journal.units:
                 chain.append(self.plan.step(fit))
         self._submitted.update(s.id for s in chain)
-        future = self._pool.submit(
-            run_analysis_steps, self.loaded, self.plan, self.units_dir, tuple(s.id for s in chain)
-        )
+        with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
+            future = self._pool.submit(
+                run_analysis_steps, self.loaded, self.plan, self.units_dir, tuple(s.id for s in chain)
+            )
         self._pending.append((tuple(chain), future))
 
     def _collect(self, progress: Progress, *, wait: bool) -> None:
@@ -259,6 +262,9 @@ class Runner:
             return
         for _, future in self._pending:
             future.cancel()
+        # wait for the running ones here, not inside the pool's shutdown: a second Ctrl-C meanwhile must not
+        # interrupt the pool's own bookkeeping (see _kill_pool)
+        futures_wait([future for _, future in self._pending])
         self._pool.shutdown(wait=True, cancel_futures=True)
         for chain, future in self._pending:
             if future.cancelled() or future.exception() is not None:
@@ -271,6 +277,18 @@ class Runner:
         self._pending.clear()
         self._pool = None
 
+    def _kill_pool(self) -> None:
+        """Stop at once: end the analysis workers (units are atomic: an unfinished one is redone on resume)."""
+        if self._pool is None:
+            return
+        for proc in list(getattr(self._pool, "_processes", {}).values()):
+            with contextlib.suppress(Exception):
+                proc.kill()
+        with contextlib.suppress(Exception):  # quick with the workers gone; its thread must end before exit
+            self._pool.shutdown(wait=True, cancel_futures=True)
+        self._pending.clear()
+        self._pool = None
+
     def _record(self, step_id: str, outcome: StepOutcome) -> None:
         if outcome.fill is not None:
             record = write_unit(self.units_dir, step_id, outcome.fill)
@@ -279,80 +297,28 @@ class Runner:
         if outcome.stop is not None:
             raise outcome.stop
 
-    # --------------------------------------------------------------------------------------- resume
-
-    def _prepare_resume(self, ctx: StepContext, progress: Progress) -> None:
-        j = self.journal
-        if not j.ended_cleanly():
-            j.event(
-                "interrupted", "the previous run ended without a recorded stop (crash, kill or power cut)"
-            )
-        detail = "protocol text changed; accepted with --force" if self.protocol_changed else ""
-        j.event("resumed", detail)
-        if self.protocol_changed:
-            j.event("operator_override", "resumed with a changed protocol (--force)")
-        for step_id, record in list(j.units.items()):
-            if not unit_is_complete(self.units_dir, record):
-                j.invalidate(step_id, "unit file missing, truncated or corrupt")
-                progress.info(f"{step_id}: its unit file is missing or damaged; the step will be redone")
-        if self.bench.mode == "hardware":  # after a crash the joint may be anywhere: bring it to rest first
-            self.bench.rig.park(where="park before resuming")
-        pending = [s for s in self.plan.steps if s.id not in j.units]
-        if not pending or pending[0].kind == "report":
-            return
-        first = pending[0]
-        self._confirm_brace(first)
-        set_name = getattr(first, "set", None)
-        before = calibration_id(set_name, "before") if set_name else None
-        set_trials_pending = any(isinstance(s, TrialStep) and s.set == set_name for s in pending)
-        if before and before in j.units and first.id != before and set_trials_pending:
-            n = 1 + sum(1 for k in list(j.units) + list(j.failed) if k.startswith(f"cal:{set_name}:resume-"))
-            check = self.plan.step(before)
-            assert isinstance(check, CalibrationCheckStep)
-            record_as = f"cal:{set_name}:resume-{n}"
-            j.event("calibration_rerun", f"{record_as} before continuing set {set_name} at {first.id}")
-            progress.info(
-                f"resuming inside set {set_name}: re-running its calibration check first ({record_as})"
-            )
-            outcome = calibration_check.run_check(check, ctx, record_as=record_as, when=f"resume_{n}")
-            self._record(record_as, outcome)
-            progress.info(f"{record_as}: {outcome.summary}")
-
-    def _confirm_brace(self, first: Step) -> None:
-        if isinstance(first, ChecklistStep):
-            return  # the checklist itself sets the brace up
-        index = self.plan.steps.index(first)
-        last = next((s for s in reversed(self.plan.steps[:index]) if isinstance(s, ChecklistStep)), None)
-        if last is None:
-            return
-        settings = last.settings if last.brace == "on" else None
-        if settings is not None:
-            state = (
-                f"ON, set up for configuration {last.configuration} ({settings.stiffness}, preload "
-                f"{settings.preload_position}, friction {settings.friction_level}, ROM {settings.brace_rom})"
-            )
-        else:
-            state = "OFF (removed from the robot leg)"
-        if not self.operator.confirm(f"Resuming at {first.id}: the brace should be {state}. Is it?"):
-            raise Interrupted(
-                f"the brace state was not confirmed; set it up as listed in {last.id}, then resume"
-            )
-        self.bench.fit_brace(settings)
-
     # ------------------------------------------------------------------------------------ finishing
 
     def _stopped(self, kind: str, message: str, progress: Progress) -> None:
-        with contextlib.suppress(Exception):
-            self._shutdown_pool(progress)  # keep the analyses that finish meanwhile, before consolidating
-        with contextlib.suppress(Exception):
-            self.journal.event(kind, message)
-        with contextlib.suppress(Exception):
-            self.bench.rig.park(where="park on stop")
+        """Record the stop, park, consolidate. A second Ctrl-C meanwhile cuts this short (--resume redoes it)."""
         status = "aborted" if kind == "aborted" else "incomplete"
-        with contextlib.suppress(Exception):
-            self.consolidate(status)
-        with contextlib.suppress(Exception):
-            progress.info(f"session {kind}: {message}")
+        actions = (
+            lambda: self._shutdown_pool(progress),  # keep the analyses that finish meanwhile
+            lambda: self.journal.event(kind, message),
+            lambda: self.bench.rig.park(where="park on stop"),
+            lambda: self.consolidate(status),
+            lambda: progress.info(f"session {kind}: {message}"),
+        )
+        for action in actions:
+            try:
+                action()
+            except KeyboardInterrupt:
+                self._kill_pool()
+                with contextlib.suppress(Exception):
+                    self.journal.event("interrupted", "stopped at once (second Ctrl-C)")
+                return
+            except Exception:  # a stop must get through every action it can
+                continue
 
     def _disk_full(self, exc: Exception) -> DiskFull:
         """Park, journal the stop if there is room for it, and the error to raise (archive/diskfull.py)."""
@@ -368,6 +334,8 @@ class Runner:
         self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped{robot}")
         archive = self.consolidate("complete")
         report = self.render_report(archive)
+        if self.plan.steps and self.plan.steps[-1].kind == "report":
+            progress.step_finished(self.plan.steps[-1], "archive and report written")
         progress.info(f"archive: {archive}")
         if report is not None:
             progress.info(f"report:  {report}")

@@ -1,6 +1,7 @@
 """The session directory: a self-contained record of one campaign run.
 
-    <session>/session.json        mode, seed, protocol name and sha256, creation time, --only
+    <session>/session.json        mode, seed, protocol name and sha256 (and each referenced file's), creation
+                                  time, --only; checked field by field when read (session/info_check.py)
     <session>/protocol/           the protocol file exactly as run, plus the files it references
     <session>/journal.jsonl       completed units and events (session/journal.py)
     <session>/units/*.h5          one atomic HDF5 file per finished step (archive/units.py)
@@ -16,12 +17,13 @@ from __future__ import annotations
 import json
 import os
 import shutil
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
 from .. import __version__
 from ..archive.diskfull import creates_session_directory
+from ..archive.units import sha256_of
 from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, load_protocol
 from ..protocol.paths import is_stored_with_session
@@ -42,6 +44,8 @@ class SessionInfo:
     only: tuple[int, ...]
     software_version: str
     realtime: bool = False
+    # every file the protocol references, as copied into <session>/protocol/: relative path -> sha256
+    files_sha256: dict[str, str] = field(default_factory=dict)
 
     def to_json(self) -> str:
         d = asdict(self)
@@ -93,6 +97,7 @@ def create_session(
     (directory / "units").mkdir(exist_ok=True)
     target = proto_dir / loaded.path.name
     target.write_text(loaded.text, encoding="utf-8")
+    hashes: dict[str, str] = {}
     for rel in referenced_files(loaded):
         if not is_stored_with_session(rel):
             continue  # an absolute path into the shipped protocols (protocol/paths.py): read from there
@@ -104,6 +109,7 @@ def create_session(
             )
         dst.parent.mkdir(parents=True, exist_ok=True)
         shutil.copy2(src, dst)
+        hashes[rel] = sha256_of(dst)
     info = SessionInfo(
         protocol_name=loaded.protocol.name,
         protocol_sha256=loaded.sha256,
@@ -115,6 +121,7 @@ def create_session(
         only=only,
         software_version=__version__,
         realtime=realtime,
+        files_sha256=hashes,
     )
     write_session_info(directory, info)
     return info
@@ -134,6 +141,8 @@ def write_session_info(directory: Path, info: SessionInfo) -> None:
 
 
 def read_session_info(directory: Path) -> SessionInfo:
+    from .info_check import parse_session_file
+
     path = directory / SESSION_FILE
     if not directory.is_dir():
         raise InvalidInput(f"{directory}: no such session directory")
@@ -141,20 +150,38 @@ def read_session_info(directory: Path) -> SessionInfo:
         raise InvalidInput(
             f"{directory}: not a session directory (no {SESSION_FILE}); give the folder run-protocol created"
         )
-    try:
-        d = json.loads(path.read_text(encoding="utf-8"))
-        d["only"] = tuple(d.get("only", ()))
-        return SessionInfo(**d)
-    except (json.JSONDecodeError, TypeError, KeyError) as exc:
-        raise InvalidInput(f"{path}: unreadable session file ({exc})") from None
+    d = parse_session_file(path)
+    d["only"] = tuple(d["only"])
+    return SessionInfo(**d)
+
+
+def changed_files(directory: Path, info: SessionInfo) -> list[str]:
+    """The referenced files (copies in <session>/protocol/) whose sha256 differs from the one recorded at
+    the session's creation, each as "path (changed)" or "path (missing)"."""
+    out = []
+    for rel, digest in sorted(info.files_sha256.items()):
+        path = directory / "protocol" / rel
+        if not path.is_file():
+            out.append(f"{rel} (missing)")
+        elif sha256_of(path) != digest:
+            out.append(f"{rel} (changed)")
+    return out
 
 
 def load_session_protocol(
     directory: Path, info: SessionInfo, *, force: bool
 ) -> tuple[LoadedProtocol, Plan, bool]:
-    """Re-expand the protocol stored in the session; refuse a changed one unless `force`.
+    """Re-expand the protocol stored in the session; refuse a changed one, or a changed referenced file
+    (calibration table, trajectory, reference data), unless `force`.
 
-    Returns the protocol, its plan and whether it changed (accepted with --force)."""
+    Returns the protocol, its plan and whether its text changed (accepted with --force)."""
+    changes = changed_files(directory, info)
+    if changes and not force:
+        raise InvalidInput(
+            f"{directory / 'protocol'}: {len(changes)} file(s) the protocol references changed since the "
+            f"session began: {', '.join(changes)}. Completed trials were taken with the old files; restore "
+            "them, or resume with --force to accept the change (recorded in the archive)."
+        )
     path = directory / info.protocol_file
     loaded = load_protocol(path, display_name=str(path))
     changed = loaded.sha256 != info.protocol_sha256

@@ -3,15 +3,32 @@
 The first signal sets a flag that the runner checks between steps and the rig's loop polls during a
 trial (~every 100 ms); the session then parks the joint, writes its journal and exits 130, resumable.
 A second SIGINT raises KeyboardInterrupt immediately: only complete units stay behind (units are atomic).
+
+Ctrl-C on a terminal signals the whole process group, worker processes included: `sigint_blocked` keeps
+SIGINT blocked while a worker is started, so the worker inherits the block (and then ignores SIGINT) instead
+of dying with a traceback while it is still importing; the parent receives the signal once unblocked.
 """
 
 from __future__ import annotations
 
+import contextlib
 import signal
 import sys
 import threading
+from collections.abc import Iterator
 from types import FrameType
 from typing import Any
+
+
+@contextlib.contextmanager
+def sigint_blocked() -> Iterator[None]:
+    """Block SIGINT in this thread for the duration (one that arrives meanwhile is delivered at the end, not
+    lost); processes started meanwhile inherit the block. SIGTERM stays open: the pool may need it."""
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 class StopFlag:
@@ -19,6 +36,7 @@ class StopFlag:
         self._event = threading.Event()
         self.signal_name = ""
         self._previous: dict[int, Any] = {}
+        self._signalled = False
 
     def __call__(self) -> bool:
         return self._event.is_set()
@@ -29,6 +47,7 @@ class StopFlag:
 
     def _handler(self, signum: int, frame: FrameType | None) -> None:
         name = signal.Signals(signum).name
+        self._signalled = True
         if self._event.is_set() and signum == signal.SIGINT:
             raise KeyboardInterrupt
         self.request(name)
@@ -46,6 +65,9 @@ class StopFlag:
             self._previous[sig] = signal.signal(sig, self._handler)
 
     def uninstall(self) -> None:
+        """Restore the previous handlers; after a stop by signal, ignore SIGINT instead: the process is on
+        its way out, and another Ctrl-C during its exit would only print a traceback."""
         for sig, handler in self._previous.items():
-            signal.signal(sig, handler)
+            stopping = self._signalled and sig == signal.SIGINT
+            signal.signal(sig, signal.SIG_IGN if stopping else handler)
         self._previous.clear()

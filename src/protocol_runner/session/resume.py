@@ -1,0 +1,205 @@
+"""Resuming a session: what the rig must look like before the first step, and the set's calibration re-check.
+
+The software cannot see the rig's physical state (brace on or off, which spring, preload, brake, ROM stops):
+after a stop a person may have changed anything. So before the first step that uses the rig, a resume asks
+the operator for the state that step needs, exactly as the plan's last checklist before it set it up (a
+checklist as the first step asks for itself). When the session stopped inside a set, the set's calibration
+check is run again first, in the condition the plan gives calibration checks (the state at the set's
+"before" check: the brace off); the operator is asked to set that up, and afterwards to restore the state
+the next step needs. Every answer is journaled (kind `operator_answer`, JSON detail) and so reaches the
+archive's `/session/events`. In a dry run or with --yes the answers are given automatically, and recorded.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+from ..archive.units import unit_is_complete
+from ..errors import InvalidInput
+from ..protocol.plan import (
+    CalibrationCheckStep,
+    ChecklistStep,
+    Plan,
+    Step,
+    TrialStep,
+    calibration_id,
+)
+from ..steps import calibration_check
+from .journal import Journal
+from .setup import SessionInfo, changed_files
+
+if TYPE_CHECKING:
+    from ..protocol.only import KeySelection
+    from ..steps.context import StepContext
+    from .progress import Progress
+    from .runner import Runner
+
+# the rig's state at the start of a session, before any checklist: nothing fitted to the joint
+INITIAL_STATE_ITEMS = ("Brace OFF: not fitted to the robot's joint", "Joint free of straps, foam and clamps")
+
+
+def state_source(plan: Plan, index: int) -> ChecklistStep | None:
+    """The checklist that set up the rig for the step at `index` (None: the session's initial state)."""
+    return next((s for s in reversed(plan.steps[:index]) if isinstance(s, ChecklistStep)), None)
+
+
+def describe_state(source: ChecklistStep | None) -> str:
+    if source is None or source.brace != "on" or source.settings is None:
+        return "brace OFF"
+    st = source.settings
+    return (
+        f"brace ON, set up for configuration {source.configuration} (spring {st.stiffness}, preload "
+        f"{st.preload_position}, brake {st.friction_level}, ROM {st.brace_rom})"
+    )
+
+
+def state_prompt(source: ChecklistStep | None, prompt_id: str, purpose: str) -> ChecklistStep:
+    """A checklist asking for the state `source` set up (its own items), for a resume."""
+    items = INITIAL_STATE_ITEMS if source is None else source.items
+    brace = "off" if source is None else source.brace
+    return ChecklistStep(
+        id=prompt_id,
+        kind="operator_checklist",
+        set=source.set if source is not None else "",
+        title=f"Resuming: {purpose}. The rig must be: {describe_state(source)}",
+        items=items,
+        brace=brace,
+        configuration=source.configuration if source is not None else None,
+        settings=source.settings if source is not None and brace == "on" else None,
+    )
+
+
+def ask_state(runner: Runner, source: ChecklistStep | None, prompt_id: str, purpose: str) -> None:
+    """Ask the operator to set the rig up as `source` did, record the answer, and (dry run) do it."""
+    prompt = state_prompt(source, prompt_id, purpose)
+    answer = runner.operator.checklist(prompt)  # "q" raises Interrupted: the session stays resumable
+    detail = {
+        "prompt": prompt_id,
+        "purpose": purpose,
+        "state": describe_state(source),
+        "brace": prompt.brace,
+        "as_in": source.id if source is not None else None,
+        "items": list(prompt.items),
+        "answer": answer.answer,
+        "automatic": answer.automatic,
+        "answered_utc": answer.answered_utc,
+    }
+    runner.journal.event("operator_answer", json.dumps(detail, sort_keys=True))
+    runner.bench.fit_brace(prompt.settings)
+
+
+def first_rig_step(plan: Plan, done: set[str]) -> Step | None:
+    """The first step still to run that uses the rig or sets it up (analysis steps need no physical state)."""
+    rig_kinds = (TrialStep, CalibrationCheckStep, ChecklistStep)
+    return next((s for s in plan.steps if s.id not in done and isinstance(s, rig_kinds)), None)
+
+
+def prepare_resume(runner: Runner, ctx: StepContext, progress: Progress) -> None:
+    """Journal the resume, drop damaged units, park, re-check the set's calibration and set the rig up."""
+    j = runner.journal
+    if not j.ended_cleanly():
+        j.event("interrupted", "the previous run ended without a recorded stop (crash, kill or power cut)")
+    had_journal = bool(j.events or j.units or j.failed)
+    detail = "protocol text changed; accepted with --force" if runner.protocol_changed else ""
+    j.event("resumed", detail)
+    if runner.protocol_changed:
+        j.event("operator_override", "resumed with a changed protocol (--force)")
+    changes = changed_files(runner.dir, runner.info)
+    if changes:
+        j.event("operator_override", f"resumed with changed referenced files (--force): {', '.join(changes)}")
+    if not had_journal and any(runner.units_dir.glob("*.h5")):
+        j.event("operator_override", "journal.jsonl was missing; resumed with --force: every step is redone")
+    for step_id, record in list(j.units.items()):
+        if not unit_is_complete(runner.units_dir, record):
+            j.invalidate(step_id, "unit file missing, truncated or corrupt")
+            progress.info(f"{step_id}: its unit file is missing or damaged; the step will be redone")
+    if runner.bench.mode == "hardware":  # after a crash the joint may be anywhere: bring it to rest first
+        runner.bench.rig.park(where="park before resuming")
+    plan = runner.plan
+    first = first_rig_step(plan, set(j.units))
+    if first is None:
+        return
+    n = sum(1 for e in j.events if e.kind == "resumed")  # this resume's number, for the prompts' ids
+    set_name = getattr(first, "set", "")
+    before = calibration_id(set_name, "before")
+    set_trials_pending = any(
+        isinstance(s, TrialStep) and s.set == set_name and s.id not in j.units for s in plan.steps
+    )
+    if before in j.units and first.id != before and set_trials_pending:
+        k = 1 + sum(1 for key in list(j.units) + list(j.failed) if key.startswith(f"cal:{set_name}:resume-"))
+        check = plan.step(before)
+        assert isinstance(check, CalibrationCheckStep)
+        record_as = f"cal:{set_name}:resume-{k}"
+        ask_state(
+            runner,
+            state_source(plan, plan.steps.index(check)),
+            f"resume-{n}:calibration",
+            f"the set's calibration check is run again ({record_as}) in the state of its first check",
+        )
+        j.event("calibration_rerun", f"{record_as} before continuing set {set_name} at {first.id}")
+        progress.info(f"resuming inside set {set_name}: re-running its calibration check first ({record_as})")
+        outcome = calibration_check.run_check(check, ctx, record_as=record_as, when=f"resume_{k}")
+        runner._record(record_as, outcome)
+        progress.info(f"{record_as}: {outcome.summary}")
+    if isinstance(first, ChecklistStep):
+        return  # the checklist itself asks for the state
+    ask_state(
+        runner,
+        state_source(plan, plan.steps.index(first)),
+        f"resume-{n}:{first.id}",
+        f"continuing with {first.id}",
+    )
+
+
+# ------------------------------------------------------------------------------------ before a resume
+
+
+def check_resume_arguments(info: SessionInfo, *, seed: int | None, only: KeySelection | None) -> None:
+    """--seed and --only cannot change a session: refuse values other than the session's own."""
+    if seed is not None and seed != info.seed:
+        raise InvalidInput(
+            f"--seed {seed}: the session was created with seed {info.seed} and --resume keeps it; "
+            "drop --seed, or start a new session for another seed"
+        )
+    if only is not None and not _same_keys(only, info.only):
+        had = ",".join(map(str, info.only)) if info.only else "every configuration"
+        raise InvalidInput(
+            f"--only {only.text()}: the session runs {had} and --resume keeps that; "
+            "drop --only, or start a new session for other configurations"
+        )
+
+
+def _same_keys(only: KeySelection, keys: Sequence[int]) -> bool:
+    """Whether `only` names exactly `keys` (bounded: a range wider than `keys` cannot)."""
+    if not keys or any(hi - lo + 1 > len(keys) for lo, hi in only.ranges):
+        return False
+    return {k for lo, hi in only.ranges for k in range(lo, hi + 1)} == set(keys)
+
+
+def resume_preflight(session_dir: Path, plan: Plan, *, force: bool) -> str | None:
+    """Refuse a resume that would silently redo or rewrite recorded work. Returns a message when the
+    session is already complete (nothing to do; nothing is touched), else None."""
+    journal_path = session_dir / "journal.jsonl"
+    units_dir = session_dir / "units"
+    n_units = len(list(units_dir.glob("*.h5"))) if units_dir.is_dir() else 0
+    if not journal_path.exists():
+        if n_units and not force:
+            raise InvalidInput(
+                f"{journal_path}: missing, but {units_dir} holds {n_units} finished step(s); without the "
+                "journal a resume would redo every step. Restore journal.jsonl, or resume with --force to "
+                "redo them all (recorded in the archive)"
+            )
+        return None
+    journal = Journal(journal_path)
+    last = next((e for e in reversed(journal.events) if e.kind in ("finished", "resumed", "started")), None)
+    to_run = [s for s in plan.steps if s.kind != "report"]
+    complete = all(s.id in journal.units and unit_is_complete(units_dir, journal.units[s.id]) for s in to_run)
+    if last is not None and last.kind == "finished" and complete and (session_dir / "archive.h5").is_file():
+        return (
+            f"{session_dir} is complete (finished {last.t_utc}): nothing to resume, nothing rewritten. "
+            f"Regenerate its report with: run-protocol --report {session_dir}"
+        )
+    return None

@@ -1,0 +1,108 @@
+"""Resume never silently redoes or rewrites recorded work (issue 14, "Small"): a finished session is left as
+it is, a missing journal is refused (unless --force, recorded), --seed/--only cannot change a session;
+progress counts every step including the report; a DT9814 protocol is refused saying what to do."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from protocol_runner.cli import main
+from protocol_runner.protocol.loader import find_protocol
+from protocol_runner.session.journal import Journal
+
+from .conftest import ONLY, SEED
+
+
+def copy_session(reference_archive: Path, to: Path) -> Path:
+    shutil.copytree(reference_archive.parent, to, ignore=shutil.ignore_patterns(".lock"))
+    return to
+
+
+def snapshot(session: Path) -> dict[str, tuple[bytes, int]]:
+    return {
+        str(p.relative_to(session)): (p.read_bytes(), p.stat().st_mtime_ns)
+        for p in sorted(session.rglob("*"))
+        if p.is_file() and p.name != ".lock"
+    }
+
+
+def test_resuming_a_finished_session_changes_nothing(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = copy_session(reference_archive, tmp_path / "done")
+    before = snapshot(session)
+    assert main(["--resume", str(session), "--yes"]) == 0
+    assert "is complete" in capsys.readouterr().err
+    assert snapshot(session) == before  # archive, report, journal and log untouched
+
+
+def test_deleted_journal_is_refused_not_silently_redone(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = copy_session(reference_archive, tmp_path / "nojournal")
+    (session / "journal.jsonl").unlink()
+    (session / "archive.h5").unlink()
+    units = snapshot(session / "units")
+    assert main(["--resume", str(session), "--yes"]) == 2
+    err = capsys.readouterr().err
+    assert "journal.jsonl" in err and "--force" in err and "Traceback" not in err
+    assert snapshot(session / "units") == units
+
+    assert main(["--resume", str(session), "--yes", "--force"]) == 0  # every step redone, and recorded
+    journal = Journal(session / "journal.jsonl")
+    assert any(
+        "journal.jsonl was missing" in e.detail for e in journal.events if e.kind == "operator_override"
+    )
+
+
+@pytest.mark.parametrize(
+    ("args", "named"),
+    [
+        (["--seed", str(SEED + 1)], "--seed"),
+        (["--only", "13"], "--only"),
+        (["--only", f"{ONLY[0]},13"], "--only"),
+    ],
+)
+def test_resume_refuses_a_different_seed_or_only(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str], args: list[str], named: str
+) -> None:
+    session = copy_session(reference_archive, tmp_path / "s")
+    assert main(["--resume", str(session), "--yes", *args]) == 2
+    err = capsys.readouterr().err
+    assert named in err and "new session" in err and "Traceback" not in err
+
+
+def test_resume_accepts_the_sessions_own_seed_and_only(tmp_path: Path, reference_archive: Path) -> None:
+    session = copy_session(reference_archive, tmp_path / "s")
+    only = ",".join(map(str, ONLY))
+    assert main(["--resume", str(session), "--yes", "--seed", str(SEED), "--only", only]) == 0
+
+
+def test_resume_with_a_protocol_argument_is_refused(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = copy_session(reference_archive, tmp_path / "s")
+    assert main(["knee_phase1.yaml", "--resume", str(session)]) == 2
+    assert "drop PROTOCOL" in capsys.readouterr().err
+
+
+def test_progress_counts_the_report_step(reference_archive: Path) -> None:
+    log = (reference_archive.parent / "session.log").read_text()
+    counts = [line.split("[", 1)[1].split("]", 1)[0] for line in log.splitlines() if "] report:" in line]
+    assert len(counts) == 1
+    done, total = counts[0].split("/")
+    assert done == total
+
+
+def test_dt9814_protocol_is_refused_saying_where_and_what_to_do(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = tmp_path / "hw"
+    assert main(["knee_phase1.yaml", "--session", str(session)]) == 3
+    err = capsys.readouterr().err
+    assert f"{find_protocol('knee_phase1.yaml')} line " in err and "rig.input.board" in err
+    assert "usb1608fs" in err and "USB-1608FS-Plus" in err and "--dry-run" in err
+    assert not session.exists() and "Traceback" not in err

@@ -1,0 +1,80 @@
+"""Ctrl-C on a terminal signals the whole process group (issue 14, "a second Ctrl-C prints a traceback"): an
+analysis worker still starting up must not die of it with a KeyboardInterrupt traceback; the session's main
+process alone decides how to stop."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+from protocol_runner.session.runner import _worker_init
+from protocol_runner.session.signals import sigint_blocked
+
+
+def _answer() -> int:
+    return 42
+
+
+def test_worker_started_under_sigint_blocked_survives_a_sigint_while_starting() -> None:
+    pool = ProcessPoolExecutor(
+        max_workers=1, mp_context=multiprocessing.get_context("spawn"), initializer=_worker_init
+    )
+    try:
+        with sigint_blocked():
+            future = pool.submit(_answer)  # the worker process is started here
+        for pid in list(pool._processes):  # at once: the worker is still importing
+            os.kill(pid, signal.SIGINT)
+        assert future.result(timeout=120) == 42  # before: BrokenProcessPool (the worker died)
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def test_sigint_arriving_while_blocked_is_delivered_afterwards_not_lost() -> None:
+    got: list[int] = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: got.append(signum))
+    try:
+        with sigint_blocked():
+            signal.pthread_kill(threading.get_ident(), signal.SIGINT)  # to this thread, which blocks it
+            assert got == []
+        assert got == [signal.SIGINT]
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def test_two_ctrl_c_on_the_terminal_stop_without_a_traceback(tmp_path: Path) -> None:
+    """Ctrl-C twice, as a terminal sends it (to the whole process group), just as the analysis workers start."""
+    session = tmp_path / "ctrl-c"
+    log = tmp_path / "stderr.log"
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    args = ["knee_phase1.yaml", "--dry-run", "--yes", "--only", "12", "--session", str(session)]
+    with log.open("wb") as err:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "protocol_runner.cli", *args],
+            stdout=subprocess.DEVNULL,
+            stderr=err,
+            env=env,
+            start_new_session=True,  # its own process group, like a shell job
+        )
+        try:
+            deadline = time.monotonic() + 120
+            journal = session / "journal.jsonl"
+            while not (journal.exists() and "cal:rom_medium_spring:after" in journal.read_text()):
+                assert proc.poll() is None and time.monotonic() < deadline, log.read_text()
+                time.sleep(0.005)
+            os.killpg(proc.pid, signal.SIGINT)  # the workers for processing are starting now
+            time.sleep(0.05)
+            os.killpg(proc.pid, signal.SIGINT)
+            code = proc.wait(timeout=120)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+    text = log.read_text()
+    assert "Traceback" not in text, text
+    assert code == 130, text
