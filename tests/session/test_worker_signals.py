@@ -14,8 +14,10 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+import pytest
+
 from protocol_runner.session.runner import _worker_init
-from protocol_runner.session.signals import sigint_blocked
+from protocol_runner.session.signals import StopFlag, sigint_blocked
 
 
 def _answer() -> int:
@@ -78,3 +80,25 @@ def test_two_ctrl_c_on_the_terminal_stop_without_a_traceback(tmp_path: Path) -> 
     text = log.read_text()
     assert "Traceback" not in text, text
     assert code == 130, text
+
+
+class _RaisesOnCollection:
+    def __del__(self) -> None:
+        raise KeyboardInterrupt  # what a second Ctrl-C does when it lands inside a finaliser
+
+
+def test_a_second_ctrl_c_dropped_inside_a_finaliser_is_delivered_again() -> None:
+    """Python cannot raise out of a finaliser or weakref callback: it prints "Exception ignored" with a
+    traceback and drops the exception. During a stop, the flag delivers that interrupt again."""
+    flag = StopFlag()
+    flag.install()
+    try:
+        flag.request("SIGINT")  # the first Ctrl-C: a stop is under way
+        with pytest.raises(KeyboardInterrupt):
+            obj = _RaisesOnCollection()
+            del obj
+            deadline = time.monotonic() + 5.0
+            while time.monotonic() < deadline:
+                time.sleep(0.001)
+    finally:
+        flag.uninstall()

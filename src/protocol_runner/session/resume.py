@@ -181,7 +181,9 @@ def _same_keys(only: KeySelection, keys: Sequence[int]) -> bool:
 
 def resume_preflight(session_dir: Path, plan: Plan, *, force: bool) -> str | None:
     """Refuse a resume that would silently redo or rewrite recorded work. Returns a message when the
-    session is already complete (nothing to do; nothing is touched), else None."""
+    session is already complete - every step done, archive and report written (nothing to do; nothing is
+    touched) - else None (a session whose report could not be written, e.g. on a full disk, is resumed:
+    its archive is assembled again and the report written)."""
     journal_path = session_dir / "journal.jsonl"
     units_dir = session_dir / "units"
     n_units = len(list(units_dir.glob("*.h5"))) if units_dir.is_dir() else 0
@@ -197,7 +199,8 @@ def resume_preflight(session_dir: Path, plan: Plan, *, force: bool) -> str | Non
     last = next((e for e in reversed(journal.events) if e.kind in ("finished", "resumed", "started")), None)
     to_run = [s for s in plan.steps if s.kind != "report"]
     complete = all(s.id in journal.units and unit_is_complete(units_dir, journal.units[s.id]) for s in to_run)
-    if last is not None and last.kind == "finished" and complete and (session_dir / "archive.h5").is_file():
+    written = all((session_dir / name).is_file() for name in ("archive.h5", "report.html"))
+    if last is not None and last.kind == "finished" and complete and written:
         return (
             f"{session_dir} is complete (finished {last.t_utc}): nothing to resume, nothing rewritten. "
             f"Regenerate its report with: run-protocol --report {session_dir}"

@@ -7,10 +7,16 @@ A second SIGINT raises KeyboardInterrupt immediately: only complete units stay b
 Ctrl-C on a terminal signals the whole process group, worker processes included: `sigint_blocked` keeps
 SIGINT blocked while a worker is started, so the worker inherits the block (and then ignores SIGINT) instead
 of dying with a traceback while it is still importing; the parent receives the signal once unblocked.
+
+A Python signal handler runs between any two bytecodes of the main thread, also inside a weakref callback
+or a `__del__`, where an exception cannot propagate: Python prints "Exception ignored in ..." with a
+traceback and drops it. While installed, the stop flag catches such a dropped KeyboardInterrupt and
+delivers it again a moment later (`_thread.interrupt_main`), where it can unwind the session.
 """
 
 from __future__ import annotations
 
+import _thread
 import contextlib
 import signal
 import sys
@@ -37,6 +43,7 @@ class StopFlag:
         self.signal_name = ""
         self._previous: dict[int, Any] = {}
         self._signalled = False
+        self._previous_hook: Any = None
 
     def __call__(self) -> bool:
         return self._event.is_set()
@@ -58,11 +65,21 @@ class StopFlag:
             flush=True,
         )
 
+    def _unraisable(self, unraisable: Any) -> None:
+        if isinstance(unraisable.exc_value, KeyboardInterrupt) and self._event.is_set():
+            redeliver = threading.Timer(0.01, _thread.interrupt_main)
+            redeliver.daemon = True
+            redeliver.start()
+            return
+        self._previous_hook(unraisable)
+
     def install(self) -> None:
         if threading.current_thread() is not threading.main_thread():
             return
         for sig in (signal.SIGINT, signal.SIGTERM):
             self._previous[sig] = signal.signal(sig, self._handler)
+        self._previous_hook = sys.unraisablehook
+        sys.unraisablehook = self._unraisable
 
     def uninstall(self) -> None:
         """Restore the previous handlers; after a stop by signal, ignore SIGINT instead: the process is on
@@ -71,3 +88,6 @@ class StopFlag:
             stopping = self._signalled and sig == signal.SIGINT
             signal.signal(sig, signal.SIG_IGN if stopping else handler)
         self._previous.clear()
+        if self._previous_hook is not None:
+            sys.unraisablehook = self._previous_hook
+            self._previous_hook = None
