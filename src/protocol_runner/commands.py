@@ -10,8 +10,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .errors import EXIT_OK, InvalidInput
+from .monitor.publisher import NULL_PUBLISHER, Publisher
 
 if TYPE_CHECKING:
+    from .monitor.service import Monitor
     from .protocol.loader import LoadedProtocol
     from .session.operator import Operator
     from .session.setup import SessionInfo
@@ -32,6 +34,7 @@ def run(
     only: list[int] | None,
     realtime: bool,
     quiet: bool = False,
+    monitor: Monitor | None = None,
 ) -> int:
     from .protocol.loader import find_protocol, load_protocol
     from .protocol.plan import expand
@@ -65,7 +68,10 @@ def run(
         f"({info.mode}, seed {info.seed})"
     )
     operator = _operator(dry_run or yes)
-    result = Runner(directory, info, stored, plan, bench, operator, quiet=quiet).run()
+    publisher: Publisher = NULL_PUBLISHER
+    if monitor is not None:
+        publisher, operator = monitor.attach(directory, info, plan, bench, operator)
+    result = Runner(directory, info, stored, plan, bench, operator, quiet=quiet, publisher=publisher).run()
     _say(f"done: {result.archive}" + (f" and {result.report}" if result.report else ""))
     return EXIT_OK
 
@@ -86,7 +92,15 @@ def _operator(automatic: bool) -> Operator:
     return AutoOperator() if automatic else ConsoleOperator()
 
 
-def resume(session_dir: Path, *, yes: bool, force: bool, realtime: bool, quiet: bool = False) -> int:
+def resume(
+    session_dir: Path,
+    *,
+    yes: bool,
+    force: bool,
+    realtime: bool,
+    quiet: bool = False,
+    monitor: Monitor | None = None,
+) -> int:
     from .session.runner import Runner
     from .session.setup import load_session_protocol, read_session_info
 
@@ -94,9 +108,21 @@ def resume(session_dir: Path, *, yes: bool, force: bool, realtime: bool, quiet: 
     loaded, plan, changed = load_session_protocol(session_dir, info, force=force)
     bench = _bench(loaded, info)
     operator = _operator(info.mode == "dry-run" or yes)
+    publisher: Publisher = NULL_PUBLISHER
+    if monitor is not None:
+        publisher, operator = monitor.attach(session_dir, info, plan, bench, operator, resumed=True)
     _say(f"resuming {session_dir}: {info.protocol_name} ({info.mode}, seed {info.seed})")
     result = Runner(
-        session_dir, info, loaded, plan, bench, operator, resumed=True, protocol_changed=changed, quiet=quiet
+        session_dir,
+        info,
+        loaded,
+        plan,
+        bench,
+        operator,
+        resumed=True,
+        protocol_changed=changed,
+        quiet=quiet,
+        publisher=publisher,
     ).run()
     _say(
         f"done: {result.steps_run} steps run, {result.steps_skipped} already complete; {result.archive}"

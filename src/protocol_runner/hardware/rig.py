@@ -32,7 +32,7 @@ import numpy.typing as npt
 from protocol_runner.errors import Interrupted, InvalidInput
 from protocol_runner.hardware.calibration import CalibrationTable
 from protocol_runner.hardware.conversions import angle_to_volts, volts_to_angle, volts_to_torque
-from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock, ScanBlock
+from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock, LoopTap, ScanBlock
 from protocol_runner.hardware.safety import SafetyLimits, check_trajectory, clamp_volts, parking_ramp_deg
 
 FloatArray = npt.NDArray[np.float64]
@@ -165,6 +165,8 @@ class Rig:
         self._last_command_deg: float | None = None
         # Entered around every paced loop; the hardware bench sets it to real-time scheduling.
         self.loop_context: Callable[[], contextlib.AbstractContextManager[object]] = contextlib.nullcontext
+        # The live monitor's sampler (--monitor): shown each scan block as it is read; None costs nothing.
+        self.tap: LoopTap | None = None
 
     @property
     def scan_channels(self) -> tuple[int, int]:
@@ -275,6 +277,9 @@ class Rig:
         self.ai.start_scan(self.scan_channels, joint.input_rate_hz)
         t0 = now()
         schedule: list[float] = (t0 + np.arange(n + 1, dtype=np.float64) * dt).tolist()
+        tap = self.tap
+        if tap is not None:
+            tap.start(where, cmd, t0)
         try:
             for start in range(0, n, READ_EVERY_TICKS):
                 for k in range(start, min(start + READ_EVERY_TICKS, n)):
@@ -282,6 +287,8 @@ class Rig:
                     actual[k] = now()
                     codes[k] = write(channel, volts_list[k])
                 append(read())
+                if tap is not None:
+                    tap.scan(blocks[-1])
                 if stop_requested is not None and stop_requested():
                     t_stop = schedule[min(start + READ_EVERY_TICKS, n) - 1] - t0
                     raise Interrupted(f"{where}: stopped on request at t = {t_stop:.2f} s")
