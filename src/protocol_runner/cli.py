@@ -163,6 +163,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    if args.monitor is not None and any(
+        m is not None for m in (args.plan, args.validate, args.report, args.hardware_check)
+    ):
+        raise InvalidInput("--monitor watches a session: use it with a PROTOCOL to run or with --resume")
     if args.plan is not None:
         return _cmd_plan(args)
     if args.validate is not None:
@@ -186,8 +190,6 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
 
         with Monitor.open(args.monitor, say=lambda text: print(text, file=sys.stderr, flush=True)) as live:
             return _run_or_resume(parser, args, live)
-    if args.monitor is not None:
-        raise InvalidInput("--monitor watches a session: use it with a PROTOCOL to run or with --resume")
     return _run_or_resume(parser, args, None)
 
 

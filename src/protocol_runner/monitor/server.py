@@ -16,6 +16,7 @@ import contextlib
 import hashlib
 import hmac
 import queue
+import select
 import socket
 import socketserver
 import threading
@@ -136,6 +137,8 @@ class _Handler(BaseHTTPRequestHandler):
     sys_version = ""
     protocol_version = "HTTP/1.0"
     timeout = REQUEST_TIMEOUT_S
+    error_message_format = "%(code)d %(message)s\n"
+    error_content_type = "text/plain; charset=utf-8"
 
     def log_message(self, format: str, *args: Any) -> None:
         return None  # the terminal belongs to the session
@@ -183,6 +186,14 @@ class _Handler(BaseHTTPRequestHandler):
         self.end_headers()
         self.wfile.write(body)
 
+    def _peer_gone(self) -> bool:
+        """Has the client closed its end? (A stream client never sends anything after its request.)"""
+        try:
+            readable, _, _ = select.select([self.connection], [], [], 0)
+            return bool(readable) and self.connection.recv(1, socket.MSG_PEEK) == b""
+        except (OSError, ValueError):
+            return True
+
     def _stream(self) -> None:
         bus = self.server.bus
         client = bus.subscribe(self.connection)
@@ -195,7 +206,7 @@ class _Handler(BaseHTTPRequestHandler):
                 try:
                     data = client.queue.get(timeout=1.0)
                 except queue.Empty:
-                    if client.dropped or self.server.closing:
+                    if client.dropped or self.server.closing or self._peer_gone():
                         return
                     if time.monotonic() - last > KEEPALIVE_S:
                         self.wfile.write(b": keepalive\n\n")
