@@ -105,10 +105,11 @@ def test_samples_beyond_the_backlog_are_discarded_but_control_messages_never() -
 
 
 def test_bursts_merge_per_run_keep_the_latest_points_and_never_cross_a_step() -> None:
-    bus = EventBus()
+    bus = EventBus(sample_backlog=10 * MAX_MERGED_POINTS)
     client = bus.subscribe()
     drain(client)
-    for k in range(300):
+    n = MAX_MERGED_POINTS  # messages of 2 points: twice what one merged message keeps
+    for k in range(n):
         bus.publish_samples(samples("trial:a", k * 0.1))
     bus.publish({"type": "step_end", "step": "trial:a", "kind": "trial", "summary": ""})
     bus.publish_samples(samples("trial:b", 100.0, step="trial:b"))
@@ -116,8 +117,8 @@ def test_bursts_merge_per_run_keep_the_latest_points_and_never_cross_a_step() ->
     got = drain(client)
     assert [m["type"] for m in got] == ["samples", "step_end", "samples"]
     first = got[0]["points"]
-    assert len(first) == MAX_MERGED_POINTS
-    assert first[-1][0] == pytest.approx(299 * 0.1 + 0.05)  # the newest kept
+    assert len(first) == MAX_MERGED_POINTS and bus.trimmed_points == MAX_MERGED_POINTS
+    assert first[-1][0] == pytest.approx((n - 1) * 0.1 + 0.05)  # the newest kept
     assert got[2]["where"] == "trial:b"
 
 

@@ -225,3 +225,13 @@ def test_a_silent_connection_is_closed_after_the_request_timeout(monitor: Monito
         t0 = time.monotonic()
         assert s.recv(100) == b""  # the server hangs up on a client that never sends its request
         assert time.monotonic() - t0 < 10
+
+
+def test_resume_with_a_monitor_and_a_missing_session_is_a_plain_exit_2(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    code = main(["--resume", str(tmp_path / "nothing"), "--monitor", "127.0.0.1:0"])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "monitor: http://127.0.0.1:" in err  # served, then closed with the session's error
+    assert "no such session directory" in err and "Traceback" not in err

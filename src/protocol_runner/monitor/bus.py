@@ -8,8 +8,9 @@ bounded queue. A client whose queue is full (it stopped reading, or reads slower
 publishes) is dropped: its socket is shut down and its handler thread ends; nobody waits for it.
 
 When the pump falls behind (a dry run in simulated time publishes far faster than any page can draw),
-samples beyond `SAMPLE_BACKLOG` queued messages are discarded and counted; control messages (steps,
-progress, verdicts, events, the end) are never discarded.
+samples beyond `SAMPLE_BACKLOG` queued messages are discarded and counted, and a merged burst keeps its
+newest `MAX_MERGED_POINTS`; control messages (steps, progress, verdicts, events, the end) are never
+discarded.
 """
 
 from __future__ import annotations
@@ -31,8 +32,9 @@ CLIENT_QUEUE = 512
 """Messages waiting for one client before it counts as too slow and is dropped."""
 SAMPLE_BACKLOG = 2_000
 """Samples messages waiting for the pump beyond which new ones are discarded."""
-MAX_MERGED_POINTS = 400
-"""Points of one samples message after merging (older ones of a burst are left out of the live stream)."""
+MAX_MERGED_POINTS = 2_000
+"""Points of one samples message after merging: 100 s of one run at 20 Hz (older points of a longer burst
+are left out of the live stream and counted in `trimmed_points`)."""
 
 
 class Client:
@@ -62,6 +64,7 @@ class EventBus:
         self.client_queue = client_queue
         self.sample_backlog = sample_backlog
         self.dropped_samples = 0
+        self.trimmed_points = 0
         self.dropped_clients = 0
         self.seq = 0
         self._inbox: deque[dict[str, Any]] = deque()
@@ -113,6 +116,7 @@ class EventBus:
     def snapshot(self) -> dict[str, Any]:
         snap = self.state.snapshot()
         snap["dropped_samples"] = self.dropped_samples
+        snap["trimmed_points"] = self.trimmed_points
         return snap
 
     def status(self) -> dict[str, Any]:
@@ -157,7 +161,9 @@ class EventBus:
                 and last["joint"] == msg["joint"]
                 and last["where"] == msg["where"]
             ):
-                last["points"] = (last["points"] + msg["points"])[-MAX_MERGED_POINTS:]
+                merged = last["points"] + msg["points"]
+                self.trimmed_points += max(0, len(merged) - MAX_MERGED_POINTS)
+                last["points"] = merged[-MAX_MERGED_POINTS:]
                 continue
             items.append(msg)
         for msg in items:
