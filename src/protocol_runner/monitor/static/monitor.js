@@ -162,7 +162,7 @@
     const tr = range([visible(j.torque)], 2);
     axes(ctx, top, xr, ar, "", "angle (deg)", rel);
     axes(ctx, bottom, xr, tr, "", "torque (N·m)", rel);
-    line(ctx, top, xr, ar, j.t, j.cmd, getComputedStyle(body).getPropertyValue("--cmd").trim() || "#8a94a6", [5, 4]);
+    line(ctx, top, xr, ar, j.t, j.cmd, "#8a94a6", [5, 4]);
     line(ctx, top, xr, ar, j.t, j.angle, "#1f6fd1");
     line(ctx, bottom, xr, tr, j.t, j.torque, "#d9480f");
   }
