@@ -235,3 +235,11 @@ def test_resume_with_a_monitor_and_a_missing_session_is_a_plain_exit_2(
     assert code == 2
     assert "monitor: http://127.0.0.1:" in err  # served, then closed with the session's error
     assert "no such session directory" in err and "Traceback" not in err
+
+
+def test_help_shows_the_monitor_flag_for_runs_and_resumes(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    assert "--resume SESSION_DIR [--yes] [--monitor [HOST:]PORT]" in out
+    assert "--monitor [HOST:]PORT" in out and "127.0.0.1" in out
