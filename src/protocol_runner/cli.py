@@ -10,18 +10,22 @@ import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from . import __version__
 from .errors import EXIT_INTERRUPTED, EXIT_INVALID_INPUT, EXIT_OK, InvalidInput, UserError
 from .protocol.only import KeySelection
 
+if TYPE_CHECKING:
+    from .monitor.service import Monitor
+
 DESCRIPTION = """\
 Run a declarative test protocol for space-suit joint testing on the RSST robot.
 
 modes:
-  run-protocol PROTOCOL [--dry-run] [--session DIR] [--seed N] [--yes] [--only KEYS]
+  run-protocol PROTOCOL [--dry-run] [--session DIR] [--seed N] [--yes] [--only KEYS] [--monitor [HOST:]PORT]
       run a campaign; --dry-run rehearses it against the DAQ simulator in simulated time
-  run-protocol --resume SESSION_DIR [--yes] [--force]
+  run-protocol --resume SESSION_DIR [--yes] [--force] [--monitor [HOST:]PORT]
       continue an interrupted session without redoing finished steps
   run-protocol --report SESSION_DIR|ARCHIVE.h5 [--output FILE] [--reprocess] [--export-mat DIR]
       (re)generate the HTML report from an archive alone
@@ -42,6 +46,7 @@ EPILOG = """\
 examples:
   run-protocol knee_phase1.yaml --dry-run --yes          full rehearsal: archive.h5 + report.html
   run-protocol knee_phase1.yaml --dry-run --only 4,5,6,7 just the friction configurations
+  run-protocol knee_phase1.yaml --monitor 8765          watch it live at http://127.0.0.1:8765/
   run-protocol --plan knee_phase1.yaml --json > plan.json
   run-protocol --validate my_campaign.yaml
   run-protocol --resume sessions/knee_phase1-20261121T101500Z
@@ -99,6 +104,12 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="with --resume: accept a changed protocol or referenced file, or a missing journal (recorded)",
     )
+    run.add_argument(
+        "--monitor",
+        metavar="[HOST:]PORT",
+        help="serve a live, read-only page of the session (default host 127.0.0.1; another host needs "
+        "the token printed on the terminal)",
+    )
     out = parser.add_argument_group("output")
     out.add_argument(
         "--json", action="store_true", help="with --plan: print the plan as JSON (the contract shape)"
@@ -149,6 +160,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
+    if args.monitor is not None and any(
+        m is not None for m in (args.plan, args.validate, args.report, args.hardware_check)
+    ):
+        raise InvalidInput("--monitor watches a session: use it with a PROTOCOL to run or with --resume")
     if args.plan is not None:
         return _cmd_plan(args)
     if args.validate is not None:
@@ -171,6 +186,15 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         from .commands import verify
 
         return verify(Path(args.verify))
+    if args.monitor is not None and (args.resume is not None or args.protocol is not None):
+        from .monitor.service import Monitor
+
+        with Monitor.open(args.monitor, say=lambda text: print(text, file=sys.stderr, flush=True)) as live:
+            return _run_or_resume(parser, args, live)
+    return _run_or_resume(parser, args, None)
+
+
+def _run_or_resume(parser: argparse.ArgumentParser, args: argparse.Namespace, monitor: Monitor | None) -> int:
     if args.resume is not None:
         from .commands import resume
 
@@ -183,6 +207,7 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
             realtime=args.realtime,
             seed=args.seed,
             only=parse_only(args.only),
+            monitor=monitor,
         )
     if args.protocol is None:
         parser.print_usage(sys.stderr)
@@ -203,6 +228,7 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         yes=args.yes,
         only=parse_only(args.only),
         realtime=args.realtime,
+        monitor=monitor,
     )
 
 

@@ -10,10 +10,12 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .errors import EXIT_OK, InvalidInput
+from .monitor.publisher import NULL_PUBLISHER, Publisher
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
 
+    from .monitor.service import Monitor
     from .protocol.loader import LoadedProtocol
     from .protocol.only import KeySelection
     from .session.operator import Operator
@@ -35,6 +37,7 @@ def run(
     only: KeySelection | Iterable[int] | None,
     realtime: bool,
     quiet: bool = False,
+    monitor: Monitor | None = None,
 ) -> int:
     from .preflight import preflight
     from .protocol.loader import find_protocol, load_protocol
@@ -68,7 +71,10 @@ def run(
         f"({info.mode}, seed {info.seed})"
     )
     operator = _operator(dry_run or yes)
-    result = Runner(directory, info, stored, plan, bench, operator, quiet=quiet).run()
+    publisher: Publisher = NULL_PUBLISHER
+    if monitor is not None:
+        publisher, operator = monitor.attach(directory, info, plan, bench, operator)
+    result = Runner(directory, info, stored, plan, bench, operator, quiet=quiet, publisher=publisher).run()
     _say(f"done: {result.archive}" + (f" and {result.report}" if result.report else ""))
     return EXIT_OK
 
@@ -98,6 +104,7 @@ def resume(
     quiet: bool = False,
     seed: int | None = None,
     only: KeySelection | None = None,
+    monitor: Monitor | None = None,
 ) -> int:
     from .session.resume import check_resume_arguments, resume_preflight
     from .session.runner import Runner
@@ -112,9 +119,21 @@ def resume(
         return EXIT_OK
     bench = _bench(loaded, info)
     operator = _operator(info.mode == "dry-run" or yes)
+    publisher: Publisher = NULL_PUBLISHER
+    if monitor is not None:
+        publisher, operator = monitor.attach(session_dir, info, plan, bench, operator, resumed=True)
     _say(f"resuming {session_dir}: {info.protocol_name} ({info.mode}, seed {info.seed})")
     result = Runner(
-        session_dir, info, loaded, plan, bench, operator, resumed=True, protocol_changed=changed, quiet=quiet
+        session_dir,
+        info,
+        loaded,
+        plan,
+        bench,
+        operator,
+        resumed=True,
+        protocol_changed=changed,
+        quiet=quiet,
+        publisher=publisher,
     ).run()
     _say(
         f"done: {result.steps_run} steps run, {result.steps_skipped} already complete; {result.archive}"

@@ -33,7 +33,7 @@ import numpy.typing as npt
 from protocol_runner.errors import Interrupted, InvalidInput
 from protocol_runner.hardware.calibration import CalibrationTable
 from protocol_runner.hardware.conversions import angle_to_volts, volts_to_angle, volts_to_torque
-from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock, ScanBlock
+from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock, LoopTap, ScanBlock
 from protocol_runner.hardware.safety import SafetyLimits, check_trajectory, clamp_volts, parking_ramp_deg
 
 FloatArray = npt.NDArray[np.float64]
@@ -170,6 +170,8 @@ class Rig:
         self._last_command_deg: float | None = None
         # Entered around every paced loop; the hardware bench sets it to real-time scheduling.
         self.loop_context: Callable[[], contextlib.AbstractContextManager[object]] = contextlib.nullcontext
+        # The live monitor's sampler (--monitor): shown each scan block as it is read; None costs nothing.
+        self.tap: LoopTap | None = None
 
     @property
     def scan_channels(self) -> tuple[int, int]:
@@ -288,6 +290,9 @@ class Rig:
         t0 = now()
         schedule: list[float] = (t0 + np.arange(n + 1, dtype=np.float64) * dt).tolist()
         stopped = ""
+        tap = self.tap
+        if tap is not None:
+            tap.start(where, cmd, t0)
         try:
             start = 0
             while start < n:
@@ -298,6 +303,8 @@ class Rig:
                     codes[k] = write(channel, volts_list[k])
                 append(read())
                 start = end
+                if tap is not None:
+                    tap.scan(blocks[-1])
                 if not stopped and stop_requested is not None and stop_requested():
                     stopped = f"{where}: stopped on request at t = {schedule[end - 1] - t0:.2f} s"
                     if on_stop is None:
@@ -308,6 +315,8 @@ class Rig:
                     volts_list, n = volts.tolist(), int(cmd.size)
                     codes, actual = codes[:end] + [-1] * (n - end), actual[:end] + [0.0] * (n - end)
                     schedule = (t0 + np.arange(n + 1, dtype=np.float64) * dt).tolist()
+                    if tap is not None:
+                        tap.start(f"{where} (park)", cmd, t0)  # the stop's samples, shown as parking
             sleep_until(schedule[n])  # one more tick: the scan covers the response to the last command
             if stopped:
                 raise Interrupted(stopped)

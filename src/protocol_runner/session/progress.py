@@ -1,4 +1,5 @@
-"""Progress of a session: a rich display on a terminal, plain log lines otherwise, and a log file.
+"""Progress of a session: a rich display on a terminal, plain log lines otherwise, a log file, and the
+live monitor's publisher (`--monitor`; a null one otherwise).
 
 Shows the set, configuration and trial, and the ETA in robot time and in wall time.
 """
@@ -11,6 +12,7 @@ import time
 from pathlib import Path
 
 from ..archive.diskfull import QuietFileHandler
+from ..monitor.publisher import NULL_PUBLISHER, Publisher
 from ..protocol.plan import CalibrationCheckStep, Plan, Step, TrialStep
 
 
@@ -40,8 +42,18 @@ def describe(step: Step) -> str:
 
 
 class Progress:
-    def __init__(self, plan: Plan, done: set[str], log_path: Path, *, quiet: bool = False) -> None:
+    def __init__(
+        self,
+        plan: Plan,
+        done: set[str],
+        log_path: Path,
+        *,
+        quiet: bool = False,
+        publisher: Publisher = NULL_PUBLISHER,
+    ) -> None:
         self.plan = plan
+        self.publisher = publisher
+        publisher.begin(plan, done)
         self.total_robot_s = sum(s.robot_time_s for s in plan.steps if s.id not in done)
         self.robot_done_s = 0.0
         self.n_total = len(plan.steps)
@@ -87,6 +99,7 @@ class Progress:
 
     def step_started(self, step: Step) -> None:
         self.logger.info("start %s", step.id)
+        self.publisher.step_start(step)
         if self._rich is not None and self._task is not None:
             self._rich.update(self._task, description=describe(step), eta=self._eta())
 
@@ -95,6 +108,7 @@ class Progress:
         self.robot_done_s += step.robot_time_s
         line = f"[{self.n_done}/{self.n_total}] {step.id}: {summary}  ({self._eta()})"
         self.logger.info(line)
+        self.publisher.step_end(step, summary)
         if self._rich is not None and self._task is not None:
             self._rich.update(self._task, completed=self.n_done, eta=self._eta())
             self._rich.console.print(line)

@@ -23,6 +23,7 @@ from ..archive.consolidate import ArchiveMeta, consolidate
 from ..archive.diskfull import DiskFull, disk_full_error, is_disk_full, resume_hint
 from ..archive.units import UnitRecord, checked_unit_files, write_unit
 from ..errors import Interrupted, StoppedByCheck, UserError
+from ..monitor.publisher import NULL_PUBLISHER, Publisher
 from ..protocol.loader import LoadedProtocol
 from ..protocol.plan import (
     Plan,
@@ -110,6 +111,7 @@ class Runner:
         quiet: bool = False,
         stop: StopFlag | None = None,
         background: bool | None = None,
+        publisher: Publisher = NULL_PUBLISHER,
     ) -> None:
         self.dir = session_dir
         self.info = info
@@ -128,6 +130,7 @@ class Runner:
         self._pool: ProcessPoolExecutor | None = None
         self._pending: list[tuple[tuple[Step, ...], Future[list[tuple[UnitRecord | None, str]]]]] = []
         self._submitted: set[str] = set()
+        self.publisher = publisher  # the live monitor (--monitor): told of every step through `progress`
 
     # ------------------------------------------------------------------------------------------ run
 
@@ -140,7 +143,10 @@ class Runner:
         for stray in self.units_dir.glob("*.partial"):
             stray.unlink()  # an unfinished unit from a crash: never complete, always redone
         self.stop.install()
-        progress = Progress(self.plan, set(self.journal.units), self.dir / "session.log", quiet=self.quiet)
+        log = self.dir / "session.log"
+        progress = Progress(
+            self.plan, set(self.journal.units), log, quiet=self.quiet, publisher=self.publisher
+        )
         ctx = StepContext(
             loaded=self.loaded,
             plan=self.plan,
@@ -150,6 +156,7 @@ class Runner:
             journal=self.journal,
             stop_requested=self.stop,
             processing=processing_settings(self.loaded),
+            monitor=self.publisher,
         )
         skipped = 0
         try:

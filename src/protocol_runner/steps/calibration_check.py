@@ -118,6 +118,17 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
                 f"{text}. The session stopped before the set's trials went on (exit 4). Check the robot's "
                 f"calibration, then continue with --resume (this check is redone first)."
             )
+    ctx.monitor.verdict(
+        record_as,
+        verdict,
+        {
+            "set": step.set,
+            "when": when,
+            "settle_error_deg": round(resp.settle_error_deg, 3),
+            "time_constant_s": round(resp.time_constant_s, 4),
+            "message": message,
+        },
+    )
     fill = _fill(
         step.set, when, record_as, rec, resp, verdict, message, limits.model_dump(), float(p["step_deg"])
     )

@@ -16,6 +16,7 @@ from ..analysis.pipeline import ProcessingSettings
 from ..archive.units import open_unit
 from ..errors import UserError
 from ..hardware.rig import Rig
+from ..monitor.publisher import NULL_PUBLISHER, Publisher
 from ..protocol.levels import Settings
 from ..protocol.loader import LoadedProtocol
 from ..protocol.plan import Plan
@@ -48,6 +49,7 @@ class StepContext:
     journal: Journal
     stop_requested: Callable[[], bool]
     processing: ProcessingSettings
+    monitor: Publisher = NULL_PUBLISHER  # the live monitor (--monitor), or nothing
 
     def unit(self, step_id: str) -> h5py.File:
         """Open the completed unit of an earlier step (read-only)."""

@@ -1,0 +1,229 @@
+"""The event bus between the session and the page's clients.
+
+`publish` and `publish_samples` are what the session calls: a deque append (and, for the rare control
+messages, setting an event), never a lock held by anyone else, never I/O. A pump thread wakes every
+`INTERVAL_S` (or at once for a control message), merges consecutive samples of the same run, numbers and
+encodes each message once, updates the `SessionState` and hands the encoded frame to every client's
+bounded queue. A client whose queue is full (it stopped reading, or reads slower than the session
+publishes) is dropped: its socket is shut down and its handler thread ends; nobody waits for it.
+
+When the pump falls behind (a dry run in simulated time publishes far faster than any page can draw),
+samples beyond `SAMPLE_BACKLOG` queued messages are discarded and counted, and a merged burst keeps its
+newest `MAX_MERGED_POINTS`; control messages (steps, progress, verdicts, events, the end) are never
+discarded.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import queue
+import socket
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable
+from typing import Any
+
+from .state import SessionState, dumps, encode_samples
+
+INTERVAL_S = 0.05
+"""The pump's cadence: at most 20 samples messages a second reach a page."""
+CLIENT_QUEUE = 512
+"""Messages waiting for one client before it counts as too slow and is dropped."""
+SAMPLE_BACKLOG = 2_000
+"""Samples messages waiting for the pump beyond which new ones are discarded."""
+MAX_MERGED_POINTS = 2_000
+"""Points of one samples message after merging: 100 s of one run at 20 Hz (older points of a longer burst
+are left out of the live stream and counted in `trimmed_points`)."""
+
+
+class Client:
+    """One page's event stream: a bounded queue of encoded frames (None = the stream ends)."""
+
+    def __init__(self, sock: socket.socket | None, size: int) -> None:
+        self.sock = sock
+        self.queue: queue.Queue[bytes | None] = queue.Queue(maxsize=size)
+        self.dropped = False
+
+    def kick(self) -> None:
+        """Unblock a handler stuck writing to a client that does not read."""
+        if self.sock is not None:
+            with contextlib.suppress(OSError):
+                self.sock.shutdown(socket.SHUT_RDWR)
+
+
+def frame(text: str, seq: int | None = None) -> bytes:
+    """One Server-Sent Events frame (the JSON text never contains a newline)."""
+    head = f"id: {seq}\n" if seq is not None else ""
+    return f"{head}data: {text}\n\n".encode()
+
+
+class EventBus:
+    def __init__(self, *, client_queue: int = CLIENT_QUEUE, sample_backlog: int = SAMPLE_BACKLOG) -> None:
+        self.state = SessionState()
+        self.client_queue = client_queue
+        self.sample_backlog = sample_backlog
+        self.dropped_samples = 0
+        self.trimmed_points = 0
+        self.dropped_clients = 0
+        self.seq = 0
+        self._inbox: deque[dict[str, Any]] = deque()
+        self._wake = threading.Event()
+        self._lock = threading.Lock()
+        self._clients: list[Client] = []
+        self._sources: list[Callable[[], Iterable[dict[str, Any]]]] = []
+        self._stopping = False
+        self._busy = False
+        self._thread: threading.Thread | None = None
+
+    # ------------------------------------------------------------------------ the session's side
+
+    def publish(self, msg: dict[str, Any]) -> None:
+        """Queue a control message (never discarded) and wake the pump."""
+        msg.setdefault("t_wall", round(time.time(), 3))
+        self._inbox.append(msg)
+        self._wake.set()
+
+    def publish_samples(self, msg: dict[str, Any]) -> None:
+        """Queue a samples message, or discard it if the pump is `sample_backlog` messages behind."""
+        if len(self._inbox) >= self.sample_backlog:
+            self.dropped_samples += 1
+            return
+        self._inbox.append(msg)
+
+    def add_source(self, source: Callable[[], Iterable[dict[str, Any]]]) -> None:
+        """A poller the pump calls every cycle (the journal's new events)."""
+        self._sources.append(source)
+
+    # ------------------------------------------------------------------------- the clients' side
+
+    def subscribe(self, sock: socket.socket | None = None) -> Client:
+        """A new client: its queue starts with `hello` (the snapshot) and the kept samples."""
+        client = Client(sock, self.client_queue)
+        with self._lock:
+            hello = {"type": "hello", "seq": self.seq, "snapshot": self.snapshot()}
+            client.queue.put_nowait(frame(dumps(hello), self.seq))
+            for text in self.state.replay()[-(self.client_queue // 2) :]:
+                client.queue.put_nowait(frame(text))
+            self._clients.append(client)
+        return client
+
+    def unsubscribe(self, client: Client) -> None:
+        with self._lock:
+            if client in self._clients:
+                self._clients.remove(client)
+
+    def snapshot(self) -> dict[str, Any]:
+        snap = self.state.snapshot()
+        snap["dropped_samples"] = self.dropped_samples
+        snap["trimmed_points"] = self.trimmed_points
+        return snap
+
+    def status(self) -> dict[str, Any]:
+        with self._lock:
+            out = self.snapshot()
+            out["clients"] = len(self._clients)
+            out["dropped_clients"] = self.dropped_clients
+            out["seq"] = self.seq
+        return out
+
+    @property
+    def n_clients(self) -> int:
+        return len(self._clients)
+
+    # ------------------------------------------------------------------------------------ pump
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._pump, name="monitor-bus", daemon=True)
+        self._thread.start()
+
+    def _pump(self) -> None:
+        while not self._stopping:
+            self._wake.wait(INTERVAL_S)
+            self._wake.clear()
+            self._busy = True
+            try:
+                self.cycle()
+            finally:
+                self._busy = False
+
+    def cycle(self) -> None:
+        """Deliver what the sources and the session queued since the last cycle, in order."""
+        self._poll_sources()
+        items: list[dict[str, Any]] = []
+        while self._inbox:
+            msg = self._inbox.popleft()
+            last = items[-1] if items else None
+            if (
+                last is not None
+                and msg.get("type") == "samples"
+                and last.get("type") == "samples"
+                and last["joint"] == msg["joint"]
+                and last["where"] == msg["where"]
+            ):
+                merged = last["points"] + msg["points"]
+                self.trimmed_points += max(0, len(merged) - MAX_MERGED_POINTS)
+                last["points"] = merged[-MAX_MERGED_POINTS:]
+                continue
+            items.append(msg)
+        for msg in items:
+            if msg.get("type") == "session_end":
+                self._poll_sources()  # the journal's last events come before the end
+            self._deliver(msg)
+
+    def _poll_sources(self) -> None:
+        for source in self._sources:
+            try:
+                for msg in source():
+                    self._deliver(msg)
+            except Exception:  # a broken source (unreadable journal) must not stop the stream
+                continue
+
+    def _deliver(self, msg: dict[str, Any]) -> None:
+        with self._lock:
+            self.seq += 1
+            msg["seq"] = self.seq
+            if msg.get("type") == "samples":
+                text, points = encode_samples(msg)
+                self.state.apply(msg, points)
+            else:
+                text = dumps(msg)
+                self.state.apply(msg)
+            data = frame(text, self.seq)
+            for client in list(self._clients):
+                try:
+                    client.queue.put_nowait(data)
+                except queue.Full:
+                    self._drop(client)
+
+    def _drop(self, client: Client) -> None:
+        client.dropped = True
+        self.dropped_clients += 1
+        self._clients.remove(client)
+        client.kick()
+
+    # --------------------------------------------------------------------------------- closing
+
+    def close(self, flush_s: float = 2.0) -> None:
+        """Deliver what is queued, give the clients up to `flush_s` to take it, then end every stream."""
+        deadline = time.monotonic() + flush_s
+        if self._thread is None:
+            self.cycle()
+        self._wake.set()
+        while time.monotonic() < deadline and (self._inbox or self._busy or self._pending_output()):
+            time.sleep(0.02)
+        self._stopping = True
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout=1.0)
+        with self._lock:
+            clients, self._clients = self._clients, []
+        for client in clients:
+            try:
+                client.queue.put_nowait(None)
+            except queue.Full:
+                client.kick()
+
+    def _pending_output(self) -> bool:
+        with self._lock:
+            return any(not c.queue.empty() for c in self._clients)

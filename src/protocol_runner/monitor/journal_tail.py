@@ -1,0 +1,62 @@
+"""The journal's new events (started, resumed, interrupted, aborted, calibration re-runs, overrides...)
+as `event` messages: the bus polls `JournalTail` every cycle, so the session code needs no extra hook.
+
+Reads only what was appended since the last poll (bounded per poll) and only event and invalidation
+records; a torn or foreign line is skipped, as the journal itself does.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+MAX_READ = 1 << 20
+"""Bytes read per poll at most (a journal grows by a few hundred bytes per step)."""
+
+
+class JournalTail:
+    def __init__(self, path: Path, *, from_end: bool = True) -> None:
+        self.path = path
+        self._offset = path.stat().st_size if from_end and path.exists() else 0
+        self._rest = b""
+
+    def __call__(self) -> list[dict[str, Any]]:
+        try:
+            with self.path.open("rb") as f:
+                f.seek(self._offset)
+                data = f.read(MAX_READ)
+        except OSError:
+            return []
+        if not data:
+            return []
+        self._offset += len(data)
+        lines = (self._rest + data).split(b"\n")
+        self._rest = lines.pop()  # an unfinished last line waits for the next poll
+        out: list[dict[str, Any]] = []
+        for line in lines:
+            try:
+                rec = json.loads(line)
+            except ValueError:
+                continue
+            if not isinstance(rec, dict):
+                continue
+            if rec.get("record") == "event":
+                out.append(
+                    {
+                        "type": "event",
+                        "kind": str(rec.get("kind", "")),
+                        "detail": str(rec.get("detail", "")),
+                        "t_utc": str(rec.get("t_utc", "")),
+                    }
+                )
+            elif rec.get("record") == "invalidate":
+                out.append(
+                    {
+                        "type": "event",
+                        "kind": "redo",
+                        "detail": f"{rec.get('step_id', '?')}: {rec.get('why', '')}",
+                        "t_utc": str(rec.get("t_utc", "")),
+                    }
+                )
+        return out

@@ -1,0 +1,160 @@
+"""`--monitor`: open the page's server before the session starts, attach it to the session, end it.
+
+`Monitor.open` binds the port first: a port in use (or any other bind failure) is exit 2 with a message
+naming it, before the session folder is created, so a session never runs without the monitor it was
+asked for. The URL is announced on the terminal (with the token, once, when the host is not loopback).
+`attach` hooks the rig's loop (`Rig.tap`), the journal's events, the operator's prompts and the runner's
+publisher; leaving the `with` block publishes `session_end` (complete, or why it stopped), gives the
+pages a moment to receive it, and stops the server.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import secrets
+from collections.abc import Callable
+from pathlib import Path
+from types import TracebackType
+from typing import TYPE_CHECKING, Any
+
+from ..errors import EXIT_INTERRUPTED, EXIT_OK, InvalidInput, UserError
+from .address import MonitorAddress, parse_address
+from .bus import EventBus
+from .journal_tail import JournalTail
+from .live import LivePublisher, MonitoredOperator
+from .samples import SAMPLE_RATE_HZ, SampleTap
+from .server import MonitorServer
+
+if TYPE_CHECKING:
+    from ..protocol.plan import Plan
+    from ..session.operator import Operator
+    from ..session.setup import SessionInfo
+    from ..steps.context import Bench
+    from .publisher import Publisher
+
+
+def _bind_error(address: MonitorAddress, exc: OSError) -> InvalidInput:
+    where = f"{address.host}:{address.port}"
+    if exc.errno == errno.EADDRINUSE:
+        return InvalidInput(
+            f"--monitor: port {address.port} on {address.host} is already in use; the session was not "
+            f"started. Pick another port, e.g. --monitor {address.host}:{address.port + 1}"
+        )
+    if exc.errno == errno.EACCES:
+        return InvalidInput(
+            f"--monitor: not allowed to listen on port {address.port} (ports below 1024 need privileges); "
+            "the session was not started. Pick a port from 1024 up, e.g. --monitor 8765"
+        )
+    if exc.errno == errno.EADDRNOTAVAIL:
+        return InvalidInput(
+            f"--monitor: {address.host} is not an address of this machine; the session was not started"
+        )
+    return InvalidInput(
+        f"--monitor: cannot listen on {where} ({exc.strerror or exc}); the session was not started"
+    )
+
+
+class Monitor:
+    def __init__(self, address: MonitorAddress, bus: EventBus, server: MonitorServer, token: str | None):
+        self.address = address
+        self.bus = bus
+        self.server = server
+        self.token = token
+
+    @classmethod
+    def open(cls, spec: str, *, say: Callable[[str], None]) -> Monitor:
+        address = parse_address(spec)
+        token = None if address.loopback else secrets.token_urlsafe(18)
+        bus = EventBus()
+        try:
+            server = MonitorServer(address, bus, token=token)
+        except OSError as exc:
+            raise _bind_error(address, exc) from None
+        bus.start()
+        server.start()
+        monitor = cls(address, bus, server, token)
+        if token is None:
+            say(f"monitor: {monitor.url} (read-only; this machine only)")
+        else:
+            say(
+                f"monitor: {monitor.url}\n  read-only, reachable from the network on {address.host}: the "
+                "token in this URL is its only key and is printed only here"
+            )
+        return monitor
+
+    @property
+    def port(self) -> int:
+        return self.server.port
+
+    @property
+    def url(self) -> str:
+        query = f"?token={self.token}" if self.token else ""
+        return f"http://{self.address.url_host()}:{self.port}/{query}"
+
+    def attach(
+        self,
+        session_dir: Path,
+        info: SessionInfo,
+        plan: Plan,
+        bench: Bench,
+        operator: Operator,
+        *,
+        resumed: bool = False,
+    ) -> tuple[Publisher, Operator]:
+        """Hook the session up; returns the runner's publisher and the operator to use."""
+        publisher = LivePublisher(self.bus)
+        rig = bench.rig
+        tap = SampleTap(rig.joint, self.bus.publish_samples)
+        rig.tap = tap
+        publisher.taps.append(tap)
+        self.bus.add_source(JournalTail(session_dir / "journal.jsonl"))
+        self.bus.publish(
+            {
+                "type": "session",
+                "protocol": info.protocol_name,
+                "mode": info.mode + (" (real time)" if info.realtime else ""),
+                "folder": str(session_dir),
+                "seed": info.seed,
+                "only": list(info.only),
+                "resumed": resumed,
+                "joints": [rig.joint.name],
+                "steps": len(plan.steps),
+                "sample_rate_hz": SAMPLE_RATE_HZ,
+            }
+        )
+        from ..session.operator import AutoOperator
+
+        watched = operator if isinstance(operator, AutoOperator) else MonitoredOperator(operator, self.bus)
+        return publisher, watched
+
+    def end(self, exc: BaseException | None) -> None:
+        """Publish `session_end`: complete, or why the session stopped."""
+        msg: dict[str, Any] = {"type": "session_end"}
+        if exc is None:
+            msg.update(status="complete", exit_code=EXIT_OK, message="the session finished")
+        elif isinstance(exc, UserError):
+            status = {2: "stopped", 3: "hardware unavailable", 4: "stopped by a check", 130: "interrupted"}
+            msg.update(
+                status=status.get(exc.exit_code, "stopped"), exit_code=exc.exit_code, message=exc.message
+            )
+        elif isinstance(exc, KeyboardInterrupt):
+            msg.update(status="interrupted", exit_code=EXIT_INTERRUPTED, message="interrupted")
+        else:
+            msg.update(status="failed", exit_code=1, message=f"internal error: {exc!r}")
+        self.bus.publish(msg)
+
+    def close(self) -> None:
+        with contextlib.suppress(Exception):
+            self.bus.close()
+        with contextlib.suppress(Exception):
+            self.server.close()
+
+    def __enter__(self) -> Monitor:
+        return self
+
+    def __exit__(
+        self, kind: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.end(exc)
+        self.close()

@@ -1,0 +1,94 @@
+"""The output loop's tap: 20 Hz points that are exactly the recording's values, at no cost to the data."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pytest
+
+from protocol_runner.hardware.calibration import CalibrationTable
+from protocol_runner.hardware.interfaces import ScanBlock
+from protocol_runner.hardware.rig import TrialRecording
+from protocol_runner.hardware.simulator.daq import SimulatedRig
+from protocol_runner.monitor.samples import SampleTap, phase_of
+
+from ..knee_rig import knee_joint_config
+
+# A gentle, non-identity angle table, so the tap's conversion is the recording's, not a plain Eq 2.
+ANGLE_TABLE = CalibrationTable(
+    np.array([0.0, 60.0, 130.0]), np.array([0.0, 62.0, 130.0]), "output_deg", "real_deg"
+)
+
+
+def knee() -> Any:
+    return knee_joint_config(max_rate_deg_s=200.0, max_accel_deg_s2=2000.0, angle_table=ANGLE_TABLE)
+
+
+def trial(tap: SampleTap | None, seed: int = 11) -> TrialRecording:
+    sim = SimulatedRig(knee(), seed=seed)
+    rig = sim.make_rig()
+    rig.tap = tap
+    sim.begin_step("trial:x")
+    # from the park angle (20 deg) and back, twice: 20-90 deg, at most 73 deg/s and 154 deg/s^2
+    cmd = 20.0 + 35.0 * (1 - np.cos(2 * np.pi * np.arange(0.0, 6.0, 0.01) / 3.0))
+    if tap is not None:
+        tap.step = "trial:x"
+    return rig.run_trajectory(cmd, where="trial:x")
+
+
+def test_points_are_20_hz_and_equal_to_what_is_recorded() -> None:
+    sent: list[dict[str, Any]] = []
+    tap = SampleTap(knee(), sent.append)
+    rec = trial(tap)
+    assert sent and all(m["step"] == "trial:x" and m["phase"] == "run" for m in sent)
+    points = np.array([p for m in sent for p in m["points"]])
+    t_rel = points[:, 0] - rec.t0_s
+    assert np.allclose(np.diff(t_rel), 0.05, atol=1e-3)  # 20 Hz of scan time
+    assert points.shape[0] >= 0.98 * rec.n_ticks / 100 * 20
+    rows = np.searchsorted(rec.input_time_s, t_rel - 1e-4)
+    assert np.allclose(points[:, 2], rec.angle_deg[rows], atol=1e-3)  # Eq 2 + the angle table
+    assert np.allclose(points[:, 3], rec.torque_nm[rows], atol=1e-3)  # Eq 3
+    ticks = np.clip((t_rel * 100).astype(int), 0, rec.n_ticks - 1)
+    assert np.allclose(points[:, 1], rec.command_deg[ticks], atol=1e-3)
+
+
+def test_the_tap_changes_nothing_recorded() -> None:
+    plain = trial(None)
+    watched = trial(SampleTap(knee(), lambda m: None))
+    for name in ("command_codes", "angle_codes", "torque_codes", "angle_deg", "torque_nm"):
+        assert np.array_equal(getattr(plain, name), getattr(watched, name)), name
+
+
+def test_a_failing_tap_switches_itself_off_and_the_loop_goes_on() -> None:
+    def broken_sink(msg: dict[str, Any]) -> None:
+        raise RuntimeError("the bus is gone")
+
+    tap = SampleTap(knee(), broken_sink)
+    rec = trial(tap)
+    assert rec.n_ticks == 600  # the whole trial ran
+    assert not tap.enabled and "the bus is gone" in tap.error
+    tap.scan(ScanBlock.empty(1))  # once off, it ignores everything
+
+
+def test_a_block_of_the_wrong_shape_does_not_raise() -> None:
+    tap = SampleTap(knee(), lambda m: None)
+    tap.start("x", np.zeros(10), 0.0)
+    odd = ScanBlock(t_s=np.arange(5) / 1000, codes=np.zeros((5, 1), np.int32), volts=np.zeros((5, 1)))
+    tap.scan(odd)
+    assert not tap.enabled
+
+
+@pytest.mark.parametrize(
+    ("where", "phase"),
+    [
+        ("trial:k01:on:1", "run"),
+        ("trial:k01:on:1 (approach)", "approach"),
+        ("trial:k01:on:1 (park)", "park"),
+        ("trial:k01:off:1 (scaling run 2)", "run"),
+        ("trial:k01:off:1 (scaling run 2) (approach)", "approach"),
+        ("park on stop", "park"),
+    ],
+)
+def test_phase_of_a_run(where: str, phase: str) -> None:
+    assert phase_of(where) == phase
