@@ -241,5 +241,5 @@ def test_help_shows_the_monitor_flag_for_runs_and_resumes(capsys: pytest.Capture
     with pytest.raises(SystemExit):
         main(["--help"])
     out = capsys.readouterr().out
-    assert "--resume SESSION_DIR [--yes] [--monitor [HOST:]PORT]" in out
+    assert "--resume SESSION_DIR [--yes] [--force] [--monitor [HOST:]PORT]" in out
     assert "--monitor [HOST:]PORT" in out and "127.0.0.1" in out
