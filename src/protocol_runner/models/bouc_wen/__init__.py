@@ -47,7 +47,8 @@ loops for that reason.
 
 from __future__ import annotations
 
-from .fitting import cross_validate, fit, fit_trials
+from .crossval import cross_validate
+from .fitting import fit, fit_trials
 from .params import (
     DEFAULT_SIMULATION_BOUND_NM,
     EQ24_PHASE_MATRIX,

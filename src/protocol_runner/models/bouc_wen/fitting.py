@@ -32,6 +32,9 @@ from .schemes import EQ23, REFINED, check_scheme
 from .simulation import as_angle
 from .starts import equation_error_start, thesis_start
 
+_MID_SAMPLES = 1500  # samples per trial of the copy on which the refined scheme's polish starts
+_FINAL_NFEV = 12  # then at most this many residual evaluations on the fitted samples,
+_FINAL_TOL = 1e-8  # to this tolerance (the copy's optimum is close)
 SCREEN_STEP_DEG = 0.5  # substep of the refined integration while screening starts (only picks the basin)
 
 
@@ -138,8 +141,14 @@ def _fit_segments(
     xs, ys, segs, screen_strides = decimate(segments, screen_samples)
     # the screening copy is also integrated with longer substeps (its cost is set by the angle travelled)
     screen_step = SCREEN_STEP_DEG if scheme == REFINED else None
+    mid: Problem | None = None
     if scheme == REFINED:
-        screen = _path_problem(segments, screen_strides, bounds, angle_scale, torque_scale, screen_step)
+        # starts are screened, then polished, on decimated copies (their angle path is the samples kept,
+        # close to the full one for smooth data); the last steps run on the full path
+        screen = Problem(xs, ys, segs, bounds, angle_scale, torque_scale, scheme, screen_step)
+        xm, ym, segm, mid_strides = decimate(segments, _MID_SAMPLES)
+        if any(m > k for m, k in zip(mid_strides, strides, strict=True)):
+            mid = Problem(xm, ym, segm, bounds, angle_scale, torque_scale, scheme)
     elif screen_strides == strides:
         screen = problem
     else:
@@ -192,7 +201,12 @@ def _fit_segments(
     best: tuple[float, FloatArray, int, str] | None = None
     polished: list[float] = []
     for u0 in chosen:
-        u, cost, status, message = problem.solve(u0, max_nfev=_POLISH_NFEV, tol=polish_tol)
+        if mid is not None:
+            u0, _, _, _ = mid.solve(u0, max_nfev=_POLISH_NFEV, tol=polish_tol)
+            nfev, tol = _FINAL_NFEV, max(polish_tol, _FINAL_TOL)
+        else:
+            nfev, tol = _POLISH_NFEV, polish_tol
+        u, cost, status, message = problem.solve(u0, max_nfev=nfev, tol=tol)
         polished.append(problem.rmse(cost))
         if best is None or cost < best[0]:
             best = (cost, u, status, message)
@@ -212,7 +226,7 @@ def _fit_segments(
         n_samples=sum(s[0].size for s in segments),
         n_samples_fitted=int(x.size),
         stride=strides,
-        nfev=problem.nfev + (screen.nfev if screen is not problem else 0),
+        nfev=problem.nfev + (screen.nfev if screen is not problem else 0) + (mid.nfev if mid else 0),
         angle_scale_deg=angle_scale,
         torque_scale_nm=torque_scale,
         bounds=bounds,
@@ -349,42 +363,3 @@ def fit_trials(
             result = full
     bound = DIVERGENCE_FACTOR * result.torque_scale_nm
     return replace(result, rmse_refined_nm=refined_rmse(checked, result.params, bound, scheme))
-
-
-def cross_validate(
-    segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]],
-    *,
-    starts: int = 4,
-    bounds: BoucWenBounds = DEFAULT_BOUNDS,
-    seed: int = 0,
-    max_samples_per_trial: int | None = 8000,
-    initial: BoucWenParams | None = None,
-) -> list[float]:
-    """Leave-one-trial-out RMSE (N*m): for each trial, fit the others with :func:`fit_trials` and predict
-    the held-out trial from its own first torque (Eq 23).  Needs at least two trials.
-
-    initial: warm start (e.g. the fit on all trials). Each held-out fit then starts from it alone instead
-        of the multi-start search: the same optimum for well-posed data, at a fraction of the cost.
-    """
-    checked = _validate_segments(segments)
-    if len(checked) < 2:
-        raise InvalidInput(f"cross-validation needs at least 2 trials, got {len(checked)}")
-    errors: list[float] = []
-    for k, (x, y) in enumerate(checked):
-        others = [s for j, s in enumerate(checked) if j != k]
-        result = _fit_segments(
-            others,
-            starts=starts if initial is None else 0,
-            initial=initial,
-            data_starts=initial is None,
-            bounds=bounds,
-            seed=seed,
-            max_samples_per_trial=max_samples_per_trial,
-            polish=1,
-            # from a warm start the held-out error settles long before a tight tolerance is met
-            polish_tol=1e-10 if initial is None else 1e-6,
-        )
-        scale = max(float(np.max(np.abs(y))), max(float(np.max(np.abs(yy))) for _, yy in others))
-        rmse, _, _, _ = evaluate([(x, y)], result.params, DIVERGENCE_FACTOR * scale)
-        errors.append(rmse)
-    return errors
