@@ -500,6 +500,15 @@ def _read_bouc_wen(grp: h5py.Group) -> BoucWenFit:
         angle_deg=decimate_for_plot(_float_ds(grp, "angle_deg")),
         torque_nm=decimate_for_plot(_float_ds(grp, "torque_nm")),
         model_torque_nm=decimate_for_plot(_float_ds(grp, "model_torque_nm")),
+        rmse_refined_nm=_attr_float(a, "rmse_refined_nm"),
+        optimizer_status=_attr_int(a, "optimizer_status", 0),
+        cost_spread=_attr_float(a, "cost_spread"),
+        n_interval=_attr_floats(a, "n_interval"),
+        weakly_identified=_attr_bool(a, "weakly_identified"),
+        weak_reasons=_attr_str(a, "weak_reasons"),
+        model_energy_j=_attr_float(a, "model_energy_j"),
+        data_energy_j=_attr_float(a, "data_energy_j"),
+        model_dissipates=_attr_bool(a, "model_dissipates", True),
     )
 
 

@@ -140,6 +140,16 @@ class BoucWenFit:
     angle_deg: FloatArray
     torque_nm: FloatArray
     model_torque_nm: FloatArray
+    # the evidence of issue 15 (absent from older archives: NaN / empty / False)
+    rmse_refined_nm: float = float("nan")
+    optimizer_status: int = 0
+    cost_spread: float = float("nan")
+    n_interval: tuple[float, ...] = ()
+    weakly_identified: bool = False
+    weak_reasons: str = ""
+    model_energy_j: float = float("nan")
+    data_energy_j: float = float("nan")
+    model_dissipates: bool = True
 
     @property
     def cv_rmse_mean_nm(self) -> float:
