@@ -35,6 +35,7 @@ from .starts import equation_error_start, thesis_start
 _MID_SAMPLES = 1500  # samples per trial of the copy on which the refined scheme's polish starts
 _FINAL_NFEV = 12  # then at most this many residual evaluations on the fitted samples,
 _FINAL_TOL = 1e-8  # to this tolerance (the copy's optimum is close)
+MID_STEP_DEG = 0.25  # substep of the refined integration on that copy (the final solve uses the default)
 SCREEN_STEP_DEG = 0.5  # substep of the refined integration while screening starts (only picks the basin)
 
 
@@ -121,6 +122,7 @@ def _fit_segments(
     polish: int,
     polish_tol: float = 1e-10,
     scheme: str = REFINED,
+    final: bool = True,
 ) -> BoucWenFit:
     if starts < 0:
         raise InvalidInput(f"starts must be >= 0, got {starts}")
@@ -148,7 +150,7 @@ def _fit_segments(
         screen = Problem(xs, ys, segs, bounds, angle_scale, torque_scale, scheme, screen_step)
         xm, ym, segm, mid_strides = decimate(segments, _MID_SAMPLES)
         if any(m > k for m, k in zip(mid_strides, strides, strict=True)):
-            mid = Problem(xm, ym, segm, bounds, angle_scale, torque_scale, scheme)
+            mid = Problem(xm, ym, segm, bounds, angle_scale, torque_scale, scheme, MID_STEP_DEG)
     elif screen_strides == strides:
         screen = problem
     else:
@@ -202,7 +204,12 @@ def _fit_segments(
     polished: list[float] = []
     for u0 in chosen:
         if mid is not None:
-            u0, _, _, _ = mid.solve(u0, max_nfev=_POLISH_NFEV, tol=polish_tol)
+            u0, cost, status, message = mid.solve(u0, max_nfev=_POLISH_NFEV, tol=polish_tol)
+            if not final:  # (cross-validation folds: the held-out error is measured on every sample)
+                polished.append(mid.rmse(cost))
+                if best is None or cost < best[0]:
+                    best = (cost, u0, status, message)
+                continue
             nfev, tol = _FINAL_NFEV, max(polish_tol, _FINAL_TOL)
         else:
             nfev, tol = _POLISH_NFEV, polish_tol

@@ -1,7 +1,7 @@
 """Parameter intervals of a Bouc-Wen fit and the "weakly identified" mark (issue 15 item 3).
 
 * The exponent n is profiled over its whole range: on a grid of n values from the fitted n outward to
-  each bound (1, 3, 10, 30, 60 and 100 % of the way, stopping where the profile leaves the interval), the other seven parameters are refitted with n held fixed, giving the profile ``SSE(n)``.
+  each bound (2, 10, 30, 60 and 100 % of the way, substeps of 0.5 deg, stopping where the profile leaves the interval), the other seven parameters are refitted with n held fixed, giving the profile ``SSE(n)``.
   The 95 % profile-likelihood interval is where ``m_eff ln(SSE(n) / SSE_min) <= 3.84`` (chi-square, one
   degree of freedom, Gaussian errors of unknown variance).
 * The other parameters get Wald intervals, ``theta +- 1.96 sigma``, with sigma from the Jacobian at the
@@ -30,9 +30,10 @@ from .params import PARAM_NAMES, FloatArray
 from .problem import BoucWenFit, Problem, param_std
 
 CHI2_1_95 = 3.841458820694124  # 95 % quantile of chi-square with one degree of freedom
-PROFILE_SAMPLES = 1000  # samples per trial of the copy on which n is profiled
-PROFILE_STEPS = np.array([0.01, 0.03, 0.1, 0.3, 0.6, 1.0])  # grid from the fitted n to each bound
-PROFILE_NFEV = 15  # residual evaluations of each fixed-n refit
+PROFILE_SAMPLES = 400  # samples per trial of the copy on which n is profiled
+PROFILE_STEP_DEG = 0.5  # substep of the refined integration while profiling
+PROFILE_STEPS = np.array([0.02, 0.1, 0.3, 0.6, 1.0])  # grid from the fitted n to each bound
+PROFILE_NFEV = 10  # residual evaluations of each fixed-n refit
 
 
 def effective_samples(residuals: FloatArray, seg: npt.NDArray[np.int64]) -> float:

@@ -37,16 +37,18 @@ DEFAULT_MAX_STEP_DEG = 0.1  # longest substep of the angle (deg)
 
 @njit(cache=True)
 def _substeps(d, zi, A, n, beta, sx, max_step, stiff_step):  # pragma: no cover - compiled
+    """Substep count of a piece, and the rate ``dz/dx`` at its start (one power of |z| for both)."""
     sd = sgn(d)
     sz = sgn(zi)
     psi = (
         beta[0] * sd * sz + beta[1] * sd * sx + beta[2] * sx * sz + beta[3] * sd + beta[4] * sz + beta[5] * sx
     )
     az = abs(zi)
-    stiff = n * math.exp((n - 1.0) * math.log(az)) * abs(psi) if az > 0.0 else 0.0
+    g = math.exp(n * math.log(az)) if az > 0.0 else 0.0
+    stiff = n * g / az * abs(psi) if az > 0.0 else 0.0
     rate = max(1.0 / max_step, stiff / stiff_step)
     m = math.ceil(abs(d) * rate) if math.isfinite(rate) else MAX_SUBSTEPS
-    return max(1, min(MAX_SUBSTEPS, m))
+    return max(1, min(MAX_SUBSTEPS, m)), A - g * psi
 
 
 @njit(cache=True)
@@ -66,10 +68,11 @@ def _piece(xa, xb, zi, A, n, beta, bound, max_step):  # pragma: no cover - compi
     d = xb - xa
     sd = sgn(d)
     sx = sgn(xa + 0.5 * d)
-    m = _substeps(d, zi, A, n, beta, sx, max_step, max_step * STIFF_STEP / DEFAULT_MAX_STEP_DEG)
+    m, k1 = _substeps(d, zi, A, n, beta, sx, max_step, max_step * STIFF_STEP / DEFAULT_MAX_STEP_DEG)
     h = d / m
-    for _ in range(m):
-        k1 = _rate(zi, A, n, beta, sd, sx)
+    for j in range(m):
+        if j > 0:
+            k1 = _rate(zi, A, n, beta, sd, sx)
         k2 = _rate(zi + h * k1, A, n, beta, sd, sx)
         zi = zi + 0.5 * h * (k1 + k2)
         if not abs(zi) <= bound:
@@ -147,7 +150,7 @@ def _piece_sens(xa, xb, zi, S, A, n, beta, bound, max_step, S2, d1, d2):  # prag
     d = xb - xa
     sd = sgn(d)
     sx = sgn(xa + 0.5 * d)
-    m = _substeps(d, zi, A, n, beta, sx, max_step, max_step * STIFF_STEP / DEFAULT_MAX_STEP_DEG)
+    m, _ = _substeps(d, zi, A, n, beta, sx, max_step, max_step * STIFF_STEP / DEFAULT_MAX_STEP_DEG)
     h = d / m
     for _ in range(m):
         k1 = _rate_sens(zi, S, A, n, beta, sd, sx, d1)
