@@ -425,6 +425,7 @@ def _read_configuration(name: str, grp: h5py.Group) -> Configuration:
                     angle_deg=decimate_for_plot(angle),
                     brace_torque_nm=decimate_for_plot(torque),
                     subtraction=_attr_str(pgrp.attrs, "subtraction", "equal_angle"),
+                    filter_text=_filter_text(pgrp.attrs),
                 )
             trials.append(
                 Trial(number=number, brace_on=on, brace_off=off, processed=processed, recorded=has_raw)
@@ -482,6 +483,15 @@ def _summary(angles: list[np.ndarray], torques: list[np.ndarray]) -> tuple[float
     denom = sxx - sx * sx / n
     slope = (sxy - sx * sy / n) / denom if denom > 1e-12 * max(sxx, 1.0) else float("nan")
     return lo, hi, slope
+
+
+def _filter_text(attrs: h5py.AttributeManager) -> str:
+    """The processing filter as a reader wants it: type, order, cut-off in Hz ("" when not recorded)."""
+    hz = _attr_float(attrs, "filter_cutoff_hz")
+    if not math.isfinite(hz):
+        return ""
+    kind = _attr_str(attrs, "filter_type", "low-pass").capitalize()
+    return f"{kind} low-pass, order {_attr_int(attrs, 'filter_order', 0)}, cut-off {hz:.1f} Hz, zero-phase"
 
 
 def _read_bouc_wen(grp: h5py.Group) -> BoucWenFit:

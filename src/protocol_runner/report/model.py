@@ -106,6 +106,7 @@ class ProcessedTrial:
     angle_deg: FloatArray
     brace_torque_nm: FloatArray
     subtraction: str
+    filter_text: str = ""  # e.g. "Butterworth low-pass, order 10, cut-off 50.0 Hz, zero-phase"
 
 
 @dataclass(frozen=True)
