@@ -36,21 +36,38 @@ class LoopEnergy:
 
 
 def fit_configuration(
-    segments: Sequence[Segment], *, starts: int = 8, cross_validate_trials: bool = True
+    segments: Sequence[Segment],
+    *,
+    starts: int = 8,
+    cross_validate_trials: bool = True,
+    backbone_degree: int | None = 9,
 ) -> tuple[BoucWenFit, list[float]]:
     """The joint fit over a configuration's trials with its intervals and weak-identification mark, and the
     leave-one-trial-out RMSEs (N*m) when asked and there are at least two trials.  Each held-out fit is
-    fitted from scratch on the other trials (nothing from the held-out trial enters it)."""
-    result = identify(segments, fit_trials(segments, starts=starts))
+    fitted from scratch on the other trials (nothing from the held-out trial enters it, backbone included).
+
+    backbone_degree: ``torque = g(angle) + z`` with ``g`` a polynomial of this degree (the loops' midline,
+    :mod:`..models.bouc_wen.backbone`); ``None`` is the thesis form ``torque = z``."""
+    result = identify(segments, fit_trials(segments, starts=starts, backbone_degree=backbone_degree))
     cv: list[float] = []
     if cross_validate_trials and len(segments) >= 2:
-        cv = cross_validate(segments, starts=max(1, starts // 4))
+        cv = cross_validate(segments, starts=max(1, starts // 4), backbone_degree=backbone_degree)
     return result, cv
 
 
-def model_torques(segments: Sequence[Segment], params: BoucWenParams) -> list[np.ndarray]:
-    """The model's torque on every sample of each trial, started at the trial's first torque."""
-    return [simulate(x, params, z0=float(y[0])) for x, y in segments]
+def model_torques(segments: Sequence[Segment], fit: BoucWenFit | BoucWenParams) -> list[np.ndarray]:
+    """The model's torque on every sample of each trial (backbone plus Bouc-Wen state when the fit has a
+    backbone), the state started so that the torque starts at the trial's first torque."""
+    params = fit if isinstance(fit, BoucWenParams) else fit.params
+    backbone = None if isinstance(fit, BoucWenParams) else fit.backbone
+    out = []
+    for x, y in segments:
+        if backbone is None:
+            out.append(simulate(x, params, z0=float(y[0])))
+        else:
+            g = backbone(x)
+            out.append(g + simulate(x, params, z0=float(y[0] - g[0])))
+    return out
 
 
 def loop_energy(segments: Sequence[Segment], models: Sequence[np.ndarray]) -> LoopEnergy:

@@ -519,6 +519,7 @@ def _read_bouc_wen(grp: h5py.Group) -> BoucWenFit:
         model_energy_j=_attr_float(a, "model_energy_j"),
         data_energy_j=_attr_float(a, "data_energy_j"),
         model_dissipates=_attr_bool(a, "model_dissipates", True),
+        backbone=_attr_str(a, "backbone", "none"),
     )
 
 

@@ -151,6 +151,7 @@ class BoucWenFit:
     model_energy_j: float = float("nan")
     data_energy_j: float = float("nan")
     model_dissipates: bool = True
+    backbone: str = "none"  # "polynomial": torque = g(angle) + z
 
     @property
     def cv_rmse_mean_nm(self) -> float:

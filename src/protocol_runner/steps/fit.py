@@ -4,6 +4,8 @@ loops, jointly over its trials, with leave-one-trial-out cross-validation when i
 
 from __future__ import annotations
 
+import math
+
 import h5py
 import numpy as np
 
@@ -41,7 +43,12 @@ def fit_bouc_wen(
 ) -> tuple[BoucWenFit, list[float]]:
     """The joint fit over a configuration's trials (with intervals), and leave-one-trial-out RMSEs when
     asked and possible (see :func:`..analysis.bouc_wen_fit.fit_configuration`)."""
-    return fit_configuration(segments, starts=spec.starts, cross_validate_trials=spec.cross_validate)
+    return fit_configuration(
+        segments,
+        starts=spec.starts,
+        cross_validate_trials=spec.cross_validate,
+        backbone_degree=spec.backbone_degree if spec.backbone == "polynomial" else None,
+    )
 
 
 def run(step: FitStep, ctx: StepContext) -> StepOutcome:
@@ -78,6 +85,9 @@ def evidence_attrs(result: BoucWenFit, energy: LoopEnergy) -> dict[str, object]:
         "model_energy_j": float(energy.model_j),
         "data_energy_j": float(energy.data_j),
         "model_dissipates": bool(energy.model_dissipates),
+        "backbone": "none" if result.backbone is None else "polynomial",
+        "backbone_coef": [] if result.backbone is None else [float(c) for c in result.backbone.coef],
+        "backbone_angle_scale_deg": math.nan if result.backbone is None else result.backbone.angle_scale_deg,
     }
 
 
@@ -85,7 +95,7 @@ def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> F
     p = result.params
     std = np.asarray(result.param_std, dtype=np.float64)
     angles, torques, models = [], [], []
-    full_models = model_torques(segments, p)
+    full_models = model_torques(segments, result)
     energy = loop_energy(segments, full_models)
     for (x, y), z in zip(segments, full_models, strict=True):
         stride = max(1, len(x) // PLOT_POINTS_PER_TRIAL)

@@ -9,6 +9,7 @@ import numpy.typing as npt
 
 from protocol_runner.errors import InvalidInput
 
+from .backbone import fit_backbone, hysteretic_part
 from .fitting import _fit_segments, _validate_segments
 from .params import BoucWenParams
 from .problem import DEFAULT_BOUNDS, DIVERGENCE_FACTOR, BoucWenBounds, evaluate
@@ -24,6 +25,7 @@ def cross_validate(
     max_samples_per_trial: int | None = 8000,
     initial: BoucWenParams | None = None,
     scheme: str = REFINED,
+    backbone_degree: int | None = None,
 ) -> list[float]:
     """Leave-one-trial-out RMSE (N*m): for each trial, fit the others and predict the held-out trial from
     its own first torque.  Needs at least two trials.
@@ -33,6 +35,8 @@ def cross_validate(
     it.  A parameter the other trials cannot determine (e.g. a Table 4 phase only the held-out trial
     visits) then stays where the other trials leave it, and the held-out error shows it.
 
+    backbone_degree: as in :func:`.fit_trials`; each held-out fit then fits its backbone on the other
+        trials too, and the held-out prediction is ``g(angle) + z``.
     initial: an extra start for every held-out fit.  It must not have been fitted on the held-out trial
         (a fit on all trials would carry the held-out trial into its own test); ``None`` by default.
     """
@@ -42,6 +46,10 @@ def cross_validate(
     errors: list[float] = []
     for k, (x, y) in enumerate(checked):
         others = [s for j, s in enumerate(checked) if j != k]
+        if backbone_degree is not None:
+            backbone = fit_backbone(others, backbone_degree)
+            others = hysteretic_part(others, backbone)
+            x, y = hysteretic_part([(x, y)], backbone)[0]
         result = _fit_segments(
             others,
             starts=starts,

@@ -13,6 +13,7 @@ from scipy.stats import qmc
 
 from protocol_runner.errors import InvalidInput
 
+from .backbone import fit_backbone, hysteretic_part
 from .params import BoucWenParams, FloatArray
 from .problem import (
     _POLISH_NFEV,
@@ -329,10 +330,15 @@ def fit_trials(
     max_samples_per_trial: int | None = 8000,
     polish: int = 1,
     scheme: str = REFINED,
+    backbone_degree: int | None = None,
 ) -> BoucWenFit:
     """Fit one model jointly to several trials ``[(angle_deg, torque_nm), ...]`` of one configuration.
 
     Each trial starts its own Eq 23 recursion at its own first torque.  Options as in :func:`fit`.
+
+    backbone_degree: ``None`` fits the thesis form ``torque = z``; an integer fits ``torque = g(angle) + z``
+        with ``g`` a polynomial of that degree through every sample (:mod:`.backbone`), then the Bouc-Wen
+        state to what is left; the result's ``backbone`` holds ``g`` and its errors are of the whole torque.
 
     Decimation guard (``scheme="eq23"`` only; the refined integration does not depend on the sampling):
     a loop on which the best start already diverges when decimated is polished on every
@@ -342,6 +348,10 @@ def fit_trials(
     the better of the two (by RMSE on every sample) is returned.
     """
     checked = _validate_segments(segments)
+    backbone = None
+    if backbone_degree is not None:
+        backbone = fit_backbone(checked, backbone_degree)
+        checked = _validate_segments(hysteretic_part(checked, backbone))
     result = _fit_segments(
         checked,
         starts=starts,
@@ -369,4 +379,8 @@ def fit_trials(
         if full.rmse_nm < result.rmse_nm:
             result = full
     bound = DIVERGENCE_FACTOR * result.torque_scale_nm
-    return replace(result, rmse_refined_nm=refined_rmse(checked, result.params, bound, scheme))
+    return replace(
+        result,
+        rmse_refined_nm=refined_rmse(checked, result.params, bound, scheme),
+        backbone=backbone,
+    )

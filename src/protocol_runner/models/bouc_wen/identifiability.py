@@ -25,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares
 
+from .backbone import hysteretic_part
 from .fitting import _validate_segments, decimate
 from .params import PARAM_NAMES, FloatArray
 from .problem import BoucWenFit, Problem, param_std
@@ -86,6 +87,8 @@ def _crossing(n_in: float, s_in: float, n_out: float, s_out: float, sse0: float,
 def identify(segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]], result: BoucWenFit) -> BoucWenFit:
     """``result`` with n's profile interval, every parameter's interval and the weak-identification mark."""
     checked = _validate_segments(segments)
+    if result.backbone is not None:
+        checked = hysteretic_part(checked, result.backbone)
     x, y, seg, _ = decimate(checked, PROFILE_SAMPLES)
     problem = Problem(x, y, seg, result.bounds, result.angle_scale_deg, result.torque_scale_nm, result.scheme)
     u_best = problem.to_u(result.params)

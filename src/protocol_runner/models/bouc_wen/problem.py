@@ -12,6 +12,7 @@ from scipy.optimize import least_squares
 
 from protocol_runner.errors import InvalidInput
 
+from .backbone import Backbone
 from .kernels import IDENTITY8, gram, sum_sq_diff
 from .params import EQ25_BETA_MATRIX, BoucWenParams, FloatArray, phase_values
 from .schemes import REFINED, check_scheme, run_scheme, run_scheme_sensitivity
@@ -121,6 +122,7 @@ class BoucWenFit:
     param_interval_high: tuple[float, ...] = ()
     weakly_identified: bool = False
     weak_reasons: tuple[str, ...] = ()
+    backbone: Backbone | None = None  # torque = backbone(angle) + z when set (fit_trials backbone_degree)
 
     @property
     def cost_spread(self) -> float:
