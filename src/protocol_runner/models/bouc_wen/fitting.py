@@ -34,7 +34,7 @@ from .simulation import as_angle
 from .starts import equation_error_start, thesis_start
 
 _MID_SAMPLES = 1500  # samples per trial of the copy on which the refined scheme's polish starts
-_FINAL_NFEV = 12  # then at most this many residual evaluations on the fitted samples,
+_FINAL_NFEV = 40  # then at most this many residual evaluations on the fitted samples,
 _FINAL_TOL = 1e-8  # to this tolerance (the copy's optimum is close)
 MID_STEP_DEG = 0.25  # substep of the refined integration on that copy (the final solve uses the default)
 SCREEN_STEP_DEG = 0.5  # substep of the refined integration while screening starts (only picks the basin)
