@@ -282,9 +282,19 @@ class ComparisonSpec(_Model):
     configurations: list[StrictInt] = Field(min_length=2)
 
 
+class PredictionSpec(_Model):
+    """A Bouc-Wen model fitted on configuration `fit` predicts configuration `predict` (the same device
+    elements at another speed or range); the report gives the prediction's RMSE."""
+
+    fit: StrictInt
+    predict: StrictInt
+    note: str = ""
+
+
 class ReportSpec(_Model):
     reference_dataset: str | None = None
     comparisons: list[ComparisonSpec] = Field(default_factory=list)
+    predictions: list[PredictionSpec] = Field(default_factory=list)
 
 
 class Protocol(_Model):

@@ -38,8 +38,14 @@ class Backbone:
     angle_scale_deg: float
 
     def __call__(self, angle_deg: npt.ArrayLike) -> FloatArray:
+        """g at the given angles; beyond the fitted range (|u| > 1) continued along its end tangent, so
+        that a prediction on a wider range does not follow the polynomial's runaway."""
         u = np.asarray(angle_deg, dtype=np.float64) / self.angle_scale_deg
-        return np.asarray(np.polynomial.polynomial.polyval(u, self.coef), dtype=np.float64)
+        poly = np.polynomial.polynomial
+        inside = np.clip(u, -1.0, 1.0)
+        value = poly.polyval(inside, self.coef)
+        slope = poly.polyval(inside, poly.polyder(self.coef)) if len(self.coef) > 1 else 0.0
+        return np.asarray(value + slope * (u - inside), dtype=np.float64)
 
     @property
     def degree(self) -> int:
