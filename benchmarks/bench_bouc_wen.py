@@ -13,6 +13,12 @@ Compared, on exactly the same samples:
   n), no bounds.  It sees the decimated samples ``fit_trials`` fits (every ``stride``-th sample of
   each trial).
 
+Issue 15 (fits a modeller can trust): in the same run, "today's fit" - the thesis's Eq 23 recursion
+(``fit_trials(scheme="eq23")``, the fit before issue 15) - against the fit the pipeline now makes for a
+configuration: step-independent integration, multi-start, the 4x-finer check, n's profile interval and the
+other parameter intervals, the backbone (``analysis.bouc_wen_fit.fit_configuration`` without
+cross-validation, which is one such fit per held-out trial).
+
 Both RMSEs are computed on every 1 kHz sample, and both timings include that computation (``fit_trials``
 returns it, with R^2 and the parameter uncertainties; the baseline computes it after its solve).  Numba
 compilation is excluded (warm-up first).  The fitters take turns within each repeat so that changes in the
@@ -43,6 +49,7 @@ from collections.abc import Callable
 import numpy as np
 from scipy.optimize import least_squares
 
+from protocol_runner.analysis.bouc_wen_fit import fit_configuration
 from protocol_runner.models import bouc_wen as bw
 from protocol_runner.models.bouc_wen import BoucWenParams, fit_trials, simulate
 from protocol_runner.models.bouc_wen import fitting as bw_fitting
@@ -144,14 +151,21 @@ def main() -> int:
     # for information: the thesis's own procedure, Figure 56's data-driven start + the same plain solver
     xs, ys, seg, _ = bw_fitting.decimate(segments, max(x[:: stride[0]].size for x, _ in segments))
     fig56 = bw_starts.thesis_start(xs, ys, seg)
-    (t_ours, ours_out), (t_base, base_out), (t_f56, f56_out) = timed_interleaved(
+    fit_configuration(segments, cross_validate_trials=False)  # warm-up of the identifiability kernels
+    timings = timed_interleaved(
         [
             lambda: fit_trials(segments),
             lambda: baseline_fit(segments, stride),
             lambda: baseline_fit(segments, stride, fig56),
+            lambda: fit_trials(segments, scheme="eq23"),
+            lambda: fit_configuration(segments, cross_validate_trials=False),
         ],
         args.repeats,
     )
+    (t_ours, ours_out), (t_base, base_out), (t_f56, f56_out) = timings[:3]
+    (t_today, today_out), (t_issue15, issue15_out) = timings[3:]
+    assert isinstance(today_out, bw.BoucWenFit) and isinstance(issue15_out, tuple)
+    issue15: bw.BoucWenFit = issue15_out[0]
     ours = ours_out
     assert isinstance(ours, bw.BoucWenFit) and ours.stride == stride
     assert isinstance(base_out, tuple) and isinstance(f56_out, tuple)
@@ -185,6 +199,17 @@ def main() -> int:
         )
     print(f"{'(info) true Figure 57 parameters':<34}{'':>16}{rmse_truth:>14.6f}")
     print()
+    print("issue 15: today's fit against the configuration fit with its evidence, same run")
+    print(f"{'fit':<46}{'median time (s)':>16}{'RMSE':>10}{'4x finer':>10}")
+    print(
+        f"{'today: fit_trials(scheme=eq23)':<46}{t_today:>16.3f}"
+        f"{today_out.rmse_nm:>10.4f}{today_out.rmse_refined_nm:>10.4f}"
+    )
+    print(
+        f"{'now: fit_configuration (refined, intervals)':<46}{t_issue15:>16.3f}"
+        f"{issue15.rmse_nm:>10.4f}{issue15.rmse_refined_nm:>10.4f}"
+    )
+    print()
     print("fitted (ours):   ", np.array2string(ours.params.as_array(), precision=5))
     print("fitted (baseline):", np.array2string(base_params.as_array(), precision=5))
     print("Figure 57:        ", np.array2string(FIG57.as_array(), precision=5))
@@ -196,6 +221,11 @@ def main() -> int:
             rmse_ours <= rmse_base * (1.0 + 1e-6),
         ),
         (f"ours time <= 2x baseline ({t_ours:.3f} <= {2 * t_base:.3f} s)", t_ours <= 2.0 * t_base),
+        (f"configuration fit with its evidence < 0.5 s ({t_issue15:.3f} s)", t_issue15 < 0.5),
+        (
+            f"its 4x-finer RMSE within 2 % ({issue15.rmse_refined_nm:.4f} vs {issue15.rmse_nm:.4f} N*m)",
+            abs(issue15.rmse_refined_nm - issue15.rmse_nm) <= 0.02 * issue15.rmse_nm,
+        ),
     ]
     for label, ok in checks:
         print(f"{'PASS' if ok else 'FAIL'}  {label}")

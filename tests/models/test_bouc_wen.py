@@ -65,7 +65,7 @@ def test_recursion_uses_the_table4_value_in_each_phase(phase: int) -> None:
     signs = [(1, 1, 1), (1, -1, 1), (1, -1, -1), (-1, -1, -1), (-1, 1, -1), (-1, 1, 1)][phase - 1]
     sx, sd, sz = signs
     x0, d, z0 = 10.0 * sx, 0.5 * sd, 3.0 * sz
-    z = simulate(np.array([x0, x0 + d]), FIG57, z0=z0)
+    z = simulate(np.array([x0, x0 + d]), FIG57, z0=z0, scheme="eq23")
     expected = z0 + d * (FIG57.A - abs(z0) ** FIG57.n * FIG57.phases[phase - 1])
     assert z[1] == pytest.approx(expected, rel=1e-12)
     assert phase_of_samples(np.array([x0, x0 + d]), np.array([z0, z[1]]))[0] == phase
@@ -75,11 +75,12 @@ def test_sgn_of_zero_is_zero_in_eq23() -> None:
     """At z = 0 and x = 0 every sign term vanishes, so the first step is exactly d * A (rising torque for
     A > 0: the joint resists the motion)."""
     x = np.array([0.0, 0.01, 0.02, 0.03])
-    z = simulate(x, FIG57, z0=0.0)
+    z = simulate(x, FIG57, z0=0.0, scheme="eq23")
     assert z[1] == pytest.approx(FIG57.A * 0.01, rel=1e-12)
     assert np.all(np.diff(z) > 0.0)
     # a sample where the angle does not move leaves the torque unchanged
-    assert simulate(np.array([5.0, 5.0]), FIG57, z0=2.0)[1] == 2.0
+    for scheme in ("eq23", "refined"):
+        assert simulate(np.array([5.0, 5.0]), FIG57, z0=2.0, scheme=scheme)[1] == 2.0
 
 
 @settings(max_examples=30, deadline=None)
@@ -134,15 +135,18 @@ def test_figure57_parameters_give_a_dissipative_hysteresis_loop() -> None:
     assert up - down > 1.0
 
 
-def test_sensitivities_match_finite_differences() -> None:
+@pytest.mark.parametrize("scheme", ["eq23", "refined"])
+def test_sensitivities_match_finite_differences(scheme: str) -> None:
     x = centred_sinusoid(1.5, 0.05)
+    # (x > 0, dx > 0, z < 0) is unstable with the Figure 57 parameters: the differential equation started
+    # at z0 = -3 on a rising angle diverges, which Eq 23's long first step happens to jump over
     for params, z0 in [
         (FIG57, 0.0),
-        (FIG57, -3.0),
+        (FIG57, -3.0 if scheme == "eq23" else 3.0),
         (BoucWenParams(0.5, 0.8, (0.1, 0.0, 0.05, -0.02, 0.1, 0.0)), 1.0),
     ]:
-        z, dz = simulate_sensitivity(x, params, z0=z0)
-        assert np.array_equal(z, simulate(x, params, z0=z0))
+        z, dz = simulate_sensitivity(x, params, z0=z0, scheme=scheme)
+        assert np.allclose(z, simulate(x, params, z0=z0, scheme=scheme), rtol=1e-12, atol=1e-12)
         theta = params.as_array()
         for k, name in enumerate(PARAM_NAMES):
             h = 1e-6 * max(abs(theta[k]), 1e-2)
@@ -150,8 +154,8 @@ def test_sensitivities_match_finite_differences() -> None:
             up[k] += h
             down[k] -= h
             fd = (
-                simulate(x, BoucWenParams.from_array(up), z0=z0)
-                - simulate(x, BoucWenParams.from_array(down), z0=z0)
+                simulate(x, BoucWenParams.from_array(up), z0=z0, scheme=scheme)
+                - simulate(x, BoucWenParams.from_array(down), z0=z0, scheme=scheme)
             ) / (2 * h)
             scale = np.max(np.abs(fd))
             assert scale > 0.0, name
@@ -390,10 +394,12 @@ def test_loop_whose_decimated_recursion_diverges_is_fitted_on_every_sample(
     data = np.load(Path(__file__).parent / "data" / "brace_rom_stop_loop.npz")
     x = data["angle_deg"].astype(np.float64)
     y = data["torque_nm"].astype(np.float64)
-    result = fit_trials([(x, y)], starts=8)
+    result = fit_trials([(x, y)], starts=8, scheme="eq23")
     assert result.stride == (1,) and result.n_samples_fitted == x.size
     assert not result.diverged and result.r2 > 0.9
 
     monkeypatch.setattr(bw_fitting, "_diverges_when_decimated", lambda *args: False)
-    guarded = fit_trials([(x, y)], starts=8)  # decimated fit, then the guard's refit on every sample
+    guarded = fit_trials(
+        [(x, y)], starts=8, scheme="eq23"
+    )  # decimated fit, then the guard's refit on every sample
     assert result.rmse_nm <= guarded.rmse_nm

@@ -127,6 +127,12 @@ CASES = [
         'same_as: "9"',
     ),
     (
+        "prediction of a missing configuration",
+        lambda t: t.replace("{fit: 12, predict: 14,", "{fit: 12, predict: 99,"),
+        r"report\.predictions\[1\]\.predict: no configuration has key 99",
+        "predict: 99",
+    ),
+    (
         "comparison of a missing configuration",
         lambda t: t.replace("configurations: [10, 11]}", "configurations: [10, 99]}"),
         r"report\.comparisons\[0\]\.configurations\[1\]: no configuration has key 99",

@@ -31,11 +31,45 @@ def test_identification_envelope_reaches_the_range_at_the_repetition_time() -> N
     )  # e^0 = 1
 
 
-def test_identification_repeats_every_repetition_time() -> None:
+def test_identification_repeats_join_without_jumps() -> None:
+    """Every second repeat is the previous one played backwards, so each starts where the last ended (at
+    rest): the motion repeats every two repetition times and has no jump (the thesis's 109 -> 1 deg)."""
     t = np.linspace(0.0, 29.0, 1000)
     a = identification_deg(t, 0.0, 110.0, 30.0, 8.0, 2.0)
-    b = identification_deg(t + 30.0, 0.0, 110.0, 30.0, 8.0, 2.0)
-    np.testing.assert_allclose(a, b, atol=1e-9)
+    np.testing.assert_allclose(identification_deg(60.0 - t, 0.0, 110.0, 30.0, 8.0, 2.0), a, atol=1e-9)
+    np.testing.assert_allclose(identification_deg(t + 60.0, 0.0, 110.0, 30.0, 8.0, 2.0), a, atol=1e-9)
+    dt = 1e-3
+    fine = identification_deg(np.arange(0.0, 90.0, dt), 0.0, 110.0, 30.0, 8.0, 2.0)
+    assert np.max(np.abs(np.diff(fine))) < 0.2  # < 200 deg/s everywhere, junctions included
+    for k in (30_000, 60_000):  # at a junction: extreme of the range, at rest
+        assert fine[k] in (pytest.approx(110.0), pytest.approx(1.0))
+        assert abs(fine[k + 1] - fine[k - 1]) / (2 * dt) < 0.01
+
+
+def test_knee_identification_motion_stays_inside_the_joints_limits() -> None:
+    """Eq 4-7 as the knee protocol declares it: peak speed and acceleration inside rig.safety."""
+    from protocol_runner.protocol.loader import load_protocol
+
+    from .test_plan import KNEE
+
+    p = load_protocol(KNEE).protocol
+    ident = p.trajectories.identification
+    assert ident is not None
+    dt = 1e-3
+    t = np.arange(0.0, ident.total_s, dt)
+    y = identification_deg(
+        t,
+        ident.range_deg[0],
+        ident.range_deg[1],
+        ident.repetition_s,
+        ident.initial_period_s,
+        ident.final_period_s,
+    )
+    speed = np.diff(y) / dt
+    accel = np.diff(speed) / dt
+    assert np.max(np.abs(speed)) <= p.rig.safety.max_rate_deg_s
+    assert np.max(np.abs(accel)) <= p.rig.safety.max_accel_deg_s2
+    assert float(np.min(y)) >= ident.range_deg[0] - 1e-9 and float(np.max(y)) <= ident.range_deg[1] + 1e-9
 
 
 def test_calibration_step_is_a_smooth_45_degree_move() -> None:

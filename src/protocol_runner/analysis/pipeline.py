@@ -133,13 +133,17 @@ class ProcessingSettings:
         if self.spring_fit_target not in ("branch_mean", "all_samples"):
             raise bad("spring_fit_target", "must be 'branch_mean' or 'all_samples'")
 
-    def filter_description(self) -> dict[str, Any]:
-        """The filter settings as a plain dict (for the archive's `filter` JSON attribute)."""
+    def filter_description(self, sample_rate_hz: float | None = None) -> dict[str, Any]:
+        """The filter settings as a plain dict (for the archive's `filter` JSON attribute); with the input
+        rate it filtered at, also the cut-off in Hz (`cutoff` is the fraction of the Nyquist frequency)."""
         out: dict[str, Any] = {
             "kind": self.filter_kind,
             "order": self.filter_order,
             "cutoff": self.filter_cutoff,
         }
+        if sample_rate_hz is not None:
+            out["cutoff_hz"] = self.filter_cutoff * sample_rate_hz / 2.0
+            out["sample_rate_hz"] = sample_rate_hz
         if self.filter_kind == "chebyshev":
             out["ripple_db"] = self.chebyshev_ripple_db
         out["zero_phase"] = True

@@ -7,10 +7,16 @@ and stiffness `K-EMU` = `K2`. Resolution assumes a validated protocol (see `prot
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
-from typing import TypeVar
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, TypeVar
 
-from .schema import ConfigurationSpec, Levels
+import numpy as np
+
+from .schema import ConfigurationSpec, Levels, Protocol
+from .trajectories import load_trajectory_file
+
+if TYPE_CHECKING:
+    from .loader import LoadedProtocol
 
 
 @dataclass(frozen=True)
@@ -95,4 +101,20 @@ def resolve_settings(levels: Levels, cfg: ConfigurationSpec) -> Settings:
         preload_position=int(_present(preload.position, "position")),
         speed=cfg.speed,
         speed_deg_s=float(_present(speed.max_deg_s, "max_deg_s")),
+    )
+
+
+def with_motion_range(
+    p: Protocol, loaded: LoadedProtocol | None, cfg: ConfigurationSpec, settings: Settings
+) -> Settings:
+    """A human-profile configuration moves through its subject's motion file, not through a robot range
+    level: record the motion's name and the angle range its file spans (Table 5's motion range)."""
+    if cfg.profile != "human" or cfg.trajectory is None or loaded is None:
+        return settings
+    spec = p.trajectories.human[cfg.trajectory]
+    angle = load_trajectory_file(loaded.base_dir / spec.file).angle_deg
+    return replace(
+        settings,
+        robot_rom=f"{cfg.trajectory} (motion file)",
+        robot_rom_deg=(float(np.min(angle)), float(np.max(angle))),
     )

@@ -24,7 +24,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-from .levels import Settings, resolve_settings
+from .levels import Settings, resolve_settings, with_motion_range
 from .loader import LoadedProtocol
 from .only import KeySelection
 from .schema import ConfigurationSpec, Protocol, SetSpec
@@ -396,7 +396,7 @@ def _expand_set(
             trajectory=cal_traj,
         )
     ]
-    resolved = [(c, resolve_settings(p.levels, c)) for c in cfgs]
+    resolved = [(c, with_motion_range(p, loaded, c, resolve_settings(p.levels, c))) for c in cfgs]
     trajectories = {c.key: trajectory_for(p, loaded, c, st) for c, st in resolved}
     for cfg, st in resolved:
         steps.append(

@@ -233,6 +233,10 @@ class BoucWenFitSpec(_Model):
     enabled: bool = True
     starts: int = Field(default=8, ge=1, le=200)
     cross_validate: bool = True
+    # torque = backbone(angle) + z: "polynomial" (a polynomial of the angle through the loops' midline,
+    # until the device elements are declared) or "none" (the thesis form, torque = z)
+    backbone: Literal["polynomial", "none"] = "polynomial"
+    backbone_degree: int = Field(default=9, ge=0, le=15)
 
 
 class FitsSpec(_Model):
@@ -278,9 +282,19 @@ class ComparisonSpec(_Model):
     configurations: list[StrictInt] = Field(min_length=2)
 
 
+class PredictionSpec(_Model):
+    """A Bouc-Wen model fitted on configuration `fit` predicts configuration `predict` (the same device
+    elements at another speed or range); the report gives the prediction's RMSE."""
+
+    fit: StrictInt
+    predict: StrictInt
+    note: str = ""
+
+
 class ReportSpec(_Model):
     reference_dataset: str | None = None
     comparisons: list[ComparisonSpec] = Field(default_factory=list)
+    predictions: list[PredictionSpec] = Field(default_factory=list)
 
 
 class Protocol(_Model):

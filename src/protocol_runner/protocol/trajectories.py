@@ -46,15 +46,44 @@ def identification_deg(
     initial_period_s: float,
     final_period_s: float,
 ) -> FloatArray:
-    """Eq 4-7: y = min + exp(ln(max - min) * tau / t_rep) * cos^2(pi * tau / Period(tau)), tau = t mod t_rep.
+    """The Eq 4-7 identification motion, rebuilt so that its repeats join without jumps.
 
-    Period(tau) = t_final * tau/t_rep + t_initial * (t_rep - tau)/t_rep (Eq 5). The envelope reaches
-    max - min at the repetition time (Eq 4); the pattern repeats every `repetition_s`.
+    Thesis (Figure 25): y = min + E(tau) cos^2(phi(tau)), tau = t mod t_rep, with the envelope
+    E(tau) = exp(ln(max - min) tau / t_rep) (Eq 4), the carrier period Period(tau) = t_final tau/t_rep +
+    t_initial (t_rep - tau)/t_rep (Eq 5) and phi = pi tau / Period(tau).  Played as printed it ends each
+    repeat near max and starts the next at min + 1 (a jump of about 108 deg), and ``pi tau / Period(tau)``
+    turns faster than its period says (its rate is ``pi t_initial / Period^2``, a 0.5 s period at the end
+    for 8 -> 2 s: peaks of about 670 deg/s).  Here:
+
+    * Eq 4's time fraction ``tau / t_rep`` is replaced by ``s = (1 - cos(pi tau / t_rep)) / 2``: the envelope
+      still grows exponentially from 1 to ``max - min`` but starts and ends with zero slope;
+    * the carrier (Eq 6-7, cos^2) turns at the instantaneous period of Eq 5: ``phi`` is the integral of
+      ``pi / Period``, scaled (by at most half a cycle over a repeat) so that a repeat holds a whole number
+      of cycles - it then starts and ends at a crest (cos^2 = 1, zero slope), at min + 1 and at max;
+    * every second repeat is the previous one played backwards (``tau -> t_rep - tau``): each repeat starts
+      where the last ended, at rest, with the same acceleration - no jump, no blend needed.
+
+    Peak speed is about ``pi (max - min) / t_final`` and peak acceleration ``2 pi^2 (max - min) / t_final^2``:
+    choose ``t_final >= pi (max - min) / max_rate`` (110 deg at 120 deg/s: 2.9 s, the knee protocol uses
+    3.2 s); the plan-time stream check refuses a motion outside the joint's limits.
     """
-    tau = np.mod(np.asarray(time_s, dtype=np.float64), repetition_s)
-    envelope = np.exp(math.log(max_deg - min_deg) * tau / repetition_s)
+    t = np.asarray(time_s, dtype=np.float64)
+    k = np.floor(t / repetition_s)
+    tau = t - k * repetition_s
+    tau = np.where(np.mod(k, 2.0) == 1.0, repetition_s - tau, tau)  # odd repeats run backwards
+    s = 0.5 * (1.0 - np.cos(np.pi * tau / repetition_s))
+    envelope = np.exp(math.log(max_deg - min_deg) * s)
     period = final_period_s * tau / repetition_s + initial_period_s * (repetition_s - tau) / repetition_s
-    return min_deg + envelope * np.cos(np.pi * tau / period) ** 2
+    slope = (final_period_s - initial_period_s) / repetition_s
+    if abs(slope) < 1e-12 * initial_period_s:
+        cycles = tau / initial_period_s
+        total = repetition_s / initial_period_s
+    else:
+        cycles = np.log(period / initial_period_s) / slope
+        total = math.log(final_period_s / initial_period_s) / slope
+    whole = max(1, round(total))
+    phase = np.pi * cycles * (whole / total)
+    return min_deg + envelope * np.cos(phase) ** 2
 
 
 def calibration_step_deg(

@@ -326,3 +326,12 @@ def _check_report(p: Protocol) -> Iterator[Problem]:
         for j, key in enumerate(comp.configurations):
             if key not in keys:
                 yield ("report", "comparisons", i, "configurations", j), f"no configuration has key {key}"
+    for i, pred in enumerate(p.report.predictions):
+        for field_name in ("fit", "predict"):
+            if getattr(pred, field_name) not in keys:
+                yield (
+                    ("report", "predictions", i, field_name),
+                    f"no configuration has key {getattr(pred, field_name)}",
+                )
+        if pred.fit == pred.predict:
+            yield ("report", "predictions", i, "predict"), "a prediction needs two different configurations"

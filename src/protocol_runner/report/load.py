@@ -425,6 +425,7 @@ def _read_configuration(name: str, grp: h5py.Group) -> Configuration:
                     angle_deg=decimate_for_plot(angle),
                     brace_torque_nm=decimate_for_plot(torque),
                     subtraction=_attr_str(pgrp.attrs, "subtraction", "equal_angle"),
+                    filter_text=_filter_text(pgrp.attrs),
                 )
             trials.append(
                 Trial(number=number, brace_on=on, brace_off=off, processed=processed, recorded=has_raw)
@@ -484,6 +485,15 @@ def _summary(angles: list[np.ndarray], torques: list[np.ndarray]) -> tuple[float
     return lo, hi, slope
 
 
+def _filter_text(attrs: h5py.AttributeManager) -> str:
+    """The processing filter as a reader wants it: type, order, cut-off in Hz ("" when not recorded)."""
+    hz = _attr_float(attrs, "filter_cutoff_hz")
+    if not math.isfinite(hz):
+        return ""
+    kind = _attr_str(attrs, "filter_type", "low-pass").capitalize()
+    return f"{kind} low-pass, order {_attr_int(attrs, 'filter_order', 0)}, cut-off {hz:.1f} Hz, zero-phase"
+
+
 def _read_bouc_wen(grp: h5py.Group) -> BoucWenFit:
     a = grp.attrs
     return BoucWenFit(
@@ -500,6 +510,16 @@ def _read_bouc_wen(grp: h5py.Group) -> BoucWenFit:
         angle_deg=decimate_for_plot(_float_ds(grp, "angle_deg")),
         torque_nm=decimate_for_plot(_float_ds(grp, "torque_nm")),
         model_torque_nm=decimate_for_plot(_float_ds(grp, "model_torque_nm")),
+        rmse_refined_nm=_attr_float(a, "rmse_refined_nm"),
+        optimizer_status=_attr_int(a, "optimizer_status", 0),
+        cost_spread=_attr_float(a, "cost_spread"),
+        n_interval=_attr_floats(a, "n_interval"),
+        weakly_identified=_attr_bool(a, "weakly_identified"),
+        weak_reasons=_attr_str(a, "weak_reasons"),
+        model_energy_j=_attr_float(a, "model_energy_j"),
+        data_energy_j=_attr_float(a, "data_energy_j"),
+        model_dissipates=_attr_bool(a, "model_dissipates", True),
+        backbone=_attr_str(a, "backbone", "none"),
     )
 
 

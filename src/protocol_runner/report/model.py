@@ -106,6 +106,7 @@ class ProcessedTrial:
     angle_deg: FloatArray
     brace_torque_nm: FloatArray
     subtraction: str
+    filter_text: str = ""  # e.g. "Butterworth low-pass, order 10, cut-off 50.0 Hz, zero-phase"
 
 
 @dataclass(frozen=True)
@@ -140,6 +141,17 @@ class BoucWenFit:
     angle_deg: FloatArray
     torque_nm: FloatArray
     model_torque_nm: FloatArray
+    # the evidence of issue 15 (absent from older archives: NaN / empty / False)
+    rmse_refined_nm: float = float("nan")
+    optimizer_status: int = 0
+    cost_spread: float = float("nan")
+    n_interval: tuple[float, ...] = ()
+    weakly_identified: bool = False
+    weak_reasons: str = ""
+    model_energy_j: float = float("nan")
+    data_energy_j: float = float("nan")
+    model_dissipates: bool = True
+    backbone: str = "none"  # "polynomial": torque = g(angle) + z
 
     @property
     def cv_rmse_mean_nm(self) -> float:

@@ -32,6 +32,7 @@ from protocol_runner.report.figures import (
 from protocol_runner.report.findings import Finding, comparison_keys, evaluate_findings
 from protocol_runner.report.load import load_reference_dataset, load_report_data
 from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Comparison, Configuration, ReportData
+from protocol_runner.report.predictions import predictions
 from protocol_runner.resources import templates_dir
 
 TEMPLATE = "report.html.j2"
@@ -199,6 +200,7 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
         "emu_configurations": _configs(data, emu),
         "spring_comparisons": model_comparisons(data),
         "fitted": [c for c in data.configurations if c.bouc_wen is not None],
+        "predictions": predictions(Path(data.session.archive_path), data.protocol_text),
         "spring_fitted": [c for c in data.configurations if c.spring is not None],
         "findings": findings,
         "restraint_keys": restraint_keys,

@@ -4,12 +4,15 @@ loops, jointly over its trials, with leave-one-trial-out cross-validation when i
 
 from __future__ import annotations
 
+import math
+
 import h5py
 import numpy as np
 
+from ..analysis.bouc_wen_fit import LoopEnergy, fit_configuration, loop_energy, model_torques
 from ..analysis.centring import centre
 from ..archive.h5util import put, set_attrs
-from ..models.bouc_wen import BoucWenFit, cross_validate, fit_trials, simulate
+from ..models.bouc_wen import BoucWenFit
 from ..protocol.plan import FitStep, configuration_name
 from ..protocol.schema import BoucWenFitSpec
 from .context import Fill, StepContext, StepOutcome
@@ -38,13 +41,14 @@ def centred_loop(angle_deg: np.ndarray, torque_nm: np.ndarray) -> tuple[np.ndarr
 def fit_bouc_wen(
     segments: list[tuple[np.ndarray, np.ndarray]], spec: BoucWenFitSpec
 ) -> tuple[BoucWenFit, list[float]]:
-    """The joint fit over a configuration's trials, and leave-one-trial-out RMSEs when asked and possible."""
-    result = fit_trials(segments, starts=spec.starts)
-    cv: list[float] = []
-    if spec.cross_validate and len(segments) >= 2:
-        # warm-started from the joint fit (the held-out error is measured on every sample of the trial)
-        cv = cross_validate(segments, initial=result.params)
-    return result, cv
+    """The joint fit over a configuration's trials (with intervals), and leave-one-trial-out RMSEs when
+    asked and possible (see :func:`..analysis.bouc_wen_fit.fit_configuration`)."""
+    return fit_configuration(
+        segments,
+        starts=spec.starts,
+        cross_validate_trials=spec.cross_validate,
+        backbone_degree=spec.backbone_degree if spec.backbone == "polynomial" else None,
+    )
 
 
 def run(step: FitStep, ctx: StepContext) -> StepOutcome:
@@ -54,18 +58,46 @@ def run(step: FitStep, ctx: StepContext) -> StepOutcome:
     result, cv = fit_bouc_wen(segments, ctx.loaded.protocol.fits.bouc_wen)
     name = configuration_name(step.configuration)
     fill = bouc_wen_fill(name, result, segments, cv)
-    summary = f"Bouc-Wen RMSE {result.rmse_nm:.2f} N*m, R2 {result.r2:.3f}"
+    summary = (
+        f"Bouc-Wen RMSE {result.rmse_nm:.2f} N*m (4x finer: {result.rmse_refined_nm:.2f}), R2 {result.r2:.3f}"
+    )
+    if result.weakly_identified:
+        summary += ", weakly identified"
     if cv:
         summary += f", cross-validated RMSE {np.mean(cv):.2f} N*m"
     return StepOutcome(fill, summary)
+
+
+def evidence_attrs(result: BoucWenFit, energy: LoopEnergy) -> dict[str, object]:
+    """The attributes that let a modeller judge the fit (issue 15; units in docs/archive.md)."""
+    return {
+        "scheme": result.scheme,
+        "rmse_refined_nm": float(result.rmse_refined_nm),
+        "optimizer_status": int(result.status),
+        "optimizer_message": result.message,
+        "start_rmse_nm": [float(v) for v in result.start_rmse_nm],
+        "cost_spread": float(result.cost_spread),
+        "n_interval": [float(v) for v in result.n_interval],
+        "param_interval_low": [float(v) for v in result.param_interval_low],
+        "param_interval_high": [float(v) for v in result.param_interval_high],
+        "weakly_identified": bool(result.weakly_identified),
+        "weak_reasons": "; ".join(result.weak_reasons),
+        "model_energy_j": float(energy.model_j),
+        "data_energy_j": float(energy.data_j),
+        "model_dissipates": bool(energy.model_dissipates),
+        "backbone": "none" if result.backbone is None else "polynomial",
+        "backbone_coef": [] if result.backbone is None else [float(c) for c in result.backbone.coef],
+        "backbone_angle_scale_deg": math.nan if result.backbone is None else result.backbone.angle_scale_deg,
+    }
 
 
 def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> Fill:
     p = result.params
     std = np.asarray(result.param_std, dtype=np.float64)
     angles, torques, models = [], [], []
-    for x, y in segments:
-        z = simulate(x, p, z0=float(y[0]))
+    full_models = model_torques(segments, result)
+    energy = loop_energy(segments, full_models)
+    for (x, y), z in zip(segments, full_models, strict=True):
         stride = max(1, len(x) // PLOT_POINTS_PER_TRIAL)
         angles.append(x[::stride])
         torques.append(y[::stride])
@@ -90,6 +122,7 @@ def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> F
                 "diverged": bool(result.diverged),
             },
         )
+        set_attrs(g, evidence_attrs(result, energy))
         put(g, "angle_deg", np.concatenate(angles), "deg")
         put(g, "torque_nm", np.concatenate(torques), "N*m")
         put(g, "model_torque_nm", np.concatenate(models), "N*m")

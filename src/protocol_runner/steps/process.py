@@ -97,7 +97,11 @@ def processed_fill(name: str, result: ConfigurationResult, settings: ProcessingS
                     "transition_index0_on": int(t.transition_index_on),
                     "transition_index0_off": int(t.transition_index_off),
                     "subtraction": settings.subtraction,
-                    "filter": json.dumps(settings.filter_description()),
+                    "filter": json.dumps(settings.filter_description(1.0 / dt)),
+                    # the zero-phase low-pass filter ran at the input rate 1/dt, before the decimation
+                    "filter_type": settings.filter_kind,
+                    "filter_order": int(settings.filter_order),
+                    "filter_cutoff_hz": float(settings.filter_cutoff / (2.0 * dt)),
                     "coverage": float(t.coverage),
                 },
             )

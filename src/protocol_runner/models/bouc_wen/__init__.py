@@ -6,10 +6,16 @@ and compressed) can be represented (§6.2.3, Eq 22)::
 
     Psi = b1 sgn(dx z) + b2 sgn(dx x) + b3 sgn(x z) + b4 sgn(dx) + b5 sgn(z) + b6 sgn(x)
 
-and discretises it with the explicit first-order recursion of Eq 23::
+The thesis discretises it with the explicit first-order recursion of Eq 23::
 
     z_0 = initial torque
     z_{i+1} = z_i + (x_{i+1} - x_i) [A - |z_i|^n Psi_i]
+
+whose torque depends on the sampling rate.  :func:`simulate` and :func:`fit` integrate the differential
+equation instead (``scheme="refined"``, the default): the angle is taken as piecewise linear between samples
+and the state is advanced by Heun's method on substeps bounded by an angle increment and by the loop's
+stiffness (:mod:`.integrator`), so a parameter set gives the same torque at any sampling rate.  The literal
+recursion is ``scheme="eq23"``.
 
 where ``x`` is the joint angle in degrees and ``z`` is the torque in N*m (so ``A`` is in N*m/deg and each
 ``beta_k`` in N*m^(1-n)/deg).  (Eq 22 is garbled in the available copy of the thesis; the sign terms above
@@ -23,9 +29,8 @@ Units and conventions:
 
 * ``sgn(0) = 0``, exactly as the signum function in Eq 23; a sample where the angle does not move leaves the
   torque unchanged.
-* The recursion depends only on the sequence of angle increments, not on time (it is rate-independent), so
-  fitting a decimated copy of smooth data is legitimate; the explicit-Euler error of Eq 23 grows with the
-  step size, which is why only already-filtered data should be decimated (see :func:`fit`).
+* The model depends only on the angle path, not on time (it is rate-independent); decimating smooth data
+  for the fit keeps every sample's angle path and drops residuals only (see :func:`fit`).
 * The thesis centres each trial on (0, 0) before fitting (note under Table 4).  :func:`fit` does *not*
   centre: the caller (the analysis pipeline) does, and the model is fitted to the samples exactly as given.
 
@@ -36,9 +41,12 @@ lot on the initial conditions"; this implementation starts from the thesis's dat
 from an equation-error least-squares guess, and from quasi-random points spread over the parameter bounds,
 and keeps the best optimum, so the result does not depend on any single starting point.
 
-Performance: the numba kernels are compiled once (cached on disk); a fit of one configuration (three 65 s
-trials at 1 kHz) takes about 0.1 s on a busy 2-core machine (``benchmarks/bench_bouc_wen.py``) - provided
-BLAS runs single-threaded.  The solver's linear algebra on the tall 8-column Jacobian (SVD, products) goes
+Evidence (issue 15): every fit reports ``rmse_refined_nm`` (4x finer integration), a convergence record
+(:class:`BoucWenFit` ``status``, ``start_rmse_nm``, ``cost_spread``); :func:`cross_validate` leaves each
+trial out of its own fit; :mod:`.identifiability` profiles n and marks weakly identified fits.
+
+Performance: the numba kernels are compiled once (cached on disk); see ``benchmarks/bench_bouc_wen.py`` -
+provided BLAS runs single-threaded.  The solver's linear algebra on the tall 8-column Jacobian (SVD, products) goes
 through OpenBLAS, whose worker threads make each call cost milliseconds when the cores are busy: the same
 fit then takes about 1.2 s.  Set ``OPENBLAS_NUM_THREADS=1`` in the environment before numpy is imported.
 This module keeps its own tall-matrix work (Jacobian chain rule, Gram matrix, sums of squares) in numba
@@ -47,7 +55,8 @@ loops for that reason.
 
 from __future__ import annotations
 
-from .fitting import cross_validate, fit, fit_trials
+from .crossval import cross_validate
+from .fitting import fit, fit_trials
 from .params import (
     DEFAULT_SIMULATION_BOUND_NM,
     EQ24_PHASE_MATRIX,

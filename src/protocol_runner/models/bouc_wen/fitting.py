@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 import numpy.typing as npt
@@ -12,6 +13,7 @@ from scipy.stats import qmc
 
 from protocol_runner.errors import InvalidInput
 
+from .backbone import fit_backbone, hysteretic_part
 from .params import BoucWenParams, FloatArray
 from .problem import (
     _POLISH_NFEV,
@@ -25,9 +27,17 @@ from .problem import (
     Problem,
     evaluate,
     param_std,
+    refined_rmse,
 )
+from .schemes import EQ23, REFINED, check_scheme
 from .simulation import as_angle
 from .starts import equation_error_start, thesis_start
+
+_MID_SAMPLES = 1500  # samples per trial of the copy on which the refined scheme's polish starts
+_FINAL_NFEV = 40  # then at most this many residual evaluations on the fitted samples,
+_FINAL_TOL = 1e-8  # to this tolerance (the copy's optimum is close)
+MID_STEP_DEG = 0.25  # substep of the refined integration on that copy (the final solve uses the default)
+SCREEN_STEP_DEG = 0.5  # substep of the refined integration while screening starts (only picks the basin)
 
 
 def _validate_segments(
@@ -73,6 +83,22 @@ def decimate(
     return np.concatenate(xs), np.concatenate(ys), seg, tuple(strides)
 
 
+def _path_problem(
+    segments: list[tuple[FloatArray, FloatArray]],
+    strides: tuple[int, ...],
+    bounds: BoucWenBounds,
+    angle_scale: float,
+    torque_scale: float,
+    max_step_deg: float | None,
+) -> Problem:
+    """Refined-scheme problem on every sample's angle path, residuals at every ``stride``-th sample."""
+    x, y, seg, _ = decimate(segments, None)
+    rows = np.concatenate(
+        [np.arange(seg[k], seg[k + 1], stride, dtype=np.int64) for k, stride in enumerate(strides)]
+    )
+    return Problem(x, y, seg, bounds, angle_scale, torque_scale, REFINED, max_step_deg, rows)
+
+
 def _diverges_when_decimated(u: FloatArray, screen: Problem, problem: Problem) -> bool:
     """True when the recursion with parameters `u` stays bounded on the coarse screening copy but diverges
     on the (finer) fitted samples."""
@@ -96,6 +122,8 @@ def _fit_segments(
     max_samples_per_trial: int | None,
     polish: int,
     polish_tol: float = 1e-10,
+    scheme: str = REFINED,
+    final: bool = True,
 ) -> BoucWenFit:
     if starts < 0:
         raise InvalidInput(f"starts must be >= 0, got {starts}")
@@ -104,14 +132,30 @@ def _fit_segments(
     angle_scale = max(float(np.max(np.abs(x))) for x, _ in segments)
     torque_scale = max(float(np.max(np.abs(y))) for _, y in segments)
     x, y, seg, strides = decimate(segments, max_samples_per_trial)
-    problem = Problem(x, y, seg, bounds, angle_scale, torque_scale)
+    check_scheme(scheme, None)
+    if scheme == REFINED:
+        # integrate along every sample, compare at the decimated ones (the same angle path at any stride)
+        problem = _path_problem(segments, strides, bounds, angle_scale, torque_scale, None)
+    else:
+        problem = Problem(x, y, seg, bounds, angle_scale, torque_scale, scheme)
     screen_samples = (
         _SCREEN_SAMPLES if max_samples_per_trial is None else min(_SCREEN_SAMPLES, max_samples_per_trial)
     )
     xs, ys, segs, screen_strides = decimate(segments, screen_samples)
-    screen = (
-        problem if screen_strides == strides else Problem(xs, ys, segs, bounds, angle_scale, torque_scale)
-    )
+    # the screening copy is also integrated with longer substeps (its cost is set by the angle travelled)
+    screen_step = SCREEN_STEP_DEG if scheme == REFINED else None
+    mid: Problem | None = None
+    if scheme == REFINED:
+        # starts are screened, then polished, on decimated copies (their angle path is the samples kept,
+        # close to the full one for smooth data); the last steps run on the full path
+        screen = Problem(xs, ys, segs, bounds, angle_scale, torque_scale, scheme, screen_step)
+        xm, ym, segm, mid_strides = decimate(segments, _MID_SAMPLES)
+        if any(m > k for m, k in zip(mid_strides, strides, strict=True)):
+            mid = Problem(xm, ym, segm, bounds, angle_scale, torque_scale, scheme, MID_STEP_DEG)
+    elif screen_strides == strides:
+        screen = problem
+    else:
+        screen = Problem(xs, ys, segs, bounds, angle_scale, torque_scale, scheme, screen_step)
 
     candidates: list[FloatArray] = []
     if initial is not None:
@@ -136,6 +180,7 @@ def _fit_segments(
     short.sort(key=lambda t: t[0])
     if (
         problem is not screen
+        and scheme == EQ23
         and any(s > 1 for s in strides)
         and _diverges_when_decimated(short[0][1], screen, problem)
     ):
@@ -144,7 +189,7 @@ def _fit_segments(
         # it nearly vertical), so a fit there would not carry over to every sample. Polish on every
         # sample instead (fit_trials' guard would otherwise redo it there, after a wasted decimated fit).
         x, y, seg, strides = decimate(segments, None)
-        problem = Problem(x, y, seg, bounds, angle_scale, torque_scale)
+        problem = Problem(x, y, seg, bounds, angle_scale, torque_scale, scheme)
     # Stage 2: the best few are refined to convergence on the fitted samples; the lowest cost wins.
     # A short solve that ended at the cost of one already chosen (within 0.1 %: the same valley) or
     # clearly above the best (by 5 %) is not polished.
@@ -156,32 +201,48 @@ def _fit_segments(
         if all(abs(cost0 - c) > 1e-3 * c for c in chosen_cost):
             chosen.append(u0)
             chosen_cost.append(cost0)
-    best: tuple[float, FloatArray, bool, str] | None = None
+    best: tuple[float, FloatArray, int, str] | None = None
+    polished: list[float] = []
     for u0 in chosen:
-        u, cost, ok, message = problem.solve(u0, max_nfev=_POLISH_NFEV, tol=polish_tol)
+        if mid is not None:
+            u0, cost, status, message = mid.solve(u0, max_nfev=_POLISH_NFEV, tol=polish_tol)
+            if not final:  # (cross-validation folds: the held-out error is measured on every sample)
+                polished.append(mid.rmse(cost))
+                if best is None or cost < best[0]:
+                    best = (cost, u0, status, message)
+                continue
+            nfev, tol = _FINAL_NFEV, max(polish_tol, _FINAL_TOL)
+        else:
+            nfev, tol = _POLISH_NFEV, polish_tol
+        u, cost, status, message = problem.solve(u0, max_nfev=nfev, tol=tol)
+        polished.append(problem.rmse(cost))
         if best is None or cost < best[0]:
-            best = (cost, u, ok, message)
+            best = (cost, u, status, message)
     assert best is not None
     params = problem.params(best[1])
     std = param_std(problem, params)
-    rmse, r2, per, diverged = evaluate(segments, params, problem.bound)
+    rmse, r2, per, diverged = evaluate(segments, params, problem.bound, scheme)
     return BoucWenFit(
         params=params,
         rmse_nm=rmse,
         r2=r2,
         param_std=std,
         n_starts=len(candidates),
-        converged=best[2],
+        converged=best[2] > 0,
         diverged=diverged,
         trial_rmse_nm=per,
         n_samples=sum(s[0].size for s in segments),
         n_samples_fitted=int(x.size),
         stride=strides,
-        nfev=problem.nfev + (screen.nfev if screen is not problem else 0),
+        nfev=problem.nfev + (screen.nfev if screen is not problem else 0) + (mid.nfev if mid else 0),
         angle_scale_deg=angle_scale,
         torque_scale_nm=torque_scale,
         bounds=bounds,
         message=best[3],
+        scheme=scheme,
+        status=best[2],
+        start_rmse_nm=tuple(screen.rmse(c) for c, _ in short),
+        polished_rmse_nm=tuple(polished),
     )
 
 
@@ -197,8 +258,9 @@ def fit(
     seed: int = 0,
     max_samples_per_trial: int | None = 8000,
     polish: int = 1,
+    scheme: str = REFINED,
 ) -> BoucWenFit:
-    """Fit the generalised Bouc-Wen model (Eq 23) to angle/torque samples by least squares (§6.2.3).
+    """Fit the generalised Bouc-Wen model (Eq 20-23) to angle/torque samples by least squares (§6.2.3).
 
     The samples are fitted as given - no centring here (the thesis centres each trial on (0, 0) first,
     note under Table 4; do that before calling).  The recursion starts at ``z0 = torque_nm[0]``.
@@ -213,11 +275,12 @@ def fit(
         and an equation-error least-squares start.
     bounds: see :class:`BoucWenBounds` (relative to the data's angle and torque scales).
     max_samples_per_trial: each trial longer than this is decimated by a uniform stride before fitting
-        (``None``: never).  Eq 23 depends only on the angle increments, so this is valid for smooth
-        (already filtered) data, but the explicit-Euler error grows with the angle step, so do not decimate
-        raw, noisy data.  RMSE and R^2 are always reported on every given sample.  Cost of the default:
-        on three 65 s trials at 1 kHz (stride 9) the RMSE was 0.2033 N*m against 0.2005 N*m when fitting
-        every sample, in about a tenth of the time (``benchmarks/bench_bouc_wen.py --full``).
+        (``None``: never).  With the refined scheme the integration follows the angle between the kept
+        samples (piecewise linear), so decimating smooth (already filtered) data only drops residuals; with
+        ``scheme="eq23"`` the explicit-Euler error grows with the angle step.  RMSE and R^2 are always
+        reported on every given sample, ``rmse_refined_nm`` too (4x finer integration).
+    scheme: ``"refined"`` (default, step-independent) or ``"eq23"`` (the thesis's literal recursion), see
+        :func:`simulate`.
     polish: how many of the best short fits are refined to full convergence.
 
     Procedure: every start gets a short trust-region solve (``scipy.optimize.least_squares``, analytic
@@ -252,6 +315,7 @@ def fit(
         seed=seed,
         max_samples_per_trial=max_samples_per_trial,
         polish=polish,
+        scheme=scheme,
     )
 
 
@@ -265,18 +329,29 @@ def fit_trials(
     seed: int = 0,
     max_samples_per_trial: int | None = 8000,
     polish: int = 1,
+    scheme: str = REFINED,
+    backbone_degree: int | None = None,
 ) -> BoucWenFit:
     """Fit one model jointly to several trials ``[(angle_deg, torque_nm), ...]`` of one configuration.
 
     Each trial starts its own Eq 23 recursion at its own first torque.  Options as in :func:`fit`.
 
-    Decimation guard: a loop on which the best start already diverges when decimated is polished on every
+    backbone_degree: ``None`` fits the thesis form ``torque = z``; an integer fits ``torque = g(angle) + z``
+        with ``g`` a polynomial of that degree through every sample (:mod:`.backbone`), then the Bouc-Wen
+        state to what is left; the result's ``backbone`` holds ``g`` and its errors are of the whole torque.
+
+    Decimation guard (``scheme="eq23"`` only; the refined integration does not depend on the sampling):
+    a loop on which the best start already diverges when decimated is polished on every
     sample from the start (see :func:`fit`).  Where a fit on decimated samples does not carry over to every
     sample (R^2 below FULL_REFIT_R2 or divergence, e.g. a range-of-motion stop that makes the loop nearly
     vertical, where explicit Euler steps of a few degrees misbehave), the fit is redone on every sample and
     the better of the two (by RMSE on every sample) is returned.
     """
     checked = _validate_segments(segments)
+    backbone = None
+    if backbone_degree is not None:
+        backbone = fit_backbone(checked, backbone_degree)
+        checked = _validate_segments(hysteretic_part(checked, backbone))
     result = _fit_segments(
         checked,
         starts=starts,
@@ -286,9 +361,10 @@ def fit_trials(
         seed=seed,
         max_samples_per_trial=max_samples_per_trial,
         polish=polish,
+        scheme=scheme,
     )
     decimated = any(s > 1 for s in result.stride)
-    if decimated and (result.diverged or not result.r2 >= FULL_REFIT_R2):
+    if scheme == EQ23 and decimated and (result.diverged or not result.r2 >= FULL_REFIT_R2):
         full = _fit_segments(
             checked,
             starts=0,
@@ -298,46 +374,13 @@ def fit_trials(
             seed=seed,
             max_samples_per_trial=None,
             polish=1,
+            scheme=scheme,
         )
         if full.rmse_nm < result.rmse_nm:
-            return full
-    return result
-
-
-def cross_validate(
-    segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]],
-    *,
-    starts: int = 4,
-    bounds: BoucWenBounds = DEFAULT_BOUNDS,
-    seed: int = 0,
-    max_samples_per_trial: int | None = 8000,
-    initial: BoucWenParams | None = None,
-) -> list[float]:
-    """Leave-one-trial-out RMSE (N*m): for each trial, fit the others with :func:`fit_trials` and predict
-    the held-out trial from its own first torque (Eq 23).  Needs at least two trials.
-
-    initial: warm start (e.g. the fit on all trials). Each held-out fit then starts from it alone instead
-        of the multi-start search: the same optimum for well-posed data, at a fraction of the cost.
-    """
-    checked = _validate_segments(segments)
-    if len(checked) < 2:
-        raise InvalidInput(f"cross-validation needs at least 2 trials, got {len(checked)}")
-    errors: list[float] = []
-    for k, (x, y) in enumerate(checked):
-        others = [s for j, s in enumerate(checked) if j != k]
-        result = _fit_segments(
-            others,
-            starts=starts if initial is None else 0,
-            initial=initial,
-            data_starts=initial is None,
-            bounds=bounds,
-            seed=seed,
-            max_samples_per_trial=max_samples_per_trial,
-            polish=1,
-            # from a warm start the held-out error settles long before a tight tolerance is met
-            polish_tol=1e-10 if initial is None else 1e-6,
-        )
-        scale = max(float(np.max(np.abs(y))), max(float(np.max(np.abs(yy))) for _, yy in others))
-        rmse, _, _, _ = evaluate([(x, y)], result.params, DIVERGENCE_FACTOR * scale)
-        errors.append(rmse)
-    return errors
+            result = full
+    bound = DIVERGENCE_FACTOR * result.torque_scale_nm
+    return replace(
+        result,
+        rmse_refined_nm=refined_rmse(checked, result.params, bound, scheme),
+        backbone=backbone,
+    )

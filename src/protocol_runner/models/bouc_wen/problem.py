@@ -12,8 +12,12 @@ from scipy.optimize import least_squares
 
 from protocol_runner.errors import InvalidInput
 
-from .kernels import IDENTITY8, gram, recursion_kernel, sensitivity_kernel, sum_sq_diff
+from .backbone import Backbone
+from .kernels import IDENTITY8, gram, sum_sq_diff
 from .params import EQ25_BETA_MATRIX, BoucWenParams, FloatArray, phase_values
+from .schemes import REFINED, check_scheme, run_scheme, run_scheme_sensitivity
+
+REFINE_FACTOR = 4  # rmse_refined_nm: this many times finer integration
 
 
 @dataclass(frozen=True)
@@ -79,7 +83,16 @@ class BoucWenFit:
     trial_rmse_nm: RMSE of each trial; n_samples: samples given; n_samples_fitted: samples the optimiser
         used after decimation; stride: decimation step of each trial; nfev: residual evaluations in total.
     angle_scale_deg, torque_scale_nm: the scales X and Z that make :class:`BoucWenBounds` physical.
-    message: the final least-squares solver's termination message.
+    message: the final least-squares solver's termination message; status: its status code
+        (``scipy.optimize.least_squares``: 1-4 converged by gtol/ftol/xtol/both, 0 evaluation limit).
+    scheme: the integration the fit used (``"refined"`` or ``"eq23"``, see :func:`simulate`).
+    rmse_refined_nm: the same parameters re-simulated with 4x finer integration (angle samples interpolated
+        4x finer, substeps 4x shorter) and compared at the given samples; agrees with ``rmse_nm`` for a
+        fit that describes the joint rather than the integrator.
+    start_rmse_nm: each start's RMSE (N*m, on the screening copy after its short solve), best first;
+        polished_rmse_nm: the RMSE on the fitted samples of each start refined to convergence.
+    n_interval, param_interval_low/high, weakly_identified, weak_reasons: see
+        :func:`.identifiability.identify` (empty/NaN unless asked for).
     """
 
     params: BoucWenParams
@@ -98,6 +111,27 @@ class BoucWenFit:
     torque_scale_nm: float
     bounds: BoucWenBounds = field(default=DEFAULT_BOUNDS)
     message: str = ""
+    scheme: str = REFINED
+    rmse_refined_nm: float = math.nan
+    status: int = 0
+    start_rmse_nm: tuple[float, ...] = ()
+    polished_rmse_nm: tuple[float, ...] = ()
+    # filled by fit_trials when asked (identifiability.py)
+    n_interval: tuple[float, float] = (math.nan, math.nan)
+    param_interval_low: tuple[float, ...] = ()
+    param_interval_high: tuple[float, ...] = ()
+    weakly_identified: bool = False
+    weak_reasons: tuple[str, ...] = ()
+    backbone: Backbone | None = None  # torque = backbone(angle) + z when set (fit_trials backbone_degree)
+
+    @property
+    def cost_spread(self) -> float:
+        """Relative spread of the best (up to three) starts' RMSEs after their short solves:
+        ``(rmse_3 - rmse_1) / rmse_1``; 0 when they found the same valley, NaN with one start."""
+        best = self.start_rmse_nm[:3]
+        if len(best) < 2 or not best[0] > 0.0:
+            return math.nan
+        return (best[-1] - best[0]) / best[0]
 
 
 DIVERGENCE_FACTOR = 10.0  # the fitter holds |z| at 10 x the data's torque scale once it diverges
@@ -119,7 +153,16 @@ class Problem:
         bounds: BoucWenBounds,
         angle_scale_deg: float,
         torque_scale_nm: float,
+        scheme: str = REFINED,
+        max_step_deg: float | None = None,
+        rows: npt.NDArray[np.int64] | None = None,
     ):
+        # rows: the samples compared with the data (all when None); the state is integrated along every
+        # sample of x, so dropping residuals (decimation) never changes the angle path the model follows
+        self.rows = rows
+        self.y_rows = y if rows is None else np.ascontiguousarray(y[rows])
+        self.scheme = scheme
+        self.max_step_deg = max_step_deg
         self.x = x
         self.y = y
         self.seg = seg
@@ -154,8 +197,11 @@ class Problem:
     def residuals(self, u: FloatArray) -> FloatArray:
         A, n, beta = self.physical(u)
         self.nfev += 1
-        self.diverged_at = recursion_kernel(self.x, self.seg, self.z0, A, n, beta, self.bound, True, self.z)
-        return (self.z - self.y) / self.Z
+        self.diverged_at = run_scheme(
+            self.scheme, self.x, self.seg, self.z0, A, n, beta, self.bound, True, self.z, self.max_step_deg
+        )
+        z = self.z if self.rows is None else self.z[self.rows]
+        return (z - self.y_rows) / self.Z
 
     def stabilise(self, u: FloatArray) -> FloatArray:
         """Contract a start whose recursion diverges toward the neutral point ``a = 1, psi' = 0`` (a
@@ -182,8 +228,22 @@ class Problem:
     ) -> FloatArray:
         """``dz/dtheta @ transform`` on the fitted samples, in a new array (least_squares keeps it)."""
         out = np.empty((self.x.size, 8))
-        sensitivity_kernel(self.x, self.seg, self.z0, A, n, beta, self.bound, True, self.z, out, transform)
-        return out
+        run_scheme_sensitivity(
+            self.scheme,
+            self.x,
+            self.seg,
+            self.z0,
+            A,
+            n,
+            beta,
+            self.bound,
+            True,
+            self.z,
+            out,
+            transform,
+            self.max_step_deg,
+        )
+        return out if self.rows is None else np.ascontiguousarray(out[self.rows])
 
     def jacobian(self, u: FloatArray) -> FloatArray:
         """Chain rule from the physical sensitivities: every column of the dimensionless Jacobian is a
@@ -196,7 +256,11 @@ class Problem:
         T[2:, 2:] = EQ25_BETA_MATRIX / (self.X * self.Z ** (n - 1.0))  # dbeta/dpsi'
         return self.physical_jacobian(A, n, beta, T / self.Z)
 
-    def solve(self, u0: FloatArray, max_nfev: int, tol: float) -> tuple[FloatArray, float, bool, str]:
+    def rmse(self, cost: float) -> float:
+        """RMSE in N*m of a cost of this problem."""
+        return math.sqrt(2.0 * cost / self.y_rows.size) * self.Z
+
+    def solve(self, u0: FloatArray, max_nfev: int, tol: float) -> tuple[FloatArray, float, int, str]:
         res = least_squares(
             self.residuals,
             self.stabilise(np.clip(u0, self.lower, self.upper)),
@@ -210,7 +274,7 @@ class Problem:
             gtol=tol,
             max_nfev=max_nfev,
         )
-        return np.asarray(res.x, dtype=np.float64), float(res.cost), bool(res.status > 0), str(res.message)
+        return np.asarray(res.x, dtype=np.float64), float(res.cost), int(res.status), str(res.message)
 
 
 def param_std(problem: Problem, params: BoucWenParams) -> FloatArray:
@@ -220,11 +284,12 @@ def param_std(problem: Problem, params: BoucWenParams) -> FloatArray:
     ``J^T J`` is formed with its columns scaled to unit norm and inverted on the subspace whose
     eigenvalues exceed 1e-12 of the largest (singular values 1e-6 of the largest)."""
     dz = problem.physical_jacobian(params.A, params.n, np.array(params.beta))
-    m = problem.y.size
+    m = problem.y_rows.size
     std = np.full(8, np.inf)
     if m <= 8 or not np.all(np.isfinite(dz)):
         return std
-    s2 = float(sum_sq_diff(problem.z, problem.y)) / (m - 8)
+    z = problem.z if problem.rows is None else np.ascontiguousarray(problem.z[problem.rows])
+    s2 = float(sum_sq_diff(z, problem.y_rows)) / (m - 8)
     G = gram(dz)
     norm = np.sqrt(np.diag(G))
     active = norm > 0.0
@@ -243,7 +308,11 @@ def param_std(problem: Problem, params: BoucWenParams) -> FloatArray:
 
 
 def evaluate(
-    segments: list[tuple[FloatArray, FloatArray]], params: BoucWenParams, bound: float
+    segments: list[tuple[FloatArray, FloatArray]],
+    params: BoucWenParams,
+    bound: float,
+    scheme: str = REFINED,
+    max_step_deg: float | None = None,
 ) -> tuple[float, float, tuple[float, ...], bool]:
     """RMSE, R^2, per-trial RMSE and divergence flag of ``params`` on every given sample, each trial's
     recursion started at its own first torque (diverged samples held at +-bound, a finite error)."""
@@ -255,9 +324,8 @@ def evaluate(
     diverged = False
     for x, y in segments:
         z = np.empty_like(x)
-        bad = recursion_kernel(
-            x, np.array([0, x.size], dtype=np.int64), y[:1].copy(), params.A, params.n, beta, bound, True, z
-        )
+        seg = np.array([0, x.size], dtype=np.int64)
+        bad = run_scheme(scheme, x, seg, y[:1].copy(), params.A, params.n, beta, bound, True, z, max_step_deg)
         diverged = diverged or bad >= 0
         sse.append(float(sum_sq_diff(z, y)))
         total += float(np.sum(y))
@@ -268,3 +336,23 @@ def evaluate(
     r2 = 1.0 - sum(sse) / sst if sst > 0.0 else math.nan
     per = tuple(math.sqrt(e / x.size) for e, (x, _) in zip(sse, segments, strict=True))
     return rmse, r2, per, diverged
+
+
+def refined_rmse(
+    segments: list[tuple[FloatArray, FloatArray]], params: BoucWenParams, bound: float, scheme: str = REFINED
+) -> float:
+    """RMSE of ``params`` with 4x finer integration: each trial's angle samples interpolated 4x finer (the
+    same piecewise-linear path), substeps 4x shorter, the torque compared at the given samples."""
+    step = check_scheme(scheme, None) / REFINE_FACTOR
+    beta = np.array(params.beta)
+    sse = 0.0
+    count = 0
+    for x, y in segments:
+        t = np.arange((x.size - 1) * REFINE_FACTOR + 1) / REFINE_FACTOR
+        fine = np.interp(t, np.arange(x.size), x)
+        z = np.empty_like(fine)
+        seg = np.array([0, fine.size], dtype=np.int64)
+        run_scheme(scheme, fine, seg, y[:1].copy(), params.A, params.n, beta, bound, True, z, step)
+        sse += float(sum_sq_diff(np.ascontiguousarray(z[::REFINE_FACTOR]), y))
+        count += y.size
+    return math.sqrt(sse / count)

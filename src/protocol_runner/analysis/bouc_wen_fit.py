@@ -1,0 +1,86 @@
+"""Fit one configuration's centred trials with the generalised Bouc-Wen model and gather the evidence a
+modeller needs to trust it (issue 15): the fit (step-independent integration, its 4x-finer check and its
+convergence record), leave-one-trial-out errors, parameter intervals, and the model's loop energy beside the
+data's.  Pure: arrays in, numbers out (the fit step and ``--reprocess`` store them)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..models.bouc_wen import BoucWenFit, BoucWenParams, cross_validate, fit_trials, simulate
+from ..models.bouc_wen.identifiability import identify
+from .energy import energy_per_cycle
+
+Segment = tuple[np.ndarray, np.ndarray]
+
+
+@dataclass(frozen=True)
+class LoopEnergy:
+    """Mean energy lost per complete cycle (J) by the model torque and by the data over the same angle
+    samples (thesis §5.7, Eq 10-12); NaN when the trials hold no complete cycle."""
+
+    model_j: float
+    data_j: float
+
+    @property
+    def model_dissipates(self) -> bool:
+        """The physical constraint: the model loses energy wherever the data do (True when the data do
+        not, or when there is no complete cycle to tell)."""
+        if not (math.isfinite(self.data_j) and self.data_j > 0.0):
+            return True
+        return math.isfinite(self.model_j) and self.model_j > 0.0
+
+
+def fit_configuration(
+    segments: Sequence[Segment],
+    *,
+    starts: int = 8,
+    cross_validate_trials: bool = True,
+    backbone_degree: int | None = 9,
+) -> tuple[BoucWenFit, list[float]]:
+    """The joint fit over a configuration's trials with its intervals and weak-identification mark, and the
+    leave-one-trial-out RMSEs (N*m) when asked and there are at least two trials.  Each held-out fit is
+    fitted from scratch on the other trials (nothing from the held-out trial enters it, backbone included).
+
+    backbone_degree: ``torque = g(angle) + z`` with ``g`` a polynomial of this degree (the loops' midline,
+    :mod:`..models.bouc_wen.backbone`); ``None`` is the thesis form ``torque = z``."""
+    result = identify(segments, fit_trials(segments, starts=starts, backbone_degree=backbone_degree))
+    cv: list[float] = []
+    if cross_validate_trials and len(segments) >= 2:
+        cv = cross_validate(segments, starts=max(1, starts // 4), backbone_degree=backbone_degree)
+    return result, cv
+
+
+def model_torques(segments: Sequence[Segment], fit: BoucWenFit | BoucWenParams) -> list[np.ndarray]:
+    """The model's torque on every sample of each trial (backbone plus Bouc-Wen state when the fit has a
+    backbone), the state started so that the torque starts at the trial's first torque."""
+    params = fit if isinstance(fit, BoucWenParams) else fit.params
+    backbone = None if isinstance(fit, BoucWenParams) else fit.backbone
+    out = []
+    for x, y in segments:
+        if backbone is None:
+            out.append(simulate(x, params, z0=float(y[0])))
+        else:
+            g = backbone(x)
+            out.append(g + simulate(x, params, z0=float(y[0] - g[0])))
+    return out
+
+
+def loop_energy(segments: Sequence[Segment], models: Sequence[np.ndarray]) -> LoopEnergy:
+    """Mean loop energy per complete cycle of the model torques and of the data torques."""
+    model: list[np.ndarray] = []
+    data: list[np.ndarray] = []
+    for (x, y), z in zip(segments, models, strict=True):
+        data.append(energy_per_cycle(x, y))
+        finite = bool(np.all(np.isfinite(z)))  # a diverged model has no loop
+        model.append(energy_per_cycle(x, z) if finite else np.full(data[-1].shape, math.nan))
+    d = np.concatenate(data) if data else np.empty(0)
+    m = np.concatenate(model) if model else np.empty(0)
+    return LoopEnergy(
+        model_j=float(np.mean(m)) if m.size else math.nan,
+        data_j=float(np.mean(d)) if d.size else math.nan,
+    )

@@ -1,0 +1,73 @@
+"""The elastic backbone of a joint's loop: ``torque = g(angle) + z`` (issue 15 item 2).
+
+The thesis models the whole torque as the hysteretic state (``torque = z``), so a spring's elastic torque
+and a brake's friction are forced into one hysteresis and the parameters cannot be compared across
+configurations.  Here the elastic part is a smooth function of the angle alone, fitted first, and the
+Bouc-Wen state describes what is left.
+
+Until the campaign declares its device elements (springs, bungees, stops: issue 11), ``g`` is generic: a
+polynomial of the angle (degree 9 by default, in ``u = angle / angle_scale`` so that it is well
+conditioned) fitted by least squares to every sample of every trial.  On a cyclic loop the least-squares
+curve runs midway between the loading and unloading branches: the loop's midline, which carries no
+energy (``g`` is a function of the angle, so its loop integral is zero); all the loss stays in ``z``.
+Degree 9 follows the range-of-motion stops of the knee dry runs (nearly vertical ends) that lower degrees
+cannot; it is not meant to extrapolate beyond the fitted angle range.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from protocol_runner.errors import InvalidInput
+
+from .params import FloatArray
+
+MAX_DEGREE = 15
+
+
+@dataclass(frozen=True)
+class Backbone:
+    """``g(x) = sum_k coef[k] (x / angle_scale_deg)^k`` in N*m (x in degrees)."""
+
+    coef: tuple[float, ...]
+    angle_scale_deg: float
+
+    def __call__(self, angle_deg: npt.ArrayLike) -> FloatArray:
+        """g at the given angles; beyond the fitted range (|u| > 1) continued along its end tangent, so
+        that a prediction on a wider range does not follow the polynomial's runaway."""
+        u = np.asarray(angle_deg, dtype=np.float64) / self.angle_scale_deg
+        poly = np.polynomial.polynomial
+        inside = np.clip(u, -1.0, 1.0)
+        value = poly.polyval(inside, self.coef)
+        slope = poly.polyval(inside, poly.polyder(self.coef)) if len(self.coef) > 1 else 0.0
+        return np.asarray(value + slope * (u - inside), dtype=np.float64)
+
+    @property
+    def degree(self) -> int:
+        return len(self.coef) - 1
+
+
+def fit_backbone(segments: Sequence[tuple[FloatArray, FloatArray]], degree: int = 9) -> Backbone:
+    """Least-squares polynomial of the angle through every sample of every trial (the loops' midline)."""
+    if not (isinstance(degree, int) and 0 <= degree <= MAX_DEGREE):
+        raise InvalidInput(f"backbone degree must be an integer from 0 to {MAX_DEGREE}, got {degree!r}")
+    x = np.concatenate([np.asarray(s[0], dtype=np.float64) for s in segments])
+    y = np.concatenate([np.asarray(s[1], dtype=np.float64) for s in segments])
+    scale = float(np.max(np.abs(x))) if x.size else 0.0
+    if not (scale > 0.0 and math.isfinite(scale)):
+        raise InvalidInput("the angle is zero everywhere: no backbone can be fitted")
+    V = np.polynomial.polynomial.polyvander(x / scale, degree)
+    coef, *_ = np.linalg.lstsq(V, y, rcond=None)
+    return Backbone(coef=tuple(float(c) for c in coef), angle_scale_deg=scale)
+
+
+def hysteretic_part(
+    segments: Sequence[tuple[FloatArray, FloatArray]], backbone: Backbone
+) -> list[tuple[FloatArray, FloatArray]]:
+    """Each trial's torque minus the backbone: what the Bouc-Wen state has to describe."""
+    return [(x, np.ascontiguousarray(y - backbone(x))) for x, y in segments]
