@@ -148,8 +148,14 @@ def test_the_one_based_transition_index_finds_the_first_processed_sample(exporte
 
 
 def test_numbers_are_double_1d_arrays_columns_and_names_valid(exported: tuple[Path, Path]) -> None:
-    _, out = exported
-    logical = {"converged", "diverged", "applicable", "automatic"}
+    archive, out = exported
+    logical = {"converged", "diverged", "applicable", "automatic"}  # checklist fields of session.mat
+    with h5py.File(archive, "r") as f:  # and every attribute the archive stores as a boolean
+
+        def booleans(_: str, obj: h5py.HLObject) -> None:
+            logical.update(k for k, v in obj.attrs.items() if isinstance(v, (bool, np.bool_)))
+
+        f.visititems(booleans)
 
     def walk(value: Any, path: str) -> None:
         if hasattr(value, "_fieldnames"):
