@@ -1,0 +1,279 @@
+"""Mutation score of the science modules (analysis/ and models/), per module, in bounded time.
+
+Tool: cosmic-ray (``pip install -e .[dev]``).  It edits one source file at a time and runs a test command in
+a fresh process, so it also mutates the numba ``@njit`` kernels (``models/bouc_wen/kernels.py``) and
+module-level constants (the Eq 24/25 matrices), which a trampoline-based tool (mutmut 3) leaves out.
+
+What it does:
+
+1. Copies ``src/``, ``tests/`` and ``pyproject.toml`` of the working tree into a scratch directory (one
+   copy per job): the mutants are written to the copy, never to the checkout.
+2. For each module it lists cosmic-ray's mutants, drops those that are not plausible bugs (see
+   ``_not_plausible``) and those listed as equivalent in ``benchmarks/mutation_equivalents.txt``, and
+   draws a seeded sample of at most ``--sample`` of them (the same sample on every run while the source
+   is unchanged, so scores before and after new tests compare).
+3. Runs the module's own test file(s) (``TESTS`` below) once unmutated, to check they pass and to time
+   them, then once per sampled mutant with ``pytest -x`` and a timeout of ``3 x baseline + 15 s`` (a
+   timeout counts as killed: the mutant hangs the analysis).
+4. Prints ``killed / tested`` per module and writes every surviving mutant (file, line, operator, diff) to
+   ``<out>/survivors.txt``.
+
+Run: ``python benchmarks/mutation.py [--sample 40] [--jobs 2] [--modules energy,spring] [--out DIR]``.
+The defaults finish in well under 30 minutes on a 2-core machine.  Not part of ``.ci/run``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import multiprocessing
+import os
+import random
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+EQUIVALENTS = Path(__file__).resolve().parent / "mutation_equivalents.txt"
+
+# module (relative to src/protocol_runner) -> its test files (relative to the repository root)
+TESTS: dict[str, list[str]] = {
+    "analysis/branches.py": ["tests/analysis/test_branches.py"],
+    "analysis/centring.py": ["tests/analysis/test_centring.py"],
+    "analysis/cycles.py": ["tests/analysis/test_cycles.py"],
+    "analysis/energy.py": ["tests/analysis/test_energy.py"],
+    "analysis/filters.py": ["tests/analysis/test_filters.py"],
+    "analysis/pipeline.py": ["tests/analysis/test_pipeline.py"],
+    "analysis/scaling.py": ["tests/analysis/test_scaling.py"],
+    "analysis/spring_fit.py": ["tests/analysis/test_spring_fit.py"],
+    "analysis/subtraction.py": ["tests/analysis/test_subtraction.py"],
+    "analysis/transition.py": ["tests/analysis/test_transition.py"],
+    "analysis/validation.py": ["tests/analysis/test_validation.py"],
+    "models/spring.py": ["tests/models/test_spring.py"],
+    "models/bouc_wen/params.py": ["tests/models/test_bouc_wen.py"],
+    "models/bouc_wen/kernels.py": ["tests/models/test_bouc_wen.py"],
+    "models/bouc_wen/simulation.py": ["tests/models/test_bouc_wen.py"],
+    "models/bouc_wen/problem.py": ["tests/models/test_bouc_wen.py"],
+    "models/bouc_wen/starts.py": ["tests/models/test_bouc_wen.py"],
+    "models/bouc_wen/fitting.py": ["tests/models/test_bouc_wen.py"],
+}
+
+ARITHMETIC = {"Add", "Sub", "Mul", "Div", "FloorDiv"}
+LOGICAL = {"BitAnd", "BitOr"}
+_BINOP = re.compile(r"core/ReplaceBinaryOperator_(\w+?)_(\w+)$")
+
+
+def _not_plausible(operator: str) -> bool:
+    """Mutations left out as not plausible bugs: bit shifts, xor, ``%`` and ``**`` in place of arithmetic
+    (a float array raises at once), arithmetic in place of a mask ``&``/``|``, ``~`` for ``-``, and removed
+    decorators (``@dataclass`` fails at once; ``@njit`` only makes the kernel slower)."""
+    if operator == "core/RemoveDecorator" or operator.endswith("_Invert"):
+        return True
+    m = _BINOP.match(operator)
+    if m is None:
+        return False
+    src, dst = m.groups()
+    return not ({src, dst} <= ARITHMETIC or {src, dst} <= LOGICAL)
+
+
+def _annotation_spans(path: Path) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """(line, col) positions inside annotations: with ``from __future__ import annotations`` a mutated
+    annotation is never evaluated, so those mutants are equivalent by construction."""
+    spans: list[tuple[tuple[int, int], tuple[int, int]]] = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        annotations = []
+        if isinstance(node, ast.arg | ast.AnnAssign) and node.annotation is not None:
+            annotations.append(node.annotation)
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and node.returns is not None:
+            annotations.append(node.returns)
+        for a in annotations:
+            spans.append(((a.lineno, a.col_offset), (a.end_lineno or a.lineno, a.end_col_offset or 0)))
+    return spans
+
+
+def _bare_star(source: list[str], pos: tuple[int, int]) -> bool:
+    """cosmic-ray takes the keyword-only marker ``*`` of a signature for a multiplication."""
+    rest = source[pos[0] - 1][pos[1] :]
+    return rest.startswith("*") and rest[1:].lstrip()[:1] in (",", ")", "")
+
+
+def _equivalents() -> list[tuple[str, str, str]]:
+    """Lines ``module | operator | source line (stripped) | why`` of benchmarks/mutation_equivalents.txt."""
+    out = []
+    if EQUIVALENTS.exists():
+        for raw in EQUIVALENTS.read_text().splitlines():
+            if not raw.strip() or raw.lstrip().startswith("#"):
+                continue
+            parts = [p.strip() for p in raw.split(" | ")]
+            if len(parts) >= 3:
+                out.append((parts[0], parts[1], parts[2]))
+    return out
+
+
+def _copy_tree(dest: Path) -> None:
+    dest.mkdir(parents=True)
+    ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".hypothesis")
+    for name in ("src", "tests"):
+        shutil.copytree(ROOT / name, dest / name, ignore=ignore)
+    shutil.copy2(ROOT / "pyproject.toml", dest / "pyproject.toml")
+
+
+def _mutants(module: str, sample: int, seed: int) -> tuple[int, int, list]:
+    """(all, eligible, sampled work items) for one module; paths relative to the copy's root."""
+    from cosmic_ray.commands.init import _all_work_items
+
+    rel = Path("src/protocol_runner") / module
+    spans = _annotation_spans(rel)
+    source = rel.read_text().splitlines()
+    equivalent = [(op, text) for mod, op, text in _equivalents() if mod == module]
+    items = list(_all_work_items([rel], {}))
+    eligible = []
+    for it in items:
+        (m,) = it.mutations
+        line = source[m.start_pos[0] - 1].strip()
+        in_annotation = any(a <= tuple(m.start_pos) < b for a, b in spans)
+        if _not_plausible(m.operator_name) or in_annotation or _bare_star(source, m.start_pos):
+            continue
+        if any(op in (m.operator_name, "*") and text == line for op, text in equivalent):
+            continue
+        eligible.append(it)
+    eligible.sort(key=lambda it: (it.mutations[0].operator_name, it.mutations[0].occurrence))
+    chosen = (
+        eligible if sample <= 0 or len(eligible) <= sample else random.Random(seed).sample(eligible, sample)
+    )
+    chosen.sort(key=lambda it: tuple(it.mutations[0].start_pos))
+    return len(items), len(eligible), chosen
+
+
+def _test_command(module: str) -> str:
+    tests = " ".join(TESTS[module])
+    return f"{sys.executable} -m pytest -x -q -p no:cacheprovider {tests}"
+
+
+def _run_module(module: str, sample: int, seed: int) -> dict:
+    """Runs in the copy (cwd).  Returns the module's counts and survivors."""
+    from cosmic_ray.mutating import mutate_and_test
+    from cosmic_ray.work_item import TestOutcome
+
+    n_all, n_eligible, chosen = _mutants(module, sample, seed)
+    cmd = _test_command(module)
+    t0 = time.monotonic()
+    base = subprocess.run(cmd.split(), capture_output=True, text=True)
+    base_s = time.monotonic() - t0
+    res: dict = {"module": module, "all": n_all, "eligible": n_eligible, "tested": 0, "killed": 0}
+    if base.returncode != 0:
+        res["error"] = "tests fail unmutated:\n" + base.stdout[-2000:]
+        return res
+    timeout = 3 * base_s + 15
+    survivors = []
+    for it in chosen:
+        (m,) = it.mutations
+        r = mutate_and_test(it.mutations, cmd, timeout)
+        if r.test_outcome is None:  # no mutation possible here
+            continue
+        res["tested"] += 1
+        if r.test_outcome == TestOutcome.SURVIVED:
+            survivors.append(
+                {
+                    "line": m.start_pos[0],
+                    "operator": m.operator_name,
+                    "occurrence": m.occurrence,
+                    "diff": r.diff,
+                }
+            )
+        else:
+            res["killed"] += 1
+    res["survivors"] = survivors
+    res["baseline_s"] = round(base_s, 1)
+    res["seconds"] = round(time.monotonic() - t0, 1)
+    return res
+
+
+def _worker(copy: Path, modules: list[str], sample: int, seed: int, queue) -> None:
+    os.chdir(copy)
+    os.environ["PYTHONPATH"] = str(copy / "src")
+    os.environ["PYTHONDONTWRITEBYTECODE"] = "1"
+    for module in modules:
+        res = _run_module(module, sample, seed)
+        _print_row(res)
+        queue.put(res)
+
+
+def _print_row(res: dict) -> None:
+    if "error" in res:
+        print(f"{res['module']:32s} ERROR {res['error']}", flush=True)
+        return
+    score = 100.0 * res["killed"] / res["tested"] if res["tested"] else float("nan")
+    print(
+        f"{res['module']:32s} {res['killed']:4d}/{res['tested']:<4d} {score:6.1f} %"
+        f"   (of {res['eligible']} eligible, {res['all']} generated; {res['seconds']:.0f} s)",
+        flush=True,
+    )
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--sample", type=int, default=40, help="mutants per module (0: all); default 40")
+    p.add_argument("--seed", type=int, default=19)
+    p.add_argument("--jobs", type=int, default=2, help="modules run in parallel, one copy each")
+    p.add_argument("--modules", default="", help="comma-separated substrings of module paths to run")
+    p.add_argument("--out", type=Path, default=None, help="directory for survivors.txt and results.json")
+    args = p.parse_args(argv)
+
+    modules = [m for m in TESTS if not args.modules or any(s in m for s in args.modules.split(","))]
+    if not modules:
+        p.error(f"no module matches {args.modules!r}")
+    out = args.out or Path(tempfile.mkdtemp(prefix="mutation-out-"))
+    out.mkdir(parents=True, exist_ok=True)
+    scratch = Path(tempfile.mkdtemp(prefix="mutation-copy-"))
+    jobs = max(1, min(args.jobs, len(modules)))
+    # the bouc_wen modules share one slow test file: spread them over the jobs first
+    order = sorted(modules, key=lambda m: ("bouc_wen" not in m, m))
+    buckets: list[list[str]] = [order[i::jobs] for i in range(jobs)]
+    t0 = time.monotonic()
+    print(
+        f"cosmic-ray mutation score, sample <= {args.sample or 'all'} per module, seed {args.seed}, {jobs} jobs"
+    )
+    queue: multiprocessing.Queue = multiprocessing.Queue()
+    procs = []
+    try:
+        for i, bucket in enumerate(buckets):
+            copy = scratch / f"copy{i}"
+            _copy_tree(copy)
+            proc = multiprocessing.Process(target=_worker, args=(copy, bucket, args.sample, args.seed, queue))
+            proc.start()
+            procs.append(proc)
+        results = [queue.get() for _ in modules]
+        for proc in procs:
+            proc.join()
+    finally:
+        for proc in procs:
+            if proc.is_alive():
+                proc.terminate()
+        shutil.rmtree(scratch, ignore_errors=True)
+
+    results.sort(key=lambda r: r["module"])
+    print("\nper module (killed / tested, score):")
+    for res in results:
+        _print_row(res)
+    tested = sum(r["tested"] for r in results)
+    killed = sum(r["killed"] for r in results)
+    low = [r["module"] for r in results if "error" in r or not r["tested"] or r["killed"] < 0.9 * r["tested"]]
+    print(f"total {killed}/{tested} = {100.0 * killed / max(tested, 1):.1f} %; {time.monotonic() - t0:.0f} s")
+    print(f"below 90 %: {', '.join(low) if low else 'none'}")
+    with (out / "survivors.txt").open("w") as f:
+        for res in results:
+            for s in res.get("survivors", []):
+                f.write(f"== {res['module']}:{s['line']} {s['operator']} #{s['occurrence']}\n{s['diff']}\n")
+    (out / "results.json").write_text(json.dumps(results, indent=1))
+    print(f"survivors: {out / 'survivors.txt'}")
+    return 0 if not low else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
