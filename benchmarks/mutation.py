@@ -12,7 +12,7 @@ What it does:
    ``_not_plausible``) and those listed as equivalent in ``benchmarks/mutation_equivalents.txt``, and
    draws a seeded sample of at most ``--sample`` of them (the same sample on every run while the source
    is unchanged, so scores before and after new tests compare).
-3. Runs the module's own test file(s) (``TESTS`` below) once unmutated, to check they pass and to time
+3. Runs the module's own test files (``TESTS`` below) once unmutated, to check they pass and to time
    them, then once per sampled mutant with ``pytest -x`` and a timeout of ``3 x baseline + 15 s`` (a
    timeout counts as killed: the mutant hangs the analysis).
 4. Prints ``killed / tested`` per module and writes every surviving mutant (file, line, operator, diff) to
@@ -41,26 +41,31 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 EQUIVALENTS = Path(__file__).resolve().parent / "mutation_equivalents.txt"
 
-# module (relative to src/protocol_runner) -> its test files (relative to the repository root)
-TESTS: dict[str, list[str]] = {
-    "analysis/branches.py": ["tests/analysis/test_branches.py"],
-    "analysis/centring.py": ["tests/analysis/test_centring.py"],
-    "analysis/cycles.py": ["tests/analysis/test_cycles.py"],
-    "analysis/energy.py": ["tests/analysis/test_energy.py"],
-    "analysis/filters.py": ["tests/analysis/test_filters.py"],
-    "analysis/pipeline.py": ["tests/analysis/test_pipeline.py"],
-    "analysis/scaling.py": ["tests/analysis/test_scaling.py"],
-    "analysis/spring_fit.py": ["tests/analysis/test_spring_fit.py"],
-    "analysis/subtraction.py": ["tests/analysis/test_subtraction.py"],
-    "analysis/transition.py": ["tests/analysis/test_transition.py"],
-    "analysis/validation.py": ["tests/analysis/test_validation.py"],
-    "models/spring.py": ["tests/models/test_spring.py"],
-    "models/bouc_wen/params.py": ["tests/models/test_bouc_wen.py"],
-    "models/bouc_wen/kernels.py": ["tests/models/test_bouc_wen.py"],
-    "models/bouc_wen/simulation.py": ["tests/models/test_bouc_wen.py"],
-    "models/bouc_wen/problem.py": ["tests/models/test_bouc_wen.py"],
-    "models/bouc_wen/starts.py": ["tests/models/test_bouc_wen.py"],
-    "models/bouc_wen/fitting.py": ["tests/models/test_bouc_wen.py"],
+# module (relative to src/protocol_runner) -> glob of its test files (relative to the repository root):
+# a module's tests are test_<name>.py and test_<name>_*.py of its test folder (all bouc_wen modules share
+# test_bouc_wen*.py; the package is one model)
+TESTS: dict[str, str] = {
+    **{
+        f"analysis/{name}.py": f"tests/analysis/test_{name}*.py"
+        for name in (
+            "branches",
+            "centring",
+            "cycles",
+            "energy",
+            "filters",
+            "pipeline",
+            "scaling",
+            "spring_fit",
+            "subtraction",
+            "transition",
+            "validation",
+        )
+    },
+    "models/spring.py": "tests/models/test_spring*.py",
+    **{
+        f"models/bouc_wen/{name}.py": "tests/models/test_bouc_wen*.py"
+        for name in ("params", "kernels", "simulation", "problem", "starts", "fitting")
+    },
 }
 
 ARITHMETIC = {"Add", "Sub", "Mul", "Div", "FloorDiv"}
@@ -151,7 +156,7 @@ def _mutants(module: str, sample: int, seed: int) -> tuple[int, int, list]:
 
 
 def _test_command(module: str) -> str:
-    tests = " ".join(TESTS[module])
+    tests = " ".join(sorted(str(p) for p in Path().glob(TESTS[module])))
     return f"{sys.executable} -m pytest -x -q -p no:cacheprovider {tests}"
 
 
