@@ -1,0 +1,56 @@
+"""The spring fit's target: the midline on the range both branches cover, and the all-samples fit weighting
+every sample once (thesis §6.1)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import least_squares
+
+from protocol_runner.analysis.spring_fit import branch_midline, fit_spring_model
+from protocol_runner.models.spring import spring_torque_nm
+
+
+def _uneven_loop() -> tuple[np.ndarray, np.ndarray]:
+    """Loading sweeps 10 -> 100 deg, unloading only 100 -> 20 deg; torque a line plus 2 N m of friction:
+    the branches share only 20..100 deg."""
+    up = np.linspace(10.0, 100.0, 901)
+    down = np.linspace(100.0, 20.0, 801)[1:]
+    angle = np.concatenate([up, down])
+    labels = np.concatenate([np.ones(901), -np.ones(800)])
+    return angle, 0.3 * angle - 5.0 + 2.0 * labels
+
+
+def test_midline_spans_only_the_angles_both_branches_cover_minus_the_trim() -> None:
+    angle, torque = _uneven_loop()
+    grid, _ = branch_midline(angle, torque, bin_width_deg=1.0, trim_deg=0.0)
+    assert 20.0 <= grid[0] < 21.0 and 99.0 < grid[-1] <= 100.0
+    grid5, mid5 = branch_midline(angle, torque, bin_width_deg=1.0, trim_deg=5.0)
+    assert grid5[0] == pytest.approx(grid[0] + 5.0) and grid5[-1] <= grid[-1] - 5.0 + 1e-9
+    assert grid5[-1] > grid[-1] - 6.0
+    np.testing.assert_allclose(np.diff(grid5), 1.0)
+    # in the middle of the common range the friction cancels: the midline is the line itself
+    inner = (grid5 > 30.0) & (grid5 < 80.0)
+    np.testing.assert_allclose(mid5[inner], 0.3 * grid5[inner] - 5.0, atol=1e-9)
+
+
+def test_all_samples_fit_is_the_least_squares_fit_over_every_sample() -> None:
+    """Binning into 0.05 deg cells weighted by the square root of their counts must give the optimum of the
+    plain sum over samples; a joint that dwells (many samples at few angles) makes unweighted bins differ."""
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 12.0, 2e-3)
+    angle = 60.0 + 40.0 * np.sin(2 * np.pi * t / 6.0) ** 3  # slow near 60 deg: many samples there
+    angle = np.round(angle / 0.05) * 0.05 + 0.01  # one angle per fine bin, so binning loses nothing
+    spring = spring_torque_nm(angle, 13.0, 3, max_preload_mm=24.0, zero_offset_deg=4.0)
+    torque = spring + 4.0 * np.sin(np.radians(3 * angle)) + rng.normal(0.0, 0.5, angle.shape)
+    fit = fit_spring_model(angle, torque, 13.0, 3, target="all_samples")
+
+    def residual(p: np.ndarray) -> np.ndarray:
+        return spring_torque_nm(angle, 13.0, 3, max_preload_mm=p[0], zero_offset_deg=p[1]) - torque
+
+    direct = least_squares(
+        residual, np.array([fit.max_preload_mm, fit.zero_offset_deg]), x_scale=(10.0, 10.0)
+    )
+    assert fit.max_preload_mm == pytest.approx(direct.x[0], abs=0.02)
+    assert fit.zero_offset_deg == pytest.approx(direct.x[1], abs=0.02)
+    assert fit.rmse_nm == fit.rmse_all_samples_nm == pytest.approx(np.sqrt(np.mean(direct.fun**2)), rel=1e-3)
