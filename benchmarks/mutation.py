@@ -9,9 +9,9 @@ What it does:
 1. Copies ``src/``, ``tests/`` and ``pyproject.toml`` of the working tree into a scratch directory (one
    copy per job): the mutants are written to the copy, never to the checkout.
 2. For each module it lists cosmic-ray's mutants, drops those that are not plausible bugs (see
-   ``_not_plausible``) and those listed as equivalent in ``benchmarks/mutation_equivalents.txt``, and
-   draws a seeded sample of at most ``--sample`` of them (the same sample on every run while the source
-   is unchanged, so scores before and after new tests compare).
+   ``_not_plausible``), draws a seeded sample of at most ``--sample`` of them (the same sample on every
+   run while the source is unchanged, so scores before and after new tests compare) and leaves out of
+   the sample the mutants judged equivalent in ``benchmarks/mutation_equivalents.txt``.
 3. Runs the module's own test files (``TESTS`` below) once unmutated, to check they pass and to time
    them, then once per sampled mutant with ``pytest -x`` and a timeout of ``3 x baseline + 15 s`` (a
    timeout counts as killed: the mutant hangs the analysis).
@@ -107,16 +107,17 @@ def _bare_star(source: list[str], pos: tuple[int, int]) -> bool:
     return rest.startswith("*") and rest[1:].lstrip()[:1] in (",", ")", "")
 
 
-def _equivalents() -> list[tuple[str, str, str]]:
-    """Lines ``module | operator | source line (stripped) | why`` of benchmarks/mutation_equivalents.txt."""
-    out = []
+def _equivalents(module: str) -> set[tuple[str, str]]:
+    """(source line, mutated line), both stripped, of the mutants of `module` judged equivalent in
+    benchmarks/mutation_equivalents.txt (lines ``module | source line | mutated line | why``)."""
+    out = set()
     if EQUIVALENTS.exists():
         for raw in EQUIVALENTS.read_text().splitlines():
             if not raw.strip() or raw.lstrip().startswith("#"):
                 continue
             parts = [p.strip() for p in raw.split(" | ")]
-            if len(parts) >= 3:
-                out.append((parts[0], parts[1], parts[2]))
+            if len(parts) == 4 and parts[0] == module:
+                out.add((parts[1], parts[2]))
     return out
 
 
@@ -128,31 +129,49 @@ def _copy_tree(dest: Path) -> None:
     shutil.copy2(ROOT / "pyproject.toml", dest / "pyproject.toml")
 
 
-def _mutants(module: str, sample: int, seed: int) -> tuple[int, int, list]:
-    """(all, eligible, sampled work items) for one module; paths relative to the copy's root."""
+def _mutants(module: str, sample: int, seed: int) -> tuple[int, int, int, list]:
+    """(generated, eligible, judged equivalent, sampled work items) for one module, in the copy (cwd)."""
     from cosmic_ray.commands.init import _all_work_items
+    from cosmic_ray.mutating import mutate_code
+    from cosmic_ray.plugins import get_operator
 
     rel = Path("src/protocol_runner") / module
     spans = _annotation_spans(rel)
-    source = rel.read_text().splitlines()
-    equivalent = [(op, text) for mod, op, text in _equivalents() if mod == module]
+    code = rel.read_text()
+    source = code.splitlines()
+    equivalent = _equivalents(module)
+    equivalent_lines = {line for line, _ in equivalent}
     items = list(_all_work_items([rel], {}))
     eligible = []
+    n_equivalent = 0
     for it in items:
         (m,) = it.mutations
         line = source[m.start_pos[0] - 1].strip()
         in_annotation = any(a <= tuple(m.start_pos) < b for a, b in spans)
-        if _not_plausible(m.operator_name) or in_annotation or _bare_star(source, m.start_pos):
-            continue
-        if any(op in (m.operator_name, "*") and text == line for op, text in equivalent):
+        if (
+            _not_plausible(m.operator_name)
+            or in_annotation
+            or line.startswith("@")  # decorator arguments (frozen=, cache=) compute no number
+            or _bare_star(source, m.start_pos)
+        ):
             continue
         eligible.append(it)
     eligible.sort(key=lambda it: (it.mutations[0].operator_name, it.mutations[0].occurrence))
-    chosen = (
+    # sample first, then leave the equivalent ones out: marking a mutant equivalent keeps the sample
+    sampled = (
         eligible if sample <= 0 or len(eligible) <= sample else random.Random(seed).sample(eligible, sample)
     )
-    chosen.sort(key=lambda it: tuple(it.mutations[0].start_pos))
-    return len(items), len(eligible), chosen
+    chosen = []
+    for it in sorted(sampled, key=lambda it: tuple(it.mutations[0].start_pos)):
+        (m,) = it.mutations
+        line = source[m.start_pos[0] - 1].strip()
+        if line in equivalent_lines:
+            mutated = mutate_code(code, get_operator(m.operator_name)(), m.occurrence)
+            if mutated is not None and (line, mutated.splitlines()[m.start_pos[0] - 1].strip()) in equivalent:
+                n_equivalent += 1
+                continue
+        chosen.append(it)
+    return len(items), len(eligible), n_equivalent, chosen
 
 
 def _test_command(module: str) -> str:
@@ -165,12 +184,19 @@ def _run_module(module: str, sample: int, seed: int) -> dict:
     from cosmic_ray.mutating import mutate_and_test
     from cosmic_ray.work_item import TestOutcome
 
-    n_all, n_eligible, chosen = _mutants(module, sample, seed)
+    n_all, n_eligible, n_equivalent, chosen = _mutants(module, sample, seed)
     cmd = _test_command(module)
     t0 = time.monotonic()
     base = subprocess.run(cmd.split(), capture_output=True, text=True)
     base_s = time.monotonic() - t0
-    res: dict = {"module": module, "all": n_all, "eligible": n_eligible, "tested": 0, "killed": 0}
+    res: dict = {
+        "module": module,
+        "all": n_all,
+        "eligible": n_eligible,
+        "equivalent": n_equivalent,
+        "tested": 0,
+        "killed": 0,
+    }
     if base.returncode != 0:
         res["error"] = "tests fail unmutated:\n" + base.stdout[-2000:]
         return res
@@ -216,7 +242,8 @@ def _print_row(res: dict) -> None:
     score = 100.0 * res["killed"] / res["tested"] if res["tested"] else float("nan")
     print(
         f"{res['module']:32s} {res['killed']:4d}/{res['tested']:<4d} {score:6.1f} %"
-        f"   (of {res['eligible']} eligible, {res['all']} generated; {res['seconds']:.0f} s)",
+        f"   (sample of {res['eligible']} eligible less {res['equivalent']} equivalent;"
+        f" {res['all']} generated; {res['seconds']:.0f} s)",
         flush=True,
     )
 
