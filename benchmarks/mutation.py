@@ -179,8 +179,8 @@ def _test_command(module: str) -> str:
     return f"{sys.executable} -m pytest -x -q -p no:cacheprovider {tests}"
 
 
-def _run_module(module: str, sample: int, seed: int) -> dict:
-    """Runs in the copy (cwd).  Returns the module's counts and survivors."""
+def _run_module(module: str, sample: int, seed: int, log: Path) -> dict:
+    """Runs in the copy (cwd).  Returns the module's counts and survivors; one line per mutant to `log`."""
     from cosmic_ray.mutating import mutate_and_test
     from cosmic_ray.work_item import TestOutcome
 
@@ -204,7 +204,12 @@ def _run_module(module: str, sample: int, seed: int) -> dict:
     survivors = []
     for it in chosen:
         (m,) = it.mutations
+        t1 = time.monotonic()
         r = mutate_and_test(it.mutations, cmd, timeout)
+        with log.open("a") as f:
+            f.write(
+                f"{module}:{m.start_pos[0]} {m.operator_name} {r.test_outcome} {time.monotonic() - t1:.1f} s\n"
+            )
         if r.test_outcome is None:  # no mutation possible here
             continue
         res["tested"] += 1
@@ -225,12 +230,12 @@ def _run_module(module: str, sample: int, seed: int) -> dict:
     return res
 
 
-def _worker(copy: Path, modules: list[str], sample: int, seed: int, queue) -> None:
+def _worker(copy: Path, modules: list[str], sample: int, seed: int, log: Path, queue) -> None:
     os.chdir(copy)
     os.environ["PYTHONPATH"] = str(copy / "src")
     os.environ["PYTHONDONTWRITEBYTECODE"] = "1"
     for module in modules:
-        res = _run_module(module, sample, seed)
+        res = _run_module(module, sample, seed, log)
         _print_row(res)
         queue.put(res)
 
@@ -262,6 +267,7 @@ def main(argv: list[str] | None = None) -> int:
         p.error(f"no module matches {args.modules!r}")
     out = args.out or Path(tempfile.mkdtemp(prefix="mutation-out-"))
     out.mkdir(parents=True, exist_ok=True)
+    (out / "mutants.log").unlink(missing_ok=True)
     scratch = Path(tempfile.mkdtemp(prefix="mutation-copy-"))
     jobs = max(1, min(args.jobs, len(modules)))
     # the bouc_wen modules share one slow test file: spread them over the jobs first
@@ -277,7 +283,9 @@ def main(argv: list[str] | None = None) -> int:
         for i, bucket in enumerate(buckets):
             copy = scratch / f"copy{i}"
             _copy_tree(copy)
-            proc = multiprocessing.Process(target=_worker, args=(copy, bucket, args.sample, args.seed, queue))
+            proc = multiprocessing.Process(
+                target=_worker, args=(copy, bucket, args.sample, args.seed, out / "mutants.log", queue)
+            )
             proc.start()
             procs.append(proc)
         results = [queue.get() for _ in modules]
@@ -303,7 +311,7 @@ def main(argv: list[str] | None = None) -> int:
             for s in res.get("survivors", []):
                 f.write(f"== {res['module']}:{s['line']} {s['operator']} #{s['occurrence']}\n{s['diff']}\n")
     (out / "results.json").write_text(json.dumps(results, indent=1))
-    print(f"survivors: {out / 'survivors.txt'}")
+    print(f"survivors: {out / 'survivors.txt'}; every mutant: {out / 'mutants.log'}")
     return 0 if not low else 1
 
 
