@@ -1,0 +1,23 @@
+"""Transition boundaries: a deviation below the command counts like one above, and a trial exactly
+`points` samples long can already be past its transition."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from protocol_runner.analysis.transition import transition_index
+from protocol_runner.analysis.validation import AnalysisError
+
+
+def test_a_joint_below_its_command_is_judged_by_the_size_of_the_deviation() -> None:
+    command = np.full(8, 50.0)
+    measured = np.array([20.0, 30.0, 46.0, 45.0, 47.0, 50.0, 50.0, 50.0])  # 4, 5, 3 deg below from sample 2
+    assert transition_index(command, measured, tolerance_deg=5.0, points=3) == 2
+    assert transition_index(command, 2 * command - measured, tolerance_deg=5.0, points=3) == 2  # mirrored above
+
+
+def test_a_trial_exactly_points_long_that_follows_from_the_start() -> None:
+    assert transition_index(np.zeros(3), np.array([1.0, -1.0, 0.5]), points=3) == 0
+    with pytest.raises(AnalysisError, match=r"closest approach 0\.50 deg over 2 samples"):
+        transition_index(np.zeros(2), np.array([-0.5, 1.0]), points=3)
