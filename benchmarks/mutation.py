@@ -214,6 +214,7 @@ def _run_module(module: str, sample: int, seed: int, log: Path) -> dict:
             continue
         res["tested"] += 1
         if r.test_outcome == TestOutcome.SURVIVED:
+            print(f"  survived {module}:{m.start_pos[0]} {m.operator_name}", flush=True)
             survivors.append(
                 {
                     "line": m.start_pos[0],
