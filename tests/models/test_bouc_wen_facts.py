@@ -54,3 +54,36 @@ def test_a_held_out_trial_unlike_the_others_has_the_error_of_the_others_model() 
     # the fit on all three trials, which does see trial 2, is closer to it than the held-out prediction
     full = fit_trials(segments, starts=2)
     assert full.trial_rmse_nm[2] < 0.8 * errors[2]
+
+
+def test_parameter_uncertainties_are_the_least_squares_covariance() -> None:
+    """param_std = sqrt(diag(s^2 (J^T J)^-1)), s^2 = SSE / (m - 8), J the derivative of the simulated torque
+    with respect to (A, n, beta1..6) - here by central differences of `simulate`."""
+    rng = np.random.default_rng(5)
+    segments = []
+    for k in range(2):
+        x = _sweep(1.5, 0.7 * k)
+        segments.append((x, simulate(x, FIG57, z0=0.0) + rng.normal(0.0, 0.3, x.size)))
+    result = fit_trials(segments, starts=1)
+    assert result.n_samples_fitted == result.n_samples  # no decimation: the covariance is on every sample
+    p = result.params.as_array()
+    columns = []
+    for j in range(8):
+        h = 1e-6 * max(abs(p[j]), 1e-3)
+        up, down = p.copy(), p.copy()
+        up[j] += h
+        down[j] -= h
+        col = [
+            (
+                simulate(x, BoucWenParams.from_array(up), z0=y[0])
+                - simulate(x, BoucWenParams.from_array(down), z0=y[0])
+            )
+            / (2 * h)
+            for x, y in segments
+        ]
+        columns.append(np.concatenate(col))
+    J = np.column_stack(columns)
+    m = J.shape[0]
+    s2 = result.rmse_nm**2 * m / (m - 8)
+    expected = np.sqrt(np.diag(s2 * np.linalg.inv(J.T @ J)))
+    np.testing.assert_allclose(result.param_std, expected, rtol=1e-3)
