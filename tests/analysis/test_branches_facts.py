@@ -12,6 +12,7 @@ from protocol_runner.analysis.branches import (
     branch_labels,
     turning_points,
 )
+from protocol_runner.analysis.validation import AnalysisError
 
 L, U = LOADING, UNLOADING
 
@@ -65,3 +66,21 @@ def test_a_linear_spring_with_coulomb_friction_is_recovered_exactly_on_each_bran
     ends = np.array([curves.loading_angle_deg[0], curves.loading_angle_deg[-1]])
     assert curves.covers(ends, np.full(2, L)).all()
     assert not curves.covers(ends - np.array([1e-6, -1e-6]), np.full(2, L)).any()
+
+
+def test_each_curve_point_is_the_mean_of_one_bin_width_of_samples() -> None:
+    # one sweep up 10 -> 30 deg and back, samples every 0.25 deg: 2 deg bins hold 8 samples each
+    up = np.arange(10.0, 30.0, 0.25)
+    angle = np.concatenate([up, up[::-1]])
+    torque = angle**2  # curvature: a bin's mean torque is not the torque at its mean angle
+    curves = branch_curves(angle, torque, bin_width_deg=2.0)
+    assert curves.loading_angle_deg.size == 10
+    np.testing.assert_allclose(curves.loading_angle_deg, 10.875 + 2.0 * np.arange(10))
+    first_bin = np.arange(10.0, 12.0, 0.25)
+    assert curves.loading_torque_nm[0] == pytest.approx(np.mean(first_bin**2))
+
+
+def test_a_zero_bin_width_is_a_user_error() -> None:
+    angle = np.linspace(0.0, 40.0, 50)
+    with pytest.raises(AnalysisError, match="bin width must be positive"):
+        branch_curves(np.concatenate([angle, angle[::-1]]), np.zeros(100), bin_width_deg=0.0)

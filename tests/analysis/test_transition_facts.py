@@ -14,7 +14,9 @@ def test_a_joint_below_its_command_is_judged_by_the_size_of_the_deviation() -> N
     command = np.full(8, 50.0)
     measured = np.array([20.0, 30.0, 46.0, 45.0, 47.0, 50.0, 50.0, 50.0])  # 4, 5, 3 deg below from sample 2
     assert transition_index(command, measured, tolerance_deg=5.0, points=3) == 2
-    assert transition_index(command, 2 * command - measured, tolerance_deg=5.0, points=3) == 2  # mirrored above
+    assert (
+        transition_index(command, 2 * command - measured, tolerance_deg=5.0, points=3) == 2
+    )  # mirrored above
 
 
 def test_a_trial_exactly_points_long_that_follows_from_the_start() -> None:
