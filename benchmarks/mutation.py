@@ -109,15 +109,19 @@ def _bare_star(source: list[str], pos: tuple[int, int]) -> bool:
 
 def _equivalents(module: str) -> set[tuple[str, str]]:
     """(source line, mutated line), both stripped, of the mutants of `module` judged equivalent in
-    benchmarks/mutation_equivalents.txt (lines ``module | source line | mutated line | why``)."""
+    benchmarks/mutation_equivalents.txt: blocks of ``module:``, ``source:``, ``mutant:`` and ``why:`` lines,
+    separated by blank lines."""
     out = set()
-    if EQUIVALENTS.exists():
-        for raw in EQUIVALENTS.read_text().splitlines():
-            if not raw.strip() or raw.lstrip().startswith("#"):
-                continue
-            parts = [p.strip() for p in raw.split(" | ")]
-            if len(parts) == 4 and parts[0] == module:
-                out.add((parts[1], parts[2]))
+    if not EQUIVALENTS.exists():
+        return out
+    for block in re.split(r"\n\s*\n", EQUIVALENTS.read_text()):
+        fields = {}
+        for line in block.splitlines():
+            key, sep, value = line.partition(":")
+            if sep and key.strip() in ("module", "source", "mutant", "why"):
+                fields[key.strip()] = value.strip()
+        if fields.get("module") == module and "source" in fields and "mutant" in fields:
+            out.add((fields["source"], fields["mutant"]))
     return out
 
 
