@@ -56,3 +56,9 @@ def test_the_reference_is_the_mean_or_the_least_squares_line() -> None:
     slope, intercept = np.polyfit(np.arange(4.0), x, 1)
     np.testing.assert_allclose(reference_level(x, "linear"), intercept + slope * np.arange(4.0))
     assert slope == pytest.approx(1.4)
+
+
+def test_without_hysteresis_reaching_the_reference_counts_as_crossing_it() -> None:
+    x = np.array([-1.0, 0.0, -1.0, 0.0, -1.0, 0.0, 3.0])  # mean 0: touches the reference three times
+    assert x.mean() == 0.0
+    assert upward_crossings(x, hysteresis_deg=0.0).tolist() == [1, 3, 5]
