@@ -5,7 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from protocol_runner.analysis.energy import cycle_energy_j, energy_per_cycle, loop_integral_deg_nm
+from protocol_runner.analysis.energy import (
+    cycle_energy_j,
+    energy_per_cycle,
+    loop_integral_deg_nm,
+    summarize_energy,
+)
+from protocol_runner.analysis.validation import AnalysisError
 
 DEG = np.pi / 180.0
 
@@ -45,3 +51,17 @@ def test_each_complete_cycle_of_a_coarse_trial_has_the_polygon_area() -> None:
     area = 0.5 * n * a * b * np.sin(2 * np.pi / n) * np.sin(phi)
     assert e.size == 4
     np.testing.assert_allclose(e, area * DEG, rtol=1e-9)
+
+
+def test_two_samples_enclose_no_area_and_one_is_not_a_loop() -> None:
+    assert loop_integral_deg_nm([10.0, 20.0], [1.0, 5.0]) == 0.0  # out and back along the same segment
+    with pytest.raises(AnalysisError, match="at least 2 samples"):
+        loop_integral_deg_nm([10.0], [1.0])
+
+
+def test_summary_of_two_cycles_is_the_sample_standard_deviation() -> None:
+    s = summarize_energy([np.array([1.0]), np.array([3.0])])
+    assert (s.mean_j, s.n) == (2.0, 2)
+    assert s.std_j == pytest.approx(np.sqrt(2.0))  # |a - b| / sqrt(2) with ddof = 1
+    empty = summarize_energy([])
+    assert empty.n == 0 and np.isnan(empty.mean_j) and np.isnan(empty.std_j)
