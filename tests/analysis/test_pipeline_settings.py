@@ -3,9 +3,10 @@ do not are refused with the field's name (exit status 2)."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
-from protocol_runner.analysis.pipeline import ProcessingSettings
+from protocol_runner.analysis.pipeline import ProcessingSettings, Recording, TrialPair
 from protocol_runner.errors import InvalidInput
 
 
@@ -57,3 +58,8 @@ def test_the_chebyshev_ripple_is_described_only_for_a_chebyshev_filter() -> None
         "zero_phase": True,
     }
     assert "ripple_db" not in ProcessingSettings(chebyshev_ripple_db=1.0).filter_description()
+
+
+def test_a_pair_without_a_trial_number_is_trial_1() -> None:
+    rec = Recording(np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3))
+    assert TrialPair(rec, rec).trial == 1  # trials are numbered from 1, as in the archive
