@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from protocol_runner.analysis.scaling import range_scale, scale_brace_off_input
+from protocol_runner.analysis.validation import AnalysisError
 
 from .synth import sine_command
 
@@ -88,3 +89,39 @@ def test_eq8_scale_uses_both_ends_of_both_ranges() -> None:
     off = np.array([-20.0, 60.0, 0.0])  # range 80
     assert range_scale(on, off) == pytest.approx(0.5)
     assert range_scale(off, on) == pytest.approx(2.0)
+
+
+def test_the_default_transition_is_the_thesis_three_points_within_five_degrees() -> None:
+    u = _command()
+
+    def plant(v: np.ndarray) -> np.ndarray:
+        out = v.copy()
+        out[:10] += 20.0  # start-up: 20 deg off ...
+        out[3:5] = v[3:5]  # ... except two samples on the command: not yet three in a row
+        return out
+
+    result = scale_brace_off_input(u, (float(u.min()), float(u.max())), plant, max_iterations=1)
+    assert result.history[0].transition_index == 10
+    assert result.converged and result.history[0].range_error_deg == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"target_range_deg": (50.0, 50.0)}, "max > min"),
+        ({"tolerance_deg": 0.0}, "tolerance must be positive"),
+        ({"max_iterations": 0}, "at least one iteration"),
+    ],
+)
+def test_a_target_or_setting_that_leaves_nothing_to_do_is_a_user_error(kwargs: dict, message: str) -> None:
+    args = {"target_range_deg": (30.0, 95.0), **kwargs}
+    with pytest.raises(AnalysisError, match=message):
+        scale_brace_off_input(_command(), run=lambda v: v, **args)
+
+
+def test_a_single_iteration_is_allowed_and_the_default_tolerance_is_one_degree() -> None:
+    u = _command()
+    target = (float(u.min()), float(u.max()))
+    one = scale_brace_off_input(u, target, lambda v: v + 1.5, max_iterations=1)
+    assert len(one.history) == 1 and not one.converged  # 1.5 deg off: outside the default 1 deg
+    assert scale_brace_off_input(u, target, lambda v: v + 0.9, max_iterations=1).converged
