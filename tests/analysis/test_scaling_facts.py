@@ -125,3 +125,8 @@ def test_a_single_iteration_is_allowed_and_the_default_tolerance_is_one_degree()
     one = scale_brace_off_input(u, target, lambda v: v + 1.5, max_iterations=1)
     assert len(one.history) == 1 and not one.converged  # 1.5 deg off: outside the default 1 deg
     assert scale_brace_off_input(u, target, lambda v: v + 0.9, max_iterations=1).converged
+
+
+def test_an_output_that_does_not_move_after_the_transition_is_a_user_error() -> None:
+    with pytest.raises(AnalysisError):
+        scale_brace_off_input(_command(), (30.0, 95.0), lambda v: np.full_like(v, v[0]))
