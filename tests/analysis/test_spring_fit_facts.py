@@ -54,3 +54,16 @@ def test_all_samples_fit_is_the_least_squares_fit_over_every_sample() -> None:
     assert fit.max_preload_mm == pytest.approx(direct.x[0], abs=0.02)
     assert fit.zero_offset_deg == pytest.approx(direct.x[1], abs=0.02)
     assert fit.rmse_nm == fit.rmse_all_samples_nm == pytest.approx(np.sqrt(np.mean(direct.fun**2)), rel=1e-3)
+
+
+def test_the_midline_reaches_the_top_of_a_loop_that_dwells_there() -> None:
+    # a dwell at 100 deg: both branches' last 1-deg bins hold 100 deg, so the common range ends at 100 deg
+    # and a 0.2 deg trim keeps the grid point 99.65 deg (grid from the unloading start bin, 20.45 deg)
+    up = np.linspace(10.0, 100.0, 901)
+    dwell = np.full(20, 100.0)
+    down = np.linspace(100.0, 20.0, 801)[1:]
+    angle = np.concatenate([up, dwell, down])
+    torque = 0.3 * angle
+    grid, _ = branch_midline(angle, torque, bin_width_deg=1.0, trim_deg=0.2)
+    assert grid[0] == pytest.approx(20.45 + 0.2)
+    assert grid[-1] == pytest.approx(99.65)
