@@ -110,7 +110,7 @@ def _bare_star(source: list[str], pos: tuple[int, int]) -> bool:
 def _equivalents(module: str) -> set[tuple[str, str]]:
     """(source line, mutated line), both stripped, of the mutants of `module` judged equivalent in
     benchmarks/mutation_equivalents.txt: blocks of ``module:``, ``source:``, ``mutant:`` and ``why:`` lines,
-    separated by blank lines."""
+    separated by blank lines; ``mutant: *`` stands for every mutant of that source line."""
     out = set()
     if not EQUIVALENTS.exists():
         return out
@@ -169,6 +169,9 @@ def _mutants(module: str, sample: int, seed: int) -> tuple[int, int, int, list]:
     for it in sorted(sampled, key=lambda it: tuple(it.mutations[0].start_pos)):
         (m,) = it.mutations
         line = source[m.start_pos[0] - 1].strip()
+        if (line, "*") in equivalent:  # every mutant of this line
+            n_equivalent += 1
+            continue
         if line in equivalent_lines:
             mutated = mutate_code(code, get_operator(m.operator_name)(), m.occurrence)
             if mutated is not None and (line, mutated.splitlines()[m.start_pos[0] - 1].strip()) in equivalent:
