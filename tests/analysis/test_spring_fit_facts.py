@@ -8,6 +8,7 @@ import pytest
 from scipy.optimize import least_squares
 
 from protocol_runner.analysis.spring_fit import branch_midline, fit_spring_model
+from protocol_runner.analysis.validation import AnalysisError
 from protocol_runner.models.spring import spring_torque_nm
 
 
@@ -67,3 +68,19 @@ def test_the_midline_reaches_the_top_of_a_loop_that_dwells_there() -> None:
     grid, _ = branch_midline(angle, torque, bin_width_deg=1.0, trim_deg=0.2)
     assert grid[0] == pytest.approx(20.45 + 0.2)
     assert grid[-1] == pytest.approx(99.65)
+
+
+def test_no_spring_reports_stiffness_zero() -> None:
+    angle = np.linspace(10.0, 100.0, 50)
+    fit = fit_spring_model(np.concatenate([angle, angle[::-1]]), np.zeros(100), 0.0, 2)
+    assert not fit.applicable and fit.stiffness_n_per_mm == 0.0 and fit.preload_position == 2
+
+
+def test_three_angles_are_enough_for_the_two_parameters_and_two_are_not() -> None:
+    angle = np.array([40.01, 60.01, 80.01])  # three fine (0.05 deg) bins
+    torque = spring_torque_nm(angle, 13.0, 3, max_preload_mm=24.0, zero_offset_deg=4.0)
+    fit = fit_spring_model(angle, torque, 13.0, 3, target="all_samples")
+    assert fit.max_preload_mm == pytest.approx(24.0, abs=1e-3)
+    assert fit.zero_offset_deg == pytest.approx(4.0, abs=1e-3)
+    with pytest.raises(AnalysisError, match="only 2 points"):
+        fit_spring_model(angle[:2], torque[:2], 13.0, 3, target="all_samples")
