@@ -68,3 +68,19 @@ def test_trials_that_cannot_be_fitted_are_named() -> None:
     with pytest.raises(InvalidInput, match="positive lengths"):
         fit(x, y, trials=[50, 0])
     assert fit_trials([(x, y), (x[:3], y[:3])], starts=0).n_samples == 53  # three samples are enough
+
+
+def test_nfev_counts_every_residual_evaluation(monkeypatch: pytest.MonkeyPatch) -> None:
+    from protocol_runner.models.bouc_wen.problem import Problem
+
+    calls = []
+    original = Problem.residuals
+
+    def counting(self: Problem, u: np.ndarray) -> np.ndarray:
+        calls.append(1)
+        return original(self, u)
+
+    monkeypatch.setattr(Problem, "residuals", counting)
+    result = fit_trials([_trial(240)], starts=2)  # short enough that no copy is decimated
+    assert result.stride == (1,)
+    assert result.nfev == len(calls) > result.n_starts
