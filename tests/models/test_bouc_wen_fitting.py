@@ -44,6 +44,7 @@ def test_a_warm_start_at_the_answer_is_kept() -> None:
     assert result.converged
     np.testing.assert_allclose(result.params.as_array(), FIG57.as_array(), rtol=1e-6, atol=1e-9)
     assert result.rmse_nm < 1e-8 and result.r2 == pytest.approx(1.0)
+    assert "termination condition is satisfied" in result.message  # the solver's own words
 
 
 @pytest.mark.parametrize(
