@@ -84,3 +84,14 @@ def test_three_angles_are_enough_for_the_two_parameters_and_two_are_not() -> Non
     assert fit.zero_offset_deg == pytest.approx(4.0, abs=1e-3)
     with pytest.raises(AnalysisError, match="only 2 points"):
         fit_spring_model(angle[:2], torque[:2], 13.0, 3, target="all_samples")
+
+
+def test_the_reason_names_what_was_fitted() -> None:
+    t = np.arange(0.0, 12.0, 2e-3)
+    angle = 62.0 + 40.0 * np.sin(2 * np.pi * t / 6.0)
+    torque = spring_torque_nm(angle, 13.0, 3, max_preload_mm=24.0, zero_offset_deg=4.0)
+    assert fit_spring_model(angle, torque, 13.0, 3).reason == "least squares on the loop midline"
+    assert (
+        fit_spring_model(angle, torque, 13.0, 3, target="all_samples").reason
+        == "least squares on the samples"
+    )
