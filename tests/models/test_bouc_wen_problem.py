@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.bouc_wen import BoucWenBounds, BoucWenParams, fit_trials, simulate
+from protocol_runner.models.bouc_wen import DEFAULT_BOUNDS, BoucWenBounds, BoucWenParams, fit_trials, simulate
 from protocol_runner.models.bouc_wen.problem import Problem
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
@@ -62,3 +62,13 @@ def test_a_bound_below_the_truth_holds_the_fit_at_the_bound() -> None:
 def test_bounds_that_enclose_nothing_are_invalid_input(kwargs: dict, message: str) -> None:
     with pytest.raises(InvalidInput, match=message):
         BoucWenBounds(**kwargs)
+
+
+def test_the_default_bounds_are_the_documented_ones() -> None:
+    # BoucWenBounds docstring: 0 <= a <= 20, 0.5 <= n <= 3, |psi'| <= 100; Figure 57 on a +-65 deg,
+    # 20 N m loop has psi'_5 = -57, well inside
+    np.testing.assert_array_equal(DEFAULT_BOUNDS.lower(), [0.0, 0.5, *([-100.0] * 6)])
+    np.testing.assert_array_equal(DEFAULT_BOUNDS.upper(), [20.0, 3.0, *([100.0] * 6)])
+    x, y = _loop()
+    problem = Problem(x, y, np.array([0, x.size]), DEFAULT_BOUNDS, 65.0, 20.0)
+    assert problem.to_u(FIG57)[2 + 4] == pytest.approx(-57.0, abs=0.5)
