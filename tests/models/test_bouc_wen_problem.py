@@ -72,3 +72,27 @@ def test_the_default_bounds_are_the_documented_ones() -> None:
     x, y = _loop()
     problem = Problem(x, y, np.array([0, x.size]), DEFAULT_BOUNDS, 65.0, 20.0)
     assert problem.to_u(FIG57)[2 + 4] == pytest.approx(-57.0, abs=0.5)
+
+
+def test_a_diverging_start_is_pulled_toward_the_straight_line_until_it_stays_bounded() -> None:
+    """Problem.stabilise: halve the distance to a = 1, psi' = 0 (a line of the loop's mean slope) until the
+    recursion no longer passes 10 x the torque scale, where the fitter holds it (a finite penalty)."""
+    x, y = _loop()
+    Z = float(np.max(np.abs(y)))
+    problem = Problem(x, y, np.array([0, x.size]), DEFAULT_BOUNDS, 60.0, Z)
+    assert problem.bound == 10.0 * Z
+    unstable = BoucWenParams(A=0.3, n=2.0, beta=(0.0, 0.0, 0.0, 0.0, 0.0, -1.0))
+    u_bad = problem.to_u(unstable)
+    r = problem.residuals(u_bad)
+    k = problem.diverged_at
+    assert k > 0
+    np.testing.assert_allclose(r[k:] * Z + y[k:], np.sign(r[k] * Z + y[k]) * 10.0 * Z)
+    v = problem.stabilise(u_bad)
+    problem.residuals(v)
+    assert problem.diverged_at == -1
+    centre = u_bad.copy()
+    centre[0] = 1.0
+    centre[2:] = 0.0
+    steps = np.log2(np.linalg.norm(u_bad - centre) / np.linalg.norm(v - centre))
+    assert steps == pytest.approx(round(steps)) and round(steps) >= 1  # a whole number of halvings
+    np.testing.assert_allclose(v - centre, (u_bad - centre) / 2.0 ** round(steps))
