@@ -87,6 +87,8 @@ def test_a_diverging_start_is_pulled_toward_the_straight_line_until_it_stays_bou
     k = problem.diverged_at
     assert k > 0
     np.testing.assert_allclose(r[k:] * Z + y[k:], np.sign(r[k] * Z + y[k]) * 10.0 * Z)
+    J = problem.jacobian(u_bad)
+    assert np.all(J[k:] == 0.0) and np.any(J[:k] != 0.0)  # the held penalty does not move with the parameters
     v = problem.stabilise(u_bad)
     problem.residuals(v)
     assert problem.diverged_at == -1
