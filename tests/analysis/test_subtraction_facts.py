@@ -10,9 +10,9 @@ from protocol_runner.analysis.validation import AnalysisError
 
 
 def test_a_brace_off_clock_that_stalls_or_runs_back_is_refused() -> None:
-    for t_off in ([0.0, 0.1, 0.1], [0.0, 0.2, 0.1]):
+    for t_off in ([0.0, 0.1, 0.1], [0.0, 0.2, 0.1], [0.2, 0.1]):
         with pytest.raises(AnalysisError, match="time_off_s must be strictly increasing"):
-            subtract_equal_time([0.0, 0.1], [1.0, 1.0], t_off, [0.0, 1.0, 2.0])
+            subtract_equal_time([0.0, 0.1], [1.0, 1.0], t_off, np.arange(float(len(t_off))))
 
 
 def test_a_single_brace_off_sample_is_subtracted_as_a_constant() -> None:
