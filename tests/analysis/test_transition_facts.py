@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from protocol_runner.analysis.transition import transition_index
+from protocol_runner.analysis.transition import command_on_input_base, transition_index
 from protocol_runner.analysis.validation import AnalysisError
 
 
@@ -23,3 +23,8 @@ def test_a_trial_exactly_points_long_that_follows_from_the_start() -> None:
     assert transition_index(np.zeros(3), np.array([1.0, -1.0, 0.5]), points=3) == 0
     with pytest.raises(AnalysisError, match=r"closest approach 0\.50 deg over 2 samples"):
         transition_index(np.zeros(2), np.array([-0.5, 1.0]), points=3)
+
+
+def test_ticks_that_run_backwards_are_refused() -> None:
+    with pytest.raises(AnalysisError, match="strictly increasing"):
+        command_on_input_base([0.0, 0.02, 0.01], [1.0, 2.0, 3.0], [0.0, 0.005])
