@@ -85,3 +85,13 @@ def test_nfev_counts_every_residual_evaluation(monkeypatch: pytest.MonkeyPatch) 
     result = fit_trials([_trial(240)], starts=2)  # short enough that no copy is decimated
     assert result.stride == (1,)
     assert result.nfev == len(calls) > result.n_starts
+
+
+def test_a_solve_stopped_by_its_evaluation_limit_is_not_converged(monkeypatch: pytest.MonkeyPatch) -> None:
+    from protocol_runner.models.bouc_wen import fitting
+
+    monkeypatch.setattr(fitting, "_POLISH_NFEV", 2)
+    x, y = _trial(240)
+    result = fit(x, y, starts=0, initial=BoucWenParams(A=0.5, n=1.0, beta=(0.0,) * 6), data_starts=False)
+    assert not result.converged
+    assert "maximum number of function evaluations" in result.message
