@@ -41,32 +41,31 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 EQUIVALENTS = Path(__file__).resolve().parent / "mutation_equivalents.txt"
 
-# module (relative to src/protocol_runner) -> glob of its test files (relative to the repository root):
-# a module's tests are test_<name>.py and test_<name>_*.py of its test folder (all bouc_wen modules share
-# test_bouc_wen*.py; the package is one model)
-TESTS: dict[str, str] = {
-    **{
-        f"analysis/{name}.py": f"tests/analysis/test_{name}*.py"
-        for name in (
-            "branches",
-            "centring",
-            "cycles",
-            "energy",
-            "filters",
-            "pipeline",
-            "scaling",
-            "spring_fit",
-            "subtraction",
-            "transition",
-            "validation",
-        )
-    },
-    "models/spring.py": "tests/models/test_spring*.py",
-    **{
-        f"models/bouc_wen/{name}.py": "tests/models/test_bouc_wen*.py"
-        for name in ("params", "kernels", "simulation", "problem", "starts", "fitting")
-    },
-}
+# The science packages (issue 19): their modules are found on disk, so a new module is scored as soon as
+# it exists (devices/ and expectations/ too, once they do).
+SCIENCE = ("analysis", "models", "devices", "expectations")
+
+
+def _science_modules() -> dict[str, str]:
+    """module (relative to src/protocol_runner) -> glob of its test files (relative to the repository root).
+
+    A module's tests are ``tests/<package>/test_<name>*.py``; a module inside a sub-package
+    (models/bouc_wen/fitting.py) shares ``tests/<package>/test_<sub-package>*.py`` (the sub-package is one
+    model).
+    """
+    out: dict[str, str] = {}
+    base = ROOT / "src" / "protocol_runner"
+    for package in SCIENCE:
+        for path in sorted((base / package).rglob("*.py")):
+            if path.name == "__init__.py":
+                continue
+            rel = path.relative_to(base)
+            name = rel.parts[1] if len(rel.parts) > 2 else path.stem
+            out[rel.as_posix()] = f"tests/{package}/test_{name}*.py"
+    return out
+
+
+TESTS = _science_modules()
 
 ARITHMETIC = {"Add", "Sub", "Mul", "Div", "FloorDiv"}
 LOGICAL = {"BitAnd", "BitOr"}
@@ -181,9 +180,9 @@ def _mutants(module: str, sample: int, seed: int) -> tuple[int, int, int, list]:
     return len(items), len(eligible), n_equivalent, chosen
 
 
-def _test_command(module: str) -> str:
+def _test_command(module: str) -> str | None:
     tests = " ".join(sorted(str(p) for p in Path().glob(TESTS[module])))
-    return f"{sys.executable} -m pytest -x -q -p no:cacheprovider {tests}"
+    return f"{sys.executable} -m pytest -x -q -p no:cacheprovider {tests}" if tests else None
 
 
 def _run_module(module: str, sample: int, seed: int, log: Path) -> dict:
@@ -194,6 +193,14 @@ def _run_module(module: str, sample: int, seed: int, log: Path) -> dict:
     n_all, n_eligible, n_equivalent, chosen = _mutants(module, sample, seed)
     cmd = _test_command(module)
     t0 = time.monotonic()
+    if cmd is None:
+        return {
+            "module": module,
+            "all": n_all,
+            "tested": 0,
+            "killed": 0,
+            "error": f"no tests ({TESTS[module]})",
+        }
     base = subprocess.run(cmd.split(), capture_output=True, text=True)
     base_s = time.monotonic() - t0
     res: dict = {
