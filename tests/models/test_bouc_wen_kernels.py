@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from protocol_runner.models.bouc_wen import BoucWenParams, simulate, simulate_sensitivity
+from protocol_runner.models.bouc_wen import DEFAULT_BOUNDS, BoucWenParams, simulate, simulate_sensitivity
 from protocol_runner.models.bouc_wen.kernels import recursion_kernel
+from protocol_runner.models.bouc_wen.problem import Problem
 
 LINE = BoucWenParams(A=1.0, n=1.0, beta=(0.0,) * 6)
 
@@ -45,3 +46,21 @@ def test_without_divergence_the_kernel_reports_none() -> None:
     z = np.empty_like(x)
     assert recursion_kernel(x, np.array([0, 5]), np.array([0.0]), 1.0, 1.0, np.zeros(6), 4.0, True, z) == -1
     assert z[-1] == pytest.approx(4.0)
+
+
+def test_each_trial_starts_its_sensitivities_afresh() -> None:
+    """Two trials in one pass give exactly the Jacobians of each trial alone: z0 is fixed, so every
+    derivative is zero at a trial's first sample and nothing carries over from the trial before."""
+    p = BoucWenParams(A=0.28, n=1.2, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.05))
+    x1 = 50.0 * np.sin(np.linspace(0.0, 7.0, 150))
+    x2 = 40.0 * np.sin(np.linspace(1.0, 9.0, 170))
+    y1, y2 = simulate(x1, p, z0=1.0), simulate(x2, p, z0=-2.0)
+
+    def jac(x: np.ndarray, y: np.ndarray, seg: list[int]) -> np.ndarray:
+        problem = Problem(x, y, np.array(seg, dtype=np.int64), DEFAULT_BOUNDS, 50.0, 20.0)
+        return problem.physical_jacobian(p.A, p.n, np.array(p.beta))
+
+    joint = jac(np.concatenate([x1, x2]), np.concatenate([y1, y2]), [0, 150, 320])
+    np.testing.assert_array_equal(joint[:150], jac(x1, y1, [0, 150]))
+    np.testing.assert_array_equal(joint[150:], jac(x2, y2, [0, 170]))
+    np.testing.assert_array_equal(joint[150], 0.0)
