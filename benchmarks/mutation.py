@@ -106,22 +106,30 @@ def _bare_star(source: list[str], pos: tuple[int, int]) -> bool:
     return rest.startswith("*") and rest[1:].lstrip()[:1] in (",", ")", "")
 
 
-def _equivalents(module: str) -> set[tuple[str, str]]:
-    """(source line, mutated line), both stripped, of the mutants of `module` judged equivalent in
-    benchmarks/mutation_equivalents.txt: blocks of ``module:``, ``source:``, ``mutant:`` and ``why:`` lines,
-    separated by blank lines; ``mutant: *`` stands for every mutant of that source line."""
-    out = set()
+def _equivalents(module: str) -> set[tuple[str, str, str]]:
+    """(source line, mutated line, enclosing function or ""), stripped, of the mutants of `module` judged
+    equivalent in benchmarks/mutation_equivalents.txt: blocks of ``module:``, ``in:`` (optional: the
+    function, when the same line occurs in several), ``source:``, ``mutant:`` and ``why:`` lines, separated by
+    blank lines; ``mutant: *`` stands for every mutant of that source line."""
+    out: set[tuple[str, str, str]] = set()
     if not EQUIVALENTS.exists():
         return out
     for block in re.split(r"\n\s*\n", EQUIVALENTS.read_text()):
         fields = {}
         for line in block.splitlines():
             key, sep, value = line.partition(":")
-            if sep and key.strip() in ("module", "source", "mutant", "why"):
+            if sep and key.strip() in ("module", "in", "source", "mutant", "why"):
                 fields[key.strip()] = value.strip()
         if fields.get("module") == module and "source" in fields and "mutant" in fields:
-            out.add((fields["source"], fields["mutant"]))
+            out.add((fields["source"], fields["mutant"], fields.get("in", "")))
     return out
+
+
+def _is_equivalent(equivalent: set[tuple[str, str, str]], line: str, mutated: str | None, where: str) -> bool:
+    return any(
+        src == line and (mut == "*" or mut == mutated) and (not fn or fn == where)
+        for src, mut, fn in equivalent
+    )
 
 
 def _copy_tree(dest: Path) -> None:
@@ -143,7 +151,7 @@ def _mutants(module: str, sample: int, seed: int) -> tuple[int, int, int, list]:
     code = rel.read_text()
     source = code.splitlines()
     equivalent = _equivalents(module)
-    equivalent_lines = {line for line, _ in equivalent}
+    equivalent_lines = {line for line, _, _ in equivalent}
     items = list(_all_work_items([rel], {}))
     eligible = []
     n_equivalent = 0
@@ -168,12 +176,10 @@ def _mutants(module: str, sample: int, seed: int) -> tuple[int, int, int, list]:
     for it in sorted(sampled, key=lambda it: tuple(it.mutations[0].start_pos)):
         (m,) = it.mutations
         line = source[m.start_pos[0] - 1].strip()
-        if (line, "*") in equivalent:  # every mutant of this line
-            n_equivalent += 1
-            continue
         if line in equivalent_lines:
             mutated = mutate_code(code, get_operator(m.operator_name)(), m.occurrence)
-            if mutated is not None and (line, mutated.splitlines()[m.start_pos[0] - 1].strip()) in equivalent:
+            mutated_line = None if mutated is None else mutated.splitlines()[m.start_pos[0] - 1].strip()
+            if _is_equivalent(equivalent, line, mutated_line, m.definition_name or ""):
                 n_equivalent += 1
                 continue
         chosen.append(it)
@@ -249,6 +255,9 @@ def _worker(copy: Path, modules: list[str], sample: int, seed: int, log: Path, q
     os.chdir(copy)
     os.environ["PYTHONPATH"] = str(copy / "src")
     os.environ["PYTHONDONTWRITEBYTECODE"] = "1"
+    # numba kernels compiled with bounds checks: an index mutant that would write past an array raises
+    # instead of corrupting memory silently (and perhaps passing)
+    os.environ["NUMBA_BOUNDSCHECK"] = "1"
     for module in modules:
         res = _run_module(module, sample, seed, log)
         _print_row(res)

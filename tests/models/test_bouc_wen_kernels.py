@@ -64,3 +64,12 @@ def test_each_trial_starts_its_sensitivities_afresh() -> None:
     np.testing.assert_array_equal(joint[:150], jac(x1, y1, [0, 150]))
     np.testing.assert_array_equal(joint[150:], jac(x2, y2, [0, 170]))
     np.testing.assert_array_equal(joint[150], 0.0)
+
+
+def test_the_first_divergence_is_reported_when_several_trials_diverge() -> None:
+    x = np.concatenate([np.arange(10.0), np.arange(10.0)])
+    seg = np.array([0, 10, 20], dtype=np.int64)
+    z = np.empty_like(x)
+    first_bad = recursion_kernel(x, seg, np.array([0.0, 2.0]), 1.0, 1.0, np.zeros(6), 5.0, True, z)
+    assert first_bad == 6  # trial 2 diverges too (at sample 10 + 4), later
+    np.testing.assert_array_equal(z[10:16], [2.0, 3.0, 4.0, 5.0, 5.0, 5.0])
