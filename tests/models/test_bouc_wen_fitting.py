@@ -71,20 +71,33 @@ def test_trials_that_cannot_be_fitted_are_named() -> None:
     assert fit_trials([(x, y), (x[:3], y[:3])], starts=0).n_samples == 53  # three samples are enough
 
 
-def test_nfev_counts_every_residual_evaluation(monkeypatch: pytest.MonkeyPatch) -> None:
+def test_nfev_counts_the_residual_evaluations_of_the_solves(monkeypatch: pytest.MonkeyPatch) -> None:
+    """nfev: every residual evaluation made by the least-squares solves (and their start stabilisation);
+    the decimation guard's divergence checks between the stages are not solve steps."""
     from protocol_runner.models.bouc_wen.problem import Problem
 
-    calls = []
-    original = Problem.residuals
+    in_solve = [0]
+    counted = [0]
+    residuals, solve = Problem.residuals, Problem.solve
 
-    def counting(self: Problem, u: np.ndarray) -> np.ndarray:
-        calls.append(1)
-        return original(self, u)
+    def counting_residuals(self: Problem, u: np.ndarray) -> np.ndarray:
+        counted[0] += in_solve[0] > 0
+        return residuals(self, u)
 
-    monkeypatch.setattr(Problem, "residuals", counting)
-    result = fit_trials([_trial(240)], starts=2)  # short enough that no copy is decimated
-    assert result.stride == (1,)
-    assert result.nfev == len(calls) > result.n_starts
+    def flagged_solve(self: Problem, *args: object, **kwargs: object) -> object:
+        in_solve[0] += 1
+        try:
+            return solve(self, *args, **kwargs)  # type: ignore[arg-type]
+        finally:
+            in_solve[0] -= 1
+
+    monkeypatch.setattr(Problem, "residuals", counting_residuals)
+    monkeypatch.setattr(Problem, "solve", flagged_solve)
+    plain = fit_trials([_trial(240)], starts=2)  # short enough that nothing is decimated
+    assert plain.stride == (1,) and plain.nfev == counted[0] > plain.n_starts
+    counted[0] = 0
+    decimated = fit_trials([_trial(1200)], starts=2, max_samples_per_trial=600)  # screened on 400 a trial
+    assert decimated.stride == (2,) and decimated.nfev == counted[0] > decimated.n_starts
 
 
 def test_a_solve_stopped_by_its_evaluation_limit_is_not_converged(monkeypatch: pytest.MonkeyPatch) -> None:
