@@ -240,6 +240,7 @@ def _run_module(module: str, sample: int, seed: int, log: Path) -> dict:
                     "line": m.start_pos[0],
                     "operator": m.operator_name,
                     "occurrence": m.occurrence,
+                    "function": m.definition_name or "",
                     "diff": r.diff,
                 }
             )
@@ -277,6 +278,32 @@ def _print_row(res: dict) -> None:
     )
 
 
+def _rescore(path: Path) -> int:
+    """Re-count a results.json with the current equivalents list: survivors now judged equivalent leave
+    both the survivors and the tested count (the sample itself does not change)."""
+    results = json.loads(path.read_text())
+    for res in sorted(results, key=lambda r: r["module"]):
+        if "error" in res:
+            _print_row(res)
+            continue
+        equivalent = _equivalents(res["module"])
+        kept = []
+        for s in res.get("survivors", []):
+            lines = (s.get("diff") or "").splitlines()
+            old = [x[1:].strip() for x in lines if x.startswith("-") and not x.startswith("---")]
+            new = [x[1:].strip() for x in lines if x.startswith("+") and not x.startswith("+++")]
+            if old and new and _is_equivalent(equivalent, old[0], new[0], s.get("function", "")):
+                res["tested"] -= 1
+                res["equivalent"] = res.get("equivalent", 0) + 1
+            else:
+                kept.append(s)
+        res["survivors"] = kept
+        _print_row(res)
+        for s in kept:
+            print(f"  survived {res['module']}:{s['line']} {s['operator']}")
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--sample", type=int, default=40, help="mutants per module (0: all); default 40")
@@ -284,7 +311,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--jobs", type=int, default=2, help="modules run in parallel, one copy each")
     p.add_argument("--modules", default="", help="comma-separated substrings of module paths to run")
     p.add_argument("--out", type=Path, default=None, help="directory for survivors.txt and results.json")
+    p.add_argument(
+        "--rescore", type=Path, default=None, help="re-count a results.json with the current equivalents"
+    )
     args = p.parse_args(argv)
+    if args.rescore is not None:
+        return _rescore(args.rescore)
 
     modules = [m for m in TESTS if not args.modules or any(s in m for s in args.modules.split(","))]
     if not modules:
