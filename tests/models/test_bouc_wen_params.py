@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from typing import Any
 
+import numpy as np
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.bouc_wen import BoucWenParams
+from protocol_runner.models.bouc_wen import BoucWenParams, betas_from_phases, phase_values
 
 NOT_A_NUMBER: Any = "stiff"
 NOT_A_SEQUENCE: Any = 3.0
@@ -24,3 +25,11 @@ NOT_A_SEQUENCE: Any = 3.0
 def test_parameters_that_are_not_numbers_are_invalid_input(kwargs: dict) -> None:
     with pytest.raises(InvalidInput, match="needs numbers"):
         BoucWenParams(**kwargs)
+
+
+@pytest.mark.parametrize("values", [np.zeros(5), np.zeros(7), np.zeros((6, 1)), np.zeros((1, 6))])
+def test_the_phase_algebra_takes_exactly_six_values(values: np.ndarray) -> None:
+    with pytest.raises(InvalidInput, match="the 6 betas"):
+        phase_values(values)
+    with pytest.raises(InvalidInput, match="the 6 phase values"):
+        betas_from_phases(values)
