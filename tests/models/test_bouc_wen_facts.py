@@ -87,3 +87,13 @@ def test_parameter_uncertainties_are_the_least_squares_covariance() -> None:
     s2 = result.rmse_nm**2 * m / (m - 8)
     expected = np.sqrt(np.diag(s2 * np.linalg.inv(J.T @ J)))
     np.testing.assert_allclose(result.param_std, expected, rtol=1e-3)
+
+
+def test_r2_is_undefined_without_torque_variance_and_defined_for_small_torques() -> None:
+    x = _sweep(1.5)
+    flat = fit_trials([(x, np.full(x.size, 3.0))], starts=1)
+    assert math.isnan(flat.r2)  # the total sum of squares is zero
+    small = 0.002 * simulate(x, FIG57, z0=0.0)  # total sum of squares well below 1 (N m)^2
+    result = fit_trials([(x, small)], starts=1)
+    assert np.sum((small - small.mean()) ** 2) < 1.0
+    assert result.r2 == pytest.approx(1.0, abs=1e-6)

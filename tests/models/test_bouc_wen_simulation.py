@@ -58,3 +58,16 @@ def test_the_sensitivity_run_keeps_its_first_row_zero_and_matches_simulate() -> 
     np.testing.assert_array_equal(dz[0], 0.0)
     # Eq 23's first step z1 = z0 + d0 (A - |z0|^n Psi0) depends on A through d0 alone
     assert dz[1, 0] == pytest.approx(x[1] - x[0], rel=1e-12)
+
+
+def test_by_default_the_recursion_starts_from_zero_torque() -> None:
+    x = np.array([0.0, 2.0, 5.0])
+    assert simulate(x, P)[0] == 0.0
+    np.testing.assert_array_equal(simulate(x, P), simulate(x, P, z0=0.0))
+    np.testing.assert_array_equal(simulate_sensitivity(x, P)[0], simulate(x, P, z0=0.0))
+
+
+def test_any_positive_bound_is_accepted_even_below_one_newton_metre() -> None:
+    z = simulate(np.array([0.0, 0.1, 0.2, 5.0]), BoucWenParams(A=1.0, n=1.0, beta=(0.0,) * 6), bound_nm=0.5)
+    np.testing.assert_allclose(z[:3], [0.0, 0.1, 0.2])
+    assert np.isnan(z[3])  # 5 N m is past the 0.5 N m bound

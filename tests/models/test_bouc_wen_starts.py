@@ -54,3 +54,14 @@ def test_equation_error_guess_needs_enough_moving_steps() -> None:
     x = np.array([0.0, 1.0, 1.0, 2.0, 2.0])
     y = np.array([0.0, 0.5, 0.5, 0.8, 0.8])
     assert equation_error_start(x, y, np.array([0, 5]), np.array([1.0])) is None
+
+
+def test_held_angles_and_zero_torque_carry_no_phase_information() -> None:
+    """A step where the angle holds still (Eq 23: dz = 0) or starts from z = 0 (|z|^n = 0) says nothing
+    about Psi; the Figure 56 guess skips those steps and stays exact (and divides by nothing)."""
+    params = BoucWenParams(A=1.0, n=1.0, beta=BETA)
+    t = np.arange(0.0, 12.0, 0.05)
+    x = np.repeat(50.0 * np.sin(2 * np.pi * t / 8.17), 2)  # every angle held for two samples
+    y = simulate(x, params, z0=0.0)  # the trial starts at exactly zero torque
+    guess = thesis_start(x, y, np.array([0, x.size], dtype=np.int64))
+    np.testing.assert_allclose(guess.phases, params.phases, rtol=1e-6, atol=1e-9)
