@@ -95,3 +95,13 @@ def test_the_reason_names_what_was_fitted() -> None:
         fit_spring_model(angle, torque, 13.0, 3, target="all_samples").reason
         == "least squares on the samples"
     )
+
+
+def test_a_true_value_beyond_a_bound_is_fitted_at_the_bound() -> None:
+    t = np.arange(0.0, 12.0, 5e-3)
+    angle = 65.0 + 45.0 * np.sin(2 * np.pi * t / 6.0)
+    torque = spring_torque_nm(angle, 13.0, 3, max_preload_mm=24.0, zero_offset_deg=45.0)
+    fit = fit_spring_model(angle, torque, 13.0, 3)  # zero offset bounded to +-40 deg
+    assert fit.zero_offset_deg == pytest.approx(40.0)
+    low = spring_torque_nm(angle, 13.0, 3, max_preload_mm=24.0, zero_offset_deg=-45.0)
+    assert fit_spring_model(angle, low, 13.0, 3).zero_offset_deg == pytest.approx(-40.0)

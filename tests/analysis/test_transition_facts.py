@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from protocol_runner.analysis.transition import command_on_input_base, transition_index
+from protocol_runner.analysis.transition import command_on_input_base, remove_transition, transition_index
 from protocol_runner.analysis.validation import AnalysisError
 
 
@@ -28,3 +28,16 @@ def test_a_trial_exactly_points_long_that_follows_from_the_start() -> None:
 def test_ticks_that_run_backwards_are_refused() -> None:
     with pytest.raises(AnalysisError, match="strictly increasing"):
         command_on_input_base([0.0, 0.02, 0.01], [1.0, 2.0, 3.0], [0.0, 0.005])
+
+
+def test_a_negative_tolerance_is_refused_and_any_positive_one_accepted() -> None:
+    with pytest.raises(AnalysisError, match="positive"):
+        transition_index(np.zeros(5), np.zeros(5), tolerance_deg=-1.0)
+    assert transition_index(np.zeros(5), np.full(5, 0.4), tolerance_deg=0.5) == 0
+
+
+def test_removing_the_transition_uses_the_thesis_five_degrees_by_default() -> None:
+    error = np.array([20.0, 20.0, 20.0, 5.5, 5.5, 5.5, 4.5, 4.5, 4.5, 0.0, 0.0, 0.0])
+    n = error.size
+    seg = remove_transition(np.arange(n) * 1e-3, np.zeros(n), error, np.zeros(n))
+    assert seg.start_index == 6
