@@ -65,3 +65,18 @@ def test_held_angles_and_zero_torque_carry_no_phase_information() -> None:
     y = simulate(x, params, z0=0.0)  # the trial starts at exactly zero torque
     guess = thesis_start(x, y, np.array([0, x.size], dtype=np.int64))
     np.testing.assert_allclose(guess.phases, params.phases, rtol=1e-6, atol=1e-9)
+
+
+def test_both_guesses_are_exact_on_whole_degree_steps_from_zero_torque() -> None:
+    """Angles on a whole-degree grid (every step exactly +-1 deg) and a trial starting at exactly zero
+    torque (its first step has |z|^n = 0): every step is still a valid equation of Eq 23."""
+    x = np.concatenate([np.arange(0.0, 40.0), np.arange(40.0, -40.0, -1.0), np.arange(-40.0, 41.0)])
+    one = BoucWenParams(A=1.0, n=1.0, beta=BETA)
+    y = simulate(x, one, z0=0.0)
+    seg = np.array([0, x.size], dtype=np.int64)
+    np.testing.assert_allclose(thesis_start(x, y, seg).phases, one.phases, rtol=1e-6, atol=1e-9)
+    params = BoucWenParams(A=0.35, n=1.5, beta=BETA)
+    y = simulate(x, params, z0=0.0)
+    guess = equation_error_start(x, y, seg, np.array([1.0, 1.5]))
+    assert guess is not None
+    np.testing.assert_allclose(guess.as_array(), params.as_array(), rtol=1e-6, atol=1e-9)
