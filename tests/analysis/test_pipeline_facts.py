@@ -1,0 +1,84 @@
+"""The processing of hand-made configurations whose answers are known: a brace-on trial identical to its
+brace-off trial has no brace torque; cycles that stay inside the brace-off range keep their energy when
+others leave it (outside="nan"); an uncentred loop reports zero means; a spring fit the loop cannot
+support is "not applicable" with the reason."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from protocol_runner.analysis.pipeline import ProcessingSettings, Recording, TrialPair, process_configuration
+
+RATE_HZ = 100.0
+PERIOD_S = 10.0
+DEG = np.pi / 180.0
+
+
+def _recording(angle: np.ndarray, torque: np.ndarray) -> Recording:
+    t = np.arange(angle.size) / RATE_HZ
+    return Recording(time_s=t, angle_deg=angle, torque_nm=torque, command_deg=angle.copy())
+
+
+def _sweep(amplitudes: list[float]) -> np.ndarray:
+    """65 deg + one sine cycle per amplitude, starting at the mean going up."""
+    k = np.arange(int(PERIOD_S * RATE_HZ))
+    return np.concatenate([65.0 + a * np.sin(2 * np.pi * k / k.size) for a in amplitudes])
+
+
+def _robot(angle: np.ndarray) -> np.ndarray:
+    return 35.0 * np.sin(np.radians(angle)) + 4.0 * np.sign(np.gradient(angle))
+
+
+def test_a_brace_on_trial_identical_to_its_brace_off_trial_has_no_brace_torque() -> None:
+    angle = _sweep([40.0] * 4)
+    rec = _recording(angle, _robot(angle))
+    result = process_configuration([TrialPair(rec, rec)], ProcessingSettings(subtraction="equal_time"))
+    trial = result.trials[0]
+    np.testing.assert_allclose(trial.brace_torque_nm, 0.0, atol=1e-9)
+    np.testing.assert_allclose(
+        trial.robot_torque_nm + trial.brace_torque_nm, trial.robot_torque_nm, atol=1e-9
+    )
+    assert trial.coverage == 1.0
+    np.testing.assert_allclose(trial.energy_j, 0.0, atol=1e-9)
+
+
+def test_cycles_inside_the_brace_off_range_keep_their_energy_when_later_ones_leave_it() -> None:
+    off_angle = _sweep([40.0] * 5)  # covers 25..105 deg
+    on_angle = _sweep([30.0, 30.0, 30.0, 50.0, 50.0])  # three cycles inside, two beyond
+    brake_nm = 3.0
+    off = _recording(off_angle, _robot(off_angle))
+    on = _recording(on_angle, _robot(on_angle) + brake_nm * np.sign(np.gradient(on_angle)))
+    result = process_configuration([TrialPair(on, off)], ProcessingSettings(outside="nan"))
+    trial = result.trials[0]
+    assert 0.5 < trial.coverage < 1.0
+    # complete cycles (between upward crossings of the mean) wholly inside the covered stretch: 2
+    assert trial.energy_j.size == 2
+    np.testing.assert_allclose(trial.energy_j, 2 * brake_nm * 60.0 * DEG, rtol=0.03)
+    assert result.energy.n == 2
+
+
+def test_an_uncentred_loop_is_the_processed_loop_with_zero_means() -> None:
+    angle = _sweep([40.0] * 3)
+    off = _recording(angle, _robot(angle))
+    on = _recording(angle, _robot(angle) + 2.0 + 0.1 * angle)
+    result = process_configuration([TrialPair(on, off)], ProcessingSettings(centring="none"))
+    trial = result.trials[0]
+    assert trial.centred.mean_angle_deg == 0.0 and trial.centred.mean_torque_nm == 0.0
+    np.testing.assert_array_equal(trial.centred.angle_deg, trial.angle_deg)
+    np.testing.assert_array_equal(trial.centred.torque_nm, trial.brace_torque_nm)
+    centred = process_configuration([TrialPair(on, off)]).trials[0].centred
+    assert centred.mean_angle_deg == pytest.approx(float(np.mean(trial.angle_deg)))
+    assert centred.mean_torque_nm == pytest.approx(float(np.mean(trial.brace_torque_nm)))
+
+
+def test_a_spring_fit_the_loop_cannot_support_is_not_applicable_with_the_reason() -> None:
+    angle = _sweep([4.0] * 4)  # +-4 deg: nothing left once 5 deg are trimmed at each end
+    off = _recording(angle, _robot(angle))
+    on = _recording(angle, _robot(angle) + 0.5 * (angle - 65.0))
+    result = process_configuration([TrialPair(on, off)], stiffness_n_per_mm=13.0, preload_position=3)
+    assert result.spring is not None and not result.spring.applicable
+    assert result.spring.reason.startswith("not applicable: ")
+    assert "no loop midline" in result.spring.reason
+    assert result.spring.stiffness_n_per_mm == 13.0 and result.spring.preload_position == 3
+    assert np.isnan(result.spring.max_preload_mm)

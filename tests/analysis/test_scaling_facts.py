@@ -1,0 +1,132 @@
+"""Facts of the brace-off scaling procedure (§3.3.2) that the report's numbers rest on."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from protocol_runner.analysis.scaling import range_scale, scale_brace_off_input
+from protocol_runner.analysis.validation import AnalysisError
+
+from .synth import sine_command
+
+
+def _command() -> np.ndarray:
+    return sine_command(65.0, 65.0, 8.17, 20.0, 100.0)[1]
+
+
+class _ErraticPlant:
+    """A plant whose gain about the input's mid-range changes from run to run (a brace-off robot whose
+    behaviour drifts): the second run is the closest to the target, the later ones are worse."""
+
+    def __init__(self, gains: list[float]) -> None:
+        self.gains = gains
+        self.inputs: list[np.ndarray] = []
+        self.outputs: list[np.ndarray] = []
+
+    def __call__(self, u: np.ndarray) -> np.ndarray:
+        gain = self.gains[len(self.inputs)]
+        mid = 0.5 * (u.max() + u.min())
+        out = mid + gain * (u - mid)
+        self.inputs.append(u.copy())
+        self.outputs.append(out)
+        return out
+
+
+def test_the_best_run_is_returned_not_the_last() -> None:
+    plant = _ErraticPlant([1.0, 1.05, 3.0, 0.3])
+    target = (30.0, 95.0)
+    result = scale_brace_off_input(_command(), target, plant, tolerance_deg=1e-9, max_iterations=4)
+    errors = [it.range_error_deg for it in result.history]
+    assert not result.converged and len(errors) == 4
+    best = int(np.argmin(errors))
+    assert best == 1 and errors[-1] > 10 * errors[best]  # the last run is clearly not the best
+    assert result.best.iteration == best
+    np.testing.assert_array_equal(result.input_deg, plant.inputs[best])
+    np.testing.assert_array_equal(result.output_deg, plant.outputs[best])
+
+
+def test_first_correction_matches_amplitude_and_mid_range_of_an_affine_plant() -> None:
+    """Output = 0.5 x input + 10 deg (no lag): the Eq 8 amplitude step and the Newton mid-range step make
+    the second run hit the target range exactly, and every run records what it ran and measured."""
+
+    def plant(u: np.ndarray) -> np.ndarray:
+        return 10.0 + 0.5 * u
+
+    u = _command()
+    target = (40.0, 80.0)
+    result = scale_brace_off_input(u, target, plant, tolerance_deg=1e-6, transition_tolerance_deg=200.0)
+    assert result.converged and len(result.history) == 2
+    first, second = result.history
+    assert first.input_range_deg == pytest.approx((u.min(), u.max()))
+    assert first.output_range_deg == pytest.approx((10.0 + 0.5 * u.min(), 10.0 + 0.5 * u.max()))
+    assert first.scale == pytest.approx(40.0 / (0.5 * (u.max() - u.min())))
+    assert first.range_error_deg == pytest.approx(
+        max(abs(10 + 0.5 * u.min() - 40), abs(10 + 0.5 * u.max() - 80))
+    )
+    assert second.output_range_deg == pytest.approx(target, abs=1e-9)
+    assert second.range_error_deg == pytest.approx(0.0, abs=1e-9)
+    # the input that hits 40..80 deg through out = 10 + 0.5 in is 60..140 deg
+    assert second.input_range_deg == pytest.approx((60.0, 140.0))
+    assert (result.input_deg.min(), result.input_deg.max()) == pytest.approx((60.0, 140.0))
+
+
+def test_a_run_inside_the_tolerance_ends_the_iteration() -> None:
+    """A run whose range error equals the tolerance counts as converged (error <= tolerance)."""
+
+    def plant(u: np.ndarray) -> np.ndarray:
+        return u + 1.0  # every range end 1 deg high
+
+    u = _command()
+    target = (float(u.min()), float(u.max()))
+    result = scale_brace_off_input(u, target, plant, tolerance_deg=1.0, max_iterations=3)
+    assert result.converged and len(result.history) == 1
+    assert result.history[0].range_error_deg == pytest.approx(1.0)
+
+
+def test_eq8_scale_uses_both_ends_of_both_ranges() -> None:
+    on = np.array([10.0, 50.0, 30.0])  # range 40
+    off = np.array([-20.0, 60.0, 0.0])  # range 80
+    assert range_scale(on, off) == pytest.approx(0.5)
+    assert range_scale(off, on) == pytest.approx(2.0)
+
+
+def test_the_default_transition_is_the_thesis_three_points_within_five_degrees() -> None:
+    u = _command()
+
+    def plant(v: np.ndarray) -> np.ndarray:
+        out = v.copy()
+        out[:10] += 20.0  # start-up: 20 deg off ...
+        out[3:5] = v[3:5]  # ... except two samples on the command: not yet three in a row
+        return out
+
+    result = scale_brace_off_input(u, (float(u.min()), float(u.max())), plant, max_iterations=1)
+    assert result.history[0].transition_index == 10
+    assert result.converged and result.history[0].range_error_deg == pytest.approx(0.0, abs=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"target_range_deg": (50.0, 50.0)}, "max > min"),
+        ({"tolerance_deg": 0.0}, "tolerance must be positive"),
+        ({"max_iterations": 0}, "at least one iteration"),
+    ],
+)
+def test_a_target_or_setting_that_leaves_nothing_to_do_is_a_user_error(kwargs: dict, message: str) -> None:
+    args = {"target_range_deg": (30.0, 95.0), **kwargs}
+    with pytest.raises(AnalysisError, match=message):
+        scale_brace_off_input(_command(), run=lambda v: v, **args)
+
+
+def test_a_single_iteration_is_allowed_and_the_default_tolerance_is_one_degree() -> None:
+    u = _command()
+    target = (float(u.min()), float(u.max()))
+    one = scale_brace_off_input(u, target, lambda v: v + 1.5, max_iterations=1)
+    assert len(one.history) == 1 and not one.converged  # 1.5 deg off: outside the default 1 deg
+    assert scale_brace_off_input(u, target, lambda v: v + 0.9, max_iterations=1).converged
+
+
+def test_an_output_that_does_not_move_after_the_transition_is_a_user_error() -> None:
+    with pytest.raises(AnalysisError):
+        scale_brace_off_input(_command(), (30.0, 95.0), lambda v: np.full_like(v, v[0]))

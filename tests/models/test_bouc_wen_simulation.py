@@ -1,0 +1,73 @@
+"""What `simulate` accepts: a 1-D run of finite angles, a finite start torque and a positive finite bound;
+anything else is InvalidInput naming the defect."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from protocol_runner.errors import InvalidInput
+from protocol_runner.models.bouc_wen import BoucWenParams, simulate, simulate_sensitivity
+
+P = BoucWenParams(A=0.3, n=1.2, beta=(0.01, 0.1, -0.1, -0.05, 0.09, 0.0))
+
+
+@pytest.mark.parametrize(
+    ("x", "message"),
+    [
+        (np.zeros((2, 3)), "1-D"),
+        (np.zeros(0), "empty"),
+        (np.array([0.0, 1.0, np.nan, np.inf]), "non-finite value at sample 2"),
+    ],
+)
+def test_angles_that_are_not_a_finite_1d_run_are_refused(x: np.ndarray, message: str) -> None:
+    with pytest.raises(InvalidInput, match=message):
+        simulate(x, P)
+    with pytest.raises(InvalidInput, match=message):
+        simulate_sensitivity(x, P)
+
+
+@pytest.mark.parametrize("bound", [0.0, -5.0, float("inf"), float("nan")])
+def test_the_divergence_bound_must_be_a_positive_finite_torque(bound: float) -> None:
+    with pytest.raises(InvalidInput, match="bound_nm"):
+        simulate(np.arange(3.0), P, bound_nm=bound)
+    with pytest.raises(InvalidInput, match="bound_nm"):
+        simulate_sensitivity(np.arange(3.0), P, bound_nm=bound)
+
+
+@pytest.mark.parametrize("z0", [float("inf"), float("nan")])
+def test_the_start_torque_must_be_finite(z0: float) -> None:
+    with pytest.raises(InvalidInput, match="z0"):
+        simulate(np.arange(3.0), P, z0=z0)
+    with pytest.raises(InvalidInput, match="z0"):
+        simulate_sensitivity(np.arange(3.0), P, z0=z0)
+
+
+def test_one_angle_is_a_run_of_one_sample_at_the_start_torque() -> None:
+    np.testing.assert_array_equal(simulate([5.0], P, z0=2.5), [2.5])
+    z, dz = simulate_sensitivity([5.0], P, z0=2.5)
+    np.testing.assert_array_equal(z, [2.5])
+    np.testing.assert_array_equal(dz, np.zeros((1, 8)))  # z0 is held fixed: row 0 is zero
+
+
+def test_the_sensitivity_run_keeps_its_first_row_zero_and_matches_simulate() -> None:
+    x = 30.0 * np.sin(np.linspace(0.0, 6.0, 200))
+    z, dz = simulate_sensitivity(x, P, z0=-1.0)
+    np.testing.assert_array_equal(z, simulate(x, P, z0=-1.0))
+    assert dz.shape == (200, 8)
+    np.testing.assert_array_equal(dz[0], 0.0)
+    # Eq 23's first step z1 = z0 + d0 (A - |z0|^n Psi0) depends on A through d0 alone
+    assert dz[1, 0] == pytest.approx(x[1] - x[0], rel=1e-12)
+
+
+def test_by_default_the_recursion_starts_from_zero_torque() -> None:
+    x = np.array([0.0, 2.0, 5.0])
+    assert simulate(x, P)[0] == 0.0
+    np.testing.assert_array_equal(simulate(x, P), simulate(x, P, z0=0.0))
+    np.testing.assert_array_equal(simulate_sensitivity(x, P)[0], simulate(x, P, z0=0.0))
+
+
+def test_any_positive_bound_is_accepted_even_below_one_newton_metre() -> None:
+    z = simulate(np.array([0.0, 0.1, 0.2, 5.0]), BoucWenParams(A=1.0, n=1.0, beta=(0.0,) * 6), bound_nm=0.5)
+    np.testing.assert_allclose(z[:3], [0.0, 0.1, 0.2])
+    assert np.isnan(z[3])  # 5 N m is past the 0.5 N m bound
