@@ -15,15 +15,15 @@ LINE = BoucWenParams(A=1.0, n=1.0, beta=(0.0,) * 6)
 
 def test_with_zero_betas_the_torque_is_a_line_of_slope_a() -> None:
     x = np.array([0.0, 1.0, 3.0, 2.0, -4.0, -4.0, 5.0])
-    z = simulate(x, BoucWenParams(A=0.5, n=1.3, beta=(0.0,) * 6), z0=2.0)
+    z = simulate(x, BoucWenParams(A=0.5, n=1.3, beta=(0.0,) * 6), z0=2.0, scheme="eq23")
     np.testing.assert_allclose(z, 2.0 + 0.5 * (x - x[0]), rtol=0, atol=1e-12)
-    _, dz = simulate_sensitivity(x, BoucWenParams(A=0.5, n=1.3, beta=(0.0,) * 6), z0=2.0)
+    _, dz = simulate_sensitivity(x, BoucWenParams(A=0.5, n=1.3, beta=(0.0,) * 6), z0=2.0, scheme="eq23")
     np.testing.assert_allclose(dz[:, 0], x - x[0], atol=1e-12)  # d z / d A
 
 
 def test_a_torque_reaching_the_bound_exactly_is_kept_and_the_next_one_diverges() -> None:
     x = np.arange(11.0)
-    z = simulate(x, LINE, z0=0.0, bound_nm=5.0)
+    z = simulate(x, LINE, z0=0.0, bound_nm=5.0, scheme="eq23")
     np.testing.assert_array_equal(z[:6], [0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
     assert np.all(np.isnan(z[6:]))
 
@@ -54,7 +54,7 @@ def test_each_trial_starts_its_sensitivities_afresh() -> None:
     p = BoucWenParams(A=0.28, n=1.2, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.05))
     x1 = 50.0 * np.sin(np.linspace(0.0, 7.0, 150))
     x2 = 40.0 * np.sin(np.linspace(1.0, 9.0, 170))
-    y1, y2 = simulate(x1, p, z0=1.0), simulate(x2, p, z0=-2.0)
+    y1, y2 = simulate(x1, p, z0=1.0, scheme="eq23"), simulate(x2, p, z0=-2.0, scheme="eq23")
 
     def jac(x: np.ndarray, y: np.ndarray, seg: list[int]) -> np.ndarray:
         problem = Problem(x, y, np.array(seg, dtype=np.int64), DEFAULT_BOUNDS, 50.0, 20.0)

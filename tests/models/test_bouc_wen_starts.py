@@ -16,8 +16,8 @@ def _two_trials(params: BoucWenParams) -> tuple[np.ndarray, np.ndarray, np.ndarr
     t = np.arange(0.0, 12.0, 0.05)
     x1 = 50.0 * np.sin(2 * np.pi * t / 8.17)
     x2 = 35.0 * np.sin(2 * np.pi * t / 6.0 + 1.0)
-    y1 = simulate(x1, params, z0=-3.0)
-    y2 = simulate(x2, params, z0=2.0)
+    y1 = simulate(x1, params, z0=-3.0, scheme="eq23")
+    y2 = simulate(x2, params, z0=2.0, scheme="eq23")
     seg = np.array([0, x1.size, x1.size + x2.size], dtype=np.int64)
     return np.concatenate([x1, x2]), np.concatenate([y1, y2]), seg
 
@@ -62,7 +62,7 @@ def test_held_angles_and_zero_torque_carry_no_phase_information() -> None:
     params = BoucWenParams(A=1.0, n=1.0, beta=BETA)
     t = np.arange(0.0, 12.0, 0.05)
     x = np.repeat(50.0 * np.sin(2 * np.pi * t / 8.17), 2)  # every angle held for two samples
-    y = simulate(x, params, z0=0.0)  # the trial starts at exactly zero torque
+    y = simulate(x, params, z0=0.0, scheme="eq23")  # the trial starts at exactly zero torque
     guess = thesis_start(x, y, np.array([0, x.size], dtype=np.int64))
     np.testing.assert_allclose(guess.phases, params.phases, rtol=1e-6, atol=1e-9)
 
@@ -72,11 +72,11 @@ def test_both_guesses_are_exact_on_whole_degree_steps_from_zero_torque() -> None
     torque (its first step has |z|^n = 0): every step is still a valid equation of Eq 23."""
     x = np.concatenate([np.arange(0.0, 40.0), np.arange(40.0, -40.0, -1.0), np.arange(-40.0, 41.0)])
     one = BoucWenParams(A=1.0, n=1.0, beta=BETA)
-    y = simulate(x, one, z0=0.0)
+    y = simulate(x, one, z0=0.0, scheme="eq23")
     seg = np.array([0, x.size], dtype=np.int64)
     np.testing.assert_allclose(thesis_start(x, y, seg).phases, one.phases, rtol=1e-6, atol=1e-9)
     params = BoucWenParams(A=0.35, n=1.5, beta=BETA)
-    y = simulate(x, params, z0=0.0)
+    y = simulate(x, params, z0=0.0, scheme="eq23")
     guess = equation_error_start(x, y, seg, np.array([1.0, 1.5]))
     assert guess is not None
     np.testing.assert_allclose(guess.as_array(), params.as_array(), rtol=1e-6, atol=1e-9)
