@@ -1,6 +1,6 @@
 """Mutation score of the science modules (analysis/ and models/), per module, in bounded time.
 
-Tool: cosmic-ray (``pip install -e .[dev]``).  It edits one source file at a time and runs a test command in
+Tool: cosmic-ray (``pip install -e ".[dev,mutation]"``).  It edits one source file at a time and runs a test command in
 a fresh process, so it also mutates the numba ``@njit`` kernels (``models/bouc_wen/kernels.py``) and
 module-level constants (the Eq 24/25 matrices), which a trampoline-based tool (mutmut 3) leaves out.
 
