@@ -25,9 +25,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .levels import Settings, resolve_settings
-from .loader import LoadedProtocol
+from .loaded import LoadedProtocol
 from .only import KeySelection
 from .schema import ConfigurationSpec, Protocol, SetSpec
+from .step_ids import calibration_id as calibration_id
+from .step_ids import step_id
+from .step_ids import trial_id as trial_id
 from .trajectories import load_trajectory_file, sinusoid_period_s
 
 
@@ -234,14 +237,6 @@ class Plan:
 # ----------------------------------------------------------------------------------------- ids
 
 
-def calibration_id(set_name: str, when: str) -> str:
-    return f"cal:{set_name}:{when}"
-
-
-def trial_id(key: int, brace: str, trial: int) -> str:
-    return f"trial:k{key:02d}:{brace}:{trial}"
-
-
 def configuration_name(key: int) -> str:
     """The archive group name of a configuration (docs/archive.md)."""
     return f"config_{key:02d}"
@@ -344,7 +339,7 @@ def expand(loaded: LoadedProtocol, only: KeySelection | Iterable[int] | None = N
         if len(keys) >= 2:
             steps.append(
                 CompareStep(
-                    id=f"compare:{comp.name}",
+                    id=step_id("compare", comp.name),
                     kind="compare",
                     name=comp.name,
                     parameter=comp.parameter,
@@ -353,7 +348,7 @@ def expand(loaded: LoadedProtocol, only: KeySelection | Iterable[int] | None = N
                     configurations=keys,
                 )
             )
-    steps.append(ReportStep(id="report", kind="report"))
+    steps.append(ReportStep(id=step_id("report"), kind="report"))
     return Plan(
         protocol_name=p.name,
         protocol_sha256=loaded.sha256,
@@ -401,7 +396,7 @@ def _expand_set(
     for cfg, st in resolved:
         steps.append(
             ChecklistStep(
-                id=f"check:{s.name}:k{cfg.key:02d}",
+                id=step_id("check", set_name=s.name, key=cfg.key),
                 kind="operator_checklist",
                 set=s.name,
                 title=f"Configuration {cfg.key} (test run {cfg.run}): set up the brace",
@@ -414,7 +409,7 @@ def _expand_set(
         steps += [_trial(s, cfg, st, trajectories[cfg.key], "on", n) for n in range(1, cfg.trials + 1)]
     steps.append(
         ChecklistStep(
-            id=f"check:{s.name}:brace-off",
+            id=step_id("check", "brace-off", set_name=s.name),
             kind="operator_checklist",
             set=s.name,
             title=f"Set {s.name}: remove the brace; the robot runs the same conditions without it",
@@ -444,13 +439,21 @@ def _expand_set(
         )
         steps.append(
             ProcessStep(
-                id=f"process:k{cfg.key:02d}", kind="process", set=s.name, configuration=cfg.key, trials=pairs
+                id=step_id("process", key=cfg.key),
+                kind="process",
+                set=s.name,
+                configuration=cfg.key,
+                trials=pairs,
             )
         )
         if models:
             steps.append(
                 FitStep(
-                    id=f"fit:k{cfg.key:02d}", kind="fit", set=s.name, configuration=cfg.key, models=models
+                    id=step_id("fit", key=cfg.key),
+                    kind="fit",
+                    set=s.name,
+                    configuration=cfg.key,
+                    models=models,
                 )
             )
     return steps

@@ -22,7 +22,7 @@ from .plan import Trajectory, calibration_trajectory, trajectory_for
 from .sampling import sample_trajectory
 
 if TYPE_CHECKING:
-    from .loader import LoadedProtocol, Loc
+    from .loaded import LoadedProtocol, Loc
 
 Problem = tuple["Loc", str]
 

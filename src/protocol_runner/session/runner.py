@@ -23,7 +23,7 @@ from ..archive.consolidate import ArchiveMeta, consolidate
 from ..archive.diskfull import DiskFull, disk_full_error, is_disk_full, resume_hint
 from ..archive.units import UnitRecord, checked_unit_files, write_unit
 from ..errors import Interrupted, StoppedByCheck, UserError
-from ..monitor.publisher import NULL_PUBLISHER, Publisher
+from ..events import NULL_PUBLISHER, Publisher
 from ..protocol.loader import LoadedProtocol
 from ..protocol.plan import (
     Plan,
@@ -32,6 +32,7 @@ from ..protocol.plan import (
     TrialStep,
     configuration_name,
 )
+from ..protocol.step_ids import step_id as make_step_id
 from ..steps.context import Bench, StepContext, StepOutcome, processing_settings
 from ..steps.failures import run_step
 from .journal import Journal, utc_now
@@ -183,7 +184,7 @@ class Runner:
                     return self._finish(progress, skipped)
                 progress.step_started(step)
                 outcome = run_step(step, ctx)
-                self._record(step.id, outcome)
+                self.record(step.id, outcome)
                 progress.step_finished(step, outcome.summary)
             self._collect(progress, wait=True)
             return self._finish(progress, skipped)
@@ -238,7 +239,7 @@ class Runner:
             )
         chain = [step]
         if isinstance(step, ProcessStep):
-            fit = f"fit:k{step.configuration:02d}"
+            fit = make_step_id("fit", key=step.configuration)
             if fit in self.plan._index and fit not in self.journal.units:
                 chain.append(self.plan.step(fit))
         self._submitted.update(s.id for s in chain)
@@ -296,7 +297,7 @@ class Runner:
         self._pending.clear()
         self._pool = None
 
-    def _record(self, step_id: str, outcome: StepOutcome) -> None:
+    def record(self, step_id: str, outcome: StepOutcome) -> None:
         if outcome.fill is not None:
             record = write_unit(self.units_dir, step_id, outcome.fill)
             self.journal.unit_done(record, final=outcome.stop is None)
@@ -361,9 +362,8 @@ class Runner:
             entry["_any"] = bool(entry["_any"]) or step.id in done
         for entry in out.values():
             key = int(entry["key"])  # type: ignore[call-overload]
-            fitted = f"fit:k{key:02d}" in done or (
-                f"process:k{key:02d}" in done and f"fit:k{key:02d}" not in self.plan._index
-            )
+            fit, process = make_step_id("fit", key=key), make_step_id("process", key=key)
+            fitted = fit in done or (process in done and fit not in self.plan._index)
             entry["status"] = "complete" if fitted else ("partial" if entry.pop("_any") else "not run")
             entry.pop("_any", None)
         return out
@@ -401,10 +401,8 @@ class Runner:
         return (Path(rel).stem, rel, ref.angle_deg, ref.torque_nm)
 
     def render_report(self, archive: Path) -> Path | None:
-        try:
-            from ..report.render import generate_report
-        except ImportError:  # the report module is optional until it lands
-            return None
+        from ..report.render import generate_report  # here: only the report step needs jinja and matplotlib
+
         try:
             return generate_report(archive, self.dir / REPORT_NAME)
         except OSError as exc:

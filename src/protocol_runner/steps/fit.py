@@ -4,23 +4,21 @@ loops, jointly over its trials, with leave-one-trial-out cross-validation when i
 
 from __future__ import annotations
 
-import h5py
 import numpy as np
 
-from ..analysis.centring import centre
-from ..archive.h5util import put, set_attrs
-from ..models.bouc_wen import BoucWenFit, cross_validate, fit_trials, simulate
+from ..analysis.loops import centred_loop, fit_loops
+from ..archive.results import bouc_wen_fill
+from ..models.bouc_wen import BoucWenFit
 from ..protocol.plan import FitStep, configuration_name
 from ..protocol.schema import BoucWenFitSpec
-from .context import Fill, StepContext, StepOutcome
-
-PLOT_POINTS_PER_TRIAL = 2000
+from ..protocol.step_ids import step_id
+from .context import StepContext, StepOutcome
 
 
 def centred_segments(ctx: StepContext, step: FitStep) -> list[tuple[np.ndarray, np.ndarray]]:
     name = configuration_name(step.configuration)
     segments = []
-    with ctx.unit(f"process:k{step.configuration:02d}") as f:
+    with ctx.unit(step_id("process", key=step.configuration)) as f:
         trials = f[f"configurations/{name}/trials"]
         for n in sorted(trials, key=int):
             g = trials[n]["processed"]
@@ -28,23 +26,11 @@ def centred_segments(ctx: StepContext, step: FitStep) -> list[tuple[np.ndarray, 
     return segments
 
 
-def centred_loop(angle_deg: np.ndarray, torque_nm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A processed trial centred on (0, 0) (§6.2.3 note), undefined samples dropped."""
-    keep = np.isfinite(torque_nm)
-    loop = centre(angle_deg[keep], torque_nm[keep])
-    return loop.angle_deg, loop.torque_nm
-
-
 def fit_bouc_wen(
     segments: list[tuple[np.ndarray, np.ndarray]], spec: BoucWenFitSpec
 ) -> tuple[BoucWenFit, list[float]]:
     """The joint fit over a configuration's trials, and leave-one-trial-out RMSEs when asked and possible."""
-    result = fit_trials(segments, starts=spec.starts)
-    cv: list[float] = []
-    if spec.cross_validate and len(segments) >= 2:
-        # warm-started from the joint fit (the held-out error is measured on every sample of the trial)
-        cv = cross_validate(segments, initial=result.params)
-    return result, cv
+    return fit_loops(segments, starts=spec.starts, cross_validated=spec.cross_validate)
 
 
 def run(step: FitStep, ctx: StepContext) -> StepOutcome:
@@ -58,41 +44,3 @@ def run(step: FitStep, ctx: StepContext) -> StepOutcome:
     if cv:
         summary += f", cross-validated RMSE {np.mean(cv):.2f} N*m"
     return StepOutcome(fill, summary)
-
-
-def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> Fill:
-    p = result.params
-    std = np.asarray(result.param_std, dtype=np.float64)
-    angles, torques, models = [], [], []
-    for x, y in segments:
-        z = simulate(x, p, z0=float(y[0]))
-        stride = max(1, len(x) // PLOT_POINTS_PER_TRIAL)
-        angles.append(x[::stride])
-        torques.append(y[::stride])
-        models.append(z[::stride])
-
-    def fill(f: h5py.File) -> None:
-        g = f.require_group(f"configurations/{name}/fits").create_group("bouc_wen")
-        set_attrs(
-            g,
-            {
-                "A": float(p.A),
-                "n": float(p.n),
-                "beta": [float(b) for b in p.beta],
-                "rmse_nm": float(result.rmse_nm),
-                "r2": float(result.r2),
-                "A_std": float(std[0]),
-                "n_std": float(std[1]),
-                "beta_std": [float(v) for v in std[2:8]],
-                "cv_rmse_nm": [float(v) for v in cv],
-                "n_starts": int(result.n_starts),
-                "converged": bool(result.converged),
-                "diverged": bool(result.diverged),
-            },
-        )
-        put(g, "angle_deg", np.concatenate(angles), "deg")
-        put(g, "torque_nm", np.concatenate(torques), "N*m")
-        put(g, "model_torque_nm", np.concatenate(models), "N*m")
-        put(g, "segment_lengths", [len(a) for a in angles], "1")
-
-    return fill

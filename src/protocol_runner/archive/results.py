@@ -1,0 +1,157 @@
+"""The archive's result groups: what processing, fits and comparisons write, and the raw recordings
+they read (layout in docs/archive.md).
+
+Shared by the processing steps and `--reprocess`, so that both write the same groups.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import h5py
+import numpy as np
+
+from ..analysis.pipeline import ConfigurationResult, ProcessingSettings, Recording
+from ..models.bouc_wen import BoucWenFit, simulate
+from .h5util import SIGNAL, put, set_attrs
+
+#: Writes one step's results into an open unit file.
+Fill = Callable[[h5py.File], None]
+
+# The processed loops are stored at 200 Hz: they are low-passed far below 100 Hz (thesis filter: 10 % of
+# the 500 Hz Nyquist frequency, order 10), so nothing is lost, and the campaign's archive stays < 100 MB.
+# Energies and fits are computed before this decimation, at the full input rate.
+PROCESSED_RATE_HZ = 200.0
+
+
+#: At most this many points per trial of the Bouc-Wen model curve are stored for the report.
+PLOT_POINTS_PER_TRIAL = 2000
+
+
+def read_recording(g: h5py.Group) -> Recording:
+    return Recording(
+        time_s=g["time_s"][:],
+        angle_deg=g["angle_deg"][:],
+        torque_nm=g["torque_nm"][:],
+        command_deg=g["command_deg"][:],
+        command_time_s=g["command_time_s"][:],
+    )
+
+
+def processed_fill(name: str, result: ConfigurationResult, settings: ProcessingSettings) -> Fill:
+    def fill(f: h5py.File) -> None:
+        cfg = f.require_group(f"configurations/{name}")
+        for t in result.trials:
+            g = cfg.require_group(f"trials/{t.trial}").create_group("processed")
+            dt = float(np.median(np.diff(t.time_s))) if t.time_s.size > 1 else 1.0
+            stride = max(1, round(1.0 / (dt * PROCESSED_RATE_HZ)))
+            put(g, "time_s", t.time_s[::stride], "s")
+            put(g, "angle_deg", t.angle_deg[::stride], "deg", dtype=SIGNAL)
+            put(g, "brace_torque_nm", t.brace_torque_nm[::stride], "N*m", dtype=SIGNAL)
+            set_attrs(
+                g,
+                {
+                    "sample_rate_hz": 1.0 / (dt * stride),
+                    "decimation": stride,
+                    "energy_cycles_j": [float(e) for e in t.energy_j],
+                },
+            )
+            set_attrs(
+                g,
+                {
+                    "transition_index0_on": int(t.transition_index_on),
+                    "transition_index0_off": int(t.transition_index_off),
+                    "subtraction": settings.subtraction,
+                    "filter": json.dumps(settings.filter_description()),
+                    "coverage": float(t.coverage),
+                },
+            )
+        put(cfg, "energy_loss_j", result.energy_loss_j, "J")
+        put(cfg, "energy_cycle_trial", result.energy_cycle_trial, "1")
+        cfg["energy_loss_j"].attrs["mean_j"] = result.energy.mean_j
+        cfg["energy_loss_j"].attrs["std_j"] = result.energy.std_j
+        sp = result.spring
+        if sp is not None:
+            g = cfg.require_group("fits").create_group("spring")
+            set_attrs(
+                g,
+                {
+                    "applicable": bool(sp.applicable),
+                    "reason": sp.reason,
+                    "max_preload_mm": float(sp.max_preload_mm),
+                    "zero_offset_deg": float(sp.zero_offset_deg),
+                    "rmse_nm": float(sp.rmse_nm),
+                    "rmse_all_samples_nm": float(sp.rmse_all_samples_nm),
+                    "stiffness_n_per_mm": float(sp.stiffness_n_per_mm),
+                    "preload_position": int(sp.preload_position),
+                    "target": sp.target,
+                },
+            )
+            put(g, "angle_deg", sp.curve_angle_deg, "deg", dtype=SIGNAL)
+            put(g, "torque_nm", sp.curve_torque_nm, "N*m", dtype=SIGNAL)
+            put(g, "model_torque_nm", sp.model_torque_nm, "N*m")
+
+    return fill
+
+
+def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> Fill:
+    p = result.params
+    std = np.asarray(result.param_std, dtype=np.float64)
+    angles, torques, models = [], [], []
+    for x, y in segments:
+        z = simulate(x, p, z0=float(y[0]))
+        stride = max(1, len(x) // PLOT_POINTS_PER_TRIAL)
+        angles.append(x[::stride])
+        torques.append(y[::stride])
+        models.append(z[::stride])
+
+    def fill(f: h5py.File) -> None:
+        g = f.require_group(f"configurations/{name}/fits").create_group("bouc_wen")
+        set_attrs(
+            g,
+            {
+                "A": float(p.A),
+                "n": float(p.n),
+                "beta": [float(b) for b in p.beta],
+                "rmse_nm": float(result.rmse_nm),
+                "r2": float(result.r2),
+                "A_std": float(std[0]),
+                "n_std": float(std[1]),
+                "beta_std": [float(v) for v in std[2:8]],
+                "cv_rmse_nm": [float(v) for v in cv],
+                "n_starts": int(result.n_starts),
+                "converged": bool(result.converged),
+                "diverged": bool(result.diverged),
+            },
+        )
+        put(g, "angle_deg", np.concatenate(angles), "deg")
+        put(g, "torque_nm", np.concatenate(torques), "N*m")
+        put(g, "model_torque_nm", np.concatenate(models), "N*m")
+        put(g, "segment_lengths", [len(a) for a in angles], "1")
+
+    return fill
+
+
+def comparison_values(configs: Sequence[h5py.Group]) -> dict[str, list[Any]]:
+    """Energy per cycle (mean, sample std, count) and the largest processed angle of each configuration
+    group, in order. Used by the session's step and by `--reprocess`, so both give the same numbers."""
+    means, stds, counts, max_angles = [], [], [], []
+    for cfg in configs:
+        e = cfg["energy_loss_j"][:] if "energy_loss_j" in cfg else np.zeros(0)
+        means.append(float(np.mean(e)) if e.size else float("nan"))
+        stds.append(float(np.std(e, ddof=1)) if e.size > 1 else float("nan"))
+        counts.append(int(e.size))
+        angles = [
+            cfg[f"trials/{n}/processed/angle_deg"][:]
+            for n in cfg.get("trials", {})
+            if "processed" in cfg[f"trials/{n}"]
+        ]
+        max_angles.append(max((float(np.max(a)) for a in angles if a.size), default=float("nan")))
+    return {
+        "energy_mean_j": means,
+        "energy_std_j": stds,
+        "energy_cycles": counts,
+        "max_angle_deg": max_angles,
+    }
