@@ -1,7 +1,7 @@
 """Step ids: the stable names of plan steps, used as unit file names, journal keys and in `--only` output.
 
 Every id is made by `step_id`: the kind, then the set name, the configuration key (`k01`) and any
-further parts, joined by colons (docs/protocol.md, "Step ids").
+further parts, joined by colons (docs/protocol.md, "Plan and step ids").
 """
 
 from __future__ import annotations
