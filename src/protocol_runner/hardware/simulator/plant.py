@@ -257,32 +257,41 @@ def telemetry_volts(
     return out
 
 
+# A scan request handed to the compiled kernels: its times (float64) and its counts (int64), by index.
+T_START = 0  # t0_s: the scan's start time
+T_ORIGIN = 1  # origin_s: the time of grid step 0
+T_RATE = 2  # rate_hz: rows per second
+N_TIMING = 3
+R_STEP_END = 0  # integrate up to this grid step
+R_FIRST = 1  # the first row wanted
+R_COUNT = 2  # how many rows
+R_N_CMD = 3  # how many commands of the history are valid
+N_ROWS_REC = 4
+
+#: (state, istate, parameters, spring table): the joint as the kernels see it (updated in place).
+Joint = tuple[FloatArray, IntArray, FloatArray, FloatArray]
+#: (grid step of each command, its target angle): the zero-order-hold command history.
+Commands = tuple[IntArray, FloatArray]
+#: (channel roles, noise volts, angle knots, their volts, torque knots, their volts).
+Sensors = tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+
+
 @njit(cache=True)
 def integrate_rows(
-    state: FloatArray,
-    istate: IntArray,
-    p: FloatArray,
-    spring: FloatArray,
-    cmd_step: IntArray,
-    cmd_target_deg: FloatArray,
-    n_cmd: int,
-    step_end: int,
-    t0_s: float,
-    origin_s: float,
-    rate_hz: float,
-    first_row: int,
-    n_rows: int,
-    roles: IntArray,
-    noise_v: FloatArray,
-    angle_knots: FloatArray,
-    angle_knot_volts: FloatArray,
-    torque_knots: FloatArray,
-    torque_knot_volts: FloatArray,
-    noise: FloatArray,
+    joint: Joint, commands: Commands, timing: FloatArray, rows: IntArray, sensors: Sensors, noise: FloatArray
 ) -> FloatArray:
-    """`integrate` for scan rows first_row .. first_row + n_rows - 1 of a scan started at `t0_s` at
-    `rate_hz` (row i at t0 + i / rate, sampled on grid step floor((t - origin) / dt)), then
-    `telemetry_volts`. Returns the volts of the rows whose step was reached (a leading part)."""
+    """`integrate` up to grid step rows[R_STEP_END] for scan rows rows[R_FIRST] .. + rows[R_COUNT] - 1 of
+    a scan started at timing[T_START] at timing[T_RATE] (row i at t0 + i / rate, sampled on grid step
+    floor((t - origin) / dt)), then `telemetry_volts`. Returns the volts of the rows whose step was
+    reached (a leading part)."""
+    state, istate, p, spring = joint
+    cmd_step, cmd_target_deg = commands
+    roles, noise_v, angle_knots, angle_knot_volts, torque_knots, torque_knot_volts = sensors
+    t0_s = timing[T_START]
+    origin_s = timing[T_ORIGIN]
+    rate_hz = timing[T_RATE]
+    first_row = rows[R_FIRST]
+    n_rows = rows[R_COUNT]
     inv_dt = 1.0 / p[P_DT]
     steps = np.empty(n_rows, dtype=np.int64)
     for i in range(n_rows):
@@ -291,7 +300,19 @@ def integrate_rows(
         steps[i] = k if k > 0 else 0
     angle = np.empty(n_rows, dtype=np.float64)
     torque = np.empty(n_rows, dtype=np.float64)
-    got = integrate(state, istate, p, spring, cmd_step, cmd_target_deg, n_cmd, step_end, steps, angle, torque)
+    got = integrate(
+        state,
+        istate,
+        p,
+        spring,
+        cmd_step,
+        cmd_target_deg,
+        rows[R_N_CMD],
+        rows[R_STEP_END],
+        steps,
+        angle,
+        torque,
+    )
     return telemetry_volts(
         angle[:got],
         torque[:got],
@@ -307,57 +328,25 @@ def integrate_rows(
 
 @njit(cache=True)
 def scan_rows(
-    state: FloatArray,
-    istate: IntArray,
-    p: FloatArray,
-    spring: FloatArray,
-    cmd_step: IntArray,
-    cmd_target_deg: FloatArray,
-    n_cmd: int,
-    step_end: int,
-    t0_s: float,
-    origin_s: float,
-    rate_hz: float,
-    first_row: int,
-    n_rows: int,
-    roles: IntArray,
-    noise_v: FloatArray,
-    angle_knots: FloatArray,
-    angle_knot_volts: FloatArray,
-    torque_knots: FloatArray,
-    torque_knot_volts: FloatArray,
+    joint: Joint,
+    commands: Commands,
+    timing: FloatArray,
+    rows: IntArray,
+    sensors: Sensors,
     noise: FloatArray,
-    volts_per_code: float,
-    min_code: int,
-    max_code: int,
+    adc: tuple[float, int, int],
 ) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
     """`integrate_rows`, then what the input board makes of those volts, in the same compiled call (one
     read of the scan costs one kernel call): each row's time t0 + i / rate, the ADC code
-    rint(V / volts_per_code) clamped to min_code..max_code, and the code's volts code · volts_per_code —
-    the same arithmetic as `conversions.volts_to_ai12_code` / `ai12_code_to_volts`. Returns
-    (t_s, codes, volts, any_nan); with any_nan the codes are meaningless (the caller raises)."""
-    raw = integrate_rows(
-        state,
-        istate,
-        p,
-        spring,
-        cmd_step,
-        cmd_target_deg,
-        n_cmd,
-        step_end,
-        t0_s,
-        origin_s,
-        rate_hz,
-        first_row,
-        n_rows,
-        roles,
-        noise_v,
-        angle_knots,
-        angle_knot_volts,
-        torque_knots,
-        torque_knot_volts,
-        noise,
-    )
+    rint(V / volts_per_code) clamped to min_code..max_code (`adc` = (volts_per_code, min_code,
+    max_code)), and the code's volts code · volts_per_code — the same arithmetic as
+    `conversions.volts_to_ai12_code` / `ai12_code_to_volts`. Returns (t_s, codes, volts, any_nan); with
+    any_nan the codes are meaningless (the caller raises)."""
+    volts_per_code, min_code, max_code = adc
+    t0_s = timing[T_START]
+    rate_hz = timing[T_RATE]
+    first_row = rows[R_FIRST]
+    raw = integrate_rows(joint, commands, timing, rows, sensors, noise)
     got = raw.shape[0]
     n_ch = raw.shape[1]
     t_s = np.empty(got, dtype=np.float64)
@@ -592,34 +581,19 @@ class JointPlant:
         rate_hz: float,
         first_row: int,
         n_rows: int,
-        sensors: tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+        sensors: Sensors,
         noise: FloatArray,
     ) -> FloatArray:
         """Integrate to `step_end` and return the telemetry volts of scan rows first_row .. + n_rows - 1
         (see `integrate_rows`); `sensors` = (roles, noise volts, angle knots, their volts, torque knots,
         their volts); `noise` holds at least n_rows × channels standard normals, consumed row by row."""
         self._flush_commands()
-        roles, noise_v, a_k, a_v, t_k, t_v = sensors
         volts = integrate_rows(
-            self._state,
-            self._istate,
-            self._p,
-            self._spring,
-            self._cmd_step,
-            self._cmd_target,
-            self._n_cmd,
-            int(step_end),
-            float(t0_s),
-            float(origin_s),
-            float(rate_hz),
-            int(first_row),
-            int(n_rows),
-            roles,
-            noise_v,
-            a_k,
-            a_v,
-            t_k,
-            t_v,
+            self._joint(),
+            (self._cmd_step, self._cmd_target),
+            _timing(t0_s, origin_s, rate_hz),
+            _rows(step_end, first_row, n_rows, self._n_cmd),
+            sensors,
             noise,
         )
         self._integrated_step = int(self._istate[I_STEP])
@@ -633,7 +607,7 @@ class JointPlant:
         rate_hz: float,
         first_row: int,
         n_rows: int,
-        sensors: tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+        sensors: Sensors,
         noise: FloatArray,
         adc: tuple[float, int, int],
     ) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
@@ -641,35 +615,20 @@ class JointPlant:
         code, lowest code, highest code). Returns (row times, codes, their volts, whether any volts were
         NaN)."""
         self._flush_commands()
-        roles, noise_v, a_k, a_v, t_k, t_v = sensors
-        volts_per_code, min_code, max_code = adc
         out = scan_rows(
-            self._state,
-            self._istate,
-            self._p,
-            self._spring,
-            self._cmd_step,
-            self._cmd_target,
-            self._n_cmd,
-            step_end,
-            t0_s,
-            origin_s,
-            rate_hz,
-            first_row,
-            n_rows,
-            roles,
-            noise_v,
-            a_k,
-            a_v,
-            t_k,
-            t_v,
+            self._joint(),
+            (self._cmd_step, self._cmd_target),
+            _timing(t0_s, origin_s, rate_hz),
+            _rows(step_end, first_row, n_rows, self._n_cmd),
+            sensors,
             noise,
-            volts_per_code,
-            min_code,
-            max_code,
+            adc,
         )
         self._integrated_step = int(self._istate[I_STEP])
         return out
+
+    def _joint(self) -> Joint:
+        return (self._state, self._istate, self._p, self._spring)
 
     def advance(self, step_end: int, sample_step: IntArray) -> tuple[FloatArray, FloatArray]:
         """Integrate to grid step `step_end`; return (real angle, load torque) at each of the sorted
@@ -693,3 +652,20 @@ class JointPlant:
         )
         self._integrated_step = int(self._istate[I_STEP])
         return angle[:got], torque[:got]
+
+
+def _timing(t0_s: float, origin_s: float, rate_hz: float) -> FloatArray:
+    timing = np.empty(N_TIMING, dtype=np.float64)
+    timing[T_START], timing[T_ORIGIN], timing[T_RATE] = float(t0_s), float(origin_s), float(rate_hz)
+    return timing
+
+
+def _rows(step_end: int, first_row: int, n_rows: int, n_cmd: int) -> IntArray:
+    rows = np.empty(N_ROWS_REC, dtype=np.int64)
+    rows[R_STEP_END], rows[R_FIRST], rows[R_COUNT], rows[R_N_CMD] = (
+        int(step_end),
+        int(first_row),
+        int(n_rows),
+        int(n_cmd),
+    )
+    return rows
