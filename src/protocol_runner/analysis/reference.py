@@ -6,13 +6,13 @@ docs/report.md.
 
 from __future__ import annotations
 
-import csv
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InvalidInput, short
+from ..tables import parse_header_table
 
 FloatArray = np.ndarray
 
@@ -68,13 +68,11 @@ def _read_reference_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise InvalidInput(f"Reference dataset {path} cannot be read: {exc}.") from exc
-    rows = [
-        (i + 1, line) for i, line in enumerate(text.splitlines()) if line.strip() and not line.startswith("#")
-    ]
-    if not rows:
+    table = parse_header_table(text)
+    if table.header is None:
         raise InvalidInput(f"Reference dataset {path} has no header row.")
-    header_line, header_text = rows[0]
-    header = [h.strip().lower() for h in next(csv.reader([header_text]))]
+    header_line = table.header.line
+    header = [h.lower() for h in table.header.cells]
     angle_col = next((i for i, h in enumerate(header) if "angle" in h), None)
     torque_col = next((i for i, h in enumerate(header) if "torque" in h), None)
     if angle_col is None or torque_col is None:
@@ -84,8 +82,8 @@ def _read_reference_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
         )
     angle: list[float] = []
     torque: list[float] = []
-    for line_no, line in rows[1:]:
-        cells = next(csv.reader([line]))
+    for row in table.rows:
+        line_no, cells, line = row.line, row.cells, row.text
         try:
             angle.append(float(cells[angle_col]))
             torque.append(float(cells[torque_col]))

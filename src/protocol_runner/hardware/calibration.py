@@ -28,7 +28,6 @@ stays invertible). Keep tables spanning the whole joint range so extrapolation i
 from __future__ import annotations
 
 import argparse
-import csv
 import math
 import sys
 from collections.abc import Sequence
@@ -39,6 +38,7 @@ import numpy as np
 import numpy.typing as npt
 
 from protocol_runner.errors import InvalidInput, UserError
+from protocol_runner.tables import parse_header_table
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -145,30 +145,25 @@ def load_calibration_table(path: Path | str) -> CalibrationTable:
     xs: list[float] = []
     ys: list[float] = []
     lines: list[int] = []
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
-        cells = [c.strip() for c in next(csv.reader([line]))]
+    for row in parse_header_table(text).lines:
+        lineno, cells, line = row.line, list(row.cells), row.text
         where = f"calibration table {p}, line {lineno}"
         if len(cells) != 2:
-            raise InvalidInput(
-                f"{where}: expected 2 comma-separated columns, found {len(cells)}: {raw.strip()!r}"
-            )
+            raise InvalidInput(f"{where}: expected 2 comma-separated columns, found {len(cells)}: {line!r}")
         if header is None:
             if any(_is_number(c) for c in cells) or not all(cells):
                 raise InvalidInput(
                     f"{where}: expected a header row naming the two columns (e.g. 'real_deg,input_deg') "
-                    f"before the numbers, found {raw.strip()!r}"
+                    f"before the numbers, found {line!r}"
                 )
             header = cells
             continue
         try:
             xv, yv = float(cells[0]), float(cells[1])
         except ValueError:
-            raise InvalidInput(f"{where}: not a number: {raw.strip()!r}") from None
+            raise InvalidInput(f"{where}: not a number: {line!r}") from None
         if not (math.isfinite(xv) and math.isfinite(yv)):
-            raise InvalidInput(f"{where}: values must be finite numbers, found {raw.strip()!r}")
+            raise InvalidInput(f"{where}: values must be finite numbers, found {line!r}")
         if xs:
             if xv <= xs[-1]:
                 raise InvalidInput(
@@ -301,16 +296,13 @@ def _read_observations(path: Path) -> dict[str, FloatArray]:
         raise InvalidInput(f"observations {path}: file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InvalidInput(f"observations {path}: cannot read it ({exc})") from None
-    header: list[str] | None = None
+    table = parse_header_table(text)
+    if table.header is None:
+        raise InvalidInput(f"observations {path}: empty (no header row)")
+    header = list(table.header.cells)
     rows: list[list[float]] = []
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
-        cells = [c.strip() for c in next(csv.reader([line]))]
-        if header is None:
-            header = cells
-            continue
+    for row in table.rows:
+        lineno, cells, line = row.line, row.cells, row.text
         if len(cells) != len(header):
             raise InvalidInput(
                 f"observations {path}, line {lineno}: expected {len(header)} values, found {len(cells)}"
@@ -322,8 +314,6 @@ def _read_observations(path: Path) -> dict[str, FloatArray]:
         if not all(math.isfinite(v) for v in values):
             raise InvalidInput(f"observations {path}, line {lineno}: values must be finite: {line!r}")
         rows.append(values)
-    if header is None:
-        raise InvalidInput(f"observations {path}: empty (no header row)")
     data = np.array(rows, dtype=np.float64).reshape(len(rows), len(header))
     return {name: data[:, i] for i, name in enumerate(header)}
 
