@@ -42,8 +42,9 @@ from protocol_runner.hardware.conversions import (
     volts_to_angle,
 )
 from protocol_runner.hardware.interfaces import ScanBlock
+from protocol_runner.hardware.simulator.kernels import GRID_TOL, ROLE_ANGLE, ROLE_TORQUE
 from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, BraceSetup, SimulatorParams
-from protocol_runner.hardware.simulator.plant import GRID_TOL, ROLE_ANGLE, ROLE_TORQUE, JointPlant
+from protocol_runner.hardware.simulator.plant import JointPlant
 from protocol_runner.hardware.usb3105 import IDENTITY_CALIBRATION, calibrated_code
 
 if TYPE_CHECKING:
