@@ -19,10 +19,10 @@ from ..analysis.loops import centred_loop, fit_loops
 from ..analysis.pipeline import TrialPair, process_configuration
 from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, find_protocol, load_protocol, parse_protocol_text
-from ..protocol.plan import configuration_name
 from ..protocol.processing import processing_settings
 from .checksums import is_marked, seal_missing
 from .h5util import attr_str, set_attrs, text_of
+from .paths import configuration_name
 from .results import bouc_wen_fill, comparison_values, processed_fill, read_recording
 from .verify import validate_archive
 

@@ -15,7 +15,8 @@ import numpy as np
 
 from ..analysis.pipeline import ConfigurationResult, ProcessingSettings, Recording
 from ..models.bouc_wen import BoucWenFit, simulate
-from .h5util import SIGNAL, put, set_attrs
+from .h5util import SIGNAL, set_attrs
+from .paths import CONFIGURATIONS, FITS, PROCESSED, TRIALS, put_dataset
 
 #: Writes one step's results into an open unit file.
 Fill = Callable[[h5py.File], None]
@@ -42,14 +43,14 @@ def read_recording(g: h5py.Group) -> Recording:
 
 def processed_fill(name: str, result: ConfigurationResult, settings: ProcessingSettings) -> Fill:
     def fill(f: h5py.File) -> None:
-        cfg = f.require_group(f"configurations/{name}")
+        cfg = f.require_group(f"{CONFIGURATIONS}/{name}")
         for t in result.trials:
-            g = cfg.require_group(f"trials/{t.trial}").create_group("processed")
+            g = cfg.require_group(f"{TRIALS}/{t.trial}").create_group(PROCESSED)
             dt = float(np.median(np.diff(t.time_s))) if t.time_s.size > 1 else 1.0
             stride = max(1, round(1.0 / (dt * PROCESSED_RATE_HZ)))
-            put(g, "time_s", t.time_s[::stride], "s")
-            put(g, "angle_deg", t.angle_deg[::stride], "deg", dtype=SIGNAL)
-            put(g, "brace_torque_nm", t.brace_torque_nm[::stride], "N*m", dtype=SIGNAL)
+            put_dataset(g, "processed", "time_s", t.time_s[::stride])
+            put_dataset(g, "processed", "angle_deg", t.angle_deg[::stride], dtype=SIGNAL)
+            put_dataset(g, "processed", "brace_torque_nm", t.brace_torque_nm[::stride], dtype=SIGNAL)
             set_attrs(
                 g,
                 {
@@ -68,13 +69,13 @@ def processed_fill(name: str, result: ConfigurationResult, settings: ProcessingS
                     "coverage": float(t.coverage),
                 },
             )
-        put(cfg, "energy_loss_j", result.energy_loss_j, "J")
-        put(cfg, "energy_cycle_trial", result.energy_cycle_trial, "1")
+        put_dataset(cfg, "configuration", "energy_loss_j", result.energy_loss_j)
+        put_dataset(cfg, "configuration", "energy_cycle_trial", result.energy_cycle_trial)
         cfg["energy_loss_j"].attrs["mean_j"] = result.energy.mean_j
         cfg["energy_loss_j"].attrs["std_j"] = result.energy.std_j
         sp = result.spring
         if sp is not None:
-            g = cfg.require_group("fits").create_group("spring")
+            g = cfg.require_group(FITS).create_group("spring")
             set_attrs(
                 g,
                 {
@@ -89,9 +90,9 @@ def processed_fill(name: str, result: ConfigurationResult, settings: ProcessingS
                     "target": sp.target,
                 },
             )
-            put(g, "angle_deg", sp.curve_angle_deg, "deg", dtype=SIGNAL)
-            put(g, "torque_nm", sp.curve_torque_nm, "N*m", dtype=SIGNAL)
-            put(g, "model_torque_nm", sp.model_torque_nm, "N*m")
+            put_dataset(g, "spring", "angle_deg", sp.curve_angle_deg, dtype=SIGNAL)
+            put_dataset(g, "spring", "torque_nm", sp.curve_torque_nm, dtype=SIGNAL)
+            put_dataset(g, "spring", "model_torque_nm", sp.model_torque_nm)
 
     return fill
 
@@ -108,7 +109,7 @@ def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> F
         models.append(z[::stride])
 
     def fill(f: h5py.File) -> None:
-        g = f.require_group(f"configurations/{name}/fits").create_group("bouc_wen")
+        g = f.require_group(f"{CONFIGURATIONS}/{name}/{FITS}").create_group("bouc_wen")
         set_attrs(
             g,
             {
@@ -126,10 +127,10 @@ def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> F
                 "diverged": bool(result.diverged),
             },
         )
-        put(g, "angle_deg", np.concatenate(angles), "deg")
-        put(g, "torque_nm", np.concatenate(torques), "N*m")
-        put(g, "model_torque_nm", np.concatenate(models), "N*m")
-        put(g, "segment_lengths", [len(a) for a in angles], "1")
+        put_dataset(g, "bouc_wen", "angle_deg", np.concatenate(angles))
+        put_dataset(g, "bouc_wen", "torque_nm", np.concatenate(torques))
+        put_dataset(g, "bouc_wen", "model_torque_nm", np.concatenate(models))
+        put_dataset(g, "bouc_wen", "segment_lengths", [len(a) for a in angles])
 
     return fill
 
@@ -144,9 +145,9 @@ def comparison_values(configs: Sequence[h5py.Group]) -> dict[str, list[Any]]:
         stds.append(float(np.std(e, ddof=1)) if e.size > 1 else float("nan"))
         counts.append(int(e.size))
         angles = [
-            cfg[f"trials/{n}/processed/angle_deg"][:]
-            for n in cfg.get("trials", {})
-            if "processed" in cfg[f"trials/{n}"]
+            cfg[f"{TRIALS}/{n}/{PROCESSED}/angle_deg"][:]
+            for n in cfg.get(TRIALS, {})
+            if PROCESSED in cfg[f"{TRIALS}/{n}"]
         ]
         max_angles.append(max((float(np.max(a)) for a in angles if a.size), default=float("nan")))
     return {

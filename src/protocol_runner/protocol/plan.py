@@ -216,11 +216,6 @@ class Plan:
 # ----------------------------------------------------------------------------------------- ids
 
 
-def configuration_name(key: int) -> str:
-    """The archive group name of a configuration (docs/archive.md)."""
-    return f"config_{key:02d}"
-
-
 # -------------------------------------------------------------------------------------- expansion
 
 

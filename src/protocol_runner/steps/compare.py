@@ -5,8 +5,9 @@ from __future__ import annotations
 import h5py
 
 from ..archive.h5util import set_attrs
+from ..archive.paths import comparison_path, configuration_path
 from ..archive.results import comparison_values
-from ..protocol.plan import CompareStep, configuration_name
+from ..protocol.plan import CompareStep
 from ..protocol.step_ids import step_id
 from .context import StepContext, StepOutcome
 
@@ -15,17 +16,14 @@ def run(step: CompareStep, ctx: StepContext) -> StepOutcome:
     files = [ctx.unit(step_id("process", key=key)) for key in step.configurations]
     try:
         values = comparison_values(
-            [
-                f[f"configurations/{configuration_name(k)}"]
-                for f, k in zip(files, step.configurations, strict=True)
-            ]
+            [f[configuration_path(k)] for f, k in zip(files, step.configurations, strict=True)]
         )
     finally:
         for f in files:
             f.close()
 
     def fill(f: h5py.File) -> None:
-        g = f.require_group("comparisons").create_group(step.name)
+        g = f.create_group(comparison_path(step.name))
         set_attrs(
             g,
             {

@@ -7,19 +7,19 @@ from __future__ import annotations
 import numpy as np
 
 from ..analysis.loops import centred_loop, fit_loops
+from ..archive.paths import configuration_name, trials_path
 from ..archive.results import bouc_wen_fill
 from ..models.bouc_wen import BoucWenFit
-from ..protocol.plan import FitStep, configuration_name
+from ..protocol.plan import FitStep
 from ..protocol.schema import BoucWenFitSpec
 from ..protocol.step_ids import step_id
 from .context import StepContext, StepOutcome
 
 
 def centred_segments(ctx: StepContext, step: FitStep) -> list[tuple[np.ndarray, np.ndarray]]:
-    name = configuration_name(step.configuration)
     segments = []
     with ctx.unit(step_id("process", key=step.configuration)) as f:
-        trials = f[f"configurations/{name}/trials"]
+        trials = f[trials_path(step.configuration)]
         for n in sorted(trials, key=int):
             g = trials[n]["processed"]
             segments.append(centred_loop(g["angle_deg"][:], g["brace_torque_nm"][:]))

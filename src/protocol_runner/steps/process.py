@@ -8,8 +8,9 @@ removal (§3.3.1), zero-phase filtering (§3.2), equal-angle subtraction of the 
 from __future__ import annotations
 
 from ..analysis.pipeline import TrialPair, process_configuration
+from ..archive.paths import configuration_name, recording_path
 from ..archive.results import processed_fill, read_recording
-from ..protocol.plan import ProcessStep, configuration_name
+from ..protocol.plan import ProcessStep
 from .context import StepContext, StepOutcome
 
 
@@ -18,11 +19,10 @@ def run(step: ProcessStep, ctx: StepContext) -> StepOutcome:
     pairs = []
     for n, (on_id, off_id) in enumerate(step.trials, start=1):
         with ctx.unit(on_id) as f_on, ctx.unit(off_id) as f_off:
-            base = f"configurations/{name}/trials/{n}"
             pairs.append(
                 TrialPair(
-                    read_recording(f_on[f"{base}/brace_on"]),
-                    read_recording(f_off[f"{base}/brace_off"]),
+                    read_recording(f_on[recording_path(step.configuration, n, "on")]),
+                    read_recording(f_off[recording_path(step.configuration, n, "off")]),
                     trial=n,
                 )
             )
