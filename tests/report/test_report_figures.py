@@ -6,10 +6,9 @@ import base64
 import struct
 from pathlib import Path
 
+from protocol_runner.report.canvas import DPI, config_label
 from protocol_runner.report.figures import (
-    DPI,
     bouc_wen_figure,
-    config_label,
     energy_bars_figure,
     energy_cycles_figure,
     figure_ids,
