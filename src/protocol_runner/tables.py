@@ -11,6 +11,9 @@ from __future__ import annotations
 
 import csv
 from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import InvalidInput
 
 
 @dataclass(frozen=True)
@@ -45,3 +48,13 @@ def parse_header_table(text: str) -> HeaderTable:
         cells = tuple(c.strip() for c in next(csv.reader([line])))
         rows.append(Row(number, cells, line))
     return HeaderTable(tuple(comments), rows[0] if rows else None, tuple(rows[1:]))
+
+
+def read_table_text(path: Path, what: str) -> str:
+    """The file's UTF-8 text; `InvalidInput` "<what> <path>: file not found" or "...: cannot read it (...)"."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InvalidInput(f"{what} {path}: file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InvalidInput(f"{what} {path}: cannot read it ({exc})") from None

@@ -35,7 +35,7 @@ import numpy as np
 import numpy.typing as npt
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.tables import parse_header_table
+from protocol_runner.tables import parse_header_table, read_table_text
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -131,12 +131,7 @@ def load_calibration_table(path: Path | str) -> CalibrationTable:
     strictly monotonic, fewer than two points.
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InvalidInput(f"calibration table {p}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"calibration table {p}: cannot read it ({exc})") from None
+    text = read_table_text(p, "calibration table")
 
     header: list[str] | None = None
     xs: list[float] = []

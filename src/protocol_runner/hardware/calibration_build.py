@@ -20,7 +20,7 @@ from protocol_runner.hardware.calibration import (
     build_torque_table_from_observations,
     write_calibration_table,
 )
-from protocol_runner.tables import parse_header_table
+from protocol_runner.tables import parse_header_table, read_table_text
 
 ANGLE_COLUMNS = ("input_deg", "real_deg", "output_deg")
 TORQUE_COLUMNS = ("real_nm", "output_nm")
@@ -28,12 +28,7 @@ TORQUE_COLUMNS = ("real_nm", "output_nm")
 
 def _read_observations(path: Path) -> dict[str, FloatArray]:
     """Read an observations CSV: '#' comments, a header naming the columns, numeric rows."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InvalidInput(f"observations {path}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"observations {path}: cannot read it ({exc})") from None
+    text = read_table_text(path, "observations")
     table = parse_header_table(text)
     if table.header is None:
         raise InvalidInput(f"observations {path}: empty (no header row)")
