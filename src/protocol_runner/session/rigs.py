@@ -131,7 +131,7 @@ def open_hardware_rig(loaded: LoadedProtocol) -> Rig:
     """Open the boards the protocol names; HardwareUnavailable (exit 3) with a plain message if absent."""
     refuse_unsupported_input(loaded)
     rig_spec = loaded.protocol.rig
-    from ..hardware import discovery  # here: only a hardware run needs the USB drivers
+    from ..hardware.rig_boards import open_rig_boards  # here: only a hardware run needs the USB drivers
 
-    ao, ai, clock = discovery.open_rig_boards(rig_spec)
+    ao, ai, clock = open_rig_boards(rig_spec)
     return Rig(joint_config(loaded), ao, ai, clock)
