@@ -9,8 +9,8 @@ import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .errors import EXIT_OK, InvalidInput
-from .monitor.publisher import NULL_PUBLISHER, Publisher
+from .errors import EXIT_HARDWARE_UNAVAILABLE, EXIT_OK, InvalidInput
+from .events import NULL_PUBLISHER, Publisher
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -247,4 +247,4 @@ def hardware_check(protocol: str | None) -> int:
         }
     result = check(required)
     print(format_report(result))
-    return EXIT_OK if getattr(result, "ok", True) else 3
+    return EXIT_OK if result.ok else EXIT_HARDWARE_UNAVAILABLE

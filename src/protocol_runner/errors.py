@@ -49,3 +49,9 @@ class Interrupted(UserError):
     """The session was interrupted by a signal; it is resumable (exit 130)."""
 
     exit_code = EXIT_INTERRUPTED
+
+
+def short(exc: BaseException) -> str:
+    """An exception's text for a one-line message: at most 160 characters, never empty."""
+    text = str(exc).strip() or type(exc).__name__
+    return text if len(text) <= 160 else text[:157] + "..."

@@ -17,9 +17,9 @@ from protocol_runner.hardware.calibration import (
     build_table_from_observations,
     build_torque_table_from_observations,
     load_calibration_table,
-    main,
     write_calibration_table,
 )
+from protocol_runner.hardware.calibration_build import main
 
 SHIPPED = Path(__file__).resolve().parents[2] / "protocols" / "calibration"
 
@@ -210,7 +210,7 @@ def test_cli_reports_bad_input_without_traceback(tmp_path: Path, capsys: pytest.
 
 def test_module_runs_with_python_dash_m() -> None:
     proc = subprocess.run(
-        [sys.executable, "-m", "protocol_runner.hardware.calibration", "build", "--help"],
+        [sys.executable, "-m", "protocol_runner.hardware.calibration_build", "build", "--help"],
         capture_output=True,
         text=True,
         check=False,

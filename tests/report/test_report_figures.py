@@ -6,10 +6,9 @@ import base64
 import struct
 from pathlib import Path
 
+from protocol_runner.report.canvas import DPI, config_label
 from protocol_runner.report.figures import (
-    DPI,
     bouc_wen_figure,
-    config_label,
     energy_bars_figure,
     energy_cycles_figure,
     figure_ids,
@@ -86,3 +85,47 @@ def test_legend_labels_carry_the_compared_value_with_units(small_archive: Path) 
     assert config_label(cfg, "speed") == "7: 50 deg/s"
     assert config_label(cfg, "brace_rom") == "7: 0-130°"
     assert config_label(cfg, "preload") == "7: position 3"
+
+
+def _drawn(monkeypatch, draw) -> object:
+    """The matplotlib Figure a figure function draws (captured before it becomes a PNG)."""
+    from protocol_runner.report import figures
+
+    captured = []
+    real = figures.to_data_uri
+
+    def keep(fig):
+        captured.append(fig)
+        return real(fig)
+
+    monkeypatch.setattr(figures, "to_data_uri", keep)
+    draw()
+    return captured[-1]
+
+
+def test_hysteresis_figure_draws_one_loop_per_processed_trial_over_its_data(
+    small_archive: Path, monkeypatch
+) -> None:
+    cfg = _config(small_archive, 4)
+    processed = [t.processed for t in cfg.trials if t.processed is not None]
+    fig = _drawn(monkeypatch, lambda: hysteresis_figure(cfg))
+    (ax,) = fig.axes
+    assert (ax.get_xlabel(), ax.get_ylabel()) == ("Angle (deg)", "Torque (N·m)")
+    loops = [line for line in ax.get_lines() if line.get_label().startswith("trial ")]
+    assert len(loops) == len(processed) >= 1
+    for line, p in zip(loops, processed, strict=True):
+        x, y = line.get_data()
+        assert (min(x), max(x)) == (p.angle_deg.min(), p.angle_deg.max())
+        assert (min(y), max(y)) == (p.brace_torque_nm.min(), p.brace_torque_nm.max())
+
+
+def test_energy_cycles_figure_draws_every_cycle_and_the_mean(small_archive: Path, monkeypatch) -> None:
+    cfg = _config(small_archive, 4)
+    fig = _drawn(monkeypatch, lambda: energy_cycles_figure(cfg))
+    (ax,) = fig.axes
+    assert ax.get_ylabel() == "Energy per cycle (J)"
+    points = [line for line in ax.get_lines() if line.get_label().startswith("trial ")]
+    drawn = sorted(float(v) for line in points for v in line.get_ydata())
+    assert drawn == sorted(cfg.energy_loss_j.tolist())
+    means = [line for line in ax.get_lines() if line.get_label().startswith("mean ")]
+    assert len(means) == 1 and means[0].get_ydata()[0] == cfg.energy_mean_j

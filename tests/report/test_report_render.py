@@ -276,4 +276,5 @@ def test_each_configuration_shows_its_output_loop_timing(small_report: str) -> N
         r'<span class="loop-timing">Output loop, trial (\d+): tick lateness p99\s+([0-9.]+) ms', small_report
     )
     assert timings, "no loop timing in the report"
-    assert all(float(ms) >= 0.0 for _, ms in timings)
+    # the test archive records a p99 lateness of exactly 0 s for every trial (report_archive_builder.py)
+    assert [float(ms) for _, ms in timings] == [0.0] * len(timings)

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from protocol_runner.session.runner import _worker_init
 from protocol_runner.session.signals import StopFlag, sigint_blocked
+from protocol_runner.session.workers import worker_init
 
 
 def _answer() -> int:
@@ -26,7 +26,7 @@ def _answer() -> int:
 
 def test_worker_started_under_sigint_blocked_survives_a_sigint_while_starting() -> None:
     pool = ProcessPoolExecutor(
-        max_workers=1, mp_context=multiprocessing.get_context("spawn"), initializer=_worker_init
+        max_workers=1, mp_context=multiprocessing.get_context("spawn"), initializer=worker_init
     )
     try:
         with sigint_blocked():

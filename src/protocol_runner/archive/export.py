@@ -39,13 +39,12 @@ from scipy.io import savemat
 from .. import __version__
 from ..errors import InvalidInput
 from .matlab import Units, attrs_struct, dataset_value, group_struct, matlab_value, put_field, text
+from .verify import validate_archive  # clear messages for foreign or damaged files
 
 SESSION_FILE = "session"
 
 
 def export_mat(archive: Path, out_dir: Path) -> list[Path]:
-    from ..report.load import validate_archive  # clear messages for foreign or damaged files
-
     archive = validate_archive(archive)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)

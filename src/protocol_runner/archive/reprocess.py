@@ -15,16 +15,15 @@ from pathlib import Path
 
 import h5py
 
+from ..analysis.loops import centred_loop, fit_loops
 from ..analysis.pipeline import TrialPair, process_configuration
 from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, find_protocol, load_protocol, parse_protocol_text
-from ..protocol.plan import configuration_name
-from ..steps.compare import comparison_values
-from ..steps.context import processing_settings
-from ..steps.fit import bouc_wen_fill, centred_loop, fit_bouc_wen
-from ..steps.process import processed_fill, read_recording
+from ..protocol.processing import processing_settings
 from .checksums import is_marked, seal_missing
 from .h5util import attr_str, set_attrs, text_of
+from .paths import configuration_name
+from .results import bouc_wen_fill, comparison_values, processed_fill, read_recording
 from .verify import validate_archive
 
 
@@ -126,7 +125,12 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
                 )
                 for t in result.trials
             ]
-            bw, cv = fit_bouc_wen(segments, fits.bouc_wen)
+            bw, cv = fit_loops(
+                segments,
+                starts=fits.bouc_wen.starts,
+                cross_validated=fits.bouc_wen.cross_validate,
+                backbone_degree=fits.bouc_wen.polynomial_degree,
+            )
             bouc_wen_fill(name, bw, segments, cv)(f)
     for comp in f.get("comparisons", {}).values():
         names = [configuration_name(int(k)) for k in comp.attrs["configurations"]]

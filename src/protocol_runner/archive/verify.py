@@ -16,7 +16,7 @@ from pathlib import Path
 
 import h5py
 
-from ..errors import InvalidInput
+from ..errors import InvalidInput, short
 from .checksums import digest_of_stored, is_marked, recorded_digest
 from .layout import check_layout, element_cap
 from .units import COMPLETE_ATTR
@@ -24,11 +24,6 @@ from .units import COMPLETE_ATTR
 ROOT_MARKER = "protocol_sha256"
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 _READ_ERRORS = (OSError, KeyError, ValueError, TypeError, RuntimeError, UnicodeDecodeError)
-
-
-def short(exc: BaseException) -> str:
-    text = str(exc).strip() or type(exc).__name__
-    return text if len(text) <= 160 else text[:157] + "..."
 
 
 def corrupt(archive: Path, exc: BaseException) -> InvalidInput:

@@ -10,7 +10,7 @@ The thesis calibrates each joint with two angle tables and one torque table (§2
 
 Tables are built from observations: command an angle (α_input), read the real angle on the joint's
 marked scale (α_real) and the angle the computer shows (α_output), then invert the relations
-(`build_table_from_observations`). ``python -m protocol_runner.hardware.calibration build OBS.csv
+(`build_table_from_observations`). ``python -m protocol_runner.hardware.calibration_build build OBS.csv
 --out-dir DIR`` does that from a CSV of observations and writes the tables.
 
 CSV format (read by `load_calibration_table`, written by `write_calibration_table`)::
@@ -27,18 +27,15 @@ stays invertible). Keep tables spanning the whole joint range so extrapolation i
 
 from __future__ import annotations
 
-import argparse
-import csv
 import math
-import sys
-from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import numpy.typing as npt
 
-from protocol_runner.errors import InvalidInput, UserError
+from protocol_runner.errors import InvalidInput
+from protocol_runner.tables import parse_header_table, read_table_text
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -134,41 +131,31 @@ def load_calibration_table(path: Path | str) -> CalibrationTable:
     strictly monotonic, fewer than two points.
     """
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InvalidInput(f"calibration table {p}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"calibration table {p}: cannot read it ({exc})") from None
+    text = read_table_text(p, "calibration table")
 
     header: list[str] | None = None
     xs: list[float] = []
     ys: list[float] = []
     lines: list[int] = []
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
-        cells = [c.strip() for c in next(csv.reader([line]))]
+    for row in parse_header_table(text).lines:
+        lineno, cells, line = row.line, list(row.cells), row.text
         where = f"calibration table {p}, line {lineno}"
         if len(cells) != 2:
-            raise InvalidInput(
-                f"{where}: expected 2 comma-separated columns, found {len(cells)}: {raw.strip()!r}"
-            )
+            raise InvalidInput(f"{where}: expected 2 comma-separated columns, found {len(cells)}: {line!r}")
         if header is None:
             if any(_is_number(c) for c in cells) or not all(cells):
                 raise InvalidInput(
                     f"{where}: expected a header row naming the two columns (e.g. 'real_deg,input_deg') "
-                    f"before the numbers, found {raw.strip()!r}"
+                    f"before the numbers, found {line!r}"
                 )
             header = cells
             continue
         try:
             xv, yv = float(cells[0]), float(cells[1])
         except ValueError:
-            raise InvalidInput(f"{where}: not a number: {raw.strip()!r}") from None
+            raise InvalidInput(f"{where}: not a number: {line!r}") from None
         if not (math.isfinite(xv) and math.isfinite(yv)):
-            raise InvalidInput(f"{where}: values must be finite numbers, found {raw.strip()!r}")
+            raise InvalidInput(f"{where}: values must be finite numbers, found {line!r}")
         if xs:
             if xv <= xs[-1]:
                 raise InvalidInput(
@@ -284,144 +271,3 @@ def _table_from_pairs(
             "(check the observations for a typo or a stuck joint)"
         )
     return CalibrationTable(xu, yu, x_name, y_name, source=source)
-
-
-# ---------------------------------------------------------------------------------------------------------
-# Command line: python -m protocol_runner.hardware.calibration build OBSERVATIONS.csv --out-dir DIR
-
-ANGLE_COLUMNS = ("input_deg", "real_deg", "output_deg")
-TORQUE_COLUMNS = ("real_nm", "output_nm")
-
-
-def _read_observations(path: Path) -> dict[str, FloatArray]:
-    """Read an observations CSV: '#' comments, a header naming the columns, numeric rows."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InvalidInput(f"observations {path}: file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"observations {path}: cannot read it ({exc})") from None
-    header: list[str] | None = None
-    rows: list[list[float]] = []
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        if not line or line.startswith("#"):
-            continue
-        cells = [c.strip() for c in next(csv.reader([line]))]
-        if header is None:
-            header = cells
-            continue
-        if len(cells) != len(header):
-            raise InvalidInput(
-                f"observations {path}, line {lineno}: expected {len(header)} values, found {len(cells)}"
-            )
-        try:
-            values = [float(c) for c in cells]
-        except ValueError:
-            raise InvalidInput(f"observations {path}, line {lineno}: not a number: {line!r}") from None
-        if not all(math.isfinite(v) for v in values):
-            raise InvalidInput(f"observations {path}, line {lineno}: values must be finite: {line!r}")
-        rows.append(values)
-    if header is None:
-        raise InvalidInput(f"observations {path}: empty (no header row)")
-    data = np.array(rows, dtype=np.float64).reshape(len(rows), len(header))
-    return {name: data[:, i] for i, name in enumerate(header)}
-
-
-def build_tables_from_file(observations: Path, out_dir: Path, prefix: str | None = None) -> list[Path]:
-    """Build and write the tables an observations CSV supports; return the paths written.
-
-    Columns ``input_deg, real_deg, output_deg`` give ``<prefix>_command.csv`` and ``<prefix>_angle.csv``;
-    columns ``real_nm, output_nm`` give ``<prefix>_torque.csv``. `prefix` defaults to the file's stem
-    without a trailing ``_observations``.
-    """
-    columns = _read_observations(observations)
-    name = prefix or observations.stem.removesuffix("_observations")
-    has_angle = all(c in columns for c in ANGLE_COLUMNS)
-    has_torque = all(c in columns for c in TORQUE_COLUMNS)
-    if not (has_angle or has_torque):
-        raise InvalidInput(
-            f"observations {observations}: needs columns {', '.join(ANGLE_COLUMNS)} (angle calibration) "
-            f"or {', '.join(TORQUE_COLUMNS)} (torque calibration); found {', '.join(columns) or 'none'}"
-        )
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InvalidInput(f"cannot create output directory {out_dir}: {exc}") from None
-    src = str(observations)
-    written: list[Path] = []
-    if has_angle:
-        command, angle = build_table_from_observations(
-            columns["input_deg"], columns["real_deg"], columns["output_deg"], source=src
-        )
-        written.append(
-            write_calibration_table(
-                out_dir / f"{name}_command.csv",
-                command,
-                "Command look-up table (thesis §2.5.1): real joint angle wanted (deg) -> angle to command "
-                f"(deg).\nBuilt from {src}.",
-            )
-        )
-        written.append(
-            write_calibration_table(
-                out_dir / f"{name}_angle.csv",
-                angle,
-                f"Angle telemetry look-up table (thesis §2.5.1): angle shown by the computer (deg) -> real "
-                f"joint angle (deg).\nBuilt from {src}.",
-            )
-        )
-    if has_torque:
-        torque = build_torque_table_from_observations(columns["real_nm"], columns["output_nm"], source=src)
-        written.append(
-            write_calibration_table(
-                out_dir / f"{name}_torque.csv",
-                torque,
-                f"Torque telemetry look-up table (thesis §2.5.2): torque shown by the computer (N*m) -> real "
-                f"torque (N*m).\nBuilt from {src}.",
-            )
-        )
-    return written
-
-
-def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
-        prog="python -m protocol_runner.hardware.calibration",
-        description="Build calibration look-up tables (thesis §2.5) from calibration observations.",
-    )
-    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    build = sub.add_parser(
-        "build",
-        help="build look-up tables from an observations CSV",
-        description=(
-            "Read OBSERVATIONS (CSV, '#' comments allowed, header row first) with columns "
-            "input_deg,real_deg,output_deg (angle calibration: commanded, real and displayed angle) and/or "
-            "real_nm,output_nm (torque calibration: applied and displayed torque), and write "
-            "PREFIX_command.csv (real_deg -> input_deg), PREFIX_angle.csv (output_deg -> real_deg) and/or "
-            "PREFIX_torque.csv (output_nm -> real_nm) into --out-dir."
-        ),
-    )
-    build.add_argument("observations", type=Path, metavar="OBSERVATIONS.csv")
-    build.add_argument("--out-dir", type=Path, required=True, metavar="DIR", help="directory for the tables")
-    build.add_argument(
-        "--prefix",
-        default=None,
-        help="table name prefix, e.g. 'knee' (default: the observation file name without '_observations')",
-    )
-    return parser
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of ``python -m protocol_runner.hardware.calibration``; returns the exit status."""
-    args = _parser().parse_args(argv)
-    try:
-        written = build_tables_from_file(args.observations, args.out_dir, args.prefix)
-    except UserError as exc:
-        print(f"error: {exc.message}", file=sys.stderr)
-        return exc.exit_code
-    for path in written:
-        print(path)
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -24,14 +24,12 @@ from protocol_runner.errors import EXIT_HARDWARE_UNAVAILABLE, HardwareUnavailabl
 from protocol_runner.hardware import usb1608fs, usb3105
 from protocol_runner.hardware.dt9814 import KIND as DT9814_KIND
 from protocol_runner.hardware.dt9814 import Dt9814, Dt9814Settings
-from protocol_runner.hardware.usb1608fs import MultiBoardInput, Usb1608FsPlus, open_all_1608fs
+from protocol_runner.hardware.usb1608fs import Usb1608FsPlus
 from protocol_runner.hardware.usb3105 import Usb3105
 from protocol_runner.hardware.usb_common import (
     DT_VENDOR_ID,
     MCC_VENDOR_ID,
     UDEV_RULE_FILENAME,
-    BoardNotFound,
-    MonotonicClock,
     NoUsbBackend,
     find_devices,
     read_serial,
@@ -316,78 +314,6 @@ def format_report(report: HardwareReport) -> str:
                 )
     lines += ["", "Ready for a hardware run." if report.ok else "NOT ready for a hardware run."]
     return "\n".join(lines)
-
-
-class _OutputSpec(Protocol):
-    @property
-    def channel(self) -> int: ...
-    @property
-    def serial(self) -> str | None: ...
-    @property
-    def volts_range(self) -> tuple[float, float]: ...
-
-
-class _InputSpec(Protocol):
-    @property
-    def board(self) -> str: ...
-    @property
-    def angle_channel(self) -> int: ...
-    @property
-    def torque_channel(self) -> int: ...
-    @property
-    def serials(self) -> list[str]: ...
-    @property
-    def volts_range(self) -> tuple[float, float]: ...
-
-
-class _RigSpec(Protocol):
-    @property
-    def output(self) -> _OutputSpec: ...
-    @property
-    def input(self) -> _InputSpec: ...
-
-
-def open_rig_boards(
-    rig_spec: _RigSpec, backend: Any | None = None, *, clock: MonotonicClock | None = None
-) -> tuple[Usb3105, MultiBoardInput, MonotonicClock]:
-    """Open the boards a protocol's ``rig`` section names: (analog output, analog input, real clock).
-
-    Output: the USB-3105 with ``output.serial`` (or the first one). Input: ``board: usb1608fs`` opens the
-    USB-1608FS-Plus boards listed in ``input.serials`` (in that order; empty = every attached board in
-    serial order) as one `MultiBoardInput`. ``board: dt9814`` is refused with a plain message: the only
-    known DT9814 protocol (comedi's DT9812) has no hardware-paced scan and addresses 8 channels.
-    Raises `HardwareUnavailable` (exit 3) naming what is missing; nothing stays open on failure.
-    """
-    out_spec, in_spec = rig_spec.output, rig_spec.input
-    for what, rng in (("output", out_spec.volts_range), ("input", in_spec.volts_range)):
-        if tuple(float(v) for v in rng) != (-10.0, 10.0):
-            raise InvalidInput(
-                f"rig.{what}.volts_range: the USB drivers support only [-10, 10] V, got {list(rng)}"
-            )
-    if in_spec.board == "dt9814":
-        raise HardwareUnavailable(
-            "the protocol's input board is the DT9814, which protocol-runner cannot drive on Linux: its only "
-            "known protocol (the DT9812's, UNVERIFIED for the DT9814) has no hardware-paced scan and reaches 8 "
-            "channels. Use three USB-1608FS-Plus boards (rig.input.board: usb1608fs; see docs/hardware.md), "
-            "or rehearse with --dry-run."
-        )
-    clock = clock or MonotonicClock()
-    ao = Usb3105.open(serial=out_spec.serial, backend=backend)
-    try:
-        boards = open_all_1608fs(in_spec.serials or None, backend, clock=clock)
-        ai = MultiBoardInput(boards)
-        for name, ch in (("angle", in_spec.angle_channel), ("torque", in_spec.torque_channel)):
-            if ch >= ai.n_channels:
-                ai.close()
-                raise BoardNotFound(
-                    f"the protocol reads the {name} on input channel {ch}, but the {len(boards)} "
-                    f"{usb1608fs.KIND} board(s) attached give channels 0-{ai.n_channels - 1} (8 per board). "
-                    "Connect the missing boards, or rehearse with --dry-run."
-                )
-    except BaseException:
-        ao.close()
-        raise
-    return ao, ai, clock
 
 
 def main(argv: Sequence[str] | None = None) -> int:

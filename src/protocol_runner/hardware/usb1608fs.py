@@ -1,16 +1,5 @@
-"""MCC USB-1608FS-Plus analog input over pyusb (satisfies `interfaces.AnalogInput`), and `MultiBoardInput`
-which joins several boards into one 24-channel (or wider) input.
-
-Protocol (reference "USB facts"; vendor control transfers bmRequestType 0xC0 in / 0x40 out, wIndex 0):
-
-- ``0x14`` AIN_CONFIG (out): 8 range bytes, one per channel (0 = +-10 V).
-- ``0x11`` AIN_SCAN_START (out): ``<u32 count (0 = continuous), u32 pacer = 40 MHz / rate - 1, u8 channel
-  mask, u8 options>``; rows come in ascending channel order.
-- ``0x12`` AIN_SCAN_STOP, ``0x15`` AIN_CLR_FIFO (out); ``0x44`` STATUS (in, u16: bit 1 running, bit 2
-  overrun; an overrun stalls the bulk pipe); ``0x48`` serial (in, 8 ASCII bytes); ``0x41`` blink (out).
-- ``0x30`` calibration memory (in, wValue = address): float32 LE (slope, intercept) for every range and
-  channel, ranges outer, channels inner, from address 0; ``calibrated = raw * slope + intercept``.
-- Scan data: bulk IN 0x81, 64-byte packets of LE u16 codes; +-10 V: ``V = (k - 32768) * 10 / 32768``.
+"""MCC USB-1608FS-Plus analog input over pyusb (satisfies `interfaces.AnalogInput`); `multiboard.py` joins
+several boards into one 24-channel (or wider) input, `usb1608fs_protocol.py` holds the USB protocol.
 
 Sample times are not sent by the board: row ``i`` is at ``t0 + i / rate`` where ``rate`` is the rate the
 pacer really runs at (40 MHz / (pacer + 1)) and ``t0`` the clock reading around AIN_SCAN_START.
@@ -24,7 +13,6 @@ import logging
 import math
 import struct
 from collections.abc import Sequence
-from dataclasses import dataclass
 from types import TracebackType
 from typing import Any
 
@@ -33,7 +21,31 @@ import numpy.typing as npt
 import usb.core
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.hardware.interfaces import AnalogInput, Clock, ScanBlock
+from protocol_runner.hardware.interfaces import Clock, ScanBlock
+from protocol_runner.hardware.usb1608fs_protocol import (
+    CMD_AIN_CLR_FIFO,
+    CMD_AIN_CONFIG,
+    CMD_AIN_SCAN_START,
+    CMD_AIN_SCAN_STOP,
+    CMD_BLINK_LED,
+    CMD_CAL_MEMORY,
+    CMD_SERIAL,
+    CMD_STATUS,
+    MAX_RATE_HZ,
+    N_RANGES,
+    PACER_CLOCK_HZ,
+    RANGE_PM10V,
+    REQ_IN,
+    REQ_OUT,
+    STATUS_OVERRUN,
+    Usb1608FsSettings,
+    codes_to_volts_pm10,
+    pacer_rate_hz,
+)
+from protocol_runner.hardware.usb1608fs_protocol import KIND as KIND
+from protocol_runner.hardware.usb1608fs_protocol import N_CHANNELS as N_CHANNELS
+from protocol_runner.hardware.usb1608fs_protocol import PRODUCT_ID as PRODUCT_ID
+from protocol_runner.hardware.usb1608fs_protocol import pacer_period as pacer_period
 from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,
     BoardIoError,
@@ -52,58 +64,6 @@ from protocol_runner.hardware.usb_common import (
 )
 
 log = logging.getLogger(__name__)
-
-PRODUCT_ID = 0x00EA
-KIND = "USB-1608FS-Plus"
-N_CHANNELS = 8
-N_RANGES = 8
-RANGE_PM10V = 0
-PACER_CLOCK_HZ = 40_000_000.0
-MAX_RATE_HZ = 100_000.0
-
-REQ_IN = 0xC0
-REQ_OUT = 0x40
-CMD_AIN_SCAN_START = 0x11
-CMD_AIN_SCAN_STOP = 0x12
-CMD_AIN_CONFIG = 0x14
-CMD_AIN_CLR_FIFO = 0x15
-CMD_CAL_MEMORY = 0x30
-CMD_BLINK_LED = 0x41
-CMD_STATUS = 0x44
-CMD_SERIAL = 0x48
-
-STATUS_RUNNING = 0x02
-STATUS_OVERRUN = 0x04
-
-
-@dataclass(frozen=True)
-class Usb1608FsSettings:
-    """Transport settings (the calibration address layout is UNVERIFIED on hardware)."""
-
-    interface: int = 0
-    in_endpoint: int = 0x81
-    packet_size: int = 64
-    timeout_ms: int = 1000
-    read_timeout_ms: int = 20
-    max_read_packets: int = 64
-    max_drain_packets: int = 1024
-    cal_address: int = 0x0000
-    scan_options: int = 0x00  # block transfer mode, no trigger, stall on overrun
-
-
-def pacer_period(rate_hz: float) -> int:
-    """The pacer register for `rate_hz` rows per second: ``round(40 MHz / rate - 1)``."""
-    return round(PACER_CLOCK_HZ / rate_hz - 1.0)
-
-
-def pacer_rate_hz(pacer: int) -> float:
-    """The row rate a pacer register value really gives: ``40 MHz / (pacer + 1)``."""
-    return PACER_CLOCK_HZ / (pacer + 1)
-
-
-def codes_to_volts_pm10(codes: npt.NDArray[np.int32]) -> npt.NDArray[np.float64]:
-    """+-10 V range: ``V = (k - 32768) * 10 / 32768``."""
-    return (codes.astype(np.float64) - 32768.0) * (10.0 / 32768.0)
 
 
 class Usb1608FsPlus:
@@ -429,131 +389,3 @@ def open_all_1608fs(
             b.close()
         raise
     return boards
-
-
-class MultiBoardInput:
-    """Several input boards seen as one `AnalogInput` with global channel numbers.
-
-    Global channel ``g`` is local channel ``g % channels_per_board`` of board ``g // channels_per_board``
-    (boards in the order given; `open_all_1608fs` sorts them by serial number). Three USB-1608FS-Plus
-    give channels 0-23.
-
-    Alignment assumption: each board's pacer runs from its own crystal, started by its own AIN_SCAN_START a
-    few milliseconds apart. Row ``i`` of every board is taken as simultaneous, with the time of board 0's
-    row ``i``. The error is the start skew (`start_skew_s`, measured from the boards' own start times,
-    typically 1-3 ms) plus the crystal drift (at most ~100 ppm between boards: 6.5 ms over a 65 s trial).
-    For tighter alignment wire board 0's SYNC output to the others' SYNC inputs (external pacing, not
-    implemented here). Rows that only some boards have delivered wait for the others; at `stop_scan` the
-    rows beyond the shortest board are dropped (`dropped_rows`).
-    """
-
-    def __init__(self, boards: Sequence[AnalogInput], channels_per_board: int = N_CHANNELS) -> None:
-        if not boards:
-            raise InvalidInput("MultiBoardInput needs at least one board")
-        self.boards = list(boards)
-        self.channels_per_board = channels_per_board
-        self._active: list[int] = []
-        self._columns: list[tuple[int, int]] = []  # per requested channel: (board index, column in board)
-        self._buffers: dict[int, list[ScanBlock]] = {}
-        self._n_channels = 0
-        self._first_t: dict[int, float] = {}
-        self.start_skew_s = 0.0
-        self.dropped_rows = 0
-
-    @property
-    def n_channels(self) -> int:
-        return self.channels_per_board * len(self.boards)
-
-    @property
-    def resolution_bits(self) -> int:
-        return min(b.resolution_bits for b in self.boards)
-
-    def locate(self, channel: int) -> tuple[int, int]:
-        """(board index, local channel) of a global channel number."""
-        if not 0 <= channel < self.n_channels:
-            raise InvalidInput(
-                f"input channel {channel} does not exist: {len(self.boards)} board(s) give channels "
-                f"0-{self.n_channels - 1}"
-            )
-        return divmod(channel, self.channels_per_board)
-
-    def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
-        chans = [int(c) for c in channels]
-        if len(set(chans)) != len(chans):
-            raise InvalidInput(f"scan channels must be distinct; got {chans}")
-        per_board: dict[int, list[int]] = {}
-        self._columns = []
-        for g in chans:
-            b, local = self.locate(g)
-            lst = per_board.setdefault(b, [])
-            self._columns.append((b, len(lst)))
-            lst.append(local)
-        self._active = sorted(per_board)
-        self._buffers = {b: [] for b in self._active}
-        self._n_channels = len(chans)
-        self._first_t = {}
-        self.dropped_rows = 0
-        self.start_skew_s = 0.0
-        started: list[int] = []
-        try:
-            for b in self._active:
-                self.boards[b].start_scan(per_board[b], rate_hz)
-                started.append(b)
-        except BaseException:
-            for b in started:
-                self.boards[b].stop_scan()
-            raise
-
-    def _collect(self, b: int, block: ScanBlock) -> None:
-        if block.n_samples:
-            self._buffers[b].append(block)
-            if b not in self._first_t:
-                self._first_t[b] = float(block.t_s[0])
-                if len(self._first_t) == len(self._active):
-                    ts = list(self._first_t.values())
-                    self.start_skew_s = max(ts) - min(ts)
-
-    def _emit(self, final: bool) -> ScanBlock:
-        merged = {b: ScanBlock.concatenate(self._buffers[b], 0) for b in self._active if self._buffers[b]}
-        if len(merged) < len(self._active):
-            if final:
-                self.dropped_rows = max((m.n_samples for m in merged.values()), default=0)
-                self._buffers = {b: [] for b in self._active}
-            return ScanBlock.empty(self._n_channels)
-        n = min(m.n_samples for m in merged.values())
-        codes = np.empty((n, self._n_channels), dtype=np.int32)
-        volts = np.empty((n, self._n_channels), dtype=np.float64)
-        for j, (b, col) in enumerate(self._columns):
-            codes[:, j] = merged[b].codes[:n, col]
-            volts[:, j] = merged[b].volts[:n, col]
-        t_s = merged[self._active[0]].t_s[:n].copy()
-        if final:
-            self.dropped_rows = max(m.n_samples for m in merged.values()) - n
-        for b, m in merged.items():
-            rest = ScanBlock(t_s=m.t_s[n:], codes=m.codes[n:], volts=m.volts[n:])
-            self._buffers[b] = [rest] if rest.n_samples and not final else []
-        return ScanBlock(t_s=t_s, codes=codes, volts=volts)
-
-    def read_available(self) -> ScanBlock:
-        for b in self._active:
-            self._collect(b, self.boards[b].read_available())
-        return self._emit(final=False)
-
-    def stop_scan(self) -> ScanBlock:
-        errors: list[BaseException] = []
-        for b in self._active:
-            try:
-                self._collect(b, self.boards[b].stop_scan())
-            except Exception as exc:  # stop every board even when one fails
-                errors.append(exc)
-        if errors:
-            raise errors[0]
-        block = self._emit(final=True)
-        if self.dropped_rows:
-            log.info("MultiBoardInput: dropped %d unmatched trailing rows", self.dropped_rows)
-        self._active = []
-        return block
-
-    def close(self) -> None:
-        for b in self.boards:
-            b.close()

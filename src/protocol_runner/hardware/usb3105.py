@@ -32,6 +32,11 @@ import usb.core
 import usb.util
 
 from protocol_runner.errors import InvalidInput
+from protocol_runner.hardware.usb3105_calibration import IDENTITY_CALIBRATION as IDENTITY_CALIBRATION
+from protocol_runner.hardware.usb3105_calibration import ChannelCalibration as ChannelCalibration
+from protocol_runner.hardware.usb3105_calibration import calibrated_code as calibrated_code
+from protocol_runner.hardware.usb3105_calibration import ideal_code_pm10v as ideal_code_pm10v
+from protocol_runner.hardware.usb3105_calibration import parse_calibration as parse_calibration
 from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,
     BoardIoError,
@@ -82,44 +87,6 @@ class Usb3105Settings:
     max_drain_reports: int = 256
     report_size: int = 64
     max_unexpected_replies: int = 4
-
-
-@dataclass(frozen=True)
-class ChannelCalibration:
-    """One channel's +-10 V factory calibration: ``code = round(slope * k + offset)``.
-
-    `valid` is False when memory held no plausible pair (erased, NaN, slope far from 1); the driver then
-    uses slope 1, offset 0 and says so in `calibration_summary`.
-    """
-
-    slope: float
-    offset: float
-    valid: bool = True
-
-
-IDENTITY_CALIBRATION = ChannelCalibration(1.0, 0.0, valid=False)
-
-
-def ideal_code_pm10v(volts: float) -> float:
-    """Ideal (uncalibrated, unrounded) +-10 V code: ``k = 32768 + 3276.8 * V``."""
-    return 32768.0 + 3276.8 * volts
-
-
-def calibrated_code(volts: float, cal: ChannelCalibration) -> int:
-    """The 16-bit code to send for `volts` on the +-10 V range: ``round(slope * k + offset)``, 0..65535."""
-    code = round(cal.slope * ideal_code_pm10v(volts) + cal.offset)
-    if code < 0:
-        return 0
-    if code > 65535:
-        return 65535
-    return code
-
-
-def parse_calibration(slope: float, offset: float) -> ChannelCalibration:
-    """Accept a stored pair only when plausible (finite, slope within 20 % of 1, |offset| < 4096 counts)."""
-    if math.isfinite(slope) and math.isfinite(offset) and 0.8 < slope < 1.2 and abs(offset) < 4096.0:
-        return ChannelCalibration(float(slope), float(offset), valid=True)
-    return IDENTITY_CALIBRATION
 
 
 class ChannelNotConfigured(InvalidInput):

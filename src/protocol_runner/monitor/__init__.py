@@ -16,6 +16,6 @@ Messages are documented in docs/monitor.md.
 
 from __future__ import annotations
 
-from .publisher import NULL_PUBLISHER, NullPublisher, Publisher
+from ..events import NULL_PUBLISHER, NullPublisher, Publisher
 
 __all__ = ["NULL_PUBLISHER", "NullPublisher", "Publisher"]  # the server: monitor.service.Monitor

@@ -16,7 +16,7 @@ from .schema import ConfigurationSpec, Levels, Protocol
 from .trajectories import load_trajectory_file
 
 if TYPE_CHECKING:
-    from .loader import LoadedProtocol
+    from .loaded import LoadedProtocol
 
 
 @dataclass(frozen=True)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import hashlib
 from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, get_origin
 
@@ -22,31 +21,14 @@ from pydantic import BaseModel, ValidationError
 
 from ..errors import InvalidInput
 from ..resources import packaged_protocols_dir
+from .loaded import LoadedProtocol as LoadedProtocol
+from .loaded import Loc as Loc
+from .loaded import clean_loc, line_for
 from .schema import Protocol
+from .validate import cross_check
 from .yaml_limits import MAX_PROTOCOL_BYTES, check_size, check_yaml_limits
 
-Loc = tuple[str | int, ...]
 MAX_ERRORS_SHOWN = 8
-
-
-@dataclass(frozen=True)
-class LoadedProtocol:
-    """A validated protocol with its provenance: the exact text and its sha256."""
-
-    protocol: Protocol
-    path: Path
-    text: str
-    sha256: str
-    lines: dict[Loc, int] = field(default_factory=dict, repr=False, compare=False)
-    shown: str = field(default="", repr=False, compare=False)  # the file's name in messages
-
-    @property
-    def base_dir(self) -> Path:
-        """Relative paths in the protocol (trajectory and calibration files) are relative to this."""
-        return self.path.parent
-
-    def line_of(self, loc: Loc) -> int | None:
-        return _line_for(self.lines, loc)
 
 
 def find_protocol(name_or_path: str, cwd: Path | None = None) -> Path:
@@ -133,7 +115,6 @@ def parse_protocol_text(
         raise InvalidInput(format_problems(shown, lines, problems)) from None
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
     loaded = LoadedProtocol(protocol=protocol, path=path, text=text, sha256=sha, lines=lines, shown=shown)
-    from .validate import cross_check  # local import: validate uses LoadedProtocol
 
     problems = cross_check(loaded, check_files=check_files)
     if problems:
@@ -154,9 +135,9 @@ def format_loc(loc: Sequence[str | int]) -> str:
 def format_problems(shown: str, lines: dict[Loc, int], problems: Sequence[tuple[Loc, str]]) -> str:
     rows = []
     for loc, message in problems[:MAX_ERRORS_SHOWN]:
-        line = _line_for(lines, loc)
+        line = line_for(lines, loc)
         where = f"{shown}:{line}" if line else shown
-        rows.append(f"{where}: {format_loc(_clean_loc(loc))}: {message}")
+        rows.append(f"{where}: {format_loc(clean_loc(loc))}: {message}")
     if len(problems) > MAX_ERRORS_SHOWN:
         rows.append(f"(and {len(problems) - MAX_ERRORS_SHOWN} more problems)")
     return "\n".join(rows)
@@ -191,26 +172,6 @@ def _index_lines(node: yaml.Node, loc: Loc, lines: dict[Loc, int], dups: list[tu
             _index_lines(item, (*loc, i), lines, dups)
 
 
-def _clean_loc(loc: Loc) -> Loc:
-    """Drop pydantic's internal location tags (union members, validator names)."""
-    out: list[str | int] = []
-    for part in loc:
-        if isinstance(part, str) and ("[" in part or part in {"str", "int", "float", "bool", "none", "list"}):
-            continue
-        out.append(part)
-    return tuple(out)
-
-
-def _line_for(lines: dict[Loc, int], loc: Loc) -> int | None:
-    loc = _clean_loc(loc)
-    while True:
-        if loc in lines:
-            return lines[loc]
-        if not loc:
-            return None
-        loc = loc[:-1]
-
-
 def _pydantic_message(err: Any) -> str:
     kind = err.get("type", "")
     value = err.get("input")
@@ -233,7 +194,7 @@ def _allowed_keys(loc: Loc) -> list[str]:
     """The field names of the model at `loc` (for "unknown key" hints)."""
     model: Any = Protocol
     skip_user_key = False
-    for part in _clean_loc(loc):
+    for part in clean_loc(loc):
         if isinstance(part, int):
             continue
         if skip_user_key:  # a key chosen by the user in a dict of models (level names, trajectory names)

@@ -25,33 +25,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from .levels import Settings, resolve_settings, with_motion_range
-from .loader import LoadedProtocol
+from .loaded import LoadedProtocol
 from .only import KeySelection
+from .plan_trajectory import Trajectory as Trajectory
+from .plan_trajectory import calibration_trajectory as calibration_trajectory
+from .plan_trajectory import trajectory_for
 from .schema import ConfigurationSpec, Protocol, SetSpec
-from .trajectories import load_trajectory_file, sinusoid_period_s
-
-
-@dataclass(frozen=True)
-class Trajectory:
-    """What to command during a trial (JSON shape of the plan contract)."""
-
-    profile: str
-    duration_s: float
-    mean_deg: float | None = None
-    amplitude_deg: float | None = None
-    period_s: float | None = None
-    source: str | None = None
-    params: tuple[tuple[str, float | str], ...] = ()
-
-    def to_json(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"profile": self.profile}
-        if self.profile == "sinusoid":
-            out.update(mean_deg=self.mean_deg, amplitude_deg=self.amplitude_deg, period_s=self.period_s)
-        if self.source is not None:
-            out["source"] = self.source
-        out.update(dict(self.params))
-        out["duration_s"] = self.duration_s
-        return out
+from .step_ids import calibration_id as calibration_id
+from .step_ids import step_id
+from .step_ids import trial_id as trial_id
 
 
 @dataclass(frozen=True)
@@ -234,72 +216,7 @@ class Plan:
 # ----------------------------------------------------------------------------------------- ids
 
 
-def calibration_id(set_name: str, when: str) -> str:
-    return f"cal:{set_name}:{when}"
-
-
-def trial_id(key: int, brace: str, trial: int) -> str:
-    return f"trial:k{key:02d}:{brace}:{trial}"
-
-
-def configuration_name(key: int) -> str:
-    """The archive group name of a configuration (docs/archive.md)."""
-    return f"config_{key:02d}"
-
-
 # -------------------------------------------------------------------------------------- expansion
-
-
-def trajectory_for(
-    p: Protocol, loaded: LoadedProtocol | None, cfg: ConfigurationSpec, settings: Settings
-) -> Trajectory:
-    if cfg.profile == "sinusoid":
-        lo, hi = settings.robot_rom_deg
-        amplitude = (hi - lo) / 2.0
-        period = sinusoid_period_s(amplitude, settings.speed_deg_s)
-        return Trajectory(
-            profile="sinusoid",
-            mean_deg=(hi + lo) / 2.0,
-            amplitude_deg=amplitude,
-            period_s=period,
-            duration_s=p.trajectories.sinusoid.periods * period,
-        )
-    if cfg.profile == "human":
-        assert cfg.trajectory is not None
-        spec = p.trajectories.human[cfg.trajectory]
-        duration = 0.0
-        if loaded is not None:
-            duration = load_trajectory_file(loaded.base_dir / spec.file).duration_s
-        return Trajectory(
-            profile="human", source=spec.file, duration_s=duration, params=(("name", cfg.trajectory),)
-        )
-    ident = p.trajectories.identification
-    assert ident is not None
-    return Trajectory(
-        profile="identification",
-        duration_s=ident.total_s,
-        params=(
-            ("min_deg", ident.range_deg[0]),
-            ("max_deg", ident.range_deg[1]),
-            ("repetition_s", ident.repetition_s),
-            ("initial_period_s", ident.initial_period_s),
-            ("final_period_s", ident.final_period_s),
-        ),
-    )
-
-
-def calibration_trajectory(p: Protocol) -> Trajectory:
-    s = p.trajectories.calibration_step
-    return Trajectory(
-        profile="step",
-        duration_s=s.settle_s + s.ramp_s + s.hold_s,
-        params=(
-            ("from_deg", s.from_deg),
-            ("step_deg", s.step_deg),
-            ("settle_s", s.settle_s),
-            ("ramp_s", s.ramp_s),
-        ),
-    )
 
 
 def _setup_items(p: Protocol, cfg: ConfigurationSpec, st: Settings) -> tuple[str, ...]:
@@ -344,7 +261,7 @@ def expand(loaded: LoadedProtocol, only: KeySelection | Iterable[int] | None = N
         if len(keys) >= 2:
             steps.append(
                 CompareStep(
-                    id=f"compare:{comp.name}",
+                    id=step_id("compare", comp.name),
                     kind="compare",
                     name=comp.name,
                     parameter=comp.parameter,
@@ -353,7 +270,7 @@ def expand(loaded: LoadedProtocol, only: KeySelection | Iterable[int] | None = N
                     configurations=keys,
                 )
             )
-    steps.append(ReportStep(id="report", kind="report"))
+    steps.append(ReportStep(id=step_id("report"), kind="report"))
     return Plan(
         protocol_name=p.name,
         protocol_sha256=loaded.sha256,
@@ -401,7 +318,7 @@ def _expand_set(
     for cfg, st in resolved:
         steps.append(
             ChecklistStep(
-                id=f"check:{s.name}:k{cfg.key:02d}",
+                id=step_id("check", set_name=s.name, key=cfg.key),
                 kind="operator_checklist",
                 set=s.name,
                 title=f"Configuration {cfg.key} (test run {cfg.run}): set up the brace",
@@ -414,7 +331,7 @@ def _expand_set(
         steps += [_trial(s, cfg, st, trajectories[cfg.key], "on", n) for n in range(1, cfg.trials + 1)]
     steps.append(
         ChecklistStep(
-            id=f"check:{s.name}:brace-off",
+            id=step_id("check", "brace-off", set_name=s.name),
             kind="operator_checklist",
             set=s.name,
             title=f"Set {s.name}: remove the brace; the robot runs the same conditions without it",
@@ -444,13 +361,21 @@ def _expand_set(
         )
         steps.append(
             ProcessStep(
-                id=f"process:k{cfg.key:02d}", kind="process", set=s.name, configuration=cfg.key, trials=pairs
+                id=step_id("process", key=cfg.key),
+                kind="process",
+                set=s.name,
+                configuration=cfg.key,
+                trials=pairs,
             )
         )
         if models:
             steps.append(
                 FitStep(
-                    id=f"fit:k{cfg.key:02d}", kind="fit", set=s.name, configuration=cfg.key, models=models
+                    id=step_id("fit", key=cfg.key),
+                    kind="fit",
+                    set=s.name,
+                    configuration=cfg.key,
+                    models=models,
                 )
             )
     return steps

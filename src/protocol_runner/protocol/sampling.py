@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from .plan import Trajectory
+from .plan_trajectory import Trajectory
 from .trajectories import (
     calibration_step_deg,
     identification_deg,

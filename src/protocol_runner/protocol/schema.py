@@ -238,6 +238,11 @@ class BoucWenFitSpec(_Model):
     backbone: Literal["polynomial", "none"] = "polynomial"
     backbone_degree: int = Field(default=9, ge=0, le=15)
 
+    @property
+    def polynomial_degree(self) -> int | None:
+        """The backbone polynomial's degree, or None for the thesis form torque = z."""
+        return self.backbone_degree if self.backbone == "polynomial" else None
+
 
 class FitsSpec(_Model):
     spring: SpringFitSpec = SpringFitSpec()

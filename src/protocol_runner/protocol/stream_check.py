@@ -18,11 +18,11 @@ from ..hardware.calibration import CalibrationTable, load_calibration_table
 from ..hardware.safety import SafetyLimits, SafetyViolation, check_trajectory
 from ..hardware.stream import build_stream, check_stream
 from .levels import resolve_settings
-from .plan import Trajectory, calibration_trajectory, trajectory_for
+from .plan_trajectory import Trajectory, calibration_trajectory, trajectory_for
 from .sampling import sample_trajectory
 
 if TYPE_CHECKING:
-    from .loader import LoadedProtocol, Loc
+    from .loaded import LoadedProtocol, Loc
 
 Problem = tuple["Loc", str]
 

@@ -22,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InvalidInput
+from ..tables import parse_header_table
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -164,28 +165,21 @@ def _load_csv(path: Path) -> tuple[FloatArray, FloatArray, str]:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
         raise InvalidInput(f"{path}: not a text file (cannot be read as UTF-8)") from None
-    header_lines: list[str] = []
-    columns: list[str] | None = None
-    time_col = angle_col = -1
+    table = parse_header_table(text)
+    if table.header is None:
+        raise InvalidInput(f"{path}: no column row and no data")
+    columns = [c.lower() for c in table.header.cells]
+    time_col = next((columns.index(n) for n in _TIME_NAMES if n in columns), -1)
+    angle_col = next((columns.index(n) for n in _ANGLE_NAMES if n in columns), -1)
+    if time_col < 0 or angle_col < 0:
+        raise InvalidInput(
+            f"{path}:{table.header.line}: the column row must name `time_s` and `angle_deg` "
+            f"(found: {table.header.text})"
+        )
     times: list[float] = []
     angles: list[float] = []
-    for lineno, raw in enumerate(text.splitlines(), start=1):
-        line = raw.strip()
-        if not line:
-            continue
-        if line.startswith("#"):
-            header_lines.append(line.lstrip("#").strip())
-            continue
-        cells = [c.strip() for c in line.split(",")]
-        if columns is None:
-            columns = [c.lower() for c in cells]
-            time_col = next((columns.index(n) for n in _TIME_NAMES if n in columns), -1)
-            angle_col = next((columns.index(n) for n in _ANGLE_NAMES if n in columns), -1)
-            if time_col < 0 or angle_col < 0:
-                raise InvalidInput(
-                    f"{path}:{lineno}: the column row must name `time_s` and `angle_deg` (found: {line})"
-                )
-            continue
+    for row in table.rows:
+        lineno, cells, line = row.line, row.cells, row.text
         try:
             times.append(float(cells[time_col]))
             angles.append(float(cells[angle_col]))
@@ -193,9 +187,11 @@ def _load_csv(path: Path) -> tuple[FloatArray, FloatArray, str]:
             raise InvalidInput(
                 f"{path}:{lineno}: expected numbers in columns time_s, angle_deg: {line!r}"
             ) from None
-    if columns is None:
-        raise InvalidInput(f"{path}: no column row and no data")
-    return np.asarray(times, dtype=np.float64), np.asarray(angles, dtype=np.float64), "\n".join(header_lines)
+    return (
+        np.asarray(times, dtype=np.float64),
+        np.asarray(angles, dtype=np.float64),
+        "\n".join(table.comments),
+    )
 
 
 def _load_mat(path: Path) -> tuple[FloatArray, FloatArray, str]:

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import InvalidInput
+from ..hardware.conversions import RSST_JOINTS
 from .paths import OutsideFolder, confined_path
 from .schema import LEVEL_FAMILIES, ConfigurationSpec, Protocol
 from .trajectories import (
@@ -26,7 +27,7 @@ from .trajectories import (
 )
 
 if TYPE_CHECKING:
-    from .loader import LoadedProtocol, Loc
+    from .loaded import LoadedProtocol, Loc
 
 Problem = tuple["Loc", str]
 
@@ -123,10 +124,6 @@ def _check_rig(p: Protocol) -> Iterator[Problem]:
             ),
         )
     if rig.joint.rsst_joint is not None:
-        try:
-            from ..hardware.conversions import RSST_JOINTS
-        except ImportError:  # pragma: no cover - hardware layer always present in a full install
-            return
         spec = RSST_JOINTS.get(rig.joint.rsst_joint)
         if spec is not None:
             table_range = tuple(spec.range_deg)
@@ -305,7 +302,7 @@ def _check_loadable(loc: Loc, base: Path, rel: str, what: str) -> Iterator[Probl
 
             load_calibration_table(path)
         else:
-            from ..report.load import load_reference_dataset
+            from ..analysis.reference import load_reference_dataset
 
             load_reference_dataset(path)
     except InvalidInput as exc:

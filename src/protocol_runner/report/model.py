@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..analysis.reference import ReferenceDataset as ReferenceDataset  # read by validate and report
+
 FloatArray = np.ndarray
 
 
@@ -223,16 +225,6 @@ class Comparison:
     title: str
     configurations: tuple[int, ...]
     from_archive: bool
-
-
-@dataclass(frozen=True)
-class ReferenceDataset:
-    """An external torque-angle dataset to compare with (the EMU data of §5.6)."""
-
-    source: str
-    title: str
-    angle_deg: FloatArray
-    torque_nm: FloatArray
 
 
 @dataclass(frozen=True)

@@ -8,29 +8,15 @@ shown verbatim, explicit answers only.
 from __future__ import annotations
 
 import sys
-from dataclasses import dataclass
-from typing import Any, Protocol, TextIO
+from typing import Any, TextIO
 
 from ..errors import Interrupted, InvalidInput
 from ..protocol.plan import ChecklistStep
+from ..steps.operator import Answer as Answer
+from ..steps.operator import Operator as Operator
 from .journal import utc_now
 
 ANSWERS = {"y": "y", "yes": "y", "n": "n", "no": "n", "q": "q", "quit": "q"}  # nothing else counts
-
-
-@dataclass(frozen=True)
-class Answer:
-    answer: str  # "done"
-    answered_utc: str
-    automatic: bool
-
-
-class Operator(Protocol):
-    def checklist(self, step: ChecklistStep) -> Answer: ...
-
-    def accept_failed_check(self, message: str) -> bool: ...
-
-    def confirm(self, question: str) -> bool: ...
 
 
 class AutoOperator:

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 from ..archive.diskfull import QuietFileHandler
-from ..monitor.publisher import NULL_PUBLISHER, Publisher
+from ..events import NULL_PUBLISHER, Publisher
 from ..protocol.plan import CalibrationCheckStep, Plan, Step, TrialStep
 
 

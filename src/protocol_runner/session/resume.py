@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 from ..archive.units import unit_is_complete
 from ..errors import InvalidInput
@@ -33,9 +33,25 @@ from .setup import SessionInfo, changed_files
 
 if TYPE_CHECKING:
     from ..protocol.only import KeySelection
-    from ..steps.context import StepContext
+    from ..steps.context import Bench, StepContext, StepOutcome
+    from ..steps.operator import Operator
     from .progress import Progress
-    from .runner import Runner
+
+
+class Runner(Protocol):
+    """What resuming needs of the session runner (`session.runner.Runner`)."""
+
+    dir: Path
+    info: SessionInfo
+    plan: Plan
+    bench: Bench
+    operator: Operator
+    journal: Journal
+    units_dir: Path
+    protocol_changed: bool
+
+    def record(self, step_id: str, outcome: StepOutcome) -> None: ...
+
 
 # the rig's state at the start of a session, before any checklist: nothing fitted to the joint
 INITIAL_STATE_ITEMS = ("Brace OFF: not fitted to the robot's joint", "Joint free of straps, foam and clamps")
@@ -129,10 +145,12 @@ def prepare_resume(runner: Runner, ctx: StepContext, progress: Progress) -> None
         isinstance(s, TrialStep) and s.set == set_name and s.id not in j.units for s in plan.steps
     )
     if before in j.units and first.id != before and set_trials_pending:
-        k = 1 + sum(1 for key in list(j.units) + list(j.failed) if key.startswith(f"cal:{set_name}:resume-"))
+        k = 1 + sum(
+            1 for key in list(j.units) + list(j.failed) if key.startswith(calibration_id(set_name, "resume-"))
+        )
         check = plan.step(before)
         assert isinstance(check, CalibrationCheckStep)
-        record_as = f"cal:{set_name}:resume-{k}"
+        record_as = calibration_id(set_name, f"resume-{k}")
         ask_state(
             runner,
             state_source(plan, plan.steps.index(check)),
@@ -142,7 +160,7 @@ def prepare_resume(runner: Runner, ctx: StepContext, progress: Progress) -> None
         j.event("calibration_rerun", f"{record_as} before continuing set {set_name} at {first.id}")
         progress.info(f"resuming inside set {set_name}: re-running its calibration check first ({record_as})")
         outcome = calibration_check.run_check(check, ctx, record_as=record_as, when=f"resume_{k}")
-        runner._record(record_as, outcome)
+        runner.record(record_as, outcome)
         progress.info(f"{record_as}: {outcome.summary}")
     if isinstance(first, ChecklistStep):
         return  # the checklist itself asks for the state

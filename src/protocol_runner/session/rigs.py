@@ -131,13 +131,7 @@ def open_hardware_rig(loaded: LoadedProtocol) -> Rig:
     """Open the boards the protocol names; HardwareUnavailable (exit 3) with a plain message if absent."""
     refuse_unsupported_input(loaded)
     rig_spec = loaded.protocol.rig
-    try:
-        from ..hardware import discovery
-    except ImportError:  # pragma: no cover
-        discovery = None  # type: ignore[assignment]
-    if discovery is None or not hasattr(discovery, "open_rig_boards"):
-        raise HardwareUnavailable(
-            "no DAQ boards found; use --dry-run to rehearse the campaign against the simulator"
-        )
-    ao, ai, clock = discovery.open_rig_boards(rig_spec)
+    from ..hardware.rig_boards import open_rig_boards  # here: only a hardware run needs the USB drivers
+
+    ao, ai, clock = open_rig_boards(rig_spec)
     return Rig(joint_config(loaded), ao, ai, clock)

@@ -5,25 +5,31 @@ Passed explicitly to each step's `run(step, ctx)`; nothing is reached through gl
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import Protocol
 
 import h5py
 
 from ..analysis.pipeline import ProcessingSettings
+from ..archive.results import Fill
 from ..archive.units import open_unit
 from ..errors import UserError
+from ..events import NULL_PUBLISHER, Publisher
 from ..hardware.rig import Rig
-from ..monitor.publisher import NULL_PUBLISHER, Publisher
 from ..protocol.levels import Settings
 from ..protocol.loader import LoadedProtocol
 from ..protocol.plan import Plan
+from ..protocol.processing import processing_settings as processing_settings
+from .operator import Operator
 
-if TYPE_CHECKING:
-    from ..session.journal import Journal
-    from ..session.operator import Operator
+
+class JournalView(Protocol):
+    """What steps read from the session journal: the units already complete, by step id."""
+
+    @property
+    def units(self) -> Mapping[str, object]: ...
 
 
 class Bench(Protocol):
@@ -46,7 +52,7 @@ class StepContext:
     bench: Bench
     operator: Operator
     units_dir: Path
-    journal: Journal
+    journal: JournalView
     stop_requested: Callable[[], bool]
     processing: ProcessingSettings
     monitor: Publisher = NULL_PUBLISHER  # the live monitor (--monitor), or nothing
@@ -54,9 +60,6 @@ class StepContext:
     def unit(self, step_id: str) -> h5py.File:
         """Open the completed unit of an earlier step (read-only)."""
         return open_unit(self.units_dir, step_id)
-
-
-Fill = Callable[[h5py.File], None]
 
 
 @dataclass(frozen=True)
@@ -69,17 +72,3 @@ class StepOutcome:
     fill: Fill | None
     summary: str
     stop: UserError | None = None
-
-
-def processing_settings(loaded: LoadedProtocol) -> ProcessingSettings:
-    proc = loaded.protocol.processing
-    return ProcessingSettings(
-        transition_tolerance_deg=proc.transition.tolerance_deg,
-        transition_points=proc.transition.points,
-        filter_kind=proc.filter.kind,
-        filter_order=proc.filter.order,
-        filter_cutoff=proc.filter.cutoff,
-        chebyshev_ripple_db=proc.filter.ripple_db,
-        subtraction=proc.subtraction,
-        centring="trial_mean" if proc.centre_for_fit else "none",
-    )

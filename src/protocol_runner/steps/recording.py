@@ -8,6 +8,7 @@ import h5py
 import numpy as np
 
 from ..archive.h5util import SIGNAL, put
+from ..archive.paths import put_dataset
 from ..hardware.rig import TrialRecording
 from ..hardware.stream import SEGMENT_NAMES
 
@@ -17,21 +18,21 @@ def put_scan(g: h5py.Group, rec: TrialRecording) -> None:
 
     Codes are stored as int32 whatever the board: the DT9814's are signed 12-bit, the USB-1608FS-Plus's
     unsigned 16-bit; the byte-shuffle filter makes the unused high bytes cost almost nothing."""
-    put(g, "time_s", rec.input_time_s, "s")
-    put(g, "angle_deg", rec.angle_deg, "deg", dtype=SIGNAL)
-    put(g, "torque_nm", rec.torque_nm, "N*m", dtype=SIGNAL)
-    put(g, "angle_codes", rec.angle_codes, "counts", dtype=np.int32)
-    put(g, "torque_codes", rec.torque_codes, "counts", dtype=np.int32)
+    put_dataset(g, "recording", "time_s", rec.input_time_s)
+    put_dataset(g, "recording", "angle_deg", rec.angle_deg, dtype=SIGNAL)
+    put_dataset(g, "recording", "torque_nm", rec.torque_nm, dtype=SIGNAL)
+    put_dataset(g, "recording", "angle_codes", rec.angle_codes, dtype=np.int32)
+    put_dataset(g, "recording", "torque_codes", rec.torque_codes, dtype=np.int32)
 
 
 def put_commands(g: h5py.Group, rec: TrialRecording, *, full: bool) -> None:
     """The output ticks (100 Hz): times and commanded angles; with `full`, volts, DAC codes and timing."""
-    put(g, "command_time_s", rec.command_time_s, "s")
-    put(g, "command_deg", rec.command_deg, "deg")
+    put_dataset(g, "recording", "command_time_s", rec.command_time_s)
+    put_dataset(g, "recording", "command_deg", rec.command_deg)
     if full:
-        put(g, "command_volts", rec.command_volts, "V", dtype=SIGNAL)
-        put(g, "command_codes", rec.command_codes, "counts", dtype=np.uint16)
-        put(g, "tick_lateness_s", rec.tick_lateness_s, "s")
+        put_dataset(g, "recording", "command_volts", rec.command_volts, dtype=SIGNAL)
+        put_dataset(g, "recording", "command_codes", rec.command_codes, dtype=np.uint16)
+        put_dataset(g, "recording", "tick_lateness_s", rec.tick_lateness_s)
     if rec.stream_deg.size:
         put_stream(g.create_group("stream"), rec)
 

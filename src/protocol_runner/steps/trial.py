@@ -19,10 +19,11 @@ from ..analysis.filters import lowpass
 from ..analysis.scaling import ScalingResult, scale_brace_off_input
 from ..analysis.transition import command_on_input_base, transition_index
 from ..archive.h5util import put, set_attrs
+from ..archive.paths import configuration_path, recording_path
 from ..errors import HardwareUnavailable
 from ..hardware.motion import run_motion
 from ..hardware.rig import TrialRecording
-from ..protocol.plan import Trajectory, TrialStep, configuration_name
+from ..protocol.plan import Trajectory, TrialStep
 from ..protocol.sampling import sample_trajectory
 from .context import StepContext, StepOutcome
 from .recording import put_commands, put_scan
@@ -46,7 +47,7 @@ class _BraceOn:
 
 def _read_brace_on(ctx: StepContext, step: TrialStep) -> _BraceOn:
     assert step.twin is not None
-    path = f"configurations/{configuration_name(step.configuration)}/trials/{step.trial}/brace_on"
+    path = recording_path(step.configuration, step.trial, "on")
     with ctx.unit(step.twin) as f:
         g = f[path]
         return _BraceOn(g["time_s"][:], g["angle_deg"][:], g["command_time_s"][:], g["command_deg"][:])
@@ -160,7 +161,7 @@ def _fill(
     lateness = rec.tick_lateness_s
 
     def fill(f: h5py.File) -> None:
-        cfg = f.require_group(f"configurations/{configuration_name(step.configuration)}")
+        cfg = f.require_group(configuration_path(step.configuration))
         set_attrs(cfg, cfg_attrs)
         g = cfg.require_group(f"trials/{step.trial}").create_group(f"brace_{step.brace}")
         put_scan(g, rec)

@@ -9,14 +9,8 @@ Models: `make_usb3105` (USB-3105 analog output), `make_usb1608fs` (USB-1608FS-Pl
 Faults: `Faults` per device, `FakeBackend.unplug(model)`.
 """
 
-from protocol_runner.hardware.fakeusb.backend import (
-    EndpointSpec,
-    FakeBackend,
-    FakeUsbDevice,
-    Faults,
-    InterfaceSpec,
-    Stall,
-)
+from protocol_runner.hardware.fakeusb.backend import FakeBackend
+from protocol_runner.hardware.fakeusb.device import EndpointSpec, FakeUsbDevice, Faults, InterfaceSpec, Stall
 from protocol_runner.hardware.fakeusb.dt9814 import Dt9814Model, make_dt9814
 from protocol_runner.hardware.fakeusb.usb1608fs import ManualClock, Usb1608FsModel, make_usb1608fs
 from protocol_runner.hardware.fakeusb.usb3105 import Usb3105Model, make_usb3105

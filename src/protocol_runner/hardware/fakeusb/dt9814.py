@@ -18,7 +18,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from protocol_runner.hardware.fakeusb.backend import (
+from protocol_runner.hardware.fakeusb.device import (
     ENDPOINT_BULK,
     EndpointSpec,
     FakeUsbDevice,

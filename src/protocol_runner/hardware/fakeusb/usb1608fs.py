@@ -21,7 +21,7 @@ from typing import Any
 
 import numpy as np
 
-from protocol_runner.hardware.fakeusb.backend import (
+from protocol_runner.hardware.fakeusb.device import (
     ENDPOINT_BULK,
     EndpointSpec,
     FakeUsbDevice,

@@ -16,7 +16,7 @@ import struct
 from collections import deque
 from dataclasses import dataclass, field
 
-from protocol_runner.hardware.fakeusb.backend import (
+from protocol_runner.hardware.fakeusb.device import (
     ENDPOINT_INTERRUPT,
     EndpointSpec,
     FakeUsbDevice,

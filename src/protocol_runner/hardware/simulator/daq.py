@@ -24,8 +24,7 @@ from __future__ import annotations
 
 import hashlib
 import math
-import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -42,9 +41,14 @@ from protocol_runner.hardware.conversions import (
     volts_to_angle,
 )
 from protocol_runner.hardware.interfaces import ScanBlock
+from protocol_runner.hardware.simulator.kernels import GRID_TOL, ROLE_ANGLE, ROLE_TORQUE
+from protocol_runner.hardware.simulator.output import (
+    SimulatedAnalogOutput,
+    SimulatedClock,
+    check_channel,
+)
 from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, BraceSetup, SimulatorParams
-from protocol_runner.hardware.simulator.plant import GRID_TOL, ROLE_ANGLE, ROLE_TORQUE, JointPlant
-from protocol_runner.hardware.usb3105 import IDENTITY_CALIBRATION, calibrated_code
+from protocol_runner.hardware.simulator.plant import JointPlant
 
 if TYPE_CHECKING:
     from protocol_runner.hardware.calibration import CalibrationTable
@@ -52,8 +56,6 @@ if TYPE_CHECKING:
 
 FloatArray = npt.NDArray[np.float64]
 
-AO_CHANNELS = 16
-"""USB-3105: 16 analog outputs (thesis §2.3)."""
 AI_CHANNELS = 24
 """DT9814-10V: 24 analog inputs (thesis §2.3)."""
 AI_MAX_RATE_HZ = 50_000.0
@@ -72,131 +74,6 @@ def step_seed(seed: int, step_id: str) -> int:
     (stable across processes and Python versions, unlike `hash()`)."""
     digest = hashlib.sha256(f"{int(seed)}\x1f{step_id}".encode()).digest()
     return int.from_bytes(digest[:16], "little")
-
-
-class SimulatedClock:
-    """Simulated time: `sleep_until` jumps instead of sleeping. With `realtime=True` it is the wall clock
-    (time.monotonic from construction, plus `start_s`) and `sleep_until` really sleeps (`--realtime`)."""
-
-    def __init__(self, *, realtime: bool = False, start_s: float = 0.0) -> None:
-        self.realtime = realtime
-        self._now_s = float(start_s)
-        self._start_s = float(start_s)
-        self._wall0 = time.monotonic()
-
-    def now_s(self) -> float:
-        if self.realtime:
-            return self._start_s + (time.monotonic() - self._wall0)
-        return self._now_s
-
-    def sleep_until(self, t_s: float) -> None:
-        if self.realtime:
-            while True:
-                remaining = t_s - self.now_s()
-                if remaining <= 0.0:
-                    return
-                time.sleep(remaining)
-        elif t_s > self._now_s:
-            self._now_s = float(t_s)
-
-    def advance(self, dt_s: float) -> None:
-        """Let `dt_s` seconds pass (jump, or sleep in real time)."""
-        self.sleep_until(self.now_s() + max(0.0, dt_s))
-
-
-def _check_channel(channel: int, n_channels: int, board: str) -> int:
-    if type(channel) is int and 0 <= channel < n_channels:
-        return channel
-    if (
-        isinstance(channel, bool)
-        or not isinstance(channel, int | np.integer)
-        or not 0 <= channel < n_channels
-    ):
-        raise InvalidInput(f"{board}: channel must be an integer 0-{n_channels - 1}, got {channel!r}")
-    return int(channel)
-
-
-def _ao_code(volts: float) -> int:
-    """The code a USB-3105 sends for `volts` on the ±10 V range with ideal calibration: the board driver's
-    own scalar rule (`usb3105.calibrated_code`, equal to `conversions.volts_to_ao16_code`)."""
-    v = float(volts)
-    if math.isnan(v):
-        raise InvalidInput("USB-3105 (simulated): cannot output NaN volts")
-    if math.isinf(v):
-        return 65535 if v > 0.0 else 0
-    return calibrated_code(v, IDENTITY_CALIBRATION)
-
-
-class SimulatedAnalogOutput:
-    """A USB-3105 stand-in: quantises volts to its 16-bit ±10 V ideal code (clamped), records every update
-    as (time, channel, code) and hands it to `listener` (the simulated robot)."""
-
-    def __init__(
-        self, clock: SimulatedClock, *, listener: Callable[[float, int, int], None] | None = None
-    ) -> None:
-        self._clock = clock
-        self._listener = listener
-        self._t: list[float] = []
-        self._channel: list[int] = []
-        self._code: list[int] = []
-        self._closed = False
-
-    def _emit(self, t_s: float, channel: int, code: int) -> None:
-        self._t.append(t_s)
-        self._channel.append(channel)
-        self._code.append(code)
-        if self._listener is not None:
-            self._listener(t_s, channel, code)
-
-    def configure_channel(self, channel: int) -> None:
-        """±10 V range; like the real board this also drives the output to 0 V (code 32768)."""
-        ch = _check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
-        self._emit(self._clock.now_s(), ch, 32768)
-
-    def write_volts(self, channel: int, volts: float) -> int:  # hot path: one call per output tick
-        ch = (
-            channel
-            if type(channel) is int and 0 <= channel < AO_CHANNELS
-            else _check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
-        )
-        # `_ao_code` inlined for the usual in-range value (NaN, infinities and clamping take the full rule)
-        if type(volts) is float and 0.0 <= (k := 32768.0 + 3276.8 * volts) <= 65535.0:
-            code = round(k)
-        else:
-            code = _ao_code(volts)
-        t_s = self._clock.now_s()
-        self._t.append(t_s)
-        self._channel.append(ch)
-        self._code.append(code)
-        if self._listener is not None:
-            self._listener(t_s, ch, code)
-        return code
-
-    def write_volts_sync(self, volts_by_channel: Mapping[int, float]) -> dict[int, int]:
-        t_s = self._clock.now_s()
-        codes: dict[int, int] = {}
-        for channel, volts in volts_by_channel.items():
-            ch = _check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
-            codes[ch] = _ao_code(volts)
-        for ch, code in codes.items():
-            self._emit(t_s, ch, code)
-        return codes
-
-    def records(self) -> tuple[FloatArray, npt.NDArray[np.int64], npt.NDArray[np.int64]]:
-        """Every update since the last `clear_records`: (time_s, channel, code) arrays."""
-        return (
-            np.asarray(self._t, dtype=np.float64),
-            np.asarray(self._channel, dtype=np.int64),
-            np.asarray(self._code, dtype=np.int64),
-        )
-
-    def clear_records(self) -> None:
-        self._t.clear()
-        self._channel.clear()
-        self._code.clear()
-
-    def close(self) -> None:
-        self._closed = True
 
 
 class _RigModel:
@@ -358,7 +235,7 @@ class SimulatedAnalogInput:
     def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
         if len(channels) == 0:
             raise InvalidInput("DT9814 (simulated): a scan needs at least one channel")
-        chans = tuple(_check_channel(c, AI_CHANNELS, "DT9814 (simulated)") for c in channels)
+        chans = tuple(check_channel(c, AI_CHANNELS, "DT9814 (simulated)") for c in channels)
         if not (math.isfinite(rate_hz) and 0.0 < rate_hz * len(chans) <= AI_MAX_RATE_HZ):
             raise InvalidInput(
                 f"DT9814 (simulated): scan rate must be > 0 and at most {AI_MAX_RATE_HZ:g} samples/s over "

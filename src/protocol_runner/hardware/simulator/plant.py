@@ -34,356 +34,65 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
+from protocol_runner.hardware.simulator.kernels import (
+    I_CMD,
+    I_STEP,
+    N_ISTATE,
+    N_PARAMS,
+    N_ROWS_REC,
+    N_STATE,
+    N_TIMING,
+    P_BRACE_F,
+    P_BRACE_ON,
+    P_BRACE_TRANS,
+    P_BUMP_ANGLE,
+    P_BUMP_TORQUE,
+    P_BUMP_V,
+    P_BUMP_WIDTH,
+    P_DT,
+    P_EPS,
+    P_GRAVITY,
+    P_GRAVITY_ZERO,
+    P_RELIEF,
+    P_ROBOT_F,
+    P_ROBOT_TRANS,
+    P_ROBOT_VISC,
+    P_ROM_HI,
+    P_ROM_LO,
+    P_SLACK,
+    P_SLACK_K,
+    P_SPRING_DX,
+    P_SPRING_X0,
+    P_STATIC_EXCESS,
+    P_STOP_K,
+    P_STRIBECK_V,
+    P_T_HI,
+    P_T_LO,
+    P_TAU,
+    R_COUNT,
+    R_FIRST,
+    R_N_CMD,
+    R_STEP_END,
+    S_ANGLE,
+    S_LOAD,
+    S_SPEED,
+    S_Z_BRACE,
+    S_Z_ROBOT,
+    T_ORIGIN,
+    T_RATE,
+    T_START,
+    FloatArray,
+    IntArray,
+    Joint,
+    Sensors,
+    _load_nm,
+    integrate,
+    integrate_rows,
+    scan_rows,
+)
 from protocol_runner.hardware.simulator.params import BraceSetup, SimulatorParams
 from protocol_runner.models.spring import spring_force_n, spring_torque_nm
-
-FloatArray = npt.NDArray[np.float64]
-IntArray = npt.NDArray[np.int64]
-
-# Indices into the float parameter vector handed to the kernel.
-P_DT = 0
-P_TAU = 1
-P_EPS = 2
-P_RELIEF = 3
-P_T_HI = 4
-P_T_LO = 5
-P_GRAVITY = 6
-P_GRAVITY_ZERO = 7
-P_ROBOT_F = 8
-P_ROBOT_TRANS = 9
-P_ROBOT_VISC = 10
-P_BRACE_ON = 11
-P_BRACE_F = 12
-P_BRACE_TRANS = 13
-P_STATIC_EXCESS = 14
-P_STRIBECK_V = 15
-P_ROM_LO = 16
-P_ROM_HI = 17
-P_SLACK = 18
-P_SLACK_K = 19
-P_STOP_K = 20
-P_BUMP_ANGLE = 21
-P_BUMP_WIDTH = 22
-P_BUMP_TORQUE = 23
-P_BUMP_V = 24
-P_SPRING_X0 = 25
-P_SPRING_DX = 26
-N_PARAMS = 27
-
-# Indices into the float state vector.
-S_ANGLE = 0
-S_SPEED = 1
-S_Z_ROBOT = 2
-S_Z_BRACE = 3
-S_LOAD = 4
-N_STATE = 5
-
-# Indices into the integer state vector.
-I_STEP = 0
-I_CMD = 1
-N_ISTATE = 2
-
-
-@njit(cache=True)
-def _stop_torque_nm(penetration_deg: float, p: FloatArray) -> float:
-    """Torque of one range-of-motion stop penetrated by `penetration_deg` (> 0): slack, then stiff."""
-    slack = p[P_SLACK]
-    if penetration_deg <= slack:
-        return p[P_SLACK_K] * penetration_deg
-    return p[P_SLACK_K] * slack + p[P_STOP_K] * (penetration_deg - slack)
-
-
-@njit(cache=True)
-def _load_nm(
-    angle_deg: float, speed_deg_s: float, z_robot: float, z_brace: float, p: FloatArray, spring: FloatArray
-) -> float:
-    """Total load torque the actuator holds at this state (positive = the robot pushes to flex)."""
-    load = p[P_GRAVITY] * math.sin(math.radians(angle_deg - p[P_GRAVITY_ZERO]))
-    load += z_robot + p[P_ROBOT_VISC] * speed_deg_s
-    if p[P_BRACE_ON] > 0.5:
-        # springs: linear interpolation in the precomputed table, clamped at its ends
-        u = (angle_deg - p[P_SPRING_X0]) / p[P_SPRING_DX]
-        n = spring.shape[0]
-        if u <= 0.0:
-            load += spring[0]
-        elif u >= n - 1:
-            load += spring[n - 1]
-        else:
-            i = int(u)
-            f = u - i
-            load += spring[i] * (1.0 - f) + spring[i + 1] * f
-        load += z_brace
-        pen_lo = p[P_ROM_LO] - angle_deg
-        if pen_lo > 0.0:
-            load -= _stop_torque_nm(pen_lo, p)
-        pen_hi = angle_deg - p[P_ROM_HI]
-        if pen_hi > 0.0:
-            load += _stop_torque_nm(pen_hi, p)
-        if p[P_BUMP_TORQUE] > 0.0:
-            d = (angle_deg - p[P_BUMP_ANGLE]) / p[P_BUMP_WIDTH]
-            if d * d < 30.0:
-                v = min(abs(speed_deg_s) / p[P_BUMP_V], 3.0)
-                load += p[P_BUMP_TORQUE] * v * math.exp(-d * d)
-    return load
-
-
-@njit(cache=True)
-def _dahl(z: float, level: float, step_deg: float, transition_deg: float) -> float:
-    """Exact Dahl update over a displacement `step_deg`: z relaxes towards sign(step)·level."""
-    if level <= 0.0:
-        return 0.0
-    if step_deg == 0.0:
-        return z
-    target = level if step_deg > 0.0 else -level
-    return target + (z - target) * math.exp(-abs(step_deg) / transition_deg)
-
-
-@njit(cache=True)
-def integrate(
-    state: FloatArray,
-    istate: IntArray,
-    p: FloatArray,
-    spring: FloatArray,
-    cmd_step: IntArray,
-    cmd_target_deg: FloatArray,
-    n_cmd: int,
-    step_end: int,
-    sample_step: IntArray,
-    out_angle_deg: FloatArray,
-    out_torque_nm: FloatArray,
-) -> int:
-    """Advance the joint from its current grid step to `step_end`, recording samples on the way.
-
-    `cmd_step[:n_cmd]` / `cmd_target_deg[:n_cmd]` is the zero-order-hold command history: target i holds
-    from grid step cmd_step[i] on (sorted). `sample_step` lists the grid steps (sorted) at which to record
-    the real angle and the load torque into the outputs; samples at steps beyond `step_end` are left.
-    Returns how many samples were written. `state` / `istate` are updated in place.
-    """
-    dt = p[P_DT]
-    inv_tau = 1.0 / p[P_TAU]
-    eps = p[P_EPS]
-    norm = math.sqrt(1.0 + eps)
-    t_hi = p[P_T_HI]
-    t_lo = p[P_T_LO]
-    angle = state[S_ANGLE]
-    speed = state[S_SPEED]
-    z_r = state[S_Z_ROBOT]
-    z_b = state[S_Z_BRACE]
-    load = state[S_LOAD]
-    k = istate[I_STEP]
-    ptr = istate[I_CMD]
-    n_samples = sample_step.shape[0]
-    j = 0
-    while j < n_samples and sample_step[j] <= k:
-        out_angle_deg[j] = angle
-        out_torque_nm[j] = load
-        j += 1
-    while k < step_end:
-        while ptr + 1 < n_cmd and cmd_step[ptr + 1] <= k:
-            ptr += 1
-        err = cmd_target_deg[ptr] - angle
-        r = load / t_hi if err >= 0.0 else load / t_lo
-        x = 1.0 - r
-        if x < -1.0:
-            x = -1.0
-        elif x > 2.0:
-            x = 2.0
-        speed = err * inv_tau * (x / math.sqrt(abs(x) + eps)) * norm
-        if load > t_hi:
-            speed -= (load - t_hi) * p[P_RELIEF]
-        elif load < t_lo:
-            speed += (t_lo - load) * p[P_RELIEF]
-        step = speed * dt
-        angle += step
-        z_r = _dahl(z_r, p[P_ROBOT_F], step, p[P_ROBOT_TRANS])
-        if p[P_BRACE_ON] > 0.5:
-            vs = speed / p[P_STRIBECK_V]
-            level = p[P_BRACE_F] * (1.0 + p[P_STATIC_EXCESS] * math.exp(-vs * vs))
-            z_b = _dahl(z_b, level, step, p[P_BRACE_TRANS])
-        load = _load_nm(angle, speed, z_r, z_b, p, spring)
-        k += 1
-        while j < n_samples and sample_step[j] <= k:
-            out_angle_deg[j] = angle
-            out_torque_nm[j] = load
-            j += 1
-    state[S_ANGLE] = angle
-    state[S_SPEED] = speed
-    state[S_Z_ROBOT] = z_r
-    state[S_Z_BRACE] = z_b
-    state[S_LOAD] = load
-    istate[I_STEP] = k
-    istate[I_CMD] = ptr
-    return j
-
-
-ROLE_NONE = 0
-ROLE_ANGLE = 1
-ROLE_TORQUE = 2
-GRID_TOL = 1e-6
-"""Grid rounding tolerance, in grid steps: absorbs the float error of (t - origin) / dt so that a write or
-a sample exactly on a grid point lands on it whatever the clock's absolute value."""
-
-
-@njit(cache=True)
-def telemetry_volts(
-    angle_deg: FloatArray,
-    torque_nm: FloatArray,
-    roles: IntArray,
-    noise_v: FloatArray,
-    angle_knots: FloatArray,
-    angle_knot_volts: FloatArray,
-    torque_knots: FloatArray,
-    torque_knot_volts: FloatArray,
-    noise: FloatArray,
-) -> FloatArray:
-    """Volts on each scanned channel (row-major, n × channels): the sensor chain of the channel's role,
-    tabulated piecewise linear (angle or torque -> volts), plus `noise_v[j]` × the flat standard-normal
-    `noise` (consumed row by row)."""
-    n = angle_deg.shape[0]
-    n_ch = roles.shape[0]
-    a_v = np.interp(angle_deg, angle_knots, angle_knot_volts)
-    t_v = np.interp(torque_nm, torque_knots, torque_knot_volts)
-    out = np.empty((n, n_ch), dtype=np.float64)
-    for i in range(n):
-        for j in range(n_ch):
-            v = noise_v[j] * noise[i * n_ch + j]
-            if roles[j] == ROLE_ANGLE:
-                v += a_v[i]
-            elif roles[j] == ROLE_TORQUE:
-                v += t_v[i]
-            out[i, j] = v
-    return out
-
-
-@njit(cache=True)
-def integrate_rows(
-    state: FloatArray,
-    istate: IntArray,
-    p: FloatArray,
-    spring: FloatArray,
-    cmd_step: IntArray,
-    cmd_target_deg: FloatArray,
-    n_cmd: int,
-    step_end: int,
-    t0_s: float,
-    origin_s: float,
-    rate_hz: float,
-    first_row: int,
-    n_rows: int,
-    roles: IntArray,
-    noise_v: FloatArray,
-    angle_knots: FloatArray,
-    angle_knot_volts: FloatArray,
-    torque_knots: FloatArray,
-    torque_knot_volts: FloatArray,
-    noise: FloatArray,
-) -> FloatArray:
-    """`integrate` for scan rows first_row .. first_row + n_rows - 1 of a scan started at `t0_s` at
-    `rate_hz` (row i at t0 + i / rate, sampled on grid step floor((t - origin) / dt)), then
-    `telemetry_volts`. Returns the volts of the rows whose step was reached (a leading part)."""
-    inv_dt = 1.0 / p[P_DT]
-    steps = np.empty(n_rows, dtype=np.int64)
-    for i in range(n_rows):
-        t = t0_s + (first_row + i) / rate_hz
-        k = math.floor((t - origin_s) * inv_dt + GRID_TOL)
-        steps[i] = k if k > 0 else 0
-    angle = np.empty(n_rows, dtype=np.float64)
-    torque = np.empty(n_rows, dtype=np.float64)
-    got = integrate(state, istate, p, spring, cmd_step, cmd_target_deg, n_cmd, step_end, steps, angle, torque)
-    return telemetry_volts(
-        angle[:got],
-        torque[:got],
-        roles,
-        noise_v,
-        angle_knots,
-        angle_knot_volts,
-        torque_knots,
-        torque_knot_volts,
-        noise,
-    )
-
-
-@njit(cache=True)
-def scan_rows(
-    state: FloatArray,
-    istate: IntArray,
-    p: FloatArray,
-    spring: FloatArray,
-    cmd_step: IntArray,
-    cmd_target_deg: FloatArray,
-    n_cmd: int,
-    step_end: int,
-    t0_s: float,
-    origin_s: float,
-    rate_hz: float,
-    first_row: int,
-    n_rows: int,
-    roles: IntArray,
-    noise_v: FloatArray,
-    angle_knots: FloatArray,
-    angle_knot_volts: FloatArray,
-    torque_knots: FloatArray,
-    torque_knot_volts: FloatArray,
-    noise: FloatArray,
-    volts_per_code: float,
-    min_code: int,
-    max_code: int,
-) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
-    """`integrate_rows`, then what the input board makes of those volts, in the same compiled call (one
-    read of the scan costs one kernel call): each row's time t0 + i / rate, the ADC code
-    rint(V / volts_per_code) clamped to min_code..max_code, and the code's volts code · volts_per_code —
-    the same arithmetic as `conversions.volts_to_ai12_code` / `ai12_code_to_volts`. Returns
-    (t_s, codes, volts, any_nan); with any_nan the codes are meaningless (the caller raises)."""
-    raw = integrate_rows(
-        state,
-        istate,
-        p,
-        spring,
-        cmd_step,
-        cmd_target_deg,
-        n_cmd,
-        step_end,
-        t0_s,
-        origin_s,
-        rate_hz,
-        first_row,
-        n_rows,
-        roles,
-        noise_v,
-        angle_knots,
-        angle_knot_volts,
-        torque_knots,
-        torque_knot_volts,
-        noise,
-    )
-    got = raw.shape[0]
-    n_ch = raw.shape[1]
-    t_s = np.empty(got, dtype=np.float64)
-    codes = np.empty((got, n_ch), dtype=np.int32)
-    volts = np.empty((got, n_ch), dtype=np.float64)
-    any_nan = False
-    lo = float(min_code)
-    hi = float(max_code)
-    for i in range(got):
-        t_s[i] = t0_s + float(first_row + i) / rate_hz
-        for j in range(n_ch):
-            v = raw[i, j]
-            if math.isnan(v):
-                any_nan = True
-                codes[i, j] = 0
-                volts[i, j] = 0.0
-                continue
-            k = np.rint(v / volts_per_code)
-            if k < lo:
-                k = lo
-            elif k > hi:
-                k = hi
-            c = np.int32(k)
-            codes[i, j] = c
-            volts[i, j] = float(c) * volts_per_code
-    return t_s, codes, volts, any_nan
 
 
 def spring_table_nm(
@@ -592,34 +301,19 @@ class JointPlant:
         rate_hz: float,
         first_row: int,
         n_rows: int,
-        sensors: tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+        sensors: Sensors,
         noise: FloatArray,
     ) -> FloatArray:
         """Integrate to `step_end` and return the telemetry volts of scan rows first_row .. + n_rows - 1
         (see `integrate_rows`); `sensors` = (roles, noise volts, angle knots, their volts, torque knots,
         their volts); `noise` holds at least n_rows × channels standard normals, consumed row by row."""
         self._flush_commands()
-        roles, noise_v, a_k, a_v, t_k, t_v = sensors
         volts = integrate_rows(
-            self._state,
-            self._istate,
-            self._p,
-            self._spring,
-            self._cmd_step,
-            self._cmd_target,
-            self._n_cmd,
-            int(step_end),
-            float(t0_s),
-            float(origin_s),
-            float(rate_hz),
-            int(first_row),
-            int(n_rows),
-            roles,
-            noise_v,
-            a_k,
-            a_v,
-            t_k,
-            t_v,
+            self._joint(),
+            (self._cmd_step, self._cmd_target),
+            _timing(t0_s, origin_s, rate_hz),
+            _rows(step_end, first_row, n_rows, self._n_cmd),
+            sensors,
             noise,
         )
         self._integrated_step = int(self._istate[I_STEP])
@@ -633,7 +327,7 @@ class JointPlant:
         rate_hz: float,
         first_row: int,
         n_rows: int,
-        sensors: tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray],
+        sensors: Sensors,
         noise: FloatArray,
         adc: tuple[float, int, int],
     ) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
@@ -641,35 +335,20 @@ class JointPlant:
         code, lowest code, highest code). Returns (row times, codes, their volts, whether any volts were
         NaN)."""
         self._flush_commands()
-        roles, noise_v, a_k, a_v, t_k, t_v = sensors
-        volts_per_code, min_code, max_code = adc
         out = scan_rows(
-            self._state,
-            self._istate,
-            self._p,
-            self._spring,
-            self._cmd_step,
-            self._cmd_target,
-            self._n_cmd,
-            step_end,
-            t0_s,
-            origin_s,
-            rate_hz,
-            first_row,
-            n_rows,
-            roles,
-            noise_v,
-            a_k,
-            a_v,
-            t_k,
-            t_v,
+            self._joint(),
+            (self._cmd_step, self._cmd_target),
+            _timing(t0_s, origin_s, rate_hz),
+            _rows(step_end, first_row, n_rows, self._n_cmd),
+            sensors,
             noise,
-            volts_per_code,
-            min_code,
-            max_code,
+            adc,
         )
         self._integrated_step = int(self._istate[I_STEP])
         return out
+
+    def _joint(self) -> Joint:
+        return (self._state, self._istate, self._p, self._spring)
 
     def advance(self, step_end: int, sample_step: IntArray) -> tuple[FloatArray, FloatArray]:
         """Integrate to grid step `step_end`; return (real angle, load torque) at each of the sorted
@@ -693,3 +372,20 @@ class JointPlant:
         )
         self._integrated_step = int(self._istate[I_STEP])
         return angle[:got], torque[:got]
+
+
+def _timing(t0_s: float, origin_s: float, rate_hz: float) -> FloatArray:
+    timing = np.empty(N_TIMING, dtype=np.float64)
+    timing[T_START], timing[T_ORIGIN], timing[T_RATE] = float(t0_s), float(origin_s), float(rate_hz)
+    return timing
+
+
+def _rows(step_end: int, first_row: int, n_rows: int, n_cmd: int) -> IntArray:
+    rows = np.empty(N_ROWS_REC, dtype=np.int64)
+    rows[R_STEP_END], rows[R_FIRST], rows[R_COUNT], rows[R_N_CMD] = (
+        int(step_end),
+        int(first_row),
+        int(n_rows),
+        int(n_cmd),
+    )
+    return rows

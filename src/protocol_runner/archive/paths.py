@@ -1,0 +1,89 @@
+"""The archive layout's names: every group path of `archive.h5` (and of the unit files, which hold the
+same paths), and the datasets of each kind of group with their units (docs/archive.md, which
+tests/archive/test_paths.py checks against this module).
+
+Writers and readers build paths with these functions instead of by hand; `put_dataset` writes a dataset
+with the unit this layout gives it.
+"""
+
+from __future__ import annotations
+
+import h5py
+import numpy.typing as npt
+
+from .h5util import put
+
+CONFIGURATIONS = "configurations"
+TRIALS = "trials"
+PROCESSED = "processed"
+FITS = "fits"
+COMPARISONS = "comparisons"
+CALIBRATION = "calibration"
+REFERENCE = "reference"
+CHECKLISTS = "session/checklists"
+
+#: Datasets of each kind of group, with their units ("1" for counts and plain numbers).
+DATASETS: dict[str, dict[str, str]] = {
+    "recording": {
+        "time_s": "s",
+        "angle_deg": "deg",
+        "torque_nm": "N*m",
+        "angle_codes": "counts",
+        "torque_codes": "counts",
+        "command_time_s": "s",
+        "command_deg": "deg",
+        "command_volts": "V",
+        "command_codes": "counts",
+        "tick_lateness_s": "s",
+    },
+    "processed": {"time_s": "s", "angle_deg": "deg", "brace_torque_nm": "N*m"},
+    "configuration": {"energy_loss_j": "J", "energy_cycle_trial": "1"},
+    "bouc_wen": {"angle_deg": "deg", "torque_nm": "N*m", "model_torque_nm": "N*m", "segment_lengths": "1"},
+    "spring": {"angle_deg": "deg", "torque_nm": "N*m", "model_torque_nm": "N*m"},
+    "reference": {"angle_deg": "deg", "torque_nm": "N*m"},
+}
+
+
+def configuration_name(key: int) -> str:
+    """The group name of a configuration: `config_NN`, NN the matrix key zero-padded to two digits."""
+    return f"config_{key:02d}"
+
+
+def configuration_path(key: int) -> str:
+    return f"{CONFIGURATIONS}/{configuration_name(key)}"
+
+
+def trials_path(key: int) -> str:
+    return f"{configuration_path(key)}/{TRIALS}"
+
+
+def trial_path(key: int, trial: int | str) -> str:
+    return f"{trials_path(key)}/{trial}"
+
+
+def recording_path(key: int, trial: int | str, brace: str) -> str:
+    """`brace` is "on" or "off"."""
+    return f"{trial_path(key, trial)}/brace_{brace}"
+
+
+def processed_path(key: int, trial: int | str) -> str:
+    return f"{trial_path(key, trial)}/{PROCESSED}"
+
+
+def fits_path(key: int) -> str:
+    return f"{configuration_path(key)}/{FITS}"
+
+
+def comparison_path(name: str) -> str:
+    return f"{COMPARISONS}/{name}"
+
+
+def calibration_path(set_name: str, when: str) -> str:
+    return f"{CALIBRATION}/{set_name}/{when}"
+
+
+def put_dataset(
+    group: h5py.Group, kind: str, name: str, data: npt.ArrayLike, *, dtype: npt.DTypeLike | None = None
+) -> h5py.Dataset:
+    """Write dataset `name` of a group of `kind` (a key of DATASETS) with the layout's unit."""
+    return put(group, name, data, DATASETS[kind][name], dtype=dtype)

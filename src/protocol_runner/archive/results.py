@@ -1,0 +1,189 @@
+"""The archive's result groups: what processing, fits and comparisons write, and the raw recordings
+they read (layout in docs/archive.md).
+
+Shared by the processing steps and `--reprocess`, so that both write the same groups.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import h5py
+import numpy as np
+
+from ..analysis.bouc_wen_fit import LoopEnergy, loop_energy, model_torques
+from ..analysis.pipeline import ConfigurationResult, ProcessingSettings, Recording
+from ..models.bouc_wen import BoucWenFit
+from .h5util import SIGNAL, set_attrs
+from .paths import CONFIGURATIONS, FITS, PROCESSED, TRIALS, put_dataset
+
+#: Writes one step's results into an open unit file.
+Fill = Callable[[h5py.File], None]
+
+# The processed loops are stored at 200 Hz: they are low-passed far below 100 Hz (thesis filter: 10 % of
+# the 500 Hz Nyquist frequency, order 10), so nothing is lost, and the campaign's archive stays < 100 MB.
+# Energies and fits are computed before this decimation, at the full input rate.
+PROCESSED_RATE_HZ = 200.0
+
+
+#: At most this many points per trial of the Bouc-Wen model curve are stored for the report.
+PLOT_POINTS_PER_TRIAL = 2000
+
+
+def read_recording(g: h5py.Group) -> Recording:
+    return Recording(
+        time_s=g["time_s"][:],
+        angle_deg=g["angle_deg"][:],
+        torque_nm=g["torque_nm"][:],
+        command_deg=g["command_deg"][:],
+        command_time_s=g["command_time_s"][:],
+    )
+
+
+def processed_fill(name: str, result: ConfigurationResult, settings: ProcessingSettings) -> Fill:
+    def fill(f: h5py.File) -> None:
+        cfg = f.require_group(f"{CONFIGURATIONS}/{name}")
+        for t in result.trials:
+            g = cfg.require_group(f"{TRIALS}/{t.trial}").create_group(PROCESSED)
+            dt = float(np.median(np.diff(t.time_s))) if t.time_s.size > 1 else 1.0
+            stride = max(1, round(1.0 / (dt * PROCESSED_RATE_HZ)))
+            put_dataset(g, "processed", "time_s", t.time_s[::stride])
+            put_dataset(g, "processed", "angle_deg", t.angle_deg[::stride], dtype=SIGNAL)
+            put_dataset(g, "processed", "brace_torque_nm", t.brace_torque_nm[::stride], dtype=SIGNAL)
+            set_attrs(
+                g,
+                {
+                    "sample_rate_hz": 1.0 / (dt * stride),
+                    "decimation": stride,
+                    "energy_cycles_j": [float(e) for e in t.energy_j],
+                },
+            )
+            set_attrs(
+                g,
+                {
+                    "transition_index0_on": int(t.transition_index_on),
+                    "transition_index0_off": int(t.transition_index_off),
+                    "subtraction": settings.subtraction,
+                    "filter": json.dumps(settings.filter_description(1.0 / dt)),
+                    # the zero-phase low-pass filter ran at the input rate 1/dt, before the decimation
+                    "filter_type": settings.filter_kind,
+                    "filter_order": int(settings.filter_order),
+                    "filter_cutoff_hz": float(settings.filter_cutoff / (2.0 * dt)),
+                    "coverage": float(t.coverage),
+                },
+            )
+        put_dataset(cfg, "configuration", "energy_loss_j", result.energy_loss_j)
+        put_dataset(cfg, "configuration", "energy_cycle_trial", result.energy_cycle_trial)
+        cfg["energy_loss_j"].attrs["mean_j"] = result.energy.mean_j
+        cfg["energy_loss_j"].attrs["std_j"] = result.energy.std_j
+        sp = result.spring
+        if sp is not None:
+            g = cfg.require_group(FITS).create_group("spring")
+            set_attrs(
+                g,
+                {
+                    "applicable": bool(sp.applicable),
+                    "reason": sp.reason,
+                    "max_preload_mm": float(sp.max_preload_mm),
+                    "zero_offset_deg": float(sp.zero_offset_deg),
+                    "rmse_nm": float(sp.rmse_nm),
+                    "rmse_all_samples_nm": float(sp.rmse_all_samples_nm),
+                    "stiffness_n_per_mm": float(sp.stiffness_n_per_mm),
+                    "preload_position": int(sp.preload_position),
+                    "target": sp.target,
+                },
+            )
+            put_dataset(g, "spring", "angle_deg", sp.curve_angle_deg, dtype=SIGNAL)
+            put_dataset(g, "spring", "torque_nm", sp.curve_torque_nm, dtype=SIGNAL)
+            put_dataset(g, "spring", "model_torque_nm", sp.model_torque_nm)
+
+    return fill
+
+
+def evidence_attrs(result: BoucWenFit, energy: LoopEnergy) -> dict[str, object]:
+    """The attributes that let a modeller judge the fit (issue 15; units in docs/archive.md)."""
+    return {
+        "scheme": result.scheme,
+        "rmse_refined_nm": float(result.rmse_refined_nm),
+        "optimizer_status": int(result.status),
+        "optimizer_message": result.message,
+        "start_rmse_nm": [float(v) for v in result.start_rmse_nm],
+        "cost_spread": float(result.cost_spread),
+        "n_interval": [float(v) for v in result.n_interval],
+        "param_interval_low": [float(v) for v in result.param_interval_low],
+        "param_interval_high": [float(v) for v in result.param_interval_high],
+        "weakly_identified": bool(result.weakly_identified),
+        "weak_reasons": "; ".join(result.weak_reasons),
+        "model_energy_j": float(energy.model_j),
+        "data_energy_j": float(energy.data_j),
+        "model_dissipates": bool(energy.model_dissipates),
+        "backbone": "none" if result.backbone is None else "polynomial",
+        "backbone_coef": [] if result.backbone is None else [float(c) for c in result.backbone.coef],
+        "backbone_angle_scale_deg": math.nan if result.backbone is None else result.backbone.angle_scale_deg,
+    }
+
+
+def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> Fill:
+    p = result.params
+    std = np.asarray(result.param_std, dtype=np.float64)
+    angles, torques, models = [], [], []
+    full_models = model_torques(segments, result)
+    energy = loop_energy(segments, full_models)
+    for (x, y), z in zip(segments, full_models, strict=True):
+        stride = max(1, len(x) // PLOT_POINTS_PER_TRIAL)
+        angles.append(x[::stride])
+        torques.append(y[::stride])
+        models.append(z[::stride])
+
+    def fill(f: h5py.File) -> None:
+        g = f.require_group(f"{CONFIGURATIONS}/{name}/{FITS}").create_group("bouc_wen")
+        set_attrs(
+            g,
+            {
+                "A": float(p.A),
+                "n": float(p.n),
+                "beta": [float(b) for b in p.beta],
+                "rmse_nm": float(result.rmse_nm),
+                "r2": float(result.r2),
+                "A_std": float(std[0]),
+                "n_std": float(std[1]),
+                "beta_std": [float(v) for v in std[2:8]],
+                "cv_rmse_nm": [float(v) for v in cv],
+                "n_starts": int(result.n_starts),
+                "converged": bool(result.converged),
+                "diverged": bool(result.diverged),
+            },
+        )
+        set_attrs(g, evidence_attrs(result, energy))
+        put_dataset(g, "bouc_wen", "angle_deg", np.concatenate(angles))
+        put_dataset(g, "bouc_wen", "torque_nm", np.concatenate(torques))
+        put_dataset(g, "bouc_wen", "model_torque_nm", np.concatenate(models))
+        put_dataset(g, "bouc_wen", "segment_lengths", [len(a) for a in angles])
+
+    return fill
+
+
+def comparison_values(configs: Sequence[h5py.Group]) -> dict[str, list[Any]]:
+    """Energy per cycle (mean, sample std, count) and the largest processed angle of each configuration
+    group, in order. Used by the session's step and by `--reprocess`, so both give the same numbers."""
+    means, stds, counts, max_angles = [], [], [], []
+    for cfg in configs:
+        e = cfg["energy_loss_j"][:] if "energy_loss_j" in cfg else np.zeros(0)
+        means.append(float(np.mean(e)) if e.size else float("nan"))
+        stds.append(float(np.std(e, ddof=1)) if e.size > 1 else float("nan"))
+        counts.append(int(e.size))
+        angles = [
+            cfg[f"{TRIALS}/{n}/{PROCESSED}/angle_deg"][:]
+            for n in cfg.get(TRIALS, {})
+            if PROCESSED in cfg[f"{TRIALS}/{n}"]
+        ]
+        max_angles.append(max((float(np.max(a)) for a in angles if a.size), default=float("nan")))
+    return {
+        "energy_mean_j": means,
+        "energy_std_j": stds,
+        "energy_cycles": counts,
+        "max_angle_deg": max_angles,
+    }

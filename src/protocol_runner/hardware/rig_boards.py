@@ -1,0 +1,85 @@
+"""Open the USB boards a protocol's `rig` section names: the analog output, the input boards joined as one
+`MultiBoardInput`, and the real clock (docs/hardware.md, "Opening the rig from a protocol")."""
+
+from __future__ import annotations
+
+from typing import Any, Protocol
+
+from protocol_runner.errors import HardwareUnavailable, InvalidInput
+from protocol_runner.hardware import usb1608fs
+from protocol_runner.hardware.multiboard import MultiBoardInput
+from protocol_runner.hardware.usb1608fs import open_all_1608fs
+from protocol_runner.hardware.usb3105 import Usb3105
+from protocol_runner.hardware.usb_common import BoardNotFound, MonotonicClock
+
+
+class _OutputSpec(Protocol):
+    @property
+    def channel(self) -> int: ...
+    @property
+    def serial(self) -> str | None: ...
+    @property
+    def volts_range(self) -> tuple[float, float]: ...
+
+
+class _InputSpec(Protocol):
+    @property
+    def board(self) -> str: ...
+    @property
+    def angle_channel(self) -> int: ...
+    @property
+    def torque_channel(self) -> int: ...
+    @property
+    def serials(self) -> list[str]: ...
+    @property
+    def volts_range(self) -> tuple[float, float]: ...
+
+
+class _RigSpec(Protocol):
+    @property
+    def output(self) -> _OutputSpec: ...
+    @property
+    def input(self) -> _InputSpec: ...
+
+
+def open_rig_boards(
+    rig_spec: _RigSpec, backend: Any | None = None, *, clock: MonotonicClock | None = None
+) -> tuple[Usb3105, MultiBoardInput, MonotonicClock]:
+    """Open the boards a protocol's ``rig`` section names: (analog output, analog input, real clock).
+
+    Output: the USB-3105 with ``output.serial`` (or the first one). Input: ``board: usb1608fs`` opens the
+    USB-1608FS-Plus boards listed in ``input.serials`` (in that order; empty = every attached board in
+    serial order) as one `MultiBoardInput`. ``board: dt9814`` is refused with a plain message: the only
+    known DT9814 protocol (comedi's DT9812) has no hardware-paced scan and addresses 8 channels.
+    Raises `HardwareUnavailable` (exit 3) naming what is missing; nothing stays open on failure.
+    """
+    out_spec, in_spec = rig_spec.output, rig_spec.input
+    for what, rng in (("output", out_spec.volts_range), ("input", in_spec.volts_range)):
+        if tuple(float(v) for v in rng) != (-10.0, 10.0):
+            raise InvalidInput(
+                f"rig.{what}.volts_range: the USB drivers support only [-10, 10] V, got {list(rng)}"
+            )
+    if in_spec.board == "dt9814":
+        raise HardwareUnavailable(
+            "the protocol's input board is the DT9814, which protocol-runner cannot drive on Linux: its only "
+            "known protocol (the DT9812's, UNVERIFIED for the DT9814) has no hardware-paced scan and reaches 8 "
+            "channels. Use three USB-1608FS-Plus boards (rig.input.board: usb1608fs; see docs/hardware.md), "
+            "or rehearse with --dry-run."
+        )
+    clock = clock or MonotonicClock()
+    ao = Usb3105.open(serial=out_spec.serial, backend=backend)
+    try:
+        boards = open_all_1608fs(in_spec.serials or None, backend, clock=clock)
+        ai = MultiBoardInput(boards)
+        for name, ch in (("angle", in_spec.angle_channel), ("torque", in_spec.torque_channel)):
+            if ch >= ai.n_channels:
+                ai.close()
+                raise BoardNotFound(
+                    f"the protocol reads the {name} on input channel {ch}, but the {len(boards)} "
+                    f"{usb1608fs.KIND} board(s) attached give channels 0-{ai.n_channels - 1} (8 per board). "
+                    "Connect the missing boards, or rehearse with --dry-run."
+                )
+    except BaseException:
+        ao.close()
+        raise
+    return ao, ai, clock

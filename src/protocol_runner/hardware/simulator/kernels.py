@@ -1,0 +1,351 @@
+"""The compiled (numba) kernels of the simulated joint: integration on the time grid, the sensor chain,
+and the input board's quantisation, in one call per scan read. The physics they implement is described
+in `plant.py` (and docs/simulator.md); `JointPlant` holds their state and calls them.
+
+Kernels take records, not long argument lists: the joint `(state, istate, parameters, spring table)`,
+the command history, a scan's `timing` (float64) and `rows` (int64) arrays read through the named
+index constants below, the sensor chain and the ADC.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+from numba import njit
+
+FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+
+# Indices into the float parameter vector handed to the kernel.
+P_DT = 0
+P_TAU = 1
+P_EPS = 2
+P_RELIEF = 3
+P_T_HI = 4
+P_T_LO = 5
+P_GRAVITY = 6
+P_GRAVITY_ZERO = 7
+P_ROBOT_F = 8
+P_ROBOT_TRANS = 9
+P_ROBOT_VISC = 10
+P_BRACE_ON = 11
+P_BRACE_F = 12
+P_BRACE_TRANS = 13
+P_STATIC_EXCESS = 14
+P_STRIBECK_V = 15
+P_ROM_LO = 16
+P_ROM_HI = 17
+P_SLACK = 18
+P_SLACK_K = 19
+P_STOP_K = 20
+P_BUMP_ANGLE = 21
+P_BUMP_WIDTH = 22
+P_BUMP_TORQUE = 23
+P_BUMP_V = 24
+P_SPRING_X0 = 25
+P_SPRING_DX = 26
+N_PARAMS = 27
+
+# Indices into the float state vector.
+S_ANGLE = 0
+S_SPEED = 1
+S_Z_ROBOT = 2
+S_Z_BRACE = 3
+S_LOAD = 4
+N_STATE = 5
+
+# Indices into the integer state vector.
+I_STEP = 0
+I_CMD = 1
+N_ISTATE = 2
+
+
+@njit(cache=True)
+def _stop_torque_nm(penetration_deg: float, p: FloatArray) -> float:
+    """Torque of one range-of-motion stop penetrated by `penetration_deg` (> 0): slack, then stiff."""
+    slack = p[P_SLACK]
+    if penetration_deg <= slack:
+        return p[P_SLACK_K] * penetration_deg
+    return p[P_SLACK_K] * slack + p[P_STOP_K] * (penetration_deg - slack)
+
+
+@njit(cache=True)
+def _load_nm(
+    angle_deg: float, speed_deg_s: float, z_robot: float, z_brace: float, p: FloatArray, spring: FloatArray
+) -> float:
+    """Total load torque the actuator holds at this state (positive = the robot pushes to flex)."""
+    load = p[P_GRAVITY] * math.sin(math.radians(angle_deg - p[P_GRAVITY_ZERO]))
+    load += z_robot + p[P_ROBOT_VISC] * speed_deg_s
+    if p[P_BRACE_ON] > 0.5:
+        # springs: linear interpolation in the precomputed table, clamped at its ends
+        u = (angle_deg - p[P_SPRING_X0]) / p[P_SPRING_DX]
+        n = spring.shape[0]
+        if u <= 0.0:
+            load += spring[0]
+        elif u >= n - 1:
+            load += spring[n - 1]
+        else:
+            i = int(u)
+            f = u - i
+            load += spring[i] * (1.0 - f) + spring[i + 1] * f
+        load += z_brace
+        pen_lo = p[P_ROM_LO] - angle_deg
+        if pen_lo > 0.0:
+            load -= _stop_torque_nm(pen_lo, p)
+        pen_hi = angle_deg - p[P_ROM_HI]
+        if pen_hi > 0.0:
+            load += _stop_torque_nm(pen_hi, p)
+        if p[P_BUMP_TORQUE] > 0.0:
+            d = (angle_deg - p[P_BUMP_ANGLE]) / p[P_BUMP_WIDTH]
+            if d * d < 30.0:
+                v = min(abs(speed_deg_s) / p[P_BUMP_V], 3.0)
+                load += p[P_BUMP_TORQUE] * v * math.exp(-d * d)
+    return load
+
+
+@njit(cache=True)
+def _dahl(z: float, level: float, step_deg: float, transition_deg: float) -> float:
+    """Exact Dahl update over a displacement `step_deg`: z relaxes towards sign(step)·level."""
+    if level <= 0.0:
+        return 0.0
+    if step_deg == 0.0:
+        return z
+    target = level if step_deg > 0.0 else -level
+    return target + (z - target) * math.exp(-abs(step_deg) / transition_deg)
+
+
+@njit(cache=True)
+def integrate(
+    state: FloatArray,
+    istate: IntArray,
+    p: FloatArray,
+    spring: FloatArray,
+    cmd_step: IntArray,
+    cmd_target_deg: FloatArray,
+    n_cmd: int,
+    step_end: int,
+    sample_step: IntArray,
+    out_angle_deg: FloatArray,
+    out_torque_nm: FloatArray,
+) -> int:
+    """Advance the joint from its current grid step to `step_end`, recording samples on the way.
+
+    `cmd_step[:n_cmd]` / `cmd_target_deg[:n_cmd]` is the zero-order-hold command history: target i holds
+    from grid step cmd_step[i] on (sorted). `sample_step` lists the grid steps (sorted) at which to record
+    the real angle and the load torque into the outputs; samples at steps beyond `step_end` are left.
+    Returns how many samples were written. `state` / `istate` are updated in place.
+    """
+    dt = p[P_DT]
+    inv_tau = 1.0 / p[P_TAU]
+    eps = p[P_EPS]
+    norm = math.sqrt(1.0 + eps)
+    t_hi = p[P_T_HI]
+    t_lo = p[P_T_LO]
+    angle = state[S_ANGLE]
+    speed = state[S_SPEED]
+    z_r = state[S_Z_ROBOT]
+    z_b = state[S_Z_BRACE]
+    load = state[S_LOAD]
+    k = istate[I_STEP]
+    ptr = istate[I_CMD]
+    n_samples = sample_step.shape[0]
+    j = 0
+    while j < n_samples and sample_step[j] <= k:
+        out_angle_deg[j] = angle
+        out_torque_nm[j] = load
+        j += 1
+    while k < step_end:
+        while ptr + 1 < n_cmd and cmd_step[ptr + 1] <= k:
+            ptr += 1
+        err = cmd_target_deg[ptr] - angle
+        r = load / t_hi if err >= 0.0 else load / t_lo
+        x = 1.0 - r
+        if x < -1.0:
+            x = -1.0
+        elif x > 2.0:
+            x = 2.0
+        speed = err * inv_tau * (x / math.sqrt(abs(x) + eps)) * norm
+        if load > t_hi:
+            speed -= (load - t_hi) * p[P_RELIEF]
+        elif load < t_lo:
+            speed += (t_lo - load) * p[P_RELIEF]
+        step = speed * dt
+        angle += step
+        z_r = _dahl(z_r, p[P_ROBOT_F], step, p[P_ROBOT_TRANS])
+        if p[P_BRACE_ON] > 0.5:
+            vs = speed / p[P_STRIBECK_V]
+            level = p[P_BRACE_F] * (1.0 + p[P_STATIC_EXCESS] * math.exp(-vs * vs))
+            z_b = _dahl(z_b, level, step, p[P_BRACE_TRANS])
+        load = _load_nm(angle, speed, z_r, z_b, p, spring)
+        k += 1
+        while j < n_samples and sample_step[j] <= k:
+            out_angle_deg[j] = angle
+            out_torque_nm[j] = load
+            j += 1
+    state[S_ANGLE] = angle
+    state[S_SPEED] = speed
+    state[S_Z_ROBOT] = z_r
+    state[S_Z_BRACE] = z_b
+    state[S_LOAD] = load
+    istate[I_STEP] = k
+    istate[I_CMD] = ptr
+    return j
+
+
+ROLE_NONE = 0
+ROLE_ANGLE = 1
+ROLE_TORQUE = 2
+GRID_TOL = 1e-6
+"""Grid rounding tolerance, in grid steps: absorbs the float error of (t - origin) / dt so that a write or
+a sample exactly on a grid point lands on it whatever the clock's absolute value."""
+
+
+@njit(cache=True)
+def telemetry_volts(
+    angle_deg: FloatArray,
+    torque_nm: FloatArray,
+    roles: IntArray,
+    noise_v: FloatArray,
+    angle_knots: FloatArray,
+    angle_knot_volts: FloatArray,
+    torque_knots: FloatArray,
+    torque_knot_volts: FloatArray,
+    noise: FloatArray,
+) -> FloatArray:
+    """Volts on each scanned channel (row-major, n × channels): the sensor chain of the channel's role,
+    tabulated piecewise linear (angle or torque -> volts), plus `noise_v[j]` × the flat standard-normal
+    `noise` (consumed row by row)."""
+    n = angle_deg.shape[0]
+    n_ch = roles.shape[0]
+    a_v = np.interp(angle_deg, angle_knots, angle_knot_volts)
+    t_v = np.interp(torque_nm, torque_knots, torque_knot_volts)
+    out = np.empty((n, n_ch), dtype=np.float64)
+    for i in range(n):
+        for j in range(n_ch):
+            v = noise_v[j] * noise[i * n_ch + j]
+            if roles[j] == ROLE_ANGLE:
+                v += a_v[i]
+            elif roles[j] == ROLE_TORQUE:
+                v += t_v[i]
+            out[i, j] = v
+    return out
+
+
+# A scan request handed to the compiled kernels: its times (float64) and its counts (int64), by index.
+T_START = 0  # t0_s: the scan's start time
+T_ORIGIN = 1  # origin_s: the time of grid step 0
+T_RATE = 2  # rate_hz: rows per second
+N_TIMING = 3
+R_STEP_END = 0  # integrate up to this grid step
+R_FIRST = 1  # the first row wanted
+R_COUNT = 2  # how many rows
+R_N_CMD = 3  # how many commands of the history are valid
+N_ROWS_REC = 4
+
+#: (state, istate, parameters, spring table): the joint as the kernels see it (updated in place).
+Joint = tuple[FloatArray, IntArray, FloatArray, FloatArray]
+#: (grid step of each command, its target angle): the zero-order-hold command history.
+Commands = tuple[IntArray, FloatArray]
+#: (channel roles, noise volts, angle knots, their volts, torque knots, their volts).
+Sensors = tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+
+
+@njit(cache=True)
+def integrate_rows(
+    joint: Joint, commands: Commands, timing: FloatArray, rows: IntArray, sensors: Sensors, noise: FloatArray
+) -> FloatArray:
+    """`integrate` up to grid step rows[R_STEP_END] for scan rows rows[R_FIRST] .. + rows[R_COUNT] - 1 of
+    a scan started at timing[T_START] at timing[T_RATE] (row i at t0 + i / rate, sampled on grid step
+    floor((t - origin) / dt)), then `telemetry_volts`. Returns the volts of the rows whose step was
+    reached (a leading part)."""
+    state, istate, p, spring = joint
+    cmd_step, cmd_target_deg = commands
+    roles, noise_v, angle_knots, angle_knot_volts, torque_knots, torque_knot_volts = sensors
+    t0_s = timing[T_START]
+    origin_s = timing[T_ORIGIN]
+    rate_hz = timing[T_RATE]
+    first_row = rows[R_FIRST]
+    n_rows = rows[R_COUNT]
+    inv_dt = 1.0 / p[P_DT]
+    steps = np.empty(n_rows, dtype=np.int64)
+    for i in range(n_rows):
+        t = t0_s + (first_row + i) / rate_hz
+        k = math.floor((t - origin_s) * inv_dt + GRID_TOL)
+        steps[i] = k if k > 0 else 0
+    angle = np.empty(n_rows, dtype=np.float64)
+    torque = np.empty(n_rows, dtype=np.float64)
+    got = integrate(
+        state,
+        istate,
+        p,
+        spring,
+        cmd_step,
+        cmd_target_deg,
+        rows[R_N_CMD],
+        rows[R_STEP_END],
+        steps,
+        angle,
+        torque,
+    )
+    return telemetry_volts(
+        angle[:got],
+        torque[:got],
+        roles,
+        noise_v,
+        angle_knots,
+        angle_knot_volts,
+        torque_knots,
+        torque_knot_volts,
+        noise,
+    )
+
+
+@njit(cache=True)
+def scan_rows(
+    joint: Joint,
+    commands: Commands,
+    timing: FloatArray,
+    rows: IntArray,
+    sensors: Sensors,
+    noise: FloatArray,
+    adc: tuple[float, int, int],
+) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
+    """`integrate_rows`, then what the input board makes of those volts, in the same compiled call (one
+    read of the scan costs one kernel call): each row's time t0 + i / rate, the ADC code
+    rint(V / volts_per_code) clamped to min_code..max_code (`adc` = (volts_per_code, min_code,
+    max_code)), and the code's volts code · volts_per_code — the same arithmetic as
+    `conversions.volts_to_ai12_code` / `ai12_code_to_volts`. Returns (t_s, codes, volts, any_nan); with
+    any_nan the codes are meaningless (the caller raises)."""
+    volts_per_code, min_code, max_code = adc
+    t0_s = timing[T_START]
+    rate_hz = timing[T_RATE]
+    first_row = rows[R_FIRST]
+    raw = integrate_rows(joint, commands, timing, rows, sensors, noise)
+    got = raw.shape[0]
+    n_ch = raw.shape[1]
+    t_s = np.empty(got, dtype=np.float64)
+    codes = np.empty((got, n_ch), dtype=np.int32)
+    volts = np.empty((got, n_ch), dtype=np.float64)
+    any_nan = False
+    lo = float(min_code)
+    hi = float(max_code)
+    for i in range(got):
+        t_s[i] = t0_s + float(first_row + i) / rate_hz
+        for j in range(n_ch):
+            v = raw[i, j]
+            if math.isnan(v):
+                any_nan = True
+                codes[i, j] = 0
+                volts[i, j] = 0.0
+                continue
+            k = np.rint(v / volts_per_code)
+            if k < lo:
+                k = lo
+            elif k > hi:
+                k = hi
+            c = np.int32(k)
+            codes[i, j] = c
+            volts[i, j] = float(c) * volts_per_code
+    return t_s, codes, volts, any_nan

@@ -1,0 +1,73 @@
+"""The USB-1608FS-Plus's USB protocol facts (from public sources; docs/hardware.md): ids, commands,
+status bits, the pacer clock, driver settings and the code-to-volts conversion of its +-10 V range.
+
+Protocol (reference "USB facts"; vendor control transfers bmRequestType 0xC0 in / 0x40 out, wIndex 0):
+
+- ``0x14`` AIN_CONFIG (out): 8 range bytes, one per channel (0 = +-10 V).
+- ``0x11`` AIN_SCAN_START (out): ``<u32 count (0 = continuous), u32 pacer = 40 MHz / rate - 1, u8 channel
+  mask, u8 options>``; rows come in ascending channel order.
+- ``0x12`` AIN_SCAN_STOP, ``0x15`` AIN_CLR_FIFO (out); ``0x44`` STATUS (in, u16: bit 1 running, bit 2
+  overrun; an overrun stalls the bulk pipe); ``0x48`` serial (in, 8 ASCII bytes); ``0x41`` blink (out).
+- ``0x30`` calibration memory (in, wValue = address): float32 LE (slope, intercept) for every range and
+  channel, ranges outer, channels inner, from address 0; ``calibrated = raw * slope + intercept``.
+- Scan data: bulk IN 0x81, 64-byte packets of LE u16 codes; +-10 V: ``V = (k - 32768) * 10 / 32768``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+PRODUCT_ID = 0x00EA
+KIND = "USB-1608FS-Plus"
+N_CHANNELS = 8
+N_RANGES = 8
+RANGE_PM10V = 0
+PACER_CLOCK_HZ = 40_000_000.0
+MAX_RATE_HZ = 100_000.0
+
+REQ_IN = 0xC0
+REQ_OUT = 0x40
+CMD_AIN_SCAN_START = 0x11
+CMD_AIN_SCAN_STOP = 0x12
+CMD_AIN_CONFIG = 0x14
+CMD_AIN_CLR_FIFO = 0x15
+CMD_CAL_MEMORY = 0x30
+CMD_BLINK_LED = 0x41
+CMD_STATUS = 0x44
+CMD_SERIAL = 0x48
+
+STATUS_RUNNING = 0x02
+STATUS_OVERRUN = 0x04
+
+
+@dataclass(frozen=True)
+class Usb1608FsSettings:
+    """Transport settings (the calibration address layout is UNVERIFIED on hardware)."""
+
+    interface: int = 0
+    in_endpoint: int = 0x81
+    packet_size: int = 64
+    timeout_ms: int = 1000
+    read_timeout_ms: int = 20
+    max_read_packets: int = 64
+    max_drain_packets: int = 1024
+    cal_address: int = 0x0000
+    scan_options: int = 0x00  # block transfer mode, no trigger, stall on overrun
+
+
+def pacer_period(rate_hz: float) -> int:
+    """The pacer register for `rate_hz` rows per second: ``round(40 MHz / rate - 1)``."""
+    return round(PACER_CLOCK_HZ / rate_hz - 1.0)
+
+
+def pacer_rate_hz(pacer: int) -> float:
+    """The row rate a pacer register value really gives: ``40 MHz / (pacer + 1)``."""
+    return PACER_CLOCK_HZ / (pacer + 1)
+
+
+def codes_to_volts_pm10(codes: npt.NDArray[np.int32]) -> npt.NDArray[np.float64]:
+    """+-10 V range: ``V = (k - 32768) * 10 / 32768``."""
+    return (codes.astype(np.float64) - 32768.0) * (10.0 / 32768.0)

@@ -1,0 +1,51 @@
+"""A loaded, validated protocol with its provenance, and the YAML locations its messages name."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .schema import Protocol
+
+#: A place in the protocol document: keys and list indices from the root.
+Loc = tuple[str | int, ...]
+
+
+@dataclass(frozen=True)
+class LoadedProtocol:
+    """A validated protocol with its provenance: the exact text and its sha256."""
+
+    protocol: Protocol
+    path: Path
+    text: str
+    sha256: str
+    lines: dict[Loc, int] = field(default_factory=dict, repr=False, compare=False)
+    shown: str = field(default="", repr=False, compare=False)  # the file's name in messages
+
+    @property
+    def base_dir(self) -> Path:
+        """Relative paths in the protocol (trajectory and calibration files) are relative to this."""
+        return self.path.parent
+
+    def line_of(self, loc: Loc) -> int | None:
+        return line_for(self.lines, loc)
+
+
+def line_for(lines: dict[Loc, int], loc: Loc) -> int | None:
+    loc = clean_loc(loc)
+    while True:
+        if loc in lines:
+            return lines[loc]
+        if not loc:
+            return None
+        loc = loc[:-1]
+
+
+def clean_loc(loc: Loc) -> Loc:
+    """Drop pydantic's internal location tags (union members, validator names)."""
+    out: list[str | int] = []
+    for part in loc:
+        if isinstance(part, str) and ("[" in part or part in {"str", "int", "float", "bool", "none", "list"}):
+            continue
+        out.append(part)
+    return tuple(out)

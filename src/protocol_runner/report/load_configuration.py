@@ -1,0 +1,203 @@
+"""One configuration group of an archive, for the report: trials, processed loops, energies and fits
+(docs/archive.md)."""
+
+from __future__ import annotations
+
+import math
+
+import h5py
+import numpy as np
+
+from protocol_runner.report.h5read import (
+    attr_bool,
+    attr_float,
+    attr_floats,
+    attr_int,
+    attr_str,
+    decimate_for_plot,
+    decode,
+    float_ds,
+    read_only,
+)
+from protocol_runner.report.model import (
+    BoucWenFit,
+    Configuration,
+    ProcessedTrial,
+    Recording,
+    SpringFit,
+    Trial,
+)
+
+# Configuration attributes shown as the row of the test matrix, not settings.
+_IDENTITY_ATTRS = {"key", "run", "set", "condition", "profile", "status", "n_trials"}
+
+
+def _read_recording(grp: h5py.Group) -> Recording:
+    return Recording(
+        time_s=decimate_for_plot(float_ds(grp, "time_s")),
+        angle_deg=decimate_for_plot(float_ds(grp, "angle_deg")),
+        torque_nm=decimate_for_plot(float_ds(grp, "torque_nm")),
+        command_time_s=decimate_for_plot(float_ds(grp, "command_time_s")),
+        command_deg=decimate_for_plot(float_ds(grp, "command_deg")),
+        tick_lateness_p99_s=attr_float(grp.attrs, "tick_lateness_p99_s"),
+    )
+
+
+def _trial_numbers(trials: h5py.Group) -> list[tuple[int, str]]:
+    numbered: list[tuple[int, str]] = []
+    for name in trials:
+        try:
+            numbered.append((int(name), name))
+        except ValueError:
+            continue
+    return sorted(numbered)
+
+
+def read_configuration(name: str, grp: h5py.Group) -> Configuration:
+    a = grp.attrs
+    settings: dict[str, object] = {}
+    for attr_name in sorted(a.keys()):
+        if attr_name in _IDENTITY_ATTRS:
+            continue
+        value = decode(a[attr_name])
+        if isinstance(value, np.ndarray):
+            value = tuple(value.tolist())
+        elif isinstance(value, list):
+            value = tuple(value)
+        settings[attr_name] = value
+    trials: list[Trial] = []
+    angles: list[np.ndarray] = []
+    torques: list[np.ndarray] = []
+    raw_loaded = False
+    if "trials" in grp:
+        for number, tname in _trial_numbers(grp["trials"]):
+            tgrp = grp["trials"][tname]
+            on = off = None
+            has_raw = "brace_on" in tgrp or "brace_off" in tgrp
+            # Only the first recorded trial's raw data is plotted (angle/torque vs time): reading and
+            # decompressing the others would dominate the report's regeneration time.
+            if has_raw and not raw_loaded:
+                on = _read_recording(tgrp["brace_on"]) if "brace_on" in tgrp else None
+                off = _read_recording(tgrp["brace_off"]) if "brace_off" in tgrp else None
+                raw_loaded = True
+            processed = None
+            if "processed" in tgrp:
+                pgrp = tgrp["processed"]
+                angle = float_ds(pgrp, "angle_deg")
+                torque = float_ds(pgrp, "brace_torque_nm")
+                n = min(angle.size, torque.size)
+                angle, torque = angle[:n], torque[:n]
+                angles.append(angle)
+                torques.append(torque)
+                processed = ProcessedTrial(
+                    angle_deg=decimate_for_plot(angle),
+                    brace_torque_nm=decimate_for_plot(torque),
+                    subtraction=attr_str(pgrp.attrs, "subtraction", "equal_angle"),
+                    filter_text=_filter_text(pgrp.attrs),
+                )
+            trials.append(
+                Trial(number=number, brace_on=on, brace_off=off, processed=processed, recorded=has_raw)
+            )
+    angle_min, angle_max, slope = _summary(angles, torques)
+    energy = float_ds(grp, "energy_loss_j")
+    cycle_trial = float_ds(grp, "energy_cycle_trial")
+    if cycle_trial.size != energy.size:
+        cycle_trial = np.zeros(energy.size)
+    return Configuration(
+        name=name,
+        key=attr_int(a, "key", _key_from_name(name)),
+        run=attr_int(a, "run", 0),
+        set_name=attr_str(a, "set"),
+        condition=attr_str(a, "condition"),
+        profile=attr_str(a, "profile"),
+        status=attr_str(a, "status", "complete" if trials else "not run"),
+        n_trials_planned=attr_int(a, "n_trials", len(trials)),
+        settings=settings,
+        trials=tuple(trials),
+        energy_loss_j=read_only(energy),
+        energy_cycle_trial=read_only(cycle_trial),
+        bouc_wen=_read_bouc_wen(grp["fits/bouc_wen"]) if "fits/bouc_wen" in grp else None,
+        spring=_read_spring(grp["fits/spring"]) if "fits/spring" in grp else None,
+        angle_min_deg=angle_min,
+        angle_max_deg=angle_max,
+        torque_slope_nm_per_deg=slope,
+    )
+
+
+def _key_from_name(name: str) -> int:
+    digits = "".join(ch for ch in name if ch.isdigit())
+    return int(digits) if digits else 0
+
+
+def _summary(angles: list[np.ndarray], torques: list[np.ndarray]) -> tuple[float, float, float]:
+    """Angle range reached and least-squares torque-angle slope (N*m/deg) over all processed samples."""
+    # accumulate the sums of the normal equations trial by trial (no concatenated copy)
+    n = sx = sy = sxx = sxy = 0.0
+    lo, hi = math.inf, -math.inf
+    for angle, torque in zip(angles, torques, strict=True):
+        ok = np.isfinite(angle) & np.isfinite(torque)
+        if not ok.all():
+            angle, torque = angle[ok], torque[ok]
+        if angle.size == 0:
+            continue
+        n += angle.size
+        sx += float(angle.sum())
+        sy += float(torque.sum())
+        sxx += float(np.einsum("i,i->", angle, angle))
+        sxy += float(np.einsum("i,i->", angle, torque))
+        lo, hi = min(lo, float(angle.min())), max(hi, float(angle.max()))
+    if n < 2:
+        return float("nan"), float("nan"), float("nan")
+    denom = sxx - sx * sx / n
+    slope = (sxy - sx * sy / n) / denom if denom > 1e-12 * max(sxx, 1.0) else float("nan")
+    return lo, hi, slope
+
+
+def _read_bouc_wen(grp: h5py.Group) -> BoucWenFit:
+    a = grp.attrs
+    return BoucWenFit(
+        A=attr_float(a, "A"),
+        n=attr_float(a, "n"),
+        beta=attr_floats(a, "beta"),
+        rmse_nm=attr_float(a, "rmse_nm"),
+        r2=attr_float(a, "r2"),
+        A_std=attr_float(a, "A_std"),
+        n_std=attr_float(a, "n_std"),
+        beta_std=attr_floats(a, "beta_std"),
+        cv_rmse_nm=attr_floats(a, "cv_rmse_nm"),
+        n_starts=attr_int(a, "n_starts", 0),
+        angle_deg=decimate_for_plot(float_ds(grp, "angle_deg")),
+        torque_nm=decimate_for_plot(float_ds(grp, "torque_nm")),
+        model_torque_nm=decimate_for_plot(float_ds(grp, "model_torque_nm")),
+        rmse_refined_nm=attr_float(a, "rmse_refined_nm"),
+        optimizer_status=attr_int(a, "optimizer_status", 0),
+        cost_spread=attr_float(a, "cost_spread"),
+        n_interval=attr_floats(a, "n_interval"),
+        weakly_identified=attr_bool(a, "weakly_identified"),
+        weak_reasons=attr_str(a, "weak_reasons"),
+        model_energy_j=attr_float(a, "model_energy_j"),
+        data_energy_j=attr_float(a, "data_energy_j"),
+        model_dissipates=attr_bool(a, "model_dissipates", True),
+        backbone=attr_str(a, "backbone", "none"),
+    )
+
+
+def _filter_text(attrs: h5py.AttributeManager) -> str:
+    """The processing filter as a reader wants it: type, order, cut-off in Hz ("" when not recorded)."""
+    hz = attr_float(attrs, "filter_cutoff_hz")
+    if not math.isfinite(hz):
+        return ""
+    kind = attr_str(attrs, "filter_type", "low-pass").capitalize()
+    return f"{kind} low-pass, order {attr_int(attrs, 'filter_order', 0)}, cut-off {hz:.1f} Hz, zero-phase"
+
+
+def _read_spring(grp: h5py.Group) -> SpringFit:
+    a = grp.attrs
+    return SpringFit(
+        applicable=attr_bool(a, "applicable", True),
+        max_preload_mm=attr_float(a, "max_preload_mm"),
+        zero_offset_deg=attr_float(a, "zero_offset_deg"),
+        rmse_nm=attr_float(a, "rmse_nm"),
+        angle_deg=decimate_for_plot(float_ds(grp, "angle_deg")),
+        model_torque_nm=decimate_for_plot(float_ds(grp, "model_torque_nm")),
+    )

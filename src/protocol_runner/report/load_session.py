@@ -1,0 +1,177 @@
+"""The session-wide parts of an archive, for the report: session information and events, calibration
+checks, comparisons and reference datasets (docs/archive.md)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import h5py
+
+from protocol_runner.report.h5read import (
+    MAX_PLOT_POINTS,
+    attr_bool,
+    attr_float,
+    attr_floats,
+    attr_int,
+    attr_str,
+    decimate_for_plot,
+    decode,
+    float_ds,
+    is_group,
+)
+from protocol_runner.report.model import (
+    CalibrationCheck,
+    ChecklistAnswer,
+    Comparison,
+    ReferenceDataset,
+    SessionEvent,
+    SessionInfo,
+)
+
+
+def read_session(h5: h5py.File, archive: Path) -> SessionInfo:
+    a = h5.attrs
+    events: list[SessionEvent] = []
+    checklists: list[ChecklistAnswer] = []
+    if "session" in h5:
+        sess = h5["session"]
+        if "events" in sess:
+            raw = decode(sess["events"][()])
+            lines = raw if isinstance(raw, list) else str(raw).splitlines()
+            events.extend(_parse_event(str(line)) for line in lines if str(line).strip())
+        if "checklists" in sess:
+            for name, grp in sess["checklists"].items():
+                if not is_group(grp):
+                    continue
+                items_text = attr_str(grp.attrs, "items", "[]")
+                try:
+                    items = tuple(str(x) for x in json.loads(items_text))
+                except (json.JSONDecodeError, TypeError):
+                    items = (items_text,)
+                checklists.append(
+                    ChecklistAnswer(
+                        step_id=attr_str(grp.attrs, "step_id", name.replace("__", ":")),
+                        title=attr_str(grp.attrs, "title"),
+                        items=items,
+                        answer=attr_str(grp.attrs, "answer"),
+                        answered_utc=attr_str(grp.attrs, "answered_utc"),
+                        automatic=attr_bool(grp.attrs, "automatic"),
+                    )
+                )
+    checklists.sort(key=lambda c: (c.answered_utc, c.step_id))
+    only = tuple(int(v) for v in attr_floats(a, "only"))
+    return SessionInfo(
+        archive_path=str(archive),
+        protocol_name=attr_str(a, "protocol_name", "(unnamed protocol)"),
+        protocol_sha256=attr_str(a, "protocol_sha256"),
+        schema_version=attr_int(a, "schema_version", 0),
+        software_version=attr_str(a, "software_version", "unknown"),
+        mode=attr_str(a, "mode", "unknown"),
+        seed=attr_int(a, "seed", 0),
+        created_utc=attr_str(a, "created_utc"),
+        finished_utc=attr_str(a, "finished_utc"),
+        status=attr_str(a, "status", "incomplete"),
+        joint=attr_str(a, "joint"),
+        only=only,
+        events=tuple(events),
+        checklists=tuple(checklists),
+    )
+
+
+def _parse_event(line: str) -> SessionEvent:
+    try:
+        obj = json.loads(line)
+    except json.JSONDecodeError:
+        return SessionEvent(t_utc="", kind="unparsed", detail=line)
+    if not isinstance(obj, dict):
+        return SessionEvent(t_utc="", kind="unparsed", detail=line)
+    detail = obj.get("detail", "")
+    if not isinstance(detail, str):
+        detail = json.dumps(detail, sort_keys=True)
+    return SessionEvent(t_utc=str(obj.get("t_utc", "")), kind=str(obj.get("kind", "")), detail=detail)
+
+
+def read_calibration(h5: h5py.File) -> tuple[CalibrationCheck, ...]:
+    if "calibration" not in h5:
+        return ()
+    checks: list[CalibrationCheck] = []
+    for set_name, set_grp in h5["calibration"].items():
+        if not is_group(set_grp):
+            continue
+        for when, grp in set_grp.items():
+            if not is_group(grp):
+                continue
+            checks.append(
+                CalibrationCheck(
+                    set_name=set_name,
+                    when=when,
+                    step_id=attr_str(grp.attrs, "step_id"),
+                    verdict=attr_str(grp.attrs, "verdict", "unknown"),
+                    step_deg=attr_float(grp.attrs, "step_deg"),
+                    settle_error_deg=attr_float(grp.attrs, "settle_error_deg"),
+                    time_constant_s=attr_float(grp.attrs, "time_constant_s"),
+                    limits=attr_str(grp.attrs, "limits"),
+                    message=attr_str(grp.attrs, "message"),
+                    time_s=decimate_for_plot(float_ds(grp, "time_s")),
+                    angle_deg=decimate_for_plot(float_ds(grp, "angle_deg")),
+                    command_time_s=decimate_for_plot(float_ds(grp, "command_time_s")),
+                    command_deg=decimate_for_plot(float_ds(grp, "command_deg")),
+                )
+            )
+    order = {"before": 0, "after": 2}
+    checks.sort(key=lambda c: (c.set_name, order.get(c.when, 1), c.when))
+    return tuple(checks)
+
+
+def read_comparisons(h5: h5py.File) -> tuple[Comparison, ...]:
+    if "comparisons" not in h5:
+        return ()
+    out: list[Comparison] = []
+    for name, grp in h5["comparisons"].items():
+        if not is_group(grp):
+            continue
+        keys = tuple(int(k) for k in attr_floats(grp.attrs, "configurations"))
+        out.append(
+            Comparison(
+                name=name,
+                parameter=attr_str(grp.attrs, "parameter", name),
+                section=attr_str(grp.attrs, "section"),
+                title=attr_str(grp.attrs, "title", name),
+                configurations=keys,
+                from_archive=True,
+            )
+        )
+    out.sort(key=lambda c: (_section_key(c.section), c.name))
+    return tuple(out)
+
+
+def _section_key(section: str) -> tuple[int, ...]:
+    parts: list[int] = []
+    for piece in section.replace("§", "").split("."):
+        try:
+            parts.append(int(piece))
+        except ValueError:
+            parts.append(999)
+    return tuple(parts) if parts else (999,)
+
+
+def read_references(h5: h5py.File) -> tuple[ReferenceDataset, ...]:
+    if "reference" not in h5:
+        return ()
+    out: list[ReferenceDataset] = []
+    for name, grp in h5["reference"].items():
+        if not is_group(grp) or "angle_deg" not in grp or "torque_nm" not in grp:
+            continue
+        angle = float_ds(grp, "angle_deg")
+        torque = float_ds(grp, "torque_nm")
+        n = min(angle.size, torque.size)
+        out.append(
+            ReferenceDataset(
+                source=attr_str(grp.attrs, "source", f"/reference/{name}"),
+                title=attr_str(grp.attrs, "title", name),
+                angle_deg=decimate_for_plot(angle[:n], 4 * MAX_PLOT_POINTS),
+                torque_nm=decimate_for_plot(torque[:n], 4 * MAX_PLOT_POINTS),
+            )
+        )
+    return tuple(out)

@@ -1,0 +1,148 @@
+"""The analysis worker pool: processing and fit steps run in a worker process beside the trials.
+
+Steps that only read finished units (never the rig) run, on a machine with two cores or more, in a
+worker process while the main process goes on with the next set's trials. They are journaled, like any
+step, only once their unit is on disk; a stop waits for the one in progress and redoes the rest.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import signal
+from collections.abc import Callable
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import wait as futures_wait
+from pathlib import Path
+
+from ..archive.units import UnitRecord, write_unit
+from ..protocol.loader import LoadedProtocol
+from ..protocol.plan import Plan, ProcessStep, Step
+from ..protocol.processing import processing_settings
+from ..protocol.step_ids import step_id as make_step_id
+from ..steps.context import StepContext
+from ..steps.failures import run_step
+from .journal import Journal
+from .signals import sigint_blocked
+
+BACKGROUND_KINDS = frozenset({"process", "fit"})
+
+Results = list[tuple[UnitRecord | None, str]]
+
+
+def worker_init() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process decides when to stop
+    # Linux: die with the session process, so a killed session leaves no worker behind writing units
+    with contextlib.suppress(Exception):
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        pr_set_pdeathsig = 1
+        libc.prctl(pr_set_pdeathsig, signal.SIGKILL)
+        if os.getppid() == 1:  # the parent died before prctl took effect
+            os._exit(1)
+
+
+def run_analysis_steps(
+    loaded: LoadedProtocol, plan: Plan, units_dir: Path, step_ids: tuple[str, ...]
+) -> Results:
+    """Run analysis steps (in order) from the archived units and write their units (in a worker process)."""
+    ctx = StepContext(
+        loaded=loaded,
+        plan=plan,
+        bench=None,  # type: ignore[arg-type]  # analysis steps never touch the rig
+        operator=None,  # type: ignore[arg-type]
+        units_dir=units_dir,
+        journal=None,  # type: ignore[arg-type]
+        stop_requested=lambda: False,
+        processing=processing_settings(loaded),
+    )
+    done: Results = []
+    for step_id in step_ids:
+        step = plan.step(step_id)
+        outcome = run_step(step, ctx)
+        record = write_unit(units_dir, step.id, outcome.fill) if outcome.fill is not None else None
+        done.append((record, outcome.summary))
+    return done
+
+
+class AnalysisPool:
+    """Background analysis steps: submitted in plan order, journaled in the main process when done."""
+
+    def __init__(self, loaded: LoadedProtocol, plan: Plan, units_dir: Path, journal: Journal) -> None:
+        self.loaded = loaded
+        self.plan = plan
+        self.units_dir = units_dir
+        self.journal = journal
+        self.submitted: set[str] = set()
+        self._pool: ProcessPoolExecutor | None = None
+        self._pending: list[tuple[tuple[Step, ...], Future[Results]]] = []
+
+    def submit(self, step: Step) -> None:
+        """Queue a configuration's processing together with its fit (one task: the fit needs its unit)."""
+        if self._pool is None:
+            workers = min(2, os.cpu_count() or 1)
+            self._pool = ProcessPoolExecutor(
+                max_workers=workers,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=worker_init,
+            )
+        chain = [step]
+        if isinstance(step, ProcessStep):
+            fit = make_step_id("fit", key=step.configuration)
+            if fit in self.plan._index and fit not in self.journal.units:
+                chain.append(self.plan.step(fit))
+        self.submitted.update(s.id for s in chain)
+        with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
+            future = self._pool.submit(
+                run_analysis_steps, self.loaded, self.plan, self.units_dir, tuple(s.id for s in chain)
+            )
+        self._pending.append((tuple(chain), future))
+
+    def collect(self, finished: Callable[[Step, str], None], *, wait: bool) -> None:
+        """Journal the background steps that finished (all of them when `wait`), telling `finished`."""
+        still: list[tuple[tuple[Step, ...], Future[Results]]] = []
+        for chain, future in self._pending:
+            if not (wait or future.done()):
+                still.append((chain, future))
+                continue
+            results = future.result()  # a worker's error is raised here, in the main process
+            for step, (record, summary) in zip(chain, results, strict=True):
+                if record is not None:
+                    self.journal.unit_done(record)
+                finished(step, summary)
+        self._pending = still
+
+    def shutdown(self, finished: Callable[[Step, str], None]) -> None:
+        """On any exit: keep the background steps that completed, drop the queued ones (redone on resume)."""
+        if self._pool is None:
+            return
+        for _, future in self._pending:
+            future.cancel()
+        # wait for the running ones here, not inside the pool's shutdown: a second Ctrl-C meanwhile must not
+        # interrupt the pool's own bookkeeping (see kill)
+        futures_wait([future for _, future in self._pending])
+        self._pool.shutdown(wait=True, cancel_futures=True)
+        for chain, future in self._pending:
+            if future.cancelled() or future.exception() is not None:
+                continue
+            with contextlib.suppress(Exception):
+                for step, (record, summary) in zip(chain, future.result(), strict=True):
+                    if record is not None:
+                        self.journal.unit_done(record)
+                    finished(step, summary)
+        self._pending.clear()
+        self._pool = None
+
+    def kill(self) -> None:
+        """Stop at once: end the analysis workers (units are atomic: an unfinished one is redone on resume)."""
+        if self._pool is None:
+            return
+        for proc in list(getattr(self._pool, "_processes", {}).values()):
+            with contextlib.suppress(Exception):
+                proc.kill()
+        with contextlib.suppress(Exception):  # quick with the workers gone; its thread must end before exit
+            self._pool.shutdown(wait=True, cancel_futures=True)
+        self._pending.clear()
+        self._pool = None

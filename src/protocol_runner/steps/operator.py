@@ -1,0 +1,27 @@
+"""What a step may ask the operator at the rig: a checklist, a decision on a failed check, a yes/no.
+
+The session supplies the implementation (`session.operator`: automatic or on the terminal; the live
+monitor wraps it); steps see only this interface.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Protocol
+
+from ..protocol.plan import ChecklistStep
+
+
+@dataclass(frozen=True)
+class Answer:
+    answer: str  # "done"
+    answered_utc: str
+    automatic: bool
+
+
+class Operator(Protocol):
+    def checklist(self, step: ChecklistStep) -> Answer: ...
+
+    def accept_failed_check(self, message: str) -> bool: ...
+
+    def confirm(self, question: str) -> bool: ...

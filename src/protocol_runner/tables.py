@@ -1,0 +1,60 @@
+"""The one reader of header-plus-table text files: calibration tables, observations, trajectory files,
+reference datasets.
+
+Format: lines starting with `#` are comments; blank lines are skipped; the first other line names the
+columns; every later line is one row. Cells are comma-separated (CSV quoting allowed) and stripped. What
+the columns must be, and the messages about them, are the caller's: this module only splits the text,
+keeping each line's number for those messages.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+from .errors import InvalidInput
+
+
+@dataclass(frozen=True)
+class Row:
+    line: int  # 1-based line number in the file
+    cells: tuple[str, ...]
+    text: str  # the whole line, stripped
+
+
+@dataclass(frozen=True)
+class HeaderTable:
+    comments: tuple[str, ...]  # the comment lines, without `#` and surrounding blanks
+    header: Row | None  # None: the text has no line but comments and blanks
+    rows: tuple[Row, ...]
+
+    @property
+    def lines(self) -> tuple[Row, ...]:
+        """The header row followed by the data rows."""
+        return ((self.header,) if self.header is not None else ()) + self.rows
+
+
+def parse_header_table(text: str) -> HeaderTable:
+    comments: list[str] = []
+    rows: list[Row] = []
+    for number, raw in enumerate(text.splitlines(), start=1):
+        line = raw.strip()
+        if not line:
+            continue
+        if line.startswith("#"):
+            comments.append(line.lstrip("#").strip())
+            continue
+        cells = tuple(c.strip() for c in next(csv.reader([line])))
+        rows.append(Row(number, cells, line))
+    return HeaderTable(tuple(comments), rows[0] if rows else None, tuple(rows[1:]))
+
+
+def read_table_text(path: Path, what: str) -> str:
+    """The file's UTF-8 text; `InvalidInput` "<what> <path>: file not found" or "...: cannot read it (...)"."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InvalidInput(f"{what} {path}: file not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InvalidInput(f"{what} {path}: cannot read it ({exc})") from None

@@ -1,0 +1,52 @@
+"""The one header-plus-table reader: comments, header, rows, with the file's line numbers."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from protocol_runner.analysis.reference import load_reference_dataset
+from protocol_runner.errors import InvalidInput
+from protocol_runner.hardware.calibration import load_calibration_table
+from protocol_runner.protocol.trajectories import load_trajectory_file
+from protocol_runner.tables import parse_header_table
+
+TEXT = '# made by hand\n\n  # second note\ntime_s, angle_deg\n0, 1.5\n\n1,"2.5"\n'
+
+
+def test_comments_header_and_rows_keep_their_line_numbers() -> None:
+    table = parse_header_table(TEXT)
+    assert table.comments == ("made by hand", "second note")
+    assert table.header is not None
+    assert (table.header.line, table.header.cells) == (4, ("time_s", "angle_deg"))
+    assert [(r.line, r.cells) for r in table.rows] == [(5, ("0", "1.5")), (7, ("1", "2.5"))]
+
+
+def test_only_comments_is_a_table_without_header() -> None:
+    table = parse_header_table("# nothing\n\n")
+    assert table.header is None and table.rows == () and table.lines == ()
+
+
+@pytest.mark.parametrize(
+    "name, load",
+    [
+        ("table.csv", load_calibration_table),
+        ("trajectory.csv", load_trajectory_file),
+        ("reference.csv", load_reference_dataset),
+    ],
+)
+def test_every_reader_names_the_file_line_of_a_bad_row(tmp_path: Path, name: str, load) -> None:
+    """The three readers share the splitting: a bad number on line 6 is reported as line 6."""
+    header = (
+        "real_deg,input_deg"
+        if name == "table.csv"
+        else "time_s,angle_deg"
+        if name == "trajectory.csv"
+        else "angle_deg,torque_nm"
+    )
+    path = tmp_path / name
+    path.write_text(f"# note\n{header}\n0,0\n1,1\n\n2,x\n", encoding="utf-8")
+    with pytest.raises(InvalidInput) as info:
+        load(path)
+    assert "6" in info.value.message and str(path) in info.value.message
