@@ -73,7 +73,7 @@ def trajectories(
     lo, hi = limits.range_deg
     if kind == "sinusoid":
         a = draw(st.floats(1.0, (hi - lo) / 2))
-        mean = draw(st.floats(lo + a, hi - a))
+        mean = draw(st.floats(lo + a, max(lo + a, hi - a)))  # equal bounds may round the wrong way
         # speed within the rate limit and peak acceleration (speed^2 / amplitude) within the limit
         top = min(limits.max_rate_deg_s, math.sqrt(limits.max_accel_deg_s2 * a)) * 0.999
         speed = draw(st.floats(min(1.0, top), top))
