@@ -20,6 +20,7 @@ from ..hardware.stream import build_stream, check_stream
 from .levels import resolve_settings
 from .plan_trajectory import Trajectory, calibration_trajectory, trajectory_for
 from .sampling import sample_trajectory
+from .schema import RigSpec
 
 if TYPE_CHECKING:
     from .loaded import LoadedProtocol, Loc
@@ -30,19 +31,24 @@ MAX_COMMAND_SAMPLES = 5_000_000
 """Longest commanded trajectory (samples at the output rate): about 14 h at 100 Hz."""
 
 
+def safety_limits(rig: RigSpec) -> SafetyLimits:
+    """The rig section's safety envelope: the joint's range and `rig.safety` (the one place that maps them)."""
+    return SafetyLimits(
+        range_deg=rig.joint.range_deg,
+        max_rate_deg_s=rig.safety.max_rate_deg_s,
+        max_accel_deg_s2=rig.safety.max_accel_deg_s2,
+        park_angle_deg=rig.safety.park_angle_deg,
+        park_rate_deg_s=rig.safety.park_rate_deg_s,
+    )
+
+
 def check_streams(loaded: LoadedProtocol, *, check_files: bool = True) -> Iterator[Problem]:
     """(location, message) for every configuration, or the calibration step, whose stream is unsafe.
     Human-motion files are only read when `check_files`."""
     p = loaded.protocol
     rig = p.rig
     try:
-        limits = SafetyLimits(
-            range_deg=rig.joint.range_deg,
-            max_rate_deg_s=rig.safety.max_rate_deg_s,
-            max_accel_deg_s2=rig.safety.max_accel_deg_s2,
-            park_angle_deg=rig.safety.park_angle_deg,
-            park_rate_deg_s=rig.safety.park_rate_deg_s,
-        )
+        limits = safety_limits(rig)
     except InvalidInput as exc:
         yield ("rig", "safety"), exc.message
         return

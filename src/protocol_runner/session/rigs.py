@@ -7,9 +7,9 @@ from typing import TYPE_CHECKING
 from ..errors import HardwareUnavailable
 from ..hardware.calibration import load_calibration_table
 from ..hardware.rig import JointConfig, Rig
-from ..hardware.safety import SafetyLimits
 from ..protocol.levels import Settings
 from ..protocol.loader import LoadedProtocol
+from ..protocol.stream_check import safety_limits
 
 if TYPE_CHECKING:
     from ..hardware.simulator.params import SimulatorParams
@@ -32,13 +32,7 @@ def joint_config(loaded: LoadedProtocol) -> JointConfig:
         command_table=load_calibration_table(base / cal.command_table) if cal.command_table else None,
         angle_table=load_calibration_table(base / cal.angle_table) if cal.angle_table else None,
         torque_table=load_calibration_table(base / cal.torque_table) if cal.torque_table else None,
-        limits=SafetyLimits(
-            range_deg=rig.joint.range_deg,
-            max_rate_deg_s=rig.safety.max_rate_deg_s,
-            max_accel_deg_s2=rig.safety.max_accel_deg_s2,
-            park_angle_deg=rig.safety.park_angle_deg,
-            park_rate_deg_s=rig.safety.park_rate_deg_s,
-        ),
+        limits=safety_limits(rig),
     )
 
 
