@@ -274,3 +274,22 @@ def test_each_configuration_shows_its_output_loop_timing(small_report: str) -> N
     )
     assert timings, "no loop timing in the report"
     assert all(float(ms) >= 0.0 for _, ms in timings)
+
+
+def test_generated_sentences_do_not_run_together(small_report: str) -> None:
+    body = small_report[small_report.index("<main>") : small_report.index("</main>")]
+    body = re.sub(r"<pre.*?</pre>|<code>.*?</code>|<figure.*?</figure>", " ", body, flags=re.S)
+    text = re.sub(r"<[^>]+>", "", body)
+    # "18 cycles.Robot torque ..." was printed before: a full stop directly followed by a capital
+    assert re.findall(r"[a-z)]\.[A-Z]", text) == []
+    assert "cycles. Robot torque removed" in re.sub(r"\s+", " ", text)
+
+
+def test_summary_comes_first_with_trial_intervals(small_report: str) -> None:
+    main = small_report[small_report.index("<main>") :]
+    assert main.index('id="summary"') < main.index('id="configurations"') < main.index('id="session"')
+    row = re.search(r'<tr id="headline-4"[^>]*>(.*?)</tr>', small_report, re.S)
+    assert row is not None
+    cells = re.findall(r"<td[^>]*>(.*?)</td>", row.group(1), re.S)
+    assert cells[2] == "2"  # trials: the experimental unit
+    assert re.fullmatch(r"\[\d+\.\d\d, \d+\.\d\d\]", cells[5]), cells[5]
