@@ -157,6 +157,9 @@ def report(
         from .archive.reprocess import reprocess_archive
 
         archive = reprocess_archive(archive, protocol_file=protocol_file)
+        from .archive.verdicts import record_verdicts
+
+        record_verdicts(archive)  # the verdicts follow the reprocessed data
         _say(f"reprocessed archive: {archive}")
         if output is None:
             output = archive.with_suffix(".html")

@@ -210,3 +210,24 @@ def test_a_robot_session_carries_no_honesty_label(tmp_path: Path) -> None:
     html = generate_report(path, tmp_path / "report.html", workers=1).read_text(encoding="utf-8")
     assert 'data-expectation="k2_upper_limit" data-verdict="met"' in html
     assert "simulated rig tuned to this finding" not in html
+
+
+def test_verdicts_are_recorded_in_the_archive_with_checksummed_evidence(tmp_path: Path) -> None:
+    import h5py
+
+    from protocol_runner.archive.verdicts import record_verdicts
+    from protocol_runner.archive.verify import verify_path
+
+    configs = [c for c in _thesis_configs() if c.key in (2, 3)]
+    path = _archive(tmp_path, configs, _knee_text())
+    assert record_verdicts(path) >= 14
+    with h5py.File(path, "r") as h5:
+        grp = h5["expectations/k2_upper_limit"]
+        assert grp.attrs["verdict"] == "met"
+        assert '"interval":[100.0,120.0]' in grp.attrs["declaration"]
+        evidence = grp["evidence"][()]
+        assert evidence[:, 0].tolist() == [2.0, 3.0] and evidence[:, 1].tolist() == [3.0, 3.0]
+        assert h5["expectations/energy_rom"].attrs["verdict"] == "not evaluable"
+    assert record_verdicts(path) >= 14  # rewriting replaces the group
+    verdict = verify_path(path)
+    assert not verdict.problems, verdict.lines

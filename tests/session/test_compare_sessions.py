@@ -118,3 +118,16 @@ def test_export_of_a_dry_run_fills_every_cycle(sessions: dict[str, Path], tmp_pa
     assert {int(r["configuration"]) for r in rows} == set(FRICTION)
     assert all(r["angle_min_deg"] and r["angle_max_deg"] and r["torque_peak_nm"] for r in rows)
     assert all(float(r["angle_max_deg"]) - float(r["angle_min_deg"]) > 50 for r in rows)
+
+
+def test_a_finished_session_records_its_verdicts_and_still_verifies(sessions: dict[str, Path]) -> None:
+    import h5py
+
+    from protocol_runner.archive.verify import verify_path
+
+    with h5py.File(sessions["a"] / "archive.h5", "r") as h5:
+        assert h5["expectations/energy_friction"].attrs["verdict"] == "met"
+        assert h5["expectations/friction_range"].attrs["verdict"] in ("met", "not met")
+        assert h5["expectations/speed_energy"].attrs["verdict"] == "not evaluable"  # not run (--only)
+    verdict = verify_path(sessions["a"] / "archive.h5")
+    assert not verdict.problems, verdict.lines

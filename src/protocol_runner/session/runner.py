@@ -406,6 +406,9 @@ class Runner:
         except ImportError:  # the report module is optional until it lands
             return None
         try:
+            from ..archive.verdicts import record_verdicts
+
+            record_verdicts(archive)  # /expectations: the declared expectations and their verdicts
             return generate_report(archive, self.dir / REPORT_NAME)
         except OSError as exc:
             if not is_disk_full(exc):
