@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import shutil
 from pathlib import Path
 
 import pytest
@@ -231,3 +232,43 @@ def test_verdicts_are_recorded_in_the_archive_with_checksummed_evidence(tmp_path
     assert record_verdicts(path) >= 14  # rewriting replaces the group
     verdict = verify_path(path)
     assert not verdict.problems, verdict.lines
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "needle"),
+    [
+        (
+            "    configurations: [4, 5, 6, 7]\n  - id: stiffness_slope",
+            "    configurations: [4, 5, 6, 77]\n  - id: stiffness_slope",
+            "no configuration has key 77",
+        ),
+        (
+            "    relation: inside\n    interval: [100, 120]",
+            "    relation: inside\n    interval: [120, 100]",
+            "low < high",
+        ),
+        (
+            "    metric: range_reached\n    relation: less",
+            "    metric: range_width\n    relation: less",
+            "metric",
+        ),
+    ],
+)
+def test_a_bad_expectation_is_refused_with_file_line_and_field(
+    tmp_path: Path, old: str, new: str, needle: str
+) -> None:
+    from protocol_runner.errors import InvalidInput
+    from protocol_runner.protocol.loader import load_protocol
+
+    folder = tmp_path / "p"
+    shutil.copytree(KNEE_YAML.parent, folder)
+    text = KNEE_YAML.read_text(encoding="utf-8")
+    assert old in text
+    (folder / "knee_phase1.yaml").write_text(text.replace(old, new, 1), encoding="utf-8")
+    with pytest.raises(InvalidInput) as info:
+        load_protocol(folder / "knee_phase1.yaml", display_name="knee_phase1.yaml")
+    message = info.value.message
+    assert needle in message and "expectations" in message
+    assert re.search(r"knee_phase1\.yaml.*line \d+", message) or re.search(
+        r"knee_phase1\.yaml:\d+", message
+    ), message
