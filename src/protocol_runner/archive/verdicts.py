@@ -45,13 +45,13 @@ def record_verdicts(archive: Path) -> int:
                     "declaration": v.spec.model_dump_json(exclude_none=True),
                     "verdict": v.verdict,
                     "reason": v.reason,
-                    "simulator_tuned": bool(v.spec.simulator_tuned),
-                    "dry_run": result.dry_run,
+                    "simulator_tuned": int(v.spec.simulator_tuned),  # 0/1: numbers export as doubles
+                    "dry_run": int(result.dry_run),
                 },
             )
             rows = np.asarray([[e.key, e.n, e.mean, e.low, e.high] for e in v.evidence], dtype=float)
             ds = grp.create_dataset("evidence", data=rows.reshape(-1, 5))
             ds.attrs["columns"] = "key, trials, mean, ci95_low, ci95_high"
-            ds.attrs["units"] = v.unit
+            ds.attrs["metric_unit"] = v.unit  # not `units`: one name keeps one unit per archive
             seal(ds, rows.reshape(-1, 5))
     return len(result.verdicts)
