@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 from pathlib import Path
@@ -226,8 +227,11 @@ def test_verdicts_are_recorded_in_the_archive_with_checksummed_evidence(tmp_path
         grp = h5["expectations/k2_upper_limit"]
         assert grp.attrs["verdict"] == "met"
         assert '"interval":[100.0,120.0]' in grp.attrs["declaration"]
-        evidence = grp["evidence"][()]
-        assert evidence[:, 0].tolist() == [2.0, 3.0] and evidence[:, 1].tolist() == [3.0, 3.0]
+        evidence = json.loads(grp["evidence"][()])
+        assert [(e["key"], e["trials"], e["unit"]) for e in evidence] == [(2, 3, "deg"), (3, 3, "deg")]
+        assert evidence[0]["ci95_low"] < evidence[0]["mean"] < evidence[0]["ci95_high"]
+        missing = json.loads(h5["expectations/energy_rom/evidence"][()])
+        assert missing[0]["trials"] == 0 and missing[0]["mean"] is None
         assert h5["expectations/energy_rom"].attrs["verdict"] == "not evaluable"
     assert record_verdicts(path) >= 14  # rewriting replaces the group
     verdict = verify_path(path)

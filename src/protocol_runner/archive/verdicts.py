@@ -4,20 +4,23 @@ Called once the archive is consolidated (and again after `--reprocess`): the ver
 archive's own data by the report's evaluator and stored for tools; the report itself always re-decides
 them from the archived protocol text and data, so a stored verdict never disagrees with a regenerated
 report of the same archive. Each expectation is a group `/expectations/<id>` whose attributes give the
-declaration and the outcome, and whose `evidence` dataset (sealed with its checksum) holds one row per
-configuration: key, trials, mean, 95 % interval low and high, in the metric's unit.
+declaration and the outcome, and whose `evidence` text dataset (sealed with its checksum) is a JSON list,
+one object per configuration: key, trials, mean, 95 % interval low and high (null when undefined), unit.
 """
 
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import h5py
-import numpy as np
 
-from protocol_runner.archive.checksums import seal
-from protocol_runner.archive.h5util import set_attrs
+from protocol_runner.archive.h5util import put_text, set_attrs
+
+
+def _finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None
 
 
 def record_verdicts(archive: Path) -> int:
@@ -49,9 +52,16 @@ def record_verdicts(archive: Path) -> int:
                     "dry_run": int(result.dry_run),
                 },
             )
-            rows = np.asarray([[e.key, e.n, e.mean, e.low, e.high] for e in v.evidence], dtype=float)
-            ds = grp.create_dataset("evidence", data=rows.reshape(-1, 5))
-            ds.attrs["columns"] = "key, trials, mean, ci95_low, ci95_high"
-            ds.attrs["metric_unit"] = v.unit  # not `units`: one name keeps one unit per archive
-            seal(ds, rows.reshape(-1, 5))
+            rows = [
+                {
+                    "key": e.key,
+                    "trials": e.n,
+                    "mean": _finite(e.mean),
+                    "ci95_low": _finite(e.low),
+                    "ci95_high": _finite(e.high),
+                    "unit": v.unit,
+                }
+                for e in v.evidence
+            ]
+            put_text(grp, "evidence", json.dumps(rows))
     return len(result.verdicts)
