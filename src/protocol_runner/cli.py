@@ -29,6 +29,10 @@ modes:
       continue an interrupted session without redoing finished steps
   run-protocol --report SESSION_DIR|ARCHIVE.h5 [--output FILE] [--reprocess] [--export-mat DIR]
       (re)generate the HTML report from an archive alone
+  run-protocol --export SESSION_DIR|ARCHIVE.h5 [--output DIR]
+      write cycles.csv, trials.csv and configurations.csv (units in the column names)
+  run-protocol --compare A B [--output FILE]
+      compare two sessions or archives configuration by configuration (95 % Welch intervals)
   run-protocol --verify SESSION_DIR|ARCHIVE.h5
       check every dataset against its checksum; exit 2 naming each damaged one
   run-protocol --plan PROTOCOL [--json]
@@ -73,6 +77,10 @@ def build_parser() -> argparse.ArgumentParser:
     mode.add_argument(
         "--verify", metavar="PATH", help="check the checksums of a session directory's or archive's datasets"
     )
+    mode.add_argument("--export", metavar="PATH", help="write tidy CSV tables of a session or archive")
+    mode.add_argument(
+        "--compare", nargs=2, metavar=("A", "B"), help="compare two sessions or archives (HTML + table)"
+    )
     mode.add_argument("--plan", metavar="PROTOCOL", help="print the expanded plan of a protocol")
     mode.add_argument("--validate", metavar="PROTOCOL", help="validate a protocol file")
     mode.add_argument(
@@ -114,7 +122,11 @@ def build_parser() -> argparse.ArgumentParser:
     out.add_argument(
         "--json", action="store_true", help="with --plan: print the plan as JSON (the contract shape)"
     )
-    out.add_argument("--output", metavar="FILE", help="with --report: where to write the HTML")
+    out.add_argument(
+        "--output",
+        metavar="FILE",
+        help="with --report/--compare: where to write the HTML; with --export: the directory",
+    )
     out.add_argument(
         "--reprocess", action="store_true", help="with --report: redo processing and fits from raw data"
     )
@@ -161,7 +173,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     if args.monitor is not None and any(
-        m is not None for m in (args.plan, args.validate, args.report, args.hardware_check)
+        m is not None
+        for m in (args.plan, args.validate, args.report, args.hardware_check, args.export, args.compare)
     ):
         raise InvalidInput("--monitor watches a session: use it with a PROTOCOL to run or with --resume")
     if args.plan is not None:
@@ -182,6 +195,13 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
             protocol_file=args.protocol_file,
             export_mat=Path(args.export_mat) if args.export_mat else None,
         )
+    if args.export is not None or args.compare is not None:
+        from .commands import compare, export
+
+        output = Path(args.output) if args.output else None
+        if args.export is not None:
+            return export(Path(args.export), output)
+        return compare(Path(args.compare[0]), Path(args.compare[1]), output)
     if args.verify is not None:
         from .commands import verify
 

@@ -157,6 +157,9 @@ def report(
         from .archive.reprocess import reprocess_archive
 
         archive = reprocess_archive(archive, protocol_file=protocol_file)
+        from .report.verdicts import record_verdicts
+
+        record_verdicts(archive)  # the verdicts follow the reprocessed data
         _say(f"reprocessed archive: {archive}")
         if output is None:
             output = archive.with_suffix(".html")
@@ -248,3 +251,27 @@ def hardware_check(protocol: str | None) -> int:
     result = check(required)
     print(format_report(result))
     return EXIT_OK if result.ok else EXIT_HARDWARE_UNAVAILABLE
+
+
+def export(path: Path, output: Path | None) -> int:
+    """`--export`: cycles.csv, trials.csv and configurations.csv (default: `tables/` beside the archive)."""
+    from .report.tidy import export_tables
+
+    archive = _archive_of(path)
+    out_dir = output if output is not None else archive.parent / "tables"
+    files = export_tables(archive, out_dir)
+    _say(f"wrote {', '.join(f.name for f in files)} to {out_dir}")
+    return EXIT_OK
+
+
+def compare(a: Path, b: Path, output: Path | None) -> int:
+    """`--compare`: match configurations by settings, print the table and write the HTML page."""
+    from .report.compare import compare_archives, render_comparison
+
+    archive_a, archive_b = _archive_of(a), _archive_of(b)
+    result = compare_archives(archive_a, archive_b)
+    print(result.table())
+    out = output if output is not None else Path("comparison.html")
+    render_comparison(result, out)
+    _say(f"comparison: {out}")
+    return EXIT_OK

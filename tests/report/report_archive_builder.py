@@ -98,6 +98,8 @@ class ArchiveSpec:
     extra_comparisons: dict[str, tuple[str, str, str, tuple[int, ...]]] = field(default_factory=dict)
     # store like archive/h5util.py: large float datasets gzip+shuffle, measured/processed signals float32
     compress_floats: bool = False
+    # the archived protocol text (/protocol); its `expectations:` drive the report's verdicts
+    protocol_text: str = "name: knee_synthetic\njoint: knee_flexion\n"
 
 
 _COMPRESS_FLOATS = False
@@ -166,9 +168,7 @@ def write_archive(path: Path, spec: ArchiveSpec) -> Path:
         f.attrs["only"] = np.asarray([c.key for c in spec.configs], dtype=np.int64)
         for k, v in spec.extra_root_attrs.items():
             f.attrs[k] = v
-        f.create_dataset("protocol", data="name: knee_synthetic\njoint: knee_flexion\n").attrs["filename"] = (
-            "knee_synthetic.yaml"
-        )
+        f.create_dataset("protocol", data=spec.protocol_text).attrs["filename"] = "knee_synthetic.yaml"
         f.create_dataset("plan", data=json.dumps({"protocol": "knee_synthetic", "steps": []}))
         events = [{"t_utc": "2026-11-21T10:15:00Z", "kind": "started", "detail": "dry run"}]
         if spec.interrupted:

@@ -152,14 +152,11 @@ def test_configuration_sections_say_how_the_robot_torque_was_removed(small_repor
     assert "Robot torque removed at equal angles (§3.3)." in section
 
 
-def test_calibration_verdicts_and_findings_are_shown(small_report: str) -> None:
-    calibration = small_report[
-        small_report.index('id="calibration"') : small_report.index('id="configurations"')
-    ]
+def test_calibration_verdicts_are_shown_with_readable_limits(small_report: str) -> None:
+    calibration = small_report[small_report.index('id="calibration"') : small_report.index('id="session"')]
     assert calibration.count('class="ok">pass<') == 2
-    findings = small_report[small_report.index('id="findings"') :]
-    assert "Energy loss grows with friction" in findings
-    assert 'class="ok">agrees<' in findings and "not enough data" in findings
+    assert "settle error ≤ 2 deg" in calibration
+    assert "{&#34;" not in calibration and '{"' not in calibration  # no raw JSON dictionary
 
 
 def test_complete_session_has_no_incomplete_banner(small_report: str) -> None:
@@ -278,3 +275,22 @@ def test_each_configuration_shows_its_output_loop_timing(small_report: str) -> N
     assert timings, "no loop timing in the report"
     # the test archive records a p99 lateness of exactly 0 s for every trial (report_archive_builder.py)
     assert [float(ms) for _, ms in timings] == [0.0] * len(timings)
+
+
+def test_generated_sentences_do_not_run_together(small_report: str) -> None:
+    body = small_report[small_report.index("<main>") : small_report.index("</main>")]
+    body = re.sub(r"<pre.*?</pre>|<code>.*?</code>|<figure.*?</figure>", " ", body, flags=re.S)
+    text = re.sub(r"<[^>]+>", "", body)
+    # "18 cycles.Robot torque ..." was printed before: a full stop directly followed by a capital
+    assert re.findall(r"[a-z)]\.[A-Z]", text) == []
+    assert "cycles. Robot torque removed" in re.sub(r"\s+", " ", text)
+
+
+def test_summary_comes_first_with_trial_intervals(small_report: str) -> None:
+    main = small_report[small_report.index("<main>") :]
+    assert main.index('id="summary"') < main.index('id="configurations"') < main.index('id="session"')
+    row = re.search(r'<tr id="headline-4"[^>]*>(.*?)</tr>', small_report, re.S)
+    assert row is not None
+    cells = re.findall(r"<td[^>]*>(.*?)</td>", row.group(1), re.S)
+    assert cells[2] == "2"  # trials: the experimental unit
+    assert re.fullmatch(r"\[\d+\.\d\d, \d+\.\d\d\]", cells[5]), cells[5]

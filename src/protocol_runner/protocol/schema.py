@@ -12,6 +12,8 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictInt, field_validator
 
+from protocol_runner.protocol.expectations import ExpectationSpec
+
 
 def _int_to_str(value: object) -> object:
     """Level names may be written as bare numbers in YAML (`friction: 2`): treat them as names."""
@@ -318,6 +320,7 @@ class Protocol(_Model):
     fits: FitsSpec = FitsSpec()
     sets: list[SetSpec] = Field(min_length=1)
     report: ReportSpec = ReportSpec()
+    expectations: list[ExpectationSpec] = Field(default_factory=list)
 
     def configurations(self) -> list[tuple[SetSpec, ConfigurationSpec]]:
         """Every configuration with its set, in execution order."""

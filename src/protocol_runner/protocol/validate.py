@@ -17,6 +17,7 @@ import numpy as np
 
 from ..errors import InvalidInput
 from ..hardware.conversions import RSST_JOINTS
+from .expectations import check_expectations
 from .paths import OutsideFolder, confined_path
 from .schema import LEVEL_FAMILIES, ConfigurationSpec, Protocol
 from .trajectories import (
@@ -51,6 +52,7 @@ def cross_check(loaded: LoadedProtocol, *, check_files: bool = True) -> list[Pro
     if check_files:
         problems += list(_check_files(p, loaded.base_dir))
     problems += list(_check_report(p))
+    problems += list(check_expectations(p.expectations, {c.key for _, c in p.configurations()}))
     if not problems:  # every motion's complete commanded stream, approach and exit included
         from .stream_check import check_streams
 

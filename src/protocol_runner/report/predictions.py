@@ -61,7 +61,9 @@ def _model(g: h5py.Group) -> tuple[BoucWenParams, Backbone | None]:
 def _segments(g: h5py.Group) -> list[tuple[np.ndarray, np.ndarray]]:
     angle = np.asarray(g["angle_deg"][:], dtype=np.float64)
     torque = np.asarray(g["torque_nm"][:], dtype=np.float64)
-    edges = np.concatenate([[0], np.cumsum(np.asarray(g["segment_lengths"][:], dtype=np.int64))])
+    # archives whose fit groups predate `segment_lengths` hold one loop
+    lengths = g["segment_lengths"][:] if "segment_lengths" in g else [angle.size]
+    edges = np.concatenate([[0], np.cumsum(np.asarray(lengths, dtype=np.int64))])
     return [(angle[a:b], torque[a:b]) for a, b in itertools.pairwise(edges) if b - a > 2]
 
 

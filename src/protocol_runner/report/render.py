@@ -29,7 +29,9 @@ from protocol_runner.report.figures import (
     render_figures,
     slug,
 )
-from protocol_runner.report.findings import Finding, comparison_keys, evaluate_findings
+from protocol_runner.report.findings import TUNED_LABEL, comparison_keys, evaluate_expectations
+from protocol_runner.report.headline import configuration_stats, group_repeatability, identical_groups
+from protocol_runner.report.limits_text import limits_text
 from protocol_runner.report.load import load_reference_dataset, load_report_data
 from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Comparison, Configuration, ReportData
 from protocol_runner.report.predictions import predictions
@@ -39,15 +41,16 @@ TEMPLATE = "report.html.j2"
 
 #: Section ids of the report, in document order (the table of contents links to these).
 SECTIONS: tuple[tuple[str, str], ...] = (
-    ("session", "Session"),
+    ("summary", "Summary"),
+    ("expectations", "Expectations"),
+    ("configurations", "Configurations"),
+    ("comparisons", "Comparisons"),
+    ("energy-loss", "Energy loss"),
+    ("emu", "EMU comparison"),
+    ("models", "Models"),
     ("test-matrix", "Test matrix"),
     ("calibration", "Calibration checks"),
-    ("configurations", "Configurations"),
-    ("comparisons", "Comparisons (§5.1-5.5)"),
-    ("energy-loss", "Energy loss (§5.7)"),
-    ("emu", "EMU comparison (§5.6)"),
-    ("models", "Models (Chapter 6)"),
-    ("findings", "Findings (Chapter 5)"),
+    ("session", "Session details"),
     ("protocol", "Protocol as run"),
 )
 
@@ -141,6 +144,7 @@ def _environment() -> jinja2.Environment:
     env.filters["pm"] = _pm
     env.filters["slug"] = slug
     env.filters["setting"] = _setting_text
+    env.filters["ci"] = _ci
     return env
 
 
@@ -162,6 +166,12 @@ def _pm(mean: float, std: float, digits: int = 2) -> str:
     if not math.isfinite(std):
         return _num(mean, digits)
     return f"{mean:.{digits}f} ± {std:.{digits}f}"
+
+
+def _ci(low: float, high: float, digits: int = 2) -> str:
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return "—"
+    return f"[{low:.{digits}f}, {high:.{digits}f}]"
 
 
 def _setting_text(cfg: Configuration, name: str) -> str:
@@ -187,7 +197,8 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
         )
     overlay_comparisons = distinct_comparisons(data)
     emu = emu_comparison(data)
-    findings: tuple[Finding, ...] = evaluate_findings(data)
+    expectations = evaluate_expectations(data)
+    groups = identical_groups(data)
     restraint_keys = (comparison_keys(data, "brace_rom"), comparison_keys(data, "robot_rom"))
     return {
         "data": data,
@@ -202,12 +213,15 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
         "fitted": [c for c in data.configurations if c.bouc_wen is not None],
         "predictions": predictions(Path(data.session.archive_path), data.protocol_text),
         "spring_fitted": [c for c in data.configurations if c.spring is not None],
-        "findings": findings,
+        "expectations": expectations,
+        "tuned_label": TUNED_LABEL,
+        "headline": [configuration_stats(c) for c in data.configurations],
+        "repeatability": [(keys, group_repeatability(data, keys)) for keys in groups],
+        "limits_text": limits_text,
         "restraint_keys": restraint_keys,
         "generated_utc": generated_utc,
         "software_version": __version__,
         "verdict_class": _verdict_class,
-        "finding_class": _finding_class,
         "configs_of": lambda comp: _configs(data, comp),
         "beta_cell": _beta_cell,
     }
@@ -228,7 +242,3 @@ def _configs(data: ReportData, comparison: Comparison | None) -> list[Configurat
 
 def _verdict_class(verdict: str) -> str:
     return {"pass": "ok", "fail": "bad", "accepted": "warn"}.get(verdict, "warn")
-
-
-def _finding_class(agrees: bool | None) -> str:
-    return "ok" if agrees is True else "bad" if agrees is False else "na"

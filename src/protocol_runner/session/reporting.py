@@ -12,8 +12,10 @@ REPORT_NAME = "report.html"
 def render_report(session_dir: Path, archive: Path) -> Path:
     """Render the session's report next to its archive; a full disk is a `DiskFull` with the resume hint."""
     from ..report.render import generate_report  # here: only the report step needs jinja and matplotlib
+    from ..report.verdicts import record_verdicts
 
     try:
+        record_verdicts(archive)  # /expectations: the declared expectations and their verdicts
         return generate_report(archive, session_dir / REPORT_NAME)
     except OSError as exc:
         if not is_disk_full(exc):

@@ -1,0 +1,171 @@
+"""Trial-level statistics: the trial is the experimental unit, not the cycle.
+
+Cycles within one trial are not independent repeats (same mounting, same warm-up, same brake state), so
+every interval here is computed on trial means: a configuration's energy per cycle is the mean of its
+trial means, with a two-sided Student t-interval over trials (n - 1 degrees of freedom) and the
+between-trial coefficient of variation. Two configurations differ by the difference of their means with
+a Welch interval (unequal variances, Welch-Satterthwaite degrees of freedom). Repeatability of a group of
+configurations with identical settings run in different sets is the between-configuration CV and the
+one-way random-effects intraclass correlation ICC(1) of the trial means.
+
+Public API:
+    trial_means(values, trial_ids) -> (trial numbers, means)
+    TInterval, t_interval(values, confidence=0.95)
+    WelchInterval, welch_interval(a, b, confidence=0.95)
+    Repeatability, repeatability(groups)
+    coefficient_of_variation(values)
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+from scipy import stats
+
+#: Confidence level of every interval in reports and exports.
+CONFIDENCE = 0.95
+
+
+@dataclass(frozen=True)
+class TInterval:
+    """Mean of `n` units with its two-sided t-interval; `low`/`high` are NaN when n < 2."""
+
+    n: int
+    mean: float
+    sd: float
+    low: float
+    high: float
+    confidence: float = CONFIDENCE
+
+    @property
+    def half_width(self) -> float:
+        """Half the interval's width (NaN when undefined)."""
+        return (self.high - self.low) / 2.0
+
+    @property
+    def cv(self) -> float:
+        """Between-unit coefficient of variation sd / |mean| (NaN when undefined)."""
+        if self.n < 2 or not math.isfinite(self.mean) or self.mean == 0.0:
+            return math.nan
+        return self.sd / abs(self.mean)
+
+
+@dataclass(frozen=True)
+class WelchInterval:
+    """Difference `b - a` of two means with its Welch t-interval and p-value."""
+
+    difference: float
+    low: float
+    high: float
+    dof: float
+    p_value: float
+    confidence: float = CONFIDENCE
+
+    @property
+    def significant(self) -> bool:
+        """True when the interval excludes zero (NaN bounds: False)."""
+        return bool(self.low > 0.0 or self.high < 0.0)
+
+
+@dataclass(frozen=True)
+class Repeatability:
+    """Agreement of identical configurations run in different sets (units: their trial means)."""
+
+    groups: int
+    units: int
+    grand_mean: float
+    between_cv: float
+    icc: float
+
+
+def _finite(values: npt.ArrayLike) -> np.ndarray:
+    arr = np.asarray(values, dtype=float).ravel()
+    return arr[np.isfinite(arr)]
+
+
+def trial_means(values: npt.ArrayLike, trial_ids: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+    """Per-trial means of `values` grouped by `trial_ids` (same length), in trial order; NaNs ignored."""
+    vals = np.asarray(values, dtype=float).ravel()
+    ids = np.asarray(trial_ids).ravel()
+    if vals.size != ids.size:
+        raise ValueError(f"{vals.size} values but {ids.size} trial ids")
+    numbers: list[int] = []
+    means: list[float] = []
+    for number in np.unique(ids):
+        own = vals[(ids == number) & np.isfinite(vals)]
+        if own.size:
+            numbers.append(int(number))
+            means.append(float(own.mean()))
+    return np.asarray(numbers, dtype=np.int64), np.asarray(means, dtype=float)
+
+
+def t_interval(values: npt.ArrayLike, confidence: float = CONFIDENCE) -> TInterval:
+    """Mean of `values` (one per unit) with its two-sided Student t-interval."""
+    arr = _finite(values)
+    n = int(arr.size)
+    if n == 0:
+        return TInterval(0, math.nan, math.nan, math.nan, math.nan, confidence)
+    mean = float(arr.mean())
+    if n < 2:
+        return TInterval(1, mean, math.nan, math.nan, math.nan, confidence)
+    sd = float(arr.std(ddof=1))
+    half = float(stats.t.ppf(0.5 + confidence / 2.0, n - 1)) * sd / math.sqrt(n)
+    return TInterval(n, mean, sd, mean - half, mean + half, confidence)
+
+
+def coefficient_of_variation(values: npt.ArrayLike) -> float:
+    """Sample CV (ddof=1) of `values`; NaN for fewer than two values or a zero mean."""
+    return t_interval(values).cv
+
+
+def welch_interval(a: npt.ArrayLike, b: npt.ArrayLike, confidence: float = CONFIDENCE) -> WelchInterval:
+    """Difference of means `mean(b) - mean(a)` with a Welch interval; NaN bounds if either has < 2 units.
+
+    Two groups that are both constant give a zero-width interval around their difference (p 0 or 1).
+    """
+    x, y = _finite(a), _finite(b)
+    if x.size < 2 or y.size < 2:
+        diff = float(y.mean() - x.mean()) if x.size and y.size else math.nan
+        return WelchInterval(diff, math.nan, math.nan, math.nan, math.nan, confidence)
+    diff = float(y.mean() - x.mean())
+    vx, vy = float(x.var(ddof=1)) / x.size, float(y.var(ddof=1)) / y.size
+    se2 = vx + vy
+    if se2 == 0.0:
+        return WelchInterval(diff, diff, diff, math.inf, 1.0 if diff == 0.0 else 0.0, confidence)
+    dof = se2**2 / (vx**2 / (x.size - 1) + vy**2 / (y.size - 1))
+    se = math.sqrt(se2)
+    half = float(stats.t.ppf(0.5 + confidence / 2.0, dof)) * se
+    p_value = float(2.0 * stats.t.sf(abs(diff) / se, dof))
+    return WelchInterval(diff, diff - half, diff + half, dof, p_value, confidence)
+
+
+def repeatability(groups: Sequence[npt.ArrayLike]) -> Repeatability:
+    """Between-group CV and one-way random-effects ICC(1) of unit values (e.g. trial means) per group.
+
+    ICC(1) = (MSB - MSW) / (MSB + (n0 - 1) MSW), with n0 the ANOVA's effective group size for unequal
+    groups; NaN when fewer than two groups or no within-group replication. The between-group CV is the
+    sample standard deviation of the group means over the grand mean.
+    """
+    arrays = [g for g in (_finite(x) for x in groups) if g.size]
+    k = len(arrays)
+    units = sum(int(g.size) for g in arrays)
+    if k == 0:
+        return Repeatability(0, 0, math.nan, math.nan, math.nan)
+    grand = float(np.concatenate(arrays).mean())
+    means = np.asarray([g.mean() for g in arrays])
+    between_cv = coefficient_of_variation(means) if k >= 2 else math.nan
+    if k < 2 or units <= k:
+        return Repeatability(k, units, grand, between_cv, math.nan)
+    sizes = np.asarray([g.size for g in arrays], dtype=float)
+    ss_between = float(np.sum(sizes * (means - grand) ** 2))
+    ss_within = float(sum(np.sum((g - g.mean()) ** 2) for g in arrays))
+    msb = ss_between / (k - 1)
+    msw = ss_within / (units - k)
+    n0 = (units - float(np.sum(sizes**2)) / units) / (k - 1)
+    denominator = msb + (n0 - 1.0) * msw
+    icc = (msb - msw) / denominator if denominator > 0.0 else math.nan
+    return Repeatability(k, units, grand, between_cv, float(icc))

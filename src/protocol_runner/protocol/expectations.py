@@ -1,0 +1,82 @@
+"""The schema of one declared expectation (the protocol's `expectations:` list, docs/protocol.md)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator, Sequence
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictInt, model_validator
+
+Relation = Literal["increasing", "decreasing", "no_trend", "greater", "less", "equal", "inside"]
+
+MetricName = Literal[
+    "energy_per_cycle",
+    "energy_per_degree",
+    "torque_angle_slope",
+    "angle_percentile",
+    "range_reached",
+    "peak_torque",
+    "hysteresis_width",
+    "fit_rmse",
+]
+
+_Pair = Annotated[tuple[float, float], BeforeValidator(lambda v: tuple(v) if isinstance(v, list) else v)]
+
+
+class ExpectationSpec(BaseModel):
+    """One statement a campaign expects its data to support, and how to decide it."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    id: Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$", max_length=31)]  # a MATLAB field name
+    text: str = Field(min_length=1)
+    section: str = ""
+    metric: MetricName
+    percentile: float | None = Field(default=None, ge=0, le=100)
+    angle_deg: float | None = None
+    configurations: list[StrictInt] = Field(min_length=1)
+    relation: Relation
+    than: list[StrictInt] | None = None
+    value: float | None = None
+    tolerance: float | None = Field(default=None, gt=0)
+    interval: _Pair | None = None
+    min_trials: StrictInt = Field(default=2, ge=2, le=50)
+    simulator_tuned: bool = False
+
+    @model_validator(mode="after")
+    def _relation_fields(self) -> ExpectationSpec:
+        r = self.relation
+        if self.metric == "angle_percentile" and self.percentile is None:
+            raise ValueError("metric angle_percentile needs `percentile` (0-100)")
+        if self.metric == "hysteresis_width" and self.angle_deg is None:
+            raise ValueError("metric hysteresis_width needs `angle_deg`")
+        if r in ("increasing", "decreasing", "no_trend") and len(self.configurations) < 2:
+            raise ValueError(f"relation {r} needs two or more configurations, in the stated order")
+        if r in ("greater", "less", "equal"):
+            if (self.than is None) == (self.value is None):
+                raise ValueError(f"relation {r} needs exactly one of `than` (configurations) or `value`")
+            if self.than is not None and len(self.than) != len(self.configurations):
+                raise ValueError("`than` must list as many configurations as `configurations` (pairwise)")
+        if r == "equal" and self.tolerance is None:
+            raise ValueError("relation equal needs `tolerance` (in the metric's unit)")
+        if r == "inside":
+            if self.interval is None:
+                raise ValueError("relation inside needs `interval: [low, high]`")
+            if not self.interval[0] < self.interval[1]:
+                raise ValueError("`interval` must be [low, high] with low < high")
+        return self
+
+
+def check_expectations(
+    specs: Sequence[ExpectationSpec], keys: set[int]
+) -> Iterator[tuple[tuple[str | int, ...], str]]:
+    """(location, message) for duplicate ids and configuration keys the matrix does not have."""
+    seen: set[str] = set()
+    for i, spec in enumerate(specs):
+        if spec.id in seen:
+            yield ("expectations", i, "id"), f"expectation id {spec.id!r} is used twice"
+        seen.add(spec.id)
+        for field in ("configurations", "than"):
+            for j, key in enumerate(getattr(spec, field) or ()):
+                if key not in keys:
+                    yield ("expectations", i, field, j), f"no configuration has key {key}"

@@ -1,0 +1,194 @@
+"""Two sessions side by side: configurations matched by their settings, differences with Welch intervals.
+
+Configurations match when their declared settings agree: the profile and every level name (string-valued
+settings such as `brace_rom: R3`, `friction: "2"`), not their matrix keys and not the physical values
+behind the names, so a session of a stiffer brake (same level names, larger `friction_nm`) still pairs
+with the baseline and shows what changed. Several identical configurations on each side pair in key order.
+
+Per matched pair: energy per cycle and range reached, B minus A, on trial values (the trial is the
+unit) with a 95 % Welch interval; a difference is significant when its interval excludes zero. A pair
+counts as different when its energy per cycle (the primary outcome) differs; the range's own flag is
+shown beside it (testing both for one verdict would double the false-alarm rate). Inputs
+with no configuration in common are incomparable (`InvalidInput`, exit 2).
+
+Public API: compare_archives(a, b) -> SessionComparison; render_comparison(result, output) -> Path
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import jinja2
+
+from protocol_runner.analysis.statistics import WelchInterval, welch_interval
+from protocol_runner.errors import InvalidInput
+from protocol_runner.report.compare_figure import overlay_figure
+from protocol_runner.report.load import load_report_data
+from protocol_runner.report.metrics import trial_values
+from protocol_runner.report.model import Configuration, ReportData
+from protocol_runner.resources import templates_dir
+
+TEMPLATE = "compare.html.j2"
+
+
+@dataclass(frozen=True)
+class Pair:
+    """One configuration of A matched with one of B, and their differences (B minus A)."""
+
+    a: Configuration
+    b: Configuration
+    energy: WelchInterval
+    range: WelchInterval
+    changed: tuple[tuple[str, str, str], ...]  # (setting, value in A, value in B) where they differ
+
+    @property
+    def significant(self) -> bool:
+        """True when the energy-per-cycle difference (the primary outcome) excludes zero."""
+        return self.energy.significant
+
+    @property
+    def label(self) -> str:
+        """Human label of the shared settings."""
+        return ", ".join(f"{k} {v}" for k, v in signature(self.a) if k != "profile") or self.a.profile
+
+
+@dataclass(frozen=True)
+class SessionComparison:
+    """The matched pairs of two archives and the configurations left unmatched on each side."""
+
+    a: ReportData
+    b: ReportData
+    pairs: tuple[Pair, ...]
+    only_a: tuple[int, ...]
+    only_b: tuple[int, ...]
+
+    @property
+    def n_significant(self) -> int:
+        """Pairs whose energy per cycle differs significantly."""
+        return sum(p.significant for p in self.pairs)
+
+    def table(self) -> str:
+        """The printed table: one line per matched pair."""
+        head = (
+            f"{'A':>4} {'B':>4}  {'energy B-A (J)':>15} {'95 % interval':>20}  "
+            f"{'range B-A (deg)':>15} {'95 % interval':>20}  energy differs (range)"
+        )
+        lines = [head]
+        for p in self.pairs:
+            lines.append(
+                f"{p.a.key:>4} {p.b.key:>4}  {_num(p.energy.difference):>15} {_ival(p.energy):>20}  "
+                f"{_num(p.range.difference):>15} {_ival(p.range):>20}  {'yes' if p.significant else 'no'}"
+                f" ({'yes' if p.range.significant else 'no'})"
+            )
+        lines.append(
+            f"{len(self.pairs)} matched configurations, {self.n_significant} with a significant energy "
+            "difference; "
+            f"unmatched: A {list(self.only_a) or 'none'}, B {list(self.only_b) or 'none'}"
+        )
+        return "\n".join(lines)
+
+
+def _num(value: float) -> str:
+    return f"{value:+.3f}" if math.isfinite(value) else "—"
+
+
+def _ival(w: WelchInterval) -> str:
+    if not (math.isfinite(w.low) and math.isfinite(w.high)):
+        return "— (too few trials)"
+    return f"[{w.low:+.3f}, {w.high:+.3f}]"
+
+
+def signature(cfg: Configuration) -> tuple[tuple[str, str], ...]:
+    """The settings a match is made on: the profile and the string-valued (level-name) settings."""
+    items = [("profile", cfg.profile)]
+    items.extend((k, v) for k, v in cfg.settings.items() if isinstance(v, str))
+    return tuple(sorted(items))
+
+
+def _changed(a: Configuration, b: Configuration) -> tuple[tuple[str, str, str], ...]:
+    out = []
+    for name in sorted(set(a.settings) | set(b.settings)):
+        va, vb = a.settings.get(name), b.settings.get(name)
+        if va != vb:
+            out.append((name, str(va), str(vb)))
+    return tuple(out)
+
+
+def match(
+    a: ReportData, b: ReportData
+) -> tuple[tuple[tuple[Configuration, Configuration], ...], tuple[int, ...], tuple[int, ...]]:
+    """Pairs (A, B) with equal signatures (several identical ones pair in key order) and the unmatched keys."""
+    groups_b: dict[tuple[tuple[str, str], ...], list[Configuration]] = {}
+    for cfg in sorted(b.configurations, key=lambda c: c.key):
+        groups_b.setdefault(signature(cfg), []).append(cfg)
+    pairs = []
+    only_a = []
+    for cfg in sorted(a.configurations, key=lambda c: c.key):
+        candidates = groups_b.get(signature(cfg))
+        if candidates:
+            same_key = next((c for c in candidates if c.key == cfg.key), candidates[0])
+            candidates.remove(same_key)
+            pairs.append((cfg, same_key))
+        else:
+            only_a.append(cfg.key)
+    only_b = sorted(c.key for group in groups_b.values() for c in group)
+    return tuple(pairs), tuple(only_a), tuple(only_b)
+
+
+def compare_data(a: ReportData, b: ReportData) -> SessionComparison:
+    """Match and compare two loaded archives; `InvalidInput` when no configuration matches."""
+    matched, only_a, only_b = match(a, b)
+    if not matched:
+        raise InvalidInput(
+            f"{b.session.archive_path} and {a.session.archive_path} have no configuration with the same "
+            "settings (profile and level names): nothing to compare"
+        )
+    pairs = tuple(
+        Pair(
+            ca,
+            cb,
+            welch_interval(trial_values(ca, "energy_per_cycle"), trial_values(cb, "energy_per_cycle")),
+            welch_interval(trial_values(ca, "range_reached"), trial_values(cb, "range_reached")),
+            _changed(ca, cb),
+        )
+        for ca, cb in matched
+    )
+    return SessionComparison(a, b, pairs, only_a, only_b)
+
+
+def compare_archives(a: Path, b: Path) -> SessionComparison:
+    """Load two archives (files or session directories) and compare them."""
+    return compare_data(load_report_data(Path(a), workers=1), load_report_data(Path(b), workers=1))
+
+
+def render_comparison(result: SessionComparison, output: Path) -> Path:
+    """Write the comparison page (self-contained HTML, overlaid loops inline) to `output`."""
+    output = Path(output)
+    if output.is_dir():
+        raise InvalidInput(
+            f"Comparison output {output} is a directory; give a file name such as compare.html."
+        )
+    if not output.parent.is_dir():
+        raise InvalidInput(f"Comparison output directory {output.parent} does not exist.")
+    env = jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(templates_dir())),
+        autoescape=True,
+        undefined=jinja2.StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+    )
+    figures = {(p.a.key, p.b.key): overlay_figure(p.a, p.b) for p in result.pairs}
+    html = env.get_template(TEMPLATE).render(
+        result=result, figure_of=lambda p: figures[(p.a.key, p.b.key)], fmt=_num, ival=_ival
+    )
+    tmp = output.with_name(f".{output.name}.{os.getpid()}.partial")
+    try:
+        tmp.write_text(html, encoding="utf-8")
+        os.replace(tmp, output)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return output

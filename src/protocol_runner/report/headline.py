@@ -1,0 +1,102 @@
+"""The report's headline numbers per configuration, on trials as the experimental unit.
+
+One `ConfigurationStats` per configuration: trials and cycles analysed, energy per cycle as the mean of
+trial means with its 95 % t-interval and between-trial CV (`analysis.statistics`), the angle range
+reached, and the Bouc-Wen fit quality. `identical_groups` finds configurations whose settings are all the
+same (the matrix's own repeatability check, e.g. one configuration repeated in several sets) and
+`group_repeatability` gives their between-set CV and ICC. The report's summary table, the tidy CSV
+exports and the session comparison all read these, so they print the same intervals.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from protocol_runner.analysis.statistics import (
+    Repeatability,
+    TInterval,
+    repeatability,
+    t_interval,
+    trial_means,
+)
+from protocol_runner.report.model import Configuration, ReportData
+
+
+@dataclass(frozen=True)
+class ConfigurationStats:
+    """Trial-level summary of one configuration."""
+
+    key: int
+    name: str
+    set_name: str
+    cycles: int
+    trial_numbers: tuple[int, ...]
+    trial_energy_j: tuple[float, ...]
+    trial_cycles: tuple[int, ...]
+    energy: TInterval
+    angle_min_deg: float
+    angle_max_deg: float
+    fit_rmse_nm: float
+    fit_r2: float
+
+    @property
+    def trials(self) -> int:
+        """Trials with at least one complete cycle."""
+        return len(self.trial_numbers)
+
+    @property
+    def range_deg(self) -> float:
+        """Width of the angle range reached (NaN when nothing was processed)."""
+        return self.angle_max_deg - self.angle_min_deg
+
+
+def configuration_stats(cfg: Configuration) -> ConfigurationStats:
+    """The trial-level statistics of `cfg` (energy per cycle grouped by `energy_cycle_trial`)."""
+    energy = np.asarray(cfg.energy_loss_j, dtype=float)
+    ids = np.asarray(cfg.energy_cycle_trial)
+    if ids.size != energy.size:
+        ids = np.zeros(energy.size, dtype=np.int64)
+    numbers, means = trial_means(energy, ids)
+    counts = tuple(int(np.sum((ids == n) & np.isfinite(energy))) for n in numbers)
+    fit = cfg.bouc_wen
+    return ConfigurationStats(
+        key=cfg.key,
+        name=cfg.name,
+        set_name=cfg.set_name,
+        cycles=int(np.sum(np.isfinite(energy))),
+        trial_numbers=tuple(int(n) for n in numbers),
+        trial_energy_j=tuple(float(m) for m in means),
+        trial_cycles=counts,
+        energy=t_interval(means),
+        angle_min_deg=cfg.angle_min_deg,
+        angle_max_deg=cfg.angle_max_deg,
+        fit_rmse_nm=fit.rmse_nm if fit is not None else math.nan,
+        fit_r2=fit.r2 if fit is not None else math.nan,
+    )
+
+
+def _settings_signature(cfg: Configuration) -> tuple[tuple[str, str], ...]:
+    items = [("profile", cfg.profile)]
+    items.extend((name, repr(value)) for name, value in cfg.settings.items())
+    return tuple(sorted(items))
+
+
+def identical_groups(data: ReportData) -> tuple[tuple[int, ...], ...]:
+    """Groups (two or more keys, in matrix order) of configurations whose settings are all identical."""
+    groups: dict[tuple[tuple[str, str], ...], list[int]] = {}
+    for cfg in data.configurations:
+        groups.setdefault(_settings_signature(cfg), []).append(cfg.key)
+    return tuple(tuple(sorted(keys)) for keys in groups.values() if len(keys) >= 2)
+
+
+def group_repeatability(data: ReportData, keys: tuple[int, ...]) -> Repeatability:
+    """Between-configuration CV and ICC(1) of the trial means of the configurations `keys`."""
+    units = []
+    for key in keys:
+        cfg = data.configuration(key)
+        if cfg is not None:
+            units.append(configuration_stats(cfg).trial_energy_j)
+    return repeatability(units)

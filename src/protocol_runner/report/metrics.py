@@ -1,0 +1,127 @@
+"""The metric library: one value per trial of a configuration (the trial is the experimental unit).
+
+| metric | unit | one value per trial |
+|---|---|---|
+| `energy_per_cycle` | J | mean energy lost per complete cycle (Eq 10-12, `energy_loss_j`) |
+| `energy_per_degree` | J/deg | energy per cycle over the trial's range reached (1st-99th percentile) |
+| `torque_angle_slope` | N·m/deg | least-squares slope of brace torque against angle |
+| `angle_percentile` | deg | the `percentile`-th percentile of the angle reached (99: upper end) |
+| `range_reached` | deg | 99th minus 1st percentile of the angle reached |
+| `peak_torque` | N·m | largest absolute brace torque |
+| `hysteresis_width` | N·m | torque gap between flexion and extension within ±2° of `angle_deg` |
+| `fit_rmse` | N·m | Bouc-Wen held-out-trial RMSE (the fit's RMSE when there was one trial) |
+
+Angle and torque metrics read each trial's processed brace data as stored in the report data (decimated
+for plotting: at most a few thousand samples per trial, enough for percentiles and slopes).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+
+import numpy as np
+
+from protocol_runner.report.headline import configuration_stats
+from protocol_runner.report.model import Configuration, ProcessedTrial
+
+UNITS: dict[str, str] = {
+    "energy_per_cycle": "J",
+    "energy_per_degree": "J/deg",
+    "torque_angle_slope": "N·m/deg",
+    "angle_percentile": "deg",
+    "range_reached": "deg",
+    "peak_torque": "N·m",
+    "hysteresis_width": "N·m",
+    "fit_rmse": "N·m",
+}
+
+LABELS: dict[str, str] = {
+    "energy_per_cycle": "energy per cycle",
+    "energy_per_degree": "energy per degree of range",
+    "torque_angle_slope": "torque-angle slope",
+    "angle_percentile": "angle percentile",
+    "range_reached": "range reached",
+    "peak_torque": "peak torque",
+    "hysteresis_width": "hysteresis width",
+    "fit_rmse": "fit RMSE",
+}
+
+#: Half-width of the angle window of `hysteresis_width` (deg).
+HYSTERESIS_WINDOW_DEG = 2.0
+
+
+def _processed(cfg: Configuration) -> list[ProcessedTrial]:
+    return [t.processed for t in cfg.trials if t.processed is not None]
+
+
+def _finite(angle: np.ndarray, torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    n = min(angle.size, torque.size)
+    a, t = np.asarray(angle[:n], dtype=float), np.asarray(torque[:n], dtype=float)
+    ok = np.isfinite(a) & np.isfinite(t)
+    return a[ok], t[ok]
+
+
+def _range(p: ProcessedTrial) -> float:
+    a, _ = _finite(p.angle_deg, p.brace_torque_nm)
+    return float(np.percentile(a, 99) - np.percentile(a, 1)) if a.size else math.nan
+
+
+def _slope(p: ProcessedTrial) -> float:
+    a, t = _finite(p.angle_deg, p.brace_torque_nm)
+    if a.size < 3 or np.ptp(a) == 0.0:
+        return math.nan
+    return float(np.polyfit(a, t, 1)[0])
+
+
+def _peak(p: ProcessedTrial) -> float:
+    _, t = _finite(p.angle_deg, p.brace_torque_nm)
+    return float(np.max(np.abs(t))) if t.size else math.nan
+
+
+def _hysteresis(p: ProcessedTrial, angle_deg: float) -> float:
+    a, t = _finite(p.angle_deg, p.brace_torque_nm)
+    if a.size < 3:
+        return math.nan
+    direction = np.gradient(a)
+    near = np.abs(a - angle_deg) <= HYSTERESIS_WINDOW_DEG
+    up, down = near & (direction > 0), near & (direction < 0)
+    if not up.any() or not down.any():
+        return math.nan
+    return float(abs(np.mean(t[up]) - np.mean(t[down])))
+
+
+def trial_values(
+    cfg: Configuration, metric: str, *, percentile: float | None = None, angle_deg: float | None = None
+) -> tuple[float, ...]:
+    """The metric's finite values for `cfg`, one per trial; empty when the archive lacks the data."""
+    values: list[float]
+    if metric == "energy_per_cycle":
+        values = list(configuration_stats(cfg).trial_energy_j)
+    elif metric == "energy_per_degree":
+        stats = configuration_stats(cfg)
+        ranges = {t.number: _range(t.processed) for t in cfg.trials if t.processed is not None}
+        values = [
+            e / ranges[n] if ranges.get(n, 0.0) > 0.0 else math.nan
+            for n, e in zip(stats.trial_numbers, stats.trial_energy_j, strict=True)
+        ]
+    elif metric == "fit_rmse":
+        fit = cfg.bouc_wen
+        values = [] if fit is None else list(fit.cv_rmse_nm) or [fit.rmse_nm]
+    else:
+        per_trial: dict[str, Callable[[ProcessedTrial], float]] = {
+            "torque_angle_slope": _slope,
+            "range_reached": _range,
+            "peak_torque": _peak,
+            "angle_percentile": lambda p: _percentile(p, percentile),
+            "hysteresis_width": lambda p: _hysteresis(p, angle_deg if angle_deg is not None else math.nan),
+        }
+        if metric not in per_trial:
+            raise ValueError(f"unknown metric {metric!r}")
+        values = [per_trial[metric](p) for p in _processed(cfg)]
+    return tuple(float(v) for v in values if math.isfinite(v))
+
+
+def _percentile(p: ProcessedTrial, q: float | None) -> float:
+    a, _ = _finite(p.angle_deg, p.brace_torque_nm)
+    return float(np.percentile(a, q if q is not None else 50.0)) if a.size else math.nan

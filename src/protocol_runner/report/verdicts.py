@@ -1,0 +1,67 @@
+"""Record the declared expectations and their verdicts in an archive (`/expectations`, docs/archive.md).
+
+Called once the archive is consolidated (and again after `--reprocess`): the verdicts are decided on the
+archive's own data by the report's evaluator and stored for tools; the report itself always re-decides
+them from the archived protocol text and data, so a stored verdict never disagrees with a regenerated
+report of the same archive. Each expectation is a group `/expectations/<id>` whose attributes give the
+declaration and the outcome, and whose `evidence` text dataset (sealed with its checksum) is a JSON list,
+one object per configuration: key, trials, mean, 95 % interval low and high (null when undefined), unit.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import h5py
+
+from protocol_runner.archive.h5util import put_text, set_attrs
+
+
+def _finite(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
+def record_verdicts(archive: Path) -> int:
+    """Evaluate `archive`'s declared expectations and (re)write `/expectations`; return how many."""
+    from protocol_runner.report.findings import evaluate_expectations
+    from protocol_runner.report.load import load_report_data
+
+    result = evaluate_expectations(load_report_data(Path(archive), workers=1))
+    with h5py.File(archive, "a") as h5:
+        if "expectations" in h5:
+            del h5["expectations"]
+        root = h5.create_group("expectations")
+        root.attrs["problems"] = json.dumps(list(result.problems))
+        for v in result.verdicts:
+            grp = root.create_group(v.spec.id)
+            set_attrs(
+                grp,
+                {
+                    "text": v.spec.text,
+                    "section": v.spec.section,
+                    "metric": v.spec.metric,
+                    "unit": v.unit,
+                    "relation": v.spec.relation,
+                    "configurations": json.dumps(v.spec.configurations),
+                    "declaration": v.spec.model_dump_json(exclude_none=True),
+                    "verdict": v.verdict,
+                    "reason": v.reason,
+                    "simulator_tuned": int(v.spec.simulator_tuned),  # 0/1: numbers export as doubles
+                    "dry_run": int(result.dry_run),
+                },
+            )
+            rows = [
+                {
+                    "key": e.key,
+                    "trials": e.n,
+                    "mean": _finite(e.mean),
+                    "ci95_low": _finite(e.low),
+                    "ci95_high": _finite(e.high),
+                    "unit": v.unit,
+                }
+                for e in v.evidence
+            ]
+            put_text(grp, "evidence", json.dumps(rows))
+    return len(result.verdicts)

@@ -1,0 +1,98 @@
+"""`--export`: tidy CSV tables whose rows reproduce the report's trial-level intervals (issue 13 item 5)."""
+
+from __future__ import annotations
+
+import csv
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy import stats
+
+from protocol_runner.cli import main
+from protocol_runner.report.headline import configuration_stats
+from protocol_runner.report.load import load_report_data
+from protocol_runner.report.tidy import CYCLE_COLUMNS, export_tables
+
+
+def _rows(path: Path) -> list[dict[str, str]]:
+    with path.open(encoding="utf-8", newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+@pytest.fixture(scope="module")
+def tables(small_archive: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("tables")
+    export_tables(small_archive, out)
+    return out
+
+
+def test_cycles_csv_has_one_row_per_archived_cycle_with_units_in_the_names(
+    small_archive: Path, tables: Path
+) -> None:
+    rows = _rows(tables / "cycles.csv")
+    assert tuple(rows[0].keys()) == CYCLE_COLUMNS
+    data = load_report_data(small_archive, workers=1)
+    for cfg in data.configurations:
+        own = [r for r in rows if int(r["configuration"]) == cfg.key]
+        assert [float(r["energy_j"]) for r in own] == pytest.approx(cfg.energy_loss_j.tolist())
+        assert [int(r["trial"]) for r in own] == cfg.energy_cycle_trial.tolist()
+        for r in own:  # the cycle's own angle range lies inside the configuration's (or is left empty)
+            if r["angle_min_deg"] == "":
+                assert r["angle_max_deg"] == r["torque_peak_nm"] == ""
+                continue
+            assert cfg.angle_min_deg - 1e-6 <= float(r["angle_min_deg"]) < float(r["angle_max_deg"])
+            assert float(r["angle_max_deg"]) <= cfg.angle_max_deg + 1e-6
+            assert float(r["torque_peak_nm"]) > 0
+
+
+def test_trials_and_configurations_reproduce_the_report_intervals(
+    small_archive: Path, small_report: str, tables: Path
+) -> None:
+    trials = _rows(tables / "trials.csv")
+    configs = {int(r["configuration"]): r for r in _rows(tables / "configurations.csv")}
+    data = load_report_data(small_archive, workers=1)
+    for cfg in data.configurations:
+        means = np.array([float(r["energy_mean_j"]) for r in trials if int(r["configuration"]) == cfg.key])
+        row = configs[cfg.key]
+        # the configuration row follows from the trial rows (t-interval over trial means) ...
+        low, high = stats.t.interval(0.95, means.size - 1, loc=means.mean(), scale=stats.sem(means))
+        assert float(row["energy_mean_j"]) == pytest.approx(means.mean(), rel=1e-12)
+        assert float(row["energy_ci95_low_j"]) == pytest.approx(low, rel=1e-9)
+        assert float(row["energy_ci95_high_j"]) == pytest.approx(high, rel=1e-9)
+        assert int(row["trials"]) == means.size
+        # ... and equals what the report's summary prints
+        s = configuration_stats(cfg)
+        cell = re.search(rf'<tr id="headline-{cfg.key}".*?</tr>', small_report, re.S)
+        assert cell is not None
+        assert f"[{s.energy.low:.2f}, {s.energy.high:.2f}]" in cell.group(0)
+        assert (
+            f"[{float(row['energy_ci95_low_j']):.2f}, {float(row['energy_ci95_high_j']):.2f}]"
+            in cell.group(0)
+        )
+        assert row["friction_nm"] == repr(float(cfg.settings["friction_nm"]))  # type: ignore[arg-type]
+
+
+def test_cli_export_writes_the_three_tables(small_archive: Path, tmp_path: Path) -> None:
+    assert main(["--export", str(small_archive), "--output", str(tmp_path / "out")]) == 0
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        "configurations.csv",
+        "cycles.csv",
+        "trials.csv",
+    ]
+
+
+def test_cli_export_of_a_missing_archive_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--export", str(tmp_path / "nothing.h5")]) == 2
+    err = capsys.readouterr().err
+    assert "nothing.h5" in err and "Traceback" not in err
+
+
+def test_cli_export_into_a_file_exits_2(
+    small_archive: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    target = tmp_path / "afile"
+    target.write_text("x")
+    assert main(["--export", str(small_archive), "--output", str(target)]) == 2
+    assert "is a file; give a directory" in capsys.readouterr().err
