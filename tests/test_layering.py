@@ -10,9 +10,9 @@ import ast
 import re
 from pathlib import Path
 
-import protocol_runner
-
-PACKAGE_ROOT = Path(protocol_runner.__file__).parent
+# the source tree of this checkout (the installed copy may be elsewhere: a wheel in site-packages)
+REPO = Path(__file__).resolve().parents[1]
+PACKAGE_ROOT = REPO / "src" / "protocol_runner"
 
 # Layer of each top-level package or module of protocol_runner. A module may import from its own
 # top-level package and from any lower layer; never from the same layer (another name) or higher.
@@ -132,7 +132,7 @@ def test_the_checker_sees_an_upward_import(tmp_path: Path) -> None:
 
 
 def test_docs_architecture_states_the_same_layers() -> None:
-    doc = (PACKAGE_ROOT.parents[1] / "docs" / "architecture.md").read_text(encoding="utf-8")
+    doc = (REPO / "docs" / "architecture.md").read_text(encoding="utf-8")
     stated: dict[str, int] = {}
     for line in doc.splitlines():
         cells = [c.strip() for c in line.strip().strip("|").split("|")]
@@ -143,7 +143,7 @@ def test_docs_architecture_states_the_same_layers() -> None:
 
 
 def test_readme_links_stay_inside_the_repository() -> None:
-    repo = PACKAGE_ROOT.parents[1]
+    repo = REPO
     readme = (repo / "README.md").read_text(encoding="utf-8")
     targets = re.findall(r"\]\(([^)#]+)", readme) + re.findall(r"`(\.\./[^`]+)`", readme)
     outside = [

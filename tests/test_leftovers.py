@@ -5,9 +5,9 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-import protocol_runner
-
-PACKAGE_ROOT = Path(protocol_runner.__file__).parent
+# the source tree of this checkout (the installed copy may be elsewhere: a wheel in site-packages)
+REPO = Path(__file__).resolve().parents[1]
+PACKAGE_ROOT = REPO / "src" / "protocol_runner"
 
 
 def _handlers() -> list[str]:
