@@ -27,7 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .kernels import sgn
+from .kernels import project_row, sgn
 
 STIFF_STEP = 0.5  # substep * |dF/dz| at most this at the default substep (Heun is stable to 2 on the
 # negative real axis); a shorter max_step_deg shortens this bound in proportion (one knob for fineness)
@@ -207,9 +207,5 @@ def heun_sensitivity_kernel(x, seg, z0, A, n, beta, bound, freeze, max_step, z, 
                         for k in range(8):
                             S[k] = np.nan
             z[i + 1] = zi
-            for c in range(8):
-                acc = 0.0
-                for k in range(8):
-                    acc += S[k] * T[k, c]
-                dz[i + 1, c] = acc
+            project_row(S, T, dz, i + 1)
     return first_bad

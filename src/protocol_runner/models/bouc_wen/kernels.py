@@ -69,6 +69,16 @@ def recursion_kernel(x, seg, z0, A, n, beta, bound, freeze, z):  # pragma: no co
 
 
 @njit(cache=True)
+def project_row(sens, T, dz, row):  # pragma: no cover - compiled
+    """``dz[row, :] = sens @ T``: one row of the chain-rule Jacobian (both sensitivity kernels)."""
+    for c in range(8):
+        acc = 0.0
+        for k in range(8):
+            acc += sens[k] * T[k, c]
+        dz[row, c] = acc
+
+
+@njit(cache=True)
 def sensitivity_kernel(x, seg, z0, A, n, beta, bound, freeze, z, dz, T):  # pragma: no cover
     """Eq 23 and its exact derivatives ``d z_i / d theta_k``, theta = (A, n, beta1..6), written as
     ``dz[i, :] = (d z_i / d theta) @ T`` (``T`` = identity for the plain derivatives; the fitter passes its
@@ -152,11 +162,7 @@ def sensitivity_kernel(x, seg, z0, A, n, beta, bound, freeze, z, dz, T):  # prag
                     for k in range(8):
                         sens[k] = np.nan
             z[i + 1] = zi
-            for c in range(8):
-                acc = 0.0
-                for k in range(8):
-                    acc += sens[k] * T[k, c]
-                dz[i + 1, c] = acc
+            project_row(sens, T, dz, i + 1)
     return first_bad
 
 
