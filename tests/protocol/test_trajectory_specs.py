@@ -44,7 +44,7 @@ def test_kind_selects_the_model_and_bound_fields_are_listed() -> None:
 
 
 def test_every_kind_has_a_model_and_constant_specs_have_no_bindings() -> None:
-    examples = {
+    examples: dict[str, dict[str, object]] = {
         "sinusoid": {"range_deg": [0, 90], "speed_deg_s": 60, "periods": 8},
         "triangle": {"range_deg": [0, 90], "speed_deg_s": 60, "cycles": 2},
         "file": {"file": "trajectories/subject_B_synthetic.csv"},
@@ -107,4 +107,4 @@ def test_bad_trajectory_specs_are_refused_naming_the_field(
 def test_specs_are_immutable() -> None:
     spec = HoldSpec(kind="hold", angle_deg=10.0, duration_s=1.0)
     with pytest.raises(ValidationError):
-        spec.angle_deg = 20.0  # type: ignore[misc]
+        spec.angle_deg = 20.0
