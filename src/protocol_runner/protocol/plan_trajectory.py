@@ -54,6 +54,13 @@ class Trajectory:
         """The value of a kind field (`KeyError` if it has none)."""
         return dict(self.params)[field]
 
+    def number(self, field: str) -> float:
+        """The value of a numeric kind field (`KeyError` if it has none, `TypeError` if not a number)."""
+        value = self.param(field)
+        if isinstance(value, str | tuple):
+            raise TypeError(f"trajectory field {field} is not a number: {value!r}")
+        return float(value)
+
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"profile": self.profile}
         if self.name is not None:
