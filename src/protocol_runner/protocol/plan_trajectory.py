@@ -137,7 +137,10 @@ def build_trajectory(
             path = confined_path(base_dir, spec.file)
         except OutsideFolder as exc:
             raise InvalidInput(f"{where}: file: {exc}") from None
-        data = load_trajectory_file(path, joint)
+        try:
+            data = load_trajectory_file(path, joint)
+        except InvalidInput as exc:
+            raise InvalidInput(f"{where}: {exc.message}") from None
         origin = spec.origin or (data.header.splitlines()[0] if data.header else "")
         if not origin:
             raise InvalidInput(

@@ -166,7 +166,9 @@ def test_file_needs_its_origin_and_its_joints_column(tmp_path: Path) -> None:
     assert build_trajectory("bare", stated, {}, tmp_path).to_json()["origin"] == "hand-made test ramp"
     _write(tmp_path / "two.csv", "# lab\ntime_s,hip_flexion,ankle_flexion\n0,1,2\n1,2,3\n")
     two = SPEC.validate_python({"kind": "file", "file": "two.csv"})
-    with pytest.raises(InvalidInput, match=r"two\.csv:2: .*`knee_flexion` or `angle_deg`"):
+    with pytest.raises(
+        InvalidInput, match=r"trajectory 'two': .*two\.csv:2: .*`knee_flexion` or `angle_deg`"
+    ):
         build_trajectory("two", two, {}, tmp_path, joint="knee_flexion")
     outside = SPEC.validate_python({"kind": "file", "file": "../elsewhere.csv"})
     with pytest.raises(InvalidInput, match=r"trajectory 'x': file: .*outside the protocol's folder"):
