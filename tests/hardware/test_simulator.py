@@ -273,9 +273,9 @@ def test_simulated_clock_jumps_and_realtime_clock_sleeps() -> None:
 
 def test_set_device_rejects_impossible_elements_naming_the_parameter(knee: JointConfig) -> None:
     sim = SimulatedRig(knee, params=KNEE_PARAMS)
-    with pytest.raises(InvalidInput, match="'stops'.*'range_deg'"):
+    with pytest.raises(InvalidInput, match=r"'stops'.*'range_deg'"):
         sim.set_device(knee_brace((90.0, 40.0), 0.0, 0.0))
-    with pytest.raises(InvalidInput, match="'brake'.*'torque_nm'"):
+    with pytest.raises(InvalidInput, match=r"'brake'.*'torque_nm'"):
         sim.set_device(knee_brace((0.0, 130.0), -1.0, 0.0))
     with pytest.raises(InvalidInput, match="preload_index"):
         sim.set_device(knee_brace((0.0, 130.0), 0.0, 13.0, preload_index=2.5))  # type: ignore[arg-type]

@@ -41,13 +41,13 @@ from protocol_runner.hardware.conversions import (
     volts_to_angle,
 )
 from protocol_runner.hardware.interfaces import ScanBlock
+from protocol_runner.hardware.simulator.device import ComposedDevice
 from protocol_runner.hardware.simulator.kernels import GRID_TOL, ROLE_ANGLE, ROLE_TORQUE
 from protocol_runner.hardware.simulator.output import (
     SimulatedAnalogOutput,
     SimulatedClock,
     check_channel,
 )
-from protocol_runner.hardware.simulator.device import ComposedDevice
 from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, SimulatorParams
 from protocol_runner.hardware.simulator.plant import JointPlant
 

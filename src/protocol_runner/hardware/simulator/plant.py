@@ -31,12 +31,10 @@ update over each step, so they are unconditionally stable. Everything inside is 
 
 from __future__ import annotations
 
-import math
+from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
-
-from collections.abc import Sequence
 
 from protocol_runner.hardware.simulator.device import ComposedDevice, as_elements, compose
 from protocol_runner.hardware.simulator.kernels import (
