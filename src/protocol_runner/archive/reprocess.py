@@ -18,6 +18,7 @@ import h5py
 from ..analysis.loops import centred_loop, fit_loops
 from ..analysis.pipeline import TrialPair, process_configuration
 from ..errors import InvalidInput
+from ..models.interim_knee_device import lever_spring
 from ..protocol.loader import LoadedProtocol, find_protocol, load_protocol, parse_protocol_text
 from ..protocol.processing import processing_settings
 from .checksums import is_marked, seal_missing
@@ -75,6 +76,19 @@ def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output
     return out
 
 
+def archived_device(cfg: h5py.Group) -> list[tuple[str, str, dict[str, object]]]:
+    """The configuration's device as the session resolved it: its `device_json` attribute."""
+    if "device_json" in cfg.attrs:
+        return [
+            (str(e.pop("name")), str(e.pop("type")), e)
+            for e in json.loads(attr_str(cfg, "device_json", "[]"))
+        ]
+    # INTERIM until the session archives device_json (helper PROTO): the knee brace's springs
+    return lever_spring(
+        float(cfg.attrs.get("stiffness_n_per_mm", 0.0)), int(cfg.attrs.get("preload_position", 3))
+    )
+
+
 def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
     """Redo what the session's process, fit and compare steps did, from the raw trials in `f`, with the
     same functions, so that unchanged settings reproduce the session's values exactly."""
@@ -107,13 +121,9 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
                 del cfg[stale]
         if not pairs:
             continue
-        stiffness = float(cfg.attrs.get("stiffness_n_per_mm", 0.0))
-        preload = int(cfg.attrs.get("preload_position", 3))
+        enabled = getattr(fits, "elements", getattr(fits, "spring", None))
         result = process_configuration(
-            pairs,
-            settings,
-            stiffness_n_per_mm=stiffness if fits.spring.enabled else None,
-            preload_position=preload if fits.spring.enabled else None,
+            pairs, settings, device=archived_device(cfg) if enabled and enabled.enabled else None
         )
         processed_fill(name, result, settings)(f)
         if fits.bouc_wen.enabled:
