@@ -17,6 +17,7 @@ import h5py
 
 from ..analysis.loops import centred_loop, fit_loops
 from ..analysis.pipeline import TrialPair, process_configuration
+from .results import lever_spring_of
 from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, find_protocol, load_protocol, parse_protocol_text
 from ..protocol.processing import processing_settings
@@ -107,13 +108,12 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
                 del cfg[stale]
         if not pairs:
             continue
-        stiffness = float(_quantity_attr(cfg, "stiffness_n_per_mm", 0.0))
-        preload = int(_quantity_attr(cfg, "position_index", 3))
+        spring = lever_spring_of(json.loads(str(cfg.attrs.get("device_json", "[]"))))
         result = process_configuration(
             pairs,
             settings,
-            stiffness_n_per_mm=stiffness if fits.spring.enabled else None,
-            preload_position=preload if fits.spring.enabled else None,
+            stiffness_n_per_mm=spring[0] if fits.spring.enabled and spring else None,
+            preload_position=spring[1] if fits.spring.enabled and spring else None,
         )
         processed_fill(name, result, settings)(f)
         if fits.bouc_wen.enabled:
@@ -142,11 +142,3 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
                 if key in comp.attrs:
                     del comp.attrs[key]
 
-
-def _quantity_attr(cfg: h5py.Group, quantity: str, default: float) -> float:
-    """The first `<factor>.<quantity>` attribute of a configuration group (transitional, until the
-    element fit reads the archived device)."""
-    for key, value in cfg.attrs.items():
-        if key.endswith("." + quantity):
-            return float(value)
-    return default

@@ -187,3 +187,12 @@ def comparison_values(configs: Sequence[h5py.Group]) -> dict[str, list[Any]]:
         "energy_cycles": counts,
         "max_angle_deg": max_angles,
     }
+
+
+def lever_spring_of(device: list[dict[str, object]]) -> tuple[float, int] | None:
+    """(stiffness_n_per_mm, preload_index) of the device's first `lever_spring` element (the spring fit's
+    inputs until the element fit replaces it), None without one."""
+    for el in device:
+        if el.get("type") == "lever_spring":
+            return float(el["stiffness_n_per_mm"]), int(el.get("preload_index", 0))  # type: ignore[arg-type]
+    return None

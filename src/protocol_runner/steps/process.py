@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from ..analysis.pipeline import TrialPair, process_configuration
 from ..archive.paths import configuration_name, recording_path
-from ..archive.results import processed_fill, read_recording
+from ..archive.results import lever_spring_of, processed_fill, read_recording
 from ..protocol.plan import ProcessStep
 from .context import StepContext, StepOutcome
 
@@ -31,13 +31,13 @@ def run(step: ProcessStep, ctx: StepContext) -> StepOutcome:
         for s in ctx.plan.steps
         if getattr(s, "configuration", None) == step.configuration and s.kind == "trial"
     )
-    settings = cfg_step.settings  # type: ignore[attr-defined]
-    spring_enabled = ctx.loaded.protocol.fits.spring.enabled
+    spring = lever_spring_of(cfg_step.settings.device_json())  # type: ignore[attr-defined]
+    spring_enabled = ctx.loaded.protocol.fits.spring.enabled and spring is not None
     result = process_configuration(
         pairs,
         ctx.processing,
-        stiffness_n_per_mm=settings.stiffness_n_per_mm if spring_enabled else None,
-        preload_position=settings.preload_position if spring_enabled else None,
+        stiffness_n_per_mm=spring[0] if spring_enabled and spring else None,
+        preload_position=spring[1] if spring_enabled and spring else None,
     )
     summary = (
         f"{result.energy.n} cycles, energy {result.energy.mean_j:.2f} +- {result.energy.std_j:.2f} J"
