@@ -27,7 +27,13 @@ from scipy.optimize import least_squares
 
 from protocol_runner.analysis.branches import branch_curves
 from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal, same_length
-from protocol_runner.models.spring import THESIS_GEOMETRY, SpringGeometry, spring_torque_nm
+from protocol_runner.models.spring import SpringGeometry, spring_torque_nm
+
+# INTERIM glue (helper PROTO): models.spring lost its knee default; the element fit (helper ELEM) replaces
+# this module and reads the geometry from the protocol's lever_spring element.
+THESIS_GEOMETRY = SpringGeometry(
+    a_m=0.03, b_m=0.19, c_m=0.055, alpha_deg=20.0, preload_step_deg=2.73, n_springs=2
+)
 
 FitTarget = Literal["branch_mean", "all_samples"]
 

@@ -17,14 +17,13 @@ import h5py
 
 from ..analysis.loops import centred_loop, fit_loops
 from ..analysis.pipeline import TrialPair, process_configuration
-from .results import lever_spring_of
 from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, find_protocol, load_protocol, parse_protocol_text
 from ..protocol.processing import processing_settings
 from .checksums import is_marked, seal_missing
 from .h5util import attr_str, set_attrs, text_of
 from .paths import configuration_name
-from .results import bouc_wen_fill, comparison_values, processed_fill, read_recording
+from .results import bouc_wen_fill, comparison_values, lever_spring_of, processed_fill, read_recording
 from .verify import validate_archive
 
 
@@ -141,4 +140,3 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
             for key in ("energy_mean_j", "energy_std_j", "energy_cycles", "max_angle_deg"):
                 if key in comp.attrs:
                     del comp.attrs[key]
-

@@ -194,5 +194,5 @@ def lever_spring_of(device: list[dict[str, object]]) -> tuple[float, int] | None
     inputs until the element fit replaces it), None without one."""
     for el in device:
         if el.get("type") == "lever_spring":
-            return float(el["stiffness_n_per_mm"]), int(el.get("preload_index", 0))  # type: ignore[arg-type]
+            return float(str(el["stiffness_n_per_mm"])), int(float(str(el.get("preload_index", 0))))
     return None

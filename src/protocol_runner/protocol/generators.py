@@ -52,7 +52,7 @@ def expand_generators(p: Protocol) -> tuple[Protocol, list[Problem], dict[Loc, L
             if found:
                 problems += found
                 continue
-            levels = _full_factorial(p, gen) if isinstance(gen, FullFactorialSpec) else _ofat(gen)  # type: ignore[arg-type]
+            levels = _full_factorial(p, gen) if isinstance(gen, FullFactorialSpec) else _ofat(gen)
             for combo in levels:
                 trajectory = _trajectory(gen, combo)
                 origins[("sets", i, "configurations", len(rows))] = loc
@@ -133,7 +133,9 @@ def _check_generator(p: Protocol, gen: _GeneratorSpec, loc: Loc) -> Iterator[Pro
     by = gen.trajectory_by_level
     if by is not None:
         tloc: Loc = (*loc, "trajectory_by_level")
-        varied = set(gen.factors) if isinstance(gen, FullFactorialSpec) else set(gen.baseline)
+        varied = set(gen.factors) | set(gen.fixed) if isinstance(gen, FullFactorialSpec) else set()
+        if isinstance(gen, OneFactorAtATimeSpec):
+            varied = set(gen.baseline)
         if by.factor not in varied:
             yield (*tloc, "factor"), f"{by.factor!r} is not one of this generator's factors"
         elif by.factor in p.factors:

@@ -31,10 +31,10 @@ from .resolve import calibration_trajectory as calibration_trajectory
 from .resolve import configuration_trajectory, resolve_settings
 from .schema import ConfigurationSpec, Protocol, SetSpec
 from .settings import Settings
-from .units import unit_text
 from .step_ids import calibration_id as calibration_id
 from .step_ids import step_id
 from .step_ids import trial_id as trial_id
+from .units import unit_text
 
 
 @dataclass(frozen=True)

@@ -10,8 +10,8 @@ lacking the bound quantity, a configuration that leaves a bound factor unset). `
 from __future__ import annotations
 
 import re
-from pathlib import Path
 from collections.abc import Iterator, Mapping
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import InvalidInput
@@ -96,9 +96,9 @@ def resolve_device(
             if isinstance(v, tuple) and all(isinstance(x, str) for x in v):
                 params.append((key, ",".join(str(x) for x in v)))
             elif isinstance(v, tuple):
-                params.append((key, tuple(float(x) for x in v)))  # type: ignore[arg-type]
+                params.append((key, tuple(float(x) for x in v)))
             else:
-                params.append((key, v))  # type: ignore[arg-type]
+                params.append((key, v))
         out.append(ElementSetting(name=el.name, type=el.type, params=tuple(params)))
     return tuple(out)
 

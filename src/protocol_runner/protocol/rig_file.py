@@ -157,14 +157,18 @@ def check_rig_file(rig: RigFile) -> list[Problem]:
     out_channels = max((b.channels for b in rig.boards.values() if b.role == "output"), default=0)
     in_channels = min((b.channels for b in rig.boards.values() if b.role == "input"), default=0)
     allowed = simulator_fields()
-    for key, values in (
+    where: Loc
+    for where, values in (
         (("joint_defaults",), rig.joint_defaults.simulator),
         *((("joints", n), j.simulator) for n, j in rig.joints.items()),
     ):
         for param in values:
             if param not in allowed:
                 problems.append(
-                    ((*key, "simulator", param), f"unknown simulator parameter (known: {', '.join(allowed)})")
+                    (
+                        (*where, "simulator", param),
+                        f"unknown simulator parameter (known: {', '.join(allowed)})",
+                    )
                 )
     numbers: dict[int, str] = {}
     outputs: dict[int, str] = {}

@@ -150,15 +150,15 @@ def _resolve_configurations(
                 continue
             for el in st.device:
                 rng = dict(el.params).get("range_deg")
-                if ELEMENT_TYPES[el.type].kind == "stop" and isinstance(rng, tuple):
-                    if not rng[0] <= park <= rng[1]:
-                        yield (
-                            loc,
-                            f"configuration {cfg.key}: the park angle {park:g} deg is outside the stops "
-                            f"{_fmt_range(rng)} of element {el.name!r}: between trials the joint would rest "
-                            "against a stop (choose rig_overrides...safety.park_angle_deg inside every stop range)",
-                            None,
-                        )
+                stop = ELEMENT_TYPES[el.type].kind == "stop" and isinstance(rng, tuple)
+                if stop and isinstance(rng, tuple) and not rng[0] <= park <= rng[1]:
+                    yield (
+                        loc,
+                        f"configuration {cfg.key}: the park angle {park:g} deg is outside the stops "
+                        f"{_fmt_range(rng)} of element {el.name!r}: between trials the joint would rest "
+                        "against a stop (choose rig_overrides...safety.park_angle_deg inside every stop range)",
+                        None,
+                    )
             if p.profile_of(cfg) == "file" and not check_files:
                 continue
             try:

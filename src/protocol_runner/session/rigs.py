@@ -7,8 +7,8 @@ from typing import TYPE_CHECKING
 from ..errors import HardwareUnavailable
 from ..hardware.calibration import load_calibration_table
 from ..hardware.rig import JointConfig, Rig
-from ..protocol.levels import Settings
 from ..protocol.loader import LoadedProtocol
+from ..protocol.settings import Settings
 from ..protocol.stream_check import safety_limits
 
 if TYPE_CHECKING:
@@ -37,7 +37,8 @@ def joint_config(loaded: LoadedProtocol) -> JointConfig:
 
 
 class SimulatedBench:
-    """The dry-run bench: the simulated rig plus the simulated operator's hands on the brace."""
+    """The dry-run bench: the simulated rig (the joint's `simulator:` values from the rig file) plus the
+    simulated operator's hands on the device."""
 
     def __init__(
         self,
@@ -53,7 +54,7 @@ class SimulatedBench:
         self.sim = SimulatedRig(
             joint_config(loaded),
             seed=seed,
-            params=params or SimulatorParams(**_INTERIM_JOINT_SIMULATOR),
+            params=params or SimulatorParams(**dict(loaded.protocol.rig.simulator)),
             realtime=realtime,
         )
         self.rig: Rig = self.sim.make_rig()
@@ -63,43 +64,12 @@ class SimulatedBench:
         self.sim.begin_step(step_id)
 
     def fit_brace(self, settings: Settings | None) -> None:
-        self.sim.set_device(None if settings is None else _interim_device(settings))
+        """The simulated operator fits the configuration's device (its resolved elements), or removes it."""
+        self.sim.set_device(None if settings is None else settings.device)
 
     def close(self) -> None:
         self.sim.ao.close()
         self.sim.ai.close()
-
-
-# INTERIM (issue 11, helper ELEM): until the protocol declares its device and the rig file gives the
-# joint's `simulator:` values (helper PROTO), the dry run keeps the values the simulator had built in.
-_INTERIM_JOINT_SIMULATOR = {
-    "lag_time_constant_s": 0.17,
-    "gravity_torque_max_nm": 35.5,
-    "robot_friction_nm": 2.5,
-    "robot_viscous_nm_per_deg_s": 0.03,
-}
-_INTERIM_SMOOTHING = {"transition_deg": 2.0, "static_excess_ratio": 0.3, "stribeck_speed_deg_s": 20.0}
-
-
-def _interim_device(s: Settings) -> list[tuple[str, str, dict[str, object]]]:
-    geometry = {
-        "a_m": 0.03,
-        "b_m": 0.19,
-        "c_m": 0.055,
-        "alpha_deg": 20.0,
-        "preload_step_deg": 2.73,
-        "count": 2,
-    }
-    return [
-        ("stops", "rom_stops", {"range_deg": list(s.brace_rom_deg), "slack_deg": 13.0,
-                                "slack_stiffness_nm_per_deg": 0.05, "stop_stiffness_nm_per_deg": 40.0}),
-        ("brake", "coulomb_brake", {"torque_nm": s.friction_nm, **_INTERIM_SMOOTHING}),
-        ("hinge", "coulomb_brake", {"torque_nm": 0.75, **_INTERIM_SMOOTHING}),
-        ("springs", "lever_spring", {"stiffness_n_per_mm": s.stiffness_n_per_mm,
-                                     "preload_index": s.preload_position, "max_preload_mm": 32.0, **geometry}),
-        ("cuff", "cuff_shift", {"angle_deg": 35.0, "width_deg": 5.0, "torque_nm": 5.0,
-                                "reference_speed_deg_s": 50.0, "reference_force_n": 200.0}),
-    ]  # fmt: skip
 
 
 class HardwareBench:

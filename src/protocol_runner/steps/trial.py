@@ -133,15 +133,14 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
 
 def configuration_group_attributes(step: TrialStep, ctx: StepContext) -> dict[str, Any]:
     """The `/configurations/<name>` attributes (docs/archive.md): identity, trajectory and settings."""
-    traj = step.trajectory.to_json()
     return {
         "key": step.configuration,
         "run": step.run,
         "set": step.set,
         "condition": next(s.condition for s in ctx.loaded.protocol.sets if s.name == step.set),
         "profile": step.trajectory.profile,
-        "trajectory_name": str(traj.get("name", step.trajectory.profile)),
-        **configuration_attributes(step.settings.as_settings()),
+        "trajectory_name": step.trajectory.name or step.trajectory.profile,
+        **configuration_attributes(step.settings),
     }
 
 
