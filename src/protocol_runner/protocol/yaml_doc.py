@@ -65,7 +65,19 @@ def format_problems(shown: str, lines: dict[Loc, int], problems: Sequence[tuple[
 
 def validation_problems(exc: ValidationError, root: type[BaseModel]) -> list[tuple[Loc, str]]:
     """(location, message) for each pydantic error, with "allowed keys" hints from the `root` model."""
-    return [(tuple(e["loc"]), _pydantic_message(e, root)) for e in exc.errors()]
+    return [(_without_kind_tag(tuple(e["loc"])), _pydantic_message(e, root)) for e in exc.errors()]
+
+
+def _without_kind_tag(loc: Loc) -> Loc:
+    """Drop the tag pydantic puts in a discriminated union's error path (`trajectories.sine.sinusoid.x`
+    -> `trajectories.sine.x`): it is not a key of the file."""
+    from .trajectory_specs import TRAJECTORY_KINDS
+
+    return tuple(
+        part
+        for i, part in enumerate(loc)
+        if not (i >= 2 and loc[i - 2] == "trajectories" and part in TRAJECTORY_KINDS)
+    )
 
 
 def yaml_error(shown: str, exc: yaml.YAMLError) -> str:
