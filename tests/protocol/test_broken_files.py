@@ -56,7 +56,9 @@ CASES = [
     ),
     (
         "unknown factor in a configuration",
-        lambda t: t.replace('{key: 11, run: 2, trajectory: sine,', '{key: 11, run: 2, trajectory: sine, colour: red,'),
+        lambda t: t.replace(
+            "{key: 11, run: 2, trajectory: sine,", "{key: 11, run: 2, trajectory: sine, colour: red,"
+        ),
         r"sets\[0\]\.configurations\[1\]\.colour: unknown factor 'colour' \(declared factors: brace_rom, ",
         "colour: red",
     ),
