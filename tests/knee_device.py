@@ -78,3 +78,27 @@ def knee_brace(
     if cuff_shift:
         device.append(("cuff", "cuff_shift", dict(CUFF_SHIFT)))
     return device
+
+
+def spring_torque_nm(angle_deg, stiffness_n_per_mm, preload_index, **kw):  # type: ignore[no-untyped-def]
+    """Eq 13-18 with the knee brace's geometry and Max_Preload unless given."""
+    from protocol_runner.models import spring
+
+    kw = {"max_preload_mm": KNEE_MAX_PRELOAD_MM, "geometry": KNEE_GEOMETRY, **kw}
+    return spring.spring_torque_nm(angle_deg, stiffness_n_per_mm, preload_index, **kw)
+
+
+def fit_spring_model(angle_deg, torque_nm, stiffness_n_per_mm, preload_index, **kw):  # type: ignore[no-untyped-def]
+    """The element fit of the knee brace's lever spring, with its two fitted values as attributes."""
+    from types import SimpleNamespace
+
+    from protocol_runner.analysis.element_fit import fit_elements
+
+    fit = fit_elements(angle_deg, torque_nm, [lever_spring(stiffness_n_per_mm, preload_index)], **kw)
+    values = {p: v for _, p, v in fit.fitted}
+    nan = float("nan")
+    return SimpleNamespace(
+        **{f: getattr(fit, f) for f in fit.__dataclass_fields__},
+        max_preload_mm=values.get("max_preload_mm", nan),
+        zero_offset_deg=values.get("zero_offset_deg", nan),
+    )

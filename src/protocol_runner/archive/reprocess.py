@@ -23,7 +23,7 @@ from ..protocol.processing import processing_settings
 from .checksums import is_marked, seal_missing
 from .h5util import attr_str, set_attrs, text_of
 from .paths import configuration_name
-from .results import bouc_wen_fill, comparison_values, lever_spring_of, processed_fill, read_recording
+from .results import bouc_wen_fill, comparison_values, processed_fill, read_recording
 from .verify import validate_archive
 
 
@@ -75,6 +75,22 @@ def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output
     return out
 
 
+def archived_device(cfg: h5py.Group) -> list[tuple[str, str, dict[str, object]]]:
+    """The configuration's device as the session resolved it (its `device_json` attribute, docs/archive.md):
+    (name, type, parameters) per element; empty for an archive written before devices were declared (its
+    element fit is then not applicable). A `device_json` that is not the documented list is named."""
+    if "device_json" not in cfg.attrs:
+        return []
+    where = f"{cfg.file.filename}: {cfg.name}@device_json"
+    try:
+        doc = json.loads(attr_str(cfg, "device_json", "[]"))
+    except json.JSONDecodeError as exc:
+        raise InvalidInput(f"{where}: not valid JSON ({exc.msg})") from None
+    if not isinstance(doc, list) or not all(isinstance(e, dict) and "name" in e and "type" in e for e in doc):
+        raise InvalidInput(f"{where}: must be a JSON list of elements, each with a name and a type")
+    return [(str(e.pop("name")), str(e.pop("type")), e) for e in doc]
+
+
 def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
     """Redo what the session's process, fit and compare steps did, from the raw trials in `f`, with the
     same functions, so that unchanged settings reproduce the session's values exactly."""
@@ -107,12 +123,9 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
                 del cfg[stale]
         if not pairs:
             continue
-        spring = lever_spring_of(json.loads(str(cfg.attrs.get("device_json", "[]"))))
+        enabled = getattr(fits, "elements", getattr(fits, "spring", None))
         result = process_configuration(
-            pairs,
-            settings,
-            stiffness_n_per_mm=spring[0] if fits.spring.enabled and spring else None,
-            preload_position=spring[1] if fits.spring.enabled and spring else None,
+            pairs, settings, device=archived_device(cfg) if enabled and enabled.enabled else None
         )
         processed_fill(name, result, settings)(f)
         if fits.bouc_wen.enabled:

@@ -1,15 +1,15 @@
-"""Processing step: one configuration's archived trials -> the brace's own torque, energy, spring fit.
+"""Processing step: one configuration's archived trials -> the device's own torque, energy, element fit.
 
 Reads the trial units (never the rig), then `analysis.pipeline.process_configuration`: transition
 removal (§3.3.1), zero-phase filtering (§3.2), equal-angle subtraction of the brace-off torque (§3.3,
-§5.6), cycles and energy per cycle (Eq 10-12), and the physical spring model fit (§6.1).
+§5.6), cycles and energy per cycle (Eq 10-12), and the fit of the device's elastic elements (§6.1).
 """
 
 from __future__ import annotations
 
 from ..analysis.pipeline import TrialPair, process_configuration
 from ..archive.paths import configuration_name, recording_path
-from ..archive.results import lever_spring_of, processed_fill, read_recording
+from ..archive.results import processed_fill, read_recording
 from ..protocol.plan import ProcessStep
 from .context import StepContext, StepOutcome
 
@@ -31,13 +31,12 @@ def run(step: ProcessStep, ctx: StepContext) -> StepOutcome:
         for s in ctx.plan.steps
         if getattr(s, "configuration", None) == step.configuration and s.kind == "trial"
     )
-    spring = lever_spring_of(cfg_step.settings.device_json())  # type: ignore[attr-defined]
-    spring_enabled = ctx.loaded.protocol.fits.spring.enabled and spring is not None
+    settings = cfg_step.settings  # type: ignore[attr-defined]
+    fits = ctx.loaded.protocol.fits
+    enabled = getattr(fits, "elements", getattr(fits, "spring", None))
+    device = settings.device
     result = process_configuration(
-        pairs,
-        ctx.processing,
-        stiffness_n_per_mm=spring[0] if spring_enabled and spring else None,
-        preload_position=spring[1] if spring_enabled and spring else None,
+        pairs, ctx.processing, device=device if enabled and enabled.enabled else None
     )
     summary = (
         f"{result.energy.n} cycles, energy {result.energy.mean_j:.2f} +- {result.energy.std_j:.2f} J"
