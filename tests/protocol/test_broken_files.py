@@ -113,8 +113,10 @@ CASES = [
     (
         "speed above the rate limit",
         lambda t: t.replace("Full: {speed_deg_s: 50.0}", "Full: {speed_deg_s: 500.0}"),
-        r"sets\[0\]\.configurations\[0\]: configuration 10 \(sinusoid sine\): .*rate",
-        "{key: 10, run: 1,",
+        r"trajectories\.sine\.speed_deg_s: trajectory 'sine' \(sinusoid\): speed_deg_s \(bound to "
+        r"speed\.speed_deg_s\): its peak speed \(Eq 25\) 500 deg/s is over the joint's rate limit "
+        r"max_rate_deg_s = 120 deg/s \(configuration 10, ",
+        "speed_deg_s: speed.speed_deg_s",
     ),
     (
         "YAML syntax",

@@ -46,9 +46,7 @@ def identifiers_and_strings(tree: ast.AST) -> set[str]:
         elif isinstance(node, ast.Attribute):
             if not (isinstance(node.value, ast.Name) and node.value.id in modules):  # queue.Full: a library's
                 found.add(node.attr)
-        elif isinstance(node, ast.arg):
-            found.add(node.arg)
-        elif isinstance(node, ast.keyword) and node.arg:
+        elif isinstance(node, ast.arg) or (isinstance(node, ast.keyword) and node.arg):
             found.add(node.arg)
     return found
 

@@ -50,8 +50,8 @@ def test_human_file_over_the_acceleration_limit_is_refused_by_validate_and_run(
     text = KNEE_TEXT.replace("subject_C_synthetic.csv", "fast.csv")
     err = refused_everywhere(write(workdir, text), tmp_path, capsys)
     assert re.search(
-        r"broken\.yaml:\d+: sets\[\d+\]\.configurations\[\d+\]: configuration 25 \(file subject_C\)"
-        r".*angular acceleration -1e\+04 deg/s² .*allowed ±2000",
+        r"broken\.yaml:\d+: trajectories\.subject_C\.file: trajectory 'subject_C' \(file trajectories/fast\.csv\)"
+        r".*angular acceleration reaches -1e\+04 deg/s² .*allows ±2000 deg/s² \(configuration 25\)",
         err,
     ), err
 

@@ -92,13 +92,16 @@ def test_a_human_file_over_the_acceleration_limit_is_refused_with_its_configurat
     with pytest.raises(InvalidInput) as info:
         load_protocol(path, display_name="edited.yaml")
     message = info.value.message
-    assert "configuration 24 (file subject_B)" in message and "angular acceleration" in message
-    assert message.startswith("edited.yaml:") and "sets[8].configurations[0]" in message
+    assert "trajectory 'subject_B' (file trajectories/corner.csv)" in message
+    assert "angular acceleration" in message and "(configuration 24)" in message
+    assert message.startswith("edited.yaml:") and "trajectories.subject_B.file" in message
     assert main(["--validate", str(path)]) == 2
 
 
 def test_a_calibration_step_over_the_acceleration_limit_is_refused(workdir: Path) -> None:
     """The raised-cosine 45 deg step over 0.6 s peaks at 617 deg/s² (616 sampled): a rig allowing 500 refuses it."""
     path = _edit(workdir, "max_accel_deg_s2: 2000", "max_accel_deg_s2: 500")
-    with pytest.raises(InvalidInput, match=r"calibration_step: the calibration step.*615.9 deg/s²"):
+    with pytest.raises(
+        InvalidInput, match=r"calibration_step\.ramp_s: .*peak acceleration .*616\.9 deg/s² is over"
+    ):
         load_protocol(path, display_name="edited.yaml")

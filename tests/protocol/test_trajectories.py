@@ -120,3 +120,15 @@ def test_shipped_synthetic_trajectories_say_what_they_are() -> None:
         traj = load_trajectory_file(f)
         assert "SYNTHETIC" in traj.header and "NOT human data" in traj.header
         assert traj.angle_deg.min() >= 0.0 and traj.angle_deg.max() <= 110.0  # inside R-E
+
+
+def test_a_file_with_one_column_per_joint_gives_each_joint_its_own(tmp_path: Path) -> None:
+    t = np.arange(0.0, 2.0, 0.01)
+    hip, ankle = 10.0 + t, -5.0 - t
+    savemat(tmp_path / "walk.mat", {"time_s": t, "hip_flexion": hip, "ankle_flexion_deg": ankle})
+    np.testing.assert_allclose(load_trajectory_file(tmp_path / "walk.mat", "hip_flexion").angle_deg, hip)
+    got = load_trajectory_file(tmp_path / "walk.mat", "ankle_flexion")
+    np.testing.assert_allclose(got.angle_deg, ankle)
+    assert got.column == "ankle_flexion_deg"
+    with pytest.raises(InvalidInput, match="needs variables `time_s` and `knee_flexion`"):
+        load_trajectory_file(tmp_path / "walk.mat", "knee_flexion")

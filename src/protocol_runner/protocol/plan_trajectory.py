@@ -51,6 +51,13 @@ class Trajectory:
         """The value of a kind field (`KeyError` if it has none)."""
         return dict(self.params)[field]
 
+    def number(self, field: str) -> float:
+        """The value of a numeric kind field (`KeyError` if it has none, `TypeError` if not a number)."""
+        value = self.param(field)
+        if isinstance(value, str | tuple):
+            raise TypeError(f"trajectory field {field} is not a number: {value!r}")
+        return float(value)
+
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"profile": self.profile}
         if self.name is not None:
@@ -127,7 +134,10 @@ def build_trajectory(
             path = confined_path(base_dir, spec.file)
         except OutsideFolder as exc:
             raise InvalidInput(f"{where}: file: {exc}") from None
-        data = load_trajectory_file(path, joint)
+        try:
+            data = load_trajectory_file(path, joint)
+        except InvalidInput as exc:
+            raise InvalidInput(f"{where}: {exc.message}") from None
         origin = spec.origin or (data.header.splitlines()[0] if data.header else "")
         if not origin:
             raise InvalidInput(

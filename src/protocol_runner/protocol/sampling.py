@@ -34,11 +34,7 @@ def sample_trajectory(trajectory: Trajectory, rate_hz: float, base_dir: Path) ->
     """Real joint angles, one per output tick (`sample_times_s`); files are read from `base_dir`."""
     t = sample_times_s(trajectory, rate_hz)
     p = dict(trajectory.params)
-
-    def num(field: str) -> float:
-        value = p[field]
-        assert isinstance(value, float | int)
-        return float(value)
+    num = trajectory.number
 
     kind = trajectory.profile
     if kind == "sinusoid":

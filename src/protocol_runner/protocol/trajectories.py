@@ -189,7 +189,7 @@ class TrajectoryFile:
 
 
 _TIME_NAMES = ("time_s", "t", "time")
-_ANGLE_NAMES = ("angle_deg", "angle", "knee_deg", "theta_deg")
+_ANGLE_NAMES = ("angle_deg", "angle", "theta_deg")
 
 
 def _angle_names(joint: str | None) -> tuple[str, ...]:

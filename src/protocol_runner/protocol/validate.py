@@ -59,11 +59,37 @@ def cross_check(loaded: LoadedProtocol, *, check_files: bool = True) -> list[Pro
             problems.append((loc, message))
         elif motion is not None:
             motions.append(motion)
+    if not problems:  # each trajectory field against the joint's range, rate and acceleration
+        problems += _limit_problems(loaded, motions)
     if not problems:  # every motion's complete commanded stream, approach and exit included
         from .stream_check import check_streams
 
         problems += list(check_streams(loaded, motions, check_files=check_files))
     return problems
+
+
+def _limit_problems(loaded: LoadedProtocol, motions: list[Motion]) -> list[Problem]:
+    """The field of the trajectory (or of the calibration step) that breaks a limit, once per message."""
+    from .stream_check import safety_limits
+    from .trajectory_limits import trajectory_limit_problems
+    from .trajectory_specs import trajectory_bindings
+
+    p = loaded.protocol
+    limits = safety_limits(p.rig)
+    out: dict[tuple[Loc, str], list[str]] = {}
+    for _, what, traj in motions:
+        name = traj.name or ""
+        spec = p.trajectories.get(name)
+        bindings = trajectory_bindings(spec) if spec is not None and what != "the calibration step" else {}
+        base: Loc = ("calibration_step",) if what == "the calibration step" else ("trajectories", name)
+        for field, message in trajectory_limit_problems(
+            traj, limits, p.rig.output.rate_hz, loaded.base_dir, bindings
+        ):
+            out.setdefault(((*base, field), message), []).append(what)
+    return [
+        (loc, f"{message} ({', '.join(whats[:3])}{', ...' if len(whats) > 3 else ''})")
+        for (loc, message), whats in out.items()
+    ]
 
 
 def _within(rng: tuple[float, ...], joint: tuple[float, float]) -> bool:

@@ -75,22 +75,13 @@ def analyse_step(
     )
 
 
-def _number(value: object) -> float:
-    assert isinstance(value, int | float)
-    return float(value)
-
-
 def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, when: str) -> StepOutcome:
     """Run the step and judge it; `record_as` is the id the unit is stored under (resume checks differ)."""
     rig = ctx.bench.rig
     ctx.bench.begin_step(record_as)
     cmd = sample_trajectory(step.trajectory, rig.joint.output_rate_hz, ctx.loaded.base_dir)
     rec = run_motion(rig, cmd, where=record_as, stop_requested=ctx.stop_requested)
-    from_deg, step_deg = (
-        _number(step.trajectory.param("from_deg")),
-        _number(step.trajectory.param("step_deg")),
-    )
-    target = from_deg + step_deg
+    target = step.trajectory.number("from_deg") + step.trajectory.number("step_deg")
     limits = ctx.loaded.protocol.calibration_check
     settle_window = min(1.0, float(ctx.loaded.protocol.calibration_step.hold_s) / 2)
     cmd_in = command_on_input_base(rec.command_time_s, rec.command_deg, rec.input_time_s)
@@ -137,7 +128,17 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
             "message": message,
         },
     )
-    fill = _fill(step.set, when, record_as, rec, resp, verdict, message, limits.model_dump(), step_deg)
+    fill = _fill(
+        step.set,
+        when,
+        record_as,
+        rec,
+        resp,
+        verdict,
+        message,
+        limits.model_dump(),
+        step.trajectory.number("step_deg"),
+    )
     summary = f"{verdict}: settle error {resp.settle_error_deg:.2f} deg, tau {resp.time_constant_s:.3f} s"
     return StepOutcome(fill, summary, stop)
 
