@@ -27,3 +27,8 @@ def packaged_protocols_dir() -> Path:
 def templates_dir() -> Path:
     """The directory of the report's jinja2 templates."""
     return _first_existing(_PACKAGE_DIR / "_data" / "templates", _REPO_ROOT / "reports" / "templates")
+
+
+def packaged_rigs_dir() -> Path:
+    """The directory of the rig files shipped inside the package (`rig: rsst`)."""
+    return _PACKAGE_DIR / "rigs"

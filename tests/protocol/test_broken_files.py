@@ -55,22 +55,30 @@ CASES = [
         'friction: "5"',
     ),
     (
+        "unknown factor in a configuration",
+        lambda t: t.replace(
+            "{key: 11, run: 2, trajectory: sine,", "{key: 11, run: 2, trajectory: sine, colour: red,"
+        ),
+        r"sets\[0\]\.configurations\[1\]\.colour: unknown factor 'colour' \(declared factors: brace_rom, ",
+        "colour: red",
+    ),
+    (
         "unknown key",
-        lambda t: t.replace("    periods: 8", "    periods: 8\n    perods: 9"),
-        r"trajectories\.sinusoid\.perods: unknown key \(allowed: periods\)",
+        lambda t: t.replace("    periods: 8 ", "    perods: 9\n    periods: 8 "),
+        r"trajectories\.sine\.perods: unknown key",
         "perods: 9",
     ),
     (
         "wrong type",
-        lambda t: t.replace("    rate_hz: 100 ", "    rate_hz: fast "),
-        r"rig\.output\.rate_hz: .*number.*\(got 'fast'\)",
-        "rate_hz: fast",
+        lambda t: t.replace("        max_rate_deg_s: 120 ", "        max_rate_deg_s: fast "),
+        r"rig_overrides\.joints\.knee_flexion\.safety\.max_rate_deg_s: .*number.*\(got 'fast'\)",
+        "max_rate_deg_s: fast",
     ),
     (
         "out of the joint's range",
-        lambda t: t.replace("R3: {range_deg: [0, 130]}", "R3: {range_deg: [0, 150]}"),
-        r"levels\.brace_rom\.R3\.range_deg: \[0, 150\] deg is outside the joint's range \[0, 130\] deg",
-        "R3: {range_deg: [0, 150]}",
+        lambda t: t.replace("R3: {range_deg: [0, 130]", "R3: {range_deg: [0, 150]"),
+        r"factors\.brace_rom\.R3\.range_deg: \[0, 150\] deg is outside the joint's range \[0, 130\] deg",
+        "R3: {range_deg: [0, 150]",
     ),
     (
         "trial count zero",
@@ -93,24 +101,26 @@ CASES = [
     (
         "missing trajectory file",
         lambda t: t.replace("subject_C_synthetic.csv", "subject_C_missing.csv"),
-        r"trajectories\.human\.subject_C\.file: .*subject_C_missing\.csv: trajectory file not found",
-        "subject_C_missing.csv",
+        r"sets\[8\]\.configurations\[1\]\.trajectory: .*subject_C_missing\.csv.*not found",
+        "{key: 25, run: 25,",
     ),
     (
         "unknown trajectory name",
         lambda t: t.replace("trajectory: subject_E,", "trajectory: subject_Z,"),
-        r"configurations\[2\]\.trajectory: unknown trajectory 'subject_Z' \(known: subject_B, subject_C, subject_E\)",
+        r"configurations\[2\]\.trajectory: unknown trajectory 'subject_Z' \(known: sine, subject_B, ",
         "subject_Z",
     ),
     (
         "speed above the rate limit",
-        lambda t: t.replace("Full: {max_deg_s: 50.0}", "Full: {max_deg_s: 500.0}"),
-        r"sets\[0\]\.configurations\[0\]\.speed: 500 deg/s exceeds the rig's rate limit",
-        "{key: 10, run: 1,",
+        lambda t: t.replace("Full: {speed_deg_s: 50.0}", "Full: {speed_deg_s: 500.0}"),
+        r"trajectories\.sine\.speed_deg_s: trajectory 'sine' \(sinusoid\): speed_deg_s \(bound to "
+        r"speed\.speed_deg_s\): its peak speed \(Eq 25\) 500 deg/s is over the joint's rate limit "
+        r"max_rate_deg_s = 120 deg/s \(configuration 10, ",
+        "speed_deg_s: speed.speed_deg_s",
     ),
     (
         "YAML syntax",
-        lambda t: t.replace("  robot: RSST", "  robot: [RSST"),
+        lambda t: t.replace("rig: rsst ", "rig: [rsst "),
         r"YAML syntax error",
         None,
     ),
@@ -123,7 +133,7 @@ CASES = [
     (
         "alias to an unknown level",
         lambda t: t.replace('EMU: {same_as: "2"', 'EMU: {same_as: "9"'),
-        r"levels\.friction\.EMU\.same_as: unknown level '9'",
+        r"factors\.friction\.EMU\.same_as: unknown level '9'",
         'same_as: "9"',
     ),
     (
@@ -139,16 +149,97 @@ CASES = [
         "configurations: [10, 99]}",
     ),
     (
+        "comparison of an undeclared parameter",
+        lambda t: t.replace("parameter: speed, section", "parameter: velocity, section", 1),
+        r"report\.comparisons\[0\]\.parameter: unknown parameter 'velocity': a declared factor",
+        "parameter: velocity",
+    ),
+    (
         "boolean where a key belongs",
         lambda t: t.replace("{key: 10, run: 1,", "{key: true, run: 1,"),
         r"sets\[0\]\.configurations\[0\]\.key: input should be a valid integer \(got True\)",
         "{key: true, run: 1,",
     ),
+    # --- issue 11 "Bad input" -------------------------------------------------------------------------
     (
-        "unknown profile",
-        lambda t: t.replace("{key: 27, run: 27, profile: sinusoid", "{key: 27, run: 27, profile: triangle"),
-        r"profile: input should be 'sinusoid', 'human' or 'identification'",
-        "profile: triangle",
+        "unknown element type",
+        lambda t: t.replace("type: rom_stops", "type: rom_stop"),
+        r"device\.elements\[0\]\.type: unknown element type 'rom_stop' \(known: lever_spring, ",
+        "type: rom_stop",
+    ),
+    (
+        "unknown element parameter",
+        lambda t: t.replace("      slack_deg: 13.0 ", "      slack_degrees: 13.0 "),
+        r"device\.elements\[0\]\.slack_degrees: unknown parameter of rom_stops",
+        "slack_degrees: 13.0",
+    ),
+    (
+        "missing required element parameter",
+        lambda t: t.replace("      stop_stiffness_nm_per_deg: 40.0 ", "      "),
+        r"device\.elements\[0\]: missing required parameter 'stop_stiffness_nm_per_deg' of rom_stops",
+        "- name: stops",
+    ),
+    (
+        "unknown trajectory kind",
+        lambda t: t.replace("kind: sinusoid", "kind: sinewave"),
+        r"trajectories\.sine: unknown kind 'sinewave' \(known: 'sinusoid', 'triangle', ",
+        "sine:",
+    ),
+    (
+        "binding to an undeclared factor",
+        lambda t: t.replace("torque_nm: friction.friction_nm", "torque_nm: brakes.friction_nm"),
+        r"device\.elements\[1\]\.torque_nm: bound to brakes\.friction_nm: no factor 'brakes' is declared",
+        "torque_nm: brakes.friction_nm",
+    ),
+    (
+        "binding to a level without the quantity",
+        lambda t: t.replace('"3": {friction_nm: 6.25,', '"3": {torque_nm: 6.25,'),
+        r"device\.elements\[1\]\.torque_nm: bound to friction\.friction_nm but level '3' of friction has no "
+        r"'friction_nm' \(it has torque_nm, screw_turns; configuration 7\)",
+        "torque_nm: friction.friction_nm",
+    ),
+    (
+        "binding with the wrong unit",
+        lambda t: t.replace("speed_deg_s: speed.speed_deg_s", "speed_deg_s: friction.friction_nm"),
+        r"trajectories\.sine\.speed_deg_s: bound to friction\.friction_nm, whose unit suffix is _nm; this "
+        r"parameter needs a quantity ending with _deg_s",
+        "speed_deg_s: friction.friction_nm",
+    ),
+    (
+        "quantity without a unit suffix",
+        lambda t: t.replace("Full: {speed_deg_s: 50.0}", "Full: {speed: 50.0}"),
+        r"factors\.speed\.Full: 'speed': a quantity's name must end with a unit suffix \(_nm_s_per_deg, ",
+        "Full: {speed: 50.0}",
+    ),
+    (
+        "joint not on the rig",
+        lambda t: t.replace("joint: knee_flexion ", "joint: knee_bending "),
+        r"joint: no joint 'knee_bending' on rig RSST \(joints: shoulder_flexion, ",
+        "joint: knee_bending",
+    ),
+    (
+        "unknown rig",
+        lambda t: t.replace("rig: rsst ", "rig: rsstt "),
+        r"rig: unknown rig 'rsstt' \(shipped rigs: rsst; or give a path\)",
+        "rig: rsstt",
+    ),
+    (
+        "override wider than the rig",
+        lambda t: t.replace("        max_rate_deg_s: 120 ", "        max_rate_deg_s: 200 "),
+        r"rig_overrides\.joints\.knee_flexion\.safety\.max_rate_deg_s: 200 is above the rig's 120 "
+        r"\(rigs/rsst\.yaml\): overrides may only tighten",
+        "max_rate_deg_s: 200",
+    ),
+    (
+        "generator over an unknown level",
+        lambda t: t.replace(
+            "  - name: speed\n    condition: Speed\n",
+            "  - name: extra\n    condition: Extra\n    full_factorial:\n      factors: {friction: ['0', '7']}\n"
+            "      fixed: {brace_rom: R3, robot_rom: Rr3, stiffness: K2, speed: Full, preload: Center}\n"
+            "      trajectory: sine\n      trials: 1\n  - name: speed\n    condition: Speed\n",
+        ),
+        r"sets\[0\]\.full_factorial\.factors\.friction\[1\]: unknown level '7' of friction",
+        "factors: {friction: ['0', '7']}",
     ),
 ]
 
@@ -227,6 +318,10 @@ def test_park_angle_outside_a_brace_range_is_refused(workdir: Path) -> None:
     text = KNEE_TEXT.replace("park_angle_deg: 45 ", "park_angle_deg: 20 ")
     assert text != KNEE_TEXT
     message = error_of(write(workdir, text))
+    first = message.splitlines()[0]
     assert re.search(
-        r"levels\.brace_rom\.R1\.range_deg: the park angle .* 20 deg is outside this brace range", message
+        r"sets\[2\]\.configurations\[0\]: configuration 1: the park angle 20 deg is outside the stops "
+        r"\[40, 90\] deg of element 'stops'",
+        first,
     ), message
+    assert first.startswith(f"broken.yaml:{line_of(text, '{key: 1, run: 5,')}:")

@@ -80,24 +80,30 @@ def test_every_row_of_table_5_is_expanded(plan: Plan) -> None:
     for key, (run, brace, robot, fric, stiff, speed, preload, profile) in TABLE_5.items():
         t = on[key]
         s = t.settings
-        if profile == "human":  # the subject's motion file sets the range (test_motion_range.py)
-            robot = f"{t.trajectory.params[0][1]} (motion file)"
-        assert (t.run, s.brace_rom, s.robot_rom, s.friction_level, s.stiffness, s.speed, s.preload) == (
-            run,
+        assert t.run == run, key
+        assert (s.level("brace_rom"), s.level("friction"), s.level("stiffness"), s.level("preload")) == (
             brace,
-            robot,
             fric,
             stiff,
-            speed,
             preload,
         ), key
-        assert t.trajectory.profile == profile
-        assert s.brace_rom_deg == ROM_DEG[brace]
-        if profile != "human":
-            assert s.robot_rom_deg == ROM_DEG[robot.replace("Rr", "R")]
-        assert s.friction_nm == FRICTION_NM[fric]
-        assert s.stiffness_n_per_mm == STIFFNESS[stiff]
-        assert s.speed_deg_s == SPEED[speed]
+        assert s.quantity("brace_rom", "range_deg") == ROM_DEG[brace]
+        assert s.quantity("friction", "friction_nm") == FRICTION_NM[fric]
+        assert s.quantity("stiffness", "stiffness_n_per_mm") == STIFFNESS[stiff]
+        if profile == "human":
+            # a subject's motion file is the trajectory: no robot range or speed level applies (issue 11)
+            assert t.trajectory.profile == "file" and t.trajectory.source is not None
+            assert s.level("robot_rom") is None and s.level("speed") is None
+        else:
+            assert t.trajectory.profile == profile
+            assert (s.level("robot_rom"), s.level("speed")) == (robot, speed), key
+            assert s.quantity("robot_rom", "range_deg") == ROM_DEG[robot.replace("Rr", "R")]
+            assert s.quantity("speed", "speed_deg_s") == SPEED[speed]
+        # the device the brace-on trial runs with carries the same numbers (bindings resolved)
+        device = {e["name"]: e for e in t.settings.device_json()}
+        assert device["stops"]["range_deg"] == list(ROM_DEG[brace])
+        assert device["brake"]["torque_nm"] == FRICTION_NM[fric]
+        assert device["springs"]["stiffness_n_per_mm"] == STIFFNESS[stiff]
 
 
 def test_trial_counts_three_except_where_the_thesis_ran_fewer(plan: Plan) -> None:
@@ -142,7 +148,7 @@ def test_sinusoids_run_about_eight_periods_within_the_robot_range(plan: Plan) ->
         if tr.profile != "sinusoid":
             continue
         assert tr.duration_s == pytest.approx(8 * (tr.period_s or 0))
-        lo, hi = t.settings.robot_rom_deg
+        lo, hi = t.settings.quantity("robot_rom", "range_deg")  # type: ignore[misc]
         assert (tr.mean_deg or 0) - (tr.amplitude_deg or 0) == pytest.approx(lo)
         assert (tr.mean_deg or 0) + (tr.amplitude_deg or 0) == pytest.approx(hi)
 
@@ -200,17 +206,23 @@ def test_plan_json_contract_shape(plan: Plan) -> None:
         trial
     )
     assert isinstance(trial["configuration"], int) and trial["brace"] in ("on", "off")
-    assert {
-        "brace_rom_deg",
-        "friction_level",
-        "friction_nm",
-        "stiffness",
-        "stiffness_n_per_mm",
-        "preload",
-        "speed_deg_s",
-    } <= set(trial["settings"])
-    assert {"profile", "mean_deg", "amplitude_deg", "period_s", "duration_s"} <= set(trial["trajectory"])
-    human = next(s for s in data["steps"] if s["kind"] == "trial" and s["trajectory"]["profile"] == "human")
+    # one entry per declared factor: {"level": label, its quantities} (issue 11, docs/protocol.md)
+    assert trial["settings"]["brace_rom"] == {"level": "R3", "range_deg": [0.0, 130.0]}
+    assert trial["settings"]["friction"] == {"level": "2", "friction_nm": 3.75, "screw_turns": 0.75}
+    assert list(trial["settings"]) == ["brace_rom", "robot_rom", "friction", "stiffness", "speed", "preload"]
+    assert [e["type"] for e in trial["device"]] == [
+        "rom_stops",
+        "coulomb_brake",
+        "coulomb_brake",
+        "lever_spring",
+        "cuff_shift",
+    ]
+    off = next(s for s in data["steps"] if s["kind"] == "trial" and s["brace"] == "off")
+    assert "device" not in off
+    assert {"profile", "name", "mean_deg", "amplitude_deg", "period_s", "duration_s"} <= set(
+        trial["trajectory"]
+    )
+    human = next(s for s in data["steps"] if s["kind"] == "trial" and s["trajectory"]["profile"] == "file")
     assert human["trajectory"]["source"].endswith(".csv")
     cal = next(s for s in data["steps"] if s["kind"] == "calibration_check")
     assert cal["when"] in ("before", "after") and "set" in cal

@@ -50,8 +50,8 @@ def test_human_file_over_the_acceleration_limit_is_refused_by_validate_and_run(
     text = KNEE_TEXT.replace("subject_C_synthetic.csv", "fast.csv")
     err = refused_everywhere(write(workdir, text), tmp_path, capsys)
     assert re.search(
-        r"broken\.yaml:\d+: sets\[\d+\]\.configurations\[\d+\]: configuration 25 \(human trajectories/fast\.csv\)"
-        r".*angular acceleration -1e\+04 deg/s² .*allowed ±2000",
+        r"broken\.yaml:\d+: trajectories\.subject_C\.file: trajectory 'subject_C' \(file trajectories/fast\.csv\)"
+        r".*angular acceleration reaches -1e\+04 deg/s² .*allows ±2000 deg/s² \(configuration 25\)",
         err,
     ), err
 
@@ -59,10 +59,17 @@ def test_human_file_over_the_acceleration_limit_is_refused_by_validate_and_run(
 @pytest.mark.parametrize(
     ("old", "new", "field"),
     [
-        ("max_accel_deg_s2: 2000", "max_accel_deg_s2: .inf", "rig.safety.max_accel_deg_s2"),
-        ("max_rate_deg_s: 120", "max_rate_deg_s: .nan", "rig.safety.max_rate_deg_s"),
-        ("R3: {range_deg: [0, 130]}", "R3: {range_deg: [0, .inf]}", r"levels.brace_rom.R3.range_deg\[1\]"),
-        ("periods: 8", "periods: .inf", "trajectories.sinusoid.periods"),
+        (
+            "max_accel_deg_s2: 2000",
+            "max_accel_deg_s2: .inf",
+            "rig_overrides.joints.knee_flexion.safety.max_accel_deg_s2",
+        ),
+        (
+            "max_rate_deg_s: 120",
+            "max_rate_deg_s: .nan",
+            "rig_overrides.joints.knee_flexion.safety.max_rate_deg_s",
+        ),
+        ("periods: 8", "periods: .inf", "trajectories.sine.periods"),
     ],
 )
 def test_non_finite_numbers_are_refused(
@@ -71,17 +78,24 @@ def test_non_finite_numbers_are_refused(
     text = KNEE_TEXT.replace(old, new, 1)
     assert text != KNEE_TEXT
     err = refused_everywhere(write(workdir, text), tmp_path, capsys)
-    assert re.search(rf"broken\.yaml:{line_of(text, new)}: {field}: input should be a finite number", err), (
-        err
-    )
+    assert re.search(rf"broken\.yaml:{line_of(text, new)}: {field}: .*finite number", err), err
+
+
+def test_a_non_finite_quantity_is_refused(
+    workdir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    text = KNEE_TEXT.replace("R3: {range_deg: [0, 130]", "R3: {range_deg: [0, .inf]", 1)
+    err = refused_everywhere(write(workdir, text), tmp_path, capsys)
+    assert re.search(
+        rf"broken\.yaml:{line_of(text, '.inf')}: factors\.brace_rom\.R3: .*must be finite", err
+    ), err
 
 
 @pytest.mark.parametrize(
     ("old", "field"),
     [
-        ("calibration/knee_command.csv", "rig.calibration.command_table"),
-        ("calibration/knee_torque.csv", "rig.calibration.torque_table"),
-        ("trajectories/subject_B_synthetic.csv", "trajectories.human.subject_B.file"),
+        ("calibration/knee_command.csv", "rig_overrides.joints.knee_flexion.calibration.command_table"),
+        ("calibration/knee_torque.csv", "rig_overrides.joints.knee_flexion.calibration.torque_table"),
     ],
 )
 def test_referenced_file_outside_the_folder_is_refused_without_quoting_it(
@@ -92,6 +106,19 @@ def test_referenced_file_outside_the_folder_is_refused_without_quoting_it(
     err = refused_everywhere(write(workdir, text), tmp_path, capsys)
     line = line_of(text, "../secret.txt")
     assert f"broken.yaml:{line}: {field}: ../secret.txt lies outside the protocol's folder" in err, err
+
+
+def test_trajectory_file_outside_the_folder_is_refused_without_quoting_it(
+    workdir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    (workdir.parent / "secret.txt").write_text(SECRET + "\n", encoding="utf-8")
+    text = KNEE_TEXT.replace("trajectories/subject_B_synthetic.csv", "../secret.txt")
+    err = refused_everywhere(write(workdir, text), tmp_path, capsys)
+    line = line_of(text, "{key: 24, run: 24,")
+    assert (
+        f"broken.yaml:{line}: sets[8].configurations[0].trajectory: trajectory 'subject_B': file: " in err
+    ), err
+    assert "lies outside the protocol's folder" in err and SECRET not in err
 
 
 def test_reference_dataset_outside_the_folder_is_refused(
@@ -116,7 +143,10 @@ def test_symlink_and_absolute_path_out_of_the_folder_are_refused(
     (workdir / "calibration" / "link.csv").symlink_to(secret)
     linked = KNEE_TEXT.replace("calibration/knee_command.csv", "calibration/link.csv")
     err = refused_everywhere(write(workdir, linked), tmp_path, capsys)
-    assert "rig.calibration.command_table: calibration/link.csv lies outside the protocol's folder" in err
+    assert (
+        "rig_overrides.joints.knee_flexion.calibration.command_table: calibration/link.csv lies outside "
+        "the protocol's folder" in err
+    )
     absolute = KNEE_TEXT.replace("calibration/knee_command.csv", str(secret))
     err = refused_everywhere(write(workdir, absolute), tmp_path, capsys)
     assert f"{secret} is an absolute path outside the shipped protocols" in err, err

@@ -85,13 +85,16 @@ def test_a_human_file_over_the_acceleration_limit_is_refused_with_its_configurat
     t = np.arange(0.0, 2.0, 0.01)
     angle = 40.0 + 50.0 * np.minimum(t, 2.0 - t)
     rows = "\n".join(f"{a:.3f},{b:.4f}" for a, b in zip(t, angle, strict=True))
-    (workdir / "trajectories" / "corner.csv").write_text(f"time_s,angle_deg\n{rows}\n", encoding="utf-8")
+    (workdir / "trajectories" / "corner.csv").write_text(
+        f"# synthetic corner\ntime_s,angle_deg\n{rows}\n", encoding="utf-8"
+    )
     path = _edit(workdir, "subject_B_synthetic.csv", "corner.csv")
     with pytest.raises(InvalidInput) as info:
         load_protocol(path, display_name="edited.yaml")
     message = info.value.message
-    assert "configuration 24 (human trajectories/corner.csv)" in message and "angular acceleration" in message
-    assert message.startswith("edited.yaml:") and "sets[8].configurations[0]" in message
+    assert "trajectory 'subject_B' (file trajectories/corner.csv)" in message
+    assert "angular acceleration" in message and "(configuration 24)" in message
+    assert message.startswith("edited.yaml:") and "trajectories.subject_B.file" in message
     assert main(["--validate", str(path)]) == 2
 
 
@@ -99,6 +102,6 @@ def test_a_calibration_step_over_the_acceleration_limit_is_refused(workdir: Path
     """The raised-cosine 45 deg step over 0.6 s peaks at 617 deg/s² (616 sampled): a rig allowing 500 refuses it."""
     path = _edit(workdir, "max_accel_deg_s2: 2000", "max_accel_deg_s2: 500")
     with pytest.raises(
-        InvalidInput, match=r"trajectories\.calibration_step: the calibration step.*615.9 deg/s²"
+        InvalidInput, match=r"calibration_step\.ramp_s: .*peak acceleration .*616\.9 deg/s² is over"
     ):
         load_protocol(path, display_name="edited.yaml")

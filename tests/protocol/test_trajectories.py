@@ -53,8 +53,8 @@ def test_knee_identification_motion_stays_inside_the_joints_limits() -> None:
     from .test_plan import KNEE
 
     p = load_protocol(KNEE).protocol
-    ident = p.trajectories.identification
-    assert ident is not None
+    ident = p.trajectories["identification"]
+    assert ident.kind == "identification" and isinstance(ident.range_deg, tuple)
     dt = 1e-3
     t = np.arange(0.0, ident.total_s, dt)
     y = identification_deg(

@@ -369,60 +369,35 @@ def test_bound_fields_need_a_value_of_the_right_shape() -> None:
         build(doc, {"range_deg": (0.0, 10.0), "speed_deg_s": 0.0})
 
 
-def test_the_new_kinds_command_exactly_todays_knee_samples() -> None:
-    """The knee protocol's sinusoids, identification motion, subject files and calibration step, written as
-    schema_version 2 specs, sample bit for bit as today's (version 1) path: migrating keeps the data."""
-    from protocol_runner.protocol.levels import resolve_settings
+def test_the_migrated_knee_protocol_commands_todays_samples() -> None:
+    """knee_phase1 in schema_version 2 commands the samples the version-1 path did: each sinusoid is Eq 24
+    with the range of its robot_rom level and the period of Eq 25 from its speed level (the Table 6
+    periods), over 8 periods; the calibration step is the 20 -> 65 deg raised cosine over 0.6 s."""
     from protocol_runner.protocol.loader import load_protocol
-    from protocol_runner.protocol.plan_trajectory import calibration_trajectory, trajectory_for
-    from protocol_runner.protocol.stream_check import safety_limits
+    from protocol_runner.protocol.plan import CalibrationCheckStep, TrialStep, expand
+    from protocol_runner.protocol.trajectories import calibration_step_deg, sinusoid_deg
+
+    from .test_plan import ROM_DEG, SPEED, TABLE_5
 
     loaded = load_protocol(REPO / "protocols" / "knee_phase1.yaml")
-    p = loaded.protocol
-    rate = p.rig.output.rate_hz
-    limits = safety_limits(p.rig)
-    cal = p.trajectories.calibration_step
-    step_doc = {"kind": "ramped_step", **cal.model_dump()}
-    new = build_trajectory("cal", SPEC.validate_python(step_doc), {}, loaded.base_dir)
-    old = calibration_trajectory(p)
-    assert new.duration_s == old.duration_s
+    plan = expand(loaded)
+    rate = loaded.protocol.rig.output.rate_hz
+    for step in plan.steps:
+        if isinstance(step, TrialStep) and step.brace == "on" and step.trial == 1:
+            _, _, robot, _, _, speed, _, profile = TABLE_5[step.configuration]
+            if profile != "sinusoid":
+                continue
+            lo, hi = ROM_DEG[robot.replace("Rr", "R")]
+            amplitude = (hi - lo) / 2.0
+            period = 2.0 * np.pi * amplitude / SPEED[speed]
+            t = np.arange(0.0, 8 * period, 1.0 / rate)
+            np.testing.assert_array_equal(
+                sample_trajectory(step.trajectory, rate, loaded.base_dir),
+                sinusoid_deg(t, (hi + lo) / 2.0, amplitude, period),
+            )
+    cal = next(s for s in plan.steps if isinstance(s, CalibrationCheckStep))
+    t = np.arange(0.0, 1.0 + 0.6 + 4.0, 1.0 / rate)
     np.testing.assert_array_equal(
-        sample_trajectory(new, rate, loaded.base_dir), sample_trajectory(old, rate, loaded.base_dir)
+        sample_trajectory(cal.trajectory, rate, loaded.base_dir),
+        calibration_step_deg(t, 20.0, 45.0, 1.0, 0.6),
     )
-    assert trajectory_limit_problems(new, limits, rate, loaded.base_dir) == []
-    seen: set[str] = set()
-    configurations = [c for _, c in p.configurations()]
-    # knee_phase1 runs no identification motion today: check one declared the way today's schema allows
-    configurations.append(configurations[0].model_copy(update={"profile": "identification"}))
-    for cfg in configurations:
-        st = resolve_settings(p.levels, cfg)
-        old = trajectory_for(p, loaded, cfg, st)
-        if old.profile in seen and old.profile != "sinusoid":
-            continue
-        seen.add(old.profile)
-        if cfg.profile == "sinusoid":
-            doc: dict[str, object] = {
-                "kind": "sinusoid",
-                "range_deg": "robot_rom.range_deg",
-                "speed_deg_s": "speed.speed_deg_s",
-                "periods": p.trajectories.sinusoid.periods,
-            }
-            values: dict[str, Quantity] = {"range_deg": st.robot_rom_deg, "speed_deg_s": st.speed_deg_s}
-        elif cfg.profile == "human":
-            assert cfg.trajectory is not None
-            doc = {"kind": "file", "file": p.trajectories.human[cfg.trajectory].file}
-            values = {}
-        else:
-            ident = p.trajectories.identification
-            assert ident is not None
-            doc = {"kind": "identification", **ident.model_dump()}
-            values = {}
-        new = build_trajectory(
-            "x", SPEC.validate_python(doc), values, loaded.base_dir, joint=p.rig.joint.name
-        )
-        assert new.duration_s == old.duration_s, cfg.key
-        np.testing.assert_array_equal(
-            sample_trajectory(new, rate, loaded.base_dir), sample_trajectory(old, rate, loaded.base_dir)
-        )
-        assert trajectory_limit_problems(new, limits, rate, loaded.base_dir) == [], cfg.key
-    assert seen == {"sinusoid", "human", "identification"}

@@ -30,11 +30,11 @@ def _protocol(folder: Path, *, brake_factor: float = 1.0) -> Path:
     for sub in ("calibration", "trajectories"):
         shutil.copytree(PROTOCOLS / sub, folder / sub, dirs_exist_ok=True)
     doc = yaml.safe_load((PROTOCOLS / "knee_phase1.yaml").read_text(encoding="utf-8"))
-    doc["trajectories"]["sinusoid"]["periods"] = 3
+    doc["trajectories"]["sine"]["periods"] = 3
     doc["fits"] = {"spring": {"enabled": False}, "bouc_wen": {"enabled": False}}
-    for level in doc["levels"]["friction"].values():
-        if "torque_nm" in level:
-            level["torque_nm"] = round(level["torque_nm"] * brake_factor, 4)
+    for level in doc["factors"]["friction"].values():
+        if "friction_nm" in level:
+            level["friction_nm"] = round(level["friction_nm"] * brake_factor, 4)
     path = folder / "knee_fast.yaml"
     path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
     return path
@@ -89,9 +89,9 @@ def test_a_stiffer_brake_makes_its_friction_configurations_differ(
     for p in result.pairs[1:]:
         assert p.energy.low > 0  # B (stiffer) minus A: more energy lost per cycle
         assert (
-            "friction_nm",
-            str(p.a.settings["friction_nm"]),
-            str(p.b.settings["friction_nm"]),
+            "friction.friction_nm",
+            str(p.a.settings["friction.friction_nm"]),
+            str(p.b.settings["friction.friction_nm"]),
         ) in p.changed
     assert html.count("<img ") == 4
 

@@ -18,7 +18,6 @@ import h5py
 from ..analysis.loops import centred_loop, fit_loops
 from ..analysis.pipeline import TrialPair, process_configuration
 from ..errors import InvalidInput
-from ..models.interim_knee_device import lever_spring
 from ..protocol.loader import LoadedProtocol, find_protocol, load_protocol, parse_protocol_text
 from ..protocol.processing import processing_settings
 from .checksums import is_marked, seal_missing
@@ -77,16 +76,19 @@ def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output
 
 
 def archived_device(cfg: h5py.Group) -> list[tuple[str, str, dict[str, object]]]:
-    """The configuration's device as the session resolved it: its `device_json` attribute."""
-    if "device_json" in cfg.attrs:
-        return [
-            (str(e.pop("name")), str(e.pop("type")), e)
-            for e in json.loads(attr_str(cfg, "device_json", "[]"))
-        ]
-    # INTERIM until the session archives device_json (helper PROTO): the knee brace's springs
-    return lever_spring(
-        float(cfg.attrs.get("stiffness_n_per_mm", 0.0)), int(cfg.attrs.get("preload_position", 3))
-    )
+    """The configuration's device as the session resolved it (its `device_json` attribute, docs/archive.md):
+    (name, type, parameters) per element; empty for an archive written before devices were declared (its
+    element fit is then not applicable). A `device_json` that is not the documented list is named."""
+    if "device_json" not in cfg.attrs:
+        return []
+    where = f"{cfg.file.filename}: {cfg.name}@device_json"
+    try:
+        doc = json.loads(attr_str(cfg, "device_json", "[]"))
+    except json.JSONDecodeError as exc:
+        raise InvalidInput(f"{where}: not valid JSON ({exc.msg})") from None
+    if not isinstance(doc, list) or not all(isinstance(e, dict) and "name" in e and "type" in e for e in doc):
+        raise InvalidInput(f"{where}: must be a JSON list of elements, each with a name and a type")
+    return [(str(e.pop("name")), str(e.pop("type")), e) for e in doc]
 
 
 def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:

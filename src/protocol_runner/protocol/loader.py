@@ -4,7 +4,7 @@ Every problem a user can make (a missing or empty file, a directory, binary garb
 type, an unknown key, an unknown level, a value out of range, a missing trajectory file) becomes an
 `InvalidInput` whose message is one short paragraph of lines like
 
-    knee_phase1.yaml:42: sets[1].configurations[2].friction: unknown level '5' (known: 0, 1, 2, 3, EMU)
+    campaign.yaml:42: sets[1].configurations[2].brake: unknown level '5' (known: b0, b1, b2)
 
 Paths use 0-based indices, as in JSON paths.
 """
@@ -12,23 +12,22 @@ Paths use 0-based indices, as in JSON paths.
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, get_origin
 
-import yaml
-from pydantic import BaseModel, ValidationError
+from pydantic import ValidationError
 
 from ..errors import InvalidInput
 from ..resources import packaged_protocols_dir
+from .generators import expand_generators
 from .loaded import LoadedProtocol as LoadedProtocol
 from .loaded import Loc as Loc
-from .loaded import clean_loc, line_for
+from .loaded import line_for
+from .rig_file import find_rig, load_rig, resolve_rig
 from .schema import Protocol
 from .validate import cross_check
-from .yaml_limits import MAX_PROTOCOL_BYTES, check_size, check_yaml_limits
-
-MAX_ERRORS_SHOWN = 8
+from .yaml_doc import format_loc as format_loc
+from .yaml_doc import format_problems, parse_yaml, validation_problems
+from .yaml_limits import MAX_PROTOCOL_BYTES, check_size
 
 
 def find_protocol(name_or_path: str, cwd: Path | None = None) -> Path:
@@ -86,33 +85,38 @@ def parse_protocol_text(
         raise InvalidInput(
             f"{shown}: the file is empty; a protocol needs at least `schema_version`, `name`, `rig`, ..."
         )
-    check_size(len(text), shown)  # characters: a lower bound of the bytes
-    check_yaml_limits(text, shown)  # before anything is composed or expanded
-    try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as exc:
-        raise InvalidInput(_yaml_error(shown, exc)) from None
-    lines: dict[Loc, int] = {}
-    duplicates: list[tuple[Loc, int]] = []
-    if node is not None:
-        _index_lines(node, (), lines, duplicates)
-    if duplicates:
-        loc, line = duplicates[0]
-        raise InvalidInput(f"{shown}:{line}: {format_loc(loc)}: duplicate key (each key may appear once)")
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:  # pragma: no cover - compose already succeeded
-        raise InvalidInput(_yaml_error(shown, exc)) from None
+    data, lines = parse_yaml(text, shown)
     if not isinstance(data, dict):
         kind = type(data).__name__
         raise InvalidInput(
             f"{shown}:1: the top level must be a mapping of keys (schema_version, name, rig, ...), got {kind}"
         )
+    if data.get("schema_version") == 1:
+        raise InvalidInput(
+            f"{shown}:{line_for(lines, ('schema_version',))}: schema_version: version 1 (fixed knee "
+            "`levels:`) is no longer read; declare `factors:`, `device:` and named `trajectories:` as in "
+            "schema_version 2 (docs/protocol.md; protocols/knee_phase1.yaml is the knee campaign in it)"
+        )
     try:
         protocol = Protocol.model_validate(data)
     except ValidationError as exc:
-        problems = [(tuple(e["loc"]), _pydantic_message(e)) for e in exc.errors()]
-        raise InvalidInput(format_problems(shown, lines, problems)) from None
+        raise InvalidInput(format_problems(shown, lines, validation_problems(exc, Protocol))) from None
+    base_dir = path.parent
+    try:
+        rig_path = find_rig(protocol.rig_name, base_dir)
+    except InvalidInput as exc:
+        raise InvalidInput(format_problems(shown, lines, [(("rig",), exc.message)])) from None
+    loaded_rig = load_rig(rig_path, shown=_rig_shown(protocol.rig_name, rig_path))
+    rig, problems = resolve_rig(loaded_rig, protocol.joint, protocol.rig_overrides)
+    if rig is None:
+        raise InvalidInput(format_problems(shown, lines, problems))
+    protocol, problems, origins = expand_generators(protocol.with_rig(rig))
+    for generated, generator in origins.items():
+        line = line_for(lines, generator)
+        if line is not None:
+            lines[generated] = line
+    if problems:
+        raise InvalidInput(format_problems(shown, lines, problems))
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
     loaded = LoadedProtocol(protocol=protocol, path=path, text=text, sha256=sha, lines=lines, shown=shown)
 
@@ -122,101 +126,6 @@ def parse_protocol_text(
     return loaded
 
 
-def format_loc(loc: Sequence[str | int]) -> str:
-    out = ""
-    for part in loc:
-        if isinstance(part, int):
-            out += f"[{part}]"
-        else:
-            out += ("." if out else "") + str(part)
-    return out or "(top level)"
-
-
-def format_problems(shown: str, lines: dict[Loc, int], problems: Sequence[tuple[Loc, str]]) -> str:
-    rows = []
-    for loc, message in problems[:MAX_ERRORS_SHOWN]:
-        line = line_for(lines, loc)
-        where = f"{shown}:{line}" if line else shown
-        rows.append(f"{where}: {format_loc(clean_loc(loc))}: {message}")
-    if len(problems) > MAX_ERRORS_SHOWN:
-        rows.append(f"(and {len(problems) - MAX_ERRORS_SHOWN} more problems)")
-    return "\n".join(rows)
-
-
-# ------------------------------------------------------------------------------------------ helpers
-
-
-def _yaml_error(shown: str, exc: yaml.YAMLError) -> str:
-    mark = getattr(exc, "problem_mark", None)
-    problem = getattr(exc, "problem", None) or str(exc)
-    context = getattr(exc, "context", None)
-    line = f"{mark.line + 1}" if mark is not None else "?"
-    detail = f"{context}, {problem}" if context else problem
-    return f"{shown}:{line}: YAML syntax error: {detail}"
-
-
-def _index_lines(node: yaml.Node, loc: Loc, lines: dict[Loc, int], dups: list[tuple[Loc, int]]) -> None:
-    lines[loc] = node.start_mark.line + 1
-    if isinstance(node, yaml.MappingNode):
-        seen: set[str] = set()
-        for key_node, value_node in node.value:
-            key = str(key_node.value)
-            child = (*loc, key)
-            if key in seen:
-                dups.append((child, key_node.start_mark.line + 1))
-            seen.add(key)
-            _index_lines(value_node, child, lines, dups)
-            lines[child] = key_node.start_mark.line + 1
-    elif isinstance(node, yaml.SequenceNode):
-        for i, item in enumerate(node.value):
-            _index_lines(item, (*loc, i), lines, dups)
-
-
-def _pydantic_message(err: Any) -> str:
-    kind = err.get("type", "")
-    value = err.get("input")
-    if kind == "extra_forbidden":
-        allowed = _allowed_keys(tuple(err["loc"][:-1]))
-        hint = f" (allowed: {', '.join(allowed)})" if allowed else ""
-        return f"unknown key{hint}"
-    if kind == "missing":
-        return "required field is missing"
-    msg = str(err.get("msg", "invalid value"))
-    msg = msg[0].lower() + msg[1:] if msg else msg
-    if kind.startswith("value_error"):
-        msg = msg.removeprefix("value error, ")
-    if value is not None and not isinstance(value, (dict, list)):
-        return f"{msg} (got {value!r})"
-    return msg
-
-
-def _allowed_keys(loc: Loc) -> list[str]:
-    """The field names of the model at `loc` (for "unknown key" hints)."""
-    model: Any = Protocol
-    skip_user_key = False
-    for part in clean_loc(loc):
-        if isinstance(part, int):
-            continue
-        if skip_user_key:  # a key chosen by the user in a dict of models (level names, trajectory names)
-            skip_user_key = False
-            continue
-        if not (isinstance(model, type) and issubclass(model, BaseModel)):
-            return []
-        info = model.model_fields.get(str(part))
-        if info is None:
-            return []
-        skip_user_key = get_origin(info.annotation) is dict
-        model = _model_in(info.annotation)
-    if isinstance(model, type) and issubclass(model, BaseModel):
-        return list(model.model_fields)
-    return []
-
-
-def _model_in(annotation: Any) -> Any:
-    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
-        return annotation
-    for arg in getattr(annotation, "__args__", ()) or ():
-        found = _model_in(arg)
-        if found is not None:
-            return found
-    return None
+def _rig_shown(name: str, path: Path) -> str:
+    """How messages name a rig file: a shipped rig by its file name in the package, a path as given."""
+    return f"rigs/{path.name}" if name == path.stem and "/" not in name else name

@@ -24,16 +24,17 @@ from collections.abc import Iterable
 from dataclasses import dataclass, field
 from typing import Any
 
-from .levels import Settings, resolve_settings, with_motion_range
 from .loaded import LoadedProtocol
 from .only import KeySelection
 from .plan_trajectory import Trajectory as Trajectory
-from .plan_trajectory import calibration_trajectory as calibration_trajectory
-from .plan_trajectory import trajectory_for
+from .resolve import calibration_trajectory as calibration_trajectory
+from .resolve import configuration_trajectory, resolve_settings
 from .schema import ConfigurationSpec, Protocol, SetSpec
+from .settings import Settings
 from .step_ids import calibration_id as calibration_id
 from .step_ids import step_id
 from .step_ids import trial_id as trial_id
+from .units import unit_text
 
 
 @dataclass(frozen=True)
@@ -115,6 +116,8 @@ class TrialStep(Step):
             "settings": self.settings.to_json(),
             "trajectory": self.trajectory.to_json(),
         }
+        if self.brace == "on":
+            out["device"] = self.settings.device_json()
         if self.twin is not None:
             out["derived_from"] = self.twin
         return out
@@ -219,25 +222,29 @@ class Plan:
 # -------------------------------------------------------------------------------------- expansion
 
 
-def _setup_items(p: Protocol, cfg: ConfigurationSpec, st: Settings) -> tuple[str, ...]:
-    stiff = p.levels.stiffness[cfg.stiffness]
-    fric = p.levels.friction[cfg.friction]
-    desc_s = stiff.description or p.levels.stiffness.get(stiff.same_as or "", stiff).description
-    desc_f = fric.description or p.levels.friction.get(fric.same_as or "", fric).description
-    spring = (
-        "Remove both springs (no spring)"
-        if st.stiffness_n_per_mm == 0
-        else f"Fit both springs: {cfg.stiffness} = {st.stiffness_n_per_mm:g} N/mm ({desc_s})"
-    )
-    items = [
-        spring,
-        f"Set the spring preload screw to position {st.preload_position} ({cfg.preload})",
-        f"Set the brake: {st.friction_screw_turns:g} turns per brake screw, both sides "
-        f"(friction {cfg.friction} = {st.friction_nm:g} N*m{'; ' + desc_f if desc_f else ''})",
-        f"Set the four ROM screws to {st.brace_rom_deg[0]:g}-{st.brace_rom_deg[1]:g} deg ({cfg.brace_rom})",
-    ]
+def _quantity_text(name: str, value: float | tuple[float, ...]) -> str:
+    unit = unit_text(name)
+    shown = "-".join(f"{v:g}" for v in value) if isinstance(value, tuple) else f"{value:g}"
+    return f"{name} = {shown}{' ' + unit if unit and unit != '%' else unit}"
+
+
+def _setup_items(p: Protocol, st: Settings) -> tuple[str, ...]:
+    """One checklist item per factor (its level, quantities with units, description and setup text),
+    then the protocol's bolt torques and the fitting check."""
+    items = []
+    for factor, f in st.factors:
+        quantities = ", ".join(_quantity_text(q, v) for q, v in f.quantities)
+        text = f"{factor} {f.level}"
+        if quantities:
+            text += f" ({quantities})"
+        if f.setup:
+            text += f": {f.setup}"
+        if f.description:
+            text += f" [{f.description}]"
+        items.append(text)
     items += [f"Tighten {b.bolts} to {b.torque_ft_lb:g} ft-lb" for b in p.bolt_torques]
-    items.append("Brace on the robot leg, secured (saddle extension, foam, hose clamp) and not shifting")
+    device = p.device.name if p.device is not None and p.device.name else "the device"
+    items.append(f"{device[:1].upper() + device[1:]} on the robot, secured and not shifting")
     return tuple(items)
 
 
@@ -313,16 +320,17 @@ def _expand_set(
             trajectory=cal_traj,
         )
     ]
-    resolved = [(c, with_motion_range(p, loaded, c, resolve_settings(p.levels, c))) for c in cfgs]
-    trajectories = {c.key: trajectory_for(p, loaded, c, st) for c, st in resolved}
+    resolved = [(c, resolve_settings(p, c)) for c in cfgs]
+    trajectories = {c.key: configuration_trajectory(loaded, c, st) for c, st in resolved}
+    device = p.device.name if p.device is not None and p.device.name else "device"
     for cfg, st in resolved:
         steps.append(
             ChecklistStep(
                 id=step_id("check", set_name=s.name, key=cfg.key),
                 kind="operator_checklist",
                 set=s.name,
-                title=f"Configuration {cfg.key} (test run {cfg.run}): set up the brace",
-                items=_setup_items(p, cfg, st),
+                title=f"Configuration {cfg.key} (test run {cfg.run}): set up the {device}",
+                items=_setup_items(p, st),
                 brace="on",
                 configuration=cfg.key,
                 settings=st,
@@ -334,10 +342,10 @@ def _expand_set(
             id=step_id("check", "brace-off", set_name=s.name),
             kind="operator_checklist",
             set=s.name,
-            title=f"Set {s.name}: remove the brace; the robot runs the same conditions without it",
+            title=f"Set {s.name}: remove the {device}; the robot runs the same conditions without it",
             items=(
-                "Remove the brace from the robot leg (keep its settings untouched)",
-                "Robot leg free of straps, foam and clamps",
+                f"Remove the {device} from the robot (keep its settings untouched)",
+                "Robot segment free of straps, foam and clamps",
             ),
             brace="off",
         )

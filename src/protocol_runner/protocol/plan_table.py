@@ -16,7 +16,7 @@ from .plan import (
 
 def _describe(step: Step) -> str:
     if isinstance(step, TrialStep):
-        st, tr = step.settings, step.trajectory
+        tr = step.trajectory
         if tr.profile == "sinusoid":
             traj = f"{tr.mean_deg:g}+{tr.amplitude_deg:g}*sin(2*pi*t/{tr.period_s:.2f})"
         else:
@@ -24,10 +24,11 @@ def _describe(step: Step) -> str:
         extra = f"  (input from {step.twin})" if step.twin else ""
         return (
             f"config {step.configuration:>2} run {step.run:>2} trial {step.trial} brace {step.brace:<3}  "
-            f"{st.brace_rom}/{st.robot_rom} fric {st.friction_level} {st.stiffness} {st.speed} {st.preload}  {traj}{extra}"
+            f"{' '.join(f.level for _, f in step.settings.factors)}  {traj}{extra}"
         )
     if isinstance(step, CalibrationCheckStep):
-        return f"set {step.set}: 45 deg step check {step.when}"
+        step_deg = dict(step.trajectory.params).get("step_deg", 0.0)
+        return f"set {step.set}: {step_deg:g} deg step check {step.when}"
     if isinstance(step, ChecklistStep):
         return step.title
     if isinstance(step, ProcessStep):
@@ -39,9 +40,42 @@ def _describe(step: Step) -> str:
     return "HTML report"
 
 
+def format_matrix_table(plan: Plan) -> list[str]:
+    """The expanded test matrix: one row per configuration, one column per declared factor."""
+    rows: dict[int, TrialStep] = {}
+    for step in plan.steps:
+        if isinstance(step, TrialStep) and step.brace == "on":
+            rows.setdefault(step.configuration, step)
+    factors: list[str] = []
+    for step in rows.values():
+        factors += [f for f, _ in step.settings.factors if f not in factors]
+    trials = {
+        k: sum(1 for s in plan.steps if isinstance(s, TrialStep) and s.configuration == k and s.brace == "on")
+        for k in rows
+    }
+    header = ["key", "run", "set", *factors, "trajectory", "trials"]
+    body = [
+        [
+            str(k),
+            str(st.run),
+            st.set,
+            *[st.settings.level(f) or "-" for f in factors],
+            f"{st.trajectory.name or st.trajectory.profile} ({st.trajectory.profile})",
+            str(trials[k]),
+        ]
+        for k, st in rows.items()
+    ]
+    widths = [max(len(r[i]) for r in [header, *body]) for i in range(len(header))]
+    out = ["  ".join(h.ljust(w) for h, w in zip(header, widths, strict=True)).rstrip()]
+    out.append("  ".join("-" * w for w in widths))
+    out += ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in body]
+    return out
+
+
 def format_plan_table(plan: Plan) -> str:
     width = max(len(s.id) for s in plan.steps)
     lines = [f"Plan of {plan.protocol_name} (sha256 {plan.protocol_sha256[:16]}...)", ""]
+    lines += ["Test matrix:", *format_matrix_table(plan), "", "Steps:"]
     lines.append(f"{'#':>4}  {'id':<{width}}  {'kind':<18}  {'robot s':>8}  what")
     lines.append(f"{'-' * 4}  {'-' * width}  {'-' * 18}  {'-' * 8}  {'-' * 40}")
     for i, step in enumerate(plan.steps, start=1):

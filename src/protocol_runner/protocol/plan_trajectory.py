@@ -5,7 +5,7 @@ how a configuration's, or the calibration step's, is derived from the protocol.
 fields into a `Trajectory`; its JSON is {"profile": kind, "name": name, the kind's fields resolved,
 "duration_s"} (a sinusoid also keeps mean_deg, amplitude_deg and period_s; a file keeps `source`, the
 file as written, plus the angle `column` read and its `origin`). `protocol/sampling.py` samples any of
-them. `trajectory_for` and `calibration_trajectory` are the schema_version 1 path.
+them.
 """
 
 from __future__ import annotations
@@ -17,10 +17,7 @@ from typing import Any
 
 from ..errors import InvalidInput
 from ..hardware.safety import SafetyLimits
-from .levels import Settings
-from .loaded import LoadedProtocol
 from .paths import OutsideFolder, confined_path
-from .schema import ConfigurationSpec, Protocol
 from .trajectories import load_trajectory_file, sinusoid_period_s, triangle_period_s
 from .trajectory_specs import (
     BINDABLE_FIELDS,
@@ -223,55 +220,3 @@ def _pair(value: Quantity | None) -> tuple[float, float]:
 def _num(value: Quantity | None) -> float:
     assert isinstance(value, float | int)
     return float(value)
-
-
-def trajectory_for(
-    p: Protocol, loaded: LoadedProtocol | None, cfg: ConfigurationSpec, settings: Settings
-) -> Trajectory:
-    if cfg.profile == "sinusoid":
-        lo, hi = settings.robot_rom_deg
-        amplitude = (hi - lo) / 2.0
-        period = sinusoid_period_s(amplitude, settings.speed_deg_s)
-        return Trajectory(
-            profile="sinusoid",
-            mean_deg=(hi + lo) / 2.0,
-            amplitude_deg=amplitude,
-            period_s=period,
-            duration_s=p.trajectories.sinusoid.periods * period,
-        )
-    if cfg.profile == "human":
-        assert cfg.trajectory is not None
-        spec = p.trajectories.human[cfg.trajectory]
-        duration = 0.0
-        if loaded is not None:
-            duration = load_trajectory_file(loaded.base_dir / spec.file).duration_s
-        return Trajectory(
-            profile="human", source=spec.file, duration_s=duration, params=(("name", cfg.trajectory),)
-        )
-    ident = p.trajectories.identification
-    assert ident is not None
-    return Trajectory(
-        profile="identification",
-        duration_s=ident.total_s,
-        params=(
-            ("min_deg", ident.range_deg[0]),
-            ("max_deg", ident.range_deg[1]),
-            ("repetition_s", ident.repetition_s),
-            ("initial_period_s", ident.initial_period_s),
-            ("final_period_s", ident.final_period_s),
-        ),
-    )
-
-
-def calibration_trajectory(p: Protocol) -> Trajectory:
-    s = p.trajectories.calibration_step
-    return Trajectory(
-        profile="step",
-        duration_s=s.settle_s + s.ramp_s + s.hold_s,
-        params=(
-            ("from_deg", s.from_deg),
-            ("step_deg", s.step_deg),
-            ("settle_s", s.settle_s),
-            ("ramp_s", s.ramp_s),
-        ),
-    )

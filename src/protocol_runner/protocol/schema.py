@@ -1,18 +1,30 @@
-"""The protocol file's schema: pydantic models, immutable, unknown keys rejected.
+"""The protocol file's schema (schema_version 2): pydantic models, immutable, unknown keys rejected.
 
-The shapes mirror `protocols/knee_phase1.yaml` (thesis Appendix A). Nothing here assumes a knee: the
-joint, its channels, ranges and calibration come from the file. Cross-field checks (levels that exist,
-ranges inside the joint's range, unique keys, ...) live in `protocol/validate.py` so that each error can
-name the exact field and line.
+Nothing here names a campaign: factors, their levels and quantities, the device's elements and the
+trajectories are whatever the file declares (docs/protocol.md is the reference). Cross-field checks
+(levels that exist, bindings whose units match, ranges inside the joint's range, unique keys, ...) live in
+`protocol/validate.py` and `protocol/resolve.py` so that each error can name the exact field and line.
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+import math
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictInt, field_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    PrivateAttr,
+    StrictInt,
+    field_validator,
+    model_validator,
+)
 
 from protocol_runner.protocol.expectations import ExpectationSpec
+from protocol_runner.protocol.trajectory_specs import TrajectorySpec
+from protocol_runner.protocol.units import known_suffixes, unit_suffix
 
 
 def _int_to_str(value: object) -> object:
@@ -42,12 +54,13 @@ RangePair = Annotated[tuple[float, float], BeforeValidator(lambda v: tuple(v) if
 
 
 # --------------------------------------------------------------------------------------------- rig
+# The resolved rig (rig file + joint + rig_overrides, protocol/rig_file.py): what `protocol.rig` returns.
 
 
 class JointSpec(_Model):
     name: Identifier
     description: str = ""
-    rsst_joint: int | None = Field(default=None, ge=1, le=12)
+    rsst_joint: int | None = Field(default=None, ge=1)
     range_deg: RangePair
     torque_range_nm: RangePair
 
@@ -55,8 +68,8 @@ class JointSpec(_Model):
 
 
 class OutputSpec(_Model):
-    board: Literal["usb3105"]
-    channel: int = Field(ge=0, le=15)
+    board: str
+    channel: int = Field(ge=0)
     rate_hz: float = Field(gt=0, le=1000)
     volts_range: RangePair = (-10.0, 10.0)
     serial: str | None = None
@@ -65,9 +78,9 @@ class OutputSpec(_Model):
 
 
 class InputSpec(_Model):
-    board: Literal["dt9814", "usb1608fs"]
-    angle_channel: int = Field(ge=0, le=23)
-    torque_channel: int = Field(ge=0, le=23)
+    board: str
+    angle_channel: int = Field(ge=0)
+    torque_channel: int = Field(ge=0)
     rate_hz: float = Field(gt=0, le=50000)
     volts_range: RangePair = (-10.0, 10.0)
     serials: list[str] = Field(default_factory=list)
@@ -97,6 +110,30 @@ class RigSpec(_Model):
     calibration: CalibrationTablesSpec = CalibrationTablesSpec()
     safety: SafetySpec
     time_constant_s: float = Field(gt=0)
+    simulator: tuple[tuple[str, float], ...] = ()  # the joint's simulator parameters (rig file)
+    rig_file: str = ""
+    rig_sha256: str = ""
+
+
+class SafetyOverride(_Model):
+    max_rate_deg_s: float | None = Field(default=None, gt=0)
+    max_accel_deg_s2: float | None = Field(default=None, gt=0)
+    park_angle_deg: float | None = None
+    park_rate_deg_s: float | None = Field(default=None, gt=0)
+
+
+class JointOverride(_Model):
+    calibration: CalibrationTablesSpec = CalibrationTablesSpec()
+    safety: SafetyOverride | None = None
+    range_deg: RangePair | None = None
+
+    _range = field_validator("range_deg")(lambda v: v if v is None else _check_range(v))
+
+
+class RigOverrides(_Model):
+    input_board: str | None = None
+    input_serials: list[str] | None = None
+    joints: dict[str, JointOverride] = Field(default_factory=dict)
 
 
 class BoltTorque(_Model):
@@ -104,38 +141,58 @@ class BoltTorque(_Model):
     torque_ft_lb: float = Field(gt=0)
 
 
-# ------------------------------------------------------------------------------------------ levels
+# ----------------------------------------------------------------------------------------- factors
+
+RESERVED_LEVEL_KEYS = ("same_as", "description", "setup")
+Quantity = float | tuple[float, ...]
 
 
-class RangeLevel(_Model):
-    range_deg: RangePair | None = None
+def _quantity_value(name: str, value: object) -> Quantity:
+    if isinstance(value, bool) or not isinstance(value, int | float | list | tuple):
+        raise ValueError(f"quantity {name!r} must be a number or a list of numbers, got {value!r}")
+    if isinstance(value, list | tuple):
+        items = [_quantity_value(name, v) for v in value]
+        if not items or any(isinstance(v, tuple) for v in items):
+            raise ValueError(f"quantity {name!r} must be a number or a flat list of numbers, got {value!r}")
+        if name.endswith("range_deg") and not (len(items) == 2 and items[0] < items[1]):  # type: ignore[operator]
+            raise ValueError(f"{name} must be [low, high] with low < high, got {value!r}")
+        return tuple(float(v) for v in items)  # type: ignore[arg-type]
+    number = float(value)
+    if not math.isfinite(number):
+        raise ValueError(f"quantity {name!r} must be finite, got {value!r}")
+    return number
+
+
+class LevelSpec(_Model):
+    """One level of a factor: quantities (keys ending with a unit suffix, protocol/units.py), or
+    `same_as` another level of the same factor; `description` and `setup` (operator checklist text)."""
+
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+
     same_as: LevelName | None = None
     description: str = ""
+    setup: str = ""
 
+    @model_validator(mode="before")
+    @classmethod
+    def _quantities(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        out = dict(data)
+        for key, value in data.items():
+            if key in RESERVED_LEVEL_KEYS:
+                continue
+            if unit_suffix(str(key)) is None:
+                raise ValueError(
+                    f"{key!r}: a quantity's name must end with a unit suffix ({known_suffixes()}); "
+                    f"reserved keys: {', '.join(RESERVED_LEVEL_KEYS)}"
+                )
+            out[key] = _quantity_value(str(key), value)
+        return out
 
-class FrictionLevel(_Model):
-    torque_nm: float | None = Field(default=None, ge=0)
-    screw_turns: float | None = Field(default=None, ge=0)
-    same_as: LevelName | None = None
-    description: str = ""
-
-
-class StiffnessLevel(_Model):
-    n_per_mm: float | None = Field(default=None, ge=0)
-    same_as: LevelName | None = None
-    description: str = ""
-
-
-class SpeedLevel(_Model):
-    max_deg_s: float | None = Field(default=None, gt=0)
-    same_as: LevelName | None = None
-    description: str = ""
-
-
-class PreloadLevel(_Model):
-    position: int | None = Field(default=None, ge=1, le=5)
-    same_as: LevelName | None = None
-    description: str = ""
+    @property
+    def quantities(self) -> tuple[tuple[str, Quantity], ...]:
+        return tuple((k, v) for k, v in (self.model_extra or {}).items())
 
 
 def _str_keys(value: object) -> object:
@@ -144,50 +201,42 @@ def _str_keys(value: object) -> object:
     return value
 
 
-class Levels(_Model):
-    brace_rom: Annotated[dict[str, RangeLevel], BeforeValidator(_str_keys)]
-    robot_rom: Annotated[dict[str, RangeLevel], BeforeValidator(_str_keys)]
-    friction: Annotated[dict[str, FrictionLevel], BeforeValidator(_str_keys)]
-    stiffness: Annotated[dict[str, StiffnessLevel], BeforeValidator(_str_keys)]
-    speed: Annotated[dict[str, SpeedLevel], BeforeValidator(_str_keys)]
-    preload: Annotated[dict[str, PreloadLevel], BeforeValidator(_str_keys)]
+Factor = Annotated[dict[str, LevelSpec], BeforeValidator(_str_keys), Field(min_length=1)]
+
+# ------------------------------------------------------------------------------------------- device
 
 
-LEVEL_FAMILIES: tuple[str, ...] = ("brace_rom", "robot_rom", "friction", "stiffness", "speed", "preload")
+class ElementSpec(_Model):
+    """One element of the device: `name`, `type` (models/elements.py ELEMENT_TYPES) and its parameters,
+    each a constant or a binding "<factor>.<quantity>" (checked in protocol/resolve.py)."""
+
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+
+    name: Identifier
+    type: str
+
+    @property
+    def params(self) -> dict[str, Any]:
+        return dict(self.model_extra or {})
+
+
+class DeviceSpec(_Model):
+    name: str = ""
+    description: str = ""
+    elements: list[ElementSpec] = Field(min_length=1)
+
 
 # ------------------------------------------------------------------------------------ trajectories
 
 
-class SinusoidSpec(_Model):
-    periods: float = Field(gt=0)
-
-
-class HumanFileSpec(_Model):
-    file: str
-    description: str = ""
-
-
-class IdentificationSpec(_Model):
-    range_deg: RangePair
-    total_s: float = Field(gt=0)
-    repetition_s: float = Field(gt=0)
-    initial_period_s: float = Field(gt=0)
-    final_period_s: float = Field(gt=0)
-
-
 class CalibrationStepSpec(_Model):
+    """The calibration check's move (a ramped step, thesis Appendix A "Calibration")."""
+
     from_deg: float
     step_deg: float
     ramp_s: float = Field(ge=0)
     hold_s: float = Field(gt=0)
     settle_s: float = Field(gt=0)
-
-
-class TrajectoriesSpec(_Model):
-    sinusoid: SinusoidSpec
-    human: dict[Identifier, HumanFileSpec] = Field(default_factory=dict)
-    identification: IdentificationSpec | None = None
-    calibration_step: CalibrationStepSpec
 
 
 class CalibrationCheckSpec(_Model):
@@ -253,37 +302,98 @@ class FitsSpec(_Model):
 
 # ------------------------------------------------------------------------------------- the matrix
 
-Profile = Literal["sinusoid", "human", "identification"]
+RESERVED_CONFIGURATION_KEYS = ("key", "run", "trajectory", "trials", "description")
+
+
+def _levels_as_str(data: Any) -> Any:
+    if isinstance(data, dict):
+        return {k: (v if k in RESERVED_CONFIGURATION_KEYS else _int_to_str(v)) for k, v in data.items()}
+    return data
 
 
 class ConfigurationSpec(_Model):
+    """An explicit row: reserved keys, and `<factor>: <level label>` for the factors it sets."""
+
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+
     key: StrictInt = Field(ge=1)
     run: StrictInt = Field(ge=1)
-    profile: Profile
-    trajectory: Identifier | None = None
-    brace_rom: LevelName
-    robot_rom: LevelName
-    friction: LevelName
-    stiffness: LevelName
-    speed: LevelName
-    preload: LevelName
+    trajectory: Identifier
     trials: StrictInt = Field(ge=1, le=50)
+    description: str = ""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _labels(cls, data: Any) -> Any:
+        data = _levels_as_str(data)
+        if isinstance(data, dict):
+            for k, v in data.items():
+                if k not in RESERVED_CONFIGURATION_KEYS and not isinstance(v, str):
+                    raise ValueError(f"{k}: a factor's level label, got {v!r}")
+        return data
+
+    @property
+    def levels(self) -> dict[str, str]:
+        """factor -> level label, as written."""
+        return {k: str(v) for k, v in (self.model_extra or {}).items()}
+
+
+LevelList = Annotated[list[LevelName], Field(min_length=1)]
+LevelChoice = LevelList | Literal["all"]
+
+
+class TrajectoryByLevel(_Model):
+    factor: Identifier
+    levels: Annotated[dict[str, Identifier], BeforeValidator(_str_keys)]
+
+
+class _GeneratorSpec(_Model):
+    trajectory: Identifier | None = None
+    trajectory_by_level: TrajectoryByLevel | None = None
+    trials: StrictInt = Field(ge=1, le=50)
+    description: str = ""
+
+    @model_validator(mode="after")
+    def _one_trajectory(self) -> Any:
+        if (self.trajectory is None) == (self.trajectory_by_level is None):
+            raise ValueError("give exactly one of `trajectory` and `trajectory_by_level`")
+        return self
+
+
+class FullFactorialSpec(_GeneratorSpec):
+    """Every combination of the listed factors' levels (`all` = every declared level, in declaration
+    order; the LAST factor varies fastest), each with the `fixed` levels."""
+
+    factors: Annotated[dict[Identifier, LevelChoice], Field(min_length=1)]
+    fixed: Annotated[dict[Identifier, LevelName], BeforeValidator(_str_keys)] = Field(default_factory=dict)
+
+
+class OneFactorAtATimeSpec(_GeneratorSpec):
+    """The baseline, then each factor of `vary` set to each of its listed levels in turn (the others at
+    the baseline). A listed level equal to the baseline's is skipped (the baseline is already there)."""
+
+    baseline: Annotated[dict[Identifier, LevelName], BeforeValidator(_str_keys)] = Field(min_length=1)
+    vary: Annotated[dict[Identifier, LevelList], Field(min_length=1)]
+    include_baseline: bool = True
 
 
 class SetSpec(_Model):
     name: Identifier
     condition: str
-    configurations: list[ConfigurationSpec] = Field(min_length=1)
+    configurations: list[ConfigurationSpec] = Field(default_factory=list)
+    full_factorial: FullFactorialSpec | None = None
+    one_factor_at_a_time: OneFactorAtATimeSpec | None = None
 
-
-ComparisonParameter = Literal[
-    "speed", "brace_rom", "robot_rom", "friction", "stiffness", "preload", "profile"
-]
+    @model_validator(mode="after")
+    def _something(self) -> Any:
+        if not self.configurations and self.full_factorial is None and self.one_factor_at_a_time is None:
+            raise ValueError("a set needs `configurations`, `full_factorial` or `one_factor_at_a_time`")
+        return self
 
 
 class ComparisonSpec(_Model):
     name: Identifier
-    parameter: ComparisonParameter
+    parameter: Identifier  # a declared factor, or "trajectory" (checked in validate.py)
     section: str = ""
     title: str
     configurations: list[StrictInt] = Field(min_length=2)
@@ -305,16 +415,21 @@ class ReportSpec(_Model):
 
 
 class Protocol(_Model):
-    """A whole campaign (one protocol file)."""
+    """A whole campaign (one protocol file). `rig` in the file names a rig file; after loading,
+    `protocol.rig` is the resolved `RigSpec` of the driven joint."""
 
-    schema_version: Literal[1]
+    schema_version: Literal[2]
     name: Identifier
     title: str = ""
     description: str = ""
-    rig: RigSpec
+    rig_name: str = Field(alias="rig", min_length=1)
+    joint: Identifier
+    rig_overrides: RigOverrides = RigOverrides()
     bolt_torques: list[BoltTorque] = Field(default_factory=list)
-    levels: Levels
-    trajectories: TrajectoriesSpec
+    factors: dict[Identifier, Factor] = Field(default_factory=dict)
+    device: DeviceSpec | None = None
+    trajectories: dict[Identifier, TrajectorySpec] = Field(min_length=1)
+    calibration_step: CalibrationStepSpec
     calibration_check: CalibrationCheckSpec
     processing: ProcessingSpec
     fits: FitsSpec = FitsSpec()
@@ -322,6 +437,24 @@ class Protocol(_Model):
     report: ReportSpec = ReportSpec()
     expectations: list[ExpectationSpec] = Field(default_factory=list)
 
+    _rig: RigSpec | None = PrivateAttr(default=None)
+
+    @property
+    def rig(self) -> RigSpec:
+        """The resolved rig of the driven joint (set by the loader)."""
+        if self._rig is None:
+            raise RuntimeError("the protocol's rig has not been resolved (load it with protocol.loader)")
+        return self._rig
+
+    def with_rig(self, rig: RigSpec) -> Protocol:
+        out = self.model_copy()
+        out._rig = rig
+        return out
+
     def configurations(self) -> list[tuple[SetSpec, ConfigurationSpec]]:
-        """Every configuration with its set, in execution order."""
+        """Every configuration with its set, in execution order (generators expanded by the loader)."""
         return [(s, c) for s in self.sets for c in s.configurations]
+
+    def profile_of(self, cfg: ConfigurationSpec) -> str:
+        """The kind of a configuration's trajectory (sinusoid, file, ...)."""
+        return self.trajectories[cfg.trajectory].kind

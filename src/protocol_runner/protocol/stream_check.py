@@ -17,8 +17,7 @@ from ..errors import InvalidInput
 from ..hardware.calibration import CalibrationTable, load_calibration_table
 from ..hardware.safety import SafetyLimits, SafetyViolation, check_trajectory
 from ..hardware.stream import build_stream, check_stream
-from .levels import resolve_settings
-from .plan_trajectory import Trajectory, calibration_trajectory, trajectory_for
+from .plan_trajectory import Trajectory
 from .sampling import sample_trajectory
 from .schema import RigSpec
 
@@ -42,15 +41,16 @@ def safety_limits(rig: RigSpec) -> SafetyLimits:
     )
 
 
-def check_streams(loaded: LoadedProtocol, *, check_files: bool = True) -> Iterator[Problem]:
-    """(location, message) for every configuration, or the calibration step, whose stream is unsafe.
-    Human-motion files are only read when `check_files`."""
+def check_streams(
+    loaded: LoadedProtocol, motions: list[tuple[Loc, str, Trajectory]], *, check_files: bool = True
+) -> Iterator[Problem]:
+    """(location, message) for every motion (location, what, trajectory) whose stream is unsafe."""
     p = loaded.protocol
     rig = p.rig
     try:
         limits = safety_limits(rig)
     except InvalidInput as exc:
-        yield ("rig", "safety"), exc.message
+        yield ("joint",), exc.message
         return
     table: CalibrationTable | None = None
     if check_files and rig.calibration.command_table is not None:
@@ -58,15 +58,6 @@ def check_streams(loaded: LoadedProtocol, *, check_files: bool = True) -> Iterat
             table = load_calibration_table(loaded.base_dir / rig.calibration.command_table)
         except InvalidInput:
             return  # reported by the file checks
-    motions: list[tuple[Loc, str, Trajectory]] = [
-        (("trajectories", "calibration_step"), "the calibration step", calibration_trajectory(p))
-    ]
-    for i, s in enumerate(p.sets):
-        for j, cfg in enumerate(s.configurations):
-            if cfg.profile == "human" and not check_files:
-                continue
-            traj = trajectory_for(p, loaded, cfg, resolve_settings(p.levels, cfg))
-            motions.append((("sets", i, "configurations", j), f"configuration {cfg.key}", traj))
     verdicts: dict[str, str | None] = {}
     for loc, name, traj in motions:
         key = repr(traj.to_json())
@@ -74,7 +65,9 @@ def check_streams(loaded: LoadedProtocol, *, check_files: bool = True) -> Iterat
             verdicts[key] = _problem(traj, loaded, limits, table, rig.output.rate_hz, rig.joint.range_deg)
         message = verdicts[key]
         if message is not None:
-            what = f"{traj.profile} {traj.source}" if traj.source else traj.profile
+            what = (
+                f"{traj.profile} {traj.name or traj.source}" if (traj.name or traj.source) else traj.profile
+            )
             yield loc, f"{name} ({what}): {message}"
 
 

@@ -1,150 +1,134 @@
 """Cross-field checks of a protocol that the schema alone cannot express.
 
 Each check returns (location, message) pairs so the loader can name the file line of the offending field.
-Checks: levels and their aliases; every referenced level and trajectory exists; ranges lie inside the
-joint's range; trajectories respect the joint's range, speed and acceleration limits; keys, run numbers and
-names are unique; referenced files lie in the protocol's folder, exist and load.
+Checks: factor levels and their aliases; every configuration's factors, levels and trajectory exist;
+bindings (protocol/resolve.py); range quantities inside the joint's range; range-of-motion stops that
+hold the park angle; keys, run numbers and names unique; referenced files inside the protocol's folder,
+present and loadable; every motion's commanded stream inside the joint's envelope (stream_check.py).
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
-
-import numpy as np
+from typing import TYPE_CHECKING
 
 from ..errors import InvalidInput
-from ..hardware.conversions import RSST_JOINTS
+from ..models.elements import ELEMENT_TYPES
 from .expectations import check_expectations
 from .paths import OutsideFolder, confined_path
-from .schema import LEVEL_FAMILIES, ConfigurationSpec, Protocol
-from .trajectories import (
-    calibration_step_peak_speed_deg_s,
-    load_trajectory_file,
-    max_speed_deg_s,
-    sinusoid_period_s,
+from .plan_trajectory import Trajectory
+from .resolve import (
+    BindingError,
+    calibration_trajectory,
+    check_bindings,
+    configuration_trajectory,
+    resolve_settings,
 )
+from .schema import Protocol
+from .trajectories import calibration_step_peak_speed_deg_s
 
 if TYPE_CHECKING:
     from .loaded import LoadedProtocol, Loc
 
 Problem = tuple["Loc", str]
+Motion = tuple["Loc", str, Trajectory]
 
-_LEVEL_VALUE_FIELD = {
-    "brace_rom": "range_deg",
-    "robot_rom": "range_deg",
-    "friction": "torque_nm",
-    "stiffness": "n_per_mm",
-    "speed": "max_deg_s",
-    "preload": "position",
-}
+TRAJECTORY_PARAMETER = "trajectory"
+"""A comparison's `parameter` that is not a factor: the configurations differ by their trajectory."""
 
 
 def cross_check(loaded: LoadedProtocol, *, check_files: bool = True) -> list[Problem]:
     p = loaded.protocol
     problems: list[Problem] = []
-    problems += list(_check_levels(p))
-    problems += list(_check_rig(p))
+    problems += list(_check_factors(p))
     problems += list(_check_matrix(p))
-    problems += list(_check_trajectories(p))
+    problems += list(check_bindings(p))
+    problems += list(_check_calibration_step(p))
     if check_files:
         problems += list(_check_files(p, loaded.base_dir))
     problems += list(_check_report(p))
     problems += list(check_expectations(p.expectations, {c.key for _, c in p.configurations()}))
+    if problems:
+        return problems
+    motions: list[Motion] = [
+        (("calibration_step",), "the calibration step", calibration_trajectory(p)),
+    ]
+    for loc, message, motion in _resolve_configurations(loaded, check_files):
+        if message:
+            problems.append((loc, message))
+        elif motion is not None:
+            motions.append(motion)
+    if not problems:  # each trajectory field against the joint's range, rate and acceleration
+        problems += _limit_problems(loaded, motions)
     if not problems:  # every motion's complete commanded stream, approach and exit included
         from .stream_check import check_streams
 
-        problems += list(check_streams(loaded, check_files=check_files))
+        problems += list(check_streams(loaded, motions, check_files=check_files))
     return problems
 
 
-def _within(rng: tuple[float, float], joint: tuple[float, float]) -> bool:
-    return joint[0] - 1e-9 <= rng[0] and rng[1] <= joint[1] + 1e-9
+def _limit_problems(loaded: LoadedProtocol, motions: list[Motion]) -> list[Problem]:
+    """The field of the trajectory (or of the calibration step) that breaks a limit, once per message."""
+    from .stream_check import safety_limits
+    from .trajectory_limits import trajectory_limit_problems
+    from .trajectory_specs import trajectory_bindings
+
+    p = loaded.protocol
+    limits = safety_limits(p.rig)
+    out: dict[tuple[Loc, str], list[str]] = {}
+    for _, what, traj in motions:
+        name = traj.name or ""
+        spec = p.trajectories.get(name)
+        bindings = trajectory_bindings(spec) if spec is not None and what != "the calibration step" else {}
+        base: Loc = ("calibration_step",) if what == "the calibration step" else ("trajectories", name)
+        for field, message in trajectory_limit_problems(
+            traj, limits, p.rig.output.rate_hz, loaded.base_dir, bindings
+        ):
+            out.setdefault(((*base, field), message), []).append(what)
+    return [
+        (loc, f"{message} ({', '.join(whats[:3])}{', ...' if len(whats) > 3 else ''})")
+        for (loc, message), whats in out.items()
+    ]
 
 
-def _fmt_range(rng: tuple[float, float]) -> str:
-    return f"[{rng[0]:g}, {rng[1]:g}] deg"
+def _within(rng: tuple[float, ...], joint: tuple[float, float]) -> bool:
+    return joint[0] - 1e-9 <= rng[0] and rng[-1] <= joint[1] + 1e-9
 
 
-def _check_levels(p: Protocol) -> Iterator[Problem]:
+def _fmt_range(rng: tuple[float, ...]) -> str:
+    return f"[{rng[0]:g}, {rng[-1]:g}] deg"
+
+
+def _check_factors(p: Protocol) -> Iterator[Problem]:
     joint = p.rig.joint.range_deg
-    for family_name in LEVEL_FAMILIES:
-        family: dict[str, Any] = getattr(p.levels, family_name)
-        value_field = _LEVEL_VALUE_FIELD[family_name]
-        for name, level in family.items():
-            loc: Loc = ("levels", family_name, name)
-            value = getattr(level, value_field)
+    for factor, levels in p.factors.items():
+        if factor in (TRAJECTORY_PARAMETER,):
+            yield ("factors", factor), f"{factor!r} is reserved (a comparison's parameter); rename the factor"
+        for name, level in levels.items():
+            loc: Loc = ("factors", factor, name)
             if level.same_as is not None:
-                if value is not None:
+                if level.quantities:
                     yield (
-                        (*loc, value_field),
-                        f"a level is either an alias (`same_as`) or has `{value_field}`, not both",
+                        (*loc, level.quantities[0][0]),
+                        "a level is either an alias (`same_as`) or has quantities, not both",
                     )
-                target = family.get(level.same_as)
+                target = levels.get(level.same_as)
                 if target is None:
-                    known = ", ".join(family)
-                    yield (*loc, "same_as"), f"unknown level {level.same_as!r} (known: {known})"
+                    yield (*loc, "same_as"), f"unknown level {level.same_as!r} (known: {', '.join(levels)})"
                 elif target.same_as is not None:
                     yield (
                         (*loc, "same_as"),
                         f"{level.same_as!r} is itself an alias; point at the level that has the values",
                     )
-            elif value is None:
-                yield loc, f"missing `{value_field}` (or `same_as: <another {family_name} level>`)"
-            elif value_field == "range_deg":
-                lo, hi = value
-                if not lo < hi:
+                continue
+            for q, value in level.quantities:
+                if q.endswith("range_deg") and isinstance(value, tuple) and not _within(value, joint):
                     yield (
-                        (*loc, "range_deg"),
-                        f"range must be [low, high] with low < high, got [{lo:g}, {hi:g}]",
+                        (*loc, q),
+                        f"{_fmt_range(value)} is outside the joint's range {_fmt_range(joint)} "
+                        f"({p.rig.joint.name}, {p.rig.rig_file})",
                     )
-                elif not _within(value, joint):
-                    yield (
-                        (*loc, "range_deg"),
-                        f"{_fmt_range(value)} is outside the joint's range {_fmt_range(joint)}",
-                    )
-                elif family_name == "brace_rom" and not lo <= p.rig.safety.park_angle_deg <= hi:
-                    yield (
-                        (*loc, "range_deg"),
-                        f"the park angle rig.safety.park_angle_deg = {p.rig.safety.park_angle_deg:g} deg is outside "
-                        f"this brace range {_fmt_range(value)}: between trials the joint would rest against the stop",
-                    )
-
-
-def _check_rig(p: Protocol) -> Iterator[Problem]:
-    rig = p.rig
-    joint = rig.joint.range_deg
-    if rig.input.angle_channel == rig.input.torque_channel:
-        yield ("rig", "input", "torque_channel"), "angle and torque cannot use the same input channel"
-    if not joint[0] <= rig.safety.park_angle_deg <= joint[1]:
-        yield (
-            ("rig", "safety", "park_angle_deg"),
-            (
-                f"park angle {rig.safety.park_angle_deg:g} deg is outside the joint's range {_fmt_range(joint)}"
-            ),
-        )
-    if rig.joint.rsst_joint is not None:
-        spec = RSST_JOINTS.get(rig.joint.rsst_joint)
-        if spec is not None:
-            table_range = tuple(spec.range_deg)
-            if not _within(joint, table_range):  # type: ignore[arg-type]
-                yield (
-                    ("rig", "joint", "range_deg"),
-                    (
-                        f"{_fmt_range(joint)} exceeds RSST joint {rig.joint.rsst_joint}'s range "
-                        f"{_fmt_range(table_range)} (thesis Table 2)"  # type: ignore[arg-type]
-                    ),
-                )
-
-
-def _level_ref_problem(p: Protocol, cfg: ConfigurationSpec, family: str) -> str | None:
-    name = getattr(cfg, family)
-    levels: dict[str, Any] = getattr(p.levels, family)
-    if name in levels:
-        return None
-    return f"unknown level {name!r} (known: {', '.join(levels)})"
 
 
 def _check_matrix(p: Protocol) -> Iterator[Problem]:
@@ -165,125 +149,83 @@ def _check_matrix(p: Protocol) -> Iterator[Problem]:
                 a, b = seen_runs[cfg.run]
                 yield (*loc, "run"), f"test run {cfg.run} is already used by sets[{a}].configurations[{b}]"
             seen_runs.setdefault(cfg.run, (i, j))
-            for family in LEVEL_FAMILIES:
-                msg = _level_ref_problem(p, cfg, family)
-                if msg:
-                    yield (*loc, family), msg
-            yield from _check_configuration_trajectory(p, cfg, loc)
+            for factor, label in cfg.levels.items():
+                levels = p.factors.get(factor)
+                if levels is None:
+                    declared = ", ".join(p.factors) or "none"
+                    yield (*loc, factor), f"unknown factor {factor!r} (declared factors: {declared})"
+                elif label not in levels:
+                    yield (*loc, factor), f"unknown level {label!r} (known: {', '.join(levels)})"
+            if cfg.trajectory not in p.trajectories:
+                known = ", ".join(p.trajectories)
+                yield (*loc, "trajectory"), f"unknown trajectory {cfg.trajectory!r} (known: {known})"
 
 
-def _check_configuration_trajectory(p: Protocol, cfg: ConfigurationSpec, loc: Loc) -> Iterator[Problem]:
-    limits = p.rig.safety
-    if cfg.profile == "human":
-        if cfg.trajectory is None:
-            yield (
-                (*loc, "trajectory"),
-                "a human profile needs `trajectory: <name of a trajectories.human entry>`",
-            )
-        elif cfg.trajectory not in p.trajectories.human:
-            known = ", ".join(p.trajectories.human) or "none defined"
-            yield (*loc, "trajectory"), f"unknown trajectory {cfg.trajectory!r} (known: {known})"
-        return
-    if cfg.trajectory is not None:
-        yield (*loc, "trajectory"), f"a {cfg.profile} profile is built from the protocol; remove `trajectory`"
-    if cfg.profile == "identification":
-        if p.trajectories.identification is None:
-            yield (*loc, "profile"), "profile `identification` needs a `trajectories.identification` section"
-        return
-    # sinusoid: range from robot_rom, period from speed (Eq 24-25)
-    robot = p.levels.robot_rom.get(cfg.robot_rom)
-    speed = p.levels.speed.get(cfg.speed)
-    if robot is None or speed is None:
-        return  # reported as unknown levels
-    robot_range = robot.range_deg or _alias_value(p.levels.robot_rom, robot.same_as, "range_deg")
-    speed_deg_s = speed.max_deg_s or _alias_value(p.levels.speed, speed.same_as, "max_deg_s")
-    if robot_range is None or speed_deg_s is None:
-        return
-    if speed_deg_s > limits.max_rate_deg_s:
-        yield (
-            (*loc, "speed"),
-            (
-                f"{speed_deg_s:g} deg/s exceeds the rig's rate limit rig.safety.max_rate_deg_s = {limits.max_rate_deg_s:g}"
-            ),
-        )
-    amplitude = (robot_range[1] - robot_range[0]) / 2.0
-    if amplitude > 0:
-        period = sinusoid_period_s(amplitude, speed_deg_s)
-        accel = amplitude * (2 * math.pi / period) ** 2
-        if accel > limits.max_accel_deg_s2:
-            yield (
-                (*loc, "speed"),
-                (
-                    f"the sinusoid's peak acceleration {accel:.0f} deg/s^2 exceeds rig.safety.max_accel_deg_s2 = "
-                    f"{limits.max_accel_deg_s2:g}"
-                ),
-            )
+def _resolve_configurations(
+    loaded: LoadedProtocol, check_files: bool
+) -> Iterator[tuple[Loc, str, Motion | None]]:
+    p = loaded.protocol
+    park = p.rig.safety.park_angle_deg
+    for i, s in enumerate(p.sets):
+        for j, cfg in enumerate(s.configurations):
+            loc: Loc = ("sets", i, "configurations", j)
+            try:
+                st = resolve_settings(p, cfg)
+            except BindingError as exc:
+                yield exc.loc, exc.message, None
+                continue
+            for el in st.device:
+                rng = dict(el.params).get("range_deg")
+                stop = ELEMENT_TYPES[el.type].kind == "stop" and isinstance(rng, tuple)
+                if stop and isinstance(rng, tuple) and not rng[0] <= park <= rng[1]:
+                    yield (
+                        loc,
+                        f"configuration {cfg.key}: the park angle {park:g} deg is outside the stops "
+                        f"{_fmt_range(rng)} of element {el.name!r}: between trials the joint would rest "
+                        "against a stop (choose rig_overrides...safety.park_angle_deg inside every stop range)",
+                        None,
+                    )
+            if p.profile_of(cfg) == "file" and not check_files:
+                continue
+            try:
+                traj = configuration_trajectory(loaded, cfg, st)
+            except BindingError as exc:
+                yield exc.loc, exc.message, None
+                continue
+            except InvalidInput as exc:
+                yield (*loc, "trajectory"), _relative_message(exc.message, loaded.base_dir), None
+                continue
+            yield loc, "", (loc, f"configuration {cfg.key}", traj)
 
 
-def _alias_value(family: dict[str, Any], target: str | None, field: str) -> Any:
-    if target is None or target not in family:
-        return None
-    return getattr(family[target], field)
-
-
-def _check_trajectories(p: Protocol) -> Iterator[Problem]:
+def _check_calibration_step(p: Protocol) -> Iterator[Problem]:
     joint = p.rig.joint.range_deg
-    step = p.trajectories.calibration_step
+    step = p.calibration_step
     for value, field in ((step.from_deg, "from_deg"), (step.from_deg + step.step_deg, "step_deg")):
         if not joint[0] <= value <= joint[1]:
             yield (
-                ("trajectories", "calibration_step", field),
-                (
-                    f"the calibration step reaches {value:g} deg, outside the joint's range {_fmt_range(joint)}"
-                ),
+                ("calibration_step", field),
+                f"the calibration step reaches {value:g} deg, outside the joint's range {_fmt_range(joint)}",
             )
     peak = calibration_step_peak_speed_deg_s(step.step_deg, step.ramp_s)
     if peak > p.rig.safety.max_rate_deg_s:
         yield (
-            ("trajectories", "calibration_step", "ramp_s"),
+            ("calibration_step", "ramp_s"),
             (
                 f"a {abs(step.step_deg):g} deg step over {step.ramp_s:g} s peaks at {peak:.0f} deg/s, above "
-                f"rig.safety.max_rate_deg_s = {p.rig.safety.max_rate_deg_s:g}; lengthen ramp_s"
+                f"the joint's rate limit max_rate_deg_s = {p.rig.safety.max_rate_deg_s:g}; lengthen ramp_s"
             ),
-        )
-    ident = p.trajectories.identification
-    if ident is not None and not _within(ident.range_deg, joint):
-        yield (
-            ("trajectories", "identification", "range_deg"),
-            (f"{_fmt_range(ident.range_deg)} is outside the joint's range {_fmt_range(joint)}"),
         )
 
 
 def _check_files(p: Protocol, base: Path) -> Iterator[Problem]:
-    """Every referenced file: confined to the protocol's folder (protocol/paths.py), then loaded and checked."""
-    joint = p.rig.joint.range_deg
-    limits = p.rig.safety
-    for name, spec in p.trajectories.human.items():
-        loc: Loc = ("trajectories", "human", name, "file")
-        try:
-            traj = load_trajectory_file(confined_path(base, spec.file))
-        except OutsideFolder as exc:
-            yield loc, str(exc)
-            continue
-        except InvalidInput as exc:
-            yield loc, _relative_message(exc.message, base)
-            continue
-        lo, hi = float(np.min(traj.angle_deg)), float(np.max(traj.angle_deg))
-        if not _within((lo, hi), joint):
-            yield (
-                loc,
-                f"{spec.file} goes to [{lo:.1f}, {hi:.1f}] deg, outside the joint's range {_fmt_range(joint)}",
-            )
-        speed = max_speed_deg_s(traj.time_s, traj.angle_deg)
-        if speed > limits.max_rate_deg_s:
-            yield (
-                loc,
-                f"{spec.file} moves at up to {speed:.0f} deg/s, above rig.safety.max_rate_deg_s = {limits.max_rate_deg_s:g}",
-            )
+    """Referenced tables and datasets: confined to the protocol's folder (protocol/paths.py), then loaded.
+    (Trajectory files are read when their trajectory is built.)"""
     for field in ("command_table", "angle_table", "torque_table"):
         rel = getattr(p.rig.calibration, field)
         if rel is not None:
-            yield from _check_loadable(("rig", "calibration", field), base, rel, "calibration table")
+            loc: Loc = ("rig_overrides", "joints", p.joint, "calibration", field)
+            yield from _check_loadable(loc, base, rel, "calibration table")
     ref = p.report.reference_dataset
     if ref is not None:
         yield from _check_loadable(("report", "reference_dataset"), base, ref, "reference dataset")
@@ -322,6 +264,12 @@ def _check_report(p: Protocol) -> Iterator[Problem]:
         if comp.name in names:
             yield ("report", "comparisons", i, "name"), f"comparison name {comp.name!r} is used twice"
         names.add(comp.name)
+        if comp.parameter != TRAJECTORY_PARAMETER and comp.parameter not in p.factors:
+            yield (
+                ("report", "comparisons", i, "parameter"),
+                f"unknown parameter {comp.parameter!r}: a declared factor ({', '.join(p.factors)}) "
+                f"or {TRAJECTORY_PARAMETER!r}",
+            )
         for j, key in enumerate(comp.configurations):
             if key not in keys:
                 yield ("report", "comparisons", i, "configurations", j), f"no configuration has key {key}"

@@ -29,7 +29,19 @@ from protocol_runner.report.model import (
 )
 
 # Configuration attributes shown as the row of the test matrix, not settings.
-_IDENTITY_ATTRS = {"key", "run", "set", "condition", "profile", "status", "n_trials"}
+_IDENTITY_ATTRS = {
+    "key",
+    "run",
+    "set",
+    "condition",
+    "profile",
+    "status",
+    "n_trials",
+    "trajectory_name",
+    "factors",
+    "settings_json",
+    "device_json",
+}
 
 
 def _read_recording(grp: h5py.Group) -> Recording:

@@ -65,11 +65,7 @@ def state_source(plan: Plan, index: int) -> ChecklistStep | None:
 def describe_state(source: ChecklistStep | None) -> str:
     if source is None or source.brace != "on" or source.settings is None:
         return "brace OFF"
-    st = source.settings
-    return (
-        f"brace ON, set up for configuration {source.configuration} (spring {st.stiffness}, preload "
-        f"{st.preload_position}, brake {st.friction_level}, ROM {st.brace_rom})"
-    )
+    return f"brace ON, set up for configuration {source.configuration} ({source.settings.summary()})"
 
 
 def state_prompt(source: ChecklistStep | None, prompt_id: str, purpose: str) -> ChecklistStep:

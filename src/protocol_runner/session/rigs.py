@@ -7,9 +7,8 @@ from typing import TYPE_CHECKING
 from ..errors import HardwareUnavailable
 from ..hardware.calibration import load_calibration_table
 from ..hardware.rig import JointConfig, Rig
-from ..models.interim_knee_device import KNEE_SIMULATOR, knee_brace
-from ..protocol.levels import Settings
 from ..protocol.loader import LoadedProtocol
+from ..protocol.settings import Settings
 from ..protocol.stream_check import safety_limits
 
 if TYPE_CHECKING:
@@ -38,7 +37,8 @@ def joint_config(loaded: LoadedProtocol) -> JointConfig:
 
 
 class SimulatedBench:
-    """The dry-run bench: the simulated rig plus the simulated operator's hands on the brace."""
+    """The dry-run bench: the simulated rig (the joint's `simulator:` values from the rig file) plus the
+    simulated operator's hands on the device."""
 
     def __init__(
         self,
@@ -54,7 +54,7 @@ class SimulatedBench:
         self.sim = SimulatedRig(
             joint_config(loaded),
             seed=seed,
-            params=params or SimulatorParams(**KNEE_SIMULATOR),  # INTERIM until the rig file (PROTO)
+            params=params or SimulatorParams(**dict(loaded.protocol.rig.simulator)),
             realtime=realtime,
         )
         self.rig: Rig = self.sim.make_rig()
@@ -64,11 +64,8 @@ class SimulatedBench:
         self.sim.begin_step(step_id)
 
     def fit_brace(self, settings: Settings | None) -> None:
-        device = getattr(settings, "device", None)
-        if settings is not None and device is None:  # INTERIM until the protocol declares its device (PROTO)
-            s = settings
-            device = knee_brace(s.brace_rom_deg, s.friction_nm, s.stiffness_n_per_mm, s.preload_position)
-        self.sim.set_device(device)
+        """The simulated operator fits the configuration's device (its resolved elements), or removes it."""
+        self.sim.set_device(None if settings is None else settings.device)
 
     def close(self) -> None:
         self.sim.ao.close()

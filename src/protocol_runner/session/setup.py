@@ -28,6 +28,7 @@ from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, load_protocol
 from ..protocol.paths import is_stored_with_session
 from ..protocol.plan import Plan, expand
+from ..protocol.trajectory_specs import FileSpec
 
 SESSION_FILE = "session.json"
 
@@ -60,7 +61,7 @@ def default_session_dir(protocol_name: str, cwd: Path | None = None) -> Path:
 
 def referenced_files(loaded: LoadedProtocol) -> list[str]:
     p = loaded.protocol
-    files = [spec.file for spec in p.trajectories.human.values()]
+    files = [spec.file for spec in p.trajectories.values() if isinstance(spec, FileSpec)]
     files += [
         f
         for f in (

@@ -1,5 +1,5 @@
-"""Operator checklist step: the settings to make by hand (spring, preload, friction turns, ROM screws,
-bolt torques, brace on/off). Answers and timestamps are recorded (`/session/checklists/<step>`)."""
+"""Operator checklist step: the settings to make by hand (one item per factor: its level, quantities,
+setup text; bolt torques; device on/off). Answers and timestamps are recorded (`/session/checklists/<step>`)."""
 
 from __future__ import annotations
 

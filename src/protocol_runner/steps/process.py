@@ -10,7 +10,6 @@ from __future__ import annotations
 from ..analysis.pipeline import TrialPair, process_configuration
 from ..archive.paths import configuration_name, recording_path
 from ..archive.results import processed_fill, read_recording
-from ..models.interim_knee_device import lever_spring
 from ..protocol.plan import ProcessStep
 from .context import StepContext, StepOutcome
 
@@ -35,9 +34,7 @@ def run(step: ProcessStep, ctx: StepContext) -> StepOutcome:
     settings = cfg_step.settings  # type: ignore[attr-defined]
     fits = ctx.loaded.protocol.fits
     enabled = getattr(fits, "elements", getattr(fits, "spring", None))
-    device = getattr(settings, "device", None)
-    if device is None:  # INTERIM until the protocol declares its device (helper PROTO)
-        device = lever_spring(settings.stiffness_n_per_mm, settings.preload_position)
+    device = settings.device
     result = process_configuration(
         pairs, ctx.processing, device=device if enabled and enabled.enabled else None
     )

@@ -1,0 +1,206 @@
+"""A configuration's meaning: its factor levels resolved (through `same_as`), its device's element
+parameters and its trajectory's fields bound to those levels' quantities (docs/protocol.md "Bindings").
+
+`check_bindings` reports every binding problem of the protocol with its location (an undeclared factor, a
+quantity whose unit suffix differs from the parameter's, an unknown element type or parameter, a level
+lacking the bound quantity, a configuration that leaves a bound factor unset). `resolve_settings` and
+`configuration_trajectory` assume a protocol that passed those checks.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from ..errors import InvalidInput
+from ..models.elements import ELEMENT_TYPES, build_element
+from .plan_trajectory import Trajectory, build_trajectory
+from .schema import ConfigurationSpec, Protocol
+from .settings import ElementSetting, FactorSetting, Quantity, Settings
+from .trajectory_specs import RampedStepSpec, is_binding, trajectory_bindings
+from .units import unit_suffix
+
+if TYPE_CHECKING:
+    from .loaded import LoadedProtocol, Loc
+
+Problem = tuple["Loc", str]
+
+
+class BindingError(Exception):
+    def __init__(self, loc: Loc, message: str) -> None:
+        super().__init__(message)
+        self.loc = loc
+        self.message = message
+
+
+def resolve_factor(p: Protocol, factor: str, label: str) -> FactorSetting:
+    """A factor at one level: quantities of the level (or of its `same_as` target), its own description
+    and setup text or else the target's."""
+    levels = p.factors[factor]
+    level = levels[label]
+    target = levels[level.same_as] if level.same_as is not None else level
+    return FactorSetting(
+        level=label,
+        quantities=target.quantities,
+        description=level.description or target.description,
+        setup=level.setup or target.setup,
+    )
+
+
+def _split(binding: str) -> tuple[str, str]:
+    factor, quantity = binding.split(".", 1)
+    return factor, quantity
+
+
+def _bound_value(
+    factors: Mapping[str, FactorSetting], binding: str, loc: Loc, cfg: ConfigurationSpec
+) -> Quantity:
+    factor, quantity = _split(binding)
+    setting = factors.get(factor)
+    if setting is None:
+        raise BindingError(loc, f"bound to {binding} but configuration {cfg.key} sets no level of {factor!r}")
+    value = setting.quantity(quantity)
+    if value is None:
+        have = ", ".join(q for q, _ in setting.quantities) or "no quantities"
+        raise BindingError(
+            loc,
+            f"bound to {binding} but level {setting.level!r} of {factor} has no {quantity!r} "
+            f"(it has {have}; configuration {cfg.key})",
+        )
+    return value
+
+
+def resolve_device(
+    p: Protocol, factors: Mapping[str, FactorSetting], cfg: ConfigurationSpec
+) -> tuple[ElementSetting, ...]:
+    """Every element with its parameters resolved and checked (defaults filled in, models/elements.py)."""
+    if p.device is None:
+        return ()
+    out: list[ElementSetting] = []
+    for i, el in enumerate(p.device.elements):
+        loc: Loc = ("device", "elements", i)
+        values: dict[str, Any] = {}
+        for param, value in el.params.items():
+            values[param] = _bound_value(factors, value, (*loc, param), cfg) if is_binding(value) else value
+        try:
+            built = build_element(el.name, el.type, values)
+        except InvalidInput as exc:
+            m = re.search(r"parameter '([^']+)'", exc.message)
+            raise BindingError(
+                (*loc, m.group(1)) if m else loc, f"configuration {cfg.key}: {exc.message}"
+            ) from None
+        params: list[tuple[str, Quantity | str]] = []
+        for key, v in built.params.items():
+            if isinstance(v, tuple) and all(isinstance(x, str) for x in v):
+                params.append((key, ",".join(str(x) for x in v)))
+            elif isinstance(v, tuple):
+                params.append((key, tuple(float(x) for x in v)))
+            else:
+                params.append((key, v))
+        out.append(ElementSetting(name=el.name, type=el.type, params=tuple(params)))
+    return tuple(out)
+
+
+def resolve_settings(p: Protocol, cfg: ConfigurationSpec) -> Settings:
+    """The configuration's factors (declaration order) and its resolved device. Raises BindingError."""
+    labels = cfg.levels
+    factors = [(f, resolve_factor(p, f, labels[f])) for f in p.factors if f in labels]
+    return Settings(factors=tuple(factors), device=resolve_device(p, dict(factors), cfg))
+
+
+def trajectory_values(p: Protocol, settings: Settings, cfg: ConfigurationSpec) -> dict[str, Quantity]:
+    spec = p.trajectories[cfg.trajectory]
+    factors = dict(settings.factors)
+    return {
+        field: _bound_value(factors, binding, ("trajectories", cfg.trajectory, field), cfg)
+        for field, binding in trajectory_bindings(spec).items()
+    }
+
+
+def configuration_trajectory(
+    loaded: LoadedProtocol, cfg: ConfigurationSpec, settings: Settings
+) -> Trajectory:
+    """The trajectory a configuration commands (InvalidInput/BindingError if it cannot be built)."""
+    from .stream_check import safety_limits
+
+    p = loaded.protocol
+    spec = p.trajectories[cfg.trajectory]
+    return build_trajectory(
+        cfg.trajectory,
+        spec,
+        trajectory_values(p, settings, cfg),
+        loaded.base_dir,
+        joint=p.rig.joint.name,
+        limits=safety_limits(p.rig),
+    )
+
+
+def calibration_trajectory(p: Protocol) -> Trajectory:
+    """The calibration check's ramped step."""
+    s = p.calibration_step
+    spec = RampedStepSpec(
+        kind="ramped_step",
+        from_deg=s.from_deg,
+        step_deg=s.step_deg,
+        ramp_s=s.ramp_s,
+        hold_s=s.hold_s,
+        settle_s=s.settle_s,
+    )
+    return build_trajectory("calibration_step", spec, {}, Path("."))
+
+
+# ------------------------------------------------------------------------------------------ checks
+
+
+def check_bindings(p: Protocol) -> Iterator[Problem]:
+    """Static checks of every binding and element (before any configuration is resolved)."""
+    if p.device is not None:
+        names: set[str] = set()
+        for i, el in enumerate(p.device.elements):
+            loc: Loc = ("device", "elements", i)
+            if el.name in names:
+                yield (*loc, "name"), f"element name {el.name!r} is used twice"
+            names.add(el.name)
+            etype = ELEMENT_TYPES.get(el.type)
+            if etype is None:
+                yield (*loc, "type"), f"unknown element type {el.type!r} (known: {', '.join(ELEMENT_TYPES)})"
+                continue
+            for param, value in el.params.items():
+                spec = etype.parameters.get(param)
+                if spec is None:
+                    yield (
+                        (*loc, param),
+                        (f"unknown parameter of {el.type} (parameters: {', '.join(etype.parameters)})"),
+                    )
+                elif is_binding(value):
+                    yield from _check_binding(p, value, spec.unit, (*loc, param))
+            for param, spec in etype.parameters.items():
+                if spec.default is None and param not in el.params:
+                    yield (*loc,), f"missing required parameter {param!r} of {el.type} ({spec.doc})"
+    for name, tspec in p.trajectories.items():
+        for field, binding in trajectory_bindings(tspec).items():
+            yield from _check_binding(p, binding, unit_suffix(field) or "", ("trajectories", name, field))
+
+
+def _check_binding(p: Protocol, binding: str, unit: str, loc: Loc) -> Iterator[Problem]:
+    factor, quantity = _split(binding)
+    if factor not in p.factors:
+        yield (
+            loc,
+            f"bound to {binding}: no factor {factor!r} is declared (factors: {', '.join(p.factors) or 'none'})",
+        )
+        return
+    got = unit_suffix(quantity)
+    if got != unit:
+        yield (
+            loc,
+            (
+                f"bound to {binding}, whose unit suffix is {got or 'missing'!s}; this parameter needs a "
+                f"quantity ending with {unit or '(no unit)'}"
+            ),
+        )
+        return
+    if not any(quantity in dict(lv.quantities) for lv in p.factors[factor].values()):
+        yield loc, f"bound to {binding}: no level of {factor} has a quantity {quantity!r}"

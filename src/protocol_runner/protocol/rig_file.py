@@ -1,0 +1,325 @@
+"""Rig files (`src/protocol_runner/rigs/*.yaml`): a robot's joints, boards and channels, and the per-joint
+dynamics and simulator parameters, shared by every protocol that names the rig (`rig: rsst`).
+
+A protocol names a rig (a shipped name, or a path relative to its folder) and a joint; `resolve_rig`
+merges the joint with the rig's `joint_defaults` and the protocol's `rig_overrides` into the `RigSpec`
+the rest of the runner reads (`protocol.rig.joint`, `.output`, `.input`, `.safety`, `.simulator`, ...).
+Mistakes in the rig file (an unknown key, a bad range, two joints on one channel, an unknown simulator
+parameter) name the rig file, its line and the field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Literal
+
+from pydantic import Field, ValidationError
+
+from ..errors import InvalidInput
+from ..resources import packaged_rigs_dir
+from .loaded import Loc
+from .paths import OutsideFolder, confined_path
+from .schema import (
+    Identifier,
+    InputSpec,
+    JointSpec,
+    OutputSpec,
+    RangePair,
+    RigOverrides,
+    RigSpec,
+    SafetySpec,
+    _check_range,
+    _Model,
+    field_validator,
+)
+from .yaml_doc import format_problems, parse_yaml, validation_problems
+
+Problem = tuple[Loc, str]
+
+
+class BoardSpec(_Model):
+    role: Literal["output", "input"]
+    channels: int = Field(ge=1, le=64)
+    resolution_bits: int = Field(ge=1, le=32)
+    volts_range: RangePair = (-10.0, 10.0)
+    rate_hz: float = Field(gt=0, le=50000)
+    serials: list[str] = Field(default_factory=list)
+    product_id: int | None = Field(default=None, ge=0, le=0xFFFF)
+
+    _range = field_validator("volts_range")(_check_range)
+
+
+class JointSafety(_Model):
+    max_rate_deg_s: float | None = Field(default=None, gt=0)
+    max_accel_deg_s2: float | None = Field(default=None, gt=0)
+    park_angle_deg: float | None = None
+    park_rate_deg_s: float | None = Field(default=None, gt=0)
+
+
+class JointDefaults(_Model):
+    time_constant_s: float = Field(gt=0)
+    safety: JointSafety = JointSafety()
+    simulator: dict[str, float] = Field(default_factory=dict)
+
+
+class RigJoint(_Model):
+    number: int = Field(ge=1)
+    description: str = ""
+    range_deg: RangePair
+    torque_range_nm: RangePair
+    output_channel: int = Field(ge=0)
+    angle_channel: int = Field(ge=0)
+    torque_channel: int = Field(ge=0)
+    time_constant_s: float | None = Field(default=None, gt=0)
+    safety: JointSafety = JointSafety()
+    simulator: dict[str, float] = Field(default_factory=dict)
+
+    _range = field_validator("range_deg", "torque_range_nm")(_check_range)
+
+
+class RigFile(_Model):
+    schema_version: Literal[1]
+    robot: str
+    description: str = ""
+    boards: dict[Identifier, BoardSpec] = Field(min_length=1)
+    output_board: str
+    input_board: str
+    joint_defaults: JointDefaults
+    joints: dict[Identifier, RigJoint] = Field(min_length=1)
+
+
+@dataclass(frozen=True)
+class LoadedRig:
+    rig: RigFile
+    path: Path
+    shown: str
+    sha256: str
+    lines: dict[Loc, int] = field(default_factory=dict, repr=False, compare=False)
+
+
+def find_rig(name_or_path: str, base_dir: Path) -> Path:
+    """A shipped rig by name (`rsst`), or a rig file relative to the protocol's folder."""
+    if "/" not in name_or_path and "\\" not in name_or_path and not name_or_path.endswith((".yaml", ".yml")):
+        path = packaged_rigs_dir() / f"{name_or_path}.yaml"
+        if not path.is_file():
+            known = ", ".join(sorted(p.stem for p in packaged_rigs_dir().glob("*.yaml")))
+            raise InvalidInput(f"unknown rig {name_or_path!r} (shipped rigs: {known}; or give a path)")
+        return path
+    try:
+        path = confined_path(base_dir, name_or_path)
+    except OutsideFolder as exc:
+        raise InvalidInput(str(exc)) from None
+    if not path.is_file():
+        raise InvalidInput(f"rig file {name_or_path} not found (looked in {path.parent})")
+    return path
+
+
+def load_rig(path: Path, shown: str | None = None) -> LoadedRig:
+    """Read and check a rig file; InvalidInput naming the rig file, line and field."""
+    shown = shown or path.name
+    try:
+        text = path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InvalidInput(f"{shown}: cannot read the rig file ({exc})") from None
+    data, lines = parse_yaml(text, shown)
+    if not isinstance(data, dict):
+        raise InvalidInput(f"{shown}:1: a rig file is a mapping (schema_version, robot, boards, joints, ...)")
+    try:
+        rig = RigFile.model_validate(data)
+    except ValidationError as exc:
+        raise InvalidInput(format_problems(shown, lines, validation_problems(exc, RigFile))) from None
+    problems = check_rig_file(rig)
+    if problems:
+        raise InvalidInput(format_problems(shown, lines, problems))
+    sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
+    return LoadedRig(rig=rig, path=path, shown=shown, sha256=sha, lines=lines)
+
+
+def simulator_fields() -> tuple[str, ...]:
+    """The names a joint's `simulator:` mapping may use: the fields of the simulator's parameters."""
+    from ..hardware.simulator.params import SimulatorParams
+
+    return tuple(f.name for f in dataclasses.fields(SimulatorParams))
+
+
+def check_rig_file(rig: RigFile) -> list[Problem]:
+    problems: list[Problem] = []
+    for key, role in (("output_board", "output"), ("input_board", "input")):
+        name = getattr(rig, key)
+        board = rig.boards.get(name)
+        if board is None:
+            problems.append(((key,), f"unknown board {name!r} (boards: {', '.join(rig.boards)})"))
+        elif board.role != role:
+            problems.append(((key,), f"board {name!r} is an {board.role} board"))
+    out_channels = max((b.channels for b in rig.boards.values() if b.role == "output"), default=0)
+    in_channels = min((b.channels for b in rig.boards.values() if b.role == "input"), default=0)
+    allowed = simulator_fields()
+    where: Loc
+    for where, values in (
+        (("joint_defaults",), rig.joint_defaults.simulator),
+        *((("joints", n), j.simulator) for n, j in rig.joints.items()),
+    ):
+        for param in values:
+            if param not in allowed:
+                problems.append(
+                    (
+                        (*where, "simulator", param),
+                        f"unknown simulator parameter (known: {', '.join(allowed)})",
+                    )
+                )
+    numbers: dict[int, str] = {}
+    outputs: dict[int, str] = {}
+    inputs: dict[int, str] = {}
+    for name, j in rig.joints.items():
+        loc: Loc = ("joints", name)
+        if j.number in numbers:
+            problems.append(((*loc, "number"), f"joint number {j.number} is already {numbers[j.number]}'s"))
+        numbers.setdefault(j.number, name)
+        if j.output_channel >= out_channels:
+            problems.append(((*loc, "output_channel"), f"the output board has channels 0-{out_channels - 1}"))
+        elif j.output_channel in outputs:
+            problems.append(
+                (
+                    (*loc, "output_channel"),
+                    f"output channel {j.output_channel} is already {outputs[j.output_channel]}'s",
+                )
+            )
+        outputs.setdefault(j.output_channel, name)
+        for fld in ("angle_channel", "torque_channel"):
+            ch = getattr(j, fld)
+            if ch >= in_channels:
+                problems.append(((*loc, fld), f"the input boards have channels 0-{in_channels - 1}"))
+            elif ch in inputs:
+                problems.append(((*loc, fld), f"input channel {ch} is already used by {inputs[ch]}"))
+            inputs.setdefault(ch, f"{name}.{fld}")
+        safety = _merged_safety(rig, j)
+        for fld in ("max_rate_deg_s", "max_accel_deg_s2", "park_angle_deg", "park_rate_deg_s"):
+            if getattr(safety, fld) is None:
+                problems.append(((*loc, "safety", fld), "missing (here or in joint_defaults.safety)"))
+        park = safety.park_angle_deg
+        if park is not None and not j.range_deg[0] <= park <= j.range_deg[1]:
+            problems.append(
+                (
+                    (*loc, "safety", "park_angle_deg"),
+                    f"{park:g} deg is outside the joint's range_deg {_fmt(j.range_deg)}",
+                )
+            )
+    return problems
+
+
+def _merged_safety(rig: RigFile, joint: RigJoint) -> JointSafety:
+    base = rig.joint_defaults.safety.model_dump()
+    base.update({k: v for k, v in joint.safety.model_dump().items() if v is not None})
+    return JointSafety(**base)
+
+
+def _fmt(rng: tuple[float, float]) -> str:
+    return f"[{rng[0]:g}, {rng[1]:g}] deg"
+
+
+def resolve_rig(
+    loaded: LoadedRig, joint_name: str, overrides: RigOverrides
+) -> tuple[RigSpec | None, list[Problem]]:
+    """The protocol's RigSpec: the rig file's joint merged with its defaults and the protocol's overrides
+    (problems located in the PROTOCOL: `joint`, `rig_overrides...`)."""
+    rig = loaded.rig
+    problems: list[Problem] = []
+    joint = rig.joints.get(joint_name)
+    if joint is None:
+        return None, [
+            (("joint",), f"no joint {joint_name!r} on rig {rig.robot} (joints: {', '.join(rig.joints)})")
+        ]
+    for name in overrides.joints:
+        if name != joint_name:
+            problems.append(
+                (("rig_overrides", "joints", name), f"the protocol drives {joint_name!r}, not {name!r}")
+            )
+    over = overrides.joints.get(joint_name)
+    input_name = overrides.input_board or rig.input_board
+    in_board = rig.boards.get(input_name)
+    if in_board is None or in_board.role != "input":
+        inputs = [n for n, b in rig.boards.items() if b.role == "input"]
+        problems.append(
+            (("rig_overrides", "input_board"), f"not an input board of the rig (inputs: {', '.join(inputs)})")
+        )
+        return None, problems
+    safety = _merged_safety(rig, joint).model_dump()
+    range_deg = joint.range_deg
+    loc: Loc = ("rig_overrides", "joints", joint_name)
+    if over is not None:
+        if over.range_deg is not None:
+            if not (joint.range_deg[0] <= over.range_deg[0] and over.range_deg[1] <= joint.range_deg[1]):
+                problems.append(
+                    (
+                        (*loc, "range_deg"),
+                        f"{_fmt(over.range_deg)} is wider than the rig's {_fmt(joint.range_deg)} "
+                        f"({loaded.shown}, thesis Table 2)",
+                    )
+                )
+            else:
+                range_deg = over.range_deg
+        if over.safety is not None:
+            for fld in ("max_rate_deg_s", "max_accel_deg_s2", "park_rate_deg_s"):
+                value = getattr(over.safety, fld)
+                if value is None:
+                    continue
+                if value > safety[fld]:
+                    problems.append(
+                        (
+                            (*loc, "safety", fld),
+                            f"{value:g} is above the rig's {safety[fld]:g} ({loaded.shown}): "
+                            "overrides may only tighten",
+                        )
+                    )
+                else:
+                    safety[fld] = value
+            if over.safety.park_angle_deg is not None:
+                safety["park_angle_deg"] = over.safety.park_angle_deg
+    if not range_deg[0] <= safety["park_angle_deg"] <= range_deg[1]:
+        problems.append(
+            (
+                (*loc, "safety", "park_angle_deg") if over and over.safety else ("joint",),
+                f"park angle {safety['park_angle_deg']:g} deg is outside the joint's range {_fmt(range_deg)}",
+            )
+        )
+    if problems:
+        return None, problems
+    out_board = rig.boards[rig.output_board]
+    simulator = dict(rig.joint_defaults.simulator)
+    simulator.update(joint.simulator)
+    spec = RigSpec(
+        robot=rig.robot,
+        joint=JointSpec(
+            name=joint_name,
+            description=joint.description,
+            rsst_joint=joint.number,
+            range_deg=range_deg,
+            torque_range_nm=joint.torque_range_nm,
+        ),
+        output=OutputSpec(
+            board=rig.output_board,
+            channel=joint.output_channel,
+            rate_hz=out_board.rate_hz,
+            volts_range=out_board.volts_range,
+            serial=out_board.serials[0] if out_board.serials else None,
+        ),
+        input=InputSpec(
+            board=input_name,
+            angle_channel=joint.angle_channel,
+            torque_channel=joint.torque_channel,
+            rate_hz=in_board.rate_hz,
+            volts_range=in_board.volts_range,
+            serials=list(overrides.input_serials or in_board.serials),
+            dt9814_product_id=in_board.product_id,
+        ),
+        calibration=over.calibration if over is not None else RigSpec.model_fields["calibration"].default,
+        safety=SafetySpec(**safety),
+        time_constant_s=joint.time_constant_s or rig.joint_defaults.time_constant_s,
+        simulator=tuple(simulator.items()),
+        rig_file=loaded.shown,
+        rig_sha256=loaded.sha256,
+    )
+    return spec, []

@@ -1,0 +1,166 @@
+"""A YAML document with the line of every key, and problems formatted as `file:line: field: message`.
+
+Shared by the protocol loader and the rig-file loader: both name the file, the line and the field of every
+mistake (paths use 0-based list indices, as in JSON paths).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, get_origin
+
+import yaml
+from pydantic import BaseModel, ValidationError
+
+from ..errors import InvalidInput
+from .loaded import Loc, clean_loc, line_for
+from .yaml_limits import check_size, check_yaml_limits
+
+MAX_ERRORS_SHOWN = 8
+
+
+def parse_yaml(text: str, shown: str) -> tuple[Any, dict[Loc, int]]:
+    """The document's data and the line of every key and list item; InvalidInput on bad YAML or a key
+    given twice."""
+    check_size(len(text), shown)  # characters: a lower bound of the bytes
+    check_yaml_limits(text, shown)  # before anything is composed or expanded
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as exc:
+        raise InvalidInput(yaml_error(shown, exc)) from None
+    lines: dict[Loc, int] = {}
+    duplicates: list[tuple[Loc, int]] = []
+    if node is not None:
+        _index_lines(node, (), lines, duplicates)
+    if duplicates:
+        loc, line = duplicates[0]
+        raise InvalidInput(f"{shown}:{line}: {format_loc(loc)}: duplicate key (each key may appear once)")
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:  # pragma: no cover - compose already succeeded
+        raise InvalidInput(yaml_error(shown, exc)) from None
+    return data, lines
+
+
+def format_loc(loc: Sequence[str | int]) -> str:
+    out = ""
+    for part in loc:
+        if isinstance(part, int):
+            out += f"[{part}]"
+        else:
+            out += ("." if out else "") + str(part)
+    return out or "(top level)"
+
+
+def format_problems(shown: str, lines: dict[Loc, int], problems: Sequence[tuple[Loc, str]]) -> str:
+    rows = []
+    for loc, message in problems[:MAX_ERRORS_SHOWN]:
+        line = line_for(lines, loc)
+        where = f"{shown}:{line}" if line else shown
+        rows.append(f"{where}: {format_loc(clean_loc(loc))}: {message}")
+    if len(problems) > MAX_ERRORS_SHOWN:
+        rows.append(f"(and {len(problems) - MAX_ERRORS_SHOWN} more problems)")
+    return "\n".join(rows)
+
+
+def validation_problems(exc: ValidationError, root: type[BaseModel]) -> list[tuple[Loc, str]]:
+    """(location, message) for each pydantic error, with "allowed keys" hints from the `root` model."""
+    return [(_without_kind_tag(tuple(e["loc"])), _pydantic_message(e, root)) for e in exc.errors()]
+
+
+def _without_kind_tag(loc: Loc) -> Loc:
+    """Drop the tag pydantic puts in a discriminated union's error path (`trajectories.sine.sinusoid.x`
+    -> `trajectories.sine.x`): it is not a key of the file."""
+    from .trajectory_specs import TRAJECTORY_KINDS
+
+    return tuple(
+        part
+        for i, part in enumerate(loc)
+        if not (i >= 2 and loc[i - 2] == "trajectories" and part in TRAJECTORY_KINDS)
+    )
+
+
+def yaml_error(shown: str, exc: yaml.YAMLError) -> str:
+    mark = getattr(exc, "problem_mark", None)
+    problem = getattr(exc, "problem", None) or str(exc)
+    context = getattr(exc, "context", None)
+    line = f"{mark.line + 1}" if mark is not None else "?"
+    detail = f"{context}, {problem}" if context else problem
+    return f"{shown}:{line}: YAML syntax error: {detail}"
+
+
+def _index_lines(node: yaml.Node, loc: Loc, lines: dict[Loc, int], dups: list[tuple[Loc, int]]) -> None:
+    lines[loc] = node.start_mark.line + 1
+    if isinstance(node, yaml.MappingNode):
+        seen: set[str] = set()
+        for key_node, value_node in node.value:
+            key = str(key_node.value)
+            child = (*loc, key)
+            if key in seen:
+                dups.append((child, key_node.start_mark.line + 1))
+            seen.add(key)
+            _index_lines(value_node, child, lines, dups)
+            lines[child] = key_node.start_mark.line + 1
+    elif isinstance(node, yaml.SequenceNode):
+        for i, item in enumerate(node.value):
+            _index_lines(item, (*loc, i), lines, dups)
+
+
+def _pydantic_message(err: Any, root: type[BaseModel]) -> str:
+    kind = err.get("type", "")
+    value = err.get("input")
+    if kind == "extra_forbidden":
+        allowed = _allowed_keys(root, tuple(err["loc"][:-1]))
+        hint = f" (allowed: {', '.join(allowed)})" if allowed else ""
+        return f"unknown key{hint}"
+    if kind == "missing":
+        return "required field is missing"
+    if kind == "union_tag_invalid":
+        ctx = err.get("ctx") or {}
+        return f"unknown kind {ctx.get('tag')!r} (known: {ctx.get('expected_tags', '')})"
+    msg = str(err.get("msg", "invalid value"))
+    msg = msg[0].lower() + msg[1:] if msg else msg
+    if kind.startswith("value_error"):
+        msg = msg.removeprefix("value error, ")
+    if value is not None and not isinstance(value, (dict, list)):
+        return f"{msg} (got {value!r})"
+    return msg
+
+
+def _allowed_keys(root: type[BaseModel], loc: Loc) -> list[str]:
+    """The keys of the model at `loc` (for "unknown key" hints)."""
+    model: Any = root
+    skip_user_key = False
+    for part in clean_loc(loc):
+        if isinstance(part, int):
+            continue
+        if skip_user_key:  # a key chosen by the user in a dict of models (level names, trajectory names)
+            skip_user_key = False
+            continue
+        if not (isinstance(model, type) and issubclass(model, BaseModel)):
+            return []
+        info = _field_by_key(model, str(part))
+        if info is None:
+            return []
+        skip_user_key = get_origin(info.annotation) is dict
+        model = _model_in(info.annotation)
+    if isinstance(model, type) and issubclass(model, BaseModel):
+        return [info.alias or name for name, info in model.model_fields.items()]
+    return []
+
+
+def _field_by_key(model: type[BaseModel], key: str) -> Any:
+    for name, info in model.model_fields.items():
+        if (info.alias or name) == key:
+            return info
+    return None
+
+
+def _model_in(annotation: Any) -> Any:
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    for arg in getattr(annotation, "__args__", ()) or ():
+        found = _model_in(arg)
+        if found is not None:
+            return found
+    return None
