@@ -85,13 +85,20 @@ def archive_contents(path: Path) -> dict[str, object]:
             for key, value in obj.attrs.items():
                 if key in VOLATILE_ATTRS:
                     continue
-                out[f"{name}@{key}"] = value.tobytes() if isinstance(value, np.ndarray) else value
+                out[f"{name}@{key}"] = _comparable(value)
 
         f.visititems(visit)
         for key, value in f.attrs.items():
             if key not in VOLATILE_ATTRS:
                 out[f"/@{key}"] = value.tobytes() if isinstance(value, np.ndarray) else value
     return out
+
+
+def _comparable(value: object) -> object:
+    """Numeric arrays by their bytes; string arrays (object dtype: pointers) by their values."""
+    if isinstance(value, np.ndarray):
+        return value.tolist() if value.dtype == object else value.tobytes()
+    return value
 
 
 def assert_same_data(reference: Path, other: Path) -> None:

@@ -89,9 +89,9 @@ def test_a_stiffer_brake_makes_its_friction_configurations_differ(
     for p in result.pairs[1:]:
         assert p.energy.low > 0  # B (stiffer) minus A: more energy lost per cycle
         assert (
-            "friction_nm",
-            str(p.a.settings["friction_nm"]),
-            str(p.b.settings["friction_nm"]),
+            "friction.friction_nm",
+            f"{p.a.quantity('friction', 'friction_nm'):g}",
+            f"{p.b.quantity('friction', 'friction_nm'):g}",
         ) in p.changed
     assert html.count("<img ") == 4
 

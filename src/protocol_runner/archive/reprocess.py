@@ -107,8 +107,8 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
                 del cfg[stale]
         if not pairs:
             continue
-        stiffness = float(cfg.attrs.get("stiffness_n_per_mm", 0.0))
-        preload = int(cfg.attrs.get("preload_position", 3))
+        stiffness = float(_quantity_attr(cfg, "stiffness_n_per_mm", 0.0))
+        preload = int(_quantity_attr(cfg, "position_index", 3))
         result = process_configuration(
             pairs,
             settings,
@@ -141,3 +141,12 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
             for key in ("energy_mean_j", "energy_std_j", "energy_cycles", "max_angle_deg"):
                 if key in comp.attrs:
                     del comp.attrs[key]
+
+
+def _quantity_attr(cfg: h5py.Group, quantity: str, default: float) -> float:
+    """The first `<factor>.<quantity>` attribute of a configuration group (transitional, until the
+    element fit reads the archived device)."""
+    for key, value in cfg.attrs.items():
+        if key.endswith("." + quantity):
+            return float(value)
+    return default

@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING, TypeVar
 import numpy as np
 
 from .schema import ConfigurationSpec, Levels, Protocol
+from .settings import FactorSetting, Quantity
+from .settings import Settings as FactorSettings
 from .trajectories import load_trajectory_file
 
 if TYPE_CHECKING:
@@ -36,6 +38,30 @@ class Settings:
     preload_position: int
     speed: str
     speed_deg_s: float
+
+    def as_settings(self) -> FactorSettings:
+        """Transitional: these settings as declared factors (the schema-2 shape of protocol/settings.py)."""
+
+        def f(level: str, *q: tuple[str, Quantity]) -> FactorSetting:
+            return FactorSetting(level=level, quantities=tuple(q))
+
+        return FactorSettings(
+            factors=(
+                ("brace_rom", f(self.brace_rom, ("range_deg", self.brace_rom_deg))),
+                ("robot_rom", f(self.robot_rom, ("range_deg", self.robot_rom_deg))),
+                (
+                    "friction",
+                    f(
+                        self.friction_level,
+                        ("friction_nm", self.friction_nm),
+                        ("screw_turns", self.friction_screw_turns),
+                    ),
+                ),
+                ("stiffness", f(self.stiffness, ("stiffness_n_per_mm", self.stiffness_n_per_mm))),
+                ("speed", f(self.speed, ("speed_deg_s", self.speed_deg_s))),
+                ("preload", f(self.preload, ("position_index", float(self.preload_position)))),
+            )
+        )
 
     def to_json(self) -> dict[str, object]:
         """The plan contract's `settings` object (DESIGN.md), plus the level names and extras."""

@@ -1,7 +1,8 @@
 """A plan trajectory sampled at the output rate: the samples a trial or calibration check commands.
 
 One function for the run (steps/trial.py, steps/calibration_check.py) and the plan-time envelope check
-(protocol/stream_check.py), so both see exactly the same samples.
+(protocol/stream_check.py, protocol/trajectory_limits.py), so all of them see exactly the same samples:
+one per output tick, t = 0, 1/rate, ... < duration_s.
 """
 
 from __future__ import annotations
@@ -14,38 +15,57 @@ import numpy.typing as npt
 from .plan_trajectory import Trajectory
 from .trajectories import (
     calibration_step_deg,
+    hold_deg,
     identification_deg,
     load_trajectory_file,
     sinusoid_deg,
+    triangle_deg,
 )
 
 FloatArray = npt.NDArray[np.float64]
 
 
+def sample_times_s(trajectory: Trajectory, rate_hz: float) -> FloatArray:
+    """The output ticks of a trajectory: t = 0, 1/rate, ... < duration_s."""
+    return np.arange(0.0, trajectory.duration_s, 1.0 / rate_hz)
+
+
 def sample_trajectory(trajectory: Trajectory, rate_hz: float, base_dir: Path) -> FloatArray:
-    """Real joint angles, one per output tick (t = 0, 1/rate, ... < duration); human files are read from
-    `base_dir`."""
-    t = np.arange(0.0, trajectory.duration_s, 1.0 / rate_hz)
+    """Real joint angles, one per output tick (`sample_times_s`); files are read from `base_dir`."""
+    t = sample_times_s(trajectory, rate_hz)
     p = dict(trajectory.params)
-    if trajectory.profile == "sinusoid":
+
+    def num(field: str) -> float:
+        value = p[field]
+        assert isinstance(value, float | int)
+        return float(value)
+
+    kind = trajectory.profile
+    if kind == "sinusoid":
         assert (
             trajectory.mean_deg is not None and trajectory.amplitude_deg is not None and trajectory.period_s
         )
         return sinusoid_deg(t, trajectory.mean_deg, trajectory.amplitude_deg, trajectory.period_s)
-    if trajectory.profile == "human":
+    if kind in ("human", "file"):
         assert trajectory.source is not None
-        return load_trajectory_file(base_dir / trajectory.source).at(t)
-    if trajectory.profile == "identification":
+        column = p.get("column")  # the angle column build_trajectory chose (None: a version-1 `human`)
+        joint = column if isinstance(column, str) else None
+        return load_trajectory_file(base_dir / trajectory.source, joint).at(t)
+    if kind == "identification":
         return identification_deg(
             t,
-            float(p["min_deg"]),
-            float(p["max_deg"]),
-            float(p["repetition_s"]),
-            float(p["initial_period_s"]),
-            float(p["final_period_s"]),
+            num("min_deg"),
+            num("max_deg"),
+            num("repetition_s"),
+            num("initial_period_s"),
+            num("final_period_s"),
         )
-    if trajectory.profile == "step":
-        return calibration_step_deg(
-            t, float(p["from_deg"]), float(p["step_deg"]), float(p["settle_s"]), float(p["ramp_s"])
-        )
-    raise ValueError(f"unknown trajectory profile {trajectory.profile!r}")
+    if kind in ("step", "ramped_step"):
+        return calibration_step_deg(t, num("from_deg"), num("step_deg"), num("settle_s"), num("ramp_s"))
+    if kind == "triangle":
+        span = p["range_deg"]
+        assert isinstance(span, tuple)
+        return triangle_deg(t, span[0], span[1], num("speed_deg_s"), num("corner_accel_deg_s2"))
+    if kind == "hold":
+        return hold_deg(t, num("angle_deg"))
+    raise ValueError(f"unknown trajectory profile {kind!r}")

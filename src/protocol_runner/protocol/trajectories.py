@@ -3,7 +3,10 @@
 - Sinusoid (Eq 24): angle = mean + amplitude * sin(2*pi*t/p); its maximum speed is amplitude * 2*pi/p
   (Eq 25), so for a range and a maximum speed the period is p = 2*pi*amplitude / max_speed. The periods of
   Table 6 (8.17, 16.34, 3.14, 5.65, 6.91, 13.82 s) follow from this; they are never typed in.
-- Human trajectories: angle-vs-time files (CSV or MATLAB .mat), see `load_trajectory_file`.
+- Triangle: constant speed between the ends of a range, turned round at a constant acceleration
+  (`triangle_deg`): a cycle lasts 2*range/speed + 2*speed/accel.
+- Files: angle-vs-time recordings (CSV or MATLAB .mat, one angle column per joint), see
+  `load_trajectory_file`.
 - Model identification (Eq 4-7): an exponential envelope times cos^2 with a period that changes linearly.
 - The calibration step (Appendix A "Calibration"): a 45 deg step, as a raised-cosine move whose length
   the protocol sets (0.6 s in knee_phase1.yaml: 118 deg/s and 616 deg/s² at most). Every sample sent must
@@ -106,7 +109,64 @@ def calibration_step_deg(
 
 
 def calibration_step_peak_speed_deg_s(step_deg: float, ramp_s: float) -> float:
+    """Peak speed of the raised-cosine move: d/dt [step (1 - cos(pi t/ramp)) / 2] at t = ramp/2."""
     return math.inf if ramp_s <= 0 else math.pi / 2 * abs(step_deg) / ramp_s
+
+
+def calibration_step_peak_accel_deg_s2(step_deg: float, ramp_s: float) -> float:
+    """Peak acceleration of the raised-cosine move (at its start and end): pi^2/2 * step / ramp^2."""
+    return math.inf if ramp_s <= 0 else math.pi**2 / 2 * abs(step_deg) / ramp_s**2
+
+
+def sinusoid_peak_accel_deg_s2(amplitude_deg: float, max_speed_deg_s: float) -> float:
+    """Peak acceleration of the Eq 24 sinusoid: amplitude * (2*pi/p)^2 = max_speed^2 / amplitude (Eq 25)."""
+    return max_speed_deg_s**2 / amplitude_deg
+
+
+def triangle_period_s(range_deg: float, speed_deg_s: float, corner_accel_deg_s2: float) -> float:
+    """One cycle (low -> high -> low) of `triangle_deg`: two constant-speed legs of range - speed^2/accel
+    and two corners of 2*speed/accel each, i.e. 2*range/speed + 2*speed/accel."""
+    return 2.0 * range_deg / speed_deg_s + 2.0 * speed_deg_s / corner_accel_deg_s2
+
+
+def triangle_deg(
+    time_s: FloatArray, low_deg: float, high_deg: float, speed_deg_s: float, corner_accel_deg_s2: float
+) -> FloatArray:
+    """Triangle wave between `low_deg` and `high_deg` at constant speed, with acceleration-limited corners.
+
+    Starts at rest at `low_deg`. Each corner is a parabola of constant acceleration `corner_accel_deg_s2`
+    (a) whose apex is an end of the range: speed goes from +v to -v in 2v/a, and the constant-speed leg
+    stops v^2/(2a) short of each end. So the extremes are exactly the range's ends, the peak speed is
+    exactly v and the peak acceleration exactly a. Needs range >= v^2/a (else there is no constant-speed
+    leg at all; `ValueError`)."""
+    span = high_deg - low_deg
+    v, a = speed_deg_s, corner_accel_deg_s2
+    if span <= 0 or v <= 0 or a <= 0:
+        raise ValueError("range, speed and corner acceleration must be positive")
+    if span < v * v / a * (1.0 - 1e-12):
+        raise ValueError(f"a {span:g} deg range is too short to reach {v:g} deg/s with {a:g} deg/s² corners")
+    corner_s = v / a  # half a corner
+    half_s = span / v + v / a  # low apex -> high apex
+    t = np.asarray(time_s, dtype=np.float64)
+    k = np.floor(t / half_s)
+    u = t - k * half_s
+    up = np.where(
+        u < corner_s,
+        0.5 * a * u * u,
+        np.where(
+            u > half_s - corner_s,
+            span - 0.5 * a * (half_s - u) ** 2,
+            0.5 * v * corner_s + v * (u - corner_s),
+        ),
+    )
+    rising = np.mod(k, 2.0) == 0.0
+    result: FloatArray = low_deg + np.where(rising, up, span - up)
+    return result
+
+
+def hold_deg(time_s: FloatArray, angle_deg: float) -> FloatArray:
+    """`angle_deg` at every time."""
+    return np.full(np.shape(time_s), float(angle_deg), dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -116,7 +176,8 @@ class TrajectoryFile:
     path: Path
     time_s: FloatArray
     angle_deg: FloatArray
-    header: str
+    header: str  # the comment lines: what the trajectory is and where it comes from
+    column: str = "angle_deg"  # the angle column (or .mat variable) read
 
     @property
     def duration_s(self) -> float:
@@ -131,12 +192,19 @@ _TIME_NAMES = ("time_s", "t", "time")
 _ANGLE_NAMES = ("angle_deg", "angle", "knee_deg", "theta_deg")
 
 
-def load_trajectory_file(path: Path) -> TrajectoryFile:
+def _angle_names(joint: str | None) -> tuple[str, ...]:
+    """The angle column for `joint`: the joint's name (or `<joint>_deg`), else a single joint's
+    `angle_deg` (and the older spellings)."""
+    return ((joint, f"{joint}_deg") if joint else ()) + _ANGLE_NAMES
+
+
+def load_trajectory_file(path: Path, joint: str | None = None) -> TrajectoryFile:
     """Read a trajectory file.
 
     CSV: any number of comment lines starting with '#' (the header says what the trajectory is and where
-    it comes from), then a row of column names containing `time_s` and `angle_deg`, then numbers.
-    MATLAB .mat: variables `time_s` and `angle_deg` (vectors of equal length).
+    it comes from), then a row of column names containing `time_s` and an angle column - the joint's name
+    (one column per joint: `knee_flexion,ankle_flexion`, or `knee_flexion_deg`) or, for a single joint,
+    `angle_deg` - then numbers. MATLAB .mat: variables with the same names (vectors of equal length).
     Time must start at 0 or later and increase strictly. Errors name the file and line.
     """
     if not path.exists():
@@ -145,9 +213,9 @@ def load_trajectory_file(path: Path) -> TrajectoryFile:
         raise InvalidInput(f"{path}: is a directory, expected a trajectory file (.csv or .mat)")
     suffix = path.suffix.lower()
     if suffix == ".mat":
-        time_s, angle_deg, header = _load_mat(path)
+        time_s, angle_deg, header, column = _load_mat(path, _angle_names(joint))
     elif suffix in (".csv", ".txt"):
-        time_s, angle_deg, header = _load_csv(path)
+        time_s, angle_deg, header, column = _load_csv(path, _angle_names(joint))
     else:
         raise InvalidInput(f"{path}: unsupported trajectory file type {suffix!r} (use .csv or .mat)")
     if time_s.size < 2:
@@ -157,10 +225,10 @@ def load_trajectory_file(path: Path) -> TrajectoryFile:
     bad = np.flatnonzero(np.diff(time_s) <= 0)
     if bad.size:
         raise InvalidInput(f"{path}: time must increase strictly (sample {int(bad[0]) + 2} does not)")
-    return TrajectoryFile(path=path, time_s=time_s, angle_deg=angle_deg, header=header)
+    return TrajectoryFile(path=path, time_s=time_s, angle_deg=angle_deg, header=header, column=column)
 
 
-def _load_csv(path: Path) -> tuple[FloatArray, FloatArray, str]:
+def _load_csv(path: Path, angle_names: tuple[str, ...]) -> tuple[FloatArray, FloatArray, str, str]:
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
@@ -170,10 +238,11 @@ def _load_csv(path: Path) -> tuple[FloatArray, FloatArray, str]:
         raise InvalidInput(f"{path}: no column row and no data")
     columns = [c.lower() for c in table.header.cells]
     time_col = next((columns.index(n) for n in _TIME_NAMES if n in columns), -1)
-    angle_col = next((columns.index(n) for n in _ANGLE_NAMES if n in columns), -1)
+    angle_col = next((columns.index(n.lower()) for n in angle_names if n.lower() in columns), -1)
     if time_col < 0 or angle_col < 0:
+        wanted = f"`{angle_names[0]}` or `angle_deg`" if angle_names[0] != _ANGLE_NAMES[0] else "`angle_deg`"
         raise InvalidInput(
-            f"{path}:{table.header.line}: the column row must name `time_s` and `angle_deg` "
+            f"{path}:{table.header.line}: the column row must name `time_s` and {wanted} "
             f"(found: {table.header.text})"
         )
     times: list[float] = []
@@ -185,16 +254,18 @@ def _load_csv(path: Path) -> tuple[FloatArray, FloatArray, str]:
             angles.append(float(cells[angle_col]))
         except (ValueError, IndexError):
             raise InvalidInput(
-                f"{path}:{lineno}: expected numbers in columns time_s, angle_deg: {line!r}"
+                f"{path}:{lineno}: expected numbers in columns {table.header.cells[time_col]}, "
+                f"{table.header.cells[angle_col]}: {line!r}"
             ) from None
     return (
         np.asarray(times, dtype=np.float64),
         np.asarray(angles, dtype=np.float64),
         "\n".join(table.comments),
+        table.header.cells[angle_col],
     )
 
 
-def _load_mat(path: Path) -> tuple[FloatArray, FloatArray, str]:
+def _load_mat(path: Path, angle_names: tuple[str, ...]) -> tuple[FloatArray, FloatArray, str, str]:
     from scipy.io import loadmat
 
     try:
@@ -202,16 +273,18 @@ def _load_mat(path: Path) -> tuple[FloatArray, FloatArray, str]:
     except Exception as exc:  # scipy raises several types for a broken file
         raise InvalidInput(f"{path}: not a readable MATLAB .mat file ({exc})") from None
     time_name = next((n for n in _TIME_NAMES if n in contents), None)
-    angle_name = next((n for n in _ANGLE_NAMES if n in contents), None)
+    angle_name = next((n for n in angle_names if n in contents), None)
     if time_name is None or angle_name is None:
         names = ", ".join(sorted(k for k in contents if not k.startswith("__")))
-        raise InvalidInput(f"{path}: needs variables `time_s` and `angle_deg` (found: {names or 'none'})")
+        raise InvalidInput(
+            f"{path}: needs variables `time_s` and `{angle_names[0]}` (found: {names or 'none'})"
+        )
     time_s = np.asarray(contents[time_name], dtype=np.float64).ravel()
     angle_deg = np.asarray(contents[angle_name], dtype=np.float64).ravel()
     if time_s.shape != angle_deg.shape:
         raise InvalidInput(f"{path}: `{time_name}` and `{angle_name}` have different lengths")
     header = str(contents.get("description", contents.get("__header__", b"")))
-    return time_s, angle_deg, header
+    return time_s, angle_deg, header, angle_name
 
 
 def max_speed_deg_s(time_s: FloatArray, angle_deg: FloatArray) -> float:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
+from typing import Any
 
 import h5py
 import numpy as np
@@ -25,6 +26,7 @@ from ..hardware.motion import run_motion
 from ..hardware.rig import TrialRecording
 from ..protocol.plan import Trajectory, TrialStep
 from ..protocol.sampling import sample_trajectory
+from ..protocol.settings import configuration_attributes
 from .context import StepContext, StepOutcome
 from .recording import put_commands, put_scan
 
@@ -129,6 +131,20 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
     return recordings[result.best.iteration], result
 
 
+def configuration_group_attributes(step: TrialStep, ctx: StepContext) -> dict[str, Any]:
+    """The `/configurations/<name>` attributes (docs/archive.md): identity, trajectory and settings."""
+    traj = step.trajectory.to_json()
+    return {
+        "key": step.configuration,
+        "run": step.run,
+        "set": step.set,
+        "condition": next(s.condition for s in ctx.loaded.protocol.sets if s.name == step.set),
+        "profile": step.trajectory.profile,
+        "trajectory_name": str(traj.get("name", step.trajectory.profile)),
+        **configuration_attributes(step.settings.as_settings()),
+    }
+
+
 def _fill(
     step: TrialStep,
     ctx: StepContext,
@@ -137,32 +153,13 @@ def _fill(
     *,
     status: str = "complete",
 ):
-    st = step.settings
-    cfg_attrs = {
-        "key": step.configuration,
-        "run": step.run,
-        "set": step.set,
-        "condition": next(s.condition for s in ctx.loaded.protocol.sets if s.name == step.set),
-        "profile": step.trajectory.profile,
-        "brace_rom": st.brace_rom,
-        "brace_rom_deg": list(st.brace_rom_deg),
-        "robot_rom": st.robot_rom,
-        "robot_rom_deg": list(st.robot_rom_deg),
-        "friction": st.friction_level,
-        "friction_level": st.friction_level,
-        "friction_nm": st.friction_nm,
-        "stiffness": st.stiffness,
-        "stiffness_n_per_mm": st.stiffness_n_per_mm,
-        "speed": st.speed,
-        "speed_deg_s": st.speed_deg_s,
-        "preload": st.preload,
-        "preload_position": st.preload_position,
-    }
+    cfg_attrs = configuration_group_attributes(step, ctx)
     lateness = rec.tick_lateness_s
 
     def fill(f: h5py.File) -> None:
         cfg = f.require_group(configuration_path(step.configuration))
-        set_attrs(cfg, cfg_attrs)
+        set_attrs(cfg, {k: v for k, v in cfg_attrs.items() if k != "factors"})
+        cfg.attrs["factors"] = np.array(cfg_attrs["factors"], dtype=h5py.string_dtype())
         g = cfg.require_group(f"trials/{step.trial}").create_group(f"brace_{step.brace}")
         put_scan(g, rec)
         put_commands(g, rec, full=True)
