@@ -209,7 +209,9 @@ def test_reference_section_says_when_there_is_no_reference(small_report: str) ->
     assert 'id="fig-reference"' not in small_report
 
 
-def test_archived_reference_is_drawn_alone_and_on_every_comparison_overlay(tmp_path: Path, monkeypatch) -> None:
+def test_archived_reference_is_drawn_alone_and_on_every_comparison_overlay(
+    tmp_path: Path, monkeypatch
+) -> None:
     from protocol_runner.report import figures_compare
 
     spec = small_spec(duration_s=9.0, reference=True)
