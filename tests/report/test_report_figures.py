@@ -173,3 +173,31 @@ def test_energy_cycles_figure_draws_every_cycle_and_the_mean(small_archive: Path
     assert drawn == sorted(cfg.energy_loss_j.tolist())
     means = [line for line in ax.get_lines() if line.get_label().startswith("mean ")]
     assert len(means) == 1 and means[0].get_ydata()[0] == cfg.energy_mean_j
+
+
+def test_element_fits_are_drawn_for_the_comparisons_that_change_a_fitted_element(
+    tmp_path: Path, monkeypatch
+) -> None:
+    from protocol_runner.report.figures import element_fit_figure, model_comparisons
+    from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, write_archive
+
+    keys = (4, 5, 6, 7, 14, 17, 20, 23)
+    spec = ArchiveSpec(configs=[ConfigSpec(key=k, n_trials=1) for k in keys], duration_s=9.0)
+    data = load_report_data(write_archive(tmp_path / "a.h5", spec))
+    # the springs (the fitted element) differ only across the stiffness group; the friction group
+    # changes the brake, which is not fitted
+    assert [c.name for c in model_comparisons(data)] == ["stiffness"]
+    comp = data.comparison("stiffness")
+    assert comp is not None
+    fig = _drawn(monkeypatch, lambda: element_fit_figure(data, comp))
+    (ax,) = fig.axes
+    models = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--"]
+    # K0 (config 17) has no spring: its fit is not applicable and draws nothing
+    assert [ln.get_label().split(",")[0] for ln in models] == [
+        "20: K1 (4.4 N/mm)",
+        "14: K2 (13 N/mm)",
+        "23: K3 (20 N/mm)",
+    ]
+    for line, key in zip(models, (20, 14, 23), strict=True):
+        fit = data.configuration(key).element_fit
+        assert list(line.get_ydata()) == list(fit.model_torque_nm)
