@@ -55,6 +55,19 @@ class ComparisonAxis:
         v = cfg.quantity(self.parameter, self.quantity)
         return f"{level} ({format_quantity(self.quantity, v)})" if v is not None else level
 
+    def tick_label(self, cfg: Configuration) -> str:
+        """A short two-line bar label: the level (and the other differing factors' levels), then the axis
+        quantity's value with its unit (the bar itself carries the configuration key)."""
+        if self.parameter == TRAJECTORY:
+            head, value = self.value_text(cfg), ""
+        else:
+            head = cfg.level(self.parameter) or ""
+            v = cfg.quantity(self.parameter, self.quantity) if self.quantity else None
+            value = format_quantity(self.quantity, v) if v is not None else ""
+        others = " · ".join(str(cfg.level(f)) for f in self.others if cfg.level(f) is not None)
+        first = " · ".join(p for p in (head, others) if p) or f"config {cfg.key}"
+        return f"{first}\n{value}" if value else first
+
     def config_label(self, cfg: Configuration) -> str:
         """Legend or tick text: key, the compared value, then the other differing factors' levels."""
         parts = [self.value_text(cfg)]

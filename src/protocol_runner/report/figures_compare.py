@@ -76,13 +76,14 @@ def energy_bars_figure(data: ReportData, comparison: Comparison) -> str:
     """Mean energy per cycle ± one standard deviation against the compared factor (Figures 41-46).
 
     A scalar axis quantity with a distinct value per configuration gives a numeric axis (points with error
-    bars, each marked with its configuration key); otherwise one bar per configuration, labelled."""
+    bars, each marked with its configuration key); otherwise one bar per configuration, labelled with the
+    level and quantity, its key written at the bar's foot."""
     fig, (ax,) = canvas_axes("bars")
     cfgs = [c for c in configurations_of(data, comparison.configurations) if c.energy_loss_j.size]
     axis = comparison_axis(comparison, configurations_of(data, comparison.configurations))
     if not cfgs:
         empty(ax, "no energy data")
-        style(ax, axis.label, ENERGY_LABEL, f"Energy loss: {comparison.title}")
+        style(ax, axis.label, ENERGY_LABEL, _energy_title(comparison.title))
         return to_data_uri(fig)
     means = [c.energy_mean_j for c in cfgs]
     stds = [c.energy_std_j if math.isfinite(c.energy_std_j) else 0.0 for c in cfgs]
@@ -103,6 +104,7 @@ def energy_bars_figure(data: ReportData, comparison: Comparison) -> str:
             ax.annotate(str(c.key), (xv, m), textcoords="offset points", xytext=(4, 4), fontsize=6.5)
         ax.set_xticks(sorted(xs))
         ax.tick_params(axis="x", labelsize=6.5)
+        ax.xaxis.set_label_coords(0.5, -0.11)
     else:
         x = np.arange(len(cfgs))
         ax.bar(
@@ -113,10 +115,17 @@ def energy_bars_figure(data: ReportData, comparison: Comparison) -> str:
             color=[COLORS[i % len(COLORS)] for i in range(len(cfgs))],
             width=0.6,
         )
-        ax.set_xticks(x, [axis.config_label(c) for c in cfgs], fontsize=6.0)
+        for xi, c in zip(x, cfgs, strict=True):
+            ax.text(xi, 0.0, str(c.key), ha="center", va="bottom", fontsize=6.5, color="white")
+        ax.set_xticks(x, [axis.tick_label(c) for c in cfgs], fontsize=5.5)
+        ax.xaxis.set_label_coords(0.5, -0.2)  # below the two-line tick labels
     ax.set_ylim(bottom=0.0)
-    style(ax, axis.label, ENERGY_LABEL, f"Energy loss: {comparison.title}")
+    style(ax, axis.label, ENERGY_LABEL, _energy_title(comparison.title))
     return to_data_uri(fig)
+
+
+def _energy_title(title: str) -> str:
+    return title if title.lower().startswith("energy") else f"Energy loss: {title}"
 
 
 def reference_figure(data: ReportData) -> str:
