@@ -24,13 +24,15 @@ from protocol_runner.analysis.pipeline import (
 from protocol_runner.analysis.scaling import rig_runner, scale_brace_off_input
 from protocol_runner.analysis.transition import command_on_input_base, transition_index
 from protocol_runner.hardware.rig import JointConfig, TrialRecording
-from protocol_runner.hardware.simulator import BraceSetup, SimulatedRig, SimulatorParams
-from protocol_runner.models.spring import DEFAULT_MAX_PRELOAD_MM
+from protocol_runner.hardware.simulator import SimulatedRig
 
+from ..knee_device import KNEE_MAX_PRELOAD_MM as DEFAULT_MAX_PRELOAD_MM
+from ..knee_device import KNEE_PARAMS, knee_brace, lever_spring
 from ..knee_rig import knee_joint_config
 
-PARAMS = SimulatorParams(bump_torque_nm=0.0)
-BRACE = BraceSetup(rom_deg=(0.0, 130.0), friction_nm=3.75, stiffness_n_per_mm=13.0, preload_position=3)
+PARAMS = KNEE_PARAMS
+FRICTION_NM = 3.75
+BRACE = knee_brace((0.0, 130.0), FRICTION_NM, 13.0, 3, cuff_shift=False)  # no bump: the spring is all
 DEG = np.pi / 180.0
 
 
@@ -46,9 +48,9 @@ def _command() -> np.ndarray:
     return mean + amp * np.sin(2 * np.pi * t / period)
 
 
-def _run(command: np.ndarray, brace: BraceSetup | None, step_id: str) -> TrialRecording:
+def _run(command: np.ndarray, brace: list | None, step_id: str) -> TrialRecording:
     sim = SimulatedRig(_joint(), seed=7, params=PARAMS)
-    sim.set_brace(brace)
+    sim.set_device(brace)
     sim.begin_step(step_id)
     return sim.make_rig().run_trajectory(command, where=step_id)
 
@@ -73,8 +75,7 @@ def _process(sim: Simulated, subtraction: str, off: TrialRecording | None = None
     return process_configuration(
         [pair],
         ProcessingSettings(subtraction=subtraction),  # type: ignore[arg-type]
-        stiffness_n_per_mm=BRACE.stiffness_n_per_mm,
-        preload_position=BRACE.preload_position,
+        device=[lever_spring(13.0, 3)],
     )
 
 
@@ -85,15 +86,15 @@ def test_the_braced_joint_sweeps_a_smaller_range(simulated: Simulated) -> None:
 
 
 def test_equal_angle_processing_recovers_the_simulated_spring(simulated: Simulated) -> None:
-    by_angle = _process(simulated, "equal_angle").spring
-    by_time = _process(simulated, "equal_time").spring
+    by_angle = _process(simulated, "equal_angle").elements
+    by_time = _process(simulated, "equal_time").elements
     assert by_angle is not None and by_time is not None
-    assert by_angle.max_preload_mm == pytest.approx(DEFAULT_MAX_PRELOAD_MM, abs=1.0)
-    assert by_angle.zero_offset_deg == pytest.approx(0.0, abs=0.5)
+    assert by_angle.value("springs", "max_preload_mm") == pytest.approx(DEFAULT_MAX_PRELOAD_MM, abs=1.0)
+    assert by_angle.value("springs", "zero_offset_deg") == pytest.approx(0.0, abs=0.5)
     assert by_angle.rmse_nm < 0.3
     # equal time mixes the robot's gravity torque at other angles into the brace loop (thesis §5.6)
     assert by_time.rmse_nm > 3 * by_angle.rmse_nm
-    assert abs(by_time.zero_offset_deg) > 1.5
+    assert abs(by_time.value("springs", "zero_offset_deg")) > 1.5
 
 
 def test_energy_per_cycle_is_the_brake_loss(simulated: Simulated) -> None:
@@ -103,7 +104,7 @@ def test_energy_per_cycle_is_the_brake_loss(simulated: Simulated) -> None:
     # brake + hinge friction F on each branch: about 2 F (range) pi/180 per cycle; the robot's viscous
     # friction differs between the two trials (they move at different speeds at the same angle) and
     # the brake's Stribeck rise near reversals: allow 15 %
-    friction = BRACE.friction_nm + PARAMS.brace_pivot_friction_nm
+    friction = FRICTION_NM + 0.75  # brake + hinge
     expected = 2 * friction * np.ptp(trial.angle_deg) * DEG
     np.testing.assert_allclose(result.energy_loss_j, expected, rtol=0.15)
     by_time = _process(simulated, "equal_time")
@@ -130,7 +131,7 @@ def test_scaling_matches_the_brace_off_range_on_the_simulator(simulated: Simulat
     assert len(result.history) <= 3
     # with matched ranges the subtraction is at least as good as before
     best = runs[min(range(len(runs)), key=lambda i: result.history[i].range_error_deg)]
-    scaled = _process(simulated, "equal_angle", off=best).spring
+    scaled = _process(simulated, "equal_angle", off=best).elements
     assert scaled is not None and scaled.rmse_nm < 0.3
 
 
@@ -138,9 +139,7 @@ def test_energy_loss_grows_with_brake_friction(simulated: Simulated) -> None:
     # thesis §5.7.2: "the energy loss increases with increasing friction of the brace"
     energies = []
     for level_nm in (0.0, 6.25):
-        brace = BraceSetup(
-            rom_deg=(0.0, 130.0), friction_nm=level_nm, stiffness_n_per_mm=13.0, preload_position=3
-        )
+        brace = knee_brace((0.0, 130.0), level_nm, 13.0, 3, cuff_shift=False)
         on = _run(_command(), brace, f"on/friction/{level_nm}")
         pair = TrialPair(_recording(on), _recording(simulated.off))
         energies.append(process_configuration([pair]).energy.mean_j)

@@ -99,13 +99,17 @@ def test_equal_time_option_gives_a_different_and_wrong_loop(
     assert np.sqrt(np.mean((processed.brace_torque_nm - truth) ** 2)) > 2.0
 
 
-def test_spring_fit_only_when_the_spring_is_given(pairs: list[TrialPair]) -> None:
-    assert process_configuration(pairs).spring is None
-    k0 = process_configuration(pairs, stiffness_n_per_mm=0.0, preload_position=3)
-    assert k0.spring is not None and not k0.spring.applicable
-    fitted = process_configuration(pairs, stiffness_n_per_mm=4.4, preload_position=3)
-    assert fitted.spring is not None and fitted.spring.applicable
-    assert np.isfinite(fitted.spring.rmse_nm) and np.isfinite(fitted.spring.max_preload_mm)
+def test_element_fit_only_when_the_device_is_given(pairs: list[TrialPair]) -> None:
+    from ..knee_device import lever_spring
+
+    assert process_configuration(pairs).elements is None
+    k0 = process_configuration(pairs, device=[lever_spring(0.0, 3)])
+    assert k0.elements is not None and not k0.elements.applicable
+    fitted = process_configuration(pairs, device=[lever_spring(4.4, 3)])
+    assert fitted.elements is not None and fitted.elements.applicable
+    assert np.isfinite(fitted.elements.rmse_nm) and np.isfinite(
+        fitted.elements.value("springs", "max_preload_mm")
+    )
 
 
 def test_chebyshev_filter_and_command_on_the_input_time_base(

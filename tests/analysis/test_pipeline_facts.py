@@ -10,6 +10,8 @@ import pytest
 
 from protocol_runner.analysis.pipeline import ProcessingSettings, Recording, TrialPair, process_configuration
 
+from ..knee_device import lever_spring
+
 RATE_HZ = 100.0
 PERIOD_S = 10.0
 DEG = np.pi / 180.0
@@ -72,13 +74,12 @@ def test_an_uncentred_loop_is_the_processed_loop_with_zero_means() -> None:
     assert centred.mean_torque_nm == pytest.approx(float(np.mean(trial.brace_torque_nm)))
 
 
-def test_a_spring_fit_the_loop_cannot_support_is_not_applicable_with_the_reason() -> None:
+def test_an_element_fit_the_loop_cannot_support_is_not_applicable_with_the_reason() -> None:
     angle = _sweep([4.0] * 4)  # +-4 deg: nothing left once 5 deg are trimmed at each end
     off = _recording(angle, _robot(angle))
     on = _recording(angle, _robot(angle) + 0.5 * (angle - 65.0))
-    result = process_configuration([TrialPair(on, off)], stiffness_n_per_mm=13.0, preload_position=3)
-    assert result.spring is not None and not result.spring.applicable
-    assert result.spring.reason.startswith("not applicable: ")
-    assert "no loop midline" in result.spring.reason
-    assert result.spring.stiffness_n_per_mm == 13.0 and result.spring.preload_position == 3
-    assert np.isnan(result.spring.max_preload_mm)
+    result = process_configuration([TrialPair(on, off)], device=[lever_spring(13.0, 3)])
+    assert result.elements is not None and not result.elements.applicable
+    assert result.elements.reason.startswith("not applicable: ")
+    assert "no loop midline" in result.elements.reason
+    assert result.elements.fitted == () and np.isnan(result.elements.rmse_nm)

@@ -38,7 +38,7 @@ def test_the_smallest_meaningful_values_are_accepted() -> None:
         ("outside", "extrapolate"),
         ("cycle_reference", "median"),
         ("centring", "trial_median"),
-        ("spring_fit_target", "upper_branch"),
+        ("element_fit_target", "upper_branch"),
     ],
 )
 def test_the_first_value_past_each_limit_is_refused_naming_the_field(field: str, value: object) -> None:

@@ -19,8 +19,9 @@ from functools import cache
 import numpy as np
 
 from protocol_runner.hardware.rig import JointConfig
-from protocol_runner.hardware.simulator import BraceSetup, SimulatedRig
+from protocol_runner.hardware.simulator import SimulatedRig
 
+from ..knee_device import KNEE_PARAMS, knee_brace
 from ..knee_rig import knee_joint_config
 
 OUTPUT_RATE_HZ = 100.0
@@ -61,10 +62,10 @@ def sinusoid(rom_deg: tuple[float, float], speed_deg_s: float) -> tuple[np.ndarr
 
 
 @cache
-def trial(robot_rom: tuple[float, float], speed_deg_s: float, brace: BraceSetup | None) -> Trial:
+def trial(robot_rom: tuple[float, float], speed_deg_s: float, brace: Brace | None) -> Trial:
     """One trial through the Rig (cached: brace-off runs are shared between tests)."""
-    sim = SimulatedRig(knee_joint(), seed=2007)
-    sim.set_brace(brace)
+    sim = SimulatedRig(knee_joint(), seed=2007, params=KNEE_PARAMS)
+    sim.set_device(None if brace is None else knee_brace(*brace))
     command, period = sinusoid(robot_rom, speed_deg_s)
     step_id = f"{robot_rom}/{speed_deg_s}/{brace}"
     sim.begin_step(step_id)
@@ -72,8 +73,12 @@ def trial(robot_rom: tuple[float, float], speed_deg_s: float, brace: BraceSetup 
     return Trial(rec.input_time_s, rec.angle_deg, rec.torque_nm, period)
 
 
-def brace(rom: tuple[float, float], friction_nm: float = 3.75, k: float = K2) -> BraceSetup:
-    return BraceSetup(rom_deg=rom, friction_nm=friction_nm, stiffness_n_per_mm=k, preload_position=3)
+Brace = tuple[tuple[float, float], float, float, int]
+"""(rom_deg, friction_nm, stiffness_n_per_mm, preload_index): hashable, so trials can be cached."""
+
+
+def brace(rom: tuple[float, float], friction_nm: float = 3.75, k: float = K2) -> Brace:
+    return (rom, friction_nm, k, 3)
 
 
 def smooth(x: np.ndarray, n: int = 25) -> np.ndarray:
@@ -130,7 +135,7 @@ def energy_per_cycle_j(
     return np.array(energies)
 
 
-def brace_energy_j(rom_deg: tuple[float, float], setup: BraceSetup, speed: float = FULL_SPEED_DEG_S) -> float:
+def brace_energy_j(rom_deg: tuple[float, float], setup: Brace, speed: float = FULL_SPEED_DEG_S) -> float:
     on = trial(rom_deg, speed, setup)
     off = trial(rom_deg, speed, None)
     t, a, tb = brace_torque(on, off)
@@ -209,9 +214,7 @@ def test_half_speed_loses_at_least_as_much_energy_as_full_speed() -> None:
 def test_energy_loss_decreases_with_greater_preload() -> None:
     """§5.7.2 (configurations 8, 9 and 3): "the energy loss decreases with greater preloads", because the
     torque limit is reached at a smaller angle. Screw position 1 is the most preload, 5 the least."""
-    setups = [
-        BraceSetup(rom_deg=R3, friction_nm=3.75, stiffness_n_per_mm=K2, preload_position=n) for n in (1, 3, 5)
-    ]
+    setups = [(R3, 3.75, K2, n) for n in (1, 3, 5)]
     energies = [brace_energy_j(R3, b) for b in setups]
     max_angles = [max_angle_deg(trial(R3, FULL_SPEED_DEG_S, b)) for b in setups]
     assert np.all(np.diff(energies) > 0.0), energies

@@ -7,6 +7,7 @@ start-up transition, §2.5 calibration) or of the DAQ interfaces, and would fail
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 from functools import cache
 
 import numpy as np
@@ -21,7 +22,6 @@ from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
 from protocol_runner.hardware.rig import JointConfig, Rig
 from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.simulator import (
-    BraceSetup,
     SimulatedClock,
     SimulatedRig,
     SimulatorParams,
@@ -29,6 +29,7 @@ from protocol_runner.hardware.simulator import (
 )
 from protocol_runner.hardware.simulator.plant import JointPlant
 
+from ..knee_device import KNEE_PARAMS, knee_brace
 from ..knee_rig import KNEE_PARK_DEG, KNEE_TORQUE_LIMIT_NM, knee_joint_config
 
 PARK_DEG = KNEE_PARK_DEG
@@ -64,7 +65,7 @@ def run(sim: SimulatedRig, rig: Rig, command_deg: np.ndarray, step_id: str = "st
 
 
 def test_simulated_boards_satisfy_the_daq_interfaces(knee: JointConfig) -> None:
-    sim = SimulatedRig(knee)
+    sim = SimulatedRig(knee, params=KNEE_PARAMS)
     assert isinstance(sim.clock, Clock)
     assert isinstance(sim.ao, AnalogOutput)
     assert isinstance(sim.ai, AnalogInput)
@@ -76,7 +77,7 @@ def test_step_response_is_a_first_order_lag_of_0_2_s(knee: JointConfig) -> None:
     """Thesis §2.4.2: the joint follows a step as a first-order lag with a 0.2 s time constant. The 45°
     calibration step (Appendix A) from the 20° park angle, brace off: the 63 % time is 0.2 ± 0.05 s and the
     joint settles at the command."""
-    sim = SimulatedRig(knee, seed=3)
+    sim = SimulatedRig(knee, seed=3, params=KNEE_PARAMS)
     t, angle, _, _ = run(sim, sim.make_rig(), hold(PARK_DEG + 45.0, 2.0))
     reached = np.flatnonzero(angle >= PARK_DEG + 0.632 * 45.0)
     t63 = t[reached[0]]
@@ -92,11 +93,9 @@ def test_joint_stalls_where_the_load_reaches_the_torque_limit(knee: JointConfig)
     past that point". The stiffest springs at the most preload load the joint beyond the limit well before
     130°: commanded to 130° it stops short and the load cell reads the limit; without the brace the same
     command is reached."""
-    sim = SimulatedRig(knee, seed=4)
+    sim = SimulatedRig(knee, seed=4, params=KNEE_PARAMS)
     rig = sim.make_rig()
-    sim.set_brace(
-        BraceSetup(rom_deg=(0.0, 130.0), friction_nm=6.25, stiffness_n_per_mm=20.0, preload_position=1)
-    )
+    sim.set_device(knee_brace((0.0, 130.0), 6.25, 20.0, 1))
     t, angle, torque, _ = run(sim, rig, hold(130.0, 4.0), "stall")
     late = t > 3.0
     assert np.max(angle) < 100.0
@@ -104,7 +103,7 @@ def test_joint_stalls_where_the_load_reaches_the_torque_limit(knee: JointConfig)
     assert abs(np.mean(torque[late]) - KNEE_TORQUE_LIMIT_NM) < 1.5
     assert sim.plant.load_nm <= KNEE_TORQUE_LIMIT_NM * 1.01  # the actuator never holds more than its limit
 
-    sim.set_brace(None)
+    sim.set_device(None)
     t, angle, torque, _ = run(sim, rig, hold(130.0, 4.0), "free")
     assert abs(np.mean(angle[t > 3.0]) - 130.0) < 1.0
     assert np.mean(torque[t > 3.0]) < 0.6 * KNEE_TORQUE_LIMIT_NM
@@ -113,7 +112,7 @@ def test_joint_stalls_where_the_load_reaches_the_torque_limit(knee: JointConfig)
 def test_start_up_transition_emerges_from_the_lag(knee: JointConfig) -> None:
     """Thesis §3.3.1: each trial starts with the leg at its park position while the trajectory starts
     elsewhere, so the recording begins with a transition before the joint follows the command."""
-    sim = SimulatedRig(knee, seed=5)
+    sim = SimulatedRig(knee, seed=5, params=KNEE_PARAMS)
     p = 2.0 * np.pi * 65.0 / 50.0
     tk = np.arange(round(1.5 * p * OUTPUT_RATE_HZ)) / OUTPUT_RATE_HZ
     command = 65.0 + 65.0 * np.sin(2.0 * np.pi * tk / p)  # starts at 65°, the leg is at 20°
@@ -129,14 +128,21 @@ def test_same_seed_and_step_give_identical_data_another_step_other_noise(knee: J
     """DESIGN.md: every random draw comes from a generator seeded by (session seed, step id), so a resumed
     session reproduces an uninterrupted one bit for bit."""
     command = hold(60.0, 1.0)
-    sim_a = SimulatedRig(knee, seed=11)
+    sim_a = SimulatedRig(knee, seed=11, params=KNEE_PARAMS)
     rig_a = sim_a.make_rig()
     _, _, _, first = run(sim_a, rig_a, command, "set1/trial1")
     _, _, _, other_step = run(sim_a, rig_a, command, "set1/trial2")
-    sim_b = SimulatedRig(knee, seed=11)  # a fresh process, after unrelated work in another step
+    sim_b = SimulatedRig(
+        knee, seed=11, params=KNEE_PARAMS
+    )  # a fresh process, after unrelated work in another step
     _, _, _, _ = run(sim_b, sim_b.make_rig(), hold(90.0, 0.5), "set0/warm-up")
     _, _, _, again = run(sim_b, sim_b.make_rig(), command, "set1/trial1")
-    other_seed = run(SimulatedRig(knee, seed=12), SimulatedRig(knee, seed=12).make_rig(), command, "x")[3]
+    other_seed = run(
+        SimulatedRig(knee, seed=12, params=KNEE_PARAMS),
+        SimulatedRig(knee, seed=12, params=KNEE_PARAMS).make_rig(),
+        command,
+        "x",
+    )[3]
 
     assert np.array_equal(first.angle_codes, again.angle_codes)
     assert np.array_equal(first.torque_codes, again.torque_codes)
@@ -151,9 +157,9 @@ def test_data_do_not_depend_on_how_long_the_session_has_run(knee: JointConfig) -
     """A resumed session's clock starts afresh while the uninterrupted one has run for hours: the step's
     data must not depend on the clock's absolute value (float rounding of write and row times)."""
     command = 65.0 + 40.0 * np.sin(np.arange(300) / 30.0)
-    fresh = SimulatedRig(knee, seed=13)
+    fresh = SimulatedRig(knee, seed=13, params=KNEE_PARAMS)
     _, _, _, a = run(fresh, fresh.make_rig(), command, "k4/on/2")
-    late = SimulatedRig(knee, seed=13)
+    late = SimulatedRig(knee, seed=13, params=KNEE_PARAMS)
     late.clock.sleep_until(3 * 3600.0 + 0.123456789)
     _, _, _, b = run(late, late.make_rig(), command, "k4/on/2")
     assert np.array_equal(a.angle_codes, b.angle_codes)
@@ -165,7 +171,7 @@ def test_data_do_not_depend_on_how_often_the_scan_is_read(knee: JointConfig) -> 
     once a second yields the same rows (so a realtime or a differently paced loop sees the same rig)."""
 
     def acquire(read_every_s: float) -> np.ndarray:
-        sim = SimulatedRig(knee, seed=21)
+        sim = SimulatedRig(knee, seed=21, params=KNEE_PARAMS)
         sim.begin_step("chunks")
         sim.ai.start_scan([8, 20, 3], INPUT_RATE_HZ)
         blocks = []
@@ -187,10 +193,10 @@ def test_data_do_not_depend_on_how_often_the_scan_is_read(knee: JointConfig) -> 
 def test_brace_on_and_brace_off_trials_differ(knee: JointConfig) -> None:
     """The brace's springs and brake add torque that resists flexion (thesis §5, Figure 36): with the
     medium spring fitted the joint needs clearly more torque at 90° than the bare robot."""
-    sim = SimulatedRig(knee, seed=6)
+    sim = SimulatedRig(knee, seed=6, params=KNEE_PARAMS)
     rig = sim.make_rig()
     _, _, torque_off, _ = run(sim, rig, hold(90.0, 2.0), "off")
-    sim.set_brace(BraceSetup(rom_deg=(0.0, 130.0), friction_nm=3.75, stiffness_n_per_mm=13.0))
+    sim.set_device(knee_brace((0.0, 130.0), 3.75, 13.0))
     _, _, torque_on, _ = run(sim, rig, hold(90.0, 2.0), "on")
     # K2 at the centre preload pulls ~35 N·m at 90° (Eq 13-18), plus the brake
     assert np.mean(torque_on[-500:]) - np.mean(torque_off[-500:]) > 25.0
@@ -207,7 +213,7 @@ def test_calibration_tables_make_measured_match_real() -> None:
     torque_out = np.linspace(-84.8, 84.8, 9)
     torque_table = CalibrationTable(torque_out, 0.95 * torque_out, "output_nm", "real_nm")
     joint = knee_joint(command_table=command_table, angle_table=angle_table, torque_table=torque_table)
-    quiet = SimulatorParams(angle_noise_deg=0.0, torque_noise_nm=0.0)
+    quiet = replace(KNEE_PARAMS, angle_noise_deg=0.0, torque_noise_nm=0.0)
     sim = SimulatedRig(joint, seed=1, params=quiet)
     _, angle, torque, rec = run(sim, sim.make_rig(), hold(65.0, 2.0), "lut")
     assert abs(sim.plant.angle_deg - 65.0) < 0.3  # the robot went where the table asked
@@ -218,7 +224,7 @@ def test_calibration_tables_make_measured_match_real() -> None:
 
 
 def test_analog_output_quantises_like_a_usb_3105(knee: JointConfig) -> None:
-    sim = SimulatedRig(knee)
+    sim = SimulatedRig(knee, params=KNEE_PARAMS)
     assert sim.ao.write_volts(8, 0.0) == 32768
     assert sim.ao.write_volts(8, 10.0) == 65535  # full scale is +9.99969 V
     assert sim.ao.write_volts(8, -12.0) == 0  # clamped
@@ -234,7 +240,7 @@ def test_analog_output_quantises_like_a_usb_3105(knee: JointConfig) -> None:
 
 def test_analog_input_gives_12_bit_twos_complement_codes(knee: JointConfig) -> None:
     """DT9814: V = 20 code / 4096, codes -2048..2047; unconnected channels read about 0 V."""
-    sim = SimulatedRig(knee, seed=2)
+    sim = SimulatedRig(knee, seed=2, params=KNEE_PARAMS)
     sim.begin_step("codes")
     sim.ai.start_scan([8, 20, 0], INPUT_RATE_HZ)
     sim.clock.sleep_until(sim.clock.now_s() + 0.5)
@@ -265,13 +271,21 @@ def test_simulated_clock_jumps_and_realtime_clock_sleeps() -> None:
     assert real.now_s() >= target
 
 
-def test_brace_setup_rejects_impossible_settings() -> None:
-    with pytest.raises(InvalidInput, match="rom_deg"):
-        BraceSetup(rom_deg=(90.0, 40.0), friction_nm=0.0, stiffness_n_per_mm=0.0)
-    with pytest.raises(InvalidInput, match="friction"):
-        BraceSetup(rom_deg=(0.0, 130.0), friction_nm=-1.0, stiffness_n_per_mm=0.0)
-    with pytest.raises(InvalidInput, match="preload"):
-        BraceSetup(rom_deg=(0.0, 130.0), friction_nm=0.0, stiffness_n_per_mm=13.0, preload_position=6)
+def test_set_device_rejects_impossible_elements_naming_the_parameter(knee: JointConfig) -> None:
+    sim = SimulatedRig(knee, params=KNEE_PARAMS)
+    with pytest.raises(InvalidInput, match=r"'stops'.*'range_deg'"):
+        sim.set_device(knee_brace((90.0, 40.0), 0.0, 0.0))
+    with pytest.raises(InvalidInput, match=r"'brake'.*'torque_nm'"):
+        sim.set_device(knee_brace((0.0, 130.0), -1.0, 0.0))
+    with pytest.raises(InvalidInput, match="preload_index"):
+        sim.set_device(knee_brace((0.0, 130.0), 0.0, 13.0, preload_index=2.5))  # type: ignore[arg-type]
+    two_stops = [
+        *knee_brace((0.0, 130.0), 0.0, 0.0),
+        ("more", "rom_stops", {"range_deg": [0, 1], "stop_stiffness_nm_per_deg": 1}),
+    ]
+    with pytest.raises(InvalidInput, match="one rom_stops"):
+        sim.set_device(two_stops)
+    assert sim.device is None
     with pytest.raises(InvalidInput, match="lag_time_constant_s"):
         SimulatorParams(lag_time_constant_s=0.0)
 
@@ -280,7 +294,7 @@ def test_bare_robot_shows_its_own_hysteresis(knee: JointConfig) -> None:
     """Thesis §5: "all graphs show hysteresis of the joint. This is an artifact of the robot": brace off,
     a sinusoid's torque is higher while flexing than while extending at the same angle, so the loop
     encloses positive energy."""
-    sim = SimulatedRig(knee, seed=8)
+    sim = SimulatedRig(knee, seed=8, params=KNEE_PARAMS)
     p = 2.0 * np.pi * 45.0 / 50.0
     tk = np.arange(round(3 * p * OUTPUT_RATE_HZ)) / OUTPUT_RATE_HZ
     t, angle, torque, _ = run(sim, sim.make_rig(), 65.0 + 45.0 * np.sin(2.0 * np.pi * tk / p), "bare")
@@ -309,7 +323,7 @@ def test_docs_list_every_parameter_with_its_value() -> None:
 
 @cache
 def _ao_sim() -> SimulatedRig:
-    return SimulatedRig(knee_joint())
+    return SimulatedRig(knee_joint(), params=KNEE_PARAMS)
 
 
 @settings(max_examples=300, deadline=None)
@@ -352,7 +366,7 @@ def test_torque_limit_comes_from_the_joint_not_from_the_knee() -> None:
             park_rate_deg_s=30.0,
         ),
     )
-    sim = SimulatedRig(elbow, seed=9)
+    sim = SimulatedRig(elbow, seed=9, params=KNEE_PARAMS)
     t, angle, torque, _ = run(sim, sim.make_rig(), hold(90.0, 4.0), "elbow")
     late = t > 3.0
     assert np.mean(angle[late]) < 70.0
@@ -361,7 +375,7 @@ def test_torque_limit_comes_from_the_joint_not_from_the_knee() -> None:
 
 def test_realtime_clock_paces_a_short_trial(knee: JointConfig) -> None:
     """`--realtime`: the same run, paced by the wall clock (a 0.2 s trial takes at least 0.2 s)."""
-    sim = SimulatedRig(knee, seed=10, realtime=True)
+    sim = SimulatedRig(knee, seed=10, realtime=True, params=KNEE_PARAMS)
     rig = sim.make_rig()
     sim.begin_step("rt")
     wall = time.monotonic()
@@ -375,9 +389,9 @@ _DIGEST_SCRIPT = """
 import hashlib, sys
 import numpy as np
 sys.path.insert(0, sys.argv[1])
-from tests.hardware.test_simulator import hold, knee_joint, run
+from tests.hardware.test_simulator import KNEE_PARAMS, hold, knee_joint, run
 from protocol_runner.hardware.simulator import SimulatedRig
-sim = SimulatedRig(knee_joint(), seed=5)
+sim = SimulatedRig(knee_joint(), seed=5, params=KNEE_PARAMS)
 rec = run(sim, sim.make_rig(), hold(50.0, 0.3), "set2/trial3")[3]
 print(hashlib.sha256(rec.angle_codes.tobytes() + rec.torque_codes.tobytes()).hexdigest())
 """
@@ -391,7 +405,7 @@ def test_data_are_reproducible_in_another_process() -> None:
     import sys
     from pathlib import Path
 
-    sim = SimulatedRig(knee_joint(), seed=5)
+    sim = SimulatedRig(knee_joint(), seed=5, params=KNEE_PARAMS)
     rec = run(sim, sim.make_rig(), hold(50.0, 0.3), "set2/trial3")[3]
     here = hashlib.sha256(rec.angle_codes.tobytes() + rec.torque_codes.tobytes()).hexdigest()
     env = dict(os.environ, PYTHONHASHSEED="12345")
@@ -406,9 +420,9 @@ def test_data_are_reproducible_in_another_process() -> None:
     assert out.stdout.strip() == here
 
 
-def _plant(brace: BraceSetup | None) -> JointPlant:
-    plant = JointPlant(SimulatorParams(), (0.0, 130.0), (-84.8, 84.8))
-    plant.set_brace(brace)
+def _plant(device: list | None) -> JointPlant:
+    plant = JointPlant(KNEE_PARAMS, (0.0, 130.0), (-84.8, 84.8))
+    plant.set_device(device)
     return plant
 
 
@@ -416,28 +430,31 @@ def test_brace_springs_are_the_physical_model_of_eq_13_18() -> None:
     """The brace's spring torque in the plant is `models.spring.spring_torque_nm` (thesis Eq 13-18)."""
     from protocol_runner.models.spring import spring_torque_nm
 
+    from ..knee_device import KNEE_GEOMETRY, KNEE_MAX_PRELOAD_MM
+
     bare = _plant(None)
     for k, n in ((4.4, 1), (13.0, 3), (20.0, 5)):
-        braced = _plant(
-            BraceSetup(rom_deg=(0.0, 130.0), friction_nm=0.0, stiffness_n_per_mm=k, preload_position=n)
-        )
+        braced = _plant(knee_brace((0.0, 130.0), 0.0, k, n, cuff_shift=False))
         for angle in (5.0, 47.3, 90.0, 118.0):
             spring = braced.load_at_nm(angle) - bare.load_at_nm(angle)
-            assert spring == pytest.approx(float(spring_torque_nm(angle, k, n)), abs=0.01)
+            expected = spring_torque_nm(
+                angle, k, n, max_preload_mm=KNEE_MAX_PRELOAD_MM, geometry=KNEE_GEOMETRY
+            )
+            assert spring == pytest.approx(float(expected), abs=0.01)
 
 
 def test_low_angle_bump_grows_with_speed_and_shrinks_with_spring_force() -> None:
     """Thesis §5.1/§5.4/§5.5: the brace's instability near 40° is enhanced by speed and reduced by stiffer
     springs or more preload. Away from it, speed only adds the robot's viscous torque."""
 
-    def bump(brace: BraceSetup, angle: float, speed: float) -> float:
+    def bump(brace: list, angle: float, speed: float) -> float:
         plant, bare = _plant(brace), _plant(None)
         return (plant.load_at_nm(angle, speed) - plant.load_at_nm(angle)) - (
             bare.load_at_nm(angle, speed) - bare.load_at_nm(angle)
         )
 
-    def setup(k: float, n: int = 3) -> BraceSetup:
-        return BraceSetup(rom_deg=(0.0, 130.0), friction_nm=0.0, stiffness_n_per_mm=k, preload_position=n)
+    def setup(k: float, n: int = 3) -> list:
+        return knee_brace((0.0, 130.0), 0.0, k, n)
 
     assert bump(setup(0.0), 35.0, 50.0) > bump(setup(0.0), 35.0, 25.0) > 0.5
     assert bump(setup(0.0), 35.0, 50.0) > bump(setup(4.4), 35.0, 50.0) > bump(setup(13.0), 35.0, 50.0)
@@ -460,8 +477,8 @@ def test_fused_scan_kernel_quantises_like_the_dt9814_conversions() -> None:
 
     plants = []
     for _ in range(2):
-        plant = JointPlant(SimulatorParams(), (0.0, 130.0), (-84.8, 84.8))
-        plant.set_brace(BraceSetup(rom_deg=(0.0, 130.0), friction_nm=3.75, stiffness_n_per_mm=13.0))
+        plant = JointPlant(KNEE_PARAMS, (0.0, 130.0), (-84.8, 84.8))
+        plant.set_device(knee_brace((0.0, 130.0), 3.75, 13.0))
         plant.reset(20.0)
         for k in range(0, 4000, 20):  # a 100 Hz ramp 20 -> 120 deg, held beyond the joint's range
             plant.push_command(k, 20.0 + 0.05 * k)

@@ -16,7 +16,7 @@ import pytest
 
 from protocol_runner.commands import resume
 from protocol_runner.errors import Interrupted
-from protocol_runner.hardware.simulator.params import BraceSetup
+from protocol_runner.hardware.simulator.device import ComposedDevice
 from protocol_runner.protocol.plan import ChecklistStep
 from protocol_runner.session import runner as runner_module
 from protocol_runner.session.journal import Journal
@@ -43,13 +43,13 @@ def interrupt_after(monkeypatch: pytest.MonkeyPatch, step_id: str) -> None:
     monkeypatch.setattr(runner_module, "StopFlag", lambda: flag)
 
 
-def brace_at_each_step(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, BraceSetup | None]]:
+def brace_at_each_step(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, ComposedDevice | None]]:
     """(step id, brace fitted to the simulated joint) at the start of every rig step."""
-    seen: list[tuple[str, BraceSetup | None]] = []
+    seen: list[tuple[str, ComposedDevice | None]] = []
     real = SimulatedBench.begin_step
 
     def begin_step(self: SimulatedBench, step_id: str) -> None:
-        seen.append((step_id, self.sim.brace))
+        seen.append((step_id, self.sim.device))
         real(self, step_id)
 
     monkeypatch.setattr(SimulatedBench, "begin_step", begin_step)
@@ -76,7 +76,8 @@ def test_resume_inside_a_spring_set_rechecks_brace_off_then_refits(
     recheck = f"cal:{SET}:resume-1"
     assert steps[recheck] is None  # the re-check ran brace off, as the set's first check did
     fitted = steps["trial:k12:on:2"]
-    assert fitted is not None and fitted.stiffness_n_per_mm > 0  # and the brace was refitted after it
+    springs = [e for e in fitted.elements if e.type == "lever_spring"] if fitted is not None else []
+    assert springs and springs[0].number("stiffness_n_per_mm") > 0  # and the brace was refitted after it
     with h5py.File(session / "archive.h5", "r") as f:
         before = f[f"calibration/{SET}/before"].attrs
         again = f[f"calibration/{SET}/resume_1"].attrs

@@ -10,8 +10,8 @@ For each trial pair (the brace-on recording and its brace-off counterpart):
 5. energy lost per complete cycle (§5.7, Eq 10-12, `energy`), and the trial's centred loop (§6.2.3 note,
    `centring`) for the Bouc-Wen fit, which the caller runs (`models.bouc_wen`).
 
-Then, over all trials: every cycle's energy in trial order, their summary, and the spring model fit
-(§6.1, `spring_fit`) when the configuration's spring is given. `process_configuration` is a pure function:
+Then, over all trials: every cycle's energy in trial order, their summary, and the fit of the device's
+elastic elements (§6.1, `element_fit`) when the configuration's device is given. `process_configuration` is a pure function:
 arrays in, dataclasses of arrays out; it reads and writes nothing.
 """
 
@@ -27,9 +27,9 @@ import numpy.typing as npt
 from protocol_runner.analysis.branches import Outside
 from protocol_runner.analysis.centring import CentredLoop, centre
 from protocol_runner.analysis.cycles import Reference
+from protocol_runner.analysis.element_fit import ElementFit, FitTarget, fit_elements, not_applicable
 from protocol_runner.analysis.energy import EnergySummary, energy_per_cycle, summarize_energy
 from protocol_runner.analysis.filters import FILTER_KINDS, FilterKind, design_lowpass, filter_zero_phase
-from protocol_runner.analysis.spring_fit import FitTarget, SpringFit, fit_spring_model
 from protocol_runner.analysis.subtraction import robot_torque_at_equal_angle, subtract_equal_time
 from protocol_runner.analysis.transition import (
     Resampling,
@@ -92,7 +92,7 @@ class ProcessingSettings:
     cycle_reference: Reference = "mean"
     cycle_hysteresis_deg: float | None = None
     centring: Centring = "trial_mean"
-    spring_fit_target: FitTarget = "branch_mean"
+    element_fit_target: FitTarget = "branch_mean"
 
     def __post_init__(self) -> None:
         def bad(field_name: str, why: str) -> InvalidInput:
@@ -130,8 +130,8 @@ class ProcessingSettings:
             raise bad("cycle_hysteresis_deg", "must be >= 0 (or None for automatic)")
         if self.centring not in ("trial_mean", "none"):
             raise bad("centring", "must be 'trial_mean' or 'none'")
-        if self.spring_fit_target not in ("branch_mean", "all_samples"):
-            raise bad("spring_fit_target", "must be 'branch_mean' or 'all_samples'")
+        if self.element_fit_target not in ("branch_mean", "all_samples"):
+            raise bad("element_fit_target", "must be 'branch_mean' or 'all_samples'")
 
     def filter_description(self, sample_rate_hz: float | None = None) -> dict[str, Any]:
         """The filter settings as a plain dict (for the archive's `filter` JSON attribute); with the input
@@ -178,7 +178,7 @@ class ConfigurationResult:
     energy_loss_j: FloatArray  # one value per complete cycle over all trials, in trial order
     energy_cycle_trial: npt.NDArray[np.int64]  # the trial number of each energy_loss_j value
     energy: EnergySummary
-    spring: SpringFit | None  # None when the configuration's spring was not given
+    elements: ElementFit | None  # the elastic elements' fit; None when the device was not given
     settings: ProcessingSettings = field(repr=False)
 
     @property
@@ -293,17 +293,17 @@ def process_configuration(
     trials: Sequence[TrialPair],
     settings: ProcessingSettings | None = None,
     *,
-    stiffness_n_per_mm: float | None = None,
-    preload_position: int | None = None,
+    device: Sequence[object] | None = None,
 ) -> ConfigurationResult:
     """Process every trial pair of one configuration and pool the results (thesis §3-§6.1).
 
     Returns per-trial processed loops (`trials[i].angle_deg`, `.brace_torque_nm`: the archive's
     `trials/<n>/processed`), `energy_loss_j` (every complete cycle of every trial, in trial order, with
     `energy_cycle_trial`), its summary, each trial's centred loop (`centred_segments`, for the Bouc-Wen
-    fit the caller runs), and the spring model fit when `stiffness_n_per_mm` and `preload_position` are
-    given (K0 gives a "not applicable" fit; a fit the data cannot support is also "not applicable", with
-    the reason). Raises `AnalysisError` (an `InvalidInput`) naming the trial when a step cannot be done.
+    fit the caller runs), and the fit of the device's elastic elements when `device` (the configuration's
+    resolved elements: `models.elements.Element`s or ElementSetting-like objects) is given — "not
+    applicable", with the reason, for a device with nothing to fit or a loop that cannot support a fit.
+    Raises `AnalysisError` (an `InvalidInput`) naming the trial when a step cannot be done.
     """
     settings = settings if settings is not None else ProcessingSettings()
     if not trials:
@@ -314,42 +314,26 @@ def process_configuration(
     processed = tuple(process_trial(pair, settings) for pair in trials)
     energy = np.concatenate([t.energy_j for t in processed])
     cycle_trial = np.concatenate([np.full(t.energy_j.shape[0], t.trial, dtype=np.int64) for t in processed])
-    spring: SpringFit | None = None
-    if stiffness_n_per_mm is not None and preload_position is not None:
+    fit: ElementFit | None = None
+    if device is not None:
         angle_all = np.concatenate([t.angle_deg for t in processed])
         brace_all = np.concatenate([t.brace_torque_nm for t in processed])
         keep = np.isfinite(brace_all)
         try:
-            spring = fit_spring_model(
+            fit = fit_elements(
                 angle_all[keep],
                 brace_all[keep],
-                stiffness_n_per_mm,
-                preload_position,
-                target=settings.spring_fit_target,
+                device,
+                target=settings.element_fit_target,
                 reversal_deg=settings.reversal_deg,
             )
         except AnalysisError as exc:
-            nan = float("nan")
-            empty = np.zeros(0, dtype=np.float64)
-            spring = SpringFit(
-                applicable=False,
-                reason=f"not applicable: {exc.message}",
-                max_preload_mm=nan,
-                zero_offset_deg=nan,
-                rmse_nm=nan,
-                rmse_all_samples_nm=nan,
-                stiffness_n_per_mm=float(stiffness_n_per_mm),
-                preload_position=int(preload_position),
-                target=settings.spring_fit_target,
-                curve_angle_deg=empty,
-                curve_torque_nm=empty,
-                model_torque_nm=empty,
-            )
+            fit = not_applicable(exc.message, settings.element_fit_target)
     return ConfigurationResult(
         trials=processed,
         energy_loss_j=energy,
         energy_cycle_trial=cycle_trial,
         energy=summarize_energy(energy),
-        spring=spring,
+        elements=fit,
         settings=settings,
     )

@@ -40,6 +40,7 @@ DATASETS: dict[str, dict[str, str]] = {
     "configuration": {"energy_loss_j": "J", "energy_cycle_trial": "1"},
     "bouc_wen": {"angle_deg": "deg", "torque_nm": "N*m", "model_torque_nm": "N*m", "segment_lengths": "1"},
     "spring": {"angle_deg": "deg", "torque_nm": "N*m", "model_torque_nm": "N*m"},
+    "elements": {"angle_deg": "deg", "torque_nm": "N*m", "model_torque_nm": "N*m"},
     "reference": {"angle_deg": "deg", "torque_nm": "N*m"},
 }
 

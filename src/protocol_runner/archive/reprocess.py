@@ -75,6 +75,22 @@ def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output
     return out
 
 
+def archived_device(cfg: h5py.Group) -> list[tuple[str, str, dict[str, object]]]:
+    """The configuration's device as the session resolved it (its `device_json` attribute, docs/archive.md):
+    (name, type, parameters) per element; empty for an archive written before devices were declared (its
+    element fit is then not applicable). A `device_json` that is not the documented list is named."""
+    if "device_json" not in cfg.attrs:
+        return []
+    where = f"{cfg.file.filename}: {cfg.name}@device_json"
+    try:
+        doc = json.loads(attr_str(cfg, "device_json", "[]"))
+    except json.JSONDecodeError as exc:
+        raise InvalidInput(f"{where}: not valid JSON ({exc.msg})") from None
+    if not isinstance(doc, list) or not all(isinstance(e, dict) and "name" in e and "type" in e for e in doc):
+        raise InvalidInput(f"{where}: must be a JSON list of elements, each with a name and a type")
+    return [(str(e.pop("name")), str(e.pop("type")), e) for e in doc]
+
+
 def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
     """Redo what the session's process, fit and compare steps did, from the raw trials in `f`, with the
     same functions, so that unchanged settings reproduce the session's values exactly."""
@@ -107,13 +123,9 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
                 del cfg[stale]
         if not pairs:
             continue
-        stiffness = float(_quantity_attr(cfg, "stiffness_n_per_mm", 0.0))
-        preload = int(_quantity_attr(cfg, "position_index", 3))
+        enabled = getattr(fits, "elements", getattr(fits, "spring", None))
         result = process_configuration(
-            pairs,
-            settings,
-            stiffness_n_per_mm=stiffness if fits.spring.enabled else None,
-            preload_position=preload if fits.spring.enabled else None,
+            pairs, settings, device=archived_device(cfg) if enabled and enabled.enabled else None
         )
         processed_fill(name, result, settings)(f)
         if fits.bouc_wen.enabled:
@@ -141,12 +153,3 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
             for key in ("energy_mean_j", "energy_std_j", "energy_cycles", "max_angle_deg"):
                 if key in comp.attrs:
                     del comp.attrs[key]
-
-
-def _quantity_attr(cfg: h5py.Group, quantity: str, default: float) -> float:
-    """The first `<factor>.<quantity>` attribute of a configuration group (transitional, until the
-    element fit reads the archived device)."""
-    for key, value in cfg.attrs.items():
-        if key.endswith("." + quantity):
-            return float(value)
-    return default

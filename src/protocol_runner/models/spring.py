@@ -47,11 +47,9 @@ slack spring (negative extension, only possible with a preload chosen below zero
 Initial load (Eq 17): Initial_Load = Max_Preload - c * preload_angle_step * π/180 * n, for screw position
 n = 1..5 (n = 0 would be the maximum preload; the load falls as n grows).
 
-DEFAULT_MAX_PRELOAD_MM = 32 mm is a documented *choice* (the thesis does not give Max_Preload): with it the
-initial load stays positive for n = 1..5 (29.4 mm at n = 1 down to 18.9 mm at n = 5) and the medium
-spring K2 (13 N/mm) at the centre preload (n = 3) gives about 40 N·m at 100° and 43 N·m at 110° — the order
-of magnitude that, added to the shank's gravity torque and the brace friction, meets the robot's 84.8 N·m
-limit near 110° (thesis §5.2: the robot cannot pass about 110° with K2 fitted).
+The knee brace's numbers (a = 0.03 m, b = 0.19 m, c = 0.055 m, α = 20°, a 2.73° screw step, two
+springs, and the chosen Max_Preload of 32 mm) are the `lever_spring` element's parameters in
+protocols/knee_phase1.yaml (`models.elements`); nothing here defaults to them.
 """
 
 from __future__ import annotations
@@ -67,9 +65,6 @@ from protocol_runner.errors import InvalidInput
 FloatArray = npt.NDArray[np.float64]
 ArrayLike = npt.ArrayLike
 
-PRELOAD_POSITIONS: tuple[int, ...] = (1, 2, 3, 4, 5)
-"""Screw positions of the preload piece (Eq 17): 1 = most preload, 5 = least."""
-
 
 @dataclass(frozen=True)
 class SpringGeometry:
@@ -83,17 +78,17 @@ class SpringGeometry:
     n_springs: number of springs in parallel (the factor 2 of Eq 13).
     """
 
-    a_m: float = 0.03
-    b_m: float = 0.19
-    c_m: float = 0.055
-    alpha_deg: float = 20.0
-    preload_step_deg: float = 2.73
-    n_springs: int = 2
+    a_m: float
+    b_m: float
+    c_m: float
+    alpha_deg: float
+    preload_step_deg: float
+    n_springs: int
 
     def __post_init__(self) -> None:
         for name in ("a_m", "b_m", "c_m"):
             value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
+            if not (math.isfinite(value) and (value > 0.0 or (name == "c_m" and value == 0.0))):
                 raise InvalidInput(
                     f"spring geometry: {name} must be a positive length in metres, got {value!r}"
                 )
@@ -113,17 +108,6 @@ class SpringGeometry:
         return self.c_m * math.radians(self.preload_step_deg)
 
 
-THESIS_GEOMETRY = SpringGeometry()
-"""The values of thesis §6.1.1: a = 0.03 m, b = 0.19 m, c = 0.055 m, α = 20°, step = 2.73°, 2 springs."""
-
-DEFAULT_MAX_PRELOAD_MM: float = 32.0
-"""Max_Preload of Eq 17 (spring extension at screw position n = 0), in mm. A documented choice: see the
-module docstring and docs/hardware-model.md."""
-
-STIFFNESS_N_PER_MM: dict[str, float] = {"K0": 0.0, "K1": 4.4, "K2": 13.0, "K3": 20.0}
-"""Spring constants of the test matrix (thesis Appendix A, "Stiffness"); K0 = no spring."""
-
-
 def _attachment_geometry(
     angle_deg: ArrayLike, geometry: SpringGeometry
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -138,7 +122,7 @@ def _attachment_geometry(
     return x_a, y_a, length
 
 
-def spring_deflection_m(angle_deg: ArrayLike, geometry: SpringGeometry = THESIS_GEOMETRY) -> FloatArray:
+def spring_deflection_m(angle_deg: ArrayLike, geometry: SpringGeometry) -> FloatArray:
     """Spring extension beyond its undeflected length b at brace angle θ (Eq 15-16, reconstructed).
 
     δ(θ) = sqrt(r² + a² - 2 a r cos(θ - α)) - b with r = a + b: zero at θ = α, growing on both sides.
@@ -149,24 +133,18 @@ def spring_deflection_m(angle_deg: ArrayLike, geometry: SpringGeometry = THESIS_
     return result
 
 
-def _check_preload_position(preload_position: int) -> int:
-    if isinstance(preload_position, bool) or not isinstance(preload_position, int | np.integer):
-        raise InvalidInput(f"spring preload position must be an integer 1-5, got {preload_position!r}")
-    n = int(preload_position)
-    if n not in PRELOAD_POSITIONS:
-        raise InvalidInput(f"spring preload position must be 1-5 (1 = most preload), got {n}")
-    return n
+def _check_preload_position(preload_position: float) -> float:
+    ok = not isinstance(preload_position, bool) and isinstance(preload_position, int | float | np.integer)
+    if not ok or preload_position < 0 or preload_position != round(preload_position):
+        raise InvalidInput(f"spring preload position must be a whole number >= 0, got {preload_position!r}")
+    return preload_position
 
 
-def spring_initial_load_m(
-    preload_position: int,
-    max_preload_mm: float = DEFAULT_MAX_PRELOAD_MM,
-    geometry: SpringGeometry = THESIS_GEOMETRY,
-) -> float:
+def spring_initial_load_m(preload_position: float, max_preload_mm: float, geometry: SpringGeometry) -> float:
     """Initial spring extension set by the preload screw (Eq 17), in metres.
 
-    Initial_Load = Max_Preload - c * preload_angle_step * π/180 * n, n = `preload_position` in 1..5
-    (1 = most preload). Can be negative for a small `max_preload_mm` (the spring is then slack near α).
+    Initial_Load = Max_Preload - c * preload_angle_step * π/180 * n, n = `preload_position` (a whole
+    number >= 0; the knee brace has positions 1 = most preload .. 5). Can be negative for a small `max_preload_mm` (the spring is then slack near α).
     """
     n = _check_preload_position(preload_position)
     if not math.isfinite(max_preload_mm):
@@ -177,10 +155,10 @@ def spring_initial_load_m(
 def spring_force_n(
     angle_deg: ArrayLike,
     stiffness_n_per_mm: float,
-    preload_position: int,
+    preload_position: float,
     *,
-    max_preload_mm: float = DEFAULT_MAX_PRELOAD_MM,
-    geometry: SpringGeometry = THESIS_GEOMETRY,
+    max_preload_mm: float,
+    geometry: SpringGeometry,
 ) -> FloatArray:
     """Tension of one spring at brace angle θ (Eq 14): F = K (Initial_Load + δ(θ)), in newtons.
 
@@ -199,11 +177,11 @@ def spring_force_n(
 def spring_torque_nm(
     angle_deg: ArrayLike,
     stiffness_n_per_mm: float,
-    preload_position: int,
+    preload_position: float,
     *,
-    max_preload_mm: float = DEFAULT_MAX_PRELOAD_MM,
+    max_preload_mm: float,
+    geometry: SpringGeometry,
     zero_offset_deg: float = 0.0,
-    geometry: SpringGeometry = THESIS_GEOMETRY,
 ) -> FloatArray:
     """Torque of the brace springs about the joint axis at joint angle `angle_deg` (Eq 13, 14, 18), N·m.
 

@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 from ..errors import HardwareUnavailable
 from ..hardware.calibration import load_calibration_table
 from ..hardware.rig import JointConfig, Rig
+from ..models.interim_knee_device import KNEE_SIMULATOR, knee_brace
 from ..protocol.levels import Settings
 from ..protocol.loader import LoadedProtocol
 from ..protocol.stream_check import safety_limits
@@ -48,10 +49,13 @@ class SimulatedBench:
         params: SimulatorParams | None = None,
     ) -> None:
         from ..hardware.simulator.daq import SimulatedRig
-        from ..hardware.simulator.params import DEFAULT_PARAMS
+        from ..hardware.simulator.params import SimulatorParams
 
         self.sim = SimulatedRig(
-            joint_config(loaded), seed=seed, params=params or DEFAULT_PARAMS, realtime=realtime
+            joint_config(loaded),
+            seed=seed,
+            params=params or SimulatorParams(**KNEE_SIMULATOR),  # INTERIM until the rig file (PROTO)
+            realtime=realtime,
         )
         self.rig: Rig = self.sim.make_rig()
         self.mode = "dry-run"
@@ -60,19 +64,11 @@ class SimulatedBench:
         self.sim.begin_step(step_id)
 
     def fit_brace(self, settings: Settings | None) -> None:
-        from ..hardware.simulator.params import BraceSetup
-
-        if settings is None:
-            self.sim.set_brace(None)
-        else:
-            self.sim.set_brace(
-                BraceSetup(
-                    rom_deg=settings.brace_rom_deg,
-                    friction_nm=settings.friction_nm,
-                    stiffness_n_per_mm=settings.stiffness_n_per_mm,
-                    preload_position=settings.preload_position,
-                )
-            )
+        device = getattr(settings, "device", None)
+        if settings is not None and device is None:  # INTERIM until the protocol declares its device (PROTO)
+            s = settings
+            device = knee_brace(s.brace_rom_deg, s.friction_nm, s.stiffness_n_per_mm, s.preload_position)
+        self.sim.set_device(device)
 
     def close(self) -> None:
         self.sim.ao.close()

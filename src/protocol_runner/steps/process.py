@@ -1,8 +1,8 @@
-"""Processing step: one configuration's archived trials -> the brace's own torque, energy, spring fit.
+"""Processing step: one configuration's archived trials -> the device's own torque, energy, element fit.
 
 Reads the trial units (never the rig), then `analysis.pipeline.process_configuration`: transition
 removal (§3.3.1), zero-phase filtering (§3.2), equal-angle subtraction of the brace-off torque (§3.3,
-§5.6), cycles and energy per cycle (Eq 10-12), and the physical spring model fit (§6.1).
+§5.6), cycles and energy per cycle (Eq 10-12), and the fit of the device's elastic elements (§6.1).
 """
 
 from __future__ import annotations
@@ -10,6 +10,7 @@ from __future__ import annotations
 from ..analysis.pipeline import TrialPair, process_configuration
 from ..archive.paths import configuration_name, recording_path
 from ..archive.results import processed_fill, read_recording
+from ..models.interim_knee_device import lever_spring
 from ..protocol.plan import ProcessStep
 from .context import StepContext, StepOutcome
 
@@ -32,12 +33,13 @@ def run(step: ProcessStep, ctx: StepContext) -> StepOutcome:
         if getattr(s, "configuration", None) == step.configuration and s.kind == "trial"
     )
     settings = cfg_step.settings  # type: ignore[attr-defined]
-    spring_enabled = ctx.loaded.protocol.fits.spring.enabled
+    fits = ctx.loaded.protocol.fits
+    enabled = getattr(fits, "elements", getattr(fits, "spring", None))
+    device = getattr(settings, "device", None)
+    if device is None:  # INTERIM until the protocol declares its device (helper PROTO)
+        device = lever_spring(settings.stiffness_n_per_mm, settings.preload_position)
     result = process_configuration(
-        pairs,
-        ctx.processing,
-        stiffness_n_per_mm=settings.stiffness_n_per_mm if spring_enabled else None,
-        preload_position=settings.preload_position if spring_enabled else None,
+        pairs, ctx.processing, device=device if enabled and enabled.enabled else None
     )
     summary = (
         f"{result.energy.n} cycles, energy {result.energy.mean_j:.2f} +- {result.energy.std_j:.2f} J"

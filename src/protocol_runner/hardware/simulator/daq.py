@@ -41,13 +41,14 @@ from protocol_runner.hardware.conversions import (
     volts_to_angle,
 )
 from protocol_runner.hardware.interfaces import ScanBlock
+from protocol_runner.hardware.simulator.device import ComposedDevice
 from protocol_runner.hardware.simulator.kernels import GRID_TOL, ROLE_ANGLE, ROLE_TORQUE
 from protocol_runner.hardware.simulator.output import (
     SimulatedAnalogOutput,
     SimulatedClock,
     check_channel,
 )
-from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, BraceSetup, SimulatorParams
+from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, SimulatorParams
 from protocol_runner.hardware.simulator.plant import JointPlant
 
 if TYPE_CHECKING:
@@ -274,8 +275,9 @@ class SimulatedAnalogInput:
 
 class SimulatedRig:
     """The rig in a box for dry runs: a simulated clock, USB-3105 and DT9814 wired to a model of the RSST
-    joint named by `joint` (its ranges, channels, calibration tables and park angle) with or without the
-    brace. Hand `make_rig()` to the steps exactly as the hardware rig would be."""
+    joint named by `joint` (its ranges, channels, calibration tables and park angle) with or without a
+    device under test (`set_device`). Hand `make_rig()` to the steps exactly as the hardware rig would
+    be."""
 
     def __init__(
         self,
@@ -300,8 +302,9 @@ class SimulatedRig:
         return self._model.plant
 
     @property
-    def brace(self) -> BraceSetup | None:
-        return self._model.plant.brace
+    def device(self) -> ComposedDevice | None:
+        """The device as fitted (its elements and how the plant composed them), or None."""
+        return self._model.plant.device
 
     @property
     def step_id(self) -> str:
@@ -310,13 +313,16 @@ class SimulatedRig:
     def begin_step(self, step_id: str) -> None:
         """Start step `step_id`: reseed the noise from (seed, step id), put the joint at rest at the park
         angle with its friction states relaxed, restart the plant's time grid now and clear the output
-        records. The brace stays as fitted."""
+        records. The device stays as fitted."""
         self.ao.clear_records()
         self._model.begin_step(step_id)
 
-    def set_brace(self, brace: BraceSetup | None) -> None:
-        """The operator fits the brace set up as `brace` (or removes it, with None)."""
-        self._model.plant.set_brace(brace)
+    def set_device(self, elements: Sequence[object] | None) -> None:
+        """The operator fits the device under test made of `elements` (or removes it, with None): objects
+        with .name, .type and .params (a mapping or (key, value) pairs, e.g. the protocol's resolved
+        ElementSetting), (name, type, params) tuples, or `models.elements.Element`. InvalidInput names a
+        bad element parameter."""
+        self._model.plant.set_device(elements)
 
     def make_rig(self) -> Rig:
         """A `hardware.rig.Rig` bound to this simulator's boards and clock."""

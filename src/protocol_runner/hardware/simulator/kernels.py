@@ -2,7 +2,8 @@
 and the input board's quantisation, in one call per scan read. The physics they implement is described
 in `plant.py` (and docs/simulator.md); `JointPlant` holds their state and calls them.
 
-Kernels take records, not long argument lists: the joint `(state, istate, parameters, spring table)`,
+Kernels take records, not long argument lists: the joint `(state, istate, parameters, angle table,
+brakes, brake states)`,
 the command history, a scan's `timing` (float64) and `rows` (int64) arrays read through the named
 index constants below, the sensor chain and the ADC.
 """
@@ -14,6 +15,14 @@ import math
 import numpy as np
 import numpy.typing as npt
 from numba import njit
+
+from protocol_runner.models.element_torques import (
+    cuff_shift_torque_nm,
+    dahl_update,
+    rom_stops_torque_nm,
+    stribeck_level_nm,
+    viscous_torque_nm,
+)
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -30,31 +39,35 @@ P_GRAVITY_ZERO = 7
 P_ROBOT_F = 8
 P_ROBOT_TRANS = 9
 P_ROBOT_VISC = 10
-P_BRACE_ON = 11
-P_BRACE_F = 12
-P_BRACE_TRANS = 13
-P_STATIC_EXCESS = 14
-P_STRIBECK_V = 15
-P_ROM_LO = 16
-P_ROM_HI = 17
-P_SLACK = 18
-P_SLACK_K = 19
-P_STOP_K = 20
-P_BUMP_ANGLE = 21
-P_BUMP_WIDTH = 22
-P_BUMP_TORQUE = 23
-P_BUMP_V = 24
-P_SPRING_X0 = 25
-P_SPRING_DX = 26
-N_PARAMS = 27
+P_TABLE_ON = 11  # 1 when the device has angle-only torques (elastic elements, masses): the table applies
+P_DAMPING = 12  # the device's viscous dampers, summed (N·m per deg/s)
+P_STOPS_ON = 13
+P_ROM_LO = 14
+P_ROM_HI = 15
+P_SLACK = 16
+P_SLACK_K = 17
+P_STOP_K = 18
+P_BUMP_ANGLE = 19
+P_BUMP_WIDTH = 20
+P_BUMP_TORQUE = 21
+P_BUMP_V = 22
+P_TABLE_X0 = 23
+P_TABLE_DX = 24
+N_PARAMS = 25
+
+# Columns of the brake array (one row per group of Coulomb brakes sharing their smoothing).
+B_TORQUE = 0
+B_TRANSITION = 1
+B_EXCESS = 2
+B_STRIBECK_V = 3
+N_BRAKE_COLS = 4
 
 # Indices into the float state vector.
 S_ANGLE = 0
 S_SPEED = 1
 S_Z_ROBOT = 2
-S_Z_BRACE = 3
-S_LOAD = 4
-N_STATE = 5
+S_LOAD = 3
+N_STATE = 4
 
 # Indices into the integer state vector.
 I_STEP = 0
@@ -63,57 +76,43 @@ N_ISTATE = 2
 
 
 @njit(cache=True)
-def _stop_torque_nm(penetration_deg: float, p: FloatArray) -> float:
-    """Torque of one range-of-motion stop penetrated by `penetration_deg` (> 0): slack, then stiff."""
-    slack = p[P_SLACK]
-    if penetration_deg <= slack:
-        return p[P_SLACK_K] * penetration_deg
-    return p[P_SLACK_K] * slack + p[P_STOP_K] * (penetration_deg - slack)
-
-
-@njit(cache=True)
 def _load_nm(
-    angle_deg: float, speed_deg_s: float, z_robot: float, z_brace: float, p: FloatArray, spring: FloatArray
+    angle_deg: float,
+    speed_deg_s: float,
+    z_robot: float,
+    z_brakes: FloatArray,
+    p: FloatArray,
+    table: FloatArray,
 ) -> float:
-    """Total load torque the actuator holds at this state (positive = the robot pushes to flex)."""
+    """Total load torque the actuator holds at this state (positive = the robot pushes to +angle): the
+    robot's gravity and friction, then the device's elements (`models.element_torques`)."""
     load = p[P_GRAVITY] * math.sin(math.radians(angle_deg - p[P_GRAVITY_ZERO]))
     load += z_robot + p[P_ROBOT_VISC] * speed_deg_s
-    if p[P_BRACE_ON] > 0.5:
-        # springs: linear interpolation in the precomputed table, clamped at its ends
-        u = (angle_deg - p[P_SPRING_X0]) / p[P_SPRING_DX]
-        n = spring.shape[0]
+    if p[P_TABLE_ON] > 0.5:
+        # elastic elements and masses: linear interpolation in the precomputed table, clamped at its ends
+        u = (angle_deg - p[P_TABLE_X0]) / p[P_TABLE_DX]
+        n = table.shape[0]
         if u <= 0.0:
-            load += spring[0]
+            load += table[0]
         elif u >= n - 1:
-            load += spring[n - 1]
+            load += table[n - 1]
         else:
             i = int(u)
             f = u - i
-            load += spring[i] * (1.0 - f) + spring[i + 1] * f
-        load += z_brace
-        pen_lo = p[P_ROM_LO] - angle_deg
-        if pen_lo > 0.0:
-            load -= _stop_torque_nm(pen_lo, p)
-        pen_hi = angle_deg - p[P_ROM_HI]
-        if pen_hi > 0.0:
-            load += _stop_torque_nm(pen_hi, p)
-        if p[P_BUMP_TORQUE] > 0.0:
-            d = (angle_deg - p[P_BUMP_ANGLE]) / p[P_BUMP_WIDTH]
-            if d * d < 30.0:
-                v = min(abs(speed_deg_s) / p[P_BUMP_V], 3.0)
-                load += p[P_BUMP_TORQUE] * v * math.exp(-d * d)
+            load += table[i] * (1.0 - f) + table[i + 1] * f
+    for g in range(z_brakes.shape[0]):
+        load += z_brakes[g]
+    if p[P_DAMPING] != 0.0:
+        load += viscous_torque_nm(p[P_DAMPING], speed_deg_s)
+    if p[P_STOPS_ON] > 0.5:
+        load += rom_stops_torque_nm(
+            angle_deg, p[P_ROM_LO], p[P_ROM_HI], p[P_SLACK], p[P_SLACK_K], p[P_STOP_K]
+        )
+    if p[P_BUMP_TORQUE] > 0.0:
+        load += cuff_shift_torque_nm(
+            angle_deg, speed_deg_s, p[P_BUMP_ANGLE], p[P_BUMP_WIDTH], p[P_BUMP_TORQUE], p[P_BUMP_V]
+        )
     return load
-
-
-@njit(cache=True)
-def _dahl(z: float, level: float, step_deg: float, transition_deg: float) -> float:
-    """Exact Dahl update over a displacement `step_deg`: z relaxes towards sign(step)·level."""
-    if level <= 0.0:
-        return 0.0
-    if step_deg == 0.0:
-        return z
-    target = level if step_deg > 0.0 else -level
-    return target + (z - target) * math.exp(-abs(step_deg) / transition_deg)
 
 
 @njit(cache=True)
@@ -121,7 +120,9 @@ def integrate(
     state: FloatArray,
     istate: IntArray,
     p: FloatArray,
-    spring: FloatArray,
+    table: FloatArray,
+    brakes: FloatArray,
+    z_brakes: FloatArray,
     cmd_step: IntArray,
     cmd_target_deg: FloatArray,
     n_cmd: int,
@@ -135,7 +136,8 @@ def integrate(
     `cmd_step[:n_cmd]` / `cmd_target_deg[:n_cmd]` is the zero-order-hold command history: target i holds
     from grid step cmd_step[i] on (sorted). `sample_step` lists the grid steps (sorted) at which to record
     the real angle and the load torque into the outputs; samples at steps beyond `step_end` are left.
-    Returns how many samples were written. `state` / `istate` are updated in place.
+    Returns how many samples were written. `state` / `istate` / `z_brakes` are updated in place.
+    `brakes` has one row per brake group (columns B_*), `z_brakes` its Dahl states.
     """
     dt = p[P_DT]
     inv_tau = 1.0 / p[P_TAU]
@@ -146,7 +148,7 @@ def integrate(
     angle = state[S_ANGLE]
     speed = state[S_SPEED]
     z_r = state[S_Z_ROBOT]
-    z_b = state[S_Z_BRACE]
+    n_brakes = brakes.shape[0]
     load = state[S_LOAD]
     k = istate[I_STEP]
     ptr = istate[I_CMD]
@@ -173,12 +175,13 @@ def integrate(
             speed += (t_lo - load) * p[P_RELIEF]
         step = speed * dt
         angle += step
-        z_r = _dahl(z_r, p[P_ROBOT_F], step, p[P_ROBOT_TRANS])
-        if p[P_BRACE_ON] > 0.5:
-            vs = speed / p[P_STRIBECK_V]
-            level = p[P_BRACE_F] * (1.0 + p[P_STATIC_EXCESS] * math.exp(-vs * vs))
-            z_b = _dahl(z_b, level, step, p[P_BRACE_TRANS])
-        load = _load_nm(angle, speed, z_r, z_b, p, spring)
+        z_r = dahl_update(z_r, p[P_ROBOT_F], step, p[P_ROBOT_TRANS])
+        for g in range(n_brakes):
+            level = stribeck_level_nm(
+                brakes[g, B_TORQUE], speed, brakes[g, B_EXCESS], brakes[g, B_STRIBECK_V]
+            )
+            z_brakes[g] = dahl_update(z_brakes[g], level, step, brakes[g, B_TRANSITION])
+        load = _load_nm(angle, speed, z_r, z_brakes, p, table)
         k += 1
         while j < n_samples and sample_step[j] <= k:
             out_angle_deg[j] = angle
@@ -187,7 +190,6 @@ def integrate(
     state[S_ANGLE] = angle
     state[S_SPEED] = speed
     state[S_Z_ROBOT] = z_r
-    state[S_Z_BRACE] = z_b
     state[S_LOAD] = load
     istate[I_STEP] = k
     istate[I_CMD] = ptr
@@ -244,8 +246,9 @@ R_COUNT = 2  # how many rows
 R_N_CMD = 3  # how many commands of the history are valid
 N_ROWS_REC = 4
 
-#: (state, istate, parameters, spring table): the joint as the kernels see it (updated in place).
-Joint = tuple[FloatArray, IntArray, FloatArray, FloatArray]
+#: (state, istate, parameters, angle table, brakes, brake states): the joint as the kernels see it (the
+#: states are updated in place).
+Joint = tuple[FloatArray, IntArray, FloatArray, FloatArray, FloatArray, FloatArray]
 #: (grid step of each command, its target angle): the zero-order-hold command history.
 Commands = tuple[IntArray, FloatArray]
 #: (channel roles, noise volts, angle knots, their volts, torque knots, their volts).
@@ -260,7 +263,7 @@ def integrate_rows(
     a scan started at timing[T_START] at timing[T_RATE] (row i at t0 + i / rate, sampled on grid step
     floor((t - origin) / dt)), then `telemetry_volts`. Returns the volts of the rows whose step was
     reached (a leading part)."""
-    state, istate, p, spring = joint
+    state, istate, p, table, brakes, z_brakes = joint
     cmd_step, cmd_target_deg = commands
     roles, noise_v, angle_knots, angle_knot_volts, torque_knots, torque_knot_volts = sensors
     t0_s = timing[T_START]
@@ -280,7 +283,9 @@ def integrate_rows(
         state,
         istate,
         p,
-        spring,
+        table,
+        brakes,
+        z_brakes,
         cmd_step,
         cmd_target_deg,
         rows[R_N_CMD],

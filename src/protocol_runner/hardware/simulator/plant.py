@@ -1,4 +1,4 @@
-"""The rig's physics: the RSST knee joint (hydraulic position servo) and the brace, integrated by numba.
+"""The rig's physics: an RSST joint (hydraulic position servo) and the device under test, integrated by numba.
 
 Model (DESIGN.md "The DAQ simulator"; every constant is in `params.py`; docs/simulator.md):
 
@@ -20,9 +20,10 @@ Loads, in the sign convention of `models.spring` (positive = the robot must push
 
 - shank gravity: G · sin(θ - θ_0) (the robot stands: the straight knee hangs);
 - robot friction: a Dahl state z_r (Coulomb level F_r, rounded reversals) + viscous c·dθ/dt;
-- brace (when fitted): springs (Eq 13-18, table precomputed with `models.spring.spring_torque_nm`),
-  brake + hinge friction as a Dahl state z_b whose level has a Stribeck excess at low speed, range-of-motion
-  stops with misalignment slack then a stiff end (§5.2), and the low-angle "bump" (§5.1, §5.4).
+- the device (when fitted), composed from its elements by `device.compose` (equations in
+  `models.element_torques`): elastic elements and masses as one precomputed angle table, Coulomb brakes as
+  Dahl states whose level has a Stribeck excess at low speed, viscous dampers, range-of-motion stops with
+  misalignment slack then a stiff end (§5.2), and the simulator-tuned cuff shift (§5.1, §5.4).
 
 The integrator is explicit Euler on a fixed grid (`plant_step_s`); Dahl states use the exact exponential
 update over each step, so they are unconditionally stable. Everything inside is deterministic.
@@ -30,26 +31,26 @@ update over each step, so they are unconditionally stable. Everything inside is 
 
 from __future__ import annotations
 
-import math
+from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
 
+from protocol_runner.hardware.simulator.device import ComposedDevice, as_elements, compose
 from protocol_runner.hardware.simulator.kernels import (
     I_CMD,
     I_STEP,
+    N_BRAKE_COLS,
     N_ISTATE,
     N_PARAMS,
     N_ROWS_REC,
     N_STATE,
     N_TIMING,
-    P_BRACE_F,
-    P_BRACE_ON,
-    P_BRACE_TRANS,
     P_BUMP_ANGLE,
     P_BUMP_TORQUE,
     P_BUMP_V,
     P_BUMP_WIDTH,
+    P_DAMPING,
     P_DT,
     P_EPS,
     P_GRAVITY,
@@ -62,13 +63,13 @@ from protocol_runner.hardware.simulator.kernels import (
     P_ROM_LO,
     P_SLACK,
     P_SLACK_K,
-    P_SPRING_DX,
-    P_SPRING_X0,
-    P_STATIC_EXCESS,
     P_STOP_K,
-    P_STRIBECK_V,
+    P_STOPS_ON,
     P_T_HI,
     P_T_LO,
+    P_TABLE_DX,
+    P_TABLE_ON,
+    P_TABLE_X0,
     P_TAU,
     R_COUNT,
     R_FIRST,
@@ -77,7 +78,6 @@ from protocol_runner.hardware.simulator.kernels import (
     S_ANGLE,
     S_LOAD,
     S_SPEED,
-    S_Z_BRACE,
     S_Z_ROBOT,
     T_ORIGIN,
     T_RATE,
@@ -91,27 +91,13 @@ from protocol_runner.hardware.simulator.kernels import (
     integrate_rows,
     scan_rows,
 )
-from protocol_runner.hardware.simulator.params import BraceSetup, SimulatorParams
-from protocol_runner.models.spring import spring_force_n, spring_torque_nm
-
-
-def spring_table_nm(
-    brace: BraceSetup, range_deg: tuple[float, float], step_deg: float
-) -> tuple[float, FloatArray]:
-    """Spring torque (Eq 13-18, `models.spring.spring_torque_nm`) tabulated every `step_deg` over the
-    joint range widened by 60° on both sides; returns (first angle, torques)."""
-    lo = float(range_deg[0]) - 60.0
-    hi = float(range_deg[1]) + 60.0
-    n = math.ceil((hi - lo) / step_deg) + 1
-    angles = lo + step_deg * np.arange(n, dtype=np.float64)
-    if brace.stiffness_n_per_mm == 0.0:
-        return lo, np.zeros(n, dtype=np.float64)
-    torque = spring_torque_nm(angles, brace.stiffness_n_per_mm, brace.preload_position)
-    return lo, np.ascontiguousarray(torque, dtype=np.float64)
+from protocol_runner.hardware.simulator.params import SimulatorParams
+from protocol_runner.models.elements import Element
 
 
 class JointPlant:
-    """One simulated joint (with or without the brace) on a fixed time grid of `params.plant_step_s`.
+    """One simulated joint (with or without a device under test) on a fixed time grid of
+    `params.plant_step_s`.
 
     Time is counted in grid steps from the last `reset`. Commands are real target angles (the robot's own
     input nonlinearity already applied by the caller) holding from a grid step on; `advance` integrates up
@@ -141,19 +127,12 @@ class JointPlant:
         p[P_ROBOT_F] = params.robot_friction_nm
         p[P_ROBOT_TRANS] = params.robot_friction_transition_deg
         p[P_ROBOT_VISC] = params.robot_viscous_nm_per_deg_s
-        p[P_BRACE_TRANS] = params.brake_friction_transition_deg
-        p[P_STATIC_EXCESS] = params.brake_static_excess
-        p[P_STRIBECK_V] = params.brake_stribeck_speed_deg_s
-        p[P_SLACK] = params.rom_slack_deg
-        p[P_SLACK_K] = params.rom_slack_stiffness_nm_per_deg
-        p[P_STOP_K] = params.rom_stop_stiffness_nm_per_deg
-        p[P_BUMP_ANGLE] = params.bump_angle_deg
-        p[P_BUMP_WIDTH] = params.bump_width_deg
-        p[P_BUMP_V] = params.bump_reference_speed_deg_s
-        p[P_SPRING_DX] = params.spring_table_step_deg
+        p[P_TABLE_DX] = params.spring_table_step_deg
         self._p = p
-        self._spring = np.zeros(2, dtype=np.float64)
-        self.brace: BraceSetup | None = None
+        self._table = np.zeros(2, dtype=np.float64)
+        self._brakes = np.zeros((0, N_BRAKE_COLS), dtype=np.float64)
+        self._z_brakes = np.zeros(0, dtype=np.float64)
+        self.device: ComposedDevice | None = None
         self._state = np.zeros(N_STATE, dtype=np.float64)
         self._istate = np.zeros(N_ISTATE, dtype=np.int64)
         self._cmd_step = np.zeros(1024, dtype=np.int64)
@@ -163,37 +142,31 @@ class JointPlant:
         self._pending_step: list[int] = []
         self._pending_target: list[float] = []
         self._last_cmd_step = 0
-        self.set_brace(None)
+        self.set_device(None)
         self.reset(0.5 * (self.range_deg[0] + self.range_deg[1]))
 
     # --- set-up ---------------------------------------------------------------------------------------
-    def set_brace(self, brace: BraceSetup | None) -> None:
-        """Fit (or remove, with None) the brace. Resets the brace's friction state; keeps the joint's."""
+    def set_device(self, elements: Sequence[Element] | Sequence[object] | None) -> None:
+        """Fit (or remove, with None or no elements) the device under test: its elements composed
+        (`device.compose`). Resets the device's friction states; keeps the joint's."""
         p = self._p
-        self.brace = brace
-        if brace is None:
-            p[P_BRACE_ON] = 0.0
-            p[P_BRACE_F] = 0.0
-            p[P_BUMP_TORQUE] = 0.0
-            self._spring = np.zeros(2, dtype=np.float64)
-            p[P_SPRING_X0] = 0.0
-        else:
-            params = self.params
-            p[P_BRACE_ON] = 1.0
-            p[P_BRACE_F] = brace.friction_nm + params.brace_pivot_friction_nm
-            p[P_ROM_LO] = float(brace.rom_deg[0])
-            p[P_ROM_HI] = float(brace.rom_deg[1])
-            x0, table = spring_table_nm(brace, self.range_deg, params.spring_table_step_deg)
-            p[P_SPRING_X0] = x0
-            self._spring = table
-            force_n = 0.0
-            if brace.stiffness_n_per_mm > 0.0:
-                force_n = float(
-                    spring_force_n(params.bump_angle_deg, brace.stiffness_n_per_mm, brace.preload_position)
-                )
-            ref = params.bump_reference_force_n
-            p[P_BUMP_TORQUE] = params.bump_torque_nm * (ref / (ref + force_n) if ref > 0.0 else 0.0)
-        self._state[S_Z_BRACE] = 0.0
+        found = as_elements(elements)
+        dev = compose(found, self.range_deg, self.params.spring_table_step_deg) if found else None
+        self.device = dev
+        p[P_TABLE_ON] = p[P_TABLE_X0] = p[P_DAMPING] = p[P_STOPS_ON] = p[P_BUMP_TORQUE] = 0.0
+        self._table = np.zeros(2, dtype=np.float64)
+        self._brakes = np.zeros((0, N_BRAKE_COLS), dtype=np.float64)
+        if dev is not None:
+            if dev.table is not None:
+                p[P_TABLE_ON], p[P_TABLE_X0], self._table = 1.0, dev.table_x0_deg, dev.table
+            self._brakes = dev.brakes
+            p[P_DAMPING] = dev.damping_nm_s_per_deg
+            if dev.stops is not None:
+                p[P_STOPS_ON] = 1.0
+                p[P_ROM_LO], p[P_ROM_HI], p[P_SLACK], p[P_SLACK_K], p[P_STOP_K] = dev.stops
+            if dev.bump is not None:
+                p[P_BUMP_ANGLE], p[P_BUMP_WIDTH], p[P_BUMP_TORQUE], p[P_BUMP_V] = dev.bump
+        self._z_brakes = np.zeros(self._brakes.shape[0], dtype=np.float64)
         self._refresh_load()
 
     def reset(self, angle_deg: float) -> None:
@@ -201,6 +174,7 @@ class JointPlant:
         at grid step 0. If the load there exceeds the actuator's limit (a brace stop set beyond the park
         angle), the joint rests instead where the load equals the limit: the stop pushed it that far."""
         self._state[:] = 0.0
+        self._z_brakes[:] = 0.0
         self._state[S_ANGLE] = self._rest_angle_deg(float(angle_deg))
         self._istate[:] = 0
         self._integrated_step = 0
@@ -213,8 +187,10 @@ class JointPlant:
 
     def load_at_nm(self, angle_deg: float, speed_deg_s: float = 0.0) -> float:
         """The load torque at `angle_deg` moving at `speed_deg_s` with the friction states relaxed (z = 0):
-        gravity + viscous + the brace's springs, stops and bump (for diagnostics and tests)."""
-        return float(_load_nm(float(angle_deg), float(speed_deg_s), 0.0, 0.0, self._p, self._spring))
+        gravity + viscous + the device's elastic elements, masses, dampers, stops and cuff shift (for
+        diagnostics and tests)."""
+        zero = np.zeros(self._brakes.shape[0], dtype=np.float64)
+        return float(_load_nm(float(angle_deg), float(speed_deg_s), 0.0, zero, self._p, self._table))
 
     def _static_load_nm(self, angle_deg: float) -> float:
         return self.load_at_nm(angle_deg)
@@ -224,9 +200,9 @@ class JointPlant:
         load = self._static_load_nm(angle_deg)
         if t_lo <= load <= t_hi:
             return angle_deg
-        # the load falls back inside the limits towards the middle of the brace's range
+        # the load falls back inside the limits towards the middle of the device's stops
         limit = t_hi if load > t_hi else t_lo
-        towards = 0.5 * (self._p[P_ROM_LO] + self._p[P_ROM_HI]) if self.brace is not None else angle_deg
+        towards = 0.5 * (self._p[P_ROM_LO] + self._p[P_ROM_HI]) if self._p[P_STOPS_ON] > 0.5 else angle_deg
         a, b = angle_deg, towards
         if (self._static_load_nm(b) - limit) * (load - limit) > 0.0:
             return angle_deg  # no crossing: leave it (the relief term will act)
@@ -240,7 +216,7 @@ class JointPlant:
 
     def _refresh_load(self) -> None:
         s = self._state
-        s[S_LOAD] = _load_nm(s[S_ANGLE], s[S_SPEED], s[S_Z_ROBOT], s[S_Z_BRACE], self._p, self._spring)
+        s[S_LOAD] = _load_nm(s[S_ANGLE], s[S_SPEED], s[S_Z_ROBOT], self._z_brakes, self._p, self._table)
 
     # --- running --------------------------------------------------------------------------------------
     @property
@@ -348,7 +324,7 @@ class JointPlant:
         return out
 
     def _joint(self) -> Joint:
-        return (self._state, self._istate, self._p, self._spring)
+        return (self._state, self._istate, self._p, self._table, self._brakes, self._z_brakes)
 
     def advance(self, step_end: int, sample_step: IntArray) -> tuple[FloatArray, FloatArray]:
         """Integrate to grid step `step_end`; return (real angle, load torque) at each of the sorted
@@ -361,7 +337,9 @@ class JointPlant:
             self._state,
             self._istate,
             self._p,
-            self._spring,
+            self._table,
+            self._brakes,
+            self._z_brakes,
             self._cmd_step,
             self._cmd_target,
             self._n_cmd,

@@ -1,14 +1,16 @@
-"""Fit of the physical spring model (thesis §6.1, Eq 13-18) to a brace loop."""
+"""The element fit of the knee brace's lever spring (thesis §6.1, Eq 13-18) to a brace loop: what the
+former spring fit did, now the lever_spring element's fit of max_preload_mm and zero_offset_deg."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from protocol_runner.analysis.spring_fit import branch_midline, fit_spring_model
+from protocol_runner.analysis.element_fit import branch_midline
 from protocol_runner.analysis.validation import AnalysisError
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.spring import spring_torque_nm
+
+from ..knee_device import fit_spring_model, spring_torque_nm
 
 TRUE_PRELOAD_MM = 24.0
 TRUE_OFFSET_DEG = 4.0
@@ -74,11 +76,11 @@ def test_no_spring_is_not_applicable_rather_than_a_crash() -> None:
 
 def test_bad_configuration_is_a_user_error() -> None:
     angle, torque, _ = _loop()
-    with pytest.raises(InvalidInput, match="preload position"):
-        fit_spring_model(angle, torque, 13.0, 9)
-    with pytest.raises(AnalysisError, match="stiffness"):
+    with pytest.raises(InvalidInput, match="preload_index"):
+        fit_spring_model(angle, torque, 13.0, 2.5)
+    with pytest.raises(InvalidInput, match="stiffness_n_per_mm"):
         fit_spring_model(angle, torque, -1.0, 3)
-    with pytest.raises(AnalysisError, match="unknown spring-fit target"):
+    with pytest.raises(AnalysisError, match="unknown element-fit target"):
         fit_spring_model(angle, torque, 13.0, 3, target="median")  # type: ignore[arg-type]
 
 

@@ -7,9 +7,10 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 
-from protocol_runner.analysis.spring_fit import branch_midline, fit_spring_model
+from protocol_runner.analysis.element_fit import branch_midline
 from protocol_runner.analysis.validation import AnalysisError
-from protocol_runner.models.spring import spring_torque_nm
+
+from ..knee_device import fit_spring_model, spring_torque_nm
 
 
 def _uneven_loop() -> tuple[np.ndarray, np.ndarray]:
@@ -73,7 +74,10 @@ def test_the_midline_reaches_the_top_of_a_loop_that_dwells_there() -> None:
 def test_no_spring_reports_stiffness_zero() -> None:
     angle = np.linspace(10.0, 100.0, 50)
     fit = fit_spring_model(np.concatenate([angle, angle[::-1]]), np.zeros(100), 0.0, 2)
-    assert not fit.applicable and fit.stiffness_n_per_mm == 0.0 and fit.preload_position == 2
+    assert not fit.applicable and "stiffness 0" in fit.reason
+    assert (
+        fit.elements[0].number("stiffness_n_per_mm") == 0.0 and fit.elements[0].number("preload_index") == 2
+    )
 
 
 def test_three_angles_are_enough_for_the_two_parameters_and_two_are_not() -> None:
