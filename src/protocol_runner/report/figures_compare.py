@@ -116,7 +116,7 @@ def energy_bars_figure(data: ReportData, comparison: Comparison) -> str:
             width=0.6,
         )
         for xi, c in zip(x, cfgs, strict=True):
-            ax.text(xi, 0.0, str(c.key), ha="center", va="bottom", fontsize=6.5, color="white")
+            ax.text(float(xi), 0.0, str(c.key), ha="center", va="bottom", fontsize=6.5, color="white")
         ax.set_xticks(x, [axis.tick_label(c) for c in cfgs], fontsize=5.5)
         ax.xaxis.set_label_coords(0.5, -0.2)  # below the two-line tick labels
     ax.set_ylim(bottom=0.0)

@@ -82,7 +82,7 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
     cmd = sample_trajectory(step.trajectory, rig.joint.output_rate_hz, ctx.loaded.base_dir)
     rec = run_motion(rig, cmd, where=record_as, stop_requested=ctx.stop_requested)
     p = dict(step.trajectory.params)
-    target = float(p["from_deg"]) + float(p["step_deg"])
+    target = float(p["from_deg"]) + float(p["step_deg"])  # type: ignore[arg-type]  # numbers (PROTO's fix pending)
     limits = ctx.loaded.protocol.calibration_check
     settle_window = min(1.0, float(ctx.loaded.protocol.trajectories.calibration_step.hold_s) / 2)
     cmd_in = command_on_input_base(rec.command_time_s, rec.command_deg, rec.input_time_s)
@@ -130,7 +130,15 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
         },
     )
     fill = _fill(
-        step.set, when, record_as, rec, resp, verdict, message, limits.model_dump(), float(p["step_deg"])
+        step.set,
+        when,
+        record_as,
+        rec,
+        resp,
+        verdict,
+        message,
+        limits.model_dump(),
+        float(p["step_deg"]),  # type: ignore[arg-type]
     )
     summary = f"{verdict}: settle error {resp.settle_error_deg:.2f} deg, tau {resp.time_constant_s:.3f} s"
     return StepOutcome(fill, summary, stop)
