@@ -111,3 +111,12 @@ def test_quantities_print_with_their_units() -> None:
     assert format_quantity("share_percent", 25.0) == "25%"
     assert quantity_title("screw_turns") == "screw"
     assert axis_label("pace", "speed_deg_s") == "pace: speed (deg/s)"
+
+
+def test_element_parameters_keep_words_and_lists_of_words() -> None:
+    text = json.dumps(
+        [{"name": "s", "type": "lever_spring", "k_n_per_mm": 4, "fit": ["zero_offset_deg"], "side": "left"}]
+    )
+    view = settings_from_attrs({"device_json": text}, "config_01")
+    (element,) = view.device
+    assert element.params == (("k_n_per_mm", 4.0), ("fit", ("zero_offset_deg",)), ("side", "left"))

@@ -21,6 +21,7 @@ from typing import Any
 from protocol_runner.errors import InvalidInput
 
 Quantity = float | tuple[float, ...]
+Param = Quantity | str | tuple[str, ...]  # an element parameter (words for constants and lists such as `fit`)
 
 #: Display label of each quantity-name unit suffix (docs/protocol.md "Units"). Longest suffix first
 #: when matching, so `_nm_per_deg` wins over `_deg` and `_deg_s2` over `_s2`.
@@ -133,9 +134,9 @@ class DeviceElement:
 
     name: str
     type: str
-    params: tuple[tuple[str, Quantity | str], ...]
+    params: tuple[tuple[str, Param], ...]
 
-    def param(self, name: str) -> Quantity | str | None:
+    def param(self, name: str) -> Param | None:
         """The value of parameter `name`, or None."""
         return dict(self.params).get(name)
 
@@ -200,6 +201,23 @@ def _number(value: Any, where: str) -> Quantity:
     raise InvalidInput(f"{where}: {value!r} is not a number or a list of numbers")
 
 
+def _param(value: Any) -> Param:
+    """An element parameter: a number, a list of numbers (tuple), a word, or a list of words (e.g. the
+    element's `fit` list); anything else as its JSON text."""
+    if isinstance(value, bool) or value is None:
+        return json.dumps(value)
+    if isinstance(value, int | float):
+        return float(value)
+    if isinstance(value, str):
+        return value
+    if isinstance(value, list):
+        if all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+            return tuple(float(v) for v in value)
+        if all(isinstance(v, str) for v in value):
+            return tuple(str(v) for v in value)
+    return json.dumps(value)
+
+
 def _text(value: Any) -> str:
     if isinstance(value, bytes):
         return value.decode("utf-8", errors="replace")
@@ -242,11 +260,7 @@ def settings_from_attrs(attrs: Mapping[str, Any], where: str) -> SettingsView:
         for i, entry in enumerate(doc):
             if not isinstance(entry, dict) or "name" not in entry or "type" not in entry:
                 raise InvalidInput(f"{where}: device_json[{i}] must be an object with 'name' and 'type'")
-            params = tuple(
-                (str(k), v if isinstance(v, str) else _number(v, f"{where}: device_json[{i}].{k}"))
-                for k, v in entry.items()
-                if k not in ("name", "type")
-            )
+            params = tuple((str(k), _param(v)) for k, v in entry.items() if k not in ("name", "type"))
             device.append(DeviceElement(str(entry["name"]), str(entry["type"]), params))
     trajectory = _text(attrs["trajectory_name"]) if "trajectory_name" in attrs else ""
     return SettingsView(tuple(factors), tuple(device), trajectory)
