@@ -27,10 +27,11 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from tests.knee_device import KNEE_PARAMS, knee_brace  # noqa: E402
 from tests.knee_rig import knee_joint_config  # noqa: E402
 
 from protocol_runner.hardware.rig import JointConfig  # noqa: E402
-from protocol_runner.hardware.simulator import DEFAULT_PARAMS, BraceSetup, SimulatedRig  # noqa: E402
+from protocol_runner.hardware.simulator import SimulatedRig  # noqa: E402
 from protocol_runner.hardware.simulator.plant import JointPlant  # noqa: E402
 
 TRIAL_S = 65.0
@@ -43,7 +44,7 @@ def knee() -> JointConfig:
     return knee_joint_config(max_rate_deg_s=100.0, max_accel_deg_s2=1000.0)
 
 
-BRACE = BraceSetup(rom_deg=(0.0, 130.0), friction_nm=3.75, stiffness_n_per_mm=13.0, preload_position=3)
+BRACE = knee_brace((0.0, 130.0), 3.75, 13.0, 3)
 COMMAND_DEG = 65.0 + 65.0 * np.sin(
     2.0 * np.pi * np.arange(int(TRIAL_S * OUTPUT_RATE_HZ)) / OUTPUT_RATE_HZ / PERIOD_S
 )
@@ -70,10 +71,10 @@ def line(label: str, n: int, wall: float, cpu: float) -> str:
 
 
 def bench_kernel() -> int:
-    plant = JointPlant(DEFAULT_PARAMS, (0.0, 130.0), (-84.8, 84.8))
-    plant.set_brace(BRACE)
+    plant = JointPlant(KNEE_PARAMS, (0.0, 130.0), (-84.8, 84.8))
+    plant.set_device(BRACE)
     plant.reset(20.0)
-    dt = DEFAULT_PARAMS.plant_step_s
+    dt = KNEE_PARAMS.plant_step_s
     per_tick = round(1.0 / OUTPUT_RATE_HZ / dt)
     for k, c in enumerate(COMMAND_DEG):
         plant.push_command(k * per_tick, float(c))
@@ -83,8 +84,8 @@ def bench_kernel() -> int:
     return int(angle.shape[0])
 
 
-_BOARDS = SimulatedRig(knee(), seed=1)
-_BOARDS.set_brace(BRACE)
+_BOARDS = SimulatedRig(knee(), seed=1, params=KNEE_PARAMS)
+_BOARDS.set_device(BRACE)
 _VOLTS = (-10.0 + 20.0 * COMMAND_DEG / 130.0).tolist()
 
 
@@ -119,8 +120,8 @@ def main() -> None:
         n = bench_boards(every)
         print(line(label, n, *median_s(lambda every=every: bench_boards(every), repeats)))  # type: ignore[misc]
 
-    sim = SimulatedRig(knee(), seed=1)
-    sim.set_brace(BRACE)
+    sim = SimulatedRig(knee(), seed=1, params=KNEE_PARAMS)
+    sim.set_device(BRACE)
     rig = sim.make_rig()
 
     def whole_trial() -> int:

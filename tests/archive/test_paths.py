@@ -27,6 +27,7 @@ SECTIONS = {
     "configuration": _line_with("`energy_loss_j`"),
     "bouc_wen": _line_with("| `fits/bouc_wen`"),
     "spring": _line_with("| `fits/spring`"),
+    "elements": _line_with("| `fits/elements`"),
     "reference": _between("## `/reference/<name>`", "## `/comparisons"),
 }
 
@@ -51,6 +52,7 @@ def test_every_group_path_is_documented() -> None:
         paths.processed_path(1, "<n>")[len(base) + 1 :],
         paths.fits_path(1)[len(base) + 1 :] + "/bouc_wen",
         paths.fits_path(1)[len(base) + 1 :] + "/spring",
+        paths.fits_path(1)[len(base) + 1 :] + "/elements",
     ]
     roots = [
         "/" + paths.calibration_path("<set>", "<when>"),
