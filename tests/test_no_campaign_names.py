@@ -27,7 +27,6 @@ TEMPLATES = REPO / "reports" / "templates"
 
 #: file (relative to src/protocol_runner) -> why it may still name a campaign's factors
 PENDING: dict[str, str] = {
-    "models/spring.py": "ELEM: the knee brace's spring table moves into knee_phase1.yaml (lever_spring)",
     "protocol/levels.py": "PROTO: schema_version 2 declares factors in the protocol",
     "protocol/plan.py": "PROTO: settings as declared factors (protocol/settings.py)",
     "protocol/plan_table.py": "PROTO: the plan table prints the declared factors",
