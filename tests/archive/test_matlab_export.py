@@ -216,7 +216,15 @@ def test_matlab_names() -> None:
     assert matlab_name("check__rom__brace-off") == "check__rom__brace_off"
     assert matlab_name("x" * 80) == "x" * 63
     struct: dict[str, Any] = {}
-    assert [put_field(struct, n, 0) for n in ("a-b", "a_b", "a.b")] == ["a_b", "a_b_2", "a_b_3"]
+    assert [put_field(struct, n, 0) for n in ("a-b", "a_b", "a__b", "a.b")] == [
+        "a_b",
+        "a_b_2",
+        "a__b",
+        "a__b_2",
+    ]
+    # a factor quantity attribute `<factor>.<quantity>`: the dot becomes a double underscore
+    assert matlab_name("friction.friction_nm") == "friction__friction_nm"
+    assert matlab_name("brace_rom.range_deg") == "brace_rom__range_deg"
 
 
 @pytest.mark.parametrize("fault", ["foreign", "not_a_directory", "units_conflict", "compound"])

@@ -2,7 +2,8 @@
 
 Each configuration's brace loop is an ellipse: angle = m + a sin(wt), brace torque = s (angle - 20) +
 b cos(wt). Its area is pi a b deg*N*m, so the energy per cycle (Eq 10-12) is pi^2 a b / 180 J; `b` is
-chosen from the energy wanted. Settings follow Appendix A, Table 5.
+chosen from the energy wanted. Settings follow Appendix A, Table 5, stored as declared factors
+(docs/archive.md "Configurations").
 """
 
 from __future__ import annotations
@@ -52,10 +53,15 @@ TABLE5: dict[int, tuple[Any, ...]] = {row[0]: row[1:] for row in _ROWS}
 ROM_DEG = {"R1": (40.0, 90.0), "R2": (20.0, 110.0), "R3": (0.0, 130.0), "RE": (0.0, 110.0)}
 ROBOT_ROM_DEG = {"Rr1": (40.0, 90.0), "Rr2": (20.0, 110.0), "Rr3": (0.0, 130.0), "RrE": (0.0, 110.0)}
 FRICTION_NM = {"0": 0.0, "1": 1.25, "2": 3.75, "3": 6.25, "EMU": 3.75}
+SCREW_TURNS = {"0": 0.0, "1": 0.25, "2": 0.75, "3": 1.25, "EMU": 0.75}
 STIFFNESS_N_PER_MM = {"K0": 0.0, "K1": 4.4, "K2": 13.0, "K3": 20.0}
-PRELOAD_POSITION = {"first": 1, "center": 3, "last": 5}
+PRELOAD_INDEX = {"first": 1, "center": 3, "last": 5}
 SPEED_DEG_S = {"full": 50.0, "half": 25.0}
 
+#: The knee's declared factors, in declaration order (the test copy of a protocol's `factors:`).
+FACTORS = ("brace_rom", "robot_rom", "friction", "stiffness", "speed", "preload")
+
+# name -> (parameter, section, title, keys), as a protocol's report section declares them
 THESIS_COMPARISONS = {
     "speed": ("speed", "5.1", "Speed", (10, 11)),
     "brace_rom": ("brace_rom", "5.2", "Brace range of motion", (1, 2, 3)),
@@ -117,27 +123,67 @@ def _ds(group: h5py.Group, name: str, data: np.ndarray, units: str, *, gzip: boo
     return ds
 
 
-def settings_of(key: int) -> dict[str, object]:
-    run, set_name, condition, profile, brace_rom, robot_rom, friction, stiffness, speed, preload = TABLE5[key]
+def factor_settings(key: int) -> dict[str, dict[str, object]]:
+    """Configuration `key`'s settings as the plan's `settings` (docs/archive.md `settings_json`)."""
+    _, _, _, _, brace_rom, robot_rom, friction, stiffness, speed, preload = TABLE5[key]
     return {
+        "brace_rom": {"level": brace_rom, "range_deg": list(ROM_DEG[brace_rom])},
+        "robot_rom": {"level": robot_rom, "range_deg": list(ROBOT_ROM_DEG[robot_rom])},
+        "friction": {
+            "level": friction,
+            "friction_nm": FRICTION_NM[friction],
+            "screw_turns": SCREW_TURNS[friction],
+        },
+        "stiffness": {"level": stiffness, "stiffness_n_per_mm": STIFFNESS_N_PER_MM[stiffness]},
+        "speed": {"level": speed, "speed_deg_s": SPEED_DEG_S[speed]},
+        "preload": {"level": preload, "preload_index": float(PRELOAD_INDEX[preload])},
+    }
+
+
+def device_of(key: int) -> list[dict[str, object]]:
+    """Configuration `key`'s resolved device (docs/archive.md `device_json`)."""
+    f = factor_settings(key)
+    return [
+        {"name": "stops", "type": "rom_stops", "range_deg": f["brace_rom"]["range_deg"], "slack_deg": 13.0},
+        {
+            "name": "brake",
+            "type": "coulomb_brake",
+            "torque_nm": f["friction"]["friction_nm"],
+            "transition_deg": 2.0,
+        },
+        {
+            "name": "springs",
+            "type": "lever_spring",
+            "stiffness_n_per_mm": f["stiffness"]["stiffness_n_per_mm"],
+            "preload_index": f["preload"]["preload_index"],
+            "count": 2.0,
+        },
+    ]
+
+
+def settings_of(key: int) -> dict[str, object]:
+    """The configuration group's attributes of docs/archive.md ("Configurations"): identity, `factors`,
+    `settings_json`, `device_json`, and each factor flattened (`<factor>`, `<factor>.<quantity>`)."""
+    run, set_name, condition, profile, *_ = TABLE5[key]
+    settings = factor_settings(key)
+    out: dict[str, object] = {
         "run": run,
         "set": set_name,
         "condition": condition,
         "profile": profile,
-        "brace_rom": brace_rom,
-        "brace_rom_deg": np.asarray(ROM_DEG[brace_rom]),
-        "robot_rom": robot_rom,
-        "robot_rom_deg": np.asarray(ROBOT_ROM_DEG[robot_rom]),
-        "friction": friction,
-        "friction_level": friction,
-        "friction_nm": FRICTION_NM[friction],
-        "stiffness": stiffness,
-        "stiffness_n_per_mm": STIFFNESS_N_PER_MM[stiffness],
-        "speed": speed,
-        "speed_deg_s": SPEED_DEG_S[speed],
-        "preload": preload,
-        "preload_position": PRELOAD_POSITION[preload],
+        "trajectory_name": "sine" if profile == "sinusoid" else f"subject_{key}",
+        "factors": list(FACTORS),
+        "settings_json": json.dumps(settings),
+        "device_json": json.dumps(device_of(key)),
     }
+    for factor, entry in settings.items():
+        out[factor] = entry["level"]
+        for quantity, value in entry.items():
+            if quantity != "level":
+                out[f"{factor}.{quantity}"] = (
+                    np.asarray(value, dtype=float) if isinstance(value, list) else float(value)
+                )
+    return out
 
 
 def ellipse_b_for_energy(energy_j: float, amplitude_deg: float) -> float:
@@ -220,10 +266,10 @@ def write_archive(path: Path, spec: ArchiveSpec) -> Path:
                 g.attrs[name] = value
             g.attrs["n_trials"] = c.n_trials
             g.attrs["status"] = c.status
-            robot_rom = np.asarray(s["robot_rom_deg"], dtype=float)
+            robot_rom = np.asarray(s["robot_rom.range_deg"], dtype=float)
             lo, hi = c.angle_range_deg or (float(robot_rom[0]), float(robot_rom[1]))
             mid, amp = (lo + hi) / 2.0, (hi - lo) / 2.0
-            period = 2.0 * math.pi * amp / SPEED_DEG_S[str(s["speed"])]  # Eq 25
+            period = 2.0 * math.pi * amp / float(s["speed.speed_deg_s"])  # type: ignore[arg-type]  # Eq 25
             b = ellipse_b_for_energy(c.energy_j, amp)
             energies: list[float] = []
             cycle_trial: list[int] = []
@@ -299,14 +345,20 @@ def write_archive(path: Path, spec: ArchiveSpec) -> Path:
                 _ds(bw, "angle_deg", x, "deg")
                 _ds(bw, "torque_nm", y, "N*m")
                 _ds(bw, "model_torque_nm", y * 0.95, "N*m")
-                sp = g.create_group("fits/spring")
-                sp.attrs["max_preload_mm"] = 12.0
-                sp.attrs["zero_offset_deg"] = 20.0
-                sp.attrs["rmse_nm"] = 2.5
-                sp.attrs["applicable"] = s["stiffness"] != "K0"
+                spring_k = STIFFNESS_N_PER_MM[str(s["stiffness"])]
+                el = g.create_group("fits/elements")
+                el.attrs["rmse_nm"] = 2.5
+                el.attrs["rmse_all_samples_nm"] = 2.9
+                el.attrs["applicable"] = spring_k > 0.0
+                el.attrs["reason"] = "" if spring_k > 0.0 else "no elastic element has a free parameter"
+                el.attrs["target"] = "midline"
+                el.attrs["springs.zero_offset_deg"] = 20.0 + c.key / 10.0
+                fitted = dict(device_of(c.key)[2], zero_offset_deg=20.0 + c.key / 10.0)
+                el.attrs["elements_json"] = json.dumps([fitted])
                 grid = np.linspace(lo, hi, 200)
-                _ds(sp, "angle_deg", grid, "deg")
-                _ds(sp, "model_torque_nm", c.slope_nm_per_deg * (grid - 20.0), "N*m")
+                _ds(el, "angle_deg", grid, "deg")
+                _ds(el, "torque_nm", c.slope_nm_per_deg * (grid - 20.0) + 0.1, "N*m")
+                _ds(el, "model_torque_nm", c.slope_nm_per_deg * (grid - 20.0), "N*m")
 
         if spec.comparisons:
             keys_present = {c.key for c in spec.configs}

@@ -6,7 +6,8 @@ import base64
 import struct
 from pathlib import Path
 
-from protocol_runner.report.canvas import DPI, config_label
+from protocol_runner.report.canvas import DPI
+from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.figures import (
     bouc_wen_figure,
     energy_bars_figure,
@@ -16,7 +17,7 @@ from protocol_runner.report.figures import (
     render_figures,
 )
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.model import Configuration
+from protocol_runner.report.model import Comparison, Configuration
 
 
 def _png(uri: str) -> bytes:
@@ -78,18 +79,60 @@ def test_serial_and_parallel_rendering_give_identical_images(small_archive: Path
     assert serial.images == parallel.images
 
 
-def test_legend_labels_carry_the_compared_value_with_units(small_archive: Path) -> None:
-    cfg = _config(small_archive, 7)
-    assert config_label(cfg, "friction") == "7: 6.25 N·m"
-    assert config_label(cfg, "stiffness") == "7: 13 N/mm"
-    assert config_label(cfg, "speed") == "7: 50 deg/s"
-    assert config_label(cfg, "brace_rom") == "7: 0-130°"
-    assert config_label(cfg, "preload") == "7: position 3"
+def _axis(data, parameter: str, keys=(4, 5, 6, 7)):
+    configs = [c for k in keys if (c := data.configuration(k)) is not None]
+    return comparison_axis(Comparison("c", parameter, "", "c", tuple(keys)), configs)
+
+
+def test_labels_carry_the_level_and_the_varying_quantity_with_its_unit(small_archive: Path) -> None:
+    data = load_report_data(small_archive)
+    cfg = data.configuration(7)
+    friction = _axis(data, "friction")
+    # friction_nm is the first quantity that differs across 4-7: the numeric axis, in N·m from `_nm`
+    assert (friction.quantity, friction.numeric) == ("friction_nm", True)
+    assert friction.label == "friction: friction (N·m)"
+    assert friction.config_label(cfg) == "7: 3 (6.25 N·m)"
+    assert [friction.value(c) for c in data.configurations] == [0.0, 1.25, 3.75, 6.25]
+    # a factor that does not vary here still labels by its level and first quantity
+    brace = _axis(data, "brace_rom")
+    assert (brace.quantity, brace.numeric, brace.label) == ("range_deg", False, "brace_rom: range (deg)")
+    assert brace.config_label(cfg) == "7: R3 (0–130 deg), friction 3"  # friction also differs: shown
+    assert _axis(data, "trajectory").config_label(cfg) == "7: sine, friction 3"
+
+
+def test_a_range_quantity_is_a_label_and_a_scalar_one_a_numeric_axis(tmp_path: Path) -> None:
+    from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, write_archive
+
+    spec = ArchiveSpec(configs=[ConfigSpec(key=k) for k in (1, 2, 3, 10, 11)], duration_s=10.0)
+    data = load_report_data(write_archive(tmp_path / "a.h5", spec))
+    rom = _axis(data, "brace_rom", (1, 2, 3))
+    assert (rom.quantity, rom.numeric) == ("range_deg", False)
+    assert [rom.value_text(data.configuration(k)) for k in (1, 2, 3)] == [
+        "R1 (40–90 deg)",
+        "R2 (20–110 deg)",
+        "R3 (0–130 deg)",
+    ]
+    speed = _axis(data, "speed", (10, 11))
+    assert (speed.numeric, speed.label) == (True, "speed: speed (deg/s)")
+    assert [speed.value(data.configuration(k)) for k in (10, 11)] == [50.0, 25.0]
+
+
+def test_energy_figure_puts_each_configuration_at_its_factor_value(small_archive: Path, monkeypatch) -> None:
+    data = load_report_data(small_archive)
+    friction = data.comparison("friction")
+    assert friction is not None
+    fig = _drawn(monkeypatch, lambda: energy_bars_figure(data, friction))
+    (ax,) = fig.axes
+    assert ax.get_xlabel() == "friction: friction (N·m)"
+    (line,) = [ln for ln in ax.get_lines() if ln.get_marker() == "o"]
+    assert list(line.get_xdata()) == [0.0, 1.25, 3.75, 6.25]
+    means = [data.configuration(k).energy_mean_j for k in (4, 5, 6, 7)]
+    assert list(line.get_ydata()) == means
 
 
 def _drawn(monkeypatch, draw) -> object:
     """The matplotlib Figure a figure function draws (captured before it becomes a PNG)."""
-    from protocol_runner.report import figures
+    from protocol_runner.report import figures, figures_compare
 
     captured = []
     real = figures.to_data_uri
@@ -99,6 +142,7 @@ def _drawn(monkeypatch, draw) -> object:
         return real(fig)
 
     monkeypatch.setattr(figures, "to_data_uri", keep)
+    monkeypatch.setattr(figures_compare, "to_data_uri", keep)
     draw()
     return captured[-1]
 
@@ -129,3 +173,31 @@ def test_energy_cycles_figure_draws_every_cycle_and_the_mean(small_archive: Path
     assert drawn == sorted(cfg.energy_loss_j.tolist())
     means = [line for line in ax.get_lines() if line.get_label().startswith("mean ")]
     assert len(means) == 1 and means[0].get_ydata()[0] == cfg.energy_mean_j
+
+
+def test_element_fits_are_drawn_for_the_comparisons_that_change_a_fitted_element(
+    tmp_path: Path, monkeypatch
+) -> None:
+    from protocol_runner.report.figures import element_fit_figure, model_comparisons
+    from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, write_archive
+
+    keys = (4, 5, 6, 7, 14, 17, 20, 23)
+    spec = ArchiveSpec(configs=[ConfigSpec(key=k, n_trials=1) for k in keys], duration_s=9.0)
+    data = load_report_data(write_archive(tmp_path / "a.h5", spec))
+    # the springs (the fitted element) differ only across the stiffness group; the friction group
+    # changes the brake, which is not fitted
+    assert [c.name for c in model_comparisons(data)] == ["stiffness"]
+    comp = data.comparison("stiffness")
+    assert comp is not None
+    fig = _drawn(monkeypatch, lambda: element_fit_figure(data, comp))
+    (ax,) = fig.axes
+    models = [ln for ln in ax.get_lines() if ln.get_linestyle() == "--"]
+    # K0 (config 17) has no spring: its fit is not applicable and draws nothing
+    assert [ln.get_label().split(",")[0] for ln in models] == [
+        "20: K1 (4.4 N/mm)",
+        "14: K2 (13 N/mm)",
+        "23: K3 (20 N/mm)",
+    ]
+    for line, key in zip(models, (20, 14, 23), strict=True):
+        fit = data.configuration(key).element_fit
+        assert list(line.get_ydata()) == list(fit.model_torque_nm)

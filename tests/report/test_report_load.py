@@ -12,13 +12,13 @@ import pytest
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.load import (
     MAX_PLOT_POINTS,
-    THESIS_COMPARISONS,
     decimate_for_plot,
     load_reference_dataset,
     load_report_data,
     validate_archive,
 )
 from tests.report.report_archive_builder import (
+    FACTORS,
     FRICTION_ENERGY_J,
     ArchiveSpec,
     ConfigSpec,
@@ -44,15 +44,22 @@ def test_configurations_are_sorted_with_settings_trials_and_fits(small_archive: 
     assert [c.key for c in data.configurations] == [4, 5, 6, 7]
     cfg = data.configuration(7)
     assert cfg is not None
-    assert cfg.setting("friction_nm") == pytest.approx(6.25)
-    assert cfg.setting("brace_rom_deg") == (0.0, 130.0)
+    assert cfg.settings.factor_names() == FACTORS
+    assert cfg.level("friction") == "3" and cfg.quantity("friction", "friction_nm") == pytest.approx(6.25)
+    assert cfg.quantity("brace_rom", "range_deg") == (0.0, 130.0)
+    assert cfg.settings.trajectory == "sine"
+    brake = cfg.settings.element("brake")
+    assert brake is not None and brake.type == "coulomb_brake" and brake.param("torque_nm") == 6.25
     assert [t.number for t in cfg.trials] == [1, 2]
     assert all(t.processed is not None for t in cfg.trials)
     # raw recordings are read for the plotted (first) trial only
     assert cfg.trials[0].brace_on is not None and cfg.trials[0].brace_off is not None
     assert cfg.trials[1].brace_on is None and cfg.trials[1].recorded
     assert cfg.bouc_wen is not None and len(cfg.bouc_wen.beta) == 6
-    assert cfg.spring is not None and cfg.spring.applicable
+    fit = cfg.element_fit
+    assert fit is not None and fit.applicable and fit.target == "midline"
+    assert fit.parameters == (("springs.zero_offset_deg", pytest.approx(20.7)),)
+    assert [e.name for e in fit.elements] == ["springs"] and fit.elements[0].param("zero_offset_deg") == 20.7
 
 
 def test_energy_per_cycle_matches_the_elliptic_loops_written(small_archive: Path) -> None:
@@ -111,11 +118,10 @@ def test_unfinished_session_loads_and_is_marked_incomplete(tmp_path: Path) -> No
     assert math.isnan(last.energy_mean_j) and math.isnan(last.angle_max_deg)
 
 
-def test_archive_without_comparisons_falls_back_to_the_thesis(tmp_path: Path) -> None:
+def test_archive_without_comparisons_has_none_and_says_so(tmp_path: Path) -> None:
     data = load_report_data(write_archive(tmp_path / "archive.h5", small_spec(comparisons=False)))
-    assert [c.name for c in data.comparisons] == [name for name, *_ in THESIS_COMPARISONS]
-    assert not any(c.from_archive for c in data.comparisons)
-    assert any("thesis" in note for note in data.notes)
+    assert data.comparisons == ()
+    assert any("declares no comparisons" in note for note in data.notes)
 
 
 # ----------------------------------------------------------------------------------------- bad inputs

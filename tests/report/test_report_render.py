@@ -14,7 +14,7 @@ from protocol_runner.errors import InvalidInput
 from protocol_runner.report.figures import figure_ids
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.render import SECTIONS, generate_report, render_report
-from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, small_spec, write_archive
+from tests.report.report_archive_builder import ArchiveSpec, small_spec, write_archive
 
 VOID = {"area", "base", "br", "col", "embed", "hr", "img", "input", "link", "meta", "source", "track", "wbr"}
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -104,9 +104,9 @@ def test_every_expected_figure_is_an_inline_png_that_decodes(small_archive: Path
         "fig-calibration-friction",
         "fig-comparison-friction-overlay",
         "fig-comparison-friction-energy",
-        "fig-energy-restraint",
-        "fig-spring-stiffness",
-    } & set(expected)
+    } <= set(expected)
+    # the friction group changes the brake, not the fitted springs: no elastic-model figure
+    assert not any(f.startswith("fig-elements-") for f in expected)
     for figure_id in expected:
         assert figure_id in checker.ids, figure_id
     assert len(checker.images) == len(expected)
@@ -204,37 +204,37 @@ def test_output_into_a_missing_directory_is_invalid_input(small_archive: Path, t
         generate_report(small_archive, tmp_path / "missing" / "report.html")
 
 
-def test_emu_section_says_when_there_is_no_reference(small_report: str) -> None:
-    assert 'id="emu-no-reference"' in small_report
+def test_reference_section_says_when_there_is_no_reference(small_report: str) -> None:
+    assert 'id="reference-none"' in small_report
+    assert 'id="fig-reference"' not in small_report
 
 
-def test_emu_section_plots_the_archived_reference(tmp_path: Path) -> None:
-    spec = ArchiveSpec(
-        configs=[ConfigSpec(key=27, n_trials=1), ConfigSpec(key=28, n_trials=1)],
-        duration_s=9.0,
-        reference=True,
-    )
-    html = generate_report(write_archive(tmp_path / "archive.h5", spec)).read_text(encoding="utf-8")
-    assert 'id="emu-no-reference"' not in html
-    assert "Schmidt EMU data" in html and 'id="fig-emu"' in html
+def test_archived_reference_is_drawn_alone_and_on_every_comparison_overlay(
+    tmp_path: Path, monkeypatch
+) -> None:
+    from protocol_runner.report import figures_compare
+
+    spec = small_spec(duration_s=9.0, reference=True)
+    archive = write_archive(tmp_path / "archive.h5", spec)
+    html = generate_report(archive).read_text(encoding="utf-8")
+    assert 'id="reference-none"' not in html
+    assert "Schmidt EMU data" in html and 'id="fig-reference"' in html
+    drawn = []
+    real = figures_compare.to_data_uri
+    monkeypatch.setattr(figures_compare, "to_data_uri", lambda fig: drawn.append(fig) or real(fig))
+    data = load_report_data(archive)
+    comp = data.comparison("friction")
+    assert comp is not None
+    figures_compare.comparison_overlay_figure(data, comp)
+    labels = [line.get_label() for line in drawn[-1].axes[0].get_lines()]
+    assert labels.count("Schmidt EMU data") == 1 and len(labels) == 5  # four loops and the reference
 
 
-def test_emu_reference_file_given_at_generation_is_plotted(small_archive: Path, tmp_path: Path) -> None:
+def test_reference_file_given_at_generation_is_plotted(small_archive: Path, tmp_path: Path) -> None:
     ref = tmp_path / "emu.csv"
     ref.write_text("angle_deg,torque_nm\n" + "\n".join(f"{a},{0.2 * (a - 20):.3f}" for a in range(5, 106, 5)))
     html = generate_report(small_archive, tmp_path / "r.html", reference=ref).read_text(encoding="utf-8")
-    assert 'id="emu-no-reference"' not in html and "emu.csv" in html
-
-
-def test_emu_falls_back_to_the_thesis_keys_when_the_archive_compares_other_things(tmp_path: Path) -> None:
-    spec = ArchiveSpec(
-        configs=[ConfigSpec(key=4, n_trials=1), ConfigSpec(key=27, n_trials=1)],
-        duration_s=9.0,
-        reference=True,
-    )
-    html = generate_report(write_archive(tmp_path / "archive.h5", spec)).read_text(encoding="utf-8")
-    assert 'id="comparison-friction"' in html  # the archive's own comparison
-    assert 'id="fig-emu"' in html and "EMU-condition configurations: 24, 25, 26, 27, 28" in html
+    assert 'id="reference-none"' not in html and "emu.csv" in html and 'id="fig-reference"' in html
 
 
 def test_the_same_configurations_compared_twice_are_drawn_once(tmp_path: Path) -> None:
@@ -262,7 +262,7 @@ def test_aborted_session_without_configurations_still_reports(tmp_path: Path) ->
     assert "This session is aborted" in html
     assert _parse(html).errors == []
     assert "<img" not in html and "Figure not drawn" not in html
-    assert "No comparison has data in this archive." in html
+    assert "No declared comparison has data in this archive." in html
 
 
 def test_each_configuration_shows_its_output_loop_timing(small_report: str) -> None:
@@ -294,3 +294,16 @@ def test_summary_comes_first_with_trial_intervals(small_report: str) -> None:
     cells = re.findall(r"<td[^>]*>(.*?)</td>", row.group(1), re.S)
     assert cells[2] == "2"  # trials: the experimental unit
     assert re.fullmatch(r"\[\d+\.\d\d, \d+\.\d\d\]", cells[5]), cells[5]
+
+
+def test_test_matrix_has_one_column_per_declared_factor_with_level_and_quantities(small_report: str) -> None:
+    from tests.report.report_archive_builder import FACTORS
+
+    head = re.search(r'<table class="matrix">\s*<tr>(.*?)</tr>', small_report, re.S)
+    assert head is not None
+    columns = re.findall(r"<th>(.*?)</th>", head.group(1))
+    assert columns[3 : 4 + len(FACTORS)] == ["Trajectory", *FACTORS]
+    row = re.search(r'<tr id="matrix-7">(.*?)</tr>', small_report, re.S)
+    assert row is not None
+    assert "3 (friction 6.25 N·m, screw 1.25 turns)" in row.group(1)
+    assert "R3 (range 0–130 deg)" in row.group(1)

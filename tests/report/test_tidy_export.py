@@ -71,7 +71,10 @@ def test_trials_and_configurations_reproduce_the_report_intervals(
             f"[{float(row['energy_ci95_low_j']):.2f}, {float(row['energy_ci95_high_j']):.2f}]"
             in cell.group(0)
         )
-        assert row["friction_nm"] == repr(float(cfg.settings["friction_nm"]))  # type: ignore[arg-type]
+        # one column per declared factor (its level) and per factor quantity, lists joined with ";"
+        assert row["friction"] == cfg.level("friction")
+        assert row["friction.friction_nm"] == repr(cfg.quantity("friction", "friction_nm"))
+        assert row["brace_rom.range_deg"] == "0.0;130.0"
 
 
 def test_cli_export_writes_the_three_tables(small_archive: Path, tmp_path: Path) -> None:
@@ -96,3 +99,17 @@ def test_cli_export_into_a_file_exits_2(
     target.write_text("x")
     assert main(["--export", str(small_archive), "--output", str(target)]) == 2
     assert "is a file; give a directory" in capsys.readouterr().err
+
+
+def test_configurations_csv_has_a_column_per_declared_factor_and_quantity_in_order(tables: Path) -> None:
+    from tests.report.report_archive_builder import FACTORS, factor_settings
+
+    with (tables / "configurations.csv").open(encoding="utf-8", newline="") as fh:
+        header = next(csv.reader(fh))
+    expected = []
+    for factor in FACTORS:  # declaration order, each level column followed by its quantities
+        expected.append(factor)
+        expected.extend(f"{factor}.{q}" for q in factor_settings(4)[factor] if q != "level")
+    assert header[:4] == ["configuration", "set", "profile", "trajectory"]
+    assert header[4 : 4 + len(expected)] == expected
+    assert header[4 + len(expected)] == "trials"

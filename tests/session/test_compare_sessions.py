@@ -90,8 +90,8 @@ def test_a_stiffer_brake_makes_its_friction_configurations_differ(
         assert p.energy.low > 0  # B (stiffer) minus A: more energy lost per cycle
         assert (
             "friction.friction_nm",
-            str(p.a.settings["friction.friction_nm"]),
-            str(p.b.settings["friction.friction_nm"]),
+            f"{p.a.quantity('friction', 'friction_nm'):g}",
+            f"{p.b.quantity('friction', 'friction_nm'):g}",
         ) in p.changed
     assert html.count("<img ") == 4
 

@@ -9,7 +9,9 @@ compressed; MATLAB's and Octave's `load` read them). Types, names and orientatio
                     schema_version, seed, mode, status, joint, only, created_utc, finished_utc), operator,
                     archive (file name), exported_by
     units           struct: the unit of every array in the file, by field name (units.angle_deg = 'deg')
-    configuration   struct of the configuration's attributes (key, brace ROM, friction, stiffness, status...)
+    configuration   struct of the configuration's attributes (key, run, set, status, factors, each declared
+                    factor's level label, each factor quantity `<factor>.<quantity>` as `<factor>__<quantity>`,
+                    settings_json, device_json, trajectory_name)
     trial_n         struct per trial n: the processed data (time_s, angle_deg, brace_torque_nm) with the
                     processed group's attributes, and the raw recordings as structs brace_on and brace_off
                     (time_s, angle_deg, torque_nm, *_codes, command_*, tick_lateness_s, attributes;
@@ -18,7 +20,8 @@ compressed; MATLAB's and Octave's `load` read them). Types, names and orientatio
                     energy_mean_j, energy_std_j
     bouc_wen        struct: parameters (A, n, beta, rmse_nm, r2, ...) and fitted curves (angle_deg,
                     torque_nm, model_torque_nm, segment_lengths), when fitted
-    spring          struct: parameters and curves (angle_deg, torque_nm, model_torque_nm), when fitted
+    elements        struct: the element fit (fitted `<element>.<param>` as `<element>__<param>`, rmse_nm, ...)
+                    and curves (angle_deg, torque_nm, model_torque_nm), when fitted
     calibration     struct: the calibration records of the configuration's set (before, after, resume_n)
 
 `session.mat`: meta, units, and every root member of the archive but the configurations: protocol (text)

@@ -1,8 +1,10 @@
 """Archive groups as MATLAB structs for the `.mat` export (docs/matlab.md states these rules for users).
 
 - Names: every variable and struct field is a valid MATLAB identifier (letters, digits and `_`, starting
-  with a letter, at most 63 characters): other characters become `_`, a name not starting with a letter
-  gets a prefix (trial group `1` -> `trial_1`), and a name already taken in the struct gets `_2`, `_3`...
+  with a letter, at most 63 characters): a `.` becomes `__` (a configuration's factor quantity
+  `<factor>.<quantity>` -> `<factor>__<quantity>`: `friction.friction_nm` -> `friction__friction_nm`),
+  other characters become `_`, a name not starting with a letter gets a prefix (trial group `1` ->
+  `trial_1`), and a name already taken in the struct gets `_2`, `_3`...
 - Numbers: double, whatever the archive stores (float32 signals, int64 attributes, int32 and uint16
   codes), so that arithmetic never silently rounds to integers; an integer that a double cannot hold
   exactly stays int64. Booleans are logical.
@@ -35,8 +37,9 @@ _LEGACY_INDEX0 = {
 
 
 def matlab_name(name: str, prefix: str = "x") -> str:
-    """`name` as a valid MATLAB identifier: `config_12` stays, `1` -> `{prefix}_1`, `brace-off` -> `brace_off`."""
-    clean = re.sub(r"[^A-Za-z0-9_]", "_", name)
+    """`name` as a valid MATLAB identifier: `config_12` stays, `1` -> `{prefix}_1`, `brace-off` -> `brace_off`,
+    `speed.speed_deg_s` -> `speed__speed_deg_s`."""
+    clean = re.sub(r"[^A-Za-z0-9_]", "_", name.replace(".", "__"))
     if not clean[:1].isalpha():
         clean = prefix + clean if clean.startswith("_") else f"{prefix}_{clean}"
     return clean[:NAMELENGTHMAX]

@@ -15,8 +15,6 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator, ScalarFormatter
 
-from protocol_runner.report.model import Configuration
-
 DPI = 80
 ANGLE_LABEL = "Angle (deg)"
 TORQUE_LABEL = "Torque (N·m)"
@@ -134,38 +132,3 @@ def swatch(handle: object) -> tuple[object, str]:
     if isinstance(handle, Container) and len(handle) and isinstance(handle[0], Patch):
         return handle[0].get_facecolor(), "■"
     return "k", "—"
-
-
-def config_label(cfg: Configuration, parameter: str) -> str:
-    """Legend text: configuration key and the compared parameter's value with units."""
-    value = _parameter_value(cfg, parameter)
-    return f"{cfg.key}: {value}" if value else f"config {cfg.key}"
-
-
-def _float_setting(cfg: Configuration, name: str) -> float | None:
-    value = cfg.setting(name)
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        return None
-    return float(value)
-
-
-def _parameter_value(cfg: Configuration, parameter: str) -> str:
-    p = parameter.lower()
-    if "friction" in p:
-        nm = _float_setting(cfg, "friction_nm")
-        return f"{nm:.2f} N·m" if nm is not None else str(cfg.setting("friction", ""))
-    if "stiff" in p or "spring" in p:
-        k = _float_setting(cfg, "stiffness_n_per_mm")
-        return f"{k:g} N/mm" if k is not None else str(cfg.setting("stiffness", ""))
-    if "preload" in p:
-        pos = cfg.setting("preload_position")
-        return f"position {pos}" if pos is not None else str(cfg.setting("preload", ""))
-    if "speed" in p:
-        v = _float_setting(cfg, "speed_deg_s")
-        return f"{v:g} deg/s" if v is not None else str(cfg.setting("speed", ""))
-    if "rom" in p:
-        rng = cfg.setting("brace_rom_deg" if "brace" in p else "robot_rom_deg")
-        if isinstance(rng, tuple) and len(rng) == 2:
-            return f"{float(rng[0]):g}-{float(rng[1]):g}°"
-    value = cfg.setting(parameter)
-    return "" if value is None else str(value)

@@ -1,9 +1,11 @@
 """Two sessions side by side: configurations matched by their settings, differences with Welch intervals.
 
-Configurations match when their declared settings agree: the profile and every level name (string-valued
-settings such as `brace_rom: R3`, `friction: "2"`), not their matrix keys and not the physical values
-behind the names, so a session of a stiffer brake (same level names, larger `friction_nm`) still pairs
-with the baseline and shows what changed. Several identical configurations on each side pair in key order.
+Configurations match when their declared settings agree: the trajectory (its name, or its profile when
+unnamed) and the level label of every declared factor (docs/archive.md `settings_json`), not their matrix
+keys and not the physical values behind the labels, so a session with a stiffer brake (same level labels, a
+larger brake torque in the level's quantities) still pairs with the baseline and shows what changed: every
+factor quantity (`<factor>.<quantity>`) and device parameter (`device.<element>.<parameter>`) that differs.
+Several identical configurations on each side pair in key order.
 
 Per matched pair: energy per cycle and range reached, B minus A, on trial values (the trial is the
 unit) with a 95 % Welch interval; a difference is significant when its interval excludes zero. A pair
@@ -52,7 +54,8 @@ class Pair:
     @property
     def label(self) -> str:
         """Human label of the shared settings."""
-        return ", ".join(f"{k} {v}" for k, v in signature(self.a) if k != "profile") or self.a.profile
+        levels = ", ".join(f"{k} {v}" for k, v in self.a.settings.levels())
+        return levels or self.a.settings.trajectory or self.a.profile
 
 
 @dataclass(frozen=True)
@@ -102,19 +105,38 @@ def _ival(w: WelchInterval) -> str:
 
 
 def signature(cfg: Configuration) -> tuple[tuple[str, str], ...]:
-    """The settings a match is made on: the profile and the string-valued (level-name) settings."""
-    items = [("profile", cfg.profile)]
-    items.extend((k, v) for k, v in cfg.settings.items() if isinstance(v, str))
+    """The settings a match is made on: the trajectory and each declared factor's level label."""
+    items = [("trajectory", cfg.settings.trajectory or cfg.profile)]
+    items.extend(cfg.settings.levels())
     return tuple(sorted(items))
 
 
+def _physical(cfg: Configuration) -> dict[str, object]:
+    out: dict[str, object] = {k: v for k, v in cfg.settings.flat().items() if "." in k}
+    for element in cfg.settings.device:
+        for name, value in element.params:
+            out[f"device.{element.name}.{name}"] = value
+    return out
+
+
 def _changed(a: Configuration, b: Configuration) -> tuple[tuple[str, str, str], ...]:
+    pa, pb = _physical(a), _physical(b)
     out = []
-    for name in sorted(set(a.settings) | set(b.settings)):
-        va, vb = a.settings.get(name), b.settings.get(name)
+    for name in sorted(set(pa) | set(pb)):
+        va, vb = pa.get(name), pb.get(name)
         if va != vb:
-            out.append((name, str(va), str(vb)))
+            out.append((name, _text(va), _text(vb)))
     return tuple(out)
+
+
+def _text(value: object) -> str:
+    if value is None:
+        return "—"
+    if isinstance(value, tuple):
+        return "[" + ", ".join(f"{v:g}" for v in value) + "]"
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)
 
 
 def match(
@@ -144,7 +166,7 @@ def compare_data(a: ReportData, b: ReportData) -> SessionComparison:
     if not matched:
         raise InvalidInput(
             f"{b.session.archive_path} and {a.session.archive_path} have no configuration with the same "
-            "settings (profile and level names): nothing to compare"
+            "settings (trajectory and level labels): nothing to compare"
         )
     pairs = tuple(
         Pair(

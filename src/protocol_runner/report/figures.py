@@ -2,11 +2,12 @@
 
 Every figure function takes report data and returns a `data:image/png;base64,...` string. Units and
 axis labels are the same everywhere: angle in degrees, torque in N·m, time in seconds, energy in joules.
-The figures follow the thesis: hysteresis loops as in Appendix B, comparison overlays as in §5.1-5.5
-(Figures 32-37), energy-loss bars as in §5.7.2 (Figures 41-46, here with error bars: ± one standard
-deviation across cycles and trials), the EMU comparison of §5.6 (Figure 38), the physical model against
-the data as in §6.1.5 (Figures 52-53) and the Bouc-Wen model against the data as in §6.2.4 (Figures
-57-58).
+The figures follow the thesis: hysteresis loops as in Appendix B, and for each comparison the protocol
+declares, overlaid loops as in §5.1-5.5 (Figures 32-37) and the energy per cycle against the compared
+factor as in §5.7.2 (Figures 41-46, here with error bars: ± one standard deviation across cycles and
+trials); the archive's reference datasets (§5.6, Figure 38); the fitted elastic elements against the
+loops' midline as in §6.1.5 (Figures 52-53) and the Bouc-Wen model against the data as in §6.2.4
+(Figures 57-58).
 
 `render_figures(data)` draws them all, optionally on worker processes (`workers`), and returns a
 `FigureSet` mapping figure ids (used as HTML element ids) to data URIs.
@@ -38,12 +39,11 @@ from protocol_runner.report.canvas import (
 from protocol_runner.report.figures_compare import (
     comparison_overlay_figure,
     configurations_of,
-    emu_figure,
+    element_fit_figure,
     energy_bars_figure,
-    restraint_bars_figure,
-    spring_model_figure,
+    fitted_elements_differ,
+    reference_figure,
 )
-from protocol_runner.report.findings import comparison_keys
 from protocol_runner.report.model import CalibrationCheck, Comparison, Configuration, ReportData
 from protocol_runner.report.parallel import map_in_processes
 
@@ -64,7 +64,7 @@ class FigureSet:
 
 
 def hysteresis_figure(cfg: Configuration) -> str:
-    """Brace torque against angle, every trial (Appendix B), with the physical model's curve if fitted."""
+    """Brace torque against angle, every trial (Appendix B), with the fitted elastic model if any."""
     fig, (ax,) = canvas_axes("single")
     drawn = False
     for i, trial in enumerate(cfg.trials):
@@ -79,8 +79,9 @@ def hysteresis_figure(cfg: Configuration) -> str:
             label=f"trial {trial.number}",
         )
         drawn = True
-    if cfg.spring is not None and cfg.spring.applicable and cfg.spring.angle_deg.size:
-        ax.plot(cfg.spring.angle_deg, cfg.spring.model_torque_nm, "k--", lw=0.9, label="spring model")
+    fit = cfg.element_fit
+    if fit is not None and fit.drawable:
+        ax.plot(fit.angle_deg, fit.model_torque_nm, "k--", lw=0.9, label="elastic model (fit)")
     if not drawn:
         empty(ax, "no processed trial")
     style(ax, ANGLE_LABEL, TORQUE_LABEL, f"Configuration {cfg.key}: brace torque vs angle")
@@ -209,59 +210,35 @@ def _tasks(data: ReportData) -> list[tuple[str, Callable[[], str]]]:
             (f"fig-comparison-{slug(comp.name)}-overlay", _bind(comparison_overlay_figure, data, comp))
         )
         tasks.append((f"fig-comparison-{slug(comp.name)}-energy", _bind(energy_bars_figure, data, comp)))
-    if configurations_of(data, comparison_keys(data, "brace_rom")) or configurations_of(
-        data, comparison_keys(data, "robot_rom")
-    ):
-        tasks.append(("fig-energy-restraint", _bind(restraint_bars_figure, data)))
-    emu = emu_comparison(data)
-    if data.references or configurations_of(data, emu.configurations):
-        tasks.append(("fig-emu", _bind(emu_figure, data, emu)))
+    if data.references:
+        tasks.append(("fig-reference", _bind(reference_figure, data)))
     for comp in model_comparisons(data):
-        tasks.append((f"fig-spring-{slug(comp.name)}", _bind(spring_model_figure, data, comp)))
+        tasks.append((f"fig-elements-{slug(comp.name)}", _bind(element_fit_figure, data, comp)))
     return tasks
 
 
 def distinct_comparisons(data: ReportData) -> list[Comparison]:
-    """Comparisons drawn as overlays and energy bars: not the EMU one (own section), with data present,
-    and each set of configurations once (a protocol may list the same keys under §5.x and §5.7.2)."""
+    """Declared comparisons drawn as overlays and energy figures: those with a configuration present,
+    each set of configurations once (a protocol may list the same keys under two sections)."""
     seen: set[tuple[int, ...]] = set()
     out = []
     for comp in data.comparisons:
         key = tuple(sorted(comp.configurations))
-        if is_emu(comp) or key in seen or not configurations_of(data, comp.configurations):
+        if key in seen or not configurations_of(data, comp.configurations):
             continue
         seen.add(key)
         out.append(comp)
     return out
 
 
-def is_emu(comparison: Comparison) -> bool:
-    """True for the EMU comparison of §5.6 (by parameter, name or section)."""
-    return (
-        comparison.parameter.lower() == "emu"
-        or comparison.name.lower() == "emu"
-        or comparison.section.strip("§ ") == "5.6"
-    )
-
-
-def emu_comparison(data: ReportData) -> Comparison:
-    """The EMU-condition configurations (§5.6): the archive's comparison, else the thesis's keys 24-28."""
-    for comp in data.comparisons:
-        if is_emu(comp):
-            return comp
-    return Comparison("emu", "emu", "5.6", "EMU comparison", (24, 25, 26, 27, 28), from_archive=False)
-
-
 def model_comparisons(data: ReportData) -> list[Comparison]:
-    """The preload and stiffness comparisons whose configurations have spring fits (Figures 52-53)."""
-    out = []
-    for comp in distinct_comparisons(data):
-        p = comp.parameter.lower()
-        if ("preload" in p or "stiff" in p or "spring" in p) and any(
-            c.spring is not None for c in configurations_of(data, comp.configurations)
-        ):
-            out.append(comp)
-    return out
+    """The comparisons that change a fitted elastic element (`figures_compare.fitted_elements_differ`):
+    the elastic model against the midline for each (as thesis Figures 52-53)."""
+    return [
+        comp
+        for comp in distinct_comparisons(data)
+        if fitted_elements_differ(configurations_of(data, comp.configurations))
+    ]
 
 
 def slug(text: str) -> str:

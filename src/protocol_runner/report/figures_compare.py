@@ -1,5 +1,9 @@
-"""The report's cross-configuration figures: comparison overlays (§5.1-5.5), energy-loss bars (§5.7.2),
-restraint bars, the EMU comparison (§5.6) and the physical model against the data (§6.1.5)."""
+"""The report's cross-configuration figures, one set per declared comparison: overlaid loops (as thesis
+§5.1-5.5), energy per cycle against the compared factor (§5.7.2), the reference datasets, and the fitted
+elastic elements against the loops' midline (§6.1.5).
+
+Labels and axes come from `comparison_values.comparison_axis` (the compared factor's level labels and
+quantities with the unit from the quantity's suffix); nothing here knows a factor's name."""
 
 from __future__ import annotations
 
@@ -15,13 +19,12 @@ from protocol_runner.report.canvas import (
     ENERGY_LABEL,
     TORQUE_LABEL,
     canvas_axes,
-    config_label,
     empty,
     legend,
     style,
     to_data_uri,
 )
-from protocol_runner.report.findings import comparison_keys
+from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.model import Comparison, Configuration, ReportData
 
 # ----------------------------------------------------------------------------------------- comparisons
@@ -49,31 +52,61 @@ def _overlay_loops(ax: Axes, configs: Sequence[Configuration], label: Callable[[
     return drawn
 
 
+def _references(ax: Axes, data: ReportData) -> None:
+    for ref in data.references:
+        ax.plot(ref.angle_deg, ref.torque_nm, ".", ms=1.5, color="k", alpha=0.5, label=ref.title)
+
+
 def comparison_overlay_figure(data: ReportData, comparison: Comparison) -> str:
-    """Hysteresis loops of the compared configurations overlaid (thesis Figures 32-37), trial 1 each."""
+    """Loops of the compared configurations overlaid (thesis Figures 32-37), first trial each, with the
+    archive's reference datasets as dots."""
     fig, (ax,) = canvas_axes("single")
-    drawn = _overlay_loops(
-        ax,
-        configurations_of(data, comparison.configurations),
-        lambda c: config_label(c, comparison.parameter),
-    )
+    configs = configurations_of(data, comparison.configurations)
+    axis = comparison_axis(comparison, configs)
+    drawn = _overlay_loops(ax, configs, axis.config_label)
+    _references(ax, data)
     if not drawn:
         empty(ax, "none of these configurations has data")
-    style(ax, ANGLE_LABEL, TORQUE_LABEL, f"§{comparison.section} {comparison.title}")
+    style(ax, ANGLE_LABEL, TORQUE_LABEL, f"§{comparison.section} {comparison.title}".replace("§ ", ""))
     legend(ax)
     return to_data_uri(fig)
 
 
 def energy_bars_figure(data: ReportData, comparison: Comparison) -> str:
-    """Mean energy per cycle with ± one standard deviation (thesis Figures 41-46 with error bars)."""
+    """Mean energy per cycle ± one standard deviation against the compared factor (Figures 41-46).
+
+    A scalar axis quantity with a distinct value per configuration gives a numeric axis (points with error
+    bars, each marked with its configuration key); otherwise one bar per configuration, labelled with the
+    level and quantity, its key written at the bar's foot."""
     fig, (ax,) = canvas_axes("bars")
     cfgs = [c for c in configurations_of(data, comparison.configurations) if c.energy_loss_j.size]
+    axis = comparison_axis(comparison, configurations_of(data, comparison.configurations))
     if not cfgs:
         empty(ax, "no energy data")
+        style(ax, axis.label, ENERGY_LABEL, _energy_title(comparison.title))
+        return to_data_uri(fig)
+    means = [c.energy_mean_j for c in cfgs]
+    stds = [c.energy_std_j if math.isfinite(c.energy_std_j) else 0.0 for c in cfgs]
+    xs = [axis.value(c) for c in cfgs]
+    if axis.numeric and len(set(xs)) == len(xs) and all(math.isfinite(x) for x in xs):
+        order = np.argsort(xs)
+        ax.errorbar(
+            np.asarray(xs)[order],
+            np.asarray(means)[order],
+            yerr=np.asarray(stds)[order],
+            fmt="o-",
+            ms=4,
+            lw=0.8,
+            capsize=3,
+            color=COLORS[0],
+        )
+        for xv, m, c in zip(xs, means, cfgs, strict=True):
+            ax.annotate(str(c.key), (xv, m), textcoords="offset points", xytext=(4, 4), fontsize=6.5)
+        ax.set_xticks(sorted(xs))
+        ax.tick_params(axis="x", labelsize=6.5)
+        ax.xaxis.set_label_coords(0.5, -0.11)
     else:
         x = np.arange(len(cfgs))
-        means = [c.energy_mean_j for c in cfgs]
-        stds = [c.energy_std_j if math.isfinite(c.energy_std_j) else 0.0 for c in cfgs]
         ax.bar(
             x,
             means,
@@ -82,85 +115,77 @@ def energy_bars_figure(data: ReportData, comparison: Comparison) -> str:
             color=[COLORS[i % len(COLORS)] for i in range(len(cfgs))],
             width=0.6,
         )
-        ax.set_xticks(x, [config_label(c, comparison.parameter) for c in cfgs], fontsize=6.5)
-    style(ax, "", ENERGY_LABEL, f"Energy loss: {comparison.title}")
+        for xi, c in zip(x, cfgs, strict=True):
+            ax.text(float(xi), 0.0, str(c.key), ha="center", va="bottom", fontsize=6.5, color="white")
+        ax.set_xticks(x, [axis.tick_label(c) for c in cfgs], fontsize=5.5)
+        ax.xaxis.set_label_coords(0.5, -0.2)  # below the two-line tick labels
+    ax.set_ylim(bottom=0.0)
+    style(ax, axis.label, ENERGY_LABEL, _energy_title(comparison.title))
     return to_data_uri(fig)
 
 
-def restraint_bars_figure(data: ReportData) -> str:
-    """Restrained range (brace stops) against a smaller trajectory, paired by stop (thesis Figure 42)."""
-    fig, (ax,) = canvas_axes("bars")
-    restrained = [
-        c for c in configurations_of(data, comparison_keys(data, "brace_rom")) if c.energy_loss_j.size
-    ]
-    trajectory = [
-        c for c in configurations_of(data, comparison_keys(data, "robot_rom")) if c.energy_loss_j.size
-    ]
-    if not restrained and not trajectory:
-        empty(ax, "no energy data")
-    else:
-        for offset, group, name, color in (
-            (-0.2, restrained, "stops (brace ROM)", COLORS[0]),
-            (0.2, trajectory, "trajectory (robot ROM)", COLORS[1]),
-        ):
-            if not group:
-                continue
-            x = np.arange(len(group)) + offset
-            ax.bar(
-                x,
-                [c.energy_mean_j for c in group],
-                yerr=[c.energy_std_j if math.isfinite(c.energy_std_j) else 0.0 for c in group],
-                width=0.38,
-                capsize=3,
-                color=color,
-                label=name,
-            )
-            for xi, c in zip(x, group, strict=True):
-                ax.text(xi, 0.0, str(c.key), ha="center", va="bottom", fontsize=6.5, color="white")
-        n = max(len(restrained), len(trajectory))
-        ax.set_xticks(np.arange(n), [f"range {i + 1}" for i in range(n)], fontsize=6.5)
-    style(ax, "", ENERGY_LABEL, "Energy loss: restrained range vs smaller trajectory")
+def _energy_title(title: str) -> str:
+    return title if title.lower().startswith("energy") else f"Energy loss: {title}"
+
+
+def reference_figure(data: ReportData) -> str:
+    """The archive's reference datasets (e.g. a reference suit's measurements, thesis §5.6, Figure 38)."""
+    fig, (ax,) = canvas_axes("single")
+    _references(ax, data)
+    if not data.references:
+        empty(ax, "no reference dataset")
+    style(ax, ANGLE_LABEL, TORQUE_LABEL, "Reference data")
     legend(ax)
     return to_data_uri(fig)
 
 
-def emu_figure(data: ReportData, comparison: Comparison) -> str:
-    """The EMU-condition configurations against the reference dataset (thesis §5.6, Figure 38)."""
+def element_fit_figure(data: ReportData, comparison: Comparison) -> str:
+    """The fitted elastic elements against the loops' midline for each compared configuration (the
+    physical model of thesis §6.1.5, Figures 52-53): solid the midline data, dashed the model."""
     fig, (ax,) = canvas_axes("single")
-    _overlay_loops(
-        ax, configurations_of(data, comparison.configurations), lambda c: f"config {c.key} ({c.profile})"
-    )
-    for ref in data.references:
-        ax.plot(ref.angle_deg, ref.torque_nm, ".", ms=1.5, color="k", alpha=0.6, label=ref.title)
-    style(ax, ANGLE_LABEL, TORQUE_LABEL, "EMU condition vs reference data")
-    legend(ax)
-    return to_data_uri(fig)
-
-
-def spring_model_figure(data: ReportData, comparison: Comparison) -> str:
-    """Physical spring model (Eq 13-18) against the data for a preload or spring change (Figs 52-53)."""
-    fig, (ax,) = canvas_axes("single")
+    configs = configurations_of(data, comparison.configurations)
+    axis = comparison_axis(comparison, configs)
     drawn = False
-    for i, cfg in enumerate(configurations_of(data, comparison.configurations)):
+    for i, cfg in enumerate(configs):
+        fit = cfg.element_fit
+        if fit is None or not fit.drawable:
+            continue
         color = COLORS[i % len(COLORS)]
-        trial = next((t for t in cfg.trials if t.processed is not None), None)
-        if trial is not None and trial.processed is not None:
-            ax.plot(
-                trial.processed.angle_deg, trial.processed.brace_torque_nm, lw=0.5, color=color, alpha=0.55
-            )
-            drawn = True
-        if cfg.spring is not None and cfg.spring.applicable and cfg.spring.angle_deg.size:
-            ax.plot(
-                cfg.spring.angle_deg,
-                cfg.spring.model_torque_nm,
-                "--",
-                lw=1.2,
-                color=color,
-                label=f"model, {config_label(cfg, comparison.parameter)}",
-            )
-            drawn = True
+        if fit.torque_nm.size == fit.angle_deg.size:
+            ax.plot(fit.angle_deg, fit.torque_nm, lw=0.6, color=color, alpha=0.55)
+        ax.plot(
+            fit.angle_deg,
+            fit.model_torque_nm,
+            "--",
+            lw=1.2,
+            color=color,
+            label=f"{axis.config_label(cfg)}, RMSE {fit.rmse_nm:.2f} N·m",
+        )
+        drawn = True
     if not drawn:
-        empty(ax, "no data")
-    style(ax, ANGLE_LABEL, TORQUE_LABEL, f"Physical model vs data: {comparison.title}")
+        empty(ax, "no applicable element fit")
+    style(ax, ANGLE_LABEL, TORQUE_LABEL, f"Elastic model vs midline: {comparison.title}")
     legend(ax)
     return to_data_uri(fig)
+
+
+def fitted_elements_differ(configs: Sequence[Configuration]) -> bool:
+    """True when at least one configuration has a drawable element fit and the fitted elements' declared
+    parameters (the device as configured) differ between the configurations: the comparison changes
+    the elastic model, so drawing the fits side by side shows the model following the change."""
+    fitted: list[str] = []
+    for cfg in configs:
+        if cfg.element_fit is not None and cfg.element_fit.drawable:
+            names = [e.name for e in cfg.element_fit.elements]
+            names += [key.split(".", 1)[0] for key, _ in cfg.element_fit.parameters]
+            fitted.extend(n for n in names if n not in fitted)
+    if not fitted:
+        return False
+    for name in fitted:
+        params = set()
+        for cfg in configs:
+            element = cfg.settings.element(name)
+            params.add(repr(element.params) if element is not None else "")
+        if len(params) > 1:
+            return True
+    return False

@@ -3,9 +3,6 @@
 The statements come from the protocol as archived (`/protocol`, its `expectations:` list, docs/protocol.md
 "Expectations"); the generic evaluator `protocol_runner.report.evaluate` decides each one. Nothing
 here knows any campaign: no configuration key, factor level or threshold.
-
-`comparison_keys` gives the configurations of the archive's `/comparisons` group for a parameter (used by
-the report's figures); an archive without such a group gives none.
 """
 
 from __future__ import annotations
@@ -21,16 +18,6 @@ from protocol_runner.report.model import ReportData
 
 #: Label shown beside a verdict the dry-run simulator was tuned to reproduce.
 TUNED_LABEL = "simulated rig tuned to this finding"
-
-# parameter aliases accepted in /comparisons/<name> attribute `parameter` (lower case)
-_ALIASES: dict[str, tuple[str, ...]] = {
-    "friction": ("friction", "friction_level", "friction_nm", "brake_friction"),
-    "robot_rom": ("robot_rom", "robot_rom_deg", "rom", "range_of_motion", "trajectory_rom", "rom_trajectory"),
-    "brace_rom": ("brace_rom", "brace_rom_deg", "rom_brace", "brace_range_of_motion"),
-    "speed": ("speed", "speed_deg_s"),
-    "preload": ("preload", "preload_position", "spring_preload"),
-    "stiffness": ("stiffness", "stiffness_n_per_mm", "spring", "spring_stiffness"),
-}
 
 
 @dataclass(frozen=True)
@@ -73,19 +60,3 @@ def evaluate_expectations(data: ReportData) -> Expectations:
     """Every declared expectation of `data`'s archived protocol, decided on `data`."""
     specs, problems = declared_expectations(data.protocol_text)
     return Expectations(evaluate_all(specs, data), problems, data.session.mode == "dry-run")
-
-
-def comparison_keys(data: ReportData, parameter: str) -> tuple[int, ...]:
-    """Configuration keys of the report's comparison group for `parameter` (empty when none).
-
-    When several groups share the parameter, the one with the fewest configurations wins (the brace
-    range group [1, 2, 3] over a restraint group that adds trajectory configurations).
-    """
-    aliases = _ALIASES.get(parameter, (parameter,))
-    best: tuple[int, ...] = ()
-    for comp in data.comparisons:
-        if comp.parameter.lower() not in aliases and comp.name.lower() not in aliases:
-            continue
-        if not best or len(comp.configurations) < len(best):
-            best = comp.configurations
-    return best

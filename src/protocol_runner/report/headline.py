@@ -78,15 +78,14 @@ def configuration_stats(cfg: Configuration) -> ConfigurationStats:
     )
 
 
-def _settings_signature(cfg: Configuration) -> tuple[tuple[str, str], ...]:
-    items = [("profile", cfg.profile)]
-    items.extend((name, repr(value)) for name, value in cfg.settings.items())
-    return tuple(sorted(items))
+def _settings_signature(cfg: Configuration) -> tuple[str, str]:
+    """Profile and every setting: trajectory, each factor's level and quantities, the resolved device."""
+    return cfg.profile, repr(cfg.settings)
 
 
 def identical_groups(data: ReportData) -> tuple[tuple[int, ...], ...]:
     """Groups (two or more keys, in matrix order) of configurations whose settings are all identical."""
-    groups: dict[tuple[tuple[str, str], ...], list[int]] = {}
+    groups: dict[tuple[str, str], list[int]] = {}
     for cfg in data.configurations:
         groups.setdefault(_settings_signature(cfg), []).append(cfg.key)
     return tuple(tuple(sorted(keys)) for keys in groups.values() if len(keys) >= 2)

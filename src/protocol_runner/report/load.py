@@ -37,24 +37,8 @@ from protocol_runner.report.load_session import (
     read_references,
     read_session,
 )
-from protocol_runner.report.model import (
-    Comparison,
-    Configuration,
-    ReportData,
-)
+from protocol_runner.report.model import Configuration, ReportData
 from protocol_runner.report.parallel import map_in_processes
-
-#: The comparisons of thesis Chapter 5 (matrix keys of Appendix A, Table 5), used when the archive has no
-#: `/comparisons` groups: (name, parameter, section, title, keys).
-THESIS_COMPARISONS: tuple[tuple[str, str, str, str, tuple[int, ...]], ...] = (
-    ("speed", "speed", "5.1", "Speed of displacement", (10, 11)),
-    ("brace_rom", "brace_rom", "5.2", "Limitation of the brace range of motion", (1, 2, 3)),
-    ("friction", "friction", "5.3", "Brake friction", (4, 5, 6, 7)),
-    ("stiffness", "stiffness", "5.4", "Spring stiffness", (17, 20, 14, 23)),
-    ("preload", "preload", "5.5", "Spring preload", (8, 3, 9)),
-    ("robot_rom", "robot_rom", "5.7.2", "Range of motion of the trajectory", (12, 13, 14)),
-    ("emu", "emu", "5.6", "EMU comparison", (24, 25, 26, 27, 28)),
-)
 
 
 def load_report_data(path: Path, *, workers: int | None = None) -> ReportData:
@@ -119,11 +103,8 @@ def _read(h5: h5py.File, archive: Path, configurations: tuple[Configuration, ...
     notes: list[str] = []
     if not comparisons:
         notes.append(
-            "The archive has no /comparisons groups: the report uses the thesis's comparisons (Chapter 5)."
-        )
-        comparisons = tuple(
-            Comparison(name, parameter, section, title, keys, from_archive=False)
-            for name, parameter, section, title, keys in THESIS_COMPARISONS
+            "The protocol declares no comparisons (its report section's `comparisons`): the report shows "
+            "no cross-configuration figures."
         )
     return ReportData(
         session=session,

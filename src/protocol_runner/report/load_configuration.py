@@ -15,33 +15,18 @@ from protocol_runner.report.h5read import (
     attr_int,
     attr_str,
     decimate_for_plot,
-    decode,
     float_ds,
     read_only,
 )
 from protocol_runner.report.model import (
     BoucWenFit,
     Configuration,
+    ElementFit,
     ProcessedTrial,
     Recording,
-    SpringFit,
     Trial,
 )
-
-# Configuration attributes shown as the row of the test matrix, not settings.
-_IDENTITY_ATTRS = {
-    "key",
-    "run",
-    "set",
-    "condition",
-    "profile",
-    "status",
-    "n_trials",
-    "trajectory_name",
-    "factors",
-    "settings_json",
-    "device_json",
-}
+from protocol_runner.report.settings_view import elements_from_json, settings_from_attrs
 
 
 def _read_recording(grp: h5py.Group) -> Recording:
@@ -67,16 +52,7 @@ def _trial_numbers(trials: h5py.Group) -> list[tuple[int, str]]:
 
 def read_configuration(name: str, grp: h5py.Group) -> Configuration:
     a = grp.attrs
-    settings: dict[str, object] = {}
-    for attr_name in sorted(a.keys()):
-        if attr_name in _IDENTITY_ATTRS:
-            continue
-        value = decode(a[attr_name])
-        if isinstance(value, np.ndarray):
-            value = tuple(value.tolist())
-        elif isinstance(value, list):
-            value = tuple(value)
-        settings[attr_name] = value
+    settings = settings_from_attrs(a, f"configuration {name}")
     trials: list[Trial] = []
     angles: list[np.ndarray] = []
     torques: list[np.ndarray] = []
@@ -129,7 +105,7 @@ def read_configuration(name: str, grp: h5py.Group) -> Configuration:
         energy_loss_j=read_only(energy),
         energy_cycle_trial=read_only(cycle_trial),
         bouc_wen=_read_bouc_wen(grp["fits/bouc_wen"]) if "fits/bouc_wen" in grp else None,
-        spring=_read_spring(grp["fits/spring"]) if "fits/spring" in grp else None,
+        element_fit=_read_element_fit(grp["fits/elements"], name) if "fits/elements" in grp else None,
         angle_min_deg=angle_min,
         angle_max_deg=angle_max,
         torque_slope_nm_per_deg=slope,
@@ -203,13 +179,21 @@ def _filter_text(attrs: h5py.AttributeManager) -> str:
     return f"{kind} low-pass, order {attr_int(attrs, 'filter_order', 0)}, cut-off {hz:.1f} Hz, zero-phase"
 
 
-def _read_spring(grp: h5py.Group) -> SpringFit:
+def _read_element_fit(grp: h5py.Group, name: str) -> ElementFit:
     a = grp.attrs
-    return SpringFit(
+    parameters = tuple(
+        (key, attr_float(a, key)) for key in sorted(a.keys()) if "." in key and not key.startswith(".")
+    )
+    elements_text = attr_str(a, "elements_json", "[]")
+    return ElementFit(
         applicable=attr_bool(a, "applicable", True),
-        max_preload_mm=attr_float(a, "max_preload_mm"),
-        zero_offset_deg=attr_float(a, "zero_offset_deg"),
+        reason=attr_str(a, "reason"),
+        target=attr_str(a, "target"),
         rmse_nm=attr_float(a, "rmse_nm"),
+        rmse_all_samples_nm=attr_float(a, "rmse_all_samples_nm"),
+        parameters=parameters,
+        elements=elements_from_json(elements_text, f"configuration {name}: fits/elements"),
         angle_deg=decimate_for_plot(float_ds(grp, "angle_deg")),
+        torque_nm=decimate_for_plot(float_ds(grp, "torque_nm")),
         model_torque_nm=decimate_for_plot(float_ds(grp, "model_torque_nm")),
     )

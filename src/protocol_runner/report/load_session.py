@@ -139,7 +139,6 @@ def read_comparisons(h5: h5py.File) -> tuple[Comparison, ...]:
                 section=attr_str(grp.attrs, "section"),
                 title=attr_str(grp.attrs, "title", name),
                 configurations=keys,
-                from_archive=True,
             )
         )
     out.sort(key=lambda c: (_section_key(c.section), c.name))

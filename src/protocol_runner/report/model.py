@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analysis.reference import ReferenceDataset as ReferenceDataset  # read by validate and report
+from .settings_view import DeviceElement, Quantity, SettingsView
 
 FloatArray = np.ndarray
 
@@ -162,15 +163,28 @@ class BoucWenFit:
 
 
 @dataclass(frozen=True)
-class SpringFit:
-    """The physical spring model fitted to one configuration (thesis §6.1, Eq 13-18)."""
+class ElementFit:
+    """The device's elastic elements fitted to the loops' midline (`fits/elements`, docs/archive.md).
+
+    `parameters` are the fitted values by archive name `<element>.<parameter>` (the unit in the
+    parameter's suffix); `elements` the fitted elements with every parameter; the curves are the
+    midline data (`torque_nm`) and the model (`model_torque_nm`) against `angle_deg`, decimated."""
 
     applicable: bool
-    max_preload_mm: float
-    zero_offset_deg: float
+    reason: str
+    target: str
     rmse_nm: float
+    rmse_all_samples_nm: float
+    parameters: tuple[tuple[str, float], ...]
+    elements: tuple[DeviceElement, ...]
     angle_deg: FloatArray
+    torque_nm: FloatArray
     model_torque_nm: FloatArray
+
+    @property
+    def drawable(self) -> bool:
+        """True when the fit applies and has a model curve to draw."""
+        return self.applicable and self.angle_deg.size > 0 and self.model_torque_nm.size > 0
 
 
 @dataclass(frozen=True)
@@ -185,12 +199,12 @@ class Configuration:
     profile: str
     status: str
     n_trials_planned: int
-    settings: dict[str, object]
+    settings: SettingsView
     trials: tuple[Trial, ...]
     energy_loss_j: FloatArray
     energy_cycle_trial: FloatArray
     bouc_wen: BoucWenFit | None
-    spring: SpringFit | None
+    element_fit: ElementFit | None
     angle_min_deg: float
     angle_max_deg: float
     torque_slope_nm_per_deg: float
@@ -210,21 +224,25 @@ class Configuration:
         """True when at least one trial was processed."""
         return any(t.processed is not None for t in self.trials)
 
-    def setting(self, name: str, default: object = None) -> object:
-        """A configuration attribute (e.g. `friction_nm`, `stiffness`), or `default`."""
-        return self.settings.get(name, default)
+    def level(self, factor: str) -> str | None:
+        """The level label of declared factor `factor`, or None when this configuration does not set it."""
+        return self.settings.level(factor)
+
+    def quantity(self, factor: str, name: str) -> Quantity | None:
+        """The value of `factor`'s quantity `name` (a number, or a tuple for a list), or None."""
+        return self.settings.quantity(factor, name)
 
 
 @dataclass(frozen=True)
 class Comparison:
-    """A group of configurations that differ by one parameter (`/comparisons/<name>` or the thesis's)."""
+    """A declared group of configurations that differ by `parameter` (`/comparisons/<name>`): a declared
+    factor's name, or "trajectory"."""
 
     name: str
     parameter: str
     section: str
     title: str
     configurations: tuple[int, ...]
-    from_archive: bool
 
 
 @dataclass(frozen=True)

@@ -21,20 +21,21 @@ import jinja2
 
 from protocol_runner import __version__
 from protocol_runner.errors import InvalidInput
+from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.figures import (
     FigureSet,
     distinct_comparisons,
-    emu_comparison,
     model_comparisons,
     render_figures,
     slug,
 )
-from protocol_runner.report.findings import TUNED_LABEL, comparison_keys, evaluate_expectations
+from protocol_runner.report.findings import TUNED_LABEL, evaluate_expectations
 from protocol_runner.report.headline import configuration_stats, group_repeatability, identical_groups
 from protocol_runner.report.limits_text import limits_text
 from protocol_runner.report.load import load_reference_dataset, load_report_data
 from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Comparison, Configuration, ReportData
 from protocol_runner.report.predictions import predictions
+from protocol_runner.report.settings_view import format_quantity
 from protocol_runner.resources import templates_dir
 
 TEMPLATE = "report.html.j2"
@@ -46,7 +47,7 @@ SECTIONS: tuple[tuple[str, str], ...] = (
     ("configurations", "Configurations"),
     ("comparisons", "Comparisons"),
     ("energy-loss", "Energy loss"),
-    ("emu", "EMU comparison"),
+    ("reference", "Reference data"),
     ("models", "Models"),
     ("test-matrix", "Test matrix"),
     ("calibration", "Calibration checks"),
@@ -143,7 +144,7 @@ def _environment() -> jinja2.Environment:
     env.filters["num"] = _num
     env.filters["pm"] = _pm
     env.filters["slug"] = slug
-    env.filters["setting"] = _setting_text
+    env.filters["factor"] = _factor_text
     env.filters["ci"] = _ci
     return env
 
@@ -174,15 +175,18 @@ def _ci(low: float, high: float, digits: int = 2) -> str:
     return f"[{low:.{digits}f}, {high:.{digits}f}]"
 
 
-def _setting_text(cfg: Configuration, name: str) -> str:
-    value = cfg.setting(name)
-    if value is None:
-        return "—"
-    if isinstance(value, tuple):
-        return "–".join(_num(v, 0) if isinstance(v, int | float) else str(v) for v in value)
-    if isinstance(value, float):
-        return f"{value:g}"
-    return str(value)
+def _factor_text(cfg: Configuration, factor: str) -> str:
+    """A test-matrix cell: the factor's level label and its quantities with units, "—" when not set."""
+    setting = cfg.settings.factor(factor)
+    return setting.text() if setting is not None else "—"
+
+
+def factor_names(data: ReportData) -> list[str]:
+    """Every declared factor any configuration sets, in declaration order (first seen first)."""
+    names: list[str] = []
+    for cfg in data.configurations:
+        names.extend(f for f in cfg.settings.factor_names() if f not in names)
+    return names
 
 
 def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[str, object]:
@@ -196,10 +200,8 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
             )
         )
     overlay_comparisons = distinct_comparisons(data)
-    emu = emu_comparison(data)
     expectations = evaluate_expectations(data)
     groups = identical_groups(data)
-    restraint_keys = (comparison_keys(data, "brace_rom"), comparison_keys(data, "robot_rom"))
     return {
         "data": data,
         "session": data.session,
@@ -207,18 +209,18 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
         "figures": figures,
         "calibration_sets": calibration_sets,
         "comparisons": overlay_comparisons,
-        "emu": emu,
-        "emu_configurations": _configs(data, emu),
-        "spring_comparisons": model_comparisons(data),
+        "model_comparisons": model_comparisons(data),
         "fitted": [c for c in data.configurations if c.bouc_wen is not None],
         "predictions": predictions(Path(data.session.archive_path), data.protocol_text),
-        "spring_fitted": [c for c in data.configurations if c.spring is not None],
+        "element_fitted": [c for c in data.configurations if c.element_fit is not None],
+        "factor_names": factor_names(data),
+        "quantity": format_quantity,
+        "axis_of": lambda comp: comparison_axis(comp, _configs(data, comp)),
         "expectations": expectations,
         "tuned_label": TUNED_LABEL,
         "headline": [configuration_stats(c) for c in data.configurations],
         "repeatability": [(keys, group_repeatability(data, keys)) for keys in groups],
         "limits_text": limits_text,
-        "restraint_keys": restraint_keys,
         "generated_utc": generated_utc,
         "software_version": __version__,
         "verdict_class": _verdict_class,

@@ -10,8 +10,10 @@ brace-off at equal angles (§3.3).
 `trials.csv`: one row per trial with its cycle count, mean and within-trial standard deviation of the
 energy per cycle, and the angle range and peak torque of its processed data.
 
-`configurations.csv`: one row per configuration with its settings, trials, cycles, the mean of trial
-means with its 95 % t-interval and between-trial CV (`report.headline`, the numbers of the report's
+`configurations.csv`: one row per configuration with its settings (profile, trajectory name, then one column
+per declared factor holding its level label and one per factor quantity, `<factor>.<quantity>`, the unit in
+the quantity's suffix; a list such as a range [lo, hi] is written `lo;hi`), trials, cycles, the mean of
+trial means with its 95 % t-interval and between-trial CV (`report.headline`, the numbers of the report's
 summary table), the angle reached and the Bouc-Wen fit quality.
 
 Public API: export_tables(archive, output_dir) -> tuple[Path, ...]
@@ -150,18 +152,29 @@ def _rows(h5: h5py.File, data: ReportData) -> tuple[list[list[object]], list[lis
     return cycles, trials
 
 
+def setting_columns(data: ReportData) -> list[str]:
+    """One column per declared factor (its level label) followed by one per factor quantity
+    (`<factor>.<quantity>`, the unit in the quantity's suffix), in declaration order, first seen first."""
+    names: list[str] = []
+    for cfg in data.configurations:
+        names.extend(k for k in cfg.settings.flat() if k not in names)
+    return names
+
+
 def _configuration_rows(data: ReportData) -> tuple[list[str], list[list[object]]]:
-    setting_names = sorted({name for cfg in data.configurations for name in cfg.settings})
-    columns = ["configuration", "set", "profile", *setting_names, *STAT_COLUMNS]
-    rows = []
+    setting_names = setting_columns(data)
+    columns = ["configuration", "set", "profile", "trajectory", *setting_names, *STAT_COLUMNS]
+    rows: list[list[object]] = []
     for cfg in data.configurations:
         s = configuration_stats(cfg)
+        flat = cfg.settings.flat()
         rows.append(
             [
                 cfg.key,
                 cfg.set_name,
                 cfg.profile,
-                *(cfg.settings.get(name) for name in setting_names),
+                cfg.settings.trajectory,
+                *(flat.get(name) for name in setting_names),
                 s.trials,
                 s.cycles,
                 s.energy.mean,

@@ -1,0 +1,271 @@
+"""A configuration's declared settings as the archive stores them, for everything in the report.
+
+The archive's configuration group (docs/archive.md "Configurations") carries `factors` (the factor names
+in declaration order), `settings_json` ({"<factor>": {"level": label, <quantity>: value, ...}}),
+`device_json` ([{"name", "type", <parameter>: value, ...}]) and `trajectory_name`, plus the same
+settings flattened (`<factor>` = level label, `<factor>.<quantity>` = value). The report reads the JSON
+forms (they keep the declaration order) and never assumes any factor, level or quantity name: a
+quantity's unit comes from its name's suffix (`friction_nm` -> N·m, `range_deg` -> deg).
+
+An archive without these attributes (written before factors were declared) gives empty settings.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from protocol_runner.errors import InvalidInput
+
+Quantity = float | tuple[float, ...]
+Param = Quantity | str | tuple[str, ...]  # an element parameter (words for constants and lists such as `fit`)
+
+#: Display label of each quantity-name unit suffix (docs/protocol.md "Units"). Longest suffix first
+#: when matching, so `_nm_per_deg` wins over `_deg` and `_deg_s2` over `_s2`.
+UNIT_LABELS: Mapping[str, str] = {
+    "_deg": "deg",
+    "_deg_s": "deg/s",
+    "_deg_s2": "deg/s²",
+    "_rad": "rad",
+    "_nm": "N·m",
+    "_n": "N",
+    "_n_per_mm": "N/mm",
+    "_n_per_m": "N/m",
+    "_nm_per_deg": "N·m/deg",
+    "_nm_per_rad": "N·m/rad",
+    "_nm_s_per_deg": "N·m·s/deg",
+    "_mm": "mm",
+    "_m": "m",
+    "_kg": "kg",
+    "_s": "s",
+    "_hz": "Hz",
+    "_j": "J",
+    "_v": "V",
+    "_turns": "turns",
+    "_index": "",
+    "_count": "",
+    "_ratio": "",
+    "_percent": "%",
+}
+_BY_LENGTH = sorted(UNIT_LABELS, key=len, reverse=True)
+
+#: The comparison parameter that compares trajectories rather than a factor's levels.
+TRAJECTORY = "trajectory"
+
+
+def unit_suffix(name: str) -> str:
+    """The unit suffix of a quantity or parameter name (`friction_nm` -> `_nm`), "" when it has none."""
+    for suffix in _BY_LENGTH:
+        if name.endswith(suffix) and len(name) > len(suffix):
+            return suffix
+    return ""
+
+
+def unit_label(name: str) -> str:
+    """The unit of `name` as a reader writes it (`stiffness_n_per_mm` -> "N/mm"); "" when dimensionless."""
+    return UNIT_LABELS.get(unit_suffix(name), "")
+
+
+def quantity_title(name: str) -> str:
+    """`name` without its unit suffix, words spaced (`range_deg` -> "range", `screw_turns` -> "screw")."""
+    suffix = unit_suffix(name)
+    stem = name[: -len(suffix)] if suffix else name
+    return stem.replace("_", " ").strip() or name
+
+
+def axis_label(factor: str, quantity: str) -> str:
+    """An axis label naming the factor, the quantity and its unit: "friction: friction (N·m)"."""
+    unit = unit_label(quantity)
+    text = f"{factor}: {quantity_title(quantity)}"
+    return f"{text} ({unit})" if unit else text
+
+
+def format_number(value: float) -> str:
+    """A quantity's number, short: 3.75, 40, 0.001 (no trailing zeros; NaN as an em dash)."""
+    if not math.isfinite(value):
+        return "—"
+    return f"{value:g}"
+
+
+def format_quantity(name: str, value: Quantity | str, *, unit: bool = True) -> str:
+    """A quantity with its unit: "3.75 N·m"; a range [lo, hi] as "40–90 deg"; a longer list "1, 2, 3 mm"."""
+    if isinstance(value, str):
+        return value
+    if isinstance(value, tuple):
+        sep = "–" if len(value) == 2 else ", "
+        text = sep.join(format_number(v) for v in value)
+    else:
+        text = format_number(value)
+    label = unit_label(name) if unit else ""
+    if not label:
+        return text
+    return f"{text}{label}" if label == "%" else f"{text} {label}"
+
+
+@dataclass(frozen=True)
+class FactorLevel:
+    """One declared factor of a configuration: its level label and the quantities it resolves to."""
+
+    factor: str
+    level: str
+    quantities: tuple[tuple[str, Quantity], ...]
+
+    def quantity(self, name: str) -> Quantity | None:
+        """The value of quantity `name`, or None when the level has none."""
+        for key, value in self.quantities:
+            if key == name:
+                return value
+        return None
+
+    def text(self) -> str:
+        """The level and its quantities: "R1 (range 40–90 deg)"."""
+        if not self.quantities:
+            return self.level
+        inner = ", ".join(f"{quantity_title(q)} {format_quantity(q, v)}" for q, v in self.quantities)
+        return f"{self.level} ({inner})"
+
+
+@dataclass(frozen=True)
+class DeviceElement:
+    """One element of the device under test with its resolved parameters (`device_json`)."""
+
+    name: str
+    type: str
+    params: tuple[tuple[str, Param], ...]
+
+    def param(self, name: str) -> Param | None:
+        """The value of parameter `name`, or None."""
+        return dict(self.params).get(name)
+
+
+@dataclass(frozen=True)
+class SettingsView:
+    """The settings of one configuration: its factors (declaration order), device and trajectory name."""
+
+    factors: tuple[FactorLevel, ...] = ()
+    device: tuple[DeviceElement, ...] = ()
+    trajectory: str = ""
+
+    def factor_names(self) -> tuple[str, ...]:
+        """The factors this configuration sets, in declaration order."""
+        return tuple(f.factor for f in self.factors)
+
+    def factor(self, name: str) -> FactorLevel | None:
+        """The setting of factor `name`, or None when the configuration does not set it."""
+        for f in self.factors:
+            if f.factor == name:
+                return f
+        return None
+
+    def level(self, factor: str) -> str | None:
+        """The level label of `factor`, or None."""
+        f = self.factor(factor)
+        return f.level if f is not None else None
+
+    def quantity(self, factor: str, name: str) -> Quantity | None:
+        """The value of `factor`'s quantity `name`, or None."""
+        f = self.factor(factor)
+        return f.quantity(name) if f is not None else None
+
+    def element(self, name: str) -> DeviceElement | None:
+        """The device element called `name`, or None."""
+        for e in self.device:
+            if e.name == name:
+                return e
+        return None
+
+    def flat(self) -> dict[str, Quantity | str]:
+        """The archive's flattened form: `<factor>` -> level label, `<factor>.<quantity>` -> value."""
+        out: dict[str, Quantity | str] = {}
+        for f in self.factors:
+            out[f.factor] = f.level
+            for q, v in f.quantities:
+                out[f"{f.factor}.{q}"] = v
+        return out
+
+    def levels(self) -> tuple[tuple[str, str], ...]:
+        """(factor, level label) pairs in declaration order."""
+        return tuple((f.factor, f.level) for f in self.factors)
+
+
+def _number(value: Any, where: str) -> Quantity:
+    if isinstance(value, bool):
+        raise InvalidInput(f"{where}: {value!r} is not a number")
+    if isinstance(value, int | float):
+        return float(value)
+    if isinstance(value, Sequence) and not isinstance(value, str):
+        return tuple(float(_number(v, where)) for v in value)  # type: ignore[arg-type]
+    raise InvalidInput(f"{where}: {value!r} is not a number or a list of numbers")
+
+
+def _param(value: Any) -> Param:
+    """An element parameter: a number, a list of numbers (tuple), a word, or a list of words (e.g. the
+    element's `fit` list); anything else as its JSON text."""
+    if isinstance(value, bool) or value is None:
+        return json.dumps(value)
+    if isinstance(value, int | float):
+        return float(value)
+    if isinstance(value, str):
+        return value
+    if isinstance(value, list):
+        if all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+            return tuple(float(v) for v in value)
+        if all(isinstance(v, str) for v in value):
+            return tuple(str(v) for v in value)
+    return json.dumps(value)
+
+
+def _text(value: Any) -> str:
+    if isinstance(value, bytes):
+        return value.decode("utf-8", errors="replace")
+    if hasattr(value, "tolist") and not isinstance(value, str):
+        return _text(value.tolist())
+    return str(value)
+
+
+def _json(attrs: Mapping[str, Any], name: str, where: str) -> Any:
+    try:
+        return json.loads(_text(attrs[name]))
+    except json.JSONDecodeError as exc:
+        raise InvalidInput(f"{where}: attribute {name} is not valid JSON ({exc.msg})") from None
+
+
+def settings_from_attrs(attrs: Mapping[str, Any], where: str) -> SettingsView:
+    """The settings of a configuration group from its attributes; `where` names it in errors.
+
+    Raises `InvalidInput` when `settings_json` or `device_json` is not the documented JSON shape.
+    """
+    factors: list[FactorLevel] = []
+    if "settings_json" in attrs:
+        doc = _json(attrs, "settings_json", where)
+        if not isinstance(doc, dict):
+            raise InvalidInput(f"{where}: attribute settings_json must be a JSON object of factors")
+        for factor, entry in doc.items():
+            if not isinstance(entry, dict) or "level" not in entry:
+                raise InvalidInput(f"{where}: settings_json.{factor} must be an object with a 'level'")
+            quantities = tuple(
+                (str(q), _number(v, f"{where}: settings_json.{factor}.{q}"))
+                for q, v in entry.items()
+                if q != "level"
+            )
+            factors.append(FactorLevel(str(factor), str(entry["level"]), quantities))
+    device: list[DeviceElement] = []
+    if "device_json" in attrs:
+        doc = _json(attrs, "device_json", where)
+        if not isinstance(doc, list):
+            raise InvalidInput(f"{where}: attribute device_json must be a JSON list of elements")
+        for i, entry in enumerate(doc):
+            if not isinstance(entry, dict) or "name" not in entry or "type" not in entry:
+                raise InvalidInput(f"{where}: device_json[{i}] must be an object with 'name' and 'type'")
+            params = tuple((str(k), _param(v)) for k, v in entry.items() if k not in ("name", "type"))
+            device.append(DeviceElement(str(entry["name"]), str(entry["type"]), params))
+    trajectory = _text(attrs["trajectory_name"]) if "trajectory_name" in attrs else ""
+    return SettingsView(tuple(factors), tuple(device), trajectory)
+
+
+def elements_from_json(text: str, where: str) -> tuple[DeviceElement, ...]:
+    """Device elements from a JSON list text (`device_json`, a fit's `elements_json`)."""
+    return settings_from_attrs({"device_json": text}, where).device
