@@ -209,7 +209,17 @@ class Problem:
         else:
             self._cached = None
             self.diverged_at = run_scheme(
-                self.scheme, self.x, self.seg, self.z0, A, n, beta, self.bound, True, self.z, self.max_step_deg
+                self.scheme,
+                self.x,
+                self.seg,
+                self.z0,
+                A,
+                n,
+                beta,
+                self.bound,
+                True,
+                self.z,
+                self.max_step_deg,
             )
         z = self.z if self.rows is None else self.z[self.rows]
         return (z - self.y_rows) / self.Z
@@ -319,13 +329,19 @@ def param_std(problem: Problem, params: BoucWenParams) -> FloatArray:
     ``J^T J`` is formed with its columns scaled to unit norm and inverted on the subspace whose
     eigenvalues exceed 1e-12 of the largest (singular values 1e-6 of the largest)."""
     dz = problem.physical_jacobian(params.A, params.n, np.array(params.beta))
-    m = problem.y_rows.size
-    std = np.full(8, np.inf)
-    if m <= 8 or not np.all(np.isfinite(dz)):
-        return std
     z = problem.z if problem.rows is None else np.ascontiguousarray(problem.z[problem.rows])
-    s2 = float(sum_sq_diff(z, problem.y_rows)) / (m - 8)
-    G = gram(dz)
+    return jacobian_std(dz, float(sum_sq_diff(z, problem.y_rows)))
+
+
+def jacobian_std(J: FloatArray, sse: float) -> FloatArray:
+    """``sqrt(diag(s^2 (J^T J)^-1))``, ``s^2 = sse / (m - 8)``, for any parametrisation's Jacobian ``J``
+    (m x 8); ``inf`` as in :func:`param_std`."""
+    m = J.shape[0]
+    std = np.full(8, np.inf)
+    if m <= 8 or not np.all(np.isfinite(J)):
+        return std
+    s2 = sse / (m - 8)
+    G = gram(np.ascontiguousarray(J))
     norm = np.sqrt(np.diag(G))
     active = norm > 0.0
     if not np.any(active):
