@@ -255,7 +255,7 @@ class Problem:
     ) -> tuple[FloatArray, int]:
         """The torque into ``self.z`` and ``dz/dtheta @ transform`` at the compared rows (a new array);
         the index of the first diverged sample or -1."""
-        out = np.empty((self.x.size, 8))
+        out = np.empty((self.x.size if self.rows is None else self.rows.size, 8))
         bad = run_scheme_sensitivity(
             self.scheme,
             self.x,
@@ -270,8 +270,9 @@ class Problem:
             out,
             transform,
             self.max_step_deg,
+            self.rows,
         )
-        return (out if self.rows is None else np.ascontiguousarray(out[self.rows])), int(bad)
+        return out, int(bad)
 
     def _chain(self, n: float, beta: FloatArray) -> FloatArray:
         """``d theta / d u``: every column of the dimensionless Jacobian is a fixed linear combination of
