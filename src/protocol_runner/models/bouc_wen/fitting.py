@@ -32,6 +32,7 @@ from .problem import (
 from .schemes import EQ23, REFINED, check_scheme
 from .simulation import as_angle
 from .starts import equation_error_start, thesis_start
+from .threads import blas_single_threaded
 
 _MID_SAMPLES = 1500  # samples per trial of the copy on which the refined scheme's polish starts
 _FINAL_NFEV = 40  # then at most this many residual evaluations on the fitted samples,
@@ -316,6 +317,7 @@ def fit(
     )
 
 
+@blas_single_threaded
 def fit_trials(
     segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]],
     *,

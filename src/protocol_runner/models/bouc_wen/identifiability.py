@@ -46,6 +46,7 @@ from .fitting import _validate_segments, decimate
 from .params import FloatArray
 from .problem import BoucWenFit, Problem, jacobian_std, param_std
 from .schemes import REFINED
+from .threads import blas_single_threaded
 
 CHI2_1_95 = 3.841458820694124  # 95 % quantile of chi-square with one degree of freedom
 PROFILE_SAMPLES = 400  # samples per trial of the copy on which n is profiled
@@ -157,6 +158,7 @@ def weak_reasons(
     return reasons
 
 
+@blas_single_threaded
 def identify(segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]], result: BoucWenFit) -> BoucWenFit:
     """``result`` with n's profile interval, every parameter's interval and the weak-identification mark."""
     checked = _validate_segments(segments)
