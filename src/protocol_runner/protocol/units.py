@@ -10,6 +10,7 @@ from __future__ import annotations
 UNIT_SUFFIXES: dict[str, str] = {
     "_nm_s_per_deg": "N*m*s/deg",
     "_nm_per_deg": "N*m/deg",
+    "_nm_s_per_rad": "N*m*s/rad",
     "_nm_per_rad": "N*m/rad",
     "_n_per_mm": "N/mm",
     "_n_per_m": "N/m",
@@ -44,6 +45,28 @@ def unit_suffix(name: str) -> str | None:
     for suffix in _BY_LENGTH:
         if name.endswith(suffix) and len(name) > len(suffix):
             return suffix
+    return None
+
+
+_PHYSICAL = ("_deg", "_rad", "_nm", "_n", "_mm", "_m", "_kg", "_s", "_hz", "_j", "_v")
+"""Units that cannot precede another unit in a name: `speed_rad_s` is not rad/s (that suffix does not
+exist), and `damping_nm_s_per_mrad` not N*m*s/mrad."""
+
+
+def compound_unit_problem(name: str) -> str | None:
+    """Why a quantity name that ends with a known suffix still has an unknown unit, or None: the part
+    before the suffix ends with `_per` or with another unit (`speed_rad_s`, `torque_n_m`)."""
+    suffix = unit_suffix(name)
+    if suffix is None:
+        return None
+    stem = name[: -len(suffix)]
+    before = next((u for u in _PHYSICAL if stem.endswith(u) and len(stem) > len(u)), None)
+    if stem.endswith("_per") or before is not None:
+        unit = name[len(stem) - len(before or "_per") :]
+        return (
+            f"{name!r}: the unit {unit} is not one of the unit suffixes (it would read as {suffix}, "
+            f"{UNIT_SUFFIXES[suffix] or 'a count'}); use one of: {known_suffixes()}"
+        )
     return None
 
 
