@@ -81,4 +81,7 @@ def check_expectations(
         for field in ("configurations", "than"):
             for j, key in enumerate(getattr(spec, field) or ()):
                 if key not in keys:
-                    yield ("expectations", i, field, j), f"no configuration has key {key} (keys: {key_spans(keys)})"
+                    yield (
+                        ("expectations", i, field, j),
+                        f"no configuration has key {key} (keys: {key_spans(keys)})",
+                    )

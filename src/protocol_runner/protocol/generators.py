@@ -145,7 +145,7 @@ def _check_generator(p: Protocol, gen: _GeneratorSpec, loc: Loc) -> Iterator[Pro
         elif by.factor in p.factors:
             used = _used_levels(p, gen, by.factor)
             for lv in used:
-                if lv not in by.levels:
+                if lv not in by.levels and lv in p.factors[by.factor]:  # an unknown level is reported above
                     yield (*tloc, "levels"), f"no trajectory for level {lv!r} of {by.factor}"
 
 

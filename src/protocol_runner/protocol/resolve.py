@@ -74,7 +74,8 @@ def _bound_value(
     if value is None:
         have = ", ".join(q for q, _ in setting.quantities) or "no quantities"
         raise BindingError(
-            loc, f"bound to {binding} but level {setting.level!r} of {factor} has no {quantity!r} (it has {have})"
+            loc,
+            f"bound to {binding} but level {setting.level!r} of {factor} has no {quantity!r} (it has {have})",
         )
     return value
 
@@ -95,11 +96,11 @@ def resolve_device(
             built = build_element(el.name, el.type, values)
         except InvalidInput as exc:
             m = re.search(r"parameter '([^']+)'", exc.message)
-            param = m.group(1) if m else None
-            bound = el.params.get(param) if param is not None else None
-            if param is not None and is_binding(bound):
-                raise _bound_value_error(p, factors, str(bound), (*loc, param), exc.message) from None
-            raise BindingError((*loc, param) if param else loc, exc.message) from None
+            named = m.group(1) if m else None
+            bound = el.params.get(named) if named is not None else None
+            if named is not None and is_binding(bound):
+                raise _bound_value_error(p, factors, str(bound), (*loc, named), exc.message) from None
+            raise BindingError((*loc, named) if named else loc, exc.message) from None
         params: list[tuple[str, Quantity | str]] = []
         for key, v in built.params.items():
             if isinstance(v, tuple) and all(isinstance(x, str) for x in v):
@@ -194,9 +195,12 @@ def check_bindings(p: Protocol) -> Iterator[Problem]:
                     f"(known: {', '.join(ELEMENT_TYPES)})",
                 )
                 continue
+            meant: set[str] = set()  # a misspelt parameter is one mistake, not also a missing one
             for param, value in el.params.items():
                 spec = etype.parameters.get(param)
                 if spec is None:
+                    close = difflib.get_close_matches(param, list(etype.parameters), n=1, cutoff=0.75)
+                    meant.update(close)
                     yield (
                         (*loc, param),
                         f"unknown parameter of {el.type}{_did_you_mean(param, etype.parameters)} "
@@ -205,7 +209,7 @@ def check_bindings(p: Protocol) -> Iterator[Problem]:
                 elif is_binding(value):
                     yield from _check_binding(p, value, spec.unit, (*loc, param))
             for param, spec in etype.parameters.items():
-                if spec.default is None and param not in el.params:
+                if spec.default is None and param not in el.params and param not in meant:
                     yield (*loc,), f"missing required parameter {param!r} of {el.type} ({spec.doc})"
     for name, tspec in p.trajectories.items():
         for field, binding in trajectory_bindings(tspec).items():
@@ -213,7 +217,7 @@ def check_bindings(p: Protocol) -> Iterator[Problem]:
 
 
 def _did_you_mean(word: str, known: Iterable[str]) -> str:
-    close = difflib.get_close_matches(word, list(known), n=1, cutoff=0.75)
+    close = difflib.get_close_matches(word, list(known), n=1, cutoff=0.75)  # as `meant` above
     return f"; did you mean {close[0]!r}?" if close else ""
 
 

@@ -48,26 +48,29 @@ def unit_suffix(name: str) -> str | None:
     return None
 
 
-_PHYSICAL = ("_deg", "_rad", "_nm", "_n", "_mm", "_m", "_kg", "_s", "_hz", "_j", "_v")
-"""Units that cannot precede another unit in a name: `speed_rad_s` is not rad/s (that suffix does not
-exist), and `damping_nm_s_per_mrad` not N*m*s/mrad."""
+_UNIT_WORDS = {"deg", "rad", "nm", "n", "mm", "m", "kg", "s", "s2", "hz", "j", "v", "per"}
+"""The words units are made of: a name whose suffix is preceded by another of them (`speed_rad_s`,
+`stiffness_nm_per_m`) has a compound unit that the table does not hold."""
 
 
 def compound_unit_problem(name: str) -> str | None:
-    """Why a quantity name that ends with a known suffix still has an unknown unit, or None: the part
-    before the suffix ends with `_per` or with another unit (`speed_rad_s`, `torque_n_m`)."""
+    """Why a quantity name that ends with a known suffix still has an unknown unit, or None: the word
+    before the suffix is a unit word too (`speed_rad_s` is not rad/s, `torque_n_m` not N*m)."""
     suffix = unit_suffix(name)
     if suffix is None:
         return None
-    stem = name[: -len(suffix)]
-    before = next((u for u in _PHYSICAL if stem.endswith(u) and len(stem) > len(u)), None)
-    if stem.endswith("_per") or before is not None:
-        unit = name[len(stem) - len(before or "_per") :]
-        return (
-            f"{name!r}: the unit {unit} is not one of the unit suffixes (it would read as {suffix}, "
-            f"{UNIT_SUFFIXES[suffix] or 'a count'}); use one of: {known_suffixes()}"
-        )
-    return None
+    words = name.split("_")
+    stem_words = name[: -len(suffix)].split("_")
+    if len(stem_words) < 2 or stem_words[-1] not in _UNIT_WORDS:
+        return None
+    n = 0
+    while n < len(words) - 1 and words[len(words) - 1 - n] in _UNIT_WORDS:
+        n += 1
+    unit = "_" + "_".join(words[len(words) - n :])
+    return (
+        f"{name!r}: the unit {unit} is not one of the unit suffixes (it would read as {suffix}, "
+        f"{UNIT_SUFFIXES[suffix] or 'a count'}); use one of: {known_suffixes()}"
+    )
 
 
 def unit_text(name: str) -> str:

@@ -87,7 +87,7 @@ def _cross_check(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc,
 
 
 def _which_configurations(where: list[tuple[str, int]], all_keys: set[int]) -> str:
-    """"configuration 4 in set 'speed'", "configurations 1-6 in set 'factorial'", "every configuration"
+    """ "configuration 4 in set 'speed'", "configurations 1-6 in set 'factorial'", "every configuration"
     (the sets are named when there are at most three)."""
     keys = sorted({k for _, k in where})
     if len(keys) > 1 and set(keys) == all_keys:
@@ -121,7 +121,10 @@ def _limit_problems(loaded: LoadedProtocol, motions: list[Motion]) -> list[Probl
             out.setdefault(((*base, field), message), []).append(which)
     all_keys = {c.key for _, c in p.configurations()}
     return [
-        (loc, message if loc[0] == "calibration_step" else f"{message} ({_which_configurations(w, all_keys)})")
+        (
+            loc,
+            message if loc[0] == "calibration_step" else f"{message} ({_which_configurations(w, all_keys)})",
+        )
         for (loc, message), w in out.items()
     ]
 
@@ -201,9 +204,7 @@ def _check_matrix(p: Protocol) -> Iterator[Problem]:
                 yield (*loc, "trajectory"), f"unknown trajectory {cfg.trajectory!r} (known: {known})"
 
 
-def _resolve_configurations(
-    loaded: LoadedProtocol, check_files: bool
-) -> Iterator[tuple[Loc, str, Any]]:
+def _resolve_configurations(loaded: LoadedProtocol, check_files: bool) -> Iterator[tuple[Loc, str, Any]]:
     """Per configuration: (location, message, (set index, key)) for a problem, or (location, "", motion)."""
     p = loaded.protocol
     park = p.rig.safety.park_angle_deg
