@@ -105,7 +105,7 @@ def _readable_detail(detail: object) -> str | None:
         try:
             detail = json.loads(text)
         except json.JSONDecodeError:
-            return detail
+            return text
     if isinstance(detail, dict):
         if not detail:
             return None
