@@ -69,6 +69,12 @@ CASES = [
         "perods: 9",
     ),
     (
+        "unknown report part cited",
+        lambda t: t.replace('    energy: "thesis Figures 41-46"', '    energie: "thesis Figures 41-46"'),
+        r"report\.citations\.energie: unknown key",
+        "energie:",
+    ),
+    (
         "wrong type",
         lambda t: t.replace("        max_rate_deg_s: 120 ", "        max_rate_deg_s: fast "),
         r"rig_overrides\.joints\.knee_flexion\.safety\.max_rate_deg_s: .*number.*\(got 'fast'\)",

@@ -96,3 +96,16 @@ def test_summary_is_the_first_screen_at_1280x800(small_report: str, tmp_path: Pa
     # the summary and its verdicts start on the first screen, without scrolling
     assert 0 <= int(attrs["data-summary-top"]) < height / 2
     assert int(attrs["data-summary-top"]) < int(attrs["data-expectations-top"]) < height
+
+
+def test_parameter_tables_fit_a_1280_px_window(small_report: str, tmp_path: Path) -> None:
+    page = tmp_path / "report.html"
+    page.write_text(small_report, encoding="utf-8")
+    assert '<table class="bouc-wen">' in small_report
+    dom = _chromium_dom(page, tmp_path, "--window-size=1280,800", "--dump-dom")
+    body = re.search(r"<body[^>]*>", dom)
+    assert body is not None, dom[:500]
+    attrs = dict(re.findall(r'(data-[a-z-]+)="([^"]*)"', body.group(0)))
+    # the page's script lists every table wider than its box (it would scroll sideways)
+    assert "data-wide-tables" in attrs
+    assert "bouc-wen" not in attrs["data-wide-tables"].split(), attrs["data-wide-tables"]

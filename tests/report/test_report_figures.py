@@ -201,3 +201,15 @@ def test_element_fits_are_drawn_for_the_comparisons_that_change_a_fitted_element
     for line, key in zip(models, (20, 14, 23), strict=True):
         fit = data.configuration(key).element_fit
         assert list(line.get_ydata()) == list(fit.model_torque_nm)
+    # the midline the model was fitted to is drawn too (solid with dots), in the model's colour
+    midlines = [ln for ln in ax.get_lines() if ln.get_linestyle() == "-" and ln.get_marker() == "o"]
+    assert len(midlines) == 3
+    for midline, model, key in zip(midlines, models, (20, 14, 23), strict=True):
+        fit = data.configuration(key).element_fit
+        assert fit.torque_nm.size > 0
+        assert list(midline.get_xdata()) == list(fit.angle_deg)
+        assert list(midline.get_ydata()) == list(fit.torque_nm)
+        assert midline.get_color() == model.get_color()
+    # K0 is named in the key as not fitted, with nothing drawn for it
+    (unfitted,) = [ln for ln in ax.get_lines() if "not fitted" in ln.get_label()]
+    assert unfitted.get_label().startswith("17: ") and len(unfitted.get_xdata()) == 0

@@ -149,7 +149,7 @@ def test_matrix_rows_show_energy_and_fit_results(small_archive: Path, small_repo
 
 def test_configuration_sections_say_how_the_robot_torque_was_removed(small_report: str) -> None:
     section = small_report[small_report.index('id="config-4"') : small_report.index('id="config-5"')]
-    assert "Robot torque removed at equal angles (§3.3)." in section
+    assert "Robot torque removed at equal angles." in section
 
 
 def test_calibration_verdicts_are_shown_with_readable_limits(small_report: str) -> None:

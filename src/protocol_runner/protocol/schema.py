@@ -411,8 +411,24 @@ class PredictionSpec(_Model):
     note: str = ""
 
 
+class CitationsSpec(_Model):
+    """Where a source (e.g. a thesis) shows what a part of the report shows: each text is printed beside
+    that part ("as <text>"). All optional: a campaign that reproduces no source cites nothing."""
+
+    configurations: str = ""  # the per-configuration loops
+    comparisons: str = ""  # the overlaid loops of each comparison
+    energy: str = ""  # energy per cycle against the compared factor
+    reference: str = ""  # the reference datasets
+    models: str = ""  # the models section as a whole
+    elements: str = ""  # the elastic elements fitted to the loops' midline
+    bouc_wen: str = ""  # the Bouc-Wen model against the data
+    matrix: str = ""  # the test matrix
+    calibration: str = ""  # the calibration step checks
+
+
 class ReportSpec(_Model):
     reference_dataset: str | None = None
+    citations: CitationsSpec = CitationsSpec()
     comparisons: list[ComparisonSpec] = Field(default_factory=list)
     predictions: list[PredictionSpec] = Field(default_factory=list)
 

@@ -1,6 +1,6 @@
-"""The report's cross-configuration figures, one set per declared comparison: overlaid loops (as thesis
-§5.1-5.5), energy per cycle against the compared factor (§5.7.2), the reference datasets, and the fitted
-elastic elements against the loops' midline (§6.1.5).
+"""The report's cross-configuration figures, one set per declared comparison: overlaid loops, energy per
+cycle against the compared factor, the reference datasets, and the fitted elastic elements against the
+loops' midline (the knee thesis's §5.1-5.5, §5.7.2 and §6.1.5 figures, made generic).
 
 Labels and axes come from `comparison_values.comparison_axis` (the compared factor's level labels and
 quantities with the unit from the quantity's suffix); nothing here knows a factor's name."""
@@ -140,19 +140,30 @@ def reference_figure(data: ReportData) -> str:
 
 
 def element_fit_figure(data: ReportData, comparison: Comparison) -> str:
-    """The fitted elastic elements against the loops' midline for each compared configuration (the
-    physical model of thesis §6.1.5, Figures 52-53): solid the midline data, dashed the model."""
+    """The fitted elastic elements against the loops' midline for each compared configuration: solid with
+    dots the midline data (the fit's target), dashed the model on it. A configuration whose fit does not
+    apply (e.g. no elastic element) is named in the key as not fitted."""
     fig, (ax,) = canvas_axes("single")
     configs = configurations_of(data, comparison.configurations)
     axis = comparison_axis(comparison, configs)
     drawn = False
     for i, cfg in enumerate(configs):
         fit = cfg.element_fit
-        if fit is None or not fit.drawable:
+        if fit is None:
             continue
         color = COLORS[i % len(COLORS)]
+        if not fit.drawable:
+            # an empty line: no data, but a key entry saying why nothing is drawn for this configuration
+            ax.plot(
+                [],
+                [],
+                linestyle="none",
+                color="#666666",
+                label=f"{axis.config_label(cfg)}: not fitted (see the table)",
+            )
+            continue
         if fit.torque_nm.size == fit.angle_deg.size:
-            ax.plot(fit.angle_deg, fit.torque_nm, lw=0.6, color=color, alpha=0.55)
+            ax.plot(fit.angle_deg, fit.torque_nm, "o-", ms=2.5, lw=1.0, color=color, alpha=0.45)
         ax.plot(
             fit.angle_deg,
             fit.model_torque_nm,
@@ -164,6 +175,17 @@ def element_fit_figure(data: ReportData, comparison: Comparison) -> str:
         drawn = True
     if not drawn:
         empty(ax, "no applicable element fit")
+    else:
+        ax.text(
+            0.98,
+            0.03,
+            "solid with dots: midline data\ndashed: elastic model",
+            transform=ax.transAxes,
+            ha="right",
+            va="bottom",
+            fontsize=6.5,
+            color="#444444",
+        )
     style(ax, ANGLE_LABEL, TORQUE_LABEL, f"Elastic model vs midline: {comparison.title}")
     legend(ax)
     return to_data_uri(fig)

@@ -39,7 +39,8 @@ def read_session(h5: h5py.File, archive: Path) -> SessionInfo:
         if "events" in sess:
             raw = decode(sess["events"][()])
             lines = raw if isinstance(raw, list) else str(raw).splitlines()
-            events.extend(_parse_event(str(line)) for line in lines if str(line).strip())
+            parsed = (_parse_event(str(line)) for line in lines if str(line).strip())
+            events.extend(e for e in parsed if e is not None)
         if "checklists" in sess:
             for name, grp in sess["checklists"].items():
                 if not is_group(grp):
@@ -79,17 +80,46 @@ def read_session(h5: h5py.File, archive: Path) -> SessionInfo:
     )
 
 
-def _parse_event(line: str) -> SessionEvent:
+def _parse_event(line: str) -> SessionEvent | None:
+    """One event line; None for an event whose detail is an empty record (e.g. no referenced files)."""
     try:
         obj = json.loads(line)
     except json.JSONDecodeError:
         return SessionEvent(t_utc="", kind="unparsed", detail=line)
     if not isinstance(obj, dict):
         return SessionEvent(t_utc="", kind="unparsed", detail=line)
-    detail = obj.get("detail", "")
-    if not isinstance(detail, str):
-        detail = json.dumps(detail, sort_keys=True)
+    detail = _readable_detail(obj.get("detail", ""))
+    if detail is None:
+        return None
     return SessionEvent(t_utc=str(obj.get("t_utc", "")), kind=str(obj.get("kind", "")), detail=detail)
+
+
+def _readable_detail(detail: object) -> str | None:
+    """An event's detail as a reader wants it: a record (a JSON object, possibly written as a string, e.g.
+    the referenced files with their sha256) as "key: value; ..." with long hashes shortened, a list joined
+    by "; ", text unchanged. None when the detail is an empty record or list."""
+    if isinstance(detail, str):
+        text = detail.strip()
+        if not text.startswith(("{", "[")):
+            return detail
+        try:
+            detail = json.loads(text)
+        except json.JSONDecodeError:
+            return text
+    if isinstance(detail, dict):
+        if not detail:
+            return None
+        return "; ".join(f"{key}: {_readable_value(value)}" for key, value in sorted(detail.items()))
+    if isinstance(detail, list):
+        return "; ".join(_readable_value(v) for v in detail) if detail else None
+    return _readable_value(detail)
+
+
+def _readable_value(value: object) -> str:
+    if isinstance(value, str):
+        is_hash = len(value) == 64 and all(ch in "0123456789abcdef" for ch in value)
+        return f"sha256 {value[:12]}…" if is_hash else value
+    return json.dumps(value, sort_keys=True)
 
 
 def read_calibration(h5: h5py.File) -> tuple[CalibrationCheck, ...]:

@@ -18,9 +18,11 @@ from datetime import UTC, datetime
 from pathlib import Path
 
 import jinja2
+from markupsafe import Markup, escape
 
 from protocol_runner import __version__
 from protocol_runner.errors import InvalidInput
+from protocol_runner.report.citations import declared_citations
 from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.figures import (
     FigureSet,
@@ -217,6 +219,7 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
         "quantity": format_quantity,
         "axis_of": lambda comp: comparison_axis(comp, _configs(data, comp)),
         "expectations": expectations,
+        "cite": declared_citations(data.protocol_text),
         "tuned_label": TUNED_LABEL,
         "headline": [configuration_stats(c) for c in data.configurations],
         "repeatability": [(keys, group_repeatability(data, keys)) for keys in groups],
@@ -226,14 +229,29 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
         "verdict_class": _verdict_class,
         "configs_of": lambda comp: _configs(data, comp),
         "beta_cell": _beta_cell,
+        "estimate": _estimate,
     }
 
 
-def _beta_cell(fit: BoucWenFit, index: int) -> str:
+def _estimate(value: float, std: float, digits: int = 4) -> Markup:
+    """A fitted value with its standard error on a second line (keeps wide parameter tables narrow)."""
+    if not math.isfinite(value):
+        return Markup("—")
+    if not math.isfinite(std):
+        return escape(_num(value, digits))
+    return (
+        escape(_num(value, digits))
+        + Markup('<br><span class="se">± ')
+        + escape(_num(std, digits))
+        + Markup("</span>")
+    )
+
+
+def _beta_cell(fit: BoucWenFit, index: int) -> Markup:
     if index >= len(fit.beta):
-        return "—"
+        return Markup("—")
     std = fit.beta_std[index] if index < len(fit.beta_std) else math.nan
-    return _pm(fit.beta[index], std, 4)
+    return _estimate(fit.beta[index], std)
 
 
 def _configs(data: ReportData, comparison: Comparison | None) -> list[Configuration]:
