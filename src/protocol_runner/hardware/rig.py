@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
@@ -39,8 +40,40 @@ FloatArray = npt.NDArray[np.float64]
 READ_EVERY_TICKS = 10
 """Output ticks between two reads of the input scan (100 ms at 100 Hz: 100 rows per read at 1 kHz)."""
 
+BLOCK_S = 1.0
+"""The most robot time one block of the simulator's block path covers: a stop request is seen within it."""
+
 N_SCAN_CHANNELS = 2
 """Scan order: column 0 = angle channel, column 1 = torque channel."""
+
+
+@runtime_checkable
+class ScheduledBlockOutput(Protocol):
+    """An output board that can take a block of scheduled writes at once — the simulator in simulated time
+    (`hardware/simulator/output.py`). Real boards are paced tick by tick and do not offer it."""
+
+    @property
+    def accepts_scheduled_blocks(self) -> bool: ...
+
+    def write_block(self, channel: int, times_s: FloatArray, volts: FloatArray) -> npt.NDArray[np.int64]: ...
+
+
+def block_end(
+    start: int, n: int, block_ticks: int, stop_requested: Callable[[], bool] | None
+) -> tuple[int, bool]:
+    """The end of the block path's next block from tick `start` (of `n`) and whether a stop was requested
+    there. `stop_requested` is polled, in order, at each READ_EVERY_TICKS boundary the per-tick loop polls
+    (after ticks start + 10, start + 20, ...), up to `block_ticks` ahead, before the block is simulated; the
+    block ends at the first boundary that asks for a stop. So a stop takes effect after the same sample as
+    in the per-tick loop (for a request that depends on the polls, not on the samples), and a signal is
+    seen within one block."""
+    end = start
+    limit = min(start + block_ticks, n)
+    while end < limit:
+        end = min(end + READ_EVERY_TICKS, n)
+        if stop_requested is not None and stop_requested():
+            return end, True
+    return end, False
 
 
 class Rig:
@@ -142,6 +175,13 @@ class Rig:
             raise InvalidInput("could not measure the joint angle: the input scan returned no samples")
         return float(np.mean(self.joint.angle_from_volts(block.volts[:, 0])))
 
+    def _block_output(self) -> ScheduledBlockOutput | None:
+        """The output board's block writer, when it has one and takes scheduled blocks now."""
+        ao = self.ao
+        if isinstance(ao, ScheduledBlockOutput) and ao.accepts_scheduled_blocks is True:
+            return ao
+        return None
+
     def send(
         self,
         cmd: FloatArray,
@@ -178,19 +218,30 @@ class Rig:
         tap = self.tap
         if tap is not None:
             tap.start(where, cmd, t0)
+        block_out = self._block_output()
+        block_ticks = max(READ_EVERY_TICKS, int(rate * BLOCK_S) // READ_EVERY_TICKS * READ_EVERY_TICKS)
         try:
             start = 0
             while start < n:
-                end = min(start + READ_EVERY_TICKS, n)
-                for k in range(start, end):
-                    sleep_until(schedule[k])
-                    actual[k] = now()
-                    codes[k] = write(channel, volts_list[k])
-                append(read())
+                if block_out is None:  # the paced loop, tick by tick (real boards, --realtime)
+                    end = min(start + READ_EVERY_TICKS, n)
+                    for k in range(start, end):
+                        sleep_until(schedule[k])
+                        actual[k] = now()
+                        codes[k] = write(channel, volts_list[k])
+                    append(read())
+                    stop_now = not stopped and stop_requested is not None and stop_requested()
+                else:  # simulated time: up to BLOCK_S of the same samples in one call (see block_end)
+                    end, stop_now = block_end(start, n, block_ticks, None if stopped else stop_requested)
+                    times = schedule[start:end]
+                    block_codes = block_out.write_block(channel, np.asarray(times), volts[start:end])
+                    codes[start:end] = block_codes.tolist()
+                    actual[start:end] = times  # each sample written at its time: what now() reads
+                    append(read())
                 start = end
                 if tap is not None:
                     tap.scan(blocks[-1])
-                if not stopped and stop_requested is not None and stop_requested():
+                if stop_now:
                     stopped = f"{where}: stopped on request at t = {schedule[end - 1] - t0:.2f} s"
                     if on_stop is None:
                         raise Interrupted(stopped)

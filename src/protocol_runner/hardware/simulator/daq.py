@@ -107,6 +107,7 @@ class _RigModel:
         if self.command_nonlinearity is not None:
             input_deg = self.command_nonlinearity(input_deg)
         self.target_by_code: list[float] = input_deg.tolist()
+        self._target_by_code_arr = np.ascontiguousarray(input_deg, dtype=np.float64)
         # The sensor chains, real value -> the robot's sensor nonlinearity (inverse of the protocol's output
         # table) -> Eq 1 / Eq 3 inverted -> volts, are piecewise linear: tabulate them on the table's knots
         # (plus two far knots that carry the tables' linear extrapolation) so a read costs one np.interp.
@@ -164,6 +165,12 @@ class _RigModel:
     def on_write(self, t_s: float, channel: int, code: int) -> None:  # hot path: one call per output tick
         if channel == self._output_channel:
             self._push(math.ceil((t_s - self.origin_s) * self._inv_dt - GRID_TOL), self.target_by_code[code])
+
+    def on_write_block(self, t_s: FloatArray, channel: int, codes: npt.NDArray[np.int64]) -> None:
+        """`on_write` for a block of writes at once (the same grid steps and targets, vectorised)."""
+        if channel == self._output_channel:
+            steps = np.ceil((t_s - self.origin_s) * self._inv_dt - GRID_TOL).astype(np.int64)
+            self.plant.push_commands(steps, self._target_by_code_arr[codes])
 
     def _scan_roles(self, channels: Sequence[int]) -> tuple[npt.NDArray[np.int64], FloatArray]:
         """Per scanned channel: what it carries (0 nothing, 1 angle, 2 torque) and its noise in volts."""
@@ -286,13 +293,19 @@ class SimulatedRig:
         seed: int = 0,
         params: SimulatorParams = DEFAULT_PARAMS,
         realtime: bool = False,
+        scheduled_blocks: bool = True,
     ) -> None:
         self.joint = joint
         self.seed = int(seed)
         self.params = params
         self.clock = SimulatedClock(realtime=realtime)
         self._model = _RigModel(joint, params, self.seed, self.clock)
-        self.ao = SimulatedAnalogOutput(self.clock, listener=self._model.on_write)
+        self.ao = SimulatedAnalogOutput(
+            self.clock,
+            listener=self._model.on_write,
+            block_listener=self._model.on_write_block,
+            scheduled_blocks=scheduled_blocks,
+        )
         self.ai = SimulatedAnalogInput(self._model, self.clock)
         self.begin_step("")
 

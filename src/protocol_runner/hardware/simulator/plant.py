@@ -246,6 +246,17 @@ class JointPlant:
         self._pending_step.append(step)
         self._pending_target.append(target_deg)
 
+    def push_commands(self, steps: IntArray, targets_deg: FloatArray) -> None:
+        """`push_command` for each (step, target) in order, vectorised (a block of output writes)."""
+        if steps.size == 0:
+            return
+        held = np.maximum(steps, self._integrated_step)
+        last = self._pending_step[-1] if self._pending_step else self._last_cmd_step
+        if held[0] < last or np.any(held[1:] < held[:-1]):
+            raise ValueError("commands must be pushed in time order")
+        self._pending_step.extend(held.tolist())
+        self._pending_target.extend(targets_deg.tolist())
+
     def _flush_commands(self) -> None:
         n_new = len(self._pending_step)
         if n_new == 0:
