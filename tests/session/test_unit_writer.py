@@ -161,3 +161,47 @@ def test_abandon_drops_the_queue_but_finishes_the_unit_being_written(tmp_path: P
     writer.abandon()
     assert list(journal.units) == ["s:1"] and unit_is_complete(units, journal.units["s:1"])
     assert not unit_path(units, "s:2").exists()
+
+
+def test_a_ticket_passes_once_the_units_submitted_before_it_are_on_disk(tmp_path: Path) -> None:
+    writer, _, units = make(tmp_path)
+    gate = threading.Event()
+    before = writer.ticket()
+    assert before()  # nothing submitted yet
+    writer.submit("trial:k01:off:3", filler(1.0, gate))
+    ticket = writer.ticket()  # what the configuration's processing waits for
+    writer.submit("cal:a:after", filler(2.0))
+    assert not ticket()
+    gate.set()
+    deadline = time.monotonic() + 10.0
+    while not ticket() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert ticket() and unit_path(units, "trial:k01:off:3").exists()  # on disk when it passes
+    writer.close()
+
+
+def test_a_ticket_never_passes_after_a_write_error(tmp_path: Path) -> None:
+    writer, _, _ = make(tmp_path)
+
+    def broken(f: h5py.File) -> None:
+        raise OSError("I/O error")
+
+    writer.submit("s:1", broken)
+    ticket = writer.ticket()
+    with pytest.raises(OSError):
+        writer.flush()
+    assert not ticket()  # the analysis of units that were never written is not started
+    writer.close()
+
+
+def test_wait_for_waits_for_that_unit_only(tmp_path: Path) -> None:
+    writer, journal, units = make(tmp_path)
+    gate = threading.Event()
+    writer.submit("trial:k01:on:1", filler(1.0))
+    writer.submit("trial:k01:on:2", filler(2.0, gate))  # still being written
+    writer.wait_for("trial:k01:on:1")
+    assert "trial:k01:on:1" in journal.units and "trial:k01:on:2" not in journal.units
+    writer.wait_for("trial:k01:on:9")  # not submitted here: nothing to wait for
+    gate.set()
+    writer.close()
+    assert unit_is_complete(units, journal.units["trial:k01:on:2"])

@@ -131,10 +131,11 @@ class Runner:
                 if step.id in self.pool.submitted:
                     continue
                 if self.background and step.kind in BACKGROUND_KINDS:
-                    self.writer.flush()  # the workers read the configuration's trial units
-                    self.pool.submit(step)
+                    # handed to a worker once the configuration's units are on disk
+                    self.pool.submit(step, ready=self.writer.ticket())
                     continue
                 if step.kind in ("compare", "report"):
+                    self.writer.flush()  # what the analyses read is on disk
                     self.pool.collect(self._finished(progress), wait=True)  # these read the analyses' units
                 if step.kind == "report":
                     return self._finish(progress, skipped)
@@ -142,6 +143,7 @@ class Runner:
                 outcome = run_step(step, ctx)
                 self.record(step.id, outcome)
                 progress.step_finished(step, outcome.summary)
+            self.writer.flush()
             self.pool.collect(self._finished(progress), wait=True)
             return self._finish(progress, skipped)
         except Interrupted as exc:

@@ -7,9 +7,9 @@ still journaled as complete only after its file is complete, and only the main t
 The queue is bounded (`MAX_PENDING` units waiting): a step that outruns the disk waits for it instead of
 holding every trial's data in memory.
 
-What reads units waits for them: `flush` writes and journals everything submitted so far. The runner
-flushes before a step reads an earlier unit (`StepContext.unit`, the journal's list of complete units),
-before the analysis workers are handed a configuration, and before the archive is consolidated.
+What reads units waits for them: a step reading an earlier unit (`StepContext.unit`) waits for that unit
+(`wait_for`); the journal's list of complete units as steps see it, and consolidation, wait for all of them
+(`flush`); the analysis workers are handed a configuration once its units are on disk (`ticket`).
 
 Failures: the first error of a write (a full disk, a bug in a step's fill) stops the writer: later units are
 not attempted (their steps are redone on resume) and the error is raised on the main thread at its next
@@ -33,7 +33,7 @@ from ..archive.units import UnitRecord, write_unit
 from ..steps.context import StepContext
 from .journal import Journal
 
-MAX_PENDING = 2
+MAX_PENDING = 4
 """Units waiting to be written at most (each holds a step's recording in memory)."""
 
 ABANDON_WAIT_S = 30.0
@@ -55,6 +55,10 @@ class UnitWriter:
         self.journal = journal
         self._jobs: queue.Queue[_Job | None] = queue.Queue(maxsize=MAX_PENDING)
         self._lock = threading.Lock()
+        self._done = threading.Condition(self._lock)  # notified as each job is finished (or skipped)
+        self._n_submitted = 0
+        self._n_finished = 0
+        self._index: dict[str, int] = {}  # step id -> its job's number
         self._written: list[tuple[UnitRecord, bool]] = []  # on disk, not yet journaled (in order)
         self._error: BaseException | None = None
         self._raised = False
@@ -70,6 +74,28 @@ class UnitWriter:
             self._thread = threading.Thread(target=self._work, name="unit-writer", daemon=True)
             self._thread.start()
         self._jobs.put(_Job(step_id, fill, final))
+        with self._lock:
+            self._index[step_id] = self._n_submitted
+            self._n_submitted += 1
+
+    def wait_for(self, step_id: str) -> None:
+        """Wait until the unit of `step_id` (if it was submitted here) is written, then `collect`."""
+        with self._done:
+            index = self._index.get(step_id)
+            while index is not None and self._n_finished <= index and self._thread is not None:
+                self._done.wait()
+        self.collect()
+
+    def ticket(self) -> Callable[[], bool]:
+        """A test that is True once every unit submitted so far is on disk (False after a write error)."""
+        with self._lock:
+            mark = self._n_submitted
+
+        def written() -> bool:
+            with self._lock:
+                return self._error is None and self._n_finished >= mark
+
+        return written
 
     def collect(self) -> None:
         """Journal the units written so far; then raise the writer's error, if it stopped on one."""
@@ -148,6 +174,10 @@ class UnitWriter:
                 with self._lock:
                     self._written.append((record, job.final))
             finally:
+                with self._done:
+                    if job is not None:
+                        self._n_finished += 1
+                    self._done.notify_all()
                 self._jobs.task_done()
 
 
@@ -173,5 +203,5 @@ class WritingStepContext(StepContext):
 
     def unit(self, step_id: str) -> h5py.File:
         if self.writer is not None:
-            self.writer.flush()
+            self.writer.wait_for(step_id)
         return super().unit(step_id)
