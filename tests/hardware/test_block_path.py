@@ -1,6 +1,6 @@
 """The simulator's block path (issue 20): in simulated time the rig sends up to `BLOCK_S` of already-checked
-samples in one call (`SimulatedAnalogOutput.write_block`, one compiled scan read per block) instead of one
-`write_volts` per tick. It must give exactly the data of the per-tick loop for the same seed (every code,
+samples and reads the scan in one compiled call (`SimulatedRig.send_block`: output codes, commands, plant,
+sensors and input codes together) instead of one `write_volts` per tick and a scan read every 10 ticks. It must give exactly the data of the per-tick loop for the same seed (every code,
 volt, time and the plant's state), stop after the same sample, never receive a sample the envelope did not
 pass, and leave the real boards (and --realtime) on the paced per-tick loop."""
 
@@ -105,14 +105,14 @@ def test_the_block_path_makes_one_write_per_block_of_at_most_one_second() -> Non
     sim, rig = simulated(blocks=True, device=KNEE_BRACE)
     sim.begin_step("count")
     calls: list[int] = []
-    write_block = sim.ao.write_block
+    send_block = sim.send_block
 
-    def counting(channel: int, times_s: np.ndarray, volts: np.ndarray) -> np.ndarray:
+    def counting(channel: int, times_s: np.ndarray, volts: np.ndarray):  # type: ignore[no-untyped-def]
         calls.append(times_s.size)
         assert times_s[-1] - times_s[0] < BLOCK_S  # <= 1 s of robot time per compiled call
-        return write_block(channel, times_s, volts)
+        return send_block(channel, times_s, volts)
 
-    sim.ao.write_block = counting  # type: ignore[method-assign]
+    sim.send_block = counting  # type: ignore[method-assign]
     cmd = knee_sinusoid()
     stream = plan_motion(rig, cmd)
     run_motion(rig, cmd, where="count")
@@ -188,29 +188,46 @@ def test_the_block_writes_are_the_checked_stream_and_the_codes_of_write_volts() 
     np.testing.assert_array_equal(sent, [one_by_one.write_volts(8, float(v)) for v in volts])
 
 
-def test_write_block_codes_match_write_volts_at_ties_full_scale_and_beyond() -> None:
+def test_send_block_codes_match_write_volts_at_ties_full_scale_and_beyond() -> None:
     volts = np.array(
         [0.0, 10.0, -10.0, 12.0, -12.0, np.inf, -np.inf, 0.5 / 3276.8, 1.5 / 3276.8, -2.5 / 3276.8]
     )
-    volts = np.concatenate([volts, np.linspace(-10.0, 10.0, 4001)])
-    blocks, single = SimulatedRig(JOINT).ao, SimulatedRig(JOINT).ao
-    codes = blocks.write_block(3, np.arange(volts.size) * 0.01, volts)
-    np.testing.assert_array_equal(codes, [single.write_volts(3, float(v)) for v in volts])
+    volts = np.concatenate(
+        [volts, np.linspace(-10.0, 10.0, 4001), np.arange(-20, 21) / 3276.8 + 0.5 / 3276.8]
+    )
+    blocks, single = SimulatedRig(JOINT), SimulatedRig(JOINT)
+    times = np.arange(volts.size) * 0.01
+    codes, _ = blocks.send_block(3, times, volts)  # a channel that moves nothing
+    np.testing.assert_array_equal(codes, [single.ao.write_volts(3, float(v)) for v in volts])
+    codes, _ = blocks.send_block(8, times + times[-1] + 0.01, volts)  # the joint's own channel
+    np.testing.assert_array_equal(codes, [single.ao.write_volts(8, float(v)) for v in volts])
 
 
-def test_write_block_refuses_nan_and_the_past_before_writing_anything() -> None:
-    sim = SimulatedRig(JOINT)
+def test_send_block_refuses_nan_and_the_past_before_anything_changes() -> None:
+    sim = SimulatedRig(JOINT, params=KNEE_PARAMS)
+    rig = sim.make_rig()
+    sim.begin_step("refusals")
+    rig.ai.start_scan(rig.scan_channels, 1000.0)
     sim.clock.advance(1.0)
+    before = (sim.plant.step, sim.plant.angle_deg)
     with pytest.raises(InvalidInput, match="NaN"):
-        sim.ao.write_block(8, np.array([1.0, 1.01]), np.array([0.0, np.nan]))
+        sim.send_block(8, np.array([1.0, 1.01]), np.array([0.0, np.nan]))
     with pytest.raises(InvalidInput, match="time order"):
-        sim.ao.write_block(8, np.array([0.5, 1.01]), np.array([0.0, 0.0]))
+        sim.send_block(8, np.array([0.5, 1.01]), np.array([0.0, 0.0]))
+    with pytest.raises(InvalidInput, match="time order"):
+        sim.send_block(8, np.array([1.02, 1.01]), np.array([0.0, 0.0]))
     assert sim.ao.records()[0].size == 0 and sim.clock.now_s() == 1.0
+    assert (sim.plant.step, sim.plant.angle_deg) == before
+    # and the scan is where it was: the next read returns every row since the start (1001 rows)
+    assert rig.ai.read_available().n_samples == 1001
 
 
 def test_realtime_and_real_boards_keep_the_per_tick_loop() -> None:
     assert SimulatedRig(JOINT, realtime=True).make_rig()._block_output() is None
     assert SimulatedRig(JOINT, scheduled_blocks=False).make_rig()._block_output() is None
     assert SimulatedRig(JOINT).make_rig()._block_output() is not None
+    assert (
+        Rig(JOINT, SimulatedRig(JOINT).ao, SimulatedRig(JOINT).ai, SimulatedRig(JOINT).clock).block_io is None
+    )
     with pytest.raises(InvalidInput, match="simulated time"):
-        SimulatedRig(JOINT, realtime=True).ao.write_block(8, np.array([1e9]), np.array([0.0]))
+        SimulatedRig(JOINT, realtime=True).send_block(8, np.array([1e9]), np.array([0.0]))

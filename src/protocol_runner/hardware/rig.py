@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
-from typing import Protocol, runtime_checkable
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -47,15 +47,16 @@ N_SCAN_CHANNELS = 2
 """Scan order: column 0 = angle channel, column 1 = torque channel."""
 
 
-@runtime_checkable
-class ScheduledBlockOutput(Protocol):
-    """An output board that can take a block of scheduled writes at once — the simulator in simulated time
-    (`hardware/simulator/output.py`). Real boards are paced tick by tick and do not offer it."""
+class ScheduledBlockIO(Protocol):
+    """Boards that take a block of scheduled writes and read the scan at its last one in one call — the
+    DAQ simulator in simulated time (`SimulatedRig.send_block`). Real boards are paced tick by tick."""
 
     @property
     def accepts_scheduled_blocks(self) -> bool: ...
 
-    def write_block(self, channel: int, times_s: FloatArray, volts: FloatArray) -> npt.NDArray[np.int64]: ...
+    def send_block(
+        self, channel: int, times_s: FloatArray, volts: FloatArray
+    ) -> tuple[npt.NDArray[np.int64], ScanBlock]: ...
 
 
 def block_end(
@@ -90,6 +91,8 @@ class Rig:
         self.loop_context: Callable[[], contextlib.AbstractContextManager[object]] = contextlib.nullcontext
         # The live monitor's sampler (--monitor): shown each scan block as it is read; None costs nothing.
         self.tap: LoopTap | None = None
+        # The simulator's block path (set by `SimulatedRig.make_rig`); None on the hardware bench.
+        self.block_io: ScheduledBlockIO | None = None
 
     @property
     def scan_channels(self) -> tuple[int, int]:
@@ -175,11 +178,11 @@ class Rig:
             raise InvalidInput("could not measure the joint angle: the input scan returned no samples")
         return float(np.mean(self.joint.angle_from_volts(block.volts[:, 0])))
 
-    def _block_output(self) -> ScheduledBlockOutput | None:
-        """The output board's block writer, when it has one and takes scheduled blocks now."""
-        ao = self.ao
-        if isinstance(ao, ScheduledBlockOutput) and ao.accepts_scheduled_blocks is True:
-            return ao
+    def _block_output(self) -> ScheduledBlockIO | None:
+        """The block path, when the boards offer one and take scheduled blocks now."""
+        io = self.block_io
+        if io is not None and io.accepts_scheduled_blocks is True:
+            return io
         return None
 
     def send(
@@ -234,10 +237,10 @@ class Rig:
                 else:  # simulated time: up to BLOCK_S of the same samples in one call (see block_end)
                     end, stop_now = block_end(start, n, block_ticks, None if stopped else stop_requested)
                     times = schedule[start:end]
-                    block_codes = block_out.write_block(channel, np.asarray(times), volts[start:end])
+                    block_codes, scan = block_out.send_block(channel, np.asarray(times), volts[start:end])
                     codes[start:end] = block_codes.tolist()
                     actual[start:end] = times  # each sample written at its time: what now() reads
-                    append(read())
+                    append(scan)  # read at the block's last write, as the per-tick loop reads
                 start = end
                 if tap is not None:
                     tap.scan(blocks[-1])

@@ -41,9 +41,11 @@ from protocol_runner.hardware.conversions import (
     volts_to_angle,
 )
 from protocol_runner.hardware.interfaces import ScanBlock
+from protocol_runner.hardware.simulator.block import BLOCK_NAN, BLOCK_OK
 from protocol_runner.hardware.simulator.device import ComposedDevice
 from protocol_runner.hardware.simulator.kernels import GRID_TOL, ROLE_ANGLE, ROLE_TORQUE
 from protocol_runner.hardware.simulator.output import (
+    AO_CHANNELS,
     SimulatedAnalogOutput,
     SimulatedClock,
     check_channel,
@@ -166,11 +168,42 @@ class _RigModel:
         if channel == self._output_channel:
             self._push(math.ceil((t_s - self.origin_s) * self._inv_dt - GRID_TOL), self.target_by_code[code])
 
-    def on_write_block(self, t_s: FloatArray, channel: int, codes: npt.NDArray[np.int64]) -> None:
-        """`on_write` for a block of writes at once (the same grid steps and targets, vectorised)."""
-        if channel == self._output_channel:
-            steps = np.ceil((t_s - self.origin_s) * self._inv_dt - GRID_TOL).astype(np.int64)
-            self.plant.push_commands(steps, self._target_by_code_arr[codes])
+    def send_block(
+        self, times_s: FloatArray, volts: FloatArray, channel: int, scan: _ScanState | None
+    ) -> tuple[npt.NDArray[np.int64], FloatArray, npt.NDArray[np.int32], FloatArray]:
+        """The block path: writes at `times_s` on `channel` (their codes and, on the joint's output channel,
+        their commands, exactly as `on_write` per write) and, if `scan` runs, its rows due at the last
+        write — one compiled call (`block.send_and_scan`). Returns (codes, row times, row codes, row
+        volts); InvalidInput (nothing changed) for NaN volts or writes out of time order."""
+        now_s = float(times_s[-1])
+        n_ch = len(scan.channels) if scan is not None else 0
+        first_row, n_rows, t0_s, rate_hz = 0, 0, 0.0, 1.0
+        if scan is not None:
+            self._scan_roles(scan.channels)
+            first_row, n_rows, t0_s, rate_hz = scan.rows_read, scan.rows_due(now_s), scan.t0_s, scan.rate_hz
+            step_end = math.floor((now_s - self.origin_s) * self._inv_dt + GRID_TOL)
+        else:
+            step_end = self.plant.step  # nothing read: integrated at the next read, as per write
+        noise = self._noise(n_rows * n_ch)
+        decode = (self._target_by_code_arr, self.origin_s, int(channel == self._output_channel))
+        codes, status, t_s, row_codes, row_volts, any_nan = self.plant.send_and_scan(
+            times_s,
+            volts,
+            decode,
+            step_end,
+            (t0_s, self.origin_s, rate_hz, first_row, n_rows),
+            self._sensors,
+            noise,
+            _AI12,
+        )
+        if status == BLOCK_NAN:
+            raise InvalidInput("USB-3105 (simulated): cannot output NaN volts")
+        if status != BLOCK_OK:
+            raise ValueError("commands must be pushed in time order")
+        if any_nan:
+            raise InvalidInput("cannot convert NaN volts to an analog input code")
+        self._noise_pos += row_codes.shape[0] * n_ch
+        return codes, t_s, row_codes, row_volts
 
     def _scan_roles(self, channels: Sequence[int]) -> tuple[npt.NDArray[np.int64], FloatArray]:
         """Per scanned channel: what it carries (0 nothing, 1 angle, 2 torque) and its noise in volts."""
@@ -223,6 +256,21 @@ class _RigModel:
         return t_s, codes, volts
 
 
+class _ScanState:
+    """A running hardware-paced scan: its channels, rate, start and rows handed out so far."""
+
+    def __init__(self, channels: tuple[int, ...], rate_hz: float, t0_s: float) -> None:
+        self.channels = channels
+        self.rate_hz = rate_hz
+        self.t0_s = t0_s
+        self.rows_read = 0
+
+    def rows_due(self, now_s: float) -> int:
+        """Rows acquired by `now_s` and not yet read (row i at t0 + i / rate; the first at t0)."""
+        n_due = math.floor((now_s - self.t0_s) * self.rate_hz + 1e-9) + 1
+        return max(0, n_due - self.rows_read)
+
+
 class SimulatedAnalogInput:
     """A DT9814 stand-in: a hardware-paced scan of 12-bit ±10 V two's-complement codes. Reading it
     integrates the simulated robot up to the clock (lazily) and returns the rows acquired since."""
@@ -231,10 +279,7 @@ class SimulatedAnalogInput:
         self._model = model
         self._clock = clock
         self._channels: tuple[int, ...] = ()
-        self._rate_hz = 0.0
-        self._t0_s = 0.0
-        self._rows_read = 0
-        self._running = False
+        self._scan: _ScanState | None = None
 
     @property
     def resolution_bits(self) -> int:
@@ -250,34 +295,42 @@ class SimulatedAnalogInput:
                 f"all channels, got {rate_hz!r} Hz x {len(chans)} channels"
             )
         self._channels = chans
-        self._rate_hz = float(rate_hz)
-        self._t0_s = self._clock.now_s()
-        self._rows_read = 0
-        self._running = True
+        self._scan = _ScanState(chans, float(rate_hz), self._clock.now_s())
 
     def _read(self, now_s: float) -> ScanBlock:
-        n_ch = len(self._channels)
-        if not self._running:
-            return ScanBlock.empty(n_ch)
-        n_due = math.floor((now_s - self._t0_s) * self._rate_hz + 1e-9) + 1
-        if n_due <= self._rows_read:
-            return ScanBlock.empty(n_ch)
+        scan = self._scan
+        if scan is None:
+            return ScanBlock.empty(len(self._channels))
+        n_rows = scan.rows_due(now_s)
+        if n_rows <= 0:
+            return ScanBlock.empty(len(self._channels))
         t_s, codes, volts = self._model.acquire(
-            self._t0_s, self._rate_hz, self._rows_read, n_due - self._rows_read, self._channels, now_s
+            scan.t0_s, scan.rate_hz, scan.rows_read, n_rows, scan.channels, now_s
         )
-        self._rows_read += codes.shape[0]
+        scan.rows_read += codes.shape[0]
         return ScanBlock(t_s=t_s, codes=codes, volts=volts)
+
+    def read_after_writes(
+        self, times_s: FloatArray, volts: FloatArray, channel: int
+    ) -> tuple[npt.NDArray[np.int64], ScanBlock]:
+        """The block path's half on this board: the writes' codes, and the rows due at the last write."""
+        scan = self._scan
+        codes, t_s, row_codes, row_volts = self._model.send_block(times_s, volts, channel, scan)
+        if scan is None:
+            return codes, ScanBlock.empty(len(self._channels))
+        scan.rows_read += row_codes.shape[0]
+        return codes, ScanBlock(t_s=t_s, codes=row_codes, volts=row_volts)
 
     def read_available(self) -> ScanBlock:
         return self._read(self._clock.now_s())
 
     def stop_scan(self) -> ScanBlock:
         block = self._read(self._clock.now_s())
-        self._running = False
+        self._scan = None
         return block
 
     def close(self) -> None:
-        self._running = False
+        self._scan = None
 
 
 class SimulatedRig:
@@ -300,12 +353,8 @@ class SimulatedRig:
         self.params = params
         self.clock = SimulatedClock(realtime=realtime)
         self._model = _RigModel(joint, params, self.seed, self.clock)
-        self.ao = SimulatedAnalogOutput(
-            self.clock,
-            listener=self._model.on_write,
-            block_listener=self._model.on_write_block,
-            scheduled_blocks=scheduled_blocks,
-        )
+        self.ao = SimulatedAnalogOutput(self.clock, listener=self._model.on_write)
+        self.scheduled_blocks = scheduled_blocks
         self.ai = SimulatedAnalogInput(self._model, self.clock)
         self.begin_step("")
 
@@ -337,8 +386,40 @@ class SimulatedRig:
         bad element parameter."""
         self._model.plant.set_device(elements)
 
+    @property
+    def accepts_scheduled_blocks(self) -> bool:
+        """True when `send_block` may stand for the paced loop: simulated (not wall-clock) time."""
+        return self.scheduled_blocks and not self.clock.realtime
+
+    def send_block(
+        self, channel: int, times_s: FloatArray, volts: FloatArray
+    ) -> tuple[npt.NDArray[np.int64], ScanBlock]:
+        """The rig's block path (`hardware/rig.py`): the writes a paced loop makes at `times_s` (sorted, none
+        before the clock), sample i at times_s[i], then a read of the input scan at the last one — the same
+        codes, records, commands and rows as one `ao.write_volts` per sample at its time followed by
+        `ai.read_available`, in one compiled call (`block.py`). The clock ends at the last time. All or
+        nothing: NaN volts or a time before the clock raise before anything is written."""
+        if not self.accepts_scheduled_blocks:
+            raise InvalidInput("DAQ simulator: scheduled blocks need simulated time")
+        ch = check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
+        t = np.ascontiguousarray(times_s, dtype=np.float64)
+        v = np.ascontiguousarray(volts, dtype=np.float64)
+        if t.ndim != 1 or t.shape != v.shape:
+            raise InvalidInput(f"DAQ simulator: {t.shape} write times for {v.shape} volts")
+        if t.size == 0:
+            return np.zeros(0, dtype=np.int64), self.ai.read_available()
+        if t[0] < self.clock.now_s() or not bool(np.all(t[1:] >= t[:-1])):
+            raise InvalidInput("DAQ simulator: a block's writes must be in time order, not in the past")
+        codes, block = self.ai.read_after_writes(t, v, ch)
+        self.clock.sleep_until(float(t[-1]))
+        self.ao.record_block(t, ch, codes)
+        return codes, block
+
     def make_rig(self) -> Rig:
-        """A `hardware.rig.Rig` bound to this simulator's boards and clock."""
+        """A `hardware.rig.Rig` bound to this simulator's boards and clock, with its block path
+        (`send_block`) offered for simulated time."""
         from protocol_runner.hardware.rig import Rig
 
-        return Rig(self.joint, self.ao, self.ai, self.clock)
+        rig = Rig(self.joint, self.ao, self.ai, self.clock)
+        rig.block_io = self
+        return rig

@@ -10,12 +10,10 @@ import numpy as np
 import numpy.typing as npt
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.hardware.conversions import volts_to_ao16_code
 from protocol_runner.hardware.usb3105 import IDENTITY_CALIBRATION, calibrated_code
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
-BlockListener = Callable[[FloatArray, int, IntArray], None]
 
 AO_CHANNELS = 16
 """USB-3105: 16 analog outputs (thesis §2.3)."""
@@ -76,25 +74,14 @@ def _ao_code(volts: float) -> int:
 
 class SimulatedAnalogOutput:
     """A USB-3105 stand-in: quantises volts to its 16-bit ±10 V ideal code (clamped), records every update
-    as (time, channel, code) and hands it to `listener` (the simulated robot).
-
-    In simulated time it also takes a block of scheduled writes at once (`write_block`, the rig's block
-    path, `hardware/rig.py`): the same codes, records and listener calls as one `write_volts` per sample at
-    its time, with `block_listener` told of the whole block. `scheduled_blocks=False` (or `--realtime`,
-    where every write happens at its wall-clock time) keeps the rig on its per-tick loop."""
+    as (time, channel, code) and hands it to `listener` (the simulated robot). The block path
+    (`SimulatedRig.send_block`) computes its codes in the compiled call and records them here."""
 
     def __init__(
-        self,
-        clock: SimulatedClock,
-        *,
-        listener: Callable[[float, int, int], None] | None = None,
-        block_listener: BlockListener | None = None,
-        scheduled_blocks: bool = True,
+        self, clock: SimulatedClock, *, listener: Callable[[float, int, int], None] | None = None
     ) -> None:
         self._clock = clock
         self._listener = listener
-        self._block_listener = block_listener
-        self._scheduled_blocks = scheduled_blocks
         self._t: list[float] = []
         self._channel: list[int] = []
         self._code: list[int] = []
@@ -131,44 +118,12 @@ class SimulatedAnalogOutput:
             self._listener(t_s, ch, code)
         return code
 
-    @property
-    def accepts_scheduled_blocks(self) -> bool:
-        """True when `write_block` may stand for a paced loop: simulated (not wall-clock) time."""
-        return self._scheduled_blocks and not self._clock.realtime
-
-    def write_block(self, channel: int, times_s: FloatArray, volts: FloatArray) -> IntArray:
-        """The writes a paced loop makes at `times_s` (sorted, none before the clock), sample i at times_s[i]:
-        codes by the board's rule (`conversions.volts_to_ao16_code`, equal to `write_volts`'s), recorded with
-        their times, handed to the listeners; the clock ends at the last time. All or nothing: a NaN or a
-        time before the clock raises before anything is written. Returns the codes."""
-        ch = check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
-        if not self.accepts_scheduled_blocks:
-            raise InvalidInput("USB-3105 (simulated): scheduled blocks need simulated time")
-        t = np.ascontiguousarray(times_s, dtype=np.float64)
-        v = np.ascontiguousarray(volts, dtype=np.float64)
-        if t.shape != v.shape or t.ndim != 1:
-            raise InvalidInput(f"USB-3105 (simulated): {t.shape} times for {v.shape} volts")
-        if t.size == 0:
-            return np.zeros(0, dtype=np.int64)
-        if t[0] < self._clock.now_s() or np.any(np.diff(t) < 0.0):
-            raise InvalidInput(
-                "USB-3105 (simulated): a block's writes must be in time order, not in the past"
-            )
-        try:
-            codes = volts_to_ao16_code(v).astype(np.int64)
-        except InvalidInput:
-            raise InvalidInput("USB-3105 (simulated): cannot output NaN volts") from None
-        self._clock.sleep_until(float(t[-1]))
-        n = int(t.size)
-        self._t.extend(t.tolist())
-        self._channel.extend([ch] * n)
+    def record_block(self, times_s: FloatArray, channel: int, codes: IntArray) -> None:
+        """Record writes already made (and handed to the robot) by the block path (`SimulatedRig.send_block`)."""
+        n = int(times_s.shape[0])
+        self._t.extend(times_s.tolist())
+        self._channel.extend([channel] * n)
         self._code.extend(codes.tolist())
-        if self._block_listener is not None:
-            self._block_listener(t, ch, codes)
-        elif self._listener is not None:
-            for t_s, code in zip(t.tolist(), codes.tolist(), strict=True):
-                self._listener(t_s, ch, code)
-        return codes
 
     def write_volts_sync(self, volts_by_channel: Mapping[int, float]) -> dict[int, int]:
         t_s = self._clock.now_s()
