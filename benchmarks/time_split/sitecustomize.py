@@ -24,6 +24,9 @@ TARGETS = {
     "protocol_runner.session.assembly": [(None, "consolidate_session", "consolidation")],
     "protocol_runner.session.reporting": [(None, "render_report", "report")],
     "protocol_runner.session.runner": [("Runner", "_run", "session")],
+    "protocol_runner.steps.trial": [(None, "run", "trial steps (acquisition included)")],
+    "protocol_runner.steps.calibration_check": [(None, "run", "calibration steps")],
+    "protocol_runner.session.workers": [("AnalysisPool", "collect", "waiting for the analyses")],
     "protocol_runner.session.unit_writer": [
         ("UnitWriter", "submit", "waiting for the writer"),
         ("UnitWriter", "flush", "waiting for the writer"),
