@@ -229,5 +229,9 @@ def test_realtime_and_real_boards_keep_the_per_tick_loop() -> None:
     assert (
         Rig(JOINT, SimulatedRig(JOINT).ao, SimulatedRig(JOINT).ai, SimulatedRig(JOINT).clock).block_io is None
     )
+    sim = SimulatedRig(JOINT)
+    rig = sim.make_rig()
+    rig.ai = SimulatedRig(JOINT).ai  # a board replaced (or wrapped, as fault injection does)
+    assert rig._block_output() is None
     with pytest.raises(InvalidInput, match="simulated time"):
         SimulatedRig(JOINT, realtime=True).send_block(8, np.array([1e9]), np.array([0.0]))

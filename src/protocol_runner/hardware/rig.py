@@ -54,6 +54,8 @@ class ScheduledBlockIO(Protocol):
     @property
     def accepts_scheduled_blocks(self) -> bool: ...
 
+    def drives(self, ao: object, ai: object) -> bool: ...
+
     def send_block(
         self, channel: int, times_s: FloatArray, volts: FloatArray
     ) -> tuple[npt.NDArray[np.int64], ScanBlock]: ...
@@ -179,9 +181,10 @@ class Rig:
         return float(np.mean(self.joint.angle_from_volts(block.volts[:, 0])))
 
     def _block_output(self) -> ScheduledBlockIO | None:
-        """The block path, when the boards offer one and take scheduled blocks now."""
+        """The block path, when the boards offer one, take scheduled blocks now, and are the rig's boards
+        (a board replaced or wrapped since, e.g. by fault injection, is driven tick by tick)."""
         io = self.block_io
-        if io is not None and io.accepts_scheduled_blocks is True:
+        if io is not None and io.accepts_scheduled_blocks is True and io.drives(self.ao, self.ai):
             return io
         return None
 

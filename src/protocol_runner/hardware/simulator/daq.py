@@ -391,6 +391,10 @@ class SimulatedRig:
         """True when `send_block` may stand for the paced loop: simulated (not wall-clock) time."""
         return self.scheduled_blocks and not self.clock.realtime
 
+    def drives(self, ao: object, ai: object) -> bool:
+        """Whether `ao` and `ai` are this simulator's own boards (the block path drives nothing else)."""
+        return ao is self.ao and ai is self.ai
+
     def send_block(
         self, channel: int, times_s: FloatArray, volts: FloatArray
     ) -> tuple[npt.NDArray[np.int64], ScanBlock]:
