@@ -37,7 +37,9 @@ def main() -> None:
         cmd += ["--session", str(Path(tmp) / "s")] + (["--only", args.only] if args.only else [])
         load0 = os.getloadavg()
         t0 = time.perf_counter()
-        subprocess.run(cmd, check=True, cwd=args.checkout, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        subprocess.run(
+            cmd, check=True, cwd=args.checkout, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL
+        )
         wall = time.perf_counter() - t0
         lines = [line.split() for line in log.read_text().splitlines()]
     main_pid = next(pid for pid, _, cat, _ in lines if cat == "session")
@@ -45,13 +47,19 @@ def main() -> None:
     for pid, thread, cat, value in lines:
         if cat == "process_start":
             continue
-        where = "main thread" if pid == main_pid and thread == "MainThread" else (
-            "writer thread" if pid == main_pid else "workers"
+        where = (
+            "main thread"
+            if pid == main_pid and thread == "MainThread"
+            else ("writer thread" if pid == main_pid else "workers")
         )
         totals[(cat.replace("_", " "), where)] += float(value)
-    print(f"{args.checkout}: wall {wall:.1f} s; load average before {load0[0]:.2f}, after {os.getloadavg()[0]:.2f}")
+    print(
+        f"{args.checkout}: wall {wall:.1f} s; load average before {load0[0]:.2f}, after {os.getloadavg()[0]:.2f}"
+    )
     session = totals.pop(("session", "main thread"), 0.0)
-    print(f"  start-up (before the session loop): {wall - session:.1f} s; session loop and report {session:.1f} s")
+    print(
+        f"  start-up (before the session loop): {wall - session:.1f} s; session loop and report {session:.1f} s"
+    )
     for (cat, where), value in sorted(totals.items(), key=lambda kv: -kv[1]):
         print(f"  {cat:24s} {where:14s} {value:6.2f} s")
 

@@ -43,7 +43,9 @@ def _wrap(func, category):  # type: ignore[no-untyped-def]
         finally:
             dt = time.perf_counter() - t0
             with open(LOG, "a") as f:  # type: ignore[arg-type]
-                f.write(f"{os.getpid()} {threading.current_thread().name} {category.replace(' ', '_')} {dt:.6f}\n")
+                f.write(
+                    f"{os.getpid()} {threading.current_thread().name} {category.replace(' ', '_')} {dt:.6f}\n"
+                )
 
     return timed
 
