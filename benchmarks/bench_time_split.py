@@ -42,9 +42,10 @@ def main() -> None:
         )
         wall = time.perf_counter() - t0
         lines = [line.split() for line in log.read_text().splitlines()]
-    main_pid = next(pid for pid, _, cat, _ in lines if cat == "session")
+    main_pid = next(pid for pid, _, cat, _, _ in lines if cat == "session")
     totals: dict[tuple[str, str], float] = collections.defaultdict(float)
-    for pid, thread, cat, value in lines:
+    cpu: dict[tuple[str, str], float] = collections.defaultdict(float)
+    for pid, thread, cat, value, cpu_s in lines:
         if cat == "process_start":
             continue
         where = (
@@ -53,15 +54,17 @@ def main() -> None:
             else ("writer thread" if pid == main_pid else "workers")
         )
         totals[(cat.replace("_", " "), where)] += float(value)
+        cpu[(cat.replace("_", " "), where)] += float(cpu_s)
     print(
         f"{args.checkout}: wall {wall:.1f} s; load average before {load0[0]:.2f}, after {os.getloadavg()[0]:.2f}"
     )
     session = totals.pop(("session", "main thread"), 0.0)
+    print(f"  {'category':34s} {'where':14s}   wall    CPU (of the calling thread)")
     print(
         f"  start-up (before the session loop): {wall - session:.1f} s; session loop and report {session:.1f} s"
     )
     for (cat, where), value in sorted(totals.items(), key=lambda kv: -kv[1]):
-        print(f"  {cat:24s} {where:14s} {value:6.2f} s")
+        print(f"  {cat:34s} {where:14s} {value:6.2f} {cpu[(cat, where)]:6.2f} s")
 
 
 if __name__ == "__main__":
