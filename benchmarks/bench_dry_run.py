@@ -6,13 +6,16 @@ Each repeat runs `run-protocol knee_phase1.yaml --dry-run --yes` in a fresh subp
 compilation cache and imports count as they do for a user) and reports the median wall time, the robot
 time simulated (trajectories of every run the rig made, including the brace-off scaling runs and the
 calibration checks and the parking moves between them: the simulator's clock at the end), their ratio,
-and the archive and report sizes. --profile prints where the time goes.
+and the archive and report sizes. --profile prints where the time goes. It also prints the CPU time of
+each run (user + system, the session's worker processes included: less sensitive to the shared machine's
+load than the wall time) and the load average before and after.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -61,6 +64,8 @@ def main() -> None:
     ap.add_argument("--profile", action="store_true")
     args = ap.parse_args()
     walls: list[float] = []
+    cpus: list[float] = []
+    load0 = os.getloadavg()
     robot = 0.0
     sizes: tuple[int, int] = (0, 0)
     with tempfile.TemporaryDirectory() as tmp:
@@ -81,10 +86,15 @@ def main() -> None:
             if args.only:
                 cmd += ["--only", args.only]
             t0 = time.perf_counter()
-            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            _, status, usage = os.wait4(proc.pid, 0)  # the run's CPU, its reaped workers included
             wall = time.perf_counter() - t0
+            proc.returncode = os.waitstatus_to_exitcode(status)
+            if proc.returncode != 0:
+                raise SystemExit(f"the dry run failed (exit {proc.returncode})")
             if not (args.profile and i == 0):
                 walls.append(wall)
+                cpus.append(usage.ru_utime + usage.ru_stime)
             robot = simulated_time_s(session / "archive.h5") or robot_time_s(session / "archive.h5")
             sizes = ((session / "archive.h5").stat().st_size, (session / "report.html").stat().st_size)
             print(f"run {i + 1}: {wall:.1f} s wall", flush=True)
@@ -99,6 +109,9 @@ def main() -> None:
             {
                 "wall_s_median": round(median, 2),
                 "wall_s_runs": [round(w, 2) for w in walls],
+                "cpu_s_median": round(statistics.median(cpus), 2) if cpus else None,
+                "cpu_s_runs": [round(c, 2) for c in cpus],
+                "load_average_before_after": [round(load0[0], 2), round(os.getloadavg()[0], 2)],
                 "robot_time_s": round(robot, 1),
                 "speedup": round(ratio, 1),
                 "target_speedup": 300,

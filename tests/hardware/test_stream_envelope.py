@@ -208,3 +208,55 @@ def test_limits_too_small_to_move_the_joint_are_refused_with_bounded_work(
     limits = SafetyLimits((0.0, 130.0), 120.0, 1e-9, 45.0, 20.0)
     with pytest.raises(InvalidInput, match=message):
         build_stream(trajectory, limits, 100.0)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(data=st.data())
+def test_the_simulators_block_path_sends_exactly_the_checked_stream_or_nothing(data: st.DataObject) -> None:
+    """In a dry run the rig sends up to a second of samples per compiled call (issue 20): what reaches the
+    simulated board is, sample for sample, the checked stream up to a random stop and then its checked stop
+    tail - or nothing at all when the plan is refused."""
+    from protocol_runner.errors import Interrupted
+    from protocol_runner.hardware.conversions import volts_to_ao16_code
+    from protocol_runner.hardware.motion import run_motion
+    from protocol_runner.hardware.rig import READ_EVERY_TICKS, JointConfig
+    from protocol_runner.hardware.simulator import SimulatedRig
+
+    limits, rate_hz = data.draw(rig_limits())
+    _, cmd = data.draw(trajectories(limits, rate_hz, ("sinusoid", "step", "hold", "human")))
+    joint = JointConfig(
+        name="joint",
+        range_deg=(0.0, 130.0),
+        torque_range_nm=(-84.8, 84.8),
+        output_channel=0,
+        angle_input_channel=0,
+        torque_input_channel=1,
+        output_rate_hz=rate_hz,
+        limits=limits,
+    )
+    sim = SimulatedRig(joint, seed=1)
+    rig = sim.make_rig()
+    assert rig._block_output() is not None
+    stream = plan(cmd, limits, rate_hz)
+    polls_until_stop = data.draw(st.integers(1, 1000), label="polls before a stop request")
+    polls = {"n": 0}
+
+    def stop() -> bool:
+        polls["n"] += 1
+        return polls["n"] >= polls_until_stop
+
+    try:
+        run_motion(rig, cmd, where="property", stop_requested=stop)
+    except SafetyViolation:
+        assert isinstance(stream, SafetyViolation)
+        assert sim.ao.records()[0].size == 0  # refused before anything was written
+        return
+    except Interrupted:
+        pass
+    assert isinstance(stream, CommandStream)
+    written = min(polls_until_stop * READ_EVERY_TICKS, stream.command_deg.size)
+    tail, _ = stream.stop_after(written, limits) if written < stream.command_deg.size else (np.zeros(0), None)
+    expected = np.concatenate([stream.command_deg[:written], tail])
+    _, channel, code = sim.ao.records()
+    sent = code[channel == 0][1:]  # after the channel's configuration (0 V)
+    np.testing.assert_array_equal(sent, volts_to_ao16_code(joint.command_to_volts(expected)))

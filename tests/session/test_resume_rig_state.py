@@ -30,16 +30,17 @@ SET = "rom_medium_spring"  # configuration 12 (conftest.ONLY): a set with spring
 
 
 def interrupt_after(monkeypatch: pytest.MonkeyPatch, step_id: str) -> None:
-    """The next run stops (as on Ctrl-C) once `step_id` is journaled: at the next safe point."""
+    """The next run stops (as on Ctrl-C) once `step_id` has finished and its unit is handed to the writer:
+    at the next safe point (the stop then waits for the unit to be written and journals it)."""
     flag = StopFlag()
-    real = Journal.unit_done
+    real = runner_module.Runner.record
 
-    def unit_done(self: Journal, record, *, final: bool = True) -> None:  # type: ignore[no-untyped-def]
-        real(self, record, final=final)
-        if record.step_id == step_id:
+    def record(self: runner_module.Runner, done_id: str, outcome) -> None:  # type: ignore[no-untyped-def]
+        real(self, done_id, outcome)
+        if done_id == step_id:
             flag.request("SIGINT")
 
-    monkeypatch.setattr(Journal, "unit_done", unit_done)
+    monkeypatch.setattr(runner_module.Runner, "record", record)
     monkeypatch.setattr(runner_module, "StopFlag", lambda: flag)
 
 

@@ -80,10 +80,10 @@ def write_unit(units_dir: Path, step_id: str, fill: Callable[[h5py.File], None])
         digest = sha256_of(partial)
         os.replace(partial, final)
         _fsync_dir(units_dir)
-    except OSError as exc:
+    except BaseException as exc:  # never leave a partial file behind: a fill's bug, a full disk, Ctrl-C
         with contextlib.suppress(OSError):
             partial.unlink()
-        if is_disk_full(exc):
+        if isinstance(exc, OSError) and is_disk_full(exc):
             raise DiskFull(
                 f"disk full while saving {step_id} in {units_dir}. {resume_hint(units_dir.parent)}"
             ) from None

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -39,8 +40,43 @@ FloatArray = npt.NDArray[np.float64]
 READ_EVERY_TICKS = 10
 """Output ticks between two reads of the input scan (100 ms at 100 Hz: 100 rows per read at 1 kHz)."""
 
+BLOCK_S = 1.0
+"""The most robot time one block of the simulator's block path covers: a stop request is seen within it."""
+
 N_SCAN_CHANNELS = 2
 """Scan order: column 0 = angle channel, column 1 = torque channel."""
+
+
+class ScheduledBlockIO(Protocol):
+    """Boards that take a block of scheduled writes and read the scan at its last one in one call — the
+    DAQ simulator in simulated time (`SimulatedRig.send_block`). Real boards are paced tick by tick."""
+
+    @property
+    def accepts_scheduled_blocks(self) -> bool: ...
+
+    def drives(self, ao: object, ai: object) -> bool: ...
+
+    def send_block(
+        self, channel: int, times_s: FloatArray, volts: FloatArray
+    ) -> tuple[npt.NDArray[np.int64], ScanBlock]: ...
+
+
+def block_end(
+    start: int, n: int, block_ticks: int, stop_requested: Callable[[], bool] | None
+) -> tuple[int, bool]:
+    """The end of the block path's next block from tick `start` (of `n`) and whether a stop was requested
+    there. `stop_requested` is polled, in order, at each READ_EVERY_TICKS boundary the per-tick loop polls
+    (after ticks start + 10, start + 20, ...), up to `block_ticks` ahead, before the block is simulated; the
+    block ends at the first boundary that asks for a stop. So a stop takes effect after the same sample as
+    in the per-tick loop (for a request that depends on the polls, not on the samples), and a signal is
+    seen within one block."""
+    end = start
+    limit = min(start + block_ticks, n)
+    while end < limit:
+        end = min(end + READ_EVERY_TICKS, n)
+        if stop_requested is not None and stop_requested():
+            return end, True
+    return end, False
 
 
 class Rig:
@@ -57,6 +93,8 @@ class Rig:
         self.loop_context: Callable[[], contextlib.AbstractContextManager[object]] = contextlib.nullcontext
         # The live monitor's sampler (--monitor): shown each scan block as it is read; None costs nothing.
         self.tap: LoopTap | None = None
+        # The simulator's block path (set by `SimulatedRig.make_rig`); None on the hardware bench.
+        self.block_io: ScheduledBlockIO | None = None
 
     @property
     def scan_channels(self) -> tuple[int, int]:
@@ -142,6 +180,14 @@ class Rig:
             raise InvalidInput("could not measure the joint angle: the input scan returned no samples")
         return float(np.mean(self.joint.angle_from_volts(block.volts[:, 0])))
 
+    def _block_output(self) -> ScheduledBlockIO | None:
+        """The block path, when the boards offer one, take scheduled blocks now, and are the rig's boards
+        (a board replaced or wrapped since, e.g. by fault injection, is driven tick by tick)."""
+        io = self.block_io
+        if io is not None and io.accepts_scheduled_blocks is True and io.drives(self.ao, self.ai):
+            return io
+        return None
+
     def send(
         self,
         cmd: FloatArray,
@@ -178,19 +224,30 @@ class Rig:
         tap = self.tap
         if tap is not None:
             tap.start(where, cmd, t0)
+        block_out = self._block_output()
+        block_ticks = max(READ_EVERY_TICKS, int(rate * BLOCK_S) // READ_EVERY_TICKS * READ_EVERY_TICKS)
         try:
             start = 0
             while start < n:
-                end = min(start + READ_EVERY_TICKS, n)
-                for k in range(start, end):
-                    sleep_until(schedule[k])
-                    actual[k] = now()
-                    codes[k] = write(channel, volts_list[k])
-                append(read())
+                if block_out is None:  # the paced loop, tick by tick (real boards, --realtime)
+                    end = min(start + READ_EVERY_TICKS, n)
+                    for k in range(start, end):
+                        sleep_until(schedule[k])
+                        actual[k] = now()
+                        codes[k] = write(channel, volts_list[k])
+                    append(read())
+                    stop_now = not stopped and stop_requested is not None and stop_requested()
+                else:  # simulated time: up to BLOCK_S of the same samples in one call (see block_end)
+                    end, stop_now = block_end(start, n, block_ticks, None if stopped else stop_requested)
+                    times = schedule[start:end]
+                    block_codes, scan = block_out.send_block(channel, np.asarray(times), volts[start:end])
+                    codes[start:end] = block_codes.tolist()
+                    actual[start:end] = times  # each sample written at its time: what now() reads
+                    append(scan)  # read at the block's last write, as the per-tick loop reads
                 start = end
                 if tap is not None:
                     tap.scan(blocks[-1])
-                if not stopped and stop_requested is not None and stop_requested():
+                if stop_now:
                     stopped = f"{where}: stopped on request at t = {schedule[end - 1] - t0:.2f} s"
                     if on_stop is None:
                         raise Interrupted(stopped)

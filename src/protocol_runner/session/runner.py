@@ -20,7 +20,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..archive.diskfull import DiskFull, disk_full_error, is_disk_full
-from ..archive.units import write_unit
 from ..errors import Interrupted, StoppedByCheck, UserError
 from ..events import NULL_PUBLISHER, Publisher
 from ..protocol.loader import LoadedProtocol
@@ -28,7 +27,7 @@ from ..protocol.plan import (
     Plan,
     Step,
 )
-from ..steps.context import Bench, StepContext, StepOutcome, processing_settings
+from ..steps.context import Bench, StepOutcome, processing_settings
 from ..steps.failures import run_step
 from .assembly import consolidate_session
 from .journal import Journal
@@ -39,6 +38,7 @@ from .reporting import render_report
 from .resume import prepare_resume
 from .setup import SessionInfo
 from .signals import StopFlag
+from .unit_writer import UnitWriter, WritingStepContext, WrittenJournalView
 from .workers import BACKGROUND_KINDS, AnalysisPool
 
 
@@ -83,6 +83,7 @@ class Runner:
         self.steps_run = 0
         self.background = background if background is not None else (os.cpu_count() or 1) >= 2
         self.pool = AnalysisPool(loaded, plan, self.units_dir, self.journal)
+        self.writer = UnitWriter(self.units_dir, self.journal)  # units written while the next step runs
         self.publisher = publisher  # the live monitor (--monitor): told of every step through `progress`
 
     # ------------------------------------------------------------------------------------------ run
@@ -100,16 +101,17 @@ class Runner:
         progress = Progress(
             self.plan, set(self.journal.units), log, quiet=self.quiet, publisher=self.publisher
         )
-        ctx = StepContext(
+        ctx = WritingStepContext(
             loaded=self.loaded,
             plan=self.plan,
             bench=self.bench,
             operator=self.operator,
             units_dir=self.units_dir,
-            journal=self.journal,
+            journal=WrittenJournalView(self.journal, self.writer),
             stop_requested=self.stop,
             processing=processing_settings(self.loaded),
             monitor=self.publisher,
+            writer=self.writer,
         )
         skipped = 0
         try:
@@ -119,6 +121,7 @@ class Runner:
                 self.journal.event("started", f"{self.info.mode}, seed {self.info.seed}")
                 self.journal.event("referenced_files", json.dumps(self.info.files_sha256, sort_keys=True))
             for step in self.plan.steps:
+                self.writer.collect()  # journal the units written meanwhile (and surface a write error)
                 self.pool.collect(self._finished(progress), wait=False)
                 if step.id in self.journal.units:
                     skipped += 1
@@ -128,9 +131,11 @@ class Runner:
                 if step.id in self.pool.submitted:
                     continue
                 if self.background and step.kind in BACKGROUND_KINDS:
-                    self.pool.submit(step)
+                    # handed to a worker once the configuration's units are on disk
+                    self.pool.submit(step, ready=self.writer.ticket())
                     continue
                 if step.kind in ("compare", "report"):
+                    self.writer.flush()  # what the analyses read is on disk
                     self.pool.collect(self._finished(progress), wait=True)  # these read the analyses' units
                 if step.kind == "report":
                     return self._finish(progress, skipped)
@@ -138,6 +143,7 @@ class Runner:
                 outcome = run_step(step, ctx)
                 self.record(step.id, outcome)
                 progress.step_finished(step, outcome.summary)
+            self.writer.flush()
             self.pool.collect(self._finished(progress), wait=True)
             return self._finish(progress, skipped)
         except Interrupted as exc:
@@ -147,6 +153,7 @@ class Runner:
             ) from None
         except KeyboardInterrupt:
             self.pool.kill()
+            self.writer.abandon()
             with contextlib.suppress(Exception):
                 self.journal.event("interrupted", "stopped at once (second Ctrl-C)")
             raise Interrupted(
@@ -171,6 +178,8 @@ class Runner:
             self._stopped("stopped", f"internal error: {exc!r} (traceback in session.log)", progress)
             raise
         finally:
+            with contextlib.suppress(Exception):  # flushed on every path above; an error is already raised
+                self.writer.close()
             try:
                 self.pool.shutdown(progress.step_finished)
             except KeyboardInterrupt:  # Ctrl-C while waiting for the analyses: stop them now
@@ -188,11 +197,13 @@ class Runner:
         return finished
 
     def record(self, step_id: str, outcome: StepOutcome) -> None:
+        """Hand the step's unit to the writer (journaled once it is on disk); a step that stops the session
+        has its unit written and journaled before the stop is raised."""
         if outcome.fill is not None:
-            record = write_unit(self.units_dir, step_id, outcome.fill)
-            self.journal.unit_done(record, final=outcome.stop is None)
+            self.writer.submit(step_id, outcome.fill, final=outcome.stop is None)
         self.steps_run += 1
         if outcome.stop is not None:
+            self.writer.flush()
             raise outcome.stop
 
     # ------------------------------------------------------------------------------------ finishing
@@ -201,6 +212,7 @@ class Runner:
         """Record the stop, park, consolidate. A second Ctrl-C meanwhile cuts this short (--resume redoes it)."""
         status = "aborted" if kind == "aborted" else "incomplete"
         actions = (
+            lambda: self._flush_units(progress),  # journal every unit written so far
             lambda: self.pool.shutdown(progress.step_finished),  # keep the analyses that finish meanwhile
             lambda: self.journal.event(kind, message),
             lambda: self.bench.rig.park(where="park on stop"),
@@ -212,14 +224,26 @@ class Runner:
                 action()
             except KeyboardInterrupt:
                 self.pool.kill()
+                self.writer.abandon()
                 with contextlib.suppress(Exception):
                     self.journal.event("interrupted", "stopped at once (second Ctrl-C)")
                 return
             except Exception:  # a stop must get through every action it can
                 continue
 
+    def _flush_units(self, progress: Progress) -> None:
+        """On a stop: wait for the units being written and journal them; a write that failed meanwhile is
+        recorded (its step is redone on resume)."""
+        try:
+            self.writer.flush()
+        except Exception as exc:
+            self.journal.event("unit_not_written", f"{exc}")
+            progress.info(f"a unit could not be written ({exc}); its step is redone on resume")
+
     def _disk_full(self, exc: Exception) -> DiskFull:
         """Park, journal the stop if there is room for it, and the error to raise (archive/diskfull.py)."""
+        with contextlib.suppress(Exception):
+            self.writer.flush()  # the units written before the full disk are kept
         with contextlib.suppress(Exception):
             self.journal.event("interrupted", "disk full")
         with contextlib.suppress(Exception):
@@ -229,6 +253,7 @@ class Runner:
     def _finish(self, progress: Progress, skipped: int) -> RunResult:
         clock = getattr(getattr(self.bench, "sim", None), "clock", None)
         robot = f"; {clock.now_s():.1f} s of robot time simulated" if clock is not None else ""
+        self.writer.flush()
         self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped{robot}")
         archive = self.consolidate("complete")
         report = render_report(self.dir, archive)

@@ -3,6 +3,10 @@
 Steps that only read finished units (never the rig) run, on a machine with two cores or more, in a
 worker process while the main process goes on with the next set's trials. They are journaled, like any
 step, only once their unit is on disk; a stop waits for the one in progress and redoes the rest.
+
+A step submitted with a `ready` test (the unit writer's ticket, `session/unit_writer.py`) is handed to a
+worker only once the test passes — once the units it reads are on disk — at a later `submit` or `collect`;
+the main process does not wait for the writer meanwhile.
 """
 
 from __future__ import annotations
@@ -85,30 +89,41 @@ class AnalysisPool:
         self.submitted: set[str] = set()
         self._pool: ProcessPoolExecutor | None = None
         self._pending: list[tuple[tuple[Step, ...], Future[Results]]] = []
+        self._waiting: list[tuple[tuple[Step, ...], Callable[[], bool]]] = []  # not handed out yet
 
-    def submit(self, step: Step) -> None:
-        """Queue a configuration's processing together with its fit (one task: the fit needs its unit)."""
-        if self._pool is None:
-            workers = min(2, os.cpu_count() or 1)
-            self._pool = ProcessPoolExecutor(
-                max_workers=workers,
-                mp_context=multiprocessing.get_context("spawn"),
-                initializer=worker_init,
-            )
+    def submit(self, step: Step, *, ready: Callable[[], bool] | None = None) -> None:
+        """Queue a configuration's processing together with its fit (one task: the fit needs its unit),
+        handed to a worker once `ready()` is true (at once without it), in submission order."""
         chain = [step]
         if isinstance(step, ProcessStep):
             fit = make_step_id("fit", key=step.configuration)
             if fit in self.plan._index and fit not in self.journal.units:
                 chain.append(self.plan.step(fit))
         self.submitted.update(s.id for s in chain)
-        with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
-            future = self._pool.submit(
-                run_analysis_steps, self.loaded, self.plan, self.units_dir, tuple(s.id for s in chain)
-            )
-        self._pending.append((tuple(chain), future))
+        self._waiting.append((tuple(chain), ready or (lambda: True)))
+        self._hand_out(force=False)
+
+    def _hand_out(self, *, force: bool) -> None:
+        """Start the waiting tasks whose units are ready (all of them with `force`), in order."""
+        while self._waiting and (force or self._waiting[0][1]()):
+            chain, _ = self._waiting.pop(0)
+            if self._pool is None:
+                workers = min(2, os.cpu_count() or 1)
+                self._pool = ProcessPoolExecutor(
+                    max_workers=workers,
+                    mp_context=multiprocessing.get_context("spawn"),
+                    initializer=worker_init,
+                )
+            with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
+                future = self._pool.submit(
+                    run_analysis_steps, self.loaded, self.plan, self.units_dir, tuple(s.id for s in chain)
+                )
+            self._pending.append((chain, future))
 
     def collect(self, finished: Callable[[Step, str], None], *, wait: bool) -> None:
-        """Journal the background steps that finished (all of them when `wait`), telling `finished`."""
+        """Journal the background steps that finished (all of them when `wait`: the caller has made sure
+        that every unit they read is on disk), telling `finished`."""
+        self._hand_out(force=wait)
         still: list[tuple[tuple[Step, ...], Future[Results]]] = []
         for chain, future in self._pending:
             if not (wait or future.done()):
@@ -123,6 +138,7 @@ class AnalysisPool:
 
     def shutdown(self, finished: Callable[[Step, str], None]) -> None:
         """On any exit: keep the background steps that completed, drop the queued ones (redone on resume)."""
+        self._waiting.clear()
         if self._pool is None:
             return
         for _, future in self._pending:
@@ -144,6 +160,7 @@ class AnalysisPool:
 
     def kill(self) -> None:
         """Stop at once: end the analysis workers (units are atomic: an unfinished one is redone on resume)."""
+        self._waiting.clear()
         if self._pool is None:
             return
         for proc in list(getattr(self._pool, "_processes", {}).values()):

@@ -41,15 +41,20 @@ from protocol_runner.hardware.conversions import (
     volts_to_angle,
 )
 from protocol_runner.hardware.interfaces import ScanBlock
+from protocol_runner.hardware.simulator.block import BLOCK_NAN, BLOCK_OK
 from protocol_runner.hardware.simulator.device import ComposedDevice
 from protocol_runner.hardware.simulator.kernels import GRID_TOL, ROLE_ANGLE, ROLE_TORQUE
 from protocol_runner.hardware.simulator.output import (
+    AO_CHANNELS,
     SimulatedAnalogOutput,
     SimulatedClock,
     check_channel,
 )
 from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, SimulatorParams
 from protocol_runner.hardware.simulator.plant import JointPlant
+from protocol_runner.hardware.simulator.scan import AI_CHANNELS as AI_CHANNELS
+from protocol_runner.hardware.simulator.scan import AI_MAX_RATE_HZ as AI_MAX_RATE_HZ
+from protocol_runner.hardware.simulator.scan import ScanState, SimulatedAnalogInput
 
 if TYPE_CHECKING:
     from protocol_runner.hardware.calibration import CalibrationTable
@@ -57,10 +62,6 @@ if TYPE_CHECKING:
 
 FloatArray = npt.NDArray[np.float64]
 
-AI_CHANNELS = 24
-"""DT9814-10V: 24 analog inputs (thesis §2.3)."""
-AI_MAX_RATE_HZ = 50_000.0
-"""DT9814 maximum aggregate rate (thesis §2.3)."""
 
 _AI12 = (AI12_VOLTS_PER_CODE, AI12_MIN_CODE, AI12_MAX_CODE)
 """The DT9814's 12-bit ±10 V two's-complement quantisation, as `plant.scan_rows` applies it."""
@@ -107,6 +108,7 @@ class _RigModel:
         if self.command_nonlinearity is not None:
             input_deg = self.command_nonlinearity(input_deg)
         self.target_by_code: list[float] = input_deg.tolist()
+        self._target_by_code_arr = np.ascontiguousarray(input_deg, dtype=np.float64)
         # The sensor chains, real value -> the robot's sensor nonlinearity (inverse of the protocol's output
         # table) -> Eq 1 / Eq 3 inverted -> volts, are piecewise linear: tabulate them on the table's knots
         # (plus two far knots that carry the tables' linear extrapolation) so a read costs one np.interp.
@@ -165,6 +167,43 @@ class _RigModel:
         if channel == self._output_channel:
             self._push(math.ceil((t_s - self.origin_s) * self._inv_dt - GRID_TOL), self.target_by_code[code])
 
+    def send_block(
+        self, times_s: FloatArray, volts: FloatArray, channel: int, scan: ScanState | None
+    ) -> tuple[npt.NDArray[np.int64], FloatArray, npt.NDArray[np.int32], FloatArray]:
+        """The block path: writes at `times_s` on `channel` (their codes and, on the joint's output channel,
+        their commands, exactly as `on_write` per write) and, if `scan` runs, its rows due at the last
+        write — one compiled call (`block.send_and_scan`). Returns (codes, row times, row codes, row
+        volts); InvalidInput (nothing changed) for NaN volts or writes out of time order."""
+        now_s = float(times_s[-1])
+        n_ch = len(scan.channels) if scan is not None else 0
+        first_row, n_rows, t0_s, rate_hz = 0, 0, 0.0, 1.0
+        if scan is not None:
+            self._scan_roles(scan.channels)
+            first_row, n_rows, t0_s, rate_hz = scan.rows_read, scan.rows_due(now_s), scan.t0_s, scan.rate_hz
+            step_end = math.floor((now_s - self.origin_s) * self._inv_dt + GRID_TOL)
+        else:
+            step_end = self.plant.step  # nothing read: integrated at the next read, as per write
+        noise = self._noise(n_rows * n_ch)
+        decode = (self._target_by_code_arr, self.origin_s, int(channel == self._output_channel))
+        codes, status, t_s, row_codes, row_volts, any_nan = self.plant.send_and_scan(
+            times_s,
+            volts,
+            decode,
+            step_end,
+            (t0_s, self.origin_s, rate_hz, first_row, n_rows),
+            self._sensors,
+            noise,
+            _AI12,
+        )
+        if status == BLOCK_NAN:
+            raise InvalidInput("USB-3105 (simulated): cannot output NaN volts")
+        if status != BLOCK_OK:
+            raise ValueError("commands must be pushed in time order")
+        if any_nan:
+            raise InvalidInput("cannot convert NaN volts to an analog input code")
+        self._noise_pos += row_codes.shape[0] * n_ch
+        return codes, t_s, row_codes, row_volts
+
     def _scan_roles(self, channels: Sequence[int]) -> tuple[npt.NDArray[np.int64], FloatArray]:
         """Per scanned channel: what it carries (0 nothing, 1 angle, 2 torque) and its noise in volts."""
         key = tuple(channels)
@@ -216,63 +255,6 @@ class _RigModel:
         return t_s, codes, volts
 
 
-class SimulatedAnalogInput:
-    """A DT9814 stand-in: a hardware-paced scan of 12-bit ±10 V two's-complement codes. Reading it
-    integrates the simulated robot up to the clock (lazily) and returns the rows acquired since."""
-
-    def __init__(self, model: _RigModel, clock: SimulatedClock) -> None:
-        self._model = model
-        self._clock = clock
-        self._channels: tuple[int, ...] = ()
-        self._rate_hz = 0.0
-        self._t0_s = 0.0
-        self._rows_read = 0
-        self._running = False
-
-    @property
-    def resolution_bits(self) -> int:
-        return 12
-
-    def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
-        if len(channels) == 0:
-            raise InvalidInput("DT9814 (simulated): a scan needs at least one channel")
-        chans = tuple(check_channel(c, AI_CHANNELS, "DT9814 (simulated)") for c in channels)
-        if not (math.isfinite(rate_hz) and 0.0 < rate_hz * len(chans) <= AI_MAX_RATE_HZ):
-            raise InvalidInput(
-                f"DT9814 (simulated): scan rate must be > 0 and at most {AI_MAX_RATE_HZ:g} samples/s over "
-                f"all channels, got {rate_hz!r} Hz x {len(chans)} channels"
-            )
-        self._channels = chans
-        self._rate_hz = float(rate_hz)
-        self._t0_s = self._clock.now_s()
-        self._rows_read = 0
-        self._running = True
-
-    def _read(self, now_s: float) -> ScanBlock:
-        n_ch = len(self._channels)
-        if not self._running:
-            return ScanBlock.empty(n_ch)
-        n_due = math.floor((now_s - self._t0_s) * self._rate_hz + 1e-9) + 1
-        if n_due <= self._rows_read:
-            return ScanBlock.empty(n_ch)
-        t_s, codes, volts = self._model.acquire(
-            self._t0_s, self._rate_hz, self._rows_read, n_due - self._rows_read, self._channels, now_s
-        )
-        self._rows_read += codes.shape[0]
-        return ScanBlock(t_s=t_s, codes=codes, volts=volts)
-
-    def read_available(self) -> ScanBlock:
-        return self._read(self._clock.now_s())
-
-    def stop_scan(self) -> ScanBlock:
-        block = self._read(self._clock.now_s())
-        self._running = False
-        return block
-
-    def close(self) -> None:
-        self._running = False
-
-
 class SimulatedRig:
     """The rig in a box for dry runs: a simulated clock, USB-3105 and DT9814 wired to a model of the RSST
     joint named by `joint` (its ranges, channels, calibration tables and park angle) with or without a
@@ -286,6 +268,7 @@ class SimulatedRig:
         seed: int = 0,
         params: SimulatorParams = DEFAULT_PARAMS,
         realtime: bool = False,
+        scheduled_blocks: bool = True,
     ) -> None:
         self.joint = joint
         self.seed = int(seed)
@@ -293,6 +276,7 @@ class SimulatedRig:
         self.clock = SimulatedClock(realtime=realtime)
         self._model = _RigModel(joint, params, self.seed, self.clock)
         self.ao = SimulatedAnalogOutput(self.clock, listener=self._model.on_write)
+        self.scheduled_blocks = scheduled_blocks
         self.ai = SimulatedAnalogInput(self._model, self.clock)
         self.begin_step("")
 
@@ -324,8 +308,44 @@ class SimulatedRig:
         bad element parameter."""
         self._model.plant.set_device(elements)
 
+    @property
+    def accepts_scheduled_blocks(self) -> bool:
+        """True when `send_block` may stand for the paced loop: simulated (not wall-clock) time."""
+        return self.scheduled_blocks and not self.clock.realtime
+
+    def drives(self, ao: object, ai: object) -> bool:
+        """Whether `ao` and `ai` are this simulator's own boards (the block path drives nothing else)."""
+        return ao is self.ao and ai is self.ai
+
+    def send_block(
+        self, channel: int, times_s: FloatArray, volts: FloatArray
+    ) -> tuple[npt.NDArray[np.int64], ScanBlock]:
+        """The rig's block path (`hardware/rig.py`): the writes a paced loop makes at `times_s` (sorted, none
+        before the clock), sample i at times_s[i], then a read of the input scan at the last one — the same
+        codes, records, commands and rows as one `ao.write_volts` per sample at its time followed by
+        `ai.read_available`, in one compiled call (`block.py`). The clock ends at the last time. All or
+        nothing: NaN volts or a time before the clock raise before anything is written."""
+        if not self.accepts_scheduled_blocks:
+            raise InvalidInput("DAQ simulator: scheduled blocks need simulated time")
+        ch = check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
+        t = np.ascontiguousarray(times_s, dtype=np.float64)
+        v = np.ascontiguousarray(volts, dtype=np.float64)
+        if t.ndim != 1 or t.shape != v.shape:
+            raise InvalidInput(f"DAQ simulator: {t.shape} write times for {v.shape} volts")
+        if t.size == 0:
+            return np.zeros(0, dtype=np.int64), self.ai.read_available()
+        if t[0] < self.clock.now_s() or not bool(np.all(t[1:] >= t[:-1])):
+            raise InvalidInput("DAQ simulator: a block's writes must be in time order, not in the past")
+        codes, block = self.ai.read_after_writes(t, v, ch)
+        self.clock.sleep_until(float(t[-1]))
+        self.ao.record_block(t, ch, codes)
+        return codes, block
+
     def make_rig(self) -> Rig:
-        """A `hardware.rig.Rig` bound to this simulator's boards and clock."""
+        """A `hardware.rig.Rig` bound to this simulator's boards and clock, with its block path
+        (`send_block`) offered for simulated time."""
         from protocol_runner.hardware.rig import Rig
 
-        return Rig(self.joint, self.ao, self.ai, self.clock)
+        rig = Rig(self.joint, self.ao, self.ai, self.clock)
+        rig.block_io = self
+        return rig

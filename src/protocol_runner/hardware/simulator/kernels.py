@@ -6,6 +6,9 @@ Kernels take records, not long argument lists: the joint `(state, istate, parame
 brakes, brake states)`,
 the command history, a scan's `timing` (float64) and `rows` (int64) arrays read through the named
 index constants below, the sensor chain and the ADC.
+
+They release the GIL (`nogil=True`): while the main thread simulates, the session's unit writer thread
+(`session/unit_writer.py`) runs. Releasing it changes nothing in the arithmetic.
 """
 
 from __future__ import annotations
@@ -75,7 +78,7 @@ I_CMD = 1
 N_ISTATE = 2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _load_nm(
     angle_deg: float,
     speed_deg_s: float,
@@ -115,7 +118,7 @@ def _load_nm(
     return load
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def integrate(
     state: FloatArray,
     istate: IntArray,
@@ -204,7 +207,7 @@ GRID_TOL = 1e-6
 a sample exactly on a grid point lands on it whatever the clock's absolute value."""
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def telemetry_volts(
     angle_deg: FloatArray,
     torque_nm: FloatArray,
@@ -255,7 +258,7 @@ Commands = tuple[IntArray, FloatArray]
 Sensors = tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def integrate_rows(
     joint: Joint, commands: Commands, timing: FloatArray, rows: IntArray, sensors: Sensors, noise: FloatArray
 ) -> FloatArray:
@@ -307,7 +310,7 @@ def integrate_rows(
     )
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def scan_rows(
     joint: Joint,
     commands: Commands,

@@ -13,6 +13,7 @@ from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.usb3105 import IDENTITY_CALIBRATION, calibrated_code
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 
 AO_CHANNELS = 16
 """USB-3105: 16 analog outputs (thesis §2.3)."""
@@ -73,7 +74,8 @@ def _ao_code(volts: float) -> int:
 
 class SimulatedAnalogOutput:
     """A USB-3105 stand-in: quantises volts to its 16-bit ±10 V ideal code (clamped), records every update
-    as (time, channel, code) and hands it to `listener` (the simulated robot)."""
+    as (time, channel, code) and hands it to `listener` (the simulated robot). The block path
+    (`SimulatedRig.send_block`) computes its codes in the compiled call and records them here."""
 
     def __init__(
         self, clock: SimulatedClock, *, listener: Callable[[float, int, int], None] | None = None
@@ -115,6 +117,13 @@ class SimulatedAnalogOutput:
         if self._listener is not None:
             self._listener(t_s, ch, code)
         return code
+
+    def record_block(self, times_s: FloatArray, channel: int, codes: IntArray) -> None:
+        """Record writes already made (and handed to the robot) by the block path (`SimulatedRig.send_block`)."""
+        n = int(times_s.shape[0])
+        self._t.extend(times_s.tolist())
+        self._channel.extend([channel] * n)
+        self._code.extend(codes.tolist())
 
     def write_volts_sync(self, volts_by_channel: Mapping[int, float]) -> dict[int, int]:
         t_s = self._clock.now_s()

@@ -36,6 +36,7 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
+from protocol_runner.hardware.simulator.block import BLOCK_OK, Decode, send_and_scan
 from protocol_runner.hardware.simulator.device import ComposedDevice, as_elements, compose
 from protocol_runner.hardware.simulator.kernels import (
     I_CMD,
@@ -250,24 +251,65 @@ class JointPlant:
         n_new = len(self._pending_step)
         if n_new == 0:
             return
-        # Commands before the current one are never needed again: compact instead of growing forever.
-        keep_from = int(self._istate[I_CMD])
-        n_keep = self._n_cmd - keep_from
-        if keep_from > 0:
-            self._cmd_step[:n_keep] = self._cmd_step[keep_from : self._n_cmd]
-            self._cmd_target[:n_keep] = self._cmd_target[keep_from : self._n_cmd]
-            self._istate[I_CMD] = 0
+        n_keep = self._reserve(n_new)
         needed = n_keep + n_new
-        if needed > self._cmd_step.shape[0]:
-            size = max(needed, 2 * self._cmd_step.shape[0])
-            self._cmd_step = np.concatenate([self._cmd_step[:n_keep], np.zeros(size - n_keep, np.int64)])
-            self._cmd_target = np.concatenate([self._cmd_target[:n_keep], np.zeros(size - n_keep)])
         self._cmd_step[n_keep:needed] = self._pending_step
         self._cmd_target[n_keep:needed] = self._pending_target
         self._n_cmd = needed
         self._last_cmd_step = self._pending_step[-1]
         self._pending_step.clear()
         self._pending_target.clear()
+
+    def _reserve(self, n_new: int) -> int:
+        """Room for `n_new` more commands in the kernel's arrays; returns how many are kept. Commands before
+        the current one are never needed again: compacted away instead of growing forever."""
+        keep_from = int(self._istate[I_CMD])
+        n_keep = self._n_cmd - keep_from
+        if keep_from > 0:
+            self._cmd_step[:n_keep] = self._cmd_step[keep_from : self._n_cmd]
+            self._cmd_target[:n_keep] = self._cmd_target[keep_from : self._n_cmd]
+            self._istate[I_CMD] = 0
+            self._n_cmd = n_keep
+        needed = n_keep + n_new
+        if needed > self._cmd_step.shape[0]:
+            size = max(needed, 2 * self._cmd_step.shape[0])
+            self._cmd_step = np.concatenate([self._cmd_step[:n_keep], np.zeros(size - n_keep, np.int64)])
+            self._cmd_target = np.concatenate([self._cmd_target[:n_keep], np.zeros(size - n_keep)])
+        return n_keep
+
+    def send_and_scan(
+        self,
+        times_s: FloatArray,
+        volts: FloatArray,
+        decode: Decode,
+        step_end: int,
+        scan: tuple[float, float, float, int, int],
+        sensors: Sensors,
+        noise: FloatArray,
+        adc: tuple[float, int, int],
+    ) -> tuple[IntArray, int, FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
+        """The block path (`block.send_and_scan`): the output codes of writes at `times_s`, their commands
+        held from their grid steps, then `scan` = (t0, origin, rate, first row, rows) read after
+        integrating to `step_end`. Returns (codes, status, row times, row codes, row volts, any NaN)."""
+        self._flush_commands()
+        self._reserve(times_s.shape[0])
+        t0_s, origin_s, rate_hz, first_row, n_rows = scan
+        codes, n_cmd, status, t_s, row_codes, row_volts, any_nan = send_and_scan(
+            self._joint(),
+            (self._cmd_step, self._cmd_target),
+            (times_s, volts),
+            decode,
+            _timing(t0_s, origin_s, rate_hz),
+            _rows(step_end, first_row, n_rows, self._n_cmd),
+            sensors,
+            noise,
+            adc,
+        )
+        if status == BLOCK_OK:
+            self._n_cmd = int(n_cmd)
+            self._last_cmd_step = int(self._cmd_step[n_cmd - 1]) if n_cmd > 0 else 0
+            self._integrated_step = int(self._istate[I_STEP])
+        return codes, int(status), t_s, row_codes, row_volts, bool(any_nan)
 
     def advance_rows(
         self,
