@@ -13,6 +13,8 @@ joint.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import InvalidInput
@@ -33,9 +35,15 @@ def joint_view(loaded: LoadedProtocol, joint: str) -> LoadedProtocol:
     return dataclasses.replace(loaded, protocol=p.with_rigs((p.rig_of(joint),)))
 
 
-def check_joint_motions(loaded: LoadedProtocol, *, check_files: bool = True) -> list[Problem]:
+def check_joint_motions(
+    loaded: LoadedProtocol,
+    *,
+    check_files: bool,
+    limit_problems: Callable[[LoadedProtocol, list[Motion], str], list[Problem]],
+    relative_message: Callable[[str, Path], str],
+) -> list[Problem]:
+    """`limit_problems` and `relative_message` are validate.py's (passed in: no import cycle)."""
     from .stream_check import check_streams
-    from .validate import _limit_problems, _relative_message
 
     p = loaded.protocol
     problems: list[Problem] = []
@@ -74,7 +82,7 @@ def check_joint_motions(loaded: LoadedProtocol, *, check_files: bool = True) -> 
                 problems.append((exc.loc, exc.message))
                 continue
             except InvalidInput as exc:
-                message = _relative_message(exc.message, loaded.base_dir)
+                message = relative_message(exc.message, loaded.base_dir)
                 problems.append(((*loc, "trajectory"), f"configuration {cfg.key}: {message}"))
                 continue
             for joint, traj in per_joint:
@@ -82,7 +90,7 @@ def check_joint_motions(loaded: LoadedProtocol, *, check_files: bool = True) -> 
     if problems:
         return problems
     for joint in p.driven_joints:
-        problems += _limit_problems(joint_view(loaded, joint), motions[joint], joint=joint)
+        problems += limit_problems(joint_view(loaded, joint), motions[joint], joint)
     if problems:
         return problems
     for joint in p.driven_joints:

@@ -54,7 +54,12 @@ def cross_check(loaded: LoadedProtocol, *, check_files: bool = True) -> list[Pro
     if p.multi_joint:
         from .multi_validate import check_joint_motions
 
-        return check_joint_motions(loaded, check_files=check_files)
+        return check_joint_motions(
+            loaded,
+            check_files=check_files,
+            limit_problems=_limit_problems,
+            relative_message=_relative_message,
+        )
     motions: list[Motion] = [
         (("calibration_step",), "the calibration step", calibration_trajectory(p)),
     ]
