@@ -70,6 +70,10 @@ class CalibrationCheckStep(Step):
     # multi-joint: each joint's own step, run one joint after the other (the others held at park)
     joint_trajectories: JointTrajectories = ()
 
+    def joints_names(self) -> tuple[str, ...]:
+        """The joints checked one after the other (multi-joint; empty for one joint)."""
+        return tuple(j for j, _ in self.joint_trajectories)
+
     def to_json(self) -> dict[str, Any]:
         return {
             **super().to_json(),
