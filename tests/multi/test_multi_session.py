@@ -170,3 +170,20 @@ def test_a_single_joint_archive_has_no_joints_section(tmp_path: Path) -> None:
     assert code == 0
     assert joints_section(session / "archive.h5") is None
     assert 'id="joints"' not in (session / "report.html").read_text(encoding="utf-8")
+
+
+def test_reprocess_of_a_multi_joint_archive_reproduces_the_sessions_numbers(
+    reference: Path, tmp_path: Path
+) -> None:
+    from protocol_runner.archive.reprocess import reprocess_archive
+
+    out = reprocess_archive(reference, output=tmp_path / "re.h5")
+    with h5py.File(reference, "r") as a, h5py.File(out, "r") as b:
+        cfg_a, cfg_b = a["configurations/config_02"], b["configurations/config_02"]
+        assert np.array_equal(cfg_a["total_energy_loss_j"][:], cfg_b["total_energy_loss_j"][:])
+        for joint in JOINTS:
+            assert np.array_equal(
+                cfg_a[f"joints/{joint}/energy_loss_j"][:], cfg_b[f"joints/{joint}/energy_loss_j"][:]
+            )
+            path = f"joints/{joint}/trials/2/processed/brace_torque_nm"
+            assert np.array_equal(cfg_a[path][:], cfg_b[path][:])

@@ -60,6 +60,11 @@ class MultiRig:
         self.tap: LoopTap | None = None
 
     @property
+    def joint(self) -> JointConfig:
+        """The first driven joint: what the live monitor (`tap`) shows of a multi-joint loop."""
+        return self.joints[0]
+
+    @property
     def names(self) -> tuple[str, ...]:
         return tuple(j.name for j in self.joints)
 
@@ -187,6 +192,9 @@ class MultiRig:
         t0 = now()
         schedule: list[float] = (t0 + np.arange(n + 1, dtype=np.float64) * dt).tolist()
         stopped = ""
+        tap = self.tap  # the monitor sees the first joint (its angle and torque are scan columns 0 and 1)
+        if tap is not None:
+            tap.start(where, np.ascontiguousarray(cmd[:, 0]), t0)
         try:
             start = 0
             while start < n:
@@ -197,6 +205,9 @@ class MultiRig:
                     codes[k] = write(rows[k])
                 blocks.append(read())
                 start = end
+                if tap is not None:
+                    b = blocks[-1]
+                    tap.scan(ScanBlock(b.t_s, b.codes[:, :2], b.volts[:, :2]))
                 if not stopped and stop_requested is not None and stop_requested():
                     stopped = f"{where}: stopped on request at t = {schedule[end - 1] - t0:.2f} s"
                     if on_stop is None:

@@ -27,6 +27,7 @@ import h5py
 import numpy as np
 import numpy.typing as npt
 
+from ..analysis.joint_energy import total_energy_per_cycle
 from ..analysis.pipeline import ConfigurationResult, Recording, TrialPair, process_configuration
 from ..archive.h5util import put, set_attrs
 from ..archive.paths import configuration_name, configuration_path, put_dataset, recording_path
@@ -137,21 +138,6 @@ def _recording(g: h5py.Group) -> Recording:
     )
 
 
-def total_energy_per_cycle(results: list[ConfigurationResult]) -> tuple[FloatArray, npt.NDArray[np.int64]]:
-    """The leg's energy per cycle: for each trial, the sum over joints of the k-th complete cycle's energy
-    (k up to the fewest cycles any joint completed in that trial). Returns (energy_j, trial numbers)."""
-    trials = sorted({int(t) for r in results for t in r.energy_cycle_trial})
-    total: list[float] = []
-    which: list[int] = []
-    for n in trials:
-        per_joint = [r.energy_loss_j[r.energy_cycle_trial == n] for r in results]
-        k = min(e.size for e in per_joint) if per_joint else 0
-        if k:
-            total += np.sum([e[:k] for e in per_joint], axis=0).tolist()
-            which += [n] * k
-    return np.asarray(total, dtype=np.float64), np.asarray(which, dtype=np.int64)
-
-
 def run_process(step: ProcessStep, ctx: StepContext) -> StepOutcome:
     p = ctx.loaded.protocol
     name = configuration_name(step.configuration)
@@ -179,7 +165,9 @@ def run_process(step: ProcessStep, ctx: StepContext) -> StepOutcome:
                 pairs, ctx.processing, device=device if device and enabled and enabled.enabled else None
             )
         )
-    total, which = total_energy_per_cycle(results)
+    total, which = total_energy_per_cycle(
+        [r.energy_loss_j for r in results], [r.energy_cycle_trial for r in results]
+    )
     fills = [
         processed_fill(f"{name}/{JOINTS}/{joint}", r, ctx.processing)
         for joint, r in zip(joints, results, strict=True)
