@@ -47,7 +47,8 @@ def test_leg_protocol_plan_names_joints_in_channel_order_and_a_trajectory_per_jo
     cal = plan.to_json()["steps"][0]
     assert cal["joints"] == trial["joints"]
     assert cal["trajectory"]["ankle_flexion"]["from_deg"] == -20.0
-    assert not any(s["kind"] == "fit" for s in plan.to_json()["steps"])  # fits per joint: not yet
+    fits = [s for s in plan.to_json()["steps"] if s["kind"] == "fit"]
+    assert [s["id"] for s in fits] == ["fit:k01", "fit:k02", "fit:k03"]  # per joint carrying elements
 
 
 def test_single_joint_plans_keep_their_shape() -> None:

@@ -72,6 +72,12 @@ def test_processing_per_joint_and_the_legs_total(reference: Path) -> None:
             parts = [per_joint[j][cfg[f"joints/{j}/energy_cycle_trial"][:] == n][:k] for j in JOINTS]
             assert total[trials == n] == pytest.approx(np.sum(parts, axis=0))
         assert cfg["joints/knee_flexion/trials/1/processed/brace_torque_nm"].size > 0
+        # Bouc-Wen per joint that carries elements (knee, ankle); the bare hip is not fitted
+        assert (
+            "fits/bouc_wen" in cfg["joints/knee_flexion"] and "fits/bouc_wen" in cfg["joints/ankle_flexion"]
+        )
+        assert "fits" not in cfg["joints/hip_flexion"]
+        assert cfg["joints/knee_flexion/fits/bouc_wen"].attrs["r2"] > 0.5
 
 
 def test_calibration_is_checked_per_joint(reference: Path) -> None:
@@ -187,3 +193,6 @@ def test_reprocess_of_a_multi_joint_archive_reproduces_the_sessions_numbers(
             )
             path = f"joints/{joint}/trials/2/processed/brace_torque_nm"
             assert np.array_equal(cfg_a[path][:], cfg_b[path][:])
+        for joint in ("knee_flexion", "ankle_flexion"):
+            fa, fb = cfg_a[f"joints/{joint}/fits/bouc_wen"], cfg_b[f"joints/{joint}/fits/bouc_wen"]
+            assert fa.attrs["rmse_nm"] == pytest.approx(fb.attrs["rmse_nm"], rel=1e-9)  # as tests/archive

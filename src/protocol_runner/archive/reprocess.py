@@ -104,7 +104,8 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
         if "joints" in cfg.attrs:  # several joints driven together: processed joint by joint
             enabled_joints = getattr(fits, "elements", getattr(fits, "spring", None))
             device = archived_device(cfg) if enabled_joints and enabled_joints.enabled else None
-            reprocess_joints(f, name, device, settings)
+            fit_joints = sorted({str(p.get("joint")) for _, _, p in archived_device(cfg)})
+            reprocess_joints(f, name, device, settings, fits.bouc_wen, fit_joints)
             continue
         pairs = []
         for n in sorted(trials, key=int):

@@ -8,6 +8,7 @@ import h5py
 import numpy as np
 
 from ..analysis.joint_energy import total_energy_per_cycle
+from ..analysis.loops import centred_loop, fit_loops
 from ..analysis.pipeline import (
     ConfigurationResult,
     ProcessingSettings,
@@ -16,8 +17,9 @@ from ..analysis.pipeline import (
     process_configuration,
 )
 from ..errors import InvalidInput
+from ..protocol.schema import BoucWenFitSpec
 from .h5util import attr_str, put
-from .results import processed_fill
+from .results import bouc_wen_fill, processed_fill
 
 
 def _recording(g: h5py.Group) -> Recording:
@@ -35,8 +37,11 @@ def reprocess_joints(
     name: str,
     device: list[tuple[str, str, dict[str, object]]] | None,
     settings: ProcessingSettings,
+    bouc_wen: BoucWenFitSpec,
+    fit_joints: list[str],
 ) -> None:
-    """Redo one multi-joint configuration's processing in `f` (its old results removed first)."""
+    """Redo one multi-joint configuration's processing in `f` (its old results removed first), and the
+    Bouc-Wen fit of each joint in `fit_joints` (those carrying elements) when `bouc_wen.enabled`."""
     cfg = f["configurations"][name]
     joints = [j.decode() if isinstance(j, bytes) else str(j) for j in np.atleast_1d(cfg.attrs["joints"])]
     for stale in ("joints", "total_energy_loss_j", "total_energy_cycle_trial"):
@@ -76,6 +81,22 @@ def reprocess_joints(
             ]
         results.append(process_configuration(pairs, settings, device=own or None))
         processed_fill(f"{name}/joints/{joint}", results[-1], settings)(f)
+        if bouc_wen.enabled and joint in fit_joints:  # as the session: on the stored (200 Hz) loops
+            stored = cfg[f"joints/{joint}/trials"]
+            segments = [
+                centred_loop(
+                    stored[str(t.trial)]["processed/angle_deg"][:],
+                    stored[str(t.trial)]["processed/brace_torque_nm"][:],
+                )
+                for t in results[-1].trials
+            ]
+            bw, cv = fit_loops(
+                segments,
+                starts=bouc_wen.starts,
+                cross_validated=bouc_wen.cross_validate,
+                backbone_degree=bouc_wen.polynomial_degree,
+            )
+            bouc_wen_fill(f"{name}/joints/{joint}", bw, segments, cv)(f)
     total, which = total_energy_per_cycle(
         [r.energy_loss_j for r in results], [r.energy_cycle_trial for r in results]
     )

@@ -402,9 +402,9 @@ def _expand_set(
             joint_trajectories=cal_joints,
         )
     )
-    # the spring model is fitted by the processing step; the fit step is the Bouc-Wen model's (not yet
-    # per joint: a multi-joint protocol gets no fit step, docs/protocol.md "Multi-joint")
-    models = ("bouc_wen",) if p.fits.bouc_wen.enabled and not p.multi_joint else ()
+    # the spring model is fitted by the processing step; the fit step is the Bouc-Wen model's (per joint
+    # that carries elements, in a multi-joint protocol)
+    models = ("bouc_wen",) if p.fits.bouc_wen.enabled else ()
     for cfg, _ in resolved:
         pairs = tuple(
             (trial_id(cfg.key, "on", n), trial_id(cfg.key, "off", n)) for n in range(1, cfg.trials + 1)

@@ -28,16 +28,19 @@ import numpy as np
 import numpy.typing as npt
 
 from ..analysis.joint_energy import total_energy_per_cycle
+from ..analysis.loops import centred_loop
 from ..analysis.pipeline import ConfigurationResult, Recording, TrialPair, process_configuration
 from ..archive.h5util import put, set_attrs
 from ..archive.paths import configuration_name, configuration_path, put_dataset, recording_path
-from ..archive.results import Fill, processed_fill
+from ..archive.results import Fill, bouc_wen_fill, processed_fill
 from ..errors import HardwareUnavailable
 from ..hardware.multi_rig import MultiRig, run_multi_motion
 from ..hardware.rig import TrialRecording
-from ..protocol.plan import ProcessStep, TrialStep
+from ..protocol.plan import FitStep, ProcessStep, TrialStep
 from ..protocol.sampling import sample_trajectory
+from ..protocol.step_ids import step_id
 from .context import StepContext, StepOutcome
+from .fit import fit_bouc_wen
 from .recording import put_commands, put_scan
 from .trial import configuration_group_attributes
 
@@ -184,3 +187,36 @@ def run_process(step: ProcessStep, ctx: StepContext) -> StepOutcome:
     parts = [f"{j} {r.energy.mean_j:.2f} J" for j, r in zip(joints, results, strict=True) if r.energy.n]
     summary = f"{total.size} leg cycles, total {float(np.mean(total)) if total.size else 0.0:.2f} J ({', '.join(parts)})"
     return StepOutcome(fill, summary)
+
+
+def run_fit(step: FitStep, ctx: StepContext) -> StepOutcome:
+    """The Bouc-Wen fit per joint (`fit.fit_bouc_wen` on that joint's processed, centred loops) for every
+    driven joint that carries device elements; written under `joints/<joint>/fits/bouc_wen`."""
+    if "bouc_wen" not in step.models:
+        return StepOutcome(None, "no Bouc-Wen fit asked")
+    cfg_step = next(
+        s for s in ctx.plan.steps if isinstance(s, TrialStep) and s.configuration == step.configuration
+    )
+    name = configuration_name(step.configuration)
+    fills: list[Fill] = []
+    parts: list[str] = []
+    with ctx.unit(step_id("process", key=step.configuration)) as f:
+        loops = {}
+        for joint in cfg_step.joints:
+            if not cfg_step.settings.device_of(joint):
+                continue  # nothing on this joint: its brace torque is the sensors' noise
+            trials = f[f"{configuration_path(step.configuration)}/{JOINTS}/{joint}/trials"]
+            loops[joint] = [
+                centred_loop(trials[n]["processed/angle_deg"][:], trials[n]["processed/brace_torque_nm"][:])
+                for n in sorted(trials, key=int)
+            ]
+    for joint, segments in loops.items():
+        result, cv = fit_bouc_wen(segments, ctx.loaded.protocol.fits.bouc_wen)
+        fills.append(bouc_wen_fill(f"{name}/{JOINTS}/{joint}", result, segments, cv))
+        parts.append(f"{joint} RMSE {result.rmse_nm:.2f} N*m, R2 {result.r2:.3f}")
+
+    def fill(f: h5py.File) -> None:
+        for one in fills:
+            one(f)
+
+    return StepOutcome(fill, "; ".join(parts) or "no joint carries a device")

@@ -29,6 +29,6 @@ STEP_KINDS: dict[str, StepFunction] = {
     "operator_checklist": checklist.run,
     "trial": _by_joints(trial.run, multi_trial.run_trial),
     "process": _by_joints(process.run, multi_trial.run_process),
-    "fit": fit.run,
+    "fit": _by_joints(fit.run, multi_trial.run_fit),
     "compare": compare.run,
 }
