@@ -196,3 +196,35 @@ def test_reprocess_of_a_multi_joint_archive_reproduces_the_sessions_numbers(
         for joint in ("knee_flexion", "ankle_flexion"):
             fa, fb = cfg_a[f"joints/{joint}/fits/bouc_wen"], cfg_b[f"joints/{joint}/fits/bouc_wen"]
             assert fa.attrs["rmse_nm"] == pytest.approx(fb.attrs["rmse_nm"], rel=1e-9)  # as tests/archive
+
+
+def test_sigint_during_a_multi_joint_trial_exits_130_and_resume_is_bit_identical(
+    tmp_path: Path, reference: Path
+) -> None:
+    import signal
+
+    from ..session.conftest import cli
+    from ..session.test_fault_injection import journal_units, wait_for_units
+
+    session = tmp_path / "sigint"
+    proc = cli(
+        LEG,
+        "--dry-run",
+        "--yes",
+        "--only",
+        "2",
+        "--seed",
+        "11",
+        "--session",
+        str(session),
+        log=tmp_path / "e",
+    )
+    assert wait_for_units(proc, session, 3)  # inside the set: the brace-on trials are running
+    proc.send_signal(signal.SIGINT)
+    proc.wait(timeout=120)
+    assert proc.returncode == 130, proc.stderr()
+    assert "Traceback" not in proc.stderr()
+    done = journal_units(session)
+    assert resume(session, yes=True, force=False, realtime=False, quiet=True) == 0
+    assert journal_units(session) > done
+    assert_same_data(reference, session / "archive.h5")
