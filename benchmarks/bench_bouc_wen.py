@@ -24,30 +24,25 @@ returns it, with R^2 and the parameter uncertainties; the baseline computes it a
 compilation is excluded (warm-up first).  The fitters take turns within each repeat so that changes in the
 machine's load hit both alike.
 
-BLAS threads: unless the environment already says otherwise, this script runs OpenBLAS single-threaded
-(set before numpy is imported).  On a loaded 2-core machine the multi-threaded SVD of a tall 8-column
-Jacobian costs tens of milliseconds per call in thread hand-offs; run with ``--blas-default`` to see it.
+BLAS threads: the fits hold BLAS at one thread while they run (threadpoolctl, models/bouc_wen/threads.py);
+this script also holds the plain baseline at one thread (threadpoolctl), unless ``--blas-default``.
 
 Run: ``python benchmarks/bench_bouc_wen.py [--repeats 5] [--blas-default] [--full]``
 """
 
 from __future__ import annotations
 
-import os
-import sys
-
-if "--blas-default" not in sys.argv:
-    for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-        os.environ.setdefault(_var, "1")
-
 import argparse
+import contextlib
 import math
+import os
 import statistics
 import time
 from collections.abc import Callable
 
 import numpy as np
 from scipy.optimize import least_squares
+from threadpoolctl import threadpool_info, threadpool_limits
 
 from protocol_runner.analysis.bouc_wen_fit import fit_configuration
 from protocol_runner.models import bouc_wen as bw
@@ -133,12 +128,20 @@ def timed_interleaved(fns: list[Callable[[], object]], repeats: int) -> list[tup
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--blas-default", action="store_true", help="leave BLAS threading at its default")
+    parser.add_argument(
+        "--blas-default", action="store_true", help="leave the baseline's BLAS threading at its default"
+    )
     parser.add_argument(
         "--full", action="store_true", help="also fit every 1 kHz sample once (the cost of not decimating)"
     )
     args = parser.parse_args()
 
+    blas = contextlib.nullcontext() if args.blas_default else threadpool_limits(limits=1, user_api="blas")
+    with blas:
+        return run(args)
+
+
+def run(args: argparse.Namespace) -> int:
     segments = make_configuration()
     n_given = sum(x.size for x, _ in segments)
 
@@ -159,11 +162,13 @@ def main() -> int:
             lambda: baseline_fit(segments, stride, fig56),
             lambda: fit_trials(segments, scheme="eq23"),
             lambda: fit_configuration(segments, cross_validate_trials=False),
+            lambda: fit_configuration(segments),
         ],
         args.repeats,
     )
     (t_ours, ours_out), (t_base, base_out), (t_f56, f56_out) = timings[:3]
-    (t_today, today_out), (t_issue15, issue15_out) = timings[3:]
+    (t_today, today_out), (t_issue15, issue15_out), (t_cv, cv_out) = timings[3:]
+    assert isinstance(cv_out, tuple)
     assert isinstance(today_out, bw.BoucWenFit) and isinstance(issue15_out, tuple)
     issue15: bw.BoucWenFit = issue15_out[0]
     ours = ours_out
@@ -179,7 +184,10 @@ def main() -> int:
     assert abs(rmse_ours - ours.rmse_nm) <= 1e-9 * rmse_ours
     rmse_truth = rmse_all_samples(segments, FIG57)
 
-    print(f"BLAS threads: OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', '(default)')}")
+    threads = [
+        f"{i['internal_api']} {i['num_threads']}" for i in threadpool_info() if i["user_api"] == "blas"
+    ]
+    print(f"BLAS threads outside the fits: {', '.join(threads)}; load average {os.getloadavg()[0]:.2f}")
     print(
         f"data: 3 trials x {TRIAL_S:.0f} s at {RATE_HZ:.0f} Hz = {n_given} samples, "
         f"noise {NOISE_NM} N*m; both fitters used every {ours.stride[0]}th sample "
@@ -209,6 +217,8 @@ def main() -> int:
         f"{'now: fit_configuration (refined, intervals)':<46}{t_issue15:>16.3f}"
         f"{issue15.rmse_nm:>10.4f}{issue15.rmse_refined_nm:>10.4f}"
     )
+    cv_text = ", ".join(f"{e:.4f}" for e in cv_out[1])
+    print(f"{'(info) the same with cross-validation':<46}{t_cv:>16.3f}  held-out RMSE {cv_text}")
     print()
     print("fitted (ours):   ", np.array2string(ours.params.as_array(), precision=5))
     print("fitted (baseline):", np.array2string(base_params.as_array(), precision=5))

@@ -4,15 +4,9 @@ Data flow: protocol (YAML) -> plan (ordered steps) -> session (runs steps agains
 -> analysis (processing and model fits) -> report (HTML).
 """
 
-import os
-
-# BLAS threads hand work back and forth on the tall, thin Jacobians of the model fits; on a 2-core machine
-# single-threaded BLAS is 3-10x faster there (benchmarks/bench_bouc_wen.py). Set before numpy loads; a
-# user's own setting wins.
-for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
-
-from importlib.metadata import PackageNotFoundError, version  # noqa: E402
+# BLAS threads: the model fits hold BLAS at one thread while they run (threadpoolctl,
+# models/bouc_wen/threads.py), whenever numpy was imported; nothing is set here at import time.
+from importlib.metadata import PackageNotFoundError, version
 
 try:
     __version__ = version("protocol-runner")

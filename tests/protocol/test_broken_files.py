@@ -115,7 +115,7 @@ CASES = [
         lambda t: t.replace("Full: {speed_deg_s: 50.0}", "Full: {speed_deg_s: 500.0}"),
         r"trajectories\.sine\.speed_deg_s: trajectory 'sine' \(sinusoid\): speed_deg_s \(bound to "
         r"speed\.speed_deg_s\): its peak speed \(Eq 25\) 500 deg/s is over the joint's rate limit "
-        r"max_rate_deg_s = 120 deg/s \(configuration 10, ",
+        r"max_rate_deg_s = 120 deg/s \(configurations 1-10, 12-23, 27\)",
         "speed_deg_s: speed.speed_deg_s",
     ),
     (
@@ -164,7 +164,7 @@ CASES = [
     (
         "unknown element type",
         lambda t: t.replace("type: rom_stops", "type: rom_stop"),
-        r"device\.elements\[0\]\.type: unknown element type 'rom_stop' \(known: lever_spring, ",
+        r"device\.elements\[0\]\.type: unknown element type 'rom_stop'; did you mean 'rom_stops'\? \(known: lever_spring, ",
         "type: rom_stop",
     ),
     (
@@ -195,7 +195,7 @@ CASES = [
         "binding to a level without the quantity",
         lambda t: t.replace('"3": {friction_nm: 6.25,', '"3": {torque_nm: 6.25,'),
         r"device\.elements\[1\]\.torque_nm: bound to friction\.friction_nm but level '3' of friction has no "
-        r"'friction_nm' \(it has torque_nm, screw_turns; configuration 7\)",
+        r"'friction_nm' \(it has torque_nm, screw_turns\) \(configuration 7 in set 'friction'\)",
         "torque_nm: friction.friction_nm",
     ),
     (
@@ -320,8 +320,8 @@ def test_park_angle_outside_a_brace_range_is_refused(workdir: Path) -> None:
     message = error_of(write(workdir, text))
     first = message.splitlines()[0]
     assert re.search(
-        r"sets\[2\]\.configurations\[0\]: configuration 1: the park angle 20 deg is outside the stops "
-        r"\[40, 90\] deg of element 'stops'",
+        r"sets\[2\]\.configurations\[0\]: the park angle 20 deg is outside the stops "
+        r"\[40, 90\] deg of element 'stops'.*\(configuration 1 in set 'brace_rom'\)$",
         first,
     ), message
     assert first.startswith(f"broken.yaml:{line_of(text, '{key: 1, run: 5,')}:")

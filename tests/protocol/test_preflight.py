@@ -51,7 +51,7 @@ def test_human_file_over_the_acceleration_limit_is_refused_by_validate_and_run(
     err = refused_everywhere(write(workdir, text), tmp_path, capsys)
     assert re.search(
         r"broken\.yaml:\d+: trajectories\.subject_C\.file: trajectory 'subject_C' \(file trajectories/fast\.csv\)"
-        r".*angular acceleration reaches -1e\+04 deg/s² .*allows ±2000 deg/s² \(configuration 25\)",
+        r".*angular acceleration reaches -1e\+04 deg/s² .*allows ±2000 deg/s² \(configuration 25 in set 'emu_comparison'\)",
         err,
     ), err
 

@@ -93,7 +93,7 @@ def test_a_human_file_over_the_acceleration_limit_is_refused_with_its_configurat
         load_protocol(path, display_name="edited.yaml")
     message = info.value.message
     assert "trajectory 'subject_B' (file trajectories/corner.csv)" in message
-    assert "angular acceleration" in message and "(configuration 24)" in message
+    assert "angular acceleration" in message and "(configuration 24 in set 'emu_comparison')" in message
     assert message.startswith("edited.yaml:") and "trajectories.subject_B.file" in message
     assert main(["--validate", str(path)]) == 2
 

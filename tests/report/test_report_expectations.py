@@ -185,7 +185,7 @@ def test_unknown_keys_and_duplicate_ids_are_located() -> None:
         {"id": "a", "text": "t", "metric": "peak_torque", "configurations": [1, 99], "relation": "increasing"}
     )
     problems = list(check_expectations([spec, spec], {1, 2}))
-    assert (("expectations", 0, "configurations", 1), "no configuration has key 99") in problems
+    assert (("expectations", 0, "configurations", 1), "no configuration has key 99 (keys: 1-2)") in problems
     assert (("expectations", 1, "id"), "expectation id 'a' is used twice") in problems
 
 

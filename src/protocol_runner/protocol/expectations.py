@@ -7,6 +7,8 @@ from typing import Annotated, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictInt, model_validator
 
+from .only import key_spans
+
 Relation = Literal["increasing", "decreasing", "no_trend", "greater", "less", "equal", "inside"]
 
 MetricName = Literal[
@@ -79,4 +81,7 @@ def check_expectations(
         for field in ("configurations", "than"):
             for j, key in enumerate(getattr(spec, field) or ()):
                 if key not in keys:
-                    yield ("expectations", i, field, j), f"no configuration has key {key}"
+                    yield (
+                        ("expectations", i, field, j),
+                        f"no configuration has key {key} (keys: {key_spans(keys)})",
+                    )

@@ -122,17 +122,21 @@ def _check_generator(p: Protocol, gen: _GeneratorSpec, loc: Loc) -> Iterator[Pro
             named.setdefault(f, []).extend(((*loc, "vary", f, j), lv) for j, lv in enumerate(levels))
     for f, items in named.items():
         if f not in p.factors:
-            yield (
-                (*loc, _section(gen), f),
-                f"unknown factor {f!r} (declared: {', '.join(p.factors) or 'none'})",
-            )
+            where = items[0][0][: len(loc) + 2] if items else (*loc, _section(gen), f)
+            yield where, f"unknown factor {f!r} (declared: {', '.join(p.factors) or 'none'})"
             continue
         for where, lv in items:
             if lv not in p.factors[f]:
                 yield where, f"unknown level {lv!r} of {f} (known: {', '.join(p.factors[f])})"
+    known = ", ".join(p.trajectories)
+    if gen.trajectory is not None and gen.trajectory not in p.trajectories:
+        yield (*loc, "trajectory"), f"unknown trajectory {gen.trajectory!r} (known: {known})"
     by = gen.trajectory_by_level
     if by is not None:
         tloc: Loc = (*loc, "trajectory_by_level")
+        for lv, name in by.levels.items():
+            if name not in p.trajectories:
+                yield (*tloc, "levels", lv), f"unknown trajectory {name!r} (known: {known})"
         varied = set(gen.factors) | set(gen.fixed) if isinstance(gen, FullFactorialSpec) else set()
         if isinstance(gen, OneFactorAtATimeSpec):
             varied = set(gen.baseline)
@@ -141,7 +145,7 @@ def _check_generator(p: Protocol, gen: _GeneratorSpec, loc: Loc) -> Iterator[Pro
         elif by.factor in p.factors:
             used = _used_levels(p, gen, by.factor)
             for lv in used:
-                if lv not in by.levels:
+                if lv not in by.levels and lv in p.factors[by.factor]:  # an unknown level is reported above
                     yield (*tloc, "levels"), f"no trajectory for level {lv!r} of {by.factor}"
 
 

@@ -124,7 +124,7 @@ def parse_protocol_text(
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
     loaded = LoadedProtocol(protocol=protocol, path=path, text=text, sha256=sha, lines=lines, shown=shown)
 
-    problems = cross_check(loaded, check_files=check_files)
+    problems = cross_check(loaded, check_files=check_files, generated=origins)
     if problems:
         raise InvalidInput(format_problems(shown, lines, problems))
     return loaded

@@ -86,3 +86,9 @@ def _merged(ranges: Iterable[tuple[int, int]]) -> list[tuple[int, int]]:
         else:
             out.append((lo, hi))
     return out
+
+
+def key_spans(keys: Iterable[int]) -> str:
+    """Keys as runs: "1-8", "1-3, 5, 7-9" ("none" if empty)."""
+    runs = _merged((k, k) for k in keys)
+    return ", ".join(str(lo) if lo == hi else f"{lo}-{hi}" for lo, hi in runs) or "none"

@@ -9,8 +9,9 @@ lacking the bound quantity, a configuration that leaves a bound factor unset). `
 
 from __future__ import annotations
 
+import difflib
 import re
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -23,6 +24,7 @@ from .schema import ConfigurationSpec, Protocol
 from .settings import ElementSetting, FactorSetting, Quantity, Settings
 from .trajectory_specs import PerJointSpec, RampedStepSpec, is_binding, joint_spec, trajectory_bindings
 from .units import unit_suffix
+from .yaml_doc import format_loc
 
 if TYPE_CHECKING:
     from .loaded import LoadedProtocol, Loc
@@ -31,6 +33,9 @@ Problem = tuple["Loc", str]
 
 
 class BindingError(Exception):
+    """A binding or element problem of one configuration; `message` does not name the configuration
+    (validate.py merges the configurations that share a location and message into one line)."""
+
     def __init__(self, loc: Loc, message: str) -> None:
         super().__init__(message)
         self.loc = loc
@@ -62,14 +67,17 @@ def _bound_value(
     factor, quantity = _split(binding)
     setting = factors.get(factor)
     if setting is None:
-        raise BindingError(loc, f"bound to {binding} but configuration {cfg.key} sets no level of {factor!r}")
+        raise BindingError(
+            loc,
+            f"bound to {binding} but the configuration sets no level of {factor!r}; give {factor} a level "
+            "in the row, or in the generator's `fixed` or `baseline`",
+        )
     value = setting.quantity(quantity)
     if value is None:
         have = ", ".join(q for q, _ in setting.quantities) or "no quantities"
         raise BindingError(
             loc,
-            f"bound to {binding} but level {setting.level!r} of {factor} has no {quantity!r} "
-            f"(it has {have}; configuration {cfg.key})",
+            f"bound to {binding} but level {setting.level!r} of {factor} has no {quantity!r} (it has {have})",
         )
     return value
 
@@ -89,9 +97,11 @@ def resolve_device(
             built = build_element(el.name, el.type, values)
         except InvalidInput as exc:
             m = re.search(r"parameter '([^']+)'", exc.message)
-            raise BindingError(
-                (*loc, m.group(1)) if m else loc, f"configuration {cfg.key}: {exc.message}"
-            ) from None
+            named = m.group(1) if m else None
+            bound = el.params.get(named) if named is not None else None
+            if named is not None and is_binding(bound):
+                raise _bound_value_error(p, factors, str(bound), (*loc, named), exc.message) from None
+            raise BindingError((*loc, named) if named else loc, exc.message) from None
         params: list[tuple[str, Quantity | str]] = []
         for key, v in built.params.items():
             if isinstance(v, tuple) and all(isinstance(x, str) for x in v):
@@ -102,6 +112,20 @@ def resolve_device(
                 params.append((key, v))
         out.append(ElementSetting(name=el.name, type=el.type, params=tuple(params), joint=joint))
     return tuple(out)
+
+
+def _bound_value_error(
+    p: Protocol, factors: Mapping[str, FactorSetting], binding: str, param_loc: Loc, message: str
+) -> BindingError:
+    """A bound parameter's value is out of its element's bounds: the error names the level's quantity,
+    where the value is written (the `same_as` target for an alias), and the parameter that binds it."""
+    factor, quantity = _split(binding)
+    label = factors[factor].level
+    target = p.factors[factor][label].same_as or label
+    return BindingError(
+        ("factors", factor, target, quantity),
+        f"{message} (level {target!r} of {factor}, bound by {format_loc(param_loc)})",
+    )
 
 
 def resolve_settings(p: Protocol, cfg: ConfigurationSpec) -> Settings:
@@ -232,19 +256,27 @@ def check_bindings(p: Protocol) -> Iterator[Problem]:
             names.add((joint, el.name))
             etype = ELEMENT_TYPES.get(el.type)
             if etype is None:
-                yield (*loc, "type"), f"unknown element type {el.type!r} (known: {', '.join(ELEMENT_TYPES)})"
+                yield (
+                    (*loc, "type"),
+                    f"unknown element type {el.type!r}{_did_you_mean(el.type, ELEMENT_TYPES)} "
+                    f"(known: {', '.join(ELEMENT_TYPES)})",
+                )
                 continue
+            meant: set[str] = set()  # a misspelt parameter is one mistake, not also a missing one
             for param, value in el.params.items():
                 spec = etype.parameters.get(param)
                 if spec is None:
+                    close = difflib.get_close_matches(param, list(etype.parameters), n=1, cutoff=0.75)
+                    meant.update(close)
                     yield (
                         (*loc, param),
-                        (f"unknown parameter of {el.type} (parameters: {', '.join(etype.parameters)})"),
+                        f"unknown parameter of {el.type}{_did_you_mean(param, etype.parameters)} "
+                        f"(parameters: {', '.join(etype.parameters)})",
                     )
                 elif is_binding(value):
                     yield from _check_binding(p, value, spec.unit, (*loc, param))
             for param, spec in etype.parameters.items():
-                if spec.default is None and param not in el.params:
+                if spec.default is None and param not in el.params and param not in meant:
                     yield (*loc,), f"missing required parameter {param!r} of {el.type} ({spec.doc})"
     for name, tspec in p.trajectories.items():
         for field, binding in trajectory_bindings(tspec).items():
@@ -252,6 +284,11 @@ def check_bindings(p: Protocol) -> Iterator[Problem]:
             yield from _check_binding(
                 p, binding, unit_suffix(parts[-1]) or "", ("trajectories", name, *parts)
             )
+
+
+def _did_you_mean(word: str, known: Iterable[str]) -> str:
+    close = difflib.get_close_matches(word, list(known), n=1, cutoff=0.75)  # as `meant` above
+    return f"; did you mean {close[0]!r}?" if close else ""
 
 
 def _check_binding(p: Protocol, binding: str, unit: str, loc: Loc) -> Iterator[Problem]:

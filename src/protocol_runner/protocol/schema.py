@@ -24,7 +24,7 @@ from pydantic import (
 
 from protocol_runner.protocol.expectations import ExpectationSpec
 from protocol_runner.protocol.trajectory_specs import TrajectorySpec
-from protocol_runner.protocol.units import known_suffixes, unit_suffix
+from protocol_runner.protocol.units import compound_unit_problem, known_suffixes, unit_suffix
 
 
 def _int_to_str(value: object) -> object:
@@ -187,6 +187,9 @@ class LevelSpec(_Model):
                     f"{key!r}: a quantity's name must end with a unit suffix ({known_suffixes()}); "
                     f"reserved keys: {', '.join(RESERVED_LEVEL_KEYS)}"
                 )
+            compound = compound_unit_problem(str(key))
+            if compound is not None:
+                raise ValueError(compound)
             out[key] = _quantity_value(str(key), value)
         return out
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 UNIT_SUFFIXES: dict[str, str] = {
     "_nm_s_per_deg": "N*m*s/deg",
     "_nm_per_deg": "N*m/deg",
+    "_nm_s_per_rad": "N*m*s/rad",
     "_nm_per_rad": "N*m/rad",
     "_n_per_mm": "N/mm",
     "_n_per_m": "N/m",
@@ -45,6 +46,31 @@ def unit_suffix(name: str) -> str | None:
         if name.endswith(suffix) and len(name) > len(suffix):
             return suffix
     return None
+
+
+_UNIT_WORDS = {"deg", "rad", "nm", "n", "mm", "m", "kg", "s", "s2", "hz", "j", "v", "per"}
+"""The words units are made of: a name whose suffix is preceded by another of them (`speed_rad_s`,
+`stiffness_nm_per_m`) has a compound unit that the table does not hold."""
+
+
+def compound_unit_problem(name: str) -> str | None:
+    """Why a quantity name that ends with a known suffix still has an unknown unit, or None: the word
+    before the suffix is a unit word too (`speed_rad_s` is not rad/s, `torque_n_m` not N*m)."""
+    suffix = unit_suffix(name)
+    if suffix is None:
+        return None
+    words = name.split("_")
+    stem_words = name[: -len(suffix)].split("_")
+    if len(stem_words) < 2 or stem_words[-1] not in _UNIT_WORDS:
+        return None
+    n = 0
+    while n < len(words) - 1 and words[len(words) - 1 - n] in _UNIT_WORDS:
+        n += 1
+    unit = "_" + "_".join(words[len(words) - n :])
+    return (
+        f"{name!r}: the unit {unit} is not one of the unit suffixes (it would read as {suffix}, "
+        f"{UNIT_SUFFIXES[suffix] or 'a count'}); use one of: {known_suffixes()}"
+    )
 
 
 def unit_text(name: str) -> str:

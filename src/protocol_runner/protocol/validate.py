@@ -11,11 +11,12 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..errors import InvalidInput
 from ..models.elements import ELEMENT_TYPES
 from .expectations import check_expectations
+from .only import key_spans
 from .paths import OutsideFolder, confined_path
 from .plan_trajectory import Trajectory
 from .resolve import (
@@ -38,7 +39,16 @@ TRAJECTORY_PARAMETER = "trajectory"
 """A comparison's `parameter` that is not a factor: the configurations differ by their trajectory."""
 
 
-def cross_check(loaded: LoadedProtocol, *, check_files: bool = True) -> list[Problem]:
+def cross_check(
+    loaded: LoadedProtocol, *, check_files: bool = True, generated: dict[Loc, Loc] | None = None
+) -> list[Problem]:
+    """Every problem as (location, message). `generated` maps a generated row's location to its
+    generator's: a generated row is not in the file, so its problems are located at the generator."""
+    problems = _cross_check(loaded, check_files, generated or {})
+    return [((generated or {}).get(loc[:4], loc), message) for loc, message in problems]
+
+
+def _cross_check(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc, Loc]) -> list[Problem]:
     p = loaded.protocol
     problems: list[Problem] = []
     problems += list(_check_factors(p))
@@ -63,11 +73,19 @@ def cross_check(loaded: LoadedProtocol, *, check_files: bool = True) -> list[Pro
     motions: list[Motion] = [
         (("calibration_step",), "the calibration step", calibration_trajectory(p)),
     ]
-    for loc, message, motion in _resolve_configurations(loaded, check_files):
+    per_configuration: dict[tuple[Loc, str], list[tuple[str, int]]] = {}
+    for loc, message, item in _resolve_configurations(loaded, check_files):
         if message:
-            problems.append((loc, message))
-        elif motion is not None:
-            motions.append(motion)
+            set_index, key = item
+            where = generated.get(loc[:4], loc)
+            per_configuration.setdefault((where, message), []).append((p.sets[set_index].name, key))
+        elif item is not None:
+            motions.append(item)
+    all_keys = {c.key for _, c in p.configurations()}
+    problems += [
+        (loc, f"{message} ({_which_configurations(where, all_keys)})")
+        for (loc, message), where in per_configuration.items()
+    ]
     if not problems:  # each trajectory field against the joint's range, rate and acceleration
         problems += _limit_problems(loaded, motions)
     if not problems:  # every motion's complete commanded stream, approach and exit included
@@ -75,6 +93,20 @@ def cross_check(loaded: LoadedProtocol, *, check_files: bool = True) -> list[Pro
 
         problems += list(check_streams(loaded, motions, check_files=check_files))
     return problems
+
+
+def _which_configurations(where: list[tuple[str, int]], all_keys: set[int]) -> str:
+    """ "configuration 4 in set 'speed'", "configurations 1-6 in set 'factorial'", "every configuration"
+    (the sets are named when there are at most three)."""
+    keys = sorted({k for _, k in where})
+    if len(keys) > 1 and set(keys) == all_keys:
+        return "every configuration"
+    sets = list(dict.fromkeys(s for s, _ in where))
+    noun = "configuration" if len(keys) == 1 else "configurations"
+    if len(sets) > 3:
+        return f"{noun} {key_spans(keys)}"
+    in_sets = ("set " if len(sets) == 1 else "sets ") + ", ".join(repr(s) for s in sets)
+    return f"{noun} {key_spans(keys)} in {in_sets}"
 
 
 def _limit_problems(loaded: LoadedProtocol, motions: list[Motion], joint: str = "") -> list[Problem]:
@@ -86,8 +118,8 @@ def _limit_problems(loaded: LoadedProtocol, motions: list[Motion], joint: str = 
 
     p = loaded.protocol
     limits = safety_limits(p.rig)
-    out: dict[tuple[Loc, str], list[str]] = {}
-    for _, what, traj in motions:
+    out: dict[tuple[Loc, str], list[tuple[str, int]]] = {}
+    for where, what, traj in motions:
         name = traj.name or ""
         spec = p.trajectories.get(name)
         prefix: tuple[str, ...] = ()
@@ -106,11 +138,25 @@ def _limit_problems(loaded: LoadedProtocol, motions: list[Motion], joint: str = 
         for field, message in trajectory_limit_problems(
             traj, limits, p.rig.output.rate_hz, loaded.base_dir, bindings
         ):
-            out.setdefault(((*base, field), message), []).append(what)
+            which = ("", 0) if calibration else _set_and_key(p, where)
+            out.setdefault(((*base, field), message), []).append(which)
+    all_keys = {c.key for _, c in p.configurations()}
+    of_joint = f", joint {joint}" if joint else ""
     return [
-        (loc, f"{message} ({', '.join(whats[:3])}{', ...' if len(whats) > 3 else ''})")
-        for (loc, message), whats in out.items()
+        (
+            loc,
+            f"{message}{f' (joint {joint})' if joint else ''}"
+            if loc[0] == "calibration_step"
+            else f"{message} ({_which_configurations(w, all_keys)}{of_joint})",
+        )
+        for (loc, message), w in out.items()
     ]
+
+
+def _set_and_key(p: Protocol, loc: Loc) -> tuple[str, int]:
+    """The set name and key of the row at ("sets", i, "configurations", j)."""
+    i, j = int(loc[1]), int(loc[3])
+    return p.sets[i].name, p.sets[i].configurations[j].key
 
 
 def _within(rng: tuple[float, ...], joint: tuple[float, float]) -> bool:
@@ -185,18 +231,18 @@ def _check_matrix(p: Protocol) -> Iterator[Problem]:
                 yield (*loc, "trajectory"), f"unknown trajectory {cfg.trajectory!r} (known: {known})"
 
 
-def _resolve_configurations(
-    loaded: LoadedProtocol, check_files: bool
-) -> Iterator[tuple[Loc, str, Motion | None]]:
+def _resolve_configurations(loaded: LoadedProtocol, check_files: bool) -> Iterator[tuple[Loc, str, Any]]:
+    """Per configuration: (location, message, (set index, key)) for a problem, or (location, "", motion)."""
     p = loaded.protocol
     park = p.rig.safety.park_angle_deg
     for i, s in enumerate(p.sets):
         for j, cfg in enumerate(s.configurations):
             loc: Loc = ("sets", i, "configurations", j)
+            which = (i, cfg.key)
             try:
                 st = resolve_settings(p, cfg)
             except BindingError as exc:
-                yield exc.loc, exc.message, None
+                yield exc.loc, exc.message, which
                 continue
             for el in st.device:
                 rng = dict(el.params).get("range_deg")
@@ -204,20 +250,20 @@ def _resolve_configurations(
                 if stop and isinstance(rng, tuple) and not rng[0] <= park <= rng[1]:
                     yield (
                         loc,
-                        f"configuration {cfg.key}: the park angle {park:g} deg is outside the stops "
+                        f"the park angle {park:g} deg is outside the stops "
                         f"{_fmt_range(rng)} of element {el.name!r}: between trials the joint would rest "
                         "against a stop (choose rig_overrides...safety.park_angle_deg inside every stop range)",
-                        None,
+                        which,
                     )
             if p.profile_of(cfg) == "file" and not check_files:
                 continue
             try:
                 traj = configuration_trajectory(loaded, cfg, st)
             except BindingError as exc:
-                yield exc.loc, exc.message, None
+                yield exc.loc, exc.message, which
                 continue
             except InvalidInput as exc:
-                yield (*loc, "trajectory"), _relative_message(exc.message, loaded.base_dir), None
+                yield (*loc, "trajectory"), _relative_message(exc.message, loaded.base_dir), which
                 continue
             yield loc, "", (loc, f"configuration {cfg.key}", traj)
 
@@ -318,13 +364,16 @@ def _check_report(p: Protocol) -> Iterator[Problem]:
             )
         for j, key in enumerate(comp.configurations):
             if key not in keys:
-                yield ("report", "comparisons", i, "configurations", j), f"no configuration has key {key}"
+                yield (
+                    ("report", "comparisons", i, "configurations", j),
+                    f"no configuration has key {key} (keys: {key_spans(keys)})",
+                )
     for i, pred in enumerate(p.report.predictions):
         for field_name in ("fit", "predict"):
             if getattr(pred, field_name) not in keys:
                 yield (
                     ("report", "predictions", i, field_name),
-                    f"no configuration has key {getattr(pred, field_name)}",
+                    f"no configuration has key {getattr(pred, field_name)} (keys: {key_spans(keys)})",
                 )
         if pred.fit == pred.predict:
             yield ("report", "predictions", i, "predict"), "a prediction needs two different configurations"

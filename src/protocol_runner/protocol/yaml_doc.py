@@ -64,8 +64,28 @@ def format_problems(shown: str, lines: dict[Loc, int], problems: Sequence[tuple[
 
 
 def validation_problems(exc: ValidationError, root: type[BaseModel]) -> list[tuple[Loc, str]]:
-    """(location, message) for each pydantic error, with "allowed keys" hints from the `root` model."""
-    return [(_without_kind_tag(tuple(e["loc"])), _pydantic_message(e, root)) for e in exc.errors()]
+    """(location, message) for each pydantic error, with "allowed keys" hints from the `root` model.
+    The alternatives of a union at one field are one message ("a valid list or 'all' (got 'al')")."""
+    merged: dict[Loc, list[str]] = {}
+    for e in exc.errors():
+        merged.setdefault(_without_union_member(_without_kind_tag(tuple(e["loc"]))), []).append(
+            _pydantic_message(e, root)
+        )
+    return [(loc, _one_message(messages)) for loc, messages in merged.items()]
+
+
+def _without_union_member(loc: Loc) -> Loc:
+    """Drop the member pydantic names in a plain union's error path (`factors.damper.list[str]`)."""
+    return tuple(p for p in loc if not (isinstance(p, str) and ("[" in p or p.startswith("literal"))))
+
+
+def _one_message(messages: list[str]) -> str:
+    prefix = "input should be "
+    if len(messages) < 2 or not all(m.startswith(prefix) for m in messages):
+        return "; ".join(dict.fromkeys(messages))
+    got = [m[m.rindex(" (got ") :] if m.endswith(")") and " (got " in m else "" for m in messages]
+    bodies = [m[len(prefix) : len(m) - len(g)] for m, g in zip(messages, got, strict=True)]
+    return prefix + " or ".join(dict.fromkeys(bodies)) + (got[0] if len(set(got)) == 1 else "")
 
 
 def _without_kind_tag(loc: Loc) -> Loc:
@@ -86,7 +106,8 @@ def yaml_error(shown: str, exc: yaml.YAMLError) -> str:
     context = getattr(exc, "context", None)
     line = f"{mark.line + 1}" if mark is not None else "?"
     detail = f"{context}, {problem}" if context else problem
-    return f"{shown}:{line}: YAML syntax error: {detail}"
+    hint = " (indent with spaces: YAML does not allow tabs)" if "'\\t'" in detail else ""
+    return f"{shown}:{line}: YAML syntax error: {detail}{hint}"
 
 
 def _index_lines(node: yaml.Node, loc: Loc, lines: dict[Loc, int], dups: list[tuple[Loc, int]]) -> None:

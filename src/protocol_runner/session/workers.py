@@ -33,6 +33,13 @@ Results = list[tuple[UnitRecord | None, str]]
 
 def worker_init() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process decides when to stop
+    # two workers share the cores with the session: one BLAS thread each, for the worker's whole life
+    # (the fits also hold it at one while they run, wherever they are called from)
+    import numpy  # noqa: F401  (threadpoolctl limits the BLAS libraries already loaded)
+    import scipy.linalg  # noqa: F401
+    from threadpoolctl import threadpool_limits
+
+    threadpool_limits(limits=1, user_api="blas")
     # Linux: die with the session process, so a killed session leaves no worker behind writing units
     with contextlib.suppress(Exception):
         import ctypes

@@ -32,10 +32,12 @@ from .problem import (
 from .schemes import EQ23, REFINED, check_scheme
 from .simulation import as_angle
 from .starts import equation_error_start, thesis_start
+from .threads import blas_single_threaded
 
 _MID_SAMPLES = 1500  # samples per trial of the copy on which the refined scheme's polish starts
 _FINAL_NFEV = 40  # then at most this many residual evaluations on the fitted samples,
-_FINAL_TOL = 1e-8  # to this tolerance (the copy's optimum is close)
+_FINAL_TOL = 1e-8  # to this step and gradient tolerance (the copy's optimum is close),
+FINAL_FTOL = 1e-5  # ending once a step lowers the cost by less than this fraction (early stopping)
 MID_STEP_DEG = 0.25  # substep of the refined integration on that copy (the final solve uses the default)
 SCREEN_STEP_DEG = 0.5  # substep of the refined integration while screening starts (only picks the basin)
 
@@ -123,7 +125,7 @@ def _fit_segments(
     polish: int,
     polish_tol: float = 1e-10,
     scheme: str = REFINED,
-    final: bool = True,
+    final_ftol: float | None = None,
 ) -> BoucWenFit:
     if starts < 0:
         raise InvalidInput(f"starts must be >= 0, got {starts}")
@@ -206,15 +208,11 @@ def _fit_segments(
     for u0 in chosen:
         if mid is not None:
             u0, cost, status, message = mid.solve(u0, max_nfev=_POLISH_NFEV, tol=polish_tol)
-            if not final:  # (cross-validation folds: the held-out error is measured on every sample)
-                polished.append(mid.rmse(cost))
-                if best is None or cost < best[0]:
-                    best = (cost, u0, status, message)
-                continue
             nfev, tol = _FINAL_NFEV, max(polish_tol, _FINAL_TOL)
+            ftol: float | None = FINAL_FTOL if final_ftol is None else final_ftol  # started close
         else:
-            nfev, tol = _POLISH_NFEV, polish_tol
-        u, cost, status, message = problem.solve(u0, max_nfev=nfev, tol=tol)
+            nfev, tol, ftol = _POLISH_NFEV, polish_tol, None
+        u, cost, status, message = problem.solve(u0, max_nfev=nfev, tol=tol, ftol=ftol)
         polished.append(problem.rmse(cost))
         if best is None or cost < best[0]:
             best = (cost, u, status, message)
@@ -319,6 +317,7 @@ def fit(
     )
 
 
+@blas_single_threaded
 def fit_trials(
     segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]],
     *,

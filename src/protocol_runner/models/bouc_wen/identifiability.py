@@ -1,18 +1,34 @@
 """Parameter intervals of a Bouc-Wen fit and the "weakly identified" mark (issue 15 item 3).
 
+Intervals (95 %):
+
 * The exponent n is profiled over its whole range: on a grid of n values from the fitted n outward to
-  each bound (2, 10, 30, 60 and 100 % of the way, substeps of 0.5 deg, stopping where the profile leaves the interval), the other seven parameters are refitted with n held fixed, giving the profile ``SSE(n)``.
-  The 95 % profile-likelihood interval is where ``m_eff ln(SSE(n) / SSE_min) <= 3.84`` (chi-square, one
-  degree of freedom, Gaussian errors of unknown variance).
+  each bound (2, 10, 30, 60 and 100 % of the way, stopping where the profile leaves the interval), the
+  other seven parameters are refitted with n held fixed, giving the profile ``SSE(n)``.  The interval is
+  where ``m_eff ln(SSE(n) / SSE_min) <= 3.84`` (chi-square, one degree of freedom, Gaussian errors of
+  unknown variance).
 * The other parameters get Wald intervals, ``theta +- 1.96 sigma``, with sigma from the Jacobian at the
   optimum (:func:`.problem.param_std`).
 * Filtered data have strongly correlated residuals, so ``m`` samples carry far less than ``m`` independent
   errors.  ``m_eff = m (1 - rho) / (1 + rho)`` with ``rho`` the residuals' lag-1 autocorrelation (the
   AR(1) effective sample size) is used in both: the profile threshold and sigma scaled by
   ``sqrt(m / m_eff)``.
-* A fit is *weakly identified* when n's interval reaches a bound of n (the data cannot tell n from the
-  bound, including a fitted n at its bound), A's interval reaches 0 or its upper bound, or a parameter has
-  an infinite sigma (a direction the data do not determine, e.g. a Table 4 phase never visited).
+
+The mark.  Each parameter is judged in the dimensionless form in which its bounds are set
+(:class:`.problem.BoucWenBounds`): ``a = A X / Z`` (the stiffness just after a reversal, in units of the
+loop's mean secant slope Z/X), n, and the six Table 4 phase values ``psi'_k`` (Eq 24: how fast the loop
+bends toward saturation in phase k, in units of the loop's own scales).  Their bounds are the physically
+plausible range of each.  A fit is *weakly identified* when, for some parameter, the data leave more than
+half of that plausible range open: its 95 % interval (the set of values whose best fit raises the RMSE by
+less than the noise can tell, so the parameter's effect on the loop is what decides) covers more than
+``COVER_LIMIT`` of the range, or no finite interval exists (a direction the data do not determine at all,
+e.g. a phase never visited).  A value at a bound with a narrow interval (say n = 0.5 with interval
+0.5-0.59: the data want a sharper loop than the bounds allow, and say so clearly) is *not* weak: the
+interval shows it.
+
+Consequences: a loop with no hysteresis (the phase values have no effect, their intervals cover their
+ranges) is weak; a loop that never reaches its knees (a small excitation, where ``|z|^n`` hardly changes and
+n's profile is flat) is weak with n named; a rich excitation of a Bouc-Wen joint is identified.
 """
 
 from __future__ import annotations
@@ -27,14 +43,22 @@ from scipy.optimize import least_squares
 
 from .backbone import hysteretic_part
 from .fitting import _validate_segments, decimate
-from .params import PARAM_NAMES, FloatArray
-from .problem import BoucWenFit, Problem, param_std
+from .params import FloatArray
+from .problem import BoucWenFit, Problem, jacobian_std, param_std
+from .schemes import REFINED
+from .threads import blas_single_threaded
 
 CHI2_1_95 = 3.841458820694124  # 95 % quantile of chi-square with one degree of freedom
 PROFILE_SAMPLES = 400  # samples per trial of the copy on which n is profiled
 PROFILE_STEP_DEG = 0.5  # substep of the refined integration while profiling
 PROFILE_STEPS = np.array([0.02, 0.1, 0.3, 0.6, 1.0])  # grid from the fitted n to each bound
 PROFILE_NFEV = 10  # residual evaluations of each fixed-n refit
+COVER_LIMIT = 0.5  # a 95 % interval covering more of the plausible range than this: weakly identified
+DIMENSIONLESS_NAMES: tuple[str, ...] = (
+    "a = A X/Z",
+    "n",
+    *(f"psi'{k} (Table 4 phase {k})" for k in range(1, 7)),
+)
 
 
 def effective_samples(residuals: FloatArray, seg: npt.NDArray[np.int64]) -> float:
@@ -59,16 +83,20 @@ def _fixed_n_refit(problem: Problem, u0: FloatArray) -> tuple[FloatArray, float]
         u = np.insert(v, 1, n)
         return u
 
-    res = least_squares(
-        lambda v: problem.residuals(full(v)),
-        np.clip(u0[keep], problem.lower[keep], problem.upper[keep]),
-        jac=lambda v: problem.jacobian(full(v))[:, keep],
-        bounds=(problem.lower[keep], problem.upper[keep]),
-        x_scale="jac",
-        method="trf",
-        tr_solver="exact",
-        max_nfev=PROFILE_NFEV,
-    )
+    problem.fused = True  # each evaluation gives the Jacobian too (see Problem.solve)
+    try:
+        res = least_squares(
+            lambda v: problem.residuals(full(v)),
+            np.clip(u0[keep], problem.lower[keep], problem.upper[keep]),
+            jac=lambda v: problem.jacobian(full(v))[:, keep],
+            bounds=(problem.lower[keep], problem.upper[keep]),
+            x_scale="jac",
+            method="trf",
+            tr_solver="exact",
+            max_nfev=PROFILE_NFEV,
+        )
+    finally:
+        problem.fused = False
     u = full(np.asarray(res.x, dtype=np.float64))
     r = problem.residuals(u)
     return u, float(r @ r)
@@ -84,22 +112,12 @@ def _crossing(n_in: float, s_in: float, n_out: float, s_out: float, sse0: float,
     return n_in + (math.sqrt(limit - sse0) - q_in) / (q_out - q_in) * (n_out - n_in)
 
 
-def identify(segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]], result: BoucWenFit) -> BoucWenFit:
-    """``result`` with n's profile interval, every parameter's interval and the weak-identification mark."""
-    checked = _validate_segments(segments)
-    if result.backbone is not None:
-        checked = hysteretic_part(checked, result.backbone)
-    x, y, seg, _ = decimate(checked, PROFILE_SAMPLES)
-    problem = Problem(x, y, seg, result.bounds, result.angle_scale_deg, result.torque_scale_nm, result.scheme)
-    u_best = problem.to_u(result.params)
-    r = problem.residuals(u_best)
-    sse0 = float(r @ r)
-    m_eff = effective_samples(r, seg)
+def _n_profile(problem: Problem, u_best: FloatArray, sse0: float, m_eff: float) -> tuple[float, float]:
+    """The 95 % profile-likelihood interval of n (ends at n's bounds where the profile stays inside)."""
     limit = sse0 * math.exp(CHI2_1_95 / m_eff)
-    n_min, n_max = result.bounds.n_min, result.bounds.n_max
     n_best = float(u_best[1])
     ends: list[float] = []
-    for bound in (n_min, n_max):
+    for bound in (problem.bounds.n_min, problem.bounds.n_max):
         u_prev, s_prev, n_prev, end = u_best, sse0, n_best, bound
         for n in n_best + (bound - n_best) * PROFILE_STEPS:
             start = u_prev.copy()
@@ -112,24 +130,61 @@ def identify(segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]], result: Bo
             if s < sse0:  # a better optimum at this n: the profile is measured from it
                 sse0, limit = s, s * math.exp(CHI2_1_95 / m_eff)
         ends.append(end)
-    std = param_std(problem, result.params) * math.sqrt(r.size / m_eff)
+    return ends[0], ends[1]
+
+
+def weak_reasons(
+    u: FloatArray, std_u: FloatArray, n_interval: tuple[float, float], problem: Problem
+) -> list[str]:
+    """The parameters (dimensionless, see the module notes) whose 95 % interval covers more than
+    ``COVER_LIMIT`` of their plausible range, or that have no finite interval, each with the reason."""
+    reasons: list[str] = []
+    lower, upper = problem.lower, problem.upper
+    for k, name in enumerate(DIMENSIONLESS_NAMES):
+        if k == 1:
+            lo, hi = n_interval
+        elif not math.isfinite(std_u[k]):
+            reasons.append(f"{name}: not determined by the data (no finite interval)")
+            continue
+        else:
+            lo = max(float(u[k] - 1.96 * std_u[k]), float(lower[k]))
+            hi = min(float(u[k] + 1.96 * std_u[k]), float(upper[k]))
+        cover = (hi - lo) / float(upper[k] - lower[k])
+        if cover > COVER_LIMIT:
+            reasons.append(
+                f"{name}: the 95 % interval {lo:.3g} to {hi:.3g} covers {100 * cover:.0f} % of its "
+                f"plausible range {lower[k]:g} to {upper[k]:g}"
+            )
+    return reasons
+
+
+@blas_single_threaded
+def identify(segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]], result: BoucWenFit) -> BoucWenFit:
+    """``result`` with n's profile interval, every parameter's interval and the weak-identification mark."""
+    checked = _validate_segments(segments)
+    if result.backbone is not None:
+        checked = hysteretic_part(checked, result.backbone)
+    x, y, seg, _ = decimate(checked, PROFILE_SAMPLES)
+    step = PROFILE_STEP_DEG if result.scheme == REFINED else None
+    problem = Problem(
+        x, y, seg, result.bounds, result.angle_scale_deg, result.torque_scale_nm, result.scheme, step
+    )
+    u_best = problem.to_u(result.params)
+    r = problem.residuals(u_best)
+    sse0 = float(r @ r)
+    m_eff = effective_samples(r, seg)
+    inflate = math.sqrt(r.size / m_eff)
+    std_u = jacobian_std(problem.jacobian(u_best), sse0) * inflate
+    std = param_std(problem, result.params) * inflate
+    n_low, n_high = _n_profile(problem, u_best, sse0, m_eff)
     theta = result.params.as_array()
     low = theta - 1.96 * std
     high = theta + 1.96 * std
-    low[1], high[1] = ends[0], ends[1]
-    reasons: list[str] = []
-    tol = 1e-6 * (n_max - n_min)
-    if low[1] <= n_min + tol or high[1] >= n_max - tol:
-        reasons.append(f"n's interval reaches its bound ({low[1]:.3g}-{high[1]:.3g}, range {n_min}-{n_max})")
-    a_max = result.bounds.a_max * result.torque_scale_nm / result.angle_scale_deg
-    if low[0] <= 0.0 or high[0] >= a_max:
-        reasons.append(f"A's interval reaches its bound (0 or {a_max:.3g} N*m/deg)")
-    unknown = [PARAM_NAMES[k] for k in range(8) if k != 1 and not math.isfinite(std[k])]
-    if unknown:
-        reasons.append("not determined by the data: " + ", ".join(unknown))
+    low[1], high[1] = n_low, n_high
+    reasons = weak_reasons(u_best, std_u, (n_low, n_high), problem)
     return replace(
         result,
-        n_interval=(float(low[1]), float(high[1])),
+        n_interval=(float(n_low), float(n_high)),
         param_interval_low=tuple(float(v) for v in low),
         param_interval_high=tuple(float(v) for v in high),
         weakly_identified=bool(reasons),

@@ -166,10 +166,15 @@ def _piece_sens(xa, xb, zi, S, A, n, beta, bound, max_step, S2, d1, d2):  # prag
 
 
 @njit(cache=True)
-def heun_sensitivity_kernel(x, seg, z0, A, n, beta, bound, freeze, max_step, z, dz, T):  # pragma: no cover
-    """:func:`heun_kernel` and the exact derivatives of its scheme, ``dz[i, :] = (d z_i / d theta) @ T``
-    (theta = A, n, beta1..6); derivatives after divergence are NaN or 0 (frozen)."""
+def heun_sensitivity_kernel(
+    x, seg, z0, A, n, beta, bound, freeze, max_step, z, dz, T, rows
+):  # pragma: no cover
+    """:func:`heun_kernel` and the exact derivatives of its scheme at the samples ``rows`` (increasing),
+    ``dz[r, :] = (d z_{rows[r]} / d theta) @ T`` (theta = A, n, beta1..6); derivatives after divergence are
+    NaN or 0 (frozen).  The sensitivities are carried along every sample; only the rows asked for are
+    projected and stored (a fit compares every k-th sample)."""
     first_bad = -1
+    r = 0  # next entry of rows
     S = np.zeros(8)
     S2 = np.zeros(8)
     d1 = np.zeros(8)
@@ -181,7 +186,12 @@ def heun_sensitivity_kernel(x, seg, z0, A, n, beta, bound, freeze, max_step, z, 
         z[i0] = zi
         for k in range(8):
             S[k] = 0.0
-            dz[i0, k] = 0.0
+        while r < rows.size and rows[r] < i0:
+            r += 1
+        if r < rows.size and rows[r] == i0:
+            for k in range(8):
+                dz[r, k] = 0.0
+            r += 1
         dead = False
         for i in range(i0, i1 - 1):
             d = x[i + 1] - x[i]
@@ -207,5 +217,7 @@ def heun_sensitivity_kernel(x, seg, z0, A, n, beta, bound, freeze, max_step, z, 
                         for k in range(8):
                             S[k] = np.nan
             z[i + 1] = zi
-            project_row(S, T, dz, i + 1)
+            if r < rows.size and rows[r] == i + 1:
+                project_row(S, T, dz, r)
+                r += 1
     return first_bad

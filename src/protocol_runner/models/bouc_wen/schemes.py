@@ -70,9 +70,21 @@ def run_scheme_sensitivity(
     dz: FloatArray,
     T: FloatArray,
     max_step_deg: float | None = None,
+    rows: IntArray | None = None,
 ) -> int:
-    """Torque into ``z`` and ``dz/dtheta @ T`` into ``dz``; index of the first diverged sample or -1."""
+    """Torque into ``z`` and ``dz/dtheta @ T`` into ``dz``; index of the first diverged sample or -1.
+
+    rows: the samples whose derivatives are wanted (increasing; ``dz`` has one row per entry), every
+    sample when None."""
     step = check_scheme(scheme, max_step_deg)
     if scheme == EQ23:
-        return int(sensitivity_kernel(x, seg, z0, A, n, np.asarray(beta), bound, freeze, z, dz, T))
-    return int(heun_sensitivity_kernel(x, seg, z0, A, n, np.asarray(beta), bound, freeze, step, z, dz, T))
+        if rows is None:
+            return int(sensitivity_kernel(x, seg, z0, A, n, np.asarray(beta), bound, freeze, z, dz, T))
+        full = np.empty((x.size, 8))
+        bad = int(sensitivity_kernel(x, seg, z0, A, n, np.asarray(beta), bound, freeze, z, full, T))
+        dz[:] = full[rows]
+        return bad
+    every = np.arange(x.size, dtype=np.int64) if rows is None else rows
+    return int(
+        heun_sensitivity_kernel(x, seg, z0, A, n, np.asarray(beta), bound, freeze, step, z, dz, T, every)
+    )

@@ -1,0 +1,89 @@
+"""The fit's shortcuts give the numbers of the long way (issue 20 item 5, issue 15 performance): the fused
+residual-and-Jacobian evaluation and the Jacobian at the compared rows only are exact; the early stop of the
+last solve changes the RMSE and the held-out errors by less than its documented tolerance."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from protocol_runner.models.bouc_wen import DEFAULT_BOUNDS, cross_validate, crossval, fit_trials, fitting
+from protocol_runner.models.bouc_wen.fitting import _path_problem, decimate
+from protocol_runner.models.bouc_wen.problem import Problem
+from protocol_runner.models.bouc_wen.schemes import run_scheme_sensitivity
+
+
+def _loop_halves() -> list[tuple[np.ndarray, np.ndarray]]:
+    """Configuration 1's centred dry-run loop (range-of-motion stops), cut into two trials."""
+    data = np.load(Path(__file__).resolve().parent / "data" / "brace_rom_stop_loop.npz")
+    x = data["angle_deg"].astype(np.float64)
+    y = data["torque_nm"].astype(np.float64)
+    half = x.size // 2
+    return [(x[:half], y[:half]), (x[half:], y[half:])]
+
+
+def _path(max_samples: int) -> Problem:
+    segments = _loop_halves()
+    _, _, _, strides = decimate(segments, max_samples)
+    return _path_problem(segments, strides, DEFAULT_BOUNDS, 40.0, 20.0, None)
+
+
+def test_a_fused_evaluation_gives_the_residuals_and_jacobian_of_separate_ones() -> None:
+    problem = _path(3000)
+    u = np.array([3.0, 1.1, 5.0, -4.0, 2.0, 1.0, -3.0, 0.5])
+    plain_r = problem.residuals(u).copy()
+    plain_j = problem.jacobian(u).copy()
+    problem.fused = True
+    fused_r = problem.residuals(u)
+    fused_j = problem.jacobian(u)
+    problem.fused = False
+    assert np.array_equal(fused_r, plain_r)
+    assert np.array_equal(fused_j, plain_j)
+    # the cache answers only for the very point evaluated
+    other = u.copy()
+    other[0] = 3.5
+    assert not np.array_equal(problem.jacobian(other), plain_j)
+
+
+def test_the_jacobian_at_the_compared_rows_is_those_rows_of_the_full_one() -> None:
+    problem = _path(3000)
+    assert problem.rows is not None and problem.rows.size < problem.x.size
+    A, n, beta = 0.2, 1.1, np.array([0.01, 0.1, -0.1, -0.08, 0.09, 0.0])
+    z_full = np.empty_like(problem.x)
+    full = np.empty((problem.x.size, 8))
+    run_scheme_sensitivity(
+        "refined",
+        problem.x,
+        problem.seg,
+        problem.z0,
+        A,
+        n,
+        beta,
+        problem.bound,
+        True,
+        z_full,
+        full,
+        np.eye(8),
+    )
+    rows_only = problem.physical_jacobian(A, n, beta)
+    assert np.array_equal(rows_only, full[problem.rows])
+    assert np.array_equal(problem.z, z_full)
+
+
+def test_the_early_stop_of_the_last_solve_keeps_the_rmse_and_held_out_errors(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Against solves run to a relative cost change of 1e-8: the fit's RMSE within 1e-4, the held-out
+    errors within 1e-3 (FINAL_FTOL 1e-5, CV_FINAL_FTOL 1e-4), with no more residual evaluations."""
+    segments = _loop_halves()
+    fast = fit_trials(segments, starts=4, backbone_degree=9)
+    fast_cv = cross_validate(segments, starts=1, backbone_degree=9)
+    monkeypatch.setattr(fitting, "FINAL_FTOL", 1e-8)
+    monkeypatch.setattr(crossval, "CV_FINAL_FTOL", 1e-8)
+    strict = fit_trials(segments, starts=4, backbone_degree=9)
+    strict_cv = cross_validate(segments, starts=1, backbone_degree=9)
+    assert fast.rmse_nm == pytest.approx(strict.rmse_nm, rel=1e-4)
+    assert fast.nfev <= strict.nfev
+    np.testing.assert_allclose(fast_cv, strict_cv, rtol=1e-3)
