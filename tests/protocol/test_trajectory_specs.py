@@ -57,6 +57,7 @@ def test_every_kind_has_a_model_and_constant_specs_have_no_bindings() -> None:
         },
         "ramped_step": {"from_deg": 20, "step_deg": 45, "ramp_s": 0.6, "hold_s": 4, "settle_s": 1},
         "hold": {"angle_deg": 45, "duration_s": 2},
+        "per_joint": {"joints": {"knee_flexion": {"kind": "hold", "angle_deg": 45, "duration_s": 2}}},
     }
     assert set(examples) == set(TRAJECTORY_KINDS) == set(BINDABLE_FIELDS)
     for kind, fields in examples.items():

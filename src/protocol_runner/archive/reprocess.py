@@ -23,6 +23,7 @@ from ..protocol.processing import processing_settings
 from .checksums import is_marked, seal_missing
 from .h5util import attr_str, set_attrs, text_of
 from .paths import configuration_name
+from .reprocess_joints import reprocess_joints
 from .results import bouc_wen_fill, comparison_values, processed_fill, read_recording
 from .verify import validate_archive
 
@@ -99,6 +100,12 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
     for name, cfg in f["configurations"].items():
         trials = cfg.get("trials")
         if trials is None:
+            continue
+        if "joints" in cfg.attrs:  # several joints driven together: processed joint by joint
+            enabled_joints = getattr(fits, "elements", getattr(fits, "spring", None))
+            device = archived_device(cfg) if enabled_joints and enabled_joints.enabled else None
+            fit_joints = sorted({str(p.get("joint")) for _, _, p in archived_device(cfg)})
+            reprocess_joints(f, name, device, settings, fits.bouc_wen, fit_joints)
             continue
         pairs = []
         for n in sorted(trials, key=int):

@@ -198,10 +198,13 @@ def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> F
 
 def comparison_values(configs: Sequence[h5py.Group]) -> dict[str, list[Any]]:
     """Energy per cycle (mean, sample std, count) and the largest processed angle of each configuration
-    group, in order. Used by the session's step and by `--reprocess`, so both give the same numbers."""
+    group, in order. Used by the session's step and by `--reprocess`, so both give the same numbers.
+    A multi-joint configuration (no `energy_loss_j` of its own) is compared by its total over the joints
+    (`total_energy_loss_j`, docs/archive.md "Several joints")."""
     means, stds, counts, max_angles = [], [], [], []
     for cfg in configs:
-        e = cfg["energy_loss_j"][:] if "energy_loss_j" in cfg else np.zeros(0)
+        name = "energy_loss_j" if "energy_loss_j" in cfg else "total_energy_loss_j"
+        e = cfg[name][:] if name in cfg else np.zeros(0)
         means.append(float(np.mean(e)) if e.size else float("nan"))
         stds.append(float(np.std(e, ddof=1)) if e.size > 1 else float("nan"))
         counts.append(int(e.size))

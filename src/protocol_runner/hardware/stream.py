@@ -150,8 +150,14 @@ def build_stream(
     start = limits.park_angle_deg if from_deg is None else float(from_deg)
     second = float(cmd[1]) if cmd.size > 1 else float(cmd[0])
     before_last = float(cmd[-2]) if cmd.size > 1 else float(cmd[-1])
-    approach = approach_deg(float(cmd[0]), second, limits, rate_hz, from_deg=start)
-    exit_ = stop_tail_deg(before_last, float(cmd[-1]), limits, rate_hz)
+    try:
+        approach = approach_deg(float(cmd[0]), second, limits, rate_hz, from_deg=start)
+        exit_ = stop_tail_deg(before_last, float(cmd[-1]), limits, rate_hz)
+    except InvalidInput:
+        # a junction that cannot be built (a brake or ramp too long) comes from samples far outside the
+        # envelope: name what the trajectory itself breaks (SafetyViolation) when it does
+        check_trajectory(cmd, rate_hz, limits, where="trajectory")
+        raise
     segment = np.concatenate(
         [
             np.full(approach.size, APPROACH, dtype=np.int8),

@@ -22,7 +22,7 @@ from .generators import expand_generators
 from .loaded import LoadedProtocol as LoadedProtocol
 from .loaded import Loc as Loc
 from .loaded import line_for
-from .rig_file import find_rig, load_rig, resolve_rig
+from .rig_file import find_rig, load_rig, resolve_rig, resolve_rigs
 from .schema import Protocol
 from .validate import cross_check
 from .yaml_doc import format_loc as format_loc
@@ -107,10 +107,14 @@ def parse_protocol_text(
     except InvalidInput as exc:
         raise InvalidInput(format_problems(shown, lines, [(("rig",), exc.message)])) from None
     loaded_rig = load_rig(rig_path, shown=_rig_shown(protocol.rig_name, rig_path))
-    rig, problems = resolve_rig(loaded_rig, protocol.joint, protocol.rig_overrides)
-    if rig is None:
+    if protocol.joints is not None:
+        rigs, problems = resolve_rigs(loaded_rig, protocol.joints, protocol.rig_overrides)
+    else:
+        rig, problems = resolve_rig(loaded_rig, str(protocol.joint), protocol.rig_overrides)
+        rigs = (rig,) if rig is not None else ()
+    if not rigs:
         raise InvalidInput(format_problems(shown, lines, problems))
-    protocol, problems, origins = expand_generators(protocol.with_rig(rig))
+    protocol, problems, origins = expand_generators(protocol.with_rigs(rigs))
     for generated, generator in origins.items():
         line = line_for(lines, generator)
         if line is not None:

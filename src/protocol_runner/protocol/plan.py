@@ -28,7 +28,7 @@ from .loaded import LoadedProtocol
 from .only import KeySelection
 from .plan_trajectory import Trajectory as Trajectory
 from .resolve import calibration_trajectory as calibration_trajectory
-from .resolve import configuration_trajectory, resolve_settings
+from .resolve import configuration_trajectories, configuration_trajectory, resolve_settings
 from .schema import ConfigurationSpec, Protocol, SetSpec
 from .settings import Settings
 from .step_ids import calibration_id as calibration_id
@@ -51,22 +51,41 @@ class Step:
         return 0.0
 
 
+JointTrajectories = tuple[tuple[str, Trajectory], ...]
+"""(joint, trajectory) per driven joint of a multi-joint protocol, in channel order."""
+
+
+def _trajectory_json(trajectory: Trajectory, per_joint: JointTrajectories) -> dict[str, Any]:
+    """The plan's `joints` and `trajectory` keys: one trajectory, or one per joint (multi-joint)."""
+    if not per_joint:
+        return {"trajectory": trajectory.to_json()}
+    return {"joints": [j for j, _ in per_joint], "trajectory": {j: t.to_json() for j, t in per_joint}}
+
+
 @dataclass(frozen=True)
 class CalibrationCheckStep(Step):
     set: str
     when: str  # "before" / "after"
     trajectory: Trajectory
+    # multi-joint: each joint's own step, run one joint after the other (the others held at park)
+    joint_trajectories: JointTrajectories = ()
+
+    def joints_names(self) -> tuple[str, ...]:
+        """The joints checked one after the other (multi-joint; empty for one joint)."""
+        return tuple(j for j, _ in self.joint_trajectories)
 
     def to_json(self) -> dict[str, Any]:
         return {
             **super().to_json(),
             "set": self.set,
             "when": self.when,
-            "trajectory": self.trajectory.to_json(),
+            **_trajectory_json(self.trajectory, self.joint_trajectories),
         }
 
     @property
     def robot_time_s(self) -> float:
+        if self.joint_trajectories:
+            return sum(t.duration_s for _, t in self.joint_trajectories)
         return self.trajectory.duration_s
 
 
@@ -104,6 +123,13 @@ class TrialStep(Step):
     settings: Settings
     trajectory: Trajectory
     twin: str | None = None  # brace-off trials: the id of the brace-on trial whose output they follow
+    # multi-joint: every driven joint's motion (`trajectory` is then the first joint's)
+    joint_trajectories: JointTrajectories = ()
+
+    @property
+    def joints(self) -> tuple[str, ...]:
+        """The driven joints of a multi-joint trial, in channel order (empty for one joint)."""
+        return tuple(j for j, _ in self.joint_trajectories)
 
     def to_json(self) -> dict[str, Any]:
         out = {
@@ -114,7 +140,7 @@ class TrialStep(Step):
             "trial": self.trial,
             "brace": self.brace,
             "settings": self.settings.to_json(),
-            "trajectory": self.trajectory.to_json(),
+            **_trajectory_json(self.trajectory, self.joint_trajectories),
         }
         if self.brace == "on":
             out["device"] = self.settings.device_json()
@@ -291,9 +317,11 @@ def _as_selection(keys: Iterable[int]) -> KeySelection:
 
 
 def _trial(
-    s: SetSpec, cfg: ConfigurationSpec, st: Settings, trajectory: Trajectory, brace: str, n: int
+    s: SetSpec, cfg: ConfigurationSpec, st: Settings, motion: JointTrajectories, brace: str, n: int
 ) -> TrialStep:
-    """Trial n of a configuration; a brace-off trial names its brace-on twin (its input comes from it)."""
+    """Trial n of a configuration; a brace-off trial names its brace-on twin (its input comes from it).
+    `motion`: the trajectory ("", t) of a single-joint protocol, or (joint, t) per driven joint."""
+    trajectory = motion[0][1]
     return TrialStep(
         id=trial_id(cfg.key, brace, n),
         kind="trial",
@@ -305,12 +333,16 @@ def _trial(
         settings=st,
         trajectory=trajectory,
         twin=trial_id(cfg.key, "on", n) if brace == "off" else None,
+        joint_trajectories=motion if motion[0][0] else (),
     )
 
 
 def _expand_set(
     p: Protocol, loaded: LoadedProtocol, s: SetSpec, cfgs: list[ConfigurationSpec], cal_traj: Trajectory
 ) -> list[Step]:
+    cal_joints: JointTrajectories = (
+        tuple((j, calibration_trajectory(p, j)) for j in p.driven_joints) if p.multi_joint else ()
+    )
     steps: list[Step] = [
         CalibrationCheckStep(
             id=calibration_id(s.name, "before"),
@@ -318,10 +350,18 @@ def _expand_set(
             set=s.name,
             when="before",
             trajectory=cal_traj,
+            joint_trajectories=cal_joints,
         )
     ]
     resolved = [(c, resolve_settings(p, c)) for c in cfgs]
-    trajectories = {c.key: configuration_trajectory(loaded, c, st) for c, st in resolved}
+    trajectories: dict[int, JointTrajectories] = {
+        c.key: (
+            configuration_trajectories(loaded, c, st)
+            if p.multi_joint
+            else (("", configuration_trajectory(loaded, c, st)),)
+        )
+        for c, st in resolved
+    }
     device = p.device.name if p.device is not None and p.device.name else "device"
     for cfg, st in resolved:
         steps.append(
@@ -359,9 +399,11 @@ def _expand_set(
             set=s.name,
             when="after",
             trajectory=cal_traj,
+            joint_trajectories=cal_joints,
         )
     )
-    # the spring model is fitted by the processing step; the fit step is the Bouc-Wen model's
+    # the spring model is fitted by the processing step; the fit step is the Bouc-Wen model's (per joint
+    # that carries elements, in a multi-joint protocol)
     models = ("bouc_wen",) if p.fits.bouc_wen.enabled else ()
     for cfg, _ in resolved:
         pairs = tuple(

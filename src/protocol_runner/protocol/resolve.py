@@ -15,12 +15,14 @@ from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 from ..errors import InvalidInput
 from ..models.elements import ELEMENT_TYPES, build_element
 from .plan_trajectory import Trajectory, build_trajectory
 from .schema import ConfigurationSpec, Protocol
 from .settings import ElementSetting, FactorSetting, Quantity, Settings
-from .trajectory_specs import RampedStepSpec, is_binding, trajectory_bindings
+from .trajectory_specs import PerJointSpec, RampedStepSpec, is_binding, joint_spec, trajectory_bindings
 from .units import unit_suffix
 from .yaml_doc import format_loc
 
@@ -87,8 +89,7 @@ def resolve_device(
     if p.device is None:
         return ()
     out: list[ElementSetting] = []
-    for i, el in enumerate(p.device.elements):
-        loc: Loc = ("device", "elements", i)
+    for joint, loc, el in p.device.located_elements():
         values: dict[str, Any] = {}
         for param, value in el.params.items():
             values[param] = _bound_value(factors, value, (*loc, param), cfg) if is_binding(value) else value
@@ -109,7 +110,7 @@ def resolve_device(
                 params.append((key, tuple(float(x) for x in v)))
             else:
                 params.append((key, v))
-        out.append(ElementSetting(name=el.name, type=el.type, params=tuple(params)))
+        out.append(ElementSetting(name=el.name, type=el.type, params=tuple(params), joint=joint))
     return tuple(out)
 
 
@@ -134,13 +135,74 @@ def resolve_settings(p: Protocol, cfg: ConfigurationSpec) -> Settings:
     return Settings(factors=tuple(factors), device=resolve_device(p, dict(factors), cfg))
 
 
-def trajectory_values(p: Protocol, settings: Settings, cfg: ConfigurationSpec) -> dict[str, Quantity]:
-    spec = p.trajectories[cfg.trajectory]
+def trajectory_values(
+    p: Protocol, settings: Settings, cfg: ConfigurationSpec, joint: str | None = None
+) -> dict[str, Quantity]:
+    """The bound fields' values of the configuration's trajectory (of `joint`'s entry of a `per_joint`)."""
+    spec, prefix = (
+        joint_spec(p.trajectories[cfg.trajectory], joint) if joint else (p.trajectories[cfg.trajectory], ())
+    )
     factors = dict(settings.factors)
     return {
-        field: _bound_value(factors, binding, ("trajectories", cfg.trajectory, field), cfg)
+        field: _bound_value(factors, binding, ("trajectories", cfg.trajectory, *prefix, field), cfg)
         for field, binding in trajectory_bindings(spec).items()
     }
+
+
+def configuration_trajectories(
+    loaded: LoadedProtocol, cfg: ConfigurationSpec, settings: Settings
+) -> tuple[tuple[str, Trajectory], ...]:
+    """A multi-joint configuration's motion: (joint, trajectory) per driven joint in channel order, all
+    lasting the same number of output ticks (InvalidInput naming the joint otherwise)."""
+    from .stream_check import safety_limits
+
+    p = loaded.protocol
+    name = cfg.trajectory
+    spec = p.trajectories[name]
+    if isinstance(spec, PerJointSpec):
+        extra = [j for j in spec.joints if j not in p.driven_joints]
+        missing = [j for j in p.driven_joints if j not in spec.joints]
+        if extra or missing:
+            raise InvalidInput(
+                f"trajectory {name!r} (per_joint): "
+                + (f"no entry for driven joint(s) {', '.join(missing)}" if missing else "")
+                + ("; " if missing and extra else "")
+                + (
+                    f"{', '.join(extra)} is not driven (joints: {', '.join(p.driven_joints)})"
+                    if extra
+                    else ""
+                )
+            )
+    elif spec.kind != "file":
+        raise InvalidInput(
+            f"trajectory {name!r} ({spec.kind}): a multi-joint trial needs each joint's motion: give "
+            "`kind: per_joint` with one entry per driven joint, or a `file` with one angle column per joint"
+        )
+    out: list[tuple[str, Trajectory]] = []
+    for joint in p.driven_joints:
+        entry, _ = joint_spec(spec, joint)
+        rig = p.rig_of(joint)
+        try:
+            traj = build_trajectory(
+                name,
+                entry,
+                trajectory_values(p, settings, cfg, joint),
+                loaded.base_dir,
+                joint=joint,
+                limits=safety_limits(rig),
+            )
+        except InvalidInput as exc:
+            raise InvalidInput(f"joint {joint}: {exc.message}") from None
+        out.append((joint, traj))
+    rate = p.rig.output.rate_hz
+    ticks = {j: len(np.arange(0.0, t.duration_s, 1.0 / rate)) for j, t in out}
+    if len(set(ticks.values())) > 1:
+        shown = ", ".join(f"{j} {n} ({dict(out)[j].duration_s:g} s)" for j, n in ticks.items())
+        raise InvalidInput(
+            f"trajectory {name!r}: the joints of a trial share its time, but their motions last different "
+            f"numbers of output ticks at {rate:g} Hz: {shown}"
+        )
+    return tuple(out)
 
 
 def configuration_trajectory(
@@ -151,6 +213,10 @@ def configuration_trajectory(
 
     p = loaded.protocol
     spec = p.trajectories[cfg.trajectory]
+    if isinstance(spec, PerJointSpec):
+        raise InvalidInput(
+            f"trajectory {cfg.trajectory!r}: kind per_joint needs a multi-joint protocol (`joints: [...]`)"
+        )
     return build_trajectory(
         cfg.trajectory,
         spec,
@@ -161,9 +227,9 @@ def configuration_trajectory(
     )
 
 
-def calibration_trajectory(p: Protocol) -> Trajectory:
-    """The calibration check's ramped step."""
-    s = p.calibration_step
+def calibration_trajectory(p: Protocol, joint: str | None = None) -> Trajectory:
+    """The calibration check's ramped step (of `joint`, default the first driven joint)."""
+    s = p.calibration_step_of(joint or p.driven_joints[0])
     spec = RampedStepSpec(
         kind="ramped_step",
         from_deg=s.from_deg,
@@ -181,12 +247,13 @@ def calibration_trajectory(p: Protocol) -> Trajectory:
 def check_bindings(p: Protocol) -> Iterator[Problem]:
     """Static checks of every binding and element (before any configuration is resolved)."""
     if p.device is not None:
-        names: set[str] = set()
-        for i, el in enumerate(p.device.elements):
-            loc: Loc = ("device", "elements", i)
-            if el.name in names:
+        names: set[tuple[str, str]] = set()
+        for joint, loc, el in p.device.located_elements():
+            if joint and joint not in p.driven_joints:
+                yield loc[:3], f"{joint!r} is not one of the driven joints ({', '.join(p.driven_joints)})"
+            if (joint, el.name) in names:
                 yield (*loc, "name"), f"element name {el.name!r} is used twice"
-            names.add(el.name)
+            names.add((joint, el.name))
             etype = ELEMENT_TYPES.get(el.type)
             if etype is None:
                 yield (
@@ -213,7 +280,10 @@ def check_bindings(p: Protocol) -> Iterator[Problem]:
                     yield (*loc,), f"missing required parameter {param!r} of {el.type} ({spec.doc})"
     for name, tspec in p.trajectories.items():
         for field, binding in trajectory_bindings(tspec).items():
-            yield from _check_binding(p, binding, unit_suffix(field) or "", ("trajectories", name, field))
+            parts = tuple(field.split("."))
+            yield from _check_binding(
+                p, binding, unit_suffix(parts[-1]) or "", ("trajectories", name, *parts)
+            )
 
 
 def _did_you_mean(word: str, known: Iterable[str]) -> str:

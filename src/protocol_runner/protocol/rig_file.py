@@ -323,3 +323,51 @@ def resolve_rig(
         rig_sha256=loaded.sha256,
     )
     return spec, []
+
+
+def resolve_rigs(
+    loaded: LoadedRig, joint_names: list[str], overrides: RigOverrides
+) -> tuple[tuple[RigSpec, ...], list[Problem]]:
+    """A multi-joint protocol's rigs (`joints: [...]`): each driven joint resolved as `resolve_rig` does
+    with its own `rig_overrides.joints.<joint>`, in output channel order. Problems are located at
+    `joints[i]` or `rig_overrides.joints.<joint>...`; two driven joints sharing an output or input channel
+    are refused naming both."""
+    problems: list[Problem] = []
+    for name in overrides.joints:
+        if name not in joint_names:
+            problems.append(
+                (
+                    ("rig_overrides", "joints", name),
+                    f"{name!r} is not one of the driven joints ({', '.join(joint_names)})",
+                )
+            )
+    specs: list[RigSpec] = []
+    for i, name in enumerate(joint_names):
+        own = overrides.model_copy(
+            update={"joints": {k: v for k, v in overrides.joints.items() if k == name}}
+        )
+        spec, found = resolve_rig(loaded, name, own)
+        problems += [((("joints", i) if loc == ("joint",) else loc), msg) for loc, msg in found]
+        if spec is not None:
+            specs.append(spec)
+    if problems:
+        return (), problems
+    used: dict[tuple[str, int], str] = {}
+    for spec in specs:
+        for kind, ch in (
+            ("output", spec.output.channel),
+            ("input", spec.input.angle_channel),
+            ("input", spec.input.torque_channel),
+        ):
+            other = used.get((kind, ch))
+            if other is not None and other != spec.joint.name:
+                problems.append(
+                    (
+                        ("joints", joint_names.index(spec.joint.name)),
+                        f"{spec.joint.name} and {other} use the same {kind} channel {ch} ({loaded.shown})",
+                    )
+                )
+            used[(kind, ch)] = spec.joint.name
+    if problems:
+        return (), problems
+    return tuple(sorted(specs, key=lambda s: s.output.channel)), []

@@ -223,10 +223,37 @@ class ElementSpec(_Model):
         return dict(self.model_extra or {})
 
 
-class DeviceSpec(_Model):
-    name: str = ""
+class JointDeviceSpec(_Model):
+    """The elements one driven joint carries (a multi-joint protocol's `device.joints.<joint>`)."""
+
     description: str = ""
     elements: list[ElementSpec] = Field(min_length=1)
+
+
+class DeviceSpec(_Model):
+    """The device under test: `elements` (one driven joint), or `joints: {<joint>: {elements: [...]}}`
+    (a multi-joint protocol: each driven joint its own elements; a joint may carry none)."""
+
+    name: str = ""
+    description: str = ""
+    elements: list[ElementSpec] = Field(default_factory=list)
+    joints: dict[Identifier, JointDeviceSpec] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _one_form(self) -> Any:
+        if bool(self.elements) == bool(self.joints):
+            raise ValueError("give exactly one of `elements` (one joint) and `joints` (elements per joint)")
+        return self
+
+    def located_elements(self) -> list[tuple[str, tuple[str | int, ...], ElementSpec]]:
+        """(joint or "", YAML location, element) for every element, in file order."""
+        if self.elements:
+            return [("", ("device", "elements", i), el) for i, el in enumerate(self.elements)]
+        return [
+            (joint, ("device", "joints", joint, "elements", i), el)
+            for joint, spec in self.joints.items()
+            for i, el in enumerate(spec.elements)
+        ]
 
 
 # ------------------------------------------------------------------------------------ trajectories
@@ -442,13 +469,14 @@ class Protocol(_Model):
     title: str = ""
     description: str = ""
     rig_name: str = Field(alias="rig", min_length=1)
-    joint: Identifier
+    joint: Identifier | None = None
+    joints: list[Identifier] | None = Field(default=None, min_length=1, max_length=12)
     rig_overrides: RigOverrides = RigOverrides()
     bolt_torques: list[BoltTorque] = Field(default_factory=list)
     factors: dict[Identifier, Factor] = Field(default_factory=dict)
     device: DeviceSpec | None = None
     trajectories: dict[Identifier, TrajectorySpec] = Field(min_length=1)
-    calibration_step: CalibrationStepSpec
+    calibration_step: CalibrationStepSpec | dict[Identifier, CalibrationStepSpec]
     calibration_check: CalibrationCheckSpec
     processing: ProcessingSpec
     fits: FitsSpec = FitsSpec()
@@ -456,18 +484,59 @@ class Protocol(_Model):
     report: ReportSpec = ReportSpec()
     expectations: list[ExpectationSpec] = Field(default_factory=list)
 
-    _rig: RigSpec | None = PrivateAttr(default=None)
+    _rigs: tuple[RigSpec, ...] = PrivateAttr(default=())
+
+    @model_validator(mode="after")
+    def _joint_or_joints(self) -> Any:
+        if (self.joint is None) == (self.joints is None):
+            raise ValueError("give exactly one of `joint` (one driven joint) and `joints` (several)")
+        if self.joints is not None:
+            seen = [j for i, j in enumerate(self.joints) if j in self.joints[:i]]
+            if seen:
+                raise ValueError(f"joints: {seen[0]!r} is listed twice")
+        return self
+
+    @property
+    def multi_joint(self) -> bool:
+        """True when the protocol names `joints:` (even one): trials drive a set of joints."""
+        return self.joints is not None
 
     @property
     def rig(self) -> RigSpec:
-        """The resolved rig of the driven joint (set by the loader)."""
-        if self._rig is None:
+        """The resolved rig of the driven joint (set by the loader); of a multi-joint protocol, the first
+        driven joint's in channel order (`rigs` has every joint's)."""
+        if not self._rigs:
             raise RuntimeError("the protocol's rig has not been resolved (load it with protocol.loader)")
-        return self._rig
+        return self._rigs[0]
+
+    @property
+    def rigs(self) -> tuple[RigSpec, ...]:
+        """Every driven joint's resolved rig, in output channel order."""
+        if not self._rigs:
+            raise RuntimeError("the protocol's rig has not been resolved (load it with protocol.loader)")
+        return self._rigs
+
+    @property
+    def driven_joints(self) -> tuple[str, ...]:
+        """The driven joints' names in channel order (resolved), or as written before resolution."""
+        if self._rigs:
+            return tuple(r.joint.name for r in self._rigs)
+        return tuple(self.joints) if self.joints is not None else (str(self.joint),)
+
+    def rig_of(self, joint: str) -> RigSpec:
+        return next(r for r in self.rigs if r.joint.name == joint)
+
+    def calibration_step_of(self, joint: str) -> CalibrationStepSpec:
+        """The calibration step of a joint (the single `calibration_step`, or its entry per joint)."""
+        step = self.calibration_step
+        return step if isinstance(step, CalibrationStepSpec) else step[joint]
 
     def with_rig(self, rig: RigSpec) -> Protocol:
+        return self.with_rigs((rig,))
+
+    def with_rigs(self, rigs: tuple[RigSpec, ...]) -> Protocol:
         out = self.model_copy()
-        out._rig = rig
+        out._rigs = tuple(rigs)
         return out
 
     def configurations(self) -> list[tuple[SetSpec, ConfigurationSpec]]:

@@ -37,9 +37,11 @@ class ElementSetting:
     name: str
     type: str
     params: tuple[tuple[str, Quantity | str], ...]
+    joint: str = ""  # the driven joint that carries it (multi-joint protocols; "" for one joint)
 
     def to_json(self) -> dict[str, Any]:
-        return {"name": self.name, "type": self.type, **{k: _plain(v) for k, v in self.params}}
+        joint = {"joint": self.joint} if self.joint else {}
+        return {"name": self.name, "type": self.type, **joint, **{k: _plain(v) for k, v in self.params}}
 
 
 @dataclass(frozen=True)
@@ -69,6 +71,10 @@ class Settings:
     def device_json(self) -> list[dict[str, Any]]:
         """The plan's `device`: [{"name": ..., "type": ..., **params}] in declaration order."""
         return [e.to_json() for e in self.device]
+
+    def device_of(self, joint: str) -> tuple[ElementSetting, ...]:
+        """The elements `joint` carries (every element of a single-joint device)."""
+        return tuple(e for e in self.device if not e.joint or e.joint == joint)
 
     def factor_names(self) -> list[str]:
         return [name for name, _ in self.factors]

@@ -23,6 +23,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from ..hardware.safety import SafetyLimits, SafetyViolation, check_trajectory
+from ..tables import parse_header_table
 from .plan_trajectory import Trajectory
 from .sampling import FloatArray, sample_trajectory
 from .trajectories import (
@@ -85,7 +86,7 @@ def trajectory_limit_problems(
         if not check.problems:
             check.samples("final_period_s", sample_trajectory(trajectory, rate_hz, base_dir), rate_hz)
     elif kind in ("file", "human"):
-        check.samples("file", sample_trajectory(trajectory, rate_hz, base_dir), rate_hz)
+        check.samples("file", sample_trajectory(trajectory, rate_hz, base_dir), rate_hz, base_dir)
     else:
         raise ValueError(f"unknown trajectory profile {kind!r}")
     return check.problems
@@ -98,6 +99,9 @@ class _Checker:
         name = f" {trajectory.name!r}" if trajectory.name else ""
         what = f" {trajectory.source}" if trajectory.source else ""
         self.where = f"trajectory{name} ({trajectory.profile}{what})"
+        self.source = trajectory.source
+        column = dict(trajectory.params).get("column")
+        self.column = column if isinstance(column, str) else None
         self.problems: list[Problem] = []
 
     def _say(self, field: str, text: str) -> None:
@@ -128,8 +132,9 @@ class _Checker:
                 f"{limit:g} deg/s²",
             )
 
-    def samples(self, field: str, samples: FloatArray, rate_hz: float) -> None:
-        """The sampled trajectory's range, rate and acceleration (first and second differences)."""
+    def samples(self, field: str, samples: FloatArray, rate_hz: float, base_dir: Path | None = None) -> None:
+        """The sampled trajectory's range, rate and acceleration (first and second differences); for a
+        file, the line and column of the file row nearest the worst sample."""
         try:
             check_trajectory(samples, rate_hz, self.limits, where="trajectory")
         except SafetyViolation as exc:
@@ -141,8 +146,31 @@ class _Checker:
             self._say(
                 field,
                 f"its {exc.limit} reaches {exc.value:.4g} {exc.units} at t = {exc.time_s:.2f} s (sampled at "
-                f"{rate_hz:g} Hz), the joint allows {bound} {exc.units}",
+                f"{rate_hz:g} Hz{self._file_row(exc.time_s, base_dir)}), the joint allows {bound} {exc.units}",
             )
+
+    def _file_row(self, time_s: float, base_dir: Path | None) -> str:
+        """`, <file> line N column C` of the row nearest `time_s` (empty when not a readable CSV)."""
+        if base_dir is None or self.source is None or not self.source.lower().endswith((".csv", ".txt")):
+            return ""
+        try:
+            table = parse_header_table((base_dir / self.source).read_text(encoding="utf-8"))
+        except (OSError, UnicodeDecodeError):
+            return ""
+        names = [c.lower() for c in table.header.cells] if table.header is not None else []
+        col = next((names.index(n) for n in ("time_s", "t", "time") if n in names), 0)
+        best: tuple[float, int] | None = None
+        for row in table.rows:
+            try:
+                t = float(row.cells[col])
+            except (ValueError, IndexError):
+                continue
+            if best is None or abs(t - time_s) < best[0]:
+                best = (abs(t - time_s), row.line)
+        if best is None:
+            return ""
+        column = f" column {self.column}" if self.column else ""
+        return f"; {self.source} line {best[1]}{column}"
 
 
 def _pair(value: object) -> tuple[float, float]:

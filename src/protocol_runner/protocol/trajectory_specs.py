@@ -161,11 +161,35 @@ class HoldSpec(_Spec):
     duration_s: float = Field(gt=0)
 
 
-TrajectorySpec = Annotated[
+JointTrajectorySpec = Annotated[
     SinusoidSpec | TriangleSpec | FileSpec | IdentificationSpec | RampedStepSpec | HoldSpec,
     Field(discriminator="kind"),
 ]
-TRAJECTORY_KINDS: tuple[str, ...] = ("sinusoid", "triangle", "file", "identification", "ramped_step", "hold")
+"""The motion of one joint."""
+
+
+class PerJointSpec(_Spec):
+    """A multi-joint protocol's motion given joint by joint: `joints: {<joint>: <a trajectory of any
+    other kind>}`, one entry per driven joint. The joints share the trial's time: every entry must last
+    the same number of output ticks."""
+
+    kind: Literal["per_joint"]
+    joints: Annotated[dict[str, JointTrajectorySpec], Field(min_length=1)]
+
+
+TrajectorySpec = Annotated[
+    SinusoidSpec | TriangleSpec | FileSpec | IdentificationSpec | RampedStepSpec | HoldSpec | PerJointSpec,
+    Field(discriminator="kind"),
+]
+TRAJECTORY_KINDS: tuple[str, ...] = (
+    "sinusoid",
+    "triangle",
+    "file",
+    "identification",
+    "ramped_step",
+    "hold",
+    "per_joint",
+)
 
 BINDABLE_FIELDS: dict[str, tuple[str, ...]] = {
     "sinusoid": ("range_deg", "speed_deg_s"),
@@ -174,14 +198,28 @@ BINDABLE_FIELDS: dict[str, tuple[str, ...]] = {
     "identification": ("range_deg",),
     "ramped_step": ("from_deg", "step_deg"),
     "hold": ("angle_deg",),
+    "per_joint": (),
 }
 """The fields of each kind that may be bound to a factor quantity (the binding's quantity must carry the
 field's unit suffix: `speed_deg_s` binds to a `..._deg_s` quantity)."""
 
 
+def joint_spec(spec: TrajectorySpec, joint: str) -> tuple[TrajectorySpec, tuple[str, ...]]:
+    """The motion of `joint` under `spec` and the YAML location suffix of its fields: a `per_joint`
+    entry (`joints.<joint>`), else `spec` itself (a single joint, or a file with one column per joint)."""
+    if isinstance(spec, PerJointSpec):
+        return spec.joints[joint], ("joints", joint)
+    return spec, ()
+
+
 def trajectory_bindings(spec: TrajectorySpec) -> dict[str, str]:
-    """field -> "<factor>.<quantity>" for every field of `spec` bound to a factor quantity."""
+    """field -> "<factor>.<quantity>" for every field of `spec` bound to a factor quantity (a `per_joint`
+    spec: `joints.<joint>.<field>` for its entries)."""
     out: dict[str, str] = {}
+    if isinstance(spec, PerJointSpec):
+        for joint, entry in spec.joints.items():
+            out.update({f"joints.{joint}.{k}": v for k, v in trajectory_bindings(entry).items()})
+        return out
     for field in BINDABLE_FIELDS[spec.kind]:
         value = getattr(spec, field)
         if isinstance(value, str):

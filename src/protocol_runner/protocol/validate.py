@@ -26,7 +26,7 @@ from .resolve import (
     configuration_trajectory,
     resolve_settings,
 )
-from .schema import Protocol
+from .schema import CalibrationStepSpec, Protocol
 from .trajectories import calibration_step_peak_speed_deg_s
 
 if TYPE_CHECKING:
@@ -61,6 +61,15 @@ def _cross_check(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc,
     problems += list(check_expectations(p.expectations, {c.key for _, c in p.configurations()}))
     if problems:
         return problems
+    if p.multi_joint:
+        from .multi_validate import check_joint_motions
+
+        return check_joint_motions(
+            loaded,
+            check_files=check_files,
+            limit_problems=_limit_problems,
+            relative_message=_relative_message,
+        )
     motions: list[Motion] = [
         (("calibration_step",), "the calibration step", calibration_trajectory(p)),
     ]
@@ -100,11 +109,12 @@ def _which_configurations(where: list[tuple[str, int]], all_keys: set[int]) -> s
     return f"{noun} {key_spans(keys)} in {in_sets}"
 
 
-def _limit_problems(loaded: LoadedProtocol, motions: list[Motion]) -> list[Problem]:
-    """The field of the trajectory (or of the calibration step) that breaks a limit, once per message."""
+def _limit_problems(loaded: LoadedProtocol, motions: list[Motion], joint: str = "") -> list[Problem]:
+    """The field of the trajectory (or of the calibration step) that breaks a limit, once per message
+    (`joint`: of a multi-joint protocol, whose `loaded` is that joint's view)."""
     from .stream_check import safety_limits
     from .trajectory_limits import trajectory_limit_problems
-    from .trajectory_specs import trajectory_bindings
+    from .trajectory_specs import joint_spec, trajectory_bindings
 
     p = loaded.protocol
     limits = safety_limits(p.rig)
@@ -112,18 +122,32 @@ def _limit_problems(loaded: LoadedProtocol, motions: list[Motion]) -> list[Probl
     for where, what, traj in motions:
         name = traj.name or ""
         spec = p.trajectories.get(name)
-        bindings = trajectory_bindings(spec) if spec is not None and what != "the calibration step" else {}
-        base: Loc = ("calibration_step",) if what == "the calibration step" else ("trajectories", name)
+        prefix: tuple[str, ...] = ()
+        if spec is not None and joint:
+            spec, prefix = joint_spec(spec, joint)
+        calibration = what.startswith("the calibration step")
+        bindings = trajectory_bindings(spec) if spec is not None and not calibration else {}
+        base: Loc = (
+            (
+                "calibration_step",
+                *((joint,) if joint and not isinstance(p.calibration_step, CalibrationStepSpec) else ()),
+            )
+            if calibration
+            else ("trajectories", name, *prefix)
+        )
         for field, message in trajectory_limit_problems(
             traj, limits, p.rig.output.rate_hz, loaded.base_dir, bindings
         ):
-            which = ("", 0) if base == ("calibration_step",) else _set_and_key(p, where)
+            which = ("", 0) if calibration else _set_and_key(p, where)
             out.setdefault(((*base, field), message), []).append(which)
     all_keys = {c.key for _, c in p.configurations()}
+    of_joint = f", joint {joint}" if joint else ""
     return [
         (
             loc,
-            message if loc[0] == "calibration_step" else f"{message} ({_which_configurations(w, all_keys)})",
+            f"{message}{f' (joint {joint})' if joint else ''}"
+            if loc[0] == "calibration_step"
+            else f"{message} ({_which_configurations(w, all_keys)}{of_joint})",
         )
         for (loc, message), w in out.items()
     ]
@@ -144,7 +168,10 @@ def _fmt_range(rng: tuple[float, ...]) -> str:
 
 
 def _check_factors(p: Protocol) -> Iterator[Problem]:
-    joint = p.rig.joint.range_deg
+    # a multi-joint protocol's range quantities: inside some driven joint's range (each trajectory and
+    # stop is then checked against its own joint's)
+    lows, highs = zip(*(r.joint.range_deg for r in p.rigs), strict=True)
+    joint = (min(lows), max(highs))
     for factor, levels in p.factors.items():
         if factor in (TRAJECTORY_PARAMETER,):
             yield ("factors", factor), f"{factor!r} is reserved (a comparison's parameter); rename the factor"
@@ -170,7 +197,7 @@ def _check_factors(p: Protocol) -> Iterator[Problem]:
                     yield (
                         (*loc, q),
                         f"{_fmt_range(value)} is outside the joint's range {_fmt_range(joint)} "
-                        f"({p.rig.joint.name}, {p.rig.rig_file})",
+                        f"({', '.join(p.driven_joints)}, {p.rig.rig_file})",
                     )
 
 
@@ -242,33 +269,55 @@ def _resolve_configurations(loaded: LoadedProtocol, check_files: bool) -> Iterat
 
 
 def _check_calibration_step(p: Protocol) -> Iterator[Problem]:
-    joint = p.rig.joint.range_deg
-    step = p.calibration_step
-    for value, field in ((step.from_deg, "from_deg"), (step.from_deg + step.step_deg, "step_deg")):
-        if not joint[0] <= value <= joint[1]:
+    per_joint = not isinstance(p.calibration_step, CalibrationStepSpec)
+    if per_joint and not p.multi_joint:
+        yield ("calibration_step",), "a step per joint needs `joints:`; give from_deg, step_deg, ... here"
+        return
+    if per_joint:
+        assert isinstance(p.calibration_step, dict)
+        for name in p.calibration_step:
+            if name not in p.driven_joints:
+                yield (
+                    ("calibration_step", name),
+                    f"{name!r} is not driven (joints: {', '.join(p.driven_joints)})",
+                )
+        for name in p.driven_joints:
+            if name not in p.calibration_step:
+                yield ("calibration_step",), f"no calibration step for driven joint {name!r}"
+        if any(j not in p.calibration_step for j in p.driven_joints):
+            return
+    for rig in p.rigs:
+        name = rig.joint.name
+        joint = rig.joint.range_deg
+        step = p.calibration_step_of(name)
+        base: Loc = ("calibration_step", name) if per_joint else ("calibration_step",)
+        whose = f"joint {name}'s" if p.multi_joint else "the joint's"
+        for value, field in ((step.from_deg, "from_deg"), (step.from_deg + step.step_deg, "step_deg")):
+            if not joint[0] <= value <= joint[1]:
+                yield (
+                    (*base, field),
+                    f"the calibration step reaches {value:g} deg, outside {whose} range {_fmt_range(joint)}",
+                )
+        peak = calibration_step_peak_speed_deg_s(step.step_deg, step.ramp_s)
+        if peak > rig.safety.max_rate_deg_s:
             yield (
-                ("calibration_step", field),
-                f"the calibration step reaches {value:g} deg, outside the joint's range {_fmt_range(joint)}",
+                (*base, "ramp_s"),
+                (
+                    f"a {abs(step.step_deg):g} deg step over {step.ramp_s:g} s peaks at {peak:.0f} deg/s, "
+                    f"above {whose} rate limit max_rate_deg_s = {rig.safety.max_rate_deg_s:g}; lengthen ramp_s"
+                ),
             )
-    peak = calibration_step_peak_speed_deg_s(step.step_deg, step.ramp_s)
-    if peak > p.rig.safety.max_rate_deg_s:
-        yield (
-            ("calibration_step", "ramp_s"),
-            (
-                f"a {abs(step.step_deg):g} deg step over {step.ramp_s:g} s peaks at {peak:.0f} deg/s, above "
-                f"the joint's rate limit max_rate_deg_s = {p.rig.safety.max_rate_deg_s:g}; lengthen ramp_s"
-            ),
-        )
 
 
 def _check_files(p: Protocol, base: Path) -> Iterator[Problem]:
     """Referenced tables and datasets: confined to the protocol's folder (protocol/paths.py), then loaded.
     (Trajectory files are read when their trajectory is built.)"""
-    for field in ("command_table", "angle_table", "torque_table"):
-        rel = getattr(p.rig.calibration, field)
-        if rel is not None:
-            loc: Loc = ("rig_overrides", "joints", p.joint, "calibration", field)
-            yield from _check_loadable(loc, base, rel, "calibration table")
+    for rig in p.rigs:
+        for field in ("command_table", "angle_table", "torque_table"):
+            rel = getattr(rig.calibration, field)
+            if rel is not None:
+                loc: Loc = ("rig_overrides", "joints", rig.joint.name, "calibration", field)
+                yield from _check_loadable(loc, base, rel, "calibration table")
     ref = p.report.reference_dataset
     if ref is not None:
         yield from _check_loadable(("report", "reference_dataset"), base, ref, "reference dataset")

@@ -96,7 +96,7 @@ def _without_kind_tag(loc: Loc) -> Loc:
     return tuple(
         part
         for i, part in enumerate(loc)
-        if not (i >= 2 and loc[i - 2] == "trajectories" and part in TRAJECTORY_KINDS)
+        if not (i >= 2 and loc[i - 2] in ("trajectories", "joints") and part in TRAJECTORY_KINDS)
     )
 
 

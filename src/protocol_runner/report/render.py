@@ -36,6 +36,7 @@ from protocol_runner.report.headline import configuration_stats, group_repeatabi
 from protocol_runner.report.limits_text import limits_text
 from protocol_runner.report.load import load_reference_dataset, load_report_data
 from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Comparison, Configuration, ReportData
+from protocol_runner.report.multi_joint import joints_section
 from protocol_runner.report.predictions import predictions
 from protocol_runner.report.settings_view import format_quantity
 from protocol_runner.resources import templates_dir
@@ -131,7 +132,13 @@ def render_html(data: ReportData, *, generated_utc: str | None = None, workers: 
     template = env.get_template(TEMPLATE)
     if generated_utc is None:
         generated_utc = datetime.now(UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
-    return template.render(**_context(data, figures, generated_utc))
+    context = _context(data, figures, generated_utc)
+    joints = joints_section(Path(data.session.archive_path)) if data.session.archive_path else None
+    context["joints_section"] = joints
+    if joints is not None:  # a multi-joint archive: the "Joints" section after the configurations
+        at = [s for s, _ in SECTIONS].index("comparisons")
+        context["sections"] = (*SECTIONS[:at], ("joints", "Joints"), *SECTIONS[at:])
+    return template.render(**context)
 
 
 def _environment() -> jinja2.Environment:

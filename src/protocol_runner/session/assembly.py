@@ -56,7 +56,7 @@ def consolidate_session(
         created_utc=info.created_utc,
         finished_utc=utc_now(),
         status=status,
-        joint=loaded.protocol.rig.joint.name,
+        joint=",".join(loaded.protocol.driven_joints),
         only=info.only,
         events=tuple(json.dumps(e.to_json()) for e in journal.events),
         configuration_attrs=configuration_attrs(plan, journal.units),

@@ -2,22 +2,27 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, cast
 
 from ..errors import HardwareUnavailable
 from ..hardware.calibration import load_calibration_table
+from ..hardware.multi_rig import MultiRig
 from ..hardware.rig import JointConfig, Rig
 from ..protocol.loader import LoadedProtocol
+from ..protocol.schema import RigSpec
 from ..protocol.settings import Settings
 from ..protocol.stream_check import safety_limits
 
 if TYPE_CHECKING:
+    from ..hardware.simulator.daq import SimulatedRig
+    from ..hardware.simulator.multi import MultiSimulatedRig
     from ..hardware.simulator.params import SimulatorParams
 
 
-def joint_config(loaded: LoadedProtocol) -> JointConfig:
-    """The protocol's joint, channels, rates, look-up tables and safety envelope as a hardware JointConfig."""
-    rig = loaded.protocol.rig
+def joint_config(loaded: LoadedProtocol, rig: RigSpec | None = None) -> JointConfig:
+    """The protocol's joint (or `rig`'s, one driven joint of a multi-joint protocol), channels, rates,
+    look-up tables and safety envelope as a hardware JointConfig."""
+    rig = rig or loaded.protocol.rig
     base = loaded.base_dir
     cal = rig.calibration
     return JointConfig(
@@ -51,23 +56,57 @@ class SimulatedBench:
         from ..hardware.simulator.daq import SimulatedRig
         from ..hardware.simulator.params import SimulatorParams
 
+        self.multi: MultiRig | None = None
+        self.multi_sim: MultiSimulatedRig | None = None
+        self.rig: Rig
+        self.sim: SimulatedRig | MultiSimulatedRig
+        p = loaded.protocol
+        if p.multi_joint:
+            from ..hardware.simulator.multi import MultiSimulatedRig
+
+            self.multi_sim = MultiSimulatedRig(
+                [joint_config(loaded, r) for r in p.rigs],
+                [SimulatorParams(**dict(r.simulator)) for r in p.rigs],
+                seed=seed,
+                realtime=realtime,
+            )
+            self.multi = self.multi_sim.make_rig()
+            self.sim = self.multi_sim  # its `clock` gives the simulated robot time (session/runner.py)
+            # the session itself only parks through `rig` (`park(where=...)`), which MultiRig provides;
+            # steps reach the joints through `multi` (steps/multi_trial.py)
+            self.rig = cast(Rig, self.multi)
+            self.mode = "dry-run"
+            return
         self.sim = SimulatedRig(
             joint_config(loaded),
             seed=seed,
             params=params or SimulatorParams(**dict(loaded.protocol.rig.simulator)),
             realtime=realtime,
         )
-        self.rig: Rig = self.sim.make_rig()
+        self.rig = self.sim.make_rig()
         self.mode = "dry-run"
 
     def begin_step(self, step_id: str) -> None:
+        if self.multi_sim is not None:
+            self.multi_sim.begin_step(step_id)
+            return
         self.sim.begin_step(step_id)
 
     def fit_brace(self, settings: Settings | None) -> None:
-        """The simulated operator fits the configuration's device (its resolved elements), or removes it."""
-        self.sim.set_device(None if settings is None else settings.device)
+        """The simulated operator fits the configuration's device (its resolved elements), or removes it
+        (every joint's, in a multi-joint protocol)."""
+        if self.multi_sim is not None:
+            for joint in self.multi_sim.joints:
+                elements = settings.device_of(joint.name) if settings is not None else ()
+                self.multi_sim.set_device(joint.name, elements or None)
+            return
+        cast("SimulatedRig", self.sim).set_device(None if settings is None else settings.device)
 
     def close(self) -> None:
+        if self.multi_sim is not None:
+            self.multi_sim.ao.close()
+            self.multi_sim.ai.close()
+            return
         self.sim.ao.close()
         self.sim.ai.close()
 
@@ -79,6 +118,13 @@ class HardwareBench:
         from ..hardware.usb_common import realtime_priority
 
         self.mode = "hardware"
+        self.rig: Rig
+        self.multi: MultiRig | None = None
+        if loaded.protocol.multi_joint:
+            self.multi = open_hardware_multi_rig(loaded)
+            self.multi.loop_context = realtime_priority
+            self.rig = cast(Rig, self.multi)  # the session parks through `rig` (see SimulatedBench)
+            return
         self.rig = open_hardware_rig(loaded)
         # the 100 Hz loop under SCHED_FIFO when allowed (tick jitter p99 < 1 ms needs it on a busy machine)
         self.rig.loop_context = realtime_priority
@@ -122,3 +168,20 @@ def open_hardware_rig(loaded: LoadedProtocol) -> Rig:
 
     ao, ai, clock = open_rig_boards(rig_spec)
     return Rig(joint_config(loaded), ao, ai, clock)
+
+
+def open_hardware_multi_rig(loaded: LoadedProtocol) -> MultiRig:
+    """Open the boards once for every driven joint (one output board, one scan)."""
+    refuse_unsupported_input(loaded)
+    from ..hardware.rig_boards import open_rig_boards
+
+    p = loaded.protocol
+    ao, ai, clock = open_rig_boards(p.rig)
+    for spec in p.rigs[1:]:  # the channels of the other joints exist on the boards opened
+        n_in = getattr(ai, "n_channels", None)
+        if n_in is not None and max(spec.input.angle_channel, spec.input.torque_channel) >= n_in:
+            raise HardwareUnavailable(
+                f"{spec.joint.name}: input channels {spec.input.angle_channel}, {spec.input.torque_channel} "
+                f"are not on the {n_in} channels of the input boards attached"
+            )
+    return MultiRig([joint_config(loaded, r) for r in p.rigs], ao, ai, clock)

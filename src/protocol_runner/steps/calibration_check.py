@@ -83,7 +83,9 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
     rec = run_motion(rig, cmd, where=record_as, stop_requested=ctx.stop_requested)
     target = step.trajectory.number("from_deg") + step.trajectory.number("step_deg")
     limits = ctx.loaded.protocol.calibration_check
-    settle_window = min(1.0, float(ctx.loaded.protocol.calibration_step.hold_s) / 2)
+    settle_window = min(
+        1.0, float(ctx.loaded.protocol.calibration_step_of(ctx.bench.rig.joint.name).hold_s) / 2
+    )
     cmd_in = command_on_input_base(rec.command_time_s, rec.command_deg, rec.input_time_s)
     resp = analyse_step(rec.input_time_s, cmd_in, rec.angle_deg, target, settle_window)
     problems: list[str] = []

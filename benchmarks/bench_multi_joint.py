@@ -1,0 +1,86 @@
+"""Multi-joint output loop (issue 12): tick jitter with three joints against one, in the same run, and the
+leg campaign's dry-run wall time against the robot time it simulates.
+
+Jitter: the paced loop runs on the simulator's real-time clock (`realtime=True`: it sleeps until each
+tick, as on the rig) for DURATION_S of a gait-like motion, once with hip, knee and ankle (one synchronous
+update of three channels per tick, `MultiRig`) and once with the knee alone (`Rig`, one write per tick),
+alternating REPEATS times; it prints the tick lateness (write time minus schedule) p50/p99/max of each.
+Dry run: `run-protocol protocols/leg_phase2.yaml --dry-run` in-process, wall time and simulated robot time.
+
+Run: python benchmarks/bench_multi_joint.py   (about 1 minute: the jitter runs take real time)
+"""
+
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from protocol_runner.commands import run
+from protocol_runner.hardware.motion import run_motion
+from protocol_runner.hardware.multi_rig import run_multi_motion
+from protocol_runner.hardware.simulator.daq import SimulatedRig
+from protocol_runner.hardware.simulator.multi import MultiSimulatedRig
+from protocol_runner.hardware.simulator.params import SimulatorParams
+from protocol_runner.protocol.loader import load_protocol
+from protocol_runner.session.rigs import joint_config
+
+REPO = Path(__file__).resolve().parents[1]
+LEG = REPO / "protocols" / "leg_phase2.yaml"
+DURATION_S = 8.0
+REPEATS = 2
+
+
+def _motion(n: int) -> list[np.ndarray]:
+    t = np.arange(n) / 100.0
+    return [
+        20 + 10 * np.sin(2 * np.pi * t / 4),
+        45 + 20 * np.sin(2 * np.pi * t / 4),
+        8 * np.sin(2 * np.pi * t / 4),
+    ]
+
+
+def _stats(x: np.ndarray) -> str:
+    ms = 1e3 * x
+    return f"p50 {np.percentile(ms, 50):.3f} ms, p99 {np.percentile(ms, 99):.3f} ms, max {ms.max():.3f} ms"
+
+
+def main() -> None:
+    loaded = load_protocol(LEG)
+    joints = [joint_config(loaded, r) for r in loaded.protocol.rigs]
+    params = [SimulatorParams(**dict(r.simulator)) for r in loaded.protocol.rigs]
+    n = int(DURATION_S * 100)
+    three, one = [], []
+    for _ in range(REPEATS):
+        multi = MultiSimulatedRig(joints, params, seed=1, realtime=True)
+        three.append(run_multi_motion(multi.make_rig(), _motion(n), where="bench")[0].tick_lateness_s)
+        single = SimulatedRig(joints[1], seed=1, params=params[1], realtime=True)
+        one.append(run_motion(single.make_rig(), _motion(n)[1], where="bench").tick_lateness_s)
+    print(
+        f"tick lateness, 3 joints (one synchronous update of 3 channels per tick): {_stats(np.concatenate(three))}"
+    )
+    print(
+        f"tick lateness, 1 joint  (one write per tick):                          {_stats(np.concatenate(one))}"
+    )
+    with tempfile.TemporaryDirectory() as tmp:
+        start = time.perf_counter()
+        code = run(
+            str(LEG),
+            dry_run=True,
+            session=Path(tmp) / "s",
+            seed=1,
+            yes=True,
+            only=None,
+            realtime=False,
+            quiet=True,
+        )
+        wall = time.perf_counter() - start
+        journal = (Path(tmp) / "s" / "journal.jsonl").read_text()
+        robot = journal.split("s of robot time simulated")[0].rsplit("; ", 1)[-1].strip()
+    print(f"leg_phase2 dry run: exit {code}, {wall:.1f} s wall for {robot} s of simulated robot time")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,222 @@
+"""Trial and processing steps of a multi-joint protocol (`joints: [...]`, issue 12).
+
+Trial: every driven joint's trajectory is sampled at the output rate and sent in ONE paced loop (one
+synchronous output update per tick for all joints, one input scan of every joint's angle and torque:
+`hardware/multi_rig.py`); each joint's stream is checked against its own envelope before anything moves,
+and a stop request brakes and parks every joint. A brace-off trial replays the brace-on trial's commanded
+motion (every joint's samples, as sent) without the device: the same multi-joint motion, so the torques
+are compared at the same commanded angles (the single-joint Eq 8 rescaling of the measured output,
+thesis §3.3.2, is not done per joint: docs/protocol.md "Several joints").
+
+Unit layout (docs/archive.md "Several joints"): `trials/<n>/brace_<b>` holds the shared time base
+(`time_s`, `command_time_s`, `tick_lateness_s`) and one group per joint `joints/<joint>` with that joint's
+recording (the datasets of a single-joint trial group, its `stream/`, on the same time base).
+
+Processing: each joint's pairs go through the single-joint pipeline (transition removal, filtering,
+equal-angle subtraction, cycles, energy per cycle: `analysis.pipeline.process_configuration`) with that
+joint's device, written under `configurations/<name>/joints/<joint>/`; the configuration's
+`total_energy_loss_j` is the sum over the joints of the energy of the k-th complete cycle of each trial
+(as many cycles as the joint with the fewest).
+"""
+
+from __future__ import annotations
+
+import json
+
+import h5py
+import numpy as np
+import numpy.typing as npt
+
+from ..analysis.joint_energy import total_energy_per_cycle
+from ..analysis.loops import centred_loop
+from ..analysis.pipeline import ConfigurationResult, Recording, TrialPair, process_configuration
+from ..archive.h5util import put, set_attrs
+from ..archive.paths import configuration_name, configuration_path, put_dataset, recording_path
+from ..archive.results import Fill, bouc_wen_fill, processed_fill
+from ..errors import HardwareUnavailable
+from ..hardware.multi_rig import MultiRig, run_multi_motion
+from ..hardware.rig import TrialRecording
+from ..protocol.plan import FitStep, ProcessStep, TrialStep
+from ..protocol.sampling import sample_trajectory
+from ..protocol.step_ids import step_id
+from .context import StepContext, StepOutcome
+from .fit import fit_bouc_wen
+from .recording import put_commands, put_scan
+from .trial import configuration_group_attributes
+
+FloatArray = npt.NDArray[np.float64]
+JOINTS = "joints"
+
+
+def multi_rig(ctx: StepContext) -> MultiRig:
+    rig = getattr(ctx.bench, "multi", None)
+    if not isinstance(rig, MultiRig):
+        raise HardwareUnavailable("this bench drives one joint; the protocol drives several (joints: ...)")
+    return rig
+
+
+def joint_group_path(key: int, trial: int, brace: str, joint: str) -> str:
+    """The group of one joint's recording in a multi-joint trial."""
+    return f"{recording_path(key, trial, brace)}/{JOINTS}/{joint}"
+
+
+def run_trial(step: TrialStep, ctx: StepContext) -> StepOutcome:
+    rig = multi_rig(ctx)
+    ctx.bench.fit_brace(step.settings if step.brace == "on" else None)
+    ctx.bench.begin_step(step.id)
+    if step.brace == "on":
+        rate = rig.output_rate_hz
+        commands = [sample_trajectory(t, rate, ctx.loaded.base_dir) for _, t in step.joint_trajectories]
+    else:
+        commands = _brace_on_commands(step, ctx)
+    try:
+        recs = run_multi_motion(rig, commands, where=step.id, stop_requested=ctx.stop_requested)
+    except HardwareUnavailable as exc:
+        partial = getattr(exc, "partial_recording", None)
+        if not isinstance(partial, tuple):
+            raise
+        summary = f"failed after {partial[0].input_time_s.size} samples: {exc.message}"
+        return StepOutcome(_trial_fill(step, ctx, partial, status="failed"), summary, stop=exc)
+    summary = ", ".join(
+        f"{j} {np.min(r.angle_deg):.0f}-{np.max(r.angle_deg):.0f} deg"
+        for j, r in zip(step.joints, recs, strict=True)
+    )
+    return StepOutcome(_trial_fill(step, ctx, recs), summary)
+
+
+def _brace_on_commands(step: TrialStep, ctx: StepContext) -> list[FloatArray]:
+    assert step.twin is not None
+    with ctx.unit(step.twin) as f:
+        return [
+            f[joint_group_path(step.configuration, step.trial, "on", j)]["command_deg"][:]
+            for j in step.joints
+        ]
+
+
+def _trial_fill(
+    step: TrialStep, ctx: StepContext, recs: tuple[TrialRecording, ...], *, status: str = "complete"
+) -> Fill:
+    cfg_attrs = configuration_group_attributes(step, ctx)
+    shared = recs[0]
+    lateness = shared.tick_lateness_s
+
+    def fill(f: h5py.File) -> None:
+        cfg = f.require_group(configuration_path(step.configuration))
+        set_attrs(cfg, {k: v for k, v in cfg_attrs.items() if k != "factors"})
+        cfg.attrs["factors"] = np.array(cfg_attrs["factors"], dtype=h5py.string_dtype())
+        cfg.attrs[JOINTS] = np.array(step.joints, dtype=h5py.string_dtype())
+        g = cfg.require_group(f"trials/{step.trial}").create_group(f"brace_{step.brace}")
+        put_dataset(g, "recording", "time_s", shared.input_time_s)
+        put_dataset(g, "recording", "command_time_s", shared.command_time_s)
+        put_dataset(g, "recording", "tick_lateness_s", lateness)
+        set_attrs(
+            g,
+            {
+                "step_id": step.id,
+                "brace": step.brace,
+                "status": status,
+                "trajectory": json.dumps({j: t.to_json() for j, t in step.joint_trajectories}),
+                "tick_lateness_p99_s": float(np.percentile(lateness, 99)) if lateness.size else 0.0,
+                "tick_lateness_max_s": float(np.max(lateness)) if lateness.size else 0.0,
+                "input_start_offset_s": float(shared.input_time_s[0]) if shared.input_time_s.size else 0.0,
+            },
+        )
+        g.attrs[JOINTS] = np.array(step.joints, dtype=h5py.string_dtype())
+        for (joint, traj), rec in zip(step.joint_trajectories, recs, strict=True):
+            jg = g.create_group(f"{JOINTS}/{joint}")
+            put_scan(jg, rec)
+            put_commands(jg, rec, full=True)
+            set_attrs(jg, {"joint": joint, "trajectory": json.dumps(traj.to_json())})
+
+    return fill
+
+
+def _recording(g: h5py.Group) -> Recording:
+    return Recording(
+        time_s=g["time_s"][:],
+        angle_deg=g["angle_deg"][:],
+        torque_nm=g["torque_nm"][:],
+        command_deg=g["command_deg"][:],
+        command_time_s=g["command_time_s"][:],
+    )
+
+
+def run_process(step: ProcessStep, ctx: StepContext) -> StepOutcome:
+    p = ctx.loaded.protocol
+    name = configuration_name(step.configuration)
+    cfg_step = next(
+        s for s in ctx.plan.steps if isinstance(s, TrialStep) and s.configuration == step.configuration
+    )
+    joints = cfg_step.joints
+    fits = p.fits
+    enabled = getattr(fits, "elements", getattr(fits, "spring", None))
+    results: list[ConfigurationResult] = []
+    for joint in joints:
+        pairs = []
+        for n, (on_id, off_id) in enumerate(step.trials, start=1):
+            with ctx.unit(on_id) as f_on, ctx.unit(off_id) as f_off:
+                pairs.append(
+                    TrialPair(
+                        _recording(f_on[joint_group_path(step.configuration, n, "on", joint)]),
+                        _recording(f_off[joint_group_path(step.configuration, n, "off", joint)]),
+                        trial=n,
+                    )
+                )
+        device = cfg_step.settings.device_of(joint)
+        results.append(
+            process_configuration(
+                pairs, ctx.processing, device=device if device and enabled and enabled.enabled else None
+            )
+        )
+    total, which = total_energy_per_cycle(
+        [r.energy_loss_j for r in results], [r.energy_cycle_trial for r in results]
+    )
+    fills = [
+        processed_fill(f"{name}/{JOINTS}/{joint}", r, ctx.processing)
+        for joint, r in zip(joints, results, strict=True)
+    ]
+
+    def fill(f: h5py.File) -> None:
+        for one in fills:
+            one(f)
+        cfg = f.require_group(configuration_path(step.configuration))
+        put(cfg, "total_energy_loss_j", total, "J")
+        put(cfg, "total_energy_cycle_trial", which, "1")
+        cfg.attrs[JOINTS] = np.array(joints, dtype=h5py.string_dtype())
+
+    parts = [f"{j} {r.energy.mean_j:.2f} J" for j, r in zip(joints, results, strict=True) if r.energy.n]
+    summary = f"{total.size} leg cycles, total {float(np.mean(total)) if total.size else 0.0:.2f} J ({', '.join(parts)})"
+    return StepOutcome(fill, summary)
+
+
+def run_fit(step: FitStep, ctx: StepContext) -> StepOutcome:
+    """The Bouc-Wen fit per joint (`fit.fit_bouc_wen` on that joint's processed, centred loops) for every
+    driven joint that carries device elements; written under `joints/<joint>/fits/bouc_wen`."""
+    if "bouc_wen" not in step.models:
+        return StepOutcome(None, "no Bouc-Wen fit asked")
+    cfg_step = next(
+        s for s in ctx.plan.steps if isinstance(s, TrialStep) and s.configuration == step.configuration
+    )
+    name = configuration_name(step.configuration)
+    fills: list[Fill] = []
+    parts: list[str] = []
+    with ctx.unit(step_id("process", key=step.configuration)) as f:
+        loops = {}
+        for joint in cfg_step.joints:
+            if not cfg_step.settings.device_of(joint):
+                continue  # nothing on this joint: its brace torque is the sensors' noise
+            trials = f[f"{configuration_path(step.configuration)}/{JOINTS}/{joint}/trials"]
+            loops[joint] = [
+                centred_loop(trials[n]["processed/angle_deg"][:], trials[n]["processed/brace_torque_nm"][:])
+                for n in sorted(trials, key=int)
+            ]
+    for joint, segments in loops.items():
+        result, cv = fit_bouc_wen(segments, ctx.loaded.protocol.fits.bouc_wen)
+        fills.append(bouc_wen_fill(f"{name}/{JOINTS}/{joint}", result, segments, cv))
+        parts.append(f"{joint} RMSE {result.rmse_nm:.2f} N*m, R2 {result.r2:.3f}")
+
+    def fill(f: h5py.File) -> None:
+        for one in fills:
+            one(f)
+
+    return StepOutcome(fill, "; ".join(parts) or "no joint carries a device")
