@@ -22,7 +22,7 @@ from pydantic import (
     model_validator,
 )
 
-from protocol_runner.protocol.expectations import ExpectationSpec
+from protocol_runner.protocol.expectations import ExpectationSpec, RepeatabilitySpec
 from protocol_runner.protocol.trajectory_specs import TrajectorySpec
 from protocol_runner.protocol.units import known_suffixes, unit_suffix
 
@@ -412,6 +412,7 @@ class ReportSpec(_Model):
     reference_dataset: str | None = None
     comparisons: list[ComparisonSpec] = Field(default_factory=list)
     predictions: list[PredictionSpec] = Field(default_factory=list)
+    repeatability: list[RepeatabilitySpec] = Field(default_factory=list)
 
 
 class Protocol(_Model):
