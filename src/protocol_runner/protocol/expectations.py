@@ -135,7 +135,10 @@ def check_repeatability(
             differ = [n for n in (*ref, *(n for n in own if n not in ref)) if ref.get(n) != own.get(n)]
             if differ:
                 shown = "; ".join(f"{n} {own.get(n, '(unset)')} vs {ref.get(n, '(unset)')}" for n in differ)
-                yield loc, (
-                    f"configuration {key} does not have the settings of configuration {first} ({shown}): "
-                    "a repeatability group needs identical configurations"
+                yield (
+                    loc,
+                    (
+                        f"configuration {key} does not have the settings of configuration {first} ({shown}): "
+                        "a repeatability group needs identical configurations"
+                    ),
                 )
