@@ -176,3 +176,30 @@ def test_a_contrast_needs_two_units_per_group_and_data_in_every_group() -> None:
     assert math.isnan(contrast_interval([]).difference)
     exact = contrast_interval([(1.0, [2.0, 2.0]), (-1.0, [0.5, 0.5])])
     assert (exact.low, exact.high, exact.p_value) == (1.5, 1.5, 0.0)
+
+
+def test_cv_is_undefined_at_a_zero_mean_and_defined_at_any_other() -> None:
+    assert math.isnan(t_interval([-1.0, 1.0]).cv)  # mean exactly zero
+    assert t_interval([0.5, 1.5]).cv == pytest.approx(np.std([0.5, 1.5], ddof=1) / 1.0)  # mean exactly 1
+    assert t_interval([-1.5, -0.5]).cv == pytest.approx(np.std([0.5, 1.5], ddof=1) / 1.0)  # |mean|
+    assert t_interval([2.0, 4.0]).cv == pytest.approx(math.sqrt(2.0) / 3.0)  # two units suffice
+
+
+def test_constant_groups_give_an_exact_welch_difference() -> None:
+    same = welch_interval([2.0, 2.0, 2.0], [2.0, 2.0])
+    assert (same.difference, same.low, same.high, same.p_value) == (0.0, 0.0, 0.0, 1.0)
+    assert same.dof == math.inf and not same.significant
+    apart = welch_interval([2.0, 2.0], [3.5, 3.5])
+    assert (apart.difference, apart.low, apart.high, apart.p_value) == (1.5, 1.5, 1.5, 0.0)
+    assert apart.significant
+
+
+def test_repeatability_of_one_group_and_of_none() -> None:
+    one = repeatability([[1.0, 2.0]])
+    assert (one.groups, one.units, one.grand_mean) == (1, 2, 1.5)
+    assert math.isnan(one.between_cv) and math.isnan(one.icc)
+    none = repeatability([[], [math.nan]])
+    assert (none.groups, none.units) == (0, 0) and math.isnan(none.grand_mean)
+    single_units = repeatability([[1.0], [2.0], [4.0]])  # no replication within a group: no ICC
+    assert single_units.units == 3 and math.isnan(single_units.icc)
+    assert single_units.between_cv == pytest.approx(np.std([1, 2, 4], ddof=1) / (7 / 3))
