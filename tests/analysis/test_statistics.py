@@ -9,6 +9,7 @@ import pytest
 from scipy import stats
 
 from protocol_runner.analysis.statistics import (
+    TInterval,
     coefficient_of_variation,
     contrast_interval,
     repeatability,
@@ -203,3 +204,9 @@ def test_repeatability_of_one_group_and_of_none() -> None:
     single_units = repeatability([[1.0], [2.0], [4.0]])  # no replication within a group: no ICC
     assert single_units.units == 3 and math.isnan(single_units.icc)
     assert single_units.between_cv == pytest.approx(np.std([1, 2, 4], ddof=1) / (7 / 3))
+
+
+def test_a_single_unit_has_no_cv_whatever_its_spread_field_says() -> None:
+    # the CV is a between-unit quantity: one unit has none, even if a caller fills `sd`
+    assert math.isnan(TInterval(1, 2.0, 0.5, math.nan, math.nan).cv)
+    assert TInterval(2, 2.0, 0.5, 1.0, 3.0).cv == 0.25
