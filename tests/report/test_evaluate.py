@@ -234,3 +234,36 @@ def test_evaluate_all_keeps_the_declaration_order() -> None:
         spec(relation="decreasing", configurations=[1, 2]).model_copy(update={"id": "a"}),
     ]
     assert [(v.spec.id, v.verdict) for v in evaluate_all(specs, RISING)] == [("b", "met"), ("a", "not met")]
+
+
+def test_a_fall_whose_ends_overlap_is_not_met() -> None:
+    falling = data(c1=[3.1, 1.1, 2.1], c2=[2.0, 2.1, 1.9], c3=[1.0, 2.9, 1.9])  # means 2.1 > 2.0 > 1.93
+    v = evaluate_expectation(spec(relation="decreasing", configurations=[1, 2, 3]), falling)
+    assert v.verdict == "not met"
+    assert v.reason.endswith("; the interval does not exclude zero")
+    assert (
+        evaluate_expectation(spec(relation="decreasing", configurations=[1, 2, 3]), noisy).verdict
+        == "not met"
+    )
+
+
+def test_interval_bounds_are_inclusive() -> None:
+    exact = data(c1=[2.0, 2.0, 2.0])  # zero-width interval at 2.0
+    for interval in ([1.0, 2.0], [2.0, 3.0], [2.0, 2.0 + 1e-12]):
+        assert (
+            evaluate_expectation(
+                spec(relation="inside", configurations=[1], interval=interval), exact
+            ).verdict
+            == "met"
+        )
+    for value in (1.5, 2.5):  # |2.0 - value| = 0.5 = tolerance: still equal
+        v = evaluate_expectation(
+            spec(relation="equal", configurations=[1], value=value, tolerance=0.5), exact
+        )
+        assert v.verdict == "met"
+    assert (
+        evaluate_expectation(
+            spec(relation="inside", configurations=[1], interval=[2.0 + 1e-9, 3.0]), exact
+        ).verdict
+        == "not met"
+    )
