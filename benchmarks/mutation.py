@@ -6,7 +6,7 @@ module-level constants (the Eq 24/25 matrices), which a trampoline-based tool (m
 
 What it does:
 
-1. Copies ``src/``, ``tests/`` and ``pyproject.toml`` of the working tree into a scratch directory (one
+1. Copies ``src/``, ``tests/``, ``protocols/``, ``reports/`` and ``pyproject.toml`` of the working tree into a scratch directory (one
    copy per job): the mutants are written to the copy, never to the checkout.
 2. For each module it lists cosmic-ray's mutants, drops those that are not plausible bugs (see
    ``_not_plausible``), draws a seeded sample of at most ``--sample`` of them (the same sample on every
@@ -67,7 +67,15 @@ def _science_modules() -> dict[str, str]:
     return out
 
 
-TESTS = _science_modules()
+# Science outside those packages (issue 19): the metric library and the expectation evaluator of the report,
+# scored with their in-memory tests (seconds; the archive-based tests/report/test_report_expectations.py
+# takes minutes per mutant on a loaded machine). A module's tests may be several globs, space-separated.
+REPORT_SCIENCE = {
+    "report/metrics.py": "tests/report/test_metrics.py",
+    "report/evaluate.py": "tests/report/test_evaluate.py",
+}
+
+TESTS = _science_modules() | REPORT_SCIENCE
 
 ARITHMETIC = {"Add", "Sub", "Mul", "Div", "FloorDiv"}
 LOGICAL = {"BitAnd", "BitOr"}
@@ -137,7 +145,7 @@ def _is_equivalent(equivalent: set[tuple[str, str, str]], line: str, mutated: st
 def _copy_tree(dest: Path) -> None:
     dest.mkdir(parents=True)
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".hypothesis")
-    for name in ("src", "tests"):
+    for name in ("src", "tests", "protocols", "reports"):  # report tests read protocols and templates
         shutil.copytree(ROOT / name, dest / name, ignore=ignore)
     shutil.copy2(ROOT / "pyproject.toml", dest / "pyproject.toml")
 
@@ -189,7 +197,7 @@ def _mutants(module: str, sample: int, seed: int) -> tuple[int, int, int, list]:
 
 
 def _test_command(module: str) -> str | None:
-    tests = " ".join(sorted(str(p) for p in Path().glob(TESTS[module])))
+    tests = " ".join(sorted({str(p) for pattern in TESTS[module].split() for p in Path().glob(pattern)}))
     return f"{sys.executable} -m pytest -x -q -p no:cacheprovider {tests}" if tests else None
 
 

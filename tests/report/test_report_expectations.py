@@ -7,6 +7,7 @@ import re
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 from pydantic import ValidationError
@@ -15,6 +16,7 @@ from protocol_runner.protocol.expectations import ExpectationSpec, check_expecta
 from protocol_runner.report.evaluate import evaluate_expectation
 from protocol_runner.report.findings import declared_expectations, evaluate_expectations
 from protocol_runner.report.load import load_report_data
+from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import ReportData
 from protocol_runner.report.render import generate_report
 from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, thesis_like_specs, write_archive
@@ -276,3 +278,79 @@ def test_a_bad_expectation_is_refused_with_file_line_and_field(
     assert re.search(r"knee_phase1\.yaml.*line \d+", message) or re.search(
         r"knee_phase1\.yaml:\d+", message
     ), message
+
+
+_ADDED = {
+    "id": "brake_added",
+    "text": "the brake adds the same loss at both speeds",
+    "metric": "energy_per_cycle",
+    "relation": "equal",
+    "configurations": [5],
+    "baseline": [1],
+    "than": [6],
+    "than_baseline": [2],
+    "tolerance": 0.7,
+}
+
+
+@pytest.mark.parametrize(("fast_brake_j", "expected"), [(7.35, "met"), (8.6, "not met")])
+def test_a_difference_of_differences_decides_a_speed_independent_added_loss(
+    tmp_path: Path, fast_brake_j: float, expected: str
+) -> None:
+    from scipy import stats
+
+    energies = {1: 0.85, 5: 7.0, 2: 1.2, 6: fast_brake_j}  # slow: 1 (no brake), 5; fast: 2 (no brake), 6
+    configs = [ConfigSpec(key=k, energy_j=e, n_trials=3, energy_spread=0.005) for k, e in energies.items()]
+    data = load_report_data(_archive(tmp_path, configs, "{}"), workers=1)
+    verdict = evaluate_expectation(ExpectationSpec.model_validate(_ADDED), data)
+    assert verdict.verdict == expected
+    v = {k: np.asarray(trial_values(data.configuration(k), "energy_per_cycle")) for k in energies}  # type: ignore[arg-type]
+    value = v[5].mean() - v[1].mean() - v[6].mean() + v[2].mean()
+    var = [x.var(ddof=1) / x.size for x in v.values()]
+    dof = sum(var) ** 2 / sum(s**2 / (x.size - 1) for s, x in zip(var, v.values(), strict=True))
+    half = stats.t.ppf(0.975, dof) * np.sqrt(sum(var))
+    shown = re.search(
+        r"^\(5 minus 1\) minus \(6 minus 2\): ([-\d.e]+) J, 95 % Welch-Satterthwaite interval "
+        r"\[([-\d.e]+), ([-\d.e]+)\] J",
+        verdict.reason,
+    )
+    assert shown is not None, verdict.reason
+    assert float(shown[1]) == pytest.approx(value, rel=5e-3, abs=1e-3)
+    assert float(shown[2]) == pytest.approx(value - half, rel=5e-3, abs=1e-3)
+    assert float(shown[3]) == pytest.approx(value + half, rel=5e-3, abs=1e-3)
+    assert [e.key for e in verdict.evidence] == [5, 1, 6, 2]
+
+
+def test_what_a_setting_adds_over_its_baseline_compares_with_a_value(tmp_path: Path) -> None:
+    configs = [ConfigSpec(key=k, energy_j=e, n_trials=3) for k, e in {1: 1.0, 5: 7.0}.items()]
+    data = load_report_data(_archive(tmp_path, configs, "{}"), workers=1)
+    base = {"id": "x", "text": "t", "metric": "energy_per_cycle", "configurations": [5], "baseline": [1]}
+    more = ExpectationSpec.model_validate({**base, "relation": "greater", "value": 5.0})
+    less = ExpectationSpec.model_validate({**base, "relation": "greater", "value": 6.5})
+    assert evaluate_expectation(more, data).verdict == "met"
+    assert evaluate_expectation(less, data).verdict == "not met"  # adds 6 J, not more than 6.5
+    reason = evaluate_expectation(more, data).reason
+    assert reason.startswith("configuration 5 minus 1: 5.9") and "95 % Welch interval" in reason
+
+
+@pytest.mark.parametrize(
+    ("fields", "message"),
+    [
+        ({"relation": "increasing", "baseline": [1, 1]}, "takes no `baseline`"),
+        ({"relation": "equal", "tolerance": 1, "value": 0, "baseline": [1]}, "as many configurations"),
+        ({"relation": "greater", "value": 0, "than_baseline": [1, 1]}, "`than_baseline` needs `than`"),
+        ({"relation": "greater", "than": [3, 4], "than_baseline": [1]}, "as many configurations as `than`"),
+    ],
+)
+def test_invalid_baselines_are_refused(fields: dict[str, object], message: str) -> None:
+    entry = {"id": "x", "text": "t", "metric": "energy_per_cycle", "configurations": [1, 2], **fields}
+    with pytest.raises(ValidationError) as info:
+        ExpectationSpec.model_validate(entry)
+    assert message in str(info.value)
+
+
+def test_unknown_baseline_keys_are_located() -> None:
+    spec = ExpectationSpec.model_validate(_ADDED | {"baseline": [77], "than_baseline": [78]})
+    problems = list(check_expectations([spec], {1, 2, 5, 6}))
+    assert (("expectations", 0, "baseline", 0), "no configuration has key 77") in problems
+    assert (("expectations", 0, "than_baseline", 0), "no configuration has key 78") in problems

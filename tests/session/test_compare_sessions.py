@@ -85,6 +85,12 @@ def test_a_stiffer_brake_makes_its_friction_configurations_differ(
     flags = dict(re.findall(r'data-a="(\d+)" data-b="\d+" data-significant="(yes|no)"', html))
     # no brake pads (level 0) is untouched; levels 1-3 lose more energy with the stiffer brake
     assert flags == {"4": "no", "5": "yes", "6": "yes", "7": "yes"}
+    energy = dict(
+        re.findall(
+            r'data-a="(\d+)" data-b="\d+" data-significant="(?:yes|no)"\s+data-energy="(yes|no)"', html
+        )
+    )
+    assert energy == flags  # the brake changes the energy lost per cycle
     result = compare_archives(sessions["a"] / "archive.h5", sessions["stiff"] / "archive.h5")
     for p in result.pairs[1:]:
         assert p.energy.low > 0  # B (stiffer) minus A: more energy lost per cycle

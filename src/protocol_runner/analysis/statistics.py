@@ -12,6 +12,7 @@ Public API:
     trial_means(values, trial_ids) -> (trial numbers, means)
     TInterval, t_interval(values, confidence=0.95)
     WelchInterval, welch_interval(a, b, confidence=0.95)
+    contrast_interval(terms, confidence=0.95)   (a weighted sum of means, e.g. a difference of differences)
     Repeatability, repeatability(groups)
     coefficient_of_variation(values)
 """
@@ -141,6 +142,34 @@ def welch_interval(a: npt.ArrayLike, b: npt.ArrayLike, confidence: float = CONFI
     half = float(stats.t.ppf(0.5 + confidence / 2.0, dof)) * se
     p_value = float(2.0 * stats.t.sf(abs(diff) / se, dof))
     return WelchInterval(diff, diff - half, diff + half, dof, p_value, confidence)
+
+
+def contrast_interval(
+    terms: Sequence[tuple[float, npt.ArrayLike]], confidence: float = CONFIDENCE
+) -> WelchInterval:
+    """A linear contrast C = sum(w_i * mean_i) of independent groups with its Welch-Satterthwaite interval.
+
+    Var(C) = sum(w_i^2 s_i^2 / n_i); degrees of freedom Var(C)^2 / sum((w_i^2 s_i^2 / n_i)^2 / (n_i - 1)).
+    One group with weight 1 is its mean's Student t-interval (n - 1 degrees of freedom); the groups
+    `[(-1, a), (1, b)]` give `welch_interval(a, b)`; four groups `[(1, a), (-1, b), (-1, c), (1, d)]`
+    give the difference of differences (a - b) - (c - d). NaN bounds when any group has fewer than two
+    units; the p-value tests C = 0.
+    """
+    groups = [(float(w), _finite(x)) for w, x in terms]
+    if not groups or any(x.size == 0 for _, x in groups):
+        return WelchInterval(math.nan, math.nan, math.nan, math.nan, math.nan, confidence)
+    value = float(sum(w * x.mean() for w, x in groups))
+    if any(x.size < 2 for _, x in groups):
+        return WelchInterval(value, math.nan, math.nan, math.nan, math.nan, confidence)
+    parts = [w * w * float(x.var(ddof=1)) / x.size for w, x in groups]
+    variance = sum(parts)
+    if variance == 0.0:
+        return WelchInterval(value, value, value, math.inf, 1.0 if value == 0.0 else 0.0, confidence)
+    dof = variance**2 / sum(v * v / (x.size - 1) for v, (_, x) in zip(parts, groups, strict=True))
+    se = math.sqrt(variance)
+    half = float(stats.t.ppf(0.5 + confidence / 2.0, dof)) * se
+    p_value = float(2.0 * stats.t.sf(abs(value) / se, dof))
+    return WelchInterval(value, value - half, value + half, dof, p_value, confidence)
 
 
 def repeatability(groups: Sequence[npt.ArrayLike]) -> Repeatability:

@@ -1,8 +1,9 @@
-"""The schema of one declared expectation (the protocol's `expectations:` list, docs/protocol.md)."""
+"""The schema of the protocol's declared results: its `expectations:` list and the report's
+`repeatability:` groups (docs/protocol.md "Expectations" and "Repeatability"), with their cross-checks."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Annotated, Literal
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictInt, model_validator
@@ -39,6 +40,8 @@ class ExpectationSpec(BaseModel):
     configurations: list[StrictInt] = Field(min_length=1)
     relation: Relation
     than: list[StrictInt] | None = None
+    baseline: list[StrictInt] | None = None  # pairwise with `configurations`: each minus its baseline
+    than_baseline: list[StrictInt] | None = None  # pairwise with `than`: each minus its baseline
     value: float | None = None
     tolerance: float | None = Field(default=None, gt=0)
     interval: _Pair | None = None
@@ -59,6 +62,16 @@ class ExpectationSpec(BaseModel):
                 raise ValueError(f"relation {r} needs exactly one of `than` (configurations) or `value`")
             if self.than is not None and len(self.than) != len(self.configurations):
                 raise ValueError("`than` must list as many configurations as `configurations` (pairwise)")
+        if self.baseline is not None:
+            if r not in ("greater", "less", "equal", "inside"):
+                raise ValueError(f"relation {r} takes no `baseline` (greater, less, equal and inside do)")
+            if len(self.baseline) != len(self.configurations):
+                raise ValueError("`baseline` must list as many configurations as `configurations` (pairwise)")
+        if self.than_baseline is not None:
+            if self.than is None:
+                raise ValueError("`than_baseline` needs `than`")
+            if len(self.than_baseline) != len(self.than):
+                raise ValueError("`than_baseline` must list as many configurations as `than` (pairwise)")
         if r == "equal" and self.tolerance is None:
             raise ValueError("relation equal needs `tolerance` (in the metric's unit)")
         if r == "inside":
@@ -78,10 +91,59 @@ def check_expectations(
         if spec.id in seen:
             yield ("expectations", i, "id"), f"expectation id {spec.id!r} is used twice"
         seen.add(spec.id)
-        for field in ("configurations", "than"):
+        for field in ("configurations", "than", "baseline", "than_baseline"):
             for j, key in enumerate(getattr(spec, field) or ()):
                 if key not in keys:
                     yield (
                         ("expectations", i, field, j),
                         f"no configuration has key {key} (keys: {key_spans(keys)})",
                     )
+
+
+class RepeatabilitySpec(BaseModel):
+    """A group of configurations with identical settings run in different sets (`report.repeatability`):
+    the report gives their between-set CV and intraclass correlation, the trial as the unit."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    name: Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_]*$", max_length=31)]
+    text: str = ""
+    configurations: list[StrictInt] = Field(min_length=2)
+
+
+def check_repeatability(
+    groups: Sequence[RepeatabilitySpec], settings: Mapping[int, Mapping[str, str]]
+) -> Iterator[tuple[tuple[str | int, ...], str]]:
+    """(location, message) for repeated names, unknown or repeated keys, and a configuration whose
+    settings (`settings[key]`: trajectory and every factor's level) differ from the group's first."""
+    names: set[str] = set()
+    for i, group in enumerate(groups):
+        where = ("report", "repeatability", i)
+        if group.name in names:
+            yield (*where, "name"), f"repeatability group name {group.name!r} is used twice"
+        names.add(group.name)
+        first: int | None = None
+        seen: set[int] = set()
+        for j, key in enumerate(group.configurations):
+            loc = (*where, "configurations", j)
+            if key not in settings:
+                yield loc, f"no configuration has key {key}"
+                continue
+            if key in seen:
+                yield loc, f"configuration {key} is listed twice"
+                continue
+            seen.add(key)
+            if first is None:
+                first = key
+                continue
+            ref, own = settings[first], settings[key]
+            differ = [n for n in (*ref, *(n for n in own if n not in ref)) if ref.get(n) != own.get(n)]
+            if differ:
+                shown = "; ".join(f"{n} {own.get(n, '(unset)')} vs {ref.get(n, '(unset)')}" for n in differ)
+                yield (
+                    loc,
+                    (
+                        f"configuration {key} does not have the settings of configuration {first} ({shown}): "
+                        "a repeatability group needs identical configurations"
+                    ),
+                )

@@ -22,7 +22,7 @@ from pydantic import (
     model_validator,
 )
 
-from protocol_runner.protocol.expectations import ExpectationSpec
+from protocol_runner.protocol.expectations import ExpectationSpec, RepeatabilitySpec
 from protocol_runner.protocol.trajectory_specs import TrajectorySpec
 from protocol_runner.protocol.units import compound_unit_problem, known_suffixes, unit_suffix
 
@@ -458,6 +458,7 @@ class ReportSpec(_Model):
     citations: CitationsSpec = CitationsSpec()
     comparisons: list[ComparisonSpec] = Field(default_factory=list)
     predictions: list[PredictionSpec] = Field(default_factory=list)
+    repeatability: list[RepeatabilitySpec] = Field(default_factory=list)
 
 
 class Protocol(_Model):

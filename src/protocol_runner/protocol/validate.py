@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import InvalidInput
 from ..models.elements import ELEMENT_TYPES
-from .expectations import check_expectations
+from .expectations import check_expectations, check_repeatability
 from .only import key_spans
 from .paths import OutsideFolder, confined_path
 from .plan_trajectory import Trajectory
@@ -59,6 +59,8 @@ def _cross_check(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc,
         problems += list(_check_files(p, loaded.base_dir))
     problems += list(_check_report(p))
     problems += list(check_expectations(p.expectations, {c.key for _, c in p.configurations()}))
+    settings = {c.key: {"trajectory": c.trajectory, **c.levels} for _, c in p.configurations()}
+    problems += list(check_repeatability(p.report.repeatability, settings))
     if problems:
         return problems
     if p.multi_joint:

@@ -8,10 +8,11 @@ factor quantity (`<factor>.<quantity>`) and device parameter (`device.<element>.
 Several identical configurations on each side pair in key order.
 
 Per matched pair: energy per cycle and range reached, B minus A, on trial values (the trial is the
-unit) with a 95 % Welch interval; a difference is significant when its interval excludes zero. A pair
-counts as different when its energy per cycle (the primary outcome) differs; the range's own flag is
-shown beside it (testing both for one verdict would double the false-alarm rate). Inputs
-with no configuration in common are incomparable (`InvalidInput`, exit 2).
+unit) with a 95 % Welch interval and its p-value. Each quantity has its own verdict, decided at the
+Bonferroni level for two quantities (p < 0.025, i.e. its 97.5 % interval excludes zero), so that a pair
+of identical configurations is called different (on either quantity) at most 5 % of the time; the pair
+differs when either quantity does, and the verdict names which. Inputs with no configuration in common
+are incomparable (`InvalidInput`, exit 2).
 
 Public API: compare_archives(a, b) -> SessionComparison; render_comparison(result, output) -> Path
 """
@@ -35,6 +36,15 @@ from protocol_runner.resources import templates_dir
 
 TEMPLATE = "compare.html.j2"
 
+#: The two compared quantities and the per-quantity significance level (Bonferroni: 0.05 / 2).
+QUANTITIES = ("energy per cycle", "range reached")
+ALPHA_EACH = 0.05 / len(QUANTITIES)
+
+
+def differs(w: WelchInterval) -> bool:
+    """True when the difference is significant at `ALPHA_EACH` (an undefined p-value: False)."""
+    return bool(w.p_value < ALPHA_EACH)
+
 
 @dataclass(frozen=True)
 class Pair:
@@ -47,9 +57,25 @@ class Pair:
     changed: tuple[tuple[str, str, str], ...]  # (setting, value in A, value in B) where they differ
 
     @property
+    def energy_differs(self) -> bool:
+        """The energy per cycle differs (p < `ALPHA_EACH`)."""
+        return differs(self.energy)
+
+    @property
+    def range_differs(self) -> bool:
+        """The range reached differs (p < `ALPHA_EACH`)."""
+        return differs(self.range)
+
+    @property
     def significant(self) -> bool:
-        """True when the energy-per-cycle difference (the primary outcome) excludes zero."""
-        return self.energy.significant
+        """True when either quantity differs."""
+        return self.energy_differs or self.range_differs
+
+    @property
+    def verdict(self) -> str:
+        """Which quantities differ: "energy per cycle", "range reached", both joined by "and", or "none"."""
+        flags = (self.energy_differs, self.range_differs)
+        return " and ".join(q for q, f in zip(QUANTITIES, flags, strict=True) if f) or "none"
 
     @property
     def label(self) -> str:
@@ -70,25 +96,25 @@ class SessionComparison:
 
     @property
     def n_significant(self) -> int:
-        """Pairs whose energy per cycle differs significantly."""
+        """Pairs that differ significantly in energy per cycle or range reached."""
         return sum(p.significant for p in self.pairs)
 
     def table(self) -> str:
         """The printed table: one line per matched pair."""
         head = (
-            f"{'A':>4} {'B':>4}  {'energy B-A (J)':>15} {'95 % interval':>20}  "
-            f"{'range B-A (deg)':>15} {'95 % interval':>20}  energy differs (range)"
+            f"{'A':>4} {'B':>4}  {'energy B-A (J)':>15} {'95 % interval':>20} {'p':>6}  "
+            f"{'range B-A (deg)':>15} {'95 % interval':>20} {'p':>6}  differs in"
         )
         lines = [head]
         for p in self.pairs:
             lines.append(
-                f"{p.a.key:>4} {p.b.key:>4}  {_num(p.energy.difference):>15} {_ival(p.energy):>20}  "
-                f"{_num(p.range.difference):>15} {_ival(p.range):>20}  {'yes' if p.significant else 'no'}"
-                f" ({'yes' if p.range.significant else 'no'})"
+                f"{p.a.key:>4} {p.b.key:>4}  {_num(p.energy.difference):>15} {_ival(p.energy):>20} "
+                f"{_p(p.energy):>6}  {_num(p.range.difference):>15} {_ival(p.range):>20} {_p(p.range):>6}  "
+                f"{p.verdict}"
             )
         lines.append(
-            f"{len(self.pairs)} matched configurations, {self.n_significant} with a significant energy "
-            "difference; "
+            f"{len(self.pairs)} matched configurations, {self.n_significant} differ in energy per cycle or "
+            f"range reached (each at p < {ALPHA_EACH:g}); "
             f"unmatched: A {list(self.only_a) or 'none'}, B {list(self.only_b) or 'none'}"
         )
         return "\n".join(lines)
@@ -96,6 +122,10 @@ class SessionComparison:
 
 def _num(value: float) -> str:
     return f"{value:+.3f}" if math.isfinite(value) else "—"
+
+
+def _p(w: WelchInterval) -> str:
+    return f"{w.p_value:.3f}" if math.isfinite(w.p_value) else "—"
 
 
 def _ival(w: WelchInterval) -> str:
@@ -204,7 +234,12 @@ def render_comparison(result: SessionComparison, output: Path) -> Path:
     )
     figures = {(p.a.key, p.b.key): overlay_figure(p.a, p.b) for p in result.pairs}
     html = env.get_template(TEMPLATE).render(
-        result=result, figure_of=lambda p: figures[(p.a.key, p.b.key)], fmt=_num, ival=_ival
+        result=result,
+        figure_of=lambda p: figures[(p.a.key, p.b.key)],
+        fmt=_num,
+        ival=_ival,
+        pval=_p,
+        alpha=ALPHA_EACH,
     )
     tmp = output.with_name(f".{output.name}.{os.getpid()}.partial")
     try:

@@ -11,6 +11,11 @@ unit) with 95 % intervals (`analysis.statistics`):
   wholly above (below) zero; than a `value`: each t-interval of the mean lies wholly above (below) it;
 - `equal` within `tolerance`: each interval (difference, or mean minus `value`) lies inside ±tolerance;
 - `inside` `[low, high]` (two-sided): each configuration's t-interval of the mean lies inside it.
+
+With `baseline` (and `than_baseline`), each configuration's value is its mean minus its baseline's: what a
+setting adds over a baseline. The interval is then the Welch-Satterthwaite interval of the contrast
+(`analysis.statistics.contrast_interval`), e.g. (5 - 1) - (6 - 2) for "the brake adds the same loss at
+both speeds".
 """
 
 from __future__ import annotations
@@ -20,7 +25,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import pairwise
 
-from protocol_runner.analysis.statistics import TInterval, WelchInterval, t_interval, welch_interval
+from protocol_runner.analysis.statistics import (
+    TInterval,
+    WelchInterval,
+    contrast_interval,
+    t_interval,
+    welch_interval,
+)
 from protocol_runner.protocol.expectations import ExpectationSpec
 from protocol_runner.report.metrics import LABELS, UNITS, trial_values
 from protocol_runner.report.model import ReportData
@@ -80,7 +91,11 @@ def metric_label(spec: ExpectationSpec) -> str:
 def evaluate_expectation(spec: ExpectationSpec, data: ReportData) -> Verdict:
     """The verdict of `spec` on `data` (never raises for missing data: `not evaluable` says why)."""
     unit = UNITS[spec.metric]
-    keys = list(dict.fromkeys([*spec.configurations, *(spec.than or [])]))
+    keys = list(
+        dict.fromkeys(
+            [*spec.configurations, *(spec.baseline or []), *(spec.than or []), *(spec.than_baseline or [])]
+        )
+    )
     values: dict[int, tuple[float, ...]] = {}
     intervals: dict[int, TInterval] = {}
     for key in keys:
@@ -152,19 +167,41 @@ def _decide(
     parts: list[str] = []
     ok = True
     for i, key in enumerate(spec.configurations):
-        if spec.than is not None:
-            other = spec.than[i]
-            w = welch_interval(values[other], values[key])
-            low, high, ref = w.low, w.high, 0.0
-            subject = f"configuration {key} minus {other}: {_fmt(w.difference)} {unit}, 95 % Welch interval"
-        else:
+        terms, name = _terms(spec, i, key)
+        if len(terms) == 1:
             ti = intervals[key]
-            low, high, ref = ti.low, ti.high, spec.value or 0.0
+            low, high = ti.low, ti.high
             subject = f"configuration {key}: mean {_fmt(ti.mean)} {unit}, 95 % interval"
+        else:
+            c = contrast_interval([(w, values[k]) for w, k in terms])
+            low, high = c.low, c.high
+            kind = "Welch" if len(terms) == 2 else "Welch-Satterthwaite"
+            subject = f"{name}: {_fmt(c.difference)} {unit}, 95 % {kind} interval"
+        ref = 0.0 if spec.than is not None else spec.value or 0.0
         this_ok = _holds(spec, low, high, ref)
         ok = ok and this_ok
         parts.append(f"{subject} {_ival(low, high, unit)}{'' if this_ok else ' (fails)'}")
     return ok, "; ".join(parts) + _criterion(spec, unit)
+
+
+def _terms(spec: ExpectationSpec, i: int, key: int) -> tuple[list[tuple[float, int]], str]:
+    """The weighted configurations of the i-th statement and its readable name."""
+    terms: list[tuple[float, int]] = [(1.0, key)]
+    name = f"configuration {key}"
+    if spec.baseline is not None:
+        terms.append((-1.0, spec.baseline[i]))
+        name = f"configuration {key} minus {spec.baseline[i]}"
+    if spec.than is not None:
+        other = spec.than[i]
+        terms.append((-1.0, other))
+        if spec.than_baseline is not None:
+            terms.append((1.0, spec.than_baseline[i]))
+            name = f"({name.removeprefix('configuration ')}) minus ({other} minus {spec.than_baseline[i]})"
+        elif spec.baseline is not None:
+            name = f"({name.removeprefix('configuration ')}) minus {other}"
+        else:
+            name = f"configuration {key} minus {other}"
+    return terms, name
 
 
 def _holds(spec: ExpectationSpec, low: float, high: float, ref: float) -> bool:

@@ -2,9 +2,9 @@
 
 One `ConfigurationStats` per configuration: trials and cycles analysed, energy per cycle as the mean of
 trial means with its 95 % t-interval and between-trial CV (`analysis.statistics`), the angle range
-reached, and the Bouc-Wen fit quality. `identical_groups` finds configurations whose settings are all the
-same (the matrix's own repeatability check, e.g. one configuration repeated in several sets) and
-`group_repeatability` gives their between-set CV and ICC. The report's summary table, the tidy CSV
+reached, and the Bouc-Wen fit quality. `group_repeatability` gives the between-set CV and ICC of a group of
+configurations the protocol declares identical (`report.repeatability`, read by `report.differences`).
+The report's summary table, the tidy CSV
 exports and the session comparison all read these, so they print the same intervals.
 """
 
@@ -76,19 +76,6 @@ def configuration_stats(cfg: Configuration) -> ConfigurationStats:
         fit_rmse_nm=fit.rmse_nm if fit is not None else math.nan,
         fit_r2=fit.r2 if fit is not None else math.nan,
     )
-
-
-def _settings_signature(cfg: Configuration) -> tuple[str, str]:
-    """Profile and every setting: trajectory, each factor's level and quantities, the resolved device."""
-    return cfg.profile, repr(cfg.settings)
-
-
-def identical_groups(data: ReportData) -> tuple[tuple[int, ...], ...]:
-    """Groups (two or more keys, in matrix order) of configurations whose settings are all identical."""
-    groups: dict[tuple[str, str], list[int]] = {}
-    for cfg in data.configurations:
-        groups.setdefault(_settings_signature(cfg), []).append(cfg.key)
-    return tuple(tuple(sorted(keys)) for keys in groups.values() if len(keys) >= 2)
 
 
 def group_repeatability(data: ReportData, keys: tuple[int, ...]) -> Repeatability:

@@ -24,6 +24,7 @@ from protocol_runner import __version__
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.citations import declared_citations
 from protocol_runner.report.comparison_values import comparison_axis
+from protocol_runner.report.differences import adjacent_differences, declared_repeatability
 from protocol_runner.report.figures import (
     FigureSet,
     distinct_comparisons,
@@ -32,7 +33,7 @@ from protocol_runner.report.figures import (
     slug,
 )
 from protocol_runner.report.findings import TUNED_LABEL, evaluate_expectations
-from protocol_runner.report.headline import configuration_stats, group_repeatability, identical_groups
+from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.limits_text import limits_text
 from protocol_runner.report.load import load_reference_dataset, load_report_data
 from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Comparison, Configuration, ReportData
@@ -210,7 +211,6 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
         )
     overlay_comparisons = distinct_comparisons(data)
     expectations = evaluate_expectations(data)
-    groups = identical_groups(data)
     return {
         "data": data,
         "session": data.session,
@@ -229,7 +229,8 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
         "cite": declared_citations(data.protocol_text),
         "tuned_label": TUNED_LABEL,
         "headline": [configuration_stats(c) for c in data.configurations],
-        "repeatability": [(keys, group_repeatability(data, keys)) for keys in groups],
+        "repeatability": declared_repeatability(data),
+        "differences_of": lambda comp: adjacent_differences(data, comp),
         "limits_text": limits_text,
         "generated_utc": generated_utc,
         "software_version": __version__,
