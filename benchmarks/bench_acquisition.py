@@ -22,15 +22,15 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' knee values (tests/knee_*.py)
 
-from tests.knee_device import KNEE_PARAMS, knee_brace  # noqa: E402
-from tests.knee_rig import knee_joint_config  # noqa: E402
+from tests.knee_device import KNEE_PARAMS, knee_brace
+from tests.knee_rig import knee_joint_config
 
-from protocol_runner.hardware.motion import run_motion  # noqa: E402
-from protocol_runner.hardware.rig import TrialRecording  # noqa: E402
-from protocol_runner.hardware.simulator import SimulatedRig  # noqa: E402
-from protocol_runner.protocol.plan import Trajectory  # noqa: E402
-from protocol_runner.protocol.sampling import sample_trajectory  # noqa: E402
-from protocol_runner.protocol.trajectories import sinusoid_period_s  # noqa: E402
+from protocol_runner.hardware.motion import run_motion
+from protocol_runner.hardware.rig import TrialRecording
+from protocol_runner.hardware.simulator import SimulatedRig
+from protocol_runner.protocol.plan import Trajectory
+from protocol_runner.protocol.sampling import sample_trajectory
+from protocol_runner.protocol.trajectories import sinusoid_period_s
 
 
 def trial(blocks: bool, cmd: np.ndarray) -> tuple[float, float, float, TrialRecording]:
@@ -72,9 +72,7 @@ def main() -> None:
     for blocks, name in ((False, "per-tick loop (before)"), (True, "block path")):
         cpu = statistics.median(c for c, _ in results[blocks])
         wall = statistics.median(w for _, w in results[blocks])
-        print(
-            f"  {name:24s} CPU {cpu * 1e3:7.1f} ms  wall {wall * 1e3:7.1f} ms  {robot_s / cpu:6.0f}x"
-        )
+        print(f"  {name:24s} CPU {cpu * 1e3:7.1f} ms  wall {wall * 1e3:7.1f} ms  {robot_s / cpu:6.0f}x")
     ratio = statistics.median(c for c, _ in results[False]) / statistics.median(c for c, _ in results[True])
     print(f"  block path: {ratio:.1f}x less CPU; same codes on both paths: {same}")
 
