@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..models.bouc_wen import BoucWenFit, BoucWenParams, cross_validate, fit_trials, simulate
+from ..models.bouc_wen.backbone import BackboneFactory
 from ..models.bouc_wen.identifiability import identify
 from .energy import energy_per_cycle
 
@@ -41,17 +42,31 @@ def fit_configuration(
     starts: int = 8,
     cross_validate_trials: bool = True,
     backbone_degree: int | None = 9,
+    backbone_factory: BackboneFactory | None = None,
 ) -> tuple[BoucWenFit, list[float]]:
     """The joint fit over a configuration's trials with its intervals and weak-identification mark, and the
     leave-one-trial-out RMSEs (N*m) when asked and there are at least two trials.  Each held-out fit is
     fitted from scratch on the other trials (nothing from the held-out trial enters it, backbone included).
 
     backbone_degree: ``torque = g(angle) + z`` with ``g`` a polynomial of this degree (the loops' midline,
-    :mod:`..models.bouc_wen.backbone`); ``None`` is the thesis form ``torque = z``."""
-    result = identify(segments, fit_trials(segments, starts=starts, backbone_degree=backbone_degree))
+    :mod:`..models.bouc_wen.backbone`); ``None`` is the thesis form ``torque = z``.
+    backbone_factory: ``g`` given and held fixed instead (e.g. the device's elastic elements,
+    :func:`.elastic_backbone.elements_backbone_factory`, refitted on the other trials in each held-out
+    fit); then ``backbone_degree`` must be None."""
+    result = identify(
+        segments,
+        fit_trials(
+            segments, starts=starts, backbone_degree=backbone_degree, backbone_factory=backbone_factory
+        ),
+    )
     cv: list[float] = []
     if cross_validate_trials and len(segments) >= 2:
-        cv = cross_validate(segments, starts=max(1, starts // 4), backbone_degree=backbone_degree)
+        cv = cross_validate(
+            segments,
+            starts=max(1, starts // 4),
+            backbone_degree=backbone_degree,
+            backbone_factory=backbone_factory,
+        )
     return result, cv
 
 

@@ -137,18 +137,21 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
         processed_fill(name, result, settings)(f)
         if fits.bouc_wen.enabled:
             # the session fits the stored (200 Hz) processed loops: so does this
-            segments = [
-                centred_loop(
+            raw = [
+                (
                     trials[str(t.trial)]["processed/angle_deg"][:],
                     trials[str(t.trial)]["processed/brace_torque_nm"][:],
                 )
                 for t in result.trials
             ]
+            segments = [centred_loop(a, t) for a, t in raw]
+            device = archived_device(cfg) if enabled and enabled.enabled else None
             bw, cv = fit_loops(
                 segments,
                 starts=fits.bouc_wen.starts,
                 cross_validated=fits.bouc_wen.cross_validate,
                 backbone_degree=fits.bouc_wen.polynomial_degree,
+                elements=(raw, device) if fits.bouc_wen.backbone == "elements" else None,
             )
             bouc_wen_fill(name, bw, segments, cv)(f)
     for comp in f.get("comparisons", {}).values():

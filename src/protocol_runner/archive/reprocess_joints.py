@@ -83,18 +83,20 @@ def reprocess_joints(
         processed_fill(f"{name}/joints/{joint}", results[-1], settings)(f)
         if bouc_wen.enabled and joint in fit_joints:  # as the session: on the stored (200 Hz) loops
             stored = cfg[f"joints/{joint}/trials"]
-            segments = [
-                centred_loop(
+            raw = [
+                (
                     stored[str(t.trial)]["processed/angle_deg"][:],
                     stored[str(t.trial)]["processed/brace_torque_nm"][:],
                 )
                 for t in results[-1].trials
             ]
+            segments = [centred_loop(a, t) for a, t in raw]
             bw, cv = fit_loops(
                 segments,
                 starts=bouc_wen.starts,
                 cross_validated=bouc_wen.cross_validate,
                 backbone_degree=bouc_wen.polynomial_degree,
+                elements=(raw, own or None) if bouc_wen.backbone == "elements" else None,
             )
             bouc_wen_fill(f"{name}/joints/{joint}", bw, segments, cv)(f)
     total, which = total_energy_per_cycle(

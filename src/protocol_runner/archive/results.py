@@ -18,6 +18,7 @@ from ..analysis.bouc_wen_fit import LoopEnergy, loop_energy, model_torques
 from ..analysis.element_fit import ElementFit
 from ..analysis.pipeline import ConfigurationResult, ProcessingSettings, Recording
 from ..models.bouc_wen import BoucWenFit
+from ..models.bouc_wen.backbone import Backbone, FixedBackbone
 from .h5util import SIGNAL, set_attrs
 from .paths import CONFIGURATIONS, FITS, PROCESSED, TRIALS, put_dataset
 
@@ -32,6 +33,7 @@ PROCESSED_RATE_HZ = 200.0
 
 #: At most this many points per trial of the Bouc-Wen model curve are stored for the report.
 PLOT_POINTS_PER_TRIAL = 2000
+BACKBONE_GRID_POINTS = 201  # samples of an elements backbone g over the fitted (centred) angle range
 
 
 def read_recording(g: h5py.Group) -> Recording:
@@ -150,10 +152,33 @@ def evidence_attrs(result: BoucWenFit, energy: LoopEnergy) -> dict[str, object]:
         "model_energy_j": float(energy.model_j),
         "data_energy_j": float(energy.data_j),
         "model_dissipates": bool(energy.model_dissipates),
-        "backbone": "none" if result.backbone is None else "polynomial",
-        "backbone_coef": [] if result.backbone is None else [float(c) for c in result.backbone.coef],
-        "backbone_angle_scale_deg": math.nan if result.backbone is None else result.backbone.angle_scale_deg,
+        **backbone_attrs(result),
     }
+
+
+def backbone_attrs(result: BoucWenFit) -> dict[str, object]:
+    """What ``g`` in torque = g(angle) + z is: ``none`` (g = 0, with the reason in ``backbone_note`` when
+    one was asked for), ``polynomial`` (its coefficients) or ``elements`` (the device's elastic elements
+    with their fitted parameters; ``g`` sampled on ``backbone_grid_angle_deg``)."""
+    bb = result.backbone
+    out: dict[str, object] = {
+        "backbone": "none",
+        "backbone_note": "",
+        "backbone_coef": [],
+        "backbone_angle_scale_deg": math.nan,
+    }
+    if isinstance(bb, Backbone):
+        out["backbone"] = "polynomial"
+        out["backbone_coef"] = [float(c) for c in bb.coef]
+        out["backbone_angle_scale_deg"] = bb.angle_scale_deg
+    elif isinstance(bb, FixedBackbone):
+        out["backbone"] = bb.kind
+        out["backbone_note"] = bb.note
+    if isinstance(bb, FixedBackbone) and bb.kind != "none":
+        grid = np.linspace(-result.angle_scale_deg, result.angle_scale_deg, BACKBONE_GRID_POINTS)
+        out["backbone_grid_angle_deg"] = [float(v) for v in grid]
+        out["backbone_grid_torque_nm"] = [float(v) for v in bb(grid)]
+    return out
 
 
 def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> Fill:

@@ -314,9 +314,10 @@ class BoucWenFitSpec(_Model):
     enabled: bool = True
     starts: int = Field(default=8, ge=1, le=200)
     cross_validate: bool = True
-    # torque = backbone(angle) + z: "polynomial" (a polynomial of the angle through the loops' midline,
-    # until the device elements are declared) or "none" (the thesis form, torque = z)
-    backbone: Literal["polynomial", "none"] = "polynomial"
+    # torque = backbone(angle) + z: "polynomial" (a polynomial of the angle through the loops' midline),
+    # "elements" (the device's elastic elements with the element fit's parameters, refitted on the trials
+    # each fit uses; g = 0 when the device has none) or "none" (the thesis form, torque = z)
+    backbone: Literal["polynomial", "elements", "none"] = "polynomial"
     backbone_degree: int = Field(default=9, ge=0, le=15)
 
     @property

@@ -15,7 +15,7 @@ import numpy as np
 import yaml
 
 from ..models.bouc_wen import BoucWenParams, simulate
-from ..models.bouc_wen.backbone import Backbone
+from ..models.bouc_wen.backbone import Backbone, FixedBackbone
 
 
 @dataclass(frozen=True)
@@ -47,7 +47,7 @@ def declared_pairs(protocol_text: str) -> list[tuple[int, int, str]]:
     return out
 
 
-def _model(g: h5py.Group) -> tuple[BoucWenParams, Backbone | None]:
+def _model(g: h5py.Group) -> tuple[BoucWenParams, Backbone | FixedBackbone | None]:
     a = g.attrs
     values = [float(a["A"]), float(a["n"]), *(float(b) for b in np.asarray(a["beta"]).ravel())]
     params = BoucWenParams.from_array(values)
@@ -55,6 +55,11 @@ def _model(g: h5py.Group) -> tuple[BoucWenParams, Backbone | None]:
     scale = float(a.get("backbone_angle_scale_deg", math.nan))
     if str(a.get("backbone", "none")) == "polynomial" and coef.size and math.isfinite(scale):
         return params, Backbone(coef=tuple(float(c) for c in coef), angle_scale_deg=scale)
+    grid = np.asarray(a.get("backbone_grid_angle_deg", []), dtype=np.float64).ravel()
+    g = np.asarray(a.get("backbone_grid_torque_nm", []), dtype=np.float64).ravel()
+    if str(a.get("backbone", "none")) == "elements" and grid.size >= 2 and grid.size == g.size:
+        # the elements backbone as archived: sampled over its fitted angle range, held at its ends beyond
+        return params, FixedBackbone(torque_nm=lambda x: np.interp(x, grid, g), kind="elements")
     return params, None
 
 
@@ -68,7 +73,9 @@ def _segments(g: h5py.Group) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def predict_rmse(
-    params: BoucWenParams, backbone: Backbone | None, segments: list[tuple[np.ndarray, np.ndarray]]
+    params: BoucWenParams,
+    backbone: Backbone | FixedBackbone | None,
+    segments: list[tuple[np.ndarray, np.ndarray]],
 ) -> float:
     """RMSE of the model on the given trials, each started at its own first torque (step-independent
     integration, so the stored plotting samples of the loops serve as well as every sample)."""

@@ -207,11 +207,15 @@ def run_fit(step: FitStep, ctx: StepContext) -> StepOutcome:
                 continue  # nothing on this joint: its brace torque is the sensors' noise
             trials = f[f"{configuration_path(step.configuration)}/{JOINTS}/{joint}/trials"]
             loops[joint] = [
-                centred_loop(trials[n]["processed/angle_deg"][:], trials[n]["processed/brace_torque_nm"][:])
+                (trials[n]["processed/angle_deg"][:], trials[n]["processed/brace_torque_nm"][:])
                 for n in sorted(trials, key=int)
             ]
-    for joint, segments in loops.items():
-        result, cv = fit_bouc_wen(segments, ctx.loaded.protocol.fits.bouc_wen)
+    fits = ctx.loaded.protocol.fits
+    enabled = getattr(fits, "elements", getattr(fits, "spring", None))
+    for joint, raw in loops.items():
+        segments = [centred_loop(a, t) for a, t in raw]
+        device = cfg_step.settings.device_of(joint) if enabled and enabled.enabled else None
+        result, cv = fit_bouc_wen(segments, fits.bouc_wen, (raw, device or None))
         fills.append(bouc_wen_fill(f"{name}/{JOINTS}/{joint}", result, segments, cv))
         parts.append(f"{joint} RMSE {result.rmse_nm:.2f} N*m, R2 {result.r2:.3f}")
 

@@ -12,12 +12,17 @@ curve runs midway between the loading and unloading branches: the loop's midline
 energy (``g`` is a function of the angle, so its loop integral is zero); all the loss stays in ``z``.
 Degree 9 follows the range-of-motion stops of the knee dry runs (nearly vertical ends) that lower degrees
 cannot; it is not meant to extrapolate beyond the fitted angle range.
+
+A :class:`FixedBackbone` is a ``g`` given from outside as a function of the angle (the device's declared
+elastic elements with their fitted parameters, thesis §6.1, built by the analysis layer); it stays fixed
+while the Bouc-Wen state is fitted.  A :data:`BackboneFactory` builds one from the indices of the trials a
+fit may use, so that a held-out trial never enters its own backbone (cross-validation).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,6 +57,32 @@ class Backbone:
         return len(self.coef) - 1
 
 
+@dataclass(frozen=True)
+class FixedBackbone:
+    """``g(x) = torque_nm(x)`` in N*m (x in degrees), given rather than fitted here.
+
+    kind: what ``g`` is, as recorded in the archive ("elements"; "none" when ``g`` is identically zero,
+    e.g. a device with no elastic element); note: one line saying where ``g`` comes from or why it is zero."""
+
+    torque_nm: Callable[[npt.NDArray[np.float64]], npt.ArrayLike]
+    kind: str = "elements"
+    note: str = ""
+
+    def __call__(self, angle_deg: npt.ArrayLike) -> FloatArray:
+        x = np.asarray(angle_deg, dtype=np.float64)
+        return np.ascontiguousarray(np.broadcast_to(np.asarray(self.torque_nm(x), dtype=np.float64), x.shape))
+
+
+def zero_backbone(note: str) -> FixedBackbone:
+    """``g = 0`` (the thesis form torque = z), with the reason recorded."""
+    return FixedBackbone(torque_nm=lambda x: np.zeros_like(x), kind="none", note=note)
+
+
+# the backbone of a fit on the trials with these indices (0-based, into the fit's list of trials)
+BackboneFactory = Callable[[Sequence[int]], FixedBackbone]
+AnyBackbone = Backbone | FixedBackbone
+
+
 def fit_backbone(segments: Sequence[tuple[FloatArray, FloatArray]], degree: int = 9) -> Backbone:
     """Least-squares polynomial of the angle through every sample of every trial (the loops' midline)."""
     if not (isinstance(degree, int) and 0 <= degree <= MAX_DEGREE):
@@ -67,7 +98,7 @@ def fit_backbone(segments: Sequence[tuple[FloatArray, FloatArray]], degree: int 
 
 
 def hysteretic_part(
-    segments: Sequence[tuple[FloatArray, FloatArray]], backbone: Backbone
+    segments: Sequence[tuple[FloatArray, FloatArray]], backbone: Backbone | FixedBackbone
 ) -> list[tuple[FloatArray, FloatArray]]:
     """Each trial's torque minus the backbone: what the Bouc-Wen state has to describe."""
     return [(x, np.ascontiguousarray(y - backbone(x))) for x, y in segments]

@@ -9,7 +9,7 @@ import numpy.typing as npt
 
 from protocol_runner.errors import InvalidInput
 
-from .backbone import fit_backbone, hysteretic_part
+from .backbone import AnyBackbone, BackboneFactory, fit_backbone, hysteretic_part
 from .fitting import _fit_segments, _validate_segments
 from .params import BoucWenParams
 from .problem import DEFAULT_BOUNDS, DIVERGENCE_FACTOR, BoucWenBounds, evaluate
@@ -31,6 +31,7 @@ def cross_validate(
     initial: BoucWenParams | None = None,
     scheme: str = REFINED,
     backbone_degree: int | None = None,
+    backbone_factory: BackboneFactory | None = None,
 ) -> list[float]:
     """Leave-one-trial-out RMSE (N*m): for each trial, fit the others and predict the held-out trial from
     its own first torque.  Needs at least two trials.
@@ -42,6 +43,8 @@ def cross_validate(
 
     backbone_degree: as in :func:`.fit_trials`; each held-out fit then fits its backbone on the other
         trials too, and the held-out prediction is ``g(angle) + z``.
+    backbone_factory: as in :func:`.fit_trials`; called with the other trials' indices for each held-out
+        fit (a factory that fits ``g`` fits it on those trials only).
     initial: an extra start for every held-out fit.  It must not have been fitted on the held-out trial
         (a fit on all trials would carry the held-out trial into its own test); ``None`` by default.
     """
@@ -51,8 +54,12 @@ def cross_validate(
     errors: list[float] = []
     for k, (x, y) in enumerate(checked):
         others = [s for j, s in enumerate(checked) if j != k]
+        backbone: AnyBackbone | None = None
         if backbone_degree is not None:
             backbone = fit_backbone(others, backbone_degree)
+        elif backbone_factory is not None:
+            backbone = backbone_factory([j for j in range(len(checked)) if j != k])
+        if backbone is not None:
             others = hysteretic_part(others, backbone)
             x, y = hysteretic_part([(x, y)], backbone)[0]
         result = _fit_segments(

@@ -13,7 +13,7 @@ from scipy.stats import qmc
 
 from protocol_runner.errors import InvalidInput
 
-from .backbone import fit_backbone, hysteretic_part
+from .backbone import AnyBackbone, BackboneFactory, fit_backbone, hysteretic_part
 from .params import BoucWenParams, FloatArray
 from .problem import (
     _POLISH_NFEV,
@@ -330,6 +330,7 @@ def fit_trials(
     polish: int = 1,
     scheme: str = REFINED,
     backbone_degree: int | None = None,
+    backbone_factory: BackboneFactory | None = None,
 ) -> BoucWenFit:
     """Fit one model jointly to several trials ``[(angle_deg, torque_nm), ...]`` of one configuration.
 
@@ -338,6 +339,8 @@ def fit_trials(
     backbone_degree: ``None`` fits the thesis form ``torque = z``; an integer fits ``torque = g(angle) + z``
         with ``g`` a polynomial of that degree through every sample (:mod:`.backbone`), then the Bouc-Wen
         state to what is left; the result's ``backbone`` holds ``g`` and its errors are of the whole torque.
+    backbone_factory: instead of a polynomial, ``g`` given from outside and held fixed (e.g. the device's
+        elastic elements, :class:`.backbone.FixedBackbone`), called with the indices of all the trials.
 
     Decimation guard (``scheme="eq23"`` only; the refined integration does not depend on the sampling):
     a loop on which the best start already diverges when decimated is polished on every
@@ -347,9 +350,14 @@ def fit_trials(
     the better of the two (by RMSE on every sample) is returned.
     """
     checked = _validate_segments(segments)
-    backbone = None
+    if backbone_degree is not None and backbone_factory is not None:
+        raise InvalidInput("give a backbone degree or a backbone factory, not both")
+    backbone: AnyBackbone | None = None
     if backbone_degree is not None:
         backbone = fit_backbone(checked, backbone_degree)
+    elif backbone_factory is not None:
+        backbone = backbone_factory(range(len(checked)))
+    if backbone is not None:
         checked = _validate_segments(hysteretic_part(checked, backbone))
     result = _fit_segments(
         checked,

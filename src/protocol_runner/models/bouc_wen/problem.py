@@ -12,7 +12,7 @@ from scipy.optimize import least_squares
 
 from protocol_runner.errors import InvalidInput
 
-from .backbone import Backbone
+from .backbone import Backbone, FixedBackbone
 from .kernels import IDENTITY8, gram, sum_sq_diff
 from .params import EQ25_BETA_MATRIX, BoucWenParams, FloatArray, phase_values
 from .schemes import REFINED, check_scheme, run_scheme, run_scheme_sensitivity
@@ -122,7 +122,8 @@ class BoucWenFit:
     param_interval_high: tuple[float, ...] = ()
     weakly_identified: bool = False
     weak_reasons: tuple[str, ...] = ()
-    backbone: Backbone | None = None  # torque = backbone(angle) + z when set (fit_trials backbone_degree)
+    # torque = backbone(angle) + z when set (fit_trials backbone_degree or backbone_factory)
+    backbone: Backbone | FixedBackbone | None = None
 
     @property
     def cost_spread(self) -> float:
