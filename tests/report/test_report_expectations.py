@@ -352,5 +352,8 @@ def test_invalid_baselines_are_refused(fields: dict[str, object], message: str) 
 def test_unknown_baseline_keys_are_located() -> None:
     spec = ExpectationSpec.model_validate(_ADDED | {"baseline": [77], "than_baseline": [78]})
     problems = list(check_expectations([spec], {1, 2, 5, 6}))
-    assert (("expectations", 0, "baseline", 0), "no configuration has key 77") in problems
-    assert (("expectations", 0, "than_baseline", 0), "no configuration has key 78") in problems
+    assert (("expectations", 0, "baseline", 0), "no configuration has key 77 (keys: 1-2, 5-6)") in problems
+    assert (
+        ("expectations", 0, "than_baseline", 0),
+        "no configuration has key 78 (keys: 1-2, 5-6)",
+    ) in problems
