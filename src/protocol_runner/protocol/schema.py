@@ -12,7 +12,6 @@ import math
 from typing import Annotated, Any, Literal
 
 from pydantic import (
-    BaseModel,
     BeforeValidator,
     ConfigDict,
     Field,
@@ -22,124 +21,35 @@ from pydantic import (
     model_validator,
 )
 
-from protocol_runner.protocol.expectations import ExpectationSpec, RepeatabilitySpec
+from protocol_runner.protocol.expectations import ExpectationSpec
+from protocol_runner.protocol.schema_base import (
+    Identifier,
+    LevelName,
+    RangePair,
+    _check_range,
+    _int_to_str,
+    _Model,
+)
+from protocol_runner.protocol.schema_report import (  # noqa: F401  (re-exported)
+    CitationsSpec,
+    ComparisonSpec,
+    PredictionSpec,
+    ReportSpec,
+)
+from protocol_runner.protocol.schema_rig import (  # noqa: F401  (re-exported)
+    BoltTorque,
+    CalibrationTablesSpec,
+    InputSpec,
+    JointOverride,
+    JointSpec,
+    OutputSpec,
+    RigOverrides,
+    RigSpec,
+    SafetyOverride,
+    SafetySpec,
+)
 from protocol_runner.protocol.trajectory_specs import TrajectorySpec
 from protocol_runner.protocol.units import compound_unit_problem, known_suffixes, unit_suffix
-
-
-def _int_to_str(value: object) -> object:
-    """Level names may be written as bare numbers in YAML (`friction: 2`): treat them as names."""
-    if isinstance(value, int) and not isinstance(value, bool):
-        return str(value)
-    return value
-
-
-LevelName = Annotated[str, BeforeValidator(_int_to_str)]
-Identifier = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_\-]*$", max_length=64)]
-
-
-class _Model(BaseModel):
-    # .inf / .nan are refused in every number field: no limit, range or time may be infinite or undefined
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-
-
-def _check_range(value: tuple[float, float]) -> tuple[float, float]:
-    lo, hi = value
-    if not lo < hi:
-        raise ValueError(f"range must be [low, high] with low < high, got [{lo:g}, {hi:g}]")
-    return value
-
-
-RangePair = Annotated[tuple[float, float], BeforeValidator(lambda v: tuple(v) if isinstance(v, list) else v)]
-
-
-# --------------------------------------------------------------------------------------------- rig
-# The resolved rig (rig file + joint + rig_overrides, protocol/rig_file.py): what `protocol.rig` returns.
-
-
-class JointSpec(_Model):
-    name: Identifier
-    description: str = ""
-    rsst_joint: int | None = Field(default=None, ge=1)
-    range_deg: RangePair
-    torque_range_nm: RangePair
-
-    _range = field_validator("range_deg", "torque_range_nm")(_check_range)
-
-
-class OutputSpec(_Model):
-    board: str
-    channel: int = Field(ge=0)
-    rate_hz: float = Field(gt=0, le=1000)
-    volts_range: RangePair = (-10.0, 10.0)
-    serial: str | None = None
-
-    _range = field_validator("volts_range")(_check_range)
-
-
-class InputSpec(_Model):
-    board: str
-    angle_channel: int = Field(ge=0)
-    torque_channel: int = Field(ge=0)
-    rate_hz: float = Field(gt=0, le=50000)
-    volts_range: RangePair = (-10.0, 10.0)
-    serials: list[str] = Field(default_factory=list)
-    dt9814_product_id: int | None = Field(default=None, ge=0, le=0xFFFF)
-
-    _range = field_validator("volts_range")(_check_range)
-
-
-class CalibrationTablesSpec(_Model):
-    command_table: str | None = None
-    angle_table: str | None = None
-    torque_table: str | None = None
-
-
-class SafetySpec(_Model):
-    max_rate_deg_s: float = Field(gt=0)
-    max_accel_deg_s2: float = Field(gt=0)
-    park_angle_deg: float
-    park_rate_deg_s: float = Field(gt=0)
-
-
-class RigSpec(_Model):
-    robot: str
-    joint: JointSpec
-    output: OutputSpec
-    input: InputSpec
-    calibration: CalibrationTablesSpec = CalibrationTablesSpec()
-    safety: SafetySpec
-    time_constant_s: float = Field(gt=0)
-    simulator: tuple[tuple[str, float], ...] = ()  # the joint's simulator parameters (rig file)
-    rig_file: str = ""
-    rig_sha256: str = ""
-
-
-class SafetyOverride(_Model):
-    max_rate_deg_s: float | None = Field(default=None, gt=0)
-    max_accel_deg_s2: float | None = Field(default=None, gt=0)
-    park_angle_deg: float | None = None
-    park_rate_deg_s: float | None = Field(default=None, gt=0)
-
-
-class JointOverride(_Model):
-    calibration: CalibrationTablesSpec = CalibrationTablesSpec()
-    safety: SafetyOverride | None = None
-    range_deg: RangePair | None = None
-
-    _range = field_validator("range_deg")(lambda v: v if v is None else _check_range(v))
-
-
-class RigOverrides(_Model):
-    input_board: str | None = None
-    input_serials: list[str] | None = None
-    joints: dict[str, JointOverride] = Field(default_factory=dict)
-
-
-class BoltTorque(_Model):
-    bolts: str
-    torque_ft_lb: float = Field(gt=0)
-
 
 # ----------------------------------------------------------------------------------------- factors
 
@@ -420,46 +330,6 @@ class SetSpec(_Model):
         if not self.configurations and self.full_factorial is None and self.one_factor_at_a_time is None:
             raise ValueError("a set needs `configurations`, `full_factorial` or `one_factor_at_a_time`")
         return self
-
-
-class ComparisonSpec(_Model):
-    name: Identifier
-    parameter: Identifier  # a declared factor, or "trajectory" (checked in validate.py)
-    section: str = ""
-    title: str
-    configurations: list[StrictInt] = Field(min_length=2)
-
-
-class PredictionSpec(_Model):
-    """A Bouc-Wen model fitted on configuration `fit` predicts configuration `predict` (the same device
-    elements at another speed or range); the report gives the prediction's RMSE."""
-
-    fit: StrictInt
-    predict: StrictInt
-    note: str = ""
-
-
-class CitationsSpec(_Model):
-    """Where a source (e.g. a thesis) shows what a part of the report shows: each text is printed beside
-    that part ("as <text>"). All optional: a campaign that reproduces no source cites nothing."""
-
-    configurations: str = ""  # the per-configuration loops
-    comparisons: str = ""  # the overlaid loops of each comparison
-    energy: str = ""  # energy per cycle against the compared factor
-    reference: str = ""  # the reference datasets
-    models: str = ""  # the models section as a whole
-    elements: str = ""  # the elastic elements fitted to the loops' midline
-    bouc_wen: str = ""  # the Bouc-Wen model against the data
-    matrix: str = ""  # the test matrix
-    calibration: str = ""  # the calibration step checks
-
-
-class ReportSpec(_Model):
-    reference_dataset: str | None = None
-    citations: CitationsSpec = CitationsSpec()
-    comparisons: list[ComparisonSpec] = Field(default_factory=list)
-    predictions: list[PredictionSpec] = Field(default_factory=list)
-    repeatability: list[RepeatabilitySpec] = Field(default_factory=list)
 
 
 class Protocol(_Model):

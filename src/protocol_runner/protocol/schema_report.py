@@ -1,0 +1,48 @@
+"""The protocol's `report:` section: comparisons, predictions, citations, repeatability groups."""
+
+from __future__ import annotations
+
+from pydantic import Field, StrictInt
+
+from protocol_runner.protocol.expectations import RepeatabilitySpec
+from protocol_runner.protocol.schema_base import Identifier, _Model
+
+
+class ComparisonSpec(_Model):
+    name: Identifier
+    parameter: Identifier  # a declared factor, or "trajectory" (checked in validate.py)
+    section: str = ""
+    title: str
+    configurations: list[StrictInt] = Field(min_length=2)
+
+
+class PredictionSpec(_Model):
+    """A Bouc-Wen model fitted on configuration `fit` predicts configuration `predict` (the same device
+    elements at another speed or range); the report gives the prediction's RMSE."""
+
+    fit: StrictInt
+    predict: StrictInt
+    note: str = ""
+
+
+class CitationsSpec(_Model):
+    """Where a source (e.g. a thesis) shows what a part of the report shows: each text is printed beside
+    that part ("as <text>"). All optional: a campaign that reproduces no source cites nothing."""
+
+    configurations: str = ""  # the per-configuration loops
+    comparisons: str = ""  # the overlaid loops of each comparison
+    energy: str = ""  # energy per cycle against the compared factor
+    reference: str = ""  # the reference datasets
+    models: str = ""  # the models section as a whole
+    elements: str = ""  # the elastic elements fitted to the loops' midline
+    bouc_wen: str = ""  # the Bouc-Wen model against the data
+    matrix: str = ""  # the test matrix
+    calibration: str = ""  # the calibration step checks
+
+
+class ReportSpec(_Model):
+    reference_dataset: str | None = None
+    citations: CitationsSpec = CitationsSpec()
+    comparisons: list[ComparisonSpec] = Field(default_factory=list)
+    predictions: list[PredictionSpec] = Field(default_factory=list)
+    repeatability: list[RepeatabilitySpec] = Field(default_factory=list)
