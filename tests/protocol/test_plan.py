@@ -278,3 +278,17 @@ def test_robot_time_is_about_the_thesis_campaign(plan: Plan) -> None:
     # 136 trials of ~65 s (plus half-speed ones) and 18 calibration checks: a few hours of robot time
     assert 2.0 * 3600 < plan.robot_time_s < 3.0 * 3600
     assert math.isclose(sum(s.robot_time_s for s in plan.steps), plan.robot_time_s)
+
+
+def test_a_negative_range_reads_unambiguously_in_the_checklist() -> None:
+    """The ankle's stops span -38 to 24 deg: a dash between the ends would print "-38-24 deg"."""
+    ankle = REPO / "protocols" / "ankle_phase2.yaml"
+    plan = expand(load_protocol(ankle))
+    shown = [
+        i.split("range_deg = ", 1)[1]
+        for c in plan.of_kind(ChecklistStep)
+        for i in c.items
+        if "range_deg = " in i
+    ]
+    assert any(text.startswith("from -38 to 24 deg") for text in shown)
+    assert not any("-38-24" in text for text in shown)

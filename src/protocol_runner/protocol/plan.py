@@ -250,7 +250,11 @@ class Plan:
 
 def _quantity_text(name: str, value: float | tuple[float, ...]) -> str:
     unit = unit_text(name)
-    shown = "-".join(f"{v:g}" for v in value) if isinstance(value, tuple) else f"{value:g}"
+    # a pair reads "from -38 to 24" (a dash would make "-38-24" of a negative range); a list is comma-separated
+    if isinstance(value, tuple):
+        shown = f"from {value[0]:g} to {value[1]:g}" if len(value) == 2 else ", ".join(f"{v:g}" for v in value)
+    else:
+        shown = f"{value:g}"
     return f"{name} = {shown}{' ' + unit if unit and unit != '%' else unit}"
 
 
