@@ -19,38 +19,20 @@ from dataclasses import dataclass
 from typing import Any
 
 from protocol_runner.errors import InvalidInput
+from protocol_runner.protocol.units import UNIT_SUFFIXES
+from protocol_runner.protocol.units import unit_suffix as protocol_unit_suffix
 
 Quantity = float | tuple[float, ...]
 Param = Quantity | str | tuple[str, ...]  # an element parameter (words for constants and lists such as `fit`)
 
-#: Display label of each quantity-name unit suffix (docs/protocol.md "Units"). Longest suffix first
-#: when matching, so `_nm_per_deg` wins over `_deg` and `_deg_s2` over `_s2`.
-UNIT_LABELS: Mapping[str, str] = {
-    "_deg": "deg",
-    "_deg_s": "deg/s",
-    "_deg_s2": "deg/s²",
-    "_rad": "rad",
-    "_nm": "N·m",
-    "_n": "N",
-    "_n_per_mm": "N/mm",
-    "_n_per_m": "N/m",
-    "_nm_per_deg": "N·m/deg",
-    "_nm_per_rad": "N·m/rad",
-    "_nm_s_per_deg": "N·m·s/deg",
-    "_mm": "mm",
-    "_m": "m",
-    "_kg": "kg",
-    "_s": "s",
-    "_hz": "Hz",
-    "_j": "J",
-    "_v": "V",
-    "_turns": "turns",
-    "_index": "",
-    "_count": "",
-    "_ratio": "",
-    "_percent": "%",
-}
-_BY_LENGTH = sorted(UNIT_LABELS, key=len, reverse=True)
+
+def _typeset(unit: str) -> str:
+    """The protocol's printed unit (`N*m`, `deg/s^2`) as a reader writes it (`N·m`, `deg/s²`)."""
+    return unit.replace("*", "·").replace("^2", "²")
+
+
+#: Display label of each quantity-name unit suffix: the protocol's registry (protocol/units.py), typeset.
+UNIT_LABELS: Mapping[str, str] = {suffix: _typeset(unit) for suffix, unit in UNIT_SUFFIXES.items()}
 
 #: The comparison parameter that compares trajectories rather than a factor's levels.
 TRAJECTORY = "trajectory"
@@ -58,10 +40,7 @@ TRAJECTORY = "trajectory"
 
 def unit_suffix(name: str) -> str:
     """The unit suffix of a quantity or parameter name (`friction_nm` -> `_nm`), "" when it has none."""
-    for suffix in _BY_LENGTH:
-        if name.endswith(suffix) and len(name) > len(suffix):
-            return suffix
-    return ""
+    return protocol_unit_suffix(name) or ""
 
 
 def unit_label(name: str) -> str:
