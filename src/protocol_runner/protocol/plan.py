@@ -19,13 +19,22 @@ Step ids are the resume keys: they depend only on the protocol's names and keys,
 
 from __future__ import annotations
 
-import json
 from collections.abc import Iterable
-from dataclasses import dataclass, field
-from typing import Any
 
 from .loaded import LoadedProtocol
 from .only import KeySelection
+from .plan_steps import (
+    CalibrationCheckStep,
+    ChecklistStep,
+    CompareStep,
+    FitStep,
+    JointTrajectories,
+    Plan,
+    ProcessStep,
+    ReportStep,
+    Step,
+    TrialStep,
+)
 from .plan_trajectory import Trajectory as Trajectory
 from .resolve import calibration_trajectory as calibration_trajectory
 from .resolve import configuration_trajectories, configuration_trajectory, resolve_settings
@@ -36,215 +45,6 @@ from .step_ids import step_id
 from .step_ids import trial_id as trial_id
 from .units import unit_text
 
-
-@dataclass(frozen=True)
-class Step:
-    id: str
-    kind: str
-
-    def to_json(self) -> dict[str, Any]:
-        return {"id": self.id, "kind": self.kind}
-
-    @property
-    def robot_time_s(self) -> float:
-        """Time the robot moves during this step (for ETAs); 0 for steps that do not move it."""
-        return 0.0
-
-
-JointTrajectories = tuple[tuple[str, Trajectory], ...]
-"""(joint, trajectory) per driven joint of a multi-joint protocol, in channel order."""
-
-
-def _trajectory_json(trajectory: Trajectory, per_joint: JointTrajectories) -> dict[str, Any]:
-    """The plan's `joints` and `trajectory` keys: one trajectory, or one per joint (multi-joint)."""
-    if not per_joint:
-        return {"trajectory": trajectory.to_json()}
-    return {"joints": [j for j, _ in per_joint], "trajectory": {j: t.to_json() for j, t in per_joint}}
-
-
-@dataclass(frozen=True)
-class CalibrationCheckStep(Step):
-    set: str
-    when: str  # "before" / "after"
-    trajectory: Trajectory
-    # multi-joint: each joint's own step, run one joint after the other (the others held at park)
-    joint_trajectories: JointTrajectories = ()
-
-    def joints_names(self) -> tuple[str, ...]:
-        """The joints checked one after the other (multi-joint; empty for one joint)."""
-        return tuple(j for j, _ in self.joint_trajectories)
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            **super().to_json(),
-            "set": self.set,
-            "when": self.when,
-            **_trajectory_json(self.trajectory, self.joint_trajectories),
-        }
-
-    @property
-    def robot_time_s(self) -> float:
-        if self.joint_trajectories:
-            return sum(t.duration_s for _, t in self.joint_trajectories)
-        return self.trajectory.duration_s
-
-
-@dataclass(frozen=True)
-class ChecklistStep(Step):
-    set: str
-    title: str
-    items: tuple[str, ...]
-    brace: str  # the brace state after this checklist: "on" / "off"
-    configuration: int | None = None
-    settings: Settings | None = None
-
-    def to_json(self) -> dict[str, Any]:
-        out = {
-            **super().to_json(),
-            "set": self.set,
-            "title": self.title,
-            "items": list(self.items),
-            "brace": self.brace,
-        }
-        if self.configuration is not None:
-            out["configuration"] = self.configuration
-        if self.settings is not None:
-            out["settings"] = self.settings.to_json()
-        return out
-
-
-@dataclass(frozen=True)
-class TrialStep(Step):
-    set: str
-    configuration: int
-    run: int
-    trial: int
-    brace: str  # "on" / "off"
-    settings: Settings
-    trajectory: Trajectory
-    twin: str | None = None  # brace-off trials: the id of the brace-on trial whose output they follow
-    # multi-joint: every driven joint's motion (`trajectory` is then the first joint's)
-    joint_trajectories: JointTrajectories = ()
-
-    @property
-    def joints(self) -> tuple[str, ...]:
-        """The driven joints of a multi-joint trial, in channel order (empty for one joint)."""
-        return tuple(j for j, _ in self.joint_trajectories)
-
-    def to_json(self) -> dict[str, Any]:
-        out = {
-            **super().to_json(),
-            "set": self.set,
-            "configuration": self.configuration,
-            "run": self.run,
-            "trial": self.trial,
-            "brace": self.brace,
-            "settings": self.settings.to_json(),
-            **_trajectory_json(self.trajectory, self.joint_trajectories),
-        }
-        if self.brace == "on":
-            out["device"] = self.settings.device_json()
-        if self.twin is not None:
-            out["derived_from"] = self.twin
-        return out
-
-    @property
-    def robot_time_s(self) -> float:
-        return self.trajectory.duration_s
-
-
-@dataclass(frozen=True)
-class ProcessStep(Step):
-    set: str
-    configuration: int
-    trials: tuple[tuple[str, str], ...]  # (brace-on id, brace-off id) per trial
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            **super().to_json(),
-            "set": self.set,
-            "configuration": self.configuration,
-            "trials": [list(t) for t in self.trials],
-        }
-
-
-@dataclass(frozen=True)
-class FitStep(Step):
-    set: str
-    configuration: int
-    models: tuple[str, ...]
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            **super().to_json(),
-            "set": self.set,
-            "configuration": self.configuration,
-            "models": list(self.models),
-        }
-
-
-@dataclass(frozen=True)
-class CompareStep(Step):
-    name: str
-    parameter: str
-    title: str
-    section: str
-    configurations: tuple[int, ...]
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            **super().to_json(),
-            "name": self.name,
-            "parameter": self.parameter,
-            "title": self.title,
-            "section": self.section,
-            "configurations": list(self.configurations),
-        }
-
-
-@dataclass(frozen=True)
-class ReportStep(Step):
-    pass
-
-
-@dataclass(frozen=True)
-class Plan:
-    protocol_name: str
-    protocol_sha256: str
-    steps: tuple[Step, ...]
-    only: tuple[int, ...] = ()
-    _index: dict[str, int] = field(default_factory=dict, repr=False, compare=False)
-
-    def __post_init__(self) -> None:
-        self._index.update({s.id: i for i, s in enumerate(self.steps)})
-
-    def to_json(self) -> dict[str, Any]:
-        return {
-            "protocol": self.protocol_name,
-            "protocol_sha256": self.protocol_sha256,
-            "steps": [s.to_json() for s in self.steps],
-        }
-
-    def dumps(self) -> str:
-        return json.dumps(self.to_json(), indent=2)
-
-    def step(self, step_id: str) -> Step:
-        return self.steps[self._index[step_id]]
-
-    def __len__(self) -> int:
-        return len(self.steps)
-
-    @property
-    def robot_time_s(self) -> float:
-        return sum(s.robot_time_s for s in self.steps)
-
-    def of_kind(self, kind: type[Step]) -> list[Any]:
-        return [s for s in self.steps if isinstance(s, kind)]
-
-
-# ----------------------------------------------------------------------------------------- ids
-
-
 # -------------------------------------------------------------------------------------- expansion
 
 
@@ -252,7 +52,9 @@ def _quantity_text(name: str, value: float | tuple[float, ...]) -> str:
     unit = unit_text(name)
     # a pair reads "from -38 to 24" (a dash would make "-38-24" of a negative range); a list is comma-separated
     if isinstance(value, tuple):
-        shown = f"from {value[0]:g} to {value[1]:g}" if len(value) == 2 else ", ".join(f"{v:g}" for v in value)
+        shown = (
+            f"from {value[0]:g} to {value[1]:g}" if len(value) == 2 else ", ".join(f"{v:g}" for v in value)
+        )
     else:
         shown = f"{value:g}"
     return f"{name} = {shown}{' ' + unit if unit and unit != '%' else unit}"

@@ -16,25 +16,14 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, ValidationError
+from pydantic import Field, ValidationError, field_validator
 
 from ..errors import InvalidInput
 from ..resources import packaged_rigs_dir
 from .loaded import Loc
 from .paths import OutsideFolder, confined_path
-from .schema import (
-    Identifier,
-    InputSpec,
-    JointSpec,
-    OutputSpec,
-    RangePair,
-    RigOverrides,
-    RigSpec,
-    SafetySpec,
-    _check_range,
-    _Model,
-    field_validator,
-)
+from .schema_base import Identifier, RangePair, _check_range, _Model
+from .schema_rig import InputSpec, JointSpec, OutputSpec, RigOverrides, RigSpec, SafetyOverride, SafetySpec
 from .yaml_doc import format_problems, parse_yaml, validation_problems
 
 Problem = tuple[Loc, str]
@@ -52,11 +41,9 @@ class BoardSpec(_Model):
     _range = field_validator("volts_range")(_check_range)
 
 
-class JointSafety(_Model):
-    max_rate_deg_s: float | None = Field(default=None, gt=0)
-    max_accel_deg_s2: float | None = Field(default=None, gt=0)
-    park_angle_deg: float | None = None
-    park_rate_deg_s: float | None = Field(default=None, gt=0)
+class JointSafety(SafetyOverride):
+    """A rig file's safety limits of a joint (or its joints' defaults): the fields of a protocol's
+    `rig_overrides` safety, each optional; the merge with the defaults is `_merged_safety`."""
 
 
 class JointDefaults(_Model):

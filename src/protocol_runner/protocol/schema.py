@@ -4,31 +4,46 @@ Nothing here names a campaign: factors, their levels and quantities, the device'
 trajectories are whatever the file declares (docs/protocol.md is the reference). Cross-field checks
 (levels that exist, bindings whose units match, ranges inside the joint's range, unique keys, ...) live in
 `protocol/validate.py` and `protocol/resolve.py` so that each error can name the exact field and line.
+
+The parts live by idea: schema_base (strict model, shared field types), schema_device (factors, device),
+schema_matrix (sets and configurations), schema_rig (resolved rig), schema_report (report section), and
+trajectory_specs (trajectory kinds); this module holds the calibration check, processing, fits and the
+whole `Protocol`, and re-exports the parts' public names.
 """
 
 from __future__ import annotations
 
-import math
-from typing import Annotated, Any, Literal
+from typing import Any, Literal
 
-from pydantic import (
-    BeforeValidator,
-    ConfigDict,
-    Field,
-    PrivateAttr,
-    StrictInt,
-    field_validator,
-    model_validator,
-)
+from pydantic import Field, PrivateAttr, field_validator, model_validator
 
 from protocol_runner.protocol.expectations import ExpectationSpec
-from protocol_runner.protocol.schema_base import (
+from protocol_runner.protocol.schema_base import (  # noqa: F401  (re-exported)
     Identifier,
     LevelName,
     RangePair,
     _check_range,
-    _int_to_str,
     _Model,
+)
+from protocol_runner.protocol.schema_device import (  # noqa: F401  (re-exported)
+    RESERVED_LEVEL_KEYS,
+    DeviceSpec,
+    ElementSpec,
+    Factor,
+    JointDeviceSpec,
+    LevelSpec,
+    Quantity,
+)
+from protocol_runner.protocol.schema_matrix import (  # noqa: F401  (re-exported)
+    RESERVED_CONFIGURATION_KEYS,
+    ConfigurationSpec,
+    FullFactorialSpec,
+    LevelChoice,
+    LevelList,
+    OneFactorAtATimeSpec,
+    SetSpec,
+    TrajectoryByLevel,
+    _GeneratorSpec,
 )
 from protocol_runner.protocol.schema_report import (  # noqa: F401  (re-exported)
     CitationsSpec,
@@ -49,122 +64,6 @@ from protocol_runner.protocol.schema_rig import (  # noqa: F401  (re-exported)
     SafetySpec,
 )
 from protocol_runner.protocol.trajectory_specs import TrajectorySpec
-from protocol_runner.protocol.units import compound_unit_problem, known_suffixes, unit_suffix
-
-# ----------------------------------------------------------------------------------------- factors
-
-RESERVED_LEVEL_KEYS = ("same_as", "description", "setup")
-Quantity = float | tuple[float, ...]
-
-
-def _quantity_value(name: str, value: object) -> Quantity:
-    if isinstance(value, bool) or not isinstance(value, int | float | list | tuple):
-        raise ValueError(f"quantity {name!r} must be a number or a list of numbers, got {value!r}")
-    if isinstance(value, list | tuple):
-        items = [_quantity_value(name, v) for v in value]
-        if not items or any(isinstance(v, tuple) for v in items):
-            raise ValueError(f"quantity {name!r} must be a number or a flat list of numbers, got {value!r}")
-        if name.endswith("range_deg") and not (len(items) == 2 and items[0] < items[1]):  # type: ignore[operator]
-            raise ValueError(f"{name} must be [low, high] with low < high, got {value!r}")
-        return tuple(float(v) for v in items)  # type: ignore[arg-type]
-    number = float(value)
-    if not math.isfinite(number):
-        raise ValueError(f"quantity {name!r} must be finite, got {value!r}")
-    return number
-
-
-class LevelSpec(_Model):
-    """One level of a factor: quantities (keys ending with a unit suffix, protocol/units.py), or
-    `same_as` another level of the same factor; `description` and `setup` (operator checklist text)."""
-
-    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
-
-    same_as: LevelName | None = None
-    description: str = ""
-    setup: str = ""
-
-    @model_validator(mode="before")
-    @classmethod
-    def _quantities(cls, data: Any) -> Any:
-        if not isinstance(data, dict):
-            return data
-        out = dict(data)
-        for key, value in data.items():
-            if key in RESERVED_LEVEL_KEYS:
-                continue
-            if unit_suffix(str(key)) is None:
-                raise ValueError(
-                    f"{key!r}: a quantity's name must end with a unit suffix ({known_suffixes()}); "
-                    f"reserved keys: {', '.join(RESERVED_LEVEL_KEYS)}"
-                )
-            compound = compound_unit_problem(str(key))
-            if compound is not None:
-                raise ValueError(compound)
-            out[key] = _quantity_value(str(key), value)
-        return out
-
-    @property
-    def quantities(self) -> tuple[tuple[str, Quantity], ...]:
-        return tuple((k, v) for k, v in (self.model_extra or {}).items())
-
-
-def _str_keys(value: object) -> object:
-    if isinstance(value, dict):
-        return {_int_to_str(k): v for k, v in value.items()}
-    return value
-
-
-Factor = Annotated[dict[str, LevelSpec], BeforeValidator(_str_keys), Field(min_length=1)]
-
-# ------------------------------------------------------------------------------------------- device
-
-
-class ElementSpec(_Model):
-    """One element of the device: `name`, `type` (models/elements.py ELEMENT_TYPES) and its parameters,
-    each a constant or a binding "<factor>.<quantity>" (checked in protocol/resolve.py)."""
-
-    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
-
-    name: Identifier
-    type: str
-
-    @property
-    def params(self) -> dict[str, Any]:
-        return dict(self.model_extra or {})
-
-
-class JointDeviceSpec(_Model):
-    """The elements one driven joint carries (a multi-joint protocol's `device.joints.<joint>`)."""
-
-    description: str = ""
-    elements: list[ElementSpec] = Field(min_length=1)
-
-
-class DeviceSpec(_Model):
-    """The device under test: `elements` (one driven joint), or `joints: {<joint>: {elements: [...]}}`
-    (a multi-joint protocol: each driven joint its own elements; a joint may carry none)."""
-
-    name: str = ""
-    description: str = ""
-    elements: list[ElementSpec] = Field(default_factory=list)
-    joints: dict[Identifier, JointDeviceSpec] = Field(default_factory=dict)
-
-    @model_validator(mode="after")
-    def _one_form(self) -> Any:
-        if bool(self.elements) == bool(self.joints):
-            raise ValueError("give exactly one of `elements` (one joint) and `joints` (elements per joint)")
-        return self
-
-    def located_elements(self) -> list[tuple[str, tuple[str | int, ...], ElementSpec]]:
-        """(joint or "", YAML location, element) for every element, in file order."""
-        if self.elements:
-            return [("", ("device", "elements", i), el) for i, el in enumerate(self.elements)]
-        return [
-            (joint, ("device", "joints", joint, "elements", i), el)
-            for joint, spec in self.joints.items()
-            for i, el in enumerate(spec.elements)
-        ]
-
 
 # ------------------------------------------------------------------------------------ trajectories
 
@@ -239,97 +138,6 @@ class BoucWenFitSpec(_Model):
 class FitsSpec(_Model):
     spring: SpringFitSpec = SpringFitSpec()
     bouc_wen: BoucWenFitSpec = BoucWenFitSpec()
-
-
-# ------------------------------------------------------------------------------------- the matrix
-
-RESERVED_CONFIGURATION_KEYS = ("key", "run", "trajectory", "trials", "description")
-
-
-def _levels_as_str(data: Any) -> Any:
-    if isinstance(data, dict):
-        return {k: (v if k in RESERVED_CONFIGURATION_KEYS else _int_to_str(v)) for k, v in data.items()}
-    return data
-
-
-class ConfigurationSpec(_Model):
-    """An explicit row: reserved keys, and `<factor>: <level label>` for the factors it sets."""
-
-    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
-
-    key: StrictInt = Field(ge=1)
-    run: StrictInt = Field(ge=1)
-    trajectory: Identifier
-    trials: StrictInt = Field(ge=1, le=50)
-    description: str = ""
-
-    @model_validator(mode="before")
-    @classmethod
-    def _labels(cls, data: Any) -> Any:
-        data = _levels_as_str(data)
-        if isinstance(data, dict):
-            for k, v in data.items():
-                if k not in RESERVED_CONFIGURATION_KEYS and not isinstance(v, str):
-                    raise ValueError(f"{k}: a factor's level label, got {v!r}")
-        return data
-
-    @property
-    def levels(self) -> dict[str, str]:
-        """factor -> level label, as written."""
-        return {k: str(v) for k, v in (self.model_extra or {}).items()}
-
-
-LevelList = Annotated[list[LevelName], Field(min_length=1)]
-LevelChoice = LevelList | Literal["all"]
-
-
-class TrajectoryByLevel(_Model):
-    factor: Identifier
-    levels: Annotated[dict[str, Identifier], BeforeValidator(_str_keys)]
-
-
-class _GeneratorSpec(_Model):
-    trajectory: Identifier | None = None
-    trajectory_by_level: TrajectoryByLevel | None = None
-    trials: StrictInt = Field(ge=1, le=50)
-    description: str = ""
-
-    @model_validator(mode="after")
-    def _one_trajectory(self) -> Any:
-        if (self.trajectory is None) == (self.trajectory_by_level is None):
-            raise ValueError("give exactly one of `trajectory` and `trajectory_by_level`")
-        return self
-
-
-class FullFactorialSpec(_GeneratorSpec):
-    """Every combination of the listed factors' levels (`all` = every declared level, in declaration
-    order; the LAST factor varies fastest), each with the `fixed` levels."""
-
-    factors: Annotated[dict[Identifier, LevelChoice], Field(min_length=1)]
-    fixed: Annotated[dict[Identifier, LevelName], BeforeValidator(_str_keys)] = Field(default_factory=dict)
-
-
-class OneFactorAtATimeSpec(_GeneratorSpec):
-    """The baseline, then each factor of `vary` set to each of its listed levels in turn (the others at
-    the baseline). A listed level equal to the baseline's is skipped (the baseline is already there)."""
-
-    baseline: Annotated[dict[Identifier, LevelName], BeforeValidator(_str_keys)] = Field(min_length=1)
-    vary: Annotated[dict[Identifier, LevelList], Field(min_length=1)]
-    include_baseline: bool = True
-
-
-class SetSpec(_Model):
-    name: Identifier
-    condition: str
-    configurations: list[ConfigurationSpec] = Field(default_factory=list)
-    full_factorial: FullFactorialSpec | None = None
-    one_factor_at_a_time: OneFactorAtATimeSpec | None = None
-
-    @model_validator(mode="after")
-    def _something(self) -> Any:
-        if not self.configurations and self.full_factorial is None and self.one_factor_at_a_time is None:
-            raise ValueError("a set needs `configurations`, `full_factorial` or `one_factor_at_a_time`")
-        return self
 
 
 class Protocol(_Model):

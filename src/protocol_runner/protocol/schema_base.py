@@ -14,6 +14,13 @@ def _int_to_str(value: object) -> object:
     return value
 
 
+def _str_keys(value: object) -> object:
+    """A mapping whose keys are level names: bare-number keys become names."""
+    if isinstance(value, dict):
+        return {_int_to_str(k): v for k, v in value.items()}
+    return value
+
+
 LevelName = Annotated[str, BeforeValidator(_int_to_str)]
 Identifier = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_\-]*$", max_length=64)]
 
