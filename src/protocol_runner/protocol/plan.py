@@ -20,6 +20,7 @@ Step ids are the resume keys: they depend only on the protocol's names and keys,
 from __future__ import annotations
 
 from collections.abc import Iterable
+from typing import Any
 
 from .loaded import LoadedProtocol
 from .only import KeySelection
@@ -149,16 +150,18 @@ def _expand_set(
     cal_joints: JointTrajectories = (
         tuple((j, calibration_trajectory(p, j)) for j in p.driven_joints) if p.multi_joint else ()
     )
-    steps: list[Step] = [
-        CalibrationCheckStep(
-            id=calibration_id(s.name, "before"),
+
+    def calibration_check(when: str) -> CalibrationCheckStep:
+        return CalibrationCheckStep(
+            id=calibration_id(s.name, when),
             kind="calibration_check",
             set=s.name,
-            when="before",
+            when=when,
             trajectory=cal_traj,
             joint_trajectories=cal_joints,
         )
-    ]
+
+    steps: list[Step] = [calibration_check("before")]
     resolved = [(c, resolve_settings(p, c)) for c in cfgs]
     trajectories: dict[int, JointTrajectories] = {
         c.key: (
@@ -198,16 +201,7 @@ def _expand_set(
     )
     for cfg, st in resolved:
         steps += [_trial(s, cfg, st, trajectories[cfg.key], "off", n) for n in range(1, cfg.trials + 1)]
-    steps.append(
-        CalibrationCheckStep(
-            id=calibration_id(s.name, "after"),
-            kind="calibration_check",
-            set=s.name,
-            when="after",
-            trajectory=cal_traj,
-            joint_trajectories=cal_joints,
-        )
-    )
+    steps.append(calibration_check("after"))
     # the spring model is fitted by the processing step; the fit step is the Bouc-Wen model's (per joint
     # that carries elements, in a multi-joint protocol)
     models = ("bouc_wen",) if p.fits.bouc_wen.enabled else ()
@@ -215,23 +209,12 @@ def _expand_set(
         pairs = tuple(
             (trial_id(cfg.key, "on", n), trial_id(cfg.key, "off", n)) for n in range(1, cfg.trials + 1)
         )
-        steps.append(
-            ProcessStep(
-                id=step_id("process", key=cfg.key),
-                kind="process",
-                set=s.name,
-                configuration=cfg.key,
-                trials=pairs,
-            )
-        )
+        steps.append(ProcessStep(**_analysis_fields("process", s, cfg), trials=pairs))
         if models:
-            steps.append(
-                FitStep(
-                    id=step_id("fit", key=cfg.key),
-                    kind="fit",
-                    set=s.name,
-                    configuration=cfg.key,
-                    models=models,
-                )
-            )
+            steps.append(FitStep(**_analysis_fields("fit", s, cfg), models=models))
     return steps
+
+
+def _analysis_fields(kind: str, s: SetSpec, cfg: ConfigurationSpec) -> dict[str, Any]:
+    """The fields a configuration's analysis step (process, fit) shares: its id, kind, set and key."""
+    return {"id": step_id(kind, key=cfg.key), "kind": kind, "set": s.name, "configuration": cfg.key}

@@ -32,13 +32,8 @@ MAX_COMMAND_SAMPLES = 5_000_000
 
 def safety_limits(rig: RigSpec) -> SafetyLimits:
     """The rig section's safety envelope: the joint's range and `rig.safety` (the one place that maps them)."""
-    return SafetyLimits(
-        range_deg=rig.joint.range_deg,
-        max_rate_deg_s=rig.safety.max_rate_deg_s,
-        max_accel_deg_s2=rig.safety.max_accel_deg_s2,
-        park_angle_deg=rig.safety.park_angle_deg,
-        park_rate_deg_s=rig.safety.park_rate_deg_s,
-    )
+    # `rig.safety` (SafetySpec) has the envelope's fields by name: rates, acceleration, park angle and rate
+    return SafetyLimits(range_deg=rig.joint.range_deg, **rig.safety.model_dump())
 
 
 def check_streams(

@@ -20,19 +20,16 @@ Public API: compare_archives(a, b) -> SessionComparison; render_comparison(resul
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from pathlib import Path
-
-import jinja2
 
 from protocol_runner.analysis.statistics import WelchInterval, welch_interval
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.compare_figure import overlay_figure
+from protocol_runner.report.html_file import checked_output, template_environment, write_atomically
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import Configuration, ReportData
-from protocol_runner.resources import templates_dir
 
 TEMPLATE = "compare.html.j2"
 
@@ -218,20 +215,8 @@ def compare_archives(a: Path, b: Path) -> SessionComparison:
 
 def render_comparison(result: SessionComparison, output: Path) -> Path:
     """Write the comparison page (self-contained HTML, overlaid loops inline) to `output`."""
-    output = Path(output)
-    if output.is_dir():
-        raise InvalidInput(
-            f"Comparison output {output} is a directory; give a file name such as compare.html."
-        )
-    if not output.parent.is_dir():
-        raise InvalidInput(f"Comparison output directory {output.parent} does not exist.")
-    env = jinja2.Environment(
-        loader=jinja2.FileSystemLoader(str(templates_dir())),
-        autoescape=True,
-        undefined=jinja2.StrictUndefined,
-        trim_blocks=True,
-        lstrip_blocks=True,
-    )
+    output = checked_output(output, "Comparison", "compare.html")
+    env = template_environment()
     figures = {(p.a.key, p.b.key): overlay_figure(p.a, p.b) for p in result.pairs}
     html = env.get_template(TEMPLATE).render(
         result=result,
@@ -241,11 +226,5 @@ def render_comparison(result: SessionComparison, output: Path) -> Path:
         pval=_p,
         alpha=ALPHA_EACH,
     )
-    tmp = output.with_name(f".{output.name}.{os.getpid()}.partial")
-    try:
-        tmp.write_text(html, encoding="utf-8")
-        os.replace(tmp, output)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    write_atomically(output, html)
     return output

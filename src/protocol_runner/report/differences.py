@@ -16,11 +16,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from itertools import pairwise
 
-import yaml
-from pydantic import ValidationError
-
 from protocol_runner.analysis.statistics import Repeatability, WelchInterval, welch_interval
 from protocol_runner.protocol.expectations import RepeatabilitySpec
+from protocol_runner.report.declared import declared_entries
 from protocol_runner.report.headline import group_repeatability
 from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import Comparison, ReportData
@@ -58,32 +56,9 @@ class RepeatabilityGroup:
     result: Repeatability
 
 
-def _declared(protocol_text: str) -> tuple[tuple[RepeatabilitySpec, ...], tuple[str, ...]]:
-    try:
-        doc = yaml.safe_load(protocol_text) if protocol_text.strip() else None
-    except yaml.YAMLError as exc:
-        return (), (f"the archived protocol is not readable YAML ({exc.__class__.__name__})",)
-    report = doc.get("report") if isinstance(doc, dict) else None
-    raw = report.get("repeatability") if isinstance(report, dict) else None
-    if raw is None:
-        return (), ()
-    if not isinstance(raw, list):
-        return (), ("report.repeatability: must be a list",)
-    specs: list[RepeatabilitySpec] = []
-    problems: list[str] = []
-    for i, entry in enumerate(raw):
-        try:
-            specs.append(RepeatabilitySpec.model_validate(entry))
-        except ValidationError as exc:
-            first = exc.errors()[0]
-            where = ".".join(str(p) for p in first["loc"]) or "entry"
-            problems.append(f"report.repeatability[{i}].{where}: {first['msg']}")
-    return tuple(specs), tuple(problems)
-
-
 def declared_repeatability(data: ReportData) -> tuple[tuple[RepeatabilityGroup, ...], tuple[str, ...]]:
     """Every group of the archived protocol's `report.repeatability`, and a message per unreadable entry."""
-    specs, problems = _declared(data.protocol_text)
+    specs, problems = declared_entries(data.protocol_text, ("report", "repeatability"), RepeatabilitySpec)
     groups = []
     for spec in specs:
         keys = tuple(dict.fromkeys(spec.configurations))

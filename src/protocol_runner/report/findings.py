@@ -9,10 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import yaml
-from pydantic import ValidationError
-
 from protocol_runner.protocol.expectations import ExpectationSpec
+from protocol_runner.report.declared import declared_entries
 from protocol_runner.report.evaluate import Verdict, evaluate_all
 from protocol_runner.report.model import ReportData
 
@@ -35,25 +33,7 @@ class Expectations:
 
 def declared_expectations(protocol_text: str) -> tuple[tuple[ExpectationSpec, ...], tuple[str, ...]]:
     """The `expectations:` of an archived protocol text, and a message per entry that is not valid."""
-    try:
-        doc = yaml.safe_load(protocol_text) if protocol_text.strip() else None
-    except yaml.YAMLError as exc:
-        return (), (f"the archived protocol is not readable YAML ({exc.__class__.__name__})",)
-    raw = doc.get("expectations") if isinstance(doc, dict) else None
-    if raw is None:
-        return (), ()
-    if not isinstance(raw, list):
-        return (), ("expectations: must be a list",)
-    specs: list[ExpectationSpec] = []
-    problems: list[str] = []
-    for i, entry in enumerate(raw):
-        try:
-            specs.append(ExpectationSpec.model_validate(entry))
-        except ValidationError as exc:
-            first = exc.errors()[0]
-            where = ".".join(str(p) for p in first["loc"]) or "entry"
-            problems.append(f"expectations[{i}].{where}: {first['msg']}")
-    return tuple(specs), tuple(problems)
+    return declared_entries(protocol_text, ("expectations",), ExpectationSpec)
 
 
 def evaluate_expectations(data: ReportData) -> Expectations:

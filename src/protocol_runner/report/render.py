@@ -12,7 +12,6 @@ Public API:
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -21,7 +20,6 @@ import jinja2
 from markupsafe import Markup, escape
 
 from protocol_runner import __version__
-from protocol_runner.errors import InvalidInput
 from protocol_runner.report.citations import declared_citations
 from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.differences import adjacent_differences, declared_repeatability
@@ -34,13 +32,13 @@ from protocol_runner.report.figures import (
 )
 from protocol_runner.report.findings import TUNED_LABEL, evaluate_expectations
 from protocol_runner.report.headline import configuration_stats
+from protocol_runner.report.html_file import checked_output, template_environment, write_atomically
 from protocol_runner.report.limits_text import limits_text
 from protocol_runner.report.load import load_reference_dataset, load_report_data
 from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Comparison, Configuration, ReportData
 from protocol_runner.report.multi_joint import joints_section
 from protocol_runner.report.predictions import predictions
 from protocol_runner.report.settings_view import format_quantity
-from protocol_runner.resources import templates_dir
 
 TEMPLATE = "report.html.j2"
 
@@ -109,20 +107,8 @@ def render_report(
 ) -> Path:
     """Write the report of `data` to `output` atomically (temporary file + rename); return `output`."""
     html = render_html(data, generated_utc=generated_utc, workers=workers)
-    output = Path(output)
-    if output.exists() and output.is_dir():
-        raise InvalidInput(f"Report output {output} is a directory; give a file name such as report.html.")
-    if not output.parent.is_dir():
-        raise InvalidInput(f"Report output directory {output.parent} does not exist.")
-    # a plain open() so the file gets the usual permissions (umask), unlike mkstemp's 0600
-    tmp = output.with_name(f".{output.name}.{os.getpid()}.partial")
-    try:
-        with tmp.open("w", encoding="utf-8") as fh:
-            fh.write(html)
-        os.replace(tmp, output)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    output = checked_output(output, "Report", "report.html")
+    write_atomically(output, html)
     return output
 
 
@@ -143,14 +129,7 @@ def render_html(data: ReportData, *, generated_utc: str | None = None, workers: 
 
 
 def _environment() -> jinja2.Environment:
-    env = jinja2.Environment(
-        loader=jinja2.FileSystemLoader(str(templates_dir())),
-        autoescape=True,
-        undefined=jinja2.StrictUndefined,
-        trim_blocks=True,
-        lstrip_blocks=True,
-        keep_trailing_newline=True,
-    )
+    env = template_environment(keep_trailing_newline=True)
     env.filters["num"] = _num
     env.filters["pm"] = _pm
     env.filters["slug"] = slug

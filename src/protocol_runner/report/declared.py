@@ -1,0 +1,43 @@
+"""Entries a protocol declares for the report, read back from the protocol text archived with the session.
+
+The report is made from the archive alone, so sections such as `expectations:` and `report.repeatability:`
+are parsed again from `/protocol/text`. An archive whose text is not YAML, or an entry that does not
+validate, gives a message instead of an error: the report still renders and says what it could not read.
+"""
+
+from __future__ import annotations
+
+from typing import TypeVar
+
+import yaml
+from pydantic import BaseModel, ValidationError
+
+Spec = TypeVar("Spec", bound=BaseModel)
+
+
+def declared_entries(
+    protocol_text: str, path: tuple[str, ...], model: type[Spec]
+) -> tuple[tuple[Spec, ...], tuple[str, ...]]:
+    """The list at `path` (keys from the top, e.g. ("report", "repeatability")) of an archived protocol
+    text, each entry validated as `model`, and a message per entry (or per section) that is not valid."""
+    where_list = ".".join(path)
+    try:
+        node = yaml.safe_load(protocol_text) if protocol_text.strip() else None
+    except yaml.YAMLError as exc:
+        return (), (f"the archived protocol is not readable YAML ({exc.__class__.__name__})",)
+    for key in path:
+        node = node.get(key) if isinstance(node, dict) else None
+    if node is None:
+        return (), ()
+    if not isinstance(node, list):
+        return (), (f"{where_list}: must be a list",)
+    specs: list[Spec] = []
+    problems: list[str] = []
+    for i, entry in enumerate(node):
+        try:
+            specs.append(model.model_validate(entry))
+        except ValidationError as exc:
+            first = exc.errors()[0]
+            where = ".".join(str(p) for p in first["loc"]) or "entry"
+            problems.append(f"{where_list}[{i}].{where}: {first['msg']}")
+    return tuple(specs), tuple(problems)
