@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 Quantity = float | tuple[float, ...]
 
@@ -44,8 +44,33 @@ class ElementSetting:
         return {"name": self.name, "type": self.type, **joint, **{k: _plain(v) for k, v in self.params}}
 
 
+class _Level(Protocol):
+    @property
+    def level(self) -> str: ...
+
+    def quantity(self, name: str) -> Quantity | None: ...
+
+
+class LevelLookup:
+    """A configuration's `level` and `quantity` of a factor, through its `factor` (the plan's `Settings`
+    and the report's `SettingsView`, read back from an archive, answer alike)."""
+
+    def factor(self, name: str) -> _Level | None:
+        raise NotImplementedError
+
+    def level(self, factor: str) -> str | None:
+        """The level label of `factor`, or None when the configuration does not set it."""
+        f = self.factor(factor)
+        return f.level if f is not None else None
+
+    def quantity(self, factor: str, name: str) -> Quantity | None:
+        """The value of `factor`'s quantity `name`, or None."""
+        f = self.factor(factor)
+        return f.quantity(name) if f is not None else None
+
+
 @dataclass(frozen=True)
-class Settings:
+class Settings(LevelLookup):
     """A configuration's settings: the factors it sets (declared order) and its resolved device."""
 
     factors: tuple[tuple[str, FactorSetting], ...]
@@ -59,14 +84,6 @@ class Settings:
 
     def factor(self, factor: str) -> FactorSetting | None:
         return dict(self.factors).get(factor)
-
-    def level(self, factor: str) -> str | None:
-        f = self.factor(factor)
-        return f.level if f is not None else None
-
-    def quantity(self, factor: str, name: str) -> Quantity | None:
-        f = self.factor(factor)
-        return f.quantity(name) if f is not None else None
 
     def device_json(self) -> list[dict[str, Any]]:
         """The plan's `device`: [{"name": ..., "type": ..., **params}] in declaration order."""

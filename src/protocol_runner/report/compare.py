@@ -218,13 +218,10 @@ def render_comparison(result: SessionComparison, output: Path) -> Path:
     output = checked_output(output, "Comparison", "compare.html")
     env = template_environment()
     figures = {(p.a.key, p.b.key): overlay_figure(p.a, p.b) for p in result.pairs}
+    # the template's number formats and the per-quantity significance level
+    helpers = {"fmt": _num, "ival": _ival, "pval": _p, "alpha": ALPHA_EACH}
     html = env.get_template(TEMPLATE).render(
-        result=result,
-        figure_of=lambda p: figures[(p.a.key, p.b.key)],
-        fmt=_num,
-        ival=_ival,
-        pval=_p,
-        alpha=ALPHA_EACH,
+        result=result, figure_of=lambda p: figures[(p.a.key, p.b.key)], **helpers
     )
     write_atomically(output, html)
     return output

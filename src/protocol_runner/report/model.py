@@ -259,14 +259,8 @@ class ReportData:
 
     def configuration(self, key: int) -> Configuration | None:
         """The configuration with matrix key `key`, or None if the archive has none."""
-        for cfg in self.configurations:
-            if cfg.key == key:
-                return cfg
-        return None
+        return next((cfg for cfg in self.configurations if cfg.key == key), None)
 
     def comparison(self, name: str) -> Comparison | None:
         """The comparison called `name`, or None."""
-        for comp in self.comparisons:
-            if comp.name == name:
-                return comp
-        return None
+        return next((comp for comp in self.comparisons if comp.name == name), None)

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from protocol_runner.errors import InvalidInput
+from protocol_runner.protocol.settings import LevelLookup
 from protocol_runner.protocol.units import UNIT_SUFFIXES
 from protocol_runner.protocol.units import unit_suffix as protocol_unit_suffix
 
@@ -94,10 +95,7 @@ class FactorLevel:
 
     def quantity(self, name: str) -> Quantity | None:
         """The value of quantity `name`, or None when the level has none."""
-        for key, value in self.quantities:
-            if key == name:
-                return value
-        return None
+        return dict(self.quantities).get(name)
 
     def text(self) -> str:
         """The level and its quantities: "R1 (range 40–90 deg)"."""
@@ -121,7 +119,7 @@ class DeviceElement:
 
 
 @dataclass(frozen=True)
-class SettingsView:
+class SettingsView(LevelLookup):
     """The settings of one configuration: its factors (declaration order), device and trajectory name."""
 
     factors: tuple[FactorLevel, ...] = ()
@@ -134,27 +132,11 @@ class SettingsView:
 
     def factor(self, name: str) -> FactorLevel | None:
         """The setting of factor `name`, or None when the configuration does not set it."""
-        for f in self.factors:
-            if f.factor == name:
-                return f
-        return None
-
-    def level(self, factor: str) -> str | None:
-        """The level label of `factor`, or None."""
-        f = self.factor(factor)
-        return f.level if f is not None else None
-
-    def quantity(self, factor: str, name: str) -> Quantity | None:
-        """The value of `factor`'s quantity `name`, or None."""
-        f = self.factor(factor)
-        return f.quantity(name) if f is not None else None
+        return next((f for f in self.factors if f.factor == name), None)
 
     def element(self, name: str) -> DeviceElement | None:
         """The device element called `name`, or None."""
-        for e in self.device:
-            if e.name == name:
-                return e
-        return None
+        return next((e for e in self.device if e.name == name), None)
 
     def flat(self) -> dict[str, Quantity | str]:
         """The archive's flattened form: `<factor>` -> level label, `<factor>.<quantity>` -> value."""
