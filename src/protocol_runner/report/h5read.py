@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from typing import Any
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import h5py
 import numpy as np
@@ -103,3 +105,32 @@ def float_ds(group: h5py.Group, name: str) -> np.ndarray:
     if name not in group:
         return read_only(np.empty(0))
     return np.asarray(group[name][()], dtype=float).reshape(-1)
+
+
+Record = TypeVar("Record")
+
+#: How a record field is read from its group, by the field's declared type: an attribute of that name, or
+#: (arrays) the dataset of that name decimated for plotting. The second argument is the field's default.
+_FIELD_READERS: dict[str, Callable[[h5py.Group, str, Any], Any]] = {
+    "float": lambda g, name, default: attr_float(g.attrs, name, default),
+    "int": lambda g, name, default: attr_int(g.attrs, name, default),
+    "bool": lambda g, name, default: attr_bool(g.attrs, name, default),
+    "str": lambda g, name, default: attr_str(g.attrs, name, default),
+    "tuple[float, ...]": lambda g, name, _: attr_floats(g.attrs, name),
+    "FloatArray": lambda g, name, _: decimate_for_plot(float_ds(g, name)),
+}
+_NO_DEFAULT = {"float": float("nan"), "int": 0, "bool": False, "str": ""}
+
+
+def read_record(record: type[Record], group: h5py.Group, **given: Any) -> Record:
+    """A report record (a dataclass of the report model) from `group`: each field not `given` read under
+    its own name by its type (`_FIELD_READERS`); a missing attribute takes the field's default, else NaN,
+    0, False or ""."""
+    values = dict(given)
+    for f in dataclasses.fields(record):  # type: ignore[arg-type]
+        if f.name in values:
+            continue
+        kind = str(f.type)
+        default = f.default if f.default is not dataclasses.MISSING else _NO_DEFAULT.get(kind)
+        values[f.name] = _FIELD_READERS[kind](group, f.name, default)
+    return record(**values)

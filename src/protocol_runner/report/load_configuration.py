@@ -11,12 +11,12 @@ import numpy as np
 from protocol_runner.report.h5read import (
     attr_bool,
     attr_float,
-    attr_floats,
     attr_int,
     attr_str,
     decimate_for_plot,
     float_ds,
     read_only,
+    read_record,
 )
 from protocol_runner.report.model import (
     BoucWenFit,
@@ -30,14 +30,7 @@ from protocol_runner.report.settings_view import elements_from_json, settings_fr
 
 
 def _read_recording(grp: h5py.Group) -> Recording:
-    return Recording(
-        time_s=decimate_for_plot(float_ds(grp, "time_s")),
-        angle_deg=decimate_for_plot(float_ds(grp, "angle_deg")),
-        torque_nm=decimate_for_plot(float_ds(grp, "torque_nm")),
-        command_time_s=decimate_for_plot(float_ds(grp, "command_time_s")),
-        command_deg=decimate_for_plot(float_ds(grp, "command_deg")),
-        tick_lateness_p99_s=attr_float(grp.attrs, "tick_lateness_p99_s"),
-    )
+    return read_record(Recording, grp)
 
 
 def _trial_numbers(trials: h5py.Group) -> list[tuple[int, str]]:
@@ -142,32 +135,7 @@ def _summary(angles: list[np.ndarray], torques: list[np.ndarray]) -> tuple[float
 
 
 def _read_bouc_wen(grp: h5py.Group) -> BoucWenFit:
-    a = grp.attrs
-    return BoucWenFit(
-        A=attr_float(a, "A"),
-        n=attr_float(a, "n"),
-        beta=attr_floats(a, "beta"),
-        rmse_nm=attr_float(a, "rmse_nm"),
-        r2=attr_float(a, "r2"),
-        A_std=attr_float(a, "A_std"),
-        n_std=attr_float(a, "n_std"),
-        beta_std=attr_floats(a, "beta_std"),
-        cv_rmse_nm=attr_floats(a, "cv_rmse_nm"),
-        n_starts=attr_int(a, "n_starts", 0),
-        angle_deg=decimate_for_plot(float_ds(grp, "angle_deg")),
-        torque_nm=decimate_for_plot(float_ds(grp, "torque_nm")),
-        model_torque_nm=decimate_for_plot(float_ds(grp, "model_torque_nm")),
-        rmse_refined_nm=attr_float(a, "rmse_refined_nm"),
-        optimizer_status=attr_int(a, "optimizer_status", 0),
-        cost_spread=attr_float(a, "cost_spread"),
-        n_interval=attr_floats(a, "n_interval"),
-        weakly_identified=attr_bool(a, "weakly_identified"),
-        weak_reasons=attr_str(a, "weak_reasons"),
-        model_energy_j=attr_float(a, "model_energy_j"),
-        data_energy_j=attr_float(a, "data_energy_j"),
-        model_dissipates=attr_bool(a, "model_dissipates", True),
-        backbone=attr_str(a, "backbone", "none"),
-    )
+    return read_record(BoucWenFit, grp)
 
 
 def _filter_text(attrs: h5py.AttributeManager) -> str:
@@ -185,15 +153,10 @@ def _read_element_fit(grp: h5py.Group, name: str) -> ElementFit:
         (key, attr_float(a, key)) for key in sorted(a.keys()) if "." in key and not key.startswith(".")
     )
     elements_text = attr_str(a, "elements_json", "[]")
-    return ElementFit(
+    return read_record(
+        ElementFit,
+        grp,
         applicable=attr_bool(a, "applicable", True),
-        reason=attr_str(a, "reason"),
-        target=attr_str(a, "target"),
-        rmse_nm=attr_float(a, "rmse_nm"),
-        rmse_all_samples_nm=attr_float(a, "rmse_all_samples_nm"),
         parameters=parameters,
         elements=elements_from_json(elements_text, f"configuration {name}: fits/elements"),
-        angle_deg=decimate_for_plot(float_ds(grp, "angle_deg")),
-        torque_nm=decimate_for_plot(float_ds(grp, "torque_nm")),
-        model_torque_nm=decimate_for_plot(float_ds(grp, "model_torque_nm")),
     )
