@@ -10,15 +10,14 @@ import h5py
 
 from protocol_runner.report.h5read import (
     MAX_PLOT_POINTS,
-    attr_bool,
-    attr_float,
     attr_floats,
     attr_int,
     attr_str,
     decimate_for_plot,
     decode,
     float_ds,
-    is_group,
+    read_record,
+    subgroups,
 )
 from protocol_runner.report.model import (
     CalibrationCheck,
@@ -41,25 +40,14 @@ def read_session(h5: h5py.File, archive: Path) -> SessionInfo:
             lines = raw if isinstance(raw, list) else str(raw).splitlines()
             parsed = (_parse_event(str(line)) for line in lines if str(line).strip())
             events.extend(e for e in parsed if e is not None)
-        if "checklists" in sess:
-            for name, grp in sess["checklists"].items():
-                if not is_group(grp):
-                    continue
-                items_text = attr_str(grp.attrs, "items", "[]")
-                try:
-                    items = tuple(str(x) for x in json.loads(items_text))
-                except (json.JSONDecodeError, TypeError):
-                    items = (items_text,)
-                checklists.append(
-                    ChecklistAnswer(
-                        step_id=attr_str(grp.attrs, "step_id", name.replace("__", ":")),
-                        title=attr_str(grp.attrs, "title"),
-                        items=items,
-                        answer=attr_str(grp.attrs, "answer"),
-                        answered_utc=attr_str(grp.attrs, "answered_utc"),
-                        automatic=attr_bool(grp.attrs, "automatic"),
-                    )
-                )
+        for name, grp in subgroups(sess, "checklists"):
+            items_text = attr_str(grp.attrs, "items", "[]")
+            try:
+                items = tuple(str(x) for x in json.loads(items_text))
+            except (json.JSONDecodeError, TypeError):
+                items = (items_text,)
+            step_id = attr_str(grp.attrs, "step_id", name.replace("__", ":"))
+            checklists.append(read_record(ChecklistAnswer, grp, step_id=step_id, items=items))
     checklists.sort(key=lambda c: (c.answered_utc, c.step_id))
     only = tuple(int(v) for v in attr_floats(a, "only"))
     return SessionInfo(
@@ -123,44 +111,25 @@ def _readable_value(value: object) -> str:
 
 
 def read_calibration(h5: h5py.File) -> tuple[CalibrationCheck, ...]:
-    if "calibration" not in h5:
-        return ()
-    checks: list[CalibrationCheck] = []
-    for set_name, set_grp in h5["calibration"].items():
-        if not is_group(set_grp):
-            continue
-        for when, grp in set_grp.items():
-            if not is_group(grp):
-                continue
-            checks.append(
-                CalibrationCheck(
-                    set_name=set_name,
-                    when=when,
-                    step_id=attr_str(grp.attrs, "step_id"),
-                    verdict=attr_str(grp.attrs, "verdict", "unknown"),
-                    step_deg=attr_float(grp.attrs, "step_deg"),
-                    settle_error_deg=attr_float(grp.attrs, "settle_error_deg"),
-                    time_constant_s=attr_float(grp.attrs, "time_constant_s"),
-                    limits=attr_str(grp.attrs, "limits"),
-                    message=attr_str(grp.attrs, "message"),
-                    time_s=decimate_for_plot(float_ds(grp, "time_s")),
-                    angle_deg=decimate_for_plot(float_ds(grp, "angle_deg")),
-                    command_time_s=decimate_for_plot(float_ds(grp, "command_time_s")),
-                    command_deg=decimate_for_plot(float_ds(grp, "command_deg")),
-                )
-            )
+    checks = [
+        read_record(
+            CalibrationCheck,
+            grp,
+            set_name=set_name,
+            when=when,
+            verdict=attr_str(grp.attrs, "verdict", "unknown"),
+        )
+        for set_name, set_grp in subgroups(h5, "calibration")
+        for when, grp in subgroups(set_grp, ".")
+    ]
     order = {"before": 0, "after": 2}
     checks.sort(key=lambda c: (c.set_name, order.get(c.when, 1), c.when))
     return tuple(checks)
 
 
 def read_comparisons(h5: h5py.File) -> tuple[Comparison, ...]:
-    if "comparisons" not in h5:
-        return ()
     out: list[Comparison] = []
-    for name, grp in h5["comparisons"].items():
-        if not is_group(grp):
-            continue
+    for name, grp in subgroups(h5, "comparisons"):
         keys = tuple(int(k) for k in attr_floats(grp.attrs, "configurations"))
         out.append(
             Comparison(
@@ -186,11 +155,9 @@ def _section_key(section: str) -> tuple[int, ...]:
 
 
 def read_references(h5: h5py.File) -> tuple[ReferenceDataset, ...]:
-    if "reference" not in h5:
-        return ()
     out: list[ReferenceDataset] = []
-    for name, grp in h5["reference"].items():
-        if not is_group(grp) or "angle_deg" not in grp or "torque_nm" not in grp:
+    for name, grp in subgroups(h5, "reference"):
+        if "angle_deg" not in grp or "torque_nm" not in grp:
             continue
         angle = float_ds(grp, "angle_deg")
         torque = float_ds(grp, "torque_nm")
