@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InvalidInput, short
-from ..tables import parse_header_table
+from ..tables import BadRow, number_columns, parse_header_table
 
 FloatArray = np.ndarray
 
@@ -80,17 +80,12 @@ def _read_reference_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
             f"Reference dataset {path}, line {header_line}: the header must name an angle column and a "
             f"torque column (got {header})."
         )
-    angle: list[float] = []
-    torque: list[float] = []
-    for row in table.rows:
-        line_no, cells, line = row.line, row.cells, row.text
-        try:
-            angle.append(float(cells[angle_col]))
-            torque.append(float(cells[torque_col]))
-        except (IndexError, ValueError) as exc:
-            raise InvalidInput(
-                f"Reference dataset {path}, line {line_no}: not a number row ({line!r})."
-            ) from exc
+    try:
+        angle, torque = number_columns(table, (angle_col, torque_col))
+    except BadRow as bad:
+        raise InvalidInput(
+            f"Reference dataset {path}, line {bad.row.line}: not a number row ({bad.row.text!r})."
+        ) from None
     return np.asarray(angle), np.asarray(torque)
 
 
