@@ -81,7 +81,9 @@ def test_serial_and_parallel_rendering_give_identical_images(small_archive: Path
 
 def _axis(data, parameter: str, keys=(4, 5, 6, 7)):
     configs = [c for k in keys if (c := data.configuration(k)) is not None]
-    return comparison_axis(Comparison("c", parameter, "", "c", tuple(keys)), configs)
+    return comparison_axis(
+        Comparison(name="c", parameter=parameter, title="c", section="", configurations=tuple(keys)), configs
+    )
 
 
 def test_labels_carry_the_level_and_the_varying_quantity_with_its_unit(small_archive: Path) -> None:

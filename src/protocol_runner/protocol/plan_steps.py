@@ -142,12 +142,20 @@ class FitStep(Step):
 
 
 @dataclass(frozen=True)
-class CompareStep(Step):
+class Comparison:
+    """A declared group of configurations that differ by `parameter` (a declared factor's name, or
+    "trajectory"): the plan's compare step, and the archive's `/comparisons/<name>` the report reads."""
+
     name: str
     parameter: str
     title: str
     section: str
     configurations: tuple[int, ...]
+
+
+@dataclass(frozen=True)
+class CompareStep(Comparison, Step):
+    """The comparison of a protocol's `report.comparisons` entry (its fields after `id` and `kind`)."""
 
 
 @dataclass(frozen=True)

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..analysis.reference import ReferenceDataset as ReferenceDataset  # read by validate and report
+from ..protocol.plan_steps import Comparison as Comparison  # the plan's record, read back from /comparisons
 from .settings_view import DeviceElement, Quantity, SettingsView
 
 FloatArray = np.ndarray
@@ -231,18 +232,6 @@ class Configuration:
     def quantity(self, factor: str, name: str) -> Quantity | None:
         """The value of `factor`'s quantity `name` (a number, or a tuple for a list), or None."""
         return self.settings.quantity(factor, name)
-
-
-@dataclass(frozen=True)
-class Comparison:
-    """A declared group of configurations that differ by `parameter` (`/comparisons/<name>`): a declared
-    factor's name, or "trajectory"."""
-
-    name: str
-    parameter: str
-    section: str
-    title: str
-    configurations: tuple[int, ...]
 
 
 @dataclass(frozen=True)
