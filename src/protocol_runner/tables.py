@@ -10,7 +10,7 @@ keeping each line's number for those messages.
 from __future__ import annotations
 
 import csv
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,23 +51,18 @@ def parse_header_table(text: str) -> HeaderTable:
     return HeaderTable(tuple(comments), rows[0] if rows else None, tuple(rows[1:]))
 
 
-class BadRow(ValueError):
-    """A data row whose cell in a wanted column is missing or not a number; `row` names its line."""
-
-    def __init__(self, row: Row) -> None:
-        super().__init__(row.text)
-        self.row = row
-
-
-def number_columns(table: HeaderTable, columns: Sequence[int]) -> list[list[float]]:
+def number_columns(
+    table: HeaderTable, columns: Sequence[int], bad_row: Callable[[Row], str]
+) -> list[list[float]]:
     """The data rows' cells in `columns` (indices into the cells) as numbers: one list per column, in row
-    order. `BadRow` at the first row whose cell is missing or not a number (the caller words the message)."""
+    order. `InvalidInput` with the caller's `bad_row(row)` message at the first row whose cell is missing
+    or not a number."""
     out: list[list[float]] = [[] for _ in columns]
     for row in table.rows:
         try:
             values = [float(row.cells[c]) for c in columns]
         except (IndexError, ValueError):
-            raise BadRow(row) from None
+            raise InvalidInput(bad_row(row)) from None
         for column, value in zip(out, values, strict=True):
             column.append(value)
     return out

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InvalidInput, short
-from ..tables import BadRow, number_columns, parse_header_table
+from ..tables import number_columns, parse_header_table
 
 FloatArray = np.ndarray
 
@@ -80,12 +80,11 @@ def _read_reference_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
             f"Reference dataset {path}, line {header_line}: the header must name an angle column and a "
             f"torque column (got {header})."
         )
-    try:
-        angle, torque = number_columns(table, (angle_col, torque_col))
-    except BadRow as bad:
-        raise InvalidInput(
-            f"Reference dataset {path}, line {bad.row.line}: not a number row ({bad.row.text!r})."
-        ) from None
+    angle, torque = number_columns(
+        table,
+        (angle_col, torque_col),
+        lambda row: f"Reference dataset {path}, line {row.line}: not a number row ({row.text!r}).",
+    )
     return np.asarray(angle), np.asarray(torque)
 
 

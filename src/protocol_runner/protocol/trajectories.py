@@ -25,7 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InvalidInput
-from ..tables import BadRow, number_columns, parse_header_table
+from ..tables import number_columns, parse_header_table
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -245,13 +245,12 @@ def _load_csv(path: Path, angle_names: tuple[str, ...]) -> tuple[FloatArray, Flo
             f"{path}:{table.header.line}: the column row must name `time_s` and {wanted} "
             f"(found: {table.header.text})"
         )
-    try:
-        times, angles = number_columns(table, (time_col, angle_col))
-    except BadRow as bad:
-        raise InvalidInput(
-            f"{path}:{bad.row.line}: expected numbers in columns {table.header.cells[time_col]}, "
-            f"{table.header.cells[angle_col]}: {bad.row.text!r}"
-        ) from None
+    names = f"{table.header.cells[time_col]}, {table.header.cells[angle_col]}"
+    times, angles = number_columns(
+        table,
+        (time_col, angle_col),
+        lambda row: f"{path}:{row.line}: expected numbers in columns {names}: {row.text!r}",
+    )
     return (
         np.asarray(times, dtype=np.float64),
         np.asarray(angles, dtype=np.float64),
