@@ -63,19 +63,13 @@ from protocol_runner.protocol.schema_rig import (  # noqa: F401  (re-exported)
     SafetyOverride,
     SafetySpec,
 )
-from protocol_runner.protocol.trajectory_specs import TrajectorySpec
+from protocol_runner.protocol.trajectory_specs import RampedStepFields, TrajectorySpec
 
 # ------------------------------------------------------------------------------------ trajectories
 
 
-class CalibrationStepSpec(_Model):
-    """The calibration check's move (a ramped step, thesis Appendix A "Calibration")."""
-
-    from_deg: float
-    step_deg: float
-    ramp_s: float = Field(ge=0)
-    hold_s: float = Field(gt=0)
-    settle_s: float = Field(gt=0)
+class CalibrationStepSpec(RampedStepFields[float], _Model):
+    """The calibration check's move (a ramped step, thesis Appendix A "Calibration"), in numbers."""
 
 
 class CalibrationCheckSpec(_Model):

@@ -21,7 +21,7 @@ from __future__ import annotations
 import math
 import re
 from collections.abc import Callable
-from typing import Annotated, Literal
+from typing import Annotated, Generic, Literal, TypeVar
 
 from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator
 
@@ -140,17 +140,26 @@ class IdentificationSpec(_Spec):
     final_period_s: float = Field(gt=0)
 
 
-class RampedStepSpec(_Spec):
-    """Hold `from_deg` for `settle_s`, move by `step_deg` over `ramp_s` (raised cosine: peak speed
-    pi/2 * step/ramp, peak acceleration pi^2/2 * step/ramp^2), hold for `hold_s`. `ramp_s = 0` would be a
-    true step: the plan-time check refuses it (over any rate limit)."""
+Angle = TypeVar("Angle")
 
-    kind: Literal["ramped_step"]
-    from_deg: BindableFloat
-    step_deg: BindableFloat
+
+class RampedStepFields(BaseModel, Generic[Angle]):
+    """A ramped step's fields: hold `from_deg` for `settle_s`, move by `step_deg` over `ramp_s` (raised
+    cosine: peak speed pi/2 * step/ramp, peak acceleration pi^2/2 * step/ramp^2), hold for `hold_s`. The
+    angles are numbers (the calibration step, schema.CalibrationStepSpec) or bindable (a trajectory)."""
+
+    from_deg: Angle
+    step_deg: Angle
     ramp_s: float = Field(ge=0)
     hold_s: float = Field(gt=0)
     settle_s: float = Field(gt=0)
+
+
+class RampedStepSpec(RampedStepFields[BindableFloat], _Spec):
+    """A ramped step (RampedStepFields) as a trajectory. `ramp_s = 0` would be a true step: the plan-time
+    check refuses it (over any rate limit)."""
+
+    kind: Literal["ramped_step"]
 
 
 class HoldSpec(_Spec):
