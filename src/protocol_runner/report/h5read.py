@@ -31,9 +31,9 @@ def is_group(obj: Any) -> bool:
     return isinstance(obj, h5py.Group)
 
 
-def subgroups(parent: h5py.Group, path: str) -> list[tuple[str, h5py.Group]]:
-    """(name, group) of every group directly under `parent[path]`, in stored order; none when the path
-    is absent (datasets beside them are passed over)."""
+def subgroups(parent: h5py.Group, path: str = ".") -> list[tuple[str, h5py.Group]]:
+    """(name, group) of every group directly under `parent[path]` (default: `parent` itself), in stored
+    order; none when the path is absent (datasets beside them are passed over)."""
     if path not in parent:
         return []
     return [(name, obj) for name, obj in parent[path].items() if is_group(obj)]

@@ -120,7 +120,7 @@ def read_calibration(h5: h5py.File) -> tuple[CalibrationCheck, ...]:
             verdict=attr_str(grp.attrs, "verdict", "unknown"),
         )
         for set_name, set_grp in subgroups(h5, "calibration")
-        for when, grp in subgroups(set_grp, ".")
+        for when, grp in subgroups(set_grp)
     ]
     order = {"before": 0, "after": 2}
     checks.sort(key=lambda c: (c.set_name, order.get(c.when, 1), c.when))
