@@ -26,7 +26,6 @@ from __future__ import annotations
 import logging
 import struct
 from dataclasses import dataclass
-from types import TracebackType
 from typing import Any
 
 import usb.core
@@ -39,11 +38,11 @@ from protocol_runner.hardware.usb_common import (
     BoardIoError,
     BoardNotFound,
     BoardTimeout,
+    OpenedBoard,
     bcd_to_text,
     claim_interface,
     find_devices,
     map_usb_error,
-    release_device,
     set_up_or_release,
 )
 
@@ -117,7 +116,7 @@ class Dt9814Info:
     serial_number: int
 
 
-class Dt9814:
+class Dt9814(OpenedBoard[Dt9814Settings]):
     """An opened DT9814 (UNVERIFIED protocol). Use `Dt9814.open(serial=None, backend=None)`."""
 
     kind = KIND
@@ -273,19 +272,6 @@ class Dt9814:
 
     def blink(self, count: int = 5) -> None:
         """The DT9812 protocol has no LED command: nothing to do (kept for a uniform board API)."""
-
-    def close(self) -> None:
-        if not self._closed:
-            self._closed = True
-            release_device(self._dev, self.settings.interface)
-
-    def __enter__(self) -> Dt9814:
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self.close()
 
 
 __all__ = ["Dt9814", "Dt9814Info", "Dt9814Settings", "code12_to_volts", "sign_extend_12"]

@@ -13,7 +13,6 @@ import logging
 import math
 import struct
 from collections.abc import Sequence
-from types import TracebackType
 from typing import Any
 
 import numpy as np
@@ -51,6 +50,7 @@ from protocol_runner.hardware.usb_common import (
     BoardIoError,
     BoardTimeout,
     MonotonicClock,
+    OpenedBoard,
     ScanOverrun,
     bcd_to_text,
     claim_interface,
@@ -58,7 +58,6 @@ from protocol_runner.hardware.usb_common import (
     find_devices,
     map_usb_error,
     read_serial,
-    release_device,
     select_device,
     set_up_or_release,
 )
@@ -66,7 +65,7 @@ from protocol_runner.hardware.usb_common import (
 log = logging.getLogger(__name__)
 
 
-class Usb1608FsPlus:
+class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
     """An opened USB-1608FS-Plus. Use `Usb1608FsPlus.open(serial=None, backend=None, clock=None)`."""
 
     kind = KIND
@@ -344,25 +343,13 @@ class Usb1608FsPlus:
         self._ctrl_out(CMD_AIN_CLR_FIFO, b"", "clearing the scan FIFO")
         return self._take_rows()
 
-    def close(self) -> None:
-        if self._closed:
-            return
+    def _before_release(self) -> None:
         if self._scanning:
             try:
                 self._ctrl_out(CMD_AIN_SCAN_STOP, b"", "stopping the scan")
             except Exception:  # closing must not hide the original failure
                 log.warning("%s: could not stop the scan while closing", self.name)
             self._scanning = False
-        self._closed = True
-        release_device(self._dev, self.settings.interface)
-
-    def __enter__(self) -> Usb1608FsPlus:
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self.close()
 
 
 def open_all_1608fs(

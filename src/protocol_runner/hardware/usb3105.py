@@ -25,7 +25,6 @@ import operator
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
-from types import TracebackType
 from typing import Any
 
 import usb.core
@@ -40,12 +39,12 @@ from protocol_runner.hardware.usb3105_calibration import parse_calibration as pa
 from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,
     BoardIoError,
+    OpenedBoard,
     UnexpectedReply,
     bcd_to_text,
     claim_interface,
     find_board,
     map_usb_error,
-    release_device,
     set_up_or_release,
     usb_call,
 )
@@ -93,8 +92,9 @@ class ChannelNotConfigured(InvalidInput):
     """`write_volts` on a channel that `configure_channel` has not set to +-10 V."""
 
 
-class Usb3105:
-    """An opened USB-3105. Use `Usb3105.open(serial=None, backend=None)`; close it (or use ``with``)."""
+class Usb3105(OpenedBoard[Usb3105Settings]):
+    """An opened USB-3105. Use `Usb3105.open(serial=None, backend=None)`; close it (or use ``with``): the
+    outputs keep their last value."""
 
     kind = KIND
     n_channels = N_CHANNELS
@@ -352,20 +352,6 @@ class Usb3105:
     # ------------------------------------------------------------------------------------------------
     # Closing
     # ------------------------------------------------------------------------------------------------
-    def close(self) -> None:
-        """Release the interface (idempotent). The outputs keep their last value."""
-        if self._closed:
-            return
-        self._closed = True
-        release_device(self._dev, self.settings.interface)
-
-    def __enter__(self) -> Usb3105:
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"Usb3105(serial={self._serial!r}, firmware={self.firmware!r})"
