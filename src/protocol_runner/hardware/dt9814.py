@@ -43,7 +43,6 @@ from protocol_runner.hardware.usb_common import (
     claim_interface,
     find_devices,
     map_usb_error,
-    set_up_or_release,
 )
 
 log = logging.getLogger(__name__)
@@ -154,10 +153,7 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
     @classmethod
     def from_device(cls, device: usb.core.Device, settings: Dt9814Settings | None = None) -> Dt9814:
         """Open an already found pyusb device (claim it, read its identity from flash)."""
-        settings = settings or Dt9814Settings()
-        board = cls(device, settings)
-        set_up_or_release(board._setup, device, settings.interface)
-        return board
+        return cls(device, settings or Dt9814Settings())._set_up()
 
     def _setup(self) -> None:
         log.warning("%s: %s", self.name, UNVERIFIED_WARNING)

@@ -59,7 +59,6 @@ from protocol_runner.hardware.usb_common import (
     map_usb_error,
     read_serial,
     select_device,
-    set_up_or_release,
 )
 
 log = logging.getLogger(__name__)
@@ -110,11 +109,8 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
     ) -> Usb1608FsPlus:
         """Find the board (VID 0x09DB PID 0x00EA, optionally by serial), claim it, read its serial and
         calibration, and make sure no scan is left running. Errors are clear `HardwareUnavailable`s."""
-        settings = settings or Usb1608FsSettings()
         device, usb_serial = find_board(MCC_VENDOR_ID, PRODUCT_ID, serial, backend, KIND)
-        board = cls(device, usb_serial, settings, clock or MonotonicClock())
-        set_up_or_release(board._setup, device, settings.interface)
-        return board
+        return cls(device, usb_serial, settings or Usb1608FsSettings(), clock or MonotonicClock())._set_up()
 
     def _setup(self) -> None:
         claim_interface(self._dev, self.settings.interface, self.name)

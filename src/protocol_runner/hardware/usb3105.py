@@ -45,7 +45,6 @@ from protocol_runner.hardware.usb_common import (
     claim_interface,
     find_board,
     map_usb_error,
-    set_up_or_release,
     usb_call,
 )
 
@@ -122,11 +121,7 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
     # ------------------------------------------------------------------------------------------------
     @classmethod
     def open(
-        cls,
-        serial: str | None = None,
-        backend: Any | None = None,
-        *,
-        settings: Usb3105Settings | None = None,
+        cls, serial: str | None = None, backend: Any | None = None, *, settings: Usb3105Settings | None = None
     ) -> Usb3105:
         """Find the board (VID 0x09DB PID 0x009E, optionally by serial), claim it, drain stale reports and
         read the calibration. `backend` is passed to `usb.core.find` (None: the system libusb).
@@ -134,11 +129,8 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
         Raises a `HardwareUnavailable` subclass naming the board and the cure (not found, busy,
         permission denied, timeout, gone).
         """
-        settings = settings or Usb3105Settings()
         device, board_serial = find_board(MCC_VENDOR_ID, PRODUCT_ID, serial, backend, KIND)
-        board = cls(device, board_serial, settings)
-        set_up_or_release(board._setup, device, settings.interface)
-        return board
+        return cls(device, board_serial, settings or Usb3105Settings())._set_up()
 
     def _setup(self) -> None:
         s = self.settings

@@ -264,16 +264,6 @@ def find_board(
     return found.device, usb_serial
 
 
-def set_up_or_release(setup: Callable[[], None], device: usb.core.Device, interface: int) -> None:
-    """Run a freshly opened board's `setup` (claim, configure, read calibration); on any failure release
-    `interface` and free the device before the error propagates, so that the board can be opened again."""
-    try:
-        setup()
-    except BaseException:
-        release_device(device, interface)
-        raise
-
-
 def claim_interface(device: usb.core.Device, interface: int, board: str) -> bool:
     """Detach the kernel driver (usbhid for the HID boards) if it holds `interface`, then claim it.
 
@@ -319,6 +309,20 @@ class OpenedBoard(Generic[SettingsT]):
     _dev: usb.core.Device
     settings: SettingsT
     _closed: bool
+
+    def _setup(self) -> None:
+        """Claim and configure the freshly opened board, read its calibration (each driver's own)."""
+        raise NotImplementedError
+
+    def _set_up(self) -> Self:
+        """Run `_setup`; on any failure release the interface and free the device before the error
+        propagates, so that the board can be opened again. Returns the board."""
+        try:
+            self._setup()
+        except BaseException:
+            release_device(self._dev, self.settings.interface)
+            raise
+        return self
 
     def _before_release(self) -> None:
         """Stop what the board has running before its interface is released (nothing by default)."""

@@ -83,6 +83,7 @@ from protocol_runner.hardware.simulator.kernels import (
     T_ORIGIN,
     T_RATE,
     T_START,
+    Adc,
     Commands,
     FloatArray,
     IntArray,
@@ -290,7 +291,7 @@ class JointPlant:
         scan: ScanWindow,
         sensors: Sensors,
         noise: FloatArray,
-        adc: tuple[float, int, int],
+        adc: Adc,
     ) -> tuple[IntArray, int, FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
         """The block path (`block.send_and_scan`): the output codes of writes at `times_s`, their commands
         held from their grid steps, then the `scan` window's rows read after integrating to `step_end`.
@@ -318,12 +319,7 @@ class JointPlant:
         return volts
 
     def scan(
-        self,
-        step_end: int,
-        scan: ScanWindow,
-        sensors: Sensors,
-        noise: FloatArray,
-        adc: tuple[float, int, int],
+        self, step_end: int, scan: ScanWindow, sensors: Sensors, noise: FloatArray, adc: Adc
     ) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
         """`advance_rows` followed by the input board's quantisation (see `scan_rows`); `adc` = (volts per
         code, lowest code, highest code). Returns (row times, codes, their volts, whether any volts were
