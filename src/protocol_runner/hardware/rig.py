@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -78,22 +79,24 @@ def block_end(start: int, n: int, block_ticks: int, stop_requested: StopRequeste
     return end, False
 
 
+@dataclass(eq=False)
 class Rig:
     """Binds an analog output, an analog input and a clock to one joint (`JointConfig`)."""
 
-    def __init__(self, joint: JointConfig, ao: AnalogOutput, ai: AnalogInput, clock: Clock) -> None:
-        self.joint = joint
-        self.ao = ao
-        self.ai = ai
-        self.clock = clock
-        self._prepared = False
-        self._last_command_deg: float | None = None
-        # Entered around every paced loop; the hardware bench sets it to real-time scheduling.
-        self.loop_context: Callable[[], contextlib.AbstractContextManager[object]] = contextlib.nullcontext
-        # The live monitor's sampler (--monitor): shown each scan block as it is read; None costs nothing.
-        self.tap: LoopTap | None = None
-        # The simulator's block path (set by `SimulatedRig.make_rig`); None on the hardware bench.
-        self.block_io: ScheduledBlockIO | None = None
+    joint: JointConfig
+    ao: AnalogOutput
+    ai: AnalogInput
+    clock: Clock
+    _prepared: bool = field(default=False, init=False)
+    _last_command_deg: float | None = field(default=None, init=False)
+    # Entered around every paced loop; the hardware bench sets it to real-time scheduling.
+    loop_context: Callable[[], contextlib.AbstractContextManager[object]] = field(
+        default=contextlib.nullcontext, init=False
+    )
+    # The live monitor's sampler (--monitor): shown each scan block as it is read; None costs nothing.
+    tap: LoopTap | None = field(default=None, init=False)
+    # The simulator's block path (set by `SimulatedRig.make_rig`); None on the hardware bench.
+    block_io: ScheduledBlockIO | None = field(default=None, init=False)
 
     @property
     def scan_channels(self) -> tuple[int, int]:
