@@ -32,13 +32,13 @@ import usb.core
 import usb.util
 
 from protocol_runner.errors import InvalidInput
+from protocol_runner.hardware.usb_board import OpenedBoard
 from protocol_runner.hardware.usb_common import (
     DRY_RUN_HINT,
     DT_VENDOR_ID,
     BoardIoError,
     BoardNotFound,
     BoardTimeout,
-    OpenedBoard,
     bcd_to_text,
     claim_interface,
     find_devices,

@@ -45,12 +45,12 @@ from protocol_runner.hardware.usb1608fs_protocol import KIND as KIND
 from protocol_runner.hardware.usb1608fs_protocol import N_CHANNELS as N_CHANNELS
 from protocol_runner.hardware.usb1608fs_protocol import PRODUCT_ID as PRODUCT_ID
 from protocol_runner.hardware.usb1608fs_protocol import pacer_period as pacer_period
+from protocol_runner.hardware.usb_board import OpenedBoard
 from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,
     BoardIoError,
     BoardTimeout,
     MonotonicClock,
-    OpenedBoard,
     ScanOverrun,
     bcd_to_text,
     claim_interface,

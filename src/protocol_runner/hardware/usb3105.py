@@ -36,10 +36,10 @@ from protocol_runner.hardware.usb3105_calibration import ChannelCalibration as C
 from protocol_runner.hardware.usb3105_calibration import calibrated_code as calibrated_code
 from protocol_runner.hardware.usb3105_calibration import ideal_code_pm10v as ideal_code_pm10v
 from protocol_runner.hardware.usb3105_calibration import parse_calibration as parse_calibration
+from protocol_runner.hardware.usb_board import OpenedBoard
 from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,
     BoardIoError,
-    OpenedBoard,
     UnexpectedReply,
     bcd_to_text,
     claim_interface,
