@@ -10,7 +10,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from . import __version__
 from .errors import EXIT_INTERRUPTED, EXIT_INVALID_INPUT, EXIT_OK, InvalidInput, UserError
@@ -61,6 +61,54 @@ safety or calibration check, 130 interrupted or disk full (the session is resuma
 """
 
 
+_OPTIONS: tuple[tuple[str, str, str | None, str], ...] = (
+    # (group, flag, metavar (None: a switch), help), in the order --help lists them
+    ("mode", "--resume", "SESSION_DIR", "resume an interrupted session"),
+    ("mode", "--report", "PATH", "regenerate the report of a session directory or archive"),
+    ("mode", "--verify", "PATH", "check the checksums of a session directory's or archive's datasets"),
+    ("mode", "--export", "PATH", "write tidy CSV tables of a session or archive"),
+    ("mode", "--compare", "A B", "compare two sessions or archives (HTML + table)"),
+    ("mode", "--plan", "PROTOCOL", "print the expanded plan of a protocol"),
+    ("mode", "--validate", "PROTOCOL", "validate a protocol file"),
+    ("mode", "--hardware-check", "PROTOCOL", "check the DAQ boards (and a protocol's channels)"),
+    ("running", "--dry-run", None, "run against the DAQ simulator (simulated time)"),
+    ("running", "--realtime", None, "with --dry-run: pace the simulator like the hardware"),
+    ("running", "--session", "DIR", "session directory (default: sessions/<protocol>-<UTC time>/)"),
+    ("running", "--seed", "SEED", "seed of the simulator's random draws (default 0)"),
+    ("running", "--yes", None, "answer operator prompts automatically (checklists done)"),
+    ("running", "--only", "KEYS", "run only these configuration keys, e.g. 4,5,6,7 or 12-14"),
+    (
+        "running",
+        "--force",
+        None,
+        "with --resume: accept a changed protocol or referenced file, or a missing journal (recorded)",
+    ),
+    (
+        "running",
+        "--monitor",
+        "[HOST:]PORT",
+        "serve a live, read-only page of the session (default host 127.0.0.1; another host needs "
+        "the token printed on the terminal)",
+    ),
+    ("output", "--json", None, "with --plan: print the plan as JSON (the contract shape)"),
+    (
+        "output",
+        "--output",
+        "FILE",
+        "with --report/--compare: where to write the HTML; with --export: the directory",
+    ),
+    ("output", "--reprocess", None, "with --report: redo processing and fits from raw data"),
+    ("output", "--protocol-file", "PROTOCOL", "with --reprocess: take processing settings from this file"),
+    ("output", "--export-mat", "DIR", "with --report: write the archive as .mat files (docs/matlab.md)"),
+)
+_OPTION_EXTRAS: dict[str, dict[str, Any]] = {
+    # what a row of _OPTIONS cannot say (these win over the row)
+    "--compare": {"metavar": ("A", "B"), "nargs": 2},
+    "--hardware-check": {"nargs": "?", "const": ""},
+    "--seed": {"type": int},
+}
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="run-protocol",
@@ -69,75 +117,14 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("protocol", nargs="?", metavar="PROTOCOL", help="protocol file to run")
-    mode = parser.add_mutually_exclusive_group()
-    mode.add_argument("--resume", metavar="SESSION_DIR", help="resume an interrupted session")
-    mode.add_argument(
-        "--report", metavar="PATH", help="regenerate the report of a session directory or archive"
-    )
-    mode.add_argument(
-        "--verify", metavar="PATH", help="check the checksums of a session directory's or archive's datasets"
-    )
-    mode.add_argument("--export", metavar="PATH", help="write tidy CSV tables of a session or archive")
-    mode.add_argument(
-        "--compare", nargs=2, metavar=("A", "B"), help="compare two sessions or archives (HTML + table)"
-    )
-    mode.add_argument("--plan", metavar="PROTOCOL", help="print the expanded plan of a protocol")
-    mode.add_argument("--validate", metavar="PROTOCOL", help="validate a protocol file")
-    mode.add_argument(
-        "--hardware-check",
-        nargs="?",
-        const="",
-        metavar="PROTOCOL",
-        help="check the DAQ boards (and a protocol's channels)",
-    )
-    run = parser.add_argument_group("running")
-    run.add_argument("--dry-run", action="store_true", help="run against the DAQ simulator (simulated time)")
-    run.add_argument(
-        "--realtime", action="store_true", help="with --dry-run: pace the simulator like the hardware"
-    )
-    run.add_argument(
-        "--session", metavar="DIR", help="session directory (default: sessions/<protocol>-<UTC time>/)"
-    )
-    run.add_argument(
-        "--seed", type=int, default=None, help="seed of the simulator's random draws (default 0)"
-    )
-    run.add_argument(
-        "--yes", action="store_true", help="answer operator prompts automatically (checklists done)"
-    )
-    run.add_argument(
-        "--only", metavar="KEYS", help="run only these configuration keys, e.g. 4,5,6,7 or 12-14"
-    )
-    run.add_argument(
-        "--force",
-        action="store_true",
-        help="with --resume: accept a changed protocol or referenced file, or a missing journal (recorded)",
-    )
-    run.add_argument(
-        "--monitor",
-        metavar="[HOST:]PORT",
-        help="serve a live, read-only page of the session (default host 127.0.0.1; another host needs "
-        "the token printed on the terminal)",
-    )
-    out = parser.add_argument_group("output")
-    out.add_argument(
-        "--json", action="store_true", help="with --plan: print the plan as JSON (the contract shape)"
-    )
-    out.add_argument(
-        "--output",
-        metavar="FILE",
-        help="with --report/--compare: where to write the HTML; with --export: the directory",
-    )
-    out.add_argument(
-        "--reprocess", action="store_true", help="with --report: redo processing and fits from raw data"
-    )
-    out.add_argument(
-        "--protocol-file",
-        metavar="PROTOCOL",
-        help="with --reprocess: take processing settings from this file",
-    )
-    out.add_argument(
-        "--export-mat", metavar="DIR", help="with --report: write the archive as .mat files (docs/matlab.md)"
-    )
+    groups = {
+        "mode": parser.add_mutually_exclusive_group(),
+        "running": parser.add_argument_group("running"),
+        "output": parser.add_argument_group("output"),
+    }
+    for group, flag, metavar, help_text in _OPTIONS:
+        kind: dict[str, Any] = {"action": "store_true"} if metavar is None else {"metavar": metavar}
+        groups[group].add_argument(flag, help=help_text, **(kind | _OPTION_EXTRAS.get(flag, {})))
     parser.add_argument("--version", action="version", version=f"protocol-runner {__version__}")
     return parser
 

@@ -489,9 +489,9 @@ def test_fused_scan_kernel_quantises_like_the_dt9814_conversions() -> None:
     sensors = (roles, scales, knots, knots * 20.0 / 130.0, knots, knots * 10.0 / 84.8)
     noise = np.random.default_rng(3).standard_normal(3 * 1500) * 3.0
     t0, origin, rate = 0.25, 0.0, 1000.0
-    raw = plants[0].advance_rows(3000, t0, origin, rate, 7, 1500, sensors, noise)
+    raw = plants[0].advance_rows(3000, (t0, origin, rate, 7, 1500), sensors, noise)
     t_s, codes, volts, any_nan = plants[1].scan(
-        3000, t0, origin, rate, 7, 1500, sensors, noise, (AI12_VOLTS_PER_CODE, AI12_MIN_CODE, AI12_MAX_CODE)
+        3000, (t0, origin, rate, 7, 1500), sensors, noise, (AI12_VOLTS_PER_CODE, AI12_MIN_CODE, AI12_MAX_CODE)
     )
     assert not any_nan
     assert raw.shape == codes.shape == volts.shape and 0 < raw.shape[0] < 1500  # only rows reached

@@ -26,13 +26,13 @@ from __future__ import annotations
 import logging
 import struct
 from dataclasses import dataclass
-from types import TracebackType
 from typing import Any
 
 import usb.core
 import usb.util
 
 from protocol_runner.errors import InvalidInput
+from protocol_runner.hardware.usb_board import OpenedBoard
 from protocol_runner.hardware.usb_common import (
     DRY_RUN_HINT,
     DT_VENDOR_ID,
@@ -43,8 +43,6 @@ from protocol_runner.hardware.usb_common import (
     claim_interface,
     find_devices,
     map_usb_error,
-    release_device,
-    set_up_or_release,
 )
 
 log = logging.getLogger(__name__)
@@ -117,7 +115,7 @@ class Dt9814Info:
     serial_number: int
 
 
-class Dt9814:
+class Dt9814(OpenedBoard[Dt9814Settings]):
     """An opened DT9814 (UNVERIFIED protocol). Use `Dt9814.open(serial=None, backend=None)`."""
 
     kind = KIND
@@ -155,10 +153,7 @@ class Dt9814:
     @classmethod
     def from_device(cls, device: usb.core.Device, settings: Dt9814Settings | None = None) -> Dt9814:
         """Open an already found pyusb device (claim it, read its identity from flash)."""
-        settings = settings or Dt9814Settings()
-        board = cls(device, settings)
-        set_up_or_release(board._setup, device, settings.interface)
-        return board
+        return cls(device, settings or Dt9814Settings())._set_up()
 
     def _setup(self) -> None:
         log.warning("%s: %s", self.name, UNVERIFIED_WARNING)
@@ -273,19 +268,6 @@ class Dt9814:
 
     def blink(self, count: int = 5) -> None:
         """The DT9812 protocol has no LED command: nothing to do (kept for a uniform board API)."""
-
-    def close(self) -> None:
-        if not self._closed:
-            self._closed = True
-            release_device(self._dev, self.settings.interface)
-
-    def __enter__(self) -> Dt9814:
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self.close()
 
 
 __all__ = ["Dt9814", "Dt9814Info", "Dt9814Settings", "code12_to_volts", "sign_extend_12"]

@@ -1,9 +1,11 @@
 """What a rig is bound to and what it records: the joint's channels, rates, calibration and limits
-(`JointConfig`), and one run of the acquisition loop (`TrialRecording`)."""
+(`JointConfig`), one run of the acquisition loop (`TrialRecording`), and how a caller stops that loop
+(`StopRequested`, `OnStop`)."""
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -15,6 +17,11 @@ from protocol_runner.hardware.conversions import angle_to_volts, volts_to_angle,
 from protocol_runner.hardware.safety import SafetyLimits, clamp_volts
 
 FloatArray = npt.NDArray[np.float64]
+
+StopRequested = Callable[[], bool]
+"""Polled by a paced loop as it reads: True asks it to stop (the operator's stop, a signal)."""
+OnStop = Callable[[int], FloatArray]
+"""Given the number of samples written when a stop was asked, the samples to send next (the parking)."""
 
 
 @dataclass(frozen=True, kw_only=True)

@@ -12,12 +12,12 @@ written sample in the same loop, then raises `Interrupted`; during the exit the 
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
 import numpy.typing as npt
 
+from protocol_runner.hardware.joint import StopRequested
 from protocol_runner.hardware.rig import Rig, TrialRecording
 from protocol_runner.hardware.safety import check_trajectory
 from protocol_runner.hardware.stream import TRAJECTORY, CommandStream, build_stream, check_stream
@@ -37,7 +37,7 @@ def run_motion(
     trajectory_deg: npt.ArrayLike,
     *,
     where: str,
-    stop_requested: Callable[[], bool] | None = None,
+    stop_requested: StopRequested | None = None,
 ) -> TrialRecording:
     """Plan, check and send one motion; return the trajectory part of its recording."""
     return run_stream(rig, plan_motion(rig, trajectory_deg), where=where, stop_requested=stop_requested)
@@ -48,7 +48,7 @@ def run_stream(
     stream: CommandStream,
     *,
     where: str,
-    stop_requested: Callable[[], bool] | None = None,
+    stop_requested: StopRequested | None = None,
 ) -> TrialRecording:
     """Check the whole stream (and its first sample against where the joint was left), then send it."""
     joint = rig.joint

@@ -23,7 +23,7 @@ import numpy.typing as npt
 
 from protocol_runner.errors import Interrupted, InvalidInput
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock, LoopTap, ScanBlock
-from protocol_runner.hardware.joint import JointConfig, TrialRecording
+from protocol_runner.hardware.joint import JointConfig, OnStop, StopRequested, TrialRecording
 from protocol_runner.hardware.motion import trajectory_part
 from protocol_runner.hardware.multi_stream import MultiStream, build_multi_stream, check_multi_stream
 from protocol_runner.hardware.rig import READ_EVERY_TICKS, Rig
@@ -170,8 +170,8 @@ class MultiRig:
         cmd: FloatArray,
         *,
         where: str,
-        stop_requested: Callable[[], bool] | None,
-        on_stop: Callable[[int], FloatArray] | None = None,
+        stop_requested: StopRequested | None,
+        on_stop: OnStop | None = None,
     ) -> tuple[TrialRecording, ...]:
         """The paced loop over (ticks, joints) samples already checked: per tick one synchronous write of
         every joint's channel. On a stop request `on_stop(written)` gives the samples to send next."""
@@ -294,7 +294,7 @@ def run_multi_motion(
     trajectories_deg: Sequence[npt.ArrayLike],
     *,
     where: str,
-    stop_requested: Callable[[], bool] | None = None,
+    stop_requested: StopRequested | None = None,
 ) -> tuple[TrialRecording, ...]:
     """Plan, check (every joint, before any write) and send one multi-joint motion; return each joint's
     trajectory part on the shared time base, its whole commanded stream attached. A stop request brakes and

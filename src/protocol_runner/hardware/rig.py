@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
+from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
@@ -32,6 +33,7 @@ import numpy.typing as npt
 from protocol_runner.errors import Interrupted, InvalidInput
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock, LoopTap, ScanBlock
 from protocol_runner.hardware.joint import JointConfig as JointConfig
+from protocol_runner.hardware.joint import OnStop, StopRequested
 from protocol_runner.hardware.joint import TrialRecording as TrialRecording
 from protocol_runner.hardware.safety import SafetyLimits, check_trajectory, parking_ramp_deg
 
@@ -61,9 +63,7 @@ class ScheduledBlockIO(Protocol):
     ) -> tuple[npt.NDArray[np.int64], ScanBlock]: ...
 
 
-def block_end(
-    start: int, n: int, block_ticks: int, stop_requested: Callable[[], bool] | None
-) -> tuple[int, bool]:
+def block_end(start: int, n: int, block_ticks: int, stop_requested: StopRequested | None) -> tuple[int, bool]:
     """The end of the block path's next block from tick `start` (of `n`) and whether a stop was requested
     there. `stop_requested` is polled, in order, at each READ_EVERY_TICKS boundary the per-tick loop polls
     (after ticks start + 10, start + 20, ...), up to `block_ticks` ahead, before the block is simulated; the
@@ -79,22 +79,24 @@ def block_end(
     return end, False
 
 
+@dataclass(eq=False)
 class Rig:
     """Binds an analog output, an analog input and a clock to one joint (`JointConfig`)."""
 
-    def __init__(self, joint: JointConfig, ao: AnalogOutput, ai: AnalogInput, clock: Clock) -> None:
-        self.joint = joint
-        self.ao = ao
-        self.ai = ai
-        self.clock = clock
-        self._prepared = False
-        self._last_command_deg: float | None = None
-        # Entered around every paced loop; the hardware bench sets it to real-time scheduling.
-        self.loop_context: Callable[[], contextlib.AbstractContextManager[object]] = contextlib.nullcontext
-        # The live monitor's sampler (--monitor): shown each scan block as it is read; None costs nothing.
-        self.tap: LoopTap | None = None
-        # The simulator's block path (set by `SimulatedRig.make_rig`); None on the hardware bench.
-        self.block_io: ScheduledBlockIO | None = None
+    joint: JointConfig
+    ao: AnalogOutput
+    ai: AnalogInput
+    clock: Clock
+    _prepared: bool = field(default=False, init=False)
+    _last_command_deg: float | None = field(default=None, init=False)
+    # Entered around every paced loop; the hardware bench sets it to real-time scheduling.
+    loop_context: Callable[[], contextlib.AbstractContextManager[object]] = field(
+        default=contextlib.nullcontext, init=False
+    )
+    # The live monitor's sampler (--monitor): shown each scan block as it is read; None costs nothing.
+    tap: LoopTap | None = field(default=None, init=False)
+    # The simulator's block path (set by `SimulatedRig.make_rig`); None on the hardware bench.
+    block_io: ScheduledBlockIO | None = field(default=None, init=False)
 
     @property
     def scan_channels(self) -> tuple[int, int]:
@@ -117,7 +119,7 @@ class Rig:
         command_deg: npt.ArrayLike,
         *,
         where: str,
-        stop_requested: Callable[[], bool] | None = None,
+        stop_requested: StopRequested | None = None,
     ) -> TrialRecording:
         """Send `command_deg` (real joint angles, one per output tick) and record the telemetry.
 
@@ -193,8 +195,8 @@ class Rig:
         cmd: FloatArray,
         *,
         where: str,
-        stop_requested: Callable[[], bool] | None,
-        on_stop: Callable[[int], FloatArray] | None = None,
+        stop_requested: StopRequested | None,
+        on_stop: OnStop | None = None,
     ) -> TrialRecording:
         """The paced loop over samples already checked. On a stop request `on_stop(written)`, if given,
         returns the samples to send next in the same loop; then `Interrupted` carries the whole recording."""
@@ -287,26 +289,8 @@ class Rig:
         n_in = int(scan.t_s.shape[0])
         offset = round((float(scan.t_s[0]) - t0) * 1e6) / 1e6 if n_in else 0.0
         input_time_s = offset + np.arange(n_in, dtype=np.float64) / joint.input_rate_hz
-        angle_volts = np.ascontiguousarray(scan.volts[:, 0], dtype=np.float64)
-        torque_volts = np.ascontiguousarray(scan.volts[:, 1], dtype=np.float64)
-        return TrialRecording(
-            command_time_s=np.arange(n, dtype=np.float64) * dt,
-            command_deg=cmd,
-            command_volts=volts,
-            command_codes=np.asarray(codes, dtype=np.int32),
-            input_time_s=input_time_s,
-            angle_codes=np.ascontiguousarray(scan.codes[:, 0], dtype=np.int32),
-            torque_codes=np.ascontiguousarray(scan.codes[:, 1], dtype=np.int32),
-            angle_volts=angle_volts,
-            torque_volts=torque_volts,
-            angle_deg=joint.angle_from_volts(angle_volts),
-            torque_nm=joint.torque_from_volts(torque_volts),
-            tick_lateness_s=np.asarray(actual, dtype=np.float64) - schedule_arr,
-            where=where,
-            t0_s=t0,
-            output_rate_hz=rate,
-            input_rate_hz=joint.input_rate_hz,
-        )
+        lateness_s = np.asarray(actual, dtype=np.float64) - schedule_arr
+        return self._recording(cmd, volts, codes, lateness_s, scan, input_time_s, t0, where)
 
     def _partial(
         self,
@@ -323,21 +307,39 @@ class Rig:
         n = codes.index(-1) if -1 in codes else len(codes)
         scan = ScanBlock.concatenate(blocks, N_SCAN_CHANNELS)
         dt = 1.0 / joint.output_rate_hz
+        input_time_s = np.arange(scan.t_s.shape[0], dtype=np.float64) / joint.input_rate_hz
+        lateness_s = np.asarray(actual[:n], dtype=np.float64) - (t0 + np.arange(n) * dt)
+        return self._recording(cmd[:n], volts[:n], codes[:n], lateness_s, scan, input_time_s, t0, where)
+
+    def _recording(
+        self,
+        cmd: FloatArray,
+        volts: FloatArray,
+        codes: list[int],
+        lateness_s: FloatArray,
+        scan: ScanBlock,
+        input_time_s: FloatArray,
+        t0: float,
+        where: str,
+    ) -> TrialRecording:
+        """The recording of the samples written (commands, their volts and codes, each tick's lateness)
+        and the rows scanned (angle in column 0, torque in 1), in the joint's units."""
+        joint = self.joint
         angle_volts = np.ascontiguousarray(scan.volts[:, 0], dtype=np.float64)
         torque_volts = np.ascontiguousarray(scan.volts[:, 1], dtype=np.float64)
         return TrialRecording(
-            command_time_s=np.arange(n, dtype=np.float64) * dt,
-            command_deg=cmd[:n],
-            command_volts=volts[:n],
-            command_codes=np.asarray(codes[:n], dtype=np.int32),
-            input_time_s=np.arange(scan.t_s.shape[0], dtype=np.float64) / joint.input_rate_hz,
+            command_time_s=np.arange(cmd.shape[0], dtype=np.float64) * (1.0 / joint.output_rate_hz),
+            command_deg=cmd,
+            command_volts=volts,
+            command_codes=np.asarray(codes, dtype=np.int32),
+            input_time_s=input_time_s,
             angle_codes=np.ascontiguousarray(scan.codes[:, 0], dtype=np.int32),
             torque_codes=np.ascontiguousarray(scan.codes[:, 1], dtype=np.int32),
             angle_volts=angle_volts,
             torque_volts=torque_volts,
             angle_deg=joint.angle_from_volts(angle_volts),
             torque_nm=joint.torque_from_volts(torque_volts),
-            tick_lateness_s=np.asarray(actual[:n], dtype=np.float64) - (t0 + np.arange(n) * dt),
+            tick_lateness_s=lateness_s,
             where=where,
             t0_s=t0,
             output_rate_hz=joint.output_rate_hz,

@@ -13,16 +13,19 @@ from protocol_runner.hardware.usb3105 import Usb3105
 from protocol_runner.hardware.usb_common import BoardNotFound, MonotonicClock
 
 
-class _OutputSpec(Protocol):
-    @property
-    def channel(self) -> int: ...
-    @property
-    def serial(self) -> str | None: ...
+class _BoardSpec(Protocol):
+    """What opening reads of a rig section that names a board (structural: the protocol's models)."""
+
     @property
     def volts_range(self) -> tuple[float, float]: ...
 
 
-class _InputSpec(Protocol):
+class _OutputSpec(_BoardSpec, Protocol):
+    @property
+    def serial(self) -> str | None: ...
+
+
+class _InputSpec(_BoardSpec, Protocol):
     @property
     def board(self) -> str: ...
     @property
@@ -31,8 +34,6 @@ class _InputSpec(Protocol):
     def torque_channel(self) -> int: ...
     @property
     def serials(self) -> list[str]: ...
-    @property
-    def volts_range(self) -> tuple[float, float]: ...
 
 
 class _RigSpec(Protocol):

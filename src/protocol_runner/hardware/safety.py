@@ -77,6 +77,7 @@ class SafetyLimits:
             )
 
 
+@dataclass(eq=False, kw_only=True)
 class SafetyViolation(StoppedByCheck):
     """A commanded trajectory left the safety envelope; nothing was sent (exit status 4).
 
@@ -84,31 +85,24 @@ class SafetyViolation(StoppedByCheck):
     time_s (index / rate), units.
     """
 
-    def __init__(
-        self,
-        *,
-        where: str,
-        limit: str,
-        value: float,
-        limit_value: float | tuple[float, float],
-        index: int,
-        time_s: float,
-        units: str,
-    ) -> None:
-        self.where = where
-        self.limit = limit
-        self.value = value
-        self.limit_value = limit_value
-        self.index = index
-        self.time_s = time_s
-        self.units = units
+    where: str
+    limit: str
+    value: float
+    limit_value: float | tuple[float, float]
+    index: int
+    time_s: float
+    units: str
+
+    def __post_init__(self) -> None:
+        limit_value, units = self.limit_value, self.units
         if isinstance(limit_value, tuple):
             bound = f"allowed {limit_value[0]:g} to {limit_value[1]:g} {units}"
         else:
             bound = f"allowed ±{limit_value:g} {units}"
         super().__init__(
-            f"{where}: the commanded trajectory breaks the safety envelope: {limit} is {value:.6g} {units} "
-            f"at t = {time_s:.3f} s (sample {index}), {bound}. Nothing was sent to the robot."
+            f"{self.where}: the commanded trajectory breaks the safety envelope: {self.limit} is "
+            f"{self.value:.6g} {units} at t = {self.time_s:.3f} s (sample {self.index}), {bound}. "
+            "Nothing was sent to the robot."
         )
 
 
@@ -141,21 +135,9 @@ def check_trajectory(
         )
     dt = 1.0 / rate_hz
 
-    finite = np.isfinite(cmd)
-    if not finite.all():
-        i = int(np.argmin(finite))
-        raise SafetyViolation(
-            where=where,
-            limit="joint angle",
-            value=float(cmd[i]),
-            limit_value=limits.range_deg,
-            index=i,
-            time_s=i * dt,
-            units="deg",
-        )
-
     lo, hi = limits.range_deg
-    excess = np.maximum(lo - cmd, cmd - hi)
+    # a non-finite sample is infinitely far out: the first one is the worst
+    excess = np.where(np.isfinite(cmd), np.maximum(lo - cmd, cmd - hi), np.inf)
     i = int(np.argmax(excess))
     if excess[i] > _RANGE_TOL_DEG:
         raise SafetyViolation(

@@ -13,7 +13,6 @@ import logging
 import math
 import struct
 from collections.abc import Sequence
-from types import TracebackType
 from typing import Any
 
 import numpy as np
@@ -46,6 +45,7 @@ from protocol_runner.hardware.usb1608fs_protocol import KIND as KIND
 from protocol_runner.hardware.usb1608fs_protocol import N_CHANNELS as N_CHANNELS
 from protocol_runner.hardware.usb1608fs_protocol import PRODUCT_ID as PRODUCT_ID
 from protocol_runner.hardware.usb1608fs_protocol import pacer_period as pacer_period
+from protocol_runner.hardware.usb_board import OpenedBoard
 from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,
     BoardIoError,
@@ -58,15 +58,13 @@ from protocol_runner.hardware.usb_common import (
     find_devices,
     map_usb_error,
     read_serial,
-    release_device,
     select_device,
-    set_up_or_release,
 )
 
 log = logging.getLogger(__name__)
 
 
-class Usb1608FsPlus:
+class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
     """An opened USB-1608FS-Plus. Use `Usb1608FsPlus.open(serial=None, backend=None, clock=None)`."""
 
     kind = KIND
@@ -111,11 +109,8 @@ class Usb1608FsPlus:
     ) -> Usb1608FsPlus:
         """Find the board (VID 0x09DB PID 0x00EA, optionally by serial), claim it, read its serial and
         calibration, and make sure no scan is left running. Errors are clear `HardwareUnavailable`s."""
-        settings = settings or Usb1608FsSettings()
         device, usb_serial = find_board(MCC_VENDOR_ID, PRODUCT_ID, serial, backend, KIND)
-        board = cls(device, usb_serial, settings, clock or MonotonicClock())
-        set_up_or_release(board._setup, device, settings.interface)
-        return board
+        return cls(device, usb_serial, settings or Usb1608FsSettings(), clock or MonotonicClock())._set_up()
 
     def _setup(self) -> None:
         claim_interface(self._dev, self.settings.interface, self.name)
@@ -344,25 +339,13 @@ class Usb1608FsPlus:
         self._ctrl_out(CMD_AIN_CLR_FIFO, b"", "clearing the scan FIFO")
         return self._take_rows()
 
-    def close(self) -> None:
-        if self._closed:
-            return
+    def _before_release(self) -> None:
         if self._scanning:
             try:
                 self._ctrl_out(CMD_AIN_SCAN_STOP, b"", "stopping the scan")
             except Exception:  # closing must not hide the original failure
                 log.warning("%s: could not stop the scan while closing", self.name)
             self._scanning = False
-        self._closed = True
-        release_device(self._dev, self.settings.interface)
-
-    def __enter__(self) -> Usb1608FsPlus:
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self.close()
 
 
 def open_all_1608fs(

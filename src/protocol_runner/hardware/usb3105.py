@@ -25,7 +25,6 @@ import operator
 import struct
 from collections.abc import Mapping
 from dataclasses import dataclass
-from types import TracebackType
 from typing import Any
 
 import usb.core
@@ -37,6 +36,7 @@ from protocol_runner.hardware.usb3105_calibration import ChannelCalibration as C
 from protocol_runner.hardware.usb3105_calibration import calibrated_code as calibrated_code
 from protocol_runner.hardware.usb3105_calibration import ideal_code_pm10v as ideal_code_pm10v
 from protocol_runner.hardware.usb3105_calibration import parse_calibration as parse_calibration
+from protocol_runner.hardware.usb_board import OpenedBoard
 from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,
     BoardIoError,
@@ -45,8 +45,6 @@ from protocol_runner.hardware.usb_common import (
     claim_interface,
     find_board,
     map_usb_error,
-    release_device,
-    set_up_or_release,
     usb_call,
 )
 
@@ -93,8 +91,9 @@ class ChannelNotConfigured(InvalidInput):
     """`write_volts` on a channel that `configure_channel` has not set to +-10 V."""
 
 
-class Usb3105:
-    """An opened USB-3105. Use `Usb3105.open(serial=None, backend=None)`; close it (or use ``with``)."""
+class Usb3105(OpenedBoard[Usb3105Settings]):
+    """An opened USB-3105. Use `Usb3105.open(serial=None, backend=None)`; close it (or use ``with``): the
+    outputs keep their last value."""
 
     kind = KIND
     n_channels = N_CHANNELS
@@ -122,11 +121,7 @@ class Usb3105:
     # ------------------------------------------------------------------------------------------------
     @classmethod
     def open(
-        cls,
-        serial: str | None = None,
-        backend: Any | None = None,
-        *,
-        settings: Usb3105Settings | None = None,
+        cls, serial: str | None = None, backend: Any | None = None, *, settings: Usb3105Settings | None = None
     ) -> Usb3105:
         """Find the board (VID 0x09DB PID 0x009E, optionally by serial), claim it, drain stale reports and
         read the calibration. `backend` is passed to `usb.core.find` (None: the system libusb).
@@ -134,11 +129,8 @@ class Usb3105:
         Raises a `HardwareUnavailable` subclass naming the board and the cure (not found, busy,
         permission denied, timeout, gone).
         """
-        settings = settings or Usb3105Settings()
         device, board_serial = find_board(MCC_VENDOR_ID, PRODUCT_ID, serial, backend, KIND)
-        board = cls(device, board_serial, settings)
-        set_up_or_release(board._setup, device, settings.interface)
-        return board
+        return cls(device, board_serial, settings or Usb3105Settings())._set_up()
 
     def _setup(self) -> None:
         s = self.settings
@@ -352,20 +344,6 @@ class Usb3105:
     # ------------------------------------------------------------------------------------------------
     # Closing
     # ------------------------------------------------------------------------------------------------
-    def close(self) -> None:
-        """Release the interface (idempotent). The outputs keep their last value."""
-        if self._closed:
-            return
-        self._closed = True
-        release_device(self._dev, self.settings.interface)
-
-    def __enter__(self) -> Usb3105:
-        return self
-
-    def __exit__(
-        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
-    ) -> None:
-        self.close()
 
     def __repr__(self) -> str:
         return f"Usb3105(serial={self._serial!r}, firmware={self.firmware!r})"

@@ -263,16 +263,6 @@ def find_board(
     return found.device, usb_serial
 
 
-def set_up_or_release(setup: Callable[[], None], device: usb.core.Device, interface: int) -> None:
-    """Run a freshly opened board's `setup` (claim, configure, read calibration); on any failure release
-    `interface` and free the device before the error propagates, so that the board can be opened again."""
-    try:
-        setup()
-    except BaseException:
-        release_device(device, interface)
-        raise
-
-
 def claim_interface(device: usb.core.Device, interface: int, board: str) -> bool:
     """Detach the kernel driver (usbhid for the HID boards) if it holds `interface`, then claim it.
 

@@ -8,13 +8,15 @@ wraps a person's prompts so the page shows a banner while the session waits for 
 from __future__ import annotations
 
 import time
-from collections.abc import Collection, Mapping
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Collection, Mapping
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from ..protocol.plan import ChecklistStep, Plan, Step, TrialStep
 from ..session.progress import describe
 from .bus import EventBus
 from .samples import SampleTap
+
+T = TypeVar("T")
 
 if TYPE_CHECKING:
     from ..session.operator import Answer, Operator
@@ -120,29 +122,22 @@ class MonitoredOperator:
         self.inner = inner
         self.bus = bus
 
-    def _waiting(self, kind: str, prompt: str, **extra: Any) -> None:
+    def _ask(self, kind: str, prompt: str, ask: Callable[[], T], **extra: Any) -> T:
+        """`ask()` the person with the `operator_wait` banner up, taken down however the prompt ends."""
         self.bus.publish({"type": "operator_wait", "waiting": True, "kind": kind, "prompt": prompt, **extra})
-
-    def _answered(self) -> None:
-        self.bus.publish({"type": "operator_wait", "waiting": False})
+        try:
+            return ask()
+        finally:
+            self.bus.publish({"type": "operator_wait", "waiting": False})
 
     def checklist(self, step: ChecklistStep) -> Answer:
-        self._waiting("checklist", step.title, step=step.id, items=list(step.items))
-        try:
-            return self.inner.checklist(step)
-        finally:
-            self._answered()
+        items = list(step.items)
+        return self._ask(
+            "checklist", step.title, lambda: self.inner.checklist(step), step=step.id, items=items
+        )
 
     def accept_failed_check(self, message: str) -> bool:
-        self._waiting("failed_check", message)
-        try:
-            return self.inner.accept_failed_check(message)
-        finally:
-            self._answered()
+        return self._ask("failed_check", message, lambda: self.inner.accept_failed_check(message))
 
     def confirm(self, question: str) -> bool:
-        self._waiting("confirm", question)
-        try:
-            return self.inner.confirm(question)
-        finally:
-            self._answered()
+        return self._ask("confirm", question, lambda: self.inner.confirm(question))

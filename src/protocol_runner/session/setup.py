@@ -23,7 +23,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..archive.diskfull import creates_session_directory
-from ..archive.units import sha256_of
+from ..archive.units import _fsync_dir, _fsync_file, sha256_of
 from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, load_protocol
 from ..protocol.paths import is_stored_with_session
@@ -131,14 +131,9 @@ def create_session(
 def write_session_info(directory: Path, info: SessionInfo) -> None:
     tmp = directory / (SESSION_FILE + ".partial")
     tmp.write_text(info.to_json(), encoding="utf-8")
-    with tmp.open("rb") as f:
-        os.fsync(f.fileno())
+    _fsync_file(tmp)
     os.replace(tmp, directory / SESSION_FILE)
-    fd = os.open(directory, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
+    _fsync_dir(directory)
 
 
 def read_session_info(directory: Path) -> SessionInfo:

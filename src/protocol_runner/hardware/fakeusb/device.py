@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import errno
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import usb.core
 
@@ -84,9 +85,20 @@ class Faults:
     vanish_after_transfers: int | None = None
 
 
+class UsbIdentity(NamedTuple):
+    """What a model's device descriptor and strings say it is (its serial is per device)."""
+
+    vendor_id: int
+    product_id: int
+    bcd_device: int
+    manufacturer: str
+    product: str
+
+
 @dataclass(eq=False)
 class FakeUsbDevice:
-    """Base of the byte-level device models. Subclasses override the `handle_*` methods.
+    """Base of the byte-level device models. Subclasses override the `handle_*` methods; their factories
+    pass the identity (``**identity._asdict()``).
 
     Models never sleep: a read with no data ready raises the timeout at once.
     """

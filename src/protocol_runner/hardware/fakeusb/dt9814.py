@@ -25,10 +25,12 @@ from protocol_runner.hardware.fakeusb.device import (
     Faults,
     InterfaceSpec,
     Stall,
+    UsbIdentity,
 )
 
 VENDOR_ID = 0x0867
 FAKE_PRODUCT_ID = 0x9814  # a stand-in: the DT9814's real product id is not public
+IDENTITY = UsbIdentity(VENDOR_ID, FAKE_PRODUCT_ID, 0x0100, "Data Translation", "DT9814")
 BOARD_INFO_ADDR = 0xFBFF
 
 OP_R_FLASH_DATA = 1
@@ -57,12 +59,6 @@ def volts_to_code12(volts: float) -> int:
 class Dt9814Model(FakeUsbDevice):
     """A fake DT9814 (DT9812 protocol). `endpoints` gives the five endpoint addresses in descriptor order."""
 
-    vendor_id: int = VENDOR_ID
-    product_id: int = FAKE_PRODUCT_ID
-    serial: str = "12345678"
-    bcd_device: int = 0x0100
-    manufacturer: str = "Data Translation"
-    product: str = "DT9814"
     device_id: int = 0x0000
     serial_number: int = 12345678
     endpoints: tuple[int, ...] = DEFAULT_ENDPOINTS
@@ -155,7 +151,7 @@ def make_dt9814(
     endpoints: tuple[int, ...] = DEFAULT_ENDPOINTS,
 ) -> Dt9814Model:
     return Dt9814Model(
-        product_id=product_id,
+        **IDENTITY._replace(product_id=product_id)._asdict(),
         serial=str(serial_number),
         serial_number=serial_number,
         device_id=device_id,

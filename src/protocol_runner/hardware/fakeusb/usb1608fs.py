@@ -28,10 +28,12 @@ from protocol_runner.hardware.fakeusb.device import (
     Faults,
     InterfaceSpec,
     Stall,
+    UsbIdentity,
 )
 
 VENDOR_ID = 0x09DB
 PRODUCT_ID = 0x00EA
+IDENTITY = UsbIdentity(VENDOR_ID, PRODUCT_ID, 0x0103, "MCC", "USB-1608FS-Plus")
 N_CHANNELS = 8
 N_RANGES = 8
 PACKET = 64
@@ -70,12 +72,6 @@ def zero_signal(time_s: float, channel: int) -> float:
 class Usb1608FsModel(FakeUsbDevice):
     """A fake USB-1608FS-Plus. `clock` is the model's time source (seconds); tests pass a manual one."""
 
-    vendor_id: int = VENDOR_ID
-    product_id: int = PRODUCT_ID
-    serial: str = "01D2E3F4"
-    bcd_device: int = 0x0103
-    manufacturer: str = "MCC"
-    product: str = "USB-1608FS-Plus"
     signal: Signal = zero_signal
     clock: Callable[[], float] = time.monotonic
     fifo_samples: int = FIFO_SAMPLES
@@ -279,5 +275,10 @@ def make_usb1608fs(
 ) -> Usb1608FsModel:
     """A fake USB-1608FS-Plus with ideal calibration (slope 1, intercept 0)."""
     return Usb1608FsModel(
-        serial=serial, signal=signal, clock=clock, faults=faults or Faults(), fifo_samples=fifo_samples
+        **IDENTITY._asdict(),
+        serial=serial,
+        signal=signal,
+        clock=clock,
+        faults=faults or Faults(),
+        fifo_samples=fifo_samples,
     )

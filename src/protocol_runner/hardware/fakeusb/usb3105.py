@@ -23,10 +23,12 @@ from protocol_runner.hardware.fakeusb.device import (
     Faults,
     InterfaceSpec,
     Stall,
+    UsbIdentity,
 )
 
 VENDOR_ID = 0x09DB
 PRODUCT_ID = 0x009E
+IDENTITY = UsbIdentity(VENDOR_ID, PRODUCT_ID, 0x0102, "MCC", "USB-3105")
 N_CHANNELS = 16
 MEMORY_SIZE = 0x400
 
@@ -52,12 +54,6 @@ def calibration_address(channel: int, range_code: int) -> int:
 class Usb3105Model(FakeUsbDevice):
     """A fake USB-3105. `interrupt_out=False` gives a descriptor without OUT endpoint (SET_REPORT only)."""
 
-    vendor_id: int = VENDOR_ID
-    product_id: int = PRODUCT_ID
-    serial: str = "01A2B3C4"
-    bcd_device: int = 0x0102
-    manufacturer: str = "MCC"
-    product: str = "USB-3105"
     interrupt_out: bool = True
     stale_reports: list[bytes] = field(default_factory=list)
 
@@ -186,13 +182,13 @@ def make_usb3105(
     faults: Faults | None = None,
     interrupt_out: bool = True,
     stale_reports: list[bytes] | None = None,
-    bcd_device: int = 0x0102,
+    bcd_device: int = IDENTITY.bcd_device,
 ) -> Usb3105Model:
     """A fake USB-3105 with ideal calibration (slope 1, offset 0) and the usbhid driver bound."""
     return Usb3105Model(
+        **IDENTITY._replace(bcd_device=bcd_device)._asdict(),
         serial=serial,
         faults=faults or Faults(),
         interrupt_out=interrupt_out,
         stale_reports=list(stale_reports or []),
-        bcd_device=bcd_device,
     )

@@ -240,11 +240,7 @@ class _RigModel:
         noise = self._noise(n_rows * n_ch)
         t_s, codes, volts, any_nan = self.plant.scan(
             math.floor((now_s - self.origin_s) * self._inv_dt + GRID_TOL),
-            t0_s,
-            self.origin_s,
-            rate_hz,
-            first_row,
-            n_rows,
+            (t0_s, self.origin_s, rate_hz, first_row, n_rows),
             self._sensors,
             noise,
             _AI12,

@@ -256,6 +256,8 @@ Joint = tuple[FloatArray, IntArray, FloatArray, FloatArray, FloatArray, FloatArr
 Commands = tuple[IntArray, FloatArray]
 #: (channel roles, noise volts, angle knots, their volts, torque knots, their volts).
 Sensors = tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+#: (volts per code, lowest code, highest code): the input board's quantisation.
+Adc = tuple[float, int, int]
 
 
 @njit(cache=True, nogil=True)
@@ -318,7 +320,7 @@ def scan_rows(
     rows: IntArray,
     sensors: Sensors,
     noise: FloatArray,
-    adc: tuple[float, int, int],
+    adc: Adc,
 ) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
     """`integrate_rows`, then what the input board makes of those volts, in the same compiled call (one
     read of the scan costs one kernel call): each row's time t0 + i / rate, the ADC code

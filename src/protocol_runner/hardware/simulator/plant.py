@@ -83,6 +83,8 @@ from protocol_runner.hardware.simulator.kernels import (
     T_ORIGIN,
     T_RATE,
     T_START,
+    Adc,
+    Commands,
     FloatArray,
     IntArray,
     Joint,
@@ -94,6 +96,9 @@ from protocol_runner.hardware.simulator.kernels import (
 )
 from protocol_runner.hardware.simulator.params import SimulatorParams
 from protocol_runner.models.elements import Element
+
+ScanWindow = tuple[float, float, float, int, int]
+"""A read of scan rows: (t0 s, grid origin s, rate Hz, first row, number of rows); row i is at t0 + i / rate."""
 
 
 class JointPlant:
@@ -283,27 +288,19 @@ class JointPlant:
         volts: FloatArray,
         decode: Decode,
         step_end: int,
-        scan: tuple[float, float, float, int, int],
+        scan: ScanWindow,
         sensors: Sensors,
         noise: FloatArray,
-        adc: tuple[float, int, int],
+        adc: Adc,
     ) -> tuple[IntArray, int, FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
         """The block path (`block.send_and_scan`): the output codes of writes at `times_s`, their commands
-        held from their grid steps, then `scan` = (t0, origin, rate, first row, rows) read after
-        integrating to `step_end`. Returns (codes, status, row times, row codes, row volts, any NaN)."""
+        held from their grid steps, then the `scan` window's rows read after integrating to `step_end`.
+        Returns (codes, status, row times, row codes, row volts, any NaN)."""
         self._flush_commands()
         self._reserve(times_s.shape[0])
-        t0_s, origin_s, rate_hz, first_row, n_rows = scan
+        joint, commands, timing, rows = self._window(step_end, scan)
         codes, n_cmd, status, t_s, row_codes, row_volts, any_nan = send_and_scan(
-            self._joint(),
-            (self._cmd_step, self._cmd_target),
-            (times_s, volts),
-            decode,
-            _timing(t0_s, origin_s, rate_hz),
-            _rows(step_end, first_row, n_rows, self._n_cmd),
-            sensors,
-            noise,
-            adc,
+            joint, commands, (times_s, volts), decode, timing, rows, sensors, noise, adc
         )
         if status == BLOCK_OK:
             self._n_cmd = int(n_cmd)
@@ -312,58 +309,36 @@ class JointPlant:
         return codes, int(status), t_s, row_codes, row_volts, bool(any_nan)
 
     def advance_rows(
-        self,
-        step_end: int,
-        t0_s: float,
-        origin_s: float,
-        rate_hz: float,
-        first_row: int,
-        n_rows: int,
-        sensors: Sensors,
-        noise: FloatArray,
+        self, step_end: int, scan: ScanWindow, sensors: Sensors, noise: FloatArray
     ) -> FloatArray:
-        """Integrate to `step_end` and return the telemetry volts of scan rows first_row .. + n_rows - 1
-        (see `integrate_rows`); `sensors` = (roles, noise volts, angle knots, their volts, torque knots,
-        their volts); `noise` holds at least n_rows × channels standard normals, consumed row by row."""
-        self._flush_commands()
-        volts = integrate_rows(
-            self._joint(),
-            (self._cmd_step, self._cmd_target),
-            _timing(t0_s, origin_s, rate_hz),
-            _rows(step_end, first_row, n_rows, self._n_cmd),
-            sensors,
-            noise,
-        )
+        """Integrate to `step_end` and return the telemetry volts of the `scan` window's rows (see
+        `integrate_rows`); `sensors` = (roles, noise volts, angle knots, their volts, torque knots, their
+        volts); `noise` holds at least n_rows × channels standard normals, consumed row by row."""
+        volts = integrate_rows(*self._window(step_end, scan), sensors, noise)
         self._integrated_step = int(self._istate[I_STEP])
         return volts
 
     def scan(
-        self,
-        step_end: int,
-        t0_s: float,
-        origin_s: float,
-        rate_hz: float,
-        first_row: int,
-        n_rows: int,
-        sensors: Sensors,
-        noise: FloatArray,
-        adc: tuple[float, int, int],
+        self, step_end: int, scan: ScanWindow, sensors: Sensors, noise: FloatArray, adc: Adc
     ) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
         """`advance_rows` followed by the input board's quantisation (see `scan_rows`); `adc` = (volts per
         code, lowest code, highest code). Returns (row times, codes, their volts, whether any volts were
         NaN)."""
-        self._flush_commands()
-        out = scan_rows(
-            self._joint(),
-            (self._cmd_step, self._cmd_target),
-            _timing(t0_s, origin_s, rate_hz),
-            _rows(step_end, first_row, n_rows, self._n_cmd),
-            sensors,
-            noise,
-            adc,
-        )
+        out = scan_rows(*self._window(step_end, scan), sensors, noise, adc)
         self._integrated_step = int(self._istate[I_STEP])
         return out
+
+    def _window(self, step_end: int, scan: ScanWindow) -> tuple[Joint, Commands, FloatArray, IntArray]:
+        """The kernels' (joint, commands, timing, rows) records for reading the `scan` window's rows after
+        integrating to `step_end`, with the queued commands moved into the kernel's arrays first."""
+        self._flush_commands()
+        t0_s, origin_s, rate_hz, first_row, n_rows = scan
+        timing = np.empty(N_TIMING, dtype=np.float64)
+        timing[T_START], timing[T_ORIGIN], timing[T_RATE] = float(t0_s), float(origin_s), float(rate_hz)
+        rows = np.empty(N_ROWS_REC, dtype=np.int64)
+        rows[R_STEP_END], rows[R_FIRST], rows[R_COUNT] = int(step_end), int(first_row), int(n_rows)
+        rows[R_N_CMD] = self._n_cmd
+        return self._joint(), (self._cmd_step, self._cmd_target), timing, rows
 
     def _joint(self) -> Joint:
         return (self._state, self._istate, self._p, self._table, self._brakes, self._z_brakes)
@@ -392,20 +367,3 @@ class JointPlant:
         )
         self._integrated_step = int(self._istate[I_STEP])
         return angle[:got], torque[:got]
-
-
-def _timing(t0_s: float, origin_s: float, rate_hz: float) -> FloatArray:
-    timing = np.empty(N_TIMING, dtype=np.float64)
-    timing[T_START], timing[T_ORIGIN], timing[T_RATE] = float(t0_s), float(origin_s), float(rate_hz)
-    return timing
-
-
-def _rows(step_end: int, first_row: int, n_rows: int, n_cmd: int) -> IntArray:
-    rows = np.empty(N_ROWS_REC, dtype=np.int64)
-    rows[R_STEP_END], rows[R_FIRST], rows[R_COUNT], rows[R_N_CMD] = (
-        int(step_end),
-        int(first_row),
-        int(n_rows),
-        int(n_cmd),
-    )
-    return rows

@@ -1,0 +1,64 @@
+"""The life of an opened USB board, shared by the three drivers: set-up that releases the interface if it
+fails, and an idempotent `close` (also on leaving ``with board:``)."""
+
+from __future__ import annotations
+
+from types import TracebackType
+from typing import Generic, Protocol, Self, TypeVar
+
+import usb.core
+
+from protocol_runner.hardware.usb_common import release_device
+
+
+class TransportSettings(Protocol):
+    """What closing needs of a board's transport settings: the interface number it claimed."""
+
+    @property
+    def interface(self) -> int: ...
+
+
+SettingsT = TypeVar("SettingsT", bound=TransportSettings)
+
+
+class OpenedBoard(Generic[SettingsT]):
+    """The closing every opened USB board shares: `close` releases the claimed interface once (idempotent;
+    a board whose `_before_release` stops something running overrides that hook), and ``with board:``
+    closes it on the way out. A board sets `_dev`, `settings` and ``_closed = False`` when it opens."""
+
+    _dev: usb.core.Device
+    settings: SettingsT
+    _closed: bool
+
+    def _setup(self) -> None:
+        """Claim and configure the freshly opened board, read its calibration (each driver's own)."""
+        raise NotImplementedError
+
+    def _set_up(self) -> Self:
+        """Run `_setup`; on any failure release the interface and free the device before the error
+        propagates, so that the board can be opened again. Returns the board."""
+        try:
+            self._setup()
+        except BaseException:
+            release_device(self._dev, self.settings.interface)
+            raise
+        return self
+
+    def _before_release(self) -> None:
+        """Stop what the board has running before its interface is released (nothing by default)."""
+
+    def close(self) -> None:
+        """Release the interface (idempotent)."""
+        if self._closed:
+            return
+        self._before_release()
+        self._closed = True
+        release_device(self._dev, self.settings.interface)
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+    ) -> None:
+        self.close()
