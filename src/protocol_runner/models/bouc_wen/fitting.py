@@ -22,14 +22,12 @@ from .problem import (
     _SCREEN_SAMPLES,
     _SHORT_NFEV,
     DIVERGENCE_FACTOR,
-    FULL_REFIT_R2,
-    BoucWenBounds,
-    BoucWenFit,
     Problem,
     evaluate,
     param_std,
     refined_rmse,
 )
+from .records import FULL_REFIT_R2, BoucWenBounds, BoucWenFit
 from .schemes import EQ23, REFINED, check_scheme
 from .simulation import as_angle
 from .starts import equation_error_start, thesis_start

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import TypedDict
 
 from .params import BoucWenParams
-from .problem import DEFAULT_BOUNDS, BoucWenBounds
+from .records import DEFAULT_BOUNDS, BoucWenBounds
 from .schemes import REFINED
 
 
