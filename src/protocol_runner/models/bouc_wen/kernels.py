@@ -2,12 +2,14 @@
 Eq 23 recursion and the step-independent integration described in :mod:`.schemes`, each with or without
 its forward sensitivities ``d z / d theta`` (theta = A, n, beta1..6).
 
-In this order: the pieces of the rate both schemes share (signs, Psi, ``|z|^n``), one Eq 23 step, one
-refined step (Heun substeps), and one loop over segments and samples (:func:`_sweep`) that serves all four
-kernels.  Each kernel calls the loop with constant flags and numba inlines it (``inline="always"``), so
-every kernel is compiled without the branches it does not take.  The kernels take arrays and plain numbers
-so numba compiles them once (cached on disk; all compiled code is in this one file because numba's cache
-of a function does not notice a change in another file).
+In this order: the pieces of the rate both schemes share (signs, Psi, ``|z|^n``, inlined), one Eq 23
+step, the Heun substeps of the refined scheme along one straight piece of angle, and one loop over segments
+and samples (:func:`_sweep`) that serves all four kernels, selected by two flags (a branch per sample that
+costs nothing measurable: the per-piece call and the loop are as fast as the four separate kernels they
+replace; a further layer of numba ``inline="always"`` around the Heun piece made the sensitivity kernel
+about 1.5 times slower, so there is none).  The kernels take arrays and plain numbers so numba compiles
+them once (cached on disk; all compiled code is in this one file because numba's cache of a function does
+not notice a change in another file).
 """
 
 from __future__ import annotations
@@ -128,26 +130,30 @@ def _rate(z, A, n, beta, sd, sx):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _rate_sens(z, S, A, n, beta, sd, sx, out, sig):  # pragma: no cover - compiled
-    """F(z) and dF/dtheta + dF/dz S (into ``out``)."""
+def _rate_sens(z, S, A, n, beta, sd, sx, out):  # pragma: no cover - compiled
+    """F(z) and dF/dtheta + dF/dz S (into ``out``; the sign products in registers, not an array: this is
+    the innermost work of every fit)."""
     sz = sgn(z)
-    sign_terms(sd, sx, sz, sig)
     psi = shape_psi(beta, sd, sx, sz)
     az = abs(z)
     g, lz = abs_pow(az, n)
     fz = -n * g / az * sz * psi if az > 0.0 else 0.0
     out[0] = 1.0 + fz * S[0]
     out[1] = -g * lz * psi + fz * S[1]
-    for k in range(6):
-        out[k + 2] = -g * sig[k] + fz * S[k + 2]
+    out[2] = -g * (sd * sz) + fz * S[2]
+    out[3] = -g * (sd * sx) + fz * S[3]
+    out[4] = -g * (sx * sz) + fz * S[4]
+    out[5] = -g * sd + fz * S[5]
+    out[6] = -g * sz + fz * S[6]
+    out[7] = -g * sx + fz * S[7]
     return A - g * psi
 
 
 @njit(cache=True)
-def _piece(xa, xb, zi, A, n, beta, bound, max_step, S, scratch, sensitivities):  # pragma: no cover
+def _piece(xa, xb, zi, A, n, beta, bound, max_step, S, S2, d1, d2, sensitivities):  # pragma: no cover
     """Heun substeps along the straight angle piece ``xa -> xb`` on which sgn x does not change; with
-    ``sensitivities`` the derivatives ``S`` are carried along (updated in place; ``scratch`` is 4 x 8)."""
-    S2, d1, d2, sig = scratch[0], scratch[1], scratch[2], scratch[3]
+    ``sensitivities`` the derivatives ``S`` are carried along (updated in place; ``S2``, ``d1``, ``d2``
+    are scratch)."""
     d = xb - xa
     sd = sgn(d)
     sx = sgn(xa + 0.5 * d)
@@ -155,10 +161,10 @@ def _piece(xa, xb, zi, A, n, beta, bound, max_step, S, scratch, sensitivities): 
     h = d / m
     for j in range(m):
         if sensitivities:
-            k1 = _rate_sens(zi, S, A, n, beta, sd, sx, d1, sig)
+            k1 = _rate_sens(zi, S, A, n, beta, sd, sx, d1)
             for k in range(8):
                 S2[k] = S[k] + h * d1[k]
-            k2 = _rate_sens(zi + h * k1, S2, A, n, beta, sd, sx, d2, sig)
+            k2 = _rate_sens(zi + h * k1, S2, A, n, beta, sd, sx, d2)
             for k in range(8):
                 S[k] = S[k] + 0.5 * h * (d1[k] + d2[k])
         else:
@@ -168,20 +174,6 @@ def _piece(xa, xb, zi, A, n, beta, bound, max_step, S, scratch, sensitivities): 
         zi = zi + 0.5 * h * (k1 + k2)
         if not abs(zi) <= bound:
             break
-    return zi
-
-
-@njit(inline="always")
-def heun_step(xa, xb, zi, A, n, beta, bound, max_step, S, scratch, sensitivities):  # pragma: no cover
-    """The state at ``xb`` from ``zi`` at ``xa`` (and the sensitivities ``S``, when asked): Heun substeps
-    along the straight angle piece, cut at ``x = 0`` where sgn x changes (integrated up to it exactly,
-    then on)."""
-    if xa == xb:
-        return zi
-    xm = 0.0 if xa * xb < 0.0 else xb
-    zi = _piece(xa, xm, zi, A, n, beta, bound, max_step, S, scratch, sensitivities)
-    if xm != xb and abs(zi) <= bound:
-        zi = _piece(xm, xb, zi, A, n, beta, bound, max_step, S, scratch, sensitivities)
     return zi
 
 
@@ -195,13 +187,13 @@ def project_row(sens, T, dz, row):  # pragma: no cover - compiled
         dz[row, c] = acc
 
 
-@njit(inline="always")
+@njit(cache=True)
 def _sweep(
     x, seg, z0, A, n, beta, bound, freeze, max_step, z, dz, T, rows, refined, sensitivities
 ):  # pragma: no cover
     """The state at every sample over consecutive segments ``x[seg[s]:seg[s+1]]``, each restarted at
-    ``z0[s]``, by Eq 23 or (``refined``) by :func:`heun_step` with substeps of at most
-    ``max_step``; with ``sensitivities`` also ``dz[r, :] = (d z_{rows[r]} / d theta) @ T`` at the samples
+    ``z0[s]``, by Eq 23 or (``refined``) by Heun substeps of at most ``max_step`` (:func:`_piece`; an
+    interval on which the angle crosses 0 is cut there); with ``sensitivities`` also ``dz[r, :] = (d z_{rows[r]} / d theta) @ T`` at the samples
     ``rows`` (increasing; the sensitivities are carried along every sample, only those rows are projected).
 
     Returns the index of the first sample whose |z| exceeded ``bound`` (or was not finite), -1 if none.
@@ -211,7 +203,7 @@ def _sweep(
     first_bad = -1
     r = 0  # next entry of rows
     S = np.zeros(8)
-    scratch = np.zeros((4, 8))
+    S2, d1, d2, sig = np.zeros(8), np.zeros(8), np.zeros(8), np.zeros(6)
     for s in range(seg.size - 1):
         i0 = seg[s]
         i1 = seg[s + 1]
@@ -226,19 +218,28 @@ def _sweep(
                 r += 1
         dead = False
         for i in range(i0, i1 - 1):
-            if not dead:
-                if refined:
-                    zi = heun_step(x[i], x[i + 1], zi, A, n, beta, bound, max_step, S, scratch, sensitivities)
-                elif sensitivities:
-                    zi = eq23_step_sens(x[i], x[i + 1], zi, S, A, n, beta, scratch[0])
-                else:
-                    zi = eq23_step(x[i], x[i + 1], zi, A, n, beta)
-                if not abs(zi) <= bound:
-                    if first_bad < 0:
-                        first_bad = i + 1
-                    dead = True
-                    zi = held(zi, bound, freeze)
-                    S[:] = 0.0 if freeze else np.nan
+            xa = x[i]
+            xb = x[i + 1]
+            if dead:
+                pass
+            elif not refined:
+                zi = (
+                    eq23_step_sens(xa, xb, zi, S, A, n, beta, sig)
+                    if sensitivities
+                    else eq23_step(xa, xb, zi, A, n, beta)
+                )
+            elif xa != xb:
+                # Heun substeps along the straight angle piece, cut at x = 0 where sgn x changes
+                xm = 0.0 if xa * xb < 0.0 else xb
+                zi = _piece(xa, xm, zi, A, n, beta, bound, max_step, S, S2, d1, d2, sensitivities)
+                if xm != xb and abs(zi) <= bound:
+                    zi = _piece(xm, xb, zi, A, n, beta, bound, max_step, S, S2, d1, d2, sensitivities)
+            if not dead and not abs(zi) <= bound:
+                if first_bad < 0:
+                    first_bad = i + 1
+                dead = True
+                zi = held(zi, bound, freeze)
+                S[:] = 0.0 if freeze else np.nan
             z[i + 1] = zi
             if sensitivities and r < rows.size and rows[r] == i + 1:
                 project_row(S, T, dz, r)
