@@ -34,8 +34,9 @@ def cross_validate(
 
     Each held-out fit is a multi-start fit of its own (the Figure 56 and equation-error starts computed on
     the other trials, plus ``starts`` quasi-random ones; options as in :func:`.fit_trials`): nothing
-    computed from the held-out trial enters it.  A parameter the other trials cannot determine (e.g. a Table 4 phase only the held-out trial
-    visits) then stays where the other trials leave it, and the held-out error shows it.
+    computed from the held-out trial enters it.  A parameter the other trials cannot determine (e.g. a
+    Table 4 phase only the held-out trial visits) then stays where the other trials leave it, and the
+    held-out error shows it.
 
     backbone_degree: as in :func:`.fit_trials`; each held-out fit then fits its backbone on the other
         trials too, and the held-out prediction is ``g(angle) + z``.

@@ -193,8 +193,9 @@ def _sweep(
 ):  # pragma: no cover
     """The state at every sample over consecutive segments ``x[seg[s]:seg[s+1]]``, each restarted at
     ``z0[s]``, by Eq 23 or (``refined``) by Heun substeps of at most ``max_step`` (:func:`_piece`; an
-    interval on which the angle crosses 0 is cut there); with ``sensitivities`` also ``dz[r, :] = (d z_{rows[r]} / d theta) @ T`` at the samples
-    ``rows`` (increasing; the sensitivities are carried along every sample, only those rows are projected).
+    interval on which the angle crosses 0 is cut there); with ``sensitivities`` also
+    ``dz[r, :] = (d z_{rows[r]} / d theta) @ T`` at the samples ``rows`` (increasing; the sensitivities are
+    carried along every sample, only those rows are projected).
 
     Returns the index of the first sample whose |z| exceeded ``bound`` (or was not finite), -1 if none.
     After divergence the rest of that segment is NaN (``freeze`` False) or held at +-``bound`` (``freeze``
