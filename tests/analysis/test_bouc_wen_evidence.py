@@ -49,9 +49,9 @@ def test_a_held_out_trial_never_enters_its_own_fit(monkeypatch: pytest.MonkeyPat
     seen: list[tuple[list[int], object]] = []
     real = crossval._fit_segments
 
-    def spy(segments, **kwargs):  # type: ignore[no-untyped-def]
-        seen.append(([round(float(y[1]) * 1e6) for _, y in segments], kwargs["initial"]))
-        return real(segments, **kwargs)
+    def spy(segments, options):  # type: ignore[no-untyped-def]
+        seen.append(([round(float(y[1]) * 1e6) for _, y in segments], options.initial))
+        return real(segments, options)
 
     monkeypatch.setattr(crossval, "_fit_segments", spy)
     xs = [sinusoid(2, 25.0, phase) for phase in (0.0, 0.3, 0.6)]

@@ -1,12 +1,9 @@
-"""The device under test as composed physical elements: the registry of element types and their parameters.
+"""The device under test as composed physical elements: a protocol's `device:` lists elements, each built
+here with every parameter checked against its type and the defaults filled in.
 
-A protocol's `device:` lists elements (a spring on a lever, a torsion spring, a bungee, a brake, a damper,
-range-of-motion stops, a mass, a simulator-tuned cuff shift). Each element type declares its parameters
-here — name, unit suffix, default (or required), whether the element fit may estimate it, its allowed
-interval — so that the protocol loader can check a campaign file against this table, the simulator can
-compose the elements into its plant, and the element fit knows what it may estimate. Each type's torque
-equation lives once, in `models.element_torques`; docs/protocol.md and docs/simulator.md describe the
-types for a test engineer.
+The element types and their parameters are the registry of `models.element_types` (re-exported here:
+`ELEMENT_TYPES`, `ElementType`, `ParamSpec`); each type's torque equation lives once, in
+`models.element_torques`; docs/protocol.md and docs/simulator.md describe the types for a test engineer.
 
 Sign convention (as `models.spring`): a positive torque is the torque the robot must apply towards +angle;
 an element that resists motion above its rest angle gives positive torque there.
@@ -17,53 +14,24 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Literal
 
 from protocol_runner.errors import InvalidInput
 
-ElementKind = Literal["elastic", "dissipative", "stop", "inertial", "artefact"]
+from .element_types import ELEMENT_TYPES, ElementKind, ElementType, ParamSpec, Shape
+
 ParamValue = float | tuple[float, ...] | str | tuple[str, ...]
-Shape = Literal["number", "pair", "integer", "sign", "names"]
 
-
-@dataclass(frozen=True)
-class ParamSpec:
-    """One parameter of an element type.
-
-    unit: the unit suffix a binding's quantity must carry ("_nm", "_deg", ...; "" for a bare number such as
-    a sign or a list of names). default: the value when the protocol omits it; None = required.
-    fittable: the element fit may estimate it. bounds: the allowed closed interval (for a fittable parameter
-    also the fit's search interval); None = any finite value. shape: a number, a [lo, hi] pair, an integer,
-    a sign (+1 / -1) or a list of parameter names. fit_starts / fit_scale: the fit's starting values (besides
-    the declared value) and its parameter scale (scipy `least_squares` x_scale).
-    """
-
-    unit: str
-    default: float | str | None
-    fittable: bool
-    bounds: tuple[float, float] | None
-    doc: str
-    shape: Shape = "number"
-    fit_starts: tuple[float, ...] = ()
-    fit_scale: float = 1.0
-
-
-@dataclass(frozen=True)
-class ElementType:
-    """An element type: its name, what it models, its kind and its parameters.
-
-    kind: "elastic" (a torque that depends on the angle only: summed into the simulator's angle table, and
-    what the element fit estimates), "dissipative" (brakes and dampers), "stop" (range-of-motion stops),
-    "inertial" (a mass: gravity and inertia), "artefact" (a simulator-tuned effect with no physical
-    counterpart to measure). default_fit: the parameters the element fit estimates when the element's
-    `fit` parameter is not given.
-    """
-
-    name: str
-    doc: str
-    kind: ElementKind
-    parameters: Mapping[str, ParamSpec]
-    default_fit: tuple[str, ...] = ()
+__all__ = [
+    "ELEMENT_TYPES",
+    "Element",
+    "ElementKind",
+    "ElementType",
+    "ParamSpec",
+    "ParamValue",
+    "Shape",
+    "build_device",
+    "build_element",
+]
 
 
 @dataclass(frozen=True)
@@ -109,210 +77,6 @@ class Element:
         for key, value in self.params.items():
             out[key] = list(value) if isinstance(value, tuple) else value
         return out
-
-
-def _p(
-    unit: str,
-    doc: str,
-    default: float | str | None = None,
-    *,
-    fittable: bool = False,
-    bounds: tuple[float, float] | None = None,
-    shape: Shape = "number",
-    starts: tuple[float, ...] = (),
-    scale: float = 1.0,
-) -> ParamSpec:
-    return ParamSpec(unit, default, fittable, bounds, doc, shape, starts, scale)
-
-
-def _fit_param(default_fit: tuple[str, ...]) -> ParamSpec:
-    return _p(
-        "",
-        "the parameters the element fit estimates (a list of this element's fittable parameter names); "
-        f"default {', '.join(default_fit)}",
-        ",".join(default_fit),
-        shape="names",
-    )
-
-
-_ANY = (-math.inf, math.inf)
-_NONNEG = (0.0, math.inf)
-
-_LEVER_FIT = ("max_preload_mm", "zero_offset_deg")
-_TORSION_FIT = ("stiffness_nm_per_deg", "neutral_deg")
-_BUNGEE_FIT = ("stiffness_nm_per_deg", "slack_deg")
-
-ELEMENT_TYPES: Mapping[str, ElementType] = {
-    t.name: t
-    for t in (
-        ElementType(
-            "lever_spring",
-            "extension springs between a fixed attachment at distance a from the axis (angle alpha from the "
-            "reference) and an attachment turning with the joint at radius a + b, preloaded by a screw "
-            "(thesis §6.1, Eq 13-18): zero torque at alpha + zero_offset_deg, growing on both sides",
-            "elastic",
-            {
-                "stiffness_n_per_mm": _p(
-                    "_n_per_mm", "spring constant K of one spring (Eq 14); 0 = no spring", bounds=(0.0, 1e4)
-                ),
-                "preload_index": _p(
-                    "_index",
-                    "preload screw position n of Eq 17 (0 = Max_Preload; each step lowers the preload)",
-                    0.0,
-                    bounds=(0.0, 1e3),
-                    shape="integer",
-                ),
-                "max_preload_mm": _p(
-                    "_mm",
-                    "Max_Preload of Eq 17: spring extension at screw position 0",
-                    fittable=True,
-                    bounds=(0.0, 100.0),
-                    starts=(10.0, 60.0),
-                    scale=10.0,
-                ),
-                "zero_offset_deg": _p(
-                    "_deg",
-                    "shift of the zero-torque angle from alpha (thesis §6.1.6: it moves with the springs)",
-                    0.0,
-                    fittable=True,
-                    bounds=(-40.0, 40.0),
-                    starts=(-15.0, 15.0),
-                    scale=10.0,
-                ),
-                "a_m": _p(
-                    "_m",
-                    "distance from the axis to the fixed (upper) attachment (Eq 15)",
-                    bounds=(1e-9, 10.0),
-                ),
-                "b_m": _p("_m", "spring length at the zero-torque angle (Eq 15-16)", bounds=(1e-9, 10.0)),
-                "c_m": _p("_m", "lever of the preload piece (Eq 17)", 0.0, bounds=(0.0, 10.0)),
-                "alpha_deg": _p("_deg", "angle of the fixed attachment: the zero-torque angle (Eq 13, 15)"),
-                "preload_step_deg": _p("_deg", "angle between two preload screw positions (Eq 17)", 0.0),
-                "count": _p(
-                    "_count",
-                    "springs in parallel (the factor 2 of Eq 13)",
-                    1.0,
-                    bounds=(0.0, 100.0),
-                    shape="integer",
-                ),
-                "fit": _fit_param(_LEVER_FIT),
-            },
-            _LEVER_FIT,
-        ),
-        ElementType(
-            "torsion_spring",
-            "a linear torsion spring: torque = stiffness · (angle - neutral)",
-            "elastic",
-            {
-                "stiffness_nm_per_deg": _p(
-                    "_nm_per_deg", "torsional stiffness", fittable=True, bounds=(0.0, 1e4), scale=1.0
-                ),
-                "neutral_deg": _p(
-                    "_deg", "angle of zero torque", fittable=True, bounds=(-720.0, 720.0), scale=10.0
-                ),
-                "fit": _fit_param(_TORSION_FIT),
-            },
-            _TORSION_FIT,
-        ),
-        ElementType(
-            "bungee",
-            "an elastic cord: pulls only when taut. direction +1: taut above slack_deg, torque = stiffness · "
-            "(angle - slack_deg) there; -1: taut below slack_deg; zero torque on the slack side",
-            "elastic",
-            {
-                "stiffness_nm_per_deg": _p(
-                    "_nm_per_deg", "stiffness when taut", fittable=True, bounds=(0.0, 1e4), scale=1.0
-                ),
-                "slack_deg": _p(
-                    "_deg",
-                    "angle at which the cord becomes taut",
-                    fittable=True,
-                    bounds=(-720.0, 720.0),
-                    scale=10.0,
-                ),
-                "direction": _p("", "+1: taut above slack_deg; -1: taut below it", 1.0, shape="sign"),
-                "fit": _fit_param(_BUNGEE_FIT),
-            },
-            _BUNGEE_FIT,
-        ),
-        ElementType(
-            "coulomb_brake",
-            "dry friction of constant level with rounded reversals (a Dahl state: the torque relaxes to "
-            "±level over transition_deg of travel) and a Stribeck excess at low sliding speed: level = "
-            "torque · (1 + static_excess_ratio · exp(-(speed / stribeck_speed)²)). Loses 4·T·A per cycle of "
-            "amplitude A (rad). Brakes with equal smoothing share one state in the simulator",
-            "dissipative",
-            {
-                "torque_nm": _p("_nm", "friction torque while sliding fast", bounds=_NONNEG),
-                "transition_deg": _p(
-                    "_deg",
-                    "travel over which the friction reverses (Dahl σ = torque / this)",
-                    1.0,
-                    bounds=(1e-6, 90.0),
-                ),
-                "static_excess_ratio": _p(
-                    "_ratio",
-                    "friction excess at standstill, as a fraction of torque_nm",
-                    0.0,
-                    bounds=(0.0, 10.0),
-                ),
-                "stribeck_speed_deg_s": _p(
-                    "_deg_s", "speed scale of the Stribeck excess", 10.0, bounds=(1e-6, 1e4)
-                ),
-            },
-        ),
-        ElementType(
-            "viscous_damper",
-            "viscous damping: torque = damping · speed. Loses π·c·ω·A² per cycle (c per rad)",
-            "dissipative",
-            {"damping_nm_s_per_deg": _p("_nm_s_per_deg", "damping coefficient", bounds=_NONNEG)},
-        ),
-        ElementType(
-            "rom_stops",
-            "range-of-motion stops: beyond either end of range_deg the device first gives slack_deg of soft "
-            "travel (a misaligned cuff sliding, thesis §5.2), then is stiff",
-            "stop",
-            {
-                "range_deg": _p("_deg", "the stops [lo, hi]", shape="pair"),
-                "slack_deg": _p("_deg", "soft travel past each stop", 0.0, bounds=(0.0, 360.0)),
-                "slack_stiffness_nm_per_deg": _p(
-                    "_nm_per_deg", "stiffness within the slack", 0.0, bounds=_NONNEG
-                ),
-                "stop_stiffness_nm_per_deg": _p(
-                    "_nm_per_deg", "stiffness once the slack is used", bounds=_NONNEG
-                ),
-            },
-        ),
-        ElementType(
-            "mass",
-            "a point mass on a lever turning with the joint: gravity torque m·g·l·sin(angle - hanging_deg) "
-            "(zero where it hangs) and inertia m·l²",
-            "inertial",
-            {
-                "mass_kg": _p("_kg", "the mass", bounds=_NONNEG),
-                "lever_m": _p("_m", "distance of its centre of mass from the axis", bounds=_NONNEG),
-                "hanging_deg": _p("_deg", "joint angle at which it hangs straight down", 0.0),
-            },
-        ),
-        ElementType(
-            "cuff_shift",
-            "SIMULATOR-TUNED artefact: a brace shifting on the leg near angle_deg (thesis §5.1, §5.4) — a "
-            "Gaussian torque bump, the same sign on both branches, growing with speed and shrinking as "
-            "reference_force_n / (reference_force_n + the lever springs' force at angle_deg)",
-            "artefact",
-            {
-                "angle_deg": _p("_deg", "centre of the bump"),
-                "width_deg": _p("_deg", "Gaussian half-width", bounds=(1e-6, 360.0)),
-                "torque_nm": _p("_nm", "height with no spring force at the reference speed", bounds=_NONNEG),
-                "reference_speed_deg_s": _p("_deg_s", "speed of the nominal height", bounds=(1e-6, 1e4)),
-                "reference_force_n": _p(
-                    "_n", "spring force that halves the bump (0: no bump)", bounds=_NONNEG
-                ),
-            },
-        ),
-    )
-}
-"""Every element type, by name."""
 
 
 def _where(name: str, type_: str, param: str) -> str:

@@ -14,7 +14,7 @@ The thesis discretises it with the explicit first-order recursion of Eq 23::
 whose torque depends on the sampling rate.  :func:`simulate` and :func:`fit` integrate the differential
 equation instead (``scheme="refined"``, the default): the angle is taken as piecewise linear between samples
 and the state is advanced by Heun's method on substeps bounded by an angle increment and by the loop's
-stiffness (:mod:`.integrator`), so a parameter set gives the same torque at any sampling rate.  The literal
+stiffness (:mod:`.schemes`), so a parameter set gives the same torque at any sampling rate.  The literal
 recursion is ``scheme="eq23"``.
 
 where ``x`` is the joint angle in degrees and ``z`` is the torque in N*m (so ``A`` is in N*m/deg and each
@@ -72,7 +72,7 @@ from .params import (
     phase_of_samples,
     phase_values,
 )
-from .problem import DEFAULT_BOUNDS, FULL_REFIT_R2, BoucWenBounds, BoucWenFit
+from .records import DEFAULT_BOUNDS, FULL_REFIT_R2, BoucWenBounds, BoucWenFit
 from .simulation import simulate, simulate_sensitivity
 
 __all__ = [

@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import replace
+from typing import Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -14,21 +15,19 @@ from scipy.stats import qmc
 from protocol_runner.errors import InvalidInput
 
 from .backbone import AnyBackbone, BackboneFactory, fit_backbone, hysteretic_part
+from .options import FitKeywords, FitOptions
 from .params import BoucWenParams, FloatArray
 from .problem import (
     _POLISH_NFEV,
     _SCREEN_SAMPLES,
     _SHORT_NFEV,
-    DEFAULT_BOUNDS,
     DIVERGENCE_FACTOR,
-    FULL_REFIT_R2,
-    BoucWenBounds,
-    BoucWenFit,
     Problem,
     evaluate,
     param_std,
     refined_rmse,
 )
+from .records import FULL_REFIT_R2, BoucWenBounds, BoucWenFit
 from .schemes import EQ23, REFINED, check_scheme
 from .simulation import as_angle
 from .starts import equation_error_start, thesis_start
@@ -67,6 +66,21 @@ def _validate_segments(
     if all(np.max(np.abs(x)) == 0.0 for x, _ in out):
         raise InvalidInput("the angle is zero everywhere")
     return out
+
+
+def backbone_for(
+    segments: list[tuple[FloatArray, FloatArray]],
+    indices: Sequence[int],
+    degree: int | None,
+    factory: BackboneFactory | None,
+) -> AnyBackbone | None:
+    """The backbone ``g`` of a fit on ``segments`` (the trials ``indices`` of the configuration): a
+    polynomial of ``degree`` fitted to them, the ``factory``'s for those trials, or None (``torque = z``)."""
+    if degree is not None and factory is not None:
+        raise InvalidInput("give a backbone degree or a backbone factory, not both")
+    if degree is not None:
+        return fit_backbone(segments, degree)
+    return None if factory is None else factory(indices)
 
 
 def decimate(
@@ -113,20 +127,9 @@ def _diverges_when_decimated(u: FloatArray, screen: Problem, problem: Problem) -
     return problem.diverged_at >= 0
 
 
-def _fit_segments(
-    segments: list[tuple[FloatArray, FloatArray]],
-    *,
-    starts: int,
-    initial: BoucWenParams | Sequence[BoucWenParams] | None,
-    data_starts: bool,
-    bounds: BoucWenBounds,
-    seed: int,
-    max_samples_per_trial: int | None,
-    polish: int,
-    polish_tol: float = 1e-10,
-    scheme: str = REFINED,
-    final_ftol: float | None = None,
-) -> BoucWenFit:
+def _fit_segments(segments: list[tuple[FloatArray, FloatArray]], options: FitOptions) -> BoucWenFit:
+    starts, max_samples_per_trial = options.starts, options.max_samples_per_trial
+    scheme, bounds = options.scheme, options.bounds
     if starts < 0:
         raise InvalidInput(f"starts must be >= 0, got {starts}")
     if max_samples_per_trial is not None and max_samples_per_trial < 3:
@@ -160,16 +163,17 @@ def _fit_segments(
         screen = Problem(xs, ys, segs, bounds, angle_scale, torque_scale, scheme, screen_step)
 
     candidates: list[FloatArray] = []
-    if initial is not None:
+    if options.initial is not None:
+        initial = options.initial
         for p in [initial] if isinstance(initial, BoucWenParams) else list(initial):
             candidates.append(problem.to_u(p))
-    if data_starts:
+    if options.data_starts:
         candidates.append(problem.to_u(thesis_start(xs, ys, segs)))
         ee = equation_error_start(xs, ys, segs, np.linspace(bounds.n_min, bounds.n_max, 11))
         if ee is not None:
             candidates.append(problem.to_u(ee))
     if starts > 0:
-        unit = qmc.Halton(d=8, scramble=True, rng=seed).random(starts)
+        unit = qmc.Halton(d=8, scramble=True, rng=options.seed).random(starts)
         candidates.extend(problem.lower + unit[k] * (problem.upper - problem.lower) for k in range(starts))
     if not candidates:
         raise InvalidInput("no starting point: give starts > 0, data_starts=True or an initial guess")
@@ -198,11 +202,12 @@ def _fit_segments(
     chosen: list[FloatArray] = []
     chosen_cost: list[float] = []
     for cost0, u0 in short:
-        if len(chosen) >= max(1, polish) or cost0 > 1.05 * short[0][0]:
+        if len(chosen) >= max(1, options.polish) or cost0 > 1.05 * short[0][0]:
             break
         if all(abs(cost0 - c) > 1e-3 * c for c in chosen_cost):
             chosen.append(u0)
             chosen_cost.append(cost0)
+    polish_tol, final_ftol = options.polish_tol, options.final_ftol
     best: tuple[float, FloatArray, int, str] | None = None
     polished: list[float] = []
     for u0 in chosen:
@@ -249,14 +254,7 @@ def fit(
     torque_nm: npt.ArrayLike,
     *,
     trials: Sequence[int] | None = None,
-    starts: int = 4,
-    initial: BoucWenParams | Sequence[BoucWenParams] | None = None,
-    data_starts: bool = True,
-    bounds: BoucWenBounds = DEFAULT_BOUNDS,
-    seed: int = 0,
-    max_samples_per_trial: int | None = 8000,
-    polish: int = 1,
-    scheme: str = REFINED,
+    **options: Unpack[FitKeywords],
 ) -> BoucWenFit:
     """Fit the generalised Bouc-Wen model (Eq 20-23) to angle/torque samples by least squares (§6.2.3).
 
@@ -266,20 +264,12 @@ def fit(
     trials: lengths of consecutive trials making up ``x_deg``/``torque_nm`` (they must sum to its length);
         each trial restarts the recursion at its own first torque, so concatenation adds no fake jump.
         ``None`` means one trial.  :func:`fit_trials` takes a list of segments instead.
-    starts: number of quasi-random (scrambled Halton, seeded by ``seed``) starting points spread over
-        ``bounds``, in addition to the data-driven ones.
-    initial: extra starting point(s) of your own.
-    data_starts: include the thesis's Figure 56 start (A = 1, n = 1, per-phase typical Psi through Eq 25)
-        and an equation-error least-squares start.
-    bounds: see :class:`BoucWenBounds` (relative to the data's angle and torque scales).
-    max_samples_per_trial: each trial longer than this is decimated by a uniform stride before fitting
-        (``None``: never).  With the refined scheme the integration follows the angle between the kept
-        samples (piecewise linear), so decimating smooth (already filtered) data only drops residuals; with
-        ``scheme="eq23"`` the explicit-Euler error grows with the angle step.  RMSE and R^2 are always
-        reported on every given sample, ``rmse_refined_nm`` too (4x finer integration).
-    scheme: ``"refined"`` (default, step-independent) or ``"eq23"`` (the thesis's literal recursion), see
-        :func:`simulate`.
-    polish: how many of the best short fits are refined to full convergence.
+    options: starts, initial, data_starts, bounds, seed, max_samples_per_trial (default 8000), polish and
+        scheme (default ``"refined"``), see :class:`.FitOptions`.  With the refined scheme the integration
+        follows the angle between the kept samples (piecewise linear), so decimating smooth (already
+        filtered) data only drops residuals; with ``scheme="eq23"`` the explicit-Euler error grows with the
+        angle step.  RMSE and R^2 are always reported on every given sample, ``rmse_refined_nm`` too (4x
+        finer integration).
 
     Procedure: every start gets a short trust-region solve (``scipy.optimize.least_squares``, analytic
     Jacobian, bounds) on a coarse copy of the data (at most 400 samples per trial); the best ``polish``
@@ -304,33 +294,16 @@ def fit(
             )
     edges = np.concatenate([[0], np.cumsum(lengths)])
     segments = [(x[edges[k] : edges[k + 1]], y[edges[k] : edges[k + 1]]) for k in range(len(lengths))]
-    return fit_trials(
-        segments,
-        starts=starts,
-        initial=initial,
-        data_starts=data_starts,
-        bounds=bounds,
-        seed=seed,
-        max_samples_per_trial=max_samples_per_trial,
-        polish=polish,
-        scheme=scheme,
-    )
+    return fit_trials(segments, **options)
 
 
 @blas_single_threaded
 def fit_trials(
     segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]],
     *,
-    starts: int = 4,
-    initial: BoucWenParams | Sequence[BoucWenParams] | None = None,
-    data_starts: bool = True,
-    bounds: BoucWenBounds = DEFAULT_BOUNDS,
-    seed: int = 0,
-    max_samples_per_trial: int | None = 8000,
-    polish: int = 1,
-    scheme: str = REFINED,
     backbone_degree: int | None = None,
     backbone_factory: BackboneFactory | None = None,
+    **options: Unpack[FitKeywords],
 ) -> BoucWenFit:
     """Fit one model jointly to several trials ``[(angle_deg, torque_nm), ...]`` of one configuration.
 
@@ -350,44 +323,22 @@ def fit_trials(
     the better of the two (by RMSE on every sample) is returned.
     """
     checked = _validate_segments(segments)
-    if backbone_degree is not None and backbone_factory is not None:
-        raise InvalidInput("give a backbone degree or a backbone factory, not both")
-    backbone: AnyBackbone | None = None
-    if backbone_degree is not None:
-        backbone = fit_backbone(checked, backbone_degree)
-    elif backbone_factory is not None:
-        backbone = backbone_factory(range(len(checked)))
+    backbone = backbone_for(checked, range(len(checked)), backbone_degree, backbone_factory)
     if backbone is not None:
         checked = _validate_segments(hysteretic_part(checked, backbone))
-    result = _fit_segments(
-        checked,
-        starts=starts,
-        initial=initial,
-        data_starts=data_starts,
-        bounds=bounds,
-        seed=seed,
-        max_samples_per_trial=max_samples_per_trial,
-        polish=polish,
-        scheme=scheme,
-    )
+    settings = FitOptions(**options)
+    result = _fit_segments(checked, settings)
     decimated = any(s > 1 for s in result.stride)
-    if scheme == EQ23 and decimated and (result.diverged or not result.r2 >= FULL_REFIT_R2):
-        full = _fit_segments(
-            checked,
-            starts=0,
-            initial=result.params,
-            data_starts=False,
-            bounds=bounds,
-            seed=seed,
-            max_samples_per_trial=None,
-            polish=1,
-            scheme=scheme,
+    if settings.scheme == EQ23 and decimated and (result.diverged or not result.r2 >= FULL_REFIT_R2):
+        every_sample = replace(
+            settings, starts=0, initial=result.params, data_starts=False, max_samples_per_trial=None, polish=1
         )
+        full = _fit_segments(checked, every_sample)
         if full.rmse_nm < result.rmse_nm:
             result = full
     bound = DIVERGENCE_FACTOR * result.torque_scale_nm
     return replace(
         result,
-        rmse_refined_nm=refined_rmse(checked, result.params, bound, scheme),
+        rmse_refined_nm=refined_rmse(checked, result.params, bound, settings.scheme),
         backbone=backbone,
     )

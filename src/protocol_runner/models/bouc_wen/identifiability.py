@@ -44,7 +44,8 @@ from scipy.optimize import least_squares
 from .backbone import hysteretic_part
 from .fitting import _validate_segments, decimate
 from .params import FloatArray
-from .problem import BoucWenFit, Problem, jacobian_std, param_std
+from .problem import Problem, jacobian_std, param_std
+from .records import BoucWenFit
 from .schemes import REFINED
 from .threads import blas_single_threaded
 

@@ -1,6 +1,15 @@
-"""Compiled kernels: the Eq 23 recursion and its forward sensitivities (thesis §6.2.3).
+"""Compiled kernels of the Bouc-Wen state over the angle samples (thesis §6.2.3, Eq 20-23): the literal
+Eq 23 recursion and the step-independent integration described in :mod:`.schemes`, each with or without
+its forward sensitivities ``d z / d theta`` (theta = A, n, beta1..6).
 
-The kernels take arrays and plain numbers so numba compiles them once (cached on disk).
+In this order: the pieces of the rate both schemes share (signs, Psi, ``|z|^n``, inlined), one Eq 23
+step, the Heun substeps of the refined scheme along one straight piece of angle, and one loop over segments
+and samples (:func:`_sweep`) that serves all four kernels, selected by two flags (a branch per sample that
+costs nothing measurable: the per-piece call and the loop are as fast as the four separate kernels they
+replace; a further layer of numba ``inline="always"`` around the Heun piece made the sensitivity kernel
+about 1.5 times slower, so there is none).  The kernels take arrays and plain numbers so numba compiles
+them once (cached on disk; all compiled code is in this one file because numba's cache of a function does
+not notice a change in another file).
 """
 
 from __future__ import annotations
@@ -11,6 +20,10 @@ import numpy as np
 from numba import njit
 
 IDENTITY8 = np.eye(8)
+STIFF_STEP = 0.5  # substep * |dF/dz| at most this at the default substep (Heun is stable to 2 on the
+# negative real axis); a shorter max_step_deg shortens this bound in proportion (one knob for fineness)
+MAX_SUBSTEPS = 256  # per sample interval: bounded work for any parameter set
+DEFAULT_MAX_STEP_DEG = 0.1  # longest substep of the angle (deg)
 
 
 @njit(cache=True)
@@ -22,55 +35,151 @@ def sgn(v: float) -> float:  # pragma: no cover - compiled
     return 0.0
 
 
-@njit(cache=True)
-def recursion_kernel(x, seg, z0, A, n, beta, bound, freeze, z):  # pragma: no cover
-    """Eq 23 over consecutive segments ``x[seg[s]:seg[s+1]]``, each restarted at ``z0[s]``.
+@njit(inline="always")
+def shape_psi(beta, sd, sx, sz):  # pragma: no cover - compiled
+    """Psi of Eq 22, ``beta1 sd sz + beta2 sd sx + beta3 sx sz + beta4 sd + beta5 sz + beta6 sx`` with
+    ``sd = sgn(dx)``, ``sx = sgn(x)``, ``sz = sgn(z)``."""
+    return (
+        beta[0] * sd * sz + beta[1] * sd * sx + beta[2] * sx * sz + beta[3] * sd + beta[4] * sz + beta[5] * sx
+    )
 
-    Writes ``z`` and returns the index of the first sample whose |z| exceeded ``bound`` (or was not finite),
-    -1 if none.  After divergence the rest of that segment is NaN (``freeze`` False) or held at
-    +-``bound`` (``freeze`` True, the finite penalty used by the fitter).
-    """
-    first_bad = -1
-    b0 = beta[0]
-    b1 = beta[1]
-    b2 = beta[2]
-    b3 = beta[3]
-    b4 = beta[4]
-    b5 = beta[5]
-    for s in range(seg.size - 1):
-        i0 = seg[s]
-        i1 = seg[s + 1]
-        zi = z0[s]
-        z[i0] = zi
-        dead = False
-        for i in range(i0, i1 - 1):
-            if dead:
-                z[i + 1] = zi
-                continue
-            xi = x[i]
-            d = x[i + 1] - xi
-            sd = sgn(d)
-            sx = sgn(xi)
-            sz = sgn(zi)
-            psi = b0 * sd * sz + b1 * sd * sx + b2 * sx * sz + b3 * sd + b4 * sz + b5 * sx
-            az = abs(zi)
-            # exp(n ln|z|) rather than az**n: bit-identical to the sensitivity kernel
-            g = math.exp(n * math.log(az)) if az > 0.0 else 0.0
-            znew = zi + d * (A - g * psi)
-            if abs(znew) <= bound:
-                zi = znew
-            else:
-                if first_bad < 0:
-                    first_bad = i + 1
-                dead = True
-                zi = (-bound if znew < 0.0 else bound) if freeze else np.nan
-            z[i + 1] = zi
-    return first_bad
+
+@njit(inline="always")
+def sign_terms(sd, sx, sz, sig):  # pragma: no cover - compiled
+    """The six sign products of Eq 22 (``d Psi / d beta``) into ``sig``."""
+    sig[0] = sd * sz
+    sig[1] = sd * sx
+    sig[2] = sx * sz
+    sig[3] = sd
+    sig[4] = sz
+    sig[5] = sx
+
+
+@njit(inline="always")
+def abs_pow(az, n):  # pragma: no cover - compiled
+    """``(|z|^n, ln|z|)`` for ``az = |z|``, the power as ``exp(n ln|z|)`` (the same bits in every kernel);
+    ``(0, 0)`` at ``z = 0`` (the limit of ``|z|^n ln|z|``)."""
+    if az > 0.0:
+        lz = math.log(az)
+        return math.exp(n * lz), lz
+    return 0.0, 0.0
+
+
+@njit(inline="always")
+def held(z, bound, freeze):  # pragma: no cover - compiled
+    """The state after divergence: +-``bound`` (``freeze``, the fitter's finite penalty) or NaN."""
+    return (-bound if z < 0.0 else bound) if freeze else np.nan
+
+
+@njit(inline="always")
+def eq23_step(xa, xb, zi, A, n, beta):  # pragma: no cover - compiled
+    """Eq 23: ``z_{i+1} = z_i + (x_{i+1} - x_i) (A - |z_i|^n Psi_i)``."""
+    d = xb - xa
+    psi = shape_psi(beta, sgn(d), sgn(xa), sgn(zi))
+    g, _ = abs_pow(abs(zi), n)
+    return zi + d * (A - g * psi)
+
+
+@njit(inline="always")
+def eq23_step_sens(xa, xb, zi, S, A, n, beta, sig):  # pragma: no cover - compiled
+    """:func:`eq23_step` and its exact derivatives ``S = d z / d theta`` (theta = A, n, beta1..6, updated in
+    place).  Differentiating Eq 23 (the signs are piecewise constant, so their derivative is zero almost
+    everywhere) gives, with ``g_i = |z_i|^n`` and ``s_i`` the six signs::
+
+        dz_{i+1} = dz_i + d_i [dA - dg_i Psi_i - g_i (s_i . dbeta)]
+        dg_i = n |z_i|^(n-1) sgn(z_i) dz_i + g_i ln|z_i| dn
+
+    At ``z_i = 0`` both terms of ``dg_i`` are taken as 0 (for n < 1 the first has no finite limit and 0
+    is the one-sided convention)."""
+    d = xb - xa
+    sd = sgn(d)
+    sx = sgn(xa)
+    sz = sgn(zi)
+    sign_terms(sd, sx, sz, sig)
+    psi = shape_psi(beta, sd, sx, sz)
+    az = abs(zi)
+    g, lz = abs_pow(az, n)
+    coef = n * g / az * sz if az > 0.0 else 0.0
+    dg0 = coef * S[0]
+    dg1 = coef * S[1] + g * lz
+    S[0] = S[0] + d * (1.0 - dg0 * psi)
+    S[1] = S[1] - d * dg1 * psi
+    for k in range(6):
+        dgk = coef * S[k + 2]
+        S[k + 2] = S[k + 2] - d * (dgk * psi + g * sig[k])
+    return zi + d * (A - g * psi)
+
+
+@njit(cache=True)
+def _substeps(d, zi, A, n, beta, sd, sx, max_step, stiff_step):  # pragma: no cover - compiled
+    """Substep count of a piece, and the rate ``dz/dx`` at its start (one power of |z| for both)."""
+    psi = shape_psi(beta, sd, sx, sgn(zi))
+    az = abs(zi)
+    g, _ = abs_pow(az, n)
+    stiff = n * g / az * abs(psi) if az > 0.0 else 0.0
+    rate = max(1.0 / max_step, stiff / stiff_step)
+    m = math.ceil(abs(d) * rate) if math.isfinite(rate) else MAX_SUBSTEPS
+    return max(1, min(MAX_SUBSTEPS, m)), A - g * psi
+
+
+@njit(cache=True)
+def _rate(z, A, n, beta, sd, sx):  # pragma: no cover - compiled
+    """``dz/dx = A - |z|^n Psi`` (Eq 20, 22)."""
+    g, _ = abs_pow(abs(z), n)
+    return A - g * shape_psi(beta, sd, sx, sgn(z))
+
+
+@njit(cache=True)
+def _rate_sens(z, S, A, n, beta, sd, sx, out):  # pragma: no cover - compiled
+    """F(z) and dF/dtheta + dF/dz S (into ``out``; the sign products in registers, not an array: this is
+    the innermost work of every fit)."""
+    sz = sgn(z)
+    psi = shape_psi(beta, sd, sx, sz)
+    az = abs(z)
+    g, lz = abs_pow(az, n)
+    fz = -n * g / az * sz * psi if az > 0.0 else 0.0
+    out[0] = 1.0 + fz * S[0]
+    out[1] = -g * lz * psi + fz * S[1]
+    out[2] = -g * (sd * sz) + fz * S[2]
+    out[3] = -g * (sd * sx) + fz * S[3]
+    out[4] = -g * (sx * sz) + fz * S[4]
+    out[5] = -g * sd + fz * S[5]
+    out[6] = -g * sz + fz * S[6]
+    out[7] = -g * sx + fz * S[7]
+    return A - g * psi
+
+
+@njit(cache=True)
+def _piece(xa, xb, zi, A, n, beta, bound, max_step, S, S2, d1, d2, sensitivities):  # pragma: no cover
+    """Heun substeps along the straight angle piece ``xa -> xb`` on which sgn x does not change; with
+    ``sensitivities`` the derivatives ``S`` are carried along (updated in place; ``S2``, ``d1``, ``d2``
+    are scratch)."""
+    d = xb - xa
+    sd = sgn(d)
+    sx = sgn(xa + 0.5 * d)
+    m, k1 = _substeps(d, zi, A, n, beta, sd, sx, max_step, max_step * STIFF_STEP / DEFAULT_MAX_STEP_DEG)
+    h = d / m
+    for j in range(m):
+        if sensitivities:
+            k1 = _rate_sens(zi, S, A, n, beta, sd, sx, d1)
+            for k in range(8):
+                S2[k] = S[k] + h * d1[k]
+            k2 = _rate_sens(zi + h * k1, S2, A, n, beta, sd, sx, d2)
+            for k in range(8):
+                S[k] = S[k] + 0.5 * h * (d1[k] + d2[k])
+        else:
+            if j > 0:
+                k1 = _rate(zi, A, n, beta, sd, sx)
+            k2 = _rate(zi + h * k1, A, n, beta, sd, sx)
+        zi = zi + 0.5 * h * (k1 + k2)
+        if not abs(zi) <= bound:
+            break
+    return zi
 
 
 @njit(cache=True)
 def project_row(sens, T, dz, row):  # pragma: no cover - compiled
-    """``dz[row, :] = sens @ T``: one row of the chain-rule Jacobian (both sensitivity kernels)."""
+    """``dz[row, :] = sens @ T``: one row of the chain-rule Jacobian."""
     for c in range(8):
         acc = 0.0
         for k in range(8):
@@ -79,91 +188,92 @@ def project_row(sens, T, dz, row):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def sensitivity_kernel(x, seg, z0, A, n, beta, bound, freeze, z, dz, T):  # pragma: no cover
-    """Eq 23 and its exact derivatives ``d z_i / d theta_k``, theta = (A, n, beta1..6), written as
-    ``dz[i, :] = (d z_i / d theta) @ T`` (``T`` = identity for the plain derivatives; the fitter passes its
-    chain-rule matrix so that no separate pass over the Jacobian is needed).
+def _sweep(
+    x, seg, z0, A, n, beta, bound, freeze, max_step, z, dz, T, rows, refined, sensitivities
+):  # pragma: no cover
+    """The state at every sample over consecutive segments ``x[seg[s]:seg[s+1]]``, each restarted at
+    ``z0[s]``, by Eq 23 or (``refined``) by Heun substeps of at most ``max_step`` (:func:`_piece`; an
+    interval on which the angle crosses 0 is cut there); with ``sensitivities`` also
+    ``dz[r, :] = (d z_{rows[r]} / d theta) @ T`` at the samples ``rows`` (increasing; the sensitivities are
+    carried along every sample, only those rows are projected).
 
-    Differentiating Eq 23 (the signs are piecewise constant, so their derivative is zero almost
-    everywhere) gives, with ``g_i = |z_i|^n`` and ``s_i`` the six signs of Eq 23::
-
-        dz_{i+1} = dz_i + d_i [dA - dg_i Psi_i - g_i (s_i . dbeta)]
-        dg_i = n |z_i|^(n-1) sgn(z_i) dz_i + g_i ln|z_i| dn
-
-    At ``z_i = 0`` both terms of ``dg_i`` are taken as 0 (the limit of ``|z|^n ln|z|``; for n < 1 the
-    first term has no finite limit and 0 is the one-sided convention).  Divergence handling as in
-    :func:`recursion_kernel`; derivatives after divergence are NaN or 0 (frozen).
+    Returns the index of the first sample whose |z| exceeded ``bound`` (or was not finite), -1 if none.
+    After divergence the rest of that segment is NaN (``freeze`` False) or held at +-``bound`` (``freeze``
+    True, the finite penalty used by the fitter), its derivatives NaN or 0.
     """
     first_bad = -1
-    sens = np.zeros(8)
-    sig = np.zeros(6)
+    r = 0  # next entry of rows
+    S = np.zeros(8)
+    S2, d1, d2, sig = np.zeros(8), np.zeros(8), np.zeros(8), np.zeros(6)
     for s in range(seg.size - 1):
         i0 = seg[s]
         i1 = seg[s + 1]
         zi = z0[s]
         z[i0] = zi
-        for k in range(8):
-            sens[k] = 0.0
-            dz[i0, k] = 0.0
+        if sensitivities:
+            S[:] = 0.0
+            while r < rows.size and rows[r] < i0:
+                r += 1
+            if r < rows.size and rows[r] == i0:
+                dz[r, :] = 0.0
+                r += 1
         dead = False
         for i in range(i0, i1 - 1):
+            xa = x[i]
+            xb = x[i + 1]
             if dead:
-                z[i + 1] = zi
-                for c in range(8):
-                    acc = 0.0
-                    for k in range(8):
-                        acc += sens[k] * T[k, c]
-                    dz[i + 1, c] = acc
-                continue
-            xi = x[i]
-            d = x[i + 1] - xi
-            sd = sgn(d)
-            sx = sgn(xi)
-            sz = sgn(zi)
-            sig[0] = sd * sz
-            sig[1] = sd * sx
-            sig[2] = sx * sz
-            sig[3] = sd
-            sig[4] = sz
-            sig[5] = sx
-            psi = 0.0
-            for k in range(6):
-                psi += beta[k] * sig[k]
-            az = abs(zi)
-            if az > 0.0:
-                lz = math.log(az)
-                g = math.exp(n * lz)
-                coef = n * g / az * sz
-            else:
-                lz = 0.0
-                g = 0.0
-                coef = 0.0
-            znew = zi + d * (A - g * psi)
-            if abs(znew) <= bound:
-                # derivatives (use the old sens values on the right-hand side)
-                dg0 = coef * sens[0]
-                dg1 = coef * sens[1] + g * lz
-                sens[0] = sens[0] + d * (1.0 - dg0 * psi)
-                sens[1] = sens[1] - d * dg1 * psi
-                for k in range(6):
-                    dgk = coef * sens[k + 2]
-                    sens[k + 2] = sens[k + 2] - d * (dgk * psi + g * sig[k])
-                zi = znew
-            else:
+                pass
+            elif not refined:
+                zi = (
+                    eq23_step_sens(xa, xb, zi, S, A, n, beta, sig)
+                    if sensitivities
+                    else eq23_step(xa, xb, zi, A, n, beta)
+                )
+            elif xa != xb:
+                # Heun substeps along the straight angle piece, cut at x = 0 where sgn x changes
+                xm = 0.0 if xa * xb < 0.0 else xb
+                zi = _piece(xa, xm, zi, A, n, beta, bound, max_step, S, S2, d1, d2, sensitivities)
+                if xm != xb and abs(zi) <= bound:
+                    zi = _piece(xm, xb, zi, A, n, beta, bound, max_step, S, S2, d1, d2, sensitivities)
+            if not dead and not abs(zi) <= bound:
                 if first_bad < 0:
                     first_bad = i + 1
                 dead = True
-                if freeze:
-                    zi = -bound if znew < 0.0 else bound
-                    for k in range(8):
-                        sens[k] = 0.0
-                else:
-                    zi = np.nan
-                    for k in range(8):
-                        sens[k] = np.nan
+                zi = held(zi, bound, freeze)
+                S[:] = 0.0 if freeze else np.nan
             z[i + 1] = zi
-            project_row(sens, T, dz, i + 1)
+            if sensitivities and r < rows.size and rows[r] == i + 1:
+                project_row(S, T, dz, r)
+                r += 1
     return first_bad
+
+
+@njit(cache=True)
+def recursion_kernel(x, seg, z0, A, n, beta, bound, freeze, z):  # pragma: no cover - compiled
+    """Eq 23 over the segments (see :func:`_sweep`): writes ``z``, returns the first diverged index or -1."""
+    no_dz, no_rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)
+    return _sweep(x, seg, z0, A, n, beta, bound, freeze, 0.0, z, no_dz, IDENTITY8, no_rows, False, False)
+
+
+@njit(cache=True)
+def sensitivity_kernel(x, seg, z0, A, n, beta, bound, freeze, z, dz, T, rows):  # pragma: no cover
+    """Eq 23 and its exact derivatives at ``rows`` (see :func:`_sweep`, :func:`eq23_step_sens`)."""
+    return _sweep(x, seg, z0, A, n, beta, bound, freeze, 0.0, z, dz, T, rows, False, True)
+
+
+@njit(cache=True)
+def heun_kernel(x, seg, z0, A, n, beta, bound, freeze, max_step, z):  # pragma: no cover - compiled
+    """The step-independent integration (:mod:`.schemes`) over the segments (see :func:`_sweep`)."""
+    no_dz, no_rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)
+    return _sweep(x, seg, z0, A, n, beta, bound, freeze, max_step, z, no_dz, IDENTITY8, no_rows, True, False)
+
+
+@njit(cache=True)
+def heun_sensitivity_kernel(
+    x, seg, z0, A, n, beta, bound, freeze, max_step, z, dz, T, rows
+):  # pragma: no cover
+    """:func:`heun_kernel` and the exact derivatives of its scheme at ``rows`` (see :func:`_sweep`)."""
+    return _sweep(x, seg, z0, A, n, beta, bound, freeze, max_step, z, dz, T, rows, True, True)
 
 
 @njit(cache=True)

@@ -1,138 +1,21 @@
-"""The least-squares problem of the Bouc-Wen fit: bounds, the fit record, residuals, Jacobian,
-uncertainties and evaluation on every sample (thesis §6.2.3, Figure 56)."""
+"""The least-squares problem of the Bouc-Wen fit: residuals, Jacobian, uncertainties and evaluation on
+every sample (thesis §6.2.3, Figure 56); its bounds and the fit record are in :mod:`.records`."""
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares
 
-from protocol_runner.errors import InvalidInput
-
-from .backbone import Backbone, FixedBackbone
 from .kernels import IDENTITY8, gram, sum_sq_diff
 from .params import EQ25_BETA_MATRIX, BoucWenParams, FloatArray, phase_values
-from .schemes import REFINED, check_scheme, run_scheme, run_scheme_sensitivity
+from .records import BoucWenBounds
+from .schemes import REFINED, check_scheme, run_scheme, run_trial
+from .simulation import refine_angle
 
 REFINE_FACTOR = 4  # rmse_refined_nm: this many times finer integration
-
-
-@dataclass(frozen=True)
-class BoucWenBounds:
-    """Bounds of the fitted parameters, expressed relative to the data so that they suit any joint.
-
-    With ``X`` the largest |angle| (deg) and ``Z`` the largest |torque| (N*m) of the fitted data, Eq 20
-    becomes ``dz'/dx' = a - |z'|^n psi'`` for ``z' = z/Z`` and ``x' = x/X``, with ``a = A X / Z`` and
-    ``psi' = psi X Z^(n-1)``.  The bounds are on these dimensionless numbers:
-
-    * ``0 <= a <= a_max`` - ``A >= 0`` makes the torque rise with the angle near ``z = 0`` (a passive joint
-      resists the motion); ``a_max = 20`` lets the initial slope be 20 times the loop's mean secant slope
-      ``Z/X`` (for X = 65 deg, Z = 20 N*m: A <= 6.2 N*m/deg).
-    * ``n_min <= n <= n_max`` (0.5-3): the exponent only shapes the knees of the loop; the thesis fitted
-      1.2.
-    * ``|psi'_k| <= psi_max`` for the six Table 4 phase values (hence ``|beta'_k| <= psi_max`` too, since
-      each row of Eq 25 has four entries of 1/4).  ``psi_max = 100`` allows slopes up to about
-      ``dz'/dx' = 100``, i.e. crossing the whole torque range within 1 % of the angle range; the Figure 57
-      parameters on a +-65 deg, 20 N*m loop have ``psi'_5 = -57``.  In physical units (X = 65 deg,
-      Z = 20 N*m, n = 1.2) this is about ``|psi_k| <= 0.83`` N*m^(1-n)/deg, against 0.47 for Figure 57.
-
-    The fitter also treats |z| > 10 Z as divergence (see :func:`fit`).
-    """
-
-    a_max: float = 20.0
-    n_min: float = 0.5
-    n_max: float = 3.0
-    psi_max: float = 100.0
-
-    def __post_init__(self) -> None:
-        if not (0.0 < self.a_max < math.inf):
-            raise InvalidInput(f"BoucWenBounds.a_max must be positive and finite, got {self.a_max}")
-        if not (0.0 < self.n_min < self.n_max < math.inf):
-            raise InvalidInput(f"BoucWenBounds needs 0 < n_min < n_max, got {self.n_min}, {self.n_max}")
-        if not (0.0 < self.psi_max < math.inf):
-            raise InvalidInput(f"BoucWenBounds.psi_max must be positive and finite, got {self.psi_max}")
-
-    def lower(self) -> FloatArray:
-        return np.array([0.0, self.n_min, *([-self.psi_max] * 6)])
-
-    def upper(self) -> FloatArray:
-        return np.array([self.a_max, self.n_max, *([self.psi_max] * 6)])
-
-
-DEFAULT_BOUNDS = BoucWenBounds()
-FULL_REFIT_R2 = 0.5  # below this on every sample, a decimated fit is redone on every sample (fit_trials)
-
-
-@dataclass(frozen=True)
-class BoucWenFit:
-    """Result of :func:`fit` / :func:`fit_trials`.
-
-    params: best-fitting parameters (physical units, see :class:`BoucWenParams`).
-    rmse_nm: root-mean-square torque error over every given sample of every trial, with each trial's
-        recursion started at its own first torque.
-    r2: coefficient of determination over the same samples.
-    param_std: 1-sigma uncertainties of (A, n, beta1..6) from the Jacobian at the optimum,
-        ``sqrt(diag(s^2 (J^T J)^-1))`` on the fitted samples; ``inf`` for a direction the data cannot
-        determine (e.g. a Table 4 phase never visited).  Filtered data has correlated residuals, which makes
-        these optimistic.
-    n_starts: number of starting points tried; converged: the final local solve met its tolerance;
-    diverged: the fitted model's recursion left the data's torque range by a factor 10 on the given samples.
-    trial_rmse_nm: RMSE of each trial; n_samples: samples given; n_samples_fitted: samples the optimiser
-        used after decimation; stride: decimation step of each trial; nfev: residual evaluations in total.
-    angle_scale_deg, torque_scale_nm: the scales X and Z that make :class:`BoucWenBounds` physical.
-    message: the final least-squares solver's termination message; status: its status code
-        (``scipy.optimize.least_squares``: 1-4 converged by gtol/ftol/xtol/both, 0 evaluation limit).
-    scheme: the integration the fit used (``"refined"`` or ``"eq23"``, see :func:`simulate`).
-    rmse_refined_nm: the same parameters re-simulated with 4x finer integration (angle samples interpolated
-        4x finer, substeps 4x shorter) and compared at the given samples; agrees with ``rmse_nm`` for a
-        fit that describes the joint rather than the integrator.
-    start_rmse_nm: each start's RMSE (N*m, on the screening copy after its short solve), best first;
-        polished_rmse_nm: the RMSE on the fitted samples of each start refined to convergence.
-    n_interval, param_interval_low/high, weakly_identified, weak_reasons: see
-        :func:`.identifiability.identify` (empty/NaN unless asked for).
-    """
-
-    params: BoucWenParams
-    rmse_nm: float
-    r2: float
-    param_std: FloatArray
-    n_starts: int
-    converged: bool
-    diverged: bool
-    trial_rmse_nm: tuple[float, ...]
-    n_samples: int
-    n_samples_fitted: int
-    stride: tuple[int, ...]
-    nfev: int
-    angle_scale_deg: float
-    torque_scale_nm: float
-    bounds: BoucWenBounds = field(default=DEFAULT_BOUNDS)
-    message: str = ""
-    scheme: str = REFINED
-    rmse_refined_nm: float = math.nan
-    status: int = 0
-    start_rmse_nm: tuple[float, ...] = ()
-    polished_rmse_nm: tuple[float, ...] = ()
-    # filled by fit_trials when asked (identifiability.py)
-    n_interval: tuple[float, float] = (math.nan, math.nan)
-    param_interval_low: tuple[float, ...] = ()
-    param_interval_high: tuple[float, ...] = ()
-    weakly_identified: bool = False
-    weak_reasons: tuple[str, ...] = ()
-    # torque = backbone(angle) + z when set (fit_trials backbone_degree or backbone_factory)
-    backbone: Backbone | FixedBackbone | None = None
-
-    @property
-    def cost_spread(self) -> float:
-        """Relative spread of the best (up to three) starts' RMSEs after their short solves:
-        ``(rmse_3 - rmse_1) / rmse_1``; 0 when they found the same valley, NaN with one start."""
-        best = self.start_rmse_nm[:3]
-        if len(best) < 2 or not best[0] > 0.0:
-            return math.nan
-        return (best[-1] - best[0]) / best[0]
 
 
 DIVERGENCE_FACTOR = 10.0  # the fitter holds |z| at 10 x the data's torque scale once it diverges
@@ -209,19 +92,7 @@ class Problem:
             self._cached = (u.copy(), J)
         else:
             self._cached = None
-            self.diverged_at = run_scheme(
-                self.scheme,
-                self.x,
-                self.seg,
-                self.z0,
-                A,
-                n,
-                beta,
-                self.bound,
-                True,
-                self.z,
-                self.max_step_deg,
-            )
+            self.diverged_at = self._integrate(A, n, beta)
         z = self.z if self.rows is None else self.z[self.rows]
         return (z - self.y_rows) / self.Z
 
@@ -257,7 +128,14 @@ class Problem:
         """The torque into ``self.z`` and ``dz/dtheta @ transform`` at the compared rows (a new array);
         the index of the first diverged sample or -1."""
         out = np.empty((self.x.size if self.rows is None else self.rows.size, 8))
-        bad = run_scheme_sensitivity(
+        return out, self._integrate(A, n, beta, out, transform)
+
+    def _integrate(
+        self, A: float, n: float, beta: FloatArray, dz: FloatArray | None = None, T: FloatArray = IDENTITY8
+    ) -> int:
+        """The torque into ``self.z`` (divergence frozen at the bound), with ``dz`` also ``dz/dtheta @ T``
+        at the compared rows; the index of the first diverged sample or -1."""
+        return run_scheme(
             self.scheme,
             self.x,
             self.seg,
@@ -268,12 +146,11 @@ class Problem:
             self.bound,
             True,
             self.z,
-            out,
-            transform,
+            dz,
+            T,
             self.max_step_deg,
             self.rows,
         )
-        return out, int(bad)
 
     def _chain(self, n: float, beta: FloatArray) -> FloatArray:
         """``d theta / d u``: every column of the dimensionless Jacobian is a fixed linear combination of
@@ -369,16 +246,13 @@ def evaluate(
 ) -> tuple[float, float, tuple[float, ...], bool]:
     """RMSE, R^2, per-trial RMSE and divergence flag of ``params`` on every given sample, each trial's
     recursion started at its own first torque (diverged samples held at +-bound, a finite error)."""
-    beta = np.array(params.beta)
     sse: list[float] = []
     total = 0.0
     total_sq = 0.0
     count = 0
     diverged = False
     for x, y in segments:
-        z = np.empty_like(x)
-        seg = np.array([0, x.size], dtype=np.int64)
-        bad = run_scheme(scheme, x, seg, y[:1].copy(), params.A, params.n, beta, bound, True, z, max_step_deg)
+        z, bad = run_trial(scheme, x, params, float(y[0]), bound, True, max_step_deg)
         diverged = diverged or bad >= 0
         sse.append(float(sum_sq_diff(z, y)))
         total += float(np.sum(y))
@@ -397,15 +271,10 @@ def refined_rmse(
     """RMSE of ``params`` with 4x finer integration: each trial's angle samples interpolated 4x finer (the
     same piecewise-linear path), substeps 4x shorter, the torque compared at the given samples."""
     step = check_scheme(scheme, None) / REFINE_FACTOR
-    beta = np.array(params.beta)
     sse = 0.0
     count = 0
     for x, y in segments:
-        t = np.arange((x.size - 1) * REFINE_FACTOR + 1) / REFINE_FACTOR
-        fine = np.interp(t, np.arange(x.size), x)
-        z = np.empty_like(fine)
-        seg = np.array([0, fine.size], dtype=np.int64)
-        run_scheme(scheme, fine, seg, y[:1].copy(), params.A, params.n, beta, bound, True, z, step)
+        z, _ = run_trial(scheme, refine_angle(x, REFINE_FACTOR), params, float(y[0]), bound, True, step)
         sse += float(sum_sq_diff(np.ascontiguousarray(z[::REFINE_FACTOR]), y))
         count += y.size
     return math.sqrt(sse / count)

@@ -4,15 +4,15 @@ the literal Eq 23 recursion on request (``scheme="eq23"``)."""
 from __future__ import annotations
 
 import math
+from typing import TypedDict, Unpack
 
 import numpy as np
 import numpy.typing as npt
 
 from protocol_runner.errors import InvalidInput
 
-from .kernels import IDENTITY8
 from .params import DEFAULT_SIMULATION_BOUND_NM, BoucWenParams, FloatArray
-from .schemes import REFINED, check_scheme, run_scheme, run_scheme_sensitivity
+from .schemes import REFINED, check_scheme, run_trial
 
 
 def as_angle(x_deg: npt.ArrayLike, name: str = "x_deg") -> FloatArray:
@@ -27,34 +27,47 @@ def as_angle(x_deg: npt.ArrayLike, name: str = "x_deg") -> FloatArray:
     return x
 
 
-def _check_bound(bound_nm: float) -> float:
-    b = float(bound_nm)
-    if not (b > 0.0 and math.isfinite(b)):
-        raise InvalidInput(f"bound_nm must be a positive finite torque, got {bound_nm}")
-    return b
+class SimulateKeywords(TypedDict, total=False):
+    """The options of :func:`simulate` and :func:`simulate_sensitivity`.
+
+    bound_nm: |z| beyond which the state counts as diverged (default ``DEFAULT_SIMULATION_BOUND_NM``).
+    scheme: ``"refined"`` (default) or ``"eq23"``, see :func:`simulate`.
+    max_step_deg: longest substep of the refined integration (default
+        :data:`.kernels.DEFAULT_MAX_STEP_DEG`).
+    """
+
+    bound_nm: float
+    scheme: str
+    max_step_deg: float | None
 
 
-def _check_z0(z0: float) -> float:
+def _run(
+    x_deg: npt.ArrayLike, params: BoucWenParams, z0: float, options: SimulateKeywords, sensitivities: bool
+) -> tuple[FloatArray, FloatArray | None]:
+    """The torque of one trial from ``z0`` (divergence: NaN from there on) and, when asked, ``dz/dtheta``."""
+    x = as_angle(x_deg)
     z0f = float(z0)
     if not math.isfinite(z0f):
         raise InvalidInput(f"z0 must be a finite torque, got {z0}")
-    return z0f
+    scheme, step = options.get("scheme", REFINED), options.get("max_step_deg")
+    check_scheme(scheme, step)
+    bound_nm = options.get("bound_nm", DEFAULT_SIMULATION_BOUND_NM)
+    bound = float(bound_nm)
+    if not (bound > 0.0 and math.isfinite(bound)):
+        raise InvalidInput(f"bound_nm must be a positive finite torque, got {bound_nm}")
+    dz = np.empty((x.size, 8)) if sensitivities else None
+    z, _ = run_trial(scheme, x, params, z0f, bound, False, step, dz)
+    return z, dz
 
 
 def simulate(
-    x_deg: npt.ArrayLike,
-    params: BoucWenParams,
-    z0: float = 0.0,
-    *,
-    bound_nm: float = DEFAULT_SIMULATION_BOUND_NM,
-    scheme: str = REFINED,
-    max_step_deg: float | None = None,
+    x_deg: npt.ArrayLike, params: BoucWenParams, z0: float = 0.0, **options: Unpack[SimulateKeywords]
 ) -> FloatArray:
     """Torque (N*m) predicted by the generalised Bouc-Wen model over the angle samples ``x_deg`` (degrees).
 
     scheme: ``"refined"`` (default) integrates Eq 20-22 along the angle taken as piecewise linear between
-        samples, with substeps of at most ``max_step_deg`` (default 0.25 deg) and shorter where the loop
-        saturates (:mod:`.integrator`): the result does not depend on the sampling rate, and it is the
+        samples, with substeps of at most ``max_step_deg`` (default 0.1 deg) and shorter where the loop
+        saturates (:mod:`.schemes`): the result does not depend on the sampling rate, and it is the
         model :func:`fit` fits.  ``"eq23"`` is the thesis's literal recursion (Eq 23, one explicit Euler
         step per sample, ``sgn(0) = 0``), whose torque changes with the sampling rate.
 
@@ -62,58 +75,19 @@ def simulate(
     ``bound_nm`` or stops being finite, which unstable parameter sets do) the remaining samples are NaN;
     ``np.isnan(z[-1])`` is the divergence flag.
     """
-    x, z0f = as_angle(x_deg), _check_z0(z0)
-    check_scheme(scheme, max_step_deg)
-    z = np.empty_like(x)
-    run_scheme(
-        scheme,
-        x,
-        np.array([0, x.size], dtype=np.int64),
-        np.array([z0f]),
-        params.A,
-        params.n,
-        np.array(params.beta),
-        _check_bound(bound_nm),
-        False,
-        z,
-        max_step_deg,
-    )
-    return z
+    return _run(x_deg, params, z0, options, False)[0]
 
 
 def simulate_sensitivity(
-    x_deg: npt.ArrayLike,
-    params: BoucWenParams,
-    z0: float = 0.0,
-    *,
-    bound_nm: float = DEFAULT_SIMULATION_BOUND_NM,
-    scheme: str = REFINED,
-    max_step_deg: float | None = None,
+    x_deg: npt.ArrayLike, params: BoucWenParams, z0: float = 0.0, **options: Unpack[SimulateKeywords]
 ) -> tuple[FloatArray, FloatArray]:
     """Torque (as :func:`simulate`) and its analytic Jacobian ``dz/dtheta`` (shape ``(len(x), 8)``) in one pass.
 
     Columns follow :data:`PARAM_NAMES` (A, n, beta1..beta6); ``z0`` is held fixed so row 0 is zero.
     Diverged samples are NaN in both outputs, as in :func:`simulate`.
     """
-    x, z0f = as_angle(x_deg), _check_z0(z0)
-    check_scheme(scheme, max_step_deg)
-    z = np.empty_like(x)
-    dz = np.empty((x.size, 8))
-    run_scheme_sensitivity(
-        scheme,
-        x,
-        np.array([0, x.size], dtype=np.int64),
-        np.array([z0f]),
-        params.A,
-        params.n,
-        np.array(params.beta),
-        _check_bound(bound_nm),
-        False,
-        z,
-        dz,
-        IDENTITY8,
-        max_step_deg,
-    )
+    z, dz = _run(x_deg, params, z0, options, True)
+    assert dz is not None
     return z, dz
 
 
@@ -128,13 +102,16 @@ def refine_angle(x_deg: npt.ArrayLike, factor: int = 4) -> FloatArray:
 
 
 def simulate_refined(
-    x_deg: npt.ArrayLike, params: BoucWenParams, z0: float = 0.0, *, factor: int = 4, **kwargs: object
+    x_deg: npt.ArrayLike,
+    params: BoucWenParams,
+    z0: float = 0.0,
+    *,
+    factor: int = 4,
+    **options: Unpack[SimulateKeywords],
 ) -> FloatArray:
     """:func:`simulate` with the same parameters and ``factor``-times finer integration: the angle samples
     interpolated ``factor`` times finer, every substep ``factor`` times shorter, and the torque read back at
     the original samples (the check that a fit describes the joint, not the integrator)."""
-    step = kwargs.pop("max_step_deg", None)
-    base = check_scheme(str(kwargs.get("scheme", REFINED)), step)  # type: ignore[arg-type]
-    fine = refine_angle(x_deg, factor)
-    z = simulate(fine, params, z0, max_step_deg=base / factor, **kwargs)  # type: ignore[arg-type]
-    return z[::factor]
+    fine = options.copy()
+    fine["max_step_deg"] = check_scheme(options.get("scheme", REFINED), options.get("max_step_deg")) / factor
+    return simulate(refine_angle(x_deg, factor), params, z0, **fine)[::factor]
