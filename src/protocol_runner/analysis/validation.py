@@ -15,6 +15,9 @@ import numpy.typing as npt
 from protocol_runner.errors import InvalidInput
 
 FloatArray = npt.NDArray[np.float64]
+#: Precision of stored measured and processed signals (7 significant digits, far below sensor resolution);
+#: the Bouc-Wen fit runs on the processed loops in this precision, as stored (analysis/service.py).
+SIGNAL = np.float32
 
 
 class AnalysisError(InvalidInput):

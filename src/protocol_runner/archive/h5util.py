@@ -13,6 +13,7 @@ import h5py
 import numpy as np
 import numpy.typing as npt
 
+from ..analysis.validation import SIGNAL as STORED_SIGNAL
 from .checksums import seal
 
 SCHEMA_VERSION = 1
@@ -27,7 +28,7 @@ SHUFFLE_PROBE = 8192
 """Elements of a float32 dataset deflated both with and without the byte shuffle to choose the filter
 chain: a signal converted from ADC codes (few distinct 4-byte patterns) deflates ~25 % smaller, and faster,
 unshuffled; a smooth processed signal is smaller shuffled."""
-SIGNAL = np.float32  # measured and processed signals: 7 significant digits, far below sensor resolution
+SIGNAL = STORED_SIGNAL  # measured and processed signals (the analysis fits the stored precision)
 
 
 def put(
@@ -180,6 +181,13 @@ def text_of(ds: h5py.Dataset) -> str:
 def attr_str(obj: h5py.HLObject, key: str, default: str = "") -> str:
     value = obj.attrs.get(key, default)
     return value.decode("utf-8") if isinstance(value, bytes) else str(value)
+
+
+def attr_strs(obj: h5py.HLObject, key: str) -> list[str]:
+    """A string-array attribute (or a single string) as a list of str; empty when absent."""
+    if key not in obj.attrs:
+        return []
+    return [v.decode("utf-8") if isinstance(v, bytes) else str(v) for v in np.atleast_1d(obj.attrs[key])]
 
 
 def group_name(step_id: str) -> str:

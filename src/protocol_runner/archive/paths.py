@@ -21,6 +21,7 @@ COMPARISONS = "comparisons"
 CALIBRATION = "calibration"
 REFERENCE = "reference"
 CHECKLISTS = "session/checklists"
+JOINTS = "joints"
 
 #: Datasets of each kind of group, with their units ("1" for counts and plain numbers).
 DATASETS: dict[str, dict[str, str]] = {
@@ -52,6 +53,16 @@ def configuration_name(key: int) -> str:
 
 def configuration_path(key: int) -> str:
     return f"{CONFIGURATIONS}/{configuration_name(key)}"
+
+
+def joint_results_name(name: str, joint: str) -> str:
+    """Where one joint's results of multi-joint configuration `name` go, relative to `configurations/`."""
+    return f"{name}/{JOINTS}/{joint}"
+
+
+def joint_recording_path(key: int, trial: int | str, brace: str, joint: str) -> str:
+    """The group of one joint's recording in a multi-joint trial."""
+    return f"{recording_path(key, trial, brace)}/{JOINTS}/{joint}"
 
 
 def trials_path(key: int) -> str:

@@ -17,6 +17,7 @@ import numpy as np
 
 from ..analysis.transition import command_on_input_base
 from ..archive.h5util import set_attrs
+from ..archive.paths import JOINTS
 from ..errors import StoppedByCheck
 from ..hardware.motion import run_motion
 from ..hardware.rig import TrialRecording
@@ -24,7 +25,7 @@ from ..protocol.plan import CalibrationCheckStep, calibration_id
 from ..protocol.sampling import sample_trajectory
 from .calibration_check import StepResponse, analyse_step
 from .context import Fill, StepContext, StepOutcome
-from .multi_trial import JOINTS, multi_rig
+from .multi_trial import multi_rig
 from .recording import put_commands, put_scan
 
 
