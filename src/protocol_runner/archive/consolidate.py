@@ -17,10 +17,11 @@ import h5py
 import numpy as np
 
 from .. import __version__
+from .attrs import ATTRIBUTES, FILENAME
 from .checksums import MARKER_ATTR, is_marked, mark
 from .diskfull import DiskFull, is_disk_full, resume_hint
-from .h5util import SCHEMA_VERSION, put, put_lines, put_text, set_attrs
-from .units import COMPLETE_ATTR, _fsync_dir, _fsync_file
+from .h5util import SCHEMA_VERSION, put, put_attrs, put_lines, put_text, set_attrs
+from .units import _fsync_dir, _fsync_file
 
 
 @dataclass(frozen=True)
@@ -61,7 +62,7 @@ def _merge(src: h5py.Group, dst: h5py.Group, written: dict[str, dict[str, object
         written = {}
     seen = written.setdefault(dst.name, {})
     for key, value in src.attrs.items():
-        if key in ("unit_step_id", COMPLETE_ATTR, MARKER_ATTR):
+        if key in ATTRIBUTES["unit"] or key == MARKER_ATTR:
             continue
         if key in seen and _same(seen[key], value):
             continue
@@ -105,8 +106,9 @@ def _write(partial: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> None
             with h5py.File(path, "r") as unit:
                 summed = summed and is_marked(unit)
                 _merge(unit, out, written)
-        set_attrs(
+        put_attrs(
             out,
+            "root",
             {
                 "protocol_name": meta.protocol_name,
                 "protocol_sha256": meta.protocol_sha256,
@@ -120,9 +122,9 @@ def _write(partial: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> None
                 "joint": meta.joint,
             },
         )
-        out.attrs["only"] = list(meta.only) if meta.only else []
+        out.attrs["only"] = list(meta.only) if meta.only else []  # an empty list too (set_attrs skips none)
         ds = put_text(out, "protocol", meta.protocol_text)
-        ds.attrs["filename"] = meta.protocol_filename
+        put_attrs(ds, "protocol", {FILENAME: meta.protocol_filename})
         put_text(out, "plan", meta.plan_json)
         put_lines(out.require_group("session"), "events", list(meta.events))
         if meta.reference is not None:
@@ -130,7 +132,7 @@ def _write(partial: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> None
             ref = out.require_group(f"reference/{name}")
             put(ref, "angle_deg", angle_deg, "deg")
             put(ref, "torque_nm", torque_nm, "N*m")
-            set_attrs(ref, {"source": source, "title": name})
+            put_attrs(ref, "reference", {"source": source, "title": name})
         configs = out.require_group("configurations")
         for name, attrs in meta.configuration_attrs.items():
             set_attrs(configs.require_group(name), attrs)

@@ -14,6 +14,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..analysis.validation import SIGNAL as STORED_SIGNAL
+from .attrs import ATTRIBUTES, DYNAMIC, UNITS
 from .checksums import seal
 
 SCHEMA_VERSION = 1
@@ -59,11 +60,11 @@ def put(
             if arr.shape[0] > chunk and arr.dtype.kind in "fiu" and arr.dtype.isnative:
                 ds = group.create_dataset(name, shape=arr.shape, dtype=arr.dtype, **kwargs)
                 _write_chunks(ds, arr, chunk, shuffle)
-                ds.attrs["units"] = units
+                ds.attrs[UNITS] = units
                 seal(ds, arr)
                 return ds
     ds = group.create_dataset(name, data=arr, **kwargs)
-    ds.attrs["units"] = units
+    ds.attrs[UNITS] = units
     seal(ds, arr)
     return ds
 
@@ -165,6 +166,20 @@ def set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:
             )
         else:
             obj.attrs[key] = value
+
+
+def put_attrs(
+    obj: h5py.HLObject, kind: str, attrs: Mapping[str, Any], *, dynamic: Mapping[str, Any] | None = None
+) -> None:
+    """Set the attributes `attrs` of an object of `kind` (a key of `attrs.ATTRIBUTES`) and the per-campaign
+    ones in `dynamic` (only for a kind of `attrs.DYNAMIC`); a name the layout does not give that kind of
+    object is a bug, refused before anything is written."""
+    unknown = sorted(set(attrs) - set(ATTRIBUTES[kind]))
+    if unknown or (dynamic and kind not in DYNAMIC):
+        raise ValueError(f"archive layout: a {kind} has no attribute {', '.join(unknown) or 'per campaign'}")
+    set_attrs(obj, attrs)
+    if dynamic:
+        set_attrs(obj, dynamic)
 
 
 def _is_numeric_list(value: object) -> bool:

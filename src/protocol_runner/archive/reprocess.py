@@ -19,9 +19,12 @@ from ..analysis.service import analyse_configuration
 from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, find_protocol, load_protocol, parse_protocol_text
 from ..protocol.processing import bouc_wen_settings, element_fit_enabled, processing_settings
+from .attrs import CONFIGURATIONS as CONFIGURATIONS_ATTR
+from .attrs import DEVICE_JSON, FILENAME
+from .attrs import JOINTS as JOINTS_ATTR
 from .checksums import is_marked, seal_missing
-from .h5util import attr_str, set_attrs, text_of
-from .paths import FITS, JOINTS, TRIALS, configuration_name
+from .h5util import attr_str, put_attrs, text_of
+from .paths import FITS, TRIALS, configuration_name
 from .reprocess_joints import complete_pairs, reprocess_joints
 from .results import bouc_wen_fill, comparison_values, processed_fill
 from .verify import validate_archive
@@ -31,7 +34,7 @@ def _archived_protocol(f: h5py.File, archive: Path) -> LoadedProtocol:
     if "protocol" not in f:
         raise InvalidInput(f"{archive}: has no /protocol; cannot reprocess without the protocol that was run")
     text = text_of(f["protocol"])
-    name = attr_str(f["protocol"], "filename", "protocol.yaml")
+    name = attr_str(f["protocol"], FILENAME, "protocol.yaml")
     return parse_protocol_text(
         text, path=archive.parent / name, display_name=f"{archive}:/protocol", check_files=False
     )
@@ -61,8 +64,9 @@ def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output
             _reprocess(f, settings_source)
             if is_marked(f):
                 seal_missing(f)  # the new results carry checksums like everything else
-            set_attrs(
+            put_attrs(
                 f,
+                "root",
                 {
                     "reprocessed_from": str(archive.name),
                     "reprocessing_protocol_sha256": settings_source.sha256,
@@ -79,11 +83,11 @@ def archived_device(cfg: h5py.Group) -> list[tuple[str, str, dict[str, object]]]
     """The configuration's device as the session resolved it (its `device_json` attribute, docs/archive.md):
     (name, type, parameters) per element; empty for an archive written before devices were declared (its
     element fit is then not applicable). A `device_json` that is not the documented list is named."""
-    if "device_json" not in cfg.attrs:
+    if DEVICE_JSON not in cfg.attrs:
         return []
-    where = f"{cfg.file.filename}: {cfg.name}@device_json"
+    where = f"{cfg.file.filename}: {cfg.name}@{DEVICE_JSON}"
     try:
-        doc = json.loads(attr_str(cfg, "device_json", "[]"))
+        doc = json.loads(attr_str(cfg, DEVICE_JSON, "[]"))
     except json.JSONDecodeError as exc:
         raise InvalidInput(f"{where}: not valid JSON ({exc.msg})") from None
     if not isinstance(doc, list) or not all(isinstance(e, dict) and "name" in e and "type" in e for e in doc):
@@ -101,7 +105,7 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
     for name, cfg in f["configurations"].items():
         if TRIALS not in cfg:
             continue
-        if JOINTS in cfg.attrs:  # several joints driven together: processed joint by joint
+        if JOINTS_ATTR in cfg.attrs:  # several joints driven together: processed joint by joint
             reprocess_joints(f, name, archived_device(cfg), settings, fit, elements=elements)
             continue
         pairs = complete_pairs(cfg, name)
@@ -117,10 +121,10 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
         if analysis.bouc_wen is not None:
             bouc_wen_fill(name, analysis.bouc_wen)(f)
     for comp in f.get("comparisons", {}).values():
-        names = [configuration_name(int(k)) for k in comp.attrs["configurations"]]
+        names = [configuration_name(int(k)) for k in comp.attrs[CONFIGURATIONS_ATTR]]
         groups = [f["configurations"][n] for n in names if n in f["configurations"]]
         if len(groups) == len(names):
-            set_attrs(comp, comparison_values(groups))
+            put_attrs(comp, "comparison", comparison_values(groups))
         else:  # never leave numbers from the old processing beside the new
             for key in ("energy_mean_j", "energy_std_j", "energy_cycles", "max_angle_deg"):
                 if key in comp.attrs:

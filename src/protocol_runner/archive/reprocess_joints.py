@@ -12,6 +12,8 @@ import h5py
 from ..analysis.pipeline import ProcessingSettings, TrialPair
 from ..analysis.service import BoucWenSettings, analyse_joints
 from ..errors import InvalidInput
+from .attrs import JOINTS as JOINTS_ATTR
+from .attrs import STATUS
 from .h5util import attr_str, attr_strs, put
 from .paths import JOINTS, PROCESSED, TRIALS, joint_results_name
 from .results import bouc_wen_fill, processed_fill, read_recording
@@ -31,7 +33,7 @@ def complete_pairs(cfg: h5py.Group, name: str, joint: str | None = None) -> list
         if PROCESSED in g:
             del g[PROCESSED]
         braces = ("brace_on", "brace_off")
-        if not all(b in g and attr_str(g[b], "status", "complete") == "complete" for b in braces):
+        if not all(b in g and attr_str(g[b], STATUS, "complete") == "complete" for b in braces):
             continue
         try:
             on, off = (read_recording(g[b + where]) for b in braces)
@@ -64,7 +66,7 @@ def reprocess_joints(
     Bouc-Wen fit (`fit`, None when off) of each joint carrying elements of the archived `device`;
     `elements`: whether the element fit is on."""
     cfg = f["configurations"][name]
-    joints = attr_strs(cfg, JOINTS)
+    joints = attr_strs(cfg, JOINTS_ATTR)
     for stale in (JOINTS, "total_energy_loss_j", "total_energy_cycle_trial"):
         if stale in cfg:
             del cfg[stale]

@@ -20,7 +20,7 @@ from ..analysis.pipeline import ProcessingSettings, Recording
 from ..analysis.service import BoucWenResult, ConfigurationAnalysis
 from ..models.bouc_wen import BoucWenFit
 from ..models.bouc_wen.backbone import Backbone, FixedBackbone
-from .h5util import SIGNAL, set_attrs
+from .h5util import SIGNAL, put_attrs
 from .paths import CONFIGURATIONS, FITS, PROCESSED, TRIALS, put_dataset
 
 #: Writes one step's results into an open unit file.
@@ -64,16 +64,18 @@ def processed_fill(name: str, analysis: ConfigurationAnalysis, settings: Process
             put_dataset(g, "processed", "time_s", s.time_s)
             put_dataset(g, "processed", "angle_deg", s.angle_deg, dtype=SIGNAL)
             put_dataset(g, "processed", "brace_torque_nm", s.brace_torque_nm, dtype=SIGNAL)
-            set_attrs(
+            put_attrs(
                 g,
+                "processed",
                 {
                     "sample_rate_hz": s.sample_rate_hz,
                     "decimation": s.decimation,
                     "energy_cycles_j": [float(e) for e in t.energy_j],
                 },
             )
-            set_attrs(
+            put_attrs(
                 g,
+                "processed",
                 {
                     "transition_index0_on": int(t.transition_index_on),
                     "transition_index0_off": int(t.transition_index_off),
@@ -88,8 +90,11 @@ def processed_fill(name: str, analysis: ConfigurationAnalysis, settings: Process
             )
         put_dataset(cfg, "configuration", "energy_loss_j", result.energy_loss_j)
         put_dataset(cfg, "configuration", "energy_cycle_trial", result.energy_cycle_trial)
-        cfg["energy_loss_j"].attrs["mean_j"] = result.energy.mean_j
-        cfg["energy_loss_j"].attrs["std_j"] = result.energy.std_j
+        put_attrs(
+            cfg["energy_loss_j"],
+            "energy_loss",
+            {"mean_j": result.energy.mean_j, "std_j": result.energy.std_j},
+        )
         if result.elements is not None:
             element_fit_fill(cfg.require_group(FITS), result.elements)
 
@@ -107,8 +112,8 @@ def element_fit_fill(fits: h5py.Group, fit: ElementFit) -> None:
         "rmse_all_samples_nm": float(fit.rmse_all_samples_nm),
         "elements_json": json.dumps([e.to_json() for e in fit.elements]),
     }
-    attrs.update({f"{element}.{param}": float(value) for element, param, value in fit.fitted})
-    set_attrs(g, attrs)
+    fitted = {f"{element}.{param}": float(value) for element, param, value in fit.fitted}
+    put_attrs(g, "elements", attrs, dynamic=fitted)
     put_dataset(g, "elements", "angle_deg", fit.curve_angle_deg, dtype=SIGNAL)
     put_dataset(g, "elements", "torque_nm", fit.curve_torque_nm, dtype=SIGNAL)
     put_dataset(g, "elements", "model_torque_nm", fit.model_torque_nm)
@@ -124,8 +129,9 @@ def _interim_spring_group(fits: h5py.Group, fit: ElementFit) -> None:
     s = springs[0] if springs else None
     fitted = {param: value for element, param, value in fit.fitted if s is not None and element == s.name}
     g = fits.create_group("spring")
-    set_attrs(
+    put_attrs(
         g,
+        "spring",
         {
             "applicable": bool(fit.applicable),
             "reason": fit.reason,
@@ -206,8 +212,9 @@ def bouc_wen_fill(name: str, bouc_wen: BoucWenResult) -> Fill:
 
     def fill(f: h5py.File) -> None:
         g = f.require_group(f"{CONFIGURATIONS}/{name}/{FITS}").create_group("bouc_wen")
-        set_attrs(
+        put_attrs(
             g,
+            "bouc_wen",
             {
                 "A": float(p.A),
                 "n": float(p.n),
@@ -223,7 +230,7 @@ def bouc_wen_fill(name: str, bouc_wen: BoucWenResult) -> Fill:
                 "diverged": bool(result.diverged),
             },
         )
-        set_attrs(g, evidence_attrs(result, energy))
+        put_attrs(g, "bouc_wen", evidence_attrs(result, energy))
         put_dataset(g, "bouc_wen", "angle_deg", np.concatenate(angles))
         put_dataset(g, "bouc_wen", "torque_nm", np.concatenate(torques))
         put_dataset(g, "bouc_wen", "model_torque_nm", np.concatenate(models))

@@ -18,12 +18,13 @@ from pathlib import Path
 import h5py
 
 from ..errors import InvalidInput
+from .attrs import UNIT_COMPLETE, UNIT_STEP_ID
 from .checksums import mark, seal_missing
 from .diskfull import DiskFull as DiskFull  # re-exported: the unit writer's error
 from .diskfull import is_disk_full, resume_hint
 from .h5util import group_name
 
-COMPLETE_ATTR = "unit_complete"
+COMPLETE_ATTR = UNIT_COMPLETE
 
 
 @dataclass(frozen=True)
@@ -72,7 +73,7 @@ def write_unit(units_dir: Path, step_id: str, fill: Callable[[h5py.File], None])
     try:
         with h5py.File(partial, "w") as f:
             fill(f)
-            f.attrs["unit_step_id"] = step_id
+            f.attrs[UNIT_STEP_ID] = step_id
             seal_missing(f)  # datasets written without archive/h5util.py get their checksum too
             mark(f)
             f.attrs[COMPLETE_ATTR] = True
@@ -100,7 +101,7 @@ def unit_is_complete(units_dir: Path, record: UnitRecord) -> bool:
         return False
     try:
         with h5py.File(path, "r") as f:
-            return bool(f.attrs.get(COMPLETE_ATTR, False)) and f.attrs.get("unit_step_id") == record.step_id
+            return bool(f.attrs.get(COMPLETE_ATTR, False)) and f.attrs.get(UNIT_STEP_ID) == record.step_id
     except (OSError, KeyError):
         return False
 

@@ -30,7 +30,9 @@ import numpy.typing as npt
 
 from ..analysis.pipeline import TrialPair
 from ..analysis.service import analyse_joints, fit_stored_loops
-from ..archive.h5util import put, set_attrs
+from ..archive.attrs import JOINT
+from ..archive.attrs import JOINTS as JOINTS_ATTR
+from ..archive.h5util import put, put_attrs
 from ..archive.paths import (
     JOINTS,
     TRIALS,
@@ -39,6 +41,7 @@ from ..archive.paths import (
     joint_recording_path,
     joint_results_name,
     put_dataset,
+    recording_path,
 )
 from ..archive.results import Fill, bouc_wen_fill, processed_fill, read_processed_loops, read_recording
 from ..errors import HardwareUnavailable
@@ -50,7 +53,7 @@ from ..protocol.sampling import sample_trajectory
 from ..protocol.step_ids import step_id
 from .context import StepContext, StepOutcome
 from .recording import put_commands, put_scan
-from .trial import configuration_group_attributes
+from .trial import configuration_group_attributes, put_configuration, recording_attrs
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -103,32 +106,20 @@ def _trial_fill(
     lateness = shared.tick_lateness_s
 
     def fill(f: h5py.File) -> None:
-        cfg = f.require_group(configuration_path(step.configuration))
-        set_attrs(cfg, {k: v for k, v in cfg_attrs.items() if k != "factors"})
-        cfg.attrs["factors"] = np.array(cfg_attrs["factors"], dtype=h5py.string_dtype())
-        cfg.attrs[JOINTS] = np.array(step.joints, dtype=h5py.string_dtype())
-        g = cfg.require_group(f"trials/{step.trial}").create_group(f"brace_{step.brace}")
+        cfg = put_configuration(f, step.configuration, cfg_attrs)
+        cfg.attrs[JOINTS_ATTR] = np.array(step.joints, dtype=h5py.string_dtype())
+        g = f.create_group(recording_path(step.configuration, step.trial, step.brace))
         put_dataset(g, "recording", "time_s", shared.input_time_s)
         put_dataset(g, "recording", "command_time_s", shared.command_time_s)
         put_dataset(g, "recording", "tick_lateness_s", lateness)
-        set_attrs(
-            g,
-            {
-                "step_id": step.id,
-                "brace": step.brace,
-                "status": status,
-                "trajectory": json.dumps({j: t.to_json() for j, t in step.joint_trajectories}),
-                "tick_lateness_p99_s": float(np.percentile(lateness, 99)) if lateness.size else 0.0,
-                "tick_lateness_max_s": float(np.max(lateness)) if lateness.size else 0.0,
-                "input_start_offset_s": float(shared.input_time_s[0]) if shared.input_time_s.size else 0.0,
-            },
-        )
-        g.attrs[JOINTS] = np.array(step.joints, dtype=h5py.string_dtype())
+        trajectory = json.dumps({j: t.to_json() for j, t in step.joint_trajectories})
+        put_attrs(g, "recording", recording_attrs(step, status, trajectory, lateness, shared.input_time_s))
+        g.attrs[JOINTS_ATTR] = np.array(step.joints, dtype=h5py.string_dtype())
         for (joint, traj), rec in zip(step.joint_trajectories, recs, strict=True):
             jg = g.create_group(f"{JOINTS}/{joint}")
             put_scan(jg, rec)
             put_commands(jg, rec, full=True)
-            set_attrs(jg, {"joint": joint, "trajectory": json.dumps(traj.to_json())})
+            put_attrs(jg, "recording_joint", {JOINT: joint, "trajectory": json.dumps(traj.to_json())})
 
     return fill
 
@@ -165,7 +156,7 @@ def run_process(step: ProcessStep, ctx: StepContext) -> StepOutcome:
         cfg = f.require_group(configuration_path(step.configuration))
         put(cfg, "total_energy_loss_j", total, "J")
         put(cfg, "total_energy_cycle_trial", analysis.total_energy_cycle_trial, "1")
-        cfg.attrs[JOINTS] = np.array(joints, dtype=h5py.string_dtype())
+        cfg.attrs[JOINTS_ATTR] = np.array(joints, dtype=h5py.string_dtype())
 
     parts = [
         f"{j} {a.processed.energy.mean_j:.2f} J"
