@@ -90,6 +90,8 @@ ATTRIBUTE_SECTIONS = {
     "spring": SECTIONS["spring"],
     "reference": SECTIONS["reference"],
     "comparison": _between("## `/comparisons/<name>`", "## `/expectations"),
+    "expectations": _between("## `/expectations/<id>`", "## Checksums"),
+    "expectation": _between("## `/expectations/<id>`", "## Checksums"),
 }
 
 

@@ -17,6 +17,7 @@ CHECKSUM_MARKER = "dataset_checksums"  # root: every dataset has a DIGEST
 UNIT_STEP_ID = "unit_step_id"  # a unit file's step
 UNIT_COMPLETE = "unit_complete"  # a unit file written to the end
 FILENAME = "filename"  # /protocol: the protocol's file name
+ONLY = "only"  # root: the --only keys
 STEP_ID = "step_id"
 STATUS = "status"
 JOINTS = "joints"
@@ -43,7 +44,7 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
         "finished_utc",
         STATUS,
         JOINT,
-        "only",
+        ONLY,
         CHECKSUM_MARKER,
         "reprocessed_from",
         "reprocessing_protocol_sha256",
@@ -152,6 +153,20 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
         "energy_std_j",
         "energy_cycles",
         "max_angle_deg",
+    ),
+    "expectations": ("problems",),
+    "expectation": (
+        "text",
+        "section",
+        "metric",
+        "unit",
+        "relation",
+        CONFIGURATIONS,
+        "declaration",
+        "verdict",
+        "reason",
+        "simulator_tuned",
+        "dry_run",
     ),
 }
 

@@ -17,10 +17,10 @@ import h5py
 import numpy as np
 
 from .. import __version__
-from .attrs import ATTRIBUTES, FILENAME
+from .attrs import ATTRIBUTES, FILENAME, ONLY
 from .checksums import MARKER_ATTR, is_marked, mark
 from .diskfull import DiskFull, is_disk_full, resume_hint
-from .h5util import SCHEMA_VERSION, put, put_attrs, put_lines, put_text, set_attrs
+from .h5util import SCHEMA_VERSION, put, put_attrs, put_lines, put_text
 from .units import _fsync_dir, _fsync_file
 
 
@@ -122,7 +122,7 @@ def _write(partial: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> None
                 "joint": meta.joint,
             },
         )
-        out.attrs["only"] = list(meta.only) if meta.only else []  # an empty list too (set_attrs skips none)
+        out.attrs[ONLY] = list(meta.only) if meta.only else []  # an empty list too (put_attrs skips none)
         ds = put_text(out, "protocol", meta.protocol_text)
         put_attrs(ds, "protocol", {FILENAME: meta.protocol_filename})
         put_text(out, "plan", meta.plan_json)
@@ -135,6 +135,6 @@ def _write(partial: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> None
             put_attrs(ref, "reference", {"source": source, "title": name})
         configs = out.require_group("configurations")
         for name, attrs in meta.configuration_attrs.items():
-            set_attrs(configs.require_group(name), attrs)
+            put_attrs(configs.require_group(name), "configuration", attrs)
         if summed:
             mark(out)  # every dataset, copied from a unit or written here, carries its checksum
