@@ -26,17 +26,14 @@ from .units import _fsync_dir, _fsync_file
 
 @dataclass(frozen=True)
 class ArchiveMeta:
-    protocol_name: str
-    protocol_sha256: str
+    """What a session adds to its units' content when it consolidates them."""
+
+    #: the session's root attributes (docs/archive.md "Root": `protocol_name`, `protocol_sha256`, `mode`,
+    #: `seed`, `created_utc`, `finished_utc`, `status`, `joint`); the layout and software versions are added
+    root: Mapping[str, Any]
     protocol_text: str
     protocol_filename: str
     plan_json: str
-    mode: str
-    seed: int
-    created_utc: str
-    finished_utc: str
-    status: str
-    joint: str
     only: tuple[int, ...]
     events: tuple[str, ...]
     configuration_attrs: Mapping[str, Mapping[str, Any]]  # group name -> attrs (incl. status)
@@ -107,20 +104,7 @@ def _write(partial: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> None
                 summed = summed and is_marked(unit)
                 _merge(unit, out, written)
         put_attrs(
-            out,
-            "root",
-            {
-                "protocol_name": meta.protocol_name,
-                "protocol_sha256": meta.protocol_sha256,
-                "schema_version": SCHEMA_VERSION,
-                "software_version": __version__,
-                "mode": meta.mode,
-                "seed": int(meta.seed),
-                "created_utc": meta.created_utc,
-                "finished_utc": meta.finished_utc,
-                "status": meta.status,
-                "joint": meta.joint,
-            },
+            out, "root", {**meta.root, "schema_version": SCHEMA_VERSION, "software_version": __version__}
         )
         out.attrs[ONLY] = list(meta.only) if meta.only else []  # an empty list too (put_attrs skips none)
         ds = put_text(out, "protocol", meta.protocol_text)

@@ -135,7 +135,8 @@ def fixed_text(text: str | list[str]) -> npt.NDArray[np.bytes_]:
     return np.array(encoded, dtype=f"S{max(1, *(len(b) for b in encoded))}")
 
 
-def put_text(group: h5py.Group, name: str, text: str) -> h5py.Dataset:
+def put_text(group: h5py.Group, name: str, text: str | list[str]) -> h5py.Dataset:
+    """A text dataset (a scalar for a str, one element per line for a list), sealed with its checksum."""
     if name in group:
         del group[name]
     data = fixed_text(text)
@@ -145,12 +146,7 @@ def put_text(group: h5py.Group, name: str, text: str) -> h5py.Dataset:
 
 
 def put_lines(group: h5py.Group, name: str, lines: list[str]) -> h5py.Dataset:
-    if name in group:
-        del group[name]
-    data = fixed_text(lines)
-    ds = group.create_dataset(name, data=data)
-    seal(ds, data)
-    return ds
+    return put_text(group, name, lines)
 
 
 def set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:

@@ -55,16 +55,6 @@ def configuration_path(key: int) -> str:
     return f"{CONFIGURATIONS}/{configuration_name(key)}"
 
 
-def joint_results_name(name: str, joint: str) -> str:
-    """Where one joint's results of multi-joint configuration `name` go, relative to `configurations/`."""
-    return f"{name}/{JOINTS}/{joint}"
-
-
-def joint_recording_path(key: int, trial: int | str, brace: str, joint: str) -> str:
-    """The group of one joint's recording in a multi-joint trial."""
-    return f"{recording_path(key, trial, brace)}/{JOINTS}/{joint}"
-
-
 def trials_path(key: int) -> str:
     return f"{configuration_path(key)}/{TRIALS}"
 
@@ -92,6 +82,12 @@ def comparison_path(name: str) -> str:
 
 def calibration_path(set_name: str, when: str) -> str:
     return f"{CALIBRATION}/{set_name}/{when}"
+
+
+def joint_path(group: str, joint: str) -> str:
+    """One joint's group inside a multi-joint group (docs/archive.md "Several joints"): its recording in a
+    trial's `recording_path`, its results in a configuration, its check in a `calibration_path`."""
+    return f"{group}/{JOINTS}/{joint}"
 
 
 def put_dataset(

@@ -15,7 +15,7 @@ from ..errors import InvalidInput
 from .attrs import JOINTS as JOINTS_ATTR
 from .attrs import STATUS
 from .h5util import attr_str, attr_strs, put
-from .paths import JOINTS, PROCESSED, TRIALS, joint_results_name
+from .paths import JOINTS, PROCESSED, TRIALS, joint_path
 from .results import bouc_wen_fill, processed_fill, read_recording
 
 Device = list[tuple[str, str, dict[str, object]]]
@@ -27,7 +27,7 @@ def complete_pairs(cfg: h5py.Group, name: str, joint: str | None = None) -> list
     lack a dataset is named."""
     pairs = []
     trials = cfg[TRIALS]
-    where = "" if joint is None else f"/{JOINTS}/{joint}"
+    where = "" if joint is None else joint_path("", joint)
     for n in sorted(trials, key=int):
         g = trials[n]
         if PROCESSED in g:
@@ -84,8 +84,8 @@ def reprocess_joints(
         fitted_joints=sorted({str(p.get("joint")) for _, _, p in device}),
     )
     for joint, one in zip(analysis.joints, analysis.analyses, strict=True):
-        processed_fill(joint_results_name(name, joint), one, settings)(f)
+        processed_fill(joint_path(name, joint), one, settings)(f)
         if one.bouc_wen is not None:
-            bouc_wen_fill(joint_results_name(name, joint), one.bouc_wen)(f)
+            bouc_wen_fill(joint_path(name, joint), one.bouc_wen)(f)
     put(cfg, "total_energy_loss_j", analysis.total_energy_loss_j, "J")
     put(cfg, "total_energy_cycle_trial", analysis.total_energy_cycle_trial, "1")

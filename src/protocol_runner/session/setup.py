@@ -23,7 +23,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..archive.diskfull import creates_session_directory
-from ..archive.units import sha256_of
+from ..archive.units import fsync_path, sha256_of
 from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, load_protocol
 from ..protocol.paths import is_stored_with_session
@@ -134,11 +134,7 @@ def write_session_info(directory: Path, info: SessionInfo) -> None:
     with tmp.open("rb") as f:
         os.fsync(f.fileno())
     os.replace(tmp, directory / SESSION_FILE)
-    fd = os.open(directory, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
+    fsync_path(directory)
 
 
 def read_session_info(directory: Path) -> SessionInfo:

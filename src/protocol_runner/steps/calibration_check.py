@@ -52,6 +52,22 @@ class StepResponse:
         )
 
 
+def check_verdict(
+    ctx: StepContext, record_as: str, message: str, what: str
+) -> tuple[str, StoppedByCheck | None]:
+    """ "pass" without a problem (`message` empty); else the operator accepts the failed check ("accepted")
+    or the session stops ("fail", with the error naming `what` to check before --resume)."""
+    if not message:
+        return "pass", None
+    text = f"calibration check {record_as} failed: {message}"
+    if ctx.operator.accept_failed_check(text):
+        return "accepted", None
+    return "fail", StoppedByCheck(
+        f"{text}. The session stopped before the set's trials went on (exit 4). Check the robot's "
+        f"{what}, then continue with --resume (this check is redone first)."
+    )
+
+
 def response_problems(
     resp: StepResponse, limits: CalibrationCheckSpec, first: StepResponse | None
 ) -> list[str]:
@@ -126,19 +142,8 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
     cmd_in = command_on_input_base(rec.command_time_s, rec.command_deg, rec.input_time_s)
     resp = analyse_step(rec.input_time_s, cmd_in, rec.angle_deg, target, settle_window)
     problems = response_problems(resp, limits, _before_response(ctx, step) if when != "before" else None)
-    verdict = "pass"
-    stop = None
     message = "; ".join(problems)
-    if problems:
-        text = f"calibration check {record_as} failed: {message}"
-        if ctx.operator.accept_failed_check(text):
-            verdict = "accepted"
-        else:
-            verdict = "fail"
-            stop = StoppedByCheck(
-                f"{text}. The session stopped before the set's trials went on (exit 4). Check the robot's "
-                f"calibration, then continue with --resume (this check is redone first)."
-            )
+    verdict, stop = check_verdict(ctx, record_as, message, "calibration")
     ctx.monitor.verdict(
         record_as,
         verdict,

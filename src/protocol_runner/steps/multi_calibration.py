@@ -19,13 +19,12 @@ from ..analysis.transition import command_on_input_base
 from ..archive.attrs import JOINT, STEP_ID
 from ..archive.attrs import JOINTS as JOINTS_ATTR
 from ..archive.h5util import put_attrs
-from ..archive.paths import JOINTS, calibration_path
-from ..errors import StoppedByCheck
+from ..archive.paths import calibration_path, joint_path
 from ..hardware.motion import run_motion
 from ..hardware.rig import TrialRecording
 from ..protocol.plan import CalibrationCheckStep, calibration_id
 from ..protocol.sampling import sample_trajectory
-from .calibration_check import StepResponse, analyse_step, response_problems
+from .calibration_check import StepResponse, analyse_step, check_verdict, response_problems
 from .context import Fill, StepContext, StepOutcome
 from .multi_trial import multi_rig
 from .recording import put_commands, put_scan
@@ -54,17 +53,7 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
         problems = response_problems(resp, limits, before.get(joint))
         results.append((joint, rec, resp, problems, traj.number("step_deg")))
     message = "; ".join(f"joint {j}: {', '.join(pr)}" for j, _, _, pr, _ in results if pr)
-    verdict, stop = "pass", None
-    if message:
-        text = f"calibration check {record_as} failed: {message}"
-        if ctx.operator.accept_failed_check(text):
-            verdict = "accepted"
-        else:
-            verdict = "fail"
-            stop = StoppedByCheck(
-                f"{text}. The session stopped before the set's trials went on (exit 4). Check the robot's "
-                "calibration of the joint(s) named, then continue with --resume (this check is redone first)."
-            )
+    verdict, stop = check_verdict(ctx, record_as, message, "calibration of the joint(s) named")
     ctx.monitor.verdict(record_as, verdict, {"set": step.set, "when": when, "message": message})
     summary = f"{verdict}: " + ", ".join(
         f"{j} error {r.settle_error_deg:.2f} deg tau {r.time_constant_s:.3f} s" for j, _, r, _, _ in results
@@ -81,7 +70,7 @@ def _before_responses(ctx: StepContext, step: CalibrationCheckStep) -> dict[str,
     out = {}
     with ctx.unit(before_id) as f:
         for joint in step.joints_names():
-            out[joint] = StepResponse.read(f[f"{calibration_path(step.set, 'before')}/{JOINTS}/{joint}"])
+            out[joint] = StepResponse.read(f[joint_path(calibration_path(step.set, "before"), joint)])
     return out
 
 
@@ -103,7 +92,7 @@ def _fill(
         )
         g.attrs[JOINTS_ATTR] = np.array([r[0] for r in results], dtype=h5py.string_dtype())
         for joint, rec, resp, problems, step_deg in results:
-            jg = g.create_group(f"{JOINTS}/{joint}")
+            jg = f.create_group(joint_path(calibration_path(set_name, when), joint))
             put_scan(jg, rec)
             put_commands(jg, rec, full=False)
             put_attrs(

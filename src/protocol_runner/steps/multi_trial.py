@@ -34,12 +34,10 @@ from ..archive.attrs import JOINT
 from ..archive.attrs import JOINTS as JOINTS_ATTR
 from ..archive.h5util import put, put_attrs
 from ..archive.paths import (
-    JOINTS,
     TRIALS,
     configuration_name,
     configuration_path,
-    joint_recording_path,
-    joint_results_name,
+    joint_path,
     put_dataset,
     recording_path,
 )
@@ -93,7 +91,7 @@ def _brace_on_commands(step: TrialStep, ctx: StepContext) -> list[FloatArray]:
     assert step.twin is not None
     with ctx.unit(step.twin) as f:
         return [
-            f[joint_recording_path(step.configuration, step.trial, "on", j)]["command_deg"][:]
+            f[joint_path(recording_path(step.configuration, step.trial, "on"), j)]["command_deg"][:]
             for j in step.joints
         ]
 
@@ -116,7 +114,7 @@ def _trial_fill(
         put_attrs(g, "recording", recording_attrs(step, status, trajectory, lateness, shared.input_time_s))
         g.attrs[JOINTS_ATTR] = np.array(step.joints, dtype=h5py.string_dtype())
         for (joint, traj), rec in zip(step.joint_trajectories, recs, strict=True):
-            jg = g.create_group(f"{JOINTS}/{joint}")
+            jg = f.create_group(joint_path(g.name, joint))
             put_scan(jg, rec)
             put_commands(jg, rec, full=True)
             put_attrs(jg, "recording_joint", {JOINT: joint, "trajectory": json.dumps(traj.to_json())})
@@ -137,8 +135,10 @@ def run_process(step: ProcessStep, ctx: StepContext) -> StepOutcome:
             with ctx.unit(on_id) as f_on, ctx.unit(off_id) as f_off:
                 pairs.append(
                     TrialPair(
-                        read_recording(f_on[joint_recording_path(step.configuration, n, "on", joint)]),
-                        read_recording(f_off[joint_recording_path(step.configuration, n, "off", joint)]),
+                        read_recording(f_on[joint_path(recording_path(step.configuration, n, "on"), joint)]),
+                        read_recording(
+                            f_off[joint_path(recording_path(step.configuration, n, "off"), joint)]
+                        ),
                         trial=n,
                     )
                 )
@@ -146,7 +146,7 @@ def run_process(step: ProcessStep, ctx: StepContext) -> StepOutcome:
     analysis = analyse_joints(recordings, ctx.processing, devices=_devices(ctx, cfg_step))
     total = analysis.total_energy_loss_j
     fills = [
-        processed_fill(joint_results_name(name, joint), one, ctx.processing)
+        processed_fill(joint_path(name, joint), one, ctx.processing)
         for joint, one in zip(joints, analysis.analyses, strict=True)
     ]
 
@@ -184,14 +184,14 @@ def run_fit(step: FitStep, ctx: StepContext) -> StepOutcome:
     fitted = [j for j in cfg_step.joints if cfg_step.settings.device_of(j)]  # elsewhere: the sensors' noise
     with ctx.unit(step_id("process", key=step.configuration)) as f:
         cfg = f[configuration_path(step.configuration)]
-        loops = {j: read_processed_loops(cfg[f"{JOINTS}/{j}/{TRIALS}"]) for j in fitted}
+        loops = {j: read_processed_loops(f[f"{joint_path(cfg.name, j)}/{TRIALS}"]) for j in fitted}
     settings = bouc_wen_settings(ctx.loaded)
     devices = _devices(ctx, cfg_step)
     fills: list[Fill] = []
     parts: list[str] = []
     for joint, raw in loops.items():
         bouc_wen = fit_stored_loops(raw, settings, devices[joint])
-        fills.append(bouc_wen_fill(joint_results_name(name, joint), bouc_wen))
+        fills.append(bouc_wen_fill(joint_path(name, joint), bouc_wen))
         parts.append(f"{joint} RMSE {bouc_wen.fit.rmse_nm:.2f} N*m, R2 {bouc_wen.fit.r2:.3f}")
 
     def fill(f: h5py.File) -> None:
