@@ -5,6 +5,8 @@ Anything raised as a `UserError` is printed by the CLI as one short paragraph, n
 
 from __future__ import annotations
 
+from pathlib import Path
+
 EXIT_OK = 0
 EXIT_INVALID_INPUT = 2
 EXIT_HARDWARE_UNAVAILABLE = 3
@@ -55,3 +57,12 @@ def short(exc: BaseException) -> str:
     """An exception's text for a one-line message: at most 160 characters, never empty."""
     text = str(exc).strip() or type(exc).__name__
     return text if len(text) <= 160 else text[:157] + "..."
+
+
+def make_output_dir(path: Path, what: str) -> None:
+    """Create the output directory `path` (and its parents), or an `InvalidInput` naming `what` asked for it
+    and why it cannot be created."""
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise InvalidInput(f"{what}: cannot create {path}: {exc.strerror or exc}") from None

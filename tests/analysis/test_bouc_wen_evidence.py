@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from protocol_runner.analysis.bouc_wen_fit import fit_configuration, loop_energy, model_torques
+from protocol_runner.analysis.service import bouc_wen_result
+from protocol_runner.archive.results import bouc_wen_fill
 from protocol_runner.models.bouc_wen import BoucWenParams, fit_trials, simulate
 from protocol_runner.models.bouc_wen.identifiability import identify
-from protocol_runner.steps.fit import bouc_wen_fill
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 # saturates on loading in every phase (psi = 0.08 at positive angles, 0.02 at negative ones): stable from
@@ -107,7 +108,7 @@ def test_the_archive_gets_the_evidence_with_the_fit(tmp_path) -> None:  # type: 
     segments = [(x, noisy(x, FIG57, k)) for k, x in enumerate([sinusoid(3.25, 25.0)] * 2)]
     result, cv = fit_configuration(segments, starts=2, backbone_degree=None)
     with h5py.File(tmp_path / "a.h5", "w") as f:
-        bouc_wen_fill("config_01", result, segments, cv)(f)
+        bouc_wen_fill("config_01", bouc_wen_result(result, segments, cv))(f)
         a = f["configurations/config_01/fits/bouc_wen"].attrs
         assert a["scheme"] == "refined"
         assert abs(a["rmse_refined_nm"] - a["rmse_nm"]) <= 0.02 * a["rmse_nm"]
@@ -136,7 +137,7 @@ def test_backbone_separates_the_stops_from_the_hysteresis(tmp_path) -> None:  # 
     assert energy.data_j > 1.0
     assert energy.model_j == pytest.approx(energy.data_j, rel=0.2)
     with h5py.File(tmp_path / "b.h5", "w") as f:
-        bouc_wen_fill("config_01", with_backbone, segments, [])(f)
+        bouc_wen_fill("config_01", bouc_wen_result(with_backbone, segments, []))(f)
         g = f["configurations/config_01/fits/bouc_wen"]
         assert g.attrs["backbone"] == "polynomial" and len(g.attrs["backbone_coef"]) == 10
         model = g["model_torque_nm"][:]

@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from protocol_runner.analysis.bouc_wen_fit import fit_configuration
+from protocol_runner.analysis.service import bouc_wen_result
+from protocol_runner.archive.results import bouc_wen_fill
 from protocol_runner.models.bouc_wen import BoucWenParams, simulate
 from protocol_runner.report.predictions import declared_pairs, predictions
-from protocol_runner.steps.fit import bouc_wen_fill
 
 STABLE = BoucWenParams(A=0.3, n=1.2, beta=(0.05, 0.0, 0.0, 0.0, 0.0, 0.03))
 PROTOCOL = """
@@ -36,7 +37,7 @@ def test_a_fit_predicts_the_same_joint_at_half_speed(tmp_path) -> None:  # type:
     with h5py.File(archive, "w") as f:
         for name, segments in (("config_01", loops(8.0)), ("config_02", loops(16.0))):
             result, _ = fit_configuration(segments, starts=2, cross_validate_trials=False)
-            bouc_wen_fill(name, result, segments, [])(f)
+            bouc_wen_fill(name, bouc_wen_result(result, segments, []))(f)
     assert declared_pairs(PROTOCOL) == [(1, 2, "half speed"), (1, 3, "")]
     first, missing = predictions(archive, PROTOCOL)
     assert (first.fit_key, first.predict_key) == (1, 2) and first.reason == ""

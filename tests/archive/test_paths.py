@@ -1,13 +1,16 @@
-"""docs/archive.md states the layout that archive/paths.py owns: every group and every dataset with its unit."""
+"""docs/archive.md states the layout that archive/paths.py and archive/attrs.py own: every group, every
+dataset with its unit, and every attribute of each kind of object."""
 
 from __future__ import annotations
 
 import re
 from pathlib import Path
 
+import h5py
 import pytest
 
-from protocol_runner.archive import paths
+from protocol_runner.archive import attrs, paths
+from protocol_runner.archive.h5util import put_attrs
 
 DOC = (Path(__file__).resolve().parents[2] / "docs" / "archive.md").read_text(encoding="utf-8")
 
@@ -62,3 +65,60 @@ def test_every_group_path_is_documented() -> None:
         f"/{paths.CONFIGURATIONS}/<name>",
     ]
     assert [p for p in suffixes + roots if f"`{p}`" not in DOC] == []
+
+
+SEVERAL = DOC[DOC.index("## Several joints") :]
+ATTRIBUTE_SECTIONS = {
+    "root": _between("## Root", "| dataset | meaning |"),
+    "dataset": _between("# The archive", "## Root") + _between("## Checksums", "## Bounds"),
+    "protocol": _line_with("| `/protocol`"),
+    "unit": _between("The session directory's unit files", "## `/calibration"),
+    "checklist": _line_with("| `/session/checklists/<step>`"),
+    "calibration": _between("## `/calibration/<set>/<when>`", "## `/configurations") + SEVERAL,
+    "calibration_joint": SEVERAL[SEVERAL.index("`/calibration/<set>/<when>` has attributes") :],
+    "configuration": _between("## `/configurations/<name>`", "### `trials") + SEVERAL,
+    "recording": _between("### `trials/<n>/brace_on`", "`brace_off` also has `scaling/`") + SEVERAL,
+    "recording_joint": _between(
+        "`trials/<n>/brace_on` and `trials/<n>/brace_off` hold the SHARED", "Processing per joint"
+    ),
+    "scaling": _between("`brace_off` also has `scaling/`", "Every trial group and every"),
+    "stream": _between("Every trial group and every", "### `trials/<n>/processed`"),
+    "processed": SECTIONS["processed"],
+    "energy_loss": SECTIONS["configuration"],
+    "bouc_wen": SECTIONS["bouc_wen"],
+    "elements": SECTIONS["elements"],
+    "spring": SECTIONS["spring"],
+    "reference": SECTIONS["reference"],
+    "comparison": _between("## `/comparisons/<name>`", "## `/expectations"),
+    "expectations": _between("## `/expectations/<id>`", "## Checksums"),
+    "expectation": _between("## `/expectations/<id>`", "## Checksums"),
+}
+
+
+def test_every_kind_of_object_has_a_documented_section() -> None:
+    assert sorted(attrs.ATTRIBUTES) == sorted(ATTRIBUTE_SECTIONS)
+
+
+@pytest.mark.parametrize("kind", sorted(attrs.ATTRIBUTES))
+def test_every_attribute_is_documented(kind: str) -> None:
+    """A name added to archive/attrs.py and not to docs/archive.md fails here."""
+    text = ATTRIBUTE_SECTIONS[kind]
+    assert [name for name in attrs.ATTRIBUTES[kind] if f"`{name}`" not in text] == []
+
+
+@pytest.mark.parametrize("kind", sorted(attrs.DYNAMIC))
+def test_per_campaign_attribute_names_are_documented(kind: str) -> None:
+    text = ATTRIBUTE_SECTIONS[kind]
+    assert [p for p in attrs.DYNAMIC[kind].split(", ") if p not in text] == []
+
+
+def test_a_writer_cannot_write_an_attribute_the_layout_does_not_name(tmp_path: Path) -> None:
+    with h5py.File(tmp_path / "a.h5", "w") as f:
+        g = f.create_group("x")
+        with pytest.raises(ValueError, match="a processed has no attribute filter_cutof"):
+            put_attrs(g, "processed", {"filter_cutof": 1.0})
+        with pytest.raises(ValueError, match="per campaign"):
+            put_attrs(g, "processed", {}, dynamic={"brace.anything": 1.0})
+        assert list(g.attrs) == []  # refused before anything is written
+        put_attrs(g, "elements", {"rmse_nm": 0.5}, dynamic={"springs.max_preload_mm": 3.0})
+        assert dict(g.attrs) == {"rmse_nm": 0.5, "springs.max_preload_mm": 3.0}

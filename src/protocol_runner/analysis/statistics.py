@@ -31,8 +31,25 @@ from scipy import stats
 CONFIDENCE = 0.95
 
 
+class _Bounds:
+    """What any interval (`low`, `high`) tells: its half width and whether it excludes zero."""
+
+    low: float
+    high: float
+
+    @property
+    def half_width(self) -> float:
+        """Half the interval's width (NaN when undefined)."""
+        return (self.high - self.low) / 2.0
+
+    @property
+    def significant(self) -> bool:
+        """True when the interval excludes zero (NaN bounds: False)."""
+        return bool(self.low > 0.0 or self.high < 0.0)
+
+
 @dataclass(frozen=True)
-class TInterval:
+class TInterval(_Bounds):
     """Mean of `n` units with its two-sided t-interval; `low`/`high` are NaN when n < 2."""
 
     n: int
@@ -43,11 +60,6 @@ class TInterval:
     confidence: float = CONFIDENCE
 
     @property
-    def half_width(self) -> float:
-        """Half the interval's width (NaN when undefined)."""
-        return (self.high - self.low) / 2.0
-
-    @property
     def cv(self) -> float:
         """Between-unit coefficient of variation sd / |mean| (NaN when undefined)."""
         if self.n < 2 or not math.isfinite(self.mean) or self.mean == 0.0:
@@ -56,7 +68,7 @@ class TInterval:
 
 
 @dataclass(frozen=True)
-class WelchInterval:
+class WelchInterval(_Bounds):
     """Difference `b - a` of two means with its Welch t-interval and p-value."""
 
     difference: float
@@ -65,11 +77,6 @@ class WelchInterval:
     dof: float
     p_value: float
     confidence: float = CONFIDENCE
-
-    @property
-    def significant(self) -> bool:
-        """True when the interval excludes zero (NaN bounds: False)."""
-        return bool(self.low > 0.0 or self.high < 0.0)
 
 
 @dataclass(frozen=True)

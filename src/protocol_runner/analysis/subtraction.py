@@ -11,11 +11,13 @@ is kept for comparison only.
 
 from __future__ import annotations
 
+from typing import TypedDict, Unpack
+
 import numpy as np
 import numpy.typing as npt
 
 from protocol_runner.analysis.branches import BranchCurves, Outside, branch_curves, branch_labels
-from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal, same_length
+from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal, signal_pair
 
 
 def robot_torque_at_equal_angle(
@@ -44,15 +46,20 @@ def robot_torque_at_equal_angle(
     return curves.torque_at(a_on, labels, outside), curves.covers(a_on, labels)
 
 
+class EqualAngleOptions(TypedDict, total=False):
+    """The keyword options of `robot_torque_at_equal_angle` (their defaults are there)."""
+
+    bin_width_deg: float
+    reversal_deg: float
+    outside: Outside
+
+
 def subtract_equal_angle(
     angle_on_deg: npt.ArrayLike,
     torque_on_nm: npt.ArrayLike,
     angle_off_deg: npt.ArrayLike,
     torque_off_nm: npt.ArrayLike,
-    *,
-    bin_width_deg: float = 0.5,
-    reversal_deg: float = 1.0,
-    outside: Outside = "clip",
+    **options: Unpack[EqualAngleOptions],
 ) -> FloatArray:
     """Brace torque = brace-on torque - brace-off torque at the same angle on the same branch (thesis §3.3).
 
@@ -60,15 +67,9 @@ def subtract_equal_angle(
     `robot_torque_at_equal_angle` for the branch logic and the `outside` rule (default: clip to the
     nearest covered angle; "nan" marks such samples NaN instead).
     """
-    a_on = as_signal("angle_on_deg", angle_on_deg)
-    t_on = as_signal("torque_on_nm", torque_on_nm)
-    same_length(angle_on_deg=a_on, torque_on_nm=t_on)
-    a_off = as_signal("angle_off_deg", angle_off_deg)
-    t_off = as_signal("torque_off_nm", torque_off_nm)
-    same_length(angle_off_deg=a_off, torque_off_nm=t_off)
-    robot, _ = robot_torque_at_equal_angle(
-        a_on, a_off, t_off, bin_width_deg=bin_width_deg, reversal_deg=reversal_deg, outside=outside
-    )
+    a_on, t_on = signal_pair("angle_on_deg", angle_on_deg, "torque_on_nm", torque_on_nm)
+    a_off, t_off = signal_pair("angle_off_deg", angle_off_deg, "torque_off_nm", torque_off_nm)
+    robot, _ = robot_torque_at_equal_angle(a_on, a_off, t_off, **options)
     return t_on - robot
 
 
@@ -85,12 +86,8 @@ def subtract_equal_time(
     is the method the thesis criticises in §5.6: the two trials are not at the same angle at the same
     time, so it is wrong whenever their angle histories differ.
     """
-    t_on = as_signal("time_on_s", time_on_s)
-    q_on = as_signal("torque_on_nm", torque_on_nm)
-    same_length(time_on_s=t_on, torque_on_nm=q_on)
-    t_off = as_signal("time_off_s", time_off_s)
-    q_off = as_signal("torque_off_nm", torque_off_nm)
-    same_length(time_off_s=t_off, torque_off_nm=q_off)
+    t_on, q_on = signal_pair("time_on_s", time_on_s, "torque_on_nm", torque_on_nm)
+    t_off, q_off = signal_pair("time_off_s", time_off_s, "torque_off_nm", torque_off_nm)
     if t_off.shape[0] > 1 and not np.all(np.diff(t_off) > 0):
         raise AnalysisError("time_off_s must be strictly increasing")
     return q_on - np.interp(t_on - t_on[0], t_off - t_off[0], q_off)

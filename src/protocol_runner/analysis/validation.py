@@ -15,6 +15,9 @@ import numpy.typing as npt
 from protocol_runner.errors import InvalidInput
 
 FloatArray = npt.NDArray[np.float64]
+#: Precision of stored measured and processed signals (7 significant digits, far below sensor resolution);
+#: the Bouc-Wen fit runs on the processed loops in this precision, as stored (analysis/service.py).
+SIGNAL = np.float32
 
 
 class AnalysisError(InvalidInput):
@@ -49,3 +52,13 @@ def same_length(**signals: FloatArray) -> int:
         detail = ", ".join(f"{name}={n}" for name, n in lengths.items())
         raise AnalysisError(f"signals must have the same number of samples: {detail}")
     return next(iter(lengths.values()))
+
+
+def signal_pair(
+    x_name: str, x: npt.ArrayLike, y_name: str, y: npt.ArrayLike
+) -> tuple[FloatArray, FloatArray]:
+    """Two signals of one recording (e.g. its angle and torque) checked as `as_signal` and of the same
+    length, or `AnalysisError` naming them."""
+    xs, ys = as_signal(x_name, x), as_signal(y_name, y)
+    same_length(**{x_name: xs, y_name: ys})
+    return xs, ys

@@ -25,8 +25,10 @@ import h5py
 import numpy as np
 import numpy.typing as npt
 
-DIGEST_ATTR = "sha256"
-MARKER_ATTR = "dataset_checksums"
+from .attrs import CHECKSUM_MARKER, DIGEST
+
+DIGEST_ATTR = DIGEST
+MARKER_ATTR = CHECKSUM_MARKER
 """Root attribute of units and archives whose every dataset has a `sha256` attribute (value "sha256")."""
 MARKER_VALUE = "sha256"
 NUMERIC_KINDS = "biuf"

@@ -17,25 +17,23 @@ import h5py
 import numpy as np
 
 from .. import __version__
+from .attrs import ATTRIBUTES, FILENAME, ONLY
 from .checksums import MARKER_ATTR, is_marked, mark
 from .diskfull import DiskFull, is_disk_full, resume_hint
-from .h5util import SCHEMA_VERSION, put, put_lines, put_text, set_attrs
-from .units import COMPLETE_ATTR, _fsync_dir, _fsync_file
+from .h5util import SCHEMA_VERSION, put, put_attrs, put_lines, put_text
+from .units import _fsync_dir, _fsync_file
 
 
 @dataclass(frozen=True)
 class ArchiveMeta:
-    protocol_name: str
-    protocol_sha256: str
+    """What a session adds to its units' content when it consolidates them."""
+
+    #: the session's root attributes (docs/archive.md "Root": `protocol_name`, `protocol_sha256`, `mode`,
+    #: `seed`, `created_utc`, `finished_utc`, `status`, `joint`); the layout and software versions are added
+    root: Mapping[str, Any]
     protocol_text: str
     protocol_filename: str
     plan_json: str
-    mode: str
-    seed: int
-    created_utc: str
-    finished_utc: str
-    status: str
-    joint: str
     only: tuple[int, ...]
     events: tuple[str, ...]
     configuration_attrs: Mapping[str, Mapping[str, Any]]  # group name -> attrs (incl. status)
@@ -61,7 +59,7 @@ def _merge(src: h5py.Group, dst: h5py.Group, written: dict[str, dict[str, object
         written = {}
     seen = written.setdefault(dst.name, {})
     for key, value in src.attrs.items():
-        if key in ("unit_step_id", COMPLETE_ATTR, MARKER_ATTR):
+        if key in ATTRIBUTES["unit"] or key == MARKER_ATTR:
             continue
         if key in seen and _same(seen[key], value):
             continue
@@ -105,24 +103,12 @@ def _write(partial: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> None
             with h5py.File(path, "r") as unit:
                 summed = summed and is_marked(unit)
                 _merge(unit, out, written)
-        set_attrs(
-            out,
-            {
-                "protocol_name": meta.protocol_name,
-                "protocol_sha256": meta.protocol_sha256,
-                "schema_version": SCHEMA_VERSION,
-                "software_version": __version__,
-                "mode": meta.mode,
-                "seed": int(meta.seed),
-                "created_utc": meta.created_utc,
-                "finished_utc": meta.finished_utc,
-                "status": meta.status,
-                "joint": meta.joint,
-            },
+        put_attrs(
+            out, "root", {**meta.root, "schema_version": SCHEMA_VERSION, "software_version": __version__}
         )
-        out.attrs["only"] = list(meta.only) if meta.only else []
+        out.attrs[ONLY] = list(meta.only) if meta.only else []  # an empty list too (put_attrs skips none)
         ds = put_text(out, "protocol", meta.protocol_text)
-        ds.attrs["filename"] = meta.protocol_filename
+        put_attrs(ds, "protocol", {FILENAME: meta.protocol_filename})
         put_text(out, "plan", meta.plan_json)
         put_lines(out.require_group("session"), "events", list(meta.events))
         if meta.reference is not None:
@@ -130,9 +116,9 @@ def _write(partial: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> None
             ref = out.require_group(f"reference/{name}")
             put(ref, "angle_deg", angle_deg, "deg")
             put(ref, "torque_nm", torque_nm, "N*m")
-            set_attrs(ref, {"source": source, "title": name})
+            put_attrs(ref, "reference", {"source": source, "title": name})
         configs = out.require_group("configurations")
         for name, attrs in meta.configuration_attrs.items():
-            set_attrs(configs.require_group(name), attrs)
+            put_attrs(configs.require_group(name), "configuration", attrs)
         if summed:
             mark(out)  # every dataset, copied from a unit or written here, carries its checksum

@@ -40,7 +40,7 @@ import h5py
 from scipy.io import savemat
 
 from .. import __version__
-from ..errors import InvalidInput
+from ..errors import InvalidInput, make_output_dir
 from .matlab import Units, attrs_struct, dataset_value, group_struct, matlab_value, put_field, text
 from .verify import validate_archive  # clear messages for foreign or damaged files
 
@@ -49,10 +49,7 @@ SESSION_FILE = "session"
 
 def export_mat(archive: Path, out_dir: Path) -> list[Path]:
     archive = validate_archive(archive)
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InvalidInput(f"--export-mat: cannot create {out_dir}: {exc.strerror or exc}") from None
+    make_output_dir(out_dir, "--export-mat")
     where = str(archive)
     written: list[Path] = []
     try:

@@ -13,6 +13,8 @@ import h5py
 import numpy as np
 import numpy.typing as npt
 
+from ..analysis.validation import SIGNAL as STORED_SIGNAL
+from .attrs import ATTRIBUTES, DYNAMIC, UNITS
 from .checksums import seal
 
 SCHEMA_VERSION = 1
@@ -27,7 +29,7 @@ SHUFFLE_PROBE = 8192
 """Elements of a float32 dataset deflated both with and without the byte shuffle to choose the filter
 chain: a signal converted from ADC codes (few distinct 4-byte patterns) deflates ~25 % smaller, and faster,
 unshuffled; a smooth processed signal is smaller shuffled."""
-SIGNAL = np.float32  # measured and processed signals: 7 significant digits, far below sensor resolution
+SIGNAL = STORED_SIGNAL  # measured and processed signals (the analysis fits the stored precision)
 
 
 def put(
@@ -58,11 +60,11 @@ def put(
             if arr.shape[0] > chunk and arr.dtype.kind in "fiu" and arr.dtype.isnative:
                 ds = group.create_dataset(name, shape=arr.shape, dtype=arr.dtype, **kwargs)
                 _write_chunks(ds, arr, chunk, shuffle)
-                ds.attrs["units"] = units
+                ds.attrs[UNITS] = units
                 seal(ds, arr)
                 return ds
     ds = group.create_dataset(name, data=arr, **kwargs)
-    ds.attrs["units"] = units
+    ds.attrs[UNITS] = units
     seal(ds, arr)
     return ds
 
@@ -133,7 +135,8 @@ def fixed_text(text: str | list[str]) -> npt.NDArray[np.bytes_]:
     return np.array(encoded, dtype=f"S{max(1, *(len(b) for b in encoded))}")
 
 
-def put_text(group: h5py.Group, name: str, text: str) -> h5py.Dataset:
+def put_text(group: h5py.Group, name: str, text: str | list[str]) -> h5py.Dataset:
+    """A text dataset (a scalar for a str, one element per line for a list), sealed with its checksum."""
     if name in group:
         del group[name]
     data = fixed_text(text)
@@ -143,12 +146,7 @@ def put_text(group: h5py.Group, name: str, text: str) -> h5py.Dataset:
 
 
 def put_lines(group: h5py.Group, name: str, lines: list[str]) -> h5py.Dataset:
-    if name in group:
-        del group[name]
-    data = fixed_text(lines)
-    ds = group.create_dataset(name, data=data)
-    seal(ds, data)
-    return ds
+    return put_text(group, name, lines)
 
 
 def set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:
@@ -166,6 +164,20 @@ def set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:
             obj.attrs[key] = value
 
 
+def put_attrs(
+    obj: h5py.HLObject, kind: str, attrs: Mapping[str, Any], *, dynamic: Mapping[str, Any] | None = None
+) -> None:
+    """Set the attributes `attrs` of an object of `kind` (a key of `attrs.ATTRIBUTES`) and the per-campaign
+    ones in `dynamic` (only for a kind of `attrs.DYNAMIC`); a name the layout does not give that kind of
+    object is a bug, refused before anything is written."""
+    unknown = sorted(set(attrs) - set(ATTRIBUTES[kind]))
+    if unknown or (dynamic and kind not in DYNAMIC):
+        raise ValueError(f"archive layout: a {kind} has no attribute {', '.join(unknown) or 'per campaign'}")
+    set_attrs(obj, attrs)
+    if dynamic:
+        set_attrs(obj, dynamic)
+
+
 def _is_numeric_list(value: object) -> bool:
     return isinstance(value, list) and all(
         isinstance(v, (int, float)) and not isinstance(v, bool) for v in value
@@ -180,6 +192,13 @@ def text_of(ds: h5py.Dataset) -> str:
 def attr_str(obj: h5py.HLObject, key: str, default: str = "") -> str:
     value = obj.attrs.get(key, default)
     return value.decode("utf-8") if isinstance(value, bytes) else str(value)
+
+
+def attr_strs(obj: h5py.HLObject, key: str) -> list[str]:
+    """A string-array attribute (or a single string) as a list of str; empty when absent."""
+    if key not in obj.attrs:
+        return []
+    return [v.decode("utf-8") if isinstance(v, bytes) else str(v) for v in np.atleast_1d(obj.attrs[key])]
 
 
 def group_name(step_id: str) -> str:

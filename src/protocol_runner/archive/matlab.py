@@ -27,6 +27,7 @@ import h5py
 import numpy as np
 
 from ..errors import InvalidInput
+from .attrs import UNITS
 
 NAMELENGTHMAX = 63  # MATLAB's namelengthmax
 _EXACT_INT = 2**53  # larger integers lose digits as double
@@ -73,9 +74,9 @@ class Units:
         self._units: dict[str, tuple[str, str]] = {}
 
     def add(self, field: str, ds: h5py.Dataset) -> None:
-        if "units" not in ds.attrs:
+        if UNITS not in ds.attrs:
             return
-        unit = text(ds.attrs["units"])
+        unit = text(ds.attrs[UNITS])
         seen = self._units.setdefault(field, (unit, ds.name or field))
         if seen[0] != unit:
             raise InvalidInput(

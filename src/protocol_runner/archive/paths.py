@@ -21,6 +21,7 @@ COMPARISONS = "comparisons"
 CALIBRATION = "calibration"
 REFERENCE = "reference"
 CHECKLISTS = "session/checklists"
+JOINTS = "joints"
 
 #: Datasets of each kind of group, with their units ("1" for counts and plain numbers).
 DATASETS: dict[str, dict[str, str]] = {
@@ -81,6 +82,12 @@ def comparison_path(name: str) -> str:
 
 def calibration_path(set_name: str, when: str) -> str:
     return f"{CALIBRATION}/{set_name}/{when}"
+
+
+def joint_path(group: str, joint: str) -> str:
+    """One joint's group inside a multi-joint group (docs/archive.md "Several joints"): its recording in a
+    trial's `recording_path`, its results in a configuration, its check in a `calibration_path`."""
+    return f"{group}/{JOINTS}/{joint}"
 
 
 def put_dataset(

@@ -15,16 +15,18 @@ from pathlib import Path
 
 import h5py
 
-from ..analysis.loops import centred_loop, fit_loops
-from ..analysis.pipeline import TrialPair, process_configuration
+from ..analysis.service import analyse_configuration
 from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, find_protocol, load_protocol, parse_protocol_text
-from ..protocol.processing import processing_settings
+from ..protocol.processing import bouc_wen_settings, element_fit_enabled, processing_settings
+from .attrs import CONFIGURATIONS as CONFIGURATIONS_ATTR
+from .attrs import DEVICE_JSON, FILENAME
+from .attrs import JOINTS as JOINTS_ATTR
 from .checksums import is_marked, seal_missing
-from .h5util import attr_str, set_attrs, text_of
-from .paths import configuration_name
-from .reprocess_joints import reprocess_joints
-from .results import bouc_wen_fill, comparison_values, processed_fill, read_recording
+from .h5util import attr_str, put_attrs, text_of
+from .paths import FITS, TRIALS, configuration_name
+from .reprocess_joints import complete_pairs, reprocess_joints
+from .results import bouc_wen_fill, comparison_values, processed_fill
 from .verify import validate_archive
 
 
@@ -32,7 +34,7 @@ def _archived_protocol(f: h5py.File, archive: Path) -> LoadedProtocol:
     if "protocol" not in f:
         raise InvalidInput(f"{archive}: has no /protocol; cannot reprocess without the protocol that was run")
     text = text_of(f["protocol"])
-    name = attr_str(f["protocol"], "filename", "protocol.yaml")
+    name = attr_str(f["protocol"], FILENAME, "protocol.yaml")
     return parse_protocol_text(
         text, path=archive.parent / name, display_name=f"{archive}:/protocol", check_files=False
     )
@@ -62,8 +64,9 @@ def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output
             _reprocess(f, settings_source)
             if is_marked(f):
                 seal_missing(f)  # the new results carry checksums like everything else
-            set_attrs(
+            put_attrs(
                 f,
+                "root",
                 {
                     "reprocessed_from": str(archive.name),
                     "reprocessing_protocol_sha256": settings_source.sha256,
@@ -80,11 +83,11 @@ def archived_device(cfg: h5py.Group) -> list[tuple[str, str, dict[str, object]]]
     """The configuration's device as the session resolved it (its `device_json` attribute, docs/archive.md):
     (name, type, parameters) per element; empty for an archive written before devices were declared (its
     element fit is then not applicable). A `device_json` that is not the documented list is named."""
-    if "device_json" not in cfg.attrs:
+    if DEVICE_JSON not in cfg.attrs:
         return []
-    where = f"{cfg.file.filename}: {cfg.name}@device_json"
+    where = f"{cfg.file.filename}: {cfg.name}@{DEVICE_JSON}"
     try:
-        doc = json.loads(attr_str(cfg, "device_json", "[]"))
+        doc = json.loads(attr_str(cfg, DEVICE_JSON, "[]"))
     except json.JSONDecodeError as exc:
         raise InvalidInput(f"{where}: not valid JSON ({exc.msg})") from None
     if not isinstance(doc, list) or not all(isinstance(e, dict) and "name" in e and "type" in e for e in doc):
@@ -94,71 +97,34 @@ def archived_device(cfg: h5py.Group) -> list[tuple[str, str, dict[str, object]]]
 
 def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
     """Redo what the session's process, fit and compare steps did, from the raw trials in `f`, with the
-    same functions, so that unchanged settings reproduce the session's values exactly."""
+    same function (`analysis.service.analyse_configuration`), so that unchanged settings reproduce the
+    session's values exactly."""
     settings = processing_settings(loaded)
-    fits = loaded.protocol.fits
+    fit = bouc_wen_settings(loaded) if loaded.protocol.fits.bouc_wen.enabled else None
+    elements = element_fit_enabled(loaded)
     for name, cfg in f["configurations"].items():
-        trials = cfg.get("trials")
-        if trials is None:
+        if TRIALS not in cfg:
             continue
-        if "joints" in cfg.attrs:  # several joints driven together: processed joint by joint
-            enabled_joints = getattr(fits, "elements", getattr(fits, "spring", None))
-            device = archived_device(cfg) if enabled_joints and enabled_joints.enabled else None
-            fit_joints = sorted({str(p.get("joint")) for _, _, p in archived_device(cfg)})
-            reprocess_joints(f, name, device, settings, fits.bouc_wen, fit_joints)
+        if JOINTS_ATTR in cfg.attrs:  # several joints driven together: processed joint by joint
+            reprocess_joints(f, name, archived_device(cfg), settings, fit, elements=elements)
             continue
-        pairs = []
-        for n in sorted(trials, key=int):
-            g = trials[n]
-            if "processed" in g:
-                del g["processed"]
-            complete = all(
-                b in g and attr_str(g[b], "status", "complete") == "complete"
-                for b in ("brace_on", "brace_off")
-            )
-            if complete:  # a trial cut short by a board failure is not processed
-                try:
-                    pairs.append(
-                        TrialPair(read_recording(g["brace_on"]), read_recording(g["brace_off"]), trial=int(n))
-                    )
-                except KeyError as exc:
-                    raise InvalidInput(
-                        f"{name}/trials/{n}: the raw data lack {exc}; cannot reprocess"
-                    ) from None
-        for stale in ("energy_loss_j", "energy_cycle_trial", "fits"):
+        pairs = complete_pairs(cfg, name)
+        for stale in ("energy_loss_j", "energy_cycle_trial", FITS):
             if stale in cfg:
                 del cfg[stale]
         if not pairs:
             continue
-        enabled = getattr(fits, "elements", getattr(fits, "spring", None))
-        result = process_configuration(
-            pairs, settings, device=archived_device(cfg) if enabled and enabled.enabled else None
+        analysis = analyse_configuration(
+            pairs, settings, fit, device=archived_device(cfg) if elements else None
         )
-        processed_fill(name, result, settings)(f)
-        if fits.bouc_wen.enabled:
-            # the session fits the stored (200 Hz) processed loops: so does this
-            raw = [
-                (
-                    trials[str(t.trial)]["processed/angle_deg"][:],
-                    trials[str(t.trial)]["processed/brace_torque_nm"][:],
-                )
-                for t in result.trials
-            ]
-            segments = [centred_loop(a, t) for a, t in raw]
-            device = archived_device(cfg) if enabled and enabled.enabled else None
-            bw, cv = fit_loops(
-                segments,
-                starts=fits.bouc_wen.starts,
-                cross_validated=fits.bouc_wen.cross_validate,
-                backbone_degree=fits.bouc_wen.polynomial_degree,
-                elements=(raw, device) if fits.bouc_wen.backbone == "elements" else None,
-            )
-            bouc_wen_fill(name, bw, segments, cv)(f)
+        processed_fill(name, analysis, settings)(f)
+        if analysis.bouc_wen is not None:
+            bouc_wen_fill(name, analysis.bouc_wen)(f)
     for comp in f.get("comparisons", {}).values():
-        names = [configuration_name(int(k)) for k in comp.attrs["configurations"]]
+        names = [configuration_name(int(k)) for k in comp.attrs[CONFIGURATIONS_ATTR]]
         groups = [f["configurations"][n] for n in names if n in f["configurations"]]
         if len(groups) == len(names):
-            set_attrs(comp, comparison_values(groups))
+            put_attrs(comp, "comparison", comparison_values(groups))
         else:  # never leave numbers from the old processing beside the new
             for key in ("energy_mean_j", "energy_std_j", "energy_cycles", "max_angle_deg"):
                 if key in comp.attrs:

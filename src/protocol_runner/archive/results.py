@@ -14,22 +14,17 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..analysis.bouc_wen_fit import LoopEnergy, loop_energy, model_torques
+from ..analysis.bouc_wen_fit import LoopEnergy
 from ..analysis.element_fit import ElementFit
-from ..analysis.pipeline import ConfigurationResult, ProcessingSettings, Recording
+from ..analysis.pipeline import ProcessingSettings, Recording
+from ..analysis.service import BoucWenResult, ConfigurationAnalysis
 from ..models.bouc_wen import BoucWenFit
 from ..models.bouc_wen.backbone import Backbone, FixedBackbone
-from .h5util import SIGNAL, set_attrs
+from .h5util import SIGNAL, put_attrs
 from .paths import CONFIGURATIONS, FITS, PROCESSED, TRIALS, put_dataset
 
 #: Writes one step's results into an open unit file.
 Fill = Callable[[h5py.File], None]
-
-# The processed loops are stored at 200 Hz: they are low-passed far below 100 Hz (thesis filter: 10 % of
-# the 500 Hz Nyquist frequency, order 10), so nothing is lost, and the campaign's archive stays < 100 MB.
-# Energies and fits are computed before this decimation, at the full input rate.
-PROCESSED_RATE_HZ = 200.0
-
 
 #: At most this many points per trial of the Bouc-Wen model curve are stored for the report.
 PLOT_POINTS_PER_TRIAL = 2000
@@ -37,6 +32,7 @@ BACKBONE_GRID_POINTS = 201  # samples of an elements backbone g over the fitted 
 
 
 def read_recording(g: h5py.Group) -> Recording:
+    """A trial's raw recording (`trials/<n>/brace_<b>`, or a joint's `joints/<joint>` in it)."""
     return Recording(
         time_s=g["time_s"][:],
         angle_deg=g["angle_deg"][:],
@@ -46,42 +42,59 @@ def read_recording(g: h5py.Group) -> Recording:
     )
 
 
-def processed_fill(name: str, result: ConfigurationResult, settings: ProcessingSettings) -> Fill:
+def read_processed_loops(trials: h5py.Group) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Each trial's stored processed loop (`<n>/processed`: `angle_deg`, `brace_torque_nm`) under a
+    `trials` group, in trial order: the Bouc-Wen fit's input."""
+    loops = []
+    for n in sorted(trials, key=int):
+        g = trials[n][PROCESSED]
+        loops.append((g["angle_deg"][:], g["brace_torque_nm"][:]))
+    return loops
+
+
+def processed_fill(name: str, analysis: ConfigurationAnalysis, settings: ProcessingSettings) -> Fill:
+    """`trials/<n>/processed` of each trial (the stored loops of `analysis`), the configuration's energy
+    per cycle and, when the device was given, `fits/elements`, under `configurations/<name>`."""
+    result = analysis.processed
+
     def fill(f: h5py.File) -> None:
         cfg = f.require_group(f"{CONFIGURATIONS}/{name}")
-        for t in result.trials:
+        for t, s in zip(result.trials, analysis.stored, strict=True):
             g = cfg.require_group(f"{TRIALS}/{t.trial}").create_group(PROCESSED)
-            dt = float(np.median(np.diff(t.time_s))) if t.time_s.size > 1 else 1.0
-            stride = max(1, round(1.0 / (dt * PROCESSED_RATE_HZ)))
-            put_dataset(g, "processed", "time_s", t.time_s[::stride])
-            put_dataset(g, "processed", "angle_deg", t.angle_deg[::stride], dtype=SIGNAL)
-            put_dataset(g, "processed", "brace_torque_nm", t.brace_torque_nm[::stride], dtype=SIGNAL)
-            set_attrs(
+            put_dataset(g, "processed", "time_s", s.time_s)
+            put_dataset(g, "processed", "angle_deg", s.angle_deg, dtype=SIGNAL)
+            put_dataset(g, "processed", "brace_torque_nm", s.brace_torque_nm, dtype=SIGNAL)
+            put_attrs(
                 g,
+                "processed",
                 {
-                    "sample_rate_hz": 1.0 / (dt * stride),
-                    "decimation": stride,
+                    "sample_rate_hz": s.sample_rate_hz,
+                    "decimation": s.decimation,
                     "energy_cycles_j": [float(e) for e in t.energy_j],
                 },
             )
-            set_attrs(
+            put_attrs(
                 g,
+                "processed",
                 {
                     "transition_index0_on": int(t.transition_index_on),
                     "transition_index0_off": int(t.transition_index_off),
                     "subtraction": settings.subtraction,
-                    "filter": json.dumps(settings.filter_description(1.0 / dt)),
-                    # the zero-phase low-pass filter ran at the input rate 1/dt, before the decimation
+                    "filter": json.dumps(settings.filter_description(s.input_rate_hz)),
+                    # the zero-phase low-pass filter ran at the input rate, before the decimation
                     "filter_type": settings.filter_kind,
                     "filter_order": int(settings.filter_order),
-                    "filter_cutoff_hz": float(settings.filter_cutoff / (2.0 * dt)),
+                    "filter_cutoff_hz": float(settings.filter_cutoff / (2.0 * s.input_interval_s)),
                     "coverage": float(t.coverage),
                 },
             )
         put_dataset(cfg, "configuration", "energy_loss_j", result.energy_loss_j)
         put_dataset(cfg, "configuration", "energy_cycle_trial", result.energy_cycle_trial)
-        cfg["energy_loss_j"].attrs["mean_j"] = result.energy.mean_j
-        cfg["energy_loss_j"].attrs["std_j"] = result.energy.std_j
+        put_attrs(
+            cfg["energy_loss_j"],
+            "energy_loss",
+            {"mean_j": result.energy.mean_j, "std_j": result.energy.std_j},
+        )
         if result.elements is not None:
             element_fit_fill(cfg.require_group(FITS), result.elements)
 
@@ -99,8 +112,8 @@ def element_fit_fill(fits: h5py.Group, fit: ElementFit) -> None:
         "rmse_all_samples_nm": float(fit.rmse_all_samples_nm),
         "elements_json": json.dumps([e.to_json() for e in fit.elements]),
     }
-    attrs.update({f"{element}.{param}": float(value) for element, param, value in fit.fitted})
-    set_attrs(g, attrs)
+    fitted = {f"{element}.{param}": float(value) for element, param, value in fit.fitted}
+    put_attrs(g, "elements", attrs, dynamic=fitted)
     put_dataset(g, "elements", "angle_deg", fit.curve_angle_deg, dtype=SIGNAL)
     put_dataset(g, "elements", "torque_nm", fit.curve_torque_nm, dtype=SIGNAL)
     put_dataset(g, "elements", "model_torque_nm", fit.model_torque_nm)
@@ -116,8 +129,9 @@ def _interim_spring_group(fits: h5py.Group, fit: ElementFit) -> None:
     s = springs[0] if springs else None
     fitted = {param: value for element, param, value in fit.fitted if s is not None and element == s.name}
     g = fits.create_group("spring")
-    set_attrs(
+    put_attrs(
         g,
+        "spring",
         {
             "applicable": bool(fit.applicable),
             "reason": fit.reason,
@@ -181,13 +195,16 @@ def backbone_attrs(result: BoucWenFit) -> dict[str, object]:
     return out
 
 
-def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> Fill:
+def bouc_wen_fill(name: str, bouc_wen: BoucWenResult) -> Fill:
+    """`fits/bouc_wen` of `configurations/<name>`: the fit, its evidence, and the fitted loops with the
+    model's torque, decimated for plotting."""
+    result = bouc_wen.fit
     p = result.params
     std = np.asarray(result.param_std, dtype=np.float64)
+    cv = bouc_wen.cv_rmse_nm
+    energy = bouc_wen.energy
     angles, torques, models = [], [], []
-    full_models = model_torques(segments, result)
-    energy = loop_energy(segments, full_models)
-    for (x, y), z in zip(segments, full_models, strict=True):
+    for (x, y), z in zip(bouc_wen.segments, bouc_wen.model_torque_nm, strict=True):
         stride = max(1, len(x) // PLOT_POINTS_PER_TRIAL)
         angles.append(x[::stride])
         torques.append(y[::stride])
@@ -195,8 +212,9 @@ def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> F
 
     def fill(f: h5py.File) -> None:
         g = f.require_group(f"{CONFIGURATIONS}/{name}/{FITS}").create_group("bouc_wen")
-        set_attrs(
+        put_attrs(
             g,
+            "bouc_wen",
             {
                 "A": float(p.A),
                 "n": float(p.n),
@@ -212,7 +230,7 @@ def bouc_wen_fill(name: str, result: BoucWenFit, segments, cv: list[float]) -> F
                 "diverged": bool(result.diverged),
             },
         )
-        set_attrs(g, evidence_attrs(result, energy))
+        put_attrs(g, "bouc_wen", evidence_attrs(result, energy))
         put_dataset(g, "bouc_wen", "angle_deg", np.concatenate(angles))
         put_dataset(g, "bouc_wen", "torque_nm", np.concatenate(torques))
         put_dataset(g, "bouc_wen", "model_torque_nm", np.concatenate(models))

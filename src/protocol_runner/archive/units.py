@@ -18,12 +18,13 @@ from pathlib import Path
 import h5py
 
 from ..errors import InvalidInput
+from .attrs import UNIT_COMPLETE, UNIT_STEP_ID
 from .checksums import mark, seal_missing
 from .diskfull import DiskFull as DiskFull  # re-exported: the unit writer's error
 from .diskfull import is_disk_full, resume_hint
 from .h5util import group_name
 
-COMPLETE_ATTR = "unit_complete"
+COMPLETE_ATTR = UNIT_COMPLETE
 
 
 @dataclass(frozen=True)
@@ -38,20 +39,22 @@ def unit_path(units_dir: Path, step_id: str) -> Path:
     return units_dir / f"{group_name(step_id)}.h5"
 
 
-def _fsync_file(path: Path) -> None:
+def fsync_path(path: Path) -> None:
+    """Flush a file's or a directory's entry (after a rename into it) to the disk."""
     fd = os.open(path, os.O_RDONLY)
     try:
         os.fsync(fd)
     finally:
         os.close(fd)
+
+
+def _fsync_file(path: Path) -> None:
+    """A unit file's flush (its own name: the fault-injection tests fail these, not the directory's)."""
+    fsync_path(path)
 
 
 def _fsync_dir(path: Path) -> None:
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
+    fsync_path(path)
 
 
 def sha256_of(path: Path) -> str:
@@ -72,7 +75,7 @@ def write_unit(units_dir: Path, step_id: str, fill: Callable[[h5py.File], None])
     try:
         with h5py.File(partial, "w") as f:
             fill(f)
-            f.attrs["unit_step_id"] = step_id
+            f.attrs[UNIT_STEP_ID] = step_id
             seal_missing(f)  # datasets written without archive/h5util.py get their checksum too
             mark(f)
             f.attrs[COMPLETE_ATTR] = True
@@ -100,7 +103,7 @@ def unit_is_complete(units_dir: Path, record: UnitRecord) -> bool:
         return False
     try:
         with h5py.File(path, "r") as f:
-            return bool(f.attrs.get(COMPLETE_ATTR, False)) and f.attrs.get("unit_step_id") == record.step_id
+            return bool(f.attrs.get(COMPLETE_ATTR, False)) and f.attrs.get(UNIT_STEP_ID) == record.step_id
     except (OSError, KeyError):
         return False
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import h5py
 
 from ..errors import InvalidInput, short
+from .attrs import UNIT_STEP_ID
 from .checksums import digest_of_stored, is_marked, recorded_digest
 from .layout import check_layout, element_cap
 from .units import COMPLETE_ATTR
@@ -190,7 +191,7 @@ def _verify_file(file: Path, verdict: Verdict) -> int:
     try:
         require_hdf5(file)
         with h5py.File(file, "r") as h5:
-            if "unit_step_id" in h5.attrs:  # a unit: a fragment of the archive, no root of its own
+            if UNIT_STEP_ID in h5.attrs:  # a unit: a fragment of the archive, no root of its own
                 if not h5.attrs.get(COMPLETE_ATTR, False):
                     raise InvalidInput(f"{file}: not a complete unit (resume redoes its step)")
             else:

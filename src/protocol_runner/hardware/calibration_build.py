@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from protocol_runner.errors import InvalidInput, UserError
+from protocol_runner.errors import InvalidInput, UserError, make_output_dir
 from protocol_runner.hardware.calibration import (
     FloatArray,
     build_table_from_observations,
@@ -67,10 +67,7 @@ def build_tables_from_file(observations: Path, out_dir: Path, prefix: str | None
             f"observations {observations}: needs columns {', '.join(ANGLE_COLUMNS)} (angle calibration) "
             f"or {', '.join(TORQUE_COLUMNS)} (torque calibration); found {', '.join(columns) or 'none'}"
         )
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InvalidInput(f"cannot create output directory {out_dir}: {exc}") from None
+    make_output_dir(out_dir, "output directory")
     src = str(observations)
     written: list[Path] = []
     if has_angle:

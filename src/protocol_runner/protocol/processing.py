@@ -1,8 +1,9 @@
-"""The protocol's `processing` section as the analysis's settings."""
+"""The protocol's `processing` and `fits` sections as the analysis's settings."""
 
 from __future__ import annotations
 
 from ..analysis.pipeline import ProcessingSettings
+from ..analysis.service import BoucWenSettings
 from .loaded import LoadedProtocol
 
 
@@ -18,3 +19,21 @@ def processing_settings(loaded: LoadedProtocol) -> ProcessingSettings:
         subtraction=proc.subtraction,
         centring="trial_mean" if proc.centre_for_fit else "none",
     )
+
+
+def bouc_wen_settings(loaded: LoadedProtocol) -> BoucWenSettings:
+    """The protocol's `fits.bouc_wen` as the analysis's settings (whether it runs is `.enabled` there)."""
+    spec = loaded.protocol.fits.bouc_wen
+    return BoucWenSettings(
+        starts=spec.starts,
+        cross_validate=spec.cross_validate,
+        backbone=spec.backbone,
+        backbone_degree=spec.backbone_degree,
+    )
+
+
+def element_fit_enabled(loaded: LoadedProtocol) -> bool:
+    """Whether the device's elastic elements are fitted (the protocol's element fit, `fits.spring`)."""
+    fits = loaded.protocol.fits
+    enabled = getattr(fits, "elements", getattr(fits, "spring", None))
+    return bool(enabled and enabled.enabled)

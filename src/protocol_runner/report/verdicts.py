@@ -16,7 +16,7 @@ from pathlib import Path
 
 import h5py
 
-from protocol_runner.archive.h5util import put_text, set_attrs
+from protocol_runner.archive.h5util import put_attrs, put_text
 
 
 def _finite(value: float) -> float | None:
@@ -33,11 +33,12 @@ def record_verdicts(archive: Path) -> int:
         if "expectations" in h5:
             del h5["expectations"]
         root = h5.create_group("expectations")
-        root.attrs["problems"] = json.dumps(list(result.problems))
+        put_attrs(root, "expectations", {"problems": json.dumps(list(result.problems))})
         for v in result.verdicts:
             grp = root.create_group(v.spec.id)
-            set_attrs(
+            put_attrs(
                 grp,
+                "expectation",
                 {
                     "text": v.spec.text,
                     "section": v.spec.section,

@@ -45,18 +45,21 @@ def consolidate_session(
     """The session's finished (and failed-but-kept) units, checked, into `archive.h5` with the session's metadata."""
     records = list(journal.units.values()) + list(journal.failed.values())
     files = checked_unit_files(session_dir / "units", records)
+    root = {
+        "protocol_name": info.protocol_name,
+        "protocol_sha256": loaded.sha256,
+        "mode": info.mode,
+        "seed": int(info.seed),
+        "created_utc": info.created_utc,
+        "finished_utc": utc_now(),
+        "status": status,
+        "joint": ",".join(loaded.protocol.driven_joints),
+    }
     meta = ArchiveMeta(
-        protocol_name=info.protocol_name,
-        protocol_sha256=loaded.sha256,
+        root=root,
         protocol_text=loaded.text,
         protocol_filename=loaded.path.name,
         plan_json=json.dumps(plan.to_json()),
-        mode=info.mode,
-        seed=info.seed,
-        created_utc=info.created_utc,
-        finished_utc=utc_now(),
-        status=status,
-        joint=",".join(loaded.protocol.driven_joints),
         only=info.only,
         events=tuple(json.dumps(e.to_json()) for e in journal.events),
         configuration_attrs=configuration_attrs(plan, journal.units),

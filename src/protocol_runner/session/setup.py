@@ -23,7 +23,7 @@ from pathlib import Path
 
 from .. import __version__
 from ..archive.diskfull import creates_session_directory
-from ..archive.units import _fsync_dir, _fsync_file, sha256_of
+from ..archive.units import fsync_path, sha256_of
 from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, load_protocol
 from ..protocol.paths import is_stored_with_session
@@ -131,9 +131,9 @@ def create_session(
 def write_session_info(directory: Path, info: SessionInfo) -> None:
     tmp = directory / (SESSION_FILE + ".partial")
     tmp.write_text(info.to_json(), encoding="utf-8")
-    _fsync_file(tmp)
+    fsync_path(tmp)
     os.replace(tmp, directory / SESSION_FILE)
-    _fsync_dir(directory)
+    fsync_path(directory)
 
 
 def read_session_info(directory: Path) -> SessionInfo:

@@ -20,12 +20,15 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
 from ..analysis.transition import command_on_input_base
-from ..archive.h5util import set_attrs
+from ..archive.attrs import STEP_ID, STEP_RESPONSE
+from ..archive.h5util import put_attrs
+from ..archive.paths import calibration_path
 from ..errors import StoppedByCheck
 from ..hardware.motion import run_motion
 from ..hardware.rig import TrialRecording
 from ..protocol.plan import CalibrationCheckStep, calibration_id
 from ..protocol.sampling import sample_trajectory
+from ..protocol.schema import CalibrationCheckSpec
 from .context import Fill, StepContext, StepOutcome
 from .recording import put_commands, put_scan
 
@@ -37,6 +40,56 @@ class StepResponse:
     settled_deg: float
     settle_error_deg: float
     time_constant_s: float
+
+    @classmethod
+    def read(cls, g: h5py.Group) -> StepResponse:
+        """The response a calibration group (or one joint's group in it) recorded."""
+        return cls(*(float(g.attrs[name]) for name in STEP_RESPONSE))
+
+    def attrs(self) -> dict[str, float]:
+        return dict(
+            zip(STEP_RESPONSE, (self.settled_deg, self.settle_error_deg, self.time_constant_s), strict=True)
+        )
+
+
+def check_verdict(
+    ctx: StepContext, record_as: str, message: str, what: str
+) -> tuple[str, StoppedByCheck | None]:
+    """ "pass" without a problem (`message` empty); else the operator accepts the failed check ("accepted")
+    or the session stops ("fail", with the error naming `what` to check before --resume)."""
+    if not message:
+        return "pass", None
+    text = f"calibration check {record_as} failed: {message}"
+    if ctx.operator.accept_failed_check(text):
+        return "accepted", None
+    return "fail", StoppedByCheck(
+        f"{text}. The session stopped before the set's trials went on (exit 4). Check the robot's "
+        f"{what}, then continue with --resume (this check is redone first)."
+    )
+
+
+def response_problems(
+    resp: StepResponse, limits: CalibrationCheckSpec, first: StepResponse | None
+) -> list[str]:
+    """What is wrong with a step response against the tolerances, and against the set's first check."""
+    problems: list[str] = []
+    if resp.settle_error_deg > limits.max_settle_error_deg:
+        problems.append(f"settle error {resp.settle_error_deg:.2f} deg > {limits.max_settle_error_deg:g} deg")
+    lo, hi = limits.time_constant_s
+    if not lo <= resp.time_constant_s <= hi:
+        problems.append(f"time constant {resp.time_constant_s:.3f} s outside [{lo:g}, {hi:g}] s")
+    if first is not None:
+        drift = abs(resp.settled_deg - first.settled_deg)
+        dtau = abs(resp.time_constant_s - first.time_constant_s)
+        if drift > limits.max_drift_deg:
+            problems.append(
+                f"settled angle drifted {drift:.2f} deg since the set's first check (> {limits.max_drift_deg:g})"
+            )
+        if dtau > limits.max_time_constant_change_s:
+            problems.append(
+                f"time constant changed {dtau:.3f} s since the set's first check (> {limits.max_time_constant_change_s:g})"
+            )
+    return problems
 
 
 def first_order_response(command_deg: FloatArray, dt_s: float, tau_s: float, y0_deg: float) -> FloatArray:
@@ -88,37 +141,9 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
     )
     cmd_in = command_on_input_base(rec.command_time_s, rec.command_deg, rec.input_time_s)
     resp = analyse_step(rec.input_time_s, cmd_in, rec.angle_deg, target, settle_window)
-    problems: list[str] = []
-    if resp.settle_error_deg > limits.max_settle_error_deg:
-        problems.append(f"settle error {resp.settle_error_deg:.2f} deg > {limits.max_settle_error_deg:g} deg")
-    lo, hi = limits.time_constant_s
-    if not lo <= resp.time_constant_s <= hi:
-        problems.append(f"time constant {resp.time_constant_s:.3f} s outside [{lo:g}, {hi:g}] s")
-    before = _before_response(ctx, step) if when != "before" else None
-    if before is not None:
-        drift = abs(resp.settled_deg - before.settled_deg)
-        dtau = abs(resp.time_constant_s - before.time_constant_s)
-        if drift > limits.max_drift_deg:
-            problems.append(
-                f"settled angle drifted {drift:.2f} deg since the set's first check (> {limits.max_drift_deg:g})"
-            )
-        if dtau > limits.max_time_constant_change_s:
-            problems.append(
-                f"time constant changed {dtau:.3f} s since the set's first check (> {limits.max_time_constant_change_s:g})"
-            )
-    verdict = "pass"
-    stop = None
+    problems = response_problems(resp, limits, _before_response(ctx, step) if when != "before" else None)
     message = "; ".join(problems)
-    if problems:
-        text = f"calibration check {record_as} failed: {message}"
-        if ctx.operator.accept_failed_check(text):
-            verdict = "accepted"
-        else:
-            verdict = "fail"
-            stop = StoppedByCheck(
-                f"{text}. The session stopped before the set's trials went on (exit 4). Check the robot's "
-                f"calibration, then continue with --resume (this check is redone first)."
-            )
+    verdict, stop = check_verdict(ctx, record_as, message, "calibration")
     ctx.monitor.verdict(
         record_as,
         verdict,
@@ -154,12 +179,7 @@ def _before_response(ctx: StepContext, step: CalibrationCheckStep) -> StepRespon
     if before_id not in ctx.journal.units:
         return None
     with ctx.unit(before_id) as f:
-        g = f[f"calibration/{step.set}/before"]
-        return StepResponse(
-            settled_deg=float(g.attrs["settled_deg"]),
-            settle_error_deg=float(g.attrs["settle_error_deg"]),
-            time_constant_s=float(g.attrs["time_constant_s"]),
-        )
+        return StepResponse.read(f[calibration_path(step.set, "before")])
 
 
 def _fill(
@@ -174,18 +194,17 @@ def _fill(
     step_deg: float,
 ) -> Fill:
     def fill(f: h5py.File) -> None:
-        g = f.require_group(f"calibration/{set_name}").create_group(when)
+        g = f.create_group(calibration_path(set_name, when))
         put_scan(g, rec)
         put_commands(g, rec, full=False)
-        set_attrs(
+        put_attrs(
             g,
+            "calibration",
             {
-                "step_id": step_id,
+                STEP_ID: step_id,
                 "verdict": verdict,
                 "step_deg": step_deg,
-                "settled_deg": resp.settled_deg,
-                "settle_error_deg": resp.settle_error_deg,
-                "time_constant_s": resp.time_constant_s,
+                **resp.attrs(),
                 "limits": json.dumps(limits),
                 "message": message,
             },

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import h5py
 
-from ..archive.h5util import group_name, set_attrs
+from ..archive.h5util import group_name, put_attrs
 from ..protocol.plan import ChecklistStep
 from .context import StepContext, StepOutcome
 
@@ -17,8 +17,9 @@ def run(step: ChecklistStep, ctx: StepContext) -> StepOutcome:
 
     def fill(f: h5py.File) -> None:
         g = f.require_group("session/checklists").create_group(group_name(step.id))
-        set_attrs(
+        put_attrs(
             g,
+            "checklist",
             {
                 "step_id": step.id,
                 "title": step.title,

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import h5py
 
-from ..archive.h5util import set_attrs
+from ..archive.h5util import put_attrs
 from ..archive.paths import comparison_path, configuration_path
 from ..archive.results import comparison_values
 from ..protocol.plan import CompareStep
@@ -24,8 +24,9 @@ def run(step: CompareStep, ctx: StepContext) -> StepOutcome:
 
     def fill(f: h5py.File) -> None:
         g = f.create_group(comparison_path(step.name))
-        set_attrs(
+        put_attrs(
             g,
+            "comparison",
             {
                 "parameter": step.parameter,
                 "section": step.section,

@@ -19,7 +19,7 @@ from ..errors import UserError
 from ..events import NULL_PUBLISHER, Publisher
 from ..hardware.rig import Rig
 from ..protocol.loader import LoadedProtocol
-from ..protocol.plan import Plan
+from ..protocol.plan import Plan, TrialStep
 from ..protocol.processing import processing_settings as processing_settings
 from ..protocol.settings import Settings
 from .operator import Operator
@@ -60,6 +60,12 @@ class StepContext:
     def unit(self, step_id: str) -> h5py.File:
         """Open the completed unit of an earlier step (read-only)."""
         return open_unit(self.units_dir, step_id)
+
+    def trial_step(self, configuration: int) -> TrialStep:
+        """The first trial step of a configuration: its settings (device, factors) and joints."""
+        return next(
+            s for s in self.plan.steps if isinstance(s, TrialStep) and s.configuration == configuration
+        )
 
 
 @dataclass(frozen=True)

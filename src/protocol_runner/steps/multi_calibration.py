@@ -16,15 +16,17 @@ import h5py
 import numpy as np
 
 from ..analysis.transition import command_on_input_base
-from ..archive.h5util import set_attrs
-from ..errors import StoppedByCheck
+from ..archive.attrs import JOINT, STEP_ID
+from ..archive.attrs import JOINTS as JOINTS_ATTR
+from ..archive.h5util import put_attrs
+from ..archive.paths import calibration_path, joint_path
 from ..hardware.motion import run_motion
 from ..hardware.rig import TrialRecording
 from ..protocol.plan import CalibrationCheckStep, calibration_id
 from ..protocol.sampling import sample_trajectory
-from .calibration_check import StepResponse, analyse_step
+from .calibration_check import StepResponse, analyse_step, check_verdict, response_problems
 from .context import Fill, StepContext, StepOutcome
-from .multi_trial import JOINTS, multi_rig
+from .multi_trial import multi_rig
 from .recording import put_commands, put_scan
 
 
@@ -48,39 +50,10 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
         window = min(1.0, float(p.calibration_step_of(joint).hold_s) / 2)
         cmd_in = command_on_input_base(rec.command_time_s, rec.command_deg, rec.input_time_s)
         resp = analyse_step(rec.input_time_s, cmd_in, rec.angle_deg, target, window)
-        problems: list[str] = []
-        if resp.settle_error_deg > limits.max_settle_error_deg:
-            problems.append(
-                f"settle error {resp.settle_error_deg:.2f} deg > {limits.max_settle_error_deg:g} deg"
-            )
-        lo, hi = limits.time_constant_s
-        if not lo <= resp.time_constant_s <= hi:
-            problems.append(f"time constant {resp.time_constant_s:.3f} s outside [{lo:g}, {hi:g}] s")
-        first = before.get(joint)
-        if first is not None:
-            drift = abs(resp.settled_deg - first.settled_deg)
-            dtau = abs(resp.time_constant_s - first.time_constant_s)
-            if drift > limits.max_drift_deg:
-                problems.append(
-                    f"settled angle drifted {drift:.2f} deg since the set's first check (> {limits.max_drift_deg:g})"
-                )
-            if dtau > limits.max_time_constant_change_s:
-                problems.append(
-                    f"time constant changed {dtau:.3f} s since the set's first check (> {limits.max_time_constant_change_s:g})"
-                )
+        problems = response_problems(resp, limits, before.get(joint))
         results.append((joint, rec, resp, problems, traj.number("step_deg")))
     message = "; ".join(f"joint {j}: {', '.join(pr)}" for j, _, _, pr, _ in results if pr)
-    verdict, stop = "pass", None
-    if message:
-        text = f"calibration check {record_as} failed: {message}"
-        if ctx.operator.accept_failed_check(text):
-            verdict = "accepted"
-        else:
-            verdict = "fail"
-            stop = StoppedByCheck(
-                f"{text}. The session stopped before the set's trials went on (exit 4). Check the robot's "
-                "calibration of the joint(s) named, then continue with --resume (this check is redone first)."
-            )
+    verdict, stop = check_verdict(ctx, record_as, message, "calibration of the joint(s) named")
     ctx.monitor.verdict(record_as, verdict, {"set": step.set, "when": when, "message": message})
     summary = f"{verdict}: " + ", ".join(
         f"{j} error {r.settle_error_deg:.2f} deg tau {r.time_constant_s:.3f} s" for j, _, r, _, _ in results
@@ -97,12 +70,7 @@ def _before_responses(ctx: StepContext, step: CalibrationCheckStep) -> dict[str,
     out = {}
     with ctx.unit(before_id) as f:
         for joint in step.joints_names():
-            g = f[f"calibration/{step.set}/before/{JOINTS}/{joint}"]
-            out[joint] = StepResponse(
-                settled_deg=float(g.attrs["settled_deg"]),
-                settle_error_deg=float(g.attrs["settle_error_deg"]),
-                time_constant_s=float(g.attrs["time_constant_s"]),
-            )
+            out[joint] = StepResponse.read(f[joint_path(calibration_path(step.set, "before"), joint)])
     return out
 
 
@@ -116,24 +84,25 @@ def _fill(
     limits: dict[str, object],
 ) -> Fill:
     def fill(f: h5py.File) -> None:
-        g = f.require_group(f"calibration/{set_name}").create_group(when)
-        set_attrs(
-            g, {"step_id": step_id, "verdict": verdict, "message": message, "limits": json.dumps(limits)}
+        g = f.create_group(calibration_path(set_name, when))
+        put_attrs(
+            g,
+            "calibration",
+            {STEP_ID: step_id, "verdict": verdict, "message": message, "limits": json.dumps(limits)},
         )
-        g.attrs[JOINTS] = np.array([r[0] for r in results], dtype=h5py.string_dtype())
+        g.attrs[JOINTS_ATTR] = np.array([r[0] for r in results], dtype=h5py.string_dtype())
         for joint, rec, resp, problems, step_deg in results:
-            jg = g.create_group(f"{JOINTS}/{joint}")
+            jg = f.create_group(joint_path(calibration_path(set_name, when), joint))
             put_scan(jg, rec)
             put_commands(jg, rec, full=False)
-            set_attrs(
+            put_attrs(
                 jg,
+                "calibration_joint",
                 {
-                    "joint": joint,
+                    JOINT: joint,
                     "verdict": "fail" if problems else "pass",
                     "step_deg": step_deg,
-                    "settled_deg": resp.settled_deg,
-                    "settle_error_deg": resp.settle_error_deg,
-                    "time_constant_s": resp.time_constant_s,
+                    **resp.attrs(),
                     "message": "; ".join(problems),
                 },
             )

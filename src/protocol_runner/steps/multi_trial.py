@@ -13,7 +13,7 @@ Unit layout (docs/archive.md "Several joints"): `trials/<n>/brace_<b>` holds the
 recording (the datasets of a single-joint trial group, its `stream/`, on the same time base).
 
 Processing: each joint's pairs go through the single-joint pipeline (transition removal, filtering,
-equal-angle subtraction, cycles, energy per cycle: `analysis.pipeline.process_configuration`) with that
+equal-angle subtraction, cycles, energy per cycle: `analysis.service.analyse_joints`) with that
 joint's device, written under `configurations/<name>/joints/<joint>/`; the configuration's
 `total_energy_loss_j` is the sum over the joints of the energy of the k-th complete cycle of each trial
 (as many cycles as the joint with the fewest).
@@ -22,30 +22,38 @@ joint's device, written under `configurations/<name>/joints/<joint>/`; the confi
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 
 import h5py
 import numpy as np
 import numpy.typing as npt
 
-from ..analysis.joint_energy import total_energy_per_cycle
-from ..analysis.loops import centred_loop
-from ..analysis.pipeline import ConfigurationResult, Recording, TrialPair, process_configuration
-from ..archive.h5util import put, set_attrs
-from ..archive.paths import configuration_name, configuration_path, put_dataset, recording_path
-from ..archive.results import Fill, bouc_wen_fill, processed_fill
+from ..analysis.pipeline import TrialPair
+from ..analysis.service import analyse_joints, fit_stored_loops
+from ..archive.attrs import JOINT
+from ..archive.attrs import JOINTS as JOINTS_ATTR
+from ..archive.h5util import put, put_attrs
+from ..archive.paths import (
+    TRIALS,
+    configuration_name,
+    configuration_path,
+    joint_path,
+    put_dataset,
+    recording_path,
+)
+from ..archive.results import Fill, bouc_wen_fill, processed_fill, read_processed_loops, read_recording
 from ..errors import HardwareUnavailable
 from ..hardware.multi_rig import MultiRig, run_multi_motion
 from ..hardware.rig import TrialRecording
 from ..protocol.plan import FitStep, ProcessStep, TrialStep
+from ..protocol.processing import bouc_wen_settings, element_fit_enabled
 from ..protocol.sampling import sample_trajectory
 from ..protocol.step_ids import step_id
 from .context import StepContext, StepOutcome
-from .fit import fit_bouc_wen
 from .recording import put_commands, put_scan
-from .trial import configuration_group_attributes
+from .trial import configuration_group_attributes, put_configuration, recording_attrs
 
 FloatArray = npt.NDArray[np.float64]
-JOINTS = "joints"
 
 
 def multi_rig(ctx: StepContext) -> MultiRig:
@@ -53,11 +61,6 @@ def multi_rig(ctx: StepContext) -> MultiRig:
     if not isinstance(rig, MultiRig):
         raise HardwareUnavailable("this bench drives one joint; the protocol drives several (joints: ...)")
     return rig
-
-
-def joint_group_path(key: int, trial: int, brace: str, joint: str) -> str:
-    """The group of one joint's recording in a multi-joint trial."""
-    return f"{recording_path(key, trial, brace)}/{JOINTS}/{joint}"
 
 
 def run_trial(step: TrialStep, ctx: StepContext) -> StepOutcome:
@@ -88,7 +91,7 @@ def _brace_on_commands(step: TrialStep, ctx: StepContext) -> list[FloatArray]:
     assert step.twin is not None
     with ctx.unit(step.twin) as f:
         return [
-            f[joint_group_path(step.configuration, step.trial, "on", j)]["command_deg"][:]
+            f[joint_path(recording_path(step.configuration, step.trial, "on"), j)]["command_deg"][:]
             for j in step.joints
         ]
 
@@ -101,79 +104,50 @@ def _trial_fill(
     lateness = shared.tick_lateness_s
 
     def fill(f: h5py.File) -> None:
-        cfg = f.require_group(configuration_path(step.configuration))
-        set_attrs(cfg, {k: v for k, v in cfg_attrs.items() if k != "factors"})
-        cfg.attrs["factors"] = np.array(cfg_attrs["factors"], dtype=h5py.string_dtype())
-        cfg.attrs[JOINTS] = np.array(step.joints, dtype=h5py.string_dtype())
-        g = cfg.require_group(f"trials/{step.trial}").create_group(f"brace_{step.brace}")
+        cfg = put_configuration(f, step.configuration, cfg_attrs)
+        cfg.attrs[JOINTS_ATTR] = np.array(step.joints, dtype=h5py.string_dtype())
+        g = f.create_group(recording_path(step.configuration, step.trial, step.brace))
         put_dataset(g, "recording", "time_s", shared.input_time_s)
         put_dataset(g, "recording", "command_time_s", shared.command_time_s)
         put_dataset(g, "recording", "tick_lateness_s", lateness)
-        set_attrs(
-            g,
-            {
-                "step_id": step.id,
-                "brace": step.brace,
-                "status": status,
-                "trajectory": json.dumps({j: t.to_json() for j, t in step.joint_trajectories}),
-                "tick_lateness_p99_s": float(np.percentile(lateness, 99)) if lateness.size else 0.0,
-                "tick_lateness_max_s": float(np.max(lateness)) if lateness.size else 0.0,
-                "input_start_offset_s": float(shared.input_time_s[0]) if shared.input_time_s.size else 0.0,
-            },
-        )
-        g.attrs[JOINTS] = np.array(step.joints, dtype=h5py.string_dtype())
+        trajectory = json.dumps({j: t.to_json() for j, t in step.joint_trajectories})
+        put_attrs(g, "recording", recording_attrs(step, status, trajectory, lateness, shared.input_time_s))
+        g.attrs[JOINTS_ATTR] = np.array(step.joints, dtype=h5py.string_dtype())
         for (joint, traj), rec in zip(step.joint_trajectories, recs, strict=True):
-            jg = g.create_group(f"{JOINTS}/{joint}")
+            jg = f.create_group(joint_path(g.name, joint))
             put_scan(jg, rec)
             put_commands(jg, rec, full=True)
-            set_attrs(jg, {"joint": joint, "trajectory": json.dumps(traj.to_json())})
+            put_attrs(jg, "recording_joint", {JOINT: joint, "trajectory": json.dumps(traj.to_json())})
 
     return fill
 
 
-def _recording(g: h5py.Group) -> Recording:
-    return Recording(
-        time_s=g["time_s"][:],
-        angle_deg=g["angle_deg"][:],
-        torque_nm=g["torque_nm"][:],
-        command_deg=g["command_deg"][:],
-        command_time_s=g["command_time_s"][:],
-    )
-
-
 def run_process(step: ProcessStep, ctx: StepContext) -> StepOutcome:
-    p = ctx.loaded.protocol
+    """Each joint's trials through `analysis.service.analyse_joints` (with that joint's device), written
+    under `joints/<joint>/`, and the leg's total energy per cycle."""
     name = configuration_name(step.configuration)
-    cfg_step = next(
-        s for s in ctx.plan.steps if isinstance(s, TrialStep) and s.configuration == step.configuration
-    )
+    cfg_step = ctx.trial_step(step.configuration)
     joints = cfg_step.joints
-    fits = p.fits
-    enabled = getattr(fits, "elements", getattr(fits, "spring", None))
-    results: list[ConfigurationResult] = []
+    recordings = []
     for joint in joints:
         pairs = []
         for n, (on_id, off_id) in enumerate(step.trials, start=1):
             with ctx.unit(on_id) as f_on, ctx.unit(off_id) as f_off:
                 pairs.append(
                     TrialPair(
-                        _recording(f_on[joint_group_path(step.configuration, n, "on", joint)]),
-                        _recording(f_off[joint_group_path(step.configuration, n, "off", joint)]),
+                        read_recording(f_on[joint_path(recording_path(step.configuration, n, "on"), joint)]),
+                        read_recording(
+                            f_off[joint_path(recording_path(step.configuration, n, "off"), joint)]
+                        ),
                         trial=n,
                     )
                 )
-        device = cfg_step.settings.device_of(joint)
-        results.append(
-            process_configuration(
-                pairs, ctx.processing, device=device if device and enabled and enabled.enabled else None
-            )
-        )
-    total, which = total_energy_per_cycle(
-        [r.energy_loss_j for r in results], [r.energy_cycle_trial for r in results]
-    )
+        recordings.append((joint, pairs))
+    analysis = analyse_joints(recordings, ctx.processing, devices=_devices(ctx, cfg_step))
+    total = analysis.total_energy_loss_j
     fills = [
-        processed_fill(f"{name}/{JOINTS}/{joint}", r, ctx.processing)
-        for joint, r in zip(joints, results, strict=True)
+        processed_fill(joint_path(name, joint), one, ctx.processing)
+        for joint, one in zip(joints, analysis.analyses, strict=True)
     ]
 
     def fill(f: h5py.File) -> None:
@@ -181,43 +155,44 @@ def run_process(step: ProcessStep, ctx: StepContext) -> StepOutcome:
             one(f)
         cfg = f.require_group(configuration_path(step.configuration))
         put(cfg, "total_energy_loss_j", total, "J")
-        put(cfg, "total_energy_cycle_trial", which, "1")
-        cfg.attrs[JOINTS] = np.array(joints, dtype=h5py.string_dtype())
+        put(cfg, "total_energy_cycle_trial", analysis.total_energy_cycle_trial, "1")
+        cfg.attrs[JOINTS_ATTR] = np.array(joints, dtype=h5py.string_dtype())
 
-    parts = [f"{j} {r.energy.mean_j:.2f} J" for j, r in zip(joints, results, strict=True) if r.energy.n]
+    parts = [
+        f"{j} {a.processed.energy.mean_j:.2f} J"
+        for j, a in zip(joints, analysis.analyses, strict=True)
+        if a.processed.energy.n
+    ]
     summary = f"{total.size} leg cycles, total {float(np.mean(total)) if total.size else 0.0:.2f} J ({', '.join(parts)})"
     return StepOutcome(fill, summary)
 
 
+def _devices(ctx: StepContext, cfg_step: TrialStep) -> dict[str, Sequence[object] | None]:
+    """Each joint's elements for the element fit and the elements backbone (None when it carries none or
+    the element fit is off)."""
+    enabled = element_fit_enabled(ctx.loaded)
+    return {j: (cfg_step.settings.device_of(j) or None) if enabled else None for j in cfg_step.joints}
+
+
 def run_fit(step: FitStep, ctx: StepContext) -> StepOutcome:
-    """The Bouc-Wen fit per joint (`fit.fit_bouc_wen` on that joint's processed, centred loops) for every
-    driven joint that carries device elements; written under `joints/<joint>/fits/bouc_wen`."""
+    """The Bouc-Wen fit per joint (`analysis.service.fit_stored_loops` on that joint's stored processed
+    loops) for every driven joint that carries device elements; written under `joints/<joint>/fits/bouc_wen`."""
     if "bouc_wen" not in step.models:
         return StepOutcome(None, "no Bouc-Wen fit asked")
-    cfg_step = next(
-        s for s in ctx.plan.steps if isinstance(s, TrialStep) and s.configuration == step.configuration
-    )
+    cfg_step = ctx.trial_step(step.configuration)
     name = configuration_name(step.configuration)
+    fitted = [j for j in cfg_step.joints if cfg_step.settings.device_of(j)]  # elsewhere: the sensors' noise
+    with ctx.unit(step_id("process", key=step.configuration)) as f:
+        cfg = f[configuration_path(step.configuration)]
+        loops = {j: read_processed_loops(f[f"{joint_path(cfg.name, j)}/{TRIALS}"]) for j in fitted}
+    settings = bouc_wen_settings(ctx.loaded)
+    devices = _devices(ctx, cfg_step)
     fills: list[Fill] = []
     parts: list[str] = []
-    with ctx.unit(step_id("process", key=step.configuration)) as f:
-        loops = {}
-        for joint in cfg_step.joints:
-            if not cfg_step.settings.device_of(joint):
-                continue  # nothing on this joint: its brace torque is the sensors' noise
-            trials = f[f"{configuration_path(step.configuration)}/{JOINTS}/{joint}/trials"]
-            loops[joint] = [
-                (trials[n]["processed/angle_deg"][:], trials[n]["processed/brace_torque_nm"][:])
-                for n in sorted(trials, key=int)
-            ]
-    fits = ctx.loaded.protocol.fits
-    enabled = getattr(fits, "elements", getattr(fits, "spring", None))
     for joint, raw in loops.items():
-        segments = [centred_loop(a, t) for a, t in raw]
-        device = cfg_step.settings.device_of(joint) if enabled and enabled.enabled else None
-        result, cv = fit_bouc_wen(segments, fits.bouc_wen, (raw, device or None))
-        fills.append(bouc_wen_fill(f"{name}/{JOINTS}/{joint}", result, segments, cv))
-        parts.append(f"{joint} RMSE {result.rmse_nm:.2f} N*m, R2 {result.r2:.3f}")
+        bouc_wen = fit_stored_loops(raw, settings, devices[joint])
+        fills.append(bouc_wen_fill(joint_path(name, joint), bouc_wen))
+        parts.append(f"{joint} RMSE {bouc_wen.fit.rmse_nm:.2f} N*m, R2 {bouc_wen.fit.r2:.3f}")
 
     def fill(f: h5py.File) -> None:
         for one in fills:

@@ -1,16 +1,19 @@
 """Processing step: one configuration's archived trials -> the device's own torque, energy, element fit.
 
-Reads the trial units (never the rig), then `analysis.pipeline.process_configuration`: transition
-removal (§3.3.1), zero-phase filtering (§3.2), equal-angle subtraction of the brace-off torque (§3.3,
-§5.6), cycles and energy per cycle (Eq 10-12), and the fit of the device's elastic elements (§6.1).
+Reads the trial units (never the rig), then `analysis.service.analyse_configuration` (without the
+Bouc-Wen fit, which is the fit step's): transition removal (§3.3.1), zero-phase filtering (§3.2),
+equal-angle subtraction of the brace-off torque (§3.3, §5.6), cycles and energy per cycle (Eq 10-12), the
+fit of the device's elastic elements (§6.1), and the processed loops as stored.
 """
 
 from __future__ import annotations
 
-from ..analysis.pipeline import TrialPair, process_configuration
+from ..analysis.pipeline import TrialPair
+from ..analysis.service import analyse_configuration
 from ..archive.paths import configuration_name, recording_path
 from ..archive.results import processed_fill, read_recording
 from ..protocol.plan import ProcessStep
+from ..protocol.processing import element_fit_enabled
 from .context import StepContext, StepOutcome
 
 
@@ -26,21 +29,14 @@ def run(step: ProcessStep, ctx: StepContext) -> StepOutcome:
                     trial=n,
                 )
             )
-    cfg_step = next(
-        s
-        for s in ctx.plan.steps
-        if getattr(s, "configuration", None) == step.configuration and s.kind == "trial"
+    device = ctx.trial_step(step.configuration).settings.device
+    analysis = analyse_configuration(
+        pairs, ctx.processing, device=device if element_fit_enabled(ctx.loaded) else None
     )
-    settings = cfg_step.settings  # type: ignore[attr-defined]
-    fits = ctx.loaded.protocol.fits
-    enabled = getattr(fits, "elements", getattr(fits, "spring", None))
-    device = settings.device
-    result = process_configuration(
-        pairs, ctx.processing, device=device if enabled and enabled.enabled else None
-    )
+    energy = analysis.processed.energy
     summary = (
-        f"{result.energy.n} cycles, energy {result.energy.mean_j:.2f} +- {result.energy.std_j:.2f} J"
-        if result.energy.n
+        f"{energy.n} cycles, energy {energy.mean_j:.2f} +- {energy.std_j:.2f} J"
+        if energy.n
         else "no complete cycle"
     )
-    return StepOutcome(processed_fill(name, result, ctx.processing), summary)
+    return StepOutcome(processed_fill(name, analysis, ctx.processing), summary)

@@ -7,7 +7,7 @@ import json
 import h5py
 import numpy as np
 
-from ..archive.h5util import SIGNAL, put
+from ..archive.h5util import SIGNAL, put, put_attrs
 from ..archive.paths import put_dataset
 from ..hardware.rig import TrialRecording
 from ..hardware.stream import SEGMENT_NAMES
@@ -43,4 +43,4 @@ def put_stream(g: h5py.Group, rec: TrialRecording) -> None:
     put(g, "command_time_s", rec.stream_time_s, "s")
     put(g, "command_deg", rec.stream_deg, "deg")
     put(g, "segment", rec.stream_segment, "1", dtype=np.int8)
-    g.attrs["segments"] = json.dumps({str(k): v for k, v in SEGMENT_NAMES.items()})
+    put_attrs(g, "stream", {"segments": json.dumps({str(k): v for k, v in SEGMENT_NAMES.items()})})

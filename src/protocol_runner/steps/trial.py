@@ -19,7 +19,8 @@ import numpy.typing as npt
 from ..analysis.filters import lowpass
 from ..analysis.scaling import ScalingResult, scale_brace_off_input
 from ..analysis.transition import command_on_input_base, transition_index
-from ..archive.h5util import put, set_attrs
+from ..archive.attrs import ATTRIBUTES, FACTORS, STATUS, STEP_ID
+from ..archive.h5util import put, put_attrs
 from ..archive.paths import configuration_path, recording_path
 from ..errors import HardwareUnavailable
 from ..hardware.motion import run_motion
@@ -144,6 +145,33 @@ def configuration_group_attributes(step: TrialStep, ctx: StepContext) -> dict[st
     }
 
 
+def put_configuration(f: h5py.File, key: int, attrs: dict[str, Any]) -> h5py.Group:
+    """The `/configurations/<name>` group with its attributes (`configuration_group_attributes`): the
+    layout's own names, and per factor its level and quantities."""
+    cfg = f.require_group(configuration_path(key))
+    own = ATTRIBUTES["configuration"]
+    fixed = {k: v for k, v in attrs.items() if k in own and k != FACTORS}
+    put_attrs(cfg, "configuration", fixed, dynamic={k: v for k, v in attrs.items() if k not in own})
+    cfg.attrs[FACTORS] = np.array(attrs[FACTORS], dtype=h5py.string_dtype())
+    return cfg
+
+
+def recording_attrs(
+    step: TrialStep, status: str, trajectory_json: str, lateness_s: FloatArray, input_time_s: FloatArray
+) -> dict[str, Any]:
+    """The attributes of a `trials/<n>/brace_<b>` group (docs/archive.md)."""
+    return {
+        STEP_ID: step.id,
+        "brace": step.brace,
+        STATUS: status,
+        "trajectory": trajectory_json,
+        "tick_lateness_p99_s": float(np.percentile(lateness_s, 99)) if lateness_s.size else 0.0,
+        "tick_lateness_max_s": float(np.max(lateness_s)) if lateness_s.size else 0.0,
+        # output-to-input alignment: when the first input row was taken, relative to the first tick
+        "input_start_offset_s": float(input_time_s[0]) if input_time_s.size else 0.0,
+    }
+
+
 def _fill(
     step: TrialStep,
     ctx: StepContext,
@@ -156,25 +184,12 @@ def _fill(
     lateness = rec.tick_lateness_s
 
     def fill(f: h5py.File) -> None:
-        cfg = f.require_group(configuration_path(step.configuration))
-        set_attrs(cfg, {k: v for k, v in cfg_attrs.items() if k != "factors"})
-        cfg.attrs["factors"] = np.array(cfg_attrs["factors"], dtype=h5py.string_dtype())
-        g = cfg.require_group(f"trials/{step.trial}").create_group(f"brace_{step.brace}")
+        put_configuration(f, step.configuration, cfg_attrs)
+        g = f.create_group(recording_path(step.configuration, step.trial, step.brace))
         put_scan(g, rec)
         put_commands(g, rec, full=True)
-        set_attrs(
-            g,
-            {
-                "step_id": step.id,
-                "brace": step.brace,
-                "status": status,
-                "trajectory": json.dumps(step.trajectory.to_json()),
-                "tick_lateness_p99_s": float(np.percentile(lateness, 99)) if lateness.size else 0.0,
-                "tick_lateness_max_s": float(np.max(lateness)) if lateness.size else 0.0,
-                # output-to-input alignment: when the first input row was taken, relative to the first tick
-                "input_start_offset_s": float(rec.input_time_s[0]) if rec.input_time_s.size else 0.0,
-            },
-        )
+        trajectory = json.dumps(step.trajectory.to_json())
+        put_attrs(g, "recording", recording_attrs(step, status, trajectory, lateness, rec.input_time_s))
         if scaling is not None:
             s = g.create_group("scaling")
             h = scaling.history
@@ -183,8 +198,9 @@ def _fill(
             put(s, "input_range_deg", [list(it.input_range_deg) for it in h], "deg")
             put(s, "output_range_deg", [list(it.output_range_deg) for it in h], "deg")
             put(s, "range_error_deg", [it.range_error_deg for it in h], "deg")
-            set_attrs(
+            put_attrs(
                 s,
+                "scaling",
                 {
                     "converged": bool(scaling.converged),
                     "target_range_deg": list(scaling.target_range_deg),
