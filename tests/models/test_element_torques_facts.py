@@ -6,8 +6,12 @@ import numpy as np
 import pytest
 
 from protocol_runner.models.element_torques import (
+    cuff_shift_height_nm,
+    cuff_shift_torque_nm,
     dahl_update,
     has_static_torque,
+    lever_spring_force_n,
+    mass_inertia_kg_m2,
     rom_stops_torque_nm,
     static_torque_nm,
     stribeck_level_nm,
@@ -26,6 +30,13 @@ OMEGA = 2.0 * np.pi / PERIOD_S
 ANGLE = 50.0 + AMPLITUDE_DEG * np.sin(OMEGA * T)
 SPEED = AMPLITUDE_DEG * OMEGA * np.cos(OMEGA * T)
 A_RAD = np.radians(AMPLITUDE_DEG)
+CUFF_SHIFT_PARAMS = {
+    "angle_deg": 35.0,
+    "width_deg": 5.0,
+    "torque_nm": 4.0,
+    "reference_speed_deg_s": 50.0,
+    "reference_force_n": 200.0,
+}
 
 
 def loop_energy_j(angle_deg: np.ndarray, torque_nm: np.ndarray) -> float:
@@ -109,3 +120,117 @@ def test_stops_push_back_towards_their_range_softly_then_stiffly() -> None:
     assert rom_stops_torque_nm(95.0, 40.0, 90.0, 13.0, 0.05, 40.0) == pytest.approx(0.25)
     assert rom_stops_torque_nm(105.0, 40.0, 90.0, 13.0, 0.05, 40.0) == pytest.approx(0.65 + 80.0)
     assert rom_stops_torque_nm(25.0, 40.0, 90.0, 13.0, 0.05, 40.0) == pytest.approx(-(0.65 + 80.0))
+
+
+def test_the_lever_springs_tension_is_the_screw_preload_alone_at_its_zero_torque_angle() -> None:
+    """Eq 14 and 17: at alpha + zero offset the spring has its undeflected length b, so its tension is
+    K * Initial_Load = K * (Max_Preload - c * step * pi/180 * n) (knee: 13 N/mm, 32 mm, 55 mm, 2.73 deg,
+    n = 3); on either side of that angle it stretches and pulls harder."""
+    spring = build_element(*lever_spring(13.0, 3, zero_offset_deg=6.0))
+    zero_deg = spring.number("alpha_deg") + 6.0
+    initial_load_mm = 32.0 - 55.0 * np.radians(2.73) * 3
+    assert lever_spring_force_n(zero_deg, spring) == pytest.approx(13.0 * initial_load_mm, rel=1e-12)
+    assert lever_spring_force_n(zero_deg - 10.0, spring) > 13.0 * initial_load_mm
+    assert lever_spring_force_n(zero_deg + 10.0, spring) > 13.0 * initial_load_mm
+
+
+def test_the_lever_springs_torque_is_the_tension_times_its_lever_arm() -> None:
+    """Eq 13 in the reconstructed geometry: T = n_springs * F * a * r * sin(theta - alpha) / L, with F the
+    tension of one spring (Eq 14), r = a + b and L the spring's length at the brace angle theta."""
+    offset = -3.0
+    spring = build_element(*lever_spring(13.0, 2, zero_offset_deg=offset))
+    a, b, alpha = spring.number("a_m"), spring.number("b_m"), np.radians(spring.number("alpha_deg"))
+    r = a + b
+    for angle in (-10.0, 5.0, 60.0, 110.0):
+        theta = np.radians(angle - offset)
+        length = np.sqrt(r * r + a * a - 2.0 * a * r * np.cos(theta - alpha))
+        force = lever_spring_force_n(angle, spring)
+        expected = spring.number("count") * force * a * r * np.sin(theta - alpha) / length
+        assert static_torque_nm(spring, np.array([angle]))[0] == pytest.approx(expected, rel=1e-9)
+
+
+def test_a_torsion_spring_is_linear_about_its_neutral_angle() -> None:
+    spring = build_element("t", "torsion_spring", {"stiffness_nm_per_deg": 0.4, "neutral_deg": 35.0})
+    np.testing.assert_allclose(static_torque_nm(spring, np.array([35.0, 45.0, 25.0])), [0.0, 4.0, -4.0])
+
+
+def test_a_point_mass_has_the_inertia_m_l_squared() -> None:
+    assert mass_inertia_kg_m2(3.0, 0.2) == pytest.approx(0.12, rel=1e-12)
+    assert mass_inertia_kg_m2(2.0, 0.5) == pytest.approx(0.5, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "element",
+    [
+        ("brake", "coulomb_brake", {"torque_nm": 2.0}),
+        ("damper", "viscous_damper", {"damping_nm_s_per_deg": 0.1}),
+        ("stops", "rom_stops", {"range_deg": [0, 90], "stop_stiffness_nm_per_deg": 5.0}),
+        ("cuff", "cuff_shift", CUFF_SHIFT_PARAMS),
+    ],
+    ids=lambda e: e[1],
+)
+def test_elements_whose_torque_needs_more_than_the_angle_have_no_static_torque(element: tuple) -> None:
+    built = build_element(*element)
+    assert not has_static_torque(built)
+    with pytest.raises(ValueError, match=f"element '{element[0]}' \\({element[1]}\\) has no angle-only"):
+        static_torque_nm(built, np.array([10.0]))
+
+
+def test_a_brake_without_friction_holds_no_torque() -> None:
+    assert dahl_update(1.5, 0.0, 2.0, 1.0) == 0.0
+    assert dahl_update(-1.5, 0.0, -2.0, 1.0) == 0.0
+
+
+def test_the_dahl_state_relaxes_exponentially_with_travel_and_holds_at_standstill() -> None:
+    """dz/dx = (target - z) / transition: from z = 0, one transition of travel reaches level (1 - 1/e); the
+    update is exact, so two half steps give the same state as one step; at standstill z is kept; moving
+    the other way the target is -level."""
+    level, transition = 3.0, 2.0
+    assert dahl_update(0.0, level, transition, transition) == pytest.approx(level * (1.0 - np.exp(-1.0)))
+    half = dahl_update(dahl_update(0.5, level, 0.7, transition), level, 0.7, transition)
+    assert half == pytest.approx(dahl_update(0.5, level, 1.4, transition), rel=1e-12)
+    assert dahl_update(1.2, level, 0.0, transition) == 1.2
+    assert dahl_update(0.0, level, -transition, transition) == pytest.approx(-level * (1.0 - np.exp(-1.0)))
+    assert dahl_update(level, level, -1e6, transition) == pytest.approx(-level)
+
+
+def test_the_stribeck_excess_falls_to_one_over_e_at_the_stribeck_speed_either_way() -> None:
+    for speed in (20.0, -20.0):
+        assert stribeck_level_nm(2.0, speed, 0.3, 20.0) == pytest.approx(2.0 * (1.0 + 0.3 / np.e))
+
+
+def test_a_stop_is_continuous_where_its_slack_ends() -> None:
+    """At exactly the slack's end both pieces give slack_k * slack; on the low side the push is upward."""
+    assert rom_stops_torque_nm(90.0, 40.0, 90.0, 13.0, 0.05, 40.0) == 0.0
+    assert rom_stops_torque_nm(40.0, 40.0, 90.0, 13.0, 0.05, 40.0) == 0.0
+    assert rom_stops_torque_nm(103.0, 40.0, 90.0, 13.0, 0.05, 40.0) == pytest.approx(0.65)
+    assert rom_stops_torque_nm(103.0 + 1e-9, 40.0, 90.0, 13.0, 0.05, 40.0) == pytest.approx(0.65)
+    assert rom_stops_torque_nm(35.0, 40.0, 90.0, 13.0, 0.05, 40.0) == pytest.approx(-0.25)
+
+
+def test_the_cuff_shift_is_a_gaussian_bump_growing_with_speed_up_to_three_times() -> None:
+    """height * min(|v| / v_ref, 3) * exp(-((angle - centre) / width)^2), the same sign on both branches."""
+    bump = (35.0, 5.0, 4.0, 50.0)  # centre, width, height, reference speed
+    assert cuff_shift_torque_nm(35.0, 50.0, *bump) == pytest.approx(4.0)
+    assert cuff_shift_torque_nm(35.0, -50.0, *bump) == pytest.approx(4.0)
+    assert cuff_shift_torque_nm(40.0, 25.0, *bump) == pytest.approx(2.0 / np.e)
+    assert cuff_shift_torque_nm(30.0, -25.0, *bump) == pytest.approx(2.0 / np.e)
+    assert cuff_shift_torque_nm(35.0, 1000.0, *bump) == pytest.approx(12.0)
+    assert cuff_shift_torque_nm(35.0, 0.0, *bump) == 0.0
+    assert cuff_shift_torque_nm(35.0 + 5.0 * 3.0, 50.0, *bump) == pytest.approx(4.0 * np.exp(-9.0))
+    assert cuff_shift_torque_nm(35.0 + 5.0 * 10.0, 50.0, *bump) == pytest.approx(0.0, abs=1e-40)
+
+
+def test_a_spring_force_equal_to_the_reference_force_halves_the_cuff_shift() -> None:
+    """height = torque * F_ref / (F_ref + the lever springs' force at the bump's angle); no springs: the
+    full torque; a reference force of 0: no bump at all."""
+    spring = build_element(*lever_spring(13.0, 3))
+    force = lever_spring_force_n(CUFF_SHIFT_PARAMS["angle_deg"], spring)
+    cuff = build_element("cuff", "cuff_shift", {**CUFF_SHIFT_PARAMS, "reference_force_n": force})
+    assert cuff_shift_height_nm(cuff, [spring]) == pytest.approx(2.0, rel=1e-12)
+    assert cuff_shift_height_nm(cuff, [spring, spring]) == pytest.approx(4.0 / 3.0, rel=1e-12)
+    assert cuff_shift_height_nm(cuff, []) == pytest.approx(4.0, rel=1e-12)
+    slack = build_element(*lever_spring(0.0, 3))
+    assert cuff_shift_height_nm(cuff, [slack]) == pytest.approx(4.0, rel=1e-12)
+    off = build_element("cuff", "cuff_shift", {**CUFF_SHIFT_PARAMS, "reference_force_n": 0.0})
+    assert cuff_shift_height_nm(off, [spring]) == 0.0
