@@ -216,6 +216,8 @@ def test_the_cuff_shift_is_a_gaussian_bump_growing_with_speed_up_to_three_times(
     assert cuff_shift_torque_nm(40.0, 25.0, *bump) == pytest.approx(2.0 / np.e)
     assert cuff_shift_torque_nm(30.0, -25.0, *bump) == pytest.approx(2.0 / np.e)
     assert cuff_shift_torque_nm(35.0, 1000.0, *bump) == pytest.approx(12.0)
+    assert cuff_shift_torque_nm(37.5, 50.0, *bump) == pytest.approx(4.0 * np.exp(-0.25))
+    assert cuff_shift_torque_nm(31.0, 50.0, *bump) == pytest.approx(4.0 * np.exp(-0.64))
     assert cuff_shift_torque_nm(35.0, 0.0, *bump) == 0.0
     assert cuff_shift_torque_nm(35.0 + 5.0 * 3.0, 50.0, *bump) == pytest.approx(4.0 * np.exp(-9.0))
     assert cuff_shift_torque_nm(35.0 + 5.0 * 10.0, 50.0, *bump) == pytest.approx(0.0, abs=1e-40)
