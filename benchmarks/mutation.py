@@ -6,7 +6,7 @@ module-level constants (the Eq 24/25 matrices), which a trampoline-based tool (m
 
 What it does:
 
-1. Copies ``src/``, ``tests/``, ``protocols/``, ``reports/`` and ``pyproject.toml`` of the working tree into a scratch directory (one
+1. Copies ``src/``, ``tests/``, ``protocols/``, ``reports/``, ``docs/`` and ``pyproject.toml`` of the working tree into a scratch directory (one
    copy per job): the mutants are written to the copy, never to the checkout.
 2. For each module it lists cosmic-ray's mutants, drops those that are not plausible bugs (see
    ``_not_plausible``), draws a seeded sample of at most ``--sample`` of them (the same sample on every
@@ -145,7 +145,7 @@ def _is_equivalent(equivalent: set[tuple[str, str, str]], line: str, mutated: st
 def _copy_tree(dest: Path) -> None:
     dest.mkdir(parents=True)
     ignore = shutil.ignore_patterns("__pycache__", "*.pyc", ".hypothesis")
-    for name in ("src", "tests", "protocols", "reports"):  # report tests read protocols and templates
+    for name in ("src", "tests", "protocols", "reports", "docs"):  # tests read protocols, templates, docs
         shutil.copytree(ROOT / name, dest / name, ignore=ignore)
     shutil.copy2(ROOT / "pyproject.toml", dest / "pyproject.toml")
 
