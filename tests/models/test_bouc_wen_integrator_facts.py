@@ -220,3 +220,30 @@ def test_a_longer_substep_is_a_coarser_integration() -> None:
     err_default = np.max(np.abs(simulate(x, LINEAR, 0.5) - exact))
     err_coarse = np.max(np.abs(simulate(x, LINEAR, 0.5, max_step_deg=0.3) - exact))
     assert 5.0 < err_coarse / err_default < 12.0
+
+
+def test_a_scheme_name_read_at_run_time_selects_its_scheme() -> None:
+    """A name built at run time (as one read from a protocol file is: a new string object, not the
+    module's constant) selects the same scheme as the constant, for the torque and the sensitivities."""
+    x = np.array([-4.0, 6.0, 1.0])
+    seg = np.array([0, x.size], dtype=np.int64)
+    beta = np.array(BETA)
+    for name in (EQ23, REFINED):
+        read = "".join(list(name))
+        assert read == name and read is not name
+        z_const, z_read = np.empty_like(x), np.empty_like(x)
+        run_scheme(name, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, z_const)
+        run_scheme(read, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, z_read)
+        np.testing.assert_array_equal(z_read, z_const)
+        dz_const, dz_read = np.empty((x.size, 8)), np.empty((x.size, 8))
+        run_scheme_sensitivity(
+            name, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, z_const, dz_const, np.eye(8)
+        )
+        run_scheme_sensitivity(
+            read, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, z_read, dz_read, np.eye(8)
+        )
+        np.testing.assert_array_equal(dz_read, dz_const)
+    eq23, refined = np.empty_like(x), np.empty_like(x)
+    run_scheme(EQ23, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, eq23)
+    run_scheme(REFINED, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, refined)
+    assert abs(eq23[1] - refined[1]) > 1.0  # the two schemes differ on this path
