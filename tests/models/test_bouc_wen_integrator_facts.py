@@ -247,3 +247,16 @@ def test_a_scheme_name_read_at_run_time_selects_its_scheme() -> None:
     run_scheme(EQ23, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, eq23)
     run_scheme(REFINED, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, refined)
     assert abs(eq23[1] - refined[1]) > 1.0  # the two schemes differ on this path
+
+
+@pytest.mark.parametrize("scheme", [REFINED, EQ23])
+def test_a_joint_without_stiffness_holds_zero_torque_and_only_a_moves_it(scheme: str) -> None:
+    """A = 0 and z = 0: dz/dx = 0 - |0|^n Psi = 0, so the torque stays exactly zero on any path; the only
+    sensitivity is to A, d z/dA = x - x0 (|z|^n and its derivatives vanish at z = 0)."""
+    still = BoucWenParams(A=0.0, n=1.2, beta=BETA)
+    x = np.array([0.0, 1.0, -2.0, 3.0, 3.0, 0.5])
+    z, dz = simulate_sensitivity(x, still, 0.0, scheme=scheme)
+    np.testing.assert_array_equal(z, 0.0)
+    np.testing.assert_array_equal(simulate(x, still, 0.0, scheme=scheme), 0.0)
+    np.testing.assert_allclose(dz[:, 0], x - x[0], rtol=0.0, atol=1e-12)
+    np.testing.assert_array_equal(dz[:, 1:], 0.0)
