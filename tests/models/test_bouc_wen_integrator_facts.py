@@ -260,3 +260,25 @@ def test_a_joint_without_stiffness_holds_zero_torque_and_only_a_moves_it(scheme:
     np.testing.assert_array_equal(simulate(x, still, 0.0, scheme=scheme), 0.0)
     np.testing.assert_allclose(dz[:, 0], x - x[0], rtol=0.0, atol=1e-12)
     np.testing.assert_array_equal(dz[:, 1:], 0.0)
+
+
+def test_a_state_running_away_before_the_angle_crosses_zero_is_held_with_its_own_sign() -> None:
+    """Only beta3 (the sgn(x z) term) set, n = 2: bending down from +5 deg with z = +10, Psi = +1 and
+    dz/ds = z^2 - A runs away upward within a fraction of a degree, before x reaches 0 in the interval
+    5 -> -5 deg.  The sample is held at +bound (the direction it diverged in): the rest of the interval,
+    where Psi = -1 would drive a runaway state the other way, is not integrated."""
+    beta = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+    x = np.array([5.0, -5.0, -6.0])
+    seg = np.array([0, x.size], dtype=np.int64)
+    z = np.empty_like(x)
+    assert run_scheme(REFINED, x, seg, np.array([10.0]), 0.1, 2.0, beta, 100.0, True, z) == 1
+    np.testing.assert_array_equal(z, [10.0, 100.0, 100.0])
+    dz = np.empty((x.size, 8))
+    zs = np.empty_like(x)
+    assert (
+        run_scheme_sensitivity(
+            REFINED, x, seg, np.array([10.0]), 0.1, 2.0, beta, 100.0, True, zs, dz, np.eye(8)
+        )
+        == 1
+    )
+    np.testing.assert_array_equal(zs, z)
