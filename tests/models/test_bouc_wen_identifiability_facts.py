@@ -145,3 +145,19 @@ def test_a_flat_profile_leaves_n_open_from_bound_to_bound() -> None:
     result = identify(segments, fit_trials(segments, starts=1))
     assert result.n_interval == (result.bounds.n_min, result.bounds.n_max)
     assert any(r.startswith("n:") for r in result.weak_reasons)
+
+
+def test_a_trial_of_400_samples_is_profiled_on_every_sample(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The profile runs on a copy of at most 400 samples per trial (the module notes): a trial of exactly
+    400 is not decimated, so its intervals are those of a profile on every sample (any larger limit)."""
+    from protocol_runner.models.bouc_wen import identifiability
+
+    x = 60.0 * np.sin(2.0 * np.pi * np.arange(400) / 200.0)
+    rng = np.random.default_rng(9)
+    segments = [(x, simulate(x, FIG57, 0.0) + 0.05 * rng.standard_normal(x.size))]
+    fitted = fit_trials(segments, starts=0)
+    default = identify(segments, fitted)
+    monkeypatch.setattr(identifiability, "PROFILE_SAMPLES", 10**6)
+    every = identify(segments, fitted)
+    assert default.n_interval == every.n_interval
+    assert default.param_interval_low == every.param_interval_low
