@@ -99,12 +99,16 @@ def test_every_undetermined_parameter_is_named_not_only_the_first() -> None:
     assert reasons[1].startswith("psi'6") and "covers 100 %" in reasons[1]
 
 
-@pytest.fixture(scope="module")
-def identified() -> tuple[BoucWenFit, BoucWenFit]:
+def _rich_loops() -> list[tuple[np.ndarray, np.ndarray]]:
     t = np.arange(0.0, 2 * PERIOD_S, 1.0 / 25.0)
     x = 60.0 * np.sin(2.0 * np.pi * t / PERIOD_S)
     rng = np.random.default_rng(5)
-    segments = [(x, simulate(x, FIG57, 0.0) + 0.05 * rng.standard_normal(x.size)) for _ in range(2)]
+    return [(x, simulate(x, FIG57, 0.0) + 0.05 * rng.standard_normal(x.size)) for _ in range(2)]
+
+
+@pytest.fixture(scope="module")
+def identified() -> tuple[BoucWenFit, BoucWenFit]:
+    segments = _rich_loops()
     fitted = fit_trials(segments, starts=1)
     # a result whose scheme name was read back (a new string object, as from an archive)
     read_back = replace(fitted, scheme="".join(list(fitted.scheme)))
@@ -161,3 +165,15 @@ def test_a_trial_of_400_samples_is_profiled_on_every_sample(monkeypatch: pytest.
     every = identify(segments, fitted)
     assert default.n_interval == every.n_interval
     assert default.param_interval_low == every.param_interval_low
+
+
+def test_a_bound_inside_the_interval_ends_it_there(identified: tuple[BoucWenFit, BoucWenFit]) -> None:
+    """n_max moved to 70 % of the way from the fitted n to the upper end of its interval: the data allow
+    every n up to the bound, so the interval ends exactly at the bound, never beyond it."""
+    result, _ = identified
+    n_best, upper = result.params.n, result.n_interval[1]
+    n_max = n_best + 0.7 * (upper - n_best)
+    segments = _rich_loops()
+    bounded = identify(segments, fit_trials(segments, starts=1, bounds=BoucWenBounds(n_max=n_max)))
+    assert bounded.n_interval[1] == n_max
+    assert bounded.n_interval[0] == pytest.approx(result.n_interval[0], rel=1e-6)
