@@ -263,11 +263,11 @@ def test_a_joint_without_stiffness_holds_zero_torque_and_only_a_moves_it(scheme:
 
 
 def test_a_state_running_away_before_the_angle_crosses_zero_is_held_with_its_own_sign() -> None:
-    """Only beta3 (the sgn(x z) term) set, n = 2: bending down from +5 deg with z = +10, Psi = +1 and
+    """Only beta6 (the sgn x term) set, n = 2: bending down from +5 deg with z = +10, Psi = +1 and
     dz/ds = z^2 - A runs away upward within a fraction of a degree, before x reaches 0 in the interval
     5 -> -5 deg.  The sample is held at +bound (the direction it diverged in): the rest of the interval,
     where Psi = -1 would drive a runaway state the other way, is not integrated."""
-    beta = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+    beta = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 1.0])
     x = np.array([5.0, -5.0, -6.0])
     seg = np.array([0, x.size], dtype=np.int64)
     z = np.empty_like(x)
