@@ -177,3 +177,13 @@ def test_a_bound_inside_the_interval_ends_it_there(identified: tuple[BoucWenFit,
     bounded = identify(segments, fit_trials(segments, starts=1, bounds=BoucWenBounds(n_max=n_max)))
     assert bounded.n_interval[1] == n_max
     assert bounded.n_interval[0] == pytest.approx(result.n_interval[0], rel=1e-6)
+
+
+def test_an_interval_covering_exactly_half_the_range_is_not_weak() -> None:
+    """Weak means covering *more* than half of the plausible range: n's range is 0.5-3, so an interval of
+    1.0-2.25 (exactly half) is not weak and 1.0-2.26 is."""
+    problem = _problem()
+    u = np.array([10.0, 1.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    narrow = np.full(8, 1e-3)
+    assert weak_reasons(u, narrow, (1.0, 2.25), problem) == []
+    assert [r[:2] for r in weak_reasons(u, narrow, (1.0, 2.26), problem)] == ["n:"]

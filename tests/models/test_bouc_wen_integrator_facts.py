@@ -143,13 +143,15 @@ def test_each_segment_starts_afresh_and_the_asked_rows_are_those_of_the_full_jac
     np.testing.assert_array_equal(full[x1.size], np.zeros(8))
     np.testing.assert_array_equal(full[x1.size :], simulate_sensitivity(x2, LINEAR, -1.0)[1])
     for scheme in (REFINED, EQ23):
-        rows = np.array([3, x1.size, x1.size + 4, x.size - 1], dtype=np.int64)
         every = np.empty((x.size, 8))
         zz = np.empty_like(x)
         run_scheme_sensitivity(scheme, x, seg, z0, A, 1.0, beta, 1e6, False, zz, every, T)
-        some = np.empty((rows.size, 8))
-        run_scheme_sensitivity(scheme, x, seg, z0, A, 1.0, beta, 1e6, False, zz, some, T, rows=rows)
-        np.testing.assert_array_equal(some, every[rows])
+        # rows in both trials (a trial's first sample among them), and rows of the first trial only
+        for rows in ([3, x1.size, x1.size + 4, x.size - 1], [2, 5]):
+            asked = np.array(rows, dtype=np.int64)
+            some = np.empty((asked.size, 8))
+            run_scheme_sensitivity(scheme, x, seg, z0, A, 1.0, beta, 1e6, False, zz, some, T, rows=asked)
+            np.testing.assert_array_equal(some, every[asked])
 
 
 @pytest.mark.parametrize("scheme", [REFINED, EQ23])
