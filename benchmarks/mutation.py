@@ -82,7 +82,7 @@ REPORT_SCIENCE = {
 MODEL_SCIENCE = {
     "models/bouc_wen/backbone.py": "tests/models/test_bouc_wen_backbone_facts.py",
     "models/bouc_wen/crossval.py": "tests/models/test_bouc_wen_crossval_facts.py tests/models/test_bouc_wen_facts.py",
-    "models/bouc_wen/integrator.py": "tests/models/test_bouc_wen_integrator_facts.py",
+    "models/bouc_wen/kernels.py": "tests/models/test_bouc_wen_integrator_facts.py tests/models/test_bouc_wen_kernels.py",
     "models/bouc_wen/schemes.py": "tests/models/test_bouc_wen_integrator_facts.py",
     "models/bouc_wen/identifiability.py": "tests/models/test_bouc_wen_identifiability*.py",
 }

@@ -30,11 +30,16 @@ def _fig57_trials(count: int) -> list[tuple[np.ndarray, np.ndarray]]:
 
 def test_the_held_out_fits_use_the_published_fits_options_by_default() -> None:
     """Cross-validation estimates the error of the fit the report publishes, so every option both take
-    (starts, seed, decimation, bounds, scheme) defaults to the same value in both."""
+    (starts, seed, decimation, bounds, scheme) defaults to the same value in both: both take the options as
+    one FitKeywords mapping (defaults in one FitOptions record), and the backbone options default alike."""
     cv = inspect.signature(cross_validate).parameters
     full = inspect.signature(fit_trials).parameters
-    shared = set(cv) & set(full) - {"segments", "initial"}
-    assert shared >= {"starts", "seed", "max_samples_per_trial", "bounds", "scheme", "backbone_degree"}
+    for params in (cv, full):
+        kinds = {name: p.kind for name, p in params.items()}
+        assert kinds["options"] is inspect.Parameter.VAR_KEYWORD
+    assert "FitKeywords" in str(cv["options"].annotation) and "FitKeywords" in str(full["options"].annotation)
+    shared = set(cv) & set(full) - {"segments", "options"}
+    assert shared == {"backbone_degree", "backbone_factory"}
     for name in shared:
         assert cv[name].default == full[name].default, name
 
