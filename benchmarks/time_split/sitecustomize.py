@@ -33,6 +33,7 @@ TARGETS = {
     "protocol_runner.session.unit_writer": [
         ("UnitWriter", "submit", "waiting for the writer"),
         ("UnitWriter", "flush", "waiting for the writer"),
+        ("UnitWriter", "wait_for", "waiting for the writer"),
     ],
 }
 
