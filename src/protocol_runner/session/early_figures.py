@@ -19,7 +19,8 @@ import h5py
 from ..archive.consolidate import merge_units
 from ..archive.paths import configuration_name
 from ..archive.units import unit_path
-from ..protocol.plan import Plan
+from ..protocol.plan import FitStep, Plan, ProcessStep
+from ..protocol.step_ids import step_id
 
 _MEMORY_FILES = itertools.count()
 
@@ -28,6 +29,20 @@ def configuration_unit_files(plan: Plan, units_dir: Path, key: int) -> list[Path
     """The written units of configuration `key`'s steps, in plan order."""
     files = [unit_path(units_dir, s.id) for s in plan.steps if getattr(s, "configuration", None) == key]
     return [f for f in files if f.is_file()]
+
+
+def key_to_draw_ahead(plan: Plan, step_ids: tuple[str, ...]) -> int | None:
+    """The configuration whose figures to draw once the analysis steps `step_ids` are written: the one whose
+    analyses they end (its fit, or its processing when it has no fit), unless it is the plan's last
+    configuration with analyses: the session waits for that one before its report anyway, and the report
+    process draws it without a worker loading matplotlib (a one-configuration run draws nothing ahead)."""
+    last = plan.step(step_ids[-1]) if step_ids else None
+    if not isinstance(last, (ProcessStep, FitStep)):
+        return None
+    key = last.configuration
+    ends = isinstance(last, FitStep) or step_id("fit", key=key) not in plan._index
+    final = [s.configuration for s in plan.steps if isinstance(s, ProcessStep)][-1:] == [key]
+    return key if ends and not final else None
 
 
 def draw_ahead(plan: Plan, units_dir: Path, key: int, archive: Path) -> bool:

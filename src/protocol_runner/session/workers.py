@@ -22,13 +22,13 @@ from pathlib import Path
 
 from ..archive.units import UnitRecord, write_unit
 from ..protocol.loader import LoadedProtocol
-from ..protocol.plan import FitStep, Plan, ProcessStep, Step
+from ..protocol.plan import Plan, ProcessStep, Step
 from ..protocol.processing import processing_settings
 from ..protocol.step_ids import step_id as make_step_id
 from ..steps.context import StepContext
 from ..steps.failures import run_step
 from .assembly import ARCHIVE_NAME
-from .early_figures import draw_ahead
+from .early_figures import draw_ahead, key_to_draw_ahead
 from .journal import Journal
 from .signals import sigint_blocked
 
@@ -77,12 +77,9 @@ def run_analysis_steps(
         outcome = run_step(step, ctx)
         record = write_unit(units_dir, step.id, outcome.fill) if outcome.fill is not None else None
         done.append((record, outcome.summary))
-    last = plan.step(step_ids[-1]) if step_ids else None
-    if isinstance(last, FitStep) or (
-        isinstance(last, ProcessStep) and make_step_id("fit", key=last.configuration) not in plan._index
-    ):
-        # the configuration's analyses are written: its report figures now, not at the end of the session
-        draw_ahead(plan, units_dir, last.configuration, units_dir.parent / ARCHIVE_NAME)
+    key = key_to_draw_ahead(plan, step_ids)
+    if key is not None:  # the configuration's analyses are written: its report figures now, not at the end
+        draw_ahead(plan, units_dir, key, units_dir.parent / ARCHIVE_NAME)
     return done
 
 
