@@ -1,6 +1,6 @@
 """Full campaign dry run against the robot time it simulates (DESIGN.md target: >= 300x faster).
 
-    python benchmarks/bench_dry_run.py [--repeats 3] [--only KEYS] [--profile]
+    python benchmarks/bench_dry_run.py [--repeats 3] [--only KEYS] [--profile] [--baseline DIR]
 
 Each repeat runs `run-protocol knee_phase1.yaml --dry-run --yes` in a fresh subprocess (so numba's
 compilation cache and imports count as they do for a user) and reports the median wall time, the robot
@@ -9,6 +9,10 @@ calibration checks and the parking moves between them: the simulator's clock at 
 and the archive and report sizes. --profile prints where the time goes. It also prints the CPU time of
 each run (user + system, the session's worker processes included: less sensitive to the shared machine's
 load than the wall time) and the load average before and after.
+
+--baseline DIR also times the checkout at DIR (its src/ first on the path, run from DIR) in the same
+benchmark, alternating the two run by run so that both see the same machine load, and prints both
+medians and the ratio of their speeds.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -57,70 +62,101 @@ def robot_time_s(archive: Path) -> float:
     return total
 
 
+def _run_once(
+    checkout: Path | None, session: Path, only: str | None, profile: Path | None
+) -> tuple[float, float]:
+    """One dry run of `checkout` (None: the installed package, from this directory): (wall s, CPU s)."""
+    cmd = [sys.executable]
+    if profile is not None:
+        cmd += ["-m", "cProfile", "-o", str(profile)]
+    cmd += ["-m", "protocol_runner.cli", "knee_phase1.yaml", "--dry-run", "--yes", "--session", str(session)]
+    if only:
+        cmd += ["--only", only]
+    env = dict(os.environ)
+    if checkout is not None:
+        env["PYTHONPATH"] = str(checkout / "src")
+    t0 = time.perf_counter()
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, cwd=checkout)
+    _, status, usage = os.wait4(proc.pid, 0)  # the run's CPU, its reaped workers included
+    wall = time.perf_counter() - t0
+    code = os.waitstatus_to_exitcode(status)
+    if code != 0:
+        raise SystemExit(f"the dry run of {checkout or 'this checkout'} failed (exit {code})")
+    return wall, usage.ru_utime + usage.ru_stime
+
+
+def _summary(walls: list[float], cpus: list[float], robot: float) -> dict[str, object]:
+    median = statistics.median(walls) if walls else float("nan")
+    return {
+        "wall_s_median": round(median, 2),
+        "wall_s_runs": [round(w, 2) for w in walls],
+        "cpu_s_median": round(statistics.median(cpus), 2) if cpus else None,
+        "cpu_s_runs": [round(c, 2) for c in cpus],
+        "speedup": round(robot / median, 1),
+        "speedup_on_cpu": round(robot / statistics.median(cpus), 1) if cpus else None,
+    }
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--only", default=None)
     ap.add_argument("--profile", action="store_true")
+    ap.add_argument("--baseline", type=Path, default=None, help="another checkout to time in the same run")
     args = ap.parse_args()
-    walls: list[float] = []
-    cpus: list[float] = []
+    here = Path(__file__).resolve().parents[1] if args.baseline is not None else None
+    checkouts: list[tuple[str, Path | None]] = [("this", here)]
+    if args.baseline is not None:
+        checkouts.append(("baseline", args.baseline.resolve()))
+    walls: dict[str, list[float]] = {name: [] for name, _ in checkouts}
+    cpus: dict[str, list[float]] = {name: [] for name, _ in checkouts}
     load0 = os.getloadavg()
     robot = 0.0
     sizes: tuple[int, int] = (0, 0)
     with tempfile.TemporaryDirectory() as tmp:
         for i in range(args.repeats):
-            session = Path(tmp) / f"s{i}"
-            cmd = [sys.executable]
-            if args.profile and i == 0:
-                cmd += ["-m", "cProfile", "-o", str(Path(tmp) / "prof")]
-            cmd += [
-                "-m",
-                "protocol_runner.cli",
-                "knee_phase1.yaml",
-                "--dry-run",
-                "--yes",
-                "--session",
-                str(session),
-            ]
-            if args.only:
-                cmd += ["--only", args.only]
-            t0 = time.perf_counter()
-            proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-            _, status, usage = os.wait4(proc.pid, 0)  # the run's CPU, its reaped workers included
-            wall = time.perf_counter() - t0
-            proc.returncode = os.waitstatus_to_exitcode(status)
-            if proc.returncode != 0:
-                raise SystemExit(f"the dry run failed (exit {proc.returncode})")
-            if not (args.profile and i == 0):
-                walls.append(wall)
-                cpus.append(usage.ru_utime + usage.ru_stime)
-            robot = simulated_time_s(session / "archive.h5") or robot_time_s(session / "archive.h5")
-            sizes = ((session / "archive.h5").stat().st_size, (session / "report.html").stat().st_size)
-            print(f"run {i + 1}: {wall:.1f} s wall", flush=True)
+            for name, checkout in checkouts if i % 2 == 0 else checkouts[::-1]:
+                session = Path(tmp) / f"{name}{i}"
+                profile = Path(tmp) / "prof" if args.profile and i == 0 and name == "this" else None
+                wall, cpu = _run_once(checkout, session, args.only, profile)
+                if profile is None:
+                    walls[name].append(wall)
+                    cpus[name].append(cpu)
+                if name == "this":
+                    robot = simulated_time_s(session / "archive.h5") or robot_time_s(session / "archive.h5")
+                    sizes = (
+                        (session / "archive.h5").stat().st_size,
+                        (session / "report.html").stat().st_size,
+                    )
+                print(f"run {i + 1} ({name}): {wall:.1f} s wall, {cpu:.1f} s CPU", flush=True)
+                shutil.rmtree(session, ignore_errors=True)
         if args.profile:
             import pstats
 
             pstats.Stats(str(Path(tmp) / "prof")).sort_stats("cumulative").print_stats(30)
-    median = statistics.median(walls) if walls else float("nan")
-    ratio = robot / median
-    print(
-        json.dumps(
-            {
-                "wall_s_median": round(median, 2),
-                "wall_s_runs": [round(w, 2) for w in walls],
-                "cpu_s_median": round(statistics.median(cpus), 2) if cpus else None,
-                "cpu_s_runs": [round(c, 2) for c in cpus],
-                "load_average_before_after": [round(load0[0], 2), round(os.getloadavg()[0], 2)],
-                "robot_time_s": round(robot, 1),
-                "speedup": round(ratio, 1),
-                "target_speedup": 300,
-                "archive_mb": round(sizes[0] / 1e6, 1),
-                "report_mb": round(sizes[1] / 1e6, 1),
-            },
-            indent=2,
+    result: dict[str, object] = _summary(walls["this"], cpus["this"], robot)
+    ratio = float(result["speedup"])  # type: ignore[arg-type]
+    if args.baseline is not None:
+        before = _summary(walls["baseline"], cpus["baseline"], robot)
+        result["baseline"] = {"checkout": str(args.baseline), **before}
+        result["faster_than_baseline_wall"] = round(
+            float(before["wall_s_median"]) / float(result["wall_s_median"]),  # type: ignore[arg-type]
+            2,
         )
+        result["less_cpu_than_baseline"] = round(
+            float(before["cpu_s_median"]) / float(result["cpu_s_median"]),  # type: ignore[arg-type]
+            2,
+        )
+    result.update(
+        {
+            "load_average_before_after": [round(load0[0], 2), round(os.getloadavg()[0], 2)],
+            "robot_time_s": round(robot, 1),
+            "target_speedup": 300,
+            "archive_mb": round(sizes[0] / 1e6, 1),
+            "report_mb": round(sizes[1] / 1e6, 1),
+        }
     )
+    print(json.dumps(result, indent=2))
     print("PASS" if ratio >= 300 else "FAIL", f"speed-up {ratio:.0f}x (target 300x)")
     print("PASS" if sizes[0] < 100e6 else "FAIL", f"archive {sizes[0] / 1e6:.1f} MB (target < 100 MB)")
 

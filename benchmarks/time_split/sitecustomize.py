@@ -24,6 +24,8 @@ TARGETS = {
     "protocol_runner.steps.fit": [(None, "run", "fits")],
     "protocol_runner.session.assembly": [(None, "consolidate_session", "consolidation")],
     "protocol_runner.session.reporting": [(None, "render_report", "report")],
+    "protocol_runner.session.early_figures": [(None, "draw_ahead", "figures drawn ahead")],
+    "protocol_runner.report.load": [(None, "load_report_data", "report: reading the archive")],
     "protocol_runner.session.runner": [("Runner", "_run", "session")],
     "protocol_runner.steps.trial": [(None, "run", "trial steps (acquisition included)")],
     "protocol_runner.steps.calibration_check": [(None, "run", "calibration steps")],
@@ -31,6 +33,7 @@ TARGETS = {
     "protocol_runner.session.unit_writer": [
         ("UnitWriter", "submit", "waiting for the writer"),
         ("UnitWriter", "flush", "waiting for the writer"),
+        ("UnitWriter", "wait_for", "waiting for the writer"),
     ],
 }
 

@@ -77,6 +77,17 @@ def _merge(src: h5py.Group, dst: h5py.Group, written: dict[str, dict[str, object
             src.copy(obj, dst, name=name)
 
 
+def merge_units(out: h5py.Group, unit_files: Iterable[Path]) -> bool:
+    """Merge the units (in order) into `out`, as consolidation does; whether every unit carried checksums."""
+    written: dict[str, dict[str, object]] = {}
+    summed = True  # units written before checksums existed (a session resumed across versions): not
+    for path in unit_files:
+        with h5py.File(path, "r") as unit:
+            summed = summed and is_marked(unit)
+            _merge(unit, out, written)
+    return summed
+
+
 def consolidate(archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> Path:
     """Write `archive` from the units; on a full disk raise `DiskFull`, leaving the previous archive (if
     any) and no partial file behind."""
@@ -97,12 +108,7 @@ def consolidate(archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta) ->
 def _write(partial: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> None:
     partial.unlink(missing_ok=True)
     with h5py.File(partial, "w") as out:
-        written: dict[str, dict[str, object]] = {}
-        summed = True  # units written before checksums existed (a session resumed across versions): not
-        for path in unit_files:
-            with h5py.File(path, "r") as unit:
-                summed = summed and is_marked(unit)
-                _merge(unit, out, written)
+        summed = merge_units(out, unit_files)
         put_attrs(
             out, "root", {**meta.root, "schema_version": SCHEMA_VERSION, "software_version": __version__}
         )

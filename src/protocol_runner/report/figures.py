@@ -36,6 +36,7 @@ from protocol_runner.report.canvas import (
     style,
     to_data_uri,
 )
+from protocol_runner.report.figure_cache import cache_dir_of, lookup
 from protocol_runner.report.figures_compare import (
     comparison_overlay_figure,
     configurations_of,
@@ -197,14 +198,7 @@ def _tasks(data: ReportData) -> list[tuple[str, Callable[[], str]]]:
         checks = [c for c in data.calibration if c.set_name == set_name]
         tasks.append((f"fig-calibration-{slug(set_name)}", _bind(calibration_figure, set_name, checks)))
     for cfg in data.configurations:
-        if not cfg.trials:
-            continue
-        base = f"fig-config-{cfg.key}"
-        tasks.append((f"{base}-hysteresis", _bind(hysteresis_figure, cfg)))
-        tasks.append((f"{base}-time", _bind(time_series_figure, cfg)))
-        tasks.append((f"{base}-energy", _bind(energy_cycles_figure, cfg)))
-        if cfg.bouc_wen is not None:
-            tasks.append((f"{base}-boucwen", _bind(bouc_wen_figure, cfg)))
+        tasks.extend(configuration_tasks(cfg))
     for comp in distinct_comparisons(data):
         tasks.append(
             (f"fig-comparison-{slug(comp.name)}-overlay", _bind(comparison_overlay_figure, data, comp))
@@ -215,6 +209,33 @@ def _tasks(data: ReportData) -> list[tuple[str, Callable[[], str]]]:
     for comp in model_comparisons(data):
         tasks.append((f"fig-elements-{slug(comp.name)}", _bind(element_fit_figure, data, comp)))
     return tasks
+
+
+def configuration_tasks(cfg: Configuration) -> list[tuple[str, Callable[[], str]]]:
+    """The figures of one configuration (none before its first trial); they read only the fields listed
+    in `figure_cache.FIGURE_FIELDS`."""
+    if not cfg.trials:
+        return []
+    base = f"fig-config-{cfg.key}"
+    tasks = [
+        (f"{base}-hysteresis", _bind(hysteresis_figure, cfg)),
+        (f"{base}-time", _bind(time_series_figure, cfg)),
+        (f"{base}-energy", _bind(energy_cycles_figure, cfg)),
+    ]
+    if cfg.bouc_wen is not None:
+        tasks.append((f"{base}-boucwen", _bind(bouc_wen_figure, cfg)))
+    return tasks
+
+
+def draw_configuration(cfg: Configuration) -> dict[str, str] | None:
+    """Every figure of `cfg` as id -> data URI, or None if one of them cannot be drawn."""
+    images: dict[str, str] = {}
+    for task_id, task in configuration_tasks(cfg):
+        _, uri, _ = _safe(task_id, task)
+        if uri is None:
+            return None
+        images[task_id] = uri
+    return images
 
 
 def distinct_comparisons(data: ReportData) -> list[Comparison]:
@@ -270,9 +291,25 @@ def _safe(task_id: str, task: Callable[[], str]) -> tuple[str, str | None, str |
         return task_id, None, f"{type(exc).__name__}: {exc}"
 
 
+def _cached(data: ReportData) -> dict[str, str]:
+    """The configuration figures drawn ahead (figure_cache.py) from exactly the data of `data`."""
+    if not data.session.archive_path:
+        return {}
+    cache_dir = cache_dir_of(data.session.archive_path)
+    if not cache_dir.is_dir():
+        return {}
+    images: dict[str, str] = {}
+    for cfg in data.configurations:
+        images.update(lookup(cache_dir, cfg) or {})
+    return images
+
+
 def render_figures(data: ReportData, workers: int | None = None) -> FigureSet:
-    """Draw every figure of the report. `workers` > 1 draws on that many forked processes."""
-    tasks = _tasks(data)
+    """Draw every figure of the report (those drawn ahead for this data are taken from the figure cache).
+    `workers` > 1 draws on that many forked processes."""
+    cached = _cached(data)
+    every = _tasks(data)
+    tasks = [(task_id, task) for task_id, task in every if task_id not in cached]
     if workers is None:
         workers = default_workers(len(tasks))
     results: list[tuple[str, str | None, str | None]] | None = None
@@ -289,9 +326,11 @@ def render_figures(data: ReportData, workers: int | None = None) -> FigureSet:
         )
     if results is None:
         results = [_safe(task_id, task) for task_id, task in tasks]
+    drawn = {task_id: (uri, error) for task_id, uri, error in results}
     images: dict[str, str] = {}
     missing: dict[str, str] = {}
-    for task_id, uri, error in results:
+    for task_id, _ in every:  # document order
+        uri, error = (cached[task_id], None) if task_id in cached else drawn[task_id]
         if uri is not None:
             images[task_id] = uri
         else:

@@ -41,7 +41,7 @@ from protocol_runner.report.model import Configuration, ReportData
 from protocol_runner.report.parallel import map_in_processes
 
 
-def load_report_data(path: Path, *, workers: int | None = None) -> ReportData:
+def load_report_data(path: Path, *, workers: int | None = None, verify: bool = True) -> ReportData:
     """Read the archive at `path` (a file, or a session directory holding `archive.h5`).
 
     `workers` > 1 reads the configurations on that many forked processes (decompressing a full
@@ -49,7 +49,9 @@ def load_report_data(path: Path, *, workers: int | None = None) -> ReportData:
     Raises `InvalidInput` when the file is missing, not HDF5, truncated or corrupt, not a protocol-runner
     archive (no root attribute `protocol_sha256`), lacks the `/configurations` group, or holds a dataset
     outside the layout's bounds or whose checksum does not match (archive/verify.py): every dataset is
-    checked before the report uses anything.
+    checked before the report uses anything. `verify=False` skips the checksums (bounds are still
+    checked): only for an archive this process has just consolidated from units whose sha256 it checked
+    (the session's own report), whose every byte those checks already covered.
     """
     archive = resolve_archive(Path(path))
     require_hdf5(archive)
@@ -57,9 +59,9 @@ def load_report_data(path: Path, *, workers: int | None = None) -> ReportData:
         with h5py.File(archive, "r") as h5:
             names = check_root(h5, archive)
         # the file is closed before forking: HDF5 handles must not be shared across a fork
-        configurations = _load_configurations(archive, names, workers)
+        configurations = _load_configurations(archive, names, workers, verify)
         with h5py.File(archive, "r") as h5:
-            Checker.of(h5, archive).check_tree(h5, skip=("configurations",))
+            Checker.of(h5, archive, digests=verify).check_tree(h5, skip=("configurations",))
             return _read(h5, archive, configurations)
     except InvalidInput:
         raise
@@ -67,9 +69,9 @@ def load_report_data(path: Path, *, workers: int | None = None) -> ReportData:
         raise corrupt(archive, exc) from exc
 
 
-def _load_chunk(archive: Path, names: list[str]) -> list[Configuration]:
+def _load_chunk(archive: Path, names: list[str], verify: bool = True) -> list[Configuration]:
     with h5py.File(archive, "r") as h5:
-        checker = Checker.of(h5, archive)
+        checker = Checker.of(h5, archive, digests=verify)
         out = []
         for name in names:
             checker.check_tree(h5["configurations"][name])  # all of it, read or not: damage is named
@@ -77,21 +79,23 @@ def _load_chunk(archive: Path, names: list[str]) -> list[Configuration]:
         return out
 
 
-def _load_configurations(archive: Path, names: list[str], workers: int | None) -> tuple[Configuration, ...]:
+def _load_configurations(
+    archive: Path, names: list[str], workers: int | None, verify: bool
+) -> tuple[Configuration, ...]:
     if workers is None:
         workers = 2 if len(names) >= 12 and (os.cpu_count() or 1) >= 2 else 1
     configs: list[Configuration] | None = None
     if workers > 1 and len(names) >= 2:
-        parts = map_in_processes(_load_one, [(archive, name) for name in names], workers, chunksize=2)
+        parts = map_in_processes(_load_one, [(archive, name, verify) for name in names], workers, chunksize=2)
         configs = parts
     if configs is None:
-        configs = _load_chunk(archive, names)
+        configs = _load_chunk(archive, names, verify)
     return tuple(sorted(configs, key=lambda c: c.key))
 
 
-def _load_one(item: tuple[Path, str]) -> Configuration:
-    archive, name = item
-    return _load_chunk(archive, [name])[0]
+def _load_one(item: tuple[Path, str, bool]) -> Configuration:
+    archive, name, verify = item
+    return _load_chunk(archive, [name], verify)[0]
 
 
 def _read(h5: h5py.File, archive: Path, configurations: tuple[Configuration, ...]) -> ReportData:

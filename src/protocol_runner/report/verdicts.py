@@ -13,22 +13,27 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import h5py
 
 from protocol_runner.archive.h5util import put_attrs, put_text
+
+if TYPE_CHECKING:
+    from protocol_runner.report.model import ReportData
 
 
 def _finite(value: float) -> float | None:
     return value if math.isfinite(value) else None
 
 
-def record_verdicts(archive: Path) -> int:
-    """Evaluate `archive`'s declared expectations and (re)write `/expectations`; return how many."""
+def record_verdicts(archive: Path, data: ReportData | None = None) -> int:
+    """Evaluate `archive`'s declared expectations and (re)write `/expectations`; return how many.
+    `data` is the archive as `load_report_data` reads it, when the caller has already read it."""
     from protocol_runner.report.findings import evaluate_expectations
     from protocol_runner.report.load import load_report_data
 
-    result = evaluate_expectations(load_report_data(Path(archive), workers=1))
+    result = evaluate_expectations(data if data is not None else load_report_data(Path(archive), workers=1))
     with h5py.File(archive, "a") as h5:
         if "expectations" in h5:
             del h5["expectations"]

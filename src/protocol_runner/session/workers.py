@@ -27,6 +27,8 @@ from ..protocol.processing import processing_settings
 from ..protocol.step_ids import step_id as make_step_id
 from ..steps.context import StepContext
 from ..steps.failures import run_step
+from .assembly import ARCHIVE_NAME
+from .early_figures import draw_ahead, key_to_draw_ahead
 from .journal import Journal
 from .signals import sigint_blocked
 
@@ -75,6 +77,9 @@ def run_analysis_steps(
         outcome = run_step(step, ctx)
         record = write_unit(units_dir, step.id, outcome.fill) if outcome.fill is not None else None
         done.append((record, outcome.summary))
+    key = key_to_draw_ahead(plan, step_ids)
+    if key is not None:  # the configuration's analyses are written: its report figures now, not at the end
+        draw_ahead(plan, units_dir, key, units_dir.parent / ARCHIVE_NAME)
     return done
 
 
