@@ -88,10 +88,14 @@ def _check_range(pair: tuple[float, float], what: str) -> tuple[float, float]:
     return lo, hi
 
 
-def _linear_map(values: ArrayLike, src: tuple[float, float], dst: tuple[float, float]) -> FloatArray:
+def _linear_map(
+    values: ArrayLike, src: tuple[str, tuple[float, float]], dst: tuple[str, tuple[float, float]]
+) -> FloatArray:
+    """The straight line through (src_min, dst_min) and (src_max, dst_max) that Eq 1-3 all are; `src` and
+    `dst` are (argument name, (minimum, maximum)), each range checked and named in the error."""
     x = np.asarray(values, dtype=np.float64)
-    s0, s1 = src
-    d0, d1 = dst
+    s0, s1 = _check_range(src[1], src[0])
+    d0, d1 = _check_range(dst[1], dst[0])
     result: FloatArray = d0 + (x - s0) * ((d1 - d0) / (s1 - s0))
     return result
 
@@ -100,34 +104,28 @@ def angle_to_volts(
     angle_deg: ArrayLike, range_deg: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
 ) -> FloatArray:
     """Eq 1: V = V_min + (θ - θ_min) / (θ_max - θ_min) * (V_max - V_min). Not clamped."""
-    return _linear_map(
-        angle_deg, _check_range(range_deg, "range_deg"), _check_range(volts_range, "volts_range")
-    )
+    return _linear_map(angle_deg, ("range_deg", range_deg), ("volts_range", volts_range))
 
 
 def volts_to_angle(
     volts: ArrayLike, range_deg: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
 ) -> FloatArray:
     """Eq 2: θ = θ_min + (V - V_min) / (V_max - V_min) * (θ_max - θ_min)."""
-    return _linear_map(volts, _check_range(volts_range, "volts_range"), _check_range(range_deg, "range_deg"))
+    return _linear_map(volts, ("volts_range", volts_range), ("range_deg", range_deg))
 
 
 def volts_to_torque(
     volts: ArrayLike, torque_range_nm: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
 ) -> FloatArray:
     """Eq 3: T = T_min + (V - V_min) / (V_max - V_min) * (T_max - T_min)."""
-    return _linear_map(
-        volts, _check_range(volts_range, "volts_range"), _check_range(torque_range_nm, "torque_range_nm")
-    )
+    return _linear_map(volts, ("volts_range", volts_range), ("torque_range_nm", torque_range_nm))
 
 
 def torque_to_volts(
     torque_nm: ArrayLike, torque_range_nm: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
 ) -> FloatArray:
     """Eq 3 inverted (what the robot's torque telemetry outputs for a torque). Not clamped."""
-    return _linear_map(
-        torque_nm, _check_range(torque_range_nm, "torque_range_nm"), _check_range(volts_range, "volts_range")
-    )
+    return _linear_map(torque_nm, ("torque_range_nm", torque_range_nm), ("volts_range", volts_range))
 
 
 def volts_to_ao16_code(volts: ArrayLike) -> npt.NDArray[np.uint16]:

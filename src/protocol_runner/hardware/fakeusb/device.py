@@ -66,6 +66,16 @@ class InterfaceSpec:
     protocol: int = 0
 
 
+def single_interface(
+    interface_class: int, transfer_type: int, addresses: tuple[int, ...], packet_size: int = 64
+) -> list[InterfaceSpec]:
+    """The one interface (number 0) of a model whose endpoints all share one transfer type and packet size,
+    `addresses` in descriptor order."""
+    return [
+        InterfaceSpec(0, interface_class, [EndpointSpec(a, transfer_type, packet_size) for a in addresses])
+    ]
+
+
 @dataclass
 class Faults:
     """Faults to inject into one fake device.

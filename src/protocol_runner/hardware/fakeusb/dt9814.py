@@ -20,12 +20,11 @@ from dataclasses import dataclass
 
 from protocol_runner.hardware.fakeusb.device import (
     ENDPOINT_BULK,
-    EndpointSpec,
     FakeUsbDevice,
     Faults,
-    InterfaceSpec,
     Stall,
     UsbIdentity,
+    single_interface,
 )
 
 VENDOR_ID = 0x0867
@@ -68,9 +67,7 @@ class Dt9814Model(FakeUsbDevice):
     def __post_init__(self) -> None:
         super().__post_init__()
         if not self.interfaces:
-            self.interfaces = [
-                InterfaceSpec(0, 0xFF, [EndpointSpec(a, ENDPOINT_BULK, 64) for a in self.endpoints])
-            ]
+            self.interfaces = single_interface(0xFF, ENDPOINT_BULK, self.endpoints)
         self.flash = bytearray(b"\xff" * 0x10000)
         struct.pack_into(
             "<HHHI",

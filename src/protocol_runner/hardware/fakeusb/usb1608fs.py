@@ -23,12 +23,11 @@ import numpy as np
 
 from protocol_runner.hardware.fakeusb.device import (
     ENDPOINT_BULK,
-    EndpointSpec,
     FakeUsbDevice,
     Faults,
-    InterfaceSpec,
     Stall,
     UsbIdentity,
+    single_interface,
 )
 
 VENDOR_ID = 0x09DB
@@ -79,7 +78,7 @@ class Usb1608FsModel(FakeUsbDevice):
     def __post_init__(self) -> None:
         super().__post_init__()
         if not self.interfaces:
-            self.interfaces = [InterfaceSpec(0, 0xFF, [EndpointSpec(0x81, ENDPOINT_BULK, PACKET)])]
+            self.interfaces = single_interface(0xFF, ENDPOINT_BULK, (0x81,), PACKET)
         self.memory = bytearray(0x400)
         for rng in range(N_RANGES):
             for ch in range(N_CHANNELS):

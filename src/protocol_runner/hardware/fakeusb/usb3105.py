@@ -18,12 +18,11 @@ from dataclasses import dataclass, field
 
 from protocol_runner.hardware.fakeusb.device import (
     ENDPOINT_INTERRUPT,
-    EndpointSpec,
     FakeUsbDevice,
     Faults,
-    InterfaceSpec,
     Stall,
     UsbIdentity,
+    single_interface,
 )
 
 VENDOR_ID = 0x09DB
@@ -59,11 +58,9 @@ class Usb3105Model(FakeUsbDevice):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        endpoints = [EndpointSpec(0x81, ENDPOINT_INTERRUPT, 64)]
-        if self.interrupt_out:
-            endpoints.append(EndpointSpec(0x01, ENDPOINT_INTERRUPT, 64))
         if not self.interfaces:
-            self.interfaces = [InterfaceSpec(0, 3, endpoints)]
+            addresses = (0x81, 0x01) if self.interrupt_out else (0x81,)
+            self.interfaces = single_interface(3, ENDPOINT_INTERRUPT, addresses)
             self.kernel_driver_on = {0}
         self.memory = bytearray(b"\xff" * MEMORY_SIZE)
         for ch in range(N_CHANNELS):
