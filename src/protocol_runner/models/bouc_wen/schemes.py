@@ -106,18 +106,15 @@ def run_scheme(
     arguments."""
     scheme = integration.scheme
     step = check_scheme(scheme, integration.max_step_deg)
-    A, n = shape.A, shape.n
-    b = np.asarray(shape.beta, dtype=np.float64)
-    bound, freeze = integration.bound, integration.freeze
+    shape_rec = (shape.A, shape.n, np.asarray(shape.beta, dtype=np.float64))
+    limits = (integration.bound, integration.freeze, step)
     if sensitivity is None:
-        if scheme == EQ23:
-            return int(recursion_kernel(x, seg, z0, A, n, b, bound, freeze, z))
-        return int(heun_kernel(x, seg, z0, A, n, b, bound, freeze, step, z))
+        kernel = recursion_kernel if scheme == EQ23 else heun_kernel
+        return int(kernel(x, seg, z0, shape_rec, limits, z))
     dz, T, rows = sensitivity
-    every = np.arange(x.size, dtype=np.int64) if rows is None else rows
-    if scheme == EQ23:
-        return int(sensitivity_kernel(x, seg, z0, A, n, b, bound, freeze, z, dz, T, every))
-    return int(heun_sensitivity_kernel(x, seg, z0, A, n, b, bound, freeze, step, z, dz, T, every))
+    sens = (dz, T, np.arange(x.size, dtype=np.int64) if rows is None else rows)
+    sens_kernel = sensitivity_kernel if scheme == EQ23 else heun_sensitivity_kernel
+    return int(sens_kernel(x, seg, z0, shape_rec, limits, z, sens))
 
 
 run_scheme_sensitivity = run_scheme  # the same function, by the name of the callers that pass ``dz``
