@@ -28,7 +28,7 @@ from protocol_runner.models.bouc_wen import (
     simulate_sensitivity,
 )
 from protocol_runner.models.bouc_wen import fitting as bw_fitting
-from protocol_runner.models.bouc_wen.problem import Problem
+from protocol_runner.models.bouc_wen.problem import FitScale, Problem, Samples
 
 # Figure 57 / 58: knee joint, K_spring = 13 N/mm, braking torque 3.75 N*m.
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
@@ -257,7 +257,9 @@ def test_fitter_penalises_a_divergent_simulation_with_finite_residuals() -> None
     x = centred_sinusoid(1, 0.05)
     torque = simulate(x, FIG57, z0=0.0)
     segments = np.array([0, x.size], dtype=np.int64)
-    problem = Problem(x, torque, segments, DEFAULT_BOUNDS, np.max(np.abs(x)), np.max(np.abs(torque)))
+    problem = Problem(
+        Samples(x, torque, segments), DEFAULT_BOUNDS, FitScale(np.max(np.abs(x)), np.max(np.abs(torque)))
+    )
     unstable = BoucWenParams(A=0.3, n=2.0, beta=(0.0, 0.0, 0.0, 0.0, 0.0, -1.0))
     u_bad = problem.to_u(unstable)
     r_bad = problem.residuals(u_bad)
@@ -274,7 +276,9 @@ def test_optimiser_jacobian_matches_finite_differences_of_its_residuals() -> Non
     x = centred_sinusoid(1.5, 0.05)
     torque = simulate(x, FIG57, z0=0.0) + 0.3
     segments = np.array([0, x.size // 2, x.size], dtype=np.int64)
-    problem = Problem(x, torque, segments, DEFAULT_BOUNDS, np.max(np.abs(x)), np.max(np.abs(torque)))
+    problem = Problem(
+        Samples(x, torque, segments), DEFAULT_BOUNDS, FitScale(np.max(np.abs(x)), np.max(np.abs(torque)))
+    )
     u = problem.to_u(BoucWenParams(A=0.25, n=1.4, beta=(0.02, 0.1, -0.1, -0.05, 0.08, 0.01)))
     J = problem.jacobian(u)
     for k in range(8):

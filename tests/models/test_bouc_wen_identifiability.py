@@ -10,7 +10,7 @@ import pytest
 
 from protocol_runner.models.bouc_wen import BoucWenBounds, BoucWenParams, fit_trials, simulate
 from protocol_runner.models.bouc_wen.identifiability import identify, weak_reasons
-from protocol_runner.models.bouc_wen.problem import Problem
+from protocol_runner.models.bouc_wen.problem import FitScale, Problem, Samples
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 PERIOD_S = 8.17
@@ -73,7 +73,7 @@ def test_a_loop_without_hysteresis_leaves_the_phase_values_open() -> None:
 def _problem() -> Problem:
     x = np.linspace(-1.0, 1.0, 20)
     seg = np.array([0, x.size], dtype=np.int64)
-    return Problem(x, x.copy(), seg, BoucWenBounds(), 1.0, 1.0)
+    return Problem(Samples(x, x.copy(), seg), BoucWenBounds(), FitScale(1.0, 1.0))
 
 
 def test_the_cover_limit_decides_each_parameter() -> None:

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from protocol_runner.models.bouc_wen import DEFAULT_BOUNDS, BoucWenParams, simulate, simulate_sensitivity
-from protocol_runner.models.bouc_wen.kernels import recursion_kernel
-from protocol_runner.models.bouc_wen.problem import Problem
+from protocol_runner.models.bouc_wen.problem import FitScale, Problem, Samples
+from protocol_runner.models.bouc_wen.schemes import BoucWenShape, Integration, run_scheme
 
 LINE = BoucWenParams(A=1.0, n=1.0, beta=(0.0,) * 6)
 
@@ -34,7 +34,7 @@ def test_the_fitter_holds_a_diverged_trial_at_the_bound_with_its_sign_and_restar
     seg = np.array([0, 10, 16], dtype=np.int64)
     z0 = np.array([0.0, -2.0])
     z = np.empty_like(x)
-    first_bad = recursion_kernel(x, seg, z0, 1.0, 1.0, np.zeros(6), 5.0, True, z)
+    first_bad = run_scheme(x, seg, z0, BoucWenShape(1.0, 1.0, np.zeros(6)), Integration("eq23", 5.0), z)
     assert first_bad == 6
     np.testing.assert_array_equal(z[:6], [0.0, -1.0, -2.0, -3.0, -4.0, -5.0])
     np.testing.assert_array_equal(z[6:10], -5.0)
@@ -44,7 +44,17 @@ def test_the_fitter_holds_a_diverged_trial_at_the_bound_with_its_sign_and_restar
 def test_without_divergence_the_kernel_reports_none() -> None:
     x = np.arange(5.0)
     z = np.empty_like(x)
-    assert recursion_kernel(x, np.array([0, 5]), np.array([0.0]), 1.0, 1.0, np.zeros(6), 4.0, True, z) == -1
+    assert (
+        run_scheme(
+            x,
+            np.array([0, 5]),
+            np.array([0.0]),
+            BoucWenShape(1.0, 1.0, np.zeros(6)),
+            Integration("eq23", 4.0),
+            z,
+        )
+        == -1
+    )
     assert z[-1] == pytest.approx(4.0)
 
 
@@ -57,7 +67,7 @@ def test_each_trial_starts_its_sensitivities_afresh() -> None:
     y1, y2 = simulate(x1, p, z0=1.0, scheme="eq23"), simulate(x2, p, z0=-2.0, scheme="eq23")
 
     def jac(x: np.ndarray, y: np.ndarray, seg: list[int]) -> np.ndarray:
-        problem = Problem(x, y, np.array(seg, dtype=np.int64), DEFAULT_BOUNDS, 50.0, 20.0)
+        problem = Problem(Samples(x, y, np.array(seg, dtype=np.int64)), DEFAULT_BOUNDS, FitScale(50.0, 20.0))
         return problem.physical_jacobian(p.A, p.n, np.array(p.beta))
 
     joint = jac(np.concatenate([x1, x2]), np.concatenate([y1, y2]), [0, 150, 320])
@@ -70,6 +80,8 @@ def test_the_first_divergence_is_reported_when_several_trials_diverge() -> None:
     x = np.concatenate([np.arange(10.0), np.arange(10.0)])
     seg = np.array([0, 10, 20], dtype=np.int64)
     z = np.empty_like(x)
-    first_bad = recursion_kernel(x, seg, np.array([0.0, 2.0]), 1.0, 1.0, np.zeros(6), 5.0, True, z)
+    first_bad = run_scheme(
+        x, seg, np.array([0.0, 2.0]), BoucWenShape(1.0, 1.0, np.zeros(6)), Integration("eq23", 5.0), z
+    )
     assert first_bad == 6  # trial 2 diverges too (at sample 10 + 4), later
     np.testing.assert_array_equal(z[10:16], [2.0, 3.0, 4.0, 5.0, 5.0, 5.0])

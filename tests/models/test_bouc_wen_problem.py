@@ -8,7 +8,7 @@ import pytest
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.models.bouc_wen import DEFAULT_BOUNDS, BoucWenBounds, BoucWenParams, fit_trials, simulate
-from protocol_runner.models.bouc_wen.problem import Problem
+from protocol_runner.models.bouc_wen.problem import FitScale, Problem, Samples
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 
@@ -21,7 +21,7 @@ def _loop() -> tuple[np.ndarray, np.ndarray]:
 def test_dimensionless_parameters_round_trip_to_physical_ones() -> None:
     x, y = _loop()
     X, Z = 60.0, 20.0
-    problem = Problem(x, y, np.array([0, x.size]), BoucWenBounds(), X, Z)
+    problem = Problem(Samples(x, y, np.array([0, x.size])), BoucWenBounds(), FitScale(X, Z))
     u = problem.to_u(FIG57)
     assert u[0] == pytest.approx(FIG57.A * X / Z)
     assert u[1] == FIG57.n
@@ -74,7 +74,7 @@ def test_the_default_bounds_are_the_documented_ones() -> None:
     np.testing.assert_array_equal(DEFAULT_BOUNDS.lower(), [0.0, 0.5, *([-100.0] * 6)])
     np.testing.assert_array_equal(DEFAULT_BOUNDS.upper(), [20.0, 3.0, *([100.0] * 6)])
     x, y = _loop()
-    problem = Problem(x, y, np.array([0, x.size]), DEFAULT_BOUNDS, 65.0, 20.0)
+    problem = Problem(Samples(x, y, np.array([0, x.size])), DEFAULT_BOUNDS, FitScale(65.0, 20.0))
     assert problem.to_u(FIG57)[2 + 4] == pytest.approx(-57.0, abs=0.5)
 
 
@@ -83,7 +83,7 @@ def test_a_diverging_start_is_pulled_toward_the_straight_line_until_it_stays_bou
     recursion no longer passes 10 x the torque scale, where the fitter holds it (a finite penalty)."""
     x, y = _loop()
     Z = float(np.max(np.abs(y)))
-    problem = Problem(x, y, np.array([0, x.size]), DEFAULT_BOUNDS, 60.0, Z)
+    problem = Problem(Samples(x, y, np.array([0, x.size])), DEFAULT_BOUNDS, FitScale(60.0, Z))
     assert problem.bound == 10.0 * Z
     unstable = BoucWenParams(A=0.3, n=2.0, beta=(0.0, 0.0, 0.0, 0.0, 0.0, -1.0))
     u_bad = problem.to_u(unstable)

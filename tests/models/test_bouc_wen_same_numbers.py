@@ -11,8 +11,13 @@ import pytest
 
 from protocol_runner.models.bouc_wen import DEFAULT_BOUNDS, cross_validate, crossval, fit_trials, fitting
 from protocol_runner.models.bouc_wen.fitting import _path_problem, decimate
-from protocol_runner.models.bouc_wen.problem import Problem
-from protocol_runner.models.bouc_wen.schemes import run_scheme_sensitivity
+from protocol_runner.models.bouc_wen.problem import FitScale, Problem
+from protocol_runner.models.bouc_wen.schemes import (
+    BoucWenShape,
+    Integration,
+    Sensitivity,
+    run_scheme_sensitivity,
+)
 
 
 def _loop_halves() -> list[tuple[np.ndarray, np.ndarray]]:
@@ -27,7 +32,7 @@ def _loop_halves() -> list[tuple[np.ndarray, np.ndarray]]:
 def _path(max_samples: int) -> Problem:
     segments = _loop_halves()
     _, _, _, strides = decimate(segments, max_samples)
-    return _path_problem(segments, strides, DEFAULT_BOUNDS, 40.0, 20.0, None)
+    return _path_problem(segments, strides, DEFAULT_BOUNDS, FitScale(40.0, 20.0), None)
 
 
 def test_a_fused_evaluation_gives_the_residuals_and_jacobian_of_separate_ones() -> None:
@@ -54,18 +59,13 @@ def test_the_jacobian_at_the_compared_rows_is_those_rows_of_the_full_one() -> No
     z_full = np.empty_like(problem.x)
     full = np.empty((problem.x.size, 8))
     run_scheme_sensitivity(
-        "refined",
         problem.x,
         problem.seg,
         problem.z0,
-        A,
-        n,
-        beta,
-        problem.bound,
-        True,
+        BoucWenShape(A, n, beta),
+        Integration("refined", problem.bound, True),
         z_full,
-        full,
-        np.eye(8),
+        Sensitivity(full, np.eye(8)),
     )
     rows_only = problem.physical_jacobian(A, n, beta)
     assert np.array_equal(rows_only, full[problem.rows])

@@ -16,7 +16,7 @@ import logging
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, Protocol
+from typing import Any, NamedTuple, Protocol
 
 import usb.core
 
@@ -154,19 +154,27 @@ def _serials(
     return sorted(serials)
 
 
+class BoardKind(NamedTuple):
+    """What the survey says of every board of one kind: its name, channel role and channel count, a note,
+    and whether it has an LED to blink."""
+
+    kind: str
+    role: str
+    n_channels: int
+    note: str = ""
+    can_blink: bool = True
+
+
 def _survey(
-    kind: str,
-    role: str,
+    board_kind: BoardKind,
     openers: Sequence[Callable[[], _Board]],
-    n_channels: int,
     first_channel: int,
     blink_count: int,
     boards: list[BoardInfo],
     problems: list[BoardProblem],
-    note: str = "",
-    can_blink: bool = True,
 ) -> int:
     """Open each board, describe it, blink it, close it. Returns the next free global channel."""
+    kind, role, n_channels, note, can_blink = board_kind
     for opener in openers:
         try:
             board = opener()
@@ -223,10 +231,8 @@ def hardware_check(
 
     ao_serials = _serials(MCC_VENDOR_ID, usb3105.PRODUCT_ID, usb3105.KIND, backend, problems)
     _survey(
-        usb3105.KIND,
-        ANALOG_OUTPUT,
+        BoardKind(usb3105.KIND, ANALOG_OUTPUT, usb3105.N_CHANNELS),
         [partial(Usb3105.open, serial=s, backend=backend) for s in ao_serials],
-        usb3105.N_CHANNELS,
         0,
         blink_count,
         boards,
@@ -234,10 +240,8 @@ def hardware_check(
     )
     ai_serials = _serials(MCC_VENDOR_ID, usb1608fs.PRODUCT_ID, usb1608fs.KIND, backend, problems)
     next_ai = _survey(
-        usb1608fs.KIND,
-        ANALOG_INPUT,
+        BoardKind(usb1608fs.KIND, ANALOG_INPUT, usb1608fs.N_CHANNELS),
         [partial(Usb1608FsPlus.open, serial=s, backend=backend) for s in ai_serials],
-        usb1608fs.N_CHANNELS,
         0,
         blink_count,
         boards,
@@ -250,17 +254,20 @@ def hardware_check(
         )
     except HardwareUnavailable:
         dt_devices = []  # the missing-libusb problem is already reported above
-    _survey(
+    dt_kind = BoardKind(
         DT9814_KIND,
         ANALOG_INPUT,
-        [partial(Dt9814.from_device, d, dt_settings) for d in dt_devices],
         dt_settings.n_channels,
+        note="UNVERIFIED protocol (DT9812 family); no LED command",
+        can_blink=False,
+    )
+    _survey(
+        dt_kind,
+        [partial(Dt9814.from_device, d, dt_settings) for d in dt_devices],
         next_ai,
         blink_count,
         boards,
         problems,
-        note="UNVERIFIED protocol (DT9812 family); no LED command",
-        can_blink=False,
     )
 
     checks: list[ChannelCheck] = []

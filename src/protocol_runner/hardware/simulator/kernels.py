@@ -77,6 +77,16 @@ I_STEP = 0
 I_CMD = 1
 N_ISTATE = 2
 
+#: (state, istate, parameters, angle table, brakes, brake states): the joint as the kernels see it (the
+#: states are updated in place).
+Joint = tuple[FloatArray, IntArray, FloatArray, FloatArray, FloatArray, FloatArray]
+#: (grid step of each command, its target angle): the zero-order-hold command history.
+Commands = tuple[IntArray, FloatArray]
+#: (channel roles, noise volts, angle knots, their volts, torque knots, their volts).
+Sensors = tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+#: (volts per code, lowest code, highest code): the input board's quantisation.
+Adc = tuple[float, int, int]
+
 
 @njit(cache=True, nogil=True)
 def _load_nm(
@@ -120,14 +130,8 @@ def _load_nm(
 
 @njit(cache=True, nogil=True)
 def integrate(
-    state: FloatArray,
-    istate: IntArray,
-    p: FloatArray,
-    table: FloatArray,
-    brakes: FloatArray,
-    z_brakes: FloatArray,
-    cmd_step: IntArray,
-    cmd_target_deg: FloatArray,
+    joint: Joint,
+    commands: Commands,
     n_cmd: int,
     step_end: int,
     sample_step: IntArray,
@@ -136,12 +140,15 @@ def integrate(
 ) -> int:
     """Advance the joint from its current grid step to `step_end`, recording samples on the way.
 
-    `cmd_step[:n_cmd]` / `cmd_target_deg[:n_cmd]` is the zero-order-hold command history: target i holds
-    from grid step cmd_step[i] on (sorted). `sample_step` lists the grid steps (sorted) at which to record
+    `joint` is (state, istate, parameters, angle table, brakes, brake states); of the `commands`
+    (cmd_step, cmd_target_deg), `cmd_step[:n_cmd]` / `cmd_target_deg[:n_cmd]` is the zero-order-hold command
+    history: target i holds from grid step cmd_step[i] on (sorted). `sample_step` lists the grid steps (sorted) at which to record
     the real angle and the load torque into the outputs; samples at steps beyond `step_end` are left.
     Returns how many samples were written. `state` / `istate` / `z_brakes` are updated in place.
     `brakes` has one row per brake group (columns B_*), `z_brakes` its Dahl states.
     """
+    state, istate, p, table, brakes, z_brakes = joint
+    cmd_step, cmd_target_deg = commands
     dt = p[P_DT]
     inv_tau = 1.0 / p[P_TAU]
     eps = p[P_EPS]
@@ -249,16 +256,6 @@ R_COUNT = 2  # how many rows
 R_N_CMD = 3  # how many commands of the history are valid
 N_ROWS_REC = 4
 
-#: (state, istate, parameters, angle table, brakes, brake states): the joint as the kernels see it (the
-#: states are updated in place).
-Joint = tuple[FloatArray, IntArray, FloatArray, FloatArray, FloatArray, FloatArray]
-#: (grid step of each command, its target angle): the zero-order-hold command history.
-Commands = tuple[IntArray, FloatArray]
-#: (channel roles, noise volts, angle knots, their volts, torque knots, their volts).
-Sensors = tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
-#: (volts per code, lowest code, highest code): the input board's quantisation.
-Adc = tuple[float, int, int]
-
 
 @njit(cache=True, nogil=True)
 def integrate_rows(
@@ -268,8 +265,7 @@ def integrate_rows(
     a scan started at timing[T_START] at timing[T_RATE] (row i at t0 + i / rate, sampled on grid step
     floor((t - origin) / dt)), then `telemetry_volts`. Returns the volts of the rows whose step was
     reached (a leading part)."""
-    state, istate, p, table, brakes, z_brakes = joint
-    cmd_step, cmd_target_deg = commands
+    p = joint[2]
     roles, noise_v, angle_knots, angle_knot_volts, torque_knots, torque_knot_volts = sensors
     t0_s = timing[T_START]
     origin_s = timing[T_ORIGIN]
@@ -284,21 +280,7 @@ def integrate_rows(
         steps[i] = k if k > 0 else 0
     angle = np.empty(n_rows, dtype=np.float64)
     torque = np.empty(n_rows, dtype=np.float64)
-    got = integrate(
-        state,
-        istate,
-        p,
-        table,
-        brakes,
-        z_brakes,
-        cmd_step,
-        cmd_target_deg,
-        rows[R_N_CMD],
-        rows[R_STEP_END],
-        steps,
-        angle,
-        torque,
-    )
+    got = integrate(joint, commands, rows[R_N_CMD], rows[R_STEP_END], steps, angle, torque)
     return telemetry_volts(
         angle[:got],
         torque[:got],

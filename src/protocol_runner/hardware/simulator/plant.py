@@ -350,20 +350,8 @@ class JointPlant:
         n = sample_step.shape[0]
         angle = np.empty(n, dtype=np.float64)
         torque = np.empty(n, dtype=np.float64)
-        got = integrate(
-            self._state,
-            self._istate,
-            self._p,
-            self._table,
-            self._brakes,
-            self._z_brakes,
-            self._cmd_step,
-            self._cmd_target,
-            self._n_cmd,
-            int(step_end),
-            np.ascontiguousarray(sample_step, dtype=np.int64),
-            angle,
-            torque,
-        )
+        commands = (self._cmd_step, self._cmd_target)
+        steps = np.ascontiguousarray(sample_step, dtype=np.int64)
+        got = integrate(self._joint(), commands, self._n_cmd, int(step_end), steps, angle, torque)
         self._integrated_step = int(self._istate[I_STEP])
         return angle[:got], torque[:got]

@@ -22,7 +22,9 @@ from .problem import (
     _SCREEN_SAMPLES,
     _SHORT_NFEV,
     DIVERGENCE_FACTOR,
+    FitScale,
     Problem,
+    Samples,
     evaluate,
     param_std,
     refined_rmse,
@@ -103,8 +105,7 @@ def _path_problem(
     segments: list[tuple[FloatArray, FloatArray]],
     strides: tuple[int, ...],
     bounds: BoucWenBounds,
-    angle_scale: float,
-    torque_scale: float,
+    scale: FitScale,
     max_step_deg: float | None,
 ) -> Problem:
     """Refined-scheme problem on every sample's angle path, residuals at every ``stride``-th sample."""
@@ -112,7 +113,7 @@ def _path_problem(
     rows = np.concatenate(
         [np.arange(seg[k], seg[k + 1], stride, dtype=np.int64) for k, stride in enumerate(strides)]
     )
-    return Problem(x, y, seg, bounds, angle_scale, torque_scale, REFINED, max_step_deg, rows)
+    return Problem(Samples(x, y, seg, rows), bounds, scale, REFINED, max_step_deg)
 
 
 def _diverges_when_decimated(u: FloatArray, screen: Problem, problem: Problem) -> bool:
@@ -136,13 +137,14 @@ def _fit_segments(segments: list[tuple[FloatArray, FloatArray]], options: FitOpt
         raise InvalidInput(f"max_samples_per_trial must be at least 3, got {max_samples_per_trial}")
     angle_scale = max(float(np.max(np.abs(x))) for x, _ in segments)
     torque_scale = max(float(np.max(np.abs(y))) for _, y in segments)
+    scale = FitScale(angle_scale, torque_scale)
     x, y, seg, strides = decimate(segments, max_samples_per_trial)
     check_scheme(scheme, None)
     if scheme == REFINED:
         # integrate along every sample, compare at the decimated ones (the same angle path at any stride)
-        problem = _path_problem(segments, strides, bounds, angle_scale, torque_scale, None)
+        problem = _path_problem(segments, strides, bounds, scale, None)
     else:
-        problem = Problem(x, y, seg, bounds, angle_scale, torque_scale, scheme)
+        problem = Problem(Samples(x, y, seg), bounds, scale, scheme)
     screen_samples = (
         _SCREEN_SAMPLES if max_samples_per_trial is None else min(_SCREEN_SAMPLES, max_samples_per_trial)
     )
@@ -153,14 +155,14 @@ def _fit_segments(segments: list[tuple[FloatArray, FloatArray]], options: FitOpt
     if scheme == REFINED:
         # starts are screened, then polished, on decimated copies (their angle path is the samples kept,
         # close to the full one for smooth data); the last steps run on the full path
-        screen = Problem(xs, ys, segs, bounds, angle_scale, torque_scale, scheme, screen_step)
+        screen = Problem(Samples(xs, ys, segs), bounds, scale, scheme, screen_step)
         xm, ym, segm, mid_strides = decimate(segments, _MID_SAMPLES)
         if any(m > k for m, k in zip(mid_strides, strides, strict=True)):
-            mid = Problem(xm, ym, segm, bounds, angle_scale, torque_scale, scheme, MID_STEP_DEG)
+            mid = Problem(Samples(xm, ym, segm), bounds, scale, scheme, MID_STEP_DEG)
     elif screen_strides == strides:
         screen = problem
     else:
-        screen = Problem(xs, ys, segs, bounds, angle_scale, torque_scale, scheme, screen_step)
+        screen = Problem(Samples(xs, ys, segs), bounds, scale, scheme, screen_step)
 
     candidates: list[FloatArray] = []
     if options.initial is not None:
@@ -195,7 +197,7 @@ def _fit_segments(segments: list[tuple[FloatArray, FloatArray]], options: FitOpt
         # it nearly vertical), so a fit there would not carry over to every sample. Polish on every
         # sample instead (fit_trials' guard would otherwise redo it there, after a wasted decimated fit).
         x, y, seg, strides = decimate(segments, None)
-        problem = Problem(x, y, seg, bounds, angle_scale, torque_scale, scheme)
+        problem = Problem(Samples(x, y, seg), bounds, scale, scheme)
     # Stage 2: the best few are refined to convergence on the fitted samples; the lowest cost wins.
     # A short solve that ended at the cost of one already chosen (within 0.1 %: the same valley) or
     # clearly above the best (by 5 %) is not polished.

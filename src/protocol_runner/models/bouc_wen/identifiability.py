@@ -44,7 +44,7 @@ from scipy.optimize import least_squares
 from .backbone import hysteretic_part
 from .fitting import _validate_segments, decimate
 from .params import FloatArray
-from .problem import Problem, jacobian_std, param_std
+from .problem import FitScale, Problem, Samples, jacobian_std, param_std
 from .records import BoucWenFit
 from .schemes import REFINED
 from .threads import blas_single_threaded
@@ -167,9 +167,8 @@ def identify(segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]], result: Bo
         checked = hysteretic_part(checked, result.backbone)
     x, y, seg, _ = decimate(checked, PROFILE_SAMPLES)
     step = PROFILE_STEP_DEG if result.scheme == REFINED else None
-    problem = Problem(
-        x, y, seg, result.bounds, result.angle_scale_deg, result.torque_scale_nm, result.scheme, step
-    )
+    scale = FitScale(result.angle_scale_deg, result.torque_scale_nm)
+    problem = Problem(Samples(x, y, seg), result.bounds, scale, result.scheme, step)
     u_best = problem.to_u(result.params)
     r = problem.residuals(u_best)
     sse0 = float(r @ r)

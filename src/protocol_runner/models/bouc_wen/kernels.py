@@ -7,8 +7,9 @@ step, the Heun substeps of the refined scheme along one straight piece of angle,
 and samples (:func:`_sweep`) that serves all four kernels, selected by two flags (a branch per sample that
 costs nothing measurable: the per-piece call and the loop are as fast as the four separate kernels they
 replace; a further layer of numba ``inline="always"`` around the Heun piece made the sensitivity kernel
-about 1.5 times slower, so there is none).  The kernels take arrays and plain numbers so numba compiles
-them once (cached on disk; all compiled code is in this one file because numba's cache of a function does
+about 1.5 times slower, so there is none).  The entry kernels take arrays and three small tuples (the
+shape parameters, the limits, the sensitivity outputs), unpacked once into the positional arguments of
+the compiled internals; numba compiles them once (cached on disk; all compiled code is in this one file because numba's cache of a function does
 not notice a change in another file).
 """
 
@@ -248,31 +249,44 @@ def _sweep(
     return first_bad
 
 
+# The entry points take three small records (tuples, unpacked once here at the top of the compiled code):
+# shape = (A, n, beta) with beta a float64 array of 6; limits = (bound, freeze, max_step) (max_step unused
+# by Eq 23); sens = (dz, T, rows) for the kernels with derivatives (see :func:`_sweep`).
+
+
 @njit(cache=True)
-def recursion_kernel(x, seg, z0, A, n, beta, bound, freeze, z):  # pragma: no cover - compiled
+def recursion_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
     """Eq 23 over the segments (see :func:`_sweep`): writes ``z``, returns the first diverged index or -1."""
+    A, n, beta = shape
+    bound, freeze, _ = limits
     no_dz, no_rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)
     return _sweep(x, seg, z0, A, n, beta, bound, freeze, 0.0, z, no_dz, IDENTITY8, no_rows, False, False)
 
 
 @njit(cache=True)
-def sensitivity_kernel(x, seg, z0, A, n, beta, bound, freeze, z, dz, T, rows):  # pragma: no cover
+def sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover - compiled
     """Eq 23 and its exact derivatives at ``rows`` (see :func:`_sweep`, :func:`eq23_step_sens`)."""
+    A, n, beta = shape
+    bound, freeze, _ = limits
+    dz, T, rows = sens
     return _sweep(x, seg, z0, A, n, beta, bound, freeze, 0.0, z, dz, T, rows, False, True)
 
 
 @njit(cache=True)
-def heun_kernel(x, seg, z0, A, n, beta, bound, freeze, max_step, z):  # pragma: no cover - compiled
+def heun_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
     """The step-independent integration (:mod:`.schemes`) over the segments (see :func:`_sweep`)."""
+    A, n, beta = shape
+    bound, freeze, max_step = limits
     no_dz, no_rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)
     return _sweep(x, seg, z0, A, n, beta, bound, freeze, max_step, z, no_dz, IDENTITY8, no_rows, True, False)
 
 
 @njit(cache=True)
-def heun_sensitivity_kernel(
-    x, seg, z0, A, n, beta, bound, freeze, max_step, z, dz, T, rows
-):  # pragma: no cover
+def heun_sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover - compiled
     """:func:`heun_kernel` and the exact derivatives of its scheme at ``rows`` (see :func:`_sweep`)."""
+    A, n, beta = shape
+    bound, freeze, max_step = limits
+    dz, T, rows = sens
     return _sweep(x, seg, z0, A, n, beta, bound, freeze, max_step, z, dz, T, rows, True, True)
 
 

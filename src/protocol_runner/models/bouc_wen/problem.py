@@ -4,6 +4,7 @@ every sample (thesis §6.2.3, Figure 56); its bounds and the fit record are in :
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -12,7 +13,7 @@ from scipy.optimize import least_squares
 from .kernels import IDENTITY8, gram, sum_sq_diff
 from .params import EQ25_BETA_MATRIX, BoucWenParams, FloatArray, phase_values
 from .records import BoucWenBounds
-from .schemes import REFINED, check_scheme, run_scheme, run_trial
+from .schemes import REFINED, BoucWenShape, Integration, Sensitivity, check_scheme, run_scheme, run_trial
 from .simulation import refine_angle
 
 REFINE_FACTOR = 4  # rmse_refined_nm: this many times finer integration
@@ -25,22 +26,38 @@ _POLISH_NFEV = 200  # limit of the final solve (stage 2)
 _TR_SOLVER = "exact"  # least_squares' dense SVD of the Jacobian; cheap for 8 columns
 
 
+class Samples(NamedTuple):
+    """The fitted data: concatenated trials' angle ``x`` (deg) and torque ``y`` (N*m), the segment starts
+    ``seg`` (one more than the trials; each trial's state restarts at its first torque) and the samples
+    compared with the data, ``rows`` (increasing; all when None)."""
+
+    x: FloatArray
+    y: FloatArray
+    seg: npt.NDArray[np.int64]
+    rows: npt.NDArray[np.int64] | None = None
+
+
+class FitScale(NamedTuple):
+    """The data's largest |angle| (deg) and |torque| (N*m): the units of the dimensionless parameters."""
+
+    angle_deg: float
+    torque_nm: float
+
+
 class Problem:
     """Least-squares problem on concatenated (decimated) trials in the dimensionless parameters
     ``u = (a, n, psi'_1..psi'_6)`` of :class:`BoucWenBounds`; residuals are ``(z - y) / Z``."""
 
     def __init__(
         self,
-        x: FloatArray,
-        y: FloatArray,
-        seg: npt.NDArray[np.int64],
+        samples: Samples,
         bounds: BoucWenBounds,
-        angle_scale_deg: float,
-        torque_scale_nm: float,
+        scale: FitScale,
         scheme: str = REFINED,
         max_step_deg: float | None = None,
-        rows: npt.NDArray[np.int64] | None = None,
     ):
+        x, y, seg, rows = samples
+        angle_scale_deg, torque_scale_nm = scale
         # rows: the samples compared with the data (all when None); the state is integrated along every
         # sample of x, so dropping residuals (decimation) never changes the angle path the model follows
         self.rows = rows
@@ -55,6 +72,7 @@ class Problem:
         self.Z = torque_scale_nm
         self.lnZ = math.log(self.Z)
         self.bound = DIVERGENCE_FACTOR * self.Z
+        self.integration = Integration(scheme, self.bound, True, max_step_deg)
         self.bounds = bounds
         self.lower = bounds.lower()
         self.upper = bounds.upper()
@@ -135,21 +153,9 @@ class Problem:
     ) -> int:
         """The torque into ``self.z`` (divergence frozen at the bound), with ``dz`` also ``dz/dtheta @ T``
         at the compared rows; the index of the first diverged sample or -1."""
+        sensitivity = None if dz is None else Sensitivity(dz, T, self.rows)
         return run_scheme(
-            self.scheme,
-            self.x,
-            self.seg,
-            self.z0,
-            A,
-            n,
-            beta,
-            self.bound,
-            True,
-            self.z,
-            dz,
-            T,
-            self.max_step_deg,
-            self.rows,
+            self.x, self.seg, self.z0, BoucWenShape(A, n, beta), self.integration, self.z, sensitivity
         )
 
     def _chain(self, n: float, beta: FloatArray) -> FloatArray:
@@ -251,8 +257,9 @@ def evaluate(
     total_sq = 0.0
     count = 0
     diverged = False
+    integration = Integration(scheme, bound, True, max_step_deg)
     for x, y in segments:
-        z, bad = run_trial(scheme, x, params, float(y[0]), bound, True, max_step_deg)
+        z, bad = run_trial(x, params, float(y[0]), integration)
         diverged = diverged or bad >= 0
         sse.append(float(sum_sq_diff(z, y)))
         total += float(np.sum(y))
@@ -273,8 +280,9 @@ def refined_rmse(
     step = check_scheme(scheme, None) / REFINE_FACTOR
     sse = 0.0
     count = 0
+    integration = Integration(scheme, bound, True, step)
     for x, y in segments:
-        z, _ = run_trial(scheme, refine_angle(x, REFINE_FACTOR), params, float(y[0]), bound, True, step)
+        z, _ = run_trial(refine_angle(x, REFINE_FACTOR), params, float(y[0]), integration)
         sse += float(sum_sq_diff(np.ascontiguousarray(z[::REFINE_FACTOR]), y))
         count += y.size
     return math.sqrt(sse / count)

@@ -27,6 +27,7 @@ derivatives of what is computed, so the optimiser's Jacobian matches its residua
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -60,71 +61,77 @@ def check_scheme(scheme: str, max_step_deg: float | None) -> float:
     return step
 
 
+class BoucWenShape(NamedTuple):
+    """The shape parameters of Eq 20-22: ``A``, ``n`` and ``beta1..6`` (a float64 array of 6, as the
+    compiled kernels take it)."""
+
+    A: float
+    n: float
+    beta: FloatArray
+
+
+class Integration(NamedTuple):
+    """How the state is integrated: the scheme (``"refined"`` or ``"eq23"``), the |z| bound (N*m) past
+    which a segment has diverged, whether a diverged segment is held at +-``bound`` (``freeze``, the
+    fitter's finite penalty) or NaN, and the longest substep of the refined scheme (deg; default when
+    None)."""
+
+    scheme: str
+    bound: float
+    freeze: bool = True
+    max_step_deg: float | None = None
+
+
+class Sensitivity(NamedTuple):
+    """Where the derivatives go: ``dz`` receives ``dz/dtheta @ T`` at the samples ``rows`` (increasing;
+    one row of ``dz`` per entry), at every sample when ``rows`` is None."""
+
+    dz: FloatArray
+    T: FloatArray = IDENTITY8
+    rows: IntArray | None = None
+
+
 def run_scheme(
-    scheme: str,
     x: FloatArray,
     seg: IntArray,
     z0: FloatArray,
-    A: float,
-    n: float,
-    beta: npt.ArrayLike,
-    bound: float,
-    freeze: bool,
+    shape: BoucWenShape,
+    integration: Integration,
     z: FloatArray,
-    dz: FloatArray | None = None,
-    T: FloatArray = IDENTITY8,
-    max_step_deg: float | None = None,
-    rows: IntArray | None = None,
+    sensitivity: Sensitivity | None = None,
 ) -> int:
-    """Torque into ``z`` over the segments ``x[seg[s]:seg[s+1]]``, each started at ``z0[s]``; with ``dz``,
-    also ``dz/dtheta @ T`` into it.  Returns the index of the first diverged sample or -1 (see
-    :func:`.kernels._sweep`).
-
-    rows: the samples whose derivatives are wanted (increasing; ``dz`` has one row per entry), every
-    sample when None."""
-    step = check_scheme(scheme, max_step_deg)
-    b = np.asarray(beta, dtype=np.float64)
-    if dz is None:
-        if scheme == EQ23:
-            return int(recursion_kernel(x, seg, z0, A, n, b, bound, freeze, z))
-        return int(heun_kernel(x, seg, z0, A, n, b, bound, freeze, step, z))
-    every = np.arange(x.size, dtype=np.int64) if rows is None else rows
-    if scheme == EQ23:
-        return int(sensitivity_kernel(x, seg, z0, A, n, b, bound, freeze, z, dz, T, every))
-    return int(heun_sensitivity_kernel(x, seg, z0, A, n, b, bound, freeze, step, z, dz, T, every))
+    """Torque into ``z`` over the segments ``x[seg[s]:seg[s+1]]``, each started at ``z0[s]``; with a
+    ``sensitivity``, also its derivatives.  Returns the index of the first diverged sample or -1 (see
+    :func:`.kernels._sweep`).  The records are unpacked here, once, into the compiled kernels' plain
+    arguments."""
+    scheme = integration.scheme
+    step = check_scheme(scheme, integration.max_step_deg)
+    shape_rec = (shape.A, shape.n, np.asarray(shape.beta, dtype=np.float64))
+    limits = (integration.bound, integration.freeze, step)
+    if sensitivity is None:
+        kernel = recursion_kernel if scheme == EQ23 else heun_kernel
+        return int(kernel(x, seg, z0, shape_rec, limits, z))
+    dz, T, rows = sensitivity
+    sens = (dz, T, np.arange(x.size, dtype=np.int64) if rows is None else rows)
+    sens_kernel = sensitivity_kernel if scheme == EQ23 else heun_sensitivity_kernel
+    return int(sens_kernel(x, seg, z0, shape_rec, limits, z, sens))
 
 
 run_scheme_sensitivity = run_scheme  # the same function, by the name of the callers that pass ``dz``
 
 
 def run_trial(
-    scheme: str,
     x: FloatArray,
     params: BoucWenParams,
     z0: float,
-    bound: float,
-    freeze: bool,
-    max_step_deg: float | None = None,
+    integration: Integration,
     dz: FloatArray | None = None,
 ) -> tuple[FloatArray, int]:
     """One trial from ``z0``: the torque at every sample of ``x`` and the first diverged index or -1; with
     ``dz`` (``len(x)`` x 8) also ``dz/dtheta`` into it."""
     z = np.empty_like(x)
     seg = np.array([0, x.size], dtype=np.int64)
-    beta = np.array(params.beta)
-    bad = run_scheme(
-        scheme,
-        x,
-        seg,
-        np.array([z0]),
-        params.A,
-        params.n,
-        beta,
-        bound,
-        freeze,
-        z,
-        dz,
-        IDENTITY8,
-        max_step_deg,
-    )
+    shape = BoucWenShape(params.A, params.n, np.array(params.beta))
+    sensitivity = None if dz is None else Sensitivity(dz)
+    bad = run_scheme(x, seg, np.array([z0]), shape, integration, z, sensitivity)
     return z, bad

@@ -12,7 +12,7 @@ import numpy.typing as npt
 from protocol_runner.errors import InvalidInput
 
 from .params import DEFAULT_SIMULATION_BOUND_NM, BoucWenParams, FloatArray
-from .schemes import REFINED, check_scheme, run_trial
+from .schemes import REFINED, Integration, check_scheme, run_trial
 
 
 def as_angle(x_deg: npt.ArrayLike, name: str = "x_deg") -> FloatArray:
@@ -56,7 +56,7 @@ def _run(
     if not (bound > 0.0 and math.isfinite(bound)):
         raise InvalidInput(f"bound_nm must be a positive finite torque, got {bound_nm}")
     dz = np.empty((x.size, 8)) if sensitivities else None
-    z, _ = run_trial(scheme, x, params, z0f, bound, False, step, dz)
+    z, _ = run_trial(x, params, z0f, Integration(scheme, bound, False, step), dz)
     return z, dz
 
 
