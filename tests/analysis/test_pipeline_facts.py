@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from protocol_runner.analysis.pipeline import ProcessingSettings, Recording, TrialPair, process_configuration
+from protocol_runner.errors import InvalidInput
 
 from ..knee_device import lever_spring
 
@@ -83,3 +84,33 @@ def test_an_element_fit_the_loop_cannot_support_is_not_applicable_with_the_reaso
     assert result.elements.reason.startswith("not applicable: ")
     assert "no loop midline" in result.elements.reason
     assert result.elements.fitted == () and np.isnan(result.elements.rmse_nm)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("filter_cutoff", -0.1),
+        ("filter_cutoff", 0.0),
+        ("bin_width_deg", -0.5),
+        ("reversal_deg", -1.0),
+        ("transition_tolerance_deg", -5.0),
+        ("cycle_hysteresis_deg", -0.5),
+    ],
+)
+def test_a_negative_size_or_cut_off_is_refused(field: str, value: float) -> None:
+    with pytest.raises(InvalidInput, match=f"processing settings: {field} "):
+        ProcessingSettings(**{field: value})  # type: ignore[arg-type]
+
+
+def test_any_non_negative_cycle_hysteresis_is_accepted() -> None:
+    for hysteresis_deg in (0.0, 0.5, 2.0, 30.0):
+        assert ProcessingSettings(cycle_hysteresis_deg=hysteresis_deg).cycle_hysteresis_deg == hysteresis_deg
+
+
+def test_the_cut_off_in_hz_is_that_fraction_of_the_nyquist_frequency() -> None:
+    """Thesis §3.2 note: the cut-off is a fraction of half the sampling frequency; 10 % at 1 kHz is 50 Hz."""
+    described = ProcessingSettings().filter_description(1000.0)
+    assert described["cutoff_hz"] == pytest.approx(50.0) and described["sample_rate_hz"] == 1000.0
+    assert ProcessingSettings(filter_cutoff=0.25).filter_description(200.0)["cutoff_hz"] == pytest.approx(
+        25.0
+    )
