@@ -114,3 +114,13 @@ def test_the_cut_off_in_hz_is_that_fraction_of_the_nyquist_frequency() -> None:
     assert ProcessingSettings(filter_cutoff=0.25).filter_description(200.0)["cutoff_hz"] == pytest.approx(
         25.0
     )
+
+
+def test_a_brace_off_trial_that_cannot_serve_as_reference_is_named() -> None:
+    """A brace-off trial that only flexes (no unloading branch) gives no robot torque at equal angles: the
+    error names the trial and the brace-off run, so the operator knows which recording to redo."""
+    angle = _sweep([40.0] * 3)
+    ramp = np.linspace(25.0, 105.0, angle.size)
+    pair = TrialPair(_recording(angle, _robot(angle)), _recording(ramp, _robot(ramp)), trial=3)
+    with pytest.raises(InvalidInput, match=r"^trial 3 brace-off: the trial has no usable unloading branch"):
+        process_configuration([pair])
