@@ -124,3 +124,27 @@ def test_a_brace_off_trial_that_cannot_serve_as_reference_is_named() -> None:
     pair = TrialPair(_recording(angle, _robot(angle)), _recording(ramp, _robot(ramp)), trial=3)
     with pytest.raises(InvalidInput, match=r"^trial 3 brace-off: the trial has no usable unloading branch"):
         process_configuration([pair])
+
+
+@pytest.mark.parametrize("centring", ["none", "trial_mean"])
+def test_a_loop_with_undefined_brace_torques_keeps_only_the_defined_samples(centring: str) -> None:
+    """outside="nan": samples beyond the brace-off range have no brace torque; the loop handed to the
+    Bouc-Wen fit keeps the others, uncentred with zero means or centred on their own means."""
+    off_angle = _sweep([40.0] * 3)
+    on_angle = _sweep([30.0, 50.0, 30.0])
+    off = _recording(off_angle, _robot(off_angle))
+    on = _recording(on_angle, _robot(on_angle) + 0.1 * on_angle)
+    settings = ProcessingSettings(outside="nan", centring=centring)  # type: ignore[arg-type]
+    trial = process_configuration([TrialPair(on, off)], settings).trials[0]
+    defined = np.isfinite(trial.brace_torque_nm)
+    assert 0 < np.count_nonzero(~defined) < defined.size
+    angle, torque = trial.angle_deg[defined], trial.brace_torque_nm[defined]
+    loop = trial.centred
+    if centring == "none":
+        assert loop.mean_angle_deg == 0.0 and loop.mean_torque_nm == 0.0
+        np.testing.assert_array_equal(loop.angle_deg, angle)
+        np.testing.assert_array_equal(loop.torque_nm, torque)
+    else:
+        assert loop.mean_angle_deg == pytest.approx(float(np.mean(angle)))
+        assert loop.mean_torque_nm == pytest.approx(float(np.mean(torque)))
+        np.testing.assert_allclose(loop.angle_deg, angle - np.mean(angle))
