@@ -148,3 +148,19 @@ def test_a_loop_with_undefined_brace_torques_keeps_only_the_defined_samples(cent
         assert loop.mean_angle_deg == pytest.approx(float(np.mean(angle)))
         assert loop.mean_torque_nm == pytest.approx(float(np.mean(torque)))
         np.testing.assert_allclose(loop.angle_deg, angle - np.mean(angle))
+
+
+def test_an_equal_time_subtraction_leaves_the_brace_torque() -> None:
+    """The (wrong, §5.6) equal-time method on a brace-on run with the robot's exact motion: what is left is
+    the brace's own torque, and the robot's torque is the brace-off run's."""
+    angle = _sweep([40.0] * 3)
+    off = _recording(angle, _robot(angle))
+    on = _recording(angle, _robot(angle) + 2.0 + 0.1 * angle)
+    trial = process_configuration([TrialPair(on, off)], ProcessingSettings(subtraction="equal_time")).trials[
+        0
+    ]
+    np.testing.assert_allclose(trial.brace_torque_nm, 2.0 + 0.1 * trial.angle_deg, atol=1e-3)
+    on_only = process_configuration([TrialPair(on, on)], ProcessingSettings(subtraction="equal_time"))
+    np.testing.assert_allclose(
+        trial.robot_torque_nm + trial.brace_torque_nm, on_only.trials[0].robot_torque_nm
+    )

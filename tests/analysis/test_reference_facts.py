@@ -135,3 +135,15 @@ def test_mat_defects_are_reported_not_raised(tmp_path: Path) -> None:
     savemat(str(tmp_path / "nan.mat"), {"angle": np.array([1.0, np.nan]), "torque": np.arange(2.0)})
     with pytest.raises(InvalidInput, match="must be finite numbers"):
         load_reference_dataset(tmp_path / "nan.mat")
+
+
+def test_a_dataset_of_thousands_of_samples_is_read_whole(tmp_path: Path) -> None:
+    angle = np.linspace(5.0, 110.0, 2000)
+    torque = 0.3 * (angle - 20.0)
+    savemat(str(tmp_path / "emu.mat"), {"angle_deg": angle, "torque_nm": torque})
+    rows = "".join(f"{float(a)!r},{float(t)!r}\n" for a, t in zip(angle, torque, strict=True))
+    write(tmp_path / "emu.csv", "angle_deg,torque_nm\n" + rows)
+    for name in ("emu.mat", "emu.csv"):
+        ref = load_reference_dataset(tmp_path / name)
+        np.testing.assert_array_equal(ref.angle_deg, angle)
+        np.testing.assert_array_equal(ref.torque_nm, torque)
