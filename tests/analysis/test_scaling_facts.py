@@ -146,3 +146,14 @@ def test_by_default_the_output_range_starts_at_the_thesis_transition_point() -> 
     assert first.transition_index == 10
     assert first.output_range_deg == pytest.approx((20.0, 110.0), abs=0.05)
     assert result.converged and len(result.history) == 1
+
+
+@pytest.mark.parametrize("level_deg", [100.0, -100.0])
+def test_an_input_moving_by_less_than_a_billionth_of_its_level_is_flat(level_deg: float) -> None:
+    """The flatness test is relative to the level (1e-9 of 1 + |mid-range|): at +-100 deg a wiggle of
+    5e-8 deg is flat, one of 1e-6 deg is not (it is scaled up like any other trajectory)."""
+    wave = np.sin(np.linspace(0.0, 6.0 * np.pi, 300))
+    with pytest.raises(AnalysisError, match="does not move"):
+        scale_brace_off_input(level_deg + 2.5e-8 * wave, (20.0, 110.0), lambda x: x, max_iterations=1)
+    moving = scale_brace_off_input(level_deg + 5e-7 * wave, (20.0, 110.0), lambda x: x, max_iterations=1)
+    assert moving.history[0].output_range_deg[1] > moving.history[0].output_range_deg[0]
