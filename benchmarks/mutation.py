@@ -99,7 +99,15 @@ MODEL_SCIENCE = {
     "models/element_torques.py": "tests/models/test_element_torques*.py",
 }
 
-TESTS = _science_modules() | MODEL_SCIENCE | REPORT_SCIENCE
+# Science modules whose name glob picks the wrong tests: analysis/bouc_wen_fit.py would get the models'
+# tests/models/test_bouc_wen_fitting.py (which never imports it) and not its evidence tests;
+# analysis/reference.py would get a dry run of a whole session (tests/session/test_reference_dataset.py).
+NARROWED = {
+    "analysis/bouc_wen_fit.py": "tests/analysis/test_bouc_wen_fit_*.py tests/analysis/test_bouc_wen_evidence.py",
+    "analysis/reference.py": "tests/analysis/test_reference*.py",
+}
+
+TESTS = _science_modules() | MODEL_SCIENCE | REPORT_SCIENCE | NARROWED
 
 ARITHMETIC = {"Add", "Sub", "Mul", "Div", "FloorDiv"}
 LOGICAL = {"BitAnd", "BitOr"}
@@ -221,7 +229,9 @@ def _mutants(module: str, sample: int, seed: int) -> tuple[int, int, int, list]:
 
 
 def _test_command(module: str) -> str | None:
-    tests = " ".join(sorted({str(p) for pattern in TESTS[module].split() for p in Path().glob(pattern)}))
+    # the small fact-stating files first: with -x a killed mutant then costs only them
+    found = {str(p) for pattern in TESTS[module].split() for p in Path().glob(pattern)}
+    tests = " ".join(sorted(found, key=lambda p: (not p.endswith("_facts.py"), p)))
     return f"{sys.executable} -m pytest -x -q -p no:cacheprovider {tests}" if tests else None
 
 

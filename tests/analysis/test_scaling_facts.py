@@ -130,3 +130,30 @@ def test_a_single_iteration_is_allowed_and_the_default_tolerance_is_one_degree()
 def test_an_output_that_does_not_move_after_the_transition_is_a_user_error() -> None:
     with pytest.raises(AnalysisError):
         scale_brace_off_input(_command(), (30.0, 95.0), lambda v: np.full_like(v, v[0]))
+
+
+def test_by_default_the_output_range_starts_at_the_thesis_transition_point() -> None:
+    """Thesis §3.3.1: the transition ends once the output is within 5 deg of the command for 3 points.
+    A run whose first ten samples lag 5.5 deg below the command has its range measured after them."""
+    k = np.arange(600)
+    command = 65.0 - 45.0 * np.cos(2.0 * np.pi * k / 200.0)  # 20..110 deg, starting at 20
+
+    def run(x: np.ndarray) -> np.ndarray:
+        return x - np.where(np.arange(x.size) < 10, 5.5, 0.0)
+
+    result = scale_brace_off_input(command, (20.0, 110.0), run)
+    first = result.history[0]
+    assert first.transition_index == 10
+    assert first.output_range_deg == pytest.approx((20.0, 110.0), abs=0.05)
+    assert result.converged and len(result.history) == 1
+
+
+@pytest.mark.parametrize("level_deg", [100.0, -100.0])
+def test_an_input_moving_by_less_than_a_billionth_of_its_level_is_flat(level_deg: float) -> None:
+    """The flatness test is relative to the level (1e-9 of 1 + |mid-range|): at +-100 deg a wiggle of
+    5e-8 deg is flat, one of 1e-6 deg is not (it is scaled up like any other trajectory)."""
+    wave = np.sin(np.linspace(0.0, 6.0 * np.pi, 300))
+    with pytest.raises(AnalysisError, match="does not move"):
+        scale_brace_off_input(level_deg + 2.5e-8 * wave, (20.0, 110.0), lambda x: x, max_iterations=1)
+    moving = scale_brace_off_input(level_deg + 5e-7 * wave, (20.0, 110.0), lambda x: x, max_iterations=1)
+    assert moving.history[0].output_range_deg[1] > moving.history[0].output_range_deg[0]

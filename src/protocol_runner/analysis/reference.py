@@ -90,10 +90,11 @@ def _read_reference_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
 
 def _read_reference_mat(path: Path) -> tuple[np.ndarray, np.ndarray]:
     from scipy.io import loadmat  # imported lazily: only the EMU comparison needs it
+    from scipy.io.matlab import MatReadError  # an empty or truncated file
 
     try:
         content = loadmat(str(path))
-    except (OSError, ValueError, NotImplementedError, TypeError) as exc:
+    except (OSError, ValueError, NotImplementedError, TypeError, MatReadError) as exc:
         raise InvalidInput(
             f"Reference dataset {path} is not a readable MATLAB .mat file ({short(exc)})."
         ) from exc
