@@ -114,3 +114,30 @@ def test_session_that_is_a_file_is_refused(capsys: pytest.CaptureFixture[str], t
         == 2
     )
     assert "is a file" in capsys.readouterr().err
+
+
+def test_the_protocol_may_come_before_plan_or_validate(capsys: pytest.CaptureFixture[str]) -> None:
+    """`run-protocol X.yaml --plan --json` is the same request as `run-protocol --plan X.yaml --json`."""
+    assert main(["--plan", "knee_phase1.yaml", "--json"]) == 0
+    flag_first = capsys.readouterr().out
+    assert main(["knee_phase1.yaml", "--plan", "--json"]) == 0
+    protocol_first = capsys.readouterr().out
+    assert protocol_first == flag_first and json.loads(protocol_first)["protocol"] == "knee_phase1"
+    assert main(["knee_phase1.yaml", "--validate"]) == 0
+    assert "valid" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    ("argv", "says"),
+    [
+        (["--plan"], "--plan needs a PROTOCOL"),
+        (["--validate"], "--validate needs a PROTOCOL"),
+        (["a.yaml", "--plan", "b.yaml"], "a second protocol a.yaml"),
+    ],
+)
+def test_plan_or_validate_with_no_protocol_or_two_is_refused(
+    argv: list[str], says: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert says in err and "Traceback" not in err

@@ -105,6 +105,9 @@ _OPTION_EXTRAS: dict[str, dict[str, Any]] = {
     # what a row of _OPTIONS cannot say (these win over the row)
     "--compare": {"metavar": ("A", "B"), "nargs": 2},
     "--hardware-check": {"nargs": "?", "const": ""},
+    # `run-protocol X.yaml --plan` reads as `run-protocol --plan X.yaml` (the protocol may come first)
+    "--plan": {"nargs": "?", "const": ""},
+    "--validate": {"nargs": "?", "const": ""},
     "--seed": {"type": int},
 }
 
@@ -165,8 +168,10 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     ):
         raise InvalidInput("--monitor watches a session: use it with a PROTOCOL to run or with --resume")
     if args.plan is not None:
+        args.plan = _mode_protocol("--plan", args.plan, args.protocol)
         return _cmd_plan(args)
     if args.validate is not None:
+        args.validate = _mode_protocol("--validate", args.validate, args.protocol)
         return _cmd_validate(args)
     if args.hardware_check is not None:
         from .commands import hardware_check
@@ -237,6 +242,15 @@ def _run_or_resume(parser: argparse.ArgumentParser, args: argparse.Namespace, mo
         realtime=args.realtime,
         monitor=monitor,
     )
+
+
+def _mode_protocol(flag: str, given: str, positional: str | None) -> str:
+    """The protocol of `--plan`/`--validate`: written after the flag or (`run-protocol X.yaml --plan`) before it."""
+    if given and positional:
+        raise InvalidInput(f"{flag} {given}: a second protocol {positional} was also given; name one")
+    if not (given or positional):
+        raise InvalidInput(f"{flag} needs a PROTOCOL: run-protocol {flag} my_campaign.yaml")
+    return given or str(positional)
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
