@@ -72,6 +72,7 @@ ATTRIBUTE_SECTIONS = {
     "root": _between("## Root", "| dataset | meaning |"),
     "dataset": _between("# The archive", "## Root") + _between("## Checksums", "## Bounds"),
     "protocol": _line_with("| `/protocol`"),
+    "rig": _line_with("| `/rig`"),
     "unit": _between("The session directory's unit files", "## `/calibration"),
     "checklist": _line_with("| `/session/checklists/<step>`"),
     "calibration": _between("## `/calibration/<set>/<when>`", "## `/configurations") + SEVERAL,

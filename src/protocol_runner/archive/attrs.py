@@ -16,7 +16,7 @@ DIGEST = "sha256"  # every dataset: its checksum (archive/checksums.py)
 CHECKSUM_MARKER = "dataset_checksums"  # root: every dataset has a DIGEST
 UNIT_STEP_ID = "unit_step_id"  # a unit file's step
 UNIT_COMPLETE = "unit_complete"  # a unit file written to the end
-FILENAME = "filename"  # /protocol: the protocol's file name
+FILENAME = "filename"  # /protocol, /rig: the file's name
 ONLY = "only"  # root: the --only keys
 STEP_ID = "step_id"
 STATUS = "status"
@@ -36,6 +36,7 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
     "root": (
         "protocol_name",
         "protocol_sha256",
+        "rig_sha256",
         "schema_version",
         "software_version",
         "mode",
@@ -52,6 +53,7 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
     ),
     "dataset": (UNITS, DIGEST),
     "protocol": (FILENAME,),
+    "rig": (FILENAME,),
     "unit": (UNIT_STEP_ID, UNIT_COMPLETE),
     "checklist": (STEP_ID, "title", "items", "brace", "answer", "answered_utc", "automatic"),
     "calibration": (STEP_ID, "verdict", "step_deg", *STEP_RESPONSE, "limits", "message", JOINTS),

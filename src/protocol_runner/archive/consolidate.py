@@ -37,6 +37,9 @@ class ArchiveMeta:
     only: tuple[int, ...]
     events: tuple[str, ...]
     configuration_attrs: Mapping[str, Mapping[str, Any]]  # group name -> attrs (incl. status)
+    # the rig file the protocol was checked against, exactly as read, and its name (`rigs/rsst.yaml`)
+    rig_text: str = ""
+    rig_filename: str = ""
     # the EMU comparison's reference data (§5.6), if the protocol names one: (name, source, angle, torque)
     reference: tuple[str, str, Any, Any] | None = None
 
@@ -115,6 +118,9 @@ def _write(partial: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> None
         out.attrs[ONLY] = list(meta.only) if meta.only else []  # an empty list too (put_attrs skips none)
         ds = put_text(out, "protocol", meta.protocol_text)
         put_attrs(ds, "protocol", {FILENAME: meta.protocol_filename})
+        if meta.rig_text:
+            ds = put_text(out, "rig", meta.rig_text)
+            put_attrs(ds, "rig", {FILENAME: meta.rig_filename})
         put_text(out, "plan", meta.plan_json)
         put_lines(out.require_group("session"), "events", list(meta.events))
         if meta.reference is not None:

@@ -25,7 +25,7 @@ compressed; MATLAB's and Octave's `load` read them). Types, names and orientatio
     calibration     struct: the calibration records of the configuration's set (before, after, resume_n)
 
 `session.mat`: meta, units, and every root member of the archive but the configurations: protocol (text)
-and protocol_filename, plan (JSON text), session (events: cell of JSON lines; checklists), calibration
+and protocol_filename, rig (text) and rig_filename, plan (JSON text), session (events: cell of JSON lines; checklists), calibration
 (every set), comparisons, reference; and configurations: a summary struct per configuration (its
 attributes, energy_mean_j, energy_std_j, energy_cycles and the name of its file).
 """

@@ -35,8 +35,14 @@ def _archived_protocol(f: h5py.File, archive: Path) -> LoadedProtocol:
         raise InvalidInput(f"{archive}: has no /protocol; cannot reprocess without the protocol that was run")
     text = text_of(f["protocol"])
     name = attr_str(f["protocol"], FILENAME, "protocol.yaml")
+    # the rig file as run (archives from before /rig existed: the rig the protocol names, as found now)
+    rig_text = text_of(f["rig"]) if "rig" in f else None
     return parse_protocol_text(
-        text, path=archive.parent / name, display_name=f"{archive}:/protocol", check_files=False
+        text,
+        path=archive.parent / name,
+        display_name=f"{archive}:/protocol",
+        check_files=False,
+        rig_text=rig_text,
     )
 
 

@@ -22,7 +22,7 @@ from .generators import expand_generators
 from .loaded import LoadedProtocol as LoadedProtocol
 from .loaded import Loc as Loc
 from .loaded import line_for
-from .rig_file import find_rig, load_rig, resolve_rig, resolve_rigs
+from .rig_file import find_rig, load_rig, parse_rig_text, resolve_rig, resolve_rigs
 from .schema import Protocol
 from .validate import cross_check
 from .yaml_doc import format_loc as format_loc
@@ -78,7 +78,12 @@ def read_protocol_text(path: Path, shown: str) -> str:
 
 
 def parse_protocol_text(
-    text: str, *, path: Path, display_name: str | None = None, check_files: bool = True
+    text: str,
+    *,
+    path: Path,
+    display_name: str | None = None,
+    check_files: bool = True,
+    rig_text: str | None = None,
 ) -> LoadedProtocol:
     shown = display_name or str(path)
     if not text.strip() or all(ln.strip().startswith("#") or not ln.strip() for ln in text.splitlines()):
@@ -102,11 +107,14 @@ def parse_protocol_text(
     except ValidationError as exc:
         raise InvalidInput(format_problems(shown, lines, validation_problems(exc, Protocol))) from None
     base_dir = path.parent
-    try:
-        rig_path = find_rig(protocol.rig_name, base_dir)
-    except InvalidInput as exc:
-        raise InvalidInput(format_problems(shown, lines, [(("rig",), exc.message)])) from None
-    loaded_rig = load_rig(rig_path, shown=_rig_shown(protocol.rig_name, rig_path))
+    if rig_text is not None:  # the rig file's text as archived with the run (`--reprocess`)
+        loaded_rig = parse_rig_text(rig_text, base_dir / protocol.rig_name, f"{shown} (archived rig)")
+    else:
+        try:
+            rig_path = find_rig(protocol.rig_name, base_dir)
+        except InvalidInput as exc:
+            raise InvalidInput(format_problems(shown, lines, [(("rig",), exc.message)])) from None
+        loaded_rig = load_rig(rig_path, shown=_rig_shown(protocol.rig_name, rig_path))
     if protocol.joints is not None:
         rigs, problems = resolve_rigs(loaded_rig, protocol.joints, protocol.rig_overrides)
     else:
@@ -122,7 +130,17 @@ def parse_protocol_text(
     if problems:
         raise InvalidInput(format_problems(shown, lines, problems))
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
-    loaded = LoadedProtocol(protocol=protocol, path=path, text=text, sha256=sha, lines=lines, shown=shown)
+    loaded = LoadedProtocol(
+        protocol=protocol,
+        path=path,
+        text=text,
+        sha256=sha,
+        lines=lines,
+        shown=shown,
+        rig_shown=loaded_rig.shown,
+        rig_text=loaded_rig.text,
+        rig_sha256=loaded_rig.sha256,
+    )
 
     problems = cross_check(loaded, check_files=check_files, generated=origins)
     if problems:

@@ -85,11 +85,17 @@ class LoadedRig:
     shown: str
     sha256: str
     lines: dict[Loc, int] = field(default_factory=dict, repr=False, compare=False)
+    text: str = field(default="", repr=False, compare=False)  # the file exactly as read (archived as /rig)
+
+
+def is_rig_path(name_or_path: str) -> bool:
+    """Whether a protocol's `rig:` names a file beside it (`lab_rig.yaml`) rather than a shipped rig (`rsst`)."""
+    return "/" in name_or_path or "\\" in name_or_path or name_or_path.endswith((".yaml", ".yml"))
 
 
 def find_rig(name_or_path: str, base_dir: Path) -> Path:
     """A shipped rig by name (`rsst`), or a rig file relative to the protocol's folder."""
-    if "/" not in name_or_path and "\\" not in name_or_path and not name_or_path.endswith((".yaml", ".yml")):
+    if not is_rig_path(name_or_path):
         path = packaged_rigs_dir() / f"{name_or_path}.yaml"
         if not path.is_file():
             known = ", ".join(sorted(p.stem for p in packaged_rigs_dir().glob("*.yaml")))
@@ -111,6 +117,12 @@ def load_rig(path: Path, shown: str | None = None) -> LoadedRig:
         text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise InvalidInput(f"{shown}: cannot read the rig file ({exc})") from None
+    return parse_rig_text(text, path, shown)
+
+
+def parse_rig_text(text: str, path: Path, shown: str) -> LoadedRig:
+    """Check a rig file's text (as read from `path`, or as archived in `/rig`); InvalidInput naming `shown`,
+    the line and the field."""
     data, lines = parse_yaml(text, shown)
     if not isinstance(data, dict):
         raise InvalidInput(f"{shown}:1: a rig file is a mapping (schema_version, robot, boards, joints, ...)")
@@ -122,7 +134,7 @@ def load_rig(path: Path, shown: str | None = None) -> LoadedRig:
     if problems:
         raise InvalidInput(format_problems(shown, lines, problems))
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
-    return LoadedRig(rig=rig, path=path, shown=shown, sha256=sha, lines=lines)
+    return LoadedRig(rig=rig, path=path, shown=shown, sha256=sha, lines=lines, text=text)
 
 
 def simulator_fields() -> tuple[str, ...]:

@@ -48,6 +48,7 @@ def consolidate_session(
     root = {
         "protocol_name": info.protocol_name,
         "protocol_sha256": loaded.sha256,
+        "rig_sha256": loaded.rig_sha256,
         "mode": info.mode,
         "seed": int(info.seed),
         "created_utc": info.created_utc,
@@ -59,6 +60,8 @@ def consolidate_session(
         root=root,
         protocol_text=loaded.text,
         protocol_filename=loaded.path.name,
+        rig_text=loaded.rig_text,
+        rig_filename=loaded.rig_shown,
         plan_json=json.dumps(plan.to_json()),
         only=info.only,
         events=tuple(json.dumps(e.to_json()) for e in journal.events),

@@ -27,7 +27,7 @@ REQUIRED = (
     "only",
     "software_version",
 )
-OPTIONAL = ("realtime", "files_sha256")
+OPTIONAL = ("realtime", "files_sha256", "rig_sha256")
 
 
 def _inside(rel: object) -> bool:
@@ -107,3 +107,6 @@ def check_session_fields(d: dict[str, Any], where: str) -> None:
             raise bad("files_sha256", f"names {rel!r:.80}, which is not a path inside the session directory")
         if not isinstance(digest, str) or not _SHA256.fullmatch(digest):
             raise bad("files_sha256", f"gives {rel!r:.80} a sha256 that is not 64 lower-case hex digits")
+    rig = d.get("rig_sha256", "")
+    if not isinstance(rig, str) or (rig and not _SHA256.fullmatch(rig)):
+        raise bad("rig_sha256", f"must be empty or 64 lower-case hex digits, got {rig!r:.80}")

@@ -115,10 +115,10 @@ def prepare_resume(runner: Runner, ctx: StepContext, progress: Progress) -> None
     if not j.ended_cleanly():
         j.event("interrupted", "the previous run ended without a recorded stop (crash, kill or power cut)")
     had_journal = bool(j.events or j.units or j.failed)
-    detail = "protocol text changed; accepted with --force" if runner.protocol_changed else ""
+    detail = "protocol text or rig file changed; accepted with --force" if runner.protocol_changed else ""
     j.event("resumed", detail)
     if runner.protocol_changed:
-        j.event("operator_override", "resumed with a changed protocol (--force)")
+        j.event("operator_override", "resumed with a changed protocol or rig file (--force)")
     changes = changed_files(runner.dir, runner.info)
     if changes:
         j.event("operator_override", f"resumed with changed referenced files (--force): {', '.join(changes)}")

@@ -28,6 +28,7 @@ from ..errors import InvalidInput
 from ..protocol.loader import LoadedProtocol, load_protocol
 from ..protocol.paths import is_stored_with_session
 from ..protocol.plan import Plan, expand
+from ..protocol.rig_file import is_rig_path
 from ..protocol.trajectory_specs import FileSpec
 
 SESSION_FILE = "session.json"
@@ -47,6 +48,9 @@ class SessionInfo:
     realtime: bool = False
     # every file the protocol references, as copied into <session>/protocol/: relative path -> sha256
     files_sha256: dict[str, str] = field(default_factory=dict)
+    # sha256 of the rig file the protocol was checked against (a shipped rig may change with an upgrade;
+    # a rig file beside the protocol is copied into <session>/protocol/ and listed in files_sha256 too)
+    rig_sha256: str = ""
 
     def to_json(self) -> str:
         d = asdict(self)
@@ -73,6 +77,8 @@ def referenced_files(loaded: LoadedProtocol) -> list[str]:
     ]
     if p.report.reference_dataset:
         files.append(p.report.reference_dataset)
+    if is_rig_path(p.rig_name):  # a lab's own rig file beside the protocol: the session keeps its copy
+        files.append(p.rig_name)
     return files
 
 
@@ -123,6 +129,7 @@ def create_session(
         software_version=__version__,
         realtime=realtime,
         files_sha256=hashes,
+        rig_sha256=loaded.rig_sha256,
     )
     write_session_info(directory, info)
     return info
@@ -170,7 +177,7 @@ def load_session_protocol(
     """Re-expand the protocol stored in the session; refuse a changed one, or a changed referenced file
     (calibration table, trajectory, reference data), unless `force`.
 
-    Returns the protocol, its plan and whether its text changed (accepted with --force)."""
+    Returns the protocol, its plan and whether its text or its rig file changed (accepted with --force)."""
     changes = changed_files(directory, info)
     if changes and not force:
         raise InvalidInput(
@@ -187,5 +194,13 @@ def load_session_protocol(
             f"is now {loaded.sha256[:12]}...). Completed trials were taken under the old text; resume with "
             "--force to accept the change, or restore the file."
         )
+    if info.rig_sha256 and loaded.rig_sha256 != info.rig_sha256:
+        if not force:
+            raise InvalidInput(
+                f"{loaded.rig_shown}: the rig file changed since the session began (sha256 "
+                f"{info.rig_sha256[:12]}... is now {loaded.rig_sha256[:12]}...). Completed trials were taken on "
+                "the old rig description; restore it, or resume with --force to accept the change."
+            )
+        changed = True
     plan = expand(loaded, only=info.only or None)
     return loaded, plan, changed
