@@ -21,18 +21,10 @@ from typing import Any
 
 import numpy as np
 
-from protocol_runner.hardware.fakeusb.device import (
-    ENDPOINT_BULK,
-    FakeUsbDevice,
-    Faults,
-    Stall,
-    UsbIdentity,
-    single_interface,
-)
+from protocol_runner.hardware.fakeusb.descriptors import ENDPOINT_BULK, UsbIdentity, single_interface
+from protocol_runner.hardware.fakeusb.device import FakeUsbDevice, Faults, Setup, Stall
 
-VENDOR_ID = 0x09DB
-PRODUCT_ID = 0x00EA
-IDENTITY = UsbIdentity(VENDOR_ID, PRODUCT_ID, 0x0103, "MCC", "USB-1608FS-Plus")
+IDENTITY = UsbIdentity(0x09DB, 0x00EA, 0x0103, "MCC", "USB-1608FS-Plus")
 N_CHANNELS = 8
 N_RANGES = 8
 PACKET = 64
@@ -162,11 +154,10 @@ class Usb1608FsModel(FakeUsbDevice):
         return np.clip(codes, 0, 65535).astype("<u2").tobytes()
 
     # ---- the wire --------------------------------------------------------------------------------
-    def handle_control_in(
-        self, request_type: int, request: int, value: int, index: int, length: int
-    ) -> bytes:
-        if request_type != 0xC0:
+    def handle_control_in(self, setup: Setup, length: int) -> bytes:
+        if setup.request_type != 0xC0:
             raise Stall()
+        request, value = setup.request, setup.value
         if request == STATUS:
             self._advance()
             status = (STATUS_RUNNING if self.running else 0) | (STATUS_OVERRUN if self.overrun else 0)
@@ -184,11 +175,10 @@ class Usb1608FsModel(FakeUsbDevice):
             return struct.pack("<H", self.raw_code(self.signal(self.clock(), ch), ch))
         raise Stall()
 
-    def handle_control_out(
-        self, request_type: int, request: int, value: int, index: int, data: bytes
-    ) -> None:
-        if request_type != 0x40:
+    def handle_control_out(self, setup: Setup, data: bytes) -> None:
+        if setup.request_type != 0x40:
             raise Stall()
+        request = setup.request
         if request == AIN_CONFIG:
             if self.running or len(data) != N_CHANNELS or any(r >= N_RANGES for r in data):
                 raise Stall()

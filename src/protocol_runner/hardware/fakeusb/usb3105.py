@@ -16,18 +16,10 @@ import struct
 from collections import deque
 from dataclasses import dataclass, field
 
-from protocol_runner.hardware.fakeusb.device import (
-    ENDPOINT_INTERRUPT,
-    FakeUsbDevice,
-    Faults,
-    Stall,
-    UsbIdentity,
-    single_interface,
-)
+from protocol_runner.hardware.fakeusb.descriptors import ENDPOINT_INTERRUPT, UsbIdentity, single_interface
+from protocol_runner.hardware.fakeusb.device import FakeUsbDevice, Faults, Setup, Stall
 
-VENDOR_ID = 0x09DB
-PRODUCT_ID = 0x009E
-IDENTITY = UsbIdentity(VENDOR_ID, PRODUCT_ID, 0x0102, "MCC", "USB-3105")
+IDENTITY = UsbIdentity(0x09DB, 0x009E, 0x0102, "MCC", "USB-3105")
 N_CHANNELS = 16
 MEMORY_SIZE = 0x400
 
@@ -110,12 +102,10 @@ class Usb3105Model(FakeUsbDevice):
             raise Stall()
         self._report(data)
 
-    def handle_control_out(
-        self, request_type: int, request: int, value: int, index: int, data: bytes
-    ) -> None:
+    def handle_control_out(self, setup: Setup, data: bytes) -> None:
         # HID SET_REPORT (output report): 0x21, 0x09, wValue = 0x0200 | report id, wIndex = interface
-        if request_type == 0x21 and request == 0x09 and (value >> 8) == 0x02:
-            if not data or data[0] != (value & 0xFF):
+        if setup.request_type == 0x21 and setup.request == 0x09 and (setup.value >> 8) == 0x02:
+            if not data or data[0] != (setup.value & 0xFF):
                 self.bad_reports.append(bytes(data))
                 return
             self._report(data)
