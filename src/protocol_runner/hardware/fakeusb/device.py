@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import errno
 from dataclasses import dataclass, field
-from typing import NamedTuple
 
 import usb.core
 
@@ -63,7 +62,8 @@ class Faults:
     vanish_after_transfers: int | None = None
 
 
-class Setup(NamedTuple):
+@dataclass(frozen=True)
+class Setup:
     """The setup packet of a (non-standard) control request, less its length (USB 2.0 §9.3)."""
 
     request_type: int
