@@ -289,7 +289,7 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
         """After AIN_SCAN_STOP: read single packets until the pipe is empty (a short packet ends it)."""
         s = self.settings
         for _ in range(s.max_drain_packets):
-            data = self._bulk_read(s.packet_size, s.read_timeout_ms)
+            data = self._bulk_read(s.packet_size, s.drain_timeout_ms)
             if data is None:
                 return
             self._pending += data

@@ -20,6 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from protocol_runner.hardware.usb_board import InPipeSettings
+
 PRODUCT_ID = 0x00EA
 KIND = "USB-1608FS-Plus"
 N_CHANNELS = 8
@@ -44,14 +46,9 @@ STATUS_OVERRUN = 0x04
 
 
 @dataclass(frozen=True)
-class Usb1608FsSettings:
+class Usb1608FsSettings(InPipeSettings):
     """Transport settings (the calibration address layout is UNVERIFIED on hardware)."""
 
-    interface: int = 0
-    in_endpoint: int = 0x81
-    packet_size: int = 64
-    timeout_ms: int = 1000
-    read_timeout_ms: int = 20
     max_read_packets: int = 64
     max_drain_packets: int = 1024
     cal_address: int = 0x0000
