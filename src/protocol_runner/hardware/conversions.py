@@ -102,7 +102,7 @@ def _linear_map(
 
 
 class LinearConversion(Protocol):
-    """One of Eq 1-3: `values` on one side, the joint's range (degrees or newton-metres) and the volts range."""
+    """One of Eq 1-3: `values`, the joint's range (degrees or newton-metres), the volts range (±10 V)."""
 
     def __call__(
         self, values: ArrayLike, joint_range: tuple[float, float], volts_range: tuple[float, float] = ...

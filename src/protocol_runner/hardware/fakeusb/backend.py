@@ -47,7 +47,7 @@ def _present(dev_handle: _Handle) -> FakeUsbDevice:
 
 
 def _claimable(dev_handle: _Handle) -> FakeUsbDevice:
-    """The handle's device, when its interfaces may be taken from the kernel (errno 13 without a udev rule)."""
+    """The handle's device, when it lets its interfaces be taken (errno 13 without a udev rule)."""
     dev = _present(dev_handle)
     if dev.faults.access_denied_on_claim:
         raise access_denied()

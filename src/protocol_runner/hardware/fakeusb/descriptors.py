@@ -66,8 +66,8 @@ LAYOUTS: dict[str, str] = {
     "iConfiguration=0 bmAttributes=0x80 bMaxPower=50 extra_descriptors=[]",
     "interface": "bLength=9 bDescriptorType=4 bInterfaceNumber bAlternateSetting=0 bNumEndpoints "
     "bInterfaceClass bInterfaceSubClass bInterfaceProtocol iInterface=0 extra_descriptors=[]",
-    "endpoint": "bLength=7 bDescriptorType=5 bEndpointAddress bmAttributes wMaxPacketSize bInterval bRefresh=0 "
-    "bSynchAddress=0 extra_descriptors=[]",
+    "endpoint": "bLength=7 bDescriptorType=5 bEndpointAddress bmAttributes wMaxPacketSize bInterval "
+    "bRefresh=0 bSynchAddress=0 extra_descriptors=[]",
 }
 """The standard descriptors (USB 2.0 §9.6) in wire order, then the attributes pyusb's backends add. A field
 with ``=value`` is the same for every fake device; a bare field takes the next value given to `descriptor`."""

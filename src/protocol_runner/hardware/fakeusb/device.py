@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import errno
 from dataclasses import dataclass, field
+from typing import Any, ClassVar, Self
 
 import usb.core
 
-from protocol_runner.hardware.fakeusb.descriptors import EndpointSpec, InterfaceSpec
+from protocol_runner.hardware.fakeusb.descriptors import EndpointSpec, InterfaceSpec, UsbIdentity
 
 LIBUSB_ERROR_ACCESS = -3
 LIBUSB_ERROR_NO_DEVICE = -4
@@ -74,11 +75,13 @@ class Setup:
 
 @dataclass(eq=False)
 class FakeUsbDevice:
-    """Base of the byte-level device models. Subclasses override the `handle_*` methods; their factories
-    pass the identity (``**identity._asdict()``).
+    """Base of the byte-level device models. Subclasses state their board's `IDENTITY` and override the
+    `handle_*` methods; their factories go through `make`.
 
     Models never sleep: a read with no data ready raises the timeout at once.
     """
+
+    IDENTITY: ClassVar[UsbIdentity]
 
     vendor_id: int
     product_id: int
@@ -91,6 +94,13 @@ class FakeUsbDevice:
     kernel_driver_on: set[int] = field(default_factory=set)
     bus: int = 1
     address: int = 1
+
+    @classmethod
+    def make(cls, serial: str, faults: Faults | None = None, **fields: Any) -> Self:
+        """A model of the board's `IDENTITY` (a field of it given in `fields` replaces it) with `serial`
+        and `faults` (none by default)."""
+        identity = {name: fields.pop(name, value) for name, value in cls.IDENTITY._asdict().items()}
+        return cls(**identity, serial=serial, faults=faults or Faults(), **fields)
 
     def __post_init__(self) -> None:
         self.gone = False

@@ -17,12 +17,11 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import ClassVar
 
 from protocol_runner.hardware.fakeusb.descriptors import ENDPOINT_BULK, UsbIdentity, single_interface
 from protocol_runner.hardware.fakeusb.device import FakeUsbDevice, Faults, Stall
 
-IDENTITY = UsbIdentity(0x0867, 0x9814, 0x0100, "Data Translation", "DT9814")
-"""Data Translation's vendor id; the product id 0x9814 is a stand-in (the DT9814's real one is not public)."""
 BOARD_INFO_ADDR = 0xFBFF
 
 SFR = {"P1": 0x90, "ADC0CF": 0xBC, "ADC0L": 0xBE, "ADC0H": 0xBF, "ADC0CN": 0xE8}
@@ -42,6 +41,9 @@ def volts_to_code12(volts: float) -> int:
 @dataclass(eq=False)
 class Dt9814Model(FakeUsbDevice):
     """A fake DT9814 (DT9812 protocol). `endpoints` gives the five endpoint addresses in descriptor order."""
+
+    IDENTITY: ClassVar[UsbIdentity] = UsbIdentity(0x0867, 0x9814, 0x0100, "Data Translation", "DT9814")
+    """Data Translation's vendor id; product id 0x9814 is a stand-in (the DT9814's real one is not public)."""
 
     device_id: int = 0x0000
     serial_number: int = 12345678
@@ -135,19 +137,19 @@ class Dt9814Model(FakeUsbDevice):
 
 def make_dt9814(
     *,
-    product_id: int = IDENTITY.product_id,
+    product_id: int = Dt9814Model.IDENTITY.product_id,
     serial_number: int = 12345678,
     device_id: int = 0x0000,
     signal: Callable[[float, int], float] | None = None,
     faults: Faults | None = None,
     endpoints: tuple[int, ...] = DEFAULT_ENDPOINTS,
 ) -> Dt9814Model:
-    return Dt9814Model(
-        **IDENTITY._replace(product_id=product_id)._asdict(),
-        serial=str(serial_number),
+    return Dt9814Model.make(
+        str(serial_number),
+        faults,
+        product_id=product_id,
         serial_number=serial_number,
         device_id=device_id,
         signal=signal or (lambda t, ch: 0.0),
-        faults=faults or Faults(),
         endpoints=endpoints,
     )

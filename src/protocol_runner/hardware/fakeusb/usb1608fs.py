@@ -17,14 +17,13 @@ import struct
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from protocol_runner.hardware.fakeusb.descriptors import ENDPOINT_BULK, UsbIdentity, single_interface
 from protocol_runner.hardware.fakeusb.device import FakeUsbDevice, Faults, Setup, Stall
 
-IDENTITY = UsbIdentity(0x09DB, 0x00EA, 0x0103, "MCC", "USB-1608FS-Plus")
 N_CHANNELS = 8
 N_RANGES = 8
 PACKET = 64
@@ -62,6 +61,8 @@ def zero_signal(time_s: float, channel: int) -> float:
 @dataclass(eq=False)
 class Usb1608FsModel(FakeUsbDevice):
     """A fake USB-1608FS-Plus. `clock` is the model's time source (seconds); tests pass a manual one."""
+
+    IDENTITY: ClassVar[UsbIdentity] = UsbIdentity(0x09DB, 0x00EA, 0x0103, "MCC", "USB-1608FS-Plus")
 
     signal: Signal = zero_signal
     clock: Callable[[], float] = time.monotonic
@@ -263,11 +264,4 @@ def make_usb1608fs(
     fifo_samples: int = FIFO_SAMPLES,
 ) -> Usb1608FsModel:
     """A fake USB-1608FS-Plus with ideal calibration (slope 1, intercept 0)."""
-    return Usb1608FsModel(
-        **IDENTITY._asdict(),
-        serial=serial,
-        signal=signal,
-        clock=clock,
-        faults=faults or Faults(),
-        fifo_samples=fifo_samples,
-    )
+    return Usb1608FsModel.make(serial, faults, signal=signal, clock=clock, fifo_samples=fifo_samples)
