@@ -6,9 +6,10 @@ send through `hardware/motion.py`, which adds the approach and the exit in the s
 1. safety envelope (`hardware/safety.py`) on the whole trajectory — a violation raises before any write;
 2. command look-up table, real -> input angle (thesis §2.5.1);
 3. Eq 1, angle -> volts over the joint's range; clamp to ±10 V;
-4. the paced loop (`hardware/paced.py`, shared with `MultiRig`): start the input scan ([angle channel, torque channel] at `input_rate_hz`), then for each
-   output tick k sleep until t0 + k / output_rate_hz, write the volts, record the write time; read the scan
-   every `READ_EVERY_TICKS` ticks; after the last tick wait one more tick and stop the scan;
+4. the paced loop (`hardware/paced.py`, shared with `MultiRig`): start the input scan ([angle channel,
+   torque channel] at `input_rate_hz`), then for each output tick k sleep until t0 + k / output_rate_hz,
+   write the volts, record the write time; read the scan every `READ_EVERY_TICKS` ticks; after the last
+   tick wait one more tick and stop the scan;
 5. telemetry: the scan's volts -> Eq 2 (angle) and Eq 3 (torque) -> the angle and torque look-up tables
    (output -> real, thesis §2.5.1-2.5.2).
 
