@@ -15,6 +15,7 @@ job of `hardware/safety.py`. Only the code conversions clamp, because a board ca
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
@@ -100,32 +101,35 @@ def _linear_map(
     return result
 
 
-def angle_to_volts(
-    angle_deg: ArrayLike, range_deg: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
-) -> FloatArray:
-    """Eq 1: V = V_min + (θ - θ_min) / (θ_max - θ_min) * (V_max - V_min). Not clamped."""
-    return _linear_map(angle_deg, ("range_deg", range_deg), ("volts_range", volts_range))
+class LinearConversion(Protocol):
+    """One of Eq 1-3: `values`, the joint's range (degrees or newton-metres), the volts range (±10 V)."""
+
+    def __call__(
+        self, values: ArrayLike, joint_range: tuple[float, float], volts_range: tuple[float, float] = ...
+    ) -> FloatArray: ...
 
 
-def volts_to_angle(
-    volts: ArrayLike, range_deg: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
-) -> FloatArray:
-    """Eq 2: θ = θ_min + (V - V_min) / (V_max - V_min) * (θ_max - θ_min)."""
-    return _linear_map(volts, ("volts_range", volts_range), ("range_deg", range_deg))
+def _equation(src: str, dst: str) -> LinearConversion:
+    """The conversion from the range named `src` to the range named `dst`, one of them "volts_range" (the
+    volts side), the other the joint's range (its name is what an error about it says). Not clamped."""
+    joint_name = src if dst == "volts_range" else dst
+
+    def convert(
+        values: ArrayLike, joint_range: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
+    ) -> FloatArray:
+        ranges = {joint_name: joint_range, "volts_range": volts_range}
+        return _linear_map(values, (src, ranges[src]), (dst, ranges[dst]))
+
+    convert.__doc__ = (
+        f"{src} -> {dst} (thesis Eq 1-3, the straight line through the range ends). Not clamped."
+    )
+    return convert
 
 
-def volts_to_torque(
-    volts: ArrayLike, torque_range_nm: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
-) -> FloatArray:
-    """Eq 3: T = T_min + (V - V_min) / (V_max - V_min) * (T_max - T_min)."""
-    return _linear_map(volts, ("volts_range", volts_range), ("torque_range_nm", torque_range_nm))
-
-
-def torque_to_volts(
-    torque_nm: ArrayLike, torque_range_nm: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
-) -> FloatArray:
-    """Eq 3 inverted (what the robot's torque telemetry outputs for a torque). Not clamped."""
-    return _linear_map(torque_nm, ("torque_range_nm", torque_range_nm), ("volts_range", volts_range))
+angle_to_volts = _equation("range_deg", "volts_range")  # Eq 1: the commanded angle's output volts
+volts_to_angle = _equation("volts_range", "range_deg")  # Eq 2: angle telemetry volts -> joint angle
+volts_to_torque = _equation("volts_range", "torque_range_nm")  # Eq 3: torque telemetry volts -> torque
+torque_to_volts = _equation("torque_range_nm", "volts_range")  # Eq 3 inverted: what the robot outputs
 
 
 def volts_to_ao16_code(volts: ArrayLike) -> npt.NDArray[np.uint16]:

@@ -32,7 +32,7 @@ import usb.core
 import usb.util
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.hardware.usb_board import OpenedBoard
+from protocol_runner.hardware.usb_board import OpenedBoard, TransportSettings
 from protocol_runner.hardware.usb_common import (
     DRY_RUN_HINT,
     DT_VENDOR_ID,
@@ -71,12 +71,10 @@ UNVERIFIED_WARNING = (
 
 
 @dataclass(frozen=True)
-class Dt9814Settings:
+class Dt9814Settings(TransportSettings):
     """Every UNVERIFIED DT9814 fact, as a setting (defaults = the DT9812/10V values from comedi)."""
 
     product_id: int | None = None
-    interface: int = 0
-    timeout_ms: int = 1000
     board_info_address: int = 0xFBFF
     accepted_device_ids: tuple[int, ...] | None = None
     n_channels: int = 8

@@ -17,22 +17,24 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable, Sequence
 from dataclasses import replace
+from typing import ClassVar, cast
 
 import numpy as np
 import numpy.typing as npt
 
-from protocol_runner.errors import Interrupted, InvalidInput
+from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock, LoopTap, ScanBlock
-from protocol_runner.hardware.joint import JointConfig, OnStop, StopRequested, TrialRecording
+from protocol_runner.hardware.joint import JointConfig, StopRequested, TrialRecording
 from protocol_runner.hardware.motion import trajectory_part
 from protocol_runner.hardware.multi_stream import MultiStream, build_multi_stream, check_multi_stream
-from protocol_runner.hardware.rig import READ_EVERY_TICKS, Rig
+from protocol_runner.hardware.paced import Loop, PacedLoop, input_time_base_s
+from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import check_trajectory, parking_ramp_deg
 
 FloatArray = npt.NDArray[np.float64]
 
 
-class MultiRig:
+class MultiRig(PacedLoop[tuple[TrialRecording, ...]]):
     """Binds one analog output, one analog input and a clock to several joints (channel order)."""
 
     def __init__(
@@ -165,101 +167,45 @@ class MultiRig:
             raise InvalidInput("could not measure the joint angles: the input scan returned no samples")
         return [float(np.mean(j.angle_from_volts(block.volts[:, 2 * k]))) for k, j in enumerate(self.joints)]
 
-    def send(
-        self,
-        cmd: FloatArray,
-        *,
-        where: str,
-        stop_requested: StopRequested | None,
-        on_stop: OnStop | None = None,
-    ) -> tuple[TrialRecording, ...]:
-        """The paced loop over (ticks, joints) samples already checked: per tick one synchronous write of
-        every joint's channel. On a stop request `on_stop(written)` gives the samples to send next."""
-        cmd = np.asarray(cmd, dtype=np.float64)
-        n_j = len(self.joints)
-        volts = np.stack([j.command_to_volts(cmd[:, k]) for k, j in enumerate(self.joints)], axis=1)
-        self.prepare()
-        n = int(cmd.shape[0])
-        dt = 1.0 / self.output_rate_hz
+    # ---- the paced loop (`PacedLoop.send`): per tick one synchronous write of every joint's channel -----
+    UNWRITTEN: ClassVar[object] = None
+    SHOWS_PARK: ClassVar[bool] = False
+
+    @property
+    def rates_hz(self) -> tuple[float, float]:
+        return (self.output_rate_hz, self.input_rate_hz)
+
+    def _command_volts(self, cmd: FloatArray) -> FloatArray:
+        return np.stack([j.command_to_volts(cmd[:, k]) for k, j in enumerate(self.joints)], axis=1)
+
+    def _tick_writer(self, volts: FloatArray) -> Callable[[int], object]:
         channels = [j.output_channel for j in self.joints]
         rows: list[dict[int, float]] = [dict(zip(channels, r, strict=True)) for r in volts.tolist()]
-        codes: list[dict[int, int] | None] = [None] * n
-        actual: list[float] = [0.0] * n
-        blocks: list[ScanBlock] = []
         write = self.ao.write_volts_sync
-        sleep_until, now, read = self.clock.sleep_until, self.clock.now_s, self.ai.read_available
-        self.ai.start_scan(self.scan_channels, self.input_rate_hz)
-        t0 = now()
-        schedule: list[float] = (t0 + np.arange(n + 1, dtype=np.float64) * dt).tolist()
-        stopped = ""
-        tap = self.tap  # the monitor sees the first joint (its angle and torque are scan columns 0 and 1)
-        if tap is not None:
-            tap.start(where, np.ascontiguousarray(cmd[:, 0]), t0)
-        try:
-            start = 0
-            while start < n:
-                end = min(start + READ_EVERY_TICKS, n)
-                for k in range(start, end):
-                    sleep_until(schedule[k])
-                    actual[k] = now()
-                    codes[k] = write(rows[k])
-                blocks.append(read())
-                start = end
-                if tap is not None:
-                    b = blocks[-1]
-                    tap.scan(ScanBlock(b.t_s, b.codes[:, :2], b.volts[:, :2]))
-                if not stopped and stop_requested is not None and stop_requested():
-                    stopped = f"{where}: stopped on request at t = {schedule[end - 1] - t0:.2f} s"
-                    if on_stop is None:
-                        raise Interrupted(stopped)
-                    tail = on_stop(end)
-                    cmd = np.concatenate([cmd[:end], tail])
-                    tail_v = np.stack(
-                        [j.command_to_volts(tail[:, q]) for q, j in enumerate(self.joints)], axis=1
-                    )
-                    rows = rows[:end] + [dict(zip(channels, r, strict=True)) for r in tail_v.tolist()]
-                    volts = np.concatenate([volts[:end], tail_v])
-                    n = int(cmd.shape[0])
-                    codes, actual = codes[:end] + [None] * (n - end), actual[:end] + [0.0] * (n - end)
-                    schedule = (t0 + np.arange(n + 1, dtype=np.float64) * dt).tolist()
-            sleep_until(schedule[n])
-            if stopped:
-                raise Interrupted(stopped)
-        except BaseException as exc:
-            written = codes.index(None) if None in codes else len(codes)
-            if written:
-                self._last = [float(v) for v in cmd[written - 1]]
-            with contextlib.suppress(Exception):
-                blocks.append(self.ai.stop_scan())
-            with contextlib.suppress(Exception):
-                exc.partial_recording = self._recordings(  # type: ignore[attr-defined]
-                    cmd[:written], volts[:written], codes[:written], actual[:written], blocks, t0, where
-                )
-            raise
-        blocks.append(self.ai.stop_scan())
-        self._last = [float(v) for v in cmd[-1]]
-        assert n_j == cmd.shape[1]
-        return self._recordings(cmd, volts, codes, actual, blocks, t0, where)
+        return lambda k: write(rows[k])
 
-    def _recordings(
-        self,
-        cmd: FloatArray,
-        volts: FloatArray,
-        codes: list[dict[int, int] | None],
-        actual: list[float],
-        blocks: list[ScanBlock],
-        t0: float,
-        where: str,
-    ) -> tuple[TrialRecording, ...]:
-        n = int(cmd.shape[0])
+    def _monitored_command(self, cmd: FloatArray) -> FloatArray:
+        """The monitor sees the first joint (its angle and torque are scan columns 0 and 1)."""
+        return np.ascontiguousarray(cmd[:, 0])
+
+    def _monitored_scan(self, block: ScanBlock) -> ScanBlock:
+        return ScanBlock(block.t_s, block.codes[:, :2], block.volts[:, :2])
+
+    def _note_written(self, cmd: FloatArray, written: int) -> None:
+        if written:
+            self._last = [float(v) for v in cmd[written - 1]]
+
+    def _recording(self, loop: Loop, where: str, *, partial: bool) -> tuple[TrialRecording, ...]:
+        """Each joint's recording of the ticks written, all on the same time base."""
+        n = loop.written(self.UNWRITTEN) if partial else loop.n
         dt = 1.0 / self.output_rate_hz
-        scan = ScanBlock.concatenate(blocks, 2 * len(self.joints))
+        scan = ScanBlock.concatenate(loop.blocks, 2 * len(self.joints))
         if scan.codes.ndim != 2 or scan.codes.shape[1] != 2 * len(self.joints):
             raise InvalidInput(f"{where}: the input board returned codes of shape {scan.codes.shape}")
-        n_in = int(scan.t_s.shape[0])
-        offset = round((float(scan.t_s[0]) - t0) * 1e6) / 1e6 if n_in else 0.0
-        input_time_s = offset + np.arange(n_in, dtype=np.float64) / self.input_rate_hz
-        lateness = np.asarray(actual[:n], dtype=np.float64) - (t0 + np.arange(n, dtype=np.float64) * dt)
+        input_time_s = input_time_base_s(scan, loop.t0, self.input_rate_hz)
+        t0 = loop.t0
+        lateness = np.asarray(loop.actual[:n], dtype=np.float64) - (t0 + np.arange(n, dtype=np.float64) * dt)
+        codes = cast("list[dict[int, int] | None]", loop.codes[:n])
         out = []
         for k, j in enumerate(self.joints):
             av = np.ascontiguousarray(scan.volts[:, 2 * k], dtype=np.float64)
@@ -267,10 +213,10 @@ class MultiRig:
             out.append(
                 TrialRecording(
                     command_time_s=np.arange(n, dtype=np.float64) * dt,
-                    command_deg=np.ascontiguousarray(cmd[:, k]),
-                    command_volts=np.ascontiguousarray(volts[:n, k]),
+                    command_deg=np.ascontiguousarray(loop.cmd[:n, k]),
+                    command_volts=np.ascontiguousarray(loop.volts[:n, k]),
                     command_codes=np.asarray(
-                        [c[j.output_channel] if c else -1 for c in codes[:n]], dtype=np.int32
+                        [c[j.output_channel] if c else -1 for c in codes], dtype=np.int32
                     ),
                     input_time_s=input_time_s,
                     angle_codes=np.ascontiguousarray(scan.codes[:, 2 * k], dtype=np.int32),

@@ -13,6 +13,7 @@ import logging
 import math
 import struct
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -37,7 +38,6 @@ from protocol_runner.hardware.usb1608fs_protocol import (
     REQ_IN,
     REQ_OUT,
     STATUS_OVERRUN,
-    Usb1608FsSettings,
     codes_to_volts_pm10,
     pacer_rate_hz,
 )
@@ -45,7 +45,7 @@ from protocol_runner.hardware.usb1608fs_protocol import KIND as KIND
 from protocol_runner.hardware.usb1608fs_protocol import N_CHANNELS as N_CHANNELS
 from protocol_runner.hardware.usb1608fs_protocol import PRODUCT_ID as PRODUCT_ID
 from protocol_runner.hardware.usb1608fs_protocol import pacer_period as pacer_period
-from protocol_runner.hardware.usb_board import OpenedBoard
+from protocol_runner.hardware.usb_board import InPipeSettings, OpenedBoard
 from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,
     BoardIoError,
@@ -62,6 +62,20 @@ from protocol_runner.hardware.usb_common import (
 )
 
 log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Usb1608FsSettings(InPipeSettings):
+    """Transport settings of the USB-1608FS-Plus."""
+
+    max_read_packets: int = 64
+    """The most packets one bulk read asks for while a scan runs."""
+    max_drain_packets: int = 1024
+    """Draining after AIN_SCAN_STOP reads at most the FIFO's 64 KiB."""
+    cal_address: int = 0x0000
+    """Where the calibration memory starts (UNVERIFIED on hardware, as is its layout)."""
+    scan_options: int = 0x00
+    """AIN_SCAN_START options: block transfer mode, no trigger, stall on overrun."""
 
 
 class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
@@ -289,7 +303,7 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
         """After AIN_SCAN_STOP: read single packets until the pipe is empty (a short packet ends it)."""
         s = self.settings
         for _ in range(s.max_drain_packets):
-            data = self._bulk_read(s.packet_size, s.read_timeout_ms)
+            data = self._bulk_read(s.packet_size, s.drain_timeout_ms)
             if data is None:
                 return
             self._pending += data

@@ -1,5 +1,5 @@
 """The USB-1608FS-Plus's USB protocol facts (from public sources; docs/hardware.md): ids, commands,
-status bits, the pacer clock, driver settings and the code-to-volts conversion of its +-10 V range.
+status bits, the pacer clock and the code-to-volts conversion of its +-10 V range.
 
 Protocol (reference "USB facts"; vendor control transfers bmRequestType 0xC0 in / 0x40 out, wIndex 0):
 
@@ -14,8 +14,6 @@ Protocol (reference "USB facts"; vendor control transfers bmRequestType 0xC0 in 
 """
 
 from __future__ import annotations
-
-from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -41,21 +39,6 @@ CMD_SERIAL = 0x48
 
 STATUS_RUNNING = 0x02
 STATUS_OVERRUN = 0x04
-
-
-@dataclass(frozen=True)
-class Usb1608FsSettings:
-    """Transport settings (the calibration address layout is UNVERIFIED on hardware)."""
-
-    interface: int = 0
-    in_endpoint: int = 0x81
-    packet_size: int = 64
-    timeout_ms: int = 1000
-    read_timeout_ms: int = 20
-    max_read_packets: int = 64
-    max_drain_packets: int = 1024
-    cal_address: int = 0x0000
-    scan_options: int = 0x00  # block transfer mode, no trigger, stall on overrun
 
 
 def pacer_period(rate_hz: float) -> int:

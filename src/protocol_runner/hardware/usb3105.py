@@ -36,7 +36,7 @@ from protocol_runner.hardware.usb3105_calibration import ChannelCalibration as C
 from protocol_runner.hardware.usb3105_calibration import calibrated_code as calibrated_code
 from protocol_runner.hardware.usb3105_calibration import ideal_code_pm10v as ideal_code_pm10v
 from protocol_runner.hardware.usb3105_calibration import parse_calibration as parse_calibration
-from protocol_runner.hardware.usb_board import OpenedBoard
+from protocol_runner.hardware.usb_board import InPipeSettings, OpenedBoard
 from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,
     BoardIoError,
@@ -73,17 +73,11 @@ HID_REPORT_TYPE_OUTPUT = 0x0200
 
 
 @dataclass(frozen=True)
-class Usb3105Settings:
+class Usb3105Settings(InPipeSettings):
     """Transport settings. The endpoint addresses are the documented defaults, UNVERIFIED on hardware."""
 
     out_endpoint: int = 0x01
-    in_endpoint: int = 0x81
-    interface: int = 0
-    timeout_ms: int = 1000
     reply_timeout_ms: int = 500
-    drain_timeout_ms: int = 20
-    max_drain_reports: int = 256
-    report_size: int = 64
     max_unexpected_replies: int = 4
 
 
@@ -170,9 +164,9 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
         """Read and discard input reports left over from an earlier session (they can hang the board)."""
         n = 0
         s = self.settings
-        while n < s.max_drain_reports:
+        while n < s.max_drain_packets:
             try:
-                self._dev.read(s.in_endpoint, s.report_size, s.drain_timeout_ms)
+                self._dev.read(s.in_endpoint, s.packet_size, s.drain_timeout_ms)
             except usb.core.USBTimeoutError:
                 break
             except usb.core.USBError as exc:
@@ -207,7 +201,7 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
         s = self.settings
         for _ in range(s.max_unexpected_replies + 1):
             try:
-                reply = bytes(self._dev.read(s.in_endpoint, s.report_size, s.reply_timeout_ms))
+                reply = bytes(self._dev.read(s.in_endpoint, s.packet_size, s.reply_timeout_ms))
             except usb.core.USBError as exc:
                 raise map_usb_error(exc, self.name, action) from exc
             if reply and reply[0] == report[0]:

@@ -3,19 +3,32 @@ fails, and an idempotent `close` (also on leaving ``with board:``)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from types import TracebackType
-from typing import Generic, Protocol, Self, TypeVar
+from typing import Generic, Self, TypeVar
 
 import usb.core
 
 from protocol_runner.hardware.usb_common import release_device
 
 
-class TransportSettings(Protocol):
-    """What closing needs of a board's transport settings: the interface number it claimed."""
+@dataclass(frozen=True)
+class TransportSettings:
+    """What every board's transport settings hold: the interface it claims, the timeout of one command."""
 
-    @property
-    def interface(self) -> int: ...
+    interface: int = 0
+    timeout_ms: int = 1000
+
+
+@dataclass(frozen=True)
+class InPipeSettings(TransportSettings):
+    """A board whose data comes back on one IN endpoint (the MCC boards): its address and packet size, and
+    how the stale data left in it is drained (at most `max_drain_packets` reads, each `drain_timeout_ms`)."""
+
+    in_endpoint: int = 0x81
+    packet_size: int = 64
+    drain_timeout_ms: int = 20
+    max_drain_packets: int = 256
 
 
 SettingsT = TypeVar("SettingsT", bound=TransportSettings)

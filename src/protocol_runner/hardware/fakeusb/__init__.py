@@ -10,7 +10,8 @@ Faults: `Faults` per device, `FakeBackend.unplug(model)`.
 """
 
 from protocol_runner.hardware.fakeusb.backend import FakeBackend
-from protocol_runner.hardware.fakeusb.device import EndpointSpec, FakeUsbDevice, Faults, InterfaceSpec, Stall
+from protocol_runner.hardware.fakeusb.descriptors import EndpointSpec, InterfaceSpec
+from protocol_runner.hardware.fakeusb.device import FakeUsbDevice, Faults, Stall
 from protocol_runner.hardware.fakeusb.dt9814 import Dt9814Model, make_dt9814
 from protocol_runner.hardware.fakeusb.usb1608fs import ManualClock, Usb1608FsModel, make_usb1608fs
 from protocol_runner.hardware.fakeusb.usb3105 import Usb3105Model, make_usb3105

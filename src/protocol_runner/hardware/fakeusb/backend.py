@@ -13,14 +13,16 @@ Faults are injected per device through `Faults` and raise exactly what libusb ra
 from __future__ import annotations
 
 import array
+import contextlib
 from collections.abc import Iterator
-from typing import Any
 
 import usb.backend
 import usb.core
 
+from protocol_runner.hardware.fakeusb.descriptors import Descriptor, descriptor
 from protocol_runner.hardware.fakeusb.device import (
     FakeUsbDevice,
+    Setup,
     Stall,
     access_denied,
     no_device,
@@ -30,19 +32,36 @@ from protocol_runner.hardware.fakeusb.device import (
 )
 
 
-# libusb error codes (what USBError.backend_error_code holds with the libusb1 backend)
-class _Descriptor:
-    """A descriptor object: every field given as a keyword is an attribute."""
-
-    def __init__(self, **fields: Any) -> None:
-        self.__dict__.update(fields)
-
-
 class _Handle:
     def __init__(self, device: FakeUsbDevice) -> None:
         self.device = device
         self.claimed: set[int] = set()
         self.open = True
+
+
+def _present(dev_handle: _Handle) -> FakeUsbDevice:
+    """The handle's device; errno 19 once it is unplugged."""
+    if dev_handle.device.gone:
+        raise no_device()
+    return dev_handle.device
+
+
+def _claimable(dev_handle: _Handle) -> FakeUsbDevice:
+    """The handle's device, when it lets its interfaces be taken (errno 13 without a udev rule)."""
+    dev = _present(dev_handle)
+    if dev.faults.access_denied_on_claim:
+        raise access_denied()
+    return dev
+
+
+@contextlib.contextmanager
+def _halt_on_stall(dev: FakeUsbDevice, ep: int) -> Iterator[None]:
+    """A model's `Stall` halts the endpoint: the host sees a pipe error (errno 32) until `clear_halt`."""
+    try:
+        yield
+    except Stall:
+        dev.halted.add(ep)
+        raise pipe_error() from None
 
 
 class FakeBackend(usb.backend.IBackend):
@@ -66,77 +85,27 @@ class FakeBackend(usb.backend.IBackend):
     def get_parent(self, dev: FakeUsbDevice) -> None:
         return None
 
-    def get_device_descriptor(self, dev: FakeUsbDevice) -> _Descriptor:
-        return _Descriptor(
-            bLength=18,
-            bDescriptorType=1,
-            bcdUSB=0x0200,
-            bDeviceClass=0,
-            bDeviceSubClass=0,
-            bDeviceProtocol=0,
-            bMaxPacketSize0=64,
-            idVendor=dev.vendor_id,
-            idProduct=dev.product_id,
-            bcdDevice=dev.bcd_device,
-            iManufacturer=1,
-            iProduct=2,
-            iSerialNumber=3,
-            bNumConfigurations=1,
-            address=dev.address,
-            bus=dev.bus,
-            port_number=None,
-            port_numbers=None,
-            speed=None,
-        )
+    def get_device_descriptor(self, dev: FakeUsbDevice) -> Descriptor:
+        return descriptor("device", dev.vendor_id, dev.product_id, dev.bcd_device, dev.address, dev.bus)
 
-    def get_configuration_descriptor(self, dev: FakeUsbDevice, config: int) -> _Descriptor:
+    def get_configuration_descriptor(self, dev: FakeUsbDevice, config: int) -> Descriptor:
         if config != 0:
             raise IndexError("configuration index out of range")
         n_eps = sum(len(i.endpoints) for i in dev.interfaces)
-        return _Descriptor(
-            bLength=9,
-            bDescriptorType=2,
-            wTotalLength=9 + 9 * len(dev.interfaces) + 7 * n_eps,
-            bNumInterfaces=len(dev.interfaces),
-            bConfigurationValue=1,
-            iConfiguration=0,
-            bmAttributes=0x80,
-            bMaxPower=50,
-            extra_descriptors=[],
-        )
+        return descriptor("configuration", 9 + 9 * len(dev.interfaces) + 7 * n_eps, len(dev.interfaces))
 
-    def get_interface_descriptor(self, dev: FakeUsbDevice, intf: int, alt: int, config: int) -> _Descriptor:
+    def get_interface_descriptor(self, dev: FakeUsbDevice, intf: int, alt: int, config: int) -> Descriptor:
         if config != 0 or alt != 0 or not 0 <= intf < len(dev.interfaces):
             raise IndexError("interface index out of range")
         spec = dev.interfaces[intf]
-        return _Descriptor(
-            bLength=9,
-            bDescriptorType=4,
-            bInterfaceNumber=spec.number,
-            bAlternateSetting=0,
-            bNumEndpoints=len(spec.endpoints),
-            bInterfaceClass=spec.interface_class,
-            bInterfaceSubClass=spec.subclass,
-            bInterfaceProtocol=spec.protocol,
-            iInterface=0,
-            extra_descriptors=[],
-        )
+        n_eps = len(spec.endpoints)
+        return descriptor("interface", spec.number, n_eps, spec.interface_class, spec.subclass, spec.protocol)
 
     def get_endpoint_descriptor(
         self, dev: FakeUsbDevice, ep: int, intf: int, alt: int, config: int
-    ) -> _Descriptor:
+    ) -> Descriptor:
         spec = dev.interfaces[intf].endpoints[ep]
-        return _Descriptor(
-            bLength=7,
-            bDescriptorType=5,
-            bEndpointAddress=spec.address,
-            bmAttributes=spec.transfer_type,
-            wMaxPacketSize=spec.max_packet_size,
-            bInterval=spec.interval,
-            bRefresh=0,
-            bSynchAddress=0,
-            extra_descriptors=[],
-        )
+        return descriptor("endpoint", spec.address, spec.transfer_type, spec.max_packet_size, spec.interval)
 
     # ---- opening and claiming -------------------------------------------------------------------------
     def open_device(self, dev: FakeUsbDevice) -> _Handle:
@@ -156,24 +125,17 @@ class FakeBackend(usb.backend.IBackend):
             dev_handle.claimed.clear()
 
     def set_configuration(self, dev_handle: _Handle, config_value: int) -> None:
-        if dev_handle.device.gone:
-            raise no_device()
+        _present(dev_handle)
 
     def get_configuration(self, dev_handle: _Handle) -> int:
-        if dev_handle.device.gone:
-            raise no_device()
+        _present(dev_handle)
         return 1
 
     def set_interface_altsetting(self, dev_handle: _Handle, intf: int, altsetting: int) -> None:
-        if dev_handle.device.gone:
-            raise no_device()
+        _present(dev_handle)
 
     def claim_interface(self, dev_handle: _Handle, intf: int) -> None:
-        dev = dev_handle.device
-        if dev.gone:
-            raise no_device()
-        if dev.faults.access_denied_on_claim:
-            raise access_denied()
+        dev = _claimable(dev_handle)
         if dev.faults.busy_on_claim or intf in dev.kernel_driver_on:
             raise resource_busy()
         if intf in dev.claimed and intf not in dev_handle.claimed:
@@ -190,64 +152,47 @@ class FakeBackend(usb.backend.IBackend):
             raise no_device()
 
     def is_kernel_driver_active(self, dev_handle: _Handle, intf: int) -> bool:
-        if dev_handle.device.gone:
-            raise no_device()
-        return intf in dev_handle.device.kernel_driver_on
+        return intf in _present(dev_handle).kernel_driver_on
 
     def detach_kernel_driver(self, dev_handle: _Handle, intf: int) -> None:
-        dev = dev_handle.device
-        if dev.gone:
-            raise no_device()
-        if dev.faults.access_denied_on_claim:
-            raise access_denied()
-        dev.kernel_driver_on.discard(intf)
+        _claimable(dev_handle).kernel_driver_on.discard(intf)
 
     def attach_kernel_driver(self, dev_handle: _Handle, intf: int) -> None:
         dev_handle.device.kernel_driver_on.add(intf)
 
     def clear_halt(self, dev_handle: _Handle, ep: int) -> None:
-        if dev_handle.device.gone:
-            raise no_device()
-        dev_handle.device.halted.discard(ep)
+        _present(dev_handle).halted.discard(ep)
 
     def reset_device(self, dev_handle: _Handle) -> None:
-        if dev_handle.device.gone:
-            raise no_device()
+        _present(dev_handle)
 
     # ---- transfers -------------------------------------------------------------------------------------
-    def _check_claimed(self, dev_handle: _Handle, intf: int) -> None:
+    def _start_transfer(self, dev_handle: _Handle, ep: int, intf: int) -> FakeUsbDevice:
+        """The device, for a data transfer on endpoint `ep`: the interface claimed, the transfer counted
+        (`Faults`), the pipe not halted."""
         if intf not in dev_handle.claimed:
             # pyusb claims implicitly; reaching here means the claim failed earlier
             raise resource_busy()
-
-    def _write(self, dev_handle: _Handle, ep: int, intf: int, data: array.array[int]) -> int:
         dev = dev_handle.device
-        self._check_claimed(dev_handle, intf)
         dev.count_transfer()
         if ep in dev.halted:
             raise pipe_error()
+        return dev
+
+    def _write(self, dev_handle: _Handle, ep: int, intf: int, data: array.array[int]) -> int:
+        dev = self._start_transfer(dev_handle, ep, intf)
         payload = data.tobytes()
         if dev.keep_transfer_log:
             dev.transfer_log.append(("write", ep, payload))
-        try:
+        with _halt_on_stall(dev, ep):
             dev.handle_write(ep, payload)
-        except Stall:
-            dev.halted.add(ep)
-            raise pipe_error() from None
         return len(payload)
 
     def _read(self, dev_handle: _Handle, ep: int, intf: int, buff: array.array[int]) -> int:
-        dev = dev_handle.device
-        self._check_claimed(dev_handle, intf)
-        dev.count_transfer()
-        if ep in dev.halted:
-            raise pipe_error()
+        dev = self._start_transfer(dev_handle, ep, intf)
         size = len(buff) * buff.itemsize
-        try:
+        with _halt_on_stall(dev, ep):
             data = dev.handle_read(ep, size)
-        except Stall:
-            dev.halted.add(ep)
-            raise pipe_error() from None
         if data is None:
             raise timed_out()
         n = min(len(data), size)
@@ -289,10 +234,11 @@ class FakeBackend(usb.backend.IBackend):
         if bmRequestType == 0x80 and bRequest == 0x06:  # standard GET_DESCRIPTOR
             return self._get_descriptor(dev, wValue, wIndex, data)
         dev.count_transfer()
+        setup = Setup(bmRequestType, bRequest, wValue, wIndex)
         try:
             if is_in:
                 length = len(data) * data.itemsize
-                reply = dev.handle_control_in(bmRequestType, bRequest, wValue, wIndex, length)
+                reply = dev.handle_control_in(setup, length)
                 n = min(len(reply), length)
                 memoryview(data).cast("B")[:n] = reply[:n]
                 if dev.keep_transfer_log:
@@ -301,7 +247,7 @@ class FakeBackend(usb.backend.IBackend):
             payload = data.tobytes()
             if dev.keep_transfer_log:
                 dev.transfer_log.append(("ctrl_out", bRequest, payload))
-            dev.handle_control_out(bmRequestType, bRequest, wValue, wIndex, payload)
+            dev.handle_control_out(setup, payload)
             return len(payload)
         except Stall:
             raise pipe_error() from None

@@ -1,22 +1,21 @@
-"""A fake USB device for the fake backend: its descriptors (endpoints, interfaces), the faults to inject,
-and the libusb errors it raises."""
+"""A fake USB device for the fake backend: the base of the byte-level models and the requests they answer,
+the faults to inject, and the libusb errors it raises (what its descriptors say: `fakeusb/descriptors.py`)."""
 
 from __future__ import annotations
 
 import errno
 from dataclasses import dataclass, field
-from typing import NamedTuple
+from typing import Any, ClassVar, Self
 
 import usb.core
+
+from protocol_runner.hardware.fakeusb.descriptors import EndpointSpec, InterfaceSpec, UsbIdentity
 
 LIBUSB_ERROR_ACCESS = -3
 LIBUSB_ERROR_NO_DEVICE = -4
 LIBUSB_ERROR_BUSY = -6
 LIBUSB_ERROR_TIMEOUT = -7
 LIBUSB_ERROR_PIPE = -9
-
-ENDPOINT_BULK = 0x02
-ENDPOINT_INTERRUPT = 0x03
 
 
 def access_denied() -> usb.core.USBError:
@@ -46,37 +45,6 @@ class Stall(Exception):
 
 
 @dataclass
-class EndpointSpec:
-    """One endpoint descriptor: address (bit 7 set = IN), transfer type (2 bulk, 3 interrupt)."""
-
-    address: int
-    transfer_type: int
-    max_packet_size: int = 64
-    interval: int = 1
-
-
-@dataclass
-class InterfaceSpec:
-    """One interface (alternate setting 0) with its endpoints in descriptor order."""
-
-    number: int
-    interface_class: int
-    endpoints: list[EndpointSpec]
-    subclass: int = 0
-    protocol: int = 0
-
-
-def single_interface(
-    interface_class: int, transfer_type: int, addresses: tuple[int, ...], packet_size: int = 64
-) -> list[InterfaceSpec]:
-    """The one interface (number 0) of a model whose endpoints all share one transfer type and packet size,
-    `addresses` in descriptor order."""
-    return [
-        InterfaceSpec(0, interface_class, [EndpointSpec(a, transfer_type, packet_size) for a in addresses])
-    ]
-
-
-@dataclass
 class Faults:
     """Faults to inject into one fake device.
 
@@ -95,23 +63,25 @@ class Faults:
     vanish_after_transfers: int | None = None
 
 
-class UsbIdentity(NamedTuple):
-    """What a model's device descriptor and strings say it is (its serial is per device)."""
+@dataclass(frozen=True)
+class Setup:
+    """The setup packet of a (non-standard) control request, less its length (USB 2.0 §9.3)."""
 
-    vendor_id: int
-    product_id: int
-    bcd_device: int
-    manufacturer: str
-    product: str
+    request_type: int
+    request: int
+    value: int
+    index: int
 
 
 @dataclass(eq=False)
 class FakeUsbDevice:
-    """Base of the byte-level device models. Subclasses override the `handle_*` methods; their factories
-    pass the identity (``**identity._asdict()``).
+    """Base of the byte-level device models. Subclasses state their board's `IDENTITY` and override the
+    `handle_*` methods; their factories go through `make`.
 
     Models never sleep: a read with no data ready raises the timeout at once.
     """
+
+    IDENTITY: ClassVar[UsbIdentity]
 
     vendor_id: int
     product_id: int
@@ -125,6 +95,13 @@ class FakeUsbDevice:
     bus: int = 1
     address: int = 1
 
+    @classmethod
+    def make(cls, serial: str, faults: Faults | None = None, **fields: Any) -> Self:
+        """A model of the board's `IDENTITY` (a field of it given in `fields` replaces it) with `serial`
+        and `faults` (none by default)."""
+        identity = {name: fields.pop(name, value) for name, value in cls.IDENTITY._asdict().items()}
+        return cls(**identity, serial=serial, faults=faults or Faults(), **fields)
+
     def __post_init__(self) -> None:
         self.gone = False
         self.transfer_count = 0
@@ -135,15 +112,11 @@ class FakeUsbDevice:
         self.keep_transfer_log = True
 
     # ---- overridable behaviour -------------------------------------------------------------------
-    def handle_control_in(
-        self, request_type: int, request: int, value: int, index: int, length: int
-    ) -> bytes:
+    def handle_control_in(self, setup: Setup, length: int) -> bytes:
         """Answer an IN control request (non-standard). Raise `Stall` to refuse it."""
         raise Stall()
 
-    def handle_control_out(
-        self, request_type: int, request: int, value: int, index: int, data: bytes
-    ) -> None:
+    def handle_control_out(self, setup: Setup, data: bytes) -> None:
         """Accept an OUT control request (non-standard). Raise `Stall` to refuse it."""
         raise Stall()
 

@@ -17,35 +17,19 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import ClassVar
 
-from protocol_runner.hardware.fakeusb.device import (
-    ENDPOINT_BULK,
-    FakeUsbDevice,
-    Faults,
-    Stall,
-    UsbIdentity,
-    single_interface,
-)
+from protocol_runner.hardware.fakeusb.descriptors import ENDPOINT_BULK, UsbIdentity, single_interface
+from protocol_runner.hardware.fakeusb.device import FakeUsbDevice, Faults, Stall
 
-VENDOR_ID = 0x0867
-FAKE_PRODUCT_ID = 0x9814  # a stand-in: the DT9814's real product id is not public
-IDENTITY = UsbIdentity(VENDOR_ID, FAKE_PRODUCT_ID, 0x0100, "Data Translation", "DT9814")
 BOARD_INFO_ADDR = 0xFBFF
 
-OP_R_FLASH_DATA = 1
-OP_R_MULTI_BYTE_REG = 4
-OP_W_MULTI_BYTE_REG = 5
-OP_RMW_MULTI_BYTE_REG = 7
+SFR = {"P1": 0x90, "ADC0CF": 0xBC, "ADC0L": 0xBE, "ADC0H": 0xBF, "ADC0CN": 0xE8}
+"""The 8051 special function registers of the protocol, by name: address."""
+ADC0CN_BITS = {"AD0BUSY": 0x10, "AD0INT": 0x20}
 
-SFR_P1 = 0x90
-SFR_ADC0CF = 0xBC
-SFR_ADC0L = 0xBE
-SFR_ADC0H = 0xBF
-SFR_ADC0CN = 0xE8
-ADC0CN_AD0BUSY = 0x10
-ADC0CN_AD0INT = 0x20
-
-# endpoint addresses in descriptor order: message-IN, command-OUT, command-IN, stream-OUT, stream-IN
+ENDPOINT_ROLES = ("message_in", "command_out", "command_in", "stream_out", "stream_in")
+"""The five bulk endpoints by role, in descriptor order."""
 DEFAULT_ENDPOINTS = (0x81, 0x01, 0x82, 0x02, 0x83)
 
 
@@ -57,6 +41,9 @@ def volts_to_code12(volts: float) -> int:
 @dataclass(eq=False)
 class Dt9814Model(FakeUsbDevice):
     """A fake DT9814 (DT9812 protocol). `endpoints` gives the five endpoint addresses in descriptor order."""
+
+    IDENTITY: ClassVar[UsbIdentity] = UsbIdentity(0x0867, 0x9814, 0x0100, "Data Translation", "DT9814")
+    """Data Translation's vendor id; product id 0x9814 is a stand-in (the DT9814's real one is not public)."""
 
     device_id: int = 0x0000
     serial_number: int = 12345678
@@ -84,54 +71,64 @@ class Dt9814Model(FakeUsbDevice):
         self.ignored_writes: list[bytes] = []
         self.conversions: list[int] = []
 
-    @property
-    def command_out(self) -> int:
-        return self.endpoints[1]
-
-    @property
-    def command_in(self) -> int:
-        return self.endpoints[2]
+    def pipe(self, role: str) -> int:
+        """The address of the endpoint with `role` (`ENDPOINT_ROLES`): taken by position, not address."""
+        return self.endpoints[ENDPOINT_ROLES.index(role)]
 
     def handle_write(self, endpoint: int, data: bytes) -> None:
-        if endpoint != self.command_out:
+        if endpoint != self.pipe("command_out"):
             raise Stall()
         if len(data) != 32:  # the DT9812 only responds to 32-byte writes
             self.ignored_writes.append(data)
             return
         self.commands.append(data)
         opcode = struct.unpack_from("<I", data)[0]
-        body = data[4:]
-        if opcode == OP_R_FLASH_DATA:
-            count, address = struct.unpack_from("<HH", body)
-            self.replies.append(bytes(self.flash[address : address + count]))
-        elif opcode == OP_R_MULTI_BYTE_REG:
-            count = body[0]
-            self.replies.append(bytes(self.registers[a] for a in body[1 : 1 + count]))
-        elif opcode == OP_W_MULTI_BYTE_REG:
-            count = body[0]
-            for i in range(count):
-                self._write_register(body[1 + 2 * i], body[2 + 2 * i])
-        elif opcode == OP_RMW_MULTI_BYTE_REG:
-            count = body[0]
-            for i in range(count):
-                addr, mask, value = body[1 + 3 * i : 4 + 3 * i]
-                self._write_register(addr, (self.registers[addr] & ~mask & 0xFF) | (value & mask))
-        else:
+        handler = self._opcodes().get(opcode)
+        if handler is None:
             self.ignored_writes.append(data)
+            return
+        handler(data[4:])
+
+    def _opcodes(self) -> dict[int, Callable[[bytes], None]]:
+        """The commands the model obeys, by opcode: 1 reads flash, 4 reads registers, 5 writes registers,
+        7 read-modify-writes registers."""
+        return {
+            1: self._read_flash,
+            4: self._read_registers,
+            5: self._write_registers,
+            7: self._modify_registers,
+        }
+
+    def _read_flash(self, body: bytes) -> None:
+        count, address = struct.unpack_from("<HH", body)
+        self.replies.append(bytes(self.flash[address : address + count]))
+
+    def _read_registers(self, body: bytes) -> None:
+        self.replies.append(bytes(self.registers[a] for a in body[1 : 1 + body[0]]))
+
+    def _write_registers(self, body: bytes) -> None:
+        for i in range(body[0]):
+            self._write_register(body[1 + 2 * i], body[2 + 2 * i])
+
+    def _modify_registers(self, body: bytes) -> None:
+        for i in range(body[0]):
+            addr, mask, value = body[1 + 3 * i : 4 + 3 * i]
+            self._write_register(addr, (self.registers[addr] & ~mask & 0xFF) | (value & mask))
 
     def _write_register(self, address: int, value: int) -> None:
         self.registers[address] = value
-        if address == SFR_ADC0CN and value & ADC0CN_AD0BUSY:
-            channel = (self.registers[SFR_P1] >> 5) & 0x07
+        busy, done = ADC0CN_BITS["AD0BUSY"], ADC0CN_BITS["AD0INT"]
+        if address == SFR["ADC0CN"] and value & busy:
+            channel = (self.registers[SFR["P1"]] >> 5) & 0x07
             code = volts_to_code12(self.signal(self.clock(), channel))
             self.conversions.append(channel)
             raw = code & 0x0FFF
-            self.registers[SFR_ADC0H] = raw >> 8
-            self.registers[SFR_ADC0L] = raw & 0xFF
-            self.registers[SFR_ADC0CN] = (value & ~ADC0CN_AD0BUSY) | ADC0CN_AD0INT
+            self.registers[SFR["ADC0H"]] = raw >> 8
+            self.registers[SFR["ADC0L"]] = raw & 0xFF
+            self.registers[SFR["ADC0CN"]] = (value & ~busy) | done
 
     def handle_read(self, endpoint: int, size: int) -> bytes | None:
-        if endpoint != self.command_in:
+        if endpoint != self.pipe("command_in"):
             return None
         if not self.replies:
             return None
@@ -140,19 +137,19 @@ class Dt9814Model(FakeUsbDevice):
 
 def make_dt9814(
     *,
-    product_id: int = FAKE_PRODUCT_ID,
+    product_id: int = Dt9814Model.IDENTITY.product_id,
     serial_number: int = 12345678,
     device_id: int = 0x0000,
     signal: Callable[[float, int], float] | None = None,
     faults: Faults | None = None,
     endpoints: tuple[int, ...] = DEFAULT_ENDPOINTS,
 ) -> Dt9814Model:
-    return Dt9814Model(
-        **IDENTITY._replace(product_id=product_id)._asdict(),
-        serial=str(serial_number),
+    return Dt9814Model.make(
+        str(serial_number),
+        faults,
+        product_id=product_id,
         serial_number=serial_number,
         device_id=device_id,
         signal=signal or (lambda t, ch: 0.0),
-        faults=faults or Faults(),
         endpoints=endpoints,
     )

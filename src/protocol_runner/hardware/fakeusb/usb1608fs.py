@@ -17,22 +17,13 @@ import struct
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
-from protocol_runner.hardware.fakeusb.device import (
-    ENDPOINT_BULK,
-    FakeUsbDevice,
-    Faults,
-    Stall,
-    UsbIdentity,
-    single_interface,
-)
+from protocol_runner.hardware.fakeusb.descriptors import ENDPOINT_BULK, UsbIdentity, single_interface
+from protocol_runner.hardware.fakeusb.device import FakeUsbDevice, Faults, Setup, Stall
 
-VENDOR_ID = 0x09DB
-PRODUCT_ID = 0x00EA
-IDENTITY = UsbIdentity(VENDOR_ID, PRODUCT_ID, 0x0103, "MCC", "USB-1608FS-Plus")
 N_CHANNELS = 8
 N_RANGES = 8
 PACKET = 64
@@ -70,6 +61,8 @@ def zero_signal(time_s: float, channel: int) -> float:
 @dataclass(eq=False)
 class Usb1608FsModel(FakeUsbDevice):
     """A fake USB-1608FS-Plus. `clock` is the model's time source (seconds); tests pass a manual one."""
+
+    IDENTITY: ClassVar[UsbIdentity] = UsbIdentity(0x09DB, 0x00EA, 0x0103, "MCC", "USB-1608FS-Plus")
 
     signal: Signal = zero_signal
     clock: Callable[[], float] = time.monotonic
@@ -162,11 +155,10 @@ class Usb1608FsModel(FakeUsbDevice):
         return np.clip(codes, 0, 65535).astype("<u2").tobytes()
 
     # ---- the wire --------------------------------------------------------------------------------
-    def handle_control_in(
-        self, request_type: int, request: int, value: int, index: int, length: int
-    ) -> bytes:
-        if request_type != 0xC0:
+    def handle_control_in(self, setup: Setup, length: int) -> bytes:
+        if setup.request_type != 0xC0:
             raise Stall()
+        request, value = setup.request, setup.value
         if request == STATUS:
             self._advance()
             status = (STATUS_RUNNING if self.running else 0) | (STATUS_OVERRUN if self.overrun else 0)
@@ -184,11 +176,10 @@ class Usb1608FsModel(FakeUsbDevice):
             return struct.pack("<H", self.raw_code(self.signal(self.clock(), ch), ch))
         raise Stall()
 
-    def handle_control_out(
-        self, request_type: int, request: int, value: int, index: int, data: bytes
-    ) -> None:
-        if request_type != 0x40:
+    def handle_control_out(self, setup: Setup, data: bytes) -> None:
+        if setup.request_type != 0x40:
             raise Stall()
+        request = setup.request
         if request == AIN_CONFIG:
             if self.running or len(data) != N_CHANNELS or any(r >= N_RANGES for r in data):
                 raise Stall()
@@ -273,11 +264,4 @@ def make_usb1608fs(
     fifo_samples: int = FIFO_SAMPLES,
 ) -> Usb1608FsModel:
     """A fake USB-1608FS-Plus with ideal calibration (slope 1, intercept 0)."""
-    return Usb1608FsModel(
-        **IDENTITY._asdict(),
-        serial=serial,
-        signal=signal,
-        clock=clock,
-        faults=faults or Faults(),
-        fifo_samples=fifo_samples,
-    )
+    return Usb1608FsModel.make(serial, faults, signal=signal, clock=clock, fifo_samples=fifo_samples)

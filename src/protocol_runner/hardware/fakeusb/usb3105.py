@@ -15,19 +15,11 @@ from __future__ import annotations
 import struct
 from collections import deque
 from dataclasses import dataclass, field
+from typing import ClassVar
 
-from protocol_runner.hardware.fakeusb.device import (
-    ENDPOINT_INTERRUPT,
-    FakeUsbDevice,
-    Faults,
-    Stall,
-    UsbIdentity,
-    single_interface,
-)
+from protocol_runner.hardware.fakeusb.descriptors import ENDPOINT_INTERRUPT, UsbIdentity, single_interface
+from protocol_runner.hardware.fakeusb.device import FakeUsbDevice, Faults, Setup, Stall
 
-VENDOR_ID = 0x09DB
-PRODUCT_ID = 0x009E
-IDENTITY = UsbIdentity(VENDOR_ID, PRODUCT_ID, 0x0102, "MCC", "USB-3105")
 N_CHANNELS = 16
 MEMORY_SIZE = 0x400
 
@@ -52,6 +44,8 @@ def calibration_address(channel: int, range_code: int) -> int:
 @dataclass(eq=False)
 class Usb3105Model(FakeUsbDevice):
     """A fake USB-3105. `interrupt_out=False` gives a descriptor without OUT endpoint (SET_REPORT only)."""
+
+    IDENTITY: ClassVar[UsbIdentity] = UsbIdentity(0x09DB, 0x009E, 0x0102, "MCC", "USB-3105")
 
     interrupt_out: bool = True
     stale_reports: list[bytes] = field(default_factory=list)
@@ -110,12 +104,10 @@ class Usb3105Model(FakeUsbDevice):
             raise Stall()
         self._report(data)
 
-    def handle_control_out(
-        self, request_type: int, request: int, value: int, index: int, data: bytes
-    ) -> None:
+    def handle_control_out(self, setup: Setup, data: bytes) -> None:
         # HID SET_REPORT (output report): 0x21, 0x09, wValue = 0x0200 | report id, wIndex = interface
-        if request_type == 0x21 and request == 0x09 and (value >> 8) == 0x02:
-            if not data or data[0] != (value & 0xFF):
+        if setup.request_type == 0x21 and setup.request == 0x09 and (setup.value >> 8) == 0x02:
+            if not data or data[0] != (setup.value & 0xFF):
                 self.bad_reports.append(bytes(data))
                 return
             self._report(data)
@@ -179,13 +171,13 @@ def make_usb3105(
     faults: Faults | None = None,
     interrupt_out: bool = True,
     stale_reports: list[bytes] | None = None,
-    bcd_device: int = IDENTITY.bcd_device,
+    bcd_device: int = Usb3105Model.IDENTITY.bcd_device,
 ) -> Usb3105Model:
     """A fake USB-3105 with ideal calibration (slope 1, offset 0) and the usbhid driver bound."""
-    return Usb3105Model(
-        **IDENTITY._replace(bcd_device=bcd_device)._asdict(),
-        serial=serial,
-        faults=faults or Faults(),
+    return Usb3105Model.make(
+        serial,
+        faults,
+        bcd_device=bcd_device,
         interrupt_out=interrupt_out,
         stale_reports=list(stale_reports or []),
     )
