@@ -128,8 +128,24 @@ class Trial:
 
 
 @dataclass(frozen=True)
-class BoucWenFit:
-    """The generalised Bouc-Wen fit of one configuration (thesis §6.2, Eq 19-25)."""
+class FittedCurve:
+    """A fit's model against the data it was fitted to (its `angle_deg`, `torque_nm` and `model_torque_nm`
+    datasets, docs/archive.md "Fits"), decimated for plotting; empty arrays when the archive has none."""
+
+    angle_deg: FloatArray
+    torque_nm: FloatArray
+    model_torque_nm: FloatArray
+
+    @property
+    def has_curve(self) -> bool:
+        """True when there is a model curve to draw (angles and the model's torques)."""
+        return self.angle_deg.size > 0 and self.model_torque_nm.size > 0
+
+
+@dataclass(frozen=True)
+class BoucWenFit(FittedCurve):
+    """The generalised Bouc-Wen fit of one configuration (thesis §6.2, Eq 19-25), its curve the centred
+    data and the model's prediction."""
 
     A: float
     n: float
@@ -141,9 +157,6 @@ class BoucWenFit:
     beta_std: tuple[float, ...]
     cv_rmse_nm: tuple[float, ...]
     n_starts: int
-    angle_deg: FloatArray
-    torque_nm: FloatArray
-    model_torque_nm: FloatArray
     # the evidence of issue 15 (absent from older archives: NaN / empty / False)
     rmse_refined_nm: float = float("nan")
     optimizer_status: int = 0
@@ -163,12 +176,12 @@ class BoucWenFit:
 
 
 @dataclass(frozen=True)
-class ElementFit:
+class ElementFit(FittedCurve):
     """The device's elastic elements fitted to the loops' midline (`fits/elements`, docs/archive.md).
 
     `parameters` are the fitted values by archive name `<element>.<parameter>` (the unit in the
-    parameter's suffix); `elements` the fitted elements with every parameter; the curves are the
-    midline data (`torque_nm`) and the model (`model_torque_nm`) against `angle_deg`, decimated."""
+    parameter's suffix); `elements` the fitted elements with every parameter; the curve is the
+    midline data (`torque_nm`) and the model (`model_torque_nm`) against `angle_deg`."""
 
     applicable: bool
     reason: str
@@ -177,14 +190,11 @@ class ElementFit:
     rmse_all_samples_nm: float
     parameters: tuple[tuple[str, float], ...]
     elements: tuple[DeviceElement, ...]
-    angle_deg: FloatArray
-    torque_nm: FloatArray
-    model_torque_nm: FloatArray
 
     @property
     def drawable(self) -> bool:
         """True when the fit applies and has a model curve to draw."""
-        return self.applicable and self.angle_deg.size > 0 and self.model_torque_nm.size > 0
+        return self.applicable and self.has_curve
 
 
 @dataclass(frozen=True)
