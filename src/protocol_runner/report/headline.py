@@ -36,13 +36,14 @@ class TrialEnergy:
 
 @dataclass(frozen=True)
 class ConfigurationStats:
-    """Trial-level summary of one configuration."""
+    """Trial-level summary of one configuration; `per_trial` holds the trials with at least one complete
+    cycle with a finite energy, in trial order."""
 
     key: int
     name: str
     set_name: str
     cycles: int
-    per_trial: tuple[TrialEnergy, ...]  # the trials with at least one such cycle, in trial order
+    per_trial: tuple[TrialEnergy, ...]
     energy: TInterval
     angle_min_deg: float
     angle_max_deg: float

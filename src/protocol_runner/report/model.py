@@ -20,6 +20,14 @@ from ..protocol.plan_steps import Comparison as Comparison  # the plan's record,
 from .settings_view import DeviceElement, Quantity, SettingsView
 
 
+def energy_mean_std_j(energy_loss_j: FloatArray) -> tuple[float, float]:
+    """The mean energy lost per cycle (Eq 10-12) and its sample standard deviation over the cycles of
+    `energy_loss_j`; the mean is NaN without a cycle and the deviation NaN with fewer than two."""
+    n = energy_loss_j.size
+    mean = float(np.mean(energy_loss_j)) if n else float("nan")
+    return mean, float(np.std(energy_loss_j, ddof=1)) if n > 1 else float("nan")
+
+
 @dataclass(frozen=True)
 class SessionEvent:
     """One line of `/session/events`: an interruption, a resume, a re-run calibration, ..."""
@@ -222,12 +230,12 @@ class Configuration:
     @property
     def energy_mean_j(self) -> float:
         """Mean energy lost per cycle over every cycle of every trial (Eq 10-12); NaN if none."""
-        return float(np.mean(self.energy_loss_j)) if self.energy_loss_j.size else float("nan")
+        return energy_mean_std_j(self.energy_loss_j)[0]
 
     @property
     def energy_std_j(self) -> float:
         """Sample standard deviation of the energy per cycle (spread across cycles and trials)."""
-        return float(np.std(self.energy_loss_j, ddof=1)) if self.energy_loss_j.size > 1 else float("nan")
+        return energy_mean_std_j(self.energy_loss_j)[1]
 
     @property
     def has_data(self) -> bool:
