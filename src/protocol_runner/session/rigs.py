@@ -30,16 +30,16 @@ def joint_config(loaded: LoadedProtocol, rig: RigSpec | None = None) -> JointCon
     look-up tables and safety envelope as a hardware JointConfig."""
     rig = rig or loaded.protocol.rig
     base = loaded.base_dir
-    joint, out, inp, cal = rig.joint, rig.output, rig.input, rig.calibration
+    cal = rig.calibration
     return JointConfig(
-        name=joint.name,
-        range_deg=joint.range_deg,
-        torque_range_nm=joint.torque_range_nm,
-        output_channel=out.channel,
-        angle_input_channel=inp.angle_channel,
-        torque_input_channel=inp.torque_channel,
-        output_rate_hz=out.rate_hz,
-        input_rate_hz=inp.rate_hz,
+        name=rig.joint.name,
+        range_deg=rig.joint.range_deg,
+        torque_range_nm=rig.joint.torque_range_nm,
+        output_channel=rig.output.channel,
+        angle_input_channel=rig.input.angle_channel,
+        torque_input_channel=rig.input.torque_channel,
+        output_rate_hz=rig.output.rate_hz,
+        input_rate_hz=rig.input.rate_hz,
         command_table=_table(base, cal.command_table),
         angle_table=_table(base, cal.angle_table),
         torque_table=_table(base, cal.torque_table),
