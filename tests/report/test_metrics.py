@@ -30,7 +30,21 @@ def loop(slope: float, width: float, n: int = 901, low: float = LOW, high: float
 
 def fit(rmse: float, cv: tuple[float, ...]) -> BoucWenFit:
     empty = np.zeros(0)
-    return BoucWenFit(1.0, 1.0, (), rmse, 0.9, 0.0, 0.0, (), cv, 1, empty, empty, empty)
+    return BoucWenFit(
+        angle_deg=empty,
+        torque_nm=empty,
+        model_torque_nm=empty,
+        A=1.0,
+        n=1.0,
+        beta=(),
+        rmse_nm=rmse,
+        r2=0.9,
+        A_std=0.0,
+        n_std=0.0,
+        beta_std=(),
+        cv_rmse_nm=cv,
+        n_starts=1,
+    )
 
 
 def config(

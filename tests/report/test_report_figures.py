@@ -134,17 +134,17 @@ def test_energy_figure_puts_each_configuration_at_its_factor_value(small_archive
 
 def _drawn(monkeypatch, draw) -> object:
     """The matplotlib Figure a figure function draws (captured before it becomes a PNG)."""
-    from protocol_runner.report import figures, figures_compare
+    from protocol_runner.report import canvas, figures, figures_compare
 
     captured = []
-    real = figures.to_data_uri
+    real = canvas.to_data_uri
 
     def keep(fig):
         captured.append(fig)
         return real(fig)
 
-    monkeypatch.setattr(figures, "to_data_uri", keep)
-    monkeypatch.setattr(figures_compare, "to_data_uri", keep)
+    for module in (canvas, figures, figures_compare):
+        monkeypatch.setattr(module, "to_data_uri", keep)
     draw()
     return captured[-1]
 

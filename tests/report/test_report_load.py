@@ -49,7 +49,7 @@ def test_configurations_are_sorted_with_settings_trials_and_fits(small_archive: 
     assert cfg.quantity("brace_rom", "range_deg") == (0.0, 130.0)
     assert cfg.settings.trajectory == "sine"
     brake = cfg.settings.element("brake")
-    assert brake is not None and brake.type == "coulomb_brake" and brake.param("torque_nm") == 6.25
+    assert brake is not None and brake.type == "coulomb_brake" and dict(brake.params)["torque_nm"] == 6.25
     assert [t.number for t in cfg.trials] == [1, 2]
     assert all(t.processed is not None for t in cfg.trials)
     # raw recordings are read for the plotted (first) trial only
@@ -59,7 +59,8 @@ def test_configurations_are_sorted_with_settings_trials_and_fits(small_archive: 
     fit = cfg.element_fit
     assert fit is not None and fit.applicable and fit.target == "midline"
     assert fit.parameters == (("springs.zero_offset_deg", pytest.approx(20.7)),)
-    assert [e.name for e in fit.elements] == ["springs"] and fit.elements[0].param("zero_offset_deg") == 20.7
+    assert [e.name for e in fit.elements] == ["springs"]
+    assert dict(fit.elements[0].params)["zero_offset_deg"] == 20.7
 
 
 def test_energy_per_cycle_matches_the_elliptic_loops_written(small_archive: Path) -> None:

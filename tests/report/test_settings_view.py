@@ -59,7 +59,7 @@ def test_what_the_archive_writer_stores_reads_back_in_declaration_order(tmp_path
     assert view.trajectory == "tri"
     assert [(e.name, e.type) for e in view.device] == [("visc", "viscous_damper"), ("ends", "rom_stops")]
     ends = view.element("ends")
-    assert ends is not None and ends.param("range_deg") == (-40.0, 25.0)
+    assert ends is not None and dict(ends.params)["range_deg"] == (-40.0, 25.0)
     # the flattened form equals the writer's flattened attributes, key for key
     attrs = configuration_attributes(SETTINGS)
     flat = {k: v for k, v in attrs.items() if k not in ("factors", "settings_json", "device_json")}

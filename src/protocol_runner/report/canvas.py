@@ -118,6 +118,14 @@ def legend(ax: Axes, *, bottom: bool = False) -> None:
         )
 
 
+def finish(fig: Figure, ax: Axes, xlabel: str, ylabel: str, title: str, *, bottom: bool = False) -> str:
+    """How a single-panel figure ends: `ax` labelled (`style`), its colour key drawn (`legend`), `fig`
+    rendered to a data URI."""
+    style(ax, xlabel, ylabel, title)
+    legend(ax, bottom=bottom)
+    return to_data_uri(fig)
+
+
 def swatch(handle: object) -> tuple[object, str]:
     """Colour and a glyph standing for the artist's line style, marker or fill."""
     if isinstance(handle, Line2D):

@@ -88,8 +88,16 @@ class SessionComparison:
     a: ReportData
     b: ReportData
     pairs: tuple[Pair, ...]
-    only_a: tuple[int, ...]
-    only_b: tuple[int, ...]
+
+    @property
+    def only_a(self) -> tuple[int, ...]:
+        """Keys of A's configurations that no configuration of B matches, in key order."""
+        return _unmatched(self.a, {p.a.key for p in self.pairs})
+
+    @property
+    def only_b(self) -> tuple[int, ...]:
+        """Keys of B's configurations that no configuration of A matches, in key order."""
+        return _unmatched(self.b, {p.b.key for p in self.pairs})
 
     @property
     def n_significant(self) -> int:
@@ -115,6 +123,10 @@ class SessionComparison:
             f"unmatched: A {list(self.only_a) or 'none'}, B {list(self.only_b) or 'none'}"
         )
         return "\n".join(lines)
+
+
+def _unmatched(data: ReportData, matched: set[int]) -> tuple[int, ...]:
+    return tuple(sorted(c.key for c in data.configurations if c.key not in matched))
 
 
 def _num(value: float) -> str:
@@ -166,30 +178,25 @@ def _text(value: object) -> str:
     return str(value)
 
 
-def match(
-    a: ReportData, b: ReportData
-) -> tuple[tuple[tuple[Configuration, Configuration], ...], tuple[int, ...], tuple[int, ...]]:
-    """Pairs (A, B) with equal signatures (several identical ones pair in key order) and the unmatched keys."""
+def match(a: ReportData, b: ReportData) -> tuple[tuple[Configuration, Configuration], ...]:
+    """Pairs (A, B) with equal signatures (several identical ones pair in key order); the configurations
+    left over are `SessionComparison.only_a` / `only_b`."""
     groups_b: dict[tuple[tuple[str, str], ...], list[Configuration]] = {}
     for cfg in sorted(b.configurations, key=lambda c: c.key):
         groups_b.setdefault(signature(cfg), []).append(cfg)
     pairs = []
-    only_a = []
     for cfg in sorted(a.configurations, key=lambda c: c.key):
         candidates = groups_b.get(signature(cfg))
         if candidates:
             same_key = next((c for c in candidates if c.key == cfg.key), candidates[0])
             candidates.remove(same_key)
             pairs.append((cfg, same_key))
-        else:
-            only_a.append(cfg.key)
-    only_b = sorted(c.key for group in groups_b.values() for c in group)
-    return tuple(pairs), tuple(only_a), tuple(only_b)
+    return tuple(pairs)
 
 
 def compare_data(a: ReportData, b: ReportData) -> SessionComparison:
     """Match and compare two loaded archives; `InvalidInput` when no configuration matches."""
-    matched, only_a, only_b = match(a, b)
+    matched = match(a, b)
     if not matched:
         raise InvalidInput(
             f"{b.session.archive_path} and {a.session.archive_path} have no configuration with the same "
@@ -205,7 +212,7 @@ def compare_data(a: ReportData, b: ReportData) -> SessionComparison:
         )
         for ca, cb in matched
     )
-    return SessionComparison(a, b, pairs, only_a, only_b)
+    return SessionComparison(a, b, pairs)
 
 
 def compare_archives(a: Path, b: Path) -> SessionComparison:

@@ -32,6 +32,7 @@ from protocol_runner.report.canvas import (
     TORQUE_LABEL,
     canvas_axes,
     empty,
+    finish,
     legend,
     style,
     to_data_uri,
@@ -85,9 +86,7 @@ def hysteresis_figure(cfg: Configuration) -> str:
         ax.plot(fit.angle_deg, fit.model_torque_nm, "k--", lw=0.9, label="elastic model (fit)")
     if not drawn:
         empty(ax, "no processed trial")
-    style(ax, ANGLE_LABEL, TORQUE_LABEL, f"Configuration {cfg.key}: brace torque vs angle")
-    legend(ax)
-    return to_data_uri(fig)
+    return finish(fig, ax, ANGLE_LABEL, TORQUE_LABEL, f"Configuration {cfg.key}: brace torque vs angle")
 
 
 def time_series_figure(cfg: Configuration) -> str:
@@ -142,9 +141,8 @@ def energy_cycles_figure(cfg: Configuration) -> str:
             ax.axhspan(mean - std, mean + std, color="k", alpha=0.08, lw=0)
         top = float(np.nanmax(e)) if np.isfinite(e).any() else 1.0
         ax.set_ylim(0.0, max(top, mean + (std if math.isfinite(std) else 0.0)) * 1.15 or 1.0)
-    style(ax, "Cycle (all trials in order)", ENERGY_LABEL, f"Configuration {cfg.key}: energy lost per cycle")
-    legend(ax, bottom=True)
-    return to_data_uri(fig)
+    title = f"Configuration {cfg.key}: energy lost per cycle"
+    return finish(fig, ax, "Cycle (all trials in order)", ENERGY_LABEL, title, bottom=True)
 
 
 def bouc_wen_figure(cfg: Configuration) -> str:
@@ -179,9 +177,7 @@ def calibration_figure(set_name: str, checks: Sequence[CalibrationCheck]) -> str
             ax.plot(check.command_time_s, check.command_deg, ":", lw=0.8, color=color)
     if not checks:
         empty(ax, "no calibration check")
-    style(ax, TIME_LABEL, ANGLE_LABEL, f"Set {set_name}: step responses (dotted: command)")
-    legend(ax)
-    return to_data_uri(fig)
+    return finish(fig, ax, TIME_LABEL, ANGLE_LABEL, f"Set {set_name}: step responses (dotted: command)")
 
 
 # ---------------------------------------------------------------------------------------------- driver

@@ -20,7 +20,7 @@ from protocol_runner.report.canvas import (
     TORQUE_LABEL,
     canvas_axes,
     empty,
-    legend,
+    finish,
     style,
     to_data_uri,
 )
@@ -67,9 +67,9 @@ def comparison_overlay_figure(data: ReportData, comparison: Comparison) -> str:
     _references(ax, data)
     if not drawn:
         empty(ax, "none of these configurations has data")
-    style(ax, ANGLE_LABEL, TORQUE_LABEL, f"§{comparison.section} {comparison.title}".replace("§ ", ""))
-    legend(ax)
-    return to_data_uri(fig)
+    return finish(
+        fig, ax, ANGLE_LABEL, TORQUE_LABEL, f"§{comparison.section} {comparison.title}".replace("§ ", "")
+    )
 
 
 def energy_bars_figure(data: ReportData, comparison: Comparison) -> str:
@@ -134,9 +134,7 @@ def reference_figure(data: ReportData) -> str:
     _references(ax, data)
     if not data.references:
         empty(ax, "no reference dataset")
-    style(ax, ANGLE_LABEL, TORQUE_LABEL, "Reference data")
-    legend(ax)
-    return to_data_uri(fig)
+    return finish(fig, ax, ANGLE_LABEL, TORQUE_LABEL, "Reference data")
 
 
 def element_fit_figure(data: ReportData, comparison: Comparison) -> str:
@@ -186,9 +184,7 @@ def element_fit_figure(data: ReportData, comparison: Comparison) -> str:
             fontsize=6.5,
             color="#444444",
         )
-    style(ax, ANGLE_LABEL, TORQUE_LABEL, f"Elastic model vs midline: {comparison.title}")
-    legend(ax)
-    return to_data_uri(fig)
+    return finish(fig, ax, ANGLE_LABEL, TORQUE_LABEL, f"Elastic model vs midline: {comparison.title}")
 
 
 def fitted_elements_differ(configs: Sequence[Configuration]) -> bool:

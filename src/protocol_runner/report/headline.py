@@ -26,16 +26,24 @@ from protocol_runner.report.model import Configuration, ReportData
 
 
 @dataclass(frozen=True)
+class TrialEnergy:
+    """One trial, the experimental unit: its number and its energy per cycle (the mean over its complete
+    cycles with a finite energy, Eq 10-12)."""
+
+    number: int
+    energy_j: float
+
+
+@dataclass(frozen=True)
 class ConfigurationStats:
-    """Trial-level summary of one configuration."""
+    """Trial-level summary of one configuration; `per_trial` holds the trials with at least one complete
+    cycle with a finite energy, in trial order."""
 
     key: int
     name: str
     set_name: str
     cycles: int
-    trial_numbers: tuple[int, ...]
-    trial_energy_j: tuple[float, ...]
-    trial_cycles: tuple[int, ...]
+    per_trial: tuple[TrialEnergy, ...]
     energy: TInterval
     angle_min_deg: float
     angle_max_deg: float
@@ -45,7 +53,17 @@ class ConfigurationStats:
     @property
     def trials(self) -> int:
         """Trials with at least one complete cycle."""
-        return len(self.trial_numbers)
+        return len(self.per_trial)
+
+    @property
+    def trial_numbers(self) -> tuple[int, ...]:
+        """The numbers of those trials, in order."""
+        return tuple(t.number for t in self.per_trial)
+
+    @property
+    def trial_energy_j(self) -> tuple[float, ...]:
+        """Their energies per cycle, in the same order: the units of the interval and of repeatability."""
+        return tuple(t.energy_j for t in self.per_trial)
 
     @property
     def range_deg(self) -> float:
@@ -60,16 +78,13 @@ def configuration_stats(cfg: Configuration) -> ConfigurationStats:
     if ids.size != energy.size:
         ids = np.zeros(energy.size, dtype=np.int64)
     numbers, means = trial_means(energy, ids)
-    counts = tuple(int(np.sum((ids == n) & np.isfinite(energy))) for n in numbers)
     fit = cfg.bouc_wen
     return ConfigurationStats(
         key=cfg.key,
         name=cfg.name,
         set_name=cfg.set_name,
         cycles=int(np.sum(np.isfinite(energy))),
-        trial_numbers=tuple(int(n) for n in numbers),
-        trial_energy_j=tuple(float(m) for m in means),
-        trial_cycles=counts,
+        per_trial=tuple(TrialEnergy(int(n), float(m)) for n, m in zip(numbers, means, strict=True)),
         energy=t_interval(means),
         angle_min_deg=cfg.angle_min_deg,
         angle_max_deg=cfg.angle_max_deg,

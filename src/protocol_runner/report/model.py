@@ -14,11 +14,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..analysis.reference import FloatArray
 from ..analysis.reference import ReferenceDataset as ReferenceDataset  # read by validate and report
 from ..protocol.plan_steps import Comparison as Comparison  # the plan's record, read back from /comparisons
 from .settings_view import DeviceElement, Quantity, SettingsView
 
-FloatArray = np.ndarray
+
+def energy_mean_std_j(energy_loss_j: FloatArray) -> tuple[float, float]:
+    """The mean energy lost per cycle (Eq 10-12) and its sample standard deviation over the cycles of
+    `energy_loss_j`; the mean is NaN without a cycle and the deviation NaN with fewer than two."""
+    n = energy_loss_j.size
+    mean = float(np.mean(energy_loss_j)) if n else float("nan")
+    return mean, float(np.std(energy_loss_j, ddof=1)) if n > 1 else float("nan")
 
 
 @dataclass(frozen=True)
@@ -129,8 +136,24 @@ class Trial:
 
 
 @dataclass(frozen=True)
-class BoucWenFit:
-    """The generalised Bouc-Wen fit of one configuration (thesis §6.2, Eq 19-25)."""
+class FittedCurve:
+    """A fit's model against the data it was fitted to (its `angle_deg`, `torque_nm` and `model_torque_nm`
+    datasets, docs/archive.md "Fits"), decimated for plotting; empty arrays when the archive has none."""
+
+    angle_deg: FloatArray
+    torque_nm: FloatArray
+    model_torque_nm: FloatArray
+
+    @property
+    def has_curve(self) -> bool:
+        """True when there is a model curve to draw (angles and the model's torques)."""
+        return self.angle_deg.size > 0 and self.model_torque_nm.size > 0
+
+
+@dataclass(frozen=True)
+class BoucWenFit(FittedCurve):
+    """The generalised Bouc-Wen fit of one configuration (thesis §6.2, Eq 19-25), its curve the centred
+    data and the model's prediction."""
 
     A: float
     n: float
@@ -142,9 +165,6 @@ class BoucWenFit:
     beta_std: tuple[float, ...]
     cv_rmse_nm: tuple[float, ...]
     n_starts: int
-    angle_deg: FloatArray
-    torque_nm: FloatArray
-    model_torque_nm: FloatArray
     # the evidence of issue 15 (absent from older archives: NaN / empty / False)
     rmse_refined_nm: float = float("nan")
     optimizer_status: int = 0
@@ -164,12 +184,12 @@ class BoucWenFit:
 
 
 @dataclass(frozen=True)
-class ElementFit:
+class ElementFit(FittedCurve):
     """The device's elastic elements fitted to the loops' midline (`fits/elements`, docs/archive.md).
 
     `parameters` are the fitted values by archive name `<element>.<parameter>` (the unit in the
-    parameter's suffix); `elements` the fitted elements with every parameter; the curves are the
-    midline data (`torque_nm`) and the model (`model_torque_nm`) against `angle_deg`, decimated."""
+    parameter's suffix); `elements` the fitted elements with every parameter; the curve is the
+    midline data (`torque_nm`) and the model (`model_torque_nm`) against `angle_deg`."""
 
     applicable: bool
     reason: str
@@ -178,14 +198,11 @@ class ElementFit:
     rmse_all_samples_nm: float
     parameters: tuple[tuple[str, float], ...]
     elements: tuple[DeviceElement, ...]
-    angle_deg: FloatArray
-    torque_nm: FloatArray
-    model_torque_nm: FloatArray
 
     @property
     def drawable(self) -> bool:
         """True when the fit applies and has a model curve to draw."""
-        return self.applicable and self.angle_deg.size > 0 and self.model_torque_nm.size > 0
+        return self.applicable and self.has_curve
 
 
 @dataclass(frozen=True)
@@ -213,12 +230,12 @@ class Configuration:
     @property
     def energy_mean_j(self) -> float:
         """Mean energy lost per cycle over every cycle of every trial (Eq 10-12); NaN if none."""
-        return float(np.mean(self.energy_loss_j)) if self.energy_loss_j.size else float("nan")
+        return energy_mean_std_j(self.energy_loss_j)[0]
 
     @property
     def energy_std_j(self) -> float:
         """Sample standard deviation of the energy per cycle (spread across cycles and trials)."""
-        return float(np.std(self.energy_loss_j, ddof=1)) if self.energy_loss_j.size > 1 else float("nan")
+        return energy_mean_std_j(self.energy_loss_j)[1]
 
     @property
     def has_data(self) -> bool:

@@ -20,29 +20,51 @@ from matplotlib.figure import Figure
 
 from .canvas import ANGLE_LABEL, COLORS, DPI, ENERGY_LABEL, TORQUE_LABEL, style, to_data_uri
 from .h5read import decimate_for_plot, float_ds
+from .model import energy_mean_std_j
 
 
 @dataclass(frozen=True)
 class JointEnergy:
+    """The energy lost per cycle by one joint (or by all joints together, "total"): mean, sample SD, cycles."""
+
     joint: str
     mean_j: float
     std_j: float
     cycles: int
 
+    @classmethod
+    def of(cls, joint: str, energy_loss_j: np.ndarray) -> JointEnergy:
+        """The statistics of `energy_loss_j` (J per cycle), as the report's configurations compute them."""
+        return cls(joint, *energy_mean_std_j(energy_loss_j), int(energy_loss_j.size))
+
 
 @dataclass(frozen=True)
-class JointConfiguration:
-    key: int
-    title: str
-    joints: tuple[str, ...]
+class JointEnergies:
+    """A configuration's energy lost per cycle: per joint (`energies`, in the configuration's joint order)
+    and for all joints together (`total`, from `total_energy_loss_j`)."""
+
     energies: tuple[JointEnergy, ...]
     total: JointEnergy
+
+    def energy(self, name: str) -> JointEnergy:
+        """The energy of joint `name`, or of all joints together for "total"."""
+        return self.total if name == "total" else next(e for e in self.energies if e.joint == name)
+
+
+@dataclass(frozen=True)
+class JointConfiguration(JointEnergies):
+    """One configuration of the section: its energies, its key and motion, and its two figures."""
+
+    key: int
+    title: str
     loops_uri: str
     phase_uri: str
 
 
 @dataclass(frozen=True)
 class JointsSection:
+    """The section: the joints driven together, each configuration, and the energy bar chart."""
+
     joints: tuple[str, ...]
     configurations: tuple[JointConfiguration, ...]
     energy_uri: str
@@ -50,16 +72,6 @@ class JointsSection:
 
 def _strs(value: object) -> tuple[str, ...]:
     return tuple(v.decode() if isinstance(v, bytes) else str(v) for v in np.atleast_1d(np.asarray(value)))
-
-
-def _energy(name: str, values: np.ndarray) -> JointEnergy:
-    n = int(values.size)
-    return JointEnergy(
-        name,
-        float(np.mean(values)) if n else float("nan"),
-        float(np.std(values, ddof=1)) if n > 1 else float("nan"),
-        n,
-    )
 
 
 def _figure(n_panels: int) -> tuple[Figure, list[Axes]]:
@@ -109,10 +121,7 @@ def _energy_bars(configs: list[JointConfiguration], joints: tuple[str, ...]) -> 
     names = [*joints, "total"]
     width = 0.8 / len(names)
     for j, name in enumerate(names):
-        means = [
-            (c.total if name == "total" else next(e for e in c.energies if e.joint == name)).mean_j
-            for c in configs
-        ]
+        means = [c.energy(name).mean_j for c in configs]
         xs = np.arange(len(configs)) + (j - (len(names) - 1) / 2) * width
         ax.bar(xs, np.nan_to_num(means), width=width, color=COLORS[j % len(COLORS)], label=name)
     ax.set_xticks(np.arange(len(configs)), [str(c.key) for c in configs])
@@ -135,15 +144,14 @@ def joints_section(archive: Path) -> JointsSection | None:
                 continue
             joints = _strs(cfg.attrs["joints"])
             all_joints = all_joints or joints
-            energies = tuple(_energy(j, float_ds(cfg[f"joints/{j}"], "energy_loss_j")) for j in joints)
+            energies = tuple(JointEnergy.of(j, float_ds(cfg[f"joints/{j}"], "energy_loss_j")) for j in joints)
             title = str(cfg.attrs.get("trajectory_name", ""))
             out.append(
                 JointConfiguration(
                     key=int(cfg.attrs.get("key", 0)),
                     title=title,
-                    joints=joints,
                     energies=energies,
-                    total=_energy("total", float_ds(cfg, "total_energy_loss_j")),
+                    total=JointEnergy.of("total", float_ds(cfg, "total_energy_loss_j")),
                     loops_uri=_loops(cfg, joints),
                     phase_uri=_phase(cfg, joints),
                 )

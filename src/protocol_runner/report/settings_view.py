@@ -113,10 +113,6 @@ class DeviceElement:
     type: str
     params: tuple[tuple[str, Param], ...]
 
-    def param(self, name: str) -> Param | None:
-        """The value of parameter `name`, or None."""
-        return dict(self.params).get(name)
-
 
 @dataclass(frozen=True)
 class SettingsView(LevelLookup):

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING, cast
 
 from ..errors import HardwareUnavailable
-from ..hardware.calibration import load_calibration_table
+from ..hardware.calibration import CalibrationTable, load_calibration_table
 from ..hardware.multi_rig import MultiRig
 from ..hardware.rig import JointConfig, Rig
 from ..protocol.loader import LoadedProtocol
@@ -17,6 +18,11 @@ if TYPE_CHECKING:
     from ..hardware.simulator.daq import SimulatedRig
     from ..hardware.simulator.multi import MultiSimulatedRig
     from ..hardware.simulator.params import SimulatorParams
+
+
+def _table(base: Path, name: str | None) -> CalibrationTable | None:
+    """The calibration table file `name` (relative to the protocol's folder), or None (identity) without one."""
+    return load_calibration_table(base / name) if name else None
 
 
 def joint_config(loaded: LoadedProtocol, rig: RigSpec | None = None) -> JointConfig:
@@ -34,9 +40,9 @@ def joint_config(loaded: LoadedProtocol, rig: RigSpec | None = None) -> JointCon
         torque_input_channel=rig.input.torque_channel,
         output_rate_hz=rig.output.rate_hz,
         input_rate_hz=rig.input.rate_hz,
-        command_table=load_calibration_table(base / cal.command_table) if cal.command_table else None,
-        angle_table=load_calibration_table(base / cal.angle_table) if cal.angle_table else None,
-        torque_table=load_calibration_table(base / cal.torque_table) if cal.torque_table else None,
+        command_table=_table(base, cal.command_table),
+        angle_table=_table(base, cal.angle_table),
+        torque_table=_table(base, cal.torque_table),
         limits=safety_limits(rig),
     )
 
