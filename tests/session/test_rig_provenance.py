@@ -57,7 +57,7 @@ def test_a_lab_rig_file_is_kept_with_the_session_and_resumes_without_the_origina
 
     shutil.rmtree(protocol.parent)  # the campaign folder moved away: the session has all it needs
     loaded, plan, changed = load_session_protocol(session, info, force=False)
-    assert loaded.rig_sha256 == digest and not changed and len(plan.steps) > 0
+    assert loaded.rig_source.sha256 == digest and not changed and len(plan.steps) > 0
 
 
 def test_an_edited_copy_of_the_lab_rig_is_refused_by_name_unless_forced(tmp_path: Path) -> None:

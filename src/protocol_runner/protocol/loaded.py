@@ -12,6 +12,16 @@ Loc = tuple[str | int, ...]
 
 
 @dataclass(frozen=True)
+class RigSource:
+    """The rig file a protocol was checked against: its name in messages (`rigs/rsst.yaml`, `lab_rig.yaml`),
+    its text exactly as read (archived as /rig) and that text's sha256."""
+
+    shown: str
+    text: str
+    sha256: str
+
+
+@dataclass(frozen=True)
 class LoadedProtocol:
     """A validated protocol with its provenance: the exact text and its sha256."""
 
@@ -21,11 +31,7 @@ class LoadedProtocol:
     sha256: str
     lines: dict[Loc, int] = field(default_factory=dict, repr=False, compare=False)
     shown: str = field(default="", repr=False, compare=False)  # the file's name in messages
-    # the rig file it was checked against: its name in messages (`rigs/rsst.yaml`, `lab_rig.yaml`), its text
-    # exactly as read (archived as /rig) and that text's sha256
-    rig_shown: str = field(default="", repr=False, compare=False)
-    rig_text: str = field(default="", repr=False, compare=False)
-    rig_sha256: str = field(default="", repr=False, compare=False)
+    rig_source: RigSource = field(default_factory=lambda: RigSource("", "", ""), repr=False, compare=False)
 
     @property
     def base_dir(self) -> Path:

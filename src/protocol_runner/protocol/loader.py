@@ -21,7 +21,7 @@ from ..resources import packaged_protocols_dir
 from .generators import expand_generators
 from .loaded import LoadedProtocol as LoadedProtocol
 from .loaded import Loc as Loc
-from .loaded import line_for
+from .loaded import RigSource, line_for
 from .rig_file import find_rig, load_rig, parse_rig_text, resolve_rig, resolve_rigs
 from .schema import Protocol
 from .validate import cross_check
@@ -130,17 +130,8 @@ def parse_protocol_text(
     if problems:
         raise InvalidInput(format_problems(shown, lines, problems))
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
-    loaded = LoadedProtocol(
-        protocol=protocol,
-        path=path,
-        text=text,
-        sha256=sha,
-        lines=lines,
-        shown=shown,
-        rig_shown=loaded_rig.shown,
-        rig_text=loaded_rig.text,
-        rig_sha256=loaded_rig.sha256,
-    )
+    rig_source = RigSource(loaded_rig.shown, loaded_rig.text, loaded_rig.sha256)
+    loaded = LoadedProtocol(protocol, path, text, sha, lines, shown, rig_source)
 
     problems = cross_check(loaded, check_files=check_files, generated=origins)
     if problems:

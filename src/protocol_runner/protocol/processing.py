@@ -2,23 +2,31 @@
 
 from __future__ import annotations
 
+from functools import reduce
+from typing import Any
+
 from ..analysis.pipeline import ProcessingSettings
 from ..analysis.service import BoucWenSettings
 from .loaded import LoadedProtocol
 
+#: Each ProcessingSettings field the protocol sets <- where its `processing` section holds it.
+SECTION_PATHS: dict[str, tuple[str, ...]] = {
+    "transition_tolerance_deg": ("transition", "tolerance_deg"),
+    "transition_points": ("transition", "points"),
+    "filter_kind": ("filter", "kind"),
+    "filter_order": ("filter", "order"),
+    "filter_cutoff": ("filter", "cutoff"),
+    "chebyshev_ripple_db": ("filter", "ripple_db"),
+    "subtraction": ("subtraction",),
+}
+
 
 def processing_settings(loaded: LoadedProtocol) -> ProcessingSettings:
+    """The protocol's `processing` section as the analysis's settings (the rest keep the thesis defaults;
+    ProcessingSettings checks every value)."""
     proc = loaded.protocol.processing
-    return ProcessingSettings(
-        transition_tolerance_deg=proc.transition.tolerance_deg,
-        transition_points=proc.transition.points,
-        filter_kind=proc.filter.kind,
-        filter_order=proc.filter.order,
-        filter_cutoff=proc.filter.cutoff,
-        chebyshev_ripple_db=proc.filter.ripple_db,
-        subtraction=proc.subtraction,
-        centring="trial_mean" if proc.centre_for_fit else "none",
-    )
+    values: dict[str, Any] = {name: reduce(getattr, path, proc) for name, path in SECTION_PATHS.items()}
+    return ProcessingSettings(**values, centring="trial_mean" if proc.centre_for_fit else "none")
 
 
 def bouc_wen_settings(loaded: LoadedProtocol) -> BoucWenSettings:

@@ -129,7 +129,7 @@ def create_session(
         software_version=__version__,
         realtime=realtime,
         files_sha256=hashes,
-        rig_sha256=loaded.rig_sha256,
+        rig_sha256=loaded.rig_source.sha256,
     )
     write_session_info(directory, info)
     return info
@@ -194,11 +194,11 @@ def load_session_protocol(
             f"is now {loaded.sha256[:12]}...). Completed trials were taken under the old text; resume with "
             "--force to accept the change, or restore the file."
         )
-    if info.rig_sha256 and loaded.rig_sha256 != info.rig_sha256:
+    if info.rig_sha256 and loaded.rig_source.sha256 != info.rig_sha256:
         if not force:
             raise InvalidInput(
-                f"{loaded.rig_shown}: the rig file changed since the session began (sha256 "
-                f"{info.rig_sha256[:12]}... is now {loaded.rig_sha256[:12]}...). Completed trials were taken on "
+                f"{loaded.rig_source.shown}: the rig file changed since the session began (sha256 "
+                f"{info.rig_sha256[:12]}... is now {loaded.rig_source.sha256[:12]}...). Completed trials were taken on "
                 "the old rig description; restore it, or resume with --force to accept the change."
             )
         changed = True
