@@ -87,7 +87,7 @@ MODEL_SCIENCE = {
     "models/bouc_wen/identifiability.py": "tests/models/test_bouc_wen_identifiability*.py",
     "models/bouc_wen/fitting.py": "tests/models/test_bouc_wen_fitting*.py tests/models/test_bouc_wen_facts.py",
     "models/bouc_wen/params.py": "tests/models/test_bouc_wen_params*.py",
-    "models/bouc_wen/problem.py": "tests/models/test_bouc_wen_problem*.py",
+    "models/bouc_wen/problem.py": "tests/models/test_bouc_wen_problem*.py tests/models/test_bouc_wen_facts.py",
     "models/bouc_wen/simulation.py": "tests/models/test_bouc_wen_simulation*.py tests/models/test_bouc_wen_refined.py",
     "models/bouc_wen/starts.py": "tests/models/test_bouc_wen_starts*.py",
     "models/bouc_wen/threads.py": "tests/models/test_bouc_wen_threads*.py",
