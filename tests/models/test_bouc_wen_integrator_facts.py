@@ -23,7 +23,6 @@ from protocol_runner.models.bouc_wen.schemes import (
     run_scheme,
 )
 
-
 Arr = np.ndarray
 
 
