@@ -106,3 +106,4 @@ def test_the_refined_check_is_by_default_the_4x_finer_integration() -> None:
     expected = simulate(refine_angle(x, 4), P, 0.5, max_step_deg=0.025)[::4]
     np.testing.assert_array_equal(simulate_refined(x, P, 0.5), expected)
     np.testing.assert_array_equal(refine_angle(x), refine_angle(x, 4))
+    assert simulate_refined(x, P)[0] == 0.0  # from zero torque by default, as simulate
