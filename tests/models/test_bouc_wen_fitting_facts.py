@@ -43,10 +43,12 @@ def test_angle_and_torque_of_unequal_length_are_refused(n_angle: int, n_torque: 
         fit(x[:n_angle], y[:n_torque])
 
 
-def test_a_static_joint_is_refused() -> None:
-    _, y = _loop(50)
+def test_a_static_joint_and_a_joint_without_torque_are_refused() -> None:
+    x, y = _loop(50)
     with pytest.raises(InvalidInput, match="angle never changes"):
         fit_trials([(np.full(50, 10.0), y)])
+    with pytest.raises(InvalidInput, match="torque is zero everywhere"):
+        fit_trials([(x, np.zeros(50)), (x, np.zeros(50))])
 
 
 def test_decimation_drops_residuals_but_the_refined_scheme_follows_every_sample() -> None:
