@@ -136,3 +136,39 @@ def test_an_eq23_fit_that_carries_over_from_decimated_samples_keeps_its_stride()
     result = fit_trials([(x, y)], max_samples_per_trial=600, scheme="eq23", **AT_TRUTH)
     assert result.stride == (2,)
     assert result.r2 > 0.99
+
+
+def test_a_loop_whose_decimated_recursion_diverges_is_polished_on_every_sample_at_once(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The same loop with the early switch on: the best start is stable on the coarse screening copy but
+    its Eq 23 recursion diverges on every second sample, so the fit polishes on every sample from the
+    start - one fit, no decimated fit to redo."""
+    calls: list[tuple[int, ...]] = []
+    inner = bw_fitting._fit_segments
+
+    def counting(*args: object) -> object:
+        result = inner(*args)  # type: ignore[arg-type]
+        calls.append(result.stride)
+        return result
+
+    monkeypatch.setattr(bw_fitting, "_fit_segments", counting)
+    x, y = _rom_loop()
+    result = fit_trials([(x, y)], starts=8, scheme="eq23")
+    assert calls == [(1,)]
+    assert result.n_samples_fitted == x.size and not result.diverged
+
+
+def test_the_best_polished_start_is_the_one_returned(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two starts a little apart (their costs within 5 %, not the same valley), each polished by a single
+    step: the fit returns the lower polished cost, whichever order they were polished in."""
+    monkeypatch.setattr(bw_fitting, "_SHORT_NFEV", 1)
+    monkeypatch.setattr(bw_fitting, "_POLISH_NFEV", 1)
+    rng = np.random.default_rng(5)
+    x, y = _loop(240)
+    noisy = y + rng.normal(0.0, 0.3, y.size)
+    nearby = BoucWenParams(A=FIG57.A * 1.005, n=FIG57.n, beta=FIG57.beta)
+    result = fit_trials([(x, noisy)], starts=0, initial=[nearby, FIG57], data_starts=False, polish=2)
+    assert len(result.polished_rmse_nm) == 2
+    assert result.polished_rmse_nm[0] != result.polished_rmse_nm[1]
+    assert result.rmse_nm == pytest.approx(min(result.polished_rmse_nm), rel=1e-12)
