@@ -137,20 +137,22 @@ def test_the_sensitivities_of_the_closed_form_are_reproduced() -> None:
 
 
 @pytest.mark.parametrize("z0", [0.0, 3.0])
-def test_the_sensitivities_are_the_derivatives_of_the_computed_torque(z0: float) -> None:
+@pytest.mark.parametrize("scheme", [REFINED, EQ23])
+def test_the_sensitivities_are_the_derivatives_of_the_computed_torque(z0: float, scheme: str) -> None:
     """Against central differences of simulate on a loop with reversals and zero crossings at a coarse
     sampling (several substeps and cuts per interval), every parameter including n."""
     t = np.linspace(0.0, 1.3, 40)
     x = 40.0 * np.sin(2.0 * np.pi * t) + 5.0
     theta = FIG57.as_array()
-    _, dz = simulate_sensitivity(x, FIG57, z0)
+    _, dz = simulate_sensitivity(x, FIG57, z0, scheme=scheme)
     for k in range(8):
         h = 1e-6 * max(abs(theta[k]), 1e-2)
         up, down = theta.copy(), theta.copy()
         up[k] += h
         down[k] -= h
         fd = (
-            simulate(x, BoucWenParams.from_array(up), z0) - simulate(x, BoucWenParams.from_array(down), z0)
+            simulate(x, BoucWenParams.from_array(up), z0, scheme=scheme)
+            - simulate(x, BoucWenParams.from_array(down), z0, scheme=scheme)
         ) / (2.0 * h)
         scale = max(1e-3, float(np.max(np.abs(fd))))
         np.testing.assert_allclose(dz[:, k], fd, rtol=0.0, atol=1e-4 * scale, err_msg=str(k))
