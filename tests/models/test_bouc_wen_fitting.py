@@ -98,6 +98,9 @@ def test_nfev_counts_the_residual_evaluations_of_the_solves(monkeypatch: pytest.
     counted[0] = 0
     decimated = fit_trials([_trial(1200)], starts=2, max_samples_per_trial=600)  # screened on 400 a trial
     assert decimated.stride == (2,) and decimated.nfev == counted[0] > decimated.n_starts
+    counted[0] = 0  # Eq 23 on decimated samples: the divergence checks of the decimation guard run too
+    checked = fit_trials([_trial(1200)], starts=2, max_samples_per_trial=600, scheme="eq23")
+    assert checked.stride == (2,) and checked.nfev == counted[0] > checked.n_starts
 
 
 def test_a_solve_stopped_by_its_evaluation_limit_is_not_converged(monkeypatch: pytest.MonkeyPatch) -> None:

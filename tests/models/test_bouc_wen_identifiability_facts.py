@@ -19,7 +19,7 @@ from protocol_runner.models.bouc_wen.identifiability import (
     identify,
     weak_reasons,
 )
-from protocol_runner.models.bouc_wen.problem import Problem
+from protocol_runner.models.bouc_wen.problem import FitScale, Problem, Samples
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 PERIOD_S = 8.17
@@ -84,7 +84,7 @@ def test_the_crossing_of_a_quadratic_profile_is_exact() -> None:
 
 def _problem() -> Problem:
     x = np.linspace(-1.0, 1.0, 20)
-    return Problem(x, x.copy(), _seg(x.size), BoucWenBounds(), 1.0, 1.0)
+    return Problem(Samples(x, x.copy(), _seg(x.size)), BoucWenBounds(), FitScale(1.0, 1.0))
 
 
 def test_every_undetermined_parameter_is_named_not_only_the_first() -> None:

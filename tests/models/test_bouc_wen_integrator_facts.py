@@ -16,10 +16,42 @@ from protocol_runner.models.bouc_wen import BoucWenParams, simulate, simulate_se
 from protocol_runner.models.bouc_wen.schemes import (
     EQ23,
     REFINED,
+    BoucWenShape,
+    Integration,
+    Sensitivity,
     check_scheme,
     run_scheme,
-    run_scheme_sensitivity,
 )
+
+Arr = np.ndarray
+
+
+def _torque(
+    scheme: str, x: Arr, seg: Arr, z0: Arr, a: float, n: float, beta: Arr, bound: float, freeze: bool, z: Arr
+) -> int:
+    """run_scheme with the parameter records spelt out: the torque into ``z``, the first diverged index."""
+    return run_scheme(x, seg, z0, BoucWenShape(a, n, beta), Integration(scheme, bound, freeze), z)
+
+
+def _sensitivities(
+    scheme: str,
+    x: Arr,
+    seg: Arr,
+    z0: Arr,
+    a: float,
+    n: float,
+    beta: Arr,
+    bound: float,
+    freeze: bool,
+    z: Arr,
+    dz: Arr,
+    T: Arr,
+    rows: Arr | None = None,
+) -> int:
+    """As :func:`_torque`, with ``dz/dtheta @ T`` at ``rows`` (every sample when None) into ``dz``."""
+    shape, integration = BoucWenShape(a, n, beta), Integration(scheme, bound, freeze)
+    return run_scheme(x, seg, z0, shape, integration, z, Sensitivity(dz, T, rows))
+
 
 # the six sign terms of Eq 22 are all +1 where x > 0, dx > 0 and z > 0: Psi = sum(beta) = 1 per deg there
 BETA = (0.3, 0.2, 0.1, 0.15, 0.15, 0.1)
@@ -105,20 +137,22 @@ def test_the_sensitivities_of_the_closed_form_are_reproduced() -> None:
 
 
 @pytest.mark.parametrize("z0", [0.0, 3.0])
-def test_the_sensitivities_are_the_derivatives_of_the_computed_torque(z0: float) -> None:
+@pytest.mark.parametrize("scheme", [REFINED, EQ23])
+def test_the_sensitivities_are_the_derivatives_of_the_computed_torque(z0: float, scheme: str) -> None:
     """Against central differences of simulate on a loop with reversals and zero crossings at a coarse
     sampling (several substeps and cuts per interval), every parameter including n."""
     t = np.linspace(0.0, 1.3, 40)
     x = 40.0 * np.sin(2.0 * np.pi * t) + 5.0
     theta = FIG57.as_array()
-    _, dz = simulate_sensitivity(x, FIG57, z0)
+    _, dz = simulate_sensitivity(x, FIG57, z0, scheme=scheme)
     for k in range(8):
         h = 1e-6 * max(abs(theta[k]), 1e-2)
         up, down = theta.copy(), theta.copy()
         up[k] += h
         down[k] -= h
         fd = (
-            simulate(x, BoucWenParams.from_array(up), z0) - simulate(x, BoucWenParams.from_array(down), z0)
+            simulate(x, BoucWenParams.from_array(up), z0, scheme=scheme)
+            - simulate(x, BoucWenParams.from_array(down), z0, scheme=scheme)
         ) / (2.0 * h)
         scale = max(1e-3, float(np.max(np.abs(fd))))
         np.testing.assert_allclose(dz[:, k], fd, rtol=0.0, atol=1e-4 * scale, err_msg=str(k))
@@ -136,7 +170,7 @@ def test_each_segment_starts_afresh_and_the_asked_rows_are_those_of_the_full_jac
     z = np.empty_like(x)
     full = np.empty((x.size, 8))
     T = np.eye(8)
-    bad = run_scheme_sensitivity(REFINED, x, seg, z0, A, 1.0, beta, 1e6, False, z, full, T)
+    bad = _sensitivities(REFINED, x, seg, z0, A, 1.0, beta, 1e6, False, z, full, T)
     assert bad == -1
     np.testing.assert_array_equal(z[: x1.size], simulate(x1, LINEAR, 0.5))
     np.testing.assert_array_equal(z[x1.size :], simulate(x2, LINEAR, -1.0))
@@ -145,12 +179,12 @@ def test_each_segment_starts_afresh_and_the_asked_rows_are_those_of_the_full_jac
     for scheme in (REFINED, EQ23):
         every = np.empty((x.size, 8))
         zz = np.empty_like(x)
-        run_scheme_sensitivity(scheme, x, seg, z0, A, 1.0, beta, 1e6, False, zz, every, T)
+        _sensitivities(scheme, x, seg, z0, A, 1.0, beta, 1e6, False, zz, every, T)
         # rows in both trials (a trial's first sample among them), and rows of the first trial only
         for rows in ([3, x1.size, x1.size + 4, x.size - 1], [2, 5]):
             asked = np.array(rows, dtype=np.int64)
             some = np.empty((asked.size, 8))
-            run_scheme_sensitivity(scheme, x, seg, z0, A, 1.0, beta, 1e6, False, zz, some, T, rows=asked)
+            _sensitivities(scheme, x, seg, z0, A, 1.0, beta, 1e6, False, zz, some, T, rows=asked)
             np.testing.assert_array_equal(some, every[asked])
 
 
@@ -173,11 +207,9 @@ def test_a_diverging_state_is_reported_at_its_first_sample_and_held_or_dropped(s
     for freeze in (True, False):
         z = np.empty_like(x)
         dz = np.empty((x.size, 8))
-        bad = run_scheme_sensitivity(
-            scheme, x, seg, z0, FIG57.A, FIG57.n, beta, bound, freeze, z, dz, np.eye(8)
-        )
+        bad = _sensitivities(scheme, x, seg, z0, FIG57.A, FIG57.n, beta, bound, freeze, z, dz, np.eye(8))
         z_only = np.empty_like(x)
-        assert run_scheme(scheme, x, seg, z0, FIG57.A, FIG57.n, beta, bound, freeze, z_only) == first == bad
+        assert _torque(scheme, x, seg, z0, FIG57.A, FIG57.n, beta, bound, freeze, z_only) == first == bad
         np.testing.assert_array_equal(z_only, z)
         np.testing.assert_array_equal(z[:first], free[:first])
         if freeze:
@@ -198,7 +230,7 @@ def test_a_negative_state_diverges_to_minus_the_bound() -> None:
     z = np.empty_like(x)
     seg = np.array([0, x.size], dtype=np.int64)
     mirror_beta = np.array(FIG57.beta) * np.array([1.0, 1.0, 1.0, -1.0, -1.0, -1.0])
-    bad = run_scheme(REFINED, x, seg, np.array([-5.0]), FIG57.A, FIG57.n, mirror_beta, 100.0, True, z)
+    bad = _torque(REFINED, x, seg, np.array([-5.0]), FIG57.A, FIG57.n, mirror_beta, 100.0, True, z)
     assert bad == int(np.argmax(np.isnan(free))) > 0
     np.testing.assert_array_equal(z[bad:], -100.0)
     np.testing.assert_allclose(z[:bad], -free[:bad], rtol=1e-12, atol=1e-12)
@@ -234,20 +266,16 @@ def test_a_scheme_name_read_at_run_time_selects_its_scheme() -> None:
         read = "".join(list(name))
         assert read == name and read is not name
         z_const, z_read = np.empty_like(x), np.empty_like(x)
-        run_scheme(name, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, z_const)
-        run_scheme(read, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, z_read)
+        _torque(name, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, z_const)
+        _torque(read, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, z_read)
         np.testing.assert_array_equal(z_read, z_const)
         dz_const, dz_read = np.empty((x.size, 8)), np.empty((x.size, 8))
-        run_scheme_sensitivity(
-            name, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, z_const, dz_const, np.eye(8)
-        )
-        run_scheme_sensitivity(
-            read, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, z_read, dz_read, np.eye(8)
-        )
+        _sensitivities(name, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, z_const, dz_const, np.eye(8))
+        _sensitivities(read, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, z_read, dz_read, np.eye(8))
         np.testing.assert_array_equal(dz_read, dz_const)
     eq23, refined = np.empty_like(x), np.empty_like(x)
-    run_scheme(EQ23, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, eq23)
-    run_scheme(REFINED, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, refined)
+    _torque(EQ23, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, eq23)
+    _torque(REFINED, x, seg, np.array([0.5]), A, 1.0, beta, 1e6, False, refined)
     assert abs(eq23[1] - refined[1]) > 1.0  # the two schemes differ on this path
 
 
@@ -273,14 +301,11 @@ def test_a_state_running_away_before_the_angle_crosses_zero_is_held_with_its_own
     x = np.array([5.0, -5.0, -6.0])
     seg = np.array([0, x.size], dtype=np.int64)
     z = np.empty_like(x)
-    assert run_scheme(REFINED, x, seg, np.array([10.0]), 0.1, 2.0, beta, 100.0, True, z) == 1
+    assert _torque(REFINED, x, seg, np.array([10.0]), 0.1, 2.0, beta, 100.0, True, z) == 1
     np.testing.assert_array_equal(z, [10.0, 100.0, 100.0])
     dz = np.empty((x.size, 8))
     zs = np.empty_like(x)
     assert (
-        run_scheme_sensitivity(
-            REFINED, x, seg, np.array([10.0]), 0.1, 2.0, beta, 100.0, True, zs, dz, np.eye(8)
-        )
-        == 1
+        _sensitivities(REFINED, x, seg, np.array([10.0]), 0.1, 2.0, beta, 100.0, True, zs, dz, np.eye(8)) == 1
     )
     np.testing.assert_array_equal(zs, z)

@@ -85,3 +85,15 @@ def test_the_first_divergence_is_reported_when_several_trials_diverge() -> None:
     )
     assert first_bad == 6  # trial 2 diverges too (at sample 10 + 4), later
     np.testing.assert_array_equal(z[10:16], [2.0, 3.0, 4.0, 5.0, 5.0, 5.0])
+
+
+@pytest.mark.parametrize("direction", [1.0, -1.0])
+def test_a_state_held_below_one_newton_metre_keeps_its_sign(direction: float) -> None:
+    """The straight line z = A x crosses a bound of 0.5 N*m at 0.6 (or -0.6) on 0.1 deg steps: the fitter
+    holds it at +0.5 (or -0.5), the sign of the run-away, however small the bound."""
+    x = direction * np.arange(0.0, 1.0, 0.1)
+    z = np.empty_like(x)
+    shape = BoucWenShape(LINE.A, LINE.n, np.array(LINE.beta))
+    bad = run_scheme(x, np.array([0, x.size]), np.array([0.0]), shape, Integration("eq23", 0.5, True), z)
+    assert bad == 6
+    np.testing.assert_array_equal(z[6:], direction * 0.5)

@@ -32,6 +32,12 @@ FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 
         {"psi_max": 0.0},
         {"psi_max": -1.0},
         {"psi_max": math.inf},
+        # the same limits computed rather than written: no identity with the module's own constants
+        {"a_max": float("inf")},
+        {"n_max": float("inf")},
+        {"psi_max": float("inf")},
+        {"n_min": float("0")},
+        {"n_min": float("3"), "n_max": float("3")},
     ],
 )
 def test_bounds_that_leave_no_finite_positive_box_are_invalid_input(kwargs: dict) -> None:
@@ -105,6 +111,22 @@ def test_the_spread_is_the_third_best_relative_to_the_best() -> None:
     """(rmse_3 - rmse_1) / rmse_1 over the best three only: a fourth, worse start does not count."""
     assert _fit((2.0, 2.5, 3.0, 40.0)).cost_spread == pytest.approx(0.5)
     assert _fit((2.0, 3.0)).cost_spread == pytest.approx(0.5)
+
+
+def test_the_spread_is_a_ratio_whatever_the_size_of_the_errors() -> None:
+    """A relative spread does not depend on the unit: starts whose errors are all below 1 N*m have it too."""
+    assert _fit((0.2, 0.25, 0.3)).cost_spread == pytest.approx(0.5)
+    assert _fit((0.002, 0.003)).cost_spread == pytest.approx(0.5)
+
+
+def test_a_fit_not_examined_for_identifiability_carries_no_weak_mark() -> None:
+    """The intervals and the weak-identification mark are filled only when identify() is asked for; until
+    then the record claims nothing: no mark, no reasons, no intervals."""
+    plain = _fit((2.0, 3.0))
+    assert plain.weakly_identified is False
+    assert plain.weak_reasons == ()
+    assert plain.param_interval_low == plain.param_interval_high == ()
+    assert all(math.isnan(v) for v in plain.n_interval)
 
 
 @pytest.mark.parametrize("rmse", [(), (2.0,), (0.0, 1.0, 2.0)])

@@ -71,3 +71,39 @@ def test_any_positive_bound_is_accepted_even_below_one_newton_metre() -> None:
     z = simulate(np.array([0.0, 0.1, 0.2, 5.0]), BoucWenParams(A=1.0, n=1.0, beta=(0.0,) * 6), bound_nm=0.5)
     np.testing.assert_allclose(z[:3], [0.0, 0.1, 0.2])
     assert np.isnan(z[3])  # 5 N m is past the 0.5 N m bound
+
+
+def test_every_option_of_simulate_is_optional_and_documented() -> None:
+    """simulate(x, params) runs with defaults: no option is required, and each one is described where the
+    options are declared."""
+    from protocol_runner.models.bouc_wen.simulation import SimulateKeywords
+
+    assert SimulateKeywords.__required_keys__ == frozenset()
+    doc = SimulateKeywords.__doc__ or ""
+    for key in SimulateKeywords.__optional_keys__:
+        assert f"{key}:" in doc, key
+
+
+def test_refining_puts_factor_minus_one_linear_samples_between_each_pair() -> None:
+    """refine_angle keeps the given samples at indices 0, f, 2f, ... with f - 1 evenly spaced angles
+    between each pair; f = 1 leaves the run as it is and f < 1 is refused."""
+    from protocol_runner.models.bouc_wen.simulation import refine_angle
+
+    x = np.array([0.0, 3.0, -3.0, 1.0])
+    np.testing.assert_array_equal(refine_angle(x, 1), x)
+    np.testing.assert_allclose(refine_angle(x, 3), [0.0, 1.0, 2.0, 3.0, 1.0, -1.0, -3.0, -5 / 3, -1 / 3, 1.0])
+    for bad in (0, -1):
+        with pytest.raises(InvalidInput, match="factor must be >= 1"):
+            refine_angle(x, bad)
+
+
+def test_the_refined_check_is_by_default_the_4x_finer_integration() -> None:
+    """simulate_refined (the rmse_refined_nm check) by default: the angle 4 times finer, substeps 4 times
+    shorter than the default 0.1 deg, the torque read at the given samples."""
+    from protocol_runner.models.bouc_wen.simulation import refine_angle, simulate_refined
+
+    x = 50.0 * np.sin(np.linspace(0.0, 6.0, 40))
+    expected = simulate(refine_angle(x, 4), P, 0.5, max_step_deg=0.025)[::4]
+    np.testing.assert_array_equal(simulate_refined(x, P, 0.5), expected)
+    np.testing.assert_array_equal(refine_angle(x), refine_angle(x, 4))
+    assert simulate_refined(x, P)[0] == 0.0  # from zero torque by default, as simulate

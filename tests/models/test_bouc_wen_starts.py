@@ -80,3 +80,19 @@ def test_both_guesses_are_exact_on_whole_degree_steps_from_zero_torque() -> None
     guess = equation_error_start(x, y, seg, np.array([1.0, 1.5]))
     assert guess is not None
     np.testing.assert_allclose(guess.as_array(), params.as_array(), rtol=1e-6, atol=1e-9)
+
+
+def test_a_trial_of_two_samples_is_one_step_of_eq23() -> None:
+    """Two samples make one Eq 23 step, a whole equation for both guesses: a loop cut into two-sample
+    trials (every other step, none joining two trials) still gives the exact parameters."""
+    one = BoucWenParams(A=1.0, n=1.0, beta=BETA)
+    x, y, seg = _two_trials(one)
+    pairs = np.arange(0, seg[1] - 1, 2, dtype=np.int64)
+    cut = np.append(pairs, pairs[-1] + 2)
+    xs, ys = x[: cut[-1]], y[: cut[-1]]
+    np.testing.assert_allclose(thesis_start(xs, ys, cut).phases, one.phases, rtol=1e-6, atol=1e-9)
+    params = BoucWenParams(A=0.35, n=1.5, beta=BETA)
+    x, y, seg = _two_trials(params)
+    guess = equation_error_start(x[: cut[-1]], y[: cut[-1]], cut, np.array([1.0, 1.5]))
+    assert guess is not None
+    np.testing.assert_allclose(guess.as_array(), params.as_array(), rtol=1e-6, atol=1e-9)

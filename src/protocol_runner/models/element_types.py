@@ -83,7 +83,6 @@ def _fit_param(default_fit: tuple[str, ...]) -> ParamSpec:
     )
 
 
-_ANY = (-math.inf, math.inf)
 _NONNEG = (0.0, math.inf)
 
 _LEVER_FIT = ("max_preload_mm", "zero_offset_deg")

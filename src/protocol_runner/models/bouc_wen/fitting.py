@@ -65,8 +65,6 @@ def _validate_segments(
         raise InvalidInput("the angle never changes: a hysteresis model cannot be fitted to a static joint")
     if all(np.max(np.abs(y)) == 0.0 for _, y in out):
         raise InvalidInput("the torque is zero everywhere: there is no hysteresis to fit")
-    if all(np.max(np.abs(x)) == 0.0 for x, _ in out):
-        raise InvalidInput("the angle is zero everywhere")
     return out
 
 
