@@ -317,7 +317,7 @@ def _print_row(res: dict) -> None:
     print(
         f"{res['module']:32s} {res['killed']:4d}/{res['tested']:<4d} {score:6.1f} %"
         f"   (sample of {res['eligible']} eligible less {res['equivalent']} equivalent;"
-        f" {res['all']} generated; {res['seconds']:.0f} s)",
+        f" {res['all']} generated; {res['seconds']:.0f} s, unmutated tests {res.get('baseline_s', 0):.1f} s)",
         flush=True,
     )
 
