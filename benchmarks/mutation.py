@@ -105,6 +105,10 @@ MODEL_SCIENCE = {
 NARROWED = {
     "analysis/bouc_wen_fit.py": "tests/analysis/test_bouc_wen_fit_*.py tests/analysis/test_bouc_wen_evidence.py",
     "analysis/reference.py": "tests/analysis/test_reference*.py",
+    # fact files only: test_element_fit.py's dry run through the processing and test_elastic_backbone.py's
+    # cross-validated fit take 10-15 s each, a pass per surviving mutant
+    "analysis/element_fit.py": "tests/analysis/test_element_fit_facts.py tests/analysis/test_element_fit_lever*.py",
+    "analysis/elastic_backbone.py": "tests/analysis/test_elastic_backbone_facts.py",
 }
 
 TESTS = _science_modules() | MODEL_SCIENCE | REPORT_SCIENCE | NARROWED
@@ -317,7 +321,7 @@ def _print_row(res: dict) -> None:
     print(
         f"{res['module']:32s} {res['killed']:4d}/{res['tested']:<4d} {score:6.1f} %"
         f"   (sample of {res['eligible']} eligible less {res['equivalent']} equivalent;"
-        f" {res['all']} generated; {res['seconds']:.0f} s)",
+        f" {res['all']} generated; {res['seconds']:.0f} s, unmutated tests {res.get('baseline_s', 0):.1f} s)",
         flush=True,
     )
 

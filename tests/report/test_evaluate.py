@@ -263,3 +263,42 @@ def test_interval_bounds_are_inclusive() -> None:
         ).verdict
         == "not met"
     )
+
+
+def test_a_plateau_is_not_a_trend() -> None:
+    """A step whose means are equal goes neither way: with means 1, 1, 3 (ends far apart) the values do
+    not increase at every step, and no_trend is then met although the ends differ."""
+    plateau = data(c1=[0.9, 1.0, 1.1], c2=[0.9, 1.0, 1.1], c3=[2.9, 3.0, 3.1])
+    v = evaluate_expectation(spec(relation="increasing", configurations=[1, 2, 3]), plateau)
+    assert v.verdict == "not met" and v.reason.endswith("; not every step goes the stated way")
+    v = evaluate_expectation(spec(relation="decreasing", configurations=[3, 2, 1]), plateau)
+    assert v.verdict == "not met" and v.reason.endswith("; not every step goes the stated way")
+    assert evaluate_expectation(spec(relation="no_trend", configurations=[1, 2, 3]), plateau).verdict == "met"
+
+
+def test_from_one_unit_on_numbers_have_two_decimals() -> None:
+    """Three significant digits below 1, two decimals from 1 up to 100 (1 itself included), one above."""
+    inside = {"relation": "inside", "configurations": [1], "interval": [-1000, 1000]}
+    for means, text in (
+        ([99.99, 99.99], "mean 99.99 J"),
+        ([100.0, 100.0], "mean 100.0 J"),
+        ([1.0, 1.0], "mean 1.00 J"),
+        ([0.5, 0.5], "mean 0.5 J"),
+    ):
+        assert text in evaluate_expectation(spec(**inside), data(c1=means)).reason, means
+
+
+def test_an_interval_touching_the_reference_is_not_wholly_above_or_below_it() -> None:
+    """`greater` / `less` need the interval wholly on one side: a zero-width interval at 2.0 is neither
+    above nor below 2.0 (unlike `inside` and `equal`, whose bounds are inclusive)."""
+    exact = data(c1=[2.0, 2.0, 2.0])
+    for relation in ("greater", "less"):
+        v = evaluate_expectation(spec(relation=relation, configurations=[1], value=2.0), exact)
+        assert v.verdict == "not met", relation
+    assert (
+        evaluate_expectation(spec(relation="greater", configurations=[1], value=1.999), exact).verdict
+        == "met"
+    )
+    assert (
+        evaluate_expectation(spec(relation="less", configurations=[1], value=2.001), exact).verdict == "met"
+    )

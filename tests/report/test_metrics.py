@@ -177,3 +177,39 @@ def test_unequal_lengths_use_the_common_samples() -> None:
 def test_an_unknown_metric_is_refused() -> None:
     with pytest.raises(ValueError, match="unknown metric 'energy'"):
         trial_values(config([loop(0.3, 2.0)]), "energy")
+
+
+def test_the_shortest_loop_has_a_width_and_fewer_samples_give_no_value() -> None:
+    """Out and back in three samples (49 -> 50 -> 49 deg, torque +1 on the way out, -1 on the way back) is a
+    loop 2 N*m wide; one or two samples cannot go both ways, and a trial with too few finite samples gives
+    no value (never an error)."""
+    three = ProcessedTrial(np.array([49.0, 50.0, 49.0]), np.array([1.0, 5.0, -1.0]), "equal_angle")
+    assert trial_values(config([three]), "hysteresis_width", angle_deg=50.0) == pytest.approx((2.0,))
+    for n in (0, 1, 2):
+        short = ProcessedTrial(three.angle_deg[:n], three.brace_torque_nm[:n], "equal_angle")
+        assert trial_values(config([short]), "hysteresis_width", angle_deg=50.0) == (), n
+    nan_padded = ProcessedTrial(np.array([49.0, np.nan, np.nan]), np.array([1.0, 5.0, -1.0]), "equal_angle")
+    assert trial_values(config([nan_padded]), "hysteresis_width", angle_deg=50.0) == ()
+
+
+def test_the_hysteresis_width_is_the_mean_gap_over_the_whole_window() -> None:
+    """A band that widens away from 50 deg, gap 2 + (angle - 50)^2 / 4 N*m: its width at 50 deg is the gap's
+    mean over 50 +- HYSTERESIS_WINDOW_DEG, 2 + (2^2 / 3) / 4 = 2.333 N*m (not the gap at 50 deg, 2, nor at
+    the window's edges, 3)."""
+    up = np.linspace(LOW, HIGH, 9001)
+    angle = np.concatenate([up, up[::-1][1:]])
+    sign = np.concatenate([np.ones(up.size), -np.ones(up.size - 1)])
+    torque = 0.3 * angle + sign * (2.0 + (angle - 50.0) ** 2 / 4.0) / 2.0
+    p = ProcessedTrial(angle_deg=angle, brace_torque_nm=torque, subtraction="equal_angle")
+    expected = 2.0 + (HYSTERESIS_WINDOW_DEG**2 / 3.0) / 4.0
+    assert trial_values(config([p]), "hysteresis_width", angle_deg=50.0) == pytest.approx(
+        (expected,), rel=1e-3
+    )
+
+
+def test_a_small_range_still_gives_an_energy_per_degree() -> None:
+    """Any range above zero divides: a trial sweeping 0.5 deg (49.75 to 50.25) losing 0.1 J per cycle loses
+    0.1 / (0.98 * 0.5) J per degree of its range reached."""
+    small = loop(0.3, 2.0, low=49.75, high=50.25)
+    (value,) = trial_values(config([small], energy=[0.1], ids=[1]), "energy_per_degree")
+    assert value == pytest.approx(0.1 / (0.98 * 0.5), rel=1e-3)
