@@ -8,8 +8,15 @@ import math
 
 import numpy as np
 
-from protocol_runner.models.bouc_wen import BoucWenBounds, BoucWenParams, simulate
-from protocol_runner.models.bouc_wen.problem import FitScale, Problem, Samples, evaluate
+from protocol_runner.models.bouc_wen import BoucWenBounds, BoucWenParams, simulate, simulate_sensitivity
+from protocol_runner.models.bouc_wen.problem import (
+    FitScale,
+    Problem,
+    Samples,
+    evaluate,
+    jacobian_std,
+    param_std,
+)
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 
@@ -93,3 +100,27 @@ def test_a_diverging_trial_is_evaluated_with_a_finite_error_at_the_bound() -> No
     rmse, _, per, diverged = evaluate([(x, y)], unstable, 100.0)
     assert diverged
     assert math.isfinite(rmse) and rmse > 10.0 and per[0] == rmse
+
+
+def test_parameter_uncertainties_of_a_decimated_fit_are_those_of_its_compared_samples() -> None:
+    """With residuals at every second sample only, param_std is the least-squares covariance of those
+    samples: sqrt(diag(s^2 (J^T J)^-1)) with J and the residuals taken at the compared rows."""
+    x = 60.0 * np.sin(2 * np.pi * np.arange(200) / 160.0)
+    y = simulate(x, FIG57, z0=0.0) + 0.3 * np.cos(np.arange(200) / 7.0)
+    rows = np.arange(0, 200, 2, dtype=np.int64)
+    scale = FitScale(60.0, float(np.max(np.abs(y))))
+    problem = Problem(Samples(x, y, np.array([0, 200]), rows), BoucWenBounds(), scale)
+    z, dz = simulate_sensitivity(x, FIG57, z0=y[0])
+    expected = jacobian_std(dz[rows], float(np.sum((z[rows] - y[rows]) ** 2)))
+    np.testing.assert_allclose(param_std(problem, FIG57), expected, rtol=1e-9)
+
+
+def test_two_parameters_that_act_alike_are_both_undetermined() -> None:
+    """Columns 3 and 4 of the Jacobian equal: only their sum is determined, so both get an infinite
+    uncertainty; the other six, independent, stay finite."""
+    rng = np.random.default_rng(2)
+    J = rng.normal(size=(50, 8))
+    J[:, 4] = J[:, 3]
+    std = jacobian_std(J, 1.0)
+    assert np.isinf(std[3]) and np.isinf(std[4])
+    assert np.all(np.isfinite(np.delete(std, [3, 4])))
