@@ -300,14 +300,15 @@ def _run_module(module: str, sample: int, seed: int, log: Path) -> dict:
     return res
 
 
-def _worker(copy: Path, modules: list[str], sample: int, seed: int, log: Path, queue) -> None:
+def _worker(copy: Path, tasks, sample: int, seed: int, log: Path, queue) -> None:
+    """Score modules taken from `tasks` (a queue of module names; None: no more) one after another."""
     os.chdir(copy)
     os.environ["PYTHONPATH"] = str(copy / "src")
     os.environ["PYTHONDONTWRITEBYTECODE"] = "1"
     # numba kernels compiled with bounds checks: an index mutant that would write past an array raises
     # instead of corrupting memory silently (and perhaps passing)
     os.environ["NUMBA_BOUNDSCHECK"] = "1"
-    for module in modules:
+    for module in iter(tasks.get, None):
         res = _run_module(module, sample, seed, log)
         _print_row(res)
         queue.put(res)
@@ -374,9 +375,15 @@ def main(argv: list[str] | None = None) -> int:
     (out / "mutants.log").unlink(missing_ok=True)
     scratch = Path(tempfile.mkdtemp(prefix="mutation-copy-"))
     jobs = max(1, min(args.jobs, len(modules)))
-    # the bouc_wen modules share one slow test file: spread them over the jobs first
-    order = sorted(modules, key=lambda m: ("bouc_wen" not in m, m))
-    buckets: list[list[str]] = [order[i::jobs] for i in range(jobs)]
+    # each job takes the next module when it finishes one (modules differ tenfold in time); the slowest
+    # first: the compiled kernels (numba recompiles the mutated file for every mutant), then the Bouc-Wen
+    # modules, whose fit tests take longest
+    order = sorted(modules, key=lambda m: ("kernels" not in m, "bouc_wen" not in m, m))
+    tasks: multiprocessing.Queue = multiprocessing.Queue()
+    for module in order:
+        tasks.put(module)
+    for _ in range(jobs):
+        tasks.put(None)
     t0 = time.monotonic()
     print(
         f"cosmic-ray mutation score, sample <= {args.sample or 'all'} per module, seed {args.seed}, {jobs} jobs"
@@ -384,11 +391,11 @@ def main(argv: list[str] | None = None) -> int:
     queue: multiprocessing.Queue = multiprocessing.Queue()
     procs = []
     try:
-        for i, bucket in enumerate(buckets):
+        for i in range(jobs):
             copy = scratch / f"copy{i}"
             _copy_tree(copy)
             proc = multiprocessing.Process(
-                target=_worker, args=(copy, bucket, args.sample, args.seed, out / "mutants.log", queue)
+                target=_worker, args=(copy, tasks, args.sample, args.seed, out / "mutants.log", queue)
             )
             proc.start()
             procs.append(proc)
