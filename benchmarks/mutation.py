@@ -105,8 +105,8 @@ MODEL_SCIENCE = {
 NARROWED = {
     "analysis/bouc_wen_fit.py": "tests/analysis/test_bouc_wen_fit_*.py tests/analysis/test_bouc_wen_evidence.py",
     "analysis/reference.py": "tests/analysis/test_reference*.py",
-    # fact files only: test_element_fit.py's dry run through the processing and test_elastic_backbone.py's
-    # cross-validated fit take 10-15 s each, a pass per surviving mutant
+    # fact files only: test_element_fit.py's simulated-rig run through the processing and
+    # test_elastic_backbone.py's cross-validated fit take 10-15 s each, a pass per surviving mutant
     "analysis/element_fit.py": "tests/analysis/test_element_fit_facts.py tests/analysis/test_element_fit_lever*.py",
     "analysis/elastic_backbone.py": "tests/analysis/test_elastic_backbone_facts.py",
 }
