@@ -97,3 +97,17 @@ def test_a_state_held_below_one_newton_metre_keeps_its_sign(direction: float) ->
     bad = run_scheme(x, np.array([0, x.size]), np.array([0.0]), shape, Integration("eq23", 0.5, True), z)
     assert bad == 6
     np.testing.assert_array_equal(z[6:], direction * 0.5)
+
+
+def test_gram_is_the_normal_matrix_and_sum_sq_diff_the_squared_distance() -> None:
+    """The Gauss-Newton normal matrix J^T J (symmetric, positive semi-definite) and ||z - y||^2, computed in
+    compiled loops, equal numpy's."""
+    from protocol_runner.models.bouc_wen.kernels import gram, sum_sq_diff
+
+    rng = np.random.default_rng(3)
+    J = rng.normal(size=(50, 8)) * np.array([1.0, 10.0, 0.1, 2.0, -3.0, 0.5, 7.0, 1e-3])
+    G = gram(J)
+    np.testing.assert_allclose(G, J.T @ J, rtol=1e-12, atol=1e-12)
+    assert np.all(np.linalg.eigvalsh(G) > -1e-9)
+    z, y = rng.normal(size=40), rng.normal(size=40)
+    assert sum_sq_diff(z, y) == pytest.approx(float(np.sum((z - y) ** 2)), rel=1e-13)
