@@ -9,20 +9,9 @@ import numpy as np
 import pytest
 
 from protocol_runner.analysis.loops import centred_loop, fit_loops
-from protocol_runner.models.bouc_wen import BoucWenParams, simulate
 from protocol_runner.models.bouc_wen.backbone import Backbone, FixedBackbone
 
-HYSTERESIS = BoucWenParams(A=2.0, n=1.0, beta=(0.5, 0.0, 0.0, 0.0, 0.0, 0.0))  # saturates at 4 N*m
-SPRING = [("torsion", "torsion_spring", {"stiffness_nm_per_deg": 0.1, "neutral_deg": 0.0})]
-
-
-def raw_trials() -> list[tuple[np.ndarray, np.ndarray]]:
-    """Two cycles of +-45 deg about 65 deg: a 0.3 N*m/deg spring (neutral 40 deg) plus a Bouc-Wen loop."""
-    t = np.arange(0.0, 12.0, 0.05)
-    centred = -45.0 * np.cos(2.0 * np.pi * t / 6.0)
-    angle = 65.0 + centred
-    torque = 0.3 * (angle - 40.0) + simulate(centred, HYSTERESIS, z0=-4.0)
-    return [(angle, torque), (angle, torque + 0.05)]
+from .synthetic_loops import SPRING, spring_and_loop_trials
 
 
 def test_a_centred_loop_has_zero_mean_and_drops_undefined_torques_with_their_angles() -> None:
@@ -35,12 +24,16 @@ def test_a_centred_loop_has_zero_mean_and_drops_undefined_torques_with_their_ang
 
 @pytest.fixture(scope="module")
 def segments() -> list[tuple[np.ndarray, np.ndarray]]:
-    return [centred_loop(a, t) for a, t in raw_trials()]
+    return [centred_loop(a, t) for a, t in spring_and_loop_trials()]
 
 
 def test_the_elements_backbone_replaces_the_polynomial(segments) -> None:
     result, _ = fit_loops(
-        segments, starts=1, cross_validated=False, backbone_degree=9, elements=(raw_trials(), SPRING)
+        segments,
+        starts=1,
+        cross_validated=False,
+        backbone_degree=9,
+        elements=(spring_and_loop_trials(), SPRING),
     )
     assert isinstance(result.backbone, FixedBackbone) and result.backbone.kind == "elements"
     x = np.linspace(-40.0, 40.0, 9)
@@ -49,7 +42,11 @@ def test_the_elements_backbone_replaces_the_polynomial(segments) -> None:
 
 def test_a_disabled_element_fit_gives_g_zero_and_says_so(segments) -> None:
     result, _ = fit_loops(
-        segments, starts=1, cross_validated=False, backbone_degree=9, elements=(raw_trials(), None)
+        segments,
+        starts=1,
+        cross_validated=False,
+        backbone_degree=9,
+        elements=(spring_and_loop_trials(), None),
     )
     assert isinstance(result.backbone, FixedBackbone) and result.backbone.kind == "none"
     assert result.backbone.note == "not applicable: the element fit is disabled"

@@ -18,12 +18,10 @@ from protocol_runner.analysis.service import (
     fit_stored_loops,
     stored_trial,
 )
-from protocol_runner.models.bouc_wen import BoucWenParams, simulate
 from protocol_runner.models.bouc_wen.backbone import Backbone, FixedBackbone
 from protocol_runner.protocol.schema import BoucWenFitSpec
 
-HYSTERESIS = BoucWenParams(A=2.0, n=1.0, beta=(0.5, 0.0, 0.0, 0.0, 0.0, 0.0))  # saturates at 4 N*m
-SPRING = [("torsion", "torsion_spring", {"stiffness_nm_per_deg": 0.1, "neutral_deg": 0.0})]
+from .synthetic_loops import SPRING, spring_and_loop_trials
 
 
 def test_the_analysis_defaults_are_the_protocol_s() -> None:
@@ -95,21 +93,11 @@ def test_a_trial_without_a_sample_interval_is_stored_as_it_is(n: int) -> None:
     assert s.angle_deg.size == n and s.brace_torque_nm.size == n
 
 
-def _loops() -> list[tuple[np.ndarray, np.ndarray]]:
-    """Two uncentred trials of +-45 deg about 65 deg: a 0.3 N*m/deg spring (neutral 40 deg) plus a Bouc-Wen
-    loop; the device declares a torsion spring, whose stiffness and neutral angle the element fit finds."""
-    t = np.arange(0.0, 12.0, 0.05)
-    centred = -45.0 * np.cos(2.0 * np.pi * t / 6.0)
-    angle = 65.0 + centred
-    torque = 0.3 * (angle - 40.0) + simulate(centred, HYSTERESIS, z0=-4.0)
-    return [(angle, torque), (angle, torque + 0.05)]
-
-
 def test_the_elements_backbone_is_the_device_s_spring() -> None:
     """backbone "elements": g is the device's spring (0.3 N*m/deg about the centred angle), whatever degree
     the polynomial would have had."""
     result = fit_stored_loops(
-        _loops(), BoucWenSettings(starts=1, cross_validate=False, backbone="elements"), SPRING
+        spring_and_loop_trials(), BoucWenSettings(starts=1, cross_validate=False, backbone="elements"), SPRING
     )
     g = result.fit.backbone
     assert isinstance(g, FixedBackbone) and g.kind == "elements"
@@ -120,13 +108,13 @@ def test_the_elements_backbone_is_the_device_s_spring() -> None:
 def test_the_polynomial_backbone_is_a_polynomial_of_the_asked_degree_whatever_the_device() -> None:
     settings = BoucWenSettings(starts=1, cross_validate=False, backbone="polynomial", backbone_degree=3)
     for device in (None, SPRING):
-        g = fit_stored_loops(_loops(), settings, device).fit.backbone
+        g = fit_stored_loops(spring_and_loop_trials(), settings, device).fit.backbone
         assert isinstance(g, Backbone) and g.degree == 3
 
 
-def test_the_thesis_form_has_no_backbone_and_the_fit_is_of_the_centred_loops() -> None:
+def test_the_thesis_form_has_no_backbone_and_the_fit_is_of_the_centredspring_and_loop_trials() -> None:
     result = fit_stored_loops(
-        _loops(), BoucWenSettings(starts=1, cross_validate=False, backbone="none"), SPRING
+        spring_and_loop_trials(), BoucWenSettings(starts=1, cross_validate=False, backbone="none"), SPRING
     )
     assert result.fit.backbone is None and result.cv_rmse_nm == []
     for a, t in result.segments:

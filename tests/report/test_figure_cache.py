@@ -23,10 +23,17 @@ from protocol_runner.report.model import Configuration, ReportData
 FAKE = "data:image/png;base64,c3RvcmVk"  # not a figure any drawing makes: shows that the store was used
 
 
-def _copy(small_archive: Path, tmp_path: Path) -> Path:
+def _stored_fakes(small_archive: Path, tmp_path: Path) -> tuple[Path, ReportData, Configuration, list[str]]:
+    """A copy of the archive whose figure store holds FAKE for each of configuration 5's figures: the copy,
+    its report data, the configuration and its figure ids."""
     archive = tmp_path / "archive.h5"
     shutil.copy(small_archive, archive)
-    return archive
+    data = load_report_data(archive)
+    cfg = data.configuration(5)
+    assert cfg is not None
+    ids = [task_id for task_id, _ in configuration_tasks(cfg)]
+    save(cache_dir_of(archive), cfg, dict.fromkeys(ids, FAKE))
+    return archive, data, cfg, ids
 
 
 def _with(data: ReportData, cfg: Configuration) -> ReportData:
@@ -68,12 +75,7 @@ def test_fields_outside_the_fingerprint_do_not_change_the_figures(small_archive:
 def test_the_report_takes_stored_figures_drawn_from_the_same_data(
     small_archive: Path, tmp_path: Path
 ) -> None:
-    archive = _copy(small_archive, tmp_path)
-    data = load_report_data(archive)
-    cfg = data.configuration(5)
-    assert cfg is not None
-    ids = [task_id for task_id, _ in configuration_tasks(cfg)]
-    save(cache_dir_of(archive), cfg, dict.fromkeys(ids, FAKE))
+    _, data, _, ids = _stored_fakes(small_archive, tmp_path)
     figures = render_figures(data, workers=1)
     assert all(figures.get(i) == FAKE for i in ids)
     # the other configurations' figures were drawn, and document order is kept
@@ -83,12 +85,7 @@ def test_the_report_takes_stored_figures_drawn_from_the_same_data(
 
 @pytest.mark.parametrize("change", ["data", "damaged file"])
 def test_a_stale_or_damaged_store_is_drawn_again(small_archive: Path, tmp_path: Path, change: str) -> None:
-    archive = _copy(small_archive, tmp_path)
-    data = load_report_data(archive)
-    cfg = data.configuration(5)
-    assert cfg is not None
-    ids = [task_id for task_id, _ in configuration_tasks(cfg)]
-    save(cache_dir_of(archive), cfg, dict.fromkeys(ids, FAKE))
+    archive, data, cfg, ids = _stored_fakes(small_archive, tmp_path)
     if change == "data":  # e.g. --reprocess changed the energies after the figures were drawn
         energy = np.asarray(cfg.energy_loss_j) * 1.5
         data = _with(data, dataclasses.replace(cfg, energy_loss_j=energy))
