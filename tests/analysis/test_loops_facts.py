@@ -27,27 +27,26 @@ def segments() -> list[tuple[np.ndarray, np.ndarray]]:
     return [centred_loop(a, t) for a, t in spring_and_loop_trials()]
 
 
-def test_the_elements_backbone_replaces_the_polynomial(segments) -> None:
-    result, _ = fit_loops(
+def _fit_with_device(segments, device):
+    """The loops fitted with the element backbone of `device` (None: the element fit is disabled)."""
+    return fit_loops(
         segments,
         starts=1,
         cross_validated=False,
         backbone_degree=9,
-        elements=(spring_and_loop_trials(), SPRING),
-    )
+        elements=(spring_and_loop_trials(), device),
+    )[0]
+
+
+def test_the_elements_backbone_replaces_the_polynomial(segments) -> None:
+    result = _fit_with_device(segments, SPRING)
     assert isinstance(result.backbone, FixedBackbone) and result.backbone.kind == "elements"
     x = np.linspace(-40.0, 40.0, 9)
     np.testing.assert_allclose(result.backbone(x), 0.3 * x, rtol=0.01, atol=1e-9)  # the spring, centred
 
 
 def test_a_disabled_element_fit_gives_g_zero_and_says_so(segments) -> None:
-    result, _ = fit_loops(
-        segments,
-        starts=1,
-        cross_validated=False,
-        backbone_degree=9,
-        elements=(spring_and_loop_trials(), None),
-    )
+    result = _fit_with_device(segments, None)
     assert isinstance(result.backbone, FixedBackbone) and result.backbone.kind == "none"
     assert result.backbone.note == "not applicable: the element fit is disabled"
     assert np.all(result.backbone(np.linspace(-40.0, 40.0, 9)) == 0.0)
