@@ -16,7 +16,7 @@ from protocol_runner.models.bouc_wen.schemes import (
     BoucWenShape,
     Integration,
     Sensitivity,
-    run_scheme_sensitivity,
+    run_scheme,
 )
 
 
@@ -58,7 +58,7 @@ def test_the_jacobian_at_the_compared_rows_is_those_rows_of_the_full_one() -> No
     A, n, beta = 0.2, 1.1, np.array([0.01, 0.1, -0.1, -0.08, 0.09, 0.0])
     z_full = np.empty_like(problem.x)
     full = np.empty((problem.x.size, 8))
-    run_scheme_sensitivity(
+    run_scheme(
         problem.x,
         problem.seg,
         problem.z0,

@@ -42,6 +42,4 @@ def bouc_wen_settings(loaded: LoadedProtocol) -> BoucWenSettings:
 
 def element_fit_enabled(loaded: LoadedProtocol) -> bool:
     """Whether the device's elastic elements are fitted (the protocol's element fit, `fits.spring`)."""
-    fits = loaded.protocol.fits
-    enabled = getattr(fits, "elements", getattr(fits, "spring", None))
-    return bool(enabled and enabled.enabled)
+    return loaded.protocol.fits.spring.enabled

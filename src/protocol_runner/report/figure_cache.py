@@ -11,18 +11,17 @@ shows the same figures with or without the cache.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import functools
 import hashlib
 import importlib.util
 import json
-import os
 from pathlib import Path
 
 import numpy as np
 
 from protocol_runner import __version__
+from protocol_runner.report.html_file import write_atomically
 from protocol_runner.report.model import Configuration
 
 CACHE_DIR_NAME = "figures"
@@ -91,15 +90,7 @@ def _path(cache_dir: Path, cfg: Configuration) -> Path:
 def save(cache_dir: Path, cfg: Configuration, images: dict[str, str]) -> None:
     """Store the configuration's figures (atomically: a reader sees the old file, the new one or none)."""
     cache_dir.mkdir(parents=True, exist_ok=True)
-    final = _path(cache_dir, cfg)
-    tmp = final.with_name(f".{final.name}.{os.getpid()}.partial")
-    try:
-        tmp.write_text(json.dumps({"fingerprint": fingerprint(cfg), "images": images}), encoding="utf-8")
-        os.replace(tmp, final)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
+    write_atomically(_path(cache_dir, cfg), json.dumps({"fingerprint": fingerprint(cfg), "images": images}))
 
 
 def lookup(cache_dir: Path, cfg: Configuration) -> dict[str, str] | None:

@@ -62,8 +62,6 @@ class Problem:
         # sample of x, so dropping residuals (decimation) never changes the angle path the model follows
         self.rows = rows
         self.y_rows = y if rows is None else np.ascontiguousarray(y[rows])
-        self.scheme = scheme
-        self.max_step_deg = max_step_deg
         self.x = x
         self.y = y
         self.seg = seg

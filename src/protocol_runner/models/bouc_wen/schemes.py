@@ -117,9 +117,6 @@ def run_scheme(
     return int(sens_kernel(x, seg, z0, shape_rec, limits, z, sens))
 
 
-run_scheme_sensitivity = run_scheme  # the same function, by the name of the callers that pass ``dz``
-
-
 def run_trial(
     x: FloatArray,
     params: BoucWenParams,
