@@ -84,6 +84,11 @@ def input_time_base_s(scan: ScanBlock, t0: float, input_rate_hz: float) -> Float
     return times
 
 
+def _from_tick(write: Callable[[int], object], first: int) -> Callable[[int], object]:
+    """`write` (of samples indexed from 0) for ticks numbered from `first`."""
+    return lambda k: write(k - first)
+
+
 @dataclass(eq=False)
 class Loop:
     """One loop's samples as far as they go: the commands (ticks first), their volts and codes (`UNWRITTEN`
@@ -224,9 +229,11 @@ class PacedLoop(Generic[RecordingT]):
                         raise Interrupted(stopped)
                     # continue in the same loop with what the stop sends (no pause: the output would hold)
                     tail = on_stop(end)
+                    tail_volts = self._command_volts(tail)
                     cmd = np.concatenate([cmd[:end], tail])
-                    volts = np.concatenate([volts[:end], self._command_volts(tail)])
-                    write, n = self._tick_writer(volts), int(cmd.shape[0])
+                    volts = np.concatenate([volts[:end], tail_volts])
+                    # only the tail is prepared for writing (between two ticks, while the robot moves)
+                    write, n = _from_tick(self._tick_writer(tail_volts), end), int(cmd.shape[0])
                     codes[end:] = [self.UNWRITTEN] * (n - end)
                     actual[end:] = [0.0] * (n - end)
                     schedule = schedule_s(t0, n, dt)
