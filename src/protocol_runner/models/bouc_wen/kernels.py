@@ -112,15 +112,25 @@ def eq23_step_sens(xa, xb, zi, S, A, n, beta, sig):  # pragma: no cover - compil
 
 
 @njit(cache=True)
+def _state_terms(z, n, beta, sd, sx):  # pragma: no cover - compiled
+    """``(sgn z, Psi, |z|^n, ln|z|)`` at the state ``z`` on a piece with ``sd``, ``sx`` (one log and one exp:
+    the costly part of every rate)."""
+    sz = sgn(z)
+    g, lz = abs_pow(abs(z), n)
+    return sz, shape_psi(beta, sd, sx, sz), g, lz
+
+
+@njit(cache=True)
 def _substeps(d, zi, A, n, beta, sd, sx, max_step, stiff_step):  # pragma: no cover - compiled
-    """Substep count of a piece, and the rate ``dz/dx`` at its start (one power of |z| for both)."""
-    psi = shape_psi(beta, sd, sx, sgn(zi))
+    """Substep count of a piece, the rate ``dz/dx`` at its start and the state terms there
+    (:func:`_state_terms`: one power of |z| for all three, and the first substep reuses them)."""
+    terms = _state_terms(zi, n, beta, sd, sx)
+    _, psi, g, _ = terms
     az = abs(zi)
-    g, _ = abs_pow(az, n)
     stiff = n * g / az * abs(psi) if az > 0.0 else 0.0
     rate = max(1.0 / max_step, stiff / stiff_step)
     m = math.ceil(abs(d) * rate) if math.isfinite(rate) else MAX_SUBSTEPS
-    return max(1, min(MAX_SUBSTEPS, m)), A - g * psi
+    return max(1, min(MAX_SUBSTEPS, m)), A - g * psi, terms
 
 
 @njit(cache=True)
@@ -131,13 +141,11 @@ def _rate(z, A, n, beta, sd, sx):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _rate_sens(z, S, A, n, beta, sd, sx, out):  # pragma: no cover - compiled
-    """F(z) and dF/dtheta + dF/dz S (into ``out``; the sign products in registers, not an array: this is
-    the innermost work of every fit)."""
-    sz = sgn(z)
-    psi = shape_psi(beta, sd, sx, sz)
+def _rate_sens(z, S, A, n, terms, sd, sx, out):  # pragma: no cover - compiled
+    """F(z) and dF/dtheta + dF/dz S (into ``out``) from the state terms at ``z`` (:func:`_state_terms`; the
+    sign products in registers, not an array: this is the innermost work of every fit)."""
+    sz, psi, g, lz = terms
     az = abs(z)
-    g, lz = abs_pow(az, n)
     fz = -n * g / az * sz * psi if az > 0.0 else 0.0
     out[0] = 1.0 + fz * S[0]
     out[1] = -g * lz * psi + fz * S[1]
@@ -158,14 +166,18 @@ def _piece(xa, xb, zi, A, n, beta, bound, max_step, S, S2, d1, d2, sensitivities
     d = xb - xa
     sd = sgn(d)
     sx = sgn(xa + 0.5 * d)
-    m, k1 = _substeps(d, zi, A, n, beta, sd, sx, max_step, max_step * STIFF_STEP / DEFAULT_MAX_STEP_DEG)
+    stiff_step = max_step * STIFF_STEP / DEFAULT_MAX_STEP_DEG
+    m, k1, terms = _substeps(d, zi, A, n, beta, sd, sx, max_step, stiff_step)
     h = d / m
     for j in range(m):
         if sensitivities:
-            k1 = _rate_sens(zi, S, A, n, beta, sd, sx, d1)
+            if j > 0:  # the first substep's terms came with its count
+                terms = _state_terms(zi, n, beta, sd, sx)
+            k1 = _rate_sens(zi, S, A, n, terms, sd, sx, d1)
             for k in range(8):
                 S2[k] = S[k] + h * d1[k]
-            k2 = _rate_sens(zi + h * k1, S2, A, n, beta, sd, sx, d2)
+            z2 = zi + h * k1
+            k2 = _rate_sens(z2, S2, A, n, _state_terms(z2, n, beta, sd, sx), sd, sx, d2)
             for k in range(8):
                 S[k] = S[k] + 0.5 * h * (d1[k] + d2[k])
         else:
