@@ -87,3 +87,32 @@ def test_the_early_stop_of_the_last_solve_keeps_the_rmse_and_held_out_errors(
     assert fast.rmse_nm == pytest.approx(strict.rmse_nm, rel=1e-4)
     assert fast.nfev <= strict.nfev
     np.testing.assert_allclose(fast_cv, strict_cv, rtol=1e-3)
+
+
+def test_a_start_that_needs_no_contraction_is_evaluated_once_by_its_solve(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The start check of Problem.stabilise is fused and made at the point least_squares starts from (a
+    start on a bound is moved inside), so the solver's first evaluation is that check: the problem's
+    residual evaluations are exactly the solver's, and the solve ends where one without the reuse does."""
+    from protocol_runner.models.bouc_wen import problem as bw_problem
+
+    counts: list[int] = []
+    least_squares = bw_problem.least_squares
+
+    def counting(*args: object, **kwargs: object) -> object:
+        res = least_squares(*args, **kwargs)  # type: ignore[arg-type]
+        counts.append(int(res.nfev))
+        return res
+
+    monkeypatch.setattr(bw_problem, "least_squares", counting)
+    problem = _path(3000)
+    u0 = np.array([1.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])  # n on its lower bound: a straight line
+    u, cost, _, _ = problem.solve(u0, max_nfev=4, tol=1e-8)
+    assert problem.nfev == counts[0]
+    # the same solve with every evaluation made afresh
+    fresh = _path(3000)
+    monkeypatch.setattr(fresh, "_solver_residuals", fresh.residuals)
+    u_fresh, cost_fresh, _, _ = fresh.solve(u0, max_nfev=4, tol=1e-8)
+    assert fresh.nfev == counts[1] + 1
+    assert np.array_equal(u, u_fresh) and cost == cost_fresh

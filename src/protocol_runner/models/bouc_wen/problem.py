@@ -9,6 +9,7 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares
+from scipy.optimize._lsq.common import make_strictly_feasible  # what least_squares does to its start
 
 from .kernels import IDENTITY8, gram, sum_sq_diff
 from .params import EQ25_BETA_MATRIX, BoucWenParams, FloatArray, phase_values
@@ -82,7 +83,7 @@ class Problem:
         # asks for the Jacobian at the point it has just evaluated whenever it accepts a step, which then
         # costs nothing.  Outside a solve (start stabilisation, checks) residuals are the torque alone.
         self.fused = False
-        self._cached: tuple[FloatArray, FloatArray] | None = None
+        self._cached: tuple[FloatArray, FloatArray, FloatArray] | None = None  # u, Jacobian, residuals
 
     def physical(self, u: FloatArray) -> tuple[float, float, FloatArray]:
         n = float(u[1])
@@ -103,29 +104,49 @@ class Problem:
     def residuals(self, u: FloatArray) -> FloatArray:
         A, n, beta = self.physical(u)
         self.nfev += 1
+        J: FloatArray | None = None
         if self.fused:
             J, self.diverged_at = self._sensitivity(A, n, beta, self._chain(n, beta) / self.Z)
-            self._cached = (u.copy(), J)
         else:
-            self._cached = None
             self.diverged_at = self._integrate(A, n, beta)
         z = self.z if self.rows is None else self.z[self.rows]
-        return (z - self.y_rows) / self.Z
+        r = (z - self.y_rows) / self.Z
+        self._cached = None if J is None else (u.copy(), J, r)
+        return r
+
+    def _solver_residuals(self, u: FloatArray) -> FloatArray:
+        """:meth:`residuals` for the solver: the last fused evaluation's when it was at ``u`` (the start,
+        which :meth:`stabilise` has just checked), else a new one."""
+        if self._cached is not None and np.array_equal(self._cached[0], u):
+            return self._cached[2]
+        return self.residuals(u)
 
     def stabilise(self, u: FloatArray) -> FloatArray:
         """Contract a start whose recursion diverges toward the neutral point ``a = 1, psi' = 0`` (a
         straight line of the loop's mean slope, which cannot diverge) by halving the distance until it
         stays within range.  From inside the divergent region no gradient points back out, so without
-        this a local solve from such a start stalls on the penalty plateau."""
+        this a local solve from such a start stalls on the penalty plateau.  Inside a solve (``fused``)
+        the first check also gives the Jacobian: a start that needs no contraction is then evaluated once."""
         centre = u.copy()
         centre[0] = min(max(1.0, self.lower[0]), self.upper[0])
         centre[2:] = 0.0
         v = u.copy()
-        for _ in range(60):
-            self.residuals(v)
-            if self.diverged_at < 0:
-                return v
-            v = centre + 0.5 * (v - centre)
+        fused = self.fused
+        try:
+            if fused:  # check the point the solver starts from: it moves a start off its bounds
+                first = make_strictly_feasible(v, self.lower, self.upper)
+                self.residuals(first)
+                if self.diverged_at < 0:
+                    return first
+                self.fused = False  # a contracted start is checked by its torque alone
+                v = centre + 0.5 * (v - centre)
+            for _ in range(60 - fused):
+                self.residuals(v)
+                if self.diverged_at < 0:
+                    return v
+                v = centre + 0.5 * (v - centre)
+        finally:
+            self.fused = fused
         return centre
 
     def cost(self, u: FloatArray) -> float:
@@ -183,11 +204,11 @@ class Problem:
     ) -> tuple[FloatArray, float, int, str]:
         """Bounded trust-region solve from ``u0``; ``ftol`` (default ``tol``) is the relative decrease of
         the cost below which a step ends it, ``tol`` the step and gradient tolerances."""
-        start = self.stabilise(np.clip(u0, self.lower, self.upper))
         self.fused = True
         try:
+            start = self.stabilise(np.clip(u0, self.lower, self.upper))
             res = least_squares(
-                self.residuals,
+                self._solver_residuals,
                 start,
                 jac=self.jacobian,
                 bounds=(self.lower, self.upper),
