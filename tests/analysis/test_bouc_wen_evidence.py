@@ -48,13 +48,13 @@ def test_a_held_out_trial_never_enters_its_own_fit(monkeypatch: pytest.MonkeyPat
     from protocol_runner.models.bouc_wen import crossval
 
     seen: list[tuple[list[int], object]] = []
-    real = crossval._fit_segments
+    real = crossval.fitted_params
 
     def spy(segments, options):  # type: ignore[no-untyped-def]
         seen.append(([round(float(y[1]) * 1e6) for _, y in segments], options.initial))
         return real(segments, options)
 
-    monkeypatch.setattr(crossval, "_fit_segments", spy)
+    monkeypatch.setattr(crossval, "fitted_params", spy)
     xs = [sinusoid(2, 25.0, phase) for phase in (0.0, 0.3, 0.6)]
     segments = [(x, noisy(x, STABLE, k)) for k, x in enumerate(xs)]
     marks = [round(float(y[1]) * 1e6) for _, y in segments]

@@ -12,7 +12,7 @@ import numpy.typing as npt
 from protocol_runner.errors import InvalidInput
 
 from .backbone import BackboneFactory, hysteretic_part
-from .fitting import _fit_segments, _validate_segments, backbone_for
+from .fitting import _validate_segments, backbone_for, fitted_params
 from .options import FitKeywords, FitOptions
 from .problem import DIVERGENCE_FACTOR, evaluate
 from .threads import blas_single_threaded
@@ -57,8 +57,8 @@ def cross_validate(
         if backbone is not None:
             others = hysteretic_part(others, backbone)
             x, y = hysteretic_part([(x, y)], backbone)[0]
-        result = _fit_segments(others, held_out_fit)
+        params = fitted_params(others, held_out_fit)
         scale = max(float(np.max(np.abs(y))), max(float(np.max(np.abs(yy))) for _, yy in others))
-        rmse, _, _, _ = evaluate([(x, y)], result.params, DIVERGENCE_FACTOR * scale, held_out_fit.scheme)
+        rmse, _, _, _ = evaluate([(x, y)], params, DIVERGENCE_FACTOR * scale, held_out_fit.scheme)
         errors.append(rmse)
     return errors

@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import Unpack
+from typing import NamedTuple, Unpack
 
 import numpy as np
 import numpy.typing as npt
@@ -126,7 +126,23 @@ def _diverges_when_decimated(u: FloatArray, screen: Problem, problem: Problem) -
     return problem.diverged_at >= 0
 
 
-def _fit_segments(segments: list[tuple[FloatArray, FloatArray]], options: FitOptions) -> BoucWenFit:
+class _Solved(NamedTuple):
+    """The outcome of the multi-start solve: the problem of the fitted samples and its best point, the
+    last solve's status and message, and the convergence record of :class:`.BoucWenFit`."""
+
+    problem: Problem
+    strides: tuple[int, ...]
+    u: FloatArray
+    status: int
+    message: str
+    n_starts: int
+    nfev: int
+    start_rmse_nm: tuple[float, ...]
+    polished_rmse_nm: tuple[float, ...]
+
+
+def _solve_segments(segments: list[tuple[FloatArray, FloatArray]], options: FitOptions) -> _Solved:
+    """The multi-start solve of :func:`fit` on validated segments (the procedure is described there)."""
     starts, max_samples_per_trial = options.starts, options.max_samples_per_trial
     scheme, bounds = options.scheme, options.bounds
     if starts < 0:
@@ -222,30 +238,53 @@ def _fit_segments(segments: list[tuple[FloatArray, FloatArray]], options: FitOpt
         if best is None or cost < best[0]:
             best = (cost, u, status, message)
     assert best is not None
-    params = problem.params(best[1])
+    return _Solved(
+        problem=problem,
+        strides=strides,
+        u=best[1],
+        status=best[2],
+        message=best[3],
+        n_starts=len(candidates),
+        nfev=problem.nfev + (screen.nfev if screen is not problem else 0) + (mid.nfev if mid else 0),
+        start_rmse_nm=tuple(screen.rmse(c) for c, _ in short),
+        polished_rmse_nm=tuple(polished),
+    )
+
+
+def fitted_params(segments: list[tuple[FloatArray, FloatArray]], options: FitOptions) -> BoucWenParams:
+    """The parameters :func:`_fit_segments` finds, without its record (uncertainties, errors on every
+    sample): what a held-out fit of :func:`.cross_validate` needs."""
+    solved = _solve_segments(segments, options)
+    return solved.problem.params(solved.u)
+
+
+def _fit_segments(segments: list[tuple[FloatArray, FloatArray]], options: FitOptions) -> BoucWenFit:
+    solved = _solve_segments(segments, options)
+    problem = solved.problem
+    params = problem.params(solved.u)
     std = param_std(problem, params)
-    rmse, r2, per, diverged = evaluate(segments, params, problem.bound, scheme)
+    rmse, r2, per, diverged = evaluate(segments, params, problem.bound, options.scheme)
     return BoucWenFit(
         params=params,
         rmse_nm=rmse,
         r2=r2,
         param_std=std,
-        n_starts=len(candidates),
-        converged=best[2] > 0,
+        n_starts=solved.n_starts,
+        converged=solved.status > 0,
         diverged=diverged,
         trial_rmse_nm=per,
         n_samples=sum(s[0].size for s in segments),
-        n_samples_fitted=int(x.size),
-        stride=strides,
-        nfev=problem.nfev + (screen.nfev if screen is not problem else 0) + (mid.nfev if mid else 0),
-        angle_scale_deg=angle_scale,
-        torque_scale_nm=torque_scale,
-        bounds=bounds,
-        message=best[3],
-        scheme=scheme,
-        status=best[2],
-        start_rmse_nm=tuple(screen.rmse(c) for c, _ in short),
-        polished_rmse_nm=tuple(polished),
+        n_samples_fitted=problem.y_rows.size,
+        stride=solved.strides,
+        nfev=solved.nfev,
+        angle_scale_deg=problem.X,
+        torque_scale_nm=problem.Z,
+        bounds=options.bounds,
+        message=solved.message,
+        scheme=options.scheme,
+        status=solved.status,
+        start_rmse_nm=solved.start_rmse_nm,
+        polished_rmse_nm=solved.polished_rmse_nm,
     )
 
 
