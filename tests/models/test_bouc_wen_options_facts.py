@@ -12,12 +12,12 @@ from protocol_runner.models.bouc_wen.records import DEFAULT_BOUNDS
 
 
 def test_every_keyword_is_optional_and_names_an_option() -> None:
-    """A caller may give any subset of the keywords (the rest take the FitOptions defaults); the two
-    tolerances that only the fitter and cross-validation set are not keywords."""
+    """A caller may give any subset of the keywords (the rest take the FitOptions defaults); the polish
+    tolerances and the last-stage switch, which only the fitter and cross-validation set, are not keywords."""
     keys = set(FitKeywords.__annotations__)
     assert FitKeywords.__required_keys__ == frozenset()
     assert FitKeywords.__optional_keys__ == frozenset(keys)
-    assert keys == {f.name for f in fields(FitOptions)} - {"polish_tol", "final_ftol"}
+    assert keys == {f.name for f in fields(FitOptions)} - {"polish_tol", "polish_ftol", "final_solve"}
 
 
 def test_the_defaults_are_those_fit_documents() -> None:
@@ -29,4 +29,5 @@ def test_the_defaults_are_those_fit_documents() -> None:
     assert d.scheme == scheme
     assert d.bounds is DEFAULT_BOUNDS
     assert d.initial is None
-    assert d.final_ftol is None  # None: the fitter's own FINAL_FTOL
+    assert d.final_solve  # only cross-validation's held-out fits end on the turning-point copy
+    assert d.polish_ftol is None  # None: the polish's ftol is polish_tol

@@ -48,9 +48,11 @@ trial out of its own fit; :mod:`.identifiability` profiles n and marks weakly id
 Performance: the numba kernels are compiled once (cached on disk); see ``benchmarks/bench_bouc_wen.py``.
 During a solve each residual evaluation also yields the Jacobian (the sensitivity kernel computes the same
 torque bit for bit), which the solver then reads for free when it accepts the step; the Jacobian is
-projected only at the compared (decimated) samples; the last solve, started close to its optimum, stops
-once a step lowers the cost by less than 1e-5 of it (1e-4 in a held-out fit), which moves the RMSE by less
-than 1e-4 and the held-out errors by less than 1e-3 (tested).  The solver's linear algebra on the tall
+projected only at the compared (decimated) samples; a solve's first evaluation is its start check; the
+last solve, started close to its optimum, stops once a step lowers the cost by less than 1e-5 of it, which
+moves the RMSE by less than 1e-4 (tested).  A held-out fit of :func:`cross_validate` computes no record and
+ends with its polish on a mid-size copy that keeps the angle's turning points (:mod:`.copies`; held-out
+errors within 1 % of the full procedure, tested, docs/analysis.md).  The solver's linear algebra on the tall
 8-column Jacobian (SVD, products) goes through BLAS, whose worker threads make each call cost milliseconds
 when the cores are busy, so :func:`fit_trials`, :func:`cross_validate` and
 :func:`.identifiability.identify` hold BLAS at one thread while they run (threadpoolctl, :mod:`.threads`).

@@ -3,7 +3,6 @@ Figure 56); leave-one-trial-out cross-validation."""
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import replace
 from typing import NamedTuple, Unpack
@@ -15,6 +14,7 @@ from scipy.stats import qmc
 from protocol_runner.errors import InvalidInput
 
 from .backbone import AnyBackbone, BackboneFactory, fit_backbone, hysteretic_part
+from .copies import _path_problem, decimate, turning_point_copy
 from .options import FitKeywords, FitOptions
 from .params import BoucWenParams, FloatArray
 from .problem import (
@@ -29,7 +29,7 @@ from .problem import (
     param_std,
     refined_rmse,
 )
-from .records import FULL_REFIT_R2, BoucWenBounds, BoucWenFit
+from .records import FULL_REFIT_R2, BoucWenFit
 from .schemes import EQ23, REFINED, check_scheme
 from .simulation import as_angle
 from .starts import equation_error_start, thesis_start
@@ -81,37 +81,6 @@ def backbone_for(
     if degree is not None:
         return fit_backbone(segments, degree)
     return None if factory is None else factory(indices)
-
-
-def decimate(
-    segments: list[tuple[FloatArray, FloatArray]], max_samples_per_trial: int | None
-) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int64], tuple[int, ...]]:
-    xs: list[FloatArray] = []
-    ys: list[FloatArray] = []
-    strides: list[int] = []
-    for x, y in segments:
-        stride = 1 if max_samples_per_trial is None else max(1, math.ceil(x.size / max_samples_per_trial))
-        xs.append(x[::stride])
-        ys.append(y[::stride])
-        strides.append(stride)
-    seg = np.zeros(len(xs) + 1, dtype=np.int64)
-    seg[1:] = np.cumsum([len(v) for v in xs])
-    return np.concatenate(xs), np.concatenate(ys), seg, tuple(strides)
-
-
-def _path_problem(
-    segments: list[tuple[FloatArray, FloatArray]],
-    strides: tuple[int, ...],
-    bounds: BoucWenBounds,
-    scale: FitScale,
-    max_step_deg: float | None,
-) -> Problem:
-    """Refined-scheme problem on every sample's angle path, residuals at every ``stride``-th sample."""
-    x, y, seg, _ = decimate(segments, None)
-    rows = np.concatenate(
-        [np.arange(seg[k], seg[k + 1], stride, dtype=np.int64) for k, stride in enumerate(strides)]
-    )
-    return Problem(Samples(x, y, seg, rows), bounds, scale, REFINED, max_step_deg)
 
 
 def _diverges_when_decimated(u: FloatArray, screen: Problem, problem: Problem) -> bool:
@@ -172,7 +141,11 @@ def _solve_segments(segments: list[tuple[FloatArray, FloatArray]], options: FitO
         screen = Problem(Samples(xs, ys, segs), bounds, scale, scheme, screen_step)
         xm, ym, segm, mid_strides = decimate(segments, _MID_SAMPLES)
         if any(m > k for m, k in zip(mid_strides, strides, strict=True)):
-            mid = Problem(Samples(xm, ym, segm), bounds, scale, scheme, MID_STEP_DEG)
+            # a fit that ends on this copy keeps the angle's turning points in it (it is then the fit)
+            copy = (
+                Samples(xm, ym, segm) if options.final_solve else turning_point_copy(segments, _MID_SAMPLES)
+            )
+            mid = Problem(copy, bounds, scale, scheme, MID_STEP_DEG)
     elif screen_strides == strides:
         screen = problem
     else:
@@ -223,23 +196,27 @@ def _solve_segments(segments: list[tuple[FloatArray, FloatArray]], options: FitO
         if all(abs(cost0 - c) > 1e-3 * c for c in chosen_cost):
             chosen.append(u0)
             chosen_cost.append(cost0)
-    polish_tol, final_ftol = options.polish_tol, options.final_ftol
+    polish_tol = options.polish_tol
     best: tuple[float, FloatArray, int, str] | None = None
     polished: list[float] = []
+    last = problem if mid is None or options.final_solve else mid  # the problem of the last solves
     for u0 in chosen:
         if mid is not None:
-            u0, cost, status, message = mid.solve(u0, max_nfev=_POLISH_NFEV, tol=polish_tol)
+            u0, cost, status, message = mid.solve(
+                u0, max_nfev=_POLISH_NFEV, tol=polish_tol, ftol=options.polish_ftol
+            )
             nfev, tol = _FINAL_NFEV, max(polish_tol, _FINAL_TOL)
-            ftol: float | None = FINAL_FTOL if final_ftol is None else final_ftol  # started close
+            ftol: float | None = FINAL_FTOL  # started close
         else:
             nfev, tol, ftol = _POLISH_NFEV, polish_tol, None
-        u, cost, status, message = problem.solve(u0, max_nfev=nfev, tol=tol, ftol=ftol)
-        polished.append(problem.rmse(cost))
+        if last is problem:
+            u0, cost, status, message = problem.solve(u0, max_nfev=nfev, tol=tol, ftol=ftol)
+        polished.append(last.rmse(cost))
         if best is None or cost < best[0]:
-            best = (cost, u, status, message)
+            best = (cost, u0, status, message)
     assert best is not None
     return _Solved(
-        problem=problem,
+        problem=last,
         strides=strides,
         u=best[1],
         status=best[2],

@@ -41,8 +41,10 @@ class FitOptions:
     polish: how many of the best short fits are refined to full convergence.
     scheme: ``"refined"`` (step-independent) or ``"eq23"`` (the thesis's literal recursion).
     polish_tol: step and gradient tolerance of the refinement.
-    final_ftol: relative cost decrease that ends the last solve after a polish on the mid-size copy
-        (``None``: ``fitting.FINAL_FTOL``).
+    polish_ftol: relative cost decrease that ends the polish on the mid-size copy (``None``: ``polish_tol``).
+    final_solve: False ends the refined scheme's fit with the polish on a mid-size copy that keeps the
+        angle's turning points (:func:`.copies.turning_point_copy`) instead of a last solve on the fitted
+        samples: the held-out fits of :func:`.cross_validate` (tolerance in docs/analysis.md).
     """
 
     starts: int = 4
@@ -54,4 +56,5 @@ class FitOptions:
     polish: int = 1
     scheme: str = REFINED
     polish_tol: float = 1e-10
-    final_ftol: float | None = None
+    polish_ftol: float | None = None
+    final_solve: bool = True
