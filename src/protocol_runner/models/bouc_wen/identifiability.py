@@ -98,9 +98,8 @@ def _fixed_n_refit(problem: Problem, u0: FloatArray) -> tuple[FloatArray, float]
         )
     finally:
         problem.fused = False
-    u = full(np.asarray(res.x, dtype=np.float64))
-    r = problem.residuals(u)
-    return u, float(r @ r)
+    # the solver's cost is half the sum of squares of its residuals at the point it returns
+    return full(np.asarray(res.x, dtype=np.float64)), 2.0 * float(res.cost)
 
 
 def _crossing(n_in: float, s_in: float, n_out: float, s_out: float, sse0: float, limit: float) -> float:
