@@ -90,8 +90,8 @@ def test_held_out_fits_ending_on_the_turning_point_copy_keep_the_held_out_errors
 ) -> None:
     """A held-out fit ends with its polish on the mid-size copy that keeps the angle's turning points
     (FitOptions.final_solve False); the full procedure (polish on the decimated copy, then a last solve on
-    the fitted samples, both to 1e-8) gives held-out errors within 1 % of it (docs/analysis.md: 1.2 % at
-    most over the 60 held-out trials of the knee dry run, median 2e-4)."""
+    the fitted samples, both to 1e-8) gives held-out errors within 1 % of it (docs/analysis.md: 0.96 % at
+    most over the 60 held-out trials of the knee dry run, median 1.8e-4)."""
     segments = _loop_halves()
     fast_cv = cross_validate(segments, starts=1, backbone_degree=9)
     fitted_params = crossval.fitted_params
