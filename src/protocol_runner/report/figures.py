@@ -310,7 +310,7 @@ def render_figures(data: ReportData, workers: int | None = None) -> FigureSet:
         workers = default_workers(len(tasks))
     results: list[tuple[str, str | None, str | None]] | None = None
     if workers > 1 and len(tasks) >= 8:
-        _warm_up()
+        warm_up()
         # small chunks keep both workers busy: two-panel figures cost about twice a one-panel one
         results = map_in_processes(
             _run_one,
@@ -334,7 +334,7 @@ def render_figures(data: ReportData, workers: int | None = None) -> FigureSet:
     return FigureSet(images=images, missing=missing)
 
 
-def _warm_up() -> None:
+def warm_up() -> None:
     """Create every canvas and render text once, so that forked workers inherit warm font caches."""
     for kind in LAYOUTS:
         fig, axes = canvas_axes(kind)
@@ -346,7 +346,9 @@ def _warm_up() -> None:
 
 
 def default_workers(n_tasks: int) -> int:
-    """Worker processes for `n_tasks` figures: 2 when there are enough figures and cores, else 1."""
-    if n_tasks < 40:
+    """Worker processes for `n_tasks` figures: 2 when there are enough figures and cores, else 1 (forking
+    costs about as much as drawing two figures; a session's report, whose configuration figures were drawn
+    ahead, still has some 30 to draw)."""
+    if n_tasks < 16:
         return 1
     return max(1, min(2, os.cpu_count() or 1))

@@ -2,11 +2,37 @@
 
 from __future__ import annotations
 
+import contextlib
+import threading
 from pathlib import Path
 
 from ..archive.diskfull import DiskFull, is_disk_full, resume_hint
 
 REPORT_NAME = "report.html"
+
+_WARMING: list[threading.Thread] = []
+
+
+def start_warm_up() -> None:
+    """Load what the report needs (jinja2, matplotlib and the report's modules, the figure canvases and
+    fonts, the compiled model simulation) on a background thread, started while the session waits for its
+    last analyses: the report at the very end then only reads and assembles. Once per process;
+    `render_report` waits for it (the canvases are not shared while it runs). Any failure is left to the
+    report, which loads what it needs itself."""
+    if not _WARMING:
+        thread = threading.Thread(target=_warm_up, name="report-warm-up", daemon=True)
+        _WARMING.append(thread)
+        thread.start()
+
+
+def _warm_up() -> None:
+    with contextlib.suppress(Exception):
+        from ..report import render  # noqa: F401  (jinja2, matplotlib, the figures)
+        from ..report.figures import warm_up as figures
+        from ..report.predictions import warm_up as predictions
+
+        figures()
+        predictions()
 
 
 def render_report(session_dir: Path, archive: Path) -> Path:
@@ -15,6 +41,8 @@ def render_report(session_dir: Path, archive: Path) -> Path:
     from ..report.render import render_report as render  # here: only the report step needs jinja, matplotlib
     from ..report.verdicts import record_verdicts
 
+    for thread in _WARMING:
+        thread.join()
     try:
         # read once, for the verdicts and the report: recording the verdicts adds /expectations, which the
         # report does not read (it decides them again from the data). Its checksums are not read again:
