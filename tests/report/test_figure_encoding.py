@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import base64
 import io
+import multiprocessing
+import os
 from pathlib import Path
 
 import numpy as np
@@ -91,3 +93,20 @@ def test_report_figure_png_holds_the_rendered_pixels(small_archive: Path) -> Non
     fig.savefig(stock, format="png", dpi=DPI)
     assert np.array_equal(_uri_pixels(uri), _decoded(stock.getvalue()))
     assert to_data_uri(fig) == uri  # the same pixels give the same bytes
+
+
+def _cache_sizes(_: int) -> tuple[int, int]:
+    return len(glyph_cache._LAYOUTS), len(glyph_cache._GLYPHS)
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
+def test_a_forked_child_lays_text_out_with_its_own_fonts(small_archive: Path) -> None:
+    """A FreeType face read by two processes through the file they inherited fails ("invalid outline"):
+    a forked child forgets the laid-out strings (they hold the parent's font objects) and keeps the glyph
+    rasters, which are plain arrays."""
+    hysteresis_figure(load_report_data(small_archive).configurations[0])
+    assert glyph_cache._LAYOUTS and glyph_cache._GLYPHS
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(2) as pool:
+        sizes = pool.map(_cache_sizes, [0, 1])
+    assert all(layouts == 0 and glyphs == len(glyph_cache._GLYPHS) for layouts, glyphs in sizes)
