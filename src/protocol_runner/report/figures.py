@@ -346,9 +346,7 @@ def warm_up() -> None:
 
 
 def default_workers(n_tasks: int) -> int:
-    """Worker processes for `n_tasks` figures: 2 when there are enough figures and cores, else 1 (forking
-    costs about as much as drawing two figures; a session's report, whose configuration figures were drawn
-    ahead, still has some 30 to draw)."""
-    if n_tasks < 16:
+    """Worker processes for `n_tasks` figures: 2 when there are enough figures and cores, else 1."""
+    if n_tasks < 40:
         return 1
     return max(1, min(2, os.cpu_count() or 1))

@@ -27,10 +27,11 @@ def start_warm_up() -> None:
 
 def _warm_up() -> None:
     with contextlib.suppress(Exception):
-        from ..report import render  # noqa: F401  (jinja2, matplotlib, the figures)
+        from ..report import render  # jinja2, matplotlib, the figures
         from ..report.figures import warm_up as figures
         from ..report.predictions import warm_up as predictions
 
+        render.warm_up()
         figures()
         predictions()
 
