@@ -1,7 +1,7 @@
 """Consolidation: merge every completed unit into one self-contained `archive.h5` (docs/archive.md).
 
-Units are fragments of the archive at their final paths; consolidation copies them in plan order into
-`archive.h5.partial`, adds the root provenance, `/protocol`, `/plan`, `/session/events` and each
+Units are fragments of the archive at their final paths; consolidation merges them into
+`archive.h5.partial` as copying them over one another in plan order would (`merge_units`), adds the root provenance, `/protocol`, `/plan`, `/session/events` and each
 configuration's status, then renames atomically. Rerunning it gives the same archive content.
 """
 
