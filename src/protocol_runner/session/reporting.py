@@ -38,15 +38,15 @@ def _warm_up() -> None:
 
 def render_report(session_dir: Path, archive: Path) -> Path:
     """Render the session's report next to its archive; a full disk is a `DiskFull` with the resume hint."""
+    for thread in _WARMING:  # first: the report's modules are imported by one thread at a time
+        thread.join()
     from ..report.load import load_report_data
     from ..report.render import render_report as render  # here: only the report step needs jinja, matplotlib
     from ..report.verdicts import record_verdicts
 
-    for thread in _WARMING:
-        thread.join()
     try:
         # read once, for the verdicts and the report: recording the verdicts adds /expectations, which the
-        # report does not read (it decides them again from the data). Its checksums are not read again:
+        # report does not read (it decides them again from the data). Its datasets are not checked again:
         # consolidation has just checked every unit's sha256, covering every byte copied into the archive
         data = load_report_data(archive, verify=False)
         record_verdicts(archive, data)  # /expectations: the declared expectations and their verdicts
