@@ -1,6 +1,6 @@
-"""`archive.consolidate._merge`: units merged in plan order; a later unit's attribute value wins, whether or
-not an earlier unit already set the same value (repeated attributes are written once, never skipped when
-they change)."""
+"""`archive.consolidate.merge_units`: the archive holds what copying the units over one another in plan order
+would give (a later unit's attribute or dataset wins, whether or not an earlier unit set the same value),
+although they are added last to first without reading what a later unit already set."""
 
 from __future__ import annotations
 
@@ -9,11 +9,13 @@ from pathlib import Path
 import h5py
 import numpy as np
 
-from protocol_runner.archive.consolidate import _merge
+from protocol_runner.archive.consolidate import merge_units
 
 
 def _unit(path: Path, attrs: dict[str, object], trial: str) -> Path:
     with h5py.File(path, "w") as f:
+        f.attrs["unit_step_id"] = f"trial:{trial}"  # a unit's own attribute, not the archive's
+        f.create_dataset("configurations/config_01/energy_loss_j", data=[float(trial)])  # later replaces
         cfg = f.require_group("configurations/config_01")
         for key, value in attrs.items():
             cfg.attrs[key] = value
@@ -29,15 +31,15 @@ def test_later_units_attributes_win_and_repeats_are_kept(tmp_path: Path) -> None
         _unit(tmp_path / "d.h5", {"key": 1, "rom_deg": np.array([0, 95]), "status": "complete"}, "4"),
     ]
     with h5py.File(tmp_path / "out.h5", "w") as out:
-        written: dict[str, dict[str, object]] = {}
-        for path in units:
-            with h5py.File(path, "r") as unit:
-                _merge(unit, out, written)
+        merge_units(out, units)
         cfg = out["configurations/config_01"]
         assert cfg.attrs["key"] == 1 and cfg.attrs["status"] == "complete"
         # the last unit's value, with its own dtype (integers), not the equal-valued floats before it
         assert cfg.attrs["rom_deg"].dtype.kind == "i" and list(cfg.attrs["rom_deg"]) == [0, 95]
         assert sorted(cfg["trials"], key=int) == ["1", "2", "3", "4"]
+        assert all(cfg[f"trials/{t}"].attrs["status"] == "complete" for t in "1234")
+        assert cfg["energy_loss_j"][()].tolist() == [4.0]  # the last unit's dataset
+        assert "unit_step_id" not in out.attrs
 
 
 def test_the_archive_declares_checksums_only_when_every_unit_had_them(tmp_path: Path) -> None:

@@ -1,5 +1,5 @@
 """`load_report_data(verify=False)`: the session's own report skips re-reading the checksums of the archive
-it has just consolidated from checked units; everything else is read the same, and bounds are still checked."""
+it has just consolidated from checked units (checksums and bounds); the data read are the same."""
 
 from __future__ import annotations
 
@@ -44,3 +44,17 @@ def test_verification_is_what_names_a_damaged_dataset(reference_archive: Path, t
     with pytest.raises(InvalidInput, match="processed/angle_deg is damaged"):
         load_report_data(archive, workers=1)
     load_report_data(archive, workers=1, verify=False)  # the session's own report does not read them again
+
+
+def test_without_verification_no_dataset_is_checked(
+    small_archive: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from protocol_runner.archive import verify
+
+    checked: list[str] = []
+    real = verify.Checker.check
+    monkeypatch.setattr(verify.Checker, "check", lambda self, ds: checked.append(ds.name) or real(self, ds))
+    load_report_data(small_archive, workers=1, verify=False)
+    assert checked == []
+    load_report_data(small_archive, workers=1)
+    assert any(name.endswith("/processed/angle_deg") for name in checked)  # every dataset, when verifying

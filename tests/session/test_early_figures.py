@@ -56,3 +56,36 @@ def test_the_sessions_report_is_the_report_of_its_archive(reference_archive: Pat
     session_report = (reference_archive.parent / "report.html").read_text(encoding="utf-8")
     regenerated = regenerated.replace(str(alone), str(reference_archive))  # the report names its archive
     assert _without_time(regenerated) == _without_time(session_report)
+
+
+def test_the_units_view_reads_what_consolidation_writes(tmp_path: Path) -> None:
+    """Two units adding to one configuration: the view gives the merged archive's members and attributes
+    (the later unit's value wins; the units' own attributes are not part of the archive)."""
+    import h5py
+
+    from protocol_runner.archive.consolidate import merge_units
+    from protocol_runner.session.early_figures import UnitsView
+
+    paths = [tmp_path / "a.h5", tmp_path / "b.h5"]
+    for i, path in enumerate(paths):
+        with h5py.File(path, "w") as unit:
+            unit.attrs["unit_step_id"] = f"step{i}"
+            cfg = unit.create_group("configurations/config_01")
+            cfg.attrs["key"] = 1
+            cfg.attrs["status"] = ["partial", "complete"][i]
+            cfg.attrs[f"only_{i}"] = float(i)
+            unit.create_dataset(f"configurations/config_01/trials/{i + 1}/processed/angle_deg", data=[i, i])
+            unit.create_dataset("configurations/config_01/energy_loss_j", data=[float(i)])
+    merged = tmp_path / "merged.h5"
+    with h5py.File(merged, "w") as out:
+        merge_units(out, paths)
+    with h5py.File(merged, "r") as out, h5py.File(paths[0]) as a, h5py.File(paths[1]) as b:
+        view = UnitsView([a, b])["configurations/config_01"]
+        want = out["configurations/config_01"]
+        assert isinstance(view, UnitsView)
+        assert dict(view.attrs) == dict(want.attrs) and list(view.attrs) == list(want.attrs)
+        assert list(view) == list(want) == ["energy_loss_j", "trials"]
+        assert list(view["trials"]) == ["1", "2"]
+        assert view["energy_loss_j"][()].tolist() == want["energy_loss_j"][()].tolist() == [1.0]
+        assert "trials/2/processed" in view and "trials/3" not in view
+        assert "unit_step_id" not in UnitsView([a, b]).attrs

@@ -1,7 +1,7 @@
 """Consolidation: merge every completed unit into one self-contained `archive.h5` (docs/archive.md).
 
-Units are fragments of the archive at their final paths; consolidation copies them in plan order into
-`archive.h5.partial`, adds the root provenance, `/protocol`, `/plan`, `/session/events` and each
+Units are fragments of the archive at their final paths; consolidation merges them into
+`archive.h5.partial` as copying them over one another in plan order would (`merge_units`), adds the root provenance, `/protocol`, `/plan`, `/session/events` and each
 configuration's status, then renames atomically. Rerunning it gives the same archive content.
 """
 
@@ -14,7 +14,6 @@ from pathlib import Path
 from typing import Any
 
 import h5py
-import numpy as np
 
 from .. import __version__
 from .attrs import ATTRIBUTES, FILENAME, ONLY
@@ -44,50 +43,34 @@ class ArchiveMeta:
     reference: tuple[str, str, Any, Any] | None = None
 
 
-def _same(a: object, b: object) -> bool:
-    """Whether attribute values `a` and `b` are the same value of the same type (arrays: dtype and items)."""
-    if type(a) is not type(b):
-        return False
-    if isinstance(a, np.ndarray):
-        assert isinstance(b, np.ndarray)
-        return a.dtype == b.dtype and a.shape == b.shape and bool(np.array_equal(a, b))
-    return bool(a == b)
+#: The units' own root attributes: not part of the archive.
+_UNIT_ONLY = frozenset((*ATTRIBUTES["unit"], MARKER_ATTR))
 
 
-def _merge(src: h5py.Group, dst: h5py.Group, written: dict[str, dict[str, object]] | None = None) -> None:
-    """Merge `src` into `dst`. `written` remembers the attributes already set on each destination group
-    during this consolidation (every trial unit repeats its configuration's attributes): an attribute whose
-    value is already there is not rewritten. The result is the same as rewriting it."""
-    if written is None:
-        written = {}
-    seen = written.setdefault(dst.name, {})
-    for key, value in src.attrs.items():
-        if key in ATTRIBUTES["unit"] or key == MARKER_ATTR:
-            continue
-        if key in seen and _same(seen[key], value):
-            continue
-        dst.attrs[key] = value
-        seen[key] = value
+def _merge_under(src: h5py.Group, dst: h5py.Group) -> None:
+    """Add to `dst` what `src` holds and `dst` does not. Everything in `dst` came from units later in
+    the plan than `src` (consolidation merges last to first), and a later unit's value wins: an attribute
+    or dataset `dst` already has is left as it is without reading `src`'s (every trial unit repeats its
+    configuration's attributes, and reading them was most of the merging time)."""
+    for key in src.attrs:
+        if key not in _UNIT_ONLY and key not in dst.attrs:
+            dst.attrs[key] = src.attrs[key]
     for name, obj in src.items():
-        if isinstance(obj, h5py.Group):
-            if name in dst:
-                _merge(obj, dst[name], written)
-            else:
-                src.copy(obj, dst, name=name)  # whole subtree in one HDF5 call (chunks copied as stored)
-        else:
-            if name in dst:
-                del dst[name]
-            src.copy(obj, dst, name=name)
+        if name not in dst:
+            src.copy(obj, dst, name=name)  # whole subtree in one HDF5 call (chunks copied as stored)
+        elif isinstance(obj, h5py.Group):
+            _merge_under(obj, dst[name])
 
 
 def merge_units(out: h5py.Group, unit_files: Iterable[Path]) -> bool:
-    """Merge the units (in order) into `out`, as consolidation does; whether every unit carried checksums."""
-    written: dict[str, dict[str, object]] = {}
+    """Merge the units into `out` as if each were copied over the ones before it (in plan order, a later
+    unit's attribute or dataset replacing an earlier one's), by adding them last to first without
+    replacing anything; whether every unit carried checksums."""
     summed = True  # units written before checksums existed (a session resumed across versions): not
-    for path in unit_files:
+    for path in reversed(list(unit_files)):
         with h5py.File(path, "r") as unit:
             summed = summed and is_marked(unit)
-            _merge(unit, out, written)
+            _merge_under(unit, out)
     return summed
 
 

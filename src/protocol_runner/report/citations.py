@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import yaml
 
+from protocol_runner.report.declared import protocol_document
+
 #: The report parts a protocol can cite, as `report.citations` keys (protocol.schema.CitationsSpec).
 PARTS: tuple[str, ...] = (
     "configurations",
@@ -28,7 +30,7 @@ def declared_citations(protocol_text: str) -> dict[str, str]:
     The protocol was validated when it ran; an unreadable or older text cites nothing."""
     out = dict.fromkeys(PARTS, "")
     try:
-        doc = yaml.safe_load(protocol_text) if protocol_text.strip() else None
+        doc = protocol_document(protocol_text)
     except yaml.YAMLError:
         return out
     report = doc.get("report") if isinstance(doc, dict) else None

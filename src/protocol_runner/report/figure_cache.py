@@ -4,7 +4,7 @@ The session's analysis workers draw each configuration's figures as soon as its 
 (`session/early_figures.py`) and store them here, one JSON file per configuration in `figures/` beside
 `archive.h5`. The report uses a stored figure only when its fingerprint matches the configuration it
 has just read from the archive: the fingerprint covers every field the configuration figures read
-(`FIGURE_FIELDS`), the figure code (`figures.py`, `canvas.py`) and the matplotlib version. Anything else
+(`FIGURE_FIELDS`), the figure code (`FIGURE_CODE`) and the matplotlib version. Anything else
 (no cache, a re-processed archive, a newer figure style, a damaged file) is drawn again, so the report
 shows the same figures with or without the cache.
 """
@@ -26,6 +26,14 @@ from protocol_runner.report.model import Configuration
 
 CACHE_DIR_NAME = "figures"
 
+#: The modules whose code decides what a stored figure looks like.
+FIGURE_CODE = (
+    "protocol_runner.report.figures",
+    "protocol_runner.report.canvas",
+    "protocol_runner.report.glyph_cache",
+    "protocol_runner.report.png",
+)
+
 #: The `Configuration` fields the configuration figures read (figures.configuration_tasks).
 FIGURE_FIELDS = ("key", "trials", "energy_loss_j", "energy_cycle_trial", "bouc_wen", "element_fit")
 
@@ -41,7 +49,7 @@ def _code_identity() -> bytes:
     import matplotlib
 
     h = hashlib.sha256(f"{__version__} matplotlib {matplotlib.__version__}".encode())
-    for module in ("protocol_runner.report.figures", "protocol_runner.report.canvas"):
+    for module in FIGURE_CODE:
         spec = importlib.util.find_spec(module)
         origin = spec.origin if spec is not None else None
         try:

@@ -310,7 +310,7 @@ def render_figures(data: ReportData, workers: int | None = None) -> FigureSet:
         workers = default_workers(len(tasks))
     results: list[tuple[str, str | None, str | None]] | None = None
     if workers > 1 and len(tasks) >= 8:
-        _warm_up()
+        warm_up()
         # small chunks keep both workers busy: two-panel figures cost about twice a one-panel one
         results = map_in_processes(
             _run_one,
@@ -334,7 +334,7 @@ def render_figures(data: ReportData, workers: int | None = None) -> FigureSet:
     return FigureSet(images=images, missing=missing)
 
 
-def _warm_up() -> None:
+def warm_up() -> None:
     """Create every canvas and render text once, so that forked workers inherit warm font caches."""
     for kind in LAYOUTS:
         fig, axes = canvas_axes(kind)

@@ -49,9 +49,10 @@ def load_report_data(path: Path, *, workers: int | None = None, verify: bool = T
     Raises `InvalidInput` when the file is missing, not HDF5, truncated or corrupt, not a protocol-runner
     archive (no root attribute `protocol_sha256`), lacks the `/configurations` group, or holds a dataset
     outside the layout's bounds or whose checksum does not match (archive/verify.py): every dataset is
-    checked before the report uses anything. `verify=False` skips the checksums (bounds are still
-    checked): only for an archive this process has just consolidated from units whose sha256 it checked
-    (the session's own report), whose every byte those checks already covered.
+    checked before the report uses anything. `verify=False` reads the datasets without checking them
+    (neither checksums nor bounds): only for an archive this process has just consolidated from units
+    whose sha256 it checked against the journal (the session's own report): every byte of it is then
+    known to be what protocol-runner wrote, within its bounds and matching its checksums.
     """
     archive = resolve_archive(Path(path))
     require_hdf5(archive)
@@ -61,7 +62,8 @@ def load_report_data(path: Path, *, workers: int | None = None, verify: bool = T
         # the file is closed before forking: HDF5 handles must not be shared across a fork
         configurations = _load_configurations(archive, names, workers, verify)
         with h5py.File(archive, "r") as h5:
-            Checker.of(h5, archive, digests=verify).check_tree(h5, skip=("configurations",))
+            if verify:
+                Checker.of(h5, archive).check_tree(h5, skip=("configurations",))
             return _read(h5, archive, configurations)
     except InvalidInput:
         raise
@@ -71,10 +73,11 @@ def load_report_data(path: Path, *, workers: int | None = None, verify: bool = T
 
 def _load_chunk(archive: Path, names: list[str], verify: bool = True) -> list[Configuration]:
     with h5py.File(archive, "r") as h5:
-        checker = Checker.of(h5, archive, digests=verify)
+        checker = Checker.of(h5, archive) if verify else None
         out = []
         for name in names:
-            checker.check_tree(h5["configurations"][name])  # all of it, read or not: damage is named
+            if checker is not None:  # all of it, read or not: damage is named
+                checker.check_tree(h5["configurations"][name])
             out.append(read_configuration(name, h5["configurations"][name]))
         return out
 

@@ -16,6 +16,7 @@ import yaml
 
 from ..models.bouc_wen import BoucWenParams, simulate
 from ..models.bouc_wen.backbone import Backbone, FixedBackbone
+from .declared import protocol_document
 
 
 @dataclass(frozen=True)
@@ -31,7 +32,7 @@ class Prediction:
 def declared_pairs(protocol_text: str) -> list[tuple[int, int, str]]:
     """`report.predictions` of the protocol as run (already validated when it ran)."""
     try:
-        doc = yaml.safe_load(protocol_text) if protocol_text else None
+        doc = protocol_document(protocol_text)
     except yaml.YAMLError:
         return []
     report = doc.get("report") if isinstance(doc, dict) else None
@@ -90,6 +91,11 @@ def predict_rmse(
         sq += float(r @ r)
         count += y.size
     return math.sqrt(sq / count) if count else math.nan
+
+
+def warm_up() -> None:
+    """Load the compiled model simulation (numba's cache) that `predict_rmse` runs, ahead of a report."""
+    simulate(np.array([0.0, 1.0, 0.0]), BoucWenParams.from_array([1.0, 1.0, 0.1, 0.1, 0.0, 0.0, 0.0, 0.0]))
 
 
 def predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:

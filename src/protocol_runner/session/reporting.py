@@ -2,22 +2,51 @@
 
 from __future__ import annotations
 
+import contextlib
+import threading
 from pathlib import Path
 
 from ..archive.diskfull import DiskFull, is_disk_full, resume_hint
 
 REPORT_NAME = "report.html"
 
+_WARMING: list[threading.Thread] = []
+
+
+def start_warm_up() -> None:
+    """Load what the report needs (jinja2, matplotlib and the report's modules, the figure canvases and
+    fonts, the compiled model simulation) on a background thread, started while the session waits for its
+    last analyses: the report at the very end then only reads and assembles. Once per process;
+    `render_report` waits for it (the canvases are not shared while it runs). Any failure is left to the
+    report, which loads what it needs itself."""
+    if not _WARMING:
+        thread = threading.Thread(target=_warm_up, name="report-warm-up", daemon=True)
+        _WARMING.append(thread)
+        thread.start()
+
+
+def _warm_up() -> None:
+    with contextlib.suppress(Exception):
+        from ..report import render  # jinja2, matplotlib, the figures
+        from ..report.figures import warm_up as figures
+        from ..report.predictions import warm_up as predictions
+
+        render.warm_up()
+        figures()
+        predictions()
+
 
 def render_report(session_dir: Path, archive: Path) -> Path:
     """Render the session's report next to its archive; a full disk is a `DiskFull` with the resume hint."""
+    for thread in _WARMING:  # first: the report's modules are imported by one thread at a time
+        thread.join()
     from ..report.load import load_report_data
     from ..report.render import render_report as render  # here: only the report step needs jinja, matplotlib
     from ..report.verdicts import record_verdicts
 
     try:
         # read once, for the verdicts and the report: recording the verdicts adds /expectations, which the
-        # report does not read (it decides them again from the data). Its checksums are not read again:
+        # report does not read (it decides them again from the data). Its datasets are not checked again:
         # consolidation has just checked every unit's sha256, covering every byte copied into the archive
         data = load_report_data(archive, verify=False)
         record_verdicts(archive, data)  # /expectations: the declared expectations and their verdicts

@@ -34,7 +34,7 @@ from .journal import Journal
 from .lock import session_lock
 from .operator import Operator
 from .progress import Progress
-from .reporting import render_report
+from .reporting import render_report, start_warm_up
 from .resume import prepare_resume
 from .setup import SessionInfo
 from .signals import StopFlag
@@ -135,6 +135,7 @@ class Runner:
                     self.pool.submit(step, ready=self.writer.ticket())
                     continue
                 if step.kind in ("compare", "report"):
+                    start_warm_up()  # the report's imports and caches, while the last analyses finish
                     self.writer.flush()  # what the analyses read is on disk
                     self.pool.collect(self._finished(progress), wait=True)  # these read the analyses' units
                 if step.kind == "report":

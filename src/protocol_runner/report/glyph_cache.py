@@ -1,0 +1,164 @@
+"""Agg text drawing with its two costly steps cached: the layout of a string and the raster of a glyph.
+
+The report draws ~140 small figures whose text is mostly the same few strings (tick labels, axis labels,
+the colour key), and matplotlib's Agg renderer lays out every string and renders every glyph with FreeType
+again at each draw: that was half of a figure's drawing time. `CachedTextRenderer.draw_text` does what
+`RendererAgg.draw_text` does, step for step, keeping
+
+- the laid-out glyphs of each (string, font properties, dpi) and
+- each glyph's rendered bitmap per font, size, angle and sub-pixel offset (the position modulo one
+  pixel, in FreeType's 1/64 px units): a glyph moved by whole pixels is the same bitmap moved, so the
+  cached bitmap is placed at the new pixel and the image is the same, byte for byte
+  (tests/report/test_report_figures.py checks it against matplotlib's own renderer).
+
+Font objects are matplotlib's, per thread and per process as matplotlib keeps them (a FreeType face read
+by two processes at once through an inherited file fails): laid-out strings are kept per thread and
+forgotten in a forked child; glyph rasters, plain arrays, are keyed by the font file and face, not the object.
+
+It uses matplotlib's private FreeType calls (`FT2Font._layout`, `_set_transform`, `_render_glyph`, as in
+matplotlib 3.11's `backend_agg`); where they do not exist (another matplotlib) it draws as matplotlib does.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import os
+import threading
+from typing import Any
+
+import matplotlib as mpl
+import numpy as np
+from matplotlib.backends import backend_agg
+from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
+from matplotlib.font_manager import FontProperties
+from matplotlib.ft2font import FT2Font
+
+#: FreeType's render modes (matplotlib >= 3.11); None before, where the stock path is used
+RENDER_MODE: Any = getattr(importlib.import_module("matplotlib.ft2font"), "RenderMode", None)
+
+SUPPORTED = (
+    RENDER_MODE is not None
+    and all(hasattr(FT2Font, name) for name in ("_layout", "_set_transform", "_render_glyph"))
+    and hasattr(RendererAgg, "_prepare_font")
+)
+
+#: entries kept per cache before it is emptied (a report uses about 200 strings and 1,500 glyph rasters)
+MAX_ENTRIES = 50_000
+
+#: a laid-out string: per glyph its font, the font's `_face`, the glyph index and its offset (px)
+Layout = tuple[tuple[Any, tuple[str, str], int, float, float], ...]
+
+_LAYOUTS: dict[tuple[Any, ...], Layout] = {}
+_GLYPHS: dict[tuple[Any, ...], tuple[np.ndarray, int, int]] = {}
+
+if hasattr(os, "register_at_fork"):  # a forked child opens its own fonts (matplotlib empties its cache too)
+    os.register_at_fork(after_in_child=_LAYOUTS.clear)
+
+
+class CachedTextRenderer(RendererAgg):
+    """`RendererAgg` whose plain (non-math) text reuses laid-out strings and rendered glyphs."""
+
+    def draw_text(
+        self,
+        gc: Any,
+        x: float,
+        y: float,
+        s: str,
+        prop: FontProperties,
+        angle: float,
+        ismath: bool | str = False,
+        mtext: Any = None,
+    ) -> None:
+        if ismath or not SUPPORTED:
+            super().draw_text(gc, x, y, s, prop, angle, ismath=ismath, mtext=mtext)
+            return
+        # what else decides a glyph's raster: FreeType's load flags and matplotlib's hinting factor
+        flags = backend_agg.get_hinting_flag(), mpl.rcParams["text.hinting_factor"]
+        items = self._layout(s, prop, flags, mtext)
+        size = prop.get_size_in_points()
+        cos, sin = math.cos(math.radians(angle)), math.sin(math.radians(angle))
+        antialiased = bool(gc.get_antialiased())
+        height = self.height
+        for font, face, glyph_index, dx, dy in items:  # dy is upwards, as in RendererAgg
+            # FreeType's pen position in 1/64 px, split into whole pixels and the sub-pixel rest
+            tx = round(0x40 * (x + dx * cos - dy * sin))
+            ty = round(0x40 * (height - y + dx * sin + dy * cos))
+            px, rx = divmod(tx, 0x40)
+            py, ry = divmod(ty, 0x40)
+            key = (face, size, self.dpi, glyph_index, angle, rx, ry, antialiased, flags)
+            glyph = _GLYPHS.get(key)
+            if glyph is None:
+                glyph = _GLYPHS[_room(_GLYPHS, key)] = _render(
+                    font, size, self.dpi, glyph_index, cos, sin, rx, ry, flags, antialiased
+                )
+            buffer, left, top = glyph
+            self._renderer.draw_text_image(
+                buffer, left + px, int(height) - (top + py) + buffer.shape[0], 0, gc
+            )
+
+    def _layout(self, s: str, prop: FontProperties, flags: Any, mtext: Any) -> Layout:
+        features = mtext.get_fontfeatures() if mtext is not None else None
+        language = mtext.get_language() if mtext is not None else None
+        options = (None if features is None else tuple(features), language, threading.get_ident())
+        key = (s, prop, self.dpi, flags, *options)
+        items = _LAYOUTS.get(key)
+        if items is None:
+            font = self._prepare_font(prop)
+            laid = font._layout(s, flags=flags[0], features=features, language=language)
+            items = tuple(
+                (item.ft_object, _face(item.ft_object), item.glyph_index, item.x, item.y) for item in laid
+            )
+            # the key keeps a copy of the properties: a later change to `prop` cannot alter a stored key
+            _LAYOUTS[_room(_LAYOUTS, (s, prop.copy(), *key[2:]))] = items
+        return items
+
+
+def _face(font: Any) -> tuple[str, str]:
+    """What identifies a font's glyphs: its file and face (and not the object, which is per thread)."""
+    return str(font.fname), str(font.postscript_name)
+
+
+def _render(
+    font: Any,
+    size: float,
+    dpi: float,
+    glyph_index: int,
+    cos: float,
+    sin: float,
+    rx: int,
+    ry: int,
+    flags: Any,
+    antialiased: bool,
+) -> tuple[np.ndarray, int, int]:
+    """One glyph rendered at the sub-pixel offset (rx, ry) as RendererAgg renders it: (coverage bitmap,
+    left, top in pixels relative to the whole-pixel pen position)."""
+    font.set_size(size, dpi)
+    matrix = (0x10000 * np.array([[cos, -sin], [sin, cos]])).round().astype(int)
+    font._set_transform(matrix, [rx, ry])
+    bitmap = font._render_glyph(
+        glyph_index, flags[0], RENDER_MODE.NORMAL if antialiased else RENDER_MODE.MONO
+    )
+    buffer = np.array(bitmap.buffer)  # a copy: the glyph slot is reused by the next render
+    if not antialiased:
+        buffer *= 0xFF
+    return buffer, int(bitmap.left), int(bitmap.top)
+
+
+def _room(cache: dict[Any, Any], key: Any) -> Any:
+    """`key`, after emptying `cache` if it is full (a bound on memory; entries are cheap to redo)."""
+    if len(cache) >= MAX_ENTRIES:
+        cache.clear()
+    return key
+
+
+class CachedTextCanvas(FigureCanvasAgg):
+    """A `FigureCanvasAgg` drawing with `CachedTextRenderer`."""
+
+    def get_renderer(self) -> RendererAgg:
+        w, h = self.get_width_height(physical=True)
+        key = w, h, self.figure.dpi
+        if self._lastKey != key:
+            self.renderer = CachedTextRenderer(w, h, self.figure.dpi)
+            self._lastKey = key
+        return self.renderer

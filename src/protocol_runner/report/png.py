@@ -1,0 +1,43 @@
+"""A rendered figure's pixels as PNG bytes: 8-bit RGB (RGBA when a pixel is not opaque), no row filter, zlib
+level 1, the resolution in a `pHYs` chunk and nothing else (no time or software tag: the same pixels give
+the same bytes).
+
+Lossless like matplotlib's own PNG output (Pillow's), about twice as fast to encode: the report's figures
+are opaque, so the alpha channel is dropped, and Pillow's per-row filter search buys little on flat plot
+images (the files are within a few per cent of the same size).
+"""
+
+from __future__ import annotations
+
+import struct
+import zlib
+
+import numpy as np
+
+SIGNATURE = b"\x89PNG\r\n\x1a\n"
+INCH_M = 0.0254
+
+
+def _chunk(kind: bytes, body: bytes) -> bytes:
+    return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
+
+
+def png_bytes(rgba: np.ndarray, dpi: float) -> bytes:
+    """Encode an (height, width, 4) uint8 RGBA image, top row first, at `dpi` dots per inch."""
+    height, width, _ = rgba.shape
+    opaque = bool((rgba[..., 3] == 0xFF).all())
+    pixels = rgba[..., :3] if opaque else rgba
+    rows = np.empty((height, 1 + width * pixels.shape[2]), dtype=np.uint8)
+    rows[:, 0] = 0  # filter type 0 (none) on every row
+    rows[:, 1:] = pixels.reshape(height, -1)
+    header = struct.pack(">IIBBBBB", width, height, 8, 2 if opaque else 6, 0, 0, 0)
+    per_metre = int(dpi / INCH_M + 0.5)
+    return b"".join(
+        (
+            SIGNATURE,
+            _chunk(b"IHDR", header),
+            _chunk(b"pHYs", struct.pack(">IIB", per_metre, per_metre, 1)),
+            _chunk(b"IDAT", zlib.compress(rows.tobytes(), 1)),
+            _chunk(b"IEND", b""),
+        )
+    )

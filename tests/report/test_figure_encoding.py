@@ -1,0 +1,112 @@
+"""The figures' fast paths draw what matplotlib draws: cached text gives the same pixels as RendererAgg,
+and the PNG encoder is lossless (decoded pixels equal the rendered ones)."""
+
+from __future__ import annotations
+
+import base64
+import io
+import multiprocessing
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.figure import Figure
+from PIL import Image
+
+from protocol_runner.report import glyph_cache
+from protocol_runner.report.canvas import DPI, LAYOUTS, canvas_axes, to_data_uri
+from protocol_runner.report.figures import bouc_wen_figure, hysteresis_figure, time_series_figure
+from protocol_runner.report.load import load_report_data
+from protocol_runner.report.png import png_bytes
+
+
+def _decoded(png: bytes) -> np.ndarray:
+    return np.asarray(Image.open(io.BytesIO(png)).convert("RGBA"))
+
+
+def _uri_pixels(uri: str) -> np.ndarray:
+    return _decoded(base64.b64decode(uri.split(",", 1)[1]))
+
+
+def _stock_pixels(fig: Figure) -> np.ndarray:
+    """`fig` drawn by matplotlib's own Agg canvas (the canvas is put back afterwards)."""
+    own = fig.canvas
+    stock = FigureCanvasAgg(fig)
+    stock.draw()
+    pixels = np.asarray(stock.buffer_rgba()).copy()
+    fig.set_canvas(own)
+    return pixels
+
+
+@pytest.mark.skipif(not glyph_cache.SUPPORTED, reason="matplotlib without per-glyph FreeType calls")
+@pytest.mark.parametrize("figure", [hysteresis_figure, time_series_figure, bouc_wen_figure])
+def test_cached_text_draws_the_pixels_matplotlib_draws(small_archive: Path, figure: object) -> None:
+    data = load_report_data(small_archive)
+    kind = "single" if figure is hysteresis_figure else "double"
+    for cfg in data.configurations[:3]:  # three figures in a row: the second and third draw from the cache
+        uri = figure(cfg)  # type: ignore[operator]
+        fig, _ = canvas_axes(kind)  # the canvas just drawn, reset: draw the same figure again, stock
+        figure(cfg)  # type: ignore[operator]
+        assert np.array_equal(_uri_pixels(uri), _stock_pixels(fig))
+    assert glyph_cache._GLYPHS, "the glyphs were not drawn through the cache"
+
+
+@pytest.mark.skipif(not glyph_cache.SUPPORTED, reason="matplotlib without per-glyph FreeType calls")
+def test_rotated_text_at_every_sub_pixel_offset_matches_matplotlib() -> None:
+    width, height, _ = LAYOUTS["single"]
+    for i in range(12):
+        fig = Figure(figsize=(width, height), dpi=DPI)
+        glyph_cache.CachedTextCanvas(fig)
+        for j, angle in enumerate((0.0, 90.0, 33.0)):
+            x = 0.1 + 0.3 * j + i / (64.0 * width * DPI)  # the pen moves by 1/64 px from figure to figure
+            fig.text(x, 0.2 + 0.017 * i, f"Torque (N·m) {i}", rotation=angle, fontsize=7 + j)
+        fig.canvas.draw()
+        cached = np.asarray(fig.canvas.buffer_rgba()).copy()
+        assert np.array_equal(cached, _stock_pixels(fig))
+
+
+def test_png_is_lossless_and_drops_only_an_opaque_alpha() -> None:
+    rng = np.random.default_rng(3)
+    opaque = rng.integers(0, 256, size=(37, 51, 4), dtype=np.uint8)
+    opaque[..., 3] = 255
+    png = png_bytes(opaque, DPI)
+    image = Image.open(io.BytesIO(png))
+    assert image.mode == "RGB" and image.size == (51, 37)
+    assert image.info["dpi"] == pytest.approx((DPI, DPI), abs=0.01)
+    assert np.array_equal(_decoded(png), opaque)
+    translucent = opaque.copy()
+    translucent[5, 7, 3] = 128
+    image = Image.open(io.BytesIO(png_bytes(translucent, DPI)))
+    assert image.mode == "RGBA"
+    assert np.array_equal(np.asarray(image), translucent)
+
+
+def test_report_figure_png_holds_the_rendered_pixels(small_archive: Path) -> None:
+    cfg = load_report_data(small_archive).configurations[0]
+    uri = hysteresis_figure(cfg)
+    fig, _ = canvas_axes("single")
+    hysteresis_figure(cfg)
+    # what matplotlib's own PNG writer stores for the same figure
+    stock = io.BytesIO()
+    fig.savefig(stock, format="png", dpi=DPI)
+    assert np.array_equal(_uri_pixels(uri), _decoded(stock.getvalue()))
+    assert to_data_uri(fig) == uri  # the same pixels give the same bytes
+
+
+def _cache_sizes(_: int) -> tuple[int, int]:
+    return len(glyph_cache._LAYOUTS), len(glyph_cache._GLYPHS)
+
+
+@pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")
+def test_a_forked_child_lays_text_out_with_its_own_fonts(small_archive: Path) -> None:
+    """A FreeType face read by two processes through the file they inherited fails ("invalid outline"):
+    a forked child forgets the laid-out strings (they hold the parent's font objects) and keeps the glyph
+    rasters, which are plain arrays."""
+    hysteresis_figure(load_report_data(small_archive).configurations[0])
+    assert glyph_cache._LAYOUTS and glyph_cache._GLYPHS
+    ctx = multiprocessing.get_context("fork")
+    with ctx.Pool(2) as pool:
+        sizes = pool.map(_cache_sizes, [0, 1])
+    assert all(layouts == 0 and glyphs == len(glyph_cache._GLYPHS) for layouts, glyphs in sizes)
