@@ -42,7 +42,7 @@ def run(
     from .preflight import preflight
     from .protocol.loader import find_protocol, load_protocol
     from .session.runner import Runner
-    from .session.setup import create_session, default_session_dir, load_session_protocol
+    from .session.setup import create_session, created_session_protocol, default_session_dir
 
     path = find_protocol(protocol)
     loaded = load_protocol(path, display_name=protocol if Path(protocol).exists() else str(path))
@@ -62,7 +62,7 @@ def run(
         only=planned.only,
         realtime=realtime,
     )
-    stored, plan, _ = load_session_protocol(directory, info, force=False)
+    stored, plan = created_session_protocol(directory, info, loaded), planned  # not read again
     bench = _bench(stored, info) if dry_run else hardware
     robot_min = plan.robot_time_s / 60
     robot = f"{robot_min / 60:.1f} h" if robot_min >= 90 else f"{robot_min:.0f} min"
