@@ -41,7 +41,7 @@ def parse_yaml(text: str, shown: str) -> tuple[Any, dict[Loc, int]]:
         try:
             node, data = _compose_and_construct(text, yaml.SafeLoader)
         except yaml.YAMLError as exc:
-            raise InvalidInput(yaml_error(shown, exc)) from None
+            raise InvalidInput(yaml_error(shown, exc, text)) from None
     lines: dict[Loc, int] = {}
     duplicates: list[tuple[Loc, int]] = []
     if node is not None:
@@ -121,11 +121,16 @@ def _without_kind_tag(loc: Loc) -> Loc:
     )
 
 
-def yaml_error(shown: str, exc: yaml.YAMLError) -> str:
+def yaml_error(shown: str, exc: yaml.YAMLError, text: str = "") -> str:
     mark = getattr(exc, "problem_mark", None)
     problem = getattr(exc, "problem", None) or str(exc)
     context = getattr(exc, "context", None)
     line = f"{mark.line + 1}" if mark is not None else "?"
+    if isinstance(exc, yaml.reader.ReaderError) and text:
+        # a character YAML does not allow: the reader gives its position in the text, not a line
+        line = f"{text.count(chr(10), 0, exc.position) + 1}"
+        code = exc.character if isinstance(exc.character, int) else ord(exc.character)
+        problem = f"character #x{code:04x} is not allowed in YAML ({exc.reason})"
     detail = f"{context}, {problem}" if context else problem
     hint = " (indent with spaces: YAML does not allow tabs)" if "'\\t'" in detail else ""
     return f"{shown}:{line}: YAML syntax error: {detail}{hint}"
