@@ -14,7 +14,9 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import select
 import signal
+import threading
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import wait as futures_wait
@@ -34,7 +36,54 @@ from .signals import sigint_blocked
 
 BACKGROUND_KINDS = frozenset({"process", "fit"})
 
+PRELOADED = (
+    "protocol_runner.session.worker_server",
+    "protocol_runner.session.workers",
+    "protocol_runner.steps.registry",
+    "protocol_runner.analysis.service",
+    "protocol_runner.report.figures",
+    "protocol_runner.report.figure_cache",
+    "protocol_runner.report.load_configuration",
+)
+"""What the workers run, imported once by the fork server (issue 20: with "spawn" every worker imported all
+of it again, about a second of CPU each)."""
+
 Results = list[tuple[UnitRecord | None, str]]
+
+
+def worker_context() -> multiprocessing.context.BaseContext:
+    """How workers are started: forked from a fork server (a clean single-threaded process started from the
+    session, which imports `PRELOADED` once; never a fork of the session itself, whose unit writer and
+    compression threads may hold a lock) where the platform has one, else spawned."""
+    if "forkserver" not in multiprocessing.get_all_start_methods():
+        return multiprocessing.get_context("spawn")
+    context = multiprocessing.get_context("forkserver")
+    context.set_forkserver_preload(list(PRELOADED))
+    return context
+
+
+def start_worker_server() -> None:
+    """Start the fork server (if it is not running), so that it imports `PRELOADED` on the other core while
+    the session starts (its first worker is needed after the first set's trials).
+
+    The server is started with SIGINT ignored, which it keeps (an ignored signal stays ignored across exec,
+    and Python then installs no KeyboardInterrupt handler): a Ctrl-C on the terminal, sent to the whole
+    process group, neither kills it while it imports nor the workers it forks (they start with SIGINT
+    ignored). A SIGINT arriving in the few milliseconds of the start is lost (the session's own stop flag
+    is not installed yet when a run starts)."""
+    if worker_context().get_start_method() != "forkserver":
+        return
+    from multiprocessing import forkserver
+
+    if threading.current_thread() is not threading.main_thread():  # signal handlers are the main thread's
+        forkserver.ensure_running()
+        return
+    with sigint_blocked():
+        previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+        try:
+            forkserver.ensure_running()
+        finally:
+            signal.signal(signal.SIGINT, previous)
 
 
 def worker_init() -> None:
@@ -55,6 +104,27 @@ def worker_init() -> None:
         libc.prctl(pr_set_pdeathsig, signal.SIGKILL)
         if os.getppid() == 1:  # the parent died before prctl took effect
             os._exit(1)
+    _die_with_the_session()
+
+
+def _die_with_the_session() -> None:
+    """A worker forked by the fork server has the server as its parent, so PR_SET_PDEATHSIG fires only once
+    the server has ended (after the session, and after its own clean-up): a thread waits on the session
+    process itself (a pidfd) and ends the worker at once when the session ends, even killed with -9."""
+    session = multiprocessing.parent_process()
+    pidfd_open = getattr(os, "pidfd_open", None)
+    if session is None or session.pid is None or session.pid == os.getppid() or pidfd_open is None:
+        return  # started by the session itself (spawn): PR_SET_PDEATHSIG is enough
+    try:
+        fd = pidfd_open(session.pid)
+    except OSError:  # the session is already gone
+        os._exit(1)
+
+    def watch() -> None:
+        select.select([fd], [], [])  # readable once the session process has ended
+        os._exit(1)
+
+    threading.Thread(target=watch, name="session-watch", daemon=True).start()
 
 
 def run_analysis_steps(
@@ -113,10 +183,11 @@ class AnalysisPool:
         while self._waiting and (force or self._waiting[0][1]()):
             chain, _ = self._waiting.pop(0)
             if self._pool is None:
+                start_worker_server()  # usually started with the session already
                 workers = min(2, os.cpu_count() or 1)
                 self._pool = ProcessPoolExecutor(
                     max_workers=workers,
-                    mp_context=multiprocessing.get_context("spawn"),
+                    mp_context=worker_context(),
                     initializer=worker_init,
                 )
             with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
