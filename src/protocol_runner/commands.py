@@ -5,6 +5,7 @@ Each returns the process exit status; user mistakes raise `UserError` subclasses
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -39,6 +40,7 @@ def run(
     quiet: bool = False,
     monitor: Monitor | None = None,
 ) -> int:
+    _start_worker_server()
     from .preflight import preflight
     from .protocol.loader import find_protocol, load_protocol
     from .session.runner import Runner
@@ -79,6 +81,15 @@ def run(
     return EXIT_OK
 
 
+def _start_worker_server() -> None:
+    """Start the analysis workers' fork server before anything heavy is imported here: it imports what the
+    workers run on the other core meanwhile (session/worker_start.py). Not on one core (no workers)."""
+    if (os.cpu_count() or 1) >= 2:
+        from .session.worker_start import start_worker_server
+
+        start_worker_server()
+
+
 def _bench(loaded: LoadedProtocol, info: SessionInfo) -> Bench:
     if info.mode == "dry-run":
         from .session.rigs import SimulatedBench
@@ -106,6 +117,7 @@ def resume(
     only: KeySelection | None = None,
     monitor: Monitor | None = None,
 ) -> int:
+    _start_worker_server()
     from .session.resume import check_resume_arguments, resume_preflight
     from .session.runner import Runner
     from .session.setup import load_session_protocol, read_session_info
