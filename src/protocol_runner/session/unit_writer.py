@@ -33,8 +33,9 @@ from ..archive.units import UnitRecord, write_unit
 from ..steps.context import StepContext
 from .journal import Journal
 
-MAX_PENDING = 4
-"""Units waiting to be written at most (each holds a step's recording in memory)."""
+MAX_PENDING = 8
+"""Units waiting to be written at most (each holds a step's recording in memory, a few MB). With 4 the main
+loop waited for the writer about 1 s of a knee dry run, at bursts of short steps (issue 20)."""
 
 ABANDON_WAIT_S = 30.0
 """How long `abandon` waits for the unit being written to be finished (it is never cut off mid-file)."""
