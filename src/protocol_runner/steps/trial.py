@@ -48,8 +48,9 @@ class _BraceOn:
     command_deg: FloatArray
 
 
-KEPT_BRACE_ON_MAX = 64
-"""Brace-on recordings kept in memory at most (a set's trials; each holds a trial's scan, ~1 MB)."""
+KEPT_BRACE_ON_MAX = 32
+"""Brace-on recordings kept in memory at most (each holds a trial's scan, ~1 MB; the knee campaign's largest set has 12
+brace-on trials). Beyond it the oldest are dropped: their twins read the unit."""
 
 _kept_brace_on: dict[tuple[str, str], _BraceOn] = {}
 """(units folder, brace-on step id) -> that trial's recording exactly as its unit stores it (`put_scan`,
