@@ -49,8 +49,9 @@ class _BraceOn:
 
 
 KEPT_BRACE_ON_MAX = 32
-"""Brace-on recordings kept in memory at most (each holds a trial's scan, ~1 MB; the knee campaign's largest set has 12
-brace-on trials). Beyond it the oldest are dropped: their twins read the unit."""
+"""Brace-on recordings kept in memory at most (each holds a trial's scan, ~1 MB; a set of four configurations
+of three trials has 12 of them before its first brace-off trial). Beyond it the oldest are dropped: their
+twins read the unit."""
 
 _kept_brace_on: dict[tuple[str, str], _BraceOn] = {}
 """(units folder, brace-on step id) -> that trial's recording exactly as its unit stores it (`put_scan`,
