@@ -33,9 +33,8 @@ from ..archive.units import UnitRecord, write_unit
 from ..steps.context import StepContext
 from .journal import Journal
 
-MAX_PENDING = 8
-"""Units waiting to be written at most (each holds a step's recording in memory, a few MB). With 4, a knee
-dry run's main loop waited for room at bursts of short steps (issue 20)."""
+MAX_PENDING = 4
+"""Units waiting to be written at most (each holds a step's recording in memory)."""
 
 ABANDON_WAIT_S = 30.0
 """How long `abandon` waits for the unit being written to be finished (it is never cut off mid-file)."""
