@@ -62,3 +62,15 @@ def test_every_reader_names_the_file_line_of_a_bad_row(tmp_path: Path, name: str
     with pytest.raises(InvalidInput) as info:
         load(path)
     assert "6" in info.value.message and str(path) in info.value.message
+
+
+def test_the_first_bad_row_is_named_whichever_column_it_is_bad_in() -> None:
+    """Columns are converted one at a time (fast); the message still names the first bad row of the file."""
+    table = parse_header_table("a, b, c\n1, 2, 3\n4, 5, x\ny, 8, 9\n")
+    with pytest.raises(InvalidInput, match=r"^line 3: 4, 5, x$"):
+        number_columns(table, (0, 2), lambda r: f"line {r.line}: {r.text}")
+
+
+def test_quoted_cells_are_split_as_csv_and_plain_ones_at_every_comma() -> None:
+    table = parse_header_table('name, value\n"a, b", 1\n  c ,2 \n')
+    assert [r.cells for r in table.rows] == [("a, b", "1"), ("c", "2")]

@@ -5,6 +5,7 @@ Each returns the process exit status; user mistakes raise `UserError` subclasses
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -39,10 +40,11 @@ def run(
     quiet: bool = False,
     monitor: Monitor | None = None,
 ) -> int:
+    _start_worker_server()
     from .preflight import preflight
     from .protocol.loader import find_protocol, load_protocol
     from .session.runner import Runner
-    from .session.setup import create_session, default_session_dir, load_session_protocol
+    from .session.setup import create_session, created_session_protocol, default_session_dir
 
     path = find_protocol(protocol)
     loaded = load_protocol(path, display_name=protocol if Path(protocol).exists() else str(path))
@@ -62,7 +64,7 @@ def run(
         only=planned.only,
         realtime=realtime,
     )
-    stored, plan, _ = load_session_protocol(directory, info, force=False)
+    stored, plan = created_session_protocol(directory, info, loaded), planned  # not read again
     bench = _bench(stored, info) if dry_run else hardware
     robot_min = plan.robot_time_s / 60
     robot = f"{robot_min / 60:.1f} h" if robot_min >= 90 else f"{robot_min:.0f} min"
@@ -77,6 +79,15 @@ def run(
     result = Runner(directory, info, stored, plan, bench, operator, quiet=quiet, publisher=publisher).run()
     _say(f"done: {result.archive}" + (f" and {result.report}" if result.report else ""))
     return EXIT_OK
+
+
+def _start_worker_server() -> None:
+    """Start the analysis workers' fork server before anything heavy is imported here: it imports what the
+    workers run on the other core meanwhile (session/worker_start.py). Not on one core (no workers)."""
+    if (os.cpu_count() or 1) >= 2:
+        from .session.worker_start import start_worker_server
+
+        start_worker_server()
 
 
 def _bench(loaded: LoadedProtocol, info: SessionInfo) -> Bench:
@@ -106,6 +117,7 @@ def resume(
     only: KeySelection | None = None,
     monitor: Monitor | None = None,
 ) -> int:
+    _start_worker_server()
     from .session.resume import check_resume_arguments, resume_preflight
     from .session.runner import Runner
     from .session.setup import load_session_protocol, read_session_info

@@ -13,12 +13,14 @@ import csv
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import NamedTuple
 
 from .errors import InvalidInput
 
 
-@dataclass(frozen=True)
-class Row:
+class Row(NamedTuple):
+    """One non-comment line (a tuple: a recorded trajectory has tens of thousands of them)."""
+
     line: int  # 1-based line number in the file
     cells: tuple[str, ...]
     text: str  # the whole line, stripped
@@ -46,9 +48,16 @@ def parse_header_table(text: str) -> HeaderTable:
         if line.startswith("#"):
             comments.append(line.lstrip("#").strip())
             continue
-        cells = tuple(c.strip() for c in next(csv.reader([line])))
-        rows.append(Row(number, cells, line))
+        rows.append(Row(number, _cells(line), line))
     return HeaderTable(tuple(comments), rows[0] if rows else None, tuple(rows[1:]))
+
+
+def _cells(line: str) -> tuple[str, ...]:
+    """The line's stripped cells. Without a quote (or NUL) CSV splitting is splitting at every comma, done
+    here directly: the csv module is only needed for quoted cells."""
+    if '"' in line or "\x00" in line:
+        return tuple(c.strip() for c in next(csv.reader([line])))
+    return tuple(map(str.strip, line.split(",")))
 
 
 def number_columns(
@@ -57,6 +66,10 @@ def number_columns(
     """The data rows' cells in `columns` (indices into the cells) as numbers: one list per column, in row
     order. `InvalidInput` with the caller's `bad_row(row)` message at the first row whose cell is missing
     or not a number."""
+    try:  # one column at a time; the rows are only walked in order to name a bad one
+        return [[float(row.cells[c]) for row in table.rows] for c in columns]
+    except (IndexError, ValueError):
+        pass
     out: list[list[float]] = [[] for _ in columns]
     for row in table.rows:
         try:

@@ -109,7 +109,7 @@ def test_the_block_path_makes_one_write_per_block_of_at_most_one_second() -> Non
 
     def counting(channel: int, times_s: np.ndarray, volts: np.ndarray):  # type: ignore[no-untyped-def]
         calls.append(times_s.size)
-        assert times_s[-1] - times_s[0] < BLOCK_S  # <= 1 s of robot time per compiled call
+        assert times_s[-1] - times_s[0] < BLOCK_S  # <= BLOCK_S of robot time per compiled call
         return send_block(channel, times_s, volts)
 
     sim.send_block = counting  # type: ignore[method-assign]

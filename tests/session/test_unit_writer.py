@@ -205,3 +205,22 @@ def test_wait_for_waits_for_that_unit_only(tmp_path: Path) -> None:
     gate.set()
     writer.close()
     assert unit_is_complete(units, journal.units["trial:k01:on:2"])
+
+
+def test_asking_the_journal_about_a_unit_waits_for_that_unit_not_for_those_queued_after_it(
+    tmp_path: Path,
+) -> None:
+    """A calibration check after a set asks whether the check before it is complete: it must not wait for
+    the set's brace-off trials still being written (issue 20: the main loop stalled there)."""
+    writer, journal, _ = make(tmp_path)
+    view = WrittenJournalView(journal, writer)
+    gate = threading.Event()
+    writer.submit("calibration:a:before", filler(1.0))
+    writer.submit("trial:k01:off:3", filler(2.0, gate))  # held until the gate opens
+    assert "calibration:a:before" in view.units  # answered while the trial's unit is still being written
+    assert view.units["calibration:a:before"] is journal.units["calibration:a:before"]
+    assert "trial:k01:off:3" not in journal.units and not gate.is_set()
+    threading.Timer(0.2, gate.set).start()
+    assert sorted(view.units) == ["calibration:a:before", "trial:k01:off:3"]  # walking waits for all
+    assert len(view.units) == 2
+    writer.close()

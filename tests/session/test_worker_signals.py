@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from protocol_runner.session.signals import StopFlag, sigint_blocked
-from protocol_runner.session.workers import worker_init
+from protocol_runner.session.workers import start_worker_server, worker_context, worker_init
 
 
 def _answer() -> int:
@@ -55,7 +55,10 @@ def test_two_ctrl_c_on_the_terminal_stop_without_a_traceback(tmp_path: Path) -> 
     session = tmp_path / "ctrl-c"
     log = tmp_path / "stderr.log"
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    args = ["knee_phase1.yaml", "--dry-run", "--yes", "--only", "12", "--session", str(session)]
+    # two sets: when the first set's last calibration check is journaled, its analyses go to the workers
+    # while the second set's trials run (with one set only, the session could be writing its report by the
+    # time the Ctrl-C lands: the workers fork from a fork server in milliseconds)
+    args = ["knee_phase1.yaml", "--dry-run", "--yes", "--only", "12,21", "--session", str(session)]
     with log.open("wb") as err:
         proc = subprocess.Popen(
             [sys.executable, "-m", "protocol_runner.cli", *args],
@@ -102,3 +105,67 @@ def test_a_second_ctrl_c_dropped_inside_a_finaliser_is_delivered_again() -> None
                 time.sleep(0.001)
     finally:
         flag.uninstall()
+
+
+def _status_of(pid: int, field: str) -> int:
+    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+        if line.startswith(field + ":"):
+            return int(line.split()[1], 16)
+    raise AssertionError(f"no {field} for {pid}")
+
+
+@pytest.mark.skipif(worker_context().get_start_method() != "forkserver", reason="no fork server here")
+def test_the_fork_server_ignores_sigint_while_it_imports_and_so_do_its_workers() -> None:
+    from multiprocessing import forkserver
+
+    start_worker_server()
+    server = forkserver._forkserver._forkserver_pid  # type: ignore[attr-defined]
+    assert server is not None
+    assert _status_of(server, "SigIgn") & (1 << (signal.SIGINT - 1))  # ignored from its first instruction
+    os.kill(server, signal.SIGINT)  # a terminal's Ctrl-C while it imports the workers' modules
+    pool = ProcessPoolExecutor(max_workers=1, mp_context=worker_context(), initializer=worker_init)
+    try:
+        assert pool.submit(_answer).result(timeout=120) == 42
+        assert pool.submit(signal.getsignal, signal.SIGINT).result(timeout=60) == signal.SIG_IGN
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+SESSION = """
+import sys, time
+from concurrent.futures import ProcessPoolExecutor
+from protocol_runner.session.workers import worker_context, worker_init
+if __name__ == "__main__":
+    pool = ProcessPoolExecutor(max_workers=1, mp_context=worker_context(), initializer=worker_init)
+    print(pool.submit(__import__("os").getpid).result(), flush=True)
+    pool.submit(time.sleep, 600)
+    time.sleep(600)
+"""
+
+
+def test_a_worker_dies_at_once_with_its_session_killed_with_sigkill(tmp_path: Path) -> None:
+    """A killed session must leave no worker behind writing units (a resume may start at once)."""
+    script = tmp_path / "session.py"
+    script.write_text(SESSION, encoding="utf-8")
+    with subprocess.Popen(
+        [sys.executable, str(script)], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True
+    ) as proc:
+        assert proc.stdout is not None
+        worker = int(proc.stdout.readline())
+        time.sleep(0.5)  # the worker sleeps in its task
+        assert Path(f"/proc/{worker}").exists()
+        proc.kill()
+        proc.wait(timeout=60)
+        deadline = time.monotonic() + 0.5
+        while Path(f"/proc/{worker}").exists() and "zombie" not in _state(worker):
+            assert time.monotonic() < deadline, "the worker outlived its killed session"
+            time.sleep(0.01)
+
+
+def _state(pid: int) -> str:
+    try:
+        return next(
+            line for line in Path(f"/proc/{pid}/status").read_text().splitlines() if line.startswith("State:")
+        )
+    except (OSError, StopIteration):
+        return "zombie (gone)"

@@ -228,11 +228,34 @@ def load_trajectory_file(path: Path, joint: str | None = None) -> TrajectoryFile
     return TrajectoryFile(path=path, time_s=time_s, angle_deg=angle_deg, header=header, column=column)
 
 
-def _load_csv(path: Path, angle_names: tuple[str, ...]) -> tuple[FloatArray, FloatArray, str, str]:
+_Columns = tuple[FloatArray, FloatArray, str, str]
+
+_PARSED_CSV: dict[tuple[str, tuple[str, ...]], _Columns] = {}
+"""Trajectory texts already parsed (text and angle names -> columns): a run reads each file several times
+(the protocol and the session's copy of it are checked, every trial samples its file). Keyed by the whole
+text, so a changed file is parsed anew; only files that parsed without error are kept; arrays read-only."""
+
+_PARSED_CSV_MAX = 16
+
+
+def _load_csv(path: Path, angle_names: tuple[str, ...]) -> _Columns:
     try:
         text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
         raise InvalidInput(f"{path}: not a text file (cannot be read as UTF-8)") from None
+    key = (text, angle_names)
+    parsed = _PARSED_CSV.get(key)
+    if parsed is None:
+        parsed = _parse_csv(path, text, angle_names)
+        for array in parsed[:2]:
+            array.flags.writeable = False
+        if len(_PARSED_CSV) >= _PARSED_CSV_MAX:
+            del _PARSED_CSV[next(iter(_PARSED_CSV))]  # the oldest
+        _PARSED_CSV[key] = parsed
+    return parsed
+
+
+def _parse_csv(path: Path, text: str, angle_names: tuple[str, ...]) -> _Columns:
     table = parse_header_table(text)
     if table.header is None:
         raise InvalidInput(f"{path}: no column row and no data")

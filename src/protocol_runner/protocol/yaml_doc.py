@@ -19,15 +19,29 @@ from .yaml_limits import check_size, check_yaml_limits
 MAX_ERRORS_SHOWN = 8
 
 
+FAST_LOADER: Any = getattr(yaml, "CSafeLoader", None)
+"""libyaml's safe loader when PyYAML was built with it (10-20x faster than the pure-Python one). It reads a
+document exactly as `yaml.SafeLoader` does; a document it refuses is read again by the pure-Python loader,
+whose messages (and their line numbers) are the ones shown."""
+
+
 def parse_yaml(text: str, shown: str) -> tuple[Any, dict[Loc, int]]:
     """The document's data and the line of every key and list item; InvalidInput on bad YAML or a key
     given twice."""
     check_size(len(text), shown)  # characters: a lower bound of the bytes
-    check_yaml_limits(text, shown)  # before anything is composed or expanded
-    try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as exc:
-        raise InvalidInput(yaml_error(shown, exc)) from None
+    node, data = None, None
+    if FAST_LOADER is not None:
+        try:
+            check_yaml_limits(text, shown, loader=FAST_LOADER)  # before anything is composed or expanded
+            node, data = _compose_and_construct(text, FAST_LOADER)
+        except yaml.YAMLError:
+            node = None  # read again below, for the pure-Python loader's message
+    if node is None:
+        check_yaml_limits(text, shown)
+        try:
+            node, data = _compose_and_construct(text, yaml.SafeLoader)
+        except yaml.YAMLError as exc:
+            raise InvalidInput(yaml_error(shown, exc, text)) from None
     lines: dict[Loc, int] = {}
     duplicates: list[tuple[Loc, int]] = []
     if node is not None:
@@ -35,11 +49,18 @@ def parse_yaml(text: str, shown: str) -> tuple[Any, dict[Loc, int]]:
     if duplicates:
         loc, line = duplicates[0]
         raise InvalidInput(f"{shown}:{line}: {format_loc(loc)}: duplicate key (each key may appear once)")
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:  # pragma: no cover - compose already succeeded
-        raise InvalidInput(yaml_error(shown, exc)) from None
     return data, lines
+
+
+def _compose_and_construct(text: str, loader_class: Any) -> tuple[yaml.Node | None, Any]:
+    """The document's node tree and its data (constructed from that tree: the text is parsed once)."""
+    loader = loader_class(text)
+    try:
+        node = loader.get_single_node()
+        data = loader.construct_document(node) if node is not None else None
+    finally:
+        loader.dispose()
+    return node, data
 
 
 def format_loc(loc: Sequence[str | int]) -> str:
@@ -100,11 +121,16 @@ def _without_kind_tag(loc: Loc) -> Loc:
     )
 
 
-def yaml_error(shown: str, exc: yaml.YAMLError) -> str:
+def yaml_error(shown: str, exc: yaml.YAMLError, text: str = "") -> str:
     mark = getattr(exc, "problem_mark", None)
     problem = getattr(exc, "problem", None) or str(exc)
     context = getattr(exc, "context", None)
     line = f"{mark.line + 1}" if mark is not None else "?"
+    if isinstance(exc, yaml.reader.ReaderError) and text:
+        # a character YAML does not allow: the reader gives its position in the text, not a line
+        line = f"{text.count(chr(10), 0, exc.position) + 1}"
+        code = exc.character if isinstance(exc.character, int) else ord(exc.character)
+        problem = f"character #x{code:04x} is not allowed in YAML ({exc.reason})"
     detail = f"{context}, {problem}" if context else problem
     hint = " (indent with spaces: YAML does not allow tabs)" if "'\\t'" in detail else ""
     return f"{shown}:{line}: YAML syntax error: {detail}{hint}"

@@ -11,6 +11,7 @@ thousand nodes at a depth of about 6 (protocols/knee_phase1.yaml: 1,200 nodes, d
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import yaml
 
@@ -38,9 +39,12 @@ def check_size(n_bytes: int, shown: str) -> None:
         )
 
 
-def check_yaml_limits(text: str, shown: str) -> None:
+def check_yaml_limits(text: str, shown: str, loader: Any = yaml.SafeLoader) -> None:
     """Raise `InvalidInput` naming file and line if the YAML nests too deep, repeats too much through
-    aliases, or its expanded tree has too many nodes. YAML syntax errors are left to the composer."""
+    aliases, or its expanded tree has too many nodes. YAML syntax errors are left to the composer (with
+    `yaml.CSafeLoader` as `loader`, raised here: the caller reads the text again with the pure-Python
+    loader for its message)."""
+    fast = loader is not yaml.SafeLoader
     stack: list[_Open] = []
     nodes: dict[str, int] = {}
     heights: dict[str, int] = {}
@@ -48,7 +52,7 @@ def check_yaml_limits(text: str, shown: str) -> None:
     total = 0
     aliases = 0
     try:
-        for event in yaml.parse(text, Loader=yaml.SafeLoader):
+        for event in yaml.parse(text, Loader=loader):
             line = event.start_mark.line + 1 if event.start_mark is not None else 0
             if isinstance(event, yaml.AliasEvent):
                 aliases += 1
@@ -88,6 +92,8 @@ def check_yaml_limits(text: str, shown: str) -> None:
                     stack[-1].nodes += done.nodes
                     stack[-1].height = max(stack[-1].height, done.height + 1)
     except yaml.YAMLError:
+        if fast:
+            raise
         return  # the composer reports the syntax error with its line
 
 

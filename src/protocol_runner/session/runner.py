@@ -39,7 +39,7 @@ from .resume import prepare_resume
 from .setup import SessionInfo
 from .signals import StopFlag
 from .unit_writer import UnitWriter, WritingStepContext, WrittenJournalView
-from .workers import BACKGROUND_KINDS, AnalysisPool
+from .workers import BACKGROUND_KINDS, AnalysisPool, start_worker_server
 
 
 @dataclass(frozen=True)
@@ -97,6 +97,10 @@ class Runner:
         for stray in self.units_dir.glob("*.partial"):
             stray.unlink()  # an unfinished unit from a crash: never complete, always redone
         self.stop.install()
+        if self.background and any(
+            s.kind in BACKGROUND_KINDS and s.id not in self.journal.units for s in self.plan.steps
+        ):
+            start_worker_server()  # imports what the workers run, on the other core, meanwhile
         log = self.dir / "session.log"
         progress = Progress(
             self.plan, set(self.journal.units), log, quiet=self.quiet, publisher=self.publisher

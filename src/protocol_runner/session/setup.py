@@ -14,6 +14,7 @@ Resume re-expands the protocol stored here, so it works even if the original fil
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import shutil
@@ -169,6 +170,15 @@ def changed_files(directory: Path, info: SessionInfo) -> list[str]:
         elif sha256_of(path) != digest:
             out.append(f"{rel} (changed)")
     return out
+
+
+def created_session_protocol(directory: Path, info: SessionInfo, loaded: LoadedProtocol) -> LoadedProtocol:
+    """The protocol of a session `create_session` has just made from `loaded`, as `load_session_protocol`
+    would read it back: the same validated protocol, named by its copy in <session>/protocol/ (that copy
+    and the copies of its referenced files are byte for byte what `loaded` was read and checked from, so
+    reading and checking them again would give the same result; a resume does read them again)."""
+    path = directory / info.protocol_file
+    return dataclasses.replace(loaded, path=path, shown=str(path))
 
 
 def load_session_protocol(

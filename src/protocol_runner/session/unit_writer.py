@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import queue
 import threading
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -182,8 +182,9 @@ class UnitWriter:
 
 
 class WrittenJournalView:
-    """The journal as steps read it (`StepContext.journal`): every submitted unit written and journaled
-    before the list of complete units is read."""
+    """The journal as steps read it (`StepContext.journal`): a step's unit is written and journaled before
+    the journal is asked about it (only that unit is waited for), every submitted unit before the list of
+    complete units is walked."""
 
     def __init__(self, journal: Journal, writer: UnitWriter) -> None:
         self._journal = journal
@@ -191,8 +192,31 @@ class WrittenJournalView:
 
     @property
     def units(self) -> Mapping[str, object]:
+        return _WrittenUnits(self._journal, self._writer)
+
+
+class _WrittenUnits(Mapping[str, object]):
+    def __init__(self, journal: Journal, writer: UnitWriter) -> None:
+        self._journal = journal
+        self._writer = writer
+
+    def __contains__(self, step_id: object) -> bool:
+        if not isinstance(step_id, str):
+            return False
+        self._writer.wait_for(step_id)  # not the units queued after it (a check waits for its own "before")
+        return step_id in self._journal.units
+
+    def __getitem__(self, step_id: str) -> object:
+        self._writer.wait_for(step_id)
+        return self._journal.units[step_id]
+
+    def __iter__(self) -> Iterator[str]:
         self._writer.flush()
-        return self._journal.units
+        return iter(dict(self._journal.units))
+
+    def __len__(self) -> int:
+        self._writer.flush()
+        return len(self._journal.units)
 
 
 @dataclass

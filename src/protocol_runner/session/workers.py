@@ -12,9 +12,7 @@ the main process does not wait for the writer meanwhile.
 from __future__ import annotations
 
 import contextlib
-import multiprocessing
 import os
-import signal
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import wait as futures_wait
@@ -31,30 +29,12 @@ from .assembly import ARCHIVE_NAME
 from .early_figures import draw_ahead, key_to_draw_ahead
 from .journal import Journal
 from .signals import sigint_blocked
+from .worker_start import start_worker_server, worker_context
+from .worker_start import worker_init as worker_init
 
 BACKGROUND_KINDS = frozenset({"process", "fit"})
 
 Results = list[tuple[UnitRecord | None, str]]
-
-
-def worker_init() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process decides when to stop
-    # two workers share the cores with the session: one BLAS thread each, for the worker's whole life
-    # (the fits also hold it at one while they run, wherever they are called from)
-    import numpy  # noqa: F401  (threadpoolctl limits the BLAS libraries already loaded)
-    import scipy.linalg  # noqa: F401
-    from threadpoolctl import threadpool_limits
-
-    threadpool_limits(limits=1, user_api="blas")
-    # Linux: die with the session process, so a killed session leaves no worker behind writing units
-    with contextlib.suppress(Exception):
-        import ctypes
-
-        libc = ctypes.CDLL(None, use_errno=True)
-        pr_set_pdeathsig = 1
-        libc.prctl(pr_set_pdeathsig, signal.SIGKILL)
-        if os.getppid() == 1:  # the parent died before prctl took effect
-            os._exit(1)
 
 
 def run_analysis_steps(
@@ -113,10 +93,11 @@ class AnalysisPool:
         while self._waiting and (force or self._waiting[0][1]()):
             chain, _ = self._waiting.pop(0)
             if self._pool is None:
+                start_worker_server()  # usually started with the session already
                 workers = min(2, os.cpu_count() or 1)
                 self._pool = ProcessPoolExecutor(
                     max_workers=workers,
-                    mp_context=multiprocessing.get_context("spawn"),
+                    mp_context=worker_context(),
                     initializer=worker_init,
                 )
             with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C

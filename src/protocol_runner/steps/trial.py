@@ -20,7 +20,7 @@ from ..analysis.filters import lowpass
 from ..analysis.scaling import ScalingResult, scale_brace_off_input
 from ..analysis.transition import command_on_input_base, transition_index
 from ..archive.attrs import ATTRIBUTES, FACTORS, STATUS, STEP_ID
-from ..archive.h5util import put, put_attrs
+from ..archive.h5util import SIGNAL, put, put_attrs
 from ..archive.paths import configuration_path, recording_path
 from ..errors import HardwareUnavailable
 from ..hardware.motion import run_motion
@@ -48,12 +48,44 @@ class _BraceOn:
     command_deg: FloatArray
 
 
+KEPT_BRACE_ON_MAX = 32
+"""Brace-on recordings kept in memory at most (each holds a trial's scan, ~1 MB; a set of four configurations
+of three trials has 12 of them before its first brace-off trial). Beyond it the oldest are dropped: their
+twins read the unit."""
+
+_kept_brace_on: dict[tuple[str, str], _BraceOn] = {}
+"""(units folder, brace-on step id) -> that trial's recording exactly as its unit stores it (`put_scan`,
+`put_commands`: the angle at the stored precision), kept by the process that ran it until its brace-off twin
+reads it, so the twin does not read the unit back from disk. A twin run by another process (a resume), or
+after the memory was dropped, reads the unit."""
+
+
+def _keep_brace_on(ctx: StepContext, step: TrialStep, rec: TrialRecording) -> None:
+    if not any(isinstance(s, TrialStep) and s.twin == step.id for s in ctx.plan.steps):
+        return  # no brace-off trial follows this one
+    if len(_kept_brace_on) >= KEPT_BRACE_ON_MAX:
+        del _kept_brace_on[next(iter(_kept_brace_on))]  # the oldest
+    _kept_brace_on[(str(ctx.units_dir), step.id)] = _BraceOn(
+        np.asarray(rec.input_time_s),
+        np.asarray(rec.angle_deg, dtype=SIGNAL),
+        np.asarray(rec.command_time_s),
+        np.asarray(rec.command_deg),
+    )
+
+
 def _read_brace_on(ctx: StepContext, step: TrialStep) -> _BraceOn:
     assert step.twin is not None
-    path = recording_path(step.configuration, step.trial, "on")
+    kept = _kept_brace_on.pop((str(ctx.units_dir), step.twin), None)
+    if kept is not None:
+        return kept
     with ctx.unit(step.twin) as f:
-        g = f[path]
-        return _BraceOn(g["time_s"][:], g["angle_deg"][:], g["command_time_s"][:], g["command_deg"][:])
+        return brace_on_in_unit(f, step)
+
+
+def brace_on_in_unit(f: h5py.File, step: TrialStep) -> _BraceOn:
+    """The recording of the brace-on trial of `step` (a trial of either brace) as its unit `f` stores it."""
+    g = f[recording_path(step.configuration, step.trial, "on")]
+    return _BraceOn(g["time_s"][:], g["angle_deg"][:], g["command_time_s"][:], g["command_deg"][:])
 
 
 def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
@@ -76,6 +108,8 @@ def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
         summary = f"failed after {partial.input_time_s.size} samples: {exc.message}"
         return StepOutcome(_fill(step, ctx, partial, None, status="failed"), summary, stop=exc)
     fill = _fill(step, ctx, rec, scaling)
+    if step.brace == "on":
+        _keep_brace_on(ctx, step, rec)
     lo, hi = float(np.min(rec.angle_deg)), float(np.max(rec.angle_deg))
     summary = (
         f"angle {lo:.0f}-{hi:.0f} deg, torque {np.min(rec.torque_nm):.0f}..{np.max(rec.torque_nm):.0f} N*m"
