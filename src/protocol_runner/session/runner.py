@@ -142,6 +142,8 @@ class Runner:
                     start_warm_up()  # the report's imports and caches, while the last analyses finish
                     self.writer.flush()  # what the analyses read is on disk
                     self.pool.collect(self._finished(progress), wait=True)  # these read the analyses' units
+                    if self.stop():  # a Ctrl-C while the last analyses ran: stop here, as announced
+                        raise Interrupted(f"stopped before {step.id} ({self.stop.signal_name})")
                 if step.kind == "report":
                     return self._finish(progress, skipped)
                 progress.step_started(step)
