@@ -10,19 +10,15 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares
 
+# what least_squares does to its start (scipy-private, in every scipy this package allows; the solve
+# evaluates the start there so that the solver's first evaluation is the cached one)
+from scipy.optimize._lsq.common import make_strictly_feasible
+
 from .kernels import IDENTITY8, gram, sum_sq_diff
 from .params import EQ25_BETA_MATRIX, BoucWenParams, FloatArray, phase_values
 from .records import BoucWenBounds
 from .schemes import REFINED, BoucWenShape, Integration, Sensitivity, check_scheme, run_scheme, run_trial
 from .simulation import refine_angle
-
-try:  # what least_squares does to its start (scipy-private; without it a solve re-evaluates its start)
-    from scipy.optimize._lsq.common import make_strictly_feasible
-except ImportError:  # pragma: no cover - a scipy that moved it
-
-    def make_strictly_feasible(x: FloatArray, lb: FloatArray, ub: FloatArray) -> FloatArray:
-        return x
-
 
 REFINE_FACTOR = 4  # rmse_refined_nm: this many times finer integration
 
