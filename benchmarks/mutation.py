@@ -81,6 +81,7 @@ REPORT_SCIENCE = {
 # (re-check with --modules when the module or its tests change).
 MODEL_SCIENCE = {
     "models/bouc_wen/backbone.py": "tests/models/test_bouc_wen_backbone_facts.py",
+    "models/bouc_wen/copies.py": "tests/models/test_bouc_wen_copies_facts.py",
     "models/bouc_wen/crossval.py": "tests/models/test_bouc_wen_crossval_facts.py tests/models/test_bouc_wen_facts.py",
     "models/bouc_wen/kernels.py": "tests/models/test_bouc_wen_integrator_facts.py tests/models/test_bouc_wen_kernels.py",
     "models/bouc_wen/schemes.py": "tests/models/test_bouc_wen_integrator_facts.py",
