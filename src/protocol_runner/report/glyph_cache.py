@@ -31,7 +31,7 @@ import matplotlib as mpl
 import numpy as np
 from matplotlib.backends import backend_agg
 from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
-from matplotlib.font_manager import FontProperties
+from matplotlib.font_manager import FontProperties, fontManager, get_font
 from matplotlib.ft2font import FT2Font
 
 #: FreeType's render modes (matplotlib >= 3.11); None before, where the stock path is used
@@ -51,6 +51,7 @@ Layout = tuple[tuple[Any, tuple[str, str], int, float, float], ...]
 
 _LAYOUTS: dict[tuple[Any, ...], Layout] = {}
 _GLYPHS: dict[tuple[Any, ...], tuple[np.ndarray, int, int]] = {}
+_HEIGHTS: dict[tuple[Any, ...], tuple[float | None, ...]] = {}
 
 if hasattr(os, "register_at_fork"):  # a forked child opens its own fonts (matplotlib empties its cache too)
     os.register_at_fork(after_in_child=_LAYOUTS.clear)
@@ -97,6 +98,15 @@ class CachedTextRenderer(RendererAgg):
                 buffer, left + px, int(height) - (top + py) + buffer.shape[0], 0, gc
             )
 
+    def _get_font_height_metrics(self, prop: FontProperties) -> tuple[float | None, ...]:
+        """The font's ascent, descent and line gap (px) that `Text._get_layout` otherwise reads from the
+        font's tables for every string it lays out, computed as it does and kept per font and size."""
+        key = (prop.copy(), self.dpi)
+        metrics = _HEIGHTS.get(key)
+        if metrics is None:
+            metrics = _HEIGHTS[_room(_HEIGHTS, key)] = _font_height_metrics(prop, self.dpi)
+        return metrics
+
     def _layout(self, s: str, prop: FontProperties, flags: Any, mtext: Any) -> Layout:
         features = mtext.get_fontfeatures() if mtext is not None else None
         language = mtext.get_language() if mtext is not None else None
@@ -112,6 +122,22 @@ class CachedTextRenderer(RendererAgg):
             # the key keeps a copy of the properties: a later change to `prop` cannot alter a stored key
             _LAYOUTS[_room(_LAYOUTS, (s, prop.copy(), *key[2:]))] = items
         return items
+
+
+def _font_height_metrics(prop: FontProperties, dpi: float) -> tuple[float | None, ...]:
+    """(min ascent, min descent, line gap) in pixels from the font's OS/2 or hhea table, exactly as
+    matplotlib 3.11's `Text._get_layout` computes them; Nones (matplotlib then measures "lp") without either."""
+    font = get_font(fontManager._find_fonts_by_props(prop))
+    for table_name, gap_key, ascent_key, descent_key in (
+        ("OS/2", "sTypoLineGap", "sTypoAscender", "sTypoDescender"),
+        ("hhea", "lineGap", "ascent", "descent"),
+    ):
+        table = font.get_sfnt_table(table_name)
+        if table is None:
+            continue
+        scale = 1 / font.get_sfnt_table("head")["unitsPerEm"] * prop.get_size_in_points() * dpi / 72
+        return table[ascent_key] * scale, -table[descent_key] * scale, table[gap_key] * scale
+    return None, None, None
 
 
 def _face(font: Any) -> tuple[str, str]:
