@@ -99,21 +99,20 @@ def style(ax: Axes, xlabel: str, ylabel: str, title: str | None = None) -> None:
     # a reused canvas keeps its grid and tick style: applying them again re-sets every tick (a tenth of the
     # drawing time) and changes nothing, unless a figure changed them (an energy figure's smaller x labels)
     if any(axis.get_tick_params() != _styled_tick_params(axis.axis_name) for axis in (ax.xaxis, ax.yaxis)):
-        ax.grid(True, **GRID)
-        ax.tick_params(labelsize=TICK_LABEL_SIZE)
+        _grid_and_tick_style(ax)
     ax.autoscale_view()
 
 
-GRID = {"linewidth": 0.4, "alpha": 0.5}
-TICK_LABEL_SIZE = 7
+def _grid_and_tick_style(ax: Axes) -> None:
+    ax.grid(True, linewidth=0.4, alpha=0.5)
+    ax.tick_params(labelsize=7)
 
 
 @functools.cache
 def _styled_tick_params(axis_name: str) -> dict[str, object]:
     """The tick parameters of a default axis (of the kind `axis_name`) after `style`'s grid and tick size."""
     ax = Figure().add_subplot()
-    ax.grid(True, **GRID)
-    ax.tick_params(labelsize=TICK_LABEL_SIZE)
+    _grid_and_tick_style(ax)
     return dict(getattr(ax, f"{axis_name}axis").get_tick_params())
 
 

@@ -127,7 +127,7 @@ class CachedTextRenderer(RendererAgg):
 def _font_height_metrics(prop: FontProperties, dpi: float) -> tuple[float | None, ...]:
     """(min ascent, min descent, line gap) in pixels from the font's OS/2 or hhea table, exactly as
     matplotlib 3.11's `Text._get_layout` computes them; Nones (matplotlib then measures "lp") without either."""
-    font = get_font(fontManager._find_fonts_by_props(prop))
+    font: Any = get_font(fontManager._find_fonts_by_props(prop))
     for table_name, gap_key, ascent_key, descent_key in (
         ("OS/2", "sTypoLineGap", "sTypoAscender", "sTypoDescender"),
         ("hhea", "lineGap", "ascent", "descent"),
