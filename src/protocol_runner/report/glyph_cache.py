@@ -52,6 +52,7 @@ Layout = tuple[tuple[Any, tuple[str, str], int, float, float], ...]
 _LAYOUTS: dict[tuple[Any, ...], Layout] = {}
 _GLYPHS: dict[tuple[Any, ...], tuple[np.ndarray, int, int]] = {}
 _HEIGHTS: dict[tuple[Any, ...], tuple[float | None, ...]] = {}
+_EXTENTS: dict[tuple[Any, ...], Any] = {}
 
 if hasattr(os, "register_at_fork"):  # a forked child opens its own fonts (matplotlib empties its cache too)
     os.register_at_fork(after_in_child=_LAYOUTS.clear)
@@ -77,6 +78,7 @@ class CachedTextRenderer(RendererAgg):
         # what else decides a glyph's raster: FreeType's load flags and matplotlib's hinting factor
         flags = backend_agg.get_hinting_flag(), mpl.rcParams["text.hinting_factor"]
         items = self._layout(s, prop, flags, mtext)
+        x, y = float(x), float(y)  # the same doubles; Python floats round faster than numpy scalars
         size = prop.get_size_in_points()
         cos, sin = math.cos(math.radians(angle)), math.sin(math.radians(angle))
         antialiased = bool(gc.get_antialiased())
@@ -97,6 +99,20 @@ class CachedTextRenderer(RendererAgg):
             self._renderer.draw_text_image(
                 buffer, left + px, int(height) - (top + py) + buffer.shape[0], 0, gc
             )
+
+    def get_text_width_height_descent(self, s: str, prop: FontProperties, ismath: Any) -> Any:
+        """The size of a plain string as `RendererAgg` measures it (FreeType lays the string out), kept per
+        string, font and size for every renderer: matplotlib keeps it per renderer, and the report's three
+        canvases measure the same tick labels."""
+        if ismath or not SUPPORTED:
+            return super().get_text_width_height_descent(s, prop, ismath)
+        rc = mpl.rcParams
+        key = (s, prop.copy(), self.dpi, backend_agg.get_hinting_flag(), rc["text.hinting_factor"])
+        key += (rc["text.kerning_factor"],)
+        size = _EXTENTS.get(key)
+        if size is None:
+            size = _EXTENTS[_room(_EXTENTS, key)] = super().get_text_width_height_descent(s, prop, ismath)
+        return size
 
     def _get_font_height_metrics(self, prop: FontProperties) -> tuple[float | None, ...]:
         """The font's ascent, descent and line gap (px) that `Text._get_layout` otherwise reads from the
