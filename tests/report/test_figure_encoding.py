@@ -131,18 +131,36 @@ def test_cached_font_heights_lay_text_out_as_matplotlib_does(family: str) -> Non
             assert cached[1:] == stock[1:]
 
 
-def test_style_on_a_reused_canvas_restores_a_changed_tick_style(small_archive: Path) -> None:
+def _tick_state(ax: object) -> list[tuple[object, ...]]:
+    return [
+        (t.gridline.get_visible(), t.gridline.get_linewidth(), t.gridline.get_alpha(), t.label1.get_fontsize())
+        for axis in (ax.xaxis, ax.yaxis)  # type: ignore[attr-defined]
+        for t in axis.get_major_ticks()
+    ]
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        lambda ax: ax.tick_params(axis="x", labelsize=5, grid_alpha=0.9),  # the axis' tick parameters
+        lambda ax: ax.set_xticks([0.0, 1.0], ["a", "b"], fontsize=5.5),  # only the existing labels
+        lambda ax: ax.yaxis.get_major_ticks()[0].gridline.set_linewidth(2.0),  # one grid line
+    ],
+)
+def test_style_on_a_reused_canvas_restores_a_changed_tick_style(change: object) -> None:
     """`style` skips re-applying the grid and tick size when a reused canvas has them already, and applies
-    them when a figure changed them."""
+    them when a figure changed them, also on single ticks (the energy bars' labels are set at 5.5 pt, and
+    `style` has always drawn them at 7 pt)."""
     from protocol_runner.report.canvas import style
 
+    _, (ax,) = canvas_axes("single")
+    style(ax, "x", "y")
+    change(ax)  # type: ignore[operator]
+    _, (ax,) = canvas_axes("single")
+    style(ax, "x", "y")
     fresh = Figure().add_subplot()
+    fresh.set_xticks([0.0, 1.0], ["a", "b"])
     style(fresh, "x", "y")
-    _, (ax,) = canvas_axes("single")
-    style(ax, "x", "y")
-    ax.tick_params(axis="x", labelsize=5, grid_alpha=0.9)
-    _, (ax,) = canvas_axes("single")
-    style(ax, "x", "y")
     assert ax.xaxis.get_tick_params() == fresh.xaxis.get_tick_params()
     assert ax.yaxis.get_tick_params() == fresh.yaxis.get_tick_params()
-    assert all(t.label1.get_fontsize() == 7 for t in ax.xaxis.get_major_ticks())
+    assert {state for state in _tick_state(ax)} == {(True, 0.4, 0.5, 7.0)}

@@ -10,6 +10,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.axis import Axis
 from matplotlib.container import Container
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -97,15 +98,34 @@ def style(ax: Axes, xlabel: str, ylabel: str, title: str | None = None) -> None:
     # an explicit y skips matplotlib's costly automatic title placement
     ax.set_title(title or "", fontsize=8.5, y=1.01)
     # a reused canvas keeps its grid and tick style: applying them again re-sets every tick (a tenth of the
-    # drawing time) and changes nothing, unless a figure changed them (an energy figure's smaller x labels)
-    if any(axis.get_tick_params() != _styled_tick_params(axis.axis_name) for axis in (ax.xaxis, ax.yaxis)):
+    # drawing time) and changes nothing, unless a figure changed them (an energy figure's smaller labels)
+    if not (_styled(ax.xaxis, "x") and _styled(ax.yaxis, "y")):
         _grid_and_tick_style(ax)
     ax.autoscale_view()
 
 
+GRID_LINEWIDTH = 0.4
+GRID_ALPHA = 0.5
+TICK_LABEL_SIZE = 7.0
+
+
 def _grid_and_tick_style(ax: Axes) -> None:
-    ax.grid(True, linewidth=0.4, alpha=0.5)
-    ax.tick_params(labelsize=7)
+    ax.grid(True, linewidth=GRID_LINEWIDTH, alpha=GRID_ALPHA)
+    ax.tick_params(labelsize=TICK_LABEL_SIZE)
+
+
+def _styled(axis: Axis, axis_name: str) -> bool:
+    """Whether `_grid_and_tick_style` would change nothing on `axis`: its tick parameters (what new ticks
+    take) are those it sets, and so is what it sets on every existing major tick (grid line shown, its
+    width and alpha, the labels' size)."""
+    return axis.get_tick_params() == _styled_tick_params(axis_name) and all(
+        tick.gridline.get_visible()
+        and tick.gridline.get_linewidth() == GRID_LINEWIDTH
+        and tick.gridline.get_alpha() == GRID_ALPHA
+        and tick.label1.get_fontsize() == TICK_LABEL_SIZE
+        and tick.label2.get_fontsize() == TICK_LABEL_SIZE
+        for tick in axis.majorTicks
+    )
 
 
 @functools.cache

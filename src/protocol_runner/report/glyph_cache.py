@@ -107,8 +107,8 @@ class CachedTextRenderer(RendererAgg):
         if ismath or not SUPPORTED:
             return super().get_text_width_height_descent(s, prop, ismath)
         rc = mpl.rcParams
-        key = (s, prop.copy(), self.dpi, backend_agg.get_hinting_flag(), rc["text.hinting_factor"])
-        key += (rc["text.kerning_factor"],)
+        flags = backend_agg.get_hinting_flag(), rc["text.hinting_factor"], rc["text.kerning_factor"]
+        key = (s, prop.copy(), self.dpi, *flags)
         size = _EXTENTS.get(key)
         if size is None:
             size = _EXTENTS[_room(_EXTENTS, key)] = super().get_text_width_height_descent(s, prop, ismath)
