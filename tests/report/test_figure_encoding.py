@@ -133,7 +133,12 @@ def test_cached_font_heights_lay_text_out_as_matplotlib_does(family: str) -> Non
 
 def _tick_state(ax: object) -> list[tuple[object, ...]]:
     return [
-        (t.gridline.get_visible(), t.gridline.get_linewidth(), t.gridline.get_alpha(), t.label1.get_fontsize())
+        (
+            t.gridline.get_visible(),
+            t.gridline.get_linewidth(),
+            t.gridline.get_alpha(),
+            t.label1.get_fontsize(),
+        )
         for axis in (ax.xaxis, ax.yaxis)  # type: ignore[attr-defined]
         for t in axis.get_major_ticks()
     ]
