@@ -499,3 +499,23 @@ def test_fused_scan_kernel_quantises_like_the_dt9814_conversions() -> None:
     assert np.array_equal(volts, ai12_code_to_volts(codes))
     assert np.array_equal(t_s, t0 + np.arange(7, 7 + raw.shape[0], dtype=np.float64) / rate)
     assert np.ptp(codes[:, 0]) > 100  # the joint really moved: not a comparison of constants
+
+
+def test_scan_noise_is_the_step_stream_in_order_whatever_the_block_sizes(knee: JointConfig) -> None:
+    """The noise the scans consume is the step generator's standard normals in draw order: blocks of any
+    size, partly consumed (rows not yet due), read into a reused array, give the numbers one draw gives."""
+    from protocol_runner.hardware.simulator.daq import NOISE_BLOCK, step_seed
+
+    model = SimulatedRig(knee, seed=11, params=KNEE_PARAMS)._model
+    model.begin_step("set1/trial1")
+    pick = np.random.default_rng(0)
+    consumed = []
+    for _ in range(400):
+        count = int(pick.integers(0, 3 * NOISE_BLOCK))
+        used = int(pick.integers(0, count + 1))
+        consumed.append(model._noise(count)[:used].copy())
+        model._noise_pos += used  # as a scan that reached `used` of the values
+    stream = np.concatenate(consumed)
+    expected = np.random.default_rng(step_seed(11, "set1/trial1")).standard_normal(stream.size)
+    assert stream.size > 10 * NOISE_BLOCK
+    assert np.array_equal(stream, expected)

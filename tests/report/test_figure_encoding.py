@@ -110,3 +110,62 @@ def test_a_forked_child_lays_text_out_with_its_own_fonts(small_archive: Path) ->
     with ctx.Pool(2) as pool:
         sizes = pool.map(_cache_sizes, [0, 1])
     assert all(layouts == 0 and glyphs == len(glyph_cache._GLYPHS) for layouts, glyphs in sizes)
+
+
+@pytest.mark.parametrize("family", ["DejaVu Sans", "DejaVu Serif"])
+def test_cached_font_heights_lay_text_out_as_matplotlib_does(family: str) -> None:
+    """`Text._get_layout` takes the font's ascent, descent and line gap from the cached renderer: the text
+    boxes (what places every label) are those matplotlib computes from the font tables itself."""
+    width, height, _ = LAYOUTS["single"]
+    for size in (6.5, 7.0, 8.5, 11.0):
+        fig = Figure(figsize=(width, height), dpi=DPI)
+        glyph_cache.CachedTextCanvas(fig)
+        cached_renderer = fig.canvas.get_renderer()
+        stock_renderer = FigureCanvasAgg(Figure(figsize=(width, height), dpi=DPI)).get_renderer()
+        assert not hasattr(stock_renderer, "_get_font_height_metrics")
+        for text in ("Torque (N·m)", "two\nlines", "-0.5"):
+            artist = fig.text(0.3, 0.4, text, fontsize=size, family=family, rotation=33.0)
+            cached = artist._get_layout(cached_renderer)
+            stock = artist._get_layout(stock_renderer)
+            assert np.array_equal(cached[0].bounds, stock[0].bounds)
+            assert cached[1:] == stock[1:]
+
+
+def _tick_state(ax: object) -> list[tuple[object, ...]]:
+    return [
+        (
+            t.gridline.get_visible(),
+            t.gridline.get_linewidth(),
+            t.gridline.get_alpha(),
+            t.label1.get_fontsize(),
+        )
+        for axis in (ax.xaxis, ax.yaxis)  # type: ignore[attr-defined]
+        for t in axis.get_major_ticks()
+    ]
+
+
+@pytest.mark.parametrize(
+    "change",
+    [
+        lambda ax: ax.tick_params(axis="x", labelsize=5, grid_alpha=0.9),  # the axis' tick parameters
+        lambda ax: ax.set_xticks([0.0, 1.0], ["a", "b"], fontsize=5.5),  # only the existing labels
+        lambda ax: ax.yaxis.get_major_ticks()[0].gridline.set_linewidth(2.0),  # one grid line
+    ],
+)
+def test_style_on_a_reused_canvas_restores_a_changed_tick_style(change: object) -> None:
+    """`style` skips re-applying the grid and tick size when a reused canvas has them already, and applies
+    them when a figure changed them, also on single ticks (the energy bars' labels are set at 5.5 pt, and
+    `style` has always drawn them at 7 pt)."""
+    from protocol_runner.report.canvas import style
+
+    _, (ax,) = canvas_axes("single")
+    style(ax, "x", "y")
+    change(ax)  # type: ignore[operator]
+    _, (ax,) = canvas_axes("single")
+    style(ax, "x", "y")
+    fresh = Figure().add_subplot()
+    fresh.set_xticks([0.0, 1.0], ["a", "b"])
+    style(fresh, "x", "y")
+    assert ax.xaxis.get_tick_params() == fresh.xaxis.get_tick_params()
+    assert ax.yaxis.get_tick_params() == fresh.yaxis.get_tick_params()
+    assert {state for state in _tick_state(ax)} == {(True, 0.4, 0.5, 7.0)}

@@ -4,11 +4,13 @@ and legends, and the PNG data URI every figure function returns."""
 from __future__ import annotations
 
 import base64
+import functools
 import io
 from collections.abc import Sequence
 
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.axis import Axis
 from matplotlib.container import Container
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
@@ -95,9 +97,43 @@ def style(ax: Axes, xlabel: str, ylabel: str, title: str | None = None) -> None:
     ax.set_ylabel(ylabel)
     # an explicit y skips matplotlib's costly automatic title placement
     ax.set_title(title or "", fontsize=8.5, y=1.01)
-    ax.grid(True, linewidth=0.4, alpha=0.5)
-    ax.tick_params(labelsize=7)
+    # a reused canvas keeps its grid and tick style: applying them again re-sets every tick (a tenth of the
+    # drawing time) and changes nothing, unless a figure changed them (an energy figure's smaller labels)
+    if not (_styled(ax.xaxis, "x") and _styled(ax.yaxis, "y")):
+        _grid_and_tick_style(ax)
     ax.autoscale_view()
+
+
+GRID_LINEWIDTH = 0.4
+GRID_ALPHA = 0.5
+TICK_LABEL_SIZE = 7.0
+
+
+def _grid_and_tick_style(ax: Axes) -> None:
+    ax.grid(True, linewidth=GRID_LINEWIDTH, alpha=GRID_ALPHA)
+    ax.tick_params(labelsize=TICK_LABEL_SIZE)
+
+
+def _styled(axis: Axis, axis_name: str) -> bool:
+    """Whether `_grid_and_tick_style` would change nothing on `axis`: its tick parameters (what new ticks
+    take) are those it sets, and so is what it sets on every existing major tick (grid line shown, its
+    width and alpha, the labels' size)."""
+    return axis.get_tick_params() == _styled_tick_params(axis_name) and all(
+        tick.gridline.get_visible()
+        and tick.gridline.get_linewidth() == GRID_LINEWIDTH
+        and tick.gridline.get_alpha() == GRID_ALPHA
+        and tick.label1.get_fontsize() == TICK_LABEL_SIZE
+        and tick.label2.get_fontsize() == TICK_LABEL_SIZE
+        for tick in axis.majorTicks
+    )
+
+
+@functools.cache
+def _styled_tick_params(axis_name: str) -> dict[str, object]:
+    """The tick parameters of a default axis (of the kind `axis_name`) after `style`'s grid and tick size."""
+    ax = Figure().add_subplot()
+    _grid_and_tick_style(ax)
+    return dict(getattr(ax, f"{axis_name}axis").get_tick_params())
 
 
 def empty(ax: Axes, text: str) -> None:

@@ -31,7 +31,7 @@ import matplotlib as mpl
 import numpy as np
 from matplotlib.backends import backend_agg
 from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
-from matplotlib.font_manager import FontProperties
+from matplotlib.font_manager import FontProperties, fontManager, get_font
 from matplotlib.ft2font import FT2Font
 
 #: FreeType's render modes (matplotlib >= 3.11); None before, where the stock path is used
@@ -51,6 +51,8 @@ Layout = tuple[tuple[Any, tuple[str, str], int, float, float], ...]
 
 _LAYOUTS: dict[tuple[Any, ...], Layout] = {}
 _GLYPHS: dict[tuple[Any, ...], tuple[np.ndarray, int, int]] = {}
+_HEIGHTS: dict[tuple[Any, ...], tuple[float | None, ...]] = {}
+_EXTENTS: dict[tuple[Any, ...], Any] = {}
 
 if hasattr(os, "register_at_fork"):  # a forked child opens its own fonts (matplotlib empties its cache too)
     os.register_at_fork(after_in_child=_LAYOUTS.clear)
@@ -76,6 +78,7 @@ class CachedTextRenderer(RendererAgg):
         # what else decides a glyph's raster: FreeType's load flags and matplotlib's hinting factor
         flags = backend_agg.get_hinting_flag(), mpl.rcParams["text.hinting_factor"]
         items = self._layout(s, prop, flags, mtext)
+        x, y = float(x), float(y)  # the same doubles; Python floats round faster than numpy scalars
         size = prop.get_size_in_points()
         cos, sin = math.cos(math.radians(angle)), math.sin(math.radians(angle))
         antialiased = bool(gc.get_antialiased())
@@ -97,6 +100,29 @@ class CachedTextRenderer(RendererAgg):
                 buffer, left + px, int(height) - (top + py) + buffer.shape[0], 0, gc
             )
 
+    def get_text_width_height_descent(self, s: str, prop: FontProperties, ismath: Any) -> Any:
+        """The size of a plain string as `RendererAgg` measures it (FreeType lays the string out), kept per
+        string, font and size for every renderer: matplotlib keeps it per renderer, and the report's three
+        canvases measure the same tick labels."""
+        if ismath or not SUPPORTED:
+            return super().get_text_width_height_descent(s, prop, ismath)
+        rc = mpl.rcParams
+        flags = backend_agg.get_hinting_flag(), rc["text.hinting_factor"], rc["text.kerning_factor"]
+        key = (s, prop.copy(), self.dpi, *flags)
+        size = _EXTENTS.get(key)
+        if size is None:
+            size = _EXTENTS[_room(_EXTENTS, key)] = super().get_text_width_height_descent(s, prop, ismath)
+        return size
+
+    def _get_font_height_metrics(self, prop: FontProperties) -> tuple[float | None, ...]:
+        """The font's ascent, descent and line gap (px) that `Text._get_layout` otherwise reads from the
+        font's tables for every string it lays out, computed as it does and kept per font and size."""
+        key = (prop.copy(), self.dpi)
+        metrics = _HEIGHTS.get(key)
+        if metrics is None:
+            metrics = _HEIGHTS[_room(_HEIGHTS, key)] = _font_height_metrics(prop, self.dpi)
+        return metrics
+
     def _layout(self, s: str, prop: FontProperties, flags: Any, mtext: Any) -> Layout:
         features = mtext.get_fontfeatures() if mtext is not None else None
         language = mtext.get_language() if mtext is not None else None
@@ -112,6 +138,22 @@ class CachedTextRenderer(RendererAgg):
             # the key keeps a copy of the properties: a later change to `prop` cannot alter a stored key
             _LAYOUTS[_room(_LAYOUTS, (s, prop.copy(), *key[2:]))] = items
         return items
+
+
+def _font_height_metrics(prop: FontProperties, dpi: float) -> tuple[float | None, ...]:
+    """(min ascent, min descent, line gap) in pixels from the font's OS/2 or hhea table, exactly as
+    matplotlib 3.11's `Text._get_layout` computes them; Nones (matplotlib then measures "lp") without either."""
+    font: Any = get_font(fontManager._find_fonts_by_props(prop))
+    for table_name, gap_key, ascent_key, descent_key in (
+        ("OS/2", "sTypoLineGap", "sTypoAscender", "sTypoDescender"),
+        ("hhea", "lineGap", "ascent", "descent"),
+    ):
+        table = font.get_sfnt_table(table_name)
+        if table is None:
+            continue
+        scale = 1 / font.get_sfnt_table("head")["unitsPerEm"] * prop.get_size_in_points() * dpi / 72
+        return table[ascent_key] * scale, -table[descent_key] * scale, table[gap_key] * scale
+    return None, None, None
 
 
 def _face(font: Any) -> tuple[str, str]:
