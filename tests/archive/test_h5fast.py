@@ -11,7 +11,7 @@ import h5py
 import numpy as np
 import pytest
 
-from protocol_runner.archive.h5fast import create_dataset, set_attr
+from protocol_runner.archive.h5fast import create_dataset, remove_link, set_attr
 
 ATTRIBUTE_VALUES: dict[str, Any] = {
     "text": "knee_flexion",
@@ -131,3 +131,14 @@ def test_a_dataset_created_empty_takes_the_values_written_later(tmp_path: Path) 
         ds[...] = arr
     with h5py.File(tmp_path / "late.h5", "r") as f:
         assert np.array_equal(f["late"][()], arr)
+
+
+def test_remove_link_removes_a_member_and_ignores_an_absent_one(tmp_path: Path) -> None:
+    with h5py.File(tmp_path / "links.h5", "w") as f:
+        f.create_dataset("g/x", data=[1.0])
+        f.create_dataset("y", data=[2.0])
+        remove_link(f["g"], "x")
+        remove_link(f, "g/absent")
+        remove_link(f, "absent")
+        remove_link(f, "y")
+        assert "g/x" not in f and "y" not in f and "g" in f

@@ -73,6 +73,15 @@ def _attr_data(value: Any) -> tuple[npt.NDArray[Any] | None, str]:
     return data, data.dtype.str
 
 
+def remove_link(group: h5py.Group, name: str) -> None:
+    """`del group[name]` if `group` has a member `name` (a plain name asked of HDF5 directly)."""
+    if "/" in name or not name.isascii():
+        if name in group:
+            del group[name]
+    elif group.id.links.exists(name.encode("ascii")):
+        group.id.unlink(name.encode("ascii"))
+
+
 def _space(shape: tuple[int, ...]) -> h5s.SpaceID:
     space = _spaces.get(shape)
     if space is None:

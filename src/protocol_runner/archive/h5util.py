@@ -16,7 +16,7 @@ import numpy.typing as npt
 from ..analysis.validation import SIGNAL as STORED_SIGNAL
 from .attrs import ATTRIBUTES, DYNAMIC, UNITS
 from .checksums import seal_values
-from .h5fast import create_dataset, set_attr
+from .h5fast import create_dataset, remove_link, set_attr
 
 SCHEMA_VERSION = 1
 COMPRESS_ABOVE = 256
@@ -51,8 +51,7 @@ def put(
     and its attributes are created through archive/h5fast.py (the same HDF5 calls as h5py's `create_dataset`
     and `attrs`, with cached types and property lists)."""
     arr = np.asarray(data, dtype=dtype) if dtype is not None else np.asarray(data)
-    if name in group:
-        del group[name]
+    remove_link(group, name)
     chunk = None
     shuffle = False
     level = None
@@ -139,8 +138,7 @@ def fixed_text(text: str | list[str]) -> npt.NDArray[np.bytes_]:
 
 def put_text(group: h5py.Group, name: str, text: str | list[str]) -> h5py.Dataset:
     """A text dataset (a scalar for a str, one element per line for a list), sealed with its checksum."""
-    if name in group:
-        del group[name]
+    remove_link(group, name)
     data = fixed_text(text)
     ds = create_dataset(group, name, data)
     seal_values(ds, data)
