@@ -52,3 +52,37 @@ def test_a_sign_is_either_direction_and_nothing_else() -> None:
     for bad in (0, 2, -0.5):
         with pytest.raises(InvalidInput, match="must be \\+1 or -1"):
             build_element("c", "bungee", {**cord, "direction": bad})
+
+
+SPRING = {
+    "stiffness_n_per_mm": 2.0,
+    "preload_index": 3.0,
+    "max_preload_mm": 20.0,
+    "a_m": 0.05,
+    "b_m": 0.1,
+    "alpha_deg": 30.0,
+    "fit": ["max_preload_mm"],
+}
+
+
+def test_replace_is_build_element_with_the_new_values() -> None:
+    """`replace` (the element fit's trial points) checks only the changed values, and gives exactly the
+    element `build_element` gives for the same parameters."""
+    e = build_element("springs", "lever_spring", SPRING)
+    changed = e.replace(max_preload_mm=25, zero_offset_deg=-2.5)
+    assert changed == build_element(
+        "springs", "lever_spring", {**SPRING, "max_preload_mm": 25.0, "zero_offset_deg": -2.5}
+    )
+    assert changed.number("max_preload_mm") == 25.0 and isinstance(changed.params["max_preload_mm"], float)
+    assert list(changed.params) == list(e.params)  # the parameters in their declared order
+    assert e.number("max_preload_mm") == 20.0  # the original is unchanged
+
+
+def test_replace_refuses_what_build_element_refuses() -> None:
+    e = build_element("springs", "lever_spring", SPRING)
+    with pytest.raises(InvalidInput, match="'stiffness_n_per_mm' must lie in"):
+        e.replace(stiffness_n_per_mm=-1.0)
+    with pytest.raises(InvalidInput, match="must be finite"):
+        e.replace(max_preload_mm=float("nan"))
+    with pytest.raises(InvalidInput, match="'no_such' is unknown"):
+        e.replace(no_such=1.0)

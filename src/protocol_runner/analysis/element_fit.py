@@ -200,9 +200,12 @@ def fit_elements(
         raise AnalysisError(f"the loop gives only {xs.shape[0]} points to fit {len(free)} element parameters")
 
     def with_values(x: FloatArray) -> list[Element]:
-        out = list(static)
+        changed: dict[int, dict[str, float]] = {}
         for (i, name), v in zip(free, x, strict=True):
-            out[i] = out[i].replace(**{name: float(v)})
+            changed.setdefault(i, {})[name] = float(v)
+        out = list(static)
+        for i, values in changed.items():
+            out[i] = out[i].replace(**values)  # one copy per element, whatever its number of free parameters
         return out
 
     def residual(x: FloatArray) -> FloatArray:

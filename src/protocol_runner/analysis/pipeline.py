@@ -29,7 +29,12 @@ from protocol_runner.analysis.centring import CentredLoop, centre
 from protocol_runner.analysis.cycles import Reference
 from protocol_runner.analysis.element_fit import ElementFit, FitTarget, fit_elements, not_applicable
 from protocol_runner.analysis.energy import EnergySummary, energy_per_cycle, summarize_energy
-from protocol_runner.analysis.filters import FILTER_KINDS, FilterKind, design_lowpass, filter_zero_phase
+from protocol_runner.analysis.filters import (
+    FILTER_KINDS,
+    FilterKind,
+    design_lowpass,
+    filter_zero_phase_together,
+)
 from protocol_runner.analysis.subtraction import robot_torque_at_equal_angle, subtract_equal_time
 from protocol_runner.analysis.transition import (
     Resampling,
@@ -217,10 +222,16 @@ def process_trial(pair: TrialPair, settings: ProcessingSettings) -> ProcessedTri
     sos = design_lowpass(
         settings.filter_kind, settings.filter_order, settings.filter_cutoff, settings.chebyshev_ripple_db
     )
-    angle_on = filter_zero_phase(on.angle_deg, sos, name=f"trial {pair.trial} brace-on angle_deg")
-    torque_on = filter_zero_phase(on.torque_nm, sos, name=f"trial {pair.trial} brace-on torque_nm")
-    angle_off = filter_zero_phase(off.angle_deg, sos, name=f"trial {pair.trial} brace-off angle_deg")
-    torque_off = filter_zero_phase(off.torque_nm, sos, name=f"trial {pair.trial} brace-off torque_nm")
+    angle_on, torque_on = filter_zero_phase_together(
+        [on.angle_deg, on.torque_nm],
+        sos,
+        names=[f"trial {pair.trial} brace-on angle_deg", f"trial {pair.trial} brace-on torque_nm"],
+    )
+    angle_off, torque_off = filter_zero_phase_together(
+        [off.angle_deg, off.torque_nm],
+        sos,
+        names=[f"trial {pair.trial} brace-off angle_deg", f"trial {pair.trial} brace-off torque_nm"],
+    )
     if settings.subtraction == "equal_angle":
         try:
             robot, covered = robot_torque_at_equal_angle(

@@ -24,8 +24,10 @@ from typing import Any
 import h5py
 import numpy as np
 import numpy.typing as npt
+from h5py import h5a, h5o
 
 from .attrs import CHECKSUM_MARKER, DIGEST
+from .h5fast import set_attr
 
 DIGEST_ATTR = DIGEST
 MARKER_ATTR = CHECKSUM_MARKER
@@ -64,9 +66,18 @@ def seal(ds: h5py.Dataset, values: npt.ArrayLike | str | list[str]) -> None:
     if h5py.check_string_dtype(ds.dtype) is not None:
         items = [values] if isinstance(values, str) else list(np.asarray(values, dtype=object).reshape(-1))
         encoded = [v.encode("utf-8") if isinstance(v, str) else bytes(v) for v in items]
-        ds.attrs[DIGEST_ATTR] = text_digest(encoded, ds.shape)
+        set_attr(ds, DIGEST_ATTR, text_digest(encoded, ds.shape))
     else:
-        ds.attrs[DIGEST_ATTR] = numeric_digest(np.asarray(values, dtype=ds.dtype).reshape(ds.shape))
+        set_attr(ds, DIGEST_ATTR, numeric_digest(np.asarray(values, dtype=ds.dtype).reshape(ds.shape)))
+
+
+def seal_values(ds: h5py.Dataset, values: npt.NDArray[Any]) -> None:
+    """`seal` for `values` that are exactly what `ds` was created from (numbers, or the fixed-length byte
+    strings of a text dataset): the digest needs neither `ds`'s type nor its shape read back."""
+    if values.dtype.kind == "S":
+        set_attr(ds, DIGEST_ATTR, text_digest([bytes(v) for v in values.reshape(-1).tolist()], values.shape))
+    else:
+        set_attr(ds, DIGEST_ATTR, numeric_digest(values))
 
 
 def digest_of_stored(ds: h5py.Dataset) -> str:
@@ -91,14 +102,20 @@ def recorded_digest(ds: h5py.Dataset) -> str | None:
 
 def seal_missing(f: h5py.File) -> int:
     """Record the digest of every dataset of `f` written without one (by code other than archive/h5util.py),
-    from its stored values; the number sealed. Run before a file is marked, so the mark holds."""
-    missing: list[h5py.Dataset] = []
-    f.visititems(
-        lambda _, obj: (
-            missing.append(obj) if isinstance(obj, h5py.Dataset) and DIGEST_ATTR not in obj.attrs else None
-        )
-    )
-    for ds in missing:
+    from its stored values; the number sealed. Run before a file is marked, so the mark holds.
+
+    Walks the file with HDF5's own visit and asks HDF5 whether each dataset has the attribute, so a unit
+    whose datasets were all sealed when written opens none of them here."""
+    digest = DIGEST_ATTR.encode("ascii")
+    missing: list[bytes] = []
+
+    def check(name: bytes, info: Any) -> None:
+        if info.type == h5o.TYPE_DATASET and not h5a.exists(f.id, digest, obj_name=name):
+            missing.append(name)
+
+    h5o.visit(f.id, check, info=True)
+    for name in missing:
+        ds = f[name.decode("utf-8", errors="surrogateescape")]
         ds.attrs[DIGEST_ATTR] = digest_of_stored(ds)
     return len(missing)
 

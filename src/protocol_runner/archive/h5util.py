@@ -15,7 +15,8 @@ import numpy.typing as npt
 
 from ..analysis.validation import SIGNAL as STORED_SIGNAL
 from .attrs import ATTRIBUTES, DYNAMIC, UNITS
-from .checksums import seal
+from .checksums import seal_values
+from .h5fast import create_dataset, remove_link, set_attr
 
 SCHEMA_VERSION = 1
 COMPRESS_ABOVE = 256
@@ -46,26 +47,26 @@ def put(
     Arrays of more than COMPRESS_ABOVE elements are gzip-compressed (HDF5's standard filters: h5py, HDFView
     and MATLAB read them without plug-ins), with the byte shuffle filter where `_shuffle_helps`; 1-D ones in
     chunks of about CHUNK_BYTES. The layout depends only on the data, never on when or where it is written.
-    Like every dataset, it carries the sha256 checksum of its values (archive/checksums.py)."""
+    Like every dataset, it carries the sha256 checksum of its values (archive/checksums.py). The dataset
+    and its attributes are created through archive/h5fast.py (the same HDF5 calls as h5py's `create_dataset`
+    and `attrs`, with cached types and property lists)."""
     arr = np.asarray(data, dtype=dtype) if dtype is not None else np.asarray(data)
-    if name in group:
-        del group[name]
-    kwargs: dict[str, Any] = {}
+    remove_link(group, name)
+    chunk = None
+    shuffle = False
+    level = None
     if compress and arr.size > COMPRESS_ABOVE:
         shuffle = _shuffle_helps(arr)
-        kwargs = {"compression": "gzip", "compression_opts": GZIP_LEVEL, "shuffle": shuffle}
+        level = GZIP_LEVEL
         if arr.ndim == 1:
             chunk = min(arr.shape[0], max(1, CHUNK_BYTES // max(1, arr.itemsize)))
-            kwargs["chunks"] = (chunk,)
-            if arr.shape[0] > chunk and arr.dtype.kind in "fiu" and arr.dtype.isnative:
-                ds = group.create_dataset(name, shape=arr.shape, dtype=arr.dtype, **kwargs)
-                _write_chunks(ds, arr, chunk, shuffle)
-                ds.attrs[UNITS] = units
-                seal(ds, arr)
-                return ds
-    ds = group.create_dataset(name, data=arr, **kwargs)
-    ds.attrs[UNITS] = units
-    seal(ds, arr)
+    by_chunks = chunk is not None and arr.shape[0] > chunk and arr.dtype.kind in "fiu" and arr.dtype.isnative
+    ds = create_dataset(group, name, arr, chunk=chunk, shuffle=shuffle, gzip_level=level, write=not by_chunks)
+    if by_chunks:
+        assert chunk is not None
+        _write_chunks(ds, arr, chunk, shuffle)
+    set_attr(ds, UNITS, units)
+    seal_values(ds, arr)
     return ds
 
 
@@ -137,11 +138,10 @@ def fixed_text(text: str | list[str]) -> npt.NDArray[np.bytes_]:
 
 def put_text(group: h5py.Group, name: str, text: str | list[str]) -> h5py.Dataset:
     """A text dataset (a scalar for a str, one element per line for a list), sealed with its checksum."""
-    if name in group:
-        del group[name]
+    remove_link(group, name)
     data = fixed_text(text)
-    ds = group.create_dataset(name, data=data)
-    seal(ds, data)
+    ds = create_dataset(group, name, data)
+    seal_values(ds, data)
     return ds
 
 
@@ -155,13 +155,15 @@ def set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:
         if value is None:
             continue
         if isinstance(value, (dict, list)) and not _is_numeric_list(value):
-            obj.attrs[key] = json.dumps(value)
+            set_attr(obj, key, json.dumps(value))
         elif isinstance(value, (list, tuple)):
-            obj.attrs[key] = np.asarray(
-                value, dtype=np.float64 if any(isinstance(v, float) for v in value) else None
+            set_attr(
+                obj,
+                key,
+                np.asarray(value, dtype=np.float64 if any(isinstance(v, float) for v in value) else None),
             )
         else:
-            obj.attrs[key] = value
+            set_attr(obj, key, value)
 
 
 def put_attrs(

@@ -66,10 +66,18 @@ class Element:
         return tuple(str(v) for v in value)
 
     def replace(self, **values: float) -> Element:
-        """A copy with some numeric parameters changed (the fit's trial values), checked like the rest."""
+        """A copy with some numeric parameters changed (the fit's trial values), checked like the rest.
+
+        Only the changed values are checked again (the others were when this element was built): the
+        element fit calls this for every trial point of its optimizer."""
+        etype = ELEMENT_TYPES[self.type]
         params = dict(self.params)
-        params.update({k: float(v) for k, v in values.items()})
-        return build_element(self.name, self.type, params)
+        for key, value in values.items():
+            spec = etype.parameters.get(key)
+            if spec is None:
+                return build_element(self.name, self.type, {**params, key: value})  # names the unknown key
+            params[key] = _check_value(_where(self.name, self.type, key), spec, float(value), ())
+        return Element(name=self.name, type=self.type, params=params)
 
     def to_json(self) -> dict[str, object]:
         """{"name", "type", every parameter} (tuples as lists), for the archive's elements_json."""

@@ -165,11 +165,26 @@ def spring_force_n(
     `stiffness_n_per_mm` is K in N/mm (0 = no spring, K0). Extension springs cannot push: a negative
     extension gives zero force. Vectorised over `angle_deg`.
     """
+    _check_stiffness(stiffness_n_per_mm)
+    _, _, length = _attachment_geometry(angle_deg, geometry)
+    return _force_n(stiffness_n_per_mm, preload_position, max_preload_mm, geometry, length)
+
+
+def _check_stiffness(stiffness_n_per_mm: float) -> None:
     if not (math.isfinite(stiffness_n_per_mm) and stiffness_n_per_mm >= 0.0):
         raise InvalidInput(f"spring stiffness must be a finite value >= 0 N/mm, got {stiffness_n_per_mm!r}")
-    extension_m = spring_initial_load_m(preload_position, max_preload_mm, geometry) + spring_deflection_m(
-        angle_deg, geometry
-    )
+
+
+def _force_n(
+    stiffness_n_per_mm: float,
+    preload_position: float,
+    max_preload_mm: float,
+    geometry: SpringGeometry,
+    length_m: FloatArray,
+) -> FloatArray:
+    """Eq 14 from the spring length (`_attachment_geometry`): K (Initial_Load + δ), no push."""
+    deflection_m: FloatArray = length_m - geometry.b_m  # Eq 16 (`spring_deflection_m`)
+    extension_m = spring_initial_load_m(preload_position, max_preload_mm, geometry) + deflection_m
     force: FloatArray = stiffness_n_per_mm * 1e3 * np.maximum(extension_m, 0.0)
     return force
 
@@ -194,10 +209,9 @@ def spring_torque_nm(
     if not math.isfinite(zero_offset_deg):
         raise InvalidInput(f"zero_offset_deg must be finite, got {zero_offset_deg!r}")
     theta_deg = np.asarray(angle_deg, dtype=np.float64) - zero_offset_deg
-    force = spring_force_n(
-        theta_deg, stiffness_n_per_mm, preload_position, max_preload_mm=max_preload_mm, geometry=geometry
-    )
-    x_a, y_a, _ = _attachment_geometry(theta_deg, geometry)
+    _check_stiffness(stiffness_n_per_mm)
+    x_a, y_a, length = _attachment_geometry(theta_deg, geometry)  # once: Eq 14's extension and Eq 18's angle
+    force = _force_n(stiffness_n_per_mm, preload_position, max_preload_mm, geometry, length)
     alpha = math.radians(geometry.alpha_deg)
     a = geometry.a_m
     lam = np.arctan2(y_a + a * math.sin(alpha), x_a - a * math.cos(alpha))  # Eq 18
