@@ -5,12 +5,14 @@ units (a unit redone) is left aside."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import h5py
 import pytest
 
 from protocol_runner.archive import consolidate as consolidate_module
+from protocol_runner.report import render as render_module
 from protocol_runner.session import assembly
 from protocol_runner.session.journal import Journal
 
@@ -30,8 +32,18 @@ def test_the_session_consolidates_onto_its_draft_and_gets_the_archive_from_scrat
         calls.append((len(ahead.files) if ahead is not None and ahead.leads(list(files)) else 0, len(files)))
         return consolidate_module.consolidate(archive, files, meta, ahead)
 
+    drawn_on: list[int | None] = []
+    real_render = render_module.render_report
+
+    def rendering(data, output, *, generated_utc=None, workers=None):  # type: ignore[no-untyped-def]
+        drawn_on.append(workers)
+        return real_render(data, output, generated_utc=generated_utc, workers=workers)
+
     monkeypatch.setattr(assembly, "consolidate", spying)
+    monkeypatch.setattr(render_module, "render_report", rendering)
     assert run_dry(session) == 0
+    # the report's figures not drawn ahead are drawn on both cores: the analyses are done by then
+    assert drawn_on == [min(2, os.cpu_count() or 1)]
     assert len(calls) == 1
     drafted, total = calls[0]
     # every trial and calibration unit was merged ahead; only the last analyses were left for the end

@@ -133,6 +133,7 @@ def draft(archive: Path, unit_files: Iterable[Path], previous: Draft | None = No
             partial.unlink(missing_ok=True)
             with h5py.File(partial, "w") as out:
                 summed = merge_units(out, files)
+        _fsync_file(partial)  # its bytes on disk now: the final fsync then flushes only what is added
     except BaseException:
         partial.unlink(missing_ok=True)
         raise

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import os
 import threading
 from pathlib import Path
 
@@ -50,7 +51,8 @@ def render_report(session_dir: Path, archive: Path) -> Path:
         # consolidation has just checked every unit's sha256, covering every byte copied into the archive
         data = load_report_data(archive, verify=False)
         record_verdicts(archive, data)  # /expectations: the declared expectations and their verdicts
-        return render(data, session_dir / REPORT_NAME)
+        # the analyses are done and the other core idle: the figures not drawn ahead on two processes
+        return render(data, session_dir / REPORT_NAME, workers=min(2, os.cpu_count() or 1))
     except OSError as exc:
         if not is_disk_full(exc):
             raise
