@@ -34,6 +34,7 @@ from .journal import Journal
 from .lock import session_lock
 from .operator import Operator
 from .progress import Progress
+from .read_ahead import ReadAhead
 from .reporting import render_report, start_warm_up
 from .resume import prepare_resume
 from .setup import SessionInfo
@@ -86,6 +87,7 @@ class Runner:
         self.writer = UnitWriter(self.units_dir, self.journal)  # units written while the next step runs
         self.publisher = publisher  # the live monitor (--monitor): told of every step through `progress`
         self.ahead = ArchiveDraft(session_dir, self.journal)  # the archive merged while the analyses finish
+        self.read_ahead = ReadAhead(plan, self.ahead)  # and the report's configurations read from it
 
     # ------------------------------------------------------------------------------------------ run
 
@@ -210,11 +212,13 @@ class Runner:
         finished = self._finished(progress)
         self.pool.collect(finished, wait=False)
         self.ahead.update()
+        self.read_ahead.update()
         while self.pool.busy:
             self.pool.wait_any()
             self.pool.collect(finished, wait=False)
             if self.pool.busy:  # the last one's units are merged at the end, not here
                 self.ahead.update()
+                self.read_ahead.update()
 
     def record(self, step_id: str, outcome: StepOutcome) -> None:
         """Hand the step's unit to the writer (journaled once it is on disk); a step that stops the session
@@ -276,7 +280,7 @@ class Runner:
         self.writer.flush()
         self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped{robot}")
         archive = self.consolidate("complete")
-        report = render_report(self.dir, archive)
+        report = render_report(self.dir, archive, self.read_ahead.known())
         if self.plan.steps and self.plan.steps[-1].kind == "report":
             progress.step_finished(self.plan.steps[-1], "archive and report written")
         progress.info(f"archive: {archive}")
