@@ -14,7 +14,6 @@ import pytest
 from protocol_runner.commands import resume
 from protocol_runner.errors import Interrupted
 from protocol_runner.session import runner as runner_module
-from protocol_runner.session import workers as workers_module
 from protocol_runner.session.journal import Journal
 from protocol_runner.session.signals import StopFlag
 
@@ -26,15 +25,14 @@ def test_a_stop_while_the_last_analyses_run_stops_before_the_report(
 ) -> None:
     session = tmp_path / "s"
     flag = StopFlag()
-    real_collect = workers_module.AnalysisPool.collect
+    real_await = runner_module.Runner._await_analyses
 
-    def collect(self: workers_module.AnalysisPool, finished, *, wait: bool) -> None:  # type: ignore[no-untyped-def]
-        real_collect(self, finished, wait=wait)
-        if wait:  # the session now waits for its last analyses: the operator presses Ctrl-C
-            flag.request("SIGINT")
+    def await_analyses(self: runner_module.Runner, progress) -> None:  # type: ignore[no-untyped-def]
+        real_await(self, progress)  # the session waited for its last analyses: Ctrl-C meanwhile
+        flag.request("SIGINT")
 
     with monkeypatch.context() as m:
-        m.setattr(workers_module.AnalysisPool, "collect", collect)
+        m.setattr(runner_module.Runner, "_await_analyses", await_analyses)
         m.setattr(runner_module, "StopFlag", lambda: flag)
         with pytest.raises(Interrupted) as info:
             run_dry(session)

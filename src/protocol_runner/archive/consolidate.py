@@ -3,6 +3,11 @@
 Units are fragments of the archive at their final paths; consolidation merges them into
 `archive.h5.partial` as copying them over one another in plan order would (`merge_units`), adds the root provenance, `/protocol`, `/plan`, `/session/events` and each
 configuration's status, then renames atomically. Rerunning it gives the same archive content.
+
+A session may merge the units it already has ahead of its end (`draft`, while it waits for its last
+analyses): `archive.h5.partial` then holds them, and `consolidate` only adds the units that came later,
+each copied over what is there, before it writes the metadata and renames. The partial file has no
+`status` and is never renamed before the metadata is written: it is never taken for an archive.
 """
 
 from __future__ import annotations
@@ -74,12 +79,75 @@ def merge_units(out: h5py.Group, unit_files: Iterable[Path]) -> bool:
     return summed
 
 
-def consolidate(archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> Path:
-    """Write `archive` from the units; on a full disk raise `DiskFull`, leaving the previous archive (if
-    any) and no partial file behind."""
+def _merge_over(src: h5py.Group, dst: h5py.Group) -> None:
+    """Copy `src` over `dst`: `src` comes later in the plan than everything in `dst`, so its attributes and
+    datasets replace those of the same name (a group merged into a group of the same name)."""
+    for key in src.attrs:
+        if key not in _UNIT_ONLY:
+            dst.attrs[key] = src.attrs[key]
+    for name, obj in src.items():
+        if name in dst and isinstance(obj, h5py.Group) and isinstance(dst[name], h5py.Group):
+            _merge_over(obj, dst[name])
+            continue
+        if name in dst:
+            del dst[name]
+        src.copy(obj, dst, name=name)
+
+
+def add_units(out: h5py.Group, unit_files: Iterable[Path]) -> bool:
+    """Copy the units over `out` one after the other (each later in the plan than what `out` holds);
+    whether every unit carried checksums."""
+    summed = True
+    for path in unit_files:
+        with h5py.File(path, "r") as unit:
+            summed = summed and is_marked(unit)
+            _merge_over(unit, out)
+    return summed
+
+
+@dataclass(frozen=True)
+class Draft:
+    """`archive.h5.partial` written ahead: the merge of `files` (in plan order), without any metadata."""
+
+    path: Path
+    files: tuple[Path, ...]
+    summed: bool  # every unit merged so far carried checksums
+
+    def leads(self, unit_files: list[Path]) -> bool:
+        """Whether the draft's units are the first of `unit_files` and its file is still there."""
+        n = len(self.files)
+        return tuple(unit_files[:n]) == self.files and self.path.is_file()
+
+
+def draft(archive: Path, unit_files: Iterable[Path], previous: Draft | None = None) -> Draft:
+    """Merge the units into `archive`'s partial file ahead of consolidation: only those after `previous`'s
+    when it leads them, else all of them afresh. On any error (or an interruption) the partial file is
+    removed and the error raised: a draft is an optimisation, `consolidate` then starts afresh."""
+    files = list(unit_files)
     partial = archive.with_name(archive.name + ".partial")
     try:
-        _write(partial, unit_files, meta)
+        if previous is not None and previous.leads(files):
+            with h5py.File(partial, "r+") as out:
+                summed = add_units(out, files[len(previous.files) :]) and previous.summed
+        else:
+            partial.unlink(missing_ok=True)
+            with h5py.File(partial, "w") as out:
+                summed = merge_units(out, files)
+        _fsync_file(partial)  # its bytes on disk now: the final fsync then flushes only what is added
+    except BaseException:
+        partial.unlink(missing_ok=True)
+        raise
+    return Draft(partial, tuple(files), summed)
+
+
+def consolidate(
+    archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta, ahead: Draft | None = None
+) -> Path:
+    """Write `archive` from the units (adding to the draft `ahead` the units after its own when it leads
+    them); on a full disk raise `DiskFull`, leaving the previous archive (if any) and no partial file behind."""
+    partial = archive.with_name(archive.name + ".partial")
+    try:
+        _write(partial, list(unit_files), meta, ahead)
         _fsync_file(partial)
         os.replace(partial, archive)
         _fsync_dir(archive.parent)
@@ -91,10 +159,15 @@ def consolidate(archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta) ->
     return archive
 
 
-def _write(partial: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> None:
-    partial.unlink(missing_ok=True)
-    with h5py.File(partial, "w") as out:
-        summed = merge_units(out, unit_files)
+def _write(partial: Path, unit_files: list[Path], meta: ArchiveMeta, ahead: Draft | None) -> None:
+    done = ahead.files if ahead is not None and ahead.path == partial and ahead.leads(unit_files) else None
+    if done is None:
+        partial.unlink(missing_ok=True)
+    with h5py.File(partial, "w" if done is None else "r+") as out:
+        if done is None:
+            summed = merge_units(out, unit_files)
+        else:  # the draft's units are in: the later ones copied over them
+            summed = add_units(out, unit_files[len(done) :]) and bool(ahead and ahead.summed)
         put_attrs(
             out, "root", {**meta.root, "schema_version": SCHEMA_VERSION, "software_version": __version__}
         )

@@ -334,8 +334,10 @@ def render_figures(data: ReportData, workers: int | None = None) -> FigureSet:
     return FigureSet(images=images, missing=missing)
 
 
+@functools.cache
 def warm_up() -> None:
-    """Create every canvas and render text once, so that forked workers inherit warm font caches."""
+    """Create every canvas and render text once per process (the session's warm-up thread may have done it
+    already), so that forked workers inherit warm font caches."""
     for kind in LAYOUTS:
         fig, axes = canvas_axes(kind)
         for ax in axes:

@@ -3,10 +3,16 @@
 from __future__ import annotations
 
 import contextlib
+import os
 import threading
+from collections.abc import Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from ..archive.diskfull import DiskFull, is_disk_full, resume_hint
+
+if TYPE_CHECKING:
+    from ..report.model import Configuration
 
 REPORT_NAME = "report.html"
 
@@ -36,8 +42,9 @@ def _warm_up() -> None:
         predictions()
 
 
-def render_report(session_dir: Path, archive: Path) -> Path:
-    """Render the session's report next to its archive; a full disk is a `DiskFull` with the resume hint."""
+def render_report(session_dir: Path, archive: Path, known: Mapping[str, Configuration] | None = None) -> Path:
+    """Render the session's report next to its archive (`known`: configurations read ahead from exactly
+    the groups the archive holds, `session/read_ahead.py`); a full disk is a `DiskFull` with the resume hint."""
     for thread in _WARMING:  # first: the report's modules are imported by one thread at a time
         thread.join()
     from ..report.load import load_report_data
@@ -48,9 +55,10 @@ def render_report(session_dir: Path, archive: Path) -> Path:
         # read once, for the verdicts and the report: recording the verdicts adds /expectations, which the
         # report does not read (it decides them again from the data). Its datasets are not checked again:
         # consolidation has just checked every unit's sha256, covering every byte copied into the archive
-        data = load_report_data(archive, verify=False)
+        data = load_report_data(archive, verify=False, known=known)
         record_verdicts(archive, data)  # /expectations: the declared expectations and their verdicts
-        return render(data, session_dir / REPORT_NAME)
+        # the analyses are done and the other core idle: the figures not drawn ahead on two processes
+        return render(data, session_dir / REPORT_NAME, workers=min(2, os.cpu_count() or 1))
     except OSError as exc:
         if not is_disk_full(exc):
             raise

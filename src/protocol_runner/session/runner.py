@@ -29,11 +29,12 @@ from ..protocol.plan import (
 )
 from ..steps.context import Bench, StepOutcome, processing_settings
 from ..steps.failures import run_step
-from .assembly import consolidate_session
+from .assembly import ArchiveDraft, consolidate_session
 from .journal import Journal
 from .lock import session_lock
 from .operator import Operator
 from .progress import Progress
+from .read_ahead import ReadAhead
 from .reporting import render_report, start_warm_up
 from .resume import prepare_resume
 from .setup import SessionInfo
@@ -85,6 +86,8 @@ class Runner:
         self.pool = AnalysisPool(loaded, plan, self.units_dir, self.journal)
         self.writer = UnitWriter(self.units_dir, self.journal)  # units written while the next step runs
         self.publisher = publisher  # the live monitor (--monitor): told of every step through `progress`
+        self.ahead = ArchiveDraft(session_dir, self.journal)  # the archive merged while the analyses finish
+        self.read_ahead = ReadAhead(plan, self.ahead)  # and the report's configurations read from it
 
     # ------------------------------------------------------------------------------------------ run
 
@@ -141,7 +144,7 @@ class Runner:
                 if step.kind in ("compare", "report"):
                     start_warm_up()  # the report's imports and caches, while the last analyses finish
                     self.writer.flush()  # what the analyses read is on disk
-                    self.pool.collect(self._finished(progress), wait=True)  # these read the analyses' units
+                    self._await_analyses(progress)  # these read the analyses' units
                     if self.stop():  # a Ctrl-C while the last analyses ran: stop here, as announced
                         raise Interrupted(f"stopped before {step.id} ({self.stop.signal_name})")
                 if step.kind == "report":
@@ -151,7 +154,7 @@ class Runner:
                 self.record(step.id, outcome)
                 progress.step_finished(step, outcome.summary)
             self.writer.flush()
-            self.pool.collect(self._finished(progress), wait=True)
+            self._await_analyses(progress)
             return self._finish(progress, skipped)
         except Interrupted as exc:
             self._stopped("interrupted", exc.message, progress)
@@ -202,6 +205,20 @@ class Runner:
             progress.step_finished(step, summary)
 
         return finished
+
+    def _await_analyses(self, progress: Progress) -> None:
+        """Wait for every analysis to be journaled, meanwhile merging the units already journaled into the
+        archive's draft (`assembly.ArchiveDraft`): consolidation at the end then adds only the last ones."""
+        finished = self._finished(progress)
+        self.pool.collect(finished, wait=False)
+        self.ahead.update()
+        self.read_ahead.update()
+        while self.pool.busy:
+            self.pool.wait_any()
+            self.pool.collect(finished, wait=False)
+            if self.pool.busy:  # the last one's units are merged at the end, not here
+                self.ahead.update()
+                self.read_ahead.update()
 
     def record(self, step_id: str, outcome: StepOutcome) -> None:
         """Hand the step's unit to the writer (journaled once it is on disk); a step that stops the session
@@ -263,7 +280,7 @@ class Runner:
         self.writer.flush()
         self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped{robot}")
         archive = self.consolidate("complete")
-        report = render_report(self.dir, archive)
+        report = render_report(self.dir, archive, self.read_ahead.known())
         if self.plan.steps and self.plan.steps[-1].kind == "report":
             progress.step_finished(self.plan.steps[-1], "archive and report written")
         progress.info(f"archive: {archive}")
@@ -272,4 +289,6 @@ class Runner:
         return RunResult("complete", archive, report, self.steps_run, skipped)
 
     def consolidate(self, status: str) -> Path:
-        return consolidate_session(self.dir, self.info, self.loaded, self.plan, self.journal, status)
+        return consolidate_session(
+            self.dir, self.info, self.loaded, self.plan, self.journal, status, self.ahead
+        )

@@ -14,7 +14,7 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Callable
-from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor
 from concurrent.futures import wait as futures_wait
 from pathlib import Path
 
@@ -121,6 +121,17 @@ class AnalysisPool:
                     self.journal.unit_done(record)
                 finished(step, summary)
         self._pending = still
+
+    @property
+    def busy(self) -> bool:
+        """Whether analyses are queued or running (not journaled yet)."""
+        return bool(self._pending or self._waiting)
+
+    def wait_any(self) -> None:
+        """Hand out every queued analysis (the caller has made sure their units are on disk) and wait until
+        one of those running finishes; `collect` then journals it."""
+        self._hand_out(force=True)
+        futures_wait([future for _, future in self._pending], return_when=FIRST_COMPLETED)
 
     def shutdown(self, finished: Callable[[Step, str], None]) -> None:
         """On any exit: keep the background steps that completed, drop the queued ones (redone on resume)."""
