@@ -172,3 +172,20 @@ def test_the_best_polished_start_is_the_one_returned(monkeypatch: pytest.MonkeyP
     assert len(result.polished_rmse_nm) == 2
     assert result.polished_rmse_nm[0] != result.polished_rmse_nm[1]
     assert result.rmse_nm == pytest.approx(min(result.polished_rmse_nm), rel=1e-12)
+
+
+@pytest.mark.parametrize(("n_angle", "n_torque"), [(10, 12), (12, 10)])
+def test_a_trial_with_angle_and_torque_of_unequal_length_is_refused(n_angle: int, n_torque: int) -> None:
+    x, y = _loop(20)
+    with pytest.raises(InvalidInput, match=f"trial 1: {n_angle} angle samples but {n_torque} torque samples"):
+        fit_trials([(x, y), (x[:n_angle], y[:n_torque])])
+
+
+def test_the_finer_check_of_a_fit_at_the_truth_stays_near_the_data() -> None:
+    """rmse_refined_nm integrates the fitted model 4x finer (its divergence bound 10x the torque scale): at
+    the true parameters of refined-scheme data it is a small fraction of the torque, not the torque."""
+    x, y = _loop(640)
+    result = fit_trials([(x, y)], **AT_TRUTH)
+    torque_rms = float(np.sqrt(np.mean(y**2)))
+    assert torque_rms > 1.0
+    assert result.rmse_refined_nm < 0.05 * torque_rms
