@@ -124,3 +124,16 @@ def test_two_parameters_that_act_alike_are_both_undetermined() -> None:
     std = jacobian_std(J, 1.0)
     assert np.isinf(std[3]) and np.isinf(std[4])
     assert np.all(np.isfinite(np.delete(std, [3, 4])))
+
+
+def test_every_residual_evaluation_counts_once_fused_or_not() -> None:
+    """nfev (the fit record's count of residual evaluations) grows by one per evaluation, whether or not
+    the evaluation also gives the Jacobian."""
+    problem = _problem()
+    u = problem.to_u(FIG57)
+    problem.residuals(u)
+    problem.fused = True
+    problem.residuals(u)
+    problem.fused = False
+    problem.cost(u)
+    assert problem.nfev == 3
