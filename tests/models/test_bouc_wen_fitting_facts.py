@@ -189,3 +189,81 @@ def test_the_finer_check_of_a_fit_at_the_truth_stays_near_the_data() -> None:
     torque_rms = float(np.sqrt(np.mean(y**2)))
     assert torque_rms > 1.0
     assert result.rmse_refined_nm < 0.05 * torque_rms
+
+
+def _problems_built(monkeypatch: pytest.MonkeyPatch) -> list[tuple[int, str, float | None]]:
+    """(samples, scheme, substep) of every Problem the fit builds."""
+    built: list[tuple[int, str, float | None]] = []
+    init = Problem.__init__
+
+    def recording_init(self: Problem, samples, bounds, scale, scheme="refined", max_step_deg=None) -> None:  # type: ignore[no-untyped-def]
+        built.append((int(samples.x.size), str(scheme), max_step_deg))
+        init(self, samples, bounds, scale, scheme, max_step_deg)
+
+    monkeypatch.setattr(Problem, "__init__", recording_init)
+    return built
+
+
+def test_the_refined_fit_screens_at_half_a_degree_then_polishes_a_mid_copy_at_a_quarter(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The refined scheme's stages (docs/analysis.md): every sample's path at the default substep, the
+    starts screened on a 400-sample copy at 0.5 deg, polished on a 1,500-sample copy at 0.25 deg - also
+    for a scheme name made at run time (read from a file), not only the literal."""
+    built = _problems_built(monkeypatch)
+    x, y = _loop(3200)
+    scheme = "".join(["re", "fined"])
+    fit_trials([(x, y)], scheme=scheme, **AT_TRUTH)
+    steps = {step for _, _, step in built}
+    assert (3200, "refined", None) in built
+    assert any(n <= 400 and step == bw_fitting.SCREEN_STEP_DEG for n, _, step in built)
+    assert any(400 < n < 3200 and step == bw_fitting.MID_STEP_DEG for n, _, step in built)
+    assert steps <= {None, bw_fitting.SCREEN_STEP_DEG, bw_fitting.MID_STEP_DEG}
+
+
+def test_no_mid_copy_when_the_fitted_samples_are_already_fewer(monkeypatch: pytest.MonkeyPatch) -> None:
+    """With at most 1,000 compared samples per trial (stride 4) the 1,500-sample copy (stride 3) would be
+    finer than what is fitted: no polish on it."""
+    built = _problems_built(monkeypatch)
+    x, y = _loop(3200)
+    fit_trials([(x, y)], max_samples_per_trial=1000, **AT_TRUTH)
+    assert all(step != bw_fitting.MID_STEP_DEG for _, _, step in built)
+
+
+def test_one_quasi_random_start_is_one_start_and_the_seed_scrambles_them(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    x, y = _loop(240)
+    one = fit_trials([(x, y)], starts=1, data_starts=False)
+    assert one.n_starts == 1
+    seen: list[np.ndarray] = []
+    solve = Problem.solve
+
+    def recording_solve(self: Problem, u0: np.ndarray, *args: object, **kwargs: object) -> object:
+        seen.append(np.array(u0))
+        return solve(self, u0, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(Problem, "solve", recording_solve)
+    fit_trials([(x, y)], starts=2, data_starts=False, seed=1)
+    first = np.array(seen[:2])
+    seen.clear()
+    fit_trials([(x, y)], starts=2, data_starts=False, seed=2)
+    assert not np.allclose(first, np.array(seen[:2]))  # a Halton sequence unscrambled ignores the seed
+
+
+def test_a_refined_fit_is_never_redone_on_every_sample(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The refit on every sample is the Eq 23 scheme's guard (its explicit steps depend on the sampling);
+    the refined integration follows every sample already, so a poor refined fit is not fitted twice."""
+    calls: list[object] = []
+    inner = bw_fitting._fit_segments
+
+    def counting(*args: object, **kwargs: object) -> object:
+        calls.append(args)
+        return inner(*args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(bw_fitting, "_fit_segments", counting)
+    x, y = _loop(240)
+    noise = np.random.default_rng(3).normal(0.0, 3.0 * float(np.std(y)), y.size)
+    poor = fit_trials([(x, y + noise)], max_samples_per_trial=80, **AT_TRUTH)
+    assert poor.stride == (3,) and poor.r2 < bw_fitting.FULL_REFIT_R2
+    assert len(calls) == 1
