@@ -187,3 +187,28 @@ def test_an_interval_covering_exactly_half_the_range_is_not_weak() -> None:
     narrow = np.full(8, 1e-3)
     assert weak_reasons(u, narrow, (1.0, 2.25), problem) == []
     assert [r[:2] for r in weak_reasons(u, narrow, (1.0, 2.26), problem)] == ["n:"]
+
+
+def test_the_n_profile_steps_from_the_estimate_toward_each_bound_and_stays_within_them(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """The profile likelihood of n (§6.2.3 intervals) refits at fixed n on a walk from the estimate out to
+    each bound (the lower one first): every fixed n lies within the bounds, and the walks go both ways."""
+    from protocol_runner.models.bouc_wen import identifiability as ident
+
+    fixed: list[float] = []
+    refit = ident._fixed_n_refit
+
+    def recording(problem: Problem, u0: np.ndarray) -> tuple[np.ndarray, float]:
+        fixed.append(float(u0[1]))
+        return refit(problem, u0)
+
+    monkeypatch.setattr(ident, "_fixed_n_refit", recording)
+    segments = _rich_loops()
+    fitted = fit_trials(segments, starts=1)
+    result = identify(segments, fitted)
+    n_hat, bounds = fitted.params.n, result.bounds
+    assert fixed
+    assert all(bounds.n_min <= n <= bounds.n_max for n in fixed)
+    assert any(n < n_hat for n in fixed) and any(n > n_hat for n in fixed)
+    assert fixed[0] < n_hat  # the first walk goes toward the lower bound
