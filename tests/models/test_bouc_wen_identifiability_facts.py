@@ -212,3 +212,51 @@ def test_the_n_profile_steps_from_the_estimate_toward_each_bound_and_stays_withi
     assert all(bounds.n_min <= n <= bounds.n_max for n in fixed)
     assert any(n < n_hat for n in fixed) and any(n > n_hat for n in fixed)
     assert fixed[0] < n_hat  # the first walk goes toward the lower bound
+
+
+def _profile_of(monkeypatch: pytest.MonkeyPatch, sse_at_n) -> None:  # type: ignore[no-untyped-def]
+    """Replace the fixed-n refits by a given profile SSE(n) (the refit's point is its start)."""
+    from protocol_runner.models.bouc_wen import identifiability as ident
+
+    monkeypatch.setattr(ident, "_fixed_n_refit", lambda problem, u0: (u0, float(sse_at_n(float(u0[1])))))
+
+
+def test_a_quadratic_profile_gives_the_likelihood_ratio_interval_exactly(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """SSE(n) = SSE_min (1 + (n - n_hat)^2): the 95 % interval is where SSE = SSE_min exp(chi2_1,95 / m_eff),
+    n_hat -+ sqrt(exp(chi2 / m_eff) - 1)."""
+    from types import SimpleNamespace
+
+    from protocol_runner.models.bouc_wen.identifiability import _n_profile
+
+    sse0, m_eff, n_hat = 100.0, 50.0, 1.5
+    _profile_of(monkeypatch, lambda n: sse0 * (1.0 + (n - n_hat) ** 2))
+    problem = SimpleNamespace(bounds=BoucWenBounds())
+    u = np.zeros(8)
+    u[1] = n_hat
+    low, high = _n_profile(problem, u, sse0, m_eff)  # type: ignore[arg-type]
+    half = math.sqrt(math.exp(CHI2_1_95 / m_eff) - 1.0)
+    assert low == pytest.approx(n_hat - half, rel=1e-12)
+    assert high == pytest.approx(n_hat + half, rel=1e-12)
+
+
+def test_a_better_optimum_met_on_the_profile_becomes_its_minimum(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The profile's first fixed-n refit toward the lower bound finds a lower SSE than the fit's: the
+    interval is measured from that minimum (quadratic about it: its lower end is exact)."""
+    from types import SimpleNamespace
+
+    from protocol_runner.models.bouc_wen.identifiability import PROFILE_STEPS, _n_profile
+
+    bounds = BoucWenBounds()
+    m_eff, n_hat = 50.0, 1.5
+    n_star = n_hat + float(PROFILE_STEPS[0]) * (bounds.n_min - n_hat)  # the first point of the walk
+    s_min = 90.0
+    _profile_of(monkeypatch, lambda n: s_min * (1.0 + (n - n_star) ** 2))
+    sse_fit = s_min * (1.0 + (n_hat - n_star) ** 2) + 5.0  # the fit stopped above the profile's minimum
+    u = np.zeros(8)
+    u[1] = n_hat
+    low, high = _n_profile(SimpleNamespace(bounds=bounds), u, sse_fit, m_eff)  # type: ignore[arg-type]
+    half = math.sqrt(math.exp(CHI2_1_95 / m_eff) - 1.0)
+    assert low == pytest.approx(n_star - half, rel=1e-12)
+    assert high > n_hat
