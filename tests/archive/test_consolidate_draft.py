@@ -12,16 +12,8 @@ import pytest
 
 from protocol_runner.archive.consolidate import ArchiveMeta, consolidate, draft
 
-ROOT = {
-    "protocol_name": "p",
-    "protocol_sha256": "0" * 64,
-    "mode": "dry-run",
-    "seed": 0,
-    "created_utc": "t0",
-    "finished_utc": "t1",
-    "status": "complete",
-    "joint": "knee",
-}
+from .test_consolidate_merge import ROOT
+
 META = ArchiveMeta(ROOT, "name: p\n", "p.yaml", '{"steps": []}', (), ("e",), {"config_01": {"key": 1}})
 
 

@@ -11,6 +11,17 @@ import numpy as np
 
 from protocol_runner.archive.consolidate import merge_units
 
+ROOT = {  # the root attributes of a test archive (also tests/archive/test_consolidate_draft.py)
+    "protocol_name": "p",
+    "protocol_sha256": "0" * 64,
+    "mode": "dry-run",
+    "seed": 0,
+    "created_utc": "t0",
+    "finished_utc": "t1",
+    "status": "complete",
+    "joint": "knee",
+}
+
 
 def _unit(path: Path, attrs: dict[str, object], trial: str) -> Path:
     with h5py.File(path, "w") as f:
@@ -61,17 +72,7 @@ def test_the_archive_declares_checksums_only_when_every_unit_had_them(tmp_path: 
                 grp.create_dataset("angle_deg", data=np.linspace(0.0, 90.0, 500)).attrs["units"] = "deg"
         return path
 
-    root = {
-        "protocol_name": "p",
-        "protocol_sha256": "0" * 64,
-        "mode": "dry-run",
-        "seed": 0,
-        "created_utc": "t0",
-        "finished_utc": "t1",
-        "status": "complete",
-        "joint": "knee",
-    }
-    meta = ArchiveMeta(root, "name: p\n", "p.yaml", '{"steps": []}', (), (), {"config_01": {"key": 1}})
+    meta = ArchiveMeta(ROOT, "name: p\n", "p.yaml", '{"steps": []}', (), (), {"config_01": {"key": 1}})
     new = consolidate(tmp_path / "new.h5", [unit("1", summed=True), unit("2", summed=True)], meta)
     mixed = consolidate(tmp_path / "mixed.h5", [unit("3", summed=False), unit("4", summed=True)], meta)
     with h5py.File(new, "r") as f:

@@ -72,9 +72,8 @@ def test_a_long_trial_is_fitted_through_the_mid_size_copy() -> None:
     np.testing.assert_allclose(result.params.as_array(), FIG57.as_array(), rtol=1e-3, atol=1e-5)
 
 
-def test_the_quasi_random_starts_are_spread_over_the_bounds(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every quasi-random start lies inside the box of the dimensionless parameters, and no two share a
-    coordinate (a Halton sequence mapped onto the box, not a corner of it)."""
+def _starts_solved(monkeypatch: pytest.MonkeyPatch) -> list[np.ndarray]:
+    """The start of every solve the fit makes, in order."""
     seen: list[np.ndarray] = []
     solve = Problem.solve
 
@@ -83,6 +82,13 @@ def test_the_quasi_random_starts_are_spread_over_the_bounds(monkeypatch: pytest.
         return solve(self, u0, *args, **kwargs)  # type: ignore[arg-type]
 
     monkeypatch.setattr(Problem, "solve", recording_solve)
+    return seen
+
+
+def test_the_quasi_random_starts_are_spread_over_the_bounds(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every quasi-random start lies inside the box of the dimensionless parameters, and no two share a
+    coordinate (a Halton sequence mapped onto the box, not a corner of it)."""
+    seen = _starts_solved(monkeypatch)
     fit_trials([_loop(240)], starts=6, data_starts=False)
     starts = np.array(seen[:6])
     lower, upper = DEFAULT_BOUNDS.lower(), DEFAULT_BOUNDS.upper()
@@ -236,14 +242,7 @@ def test_one_quasi_random_start_is_one_start_and_the_seed_scrambles_them(
     x, y = _loop(240)
     one = fit_trials([(x, y)], starts=1, data_starts=False)
     assert one.n_starts == 1
-    seen: list[np.ndarray] = []
-    solve = Problem.solve
-
-    def recording_solve(self: Problem, u0: np.ndarray, *args: object, **kwargs: object) -> object:
-        seen.append(np.array(u0))
-        return solve(self, u0, *args, **kwargs)  # type: ignore[arg-type]
-
-    monkeypatch.setattr(Problem, "solve", recording_solve)
+    seen = _starts_solved(monkeypatch)
     fit_trials([(x, y)], starts=2, data_starts=False, seed=1)
     first = np.array(seen[:2])
     seen.clear()
