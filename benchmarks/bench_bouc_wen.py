@@ -103,7 +103,9 @@ def baseline_fit(
     z = np.empty_like(xs)
 
     def residuals(theta: np.ndarray) -> np.ndarray:
-        bw_kernels.recursion_kernel(xs, seg, z0, (theta[0], theta[1], theta[2:]), (bound, True, 0.0), z)
+        bw_kernels.recursion_kernel(
+            xs, seg, z0, (theta[0], theta[1], theta[2:]), (bound, True, 0.0, False), z
+        )
         return z - ys
 
     x0 = np.array([1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]) if start is None else start.as_array()

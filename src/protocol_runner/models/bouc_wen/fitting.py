@@ -85,14 +85,14 @@ def backbone_for(
 
 def _diverges_when_decimated(u: FloatArray, screen: Problem, problem: Problem) -> bool:
     """True when the recursion with parameters `u` stays bounded on the coarse screening copy but diverges
-    on the (finer) fitted samples."""
-    screen.residuals(u)
+    on the (finer) fitted samples (each check stops at the first divergence)."""
+    on_screen = screen.diverges(u)
     screen.nfev -= 1  # checks, not steps of a solve
-    if screen.diverged_at >= 0:
+    if on_screen:
         return False
-    problem.residuals(u)
+    diverged = problem.diverges(u)
     problem.nfev -= 1
-    return problem.diverged_at >= 0
+    return diverged
 
 
 class _Solved(NamedTuple):

@@ -75,6 +75,7 @@ class Problem:
         self.lnZ = math.log(self.Z)
         self.bound = DIVERGENCE_FACTOR * self.Z
         self.integration = Integration(scheme, self.bound, True, max_step_deg)
+        self._check = self.integration._replace(stop_at_divergence=True)  # see diverges()
         self.bounds = bounds
         self.lower = bounds.lower()
         self.upper = bounds.upper()
@@ -105,13 +106,35 @@ class Problem:
         return BoucWenParams(A=A, n=n, beta=(beta[0], beta[1], beta[2], beta[3], beta[4], beta[5]))
 
     def residuals(self, u: FloatArray) -> FloatArray:
+        return self._residuals_of(u, self._evaluate(u, self.integration))
+
+    def diverges(self, u: FloatArray) -> bool:
+        """One check of ``u`` (an evaluation, counted): whether the recursion diverges.  The integration
+        stops at the first diverged sample, so a check that diverges leaves the torque (and the Jacobian)
+        incomplete and keeps nothing; one that stays bounded is a whole evaluation, the very one
+        :meth:`residuals` makes (when ``fused``, the solver's cached first evaluation if it starts there)."""
+        self._cached = None
+        J = self._evaluate(u, self._check)
+        if self.diverged_at >= 0:
+            return True
+        if J is not None:
+            self._residuals_of(u, J)
+        return False
+
+    def _evaluate(self, u: FloatArray, integration: Integration) -> FloatArray | None:
+        """The torque at ``u`` into ``self.z`` (and ``diverged_at``); when ``fused`` also the Jacobian,
+        returned."""
         A, n, beta = self.physical(u)
         self.nfev += 1
-        J: FloatArray | None = None
-        if self.fused:
-            J, self.diverged_at = self._sensitivity(A, n, beta, self._chain(n, beta) / self.Z)
-        else:
-            self.diverged_at = self._integrate(A, n, beta)
+        if not self.fused:
+            self.diverged_at = self._integrate(A, n, beta, integration=integration)
+            return None
+        J, self.diverged_at = self._sensitivity(A, n, beta, self._chain(n, beta) / self.Z, integration)
+        return J
+
+    def _residuals_of(self, u: FloatArray, J: FloatArray | None) -> FloatArray:
+        """The residuals of the torque just integrated at ``u``; with its Jacobian ``J`` (a fused
+        evaluation) both are kept for the solver."""
         z = self.z if self.rows is None else self.z[self.rows]
         r = (z - self.y_rows) / self.Z
         self._cached = None if J is None else (u.copy(), J, r)
@@ -128,28 +151,25 @@ class Problem:
         """Contract a start whose recursion diverges toward the neutral point ``a = 1, psi' = 0`` (a
         straight line of the loop's mean slope, which cannot diverge) by halving the distance until it
         stays within range.  From inside the divergent region no gradient points back out, so without
-        this a local solve from such a start stalls on the penalty plateau.  Inside a solve (``fused``)
-        the first check also gives the Jacobian: a start that needs no contraction is then evaluated once."""
+        this a local solve from such a start stalls on the penalty plateau.  Each check stops at the first
+        divergence (:meth:`diverges`).  Inside a solve (``fused``) the checks also give the Jacobian: the
+        start that passes is then the solver's first evaluation, not made again (when it lies inside the
+        bounds, where the solver starts: the first check is made at the point the solver moves a start on a
+        bound to)."""
         centre = u.copy()
         centre[0] = min(max(1.0, self.lower[0]), self.upper[0])
         centre[2:] = 0.0
         v = u.copy()
         fused = self.fused
-        try:
-            if fused:  # check the point the solver starts from: it moves a start off its bounds
-                first = make_strictly_feasible(v, self.lower, self.upper)
-                self.residuals(first)
-                if self.diverged_at < 0:
-                    return first
-                self.fused = False  # a contracted start is checked by its torque alone
-                v = centre + 0.5 * (v - centre)
-            for _ in range(60 - fused):
-                self.residuals(v)
-                if self.diverged_at < 0:
-                    return v
-                v = centre + 0.5 * (v - centre)
-        finally:
-            self.fused = fused
+        if fused:
+            first = make_strictly_feasible(v, self.lower, self.upper)
+            if not self.diverges(first):
+                return first
+            v = centre + 0.5 * (v - centre)
+        for _ in range(60 - fused):
+            if not self.diverges(v):
+                return v
+            v = centre + 0.5 * (v - centre)
         return centre
 
     def cost(self, u: FloatArray) -> float:
@@ -159,26 +179,39 @@ class Problem:
     def physical_jacobian(
         self, A: float, n: float, beta: FloatArray, transform: FloatArray = IDENTITY8
     ) -> FloatArray:
-        """``dz/dtheta @ transform`` on the fitted samples, in a new array (least_squares keeps it)."""
-        return self._sensitivity(A, n, beta, transform)[0]
+        """``dz/dtheta @ transform`` on the fitted samples, in a new array (least_squares keeps it); the
+        torque into ``self.z`` and ``diverged_at``, as an evaluation."""
+        dz, self.diverged_at = self._sensitivity(A, n, beta, transform)
+        return dz
 
     def _sensitivity(
-        self, A: float, n: float, beta: FloatArray, transform: FloatArray
+        self,
+        A: float,
+        n: float,
+        beta: FloatArray,
+        transform: FloatArray,
+        integration: Integration | None = None,
     ) -> tuple[FloatArray, int]:
         """The torque into ``self.z`` and ``dz/dtheta @ transform`` at the compared rows (a new array);
         the index of the first diverged sample or -1."""
         out = np.empty((self.x.size if self.rows is None else self.rows.size, 8))
-        return out, self._integrate(A, n, beta, out, transform)
+        return out, self._integrate(A, n, beta, out, transform, integration)
 
     def _integrate(
-        self, A: float, n: float, beta: FloatArray, dz: FloatArray | None = None, T: FloatArray = IDENTITY8
+        self,
+        A: float,
+        n: float,
+        beta: FloatArray,
+        dz: FloatArray | None = None,
+        T: FloatArray = IDENTITY8,
+        integration: Integration | None = None,
     ) -> int:
         """The torque into ``self.z`` (divergence frozen at the bound), with ``dz`` also ``dz/dtheta @ T``
-        at the compared rows; the index of the first diverged sample or -1."""
+        at the compared rows, by ``integration`` (default the problem's); the index of the first diverged
+        sample or -1."""
         sensitivity = None if dz is None else Sensitivity(dz, T, self.rows)
-        return run_scheme(
-            self.x, self.seg, self.z0, BoucWenShape(A, n, beta), self.integration, self.z, sensitivity
-        )
+        how = self.integration if integration is None else integration
+        return run_scheme(self.x, self.seg, self.z0, BoucWenShape(A, n, beta), how, self.z, sensitivity)
 
     def _chain(self, n: float, beta: FloatArray) -> FloatArray:
         """``d theta / d u``: every column of the dimensionless Jacobian is a fixed linear combination of

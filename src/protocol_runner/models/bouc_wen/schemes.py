@@ -73,13 +73,16 @@ class BoucWenShape(NamedTuple):
 class Integration(NamedTuple):
     """How the state is integrated: the scheme (``"refined"`` or ``"eq23"``), the |z| bound (N*m) past
     which a segment has diverged, whether a diverged segment is held at +-``bound`` (``freeze``, the
-    fitter's finite penalty) or NaN, and the longest substep of the refined scheme (deg; default when
-    None)."""
+    fitter's finite penalty) or NaN, the longest substep of the refined scheme (deg; default when None),
+    and whether to stop at the first divergence (``stop_at_divergence``: a check whose only use is whether
+    it diverges; the torque and derivatives of a check that diverged are then incomplete, and must not be
+    read)."""
 
     scheme: str
     bound: float
     freeze: bool = True
     max_step_deg: float | None = None
+    stop_at_divergence: bool = False
 
 
 class Sensitivity(NamedTuple):
@@ -107,7 +110,7 @@ def run_scheme(
     scheme = integration.scheme
     step = check_scheme(scheme, integration.max_step_deg)
     shape_rec = (shape.A, shape.n, np.asarray(shape.beta, dtype=np.float64))
-    limits = (integration.bound, integration.freeze, step)
+    limits = (integration.bound, integration.freeze, step, integration.stop_at_divergence)
     if sensitivity is None:
         kernel = recursion_kernel if scheme == EQ23 else heun_kernel
         return int(kernel(x, seg, z0, shape_rec, limits, z))
