@@ -28,6 +28,8 @@ from .problem import (
     evaluate,
     param_std,
     refined_rmse,
+    scores,
+    trial_torques,
 )
 from .records import FULL_REFIT_R2, BoucWenFit
 from .schemes import EQ23, REFINED, check_scheme
@@ -239,8 +241,12 @@ def _fit_segments(segments: list[tuple[FloatArray, FloatArray]], options: FitOpt
     solved = _solve_segments(segments, options)
     problem = solved.problem
     params = problem.params(solved.u)
-    std = param_std(problem, params)
-    rmse, r2, per, diverged = evaluate(segments, params, problem.bound, options.scheme)
+    std = param_std(problem, params)  # its Jacobian comes with the torque along the fitted path:
+    torques = trial_torques(problem, segments, options.scheme)  # every sample's when that path is theirs
+    if torques is None:
+        rmse, r2, per, diverged = evaluate(segments, params, problem.bound, options.scheme)
+    else:
+        rmse, r2, per, diverged = scores(segments, torques, problem.diverged_at >= 0)
     return BoucWenFit(
         params=params,
         rmse_nm=rmse,

@@ -169,7 +169,11 @@ def identify(segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]], result: Bo
     scale = FitScale(result.angle_scale_deg, result.torque_scale_nm)
     problem = Problem(Samples(x, y, seg), result.bounds, scale, result.scheme, step)
     u_best = problem.to_u(result.params)
-    r = problem.residuals(u_best)
+    problem.fused = True  # the residuals come with the Jacobian, which std_u needs at the same point
+    try:
+        r = problem.residuals(u_best)
+    finally:
+        problem.fused = False
     sse0 = float(r @ r)
     m_eff = effective_samples(r, seg)
     inflate = math.sqrt(r.size / m_eff)

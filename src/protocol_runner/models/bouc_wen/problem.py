@@ -307,15 +307,39 @@ def evaluate(
 ) -> tuple[float, float, tuple[float, ...], bool]:
     """RMSE, R^2, per-trial RMSE and divergence flag of ``params`` on every given sample, each trial's
     recursion started at its own first torque (diverged samples held at +-bound, a finite error)."""
+    integration = Integration(scheme, bound, True, max_step_deg)
+    runs = [run_trial(x, params, float(y[0]), integration) for x, y in segments]
+    return scores(segments, [z for z, _ in runs], any(bad >= 0 for _, bad in runs))
+
+
+def trial_torques(
+    problem: Problem, segments: list[tuple[FloatArray, FloatArray]], scheme: str
+) -> list[FloatArray] | None:
+    """Each trial's torque from the problem's last integration when that integrated exactly these trials,
+    every sample, as :func:`evaluate` does with ``scheme`` and the problem's bound (the same substeps,
+    each trial from its own first torque): then the very torque of :func:`evaluate`, bit for bit; None
+    when the problem is another copy of the trials."""
+    if problem.integration != Integration(scheme, problem.bound) or problem.seg.size != len(segments) + 1:
+        return None
+    torques: list[FloatArray] = []
+    for k, (x, y) in enumerate(segments):
+        a, b = int(problem.seg[k]), int(problem.seg[k + 1])
+        if not (np.array_equal(problem.x[a:b], x) and problem.z0[k] == y[0]):
+            return None
+        torques.append(problem.z[a:b])
+    return torques
+
+
+def scores(
+    segments: list[tuple[FloatArray, FloatArray]], torques: list[FloatArray], diverged: bool
+) -> tuple[float, float, tuple[float, ...], bool]:
+    """What :func:`evaluate` returns, from each trial's model torque at every sample and whether any
+    diverged."""
     sse: list[float] = []
     total = 0.0
     total_sq = 0.0
     count = 0
-    diverged = False
-    integration = Integration(scheme, bound, True, max_step_deg)
-    for x, y in segments:
-        z, bad = run_trial(x, params, float(y[0]), integration)
-        diverged = diverged or bad >= 0
+    for z, (_, y) in zip(torques, segments, strict=True):
         sse.append(float(sum_sq_diff(z, y)))
         total += float(np.sum(y))
         total_sq += float(np.sum(np.square(y)))
