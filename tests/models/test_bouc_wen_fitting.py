@@ -72,17 +72,21 @@ def test_trials_that_cannot_be_fitted_are_named() -> None:
 
 
 def test_nfev_counts_the_residual_evaluations_of_the_solves(monkeypatch: pytest.MonkeyPatch) -> None:
-    """nfev: every residual evaluation made by the least-squares solves (and their start stabilisation);
-    the decimation guard's divergence checks between the stages are not solve steps."""
+    """nfev: every residual evaluation made by the least-squares solves and every check of their start
+    stabilisation; the decimation guard's divergence checks between the stages are not solve steps."""
     from protocol_runner.models.bouc_wen.problem import Problem
 
     in_solve = [0]
     counted = [0]
-    residuals, solve = Problem.residuals, Problem.solve
+    residuals, diverges, solve = Problem.residuals, Problem.diverges, Problem.solve
 
     def counting_residuals(self: Problem, u: np.ndarray) -> np.ndarray:
         counted[0] += in_solve[0] > 0
         return residuals(self, u)
+
+    def counting_checks(self: Problem, u: np.ndarray) -> bool:
+        counted[0] += in_solve[0] > 0
+        return diverges(self, u)
 
     def flagged_solve(self: Problem, *args: object, **kwargs: object) -> object:
         in_solve[0] += 1
@@ -92,6 +96,7 @@ def test_nfev_counts_the_residual_evaluations_of_the_solves(monkeypatch: pytest.
             in_solve[0] -= 1
 
     monkeypatch.setattr(Problem, "residuals", counting_residuals)
+    monkeypatch.setattr(Problem, "diverges", counting_checks)
     monkeypatch.setattr(Problem, "solve", flagged_solve)
     plain = fit_trials([_trial(240)], starts=2)  # short enough that nothing is decimated
     assert plain.stride == (1,) and plain.nfev == counted[0] > plain.n_starts
