@@ -85,7 +85,8 @@ class Problem:
         # During a solve every residual evaluation also computes the Jacobian (the sensitivity kernel gives
         # the very same torque, bit for bit, in about 1.5 times the work of the torque alone); the solver
         # asks for the Jacobian at the point it has just evaluated whenever it accepts a step, which then
-        # costs nothing.  Outside a solve (start stabilisation, checks) residuals are the torque alone.
+        # costs nothing; so do the start checks of its stabilisation (the one that passes is the solver's
+        # first evaluation).  Outside a solve (the checks between stages) residuals are the torque alone.
         self.fused = False
         self._cached: tuple[FloatArray, FloatArray, FloatArray] | None = None  # u, Jacobian, residuals
 
