@@ -201,21 +201,21 @@ def project_row(sens, T, dz, row):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _sweep(x, seg, z0, A, n, beta, limits, z, dz, T, rows, refined, sensitivities):  # pragma: no cover
+def _sweep(
+    x, seg, z0, A, n, beta, bound, freeze, max_step, stop, z, dz, T, rows, refined, sensitivities
+):  # pragma: no cover
     """The state at every sample over consecutive segments ``x[seg[s]:seg[s+1]]``, each restarted at
     ``z0[s]``, by Eq 23 or (``refined``) by Heun substeps of at most ``max_step`` (:func:`_piece`; an
     interval on which the angle crosses 0 is cut there); with ``sensitivities`` also
     ``dz[r, :] = (d z_{rows[r]} / d theta) @ T`` at the samples ``rows`` (increasing; the sensitivities are
     carried along every sample, only those rows are projected).
 
-    ``limits = (bound, freeze, max_step, stop)``.  Returns the index of the first sample whose |z| exceeded
-    ``bound`` (or was not finite), -1 if none.  After divergence the rest of that segment is NaN
-    (``freeze`` False) or held at +-``bound`` (``freeze`` True, the finite penalty used by the fitter), its
-    derivatives NaN or 0, and the other segments are integrated in full; with ``stop`` it returns at once
-    instead, ``z`` and ``dz`` then left incomplete (a check whose only use is whether it diverges).  Without
-    a divergence ``stop`` changes nothing.
+    Returns the index of the first sample whose |z| exceeded ``bound`` (or was not finite), -1 if none.
+    After divergence the rest of that segment is NaN (``freeze`` False) or held at +-``bound`` (``freeze``
+    True, the finite penalty used by the fitter), its derivatives NaN or 0, and the other segments are
+    integrated in full; with ``stop`` it returns at once instead, ``z`` and ``dz`` then left incomplete (a
+    check whose only use is whether it diverges).  Without a divergence ``stop`` changes nothing.
     """
-    bound, freeze, max_step, stop = limits
     first_bad = -1
     r = 0  # next entry of rows
     S = np.zeros(8)
@@ -274,32 +274,36 @@ def _sweep(x, seg, z0, A, n, beta, limits, z, dz, T, rows, refined, sensitivitie
 def recursion_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
     """Eq 23 over the segments (see :func:`_sweep`): writes ``z``, returns the first diverged index or -1."""
     A, n, beta = shape
-    no_dz, no_rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)
-    return _sweep(x, seg, z0, A, n, beta, limits, z, no_dz, IDENTITY8, no_rows, False, False)
+    bound, freeze, _, stop = limits
+    dz, rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)  # none
+    return _sweep(x, seg, z0, A, n, beta, bound, freeze, 0.0, stop, z, dz, IDENTITY8, rows, False, False)
 
 
 @njit(cache=True)
 def sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover - compiled
     """Eq 23 and its exact derivatives at ``rows`` (see :func:`_sweep`, :func:`eq23_step_sens`)."""
     A, n, beta = shape
+    bound, freeze, _, stop = limits
     dz, T, rows = sens
-    return _sweep(x, seg, z0, A, n, beta, limits, z, dz, T, rows, False, True)
+    return _sweep(x, seg, z0, A, n, beta, bound, freeze, 0.0, stop, z, dz, T, rows, False, True)
 
 
 @njit(cache=True)
 def heun_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
     """The step-independent integration (:mod:`.schemes`) over the segments (see :func:`_sweep`)."""
     A, n, beta = shape
-    no_dz, no_rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)
-    return _sweep(x, seg, z0, A, n, beta, limits, z, no_dz, IDENTITY8, no_rows, True, False)
+    bound, freeze, step, stop = limits
+    dz, rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)  # none
+    return _sweep(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, IDENTITY8, rows, True, False)
 
 
 @njit(cache=True)
 def heun_sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover - compiled
     """:func:`heun_kernel` and the exact derivatives of its scheme at ``rows`` (see :func:`_sweep`)."""
     A, n, beta = shape
+    bound, freeze, step, stop = limits
     dz, T, rows = sens
-    return _sweep(x, seg, z0, A, n, beta, limits, z, dz, T, rows, True, True)
+    return _sweep(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows, True, True)
 
 
 @njit(cache=True)

@@ -75,7 +75,8 @@ class Problem:
         self.lnZ = math.log(self.Z)
         self.bound = DIVERGENCE_FACTOR * self.Z
         self.integration = Integration(scheme, self.bound, True, max_step_deg)
-        self._check = self.integration._replace(stop_at_divergence=True)  # see diverges()
+        self._check = self.integration._replace(stop_at_divergence=True)  # while checking (diverges())
+        self._checking = False
         self.bounds = bounds
         self.lower = bounds.lower()
         self.upper = bounds.upper()
@@ -107,7 +108,7 @@ class Problem:
         return BoucWenParams(A=A, n=n, beta=(beta[0], beta[1], beta[2], beta[3], beta[4], beta[5]))
 
     def residuals(self, u: FloatArray) -> FloatArray:
-        return self._residuals_of(u, self._evaluate(u, self.integration))
+        return self._residuals_of(u, self._evaluate(u))
 
     def diverges(self, u: FloatArray) -> bool:
         """One check of ``u`` (an evaluation, counted): whether the recursion diverges.  The integration
@@ -115,22 +116,26 @@ class Problem:
         incomplete and keeps nothing; one that stays bounded is a whole evaluation, the very one
         :meth:`residuals` makes (when ``fused``, the solver's cached first evaluation if it starts there)."""
         self._cached = None
-        J = self._evaluate(u, self._check)
+        self._checking = True
+        try:
+            J = self._evaluate(u)
+        finally:
+            self._checking = False
         if self.diverged_at >= 0:
             return True
         if J is not None:
             self._residuals_of(u, J)
         return False
 
-    def _evaluate(self, u: FloatArray, integration: Integration) -> FloatArray | None:
+    def _evaluate(self, u: FloatArray) -> FloatArray | None:
         """The torque at ``u`` into ``self.z`` (and ``diverged_at``); when ``fused`` also the Jacobian,
         returned."""
         A, n, beta = self.physical(u)
         self.nfev += 1
         if not self.fused:
-            self.diverged_at = self._integrate(A, n, beta, integration=integration)
+            self.diverged_at = self._integrate(A, n, beta)
             return None
-        J, self.diverged_at = self._sensitivity(A, n, beta, self._chain(n, beta) / self.Z, integration)
+        J, self.diverged_at = self._sensitivity(A, n, beta, self._chain(n, beta) / self.Z)
         return J
 
     def _residuals_of(self, u: FloatArray, J: FloatArray | None) -> FloatArray:
@@ -186,32 +191,20 @@ class Problem:
         return dz
 
     def _sensitivity(
-        self,
-        A: float,
-        n: float,
-        beta: FloatArray,
-        transform: FloatArray,
-        integration: Integration | None = None,
+        self, A: float, n: float, beta: FloatArray, transform: FloatArray
     ) -> tuple[FloatArray, int]:
         """The torque into ``self.z`` and ``dz/dtheta @ transform`` at the compared rows (a new array);
         the index of the first diverged sample or -1."""
         out = np.empty((self.x.size if self.rows is None else self.rows.size, 8))
-        return out, self._integrate(A, n, beta, out, transform, integration)
+        return out, self._integrate(A, n, beta, out, transform)
 
     def _integrate(
-        self,
-        A: float,
-        n: float,
-        beta: FloatArray,
-        dz: FloatArray | None = None,
-        T: FloatArray = IDENTITY8,
-        integration: Integration | None = None,
+        self, A: float, n: float, beta: FloatArray, dz: FloatArray | None = None, T: FloatArray = IDENTITY8
     ) -> int:
-        """The torque into ``self.z`` (divergence frozen at the bound), with ``dz`` also ``dz/dtheta @ T``
-        at the compared rows, by ``integration`` (default the problem's); the index of the first diverged
-        sample or -1."""
+        """The torque into ``self.z`` (divergence frozen at the bound, or stopping there in a check), with
+        ``dz`` also ``dz/dtheta @ T`` at the compared rows; the index of the first diverged sample or -1."""
         sensitivity = None if dz is None else Sensitivity(dz, T, self.rows)
-        how = self.integration if integration is None else integration
+        how = self._check if self._checking else self.integration
         return run_scheme(self.x, self.seg, self.z0, BoucWenShape(A, n, beta), how, self.z, sensitivity)
 
     def _chain(self, n: float, beta: FloatArray) -> FloatArray:
