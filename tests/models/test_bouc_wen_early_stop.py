@@ -183,3 +183,26 @@ def test_the_errors_on_every_sample_come_from_the_fitted_path_only_when_it_is_ev
     assert trial_torques(Problem(Samples(x, y, seg), DEFAULT_BOUNDS, scale), trials, "eq23") is None
     coarse = Problem(Samples(x, y, seg), DEFAULT_BOUNDS, scale, max_step_deg=0.5)
     assert trial_torques(coarse, trials, "refined") is None
+
+
+def test_the_decimation_guard_checks_stop_early_and_are_not_counted() -> None:
+    """_diverges_when_decimated: bounded on the first problem and divergent on the second gives True, a
+    first problem on which the recursion already diverges gives False without a check of the second; the
+    checks stop at the first divergence and are not counted as evaluations."""
+    trials = _simulated_trials()
+
+    def one_trial(x: np.ndarray, y: np.ndarray) -> Problem:
+        return Problem(Samples(x, y, np.array([0, x.size])), DEFAULT_BOUNDS, FitScale(60.0, 2.0), "eq23")
+
+    small = one_trial(trials[0][0] / 6.0, trials[0][1] / 6.0)
+    large = one_trial(*trials[2])
+    u = large.to_u(FIG57)
+    u[2:] = large.lower[2:] / 8.0  # Psi < 0: a loop that runs away once |z| is large enough
+    large.z[:] = 7.0
+    assert fitting._diverges_when_decimated(u, small, large)
+    assert small.diverged_at == -1 and 0 < large.diverged_at < large.x.size - 1
+    assert np.all(large.z[large.diverged_at :] == 7.0)  # the check stopped there
+    assert small.nfev == large.nfev == 0
+    small.diverged_at = -7
+    assert not fitting._diverges_when_decimated(u, large, small)
+    assert small.diverged_at == -7 and small.nfev == large.nfev == 0
