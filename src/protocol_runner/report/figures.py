@@ -20,6 +20,7 @@ import math
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import TypeAlias
 
 import numpy as np
 
@@ -268,6 +269,20 @@ def _bind(fn: Callable[..., str], *args: object) -> Callable[[], str]:
     return functools.partial(fn, *args)
 
 
+Drawn: TypeAlias = tuple[str, str | None, str | None]
+"""A drawn figure: its id, its data URI (None if it could not be drawn) and why not."""
+
+FigureDrawer: TypeAlias = Callable[[ReportData, list[str]], list[Drawn] | None]
+"""Draws the figures of the given ids of the data elsewhere (the session's analysis workers), in order;
+None if it could not (they are then drawn here)."""
+
+
+def draw_figures(data: ReportData, task_ids: list[str]) -> list[Drawn]:
+    """The figures `task_ids` of `data`, in order (run by a process that draws for another)."""
+    tasks = dict(_tasks(data))
+    return [_safe(task_id, tasks[task_id]) for task_id in task_ids]
+
+
 _WORKER_TASKS: dict[str, Callable[[], str]] = {}
 
 
@@ -276,11 +291,11 @@ def _init_worker(data: ReportData) -> None:
     _WORKER_TASKS.update(_tasks(data))
 
 
-def _run_one(task_id: str) -> tuple[str, str | None, str | None]:
+def _run_one(task_id: str) -> Drawn:
     return _safe(task_id, _WORKER_TASKS[task_id])
 
 
-def _safe(task_id: str, task: Callable[[], str]) -> tuple[str, str | None, str | None]:
+def _safe(task_id: str, task: Callable[[], str]) -> Drawn:
     try:
         return task_id, task(), None
     except (ValueError, TypeError, IndexError, FloatingPointError) as exc:  # bad data never kills the report
@@ -300,16 +315,21 @@ def _cached(data: ReportData) -> dict[str, str]:
     return images
 
 
-def render_figures(data: ReportData, workers: int | None = None) -> FigureSet:
+def render_figures(
+    data: ReportData, workers: int | None = None, *, draw: FigureDrawer | None = None
+) -> FigureSet:
     """Draw every figure of the report (those drawn ahead for this data are taken from the figure cache).
-    `workers` > 1 draws on that many forked processes."""
+    `draw` draws them elsewhere (the session's analysis workers, which have matplotlib loaded and warm);
+    else `workers` > 1 draws on that many forked processes."""
     cached = _cached(data)
     every = _tasks(data)
     tasks = [(task_id, task) for task_id, task in every if task_id not in cached]
     if workers is None:
         workers = default_workers(len(tasks))
-    results: list[tuple[str, str | None, str | None]] | None = None
-    if workers > 1 and len(tasks) >= 8:
+    results: list[Drawn] | None = None
+    if draw is not None and tasks:
+        results = draw(data, [task_id for task_id, _ in tasks])
+    elif workers > 1 and len(tasks) >= 8:
         warm_up()
         # small chunks keep both workers busy: two-panel figures cost about twice a one-panel one
         results = map_in_processes(
