@@ -130,7 +130,7 @@ class _OnWorkers:
 
         if self.predictions is not None:
             with contextlib.suppress(BrokenProcessPool):
-                return self.predictions.result()  # type: ignore[no-any-return]
+                return self.predictions.result()
         return predictions(self.archive, self.data.protocol_text)
 
 
