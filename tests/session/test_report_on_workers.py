@@ -4,7 +4,10 @@ and when the workers are gone it makes everything itself."""
 
 from __future__ import annotations
 
+import os
 import re
+import subprocess
+import sys
 from collections.abc import Callable
 from concurrent.futures import Future
 from concurrent.futures.process import BrokenProcessPool
@@ -56,9 +59,9 @@ def test_the_workers_draw_every_figure_and_the_report_is_the_same(tmp_path: Path
     archive = tmp_path / "workers" / "archive.h5"
     every = figure_ids(load_report_data(archive, verify=False))
     assert len(_images(own)) == len(every) > 8
-    handed = [task for name, args in called if name == "draw_figures" for task in args[1]]
+    handed = [task for name, args in called if name == "_draw" for task in args[1]]
     assert sorted(handed) == sorted(every)  # each figure drawn once, all of them by the workers
-    assert [args[0] for name, args in called if name == "predictions"] == [archive]
+    assert [args[0] for name, args in called if name == "_predictions"] == [archive]
     assert _text(drawn, tmp_path / "workers") == _text(own, tmp_path / "own")
 
 
@@ -76,5 +79,37 @@ def test_with_the_workers_gone_the_report_draws_itself(tmp_path: Path) -> None:
         return future
 
     assert _images(_report(tmp_path / "gone", gone)) == _images(own)
-    assert {name for name, _ in called} == {"predictions", "draw_figures"}
+    assert {name for name, _ in called} == {"_predictions", "_draw"}
     assert _images(_report(tmp_path / "broken", broken)) == _images(own)
+
+
+PINNED = """
+import sys
+from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import get_context
+from pathlib import Path
+
+from protocol_runner.session import reporting
+from tests.report.report_archive_builder import small_spec, write_archive
+
+folder = Path(sys.argv[1])
+archive = write_archive(folder / "archive.h5", small_spec())
+with ProcessPoolExecutor(1, mp_context=get_context("spawn")) as workers:
+    reporting.start_warm_up(drawing=False)
+    report = reporting.render_report(folder, archive, None, workers.submit)
+assert report.is_file() and "data:image/png" in report.read_text(encoding="utf-8")
+print(sorted({m.split(".")[0] for m in sys.modules}))
+"""
+
+
+def test_the_session_that_has_its_report_drawn_by_the_workers_never_loads_matplotlib(tmp_path: Path) -> None:
+    """The saving of issue 20 pinned: the session process at its end only reads, assembles and writes; the
+    drawing library (a quarter of a second to import) stays in the workers."""
+    repo = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(repo / "src"), str(repo)])}
+    done = subprocess.run(
+        [sys.executable, "-c", PINNED, str(tmp_path)], env=env, capture_output=True, text=True, check=True
+    )
+    loaded = done.stdout.strip().splitlines()[-1]
+    assert "'jinja2'" in loaded and "'h5py'" in loaded  # it did read and render
+    assert "'matplotlib'" not in loaded and "'PIL'" not in loaded

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import jinja2
 from markupsafe import Markup, escape
@@ -25,12 +26,13 @@ from protocol_runner import __version__
 from protocol_runner.report.citations import declared_citations
 from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.differences import adjacent_differences, declared_repeatability
-from protocol_runner.report.figures import (
+from protocol_runner.report.figure_plan import (
+    Drawn,
     FigureDrawer,
     FigureSet,
+    assemble_figures,
     distinct_comparisons,
     model_comparisons,
-    render_figures,
     slug,
 )
 from protocol_runner.report.findings import TUNED_LABEL, evaluate_expectations
@@ -40,8 +42,10 @@ from protocol_runner.report.limits_text import limits_text
 from protocol_runner.report.load import load_reference_dataset, load_report_data
 from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Comparison, Configuration, ReportData
 from protocol_runner.report.multi_joint import joints_section
-from protocol_runner.report.predictions import Prediction, predictions
 from protocol_runner.report.settings_view import format_quantity
+
+if TYPE_CHECKING:
+    from protocol_runner.report.predictions import Prediction
 
 TEMPLATE = "report.html.j2"
 
@@ -130,12 +134,14 @@ def render_html(
     predicted: Callable[[], tuple[Prediction, ...]] | None = None,
 ) -> str:
     """The report of `data` as an HTML string (`draw`, `predicted`: as `render_report`)."""
-    figures = render_figures(data, workers=workers, draw=draw)
+    figures = assemble_figures(data, workers, draw=draw, here=_draw_here)
     env = _environment()
     template = env.get_template(TEMPLATE)
     if generated_utc is None:
         generated_utc = datetime.now(UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
     if predicted is None:
+        from protocol_runner.report.predictions import predictions  # the compiled model: only run here
+
         predicted = functools.partial(predictions, Path(data.session.archive_path), data.protocol_text)
     context = _context(data, figures, generated_utc, predicted())
     joints = joints_section(Path(data.session.archive_path)) if data.session.archive_path else None
@@ -144,6 +150,12 @@ def render_html(
         at = [s for s, _ in SECTIONS].index("comparisons")
         context["sections"] = (*SECTIONS[:at], ("joints", "Joints"), *SECTIONS[at:])
     return template.render(**context)
+
+
+def _draw_here(data: ReportData, task_ids: list[str], workers: int) -> list[Drawn]:
+    from protocol_runner.report.figures import draw_here  # matplotlib: only where the figures are drawn
+
+    return draw_here(data, task_ids, workers)
 
 
 def warm_up() -> None:

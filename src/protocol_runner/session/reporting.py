@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 from ..archive.diskfull import DiskFull, is_disk_full, resume_hint
 
 if TYPE_CHECKING:
-    from ..report.figures import Drawn
+    from ..report.figure_plan import Drawn
     from ..report.model import Configuration, ReportData
     from ..report.predictions import Prediction
 
@@ -47,7 +47,7 @@ def start_warm_up(*, drawing: bool = True) -> None:
 
 def _warm_up(drawing: bool) -> None:
     with contextlib.suppress(Exception):
-        from ..report import render  # jinja2, the report's modules
+        from ..report import render  # jinja2, the report's modules (no matplotlib: figure_plan.py)
 
         render.warm_up()
         if drawing:
@@ -102,19 +102,15 @@ class _OnWorkers:
     CHUNKS = 4  # figure jobs: two workers, figures of unequal cost
 
     def __init__(self, call: Call, archive: Path, data: ReportData) -> None:
-        from ..report.predictions import predictions
-
         self.call = call
         self.archive = archive
         self.data = data
         # first: computed while the figures are handed out (the archive is only read from now on)
-        self.predictions = _submit(call, predictions, archive, data.protocol_text)
+        self.predictions = _submit(call, _predictions, archive, data.protocol_text)
 
     def draw(self, data: ReportData, task_ids: list[str]) -> list[Drawn] | None:
-        from ..report.figures import draw_figures
-
         chunks = [task_ids[i :: self.CHUNKS] for i in range(self.CHUNKS)]
-        futures = [_submit(self.call, draw_figures, data, chunk) for chunk in chunks if chunk]
+        futures = [_submit(self.call, _draw, data, chunk) for chunk in chunks if chunk]
         drawn: list[Drawn] = []
         for future in futures:
             if future is None:
@@ -126,12 +122,25 @@ class _OnWorkers:
         return drawn
 
     def predicted(self) -> tuple[Prediction, ...]:
-        from ..report.predictions import predictions
-
         if self.predictions is not None:
             with contextlib.suppress(BrokenProcessPool):
                 return self.predictions.result()
-        return predictions(self.archive, self.data.protocol_text)
+        return _predictions(self.archive, self.data.protocol_text)
+
+
+# what the workers run, named here so that the session never imports the drawing code or the model to name it
+
+
+def _draw(data: ReportData, task_ids: list[str]) -> list[Drawn]:
+    from ..report.figures import draw_figures
+
+    return draw_figures(data, task_ids)
+
+
+def _predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
+    from ..report.predictions import predictions
+
+    return predictions(archive, protocol_text)
 
 
 def _submit(call: Call, fn: Callable[..., Any], *args: object) -> Future[Any] | None:
