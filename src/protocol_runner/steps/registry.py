@@ -15,15 +15,21 @@ from .context import StepContext, StepOutcome
 StepFunction = Callable[[Any, StepContext], StepOutcome]
 
 
-#: Step kind -> the functions that run it ("module.function" of this package), for one joint and for the
-#: joints of a protocol with `joints:`.
-STEP_FUNCTIONS: dict[str, tuple[str, str]] = {
-    "calibration_check": ("calibration_check.run", "multi_calibration.run"),
-    "operator_checklist": ("checklist.run", "checklist.run"),
-    "trial": ("trial.run", "multi_trial.run_trial"),
-    "process": ("process.run", "multi_trial.run_process"),
-    "fit": ("fit.run", "multi_trial.run_fit"),
-    "compare": ("compare.run", "compare.run"),
+#: Step kind -> the function that runs it ("module.function" of this package) ...
+ONE_JOINT = {
+    "calibration_check": "calibration_check.run",
+    "operator_checklist": "checklist.run",
+    "trial": "trial.run",
+    "process": "process.run",
+    "fit": "fit.run",
+    "compare": "compare.run",
+}
+#: ... and where a protocol with `joints:` drives several joints, for the kinds that differ
+SEVERAL_JOINTS = {
+    "calibration_check": "multi_calibration.run",
+    "trial": "multi_trial.run_trial",
+    "process": "multi_trial.run_process",
+    "fit": "multi_trial.run_fit",
 }
 
 
@@ -45,4 +51,6 @@ def _by_joints(single: str, several: str) -> StepFunction:
     return run
 
 
-STEP_KINDS: dict[str, StepFunction] = {kind: _by_joints(*names) for kind, names in STEP_FUNCTIONS.items()}
+STEP_KINDS: dict[str, StepFunction] = {
+    kind: _by_joints(name, SEVERAL_JOINTS.get(kind, name)) for kind, name in ONE_JOINT.items()
+}
