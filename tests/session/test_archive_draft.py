@@ -32,18 +32,20 @@ def test_the_session_consolidates_onto_its_draft_and_gets_the_archive_from_scrat
         calls.append((len(ahead.files) if ahead is not None and ahead.leads(list(files)) else 0, len(files)))
         return consolidate_module.consolidate(archive, files, meta, ahead)
 
-    drawn_on: list[int | None] = []
+    drawn_on: list[tuple[int | None, bool]] = []
     real_render = render_module.render_report
 
-    def rendering(data, output, *, generated_utc=None, workers=None):  # type: ignore[no-untyped-def]
-        drawn_on.append(workers)
-        return real_render(data, output, generated_utc=generated_utc, workers=workers)
+    def rendering(data, output, *, generated_utc=None, workers=None, draw=None, predicted=None):  # type: ignore[no-untyped-def]
+        drawn_on.append((workers, draw is not None and predicted is not None))
+        return real_render(
+            data, output, generated_utc=generated_utc, workers=workers, draw=draw, predicted=predicted
+        )
 
     monkeypatch.setattr(assembly, "consolidate", spying)
     monkeypatch.setattr(render_module, "render_report", rendering)
     assert run_dry(session) == 0
-    # the report's figures not drawn ahead are drawn on both cores: the analyses are done by then
-    assert drawn_on == [min(2, os.cpu_count() or 1)]
+    # the report's figures not drawn ahead are drawn on both cores, by the analysis workers (done by then)
+    assert drawn_on == [(min(2, os.cpu_count() or 1), (os.cpu_count() or 1) >= 2)]
     assert len(calls) == 1
     drafted, total = calls[0]
     # every trial and calibration unit was merged ahead; only the last analyses were left for the end

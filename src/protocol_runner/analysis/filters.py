@@ -14,16 +14,14 @@ order doubles; the -3 dB point of one pass becomes the -6 dB point).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal
 
 import numpy as np
 import numpy.typing as npt
 from scipy import signal
 
+from protocol_runner.analysis.processing_settings import FILTER_KINDS as FILTER_KINDS
+from protocol_runner.analysis.processing_settings import FilterKind as FilterKind
 from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal
-
-FilterKind = Literal["butterworth", "chebyshev"]
-FILTER_KINDS: tuple[str, ...] = ("butterworth", "chebyshev")
 
 
 def design_lowpass(

@@ -9,19 +9,20 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import h5py
 import numpy as np
 
-from ..analysis.bouc_wen_fit import LoopEnergy
-from ..analysis.element_fit import ElementFit
-from ..analysis.pipeline import ProcessingSettings, Recording
-from ..analysis.service import BoucWenResult, ConfigurationAnalysis
-from ..models.bouc_wen import BoucWenFit
-from ..models.bouc_wen.backbone import Backbone, FixedBackbone
 from .h5util import SIGNAL, put_attrs
 from .paths import CONFIGURATIONS, FITS, PROCESSED, TRIALS, put_dataset
+
+if TYPE_CHECKING:  # the session writes trial units through this module: it never loads the analysis
+    from ..analysis.bouc_wen_fit import LoopEnergy
+    from ..analysis.element_fit import ElementFit
+    from ..analysis.pipeline import ProcessingSettings, Recording
+    from ..analysis.service import BoucWenResult, ConfigurationAnalysis
+    from ..models.bouc_wen import BoucWenFit
 
 #: Writes one step's results into an open unit file.
 Fill = Callable[[h5py.File], None]
@@ -33,6 +34,8 @@ BACKBONE_GRID_POINTS = 201  # samples of an elements backbone g over the fitted 
 
 def read_recording(g: h5py.Group) -> Recording:
     """A trial's raw recording (`trials/<n>/brace_<b>`, or a joint's `joints/<joint>` in it)."""
+    from ..analysis.pipeline import Recording  # read by the processing, which has loaded it
+
     return Recording(
         time_s=g["time_s"][:],
         angle_deg=g["angle_deg"][:],
@@ -174,6 +177,8 @@ def backbone_attrs(result: BoucWenFit) -> dict[str, object]:
     """What ``g`` in torque = g(angle) + z is: ``none`` (g = 0, with the reason in ``backbone_note`` when
     one was asked for), ``polynomial`` (its coefficients) or ``elements`` (the device's elastic elements
     with their fitted parameters; ``g`` sampled on ``backbone_grid_angle_deg``)."""
+    from ..models.bouc_wen.backbone import Backbone, FixedBackbone  # written by the fit, which has loaded it
+
     bb = result.backbone
     out: dict[str, object] = {
         "backbone": "none",

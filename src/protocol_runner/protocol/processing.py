@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 from functools import reduce
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from ..analysis.pipeline import ProcessingSettings
-from ..analysis.service import BoucWenSettings
+from ..analysis.processing_settings import ProcessingSettings
 from .loaded import LoadedProtocol
+
+if TYPE_CHECKING:
+    from ..analysis.service import BoucWenSettings
 
 #: Each ProcessingSettings field the protocol sets <- where its `processing` section holds it.
 SECTION_PATHS: dict[str, tuple[str, ...]] = {
@@ -31,6 +33,8 @@ def processing_settings(loaded: LoadedProtocol) -> ProcessingSettings:
 
 def bouc_wen_settings(loaded: LoadedProtocol) -> BoucWenSettings:
     """The protocol's `fits.bouc_wen` as the analysis's settings (whether it runs is `.enabled` there)."""
+    from ..analysis.service import BoucWenSettings  # here: only the fits load the model and its solver
+
     spec = loaded.protocol.fits.bouc_wen
     return BoucWenSettings(
         starts=spec.starts,

@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import hashlib
+import importlib.metadata
 import importlib.util
 import json
 from pathlib import Path
@@ -45,10 +46,10 @@ def cache_dir_of(archive_path: str | Path) -> Path:
 
 @functools.cache
 def _code_identity() -> bytes:
-    """The figure code and the library that draws: a change to either invalidates every stored figure."""
-    import matplotlib
-
-    h = hashlib.sha256(f"{__version__} matplotlib {matplotlib.__version__}".encode())
+    """The figure code and the library that draws: a change to either invalidates every stored figure.
+    (The library's version from its installed metadata: a process that only assembles the report, its
+    figures drawn by others, never imports matplotlib.)"""
+    h = hashlib.sha256(f"{__version__} matplotlib {_matplotlib_version()}".encode())
     for module in FIGURE_CODE:
         spec = importlib.util.find_spec(module)
         origin = spec.origin if spec is not None else None
@@ -57,6 +58,15 @@ def _code_identity() -> bytes:
         except OSError:
             h.update(module.encode())
     return h.digest()
+
+
+def _matplotlib_version() -> str:
+    try:
+        return importlib.metadata.version("matplotlib")
+    except importlib.metadata.PackageNotFoundError:  # not installed as a distribution: ask the module
+        import matplotlib
+
+        return str(matplotlib.__version__)
 
 
 def _feed(h: hashlib._Hash, value: object) -> None:

@@ -9,17 +9,16 @@ trials); the archive's reference datasets (§5.6, Figure 38); the fitted elastic
 loops' midline as in §6.1.5 (Figures 52-53) and the Bouc-Wen model against the data as in §6.2.4
 (Figures 57-58).
 
-`render_figures(data)` draws them all, optionally on worker processes (`workers`), and returns a
-`FigureSet` mapping figure ids (used as HTML element ids) to data URIs.
+Which figures there are, and `render_figures(data)`, which has them all drawn and returns a `FigureSet`
+mapping figure ids (used as HTML element ids) to data URIs, are in `figure_plan` (no matplotlib); here each
+kind of figure is drawn (`DRAW`), by this process or by processes forked from it (`draw_here`).
 """
 
 from __future__ import annotations
 
 import functools
 import math
-import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -37,30 +36,22 @@ from protocol_runner.report.canvas import (
     style,
     to_data_uri,
 )
-from protocol_runner.report.figure_cache import cache_dir_of, lookup
+from protocol_runner.report.figure_plan import Drawn, assemble_figures, configuration_jobs, figure_jobs
+from protocol_runner.report.figure_plan import FigureDrawer as FigureDrawer
+from protocol_runner.report.figure_plan import FigureSet as FigureSet
+from protocol_runner.report.figure_plan import default_workers as default_workers
+from protocol_runner.report.figure_plan import distinct_comparisons as distinct_comparisons
+from protocol_runner.report.figure_plan import figure_ids as figure_ids
+from protocol_runner.report.figure_plan import model_comparisons as model_comparisons
+from protocol_runner.report.figure_plan import slug as slug
 from protocol_runner.report.figures_compare import (
     comparison_overlay_figure,
-    configurations_of,
     element_fit_figure,
     energy_bars_figure,
-    fitted_elements_differ,
     reference_figure,
 )
-from protocol_runner.report.model import CalibrationCheck, Comparison, Configuration, ReportData
+from protocol_runner.report.model import CalibrationCheck, Configuration, ReportData
 from protocol_runner.report.parallel import map_in_processes
-
-
-@dataclass(frozen=True)
-class FigureSet:
-    """Figure id -> data URI, plus ids whose figure could not be drawn (with the reason)."""
-
-    images: dict[str, str] = field(default_factory=dict)
-    missing: dict[str, str] = field(default_factory=dict)
-
-    def get(self, figure_id: str) -> str | None:
-        """The data URI of `figure_id`, or None."""
-        return self.images.get(figure_id)
-
 
 # ------------------------------------------------------------------------------------ per configuration
 
@@ -182,45 +173,27 @@ def calibration_figure(set_name: str, checks: Sequence[CalibrationCheck]) -> str
 
 # ---------------------------------------------------------------------------------------------- driver
 
-
-def figure_ids(data: ReportData) -> list[str]:
-    """Ids of every figure the report shows for `data`, in document order."""
-    return [task_id for task_id, _ in _tasks(data)]
+DRAW: dict[str, Callable[..., str]] = {
+    "calibration": calibration_figure,
+    "hysteresis": hysteresis_figure,
+    "time": time_series_figure,
+    "energy": energy_cycles_figure,
+    "boucwen": bouc_wen_figure,
+    "comparison_overlay": comparison_overlay_figure,
+    "energy_bars": energy_bars_figure,
+    "reference": reference_figure,
+    "element_fit": element_fit_figure,
+}
+"""The drawing function of each kind of figure (`figure_plan.figure_jobs`)."""
 
 
 def _tasks(data: ReportData) -> list[tuple[str, Callable[[], str]]]:
-    tasks: list[tuple[str, Callable[[], str]]] = []
-    for set_name in sorted({c.set_name for c in data.calibration}):
-        checks = [c for c in data.calibration if c.set_name == set_name]
-        tasks.append((f"fig-calibration-{slug(set_name)}", _bind(calibration_figure, set_name, checks)))
-    for cfg in data.configurations:
-        tasks.extend(configuration_tasks(cfg))
-    for comp in distinct_comparisons(data):
-        tasks.append(
-            (f"fig-comparison-{slug(comp.name)}-overlay", _bind(comparison_overlay_figure, data, comp))
-        )
-        tasks.append((f"fig-comparison-{slug(comp.name)}-energy", _bind(energy_bars_figure, data, comp)))
-    if data.references:
-        tasks.append(("fig-reference", _bind(reference_figure, data)))
-    for comp in model_comparisons(data):
-        tasks.append((f"fig-elements-{slug(comp.name)}", _bind(element_fit_figure, data, comp)))
-    return tasks
+    return [(figure_id, _bind(DRAW[kind], *args)) for figure_id, kind, args in figure_jobs(data)]
 
 
 def configuration_tasks(cfg: Configuration) -> list[tuple[str, Callable[[], str]]]:
-    """The figures of one configuration (none before its first trial); they read only the fields listed
-    in `figure_cache.FIGURE_FIELDS`."""
-    if not cfg.trials:
-        return []
-    base = f"fig-config-{cfg.key}"
-    tasks = [
-        (f"{base}-hysteresis", _bind(hysteresis_figure, cfg)),
-        (f"{base}-time", _bind(time_series_figure, cfg)),
-        (f"{base}-energy", _bind(energy_cycles_figure, cfg)),
-    ]
-    if cfg.bouc_wen is not None:
-        tasks.append((f"{base}-boucwen", _bind(bouc_wen_figure, cfg)))
-    return tasks
+    """The figures of one configuration (`figure_plan.configuration_jobs`), ready to draw."""
+    return [(figure_id, _bind(DRAW[kind], *args)) for figure_id, kind, args in configuration_jobs(cfg)]
 
 
 def draw_configuration(cfg: Configuration) -> dict[str, str] | None:
@@ -234,38 +207,37 @@ def draw_configuration(cfg: Configuration) -> dict[str, str] | None:
     return images
 
 
-def distinct_comparisons(data: ReportData) -> list[Comparison]:
-    """Declared comparisons drawn as overlays and energy figures: those with a configuration present,
-    each set of configurations once (a protocol may list the same keys under two sections)."""
-    seen: set[tuple[int, ...]] = set()
-    out = []
-    for comp in data.comparisons:
-        key = tuple(sorted(comp.configurations))
-        if key in seen or not configurations_of(data, comp.configurations):
-            continue
-        seen.add(key)
-        out.append(comp)
-    return out
-
-
-def model_comparisons(data: ReportData) -> list[Comparison]:
-    """The comparisons that change a fitted elastic element (`figures_compare.fitted_elements_differ`):
-    the elastic model against the midline for each (as thesis Figures 52-53)."""
-    return [
-        comp
-        for comp in distinct_comparisons(data)
-        if fitted_elements_differ(configurations_of(data, comp.configurations))
-    ]
-
-
-def slug(text: str) -> str:
-    """An HTML-id-safe version of `text`."""
-    out = "".join(ch if ch.isalnum() else "-" for ch in text.lower()).strip("-")
-    return out or "x"
-
-
 def _bind(fn: Callable[..., str], *args: object) -> Callable[[], str]:
     return functools.partial(fn, *args)
+
+
+def draw_figures(data: ReportData, task_ids: list[str]) -> list[Drawn]:
+    """The figures `task_ids` of `data`, in order (run by a process that draws for another)."""
+    tasks = dict(_tasks(data))
+    return [_safe(task_id, tasks[task_id]) for task_id in task_ids]
+
+
+def render_figures(
+    data: ReportData, workers: int | None = None, *, draw: FigureDrawer | None = None
+) -> FigureSet:
+    """Draw every figure of the report (those drawn ahead for this data are taken from the figure cache).
+    `draw` draws them elsewhere; else `workers` > 1 draws on that many forked processes."""
+    return assemble_figures(data, workers, draw=draw, here=draw_here)
+
+
+def draw_here(data: ReportData, task_ids: list[str], workers: int) -> list[Drawn]:
+    """The figures `task_ids` of `data` drawn by this process, or with `workers` > 1 (and enough figures)
+    on that many processes forked from it."""
+    results: list[Drawn] | None = None
+    if workers > 1 and len(task_ids) >= 8:
+        warm_up()
+        # small chunks keep both workers busy: two-panel figures cost about twice a one-panel one
+        results = map_in_processes(
+            _run_one, task_ids, workers, initializer=_init_worker, initargs=(data,), chunksize=4
+        )
+    if results is None:
+        results = draw_figures(data, task_ids)
+    return results
 
 
 _WORKER_TASKS: dict[str, Callable[[], str]] = {}
@@ -276,62 +248,15 @@ def _init_worker(data: ReportData) -> None:
     _WORKER_TASKS.update(_tasks(data))
 
 
-def _run_one(task_id: str) -> tuple[str, str | None, str | None]:
+def _run_one(task_id: str) -> Drawn:
     return _safe(task_id, _WORKER_TASKS[task_id])
 
 
-def _safe(task_id: str, task: Callable[[], str]) -> tuple[str, str | None, str | None]:
+def _safe(task_id: str, task: Callable[[], str]) -> Drawn:
     try:
         return task_id, task(), None
     except (ValueError, TypeError, IndexError, FloatingPointError) as exc:  # bad data never kills the report
         return task_id, None, f"{type(exc).__name__}: {exc}"
-
-
-def _cached(data: ReportData) -> dict[str, str]:
-    """The configuration figures drawn ahead (figure_cache.py) from exactly the data of `data`."""
-    if not data.session.archive_path:
-        return {}
-    cache_dir = cache_dir_of(data.session.archive_path)
-    if not cache_dir.is_dir():
-        return {}
-    images: dict[str, str] = {}
-    for cfg in data.configurations:
-        images.update(lookup(cache_dir, cfg) or {})
-    return images
-
-
-def render_figures(data: ReportData, workers: int | None = None) -> FigureSet:
-    """Draw every figure of the report (those drawn ahead for this data are taken from the figure cache).
-    `workers` > 1 draws on that many forked processes."""
-    cached = _cached(data)
-    every = _tasks(data)
-    tasks = [(task_id, task) for task_id, task in every if task_id not in cached]
-    if workers is None:
-        workers = default_workers(len(tasks))
-    results: list[tuple[str, str | None, str | None]] | None = None
-    if workers > 1 and len(tasks) >= 8:
-        warm_up()
-        # small chunks keep both workers busy: two-panel figures cost about twice a one-panel one
-        results = map_in_processes(
-            _run_one,
-            [task_id for task_id, _ in tasks],
-            workers,
-            initializer=_init_worker,
-            initargs=(data,),
-            chunksize=4,
-        )
-    if results is None:
-        results = [_safe(task_id, task) for task_id, task in tasks]
-    drawn = {task_id: (uri, error) for task_id, uri, error in results}
-    images: dict[str, str] = {}
-    missing: dict[str, str] = {}
-    for task_id, _ in every:  # document order
-        uri, error = (cached[task_id], None) if task_id in cached else drawn[task_id]
-        if uri is not None:
-            images[task_id] = uri
-        else:
-            missing[task_id] = error or "not drawn"
-    return FigureSet(images=images, missing=missing)
 
 
 @functools.cache
@@ -345,10 +270,3 @@ def warm_up() -> None:
             style(ax, ANGLE_LABEL, TORQUE_LABEL, "warm-up 0123456789")
             legend(ax)
         to_data_uri(fig)
-
-
-def default_workers(n_tasks: int) -> int:
-    """Worker processes for `n_tasks` figures: 2 when there are enough figures and cores, else 1."""
-    if n_tasks < 40:
-        return 1
-    return max(1, min(2, os.cpu_count() or 1))

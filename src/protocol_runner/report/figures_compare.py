@@ -25,13 +25,11 @@ from protocol_runner.report.canvas import (
     to_data_uri,
 )
 from protocol_runner.report.comparison_values import comparison_axis
+from protocol_runner.report.figure_plan import configurations_of as configurations_of
+from protocol_runner.report.figure_plan import fitted_elements_differ as fitted_elements_differ
 from protocol_runner.report.model import Comparison, Configuration, ReportData
 
 # ----------------------------------------------------------------------------------------- comparisons
-
-
-def configurations_of(data: ReportData, keys: Sequence[int]) -> list[Configuration]:
-    return [c for k in keys if (c := data.configuration(k)) is not None]
 
 
 def _overlay_loops(ax: Axes, configs: Sequence[Configuration], label: Callable[[Configuration], str]) -> bool:
@@ -185,25 +183,3 @@ def element_fit_figure(data: ReportData, comparison: Comparison) -> str:
             color="#444444",
         )
     return finish(fig, ax, ANGLE_LABEL, TORQUE_LABEL, f"Elastic model vs midline: {comparison.title}")
-
-
-def fitted_elements_differ(configs: Sequence[Configuration]) -> bool:
-    """True when at least one configuration has a drawable element fit and the fitted elements' declared
-    parameters (the device as configured) differ between the configurations: the comparison changes
-    the elastic model, so drawing the fits side by side shows the model following the change."""
-    fitted: list[str] = []
-    for cfg in configs:
-        if cfg.element_fit is not None and cfg.element_fit.drawable:
-            names = [e.name for e in cfg.element_fit.elements]
-            names += [key.split(".", 1)[0] for key, _ in cfg.element_fit.parameters]
-            fitted.extend(n for n in names if n not in fitted)
-    if not fitted:
-        return False
-    for name in fitted:
-        params = set()
-        for cfg in configs:
-            element = cfg.settings.element(name)
-            params.add(repr(element.params) if element is not None else "")
-        if len(params) > 1:
-            return True
-    return False

@@ -11,16 +11,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
-from matplotlib.axes import Axes
-from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.figure import Figure
 
-from .canvas import ANGLE_LABEL, COLORS, DPI, ENERGY_LABEL, TORQUE_LABEL, style, to_data_uri
 from .h5read import decimate_for_plot, float_ds
 from .model import energy_mean_std_j
+
+if TYPE_CHECKING:  # drawn only for a multi-joint archive: a single-joint report loads no matplotlib here
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 
 @dataclass(frozen=True)
@@ -75,6 +76,11 @@ def _strs(value: object) -> tuple[str, ...]:
 
 
 def _figure(n_panels: int) -> tuple[Figure, list[Axes]]:
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from .canvas import DPI
+
     fig = Figure(figsize=(3.0 * n_panels + 0.4, 3.0), dpi=DPI)
     FigureCanvasAgg(fig)
     axes = [
@@ -84,6 +90,8 @@ def _figure(n_panels: int) -> tuple[Figure, list[Axes]]:
 
 
 def _loops(cfg: h5py.Group, joints: tuple[str, ...]) -> str:
+    from .canvas import ANGLE_LABEL, COLORS, TORQUE_LABEL, style, to_data_uri
+
     fig, axes = _figure(len(joints))
     for ax, joint in zip(axes, joints, strict=True):
         trials = cfg.get(f"joints/{joint}/trials")
@@ -99,6 +107,8 @@ def _loops(cfg: h5py.Group, joints: tuple[str, ...]) -> str:
 
 
 def _phase(cfg: h5py.Group, joints: tuple[str, ...]) -> str:
+    from .canvas import COLORS, style, to_data_uri
+
     fig, axes = _figure(1)
     ax = axes[0]
     x_joint, y_joint = joints[0], joints[1] if len(joints) > 1 else joints[0]
@@ -116,6 +126,8 @@ def _phase(cfg: h5py.Group, joints: tuple[str, ...]) -> str:
 
 
 def _energy_bars(configs: list[JointConfiguration], joints: tuple[str, ...]) -> str:
+    from .canvas import COLORS, ENERGY_LABEL, style, to_data_uri
+
     fig, axes = _figure(1)
     ax = axes[0]
     names = [*joints, "total"]

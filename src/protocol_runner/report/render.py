@@ -5,7 +5,7 @@ in-page anchors only; it prints (`@media print`) and reads offline. Regenerating
 gives the same bytes except the generation time, which is one element (`id="generated-utc"`).
 
 Public API:
-    render_report(data, output, *, generated_utc=None, workers=None) -> Path
+    render_report(data, output, *, generated_utc=None, workers=None, draw=None, predicted=None) -> Path
     generate_report(archive_path, output=None, *, reference=None, workers=None) -> Path
 """
 
@@ -13,9 +13,11 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import jinja2
 from markupsafe import Markup, escape
@@ -24,11 +26,13 @@ from protocol_runner import __version__
 from protocol_runner.report.citations import declared_citations
 from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.differences import adjacent_differences, declared_repeatability
-from protocol_runner.report.figures import (
+from protocol_runner.report.figure_plan import (
+    Drawn,
+    FigureDrawer,
     FigureSet,
+    assemble_figures,
     distinct_comparisons,
     model_comparisons,
-    render_figures,
     slug,
 )
 from protocol_runner.report.findings import TUNED_LABEL, evaluate_expectations
@@ -38,8 +42,10 @@ from protocol_runner.report.limits_text import limits_text
 from protocol_runner.report.load import load_reference_dataset, load_report_data
 from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Comparison, Configuration, ReportData
 from protocol_runner.report.multi_joint import joints_section
-from protocol_runner.report.predictions import predictions
 from protocol_runner.report.settings_view import format_quantity
+
+if TYPE_CHECKING:
+    from protocol_runner.report.predictions import Prediction
 
 TEMPLATE = "report.html.j2"
 
@@ -105,28 +111,51 @@ def render_report(
     *,
     generated_utc: str | None = None,
     workers: int | None = None,
+    draw: FigureDrawer | None = None,
+    predicted: Callable[[], tuple[Prediction, ...]] | None = None,
 ) -> Path:
-    """Write the report of `data` to `output` atomically (temporary file + rename); return `output`."""
-    html = render_html(data, generated_utc=generated_utc, workers=workers)
+    """Write the report of `data` to `output` atomically (temporary file + rename); return `output`.
+
+    `draw` draws the figures not drawn ahead elsewhere and `predicted` gives the model predictions computed
+    elsewhere (both: the session's analysis workers, `session/reporting.py`); by default they are made here.
+    """
+    html = render_html(data, generated_utc=generated_utc, workers=workers, draw=draw, predicted=predicted)
     output = checked_output(output, "Report", "report.html")
     write_atomically(output, html)
     return output
 
 
-def render_html(data: ReportData, *, generated_utc: str | None = None, workers: int | None = None) -> str:
-    """The report of `data` as an HTML string."""
-    figures = render_figures(data, workers=workers)
+def render_html(
+    data: ReportData,
+    *,
+    generated_utc: str | None = None,
+    workers: int | None = None,
+    draw: FigureDrawer | None = None,
+    predicted: Callable[[], tuple[Prediction, ...]] | None = None,
+) -> str:
+    """The report of `data` as an HTML string (`draw`, `predicted`: as `render_report`)."""
+    figures = assemble_figures(data, workers, draw=draw, here=_draw_here)
     env = _environment()
     template = env.get_template(TEMPLATE)
     if generated_utc is None:
         generated_utc = datetime.now(UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
-    context = _context(data, figures, generated_utc)
+    if predicted is None:
+        from protocol_runner.report.predictions import predictions  # the compiled model: only run here
+
+        predicted = functools.partial(predictions, Path(data.session.archive_path), data.protocol_text)
+    context = _context(data, figures, generated_utc, predicted())
     joints = joints_section(Path(data.session.archive_path)) if data.session.archive_path else None
     context["joints_section"] = joints
     if joints is not None:  # a multi-joint archive: the "Joints" section after the configurations
         at = [s for s, _ in SECTIONS].index("comparisons")
         context["sections"] = (*SECTIONS[:at], ("joints", "Joints"), *SECTIONS[at:])
     return template.render(**context)
+
+
+def _draw_here(data: ReportData, task_ids: list[str], workers: int) -> list[Drawn]:
+    from protocol_runner.report.figures import draw_here  # matplotlib: only where the figures are drawn
+
+    return draw_here(data, task_ids, workers)
 
 
 def warm_up() -> None:
@@ -186,7 +215,9 @@ def factor_names(data: ReportData) -> list[str]:
     return names
 
 
-def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[str, object]:
+def _context(
+    data: ReportData, figures: FigureSet, generated_utc: str, predicted: tuple[Prediction, ...]
+) -> dict[str, object]:
     calibration_sets = []
     for set_name in sorted({c.set_name for c in data.calibration}):
         calibration_sets.append(
@@ -207,7 +238,7 @@ def _context(data: ReportData, figures: FigureSet, generated_utc: str) -> dict[s
         "comparisons": overlay_comparisons,
         "model_comparisons": model_comparisons(data),
         "fitted": [c for c in data.configurations if c.bouc_wen is not None],
-        "predictions": predictions(Path(data.session.archive_path), data.protocol_text),
+        "predictions": predicted,
         "element_fitted": [c for c in data.configurations if c.element_fit is not None],
         "factor_names": factor_names(data),
         "quantity": format_quantity,

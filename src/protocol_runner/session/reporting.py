@@ -1,54 +1,76 @@
-"""Report triggering: the HTML report rendered from the session's archive at the end of a session."""
+"""Report triggering: the HTML report rendered from the session's archive at the end of a session.
+
+When the analysis workers are running (`workers.AnalysisPool`), the figures not drawn ahead and the model
+predictions are made there, at the end: the workers have matplotlib, the figure code and the compiled model
+loaded and warm (`worker_start.PRELOADED`, and the figures they drew ahead), and are idle once the last
+analyses are done. The session process then only reads, assembles and writes the HTML.
+"""
 
 from __future__ import annotations
 
 import contextlib
 import os
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
+from concurrent.futures import Future
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from ..archive.diskfull import DiskFull, is_disk_full, resume_hint
 
 if TYPE_CHECKING:
-    from ..report.model import Configuration
+    from ..report.figure_plan import Drawn
+    from ..report.model import Configuration, ReportData
+    from ..report.predictions import Prediction
 
 REPORT_NAME = "report.html"
+
+Call = Callable[..., "Future[Any] | None"]
+"""Runs `fn(*args)` on an analysis worker (`AnalysisPool.call`); None when the workers are not running."""
 
 _WARMING: list[threading.Thread] = []
 
 
-def start_warm_up() -> None:
-    """Load what the report needs (jinja2, matplotlib and the report's modules, the figure canvases and
-    fonts, the compiled model simulation) on a background thread, started while the session waits for its
+def start_warm_up(*, drawing: bool = True) -> None:
+    """Load what the report needs (jinja2 and the report's modules, the compiled template; with `drawing`
+    also the figure canvases and fonts and the compiled model simulation, which the report otherwise has
+    drawn and run by the analysis workers) on a background thread, started while the session waits for its
     last analyses: the report at the very end then only reads and assembles. Once per process;
     `render_report` waits for it (the canvases are not shared while it runs). Any failure is left to the
     report, which loads what it needs itself."""
     if not _WARMING:
-        thread = threading.Thread(target=_warm_up, name="report-warm-up", daemon=True)
+        thread = threading.Thread(target=_warm_up, args=(drawing,), name="report-warm-up", daemon=True)
         _WARMING.append(thread)
         thread.start()
 
 
-def _warm_up() -> None:
+def _warm_up(drawing: bool) -> None:
     with contextlib.suppress(Exception):
-        from ..report import render  # jinja2, matplotlib, the figures
-        from ..report.figures import warm_up as figures
-        from ..report.predictions import warm_up as predictions
+        from ..report import render  # jinja2, the report's modules (no matplotlib: figure_plan.py)
 
         render.warm_up()
-        figures()
-        predictions()
+        if drawing:
+            from ..report.figures import warm_up as figures
+            from ..report.predictions import warm_up as predictions
+
+            figures()
+            predictions()
 
 
-def render_report(session_dir: Path, archive: Path, known: Mapping[str, Configuration] | None = None) -> Path:
+def render_report(
+    session_dir: Path,
+    archive: Path,
+    known: Mapping[str, Configuration] | None = None,
+    call: Call | None = None,
+) -> Path:
     """Render the session's report next to its archive (`known`: configurations read ahead from exactly
-    the groups the archive holds, `session/read_ahead.py`); a full disk is a `DiskFull` with the resume hint."""
+    the groups the archive holds, `session/read_ahead.py`; `call`: runs work on the analysis workers, which
+    then draw the figures and compute the predictions); a full disk is a `DiskFull` with the resume hint."""
     for thread in _WARMING:  # first: the report's modules are imported by one thread at a time
         thread.join()
     from ..report.load import load_report_data
-    from ..report.render import render_report as render  # here: only the report step needs jinja, matplotlib
+    from ..report.render import render_report as render  # here: only the report step needs jinja
     from ..report.verdicts import record_verdicts
 
     try:
@@ -57,10 +79,72 @@ def render_report(session_dir: Path, archive: Path, known: Mapping[str, Configur
         # consolidation has just checked every unit's sha256, covering every byte copied into the archive
         data = load_report_data(archive, verify=False, known=known)
         record_verdicts(archive, data)  # /expectations: the declared expectations and their verdicts
+        aside = _OnWorkers(call, archive, data) if call is not None else None
         # the analyses are done and the other core idle: the figures not drawn ahead on two processes
-        return render(data, session_dir / REPORT_NAME, workers=min(2, os.cpu_count() or 1))
+        return render(
+            data,
+            session_dir / REPORT_NAME,
+            workers=min(2, os.cpu_count() or 1),
+            draw=aside.draw if aside is not None else None,
+            predicted=aside.predicted if aside is not None else None,
+        )
     except OSError as exc:
         if not is_disk_full(exc):
             raise
         where = f"{session_dir / REPORT_NAME} (the archive is complete)"
         raise DiskFull(f"disk full while writing {where}. {resume_hint(session_dir)}") from None
+
+
+class _OnWorkers:
+    """The report's figures and predictions made by the analysis workers; anything they cannot make (the
+    workers are gone) is made by the report itself, as without workers."""
+
+    CHUNKS = 4  # figure jobs: two workers, figures of unequal cost
+
+    def __init__(self, call: Call, archive: Path, data: ReportData) -> None:
+        self.call = call
+        self.archive = archive
+        self.data = data
+        # first: computed while the figures are handed out (the archive is only read from now on)
+        self.predictions = _submit(call, _predictions, archive, data.protocol_text)
+
+    def draw(self, data: ReportData, task_ids: list[str]) -> list[Drawn] | None:
+        chunks = [task_ids[i :: self.CHUNKS] for i in range(self.CHUNKS)]
+        futures = [_submit(self.call, _draw, data, chunk) for chunk in chunks if chunk]
+        drawn: list[Drawn] = []
+        for future in futures:
+            if future is None:
+                return None
+            try:
+                drawn.extend(future.result())
+            except BrokenProcessPool:
+                return None
+        return drawn
+
+    def predicted(self) -> tuple[Prediction, ...]:
+        if self.predictions is not None:
+            with contextlib.suppress(BrokenProcessPool):
+                return self.predictions.result()
+        return _predictions(self.archive, self.data.protocol_text)
+
+
+# what the workers run, named here so that the session never imports the drawing code or the model to name it
+
+
+def _draw(data: ReportData, task_ids: list[str]) -> list[Drawn]:
+    from ..report.figures import draw_figures
+
+    return draw_figures(data, task_ids)
+
+
+def _predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
+    from ..report.predictions import predictions
+
+    return predictions(archive, protocol_text)
+
+
+def _submit(call: Call, fn: Callable[..., Any], *args: object) -> Future[Any] | None:
+    try:
+        return call(fn, *args)
+    except (BrokenProcessPool, RuntimeError):  # the workers are gone or shut down
+        return None

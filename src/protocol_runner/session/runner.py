@@ -142,7 +142,8 @@ class Runner:
                     self.pool.submit(step, ready=self.writer.ticket())
                     continue
                 if step.kind in ("compare", "report"):
-                    start_warm_up()  # the report's imports and caches, while the last analyses finish
+                    # the report's imports and caches, while the last analyses finish (the workers draw)
+                    start_warm_up(drawing=not self.pool.running)
                     self.writer.flush()  # what the analyses read is on disk
                     self._await_analyses(progress)  # these read the analyses' units
                     if self.stop():  # a Ctrl-C while the last analyses ran: stop here, as announced
@@ -280,7 +281,8 @@ class Runner:
         self.writer.flush()
         self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped{robot}")
         archive = self.consolidate("complete")
-        report = render_report(self.dir, archive, self.read_ahead.known())
+        call = self.pool.call if self.pool.running else None  # the workers draw the figures left
+        report = render_report(self.dir, archive, self.read_ahead.known(), call)
         if self.plan.steps and self.plan.steps[-1].kind == "report":
             progress.step_finished(self.plan.steps[-1], "archive and report written")
         progress.info(f"archive: {archive}")

@@ -17,6 +17,7 @@ from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor
 from concurrent.futures import wait as futures_wait
 from pathlib import Path
+from typing import TypeVar
 
 from ..archive.units import UnitRecord, write_unit
 from ..protocol.loader import LoadedProtocol
@@ -35,6 +36,7 @@ from .worker_start import worker_init as worker_init
 BACKGROUND_KINDS = frozenset({"process", "fit"})
 
 Results = list[tuple[UnitRecord | None, str]]
+T = TypeVar("T")
 
 
 def run_analysis_steps(
@@ -121,6 +123,19 @@ class AnalysisPool:
                     self.journal.unit_done(record)
                 finished(step, summary)
         self._pending = still
+
+    @property
+    def running(self) -> bool:
+        """Whether the workers are started (they have the report's figures and model loaded, `PRELOADED`)."""
+        return self._pool is not None
+
+    def call(self, fn: Callable[..., T], /, *args: object) -> Future[T] | None:
+        """`fn(*args)` on a worker, if the workers are started (None otherwise: the caller runs it itself).
+        For work outside the steps (the report's figures at the end); not journaled."""
+        if self._pool is None:
+            return None
+        with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
+            return self._pool.submit(fn, *args)
 
     @property
     def busy(self) -> bool:

@@ -12,7 +12,7 @@ from typing import Protocol
 
 import h5py
 
-from ..analysis.pipeline import ProcessingSettings
+from ..analysis.processing_settings import ProcessingSettings
 from ..archive.results import Fill
 from ..archive.units import open_unit
 from ..errors import UserError

@@ -28,8 +28,6 @@ import h5py
 import numpy as np
 import numpy.typing as npt
 
-from ..analysis.pipeline import TrialPair
-from ..analysis.service import analyse_joints, fit_stored_loops
 from ..archive.attrs import JOINT
 from ..archive.attrs import JOINTS as JOINTS_ATTR
 from ..archive.h5util import put, put_attrs
@@ -125,6 +123,9 @@ def _trial_fill(
 def run_process(step: ProcessStep, ctx: StepContext) -> StepOutcome:
     """Each joint's trials through `analysis.service.analyse_joints` (with that joint's device), written
     under `joints/<joint>/`, and the leg's total energy per cycle."""
+    from ..analysis.pipeline import TrialPair  # the processing: loaded where it runs (an analysis worker)
+    from ..analysis.service import analyse_joints
+
     name = configuration_name(step.configuration)
     cfg_step = ctx.trial_step(step.configuration)
     joints = cfg_step.joints
@@ -177,6 +178,8 @@ def _devices(ctx: StepContext, cfg_step: TrialStep) -> dict[str, Sequence[object
 def run_fit(step: FitStep, ctx: StepContext) -> StepOutcome:
     """The Bouc-Wen fit per joint (`analysis.service.fit_stored_loops` on that joint's stored processed
     loops) for every driven joint that carries device elements; written under `joints/<joint>/fits/bouc_wen`."""
+    from ..analysis.service import fit_stored_loops  # the fit: loaded where it runs (an analysis worker)
+
     if "bouc_wen" not in step.models:
         return StepOutcome(None, "no Bouc-Wen fit asked")
     cfg_step = ctx.trial_step(step.configuration)

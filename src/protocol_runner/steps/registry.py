@@ -6,29 +6,51 @@ The report step is the runner's own (it consolidates the archive first): see ses
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from typing import Any
 
-from . import calibration_check, checklist, compare, fit, multi_calibration, multi_trial, process, trial
 from .context import StepContext, StepOutcome
 
 StepFunction = Callable[[Any, StepContext], StepOutcome]
 
 
-def _by_joints(single: StepFunction, several: StepFunction) -> StepFunction:
+#: Step kind -> the function that runs it ("module.function" of this package) ...
+ONE_JOINT = {
+    "calibration_check": "calibration_check.run",
+    "operator_checklist": "checklist.run",
+    "trial": "trial.run",
+    "process": "process.run",
+    "fit": "fit.run",
+    "compare": "compare.run",
+}
+#: ... and where a protocol with `joints:` drives several joints, for the kinds that differ
+SEVERAL_JOINTS = {
+    "calibration_check": "multi_calibration.run",
+    "trial": "multi_trial.run_trial",
+    "process": "multi_trial.run_process",
+    "fit": "multi_trial.run_fit",
+}
+
+
+def step_function(name: str) -> StepFunction:
+    """The function `name` ("module.function") of this package, importing its module: a step kind's module
+    is imported when a step of that kind first runs, so the session process never loads what only the
+    analysis workers run (the processing and the fits: scipy's signal, optimisation and statistics)."""
+    module, function = name.split(".")
+    found: StepFunction = getattr(importlib.import_module(f"{__package__}.{module}"), function)
+    return found
+
+
+def _by_joints(single: str, several: str) -> StepFunction:
     """One joint's step function, or the multi-joint one for a protocol with `joints:`."""
 
     def run(step: Any, ctx: StepContext) -> StepOutcome:
-        return (several if ctx.loaded.protocol.multi_joint else single)(step, ctx)
+        return step_function(several if ctx.loaded.protocol.multi_joint else single)(step, ctx)
 
     return run
 
 
 STEP_KINDS: dict[str, StepFunction] = {
-    "calibration_check": _by_joints(calibration_check.run, multi_calibration.run),
-    "operator_checklist": checklist.run,
-    "trial": _by_joints(trial.run, multi_trial.run_trial),
-    "process": _by_joints(process.run, multi_trial.run_process),
-    "fit": _by_joints(fit.run, multi_trial.run_fit),
-    "compare": compare.run,
+    kind: _by_joints(name, SEVERAL_JOINTS.get(kind, name)) for kind, name in ONE_JOINT.items()
 }

@@ -16,7 +16,6 @@ import h5py
 import numpy as np
 import numpy.typing as npt
 
-from ..analysis.filters import lowpass
 from ..analysis.scaling import ScalingResult, scale_brace_off_input
 from ..analysis.transition import command_on_input_base, transition_index
 from ..archive.attrs import ATTRIBUTES, FACTORS, STATUS, STEP_ID
@@ -126,6 +125,8 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
     # The brace-on output becomes the brace-off input. It is smoothed first (zero-phase, 4th order at
     # COMMAND_SMOOTHING_HZ): the joint's 0.2 s lag passes nothing above ~1 Hz, and the sensor noise and
     # the corners where the brace's stops bite would otherwise break the acceleration envelope.
+    from ..analysis.filters import lowpass  # scipy's signal package: loaded by the first brace-off trial
+
     nyquist = 0.5 * rig.joint.input_rate_hz
     smooth = lowpass(
         on.angle_deg,

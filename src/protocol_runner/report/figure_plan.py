@@ -1,0 +1,178 @@
+"""Which figures the report shows, and where they are drawn: light on purpose (no matplotlib), so that a
+process that only assembles the report (the session at its end, its figures drawn by the analysis workers)
+never loads the drawing code.
+
+`figure_jobs(data)` lists every figure as (id, kind, arguments), in document order; `report.figures` draws
+a job by its kind. `assemble_figures(data)` takes the figures drawn ahead from the figure cache and has the
+rest drawn: elsewhere (`draw`), or by the caller's process and processes forked from it (`here`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import TypeAlias
+
+from protocol_runner.report.figure_cache import cache_dir_of, lookup
+from protocol_runner.report.model import Comparison, Configuration, ReportData
+
+FigureJob: TypeAlias = tuple[str, str, tuple[object, ...]]
+"""A figure: its id (an HTML element id), its kind (`figures.DRAW`) and the arguments to draw it."""
+
+Drawn: TypeAlias = tuple[str, str | None, str | None]
+"""A drawn figure: its id, its data URI (None if it could not be drawn) and why not."""
+
+FigureDrawer: TypeAlias = Callable[[ReportData, list[str]], list[Drawn] | None]
+"""Draws the figures of the given ids of the data elsewhere (the session's analysis workers), in order;
+None if it could not (they are then drawn here)."""
+
+
+@dataclass(frozen=True)
+class FigureSet:
+    """Figure id -> data URI, plus ids whose figure could not be drawn (with the reason)."""
+
+    images: dict[str, str] = field(default_factory=dict)
+    missing: dict[str, str] = field(default_factory=dict)
+
+    def get(self, figure_id: str) -> str | None:
+        """The data URI of `figure_id`, or None."""
+        return self.images.get(figure_id)
+
+
+def figure_jobs(data: ReportData) -> list[FigureJob]:
+    """Every figure the report shows for `data`, in document order."""
+    jobs: list[FigureJob] = []
+    for set_name in sorted({c.set_name for c in data.calibration}):
+        checks = [c for c in data.calibration if c.set_name == set_name]
+        jobs.append((f"fig-calibration-{slug(set_name)}", "calibration", (set_name, checks)))
+    for cfg in data.configurations:
+        jobs.extend(configuration_jobs(cfg))
+    for comp in distinct_comparisons(data):
+        jobs.append((f"fig-comparison-{slug(comp.name)}-overlay", "comparison_overlay", (data, comp)))
+        jobs.append((f"fig-comparison-{slug(comp.name)}-energy", "energy_bars", (data, comp)))
+    if data.references:
+        jobs.append(("fig-reference", "reference", (data,)))
+    for comp in model_comparisons(data):
+        jobs.append((f"fig-elements-{slug(comp.name)}", "element_fit", (data, comp)))
+    return jobs
+
+
+def configuration_jobs(cfg: Configuration) -> list[FigureJob]:
+    """The figures of one configuration (none before its first trial); they read only the fields listed
+    in `figure_cache.FIGURE_FIELDS`."""
+    if not cfg.trials:
+        return []
+    base = f"fig-config-{cfg.key}"
+    kinds = ["hysteresis", "time", "energy"] + (["boucwen"] if cfg.bouc_wen is not None else [])
+    return [(f"{base}-{kind}", kind, (cfg,)) for kind in kinds]
+
+
+def figure_ids(data: ReportData) -> list[str]:
+    """Ids of every figure the report shows for `data`, in document order."""
+    return [figure_id for figure_id, _, _ in figure_jobs(data)]
+
+
+def configurations_of(data: ReportData, keys: Sequence[int]) -> list[Configuration]:
+    return [c for k in keys if (c := data.configuration(k)) is not None]
+
+
+def distinct_comparisons(data: ReportData) -> list[Comparison]:
+    """Declared comparisons drawn as overlays and energy figures: those with a configuration present,
+    each set of configurations once (a protocol may list the same keys under two sections)."""
+    seen: set[tuple[int, ...]] = set()
+    out = []
+    for comp in data.comparisons:
+        key = tuple(sorted(comp.configurations))
+        if key in seen or not configurations_of(data, comp.configurations):
+            continue
+        seen.add(key)
+        out.append(comp)
+    return out
+
+
+def model_comparisons(data: ReportData) -> list[Comparison]:
+    """The comparisons that change a fitted elastic element (`fitted_elements_differ`): the elastic model
+    against the midline for each (as thesis Figures 52-53)."""
+    return [
+        comp
+        for comp in distinct_comparisons(data)
+        if fitted_elements_differ(configurations_of(data, comp.configurations))
+    ]
+
+
+def fitted_elements_differ(configs: Sequence[Configuration]) -> bool:
+    """True when at least one configuration has a drawable element fit and the fitted elements' declared
+    parameters (the device as configured) differ between the configurations: the comparison changes
+    the elastic model, so drawing the fits side by side shows the model following the change."""
+    fitted: list[str] = []
+    for cfg in configs:
+        if cfg.element_fit is not None and cfg.element_fit.drawable:
+            names = [e.name for e in cfg.element_fit.elements]
+            names += [key.split(".", 1)[0] for key, _ in cfg.element_fit.parameters]
+            fitted.extend(n for n in names if n not in fitted)
+    if not fitted:
+        return False
+    for name in fitted:
+        params = set()
+        for cfg in configs:
+            element = cfg.settings.element(name)
+            params.add(repr(element.params) if element is not None else "")
+        if len(params) > 1:
+            return True
+    return False
+
+
+def slug(text: str) -> str:
+    """An HTML-id-safe version of `text`."""
+    out = "".join(ch if ch.isalnum() else "-" for ch in text.lower()).strip("-")
+    return out or "x"
+
+
+def _cached(data: ReportData) -> dict[str, str]:
+    """The configuration figures drawn ahead (figure_cache.py) from exactly the data of `data`."""
+    if not data.session.archive_path:
+        return {}
+    cache_dir = cache_dir_of(data.session.archive_path)
+    if not cache_dir.is_dir():
+        return {}
+    images: dict[str, str] = {}
+    for cfg in data.configurations:
+        images.update(lookup(cache_dir, cfg) or {})
+    return images
+
+
+HereDrawer: TypeAlias = Callable[[ReportData, list[str], int], list[Drawn]]
+"""Draws the figures of the given ids of the data in this process (or with workers > 1 on processes forked
+from it): `figures.draw_here`."""
+
+
+def assemble_figures(
+    data: ReportData, workers: int | None, *, draw: FigureDrawer | None, here: HereDrawer
+) -> FigureSet:
+    """Every figure of the report: those drawn ahead for this data taken from the figure cache, the rest
+    drawn by `draw` (elsewhere: the session's analysis workers, which have matplotlib loaded and warm), or
+    else by `here` with `workers` (None: `default_workers`)."""
+    cached = _cached(data)
+    every = figure_ids(data)
+    todo = [figure_id for figure_id in every if figure_id not in cached]
+    results = draw(data, todo) if draw is not None and todo else None
+    if results is None:
+        results = here(data, todo, default_workers(len(todo)) if workers is None else workers) if todo else []
+    drawn = {figure_id: (uri, error) for figure_id, uri, error in results}
+    images: dict[str, str] = {}
+    missing: dict[str, str] = {}
+    for figure_id in every:  # document order
+        uri, error = (cached[figure_id], None) if figure_id in cached else drawn[figure_id]
+        if uri is not None:
+            images[figure_id] = uri
+        else:
+            missing[figure_id] = error or "not drawn"
+    return FigureSet(images=images, missing=missing)
+
+
+def default_workers(n_tasks: int) -> int:
+    """Worker processes for `n_tasks` figures: 2 when there are enough figures and cores, else 1."""
+    if n_tasks < 40:
+        return 1
+    return max(1, min(2, os.cpu_count() or 1))
