@@ -83,11 +83,16 @@ def run(
 
 def _start_worker_server() -> None:
     """Start the analysis workers' fork server before anything heavy is imported here: it imports what the
-    workers run on the other core meanwhile (session/worker_start.py). Not on one core (no workers)."""
+    workers run on the other core meanwhile (session/worker_start.py). Not on one core (no workers).
+    Then scipy, which the session imports for its calibration checks, without its docstring notes
+    (session/scipy_docs.py)."""
     if (os.cpu_count() or 1) >= 2:
         from .session.worker_start import start_worker_server
 
         start_worker_server()
+    from .session.scipy_docs import skip_array_api_notes
+
+    skip_array_api_notes()
 
 
 def _bench(loaded: LoadedProtocol, info: SessionInfo) -> Bench:

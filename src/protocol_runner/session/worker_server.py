@@ -14,6 +14,10 @@ import sys
 import time
 from types import TracebackType
 
+from .scipy_docs import skip_array_api_notes
+
+skip_array_api_notes()  # first: the modules the server preloads next import scipy (scipy_docs.py)
+
 SESSION_PID = os.getppid()  # the server's parent: the session that started it
 ENDING_WAIT_S = 2.0
 

@@ -25,6 +25,7 @@ PRELOADED = (
     "protocol_runner.report.figures",
     "protocol_runner.report.figure_cache",
     "protocol_runner.report.load_configuration",
+    "protocol_runner.session.worker_warm",  # last: runs the workers' first calls once (worker_warm.py)
 )
 """What the workers run, imported once by the fork server (issue 20: with "spawn" every worker imported all
 of it again, about a second of CPU each)."""
