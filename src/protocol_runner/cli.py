@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from . import __version__
 from .errors import EXIT_INTERRUPTED, EXIT_INVALID_INPUT, EXIT_OK, InvalidInput, UserError
+from .process_exit import exit_now_if_safe
 from .protocol.only import KeySelection
 
 if TYPE_CHECKING:
@@ -285,5 +286,14 @@ def _cmd_plan(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def entry() -> None:
+    """The `run-protocol` command (and `python -m protocol_runner.cli`): `main` on the process's arguments,
+    then the end of the process. When nothing is left to finish, that skips the interpreter's teardown
+    (`process_exit`); otherwise it is the normal exit. Callers in their own process use `main(argv)`."""
+    code = main()
+    exit_now_if_safe(code)  # returns when a normal exit is needed
+    sys.exit(code)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    entry()
