@@ -17,6 +17,8 @@ an effect only before those scipy modules are imported, and none with a scipy th
 
 from __future__ import annotations
 
+import importlib
+import importlib.util
 import sys
 from collections.abc import Callable
 
@@ -45,10 +47,9 @@ def skip_array_api_notes() -> bool:
     there)."""
     if any(name in sys.modules for name in _DECORATED):
         return False
-    try:
-        from scipy._lib import _array_api
-    except ImportError:
+    if importlib.util.find_spec("scipy._lib._array_api") is None:  # a scipy from before the notes
         return False
+    _array_api = importlib.import_module("scipy._lib._array_api")
     if not isinstance(getattr(_array_api, "FunctionDoc", None), type) or not hasattr(
         _array_api, "xp_capabilities"
     ):
