@@ -4,11 +4,11 @@ docstring notes, computes exactly what it computes with them (issue 20)."""
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+
+from .python_child import child_stdout
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 
@@ -30,9 +30,7 @@ print(json.dumps({{"applied": applied, "again": skip_array_api_notes(), "y": y.t
 
 
 def _child(mode: str) -> dict[str, object]:
-    out = subprocess.run(
-        [sys.executable, "-c", CHILD.format(src=str(SRC)), mode], capture_output=True, text=True, check=True
-    ).stdout
+    out = child_stdout(CHILD.format(src=str(SRC)), mode)
     result: dict[str, object] = json.loads(out.strip().splitlines()[-1])
     return result
 
@@ -76,10 +74,5 @@ def test_the_session_process_and_the_analysis_workers_skip_the_notes() -> None:
 
     if not hasattr(array_api, "xp_capabilities"):
         pytest.skip("this scipy adds no array-API notes to its docstrings")
-    out = subprocess.run(
-        [sys.executable, "-c", SESSION_AND_WORKER.format(src=str(SRC))],
-        capture_output=True,
-        text=True,
-        check=True,
-    ).stdout
+    out = child_stdout(SESSION_AND_WORKER.format(src=str(SRC)))
     assert out.split() == ["_AsWritten", "_AsWritten"]

@@ -4,11 +4,11 @@ compiled and loaded, the model simulation loaded and the figure canvases built (
 from __future__ import annotations
 
 import multiprocessing
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+
+from .python_child import child_stdout
 
 SRC = Path(__file__).resolve().parents[2] / "src"
 
@@ -35,12 +35,6 @@ def test_a_new_worker_has_the_fit_kernels_and_figures_warm() -> None:
     ran the first calls, not each worker."""
     if "forkserver" not in multiprocessing.get_all_start_methods():
         pytest.skip("no fork server here: spawned workers import everything themselves")
-    out = subprocess.run(
-        [sys.executable, "-c", PROBE.format(src=str(SRC))],
-        capture_output=True,
-        text=True,
-        check=True,
-        timeout=300,
-    ).stdout.split()
+    out = child_stdout(PROBE.format(src=str(SRC))).split()
     assert int(out[0]) >= 1 and int(out[1]) >= 1
     assert out[2] == "1" and out[3] == "True"
