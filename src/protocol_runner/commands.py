@@ -101,9 +101,10 @@ def _command_line() -> bool:
     may have replaced functions the workers run, and a forked server would keep them for every later worker."""
     main = sys.modules.get("__main__")
     cli = f"{__package__}.cli"
-    return getattr(getattr(main, "__spec__", None), "name", None) == cli or (  # python -m
-        getattr(getattr(main, "entry", None), "__module__", None) == cli  # the run-protocol script
-    )
+    if getattr(getattr(main, "__spec__", None), "name", None) == cli:  # python -m
+        return True
+    # the run-protocol script: imports the command line's entry point (`entry`, or `main` in older ones)
+    return any(getattr(getattr(main, name, None), "__module__", None) == cli for name in ("entry", "main"))
 
 
 def _bench(loaded: LoadedProtocol, info: SessionInfo) -> Bench:
