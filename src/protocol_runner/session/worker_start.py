@@ -13,7 +13,8 @@ imports only the rest of `PRELOADED`. The fork is safe because, at that moment:
 
 - the session runs no thread but its main thread (`threading.active_count() == 1`, checked; else the normal
   start). The only other threads are OpenBLAS's native pool threads, which OpenBLAS stops and restarts
-  around a fork itself (pthread_atfork), as it does today when the fresh server forks its workers;
+  around a fork itself (pthread_atfork), as it does when the server forks its workers (Python 3.12, which
+  counts native threads, would warn of them: that warning is silenced for this fork);
 - it holds no session file, journal lock or HDF5 file (nothing is opened before the protocol is read), and
   has started no process (so the child inherits no multiprocessing children, pools or queues);
 - stdout and stderr have been flushed, so the child inherits empty buffers; it never flushes them and
@@ -22,7 +23,13 @@ imports only the rest of `PRELOADED`. The fork is safe because, at that moment:
 - SIGINT is blocked and ignored around the fork as around the normal start, so the child keeps it ignored
   (forkserver.main ignores it too), and the child closes its copy of the alive pipe's write end, so it still
   ends when the session and its workers have ended. A worker's parent process (for the death watch) is the
-  session either way (`multiprocessing.parent_process()` comes from the pickled process object).
+  session either way (`multiprocessing.parent_process()` comes from the pickled process object);
+- the child inherits the session's memory as it is then: its modules (and `__main__`, the command line,
+  which a worker then finds in place instead of importing it again), `sys.path` and the scipy docstring
+  patch; the `ForkServer`'s lock is free (one thread) and its fields still empty; the resource tracker is
+  started after the fork, so the server holds no copy of its pipe. Only the command line's own process
+  forks (`commands._command_line`): a program calling `run` in its own process (a test) may have replaced
+  functions the workers run, which a forked server would keep for every later worker.
 
 Private CPython 3.11/3.12 state this relies on (any other version, platform or failure: the normal start):
 `multiprocessing.forkserver._forkserver`, the module's singleton `ForkServer`, whose `_forkserver_address`
@@ -44,6 +51,7 @@ import signal
 import socket
 import sys
 import threading
+import warnings
 from typing import Any, NoReturn
 
 from .signals import sigint_blocked
@@ -160,9 +168,12 @@ def _fork_server(forkserver: Any) -> bool:
             os.chmod(address, 0o600)
         listener.listen()
         alive_r, alive_w = os.pipe()
-        sys.stdout.flush()
-        sys.stderr.flush()
-        pid = os.fork()
+        for stream in (sys.stdout, sys.stderr):
+            if stream is not None:
+                stream.flush()
+        with warnings.catch_warnings():  # 3.12 warns of OpenBLAS's threads (module docstring)
+            warnings.simplefilter("ignore", DeprecationWarning)
+            pid = os.fork()
     except Exception:
         listener.close()
         for fd in (alive_r, alive_w):
