@@ -21,7 +21,7 @@ pytestmark = pytest.mark.skipif(
 # A session's script: it registers a module that exists only in its own memory (no file could import it),
 # starts the server as a command-line session does, and asks a worker what it sees.
 SESSION = """
-import json, os, sys, threading, types
+import json, os, signal, sys, threading, time, types
 
 def probe():
     marker = sys.modules.get("_only_in_the_session")
@@ -29,7 +29,11 @@ def probe():
         server_parent = int(stat.read().rsplit(")", 1)[1].split()[1])
     with open(f"/proc/{os.getppid()}/cmdline", "rb") as cmdline:
         server_command = cmdline.read().decode()
+    with open(f"/proc/{os.getppid()}/status") as status:
+        ignored = next(int(line.split()[1], 16) for line in status if line.startswith("SigIgn:"))
     return {
+        "worker": os.getpid(),
+        "server_ignores_sigint": bool(ignored & (1 << (signal.SIGINT - 1))),
         "marker": getattr(marker, "session_pid", None),
         "server": os.getppid(),
         "server_parent": server_parent,
@@ -50,6 +54,9 @@ if __name__ == "__main__":
     start_worker_server(fork_session=True)
     with ProcessPoolExecutor(1, mp_context=worker_context(), initializer=worker_init) as pool:
         seen = pool.submit(probe).result(timeout=120)
+        if sys.argv[1] == "kill":  # the worker sleeps in a task while the test kills this session
+            print(json.dumps(dict(seen, session=os.getpid())), flush=True)
+            pool.submit(time.sleep, 600).result()
     if sys.argv[1] == "thread":
         stop.set()
     print(json.dumps(dict(seen, session=os.getpid())))
@@ -76,6 +83,39 @@ def test_the_workers_are_forked_from_a_fork_of_the_session(tmp_path: Path) -> No
     assert seen["marker"] == seen["session"]
     assert "multiprocessing.forkserver" not in str(seen["server_command"])
     assert seen["numpy_before_the_task"] is True
+    assert (
+        seen["server_ignores_sigint"] is True
+    )  # a terminal's Ctrl-C reaches it too: only the session decides
+
+
+def test_the_forked_server_and_its_workers_end_with_a_session_killed_with_sigkill(tmp_path: Path) -> None:
+    """As with a fresh server (test_worker_signals.py): the worker watches the session, and the server ends
+    once no process holds the alive pipe (it closed its own copy when it was forked)."""
+    script = tmp_path / "session.py"
+    script.write_text(SESSION)
+    with subprocess.Popen(
+        [sys.executable, str(script), "kill"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True
+    ) as proc:
+        assert proc.stdout is not None
+        seen = json.loads(proc.stdout.readline())
+        assert seen["marker"] == seen["session"]  # the forked server
+        time.sleep(0.3)  # the worker sleeps in its task
+        worker, server = int(seen["worker"]), int(seen["server"])
+        assert _running(worker) and _running(server)
+        proc.kill()
+        proc.wait(timeout=60)
+        deadline = time.monotonic() + 5
+        while _running(worker) or _running(server):
+            assert time.monotonic() < deadline, "the worker or the server outlived the killed session"
+            time.sleep(0.01)
+
+
+def _running(pid: int) -> bool:
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return False
+    return "zombie" not in next(line for line in status.splitlines() if line.startswith("State:"))
 
 
 def test_a_session_running_a_thread_starts_a_fresh_server_instead(tmp_path: Path) -> None:
