@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -105,9 +106,14 @@ def test_the_forked_server_and_its_workers_end_with_a_session_killed_with_sigkil
         proc.kill()
         proc.wait(timeout=60)
         deadline = time.monotonic() + 5
-        while _running(worker) or _running(server):
-            assert time.monotonic() < deadline, "the worker or the server outlived the killed session"
-            time.sleep(0.01)
+        try:
+            while _running(worker) or _running(server):
+                assert time.monotonic() < deadline, "the worker or the server outlived the killed session"
+                time.sleep(0.01)
+        finally:  # none left behind if they did
+            for pid in (worker, server):
+                if _running(pid):
+                    os.kill(pid, signal.SIGKILL)
 
 
 def _running(pid: int) -> bool:
