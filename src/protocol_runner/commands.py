@@ -82,17 +82,29 @@ def run(
 
 
 def _start_worker_server() -> None:
-    """Start the analysis workers' fork server before anything heavy is imported here: it imports what the
-    workers run on the other core meanwhile (session/worker_start.py). Not on one core (no workers).
-    Then scipy, which the session imports for its calibration checks, without its docstring notes
-    (session/scipy_docs.py)."""
-    if (os.cpu_count() or 1) >= 2:
-        from .session.worker_start import start_worker_server
-
-        start_worker_server()
+    """First, scipy (which the session imports for its calibration checks) without its docstring notes
+    (session/scipy_docs.py). Then the analysis workers' fork server, before this session opens anything: a
+    fork of this process once it has imported what both use, which imports the rest of what the workers run
+    on the other core meanwhile (session/worker_start.py). Not on one core (no workers)."""
     from .session.scipy_docs import skip_array_api_notes
 
     skip_array_api_notes()
+    if (os.cpu_count() or 1) >= 2:
+        from .session.worker_start import start_worker_server
+
+        start_worker_server(fork_session=_command_line())
+
+
+def _command_line() -> bool:
+    """Whether this process is the command line's (`run-protocol`, `python -m protocol_runner.cli`): only
+    then may the fork server be a fork of it. A program calling `run` in its own process (a test, a notebook)
+    may have replaced functions the workers run, and a forked server would keep them for every later worker."""
+    main = sys.modules.get("__main__")
+    cli = f"{__package__}.cli"
+    if getattr(getattr(main, "__spec__", None), "name", None) == cli:  # python -m
+        return True
+    # the run-protocol script: imports the command line's entry point (`entry`, or `main` in older ones)
+    return any(getattr(getattr(main, name, None), "__module__", None) == cli for name in ("entry", "main"))
 
 
 def _bench(loaded: LoadedProtocol, info: SessionInfo) -> Bench:
