@@ -26,9 +26,17 @@ def decimate(
         xs.append(x[::stride])
         ys.append(y[::stride])
         strides.append(stride)
+    x_all, y_all, seg = _joined(xs, ys)
+    return x_all, y_all, seg, tuple(strides)
+
+
+def _joined(
+    xs: list[FloatArray], ys: list[FloatArray]
+) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int64]]:
+    """The trials' samples concatenated, with the segment starts (one more than the trials)."""
     seg = np.zeros(len(xs) + 1, dtype=np.int64)
-    seg[1:] = np.cumsum([len(v) for v in xs])
-    return np.concatenate(xs), np.concatenate(ys), seg, tuple(strides)
+    seg[1:] = np.cumsum([v.size for v in xs])
+    return np.concatenate(xs), np.concatenate(ys), seg
 
 
 def _path_problem(
@@ -72,6 +80,5 @@ def turning_point_copy(segments: list[tuple[FloatArray, FloatArray]], max_sample
         ys.append(y[kept])
         rows.append(offset + np.flatnonzero(kept % stride == 0))
         offset += kept.size
-    seg = np.zeros(len(xs) + 1, dtype=np.int64)
-    seg[1:] = np.cumsum([v.size for v in xs])
-    return Samples(np.concatenate(xs), np.concatenate(ys), seg, np.concatenate(rows))
+    x_all, y_all, seg = _joined(xs, ys)
+    return Samples(x_all, y_all, seg, np.concatenate(rows))
