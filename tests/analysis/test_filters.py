@@ -89,3 +89,16 @@ def test_data_shorter_than_the_padding_is_rejected_clearly() -> None:
     filter_zero_phase(np.ones(pad + 1), sos)  # just long enough
     with pytest.raises(AnalysisError, match="too few for this filter"):
         filter_zero_phase(np.ones(pad), sos, name="torque_nm")
+
+
+def test_a_design_is_made_once_and_handed_out_as_a_new_array_with_the_same_bits() -> None:
+    """The designs are cached: a repeated design is bit for bit scipy's own (Butterworth sections rescaled
+    to unit DC gain), and each call gets its own writable array, so a caller that changes it changes no
+    later design."""
+    first = design_lowpass("butterworth", 4, 0.07)
+    direct = np.array(signal.butter(4, 0.07, btype="lowpass", output="sos"), dtype=np.float64)
+    direct[0, :3] /= float(np.prod(direct[:, :3].sum(axis=1) / direct[:, 3:].sum(axis=1)))
+    assert np.array_equal(first, direct)
+    first[:] = 0.0
+    again = design_lowpass("butterworth", 4, 0.07)
+    assert np.array_equal(again, direct) and again.flags.writeable and again is not first
