@@ -76,23 +76,39 @@ def run(
     publisher: Publisher = NULL_PUBLISHER
     if monitor is not None:
         publisher, operator = monitor.attach(directory, info, plan, bench, operator)
-    result = Runner(directory, info, stored, plan, bench, operator, quiet=quiet, publisher=publisher).run()
+    runner = Runner(directory, info, stored, plan, bench, operator, quiet=quiet, publisher=publisher)
+    _settle_heap()
+    result = runner.run()
     _say(f"done: {result.archive}" + (f" and {result.report}" if result.report else ""))
     return EXIT_OK
 
 
 def _start_worker_server() -> None:
-    """First, scipy (which the session imports for its calibration checks) without its docstring notes
+    """First, on the command line, the garbage collector paused for the start-up (session/heap.py); scipy
+    (which the session imports for its calibration checks) without its docstring notes
     (session/scipy_docs.py). Then the analysis workers' fork server, before this session opens anything: a
     fork of this process once it has imported what both use, which imports the rest of what the workers run
     on the other core meanwhile (session/worker_start.py). Not on one core (no workers)."""
     from .session.scipy_docs import skip_array_api_notes
 
+    command_line = _command_line()
+    if command_line:  # no collections while starting up (session/heap.py), until `_settle_heap`
+        from .session.heap import pause
+
+        pause()
     skip_array_api_notes()
     if (os.cpu_count() or 1) >= 2:
         from .session.worker_start import start_worker_server
 
-        start_worker_server(fork_session=_command_line())
+        start_worker_server(fork_session=command_line)
+
+
+def _settle_heap() -> None:
+    """Start-up is over: what is alive now stays out of later collections (session/heap.py)."""
+    from .session.heap import settle
+
+    if _command_line():
+        settle()
 
 
 def _command_line() -> bool:
@@ -152,6 +168,7 @@ def resume(
     if monitor is not None:
         publisher, operator = monitor.attach(session_dir, info, plan, bench, operator, resumed=True)
     _say(f"resuming {session_dir}: {info.protocol_name} ({info.mode}, seed {info.seed})")
+    _settle_heap()
     result = Runner(
         session_dir,
         info,

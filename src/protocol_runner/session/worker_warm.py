@@ -21,6 +21,8 @@ import contextlib
 
 import numpy as np
 
+from .heap import settle
+
 WARM_UP_SAMPLES = 120  # a short synthetic loop: enough for every stage of the fit to run once
 
 
@@ -52,3 +54,4 @@ def _fit() -> None:
 
 
 warm_up()
+settle()  # what the workers inherit stays out of their collections (session/heap.py)
