@@ -36,26 +36,6 @@ def _without_time(html: str) -> list[str]:
     return [line for line in html.splitlines() if "generated-utc" not in line]
 
 
-def test_a_configuration_read_before_a_unit_that_holds_it_is_read_again(tmp_path: Path) -> None:
-    session = tmp_path / "s"
-    assert run_dry(session) == 0
-    journal = Journal(session / "journal.jsonl")
-    fit = journal.units.pop("fit:k12")
-    journal.units["fit:k12"] = fit  # its fit journaled last
-    ahead = ArchiveDraft(session, journal)
-    ahead.update()
-    reading = ReadAhead(expand(load_protocol(find_protocol("knee_phase1.yaml")), only=ONLY), ahead)
-    reading.update()
-    assert list(reading.known()) == ["config_12"]
-    read = reading.read["config_12"]
-    reading.read["config_12"] = dataclasses.replace(read, records=read.records[:-1])  # read before its fit
-    assert reading.known() == {}
-    reading.read["config_12"] = dataclasses.replace(read, attrs={**read.attrs, "status": "partial"})
-    assert reading.known() == {}  # consolidation wrote other attributes than those it was read with
-    journal.units.pop("fit:k12")
-    assert reading.known() == {}  # a unit it was read with is gone
-
-
 def _assert_same(got: Any, want: Any, where: str) -> None:
     """`got` is `want` field by field: the same types, arrays of the same dtype, shape, bits and
     writability, numbers of the same bits (NaN included)."""
@@ -81,6 +61,19 @@ def _assert_same(got: Any, want: Any, where: str) -> None:
 def _archived(archive: Path, name: str) -> Configuration:
     with h5py.File(archive, "r") as f:
         return read_configuration(name, f["configurations"][name])
+
+
+def _knee_plan(only: list[int]) -> Plan:
+    return expand(load_protocol(find_protocol("knee_phase1.yaml")), only=only)
+
+
+def _taking(session: Path, journal: Journal, key: int) -> ReadAhead:
+    """A read-ahead of `session` offered the configuration read from its units, with no draft to read."""
+    reading = ReadAhead(_knee_plan(ONLY), ArchiveDraft(session, journal))
+    read = read_units(reading.plan, session / "units", key)
+    assert read is not None
+    reading.offer(read)
+    return reading
 
 
 def test_the_session_report_reads_ahead_and_equals_the_report_read_from_the_archive(
@@ -118,17 +111,24 @@ def test_the_session_report_reads_ahead_and_equals_the_report_read_from_the_arch
         real(session / "archive.h5", known={"config_11": object()})  # type: ignore[dict-item]
 
 
-def _knee_plan(only: list[int]) -> Plan:
-    return expand(load_protocol(find_protocol("knee_phase1.yaml")), only=only)
-
-
-def _taking(session: Path, journal: Journal, key: int) -> ReadAhead:
-    """A read-ahead of `session` offered the configuration read from its units, with no draft to read."""
-    reading = ReadAhead(_knee_plan(ONLY), ArchiveDraft(session, journal))
-    read = read_units(reading.plan, session / "units", key)
-    assert read is not None
-    reading.offer(read)
-    return reading
+def test_a_configuration_read_before_a_unit_that_holds_it_is_read_again(tmp_path: Path) -> None:
+    session = tmp_path / "s"
+    assert run_dry(session) == 0
+    journal = Journal(session / "journal.jsonl")
+    fit = journal.units.pop("fit:k12")
+    journal.units["fit:k12"] = fit  # its fit journaled last
+    ahead = ArchiveDraft(session, journal)
+    ahead.update()
+    reading = ReadAhead(expand(load_protocol(find_protocol("knee_phase1.yaml")), only=ONLY), ahead)
+    reading.update()
+    assert list(reading.known()) == ["config_12"]
+    read = reading.read["config_12"]
+    reading.read["config_12"] = dataclasses.replace(read, records=read.records[:-1])  # read before its fit
+    assert reading.known() == {}
+    reading.read["config_12"] = dataclasses.replace(read, attrs={**read.attrs, "status": "partial"})
+    assert reading.known() == {}  # consolidation wrote other attributes than those it was read with
+    journal.units.pop("fit:k12")
+    assert reading.known() == {}  # a unit it was read with is gone
 
 
 def test_the_attributes_consolidation_writes_win_over_the_units(reference_archive: Path) -> None:

@@ -3,8 +3,10 @@
 The configuration is read from its own units (viewed as consolidation merges them, without copying, and
 read by the report's own reader), its figures drawn and stored in the figure cache beside the archive
 (`report/figure_cache.py`). The report at the end then only assembles: it takes a stored figure when it
-was drawn from exactly the data it reads from the archive, and draws anything else itself. Drawing ahead
-is an optimisation only: any failure here leaves the figure to the report.
+was drawn from exactly the data it reads from the archive, and draws anything else itself. The
+configuration read goes back to the session with the worker's result (`UnitsRead`), for the report's
+data (`read_ahead.py`). Drawing ahead is an optimisation only: any failure here leaves the figure to the
+report.
 """
 
 from __future__ import annotations

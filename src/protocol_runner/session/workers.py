@@ -80,10 +80,10 @@ class AnalysisPool:
         read: Callable[[UnitsRead], None] | None = None,
     ) -> None:
         self.loaded = loaded
-        self.read = read  # told of each configuration a worker read, once the task's units are journaled
         self.plan = plan
         self.units_dir = units_dir
         self.journal = journal
+        self.read = read  # told of each configuration a worker read, once the task's units are journaled
         self.submitted: set[str] = set()
         self._pool: ProcessPoolExecutor | None = None
         self._pending: list[tuple[tuple[Step, ...], Future[Task]]] = []
