@@ -39,7 +39,8 @@ def test_figures_drawn_from_the_units_are_those_of_the_archive(
     _, plan, _ = load_session_protocol(session, read_session_info(session), force=False)
     elsewhere = tmp_path / "archive.h5"  # the figure folder goes beside it, not into the shared session
     (key,) = {s.configuration for s in plan.steps if s.kind == "fit"}  # type: ignore[attr-defined]
-    assert draw_ahead(plan, session / "units", key, elsewhere)
+    read = draw_ahead(plan, session / "units", key, elsewhere)
+    assert read is not None
     cfg = load_report_data(reference_archive).configuration(key)
     assert cfg is not None
     stored = lookup(cache_dir_of(elsewhere), cfg)  # drawn from the units, the same data as the archive's

@@ -3,7 +3,10 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+from collections.abc import Mapping
+from typing import Any
 
 import h5py
 import numpy as np
@@ -44,8 +47,6 @@ def _trial_numbers(trials: h5py.Group) -> list[tuple[int, str]]:
 
 
 def read_configuration(name: str, grp: h5py.Group) -> Configuration:
-    a = grp.attrs
-    settings = settings_from_attrs(a, f"configuration {name}")
     trials: list[Trial] = []
     angles: list[np.ndarray] = []
     torques: list[np.ndarray] = []
@@ -86,14 +87,7 @@ def read_configuration(name: str, grp: h5py.Group) -> Configuration:
         cycle_trial = np.zeros(energy.size)
     return Configuration(
         name=name,
-        key=attr_int(a, "key", _key_from_name(name)),
-        run=attr_int(a, "run", 0),
-        set_name=attr_str(a, "set"),
-        condition=attr_str(a, "condition"),
-        profile=attr_str(a, "profile"),
-        status=attr_str(a, "status", "complete" if trials else "not run"),
-        n_trials_planned=attr_int(a, "n_trials", len(trials)),
-        settings=settings,
+        **group_fields(name, grp.attrs, len(trials)),
         trials=tuple(trials),
         energy_loss_j=read_only(energy),
         energy_cycle_trial=read_only(cycle_trial),
@@ -103,6 +97,26 @@ def read_configuration(name: str, grp: h5py.Group) -> Configuration:
         angle_max_deg=angle_max,
         torque_slope_nm_per_deg=slope,
     )
+
+
+def group_fields(name: str, attrs: Mapping[str, Any], n_trials: int) -> dict[str, Any]:
+    """The `Configuration` fields read from the group's own attributes `attrs` (its identity, status and
+    settings), the group holding `n_trials` trials; every other field is read from its members."""
+    return {
+        "key": attr_int(attrs, "key", _key_from_name(name)),
+        "run": attr_int(attrs, "run", 0),
+        "set_name": attr_str(attrs, "set"),
+        "condition": attr_str(attrs, "condition"),
+        "profile": attr_str(attrs, "profile"),
+        "status": attr_str(attrs, "status", "complete" if n_trials else "not run"),
+        "n_trials_planned": attr_int(attrs, "n_trials", n_trials),
+        "settings": settings_from_attrs(attrs, f"configuration {name}"),
+    }
+
+
+def with_group_attrs(cfg: Configuration, attrs: Mapping[str, Any]) -> Configuration:
+    """`cfg` as read from a group whose own attributes are `attrs` (its members unchanged)."""
+    return dataclasses.replace(cfg, **group_fields(cfg.name, attrs, len(cfg.trials)))
 
 
 def _key_from_name(name: str) -> int:

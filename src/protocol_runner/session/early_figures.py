@@ -3,17 +3,21 @@
 The configuration is read from its own units (viewed as consolidation merges them, without copying, and
 read by the report's own reader), its figures drawn and stored in the figure cache beside the archive
 (`report/figure_cache.py`). The report at the end then only assembles: it takes a stored figure when it
-was drawn from exactly the data it reads from the archive, and draws anything else itself. Drawing ahead
-is an optimisation only: any failure here leaves the figure to the report.
+was drawn from exactly the data it reads from the archive, and draws anything else itself. The
+configuration read goes back to the session with the worker's result (`UnitsRead`), for the report's
+data (`read_ahead.py`). Drawing ahead is an optimisation only: any failure here leaves the figure to the
+report.
 """
 
 from __future__ import annotations
 
 import contextlib
 import functools
+import os
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import h5py
 
@@ -23,6 +27,9 @@ from ..archive.paths import configuration_name
 from ..archive.units import unit_path
 from ..protocol.plan import FitStep, Plan, ProcessStep
 from ..protocol.step_ids import step_id
+
+if TYPE_CHECKING:
+    from ..report.model import Configuration
 
 
 def configuration_unit_files(plan: Plan, units_dir: Path, key: int) -> list[Path]:
@@ -93,24 +100,54 @@ class UnitsView:
 _NOT_MERGED = frozenset((*ATTRIBUTES["unit"], MARKER_ATTR))
 
 
-def draw_ahead(plan: Plan, units_dir: Path, key: int, archive: Path) -> bool:
-    """Draw configuration `key`'s figures into the figure cache of `archive`; whether they were stored."""
-    from ..report.figure_cache import cache_dir_of, save  # here: only the workers draw (matplotlib)
-    from ..report.figures import draw_configuration
+FileIdentity = tuple[int, int, int, int]  # device, inode, size, modification time (ns)
+
+
+def file_identity(st: os.stat_result) -> FileIdentity:
+    """Which file a unit's path names: a unit rewritten (written anew, then renamed) is another file."""
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns)
+
+
+@dataclass(frozen=True)
+class UnitsRead:
+    """A configuration read from its units by the analysis worker that ended its analyses, handed to the
+    session (`read_ahead.ReadAhead.offer`) so that the session does not read it again."""
+
+    configuration: Configuration  # read by the report's reader from the units' merge (`UnitsView`)
+    attrs: dict[str, Any]  # the group's own attributes merged from the units, as read
+    files: tuple[tuple[str, FileIdentity], ...]  # the unit files read (names in the units folder), in order
+
+
+def read_units(plan: Plan, units_dir: Path, key: int) -> UnitsRead | None:
+    """Configuration `key` read from its units as consolidation will merge them (None if it cannot be)."""
     from ..report.load_configuration import read_configuration
 
     name = configuration_name(key)
+    with contextlib.suppress(Exception), contextlib.ExitStack() as files:  # an optimisation only
+        units = [
+            files.enter_context(h5py.File(f, "r")) for f in configuration_unit_files(plan, units_dir, key)
+        ]
+        merged = UnitsView(units)  # the configuration as consolidation will merge it, read in place
+        if f"configurations/{name}" not in merged:
+            return None
+        group = merged[f"configurations/{name}"]
+        cfg = read_configuration(name, group)
+        opened = tuple((Path(u.filename).name, file_identity(os.fstat(u.id.get_vfd_handle()))) for u in units)
+        return UnitsRead(cfg, dict(group.attrs), opened)
+    return None
+
+
+def draw_ahead(plan: Plan, units_dir: Path, key: int, archive: Path) -> UnitsRead | None:
+    """Draw configuration `key`'s figures into the figure cache of `archive`; the configuration as read from
+    its units for them (None if it could not be read: nothing is drawn then)."""
+    from ..report.figure_cache import cache_dir_of, save  # here: only the workers draw (matplotlib)
+    from ..report.figures import draw_configuration
+
+    read = read_units(plan, units_dir, key)
+    if read is None:
+        return None
     with contextlib.suppress(Exception):  # an optimisation: the report draws whatever is not stored
-        with contextlib.ExitStack() as files:
-            units = [
-                files.enter_context(h5py.File(f, "r")) for f in configuration_unit_files(plan, units_dir, key)
-            ]
-            merged = UnitsView(units)  # the configuration as consolidation will merge it, read in place
-            if f"configurations/{name}" not in merged:
-                return False
-            cfg = read_configuration(name, merged[f"configurations/{name}"])
-        images = draw_configuration(cfg)
+        images = draw_configuration(read.configuration)
         if images is not None:
-            save(cache_dir_of(archive), cfg, images)
-            return True
-    return False
+            save(cache_dir_of(archive), read.configuration, images)
+    return read

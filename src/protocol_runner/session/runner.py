@@ -83,11 +83,11 @@ class Runner:
         self.stop = stop or StopFlag()
         self.steps_run = 0
         self.background = background if background is not None else (os.cpu_count() or 1) >= 2
-        self.pool = AnalysisPool(loaded, plan, self.units_dir, self.journal)
+        self.ahead = ArchiveDraft(session_dir, self.journal)  # the archive merged while the analyses finish
+        self.read_ahead = ReadAhead(plan, self.ahead)  # and the report's configurations read ahead
+        self.pool = AnalysisPool(loaded, plan, self.units_dir, self.journal, self.read_ahead.offer)
         self.writer = UnitWriter(self.units_dir, self.journal)  # units written while the next step runs
         self.publisher = publisher  # the live monitor (--monitor): told of every step through `progress`
-        self.ahead = ArchiveDraft(session_dir, self.journal)  # the archive merged while the analyses finish
-        self.read_ahead = ReadAhead(plan, self.ahead)  # and the report's configurations read from it
 
     # ------------------------------------------------------------------------------------------ run
 
@@ -220,6 +220,7 @@ class Runner:
             if self.pool.busy:  # the last one's units are merged at the end, not here
                 self.ahead.update()
                 self.read_ahead.update()
+        self.read_ahead.update(draft=False)  # what the last analyses' worker read (nothing to read here)
 
     def record(self, step_id: str, outcome: StepOutcome) -> None:
         """Hand the step's unit to the writer (journaled once it is on disk); a step that stops the session

@@ -27,7 +27,7 @@ from ..protocol.step_ids import step_id as make_step_id
 from ..steps.context import StepContext
 from ..steps.failures import run_step
 from .assembly import ARCHIVE_NAME
-from .early_figures import draw_ahead, key_to_draw_ahead
+from .early_figures import UnitsRead, draw_ahead, key_to_draw_ahead
 from .journal import Journal
 from .signals import sigint_blocked
 from .worker_start import start_worker_server, worker_context
@@ -36,13 +36,15 @@ from .worker_start import worker_init as worker_init
 BACKGROUND_KINDS = frozenset({"process", "fit"})
 
 Results = list[tuple[UnitRecord | None, str]]
+Task = tuple[Results, UnitsRead | None]  # a task's units and summaries, and its configuration as read ahead
 T = TypeVar("T")
 
 
 def run_analysis_steps(
     loaded: LoadedProtocol, plan: Plan, units_dir: Path, step_ids: tuple[str, ...]
-) -> Results:
-    """Run analysis steps (in order) from the archived units and write their units (in a worker process)."""
+) -> Task:
+    """Run analysis steps (in order) from the archived units and write their units (in a worker process);
+    with them, the configuration whose analyses they end as read for its figures (`draw_ahead`), if any."""
     ctx = StepContext(
         loaded=loaded,
         plan=plan,
@@ -60,22 +62,31 @@ def run_analysis_steps(
         record = write_unit(units_dir, step.id, outcome.fill) if outcome.fill is not None else None
         done.append((record, outcome.summary))
     key = key_to_draw_ahead(plan, step_ids)
-    if key is not None:  # the configuration's analyses are written: its report figures now, not at the end
-        draw_ahead(plan, units_dir, key, units_dir.parent / ARCHIVE_NAME)
-    return done
+    if key is None:
+        return done, None
+    # the configuration's analyses are written: its report figures now, not at the end
+    return done, draw_ahead(plan, units_dir, key, units_dir.parent / ARCHIVE_NAME)
 
 
 class AnalysisPool:
     """Background analysis steps: submitted in plan order, journaled in the main process when done."""
 
-    def __init__(self, loaded: LoadedProtocol, plan: Plan, units_dir: Path, journal: Journal) -> None:
+    def __init__(
+        self,
+        loaded: LoadedProtocol,
+        plan: Plan,
+        units_dir: Path,
+        journal: Journal,
+        read: Callable[[UnitsRead], None] | None = None,
+    ) -> None:
         self.loaded = loaded
         self.plan = plan
         self.units_dir = units_dir
         self.journal = journal
+        self.read = read  # told of each configuration a worker read, once the task's units are journaled
         self.submitted: set[str] = set()
         self._pool: ProcessPoolExecutor | None = None
-        self._pending: list[tuple[tuple[Step, ...], Future[Results]]] = []
+        self._pending: list[tuple[tuple[Step, ...], Future[Task]]] = []
         self._waiting: list[tuple[tuple[Step, ...], Callable[[], bool]]] = []  # not handed out yet
 
     def submit(self, step: Step, *, ready: Callable[[], bool] | None = None) -> None:
@@ -112,16 +123,18 @@ class AnalysisPool:
         """Journal the background steps that finished (all of them when `wait`: the caller has made sure
         that every unit they read is on disk), telling `finished`."""
         self._hand_out(force=wait)
-        still: list[tuple[tuple[Step, ...], Future[Results]]] = []
+        still: list[tuple[tuple[Step, ...], Future[Task]]] = []
         for chain, future in self._pending:
             if not (wait or future.done()):
                 still.append((chain, future))
                 continue
-            results = future.result()  # a worker's error is raised here, in the main process
+            results, read = future.result()  # a worker's error is raised here, in the main process
             for step, (record, summary) in zip(chain, results, strict=True):
                 if record is not None:
                     self.journal.unit_done(record)
                 finished(step, summary)
+            if read is not None and self.read is not None:
+                self.read(read)
         self._pending = still
 
     @property
@@ -163,7 +176,7 @@ class AnalysisPool:
             if future.cancelled() or future.exception() is not None:
                 continue
             with contextlib.suppress(Exception):
-                for step, (record, summary) in zip(chain, future.result(), strict=True):
+                for step, (record, summary) in zip(chain, future.result()[0], strict=True):
                     if record is not None:
                         self.journal.unit_done(record)
                     finished(step, summary)
