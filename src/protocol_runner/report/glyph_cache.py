@@ -85,7 +85,7 @@ class CachedTextRenderer(RendererAgg):
             super().draw_text(gc, x, y, s, prop, angle, ismath=ismath, mtext=mtext)
             return
         # what else decides a glyph's raster: FreeType's load flags and matplotlib's hinting factor
-        flags = backend_agg.get_hinting_flag(), mpl.rcParams["text.hinting_factor"]
+        flags = _hinting_flag(), mpl.rcParams._get("text.hinting_factor")
         items = self._layout(s, prop, flags, mtext)
         x, y = float(x), float(y)  # the same doubles; Python floats round faster than numpy scalars
         size = prop.get_size_in_points()
@@ -115,8 +115,8 @@ class CachedTextRenderer(RendererAgg):
         canvases measure the same tick labels."""
         if ismath or not SUPPORTED:
             return super().get_text_width_height_descent(s, prop, ismath)
-        rc = mpl.rcParams
-        flags = backend_agg.get_hinting_flag(), rc["text.hinting_factor"], rc["text.kerning_factor"]
+        rc = mpl.rcParams._get
+        flags = _hinting_flag(), rc("text.hinting_factor"), rc("text.kerning_factor")
         key = (s, prop.copy(), self.dpi, *flags)
         size = _EXTENTS.get(key)
         if size is None:
@@ -213,7 +213,7 @@ def _text_layout_key(text: Text, renderer: CachedTextRenderer) -> tuple[Any, ...
     s = text.get_text()
     if text.get_wrap() or text.get_usetex() or (text.get_parse_math() and "$" in s):
         return None
-    rc = mpl.rcParams
+    rc = mpl.rcParams._get  # the values as set (no deprecation or backend lookup), read quickly
     return (
         s,
         text.get_fontproperties(),
@@ -225,10 +225,23 @@ def _text_layout_key(text: Text, renderer: CachedTextRenderer) -> tuple[Any, ...
         text.get_verticalalignment(),
         text._get_multialignment(),
         text._linespacing,  # type: ignore[attr-defined]
-        backend_agg.get_hinting_flag(),
-        rc["text.hinting_factor"],
-        rc["text.kerning_factor"],
+        _hinting_flag(),
+        rc("text.hinting_factor"),
+        rc("text.kerning_factor"),
     )
+
+
+_HINTING_FLAGS: dict[object, Any] = {}
+
+
+def _hinting_flag() -> Any:
+    """`backend_agg.get_hinting_flag()` (FreeType's load flags for rcParams["text.hinting"]), kept per
+    value of that setting: it builds its mapping at every call, several times per label drawn."""
+    setting = mpl.rcParams._get("text.hinting")
+    flag = _HINTING_FLAGS.get(setting)
+    if flag is None:
+        flag = _HINTING_FLAGS[setting] = backend_agg.get_hinting_flag()
+    return flag
 
 
 def _cached_text_layout(text: Text, renderer: Any) -> Any:
