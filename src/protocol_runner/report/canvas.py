@@ -7,6 +7,7 @@ import base64
 import functools
 import io
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -74,25 +75,24 @@ class TickLabelBoxes:
     drawn only when the formatter has an offset. Without either, the boxes are not asked for and the
     pixels are the same; anything else that asks (a tight bounding box) measures as matplotlib does."""
 
-    def __init__(self, axis: Axis) -> None:
+    def __init__(self, axis: Any) -> None:  # an `Axis`: its private `_get_ticklabel_bboxes` is replaced
         self.axis = axis
         self.drawing = False
-        axis.draw = self.draw  # type: ignore[method-assign]
-        axis._get_ticklabel_bboxes = self.boxes  # type: ignore[method-assign]
+        axis.draw = self.draw
+        axis._get_ticklabel_bboxes = self.boxes
 
-    def draw(self, renderer: object) -> None:
+    def draw(self, renderer: Any) -> None:
         self.drawing = True
         try:
             type(self.axis).draw(self.axis, renderer)
         finally:
             self.drawing = False
 
-    def boxes(self, ticks: list[object], renderer: object) -> tuple[list[object], list[object]]:
+    def boxes(self, ticks: list[Any], renderer: Any) -> Any:
         axis = self.axis
-        placed = axis._autolabelpos or axis.major.formatter.get_offset()  # type: ignore[attr-defined]
-        if self.drawing and not placed:
+        if self.drawing and not (axis._autolabelpos or axis.major.formatter.get_offset()):
             return [], []
-        return type(axis)._get_ticklabel_bboxes(axis, ticks, renderer)  # type: ignore[no-any-return]
+        return type(axis)._get_ticklabel_bboxes(axis, ticks, renderer)
 
 
 _CANVASES: dict[str, Canvas] = {}

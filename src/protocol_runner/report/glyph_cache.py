@@ -203,10 +203,11 @@ def _room(cache: dict[Any, Any], key: Any) -> Any:
     return key
 
 
-_STOCK_GET_LAYOUT = Text._get_layout
+_TEXT: Any = Text  # its private `_get_layout` is replaced (`_use_text_layout_cache`)
+_STOCK_GET_LAYOUT = _TEXT._get_layout
 
 
-def _text_layout_key(text: Text, renderer: CachedTextRenderer) -> tuple[Any, ...] | None:
+def _text_layout_key(text: Any, renderer: CachedTextRenderer) -> tuple[Any, ...] | None:
     """What `Text._get_layout` reads, or None for text it lays out from more (wrapped text depends on its
     position, TeX and mathtext on their own settings): the string, font, figure and renderer dpi, rotation,
     alignments, line spacing, and the hinting and kerning settings the measured sizes depend on."""
@@ -217,14 +218,14 @@ def _text_layout_key(text: Text, renderer: CachedTextRenderer) -> tuple[Any, ...
     return (
         s,
         text.get_fontproperties(),
-        text.get_figure(root=True).dpi,  # type: ignore[union-attr]
+        text.get_figure(root=True).dpi,
         renderer.dpi,
         text.get_rotation(),
         text.get_rotation_mode(),
         text.get_horizontalalignment(),
         text.get_verticalalignment(),
         text._get_multialignment(),
-        text._linespacing,  # type: ignore[attr-defined]
+        text._linespacing,
         _hinting_flag(),
         rc("text.hinting_factor"),
         rc("text.kerning_factor"),
@@ -244,7 +245,7 @@ def _hinting_flag() -> Any:
     return flag
 
 
-def _cached_text_layout(text: Text, renderer: Any) -> Any:
+def _cached_text_layout(text: Any, renderer: Any) -> Any:
     """`Text._get_layout`, kept per `_text_layout_key` for text measured or drawn by a
     `CachedTextRenderer` (any other renderer: matplotlib's own)."""
     key = _text_layout_key(text, renderer) if isinstance(renderer, CachedTextRenderer) else None
@@ -262,8 +263,8 @@ def _cached_text_layout(text: Text, renderer: Any) -> Any:
 
 def _use_text_layout_cache() -> None:
     """Route `Text._get_layout` through `_cached_text_layout` (once; matplotlib's own for other renderers)."""
-    if SUPPORTED and Text._get_layout is _STOCK_GET_LAYOUT:
-        Text._get_layout = _cached_text_layout  # type: ignore[method-assign]
+    if SUPPORTED and _TEXT._get_layout is _STOCK_GET_LAYOUT:
+        _TEXT._get_layout = _cached_text_layout
 
 
 class CachedTextCanvas(FigureCanvasAgg):
