@@ -7,6 +7,7 @@ import base64
 import functools
 import io
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -47,6 +48,8 @@ class Canvas:
             # fixed label positions: matplotlib otherwise measures every tick label to place them
             ax.xaxis.set_label_coords(0.5, -0.11)
             ax.yaxis.set_label_coords(-0.11 if len(rects) == 1 else -0.17, 0.5)
+            TickLabelBoxes(ax.xaxis)
+            TickLabelBoxes(ax.yaxis)
 
     def reset(self) -> list[Axes]:
         for ax in self.axes:
@@ -62,6 +65,34 @@ class Canvas:
             ax.set_autoscale_on(True)
             ax.relim()
         return self.axes
+
+
+class TickLabelBoxes:
+    """An axis that measures its tick labels while it draws only when what it places from them is drawn.
+
+    `Axis.draw` measures every tick label (a text layout and a round trip of the figure's dpi each) to
+    place the axis label, which `Canvas` places itself, and the offset text ("1e4", "+2.5e2"), which is
+    drawn only when the formatter has an offset. Without either, the boxes are not asked for and the
+    pixels are the same; anything else that asks (a tight bounding box) measures as matplotlib does."""
+
+    def __init__(self, axis: Any) -> None:  # an `Axis`: its private `_get_ticklabel_bboxes` is replaced
+        self.axis = axis
+        self.drawing = False
+        axis.draw = self.draw
+        axis._get_ticklabel_bboxes = self.boxes
+
+    def draw(self, renderer: Any) -> None:
+        self.drawing = True
+        try:
+            type(self.axis).draw(self.axis, renderer)
+        finally:
+            self.drawing = False
+
+    def boxes(self, ticks: list[Any], renderer: Any) -> Any:
+        axis = self.axis
+        if self.drawing and not (axis._autolabelpos or axis.major.formatter.get_offset()):
+            return [], []
+        return type(axis)._get_ticklabel_bboxes(axis, ticks, renderer)
 
 
 _CANVASES: dict[str, Canvas] = {}

@@ -15,6 +15,12 @@ Font objects are matplotlib's, per thread and per process as matplotlib keeps th
 by two processes at once through an inherited file fails): laid-out strings are kept per thread and
 forgotten in a forked child; glyph rasters, plain arrays, are keyed by the font file and face, not the object.
 
+A text artist's layout (`Text._get_layout`: its box, lines and offsets relative to its anchor, independent
+of where it is drawn) is kept too, for text drawn on these canvases: matplotlib computes it again for every
+extent query and every draw (a tick label twice per figure), and the report's labels repeat from figure to
+figure. It is keyed by everything the layout reads (`_text_layout_key`), so a label whose text, font,
+alignment or rotation changes is laid out anew.
+
 It uses matplotlib's private FreeType calls (`FT2Font._layout`, `_set_transform`, `_render_glyph`, as in
 matplotlib 3.11's `backend_agg`); where they do not exist (another matplotlib) it draws as matplotlib does.
 """
@@ -33,6 +39,8 @@ from matplotlib.backends import backend_agg
 from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
 from matplotlib.font_manager import FontProperties, fontManager, get_font
 from matplotlib.ft2font import FT2Font
+from matplotlib.text import Text
+from matplotlib.transforms import Bbox
 
 #: FreeType's render modes (matplotlib >= 3.11); None before, where the stock path is used
 RENDER_MODE: Any = getattr(importlib.import_module("matplotlib.ft2font"), "RenderMode", None)
@@ -53,6 +61,7 @@ _LAYOUTS: dict[tuple[Any, ...], Layout] = {}
 _GLYPHS: dict[tuple[Any, ...], tuple[np.ndarray, int, int]] = {}
 _HEIGHTS: dict[tuple[Any, ...], tuple[float | None, ...]] = {}
 _EXTENTS: dict[tuple[Any, ...], Any] = {}
+_TEXT_LAYOUTS: dict[tuple[Any, ...], tuple[np.ndarray, list[Any], Any]] = {}
 
 if hasattr(os, "register_at_fork"):  # a forked child opens its own fonts (matplotlib empties its cache too)
     os.register_at_fork(after_in_child=_LAYOUTS.clear)
@@ -76,7 +85,7 @@ class CachedTextRenderer(RendererAgg):
             super().draw_text(gc, x, y, s, prop, angle, ismath=ismath, mtext=mtext)
             return
         # what else decides a glyph's raster: FreeType's load flags and matplotlib's hinting factor
-        flags = backend_agg.get_hinting_flag(), mpl.rcParams["text.hinting_factor"]
+        flags = _hinting_flag(), mpl.rcParams._get("text.hinting_factor")
         items = self._layout(s, prop, flags, mtext)
         x, y = float(x), float(y)  # the same doubles; Python floats round faster than numpy scalars
         size = prop.get_size_in_points()
@@ -106,8 +115,8 @@ class CachedTextRenderer(RendererAgg):
         canvases measure the same tick labels."""
         if ismath or not SUPPORTED:
             return super().get_text_width_height_descent(s, prop, ismath)
-        rc = mpl.rcParams
-        flags = backend_agg.get_hinting_flag(), rc["text.hinting_factor"], rc["text.kerning_factor"]
+        rc = mpl.rcParams._get
+        flags = _hinting_flag(), rc("text.hinting_factor"), rc("text.kerning_factor")
         key = (s, prop.copy(), self.dpi, *flags)
         size = _EXTENTS.get(key)
         if size is None:
@@ -194,8 +203,76 @@ def _room(cache: dict[Any, Any], key: Any) -> Any:
     return key
 
 
+_TEXT: Any = Text  # its private `_get_layout` is replaced (`_use_text_layout_cache`)
+_STOCK_GET_LAYOUT = _TEXT._get_layout
+
+
+def _text_layout_key(text: Any, renderer: CachedTextRenderer) -> tuple[Any, ...] | None:
+    """What `Text._get_layout` reads, or None for text it lays out from more (wrapped text depends on its
+    position, TeX and mathtext on their own settings): the string, font, figure and renderer dpi, rotation,
+    alignments, line spacing, and the hinting and kerning settings the measured sizes depend on."""
+    s = text.get_text()
+    if text.get_wrap() or text.get_usetex() or (text.get_parse_math() and "$" in s):
+        return None
+    rc = mpl.rcParams._get  # the values as set (no deprecation or backend lookup), read quickly
+    return (
+        s,
+        text.get_fontproperties(),
+        text.get_figure(root=True).dpi,
+        renderer.dpi,
+        text.get_rotation(),
+        text.get_rotation_mode(),
+        text.get_horizontalalignment(),
+        text.get_verticalalignment(),
+        text._get_multialignment(),
+        text._linespacing,
+        _hinting_flag(),
+        rc("text.hinting_factor"),
+        rc("text.kerning_factor"),
+    )
+
+
+_HINTING_FLAGS: dict[object, Any] = {}
+
+
+def _hinting_flag() -> Any:
+    """`backend_agg.get_hinting_flag()` (FreeType's load flags for rcParams["text.hinting"]), kept per
+    value of that setting: it builds its mapping at every call, several times per label drawn."""
+    setting = mpl.rcParams._get("text.hinting")
+    flag = _HINTING_FLAGS.get(setting)
+    if flag is None:
+        flag = _HINTING_FLAGS[setting] = backend_agg.get_hinting_flag()
+    return flag
+
+
+def _cached_text_layout(text: Any, renderer: Any) -> Any:
+    """`Text._get_layout`, kept per `_text_layout_key` for text measured or drawn by a
+    `CachedTextRenderer` (any other renderer: matplotlib's own)."""
+    key = _text_layout_key(text, renderer) if isinstance(renderer, CachedTextRenderer) else None
+    if key is None:
+        return _STOCK_GET_LAYOUT(text, renderer)
+    layout = _TEXT_LAYOUTS.get(key)
+    if layout is None:
+        bbox, lines, corner = _STOCK_GET_LAYOUT(text, renderer)
+        layout = (bbox.get_points().copy(), lines, corner)
+        # the key keeps a copy of the properties: a later change to the text's cannot alter a stored key
+        _TEXT_LAYOUTS[_room(_TEXT_LAYOUTS, (key[0], key[1].copy(), *key[2:]))] = layout
+    points, lines, corner = layout
+    return Bbox(points.copy()), list(lines), corner  # fresh: a caller may change what it is given
+
+
+def _use_text_layout_cache() -> None:
+    """Route `Text._get_layout` through `_cached_text_layout` (once; matplotlib's own for other renderers)."""
+    if SUPPORTED and _TEXT._get_layout is _STOCK_GET_LAYOUT:
+        _TEXT._get_layout = _cached_text_layout
+
+
 class CachedTextCanvas(FigureCanvasAgg):
     """A `FigureCanvasAgg` drawing with `CachedTextRenderer`."""
+
+    def __init__(self, figure: Any = None) -> None:
+        super().__init__(figure)
+        _use_text_layout_cache()
 
     def get_renderer(self) -> RendererAgg:
         w, h = self.get_width_height(physical=True)

@@ -24,14 +24,23 @@ def _chunk(kind: bytes, body: bytes) -> bytes:
     return struct.pack(">I", len(body)) + kind + body + struct.pack(">I", zlib.crc32(kind + body))
 
 
+def _opaque(rgba: np.ndarray) -> bool:
+    """Whether every pixel's alpha is 255 (read as little-endian 32-bit words: alpha is the high byte)."""
+    if rgba.flags.c_contiguous:
+        return bool((rgba.view("<u4") >= 0xFF000000).all())
+    return bool((rgba[..., 3] == 0xFF).all())
+
+
 def png_bytes(rgba: np.ndarray, dpi: float) -> bytes:
     """Encode an (height, width, 4) uint8 RGBA image, top row first, at `dpi` dots per inch."""
     height, width, _ = rgba.shape
-    opaque = bool((rgba[..., 3] == 0xFF).all())
-    pixels = rgba[..., :3] if opaque else rgba
-    rows = np.empty((height, 1 + width * pixels.shape[2]), dtype=np.uint8)
+    opaque = _opaque(rgba)
+    channels = 3 if opaque else 4
+    rows = np.empty((height, 1 + width * channels), dtype=np.uint8)
     rows[:, 0] = 0  # filter type 0 (none) on every row
-    rows[:, 1:] = pixels.reshape(height, -1)
+    pixels = rows[:, 1:].reshape(height, width, channels)
+    for channel in range(channels):  # one byte-strided copy each: several times faster than one RGB copy
+        pixels[..., channel] = rgba[..., channel]
     header = struct.pack(">IIBBBBB", width, height, 8, 2 if opaque else 6, 0, 0, 0)
     per_metre = int(dpi / INCH_M + 0.5)
     return b"".join(
