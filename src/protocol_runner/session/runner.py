@@ -144,10 +144,14 @@ class Runner:
                 if step.kind in ("compare", "report"):
                     # the report's imports and caches, while the last analyses finish (the workers draw)
                     start_warm_up(drawing=not self.pool.running)
-                    self.writer.flush()  # what the analyses read is on disk
-                    self._await_analyses(progress)  # these read the analyses' units
-                    if self.stop():  # a Ctrl-C while the last analyses ran: stop here, as announced
-                        raise Interrupted(f"stopped before {step.id} ({self.stop.signal_name})")
+                    # Once no analysis is left, the comparisons run one after the other without waiting
+                    # for each other's units (they read the analyses' units, through ctx.unit): the unit
+                    # writer saves each while the next runs. The report step waits for all of them.
+                    if step.kind == "report" or self.pool.busy:
+                        self.writer.flush()  # what the analyses read is on disk
+                        self._await_analyses(progress)  # these read the analyses' units
+                        if self.stop():  # a Ctrl-C while the last analyses ran: stop here, as announced
+                            raise Interrupted(f"stopped before {step.id} ({self.stop.signal_name})")
                 if step.kind == "report":
                     return self._finish(progress, skipped)
                 progress.step_started(step)
