@@ -9,6 +9,7 @@ rest drawn: elsewhere (`draw`), or by the caller's process and processes forked 
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -66,6 +67,23 @@ def configuration_jobs(cfg: Configuration) -> list[FigureJob]:
     base = f"fig-config-{cfg.key}"
     kinds = ["hysteresis", "time", "energy"] + (["boucwen"] if cfg.bouc_wen is not None else [])
     return [(f"{base}-{kind}", kind, (cfg,)) for kind in kinds]
+
+
+def for_drawing(data: ReportData, figure_ids: Sequence[str]) -> ReportData:
+    """`data` as the figures `figure_ids` read it, for handing to another process: a configuration's raw
+    recordings (its first trial's brace-on and brace-off runs) are read only by its own time figure, so
+    they are left out of every configuration none of whose own figures is asked for. They are half of a
+    knee report's data: the report's last figures reach the session's workers in half the time."""
+    wanted = set(figure_ids)
+    configurations = tuple(
+        cfg
+        if any(job_id in wanted for job_id, _, _ in configuration_jobs(cfg))
+        else dataclasses.replace(
+            cfg, trials=tuple(dataclasses.replace(t, brace_on=None, brace_off=None) for t in cfg.trials)
+        )
+        for cfg in data.configurations
+    )
+    return dataclasses.replace(data, configurations=configurations)
 
 
 def figure_ids(data: ReportData) -> list[str]:

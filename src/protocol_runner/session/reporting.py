@@ -109,8 +109,10 @@ class _OnWorkers:
         self.predictions = _submit(call, _predictions, archive, data.protocol_text)
 
     def draw(self, data: ReportData, task_ids: list[str]) -> list[Drawn] | None:
+        from ..report.figure_plan import for_drawing  # no matplotlib
+
         chunks = [task_ids[i :: self.CHUNKS] for i in range(self.CHUNKS)]
-        futures = [_submit(self.call, _draw, data, chunk) for chunk in chunks if chunk]
+        futures = [_submit(self.call, _draw, for_drawing(data, chunk), chunk) for chunk in chunks if chunk]
         drawn: list[Drawn] = []
         for future in futures:
             if future is None:
