@@ -13,7 +13,9 @@ from __future__ import annotations
 
 import functools
 import math
+import re
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
@@ -32,6 +34,7 @@ from protocol_runner.report.figure_plan import (
     FigureSet,
     assemble_figures,
     distinct_comparisons,
+    figure_ids,
     model_comparisons,
     slug,
 )
@@ -133,23 +136,51 @@ def render_html(
     draw: FigureDrawer | None = None,
     predicted: Callable[[], tuple[Prediction, ...]] | None = None,
 ) -> str:
-    """The report of `data` as an HTML string (`draw`, `predicted`: as `render_report`)."""
-    figures = assemble_figures(data, workers, draw=draw, here=_draw_here)
-    env = _environment()
-    template = env.get_template(TEMPLATE)
+    """The report of `data` as an HTML string (`draw`, `predicted`: as `render_report`).
+
+    When `draw` draws the figures elsewhere, the page is rendered meanwhile with a stand-in for each image
+    and the images put in their places once drawn: the very text a render with the images gives (a data
+    URI needs no escaping, checked), or that render itself if a figure is missing."""
     if generated_utc is None:
         generated_utc = datetime.now(UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
     if predicted is None:
         from protocol_runner.report.predictions import predictions  # the compiled model: only run here
 
         predicted = functools.partial(predictions, Path(data.session.archive_path), data.protocol_text)
+    if draw is None:
+        return _render(
+            data, assemble_figures(data, workers, draw=None, here=_draw_here), generated_utc, predicted
+        )
+    ids = figure_ids(data)
+    stand_ins = {figure_id: f"@@figure-{k}@@" for k, figure_id in enumerate(ids)}
+    with ThreadPoolExecutor(1, thread_name_prefix="report-figures") as pool:  # waits on the workers
+        pending = pool.submit(assemble_figures, data, workers, draw=draw, here=_draw_here)
+        page = _render(data, FigureSet(images=stand_ins), generated_utc, predicted)
+        figures = pending.result()
+    images = figures.images
+    if (
+        figures.missing
+        or set(images) != set(ids)
+        or any(str(escape(uri)) != uri for uri in images.values())
+        or any(page.count(token) != 1 for token in stand_ins.values())
+    ):
+        return _render(data, figures, generated_utc, predicted)
+    return _STAND_IN.sub(lambda m: images[ids[int(m.group(1))]], page)
+
+
+_STAND_IN = re.compile(r"@@figure-(\d+)@@")
+
+
+def _render(
+    data: ReportData, figures: FigureSet, generated_utc: str, predicted: Callable[[], tuple[Prediction, ...]]
+) -> str:
     context = _context(data, figures, generated_utc, predicted())
     joints = joints_section(Path(data.session.archive_path)) if data.session.archive_path else None
     context["joints_section"] = joints
     if joints is not None:  # a multi-joint archive: the "Joints" section after the configurations
         at = [s for s, _ in SECTIONS].index("comparisons")
         context["sections"] = (*SECTIONS[:at], ("joints", "Joints"), *SECTIONS[at:])
-    return template.render(**context)
+    return str(_environment().get_template(TEMPLATE).render(**context))
 
 
 def _draw_here(data: ReportData, task_ids: list[str], workers: int) -> list[Drawn]:
