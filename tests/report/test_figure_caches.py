@@ -17,19 +17,11 @@ from protocol_runner.report import glyph_cache
 from protocol_runner.report.canvas import DPI, LAYOUTS, Canvas, canvas_axes, style, to_data_uri
 from protocol_runner.report.png import png_bytes
 
+from .test_figure_encoding import _stock_pixels  # matplotlib's own Agg drawing of a figure
+
 pytestmark = pytest.mark.skipif(
     not glyph_cache.SUPPORTED, reason="matplotlib without per-glyph FreeType calls"
 )
-
-
-def _stock_pixels(fig: Figure) -> np.ndarray:
-    """`fig` drawn by matplotlib's own Agg canvas, whose renderer lays text out itself (no cache)."""
-    own = fig.canvas
-    stock = FigureCanvasAgg(fig)
-    stock.draw()
-    pixels = np.asarray(stock.buffer_rgba()).copy()
-    fig.set_canvas(own)
-    return pixels
 
 
 def _cached_pixels(fig: Figure) -> np.ndarray:

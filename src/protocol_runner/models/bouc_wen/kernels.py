@@ -190,50 +190,21 @@ def _piece(xa, xb, zi, A, n, beta, bound, max_step):  # pragma: no cover - compi
 @njit(cache=True)
 def _piece_sens(xa, xb, zi, A, n, beta, bound, max_step, S):  # pragma: no cover - compiled
     """:func:`_piece` carrying the derivatives ``S = d z / d theta`` along (updated in place at the end;
-    in between they are eight scalars, see :func:`_rate_sens`)."""
+    in between they are eight scalars, see :func:`_rate_sens`; each substep is :func:`_sens_substep`)."""
     d = xb - xa
     sd = sgn(d)
     sx = sgn(xa + 0.5 * d)
     stiff_step = max_step * STIFF_STEP / DEFAULT_MAX_STEP_DEG
-    m, k1, terms = _substeps(d, zi, A, n, beta, sd, sx, max_step, stiff_step)
+    m, _, terms = _substeps(d, zi, A, n, beta, sd, sx, max_step, stiff_step)
     h = d / m
-    s0, s1, s2, s3, s4, s5, s6, s7 = S[0], S[1], S[2], S[3], S[4], S[5], S[6], S[7]
+    sens = (S[0], S[1], S[2], S[3], S[4], S[5], S[6], S[7])
     for j in range(m):
         if j > 0:  # the first substep's terms came with its count
             terms = _state_terms(zi, n, beta, sd, sx)
-        k1, a0, a1, a2, a3, a4, a5, a6, a7 = _rate_sens(
-            zi, A, n, terms, sd, sx, s0, s1, s2, s3, s4, s5, s6, s7
-        )
-        z2 = zi + h * k1
-        k2, b0, b1, b2, b3, b4, b5, b6, b7 = _rate_sens(
-            z2,
-            A,
-            n,
-            _state_terms(z2, n, beta, sd, sx),
-            sd,
-            sx,
-            s0 + h * a0,
-            s1 + h * a1,
-            s2 + h * a2,
-            s3 + h * a3,
-            s4 + h * a4,
-            s5 + h * a5,
-            s6 + h * a6,
-            s7 + h * a7,
-        )
-        half = 0.5 * h
-        s0 = s0 + half * (a0 + b0)
-        s1 = s1 + half * (a1 + b1)
-        s2 = s2 + half * (a2 + b2)
-        s3 = s3 + half * (a3 + b3)
-        s4 = s4 + half * (a4 + b4)
-        s5 = s5 + half * (a5 + b5)
-        s6 = s6 + half * (a6 + b6)
-        s7 = s7 + half * (a7 + b7)
-        zi = zi + half * (k1 + k2)
+        zi, sens = _sens_substep(zi, h, A, n, beta, sd, sx, terms, sens)
         if not abs(zi) <= bound:
             break
-    S[0], S[1], S[2], S[3], S[4], S[5], S[6], S[7] = s0, s1, s2, s3, s4, s5, s6, s7
+    S[0], S[1], S[2], S[3], S[4], S[5], S[6], S[7] = sens
     return zi
 
 
@@ -319,7 +290,8 @@ def _sweep(
 
 @njit(inline="always")
 def _sens_substep(zi, h, A, n, beta, sd, sx, terms, S):  # pragma: no cover - compiled
-    """One Heun substep of :func:`_piece_sens` (the same operations), the sensitivities as an 8-tuple."""
+    """One Heun substep with derivatives (:func:`_piece_sens`, :func:`_pieces_pair`), the sensitivities as
+    an 8-tuple."""
     s0, s1, s2, s3, s4, s5, s6, s7 = S
     k1, a0, a1, a2, a3, a4, a5, a6, a7 = _rate_sens(zi, A, n, terms, sd, sx, s0, s1, s2, s3, s4, s5, s6, s7)
     z2 = zi + h * k1
