@@ -2,7 +2,7 @@
 
 Start-up creates hundreds of thousands of objects that live as long as the process: modules, classes,
 compiled kernels, the protocol and its plan. CPython's cyclic collector, triggered by the allocations,
-walks them all again and again while they are created (a full collection in the session process and two
+walks them all again and again while they are created (four full collections in the session process and two
 in the fork server took ~0.33 s of CPU of a knee dry run, on a machine whose two cores are both busy from
 the first trial on). So a command-line session pauses the collector while it imports and plans
 (`pause`), and once start-up is over moves everything alive into the collector's permanent generation
