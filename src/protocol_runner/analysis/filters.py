@@ -43,12 +43,7 @@ def design_lowpass(
 
 
 @functools.lru_cache(maxsize=64)
-def _designed(
-    kind: FilterKind = "butterworth",
-    order: int = 10,
-    cutoff: float = 0.1,
-    ripple_db: float = 0.5,
-) -> FloatArray:
+def _designed(kind: FilterKind, order: int, cutoff: float, ripple_db: float) -> FloatArray:
     """`design_lowpass`'s sections, made once per set of arguments and kept read-only. The DC rescaling
     matters for an even-order Chebyshev, whose DC gain is otherwise the bottom of the ripple."""
     if kind not in FILTER_KINDS:

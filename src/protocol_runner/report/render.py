@@ -162,7 +162,7 @@ def render_html(
         figures.missing
         or set(images) != set(ids)
         or any(str(escape(uri)) != uri for uri in images.values())
-        or any(page.count(token) != 1 for token in stand_ins.values())
+        or sorted(map(int, _STAND_IN.findall(page))) != list(range(len(ids)))  # each once, one pass
     ):
         return _render(data, figures, generated_utc, predicted)
     return _STAND_IN.sub(lambda m: images[ids[int(m.group(1))]], page)

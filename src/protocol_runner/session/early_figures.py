@@ -32,9 +32,14 @@ if TYPE_CHECKING:
     from ..report.model import Configuration
 
 
+def configuration_step_ids(plan: Plan, key: object) -> list[str]:
+    """The ids of configuration `key`'s steps (the only ones that write into its group), in plan order."""
+    return [s.id for s in plan.steps if getattr(s, "configuration", None) == key]
+
+
 def configuration_unit_files(plan: Plan, units_dir: Path, key: int) -> list[Path]:
     """The written units of configuration `key`'s steps, in plan order."""
-    files = [unit_path(units_dir, s.id) for s in plan.steps if getattr(s, "configuration", None) == key]
+    files = [unit_path(units_dir, step) for step in configuration_step_ids(plan, key)]
     return [f for f in files if f.is_file()]
 
 

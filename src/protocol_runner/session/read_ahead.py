@@ -34,7 +34,7 @@ from ..archive.h5util import put_attrs
 from ..archive.units import UnitRecord
 from ..protocol.plan import Plan
 from .assembly import ArchiveDraft, configuration_attrs
-from .early_figures import UnitsRead, file_identity
+from .early_figures import UnitsRead, configuration_step_ids, file_identity
 
 if TYPE_CHECKING:
     from ..report.model import Configuration
@@ -96,7 +96,7 @@ class ReadAhead:
     def _is_archived(self, key: object, read: UnitsRead, records: tuple[UnitRecord, ...]) -> bool:
         """Whether `read` merged the units consolidation merges into configuration `key`'s group: the
         journaled units of its steps, in journal order, each file unchanged since it was journaled."""
-        steps = {s.id for s in self.plan.steps if getattr(s, "configuration", None) == key}
+        steps = set(configuration_step_ids(self.plan, key))
         own = [r for r in records if r.step_id in steps]
         if [r.file for r in own] != [file for file, _ in read.files]:
             return False

@@ -210,7 +210,7 @@ def _piece_sens(xa, xb, zi, A, n, beta, bound, max_step, S):  # pragma: no cover
 
 @njit(cache=True)
 def project_row(sens, T, dz, row):  # pragma: no cover - compiled
-    """``dz[row, :] = sens @ T``: one row of the chain-rule Jacobian."""
+    """``dz[row, :] = sens @ T``: one row of the chain-rule Jacobian (``sens`` an array or an 8-tuple)."""
     for c in range(8):
         acc = 0.0
         for k in range(8):
@@ -323,16 +323,6 @@ def _sens_substep(zi, h, A, n, beta, sd, sx, terms, S):  # pragma: no cover - co
         s7 + half * (a7 + b7),
     )
     return zi + half * (k1 + k2), out
-
-
-@njit(cache=True)
-def _project_tuple(S, T, dz, row):  # pragma: no cover - compiled
-    """:func:`project_row` of sensitivities held as an 8-tuple (the same sums in the same order)."""
-    for c in range(8):
-        acc = 0.0
-        for k in range(8):
-            acc += S[k] * T[k, c]
-        dz[row, c] = acc
 
 
 @njit(inline="always")
@@ -460,7 +450,7 @@ def _sweep_sens_pair(
                 Sa = dead8
             z[ia + 1] = za
             if ra < rows.size and rows[ra] == ia + 1:
-                _project_tuple(Sa, T, dz, ra)
+                project_row(Sa, T, dz, ra)
                 ra += 1
             ia += 1
         if live_b:
@@ -474,7 +464,7 @@ def _sweep_sens_pair(
                     endb = ib  # sb has diverged: only sa (earlier) may still give an earlier index
             z[ib + 1] = zb
             if rb < rows.size and rows[rb] == ib + 1:
-                _project_tuple(Sb, T, dz, rb)
+                project_row(Sb, T, dz, rb)
                 rb += 1
             ib += 1
     return bad_a if bad_a >= 0 else bad_b
