@@ -83,6 +83,35 @@ def test_with_the_workers_gone_the_report_draws_itself(tmp_path: Path) -> None:
     assert _images(_report(tmp_path / "broken", broken)) == _images(own)
 
 
+def test_the_figures_are_handed_out_before_the_page_is_rendered(tmp_path: Path, monkeypatch: Any) -> None:
+    """The workers get every figure to draw before this process renders the page (which holds its
+    interpreter meanwhile), and the report takes them from those jobs: none is handed out twice."""
+    from protocol_runner.report import render
+
+    events: list[str] = []
+    real_render = render._render
+
+    def page(*args: Any, **kwargs: Any) -> str:
+        events.append("page")
+        return real_render(*args, **kwargs)
+
+    monkeypatch.setattr(render, "_render", page)
+    called: Called = []
+    inline = _inline(called)
+
+    def call(fn: Callable[..., Any], *args: Any) -> Future[Any]:
+        events.append(fn.__name__)
+        return inline(fn, *args)
+
+    html = _report(tmp_path / "w", call)
+    assert events[:1] == ["_predictions"] and "_draw" in events and "page" in events
+    last_draw = max(i for i, event in enumerate(events) if event == "_draw")
+    assert last_draw < events.index("page")
+    handed = [task for name, args in called if name == "_draw" for task in args[1]]
+    assert sorted(handed) == sorted(figure_ids(load_report_data(tmp_path / "w" / "archive.h5", verify=False)))
+    assert len(_images(html)) == len(handed)
+
+
 PINNED = """
 import sys
 from concurrent.futures import ProcessPoolExecutor

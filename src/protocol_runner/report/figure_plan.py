@@ -160,6 +160,16 @@ def _cached(data: ReportData) -> dict[str, str]:
     return images
 
 
+def figures_to_draw(data: ReportData) -> list[str]:
+    """Ids of the figures `assemble_figures` will have drawn for `data` (those not drawn ahead), in
+    document order: known before the report renders, so that they can be handed out first."""
+    return _not_in(_cached(data), figure_ids(data))
+
+
+def _not_in(cached: dict[str, str], every: list[str]) -> list[str]:
+    return [figure_id for figure_id in every if figure_id not in cached]
+
+
 HereDrawer: TypeAlias = Callable[[ReportData, list[str], int], list[Drawn]]
 """Draws the figures of the given ids of the data in this process (or with workers > 1 on processes forked
 from it): `figures.draw_here`."""
@@ -173,7 +183,7 @@ def assemble_figures(
     else by `here` with `workers` (None: `default_workers`)."""
     cached = _cached(data)
     every = figure_ids(data)
-    todo = [figure_id for figure_id in every if figure_id not in cached]
+    todo = _not_in(cached, every)
     results = draw(data, todo) if draw is not None and todo else None
     if results is None:
         results = here(data, todo, default_workers(len(todo)) if workers is None else workers) if todo else []

@@ -102,17 +102,29 @@ class _OnWorkers:
     CHUNKS = 4  # figure jobs: two workers, figures of unequal cost
 
     def __init__(self, call: Call, archive: Path, data: ReportData) -> None:
+        from ..report.figure_plan import figures_to_draw  # no matplotlib
+
         self.call = call
         self.archive = archive
         self.data = data
         # first: computed while the figures are handed out (the archive is only read from now on)
         self.predictions = _submit(call, _predictions, archive, data.protocol_text)
+        # then the figures the report will ask for, handed out now: before the page is rendered (which
+        # holds this process's interpreter while the workers draw), not from the report's figure thread
+        self.todo = figures_to_draw(data)
+        self.handed_out = self._hand_out(data, self.todo) if self.todo else None
 
-    def draw(self, data: ReportData, task_ids: list[str]) -> list[Drawn] | None:
+    def _hand_out(self, data: ReportData, task_ids: list[str]) -> list[Future[Any] | None]:
         from ..report.figure_plan import for_drawing  # no matplotlib
 
         chunks = [task_ids[i :: self.CHUNKS] for i in range(self.CHUNKS)]
-        futures = [_submit(self.call, _draw, for_drawing(data, chunk), chunk) for chunk in chunks if chunk]
+        return [_submit(self.call, _draw, for_drawing(data, chunk), chunk) for chunk in chunks if chunk]
+
+    def draw(self, data: ReportData, task_ids: list[str]) -> list[Drawn] | None:
+        futures = self.handed_out
+        self.handed_out = None
+        if futures is None or data is not self.data or task_ids != self.todo:
+            futures = self._hand_out(data, task_ids)  # not what was handed out (once) at the start
         drawn: list[Drawn] = []
         for future in futures:
             if future is None:
