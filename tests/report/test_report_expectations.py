@@ -357,3 +357,30 @@ def test_unknown_baseline_keys_are_located() -> None:
         ("expectations", 0, "than_baseline", 0),
         "no configuration has key 78 (keys: 1-2, 5-6)",
     ) in problems
+
+
+def test_expectations_are_decided_once_per_data_object(
+    thesis_data: ReportData, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The session records the verdicts and then renders the report from the same data: decided once. A
+    different data object (the same archive read again, or data changed with `replace`) is decided anew."""
+    import dataclasses
+
+    from protocol_runner.report import findings
+
+    calls: list[ReportData] = []
+    real = findings.evaluate_all
+
+    def counted(specs, data):  # type: ignore[no-untyped-def]
+        calls.append(data)
+        return real(specs, data)
+
+    monkeypatch.setattr(findings, "evaluate_all", counted)
+    first = evaluate_expectations(thesis_data)
+    assert evaluate_expectations(thesis_data) is first
+    assert len(calls) == 1
+    assert {v.spec.id: v.verdict for v in first.verdicts}["k2_upper_limit"] == "met"
+    edited = _knee_text({"k2_upper_limit": {"interval": [80, 100]}})
+    changed = evaluate_expectations(dataclasses.replace(thesis_data, protocol_text=edited))
+    assert len(calls) == 2
+    assert {v.spec.id: v.verdict for v in changed.verdicts}["k2_upper_limit"] == "not met"  # decided anew

@@ -7,6 +7,7 @@ here knows any campaign: no configuration key, factor level or threshold.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 from protocol_runner.protocol.expectations import ExpectationSpec
@@ -37,6 +38,16 @@ def declared_expectations(protocol_text: str) -> tuple[tuple[ExpectationSpec, ..
 
 
 def evaluate_expectations(data: ReportData) -> Expectations:
-    """Every declared expectation of `data`'s archived protocol, decided on `data`."""
+    """Every declared expectation of `data`'s archived protocol, decided on `data`: once per `data` object
+    (the session's recorded verdicts and its report, rendered next, decide them on the same one; the data
+    are frozen, so the verdicts are the same)."""
+    for seen, result in _LAST:
+        if seen() is data:
+            return result
     specs, problems = declared_expectations(data.protocol_text)
-    return Expectations(evaluate_all(specs, data), problems, data.session.mode == "dry-run")
+    result = Expectations(evaluate_all(specs, data), problems, data.session.mode == "dry-run")
+    _LAST[:] = [(weakref.ref(data), result)]
+    return result
+
+
+_LAST: list[tuple[weakref.ref[ReportData], Expectations]] = []
