@@ -216,21 +216,30 @@ class UnitsRead:
 
 def read_units(plan: Plan, units_dir: Path, key: int) -> UnitsRead | None:
     """Configuration `key` read from its units as consolidation will merge them (None if it cannot be)."""
-    from ..report.load_configuration import read_configuration
-
     name = configuration_name(key)
     with contextlib.suppress(Exception), contextlib.ExitStack() as files:  # an optimisation only
         units = [
             files.enter_context(h5py.File(f, "r")) for f in configuration_unit_files(plan, units_dir, key)
         ]
-        merged = UnitsView(units)  # the configuration as consolidation will merge it, read in place
-        if f"configurations/{name}" not in merged:
+        read = _read_merged(units, name)
+        if read is None:
             return None
-        group = merged[f"configurations/{name}"]
-        cfg = read_configuration(name, group)
         opened = tuple((Path(u.filename).name, file_identity(os.fstat(u.id.get_vfd_handle()))) for u in units)
-        return UnitsRead(cfg, dict(group.attrs), opened)
+        return UnitsRead(*read, opened)
     return None
+
+
+def _read_merged(units: list[h5py.File], name: str) -> tuple[Configuration, dict[str, Any]] | None:
+    """Configuration `name` and its group's attributes read from the units' merge (`UnitsView`), if they
+    hold it. The view and the HDF5 objects it opened are let go on return, before the files are closed
+    (closing a file with objects still open costs HDF5 more)."""
+    from ..report.load_configuration import read_configuration
+
+    merged = UnitsView(units)  # the configuration as consolidation will merge it, read in place
+    if f"configurations/{name}" not in merged:
+        return None
+    group = merged[f"configurations/{name}"]
+    return read_configuration(name, group), dict(group.attrs)
 
 
 def draw_ahead(plan: Plan, units_dir: Path, key: int, archive: Path) -> UnitsRead | None:
