@@ -173,8 +173,10 @@ class MergedAttrs(Mapping[str, Any]):
         source: dict[str, h5py.AttributeManager] = {}
         for group in groups:
             attrs = group.attrs
-            for key in attrs:
-                source[key] = attrs
+            names: list[bytes] = []
+            h5py.h5a.iterate(group.id, names.append)  # their names, listed inside HDF5 (sorted below)
+            for key in names:
+                source[key.decode()] = attrs
         self._source = {key: source[key] for key in sorted(source) if key not in _NOT_MERGED}
         self._values: dict[str, Any] = {}
 
