@@ -16,16 +16,18 @@ import h5py
 import numpy as np
 import pytest
 
+from protocol_runner.archive.consolidate import merge_units
 from protocol_runner.archive.paths import configuration_name
 from protocol_runner.protocol.loader import find_protocol, load_protocol
 from protocol_runner.protocol.plan import Plan, expand
 from protocol_runner.report import load as load_module
 from protocol_runner.report import load_configuration
+from protocol_runner.report.figure_cache import fingerprint
 from protocol_runner.report.load_configuration import read_configuration
 from protocol_runner.report.model import Configuration
 from protocol_runner.report.render import generate_report
 from protocol_runner.session.assembly import ArchiveDraft
-from protocol_runner.session.early_figures import read_units
+from protocol_runner.session.early_figures import configuration_unit_files, file_identity, read_units
 from protocol_runner.session.journal import Journal
 from protocol_runner.session.read_ahead import ReadAhead
 
@@ -74,6 +76,38 @@ def _taking(session: Path, journal: Journal, key: int) -> ReadAhead:
     assert read is not None
     reading.offer(read)
     return reading
+
+
+def test_a_configuration_read_from_its_units_is_the_one_read_from_their_merge(
+    reference_archive: Path, tmp_path: Path
+) -> None:
+    """A dry run's configuration read from its units (through `UnitsView`) is, field by field, the one the
+    report's reader gives on the group consolidation merges from the same units, with that group's
+    attributes (same names in the same order, same types and bits) and the unit files read, in order."""
+    session = reference_archive.parent
+    (key,) = ONLY
+    name = configuration_name(key)
+    plan = _knee_plan(ONLY)
+    files = configuration_unit_files(plan, session / "units", key)
+    read = read_units(plan, session / "units", key)
+    assert read is not None
+    with h5py.File(tmp_path / "merged.h5", "w") as out:
+        merge_units(out, files)
+    with h5py.File(tmp_path / "merged.h5", "r") as out:
+        group = out["configurations"][name]
+        want = read_configuration(name, group)
+        attrs = {key: group.attrs[key] for key in group.attrs}
+    _assert_same(read.configuration, want, name)
+    assert fingerprint(read.configuration) == fingerprint(want)
+    assert list(read.attrs) == list(attrs) and len(attrs) > 10
+    for attr, value in attrs.items():
+        got = read.attrs[attr]
+        if isinstance(value, np.ndarray) and value.dtype.kind == "O":  # strings: compared as strings
+            assert (type(got), got.dtype, got.tolist()) == (np.ndarray, value.dtype, value.tolist()), attr
+        else:
+            _assert_same(got, value, attr)
+    assert read.files == tuple((f.name, file_identity(f.stat())) for f in files)
+    assert len(files) >= 3  # trials, processing and fit at least
 
 
 def test_the_session_report_reads_ahead_and_equals_the_report_read_from_the_archive(

@@ -119,15 +119,16 @@ def float_ds(group: h5py.Group, name: str) -> np.ndarray:
 
 Record = TypeVar("Record")
 
-#: How a record field is read from its group, by the field's declared type: an attribute of that name, or
-#: (arrays) the dataset of that name decimated for plotting. The second argument is the field's default.
-_FIELD_READERS: dict[str, Callable[[h5py.Group, str, Any], Any]] = {
-    "float": lambda g, name, default: attr_float(g.attrs, name, default),
-    "int": lambda g, name, default: attr_int(g.attrs, name, default),
-    "bool": lambda g, name, default: attr_bool(g.attrs, name, default),
-    "str": lambda g, name, default: attr_str(g.attrs, name, default),
-    "tuple[float, ...]": lambda g, name, _: attr_floats(g.attrs, name),
-    "FloatArray": lambda g, name, _: decimate_for_plot(float_ds(g, name)),
+#: How a record field is read from its group (given with its attributes, `group.attrs` taken once per
+#: record), by the field's declared type: an attribute of that name, or (arrays) the dataset of that name
+#: decimated for plotting. The last argument is the field's default.
+_FIELD_READERS: dict[str, Callable[[h5py.Group, h5py.AttributeManager, str, Any], Any]] = {
+    "float": lambda _, attrs, name, default: attr_float(attrs, name, default),
+    "int": lambda _, attrs, name, default: attr_int(attrs, name, default),
+    "bool": lambda _, attrs, name, default: attr_bool(attrs, name, default),
+    "str": lambda _, attrs, name, default: attr_str(attrs, name, default),
+    "tuple[float, ...]": lambda _, attrs, name, __: attr_floats(attrs, name),
+    "FloatArray": lambda g, _, name, __: decimate_for_plot(float_ds(g, name)),
 }
 _NO_DEFAULT = {"float": float("nan"), "int": 0, "bool": False, "str": ""}
 
@@ -137,10 +138,11 @@ def read_record(record: type[Record], group: h5py.Group, **given: Any) -> Record
     its own name by its type (`_FIELD_READERS`); a missing attribute takes the field's default, else NaN,
     0, False or ""."""
     values = dict(given)
+    attrs = group.attrs
     for f in dataclasses.fields(record):  # type: ignore[arg-type]
         if f.name in values:
             continue
         kind = str(f.type)
         default = f.default if f.default is not dataclasses.MISSING else _NO_DEFAULT.get(kind)
-        values[f.name] = _FIELD_READERS[kind](group, f.name, default)
+        values[f.name] = _FIELD_READERS[kind](group, attrs, f.name, default)
     return record(**values)

@@ -52,15 +52,17 @@ def read_configuration(name: str, grp: h5py.Group) -> Configuration:
     torques: list[np.ndarray] = []
     raw_loaded = False
     if "trials" in grp:
-        for number, tname in _trial_numbers(grp["trials"]):
-            tgrp = grp["trials"][tname]
+        trials_grp = grp["trials"]
+        for number, tname in _trial_numbers(trials_grp):
+            tgrp = trials_grp[tname]
             on = off = None
-            has_raw = "brace_on" in tgrp or "brace_off" in tgrp
+            sides = [side for side in ("brace_on", "brace_off") if side in tgrp]
+            has_raw = bool(sides)
             # Only the first recorded trial's raw data is plotted (angle/torque vs time): reading and
             # decompressing the others would dominate the report's regeneration time.
             if has_raw and not raw_loaded:
-                on = _read_recording(tgrp["brace_on"]) if "brace_on" in tgrp else None
-                off = _read_recording(tgrp["brace_off"]) if "brace_off" in tgrp else None
+                on = _read_recording(tgrp["brace_on"]) if "brace_on" in sides else None
+                off = _read_recording(tgrp["brace_off"]) if "brace_off" in sides else None
                 raw_loaded = True
             processed = None
             if "processed" in tgrp:

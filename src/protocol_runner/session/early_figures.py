@@ -14,7 +14,8 @@ from __future__ import annotations
 import contextlib
 import functools
 import os
-from collections.abc import Iterator
+import posixpath
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -61,28 +62,48 @@ class UnitsView:
     """The units' groups at one archive path read as consolidation would merge them, without copying:
     a member is the last unit's dataset, or the view of every unit's group of that name; attributes are
     merged in unit order (a later unit's value wins), the units' own attributes left out. Enough of
-    `h5py.Group` for the report's configuration reader (`in`, `[]` with paths, iteration, `attrs`)."""
+    `h5py.Group` for the report's configuration reader (`in`, `[]` with relative paths, iteration in
+    HDF5's name order, `attrs`). What is asked of a unit is asked once (`_Layer`): a path is then looked
+    up in dictionaries, not asked of HDF5 unit by unit. A unit holding a soft or external link or a
+    named datatype (which this program's units never do) is refused with `ValueError`."""
 
     def __init__(self, layers: list[h5py.Group]) -> None:
-        self._layers = layers
+        self._layers = [_Layer(group) for group in layers]
+        self._path = ""  # the view's path in each of its layers ("" is the layers themselves)
+
+    @classmethod
+    def _at(cls, layers: list[_Layer], path: str) -> UnitsView:
+        view = cls.__new__(cls)
+        view._layers, view._path = layers, path
+        return view
 
     @property
     def name(self) -> str:
-        return str(self._layers[0].name)
+        base = str(self._layers[0].group.name)
+        return posixpath.join(base, self._path) if self._path else base
+
+    def _full(self, path: str) -> str:
+        if path.startswith("/"):
+            raise ValueError(f"the units' view is read by relative paths, not {path!r}")
+        parts = [part for part in path.split("/") if part not in ("", ".")]
+        return "/".join([self._path, *parts] if self._path else parts)
 
     def __contains__(self, path: str) -> bool:
-        return any(path in layer for layer in self._layers)
+        full = self._full(path)
+        return any(full in layer for layer in self._layers)
 
     def __getitem__(self, path: str) -> h5py.Dataset | UnitsView:
-        found = [layer[path] for layer in self._layers if path in layer]
+        full = self._full(path)
+        found = [(layer, got) for layer in self._layers if (got := layer.get(full)) is not None]
         if not found:
             raise KeyError(path)
-        if isinstance(found[-1], h5py.Dataset):
-            return found[-1]
-        return UnitsView([g for g in found if isinstance(g, h5py.Group)])
+        if isinstance(found[-1][1], h5py.Dataset):
+            return found[-1][1]
+        return UnitsView._at([layer for layer, got in found if isinstance(got, h5py.Group)], full)
 
     def __iter__(self) -> Iterator[str]:
-        return iter(sorted({name for layer in self._layers for name in layer}))  # HDF5's name order
+        names = {name for layer in self._layers for name in layer.members(self._path)}
+        return iter(sorted(names))  # HDF5's name order
 
     def keys(self) -> list[str]:
         return list(self)
@@ -91,15 +112,87 @@ class UnitsView:
         return [(name, self[name]) for name in self]
 
     @functools.cached_property
-    def attrs(self) -> dict[str, Any]:
-        names = [list(layer.attrs) for layer in self._layers]
-        order = dict.fromkeys(k for layer_names in names for k in layer_names if k not in _NOT_MERGED)
-        merged: dict[str, Any] = {}
-        for layer, layer_names in zip(reversed(self._layers), reversed(names), strict=True):
-            for key in layer_names:  # each value read once, from the last unit that sets it
-                if key in order and key not in merged:
-                    merged[key] = layer.attrs[key]
-        return {key: merged[key] for key in sorted(order)}  # HDF5 lists attributes by name
+    def attrs(self) -> MergedAttrs:
+        return MergedAttrs([layer.get(self._path) for layer in self._layers])
+
+
+class _Layer:
+    """One unit's group (a layer of a `UnitsView`) and what has been asked of it: each object opened once,
+    a group's members listed once (one listing of its links inside the HDF5 library), so that a path is
+    then looked up in dictionaries instead of asked of HDF5 unit by unit."""
+
+    def __init__(self, group: h5py.Group) -> None:
+        self.group = group
+        self._readonly = group.file.mode == "r"
+        self._objects: dict[str, h5py.Group | h5py.Dataset | None] = {"": group}  # None: absent
+        self._members: dict[str, set[str]] = {}  # a group's path ("" the layer's own) -> its names
+
+    def get(self, path: str) -> h5py.Group | h5py.Dataset | None:
+        """The group or dataset at `path` (None when the layer holds none)."""
+        if path not in self._objects:
+            parent, _, name = path.rpartition("/")
+            self._objects[path] = self._open(path) if name in self.members(parent) else None
+        return self._objects[path]
+
+    def members(self, path: str) -> set[str]:
+        """The names in the group at `path` (none when there is no group there)."""
+        if path not in self._members:
+            found = self.get(path)
+            self._members[path] = self._listed(found) if isinstance(found, h5py.Group) else set()
+        return self._members[path]
+
+    def __contains__(self, path: str) -> bool:
+        parent, _, name = path.rpartition("/")
+        return name in self.members(parent)
+
+    def _open(self, path: str) -> h5py.Group | h5py.Dataset:
+        found = h5py.h5o.open(self.group.id, path.encode())
+        if isinstance(found, h5py.h5g.GroupID):
+            return h5py.Group(found)
+        if isinstance(found, h5py.h5d.DatasetID):
+            return h5py.Dataset(found, readonly=self._readonly)
+        raise ValueError(f"{self._where(path)} is neither a group nor a dataset")
+
+    def _listed(self, group: h5py.Group) -> set[str]:
+        links: list[tuple[bytes, int]] = []
+        group.id.links.iterate(lambda name, info: links.append((name, info.type)), info=True)
+        if any(kind != h5py.h5l.TYPE_HARD for _, kind in links):  # (not raised inside HDF5's iteration)
+            raise ValueError(f"{self._where(str(group.name))} holds a soft or external link")
+        return {name.decode() for name, _ in links}
+
+    def _where(self, path: str) -> str:
+        return f"{self.group.file.filename}: {posixpath.join(str(self.group.name), path)}"
+
+
+class MergedAttrs(Mapping[str, Any]):
+    """The attributes of a `UnitsView`: its groups' merged in order (a later group's value wins), the units'
+    own left out, in HDF5's name order. Each value is read when first asked for, from the group it comes
+    from, and kept."""
+
+    def __init__(self, groups: list[h5py.Group]) -> None:
+        source: dict[str, h5py.AttributeManager] = {}
+        for group in groups:
+            attrs = group.attrs
+            names: list[bytes] = []
+            h5py.h5a.iterate(group.id, names.append)  # their names, listed inside HDF5 (sorted below)
+            for key in names:
+                source[key.decode()] = attrs
+        self._source = {key: source[key] for key in sorted(source) if key not in _NOT_MERGED}
+        self._values: dict[str, Any] = {}
+
+    def __getitem__(self, key: str) -> Any:
+        if key not in self._values:
+            self._values[key] = self._source[key][key]
+        return self._values[key]
+
+    def __contains__(self, key: object) -> bool:
+        return key in self._source
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._source)
+
+    def __len__(self) -> int:
+        return len(self._source)
 
 
 _NOT_MERGED = frozenset((*ATTRIBUTES["unit"], MARKER_ATTR))
@@ -125,21 +218,30 @@ class UnitsRead:
 
 def read_units(plan: Plan, units_dir: Path, key: int) -> UnitsRead | None:
     """Configuration `key` read from its units as consolidation will merge them (None if it cannot be)."""
-    from ..report.load_configuration import read_configuration
-
     name = configuration_name(key)
     with contextlib.suppress(Exception), contextlib.ExitStack() as files:  # an optimisation only
         units = [
             files.enter_context(h5py.File(f, "r")) for f in configuration_unit_files(plan, units_dir, key)
         ]
-        merged = UnitsView(units)  # the configuration as consolidation will merge it, read in place
-        if f"configurations/{name}" not in merged:
+        read = _read_merged(units, name)
+        if read is None:
             return None
-        group = merged[f"configurations/{name}"]
-        cfg = read_configuration(name, group)
         opened = tuple((Path(u.filename).name, file_identity(os.fstat(u.id.get_vfd_handle()))) for u in units)
-        return UnitsRead(cfg, dict(group.attrs), opened)
+        return UnitsRead(*read, opened)
     return None
+
+
+def _read_merged(units: list[h5py.File], name: str) -> tuple[Configuration, dict[str, Any]] | None:
+    """Configuration `name` and its group's attributes read from the units' merge (`UnitsView`), if they
+    hold it. The view and the HDF5 objects it opened are let go on return, before the files are closed
+    (closing a file with objects still open costs HDF5 more)."""
+    from ..report.load_configuration import read_configuration
+
+    merged = UnitsView(units)  # the configuration as consolidation will merge it, read in place
+    if f"configurations/{name}" not in merged:
+        return None
+    group = merged[f"configurations/{name}"]
+    return read_configuration(name, group), dict(group.attrs)
 
 
 def draw_ahead(plan: Plan, units_dir: Path, key: int, archive: Path) -> UnitsRead | None:
