@@ -20,7 +20,8 @@ from typing import Any
 
 import h5py
 import numpy as np
-from h5py import h5a, h5f, h5g, h5o, h5p, h5s
+import numpy.typing as npt
+from h5py import h5a, h5f, h5g, h5o, h5p, h5s, h5t
 
 from .. import __version__
 from .attrs import ATTRIBUTES, FILENAME, ONLY
@@ -58,10 +59,11 @@ _LCPL = h5p.create(h5p.LINK_CREATE)  # what h5py's `Group.copy` creates the copy
 _LCPL.set_create_intermediate_group(True)
 _FAPL = h5p.create(h5p.FILE_ACCESS)  # a unit opened as `h5py.File(path, "r")` would be
 _FAPL.set_libver_bounds(h5f.LIBVER_EARLIEST, h5f.LIBVER_LATEST)
+_MEMORY_TYPES: dict[bytes, tuple[np.dtype[Any], h5t.TypeID]] = {}  # HDF5 type's encoding -> `_read_attr`'s
 
-# The merge works on HDF5's identifiers (h5py's low-level API): h5py's groups, attribute managers and
-# `in`/`[]` lookups cost more than the HDF5 calls they make, and merging walks about 1,000 groups and
-# 10,000 attributes per session (issue 20). Names are the links' and attributes' bytes, visited in name order.
+# The merge works on HDF5's identifiers (h5py's low-level API), not on h5py's groups and attribute
+# managers: their objects, `in` and `[]` lookups cost more than the HDF5 calls they make, and a knee session's
+# merge visits about 1,000 groups and 3,000 attributes (issue 20). Names are bytes, visited in name order.
 
 
 def _link_names(group: h5g.GroupID) -> list[bytes]:
@@ -70,26 +72,35 @@ def _link_names(group: h5g.GroupID) -> list[bytes]:
     return names
 
 
-def _attr_names(obj: h5o.ObjectID) -> list[bytes]:
+def _attr_names(obj: h5g.GroupID) -> list[bytes]:
     names: list[bytes] = []
     h5a.iterate(obj, names.append)
     return names
 
 
-def _copy_attr(src: h5o.ObjectID, dst: h5o.ObjectID, name: bytes) -> None:
+def _read_attr(attr: h5a.AttrID) -> tuple[npt.NDArray[Any], h5t.TypeID]:
+    """An attribute's values as h5py's `attrs[name]` reads them (into the numpy type h5py gives its HDF5
+    type), and the memory type read with; both types made once per HDF5 type (its encoding)."""
+    key = attr.get_type().encode()
+    types = _MEMORY_TYPES.get(key)
+    if types is None:
+        types = _MEMORY_TYPES[key] = (attr.dtype, h5t.py_create(attr.dtype))
+    values = np.empty(attr.shape, dtype=types[0])
+    if values.size:
+        attr.read(values, mtype=types[1])
+    return values, types[1]
+
+
+def _copy_attr(src: h5g.GroupID, dst: h5g.GroupID, name: bytes) -> None:
     """Give `dst` `src`'s attribute `name` (`dst` has none of that name): its HDF5 type, dataspace and
     values, as `dst.attrs[name] = src.attrs[name]` writes them for every type a unit holds."""
     attr = h5a.open(src, name)
     space = attr.get_space()
     copy = h5a.create(dst, name, attr.get_type(), space)
     if space.get_simple_extent_type() != h5s.NULL:  # an empty attribute has no values
-        values = np.empty(attr.shape, dtype=attr.dtype)
-        attr.read(values)
-        copy.write(values)
-
-
-def _is_group(oid: h5o.ObjectID) -> bool:
-    return isinstance(oid, h5g.GroupID)
+        values, mtype = _read_attr(attr)
+        if values.size:
+            copy.write(values, mtype=mtype)
 
 
 def _merge_under(src: h5g.GroupID, dst: h5g.GroupID) -> None:
@@ -106,9 +117,9 @@ def _merge_under(src: h5g.GroupID, dst: h5g.GroupID) -> None:
             h5o.copy(src, name, dst, name, None, _LCPL)  # whole subtree in one call (chunks copied as stored)
             continue
         theirs = h5o.open(src, name)
-        if _is_group(theirs):
+        if isinstance(theirs, h5g.GroupID):
             ours = h5o.open(dst, name)
-            if _is_group(ours):
+            if isinstance(ours, h5g.GroupID):
                 _merge_under(theirs, ours)
 
 
@@ -116,10 +127,7 @@ def _marked(unit: h5f.FileID) -> bool:
     """`checksums.is_marked` on the unit's identifier."""
     if not h5a.exists(unit, _MARKER_NAME):
         return False
-    attr = h5a.open(unit, _MARKER_NAME)
-    value = np.empty(attr.shape, dtype=attr.dtype)
-    attr.read(value)
-    found = value[()]
+    found = _read_attr(h5a.open(unit, _MARKER_NAME))[0][()]
     return (found.decode() if isinstance(found, bytes) else found) == MARKER_VALUE
 
 
@@ -153,9 +161,9 @@ def _merge_over(src: h5g.GroupID, dst: h5g.GroupID) -> None:
     for name in _link_names(src):
         if dst.links.exists(name):
             theirs = h5o.open(src, name)
-            if _is_group(theirs):
+            if isinstance(theirs, h5g.GroupID):
                 ours = h5o.open(dst, name)
-                if _is_group(ours):
+                if isinstance(ours, h5g.GroupID):
                     _merge_over(theirs, ours)
                     continue
             dst.unlink(name)
