@@ -13,7 +13,7 @@ each copied over what is there, before it writes the metadata and renames. The p
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -131,23 +131,27 @@ def _marked(unit: h5f.FileID) -> bool:
     return (found.decode() if isinstance(found, bytes) else found) == MARKER_VALUE
 
 
-def _open_unit(path: Path) -> h5f.FileID:
-    return h5f.open(os.fsencode(path), h5f.ACC_RDONLY, fapl=_FAPL)
+def _merge_files(
+    out: h5py.Group, unit_files: Iterable[Path], merge: Callable[[h5g.GroupID, h5g.GroupID], None]
+) -> bool:
+    """Each unit's root merged into `out` by `merge`, in the order given; whether every unit carried
+    checksums (units written before checksums existed, in a session resumed across versions, did not)."""
+    summed = True
+    for path in unit_files:
+        unit = h5f.open(os.fsencode(path), h5f.ACC_RDONLY, fapl=_FAPL)
+        try:
+            summed = summed and _marked(unit)
+            merge(unit, out.id)
+        finally:
+            unit.close()
+    return summed
 
 
 def merge_units(out: h5py.Group, unit_files: Iterable[Path]) -> bool:
     """Merge the units into `out` as if each were copied over the ones before it (in plan order, a later
     unit's attribute or dataset replacing an earlier one's), by adding them last to first without
     replacing anything; whether every unit carried checksums."""
-    summed = True  # units written before checksums existed (a session resumed across versions): not
-    for path in reversed(list(unit_files)):
-        unit = _open_unit(path)
-        try:
-            summed = summed and _marked(unit)
-            _merge_under(unit, out.id)
-        finally:
-            unit.close()
-    return summed
+    return _merge_files(out, reversed(list(unit_files)), _merge_under)
 
 
 def _merge_over(src: h5g.GroupID, dst: h5g.GroupID) -> None:
@@ -173,15 +177,7 @@ def _merge_over(src: h5g.GroupID, dst: h5g.GroupID) -> None:
 def add_units(out: h5py.Group, unit_files: Iterable[Path]) -> bool:
     """Copy the units over `out` one after the other (each later in the plan than what `out` holds);
     whether every unit carried checksums."""
-    summed = True
-    for path in unit_files:
-        unit = _open_unit(path)
-        try:
-            summed = summed and _marked(unit)
-            _merge_over(unit, out.id)
-        finally:
-            unit.close()
-    return summed
+    return _merge_files(out, unit_files, _merge_over)
 
 
 @dataclass(frozen=True)
