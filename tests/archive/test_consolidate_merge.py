@@ -80,3 +80,84 @@ def test_the_archive_declares_checksums_only_when_every_unit_had_them(tmp_path: 
     with h5py.File(mixed, "r") as f:
         assert MARKER_ATTR not in f.attrs
     assert len(load_report_data(mixed).configurations[0].trials) == 2
+
+
+def _attr_types(obj: h5py.HLObject) -> dict[str, tuple[bytes, object]]:
+    """Each attribute's HDF5 type (its encoding: class, size, order, character set, padding) and value (a
+    number's bytes: NaN compares)."""
+    out: dict[str, tuple[bytes, object]] = {}
+    for name in obj.attrs:
+        value = obj.attrs[name]
+        arr = np.asarray(value if not isinstance(value, h5py.Empty) else [])
+        shown = arr.tobytes() if arr.dtype.kind in "biuf" else arr.tolist()
+        out[name] = (
+            h5py.h5a.open(obj.id, name.encode()).get_type().encode(),
+            (shown, arr.dtype.str, arr.shape, type(value).__name__),
+        )
+    return out
+
+
+def test_an_attribute_is_copied_with_the_type_and_values_h5py_would_write(tmp_path: Path) -> None:
+    """Consolidation copies a unit's attributes through HDF5 directly: every kind a unit holds (text,
+    numbers, booleans, arrays of them, empty ones) arrives as `archive.attrs[k] = unit.attrs[k]` writes it,
+    whether it is added under later units (`merge_units`) or over earlier ones (`add_units`)."""
+    values: dict[str, object] = {
+        "text": "brace on, Ø 12 mm",
+        "texts": np.array(["a", "bé", ""], dtype=h5py.string_dtype()),
+        "count": 3,
+        "ratio": 0.1,
+        "flag": True,
+        "flags": np.array([True, False]),
+        "codes": np.array([1, -2, 3], dtype=np.int64),
+        "small": np.array([1, 2], dtype=np.int16),
+        "floats": np.array([0.5, np.nan, -np.inf]),
+        "single": np.float32(1.25),
+        "none_yet": np.array([], dtype=np.float64),
+        "empty": h5py.Empty("f8"),
+    }
+    unit = tmp_path / "unit.h5"
+    with h5py.File(unit, "w") as f:
+        f.require_group("configurations/config_01").attrs.update(values)
+    with h5py.File(tmp_path / "by_h5py.h5", "w") as ref, h5py.File(unit, "r") as f:
+        src = f["configurations/config_01"]
+        dst = ref.require_group("configurations/config_01")
+        for name in src.attrs:
+            dst.attrs[name] = src.attrs[name]
+        expected = _attr_types(dst)
+    from protocol_runner.archive.consolidate import add_units
+
+    with h5py.File(tmp_path / "under.h5", "w") as out:
+        merge_units(out, [unit])
+        assert _attr_types(out["configurations/config_01"]) == expected
+    with h5py.File(tmp_path / "over.h5", "w") as out:
+        out.require_group("configurations/config_01").attrs.update({k: "earlier" for k in values})
+        add_units(out, [unit])
+        assert _attr_types(out["configurations/config_01"]) == expected
+    assert len(expected) == len(values)
+
+
+def test_a_later_units_dataset_replaces_an_earlier_units_group_whole(tmp_path: Path) -> None:
+    """Copying the units over one another in plan order, a later unit's dataset takes the place of an
+    earlier unit's group of the same name: none of the group's attributes or members remain, the same when
+    the later unit is merged first (`merge_units`, last to first) or copied over a draft (`add_units`)."""
+    from protocol_runner.archive.consolidate import add_units
+
+    earlier, later = tmp_path / "earlier.h5", tmp_path / "later.h5"
+    with h5py.File(earlier, "w") as f:
+        grp = f.require_group("configurations/config_01/summary")
+        grp.attrs["note"] = "a group first"
+        grp.create_dataset("n", data=[1])
+        f["configurations/config_01"].attrs["kept"] = "only in the earlier unit"
+    with h5py.File(later, "w") as f:
+        f.create_dataset("configurations/config_01/summary", data=[2.0, 3.0]).attrs["units"] = "J"
+    for how in ("under", "over"):
+        with h5py.File(tmp_path / f"{how}.h5", "w") as out:
+            if how == "under":
+                merge_units(out, [earlier, later])
+            else:
+                add_units(out, [earlier])
+                add_units(out, [later])
+            summary = out["configurations/config_01/summary"]
+            assert isinstance(summary, h5py.Dataset) and summary[()].tolist() == [2.0, 3.0]
+            assert dict(summary.attrs) == {"units": "J"}, how  # the group's "note" not carried over
+            assert out["configurations/config_01"].attrs["kept"] == "only in the earlier unit"
