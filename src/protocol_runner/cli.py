@@ -7,6 +7,7 @@ calibration check; 130 interrupted or disk full (resumable).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -290,9 +291,24 @@ def entry() -> None:
     """The `run-protocol` command (and `python -m protocol_runner.cli`): `main` on the process's arguments,
     then the end of the process. When nothing is left to finish, that skips the interpreter's teardown
     (`process_exit`); otherwise it is the normal exit. Callers in their own process use `main(argv)`."""
+    one_blas_thread()
     code = main()
     exit_now_if_safe(code)  # returns when a normal exit is needed
     sys.exit(code)
+
+
+def one_blas_thread() -> None:
+    """Have OpenBLAS start with one thread in this process and the processes it starts (the analysis
+    workers), unless the environment already says how many (`OPENBLAS_NUM_THREADS` is kept as set).
+
+    numpy and scipy each load their own OpenBLAS, which starts a pool of threads that spin, waiting for
+    work, for about 0.1 s of CPU each after it starts and after every fork: 0.2 s at the session's start-up
+    and more in the fork server and each worker, on a two-core machine whose other core the workers need.
+    Nothing of this program's gains from more: the session's own BLAS calls are small, and the model fits
+    hold BLAS at one thread while they run anyway (threadpoolctl, models/bouc_wen/threads.py). It is read
+    by OpenBLAS when it loads, so it is set here, before anything imports numpy (checked by a test); a
+    program calling `main(argv)` keeps its own setting."""
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 
 if __name__ == "__main__":  # pragma: no cover
