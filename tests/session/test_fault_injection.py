@@ -63,11 +63,16 @@ def test_sigkill_at_random_points_then_resume_gives_identical_archive(
         log=log,
     )
     kills = 0
-    for round_ in range(4):
-        target = journal_units(session) + rng.randint(1, 3)
-        if not wait_for_units(proc, session, target):
+    # kill points spread over the run (the units journaled when the kill comes), then a short random delay:
+    # somewhere inside the next step (mid-trial, mid-write, ...; a dry run's steps take tens of ms, so a
+    # longer delay would let a fast run finish before the later kills)
+    total = len(Journal(reference_archive.parent / "journal.jsonl").units)
+    targets = sorted(rng.sample(range(1, total - 1), 3))
+    for round_, planned in enumerate(targets):
+        target = max(planned, journal_units(session) + 1)
+        if target >= total or not wait_for_units(proc, session, target):
             break
-        time.sleep(rng.uniform(0.0, 0.3))  # somewhere inside the next step: mid-trial, mid-write, ...
+        time.sleep(rng.uniform(0.0, 0.05))
         if proc.poll() is not None:
             break
         proc.send_signal(signal.SIGKILL)
@@ -76,7 +81,7 @@ def test_sigkill_at_random_points_then_resume_gives_identical_archive(
             break
         kills += 1
         assert proc.returncode == -signal.SIGKILL
-        if round_ < 3:
+        if round_ < len(targets) - 1:
             proc = cli("--resume", str(session), log=log)
     if proc.poll() is None or (proc.returncode or 0) < 0:
         proc = cli("--resume", str(session), log=log)

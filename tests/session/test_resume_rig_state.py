@@ -35,8 +35,8 @@ def interrupt_after(monkeypatch: pytest.MonkeyPatch, step_id: str) -> None:
     flag = StopFlag()
     real = runner_module.Runner.record
 
-    def record(self: runner_module.Runner, done_id: str, outcome) -> None:  # type: ignore[no-untyped-def]
-        real(self, done_id, outcome)
+    def record(self: runner_module.Runner, done_id: str, outcome, **how) -> None:  # type: ignore[no-untyped-def]
+        real(self, done_id, outcome, **how)
         if done_id == step_id:
             flag.request("SIGINT")
 

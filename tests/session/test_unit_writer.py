@@ -5,6 +5,7 @@ before it is journaled, and nothing after it is attempted."""
 
 from __future__ import annotations
 
+import os
 import threading
 import time
 from pathlib import Path
@@ -20,6 +21,7 @@ from protocol_runner.session.unit_writer import (
     UnitWriter,
     WritingStepContext,
     WrittenJournalView,
+    written_in_this_run,
 )
 
 
@@ -224,3 +226,46 @@ def test_asking_the_journal_about_a_unit_waits_for_that_unit_not_for_those_queue
     assert sorted(view.units) == ["calibration:a:before", "trial:k01:off:3"]  # walking waits for all
     assert len(view.units) == 2
     writer.close()
+
+
+def test_a_unit_made_from_unjournaled_units_is_journaled_after_them(tmp_path: Path) -> None:
+    """A comparison run while the analysis it read was still finishing: its unit is written at once but
+    journaled only after that analysis's unit; units that wait for nothing are journaled meanwhile."""
+    writer, journal, units = make(tmp_path)
+    writer.submit("compare:x", filler(1.0), after=["process:k01"])
+    writer.submit("trial:k02:on:1", filler(2.0))
+    writer.flush()
+    assert unit_path(units, "compare:x").is_file()  # on disk (written, renamed into place) ...
+    assert "compare:x" not in journal.units  # ... not journaled: what it read is not
+    assert writer.held == ("compare:x",)
+    assert "trial:k02:on:1" in journal.units
+    writer.submit("process:k01", filler(3.0))
+    writer.flush()
+    writer.collect()
+    assert writer.held == ()
+    order = list(journal.units)
+    assert order.index("process:k01") < order.index("compare:x")
+    reread = Journal(tmp_path / "journal.jsonl")  # as a resume reads it
+    assert list(reread.units) == order
+    writer.close()
+
+
+def test_a_held_unit_stays_unjournaled_when_what_it_waits_for_never_comes(tmp_path: Path) -> None:
+    """A stop before the analysis ends: the comparison's file is on disk but not journaled, so a resume
+    redoes it (after the analysis it reads)."""
+    writer, _journal, units = make(tmp_path)
+    writer.submit("compare:x", filler(1.0), after=["process:k01"])
+    writer.close()
+    assert unit_path(units, "compare:x").is_file()
+    assert "compare:x" not in Journal(tmp_path / "journal.jsonl").units
+
+
+def test_a_unit_file_counts_as_this_runs_only_when_written_since_it_started(tmp_path: Path) -> None:
+    path = tmp_path / "process__k01.h5"
+    started = time.time_ns()
+    assert not written_in_this_run(path, started)  # not there
+    path.write_bytes(b"unit")
+    assert written_in_this_run(path, started)
+    stale = started - 60_000_000_000  # left by a run a minute earlier
+    os.utime(path, ns=(stale, stale))
+    assert not written_in_this_run(path, started)

@@ -15,18 +15,22 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 from ..archive.diskfull import DiskFull, disk_full_error, is_disk_full
+from ..archive.units import unit_path
 from ..errors import Interrupted, StoppedByCheck, UserError
 from ..events import NULL_PUBLISHER, Publisher
 from ..protocol.loader import LoadedProtocol
 from ..protocol.plan import (
+    CompareStep,
     Plan,
     Step,
 )
+from ..steps.compare import units_read
 from ..steps.context import Bench, StepOutcome, processing_settings
 from ..steps.failures import run_step
 from .assembly import ArchiveDraft, consolidate_session
@@ -39,8 +43,11 @@ from .reporting import render_report, start_warm_up
 from .resume import prepare_resume
 from .setup import SessionInfo
 from .signals import StopFlag
-from .unit_writer import UnitWriter, WritingStepContext, WrittenJournalView
+from .unit_writer import UnitWriter, WritingStepContext, WrittenJournalView, written_in_this_run
 from .workers import BACKGROUND_KINDS, AnalysisPool, start_worker_server
+
+UNIT_POLL_S = 0.005
+"""How often a comparison waiting for a unit an analysis is writing looks for it."""
 
 
 @dataclass(frozen=True)
@@ -96,6 +103,7 @@ class Runner:
             return self._run()
 
     def _run(self) -> RunResult:
+        self.started_ns = time.time_ns()  # units written from now on are this run's
         self.units_dir.mkdir(parents=True, exist_ok=True)
         for stray in self.units_dir.glob("*.partial"):
             stray.unlink()  # an unfinished unit from a crash: never complete, always redone
@@ -141,22 +149,28 @@ class Runner:
                     # handed to a worker once the configuration's units are on disk
                     self.pool.submit(step, ready=self.writer.ticket())
                     continue
+                after: list[str] = []  # units the step read that are not journaled yet
                 if step.kind in ("compare", "report"):
                     # the report's imports and caches, while the last analyses finish (the workers draw)
                     start_warm_up(drawing=not self.pool.running)
-                    # Once no analysis is left, the comparisons run one after the other without waiting
-                    # for each other's units (they read the analyses' units, through ctx.unit): the unit
-                    # writer saves each while the next runs. The report step waits for all of them.
+                    # A comparison runs as soon as the processing units it reads are on disk, while the
+                    # last fits may still run, and the comparisons one after the other without waiting for
+                    # each other's units: the unit writer saves each while the next runs, and journals it
+                    # once the units it read are journaled. The report step waits for all of them.
                     if step.kind == "report" or self.pool.busy:
-                        self.writer.flush()  # what the analyses read is on disk
-                        self._await_analyses(progress)  # these read the analyses' units
+                        if isinstance(step, CompareStep):
+                            after = self._await_units(units_read(step), progress)
+                        else:
+                            self.writer.flush()  # what the analyses read is on disk
+                            self._await_analyses(progress)
+                            self.writer.collect()  # the comparisons held for them
                         if self.stop():  # a Ctrl-C while the last analyses ran: stop here, as announced
                             raise Interrupted(f"stopped before {step.id} ({self.stop.signal_name})")
                 if step.kind == "report":
                     return self._finish(progress, skipped)
                 progress.step_started(step)
                 outcome = run_step(step, ctx)
-                self.record(step.id, outcome)
+                self.record(step.id, outcome, after=after)
                 progress.step_finished(step, outcome.summary)
             self.writer.flush()
             self._await_analyses(progress)
@@ -226,11 +240,33 @@ class Runner:
                 self.read_ahead.update()
         self.read_ahead.update(draft=False)  # what the last analyses' worker read (nothing to read here)
 
-    def record(self, step_id: str, outcome: StepOutcome) -> None:
-        """Hand the step's unit to the writer (journaled once it is on disk); a step that stops the session
-        has its unit written and journaled before the stop is raised."""
+    def _await_units(self, step_ids: list[str], progress: Progress) -> list[str]:
+        """Wait until the units `step_ids` are on disk: journaled, or written in this run by an analysis whose
+        task has not ended (a unit is complete once renamed into place; it is journaled when its task ends,
+        `written_in_this_run`). Returns those not journaled yet."""
+        finished = self._finished(progress)
+
+        def missing() -> list[str]:
+            self.pool.collect(finished, wait=False)
+            return [
+                step_id
+                for step_id in step_ids
+                if step_id not in self.journal.units
+                and not written_in_this_run(unit_path(self.units_dir, step_id), self.started_ns)
+            ]
+
+        while self.pool.busy and missing():
+            if self.pool.queued:
+                self.writer.flush()  # wait_any hands them out: what they read must be on disk
+            self.pool.wait_any(timeout_s=UNIT_POLL_S)
+        return [step_id for step_id in step_ids if step_id not in self.journal.units]
+
+    def record(self, step_id: str, outcome: StepOutcome, *, after: Sequence[str] = ()) -> None:
+        """Hand the step's unit to the writer (journaled once it is on disk, and once the units `after` are
+        journaled); a step that stops the session has its unit written and journaled before the stop is
+        raised."""
         if outcome.fill is not None:
-            self.writer.submit(step_id, outcome.fill, final=outcome.stop is None)
+            self.writer.submit(step_id, outcome.fill, final=outcome.stop is None, after=after)
         self.steps_run += 1
         if outcome.stop is not None:
             self.writer.flush()
@@ -244,6 +280,7 @@ class Runner:
         actions = (
             lambda: self._flush_units(progress),  # journal every unit written so far
             lambda: self.pool.shutdown(progress.step_finished),  # keep the analyses that finish meanwhile
+            self.writer.collect,  # the comparisons held for those analyses
             lambda: self.journal.event(kind, message),
             lambda: self.bench.rig.park(where="park on stop"),
             lambda: self.consolidate(status),
@@ -284,6 +321,10 @@ class Runner:
         clock = getattr(getattr(self.bench, "sim", None), "clock", None)
         robot = f"; {clock.now_s():.1f} s of robot time simulated" if clock is not None else ""
         self.writer.flush()
+        if self.writer.held:  # every analysis is journaled by now: a unit still waiting would be lost
+            raise RuntimeError(
+                f"units {', '.join(self.writer.held)} wait for units that were never journaled"
+            )
         self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped{robot}")
         archive = self.consolidate("complete")
         call = self.pool.call if self.pool.running else None  # the workers draw the figures left

@@ -11,6 +11,11 @@ What reads units waits for them: a step reading an earlier unit (`StepContext.un
 (`wait_for`); the journal's list of complete units as steps see it, and consolidation, wait for all of them
 (`flush`); the analysis workers are handed a configuration once its units are on disk (`ticket`).
 
+A unit submitted with `after` (a comparison run while the analyses it read are still finishing: their
+units were complete on disk, not yet journaled) is written at once but journaled only once every unit it
+names is journaled (`held` until then): the journal never lists a unit before the units it was made from,
+so a crash or stop meanwhile leaves it unjournaled, and a resume redoes it after them.
+
 Failures: the first error of a write (a full disk, a bug in a step's fill) stops the writer: later units are
 not attempted (their steps are redone on resume) and the error is raised on the main thread at its next
 `submit`, `collect` or `flush`, after every unit written before it has been journaled, so nothing written
@@ -23,7 +28,7 @@ from __future__ import annotations
 
 import queue
 import threading
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,6 +50,10 @@ class _Job:
     step_id: str
     fill: Callable[[h5py.File], None]
     final: bool
+    after: tuple[str, ...] = ()
+
+
+_Written = tuple[UnitRecord, bool, tuple[str, ...]]  # a unit on disk, whether final, what it waits for
 
 
 class UnitWriter:
@@ -59,7 +68,8 @@ class UnitWriter:
         self._n_submitted = 0
         self._n_finished = 0
         self._index: dict[str, int] = {}  # step id -> its job's number
-        self._written: list[tuple[UnitRecord, bool]] = []  # on disk, not yet journaled (in order)
+        self._written: list[_Written] = []  # on disk, not yet journaled (in order)
+        self._held: list[_Written] = []  # on disk, waiting for the units they name to be journaled
         self._error: BaseException | None = None
         self._raised = False
         self._abandoned = False
@@ -67,13 +77,21 @@ class UnitWriter:
 
     # ------------------------------------------------------------------------------ the main thread
 
-    def submit(self, step_id: str, fill: Callable[[h5py.File], None], *, final: bool = True) -> None:
-        """Queue a unit (waits while MAX_PENDING are queued). Raises an earlier write's error first."""
+    def submit(
+        self,
+        step_id: str,
+        fill: Callable[[h5py.File], None],
+        *,
+        final: bool = True,
+        after: Sequence[str] = (),
+    ) -> None:
+        """Queue a unit (waits while MAX_PENDING are queued), to be journaled once written and once the
+        units `after` names are journaled. Raises an earlier write's error first."""
         self.collect()
         if self._thread is None:
             self._thread = threading.Thread(target=self._work, name="unit-writer", daemon=True)
             self._thread.start()
-        self._jobs.put(_Job(step_id, fill, final))
+        self._jobs.put(_Job(step_id, fill, final, tuple(after)))
         with self._lock:
             self._index[step_id] = self._n_submitted
             self._n_submitted += 1
@@ -97,8 +115,14 @@ class UnitWriter:
 
         return written
 
+    @property
+    def held(self) -> tuple[str, ...]:
+        """The units written but not journaled because a unit they name is not journaled yet."""
+        return tuple(record.step_id for record, _, _ in self._held)
+
     def collect(self) -> None:
-        """Journal the units written so far; then raise the writer's error, if it stopped on one."""
+        """Journal the units written so far (those held, once what they wait for is journaled); then raise
+        the writer's error, if it stopped on one."""
         with self._lock:
             written, self._written = self._written, []
             error = self._error
@@ -135,14 +159,19 @@ class UnitWriter:
             written, self._written = self._written, []
         self._journal_all(written)
 
-    def _journal_all(self, written: list[tuple[UnitRecord, bool]]) -> None:
-        """Journal `written` in order; if the journal fails (a full disk), the rest wait for the next try."""
-        for k, (record, final) in enumerate(written):
+    def _journal_all(self, written: list[_Written]) -> None:
+        """Journal the held units whose units are journaled now, then `written`, in order (a unit waiting for
+        one not journaled yet is held); if the journal fails (a full disk), the rest wait for the next try."""
+        pending, self._held = [*self._held, *written], []
+        for k, (record, final, after) in enumerate(pending):
+            if any(step_id not in self.journal.units for step_id in after):
+                self._held.append((record, final, after))
+                continue
             try:
                 self.journal.unit_done(record, final=final)
             except BaseException:
                 with self._lock:
-                    self._written[:0] = written[k:]
+                    self._written[:0] = pending[k:]
                 raise
 
     def _stop_thread(self, *, timeout_s: float | None) -> None:
@@ -172,13 +201,23 @@ class UnitWriter:
                         self._error = exc
                     continue
                 with self._lock:
-                    self._written.append((record, job.final))
+                    self._written.append((record, job.final, job.after))
             finally:
                 with self._done:
                     if job is not None:
                         self._n_finished += 1
                     self._done.notify_all()
                 self._jobs.task_done()
+
+
+def written_in_this_run(path: Path, started_ns: int) -> bool:
+    """Whether the unit file at `path` exists and was written since `started_ns` (`time.time_ns()`): by this
+    run, not left by an earlier one that stopped before journaling it (its file's time is older; a file
+    system's coarser clock only makes a new file look older, never an old one newer)."""
+    try:
+        return path.stat().st_mtime_ns >= started_ns
+    except OSError:
+        return False
 
 
 class WrittenJournalView:

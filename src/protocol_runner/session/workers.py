@@ -151,15 +151,20 @@ class AnalysisPool:
             return self._pool.submit(fn, *args)
 
     @property
+    def queued(self) -> bool:
+        """Whether analyses wait to be handed out (until the units they read are on disk)."""
+        return bool(self._waiting)
+
+    @property
     def busy(self) -> bool:
         """Whether analyses are queued or running (not journaled yet)."""
         return bool(self._pending or self._waiting)
 
-    def wait_any(self) -> None:
+    def wait_any(self, *, timeout_s: float | None = None) -> None:
         """Hand out every queued analysis (the caller has made sure their units are on disk) and wait until
-        one of those running finishes; `collect` then journals it."""
+        one of those running finishes (or `timeout_s` has passed); `collect` then journals it."""
         self._hand_out(force=True)
-        futures_wait([future for _, future in self._pending], return_when=FIRST_COMPLETED)
+        futures_wait([future for _, future in self._pending], timeout=timeout_s, return_when=FIRST_COMPLETED)
 
     def shutdown(self, finished: Callable[[Step, str], None]) -> None:
         """On any exit: keep the background steps that completed, drop the queued ones (redone on resume)."""

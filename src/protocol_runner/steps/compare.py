@@ -12,8 +12,13 @@ from ..protocol.step_ids import step_id
 from .context import StepContext, StepOutcome
 
 
+def units_read(step: CompareStep) -> list[str]:
+    """The units a comparison reads: the processing of each of its configurations."""
+    return [step_id("process", key=key) for key in step.configurations]
+
+
 def run(step: CompareStep, ctx: StepContext) -> StepOutcome:
-    files = [ctx.unit(step_id("process", key=key)) for key in step.configurations]
+    files = [ctx.unit(unit) for unit in units_read(step)]
     try:
         values = comparison_values(
             [f[configuration_path(k)] for f, k in zip(files, step.configurations, strict=True)]
