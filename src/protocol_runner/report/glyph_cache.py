@@ -42,8 +42,6 @@ from matplotlib.ft2font import FT2Font
 from matplotlib.text import Text
 from matplotlib.transforms import Bbox
 
-from .font_files import read_fonts_from_memory
-
 #: FreeType's render modes (matplotlib >= 3.11); None before, where the stock path is used
 RENDER_MODE: Any = getattr(importlib.import_module("matplotlib.ft2font"), "RenderMode", None)
 
@@ -275,7 +273,6 @@ class CachedTextCanvas(FigureCanvasAgg):
     def __init__(self, figure: Any = None) -> None:
         super().__init__(figure)
         _use_text_layout_cache()
-        read_fonts_from_memory()  # font_files.py: FreeType reads the font files from memory
 
     def get_renderer(self) -> RendererAgg:
         w, h = self.get_width_height(physical=True)
