@@ -255,7 +255,12 @@ class Runner:
                 and not written_in_this_run(unit_path(self.units_dir, step_id), self.started_ns)
             ]
 
+        merged = len(self.journal.units)
         while self.pool.busy and missing():
+            if len(self.journal.units) != merged:  # meanwhile, the draft as `_await_analyses` keeps it
+                merged = len(self.journal.units)
+                self.ahead.update()
+                self.read_ahead.update()
             if self.pool.queued:
                 self.writer.flush()  # wait_any hands them out: what they read must be on disk
             self.pool.wait_any(timeout_s=UNIT_POLL_S)
