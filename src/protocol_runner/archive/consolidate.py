@@ -25,7 +25,7 @@ from h5py import h5a, h5f, h5g, h5o, h5p, h5s, h5t
 
 from .. import __version__
 from .attrs import ATTRIBUTES, FILENAME, ONLY
-from .checksums import MARKER_ATTR, MARKER_VALUE, mark
+from .checksums import MARKER_ATTR, is_marked, mark
 from .diskfull import DiskFull, is_disk_full, resume_hint
 from .h5util import SCHEMA_VERSION, put, put_attrs, put_lines, put_text
 from .units import _fsync_dir, _fsync_file
@@ -54,7 +54,6 @@ class ArchiveMeta:
 #: The units' own root attributes: not part of the archive.
 _UNIT_ONLY = frozenset((*ATTRIBUTES["unit"], MARKER_ATTR))
 _UNIT_ONLY_NAMES = frozenset(name.encode("utf-8") for name in _UNIT_ONLY)
-_MARKER_NAME = MARKER_ATTR.encode("ascii")
 _LCPL = h5p.create(h5p.LINK_CREATE)  # what h5py's `Group.copy` creates the copy's link with
 _LCPL.set_create_intermediate_group(True)
 _FAPL = h5p.create(h5p.FILE_ACCESS)  # a unit opened as `h5py.File(path, "r")` would be
@@ -123,14 +122,6 @@ def _merge_under(src: h5g.GroupID, dst: h5g.GroupID) -> None:
                 _merge_under(theirs, ours)
 
 
-def _marked(unit: h5f.FileID) -> bool:
-    """`checksums.is_marked` on the unit's identifier."""
-    if not h5a.exists(unit, _MARKER_NAME):
-        return False
-    found = _read_attr(h5a.open(unit, _MARKER_NAME))[0][()]
-    return (found.decode() if isinstance(found, bytes) else found) == MARKER_VALUE
-
-
 def _merge_files(
     out: h5py.Group, unit_files: Iterable[Path], merge: Callable[[h5g.GroupID, h5g.GroupID], None]
 ) -> bool:
@@ -140,7 +131,7 @@ def _merge_files(
     for path in unit_files:
         unit = h5f.open(os.fsencode(path), h5f.ACC_RDONLY, fapl=_FAPL)
         try:
-            summed = summed and _marked(unit)
+            summed = summed and is_marked(h5py.File(unit))  # the unit's identifier, as h5py's file
             merge(unit, out.id)
         finally:
             unit.close()

@@ -157,15 +157,14 @@ class Runner:
                     # last fits may still run, and the comparisons one after the other without waiting for
                     # each other's units: the unit writer saves each while the next runs, and journals it
                     # once the units it read are journaled. The report step waits for all of them.
-                    if step.kind == "report" or self.pool.busy:
-                        if isinstance(step, CompareStep):
-                            after = self._await_units(units_read(step), progress)
-                        else:
-                            self.writer.flush()  # what the analyses read is on disk
-                            self._await_analyses(progress)
-                            self.writer.collect()  # the comparisons held for them
-                        if self.stop():  # a Ctrl-C while the last analyses ran: stop here, as announced
-                            raise Interrupted(f"stopped before {step.id} ({self.stop.signal_name})")
+                    if isinstance(step, CompareStep):
+                        after = self._await_units(units_read(step), progress) if self.pool.busy else []
+                    else:
+                        self.writer.flush()  # what the analyses read is on disk
+                        self._await_analyses(progress)
+                        self.writer.collect()  # the comparisons held for them
+                    if self.stop():  # a Ctrl-C while the last analyses ran: stop here, as announced
+                        raise Interrupted(f"stopped before {step.id} ({self.stop.signal_name})")
                 if step.kind == "report":
                     return self._finish(progress, skipped)
                 progress.step_started(step)
