@@ -142,3 +142,64 @@ def test_the_session_that_has_its_report_drawn_by_the_workers_never_loads_matplo
     loaded = done.stdout.strip().splitlines()[-1]
     assert "'jinja2'" in loaded and "'h5py'" in loaded  # it did read and render
     assert "'matplotlib'" not in loaded and "'PIL'" not in loaded
+
+
+def test_the_figures_no_report_draws_ahead_are_handed_out_before_the_figure_cache_is_read(
+    tmp_path: Path, monkeypatch: Any
+) -> None:
+    """The figures that are never drawn ahead (calibration, comparisons, references, element fits) go to
+    the workers first; reading the figure cache for the configurations' own figures (which a session
+    draws ahead) comes after, and the configuration figures not found there follow in at most two jobs.
+    Each figure is still handed out once."""
+    from protocol_runner.report import figure_plan
+
+    events: list[tuple[str, tuple[str, ...]]] = []
+    real = figure_plan.figures_to_draw
+
+    def cache_read(data: Any) -> list[str]:
+        events.append(("cache", ()))
+        return real(data)
+
+    monkeypatch.setattr(figure_plan, "figures_to_draw", cache_read)
+    inline = _inline([])
+
+    def call(fn: Callable[..., Any], *args: Any) -> Future[Any]:
+        if fn.__name__ == "_draw":
+            events.append(("_draw", tuple(args[1])))
+        return inline(fn, *args)
+
+    _report(tmp_path / "w", call)
+    data = load_report_data(tmp_path / "w" / "archive.h5", verify=False)
+    own = {
+        figure_id for cfg in data.configurations for figure_id, _, _ in figure_plan.configuration_jobs(cfg)
+    }
+    cache_at = events.index(("cache", ()))
+    before = [task for name, tasks in events[:cache_at] if name == "_draw" for task in tasks]
+    after = [tasks for name, tasks in events[cache_at:] if name == "_draw"]
+    assert sorted(before) == sorted(figure_plan.end_figure_ids(data)) and not own & set(before)
+    assert len(before) >= 3 and own  # the small archive has both kinds
+    assert 1 <= len(after) <= 2 and sorted(t for tasks in after for t in tasks) == sorted(own)
+
+
+def test_the_interpreter_switches_threads_promptly_only_while_the_report_is_made(
+    tmp_path: Path, monkeypatch: Any
+) -> None:
+    """While the report renders, Python's thread switch interval is at most SWITCH_INTERVAL_S (so the pool's
+    threads feeding the workers are not held up by the page render); before and after it is the caller's."""
+    import sys
+
+    from protocol_runner.report import render
+
+    seen: list[float] = []
+    real_render = render._render
+
+    def page(*args: Any, **kwargs: Any) -> str:
+        seen.append(sys.getswitchinterval())
+        return real_render(*args, **kwargs)
+
+    monkeypatch.setattr(render, "_render", page)
+    before = sys.getswitchinterval()
+    assert before > reporting.SWITCH_INTERVAL_S
+    _report(tmp_path / "w", _inline([]))
+    assert seen and all(s <= reporting.SWITCH_INTERVAL_S for s in seen)
+    assert sys.getswitchinterval() == before

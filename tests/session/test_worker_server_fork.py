@@ -176,3 +176,33 @@ def _children_commands(parent: int) -> dict[int, str]:
         if int(stat.rsplit(")", 1)[1].split()[1]) == parent and "resource_tracker" not in command:
             found[int(entry)] = command
     return found
+
+
+NUMBA_TARGET = """
+import json, sys
+sys.path.insert(0, {src!r})
+from protocol_runner.session import worker_start
+if sys.argv[1] == "shared":
+    assert worker_start._import_shared()
+else:  # the same modules, without loading numba's target
+    import importlib
+    for name in worker_start.SHARED:
+        importlib.import_module(name)
+before = set(sys.modules)
+from protocol_runner.models.bouc_wen.kernels import sgn
+assert sgn(-2.0) == -1.0  # a compiled call (from numba's cache, or compiled)
+print(json.dumps(sorted(m for m in set(sys.modules) - before if m.startswith("numba."))))
+"""
+
+
+def test_numba_s_target_is_loaded_with_what_the_session_and_its_fork_server_share() -> None:
+    """`_import_shared` (run before the session forks its fork server) also loads numba's CPU target, which
+    numba otherwise loads (importing its ~100 implementation modules, 0.09 s of CPU) at a process's first
+    compiled call: in the session at its first simulated step and again in the server's warm-up."""
+    from tests.session.python_child import child_stdout
+
+    src = str(Path(__file__).resolve().parents[2] / "src")
+    after_shared = json.loads(child_stdout(NUMBA_TARGET.format(src=src), "shared").strip().splitlines()[-1])
+    imports_only = json.loads(child_stdout(NUMBA_TARGET.format(src=src), "imports").strip().splitlines()[-1])
+    assert after_shared == []
+    assert len(imports_only) > 20  # what the first compiled call loads when the target was not loaded

@@ -160,6 +160,13 @@ def _cached(data: ReportData) -> dict[str, str]:
     return images
 
 
+def end_figure_ids(data: ReportData) -> list[str]:
+    """Ids of the figures never drawn ahead (all but the configurations' own, `configuration_jobs`), in
+    document order: every report draws them, so they can be handed out before the figure cache is read."""
+    own = {figure_id for cfg in data.configurations for figure_id, _, _ in configuration_jobs(cfg)}
+    return [figure_id for figure_id in figure_ids(data) if figure_id not in own]
+
+
 def figures_to_draw(data: ReportData) -> list[str]:
     """Ids of the figures `assemble_figures` will have drawn for `data` (those not drawn ahead), in
     document order: known before the report renders, so that they can be handed out first."""

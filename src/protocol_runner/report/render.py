@@ -156,19 +156,34 @@ def render_html(
     with ThreadPoolExecutor(1, thread_name_prefix="report-figures") as pool:  # waits on the workers
         pending = pool.submit(assemble_figures, data, workers, draw=draw, here=_draw_here)
         page = _render(data, FigureSet(images=stand_ins), generated_utc, predicted)
+        # while the figures are drawn: the page between its stand-ins, each stand-in met once
+        parts = _STAND_IN.split(page)  # text, figure number, text, ..., text
+        placed = (
+            [ids[int(k)] for k in parts[1::2]]
+            if sorted(map(int, parts[1::2])) == list(range(len(ids)))
+            else None
+        )
         figures = pending.result()
     images = figures.images
     if (
-        figures.missing
+        placed is None
+        or figures.missing
         or set(images) != set(ids)
-        or any(str(escape(uri)) != uri for uri in images.values())
-        or sorted(map(int, _STAND_IN.findall(page))) != list(range(len(ids)))  # each once, one pass
+        or any(map(_needs_escaping, images.values()))
     ):
         return _render(data, figures, generated_utc, predicted)
-    return _STAND_IN.sub(lambda m: images[ids[int(m.group(1))]], page)
+    parts[1::2] = [images[figure_id] for figure_id in placed]
+    return "".join(parts)
 
 
 _STAND_IN = re.compile(r"@@figure-(\d+)@@")
+_ESCAPED = re.compile("[&<>\"']")  # what the template's autoescape (markupsafe.escape) replaces
+
+
+def _needs_escaping(text: str) -> bool:
+    """Whether autoescaping would change `text` (`escape(text) != text`, without building the escaped copy:
+    a data URI is base64 text, which it never changes)."""
+    return _ESCAPED.search(text) is not None
 
 
 def _render(

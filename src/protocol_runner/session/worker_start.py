@@ -146,7 +146,19 @@ def _import_shared() -> bool:
             importlib.import_module(name)
     except Exception:
         return False
+    _load_numba_target()
     return threading.active_count() == 1  # none of them started a thread
+
+
+def _load_numba_target() -> None:
+    """Load numba's CPU target (its implementation registries, about 0.09 s of CPU), which numba otherwise
+    loads at a process's first compiled call: the session at its simulator's first step, the fork server
+    at its warm-up (`worker_warm`). Loaded before the fork, once for both. Best effort: numba's
+    `cpu_target` is internal (numba 0.59-0.61), and without it each loads its own as before."""
+    with contextlib.suppress(Exception):
+        from numba.core.registry import cpu_target
+
+        cpu_target.target_context.refresh()
 
 
 def _fork_server(forkserver: Any) -> bool:
