@@ -144,15 +144,15 @@ def test_the_session_that_has_its_report_drawn_by_the_workers_never_loads_matplo
     assert "'matplotlib'" not in loaded and "'PIL'" not in loaded
 
 
-def test_the_figures_no_report_draws_ahead_are_handed_out_before_the_figure_cache_is_read(
-    tmp_path: Path, monkeypatch: Any
-) -> None:
-    """The figures that are never drawn ahead (calibration, comparisons, references, element fits) go to
-    the workers first; reading the figure cache for the configurations' own figures (which a session
-    draws ahead) comes after, and the configuration figures not found there follow in at most two jobs.
-    Each figure is still handed out once."""
+def _hand_outs(
+    folder: Path, monkeypatch: Any, prepare: Callable[[Path], None]
+) -> tuple[list[str], list[list[str]]]:
+    """The figures handed to the workers before the figure cache is read, and the jobs handed out after."""
     from protocol_runner.report import figure_plan
 
+    folder.mkdir()
+    archive = write_archive(folder / "archive.h5", small_spec())
+    prepare(archive)
     events: list[tuple[str, tuple[str, ...]]] = []
     real = figure_plan.figures_to_draw
 
@@ -168,17 +168,55 @@ def test_the_figures_no_report_draws_ahead_are_handed_out_before_the_figure_cach
             events.append(("_draw", tuple(args[1])))
         return inline(fn, *args)
 
-    _report(tmp_path / "w", call)
-    data = load_report_data(tmp_path / "w" / "archive.h5", verify=False)
-    own = {
-        figure_id for cfg in data.configurations for figure_id, _, _ in figure_plan.configuration_jobs(cfg)
-    }
+    html = reporting.render_report(folder, archive, None, call).read_text(encoding="utf-8")
+    assert len(_images(html)) == len(figure_ids(load_report_data(archive, verify=False)))
     cache_at = events.index(("cache", ()))
     before = [task for name, tasks in events[:cache_at] if name == "_draw" for task in tasks]
-    after = [tasks for name, tasks in events[cache_at:] if name == "_draw"]
-    assert sorted(before) == sorted(figure_plan.end_figure_ids(data)) and not own & set(before)
-    assert len(before) >= 3 and own  # the small archive has both kinds
-    assert 1 <= len(after) <= 2 and sorted(t for tasks in after for t in tasks) == sorted(own)
+    after = [list(tasks) for name, tasks in events[cache_at:] if name == "_draw"]
+    return before, after
+
+
+def test_the_figures_surely_not_drawn_ahead_are_handed_out_before_the_figure_cache_is_read(
+    tmp_path: Path, monkeypatch: Any
+) -> None:
+    """What the report surely draws goes to the workers before the figure cache is read (reading it takes a
+    few hundredths of a second): every figure but the configurations' own, and the own figures of those
+    the cache has no entry for. A configuration whose entry holds figures of other data is found out by
+    the cache read and drawn after it, in at most two jobs; one whose entry is good is not drawn. Each
+    figure is handed out once."""
+    from protocol_runner.report import figure_cache, figure_plan
+
+    def nothing_drawn_ahead(archive: Path) -> None:
+        pass
+
+    before, after = _hand_outs(tmp_path / "none", monkeypatch, nothing_drawn_ahead)
+    every = figure_ids(load_report_data(tmp_path / "none" / "archive.h5", verify=False))
+    assert sorted(before) == sorted(every) and after == []
+
+    def good_and_stale(archive: Path) -> None:
+        data = load_report_data(archive, verify=False)
+        cache = figure_cache.cache_dir_of(str(archive))
+        good, stale = data.configurations[:2]
+        figure_cache.save(
+            cache,
+            good,
+            {fid: "data:image/png;base64,AA==" for fid, _, _ in figure_plan.configuration_jobs(good)},
+        )
+        figure_cache.save(
+            cache,
+            stale,
+            {fid: "data:image/png;base64,AA==" for fid, _, _ in figure_plan.configuration_jobs(stale)},
+        )
+        entry = figure_cache._path(cache, stale)
+        entry.write_text(entry.read_text().replace('"fingerprint": "', '"fingerprint": "0'))
+
+    before, after = _hand_outs(tmp_path / "cached", monkeypatch, good_and_stale)
+    data = load_report_data(tmp_path / "cached" / "archive.h5", verify=False)
+    good, stale = ({fid for fid, _, _ in figure_plan.configuration_jobs(c)} for c in data.configurations[:2])
+    every = set(figure_ids(data))
+    assert good and stale and not (good | stale) & set(before)
+    assert sorted(before) == sorted(every - good - stale)
+    assert 1 <= len(after) <= 2 and sorted(t for tasks in after for t in tasks) == sorted(stale)
 
 
 def test_the_interpreter_switches_threads_promptly_only_while_the_report_is_made(

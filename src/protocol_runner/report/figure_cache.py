@@ -111,6 +111,12 @@ def save(cache_dir: Path, cfg: Configuration, images: dict[str, str]) -> None:
     write_atomically(_path(cache_dir, cfg), json.dumps({"fingerprint": fingerprint(cfg), "images": images}))
 
 
+def has_entry(cache_dir: Path, cfg: Configuration) -> bool:
+    """Whether figures of `cfg` were stored at all (whatever data they were drawn from): without an entry
+    they are surely drawn anew, known without reading or fingerprinting anything."""
+    return _path(cache_dir, cfg).is_file()
+
+
 def lookup(cache_dir: Path, cfg: Configuration) -> dict[str, str] | None:
     """The stored figures of `cfg` if they were drawn from exactly this data by this code, else None."""
     try:

@@ -15,7 +15,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TypeAlias
 
-from protocol_runner.report.figure_cache import cache_dir_of, lookup
+from protocol_runner.report.figure_cache import cache_dir_of, has_entry, lookup
 from protocol_runner.report.model import Comparison, Configuration, ReportData
 
 FigureJob: TypeAlias = tuple[str, str, tuple[object, ...]]
@@ -160,10 +160,18 @@ def _cached(data: ReportData) -> dict[str, str]:
     return images
 
 
-def end_figure_ids(data: ReportData) -> list[str]:
-    """Ids of the figures never drawn ahead (all but the configurations' own, `configuration_jobs`), in
-    document order: every report draws them, so they can be handed out before the figure cache is read."""
-    own = {figure_id for cfg in data.configurations for figure_id, _, _ in configuration_jobs(cfg)}
+def surely_drawn(data: ReportData) -> list[str]:
+    """Ids of figures `assemble_figures` will surely have drawn for `data`, in document order, known without
+    reading the figure cache (which takes a few hundredths of a second): every figure but the
+    configurations' own (`configuration_jobs`, the only ones drawn ahead), and the own figures of the
+    configurations the cache has no entry for (a session's last configuration, drawn at its end)."""
+    cache_dir = cache_dir_of(data.session.archive_path) if data.session.archive_path else None
+    own = {
+        figure_id
+        for cfg in data.configurations
+        if cache_dir is not None and has_entry(cache_dir, cfg)
+        for figure_id, _, _ in configuration_jobs(cfg)
+    }
     return [figure_id for figure_id in figure_ids(data) if figure_id not in own]
 
 
