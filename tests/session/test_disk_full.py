@@ -248,7 +248,11 @@ def test_a_really_full_disk_then_resume_gives_the_same_archive(
     tmp_path: Path, reference_archive: Path, phase: str, expected: str
 ) -> None:
     """The file system's size is chosen from the uninterrupted run's files so that it fills up in the
-    middle of the units, of the archive, or of the report."""
+    middle of the units, of the archive, or of the report. Sized for the archive, it may also fill while a
+    worker writes one of the last units: the session's archive draft (merged from the units while the last
+    analyses run) takes its space before the units are all written. That unit's write then fails, and says
+    so, as any unit's does (before archive/h5_write_errors.py, h5py printed the failed write and the unit
+    was kept)."""
     ref = reference_archive.parent
     units = _footprint_kb(list((ref / "units").iterdir()))
     archive = _footprint_kb([ref / "archive.h5"])
@@ -280,7 +284,8 @@ def test_a_really_full_disk_then_resume_gives_the_same_archive(
     assert (tmp_path / "code1").read_text().strip() == "130", err1
     assert "Traceback" not in err1 and "Logging error" not in err1, err1
     message = [line for line in err1.splitlines() if line.startswith("run-protocol:")]
-    assert len(message) == 1 and message[0].startswith("run-protocol: disk full") and expected in message[0]
+    assert len(message) == 1 and message[0].startswith("run-protocol: disk full")
+    assert expected in message[0] or (phase == "archive" and "while saving" in message[0]), message[0]
     assert (tmp_path / "partials").read_text() == ""
     assert (tmp_path / "code2").read_text().strip() == "0", (tmp_path / "err2").read_text()
     assert_same_data(reference_archive, tmp_path / "archive.h5")

@@ -27,6 +27,7 @@ from .. import __version__
 from .attrs import ATTRIBUTES, FILENAME, ONLY
 from .checksums import MARKER_ATTR, is_marked, mark
 from .diskfull import DiskFull, is_disk_full, resume_hint
+from .h5_write_errors import checked_h5_write
 from .h5util import SCHEMA_VERSION, put, put_attrs, put_lines, put_text
 from .units import _fsync_dir, _fsync_file
 
@@ -192,13 +193,14 @@ def draft(archive: Path, unit_files: Iterable[Path], previous: Draft | None = No
     files = list(unit_files)
     partial = archive.with_name(archive.name + ".partial")
     try:
-        if previous is not None and previous.leads(files):
-            with h5py.File(partial, "r+") as out:
-                summed = add_units(out, files[len(previous.files) :]) and previous.summed
-        else:
-            partial.unlink(missing_ok=True)
-            with h5py.File(partial, "w") as out:
-                summed = merge_units(out, files)
+        with checked_h5_write(partial):  # writes h5py could only print (a full disk) fail the draft
+            if previous is not None and previous.leads(files):
+                with h5py.File(partial, "r+") as out:
+                    summed = add_units(out, files[len(previous.files) :]) and previous.summed
+            else:
+                partial.unlink(missing_ok=True)
+                with h5py.File(partial, "w") as out:
+                    summed = merge_units(out, files)
         _fsync_file(partial)  # its bytes on disk now: the final fsync then flushes only what is added
     except BaseException:
         partial.unlink(missing_ok=True)
@@ -213,7 +215,8 @@ def consolidate(
     them); on a full disk raise `DiskFull`, leaving the previous archive (if any) and no partial file behind."""
     partial = archive.with_name(archive.name + ".partial")
     try:
-        _write(partial, list(unit_files), meta, ahead)
+        with checked_h5_write(partial):  # writes h5py could only print (a full disk) fail it too
+            _write(partial, list(unit_files), meta, ahead)
         _fsync_file(partial)
         os.replace(partial, archive)
         _fsync_dir(archive.parent)

@@ -22,6 +22,7 @@ from .attrs import UNIT_COMPLETE, UNIT_STEP_ID
 from .checksums import mark, seal_missing
 from .diskfull import DiskFull as DiskFull  # re-exported: the unit writer's error
 from .diskfull import is_disk_full, resume_hint
+from .h5_write_errors import checked_h5_write
 from .h5util import group_name
 
 COMPLETE_ATTR = UNIT_COMPLETE
@@ -73,7 +74,7 @@ def write_unit(units_dir: Path, step_id: str, fill: Callable[[h5py.File], None])
     with contextlib.suppress(FileNotFoundError):
         partial.unlink()
     try:
-        with h5py.File(partial, "w") as f:
+        with checked_h5_write(partial), h5py.File(partial, "w") as f:  # checked: writes h5py only prints
             fill(f)
             f.attrs[UNIT_STEP_ID] = step_id
             seal_missing(f)  # datasets written without archive/h5util.py get their checksum too

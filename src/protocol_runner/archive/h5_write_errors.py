@@ -1,0 +1,86 @@
+"""Write errors that h5py can only print: collected for the file being written, so that its writer fails.
+
+When the last reference to an h5py object (a dataset, a group) goes, h5py closes its HDF5 identifier in the
+object's deallocator, and HDF5 may then write the object's cached data or metadata to the file. If that
+write fails (a full disk), h5py cannot raise from a deallocator: Python prints "Exception ignored in:
+'h5py._objects.ObjectID.__dealloc__'" with a traceback on stderr (`sys.unraisablehook`) and the program goes
+on. The file's writer never learns of it: if space comes back meanwhile (another writer of the session gave
+up and removed its partial file), the file is closed normally and could be taken as complete with the
+failed write's bytes missing. Seen with a worker's unit on a tmpfs that filled up while the session's
+archive draft grew (tests/session/test_disk_full.py, about one run in four under load).
+
+`checked_h5_write(path)` collects those errors for the file at `path` (HDF5 names the file in the
+message of a failed write) instead of printing them, and raises the first once the block that writes (and
+closes) the file has ended, as an `OSError` like any write error. When the block raises instead, the
+objects its frames held are freed before the exception leaves (their errors collected, not printed: the
+block's own error is the one that counts). Errors about other files, and every other unraisable exception,
+go to the hook that was in place.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+import threading
+import traceback
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+_lock = threading.Lock()
+_watched: dict[str, list[BaseException]] = {}  # file name as HDF5 reports it -> errors met writing it
+_previous: list[Any] = []  # the hook ours replaced (the last one, if replaced several times)
+
+
+def _hook(unraisable: Any) -> None:  # sys.UnraisableHookArgs
+    value = unraisable.exc_value
+    text = str(value) if value is not None else ""
+    with _lock:
+        for name, errors in _watched.items():
+            if name in text:
+                errors.append(value)
+                return
+        previous = _previous[-1] if _previous else sys.__unraisablehook__
+    previous(unraisable)
+
+
+@contextlib.contextmanager
+def collected_write_errors(path: Path) -> Iterator[list[BaseException]]:
+    """While the caller writes the HDF5 file at `path` (opened by that name): the errors h5py could not
+    raise for it, in the yielded list (empty when all went well; check it after closing the file)."""
+    key = str(path)
+    errors: list[BaseException] = []
+    with _lock:
+        if sys.unraisablehook is not _hook:  # installed once (again, if someone replaced it since)
+            _previous[:] = [sys.unraisablehook]
+            sys.unraisablehook = _hook
+        _watched[key] = errors
+    try:
+        yield errors
+    finally:
+        with _lock:
+            if _watched.get(key) is errors:
+                del _watched[key]
+
+
+def raise_collected(errors: list[BaseException], path: Path) -> None:
+    """Raise the first error `collected_write_errors` met writing `path`, as an `OSError` (its `errno` ENOSPC
+    for a full disk, which `diskfull.is_disk_full` recognises); nothing when there was none."""
+    if not errors:
+        return
+    text = str(errors[0])
+    full = "errno = 28" in text or "No space left on device" in text
+    raise OSError(28 if full else 5, f"writing {path} failed: {text}", str(path))
+
+
+@contextlib.contextmanager
+def checked_h5_write(path: Path) -> Iterator[None]:
+    """Around the writing (opening to closing) of the HDF5 file at `path`: a write h5py could only print
+    fails the block (module notes)."""
+    with collected_write_errors(path) as errors:
+        try:
+            yield
+        except BaseException as exc:
+            traceback.clear_frames(exc.__traceback__)  # free the h5py objects they hold, errors collected
+            raise
+        raise_collected(errors, path)
