@@ -154,13 +154,13 @@ def _hand_outs(
     archive = write_archive(folder / "archive.h5", small_spec())
     prepare(archive)
     events: list[tuple[str, tuple[str, ...]]] = []
-    real = figure_plan.figures_to_draw
+    real = figure_plan._cached
 
-    def cache_read(data: Any) -> list[str]:
+    def cache_read(data: Any) -> dict[str, str]:
         events.append(("cache", ()))
         return real(data)
 
-    monkeypatch.setattr(figure_plan, "figures_to_draw", cache_read)
+    monkeypatch.setattr(figure_plan, "_cached", cache_read)
     inline = _inline([])
 
     def call(fn: Callable[..., Any], *args: Any) -> Future[Any]:
@@ -241,3 +241,53 @@ def test_the_interpreter_switches_threads_promptly_only_while_the_report_is_made
     _report(tmp_path / "w", _inline([]))
     assert seen and all(s <= reporting.SWITCH_INTERVAL_S for s in seen)
     assert sys.getswitchinterval() == before
+
+
+def test_the_verdicts_are_written_after_the_figures_are_handed_out_and_the_predictions_have_read_the_archive(
+    tmp_path: Path, monkeypatch: Any
+) -> None:
+    """The verdicts (written into the archive) no longer hold up the figures' hand-out; they wait for the
+    workers' predictions, which read the archive, to end (here a worker that takes 0.1 s)."""
+    import threading
+
+    from protocol_runner.report import render, verdicts
+
+    events: list[str] = []
+    real_verdicts, real_render = verdicts.record_verdicts, render._render
+
+    def recorded(*args: Any) -> None:
+        events.append("verdicts")
+        real_verdicts(*args)
+
+    def page(*args: Any, **kwargs: Any) -> str:
+        events.append("page")
+        return real_render(*args, **kwargs)
+
+    monkeypatch.setattr(verdicts, "record_verdicts", recorded)
+    monkeypatch.setattr(render, "_render", page)
+
+    def call(fn: Callable[..., Any], *args: Any) -> Future[Any]:
+        future: Future[Any] = Future()
+        if fn.__name__ == "_predictions":
+
+            def later() -> None:
+                result = fn(*args)
+                events.append("predictions done")
+                future.set_result(result)
+
+            threading.Timer(0.1, later).start()
+        else:
+            events.append(fn.__name__)
+            future.set_result(fn(*args))
+        return future
+
+    html = _report(tmp_path / "w", call)
+    assert (
+        events.index("_draw")
+        < events.index("predictions done")
+        < events.index("verdicts")
+        < events.index("page")
+    )
+    assert len(_images(html)) == len(
+        figure_ids(load_report_data(tmp_path / "w" / "archive.h5", verify=False))
+    )

@@ -175,12 +175,6 @@ def surely_drawn(data: ReportData) -> list[str]:
     return [figure_id for figure_id in figure_ids(data) if figure_id not in own]
 
 
-def figures_to_draw(data: ReportData) -> list[str]:
-    """Ids of the figures `assemble_figures` will have drawn for `data` (those not drawn ahead), in
-    document order: known before the report renders, so that they can be handed out first."""
-    return _not_in(_cached(data), figure_ids(data))
-
-
 def _not_in(cached: dict[str, str], every: list[str]) -> list[str]:
     return [figure_id for figure_id in every if figure_id not in cached]
 

@@ -14,6 +14,7 @@ import sys
 import threading
 from collections.abc import Callable, Iterator, Mapping
 from concurrent.futures import Future
+from concurrent.futures import wait as futures_wait
 from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -79,9 +80,13 @@ def render_report(
         # report does not read (it decides them again from the data). Its datasets are not checked again:
         # consolidation has just checked every unit's sha256, covering every byte copied into the archive
         data = load_report_data(archive, verify=False, known=known)
-        record_verdicts(archive, data)  # /expectations: the declared expectations and their verdicts
         with _prompt_thread_switches():
             aside = _OnWorkers(call, archive, data) if call is not None else None
+            if aside is not None:
+                # the figures are handed out first and the verdicts written while they are drawn, once the
+                # workers have read the archive for the predictions (it is not written while it is read)
+                aside.predictions_read()
+            record_verdicts(archive, data)  # /expectations: the declared expectations and their verdicts
             # the analyses are done and the other core idle: the figures not drawn ahead on two processes
             return render(
                 data,
@@ -122,24 +127,20 @@ class _OnWorkers:
     # 0.01-0.02 s on its hand-over: four jobs ended 0.02-0.04 s later than two)
 
     def __init__(self, call: Call, archive: Path, data: ReportData) -> None:
-        from ..report.figure_plan import figures_to_draw, surely_drawn  # no matplotlib
+        from ..report.figure_plan import surely_drawn  # no matplotlib
 
         self.call = call
         self.archive = archive
         self.data = data
         # first: computed while the figures are handed out (the archive is only read from now on)
         self.predictions = _submit(call, _predictions, archive, data.protocol_text)
-        # then the figures the report will ask for, handed out now: before the page is rendered (which
-        # holds this process's interpreter while the workers draw), not from the report's figure thread.
-        # Those surely not drawn ahead go first; reading the figure cache for the other configurations'
-        # figures (a few hundredths of a second) then overlaps their drawing
-        first = surely_drawn(data)
-        handed_out = self._hand_out(data, first) if first else []
-        self.todo = figures_to_draw(data)
-        rest = [figure_id for figure_id in self.todo if figure_id not in set(first)]
-        if rest:  # configuration figures the cache holds for other data (an older session's, changed code)
-            handed_out += self._hand_out(data, rest, chunks_at_most=2)
-        self.handed_out = handed_out if self.todo and set(first) <= set(self.todo) else None
+        # then the figures the report surely draws, handed out now: before the page is rendered (which
+        # holds this process's interpreter while the workers draw), not from the report's figure thread,
+        # and before the figure cache is read (a few hundredths of a second, in the figure thread: `draw`)
+        self.first = surely_drawn(data)
+        self.handed_out: list[Future[Any] | None] | None = (
+            self._hand_out(data, self.first) if self.first else []
+        )
 
     def _hand_out(
         self, data: ReportData, task_ids: list[str], chunks_at_most: int = CHUNKS
@@ -151,10 +152,17 @@ class _OnWorkers:
         return [_submit(self.call, _draw, for_drawing(data, chunk), chunk) for chunk in chunks if chunk]
 
     def draw(self, data: ReportData, task_ids: list[str]) -> list[Drawn] | None:
-        futures = self.handed_out
-        self.handed_out = None
-        if futures is None or data is not self.data or task_ids != self.todo:
+        """The figures `task_ids` of `data` (those the report found neither drawn ahead nor in the figure
+        cache): the jobs handed out at the start, and the rest (configuration figures whose cache entry
+        held other data) handed out now."""
+        futures, self.handed_out = self.handed_out, None
+        first = set(self.first)
+        if futures is None or data is not self.data or not first <= set(task_ids):
             futures = self._hand_out(data, task_ids)  # not what was handed out (once) at the start
+        else:
+            rest = [figure_id for figure_id in task_ids if figure_id not in first]
+            if rest:
+                futures = futures + self._hand_out(data, rest, chunks_at_most=2)
         drawn: list[Drawn] = []
         for future in futures:
             if future is None:
@@ -164,6 +172,12 @@ class _OnWorkers:
             except BrokenProcessPool:
                 return None
         return drawn
+
+    def predictions_read(self) -> None:
+        """Wait until the workers' predictions have read the archive (done or failed): it may be written
+        to from then on."""
+        if self.predictions is not None:
+            futures_wait([self.predictions])
 
     def predicted(self) -> tuple[Prediction, ...]:
         if self.predictions is not None:
