@@ -21,7 +21,13 @@ from protocol_runner.report.figure_cache import cache_dir_of, lookup
 from protocol_runner.report.figures import draw_configuration
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.render import generate_report
-from protocol_runner.session.early_figures import UnitsView, draw_ahead, key_to_draw_ahead
+from protocol_runner.session.early_figures import (
+    UnitsView,
+    analysed_in_this_run,
+    draw_ahead,
+    final_configuration,
+    key_to_draw_ahead,
+)
 from protocol_runner.session.setup import load_session_protocol, read_session_info
 
 
@@ -34,23 +40,31 @@ def test_figures_are_drawn_after_a_configurations_last_analysis_except_the_plans
     assert key_to_draw_ahead(plan, ("process:k04", "fit:k04")) == 4
     assert key_to_draw_ahead(plan, ("fit:k04",)) == 4  # resumed: the processing was done before
     assert key_to_draw_ahead(plan, ("process:k04",)) is None  # its fit is still to come
-    # the last configuration: the session waits for it before the report, which draws it
+    # the last configuration: its worker hands its units back at once (the session waits for them before
+    # it consolidates), and its figures are drawn in a task of their own meanwhile
     assert key_to_draw_ahead(plan, ("process:k05", "fit:k05")) is None
     assert key_to_draw_ahead(plan, ()) is None
+    assert final_configuration(plan) == 5
+    assert analysed_in_this_run(plan, 5, {"process:k05", "fit:k05"})
+    assert analysed_in_this_run(plan, 5, {"fit:k05"})  # resumed after its processing
+    assert not analysed_in_this_run(plan, 5, {"process:k04", "fit:k04"})  # done in an earlier run
+    assert not analysed_in_this_run(plan, 5, {"process:k05"})  # its fit is what ends its analyses
 
 
 def test_figures_drawn_from_the_units_are_those_of_the_archive(
     reference_archive: Path, tmp_path: Path
 ) -> None:
     session = reference_archive.parent
-    assert not cache_dir_of(reference_archive).exists()  # one configuration: nothing drawn ahead
     _, plan, _ = load_session_protocol(session, read_session_info(session), force=False)
-    elsewhere = tmp_path / "archive.h5"  # the figure folder goes beside it, not into the shared session
     (key,) = {s.configuration for s in plan.steps if s.kind == "fit"}  # type: ignore[attr-defined]
-    read = draw_ahead(plan, session / "units", key, elsewhere)
-    assert read is not None
     cfg = load_report_data(reference_archive).configuration(key)
     assert cfg is not None
+    # the session's one (so its last) configuration: drawn on a worker while the session consolidated
+    assert final_configuration(plan) == key
+    assert lookup(cache_dir_of(reference_archive), cfg) == draw_configuration(cfg)
+    elsewhere = tmp_path / "archive.h5"  # the figure folder goes beside it, not into the shared session
+    read = draw_ahead(plan, session / "units", key, elsewhere)
+    assert read is not None
     stored = lookup(cache_dir_of(elsewhere), cfg)  # drawn from the units, the same data as the archive's
     assert stored is not None
     assert stored == draw_configuration(cfg)

@@ -47,15 +47,28 @@ def configuration_unit_files(plan: Plan, units_dir: Path, key: int) -> list[Path
 def key_to_draw_ahead(plan: Plan, step_ids: tuple[str, ...]) -> int | None:
     """The configuration whose figures to draw once the analysis steps `step_ids` are written: the one whose
     analyses they end (its fit, or its processing when it has no fit), unless it is the plan's last
-    configuration with analyses: the session waits for that one before its report anyway, and the report
-    process draws it without a worker loading matplotlib (a one-configuration run draws nothing ahead)."""
+    configuration with analyses (`final_configuration`): the session waits for that one before it
+    consolidates, so its worker hands its units back at once, and draws its figures in a task of their own
+    while the session consolidates (`runner.Runner._finish`)."""
     last = plan.step(step_ids[-1]) if step_ids else None
     if not isinstance(last, (ProcessStep, FitStep)):
         return None
     key = last.configuration
     ends = isinstance(last, FitStep) or step_id("fit", key=key) not in plan._index
-    final = [s.configuration for s in plan.steps if isinstance(s, ProcessStep)][-1:] == [key]
-    return key if ends and not final else None
+    return key if ends and key != final_configuration(plan) else None
+
+
+def final_configuration(plan: Plan) -> int | None:
+    """The plan's last configuration with analyses (a processing step), if any."""
+    keys = [s.configuration for s in plan.steps if isinstance(s, ProcessStep)]
+    return keys[-1] if keys else None
+
+
+def analysed_in_this_run(plan: Plan, key: int, submitted: set[str]) -> bool:
+    """Whether configuration `key`'s analyses ended in this run (its last analysis step, the fit or else the
+    processing, was among the steps `submitted` to the workers)."""
+    fit = step_id("fit", key=key)
+    return (fit if fit in plan._index else step_id("process", key=key)) in submitted
 
 
 class UnitsView:

@@ -12,7 +12,7 @@ import contextlib
 import os
 import sys
 import threading
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import Future
 from concurrent.futures import wait as futures_wait
 from concurrent.futures.process import BrokenProcessPool
@@ -65,10 +65,13 @@ def render_report(
     archive: Path,
     known: Mapping[str, Configuration] | None = None,
     call: Call | None = None,
+    drawing: Sequence[Future[Any]] = (),
 ) -> Path:
     """Render the session's report next to its archive (`known`: configurations read ahead from exactly
     the groups the archive holds, `session/read_ahead.py`; `call`: runs work on the analysis workers, which
-    then draw the figures and compute the predictions); a full disk is a `DiskFull` with the resume hint."""
+    then draw the figures and compute the predictions; `drawing`: figures being drawn ahead on them, into
+    the figure cache, awaited before the report decides what it draws); a full disk is a `DiskFull` with
+    the resume hint."""
     for thread in _WARMING:  # first: the report's modules are imported by one thread at a time
         thread.join()
     from ..report.load import load_report_data
@@ -81,7 +84,7 @@ def render_report(
         # consolidation has just checked every unit's sha256, covering every byte copied into the archive
         data = load_report_data(archive, verify=False, known=known)
         with _prompt_thread_switches():
-            aside = _OnWorkers(call, archive, data) if call is not None else None
+            aside = _OnWorkers(call, archive, data, drawing) if call is not None else None
             if aside is not None:
                 # the figures are handed out first and the verdicts written while they are drawn, once the
                 # workers have read the archive for the predictions (it is not written while it is read)
@@ -126,7 +129,9 @@ class _OnWorkers:
     CHUNKS = 2  # figure jobs: one per worker, the figures dealt alternately (a second round of jobs waited
     # 0.01-0.02 s on its hand-over: four jobs ended 0.02-0.04 s later than two)
 
-    def __init__(self, call: Call, archive: Path, data: ReportData) -> None:
+    def __init__(
+        self, call: Call, archive: Path, data: ReportData, drawing: Sequence[Future[Any]] = ()
+    ) -> None:
         from ..report.figure_plan import surely_drawn  # no matplotlib
 
         self.call = call
@@ -134,6 +139,7 @@ class _OnWorkers:
         self.data = data
         # first: computed while the figures are handed out (the archive is only read from now on)
         self.predictions = _submit(call, _predictions, archive, data.protocol_text)
+        futures_wait(drawing)  # figures being drawn ahead: in the figure cache before it is looked at
         # then the figures the report surely draws, handed out now: before the page is rendered (which
         # holds this process's interpreter while the workers draw), not from the report's figure thread,
         # and before the figure cache is read (a few hundredths of a second, in the figure thread: `draw`)

@@ -17,6 +17,8 @@ import json
 import os
 import time
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -33,7 +35,8 @@ from ..protocol.plan import (
 from ..steps.compare import units_read
 from ..steps.context import Bench, StepOutcome, processing_settings
 from ..steps.failures import run_step
-from .assembly import ArchiveDraft, consolidate_session
+from .assembly import ARCHIVE_NAME, ArchiveDraft, consolidate_session
+from .early_figures import analysed_in_this_run, draw_ahead, final_configuration
 from .journal import Journal
 from .lock import session_lock
 from .operator import Operator
@@ -330,15 +333,33 @@ class Runner:
                 f"units {', '.join(self.writer.held)} wait for units that were never journaled"
             )
         self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped{robot}")
+        final = self._draw_final_configuration()  # on a worker, while this process consolidates
         archive = self.consolidate("complete")
         call = self.pool.call if self.pool.running else None  # the workers draw the figures left
-        report = render_report(self.dir, archive, self.read_ahead.known(), call)
+        ahead = (final,) if final is not None else ()
+        report = render_report(self.dir, archive, self.read_ahead.known(), call, ahead)
         if self.plan.steps and self.plan.steps[-1].kind == "report":
             progress.step_finished(self.plan.steps[-1], "archive and report written")
         progress.info(f"archive: {archive}")
         if report is not None:
             progress.info(f"report:  {report}")
         return RunResult("complete", archive, report, self.steps_run, skipped)
+
+    def _draw_final_configuration(self) -> Future[object] | None:
+        """The figures of the plan's last configuration, drawn ahead on a worker (idle now) when its analyses
+        ended in this run: the other configurations' are drawn by the worker that ends their analyses, but
+        this one's units are awaited before consolidation, which then need not wait for its drawing."""
+        key = final_configuration(self.plan)
+        if (
+            key is None
+            or not self.pool.running
+            or not analysed_in_this_run(self.plan, key, self.pool.submitted)
+        ):
+            return None
+        try:
+            return self.pool.call(draw_ahead, self.plan, self.units_dir, key, self.dir / ARCHIVE_NAME)
+        except (BrokenProcessPool, RuntimeError):  # the workers are gone: the report draws them
+            return None
 
     def consolidate(self, status: str) -> Path:
         return consolidate_session(
