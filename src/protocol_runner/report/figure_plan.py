@@ -164,7 +164,7 @@ def surely_drawn(data: ReportData) -> list[str]:
     """Ids of figures `assemble_figures` will surely have drawn for `data`, in document order, known without
     reading the figure cache (which takes a few hundredths of a second): every figure but the
     configurations' own (`configuration_jobs`, the only ones drawn ahead), and the own figures of the
-    configurations the cache has no entry for (a session's last configuration, drawn at its end)."""
+    configurations the cache has no entry for (one analysed in an earlier run, or whose drawing failed)."""
     cache_dir = cache_dir_of(data.session.archive_path) if data.session.archive_path else None
     own = {
         figure_id
