@@ -71,3 +71,56 @@ def test_a_unit_written_without_such_errors_is_kept(tmp_path: Path) -> None:
     )
     with h5py.File(tmp_path / "units" / record.file) as f:
         assert list(f["x"][:]) == [0.0, 1.0, 2.0]
+
+
+class _OtherError:
+    def __del__(self) -> None:
+        raise ValueError("not about any file being written")
+
+
+def test_the_hook_is_in_place_only_while_a_file_is_written_and_then_restored(tmp_path: Path) -> None:
+    """Like the session's stop flag: a hook in place before a unit is written gets every other unraisable
+    exception meanwhile and is the hook again after."""
+    seen: list[str] = []
+
+    def stop_flag_hook(unraisable: Any) -> None:
+        seen.append(str(unraisable.exc_value))
+
+    previous = sys.unraisablehook
+    sys.unraisablehook = stop_flag_hook
+    try:
+
+        def fill(f: h5py.File) -> None:
+            assert sys.unraisablehook is not stop_flag_hook  # the collecting hook, while writing
+            obj = _OtherError()
+            del obj
+
+        write_unit(tmp_path / "units", "process:k01", fill)
+        assert sys.unraisablehook is stop_flag_hook
+        assert seen == ["not about any file being written"]
+    finally:
+        sys.unraisablehook = previous
+
+
+def test_a_hook_taken_down_by_its_owner_meanwhile_does_not_break_the_collecting_one(
+    tmp_path: Path, capsys: Any
+) -> None:
+    """The session's stop flag, uninstalled, leaves a hook that can no longer be called: an unrelated
+    unraisable exception is then printed as Python prints it, not lost in a second error."""
+
+    class TakenDown:
+        previous: Any = None
+
+        def __call__(self, unraisable: Any) -> None:
+            self.previous(unraisable)  # None once its owner has uninstalled it: a TypeError
+
+    previous = sys.unraisablehook
+    sys.unraisablehook = TakenDown()
+    try:
+        with checked_h5_write(tmp_path / "a.h5.partial"):
+            obj = _OtherError()
+            del obj
+    finally:
+        sys.unraisablehook = previous
+    err = capsys.readouterr().err
+    assert "not about any file being written" in err and "TypeError" not in err

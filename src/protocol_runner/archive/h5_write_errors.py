@@ -29,7 +29,7 @@ from typing import Any
 
 _lock = threading.Lock()
 _watched: dict[str, list[BaseException]] = {}  # file name as HDF5 reports it -> errors met writing it
-_previous: list[Any] = []  # the hook ours replaced (the last one, if replaced several times)
+_forward: list[Any] = []  # while files are watched: the hook that was in place when the first one began
 
 
 def _hook(unraisable: Any) -> None:  # sys.UnraisableHookArgs
@@ -40,19 +40,25 @@ def _hook(unraisable: Any) -> None:  # sys.UnraisableHookArgs
             if name in text:
                 errors.append(value)
                 return
-        previous = _previous[-1] if _previous else sys.__unraisablehook__
-    previous(unraisable)
+        forward = _forward[0] if _forward else sys.__unraisablehook__
+    try:
+        forward(unraisable)
+    except Exception:  # a hook its owner has since taken down: Python's own prints it
+        sys.__unraisablehook__(unraisable)
 
 
 @contextlib.contextmanager
 def collected_write_errors(path: Path) -> Iterator[list[BaseException]]:
     """While the caller writes the HDF5 file at `path` (opened by that name): the errors h5py could not
-    raise for it, in the yielded list (empty when all went well; check it after closing the file)."""
+    raise for it, in the yielded list (empty when all went well; check it after closing the file). The
+    hook is in place only while some file is being written (the first writer puts it in, the last one
+    takes it out if nothing replaced it meanwhile); every other unraisable exception goes on to the hook
+    that was in place (the session's stop flag has one)."""
     key = str(path)
     errors: list[BaseException] = []
     with _lock:
-        if sys.unraisablehook is not _hook:  # installed once (again, if someone replaced it since)
-            _previous[:] = [sys.unraisablehook]
+        if not _watched and sys.unraisablehook is not _hook:
+            _forward[:] = [sys.unraisablehook]
             sys.unraisablehook = _hook
         _watched[key] = errors
     try:
@@ -61,6 +67,9 @@ def collected_write_errors(path: Path) -> Iterator[list[BaseException]]:
         with _lock:
             if _watched.get(key) is errors:
                 del _watched[key]
+            if not _watched and sys.unraisablehook is _hook and _forward:
+                sys.unraisablehook = _forward[0]
+                _forward.clear()
 
 
 def raise_collected(errors: list[BaseException], path: Path) -> None:
