@@ -54,8 +54,13 @@ def key_to_draw_ahead(plan: Plan, step_ids: tuple[str, ...]) -> int | None:
     if not isinstance(last, (ProcessStep, FitStep)):
         return None
     key = last.configuration
-    ends = isinstance(last, FitStep) or step_id("fit", key=key) not in plan._index
-    return key if ends and key != final_configuration(plan) else None
+    return key if last.id == ending_step_id(plan, key) and key != final_configuration(plan) else None
+
+
+def ending_step_id(plan: Plan, key: int) -> str:
+    """The id of the step that ends configuration `key`'s analyses: its fit, or its processing without one."""
+    fit = step_id("fit", key=key)
+    return fit if fit in plan._index else step_id("process", key=key)
 
 
 def final_configuration(plan: Plan) -> int | None:
@@ -67,8 +72,7 @@ def final_configuration(plan: Plan) -> int | None:
 def analysed_in_this_run(plan: Plan, key: int, submitted: set[str]) -> bool:
     """Whether configuration `key`'s analyses ended in this run (its last analysis step, the fit or else the
     processing, was among the steps `submitted` to the workers)."""
-    fit = step_id("fit", key=key)
-    return (fit if fit in plan._index else step_id("process", key=key)) in submitted
+    return ending_step_id(plan, key) in submitted
 
 
 class UnitsView:

@@ -18,7 +18,6 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import Future
-from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -356,10 +355,7 @@ class Runner:
             or not analysed_in_this_run(self.plan, key, self.pool.submitted)
         ):
             return None
-        try:
-            return self.pool.call(draw_ahead, self.plan, self.units_dir, key, self.dir / ARCHIVE_NAME)
-        except (BrokenProcessPool, RuntimeError):  # the workers are gone: the report draws them
-            return None
+        return self.pool.call(draw_ahead, self.plan, self.units_dir, key, self.dir / ARCHIVE_NAME)
 
     def consolidate(self, status: str) -> Path:
         return consolidate_session(

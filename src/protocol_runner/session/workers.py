@@ -16,6 +16,7 @@ import os
 from collections.abc import Callable
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor
 from concurrent.futures import wait as futures_wait
+from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import TypeVar
 
@@ -40,9 +41,8 @@ Task = tuple[Results, UnitsRead | None]  # a task's units and summaries, and its
 T = TypeVar("T")
 
 
-_SESSION: list[
-    tuple[LoadedProtocol, Plan]
-] = []  # in a worker: the pool's protocol and plan (`_start_worker`)
+# in a worker: the pool's protocol and plan (`_start_worker`)
+_SESSION: list[tuple[LoadedProtocol, Plan]] = []
 
 
 def _start_worker(loaded: LoadedProtocol, plan: Plan) -> None:
@@ -161,12 +161,15 @@ class AnalysisPool:
         return self._pool is not None
 
     def call(self, fn: Callable[..., T], /, *args: object) -> Future[T] | None:
-        """`fn(*args)` on a worker, if the workers are started (None otherwise: the caller runs it itself).
-        For work outside the steps (the report's figures at the end); not journaled."""
+        """`fn(*args)` on a worker, if the workers are started and still there (None otherwise: the caller
+        runs it itself). For work outside the steps (the report's figures at the end); not journaled."""
         if self._pool is None:
             return None
         with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
-            return self._pool.submit(fn, *args)
+            try:
+                return self._pool.submit(fn, *args)
+            except (BrokenProcessPool, RuntimeError):  # a worker died, or the pool is shut down
+                return None
 
     @property
     def queued(self) -> bool:
