@@ -1,7 +1,7 @@
-"""The refined sensitivity kernel integrates a fit's trials two at a time, their Heun substeps interleaved
-(issue 20): each trial's torque, derivatives and divergence must be bit for bit what integrating that trial
-alone gives, whatever the trials' lengths, their number (an odd last one runs alone), zero crossings,
-divergence (held at the bound or NaN) and the rows compared."""
+"""The refined sensitivity kernel integrates a fit's trials three or two at a time, their Heun substeps
+interleaved (issue 20): each trial's torque, derivatives and divergence must be bit for bit what integrating
+that trial alone gives, whatever the trials' lengths, their number (three at a time, four as two pairs, a
+last one alone), zero crossings, divergence (held at the bound or NaN) and the rows compared."""
 
 from __future__ import annotations
 
@@ -53,7 +53,7 @@ def _alone(xs, z0s, shape, bound, freeze, rows_every, T):
     return (min(firsts) if firsts else -1), z, dz
 
 
-@pytest.mark.parametrize("n_trials", [2, 3, 4, 5])
+@pytest.mark.parametrize("n_trials", [1, 2, 3, 4, 5, 6, 7])
 @pytest.mark.parametrize("freeze", [True, False])
 def test_trials_integrated_together_are_bit_for_bit_each_trial_alone(n_trials: int, freeze: bool) -> None:
     rng = np.random.default_rng(n_trials)
@@ -76,11 +76,14 @@ def test_a_check_that_stops_at_divergence_reports_the_first_in_trial_order() -> 
     rng = np.random.default_rng(7)
     slow = _trial(rng, 120, 6.0)  # small excursion: diverges late, if at all
     fast = np.linspace(0.0, 60.0, 30)  # one long push: diverges within a few samples
-    for xs in ([slow, fast], [fast, slow], [slow, slow, fast], [slow, fast, fast]):
+    cases = [[slow, fast], [fast, slow], [slow, slow, fast], [slow, fast, fast], [slow, fast, slow]]
+    cases += [[fast, slow, slow], [slow, slow, slow, fast], [slow, slow, slow, slow, fast]]
+    for xs in cases:
         z0s = [0.0] * len(xs)
         ref_bad, _, _ = _alone(xs, z0s, STEEP, 8.0, True, 1, IDENTITY8)
         bad, _, _, _, _ = _run(xs, z0s, STEEP, 8.0, True, True, 1, IDENTITY8)
         assert bad == ref_bad >= 0
-    ref_bad, _, _ = _alone([slow, slow], [0.0, 0.0], STABLE, 10.0, True, 1, IDENTITY8)
-    bad, _, _, _, _ = _run([slow, slow], [0.0, 0.0], STABLE, 10.0, True, True, 1, IDENTITY8)
-    assert bad == ref_bad == -1
+    for xs in ([slow, slow], [slow, slow, slow]):
+        ref_bad, _, _ = _alone(xs, [0.0] * len(xs), STABLE, 10.0, True, 1, IDENTITY8)
+        bad, _, _, _, _ = _run(xs, [0.0] * len(xs), STABLE, 10.0, True, True, 1, IDENTITY8)
+        assert bad == ref_bad == -1
