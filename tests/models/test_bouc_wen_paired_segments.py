@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from protocol_runner.models.bouc_wen.kernels import IDENTITY8, heun_sensitivity_kernel
+from protocol_runner.models.bouc_wen.kernels import IDENTITY8, heun_kernel, heun_sensitivity_kernel
 
 SHAPE = (1.2, 1.4, np.array([0.3, 0.1, -0.05, 0.4, 0.2, -0.1]))
 STEEP = (1.2, 1.4, np.array([-0.9, 0.0, 0.0, -0.9, 0.0, 0.0]))  # |z| grows without limit: diverges
@@ -87,3 +87,37 @@ def test_a_check_that_stops_at_divergence_reports_the_first_in_trial_order() -> 
         ref_bad, _, _ = _alone(xs, [0.0] * len(xs), STABLE, 10.0, True, 1, IDENTITY8)
         bad, _, _, _, _ = _run(xs, [0.0] * len(xs), STABLE, 10.0, True, True, 1, IDENTITY8)
         assert bad == ref_bad == -1
+
+
+def _plain(xs, z0s, shape, bound, freeze, stop):
+    x = np.concatenate(xs)
+    seg = np.concatenate([[0], np.cumsum([len(v) for v in xs])]).astype(np.int64)
+    z = np.full(x.size, 7.0)
+    bad = heun_kernel(x, seg, np.asarray(z0s, dtype=np.float64), shape, (bound, freeze, 0.25, stop), z)
+    return bad, z, seg
+
+
+@pytest.mark.parametrize("n_trials", [1, 2, 3, 4, 5, 6, 7])
+@pytest.mark.parametrize("freeze", [True, False])
+def test_the_kernel_without_derivatives_gives_each_trial_alone_bit_for_bit(
+    n_trials: int, freeze: bool
+) -> None:
+    """The kernel without derivatives (evaluations, the 4x-finer check) integrates the trials three or two
+    at a time too: each trial's torque and the first diverged index are those of the trial alone, with
+    or without stopping at the first divergence."""
+    rng = np.random.default_rng(10 + n_trials)
+    xs = [_trial(rng, int(rng.integers(40, 90)), 30.0 + 5.0 * k) for k in range(n_trials)]
+    z0s = [0.5 * (-1) ** k for k in range(n_trials)]
+    diverged = False
+    for shape, bound in ((SHAPE, 50.0), (STABLE, 10.0), (STEEP, 8.0)):
+        bad, z, seg = _plain(xs, z0s, shape, bound, freeze, False)
+        firsts = []
+        for k, v in enumerate(xs):
+            bad_k, z_k, _ = _plain([v], [z0s[k]], shape, bound, freeze, False)
+            np.testing.assert_array_equal(z[seg[k] : seg[k + 1]], z_k)  # NaN where diverged, in both
+            if bad_k >= 0:
+                firsts.append(seg[k] + bad_k)
+        assert bad == (min(firsts) if firsts else -1)
+        assert _plain(xs, z0s, shape, bound, freeze, True)[0] == bad
+        diverged = diverged or bad >= 0
+    assert diverged  # the steep shape did diverge: the held / NaN path was compared too

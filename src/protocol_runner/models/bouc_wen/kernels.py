@@ -642,6 +642,160 @@ def _sweep_sens_triple(
     return bad_b if bad_b >= 0 else bad_c
 
 
+@njit(inline="always")
+def _plain_pieces(
+    xa_a, xb_a, za, on_a, xa_b, xb_b, zb, on_b, xa_c, xb_c, zc, on_c, A, n, beta, bound, max_step
+):  # pragma: no cover - compiled
+    """The Heun substeps of one straight angle piece in each of up to three lanes (``on_*``: whether the
+    lane has a piece), without derivatives, interleaved substep by substep: each lane's operations are
+    exactly those of :func:`_piece`."""
+    stiff_step = max_step * STIFF_STEP / DEFAULT_MAX_STEP_DEG
+    ma = mb = mc = 0
+    ha = hb = hc = 0.0
+    ka = kb = kc = 0.0
+    sda = sxa = sdb = sxb = sdc = sxc = 0.0
+    if on_a:
+        d = xb_a - xa_a
+        sda = sgn(d)
+        sxa = sgn(xa_a + 0.5 * d)
+        ma, ka, _ = _substeps(d, za, A, n, beta, sda, sxa, max_step, stiff_step)
+        ha = d / ma
+    if on_b:
+        d = xb_b - xa_b
+        sdb = sgn(d)
+        sxb = sgn(xa_b + 0.5 * d)
+        mb, kb, _ = _substeps(d, zb, A, n, beta, sdb, sxb, max_step, stiff_step)
+        hb = d / mb
+    if on_c:
+        d = xb_c - xa_c
+        sdc = sgn(d)
+        sxc = sgn(xa_c + 0.5 * d)
+        mc, kc, _ = _substeps(d, zc, A, n, beta, sdc, sxc, max_step, stiff_step)
+        hc = d / mc
+    ja = jb = jc = 0
+    while ja < ma or jb < mb or jc < mc:
+        if ja < ma:
+            if ja > 0:
+                ka = _rate(za, A, n, beta, sda, sxa)
+            k2 = _rate(za + ha * ka, A, n, beta, sda, sxa)
+            za = za + 0.5 * ha * (ka + k2)
+            ja += 1
+            if not abs(za) <= bound:
+                ma = ja
+        if jb < mb:
+            if jb > 0:
+                kb = _rate(zb, A, n, beta, sdb, sxb)
+            k2 = _rate(zb + hb * kb, A, n, beta, sdb, sxb)
+            zb = zb + 0.5 * hb * (kb + k2)
+            jb += 1
+            if not abs(zb) <= bound:
+                mb = jb
+        if jc < mc:
+            if jc > 0:
+                kc = _rate(zc, A, n, beta, sdc, sxc)
+            k2 = _rate(zc + hc * kc, A, n, beta, sdc, sxc)
+            zc = zc + 0.5 * hc * (kc + k2)
+            jc += 1
+            if not abs(zc) <= bound:
+                mc = jc
+    return za, zb, zc
+
+
+@njit(cache=True)
+def _sweep_plain_lanes(
+    x, seg, sa, lanes, z0, A, n, beta, bound, freeze, max_step, stop, z
+):  # pragma: no cover
+    """:func:`_sweep` (refined, without derivatives) of the ``lanes`` (2 or 3) segments from ``sa`` on
+    together, sample by sample, their substeps interleaved (:func:`_plain_pieces`): bit for bit the states
+    of the one-segment-after-the-other sweep. Returns the first diverged sample in segment order or -1;
+    with ``stop``, as soon as that is known (a lane that diverges stops the lanes after it)."""
+    ia, enda = seg[sa], seg[sa + 1] - 1
+    ib, endb = seg[sa + 1], seg[sa + 2] - 1
+    ic = endc = 0  # lane c: none unless three lanes
+    za = z0[sa]
+    zb = z0[sa + 1]
+    zc = 0.0
+    z[ia] = za
+    z[ib] = zb
+    if lanes == 3:
+        ic, endc = seg[sa + 2], seg[sa + 3] - 1
+        zc = z0[sa + 2]
+        z[ic] = zc
+    dead_a = dead_b = dead_c = False
+    bad_a = bad_b = bad_c = -1
+    while ia < enda or ib < endb or ic < endc:
+        live_a = ia < enda
+        live_b = ib < endb
+        live_c = ic < endc
+        # the first part of each lane's sample interval (cut at x = 0 where the angle crosses it)
+        on_a = on_b = on_c = False
+        xa_a = xm_a = xb_a = 0.0
+        xa_b = xm_b = xb_b = 0.0
+        xa_c = xm_c = xb_c = 0.0
+        if live_a and not dead_a:
+            xa_a = x[ia]
+            xb_a = x[ia + 1]
+            if xa_a != xb_a:
+                xm_a = 0.0 if xa_a * xb_a < 0.0 else xb_a
+                on_a = True
+        if live_b and not dead_b:
+            xa_b = x[ib]
+            xb_b = x[ib + 1]
+            if xa_b != xb_b:
+                xm_b = 0.0 if xa_b * xb_b < 0.0 else xb_b
+                on_b = True
+        if live_c and not dead_c:
+            xa_c = x[ic]
+            xb_c = x[ic + 1]
+            if xa_c != xb_c:
+                xm_c = 0.0 if xa_c * xb_c < 0.0 else xb_c
+                on_c = True
+        if on_a or on_b or on_c:
+            za, zb, zc = _plain_pieces(
+                xa_a, xm_a, za, on_a, xa_b, xm_b, zb, on_b, xa_c, xm_c, zc, on_c, A, n, beta, bound, max_step
+            )
+            # the second part, where the first crossed x = 0 and stayed within range
+            on_a = on_a and xm_a != xb_a and abs(za) <= bound
+            on_b = on_b and xm_b != xb_b and abs(zb) <= bound
+            on_c = on_c and xm_c != xb_c and abs(zc) <= bound
+            if on_a or on_b or on_c:
+                za, zb, zc = _plain_pieces(
+                    xm_a, xb_a, za, on_a, xm_b, xb_b, zb, on_b, xm_c, xb_c, zc, on_c,
+                    A, n, beta, bound, max_step,
+                )  # fmt: skip
+        if live_a:
+            if not dead_a and not abs(za) <= bound:
+                bad_a = ia + 1
+                if stop:
+                    return bad_a
+                dead_a = True
+                za = held(za, bound, freeze)
+            z[ia + 1] = za
+            ia += 1
+        if live_b:
+            if not dead_b and not abs(zb) <= bound:
+                bad_b = ib + 1
+                dead_b = True
+                zb = held(zb, bound, freeze)
+                if stop:
+                    endb = ib  # only sa (earlier) may still give an earlier index: lane c need not go on
+                    endc = ic
+            z[ib + 1] = zb
+            ib += 1
+        if live_c:
+            if not dead_c and not abs(zc) <= bound:
+                bad_c = ic + 1
+                dead_c = True
+                zc = held(zc, bound, freeze)
+                if stop:
+                    endc = ic
+            z[ic + 1] = zc
+            ic += 1
+    if bad_a >= 0:
+        return bad_a
+    return bad_b if bad_b >= 0 else bad_c
+
+
 # The entry points take three small records (tuples, unpacked once here at the top of the compiled code):
 # shape = (A, n, beta) with beta a float64 array of 6; limits = (bound, freeze, max_step, stop) (max_step
 # unused by Eq 23); sens = (dz, T, rows) for the kernels with derivatives (see :func:`_sweep`).
@@ -667,11 +821,32 @@ def sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover 
 
 @njit(cache=True)
 def heun_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
-    """The step-independent integration (:mod:`.schemes`) over the segments (see :func:`_sweep`)."""
+    """The step-independent integration (:mod:`.schemes`) over the segments (see :func:`_sweep`): three at a
+    time, four left as two pairs, two left as a pair (:func:`_sweep_plain_lanes`), one alone; the same
+    bits as one after the other."""
     A, n, beta = shape
     bound, freeze, step, stop = limits
     dz, rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)  # none
-    return _sweep(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, IDENTITY8, rows, True, False)
+    n_seg = seg.size - 1
+    first_bad = -1
+    s = 0
+    while s < n_seg:
+        left = n_seg - s
+        if left >= 2:
+            lanes = 3 if left >= 3 and left != 4 else 2
+            bad = _sweep_plain_lanes(x, seg, s, lanes, z0, A, n, beta, bound, freeze, step, stop, z)
+            s += lanes
+        else:
+            bad = _sweep(
+                x, seg[s:], z0[s:], A, n, beta, bound, freeze, step, stop, z, dz, IDENTITY8, rows, True, False
+            )
+            s += 1
+        if bad >= 0:
+            if stop:
+                return bad
+            if first_bad < 0:
+                first_bad = bad
+    return first_bad
 
 
 @njit(cache=True)

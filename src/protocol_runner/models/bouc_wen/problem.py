@@ -17,7 +17,15 @@ from scipy.optimize._lsq.common import make_strictly_feasible
 from .kernels import IDENTITY8, gram, sum_sq_diff
 from .params import EQ25_BETA_MATRIX, BoucWenParams, FloatArray, phase_values
 from .records import BoucWenBounds
-from .schemes import REFINED, BoucWenShape, Integration, Sensitivity, check_scheme, run_scheme, run_trial
+from .schemes import (
+    REFINED,
+    BoucWenShape,
+    Integration,
+    Sensitivity,
+    check_scheme,
+    run_scheme,
+    run_trials,
+)
 from .simulation import refine_angle
 
 REFINE_FACTOR = 4  # rmse_refined_nm: this many times finer integration
@@ -302,8 +310,10 @@ def evaluate(
     """RMSE, R^2, per-trial RMSE and divergence flag of ``params`` on every given sample, each trial's
     recursion started at its own first torque (diverged samples held at +-bound, a finite error)."""
     integration = Integration(scheme, bound, True, max_step_deg)
-    runs = [run_trial(x, params, float(y[0]), integration) for x, y in segments]
-    return scores(segments, [z for z, _ in runs], any(bad >= 0 for _, bad in runs))
+    torques, bad = run_trials(
+        [x for x, _ in segments], params, [float(y[0]) for _, y in segments], integration
+    )
+    return scores(segments, torques, bad >= 0)
 
 
 def trial_torques(
@@ -354,8 +364,9 @@ def refined_rmse(
     sse = 0.0
     count = 0
     integration = Integration(scheme, bound, True, step)
-    for x, y in segments:
-        z, _ = run_trial(refine_angle(x, REFINE_FACTOR), params, float(y[0]), integration)
+    fine = [refine_angle(x, REFINE_FACTOR) for x, _ in segments]
+    torques, _ = run_trials(fine, params, [float(y[0]) for _, y in segments], integration)
+    for z, (_, y) in zip(torques, segments, strict=True):
         sse += float(sum_sq_diff(np.ascontiguousarray(z[::REFINE_FACTOR]), y))
         count += y.size
     return math.sqrt(sse / count)

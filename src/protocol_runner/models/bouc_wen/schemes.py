@@ -135,3 +135,20 @@ def run_trial(
     sensitivity = None if dz is None else Sensitivity(dz)
     bad = run_scheme(x, seg, np.array([z0]), shape, integration, z, sensitivity)
     return z, bad
+
+
+def run_trials(
+    xs: list[FloatArray], params: BoucWenParams, z0s: list[float], integration: Integration
+) -> tuple[list[FloatArray], int]:
+    """Several trials in one call, each from its own ``z0`` (no derivatives): each trial's torque (views
+    of one array) and the first diverged index over all of them (in the joint samples) or -1. Each
+    trial's torque is bit for bit :func:`run_trial`'s (the kernels integrate segments independently; the
+    refined one two or three at a time, :func:`.kernels.heun_kernel`)."""
+    lengths = [x.size for x in xs]
+    seg = np.zeros(len(xs) + 1, dtype=np.int64)
+    seg[1:] = np.cumsum(lengths)
+    x = np.concatenate(xs) if xs else np.empty(0)
+    z = np.empty_like(x)
+    shape = BoucWenShape(params.A, params.n, np.array(params.beta))
+    bad = run_scheme(x, seg, np.array(z0s, dtype=np.float64), shape, integration, z)
+    return [z[seg[k] : seg[k + 1]] for k in range(len(xs))], bad
