@@ -8,7 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from protocol_runner.errors import InvalidInput
+from protocol_runner.models.bouc_wen import BoucWenParams, simulate
 from protocol_runner.models.bouc_wen.kernels import IDENTITY8, heun_kernel, heun_sensitivity_kernel
+from protocol_runner.models.bouc_wen.simulation import simulate_trials
 
 SHAPE = (1.2, 1.4, np.array([0.3, 0.1, -0.05, 0.4, 0.2, -0.1]))
 STEEP = (1.2, 1.4, np.array([-0.9, 0.0, 0.0, -0.9, 0.0, 0.0]))  # |z| grows without limit: diverges
@@ -121,3 +124,21 @@ def test_the_kernel_without_derivatives_gives_each_trial_alone_bit_for_bit(
         assert _plain(xs, z0s, shape, bound, freeze, True)[0] == bad
         diverged = diverged or bad >= 0
     assert diverged  # the steep shape did diverge: the held / NaN path was compared too
+
+
+def test_simulating_several_trials_at_once_gives_each_trial_alone() -> None:
+    """`simulate_trials` (the model torque of every trial of a fit, in one call) is `simulate` of each
+    trial: the same bits, NaN from a divergence on in that trial only, float32 angles taken as simulate
+    takes them; mismatched or non-finite starting torques are refused."""
+    rng = np.random.default_rng(3)
+    params = BoucWenParams(1.0, 1.5, (0.5, 0.0, 0.0, 0.0, 0.0, 0.0))  # saturates at |z| = 2^(2/3)
+    xs = [_trial(rng, 60, 0.3).astype(np.float32), np.linspace(0.0, 60.0, 30), _trial(rng, 80, 0.5)]
+    z0s = [0.2, 0.0, -0.3]
+    together = simulate_trials(xs, params, z0s, bound_nm=1.2)  # the long push passes 1.2: diverged
+    for x, z0, z in zip(xs, z0s, together, strict=True):
+        np.testing.assert_array_equal(z, simulate(x, params, z0=z0, bound_nm=1.2))
+    assert np.isnan(together[1][-1]) and np.all(np.isfinite(together[0])) and np.all(np.isfinite(together[2]))
+    with pytest.raises(InvalidInput, match="2 trials but 1 starting torques"):
+        simulate_trials(xs[:2], params, [0.0])
+    with pytest.raises(InvalidInput, match="z0 must be a finite torque"):
+        simulate_trials(xs[:1], params, [float("nan")])

@@ -11,9 +11,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..models.bouc_wen import BoucWenFit, BoucWenParams, cross_validate, fit_trials, simulate
+from ..models.bouc_wen import BoucWenFit, BoucWenParams, cross_validate, fit_trials
 from ..models.bouc_wen.backbone import BackboneFactory
 from ..models.bouc_wen.identifiability import identify
+from ..models.bouc_wen.simulation import simulate_trials
 from .energy import energy_per_cycle
 
 Segment = tuple[np.ndarray, np.ndarray]
@@ -75,14 +76,12 @@ def model_torques(segments: Sequence[Segment], fit: BoucWenFit | BoucWenParams) 
     backbone), the state started so that the torque starts at the trial's first torque."""
     params = fit if isinstance(fit, BoucWenParams) else fit.params
     backbone = None if isinstance(fit, BoucWenParams) else fit.backbone
-    out = []
-    for x, y in segments:
-        if backbone is None:
-            out.append(simulate(x, params, z0=float(y[0])))
-        else:
-            g = backbone(x)
-            out.append(g + simulate(x, params, z0=float(y[0] - g[0])))
-    return out
+    if backbone is None:
+        return simulate_trials([x for x, _ in segments], params, [float(y[0]) for _, y in segments])
+    gs = [backbone(x) for x, _ in segments]
+    z0s = [float(y[0] - g[0]) for (_, y), g in zip(segments, gs, strict=True)]
+    zs = simulate_trials([x for x, _ in segments], params, z0s)  # every trial in one call
+    return [g + z for g, z in zip(gs, zs, strict=True)]
 
 
 def loop_energy(segments: Sequence[Segment], models: Sequence[np.ndarray]) -> LoopEnergy:

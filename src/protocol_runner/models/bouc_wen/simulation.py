@@ -4,6 +4,7 @@ the literal Eq 23 recursion on request (``scheme="eq23"``)."""
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import TypedDict, Unpack
 
 import numpy as np
@@ -12,7 +13,7 @@ import numpy.typing as npt
 from protocol_runner.errors import InvalidInput
 
 from .params import DEFAULT_SIMULATION_BOUND_NM, BoucWenParams, FloatArray
-from .schemes import REFINED, Integration, check_scheme, run_trial
+from .schemes import REFINED, Integration, check_scheme, run_trial, run_trials
 
 
 def as_angle(x_deg: npt.ArrayLike, name: str = "x_deg") -> FloatArray:
@@ -41,22 +42,33 @@ class SimulateKeywords(TypedDict, total=False):
     max_step_deg: float | None
 
 
-def _run(
-    x_deg: npt.ArrayLike, params: BoucWenParams, z0: float, options: SimulateKeywords, sensitivities: bool
-) -> tuple[FloatArray, FloatArray | None]:
-    """The torque of one trial from ``z0`` (divergence: NaN from there on) and, when asked, ``dz/dtheta``."""
-    x = as_angle(x_deg)
+def _start(z0: float) -> float:
     z0f = float(z0)
     if not math.isfinite(z0f):
         raise InvalidInput(f"z0 must be a finite torque, got {z0}")
+    return z0f
+
+
+def _integration(options: SimulateKeywords) -> Integration:
+    """The options' integration, NaN from a divergence on."""
     scheme, step = options.get("scheme", REFINED), options.get("max_step_deg")
     check_scheme(scheme, step)
     bound_nm = options.get("bound_nm", DEFAULT_SIMULATION_BOUND_NM)
     bound = float(bound_nm)
     if not (bound > 0.0 and math.isfinite(bound)):
         raise InvalidInput(f"bound_nm must be a positive finite torque, got {bound_nm}")
+    return Integration(scheme, bound, False, step)
+
+
+def _run(
+    x_deg: npt.ArrayLike, params: BoucWenParams, z0: float, options: SimulateKeywords, sensitivities: bool
+) -> tuple[FloatArray, FloatArray | None]:
+    """The torque of one trial from ``z0`` (divergence: NaN from there on) and, when asked, ``dz/dtheta``."""
+    x = as_angle(x_deg)
+    z0f = _start(z0)
+    integration = _integration(options)
     dz = np.empty((x.size, 8)) if sensitivities else None
-    z, _ = run_trial(x, params, z0f, Integration(scheme, bound, False, step), dz)
+    z, _ = run_trial(x, params, z0f, integration, dz)
     return z, dz
 
 
@@ -76,6 +88,23 @@ def simulate(
     ``np.isnan(z[-1])`` is the divergence flag.
     """
     return _run(x_deg, params, z0, options, False)[0]
+
+
+def simulate_trials(
+    xs_deg: Sequence[npt.ArrayLike],
+    params: BoucWenParams,
+    z0s: Sequence[float],
+    **options: Unpack[SimulateKeywords],
+) -> list[FloatArray]:
+    """:func:`simulate` of several trials, each from its own ``z0``, in one call of the kernel (which
+    integrates the refined scheme's trials three or two at a time): each torque bit for bit
+    :func:`simulate`'s for that trial."""
+    if len(xs_deg) != len(z0s):
+        raise InvalidInput(f"{len(xs_deg)} trials but {len(z0s)} starting torques")
+    xs = [as_angle(x, f"trial {k} angle") for k, x in enumerate(xs_deg)]
+    starts = [_start(z0) for z0 in z0s]
+    torques, _ = run_trials(xs, params, starts, _integration(options))
+    return torques
 
 
 def simulate_sensitivity(
