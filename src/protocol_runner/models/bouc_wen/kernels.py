@@ -10,13 +10,14 @@ and samples (:func:`_sweep`) that serves all four kernels, selected by two flags
 costs nothing measurable: the per-piece call and the loop are as fast as the four separate kernels they
 replace; a further layer of numba ``inline="always"`` around the Heun piece made the sensitivity kernel
 about 1.5 times slower, so there is none).  The refined sensitivity kernel, the fits' innermost work, integrates the
-trials three or two at a time (:func:`_sweep_sens_triple`, :func:`_sweep_sens_pair`): each substep waits on
-a logarithm and an exponential of the one before, so independent trials' substeps interleaved keep the
-processor busy while each waits (pairs: about 10 % less time over 1,500 recorded fit calls; three trials
-together instead of a pair and then the third alone: 20-25 % less for a three-trial call; every operation
-of each trial the same, so the same bits as one trial after the other). The lanes are written out, not
-factored into inlined helpers: helpers returning a lane's state as tuples made the three-lane kernel
-slower than a pair and a single trial. The entry kernels take arrays and three small tuples (the
+trials three or two at a time (:func:`_sweep_sens_lanes`), and the kernel without derivatives too
+(:func:`_sweep_plain_lanes`): each substep waits on a logarithm and an exponential of the one before, so
+independent trials' substeps interleaved keep the processor busy while each waits (two trials: about 10 %
+less time over 1,500 recorded fit calls; three together instead of two and then the third alone: 20-25 %
+less for a three-trial call; every operation of each trial the same, so the same bits as one trial after
+the other). The lanes are written out, not factored into inlined helpers: helpers returning a lane's state
+as tuples made the three-lane kernel slower than two lanes and a single trial. A third lane left empty
+costs nothing measurable, so two trials run in the same code with lane c off. The entry kernels take arrays and three small tuples (the
 shape parameters, the limits, the sensitivity outputs), unpacked once into the positional arguments of
 the compiled internals; numba compiles them once (cached on disk; all compiled code is in this one file,
 longer than the usual module for that reason, because numba's cache of a function does not notice a change
@@ -293,7 +294,7 @@ def _sweep(
 
 @njit(inline="always")
 def _sens_substep(zi, h, A, n, beta, sd, sx, terms, S):  # pragma: no cover - compiled
-    """One Heun substep with derivatives (:func:`_piece_sens`, :func:`_pieces_pair`), the sensitivities as
+    """One Heun substep with derivatives (:func:`_piece_sens`, :func:`_sens_pieces`), the sensitivities as
     an 8-tuple."""
     s0, s1, s2, s3, s4, s5, s6, s7 = S
     k1, a0, a1, a2, a3, a4, a5, a6, a7 = _rate_sens(zi, A, n, terms, sd, sx, s0, s1, s2, s3, s4, s5, s6, s7)
@@ -328,54 +329,6 @@ def _sens_substep(zi, h, A, n, beta, sd, sx, terms, S):  # pragma: no cover - co
     return zi + half * (k1 + k2), out
 
 
-@njit(inline="always")
-def _pieces_pair(
-    xa_a, xb_a, za, Sa, on_a, xa_b, xb_b, zb, Sb, on_b, A, n, beta, bound, max_step
-):  # pragma: no cover - compiled
-    """The Heun substeps of one straight angle piece in each of two lanes (``on_a``/``on_b``: whether the
-    lane has a piece), interleaved substep by substep: each lane's operations are exactly those of
-    :func:`_piece_sens`, and the two independent chains (each substep waits on a logarithm and an
-    exponential) overlap in the processor. Returns both lanes' state and sensitivities."""
-    stiff_step = max_step * STIFF_STEP / DEFAULT_MAX_STEP_DEG
-    ma = 0
-    mb = 0
-    ha = 0.0
-    hb = 0.0
-    sda = sxa = sdb = sxb = 0.0
-    ta = (0.0, 0.0, 0.0, 0.0)
-    tb = (0.0, 0.0, 0.0, 0.0)
-    if on_a:
-        d = xb_a - xa_a
-        sda = sgn(d)
-        sxa = sgn(xa_a + 0.5 * d)
-        ma, _, ta = _substeps(d, za, A, n, beta, sda, sxa, max_step, stiff_step)
-        ha = d / ma
-    if on_b:
-        d = xb_b - xa_b
-        sdb = sgn(d)
-        sxb = sgn(xa_b + 0.5 * d)
-        mb, _, tb = _substeps(d, zb, A, n, beta, sdb, sxb, max_step, stiff_step)
-        hb = d / mb
-    ja = 0
-    jb = 0
-    while ja < ma or jb < mb:
-        if ja < ma:
-            if ja > 0:
-                ta = _state_terms(za, n, beta, sda, sxa)
-            za, Sa = _sens_substep(za, ha, A, n, beta, sda, sxa, ta, Sa)
-            ja += 1
-            if not abs(za) <= bound:
-                ma = ja  # diverged: this lane's piece ends here, as _piece_sens breaks
-        if jb < mb:
-            if jb > 0:
-                tb = _state_terms(zb, n, beta, sdb, sxb)
-            zb, Sb = _sens_substep(zb, hb, A, n, beta, sdb, sxb, tb, Sb)
-            jb += 1
-            if not abs(zb) <= bound:
-                mb = jb
-    return za, Sa, zb, Sb
-
-
 @njit(cache=True)
 def _lane_start(seg_index, seg, z0, z, dz, rows):  # pragma: no cover - compiled
     """A lane starting segment ``seg_index``: its first sample's state written, its first row (the
@@ -389,96 +342,14 @@ def _lane_start(seg_index, seg, z0, z, dz, rows):  # pragma: no cover - compiled
     return r
 
 
-@njit(cache=True)
-def _sweep_sens_pair(
-    x, seg, sa, sb, z0, A, n, beta, bound, freeze, max_step, stop, z, dz, T, rows
-):  # pragma: no cover
-    """:func:`_sweep` (refined, with sensitivities) of the two segments ``sa`` < ``sb`` together, sample
-    by sample, their Heun substeps interleaved (:func:`_pieces_pair`): bit for bit the outputs of the
-    one-segment-after-the-other sweep. Returns the first diverged sample (in ``sa`` before ``sb``) or -1;
-    with ``stop``, as soon as that is known (``sa`` finished or diverged)."""
-    zero8 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    dead8 = zero8 if freeze else (np.nan, np.nan, np.nan, np.nan, np.nan, np.nan, np.nan, np.nan)
-    ra = _lane_start(sa, seg, z0, z, dz, rows)
-    rb = _lane_start(sb, seg, z0, z, dz, rows)
-    ia, enda = seg[sa], seg[sa + 1] - 1
-    ib, endb = seg[sb], seg[sb + 1] - 1
-    za = z0[sa]
-    zb = z0[sb]
-    Sa = zero8
-    Sb = zero8
-    dead_a = False
-    dead_b = False
-    bad_a = -1
-    bad_b = -1
-    while ia < enda or ib < endb:
-        live_a = ia < enda
-        live_b = ib < endb
-        # the first part of each lane's sample interval (cut at x = 0 where the angle crosses it)
-        on_a = False
-        on_b = False
-        xa_a = xm_a = xb_a = 0.0
-        xa_b = xm_b = xb_b = 0.0
-        if live_a and not dead_a:
-            xa_a = x[ia]
-            xb_a = x[ia + 1]
-            if xa_a != xb_a:
-                xm_a = 0.0 if xa_a * xb_a < 0.0 else xb_a
-                on_a = True
-        if live_b and not dead_b:
-            xa_b = x[ib]
-            xb_b = x[ib + 1]
-            if xa_b != xb_b:
-                xm_b = 0.0 if xa_b * xb_b < 0.0 else xb_b
-                on_b = True
-        if on_a or on_b:
-            za, Sa, zb, Sb = _pieces_pair(
-                xa_a, xm_a, za, Sa, on_a, xa_b, xm_b, zb, Sb, on_b, A, n, beta, bound, max_step
-            )
-            # the second part, where the first crossed x = 0 and stayed within range
-            on_a = on_a and xm_a != xb_a and abs(za) <= bound
-            on_b = on_b and xm_b != xb_b and abs(zb) <= bound
-            if on_a or on_b:
-                za, Sa, zb, Sb = _pieces_pair(
-                    xm_a, xb_a, za, Sa, on_a, xm_b, xb_b, zb, Sb, on_b, A, n, beta, bound, max_step
-                )
-        if live_a:
-            if not dead_a and not abs(za) <= bound:
-                if bad_a < 0:
-                    bad_a = ia + 1
-                if stop:
-                    return bad_a
-                dead_a = True
-                za = held(za, bound, freeze)
-                Sa = dead8
-            z[ia + 1] = za
-            if ra < rows.size and rows[ra] == ia + 1:
-                project_row(Sa, T, dz, ra)
-                ra += 1
-            ia += 1
-        if live_b:
-            if not dead_b and not abs(zb) <= bound:
-                if bad_b < 0:
-                    bad_b = ib + 1
-                dead_b = True
-                zb = held(zb, bound, freeze)
-                Sb = dead8
-                if stop:
-                    endb = ib  # sb has diverged: only sa (earlier) may still give an earlier index
-            z[ib + 1] = zb
-            if rb < rows.size and rows[rb] == ib + 1:
-                project_row(Sb, T, dz, rb)
-                rb += 1
-            ib += 1
-    return bad_a if bad_a >= 0 else bad_b
-
-
 @njit(inline="always")
-def _pieces_triple(
+def _sens_pieces(
     xa_a, xb_a, za, Sa, on_a, xa_b, xb_b, zb, Sb, on_b, xa_c, xb_c, zc, Sc, on_c, A, n, beta, bound, max_step
 ):  # pragma: no cover - compiled
-    """:func:`_pieces_pair` with three lanes: three independent chains of logarithms and exponentials
-    overlap in the processor (each lane's operations exactly those of :func:`_piece_sens`)."""
+    """The Heun substeps of one straight angle piece in each of up to three lanes (``on_*``: whether the
+    lane has a piece), interleaved substep by substep: the lanes' independent chains of logarithms and
+    exponentials overlap in the processor, and each lane's operations are exactly those of
+    :func:`_piece_sens`. Returns every lane's state and sensitivities."""
     stiff_step = max_step * STIFF_STEP / DEFAULT_MAX_STEP_DEG
     ma = mb = mc = 0
     ha = hb = hc = 0.0
@@ -531,26 +402,28 @@ def _pieces_triple(
 
 
 @njit(cache=True)
-def _sweep_sens_triple(
-    x, seg, sa, z0, A, n, beta, bound, freeze, max_step, stop, z, dz, T, rows
+def _sweep_sens_lanes(
+    x, seg, sa, lanes, z0, A, n, beta, bound, freeze, max_step, stop, z, dz, T, rows
 ):  # pragma: no cover
-    """:func:`_sweep_sens_pair` with the three segments ``sa``, ``sa + 1``, ``sa + 2`` together
-    (:func:`_pieces_triple`): bit for bit the outputs of the one-segment-after-the-other sweep. Returns the
-    first diverged sample in segment order or -1; with ``stop``, as soon as that is known (a lane that
-    diverges stops the lanes after it)."""
+    """:func:`_sweep` (refined, with sensitivities) of the ``lanes`` (2 or 3) segments from ``sa`` on
+    together, sample by sample, their Heun substeps interleaved (:func:`_sens_pieces`): bit for bit the
+    outputs of the one-segment-after-the-other sweep. Returns the first diverged sample in segment order or
+    -1; with ``stop``, as soon as that is known (a lane that diverges stops the lanes after it)."""
     zero8 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     dead8 = zero8 if freeze else (np.nan, np.nan, np.nan, np.nan, np.nan, np.nan, np.nan, np.nan)
     sb = sa + 1
-    sc = sa + 2
     ra = _lane_start(sa, seg, z0, z, dz, rows)
     rb = _lane_start(sb, seg, z0, z, dz, rows)
-    rc = _lane_start(sc, seg, z0, z, dz, rows)
     ia, enda = seg[sa], seg[sa + 1] - 1
     ib, endb = seg[sb], seg[sb + 1] - 1
-    ic, endc = seg[sc], seg[sc + 1] - 1
     za = z0[sa]
     zb = z0[sb]
-    zc = z0[sc]
+    rc = ic = endc = 0  # lane c: none unless three lanes
+    zc = 0.0
+    if lanes == 3:
+        rc = _lane_start(sa + 2, seg, z0, z, dz, rows)
+        ic, endc = seg[sa + 2], seg[sa + 3] - 1
+        zc = z0[sa + 2]
     Sa = zero8
     Sb = zero8
     Sc = zero8
@@ -584,7 +457,7 @@ def _sweep_sens_triple(
                 xm_c = 0.0 if xa_c * xb_c < 0.0 else xb_c
                 on_c = True
         if on_a or on_b or on_c:
-            za, Sa, zb, Sb, zc, Sc = _pieces_triple(
+            za, Sa, zb, Sb, zc, Sc = _sens_pieces(
                 xa_a, xm_a, za, Sa, on_a, xa_b, xm_b, zb, Sb, on_b, xa_c, xm_c, zc, Sc, on_c,
                 A, n, beta, bound, max_step,
             )  # fmt: skip
@@ -593,7 +466,7 @@ def _sweep_sens_triple(
             on_b = on_b and xm_b != xb_b and abs(zb) <= bound
             on_c = on_c and xm_c != xb_c and abs(zc) <= bound
             if on_a or on_b or on_c:
-                za, Sa, zb, Sb, zc, Sc = _pieces_triple(
+                za, Sa, zb, Sb, zc, Sc = _sens_pieces(
                     xm_a, xb_a, za, Sa, on_a, xm_b, xb_b, zb, Sb, on_b, xm_c, xb_c, zc, Sc, on_c,
                     A, n, beta, bound, max_step,
                 )  # fmt: skip
@@ -852,8 +725,8 @@ def heun_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
 @njit(cache=True)
 def heun_sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover - compiled
     """:func:`heun_kernel` and the exact derivatives of its scheme at ``rows`` (see :func:`_sweep`): the
-    segments three by three (:func:`_sweep_sens_triple`), four left as two pairs (:func:`_sweep_sens_pair`),
-    two left as a pair, one alone: the same bits as one after the other."""
+    segments three at a time, four left as two pairs, two left as a pair (:func:`_sweep_sens_lanes`), one
+    alone: the same bits as one after the other."""
     A, n, beta = shape
     bound, freeze, step, stop = limits
     dz, T, rows = sens
@@ -862,14 +735,12 @@ def heun_sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no c
     s = 0
     while s < n_seg:
         left = n_seg - s
-        if left >= 3 and left != 4:
-            bad = _sweep_sens_triple(x, seg, s, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows)
-            s += 3
-        elif left >= 2:
-            bad = _sweep_sens_pair(
-                x, seg, s, s + 1, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows
+        if left >= 2:
+            lanes = 3 if left >= 3 and left != 4 else 2
+            bad = _sweep_sens_lanes(
+                x, seg, s, lanes, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows
             )
-            s += 2
+            s += lanes
         else:
             bad = _sweep(
                 x, seg[s:], z0[s:], A, n, beta, bound, freeze, step, stop, z, dz, T, rows, True, True
