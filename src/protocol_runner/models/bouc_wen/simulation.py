@@ -43,6 +43,7 @@ class SimulateKeywords(TypedDict, total=False):
 
 
 def _start(z0: float) -> float:
+    """A starting torque as a finite float (InvalidInput otherwise)."""
     z0f = float(z0)
     if not math.isfinite(z0f):
         raise InvalidInput(f"z0 must be a finite torque, got {z0}")
