@@ -10,8 +10,8 @@ and samples (:func:`_sweep`) that serves all four kernels, selected by two flags
 costs nothing measurable: the per-piece call and the loop are as fast as the four separate kernels they
 replace; a further layer of numba ``inline="always"`` around the Heun piece made the sensitivity kernel
 about 1.5 times slower, so there is none).  The refined sensitivity kernel, the fits' innermost work, integrates the
-trials three or two at a time (:func:`_sweep_sens_lanes`), and the kernel without derivatives too
-(:func:`_sweep_plain_lanes`): each substep waits on a logarithm and an exponential of the one before, so
+trials three or two at a time (:func:`_sweep_lanes`), and so does the kernel without derivatives (the
+same sweep, flagged): each substep waits on a logarithm and an exponential of the one before, so
 independent trials' substeps interleaved keep the processor busy while each waits (two trials: about 10 %
 less time over 1,500 recorded fit calls; three together instead of two and then the third alone: 20-25 %
 less for a three-trial call; every operation of each trial the same, so the same bits as one trial after
@@ -402,13 +402,15 @@ def _sens_pieces(
 
 
 @njit(cache=True)
-def _sweep_sens_lanes(
-    x, seg, sa, lanes, z0, A, n, beta, bound, freeze, max_step, stop, z, dz, T, rows
+def _sweep_lanes(
+    x, seg, sa, lanes, z0, A, n, beta, bound, freeze, max_step, stop, z, dz, T, rows, sensitivities
 ):  # pragma: no cover
-    """:func:`_sweep` (refined, with sensitivities) of the ``lanes`` (2 or 3) segments from ``sa`` on
-    together, sample by sample, their Heun substeps interleaved (:func:`_sens_pieces`): bit for bit the
-    outputs of the one-segment-after-the-other sweep. Returns the first diverged sample in segment order or
-    -1; with ``stop``, as soon as that is known (a lane that diverges stops the lanes after it)."""
+    """:func:`_sweep` (refined; with ``sensitivities``, their rows too) of the ``lanes`` (2 or 3) segments
+    from ``sa`` on together, sample by sample, their Heun substeps interleaved (:func:`_sens_pieces`, or
+    :func:`_plain_pieces` without sensitivities, the lanes then carrying zero sensitivities and ``rows``
+    empty): bit for bit the outputs of the one-segment-after-the-other sweep. Returns the first diverged
+    sample in segment order or -1; with ``stop``, as soon as that is known (a lane that diverges stops the
+    lanes after it)."""
     zero8 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     dead8 = zero8 if freeze else (np.nan, np.nan, np.nan, np.nan, np.nan, np.nan, np.nan, np.nan)
     sb = sa + 1
@@ -457,17 +459,28 @@ def _sweep_sens_lanes(
                 xm_c = 0.0 if xa_c * xb_c < 0.0 else xb_c
                 on_c = True
         if on_a or on_b or on_c:
-            za, Sa, zb, Sb, zc, Sc = _sens_pieces(
-                xa_a, xm_a, za, Sa, on_a, xa_b, xm_b, zb, Sb, on_b, xa_c, xm_c, zc, Sc, on_c,
-                A, n, beta, bound, max_step,
-            )  # fmt: skip
+            if sensitivities:
+                za, Sa, zb, Sb, zc, Sc = _sens_pieces(
+                    xa_a, xm_a, za, Sa, on_a, xa_b, xm_b, zb, Sb, on_b, xa_c, xm_c, zc, Sc, on_c,
+                    A, n, beta, bound, max_step,
+                )  # fmt: skip
+            else:
+                za, zb, zc = _plain_pieces(
+                    xa_a, xm_a, za, on_a, xa_b, xm_b, zb, on_b, xa_c, xm_c, zc, on_c,
+                    A, n, beta, bound, max_step,
+                )  # fmt: skip
             # the second part, where the first crossed x = 0 and stayed within range
             on_a = on_a and xm_a != xb_a and abs(za) <= bound
             on_b = on_b and xm_b != xb_b and abs(zb) <= bound
             on_c = on_c and xm_c != xb_c and abs(zc) <= bound
-            if on_a or on_b or on_c:
+            if (on_a or on_b or on_c) and sensitivities:
                 za, Sa, zb, Sb, zc, Sc = _sens_pieces(
                     xm_a, xb_a, za, Sa, on_a, xm_b, xb_b, zb, Sb, on_b, xm_c, xb_c, zc, Sc, on_c,
+                    A, n, beta, bound, max_step,
+                )  # fmt: skip
+            elif on_a or on_b or on_c:
+                za, zb, zc = _plain_pieces(
+                    xm_a, xb_a, za, on_a, xm_b, xb_b, zb, on_b, xm_c, xb_c, zc, on_c,
                     A, n, beta, bound, max_step,
                 )  # fmt: skip
         if live_a:
@@ -574,101 +587,6 @@ def _plain_pieces(
     return za, zb, zc
 
 
-@njit(cache=True)
-def _sweep_plain_lanes(
-    x, seg, sa, lanes, z0, A, n, beta, bound, freeze, max_step, stop, z
-):  # pragma: no cover
-    """:func:`_sweep` (refined, without derivatives) of the ``lanes`` (2 or 3) segments from ``sa`` on
-    together, sample by sample, their substeps interleaved (:func:`_plain_pieces`): bit for bit the states
-    of the one-segment-after-the-other sweep. Returns the first diverged sample in segment order or -1;
-    with ``stop``, as soon as that is known (a lane that diverges stops the lanes after it)."""
-    ia, enda = seg[sa], seg[sa + 1] - 1
-    ib, endb = seg[sa + 1], seg[sa + 2] - 1
-    ic = endc = 0  # lane c: none unless three lanes
-    za = z0[sa]
-    zb = z0[sa + 1]
-    zc = 0.0
-    z[ia] = za
-    z[ib] = zb
-    if lanes == 3:
-        ic, endc = seg[sa + 2], seg[sa + 3] - 1
-        zc = z0[sa + 2]
-        z[ic] = zc
-    dead_a = dead_b = dead_c = False
-    bad_a = bad_b = bad_c = -1
-    while ia < enda or ib < endb or ic < endc:
-        live_a = ia < enda
-        live_b = ib < endb
-        live_c = ic < endc
-        # the first part of each lane's sample interval (cut at x = 0 where the angle crosses it)
-        on_a = on_b = on_c = False
-        xa_a = xm_a = xb_a = 0.0
-        xa_b = xm_b = xb_b = 0.0
-        xa_c = xm_c = xb_c = 0.0
-        if live_a and not dead_a:
-            xa_a = x[ia]
-            xb_a = x[ia + 1]
-            if xa_a != xb_a:
-                xm_a = 0.0 if xa_a * xb_a < 0.0 else xb_a
-                on_a = True
-        if live_b and not dead_b:
-            xa_b = x[ib]
-            xb_b = x[ib + 1]
-            if xa_b != xb_b:
-                xm_b = 0.0 if xa_b * xb_b < 0.0 else xb_b
-                on_b = True
-        if live_c and not dead_c:
-            xa_c = x[ic]
-            xb_c = x[ic + 1]
-            if xa_c != xb_c:
-                xm_c = 0.0 if xa_c * xb_c < 0.0 else xb_c
-                on_c = True
-        if on_a or on_b or on_c:
-            za, zb, zc = _plain_pieces(
-                xa_a, xm_a, za, on_a, xa_b, xm_b, zb, on_b, xa_c, xm_c, zc, on_c, A, n, beta, bound, max_step
-            )
-            # the second part, where the first crossed x = 0 and stayed within range
-            on_a = on_a and xm_a != xb_a and abs(za) <= bound
-            on_b = on_b and xm_b != xb_b and abs(zb) <= bound
-            on_c = on_c and xm_c != xb_c and abs(zc) <= bound
-            if on_a or on_b or on_c:
-                za, zb, zc = _plain_pieces(
-                    xm_a, xb_a, za, on_a, xm_b, xb_b, zb, on_b, xm_c, xb_c, zc, on_c,
-                    A, n, beta, bound, max_step,
-                )  # fmt: skip
-        if live_a:
-            if not dead_a and not abs(za) <= bound:
-                bad_a = ia + 1
-                if stop:
-                    return bad_a
-                dead_a = True
-                za = held(za, bound, freeze)
-            z[ia + 1] = za
-            ia += 1
-        if live_b:
-            if not dead_b and not abs(zb) <= bound:
-                bad_b = ib + 1
-                dead_b = True
-                zb = held(zb, bound, freeze)
-                if stop:
-                    endb = ib  # only sa (earlier) may still give an earlier index: lane c need not go on
-                    endc = ic
-            z[ib + 1] = zb
-            ib += 1
-        if live_c:
-            if not dead_c and not abs(zc) <= bound:
-                bad_c = ic + 1
-                dead_c = True
-                zc = held(zc, bound, freeze)
-                if stop:
-                    endc = ic
-            z[ic + 1] = zc
-            ic += 1
-    if bad_a >= 0:
-        return bad_a
-    return bad_b if bad_b >= 0 else bad_c
-
-
 # The entry points take three small records (tuples, unpacked once here at the top of the compiled code):
 # shape = (A, n, beta) with beta a float64 array of 6; limits = (bound, freeze, max_step, stop) (max_step
 # unused by Eq 23); sens = (dz, T, rows) for the kernels with derivatives (see :func:`_sweep`).
@@ -693,13 +611,12 @@ def sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover 
 
 
 @njit(cache=True)
-def heun_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
-    """The step-independent integration (:mod:`.schemes`) over the segments (see :func:`_sweep`): three at a
-    time, four left as two pairs, two left as a pair (:func:`_sweep_plain_lanes`), one alone; the same
-    bits as one after the other."""
-    A, n, beta = shape
-    bound, freeze, step, stop = limits
-    dz, rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)  # none
+def _sweep_refined(
+    x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows, sensitivities
+):  # pragma: no cover
+    """The refined :func:`_sweep` (with or without ``sensitivities``) of every segment: three at a time,
+    four left as two pairs, two left as a pair (:func:`_sweep_lanes`), one alone; the same bits as one
+    after the other, and the first diverged sample in segment order (with ``stop``, at once)."""
     n_seg = seg.size - 1
     first_bad = -1
     s = 0
@@ -707,11 +624,13 @@ def heun_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
         left = n_seg - s
         if left >= 2:
             lanes = 3 if left >= 3 and left != 4 else 2
-            bad = _sweep_plain_lanes(x, seg, s, lanes, z0, A, n, beta, bound, freeze, step, stop, z)
+            bad = _sweep_lanes(
+                x, seg, s, lanes, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows, sensitivities
+            )
             s += lanes
         else:
             bad = _sweep(
-                x, seg[s:], z0[s:], A, n, beta, bound, freeze, step, stop, z, dz, IDENTITY8, rows, True, False
+                x, seg[s:], z0[s:], A, n, beta, bound, freeze, step, stop, z, dz, T, rows, True, sensitivities
             )
             s += 1
         if bad >= 0:
@@ -723,35 +642,23 @@ def heun_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
+def heun_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
+    """The step-independent integration (:mod:`.schemes`) over the segments (see :func:`_sweep`), several
+    at a time (:func:`_sweep_refined`)."""
+    A, n, beta = shape
+    bound, freeze, step, stop = limits
+    dz, rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)  # none
+    return _sweep_refined(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, IDENTITY8, rows, False)
+
+
+@njit(cache=True)
 def heun_sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover - compiled
-    """:func:`heun_kernel` and the exact derivatives of its scheme at ``rows`` (see :func:`_sweep`): the
-    segments three at a time, four left as two pairs, two left as a pair (:func:`_sweep_sens_lanes`), one
-    alone: the same bits as one after the other."""
+    """:func:`heun_kernel` and the exact derivatives of its scheme at ``rows`` (see :func:`_sweep`), several
+    segments at a time (:func:`_sweep_refined`)."""
     A, n, beta = shape
     bound, freeze, step, stop = limits
     dz, T, rows = sens
-    n_seg = seg.size - 1
-    first_bad = -1
-    s = 0
-    while s < n_seg:
-        left = n_seg - s
-        if left >= 2:
-            lanes = 3 if left >= 3 and left != 4 else 2
-            bad = _sweep_sens_lanes(
-                x, seg, s, lanes, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows
-            )
-            s += lanes
-        else:
-            bad = _sweep(
-                x, seg[s:], z0[s:], A, n, beta, bound, freeze, step, stop, z, dz, T, rows, True, True
-            )
-            s += 1
-        if bad >= 0:
-            if stop:
-                return bad
-            if first_bad < 0:
-                first_bad = bad
-    return first_bad
+    return _sweep_refined(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows, True)
 
 
 @njit(cache=True)
