@@ -94,3 +94,29 @@ def test_the_cover_limit_decides_each_parameter() -> None:
     reasons = weak_reasons(u, unknown, (0.9, 1.1), problem)
     assert len(reasons) == 1 and "phase 5" in reasons[0] and "not determined" in reasons[0]
     assert [r[:2] for r in weak_reasons(u, narrow, (0.5, 2.0), problem)] == ["n:"]  # 60 % of 0.5-3
+
+
+def test_a_refit_ending_above_the_limit_is_continued_before_it_ends_n_interval(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """n's interval ends at the first grid point whose refit (n held) ends above the limit; a refit that
+    stopped there because its evaluations ran out, not because its n is worse, would cut the interval
+    short (anti-conservative: the knee dry run's configuration 1 had 0.5-0.57 where its profile stays
+    inside up to 2.8). Such a refit is continued first. Configuration 1's dry-run loop (range-of-motion
+    stops) with every refit starved to 3 evaluations: the interval is that of refits run to 60, and
+    without the continuation it is cut short."""
+    from pathlib import Path
+
+    from protocol_runner.models.bouc_wen import identifiability
+
+    data = np.load(Path(__file__).resolve().parent / "data" / "brace_rom_stop_loop.npz")
+    segments = [(data["angle_deg"].astype(np.float64), data["torque_nm"].astype(np.float64))]
+    fit = fit_trials(segments, starts=8, backbone_degree=9)
+    monkeypatch.setattr(identifiability, "PROFILE_NFEV", 60)
+    converged = identify(segments, fit).n_interval
+    monkeypatch.setattr(identifiability, "PROFILE_NFEV", 3)
+    starved = identify(segments, fit).n_interval
+    assert starved == pytest.approx(converged, abs=0.01)
+    monkeypatch.setattr(identifiability, "CROSSING_NFEV", 1)  # (almost) no continuation
+    cut = identify(segments, fit).n_interval
+    assert cut[1] < converged[1] - 0.1

@@ -199,9 +199,9 @@ def test_the_n_profile_steps_from_the_estimate_toward_each_bound_and_stays_withi
     fixed: list[float] = []
     refit = ident._fixed_n_refit
 
-    def recording(problem: Problem, u0: np.ndarray) -> tuple[np.ndarray, float]:
+    def recording(problem: Problem, u0: np.ndarray, max_nfev: int | None = None) -> tuple[np.ndarray, float]:
         fixed.append(float(u0[1]))
-        return refit(problem, u0)
+        return refit(problem, u0, max_nfev)
 
     monkeypatch.setattr(ident, "_fixed_n_refit", recording)
     segments = _rich_loops()
@@ -218,7 +218,9 @@ def _profile_of(monkeypatch: pytest.MonkeyPatch, sse_at_n) -> None:  # type: ign
     """Replace the fixed-n refits by a given profile SSE(n) (the refit's point is its start)."""
     from protocol_runner.models.bouc_wen import identifiability as ident
 
-    monkeypatch.setattr(ident, "_fixed_n_refit", lambda problem, u0: (u0, float(sse_at_n(float(u0[1])))))
+    monkeypatch.setattr(
+        ident, "_fixed_n_refit", lambda problem, u0, max_nfev=None: (u0, float(sse_at_n(float(u0[1]))))
+    )
 
 
 def test_a_quadratic_profile_gives_the_likelihood_ratio_interval_exactly(

@@ -7,7 +7,8 @@ import re
 from dataclasses import fields
 
 from protocol_runner.models.bouc_wen import fit
-from protocol_runner.models.bouc_wen.options import FitKeywords, FitOptions
+from protocol_runner.models.bouc_wen import fitting as bw_fitting
+from protocol_runner.models.bouc_wen.options import POLISH_FTOL, FitKeywords, FitOptions
 from protocol_runner.models.bouc_wen.records import DEFAULT_BOUNDS
 
 
@@ -30,4 +31,5 @@ def test_the_defaults_are_those_fit_documents() -> None:
     assert d.bounds is DEFAULT_BOUNDS
     assert d.initial is None
     assert d.final_solve  # only cross-validation's held-out fits end on the turning-point copy
-    assert d.polish_ftol is None  # None: the polish's ftol is polish_tol
+    # the polish on the mid-size copy stops early as the last solve after it does
+    assert d.polish_ftol == POLISH_FTOL == bw_fitting.FINAL_FTOL

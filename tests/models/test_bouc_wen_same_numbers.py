@@ -75,11 +75,14 @@ def test_the_jacobian_at_the_compared_rows_is_those_rows_of_the_full_one() -> No
 
 
 def test_the_early_stops_keep_the_rmse_within_their_tolerance(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Against a last solve run to a relative cost change of 1e-8: the fit's RMSE within 1e-4
-    (FINAL_FTOL 1e-5), with no more residual evaluations."""
+    """Against a polish on the mid-size copy run to its step tolerance (polish_ftol None) and a last solve
+    run to a relative cost change of 1e-8: the fit's RMSE within 1e-4 (POLISH_FTOL and FINAL_FTOL 1e-5),
+    with no more residual evaluations."""
     segments = _loop_halves()
     fast = fit_trials(segments, starts=4, backbone_degree=9)
     monkeypatch.setattr(fitting, "FINAL_FTOL", 1e-8)
+    options = fitting.FitOptions
+    monkeypatch.setattr(fitting, "FitOptions", lambda **kw: replace(options(**kw), polish_ftol=None))
     strict = fit_trials(segments, starts=4, backbone_degree=9)
     assert fast.rmse_nm == pytest.approx(strict.rmse_nm, rel=1e-4)
     assert fast.nfev <= strict.nfev

@@ -6,7 +6,8 @@ Intervals (95 %):
   each bound (2, 10, 30, 60 and 100 % of the way, stopping where the profile leaves the interval), the
   other seven parameters are refitted with n held fixed, giving the profile ``SSE(n)``.  The interval is
   where ``m_eff ln(SSE(n) / SSE_min) <= 3.84`` (chi-square, one degree of freedom, Gaussian errors of
-  unknown variance).
+  unknown variance). A refit that ends above that limit is continued (``CROSSING_NFEV`` more evaluations)
+  before it ends the interval: one that merely ran out of evaluations would cut the interval short.
 * The other parameters get Wald intervals, ``theta +- 1.96 sigma``, with sigma from the Jacobian at the
   optimum (:func:`.problem.param_std`).
 * Filtered data have strongly correlated residuals, so ``m`` samples carry far less than ``m`` independent
@@ -54,6 +55,7 @@ PROFILE_SAMPLES = 400  # samples per trial of the copy on which n is profiled
 PROFILE_STEP_DEG = 0.5  # substep of the refined integration while profiling
 PROFILE_STEPS = np.array([0.02, 0.1, 0.3, 0.6, 1.0])  # grid from the fitted n to each bound
 PROFILE_NFEV = 10  # residual evaluations of each fixed-n refit
+CROSSING_NFEV = 30  # further evaluations of a refit that ends above the interval's limit (see _n_profile)
 COVER_LIMIT = 0.5  # a 95 % interval covering more of the plausible range than this: weakly identified
 DIMENSIONLESS_NAMES: tuple[str, ...] = (
     "a = A X/Z",
@@ -75,8 +77,9 @@ def effective_samples(residuals: FloatArray, seg: npt.NDArray[np.int64]) -> floa
     return max(2.0, residuals.size * (1.0 - rho) / (1.0 + rho))
 
 
-def _fixed_n_refit(problem: Problem, u0: FloatArray) -> tuple[FloatArray, float]:
-    """Refit every parameter except n (held at ``u0[1]``); the parameters and the SSE."""
+def _fixed_n_refit(problem: Problem, u0: FloatArray, max_nfev: int | None = None) -> tuple[FloatArray, float]:
+    """Refit every parameter except n (held at ``u0[1]``), with at most ``max_nfev`` residual evaluations
+    (``PROFILE_NFEV`` by default); the parameters and the SSE."""
     keep = [0, *range(2, 8)]
     n = float(u0[1])
 
@@ -94,7 +97,7 @@ def _fixed_n_refit(problem: Problem, u0: FloatArray) -> tuple[FloatArray, float]
             x_scale="jac",
             method="trf",
             tr_solver="exact",
-            max_nfev=PROFILE_NFEV,
+            max_nfev=PROFILE_NFEV if max_nfev is None else max_nfev,
         )
     finally:
         problem.fused = False
@@ -123,6 +126,8 @@ def _n_profile(problem: Problem, u_best: FloatArray, sse0: float, m_eff: float) 
             start = u_prev.copy()
             start[1] = n
             u, s = _fixed_n_refit(problem, start)
+            if s > limit:  # outside, or a refit not yet converged: continued before it ends the interval
+                u, s = _fixed_n_refit(problem, u, CROSSING_NFEV)
             if s > limit:
                 end = _crossing(n_prev, s_prev, float(n), s, sse0, limit)
                 break

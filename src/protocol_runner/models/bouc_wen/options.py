@@ -26,6 +26,12 @@ class FitKeywords(TypedDict, total=False):
     scheme: str
 
 
+POLISH_FTOL = 1e-5
+"""The polish on the mid-size copy ends once a step lowers its cost by less than this fraction, as the last
+solve on the fitted samples does (``fitting.FINAL_FTOL``): run to ``polish_tol`` instead, it took 8 % more of
+the fits' time for RMSEs within 3e-5 relative on the knee dry run (docs/analysis.md)."""
+
+
 @dataclass(frozen=True)
 class FitOptions:
     """How one multi-start fit runs (see :func:`.fit` for the procedure).
@@ -41,7 +47,9 @@ class FitOptions:
     polish: how many of the best short fits are refined to full convergence.
     scheme: ``"refined"`` (step-independent) or ``"eq23"`` (the thesis's literal recursion).
     polish_tol: step and gradient tolerance of the refinement.
-    polish_ftol: relative cost decrease that ends the polish on the mid-size copy (``None``: ``polish_tol``).
+    polish_ftol: relative cost decrease that ends the polish on the mid-size copy (``None``: ``polish_tol``);
+        ``POLISH_FTOL`` by default, the early stop of the last solve that follows it (tolerance:
+        docs/analysis.md, tests/models/test_bouc_wen_same_numbers.py).
     final_solve: False ends the refined scheme's fit with the polish on a mid-size copy that keeps the
         angle's turning points (:func:`.copies.turning_point_copy`) instead of a last solve on the fitted
         samples: the held-out fits of :func:`.cross_validate` (tolerance in docs/analysis.md).
@@ -56,5 +64,5 @@ class FitOptions:
     polish: int = 1
     scheme: str = REFINED
     polish_tol: float = 1e-10
-    polish_ftol: float | None = None
+    polish_ftol: float | None = POLISH_FTOL
     final_solve: bool = True
