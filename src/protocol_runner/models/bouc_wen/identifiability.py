@@ -54,7 +54,8 @@ CHI2_1_95 = 3.841458820694124  # 95 % quantile of chi-square with one degree of 
 PROFILE_SAMPLES = 400  # samples per trial of the copy on which n is profiled
 PROFILE_STEP_DEG = 0.5  # substep of the refined integration while profiling
 PROFILE_STEPS = np.array([0.02, 0.1, 0.3, 0.6, 1.0])  # grid from the fitted n to each bound
-PROFILE_NFEV = 10  # residual evaluations of each fixed-n refit
+PROFILE_NFEV = 6  # residual evaluations of each fixed-n refit (as close to converged refits as 10 were,
+# given the continuation at the crossing: docs/analysis.md)
 CROSSING_NFEV = 30  # further evaluations of a refit that ends above the interval's limit (see _n_profile)
 COVER_LIMIT = 0.5  # a 95 % interval covering more of the plausible range than this: weakly identified
 DIMENSIONLESS_NAMES: tuple[str, ...] = (
