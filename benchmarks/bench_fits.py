@@ -60,7 +60,10 @@ c0 = time.process_time()
 for name, segments in loops.items():
     result = fit_stored_loops(segments, settings)
     fit = result.fit
-    numbers[name] = [fit.rmse_nm, fit.r2, *fit.params.as_array().tolist(), *result.cv_rmse_nm]
+    numbers[name] = {
+        "findings": [fit.rmse_nm, fit.r2, *result.cv_rmse_nm],
+        "parameters": fit.params.as_array().tolist(),
+    }
 cpu = time.process_time() - c0
 print(json.dumps({"cpu_s": cpu, "configurations": len(loops), "numbers": numbers}))
 """
@@ -110,7 +113,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         archive = args.archive.resolve() if args.archive else _seeded_archive(args.protocol, Path(tmp))
         cpu: dict[str, list[float]] = {name: [] for name, _ in checkouts}
-        numbers: dict[str, dict[str, list[float]]] = {}
+        numbers: dict[str, dict[str, dict[str, list[float]]]] = {}
         for k in range(args.repeats):
             order = checkouts if k % 2 == 0 else checkouts[::-1]
             for name, checkout in order:
@@ -128,20 +131,12 @@ def main() -> None:
             statistics.median(cpu["baseline"]) / statistics.median(cpu["this"]), 3
         )
         result["same_numbers_bit_for_bit"] = numbers["this"] == numbers["baseline"]
-        base = numbers["baseline"]
         # the fits' findings (RMSE, R^2, held-out errors) against --rtol; the parameters only reported (those
         # the data leave open move far more than the errors when the optimum moves a little)
-        worst = {
-            c: _largest_relative_difference(_findings(v), _findings(base.get(c)))
-            for c, v in numbers["this"].items()
-        }
+        worst = {c: _largest_relative_difference(numbers, c, "findings") for c in numbers["this"]}
         result["largest_relative_difference_rmse_r2_cv"] = max(worst.values(), default=0.0)
         result["largest_relative_difference_parameters"] = max(
-            (
-                _largest_relative_difference(v[2:10], (base.get(c) or [])[2:10])
-                for c, v in numbers["this"].items()
-            ),
-            default=0.0,
+            (_largest_relative_difference(numbers, c, "parameters") for c in numbers["this"]), default=0.0
         )
     print(json.dumps(result, indent=2))
     if args.baseline is not None and not result["same_numbers_bit_for_bit"]:
@@ -153,15 +148,13 @@ def main() -> None:
             )
 
 
-def _findings(numbers: list[float] | None) -> list[float] | None:
-    """RMSE, R^2 and the held-out errors of one configuration's numbers (without its eight parameters)."""
-    return None if numbers is None else numbers[:2] + numbers[10:]
-
-
-def _largest_relative_difference(this: list[float] | None, baseline: list[float] | None) -> float:
-    """The largest |a - b| / |b| over one configuration's numbers (inf when they do not pair up; equal
-    numbers, NaN with NaN included, differ by 0)."""
-    if this is None or baseline is None or len(this) != len(baseline):
+def _largest_relative_difference(numbers: dict[str, Any], configuration: str, kind: str) -> float:
+    """The largest |a - b| / |b| between this checkout's and the baseline's `kind` numbers ("findings" or
+    "parameters") of one configuration (inf when they do not pair up; equal numbers, NaN with NaN
+    included, differ by 0)."""
+    this = numbers["this"][configuration][kind]
+    baseline = numbers["baseline"].get(configuration, {}).get(kind)
+    if baseline is None or len(this) != len(baseline):
         return math.inf
     worst = 0.0
     for a, b in zip(this, baseline, strict=True):

@@ -12,7 +12,7 @@ import numpy.typing as npt
 from .params import FloatArray
 from .problem import FitScale, Problem, Samples
 from .records import BoucWenBounds
-from .schemes import REFINED
+from .schemes import REFINED, segment_starts
 
 
 def decimate(
@@ -34,9 +34,7 @@ def _joined(
     xs: list[FloatArray], ys: list[FloatArray]
 ) -> tuple[FloatArray, FloatArray, npt.NDArray[np.int64]]:
     """The trials' samples concatenated, with the segment starts (one more than the trials)."""
-    seg = np.zeros(len(xs) + 1, dtype=np.int64)
-    seg[1:] = np.cumsum([v.size for v in xs])
-    return np.concatenate(xs), np.concatenate(ys), seg
+    return np.concatenate(xs), np.concatenate(ys), segment_starts(xs)
 
 
 def _path_problem(

@@ -137,6 +137,14 @@ def run_trial(
     return z, bad
 
 
+def segment_starts(xs: list[FloatArray]) -> IntArray:
+    """Where each of the trials ``xs`` starts once they are concatenated, and their total (one more entry
+    than trials): the kernels' ``seg``."""
+    seg = np.zeros(len(xs) + 1, dtype=np.int64)
+    seg[1:] = np.cumsum([x.size for x in xs])
+    return seg
+
+
 def run_trials(
     xs: list[FloatArray], params: BoucWenParams, z0s: list[float], integration: Integration
 ) -> tuple[list[FloatArray], int]:
@@ -144,9 +152,7 @@ def run_trials(
     of one array) and the first diverged index over all of them (in the joint samples) or -1. Each
     trial's torque is bit for bit :func:`run_trial`'s (the kernels integrate segments independently; the
     refined one two or three at a time, :func:`.kernels.heun_kernel`)."""
-    lengths = [x.size for x in xs]
-    seg = np.zeros(len(xs) + 1, dtype=np.int64)
-    seg[1:] = np.cumsum(lengths)
+    seg = segment_starts(xs)
     x = np.concatenate(xs) if xs else np.empty(0)
     z = np.empty_like(x)
     shape = BoucWenShape(params.A, params.n, np.array(params.beta))
