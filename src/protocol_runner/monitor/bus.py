@@ -204,14 +204,26 @@ class EventBus:
 
     # --------------------------------------------------------------------------------- closing
 
-    def close(self, flush_s: float = 2.0) -> None:
-        """Deliver what is queued, give the clients up to `flush_s` to take it, then end every stream."""
-        deadline = time.monotonic() + flush_s
+    def flush(self, timeout_s: float = 2.0, *, clients: bool = False) -> bool:
+        """Wait until every message published so far is delivered (the state and `/status` show it), and
+        with `clients` until the clients have taken it too; at most `timeout_s`. True if it was."""
+        deadline = time.monotonic() + timeout_s
         if self._thread is None:
             self.cycle()
         self._wake.set()
-        while time.monotonic() < deadline and (self._inbox or self._busy or self._pending_output()):
-            time.sleep(0.02)
+
+        def pending() -> bool:  # the pump sets _busy before it pops the inbox: never both seen clear early
+            return bool(self._inbox or self._busy or (clients and self._pending_output()))
+
+        while pending():
+            if time.monotonic() >= deadline:
+                return False
+            time.sleep(0.01)
+        return True
+
+    def close(self, flush_s: float = 2.0) -> None:
+        """Deliver what is queued, give the clients up to `flush_s` to take it, then end every stream."""
+        self.flush(flush_s, clients=True)
         self._stopping = True
         self._wake.set()
         if self._thread is not None:
