@@ -173,6 +173,8 @@ def _children_commands(parent: int) -> dict[int, str]:
         except OSError:
             continue
         command = _command(int(entry))
+        if not command:  # a child between fork and exec (the resource tracker), or ending: not yet known
+            continue
         if int(stat.rsplit(")", 1)[1].split()[1]) == parent and "resource_tracker" not in command:
             found[int(entry)] = command
     return found
