@@ -96,16 +96,17 @@ CASES: dict[str, tuple[str, bool, Callable[[Path], None]]] = {
         _text_complete,
     ),
     "a thread still writing": (
-        "import threading, time\n"
-        "def work(): time.sleep(0.5); open(target, 'w').write('kept\\n' * 1000)\n"
+        "import threading\n"  # writes once the normal exit has begun (never before the check, however slow)
+        "def work(): threading.main_thread().join(); open(target, 'w').write('kept\\n' * 1000)\n"
         "threading.Thread(target=work).start()",
         False,
         _text_complete,
     ),
     "a child process still writing": (
-        "import multiprocessing, time\n"
-        "def work(): time.sleep(0.5); open(target, 'w').write('kept\\n' * 1000)\n"
-        "multiprocessing.get_context('fork').Process(target=work).start()",
+        "import atexit, multiprocessing\n"  # writes once the normal exit has begun (its atexit handlers)
+        "def work(go): go.wait(); open(target, 'w').write('kept\\n' * 1000)\n"
+        "ctx = multiprocessing.get_context('fork'); go = ctx.Event()\n"
+        "ctx.Process(target=work, args=(go,)).start(); atexit.register(go.set)",
         False,
         _text_complete,
     ),

@@ -159,7 +159,13 @@ def test_abandon_drops_the_queue_but_finishes_the_unit_being_written(tmp_path: P
     writer.submit("s:1", filler(1.0, gate, started))
     assert started.wait(10.0)
     writer.submit("s:2", filler(2.0))
-    threading.Timer(0.2, gate.set).start()
+
+    def open_once_abandoning() -> None:  # s:1 finishes only after the stop is asked for, however slow
+        while not writer._abandoned:
+            time.sleep(0.001)
+        gate.set()
+
+    threading.Thread(target=open_once_abandoning, daemon=True).start()
     writer.abandon()
     assert list(journal.units) == ["s:1"] and unit_is_complete(units, journal.units["s:1"])
     assert not unit_path(units, "s:2").exists()
