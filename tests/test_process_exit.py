@@ -104,7 +104,8 @@ CASES: dict[str, tuple[str, bool, Callable[[Path], None]]] = {
     ),
     "a child process still writing": (
         "import atexit, multiprocessing\n"  # writes once the normal exit has begun (its atexit handlers)
-        "def work(go): go.wait(); open(target, 'w').write('kept\\n' * 1000)\n"
+        "def work(go):\n"
+        "    if go.wait(120): open(target, 'w').write('kept\\n' * 1000)  # not left waiting for ever\n"
         "ctx = multiprocessing.get_context('fork'); go = ctx.Event()\n"
         "ctx.Process(target=work, args=(go,)).start(); atexit.register(go.set)",
         False,

@@ -38,9 +38,8 @@ def _watch(session: Path, action: Any) -> tuple[int, list[str], list[dict[str, A
         stream = Stream("127.0.0.1", live.port)
         stream.wait_for("hello")
         code = action(live)
-        assert live.bus.flush(30), (
-            "the monitor did not deliver what the session published"
-        )  # /status shows it
+        delivered = live.bus.flush(30)  # what the session published: /status shows it
+        assert delivered, "the monitor did not deliver what the session published"
         after = status(f"http://127.0.0.1:{live.port}/")
     assert stream.closed.wait(10), "the stream did not end with the monitor"
     stream.close()

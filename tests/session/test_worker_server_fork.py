@@ -147,10 +147,10 @@ def test_the_command_line_session_forks_its_server(tmp_path: Path) -> None:
         # shows the session's command line until its exec): watch until the server is seen and stays so
         while server is None and proc.poll() is None and time.monotonic() < deadline:
             commands.update(_children_commands(proc.pid))
-            for pid, command in commands.items():
-                if "multiprocessing.forkserver" in command:
+            for pid, line in commands.items():
+                if "multiprocessing.forkserver" in line:
                     server = pid
-                elif command == own:
+                elif line == own:
                     time.sleep(0.05)  # a child between fork and exec would have exec'd by now
                     if _command(pid) == own:
                         server = pid
