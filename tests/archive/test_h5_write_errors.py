@@ -45,6 +45,55 @@ def test_a_unit_whose_write_h5py_could_only_print_is_not_kept(tmp_path: Path, ca
     assert "Exception ignored" not in capsys.readouterr().err
 
 
+class _FreedPrintingItsTraceback(_FreedWithAFailedWrite):
+    """h5py's deallocator as it is compiled (Cython, full tracebacks): it prints the error's traceback through
+    `sys.excepthook` first, then hands the error to `sys.unraisablehook`."""
+
+    def __del__(self) -> None:
+        try:
+            raise RuntimeError(self.message)
+        except RuntimeError:
+            sys.excepthook(*sys.exc_info())
+            raise
+
+
+def test_a_failed_write_h5py_prints_itself_is_not_printed_and_fails_the_unit(
+    tmp_path: Path, capsys: Any
+) -> None:
+    units = tmp_path / "units"
+
+    def fill(f: h5py.File) -> None:
+        f.create_dataset("x", data=np.arange(10.0))
+        obj = _FreedPrintingItsTraceback(units / "process__k12.h5.partial")
+        del obj
+
+    with pytest.raises(DiskFull, match="disk full while saving process:k12"):
+        write_unit(units, "process:k12", fill)
+    err = capsys.readouterr().err
+    assert "Traceback" not in err and "Exception ignored" not in err
+    assert sys.excepthook is sys.__excepthook__  # put back once no file is written
+
+
+def test_other_prints_while_a_file_is_written_go_to_the_excepthook_in_place(tmp_path: Path) -> None:
+    seen: list[str] = []
+
+    def hook(kind: Any, value: BaseException | None, tb: Any) -> None:
+        seen.append(str(value))
+
+    previous = sys.excepthook
+    sys.excepthook = hook
+    try:
+        with checked_h5_write(tmp_path / "a.h5.partial"):
+            try:
+                raise ValueError("about b.h5.partial, not the file being written")
+            except ValueError:
+                sys.excepthook(*sys.exc_info())
+        assert seen == ["about b.h5.partial, not the file being written"]
+        assert sys.excepthook is hook  # in place again once no file is written
+    finally:
+        sys.excepthook = previous
+
+
 def test_other_files_errors_and_other_unraisable_exceptions_go_to_the_hook_in_place(tmp_path: Path) -> None:
     seen: list[str] = []
     previous = sys.unraisablehook

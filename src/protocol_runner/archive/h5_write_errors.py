@@ -9,6 +9,10 @@ up and removed its partial file), the file is closed normally and could be taken
 failed write's bytes missing. Seen with a worker's unit on a tmpfs that filled up while the session's
 archive draft grew (tests/session/test_disk_full.py, about one run in four under load).
 
+h5py's deallocator (Cython, full tracebacks) also prints the traceback itself before it calls the hook, through
+`sys.excepthook`; seen under load in the same test, as a "Traceback ..." on the terminal beside the clean
+disk-full message. While a file is watched, that print is caught the same way.
+
 `checked_h5_write(path)` collects those errors for the file at `path` (HDF5 names the file in the
 message of a failed write) instead of printing them, and raises the first once the block that writes (and
 closes) the file has ended, as an `OSError` like any write error. When the block raises instead, the
@@ -30,16 +34,27 @@ from typing import Any
 _lock = threading.Lock()
 _watched: dict[str, list[BaseException]] = {}  # file name as HDF5 reports it -> errors met writing it
 _forward: list[Any] = []  # while files are watched: the hook that was in place when the first one began
+_forward_print: list[Any] = []  # and the `sys.excepthook` then in place
 
 
-def _hook(unraisable: Any) -> None:  # sys.UnraisableHookArgs
-    value = unraisable.exc_value
-    text = str(value) if value is not None else ""
+def _collected(value: BaseException | None) -> bool:
+    """Whether `value` is a write error of a watched file (then kept in its list, once)."""
+    if value is None:
+        return False
+    text = str(value)
     with _lock:
         for name, errors in _watched.items():
             if name in text:
-                errors.append(value)
-                return
+                if not any(e is value for e in errors):
+                    errors.append(value)
+                return True
+    return False
+
+
+def _hook(unraisable: Any) -> None:  # sys.UnraisableHookArgs
+    if _collected(unraisable.exc_value):
+        return
+    with _lock:
         forward = _forward[0] if _forward else sys.__unraisablehook__
     try:
         forward(unraisable)
@@ -47,12 +62,23 @@ def _hook(unraisable: Any) -> None:  # sys.UnraisableHookArgs
         sys.__unraisablehook__(unraisable)
 
 
+def _print_hook(kind: Any, value: BaseException, tb: Any) -> None:
+    """`sys.excepthook` while files are watched: h5py's deallocator prints a watched file's write error
+    through it (then hands it to `_hook`); anything else is printed as before."""
+    if _collected(value):
+        return
+    with _lock:
+        forward = _forward_print[0] if _forward_print else sys.__excepthook__
+    forward(kind, value, tb)
+
+
 @contextlib.contextmanager
 def collected_write_errors(path: Path) -> Iterator[list[BaseException]]:
     """While the caller writes the HDF5 file at `path` (opened by that name): the errors h5py could not
     raise for it, in the yielded list (empty when all went well; check it after closing the file). The
-    hook is in place only while some file is being written (the first writer puts it in, the last one
-    takes it out if nothing replaced it meanwhile); every other unraisable exception goes on to the hook
+    hooks (`sys.unraisablehook`, and `sys.excepthook` for h5py's own print) are in place only while some file
+    is being written (the first writer puts them in, the last one takes them out if nothing replaced them
+    meanwhile); every other unraisable exception or print goes on to the hook
     that was in place (the session's stop flag has one)."""
     key = str(path)
     errors: list[BaseException] = []
@@ -60,6 +86,9 @@ def collected_write_errors(path: Path) -> Iterator[list[BaseException]]:
         if not _watched and sys.unraisablehook is not _hook:
             _forward[:] = [sys.unraisablehook]
             sys.unraisablehook = _hook
+        if not _watched and sys.excepthook is not _print_hook:
+            _forward_print[:] = [sys.excepthook]
+            sys.excepthook = _print_hook
         _watched[key] = errors
     try:
         yield errors
@@ -70,6 +99,9 @@ def collected_write_errors(path: Path) -> Iterator[list[BaseException]]:
             if not _watched and sys.unraisablehook is _hook and _forward:
                 sys.unraisablehook = _forward[0]
                 _forward.clear()
+            if not _watched and sys.excepthook is _print_hook and _forward_print:
+                sys.excepthook = _forward_print[0]
+                _forward_print.clear()
 
 
 def raise_collected(errors: list[BaseException], path: Path) -> None:
