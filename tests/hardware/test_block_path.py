@@ -163,6 +163,43 @@ def test_block_end_polls_where_the_per_tick_loop_polls() -> None:
     assert block_end(40, 1000, 100, None) == (140, False)
 
 
+@pytest.mark.parametrize(
+    ("start", "n", "block_ticks"), [(0, 95, 100), (100, 1000, 100), (40, 1000, 1000), (0, 7, 10)]
+)
+def test_a_stop_flag_is_asked_once_per_block_and_ends_it_where_polling_would(
+    start: int, n: int, block_ticks: int
+) -> None:
+    """The session's StopFlag answers the same however often it is asked: one poll per block, with the
+    block's end and verdict those of polling at every boundary."""
+    from protocol_runner.session.signals import StopFlag
+
+    for is_set in (False, True):
+        flag = StopFlag()
+        if is_set:
+            flag.request("test")
+        asked: list[bool] = []
+
+        def counted(flag: StopFlag = flag, asked: list[bool] = asked) -> bool:
+            asked.append(True)
+            return flag()
+
+        assert block_end(start, n, block_ticks, flag) == block_end(start, n, block_ticks, counted)
+        polls = 0
+
+        class Counting(StopFlag):
+            def __call__(self) -> bool:
+                nonlocal polls
+                polls += 1
+                return super().__call__()
+
+        counting = Counting()
+        if is_set:
+            counting.request("test")
+        block_end(start, n, block_ticks, counting)
+        assert polls == 1
+        assert len(asked) == (1 if is_set else -(-(min(start + block_ticks, n) - start) // 10))
+
+
 def test_a_trajectory_outside_the_envelope_is_refused_before_the_block_path_writes() -> None:
     sim, rig = simulated(blocks=True)
     sim.begin_step("unsafe")

@@ -61,9 +61,18 @@ def block_end(start: int, n: int, block_ticks: int, stop_requested: StopRequeste
     (after ticks start + 10, start + 20, ...), up to `block_ticks` ahead, before the block is simulated; the
     block ends at the first boundary that asks for a stop. So a stop takes effect after the same sample as
     in the per-tick loop (for a request that depends on the polls, not on the samples), and a signal is
-    seen within one block."""
+    seen within one block.
+
+    A flag whose answer does not depend on how often it is asked (`POLLED_AS_FLAG` true, as the session's
+    `StopFlag`: an event that a signal sets) is asked once, at the block's first boundary: asking it again
+    microseconds later at the next boundaries could only see a signal that arrived meanwhile, which the next
+    block sees as well. That saves ~90,000 polls in a knee dry run."""
     end = start
     limit = min(start + block_ticks, n)
+    if stop_requested is not None and getattr(stop_requested, "POLLED_AS_FLAG", False) and end < limit:
+        if stop_requested():
+            return min(end + READ_EVERY_TICKS, n), True
+        return limit, False
     while end < limit:
         end = min(end + READ_EVERY_TICKS, n)
         if stop_requested is not None and stop_requested():

@@ -68,23 +68,51 @@ class Canvas:
 
 
 class TickLabelBoxes:
-    """An axis that measures its tick labels while it draws only when what it places from them is drawn.
+    """An axis drawn as `Axis.draw` draws it, with two costs of small figures left out, the pixels the same.
 
-    `Axis.draw` measures every tick label (a text layout and a round trip of the figure's dpi each) to
-    place the axis label, which `Canvas` places itself, and the offset text ("1e4", "+2.5e2"), which is
-    drawn only when the formatter has an offset. Without either, the boxes are not asked for and the
-    pixels are the same; anything else that asks (a tight bounding box) measures as matplotlib does."""
+    - Tick label boxes: `Axis.draw` measures every tick label (a text layout and a round trip of the
+      figure's dpi each) to place the axis label, which `Canvas` places itself, and the offset text ("1e4",
+      "+2.5e2"), which is drawn only when the formatter has an offset. Without either, the boxes are not
+      asked for; anything else that asks (a tight bounding box) measures as matplotlib does.
+    - One draw per tick line: the ticks' grid lines are drawn as one line of several pieces, and their
+      tick marks as one line of several markers (`LineBatch`), where they look alike (they do unless a
+      tick was styled on its own); then the tick labels, one by one. Each tick's pieces are far apart, so
+      drawing all grid lines before the tick marks and labels paints the same pixels
+      (tests/report/test_canvas_batched_ticks.py compares them with matplotlib's own drawing).
+    """
 
-    def __init__(self, axis: Any) -> None:  # an `Axis`: its private `_get_ticklabel_bboxes` is replaced
+    def __init__(self, axis: Any) -> None:  # an `Axis`: its draw and private `_get_ticklabel_bboxes` replaced
         self.axis = axis
         self.drawing = False
+        self.batches = {name: LineBatch() for name in TICK_LINES}
         axis.draw = self.draw
         axis._get_ticklabel_bboxes = self.boxes
 
     def draw(self, renderer: Any) -> None:
+        axis = self.axis
+        if not axis.get_visible():
+            return
         self.drawing = True
         try:
-            type(self.axis).draw(self.axis, renderer)
+            # `Axis.draw` (matplotlib 3.8-3.11), with the ticks' lines drawn by kind (`LineBatch`)
+            renderer.open_group(AXIS_GROUP, gid=axis.get_gid())
+            ticks = axis._update_ticks()
+            boxes1, boxes2 = axis._get_ticklabel_bboxes(ticks, renderer)
+            shown = [tick for tick in ticks if tick.get_visible()]
+            for name in TICK_LINES:
+                self.batches[name].draw([getattr(tick, name) for tick in shown], renderer)
+            for tick in ticks:
+                if tick in shown:
+                    tick.label1.draw(renderer)
+                    tick.label2.draw(renderer)
+                tick.stale = False
+            axis._update_label_position(renderer)
+            axis.label.draw(renderer)
+            axis._update_offset_text_position(boxes1, boxes2)
+            axis.offsetText.set_text(axis.major.formatter.get_offset())
+            axis.offsetText.draw(renderer)
+            renderer.close_group(AXIS_GROUP)
+            axis.stale = False
         finally:
             self.drawing = False
 
@@ -93,6 +121,84 @@ class TickLabelBoxes:
         if self.drawing and not (axis._autolabelpos or axis.major.formatter.get_offset()):
             return [], []
         return type(axis)._get_ticklabel_bboxes(axis, ticks, renderer)
+
+
+AXIS_GROUP = "matplotlib.axis"  # the group name `Axis.draw` opens (the module's __name__)
+TICK_LINES = ("gridline", "tick1line", "tick2line")  # a tick's lines, in the order `Tick.draw` draws them
+
+
+class LineBatch:
+    """Several `Line2D`s that look alike (`_look`) drawn as one: their points joined (a line style's pieces
+    separated by NaN, which the renderer treats as a pen lift; markers simply listed), so the renderer is
+    called once instead of once per line. Lines that do not all look alike are drawn one by one."""
+
+    def __init__(self) -> None:
+        self.line = Line2D([], [])
+
+    def draw(self, lines: list[Line2D], renderer: Any) -> None:
+        shown = [line for line in lines if line.get_visible()]
+        if len(shown) < 2 or any(_look(line) != _look(shown[0]) for line in shown[1:]):
+            for line in lines:
+                line.draw(renderer)
+            return
+        first = shown[0]
+        joined = self.line
+        joined.update_from(first)  # style, transform and clipping (Artist/Line2D.update_from)
+        joined.set_antialiased(first.get_antialiased())  # not copied by update_from
+        joined.set_snap(first.get_snap())
+        pieces = first.get_linestyle() not in _NO_LINE
+        xs: list[float] = []
+        ys: list[float] = []
+        for line in shown:
+            xs.extend(np.asarray(line.get_xdata(orig=False), dtype=np.float64).tolist())
+            ys.extend(np.asarray(line.get_ydata(orig=False), dtype=np.float64).tolist())
+            if pieces:
+                xs.append(np.nan)
+                ys.append(np.nan)
+        joined.set_data(xs, ys)
+        joined.draw(renderer)
+        for line in lines:
+            line.stale = False
+
+
+_NO_LINE = ("None", "none", " ", "")
+
+
+def _look(line: Any) -> tuple[object, ...]:  # a Line2D: some of what it draws with has no public getter
+    """What decides how `line` is drawn, but for its points (the fields `Line2D.draw` reads)."""
+    return (
+        line.get_transform(),
+        line.clipbox,
+        line._clippath,  # a TransformedPatchPath or None
+        line.get_clip_on(),
+        line.get_alpha(),
+        line.get_antialiased(),
+        line.get_snap(),
+        line.get_path_effects() == [],
+        line.get_sketch_params(),
+        line.get_rasterized(),
+        line.get_agg_filter(),
+        line.get_gid(),
+        line.get_url(),
+        line._linestyle,
+        line._dash_pattern,
+        line._linewidth,
+        str(line._color),
+        line._gapcolor,
+        line.get_drawstyle(),
+        line.get_markevery(),
+        line.get_marker(),
+        line.get_fillstyle(),
+        line._markersize,
+        line._markeredgewidth,
+        str(line._markeredgecolor),
+        str(line._markerfacecolor),
+        str(line._markerfacecoloralt),
+        line._solidcapstyle,
+        line._solidjoinstyle,
+        line._dashcapstyle,
+        line._dashjoinstyle,
+    )
 
 
 _CANVASES: dict[str, Canvas] = {}
