@@ -40,3 +40,15 @@ def test_a_step_kind_loads_its_module_when_it_first_runs() -> None:
     assert "protocol_runner.steps.calibration_check" in loaded
     assert "protocol_runner.steps.process" not in loaded and "protocol_runner.steps.fit" not in loaded
     assert "scipy.signal" not in loaded  # the check imports it when it computes its time constant
+
+
+def test_the_predictions_a_worker_hands_back_load_no_model_in_the_session() -> None:
+    """The session unpickles the workers' `Prediction`s at the end, on its serial tail: their module
+    imports the compiled Bouc-Wen model only where a prediction is computed."""
+    loaded = _loaded_after(
+        "import pickle\nfrom protocol_runner.report.predictions import Prediction\n"
+        "back = pickle.loads(pickle.dumps(Prediction(1, 2, 'note', 0.5, 0.4)))\n"
+        "assert back == Prediction(1, 2, 'note', 0.5, 0.4)"
+    )
+    assert "protocol_runner.report.predictions" in loaded
+    assert not any(m.startswith("protocol_runner.models.bouc_wen") for m in loaded)

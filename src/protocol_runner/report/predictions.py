@@ -9,18 +9,24 @@ import itertools
 import math
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
 import yaml
 
-from ..models.bouc_wen import BoucWenParams, simulate
-from ..models.bouc_wen.backbone import Backbone, FixedBackbone
 from .declared import protocol_document
+
+if TYPE_CHECKING:
+    from ..models.bouc_wen import BoucWenParams
+    from ..models.bouc_wen.backbone import Backbone, FixedBackbone
 
 
 @dataclass(frozen=True)
 class Prediction:
+    """One declared pair's numbers. (The session unpickles these from the worker that computed them, at
+    the end: this module imports the compiled model only where it runs it, not with the class.)"""
+
     fit_key: int
     predict_key: int
     note: str
@@ -49,6 +55,9 @@ def declared_pairs(protocol_text: str) -> list[tuple[int, int, str]]:
 
 
 def _model(g: h5py.Group) -> tuple[BoucWenParams, Backbone | FixedBackbone | None]:
+    from ..models.bouc_wen import BoucWenParams
+    from ..models.bouc_wen.backbone import Backbone, FixedBackbone
+
     a = g.attrs
     values = [float(a["A"]), float(a["n"]), *(float(b) for b in np.asarray(a["beta"]).ravel())]
     params = BoucWenParams.from_array(values)
@@ -80,6 +89,8 @@ def predict_rmse(
 ) -> float:
     """RMSE of the model on the given trials, each started at its own first torque (step-independent
     integration, so the stored plotting samples of the loops serve as well as every sample)."""
+    from ..models.bouc_wen import simulate
+
     sq = 0.0
     count = 0
     for x, y in segments:
@@ -94,6 +105,8 @@ def predict_rmse(
 
 
 def warm_up() -> None:
+    from ..models.bouc_wen import BoucWenParams, simulate
+
     """Load the compiled model simulation (numba's cache) that `predict_rmse` runs, ahead of a report."""
     simulate(np.array([0.0, 1.0, 0.0]), BoucWenParams.from_array([1.0, 1.0, 0.1, 0.1, 0.0, 0.0, 0.0, 0.0]))
 
