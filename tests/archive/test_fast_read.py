@@ -86,3 +86,40 @@ def test_a_damaged_chunk_fails_as_hdf5_fails(tmp_path: Path) -> None:
         ds.id.write_direct_chunk((1000,), b"not a deflate stream", filter_mask=0)
     with h5py.File(path, "r") as f, pytest.raises(OSError):
         read_values(f["x"])
+
+
+def _unit(path: Path, values: np.ndarray) -> None:
+    """A unit's way of writing: a new file renamed over the old one (a new inode)."""
+    tmp = path.with_suffix(".tmp")
+    with h5py.File(tmp, "w") as f:
+        put(f, "angle_deg", values, "deg")
+        put(f, "torque_nm", -values, "N*m")
+    tmp.replace(path)
+
+
+def test_within_reads_kept_a_dataset_is_decoded_once_and_each_reader_gets_its_own_copy(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    decoded: list[str] = []
+    read = fast_read._read
+    monkeypatch.setattr(fast_read, "_read", lambda ds: (decoded.append(ds.name), read(ds))[1])
+    values = np.cumsum(np.random.default_rng(5).standard_normal(50_000))
+    path = tmp_path / "unit.h5"
+    _unit(path, values)
+    with fast_read.reads_kept():
+        with h5py.File(path, "r") as f:
+            first = read_values(f["angle_deg"])
+            first[:] = 0.0  # a reader changing its values changes no one else's
+            torque = read_values(f["torque_nm"])
+        with h5py.File(path, "r") as f:  # opened again, as the figures open the units again
+            again = read_values(f["angle_deg"])
+        assert decoded == ["/angle_deg", "/torque_nm"]
+        assert np.array_equal(again, values) and np.array_equal(torque, -values)
+        _unit(path, 2.0 * values)  # rewritten: another file, read anew
+        with h5py.File(path, "r") as f:
+            assert np.array_equal(read_values(f["angle_deg"]), 2.0 * values)
+        assert decoded == ["/angle_deg", "/torque_nm", "/angle_deg"]
+    with h5py.File(path, "r") as f:  # outside: nothing kept
+        read_values(f["angle_deg"])
+        read_values(f["angle_deg"])
+    assert decoded.count("/angle_deg") == 4
