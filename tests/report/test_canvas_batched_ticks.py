@@ -13,7 +13,7 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import RendererAgg
 
 from protocol_runner.report import glyph_cache
-from protocol_runner.report.canvas import LAYOUTS, Canvas, style
+from protocol_runner.report.canvas import BATCHED_TICKS, LAYOUTS, Canvas, style
 
 from .test_figure_caches import _cached_pixels, _stock_canvas
 
@@ -114,6 +114,7 @@ def _calls(canvas: Canvas, figure: Callable[[list[Axes]], None]) -> tuple[int, i
     return renderer.paths, renderer.markers, len(ax.xaxis._update_ticks()), len(ax.yaxis._update_ticks())
 
 
+@pytest.mark.skipif(not BATCHED_TICKS, reason="a matplotlib this drawing was not checked against")
 def test_the_grid_lines_and_tick_marks_of_an_axis_take_one_call_each() -> None:
     width, height, rects = LAYOUTS["single"]
     paths, markers, nx, ny = _calls(Canvas(width, height, rects), _no_grid)
@@ -127,6 +128,7 @@ def test_the_grid_lines_and_tick_marks_of_an_axis_take_one_call_each() -> None:
     assert stock_markers - markers == nx + ny - 2
 
 
+@pytest.mark.skipif(not BATCHED_TICKS, reason="a matplotlib this drawing was not checked against")
 def test_ticks_that_do_not_look_alike_are_drawn_one_by_one() -> None:
     width, height, rects = LAYOUTS["single"]
     paths, markers, nx, ny = _calls(Canvas(width, height, rects), _one_tick_of_its_own)

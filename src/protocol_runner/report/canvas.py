@@ -9,6 +9,7 @@ import io
 from collections.abc import Sequence
 from typing import Any
 
+import matplotlib
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.axis import Axis
@@ -94,6 +95,9 @@ class TickLabelBoxes:
             return
         self.drawing = True
         try:
+            if not BATCHED_TICKS:  # a matplotlib whose `Axis.draw` this copy was not checked against
+                type(axis).draw(axis, renderer)
+                return
             # `Axis.draw` (matplotlib 3.8-3.11), with the ticks' lines drawn by kind (`LineBatch`)
             renderer.open_group(AXIS_GROUP, gid=axis.get_gid())
             ticks = axis._update_ticks()
@@ -123,6 +127,9 @@ class TickLabelBoxes:
         return type(axis)._get_ticklabel_bboxes(axis, ticks, renderer)
 
 
+BATCHED_TICKS = tuple(int(part) for part in matplotlib.__version__.split(".")[:2]) < (3, 12)
+"""`TickLabelBoxes.draw` follows `Axis.draw` of matplotlib 3.8-3.11 (checked pixel for pixel on 3.11); a
+later matplotlib draws its axes its own way until this is checked again."""
 AXIS_GROUP = "matplotlib.axis"  # the group name `Axis.draw` opens (the module's __name__)
 TICK_LINES = ("gridline", "tick1line", "tick2line")  # a tick's lines, in the order `Tick.draw` draws them
 
