@@ -105,9 +105,9 @@ def predict_rmse(
 
 
 def warm_up() -> None:
+    """Load the compiled model simulation (numba's cache) that `predict_rmse` runs, ahead of a report."""
     from ..models.bouc_wen import BoucWenParams, simulate
 
-    """Load the compiled model simulation (numba's cache) that `predict_rmse` runs, ahead of a report."""
     simulate(np.array([0.0, 1.0, 0.0]), BoucWenParams.from_array([1.0, 1.0, 0.1, 0.1, 0.0, 0.0, 0.0, 0.0]))
 
 
