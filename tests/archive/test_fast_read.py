@@ -123,3 +123,19 @@ def test_within_reads_kept_a_dataset_is_decoded_once_and_each_reader_gets_its_ow
         read_values(f["angle_deg"])
         read_values(f["angle_deg"])
     assert decoded.count("/angle_deg") == 4
+
+
+def test_reads_kept_hold_at_most_their_budget(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Values beyond `KEPT_BYTES` are decoded again rather than held."""
+    decoded: list[str] = []
+    read = fast_read._read
+    monkeypatch.setattr(fast_read, "_read", lambda ds: (decoded.append(ds.name), read(ds))[1])
+    values = np.arange(50_000, dtype=np.float64)
+    monkeypatch.setattr(fast_read, "KEPT_BYTES", values.nbytes + 1)  # room for one of the two arrays
+    path = tmp_path / "unit.h5"
+    _unit(path, values)
+    with fast_read.reads_kept(), h5py.File(path, "r") as f:
+        for _ in range(3):
+            assert np.array_equal(read_values(f["angle_deg"]), values)
+            assert np.array_equal(read_values(f["torque_nm"]), -values)
+    assert decoded == ["/angle_deg", "/torque_nm", "/torque_nm", "/torque_nm"]

@@ -38,6 +38,9 @@ _DEFLATE = h5py.h5z.FILTER_DEFLATE
 
 _Key = tuple[int, int, int, int, int]  # device, inode, size, modification time (ns), address in the file
 _kept: dict[_Key, npt.NDArray[Any]] | None = None
+KEPT_BYTES = 256 * 2**20
+"""The most `reads_kept` keeps (a knee configuration's task reads about 40 MB; a configuration of many
+joints reads more): beyond it, values are decoded again rather than held."""
 
 
 @contextlib.contextmanager
@@ -62,7 +65,7 @@ def read_values(ds: h5py.Dataset) -> npt.NDArray[Any]:
     values = kept.get(key) if key is not None else None
     if values is None:
         values = _read(ds)
-        if key is None:
+        if key is None or sum(v.nbytes for v in kept.values()) + values.nbytes > KEPT_BYTES:
             return values
         kept[key] = values
     return values.copy()
