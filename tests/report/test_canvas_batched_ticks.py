@@ -61,12 +61,22 @@ def _one_tick_of_its_own(axes: list[Axes]) -> None:
         tick.tick1line.set_markersize(9.0)
 
 
+def _sketched_grid(axes: list[Axes]) -> None:
+    """Grid lines drawn with a sketch (a jitter along each path): they are not joined."""
+    for ax in axes:
+        ax.plot([0.0, 5.0], [1.0, 2.0])
+        style(ax, "x", "y", "sketched grid")
+        for tick in ax.xaxis.get_major_ticks():
+            tick.gridline.set_sketch_params(1.0, 20.0, 2.0)
+
+
 FIGURES: dict[str, Callable[[list[Axes]], None]] = {
     "loop": _loop,
     "bars": _bars,
     "many ticks": _many_ticks,
     "no grid": _no_grid,
     "one tick of its own": _one_tick_of_its_own,
+    "sketched grid": _sketched_grid,
 }
 
 
@@ -75,6 +85,8 @@ def test_batched_ticks_paint_what_matplotlib_paints_figure_after_figure(kind: st
     width, height, rects = LAYOUTS[kind]
     canvas, reference = Canvas(width, height, rects), _stock_canvas(kind)  # the same history
     for name in [*FIGURES, "loop", "one tick of its own", "bars", "loop"]:
+        if name == "sketched grid":
+            continue  # its jitter is random: compared on its own below
         FIGURES[name](canvas.reset())
         pixels = _cached_pixels(canvas.fig)
         FIGURES[name](reference.reset())
@@ -137,3 +149,14 @@ def test_ticks_that_do_not_look_alike_are_drawn_one_by_one() -> None:
     # the x axis (one tick restyled) as matplotlib draws it; the y axis' lines batched
     assert stock_paths - paths == ny - 1
     assert stock_markers - markers == ny - 1
+
+
+def test_lines_with_a_sketch_are_drawn_one_by_one() -> None:
+    """A sketch jitters each path from a seed matplotlib draws per path: joined, the grid lines would be
+    jittered as one path. They are drawn one by one, as matplotlib draws them (the call count says so;
+    the pixels of a random jitter cannot be compared)."""
+    width, height, rects = LAYOUTS["single"]
+    paths, markers, nx, ny = _calls(Canvas(width, height, rects), _sketched_grid)
+    stock_paths, stock_markers, *_ = _calls(_stock_canvas("single"), _sketched_grid)
+    assert stock_paths - paths == ny - 1  # only the y axis' grid lines joined
+    assert stock_markers - markers == nx + ny - 2

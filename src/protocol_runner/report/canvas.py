@@ -144,7 +144,11 @@ class LineBatch:
 
     def draw(self, lines: list[Line2D], renderer: Any) -> None:
         shown = [line for line in lines if line.get_visible()]
-        if len(shown) < 2 or any(_look(line) != _look(shown[0]) for line in shown[1:]):
+        if (
+            len(shown) < 2
+            or not _joinable(shown[0])
+            or any(_look(line) != _look(shown[0]) for line in shown[1:])
+        ):
             for line in lines:
                 line.draw(renderer)
             return
@@ -169,6 +173,21 @@ class LineBatch:
 
 
 _NO_LINE = ("None", "none", " ", "")
+
+
+def _joinable(line: Line2D) -> bool:
+    """Whether drawing `line`'s points together with others' paints what drawing each does: not with path
+    effects (a shadow of the joined path), a sketch (its jitter depends on the path), an Agg filter or
+    rasterisation (they work on the whole drawing), every-nth markers or a step draw style (they depend on
+    the points' order)."""
+    return (
+        not line.get_path_effects()
+        and line.get_sketch_params() is None
+        and line.get_agg_filter() is None
+        and not line.get_rasterized()
+        and line.get_markevery() is None
+        and line.get_drawstyle() == "default"
+    )
 
 
 def _look(line: Any) -> tuple[object, ...]:  # a Line2D: some of what it draws with has no public getter
