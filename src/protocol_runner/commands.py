@@ -85,8 +85,8 @@ def run(
 
 def _start_worker_server() -> None:
     """First, on the command line, the garbage collector paused for the start-up (session/heap.py); scipy
-    (which the session imports for its calibration checks) without its docstring notes
-    (session/scipy_docs.py). Then the analysis workers' fork server, before this session opens anything: a
+    (whose linear algebra numba loads with its CPU target, and whose special functions the report uses)
+    without its docstring notes (session/scipy_docs.py). Then the analysis workers' fork server, before this session opens anything: a
     fork of this process once it has imported what both use, which imports the rest of what the workers run
     on the other core meanwhile (session/worker_start.py). Not on one core (no workers)."""
     from .session.scipy_docs import skip_array_api_notes

@@ -5,8 +5,8 @@ killed with -9 (a resume may start at once: no worker may still be writing units
 session imports it before anything heavy.
 
 Forked from the session (Linux, CPython 3.11/3.12). multiprocessing starts its fork server as a fresh
-interpreter, which imports everything again, also what the session imports itself (numpy, h5py, scipy.signal
-and scipy.optimize, numba, pydantic and the protocol schema: ~0.5 s of CPU done twice). A command-line
+interpreter, which imports everything again, also what the session imports itself (numpy, h5py, numba,
+pydantic and the protocol schema: ~0.4 s of CPU done twice). A command-line
 session (`commands.run`/`resume`) therefore imports `SHARED` first and then forks itself: the child runs
 `multiprocessing.forkserver.main` on a listener and an "alive" pipe exactly as the fresh server would, and
 imports only the rest of `PRELOADED`. The fork is safe because, at that moment:
@@ -73,15 +73,16 @@ of it again, about a second of CPU each)."""
 SHARED = (
     "numpy",
     "h5py",
-    "scipy.signal",
-    "scipy.optimize",
     "numba",
     "pydantic",
     "protocol_runner.protocol.loader",
     "protocol_runner.session.workers",
 )
 """What both the session and the fork server import (the session soon after it starts, or at its first
-calibration check and simulated trial), imported before the session forks the server: once for both."""
+calibration check and simulated trial), imported before the session forks the server: once for both. Not
+scipy: the session uses none of it (analysis/butterworth.py, analysis/step_response.py; the report's t
+quantiles come from scipy.special, a small part), and the server imports it on the other core while the
+session starts its first steps."""
 
 
 def worker_context() -> multiprocessing.context.BaseContext:

@@ -10,13 +10,13 @@ recorded either way in `/calibration/<set>/<when>`.
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import dataclass
 
 import h5py
 import numpy as np
 import numpy.typing as npt
 
+from ..analysis.step_response import first_order_response, golden_section_min
 from ..analysis.transition import command_on_input_base
 from ..archive.attrs import STEP_ID, STEP_RESPONSE
 from ..archive.h5util import put_attrs
@@ -31,6 +31,8 @@ from .context import Fill, StepContext, StepOutcome
 from .recording import put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]
+TAU_BOUNDS_S = (0.02, 2.0)  # the time constants searched
+TAU_WIDTH_S = 1e-5  # the search's final bracket (analysis/step_response.py)
 
 
 @dataclass(frozen=True)
@@ -90,16 +92,6 @@ def response_problems(
     return problems
 
 
-def first_order_response(command_deg: FloatArray, dt_s: float, tau_s: float, y0_deg: float) -> FloatArray:
-    """Exact zero-order-hold discretisation of tau*dy/dt = c - y (§2.4.2's first-order response)."""
-    from scipy.signal import lfilter  # loaded when a check runs, not with the step kinds
-
-    a = math.exp(-dt_s / tau_s)
-    zi = np.array([a * y0_deg])
-    y, _ = lfilter([1.0 - a], [1.0, -a], command_deg, zi=zi)
-    return np.concatenate(([y0_deg], y[:-1]))
-
-
 def analyse_step(
     time_s: FloatArray,
     command_deg: FloatArray,
@@ -122,12 +114,8 @@ def analyse_step(
             model = y0 + (model - y0) * (settled - y0) / span
         return float(np.sum((angle_deg - model) ** 2))
 
-    from scipy.optimize import minimize_scalar  # loaded when a check runs, not with the step kinds
-
-    res = minimize_scalar(sse, bounds=(0.02, 2.0), method="bounded", options={"xatol": 1e-4})
-    return StepResponse(
-        settled_deg=settled, settle_error_deg=abs(settled - target_deg), time_constant_s=float(res.x)
-    )
+    tau = golden_section_min(sse, TAU_BOUNDS_S[0], TAU_BOUNDS_S[1], TAU_WIDTH_S)
+    return StepResponse(settled_deg=settled, settle_error_deg=abs(settled - target_deg), time_constant_s=tau)
 
 
 def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, when: str) -> StepOutcome:

@@ -16,6 +16,7 @@ import h5py
 import numpy as np
 import numpy.typing as npt
 
+from ..analysis.butterworth import butterworth_sos, zero_phase
 from ..analysis.scaling import ScalingResult, scale_brace_off_input
 from ..analysis.transition import command_on_input_base, transition_index
 from ..archive.attrs import ATTRIBUTES, FACTORS, STATUS, STEP_ID
@@ -32,6 +33,7 @@ from .recording import put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]
 COMMAND_SMOOTHING_HZ = 5.0
+COMMAND_SMOOTHING_ORDER = 4
 
 
 def command_deg(trajectory: Trajectory, ctx: StepContext) -> FloatArray:
@@ -125,14 +127,11 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
     # The brace-on output becomes the brace-off input. It is smoothed first (zero-phase, 4th order at
     # COMMAND_SMOOTHING_HZ): the joint's 0.2 s lag passes nothing above ~1 Hz, and the sensor noise and
     # the corners where the brace's stops bite would otherwise break the acceleration envelope.
-    from ..analysis.filters import lowpass  # scipy's signal package: loaded by the first brace-off trial
-
+    # (the filter `analysis.filters.lowpass` makes with scipy, computed without it: analysis/butterworth.py)
     nyquist = 0.5 * rig.joint.input_rate_hz
-    smooth = lowpass(
+    smooth = zero_phase(
         on.angle_deg,
-        kind="butterworth",
-        order=4,
-        cutoff=COMMAND_SMOOTHING_HZ / nyquist,
+        butterworth_sos(COMMAND_SMOOTHING_ORDER, COMMAND_SMOOTHING_HZ / nyquist),
         name=f"{step.twin} angle_deg",
     )
     cmd_in = command_on_input_base(on.command_time_s, on.command_deg, on.time_s)
