@@ -1,8 +1,7 @@
 """What the session process loads to start (issue 20): the processing, the fits and the report's drawing run
 in the analysis workers, which import them in their fork server on the other core. The session imports its
-runner without scipy's signal, optimisation and statistics packages, the Bouc-Wen model or matplotlib; a
-step that needs one of them imports it when it first runs (a brace-off trial's command smoothing, a
-calibration check's time constant)."""
+runner without scipy's signal, optimisation and statistics packages, the Bouc-Wen model or matplotlib, and
+its own filtering, calibration checks and report statistics need none of them."""
 
 from __future__ import annotations
 
@@ -39,7 +38,7 @@ def test_a_step_kind_loads_its_module_when_it_first_runs() -> None:
     )
     assert "protocol_runner.steps.calibration_check" in loaded
     assert "protocol_runner.steps.process" not in loaded and "protocol_runner.steps.fit" not in loaded
-    assert "scipy.signal" not in loaded  # the check imports it when it computes its time constant
+    assert "scipy.signal" not in loaded
 
 
 def test_the_predictions_a_worker_hands_back_load_no_model_in_the_session() -> None:
