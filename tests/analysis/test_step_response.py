@@ -12,7 +12,7 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
 from protocol_runner.analysis.step_response import first_order_response, golden_section_min
-from protocol_runner.steps.calibration_check import analyse_step
+from protocol_runner.steps.calibration_check import analyse_step, step_fit
 
 
 def _lfilter_response(command: np.ndarray, dt: float, tau: float, y0: float) -> np.ndarray:
@@ -48,17 +48,7 @@ def test_the_search_finds_a_minimum_to_its_width(centre: float) -> None:
 
 def _old_tau(time_s: np.ndarray, command: np.ndarray, angle: np.ndarray, window: float) -> float:
     """The former search: scipy's bounded Brent, tolerance 1e-4 s, on the same squared error."""
-    dt = float(np.median(np.diff(time_s)))
-    settled = float(np.mean(angle[time_s >= time_s[-1] - window]))
-    y0 = float(np.mean(angle[: max(1, int(0.2 / dt))]))
-
-    def sse(tau: float) -> float:
-        model = _lfilter_response(command, dt, tau, y0)
-        span = float(model[-1]) - y0
-        if abs(span) > 1e-9:
-            model = y0 + (model - y0) * (settled - y0) / span
-        return float(np.sum((angle - model) ** 2))
-
+    _, sse = step_fit(time_s, command, angle, window)
     return float(minimize_scalar(sse, bounds=(0.02, 2.0), method="bounded", options={"xatol": 1e-4}).x)
 
 

@@ -50,10 +50,9 @@ def butterworth_sos(order: int, cutoff: float) -> FloatArray:
     prototype = -np.exp(1j * np.pi * m / (2 * n))  # analog poles for a cut-off of 1 rad/s
     wo = float(2 * FS * np.tan(np.pi * cutoff / FS))  # the cut-off, pre-warped for the bilinear transform
     poles_s = wo * prototype
-    gain_s = 1 * wo**n
     fs2 = 2.0 * FS
     poles_z = (fs2 + poles_s) / (fs2 - poles_s)
-    gain_z = gain_s * np.real(np.prod(fs2 - np.zeros(0)) / np.prod(fs2 - poles_s))
+    gain_z = wo**n * np.real(1.0 / np.prod(fs2 - poles_s))  # no finite zeros: 1 over the poles' product
     upper = poles_z[poles_z.imag > 0]  # one pole of each conjugate pair
     order_of = np.argsort(-np.abs(1 - np.abs(upper)), kind="stable")  # farthest from the unit circle first
     numerator = np.real(np.poly(np.array([-1.0 + 0j, -1.0 + 0j])))  # both zeros at z = -1: 1, 2, 1
@@ -77,7 +76,7 @@ def sections_zi(sos: npt.ArrayLike) -> FloatArray:
         b = sections[k, :3] / sections[k, 3]
         a = sections[k, 3:] / sections[k, 3]
         # I - A^T for A the companion matrix of a (first row -a1, -a2; ones below the diagonal)
-        i_minus_at = np.eye(2) - np.array([[-a[1] / (1.0 * a[0]), 1.0], [-a[2] / (1.0 * a[0]), 0.0]])
+        i_minus_at = np.array([[1.0 + a[1], -1.0], [a[2], 1.0]])
         zi[k] = scale * np.linalg.solve(i_minus_at, b[1:] - a[1:] * b[0])
         scale *= np.sum(b) / np.sum(a)
     return zi

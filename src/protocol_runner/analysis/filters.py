@@ -20,6 +20,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy import signal
 
+from protocol_runner.analysis.butterworth import padding
 from protocol_runner.analysis.processing_settings import FILTER_KINDS as FILTER_KINDS
 from protocol_runner.analysis.processing_settings import FilterKind as FilterKind
 from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal
@@ -75,8 +76,7 @@ def padding_length(sos: npt.ArrayLike) -> int:
 
     A signal must be longer than this to be filtered.
     """
-    sections = np.atleast_2d(np.asarray(sos)).shape[0]
-    return 3 * (2 * sections + 1)
+    return padding(sos)
 
 
 def filter_zero_phase(values: npt.ArrayLike, sos: npt.ArrayLike, *, name: str = "signal") -> FloatArray:

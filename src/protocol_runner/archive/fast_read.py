@@ -38,6 +38,7 @@ _DEFLATE = h5py.h5z.FILTER_DEFLATE
 
 _Key = tuple[int, int, int, int, int]  # device, inode, size, modification time (ns), address in the file
 _kept: dict[_Key, npt.NDArray[Any]] | None = None
+_kept_bytes = 0
 KEPT_BYTES = 256 * 2**20
 """The most `reads_kept` keeps (a knee configuration's task reads about 40 MB; a configuration of many
 joints reads more): beyond it, values are decoded again rather than held."""
@@ -47,13 +48,15 @@ joints reads more): beyond it, values are decoded again rather than held."""
 def reads_kept() -> Iterator[None]:
     """Within: a dataset read again is not decoded again (module notes). For files that do not change
     meanwhile (units); what was kept is let go at the end."""
-    global _kept
+    global _kept, _kept_bytes
     outer = _kept
-    _kept = {} if outer is None else outer
+    if outer is None:
+        _kept, _kept_bytes = {}, 0
     try:
         yield
     finally:
-        _kept = outer
+        if outer is None:
+            _kept, _kept_bytes = None, 0
 
 
 def read_values(ds: h5py.Dataset) -> npt.NDArray[Any]:
@@ -64,10 +67,12 @@ def read_values(ds: h5py.Dataset) -> npt.NDArray[Any]:
     key = _key(ds)
     values = kept.get(key) if key is not None else None
     if values is None:
+        global _kept_bytes
         values = _read(ds)
-        if key is None or sum(v.nbytes for v in kept.values()) + values.nbytes > KEPT_BYTES:
+        if key is None or _kept_bytes + values.nbytes > KEPT_BYTES:
             return values
         kept[key] = values
+        _kept_bytes += values.nbytes
     return values.copy()
 
 

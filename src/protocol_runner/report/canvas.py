@@ -106,7 +106,7 @@ class TickLabelBoxes:
             for name in TICK_LINES:
                 self.batches[name].draw([getattr(tick, name) for tick in shown], renderer)
             for tick in ticks:
-                if tick in shown:
+                if tick.get_visible():
                     tick.label1.draw(renderer)
                     tick.label2.draw(renderer)
                 tick.stale = False

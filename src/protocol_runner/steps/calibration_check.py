@@ -10,6 +10,7 @@ recorded either way in `/calibration/<set>/<when>`.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import h5py
@@ -101,6 +102,16 @@ def analyse_step(
 ) -> StepResponse:
     """Settled angle over the last `settle_window_s`, its error, and the time constant that best fits the
     response to the commanded move (least squares over tau in [0.02, 2] s)."""
+    settled, sse = step_fit(time_s, command_deg, angle_deg, settle_window_s)
+    tau = golden_section_min(sse, TAU_BOUNDS_S[0], TAU_BOUNDS_S[1], TAU_WIDTH_S)
+    return StepResponse(settled_deg=settled, settle_error_deg=abs(settled - target_deg), time_constant_s=tau)
+
+
+def step_fit(
+    time_s: FloatArray, command_deg: FloatArray, angle_deg: FloatArray, settle_window_s: float
+) -> tuple[float, Callable[[float], float]]:
+    """The settled angle (mean over the last `settle_window_s`) and the squared error of the first-order
+    model with time constant tau, the function `analyse_step` minimises."""
     dt = float(np.median(np.diff(time_s)))
     settled = float(np.mean(angle_deg[time_s >= time_s[-1] - settle_window_s]))
     y0 = float(np.mean(angle_deg[: max(1, int(0.2 / dt))]))
@@ -114,8 +125,7 @@ def analyse_step(
             model = y0 + (model - y0) * (settled - y0) / span
         return float(np.sum((angle_deg - model) ** 2))
 
-    tau = golden_section_min(sse, TAU_BOUNDS_S[0], TAU_BOUNDS_S[1], TAU_WIDTH_S)
-    return StepResponse(settled_deg=settled, settle_error_deg=abs(settled - target_deg), time_constant_s=tau)
+    return settled, sse
 
 
 def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, when: str) -> StepOutcome:
