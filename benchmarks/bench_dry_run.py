@@ -8,7 +8,8 @@ time simulated (trajectories of every run the rig made, including the brace-off 
 calibration checks and the parking moves between them: the simulator's clock at the end), their ratio,
 and the archive and report sizes. --profile prints where the time goes. It also prints the CPU time of
 each run (user + system, the session's worker processes included: less sensitive to the shared machine's
-load than the wall time) and the load average before and after.
+load than the wall time), the load average before and after, and the machine's own speed before and after
+(`machine_probe.py`: fixed interpreter, numpy and zlib workloads; compare sittings and machines by them).
 
 --baseline DIR also times the checkout at DIR (its src/ first on the path, run from DIR) in the same
 benchmark, alternating the two run by run so that both see the same machine load, and prints both
@@ -31,6 +32,8 @@ import time
 from pathlib import Path
 
 import h5py
+
+from machine_probe import probe_s
 
 
 def simulated_time_s(archive: Path) -> float | None:
@@ -154,6 +157,7 @@ def main() -> None:
     walls: dict[str, list[float]] = {name: [] for name, _ in checkouts}
     cpus: dict[str, list[float]] = {name: [] for name, _ in checkouts}
     load0 = os.getloadavg()
+    probe0 = probe_s()
     robot = 0.0
     sizes: tuple[int, int] = (0, 0)
     with tempfile.TemporaryDirectory() as tmp:
@@ -197,6 +201,7 @@ def main() -> None:
     result.update(
         {
             "load_average_before_after": [round(load0[0], 2), round(os.getloadavg()[0], 2)],
+            "machine_probe_before_after_s": [probe0, probe_s()],
             "robot_time_s": round(robot, 1),
             "target_speedup": 300,
             "archive_mb": round(sizes[0] / 1e6, 1),
