@@ -33,6 +33,7 @@ from pathlib import Path
 
 import h5py
 
+from checkouts import byte_compile
 from machine_probe import probe_s
 
 
@@ -88,17 +89,6 @@ def _run_once(
     if code != 0:
         raise SystemExit(f"the dry run of {checkout or 'this checkout'} failed (exit {code})")
     return wall, usage.ru_utime + usage.ru_stime + _orphans_cpu_s()
-
-
-def _byte_compile(src: Path) -> None:
-    """Byte-compile a checkout's sources run from `src/`, as `pip install` does for the installed package.
-    With PYTHONDONTWRITEBYTECODE set (as on the shared machine) every run would otherwise compile the
-    package's ~220 modules again, in the session and in the workers for what they import after their fork
-    (measured: about 0.5 s of CPU and 0.6-0.9 s of wall time on the knee dry run), which a user's installed
-    copy never does."""
-    subprocess.run(
-        [sys.executable, "-m", "compileall", "-q", str(src)], check=True, stdout=subprocess.DEVNULL
-    )
 
 
 def _become_subreaper() -> None:
@@ -167,7 +157,7 @@ def main() -> None:
         checkouts.append(("baseline", args.baseline.resolve()))
     for _, checkout in checkouts:
         if checkout is not None:
-            _byte_compile(checkout / "src")
+            byte_compile(checkout / "src")
     walls: dict[str, list[float]] = {name: [] for name, _ in checkouts}
     cpus: dict[str, list[float]] = {name: [] for name, _ in checkouts}
     load0 = os.getloadavg()

@@ -20,6 +20,8 @@ import tempfile
 import time
 from pathlib import Path
 
+from checkouts import byte_compile
+
 HERE = Path(__file__).resolve().parent
 
 
@@ -28,6 +30,7 @@ def main() -> None:
     ap.add_argument("--only", default=None)
     ap.add_argument("--checkout", type=Path, default=HERE.parent)
     args = ap.parse_args()
+    byte_compile(args.checkout / "src")
     with tempfile.TemporaryDirectory() as tmp:
         log = Path(tmp) / "split.log"
         env = dict(os.environ)
