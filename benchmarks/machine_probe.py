@@ -2,8 +2,8 @@
 
     python benchmarks/machine_probe.py [--repeats 5]
 
-The shared 2-core machine's speed has moved by 10-25 % between sittings and by more than 3x between the
-processors sessions were given (docs/simulator.md, fifteenth session), so a dry run's time alone cannot say
+The shared 2-core machine's speed has moved by 10-25 % between sittings and by 3.0-3.4x between the
+machines sessions were given (docs/simulator.md, fifteenth session), so a dry run's time alone cannot say
 whether the code or the machine changed. `bench_dry_run.py` prints these figures before and after its runs;
 compare them with those recorded beside earlier measurements. Each figure is the median of `repeats` runs
 of a workload that depends only on CPython, numpy and zlib (no file system, no threads):
@@ -12,7 +12,7 @@ of a workload that depends only on CPython, numpy and zlib (no file system, no t
   Python of the session, the solver's iterations, the figures' artists);
 - numpy_s: sorting 1,000,000 seeded float64 values, 20 reductions and 20 elementwise products of them
   (the processing's array work);
-- zlib_s: deflating 8 MB of seeded, partly repetitive bytes at level 1 (the archive's compression).
+- zlib_s: deflating 8 MB of seeded random bytes of 16 distinct values at level 1 (the archive's compression).
 """
 
 from __future__ import annotations
