@@ -8,7 +8,7 @@ import pytest
 from scipy import signal
 
 from protocol_runner.analysis.butterworth import butterworth_sos, padding, sections_zi, zero_phase
-from protocol_runner.analysis.filters import design_lowpass, lowpass
+from protocol_runner.analysis.filters import design_lowpass, filter_zero_phase_together, lowpass
 from protocol_runner.analysis.validation import AnalysisError
 
 CUTOFFS = [
@@ -39,8 +39,38 @@ def test_the_zero_phase_pass_is_lowpass_bit_for_bit() -> None:
         cutoff = float(rng.uniform(0.002, 0.6))
         n = int(rng.integers(3 * (order + 1) + 1, 70_000))
         x = np.cumsum(rng.standard_normal(n)) + rng.uniform(-100, 100)
-        expected = lowpass(x, kind="butterworth", order=order, cutoff=cutoff)
-        assert np.array_equal(zero_phase(x, butterworth_sos(order, cutoff)), expected), (order, cutoff, n)
+        sos = butterworth_sos(order, cutoff)
+        expected = signal.sosfiltfilt(sos, x, padtype="odd", padlen=padding(sos))  # scipy's own pass
+        assert np.array_equal(lowpass(x, kind="butterworth", order=order, cutoff=cutoff), expected)
+        assert np.array_equal(zero_phase(x, sos), expected), (order, cutoff, n)
+
+
+@pytest.mark.parametrize("kind", ["butterworth", "chebyshev"])
+def test_the_analysis_pass_is_scipys_sosfiltfilt_bit_for_bit_for_every_design(kind: str) -> None:
+    """The analysis's filter (`filters.filter_zero_phase_together`, through `zero_phase_pass`) against
+    scipy's `sosfilt_zi` and `sosfiltfilt`, for both kinds, odd orders too (a first-order section), and
+    signals of several scales and dtypes filtered together."""
+    rng = np.random.default_rng(12)
+    for _ in range(25):
+        order = int(rng.integers(1, 13))
+        cutoff = float(rng.uniform(0.005, 0.8))
+        sos = design_lowpass(kind, order, cutoff, float(rng.uniform(0.1, 3.0)))
+        assert np.array_equal(sections_zi(sos), signal.sosfilt_zi(sos)), (kind, order, cutoff)
+        n = int(rng.integers(padding(sos) + 1, 40_000))
+        angle = np.cumsum(rng.standard_normal(n)) * rng.uniform(0.01, 10.0) + rng.uniform(-100, 100)
+        torque = (rng.standard_normal(n) * 20.0).astype(np.float32)
+        got = filter_zero_phase_together([angle, torque], sos, names=["angle", "torque"])
+        for mine, x in zip(got, (angle, torque), strict=True):
+            expected = signal.sosfiltfilt(sos, x.astype(np.float64), padtype="odd", padlen=padding(sos))
+            assert np.array_equal(mine, expected), (kind, order, cutoff, n)
+            assert mine.dtype == np.float64 and mine.flags.c_contiguous
+
+
+def test_sections_that_are_not_a_filter_are_refused() -> None:
+    with pytest.raises(AnalysisError, match="second-order sections"):
+        filter_zero_phase_together([np.zeros(500)], np.ones((2, 5)), names=["angle"])
+    with pytest.raises(AnalysisError, match="second-order sections"):
+        filter_zero_phase_together([np.zeros(500)], 2.0 * design_lowpass(), names=["angle"])
 
 
 def test_a_constant_passes_unchanged_and_a_fast_wiggle_is_removed() -> None:

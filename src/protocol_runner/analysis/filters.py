@@ -6,7 +6,8 @@ real cut-off frequency and the maximum frequency of the signal, ½ the sampling 
 
 Here the filter is designed as second-order sections (numerically sound at order 10, where the
 transfer-function form is not) and applied forward and backward (`sosfiltfilt`), so the filtered signal
-has no phase lag: angle and torque stay synchronised, which the equal-angle subtraction and the
+has no phase lag (the compiled pass of `butterworth.zero_phase_pass`, bit for bit scipy's `sosfiltfilt`
+with odd padding): angle and torque stay synchronised, which the equal-angle subtraction and the
 hysteresis loops depend on. The forward-backward pass squares the magnitude response (the effective
 order doubles; the -3 dB point of one pass becomes the -6 dB point).
 """
@@ -20,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy import signal
 
-from protocol_runner.analysis.butterworth import padding
+from protocol_runner.analysis.butterworth import padding, sections_zi, zero_phase_pass
 from protocol_runner.analysis.processing_settings import FILTER_KINDS as FILTER_KINDS
 from protocol_runner.analysis.processing_settings import FilterKind as FilterKind
 from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal
@@ -87,11 +88,16 @@ def filter_zero_phase(values: npt.ArrayLike, sos: npt.ArrayLike, *, name: str = 
 def filter_zero_phase_together(
     signals: Sequence[npt.ArrayLike], sos: npt.ArrayLike, *, names: Sequence[str]
 ) -> list[FloatArray]:
-    """`filter_zero_phase` of several signals of one length (a trial's angle and torque) in one pass of
-    the filter over their rows: each result is bit for bit that signal filtered alone (every row is
-    filtered independently), the filter's start-up state is computed once for all."""
+    """`filter_zero_phase` of several signals of one length (a trial's angle and torque): the filter's
+    start-up state is computed once for all, and each signal is bit for bit what it gives filtered alone.
+    The pass is the compiled one of `butterworth.zero_phase_pass`, which gives exactly what scipy's
+    `sosfiltfilt` with odd padding gives for these sections, in 40 % of its time (issue 20)."""
     xs = [as_signal(name, values) for name, values in zip(names, signals, strict=True)]
-    sections = np.asarray(sos, dtype=np.float64)
+    sections = np.ascontiguousarray(np.atleast_2d(np.asarray(sos, dtype=np.float64)))
+    if sections.ndim != 2 or sections.shape[1] != 6 or not np.all(sections[:, 3] == 1.0):
+        raise AnalysisError(
+            f"a filter must be second-order sections (rows b0 b1 b2 1 a1 a2), got shape {sections.shape}"
+        )
     pad = padding_length(sections)
     for name, x in zip(names, xs, strict=True):
         if x.shape[0] <= pad:
@@ -101,11 +107,8 @@ def filter_zero_phase_together(
             )
     if len({x.shape[0] for x in xs}) > 1:
         raise AnalysisError(f"{', '.join(names)} must have the same length to be filtered together")
-    rows = np.stack(xs)
-    filtered = np.asarray(
-        signal.sosfiltfilt(sections, rows, axis=-1, padtype="odd", padlen=pad), dtype=np.float64
-    )
-    return [np.ascontiguousarray(row) for row in filtered]
+    zi = sections_zi(sections)
+    return [zero_phase_pass(x, sections, zi, pad) for x in xs]
 
 
 def lowpass(

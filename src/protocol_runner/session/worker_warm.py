@@ -1,7 +1,7 @@
 """The analysis workers' first-call costs, paid once by their fork server (issue 20), imported last of
 `worker_start.PRELOADED`.
 
-A worker's first Bouc-Wen fit loads the compiled kernels from numba's cache and takes scipy's solver
+A worker's first filter and Bouc-Wen fit load the compiled kernels from numba's cache and takes scipy's solver
 through its first call; its first figure loads fonts and builds the canvases; its first model prediction
 loads the compiled simulation. Done in every worker, that is about 0.2 s of CPU each, spent while the
 session waits on them. The fork server does it once instead, on synthetic data, before it forks any
@@ -27,8 +27,10 @@ WARM_UP_SAMPLES = 120  # a short synthetic loop: enough for every stage of the f
 
 
 def warm_up() -> None:
-    """Run a tiny fit, identification and cross-validation, a model prediction and one figure of each
-    canvas, discarding the results."""
+    """Run a tiny zero-phase filter, fit, identification and cross-validation, a model prediction and one
+    figure of each canvas, discarding the results."""
+    with contextlib.suppress(Exception):
+        _filter()
     with contextlib.suppress(Exception):
         _fit()
     with contextlib.suppress(Exception):
@@ -39,6 +41,12 @@ def warm_up() -> None:
         from ..report.figures import warm_up as figures
 
         figures()
+
+
+def _filter() -> None:
+    from ..analysis.filters import design_lowpass, filter_zero_phase
+
+    filter_zero_phase(np.sin(np.linspace(0.0, 6.0, 4 * WARM_UP_SAMPLES)), design_lowpass())
 
 
 def _fit() -> None:
