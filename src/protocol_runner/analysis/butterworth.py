@@ -4,8 +4,9 @@ The session smooths each brace-on recording before it becomes a brace-off comman
 4th order at `COMMAND_SMOOTHING_HZ`). Everything else the session does needs no scipy, and importing it
 (with scipy.optimize, .stats and .linalg, which scipy.signal brings along) was a quarter of a second of the
 session's start, before anything else could start. So this module computes the same filter from its
-definition, with numpy only, and the analysis workers keep scipy's (`filters.py`: every order, Chebyshev
-too):
+definition, with numpy only; the analysis workers keep scipy's designs (`filters.py`: every order,
+Chebyshev too) and filter with this module's pass (`zero_phase_pass`, scipy's `sosfiltfilt` bit for bit
+for any of them):
 
 - the design (`butterworth_sos`): the analog prototype's poles ``-exp(i pi m / 2N)``, m = -N+1, -N+3,
   ..., N-1, at the pre-warped cut-off ``4 tan(pi Wn / 2)``; the bilinear transform
