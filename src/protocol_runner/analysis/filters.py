@@ -94,9 +94,14 @@ def filter_zero_phase_together(
     `sosfiltfilt` with odd padding gives for these sections, in 40 % of its time (issue 20)."""
     xs = [as_signal(name, values) for name, values in zip(names, signals, strict=True)]
     sections = np.ascontiguousarray(np.atleast_2d(np.asarray(sos, dtype=np.float64)))
-    if sections.ndim != 2 or sections.shape[1] != 6 or not np.all(sections[:, 3] == 1.0):
+    if sections.ndim != 2 or sections.shape[1] != 6:
         raise AnalysisError(
             f"a filter must be second-order sections (rows b0 b1 b2 1 a1 a2), got shape {sections.shape}"
+        )
+    if not np.all(sections[:, 3] == 1.0):
+        k = int(np.flatnonzero(sections[:, 3] != 1.0)[0])
+        raise AnalysisError(
+            f"a filter's sections must have a0 = 1 (rows b0 b1 b2 1 a1 a2); section {k} has {sections[k, 3]}"
         )
     pad = padding_length(sections)
     for name, x in zip(names, xs, strict=True):

@@ -1,8 +1,8 @@
 """The analysis workers' first-call costs, paid once by their fork server (issue 20), imported last of
 `worker_start.PRELOADED`.
 
-A worker's first filter and Bouc-Wen fit load the compiled kernels from numba's cache and takes scipy's solver
-through its first call; its first figure loads fonts and builds the canvases; its first model prediction
+A worker's first filter and first Bouc-Wen fit load the compiled kernels from numba's cache, and the fit
+takes scipy's solver through its first call; its first figure loads fonts and builds the canvases; its first model prediction
 loads the compiled simulation. Done in every worker, that is about 0.2 s of CPU each, spent while the
 session waits on them. The fork server does it once instead, on synthetic data, before it forks any
 worker: the workers inherit the loaded code and warm caches (fork copies the server's memory). The
