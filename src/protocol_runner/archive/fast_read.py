@@ -61,13 +61,13 @@ def reads_kept() -> Iterator[None]:
 
 def read_values(ds: h5py.Dataset) -> npt.NDArray[Any]:
     """Every value of `ds`, as `ds[()]` gives them (see the module notes for when it decodes itself)."""
+    global _kept_bytes
     kept = _kept
     if kept is None:
         return _read(ds)
     key = _key(ds)
     values = kept.get(key) if key is not None else None
     if values is None:
-        global _kept_bytes
         values = _read(ds)
         if key is None or _kept_bytes + values.nbytes > KEPT_BYTES:
             return values

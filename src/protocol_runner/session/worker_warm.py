@@ -2,12 +2,12 @@
 `worker_start.PRELOADED`.
 
 A worker's first filter and first Bouc-Wen fit load the compiled kernels from numba's cache, and the fit
-takes scipy's solver through its first call; its first figure loads fonts and builds the canvases; its first model prediction
-loads the compiled simulation. Done in every worker, that is about 0.2 s of CPU each, spent while the
-session waits on them. The fork server does it once instead, on synthetic data, before it forks any
-worker: the workers inherit the loaded code and warm caches (fork copies the server's memory). The
-server has the time: it is ready well before the first configuration's trials are recorded, its core
-otherwise idle meanwhile.
+takes scipy's solver through its first call; its first figure loads fonts and builds the canvases; its
+first model prediction loads the compiled simulation. Done in every worker, that is about 0.2 s of CPU
+each, spent while the session waits on them. The fork server does it once instead, on synthetic data,
+before it forks any worker: the workers inherit the loaded code and warm caches (fork copies the
+server's memory). The server has the time: it is ready well before the first configuration's trials are
+recorded, its core otherwise idle meanwhile.
 
 Nothing here is written anywhere, and nothing computed here reaches a result: a worker's analyses are
 the same numbers with or without it (the compiled code is the same, loaded earlier). Any failure is
