@@ -3,7 +3,9 @@
 Every Python process of the run (the session, its analysis workers, the report's figure workers) wraps a
 few functions as their modules are imported and appends one line per call to $PR_SPLIT_LOG:
 ``pid thread category wall_seconds cpu_seconds`` (the CPU time of the calling thread: the h5py compression
-threads' share of a unit write is not in it). Nothing is wrapped when PR_SPLIT_LOG is unset.
+threads' share of a unit write is not in it). Every thread started with `threading.Thread` (and not
+overriding `run`) also writes ``pid name thread_start native_id 0`` as it starts, so that the benchmark can
+name the threads whose CPU it reads from /proc. Nothing is wrapped when PR_SPLIT_LOG is unset.
 """
 
 from __future__ import annotations
@@ -85,7 +87,20 @@ class _Finder(importlib.abc.MetaPathFinder):
         return spec
 
 
+def _log_thread_start(run):  # type: ignore[no-untyped-def]
+    @functools.wraps(run)
+    def logged(self):  # type: ignore[no-untyped-def]
+        with open(LOG, "a") as f:  # type: ignore[arg-type]
+            f.write(
+                f"{os.getpid()} {self.name.replace(' ', '_')} thread_start {threading.get_native_id()} 0\n"
+            )
+        return run(self)
+
+    return logged
+
+
 if LOG:
     sys.meta_path.insert(0, _Finder())
+    threading.Thread.run = _log_thread_start(threading.Thread.run)  # type: ignore[method-assign]
     with open(LOG, "a") as f:
         f.write(f"{os.getpid()} MainThread process_start {time.time():.6f} 0\n")
