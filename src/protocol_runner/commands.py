@@ -41,7 +41,7 @@ def run(
     monitor: Monitor | None = None,
 ) -> int:
     _start_worker_server()
-    from .preflight import preflight
+    from .preflight import preflight, preflight_warnings
     from .protocol.loader import find_protocol, load_protocol
     from .session.runner import Runner
     from .session.setup import create_session, created_session_protocol, default_session_dir
@@ -49,6 +49,8 @@ def run(
     path = find_protocol(protocol)
     loaded = load_protocol(path, display_name=protocol if Path(protocol).exists() else str(path))
     planned = preflight(loaded, only=only)  # everything --validate checks, before anything is created
+    for warning in preflight_warnings(loaded, planned):
+        _say(warning)
     if realtime and not dry_run:
         raise InvalidInput("--realtime paces the simulator: use it with --dry-run")
     if not dry_run:

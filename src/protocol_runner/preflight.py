@@ -11,6 +11,10 @@
    checks them when they run.
 
 A problem is an `InvalidInput` (exit 2) naming file, line and field; nothing has been written yet.
+
+`preflight_warnings` then names what would run but give the analysis nothing to work on: a processed
+trial whose commanded angle holds no complete cycle (the processing's own cycle rule, `analysis/cycles.py`,
+applied to the commanded samples). `--validate`, `--plan` and a run print them; they stop nothing.
 """
 
 from __future__ import annotations
@@ -20,8 +24,72 @@ from collections.abc import Iterable
 from .protocol.loader import LoadedProtocol
 from .protocol.only import KeySelection
 from .protocol.plan import Plan, expand
+from .protocol.plan_steps import ProcessStep, TrialStep
+from .protocol.plan_trajectory import Trajectory
 
 
 def preflight(loaded: LoadedProtocol, only: KeySelection | Iterable[int] | None = None) -> Plan:
     """The run's checks before anything is written (module docstring); returns the plan."""
     return expand(loaded, only=only)
+
+
+def preflight_warnings(loaded: LoadedProtocol, plan: Plan) -> list[str]:
+    """One line per trajectory (and joint) whose commanded angle holds no complete cycle, for the processed
+    trials of `plan`: "file:line: field: warning: ..." (module docstring)."""
+    import numpy as np
+
+    from .analysis.cycles import complete_cycles
+    from .protocol.only import key_spans
+    from .protocol.processing import processing_settings
+    from .protocol.sampling import sample_trajectory
+    from .protocol.yaml_doc import format_problems
+
+    processed = {s.configuration for s in plan.steps if isinstance(s, ProcessStep)}
+    settings = processing_settings(loaded)
+    rates = {rig.joint.name: rig.output.rate_hz for rig in loaded.protocol.rigs}
+    first_rate = loaded.protocol.rigs[0].output.rate_hz
+    empty: dict[tuple[str, str], tuple[Trajectory, list[int]]] = {}
+    counted: dict[tuple[str, str], int] = {}
+    for step in plan.steps:
+        if not (isinstance(step, TrialStep) and step.brace == "on" and step.configuration in processed):
+            continue
+        for joint, trajectory in step.joint_trajectories or (("", step.trajectory),):
+            motion = (trajectory.name or trajectory.profile, joint)
+            if motion not in counted:
+                angle = sample_trajectory(trajectory, rates.get(joint, first_rate), loaded.base_dir)
+                counted[motion] = (
+                    len(
+                        complete_cycles(
+                            np.asarray(angle, dtype=np.float64),
+                            hysteresis_deg=settings.cycle_hysteresis_deg,
+                            reference=settings.cycle_reference,
+                        )
+                    )
+                    if angle.size >= 3
+                    else 0
+                )
+            if counted[motion] == 0:
+                empty.setdefault(motion, (trajectory, []))[1].append(step.configuration)
+    problems = []
+    for (traj_name, joint), (trajectory, keys) in empty.items():
+        field = "periods" if trajectory.profile == "sinusoid" else None
+        loc = ("trajectories", traj_name, *(("joints", joint) if joint else ()), *((field,) if field else ()))
+        of_joint = f", joint {joint}" if joint else ""
+        unique = sorted(set(keys))
+        which = f"configuration{'s' if len(unique) > 1 else ''} {key_spans(unique)}"
+        periods = dict(trajectory.params).get("periods")
+        hint = (
+            f"a sinusoid needs at least 3 periods for one (it commands {periods:g})"
+            if isinstance(periods, float | int)
+            else "lengthen the motion"
+        )
+        problems.append(
+            (
+                loc,
+                f"warning: trajectory '{traj_name}' commands no complete cycle to analyse ({which}{of_joint}): a "
+                "cycle runs from one upward crossing of the mean angle to the next, and the partial first and "
+                "last cycles are left out (docs/analysis.md), so the processing will find no cycle, energy or "
+                f"loop to fit; {hint}",
+            )
+        )
+    return format_problems(loaded.shown, loaded.lines, problems).splitlines() if problems else []
