@@ -19,6 +19,7 @@ Public API: compare_archives(a, b) -> SessionComparison; render_comparison(resul
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -151,11 +152,46 @@ def signature(cfg: Configuration) -> tuple[tuple[str, str], ...]:
 
 
 def _physical(cfg: Configuration) -> dict[str, object]:
+    """What a pair's "changed settings" compares: factor quantities, device parameters and the
+    trajectory's fields as the plan resolved them (`trajectory.range_deg`, `trajectory.periods`, ...; of a
+    multi-joint motion `trajectory.<joint>.<field>`), its name aside (the match is made on it)."""
     out: dict[str, object] = {k: v for k, v in cfg.settings.flat().items() if "." in k}
     for element in cfg.settings.device:
         for name, value in element.params:
             out[f"device.{element.name}.{name}"] = value
+    out.update(_trajectory_fields(cfg.trajectory_json))
     return out
+
+
+def _trajectory_fields(text: str) -> dict[str, object]:
+    """`trajectory.<field>` -> value of a trial's trajectory JSON (numbers and lists of numbers as floats
+    and tuples); empty when there is none or it cannot be read (an archive predating the attribute)."""
+    try:
+        doc = json.loads(text) if text else {}
+    except ValueError:
+        return {}
+    if not isinstance(doc, dict):
+        return {}
+    single = "profile" in doc
+    out: dict[str, object] = {}
+    for joint, fields in [("", doc)] if single else list(doc.items()):
+        if not isinstance(fields, dict):
+            continue
+        prefix = f"trajectory.{joint}." if joint else "trajectory."
+        for name, value in fields.items():
+            if name != "name":
+                out[prefix + name] = _plain(value)
+    return out
+
+
+def _plain(value: object) -> object:
+    if isinstance(value, bool) or value is None:
+        return str(value)
+    if isinstance(value, int | float):
+        return float(value)
+    if isinstance(value, list) and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value):
+        return tuple(float(v) for v in value)
+    return value if isinstance(value, str) else json.dumps(value)
 
 
 def _changed(a: Configuration, b: Configuration) -> tuple[tuple[str, str, str], ...]:

@@ -51,6 +51,7 @@ def read_configuration(name: str, grp: h5py.Group) -> Configuration:
     angles: list[np.ndarray] = []
     torques: list[np.ndarray] = []
     raw_loaded = False
+    trajectory_json = ""
     if "trials" in grp:
         trials_grp = grp["trials"]
         for number, tname in _trial_numbers(trials_grp):
@@ -61,6 +62,8 @@ def read_configuration(name: str, grp: h5py.Group) -> Configuration:
             # Only the first recorded trial's raw data is plotted (angle/torque vs time): reading and
             # decompressing the others would dominate the report's regeneration time.
             if has_raw and not raw_loaded:
+                if "brace_on" in sides:
+                    trajectory_json = attr_str(tgrp["brace_on"].attrs, "trajectory")
                 on = _read_recording(tgrp["brace_on"]) if "brace_on" in sides else None
                 off = _read_recording(tgrp["brace_off"]) if "brace_off" in sides else None
                 raw_loaded = True
@@ -98,6 +101,7 @@ def read_configuration(name: str, grp: h5py.Group) -> Configuration:
         angle_min_deg=angle_min,
         angle_max_deg=angle_max,
         torque_slope_nm_per_deg=slope,
+        trajectory_json=trajectory_json,
     )
 
 

@@ -226,6 +226,9 @@ class Configuration:
     angle_min_deg: float
     angle_max_deg: float
     torque_slope_nm_per_deg: float
+    trajectory_json: str = (
+        ""  # the plan's JSON of the first recorded brace-on trial's trajectory ("" if none)
+    )
 
     @property
     def energy_mean_j(self) -> float:
