@@ -250,6 +250,68 @@ CASES = [
 ]
 
 
+# Mistakes that each get exactly one line: no second alternative of a union, no class names, no repeats.
+ONE_LINE_CASES = [
+    (
+        "a boolean for the number of periods",
+        lambda t: t.replace("    periods: 8 ", "    periods: yes"),
+        r"^broken\.yaml:\d+: trajectories\.sine\.periods: expected a number, got True \(YAML reads yes, no, on, "
+        r"off, true and false as booleans\)$",
+        "periods: yes",
+    ),
+    (
+        "a boolean in the calibration step",
+        lambda t: t.replace("  hold_s: 4.0\n", "  hold_s: on\n"),
+        r"^broken\.yaml:\d+: calibration_step\.hold_s: expected a number, got True",
+        "hold_s: on",
+    ),
+    (
+        "a boolean in a list of numbers",
+        lambda t: t.replace("  time_constant_s: [0.1, 0.35]", "  time_constant_s: [0.1, true]"),
+        r"^broken\.yaml:\d+: calibration_check\.time_constant_s\[1\]: expected a number, got True",
+        "time_constant_s: [0.1, true]",
+    ),
+    (
+        "a negative hold of the calibration step",
+        lambda t: t.replace("  hold_s: 4.0\n", "  hold_s: -4.0\n"),
+        r"^broken\.yaml:\d+: calibration_step\.hold_s: input should be greater than 0 \(got -4\.0\)$",
+        "hold_s: -4.0",
+    ),
+    (
+        "a calibration step that is a number",
+        lambda t: t.replace(
+            "calibration_step:                    # Appendix A",
+            "calibration_step: 5\nunused_calibration_step:  # Appendix A",
+        ),
+        r"^broken\.yaml:\d+: calibration_step: input should be a mapping with keys from_deg, step_deg, ramp_s, "
+        r"hold_s, settle_s \(got 5\)",
+        "calibration_step: 5",
+    ),
+    (
+        "a negative speed says what it got once",
+        lambda t: t.replace("    speed_deg_s: speed.speed_deg_s\n", "    speed_deg_s: -30\n", 1),
+        r"^broken\.yaml:\d+: trajectories\.sine\.speed_deg_s: must be greater than 0, got -30$",
+        "speed_deg_s: -30",
+    ),
+]
+
+
+@pytest.mark.parametrize(
+    ("name", "edit", "pattern", "needle"), ONE_LINE_CASES, ids=[c[0] for c in ONE_LINE_CASES]
+)
+def test_a_mistake_gets_one_line_at_its_field(
+    workdir: Path, name: str, edit, pattern: str, needle: str
+) -> None:
+    text = edit(KNEE_TEXT)
+    assert text != KNEE_TEXT, "the edit must change the file"
+    message = error_of(write(workdir, text))
+    lines = message.splitlines()
+    assert len(lines) == 1 or name == "a calibration step that is a number", message
+    assert re.search(pattern, lines[0]), message
+    assert lines[0].startswith(f"broken.yaml:{line_of(text, needle)}:"), message
+    assert "Spec" not in message and "Traceback" not in message
+
+
 @pytest.mark.parametrize(("name", "edit", "pattern", "needle"), CASES, ids=[c[0] for c in CASES])
 def test_broken_file_gets_a_located_message(
     workdir: Path, name: str, edit, pattern: str, needle: str | None

@@ -192,6 +192,19 @@ MISTAKES = [
         "expectations[0].configurations[2]: no configuration has key 12 (keys: 1-8)",
     ),
     (
+        "a yes where a number belongs",
+        ("speed.speed_deg_s, periods: 6}", "speed.speed_deg_s, periods: yes}"),
+        "  sine: {kind: sinusoid",
+        "trajectories.sine.periods: expected a number, got True (YAML reads yes, no, on, off, true and false "
+        "as booleans)",
+    ),
+    (
+        "a negative time in the calibration step",
+        ("hold_s: 4.0, settle_s: 1.0}", "hold_s: -4.0, settle_s: 1.0}"),
+        "calibration_step: {",
+        "calibration_step.hold_s: input should be greater than 0 (got -4.0)",
+    ),
+    (
         "a tab in the indentation",
         ("  damping:\n    d0", "  damping:\n\td0"),
         "\td0",

@@ -92,3 +92,8 @@ def test_unknown_keys_and_bad_ranges_in_the_rig_file_are_located(tmp_path: Path)
     assert "joints.knee_flexion.colour: unknown key" in _broken(
         tmp_path, "    number: 9\n", "    number: 9\n    colour: red\n", "colour"
     )
+
+
+def test_a_boolean_for_a_rate_in_the_rig_file_is_refused_at_its_line(tmp_path: Path) -> None:
+    message = _broken(tmp_path, "    rate_hz: 100 ", "    rate_hz: yes ", "rate_hz")
+    assert "boards.usb3105.rate_hz: expected a number, got True (YAML reads yes, no, on, off" in message

@@ -18,6 +18,7 @@ from pydantic import ValidationError
 
 from ..errors import InvalidInput
 from ..resources import packaged_protocols_dir
+from .booleans import boolean_numbers
 from .generators import expand_generators
 from .loaded import LoadedProtocol as LoadedProtocol
 from .loaded import Loc as Loc
@@ -106,6 +107,9 @@ def parse_protocol_text(
         protocol = Protocol.model_validate(data)
     except ValidationError as exc:
         raise InvalidInput(format_problems(shown, lines, validation_problems(exc, Protocol))) from None
+    booleans = boolean_numbers(protocol, data)
+    if booleans:
+        raise InvalidInput(format_problems(shown, lines, booleans))
     base_dir = path.parent
     if rig_text is not None:  # the rig file's text as archived with the run (`--reprocess`)
         loaded_rig = parse_rig_text(rig_text, base_dir / protocol.rig_name, f"{shown} (archived rig)")

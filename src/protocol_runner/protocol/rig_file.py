@@ -20,6 +20,7 @@ from pydantic import Field, ValidationError, field_validator
 
 from ..errors import InvalidInput
 from ..resources import packaged_rigs_dir
+from .booleans import boolean_numbers
 from .loaded import Loc
 from .paths import OutsideFolder, confined_path
 from .schema_base import Identifier, RangePair, _check_range, _Model
@@ -130,7 +131,7 @@ def parse_rig_text(text: str, path: Path, shown: str) -> LoadedRig:
         rig = RigFile.model_validate(data)
     except ValidationError as exc:
         raise InvalidInput(format_problems(shown, lines, validation_problems(exc, RigFile))) from None
-    problems = check_rig_file(rig)
+    problems = boolean_numbers(rig, data) or check_rig_file(rig)
     if problems:
         raise InvalidInput(format_problems(shown, lines, problems))
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()

@@ -13,9 +13,9 @@ whole `Protocol`, and re-exports the parts' public names.
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import Field, PrivateAttr, field_validator, model_validator
+from pydantic import Discriminator, Field, PrivateAttr, Tag, field_validator, model_validator
 
 from protocol_runner.protocol.expectations import ExpectationSpec
 from protocol_runner.protocol.schema_base import (  # noqa: F401  (re-exported)
@@ -134,6 +134,21 @@ class FitsSpec(_Model):
     bouc_wen: BoucWenFitSpec = BoucWenFitSpec()
 
 
+def _calibration_form(value: object) -> str:
+    """One step for every joint, or a mapping joint -> step (every value a mapping): the form decides which
+    is checked, so a wrong value of one step is one message at its field, not the other form's too."""
+    if isinstance(value, dict) and value and all(isinstance(v, dict) for v in value.values()):
+        return "<per joint>"
+    return "<one step>"
+
+
+CalibrationStep = Annotated[
+    Annotated[CalibrationStepSpec, Tag("<one step>")]
+    | Annotated[dict[Identifier, CalibrationStepSpec], Tag("<per joint>")],
+    Discriminator(_calibration_form),
+]
+
+
 class Protocol(_Model):
     """A whole campaign (one protocol file). `rig` in the file names a rig file; after loading,
     `protocol.rig` is the resolved `RigSpec` of the driven joint."""
@@ -150,7 +165,7 @@ class Protocol(_Model):
     factors: dict[Identifier, Factor] = Field(default_factory=dict)
     device: DeviceSpec | None = None
     trajectories: dict[Identifier, TrajectorySpec] = Field(min_length=1)
-    calibration_step: CalibrationStepSpec | dict[Identifier, CalibrationStepSpec]
+    calibration_step: CalibrationStep
     calibration_check: CalibrationCheckSpec
     processing: ProcessingSpec
     fits: FitsSpec = FitsSpec()

@@ -96,8 +96,14 @@ def validation_problems(exc: ValidationError, root: type[BaseModel]) -> list[tup
 
 
 def _without_union_member(loc: Loc) -> Loc:
-    """Drop the member pydantic names in a plain union's error path (`factors.damper.list[str]`)."""
-    return tuple(p for p in loc if not (isinstance(p, str) and ("[" in p or p.startswith("literal"))))
+    """Drop the member pydantic names in a plain union's error path (`factors.damper.list[str]`), and the
+    tags of the schema's own discriminated forms (`calibration_step.<one step>.hold_s`): no file key has
+    either shape."""
+    return tuple(
+        p
+        for p in loc
+        if not (isinstance(p, str) and ("[" in p or p.startswith("literal") or (p[:1], p[-1:]) == ("<", ">")))
+    )
 
 
 def _one_message(messages: list[str]) -> str:
@@ -162,6 +168,10 @@ def _pydantic_message(err: Any, root: type[BaseModel]) -> str:
         return f"unknown key{hint}"
     if kind == "missing":
         return "required field is missing"
+    if kind == "model_type":  # pydantic names its class: say what the file should hold there
+        keys = _allowed_keys(root, _without_union_member(tuple(err["loc"])))
+        shown = f" with keys {', '.join(keys)}" if keys else ""
+        return f"input should be a mapping{shown} (got {value!r})"
     if kind == "union_tag_invalid":
         ctx = err.get("ctx") or {}
         return f"unknown kind {ctx.get('tag')!r} (known: {ctx.get('expected_tags', '')})"
@@ -169,9 +179,17 @@ def _pydantic_message(err: Any, root: type[BaseModel]) -> str:
     msg = msg[0].lower() + msg[1:] if msg else msg
     if kind.startswith("value_error"):
         msg = msg.removeprefix("value error, ")
-    if value is not None and not isinstance(value, (dict, list)):
+    if value is not None and not isinstance(value, (dict, list)) and not _names_value(msg, value):
         return f"{msg} (got {value!r})"
     return msg
+
+
+def _names_value(msg: str, value: object) -> bool:
+    """Whether a validator's own message already says what it got (`..., got -30`)."""
+    shown = {repr(value)} | (
+        {f"{value:g}"} if isinstance(value, int | float) and not isinstance(value, bool) else set()
+    )
+    return any(f"got {text}" in msg for text in shown)
 
 
 def _allowed_keys(root: type[BaseModel], loc: Loc) -> list[str]:
