@@ -215,3 +215,19 @@ def test_element_fits_are_drawn_for_the_comparisons_that_change_a_fitted_element
     # K0 is named in the key as not fitted, with nothing drawn for it
     (unfitted,) = [ln for ln in ax.get_lines() if "not fitted" in ln.get_label()]
     assert unfitted.get_label().startswith("17: ") and len(unfitted.get_xdata()) == 0
+
+
+def test_energy_cycles_figure_counts_cycles_in_whole_numbers(small_archive: Path, monkeypatch) -> None:
+    """Two cycles once had ticks at 1.00, 1.25, ... 2.00: a cycle number is a count."""
+    import dataclasses
+
+    cfg = _config(small_archive, 4)
+    for n in (2, 3, 7):
+        few = dataclasses.replace(
+            cfg, energy_loss_j=cfg.energy_loss_j[:n], energy_cycle_trial=cfg.energy_cycle_trial[:n]
+        )
+        fig = _drawn(monkeypatch, lambda few=few: energy_cycles_figure(few))
+        (ax,) = fig.axes
+        lo, hi = ax.get_xlim()
+        shown = [t for t in ax.get_xticks() if lo <= t <= hi]
+        assert len(shown) >= 2 and all(float(t).is_integer() for t in shown), (n, shown)

@@ -292,8 +292,9 @@ def test_summary_comes_first_with_trial_intervals(small_report: str) -> None:
     row = re.search(r'<tr id="headline-4"[^>]*>(.*?)</tr>', small_report, re.S)
     assert row is not None
     cells = re.findall(r"<td[^>]*>(.*?)</td>", row.group(1), re.S)
-    assert cells[2] == "2"  # trials: the experimental unit
-    assert re.fullmatch(r"\[\d+\.\d\d, \d+\.\d\d\]", cells[5]), cells[5]
+    assert cells[2] == "friction 0"  # what sets it apart in its set: the factor that varies there
+    assert cells[3] == "2 of 2"  # trials analysed, of those recorded: the experimental unit
+    assert re.fullmatch(r"\[\d+\.\d\d, \d+\.\d\d\]", cells[6]), cells[6]
 
 
 def test_test_matrix_has_one_column_per_declared_factor_with_level_and_quantities(small_report: str) -> None:

@@ -303,6 +303,10 @@ def empty(ax: Axes, text: str) -> None:
     ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, fontsize=8, color="#666666")
 
 
+KEY_SIZE = 7.5  # points: the tick labels' size and a little more, legible at the page's 80 dpi
+KEY_LINE = 0.075  # the key's line spacing, in axes heights
+
+
 def legend(ax: Axes, *, bottom: bool = False) -> None:
     """A colour key in the top-left (or bottom-left) corner: one coloured text line per labelled artist.
 
@@ -314,11 +318,11 @@ def legend(ax: Axes, *, bottom: bool = False) -> None:
         color, glyph = swatch(handle)
         ax.text(
             0.02,
-            (0.03 + 0.066 * (n - 1 - i)) if bottom else (0.97 - 0.066 * i),
+            (0.03 + KEY_LINE * (n - 1 - i)) if bottom else (0.97 - KEY_LINE * i),
             f"{glyph} {label}",
             color=color,
             transform=ax.transAxes,
-            fontsize=6.5,
+            fontsize=KEY_SIZE,
             ha="left",
             va="bottom" if bottom else "top",
         )

@@ -61,3 +61,14 @@ def declared_entries(
             where = ".".join(str(p) for p in first["loc"]) or "entry"
             problems.append(f"{where_list}[{i}].{where}: {first['msg']}")
     return tuple(specs), tuple(problems)
+
+
+def declared_text(protocol_text: str, key: str) -> str:
+    """A top-level text of the archived protocol (`title`, `description`); "" when it has none or the text
+    is not readable YAML."""
+    try:
+        node = protocol_document(protocol_text)
+    except yaml.YAMLError:
+        return ""
+    value = node.get(key) if isinstance(node, dict) else None
+    return value.strip() if isinstance(value, str) else ""

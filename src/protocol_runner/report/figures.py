@@ -21,6 +21,7 @@ import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
+from matplotlib.ticker import MaxNLocator
 
 from protocol_runner.report.canvas import (
     ANGLE_LABEL,
@@ -130,6 +131,7 @@ def energy_cycles_figure(cfg: Configuration) -> str:
         ax.axhline(mean, color="k", lw=0.8, label=f"mean {mean:.2f} J")
         if math.isfinite(std):
             ax.axhspan(mean - std, mean + std, color="k", alpha=0.08, lw=0)
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=5, integer=True))  # cycles are counted: 1, 2, 3
         top = float(np.nanmax(e)) if np.isfinite(e).any() else 1.0
         ax.set_ylim(0.0, max(top, mean + (std if math.isfinite(std) else 0.0)) * 1.15 or 1.0)
     title = f"Configuration {cfg.key}: energy lost per cycle"

@@ -14,7 +14,7 @@ from __future__ import annotations
 import functools
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -27,6 +27,7 @@ from markupsafe import Markup, escape
 from protocol_runner import __version__
 from protocol_runner.report.citations import declared_citations
 from protocol_runner.report.comparison_values import comparison_axis
+from protocol_runner.report.declared import declared_text
 from protocol_runner.report.differences import adjacent_differences, declared_repeatability
 from protocol_runner.report.figure_plan import (
     Drawn,
@@ -256,10 +257,34 @@ def _factor_text(cfg: Configuration, factor: str) -> str:
 
 def factor_names(data: ReportData) -> list[str]:
     """Every declared factor any configuration sets, in declaration order (first seen first)."""
+    return _factor_names_of(data.configurations)
+
+
+def _factor_names_of(configurations: Sequence[Configuration]) -> list[str]:
     names: list[str] = []
-    for cfg in data.configurations:
+    for cfg in configurations:
         names.extend(f for f in cfg.settings.factor_names() if f not in names)
     return names
+
+
+def varying_levels(data: ReportData) -> dict[int, str]:
+    """Per configuration key, what sets it apart in its set: the level of each factor (and the trajectory)
+    that differs between the set's configurations, e.g. "bungee stiff, brake light"; "" for a set of one
+    configuration, or of configurations that differ in nothing declared."""
+    by_set: dict[str, list[Configuration]] = {}
+    for cfg in data.configurations:
+        by_set.setdefault(cfg.set_name, []).append(cfg)
+    out: dict[int, str] = {}
+    for configs in by_set.values():
+        names = _factor_names_of(configs)
+        varying = [n for n in names if len({c.level(n) for c in configs}) > 1]
+        moves = len({c.settings.trajectory or c.profile for c in configs}) > 1
+        for c in configs:
+            parts = [f"{n} {c.level(n)}" for n in varying if c.level(n) is not None]
+            if moves:
+                parts.append(f"trajectory {c.settings.trajectory or c.profile}")
+            out[c.key] = ", ".join(parts)
+    return out
 
 
 def _context(
@@ -294,6 +319,9 @@ def _context(
         "cite": declared_citations(data.protocol_text),
         "tuned_label": TUNED_LABEL,
         "headline": [configuration_stats(c) for c in data.configurations],
+        "varying": varying_levels(data),
+        "protocol_title": declared_text(data.protocol_text, "title"),
+        "protocol_description": declared_text(data.protocol_text, "description"),
         "repeatability": declared_repeatability(data),
         "differences_of": lambda comp: adjacent_differences(data, comp),
         "limits_text": limits_text,
