@@ -141,3 +141,13 @@ def test_plan_or_validate_with_no_protocol_or_two_is_refused(
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert says in err and "Traceback" not in err
+
+
+def test_a_run_prints_its_outcome_on_stdout_and_its_progress_on_stderr(tmp_path: Path) -> None:
+    session = tmp_path / "s"
+    done = run_cli(
+        "knee_phase1.yaml", "--dry-run", "--yes", "--only", "15", "--session", str(session), cwd=tmp_path
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.splitlines() == [f"done: {session / 'archive.h5'} and {session / 'report.html'}"]
+    assert "done:" not in done.stderr and "] report" in done.stderr  # the progress stays on stderr

@@ -28,6 +28,12 @@ def _say(message: str) -> None:
     print(message, file=sys.stderr, flush=True)
 
 
+def _result(message: str) -> None:
+    """The command's outcome, on standard output (progress and prompts are on standard error), so that
+    `run-protocol ... > out` keeps the line naming the archive and the report."""
+    print(message, flush=True)
+
+
 def run(
     protocol: str,
     *,
@@ -81,7 +87,7 @@ def run(
     runner = Runner(directory, info, stored, plan, bench, operator, quiet=quiet, publisher=publisher)
     _settle_heap()
     result = runner.run()
-    _say(f"done: {result.archive}" + (f" and {result.report}" if result.report else ""))
+    _result(f"done: {result.archive}" + (f" and {result.report}" if result.report else ""))
     return EXIT_OK
 
 
@@ -183,7 +189,7 @@ def resume(
         quiet=quiet,
         publisher=publisher,
     ).run()
-    _say(
+    _result(
         f"done: {result.steps_run} steps run, {result.steps_skipped} already complete; {result.archive}"
         + (f" and {result.report}" if result.report else "")
     )
