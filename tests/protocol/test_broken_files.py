@@ -393,3 +393,25 @@ def test_park_angle_outside_a_brace_range_is_refused(workdir: Path) -> None:
         first,
     ), message
     assert first.startswith(f"broken.yaml:{line_of(text, '{key: 1, run: 5,')}:")
+
+
+def test_keys_that_do_not_line_up_name_both_lines(workdir: Path) -> None:
+    text = KNEE_TEXT.replace("    R1: {range_deg: [40, 90]", "   R1: {range_deg: [40, 90]", 1)
+    assert text != KNEE_TEXT
+    first, found = line_of(text, "   R1: {range_deg: [40, 90]"), line_of(text, "    R2: {range_deg")
+    message = error_of(write(workdir, text))
+    assert message.startswith(f"broken.yaml:{found}: YAML syntax error: "), message
+    assert message.endswith(
+        f"(the keys of one mapping must line up: compare the indentation of lines {first} and {found})"
+    ), message
+
+
+def test_a_key_indented_too_deep_gets_a_hint_at_its_line(workdir: Path) -> None:
+    text = KNEE_TEXT.replace("  from_deg: 20\n  step_deg: 45", "  from_deg: 20\n   step_deg: 45")
+    assert text != KNEE_TEXT
+    found = line_of(text, "   step_deg: 45")
+    message = error_of(write(workdir, text))
+    assert message.startswith(
+        f"broken.yaml:{found}: YAML syntax error: mapping values are not allowed here"
+    ), message
+    assert f"compare the indentation of line {found} with the line above, or quote the value)" in message

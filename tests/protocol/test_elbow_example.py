@@ -192,6 +192,16 @@ MISTAKES = [
         "expectations[0].configurations[2]: no configuration has key 12 (keys: 1-8)",
     ),
     (
+        "binding to a quantity no level has (a typo)",
+        (
+            "stiffness_nm_per_deg: torsion.stiffness_nm_per_deg",
+            "stiffness_nm_per_deg: torsion.stiffnes_nm_per_deg",
+        ),
+        "stiffness_nm_per_deg: torsion.stiffnes_nm_per_deg",
+        "device.elements[0].stiffness_nm_per_deg: bound to torsion.stiffnes_nm_per_deg: no level of torsion has a "
+        "quantity 'stiffnes_nm_per_deg' (its levels have stiffness_nm_per_deg)",
+    ),
+    (
         "a yes where a number belongs",
         ("speed.speed_deg_s, periods: 6}", "speed.speed_deg_s, periods: yes}"),
         "  sine: {kind: sinusoid",

@@ -310,4 +310,6 @@ def _check_binding(p: Protocol, binding: str, unit: str, loc: Loc) -> Iterator[P
         )
         return
     if not any(quantity in dict(lv.quantities) for lv in p.factors[factor].values()):
-        yield loc, f"bound to {binding}: no level of {factor} has a quantity {quantity!r}"
+        has = list(dict.fromkeys(q for lv in p.factors[factor].values() for q, _ in lv.quantities))
+        shown = f" (its levels have {', '.join(has)})" if has else " (its levels have no quantities)"
+        yield loc, f"bound to {binding}: no level of {factor} has a quantity {quantity!r}{shown}"

@@ -139,6 +139,17 @@ def yaml_error(shown: str, exc: yaml.YAMLError, text: str = "") -> str:
         problem = f"character #x{code:04x} is not allowed in YAML ({exc.reason})"
     detail = f"{context}, {problem}" if context else problem
     hint = " (indent with spaces: YAML does not allow tabs)" if "'\\t'" in detail else ""
+    begun = getattr(exc, "context_mark", None)
+    if not hint and begun is not None and mark is not None and "expected <block end>" in detail:
+        # the line found is where the parser gave up; the mistake may be the line that began the mapping
+        first, found = begun.line + 1, mark.line + 1
+        lines = f"lines {first} and {found}" if first != found else f"line {found} and the one above"
+        hint = f" (the keys of one mapping must line up: compare the indentation of {lines})"
+    elif not hint and mark is not None and "mapping values are not allowed here" in detail:
+        hint = (
+            f" (a key indented deeper than the one above it, or a ': ' inside an unquoted value: compare the "
+            f"indentation of line {mark.line + 1} with the line above, or quote the value)"
+        )
     return f"{shown}:{line}: YAML syntax error: {detail}{hint}"
 
 
