@@ -143,11 +143,12 @@ def test_a_dry_run_ends_quickly_with_its_archive_report_and_output_complete(tmp_
     env["PYTHONPATH"] = os.pathsep.join((str(site), str(package_root)))
     session = tmp_path / "session"
     args = f"knee_phase1.yaml --dry-run --yes --seed 7 --only 12 --session {session}".split()
-    log = tmp_path / "stderr.log"  # a regular file open for writing as stderr (`run-protocol ... 2> log`)
-    with log.open("w") as stderr:
+    log = tmp_path / "stderr.log"  # regular files open for writing (`run-protocol ... > out 2> log`)
+    out = tmp_path / "stdout.log"
+    with log.open("w") as stderr, out.open("w") as stdout:
         proc = subprocess.Popen(
             [sys.executable, "-m", "protocol_runner.cli", *args],
-            stdout=subprocess.DEVNULL,
+            stdout=stdout,
             stderr=stderr,
             text=True,
             env=env,
@@ -157,7 +158,9 @@ def test_a_dry_run_ends_quickly_with_its_archive_report_and_output_complete(tmp_
     err = log.read_text()
     assert f"{TEARDOWN} {proc.pid}\n" not in err  # the quick exit was taken
     printed = [line for line in err.splitlines() if not line.startswith(TEARDOWN)]  # the fork server's
-    assert printed[-1] == f"done: {session / 'archive.h5'} and {session / 'report.html'}"
+    assert printed[-1] == f"report:  {session / 'report.html'}", printed[-3:]  # the progress, all of it
+    # the outcome, on standard output, flushed before the quick exit
+    assert out.read_text().splitlines() == [f"done: {session / 'archive.h5'} and {session / 'report.html'}"]
     with h5py.File(session / "archive.h5", "r") as f:
         assert f.attrs["status"] == "complete"
         sizes: list[int] = []
