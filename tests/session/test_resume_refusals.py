@@ -58,6 +58,54 @@ def test_deleted_journal_is_refused_not_silently_redone(
     )
 
 
+def _emptied(path: Path) -> None:
+    path.write_bytes(b"")
+
+
+def _zeroed(path: Path) -> None:  # a power cut on some file systems: the blocks read back as zeros
+    path.write_bytes(b"\0" * path.stat().st_size)
+
+
+def _garbled(path: Path) -> None:  # a line in the middle overwritten: no longer a record
+    lines = path.read_bytes().split(b"\n")
+    lines[len(lines) // 2] = b"\x00\x17 #### overwritten ####"
+    path.write_bytes(b"\n".join(lines))
+
+
+@pytest.mark.parametrize("damage", [_emptied, _zeroed, _garbled], ids=["emptied", "zeroed", "garbled"])
+def test_a_damaged_journal_is_refused_not_silently_redone(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str], damage
+) -> None:
+    session = copy_session(reference_archive, tmp_path / "damaged")
+    (session / "archive.h5").unlink()
+    damage(session / "journal.jsonl")
+    before = snapshot(session)
+    assert main(["--resume", str(session), "--yes"]) == 2
+    err = capsys.readouterr().err
+    assert "journal.jsonl" in err and "--force" in err and "Traceback" not in err
+    assert ("holds no journal record" in err) == (damage is not _garbled)
+    assert ("is not a journal record" in err or "are not a journal record" in err) == (damage is _garbled)
+    assert snapshot(session) == before  # refused before anything is read for the resume: nothing repaired
+
+    assert main(["--resume", str(session), "--yes", "--force"]) == 0  # redone, and recorded
+    overrides = [e.detail for e in Journal(session / "journal.jsonl").events if e.kind == "operator_override"]
+    wanted = (
+        "damaged line(s), ignored" if damage is _garbled else "journal.jsonl was missing or held no record"
+    )
+    assert any(wanted in detail for detail in overrides), overrides
+
+
+def test_a_torn_last_line_is_what_a_crash_leaves_and_is_resumed(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = copy_session(reference_archive, tmp_path / "torn")
+    (session / "archive.h5").unlink()
+    journal = session / "journal.jsonl"
+    journal.write_bytes(journal.read_bytes() + b'{"record": "unit", "step_id": "tri')  # cut mid-append
+    assert main(["--resume", str(session), "--yes"]) == 0
+    assert "already complete" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize(
     ("args", "named"),
     [

@@ -31,6 +31,45 @@ class Event:
         return {"t_utc": self.t_utc, "kind": self.kind, "detail": self.detail}
 
 
+MAX_JOURNAL_BYTES = 256 * 2**20  # far above any campaign's journal (the knee's: about 100 kB)
+
+
+@dataclass(frozen=True)
+class JournalDamage:
+    """What reading a journal without writing it finds (`inspect_journal`)."""
+
+    records: int  # lines that are journal records
+    damaged: tuple[int, ...]  # 1-based numbers of the other non-empty lines, the last line aside
+
+
+def inspect_journal(path: Path) -> JournalDamage:
+    """Read the journal at `path` without repairing it: its records, and the lines before the last one that
+    are not records. A crash or a power cut can damage only the line being appended, the last one; any
+    other damaged line means the file was damaged or edited. Raises `OSError` for a file that is not a
+    regular file or is larger than MAX_JOURNAL_BYTES."""
+    if not path.is_file():
+        raise OSError(f"{path} is not a regular file")
+    if path.stat().st_size > MAX_JOURNAL_BYTES:
+        raise OSError(f"{path} is larger than {MAX_JOURNAL_BYTES // 2**20} MB")
+    lines = path.read_bytes().split(b"\n")
+    while lines and not lines[-1].strip():
+        lines.pop()
+    records = 0
+    damaged: list[int] = []
+    probe = Journal.__new__(Journal)
+    probe.units, probe.failed, probe.events = {}, {}, []
+    for number, raw in enumerate(lines, start=1):
+        if not raw.strip():
+            continue
+        try:
+            probe._apply(json.loads(raw.decode("utf-8")))
+            records += 1
+        except (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError, RecursionError):
+            if number < len(lines):
+                damaged.append(number)
+    return JournalDamage(records, tuple(damaged))
+
+
 class Journal:
     def __init__(self, path: Path) -> None:
         self.path = path
@@ -41,6 +80,7 @@ class Journal:
         self.events: list[Event] = []
         self.answers: dict[str, dict[str, Any]] = {}
         self.torn_lines = 0
+        self.damaged_lines = 0  # lines read that are not records (the torn tail, cut off first, aside)
         if path.exists():
             self._repair_torn_tail()
             self._read()
@@ -67,8 +107,16 @@ class Journal:
                 try:
                     rec = json.loads(line)
                     self._apply(rec)
-                except (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError):
+                except (
+                    json.JSONDecodeError,
+                    KeyError,
+                    TypeError,
+                    ValueError,
+                    AttributeError,
+                    RecursionError,
+                ):
                     self.torn_lines += 1  # damaged or foreign line: ignored, never a complete unit
+                    self.damaged_lines += 1
 
     def _apply(self, rec: dict[str, Any]) -> None:
         kind = rec.get("record")

@@ -27,7 +27,7 @@ from ..protocol.plan import (
     TrialStep,
     calibration_id,
 )
-from .journal import Journal
+from .journal import Journal, inspect_journal
 from .setup import SessionInfo, changed_files
 
 if TYPE_CHECKING:
@@ -122,7 +122,16 @@ def prepare_resume(runner: Runner, ctx: StepContext, progress: Progress) -> None
     if changes:
         j.event("operator_override", f"resumed with changed referenced files (--force): {', '.join(changes)}")
     if not had_journal and any(runner.units_dir.glob("*.h5")):
-        j.event("operator_override", "journal.jsonl was missing; resumed with --force: every step is redone")
+        j.event(
+            "operator_override",
+            "journal.jsonl was missing or held no record; resumed with --force: every step is redone",
+        )
+    elif j.damaged_lines:
+        j.event(
+            "operator_override",
+            f"journal.jsonl had {j.damaged_lines} damaged line(s), ignored; resumed with --force: the steps they "
+            "recorded are redone",
+        )
     for step_id, record in list(j.units.items()):
         if not unit_is_complete(runner.units_dir, record):
             j.invalidate(step_id, "unit file missing, truncated or corrupt")
@@ -197,6 +206,32 @@ def _same_keys(only: KeySelection, keys: Sequence[int]) -> bool:
     return {k for lo, hi in only.ranges for k in range(lo, hi + 1)} == set(keys)
 
 
+def _refuse_a_damaged_journal(journal_path: Path, units_dir: Path, n_units: int, *, force: bool) -> None:
+    """A journal damaged anywhere but its last line (which a crash or a power cut can tear), or one that
+    holds no record while finished units exist, would make a resume redo the steps it no longer records:
+    refused, before the journal is read for the resume (reading repairs its torn tail), unless `force`."""
+    try:
+        damage = inspect_journal(journal_path)
+    except OSError as exc:
+        raise InvalidInput(f"{journal_path}: cannot be read as this session's journal ({exc})") from None
+    if force:
+        return
+    if damage.damaged:
+        lines = ", ".join(map(str, damage.damaged[:5])) + (" ..." if len(damage.damaged) > 5 else "")
+        raise InvalidInput(
+            f"{journal_path}: line{'s' if len(damage.damaged) > 1 else ''} {lines} {'are' if len(damage.damaged) > 1 else 'is'} "
+            "not a journal record: the journal was damaged or edited (a crash can only tear its last "
+            "line), and a resume would redo every finished step the damaged lines recorded. Restore "
+            "journal.jsonl from a copy, or resume with --force to redo them (recorded in the archive)"
+        )
+    if damage.records == 0 and n_units:
+        raise InvalidInput(
+            f"{journal_path}: holds no journal record, but {units_dir} holds {n_units} finished step(s); "
+            "a resume would redo every step. Restore journal.jsonl from a copy, or resume with --force to "
+            "redo them all (recorded in the archive)"
+        )
+
+
 def resume_preflight(session_dir: Path, plan: Plan, *, force: bool) -> str | None:
     """Refuse a resume that would silently redo or rewrite recorded work. Returns a message when the
     session is already complete - every step done, archive and report written (nothing to do; nothing is
@@ -213,6 +248,7 @@ def resume_preflight(session_dir: Path, plan: Plan, *, force: bool) -> str | Non
                 "redo them all (recorded in the archive)"
             )
         return None
+    _refuse_a_damaged_journal(journal_path, units_dir, n_units, force=force)
     journal = Journal(journal_path)
     last = next((e for e in reversed(journal.events) if e.kind in ("finished", "resumed", "started")), None)
     to_run = [s for s in plan.steps if s.kind != "report"]
