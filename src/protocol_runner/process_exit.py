@@ -39,6 +39,7 @@ Only the command-line entry (`cli.entry`) calls this: code that calls `cli.main(
 from __future__ import annotations
 
 import atexit
+import contextlib
 import os
 import stat
 import sys
@@ -106,3 +107,18 @@ def _files_open_for_writing() -> bool:
         except OSError:  # closed since the listing (the listing's own descriptor)
             continue
     return False
+
+
+def exit_after_a_full_disk(code: int) -> None:
+    """End the process at once after a session stopped on a full disk: HDF5 may hold a file whose close
+    failed for lack of space, and the interpreter's teardown closing it again crashed the process
+    (a segmentation fault instead of exit 130). Nothing of the session is lost by skipping the teardown:
+    every finished unit is on disk, fsynced and journaled, and whatever was still being written is a
+    temporary file that a resume removes or redoes, as after a kill (docs/session.md). The streams and the
+    log are flushed first."""
+    import logging
+
+    _streams_flushed()
+    with contextlib.suppress(Exception):
+        logging.shutdown()
+    os._exit(code)

@@ -242,7 +242,13 @@ def _footprint_kb(files: list[Path]) -> float:
 
 @pytest.mark.parametrize(
     ("phase", "expected"),
-    [("unit", "while saving"), ("archive", "archive.h5"), ("report", "report.html")],
+    [
+        ("unit", "while saving"),
+        ("early unit", "while saving"),  # HDF5 fails closing a unit: a RuntimeError, then a crash at exit
+        ("late unit", "while saving"),
+        ("archive", "archive.h5"),
+        ("report", "report.html"),
+    ],
 )
 def test_a_really_full_disk_then_resume_gives_the_same_archive(
     tmp_path: Path, reference_archive: Path, phase: str, expected: str
@@ -263,7 +269,13 @@ def test_a_really_full_disk_then_resume_gives_the_same_archive(
     size_kb = int(
         rest
         + 8
-        + {"unit": units / 2, "archive": units + archive / 2, "report": units + archive + report / 2}[phase]
+        + {
+            "unit": units / 2,
+            "early unit": units / 4,
+            "late unit": units * 3 / 4,
+            "archive": units + archive / 2,
+            "report": units + archive + report / 2,
+        }[phase]
     )
     mnt = tmp_path / "mnt"
     if not _can_mount_tmpfs(mnt):
@@ -289,3 +301,17 @@ def test_a_really_full_disk_then_resume_gives_the_same_archive(
     assert (tmp_path / "partials").read_text() == ""
     assert (tmp_path / "code2").read_text().strip() == "0", (tmp_path / "err2").read_text()
     assert_same_data(reference_archive, tmp_path / "archive.h5")
+
+
+def test_hdf5s_runtime_error_of_a_full_disk_is_a_full_disk() -> None:
+    from protocol_runner.archive.diskfull import is_disk_full
+
+    closing = RuntimeError(
+        "Disable slist on flush dest failure failed (file write failed: time = Fri Dec  4 18:59:01 2026, "
+        "filename = 'units/trial__k16__on__1.h5.partial', file descriptor = 7, errno = 28, error message = "
+        "'No space left on device', buf = 0x55d0, total write size = 4096, bytes this sub-write = 4096)"
+    )
+    assert is_disk_full(closing)
+    assert is_disk_full(RuntimeError("H5Fclose failed (errno = 122, error message = 'Disk quota exceeded')"))
+    assert not is_disk_full(RuntimeError("Unable to synchronously create dataset (name already exists)"))
+    assert not is_disk_full(RuntimeError("errno = 2, error message = 'No such file or directory'"))

@@ -42,8 +42,21 @@ def is_disk_full(exc: BaseException) -> bool:
             current.errno in _FULL or "No space left on device" in str(current)
         ):
             return True
+        if isinstance(current, RuntimeError) and _hdf5_out_of_space(str(current)):
+            return True
         current = current.__cause__ or current.__context__
     return False
+
+
+def _hdf5_out_of_space(message: str) -> bool:
+    """HDF5 reports a write refused for lack of space from some calls (closing a file, flushing its
+    metadata) as a RuntimeError that carries the system's error in its text ("errno = 28, error message =
+    'No space left on device'"), not as an OSError."""
+    return (
+        "No space left on device" in message
+        or "Disk quota exceeded" in message
+        or any(f"errno = {code}," in message for code in _FULL)
+    )
 
 
 def resume_hint(session_dir: Path) -> str:

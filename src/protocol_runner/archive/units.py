@@ -87,7 +87,7 @@ def write_unit(units_dir: Path, step_id: str, fill: Callable[[h5py.File], None])
     except BaseException as exc:  # never leave a partial file behind: a fill's bug, a full disk, Ctrl-C
         with contextlib.suppress(OSError):
             partial.unlink()
-        if isinstance(exc, OSError) and is_disk_full(exc):
+        if isinstance(exc, OSError | RuntimeError) and is_disk_full(exc):  # HDF5: RuntimeError at close
             raise DiskFull(
                 f"disk full while saving {step_id} in {units_dir}. {resume_hint(units_dir.parent)}"
             ) from None
