@@ -57,11 +57,13 @@ def test_libyaml_reads_the_same_data_and_lines_in_one_pass(
         return inner(t, loader_class)
 
     monkeypatch.setattr(yaml_doc, "_compose_and_construct", spy)
+    libyaml = yaml_doc.FAST_LOADER
+    assert issubclass(libyaml, yaml.CSafeLoader)
     fast = yaml_doc.parse_yaml(text, "p.yaml")
-    assert loaders == [yaml.CSafeLoader]  # one composition, and not the pure-Python one
+    assert loaders == [libyaml]  # one composition, and not the pure-Python one
     pure_python(monkeypatch)
     slow = yaml_doc.parse_yaml(text, "p.yaml")
-    assert loaders == [yaml.CSafeLoader, yaml.SafeLoader]
+    assert loaders == [libyaml, yaml_doc.SafeLoader]
     assert fast == slow and fast[0] == yaml.safe_load(text) and len(fast[1]) > 100
 
 
@@ -73,3 +75,36 @@ def test_a_bad_file_gets_the_pure_python_loaders_located_message(
     assert shown.startswith("p.yaml:") and shown.split(":")[1].isdigit(), shown
     pure_python(monkeypatch)
     assert message(BAD[name]) == shown
+
+
+def test_numbers_with_an_exponent_and_no_point_are_numbers_with_either_parser() -> None:
+    """YAML 1.1 read `2e1` as text (PyYAML), which failed as "not a number" in some fields and passed in
+    others; they are the numbers YAML 1.2 reads, with libyaml and with the pure-Python parser alike."""
+    from protocol_runner.protocol.yaml_doc import FAST_LOADER, SafeLoader, _compose_and_construct, parse_yaml
+
+    text = "a: 2e1\nb: -1E-3\nc: 1_000e2\nd: '2e1'\ne: 2\nf: 2.5e1\ng: e1\nh: 1e\n"
+    expected = {"a": 20.0, "b": -0.001, "c": 100000.0, "d": "2e1", "e": 2, "f": 25.0, "g": "e1", "h": "1e"}
+    assert parse_yaml(text, "x.yaml")[0] == expected
+    for loader in (SafeLoader, FAST_LOADER):
+        if loader is not None:
+            assert _compose_and_construct(text, loader)[1] == expected
+
+
+def test_a_number_of_thousands_of_digits_is_refused_at_its_line_with_either_parser() -> None:
+    from protocol_runner.errors import InvalidInput
+    from protocol_runner.protocol.yaml_doc import SafeLoader, parse_yaml
+    from protocol_runner.protocol.yaml_limits import MAX_NUMBER_CHARS, check_yaml_limits
+    from protocol_runner.report.declared import protocol_document
+
+    for digits in ("9" * 5000, "3." + "1" * 5000, "1" * (MAX_NUMBER_CHARS + 1)):
+        text = f"name: x\nperiods: {digits}\n"
+        with pytest.raises(
+            InvalidInput, match=rf"^x\.yaml:2: a number written with {len(digits)} characters"
+        ):
+            parse_yaml(text, "x.yaml")
+        with pytest.raises(InvalidInput, match=r"^x\.yaml:2: "):
+            check_yaml_limits(text, "x.yaml", loader=SafeLoader)
+        with pytest.raises(yaml.YAMLError):  # an archive's protocol text: the report says it cannot read it
+            protocol_document(text)
+    ok = f"name: x\nperiods: {'1' * MAX_NUMBER_CHARS}\nsetup: '{'9' * 5000}'\nnote: {'9' * 500} turns\n"
+    assert parse_yaml(ok, "x.yaml")[0]["setup"] == "9" * 5000  # quoted text, and text that is not a number

@@ -6,6 +6,7 @@ mistake (paths use 0-based list indices, as in JSON paths).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from typing import Any, get_origin
 
@@ -19,7 +20,26 @@ from .yaml_limits import check_size, check_yaml_limits
 MAX_ERRORS_SHOWN = 8
 
 
-FAST_LOADER: Any = getattr(yaml, "CSafeLoader", None)
+# YAML 1.1 (PyYAML) reads a number whose exponent has no decimal point or no sign (`2e1`, `2.5e1`) as text, which
+# then fails as "not a number" in some fields and passes in others; YAML 1.2 reads it as the number it is.
+_FLOAT_1_2 = re.compile(r"^[-+]?(?:[0-9][0-9_]*(?:\.[0-9_]*)?|\.[0-9_]+)[eE][-+]?[0-9]+$")
+
+
+class SafeLoader(yaml.SafeLoader):
+    """`yaml.SafeLoader`, with numbers like `2e1` read as numbers (YAML 1.2)."""
+
+
+SafeLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_1_2, list("-+0123456789"))
+
+_C_LOADER: Any = getattr(yaml, "CSafeLoader", None)
+if _C_LOADER is not None:
+
+    class _FastLoader(_C_LOADER):
+        """libyaml's safe loader, with numbers like `2e1` read as numbers (YAML 1.2)."""
+
+    _FastLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_1_2, list("-+0123456789"))
+
+FAST_LOADER: Any = _FastLoader if _C_LOADER is not None else None
 """libyaml's safe loader when PyYAML was built with it (10-20x faster than the pure-Python one). It reads a
 document exactly as `yaml.SafeLoader` does; a document it refuses is read again by the pure-Python loader,
 whose messages (and their line numbers) are the ones shown."""
@@ -37,9 +57,9 @@ def parse_yaml(text: str, shown: str) -> tuple[Any, dict[Loc, int]]:
         except yaml.YAMLError:
             node = None  # read again below, for the pure-Python loader's message
     if node is None:
-        check_yaml_limits(text, shown)
+        check_yaml_limits(text, shown, loader=SafeLoader)
         try:
-            node, data = _compose_and_construct(text, yaml.SafeLoader)
+            node, data = _compose_and_construct(text, SafeLoader)
         except yaml.YAMLError as exc:
             raise InvalidInput(yaml_error(shown, exc, text)) from None
     lines: dict[Loc, int] = {}

@@ -10,6 +10,7 @@ thousand nodes at a depth of about 6 (protocols/knee_phase1.yaml: 1,200 nodes, d
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from typing import Any
 
@@ -39,12 +40,16 @@ def check_size(n_bytes: int, shown: str) -> None:
         )
 
 
+MAX_NUMBER_CHARS = 400
+_NUMBER = re.compile(r"[-+]?[0-9_.]+(?:[eE][-+]?[0-9_]+)?")  # a plain scalar YAML reads as a number
+
+
 def check_yaml_limits(text: str, shown: str, loader: Any = yaml.SafeLoader) -> None:
     """Raise `InvalidInput` naming file and line if the YAML nests too deep, repeats too much through
     aliases, or its expanded tree has too many nodes. YAML syntax errors are left to the composer (with
     `yaml.CSafeLoader` as `loader`, raised here: the caller reads the text again with the pure-Python
     loader for its message)."""
-    fast = loader is not yaml.SafeLoader
+    fast = not issubclass(loader, yaml.SafeLoader)
     stack: list[_Open] = []
     nodes: dict[str, int] = {}
     heights: dict[str, int] = {}
@@ -70,6 +75,11 @@ def check_yaml_limits(text: str, shown: str, loader: Any = yaml.SafeLoader) -> N
                 total = _add(stack, size, height, total, shown, line)
             elif isinstance(event, yaml.ScalarEvent):
                 total = _add(stack, 1, 1, total, shown, line)
+                if not event.style and len(event.value) > MAX_NUMBER_CHARS and _NUMBER.fullmatch(event.value):
+                    raise InvalidInput(
+                        f"{shown}:{line}: a number written with {len(event.value)} characters; a number is at "
+                        f"most {MAX_NUMBER_CHARS} (no measurement needs more digits)"
+                    )
                 if event.anchor is not None:
                     nodes[str(event.anchor)], heights[str(event.anchor)] = 1, 1
             elif isinstance(event, (yaml.MappingStartEvent, yaml.SequenceStartEvent)):

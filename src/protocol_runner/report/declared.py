@@ -19,20 +19,34 @@ Spec = TypeVar("Spec", bound=BaseModel)
 @functools.lru_cache(maxsize=4)
 def protocol_document(protocol_text: str) -> Any:
     """The archived protocol text parsed as YAML, once per text (the expectations, the repeatability groups,
-    the citations and the predictions each read it); None for an empty text. Raises `yaml.YAMLError`.
+    the citations and the predictions each read it); None for an empty text. Raises `yaml.YAMLError`, also
+    for a text over the protocol loader's limits (size, nesting, aliases, numbers' length: an archive can
+    be anyone's file) or one it cannot construct.
 
-    Read-only: every caller shares the one parsed document. libyaml parses it when it is installed (the
-    same document, ten times faster than the pure-Python parser), which falls back to the pure-Python
-    parser on any text it rejects."""
+    Read-only: every caller shares the one parsed document. It is read as the protocol loader reads a file
+    (protocol/yaml_doc.py: libyaml when installed, the pure-Python parser for a text libyaml rejects)."""
+    from protocol_runner.errors import InvalidInput
+    from protocol_runner.protocol.yaml_doc import FAST_LOADER, SafeLoader
+    from protocol_runner.protocol.yaml_limits import check_size, check_yaml_limits
+
     if not protocol_text.strip():
         return None
-    fast = getattr(yaml, "CSafeLoader", None)
-    if fast is not None:
+    try:
+        check_size(len(protocol_text), "the archived protocol")
+        check_yaml_limits(protocol_text, "the archived protocol", loader=SafeLoader)
+    except InvalidInput as exc:
+        raise yaml.YAMLError(exc.message) from None
+    for loader in (FAST_LOADER, SafeLoader):
+        if loader is None:
+            continue
         try:
-            return yaml.load(protocol_text, Loader=fast)  # CSafeLoader: the safe loader in C
+            return yaml.load(protocol_text, Loader=loader)
         except yaml.YAMLError:
-            pass
-    return yaml.safe_load(protocol_text)
+            if loader is SafeLoader:
+                raise
+        except (ValueError, RecursionError) as exc:
+            raise yaml.YAMLError(f"{type(exc).__name__}: {exc}") from None
+    return None
 
 
 def declared_entries(
