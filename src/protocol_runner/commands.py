@@ -232,6 +232,7 @@ def verify(path: Path) -> int:
     from .archive.verify import verify_path
 
     verdict = verify_path(path)
+    verdict.problems.extend(_journaled_units_missing(Path(path)))
     for line in verdict.lines:
         print(line)
     if verdict.problems:
@@ -243,6 +244,26 @@ def verify(path: Path) -> int:
             + (f"\n  ... and {more} more" if more else "")
         )
     return EXIT_OK
+
+
+def _journaled_units_missing(session_dir: Path) -> list[str]:
+    """For a session directory: each unit its journal records as complete whose file is gone (a resume
+    redoes its step; the archive, if made before, still holds it)."""
+    from .session.journal import inspect_journal
+
+    journal = session_dir / "journal.jsonl"
+    if not session_dir.is_dir() or not journal.exists():
+        return []
+    try:
+        recorded = inspect_journal(journal).units
+    except OSError as exc:
+        return [f"{journal}: cannot be read as this session's journal ({exc})"]
+    units = session_dir / "units"
+    return [
+        f"{units / record.file}: journaled as the complete unit of {step_id} but missing (a resume redoes the step)"
+        for step_id, record in sorted(recorded.items())
+        if not (units / record.file).is_file()
+    ]
 
 
 def _archive_of(path: Path) -> Path:

@@ -154,3 +154,18 @@ def test_dt9814_protocol_is_refused_saying_where_and_what_to_do(
     assert f"{find_protocol('knee_phase1.yaml')} line " in err and "rig.input.board" in err
     assert "usb1608fs" in err and "USB-1608FS-Plus" in err and "--dry-run" in err
     assert not session.exists() and "Traceback" not in err
+
+
+def test_verify_names_a_journaled_unit_whose_file_is_gone(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = copy_session(reference_archive, tmp_path / "lost")
+    assert main(["--verify", str(session)]) == 0
+    capsys.readouterr()
+    record = Journal(session / "journal.jsonl").units
+    step_id, gone = next((k, r) for k, r in sorted(record.items()) if k.startswith("trial:"))
+    (session / "units" / gone.file).unlink()
+    assert main(["--verify", str(session)]) == 2
+    err = capsys.readouterr().err
+    assert f"{gone.file}: journaled as the complete unit of {step_id} but missing" in err, err
+    assert err.count("journaled as the complete unit") == 1

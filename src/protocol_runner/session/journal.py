@@ -40,6 +40,7 @@ class JournalDamage:
 
     records: int  # lines that are journal records
     damaged: tuple[int, ...]  # 1-based numbers of the other non-empty lines, the last line aside
+    units: dict[str, UnitRecord]  # the complete units the records leave journaled, by step id
 
 
 def inspect_journal(path: Path) -> JournalDamage:
@@ -67,7 +68,7 @@ def inspect_journal(path: Path) -> JournalDamage:
         except (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError, RecursionError):
             if number < len(lines):
                 damaged.append(number)
-    return JournalDamage(records, tuple(damaged))
+    return JournalDamage(records, tuple(damaged), probe.units)
 
 
 class Journal:
