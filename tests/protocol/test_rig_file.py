@@ -97,3 +97,67 @@ def test_unknown_keys_and_bad_ranges_in_the_rig_file_are_located(tmp_path: Path)
 def test_a_boolean_for_a_rate_in_the_rig_file_is_refused_at_its_line(tmp_path: Path) -> None:
     message = _broken(tmp_path, "    rate_hz: 100 ", "    rate_hz: yes ", "rate_hz")
     assert "boards.usb3105.rate_hz: expected a number, got True (YAML reads yes, no, on, off" in message
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "needle", "expected"),
+    [
+        (
+            "    plant_step_s: 0.0005 ",
+            "    plant_step_s: 1.0e-12 ",
+            "plant_step_s",
+            "joint_defaults.simulator.plant_step_s: must lie in [1e-05, 0.01], got 1e-12",
+        ),
+        (
+            "    lag_time_constant_s: 0.17 ",
+            "    lag_time_constant_s: 0 ",
+            "lag_time_constant_s",
+            "joint_defaults.simulator.lag_time_constant_s: must lie in [0.001, 10], got 0",
+        ),
+        (
+            "    relief_speed_deg_s_per_nm: 5.0 ",
+            "    relief_speed_deg_s_per_nm: -5.0 ",
+            "relief_speed",
+            "joint_defaults.simulator.relief_speed_deg_s_per_nm: must be >= 0, got -5.0",
+        ),
+        (
+            "    rate_hz: 100 ",
+            "    rate_hz: 1.0e-9 ",
+            "rate_hz",
+            "boards.usb3105.rate_hz: an output board's rate must lie in [1, 1000] Hz, got 1e-09",
+        ),
+        (
+            "    rate_hz: 100 ",
+            "    rate_hz: 50000 ",
+            "rate_hz",
+            "boards.usb3105.rate_hz: an output board's rate must lie in [1, 1000] Hz, got 50000",
+        ),
+        (
+            "    rate_hz: 1000                    # the scan rate used",
+            "    rate_hz: 0.001                   # the scan rate used",
+            "rate_hz",
+            "boards.dt9814.rate_hz: an input board's rate must lie in [10, 50000] Hz, got 0.001",
+        ),
+        (
+            "    torque_range_nm: [-84.8, 84.8]",
+            "    torque_range_nm: [5.0, 84.8]",
+            "torque_range_nm",
+            "joints.knee_flexion.torque_range_nm: the load cell's range must include 0 N·m",
+        ),
+    ],
+    ids=[
+        "plant step",
+        "lag",
+        "negative",
+        "output rate tiny",
+        "output rate high",
+        "input rate",
+        "torque range",
+    ],
+)
+def test_a_rig_value_that_would_make_the_run_unbounded_or_crash_is_refused_at_its_line(
+    tmp_path: Path, old: str, new: str, needle: str, expected: str
+) -> None:
+    """Each once passed `--validate` and then ran for ever, asked for terabytes, or crashed the dry run
+    (or, for a fast output board, `--validate` itself) with a traceback."""
+    assert expected in _broken(tmp_path, old, new, needle)

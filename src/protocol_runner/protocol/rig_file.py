@@ -145,6 +145,19 @@ def simulator_fields() -> tuple[str, ...]:
     return tuple(f.name for f in dataclasses.fields(SimulatorParams))
 
 
+# Board rates (Hz): the output is paced by software, one command per tick (DESIGN.md: 100 Hz); the input
+# scans at least 10 times a second so that a calibration step's 0.6 s ramp is sampled.
+BOARD_RATES_HZ = {"output": (1.0, 1000.0), "input": (10.0, 50000.0)}
+
+
+def simulator_bound_problem(name: str, value: object) -> str:
+    from ..hardware.simulator.params import bound_problem
+
+    return (
+        bound_problem(name, value) if isinstance(value, int | float) and not isinstance(value, bool) else ""
+    )
+
+
 def check_rig_file(rig: RigFile) -> list[Problem]:
     problems: list[Problem] = []
     for key, role in (("output_board", "output"), ("input_board", "input")):
@@ -162,7 +175,7 @@ def check_rig_file(rig: RigFile) -> list[Problem]:
         (("joint_defaults",), rig.joint_defaults.simulator),
         *((("joints", n), j.simulator) for n, j in rig.joints.items()),
     ):
-        for param in values:
+        for param, value in values.items():
             if param not in allowed:
                 problems.append(
                     (
@@ -170,6 +183,26 @@ def check_rig_file(rig: RigFile) -> list[Problem]:
                         f"unknown simulator parameter (known: {', '.join(allowed)})",
                     )
                 )
+            elif bounded := simulator_bound_problem(param, value):
+                problems.append(((*where, "simulator", param), bounded))
+    for name, board in rig.boards.items():
+        low, high = BOARD_RATES_HZ[board.role]
+        if not low <= board.rate_hz <= high:
+            problems.append(
+                (
+                    ("boards", name, "rate_hz"),
+                    f"an {board.role} board's rate must lie in [{low:g}, {high:g}] Hz, got {board.rate_hz:g}",
+                )
+            )
+    for name, j in rig.joints.items():
+        lo, hi = j.torque_range_nm
+        if not lo < 0.0 < hi:
+            problems.append(
+                (
+                    ("joints", name, "torque_range_nm"),
+                    f"the load cell's range must include 0 N·m (a joint at rest reads 0), got [{lo:g}, {hi:g}]",
+                )
+            )
     numbers: dict[int, str] = {}
     outputs: dict[int, str] = {}
     inputs: dict[int, str] = {}

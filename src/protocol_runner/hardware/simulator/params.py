@@ -89,16 +89,37 @@ class SimulatorParams:
             value = getattr(self, f.name)
             if not (isinstance(value, int | float) and math.isfinite(value)):
                 raise InvalidInput(f"simulator parameter {f.name} must be a finite number, got {value!r}")
-            if value < 0.0 and f.name != "gravity_zero_angle_deg":
-                raise InvalidInput(f"simulator parameter {f.name} must be >= 0, got {value!r}")
-        for name in (
-            "plant_step_s",
-            "lag_time_constant_s",
-            "robot_friction_transition_deg",
-            "spring_table_step_deg",
-        ):
-            if getattr(self, name) <= 0.0:
-                raise InvalidInput(f"simulator parameter {name} must be > 0, got {getattr(self, name)!r}")
+        for name, value in ((f.name, getattr(self, f.name)) for f in fields(self)):
+            problem = bound_problem(name, value)
+            if problem:
+                raise InvalidInput(f"simulator parameter {name} {problem}")
+
+
+# Where the work of a simulated trial grows with a parameter (steps per second, table entries), its range:
+# the defaults are well inside, and the ends keep a trial's work and memory bounded (issue 11, "bounded").
+BOUNDS = {
+    "plant_step_s": (1.0e-5, 0.01),  # integration grid: 100 kHz at most (the default is 2 kHz)
+    "lag_time_constant_s": (1.0e-3, 10.0),
+    "robot_friction_transition_deg": (1.0e-3, 90.0),
+    "spring_table_step_deg": (1.0e-3, 10.0),  # a table of at most 720,000 entries over +-360 deg
+}
+
+
+SIGNED = ("gravity_zero_angle_deg",)  # the parameters that may be negative
+
+
+def bound_problem(name: str, value: float) -> str:
+    """What is wrong with `value` for simulator parameter `name` ("" if nothing): outside its BOUNDS, or
+    negative where only SIGNED ones may be."""
+    if not isinstance(value, int | float):
+        return ""
+    low_high = BOUNDS.get(name)
+    if low_high is None:
+        return f"must be >= 0, got {value!r}" if value < 0.0 and name not in SIGNED else ""
+    low, high = low_high
+    if not low <= value <= high:
+        return f"must lie in [{low:g}, {high:g}], got {value!r}"
+    return ""
 
 
 DEFAULT_PARAMS = SimulatorParams()
