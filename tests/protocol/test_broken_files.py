@@ -415,3 +415,17 @@ def test_a_key_indented_too_deep_gets_a_hint_at_its_line(workdir: Path) -> None:
         f"broken.yaml:{found}: YAML syntax error: mapping values are not allowed here"
     ), message
     assert f"compare the indentation of line {found} with the line above, or quote the value)" in message
+
+
+def test_a_file_trajectory_of_a_billion_seconds_is_refused_before_it_is_sampled(workdir: Path) -> None:
+    """Its last row at t = 1e9 s once made --validate ask for 745 GiB (a traceback): its length is checked
+    before anything is sampled."""
+    rows = "time_s,angle_deg\n0,45.0\n0.01,45.0\n1e9,45.0\n"
+    (workdir / "trajectories" / "long.csv").write_text("# a typo in the last time\n" + rows, encoding="utf-8")
+    text = KNEE_TEXT.replace("file: trajectories/subject_B_synthetic.csv", "file: trajectories/long.csv")
+    message = error_of(write(workdir, text))
+    assert message.startswith(f"broken.yaml:{line_of(text, 'file: trajectories/long.csv')}: "), message
+    assert (
+        "trajectories.subject_B.file: " in message
+        and "more than the 5,000,000 a trajectory may have" in message
+    )

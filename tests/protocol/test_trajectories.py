@@ -132,3 +132,24 @@ def test_a_file_with_one_column_per_joint_gives_each_joint_its_own(tmp_path: Pat
     assert got.column == "ankle_flexion_deg"
     with pytest.raises(InvalidInput, match="needs variables `time_s` and `knee_flexion`"):
         load_trajectory_file(tmp_path / "walk.mat", "knee_flexion")
+
+
+def test_a_mat_file_declaring_too_many_elements_is_refused_before_it_is_loaded(tmp_path, monkeypatch) -> None:
+    """A few hundred kB of compressed zeros can declare gigabytes: the declared sizes are read first."""
+    import numpy as np
+    import pytest
+    import scipy.io
+
+    from protocol_runner.errors import InvalidInput
+    from protocol_runner.protocol import trajectories
+
+    monkeypatch.setattr(trajectories, "MAX_MAT_ELEMENTS", 1000)
+    path = tmp_path / "big.mat"
+    scipy.io.savemat(path, {"time_s": np.arange(600) * 0.01, "angle_deg": np.zeros(600)}, do_compression=True)
+    monkeypatch.setattr(
+        scipy.io, "loadmat", lambda *a, **k: pytest.fail("loaded before its size was checked")
+    )
+    with pytest.raises(
+        InvalidInput, match=r"big\.mat: its variables hold 1,200 elements, more than the 1,000"
+    ):
+        trajectories._load_mat(path, ("angle_deg",))

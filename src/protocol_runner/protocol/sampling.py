@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
+from ..errors import InvalidInput
 from .plan_trajectory import Trajectory
 from .trajectories import (
     calibration_step_deg,
@@ -25,8 +26,18 @@ from .trajectories import (
 FloatArray = npt.NDArray[np.float64]
 
 
+MAX_COMMAND_SAMPLES = 5_000_000
+"""Longest commanded trajectory (samples at the output rate): about 14 h at 100 Hz."""
+
+
 def sample_times_s(trajectory: Trajectory, rate_hz: float) -> FloatArray:
-    """The output ticks of a trajectory: t = 0, 1/rate, ... < duration_s."""
+    """The output ticks of a trajectory: t = 0, 1/rate, ... < duration_s. `InvalidInput` for one of more
+    than MAX_COMMAND_SAMPLES (the protocol's checks refuse it first, naming its field)."""
+    if not trajectory.duration_s * rate_hz <= MAX_COMMAND_SAMPLES:
+        raise InvalidInput(
+            f"trajectory {trajectory.name or trajectory.profile!r} lasts {trajectory.duration_s:.0f} s: more "
+            f"than the {MAX_COMMAND_SAMPLES:,} samples at {rate_hz:g} Hz a trajectory may have"
+        )
     return np.arange(0.0, trajectory.duration_s, 1.0 / rate_hz)
 
 

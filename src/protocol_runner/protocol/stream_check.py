@@ -18,16 +18,13 @@ from ..hardware.calibration import CalibrationTable, load_calibration_table
 from ..hardware.safety import SafetyLimits, SafetyViolation, check_trajectory
 from ..hardware.stream import build_stream, check_stream
 from .plan_trajectory import Trajectory
-from .sampling import sample_trajectory
+from .sampling import MAX_COMMAND_SAMPLES, sample_trajectory
 from .schema import RigSpec
 
 if TYPE_CHECKING:
     from .loaded import LoadedProtocol, Loc
 
 Problem = tuple["Loc", str]
-
-MAX_COMMAND_SAMPLES = 5_000_000
-"""Longest commanded trajectory (samples at the output rate): about 14 h at 100 Hz."""
 
 
 def safety_limits(rig: RigSpec) -> SafetyLimits:

@@ -282,9 +282,23 @@ def _parse_csv(path: Path, text: str, angle_names: tuple[str, ...]) -> _Columns:
     )
 
 
-def _load_mat(path: Path, angle_names: tuple[str, ...]) -> tuple[FloatArray, FloatArray, str, str]:
-    from scipy.io import loadmat
+MAX_MAT_ELEMENTS = 20_000_000
+"""Most elements a trajectory .mat may hold in all (its variables' declared sizes, read before loading): a
+few megabytes of compressed zeros can declare gigabytes."""
 
+
+def _load_mat(path: Path, angle_names: tuple[str, ...]) -> tuple[FloatArray, FloatArray, str, str]:
+    from scipy.io import loadmat, whosmat
+
+    try:
+        declared = sum(math.prod(shape) for _, shape, _ in whosmat(str(path)))
+    except Exception as exc:  # scipy raises several types for a broken file
+        raise InvalidInput(f"{path}: not a readable MATLAB .mat file ({exc})") from None
+    if declared > MAX_MAT_ELEMENTS:
+        raise InvalidInput(
+            f"{path}: its variables hold {declared:,} elements, more than the {MAX_MAT_ELEMENTS:,} a "
+            "trajectory file may have"
+        )
     try:
         contents = loadmat(str(path), squeeze_me=True)
     except Exception as exc:  # scipy raises several types for a broken file
