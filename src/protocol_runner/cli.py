@@ -7,6 +7,7 @@ calibration check; 130 interrupted or disk full (resumable).
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import sys
 import threading
@@ -157,6 +158,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         from .archive.diskfull import is_disk_full
 
         if not is_disk_full(exc):
+            if exc.errno in _FILE_SYSTEM_REFUSALS:  # the file system said no: not a bug of ours
+                print(f"run-protocol: {_refusal(exc)}", file=sys.stderr)
+                return EXIT_INVALID_INPUT
             raise
         print(
             f"run-protocol: disk full ({exc.filename or exc.strerror or exc}): nothing finished is lost. Free "
@@ -167,6 +171,29 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("run-protocol: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+
+
+_FILE_SYSTEM_REFUSALS = {
+    errno.EROFS,
+    errno.EACCES,
+    errno.EPERM,
+    errno.EISDIR,
+    errno.ENOTDIR,
+    errno.ELOOP,
+    errno.EEXIST,
+}
+"""What a file system answers when a path cannot be used as asked (read-only, no permission, a directory
+where a file belongs or the reverse, a symbolic link loop, a file in the way): said in one line, exit 2."""
+
+
+def _refusal(exc: OSError) -> str:
+    where = exc.filename if exc.filename is not None else "a file of this command"
+    hint = {
+        errno.EROFS: "; give --output (or --session) a writable place",
+        errno.EACCES: "; check the permissions",
+        errno.EPERM: "; check the permissions",
+    }.get(exc.errno or 0, "")
+    return f"cannot use {where}: {exc.strerror or exc}{hint}"
 
 
 def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:

@@ -169,3 +169,56 @@ def test_verify_names_a_journaled_unit_whose_file_is_gone(
     err = capsys.readouterr().err
     assert f"{gone.file}: journaled as the complete unit of {step_id} but missing" in err, err
     assert err.count("journaled as the complete unit") == 1
+
+
+def test_a_journal_that_is_not_a_file_is_refused_without_reading_it(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = copy_session(reference_archive, tmp_path / "devzero")
+    (session / "archive.h5").unlink()
+    (session / "journal.jsonl").unlink()
+    (session / "journal.jsonl").symlink_to("/dev/zero")  # endless: read, it would fill the memory
+    assert main(["--resume", str(session), "--yes"]) == 2
+    err = capsys.readouterr().err
+    assert "journal.jsonl" in err and "not a regular file" in err and "Traceback" not in err
+
+
+def test_an_archive_that_is_a_directory_is_one_line_not_a_traceback(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = copy_session(reference_archive, tmp_path / "dir")
+    (session / "archive.h5").unlink()
+    (session / "archive.h5").mkdir()
+    for command in (["--report", str(session)], ["--export", str(session), "--output", str(tmp_path / "t")]):
+        assert main(command) == 2
+        err = capsys.readouterr().err
+        assert err.startswith("run-protocol: ") and "Traceback" not in err
+        assert len(err.strip().splitlines()) == 1, err
+
+
+def test_a_read_only_session_is_said_so_and_a_finished_one_resumes_to_nothing(
+    tmp_path: Path, reference_archive: Path
+) -> None:
+    import shutil as sh
+    import subprocess
+    import sys
+
+    session = copy_session(reference_archive, tmp_path / "ro")
+    if sh.which("unshare") is None:
+        pytest.skip("no unshare: cannot make a read-only bind mount here")
+    cli = f"{sys.executable} -m protocol_runner.cli"
+    script = f"""
+        mount --bind {session} {session} && mount -o remount,bind,ro {session} || exit 99
+        {cli} --resume {session} --yes > {tmp_path}/out1 2> {tmp_path}/err1; echo $? > {tmp_path}/code1
+        {cli} --report {session} 2> {tmp_path}/err2; echo $? > {tmp_path}/code2
+        {cli} --export {session} 2> {tmp_path}/err3; echo $? > {tmp_path}/code3
+    """
+    done = subprocess.run(["unshare", "-Urm", "sh", "-c", script], timeout=300, cwd=tmp_path)
+    if done.returncode == 99 or not (tmp_path / "code1").exists():
+        pytest.skip("cannot make a read-only bind mount here (needs user and mount namespaces)")
+    assert (tmp_path / "code1").read_text().strip() == "0"  # finished: nothing to write, nothing written
+    assert "is complete" in (tmp_path / "err1").read_text()
+    for k in (2, 3):
+        err = (tmp_path / f"err{k}").read_text()
+        assert (tmp_path / f"code{k}").read_text().strip() == "2", err
+        assert "Read-only file system" in err and "writable place" in err and "Traceback" not in err

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from ..archive.units import UnitRecord
+from ..errors import InvalidInput
 
 
 def utc_now() -> str:
@@ -82,6 +83,10 @@ class Journal:
         self.answers: dict[str, dict[str, Any]] = {}
         self.torn_lines = 0
         self.damaged_lines = 0  # lines read that are not records (the torn tail, cut off first, aside)
+        if path.exists() and (not path.is_file() or path.stat().st_size > MAX_JOURNAL_BYTES):
+            raise InvalidInput(
+                f"{path}: not this session's journal (not a regular file, or over {MAX_JOURNAL_BYTES // 2**20} MB)"
+            )
         if path.exists():
             self._repair_torn_tail()
             self._read()
@@ -89,10 +94,10 @@ class Journal:
     def _repair_torn_tail(self) -> None:
         """A crash mid-append can leave a last line without its newline: cut it off (it never described a
         complete unit), so the next record starts on a line of its own instead of being glued to it."""
+        data = self.path.read_bytes()  # read only: a journal that needs no repair is not opened for writing
+        if not data or data.endswith(b"\n"):
+            return
         with self.path.open("rb+") as f:
-            data = f.read()
-            if not data or data.endswith(b"\n"):
-                return
             keep = data.rfind(b"\n") + 1
             f.truncate(keep)
             f.flush()
