@@ -4,6 +4,7 @@ progress counts every step including the report; a DT9814 protocol is refused sa
 
 from __future__ import annotations
 
+import json
 import shutil
 from pathlib import Path
 
@@ -222,3 +223,35 @@ def test_a_read_only_session_is_said_so_and_a_finished_one_resumes_to_nothing(
         err = (tmp_path / f"err{k}").read_text()
         assert (tmp_path / f"code{k}").read_text().strip() == "2", err
         assert "Read-only file system" in err and "writable place" in err and "Traceback" not in err
+
+
+def test_what_was_computed_from_a_redone_recording_is_redone_with_it(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A damaged brace-on unit is recorded again on resume; on the rig that is a new recording, so its
+    brace-off twin (which follows its measured output), the processing and the fit made from the old one
+    are made again too, not kept beside it."""
+    from .conftest import assert_same_data
+
+    session = copy_session(reference_archive, tmp_path / "redo")
+    (session / "archive.h5").unlink()
+    journal = Journal(session / "journal.jsonl")
+    on_id = next(k for k in journal.units if k.startswith("trial:") and ":on:" in k)
+    unit = session / "units" / journal.units[on_id].file
+    data = bytearray(unit.read_bytes())
+    data[len(data) // 2] ^= 0xFF  # one flipped byte: its sha256 no longer matches the journal
+    unit.write_bytes(bytes(data))
+    key = on_id.split(":")[1]
+    assert main(["--resume", str(session), "--yes"]) == 0
+    err = capsys.readouterr().err
+    invalidated = {}
+    for line in (session / "journal.jsonl").read_text().splitlines():
+        rec = json.loads(line)
+        if rec.get("record") == "invalidate":
+            invalidated[rec["step_id"]] = rec["why"]
+    twin = on_id.replace(":on:", ":off:")
+    assert invalidated[on_id] == "unit file missing, truncated or corrupt"
+    for derived in (twin, f"process:{key}", f"fit:{key}"):
+        assert invalidated[derived] == f"derived from {on_id}, which is redone", invalidated
+        assert f"{derived}: derived from {on_id}, which is redone" in err
+    assert_same_data(reference_archive, session / "archive.h5")  # the simulator records the same again

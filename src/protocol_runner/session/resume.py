@@ -22,11 +22,15 @@ from ..errors import InvalidInput
 from ..protocol.plan import (
     CalibrationCheckStep,
     ChecklistStep,
+    CompareStep,
+    FitStep,
     Plan,
+    ProcessStep,
     Step,
     TrialStep,
     calibration_id,
 )
+from ..protocol.step_ids import step_id as make_step_id
 from .journal import Journal, inspect_journal
 from .setup import SessionInfo, changed_files
 
@@ -108,6 +112,36 @@ def first_rig_step(plan: Plan, done: set[str]) -> Step | None:
     return next((s for s in plan.steps if s.id not in done and isinstance(s, rig_kinds)), None)
 
 
+def derived_from(plan: Plan, redone: set[str]) -> dict[str, str]:
+    """Each step whose unit was computed from a step in `redone`, directly or through others, with the redone
+    step it comes from: a brace-off trial follows its brace-on twin's measured output, the processing reads
+    both trials of each pair, the fit reads the processing, a comparison the processings. On the rig a
+    redone trial is a new recording, so everything made from the old one is made again."""
+    origin = dict.fromkeys(redone, "")
+    for step in plan.steps:  # in plan order: every step comes after the steps it reads
+        if step.id in origin:
+            continue
+        source = next((origin[i] or i for i in _inputs(step) if i in origin), None)
+        if source is not None:
+            origin[step.id] = source
+    return {step_id: source for step_id, source in origin.items() if step_id not in redone}
+
+
+def _inputs(step: Step) -> list[str]:
+    """The steps whose units `step` reads (derived_from)."""
+    from ..steps.compare import units_read
+
+    if isinstance(step, TrialStep) and step.twin is not None:
+        return [step.twin]
+    if isinstance(step, ProcessStep):
+        return [i for pair in step.trials for i in pair]
+    if isinstance(step, FitStep):
+        return [make_step_id("process", key=step.configuration)]
+    if isinstance(step, CompareStep):
+        return units_read(step)
+    return []
+
+
 def prepare_resume(runner: Runner, ctx: StepContext, progress: Progress) -> None:
     """Journal the resume, drop damaged units, park, re-check the set's calibration and set the rig up."""
     j = runner.journal
@@ -132,10 +166,16 @@ def prepare_resume(runner: Runner, ctx: StepContext, progress: Progress) -> None
             f"journal.jsonl had {j.damaged_lines} damaged line(s), ignored; resumed with --force: the steps they "
             "recorded are redone",
         )
+    redone: set[str] = set()
     for step_id, record in list(j.units.items()):
         if not unit_is_complete(runner.units_dir, record):
             j.invalidate(step_id, "unit file missing, truncated or corrupt")
             progress.info(f"{step_id}: its unit file is missing or damaged; the step will be redone")
+            redone.add(step_id)
+    for step_id, source in derived_from(runner.plan, redone).items():
+        if step_id in j.units:  # computed from a recording that is made again: made again from the new one
+            j.invalidate(step_id, f"derived from {source}, which is redone")
+            progress.info(f"{step_id}: derived from {source}, which is redone; the step will be redone too")
     if runner.bench.mode == "hardware":  # after a crash the joint may be anywhere: bring it to rest first
         runner.bench.rig.park(where="park before resuming")
     plan = runner.plan
