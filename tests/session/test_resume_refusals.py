@@ -255,3 +255,30 @@ def test_what_was_computed_from_a_redone_recording_is_redone_with_it(
         assert invalidated[derived] == f"derived from {on_id}, which is redone", invalidated
         assert f"{derived}: derived from {on_id}, which is redone" in err
     assert_same_data(reference_archive, session / "archive.h5")  # the simulator records the same again
+
+
+@pytest.mark.parametrize("how", ["consolidated by --report", "truncated"])
+def test_a_finished_session_whose_archive_is_not_its_finished_one_is_assembled_again(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str], how: str
+) -> None:
+    import h5py
+
+    from .conftest import assert_same_data
+
+    session = copy_session(reference_archive, tmp_path / "again")
+    archive = session / "archive.h5"
+    if how == "truncated":
+        with archive.open("r+b") as f:
+            f.truncate(archive.stat().st_size // 2)
+    else:  # --report on a session without its archive consolidates one from the units: "incomplete"
+        archive.unlink()
+        assert main(["--report", str(session), "--output", str(tmp_path / "look.html")]) == 0
+        with h5py.File(archive, "r") as f:
+            assert f.attrs["status"] == "incomplete"
+    capsys.readouterr()
+    assert main(["--resume", str(session), "--yes"]) == 0
+    out = capsys.readouterr().out
+    assert "0 steps run" in out  # nothing redone: only the archive and the report made again
+    with h5py.File(archive, "r") as f:
+        assert f.attrs["status"] == "complete" and "expectations" in f
+    assert_same_data(reference_archive, archive)

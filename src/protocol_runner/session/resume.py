@@ -272,6 +272,22 @@ def _refuse_a_damaged_journal(journal_path: Path, units_dir: Path, n_units: int,
         )
 
 
+def _archive_says_complete(path: Path) -> bool:
+    """Whether `path` is an archive that opens and whose root says the session is complete (one that
+    `--report` consolidated from the units of a session without an archive says "incomplete": the resume
+    then assembles the session's own, with its verdicts)."""
+    import h5py
+
+    if not path.is_file():
+        return False
+    try:
+        with h5py.File(path, "r") as f:
+            status = f.attrs.get("status")
+    except Exception:  # truncated, not HDF5, unreadable: not the session's finished archive
+        return False
+    return (status.decode() if isinstance(status, bytes) else str(status)) == "complete"
+
+
 def resume_preflight(session_dir: Path, plan: Plan, *, force: bool) -> str | None:
     """Refuse a resume that would silently redo or rewrite recorded work. Returns a message when the
     session is already complete - every step done, archive and report written (nothing to do; nothing is
@@ -293,7 +309,7 @@ def resume_preflight(session_dir: Path, plan: Plan, *, force: bool) -> str | Non
     last = next((e for e in reversed(journal.events) if e.kind in ("finished", "resumed", "started")), None)
     to_run = [s for s in plan.steps if s.kind != "report"]
     complete = all(s.id in journal.units and unit_is_complete(units_dir, journal.units[s.id]) for s in to_run)
-    written = all((session_dir / name).is_file() for name in ("archive.h5", "report.html"))
+    written = (session_dir / "report.html").is_file() and _archive_says_complete(session_dir / "archive.h5")
     if last is not None and last.kind == "finished" and complete and written:
         return (
             f"{session_dir} is complete (finished {last.t_utc}): nothing to resume, nothing rewritten. "
