@@ -108,3 +108,22 @@ def test_a_number_of_thousands_of_digits_is_refused_at_its_line_with_either_pars
             protocol_document(text)
     ok = f"name: x\nperiods: {'1' * MAX_NUMBER_CHARS}\nsetup: '{'9' * 5000}'\nnote: {'9' * 500} turns\n"
     assert parse_yaml(ok, "x.yaml")[0]["setup"] == "9" * 5000  # quoted text, and text that is not a number
+
+
+@pytest.mark.parametrize(
+    ("text", "where", "code"),
+    [
+        ('name: x\nlevel: "sl\\x1b[2Jow"\n', "p.yaml:2: level", 0x1B),
+        ('name: x\nitems: [a, "b\\x07"]\n', "p.yaml:2: items[1]", 0x07),
+        ('name: x\n"k\\x9b": 1\n', "p.yaml:2: k\\x9b", 0x9B),  # the message escapes it
+    ],
+    ids=["escape", "bell in a list", "C1 in a key"],
+)
+def test_control_characters_in_texts_are_refused_at_their_line(text: str, where: str, code: int) -> None:
+    """A level label with terminal escapes passed --validate and --plan printed them raw."""
+    assert message(text).startswith(f"{where}: control character U+{code:04X} in a text")
+
+
+def test_tabs_and_newlines_in_texts_are_text() -> None:
+    data, _ = yaml_doc.parse_yaml('a: "one\\ttwo"\nb: |\n  line 1\n  line 2\n', "p.yaml")
+    assert data == {"a": "one\ttwo", "b": "line 1\nline 2\n"}

@@ -69,7 +69,45 @@ def parse_yaml(text: str, shown: str) -> tuple[Any, dict[Loc, int]]:
     if duplicates:
         loc, line = duplicates[0]
         raise InvalidInput(f"{shown}:{line}: {format_loc(loc)}: duplicate key (each key may appear once)")
+    control = _control_character(data, ())
+    if control is not None:
+        where, code = control
+        at = line_for(lines, where)
+        raise InvalidInput(
+            f"{shown}:{at or '?'}: {_escaped(format_loc(where))}: control character U+{code:04X} in a text (terminal "
+            "escape sequences and the like are refused: a label is printed on the operator's terminal)"
+        )
     return data, lines
+
+
+def _control_character(value: object, loc: Loc) -> tuple[Loc, int] | None:
+    """The first key or text holding a control character other than tab and newline, and its code."""
+    if isinstance(value, str):
+        code = next((ord(c) for c in value if _is_control(c)), None)
+        return None if code is None else (loc, code)
+    if isinstance(value, dict):
+        for key, item in value.items():
+            here = (*loc, str(key))
+            found = _control_character(key, here) if isinstance(key, str) else None
+            found = found or _control_character(item, here)
+            if found is not None:
+                return found
+    elif isinstance(value, list):
+        for i, item in enumerate(value):
+            found = _control_character(item, (*loc, i))
+            if found is not None:
+                return found
+    return None
+
+
+def _escaped(text: str) -> str:
+    """`text` with its control characters written as escapes (a message must not carry them either)."""
+    return "".join(f"\\x{ord(c):02x}" if _is_control(c) else c for c in text)
+
+
+def _is_control(character: str) -> bool:
+    code = ord(character)
+    return (code < 0x20 and character not in "\t\n") or 0x7F <= code <= 0x9F
 
 
 def _compose_and_construct(text: str, loader_class: Any) -> tuple[yaml.Node | None, Any]:
