@@ -49,15 +49,15 @@ def preflight_warnings(loaded: LoadedProtocol, plan: Plan) -> list[str]:
     rates = {rig.joint.name: rig.output.rate_hz for rig in loaded.protocol.rigs}
     first_rate = loaded.protocol.rigs[0].output.rate_hz
     empty: dict[tuple[str, str], tuple[Trajectory, list[int]]] = {}
-    counted: dict[tuple[str, str], int] = {}
+    counted: dict[tuple[Trajectory, str], int] = {}  # by the motion itself: a bound field may differ
     for step in plan.steps:
         if not (isinstance(step, TrialStep) and step.brace == "on" and step.configuration in processed):
             continue
         for joint, trajectory in step.joint_trajectories or (("", step.trajectory),):
             motion = (trajectory.name or trajectory.profile, joint)
-            if motion not in counted:
+            if (trajectory, joint) not in counted:
                 angle = sample_trajectory(trajectory, rates.get(joint, first_rate), loaded.base_dir)
-                counted[motion] = (
+                counted[(trajectory, joint)] = (
                     len(
                         complete_cycles(
                             np.asarray(angle, dtype=np.float64),
@@ -68,7 +68,7 @@ def preflight_warnings(loaded: LoadedProtocol, plan: Plan) -> list[str]:
                     if angle.size >= 3
                     else 0
                 )
-            if counted[motion] == 0:
+            if counted[(trajectory, joint)] == 0:
                 empty.setdefault(motion, (trajectory, []))[1].append(step.configuration)
     problems = []
     for (traj_name, joint), (trajectory, keys) in empty.items():
