@@ -315,3 +315,21 @@ def test_hdf5s_runtime_error_of_a_full_disk_is_a_full_disk() -> None:
     assert is_disk_full(RuntimeError("H5Fclose failed (errno = 122, error message = 'Disk quota exceeded')"))
     assert not is_disk_full(RuntimeError("Unable to synchronously create dataset (name already exists)"))
     assert not is_disk_full(RuntimeError("errno = 2, error message = 'No such file or directory'"))
+
+
+def test_enospc_during_export_mat_is_a_full_disk_with_only_complete_files_left(
+    tmp_path: Path,
+    reference_archive: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from protocol_runner.archive import export
+
+    out = tmp_path / "mat"
+    monkeypatch.setattr(export, "savemat", after(2, export.savemat))  # the second file meets a full disk
+    code = main(["--report", str(reference_archive), "--export-mat", str(out)])
+    err = capsys.readouterr().err
+    assert code == 130, err
+    assert "run-protocol: disk full while writing" in err and "--export-mat" in err and "Traceback" not in err
+    left = sorted(p.name for p in out.iterdir())
+    assert len(left) == 1 and left[0].endswith(".mat")  # the first, complete; no partial file

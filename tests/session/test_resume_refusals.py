@@ -282,3 +282,19 @@ def test_a_finished_session_whose_archive_is_not_its_finished_one_is_assembled_a
     with h5py.File(archive, "r") as f:
         assert f.attrs["status"] == "complete" and "expectations" in f
     assert_same_data(reference_archive, archive)
+
+
+def test_a_hand_edited_only_is_refused_as_the_journal_disagrees(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = copy_session(reference_archive, tmp_path / "edited")
+    (session / "archive.h5").unlink()
+    info = json.loads((session / "session.json").read_text())
+    info["only"] = [k + 1 for k in info["only"]]  # another configuration than the one that ran
+    (session / "session.json").write_text(json.dumps(info))
+    assert main(["--resume", str(session), "--yes"]) == 2
+    err = capsys.readouterr().err
+    assert "records finished steps the session's plan does not have" in err and "session.json" in err
+    assert main(["--resume", str(session), "--yes", "--force"]) == 0
+    overrides = [e.detail for e in Journal(session / "journal.jsonl").events if e.kind == "operator_override"]
+    assert any("the journal records steps the plan does not have" in d for d in overrides), overrides

@@ -41,6 +41,7 @@ from scipy.io import savemat
 
 from .. import __version__
 from ..errors import InvalidInput, make_output_dir
+from .diskfull import DiskFull, is_disk_full
 from .matlab import Units, attrs_struct, dataset_value, group_struct, matlab_value, put_field, text
 from .verify import validate_archive  # clear messages for foreign or damaged files
 
@@ -192,5 +193,10 @@ def _save(path: Path, content: dict[str, Any]) -> Path:
         os.replace(partial, path)
     except OSError as exc:
         partial.unlink(missing_ok=True)
+        if is_disk_full(exc):  # as everywhere: one message, exit 130; the files written before are complete
+            raise DiskFull(
+                f"disk full while writing {path} (--export-mat): the .mat files written before it are complete; "
+                "free some space and run the export again"
+            ) from None
         raise InvalidInput(f"--export-mat: cannot write {path}: {exc.strerror or exc}") from None
     return path

@@ -166,6 +166,12 @@ def prepare_resume(runner: Runner, ctx: StepContext, progress: Progress) -> None
             f"journal.jsonl had {j.damaged_lines} damaged line(s), ignored; resumed with --force: the steps they "
             "recorded are redone",
         )
+    strangers = _not_in_plan(runner.plan, j)
+    if strangers:  # only with --force (resume_preflight refuses them otherwise)
+        j.event(
+            "operator_override",
+            f"resumed with --force although the journal records steps the plan does not have: {', '.join(strangers)}",
+        )
     redone: set[str] = set()
     for step_id, record in list(j.units.items()):
         if not unit_is_complete(runner.units_dir, record):
@@ -272,6 +278,17 @@ def _refuse_a_damaged_journal(journal_path: Path, units_dir: Path, n_units: int,
         )
 
 
+def _not_in_plan(plan: Plan, journal: Journal) -> list[str]:
+    """The finished steps the journal records that the plan does not have: a plan changed since they ran.
+    The calibration checks a resume adds (`cal:<set>:resume-<n>`, `prepare_resume`) are the resume's
+    own, not the plan's, and do not count."""
+    planned = {s.id for s in plan.steps}
+    resumed = [calibration_id(name, "resume-") for name in {s.set for s in plan.steps if hasattr(s, "set")}]
+    return sorted(
+        step for step in journal.units if step not in planned and not any(step.startswith(r) for r in resumed)
+    )
+
+
 def _archive_says_complete(path: Path) -> bool:
     """Whether `path` is an archive that opens and whose root says the session is complete (one that
     `--report` consolidated from the units of a session without an archive says "incomplete": the resume
@@ -306,6 +323,14 @@ def resume_preflight(session_dir: Path, plan: Plan, *, force: bool) -> str | Non
         return None
     _refuse_a_damaged_journal(journal_path, units_dir, n_units, force=force)
     journal = Journal(journal_path)
+    strangers = _not_in_plan(plan, journal)
+    if strangers and not force:
+        shown = ", ".join(strangers[:4]) + (" ..." if len(strangers) > 4 else "")
+        raise InvalidInput(
+            f"{journal_path}: records finished steps the session's plan does not have ({shown}): "
+            f"{session_dir / 'session.json'} (its `only`) or the session's protocol was edited since they "
+            "ran. Restore it, or resume with --force to go on with the plan as it is now (recorded)"
+        )
     last = next((e for e in reversed(journal.events) if e.kind in ("finished", "resumed", "started")), None)
     to_run = [s for s in plan.steps if s.kind != "report"]
     complete = all(s.id in journal.units and unit_is_complete(units_dir, journal.units[s.id]) for s in to_run)
