@@ -291,6 +291,7 @@ def _mode_protocol(flag: str, given: str, positional: str | None) -> str:
 def _cmd_validate(args: argparse.Namespace) -> int:
     from .preflight import preflight, preflight_warnings
     from .protocol.loader import find_protocol, load_protocol
+    from .protocol.plan_table import robot_time_text
 
     path = find_protocol(args.validate)
     loaded = load_protocol(path, display_name=args.validate if Path(args.validate).exists() else str(path))
@@ -301,15 +302,10 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     n_cfg = len(loaded.protocol.configurations())
     print(
         f"{path}: valid. {loaded.protocol.name}: {len(loaded.protocol.sets)} sets, {n_cfg} configurations, "
-        f"{trials} trials, {len(plan)} steps, about {_robot_time(plan.robot_time_s)} of robot time. "
+        f"{trials} trials, {len(plan)} steps, about {robot_time_text(plan.robot_time_s)} of robot time. "
         f"sha256 {loaded.sha256[:16]}..."
     )
     return EXIT_OK
-
-
-def _robot_time(seconds: float) -> str:
-    """'2.3 h', or '12 min' under an hour and a half (as a run announces it)."""
-    return f"{seconds / 3600:.1f} h" if seconds >= 5400 else f"{seconds / 60:.0f} min"
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:

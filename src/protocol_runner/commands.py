@@ -49,6 +49,7 @@ def run(
     _start_worker_server()
     from .preflight import preflight, preflight_warnings
     from .protocol.loader import find_protocol, load_protocol
+    from .protocol.plan_table import robot_time_text
     from .session.runner import Runner
     from .session.setup import create_session, created_session_protocol, default_session_dir
 
@@ -74,8 +75,7 @@ def run(
     )
     stored, plan = created_session_protocol(directory, info, loaded), planned  # not read again
     bench = _bench(stored, info) if dry_run else hardware
-    robot_min = plan.robot_time_s / 60
-    robot = f"{robot_min / 60:.1f} h" if robot_min >= 90 else f"{robot_min:.0f} min"
+    robot = robot_time_text(plan.robot_time_s)
     _say(
         f"session {directory}: {loaded.protocol.name}, {len(plan)} steps, about {robot} of robot motion "
         f"({info.mode}, seed {info.seed})"

@@ -36,8 +36,6 @@ def preflight(loaded: LoadedProtocol, only: KeySelection | Iterable[int] | None 
 def preflight_warnings(loaded: LoadedProtocol, plan: Plan) -> list[str]:
     """One line per trajectory (and joint) whose commanded angle holds no complete cycle, for the processed
     trials of `plan`: "file:line: field: warning: ..." (module docstring)."""
-    import numpy as np
-
     from .analysis.cycles import complete_cycles
     from .protocol.only import key_spans
     from .protocol.processing import processing_settings
@@ -60,7 +58,7 @@ def preflight_warnings(loaded: LoadedProtocol, plan: Plan) -> list[str]:
                 counted[(trajectory, joint)] = (
                     len(
                         complete_cycles(
-                            np.asarray(angle, dtype=np.float64),
+                            angle,
                             hysteresis_deg=settings.cycle_hysteresis_deg,
                             reference=settings.cycle_reference,
                         )

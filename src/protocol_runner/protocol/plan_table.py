@@ -89,3 +89,8 @@ def format_plan_table(plan: Plan) -> str:
         f"about {plan.robot_time_s / 60:.0f} min of robot motion (brace-off scaling iterations add more)."
     )
     return "\n".join(lines)
+
+
+def robot_time_text(seconds: float) -> str:
+    """A plan's robot time as a run and `--validate` announce it: "2.3 h", or "12 min" under 90 minutes."""
+    return f"{seconds / 3600:.1f} h" if seconds >= 5400 else f"{seconds / 60:.0f} min"

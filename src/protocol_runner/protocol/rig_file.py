@@ -150,15 +150,9 @@ def simulator_fields() -> tuple[str, ...]:
 BOARD_RATES_HZ = {"output": (1.0, 1000.0), "input": (10.0, 50000.0)}
 
 
-def simulator_bound_problem(name: str, value: object) -> str:
+def check_rig_file(rig: RigFile) -> list[Problem]:
     from ..hardware.simulator.params import bound_problem
 
-    return (
-        bound_problem(name, value) if isinstance(value, int | float) and not isinstance(value, bool) else ""
-    )
-
-
-def check_rig_file(rig: RigFile) -> list[Problem]:
     problems: list[Problem] = []
     for key, role in (("output_board", "output"), ("input_board", "input")):
         name = getattr(rig, key)
@@ -183,7 +177,7 @@ def check_rig_file(rig: RigFile) -> list[Problem]:
                         f"unknown simulator parameter (known: {', '.join(allowed)})",
                     )
                 )
-            elif bounded := simulator_bound_problem(param, value):
+            elif bounded := bound_problem(param, value):
                 problems.append(((*where, "simulator", param), bounded))
     for name, board in rig.boards.items():
         low, high = BOARD_RATES_HZ[board.role]

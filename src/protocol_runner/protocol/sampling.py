@@ -30,14 +30,23 @@ MAX_COMMAND_SAMPLES = 5_000_000
 """Longest commanded trajectory (samples at the output rate): about 14 h at 100 Hz."""
 
 
+def samples_problem(trajectory: Trajectory, rate_hz: float) -> str:
+    """Why `trajectory` is too long to sample at `rate_hz` ("" if it is not): more than MAX_COMMAND_SAMPLES."""
+    n_samples = trajectory.duration_s * rate_hz
+    if n_samples <= MAX_COMMAND_SAMPLES:
+        return ""
+    return (
+        f"it lasts {trajectory.duration_s:.0f} s: {n_samples:,.0f} samples at {rate_hz:g} Hz, more than the "
+        f"{MAX_COMMAND_SAMPLES:,} a trajectory may have"
+    )
+
+
 def sample_times_s(trajectory: Trajectory, rate_hz: float) -> FloatArray:
     """The output ticks of a trajectory: t = 0, 1/rate, ... < duration_s. `InvalidInput` for one of more
     than MAX_COMMAND_SAMPLES (the protocol's checks refuse it first, naming its field)."""
-    if not trajectory.duration_s * rate_hz <= MAX_COMMAND_SAMPLES:
-        raise InvalidInput(
-            f"trajectory {trajectory.name or trajectory.profile!r} lasts {trajectory.duration_s:.0f} s: more "
-            f"than the {MAX_COMMAND_SAMPLES:,} samples at {rate_hz:g} Hz a trajectory may have"
-        )
+    too_long = samples_problem(trajectory, rate_hz)
+    if too_long:
+        raise InvalidInput(f"trajectory {trajectory.name or trajectory.profile!r}: {too_long}")
     return np.arange(0.0, trajectory.duration_s, 1.0 / rate_hz)
 
 

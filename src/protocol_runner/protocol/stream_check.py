@@ -18,7 +18,7 @@ from ..hardware.calibration import CalibrationTable, load_calibration_table
 from ..hardware.safety import SafetyLimits, SafetyViolation, check_trajectory
 from ..hardware.stream import build_stream, check_stream
 from .plan_trajectory import Trajectory
-from .sampling import MAX_COMMAND_SAMPLES, sample_trajectory
+from .sampling import sample_trajectory, samples_problem
 from .schema import RigSpec
 
 if TYPE_CHECKING:
@@ -71,12 +71,9 @@ def _problem(
     rate_hz: float,
     volts_range_deg: tuple[float, float],
 ) -> str | None:
-    n_samples = traj.duration_s * rate_hz
-    if n_samples > MAX_COMMAND_SAMPLES:
-        return (
-            f"it lasts {traj.duration_s:.0f} s: {n_samples:,.0f} samples at {rate_hz:g} Hz, more than the "
-            f"{MAX_COMMAND_SAMPLES:,} a trajectory may have"
-        )
+    too_long = samples_problem(traj, rate_hz)
+    if too_long:
+        return too_long
     try:
         samples = sample_trajectory(traj, rate_hz, loaded.base_dir)
         check_trajectory(samples, rate_hz, limits, where="stream (trajectory)")

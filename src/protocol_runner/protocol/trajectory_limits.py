@@ -25,7 +25,7 @@ from pathlib import Path
 from ..hardware.safety import SafetyLimits, SafetyViolation, check_trajectory
 from ..tables import parse_header_table
 from .plan_trajectory import Trajectory
-from .sampling import MAX_COMMAND_SAMPLES, FloatArray, sample_trajectory
+from .sampling import FloatArray, sample_trajectory, samples_problem
 from .trajectories import (
     calibration_step_peak_accel_deg_s2,
     calibration_step_peak_speed_deg_s,
@@ -35,17 +35,6 @@ from .trajectories import (
 _REL_TOL = 1e-9  # a trajectory exactly at a limit passes (as in hardware/safety.py)
 
 Problem = tuple[str, str]  # (field, message)
-
-
-def samples_problem(trajectory: Trajectory, rate_hz: float) -> str:
-    """Why `trajectory` is too long to sample at `rate_hz` ("" if it is not): more than MAX_COMMAND_SAMPLES."""
-    n_samples = trajectory.duration_s * rate_hz
-    if n_samples <= MAX_COMMAND_SAMPLES:
-        return ""
-    return (
-        f"it lasts {trajectory.duration_s:.0f} s: {n_samples:,.0f} samples at {rate_hz:g} Hz, more than the "
-        f"{MAX_COMMAND_SAMPLES:,} a trajectory may have"
-    )
 
 
 def trajectory_limit_problems(

@@ -33,6 +33,18 @@ class Event:
 
 
 MAX_JOURNAL_BYTES = 256 * 2**20  # far above any campaign's journal (the knee's: about 100 kB)
+_NOT_A_RECORD = (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError, RecursionError)
+"""What reading a line that is not a journal record raises (damaged, foreign, or nested too deep)."""
+
+
+def _unusable(path: Path) -> str:
+    """Why the existing `path` cannot be this session's journal ("" if it can): not a regular file (a link
+    to /dev/zero would be read for ever), or larger than MAX_JOURNAL_BYTES."""
+    if not path.is_file():
+        return f"{path} is not a regular file"
+    if path.stat().st_size > MAX_JOURNAL_BYTES:
+        return f"{path} is larger than {MAX_JOURNAL_BYTES // 2**20} MB"
+    return ""
 
 
 @dataclass(frozen=True)
@@ -49,10 +61,9 @@ def inspect_journal(path: Path) -> JournalDamage:
     are not records. A crash or a power cut can damage only the line being appended, the last one; any
     other damaged line means the file was damaged or edited. Raises `OSError` for a file that is not a
     regular file or is larger than MAX_JOURNAL_BYTES."""
-    if not path.is_file():
-        raise OSError(f"{path} is not a regular file")
-    if path.stat().st_size > MAX_JOURNAL_BYTES:
-        raise OSError(f"{path} is larger than {MAX_JOURNAL_BYTES // 2**20} MB")
+    reason = _unusable(path)
+    if reason:
+        raise OSError(reason)
     lines = path.read_bytes().split(b"\n")
     while lines and not lines[-1].strip():
         lines.pop()
@@ -66,7 +77,7 @@ def inspect_journal(path: Path) -> JournalDamage:
         try:
             probe._apply(json.loads(raw.decode("utf-8")))
             records += 1
-        except (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError, RecursionError):
+        except _NOT_A_RECORD:
             if number < len(lines):
                 damaged.append(number)
     return JournalDamage(records, tuple(damaged), probe.units)
@@ -83,11 +94,10 @@ class Journal:
         self.answers: dict[str, dict[str, Any]] = {}
         self.torn_lines = 0
         self.damaged_lines = 0  # lines read that are not records (the torn tail, cut off first, aside)
-        if path.exists() and (not path.is_file() or path.stat().st_size > MAX_JOURNAL_BYTES):
-            raise InvalidInput(
-                f"{path}: not this session's journal (not a regular file, or over {MAX_JOURNAL_BYTES // 2**20} MB)"
-            )
         if path.exists():
+            reason = _unusable(path)
+            if reason:
+                raise InvalidInput(f"{path}: not this session's journal ({reason})")
             self._repair_torn_tail()
             self._read()
 
@@ -113,14 +123,7 @@ class Journal:
                 try:
                     rec = json.loads(line)
                     self._apply(rec)
-                except (
-                    json.JSONDecodeError,
-                    KeyError,
-                    TypeError,
-                    ValueError,
-                    AttributeError,
-                    RecursionError,
-                ):
+                except _NOT_A_RECORD:
                     self.torn_lines += 1  # damaged or foreign line: ignored, never a complete unit
                     self.damaged_lines += 1
 

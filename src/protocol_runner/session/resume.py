@@ -295,11 +295,13 @@ def _archive_says_complete(path: Path) -> bool:
     then assembles the session's own, with its verdicts)."""
     import h5py
 
+    from ..archive.attrs import STATUS
+
     if not path.is_file():
         return False
     try:
         with h5py.File(path, "r") as f:
-            status = f.attrs.get("status")
+            status = f.attrs.get(STATUS)
     except Exception:  # truncated, not HDF5, unreadable: not the session's finished archive
         return False
     return (status.decode() if isinstance(status, bytes) else str(status)) == "complete"
