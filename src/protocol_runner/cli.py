@@ -7,7 +7,6 @@ calibration check; 130 interrupted or disk full (resumable).
 from __future__ import annotations
 
 import argparse
-import errno
 import os
 import sys
 import threading
@@ -16,7 +15,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from . import __version__
-from .errors import EXIT_INTERRUPTED, EXIT_INVALID_INPUT, EXIT_OK, InvalidInput, UserError
+from .errors import (
+    EXIT_INTERRUPTED,
+    EXIT_INVALID_INPUT,
+    EXIT_OK,
+    InvalidInput,
+    UserError,
+    file_system_refusal,
+)
 from .process_exit import exit_after_a_full_disk, exit_now_if_safe
 from .protocol.only import KeySelection
 
@@ -158,8 +164,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         from .archive.diskfull import is_disk_full
 
         if not is_disk_full(exc):
-            if exc.errno in _FILE_SYSTEM_REFUSALS:  # the file system said no: not a bug of ours
-                print(f"run-protocol: {_refusal(exc)}", file=sys.stderr)
+            refusal = file_system_refusal(exc)
+            if refusal is not None:  # the file system said no: not a bug of ours
+                print(f"run-protocol: {refusal}", file=sys.stderr)
                 return EXIT_INVALID_INPUT
             raise
         print(
@@ -171,29 +178,6 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("run-protocol: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-
-
-_FILE_SYSTEM_REFUSALS = {
-    errno.EROFS,
-    errno.EACCES,
-    errno.EPERM,
-    errno.EISDIR,
-    errno.ENOTDIR,
-    errno.ELOOP,
-    errno.EEXIST,
-}
-"""What a file system answers when a path cannot be used as asked (read-only, no permission, a directory
-where a file belongs or the reverse, a symbolic link loop, a file in the way): said in one line, exit 2."""
-
-
-def _refusal(exc: OSError) -> str:
-    where = exc.filename if exc.filename is not None else "a file of this command"
-    hint = {
-        errno.EROFS: "; give --output (or --session) a writable place",
-        errno.EACCES: "; check the permissions",
-        errno.EPERM: "; check the permissions",
-    }.get(exc.errno or 0, "")
-    return f"cannot use {where}: {exc.strerror or exc}{hint}"
 
 
 def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:

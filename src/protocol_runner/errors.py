@@ -5,6 +5,7 @@ Anything raised as a `UserError` is printed by the CLI as one short paragraph, n
 
 from __future__ import annotations
 
+import errno
 from pathlib import Path
 
 EXIT_OK = 0
@@ -66,3 +67,27 @@ def make_output_dir(path: Path, what: str) -> None:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InvalidInput(f"{what}: cannot create {path}: {exc.strerror or exc}") from None
+
+
+FILE_SYSTEM_REFUSALS = frozenset(
+    {errno.EROFS, errno.EACCES, errno.EPERM, errno.EISDIR, errno.ENOTDIR, errno.ELOOP, errno.EEXIST}
+)
+"""What a file system answers when a path cannot be used as asked (read-only, no permission, a directory
+where a file belongs or the reverse, a symbolic link loop, a file in the way): said in one line, exit 2."""
+
+
+def file_system_refusal(exc: BaseException) -> str | None:
+    """The one-line message of an `OSError` that is one of `FILE_SYSTEM_REFUSALS` (None for anything else),
+    naming the path: both paths of a rename (`os.replace`), where the one in the way is often the second."""
+    if not isinstance(exc, OSError) or exc.errno not in FILE_SYSTEM_REFUSALS:
+        return None
+    hint = {
+        errno.EROFS: "; give --output (or --session) a writable place",
+        errno.EACCES: "; check the permissions",
+        errno.EPERM: "; check the permissions",
+    }.get(exc.errno or 0, "")
+    what = exc.strerror or str(exc)
+    if exc.filename is not None and exc.filename2 is not None:
+        return f"cannot move {exc.filename} to {exc.filename2}: {what}{hint}"
+    where = exc.filename if exc.filename is not None else "a file of this command"
+    return f"cannot use {where}: {what}{hint}"

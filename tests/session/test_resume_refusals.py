@@ -298,3 +298,36 @@ def test_a_hand_edited_only_is_refused_as_the_journal_disagrees(
     assert main(["--resume", str(session), "--yes", "--force"]) == 0
     overrides = [e.detail for e in Journal(session / "journal.jsonl").events if e.kind == "operator_override"]
     assert any("the journal records steps the plan does not have" in d for d in overrides), overrides
+
+
+@pytest.mark.parametrize("what", ["a directory where a unit belongs", "units a link loop", "units a file"])
+def test_a_unit_path_the_resume_could_not_save_to_is_refused_before_any_step_runs(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str], what: str
+) -> None:
+    """Before, a directory where a trial's unit belongs let the resume re-run the set's calibration check
+    and the trial (on the rig, a run of the robot) and only then fail to save it, as an "internal error";
+    `units` as a link loop was refused as "File exists"."""
+    session = copy_session(reference_archive, tmp_path / "s")
+    (session / "archive.h5").unlink()
+    journal = Journal(session / "journal.jsonl")
+    trial = next(k for k in journal.units if k.startswith("trial:"))
+    unit = session / "units" / journal.units[trial].file
+    if what == "a directory where a unit belongs":
+        unit.unlink()
+        unit.mkdir()
+        named = f"{unit}: is a directory, where the unit file of step {trial} belongs"
+    elif what == "units a link loop":
+        (session / "units").rename(session / "units.kept")
+        (session / "units").symlink_to("units")
+        named = f"{session / 'units'}: is a symbolic link that leads to no directory"
+    else:
+        shutil.rmtree(session / "units")
+        (session / "units").write_text("not a directory\n")
+        named = f"{session / 'units'}: is not a directory"
+    before = (session / "journal.jsonl").read_bytes()
+    assert main(["--resume", str(session), "--yes"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"run-protocol: {named}") and "Traceback" not in err, err
+    assert len(err.strip().splitlines()) == 1, err
+    assert (session / "journal.jsonl").read_bytes() == before  # nothing ran, nothing was journaled
+    assert not (session / "archive.h5").exists()

@@ -13,11 +13,12 @@ archive's `/session/events`. In a dry run or with --yes the answers are given au
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
-from ..archive.units import unit_is_complete
+from ..archive.units import unit_is_complete, unit_path
 from ..errors import InvalidInput
 from ..protocol.plan import (
     CalibrationCheckStep,
@@ -278,6 +279,28 @@ def _refuse_a_damaged_journal(journal_path: Path, units_dir: Path, n_units: int,
         )
 
 
+def _refuse_unusable_unit_paths(units_dir: Path, plan: Plan) -> None:
+    """Refuse, before any step runs, a `units` that is not a directory (a file, a dangling symbolic link,
+    a link loop) and a unit path of the plan held by something other than a regular file (a directory):
+    the resume would otherwise record a step again (a trial on the rig) and then fail to save it."""
+    if os.path.lexists(units_dir) and not units_dir.is_dir():
+        what = "a symbolic link that leads to no directory" if units_dir.is_symlink() else "not a directory"
+        raise InvalidInput(
+            f"{units_dir}: is {what}; the session's unit files belong in a directory there. Restore it "
+            "(or move it away), then resume"
+        )
+    if not units_dir.is_dir():
+        return
+    for step in plan.steps:
+        path = unit_path(units_dir, step.id)
+        if os.path.lexists(path) and not path.is_file():
+            what = "a directory" if path.is_dir() else "not a regular file"
+            raise InvalidInput(
+                f"{path}: is {what}, where the unit file of step {step.id} belongs; a resume could not save "
+                "that step. Move it out of the way, then resume"
+            )
+
+
 def _not_in_plan(plan: Plan, journal: Journal) -> list[str]:
     """The finished steps the journal records that the plan does not have: a plan changed since they ran.
     The calibration checks a resume adds (`cal:<set>:resume-<n>`, `prepare_resume`) are the resume's
@@ -314,6 +337,7 @@ def resume_preflight(session_dir: Path, plan: Plan, *, force: bool) -> str | Non
     its archive is assembled again and the report written)."""
     journal_path = session_dir / "journal.jsonl"
     units_dir = session_dir / "units"
+    _refuse_unusable_unit_paths(units_dir, plan)
     n_units = len(list(units_dir.glob("*.h5"))) if units_dir.is_dir() else 0
     if not journal_path.exists():
         if n_units and not force:

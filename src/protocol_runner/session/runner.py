@@ -23,7 +23,7 @@ from pathlib import Path
 
 from ..archive.diskfull import DiskFull, disk_full_error, is_disk_full
 from ..archive.units import unit_path
-from ..errors import Interrupted, StoppedByCheck, UserError
+from ..errors import Interrupted, StoppedByCheck, UserError, file_system_refusal
 from ..events import NULL_PUBLISHER, Publisher
 from ..protocol.loader import LoadedProtocol
 from ..protocol.plan import (
@@ -204,6 +204,10 @@ class Runner:
         except Exception as exc:  # a bug: keep what was finished, record it, and let the traceback show
             if is_disk_full(exc):  # not a bug: the journal or the report could not be written either
                 raise self._disk_full(exc) from None
+            refusal = file_system_refusal(exc)
+            if refusal is not None:  # the file system said no (a directory where a unit belongs, ...)
+                self._stopped("stopped", refusal, progress)
+                raise
             progress.logger.exception("internal error")
             self._stopped("stopped", f"internal error: {exc!r} (traceback in session.log)", progress)
             raise
