@@ -331,3 +331,50 @@ def test_a_unit_path_the_resume_could_not_save_to_is_refused_before_any_step_run
     assert len(err.strip().splitlines()) == 1, err
     assert (session / "journal.jsonl").read_bytes() == before  # nothing ran, nothing was journaled
     assert not (session / "archive.h5").exists()
+
+
+def test_a_unit_that_cannot_be_moved_into_place_mid_run_is_said_so_not_called_an_internal_error(
+    tmp_path: Path,
+    reference_archive: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """A directory made where a unit belongs while the session runs: the rename of the finished unit onto it
+    fails. The session stops saying which move failed (both paths), keeps what it finished, and resumes
+    once the directory is gone, to the data of an uninterrupted run."""
+    import os as os_module
+
+    from protocol_runner.archive import units as units_module
+    from protocol_runner.archive.units import unit_is_complete
+
+    from .conftest import assert_same_data
+
+    session = tmp_path / "s"
+    real = os_module.replace
+    moved = {"n": 0}
+
+    def replace(src: object, dst: object) -> None:
+        moved["n"] += 1
+        if moved["n"] == 4:  # the fourth unit: a directory appeared where it belongs
+            Path(str(dst)).mkdir()
+            raise IsADirectoryError(21, "Is a directory", str(src), None, str(dst))
+        real(src, dst)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(units_module.os, "replace", replace)
+    code = main(
+        ["knee_phase1.yaml", "--dry-run", "--yes", "--only", "12", "--seed", "7", "--session", str(session)]
+    )
+    err = capsys.readouterr().err
+    monkeypatch.undo()
+    assert code == 2, err
+    assert "internal error" not in err and "Traceback" not in err, err
+    blocked = next(p for p in (session / "units").iterdir() if p.is_dir())
+    assert f"run-protocol: cannot move {blocked}.partial to {blocked}: Is a directory" in err, err
+    assert f"session stopped: cannot move {blocked}.partial to {blocked}" in err, err
+    kept = Journal(session / "journal.jsonl").units
+    assert 2 <= len(kept) < 12 and all(unit_is_complete(session / "units", r) for r in kept.values())
+    assert main(["--resume", str(session), "--yes"]) == 2  # refused while the directory is there
+    assert f"{blocked}: is a directory" in capsys.readouterr().err
+    blocked.rmdir()
+    assert main(["--resume", str(session), "--yes"]) == 0, capsys.readouterr().err
+    assert_same_data(reference_archive, session / "archive.h5")
