@@ -172,7 +172,7 @@ class Runner:
                 progress.step_started(step)
                 outcome = run_step(step, ctx)
                 self.record(step.id, outcome, after=after)
-                progress.step_finished(step, outcome.summary)
+                progress.step_finished(step, outcome.summary, after=after)
             self.writer.flush()
             self._await_analyses(progress)
             return self._finish(progress, skipped)
@@ -226,7 +226,8 @@ class Runner:
     def _finished(self, progress: Progress) -> Callable[[Step, str], None]:
         def finished(step: Step, summary: str) -> None:
             self.steps_run += 1
-            progress.step_finished(step, summary)
+            progress.step_finished(step, summary, background=True)
+            progress.release(self.journal.units)  # a comparison's line after the processing it read
 
         return finished
 
@@ -294,6 +295,7 @@ class Runner:
             lambda: self.journal.event(kind, message),
             lambda: self.bench.rig.park(where="park on stop"),
             lambda: self.consolidate(status),
+            lambda: progress.release(self.journal.units, every=True),
             lambda: progress.info(f"session {kind}: {message}"),
         )
         for action in actions:
@@ -336,6 +338,7 @@ class Runner:
                 f"units {', '.join(self.writer.held)} wait for units that were never journaled"
             )
         self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped{robot}")
+        progress.release(self.journal.units, every=True)
         final = self._draw_final_configuration()  # on a worker, while this process consolidates
         archive = self.consolidate("complete")
         call = self.pool.call if self.pool.running else None  # the workers draw the figures left
