@@ -214,16 +214,16 @@ def report(
         from .report.verdicts import record_verdicts
 
         record_verdicts(archive)  # the verdicts follow the reprocessed data
-        _say(f"reprocessed archive: {archive}")
+        _result(f"reprocessed archive: {archive}")
         if output is None:
             output = archive.with_suffix(".html")
     if export_mat is not None:
         from .archive.export import export_mat as do_export
 
         files = do_export(archive, export_mat)
-        _say(f"wrote {len(files)} .mat files to {export_mat}")
+        _result(f"wrote {len(files)} .mat files to {export_mat}")
     out = generate_report(archive, output)
-    _say(f"report: {out}")
+    _result(f"report: {out}")
     return EXIT_OK
 
 
@@ -335,7 +335,7 @@ def export(path: Path, output: Path | None) -> int:
     archive = _archive_of(path)
     out_dir = output if output is not None else archive.parent / "tables"
     files = export_tables(archive, out_dir)
-    _say(f"wrote {', '.join(f.name for f in files)} to {out_dir}")
+    _result(f"wrote {', '.join(f.name for f in files)} to {out_dir}")
     return EXIT_OK
 
 
@@ -348,5 +348,5 @@ def compare(a: Path, b: Path, output: Path | None) -> int:
     print(result.table())
     out = output if output is not None else Path("comparison.html")
     render_comparison(result, out)
-    _say(f"comparison: {out}")
+    _result(f"comparison: {out}")
     return EXIT_OK

@@ -77,3 +77,16 @@ def test_a_multi_joint_motion_is_named_by_joint(roots: Path) -> None:
         assert [(n, x, y) for n, x, y in pair.changed if n.startswith("trajectory.")] == [
             ("trajectory.knee_flexion.periods", "3", "6")
         ]
+
+
+def test_sessions_with_nothing_in_common_are_named_in_the_order_given(roots: Path) -> None:
+    from protocol_runner.errors import InvalidInput
+
+    a = _archive(roots / "named_a", SINE)
+    b = _archive(roots / "named_b", None)
+    with h5py.File(b, "r+") as f:
+        for group in f["configurations"].values():
+            group.attrs["trajectory_name"] = "triangle"  # another motion: no configuration pairs
+    with pytest.raises(InvalidInput) as caught:
+        compare_archives(a, b)
+    assert caught.value.message.startswith(f"{a} and {b} have no configuration with the same settings")

@@ -125,6 +125,24 @@ def test_archive_without_comparisons_has_none_and_says_so(tmp_path: Path) -> Non
     assert any("declares no comparisons" in note for note in data.notes)
 
 
+def test_an_interrupted_session_whose_comparisons_did_not_run_does_not_say_none_are_declared(
+    tmp_path: Path,
+) -> None:
+    spec = small_spec(comparisons=False, status="incomplete")
+    spec.protocol_text = (
+        "name: knee_synthetic\njoint: knee_flexion\nreport:\n  comparisons:\n"
+        "    - {name: speed, parameter: speed, configurations: [3, 5]}\n"
+        "    - {name: friction, parameter: friction, configurations: [3, 7]}\n"
+    )
+    data = load_report_data(write_archive(tmp_path / "archive.h5", spec))
+    assert data.comparisons == ()
+    assert not any("declares no comparisons" in note for note in data.notes), data.notes
+    assert any(
+        "declares 2 comparisons, none made yet in this session (status incomplete)" in note
+        for note in data.notes
+    ), data.notes
+
+
 # ----------------------------------------------------------------------------------------- bad inputs
 
 

@@ -16,7 +16,13 @@ from typing import TypedDict, Unpack
 import numpy as np
 import numpy.typing as npt
 
-from protocol_runner.analysis.branches import BranchCurves, Outside, branch_curves, branch_labels
+from protocol_runner.analysis.branches import (
+    BranchCurves,
+    Outside,
+    branch_curves,
+    branch_labels,
+    complete_branches,
+)
 from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal, signal_pair
 
 
@@ -32,15 +38,19 @@ def robot_torque_at_equal_angle(
     """The bare robot's torque at each brace-on sample's angle and branch, and where that was covered.
 
     The brace-off trial (many cycles) is reduced to one angle -> torque curve per branch (`branch_curves`:
-    mean torque per `bin_width_deg` angle bin over all its cycles); each brace-on sample is labelled
+    mean torque per `bin_width_deg` angle bin over its complete branches, `complete_branches`: the partial
+    branch of its start from rest and of its stop are left out, so that their transient torque is not
+    subtracted from every brace-on cycle at those angles); each brace-on sample is labelled
     loading/unloading (`branch_labels`, reversal threshold `reversal_deg`, best on filtered data) and
     looks up its branch's curve by linear interpolation. Brace-on angles outside the brace-off branch's
     range take the nearest end value (`outside="clip"`, the default) or NaN (`outside="nan"`); the second
     returned array is True where the angle was inside the range.
     """
     a_on = as_signal("angle_on_deg", angle_on_deg)
+    a_off, t_off = signal_pair("angle_off_deg", angle_off_deg, "torque_off_nm", torque_off_nm)
+    keep = complete_branches(a_off, reversal_deg)
     curves: BranchCurves = branch_curves(
-        angle_off_deg, torque_off_nm, bin_width_deg=bin_width_deg, reversal_deg=reversal_deg
+        a_off[keep], t_off[keep], bin_width_deg=bin_width_deg, labels=branch_labels(a_off, reversal_deg)[keep]
     )
     labels = branch_labels(a_on, reversal_deg)
     return curves.torque_at(a_on, labels, outside), curves.covers(a_on, labels)

@@ -92,5 +92,8 @@ def format_plan_table(plan: Plan) -> str:
 
 
 def robot_time_text(seconds: float) -> str:
-    """A plan's robot time as a run and `--validate` announce it: "2.3 h", or "12 min" under 90 minutes."""
-    return f"{seconds / 3600:.1f} h" if seconds >= 5400 else f"{seconds / 60:.0f} min"
+    """A plan's robot time as a run and `--validate` announce it: "2.3 h", "12 min" under 90 minutes, or
+    "40 s" under 90 seconds (not "1 min" nor "0 min")."""
+    if seconds >= 5400:
+        return f"{seconds / 3600:.1f} h"
+    return f"{seconds / 60:.0f} min" if seconds >= 90 else f"{seconds:.0f} s"

@@ -235,7 +235,7 @@ def compare_data(a: ReportData, b: ReportData) -> SessionComparison:
     matched = match(a, b)
     if not matched:
         raise InvalidInput(
-            f"{b.session.archive_path} and {a.session.archive_path} have no configuration with the same "
+            f"{a.session.archive_path} and {b.session.archive_path} have no configuration with the same "
             "settings (trajectory and level labels): nothing to compare"
         )
     pairs = tuple(

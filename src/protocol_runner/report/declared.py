@@ -86,3 +86,15 @@ def declared_text(protocol_text: str, key: str) -> str:
         return ""
     value = node.get(key) if isinstance(node, dict) else None
     return value.strip() if isinstance(value, str) else ""
+
+
+def declared_count(protocol_text: str, path: tuple[str, ...]) -> int:
+    """How many entries the list at `path` of an archived protocol text has (0 when there is none, or the
+    text is not readable YAML)."""
+    try:
+        node = protocol_document(protocol_text)
+    except yaml.YAMLError:
+        return 0
+    for key in path:
+        node = node.get(key) if isinstance(node, dict) else None
+    return len(node) if isinstance(node, list) else 0

@@ -28,6 +28,7 @@ from protocol_runner.archive.verify import (
 )
 from protocol_runner.archive.verify import validate_archive as validate_archive  # its former home
 from protocol_runner.errors import InvalidInput
+from protocol_runner.report.declared import declared_count
 from protocol_runner.report.h5read import MAX_PLOT_POINTS as MAX_PLOT_POINTS
 from protocol_runner.report.h5read import decimate_for_plot as decimate_for_plot
 from protocol_runner.report.h5read import scalar_str
@@ -123,9 +124,13 @@ def _read(h5: h5py.File, archive: Path, configurations: tuple[Configuration, ...
     protocol_text = scalar_str(h5["protocol"]) if "protocol" in h5 else ""
     notes: list[str] = []
     if not comparisons:
+        declared = declared_count(protocol_text, ("report", "comparisons"))
         notes.append(
-            "The protocol declares no comparisons (its report section's `comparisons`): the report shows "
-            "no cross-configuration figures."
+            f"The protocol declares {declared} comparison{'s' if declared != 1 else ''}, none made yet in "
+            f"this session (status {session.status}): the report shows no cross-configuration figures."
+            if declared
+            else "The protocol declares no comparisons (its report section's comparisons): the report "
+            "shows no cross-configuration figures."
         )
     return ReportData(
         session=session,

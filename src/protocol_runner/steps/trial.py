@@ -113,7 +113,7 @@ def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
         _keep_brace_on(ctx, step, rec)
     lo, hi = float(np.min(rec.angle_deg)), float(np.max(rec.angle_deg))
     summary = (
-        f"angle {lo:.0f}-{hi:.0f} deg, torque {np.min(rec.torque_nm):.0f}..{np.max(rec.torque_nm):.0f} N*m"
+        f"angle {lo:.0f}..{hi:.0f} deg, torque {np.min(rec.torque_nm):.0f}..{np.max(rec.torque_nm):.0f} N*m"
     )
     if scaling is not None:
         summary += f", scaling {len(scaling.history)} run(s){'' if scaling.converged else ' (not converged)'}"
