@@ -190,7 +190,14 @@ def resume(
         publisher=publisher,
     ).run()
     _result(
-        f"done: {result.steps_run} steps run, {result.steps_skipped} already complete; {result.archive}"
+        f"done: {result.steps_run} step{'s' if result.steps_run != 1 else ''} run, {result.steps_skipped} "
+        "already complete"
+        + (
+            f", {result.rechecks} calibration re-check{'s' if result.rechecks != 1 else ''}"
+            if result.rechecks
+            else ""
+        )
+        + f"; {result.archive}"
         + (f" and {result.report}" if result.report else "")
     )
     return EXIT_OK

@@ -17,14 +17,15 @@ import pytest
 from protocol_runner.commands import resume
 from protocol_runner.errors import Interrupted
 from protocol_runner.hardware.simulator.device import ComposedDevice
-from protocol_runner.protocol.plan import ChecklistStep
+from protocol_runner.protocol.loader import find_protocol, load_protocol
+from protocol_runner.protocol.plan import ChecklistStep, expand
 from protocol_runner.session import runner as runner_module
 from protocol_runner.session.journal import Journal
 from protocol_runner.session.operator import Answer, AutoOperator
 from protocol_runner.session.rigs import SimulatedBench
 from protocol_runner.session.signals import StopFlag
 
-from .conftest import assert_same_data, run_dry
+from .conftest import ONLY, assert_same_data, run_dry
 
 SET = "rom_medium_spring"  # configuration 12 (conftest.ONLY): a set with springs fitted
 
@@ -69,7 +70,10 @@ def answers(session: Path) -> list[dict[str, object]]:
 
 
 def test_resume_inside_a_spring_set_rechecks_brace_off_then_refits(
-    tmp_path: Path, reference_archive: Path, monkeypatch: pytest.MonkeyPatch
+    tmp_path: Path,
+    reference_archive: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
 ) -> None:
     session = tmp_path / "inside"
     with monkeypatch.context() as m:
@@ -77,7 +81,16 @@ def test_resume_inside_a_spring_set_rechecks_brace_off_then_refits(
         with pytest.raises(Interrupted):
             run_dry(session)
     seen = brace_at_each_step(monkeypatch)
+    done = len(Journal(session / "journal.jsonl").units)
+    capsys.readouterr()
     assert resume(session, yes=True, force=False, realtime=False, quiet=True) == 0  # was exit 4
+    # the plan's steps run and already complete add up to the plan (the report included); the re-check
+    # is counted apart
+    n_plan = len(expand(load_protocol(find_protocol("knee_phase1.yaml")), only=ONLY).steps)
+    assert (
+        f"done: {n_plan - done} steps run, {done} already complete, 1 calibration re-check;"
+        in capsys.readouterr().out
+    )
 
     steps = dict(seen)
     recheck = f"cal:{SET}:resume-1"

@@ -57,8 +57,9 @@ class RunResult:
     status: str  # "complete", "incomplete", "aborted"
     archive: Path | None
     report: Path | None
-    steps_run: int
+    steps_run: int  # the plan's steps run (the report included): with steps_skipped, every step of the plan
     steps_skipped: int
+    rechecks: int = 0  # the calibration checks a resume runs again before going on (not the plan's)
 
 
 class Runner:
@@ -91,6 +92,8 @@ class Runner:
         self.journal = Journal(session_dir / "journal.jsonl")
         self.stop = stop or StopFlag()
         self.steps_run = 0
+        self.rechecks = 0
+        self._planned = {step.id for step in plan.steps}
         self.background = background if background is not None else (os.cpu_count() or 1) >= 2
         self.ahead = ArchiveDraft(session_dir, self.journal)  # the archive merged while the analyses finish
         self.read_ahead = ReadAhead(plan, self.ahead)  # and the report's configurations read ahead
@@ -278,7 +281,10 @@ class Runner:
         raised."""
         if outcome.fill is not None:
             self.writer.submit(step_id, outcome.fill, final=outcome.stop is None, after=after)
-        self.steps_run += 1
+        if step_id in self._planned:
+            self.steps_run += 1
+        else:
+            self.rechecks += 1
         if outcome.stop is not None:
             self.writer.flush()
             raise outcome.stop
@@ -337,6 +343,8 @@ class Runner:
             raise RuntimeError(
                 f"units {', '.join(self.writer.held)} wait for units that were never journaled"
             )
+        if self.plan.steps and self.plan.steps[-1].kind == "report":
+            self.steps_run += 1  # written below
         self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped{robot}")
         progress.release(self.journal.units, every=True)
         final = self._draw_final_configuration()  # on a worker, while this process consolidates
@@ -349,7 +357,7 @@ class Runner:
         progress.info(f"archive: {archive}")
         if report is not None:
             progress.info(f"report:  {report}")
-        return RunResult("complete", archive, report, self.steps_run, skipped)
+        return RunResult("complete", archive, report, self.steps_run, skipped, self.rechecks)
 
     def _draw_final_configuration(self) -> Future[object] | None:
         """The figures of the plan's last configuration, drawn ahead on a worker (idle now) when its analyses
