@@ -429,3 +429,12 @@ def test_a_file_trajectory_of_a_billion_seconds_is_refused_before_it_is_sampled(
         "trajectories.subject_B.file: " in message
         and "more than the 5,000,000 a trajectory may have" in message
     )
+
+
+def test_a_misspelt_required_key_is_named_first(workdir: Path) -> None:
+    """pydantic lists the missing field before the unknown key; the typo, the cause, comes first."""
+    text = KNEE_TEXT.replace("periods:", "perods:", 1)
+    assert text != KNEE_TEXT
+    lines = error_of(write(workdir, text)).splitlines()
+    assert re.search(r"\.perods: unknown key", lines[0]), lines
+    assert re.search(r"\.periods: required field is missing", lines[1]), lines

@@ -18,6 +18,7 @@ from .loaded import Loc, clean_loc, line_for
 from .yaml_limits import check_size, check_yaml_limits
 
 MAX_ERRORS_SHOWN = 8
+MISSING_FIELD = "required field is missing"
 
 
 # YAML 1.1 (PyYAML) reads a number whose exponent has no decimal point or no sign (`2e1`, `2.5e1`) as text, which
@@ -150,7 +151,26 @@ def validation_problems(exc: ValidationError, root: type[BaseModel]) -> list[tup
         merged.setdefault(_without_union_member(_without_kind_tag(tuple(e["loc"]))), []).append(
             _pydantic_message(e, root)
         )
-    return [(loc, _one_message(messages)) for loc, messages in merged.items()]
+    return _unknown_before_missing([(loc, _one_message(messages)) for loc, messages in merged.items()])
+
+
+def _unknown_before_missing(problems: list[tuple[Loc, str]]) -> list[tuple[Loc, str]]:
+    """A misspelt key makes two problems in one mapping, the field missing and the key unknown; pydantic
+    lists the missing field first. The unknown keys of a mapping are moved before its first missing field:
+    the typo is the cause, and it is read first. Everything else keeps its order."""
+    out: list[tuple[Loc, str]] = []
+    moved: set[int] = set()
+    for i, (loc, message) in enumerate(problems):
+        if i in moved:
+            continue
+        if message == MISSING_FIELD:
+            for j in range(i + 1, len(problems)):
+                other, text = problems[j]
+                if j not in moved and other[:-1] == loc[:-1] and text.startswith("unknown key"):
+                    out.append(problems[j])
+                    moved.add(j)
+        out.append((loc, message))
+    return out
 
 
 def _without_union_member(loc: Loc) -> Loc:
@@ -236,7 +256,7 @@ def _pydantic_message(err: Any, root: type[BaseModel]) -> str:
         hint = f" (allowed: {', '.join(allowed)})" if allowed else ""
         return f"unknown key{hint}"
     if kind == "missing":
-        return "required field is missing"
+        return MISSING_FIELD
     if kind == "model_type":  # pydantic names its class: say what the file should hold there
         keys = _allowed_keys(root, _without_union_member(tuple(err["loc"])))
         shown = f" with keys {', '.join(keys)}" if keys else ""
