@@ -134,6 +134,7 @@ class Runner:
             writer=self.writer,
         )
         skipped = 0
+        paced = self.bench.mode == "hardware" or bool(getattr(self.bench, "realtime", False))
         try:
             if self.resumed:
                 prepare_resume(self, ctx, progress)  # session/resume.py
@@ -173,6 +174,10 @@ class Runner:
                 if step.kind == "report":
                     return self._finish(progress, skipped)
                 progress.step_started(step)
+                if paced and step.robot_time_s > 0:
+                    # On the robot a step lasts a minute: journal the last one's unit before it starts,
+                    # so that a crash or power cut during it cannot make a resume record it again.
+                    self.writer.flush()
                 outcome = run_step(step, ctx)
                 self.record(step.id, outcome, after=after)
                 progress.step_finished(step, outcome.summary, after=after)
