@@ -213,6 +213,7 @@ def report(
 ) -> int:
     from .report.render import generate_report
 
+    _html_output(output)
     archive = _archive_of(path)
     if reprocess:
         from .archive.reprocess import reprocess_archive
@@ -273,6 +274,23 @@ def _journaled_units_missing(session_dir: Path) -> list[str]:
     ]
 
 
+def _html_output(path: Path | None) -> None:
+    """Refuse an `--output` that would overwrite a file which is not an HTML page (a session's archive,
+    unit, journal or session.json given by mistake): a report or a comparison replaces only its own kind."""
+    if path is None or not path.is_file():
+        return
+    try:
+        with path.open("rb") as f:
+            head = f.read(512).lstrip().lower()
+    except OSError:
+        return  # the write says why
+    if not (head.startswith(b"<!doctype html") or head.startswith(b"<html")) and path.stat().st_size > 0:
+        raise InvalidInput(
+            f"--output {path}: exists and is not an HTML page (an archive, a unit, a journal?); it is not "
+            "overwritten. Give a new file name, or the path of an earlier report"
+        )
+
+
 def _archive_of(path: Path) -> Path:
     """An archive path, or a session directory (consolidated first if it has none yet)."""
     if path.is_dir():
@@ -288,15 +306,17 @@ def _archive_of(path: Path) -> Path:
 
 
 def _consolidate_unfinished(session_dir: Path) -> Path:
+    from .session.lock import session_lock
     from .session.runner import Runner
     from .session.setup import load_session_protocol, read_session_info
 
-    info = read_session_info(session_dir)
-    loaded, plan, _ = load_session_protocol(session_dir, info, force=True)
-    from .session.lock import session_lock
-
-    runner = Runner(session_dir, info, loaded, plan, _NoBench(), _operator(True), quiet=True)  # type: ignore[arg-type]
-    with session_lock(session_dir):
+    with session_lock(session_dir):  # a resume may have finished meanwhile: look again, holding the lock
+        archive = session_dir / "archive.h5"
+        if archive.is_file():
+            return archive
+        info = read_session_info(session_dir)
+        loaded, plan, _ = load_session_protocol(session_dir, info, force=True)
+        runner = Runner(session_dir, info, loaded, plan, _NoBench(), _operator(True), quiet=True)  # type: ignore[arg-type]
         return runner.consolidate("incomplete")
 
 
@@ -350,10 +370,11 @@ def compare(a: Path, b: Path, output: Path | None) -> int:
     """`--compare`: match configurations by settings, print the table and write the HTML page."""
     from .report.compare import compare_archives, render_comparison
 
+    out = output if output is not None else Path("comparison.html")
+    _html_output(out)
     archive_a, archive_b = _archive_of(a), _archive_of(b)
     result = compare_archives(archive_a, archive_b)
     print(result.table())
-    out = output if output is not None else Path("comparison.html")
     render_comparison(result, out)
     _result(f"comparison: {out}")
     return EXIT_OK
