@@ -60,6 +60,8 @@ def parse_session_file(path: Any) -> dict[str, Any]:
         ) from None
     except RecursionError:
         raise InvalidInput(f"{path}: damaged session file (nested too deeply)") from None
+    except ValueError:  # e.g. an integer of thousands of digits (Python's int conversion limit)
+        raise InvalidInput(f"{path}: damaged session file (a number too long to read)") from None
     if not isinstance(d, dict):
         raise InvalidInput(f"{path}: damaged session file (expected a JSON object of fields)")
     check_session_fields(d, str(path))

@@ -33,7 +33,40 @@ class Event:
 
 
 MAX_JOURNAL_BYTES = 256 * 2**20  # far above any campaign's journal (the knee's: about 100 kB)
-_NOT_A_RECORD = (json.JSONDecodeError, KeyError, TypeError, ValueError, AttributeError, RecursionError)
+_NOT_A_RECORD = (
+    json.JSONDecodeError,
+    KeyError,
+    TypeError,
+    ValueError,
+    AttributeError,
+    RecursionError,
+    OverflowError,
+)
+MAX_FIELD_CHARS = 4096  # a step id, an event's kind or time: far longer is not a record this code wrote
+
+
+def _text(rec: dict[str, Any], key: str) -> str:
+    value = rec[key]
+    if not isinstance(value, str) or len(value) > MAX_FIELD_CHARS:
+        raise TypeError(f"{key} is not a text")
+    return value
+
+
+def _unit_record(rec: dict[str, Any]) -> UnitRecord:
+    """A unit record's fields with the types and forms this code writes (a file name in units/, 64 hex
+    digits, a size in bytes): anything else is not a record (a hand-edited or foreign line)."""
+    file, sha256, size = _text(rec, "file"), _text(rec, "sha256"), rec["size"]
+    if not (
+        file.endswith(".h5") and len(file) <= 255 and "/" not in file and "\\" not in file and file[0] != "."
+    ):
+        raise ValueError("not a unit file name")
+    if len(sha256) != 64 or any(c not in "0123456789abcdef" for c in sha256):
+        raise ValueError("not a sha256")
+    if not isinstance(size, int) or isinstance(size, bool) or size < 0:
+        raise TypeError("not a size")
+    return UnitRecord(_text(rec, "step_id"), file, sha256, size)
+
+
 """What reading a line that is not a journal record raises (damaged, foreign, or nested too deep)."""
 
 
@@ -130,7 +163,7 @@ class Journal:
     def _apply(self, rec: dict[str, Any]) -> None:
         kind = rec.get("record")
         if kind == "unit":
-            record = UnitRecord(rec["step_id"], rec["file"], rec["sha256"], int(rec["size"]))
+            record = _unit_record(rec)
             if rec.get("final", True):
                 self.units[record.step_id] = record
                 self.failed.pop(record.step_id, None)
@@ -138,10 +171,14 @@ class Journal:
                 self.failed[record.step_id] = record
                 self.units.pop(record.step_id, None)
         elif kind == "invalidate":
-            self.units.pop(rec["step_id"], None)
-            self.failed.pop(rec["step_id"], None)
+            step_id = _text(rec, "step_id")
+            self.units.pop(step_id, None)
+            self.failed.pop(step_id, None)
         elif kind == "event":
-            self.events.append(Event(rec["t_utc"], rec["kind"], rec.get("detail", "")))
+            detail = rec.get("detail", "")
+            if not isinstance(detail, str):
+                raise TypeError("detail is not a text")
+            self.events.append(Event(_text(rec, "t_utc"), _text(rec, "kind"), detail))
 
     def _append(self, rec: dict[str, Any]) -> None:
         line = json.dumps(rec, sort_keys=True) + "\n"

@@ -1,0 +1,66 @@
+"""Journal lines and session files with the right keys but the wrong types or forms are not records (a
+review got tracebacks from `--resume`, `--report`, `--export` and `--verify` for each of these): the resume
+refuses the damaged journal, saying so, and the read-only commands go on without the line."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from protocol_runner.cli import main
+
+
+def _copy(reference_archive: Path, to: Path) -> Path:
+    shutil.copytree(reference_archive.parent, to, ignore=shutil.ignore_patterns(".lock"))
+    (to / "archive.h5").unlink()  # the commands then read the journal and the units
+    return to
+
+
+def _unit_line(session: Path) -> dict[str, object]:
+    lines = (session / "journal.jsonl").read_text(encoding="utf-8").splitlines()
+    return next(json.loads(line) for line in lines if json.loads(line).get("record") == "unit")
+
+
+BAD_FIELDS = {
+    "step id a number": {"step_id": 5},
+    "no file": {"file": None},
+    "file a number": {"file": 7},
+    "file 5000 characters": {"file": "x" * 4996 + ".h5"},
+    "file outside units": {"file": "../archive.h5"},
+    "size infinite": {"size": 1e999},
+    "size a float": {"size": 12.5},
+    "sha256 not hex": {"sha256": "z" * 64},
+}
+
+
+@pytest.mark.parametrize("name", list(BAD_FIELDS))
+def test_a_unit_line_with_a_wrong_field_is_not_a_record(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str], name: str
+) -> None:
+    session = _copy(reference_archive, tmp_path / "s")
+    journal = session / "journal.jsonl"
+    lines = journal.read_text(encoding="utf-8").splitlines()
+    bad = {**_unit_line(session), **BAD_FIELDS[name]}
+    text = json.dumps(bad).replace("Infinity", "1e999")  # as a hand edit would write it
+    journal.write_text("\n".join([lines[0], text, *lines[1:]]) + "\n", encoding="utf-8")
+
+    assert main(["--resume", str(session), "--yes"]) == 2
+    err = capsys.readouterr().err
+    assert "line 2 is not a journal record" in err and "Traceback" not in err, err
+    assert main(["--verify", str(session)]) in (0, 1)
+    assert main(["--export", str(session), "--output", str(tmp_path / "t")]) == 0
+    assert "Traceback" not in capsys.readouterr().err
+
+
+def test_a_seed_of_thousands_of_digits_is_a_damaged_session_file(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    session = _copy(reference_archive, tmp_path / "s")
+    info = session / "session.json"
+    info.write_text(info.read_text().replace('"seed": 7', '"seed": ' + "9" * 5001), encoding="utf-8")
+    assert main(["--resume", str(session), "--yes"]) == 2
+    err = capsys.readouterr().err
+    assert "damaged session file (a number too long to read)" in err and "Traceback" not in err, err
