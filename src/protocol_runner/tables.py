@@ -10,6 +10,7 @@ keeping each line's number for those messages.
 from __future__ import annotations
 
 import csv
+import stat
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -81,10 +82,37 @@ def number_columns(
     return out
 
 
-def read_table_text(path: Path, what: str) -> str:
-    """The file's UTF-8 text; `InvalidInput` "<what> <path>: file not found" or "...: cannot read it (...)"."""
+MAX_TABLE_BYTES = 64 * 2**20
+"""The largest table file read (a trajectory, a calibration table, a reference dataset): 64 MiB holds about
+3.9 million rows of "12.345,45.678901", an hour of samples at 1 kHz. Parsed, a table takes about 30 times
+its size in memory, so a larger file is refused before it is read."""
+
+
+def read_table_text(path: Path, what: str, max_bytes: int = MAX_TABLE_BYTES) -> str:
+    """The file's UTF-8 text; `InvalidInput` "<what> <path>: file not found", "...: not a regular file",
+    "...: N bytes, more than ..." or "...: cannot read it (...)". A FIFO or a device is refused unread (its
+    read would wait forever, or never end)."""
     try:
-        return path.read_text(encoding="utf-8")
+        info = path.stat()
+    except FileNotFoundError:
+        raise InvalidInput(f"{what} {path}: file not found") from None
+    except OSError as exc:
+        raise InvalidInput(f"{what} {path}: cannot read it ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise InvalidInput(
+            f"{what} {path}: not a regular file (a directory, a FIFO or a device); give a file"
+        )
+    if info.st_size > max_bytes:
+        raise InvalidInput(
+            f"{what} {path}: {info.st_size} bytes, more than the {max_bytes} ({max_bytes >> 20} MiB) a table "
+            "may have; it is not read"
+        )
+    try:
+        with path.open("rb") as f:
+            raw = f.read(max_bytes + 1)
+        if len(raw) > max_bytes:
+            raise InvalidInput(f"{what} {path}: more than {max_bytes} bytes; it is not read")
+        return raw.decode("utf-8")
     except FileNotFoundError:
         raise InvalidInput(f"{what} {path}: file not found") from None
     except (OSError, UnicodeDecodeError) as exc:

@@ -69,15 +69,15 @@ def test_a_csv_defect_names_the_file_and_line(tmp_path: Path, text: str, message
 def test_an_unreadable_csv_is_reported(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     binary = tmp_path / "latin.csv"
     binary.write_bytes(b"angle_deg,torque_nm\n\xff\xfe,1\n")
-    with pytest.raises(InvalidInput, match=r"latin\.csv cannot be read"):
+    with pytest.raises(InvalidInput, match=r"latin\.csv: cannot read it"):
         load_reference_dataset(binary)
 
     def denied(self: Path, *args: object, **kwargs: object) -> str:
         raise PermissionError(13, "Permission denied", str(self))
 
     path = write(tmp_path / "locked.csv", "angle_deg,torque_nm\n10,1\n20,2\n")
-    monkeypatch.setattr(Path, "read_text", denied)
-    with pytest.raises(InvalidInput, match=r"locked\.csv cannot be read: .*Permission denied"):
+    monkeypatch.setattr(Path, "open", denied)
+    with pytest.raises(InvalidInput, match=r"locked\.csv: cannot read it .*Permission denied"):
         load_reference_dataset(path)
 
 

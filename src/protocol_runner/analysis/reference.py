@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InvalidInput, short
-from ..tables import number_columns, parse_header_table
+from ..tables import number_columns, parse_header_table, read_table_text
 
 FloatArray = np.ndarray
 
@@ -64,10 +64,7 @@ def _read_only(arr: np.ndarray) -> np.ndarray:
 
 
 def _read_reference_csv(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"Reference dataset {path} cannot be read: {exc}.") from exc
+    text = read_table_text(path, "Reference dataset")
     table = parse_header_table(text)
     if table.header is None:
         raise InvalidInput(f"Reference dataset {path} has no header row.")

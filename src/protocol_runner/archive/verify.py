@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -176,8 +177,11 @@ def verify_path(path: Path) -> Verdict:
     units = sorted((path / "units").glob("*.h5"))
     if not (path / "archive.h5").is_file() and not units:
         raise InvalidInput(f"{path}: neither an archive.h5 nor a session directory with units")
-    if (path / "archive.h5").is_file():
-        _verify_file(path / "archive.h5", verdict)
+    archive = path / "archive.h5"
+    if archive.is_file():
+        _verify_file(archive, verdict)
+    elif os.path.lexists(archive):
+        verdict.problems.append(f"{archive}: not a regular file (a directory, a FIFO, a dangling link?)")
     if units:
         each = Verdict()
         datasets = sum(_verify_file(unit, each) for unit in units)
@@ -191,6 +195,9 @@ def verify_path(path: Path) -> Verdict:
 
 def _verify_file(file: Path, verdict: Verdict) -> int:
     """Check `file`, adding its summary or its problems to `verdict`; the number of datasets verified."""
+    if not file.is_file():  # a FIFO would block the read forever, a directory has nothing to check
+        verdict.problems.append(f"{file}: not a regular file (a directory, a FIFO, a dangling link?)")
+        return 0
     try:
         require_hdf5(file)
         with h5py.File(file, "r") as h5:

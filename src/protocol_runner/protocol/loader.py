@@ -60,6 +60,10 @@ def read_protocol_text(path: Path, shown: str) -> str:
         raise InvalidInput(f"{shown}: protocol file not found")
     if path.is_dir():
         raise InvalidInput(f"{shown}: is a directory, expected a protocol file (.yaml)")
+    if not path.is_file():  # a FIFO or a device: its read would wait forever, or never end
+        raise InvalidInput(
+            f"{shown}: not a regular file (a FIFO or a device), expected a protocol file (.yaml)"
+        )
     try:
         with path.open("rb") as f:
             raw = f.read(MAX_PROTOCOL_BYTES + 1)  # bounded even for a device or a huge file

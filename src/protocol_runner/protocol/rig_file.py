@@ -20,6 +20,7 @@ from pydantic import Field, ValidationError, field_validator
 
 from ..errors import InvalidInput
 from ..resources import packaged_rigs_dir
+from ..tables import read_table_text
 from .booleans import boolean_numbers
 from .loaded import Loc
 from .paths import OutsideFolder, confined_path
@@ -114,10 +115,7 @@ def find_rig(name_or_path: str, base_dir: Path) -> Path:
 def load_rig(path: Path, shown: str | None = None) -> LoadedRig:
     """Read and check a rig file; InvalidInput naming the rig file, line and field."""
     shown = shown or path.name
-    try:
-        text = path.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
-        raise InvalidInput(f"{shown}: cannot read the rig file ({exc})") from None
+    text = read_table_text(path, "rig file")  # a regular file of bounded size, UTF-8; or InvalidInput
     return parse_rig_text(text, path, shown)
 
 

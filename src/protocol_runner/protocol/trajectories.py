@@ -25,7 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InvalidInput
-from ..tables import number_columns, parse_header_table
+from ..tables import number_columns, parse_header_table, read_table_text
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -239,10 +239,7 @@ _PARSED_CSV_MAX = 16
 
 
 def _load_csv(path: Path, angle_names: tuple[str, ...]) -> _Columns:
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise InvalidInput(f"{path}: not a text file (cannot be read as UTF-8)") from None
+    text = read_table_text(path, "trajectory file")
     key = (text, angle_names)
     parsed = _PARSED_CSV.get(key)
     if parsed is None:

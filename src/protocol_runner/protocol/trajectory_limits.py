@@ -22,8 +22,9 @@ import math
 from collections.abc import Mapping
 from pathlib import Path
 
+from ..errors import InvalidInput
 from ..hardware.safety import SafetyLimits, SafetyViolation, check_trajectory
-from ..tables import parse_header_table
+from ..tables import parse_header_table, read_table_text
 from .plan_trajectory import Trajectory
 from .sampling import FloatArray, sample_trajectory, samples_problem
 from .trajectories import (
@@ -160,8 +161,8 @@ class _Checker:
         if base_dir is None or self.source is None or not self.source.lower().endswith((".csv", ".txt")):
             return ""
         try:
-            table = parse_header_table((base_dir / self.source).read_text(encoding="utf-8"))
-        except (OSError, UnicodeDecodeError):
+            table = parse_header_table(read_table_text(base_dir / self.source, "trajectory file"))
+        except InvalidInput:
             return ""
         names = [c.lower() for c in table.header.cells] if table.header is not None else []
         col = next((names.index(n) for n in ("time_s", "t", "time") if n in names), 0)

@@ -62,7 +62,9 @@ class SimulatedBench:
         from ..hardware.simulator.daq import SimulatedRig
         from ..hardware.simulator.params import SimulatorParams
 
-        self.realtime = realtime  # paced like the robot: runner.py then saves each unit before the next motion
+        self.realtime = (
+            realtime  # paced like the robot: runner.py then saves each unit before the next motion
+        )
         self.multi: MultiRig | None = None
         self.multi_sim: MultiSimulatedRig | None = None
         self.rig: Rig
