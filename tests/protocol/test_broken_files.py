@@ -438,3 +438,12 @@ def test_a_misspelt_required_key_is_named_first(workdir: Path) -> None:
     lines = error_of(write(workdir, text)).splitlines()
     assert re.search(r"\.perods: unknown key", lines[0]), lines
     assert re.search(r"\.periods: required field is missing", lines[1]), lines
+
+
+def test_a_configuration_key_beyond_any_archive_integer_is_refused_at_its_line(workdir: Path) -> None:
+    """A key of 10^23 passed validation and crashed the run at its first trial (no HDF5 integer holds it)."""
+    text = KNEE_TEXT.replace("{key: 10, run: 1,", "{key: 99999999999999999999999, run: 1,", 1)
+    assert text != KNEE_TEXT
+    message = error_of(write(workdir, text))
+    assert message.startswith(f"broken.yaml:{line_of(text, 'key: 99999999999999999999999')}:"), message
+    assert "key: input should be less than or equal to 999999" in message, message

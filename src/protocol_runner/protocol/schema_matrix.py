@@ -10,6 +10,8 @@ from pydantic import BeforeValidator, ConfigDict, Field, StrictInt, model_valida
 from protocol_runner.protocol.schema_base import Identifier, LevelName, _int_to_str, _Model, _str_keys
 
 RESERVED_CONFIGURATION_KEYS = ("key", "run", "trajectory", "trials", "description")
+MAX_KEY = 999_999  # a configuration's key and run number: ample for any matrix, and an integer every
+# archive attribute, table and MATLAB field holds (a key of 10^23 passed validation, then crashed the run)
 
 
 def _levels_as_str(data: Any) -> Any:
@@ -23,8 +25,8 @@ class ConfigurationSpec(_Model):
 
     model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
 
-    key: StrictInt = Field(ge=1)
-    run: StrictInt = Field(ge=1)
+    key: StrictInt = Field(ge=1, le=MAX_KEY)
+    run: StrictInt = Field(ge=1, le=MAX_KEY)
     trajectory: Identifier
     trials: StrictInt = Field(ge=1, le=50)
     description: str = ""
