@@ -166,7 +166,7 @@ def resume(
     info = read_session_info(session_dir)
     check_resume_arguments(info, seed=seed, only=only)
     loaded, plan, changed = load_session_protocol(session_dir, info, force=force)
-    complete = resume_preflight(session_dir, plan, force=force)
+    complete = resume_preflight(session_dir, plan, force=force, info=info)
     if complete is not None:
         _say(complete)
         return EXIT_OK

@@ -64,3 +64,27 @@ def test_a_seed_of_thousands_of_digits_is_a_damaged_session_file(
     assert main(["--resume", str(session), "--yes"]) == 2
     err = capsys.readouterr().err
     assert "damaged session file (a number too long to read)" in err and "Traceback" not in err, err
+
+
+def test_a_seed_edited_in_session_json_is_refused_unless_forced_and_then_recorded(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The review changed the seed 7 -> 8 by hand: the resume went on silently, and the archive said seed 8
+    of trials the simulator had recorded with seed 7."""
+    session = _copy(reference_archive, tmp_path / "s")
+    journal = session / "journal.jsonl"
+    lines = journal.read_text(encoding="utf-8").splitlines()
+    kept = [line for line in lines if '"step_id": "fit:' not in line]  # a step left to do
+    journal.write_text("\n".join(kept) + "\n", encoding="utf-8")
+    info = session / "session.json"
+    info.write_text(info.read_text().replace('"seed": 7', '"seed": 8'), encoding="utf-8")
+    assert main(["--resume", str(session), "--yes"]) == 2
+    err = capsys.readouterr().err
+    assert "dry-run, seed 8, but the session began as dry-run, seed 7" in err and "Traceback" not in err, err
+    assert main(["--resume", str(session), "--yes", "--force"]) == 0
+    events = [json.loads(line) for line in journal.read_text(encoding="utf-8").splitlines()]
+    assert any(
+        e.get("kind") == "operator_override"
+        and "although the session began as dry-run, seed 7" in e["detail"]
+        for e in events
+    )

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
@@ -166,6 +167,13 @@ def prepare_resume(runner: Runner, ctx: StepContext, progress: Progress) -> None
             "operator_override",
             f"journal.jsonl had {j.damaged_lines} damaged line(s), ignored; resumed with --force: the steps they "
             "recorded are redone",
+        )
+    began = started_as(j)
+    if began is not None and began != (runner.info.mode, runner.info.seed):  # only with --force
+        j.event(
+            "operator_override",
+            f"resumed with --force as {runner.info.mode}, seed {runner.info.seed}, although the session began "
+            f"as {began[0]}, seed {began[1]}",
         )
     strangers = _not_in_plan(runner.plan, j)
     if strangers:  # only with --force (resume_preflight refuses them otherwise)
@@ -330,7 +338,16 @@ def _archive_says_complete(path: Path) -> bool:
     return (status.decode() if isinstance(status, bytes) else str(status)) == "complete"
 
 
-def resume_preflight(session_dir: Path, plan: Plan, *, force: bool) -> str | None:
+def started_as(journal: Journal) -> tuple[str, int] | None:
+    """The mode and seed the session's first run journaled (its `started` event), or None."""
+    first = next((e for e in journal.events if e.kind == "started"), None)
+    match = re.fullmatch(r"(\S+), seed (\d{1,30})", first.detail) if first is not None else None
+    return (match.group(1), int(match.group(2))) if match else None
+
+
+def resume_preflight(
+    session_dir: Path, plan: Plan, *, force: bool, info: SessionInfo | None = None
+) -> str | None:
     """Refuse a resume that would silently redo or rewrite recorded work. Returns a message when the
     session is already complete - every step done, archive and report written (nothing to do; nothing is
     touched) - else None (a session whose report could not be written, e.g. on a full disk, is resumed:
@@ -349,6 +366,14 @@ def resume_preflight(session_dir: Path, plan: Plan, *, force: bool) -> str | Non
         return None
     _refuse_a_damaged_journal(journal_path, units_dir, n_units, force=force)
     journal = Journal(journal_path)
+    began = started_as(journal)
+    if info is not None and began is not None and began != (info.mode, info.seed) and not force:
+        raise InvalidInput(
+            f"{session_dir / 'session.json'}: {info.mode}, seed {info.seed}, but the session began as "
+            f"{began[0]}, seed {began[1]} ({journal_path}): session.json was edited, and a resume with "
+            "another seed would not record what the session began to. Restore it, or resume with --force "
+            "(recorded)"
+        )
     strangers = _not_in_plan(plan, journal)
     if strangers and not force:
         shown = ", ".join(strangers[:4]) + (" ..." if len(strangers) > 4 else "")
