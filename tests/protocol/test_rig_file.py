@@ -136,7 +136,13 @@ def test_a_boolean_for_a_rate_in_the_rig_file_is_refused_at_its_line(tmp_path: P
             "    rate_hz: 1000                    # the scan rate used",
             "    rate_hz: 0.001                   # the scan rate used",
             "rate_hz",
-            "boards.dt9814.rate_hz: an input board's rate must lie in [10, 50000] Hz, got 0.001",
+            "boards.dt9814.rate_hz: an input board's rate must lie in [10, 25000] Hz, got 0.001",
+        ),
+        (
+            "    rate_hz: 1000                    # the scan rate used",
+            "    rate_hz: 50000                   # two channels: 100,000 samples/s",
+            "rate_hz",
+            "boards.dt9814.rate_hz: an input board's rate must lie in [10, 25000] Hz, got 50000",
         ),
         (
             "    torque_range_nm: [-84.8, 84.8]",
@@ -152,6 +158,7 @@ def test_a_boolean_for_a_rate_in_the_rig_file_is_refused_at_its_line(tmp_path: P
         "output rate tiny",
         "output rate high",
         "input rate",
+        "input rate over the two channels' limit",
         "torque range",
     ],
 )
