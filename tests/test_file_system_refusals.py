@@ -31,7 +31,7 @@ def test_one_path_is_named_with_the_hint_for_what_to_do(tmp_path: Path) -> None:
     )
     read_only = OSError(errno.EROFS, "Read-only file system", str(tmp_path))
     assert file_system_refusal(read_only) == (
-        f"cannot use {tmp_path}: Read-only file system; give --output (or --session) a writable place"
+        f"cannot use {tmp_path}: Read-only file system; use a writable place (a new --output or --session, or a copy of the session)"
     )
 
 

@@ -82,7 +82,7 @@ def file_system_refusal(exc: BaseException) -> str | None:
     if not isinstance(exc, OSError) or exc.errno not in FILE_SYSTEM_REFUSALS:
         return None
     hint = {
-        errno.EROFS: "; give --output (or --session) a writable place",
+        errno.EROFS: "; use a writable place (a new --output or --session, or a copy of the session)",
         errno.EACCES: "; check the permissions",
         errno.EPERM: "; check the permissions",
     }.get(exc.errno or 0, "")
