@@ -159,7 +159,7 @@ def resume(
     monitor: Monitor | None = None,
 ) -> int:
     _start_worker_server()
-    from .session.resume import check_resume_arguments, resume_preflight
+    from .session.resume_checks import check_resume_arguments, resume_preflight
     from .session.runner import Runner
     from .session.setup import load_session_protocol, read_session_info
 

@@ -88,3 +88,21 @@ def test_a_seed_edited_in_session_json_is_refused_unless_forced_and_then_recorde
         and "although the session began as dry-run, seed 7" in e["detail"]
         for e in events
     )
+
+
+def test_a_unit_that_no_longer_matches_its_journal_is_kept_aside_not_overwritten(
+    tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The review duplicated a journal line with another sha256: the resume redid the trial and wrote the
+    new recording over the intact unit file. Whatever is wrong (the file or the journal), the file is kept."""
+    session = _copy(reference_archive, tmp_path / "s")
+    journal = session / "journal.jsonl"
+    unit = _unit_line(session)
+    original = (session / "units" / str(unit["file"])).read_bytes()
+    with journal.open("a", encoding="utf-8") as f:
+        f.write(json.dumps({**unit, "sha256": "0" * 64}) + "\n")  # a hand edit: the same step, another digest
+    assert main(["--resume", str(session), "--yes"]) == 0, capsys.readouterr().err
+    kept = session / "units" / f"{unit['file']}.replaced-1"
+    assert kept.read_bytes() == original
+    assert f"(the file is kept as {kept.name})" in capsys.readouterr().err
+    assert (session / "units" / str(unit["file"])).is_file()  # recorded again
