@@ -68,3 +68,16 @@ def test_verify_names_a_fifo_in_units_and_an_archive_that_is_a_directory(tmp_pat
     out = done.stdout + done.stderr
     assert "trial__k01__on__1.h5: not a regular file" in out, out
     assert "archive.h5: not a regular file" in out, out
+
+
+def test_a_fifo_as_a_referenced_file_is_said_to_be_one_not_missing(tmp_path: Path) -> None:
+    protocol = find_protocol("knee_phase1.yaml")
+    shutil.copytree(protocol.parent, tmp_path / "p")
+    path = tmp_path / "p" / "knee_phase1.yaml"
+    text = path.read_text()
+    assert "  reference_dataset: null" in text
+    path.write_text(text.replace("  reference_dataset: null", "  reference_dataset: emu.csv", 1))
+    os.mkfifo(tmp_path / "p" / "emu.csv")
+    done = _cli("--validate", "knee_phase1.yaml", cwd=tmp_path / "p")
+    assert done.returncode == 2, done.stderr
+    assert "reference dataset emu.csv is not a regular file" in done.stderr and "not found" not in done.stderr

@@ -9,6 +9,7 @@ present and loadable; every motion's commanded stream inside the joint's envelop
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -332,7 +333,15 @@ def _check_loadable(loc: Loc, base: Path, rel: str, what: str) -> Iterator[Probl
         yield loc, str(exc)
         return
     if not path.is_file():
-        yield loc, f"{what} {rel} not found (looked in {path.parent})"
+        there = os.path.lexists(path)  # a FIFO, a device, a directory or a dangling link: not "not found"
+        yield (
+            loc,
+            (
+                f"{what} {rel} is not a regular file ({path})"
+                if there
+                else f"{what} {rel} not found (looked in {path.parent})"
+            ),
+        )
         return
     try:
         if what == "calibration table":

@@ -166,7 +166,7 @@ def changed_files(directory: Path, info: SessionInfo) -> list[str]:
     for rel, digest in sorted(info.files_sha256.items()):
         path = directory / "protocol" / rel
         if not path.is_file():
-            out.append(f"{rel} (missing)")
+            out.append(f"{rel} ({'not a regular file' if os.path.lexists(path) else 'missing'})")
         elif sha256_of(path) != digest:
             out.append(f"{rel} (changed)")
     return out
