@@ -120,3 +120,25 @@ def test_a_refit_ending_above_the_limit_is_continued_before_it_ends_n_interval(
     monkeypatch.setattr(identifiability, "CROSSING_NFEV", 1)  # (almost) no continuation
     cut = identify(segments, fit).n_interval
     assert cut[1] < converged[1] - 0.1
+
+
+def test_the_standard_errors_shown_are_the_sigma_of_the_intervals() -> None:
+    """The report shows each parameter +- param_std beside its 95 % interval: after identify they are one
+    sigma (theta +- 1.96 sigma), allowing for correlated residuals, not the fit's narrower Jacobian sigma
+    (a modeller's review found that 10-140 times narrower than the intervals)."""
+    x = np.linspace(-40.0, 40.0, 400)
+    x = np.concatenate([x, x[::-1]] * 3)
+    rng = np.random.default_rng(2)
+    smooth = np.convolve(rng.standard_normal(x.size), np.ones(25) / 25.0, mode="same")  # correlated errors
+    segments = [(x, simulate(x, FIG57, 0.0) + 0.3 * smooth) for _ in range(2)]
+    fit = fit_trials(segments)
+    result = identify(segments, fit)
+    theta = result.params.as_array()
+    low, high = np.asarray(result.param_interval_low), np.asarray(result.param_interval_high)
+    finite = np.isfinite(result.param_std)
+    for k in np.flatnonzero(finite):
+        if k == 1:  # n's interval is its profile, not a Wald interval
+            continue
+        assert math.isclose(high[k] - theta[k], 1.96 * result.param_std[k], rel_tol=1e-9)
+        assert math.isclose(theta[k] - low[k], 1.96 * result.param_std[k], rel_tol=1e-9)
+    assert np.all(result.param_std[finite] > fit.param_std[finite])  # wider than independent errors allow

@@ -21,6 +21,7 @@ from protocol_runner.report.h5read import (
     read_only,
     read_record,
 )
+from protocol_runner.report.metrics import peak_of, range_of, slope_of
 from protocol_runner.report.model import (
     BoucWenFit,
     Configuration,
@@ -81,6 +82,9 @@ def read_configuration(name: str, grp: h5py.Group) -> Configuration:
                     brace_torque_nm=decimate_for_plot(torque),
                     subtraction=attr_str(pgrp.attrs, "subtraction", "equal_angle"),
                     filter_text=_filter_text(pgrp.attrs),
+                    range_deg=range_of(angle, torque),
+                    slope_nm_per_deg=slope_of(angle, torque),
+                    peak_nm=peak_of(angle, torque),
                 )
             trials.append(
                 Trial(number=number, brace_on=on, brace_off=off, processed=processed, recorded=has_raw)

@@ -11,8 +11,10 @@
 | `hysteresis_width` | N·m | torque gap between flexion and extension within ±2° of `angle_deg` |
 | `fit_rmse` | N·m | Bouc-Wen held-out-trial RMSE (the fit's RMSE when there was one trial) |
 
-Angle and torque metrics read each trial's processed brace data as stored in the report data (decimated
-for plotting: at most a few thousand samples per trial, enough for percentiles and slopes).
+`range_reached`, `energy_per_degree`, `torque_angle_slope` and `peak_torque` come from every stored sample
+of the trial (computed when the archive is read: `range_of`, `slope_of`, `peak_of`). `angle_percentile` and
+`hysteresis_width`, which take a parameter, read the copy decimated for plotting (at most a few thousand
+samples per trial): close to the whole data's, but every k-th sample only.
 """
 
 from __future__ import annotations
@@ -62,21 +64,38 @@ def _finite(angle: np.ndarray, torque: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return a[ok], t[ok]
 
 
-def _range(p: ProcessedTrial) -> float:
-    a, _ = _finite(p.angle_deg, p.brace_torque_nm)
+def range_of(angle_deg: np.ndarray, torque_nm: np.ndarray) -> float:
+    a, _ = _finite(angle_deg, torque_nm)
     return float(np.percentile(a, 99) - np.percentile(a, 1)) if a.size else math.nan
 
 
-def _slope(p: ProcessedTrial) -> float:
-    a, t = _finite(p.angle_deg, p.brace_torque_nm)
+def slope_of(angle_deg: np.ndarray, torque_nm: np.ndarray) -> float:
+    a, t = _finite(angle_deg, torque_nm)
     if a.size < 3 or np.ptp(a) == 0.0:
         return math.nan
     return float(np.polyfit(a, t, 1)[0])
 
 
-def _peak(p: ProcessedTrial) -> float:
-    _, t = _finite(p.angle_deg, p.brace_torque_nm)
+def peak_of(angle_deg: np.ndarray, torque_nm: np.ndarray) -> float:
+    _, t = _finite(angle_deg, torque_nm)
     return float(np.max(np.abs(t))) if t.size else math.nan
+
+
+def _whole(value: float, p: ProcessedTrial, of: Callable[[np.ndarray, np.ndarray], float]) -> float:
+    """The value from every sample when the reader computed it, else from the plotted copy."""
+    return value if math.isfinite(value) else of(p.angle_deg, p.brace_torque_nm)
+
+
+def _range(p: ProcessedTrial) -> float:
+    return _whole(p.range_deg, p, range_of)
+
+
+def _slope(p: ProcessedTrial) -> float:
+    return _whole(p.slope_nm_per_deg, p, slope_of)
+
+
+def _peak(p: ProcessedTrial) -> float:
+    return _whole(p.peak_nm, p, peak_of)
 
 
 def _hysteresis(p: ProcessedTrial, angle_deg: float) -> float:

@@ -10,6 +10,7 @@ Arrays are numpy arrays marked read-only; units are in the field names.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -114,10 +115,15 @@ class Recording:
 class ProcessedTrial:
     """The brace's own torque against angle after transition removal, filtering and subtraction (§3.3)."""
 
-    angle_deg: FloatArray
+    angle_deg: FloatArray  # decimated for plotting (report/h5read.decimate_for_plot)
     brace_torque_nm: FloatArray
     subtraction: str
     filter_text: str = ""  # e.g. "Butterworth low-pass, order 10, cut-off 50.0 Hz, zero-phase"
+    # from every stored sample, not the plotted copy (report/metrics.py: a significance test on the copy's
+    # every k-th sample found differences of 0.02 deg the whole data do not show); NaN when not computed
+    range_deg: float = math.nan  # 99th minus 1st percentile of the angle
+    slope_nm_per_deg: float = math.nan  # least-squares slope of brace torque against angle
+    peak_nm: float = math.nan  # largest absolute brace torque
 
 
 @dataclass(frozen=True)

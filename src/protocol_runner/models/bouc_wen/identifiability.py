@@ -9,7 +9,8 @@ Intervals (95 %):
   unknown variance). A refit that ends above that limit is continued (``CROSSING_NFEV`` more evaluations)
   before it ends the interval: one that merely ran out of evaluations would cut the interval short.
 * The other parameters get Wald intervals, ``theta +- 1.96 sigma``, with sigma from the Jacobian at the
-  optimum (:func:`.problem.param_std`).
+  optimum (:func:`.problem.param_std`); that sigma (n's too) becomes the fit's ``param_std``, so that the
+  standard errors shown beside the parameters are the ones the intervals use.
 * Filtered data have strongly correlated residuals, so ``m`` samples carry far less than ``m`` independent
   errors.  ``m_eff = m (1 - rho) / (1 + rho)`` with ``rho`` the residuals' lag-1 autocorrelation (the
   AR(1) effective sample size) is used in both: the profile threshold and sigma scaled by
@@ -193,6 +194,7 @@ def identify(segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]], result: Bo
     reasons = weak_reasons(u_best, std_u, (n_low, n_high), problem)
     return replace(
         result,
+        param_std=std,  # the sigma of the intervals: residuals' correlation allowed for (the fit's is not)
         n_interval=(float(n_low), float(n_high)),
         param_interval_low=tuple(float(v) for v in low),
         param_interval_high=tuple(float(v) for v in high),

@@ -68,11 +68,16 @@ class BoucWenFit:
     params: best-fitting parameters (physical units, see :class:`BoucWenParams`).
     rmse_nm: root-mean-square torque error over every given sample of every trial, with each trial's
         recursion started at its own first torque.
-    r2: coefficient of determination over the same samples.
+    r2: coefficient of determination over the same samples, of the torque the Bouc-Wen state models: with a
+        backbone (``torque = g(angle) + z``) that is the torque left after ``g`` (the residuals, and so
+        ``rmse_nm``, are the same as the whole torque's; the whole torque's R^2 is higher, ``g`` explaining
+        most of its variance).
     param_std: 1-sigma uncertainties of (A, n, beta1..6) from the Jacobian at the optimum,
         ``sqrt(diag(s^2 (J^T J)^-1))`` on the fitted samples; ``inf`` for a direction the data cannot
         determine (e.g. a Table 4 phase never visited).  Filtered data has correlated residuals, which makes
-        these optimistic.
+        these optimistic: :func:`.identifiability.identify` (which the pipeline runs) replaces them with
+        the sigma of its Wald intervals, which allows for that correlation (10-100 times larger on the
+        knee's loops).
     n_starts: number of starting points tried; converged: the final local solve met its tolerance;
     diverged: the fitted model's recursion left the data's torque range by a factor 10 on the given samples.
     trial_rmse_nm: RMSE of each trial; n_samples: samples given; n_samples_fitted: samples the optimiser
