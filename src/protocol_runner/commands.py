@@ -324,6 +324,7 @@ class _NoBench:
     """Stands in for a rig when only the archive is assembled (no step runs)."""
 
     mode = "none"
+    paced = False
     rig = None
 
     def begin_step(self, step_id: str) -> None:

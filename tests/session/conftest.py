@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -108,3 +109,9 @@ def assert_same_data(reference: Path, other: Path) -> None:
     assert not missing, f"missing in the resumed archive: {missing[:10]}"
     different = sorted(k for k in ref if ref[k] != got[k])
     assert not different, f"differ from the uninterrupted run: {different[:10]}"
+
+
+def copy_session(reference_archive: Path, to: Path) -> Path:
+    """A copy of the reference session (its lock aside) at `to`."""
+    shutil.copytree(reference_archive.parent, to, ignore=shutil.ignore_patterns(".lock"))
+    return to

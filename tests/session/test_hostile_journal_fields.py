@@ -5,16 +5,17 @@ refuses the damaged journal, saying so, and the read-only commands go on without
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import pytest
 
 from protocol_runner.cli import main
 
+from .conftest import copy_session
+
 
 def _copy(reference_archive: Path, to: Path) -> Path:
-    shutil.copytree(reference_archive.parent, to, ignore=shutil.ignore_patterns(".lock"))
+    copy_session(reference_archive, to)
     (to / "archive.h5").unlink()  # the commands then read the journal and the units
     return to
 

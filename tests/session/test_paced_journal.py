@@ -38,7 +38,7 @@ def test_a_paced_session_journals_every_unit_before_the_next_motion(
 
     def paced(self: rigs.SimulatedBench, *args: object, **kwargs: object) -> None:
         real_init(self, *args, **kwargs)  # type: ignore[arg-type]
-        self.realtime = True  # as --realtime says; the simulator itself is not slowed down here
+        self.paced = True  # as --realtime says; the simulator itself is not slowed down here
 
     monkeypatch.setattr(rigs.SimulatedBench, "__init__", paced)
     seen: list[tuple[str, set[str]]] = []

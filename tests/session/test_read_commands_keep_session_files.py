@@ -5,7 +5,6 @@ and an archive they assemble for an unfinished session never replaces the one a 
 
 from __future__ import annotations
 
-import shutil
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -16,10 +15,7 @@ from protocol_runner.cli import main
 from protocol_runner.session import lock as lock_module
 from protocol_runner.session.journal import Journal
 
-
-def _copy(reference_archive: Path, to: Path) -> Path:
-    shutil.copytree(reference_archive.parent, to, ignore=shutil.ignore_patterns(".lock"))
-    return to
+from .conftest import copy_session
 
 
 @pytest.mark.parametrize("target", ["unit", "journal.jsonl", "session.json", "archive.h5"])
@@ -27,7 +23,7 @@ def _copy(reference_archive: Path, to: Path) -> Path:
 def test_output_over_a_session_file_is_refused(
     tmp_path: Path, reference_archive: Path, capsys: pytest.CaptureFixture[str], target: str, command: str
 ) -> None:
-    session = _copy(reference_archive, tmp_path / "s")
+    session = copy_session(reference_archive, tmp_path / "s")
     if target == "unit":
         record = next(iter(Journal(session / "journal.jsonl").units.values()))
         path = session / "units" / record.file
@@ -44,7 +40,7 @@ def test_output_over_a_session_file_is_refused(
 
 
 def test_output_over_an_earlier_report_is_allowed(tmp_path: Path, reference_archive: Path) -> None:
-    session = _copy(reference_archive, tmp_path / "s")
+    session = copy_session(reference_archive, tmp_path / "s")
     earlier = tmp_path / "look.html"
     earlier.write_text("<!DOCTYPE html>\n<html><body>OLD-REPORT-MARKER</body></html>\n")
     assert main(["--report", str(session), "--output", str(earlier)]) == 0
@@ -54,7 +50,7 @@ def test_output_over_an_earlier_report_is_allowed(tmp_path: Path, reference_arch
 def test_an_archive_a_resume_finished_meanwhile_is_not_replaced(
     tmp_path: Path, reference_archive: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    session = _copy(reference_archive, tmp_path / "s")
+    session = copy_session(reference_archive, tmp_path / "s")
     finished = (session / "archive.h5").read_bytes()
     (session / "archive.h5").unlink()
     real_lock = lock_module.session_lock

@@ -14,12 +14,7 @@ from protocol_runner.cli import main
 from protocol_runner.protocol.loader import find_protocol
 from protocol_runner.session.journal import Journal
 
-from .conftest import ONLY, SEED
-
-
-def copy_session(reference_archive: Path, to: Path) -> Path:
-    shutil.copytree(reference_archive.parent, to, ignore=shutil.ignore_patterns(".lock"))
-    return to
+from .conftest import ONLY, SEED, copy_session
 
 
 def snapshot(session: Path) -> dict[str, tuple[bytes, int]]:

@@ -5,7 +5,6 @@ file, unless accepted with --force, which the archive records)."""
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import h5py
@@ -15,10 +14,7 @@ from protocol_runner.archive.units import sha256_of
 from protocol_runner.cli import main
 from protocol_runner.session.journal import Journal
 
-
-def copy_session(reference_archive: Path, to: Path) -> Path:
-    shutil.copytree(reference_archive.parent, to, ignore=shutil.ignore_patterns(".lock"))
-    return to
+from .conftest import copy_session
 
 
 @pytest.mark.parametrize(

@@ -62,9 +62,7 @@ class SimulatedBench:
         from ..hardware.simulator.daq import SimulatedRig
         from ..hardware.simulator.params import SimulatorParams
 
-        self.realtime = (
-            realtime  # paced like the robot: runner.py then saves each unit before the next motion
-        )
+        self.paced = realtime  # like the robot: runner.py then saves each unit before the next motion
         self.multi: MultiRig | None = None
         self.multi_sim: MultiSimulatedRig | None = None
         self.rig: Rig
@@ -127,6 +125,7 @@ class HardwareBench:
         from ..hardware.usb_common import realtime_priority
 
         self.mode = "hardware"
+        self.paced = True
         self.rig: Rig
         self.multi: MultiRig | None = None
         if loaded.protocol.multi_joint:

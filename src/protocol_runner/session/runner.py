@@ -134,7 +134,6 @@ class Runner:
             writer=self.writer,
         )
         skipped = 0
-        paced = self.bench.mode == "hardware" or bool(getattr(self.bench, "realtime", False))
         try:
             if self.resumed:
                 prepare_resume(self, ctx, progress)  # session/resume.py
@@ -174,7 +173,7 @@ class Runner:
                 if step.kind == "report":
                     return self._finish(progress, skipped)
                 progress.step_started(step)
-                if paced and step.robot_time_s > 0:
+                if self.bench.paced and step.robot_time_s > 0:
                     # On the robot a step lasts a minute: journal the last one's unit before it starts,
                     # so that a crash or power cut during it cannot make a resume record it again.
                     self.writer.flush()
