@@ -447,3 +447,54 @@ def test_a_configuration_key_beyond_any_archive_integer_is_refused_at_its_line(w
     message = error_of(write(workdir, text))
     assert message.startswith(f"broken.yaml:{line_of(text, 'key: 99999999999999999999999')}:"), message
     assert "key: input should be less than or equal to 999999" in message, message
+
+
+def test_a_speed_beyond_any_campaigns_magnitude_is_refused_at_its_line(workdir: Path) -> None:
+    """A speed of 1e300 deg/s passed the schema and overflowed in the plan's acceleration check (a
+    traceback); every number is bounded, so the later arithmetic stays finite."""
+    text = KNEE_TEXT.replace("Full: {speed_deg_s: 50.0}", "Full: {speed_deg_s: 1e300}", 1)
+    assert text != KNEE_TEXT
+    message = error_of(write(workdir, text))
+    assert message.startswith(
+        f"broken.yaml:{line_of(text, 'speed_deg_s: 1e300')}: factors.speed.Full.speed_deg_s: "
+    )
+    assert "1e+300 is beyond the 1e+09" in message, message
+
+
+def test_a_filter_cutoff_the_analysis_cannot_use_is_refused_before_anything_is_recorded(
+    workdir: Path,
+) -> None:
+    """A cutoff of 1e-12 of Nyquist passed validation; the zero-phase filter then raised LinAlgError
+    (a singular initial-condition system) after every trial had been recorded."""
+    text = KNEE_TEXT.replace("cutoff: 0.10}", "cutoff: 1e-12}", 1)
+    assert text != KNEE_TEXT
+    message = error_of(write(workdir, text))
+    assert message.startswith(f"broken.yaml:{line_of(text, 'cutoff: 1e-12')}: processing.filter.cutoff: ")
+    assert "greater than or equal to 0.0001" in message, message
+
+
+def test_the_smallest_cutoff_allowed_filters_without_error() -> None:
+    """The floor is where the filter still works: a record filtered at the lowest cutoff stays finite."""
+    import numpy as np
+    from scipy.signal import butter, sosfiltfilt
+
+    from protocol_runner.protocol.schema import FilterSpec
+
+    floor = FilterSpec.model_fields["cutoff"].metadata[0].ge
+    noise = np.random.default_rng(1).normal(size=20_000)
+    filtered = sosfiltfilt(butter(20, floor, output="sos"), noise)
+    assert np.all(np.isfinite(filtered))
+
+
+def test_a_calibration_step_that_does_not_move_is_refused(workdir: Path) -> None:
+    """`step_deg: 0` "passed" with a time constant of 0.279 s fitted to noise; a step below the declared
+    minimum (calibration_check.min_step_deg, 5 deg unless declared) is refused at its line."""
+    text = KNEE_TEXT.replace("  step_deg: 45", "  step_deg: 0", 1)
+    assert text != KNEE_TEXT
+    message = error_of(write(workdir, text))
+    assert message.startswith(f"broken.yaml:{line_of(text, '  step_deg: 0')}: calibration_step.step_deg: ")
+    assert "smaller than calibration_check.min_step_deg = 5 deg" in message, message
+    declared = text.replace("calibration_check:", "calibration_check:\n  min_step_deg: 0.0001", 1)
+    assert "calibration_check:\n  min_step_deg" in declared
+    tiny = declared.replace("  step_deg: 0", "  step_deg: 0.00001", 1)
+    assert "min_step_deg = 0.0001 deg" in error_of(write(workdir, tiny))

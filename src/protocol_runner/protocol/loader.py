@@ -27,7 +27,7 @@ from .rig_file import find_rig, load_rig, parse_rig_text, resolve_rig, resolve_r
 from .schema import Protocol
 from .validate import cross_check
 from .yaml_doc import format_loc as format_loc
-from .yaml_doc import format_problems, parse_yaml, validation_problems
+from .yaml_doc import format_problems, huge_numbers, parse_yaml, validation_problems
 from .yaml_limits import MAX_PROTOCOL_BYTES, check_size
 
 
@@ -111,7 +111,7 @@ def parse_protocol_text(
         protocol = Protocol.model_validate(data)
     except ValidationError as exc:
         raise InvalidInput(format_problems(shown, lines, validation_problems(exc, Protocol))) from None
-    booleans = boolean_numbers(protocol, data)
+    booleans = boolean_numbers(protocol, data) or huge_numbers(data)
     if booleans:
         raise InvalidInput(format_problems(shown, lines, booleans))
     base_dir = path.parent

@@ -26,7 +26,7 @@ from .loaded import Loc
 from .paths import OutsideFolder, confined_path
 from .schema_base import Identifier, RangePair, _check_range, _Model
 from .schema_rig import InputSpec, JointSpec, OutputSpec, RigOverrides, RigSpec, SafetyOverride, SafetySpec
-from .yaml_doc import format_problems, parse_yaml, validation_problems
+from .yaml_doc import format_problems, huge_numbers, parse_yaml, validation_problems
 
 Problem = tuple[Loc, str]
 
@@ -129,7 +129,7 @@ def parse_rig_text(text: str, path: Path, shown: str) -> LoadedRig:
         rig = RigFile.model_validate(data)
     except ValidationError as exc:
         raise InvalidInput(format_problems(shown, lines, validation_problems(exc, RigFile))) from None
-    problems = boolean_numbers(rig, data) or check_rig_file(rig)
+    problems = boolean_numbers(rig, data) or huge_numbers(data) or check_rig_file(rig)
     if problems:
         raise InvalidInput(format_problems(shown, lines, problems))
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()

@@ -74,6 +74,9 @@ class CalibrationStepSpec(RampedStepFields[float], _Model):
 
 class CalibrationCheckSpec(_Model):
     max_settle_error_deg: float = Field(gt=0)
+    # the smallest calibration step whose response can carry a time constant: a step comparable to the
+    # sensor noise and the servo's dead band gives a "time constant" of noise
+    min_step_deg: float = Field(default=5.0, gt=0)
     time_constant_s: RangePair
     max_drift_deg: float = Field(gt=0)
     max_time_constant_change_s: float = Field(gt=0)
@@ -92,8 +95,10 @@ class TransitionSpec(_Model):
 class FilterSpec(_Model):
     kind: Literal["butterworth", "chebyshev"]
     order: int = Field(default=10, ge=1, le=20)
-    cutoff: float = Field(default=0.1, gt=0, lt=1)
-    ripple_db: float = Field(default=0.5, gt=0)
+    # a fraction of the Nyquist frequency; below 1e-4 the zero-phase filter's initial conditions are a
+    # singular system (and the filter passes nothing but the record's mean anyway)
+    cutoff: float = Field(default=0.1, ge=1e-4, lt=1)
+    ripple_db: float = Field(default=0.5, gt=0, le=40)
 
 
 class ScalingSpec(_Model):

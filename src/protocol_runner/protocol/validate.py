@@ -301,6 +301,12 @@ def _check_calibration_step(p: Protocol) -> Iterator[Problem]:
                     (*base, field),
                     f"the calibration step reaches {value:g} deg, outside {whose} range {_fmt_range(joint)}",
                 )
+        if abs(step.step_deg) < p.calibration_check.min_step_deg:
+            yield (
+                (*base, "step_deg"),
+                f"a {step.step_deg:g} deg step is smaller than calibration_check.min_step_deg = "
+                f"{p.calibration_check.min_step_deg:g} deg: its response would be noise, not a time constant",
+            )
         peak = calibration_step_peak_speed_deg_s(step.step_deg, step.ramp_s)
         if peak > rig.safety.max_rate_deg_s:
             yield (

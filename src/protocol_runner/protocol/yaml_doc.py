@@ -101,6 +101,40 @@ def _control_character(value: object, loc: Loc) -> tuple[Loc, int] | None:
     return None
 
 
+MAX_MAGNITUDE = 1e9
+"""The largest magnitude a number in a protocol or rig file may have. No quantity of a campaign comes near
+it in the units its field names (rates are at most tens of kHz, times hours, keys below a million), and a
+bound keeps every later computation (a squared speed, a sample count) finite."""
+
+
+def huge_numbers(value: object, loc: Loc = ()) -> list[tuple[Loc, str]]:
+    """The first number beyond `MAX_MAGNITUDE` in the document, as a problem at its place (checked after
+    the schema, whose own bound on a field, where it has one, is the clearer message)."""
+    if isinstance(value, int | float) and not isinstance(value, bool) and abs(value) > MAX_MAGNITUDE:
+        text = str(value)
+        shown = (
+            f"{value:.6g}"
+            if isinstance(value, float)
+            else text
+            if len(text) <= 15
+            else f"a {len(text)}-digit number"
+        )
+        return [
+            (
+                loc,
+                f"{shown} is beyond the {MAX_MAGNITUDE:.0e} any number of a campaign may be (check its unit and exponent)",
+            )
+        ]
+    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
+    for key, item in items:
+        found = huge_numbers(
+            item, (*loc, key if isinstance(key, int) and isinstance(value, list) else str(key))
+        )
+        if found:
+            return found
+    return []
+
+
 def _escaped(text: str) -> str:
     """`text` with its control characters written as escapes (a message must not carry them either)."""
     return "".join(f"\\x{ord(c):02x}" if _is_control(c) else c for c in text)
