@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from protocol_runner.analysis.reference import load_reference_dataset
@@ -74,3 +75,14 @@ def test_the_first_bad_row_is_named_whichever_column_it_is_bad_in() -> None:
 def test_quoted_cells_are_split_as_csv_and_plain_ones_at_every_comma() -> None:
     table = parse_header_table('name, value\n"a, b", 1\n  c ,2 \n')
     assert [r.cells for r in table.rows] == [("a, b", "1"), ("c", "2")]
+
+def test_a_trajectory_saved_with_a_byte_order_mark_reads_as_without(tmp_path: Path) -> None:
+    """Spreadsheets save CSV with a UTF-8 byte-order mark; it was read into the first header cell and the
+    file refused (its message showing the right header). It is not data."""
+    text = "time_s,angle_deg\n0,10\n1,20\n2,15\n"
+    plain, marked = tmp_path / "plain.csv", tmp_path / "marked.csv"
+    plain.write_bytes(text.encode("utf-8"))
+    marked.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+    a, b = load_trajectory_file(marked), load_trajectory_file(plain)
+    assert a.column == b.column == "angle_deg"
+    assert np.array_equal(a.time_s, b.time_s) and np.array_equal(a.angle_deg, b.angle_deg)

@@ -89,8 +89,9 @@ its size in memory, so a larger file is refused before it is read."""
 
 
 def read_table_text(path: Path, what: str, max_bytes: int = MAX_TABLE_BYTES) -> str:
-    """The file's UTF-8 text; `InvalidInput` "<what> <path>: file not found", "...: not a regular file",
-    "...: N bytes, more than ..." or "...: cannot read it (...)". A FIFO or a device is refused unread (its
+    """The file's UTF-8 text (a leading byte-order mark, as spreadsheets write, removed); `InvalidInput`
+    "<what> <path>: file not found", "...: not a regular file", "...: N bytes, more than ..." or "...: cannot
+    read it (...)". A FIFO or a device is refused unread (its
     read would wait forever, or never end)."""
     try:
         info = path.stat()
@@ -112,7 +113,7 @@ def read_table_text(path: Path, what: str, max_bytes: int = MAX_TABLE_BYTES) -> 
             raw = f.read(max_bytes + 1)
         if len(raw) > max_bytes:
             raise InvalidInput(f"{what} {path}: more than {max_bytes} bytes; it is not read")
-        return raw.decode("utf-8")
+        return raw.decode("utf-8-sig")  # a leading byte-order mark (spreadsheet exports) is not data
     except FileNotFoundError:
         raise InvalidInput(f"{what} {path}: file not found") from None
     except (OSError, UnicodeDecodeError) as exc:
