@@ -14,6 +14,7 @@ level of one factor, `trajectory_by_level`.
 from __future__ import annotations
 
 import itertools
+import math
 from collections.abc import Iterator
 
 from .loaded import Loc
@@ -32,6 +33,15 @@ def expand_generators(p: Protocol) -> tuple[Protocol, list[Problem], dict[Loc, L
     next_run = max((c.run for c in explicit), default=0) + 1
     problems: list[Problem] = []
     origins: dict[Loc, Loc] = {}
+    count_so_far = len(explicit)
+    if count_so_far > MAX_CONFIGURATIONS:
+        problems.append(
+            (
+                ("sets",),
+                f"{count_so_far:,} configurations, more than the {MAX_CONFIGURATIONS:,} a protocol may have",
+            )
+        )
+        return p, problems, origins
     sets: list[SetSpec] = []
     for i, s in enumerate(p.sets):
         rows: list[ConfigurationSpec] = list(s.configurations)
@@ -46,6 +56,18 @@ def expand_generators(p: Protocol) -> tuple[Protocol, list[Problem], dict[Loc, L
             if found:
                 problems += found
                 continue
+            count = _count(p, gen)
+            if count_so_far + count > MAX_CONFIGURATIONS:
+                problems.append(
+                    (
+                        loc,
+                        f"this generator makes {count:,} configurations, {count_so_far + count:,} in all with "
+                        f"those before it: more than the {MAX_CONFIGURATIONS:,} a protocol may have (list "
+                        "fewer levels, or split the campaign)",
+                    )
+                )
+                continue
+            count_so_far += count
             levels = _full_factorial(p, gen) if isinstance(gen, FullFactorialSpec) else _ofat(gen)
             for combo in levels:
                 trajectory = _trajectory(gen, combo)
@@ -66,6 +88,20 @@ def expand_generators(p: Protocol) -> tuple[Protocol, list[Problem], dict[Loc, L
                 next_run += 1
         sets.append(s.model_copy(update={"configurations": rows}))
     return p.model_copy(update={"sets": sets}), problems, origins
+
+
+MAX_CONFIGURATIONS = 10_000
+"""The most configurations a protocol may have once its generators are expanded: at 50 trials each, half a
+million trials, years of robot time. The count is worked out before anything is expanded, so a generator
+of millions of combinations is refused without the memory or the time it would take."""
+
+
+def _count(p: Protocol, gen: _GeneratorSpec) -> int:
+    """How many configurations a (checked) generator makes, without making them."""
+    if isinstance(gen, FullFactorialSpec):
+        return math.prod(len(_levels(p, f, choice)) for f, choice in gen.factors.items())
+    assert isinstance(gen, OneFactorAtATimeSpec)
+    return sum(1 for _ in _ofat(gen))
 
 
 def _levels(p: Protocol, factor: str, choice: list[str] | str) -> list[str]:
