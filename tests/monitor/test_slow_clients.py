@@ -17,10 +17,18 @@ from types import TracebackType
 
 import pytest
 
-from protocol_runner.monitor.server import MAX_CONNECTIONS
+from protocol_runner.monitor.address import MonitorAddress
+from protocol_runner.monitor.bus import EventBus
+from protocol_runner.monitor.server import (
+    MAX_CONNECTIONS,
+    MAX_PENDING,
+    OPERATOR_CONNECTIONS,
+    REQUEST_DEADLINE_S,
+    MonitorServer,
+)
 from protocol_runner.monitor.service import Monitor
 
-from .sse import Stream, get
+from .sse import Stream, get, status
 
 GENEROUS_S = 30.0  # far beyond the 5 s deadline, so a loaded machine cannot make these tests fail
 DRIP_EVERY_S = 1.0  # well inside the 5 s a single read may wait: only a whole-request deadline ends a drip
@@ -109,6 +117,9 @@ def test_a_crowd_of_drips_does_not_starve_a_normal_request(monitor: Monitor) -> 
         served: list[int] = []
         assert poll(lambda: served.append(get(url, timeout=GENEROUS_S)[0]) or served[-1] == 200), served
         assert poll(lambda: drips.count_closed() == len(drips.socks))  # and every drip ends by itself
+    counts = status(f"http://127.0.0.1:{monitor.port}/")["monitor"]
+    assert counts["dropped_requests"] >= len(drips.socks) and counts["pending_requests"] == 0
+    assert (counts["max_pending_requests"], counts["request_deadline_s"]) == (MAX_PENDING, REQUEST_DEADLINE_S)
 
 
 def test_the_terminal_url_keeps_a_place_when_the_monitor_is_full(monitor: Monitor) -> None:
@@ -125,12 +136,31 @@ def test_the_terminal_url_keeps_a_place_when_the_monitor_is_full(monitor: Monito
             try:
                 assert page.wait_for("hello")  # the operator's page still gets its stream
                 code, _ = get(f"http://127.0.0.1:{monitor.port}/status?token={monitor.token}")
-                assert code == 200  # and a second place: the page itself, or a script's /status
+                assert code == 200  # and a second place: a reloaded page, or a script's /status
+                assert OPERATOR_CONNECTIONS == 2
             finally:
                 page.close()
     finally:
         for s in streams:
             s.close()
+
+
+def test_on_a_network_bind_the_token_holder_gets_through_a_crowd_of_drips() -> None:
+    # a bind that needs the token, but served on 127.0.0.1 so that nothing here is reachable from outside
+    address = MonitorAddress(host="127.0.0.1", port=0, family=socket.AF_INET, loopback=False)
+    bus = EventBus()
+    server = MonitorServer(address, bus, token="the-token-printed-on-the-terminal")
+    bus.start()
+    server.start()
+    url = f"http://127.0.0.1:{server.port}/status"
+    try:
+        with Drips(server.port, MAX_PENDING + 4) as drips:
+            assert poll(lambda: drips.rounds >= 2)
+            assert get(url)[0] == 403  # constant-time token check, as before
+            assert get(url + "?token=the-token-printed-on-the-terminal")[0] == 200
+    finally:
+        bus.close()
+        server.close()
 
 
 def test_a_stream_opened_with_the_token_needs_no_token_elsewhere_on_loopback(monitor: Monitor) -> None:
@@ -139,3 +169,23 @@ def test_a_stream_opened_with_the_token_needs_no_token_elsewhere_on_loopback(mon
     assert get(f"http://127.0.0.1:{monitor.port}/status?token=wrong")[0] == 200
     with contextlib.closing(Stream("127.0.0.1", monitor.port)) as s:
         assert s.wait_for("hello")
+
+
+def test_a_new_connection_closes_the_oldest_unfinished_request_first() -> None:
+    address = MonitorAddress(host="127.0.0.1", port=0, family=socket.AF_INET, loopback=True)
+    bus = EventBus()
+    server = MonitorServer(address, bus, token=None, max_pending=2, request_deadline_s=10 * GENEROUS_S)
+    bus.start()
+    server.start()
+    try:
+        with Drips(server.port, 1) as first:
+            assert poll(lambda: server.counts()["pending_requests"] == 1)
+            with Drips(server.port, 1) as second:
+                assert poll(lambda: server.counts()["pending_requests"] == 2)
+                code, _ = get(f"http://127.0.0.1:{server.port}/status", timeout=GENEROUS_S)
+                assert code == 200  # it pushed out the oldest: the first drip, not the second
+                assert poll(lambda: first.count_closed() == 1)
+                assert second.count_closed() == 0 and server.counts()["pending_requests"] == 1
+    finally:
+        bus.close()
+        server.close()

@@ -124,7 +124,7 @@ class MonitorServer(ThreadingHTTPServer):
         self.active = 0  # requests answered, in the shared places
         self.active_operator = 0  # and in the places kept for the token
         self.rejected = 0
-        self.dropped = 0  # connections closed before their request arrived: pushed out or too late
+        self.dropped = 0  # connections closed before their request arrived whole
         self.errors = 0
         self.closing = False
         self._pending: dict[socket.socket, float] = {}  # waiting for their request -> deadline, oldest first
@@ -181,9 +181,8 @@ class MonitorServer(ThreadingHTTPServer):
 
     def shutdown_request(self, request: Any) -> None:
         with self._lock:  # out of the table before closing: a socket is shut down only while it is open
-            deadline = self._pending.pop(request, None)
-            if deadline is not None and time.monotonic() >= deadline:
-                self.dropped += 1
+            if self._pending.pop(request, None) is not None:
+                self.dropped += 1  # its request never arrived whole (too late, or the client gave up)
         super().shutdown_request(request)
 
     # ---------------------------------------------------------------------- places to be answered
