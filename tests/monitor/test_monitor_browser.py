@@ -59,7 +59,10 @@ def test_the_page_shows_the_motion_live_and_the_stop(tmp_path: Path) -> None:
     browser = Browser(tmp_path / "profile")
     try:
         url = wait_until(
-            lambda: (m := re.search(r"monitor: (http://127\.0\.0\.1:\d+/)", log.read_text())) and m.group(1),
+            lambda: (
+                (m := re.search(r"monitor: (http://127\.0\.0\.1:\d+/\?token=[\w-]+)", log.read_text()))
+                and m.group(1)
+            ),
             60,
             "the monitor's URL on the terminal",
         )

@@ -3,6 +3,7 @@ motion; `/status` tells the same; watching changes nothing that is recorded."""
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -72,10 +73,12 @@ def of(w: Watched, kind: str) -> list[dict[str, Any]]:
     return [m for m in w.messages if m["type"] == kind]
 
 
-def test_the_run_completes_and_the_url_is_announced_without_a_token(watched: Watched) -> None:
+def test_the_run_completes_and_the_url_is_announced_with_its_token(watched: Watched) -> None:
     assert watched.code == 0
-    assert watched.said[0].startswith("monitor: http://127.0.0.1:")
-    assert "token" not in watched.said[0]
+    assert re.match(
+        r"monitor: http://127\.0\.0\.1:\d+/\?token=[\w-]{20,} \(read-only; this machine only", watched.said[0]
+    )
+    assert watched.said[0].count("?token=") == 1  # printed once; on loopback the stream was read without it
 
 
 def test_stream_opens_with_hello_and_ends_with_session_end(watched: Watched) -> None:

@@ -3,10 +3,22 @@
 Serves exactly three things: `/` (the page: HTML with its own CSS and script inlined, all shipped in
 `monitor/static/`), `/events` (the Server-Sent Events stream of `bus.py`) and `/status` (the snapshot as
 JSON). Every other path is 404, every method but GET is refused (501), nothing of the session folder is
-served. At most `MAX_CONNECTIONS` connections are open at once; more are answered 503 and closed by the
-accepting thread without starting a handler. A request must arrive within `REQUEST_TIMEOUT_S`, and a
-write that blocks that long ends the connection. On a loopback bind the Host header must name loopback (no
-DNS rebinding); on any other bind every request needs `?token=` (the token printed on the terminal).
+served.
+
+Limits, so that no client can starve the others or the operator:
+
+- A request (request line and headers) must arrive whole within `REQUEST_DEADLINE_S` of its connection
+  being accepted, however its bytes trickle in; then the connection is closed.
+- At most `MAX_PENDING` connections may be waiting for their request at once. A new connection beyond
+  that closes the oldest of them first (the one that has taken longest and still has not sent its
+  request), so a crowd of slow or silent connections is shed instead of locking newcomers out.
+- At most `MAX_CONNECTIONS` requests are answered at once (mostly `/events` streams); one more is
+  answered 503. `OPERATOR_CONNECTIONS` more places are kept for requests that carry the token printed
+  on the session's terminal.
+- A write that blocks for `WRITE_TIMEOUT_S` ends the connection.
+
+On a loopback bind the Host header must name loopback (no DNS rebinding) and the token is optional: it
+only earns the kept places. On any other bind every request needs `?token=` (403 without it).
 """
 
 from __future__ import annotations
@@ -15,12 +27,14 @@ import base64
 import contextlib
 import hashlib
 import hmac
+import io
 import queue
 import select
 import socket
 import socketserver
 import threading
 import time
+from collections.abc import Iterator
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
 from typing import Any
@@ -31,7 +45,10 @@ from .bus import EventBus
 from .state import dumps
 
 MAX_CONNECTIONS = 16
-REQUEST_TIMEOUT_S = 5.0
+OPERATOR_CONNECTIONS = 2
+MAX_PENDING = 16
+REQUEST_DEADLINE_S = 5.0
+WRITE_TIMEOUT_S = 5.0
 KEEPALIVE_S = 15.0
 
 
@@ -55,6 +72,29 @@ class Page:
         )
 
 
+class _DeadlineReader(io.RawIOBase):
+    """A connection's incoming bytes, every read waiting only for what is left of the request's deadline
+    (a socket timeout alone restarts at each byte, so a client sending one byte every few seconds would
+    never be timed out)."""
+
+    def __init__(self, sock: socket.socket, deadline: float) -> None:
+        self.sock = sock
+        self.deadline = deadline
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer: Any) -> int:
+        left = self.deadline - time.monotonic()
+        if left <= 0:
+            raise TimeoutError("the request did not arrive within its deadline")
+        self.sock.settimeout(left)
+        try:
+            return self.sock.recv_into(buffer)
+        finally:
+            self.sock.settimeout(WRITE_TIMEOUT_S)
+
+
 class MonitorServer(ThreadingHTTPServer):
     daemon_threads = True
     block_on_close = False
@@ -67,18 +107,28 @@ class MonitorServer(ThreadingHTTPServer):
         *,
         token: str | None,
         max_connections: int = MAX_CONNECTIONS,
+        operator_connections: int = OPERATOR_CONNECTIONS,
+        max_pending: int = MAX_PENDING,
+        request_deadline_s: float = REQUEST_DEADLINE_S,
     ) -> None:
         self.address_family = address.family
         self.bus = bus
         self.token = token
+        self.token_required = token is not None and not address.loopback
         self.loopback = address.loopback
         self.max_connections = max_connections
+        self.operator_connections = operator_connections
+        self.max_pending = max_pending
+        self.request_deadline_s = request_deadline_s
         self.page = Page()
-        self.active = 0
+        self.active = 0  # requests answered, in the shared places
+        self.active_operator = 0  # and in the places kept for the token
         self.rejected = 0
+        self.dropped = 0  # connections closed before their request arrived whole
         self.errors = 0
         self.closing = False
-        self._count_lock = threading.Lock()
+        self._pending: dict[socket.socket, float] = {}  # waiting for their request -> deadline, oldest first
+        self._lock = threading.Lock()
         self._thread: threading.Thread | None = None
         super().__init__((address.host, address.port), _Handler)
 
@@ -101,31 +151,77 @@ class MonitorServer(ThreadingHTTPServer):
         self.closing = True
         self.shutdown()
         self.server_close()
+        with self._lock:
+            for sock in self._pending:
+                with contextlib.suppress(OSError):
+                    sock.shutdown(socket.SHUT_RDWR)
 
-    # ---------------------------------------------------------------------- connection cap
+    # ---------------------------------------------------------------------- requests on their way
 
     def verify_request(self, request: Any, client_address: Any) -> bool:
-        with self._count_lock:
-            if self.active < self.max_connections:
-                self.active += 1
-                return True
-            self.rejected += 1
-        body = f"too many connections to the monitor (limit {self.max_connections})\n".encode()
-        with contextlib.suppress(OSError):
-            request.settimeout(0.2)
-            request.sendall(
-                b"HTTP/1.0 503 Service Unavailable\r\nContent-Type: text/plain; charset=utf-8\r\n"
-                + f"Content-Length: {len(body)}\r\nConnection: close\r\n\r\n".encode()
-                + body
-            )
-        return False
+        """Every connection is let in; when `max_pending` are still sending their request, the oldest of
+        them is closed to make room (it had the longest time and has still not finished)."""
+        with self._lock:
+            while self._pending and len(self._pending) >= self.max_pending:
+                oldest = next(iter(self._pending))
+                del self._pending[oldest]
+                self.dropped += 1
+                with contextlib.suppress(OSError):
+                    oldest.shutdown(socket.SHUT_RDWR)  # its handler's read returns at once
+            self._pending[request] = time.monotonic() + self.request_deadline_s
+        return True
 
-    def process_request_thread(self, request: Any, client_address: Any) -> None:
+    def request_deadline(self, request: socket.socket) -> float:
+        with self._lock:
+            return self._pending.get(request, 0.0)  # already pushed out: no time left
+
+    def request_arrived(self, request: socket.socket) -> None:
+        with self._lock:
+            self._pending.pop(request, None)
+
+    def shutdown_request(self, request: Any) -> None:
+        with self._lock:  # out of the table before closing: a socket is shut down only while it is open
+            if self._pending.pop(request, None) is not None:
+                self.dropped += 1  # its request never arrived whole (too late, or the client gave up)
+        super().shutdown_request(request)
+
+    # ---------------------------------------------------------------------- places to be answered
+
+    @contextlib.contextmanager
+    def place(self, operator: bool) -> Iterator[bool]:
+        """A place to answer a request in: a shared one, else for a token holder one of those kept for
+        the token. Yields False (and counts a rejection) when there is none."""
+        with self._lock:
+            if self.active < self.max_connections:
+                pool = "shared"
+                self.active += 1
+            elif operator and self.active_operator < self.operator_connections:
+                pool = "kept"
+                self.active_operator += 1
+            else:
+                pool = ""
+                self.rejected += 1
         try:
-            super().process_request_thread(request, client_address)
+            yield bool(pool)
         finally:
-            with self._count_lock:
-                self.active -= 1
+            with self._lock:
+                if pool == "shared":
+                    self.active -= 1
+                elif pool == "kept":
+                    self.active_operator -= 1
+
+    def counts(self) -> dict[str, Any]:
+        with self._lock:
+            return {
+                "connections": self.active + self.active_operator,
+                "max_connections": self.max_connections,
+                "operator_connections": self.operator_connections,
+                "pending_requests": len(self._pending),
+                "max_pending_requests": self.max_pending,
+                "request_deadline_s": self.request_deadline_s,
+                "rejected_connections": self.rejected,
+                "dropped_requests": self.dropped,
+            }
 
     def handle_error(self, request: Any, client_address: Any) -> None:
         self.errors += 1  # never a traceback on the session's terminal
@@ -136,9 +232,20 @@ class _Handler(BaseHTTPRequestHandler):
     server_version = "protocol-runner-monitor"
     sys_version = ""
     protocol_version = "HTTP/1.0"
-    timeout = REQUEST_TIMEOUT_S
+    timeout = WRITE_TIMEOUT_S
     error_message_format = "%(code)d %(message)s\n"
     error_content_type = "text/plain; charset=utf-8"
+
+    def setup(self) -> None:
+        super().setup()
+        self.rfile.close()  # the plain socket file: reads wait per byte, not per request
+        deadline = self.server.request_deadline(self.connection)
+        self.rfile = io.BufferedReader(_DeadlineReader(self.connection, deadline))
+
+    def parse_request(self) -> bool:
+        ok = super().parse_request()  # a late request raises TimeoutError: the stdlib closes quietly
+        self.server.request_arrived(self.connection)
+        return ok
 
     def log_message(self, format: str, *args: Any) -> None:
         return None  # the terminal belongs to the session
@@ -149,25 +256,36 @@ class _Handler(BaseHTTPRequestHandler):
         if srv.loopback and not is_loopback_host_header(self.headers.get("Host", "localhost")):
             self._text(403, "this monitor answers only to localhost / 127.0.0.1\n")
             return
+        operator = False
         if srv.token is not None:
             given = parse_qs(url.query).get("token", [""])[0]
-            if not hmac.compare_digest(given.encode(), srv.token.encode()):
-                self._text(403, "this monitor needs the token printed on the session's terminal\n")
-                return
-        if url.path in ("/", "/index.html"):
-            self._send(200, "text/html; charset=utf-8", srv.page.body, csp=srv.page.csp)
-        elif url.path == "/events":
-            self._stream()
-        elif url.path == "/status":
-            status = srv.bus.status()
-            status["monitor"] = {
-                "connections": srv.active,
-                "max_connections": srv.max_connections,
-                "rejected_connections": srv.rejected,
-            }
-            self._send(200, "application/json", dumps(status).encode())
-        else:
+            operator = hmac.compare_digest(given.encode(), srv.token.encode())
+        if srv.token_required and not operator:
+            self._text(403, "this monitor needs the token printed on the session's terminal\n")
+            return
+        if url.path not in ("/", "/index.html", "/events", "/status"):
             self._text(404, "not found: the monitor serves /, /events and /status only\n")
+            return
+        with srv.place(operator) as admitted:
+            if not admitted:
+                self._text(
+                    503,
+                    f"too many connections to the monitor (limit {srv.max_connections}); the URL printed "
+                    "on the session's terminal, with its token, has places kept for it\n",
+                )
+            else:
+                self._answer(url.path)
+
+    def _answer(self, path: str) -> None:
+        srv = self.server
+        if path in ("/", "/index.html"):
+            self._send(200, "text/html; charset=utf-8", srv.page.body, csp=srv.page.csp)
+        elif path == "/events":
+            self._stream()
+        else:
+            status = srv.bus.status()
+            status["monitor"] = srv.counts()
+            self._send(200, "application/json", dumps(status).encode())
 
     def _text(self, code: int, message: str) -> None:
         self._send(code, "text/plain; charset=utf-8", message.encode())

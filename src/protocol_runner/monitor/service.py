@@ -2,7 +2,8 @@
 
 `Monitor.open` binds the port first: a port in use (or any other bind failure) is exit 2 with a message
 naming it, before the session folder is created, so a session never runs without the monitor it was
-asked for. The URL is announced on the terminal (with the token, once, when the host is not loopback).
+asked for. The URL is announced on the terminal with a random token, printed only there: on a host that is
+not loopback it is the page's only key; on loopback it is optional and keeps places on a crowded monitor.
 `attach` hooks the rig's loop (`Rig.tap`), the journal's events, the operator's prompts and the runner's
 publisher; leaving the `with` block publishes `session_end` (complete, or why it stopped), gives the
 pages a moment to receive it, and stops the server.
@@ -56,7 +57,7 @@ def _bind_error(address: MonitorAddress, exc: OSError) -> InvalidInput:
 
 
 class Monitor:
-    def __init__(self, address: MonitorAddress, bus: EventBus, server: MonitorServer, token: str | None):
+    def __init__(self, address: MonitorAddress, bus: EventBus, server: MonitorServer, token: str):
         self.address = address
         self.bus = bus
         self.server = server
@@ -65,7 +66,7 @@ class Monitor:
     @classmethod
     def open(cls, spec: str, *, say: Callable[[str], None]) -> Monitor:
         address = parse_address(spec)
-        token = None if address.loopback else secrets.token_urlsafe(18)
+        token = secrets.token_urlsafe(18)
         bus = EventBus()
         try:
             server = MonitorServer(address, bus, token=token)
@@ -74,8 +75,11 @@ class Monitor:
         bus.start()
         server.start()
         monitor = cls(address, bus, server, token)
-        if token is None:
-            say(f"monitor: {monitor.url} (read-only; this machine only)")
+        if address.loopback:
+            say(
+                f"monitor: {monitor.url} (read-only; this machine only; the token is not needed to watch, "
+                "but keeps places for this URL when other clients fill the monitor)"
+            )
         else:
             say(
                 f"monitor: {monitor.url}\n  read-only, reachable from the network on {address.host}: the "
@@ -89,8 +93,7 @@ class Monitor:
 
     @property
     def url(self) -> str:
-        query = f"?token={self.token}" if self.token else ""
-        return f"http://{self.address.url_host()}:{self.port}/{query}"
+        return f"http://{self.address.url_host()}:{self.port}/?token={self.token}"
 
     def attach(
         self,
