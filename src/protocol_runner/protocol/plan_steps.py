@@ -23,6 +23,7 @@ from typing import Any, ClassVar
 from .plan_trajectory import Trajectory
 from .settings import Settings
 from .step_ids import step_id
+from .trajectory_specs import trajectory_kind
 
 
 def _plain(value: Any) -> Any:
@@ -143,11 +144,7 @@ class TrialStep(Step):
     uses_rig: ClassVar[bool] = True
 
     def describe(self) -> str:
-        tr = self.trajectory
-        if tr.profile == "sinusoid":
-            traj = f"{tr.mean_deg:g}+{tr.amplitude_deg:g}*sin(2*pi*t/{tr.period_s:.2f})"
-        else:
-            traj = f"{tr.profile} {tr.source or ''}".strip()
+        traj = trajectory_kind(self.trajectory.profile).describe(self.trajectory)
         extra = f"  (input from {self.twin})" if self.twin else ""
         return (
             f"config {self.configuration:>2} run {self.run:>2} trial {self.trial} brace {self.brace:<3}  "
