@@ -39,7 +39,7 @@ def knee_sinusoid(speed_deg_s: float = 50.0, periods: float = 2.0) -> np.ndarray
 def calibration_step() -> np.ndarray:
     """Appendix A calibration: a 45 deg raised-cosine step from 20 deg, held (the knee protocol's values)."""
     params = (("from_deg", 20.0), ("step_deg", 45.0), ("settle_s", 1.0), ("ramp_s", 0.6))
-    return sample_trajectory(Trajectory("step", 5.6, params=params), RATE_HZ, Path("."))
+    return sample_trajectory(Trajectory("ramped_step", 5.6, params=params), RATE_HZ, Path("."))
 
 
 KNEE_BRACE = knee_brace((40.0, 90.0), 3.75, 13.0, 3)  # R1 stops, friction level 2, K2, centre preload

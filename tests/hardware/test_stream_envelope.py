@@ -96,7 +96,7 @@ def trajectories(
             ("settle_s", draw(st.floats(0, 1))),
             ("ramp_s", ramp),
         )
-        traj = Trajectory("step", params[2][1] + ramp + draw(st.floats(0.05, 2.0)), params=params)
+        traj = Trajectory("ramped_step", params[2][1] + ramp + draw(st.floats(0.05, 2.0)), params=params)
         return kind, sample_trajectory(traj, rate_hz, Path("."))
     if kind == "hold":
         return kind, np.full(draw(st.integers(1, 300)), draw(st.floats(lo, hi)))

@@ -31,7 +31,6 @@ from ..protocol.plan import (
     Plan,
     Step,
 )
-from ..steps.compare import units_read
 from ..steps.context import Bench, StepOutcome, processing_settings
 from ..steps.failures import run_step
 from .assembly import ARCHIVE_NAME, ArchiveDraft, consolidate_session
@@ -46,7 +45,7 @@ from .resume import prepare_resume
 from .setup import SessionInfo
 from .signals import StopFlag
 from .unit_writer import UnitWriter, WritingStepContext, WrittenJournalView, written_in_this_run
-from .workers import BACKGROUND_KINDS, AnalysisPool, start_worker_server
+from .workers import AnalysisPool, start_worker_server
 
 UNIT_POLL_S = 0.005
 """How often a comparison waiting for a unit an analysis is writing looks for it."""
@@ -113,9 +112,7 @@ class Runner:
         for stray in self.units_dir.glob("*.partial"):
             stray.unlink()  # an unfinished unit from a crash: never complete, always redone
         self.stop.install()
-        if self.background and any(
-            s.kind in BACKGROUND_KINDS and s.id not in self.journal.units for s in self.plan.steps
-        ):
+        if self.background and any(s.background and s.id not in self.journal.units for s in self.plan.steps):
             start_worker_server()  # imports what the workers run, on the other core, meanwhile
         log = self.dir / "session.log"
         progress = Progress(
@@ -150,7 +147,7 @@ class Runner:
                     raise Interrupted(f"stopped before {step.id} ({self.stop.signal_name})")
                 if step.id in self.pool.submitted:
                     continue
-                if self.background and step.kind in BACKGROUND_KINDS:
+                if self.background and step.background:
                     # handed to a worker once the configuration's units are on disk
                     self.pool.submit(step, ready=self.writer.ticket())
                     continue
@@ -163,7 +160,7 @@ class Runner:
                     # each other's units: the unit writer saves each while the next runs, and journals it
                     # once the units it read are journaled. The report step waits for all of them.
                     if isinstance(step, CompareStep):
-                        after = self._await_units(units_read(step), progress) if self.pool.busy else []
+                        after = self._await_units(list(step.inputs()), progress) if self.pool.busy else []
                     else:
                         self.writer.flush()  # what the analyses read is on disk
                         self._await_analyses(progress)

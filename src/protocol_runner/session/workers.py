@@ -35,8 +35,6 @@ from .signals import sigint_blocked
 from .worker_start import start_worker_server, worker_context
 from .worker_start import worker_init as worker_init
 
-BACKGROUND_KINDS = frozenset({"process", "fit"})
-
 Results = list[tuple[UnitRecord | None, str]]
 Task = tuple[Results, UnitsRead | None]  # a task's units and summaries, and its configuration as read ahead
 T = TypeVar("T")
