@@ -35,6 +35,7 @@ LAYERS: dict[str, int] = {
     "preflight": 8,
     "commands": 9,
     "cli": 10,
+    "__main__": 11,
 }
 
 
