@@ -1,5 +1,5 @@
 """The angle bins of the branch curves (analysis/branches.py) counted directly give bit for bit what sorting
-the bin numbers gives (issue 20: a faster processing must not change a stored value)."""
+the bin numbers gives (a stored value must not depend on how the bins are counted)."""
 
 from __future__ import annotations
 

@@ -76,10 +76,10 @@ def test_the_jacobian_at_the_compared_rows_is_those_rows_of_the_full_one() -> No
 def test_the_early_stops_keep_the_rmse_within_their_tolerance(monkeypatch: pytest.MonkeyPatch) -> None:
     """Against a polish on the mid-size copy run to its step tolerance (polish_ftol None) and a last solve
     run to a relative cost change of 1e-8: the fit's RMSE within 1e-4 (POLISH_FTOL and FINAL_FTOL 1e-5),
-    with no more residual evaluations. With the knee campaign's 8 starts: with 4, on the fifteenth
-    session's machine (AMD EPYC, AVX2, no AVX-512), both procedures end in local optima 15 % above the one
-    8 starts find, 2.856 and 2.847 N*m, which then differ by 0.33 % (docs/analysis.md, fifteenth session),
-    a comparison of two basins rather than of the early stops."""
+    with no more residual evaluations. With the knee campaign's 8 starts: with 4, on an AVX2 processor
+    without AVX-512, both procedures end in local optima 15 % above the one 8 starts find, 2.856 and
+    2.847 N*m, which then differ by 0.33 % (docs/analysis.md), a comparison of two basins rather than of
+    the early stops."""
     segments = _loop_halves()
     fast = fit_trials(segments, starts=8, backbone_degree=9)
     monkeypatch.setattr(fitting, "FINAL_FTOL", 1e-8)
