@@ -80,9 +80,9 @@ SHARED = (
 )
 """What both the session and the fork server import (the session soon after it starts, or at its first
 calibration check and simulated trial), imported before the session forks the server: once for both. Not
-scipy: the session uses none of it (analysis/butterworth.py, analysis/step_response.py; the report's t
-quantiles come from scipy.special, a small part), and the server imports it on the other core while the
-session starts its first steps."""
+scipy: the server imports it on the other core while the session starts; the session imports the parts it
+uses (signal and optimize for its calibration checks and brace-off smoothing, stats for the report's
+intervals) when it first needs them."""
 
 
 def worker_context() -> multiprocessing.context.BaseContext:
