@@ -9,7 +9,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import threading
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -23,7 +22,6 @@ from .errors import (
     UserError,
     file_system_refusal,
 )
-from .process_exit import exit_after_a_full_disk, exit_now_if_safe
 from .protocol.only import KeySelection
 
 if TYPE_CHECKING:
@@ -150,15 +148,10 @@ def parse_only(text: str | None) -> KeySelection | None:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
-    _ENDED_BY_A_FULL_DISK.clear()
     try:
         return _dispatch(parser, args)
     except UserError as exc:
         print(f"run-protocol: {exc.message}", file=sys.stderr)
-        from .archive.diskfull import DiskFull
-
-        if isinstance(exc, DiskFull):
-            _ENDED_BY_A_FULL_DISK.set()
         return exc.exit_code
     except OSError as exc:
         from .archive.diskfull import is_disk_full
@@ -311,17 +304,9 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 def entry() -> None:
     """The `run-protocol` command (and `python -m protocol_runner.cli`): `main` on the process's arguments,
-    then the end of the process. When nothing is left to finish, that skips the interpreter's teardown
-    (`process_exit`); otherwise it is the normal exit. Callers in their own process use `main(argv)`."""
+    its status the process's exit status. Callers in their own process use `main(argv)`."""
     one_blas_thread()
-    code = main()
-    if _ENDED_BY_A_FULL_DISK.is_set():
-        exit_after_a_full_disk(code)
-    exit_now_if_safe(code)  # returns when a normal exit is needed
-    sys.exit(code)
-
-
-_ENDED_BY_A_FULL_DISK = threading.Event()  # set by `main` when a session stopped on a full disk
+    sys.exit(main())
 
 
 def one_blas_thread() -> None:
