@@ -24,25 +24,14 @@ TARGETS = {
     "protocol_runner.archive.units": [(None, "write_unit", "writing")],
     "protocol_runner.steps.process": [(None, "run", "processing")],
     "protocol_runner.steps.fit": [(None, "run", "fits")],
-    "protocol_runner.session.assembly": [
-        (None, "consolidate_session", "consolidation"),
-        ("ArchiveDraft", "update", "archive draft (while waiting)"),
-    ],
-    "protocol_runner.session.read_ahead": [("ReadAhead", "update", "report read ahead (while waiting)")],
+    "protocol_runner.session.assembly": [(None, "consolidate_session", "consolidation")],
     "protocol_runner.session.reporting": [(None, "render_report", "report")],
-    "protocol_runner.session.early_figures": [(None, "draw_ahead", "figures drawn ahead")],
     "protocol_runner.report.load": [(None, "load_report_data", "report: reading the archive")],
     "protocol_runner.session.runner": [("Runner", "_run", "session")],
     "protocol_runner.steps.trial": [(None, "run", "trial steps (acquisition included)")],
     "protocol_runner.steps.calibration_check": [(None, "run", "calibration steps")],
     "protocol_runner.session.workers": [
         ("AnalysisPool", "collect", "waiting for the analyses"),
-        ("AnalysisPool", "wait_any", "waiting for the analyses"),
-    ],
-    "protocol_runner.session.unit_writer": [
-        ("UnitWriter", "submit", "waiting for the writer"),
-        ("UnitWriter", "flush", "waiting for the writer"),
-        ("UnitWriter", "wait_for", "waiting for the writer"),
     ],
 }
 
