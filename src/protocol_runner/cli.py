@@ -7,8 +7,10 @@ calibration check; 130 interrupted or disk full (resumable).
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
+import threading
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -148,10 +150,15 @@ def parse_only(text: str | None) -> KeySelection | None:
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    _ENDED_BY_A_FULL_DISK.clear()
     try:
         return _dispatch(parser, args)
     except UserError as exc:
         print(f"run-protocol: {exc.message}", file=sys.stderr)
+        from .archive.diskfull import DiskFull
+
+        if isinstance(exc, DiskFull):
+            _ENDED_BY_A_FULL_DISK.set()
         return exc.exit_code
     except OSError as exc:
         from .archive.diskfull import is_disk_full
@@ -304,9 +311,24 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 def entry() -> None:
     """The `run-protocol` command (and `python -m protocol_runner.cli`): `main` on the process's arguments,
-    its status the process's exit status. Callers in their own process use `main(argv)`."""
+    its status the process's exit status. Callers in their own process use `main(argv)`.
+
+    After a session stopped on a full disk, HDF5 may still hold a file whose close failed for lack of
+    space, and the interpreter's teardown closing it again crashes the process (a segmentation fault, exit
+    139 instead of 130: `--only 15,16,17` on a 3 MB file system). So the process then ends at once, its
+    output and log flushed, as after a kill, which loses nothing: every finished unit is on disk and
+    journaled, and a temporary file is removed or redone by the resume (docs/session.md)."""
     one_blas_thread()
-    sys.exit(main())
+    code = main()
+    if _ENDED_BY_A_FULL_DISK.is_set():
+        logging.shutdown()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
+    sys.exit(code)
+
+
+_ENDED_BY_A_FULL_DISK = threading.Event()  # set by `main` when a session stopped on a full disk
 
 
 def one_blas_thread() -> None:

@@ -158,7 +158,9 @@ def assemble_figures(
     every = figure_ids(data)
     results = draw(data, every) if draw is not None and every else None
     if results is None:
-        results = here(data, every, default_workers(len(every)) if workers is None else workers) if every else []
+        results = (
+            here(data, every, default_workers(len(every)) if workers is None else workers) if every else []
+        )
     drawn = {figure_id: (uri, error) for figure_id, uri, error in results}
     images: dict[str, str] = {}
     missing: dict[str, str] = {}

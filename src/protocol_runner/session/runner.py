@@ -194,7 +194,7 @@ class Runner:
     def _finished(self, progress: Progress) -> Callable[[Step, str], None]:
         def finished(step: Step, summary: str) -> None:
             self.steps_run += 1
-            progress.step_finished(step, summary, background=True)
+            progress.step_finished(step, summary)
 
         return finished
 
@@ -206,7 +206,9 @@ class Runner:
         """Write the step's unit and journal it; a step that stops the session has its unit written and
         journaled before the stop is raised."""
         if outcome.fill is not None:
-            self.journal.unit_done(write_unit(self.units_dir, step_id, outcome.fill), final=outcome.stop is None)
+            self.journal.unit_done(
+                write_unit(self.units_dir, step_id, outcome.fill), final=outcome.stop is None
+            )
         if step_id in self._planned:
             self.steps_run += 1
         else:
@@ -224,7 +226,6 @@ class Runner:
             lambda: self.journal.event(kind, message),
             lambda: self.bench.rig.park(where="park on stop"),
             lambda: self.consolidate(status),
-            lambda: progress.release(self.journal.units, every=True),
             lambda: progress.info(f"session {kind}: {message}"),
         )
         for action in actions:
@@ -252,7 +253,6 @@ class Runner:
         if self.plan.steps and self.plan.steps[-1].kind == "report":
             self.steps_run += 1  # written below
         self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped{robot}")
-        progress.release(self.journal.units, every=True)
         archive = self.consolidate("complete")
         call = self.pool.call if self.pool.running else None  # the idle workers draw the figures
         report = render_report(self.dir, archive, call)
