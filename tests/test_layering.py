@@ -20,7 +20,6 @@ LAYERS: dict[str, int] = {
     "__init__": 0,
     "errors": 0,
     "resources": 0,
-    "process_exit": 0,
     "tables": 1,
     "models": 1,
     "hardware": 2,
