@@ -1,6 +1,6 @@
 """The report's warm-up (session/reporting.py): started once while the session waits for its last analyses,
-it leaves the report's template compiled and its text caches filled, so the report at the end only reads
-and assembles."""
+it leaves the report's template compiled and a figure of each layout drawn (matplotlib and its fonts
+loaded), so the report at the end only reads and assembles."""
 
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ def test_warm_up_runs_once_and_prepares_the_report() -> None:
     reporting._WARMING[0].join(timeout=120)
     assert not reporting._WARMING[0].is_alive()
 
-    from protocol_runner.report import glyph_cache, render
+    from protocol_runner.report import figures, render
 
     assert render.TEMPLATE in {name for _, name in render._environment().cache}  # compiled
-    assert glyph_cache._GLYPHS or not glyph_cache.SUPPORTED  # the canvases have drawn text
+    assert figures.warm_up.cache_info().currsize == 1  # the figures' warm-up has run
