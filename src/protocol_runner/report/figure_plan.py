@@ -4,7 +4,7 @@ never loads the drawing code.
 
 `figure_jobs(data)` lists every figure as (id, kind, arguments), in document order; `report.figures` draws
 a job by its kind. `assemble_figures(data)` has them drawn: elsewhere (`draw`), or by the caller's process
-and processes forked from it (`here`).
+and worker processes (`here`).
 """
 
 from __future__ import annotations
@@ -146,8 +146,8 @@ def slug(text: str) -> str:
 
 
 HereDrawer: TypeAlias = Callable[[ReportData, list[str], int], list[Drawn]]
-"""Draws the figures of the given ids of the data in this process (or with workers > 1 on processes forked
-from it): `figures.draw_here`."""
+"""Draws the figures of the given ids of the data in this process (or with workers > 1 on that many worker
+processes): `figures.draw_here`."""
 
 
 def assemble_figures(
