@@ -20,7 +20,6 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import TypeVar
 
-from ..archive.fast_read import reads_kept
 from ..archive.units import UnitRecord, write_unit
 from ..protocol.loader import LoadedProtocol
 from ..protocol.plan import Plan, ProcessStep, Step
@@ -76,17 +75,16 @@ def run_analysis_steps(
         processing=processing_settings(loaded),
     )
     done: Results = []
-    with reads_kept():  # the figures read again what the processing read (archive/fast_read.py)
-        for step_id in step_ids:
-            step = plan.step(step_id)
-            outcome = run_step(step, ctx)
-            record = write_unit(units_dir, step.id, outcome.fill) if outcome.fill is not None else None
-            done.append((record, outcome.summary))
-        key = key_to_draw_ahead(plan, step_ids)
-        if key is None:
-            return done, None
-        # the configuration's analyses are written: its report figures now, not at the end
-        return done, draw_ahead(plan, units_dir, key, units_dir.parent / ARCHIVE_NAME)
+    for step_id in step_ids:
+        step = plan.step(step_id)
+        outcome = run_step(step, ctx)
+        record = write_unit(units_dir, step.id, outcome.fill) if outcome.fill is not None else None
+        done.append((record, outcome.summary))
+    key = key_to_draw_ahead(plan, step_ids)
+    if key is None:
+        return done, None
+    # the configuration's analyses are written: its report figures now, not at the end
+    return done, draw_ahead(plan, units_dir, key, units_dir.parent / ARCHIVE_NAME)
 
 
 class AnalysisPool:
