@@ -5,7 +5,8 @@ tick k sleep until t0 + k / output_rate_hz, write, record the write time; read t
 `READ_EVERY_TICKS` ticks and poll the stop request there; after the last tick wait one more tick and stop
 the scan. On a stop request `on_stop(written)`, if given, returns the samples to send next in the same loop
 (no pause: the output would hold), then `Interrupted` is raised. An error or an interruption carries what
-was recorded so far (`partial_recording`).
+was recorded so far (`partial_recording`). The live monitor (`tap`) is shown every block read, the one
+`stop_scan` returns included.
 
 The hardware bench and a dry run run this same loop: the DAQ simulator's boards satisfy the same
 interfaces, and its clock jumps instead of sleeping.
@@ -200,11 +201,15 @@ class PacedLoop(Generic[RecordingT]):
             self._note_written(cmd, written)
             with contextlib.suppress(Exception):  # the original error matters more than a failing stop
                 append(self.ai.stop_scan())
+                if tap is not None:
+                    tap.scan(self._monitored_scan(blocks[-1]))
             # keep the data recorded so far with the error (a board that vanished mid-trial: the session
             # archives it as a failed trial)
             with contextlib.suppress(Exception):
                 exc.partial_recording = self._recording(loop, where, partial=True)  # type: ignore[attr-defined]
             raise
         append(self.ai.stop_scan())
+        if tap is not None:  # the rows a board hands over when it stops (the simulator's last transfer)
+            tap.scan(self._monitored_scan(blocks[-1]))
         self._note_written(cmd, n)
         return self._recording(loop, where, partial=False)

@@ -25,7 +25,8 @@ TRANSFER_S = 1.0
 hands over whole packets: a read before a transfer is complete returns no rows, `stop_scan` returns the
 rest. The rows do not depend on it (the plant is integrated on a fixed grid whatever the reads); it sets
 how many compiled calls a dry run makes: one per second of scan instead of one per read of the rig's loop
-(every 100 ms). In real time (`--realtime`) every row is handed over as soon as it is due."""
+(every 100 ms). In real time (`--realtime`) every row is handed over as soon as it is due
+(`SimulatedAnalogInput.transfer_s` = 0)."""
 
 
 class RobotModel(Protocol):
@@ -65,14 +66,16 @@ class ScanState:
 
 class SimulatedAnalogInput:
     """A DT9814 stand-in: a hardware-paced scan of 12-bit ±10 V two's-complement codes. Reading it
-    integrates the simulated robot (lazily) up to the rows it hands over: in simulated time the complete
-    transfers (`TRANSFER_S`) acquired since the last read, in real time every row acquired since."""
+    integrates the simulated robot (lazily) up to the rows it hands over: the complete transfers
+    (`transfer_s`; in real time every row) acquired since the last read."""
 
     def __init__(self, model: RobotModel, clock: SimulatedClock) -> None:
         self._model = model
         self._clock = clock
         self._channels: tuple[int, ...] = ()
         self._scan: ScanState | None = None
+        self.transfer_s = 0.0 if clock.realtime else TRANSFER_S
+        """Scan time per transfer, for the scans started from now on (0: every row as soon as it is due)."""
 
     @property
     def resolution_bits(self) -> int:
@@ -88,7 +91,7 @@ class SimulatedAnalogInput:
                 f"all channels, got {rate_hz!r} Hz x {len(chans)} channels"
             )
         self._channels = chans
-        transfer_rows = 1 if self._clock.realtime else max(1, round(TRANSFER_S * rate_hz))
+        transfer_rows = max(1, round(self.transfer_s * rate_hz))
         self._scan = ScanState(chans, float(rate_hz), self._clock.now_s(), transfer_rows)
 
     def _read(self, *, last: bool) -> ScanBlock:
