@@ -9,7 +9,7 @@ Measured, each as the median of several repeats (the numba kernel is compiled/lo
    1 s transfers, so both make one compiled call per second of scan);
 3. a whole trial: the knee's Appendix A sinusoid 65 + 65 sin(2πt/8.17) for 65 s, brace K2 / R3 / level 2,
    through `Rig.run_trajectory` (safety check, LUTs, paced loop, conversions), in ms, compared against
-   the 65 s of robot time it simulates (DESIGN.md: a dry run must be >= 300x faster than the robot).
+   the 65 s of robot time it simulates (a dry run must be >= 300x faster than the robot).
 
 Run: python benchmarks/bench_simulator.py [--repeats N]
 """

@@ -1,6 +1,6 @@
 """Every dataset of a unit or an archive carries a sha256 checksum (archive/checksums.py): one flipped bit
 anywhere in a dataset's stored bytes is named by `--verify`, refused by `--report` and `--reprocess`, and a
-damaged unit is refused by consolidation (issue 14, finding 12)."""
+damaged unit is refused by consolidation."""
 
 from __future__ import annotations
 

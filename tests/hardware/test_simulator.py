@@ -1,4 +1,4 @@
-"""The DAQ simulator behaves like the rig (DESIGN.md "The DAQ simulator"), end to end through `Rig`.
+"""The DAQ simulator behaves like the rig, end to end through `Rig`.
 
 Each test states a physical or contractual fact of the thesis (§2.4.2 lag, Table 3 torque limit, §3.3.1
 start-up transition, §2.5 calibration) or of the DAQ interfaces, and would fail if the model were wrong.
@@ -125,7 +125,7 @@ def test_start_up_transition_emerges_from_the_lag(knee: JointConfig) -> None:
 
 
 def test_same_seed_and_step_give_identical_data_another_step_other_noise(knee: JointConfig) -> None:
-    """DESIGN.md: every random draw comes from a generator seeded by (session seed, step id), so a resumed
+    """Every random draw comes from a generator seeded by (session seed, step id), so a resumed
     session reproduces an uninterrupted one bit for bit."""
     command = hold(60.0, 1.0)
     sim_a = SimulatedRig(knee, seed=11, params=KNEE_PARAMS)
@@ -391,7 +391,7 @@ def test_unloaded_joint_is_exactly_a_first_order_lag() -> None:
 
 
 def test_torque_limit_comes_from_the_joint_not_from_the_knee() -> None:
-    """Nothing may assume the knee (DESIGN.md): an elbow (Table 3: -39.6..31 N·m) carrying the default
+    """Nothing may assume the knee: an elbow (Table 3: -39.6..31 N·m) carrying the default
     shank weight cannot lift it to 90°; it stalls where gravity + friction reach its own 31 N·m."""
     elbow = JointConfig(
         name="elbow",

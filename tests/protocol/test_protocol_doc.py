@@ -1,4 +1,4 @@
-"""docs/protocol.md is the language's complete reference (issue 11 item 8): every element type and
+"""docs/protocol.md is the language's complete reference: every element type and
 parameter, trajectory kind, unit suffix, generator and top-level key is documented there."""
 
 from __future__ import annotations

@@ -266,7 +266,7 @@ def test_aborted_session_without_configurations_still_reports(tmp_path: Path) ->
 
 
 def test_each_configuration_shows_its_output_loop_timing(small_report: str) -> None:
-    # issue 7: tick jitter is measured per trial, stored in the archive and shown in the report
+    # tick jitter is measured per trial, stored in the archive and shown in the report
     import re
 
     timings = re.findall(

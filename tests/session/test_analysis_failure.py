@@ -1,4 +1,4 @@
-"""Analysis failures (issue 14, finding 8): a processing step that cannot be done on the recorded data stops
+"""Analysis failures: a processing step that cannot be done on the recorded data stops
 the session with one message naming configuration, trial and step and saying what to do; it does not
 claim that a plain resume helps, because a resume fails the same way."""
 

@@ -1,6 +1,6 @@
 """A full disk (ENOSPC from the writer) inside a unit write, consolidation, report writing and session
 creation: one clear message and exit 130, the joint parked, no partial file, every complete unit kept, and
-once space is freed the session resumes to an archive identical to an uninterrupted run (issue 14,
+once space is freed the session resumes to an archive identical to an uninterrupted run (
 finding 4). The last test fills a real (tmpfs) file system where the machine allows mounting one."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Ctrl-C on a terminal signals the whole process group (issue 14, "a second Ctrl-C prints a traceback"): an
+"""Ctrl-C on a terminal signals the whole process group: an
 analysis worker still starting up must not die of it with a KeyboardInterrupt traceback; the session's main
 process alone decides how to stop."""
 

@@ -153,7 +153,7 @@ def _interim_spring_group(fits: h5py.Group, fit: ElementFit) -> None:
 
 
 def evidence_attrs(result: BoucWenFit, energy: LoopEnergy) -> dict[str, object]:
-    """The attributes that let a modeller judge the fit (issue 15; units in docs/archive.md)."""
+    """The attributes that let a modeller judge the fit (units in docs/archive.md)."""
     return {
         "scheme": result.scheme,
         "rmse_refined_nm": float(result.rmse_refined_nm),

@@ -1,6 +1,6 @@
 """The rig: one joint's analog output, analog input scan and clock, bound to its channels and calibration.
 
-`Rig.run_trajectory` is the acquisition loop (thesis §2.4-2.5, DESIGN.md "Data flow"); trials and checks
+`Rig.run_trajectory` is the acquisition loop (thesis §2.4-2.5); trials and checks
 send through `hardware/motion.py`, which adds the approach and the exit in the same loop (`Rig.send`):
 
 1. safety envelope (`hardware/safety.py`) on the whole trajectory — a violation raises before any write;
@@ -15,7 +15,7 @@ send through `hardware/motion.py`, which adds the approach and the exit in the s
 
 Times in a `TrialRecording` count from t0, the clock reading just after the scan started (the first output
 tick is scheduled at t0). `tick_lateness_s[k]` is the clock reading just before write k minus its schedule:
-the output jitter DESIGN.md asks to record per trial.
+the output jitter recorded per trial.
 
 The loop does as little as possible per tick: all conversions are done on whole arrays before and after,
 the schedule is precomputed, and results go into preallocated lists.

@@ -15,7 +15,7 @@ kinds are registered in `TRAJECTORY_KINDS` (`register_trajectory_kind` adds one)
 - `hold`: one angle held.
 
 A field typed `float | str` (or `RangePair | str`) may be BOUND to a factor quantity: a string
-`"<factor>.<quantity>"` takes the value of that quantity in each configuration's level (issue 11, spec A).
+`"<factor>.<quantity>"` takes the value of that quantity in each configuration's level.
 `trajectory_bindings` lists them; `plan_trajectory.build_trajectory` takes their resolved values. Every other
 field is a constant. Numbers are finite (no .inf / .nan); times and speeds are positive.
 

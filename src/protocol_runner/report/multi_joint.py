@@ -1,4 +1,4 @@
-"""The report's "Joints" section for a multi-joint archive (issue 12): per configuration, each joint's
+"""The report's "Joints" section for a multi-joint archive: per configuration, each joint's
 brace torque against angle (its processed loops), a joint-angle phase plot of the first two driven joints
 (e.g. hip against knee over the motion, brace on), and the energy lost per cycle per joint and for the
 whole set of joints (the sum over joints, `total_energy_loss_j`); one bar chart of energy per joint and

@@ -1,4 +1,4 @@
-"""Model prediction across configurations (issue 15 item 8): the Bouc-Wen model fitted on one configuration
+"""Model prediction across configurations: the Bouc-Wen model fitted on one configuration
 predicts another with the same device elements at another speed or range.  The pairs are declared in the
 protocol (`report.predictions`); the numbers come from the archive alone: the fitted configuration's
 parameters (and backbone) and the predicted configuration's centred loops stored with its own fit."""

@@ -1,7 +1,7 @@
 """The DAQ simulator: a clock, an analog output and an analog input scan that satisfy
 `hardware.interfaces` and drive a physical model of the rig (`plant.py`) instead of the RSST.
 
-Signal path, mirroring the real rig (DESIGN.md "The DAQ simulator", thesis §2.4-2.5):
+Signal path, mirroring the real rig (thesis §2.4-2.5):
 
     Rig ── volts ──▶ SimulatedAnalogOutput: USB-3105 16-bit code, recorded with its time
         ──▶ the robot's VME reads the code's volts ──▶ Eq 2 (the inverse of Eq 1) over the joint range
@@ -12,7 +12,7 @@ Signal path, mirroring the real rig (DESIGN.md "The DAQ simulator", thesis §2.4
 
 so that, after the rig applies its calibration tables, measured ≈ real. With no table the robot is linear.
 
-Determinism (DESIGN.md): `SimulatedRig.begin_step(step_id)` reseeds the noise generator from
+Determinism: `SimulatedRig.begin_step(step_id)` reseeds the noise generator from
 sha256(session seed, step id), puts the joint at rest at the park angle and restarts the plant's time grid
 at the current clock. The plant advances on a fixed grid whatever the pattern of reads, commands take effect
 from the first grid step at or after their write time, and noise is drawn row by row, so the same seed and

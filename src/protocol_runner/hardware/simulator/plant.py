@@ -1,6 +1,6 @@
 """The rig's physics: an RSST joint (hydraulic position servo) and the device under test, integrated by numba.
 
-Model (DESIGN.md "The DAQ simulator"; every constant is in `params.py`; docs/simulator.md):
+Model (every constant is in `params.py`; docs/simulator.md):
 
 Servo (thesis §2.2, §2.4.2). The hydraulic boards run a PD position loop whose complete response is a
 first-order lag of about 0.2 s. A hydraulic actuator is a flow (speed) source: its valve opens in
