@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from ..analysis.butterworth import butterworth_sos, zero_phase
-from ..analysis.scaling import ScalingResult, scale_brace_off_input
+from ..analysis.scaling import ScalingResult, cycle_range, lag_input, scale_brace_off_input
 from ..analysis.transition import command_on_input_base, transition_index
 from ..archive.attrs import ATTRIBUTES, FACTORS, STATUS, STEP_ID
 from ..archive.h5util import SIGNAL, put, put_attrs
@@ -129,19 +129,19 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
     # the corners where the brace's stops bite would otherwise break the acceleration envelope.
     # (the filter `analysis.filters.lowpass` makes with scipy, computed without it: analysis/butterworth.py)
     nyquist = 0.5 * rig.joint.input_rate_hz
-    smooth = zero_phase(
-        on.angle_deg,
-        butterworth_sos(COMMAND_SMOOTHING_ORDER, COMMAND_SMOOTHING_HZ / nyquist),
-        name=f"{step.twin} angle_deg",
-    )
+    sos = butterworth_sos(COMMAND_SMOOTHING_ORDER, COMMAND_SMOOTHING_HZ / nyquist)
+    smooth = zero_phase(on.angle_deg, sos, name=f"{step.twin} angle_deg")
     cmd_in = command_on_input_base(on.command_time_s, on.command_deg, on.time_s)
     start = transition_index(cmd_in, on.angle_deg, proc.transition_tolerance_deg, proc.transition_points)
     # from the transition point on (§3.3.2: "index 0 corresponds to the transition point"); the rig moves
     # from its park angle to the first sample exactly as a brace-on trial does (its own transition)
     t_after = on.time_s[start:] - on.time_s[start]
     ticks = np.arange(0.0, float(t_after[-1]), 1.0 / rig.joint.output_rate_hz)
-    u = np.interp(ticks, t_after, smooth[start:])
-    target = (float(np.min(smooth[start:])), float(np.max(smooth[start:])))
+    # the input whose output is the brace-on output (the servo's first-order lag inverted, §2.4.2)
+    wanted = lag_input(t_after, smooth[start:], ctx.loaded.protocol.rig.time_constant_s)
+    u = np.interp(ticks, t_after, wanted)
+    # the range to match is that of the brace-on cycles (their turning points), not of the approach
+    target = cycle_range(smooth[start:], proc.reversal_deg)
     recordings: list[TrialRecording] = []
 
     def run_once(input_deg: FloatArray) -> FloatArray:
@@ -150,7 +150,9 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
             rig, input_deg, where=f"{step.id} (scaling run {k + 1})", stop_requested=ctx.stop_requested
         )
         recordings.append(rec)
-        return np.interp(rec.command_time_s, rec.input_time_s, rec.angle_deg)
+        # smoothed as the target was, so that both turning-point levels are free of the sensor noise
+        angle = zero_phase(np.asarray(rec.angle_deg, dtype=np.float64), sos, name=f"{step.id} angle_deg")
+        return np.interp(rec.command_time_s, rec.input_time_s, angle)
 
     scaling_spec = ctx.loaded.protocol.processing.brace_off_scaling
     result = scale_brace_off_input(
@@ -162,6 +164,7 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
         transition_tolerance_deg=proc.transition_tolerance_deg,
         transition_points=proc.transition_points,
         input_limits_deg=rig.joint.limits.range_deg,
+        reversal_deg=proc.reversal_deg,
     )
     return recordings[result.best.iteration], result
 
