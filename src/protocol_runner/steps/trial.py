@@ -136,10 +136,12 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
     # from the transition point on (§3.3.2: "index 0 corresponds to the transition point"); the rig moves
     # from its park angle to the first sample exactly as a brace-on trial does (its own transition)
     t_after = on.time_s[start:] - on.time_s[start]
-    ticks = np.arange(0.0, float(t_after[-1]), 1.0 / rig.joint.output_rate_hz)
-    # the input whose output is the brace-on output (the servo's first-order lag inverted, §2.4.2)
-    wanted = lag_input(t_after, smooth[start:], ctx.loaded.protocol.rig.time_constant_s)
-    u = np.interp(ticks, t_after, wanted)
+    # the input whose output is the brace-on output: the servo's first-order lag inverted (§2.4.2). Its
+    # last time constant is not sent: that input would only act after the brace-on recording ends, and
+    # there the derivative of the smoothed angle carries the filter's edge.
+    tau = ctx.loaded.protocol.rig.time_constant_s
+    ticks = np.arange(0.0, float(t_after[-1]) - tau, 1.0 / rig.joint.output_rate_hz)
+    u = np.interp(ticks, t_after, lag_input(t_after, smooth[start:], tau))
     # the range to match is that of the brace-on cycles (their turning points), not of the approach
     target = cycle_range(smooth[start:], proc.reversal_deg)
     recordings: list[TrialRecording] = []
