@@ -183,7 +183,9 @@ def scale_brace_off_input(
         trial_input = centre + amplitude * shape
         if input_limits_deg is not None:
             trial_input = np.clip(trial_input, input_limits_deg[0], input_limits_deg[1])
-        if not float(trial_input.max() - trial_input.min()) > 0:  # nothing to run: the iteration has lost the trajectory's shape
+        if (
+            not float(trial_input.max() - trial_input.min()) > 0
+        ):  # nothing to run: the iteration has lost the trajectory's shape
             raise AnalysisError(
                 f"scaling iteration {k}: the scaled brace-off input is constant at {float(trial_input[0]):.1f} "
                 f"deg (clipped to the joint's limits, or the target range {lo_t:.1f}-{hi_t:.1f} deg is too "

@@ -116,7 +116,11 @@ def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
         f"angle {lo:.0f}..{hi:.0f} deg, torque {np.min(rec.torque_nm):.0f}..{np.max(rec.torque_nm):.0f} N*m"
     )
     if scaling is not None:
-        summary += f", scaling {len(scaling.history)} run(s){'' if scaling.converged else ' (not converged)'}"
+        error = scaling.best.range_error_deg
+        summary += f", scaling {len(scaling.history)} run(s), cycle range error {error:.2f} deg"
+        if not scaling.converged:
+            tolerance = ctx.loaded.protocol.processing.brace_off_scaling.tolerance_deg
+            summary += f" (NOT within {tolerance:g} deg: kept, flagged in trials.csv)"
     return StepOutcome(fill, summary)
 
 
