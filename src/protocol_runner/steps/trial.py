@@ -1,9 +1,11 @@
 """Trial step: trajectory -> safety envelope -> 100 Hz output while acquiring inputs at 1 kHz.
 
 Brace-on trials command the plan's trajectory. A brace-off trial commands the brace-on trial's measured
-output (thesis §3.3.2: only then are torques compared at the same angles), rescaled by the Eq 8 iteration
-(analysis/scaling.py) until its output range matches the brace-on output range; every iteration is a
-robot run and is recorded (`brace_off/scaling`). Raw codes and converted values are kept.
+output (thesis §3.3.2: only then are torques compared at the same angles) through the inverse of the
+servo's first-order lag (§2.4.2, `analysis.scaling.lag_input`, so that the brace-off run follows it in
+time, not only in range), rescaled by the Eq 8 iteration (analysis/scaling.py) until its cycles' turning
+points match the brace-on cycles' within the protocol's tolerance; every iteration is a robot run and is
+recorded (`brace_off/scaling`). Raw codes and converted values are kept.
 """
 
 from __future__ import annotations
