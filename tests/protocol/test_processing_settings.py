@@ -17,7 +17,7 @@ ANKLE = Path(__file__).resolve().parents[2] / "protocols" / "ankle_phase2.yaml"
 SHIPPED = (
     "  transition: {tolerance_deg: 5.0, points: 3}\n"
     "  filter: {kind: butterworth, order: 10, cutoff: 0.10}\n"
-    "  brace_off_scaling: {tolerance_deg: 1.0, max_iterations: 4}\n"
+    "  brace_off_scaling: {tolerance_deg: 0.1, max_iterations: 6}\n"
     "  subtraction: equal_angle\n"
     "  centre_for_fit: true\n"
 )
