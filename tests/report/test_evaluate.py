@@ -408,3 +408,15 @@ def test_a_value_exactly_on_a_bound_is_not_inside_it() -> None:
     assert (
         evaluate_expectation(spec(relation="less", configurations=[1], value=2.001), exact).verdict == "met"
     )
+
+
+def test_holm_by_hand() -> None:
+    """Sorted 0.01, 0.03, 0.04 of three: 3 x 0.01, max(0.03, 2 x 0.03), max(0.06, 1 x 0.04); a NaN is no
+    member of the family, and no adjusted value exceeds 1."""
+    from protocol_runner.analysis.statistics import holm
+
+    got = holm([0.01, 0.04, math.nan, 0.03])
+    assert got[:2] == [pytest.approx(0.03), pytest.approx(0.06)] and got[3] == pytest.approx(0.06)
+    assert math.isnan(got[2])
+    assert holm([0.5, 0.9]) == [1.0, 1.0]
+    assert holm([]) == []

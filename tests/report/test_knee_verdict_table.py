@@ -86,6 +86,7 @@ def test_the_archive_records_the_same_p_values(knee_session: Path) -> None:
             attrs = h5[f"expectations/{name}"].attrs
             assert attrs["verdict"] == v.verdict
             for key, value in (("p_value", v.p_value), ("p_adjusted", v.p_adjusted)):
-                assert (math.isnan(attrs[key]) and math.isnan(value)) or attrs[key] == pytest.approx(value)
+                # a not-evaluable expectation has no test: no p attribute (an archive holds no NaN to compare)
+                assert attrs[key] == pytest.approx(value) if math.isfinite(value) else key not in attrs
             assert attrs["family"] == v.family
         assert h5["expectations/speed_range"].attrs["depends_on_simulator"] == '["lag_time_constant_s"]'
