@@ -2,10 +2,16 @@
 
 from __future__ import annotations
 
-from pydantic import Field, StrictInt
+from typing import Annotated
+
+from pydantic import BeforeValidator, Field, StrictInt, model_validator
 
 from protocol_runner.protocol.expectations import RepeatabilitySpec
 from protocol_runner.protocol.schema_base import Identifier, _Model
+
+
+def _pair(value: object) -> object:
+    return tuple(value) if isinstance(value, list) else value
 
 
 class ComparisonSpec(_Model):
@@ -14,6 +20,22 @@ class ComparisonSpec(_Model):
     section: str = ""
     title: str
     configurations: list[StrictInt] = Field(min_length=2)
+    # explicit (a, b) pairs for the Differences table (b minus a), e.g. a paired design; else adjacent ones
+    pairs: list[Annotated[tuple[StrictInt, StrictInt], BeforeValidator(_pair)]] | None = Field(
+        default=None, min_length=1
+    )
+
+    @model_validator(mode="after")
+    def _pairs_compared(self) -> ComparisonSpec:
+        for a, b in self.pairs or ():
+            for key in (a, b):
+                if key not in self.configurations:
+                    raise ValueError(
+                        f"pair ({a}, {b}): configuration {key} is not in this comparison's configurations"
+                    )
+            if a == b:
+                raise ValueError(f"pair ({a}, {b}) compares a configuration with itself")
+        return self
 
 
 class PredictionSpec(_Model):

@@ -28,7 +28,7 @@ from protocol_runner import __version__
 from protocol_runner.report.citations import declared_citations
 from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.declared import declared_text
-from protocol_runner.report.differences import adjacent_differences, declared_repeatability
+from protocol_runner.report.differences import declared_differences, declared_repeatability
 from protocol_runner.report.figure_plan import (
     Drawn,
     FigureDrawer,
@@ -318,7 +318,7 @@ def _context(
         "protocol_title": declared_text(data.protocol_text, "title"),
         "protocol_description": declared_text(data.protocol_text, "description"),
         "repeatability": declared_repeatability(data),
-        "differences_of": lambda comp: adjacent_differences(data, comp),
+        "differences_of": lambda comp: declared_differences(data, comp),
         "limits_text": limits_text,
         "generated_utc": generated_utc,
         "software_version": __version__,
