@@ -30,9 +30,9 @@ from tests.knee_rig import knee_joint_config
 from protocol_runner.hardware.motion import run_motion
 from protocol_runner.hardware.rig import TrialRecording
 from protocol_runner.hardware.simulator import SimulatedRig
-from protocol_runner.protocol.plan import Trajectory
 from protocol_runner.protocol.sampling import sample_trajectory
 from protocol_runner.protocol.trajectories import sinusoid_period_s
+from protocol_runner.protocol.trajectory_record import Trajectory
 
 
 def trial(cmd: np.ndarray) -> tuple[float, float, float, TrialRecording]:

@@ -27,9 +27,9 @@ from protocol_runner.hardware.stream import (
     build_stream,
     check_stream,
 )
-from protocol_runner.protocol.plan import Trajectory
 from protocol_runner.protocol.sampling import sample_trajectory
 from protocol_runner.protocol.trajectories import TrajectoryFile, sinusoid_period_s
+from protocol_runner.protocol.trajectory_record import Trajectory
 
 REL_TOL = 1e-9  # the limits' own tolerance (hardware/safety.py): a ramp at exactly the limit passes
 KINDS = ("sinusoid", "human", "identification", "step", "hold")

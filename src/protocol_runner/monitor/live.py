@@ -11,7 +11,7 @@ import time
 from collections.abc import Callable, Collection, Mapping
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from ..protocol.plan import ChecklistStep, Plan, Step, TrialStep
+from ..protocol.plan_steps import ChecklistStep, Plan, Step, TrialStep
 from ..session.progress import describe
 from .bus import EventBus
 from .samples import SampleTap

@@ -28,7 +28,7 @@ from .samples import SAMPLE_RATE_HZ, SampleTap
 from .server import MonitorServer
 
 if TYPE_CHECKING:
-    from ..protocol.plan import Plan
+    from ..protocol.plan_steps import Plan
     from ..session.operator import Operator
     from ..session.setup import SessionInfo
     from ..steps.context import Bench

@@ -11,7 +11,7 @@ import sys
 from typing import Any, TextIO
 
 from ..errors import Interrupted, InvalidInput
-from ..protocol.plan import ChecklistStep
+from ..protocol.plan_steps import ChecklistStep
 from ..steps.operator import Answer as Answer
 from ..steps.operator import Operator as Operator
 from .journal import utc_now

@@ -9,7 +9,7 @@ from ..errors import HardwareUnavailable
 from ..hardware.calibration import CalibrationTable, load_calibration_table
 from ..hardware.multi_rig import MultiRig
 from ..hardware.rig import JointConfig, Rig
-from ..protocol.loader import LoadedProtocol
+from ..protocol.loaded import LoadedProtocol
 from ..protocol.schema import RigSpec
 from ..protocol.settings import Settings
 from ..protocol.stream_check import safety_limits

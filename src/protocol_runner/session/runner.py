@@ -28,8 +28,8 @@ from ..archive.diskfull import DiskFull, disk_full_error, is_disk_full
 from ..archive.units import write_unit
 from ..errors import Interrupted, StoppedByCheck, UserError, file_system_refusal
 from ..events import NULL_PUBLISHER, Publisher
-from ..protocol.loader import LoadedProtocol
-from ..protocol.plan import Plan, Step
+from ..protocol.loaded import LoadedProtocol
+from ..protocol.plan_steps import Plan, Step
 from ..steps.context import Bench, StepContext, StepOutcome, processing_settings
 from ..steps.failures import run_step
 from .assembly import consolidate_session

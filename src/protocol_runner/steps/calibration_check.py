@@ -27,9 +27,10 @@ from ..archive.paths import calibration_path
 from ..errors import StoppedByCheck
 from ..hardware.motion import run_motion
 from ..hardware.rig import TrialRecording
-from ..protocol.plan import CalibrationCheckStep, calibration_id
+from ..protocol.plan_steps import CalibrationCheckStep
 from ..protocol.sampling import sample_trajectory
 from ..protocol.schema import CalibrationCheckSpec
+from ..protocol.step_ids import calibration_id
 from .context import Fill, StepContext, StepOutcome
 from .recording import put_commands, put_scan
 
