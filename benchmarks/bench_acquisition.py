@@ -27,8 +27,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' knee 
 from tests.knee_device import KNEE_PARAMS, knee_brace
 from tests.knee_rig import knee_joint_config
 
+from protocol_runner.hardware.joint import TrialRecording
 from protocol_runner.hardware.motion import run_motion
-from protocol_runner.hardware.rig import TrialRecording
 from protocol_runner.hardware.simulator import SimulatedRig
 from protocol_runner.protocol.sampling import sample_trajectory
 from protocol_runner.protocol.trajectories import sinusoid_period_s

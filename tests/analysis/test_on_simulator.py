@@ -23,7 +23,7 @@ from protocol_runner.analysis.pipeline import (
 )
 from protocol_runner.analysis.scaling import rig_runner, scale_brace_off_input
 from protocol_runner.analysis.transition import command_on_input_base, transition_index
-from protocol_runner.hardware.rig import JointConfig, TrialRecording
+from protocol_runner.hardware.joint import JointConfig, TrialRecording
 from protocol_runner.hardware.simulator import SimulatedRig
 
 from ..knee_device import KNEE_MAX_PRELOAD_MM as DEFAULT_MAX_PRELOAD_MM

@@ -18,7 +18,7 @@ from functools import cache
 
 import numpy as np
 
-from protocol_runner.hardware.rig import JointConfig
+from protocol_runner.hardware.joint import JointConfig
 from protocol_runner.hardware.simulator import SimulatedRig
 
 from ..knee_device import KNEE_PARAMS, knee_brace

@@ -19,7 +19,8 @@ from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.calibration import CalibrationTable
 from protocol_runner.hardware.conversions import volts_to_angle, volts_to_ao16_code
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
-from protocol_runner.hardware.rig import JointConfig, Rig
+from protocol_runner.hardware.joint import JointConfig
+from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.simulator import (
     SimulatedClock,

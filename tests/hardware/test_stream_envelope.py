@@ -218,8 +218,9 @@ def test_a_dry_run_sends_exactly_the_checked_stream_or_nothing(data: st.DataObje
     all when the plan is refused."""
     from protocol_runner.errors import Interrupted
     from protocol_runner.hardware.conversions import volts_to_ao16_code
+    from protocol_runner.hardware.joint import JointConfig
     from protocol_runner.hardware.motion import run_motion
-    from protocol_runner.hardware.rig import READ_EVERY_TICKS, JointConfig
+    from protocol_runner.hardware.paced import READ_EVERY_TICKS
     from protocol_runner.hardware.simulator import SimulatedRig
 
     limits, rate_hz = data.draw(rig_limits())

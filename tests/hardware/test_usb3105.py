@@ -13,13 +13,8 @@ from protocol_runner.errors import EXIT_HARDWARE_UNAVAILABLE, HardwareUnavailabl
 from protocol_runner.hardware.fakeusb import FakeBackend, Faults, make_usb3105
 from protocol_runner.hardware.fakeusb.usb3105 import Usb3105Model
 from protocol_runner.hardware.interfaces import AnalogOutput
-from protocol_runner.hardware.usb3105 import (
-    ChannelCalibration,
-    ChannelNotConfigured,
-    Usb3105,
-    Usb3105Settings,
-    calibrated_code,
-)
+from protocol_runner.hardware.usb3105 import ChannelNotConfigured, Usb3105, Usb3105Settings
+from protocol_runner.hardware.usb3105_calibration import ChannelCalibration, calibrated_code
 from protocol_runner.hardware.usb_common import (
     UDEV_RULE_FILENAME,
     BoardBusy,

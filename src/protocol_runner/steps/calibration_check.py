@@ -25,8 +25,8 @@ from ..archive.attrs import STEP_ID, STEP_RESPONSE
 from ..archive.h5util import put_attrs
 from ..archive.paths import calibration_path
 from ..errors import StoppedByCheck
+from ..hardware.joint import TrialRecording
 from ..hardware.motion import run_motion
-from ..hardware.rig import TrialRecording
 from ..protocol.plan_steps import CalibrationCheckStep
 from ..protocol.sampling import sample_trajectory
 from ..protocol.schema import CalibrationCheckSpec

@@ -20,8 +20,8 @@ from ..archive.attrs import JOINT, STEP_ID
 from ..archive.attrs import JOINTS as JOINTS_ATTR
 from ..archive.h5util import put_attrs
 from ..archive.paths import calibration_path, joint_path
+from ..hardware.joint import TrialRecording
 from ..hardware.motion import run_motion
-from ..hardware.rig import TrialRecording
 from ..protocol.plan_steps import CalibrationCheckStep
 from ..protocol.sampling import sample_trajectory
 from ..protocol.step_ids import calibration_id

@@ -23,8 +23,8 @@ from ..archive.attrs import ATTRIBUTES, FACTORS, STATUS, STEP_ID
 from ..archive.h5util import SIGNAL, put, put_attrs
 from ..archive.paths import configuration_path, recording_path
 from ..errors import HardwareUnavailable
+from ..hardware.joint import TrialRecording
 from ..hardware.motion import run_motion
-from ..hardware.rig import TrialRecording
 from ..protocol.plan_steps import TrialStep
 from ..protocol.sampling import sample_trajectory
 from ..protocol.settings import configuration_attributes
