@@ -14,13 +14,8 @@ import numpy as np
 import pytest
 
 from protocol_runner.analysis.filters import lowpass
-from protocol_runner.analysis.pipeline import (
-    ConfigurationResult,
-    ProcessingSettings,
-    Recording,
-    TrialPair,
-    process_configuration,
-)
+from protocol_runner.analysis.pipeline import ConfigurationResult, Recording, TrialPair, process_configuration
+from protocol_runner.analysis.processing_settings import ProcessingSettings
 from protocol_runner.analysis.scaling import rig_runner, scale_brace_off_input
 from protocol_runner.analysis.transition import command_on_input_base, transition_index
 from protocol_runner.hardware.joint import JointConfig, TrialRecording

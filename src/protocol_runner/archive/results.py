@@ -20,7 +20,8 @@ from .paths import CONFIGURATIONS, FITS, PROCESSED, TRIALS, put_dataset
 if TYPE_CHECKING:  # the session writes trial units through this module: it never loads the analysis
     from ..analysis.bouc_wen_fit import LoopEnergy
     from ..analysis.element_fit import ElementFit
-    from ..analysis.pipeline import ProcessingSettings, Recording
+    from ..analysis.pipeline import Recording
+    from ..analysis.processing_settings import ProcessingSettings
     from ..analysis.service import BoucWenResult, ConfigurationAnalysis
     from ..models.bouc_wen import BoucWenFit
 

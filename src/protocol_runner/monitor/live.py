@@ -19,7 +19,7 @@ from .samples import SampleTap
 T = TypeVar("T")
 
 if TYPE_CHECKING:
-    from ..session.operator import Answer, Operator
+    from ..steps.operator import Answer, Operator
 
 
 def step_fields(step: Step) -> dict[str, Any]:

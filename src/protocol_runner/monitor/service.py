@@ -29,9 +29,9 @@ from .server import MonitorServer
 
 if TYPE_CHECKING:
     from ..protocol.plan_steps import Plan
-    from ..session.operator import Operator
     from ..session.setup import SessionInfo
     from ..steps.context import Bench
+    from ..steps.operator import Operator
     from .publisher import Publisher
 
 

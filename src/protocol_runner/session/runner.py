@@ -30,12 +30,13 @@ from ..errors import Interrupted, StoppedByCheck, UserError, file_system_refusal
 from ..events import NULL_PUBLISHER, Publisher
 from ..protocol.loaded import LoadedProtocol
 from ..protocol.plan_steps import Plan, Step
-from ..steps.context import Bench, StepContext, StepOutcome, processing_settings
+from ..protocol.processing import processing_settings
+from ..steps.context import Bench, StepContext, StepOutcome
 from ..steps.failures import run_step
+from ..steps.operator import Operator
 from .assembly import consolidate_session
 from .journal import Journal
 from .lock import session_lock
-from .operator import Operator
 from .progress import Progress
 from .reporting import render_report
 from .resume import prepare_resume

@@ -20,7 +20,6 @@ from ..events import NULL_PUBLISHER, Publisher
 from ..hardware.rig import Rig
 from ..protocol.loaded import LoadedProtocol
 from ..protocol.plan_steps import Plan, TrialStep
-from ..protocol.processing import processing_settings as processing_settings
 from ..protocol.settings import Settings
 from .operator import Operator
 
