@@ -16,7 +16,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from protocol_runner.models.bouc_wen import BoucWenParams, cross_validate, fit_trials, fitting, simulate
+from protocol_runner.models.bouc_wen import (
+    BoucWenParams,
+    copies,
+    cross_validate,
+    fit_trials,
+    fitting,
+    simulate,
+)
 from protocol_runner.models.bouc_wen import problem as bw_problem
 from protocol_runner.models.bouc_wen.identifiability import identify
 from protocol_runner.models.bouc_wen.problem import (
@@ -178,10 +185,10 @@ def test_the_errors_on_every_sample_come_from_the_fitted_path_only_when_it_is_ev
     rmse, r2, per, diverged = evaluate(trials, fit.params, bound)
     assert (fit.rmse_nm, fit.r2, fit.trial_rmse_nm, fit.diverged) == (rmse, r2, per, diverged)
     # a decimated copy's torque is not every sample's, nor is another scheme's or substep's
-    x, y, seg, _ = fitting.decimate(trials, 600)
+    x, y, seg, _ = copies.decimate(trials, 600)
     scale = FitScale(fit.angle_scale_deg, fit.torque_scale_nm)
     assert trial_torques(Problem(Samples(x, y, seg), DEFAULT_BOUNDS, scale), trials, "refined") is None
-    x, y, seg, _ = fitting.decimate(trials, None)
+    x, y, seg, _ = copies.decimate(trials, None)
     assert trial_torques(Problem(Samples(x, y, seg), DEFAULT_BOUNDS, scale), trials, "refined") is not None
     assert trial_torques(Problem(Samples(x, y, seg), DEFAULT_BOUNDS, scale), trials, "eq23") is None
     coarse = Problem(Samples(x, y, seg), DEFAULT_BOUNDS, scale, max_step_deg=0.5)

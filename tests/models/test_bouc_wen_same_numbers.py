@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from protocol_runner.models.bouc_wen import DEFAULT_BOUNDS, cross_validate, crossval, fit_trials, fitting
-from protocol_runner.models.bouc_wen.fitting import _path_problem, decimate
+from protocol_runner.models.bouc_wen.copies import _path_problem, decimate
 from protocol_runner.models.bouc_wen.problem import FitScale, Problem, Samples
 from protocol_runner.models.bouc_wen.schemes import (
     BoucWenShape,

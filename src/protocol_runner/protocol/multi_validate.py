@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import InvalidInput
-from ..models.elements import ELEMENT_TYPES
+from ..models.element_types import ELEMENT_TYPES
 from .resolve import BindingError, calibration_trajectory, configuration_trajectories, resolve_settings
 from .trajectory_record import Trajectory
 

@@ -18,7 +18,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import InvalidInput
-from ..models.elements import ELEMENT_TYPES, build_element
+from ..models.element_types import ELEMENT_TYPES
+from ..models.elements import build_element
 from .plan_trajectory import build_trajectory
 from .schema import ConfigurationSpec, Protocol
 from .settings import ElementSetting, FactorSetting, Quantity, Settings

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import InvalidInput
-from ..models.elements import ELEMENT_TYPES
+from ..models.element_types import ELEMENT_TYPES
 from .expectations import check_expectations, check_repeatability
 from .only import key_spans
 from .paths import OutsideFolder, confined_path
