@@ -29,7 +29,7 @@ from tests.knee_rig import knee_joint_config
 
 from protocol_runner.hardware.joint import TrialRecording
 from protocol_runner.hardware.motion import run_motion
-from protocol_runner.hardware.simulator import SimulatedRig
+from protocol_runner.hardware.simulator.daq import SimulatedRig
 from protocol_runner.protocol.sampling import sample_trajectory
 from protocol_runner.protocol.trajectories import sinusoid_period_s
 from protocol_runner.protocol.trajectory_record import Trajectory

@@ -22,12 +22,9 @@ from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
 from protocol_runner.hardware.joint import JointConfig
 from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyLimits
-from protocol_runner.hardware.simulator import (
-    SimulatedClock,
-    SimulatedRig,
-    SimulatorParams,
-    step_seed,
-)
+from protocol_runner.hardware.simulator.daq import SimulatedRig, step_seed
+from protocol_runner.hardware.simulator.output import SimulatedClock
+from protocol_runner.hardware.simulator.params import SimulatorParams
 from protocol_runner.hardware.simulator.plant import JointPlant
 
 from ..knee_device import KNEE_PARAMS, knee_brace

@@ -221,7 +221,7 @@ def test_a_dry_run_sends_exactly_the_checked_stream_or_nothing(data: st.DataObje
     from protocol_runner.hardware.joint import JointConfig
     from protocol_runner.hardware.motion import run_motion
     from protocol_runner.hardware.paced import READ_EVERY_TICKS
-    from protocol_runner.hardware.simulator import SimulatedRig
+    from protocol_runner.hardware.simulator.daq import SimulatedRig
 
     limits, rate_hz = data.draw(rig_limits())
     _, cmd = data.draw(trajectories(limits, rate_hz, ("sinusoid", "step", "hold", "human")))

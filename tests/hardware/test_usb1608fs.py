@@ -10,7 +10,8 @@ import numpy.typing as npt
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.hardware.fakeusb import FakeBackend, Faults
+from protocol_runner.hardware.fakeusb.backend import FakeBackend
+from protocol_runner.hardware.fakeusb.device import Faults
 from protocol_runner.hardware.fakeusb.usb1608fs import ManualClock, Usb1608FsModel, make_usb1608fs
 from protocol_runner.hardware.interfaces import AnalogInput, ScanBlock
 from protocol_runner.hardware.multiboard import MultiBoardInput

@@ -16,16 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from protocol_runner.models.bouc_wen import (
-    BoucWenParams,
-    copies,
-    cross_validate,
-    fit_trials,
-    fitting,
-    simulate,
-)
+from protocol_runner.models.bouc_wen import copies, fitting
 from protocol_runner.models.bouc_wen import problem as bw_problem
+from protocol_runner.models.bouc_wen.crossval import cross_validate
+from protocol_runner.models.bouc_wen.fitting import fit_trials
 from protocol_runner.models.bouc_wen.identifiability import identify
+from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.problem import (
     FitScale,
     Problem,
@@ -35,6 +31,7 @@ from protocol_runner.models.bouc_wen.problem import (
 )
 from protocol_runner.models.bouc_wen.records import DEFAULT_BOUNDS
 from protocol_runner.models.bouc_wen.schemes import BoucWenShape, Integration, Sensitivity, run_scheme
+from protocol_runner.models.bouc_wen.simulation import simulate
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 # Psi < 0 in every phase: |z| grows without bound once |z|^n outweighs A (a divergent parameter set)

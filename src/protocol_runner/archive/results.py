@@ -23,7 +23,7 @@ if TYPE_CHECKING:  # the session writes trial units through this module: it neve
     from ..analysis.pipeline import Recording
     from ..analysis.processing_settings import ProcessingSettings
     from ..analysis.service import BoucWenResult, ConfigurationAnalysis
-    from ..models.bouc_wen import BoucWenFit
+    from ..models.bouc_wen.records import BoucWenFit
 
 #: Writes one step's results into an open unit file.
 Fill = Callable[[h5py.File], None]

@@ -238,7 +238,9 @@ def hardware_check(
         boards,
         problems,
     )
-    ai_serials = _serials(MCC_VENDOR_ID, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND, backend, problems)
+    ai_serials = _serials(
+        MCC_VENDOR_ID, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND, backend, problems
+    )
     next_ai = _survey(
         BoardKind(usb1608fs_protocol.KIND, ANALOG_INPUT, usb1608fs_protocol.N_CHANNELS),
         [partial(Usb1608FsPlus.open, serial=s, backend=backend) for s in ai_serials],
