@@ -22,7 +22,6 @@ from .element_types import ELEMENT_TYPES, ElementKind, ParamSpec
 ParamValue = float | tuple[float, ...] | str | tuple[str, ...]
 
 
-
 @dataclass(frozen=True)
 class Element:
     """One element of a device with every parameter resolved (defaults filled in) and checked."""
