@@ -430,7 +430,7 @@ import hashlib, sys
 import numpy as np
 sys.path.insert(0, sys.argv[1])
 from tests.hardware.test_simulator import KNEE_PARAMS, hold, knee_joint, run
-from protocol_runner.hardware.simulator import SimulatedRig
+from protocol_runner.hardware.simulator.daq import SimulatedRig
 sim = SimulatedRig(knee_joint(), seed=5, params=KNEE_PARAMS)
 rec = run(sim, sim.make_rig(), hold(50.0, 0.3), "set2/trial3")[3]
 print(hashlib.sha256(rec.angle_codes.tobytes() + rec.torque_codes.tobytes()).hexdigest())
