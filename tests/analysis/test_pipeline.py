@@ -8,12 +8,8 @@ import numpy as np
 import pytest
 
 from protocol_runner.analysis.centring import complete_cycles_span
-from protocol_runner.analysis.pipeline import (
-    ProcessingSettings,
-    Recording,
-    TrialPair,
-    process_configuration,
-)
+from protocol_runner.analysis.pipeline import Recording, TrialPair, process_configuration
+from protocol_runner.analysis.processing_settings import ProcessingSettings
 from protocol_runner.analysis.validation import AnalysisError
 from protocol_runner.errors import InvalidInput
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from protocol_runner.analysis.pipeline import ProcessingSettings
+from protocol_runner.analysis.processing_settings import ProcessingSettings
 from protocol_runner.errors import InvalidInput
 from protocol_runner.protocol.loader import load_protocol
 from protocol_runner.protocol.processing import SECTION_PATHS, processing_settings

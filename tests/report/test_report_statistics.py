@@ -221,7 +221,7 @@ def test_declared_pairs_are_shown_in_their_order_as_b_minus_a(tmp_path: Path) ->
 
 
 def test_pairs_must_come_from_the_comparison() -> None:
-    from protocol_runner.protocol.schema_report import ComparisonSpec
+    from protocol_runner.protocol.schema import ComparisonSpec
 
     base = {"name": "c", "parameter": "p", "title": "t", "configurations": [1, 2]}
     assert ComparisonSpec.model_validate({**base, "pairs": [[2, 1]]}).pairs == [(2, 1)]

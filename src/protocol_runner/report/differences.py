@@ -20,12 +20,13 @@ from itertools import pairwise
 
 from protocol_runner.analysis.statistics import ALPHA, Repeatability, WelchInterval, holm, welch_interval
 from protocol_runner.protocol.expectations import RepeatabilitySpec
-from protocol_runner.protocol.schema_report import ComparisonSpec
+from protocol_runner.protocol.plan_steps import Comparison
+from protocol_runner.protocol.schema import ComparisonSpec
 from protocol_runner.report.declared import declared_entries
 from protocol_runner.report.evaluate import format_p
 from protocol_runner.report.headline import group_repeatability
 from protocol_runner.report.metrics import trial_values
-from protocol_runner.report.model import Comparison, ReportData
+from protocol_runner.report.model import ReportData
 
 
 @dataclass(frozen=True)

@@ -25,6 +25,8 @@ import jinja2
 from markupsafe import Markup, escape
 
 from protocol_runner import __version__
+from protocol_runner.analysis.reference import load_reference_dataset
+from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.report.citations import declared_citations
 from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.declared import declared_text
@@ -43,8 +45,8 @@ from protocol_runner.report.findings import TUNED_LABEL, evaluate_expectations
 from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.html_file import checked_output, template_environment, write_atomically
 from protocol_runner.report.limits_text import limits_text
-from protocol_runner.report.load import load_reference_dataset, load_report_data
-from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Comparison, Configuration, ReportData
+from protocol_runner.report.load import load_report_data
+from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Configuration, ReportData
 from protocol_runner.report.multi_joint import joints_section
 from protocol_runner.report.settings_view import format_quantity
 

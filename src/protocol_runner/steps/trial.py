@@ -25,11 +25,12 @@ from ..archive.attrs import ATTRIBUTES, FACTORS, STATUS, STEP_ID
 from ..archive.h5util import SIGNAL, put, put_attrs
 from ..archive.paths import configuration_path, recording_path
 from ..errors import HardwareUnavailable
+from ..hardware.joint import TrialRecording
 from ..hardware.motion import run_motion
-from ..hardware.rig import TrialRecording
-from ..protocol.plan import Trajectory, TrialStep
+from ..protocol.plan_steps import TrialStep
 from ..protocol.sampling import sample_trajectory
 from ..protocol.settings import configuration_attributes
+from ..protocol.trajectory_record import Trajectory
 from .context import StepContext, StepOutcome
 from .recording import put_commands, put_scan
 
