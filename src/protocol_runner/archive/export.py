@@ -41,6 +41,7 @@ from scipy.io import savemat
 
 from .. import __version__
 from ..errors import InvalidInput, make_output_dir
+from .attrs import ATTRIBUTE_DIGESTS
 from .diskfull import DiskFull, is_disk_full
 from .matlab import Units, attrs_struct, dataset_value, group_struct, matlab_value, put_field, text
 from .verify import validate_archive  # clear messages for foreign or damaged files
@@ -174,7 +175,7 @@ def _session(f: h5py.File, meta: dict[str, Any], summary: dict[str, Any], where:
             field = put_field(content, name, dataset_value(obj, where))
             units.add(field, obj)
             for key in obj.attrs:
-                if key != "units":
+                if key not in ("units", ATTRIBUTE_DIGESTS):
                     put_field(
                         content, f"{field}_{key}", matlab_value(obj.attrs[key], f"{where}: {obj.name}@{key}")
                     )

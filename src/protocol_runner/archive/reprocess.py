@@ -22,7 +22,7 @@ from ..protocol.processing import bouc_wen_settings, element_fit_enabled, proces
 from .attrs import CONFIGURATIONS as CONFIGURATIONS_ATTR
 from .attrs import DEVICE_JSON, FILENAME
 from .attrs import JOINTS as JOINTS_ATTR
-from .checksums import is_marked, seal_missing
+from .checksums import is_marked, seal_attributes, seal_missing
 from .h5util import attr_str, put_attrs, text_of
 from .paths import FITS, TRIALS, configuration_name
 from .reprocess_joints import complete_pairs, reprocess_joints
@@ -79,6 +79,7 @@ def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output
                     "reprocessing_settings": json.dumps(settings_source.protocol.processing.model_dump()),
                 },
             )
+            seal_attributes(f)  # the new results' attributes, and those copied from the checked archive
         partial.replace(out)
     finally:
         partial.unlink(missing_ok=True)
