@@ -29,8 +29,12 @@ def _say(message: str) -> None:
 
 def _result(message: str) -> None:
     """The command's outcome, on standard output (progress and prompts are on standard error), so that
-    `run-protocol ... > out` keeps the line naming the archive and the report."""
-    print(message, flush=True)
+    `run-protocol ... > out` keeps the line naming the archive and the report. A path that is not valid
+    UTF-8 is shown with U+FFFD where its odd byte is (a UTF-8 standard output cannot carry the byte)."""
+    try:
+        print(message, flush=True)
+    except UnicodeEncodeError:
+        print(message.encode("utf-8", "surrogateescape").decode("utf-8", "replace"), flush=True)
 
 
 def run(
@@ -231,8 +235,14 @@ def _journaled_units_missing(session_dir: Path) -> list[str]:
 
 def _html_output(path: Path | None) -> None:
     """Refuse an `--output` that would overwrite a file which is not an HTML page (a session's archive,
-    unit, journal or session.json given by mistake): a report or a comparison replaces only its own kind."""
-    if path is None or not path.is_file():
+    unit, journal or session.json given by mistake): a report or a comparison replaces only its own kind, and
+    only a regular file (never a link, a device or a FIFO: archive/outputs.py)."""
+    if path is None:
+        return
+    from .archive.outputs import refuse_special
+
+    refuse_special(path, "--output")
+    if not path.is_file():
         return
     try:
         with path.open("rb") as f:

@@ -64,7 +64,7 @@ def test_every_dataset_of_a_session_archive_has_a_matching_checksum(
             assert ds.attrs[DIGEST_ATTR] == digest_of_stored(ds), ds.name
     assert main(["--verify", str(reference_archive)]) == 0
     out = capsys.readouterr().out
-    assert f"{len(datasets)} datasets, every checksum matches" in out
+    assert f"{len(datasets)} datasets and " in out and "attributes, every checksum matches" in out
 
 
 def test_a_flipped_bit_in_a_raw_trial_is_named_by_verify_report_and_reprocess(

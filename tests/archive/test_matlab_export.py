@@ -13,6 +13,8 @@ import numpy as np
 import pytest
 from scipy.io import loadmat
 
+from protocol_runner.archive.attrs import ATTRIBUTE_DIGESTS, ATTRIBUTE_MARKER
+from protocol_runner.archive.checksums import seal_attributes_of
 from protocol_runner.archive.export import export_mat
 from protocol_runner.archive.matlab import matlab_name, put_field
 from protocol_runner.cli import main
@@ -106,13 +108,17 @@ def test_every_dataset_is_exported_with_its_value_and_unit(exported: tuple[Path,
 
 
 def test_every_attribute_is_exported_with_indices_made_one_based(exported: tuple[Path, Path]) -> None:
+    """Every attribute but the archive's integrity record (`attribute_sha256`, checked before the export)."""
     archive, out = exported
     files = {p.name: _load(p) for p in sorted(out.glob("*.mat"))}
     with h5py.File(archive, "r") as f:
         for file in files:
             meta = files[file]["meta"]
             for key, value in f.attrs.items():
-                _assert_same(getattr(meta, key), value, f"{file}: meta.{key}")
+                if key != ATTRIBUTE_DIGESTS:
+                    _assert_same(getattr(meta, key), value, f"{file}: meta.{key}")
+                else:
+                    assert not hasattr(meta, key)
             assert meta.archive == "archive.h5" and meta.operator == "automatic (--dry-run or --yes)"
 
         def visit(name: str, obj: h5py.HLObject) -> None:
@@ -121,6 +127,8 @@ def test_every_attribute_is_exported_with_indices_made_one_based(exported: tuple
             file, fields = _where(name)
             struct = _get(files[file], fields)
             for key, value in obj.attrs.items():
+                if key == ATTRIBUTE_DIGESTS:
+                    continue
                 if "index0" in key:
                     key, value = key.replace("index0", "index1"), value + 1
                 _assert_same(getattr(struct, matlab_name(key)), value, f"{name}@{key}")
@@ -184,6 +192,12 @@ def test_numbers_are_double_1d_arrays_columns_and_names_valid(exported: tuple[Pa
     assert trial.brace_off[0, 0].scaling[0, 0].input_range_deg.shape == (iterations, 2)  # as in the archive
 
 
+def _all_names(f: h5py.File) -> list[str]:
+    names: list[str] = []
+    f.visit(names.append)
+    return names
+
+
 def test_old_archives_transition_index_and_big_integers(exported: tuple[Path, Path], tmp_path: Path) -> None:
     """An archive written before the `_index0` rename and the fixed-length text is exported the same; a seed
     beyond 2**53 stays exact."""
@@ -195,6 +209,9 @@ def test_old_archives_transition_index_and_big_integers(exported: tuple[Path, Pa
         g.attrs["transition_index_on"] = g.attrs.pop("transition_index0_on")
         f.attrs["seed"] = np.int64(2**60 + 1)
         del f.attrs["dataset_checksums"]  # archives of that time had no checksums
+        del f.attrs[ATTRIBUTE_MARKER]
+        for obj in [f, *(f[name] for name in _all_names(f))]:
+            obj.attrs.pop(ATTRIBUTE_DIGESTS, None)
         text = f["protocol"][()].decode()
         del f["protocol"]  # text as variable-length strings, as archives were written before
         f.create_dataset("protocol", data=text, dtype=h5py.string_dtype())
@@ -245,7 +262,9 @@ def test_bad_input_exits_2_with_one_clear_line(
         if fault == "foreign":
             del f.attrs["protocol_sha256"]
         elif fault == "units_conflict":
-            f["configurations/config_12/trials/2/brace_on/angle_deg"].attrs["units"] = "rad"
+            ds = f["configurations/config_12/trials/2/brace_on/angle_deg"]
+            ds.attrs["units"] = "rad"
+            seal_attributes_of(ds, ["units"])  # as a writer would have recorded it: not a damaged file
         elif fault == "compound":
             f["configurations/config_12/trials/1/brace_on"].create_dataset(
                 "odd", data=np.zeros(2, dtype=[("a", "f8"), ("b", "i4")])

@@ -71,6 +71,7 @@ SEVERAL = DOC[DOC.index("## Several joints") :]
 ATTRIBUTE_SECTIONS = {
     "root": _between("## Root", "| dataset | meaning |"),
     "dataset": _between("# The archive", "## Root") + _between("## Checksums", "## Bounds"),
+    "any": _between("## Checksums", "## Bounds"),
     "protocol": _line_with("| `/protocol`"),
     "rig": _line_with("| `/rig`"),
     "unit": _between("The session directory's unit files", "## `/calibration"),

@@ -17,7 +17,8 @@ ONLY = [12]  # one short configuration (R1/Rr1, 25 s trials): quick but every st
 SEED = 7
 
 # Attributes and datasets that legitimately differ between two runs: wall-clock times and event logs.
-VOLATILE_ATTRS = {"created_utc", "finished_utc", "answered_utc"}
+# (`attribute_sha256` holds the checksums of the wall-clock values too)
+VOLATILE_ATTRS = {"created_utc", "finished_utc", "answered_utc", "attribute_sha256"}
 VOLATILE_PATHS = ("session/events",)
 
 

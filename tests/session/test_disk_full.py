@@ -147,7 +147,7 @@ def test_enospc_while_writing_the_report(
 
     def open_(self: Path, mode: str = "r", *args: Any, **kwargs: Any) -> Any:
         fh = real_open(self, mode, *args, **kwargs)
-        if "w" in mode and "report.html" in self.name:
+        if ("w" in mode or "x" in mode) and "report.html" in self.name:  # x: created new
             return _FillsUp(fh, room=20_000)
         return fh
 

@@ -14,6 +14,8 @@ from __future__ import annotations
 UNITS = "units"  # every numeric dataset: its unit
 DIGEST = "sha256"  # every dataset: its checksum (archive/checksums.py)
 CHECKSUM_MARKER = "dataset_checksums"  # root: every dataset has a DIGEST
+ATTRIBUTE_DIGESTS = "attribute_sha256"  # every object with attributes: their checksums (JSON name -> digest)
+ATTRIBUTE_MARKER = "attribute_checksums"  # root: every object's attributes have an ATTRIBUTE_DIGESTS
 UNIT_STEP_ID = "unit_step_id"  # a unit file's step
 UNIT_COMPLETE = "unit_complete"  # a unit file written to the end
 FILENAME = "filename"  # /protocol, /rig: the file's name
@@ -47,11 +49,13 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
         JOINT,
         ONLY,
         CHECKSUM_MARKER,
+        ATTRIBUTE_MARKER,
         "reprocessed_from",
         "reprocessing_protocol_sha256",
         "reprocessing_settings",
     ),
     "dataset": (UNITS, DIGEST),
+    "any": (ATTRIBUTE_DIGESTS,),  # every group, dataset and the root that has attributes
     "protocol": (FILENAME,),
     "rig": (FILENAME,),
     "unit": (UNIT_STEP_ID, UNIT_COMPLETE),

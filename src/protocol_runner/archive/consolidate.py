@@ -19,13 +19,11 @@ from pathlib import Path
 from typing import Any
 
 import h5py
-import numpy as np
-import numpy.typing as npt
-from h5py import h5a, h5f, h5g, h5o, h5p, h5s, h5t
+from h5py import h5a, h5f, h5g, h5o, h5p, h5s
 
 from .. import __version__
-from .attrs import ATTRIBUTES, FILENAME, ONLY
-from .checksums import MARKER_ATTR, is_marked, mark
+from .attrs import ATTRIBUTE_DIGESTS, ATTRIBUTE_MARKER, ATTRIBUTES, FILENAME, ONLY
+from .checksums import MARKER_ATTR, is_marked, mark, read_attr, seal_attributes
 from .diskfull import DiskFull, is_disk_full, resume_hint
 from .h5_write_errors import checked_h5_write
 from .h5util import SCHEMA_VERSION, put, put_attrs, put_lines, put_text
@@ -52,14 +50,14 @@ class ArchiveMeta:
     reference: tuple[str, str, Any, Any] | None = None
 
 
-#: The units' own root attributes: not part of the archive.
-_UNIT_ONLY = frozenset((*ATTRIBUTES["unit"], MARKER_ATTR))
+#: The units' own root attributes, and their attribute checksums (the archive's are recorded from the
+#: merged values, `_write`): not copied into the archive.
+_UNIT_ONLY = frozenset((*ATTRIBUTES["unit"], MARKER_ATTR, ATTRIBUTE_MARKER, ATTRIBUTE_DIGESTS))
 _UNIT_ONLY_NAMES = frozenset(name.encode("utf-8") for name in _UNIT_ONLY)
 _LCPL = h5p.create(h5p.LINK_CREATE)  # what h5py's `Group.copy` creates the copy's link with
 _LCPL.set_create_intermediate_group(True)
 _FAPL = h5p.create(h5p.FILE_ACCESS)  # a unit opened as `h5py.File(path, "r")` would be
 _FAPL.set_libver_bounds(h5f.LIBVER_EARLIEST, h5f.LIBVER_LATEST)
-_MEMORY_TYPES: dict[bytes, tuple[np.dtype[Any], h5t.TypeID]] = {}  # HDF5 type's encoding -> `_read_attr`'s
 
 # The merge works on HDF5's identifiers (h5py's low-level API), not on h5py's groups and attribute
 # managers: their objects, `in` and `[]` lookups cost more than the HDF5 calls they make, and a knee session's
@@ -78,19 +76,6 @@ def _attr_names(obj: h5g.GroupID) -> list[bytes]:
     return names
 
 
-def _read_attr(attr: h5a.AttrID) -> tuple[npt.NDArray[Any], h5t.TypeID]:
-    """An attribute's values as h5py's `attrs[name]` reads them (into the numpy type h5py gives its HDF5
-    type), and the memory type read with; both types made once per HDF5 type (its encoding)."""
-    key = attr.get_type().encode()
-    types = _MEMORY_TYPES.get(key)
-    if types is None:
-        types = _MEMORY_TYPES[key] = (attr.dtype, h5t.py_create(attr.dtype))
-    values = np.empty(attr.shape, dtype=types[0])
-    if values.size:
-        attr.read(values, mtype=types[1])
-    return values, types[1]
-
-
 def _copy_attr(src: h5g.GroupID, dst: h5g.GroupID, name: bytes) -> None:
     """Give `dst` `src`'s attribute `name` (`dst` has none of that name): its HDF5 type, dataspace and
     values, as `dst.attrs[name] = src.attrs[name]` writes them for every type a unit holds."""
@@ -98,7 +83,7 @@ def _copy_attr(src: h5g.GroupID, dst: h5g.GroupID, name: bytes) -> None:
     space = attr.get_space()
     copy = h5a.create(dst, name, attr.get_type(), space)
     if space.get_simple_extent_type() != h5s.NULL:  # an empty attribute has no values
-        values, mtype = _read_attr(attr)
+        values, mtype = read_attr(attr)
         if values.size:
             copy.write(values, mtype=mtype)
 
@@ -259,3 +244,6 @@ def _write(partial: Path, unit_files: list[Path], meta: ArchiveMeta, ahead: Draf
             put_attrs(configs.require_group(name), "configuration", attrs)
         if summed:
             mark(out)  # every dataset, copied from a unit or written here, carries its checksum
+        # every attribute's checksum, from the values merged from the units (each checked against the sha256
+        # its journal recorded before it was merged) and written here
+        seal_attributes(out)

@@ -41,8 +41,10 @@ from scipy.io import savemat
 
 from .. import __version__
 from ..errors import InvalidInput, make_output_dir
+from .attrs import ATTRIBUTE_DIGESTS
 from .diskfull import DiskFull, is_disk_full
 from .matlab import Units, attrs_struct, dataset_value, group_struct, matlab_value, put_field, text
+from .outputs import create_binary, refuse_special, temporary_beside
 from .verify import validate_archive  # clear messages for foreign or damaged files
 
 SESSION_FILE = "session"
@@ -174,7 +176,7 @@ def _session(f: h5py.File, meta: dict[str, Any], summary: dict[str, Any], where:
             field = put_field(content, name, dataset_value(obj, where))
             units.add(field, obj)
             for key in obj.attrs:
-                if key != "units":
+                if key not in ("units", ATTRIBUTE_DIGESTS):
                     put_field(
                         content, f"{field}_{key}", matlab_value(obj.attrs[key], f"{where}: {obj.name}@{key}")
                     )
@@ -184,15 +186,18 @@ def _session(f: h5py.File, meta: dict[str, Any], summary: dict[str, Any], where:
 
 
 def _save(path: Path, content: dict[str, Any]) -> Path:
-    """Write `content` to `path` atomically (a half-written file never has the final name)."""
-    partial = path.with_name(path.name + ".partial")
+    """Write `content` to `path` atomically (a half-written file never has the final name); a `path` that is
+    not a regular file (a link, a device, a FIFO) is refused (archive/outputs.py)."""
+    refuse_special(path, "--export-mat")
+    partial = temporary_beside(path)
     try:
-        savemat(
-            partial, content, appendmat=False, do_compression=True, oned_as="column", long_field_names=True
-        )
+        with create_binary(partial) as fh:
+            savemat(fh, content, do_compression=True, oned_as="column", long_field_names=True)
         os.replace(partial, path)
-    except OSError as exc:
+    except BaseException as exc:
         partial.unlink(missing_ok=True)
+        if not isinstance(exc, OSError):
+            raise
         if is_disk_full(exc):  # as everywhere: one message, exit 130; the files written before are complete
             raise DiskFull(
                 f"disk full while writing {path} (--export-mat): the .mat files written before it are complete; "

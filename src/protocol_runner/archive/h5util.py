@@ -12,7 +12,7 @@ import numpy.typing as npt
 
 from ..analysis.validation import SIGNAL as STORED_SIGNAL
 from .attrs import ATTRIBUTES, DYNAMIC, UNITS
-from .checksums import seal_values
+from .checksums import attributes_marked, seal_attributes_of, seal_values
 
 SCHEMA_VERSION = 1
 COMPRESS_ABOVE = 256
@@ -101,13 +101,20 @@ def put_attrs(
 ) -> None:
     """Set the attributes `attrs` of an object of `kind` (a key of `attrs.ATTRIBUTES`) and the per-campaign
     ones in `dynamic` (only for a kind of `attrs.DYNAMIC`); a name the layout does not give that kind of
-    object is a bug, refused before anything is written."""
+    object is a bug, refused before anything is written.
+
+    In a file already finished with attribute checksums (the verdicts written into an archive), the digests
+    of the attributes written are recorded at once (archive/checksums.py); a file being written gets them
+    all when it is finished (`checksums.seal_attributes`)."""
     unknown = sorted(set(attrs) - set(ATTRIBUTES[kind]))
     if unknown or (dynamic and kind not in DYNAMIC):
         raise ValueError(f"archive layout: a {kind} has no attribute {', '.join(unknown) or 'per campaign'}")
     set_attrs(obj, attrs)
     if dynamic:
         set_attrs(obj, dynamic)
+    if attributes_marked(obj.file):
+        written = [k for k, v in {**attrs, **(dynamic or {})}.items() if v is not None]
+        seal_attributes_of(obj, written)
 
 
 def _is_numeric_list(value: object) -> bool:

@@ -27,7 +27,7 @@ import h5py
 import numpy as np
 
 from ..errors import InvalidInput
-from .attrs import UNITS
+from .attrs import ATTRIBUTE_DIGESTS, UNITS
 
 NAMELENGTHMAX = 63  # MATLAB's namelengthmax
 _EXACT_INT = 2**53  # larger integers lose digits as double
@@ -127,7 +127,7 @@ def attrs_struct(obj: h5py.HLObject, where: str, skip: tuple[str, ...] = ()) -> 
     """An HDF5 object's attributes as struct fields (indices made 1-based; see `index_base`)."""
     out: dict[str, Any] = {}
     for key, value in obj.attrs.items():
-        if key in skip:
+        if key in skip or key == ATTRIBUTE_DIGESTS:  # the archive's own integrity record, checked before
             continue
         name, value = index_base(key, value)
         put_field(out, name, matlab_value(value, f"{where}: {obj.name}@{key}"))

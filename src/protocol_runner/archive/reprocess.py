@@ -9,8 +9,8 @@ new archive next to the old one; the old one is never modified. Raw data are cop
 from __future__ import annotations
 
 import json
+import os
 import shutil
-import tempfile
 from pathlib import Path
 
 import h5py
@@ -23,8 +23,9 @@ from ..protocol.processing import bouc_wen_settings, element_fit_enabled, proces
 from .attrs import CONFIGURATIONS as CONFIGURATIONS_ATTR
 from .attrs import DEVICE_JSON, FILENAME
 from .attrs import JOINTS as JOINTS_ATTR
-from .checksums import is_marked, seal_missing
+from .checksums import is_marked, seal_attributes, seal_missing
 from .h5util import attr_str, put_attrs, text_of
+from .outputs import create_binary, refuse_special, temporary_beside, terminated_as_interrupt
 from .paths import FITS, TRIALS, configuration_name
 from .reprocess_joints import complete_pairs, reprocess_joints
 from .results import bouc_wen_fill, comparison_values, processed_fill
@@ -48,42 +49,57 @@ def _archived_protocol(f: h5py.File, archive: Path) -> LoadedProtocol:
 
 
 def new_archive_path(archive: Path) -> Path:
+    """The first of `<stem>.reprocessed.h5`, `<stem>.reprocessed-2.h5`, ... that names nothing (not even a
+    dangling symbolic link)."""
     candidate = archive.with_name(archive.stem + ".reprocessed.h5")
     n = 2
-    while candidate.exists():
+    while os.path.lexists(candidate):
         candidate = archive.with_name(f"{archive.stem}.reprocessed-{n}.h5")
         n += 1
     return candidate
 
 
 def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output: Path | None = None) -> Path:
-    validate_archive(archive)  # every dataset within bounds and intact, or a clear message naming it
+    """Write the reprocessed copy of `archive` (to `output`, default `new_archive_path`) and return its path.
+
+    The copy is made under a temporary name beside it, with the umask's permissions like any file the
+    program writes, and renamed when complete; it is removed whatever stops the work (an error, Ctrl-C,
+    SIGTERM), so no partial archive is ever left behind. An `output` that is not a regular file (a link, a
+    device, a FIFO) is refused (archive/outputs.py)."""
+    validate_archive(archive)  # every dataset and attribute within bounds and intact, or a message naming it
     out = output or new_archive_path(archive)
-    with tempfile.NamedTemporaryFile(dir=out.parent, suffix=".partial", delete=False) as tmp:
-        partial = Path(tmp.name)
-    try:
-        shutil.copyfile(archive, partial)
-        with h5py.File(partial, "r+") as f:
-            archived = _archived_protocol(f, archive)
-            settings_source = archived
-            if protocol_file is not None:
-                settings_source = load_protocol(find_protocol(protocol_file), check_files=False)
-            _reprocess(f, settings_source)
-            if is_marked(f):
-                seal_missing(f)  # the new results carry checksums like everything else
-            put_attrs(
-                f,
-                "root",
-                {
-                    "reprocessed_from": str(archive.name),
-                    "reprocessing_protocol_sha256": settings_source.sha256,
-                    "reprocessing_settings": json.dumps(settings_source.protocol.processing.model_dump()),
-                },
-            )
-        partial.replace(out)
-    finally:
-        partial.unlink(missing_ok=True)
+    refuse_special(out, "--reprocess output")
+    partial = temporary_beside(out)
+    with terminated_as_interrupt():
+        try:
+            _write_reprocessed(archive, partial, protocol_file)
+            os.replace(partial, out)
+        finally:
+            partial.unlink(missing_ok=True)
     return out
+
+
+def _write_reprocessed(archive: Path, partial: Path, protocol_file: str | None) -> None:
+    with create_binary(partial) as fh, archive.open("rb") as src:
+        shutil.copyfileobj(src, fh)
+    with h5py.File(partial, "r+") as f:
+        archived = _archived_protocol(f, archive)
+        settings_source = archived
+        if protocol_file is not None:
+            settings_source = load_protocol(find_protocol(protocol_file), check_files=False)
+        _reprocess(f, settings_source)
+        if is_marked(f):
+            seal_missing(f)  # the new results carry checksums like everything else
+        put_attrs(
+            f,
+            "root",
+            {
+                "reprocessed_from": str(archive.name),
+                "reprocessing_protocol_sha256": settings_source.sha256,
+                "reprocessing_settings": json.dumps(settings_source.protocol.processing.model_dump()),
+            },
+        )
+        seal_attributes(f)  # the new results' attributes, and those copied from the checked archive
 
 
 def archived_device(cfg: h5py.Group) -> list[tuple[str, str, dict[str, object]]]:

@@ -19,7 +19,7 @@ import h5py
 
 from ..errors import InvalidInput
 from .attrs import UNIT_COMPLETE, UNIT_STEP_ID
-from .checksums import mark, seal_missing
+from .checksums import mark, seal_attributes, seal_missing
 from .diskfull import DiskFull, is_disk_full, resume_hint
 from .h5_write_errors import checked_h5_write
 from .h5util import group_name
@@ -79,6 +79,7 @@ def write_unit(units_dir: Path, step_id: str, fill: Callable[[h5py.File], None])
             seal_missing(f)  # datasets written without archive/h5util.py get their checksum too
             mark(f)
             f.attrs[COMPLETE_ATTR] = True
+            seal_attributes(f)  # every attribute written, by whatever code, gets its checksum
         _fsync_file(partial)
         digest = sha256_of(partial)
         os.replace(partial, final)

@@ -1,8 +1,9 @@
 """Is this file an intact protocol-runner archive? Clear answers for foreign, damaged or hostile files.
 
 - `Checker`: each dataset's layout (archive/layout.py) is checked before it is read, then its values
-  against its recorded checksum (archive/checksums.py). The report checks every dataset with it before
-  using any, and refuses a damaged one by name (exit 2).
+  against its recorded checksum (archive/checksums.py), and each object's attributes against theirs. The
+  report checks every dataset and attribute with it before using any, and refuses a damaged one by name
+  (exit 2).
 - `validate_archive`: the path names an HDF5 file with the archive's root marker and `/configurations`,
   and every dataset passes `Checker` (used by `--reprocess` and `--export-mat` before they read).
 - `verify_path`: `run-protocol --verify SESSION_DIR|ARCHIVE.h5`, every dataset of the archive (and of a
@@ -19,7 +20,14 @@ import h5py
 
 from ..errors import InvalidInput, short
 from .attrs import UNIT_STEP_ID
-from .checksums import digest_of_stored, is_marked, recorded_digest
+from .checksums import (
+    attributes_marked,
+    digest_of_stored,
+    is_marked,
+    recorded_attribute_digests,
+    recorded_digest,
+    stored_attribute_digests,
+)
 from .layout import check_layout, element_cap
 from .units import COMPLETE_ATTR
 
@@ -95,9 +103,11 @@ def validate_archive(path: Path) -> Path:
 
 @dataclass
 class Checker:
-    """Checks datasets of one open file: layout first, then the checksum. `strict` (the file declares
-    checksums) makes a dataset without one an error; otherwise (an archive written before checksums)
-    only the layout is checked. Without `digests` only the layout is checked (see `load_report_data`)."""
+    """Checks datasets of one open file: layout first, then the checksum; and every object's attributes
+    against their checksums. `strict` (the file declares dataset checksums) makes a dataset without one an
+    error, `attrs_strict` (it declares attribute checksums) an attribute without one; otherwise (an archive
+    written before them) only the layout is checked, and the attributes are counted as unsummed. Without
+    `digests` only the layout is checked (see `load_report_data`)."""
 
     label: str
     cap: int
@@ -105,13 +115,55 @@ class Checker:
     checked: int = 0
     unsummed: int = 0
     digests: bool = True
+    attrs_strict: bool = False
+    attrs_checked: int = 0
+    attrs_unsummed: int = 0
 
     @classmethod
     def of(cls, f: h5py.File, label: object, *, digests: bool = True) -> Checker:
-        return cls(str(label), element_cap(f), is_marked(f), digests=digests)
+        return cls(
+            str(label), element_cap(f), is_marked(f), digests=digests, attrs_strict=attributes_marked(f)
+        )
+
+    def check_attributes(self, obj: h5py.HLObject) -> None:
+        """Raise `InvalidInput` naming the file, the object and the attribute unless every attribute of
+        `obj` matches the checksum recorded when it was written (and none recorded has been removed)."""
+        if not self.digests:
+            return
+        where = f"{self.label}: {obj.name}"
+        try:
+            recorded = recorded_attribute_digests(obj)
+        except (ValueError, *_READ_ERRORS) as exc:
+            raise InvalidInput(f"{where}: its attribute checksums cannot be read ({short(exc)})") from None
+        try:
+            stored = stored_attribute_digests(obj)
+        except _READ_ERRORS as exc:
+            raise InvalidInput(
+                f"{where}: its attributes are damaged: they cannot be read ({short(exc)})"
+            ) from None
+        for name, actual in stored.items():
+            expected = None if recorded is None else recorded.get(name)
+            if expected is None:
+                if self.attrs_strict:
+                    raise InvalidInput(
+                        f"{where}@{name} has no checksum although the file declares one on every attribute"
+                    )
+                self.attrs_unsummed += 1
+            elif actual != expected:
+                raise InvalidInput(
+                    f"{where}@{name} is damaged: its value no longer matches the sha256 checksum recorded "
+                    "when it was written. Check the file with run-protocol --verify; use a backup copy, or "
+                    "re-consolidate the session from its units"
+                )
+            else:
+                self.attrs_checked += 1
+        gone = sorted(set(recorded or ()) - set(stored))
+        if gone:
+            raise InvalidInput(f"{where}@{gone[0]} is missing: it was removed after it was written")
 
     def check(self, ds: h5py.Dataset) -> None:
-        """Raise `InvalidInput` naming the file and the dataset unless it is within bounds and intact."""
+        """Raise `InvalidInput` naming the file and the dataset unless it is within bounds and intact
+        (its values and its attributes)."""
         where = f"{self.label}: dataset {ds.name}"
         check_layout(ds, self.cap, where)
         if not self.digests:
@@ -121,6 +173,7 @@ class Checker:
             if self.strict:
                 raise InvalidInput(f"{where} has no checksum although the file declares one on every dataset")
             self.unsummed += 1
+            self.check_attributes(ds)
             return
         try:
             actual = digest_of_stored(ds)
@@ -133,9 +186,12 @@ class Checker:
                 "the session from its units"
             )
         self.checked += 1
+        self.check_attributes(ds)
 
     def check_tree(self, group: h5py.Group, skip: tuple[str, ...] = ()) -> None:
-        """Check every dataset under `group` (names in `skip`, directly under it, excluded)."""
+        """Check `group`'s attributes and every dataset and group under it (names in `skip`, directly under
+        it, excluded)."""
+        self.check_attributes(group)
         for name, obj in group.items():
             if name in skip:
                 continue
@@ -145,16 +201,20 @@ class Checker:
                 self.check_tree(obj)
 
     def problems(self, group: h5py.Group) -> list[str]:
-        """Every dataset under `group` that fails `check`, as messages (for --verify)."""
+        """Every dataset, and every object's attributes, under `group` (itself included) that fails its
+        check, as messages (for --verify)."""
         found: list[str] = []
 
         def visit(_: str, obj: object) -> None:
-            if isinstance(obj, h5py.Dataset):
-                try:
+            try:
+                if isinstance(obj, h5py.Dataset):
                     self.check(obj)
-                except InvalidInput as exc:
-                    found.append(exc.message)
+                elif isinstance(obj, h5py.Group):
+                    self.check_attributes(obj)
+            except InvalidInput as exc:
+                found.append(exc.message)
 
+        visit("", group)
         group.visititems(visit)
         return found
 
@@ -219,5 +279,16 @@ def _verify_file(file: Path, verdict: Verdict) -> int:
         )
     elif not found:
         unsummed = f" ({checker.unsummed} written without one)" if checker.unsummed else ""
-        verdict.lines.append(f"{file}: {checker.checked} datasets, every checksum matches{unsummed}")
+        attributes = f" and {checker.attrs_checked} attributes" if checker.attrs_checked else ""
+        unsummed_attrs = ""
+        if checker.attrs_unsummed:  # written before attribute checksums: its results' attributes unverifiable
+            which = (
+                f"{checker.attrs_unsummed} of its attributes carry"
+                if checker.attrs_checked
+                else ("its attributes carry")
+            )
+            unsummed_attrs = f"; {which} no checksum (written before attribute checksums)"
+        verdict.lines.append(
+            f"{file}: {checker.checked} datasets{attributes}, every checksum matches{unsummed}{unsummed_attrs}"
+        )
     return checker.checked

@@ -51,8 +51,8 @@ def load_report_data(
     campaign's trials is most of the load time); None picks 2 for large archives on a multi-core machine.
     Raises `InvalidInput` when the file is missing, not HDF5, truncated or corrupt, not a protocol-runner
     archive (no root attribute `protocol_sha256`), lacks the `/configurations` group, or holds a dataset
-    outside the layout's bounds or whose checksum does not match (archive/verify.py): every dataset is
-    checked before the report uses anything. `verify=False` reads the datasets without checking them
+    outside the layout's bounds or a dataset or attribute whose checksum does not match (archive/verify.py):
+    every dataset and attribute is checked before the report uses anything. `verify=False` reads the datasets without checking them
     (neither checksums nor bounds): only for an archive this process has just consolidated from units
     whose sha256 it checked against the journal (the session's own report): every byte of it is then
     known to be what protocol-runner wrote, within its bounds and matching its checksums.
@@ -72,8 +72,10 @@ def load_report_data(
         rest = [name for name in names if name not in (known or {})]
         configurations = _load_configurations(archive, rest, workers, verify, ahead)
         with h5py.File(archive, "r") as h5:
-            if verify:
-                Checker.of(h5, archive).check_tree(h5, skip=("configurations",))
+            if verify:  # the root's and every other group's attributes and datasets (configurations: above)
+                checker = Checker.of(h5, archive)
+                checker.check_tree(h5, skip=("configurations",))
+                checker.check_attributes(h5["configurations"])
             return _read(h5, archive, configurations)
     except InvalidInput:
         raise

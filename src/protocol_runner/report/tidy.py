@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
 
@@ -34,6 +35,8 @@ import numpy as np
 
 from protocol_runner.analysis.cycles import complete_cycles
 from protocol_runner.analysis.validation import AnalysisError
+from protocol_runner.archive.diskfull import DiskFull, is_disk_full
+from protocol_runner.archive.outputs import create_new, refuse_special, temporary_beside
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.load import load_report_data
@@ -80,6 +83,10 @@ STAT_COLUMNS = (
 )
 
 
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+"""How a spreadsheet recognises a formula (or a cell that pastes as one) at the start of a cell."""
+
+
 def _cell(value: object) -> str:
     if value is None:
         return ""
@@ -87,17 +94,45 @@ def _cell(value: object) -> str:
         return "" if not math.isfinite(value) else repr(value)
     if isinstance(value, tuple | list):
         return ";".join(_cell(v) for v in value)
-    return str(value)
+    if isinstance(value, int | np.integer | np.floating):
+        return str(value)
+    return text_cell(str(value))
+
+
+def text_cell(text: str) -> str:
+    """A text cell as a spreadsheet shows it, never runs it: one starting like a formula (`= + - @`, a tab
+    or a carriage return; a level label such as `=HYPERLINK(...)`) gets a leading single quote, as OWASP
+    recommends against CSV injection. Text that is a number (`-1.5`, a level written as text) is kept as
+    it is: a spreadsheet reads it as that number, never as a formula."""
+    if not text.startswith(FORMULA_STARTS):
+        return text
+    try:
+        float(text)
+    except ValueError:
+        return "'" + text
+    return text
 
 
 def _write(path: Path, columns: Sequence[str], rows: Iterable[Sequence[object]]) -> Path:
-    tmp = path.with_name(f".{path.name}.partial")
-    with tmp.open("w", encoding="utf-8", newline="") as fh:
-        writer = csv.writer(fh, lineterminator="\n")
-        writer.writerow(columns)
-        for row in rows:
-            writer.writerow([_cell(v) for v in row])
-    tmp.replace(path)
+    """Write one table through a temporary file and a rename; on any failure (a full disk, an interruption)
+    the temporary file is removed and `path` is left as it was."""
+    refuse_special(path, "--export")
+    tmp = temporary_beside(path)
+    try:
+        with create_new(tmp, newline="") as fh:
+            writer = csv.writer(fh, lineterminator="\n")
+            writer.writerow([text_cell(c) for c in columns])
+            for row in rows:
+                writer.writerow([_cell(v) for v in row])
+        os.replace(tmp, path)
+    except BaseException as exc:
+        tmp.unlink(missing_ok=True)
+        if isinstance(exc, OSError) and is_disk_full(exc):
+            raise DiskFull(
+                f"disk full while writing {path} (--export): the tables written before it are complete; "
+                "free some space and run the export again"
+            ) from None
+        raise
     return path
 
 
@@ -228,6 +263,8 @@ def export_tables(archive: Path, output_dir: Path) -> tuple[Path, ...]:
         raise InvalidInput(f"Export output {output_dir} is a file; give a directory.")
     data = load_report_data(archive, workers=1)
     output_dir.mkdir(parents=True, exist_ok=True)
+    for name in ("cycles.csv", "trials.csv", "configurations.csv"):  # all refused before any is written
+        refuse_special(output_dir / name, "--export")
     with h5py.File(data.session.archive_path, "r") as h5:
         cycles, trials = _rows(h5, data)
     columns, configurations = _configuration_rows(data)

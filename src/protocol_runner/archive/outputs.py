@@ -1,0 +1,86 @@
+"""Files the program writes outside a session (the report and comparison pages, `--export`'s CSV tables,
+`--export-mat`'s .mat files, `--reprocess`'s new archive): only ever regular files.
+
+Each is written under a temporary name beside it and renamed over its path, and a rename replaces
+whatever has that name. So before anything is written the path is examined with `os.lstat`, which does
+not follow a symbolic link: a path that exists and is not a regular file (a symbolic link, a device such
+as /dev/null, a FIFO, a socket, a directory) is refused by name (exit 2) instead of being replaced by a
+regular file. The temporary file is created with O_EXCL, so it is never opened through a link either, and
+with the usual permissions (the umask), and it is removed whatever stops the write.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import stat
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO
+
+from ..errors import InvalidInput
+
+_KINDS = (
+    (stat.S_ISLNK, "a symbolic link"),
+    (stat.S_ISDIR, "a directory"),
+    (stat.S_ISCHR, "a device"),
+    (stat.S_ISBLK, "a device"),
+    (stat.S_ISFIFO, "a FIFO"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def refuse_special(path: Path, what: str) -> None:
+    """Raise `InvalidInput` naming `path` (and `what` writes it) when it exists and is not a regular file."""
+    try:
+        mode = os.lstat(path).st_mode
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise InvalidInput(f"{what} {path}: cannot be used ({exc.strerror or exc})") from None
+    if stat.S_ISREG(mode):
+        return
+    kind = next((name for test, name in _KINDS if test(mode)), "not a regular file")
+    raise InvalidInput(
+        f"{what} {path} is {kind}, not a regular file: it is not replaced (a symbolic link is never "
+        "followed). Give the path of a new or a regular file"
+    )
+
+
+def temporary_beside(path: Path) -> Path:
+    """The temporary name `path` is written under before it is renamed (hidden, unique to this process)."""
+    return path.with_name(f".{path.name}.{os.getpid()}.partial")
+
+
+def create_new(tmp: Path, *, newline: str | None = None) -> IO[str]:
+    """Open `tmp` for UTF-8 text as a new file (a stale one removed first; O_EXCL: never through a link),
+    with the umask's permissions."""
+    tmp.unlink(missing_ok=True)
+    return tmp.open("x", encoding="utf-8", newline=newline)
+
+
+def create_binary(tmp: Path) -> IO[bytes]:
+    """`create_new` for bytes."""
+    tmp.unlink(missing_ok=True)
+    return tmp.open("xb")
+
+
+@contextlib.contextmanager
+def terminated_as_interrupt() -> Iterator[None]:
+    """Within the block, SIGTERM raises KeyboardInterrupt (as Ctrl-C does) so that the `finally` and `except`
+    clauses that remove temporary files run; the previous handler is restored after. Only the main thread
+    can set a handler: elsewhere the block runs unchanged."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
