@@ -29,3 +29,11 @@ def test_no_module_but_step_ids_spells_an_id() -> None:
         if p.name != "step_ids.py" and spelled.search(p.read_text(encoding="utf-8"))
     ]
     assert found == []
+
+
+def test_a_brace_off_trial_belongs_to_its_brace_on_trial() -> None:
+    """The simulator draws a trial's friction spread once for the pair (the twin subtracts that robot)."""
+    from protocol_runner.protocol.step_ids import trial_of
+
+    assert trial_of(trial_id(3, "off", 2)) == trial_id(3, "on", 2) == trial_of(trial_id(3, "on", 2))
+    assert trial_of(calibration_id("A", "before")) == "cal:A:before"

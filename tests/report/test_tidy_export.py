@@ -113,3 +113,33 @@ def test_configurations_csv_has_a_column_per_declared_factor_and_quantity_in_ord
     assert header[:4] == ["configuration", "set", "profile", "trajectory"]
     assert header[4 : 4 + len(expected)] == expected
     assert header[4 + len(expected)] == "trials"
+
+
+def test_the_reports_per_trial_table_shows_the_brace_off_match_of_trials_csv(
+    small_report: str, tables: Path
+) -> None:
+    """Each configuration's section lists, per trial, the brace-off scaling error, runs and clipped
+    fraction that trials.csv carries (one reader), and flags a trial the scaling left outside the
+    tolerance."""
+    rows = _rows(tables / "trials.csv")
+    assert rows and all(r["brace_off_scaling_runs"] == "2" for r in rows)
+    for r in rows:
+        section = re.search(
+            rf'<section class="config" id="config-{r["configuration"]}">.*?</section>', small_report, re.S
+        )
+        assert section is not None
+        table = re.search(r'<table class="trial-match">.*?</table>', section.group(0), re.S)
+        assert table is not None
+        row = re.search(rf"<tr><td>{r['trial']}</td>.*?</tr>", table.group(0), re.S)
+        assert row is not None
+        cells = re.findall(r"<td[^>]*>(.*?)</td>", row.group(0), re.S)
+        error, runs, clipped = cells[1:]
+        assert error.startswith(f"{float(r['brace_off_scaling_error_deg']):.3f}")
+        assert runs == "2"
+        assert clipped == f"{float(r['clipped_fraction']):.3f}"
+        outside = r["brace_off_scaling_converged"] == "False"
+        assert outside == (r["trial"] == "2")  # the builder's trial 2 stayed outside the tolerance
+        assert ("outside the tolerance" in error) == outside
+        assert float(r["brace_off_scaling_error_deg"]) == pytest.approx(
+            0.25 if outside else 0.02 * int(r["trial"])
+        )

@@ -24,3 +24,12 @@ def calibration_id(set_name: str, when: str) -> str:
 
 def trial_id(key: int, brace: str, trial: int) -> str:
     return step_id("trial", brace, trial, key=key)
+
+
+def trial_of(step_id: str) -> str:
+    """The trial a step belongs to, named by its brace-on run's id: a brace-off trial's twin
+    (`trial:k03:off:2` -> `trial:k03:on:2`, the ids `trial_id` makes); any other step is its own."""
+    parts = step_id.split(":")
+    if len(parts) == 4 and parts[0] == "trial" and parts[2] == "off":
+        return ":".join((parts[0], parts[1], "on", parts[3]))
+    return step_id

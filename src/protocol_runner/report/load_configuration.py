@@ -24,6 +24,7 @@ from protocol_runner.report.h5read import (
 from protocol_runner.report.metrics import peak_of, range_of, slope_of
 from protocol_runner.report.model import (
     BoucWenFit,
+    BraceOffMatch,
     Configuration,
     ElementFit,
     ProcessedTrial,
@@ -87,7 +88,14 @@ def read_configuration(name: str, grp: h5py.Group) -> Configuration:
                     peak_nm=peak_of(angle, torque),
                 )
             trials.append(
-                Trial(number=number, brace_on=on, brace_off=off, processed=processed, recorded=has_raw)
+                Trial(
+                    number=number,
+                    brace_on=on,
+                    brace_off=off,
+                    processed=processed,
+                    recorded=has_raw,
+                    match=brace_off_match(tgrp),
+                )
             )
     angle_min, angle_max, slope = _summary(angles, torques)
     energy = float_ds(grp, "energy_loss_j")
@@ -107,6 +115,25 @@ def read_configuration(name: str, grp: h5py.Group) -> Configuration:
         torque_slope_nm_per_deg=slope,
         trajectory_json=trajectory_json,
     )
+
+
+def brace_off_match(trial: h5py.Group) -> BraceOffMatch:
+    """How well the brace-off twin of the trial stored in `trial` (`trials/<n>`) matched it: the kept
+    scaling run's error and the runs (`brace_off/scaling`), whether it converged, and the clipped fraction
+    (1 - `processed` @coverage). The report's per-trial table and trials.csv both read it here."""
+    error: float | None = None
+    runs: int | None = None
+    converged: bool | None = None
+    if "brace_off/scaling" in trial and "range_error_deg" in trial["brace_off/scaling"]:
+        g = trial["brace_off/scaling"]
+        errors = np.asarray(g["range_error_deg"][()], dtype=float)
+        kept = attr_int(g.attrs, "kept_iteration", int(np.argmin(errors)) + 1)
+        error, runs = float(errors[kept - 1]), int(errors.size)
+        converged = attr_bool(g.attrs, "converged", False)
+    clipped: float | None = None
+    if "processed" in trial and "coverage" in trial["processed"].attrs:
+        clipped = 1.0 - attr_float(trial["processed"].attrs, "coverage")
+    return BraceOffMatch(error, runs, converged, clipped)
 
 
 def group_fields(name: str, attrs: Mapping[str, Any], n_trials: int) -> dict[str, Any]:

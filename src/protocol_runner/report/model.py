@@ -126,6 +126,20 @@ class ProcessedTrial:
 
 
 @dataclass(frozen=True)
+class BraceOffMatch:
+    """How well a trial's brace-off twin matched it (docs/analysis.md §3-4), as the archive stores it:
+    the kept scaling run's cycle-range error (deg), the robot runs the scaling made, whether the error is
+    within the protocol's tolerance, and the clipped fraction (share of brace-on samples beyond the
+    brace-off range, 1 - the processed data's `coverage`). None where the archive holds no value (an
+    equal-time subtraction, a multi-joint trial, a trial not processed)."""
+
+    scaling_error_deg: float | None = None
+    scaling_runs: int | None = None
+    scaling_converged: bool | None = None
+    clipped_fraction: float | None = None
+
+
+@dataclass(frozen=True)
 class Trial:
     """Trial `number` of a configuration: its brace-on and brace-off runs and the processed result.
 
@@ -138,6 +152,7 @@ class Trial:
     brace_off: Recording | None
     processed: ProcessedTrial | None
     recorded: bool = True
+    match: BraceOffMatch = BraceOffMatch()
 
 
 @dataclass(frozen=True)

@@ -40,7 +40,7 @@ from protocol_runner.archive.outputs import create_new, refuse_special, temporar
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.model import Configuration, ReportData
+from protocol_runner.report.model import BraceOffMatch, Configuration, ReportData
 
 CYCLE_COLUMNS = (
     "configuration",
@@ -149,26 +149,6 @@ def _processed(h5: h5py.File, cfg: Configuration, trial: int) -> tuple[np.ndarra
     return angle[:n], torque[:n]
 
 
-def _brace_off_match(h5: h5py.File, cfg: Configuration, trial: int) -> list[object]:
-    """The trial's scaling error (deg) and runs, whether it converged, and its clipped fraction; empty
-    cells for what the archive does not hold (an equal-time subtraction, a multi-joint trial)."""
-    base = f"configurations/{cfg.name}/trials/{trial}"
-    error: float | None = None
-    runs: int | None = None
-    converged: bool | None = None
-    scaling = f"{base}/brace_off/scaling"
-    if scaling in h5 and "range_error_deg" in h5[scaling]:
-        g = h5[scaling]
-        errors = np.asarray(g["range_error_deg"][()], dtype=float)
-        kept = int(g.attrs.get("kept_iteration", int(np.argmin(errors)) + 1))
-        error, runs = float(errors[kept - 1]), int(errors.size)
-        converged = bool(g.attrs.get("converged", False))
-    clipped: float | None = None
-    if f"{base}/processed" in h5 and "coverage" in h5[f"{base}/processed"].attrs:
-        clipped = 1.0 - float(h5[f"{base}/processed"].attrs["coverage"])
-    return [error, runs, converged, clipped]
-
-
 def _cycle_geometry(
     signal: tuple[np.ndarray, np.ndarray] | None, n_cycles: int
 ) -> list[tuple[float, float, float]]:
@@ -196,6 +176,7 @@ def _rows(h5: h5py.File, data: ReportData) -> tuple[list[list[object]], list[lis
         energy = np.asarray(cfg.energy_loss_j, dtype=float)
         ids = np.asarray(cfg.energy_cycle_trial)
         numbers = sorted({t.number for t in cfg.trials} | {int(i) for i in ids})
+        matches = {t.number: t.match for t in cfg.trials}  # read by load_configuration.brace_off_match
         for number in numbers:
             own = energy[ids == number] if ids.size == energy.size else np.empty(0)
             signal = _processed(h5, cfg, number)
@@ -210,7 +191,8 @@ def _rows(h5: h5py.File, data: ReportData) -> tuple[list[list[object]], list[lis
                 peak = float(np.nanmax(np.abs(signal[1])))
             mean = float(own.mean()) if own.size else math.nan
             sd = float(own.std(ddof=1)) if own.size > 1 else math.nan
-            match = _brace_off_match(h5, cfg, number)
+            m = matches.get(number, BraceOffMatch())
+            match = [m.scaling_error_deg, m.scaling_runs, m.scaling_converged, m.clipped_fraction]
             trials.append([cfg.key, cfg.set_name, number, int(own.size), mean, sd, lo, hi, peak, *match])
     return cycles, trials
 

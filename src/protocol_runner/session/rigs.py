@@ -13,6 +13,7 @@ from ..hardware.rig import Rig
 from ..protocol.loaded import LoadedProtocol
 from ..protocol.schema import RigSpec
 from ..protocol.settings import Settings
+from ..protocol.step_ids import trial_of
 from ..protocol.stream_check import safety_limits
 
 if TYPE_CHECKING:
@@ -95,10 +96,13 @@ class SimulatedBench:
         self.mode = "dry-run"
 
     def begin_step(self, step_id: str) -> None:
+        """The simulated rig starts step `step_id`; a brace-off trial draws the same friction spread as
+        its brace-on twin (the robot it subtracts is the one that ran the brace-on trial)."""
+        trial = trial_of(step_id)
         if self.multi_sim is not None:
-            self.multi_sim.begin_step(step_id)
+            self.multi_sim.begin_step(step_id, trial)
             return
-        self.sim.begin_step(step_id)
+        self.sim.begin_step(step_id, trial)
 
     def fit_brace(self, settings: Settings | None) -> None:
         """The simulated operator fits the configuration's device (its resolved elements), or removes it

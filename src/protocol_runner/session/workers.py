@@ -21,6 +21,7 @@ import multiprocessing.context
 import os
 import signal
 import threading
+import warnings
 from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import wait as futures_wait
@@ -41,7 +42,9 @@ from .signals import sigint_blocked
 PRELOADED = ("protocol_runner.steps.registry", "protocol_runner.analysis.service")
 """What the workers run, imported once by the fork server instead of by every worker it forks."""
 
-Results = list[tuple[UnitRecord | None, str]]  # a task's units and summaries, in step order
+Warned = tuple[tuple[str, int], ...]  # (warning kind, how often), in the order first raised
+Results = list[tuple[UnitRecord | None, str, Warned]]
+"""A task's units, summaries and the warnings each step raised (`warning_kinds`), in step order."""
 T = TypeVar("T")
 
 
@@ -112,10 +115,24 @@ def run_analysis_steps(
     done: Results = []
     for step_id in step_ids:
         step = plan.step(step_id)
-        outcome = run_step(step, ctx)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            outcome = run_step(step, ctx)
         record = write_unit(units_dir, step.id, outcome.fill) if outcome.fill is not None else None
-        done.append((record, outcome.summary))
+        done.append((record, outcome.summary, warning_kinds(caught)))
     return done
+
+
+def warning_kinds(caught: list[warnings.WarningMessage]) -> Warned:
+    """The kinds of the warnings a step raised (category, message, where), each once with how often, in
+    the order first raised: a worker's stderr reaches no one, so they travel back with the step."""
+    counts: dict[str, int] = {}
+    for w in caught:
+        where = Path(w.filename)
+        shown = "/".join(where.parts[-3:]) if len(where.parts) > 3 else str(where)
+        kind = f"{w.category.__name__}: {w.message} ({shown}:{w.lineno})"
+        counts[kind] = counts.get(kind, 0) + 1
+    return tuple(counts.items())
 
 
 class AnalysisPool:
@@ -129,6 +146,7 @@ class AnalysisPool:
         self.submitted: set[str] = set()
         self._pool: ProcessPoolExecutor | None = None
         self._pending: list[tuple[tuple[Step, ...], Future[Results]]] = []
+        self._warned: set[str] = set()  # the warning kinds already shown in full
 
     def submit(self, step: Step) -> None:
         """Hand a configuration's processing to a worker together with its fit (one task: the fit needs its
@@ -161,11 +179,25 @@ class AnalysisPool:
                 still.append((chain, future))
                 continue
             results = future.result()  # a worker's error is raised here, in the main process
-            for step, (record, summary) in zip(chain, results, strict=True):
+            for step, (record, summary, raised) in zip(chain, results, strict=True):
                 if record is not None:
                     self.journal.unit_done(record)
-                finished(step, summary)
+                finished(step, summary + self._warnings_text(raised))
         self._pending = still
+
+    def _warnings_text(self, raised: Warned) -> str:
+        """What a step's line adds for the warnings it raised (the line goes to session.log and the
+        progress output): each kind in full the first time the session meets it, after that its category
+        only."""
+        parts: list[str] = []
+        for kind, count in raised:
+            times = f" ({count} times)" if count > 1 else ""
+            if kind in self._warned:
+                parts.append(f"{kind.split(':', 1)[0]} again{times}")
+            else:
+                self._warned.add(kind)
+                parts.append(f"{kind}{times}")
+        return "".join(f"; WARNING {part}" for part in parts)
 
     @property
     def running(self) -> bool:
@@ -202,10 +234,10 @@ class AnalysisPool:
             if future.cancelled() or future.exception() is not None:
                 continue
             with contextlib.suppress(Exception):
-                for step, (record, summary) in zip(chain, future.result(), strict=True):
+                for step, (record, summary, raised) in zip(chain, future.result(), strict=True):
                     if record is not None:
                         self.journal.unit_done(record)
-                    finished(step, summary)
+                    finished(step, summary + self._warnings_text(raised))
         self._pending.clear()
         self._pool = None
 

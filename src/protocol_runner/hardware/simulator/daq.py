@@ -12,8 +12,8 @@ Signal path, mirroring the real rig (thesis §2.4-2.5):
 
 so that, after the rig applies its calibration tables, measured ≈ real. With no table the robot is linear.
 
-Determinism: `SimulatedRig.begin_step(step_id)` reseeds the noise generator from
-sha256(session seed, step id), puts the joint at rest at the park angle and restarts the plant's time grid
+Determinism: `SimulatedRig.begin_step(step_id, trial)` reseeds the noise generator from
+sha256(session seed, step id), draws the trial's friction spread from sha256(session seed, trial), puts the joint at rest at the park angle and restarts the plant's time grid
 at the current clock. The plant advances on a fixed grid whatever the pattern of reads, commands take effect
 from the first grid step at or after their write time, and noise is drawn row by row, so the same seed and
 step id give identical arrays however often the scan is read. (`realtime=True` paces with the wall clock;
@@ -46,7 +46,7 @@ from protocol_runner.hardware.simulator.output import (
     SimulatedAnalogOutput,
     SimulatedClock,
 )
-from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, SimulatorParams
+from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, SimulatorParams, trial_factors
 from protocol_runner.hardware.simulator.plant import JointPlant
 from protocol_runner.hardware.simulator.scan import SimulatedAnalogInput
 
@@ -71,6 +71,12 @@ def step_seed(seed: int, step_id: str) -> int:
     (stable across processes and Python versions, unlike `hash()`)."""
     digest = hashlib.sha256(f"{int(seed)}\x1f{step_id}".encode()).digest()
     return int.from_bytes(digest[:16], "little")
+
+
+def spread_seed(seed: int, trial: str) -> int:
+    """The seed of a trial's between-trial spread (`params.trial_factors`): `step_seed` of the session seed
+    and the trial's name with a suffix, so that it is not the noise stream of any step."""
+    return step_seed(seed, f"{trial}\x1ftrial spread")
 
 
 class _RigModel:
@@ -157,12 +163,14 @@ class _RigModel:
         knots = np.concatenate([[nonlinearity.x[0] - far], nonlinearity.x, [nonlinearity.x[-1] + far]])
         return knots, to_volts(nonlinearity(knots))
 
-    def begin_step(self, step_id: str) -> None:
+    def begin_step(self, step_id: str, trial: str | None = None) -> None:
         self.step_id = step_id
         self.rng = np.random.default_rng(step_seed(self.seed, step_id))
         self._noise_buf = np.zeros(0, dtype=np.float64)
         self._noise_pos = 0
         self.origin_s = self.clock.now_s()
+        spread = np.random.default_rng(spread_seed(self.seed, step_id if trial is None else trial))
+        self.plant.set_trial_factors(trial_factors(self.params, spread))
         self.plant.reset(self.joint.limits.park_angle_deg)
 
     def on_writes(self, t_s: FloatArray, channel: npt.NDArray[np.int64], code: npt.NDArray[np.int64]) -> None:
@@ -263,12 +271,14 @@ class SimulatedRig:
     def step_id(self) -> str:
         return self._model.step_id
 
-    def begin_step(self, step_id: str) -> None:
-        """Start step `step_id`: reseed the noise from (seed, step id), put the joint at rest at the park
+    def begin_step(self, step_id: str, trial: str | None = None) -> None:
+        """Start step `step_id`: reseed the noise from (seed, step id), draw the between-trial spread of
+        the friction terms from (seed, `trial`; the step id without one), put the joint at rest at the park
         angle with its friction states relaxed, restart the plant's time grid now and clear the output
-        records. The device stays as fitted."""
+        records. The device stays as fitted. Steps that name the same `trial` (a brace-on trial and its
+        brace-off twin) see the same robot and device friction."""
         self.ao.clear_records()
-        self._model.begin_step(step_id)
+        self._model.begin_step(step_id, trial)
 
     def set_device(self, elements: Sequence[object] | None) -> None:
         """The operator fits the device under test made of `elements` (or removes it, with None): objects

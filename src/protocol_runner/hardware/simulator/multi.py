@@ -130,11 +130,12 @@ class MultiSimulatedRig:
         self.ai = _MultiInput(self.models, self.clock)
         self.begin_step("")
 
-    def begin_step(self, step_id: str) -> None:
-        """Every joint: noise reseeded from (seed, joint, step id), at rest at its park angle."""
+    def begin_step(self, step_id: str, trial: str | None = None) -> None:
+        """Every joint: noise reseeded from (seed, joint, step id), its trial spread drawn from (seed, joint,
+        trial) (`SimulatedRig.begin_step`), at rest at its park angle."""
         self.ao.clear_records()
         for m in self.models:
-            m.begin_step(step_id)
+            m.begin_step(step_id, trial)
 
     def set_device(self, joint: str, elements: Sequence[object] | None) -> None:
         self.models[[j.name for j in self.joints].index(joint)].plant.set_device(elements)

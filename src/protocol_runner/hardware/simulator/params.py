@@ -16,6 +16,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, fields
 
+import numpy as np
+
 from protocol_runner.errors import InvalidInput
 
 
@@ -84,6 +86,20 @@ class SimulatorParams:
     idle_channel_noise_v: float = 0.005
     """Noise on scanned channels that carry no simulated signal (about 1 LSB)."""
 
+    # --- between-trial spread (a rig is not the same from one trial to the next) ---------------------------
+    trial_spread_robot_friction_cv: float = 0.0
+    """Coefficient of variation between trials of the robot's Coulomb friction (`robot_friction_nm`):
+    each trial multiplies it by a factor drawn once for the trial (`trial_factors`). 0 = every trial the
+    same. Per joint, from the rig file."""
+
+    trial_spread_robot_viscous_cv: float = 0.0
+    """The same for the robot's viscous friction (`robot_viscous_nm_per_deg_s`)."""
+
+    trial_spread_device_friction_cv: float = 0.0
+    """The same for the device's dissipative elements (its Coulomb brakes' torques and its viscous dampers,
+    one factor for all of them): the brace as fitted for that trial. Its springs, masses and stops do not
+    vary (their parameters are set by parts, not by fitting)."""
+
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
@@ -102,6 +118,10 @@ BOUNDS = {
     "lag_time_constant_s": (1.0e-3, 10.0),
     "robot_friction_transition_deg": (1.0e-3, 90.0),
     "spring_table_step_deg": (1.0e-3, 10.0),  # a table of at most 720,000 entries over +-360 deg
+    # a spread beyond 50 % is no longer the same rig
+    "trial_spread_robot_friction_cv": (0.0, 0.5),
+    "trial_spread_robot_viscous_cv": (0.0, 0.5),
+    "trial_spread_device_friction_cv": (0.0, 0.5),
 }
 
 
@@ -124,3 +144,27 @@ def bound_problem(name: str, value: float) -> str:
 
 DEFAULT_PARAMS = SimulatorParams()
 """The documented defaults."""
+
+
+TrialFactors = tuple[float, float, float]
+"""One trial's multipliers of (robot Coulomb friction, robot viscous friction, device friction)."""
+
+SAME_EVERY_TRIAL: TrialFactors = (1.0, 1.0, 1.0)
+
+
+def trial_factors(params: SimulatorParams, rng: np.random.Generator) -> TrialFactors:
+    """One trial's draw of the between-trial spread: for each of the robot's Coulomb friction, its viscous
+    friction and the device's friction, a log-normal factor of mean 1 and the parameter's coefficient of
+    variation (always positive; exactly 1 with a CV of 0). Three standard normals are drawn from `rng`
+    whatever the CVs, so one CV does not change the others' draws."""
+    normals = rng.standard_normal(3)
+    cvs = (
+        params.trial_spread_robot_friction_cv,
+        params.trial_spread_robot_viscous_cv,
+        params.trial_spread_device_friction_cv,
+    )
+    out = []
+    for cv, z in zip(cvs, normals, strict=True):
+        sigma = math.sqrt(math.log1p(cv * cv))
+        out.append(math.exp(sigma * float(z) - 0.5 * sigma * sigma))
+    return (out[0], out[1], out[2])

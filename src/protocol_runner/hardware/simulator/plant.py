@@ -38,6 +38,7 @@ import numpy.typing as npt
 
 from protocol_runner.hardware.simulator.device import ComposedDevice, as_elements, compose
 from protocol_runner.hardware.simulator.kernels import (
+    B_TORQUE,
     I_CMD,
     I_STEP,
     N_BRAKE_COLS,
@@ -93,7 +94,7 @@ from protocol_runner.hardware.simulator.kernels import (
     integrate_rows,
     scan_rows,
 )
-from protocol_runner.hardware.simulator.params import SimulatorParams
+from protocol_runner.hardware.simulator.params import SAME_EVERY_TRIAL, SimulatorParams, TrialFactors
 from protocol_runner.models.elements import Element
 
 ScanWindow = tuple[float, float, float, int, int]
@@ -143,6 +144,7 @@ class JointPlant:
         self._cmd_step = np.zeros(1024, dtype=np.int64)
         self._cmd_target = np.zeros(1024, dtype=np.float64)
         self._n_cmd = 0
+        self.trial_factors: TrialFactors = SAME_EVERY_TRIAL
         self.set_device(None)
         self.reset(0.5 * (self.range_deg[0] + self.range_deg[1]))
 
@@ -154,21 +156,39 @@ class JointPlant:
         found = as_elements(elements)
         dev = compose(found, self.range_deg, self.params.spring_table_step_deg) if found else None
         self.device = dev
-        p[P_TABLE_ON] = p[P_TABLE_X0] = p[P_DAMPING] = p[P_STOPS_ON] = p[P_BUMP_TORQUE] = 0.0
+        p[P_TABLE_ON] = p[P_TABLE_X0] = p[P_STOPS_ON] = p[P_BUMP_TORQUE] = 0.0
         self._table = np.zeros(2, dtype=np.float64)
-        self._brakes = np.zeros((0, N_BRAKE_COLS), dtype=np.float64)
         if dev is not None:
             if dev.table is not None:
                 p[P_TABLE_ON], p[P_TABLE_X0], self._table = 1.0, dev.table_x0_deg, dev.table
-            self._brakes = dev.brakes
-            p[P_DAMPING] = dev.damping_nm_s_per_deg
             if dev.stops is not None:
                 p[P_STOPS_ON] = 1.0
                 p[P_ROM_LO], p[P_ROM_HI], p[P_SLACK], p[P_SLACK_K], p[P_STOP_K] = dev.stops
             if dev.bump is not None:
                 p[P_BUMP_ANGLE], p[P_BUMP_WIDTH], p[P_BUMP_TORQUE], p[P_BUMP_V] = dev.bump
+        self._apply_factors()
         self._z_brakes = np.zeros(self._brakes.shape[0], dtype=np.float64)
         self._refresh_load()
+
+    def set_trial_factors(self, factors: TrialFactors) -> None:
+        """This trial's multipliers of the robot's Coulomb and viscous friction and of the device's
+        friction (`params.trial_factors`); they hold, whatever device is fitted, until the next call."""
+        self.trial_factors = factors
+        self._apply_factors()
+        self._refresh_load()
+
+    def _apply_factors(self) -> None:
+        """The friction terms of the robot and of the fitted device times this trial's factors."""
+        robot_friction, robot_viscous, device_friction = self.trial_factors
+        p, dev = self._p, self.device
+        p[P_ROBOT_F] = self.params.robot_friction_nm * robot_friction
+        p[P_ROBOT_VISC] = self.params.robot_viscous_nm_per_deg_s * robot_viscous
+        self._brakes = np.zeros((0, N_BRAKE_COLS), dtype=np.float64)
+        p[P_DAMPING] = 0.0
+        if dev is not None:
+            self._brakes = dev.brakes.copy()
+            self._brakes[:, B_TORQUE] *= device_friction
+            p[P_DAMPING] = dev.damping_nm_s_per_deg * device_friction
 
     def reset(self, angle_deg: float) -> None:
         """Put the joint at rest at `angle_deg`, friction states relaxed, holding that angle as its command,
