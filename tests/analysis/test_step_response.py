@@ -29,3 +29,32 @@ def test_the_time_constant_of_a_noisy_first_order_response_is_found() -> None:
         found = analyse_step(t, command, angle, 65.0, 1.0)
         assert abs(found.time_constant_s - tau_true) < 0.01
         assert TAU_BOUNDS_S[0] <= found.time_constant_s <= TAU_BOUNDS_S[1]
+
+
+def test_a_move_lost_in_the_noise_gets_no_time_constant() -> None:
+    """A joint that does not move (jammed), or a step comparable to the sensor noise, fitted a "time
+    constant" to noise (0.279 s for a 0 deg step, which then passed the check). Under ten times the held
+    angle's standard deviation no time constant is claimed, and the check says why."""
+    from protocol_runner.protocol.schema import CalibrationCheckSpec
+    from protocol_runner.steps.calibration_check import response_problems
+
+    rng = np.random.default_rng(3)
+    t = np.arange(6000) / 1000.0
+    command = np.where(t >= 0.5, 20.5, 20.0)  # half a degree under 0.1 deg of noise
+    angle = first_order_response(command, 0.001, 0.2, 20.0) + rng.normal(0.0, 0.1, t.size)
+    found = analyse_step(t, command, angle, 20.5, 1.0)
+    assert np.isnan(found.time_constant_s)
+    limits = CalibrationCheckSpec(
+        max_settle_error_deg=3.0,
+        time_constant_s=(0.1, 0.35),
+        max_drift_deg=2.0,
+        max_time_constant_change_s=0.05,
+    )
+    problems = response_problems(found, limits, None)
+    assert len(problems) == 1 and problems[0].startswith(
+        "no time constant: the joint's move does not stand out"
+    )
+    # a step well above the noise keeps its time constant
+    big = np.where(t >= 0.5, 30.0, 20.0)
+    angle = first_order_response(big, 0.001, 0.2, 20.0) + rng.normal(0.0, 0.1, t.size)
+    assert abs(analyse_step(t, big, angle, 30.0, 1.0).time_constant_s - 0.2) < 0.01

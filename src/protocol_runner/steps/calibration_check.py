@@ -38,6 +38,9 @@ from .recording import put_commands, put_scan
 FloatArray = npt.NDArray[np.float64]
 TAU_BOUNDS_S = (0.02, 2.0)  # the time constants searched
 TAU_TOLERANCE_S = 1e-5  # the bounded search's absolute tolerance on tau
+MOVE_OVER_NOISE = 10.0
+"""A time constant is claimed only for a move at least this many times the held angle's standard deviation:
+a smaller one (a jammed joint, a step lost in the sensor noise) fits a "time constant" to noise."""
 
 
 @dataclass(frozen=True)
@@ -81,7 +84,12 @@ def response_problems(
     if resp.settle_error_deg > limits.max_settle_error_deg:
         problems.append(f"settle error {resp.settle_error_deg:.2f} deg > {limits.max_settle_error_deg:g} deg")
     lo, hi = limits.time_constant_s
-    if not lo <= resp.time_constant_s <= hi:
+    if not math.isfinite(resp.time_constant_s):
+        problems.append(
+            f"no time constant: the joint's move does not stand out of the noise of its held angle "
+            f"({MOVE_OVER_NOISE:g} times its standard deviation; is the joint jammed?)"
+        )
+    elif not lo <= resp.time_constant_s <= hi:
         problems.append(f"time constant {resp.time_constant_s:.3f} s outside [{lo:g}, {hi:g}] s")
     if first is not None:
         drift = abs(resp.settled_deg - first.settled_deg)
@@ -105,11 +113,24 @@ def analyse_step(
     settle_window_s: float,
 ) -> StepResponse:
     """Settled angle over the last `settle_window_s`, its error, and the time constant that best fits the
-    response to the commanded move (least squares over tau in [0.02, 2] s)."""
+    response to the commanded move (least squares over tau in [0.02, 2] s); NaN when the joint's move does
+    not stand out of the noise of its held angle (`MOVE_OVER_NOISE`)."""
     settled, sse = step_fit(time_s, command_deg, angle_deg, settle_window_s)
+    dt = float(np.median(np.diff(time_s)))
+    start = float(np.mean(angle_deg[: max(1, int(0.2 / dt))]))  # as step_fit's y0
+    if abs(settled - start) < MOVE_OVER_NOISE * held_noise_deg(time_s, angle_deg, settle_window_s):
+        return StepResponse(
+            settled_deg=settled, settle_error_deg=abs(settled - target_deg), time_constant_s=math.nan
+        )
     found = minimize_scalar(sse, bounds=TAU_BOUNDS_S, method="bounded", options={"xatol": TAU_TOLERANCE_S})
     tau = float(found.x)
     return StepResponse(settled_deg=settled, settle_error_deg=abs(settled - target_deg), time_constant_s=tau)
+
+
+def held_noise_deg(time_s: FloatArray, angle_deg: FloatArray, settle_window_s: float) -> float:
+    """The standard deviation of the angle held over the last `settle_window_s`: the sensor noise and the
+    servo's dither a move must stand out of."""
+    return float(np.std(angle_deg[time_s >= time_s[-1] - settle_window_s]))
 
 
 def first_order_response(command_deg: FloatArray, dt_s: float, tau_s: float, y0_deg: float) -> FloatArray:
