@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.hardware.simulator import SimulatedRig, SimulatorParams
+from protocol_runner.hardware.simulator.daq import SimulatedRig
 from protocol_runner.hardware.simulator.kernels import B_TORQUE, P_DAMPING, P_ROBOT_F, P_ROBOT_VISC
-from protocol_runner.hardware.simulator.params import trial_factors
+from protocol_runner.hardware.simulator.params import SimulatorParams, trial_factors
 from protocol_runner.protocol.step_ids import trial_id, trial_of
 
 from ..knee_device import KNEE_PARAMS, knee_brace
