@@ -311,13 +311,14 @@ def hardware_check(protocol: str | None) -> int:
     return EXIT_OK if result.ok else EXIT_HARDWARE_UNAVAILABLE
 
 
-def export(path: Path, output: Path | None) -> int:
-    """`--export`: cycles.csv, trials.csv and configurations.csv (default: `tables/` beside the archive)."""
+def export(path: Path, output: Path | None, *, only: KeySelection | None = None) -> int:
+    """`--export`: cycles.csv, trials.csv and configurations.csv (default: `tables/` beside the archive);
+    with `only`, the rows of those configuration keys alone (a key the archive lacks is refused)."""
     from .report.tidy import export_tables
 
     archive = _archive_of(path)
     out_dir = output if output is not None else archive.parent / "tables"
-    files = export_tables(archive, out_dir)
+    files = export_tables(archive, out_dir, only=only)
     _result(f"wrote {', '.join(f.name for f in files)} to {out_dir}")
     return EXIT_OK
 

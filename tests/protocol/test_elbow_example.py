@@ -76,7 +76,7 @@ def test_elbow_dry_run_loses_the_brake_and_damper_energy_per_cycle(
     """Configurations 1 (brake only) and 4 (brake and damper), 20 deg/s peak over 20-110 deg: the brake
     loses 4*T*A per cycle, the damper pi*c*omega*A^2 more (issue 11 item 3's element facts)."""
     session = tmp_path / "s"
-    assert main([str(ELBOW), "--dry-run", "--yes", "--only", "1,4", "--session", str(session)]) == 0
+    assert main([str(ELBOW), "--dry-run", "--only", "1,4", "--session", str(session)]) == 0
     capsys.readouterr()
     amplitude_rad = math.radians(45.0)
     omega = 20.0 / 45.0  # peak speed / amplitude (Eq 25)

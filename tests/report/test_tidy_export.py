@@ -113,3 +113,20 @@ def test_configurations_csv_has_a_column_per_declared_factor_and_quantity_in_ord
     assert header[:4] == ["configuration", "set", "profile", "trajectory"]
     assert header[4 : 4 + len(expected)] == expected
     assert header[4 + len(expected)] == "trials"
+
+
+def test_cli_export_only_writes_the_rows_of_those_configurations(small_archive: Path, tmp_path: Path) -> None:
+    keys = [cfg.key for cfg in load_report_data(small_archive, workers=1).configurations]
+    assert len(keys) > 1
+    assert main(["--export", str(small_archive), "--output", str(tmp_path), "--only", str(keys[-1])]) == 0
+    for name in ("cycles.csv", "trials.csv", "configurations.csv"):
+        rows = _rows(tmp_path / name)
+        assert rows and {int(r["configuration"]) for r in rows} == {keys[-1]}, name
+
+
+def test_cli_export_only_a_key_the_archive_lacks_exits_2_naming_it(
+    small_archive: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["--export", str(small_archive), "--output", str(tmp_path / "out"), "--only", "999"]) == 2
+    assert "999" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
