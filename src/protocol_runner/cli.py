@@ -1,6 +1,6 @@
 """`run-protocol`: argument parsing and exit codes only; the work happens in the modules it calls.
 
-Exit status (DESIGN.md): 0 done; 2 invalid input; 3 hardware unavailable; 4 stopped by a safety or
+Exit status: 0 done; 2 invalid input; 3 hardware unavailable; 4 stopped by a safety or
 calibration check; 130 interrupted or disk full (resumable).
 """
 

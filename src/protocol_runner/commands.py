@@ -19,6 +19,7 @@ if TYPE_CHECKING:
     from .protocol.loader import LoadedProtocol
     from .protocol.only import KeySelection
     from .session.operator import Operator
+    from .session.runner import RunResult
     from .session.setup import SessionInfo
     from .steps.context import Bench
 
@@ -45,14 +46,44 @@ def run(
     quiet: bool = False,
     monitor: Monitor | None = None,
 ) -> int:
-    from .preflight import preflight, preflight_warnings
     from .protocol.loader import find_protocol, load_protocol
+
+    path = find_protocol(protocol)
+    loaded = load_protocol(path, display_name=protocol if Path(protocol).exists() else str(path))
+    result = run_loaded(
+        loaded,
+        dry_run=dry_run,
+        session=session,
+        seed=seed,
+        yes=yes,
+        only=only,
+        realtime=realtime,
+        quiet=quiet,
+        monitor=monitor,
+    )
+    _result(f"done: {result.archive}" + (f" and {result.report}" if result.report else ""))
+    return EXIT_OK
+
+
+def run_loaded(
+    loaded: LoadedProtocol,
+    *,
+    dry_run: bool,
+    session: Path | None,
+    seed: int | None,
+    yes: bool,
+    only: KeySelection | Iterable[int] | None,
+    realtime: bool,
+    quiet: bool = False,
+    monitor: Monitor | None = None,
+) -> RunResult:
+    """Run (or with `dry_run` rehearse) a loaded protocol into a new session directory (`session`, or
+    `sessions/<name>-<UTC time>/`): the run behind `run-protocol PROTOCOL`, its outcome returned."""
+    from .preflight import preflight, preflight_warnings
     from .protocol.plan_table import robot_time_text
     from .session.runner import Runner
     from .session.setup import create_session, created_session_protocol, default_session_dir
 
-    path = find_protocol(protocol)
-    loaded = load_protocol(path, display_name=protocol if Path(protocol).exists() else str(path))
     planned = preflight(loaded, only=only)  # everything --validate checks, before anything is created
     for warning in preflight_warnings(loaded, planned):
         _say(warning)
@@ -74,18 +105,22 @@ def run(
     stored, plan = created_session_protocol(directory, info, loaded), planned  # not read again
     bench = _bench(stored, info) if dry_run else hardware
     robot = robot_time_text(plan.robot_time_s)
-    _say(
-        f"session {directory}: {loaded.protocol.name}, {len(plan)} steps, about {robot} of robot motion "
-        f"({info.mode}, seed {info.seed})"
-    )
+    if not quiet:
+        _say(
+            f"session {directory}: {loaded.protocol.name}, {len(plan)} steps, about {robot} of robot motion "
+            f"({info.mode}, seed {info.seed})"
+        )
+        if dry_run:
+            from .numba_cache import will_compile
+
+            if will_compile():
+                _say("compiling the simulator's kernels (first run only)...")
     operator = _operator(dry_run or yes)
     publisher: Publisher = NULL_PUBLISHER
     if monitor is not None:
         publisher, operator = monitor.attach(directory, info, plan, bench, operator)
     runner = Runner(directory, info, stored, plan, bench, operator, quiet=quiet, publisher=publisher)
-    result = runner.run()
-    _result(f"done: {result.archive}" + (f" and {result.report}" if result.report else ""))
-    return EXIT_OK
+    return runner.run()
 
 
 def _bench(loaded: LoadedProtocol, info: SessionInfo) -> Bench:

@@ -35,6 +35,9 @@ from protocol_runner.hardware.simulator.kernels import (
     Sensors,
     scan_rows,
 )
+from protocol_runner.numba_cache import cache_enabled
+
+CACHE = cache_enabled()  # numba's on-disk cache, unless no directory is writable (protocol_runner.numba_cache)
 
 BLOCK_OK = 0
 BLOCK_NAN = 1
@@ -48,7 +51,7 @@ AO16_MAX = 65535.0
 Decode = tuple[FloatArray, float, int]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def ao16_code(volts: float) -> int:
     """The USB-3105's ±10 V code of `volts` (not NaN): rint(32768 + 3276.8 V) clamped to 0..65535."""
     k = np.rint(AO16_ZERO + AO16_PER_VOLT * volts)
@@ -59,7 +62,7 @@ def ao16_code(volts: float) -> int:
     return int(k)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def send_and_scan(
     joint: Joint,
     commands: Commands,
