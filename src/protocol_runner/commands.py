@@ -111,10 +111,11 @@ def run_loaded(
             f"({info.mode}, seed {info.seed})"
         )
         if dry_run:
-            from .numba_cache import will_compile
+            from .numba_cache import cache_enabled, will_compile
 
             if will_compile():
-                _say("compiling the simulator's kernels (first run only)...")
+                when = "first run only" if cache_enabled() else "in every run: no cache"
+                _say(f"compiling the simulator's kernels ({when})...")
     operator = _operator(dry_run or yes)
     publisher: Publisher = NULL_PUBLISHER
     if monitor is not None:
