@@ -58,9 +58,8 @@ class Progress:
         self.robot_done_s = 0.0
         self.n_total = len(plan.steps)
         self.n_done = len(done & {s.id for s in plan.steps})
-        self._rate_from: tuple[float, float] | None = (
-            None  # (wall clock, robot time done) after the first step
-        )
+        # (wall clock, robot time done) once the first step is done: the ETA's rate is learnt from there
+        self._rate_from: tuple[float, float] | None = None
         self.logger = logging.getLogger(f"protocol_runner.session.{id(self)}")
         self.logger.setLevel(logging.INFO)
         self.logger.propagate = False
