@@ -65,11 +65,15 @@ def test_the_colour_key_is_outside_the_data_and_inside_the_figure(kind: str, lab
     for ax in fig.axes:
         assert not _overlap(key_box, ax.get_window_extent(renderer)), "the key covers an axes' data area"
         for line in ax.get_lines():
-            assert not _overlap(key_box, line.get_window_extent(renderer)), f"the key covers {line.get_label()}"
+            assert not _overlap(key_box, line.get_window_extent(renderer)), (
+                f"the key covers {line.get_label()}"
+            )
     assert [t.get_text().replace("\n", " ") for t in key.get_texts()] == list(labels)  # long ones wrapped
     figure_box = fig.bbox
     assert figure_box.x0 <= key_box.x0 and key_box.x1 <= figure_box.x1, "the key is cut off at the side"
-    assert figure_box.y0 <= key_box.y0 and key_box.y1 <= figure_box.y1, "the key is cut off at the top or bottom"
+    assert figure_box.y0 <= key_box.y0 and key_box.y1 <= figure_box.y1, (
+        "the key is cut off at the top or bottom"
+    )
 
 
 def test_figures_are_drawn_at_100_pixels_per_inch_or_more() -> None:

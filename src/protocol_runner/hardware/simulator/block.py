@@ -37,7 +37,7 @@ from protocol_runner.hardware.simulator.kernels import (
 )
 from protocol_runner.numba_cache import cache_enabled
 
-CACHE = cache_enabled()  # numba's on-disk cache, unless no directory is writable (protocol_runner.numba_cache)
+CACHE = cache_enabled()  # numba caches on disk unless no directory is writable (numba_cache.py)
 
 BLOCK_OK = 0
 BLOCK_NAN = 1

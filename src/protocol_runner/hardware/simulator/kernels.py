@@ -28,7 +28,7 @@ from protocol_runner.models.element_torques import (
 )
 from protocol_runner.numba_cache import cache_enabled
 
-CACHE = cache_enabled()  # numba's on-disk cache, unless no directory is writable (protocol_runner.numba_cache)
+CACHE = cache_enabled()  # numba caches on disk unless no directory is writable (numba_cache.py)
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]

@@ -21,7 +21,7 @@ from numba import njit
 
 from protocol_runner.numba_cache import cache_enabled
 
-CACHE = cache_enabled()  # numba's on-disk cache, unless no directory is writable (protocol_runner.numba_cache)
+CACHE = cache_enabled()  # numba caches on disk unless no directory is writable (numba_cache.py)
 
 IDENTITY8 = np.eye(8)
 STIFF_STEP = 0.5  # substep * |dF/dz| at most this at the default substep (Heun is stable to 2 on the
