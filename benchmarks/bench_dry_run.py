@@ -2,7 +2,7 @@
 
     python benchmarks/bench_dry_run.py [--repeats 3] [--only KEYS] [--profile] [--baseline DIR]
 
-Each repeat runs `run-protocol knee_phase1.yaml --dry-run --yes` in a fresh subprocess (so numba's
+Each repeat runs `run-protocol knee_phase1.yaml --dry-run` in a fresh subprocess (so numba's
 compilation cache and imports count as they do for a user) and reports the median wall time, the robot
 time simulated (trajectories of every run the rig made, including the brace-off scaling runs and the
 calibration checks and the parking moves between them: the simulator's clock at the end), their ratio,
@@ -75,7 +75,7 @@ def _run_once(
     cmd = [sys.executable]
     if profile is not None:
         cmd += ["-m", "cProfile", "-o", str(profile)]
-    cmd += ["-m", "protocol_runner.cli", "knee_phase1.yaml", "--dry-run", "--yes", "--session", str(session)]
+    cmd += ["-m", "protocol_runner.cli", "knee_phase1.yaml", "--dry-run", "--session", str(session)]
     if only:
         cmd += ["--only", only]
     env = dict(os.environ)

@@ -86,7 +86,7 @@ def _fits(checkout: Path, archive: Path, protocol: str) -> dict[str, Any]:
 def _seeded_archive(protocol: str, tmp: Path) -> Path:
     session = tmp / "session"
     print(f"making a seeded dry run of {protocol} (--seed 7) ...", flush=True)
-    cmd = [sys.executable, "-m", "protocol_runner.cli", protocol, "--dry-run", "--yes", "--seed", "7"]
+    cmd = [sys.executable, "-m", "protocol_runner.cli", protocol, "--dry-run", "--seed", "7"]
     made = subprocess.run(
         [*cmd, "--session", str(session)],
         cwd=HERE,

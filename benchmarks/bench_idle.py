@@ -4,7 +4,7 @@
 
 A dry run is CPU-bound on the 2-core machine: its wall time is about (its CPU + the cores' idle time) / 2,
 so the idle core-seconds are what better overlap could still win, and the CPU the rest. Each run starts
-`run-protocol knee_phase1.yaml --dry-run --yes` (from `--checkout`, default this one, its src/ first on the
+`run-protocol knee_phase1.yaml --dry-run` (from `--checkout`, default this one, its src/ first on the
 path) and samples the machine's idle time (/proc/stat, idle + iowait, every 20 ms) until it exits. Prints,
 per run, the wall time, the idle core-seconds in all and in the first and last second, and the idle
 core-seconds per `--window` seconds; then the medians. Linux only. The machine's idle time counts every
@@ -37,7 +37,7 @@ def one_run(checkout: Path, window_s: float) -> tuple[float, float, float, float
     """Wall time, idle core-seconds in all, in the first and the last second, and per window."""
     with tempfile.TemporaryDirectory() as tmp:
         env = dict(os.environ, PYTHONPATH=str(checkout / "src"))
-        cmd = [sys.executable, "-m", "protocol_runner.cli", "knee_phase1.yaml", "--dry-run", "--yes"]
+        cmd = [sys.executable, "-m", "protocol_runner.cli", "knee_phase1.yaml", "--dry-run"]
         t0 = time.perf_counter()
         i0 = idle_core_s()
         log = open(Path(tmp) / "stderr.txt", "w+")  # noqa: SIM115 (read back below on failure)

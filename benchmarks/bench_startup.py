@@ -45,7 +45,7 @@ main(sys.argv[2:])
 
 def one_start(checkout: Path, session: Path, until: str) -> tuple[float, float]:
     env = dict(os.environ, PYTHONPATH=str(checkout / "src"))
-    cmd = [sys.executable, "-c", CHILD, until, "knee_phase1.yaml", "--dry-run", "--yes", "--seed", "7"]
+    cmd = [sys.executable, "-c", CHILD, until, "knee_phase1.yaml", "--dry-run", "--seed", "7"]
     t0 = time.time()
     out = subprocess.run(
         [*cmd, "--session", str(session)], cwd=checkout, env=env, check=True, capture_output=True, text=True

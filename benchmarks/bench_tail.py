@@ -2,7 +2,7 @@
 
     python benchmarks/bench_tail.py [--runs 3] [--checkout DIR] [--only KEYS]
 
-Runs `run-protocol knee_phase1.yaml --dry-run --yes --seed 7` (from `--checkout`, default this one, with its
+Runs `run-protocol knee_phase1.yaml --dry-run --seed 7` (from `--checkout`, default this one, with its
 src/ first on the path) `--runs` times, one after the other. Per run it prints the whole wall time and the
 tail: the process's exit (seen by this script) minus the newest modification time of the session's unit
 files (the last analysis's unit, normally the last configuration's fit). The tail is the serial finish
@@ -28,7 +28,7 @@ def one_run(checkout: Path, only: str | None) -> tuple[float, float]:
     with tempfile.TemporaryDirectory() as tmp:
         session = Path(tmp) / "s"
         env = dict(os.environ, PYTHONPATH=str(checkout / "src"))
-        cmd = [sys.executable, "-m", "protocol_runner.cli", "knee_phase1.yaml", "--dry-run", "--yes"]
+        cmd = [sys.executable, "-m", "protocol_runner.cli", "knee_phase1.yaml", "--dry-run"]
         cmd += ["--seed", "7", "--session", str(session)] + (["--only", only] if only else [])
         t0 = time.time()
         subprocess.run(

@@ -85,7 +85,7 @@ def test_second_session_in_the_same_directory_is_refused(
     session = tmp_path / "s"
     session.mkdir()
     (session / "session.json").write_text("{}")
-    assert main(["knee_phase1.yaml", "--dry-run", "--yes", "--only", "12", "--session", str(session)]) == 2
+    assert main(["knee_phase1.yaml", "--dry-run", "--only", "12", "--session", str(session)]) == 2
     assert "--resume" in capsys.readouterr().err
 
 
@@ -109,10 +109,7 @@ def test_seed_out_of_range_is_refused_before_running(
 
 def test_session_that_is_a_file_is_refused(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     (tmp_path / "afile").write_text("x")
-    assert (
-        main(["knee_phase1.yaml", "--dry-run", "--yes", "--only", "12", "--session", str(tmp_path / "afile")])
-        == 2
-    )
+    assert main(["knee_phase1.yaml", "--dry-run", "--only", "12", "--session", str(tmp_path / "afile")]) == 2
     assert "is a file" in capsys.readouterr().err
 
 
@@ -145,9 +142,7 @@ def test_plan_or_validate_with_no_protocol_or_two_is_refused(
 
 def test_a_run_prints_its_outcome_on_stdout_and_its_progress_on_stderr(tmp_path: Path) -> None:
     session = tmp_path / "s"
-    done = run_cli(
-        "knee_phase1.yaml", "--dry-run", "--yes", "--only", "15", "--session", str(session), cwd=tmp_path
-    )
+    done = run_cli("knee_phase1.yaml", "--dry-run", "--only", "15", "--session", str(session), cwd=tmp_path)
     assert done.returncode == 0, done.stderr
     assert done.stdout.splitlines() == [f"done: {session / 'archive.h5'} and {session / 'report.html'}"]
     assert "done:" not in done.stderr and "] report" in done.stderr  # the progress stays on stderr

@@ -15,11 +15,13 @@ REPO = Path(__file__).resolve().parents[1]
 PACKAGE_ROOT = REPO / "src" / "protocol_runner"
 
 # Layer of each top-level package or module of protocol_runner. A module may import from its own
-# top-level package and from any lower layer; never from the same layer (another name) or higher.
+# top-level package and from any lower layer; never from the same layer (another name) or higher. The
+# package's root (`__init__`) re-exports the Python interface (`api`), so it stands at the top; any module
+# may read its `__version__`.
 LAYERS: dict[str, int] = {
-    "__init__": 0,
     "errors": 0,
     "resources": 0,
+    "numba_cache": 0,
     "tables": 1,
     "models": 1,
     "hardware": 2,
@@ -34,7 +36,9 @@ LAYERS: dict[str, int] = {
     "preflight": 8,
     "commands": 9,
     "cli": 10,
+    "api": 10,
     "__main__": 11,
+    "__init__": 11,
 }
 
 

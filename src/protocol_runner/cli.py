@@ -33,32 +33,37 @@ DESCRIPTION = """\
 Run a declarative test protocol for space-suit joint testing on the RSST robot.
 
 modes:
-  run-protocol PROTOCOL [--dry-run] [--session DIR] [--seed N] [--yes] [--only KEYS] [--monitor [HOST:]PORT]
-      run a campaign; --dry-run rehearses it against the DAQ simulator in simulated time
+  run-protocol PROTOCOL --dry-run [--seed N] [--only KEYS] [--session DIR] [--realtime] [--monitor [HOST:]PORT]
+      rehearse a campaign against the DAQ simulator in simulated time (prompts are answered automatically)
+  run-protocol PROTOCOL [--yes] [--only KEYS] [--session DIR] [--monitor [HOST:]PORT]
+      run a campaign on the rig's USB boards; --yes answers the operator checklists
   run-protocol --resume SESSION_DIR [--yes] [--force] [--monitor [HOST:]PORT]
       continue an interrupted session without redoing finished steps
-  run-protocol --report SESSION_DIR|ARCHIVE.h5 [--output FILE] [--reprocess] [--export-mat DIR]
+  run-protocol --report SESSION_DIR|ARCHIVE.h5 [--output FILE] [--reprocess [--protocol-file P]] [--export-mat DIR]
       (re)generate the HTML report from an archive alone
-  run-protocol --export SESSION_DIR|ARCHIVE.h5 [--output DIR]
+  run-protocol --export SESSION_DIR|ARCHIVE.h5 [--output DIR] [--only KEYS]
       write cycles.csv, trials.csv and configurations.csv (units in the column names)
   run-protocol --compare A B [--output FILE]
       compare two sessions or archives configuration by configuration (95 % Welch intervals)
   run-protocol --verify SESSION_DIR|ARCHIVE.h5
       check every dataset against its checksum; exit 2 naming each damaged one
-  run-protocol --plan PROTOCOL [--json]
+  run-protocol --plan PROTOCOL [--json] [--only KEYS]
       print the expanded plan (steps in execution order with their stable ids)
   run-protocol --validate PROTOCOL
       check a protocol file and report every problem with file, line and field
   run-protocol --hardware-check [PROTOCOL]
       list the DAQ boards attached, blink them, and check the protocol's channels
+  run-protocol --schema
+      print the protocol file's JSON Schema (for an editor's completion and checking)
 
 PROTOCOL is a path, or a bare file name looked up in ./protocols/ and then among the protocols shipped
-with the package, so `run-protocol knee_phase1.yaml --dry-run` works from any directory.
+with the package, so `run-protocol knee_phase1.yaml --dry-run` works from any directory. A flag that does
+not apply to the mode is refused (exit 2).
 """
 
 EPILOG = """\
 examples:
-  run-protocol knee_phase1.yaml --dry-run --yes          full rehearsal: archive.h5 + report.html
+  run-protocol knee_phase1.yaml --dry-run                full rehearsal: archive.h5 + report.html
   run-protocol knee_phase1.yaml --dry-run --only 4,5,6,7 just the friction configurations
   run-protocol knee_phase1.yaml --monitor 8765          watch it live at http://127.0.0.1:8765/
   run-protocol --plan knee_phase1.yaml --json > plan.json
@@ -81,12 +86,18 @@ _OPTIONS: tuple[tuple[str, str, str | None, str], ...] = (
     ("mode", "--plan", "PROTOCOL", "print the expanded plan of a protocol"),
     ("mode", "--validate", "PROTOCOL", "validate a protocol file"),
     ("mode", "--hardware-check", "PROTOCOL", "check the DAQ boards (and a protocol's channels)"),
+    ("mode", "--schema", None, "print the protocol file's JSON Schema (for editors)"),
     ("running", "--dry-run", None, "run against the DAQ simulator (simulated time)"),
     ("running", "--realtime", None, "with --dry-run: pace the simulator like the hardware"),
     ("running", "--session", "DIR", "session directory (default: sessions/<protocol>-<UTC time>/)"),
     ("running", "--seed", "SEED", "seed of the simulator's random draws (default 0)"),
-    ("running", "--yes", None, "answer operator prompts automatically (checklists done)"),
-    ("running", "--only", "KEYS", "run only these configuration keys, e.g. 4,5,6,7 or 12-14"),
+    ("running", "--yes", None, "on the rig or with --resume: answer operator prompts automatically"),
+    (
+        "running",
+        "--only",
+        "KEYS",
+        "run (or with --plan/--export: show) only these configuration keys, e.g. 4,5,6,7 or 12-14",
+    ),
     (
         "running",
         "--force",
@@ -180,23 +191,98 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_INTERRUPTED
 
 
+RUN = "a run"
+"""The mode of `run-protocol PROTOCOL [--dry-run]` (no mode flag) in `FLAG_MODES` and messages."""
+
+MODES: tuple[str, ...] = tuple(flag for group, flag, _, _ in _OPTIONS if group == "mode")
+"""The mode flags, in the order --help lists them; without one, PROTOCOL is run."""
+
+FLAG_MODES: dict[str, tuple[str, ...]] = {
+    # the modes each non-mode flag (and PROTOCOL) applies to; anywhere else it is refused (exit 2)
+    "PROTOCOL": (RUN, "--plan", "--validate", "--hardware-check"),
+    "--dry-run": (RUN,),
+    "--realtime": (RUN,),
+    "--session": (RUN,),
+    "--seed": (RUN, "--resume"),
+    "--yes": (RUN, "--resume"),
+    "--only": (RUN, "--resume", "--plan", "--export"),
+    "--force": ("--resume",),
+    "--monitor": (RUN, "--resume"),
+    "--json": ("--plan",),
+    "--output": ("--report", "--export", "--compare"),
+    "--reprocess": ("--report",),
+    "--protocol-file": ("--report",),
+    "--export-mat": ("--report",),
+}
+
+
+_WHY = {"--monitor": "watches a session", "--json": "is the format of the plan"}
+
+
+def _mode(args: argparse.Namespace) -> str:
+    """The mode flag given (argparse lets at most one through), or `RUN`."""
+    for flag in MODES:
+        value = getattr(args, _dest(flag))
+        if value is not None and value is not False:
+            return flag
+    return RUN
+
+
+def _dest(flag: str) -> str:
+    return "protocol" if flag == "PROTOCOL" else flag.lstrip("-").replace("-", "_")
+
+
+def check_flags(args: argparse.Namespace) -> str:
+    """The mode of `args`; `InvalidInput` naming the flag and the mode when a flag given does not apply to
+    it (a flag silently ignored would let the operator believe it did something)."""
+    mode = _mode(args)
+    where = "a run (PROTOCOL)" if mode == RUN else mode
+    for flag, modes in FLAG_MODES.items():
+        value = getattr(args, _dest(flag))
+        if value is None or value is False or mode in modes:
+            continue
+        names = ["a run" if m == RUN else m for m in modes]
+        goes = names[0] if len(names) == 1 else f"{', '.join(names[:-1])} or {names[-1]}"
+        if flag == "PROTOCOL":
+            own = " (it continues a session with its own stored protocol)" if mode == "--resume" else ""
+            raise InvalidInput(f"PROTOCOL {value} does not apply to {where}{own}: drop PROTOCOL")
+        why = _WHY.get(flag)
+        raise InvalidInput(
+            f"{flag} {why}, so it does not apply to {where}: use it with {goes}"
+            if why
+            else f"{flag} does not apply to {where}: it goes with {goes}"
+        )
+    if mode == RUN and args.dry_run and args.yes:
+        raise InvalidInput(
+            "--yes does not apply to a dry run: a dry run answers the operator prompts itself; drop --yes"
+        )
+    if mode == RUN and args.realtime and not args.dry_run:
+        raise InvalidInput("--realtime paces the simulator: use it with --dry-run")
+    if args.protocol_file is not None and not args.reprocess:
+        raise InvalidInput("--protocol-file gives the settings --reprocess uses: add --reprocess")
+    return mode
+
+
 def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
-    if args.monitor is not None and any(
-        m is not None
-        for m in (args.plan, args.validate, args.report, args.hardware_check, args.export, args.compare)
-    ):
-        raise InvalidInput("--monitor watches a session: use it with a PROTOCOL to run or with --resume")
-    if args.plan is not None:
+    mode = check_flags(args)
+    if mode == "--schema":
+        from .protocol.json_schema import protocol_json_schema_text
+
+        sys.stdout.write(protocol_json_schema_text())
+        return EXIT_OK
+    if mode == "--plan":
         args.plan = _mode_protocol("--plan", args.plan, args.protocol)
         return _cmd_plan(args)
-    if args.validate is not None:
+    if mode == "--validate":
         args.validate = _mode_protocol("--validate", args.validate, args.protocol)
         return _cmd_validate(args)
-    if args.hardware_check is not None:
+    if mode == "--hardware-check":
         from .commands import hardware_check
 
-        return hardware_check(args.hardware_check or None)
-    if args.report is not None:
+        if args.hardware_check and args.protocol:
+            _mode_protocol("--hardware-check", args.hardware_check, args.protocol)  # refuses two protocols
+        return hardware_check(args.hardware_check or args.protocol or None)
+    if mode == "--report":
         from .commands import report
 
         return report(
@@ -206,14 +292,19 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
             protocol_file=args.protocol_file,
             export_mat=Path(args.export_mat) if args.export_mat else None,
         )
-    if args.export is not None or args.compare is not None:
-        from .commands import compare, export
+    if mode == "--export":
+        from .commands import export
 
-        output = Path(args.output) if args.output else None
-        if args.export is not None:
-            return export(Path(args.export), output)
-        return compare(Path(args.compare[0]), Path(args.compare[1]), output)
-    if args.verify is not None:
+        return export(
+            Path(args.export), Path(args.output) if args.output else None, only=parse_only(args.only)
+        )
+    if mode == "--compare":
+        from .commands import compare
+
+        return compare(
+            Path(args.compare[0]), Path(args.compare[1]), Path(args.output) if args.output else None
+        )
+    if mode == "--verify":
         from .commands import verify
 
         return verify(Path(args.verify))
@@ -229,8 +320,6 @@ def _run_or_resume(parser: argparse.ArgumentParser, args: argparse.Namespace, mo
     if args.resume is not None:
         from .commands import resume
 
-        if args.protocol is not None:
-            raise InvalidInput("--resume continues a session with its own stored protocol: drop PROTOCOL")
         return resume(
             Path(args.resume),
             yes=args.yes,
@@ -242,10 +331,7 @@ def _run_or_resume(parser: argparse.ArgumentParser, args: argparse.Namespace, mo
         )
     if args.protocol is None:
         parser.print_usage(sys.stderr)
-        print(
-            "run-protocol: give a PROTOCOL to run, or one of --plan, --validate, --resume, --report, --verify",
-            file=sys.stderr,
-        )
+        print(f"run-protocol: give a PROTOCOL to run, or one of {', '.join(MODES)}", file=sys.stderr)
         return EXIT_INVALID_INPUT
     if args.seed is not None and not 0 <= args.seed < 2**63:
         raise InvalidInput(f"--seed: {args.seed} is out of range (0 to 2**63 - 1)")

@@ -18,6 +18,7 @@ if TYPE_CHECKING:
     from .monitor.service import Monitor
     from .protocol.loaded import LoadedProtocol
     from .protocol.only import KeySelection
+    from .session.runner import RunResult
     from .session.setup import SessionInfo
     from .steps.context import Bench
     from .steps.operator import Operator
@@ -49,14 +50,44 @@ def run(
     quiet: bool = False,
     monitor: Monitor | None = None,
 ) -> int:
-    from .preflight import preflight, preflight_warnings
     from .protocol.loader import find_protocol, load_protocol
+
+    path = find_protocol(protocol)
+    loaded = load_protocol(path, display_name=protocol if Path(protocol).exists() else str(path))
+    result = run_loaded(
+        loaded,
+        dry_run=dry_run,
+        session=session,
+        seed=seed,
+        yes=yes,
+        only=only,
+        realtime=realtime,
+        quiet=quiet,
+        monitor=monitor,
+    )
+    _result(f"done: {result.archive}" + (f" and {result.report}" if result.report else ""))
+    return EXIT_OK
+
+
+def run_loaded(
+    loaded: LoadedProtocol,
+    *,
+    dry_run: bool,
+    session: Path | None,
+    seed: int | None,
+    yes: bool,
+    only: KeySelection | Iterable[int] | None,
+    realtime: bool,
+    quiet: bool = False,
+    monitor: Monitor | None = None,
+) -> RunResult:
+    """Run (or with `dry_run` rehearse) a loaded protocol into a new session directory (`session`, or
+    `sessions/<name>-<UTC time>/`): the run behind `run-protocol PROTOCOL`, its outcome returned."""
+    from .preflight import preflight, preflight_warnings
     from .protocol.plan_table import robot_time_text
     from .session.runner import Runner
     from .session.setup import create_session, created_session_protocol, default_session_dir
 
-    path = find_protocol(protocol)
-    loaded = load_protocol(path, display_name=protocol if Path(protocol).exists() else str(path))
     planned = preflight(loaded, only=only)  # everything --validate checks, before anything is created
     for warning in preflight_warnings(loaded, planned):
         _say(warning)
@@ -78,18 +109,23 @@ def run(
     stored, plan = created_session_protocol(directory, info, loaded), planned  # not read again
     bench = _bench(stored, info) if dry_run else hardware
     robot = robot_time_text(plan.robot_time_s)
-    _say(
-        f"session {directory}: {loaded.protocol.name}, {len(plan)} steps, about {robot} of robot motion "
-        f"({info.mode}, seed {info.seed})"
-    )
+    if not quiet:
+        _say(
+            f"session {directory}: {loaded.protocol.name}, {len(plan)} steps, about {robot} of robot motion "
+            f"({info.mode}, seed {info.seed})"
+        )
+        if dry_run:
+            from .numba_cache import cache_enabled, will_compile
+
+            if will_compile():
+                when = "first run only" if cache_enabled() else "in every run: no cache"
+                _say(f"compiling the simulator's kernels ({when})...")
     operator = _operator(dry_run or yes)
     publisher: Publisher = NULL_PUBLISHER
     if monitor is not None:
         publisher, operator = monitor.attach(directory, info, plan, bench, operator)
     runner = Runner(directory, info, stored, plan, bench, operator, quiet=quiet, publisher=publisher)
-    result = runner.run()
-    _result(f"done: {result.archive}" + (f" and {result.report}" if result.report else ""))
-    return EXIT_OK
+    return runner.run()
 
 
 def _bench(loaded: LoadedProtocol, info: SessionInfo) -> Bench:
@@ -321,13 +357,14 @@ def hardware_check(protocol: str | None) -> int:
     return EXIT_OK if result.ok else EXIT_HARDWARE_UNAVAILABLE
 
 
-def export(path: Path, output: Path | None) -> int:
-    """`--export`: cycles.csv, trials.csv and configurations.csv (default: `tables/` beside the archive)."""
+def export(path: Path, output: Path | None, *, only: KeySelection | None = None) -> int:
+    """`--export`: cycles.csv, trials.csv and configurations.csv (default: `tables/` beside the archive);
+    with `only`, the rows of those configuration keys alone (a key the archive lacks is refused)."""
     from .report.tidy import export_tables
 
     archive = _archive_of(path)
     out_dir = output if output is not None else archive.parent / "tables"
-    files = export_tables(archive, out_dir)
+    files = export_tables(archive, out_dir, only=only)
     _result(f"wrote {', '.join(f.name for f in files)} to {out_dir}")
     return EXIT_OK
 

@@ -17,7 +17,7 @@ SHOULDER = Path(__file__).with_name("shoulder_park_below.yaml")
 
 def test_no_device_loses_under_a_tenth_of_a_joule_per_cycle(tmp_path: Path) -> None:
     session = tmp_path / "shoulder"
-    assert main([str(SHOULDER), "--dry-run", "--seed", "7", "--yes", "--session", str(session)]) == 0
+    assert main([str(SHOULDER), "--dry-run", "--seed", "7", "--session", str(session)]) == 0
     with h5py.File(session / "archive.h5") as f:
         energy = {
             k: float(np.mean(f[f"configurations/config_{k:02d}/energy_loss_j"][()])) for k in (1, 2, 3, 4)

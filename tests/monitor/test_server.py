@@ -119,7 +119,6 @@ def test_port_in_use_is_exit_2_naming_the_port_before_anything_starts(
             [
                 "knee_phase1.yaml",
                 "--dry-run",
-                "--yes",
                 "--session",
                 str(session),
                 "--monitor",

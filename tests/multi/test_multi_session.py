@@ -106,7 +106,6 @@ def test_a_failing_joint_is_named(tmp_path: Path) -> None:
             [
                 str(tmp_path / "p" / "strict.yaml"),
                 "--dry-run",
-                "--yes",
                 "--only",
                 "2",
                 "--session",
@@ -210,7 +209,6 @@ def test_sigint_during_a_multi_joint_trial_exits_130_and_resume_is_bit_identical
     proc = cli(
         LEG,
         "--dry-run",
-        "--yes",
         "--only",
         "2",
         "--seed",

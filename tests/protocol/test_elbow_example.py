@@ -77,7 +77,7 @@ def test_elbow_dry_run_loses_the_brake_and_damper_energy_per_cycle(
     Dahl friction of level T relaxing over x0, loses 4*T*(A - x0*(1 - exp(-2A/x0))) per cycle (4*T*A less
     the rounded reversals), the damper pi*c*omega*A^2 more (the elements' facts)."""
     session = tmp_path / "s"
-    assert main([str(ELBOW), "--dry-run", "--yes", "--only", "1,4", "--session", str(session)]) == 0
+    assert main([str(ELBOW), "--dry-run", "--only", "1,4", "--session", str(session)]) == 0
     capsys.readouterr()
     amplitude_rad = math.radians(45.0)
     omega = 20.0 / 45.0  # peak speed / amplitude (Eq 25)

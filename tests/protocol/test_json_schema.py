@@ -27,7 +27,7 @@ def test_the_shipped_schema_is_the_one_the_models_give() -> None:
     """The file an editor points at is what `--schema` prints; a field added to the models and not to the
     file would leave editors flagging a valid campaign."""
     assert SCHEMA_FILE.read_text(encoding="utf-8") == protocol_json_schema_text(), (
-        f"regenerate {SCHEMA_FILE.relative_to(REPO)} with `run-protocol --schema > {SCHEMA_FILE.relative_to(REPO)}`"
+        f"regenerate it: `PYTHONPATH=src python -m protocol_runner --schema > {SCHEMA_FILE.relative_to(REPO)}`"
     )
 
 

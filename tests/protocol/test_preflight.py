@@ -27,7 +27,7 @@ def refused_everywhere(path: Path, tmp_path: Path, capsys: pytest.CaptureFixture
     assert main(["--validate", str(path)]) == 2
     validate_err = capsys.readouterr().err
     session = tmp_path / "session"
-    assert main([str(path), "--dry-run", "--yes", "--session", str(session)]) == 2
+    assert main([str(path), "--dry-run", "--session", str(session)]) == 2
     run_err = capsys.readouterr().err
     assert not session.exists(), "a session folder was created although preflight failed"
     assert validate_err == run_err
@@ -222,7 +222,7 @@ def test_only_is_checked_against_the_matrix_without_materialising_ranges(
 ) -> None:
     session = tmp_path / "session"
     start = time.monotonic()
-    assert main(["knee_phase1.yaml", "--dry-run", "--yes", "--only", only, "--session", str(session)]) == 2
+    assert main(["knee_phase1.yaml", "--dry-run", "--only", only, "--session", str(session)]) == 2
     assert time.monotonic() - start < 20.0
     err = capsys.readouterr().err
     assert needle in err and "Traceback" not in err, err

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.report.comparison_values import comparison_axis
-from protocol_runner.report.drawing import DPI
+from protocol_runner.report.drawing import DPI, LAYOUTS
 from protocol_runner.report.figure_plan import figure_ids
 from protocol_runner.report.figures import (
     bouc_wen_figure,
@@ -43,7 +43,8 @@ def _config(small_archive: Path, key: int) -> Configuration:
 
 def test_hysteresis_figure_is_a_small_png_at_report_resolution(small_archive: Path) -> None:
     width, height = _size(_png(hysteresis_figure(_config(small_archive, 4))))
-    assert (width, height) == (round(4.6 * DPI), round(3.3 * DPI))
+    width_in, height_in, _ = LAYOUTS["single"]
+    assert (width, height) == (round(width_in * DPI), round(height_in * DPI))
 
 
 def test_a_figure_does_not_depend_on_the_figures_drawn_before_it(small_archive: Path) -> None:

@@ -143,3 +143,20 @@ def test_the_reports_per_trial_table_shows_the_brace_off_match_of_trials_csv(
         assert float(r["brace_off_scaling_error_deg"]) == pytest.approx(
             0.25 if outside else 0.02 * int(r["trial"])
         )
+
+
+def test_cli_export_only_writes_the_rows_of_those_configurations(small_archive: Path, tmp_path: Path) -> None:
+    keys = [cfg.key for cfg in load_report_data(small_archive, workers=1).configurations]
+    assert len(keys) > 1
+    assert main(["--export", str(small_archive), "--output", str(tmp_path), "--only", str(keys[-1])]) == 0
+    for name in ("cycles.csv", "trials.csv", "configurations.csv"):
+        rows = _rows(tmp_path / name)
+        assert rows and {int(r["configuration"]) for r in rows} == {keys[-1]}, name
+
+
+def test_cli_export_only_a_key_the_archive_lacks_exits_2_naming_it(
+    small_archive: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    assert main(["--export", str(small_archive), "--output", str(tmp_path / "out"), "--only", "999"]) == 2
+    assert "999" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()

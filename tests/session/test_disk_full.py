@@ -26,7 +26,7 @@ from protocol_runner.session.journal import Journal
 
 from .conftest import ONLY, SEED, assert_same_data
 
-RUN = ["knee_phase1.yaml", "--dry-run", "--yes", "--only", ",".join(map(str, ONLY)), "--seed", str(SEED)]
+RUN = ["knee_phase1.yaml", "--dry-run", "--only", ",".join(map(str, ONLY)), "--seed", str(SEED)]
 STEPS = 12  # steps of --only 12 that write a unit (all but the report)
 
 

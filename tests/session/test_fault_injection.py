@@ -66,7 +66,6 @@ def test_sigkill_at_random_points_then_resume_gives_identical_archive(
     proc = cli(
         "knee_phase1.yaml",
         "--dry-run",
-        "--yes",
         "--only",
         only,
         "--seed",
@@ -118,7 +117,6 @@ def test_sigint_exits_130_resumable_and_nothing_lost(tmp_path: Path, reference_a
     proc = cli(
         "knee_phase1.yaml",
         "--dry-run",
-        "--yes",
         "--only",
         only,
         "--seed",
@@ -165,7 +163,6 @@ def test_resume_refuses_a_changed_protocol_unless_forced(
     proc = cli(
         "knee_phase1.yaml",
         "--dry-run",
-        "--yes",
         "--only",
         "12",
         "--session",
@@ -224,7 +221,7 @@ def test_failing_calibration_check_stops_with_exit_4(tmp_path: Path) -> None:
     shutil.copytree(protocols, work)
     (work / "strict.yaml").write_text(bad)
     session = tmp_path / "strict"
-    code = main([str(work / "strict.yaml"), "--dry-run", "--yes", "--only", "12", "--session", str(session)])
+    code = main([str(work / "strict.yaml"), "--dry-run", "--only", "12", "--session", str(session)])
     assert code == 4
     with h5py.File(session / "archive.h5", "r") as f:
         assert f.attrs["status"] == "aborted"

@@ -356,9 +356,7 @@ def test_a_unit_that_cannot_be_moved_into_place_mid_run_is_said_so_not_called_an
         real(src, dst)  # type: ignore[arg-type]
 
     monkeypatch.setattr(units_module.os, "replace", replace)
-    code = main(
-        ["knee_phase1.yaml", "--dry-run", "--yes", "--only", "12", "--seed", "7", "--session", str(session)]
-    )
+    code = main(["knee_phase1.yaml", "--dry-run", "--only", "12", "--seed", "7", "--session", str(session)])
     err = capsys.readouterr().err
     monkeypatch.undo()
     assert code == 2, err

@@ -58,7 +58,7 @@ def test_two_ctrl_c_on_the_terminal_stop_without_a_traceback(tmp_path: Path) -> 
     # two sets: when the first set's last calibration check is journaled, its analyses go to the workers
     # while the second set's trials run (with one set only, the session could be writing its report by the
     # time the Ctrl-C lands)
-    args = ["knee_phase1.yaml", "--dry-run", "--yes", "--only", "12,21", "--session", str(session)]
+    args = ["knee_phase1.yaml", "--dry-run", "--only", "12,21", "--session", str(session)]
     with log.open("wb") as err:
         proc = subprocess.Popen(
             [sys.executable, "-m", "protocol_runner.cli", *args],

@@ -15,6 +15,9 @@ from numba import njit
 
 from protocol_runner.models.elements import Element
 from protocol_runner.models.spring import SpringGeometry, spring_force_n, spring_torque_nm
+from protocol_runner.numba_cache import cache_enabled
+
+CACHE = cache_enabled()  # numba caches on disk unless no directory is writable (numba_cache.py)
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -112,7 +115,7 @@ def has_static_torque(e: Element) -> bool:
 
 
 # --- compiled equations the simulator's kernel calls -------------------------------------------------------
-@njit(cache=True)
+@njit(cache=CACHE)
 def dahl_update(z: float, level: float, step_deg: float, transition_deg: float) -> float:
     """A Coulomb friction state with rounded reversals (Dahl), exactly over a displacement `step_deg`:
     z relaxes towards sign(step)·level with e-folding travel `transition_deg` (σ = level / transition)."""
@@ -124,7 +127,7 @@ def dahl_update(z: float, level: float, step_deg: float, transition_deg: float) 
     return target + (z - target) * math.exp(-abs(step_deg) / transition_deg)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def stribeck_level_nm(
     torque_nm: float, speed_deg_s: float, excess_ratio: float, stribeck_speed_deg_s: float
 ) -> float:
@@ -133,13 +136,13 @@ def stribeck_level_nm(
     return torque_nm * (1.0 + excess_ratio * math.exp(-vs * vs))
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def viscous_torque_nm(damping_nm_s_per_deg: float, speed_deg_s: float) -> float:
     """A viscous damper: c·dθ/dt."""
     return damping_nm_s_per_deg * speed_deg_s
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def stop_torque_nm(penetration_deg: float, slack_deg: float, slack_k: float, stop_k: float) -> float:
     """One range-of-motion stop penetrated by `penetration_deg` (> 0): soft over the slack, then stiff."""
     if penetration_deg <= slack_deg:
@@ -147,7 +150,7 @@ def stop_torque_nm(penetration_deg: float, slack_deg: float, slack_k: float, sto
     return slack_k * slack_deg + stop_k * (penetration_deg - slack_deg)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def rom_stops_torque_nm(
     angle_deg: float, lo_deg: float, hi_deg: float, slack_deg: float, slack_k: float, stop_k: float
 ) -> float:
@@ -160,7 +163,7 @@ def rom_stops_torque_nm(
     return torque
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def cuff_shift_torque_nm(
     angle_deg: float,
     speed_deg_s: float,

@@ -2,9 +2,7 @@
 
 from __future__ import annotations
 
-from matplotlib.figure import Figure
-
-from protocol_runner.report.drawing import to_data_uri
+from protocol_runner.report.drawing import ANGLE_LABEL, TORQUE_LABEL, legend, new_figure, style, to_data_uri
 from protocol_runner.report.model import Configuration
 
 
@@ -12,8 +10,7 @@ def overlay_figure(a: Configuration, b: Configuration) -> str | None:
     """Brace torque against angle, every processed trial of A (blue) and B (red); None without data."""
     if not (a.has_data or b.has_data):
         return None
-    fig = Figure(figsize=(4.6, 3.3))
-    ax = fig.add_axes((0.14, 0.14, 0.82, 0.76))
+    fig, (ax,) = new_figure("single")
     for cfg, color, name in ((a, "#1f77b4", "A"), (b, "#d62728", "B")):
         first = True
         for trial in cfg.trials:
@@ -28,7 +25,6 @@ def overlay_figure(a: Configuration, b: Configuration) -> str | None:
                 label=f"{name}: configuration {cfg.key}" if first else None,
             )
             first = False
-    ax.set_xlabel("Angle (deg)")
-    ax.set_ylabel("Torque (N·m)")
-    ax.legend(loc="best", fontsize="small")
+    style(ax, ANGLE_LABEL, TORQUE_LABEL)
+    legend(ax)
     return to_data_uri(fig)

@@ -1,20 +1,18 @@
 """The figures' drawing kit: a new matplotlib `Figure` per figure (Agg, no pyplot state) in one of the
-report's layouts, the common labels, colours, styling and colour key, and the PNG data URI every figure
-function returns (matplotlib's own PNG writer)."""
+report's layouts, the common labels, colours, styling and colour key (outside the data area), and the PNG
+data URI every figure function returns (matplotlib's own PNG writer)."""
 
 from __future__ import annotations
 
 import base64
 import io
+import textwrap
 
 from matplotlib.axes import Axes
-from matplotlib.container import Container
 from matplotlib.figure import Figure
-from matplotlib.lines import Line2D
-from matplotlib.patches import Patch
 from matplotlib.ticker import MaxNLocator
 
-DPI = 80
+DPI = 100  # a figure's pixels per inch: its text as legible on a laptop's screen as the page's own text
 ANGLE_LABEL = "Angle (deg)"
 TORQUE_LABEL = "Torque (N·m)"
 TIME_LABEL = "Time (s)"
@@ -22,12 +20,13 @@ ENERGY_LABEL = "Energy per cycle (J)"
 COLORS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf")
 
 LAYOUTS: dict[str, tuple[float, float, tuple[tuple[float, float, float, float], ...]]] = {
-    "single": (4.6, 3.3, ((0.14, 0.14, 0.82, 0.76),)),
+    "single": (5.6, 3.3, ((0.11, 0.14, 0.6, 0.76),)),
     "bars": (4.6, 3.0, ((0.14, 0.2, 0.82, 0.68),)),
-    "double": (6.4, 3.3, ((0.10, 0.14, 0.38, 0.76), (0.60, 0.14, 0.38, 0.76))),
+    "double": (7.6, 3.3, ((0.075, 0.14, 0.33, 0.76), (0.5, 0.14, 0.33, 0.76))),
 }
 """Each kind of figure: width and height in inches, and its axes' rectangles (left, bottom, width, height,
-as fractions of the figure)."""
+as fractions of the figure). "single" and "double" leave the figure's right part to the colour key
+(`legend`), outside the data; "bars" has none."""
 
 
 def new_figure(kind: str) -> tuple[Figure, list[Axes]]:
@@ -68,50 +67,43 @@ def empty(ax: Axes, text: str) -> None:
     ax.text(0.5, 0.5, text, ha="center", va="center", transform=ax.transAxes, fontsize=8, color="#666666")
 
 
-KEY_SIZE = 7.5  # points: the tick labels' size and a little more, legible at the page's 80 dpi
-KEY_LINE = 0.075  # the key's line spacing, in axes heights
+KEY_SIZE = 7.5  # points: the tick labels' size and a little more
+KEY_GAP = 0.015  # between the rightmost axes and the key, as a fraction of the figure's width
+KEY_CHAR_EM = 0.6  # a wide character of the key's font, in ems: the wrapping's conservative measure
 
 
-def legend(ax: Axes, *, bottom: bool = False) -> None:
-    """A colour key in the top-left (or bottom-left) corner: one coloured text line per labelled artist.
-
-    Always at the same place (loc="best" would move it from figure to figure) and without a box over the
-    data."""
+def legend(ax: Axes) -> None:
+    """The colour key of `ax`'s labelled artists, right of the figure's rightmost axes (outside the data,
+    where the layouts leave room), top-aligned with them: always at the same place, so figures read alike,
+    and never over a line (loc="best" inside the axes moves from figure to figure and can hide data). In a
+    two-panel figure it is the key of both panels, which draw the same series in the same colours."""
     handles, labels = ax.get_legend_handles_labels()
-    n = len(labels)
-    for i, (handle, label) in enumerate(zip(handles, labels, strict=True)):
-        color, glyph = swatch(handle)
-        ax.text(
-            0.02,
-            (0.03 + KEY_LINE * (n - 1 - i)) if bottom else (0.97 - KEY_LINE * i),
-            f"{glyph} {label}",
-            color=color,
-            transform=ax.transAxes,
-            fontsize=KEY_SIZE,
-            ha="left",
-            va="bottom" if bottom else "top",
-        )
+    if not handles:
+        return
+    fig = ax.get_figure()
+    assert isinstance(fig, Figure)
+    boxes = [a.get_position() for a in fig.axes]
+    right, top = max(b.x1 for b in boxes), max(b.y1 for b in boxes)
+    # long labels (a comparison's "level (value), RMSE ...") wrapped to the room the layout leaves
+    room_pt = (1.0 - right - KEY_GAP) * fig.get_figwidth() * 72.0 - (1.6 + 0.8) * KEY_SIZE  # less the handle
+    columns = max(8, int(room_pt / (KEY_CHAR_EM * KEY_SIZE)))
+    fig.legend(
+        handles,
+        [textwrap.fill(label, columns) for label in labels],
+        loc="upper left",
+        bbox_to_anchor=(right + KEY_GAP, top),
+        bbox_transform=fig.transFigure,
+        borderaxespad=0.0,
+        frameon=False,
+        fontsize=KEY_SIZE,
+        handlelength=1.6,
+        labelspacing=0.35,
+    )
 
 
-def finish(fig: Figure, ax: Axes, xlabel: str, ylabel: str, title: str, *, bottom: bool = False) -> str:
+def finish(fig: Figure, ax: Axes, xlabel: str, ylabel: str, title: str) -> str:
     """How a single-panel figure ends: `ax` labelled (`style`), its colour key drawn (`legend`), `fig`
     rendered to a data URI."""
     style(ax, xlabel, ylabel, title)
-    legend(ax, bottom=bottom)
+    legend(ax)
     return to_data_uri(fig)
-
-
-def swatch(handle: object) -> tuple[object, str]:
-    """Colour and a glyph standing for the artist's line style, marker or fill."""
-    if isinstance(handle, Line2D):
-        line_style = handle.get_linestyle()
-        marker = handle.get_marker()
-        if line_style in ("None", "", " ") and marker not in (None, "None", "", " "):
-            return handle.get_color(), "●"
-        glyph = {"--": "- -", ":": "···", "-.": "-·-"}.get(str(line_style), "—")
-        return handle.get_color(), glyph
-    if isinstance(handle, Patch):
-        return handle.get_facecolor(), "■"
-    if isinstance(handle, Container) and len(handle) and isinstance(handle[0], Patch):
-        return handle[0].get_facecolor(), "■"
-    return "k", "—"

@@ -134,7 +134,7 @@ def energy_cycles_figure(cfg: Configuration) -> str:
         top = float(np.nanmax(e)) if np.isfinite(e).any() else 1.0
         ax.set_ylim(0.0, max(top, mean + (std if math.isfinite(std) else 0.0)) * 1.15 or 1.0)
     title = f"Configuration {cfg.key}: energy lost per cycle"
-    return finish(fig, ax, "Cycle (all trials in order)", ENERGY_LABEL, title, bottom=True)
+    return finish(fig, ax, "Cycle (all trials in order)", ENERGY_LABEL, title)
 
 
 def bouc_wen_figure(cfg: Configuration) -> str:

@@ -81,16 +81,16 @@ def _figure(n_panels: int) -> tuple[Figure, list[Axes]]:
 
     from .drawing import DPI
 
-    fig = Figure(figsize=(3.0 * n_panels + 0.4, 3.0), dpi=DPI)
+    width_in = 3.0 * n_panels + 1.2  # the panels, and right of them the colour key (drawing.legend)
+    fig = Figure(figsize=(width_in, 3.0), dpi=DPI)
     FigureCanvasAgg(fig)
-    axes = [
-        fig.add_axes((0.08 / n_panels + k / n_panels, 0.16, 0.78 / n_panels, 0.72)) for k in range(n_panels)
-    ]
+    span = 3.0 * n_panels / width_in / n_panels  # one panel's share of the figure's width
+    axes = [fig.add_axes(((0.12 + k) * span, 0.16, 0.76 * span, 0.72)) for k in range(n_panels)]
     return fig, axes
 
 
 def _loops(cfg: h5py.Group, joints: tuple[str, ...]) -> str:
-    from .drawing import ANGLE_LABEL, COLORS, TORQUE_LABEL, style, to_data_uri
+    from .drawing import ANGLE_LABEL, COLORS, TORQUE_LABEL, legend, style, to_data_uri
 
     fig, axes = _figure(len(joints))
     for ax, joint in zip(axes, joints, strict=True):
@@ -103,11 +103,12 @@ def _loops(cfg: h5py.Group, joints: tuple[str, ...]) -> str:
             t = decimate_for_plot(float_ds(g, "brace_torque_nm"))
             ax.plot(a, t, lw=0.6, color=COLORS[i % len(COLORS)], label=f"trial {name}")
         style(ax, ANGLE_LABEL, TORQUE_LABEL, joint)
+    legend(axes[0])  # every panel draws trial n in the same colour
     return to_data_uri(fig)
 
 
 def _phase(cfg: h5py.Group, joints: tuple[str, ...]) -> str:
-    from .drawing import COLORS, style, to_data_uri
+    from .drawing import COLORS, legend, style, to_data_uri
 
     fig, axes = _figure(1)
     ax = axes[0]
@@ -120,13 +121,13 @@ def _phase(cfg: h5py.Group, joints: tuple[str, ...]) -> str:
         cx = decimate_for_plot(float_ds(on[x_joint], "command_deg"))
         cy = decimate_for_plot(float_ds(on[y_joint], "command_deg"))
         ax.plot(cx, cy, lw=0.6, ls="--", color=COLORS[1], label="commanded")
-        ax.legend(fontsize=7)
+        legend(ax)
     style(ax, f"{x_joint} angle (deg)", f"{y_joint} angle (deg)", "trial 1, brace on")
     return to_data_uri(fig)
 
 
 def _energy_bars(configs: list[JointConfiguration], joints: tuple[str, ...]) -> str:
-    from .drawing import COLORS, ENERGY_LABEL, style, to_data_uri
+    from .drawing import COLORS, ENERGY_LABEL, legend, style, to_data_uri
 
     fig, axes = _figure(1)
     ax = axes[0]
@@ -137,7 +138,7 @@ def _energy_bars(configs: list[JointConfiguration], joints: tuple[str, ...]) -> 
         xs = np.arange(len(configs)) + (j - (len(names) - 1) / 2) * width
         ax.bar(xs, np.nan_to_num(means), width=width, color=COLORS[j % len(COLORS)], label=name)
     ax.set_xticks(np.arange(len(configs)), [str(c.key) for c in configs])
-    ax.legend(fontsize=7)
+    legend(ax)
     style(ax, "Configuration", ENERGY_LABEL, "energy per cycle, per joint and in total")
     return to_data_uri(fig)
 

@@ -25,10 +25,12 @@ Public API: export_tables(archive, output_dir) -> tuple[Path, ...]
 from __future__ import annotations
 
 import csv
+import dataclasses
 import math
 import os
 from collections.abc import Iterable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
@@ -41,6 +43,9 @@ from protocol_runner.errors import InvalidInput
 from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.model import BraceOffMatch, Configuration, ReportData
+
+if TYPE_CHECKING:
+    from protocol_runner.protocol.only import KeySelection
 
 CYCLE_COLUMNS = (
     "configuration",
@@ -235,15 +240,22 @@ def _configuration_rows(data: ReportData) -> tuple[list[str], list[list[object]]
     return columns, rows
 
 
-def export_tables(archive: Path, output_dir: Path) -> tuple[Path, ...]:
+def export_tables(archive: Path, output_dir: Path, *, only: KeySelection | None = None) -> tuple[Path, ...]:
     """Write cycles.csv, trials.csv and configurations.csv of `archive` into `output_dir`; return them.
+    With `only` (`--only`), the rows of those configuration keys alone.
 
-    Raises `InvalidInput` for an unreadable archive or an output path that is not a usable directory.
+    Raises `InvalidInput` for an unreadable archive, a key of `only` the archive does not hold, or an
+    output path that is not a usable directory.
     """
     archive, output_dir = Path(archive), Path(output_dir)
     if output_dir.exists() and not output_dir.is_dir():
         raise InvalidInput(f"Export output {output_dir} is a file; give a directory.")
     data = load_report_data(archive, workers=1)
+    if only is not None:
+        keys = set(only.select((cfg.key for cfg in data.configurations), archive.name))
+        data = dataclasses.replace(
+            data, configurations=tuple(c for c in data.configurations if c.key in keys)
+        )
     output_dir.mkdir(parents=True, exist_ok=True)
     for name in ("cycles.csv", "trials.csv", "configurations.csv"):  # all refused before any is written
         refuse_special(output_dir / name, "--export")

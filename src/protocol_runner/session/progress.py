@@ -58,7 +58,8 @@ class Progress:
         self.robot_done_s = 0.0
         self.n_total = len(plan.steps)
         self.n_done = len(done & {s.id for s in plan.steps})
-        self.t0 = time.monotonic()
+        # (wall clock, robot time done) once the first step is done: the ETA's rate is learnt from there
+        self._rate_from: tuple[float, float] | None = None
         self.logger = logging.getLogger(f"protocol_runner.session.{id(self)}")
         self.logger.setLevel(logging.INFO)
         self.logger.propagate = False
@@ -84,9 +85,15 @@ class Progress:
             self._task = self._rich.add_task("session", total=self.n_total, completed=self.n_done, eta="")
 
     def _eta(self) -> str:
+        """Robot time left, and the wall time it will take at the wall-per-robot-second rate of the steps
+        finished since the first one of this process: the first includes the one-time start-up (numba
+        loading or, on the first run, compiling the simulator's kernels: a minute for a few seconds of
+        simulation), which would make the whole campaign look hours long. "?" until that rate is known."""
         remaining_robot = self.total_robot_s - self.robot_done_s
-        elapsed = time.monotonic() - self.t0
-        wall = elapsed / self.robot_done_s * remaining_robot if self.robot_done_s > 0 else float("nan")
+        wall = float("nan")
+        if self._rate_from is not None and self.robot_done_s > self._rate_from[1]:
+            t_from, robot_from = self._rate_from
+            wall = (time.monotonic() - t_from) / (self.robot_done_s - robot_from) * remaining_robot
         wall_txt = _fmt_s(wall) if wall == wall else "?"
         return f"ETA robot {_fmt_s(remaining_robot)}, wall {wall_txt}"
 
@@ -110,6 +117,8 @@ class Progress:
     def _line(self, step: Step, summary: str) -> None:
         self.n_done += 1
         self.robot_done_s += step.robot_time_s
+        if self._rate_from is None:  # the rate is learnt from the steps after this first one
+            self._rate_from = (time.monotonic(), self.robot_done_s)
         line = f"[{self.n_done}/{self.n_total}] {step.id}: {summary}  ({self._eta()})"
         self.logger.info(line)
         self.publisher.step_end(step, summary)

@@ -26,6 +26,9 @@ from protocol_runner.models.element_torques import (
     stribeck_level_nm,
     viscous_torque_nm,
 )
+from protocol_runner.numba_cache import cache_enabled
+
+CACHE = cache_enabled()  # numba caches on disk unless no directory is writable (numba_cache.py)
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -88,7 +91,7 @@ Sensors = tuple[IntArray, FloatArray, FloatArray, FloatArray, FloatArray, FloatA
 Adc = tuple[float, int, int]
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def _load_nm(
     angle_deg: float,
     speed_deg_s: float,
@@ -128,7 +131,7 @@ def _load_nm(
     return load
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def integrate(
     joint: Joint,
     commands: Commands,
@@ -214,7 +217,7 @@ GRID_TOL = 1e-6
 a sample exactly on a grid point lands on it whatever the clock's absolute value."""
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def telemetry_volts(
     angle_deg: FloatArray,
     torque_nm: FloatArray,
@@ -257,7 +260,7 @@ R_N_CMD = 3  # how many commands of the history are valid
 N_ROWS_REC = 4
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def integrate_rows(
     joint: Joint, commands: Commands, timing: FloatArray, rows: IntArray, sensors: Sensors, noise: FloatArray
 ) -> FloatArray:
@@ -294,7 +297,7 @@ def integrate_rows(
     )
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=CACHE, nogil=True)
 def scan_rows(
     joint: Joint,
     commands: Commands,

@@ -19,6 +19,10 @@ import math
 import numpy as np
 from numba import njit
 
+from protocol_runner.numba_cache import cache_enabled
+
+CACHE = cache_enabled()  # numba caches on disk unless no directory is writable (numba_cache.py)
+
 IDENTITY8 = np.eye(8)
 STIFF_STEP = 0.5  # substep * |dF/dz| at most this at the default substep (Heun is stable to 2 on the
 # negative real axis); a shorter max_step_deg shortens this bound in proportion (one knob for fineness)
@@ -26,7 +30,7 @@ MAX_SUBSTEPS = 256  # per sample interval: bounded work for any parameter set
 DEFAULT_MAX_STEP_DEG = 0.1  # longest substep of the angle (deg)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def sgn(v: float) -> float:  # pragma: no cover - compiled
     if v > 0.0:
         return 1.0
@@ -110,7 +114,7 @@ def eq23_step_sens(xa, xb, zi, S, A, n, beta, sig):  # pragma: no cover - compil
     return zi + d * (A - g * psi)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _state_terms(z, n, beta, sd, sx):  # pragma: no cover - compiled
     """``(sgn z, Psi, |z|^n, ln|z|)`` at the state ``z`` on a piece with ``sd``, ``sx`` (one log and one exp:
     the costly part of every rate)."""
@@ -119,7 +123,7 @@ def _state_terms(z, n, beta, sd, sx):  # pragma: no cover - compiled
     return sz, shape_psi(beta, sd, sx, sz), g, lz
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _substeps(d, zi, A, n, beta, sd, sx, max_step, stiff_step):  # pragma: no cover - compiled
     """Substep count of a piece, the rate ``dz/dx`` at its start and the state terms there
     (:func:`_state_terms`: one power of |z| for all three, and the first substep reuses them)."""
@@ -132,14 +136,14 @@ def _substeps(d, zi, A, n, beta, sd, sx, max_step, stiff_step):  # pragma: no co
     return max(1, min(MAX_SUBSTEPS, m)), A - g * psi, terms
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _rate(z, A, n, beta, sd, sx):  # pragma: no cover - compiled
     """``dz/dx = A - |z|^n Psi`` (Eq 20, 22)."""
     g, _ = abs_pow(abs(z), n)
     return A - g * shape_psi(beta, sd, sx, sgn(z))
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _rate_sens(z, A, n, terms, sd, sx, s0, s1, s2, s3, s4, s5, s6, s7):  # pragma: no cover - compiled
     """F(z) and the eight ``dF/dtheta + dF/dz S`` from the state terms at ``z`` (:func:`_state_terms`) and
     the sensitivities ``S = (s0, ..., s7)``, as a tuple (the innermost work of every fit: scalars that
@@ -160,7 +164,7 @@ def _rate_sens(z, A, n, terms, sd, sx, s0, s1, s2, s3, s4, s5, s6, s7):  # pragm
     )
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _piece(xa, xb, zi, A, n, beta, bound, max_step):  # pragma: no cover - compiled
     """Heun substeps along the straight angle piece ``xa -> xb`` on which sgn x does not change."""
     d = xb - xa
@@ -215,7 +219,7 @@ def _sens_substep(zi, h, A, n, beta, sd, sx, terms, S):  # pragma: no cover - co
     return zi + half * (k1 + k2), out
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _piece_sens(xa, xb, zi, A, n, beta, bound, max_step, S):  # pragma: no cover - compiled
     """:func:`_piece` carrying the derivatives ``S = d z / d theta`` along (updated in place at the end;
     in between they are eight scalars, see :func:`_rate_sens`; each substep is :func:`_sens_substep`)."""
@@ -236,7 +240,7 @@ def _piece_sens(xa, xb, zi, A, n, beta, bound, max_step, S):  # pragma: no cover
     return zi
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def project_row(sens, T, dz, row):  # pragma: no cover - compiled
     """``dz[row, :] = sens @ T``: one row of the chain-rule Jacobian."""
     for c in range(8):
@@ -246,7 +250,7 @@ def project_row(sens, T, dz, row):  # pragma: no cover - compiled
         dz[row, c] = acc
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def _sweep(
     x, seg, z0, A, n, beta, bound, freeze, max_step, stop, z, dz, T, rows, refined, sensitivities
 ):  # pragma: no cover
@@ -321,7 +325,7 @@ def _sweep(
 # unused by Eq 23); sens = (dz, T, rows) for the kernels with derivatives (see :func:`_sweep`).
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def recursion_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
     """Eq 23 over the segments (see :func:`_sweep`): writes ``z``, returns the first diverged index or -1."""
     A, n, beta = shape
@@ -330,7 +334,7 @@ def recursion_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compil
     return _sweep(x, seg, z0, A, n, beta, bound, freeze, 0.0, stop, z, dz, IDENTITY8, rows, False, False)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover - compiled
     """Eq 23 and its exact derivatives at ``rows`` (see :func:`_sweep`, :func:`eq23_step_sens`)."""
     A, n, beta = shape
@@ -339,7 +343,7 @@ def sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover 
     return _sweep(x, seg, z0, A, n, beta, bound, freeze, 0.0, stop, z, dz, T, rows, False, True)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def heun_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
     """The step-independent integration (:mod:`.schemes`) over the segments (see :func:`_sweep`)."""
     A, n, beta = shape
@@ -348,7 +352,7 @@ def heun_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
     return _sweep(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, IDENTITY8, rows, True, False)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def heun_sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover - compiled
     """:func:`heun_kernel` and the exact derivatives of its scheme at ``rows`` (see :func:`_sweep`)."""
     A, n, beta = shape
@@ -357,7 +361,7 @@ def heun_sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no c
     return _sweep(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows, True, True)
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def gram(J):  # pragma: no cover
     """``J.T @ J`` in plain loops."""
     k = J.shape[1]
@@ -373,7 +377,7 @@ def gram(J):  # pragma: no cover
     return G
 
 
-@njit(cache=True)
+@njit(cache=CACHE)
 def sum_sq_diff(z, y):  # pragma: no cover
     """``sum((z - y)**2)`` in a plain loop."""
     acc = 0.0
