@@ -48,6 +48,26 @@ class StoppedByCheck(UserError):
     exit_code = EXIT_STOPPED_BY_CHECK
 
 
+class WatchdogTripped(StoppedByCheck):
+    """A measured signal left its watchdog limit while the joint moved (`hardware/watchdog.py`): the trial
+    was braked and parked, and is not kept; `--resume` redoes it (exit 4).
+
+    Attributes: where (step), joint, quantity ("torque" or "tracking error"), value, limit (its text),
+    units, time_s (the sample's time from the start of the motion).
+    """
+
+    def __init__(
+        self, *, where: str, joint: str, quantity: str, value: float, limit: str, units: str, time_s: float
+    ) -> None:
+        self.where, self.joint, self.quantity = where, joint, quantity
+        self.value, self.limit, self.units, self.time_s = value, limit, units, time_s
+        super().__init__(
+            f"{where}: the watchdog stopped the motion: joint {joint}'s measured {quantity} was "
+            f"{value:.4g} {units} at t = {time_s:.3f} s, allowed {limit}. The robot was braked and parked; "
+            "the step is not kept: once the cause is fixed, run-protocol --resume redoes it"
+        )
+
+
 class Interrupted(UserError):
     """The session was interrupted by a signal; it is resumable (exit 130)."""
 

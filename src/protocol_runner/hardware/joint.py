@@ -15,6 +15,7 @@ from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.calibration import CalibrationTable
 from protocol_runner.hardware.conversions import angle_to_volts, volts_to_angle, volts_to_torque
 from protocol_runner.hardware.safety import SafetyLimits, clamp_volts
+from protocol_runner.hardware.watchdog import WatchdogLimits
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -36,6 +37,7 @@ class JointConfig:
     command_table: real_deg -> input_deg, applied before Eq 1 (None = identity).
     angle_table: output_deg -> real_deg, applied after Eq 2 (None = identity).
     torque_table: output_nm -> real_nm, applied after Eq 3 (None = identity).
+    watchdog: what the measured signals may do while the joint moves (None = not watched).
     """
 
     name: str
@@ -50,6 +52,7 @@ class JointConfig:
     angle_table: CalibrationTable | None = None
     torque_table: CalibrationTable | None = None
     limits: SafetyLimits
+    watchdog: WatchdogLimits | None = None
 
     def __post_init__(self) -> None:
         for label, pair in (("range_deg", self.range_deg), ("torque_range_nm", self.torque_range_nm)):

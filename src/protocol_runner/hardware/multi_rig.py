@@ -71,6 +71,10 @@ class MultiRig(PacedLoop[tuple[TrialRecording, ...]]):
         return tuple(j.name for j in self.joints)
 
     @property
+    def watched_joints(self) -> tuple[JointConfig, ...]:
+        return self.joints
+
+    @property
     def scan_channels(self) -> tuple[int, ...]:
         return tuple(ch for j in self.joints for ch in (j.angle_input_channel, j.torque_input_channel))
 
@@ -153,7 +157,7 @@ class MultiRig(PacedLoop[tuple[TrialRecording, ...]]):
                 volts_range_deg=j.range_deg,
             )
         with self.loop_context():
-            return self.send(cmd, where=where, stop_requested=None)
+            return self.send(cmd, where=where, stop_requested=None, watch=False)
 
     def _measured_if_needed(self) -> list[float]:
         if all(s is not None for s in self._last):

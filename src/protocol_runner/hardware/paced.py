@@ -8,6 +8,10 @@ the scan. On a stop request `on_stop(written)`, if given, returns the samples to
 was recorded so far (`partial_recording`). The live monitor (`tap`) is shown every block read, the one
 `stop_scan` returns included.
 
+The watchdog (`hardware/watchdog.py`) checks every block as it is read: a measured signal beyond its limit
+stops the loop as a stop request does (`on_stop`'s brake and park in the same loop), then the watchdog's
+`WatchdogTripped` (exit 4) is raised instead of `Interrupted`. Parking is not watched.
+
 The hardware bench and a dry run run this same loop: the DAQ simulator's boards satisfy the same
 interfaces, and its clock jumps instead of sleeping.
 
@@ -25,9 +29,10 @@ from typing import ClassVar, Generic, TypeVar
 import numpy as np
 import numpy.typing as npt
 
-from protocol_runner.errors import Interrupted
+from protocol_runner.errors import Interrupted, WatchdogTripped
 from protocol_runner.hardware.interfaces import AnalogInput, Clock, LoopTap, ScanBlock
-from protocol_runner.hardware.joint import OnStop, StopRequested
+from protocol_runner.hardware.joint import JointConfig, OnStop, StopRequested
+from protocol_runner.hardware.watchdog import LoopWatch
 
 FloatArray = npt.NDArray[np.float64]
 RecordingT = TypeVar("RecordingT")
@@ -100,6 +105,11 @@ class PacedLoop(Generic[RecordingT]):
     def scan_channels(self) -> tuple[int, ...]:
         raise NotImplementedError
 
+    @property
+    def watched_joints(self) -> tuple[JointConfig, ...]:
+        """The joints in command column order (their angle and torque: scan columns 2k and 2k+1)."""
+        raise NotImplementedError
+
     def prepare(self) -> None:
         raise NotImplementedError
 
@@ -134,10 +144,12 @@ class PacedLoop(Generic[RecordingT]):
         where: str,
         stop_requested: StopRequested | None,
         on_stop: OnStop | None = None,
+        watch: bool = True,
     ) -> RecordingT:
         """The paced loop over samples already checked (ticks first). On a stop request `on_stop(written)`,
         if given, returns the samples to send next in the same loop; then `Interrupted` carries the whole
-        recording."""
+        recording. `watch`: run the watchdog on the measured signals (a tripped watchdog stops the loop
+        the same way, then raises its `WatchdogTripped`)."""
         cmd = np.asarray(cmd, dtype=np.float64)
         volts = self._command_volts(cmd)
         self.prepare()
@@ -160,6 +172,8 @@ class PacedLoop(Generic[RecordingT]):
         schedule = schedule_s(t0, n, dt)
         loop = Loop(cmd, volts, codes, actual, schedule, blocks, t0)
         stopped = ""
+        watchdog = LoopWatch(self.watched_joints, t0, rate, where) if watch else None
+        tripped: WatchdogTripped | None = None
         tap = self.tap
         if tap is not None:
             tap.start(where, self._monitored_command(cmd), t0)
@@ -172,14 +186,18 @@ class PacedLoop(Generic[RecordingT]):
                     actual[k] = now()
                     codes[k] = write(k)
                 append(read())
-                stop_now = not stopped and stop_requested is not None and stop_requested()
+                if watchdog is not None and not stopped:
+                    tripped = watchdog.check(blocks[-1], cmd, end)
+                stop_now = not stopped and (
+                    tripped is not None or (stop_requested is not None and stop_requested())
+                )
                 start = end
                 if tap is not None:
                     tap.scan(self._monitored_scan(blocks[-1]))
                 if stop_now:
                     stopped = f"{where}: stopped on request at t = {schedule[end - 1] - t0:.2f} s"
                     if on_stop is None:
-                        raise Interrupted(stopped)
+                        raise tripped or Interrupted(stopped)
                     # continue in the same loop with what the stop sends (no pause: the output would hold)
                     tail = on_stop(end)
                     tail_volts = self._command_volts(tail)
@@ -195,7 +213,7 @@ class PacedLoop(Generic[RecordingT]):
                         tap.start(f"{where} (park)", self._monitored_command(cmd), t0)
             sleep_until(schedule[n])  # one more tick: the scan covers the response to the last command
             if stopped:
-                raise Interrupted(stopped)
+                raise tripped or Interrupted(stopped)
         except BaseException as exc:
             written = loop.written(self.UNWRITTEN)
             self._note_written(cmd, written)

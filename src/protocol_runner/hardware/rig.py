@@ -61,6 +61,10 @@ class Rig(PacedLoop[TrialRecording]):
     tap: LoopTap | None = field(default=None, init=False)
 
     @property
+    def watched_joints(self) -> tuple[JointConfig]:
+        return (self.joint,)
+
+    @property
     def scan_channels(self) -> tuple[int, int]:
         return (self.joint.angle_input_channel, self.joint.torque_input_channel)
 
@@ -131,7 +135,7 @@ class Rig(PacedLoop[TrialRecording]):
             volts_range_deg=self.joint.range_deg,
         )
         with self.loop_context():
-            return self.send(ramp, where=where, stop_requested=None)
+            return self.send(ramp, where=where, stop_requested=None, watch=False)
 
     def read_angle_deg(self, duration_s: float = 0.05) -> float:
         """Measure the joint's current real angle: a short scan, averaged (Eq 2 + angle look-up table)."""

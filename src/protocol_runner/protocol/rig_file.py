@@ -34,6 +34,8 @@ from .schema import (
     RigSpec,
     SafetyOverride,
     SafetySpec,
+    WatchdogOverride,
+    WatchdogSpec,
     _check_range,
     _Model,
 )
@@ -63,6 +65,7 @@ class JointDefaults(_Model):
     time_constant_s: float = Field(gt=0)
     safety: JointSafety = JointSafety()
     simulator: dict[str, float] = Field(default_factory=dict)
+    watchdog: WatchdogOverride | None = None
 
 
 class RigJoint(_Model):
@@ -356,6 +359,7 @@ def resolve_rig(
         safety=SafetySpec(**safety),
         time_constant_s=joint.time_constant_s or rig.joint_defaults.time_constant_s,
         simulator=tuple(simulator.items()),
+        watchdog=WatchdogSpec().merged(rig.joint_defaults.watchdog),
         rig_file=loaded.shown,
         rig_sha256=loaded.sha256,
     )

@@ -119,6 +119,32 @@ class SafetySpec(_Model):
     park_rate_deg_s: float = Field(gt=0)
 
 
+class WatchdogOverride(_Model):
+    """A protocol's `watchdog:` (or a rig file's `joint_defaults.watchdog`): each key optional, the rest
+    from the rig file, else the built-in defaults of `WatchdogSpec`."""
+
+    torque_margin: float | None = Field(default=None, gt=0, le=1)
+    max_tracking_error_deg: float | None = Field(default=None, gt=0)
+    max_tracking_error_s: float | None = Field(default=None, gt=0)
+
+
+class WatchdogSpec(_Model):
+    """The watchdog on a joint's measured signals (hardware/watchdog.py): the measured torque within
+    `torque_margin` x the joint's torque range; the measured angle within `max_tracking_error_deg` of the
+    command delayed by the servo lag, except for excursions shorter than `max_tracking_error_s`. The
+    defaults are the RSST rig file's (rigs/rsst.yaml says how they were chosen)."""
+
+    torque_margin: float = Field(default=1.0, gt=0, le=1)
+    max_tracking_error_deg: float = Field(default=15.0, gt=0)
+    max_tracking_error_s: float = Field(default=0.5, gt=0)
+
+    def merged(self, over: WatchdogOverride | None) -> WatchdogSpec:
+        """These values with the keys `over` gives replaced."""
+        if over is None:
+            return self
+        return self.model_copy(update={k: v for k, v in over.model_dump().items() if v is not None})
+
+
 class RigSpec(_Model):
     robot: str
     joint: JointSpec
@@ -128,6 +154,7 @@ class RigSpec(_Model):
     safety: SafetySpec
     time_constant_s: float = Field(gt=0)
     simulator: tuple[tuple[str, float], ...] = ()  # the joint's simulator parameters (rig file)
+    watchdog: WatchdogSpec = WatchdogSpec()  # the rig file's joint_defaults.watchdog over the built-in ones
     rig_file: str = ""
     rig_sha256: str = ""
 
@@ -535,6 +562,7 @@ class Protocol(_Model):
     sets: list[SetSpec] = Field(min_length=1)
     report: ReportSpec = ReportSpec()
     expectations: list[ExpectationSpec] = Field(default_factory=list)
+    watchdog: WatchdogOverride | None = None  # over the rig file's joint_defaults.watchdog, every joint
 
     _rigs: tuple[RigSpec, ...] = PrivateAttr(default=())
 

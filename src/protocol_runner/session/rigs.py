@@ -10,6 +10,7 @@ from ..hardware.calibration import CalibrationTable, load_calibration_table
 from ..hardware.joint import JointConfig
 from ..hardware.multi_rig import MultiRig
 from ..hardware.rig import Rig
+from ..hardware.watchdog import watchdog_limits
 from ..protocol.loaded import LoadedProtocol
 from ..protocol.schema import RigSpec
 from ..protocol.settings import Settings
@@ -33,6 +34,7 @@ def joint_config(loaded: LoadedProtocol, rig: RigSpec | None = None) -> JointCon
     rig = rig or loaded.protocol.rig
     base = loaded.base_dir
     cal = rig.calibration
+    watch = rig.watchdog.merged(loaded.protocol.watchdog)
     return JointConfig(
         name=rig.joint.name,
         range_deg=rig.joint.range_deg,
@@ -46,6 +48,13 @@ def joint_config(loaded: LoadedProtocol, rig: RigSpec | None = None) -> JointCon
         angle_table=_table(base, cal.angle_table),
         torque_table=_table(base, cal.torque_table),
         limits=safety_limits(rig),
+        watchdog=watchdog_limits(
+            rig.joint.torque_range_nm,
+            torque_margin=watch.torque_margin,
+            max_tracking_error_deg=watch.max_tracking_error_deg,
+            max_tracking_error_s=watch.max_tracking_error_s,
+            lag_s=rig.time_constant_s,
+        ),
     )
 
 
