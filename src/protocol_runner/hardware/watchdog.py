@@ -32,6 +32,7 @@ if TYPE_CHECKING:
     from protocol_runner.hardware.joint import JointConfig
 
 FloatArray = npt.NDArray[np.float64]
+TORQUE_ROUNDING = 1e-6  # a fraction of the torque range: single-precision rounding of a reading at an end
 
 
 @dataclass(frozen=True)
@@ -101,7 +102,10 @@ class LoopWatch:
             column = cmd if cmd.ndim == 1 else cmd[:, k]
             torque = joint.torque_from_volts(block.volts[:, 2 * k + 1])
             lo, hi = limits.torque_limits_nm
-            out = np.flatnonzero((torque < lo) | (torque > hi))
+            # the telemetry saturates at the range's ends (Eq 3 maps +-10 V onto it): a reading AT an end,
+            # up to the single-precision rounding of the stored codes, is the joint at its limit, not beyond
+            slack = TORQUE_ROUNDING * (hi - lo)
+            out = np.flatnonzero((torque < lo - slack) | (torque > hi + slack))
             if out.size:
                 i = int(out[0])
                 found.append(

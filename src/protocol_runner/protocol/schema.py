@@ -135,8 +135,8 @@ class WatchdogSpec(_Model):
     defaults are the RSST rig file's (rigs/rsst.yaml says how they were chosen)."""
 
     torque_margin: float = Field(default=1.0, gt=0, le=1)
-    max_tracking_error_deg: float = Field(default=15.0, gt=0)
-    max_tracking_error_s: float = Field(default=0.5, gt=0)
+    max_tracking_error_deg: float = Field(default=45.0, gt=0)
+    max_tracking_error_s: float = Field(default=3.0, gt=0)
 
     def merged(self, over: WatchdogOverride | None) -> WatchdogSpec:
         """These values with the keys `over` gives replaced."""
