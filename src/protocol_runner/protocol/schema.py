@@ -184,11 +184,7 @@ class Protocol(_Model):
     def _joint_or_joints(self) -> Any:
         if (self.joint is None) == (self.joints is None):
             raise ValueError("give exactly one of `joint` (one driven joint) and `joints` (several)")
-        if self.joints is not None:
-            seen = [j for i, j in enumerate(self.joints) if j in self.joints[:i]]
-            if seen:
-                raise ValueError(f"joints: {seen[0]!r} is listed twice")
-        return self
+        return self  # a joint listed twice in `joints` is refused at its entry (rig_file.resolve_rigs)
 
     @property
     def multi_joint(self) -> bool:
