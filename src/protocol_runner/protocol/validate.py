@@ -150,10 +150,10 @@ def _check_output_budget(p: Protocol) -> Iterator[Problem]:
     where: Loc = (
         ("rig_overrides", "output_rate_hz") if lowered else ("joints",) if p.multi_joint else ("joint",)
     )
-    joints = f"{n} joint{'s' if n > 1 else ''}"
+    joints = f"{n} joints need" if n > 1 else "1 joint needs"
     yield (
         where,
-        f"{joints} need {n + 1} output reports per tick ({n} AOUT + 1 AOUT_SYNC) of "
+        f"{joints} {n + 1} output reports per tick ({n} AOUT + 1 AOUT_SYNC) of "
         f"{out.report_time_s * 1e3:g} ms each (report_time_s, {p.rig.rig_file}) = {needed_s * 1e3:g} ms, "
         f"more than one {tick_s * 1e3:g} ms tick at {out.rate_hz:g} Hz; the largest output rate that fits "
         f"is {largest_hz} Hz: set rig_overrides.output_rate_hz to {largest_hz} or less",
