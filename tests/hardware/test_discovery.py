@@ -17,6 +17,9 @@ from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
 from protocol_runner.hardware.rig_boards import open_rig_boards
 from protocol_runner.hardware.usb1608fs import Usb1608FsPlus
 from protocol_runner.hardware.usb_common import UDEV_RULE_FILENAME
+from protocol_runner.protocol.rig_file import output_timing, shipped_rig
+
+RSST_TIMING = output_timing(shipped_rig("rsst"))
 
 
 def rig_backend() -> FakeBackend:
@@ -158,7 +161,9 @@ def test_times_one_output_report_on_a_channel_no_joint_uses_and_states_it_beside
     # the fake board spends 1.3 ms of simulated time per report it receives (no sleep, no wall clock)
     clock = ManualClock()
     board = make_usb3105(serial="AO000001", report_time_s=0.0013, advance=clock.advance)
-    report = hardware_check(backend=FakeBackend(board), blink_count=0, timing_reports=50, clock=clock)
+    report = hardware_check(
+        backend=FakeBackend(board), blink_count=0, timing=RSST_TIMING, timing_reports=50, clock=clock
+    )
     (info,) = report.boards
     assert info.report_time_s == pytest.approx(0.0013)
     # the RSST's joints are wired to outputs 0-11: the timing writes go to channel 15 only
@@ -176,14 +181,17 @@ def test_times_one_output_report_on_a_channel_no_joint_uses_and_states_it_beside
 def test_a_report_time_within_the_rig_files_needs_no_change() -> None:
     clock = ManualClock()
     board = make_usb3105(serial="AO000001", report_time_s=0.0008, advance=clock.advance)
-    report = hardware_check(backend=FakeBackend(board), blink_count=0, timing_reports=20, clock=clock)
+    report = hardware_check(
+        backend=FakeBackend(board), blink_count=0, timing=RSST_TIMING, timing_reports=20, clock=clock
+    )
     text = format_report(report)
     assert "one output report: 0.800 ms measured" in text and "holds 11 joints" in text
     assert "set report_time_s" not in text
 
 
-def test_no_timing_when_every_channel_is_a_joints() -> None:
+def test_no_output_is_written_when_every_channel_is_a_joints_or_the_wiring_is_unknown() -> None:
     timing = OutputTiming("lab_rig.yaml", 0.001, 100.0, frozenset(range(16)))
-    board = make_usb3105(serial="AO000001")
-    report = hardware_check(backend=FakeBackend(board), blink_count=0, timing=timing)
-    assert report.boards[0].report_time_s is None and board.reports_with_command(AOUT) == []
+    for given in (timing, None):
+        board = make_usb3105(serial="AO000001")
+        report = hardware_check(backend=FakeBackend(board), blink_count=0, timing=given)
+        assert report.boards[0].report_time_s is None and board.reports_with_command(AOUT) == []

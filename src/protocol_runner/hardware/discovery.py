@@ -22,7 +22,6 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import partial
-from pathlib import Path
 from typing import Any, NamedTuple, Protocol
 
 import usb.core
@@ -42,7 +41,6 @@ from protocol_runner.hardware.usb_common import (
     read_serial,
     udev_rule_text,
 )
-from protocol_runner.resources import packaged_rigs_dir
 
 log = logging.getLogger(__name__)
 
@@ -70,17 +68,6 @@ class OutputTiming:
     report_time_s: float | None
     rate_hz: float
     joint_channels: frozenset[int]
-
-
-def rig_output_timing(path: Path | None = None, shown: str | None = None) -> OutputTiming:
-    """`OutputTiming` of a rig file (default: the shipped RSST rig, rigs/rsst.yaml)."""
-    from protocol_runner.protocol.rig_file import load_rig
-
-    path = path or packaged_rigs_dir() / "rsst.yaml"
-    loaded = load_rig(path, shown=shown or f"rigs/{path.name}")
-    board = loaded.rig.boards[loaded.rig.output_board]
-    channels = frozenset(j.output_channel for j in loaded.rig.joints.values())
-    return OutputTiming(loaded.shown, board.report_time_s, board.rate_hz, channels)
 
 
 @dataclass(frozen=True)
@@ -269,13 +256,15 @@ def hardware_check(
     `required` maps ``"analog_output"`` / ``"analog_input"`` to global channel numbers, e.g.
     ``{"analog_output": [8], "analog_input": [8, 20]}``. `backend` is passed to `usb.core.find`
     (None: the system libusb; tests pass the fake backend). `timing` is the rig file's word on its output
-    board (default: the shipped RSST rig's); `timing_reports` writes are timed on `clock` (0: none). Every
-    board is closed again on return.
+    board (`rig_file.output_timing`); without it no output is written, since which channels are wired to
+    joints is unknown. `timing_reports` writes are timed on `clock` (0: none). Every board is closed
+    again on return.
     """
     needed = _check_required(required)
-    timing = timing or rig_output_timing()
 
     def time_reports(board: Usb3105, first_channel: int) -> tuple[float | None, int | None]:
+        if timing is None:
+            return None, None
         free = [c for c in range(usb3105.N_CHANNELS) if first_channel + c not in timing.joint_channels]
         if timing_reports < 1 or not free:
             return None, None

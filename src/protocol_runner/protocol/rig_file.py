@@ -14,7 +14,7 @@ import dataclasses
 import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from pydantic import Field, ValidationError, field_validator
 
@@ -27,6 +27,9 @@ from .paths import OutsideFolder, confined_path
 from .schema_base import Identifier, RangePair, _check_range, _Model
 from .schema_rig import InputSpec, JointSpec, OutputSpec, RigOverrides, RigSpec, SafetyOverride, SafetySpec
 from .yaml_doc import format_problems, huge_numbers, parse_yaml, validation_problems
+
+if TYPE_CHECKING:
+    from ..hardware.discovery import OutputTiming
 
 Problem = tuple[Loc, str]
 
@@ -136,6 +139,22 @@ def parse_rig_text(text: str, path: Path, shown: str) -> LoadedRig:
         raise InvalidInput(format_problems(shown, lines, problems))
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
     return LoadedRig(rig=rig, path=path, shown=shown, sha256=sha, lines=lines, text=text)
+
+
+def output_timing(loaded: LoadedRig) -> OutputTiming:
+    """What `--hardware-check` compares its measured output report time with: the output board's
+    `report_time_s` and rate, and the output channels the rig's joints are wired to (its timing writes use
+    another)."""
+    from ..hardware.discovery import OutputTiming
+
+    board = loaded.rig.boards[loaded.rig.output_board]
+    channels = frozenset(j.output_channel for j in loaded.rig.joints.values())
+    return OutputTiming(loaded.shown, board.report_time_s, board.rate_hz, channels)
+
+
+def shipped_rig(name: str) -> LoadedRig:
+    """A rig shipped with the runner (`rsst`), named in messages as `rigs/<name>.yaml`."""
+    return load_rig(find_rig(name, packaged_rigs_dir()), shown=f"rigs/{name}.yaml")
 
 
 def simulator_fields() -> tuple[str, ...]:
