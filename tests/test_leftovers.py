@@ -32,6 +32,6 @@ def test_hardware_check_exits_3_when_no_board_is_found(monkeypatch, capsys) -> N
     from protocol_runner.hardware import discovery
 
     empty = discovery.HardwareReport(boards=(), problems=(), checks=())
-    monkeypatch.setattr(discovery, "hardware_check", lambda required=None: empty)
+    monkeypatch.setattr(discovery, "hardware_check", lambda required=None, timing=None: empty)
     assert commands.hardware_check(None) == 3
     assert "NOT ready" in capsys.readouterr().out

@@ -341,8 +341,10 @@ class _NoBench:
 def hardware_check(protocol: str | None) -> int:
     from .hardware.discovery import format_report
     from .hardware.discovery import hardware_check as check
+    from .protocol.rig_file import output_timing, parse_rig_text, shipped_rig
 
     required = None
+    rig_file = shipped_rig("rsst")  # its output report time is printed beside the measured one
     if protocol:
         from .protocol.loader import find_protocol, load_protocol
 
@@ -352,7 +354,9 @@ def hardware_check(protocol: str | None) -> int:
             "analog_output": [rig.output.channel],
             "analog_input": [rig.input.angle_channel, rig.input.torque_channel],
         }
-    result = check(required)
+        source = loaded.rig_source
+        rig_file = parse_rig_text(source.text, loaded.base_dir / source.shown, source.shown)
+    result = check(required, timing=output_timing(rig_file))
     print(format_report(result))
     return EXIT_OK if result.ok else EXIT_HARDWARE_UNAVAILABLE
 

@@ -8,16 +8,19 @@ from typing import Any, cast
 import pytest
 
 from protocol_runner.errors import HardwareUnavailable, InvalidInput
-from protocol_runner.hardware.discovery import NOTHING_FOUND, format_report, hardware_check
+from protocol_runner.hardware.discovery import NOTHING_FOUND, OutputTiming, format_report, hardware_check
 from protocol_runner.hardware.fakeusb.backend import FakeBackend
 from protocol_runner.hardware.fakeusb.device import Faults
 from protocol_runner.hardware.fakeusb.dt9814 import make_dt9814
-from protocol_runner.hardware.fakeusb.usb1608fs import make_usb1608fs
-from protocol_runner.hardware.fakeusb.usb3105 import make_usb3105
+from protocol_runner.hardware.fakeusb.usb1608fs import ManualClock, make_usb1608fs
+from protocol_runner.hardware.fakeusb.usb3105 import AOUT, make_usb3105
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
 from protocol_runner.hardware.rig_boards import open_rig_boards
 from protocol_runner.hardware.usb1608fs import Usb1608FsPlus
 from protocol_runner.hardware.usb_common import UDEV_RULE_FILENAME
+from protocol_runner.protocol.rig_file import output_timing, shipped_rig
+
+RSST_TIMING = output_timing(shipped_rig("rsst"))
 
 
 def rig_backend() -> FakeBackend:
@@ -153,3 +156,43 @@ def test_open_rig_boards_refuses_the_dt9814_plainly() -> None:
 def test_open_rig_boards_without_output_board() -> None:
     with pytest.raises(HardwareUnavailable, match="no USB-3105 found"):
         open_rig_boards(rig_spec(), backend=FakeBackend(make_usb1608fs()))
+
+
+def test_times_one_output_report_on_a_channel_no_joint_uses_and_states_it_beside_the_rig_files() -> None:
+    # the fake board spends 1.3 ms of simulated time per report it receives (no sleep, no wall clock)
+    clock = ManualClock()
+    board = make_usb3105(serial="AO000001", report_time_s=0.0013, advance=clock.advance)
+    report = hardware_check(
+        backend=FakeBackend(board), blink_count=0, timing=RSST_TIMING, timing_reports=50, clock=clock
+    )
+    (info,) = report.boards
+    assert info.report_time_s == pytest.approx(0.0013)
+    # the RSST's joints are wired to outputs 0-11: the timing writes go to channel 15 only
+    assert info.timing_channel == 15
+    assert {r[1] for r in board.reports_with_command(AOUT)} == {15}
+    assert len(board.reports_with_command(AOUT)) == 50
+    assert board.pin_volts(15) == pytest.approx(0.0, abs=1e-3)
+    text = format_report(report)
+    assert "one output report: 1.300 ms measured" in text
+    assert "rigs/rsst.yaml states report_time_s 1 ms" in text
+    assert "a 10 ms tick at 100 Hz holds 6 joints" in text  # floor(10 / 1.3) = 7 reports: 6 AOUT + 1 sync
+    assert "set report_time_s: 0.0013 in rigs/rsst.yaml" in text
+
+
+def test_a_report_time_within_the_rig_files_needs_no_change() -> None:
+    clock = ManualClock()
+    board = make_usb3105(serial="AO000001", report_time_s=0.0008, advance=clock.advance)
+    report = hardware_check(
+        backend=FakeBackend(board), blink_count=0, timing=RSST_TIMING, timing_reports=20, clock=clock
+    )
+    text = format_report(report)
+    assert "one output report: 0.800 ms measured" in text and "holds 11 joints" in text
+    assert "set report_time_s" not in text
+
+
+def test_no_output_is_written_when_every_channel_is_a_joints_or_the_wiring_is_unknown() -> None:
+    timing = OutputTiming("lab_rig.yaml", 0.001, 100.0, frozenset(range(16)))
+    for given in (timing, None):
+        board = make_usb3105(serial="AO000001")
+        report = hardware_check(backend=FakeBackend(board), blink_count=0, timing=given)
+        assert report.boards[0].report_time_s is None and board.reports_with_command(AOUT) == []

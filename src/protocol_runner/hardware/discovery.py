@@ -6,6 +6,10 @@ Channel numbering (the numbers the protocol file uses, all from 0):
 - analog inputs: the USB-1608FS-Plus boards in serial-number order, 8 channels each, then any DT9814
   (UNVERIFIED protocol; `Dt9814Settings.n_channels` each). This is the numbering `MultiBoardInput` uses.
 
+Each USB-3105 is also timed: `timing_reports` single-channel writes of 0 V on its highest channel that no
+joint of the rig file is wired to, giving the time one output report takes, printed beside the rig file's
+`report_time_s` (a tick of N joints sends N + 1 reports: docs/hardware.md).
+
 `hardware_check` never raises for a board it cannot open: the failure becomes a `BoardProblem` with the
 driver's plain message (busy, permission denied with the udev rule to install, ...).
 """
@@ -13,6 +17,8 @@ driver's plain message (busy, permission denied with the udev rule to install, .
 from __future__ import annotations
 
 import logging
+import math
+import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import partial
@@ -49,6 +55,21 @@ NOTHING_FOUND = (
 )
 
 
+TIMING_REPORTS = 200
+"""Single-channel writes timed per USB-3105 (about 0.2 s at 1 ms each)."""
+
+
+@dataclass(frozen=True)
+class OutputTiming:
+    """What the rig file says of its output board: the time one output report takes (`report_time_s`),
+    the board's rate, and the global output channels its joints are wired to (the timing writes avoid them)."""
+
+    rig_file: str
+    report_time_s: float | None
+    rate_hz: float
+    joint_channels: frozenset[int]
+
+
 @dataclass(frozen=True)
 class BoardInfo:
     """One board that opened: what it is and which global channels it provides."""
@@ -62,6 +83,8 @@ class BoardInfo:
     calibration: str
     blinked: bool
     note: str = ""
+    report_time_s: float | None = None  # measured (USB-3105): mean time of one output report
+    timing_channel: int | None = None  # the board's own channel the timing writes used
 
     @property
     def channels(self) -> range:
@@ -94,6 +117,7 @@ class HardwareReport:
     boards: tuple[BoardInfo, ...]
     problems: tuple[BoardProblem, ...]
     checks: tuple[ChannelCheck, ...]
+    timing: OutputTiming | None = None
 
     def channel_count(self, role: str) -> int:
         return sum(b.n_channels for b in self.boards if b.role == role)
@@ -165,6 +189,10 @@ class BoardKind(NamedTuple):
     can_blink: bool = True
 
 
+Timer = Callable[[Any, int], tuple[float | None, int | None]]
+"""(opened board, its first global channel) -> (measured report time, the board channel it used)."""
+
+
 def _survey(
     board_kind: BoardKind,
     openers: Sequence[Callable[[], _Board]],
@@ -172,8 +200,10 @@ def _survey(
     blink_count: int,
     boards: list[BoardInfo],
     problems: list[BoardProblem],
+    timer: Timer | None = None,
 ) -> int:
-    """Open each board, describe it, blink it, close it. Returns the next free global channel."""
+    """Open each board, describe it, blink it, time it (`timer`), close it. Returns the next free global
+    channel."""
     kind, role, n_channels, note, can_blink = board_kind
     for opener in openers:
         try:
@@ -186,6 +216,7 @@ def _survey(
             if blink_count > 0 and can_blink:
                 board.blink(blink_count)
                 blinked = True
+            measured, timing_channel = timer(board, first_channel) if timer else (None, None)
             boards.append(
                 BoardInfo(
                     kind=kind,
@@ -197,6 +228,8 @@ def _survey(
                     calibration=board.calibration_summary(),
                     blinked=blinked,
                     note=note,
+                    report_time_s=measured,
+                    timing_channel=timing_channel,
                 )
             )
             first_channel += n_channels
@@ -213,21 +246,37 @@ def hardware_check(
     *,
     blink_count: int = 3,
     dt9814_settings: Dt9814Settings | None = None,
+    timing: OutputTiming | None = None,
+    timing_reports: int = TIMING_REPORTS,
+    clock: Callable[[], float] = time.perf_counter,
 ) -> HardwareReport:
-    """List the DAQ boards, blink their LEDs, and check that the `required` channels exist.
+    """List the DAQ boards, blink their LEDs, time each USB-3105's output report, and check that the
+    `required` channels exist.
 
     `required` maps ``"analog_output"`` / ``"analog_input"`` to global channel numbers, e.g.
     ``{"analog_output": [8], "analog_input": [8, 20]}``. `backend` is passed to `usb.core.find`
-    (None: the system libusb; tests pass the fake backend). Every board is closed again on return.
+    (None: the system libusb; tests pass the fake backend). `timing` is the rig file's word on its output
+    board (`rig_file.output_timing`); without it no output is written, since which channels are wired to
+    joints is unknown. `timing_reports` writes are timed on `clock` (0: none). Every board is closed
+    again on return.
     """
     needed = _check_required(required)
+
+    def time_reports(board: Usb3105, first_channel: int) -> tuple[float | None, int | None]:
+        if timing is None:
+            return None, None
+        free = [c for c in range(usb3105.N_CHANNELS) if first_channel + c not in timing.joint_channels]
+        if timing_reports < 1 or not free:
+            return None, None
+        return board.measure_report_time_s(free[-1], timing_reports, clock), free[-1]
+
     boards: list[BoardInfo] = []
     problems: list[BoardProblem] = []
     try:
         find_devices(MCC_VENDOR_ID, None, backend, "DAQ boards")
     except NoUsbBackend as exc:  # no libusb: say it once, not once per board kind
         missing = tuple(ChannelCheck(role, ch, None) for role, chans in needed.items() for ch in chans)
-        return HardwareReport((), (BoardProblem("USB", exc.message),), missing)
+        return HardwareReport((), (BoardProblem("USB", exc.message),), missing, timing)
 
     ao_serials = _serials(MCC_VENDOR_ID, usb3105.PRODUCT_ID, usb3105.KIND, backend, problems)
     _survey(
@@ -237,6 +286,7 @@ def hardware_check(
         blink_count,
         boards,
         problems,
+        time_reports,
     )
     ai_serials = _serials(
         MCC_VENDOR_ID, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND, backend, problems
@@ -277,12 +327,38 @@ def hardware_check(
         for ch in chans:
             owner = next((b for b in boards if b.role == role and ch in b.channels), None)
             checks.append(ChannelCheck(role, ch, owner))
-    return HardwareReport(tuple(boards), tuple(problems), tuple(checks))
+    return HardwareReport(tuple(boards), tuple(problems), tuple(checks), timing)
 
 
 def _channel_span(report: HardwareReport, role: str) -> str:
     n = report.channel_count(role)
     return f"channels 0-{n - 1}" if n else "none"
+
+
+def _timing_lines(board: BoardInfo, timing: OutputTiming | None) -> list[str]:
+    """The measured report time beside the rig file's, and how many joints one tick then holds."""
+    measured = float(board.report_time_s or 0.0)
+    lines = [
+        f"      one output report: {measured * 1e3:.3f} ms measured (single-channel writes of 0 V on its "
+        f"channel {board.timing_channel}, wired to no joint)"
+    ]
+    if timing is None:
+        return lines
+    stated = (
+        f"{timing.rig_file} states report_time_s {timing.report_time_s * 1e3:g} ms"
+        if timing.report_time_s is not None
+        else f"{timing.rig_file} states no report_time_s"
+    )
+    tick_s = 1.0 / timing.rate_hz
+    holds = math.floor(tick_s / measured + 1e-9) - 1 if measured > 0 else None
+    fits = f"; a {tick_s * 1e3:g} ms tick at {timing.rate_hz:g} Hz holds {holds} joints (N + 1 reports)"
+    lines.append(f"      {stated}{fits if holds is not None else ''}")
+    if timing.report_time_s is not None and measured > timing.report_time_s:
+        lines.append(
+            f"      the measured time is above the rig file's: set report_time_s: {measured:.4f} in "
+            f"{timing.rig_file} so that campaigns are checked against it"
+        )
+    return lines
 
 
 def format_report(report: HardwareReport) -> str:
@@ -300,6 +376,8 @@ def format_report(report: HardwareReport) -> str:
                 f"{_role_label(b.role)}s (channels {span}), {led}"
             )
             lines.append(f"      {b.calibration}")
+            if b.report_time_s is not None:
+                lines += _timing_lines(b, report.timing)
             if b.note:
                 lines.append(f"      note: {b.note}")
         lines.append(

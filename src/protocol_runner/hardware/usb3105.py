@@ -23,7 +23,8 @@ import logging
 import math
 import operator
 import struct
-from collections.abc import Mapping
+import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -293,6 +294,20 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
         if codes:
             self._send(bytes((CMD_AOUT_SYNC,)), "latching the outputs (AOUT_SYNC)")
         return codes
+
+    def measure_report_time_s(
+        self, channel: int, n_reports: int, clock: Callable[[], float] = time.perf_counter
+    ) -> float:
+        """The mean time of one output report: `n_reports` single-channel writes of 0 V (AOUT, update 0) on
+        `channel`, after its AOUT_CONFIG (which also sets it to 0 V). Use a channel no joint is wired to:
+        the writes change that output."""
+        if n_reports < 1:
+            raise InvalidInput(f"measuring the report time needs at least 1 report, got {n_reports}")
+        self.configure_channel(channel)
+        start_s = clock()
+        for _ in range(n_reports):
+            self.write_volts(channel, 0.0)
+        return (clock() - start_s) / n_reports
 
     # ------------------------------------------------------------------------------------------------
     # Board information

@@ -161,21 +161,7 @@ def configuration_trajectories(
     p = loaded.protocol
     name = cfg.trajectory
     spec = p.trajectories[name]
-    if isinstance(spec, PerJointSpec):
-        extra = [j for j in spec.joints if j not in p.driven_joints]
-        missing = [j for j in p.driven_joints if j not in spec.joints]
-        if extra or missing:
-            raise InvalidInput(
-                f"trajectory {name!r} (per_joint): "
-                + (f"no entry for driven joint(s) {', '.join(missing)}" if missing else "")
-                + ("; " if missing and extra else "")
-                + (
-                    f"{', '.join(extra)} is not driven (joints: {', '.join(p.driven_joints)})"
-                    if extra
-                    else ""
-                )
-            )
-    elif spec.kind != "file":
+    if not isinstance(spec, PerJointSpec) and spec.kind != "file":
         raise InvalidInput(
             f"trajectory {name!r} ({spec.kind}): a multi-joint trial needs each joint's motion: give "
             "`kind: per_joint` with one entry per driven joint, or a `file` with one angle column per joint"
@@ -205,6 +191,16 @@ def configuration_trajectories(
             f"numbers of output ticks at {rate:g} Hz: {shown}"
         )
     return tuple(out)
+
+
+def configuration_motion(
+    loaded: LoadedProtocol, cfg: ConfigurationSpec, settings: Settings
+) -> tuple[tuple[str, Trajectory], ...]:
+    """(joint, trajectory) for every driven joint: `configuration_trajectories` of a protocol that names
+    `joints:`, else the one joint's `configuration_trajectory`."""
+    if loaded.protocol.multi_joint:
+        return configuration_trajectories(loaded, cfg, settings)
+    return ((loaded.protocol.rig.joint.name, configuration_trajectory(loaded, cfg, settings)),)
 
 
 def configuration_trajectory(
@@ -247,12 +243,12 @@ def calibration_trajectory(p: Protocol, joint: str | None = None) -> Trajectory:
 
 
 def check_bindings(p: Protocol) -> Iterator[Problem]:
-    """Static checks of every binding and element (before any configuration is resolved)."""
+    """Static checks of every binding and element (before any configuration is resolved), of the device's
+    form (elements per joint when several joints are driven) and of `per_joint` trajectories' joints."""
+    yield from _check_joints_named(p)
     if p.device is not None:
         names: set[tuple[str, str]] = set()
         for joint, loc, el in p.device.located_elements():
-            if joint and joint not in p.driven_joints:
-                yield loc[:3], f"{joint!r} is not one of the driven joints ({', '.join(p.driven_joints)})"
             if (joint, el.name) in names:
                 yield (*loc, "name"), f"element name {el.name!r} is used twice"
             names.add((joint, el.name))
@@ -286,6 +282,35 @@ def check_bindings(p: Protocol) -> Iterator[Problem]:
             yield from _check_binding(
                 p, binding, unit_suffix(parts[-1]) or "", ("trajectories", name, *parts)
             )
+
+
+def _check_joints_named(p: Protocol) -> Iterator[Problem]:
+    """A device of several driven joints is declared per joint, for driven joints only; a `per_joint`
+    trajectory has an entry for every driven joint and for no other."""
+    driven = p.driven_joints
+    shown = ", ".join(driven)
+    if p.device is not None and p.device.elements and len(driven) > 1:
+        yield (
+            ("device", "elements"),
+            f"this campaign drives {len(driven)} joints ({shown}): a flat `elements` list would put every "
+            "element on every joint; give each joint its own under `device.joints.<joint>.elements`",
+        )
+    if p.device is not None:
+        for joint in p.device.joints:
+            if joint not in driven:
+                yield ("device", "joints", joint), f"{joint!r} is not one of the driven joints ({shown})"
+    for name, spec in p.trajectories.items():
+        if not isinstance(spec, PerJointSpec) or not p.multi_joint:
+            continue
+        missing = [j for j in driven if j not in spec.joints]
+        if missing:
+            yield (
+                ("trajectories", name, "joints"),
+                f"no entry for driven joint(s) {', '.join(missing)} (joints: {shown})",
+            )
+        for joint in spec.joints:
+            if joint not in driven:
+                yield ("trajectories", name, "joints", joint), f"{joint!r} is not driven (joints: {shown})"
 
 
 def _did_you_mean(word: str, known: Iterable[str]) -> str:

@@ -14,7 +14,7 @@ import dataclasses
 import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 from pydantic import Field, ValidationError, field_validator
 
@@ -41,6 +41,9 @@ from .schema import (
 )
 from .yaml_doc import format_problems, huge_numbers, parse_yaml, validation_problems
 
+if TYPE_CHECKING:
+    from ..hardware.discovery import OutputTiming
+
 Problem = tuple[Loc, str]
 
 
@@ -52,6 +55,8 @@ class BoardSpec(_Model):
     rate_hz: float = Field(gt=0, le=50000)
     serials: list[str] = Field(default_factory=list)
     product_id: int | None = Field(default=None, ge=0, le=0xFFFF)
+    # an output board's time for one output report (a tick of N joints sends N + 1: docs/hardware.md)
+    report_time_s: float | None = Field(default=None, gt=0, le=1)
 
     _range = field_validator("volts_range")(_check_range)
 
@@ -150,6 +155,22 @@ def parse_rig_text(text: str, path: Path, shown: str) -> LoadedRig:
     return LoadedRig(rig=rig, path=path, shown=shown, sha256=sha, lines=lines, text=text)
 
 
+def output_timing(loaded: LoadedRig) -> OutputTiming:
+    """What `--hardware-check` compares its measured output report time with: the output board's
+    `report_time_s` and rate, and the output channels the rig's joints are wired to (its timing writes use
+    another)."""
+    from ..hardware.discovery import OutputTiming
+
+    board = loaded.rig.boards[loaded.rig.output_board]
+    channels = frozenset(j.output_channel for j in loaded.rig.joints.values())
+    return OutputTiming(loaded.shown, board.report_time_s, board.rate_hz, channels)
+
+
+def shipped_rig(name: str) -> LoadedRig:
+    """A rig shipped with the runner (`rsst`), named in messages as `rigs/<name>.yaml`."""
+    return load_rig(find_rig(name, packaged_rigs_dir()), shown=f"rigs/{name}.yaml")
+
+
 def simulator_fields() -> tuple[str, ...]:
     """The names a joint's `simulator:` mapping may use: the fields of the simulator's parameters."""
     from ..hardware.simulator.params import SimulatorParams
@@ -193,6 +214,14 @@ def check_rig_file(rig: RigFile) -> list[Problem]:
             elif bounded := bound_problem(param, value):
                 problems.append(((*where, "simulator", param), bounded))
     for name, board in rig.boards.items():
+        if board.role == "output" and board.report_time_s is None:
+            problems.append(
+                (
+                    ("boards", name),
+                    "an output board states report_time_s, the time one output report takes (a tick of "
+                    "N joints sends N + 1 reports); measure it with run-protocol --hardware-check",
+                )
+            )
         low, high = BOARD_RATES_HZ[board.role]
         if not low <= board.rate_hz <= high:
             problems.append(
@@ -325,9 +354,29 @@ def resolve_rig(
                 f"park angle {safety['park_angle_deg']:g} deg is outside the joint's range {_fmt(range_deg)}",
             )
         )
+    out_board = rig.boards[rig.output_board]
+    output_rate_hz = out_board.rate_hz
+    if overrides.output_rate_hz is not None:
+        low = BOARD_RATES_HZ["output"][0]
+        if overrides.output_rate_hz > out_board.rate_hz:
+            problems.append(
+                (
+                    ("rig_overrides", "output_rate_hz"),
+                    f"{overrides.output_rate_hz:g} Hz is above the output board {rig.output_board}'s "
+                    f"rate_hz {out_board.rate_hz:g} ({loaded.shown}): overrides may only lower it",
+                )
+            )
+        elif overrides.output_rate_hz < low:
+            problems.append(
+                (
+                    ("rig_overrides", "output_rate_hz"),
+                    f"an output rate must be at least {low:g} Hz, got {overrides.output_rate_hz:g}",
+                )
+            )
+        else:
+            output_rate_hz = overrides.output_rate_hz
     if problems:
         return None, problems
-    out_board = rig.boards[rig.output_board]
     simulator = dict(rig.joint_defaults.simulator)
     simulator.update(joint.simulator)
     spec = RigSpec(
@@ -342,9 +391,10 @@ def resolve_rig(
         output=OutputSpec(
             board=rig.output_board,
             channel=joint.output_channel,
-            rate_hz=out_board.rate_hz,
+            rate_hz=output_rate_hz,
             volts_range=out_board.volts_range,
             serial=out_board.serials[0] if out_board.serials else None,
+            report_time_s=out_board.report_time_s,
         ),
         input=InputSpec(
             board=input_name,
@@ -374,6 +424,13 @@ def resolve_rigs(
     `joints[i]` or `rig_overrides.joints.<joint>...`; two driven joints sharing an output or input channel
     are refused naming both."""
     problems: list[Problem] = []
+    for i, name in enumerate(joint_names):
+        if name in joint_names[:i]:
+            problems.append(
+                (("joints", i), f"{name!r} is listed twice (joints[{joint_names.index(name)}] names it)")
+            )
+    if problems:
+        return (), problems
     for name in overrides.joints:
         if name not in joint_names:
             problems.append(
@@ -391,8 +448,8 @@ def resolve_rigs(
         problems += [((("joints", i) if loc == ("joint",) else loc), msg) for loc, msg in found]
         if spec is not None:
             specs.append(spec)
-    if problems:
-        return (), problems
+    if problems:  # a shared override's problem (the output rate) once, not once per joint
+        return (), list(dict.fromkeys(problems))
     used: dict[tuple[str, int], str] = {}
     for spec in specs:
         for kind, ch in (

@@ -87,9 +87,10 @@ class JointSpec(_Model):
 class OutputSpec(_Model):
     board: str
     channel: int = Field(ge=0)
-    rate_hz: float = Field(gt=0, le=1000)
+    rate_hz: float = Field(gt=0, le=1000)  # the protocol's output rate (the board's, or lowered by rig_overrides)
     volts_range: RangePair = (-10.0, 10.0)
     serial: str | None = None
+    report_time_s: float | None = Field(default=None, gt=0)  # one output report on the wire (rig file)
 
     _range = field_validator("volts_range")(_check_range)
 
@@ -175,6 +176,7 @@ class JointOverride(_Model):
 
 
 class RigOverrides(_Model):
+    output_rate_hz: float | None = Field(default=None, gt=0)  # at most the output board's rate_hz
     input_board: str | None = None
     input_serials: list[str] | None = None
     joints: dict[str, JointOverride] = Field(default_factory=dict)
@@ -570,11 +572,7 @@ class Protocol(_Model):
     def _joint_or_joints(self) -> Any:
         if (self.joint is None) == (self.joints is None):
             raise ValueError("give exactly one of `joint` (one driven joint) and `joints` (several)")
-        if self.joints is not None:
-            seen = [j for i, j in enumerate(self.joints) if j in self.joints[:i]]
-            if seen:
-                raise ValueError(f"joints: {seen[0]!r} is listed twice")
-        return self
+        return self  # a joint listed twice in `joints` is refused at its entry (rig_file.resolve_rigs)
 
     @property
     def multi_joint(self) -> bool:

@@ -2,13 +2,20 @@
 
 Each check returns (location, message) pairs so the loader can name the file line of the offending field.
 Checks: factor levels and their aliases; every configuration's factors, levels and trajectory exist;
-bindings (protocol/resolve.py); range quantities inside the joint's range; range-of-motion stops that
-hold the park angle; keys, run numbers and names unique; referenced files inside the protocol's folder,
-present and loadable; every motion's commanded stream inside the joint's envelope (stream_check.py).
+bindings and the device's and trajectories' joints (protocol/resolve.py); range quantities inside the
+joint's range; range-of-motion stops that hold the park angle; keys, run numbers and names unique;
+referenced files inside the protocol's folder, present and loadable; one tick's output reports within the
+tick (`output_budget`); every motion's commanded stream inside the joint's envelope (stream_check.py).
+
+A campaign of one joint (`joint:`) is a campaign whose only driven joint is that joint: the motion checks
+iterate over the driven joints, each on its own view of the protocol (its rig, range and safety limits),
+and name the joint in their messages only when the protocol names `joints:`.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import os
 from collections.abc import Iterator
 from pathlib import Path
@@ -23,10 +30,11 @@ from .resolve import (
     BindingError,
     calibration_trajectory,
     check_bindings,
-    configuration_trajectory,
+    configuration_motion,
     resolve_settings,
 )
 from .schema import CalibrationStepSpec, Protocol
+from .settings import ElementSetting
 from .trajectories import calibration_step_peak_speed_deg_s
 from .trajectory_record import Trajectory
 
@@ -62,40 +70,94 @@ def _cross_check(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc,
     problems += list(check_expectations(p.expectations, {c.key for _, c in p.configurations()}))
     settings = {c.key: {"trajectory": c.trajectory, **c.levels} for _, c in p.configurations()}
     problems += list(check_repeatability(p.report.repeatability, settings))
+    problems += list(_check_output_budget(p))
     if problems:
         return problems
-    if p.multi_joint:
-        from .multi_validate import check_joint_motions
+    return _check_motions(loaded, check_files, generated)
 
-        return check_joint_motions(
-            loaded,
-            check_files=check_files,
-            limit_problems=_limit_problems,
-            relative_message=_relative_message,
-        )
-    motions: list[Motion] = [
-        (("calibration_step",), "the calibration step", calibration_trajectory(p)),
-    ]
+
+def _check_motions(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc, Loc]) -> list[Problem]:
+    """Every configuration resolved and its motion built for each driven joint; then each joint's motions
+    (its calibration step and its part of every configuration) checked field by field against ITS range,
+    rate and acceleration, and as complete commanded streams (approach from its park angle, exit, a stop
+    after any sample), on that joint's view of the protocol. A configuration's problems that share a
+    location and message are one line naming the configurations."""
+    from .stream_check import check_streams
+
+    p = loaded.protocol
+    problems: list[Problem] = []
+    motions: dict[str, list[Motion]] = {
+        j: [(("calibration_step",), _calibration_what(p, j), calibration_trajectory(p, j))]
+        for j in p.driven_joints
+    }
     per_configuration: dict[tuple[Loc, str], list[tuple[str, int]]] = {}
     for loc, message, item in _resolve_configurations(loaded, check_files):
         if message:
             set_index, key = item
             where = generated.get(loc[:4], loc)
             per_configuration.setdefault((where, message), []).append((p.sets[set_index].name, key))
-        elif item is not None:
-            motions.append(item)
+        else:
+            joint, motion = item
+            motions[joint].append(motion)
     all_keys = {c.key for _, c in p.configurations()}
     problems += [
         (loc, f"{message} ({_which_configurations(where, all_keys)})")
         for (loc, message), where in per_configuration.items()
     ]
-    if not problems:  # each trajectory field against the joint's range, rate and acceleration
-        problems += _limit_problems(loaded, motions)
-    if not problems:  # every motion's complete commanded stream, approach and exit included
-        from .stream_check import check_streams
-
-        problems += list(check_streams(loaded, motions, check_files=check_files))
+    if problems:
+        return problems
+    for joint in p.driven_joints:  # each trajectory field against the joint's range, rate and acceleration
+        named = joint if p.multi_joint else ""
+        problems += _limit_problems(_joint_view(loaded, joint), motions[joint], named)
+    if problems:
+        return problems
+    for joint in p.driven_joints:  # every motion's complete commanded stream, approach and exit included
+        view = _joint_view(loaded, joint)
+        problems += list(check_streams(view, motions[joint], check_files=check_files))
     return problems
+
+
+def _joint_view(loaded: LoadedProtocol, joint: str) -> LoadedProtocol:
+    """The protocol as seen by one driven joint: `protocol.rig` is that joint's resolved rig."""
+    p = loaded.protocol
+    if len(p.rigs) == 1:
+        return loaded
+    return dataclasses.replace(loaded, protocol=p.with_rigs((p.rig_of(joint),)))
+
+
+def _calibration_what(p: Protocol, joint: str) -> str:
+    return f"the calibration step of joint {joint}" if p.multi_joint else "the calibration step"
+
+
+def output_budget(n_joints: int, report_time_s: float, rate_hz: float) -> tuple[float, float, int]:
+    """(time the tick's output reports take, one tick, the largest whole rate in Hz whose tick holds
+    them). The USB-3105 has no multi-channel report: a tick of N joints is N AOUT reports and one
+    AOUT_SYNC (docs/hardware.md), each `report_time_s` on the wire."""
+    needed_s = (n_joints + 1) * report_time_s
+    return needed_s, 1.0 / rate_hz, math.floor(1.0 / needed_s + 1e-9)
+
+
+def _check_output_budget(p: Protocol) -> Iterator[Problem]:
+    """The output reports of one tick fit in that tick (1 / output rate)."""
+    out = p.rig.output
+    if out.report_time_s is None:
+        return
+    n = len(p.driven_joints)
+    needed_s, tick_s, largest_hz = output_budget(n, out.report_time_s, out.rate_hz)
+    if needed_s <= tick_s + 1e-12:
+        return
+    lowered = p.rig_overrides.output_rate_hz is not None
+    where: Loc = (
+        ("rig_overrides", "output_rate_hz") if lowered else ("joints",) if p.multi_joint else ("joint",)
+    )
+    joints = f"{n} joints need" if n > 1 else "1 joint needs"
+    yield (
+        where,
+        f"{joints} {n + 1} output reports per tick ({n} AOUT + 1 AOUT_SYNC) of "
+        f"{out.report_time_s * 1e3:g} ms each (report_time_s, {p.rig.rig_file}) = {needed_s * 1e3:g} ms, "
+        f"more than one {tick_s * 1e3:g} ms tick at {out.rate_hz:g} Hz; the largest output rate that fits "
+        f"is {largest_hz} Hz: set rig_overrides.output_rate_hz to {largest_hz} or less",
+    )
 
 
 def _which_configurations(where: list[tuple[str, int]], all_keys: set[int]) -> str:
@@ -235,9 +297,9 @@ def _check_matrix(p: Protocol) -> Iterator[Problem]:
 
 
 def _resolve_configurations(loaded: LoadedProtocol, check_files: bool) -> Iterator[tuple[Loc, str, Any]]:
-    """Per configuration: (location, message, (set index, key)) for a problem, or (location, "", motion)."""
+    """Per configuration: (location, message, (set index, key)) for a problem, or, per driven joint,
+    (location, "", (joint, motion))."""
     p = loaded.protocol
-    park = p.rig.safety.park_angle_deg
     for i, s in enumerate(p.sets):
         for j, cfg in enumerate(s.configurations):
             loc: Loc = ("sets", i, "configurations", j)
@@ -247,28 +309,43 @@ def _resolve_configurations(loaded: LoadedProtocol, check_files: bool) -> Iterat
             except BindingError as exc:
                 yield exc.loc, exc.message, which
                 continue
-            for el in st.device:
-                rng = dict(el.params).get("range_deg")
-                stop = ELEMENT_TYPES[el.type].kind == "stop" and isinstance(rng, tuple)
-                if stop and isinstance(rng, tuple) and not rng[0] <= park <= rng[1]:
-                    yield (
-                        loc,
-                        f"the park angle {park:g} deg is outside the stops "
-                        f"{_fmt_range(rng)} of element {el.name!r}: between trials the joint would rest "
-                        "against a stop (choose rig_overrides...safety.park_angle_deg inside every stop range)",
-                        which,
-                    )
+            for joint in p.driven_joints:
+                for message in _park_against_stops(p, joint, st.device_of(joint)):
+                    yield loc, message, which
             if p.profile_of(cfg) == "file" and not check_files:
                 continue
             try:
-                traj = configuration_trajectory(loaded, cfg, st)
+                per_joint = configuration_motion(loaded, cfg, st)
             except BindingError as exc:
                 yield exc.loc, exc.message, which
                 continue
             except InvalidInput as exc:
                 yield (*loc, "trajectory"), _relative_message(exc.message, loaded.base_dir), which
                 continue
-            yield loc, "", (loc, f"configuration {cfg.key}", traj)
+            for joint, traj in per_joint:
+                what = f"configuration {cfg.key}" + (f", joint {joint}" if p.multi_joint else "")
+                yield loc, "", (joint, (loc, what, traj))
+
+
+def _park_against_stops(p: Protocol, joint: str, elements: tuple[ElementSetting, ...]) -> Iterator[str]:
+    """Between trials a joint rests at its park angle: never against a stop of an element it carries."""
+    park = p.rig_of(joint).safety.park_angle_deg
+    for el in elements:
+        rng = dict(el.params).get("range_deg")
+        if ELEMENT_TYPES[el.type].kind != "stop" or not isinstance(rng, tuple) or rng[0] <= park <= rng[1]:
+            continue
+        if p.multi_joint:
+            yield (
+                f"joint {joint}'s park angle {park:g} deg is outside the stops {_fmt_range(rng)} of its "
+                f"element {el.name!r}: between trials the joint would rest against a stop (choose "
+                f"rig_overrides.joints.{joint}.safety.park_angle_deg inside every stop range)"
+            )
+        else:
+            yield (
+                f"the park angle {park:g} deg is outside the stops "
+                f"{_fmt_range(rng)} of element {el.name!r}: between trials the joint would rest "
+                "against a stop (choose rig_overrides...safety.park_angle_deg inside every stop range)"
+            )
 
 
 def _check_calibration_step(p: Protocol) -> Iterator[Problem]:

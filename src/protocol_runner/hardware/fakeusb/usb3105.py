@@ -3,7 +3,7 @@
 It keeps what the board keeps: the code latched on every output, each channel's range, the codes held
 for a synchronous update, the sync mode, the calibration memory, and the LED blinks. Every output report
 received (through the interrupt OUT endpoint or HID SET_REPORT) is appended to `reports`, so tests check
-the exact bytes on the wire. Replies are queued as input reports `[command, data...]` on IN `0x81`.
+the exact bytes on the wire, and may move a test clock by `report_time_s` (the time a report takes). Replies are queued as input reports `[command, data...]` on IN `0x81`.
 
 The DAC is modelled with a gain/offset error that the factory calibration in memory corrects: a code
 `c` makes the pin voltage of the ideal code `(c - offset) / slope` (the inverse of the calibration rule
@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import struct
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -49,6 +50,10 @@ class Usb3105Model(FakeUsbDevice):
 
     interrupt_out: bool = True
     stale_reports: list[bytes] = field(default_factory=list)
+    # the time one output report takes on the wire, spent on `advance` (a `ManualClock.advance`): the
+    # model never sleeps, its reports move the test's clock
+    report_time_s: float = 0.0
+    advance: Callable[[float], None] | None = None
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -123,6 +128,8 @@ class Usb3105Model(FakeUsbDevice):
 
     def _report(self, data: bytes) -> None:
         self.reports.append(bytes(data))
+        if self.advance is not None:
+            self.advance(self.report_time_s)
         cmd = data[0]
         if cmd == AOUT and len(data) >= 5:
             ch = data[1]
@@ -172,12 +179,17 @@ def make_usb3105(
     interrupt_out: bool = True,
     stale_reports: list[bytes] | None = None,
     bcd_device: int = Usb3105Model.IDENTITY.bcd_device,
+    report_time_s: float = 0.0,
+    advance: Callable[[float], None] | None = None,
 ) -> Usb3105Model:
-    """A fake USB-3105 with ideal calibration (slope 1, offset 0) and the usbhid driver bound."""
+    """A fake USB-3105 with ideal calibration (slope 1, offset 0) and the usbhid driver bound; each output
+    report it receives calls `advance(report_time_s)` (e.g. a `ManualClock`'s: simulated time, no sleep)."""
     return Usb3105Model.make(
         serial,
         faults,
         bcd_device=bcd_device,
         interrupt_out=interrupt_out,
         stale_reports=list(stale_reports or []),
+        report_time_s=report_time_s,
+        advance=advance,
     )
