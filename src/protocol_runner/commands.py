@@ -115,11 +115,13 @@ def resume(
     only: KeySelection | None = None,
     monitor: Monitor | None = None,
 ) -> int:
+    from .session.lock import refuse_session_links
     from .session.resume_checks import check_resume_arguments, resume_preflight
     from .session.runner import Runner
     from .session.setup import load_session_protocol, read_session_info
 
     info = read_session_info(session_dir)
+    refuse_session_links(session_dir)  # before anything reads or deletes in it
     check_resume_arguments(info, seed=seed, only=only)
     loaded, plan, changed = load_session_protocol(session_dir, info, force=force)
     complete = resume_preflight(session_dir, plan, force=force, info=info)

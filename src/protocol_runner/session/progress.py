@@ -7,6 +7,7 @@ Shows the set, configuration and trial, and the ETA in robot time and in wall ti
 from __future__ import annotations
 
 import logging
+import os
 import sys
 import time
 from pathlib import Path
@@ -14,6 +15,7 @@ from pathlib import Path
 from ..archive.diskfull import QuietFileHandler
 from ..events import NULL_PUBLISHER, Publisher
 from ..protocol.plan import CalibrationCheckStep, Plan, Step, TrialStep
+from .lock import open_nofollow
 
 
 def _fmt_s(seconds: float) -> str:
@@ -62,6 +64,7 @@ class Progress:
         self.logger = logging.getLogger(f"protocol_runner.session.{id(self)}")
         self.logger.setLevel(logging.INFO)
         self.logger.propagate = False
+        os.close(open_nofollow(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND))  # never through a link
         self._file = QuietFileHandler(log_path, encoding="utf-8")  # a full disk: no traceback per line
         self._file.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
         self.logger.addHandler(self._file)

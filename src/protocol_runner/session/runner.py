@@ -34,7 +34,7 @@ from ..steps.context import Bench, StepContext, StepOutcome, processing_settings
 from ..steps.failures import run_step
 from .assembly import consolidate_session
 from .journal import Journal
-from .lock import session_lock
+from .lock import refuse_session_links, session_lock
 from .operator import Operator
 from .progress import Progress
 from .reporting import render_report
@@ -81,6 +81,7 @@ class Runner:
         self.protocol_changed = protocol_changed
         self.quiet = quiet
         self.units_dir = session_dir / "units"
+        refuse_session_links(session_dir)  # lock, journal, log, units: never written through a link
         self.journal = Journal(session_dir / "journal.jsonl")
         self.stop = stop or StopFlag()
         self.steps_run = 0
