@@ -5,12 +5,12 @@ Each returns the process exit status; user mistakes raise `UserError` subclasses
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .errors import EXIT_HARDWARE_UNAVAILABLE, EXIT_OK, InvalidInput
 from .events import NULL_PUBLISHER, Publisher
+from .session.streams import say
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -24,13 +24,13 @@ if TYPE_CHECKING:
 
 
 def _say(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
+    say(message)  # a stream gone (closed terminal, ended pipe) drops the line: session/streams.py
 
 
 def _result(message: str) -> None:
     """The command's outcome, on standard output (progress and prompts are on standard error), so that
     `run-protocol ... > out` keeps the line naming the archive and the report."""
-    print(message, flush=True)
+    say(message, stdout=True)
 
 
 def run(

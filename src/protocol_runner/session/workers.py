@@ -216,7 +216,10 @@ class AnalysisPool:
         for process in multiprocessing.active_children():  # this session's only processes: the workers
             with contextlib.suppress(Exception):
                 process.kill()
-        with contextlib.suppress(Exception):  # quick with the workers gone; its thread must end before exit
-            self._pool.shutdown(wait=True, cancel_futures=True)
+        # not waited for: an interrupt may have left the pool's own thread waiting on a lock or a queue it
+        # never gets (seen: a futex wait of minutes); `run-protocol` then ends without waiting for it
+        # (cli.entry, signals.stopped_at_once)
+        with contextlib.suppress(Exception):
+            self._pool.shutdown(wait=False, cancel_futures=True)
         self._pending.clear()
         self._pool = None
