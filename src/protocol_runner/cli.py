@@ -25,6 +25,7 @@ from .errors import (
     file_system_refusal,
 )
 from .protocol.only import KeySelection
+from .session.signals import on_the_way_out
 from .session.streams import say
 
 if TYPE_CHECKING:
@@ -176,6 +177,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         )
         return EXIT_INTERRUPTED
     except KeyboardInterrupt:
+        on_the_way_out()
         say("run-protocol: interrupted")
         return EXIT_INTERRUPTED
 

@@ -71,13 +71,12 @@ def open_nofollow(path: Path, flags: int, mode: int = 0o644) -> int:
 def session_lock(directory: Path) -> Iterator[None]:
     """Hold the session's lock, or raise `InvalidInput` naming the holder's PID when another process has it.
 
-    filelock opens the lock file by name; older versions follow a symbolic link there and truncate its
-    target. So the lock file is first created here with O_NOFOLLOW (no truncation) and checked not to be a
-    link (`open_nofollow`) before filelock opens it; filelock 3.20.1 and later also open it with O_NOFOLLOW."""
+    filelock opens the lock file by name, and versions before 3.20.1 follow a symbolic link there and
+    truncate its target. So the lock file is checked not to be a link just before filelock opens it
+    (`refuse_session_links`), and a link is refused instead of being handed to filelock; later versions
+    also open it with O_NOFOLLOW, which closes the moment between the check and the opening."""
     refuse_session_links(directory)
-    path = directory / LOCK_NAME
-    os.close(open_nofollow(path, os.O_RDWR | os.O_CREAT))
-    lock = FileLock(str(path))
+    lock = FileLock(str(directory / LOCK_NAME))
     try:
         lock.acquire(timeout=0)
     except Timeout:

@@ -55,6 +55,13 @@ def exit_at_once_after_second_sigint() -> None:
     _deadline.set()
 
 
+def on_the_way_out() -> None:
+    """The `run-protocol` process is ending after an interrupt: another Ctrl-C now would only kill it with
+    a traceback (exit -2 instead of 130), so it is ignored."""
+    if _deadline.is_set() and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 STOP_SIGNALS = tuple(
     getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
 )

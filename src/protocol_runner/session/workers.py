@@ -47,8 +47,8 @@ T = TypeVar("T")
 
 def worker_context() -> multiprocessing.context.BaseContext:
     """How workers are started: forked from a fork server (a clean process started for them, which imports
-    `PRELOADED` once) where the platform has one, else spawned."""
-    if "forkserver" not in multiprocessing.get_all_start_methods():
+    `PRELOADED` once) where the platform has one (and `os.fork`: not on Windows), else spawned."""
+    if not hasattr(os, "fork") or "forkserver" not in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("spawn")
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(list(PRELOADED))
