@@ -58,6 +58,7 @@ def run(
         _say(warning)
     if realtime and not dry_run:
         raise InvalidInput("--realtime paces the simulator: use it with --dry-run")
+    operator = _operator(dry_run or yes)  # one that cannot ask (no terminal, no --yes): refused here, first
     if not dry_run:
         from .session.rigs import HardwareBench
 
@@ -78,7 +79,6 @@ def run(
         f"session {directory}: {loaded.protocol.name}, {len(plan)} steps, about {robot} of robot motion "
         f"({info.mode}, seed {info.seed})"
     )
-    operator = _operator(dry_run or yes)
     publisher: Publisher = NULL_PUBLISHER
     if monitor is not None:
         publisher, operator = monitor.attach(directory, info, plan, bench, operator)
