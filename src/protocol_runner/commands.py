@@ -5,6 +5,7 @@ Each returns the process exit status; user mistakes raise `UserError` subclasses
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -13,7 +14,7 @@ from .events import NULL_PUBLISHER, Publisher
 from .session.streams import say
 
 if TYPE_CHECKING:
-    from collections.abc import Iterable
+    from collections.abc import Iterable, Iterator
 
     from .monitor.service import Monitor
     from .protocol.loader import LoadedProtocol
@@ -168,10 +169,19 @@ def report(
     protocol_file: str | None,
     export_mat: Path | None,
 ) -> int:
+    _html_output(output)
+    with _session_held(path):
+        return _report(
+            path, output=output, reprocess=reprocess, protocol_file=protocol_file, export_mat=export_mat
+        )
+
+
+def _report(
+    path: Path, *, output: Path | None, reprocess: bool, protocol_file: str | None, export_mat: Path | None
+) -> int:
     from .report.render import generate_report
 
-    _html_output(output)
-    archive = _archive_of(path)
+    archive = _archive_of(path, locked=True)
     if reprocess:
         from .archive.reprocess import reprocess_archive
 
@@ -248,26 +258,46 @@ def _html_output(path: Path | None) -> None:
         )
 
 
-def _archive_of(path: Path) -> Path:
-    """An archive path, or a session directory (consolidated first if it has none yet)."""
+@contextlib.contextmanager
+def _session_held(path: Path) -> Iterator[None]:
+    """Hold the lock of the session that `path` (a session directory, or an archive in one) belongs to, so
+    that a report is never rendered from an archive that a running `--resume` is about to replace, nor
+    written beside its newer archive after it: while a run or a resume holds the session, `--report` is
+    refused (exit 2, naming its PID; that run writes its own report when it ends), and a resume started
+    while a report is being rendered is refused likewise. A session folder where no lock can be created
+    (read-only media) is read without one: nothing can be writing to it there."""
+    from .session.lock import session_lock
+
+    folder = path if path.is_dir() else path.parent
+    with contextlib.ExitStack() as held:
+        if (folder / "session.json").is_file():  # else an archive on its own
+            with contextlib.suppress(OSError):  # no lock can be made (read-only): none can be held
+                held.enter_context(session_lock(folder))
+        yield
+
+
+def _archive_of(path: Path, *, locked: bool = False) -> Path:
+    """An archive path, or a session directory (consolidated first if it has none yet; `locked`: the caller
+    holds the session's lock)."""
     if path.is_dir():
         candidate = path / "archive.h5"
         if candidate.is_file():
             return candidate
         if (path / "session.json").is_file():
-            return _consolidate_unfinished(path)
+            return _consolidate_unfinished(path, locked=locked)
         raise InvalidInput(f"{path}: neither an archive.h5 nor a session directory")
     if not path.exists():
         raise InvalidInput(f"{path}: no such archive or session directory")
     return path
 
 
-def _consolidate_unfinished(session_dir: Path) -> Path:
+def _consolidate_unfinished(session_dir: Path, *, locked: bool = False) -> Path:
     from .session.lock import session_lock
     from .session.runner import Runner
     from .session.setup import load_session_protocol, read_session_info
 
-    with session_lock(session_dir):  # a resume may have finished meanwhile: look again, holding the lock
+    # a resume may have finished meanwhile: look again, holding the lock
+    with contextlib.nullcontext() if locked else session_lock(session_dir):
         archive = session_dir / "archive.h5"
         if archive.is_file():
             return archive
