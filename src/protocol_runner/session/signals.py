@@ -13,8 +13,8 @@ Ctrl-C on a terminal signals the whole process group, worker processes included:
 SIGINT blocked while a worker is started, so the worker inherits the block (and then ignores SIGINT) instead
 of dying with a traceback while it is still importing; the parent receives the signal once unblocked. Where
 threads cannot block signals (Windows: no `signal.pthread_sigmask`), it does nothing: a worker then ignores
-SIGINT from its first line (`workers.worker_init`), and a Windows console's Ctrl-C reaches the session
-process through its handler.
+SIGINT from its start-up function on (`workers.worker_init`), and a Windows console's Ctrl-C reaches the
+session process through its handler.
 
 A Python signal handler runs between any two bytecodes of the main thread, also inside a weakref callback
 or a `__del__`, where an exception cannot propagate: Python prints "Exception ignored in ..." with a
