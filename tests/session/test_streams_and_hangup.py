@@ -144,3 +144,19 @@ def test_a_second_ctrl_c_ends_the_process_even_when_stopping_the_workers_hangs(t
             proc.kill()
             proc.wait()
     assert code == 130, err.read_text()
+
+
+@posix_only
+def test_a_hangup_ignored_by_nohup_stays_ignored() -> None:
+    """`nohup run-protocol ...` ignores SIGHUP so that closing the terminal does not stop the campaign."""
+    from protocol_runner.session.signals import StopFlag
+
+    previous = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    flag = StopFlag()
+    try:
+        flag.install()
+        assert signal.getsignal(signal.SIGHUP) == signal.SIG_IGN
+        assert signal.getsignal(signal.SIGINT) == flag._handler
+    finally:
+        flag.uninstall()
+        signal.signal(signal.SIGHUP, previous)

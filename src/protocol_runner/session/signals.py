@@ -127,6 +127,8 @@ class StopFlag:
         if threading.current_thread() is not threading.main_thread():
             return
         for sig in STOP_SIGNALS:
+            if sig != signal.SIGINT and signal.getsignal(sig) == signal.SIG_IGN:
+                continue  # `nohup run-protocol ...`: a closed terminal is meant not to stop it
             self._previous[sig] = signal.signal(sig, self._handler)
         self._previous_hook = sys.unraisablehook
         sys.unraisablehook = self._unraisable
