@@ -83,8 +83,11 @@ def main() -> int:
                 os.killpg(proc.pid, signal.SIGKILL)
                 proc.wait()
             codes[outcome] += 1
-            if "Traceback" in err.read_text(errors="replace"):
+            said = err.read_text(errors="replace")
+            if "Traceback" in said:
                 tracebacks.append(n)
+            if "Traceback" in said or outcome not in (0, 130):
+                print("    " + "\n    ".join(said.strip().splitlines()[-40:]))
             print(f"try {n + 1:2d}: signals at {delay_s:5.2f} s: {outcome}", flush=True)
             shutil.rmtree(session, ignore_errors=True)
         print(f"hung: {codes['hung']} of {args.tries}")

@@ -180,6 +180,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         on_the_way_out()
         say("run-protocol: interrupted")
         return EXIT_INTERRUPTED
+    except Exception as exc:
+        if not _caused_by_an_interrupt(exc):
+            raise
+        on_the_way_out()  # a Ctrl-C inside an import (an extension then says "initialization failed")
+        say("run-protocol: interrupted")
+        return EXIT_INTERRUPTED
+
+
+def _caused_by_an_interrupt(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is in the chain of causes of `exc`."""
+    seen: set[int] = set()
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        if isinstance(link, KeyboardInterrupt):
+            return True
+        seen.add(id(link))
+        link = link.__cause__ or link.__context__
+    return False
 
 
 def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:

@@ -21,6 +21,7 @@ import contextlib
 import json
 import os
 from collections.abc import Callable
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -175,6 +176,11 @@ class Runner:
         except Exception as exc:  # a bug: keep what was finished, record it, and let the traceback show
             if is_disk_full(exc):  # not a bug: the journal or the report could not be written either
                 raise self._disk_full(exc) from None
+            if isinstance(exc, BrokenProcessPool) and self.stop():  # a worker ended during a stop
+                self._stopped("interrupted", f"{self.stop.signal_name}; an analysis worker ended", progress)
+                raise Interrupted(
+                    f"stopped ({self.stop.signal_name}). The session is resumable: run-protocol --resume {self.dir}"
+                ) from None
             refusal = file_system_refusal(exc)
             if refusal is not None:  # the file system said no (a directory where a unit belongs, ...)
                 self._stopped("stopped", refusal, progress)

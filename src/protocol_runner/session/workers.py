@@ -139,14 +139,17 @@ class AnalysisPool:
             if fit in self.plan._index and fit not in self.journal.units:
                 chain.append(self.plan.step(fit))
         self.submitted.update(s.id for s in chain)
-        with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
-            if self._pool is None:
+        if self._pool is None:
+            with sigint_blocked():
                 self._pool = ProcessPoolExecutor(
                     max_workers=min(2, os.cpu_count() or 1),
                     mp_context=worker_context(),
                     initializer=_start_worker,
                     initargs=(self.loaded, self.plan),
                 )
+        # blocked again: creating the pool may start multiprocessing's resource tracker, which unblocks
+        # SIGINT in this thread once it has started it; the workers (and the fork server) start here
+        with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
             future = self._pool.submit(_run_task, self.units_dir, tuple(s.id for s in chain))
         self._pending.append((tuple(chain), future))
 
