@@ -59,11 +59,17 @@ def run(
         _say(warning)
     if realtime and not dry_run:
         raise InvalidInput("--realtime paces the simulator: use it with --dry-run")
-    operator = _operator(dry_run or yes)  # one that cannot ask (no terminal, no --yes): refused here, first
-    if not dry_run:
+    if dry_run:
+        operator = _operator(True)
+    else:
         from .session.rigs import HardwareBench
 
         hardware = HardwareBench(loaded)  # exit 3 with a plain message when the boards are absent
+        try:
+            operator = _operator(yes)  # one that cannot ask (no terminal, no --yes): refused before creating
+        except BaseException:
+            hardware.close()
+            raise
     directory = session or default_session_dir(loaded.protocol.name)
     info = create_session(
         directory,

@@ -3,8 +3,8 @@
 - While a question waits for the operator's answer, the progress display draws nothing (it redraws about
   ten times a second and used to erase the checklist question and the operator's typing), and it is
   running again once the question is answered.
-- A hardware run without a terminal and without --yes is refused before anything is created or opened:
-  no session folder is left behind, and the DAQ boards are not touched."""
+- A hardware run without a terminal and without --yes is refused before anything is created: no session
+  folder is left behind, and the DAQ boards opened to check them are closed again."""
 
 from __future__ import annotations
 
@@ -84,10 +84,13 @@ def test_the_display_never_draws_over_a_question_waiting_for_its_answer(
 
 
 class Boards:
-    opened = 0
+    open = 0
 
     def __init__(self, loaded: object) -> None:
-        Boards.opened += 1
+        Boards.open += 1
+
+    def close(self) -> None:
+        Boards.open -= 1
 
 
 def test_a_hardware_run_that_cannot_prompt_is_refused_before_anything_is_created(
@@ -108,4 +111,4 @@ def test_a_hardware_run_that_cannot_prompt_is_refused_before_anything_is_created
             quiet=True,
         )
     assert not session.exists() and not session.parent.exists()
-    assert Boards.opened == 0
+    assert Boards.open == 0
