@@ -25,6 +25,8 @@ from .errors import (
     file_system_refusal,
 )
 from .protocol.only import KeySelection
+from .session.signals import on_the_way_out
+from .session.streams import say
 
 if TYPE_CHECKING:
     from .monitor.service import Monitor
@@ -165,7 +167,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return _dispatch(parser, args)
     except UserError as exc:
-        print(f"run-protocol: {exc.message}", file=sys.stderr)
+        say(f"run-protocol: {exc.message}")
         from .archive.diskfull import DiskFull
 
         if isinstance(exc, DiskFull):
@@ -177,18 +179,36 @@ def main(argv: Sequence[str] | None = None) -> int:
         if not is_disk_full(exc):
             refusal = file_system_refusal(exc)
             if refusal is not None:  # the file system said no: not a bug of ours
-                print(f"run-protocol: {refusal}", file=sys.stderr)
+                say(f"run-protocol: {refusal}")
                 return EXIT_INVALID_INPUT
             raise
-        print(
+        say(
             f"run-protocol: disk full ({exc.filename or exc.strerror or exc}): nothing finished is lost. Free "
-            "some space, then run the command again (a session continues with run-protocol --resume DIR)",
-            file=sys.stderr,
+            "some space, then run the command again (a session continues with run-protocol --resume DIR)"
         )
         return EXIT_INTERRUPTED
     except KeyboardInterrupt:
-        print("run-protocol: interrupted", file=sys.stderr)
+        on_the_way_out()
+        say("run-protocol: interrupted")
         return EXIT_INTERRUPTED
+    except Exception as exc:
+        if not _caused_by_an_interrupt(exc):
+            raise
+        on_the_way_out()  # a Ctrl-C inside an import (an extension then says "initialization failed")
+        say("run-protocol: interrupted")
+        return EXIT_INTERRUPTED
+
+
+def _caused_by_an_interrupt(exc: BaseException) -> bool:
+    """Whether a KeyboardInterrupt is in the chain of causes of `exc`."""
+    seen: set[int] = set()
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        if isinstance(link, KeyboardInterrupt):
+            return True
+        seen.add(id(link))
+        link = link.__cause__ or link.__context__
+    return False
 
 
 RUN = "a run"
@@ -311,7 +331,7 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     if args.monitor is not None and (args.resume is not None or args.protocol is not None):
         from .monitor.service import Monitor
 
-        with Monitor.open(args.monitor, say=lambda text: print(text, file=sys.stderr, flush=True)) as live:
+        with Monitor.open(args.monitor, say=say) as live:
             return _run_or_resume(parser, args, live)
     return _run_or_resume(parser, args, None)
 
@@ -403,13 +423,19 @@ def entry() -> None:
     space, and the interpreter's teardown closing it again crashes the process (a segmentation fault, exit
     139 instead of 130: `--only 15,16,17` on a 3 MB file system). So the process then ends at once, its
     output and log flushed, as after a kill, which loses nothing: every finished unit is on disk and
-    journaled, and a temporary file is removed or redone by the resume (docs/session.md)."""
+    journaled, and a temporary file is removed or redone by the resume (docs/session.md). So it does after a
+    second Ctrl-C, which may have left the analysis workers' pool waiting for ever on what the interrupt
+    broke (the pool's thread is joined at exit)."""
     one_blas_thread()
+    from .session.signals import exit_at_once_after_second_sigint, stopped_at_once
+    from .session.streams import flush_standard_streams, reopen_missing_standard_streams
+
+    reopen_missing_standard_streams()  # `2>&-`: the null device, not the next file opened, as descriptor 2
+    exit_at_once_after_second_sigint()
     code = main()
-    if _ENDED_BY_A_FULL_DISK.is_set():
+    flush_standard_streams()  # a pipe whose reader ended: no "Exception ignored" at exit
+    if _ENDED_BY_A_FULL_DISK.is_set() or stopped_at_once():
         logging.shutdown()
-        sys.stdout.flush()
-        sys.stderr.flush()
         os._exit(code)
     sys.exit(code)
 

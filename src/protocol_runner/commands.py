@@ -5,15 +5,16 @@ Each returns the process exit status; user mistakes raise `UserError` subclasses
 
 from __future__ import annotations
 
-import sys
+import contextlib
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .errors import EXIT_HARDWARE_UNAVAILABLE, EXIT_OK, InvalidInput
 from .events import NULL_PUBLISHER, Publisher
+from .session.streams import say
 
 if TYPE_CHECKING:
-    from collections.abc import Iterable
+    from collections.abc import Iterable, Iterator
 
     from .monitor.service import Monitor
     from .protocol.loaded import LoadedProtocol
@@ -25,17 +26,14 @@ if TYPE_CHECKING:
 
 
 def _say(message: str) -> None:
-    print(message, file=sys.stderr, flush=True)
+    say(message)  # a stream gone (closed terminal, ended pipe) drops the line: session/streams.py
 
 
 def _result(message: str) -> None:
     """The command's outcome, on standard output (progress and prompts are on standard error), so that
     `run-protocol ... > out` keeps the line naming the archive and the report. A path that is not valid
     UTF-8 is shown with U+FFFD where its odd byte is (a UTF-8 standard output cannot carry the byte)."""
-    try:
-        print(message, flush=True)
-    except UnicodeEncodeError:
-        print(message.encode("utf-8", "surrogateescape").decode("utf-8", "replace"), flush=True)
+    say(message, stdout=True)
 
 
 def run(
@@ -93,10 +91,17 @@ def run_loaded(
         _say(warning)
     if realtime and not dry_run:
         raise InvalidInput("--realtime paces the simulator: use it with --dry-run")
-    if not dry_run:
+    if dry_run:
+        operator = _operator(True)
+    else:
         from .session.rigs import HardwareBench
 
         hardware = HardwareBench(loaded)  # exit 3 with a plain message when the boards are absent
+        try:
+            operator = _operator(yes)  # one that cannot ask (no terminal, no --yes): refused before creating
+        except BaseException:
+            hardware.close()
+            raise
     directory = session or default_session_dir(loaded.protocol.name)
     info = create_session(
         directory,
@@ -155,11 +160,13 @@ def resume(
     only: KeySelection | None = None,
     monitor: Monitor | None = None,
 ) -> int:
+    from .session.lock import refuse_session_links
     from .session.resume_checks import check_resume_arguments, resume_preflight
     from .session.runner import Runner
     from .session.setup import load_session_protocol, read_session_info
 
     info = read_session_info(session_dir)
+    refuse_session_links(session_dir)  # before anything reads or deletes in it
     check_resume_arguments(info, seed=seed, only=only)
     loaded, plan, changed = load_session_protocol(session_dir, info, force=force)
     complete = resume_preflight(session_dir, plan, force=force, info=info)
@@ -206,10 +213,19 @@ def report(
     protocol_file: str | None,
     export_mat: Path | None,
 ) -> int:
+    _html_output(output)
+    with _session_held(path):
+        return _report(
+            path, output=output, reprocess=reprocess, protocol_file=protocol_file, export_mat=export_mat
+        )
+
+
+def _report(
+    path: Path, *, output: Path | None, reprocess: bool, protocol_file: str | None, export_mat: Path | None
+) -> int:
     from .report.render import generate_report
 
-    _html_output(output)
-    archive = _archive_of(path)
+    archive = _archive_of(path, locked=True)
     if reprocess:
         from .archive.reprocess import reprocess_archive
 
@@ -292,26 +308,46 @@ def _html_output(path: Path | None) -> None:
         )
 
 
-def _archive_of(path: Path) -> Path:
-    """An archive path, or a session directory (consolidated first if it has none yet)."""
+@contextlib.contextmanager
+def _session_held(path: Path) -> Iterator[None]:
+    """Hold the lock of the session that `path` (a session directory, or an archive in one) belongs to, so
+    that a report is never rendered from an archive that a running `--resume` is about to replace, nor
+    written beside its newer archive after it: while a run or a resume holds the session, `--report` is
+    refused (exit 2, naming its PID; that run writes its own report when it ends), and a resume started
+    while a report is being rendered is refused likewise. A session folder where no lock can be created
+    (read-only media) is read without one: nothing can be writing to it there."""
+    from .session.lock import session_lock
+
+    folder = path if path.is_dir() else path.parent
+    with contextlib.ExitStack() as held:
+        if (folder / "session.json").is_file():  # else an archive on its own
+            with contextlib.suppress(OSError):  # no lock can be made (read-only): none can be held
+                held.enter_context(session_lock(folder))
+        yield
+
+
+def _archive_of(path: Path, *, locked: bool = False) -> Path:
+    """An archive path, or a session directory (consolidated first if it has none yet; `locked`: the caller
+    holds the session's lock)."""
     if path.is_dir():
         candidate = path / "archive.h5"
         if candidate.is_file():
             return candidate
         if (path / "session.json").is_file():
-            return _consolidate_unfinished(path)
+            return _consolidate_unfinished(path, locked=locked)
         raise InvalidInput(f"{path}: neither an archive.h5 nor a session directory")
     if not path.exists():
         raise InvalidInput(f"{path}: no such archive or session directory")
     return path
 
 
-def _consolidate_unfinished(session_dir: Path) -> Path:
+def _consolidate_unfinished(session_dir: Path, *, locked: bool = False) -> Path:
     from .session.lock import session_lock
     from .session.runner import Runner
     from .session.setup import load_session_protocol, read_session_info
 
-    with session_lock(session_dir):  # a resume may have finished meanwhile: look again, holding the lock
+    # a resume may have finished meanwhile: look again, holding the lock
+    with contextlib.nullcontext() if locked else session_lock(session_dir):
         archive = session_dir / "archive.h5"
         if archive.is_file():
             return archive

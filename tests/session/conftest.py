@@ -114,5 +114,5 @@ def assert_same_data(reference: Path, other: Path) -> None:
 
 def copy_session(reference_archive: Path, to: Path) -> Path:
     """A copy of the reference session (its lock aside) at `to`."""
-    shutil.copytree(reference_archive.parent, to, ignore=shutil.ignore_patterns(".lock"))
+    shutil.copytree(reference_archive.parent, to, ignore=shutil.ignore_patterns(".lock", ".lock.pid"))
     return to

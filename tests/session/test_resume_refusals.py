@@ -176,7 +176,7 @@ def test_a_journal_that_is_not_a_file_is_refused_without_reading_it(
     (session / "journal.jsonl").symlink_to("/dev/zero")  # endless: read, it would fill the memory
     assert main(["--resume", str(session), "--yes"]) == 2
     err = capsys.readouterr().err
-    assert "journal.jsonl" in err and "not a regular file" in err and "Traceback" not in err
+    assert "journal.jsonl" in err and "symbolic link" in err and "Traceback" not in err
 
 
 def test_an_archive_that_is_a_directory_is_one_line_not_a_traceback(
@@ -301,7 +301,7 @@ def test_a_unit_path_the_resume_could_not_save_to_is_refused_before_any_step_run
 ) -> None:
     """Before, a directory where a trial's unit belongs let the resume re-run the set's calibration check
     and the trial (on the rig, a run of the robot) and only then fail to save it, as an "internal error";
-    `units` as a link loop was refused as "File exists"."""
+    `units` as a link loop was refused as "File exists" (a link is never followed: session/lock.py)."""
     session = copy_session(reference_archive, tmp_path / "s")
     (session / "archive.h5").unlink()
     journal = Journal(session / "journal.jsonl")
@@ -314,7 +314,7 @@ def test_a_unit_path_the_resume_could_not_save_to_is_refused_before_any_step_run
     elif what == "units a link loop":
         (session / "units").rename(session / "units.kept")
         (session / "units").symlink_to("units")
-        named = f"{session / 'units'}: is a symbolic link that leads to no directory"
+        named = f"{session / 'units'} is a symbolic link"
     else:
         shutil.rmtree(session / "units")
         (session / "units").write_text("not a directory\n")

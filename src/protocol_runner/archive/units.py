@@ -39,9 +39,18 @@ def unit_path(units_dir: Path, step_id: str) -> Path:
     return units_dir / f"{group_name(step_id)}.h5"
 
 
+DIRECTORY_FSYNC = os.name != "nt"
+"""Whether a directory can be opened and fsynced, making a rename into it durable: POSIX systems (Linux,
+macOS). Windows cannot open a directory with `os.open`; NTFS journals the rename itself."""
+
+
 def fsync_path(path: Path) -> None:
-    """Flush a file's or a directory's entry (after a rename into it) to the disk."""
-    fd = os.open(path, os.O_RDONLY)
+    """Flush a file's or a directory's entry (after a rename into it) to the disk (a directory: where the
+    platform can, `DIRECTORY_FSYNC`)."""
+    if not DIRECTORY_FSYNC and path.is_dir():
+        return
+    # Windows flushes only a handle opened for writing (FlushFileBuffers); POSIX any descriptor
+    fd = os.open(path, os.O_RDWR if os.name == "nt" else os.O_RDONLY)
     try:
         os.fsync(fd)
     finally:

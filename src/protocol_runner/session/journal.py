@@ -16,6 +16,7 @@ from typing import Any
 
 from ..archive.units import UnitRecord
 from ..errors import InvalidInput
+from .lock import open_nofollow, refuse_link
 
 
 def utc_now() -> str:
@@ -73,6 +74,8 @@ def _unit_record(rec: dict[str, Any]) -> UnitRecord:
 def _unusable(path: Path) -> str:
     """Why the existing `path` cannot be this session's journal ("" if it can): not a regular file (a link
     to /dev/zero would be read for ever), or larger than MAX_JOURNAL_BYTES."""
+    if path.is_symlink():
+        return f"{path} is a symbolic link"
     if not path.is_file():
         return f"{path} is not a regular file"
     if path.stat().st_size > MAX_JOURNAL_BYTES:
@@ -127,6 +130,7 @@ class Journal:
         self.answers: dict[str, dict[str, Any]] = {}
         self.torn_lines = 0
         self.damaged_lines = 0  # lines read that are not records (the torn tail, cut off first, aside)
+        refuse_link(path)  # appended to: never through a link (session/lock.py)
         if path.exists():
             reason = _unusable(path)
             if reason:
@@ -182,7 +186,7 @@ class Journal:
 
     def _append(self, rec: dict[str, Any]) -> None:
         line = json.dumps(rec, sort_keys=True) + "\n"
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        fd = open_nofollow(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT)
         try:
             os.write(fd, line.encode("utf-8"))
             os.fsync(fd)

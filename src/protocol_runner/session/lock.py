@@ -1,36 +1,113 @@
-"""One process per session directory: an exclusive, non-blocking lock held while a run writes to it.
+"""One process per session directory: an exclusive, non-blocking lock held while a run writes to it; and
+the refusal of session files that are symbolic links.
 
-Two `--resume` of the same session, or `--report DIR` assembling the archive of a session that is still
-running, would otherwise write the same files. The lock dies with its process (a crash releases it).
+Two `--resume` of the same session, or `--report DIR` assembling or rendering the archive of a session
+that is still running, would otherwise write the same files. The lock is `filelock`'s (an OS lock on
+`<session>/.lock`: `flock` on Linux and macOS, `LockFileEx`/`msvcrt.locking` on Windows), so it dies with its
+process: a crash or `kill -9` releases it. The holder's PID is written to `<session>/.lock.pid` (not into
+the lock file, which some filelock versions truncate when they try to take it), for the refusal message.
+
+The session's own files (`.lock`, `.lock.pid`, `journal.jsonl`, `session.log`, `units/`) are never
+followed through a symbolic link: a link planted there would otherwise have its target truncated,
+appended to or filled with units. A session whose files are links is refused with exit 2, naming the
+path (the session directory itself may be a link: it is the user's choice of where sessions live).
 """
 
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import os
 from collections.abc import Iterator
 from pathlib import Path
 
+from filelock import FileLock, Timeout
+
 from ..errors import InvalidInput
 
 LOCK_NAME = ".lock"
+PID_NAME = ".lock.pid"
+SESSION_FILES = (LOCK_NAME, PID_NAME, "journal.jsonl", "session.log", "units")
+"""The names in a session directory that are opened for writing or appending, or written into."""
+
+O_NOFOLLOW = getattr(os, "O_NOFOLLOW", 0)
+"""Makes `os.open` refuse a symbolic link as the last component (ELOOP) where the platform has it (Linux,
+macOS); 0 on Windows, where the `is_symlink` check before opening stands alone."""
+
+
+def refuse_link(path: Path) -> None:
+    """`InvalidInput` (exit 2) if `path` is a symbolic link (or a Windows junction)."""
+    if path.is_symlink() or _is_junction(path):
+        raise InvalidInput(
+            f"{path} is a symbolic link; a session's files must be its own (a link could make run-protocol "
+            "write elsewhere). Replace it with a regular file or folder, or remove it"
+        )
+
+
+def _is_junction(path: Path) -> bool:
+    is_junction = getattr(os.path, "isjunction", None)  # Python 3.12+
+    return bool(is_junction(path)) if is_junction is not None else False
+
+
+def refuse_session_links(directory: Path) -> None:
+    """Refuse a session whose lock, journal, log or units folder is a symbolic link (the directory itself
+    may be one)."""
+    for name in SESSION_FILES:
+        refuse_link(directory / name)
+
+
+def open_nofollow(path: Path, flags: int, mode: int = 0o644) -> int:
+    """`os.open` that never follows a symbolic link at `path`: checked first (every platform), then opened
+    with O_NOFOLLOW where the platform has it, so a link swapped in between fails to open (ELOOP) there."""
+    refuse_link(path)
+    try:
+        return os.open(path, flags | O_NOFOLLOW, mode)
+    except OSError:
+        if path.is_symlink():  # swapped in after the check (ELOOP)
+            refuse_link(path)
+        raise
 
 
 @contextlib.contextmanager
 def session_lock(directory: Path) -> Iterator[None]:
-    path = directory / LOCK_NAME
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    """Hold the session's lock, or raise `InvalidInput` naming the holder's PID when another process has it.
+
+    filelock opens the lock file by name, and versions before 3.20.1 follow a symbolic link there and
+    truncate its target. So the lock file is checked not to be a link just before filelock opens it
+    (`refuse_session_links`), and a link is refused instead of being handed to filelock; later versions
+    also open it with O_NOFOLLOW, which closes the moment between the check and the opening."""
+    refuse_session_links(directory)
+    lock = FileLock(str(directory / LOCK_NAME))
     try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 32, 0).decode(errors="replace").strip() or "another process"
-            raise InvalidInput(
-                f"{directory} is in use by another run-protocol (pid {holder}); wait for it to finish or stop it"
-            ) from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, str(os.getpid()).encode(), 0)
+        lock.acquire(timeout=0)
+    except Timeout:
+        raise InvalidInput(
+            f"{directory} is in use by another run-protocol (pid {_holder(directory)}); wait for it to "
+            "finish or stop it"
+        ) from None
+    try:
+        _write_pid(directory / PID_NAME)
         yield
     finally:
-        os.close(fd)  # closing releases the lock
+        lock.release()
+
+
+def _write_pid(path: Path) -> None:
+    with contextlib.suppress(OSError):  # only the refusal message of another process needs it
+        fd = open_nofollow(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+        try:
+            os.write(fd, str(os.getpid()).encode())
+        finally:
+            os.close(fd)
+
+
+def _holder(directory: Path) -> str:
+    """The PID the lock's holder wrote, or "another process" if it cannot be read (yet)."""
+    try:
+        fd = open_nofollow(directory / PID_NAME, os.O_RDONLY)
+    except (OSError, InvalidInput):
+        return "another process"
+    try:
+        text = os.read(fd, 32).decode(errors="replace").strip()
+    finally:
+        os.close(fd)
+    return text if text.isdigit() else "another process"

@@ -2,7 +2,8 @@
 
 `AutoOperator` answers for a dry run or `--yes` (checklists done; a failed calibration check is NOT
 accepted automatically: safety first). `ConsoleOperator` asks on the terminal with rich: protocol text
-shown verbatim, explicit answers only.
+shown verbatim, explicit answers only. While a question waits for its answer, the live progress display
+is paused (`progress.display_paused`), so that it never draws over the question or the operator's typing.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from ..errors import Interrupted, InvalidInput
 from ..protocol.plan_steps import ChecklistStep
 from ..steps.operator import Answer
 from .journal import utc_now
+from .progress import display_paused
 
 ANSWERS = {"y": "y", "yes": "y", "n": "n", "no": "n", "q": "q", "quit": "q"}  # nothing else counts
 
@@ -62,25 +64,28 @@ class ConsoleOperator:
         from rich.text import Text
 
         body = Text("\n".join(f"[ ] {item}" for item in step.items))
-        while True:
-            self.console.print(Panel(body, title=Text(step.title), subtitle=Text(step.id)))
-            reply = self._ask("All done? (y = done, n = show again, q = stop here, resumable)")
-            if reply == "y":
-                return Answer("done", utc_now(), automatic=False)
-            if reply == "q":
-                raise Interrupted(f"stopped by the operator at {step.id}")
+        with display_paused():
+            while True:
+                self.console.print(Panel(body, title=Text(step.title), subtitle=Text(step.id)))
+                reply = self._ask("All done? (y = done, n = show again, q = stop here, resumable)")
+                if reply == "y":
+                    return Answer("done", utc_now(), automatic=False)
+                if reply == "q":
+                    raise Interrupted(f"stopped by the operator at {step.id}")
 
     def accept_failed_check(self, message: str) -> bool:
         from rich.text import Text
 
-        self.console.print(Text(message, style="bold red"))
-        reply = self._ask("Accept this result and continue? (y/n; q = stop here, resumable)")
+        with display_paused():
+            self.console.print(Text(message, style="bold red"))
+            reply = self._ask("Accept this result and continue? (y/n; q = stop here, resumable)")
         if reply == "q":
             raise Interrupted("stopped by the operator after a failed calibration check")
         return reply == "y"
 
     def confirm(self, question: str) -> bool:
-        reply = self._ask(question + " (y/n; q = stop, resumable)")
+        with display_paused():
+            reply = self._ask(question + " (y/n; q = stop, resumable)")
         if reply == "q":
             raise Interrupted("stopped by the operator")
         return reply == "y"

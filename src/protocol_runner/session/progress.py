@@ -1,19 +1,44 @@
 """Progress of a session: a rich display on a terminal, plain log lines otherwise, a log file, and the
 live monitor's publisher (`--monitor`; a null one otherwise).
 
-Shows the set, configuration and trial, and the ETA in robot time and in wall time.
+Shows the set, configuration and trial, and the ETA in robot time and in wall time. Every line shown is
+in `session.log` too: a line that cannot be shown (the terminal closed, a pipe whose reader ended) is
+dropped from the screen and the session goes on (`streams.py`). While an operator prompt waits for an
+answer on the terminal, the live display is paused (`display_paused`): it redraws about ten times a second
+and would otherwise draw over the question and the operator's typing.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 from ..archive.diskfull import QuietFileHandler
 from ..events import NULL_PUBLISHER, Publisher
 from ..protocol.plan_steps import CalibrationCheckStep, Plan, Step, TrialStep
+from .lock import open_nofollow
+from .streams import say
+
+_LIVE: list[Progress] = []  # the displays drawing on this process's terminal (one per running session)
+
+
+@contextlib.contextmanager
+def display_paused() -> Iterator[None]:
+    """Stop the live progress display while a prompt is on the terminal; redraw it after."""
+    paused = [p for p in _LIVE if p._rich is not None]
+    for p in paused:
+        p._pause()
+    try:
+        yield
+    finally:
+        for p in paused:
+            p._resume()
 
 
 def _fmt_s(seconds: float) -> str:
@@ -63,13 +88,15 @@ class Progress:
         self.logger = logging.getLogger(f"protocol_runner.session.{id(self)}")
         self.logger.setLevel(logging.INFO)
         self.logger.propagate = False
+        os.close(open_nofollow(log_path, os.O_WRONLY | os.O_CREAT | os.O_APPEND))  # never through a link
         self._file = QuietFileHandler(log_path, encoding="utf-8")  # a full disk: no traceback per line
         self._file.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
         self.logger.addHandler(self._file)
         self.quiet = quiet
-        self._rich = None
+        self._rich: Any = None
         self._task = None
-        if not quiet and sys.stderr.isatty():
+        if not quiet and sys.stderr is not None and sys.stderr.isatty():
+            from rich.console import Console
             from rich.progress import BarColumn, MofNCompleteColumn, TextColumn, TimeElapsedColumn
             from rich.progress import Progress as RichProgress
 
@@ -79,10 +106,38 @@ class Progress:
                 MofNCompleteColumn(),
                 TimeElapsedColumn(),
                 TextColumn("{task.fields[eta]}"),
+                console=Console(stderr=True),  # progress and prompts are on standard error
                 transient=False,
             )
-            self._rich.start()
             self._task = self._rich.add_task("session", total=self.n_total, completed=self.n_done, eta="")
+            self._resume()
+            _LIVE.append(self)
+
+    def _pause(self) -> None:
+        with contextlib.suppress(OSError, ValueError):  # the terminal is gone: nothing to stop drawing on
+            self._rich.stop()
+
+    def _resume(self) -> None:
+        try:
+            self._rich.start()
+        except (OSError, ValueError):
+            self._gone()
+
+    def _gone(self) -> None:
+        """The terminal went away: no more display; the lines go on in session.log."""
+        if self._rich is not None:
+            self._pause()
+            self._rich = None
+            self.logger.info("the terminal is gone: progress is in this log only")
+
+    def _show(self, line: str) -> None:
+        if self._rich is not None:
+            try:
+                self._rich.console.print(line, markup=False, highlight=False)
+            except (OSError, ValueError):
+                self._gone()
+        elif not self.quiet:
+            say(line)
 
     def _eta(self) -> str:
         """Robot time left, and the wall time it will take at the wall-per-robot-second rate of the steps
@@ -99,10 +154,7 @@ class Progress:
 
     def info(self, message: str) -> None:
         self.logger.info(message)
-        if self._rich is not None:
-            self._rich.console.print(message)
-        elif not self.quiet:
-            print(message, file=sys.stderr, flush=True)
+        self._show(message)
 
     def step_started(self, step: Step) -> None:
         self.logger.info("start %s", step.id)
@@ -124,12 +176,12 @@ class Progress:
         self.publisher.step_end(step, summary)
         if self._rich is not None and self._task is not None:
             self._rich.update(self._task, completed=self.n_done, eta=self._eta())
-            self._rich.console.print(line)
-        elif not self.quiet:
-            print(line, file=sys.stderr, flush=True)
+        self._show(line)
 
     def close(self) -> None:
+        if self in _LIVE:
+            _LIVE.remove(self)
         if self._rich is not None:
-            self._rich.stop()
+            self._pause()
         self.logger.removeHandler(self._file)
         self._file.close()

@@ -21,6 +21,7 @@ import contextlib
 import json
 import os
 from collections.abc import Callable
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -36,7 +37,7 @@ from ..steps.failures import run_step
 from ..steps.operator import Operator
 from .assembly import consolidate_session
 from .journal import Journal
-from .lock import session_lock
+from .lock import refuse_session_links, session_lock
 from .progress import Progress
 from .reporting import render_report
 from .resume import prepare_resume
@@ -82,6 +83,7 @@ class Runner:
         self.protocol_changed = protocol_changed
         self.quiet = quiet
         self.units_dir = session_dir / "units"
+        refuse_session_links(session_dir)  # lock, journal, log, units: never written through a link
         self.journal = Journal(session_dir / "journal.jsonl")
         self.stop = stop or StopFlag()
         self.steps_run = 0
@@ -175,6 +177,11 @@ class Runner:
         except Exception as exc:  # a bug: keep what was finished, record it, and let the traceback show
             if is_disk_full(exc):  # not a bug: the journal or the report could not be written either
                 raise self._disk_full(exc) from None
+            if isinstance(exc, BrokenProcessPool) and self.stop():  # a worker ended during a stop
+                self._stopped("interrupted", f"{self.stop.signal_name}; an analysis worker ended", progress)
+                raise Interrupted(
+                    f"stopped ({self.stop.signal_name}). The session is resumable: run-protocol --resume {self.dir}"
+                ) from None
             refusal = file_system_refusal(exc)
             if refusal is not None:  # the file system said no (a directory where a unit belongs, ...)
                 self._stopped("stopped", refusal, progress)

@@ -1,12 +1,20 @@
-"""SIGINT/SIGTERM: stop at the next safe point; a second SIGINT stops at once.
+"""SIGINT/SIGTERM/SIGHUP: stop at the next safe point; a second SIGINT stops at once.
 
 The first signal sets a flag that the runner checks between steps and the rig's loop polls during a
 trial (~every 100 ms); the session then parks the joint, writes its journal and exits 130, resumable.
+SIGHUP (the terminal or the SSH connection closed) is one of them where the platform has it: the joint
+is parked and the stop journaled as for Ctrl-C, the lines that can no longer be shown going to session.log.
 A second SIGINT raises KeyboardInterrupt immediately: only complete units stay behind (units are atomic).
+In the `run-protocol` process (`exit_at_once_after_second_sigint`), it also arms a deadline: if the
+process has not ended `EXIT_DEADLINE_S` later, whatever it is waiting for (a worker, the pool's threads),
+it ends itself with exit 130.
 
 Ctrl-C on a terminal signals the whole process group, worker processes included: `sigint_blocked` keeps
 SIGINT blocked while a worker is started, so the worker inherits the block (and then ignores SIGINT) instead
-of dying with a traceback while it is still importing; the parent receives the signal once unblocked.
+of dying with a traceback while it is still importing; the parent receives the signal once unblocked. Where
+threads cannot block signals (Windows: no `signal.pthread_sigmask`), it does nothing: a worker then ignores
+SIGINT from its start-up function on (`workers.worker_init`), and a Windows console's Ctrl-C reaches the
+session process through its handler.
 
 A Python signal handler runs between any two bytecodes of the main thread, also inside a weakref callback
 or a `__del__`, where an exception cannot propagate: Python prints "Exception ignored in ..." with a
@@ -18,6 +26,8 @@ from __future__ import annotations
 
 import _thread
 import contextlib
+import logging
+import os
 import signal
 import sys
 import threading
@@ -25,11 +35,46 @@ from collections.abc import Iterator
 from types import FrameType
 from typing import Any
 
+from .streams import say
+
+EXIT_DEADLINE_S = 10.0
+"""After a second SIGINT, the longest the `run-protocol` process takes to end (exit 130)."""
+
+_deadline = threading.Event()  # set: a second SIGINT ends the process within EXIT_DEADLINE_S
+_stopped_at_once = threading.Event()  # set by a second SIGINT
+
+
+def stopped_at_once() -> bool:
+    """Whether a second SIGINT stopped a session of this process at once."""
+    return _stopped_at_once.is_set()
+
+
+def exit_at_once_after_second_sigint() -> None:
+    """Arm the deadline of a second SIGINT for this process (the command-line program; a program calling
+    the library keeps its process to itself)."""
+    _deadline.set()
+
+
+def on_the_way_out() -> None:
+    """The `run-protocol` process is ending after an interrupt: another Ctrl-C now would only kill it with
+    a traceback (exit -2 instead of 130), so it is ignored."""
+    if _deadline.is_set() and threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+STOP_SIGNALS = tuple(
+    getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name)
+)
+"""The signals that stop a session at its next safe point (SIGHUP: not on Windows)."""
+
 
 @contextlib.contextmanager
 def sigint_blocked() -> Iterator[None]:
     """Block SIGINT in this thread for the duration (one that arrives meanwhile is delivered at the end, not
     lost); processes started meanwhile inherit the block. SIGTERM stays open: the pool may need it."""
+    if not hasattr(signal, "pthread_sigmask"):  # Windows: plain handlers only
+        yield
+        return
     previous = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
     try:
         yield
@@ -56,13 +101,14 @@ class StopFlag:
         name = signal.Signals(signum).name
         self._signalled = True
         if self._event.is_set() and signum == signal.SIGINT:
+            _stopped_at_once.set()
+            if _deadline.is_set():
+                _end_after(EXIT_DEADLINE_S)
             raise KeyboardInterrupt
         self.request(name)
-        print(
+        say(  # a closed terminal (SIGHUP) cannot show it: dropped, never raised from here
             f"\nrun-protocol: {name} received: stopping at the next safe point (the joint will be parked). "
-            "Press Ctrl-C again to stop at once.",
-            file=sys.stderr,
-            flush=True,
+            "Press Ctrl-C again to stop at once."
         )
 
     def _unraisable(self, unraisable: Any) -> None:
@@ -76,18 +122,34 @@ class StopFlag:
     def install(self) -> None:
         if threading.current_thread() is not threading.main_thread():
             return
-        for sig in (signal.SIGINT, signal.SIGTERM):
+        for sig in STOP_SIGNALS:
+            if sig != signal.SIGINT and signal.getsignal(sig) == signal.SIG_IGN:
+                continue  # `nohup run-protocol ...`: a closed terminal is meant not to stop it
             self._previous[sig] = signal.signal(sig, self._handler)
         self._previous_hook = sys.unraisablehook
         sys.unraisablehook = self._unraisable
 
     def uninstall(self) -> None:
-        """Restore the previous handlers; after a stop by signal, ignore SIGINT instead: the process is on
-        its way out, and another Ctrl-C during its exit would only print a traceback."""
+        """Restore the previous handlers; after a stop by signal, ignore SIGINT and SIGHUP instead: the
+        process is on its way out, and another Ctrl-C during its exit would only print a traceback."""
         for sig, handler in self._previous.items():
-            stopping = self._signalled and sig == signal.SIGINT
+            stopping = self._signalled and sig != signal.SIGTERM
             signal.signal(sig, signal.SIG_IGN if stopping else handler)
         self._previous.clear()
         if self._previous_hook is not None:
             sys.unraisablehook = self._previous_hook
             self._previous_hook = None
+
+
+def _end_after(seconds: float) -> None:
+    """End the process with exit 130 `seconds` from now unless it has ended by then: the way out of a wait
+    that a second Ctrl-C cannot interrupt (a worker pool's thread, a lock left held by the interrupt)."""
+
+    def end() -> None:
+        with contextlib.suppress(Exception):
+            logging.shutdown()
+        os._exit(130)
+
+    timer = threading.Timer(seconds, end)
+    timer.daemon = True
+    timer.start()

@@ -50,8 +50,8 @@ T = TypeVar("T")
 
 def worker_context() -> multiprocessing.context.BaseContext:
     """How workers are started: forked from a fork server (a clean process started for them, which imports
-    `PRELOADED` once) where the platform has one, else spawned."""
-    if "forkserver" not in multiprocessing.get_all_start_methods():
+    `PRELOADED` once) where the platform has one (and `os.fork`: not on Windows), else spawned."""
+    if not hasattr(os, "fork") or "forkserver" not in multiprocessing.get_all_start_methods():
         return multiprocessing.get_context("spawn")
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(list(PRELOADED))
@@ -157,14 +157,17 @@ class AnalysisPool:
             if fit in self.plan._index and fit not in self.journal.units:
                 chain.append(self.plan.step(fit))
         self.submitted.update(s.id for s in chain)
-        with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
-            if self._pool is None:
+        if self._pool is None:
+            with sigint_blocked():
                 self._pool = ProcessPoolExecutor(
                     max_workers=min(2, os.cpu_count() or 1),
                     mp_context=worker_context(),
                     initializer=_start_worker,
                     initargs=(self.loaded, self.plan),
                 )
+        # blocked again: creating the pool may start multiprocessing's resource tracker, which unblocks
+        # SIGINT in this thread once it has started it; the workers (and the fork server) start here
+        with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
             future = self._pool.submit(_run_task, self.units_dir, tuple(s.id for s in chain))
         self._pending.append((tuple(chain), future))
 
@@ -248,7 +251,10 @@ class AnalysisPool:
         for process in multiprocessing.active_children():  # this session's only processes: the workers
             with contextlib.suppress(Exception):
                 process.kill()
-        with contextlib.suppress(Exception):  # quick with the workers gone; its thread must end before exit
-            self._pool.shutdown(wait=True, cancel_futures=True)
+        # not waited for: an interrupt may have left the pool's own thread waiting on a lock or a queue it
+        # never gets (seen: a futex wait of minutes); `run-protocol` then ends without waiting for it
+        # (cli.entry, signals.stopped_at_once)
+        with contextlib.suppress(Exception):
+            self._pool.shutdown(wait=False, cancel_futures=True)
         self._pending.clear()
         self._pool = None
