@@ -12,7 +12,6 @@ with the small attribute readers of `h5read.py`; the checks are `archive/verify.
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
 from pathlib import Path
 
 import h5py
@@ -43,7 +42,6 @@ def load_report_data(
     *,
     workers: int | None = None,
     verify: bool = True,
-    known: Mapping[str, Configuration] | None = None,
 ) -> ReportData:
     """Read the archive at `path` (a file, or a session directory holding `archive.h5`).
 
@@ -56,21 +54,14 @@ def load_report_data(
     (neither checksums nor bounds): only for an archive this process has just consolidated from units
     whose sha256 it checked against the journal (the session's own report): every byte of it is then
     known to be what protocol-runner wrote, within its bounds and matching its checksums.
-    `known` (with `verify=False` only) gives configurations already read from exactly the groups the
-    archive holds under their names (the session reads them ahead, `session/read_ahead.py`): they are
-    not read again.
     """
-    if known and verify:  # a caller's bug, not a bad archive
-        raise ValueError("configurations read ahead are for an archive read without checks")
     archive = resolve_archive(Path(path))
     require_hdf5(archive)
     try:
         with h5py.File(archive, "r") as h5:
             names = check_root(h5, archive)
         # the file is closed before the workers start: HDF5 handles must not be shared with a forked process
-        ahead = [cfg for name, cfg in (known or {}).items() if name in names]
-        rest = [name for name in names if name not in (known or {})]
-        configurations = _load_configurations(archive, rest, workers, verify, ahead)
+        configurations = _load_configurations(archive, names, workers, verify)
         with h5py.File(archive, "r") as h5:
             if verify:  # the root's and every other group's attributes and datasets (configurations: above)
                 checker = Checker.of(h5, archive)
@@ -95,7 +86,7 @@ def _load_chunk(archive: Path, names: list[str], verify: bool = True) -> list[Co
 
 
 def _load_configurations(
-    archive: Path, names: list[str], workers: int | None, verify: bool, known: list[Configuration]
+    archive: Path, names: list[str], workers: int | None, verify: bool
 ) -> tuple[Configuration, ...]:
     if workers is None:
         workers = 2 if len(names) >= 12 and (os.cpu_count() or 1) >= 2 else 1
@@ -105,7 +96,7 @@ def _load_configurations(
         configs = parts
     if configs is None:
         configs = _load_chunk(archive, names, verify)
-    return tuple(sorted([*configs, *known], key=lambda c: c.key))
+    return tuple(sorted(configs, key=lambda c: c.key))
 
 
 def _load_one(item: tuple[Path, str, bool]) -> Configuration:

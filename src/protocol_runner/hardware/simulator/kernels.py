@@ -7,8 +7,8 @@ brakes, brake states)`,
 the command history, a scan's `timing` (float64) and `rows` (int64) arrays read through the named
 index constants below, the sensor chain and the ADC.
 
-They release the GIL (`nogil=True`): while the main thread simulates, the session's unit writer thread
-(`session/unit_writer.py`) runs. Releasing it changes nothing in the arithmetic.
+They release the GIL (`nogil=True`): while the main thread simulates, the process's other threads (the
+live monitor's server, the analysis pool's hand-over) run. Releasing it changes nothing in the arithmetic.
 """
 
 from __future__ import annotations
