@@ -39,6 +39,7 @@ class ParamSpec:
     shape: Shape = "number"
     fit_starts: tuple[float, ...] = ()
     fit_scale: float = 1.0
+    plausible: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -69,8 +70,9 @@ def _p(
     shape: Shape = "number",
     starts: tuple[float, ...] = (),
     scale: float = 1.0,
+    plausible: tuple[float, float] | None = None,
 ) -> ParamSpec:
-    return ParamSpec(unit, default, fittable, bounds, doc, shape, starts, scale)
+    return ParamSpec(unit, default, fittable, bounds, doc, shape, starts, scale, plausible)
 
 
 def _fit_param(default_fit: tuple[str, ...]) -> ParamSpec:
@@ -190,12 +192,16 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "amplitude A (rad). Brakes with equal smoothing share one state in the simulator",
             "dissipative",
             {
-                "torque_nm": _p("_nm", "friction torque while sliding fast", bounds=_NONNEG),
+                "torque_nm": _p(
+                    "_nm", "friction torque while sliding fast", fittable=True, bounds=_NONNEG
+                ),
                 "transition_deg": _p(
                     "_deg",
                     "travel over which the friction reverses (Dahl σ = torque / this)",
                     1.0,
+                    fittable=True,
                     bounds=(1e-6, 90.0),
+                    plausible=(0.01, 30.0),
                 ),
                 "static_excess_ratio": _p(
                     "_ratio",
@@ -212,7 +218,11 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "viscous_damper",
             "viscous damping: torque = damping · speed. Loses π·c·ω·A² per cycle (c per rad)",
             "dissipative",
-            {"damping_nm_s_per_deg": _p("_nm_s_per_deg", "damping coefficient", bounds=_NONNEG)},
+            {
+                "damping_nm_s_per_deg": _p(
+                    "_nm_s_per_deg", "damping coefficient", fittable=True, bounds=_NONNEG
+                )
+            },
         ),
         ElementType(
             "rom_stops",

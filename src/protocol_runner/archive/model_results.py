@@ -1,0 +1,131 @@
+"""The archive's model-comparison groups of a configuration (or of one joint of it): `fits/element_model`
+(every declared element's fitted parameters with 95 % intervals, the identification mark and the
+covariance) and `fits/models` (the comparison table and the Bouc-Wen functionals). Layout in
+docs/archive.md; numbers from `analysis.model_comparison`."""
+
+from __future__ import annotations
+
+import json
+from typing import TYPE_CHECKING, Any
+
+import h5py
+import numpy as np
+
+from .fast_read import read_values
+from .h5util import put_attrs
+from .paths import CONFIGURATIONS, FITS, PROCESSED
+from .results import Fill
+
+if TYPE_CHECKING:
+    from ..analysis.model_comparison import ModelComparison
+    from ..analysis.model_fit import ElementModelFit
+
+ELEMENT_MODEL = "element_model"
+MODELS = "models"
+
+
+def element_model_attrs(fit: ElementModelFit) -> dict[str, Any]:
+    est = fit.estimates
+    return {
+        "parameters": [f"{e.element}.{e.parameter}" for e in est],
+        "value": [e.value for e in est],
+        "ci95_low": [e.ci95_low for e in est],
+        "ci95_high": [e.ci95_high for e in est],
+        "identified": [int(e.identified) for e in est],
+        "plausible_low": [e.plausible[0] for e in est],
+        "plausible_high": [e.plausible[1] for e in est],
+        "notes": json.dumps([e.note for e in est]),
+        "covariance": [float(v) for v in np.asarray(fit.covariance).ravel()],
+        "values_json": json.dumps({f"{k[0]}.{k[1]}": float(v) for k, v in fit.values.items()}),
+        "rmse_nm": float(fit.rmse_nm),
+        "n_samples": int(fit.n_samples),
+        "n_eff": float(fit.n_eff),
+    }
+
+
+def models_attrs(comparison: ModelComparison) -> dict[str, Any]:
+    rows = comparison.rows
+    f = comparison.bouc_wen_functionals
+    return {
+        "model": [r.model for r in rows],
+        "k": [int(r.k) for r in rows],
+        "rmse_nm": [float(r.rmse_nm) for r in rows],
+        "heldout_rmse_nm": [float(r.heldout_rmse_nm) for r in rows],
+        "aic": [float(r.aic) for r in rows],
+        "bic": [float(r.bic) for r in rows],
+        "energy_model_j": [float(r.energy_model_j) for r in rows],
+        "energy_data_j": [float(r.energy_data_j) for r in rows],
+        "energy_flag": [int(r.energy_flag) for r in rows],
+        "functional": [x.name for x in f],
+        "functional_unit": [x.unit for x in f],
+        "functional_value": [x.value for x in f],
+        "functional_ci95_low": [x.ci95_low for x in f],
+        "functional_ci95_high": [x.ci95_high for x in f],
+    }
+
+
+def write_comparison(owner: h5py.Group, comparison: ModelComparison) -> None:
+    """`fits/element_model` and `fits/models` under `owner` (a configuration group, or a joint's)."""
+    fits = owner.require_group(FITS)
+    if comparison.element_fit is not None:
+        put_attrs(
+            fits.create_group(ELEMENT_MODEL), ELEMENT_MODEL, element_model_attrs(comparison.element_fit)
+        )
+    put_attrs(fits.create_group(MODELS), MODELS, models_attrs(comparison))
+
+
+def _list(g: h5py.Group, key: str) -> list[Any]:
+    value = g.attrs.get(key, [])
+    return (
+        [v.decode() if isinstance(v, bytes) else v for v in np.atleast_1d(value).tolist()]
+        if len(np.atleast_1d(value))
+        else []
+    )
+
+
+def read_models(g: h5py.Group) -> list[dict[str, Any]]:
+    """The rows of a `fits/models` group, one dict per model (the export's models.csv columns)."""
+    names = _list(g, "model")
+    columns = ("k", "rmse_nm", "heldout_rmse_nm", "aic", "bic", "energy_model_j", "energy_data_j")
+    values = {c: _list(g, c) for c in columns}
+    return [{"model": m, **{c: values[c][i] for c in columns}} for i, m in enumerate(names)]
+
+
+def read_element_model(g: h5py.Group) -> list[dict[str, Any]]:
+    """The rows of a `fits/element_model` group: element, parameter, value, interval, identified."""
+    out = []
+    params = _list(g, "parameters")
+    value, low, high, ident = (_list(g, k) for k in ("value", "ci95_low", "ci95_high", "identified"))
+    for i, p in enumerate(params):
+        element, parameter = str(p).rsplit(".", 1)
+        out.append(
+            {
+                "element": element,
+                "parameter": parameter,
+                "value": float(value[i]),
+                "ci95_low": float(low[i]),
+                "ci95_high": float(high[i]),
+                "identified": bool(ident[i]),
+            }
+        )
+    return out
+
+
+def read_processed_trials(trials: h5py.Group) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Each trial's stored processed `(time_s, angle_deg, brace_torque_nm)` under a `trials` group, in
+    trial order: the element model's input (it needs the time for the speed)."""
+    out = []
+    for n in sorted(trials, key=int):
+        g = trials[n][PROCESSED]
+        out.append(tuple(read_values(g[k]) for k in ("time_s", "angle_deg", "brace_torque_nm")))
+    return out  # type: ignore[return-value]
+
+
+def comparison_fill(name: str, before: Fill, comparison: ModelComparison) -> Fill:
+    """`before` (the Bouc-Wen fit's fill), then the comparison's groups under `configurations/<name>`."""
+
+    def fill(f: h5py.File) -> None:
+        before(f)
+        write_comparison(f.require_group(f"{CONFIGURATIONS}/{name}"), comparison)
+
+    return fill
