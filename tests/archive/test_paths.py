@@ -88,6 +88,8 @@ ATTRIBUTE_SECTIONS = {
     "energy_loss": SECTIONS["configuration"],
     "bouc_wen": SECTIONS["bouc_wen"],
     "elements": SECTIONS["elements"],
+    "element_model": _line_with("| `fits/element_model`"),
+    "models": _line_with("| `fits/models`"),
     "spring": SECTIONS["spring"],
     "reference": SECTIONS["reference"],
     "comparison": _between("## `/comparisons/<name>`", "## `/expectations"),

@@ -13,7 +13,8 @@ effective_samples`, the same as the Bouc-Wen intervals'). The covariance is the 
 
 Identification: each parameter has a plausible range (its registry `plausible`, else its bounds when
 finite, else a range from the data's scale: a torque up to twice the largest measured torque, a damping
-up to that over the largest speed, a stiffness up to that over the angle range). A parameter is
+up to that over the largest speed, a stiffness up to that over the angle range, an angle within one
+angle range of the angles reached). A parameter is
 *unidentified* when its 95 % interval covers more than half of that range, or is not finite (the data do
 not determine it, typically two parameters trading off, |correlation| near 1); its value is then printed
 with two significant figures.
@@ -124,7 +125,7 @@ def plausible_range(lay: ModelLayout, key: Key, motions: Sequence[Motion]) -> tu
     if param == "transition_deg":
         return DEFAULT_TRANSITION_BOUNDS
     lo, hi = spec.bounds if spec.bounds is not None else (-math.inf, math.inf)
-    if math.isfinite(lo) and math.isfinite(hi):
+    if math.isfinite(lo) and math.isfinite(hi) and spec.unit != "_deg":
         return lo, hi
     torque = max(float(np.max(np.abs(m.torque_nm))) for m in motions)
     angle = np.concatenate([m.angle_deg for m in motions])

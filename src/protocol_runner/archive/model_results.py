@@ -74,27 +74,35 @@ def write_comparison(owner: h5py.Group, comparison: ModelComparison) -> None:
     put_attrs(fits.create_group(MODELS), MODELS, models_attrs(comparison))
 
 
+def strings(g: h5py.Group, key: str) -> list[str]:
+    """A list-of-strings attribute written by `write_comparison` (stored as a JSON list)."""
+    value = g.attrs.get(key, "[]")
+    value = value.decode("utf-8") if isinstance(value, bytes) else value
+    if isinstance(value, str):
+        out = json.loads(value) if value.startswith("[") else [value]
+        return [str(v) for v in out]
+    return [v.decode("utf-8") if isinstance(v, bytes) else str(v) for v in np.atleast_1d(value)]
+
+
 def _list(g: h5py.Group, key: str) -> list[Any]:
-    value = g.attrs.get(key, [])
-    return (
-        [v.decode() if isinstance(v, bytes) else v for v in np.atleast_1d(value).tolist()]
-        if len(np.atleast_1d(value))
-        else []
-    )
+    return [float(v) for v in np.atleast_1d(np.asarray(g.attrs.get(key, []), dtype=np.float64))]
 
 
 def read_models(g: h5py.Group) -> list[dict[str, Any]]:
     """The rows of a `fits/models` group, one dict per model (the export's models.csv columns)."""
-    names = _list(g, "model")
+    names = strings(g, "model")
     columns = ("k", "rmse_nm", "heldout_rmse_nm", "aic", "bic", "energy_model_j", "energy_data_j")
     values = {c: _list(g, c) for c in columns}
-    return [{"model": m, **{c: values[c][i] for c in columns}} for i, m in enumerate(names)]
+    return [
+        {"model": m, **{c: (int(values[c][i]) if c == "k" else values[c][i]) for c in columns}}
+        for i, m in enumerate(names)
+    ]
 
 
 def read_element_model(g: h5py.Group) -> list[dict[str, Any]]:
     """The rows of a `fits/element_model` group: element, parameter, value, interval, identified."""
     out = []
-    params = _list(g, "parameters")
+    params = strings(g, "parameters")
     value, low, high, ident = (_list(g, k) for k in ("value", "ci95_low", "ci95_high", "identified"))
     for i, p in enumerate(params):
         element, parameter = str(p).rsplit(".", 1)

@@ -118,6 +118,7 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
                     bounds=(0.0, 100.0),
                     starts=(10.0, 60.0),
                     scale=10.0,
+                    plausible=(0.0, 100.0),
                 ),
                 "zero_offset_deg": _p(
                     "_deg",
@@ -127,6 +128,7 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
                     bounds=(-40.0, 40.0),
                     starts=(-15.0, 15.0),
                     scale=10.0,
+                    plausible=(-40.0, 40.0),
                 ),
                 "a_m": _p(
                     "_m",

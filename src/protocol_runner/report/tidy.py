@@ -16,6 +16,9 @@ the quantity's suffix; a list such as a range [lo, hi] is written `lo;hi`), tria
 trial means with its 95 % t-interval and between-trial CV (`report.headline`, the numbers of the report's
 summary table), the angle reached and the Bouc-Wen fit quality.
 
+`models.csv`, `elements.csv`, `predictions.csv`: the model comparison, the element model's parameters
+with their intervals and the declared predictions (`report.model_tables`).
+
 Public API: export_tables(archive, output_dir) -> tuple[Path, ...]
 """
 
@@ -35,6 +38,7 @@ from protocol_runner.errors import InvalidInput
 from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.model import Configuration, ReportData
+from protocol_runner.report.model_tables import export_model_tables
 
 CYCLE_COLUMNS = (
     "configuration",
@@ -191,7 +195,8 @@ def _configuration_rows(data: ReportData) -> tuple[list[str], list[list[object]]
 
 
 def export_tables(archive: Path, output_dir: Path) -> tuple[Path, ...]:
-    """Write cycles.csv, trials.csv and configurations.csv of `archive` into `output_dir`; return them.
+    """Write cycles.csv, trials.csv, configurations.csv and the model tables (models.csv, elements.csv,
+    predictions.csv: `report.model_tables`) of `archive` into `output_dir`; return them.
 
     Raises `InvalidInput` for an unreadable archive or an output path that is not a usable directory.
     """
@@ -207,4 +212,5 @@ def export_tables(archive: Path, output_dir: Path) -> tuple[Path, ...]:
         _write(output_dir / "cycles.csv", CYCLE_COLUMNS, cycles),
         _write(output_dir / "trials.csv", TRIAL_COLUMNS, trials),
         _write(output_dir / "configurations.csv", columns, configurations),
+        *export_model_tables(Path(data.session.archive_path), data.protocol_text, output_dir),
     )
