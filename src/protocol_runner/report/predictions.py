@@ -176,9 +176,10 @@ def reproducibility(configs: h5py.Group) -> dict[tuple[str, str], float]:
         declared = layout(_device(cfg)).declared
         fitted = json.loads(str(g.attrs["values_json"]))
         for key in strings(g, "parameters"):
-            k = tuple(key.rsplit(".", 1))
+            element, param = key.rsplit(".", 1)
+            k = (element, param)
             if k in declared and key in fitted:
-                groups.setdefault((k, declared[k]), []).append(float(fitted[key]))  # type: ignore[index]
+                groups.setdefault((k, declared[k]), []).append(float(fitted[key]))
     sq: dict[tuple[str, str], float] = {}
     dof: dict[tuple[str, str], int] = {}
     for (k, _), values in groups.items():
@@ -203,11 +204,11 @@ def element_prediction(
     if g is None or "device_json" not in src.attrs or "device_json" not in dst.attrs or "trials" not in dst:
         return None
     values = {tuple(k.rsplit(".", 1)): float(v) for k, v in json.loads(str(g.attrs["values_json"])).items()}
-    names = [tuple(p.rsplit(".", 1)) for p in strings(g, "parameters")]
+    names = [(p.rsplit(".", 1)[0], p.rsplit(".", 1)[1]) for p in strings(g, "parameters")]
     x = np.asarray(g.attrs["value"], dtype=np.float64).ravel()
     cov = np.asarray(g.attrs["covariance"], dtype=np.float64).reshape(x.size, x.size)
     # the configuration-to-configuration spread of each parameter adds to A's own fit uncertainty
-    cov = cov + np.diag([(spread or {}).get(k, 0.0) ** 2 for k in names])
+    cov = cov + np.diag(np.array([(spread or {}).get(k, 0.0) ** 2 for k in names]))
     lay_a, lay_b = layout(_device(src)), layout(_device(dst))
     motions = motions_of(read_processed_trials(dst["trials"]))
 
