@@ -101,7 +101,7 @@ def reduced_layout(elements: Sequence[Element], angle_deg: FloatArray) -> ModelL
     if not lay.friction_members:
         from ..models.elements import build_element
 
-        brake = build_element("friction", "coulomb_brake", {"torque_nm": 0.0})
+        brake = build_element("dry_friction", "coulomb_brake", {"torque_nm": 0.0})
         lay = layout([*kept, brake], angle_deg=angle_deg)
     return replace(lay, excess_ratio=0.0)
 

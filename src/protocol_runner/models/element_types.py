@@ -194,14 +194,11 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "amplitude A (rad). Brakes with equal smoothing share one state in the simulator",
             "dissipative",
             {
-                "torque_nm": _p(
-                    "_nm", "friction torque while sliding fast", fittable=True, bounds=_NONNEG
-                ),
+                "torque_nm": _p("_nm", "friction torque while sliding fast", bounds=_NONNEG),
                 "transition_deg": _p(
                     "_deg",
                     "travel over which the friction reverses (Dahl σ = torque / this)",
                     1.0,
-                    fittable=True,
                     bounds=(1e-6, 90.0),
                     plausible=(0.01, 30.0),
                 ),
@@ -221,9 +218,7 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "viscous damping: torque = damping · speed. Loses π·c·ω·A² per cycle (c per rad)",
             "dissipative",
             {
-                "damping_nm_s_per_deg": _p(
-                    "_nm_s_per_deg", "damping coefficient", fittable=True, bounds=_NONNEG
-                )
+                "damping_nm_s_per_deg": _p("_nm_s_per_deg", "damping coefficient", bounds=_NONNEG)
             },
         ),
         ElementType(
