@@ -1,12 +1,13 @@
-"""Acquisition alone: one knee trial through `run_motion` on the simulated rig, the block path (issue 20)
-against the per-tick loop (the baseline, in the same run), with the same seed, device and trajectory.
+"""Acquisition alone: one knee trial through `run_motion` on the simulated rig (the rig's paced loop driving
+the simulated boards in simulated time), with a fixed seed, device and trajectory.
 
     python benchmarks/bench_acquisition.py [--repeats 7] [--periods 8]
 
 The trial is an Appendix A sinusoid (20-110 deg at 50 deg/s, `--periods` periods, 8 like the protocol) with
 the knee brace fitted (R1 stops, friction level 2, K2, centre preload), approach and exit included. Prints
-the median CPU and wall time of each path, robot time / CPU time, and checks that both paths recorded the
-same codes. The machine's load average is printed: the box is shared.
+the median CPU and wall time, robot time / CPU time, and a checksum of the recorded codes (equal between two
+checkouts that record the same data). To compare two checkouts, run it with each one's `src` first on
+PYTHONPATH, alternating. The machine's load average is printed: the box is shared.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import os
 import statistics
 import sys
 import time
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -33,9 +35,9 @@ from protocol_runner.protocol.sampling import sample_trajectory
 from protocol_runner.protocol.trajectories import sinusoid_period_s
 
 
-def trial(blocks: bool, cmd: np.ndarray) -> tuple[float, float, float, TrialRecording]:
+def trial(cmd: np.ndarray) -> tuple[float, float, float, TrialRecording]:
     joint = knee_joint_config(max_rate_deg_s=120.0, max_accel_deg_s2=2000.0)
-    sim = SimulatedRig(joint, seed=2007, params=KNEE_PARAMS, scheduled_blocks=blocks)
+    sim = SimulatedRig(joint, seed=2007, params=KNEE_PARAMS)
     sim.set_device(knee_brace((40.0, 90.0), 3.75, 13.0, 3))
     rig = sim.make_rig()
     sim.begin_step("bench")
@@ -52,29 +54,19 @@ def main() -> None:
     period = sinusoid_period_s(45.0, 50.0)
     traj = Trajectory("sinusoid", args.periods * period, mean_deg=65.0, amplitude_deg=45.0, period_s=period)
     cmd = sample_trajectory(traj, 100.0, Path("."))
-    trial(True, cmd[:200])  # numba's cache and first-call costs out of the way
-    trial(False, cmd[:200])
-    results: dict[bool, list[tuple[float, float]]] = {False: [], True: []}
-    recs: dict[bool, TrialRecording] = {}
-    robot_s = 0.0
-    for _ in range(args.repeats):
-        for blocks in (False, True):  # interleaved: both paths see the same machine load
-            cpu, wall, robot_s, recs[blocks] = trial(blocks, cmd)
-            results[blocks].append((cpu, wall))
-    same = all(
-        np.array_equal(getattr(recs[False], name), getattr(recs[True], name))
-        for name in ("command_codes", "angle_codes", "torque_codes", "input_time_s", "stream_deg")
-    )
+    trial(cmd[:200])  # numba's cache and first-call costs out of the way
+    results = [trial(cmd) for _ in range(args.repeats)]
+    robot_s, rec = results[0][2], results[0][3]
+    codes = [getattr(rec, name) for name in ("command_codes", "angle_codes", "torque_codes", "stream_deg")]
+    checksum = zlib.crc32(b"".join(np.ascontiguousarray(a).tobytes() for a in codes))
     print(
         f"one knee trial: {cmd.size} trajectory ticks, {robot_s:.1f} s of robot time with approach and exit"
     )
     print(f"load average {' / '.join(f'{x:.2f}' for x in os.getloadavg())} (1 / 5 / 15 min)")
-    for blocks, name in ((False, "per-tick loop (before)"), (True, "block path")):
-        cpu = statistics.median(c for c, _ in results[blocks])
-        wall = statistics.median(w for _, w in results[blocks])
-        print(f"  {name:24s} CPU {cpu * 1e3:7.1f} ms  wall {wall * 1e3:7.1f} ms  {robot_s / cpu:6.0f}x")
-    ratio = statistics.median(c for c, _ in results[False]) / statistics.median(c for c, _ in results[True])
-    print(f"  block path: {ratio:.1f}x less CPU; same codes on both paths: {same}")
+    cpu = statistics.median(r[0] for r in results)
+    wall = statistics.median(r[1] for r in results)
+    print(f"  CPU {cpu * 1e3:7.1f} ms  wall {wall * 1e3:7.1f} ms  {robot_s / cpu:6.0f}x robot time (CPU)")
+    print(f"  recorded codes: crc32 {checksum:08x}")
 
 
 if __name__ == "__main__":

@@ -1,4 +1,4 @@
-"""Benchmark: generalised Bouc-Wen fit of one configuration (thesis §6.2, DESIGN.md performance targets).
+"""Benchmark: generalised Bouc-Wen fit of one configuration (thesis §6.2).
 
 Data: one configuration's worth - three 65 s trials at 1 kHz of a 0-130 deg sinusoid (period 8.17 s, the
 thesis's full-speed trajectory), each centred on its mean angle (note under Table 4), torque from the
@@ -13,11 +13,11 @@ Compared, on exactly the same samples:
   n), no bounds.  It sees the decimated samples ``fit_trials`` fits (every ``stride``-th sample of
   each trial).
 
-Issue 15 (fits a modeller can trust): in the same run, "today's fit" - the thesis's Eq 23 recursion
-(``fit_trials(scheme="eq23")``, the fit before issue 15) - against the fit the pipeline now makes for a
-configuration: step-independent integration, multi-start, the 4x-finer check, n's profile interval and the
-other parameter intervals, the backbone (``analysis.bouc_wen_fit.fit_configuration`` without
-cross-validation, which is one such fit per held-out trial).
+In the same run, the thesis's Eq 23 recursion (``fit_trials(scheme="eq23")``) against the fit the
+pipeline makes for a configuration: step-independent integration, multi-start, the 4x-finer check, n's
+profile interval and the other parameter intervals, the backbone
+(``analysis.bouc_wen_fit.fit_configuration`` without cross-validation, which is one such fit per held-out
+trial).
 
 Both RMSEs are computed on every 1 kHz sample, and both timings include that computation (``fit_trials``
 returns it, with R^2 and the parameter uncertainties; the baseline computes it after its solve).  Numba
@@ -169,10 +169,10 @@ def run(args: argparse.Namespace) -> int:
         args.repeats,
     )
     (t_ours, ours_out), (t_base, base_out), (t_f56, f56_out) = timings[:3]
-    (t_today, today_out), (t_issue15, issue15_out), (t_cv, cv_out) = timings[3:]
+    (t_eq23, eq23_out), (t_config, config_out), (t_cv, cv_out) = timings[3:]
     assert isinstance(cv_out, tuple)
-    assert isinstance(today_out, bw.BoucWenFit) and isinstance(issue15_out, tuple)
-    issue15: bw.BoucWenFit = issue15_out[0]
+    assert isinstance(eq23_out, bw.BoucWenFit) and isinstance(config_out, tuple)
+    config_fit: bw.BoucWenFit = config_out[0]
     ours = ours_out
     assert isinstance(ours, bw.BoucWenFit) and ours.stride == stride
     assert isinstance(base_out, tuple) and isinstance(f56_out, tuple)
@@ -209,15 +209,15 @@ def run(args: argparse.Namespace) -> int:
         )
     print(f"{'(info) true Figure 57 parameters':<34}{'':>16}{rmse_truth:>14.6f}")
     print()
-    print("issue 15: today's fit against the configuration fit with its evidence, same run")
+    print("the thesis's Eq 23 fit against the configuration fit with its evidence, same run")
     print(f"{'fit':<46}{'median time (s)':>16}{'RMSE':>10}{'4x finer':>10}")
     print(
-        f"{'today: fit_trials(scheme=eq23)':<46}{t_today:>16.3f}"
-        f"{today_out.rmse_nm:>10.4f}{today_out.rmse_refined_nm:>10.4f}"
+        f"{'Eq 23: fit_trials(scheme=eq23)':<46}{t_eq23:>16.3f}"
+        f"{eq23_out.rmse_nm:>10.4f}{eq23_out.rmse_refined_nm:>10.4f}"
     )
     print(
-        f"{'now: fit_configuration (refined, intervals)':<46}{t_issue15:>16.3f}"
-        f"{issue15.rmse_nm:>10.4f}{issue15.rmse_refined_nm:>10.4f}"
+        f"{'fit_configuration (refined, intervals)':<46}{t_config:>16.3f}"
+        f"{config_fit.rmse_nm:>10.4f}{config_fit.rmse_refined_nm:>10.4f}"
     )
     cv_text = ", ".join(f"{e:.4f}" for e in cv_out[1])
     print(f"{'(info) the same with cross-validation':<46}{t_cv:>16.3f}  held-out RMSE {cv_text}")
@@ -233,10 +233,10 @@ def run(args: argparse.Namespace) -> int:
             rmse_ours <= rmse_base * (1.0 + 1e-6),
         ),
         (f"ours time <= 2x baseline ({t_ours:.3f} <= {2 * t_base:.3f} s)", t_ours <= 2.0 * t_base),
-        (f"configuration fit with its evidence < 0.5 s ({t_issue15:.3f} s)", t_issue15 < 0.5),
+        (f"configuration fit with its evidence < 0.5 s ({t_config:.3f} s)", t_config < 0.5),
         (
-            f"its 4x-finer RMSE within 2 % ({issue15.rmse_refined_nm:.4f} vs {issue15.rmse_nm:.4f} N*m)",
-            abs(issue15.rmse_refined_nm - issue15.rmse_nm) <= 0.02 * issue15.rmse_nm,
+            f"its 4x-finer RMSE within 2 % ({config_fit.rmse_refined_nm:.4f} vs {config_fit.rmse_nm:.4f} N*m)",
+            abs(config_fit.rmse_refined_nm - config_fit.rmse_nm) <= 0.02 * config_fit.rmse_nm,
         ),
     ]
     for label, ok in checks:

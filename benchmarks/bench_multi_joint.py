@@ -1,4 +1,4 @@
-"""Multi-joint output loop (issue 12): tick jitter with three joints against one, in the same run, and the
+"""Multi-joint output loop: tick jitter with three joints against one, in the same run, and the
 leg campaign's dry-run wall time against the robot time it simulates.
 
 Jitter: the paced loop runs on the simulator's real-time clock (`realtime=True`: it sleeps until each

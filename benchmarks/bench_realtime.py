@@ -1,4 +1,4 @@
-"""Hardware-loop timing in real time: the 100 Hz output loop against fake USB boards (DESIGN.md target:
+"""Hardware-loop timing in real time: the 100 Hz output loop against fake USB boards (target:
 output tick lateness p99 < 1 ms).
 
 The measured loop is the real one: `Rig.run_trajectory` (hardware/rig.py) paced by `MonotonicClock`

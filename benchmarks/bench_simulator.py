@@ -5,10 +5,11 @@ Measured, each as the median of several repeats (the numba kernel is compiled/lo
 
 1. plant kernel only: `JointPlant.advance` over a 65 s sinusoid, samples/s;
 2. simulated boards as the Rig drives them: a USB-3105 write every 10 ms and a DT9814 scan read every
-   100 ms (100 rows of angle + torque per read), samples/s — and the same with 1 s reads;
+   100 ms, samples/s — and the same with 1 s reads (in simulated time the board hands its rows over in
+   1 s transfers, so both make one compiled call per second of scan);
 3. a whole trial: the knee's Appendix A sinusoid 65 + 65 sin(2πt/8.17) for 65 s, brace K2 / R3 / level 2,
    through `Rig.run_trajectory` (safety check, LUTs, paced loop, conversions), in ms, compared against
-   the 65 s of robot time it simulates (DESIGN.md: a dry run must be >= 300x faster than the robot).
+   the 65 s of robot time it simulates (a dry run must be >= 300x faster than the robot).
 
 Run: python benchmarks/bench_simulator.py [--repeats N]
 """
@@ -76,8 +77,7 @@ def bench_kernel() -> int:
     plant.reset(20.0)
     dt = KNEE_PARAMS.plant_step_s
     per_tick = round(1.0 / OUTPUT_RATE_HZ / dt)
-    for k, c in enumerate(COMMAND_DEG):
-        plant.push_command(k * per_tick, float(c))
+    plant.push_commands(np.arange(COMMAND_DEG.size, dtype=np.int64) * per_tick, COMMAND_DEG)
     n = int(TRIAL_S * INPUT_RATE_HZ)
     steps = np.round(np.arange(n) / INPUT_RATE_HZ / dt).astype(np.int64)
     angle, _ = plant.advance(int(steps[-1]), steps)

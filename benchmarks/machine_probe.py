@@ -3,7 +3,7 @@
     python benchmarks/machine_probe.py [--repeats 5]
 
 The shared 2-core machine's speed has moved by 10-25 % between sittings and by 3.0-3.4x between the
-machines sessions were given (docs/simulator.md, fifteenth session), so a dry run's time alone cannot say
+machines sessions were given (docs/simulator.md), so a dry run's time alone cannot say
 whether the code or the machine changed. `bench_dry_run.py` prints these figures before and after its runs;
 compare them with those recorded beside earlier measurements. Each figure is the median of `repeats` runs
 of a workload that depends only on CPython, numpy and zlib (no file system, no threads):

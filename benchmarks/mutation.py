@@ -41,7 +41,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 EQUIVALENTS = Path(__file__).resolve().parent / "mutation_equivalents.txt"
 
-# The science packages (issue 19): their modules are found on disk, so a new module is scored as soon as
+# The science packages: their modules are found on disk, so a new module is scored as soon as
 # it exists (devices/ and expectations/ too, once they do).
 SCIENCE = ("analysis", "models", "devices", "expectations")
 
@@ -67,7 +67,7 @@ def _science_modules() -> dict[str, str]:
     return out
 
 
-# Science outside those packages (issue 19): the metric library and the expectation evaluator of the report,
+# Science outside those packages: the metric library and the expectation evaluator of the report,
 # scored with their in-memory tests (seconds; the archive-based tests/report/test_report_expectations.py
 # takes minutes per mutant on a loaded machine). A module's tests may be several globs, space-separated.
 REPORT_SCIENCE = {

@@ -1,4 +1,4 @@
-"""The command line: modes, exit statuses and plain messages (DESIGN.md "Command line")."""
+"""The command line: modes, exit statuses and plain messages."""
 
 from __future__ import annotations
 

@@ -20,7 +20,6 @@ LAYERS: dict[str, int] = {
     "__init__": 0,
     "errors": 0,
     "resources": 0,
-    "process_exit": 0,
     "tables": 1,
     "models": 1,
     "hardware": 2,
@@ -35,6 +34,7 @@ LAYERS: dict[str, int] = {
     "preflight": 8,
     "commands": 9,
     "cli": 10,
+    "__main__": 11,
 }
 
 

@@ -1,4 +1,4 @@
-"""No campaign's factor or level names in the package (issue 11): a campaign is a YAML file, never Python.
+"""No campaign's factor or level names in the package: a campaign is a YAML file, never Python.
 
 The names come from the shipped protocols themselves (their `factors:`, or the older `levels:`), so a
 new campaign is checked as soon as it is added. Flagged in src/protocol_runner (and the report

@@ -1,12 +1,13 @@
 """`run-protocol`: argument parsing and exit codes only; the work happens in the modules it calls.
 
-Exit status (DESIGN.md): 0 done; 2 invalid input; 3 hardware unavailable; 4 stopped by a safety or
+Exit status: 0 done; 2 invalid input; 3 hardware unavailable; 4 stopped by a safety or
 calibration check; 130 interrupted or disk full (resumable).
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import os
 import sys
 import threading
@@ -23,7 +24,6 @@ from .errors import (
     UserError,
     file_system_refusal,
 )
-from .process_exit import exit_after_a_full_disk, exit_now_if_safe
 from .protocol.only import KeySelection
 
 if TYPE_CHECKING:
@@ -311,13 +311,20 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 def entry() -> None:
     """The `run-protocol` command (and `python -m protocol_runner.cli`): `main` on the process's arguments,
-    then the end of the process. When nothing is left to finish, that skips the interpreter's teardown
-    (`process_exit`); otherwise it is the normal exit. Callers in their own process use `main(argv)`."""
+    its status the process's exit status. Callers in their own process use `main(argv)`.
+
+    After a session stopped on a full disk, HDF5 may still hold a file whose close failed for lack of
+    space, and the interpreter's teardown closing it again crashes the process (a segmentation fault, exit
+    139 instead of 130: `--only 15,16,17` on a 3 MB file system). So the process then ends at once, its
+    output and log flushed, as after a kill, which loses nothing: every finished unit is on disk and
+    journaled, and a temporary file is removed or redone by the resume (docs/session.md)."""
     one_blas_thread()
     code = main()
     if _ENDED_BY_A_FULL_DISK.is_set():
-        exit_after_a_full_disk(code)
-    exit_now_if_safe(code)  # returns when a normal exit is needed
+        logging.shutdown()
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
     sys.exit(code)
 
 

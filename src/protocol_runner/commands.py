@@ -5,7 +5,6 @@ Each returns the process exit status; user mistakes raise `UserError` subclasses
 
 from __future__ import annotations
 
-import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -46,7 +45,6 @@ def run(
     quiet: bool = False,
     monitor: Monitor | None = None,
 ) -> int:
-    _start_worker_server()
     from .preflight import preflight, preflight_warnings
     from .protocol.loader import find_protocol, load_protocol
     from .protocol.plan_table import robot_time_text
@@ -85,50 +83,9 @@ def run(
     if monitor is not None:
         publisher, operator = monitor.attach(directory, info, plan, bench, operator)
     runner = Runner(directory, info, stored, plan, bench, operator, quiet=quiet, publisher=publisher)
-    _settle_heap()
     result = runner.run()
     _result(f"done: {result.archive}" + (f" and {result.report}" if result.report else ""))
     return EXIT_OK
-
-
-def _start_worker_server() -> None:
-    """First, on the command line, the garbage collector paused for the start-up (session/heap.py); scipy
-    (whose linear algebra numba loads with its CPU target, and whose special functions the report uses)
-    without its docstring notes (session/scipy_docs.py). Then the analysis workers' fork server, before this session opens anything: a
-    fork of this process once it has imported what both use, which imports the rest of what the workers run
-    on the other core meanwhile (session/worker_start.py). Not on one core (no workers)."""
-    from .session.scipy_docs import skip_array_api_notes
-
-    command_line = _command_line()
-    if command_line:  # no collections while starting up (session/heap.py), until `_settle_heap`
-        from .session.heap import pause
-
-        pause()
-    skip_array_api_notes()
-    if (os.cpu_count() or 1) >= 2:
-        from .session.worker_start import start_worker_server
-
-        start_worker_server(fork_session=command_line)
-
-
-def _settle_heap() -> None:
-    """Start-up is over: what is alive now stays out of later collections (session/heap.py)."""
-    from .session.heap import settle
-
-    if _command_line():
-        settle()
-
-
-def _command_line() -> bool:
-    """Whether this process is the command line's (`run-protocol`, `python -m protocol_runner.cli`): only
-    then may the fork server be a fork of it. A program calling `run` in its own process (a test, a notebook)
-    may have replaced functions the workers run, and a forked server would keep them for every later worker."""
-    main = sys.modules.get("__main__")
-    cli = f"{__package__}.cli"
-    if getattr(getattr(main, "__spec__", None), "name", None) == cli:  # python -m
-        return True
-    # the run-protocol script: imports the command line's entry point (`entry`, or `main` in older ones)
-    return any(getattr(getattr(main, name, None), "__module__", None) == cli for name in ("entry", "main"))
 
 
 def _bench(loaded: LoadedProtocol, info: SessionInfo) -> Bench:
@@ -158,7 +115,6 @@ def resume(
     only: KeySelection | None = None,
     monitor: Monitor | None = None,
 ) -> int:
-    _start_worker_server()
     from .session.resume_checks import check_resume_arguments, resume_preflight
     from .session.runner import Runner
     from .session.setup import load_session_protocol, read_session_info
@@ -176,7 +132,6 @@ def resume(
     if monitor is not None:
         publisher, operator = monitor.attach(session_dir, info, plan, bench, operator, resumed=True)
     _say(f"resuming {session_dir}: {info.protocol_name} ({info.mode}, seed {info.seed})")
-    _settle_heap()
     result = Runner(
         session_dir,
         info,

@@ -1,4 +1,4 @@
-"""Exceptions that carry a user-facing message and the process exit status (DESIGN.md "Command line").
+"""Exceptions that carry a user-facing message and the process exit status.
 
 Anything raised as a `UserError` is printed by the CLI as one short paragraph, never as a traceback.
 """

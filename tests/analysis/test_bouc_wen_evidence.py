@@ -1,4 +1,4 @@
-"""The evidence stored with every Bouc-Wen fit (issue 15): held-out trials that never enter their own fit,
+"""The evidence stored with every Bouc-Wen fit: held-out trials that never enter their own fit,
 parameter intervals and the weak-identification mark, and the model's loop energy beside the data's."""
 
 from __future__ import annotations

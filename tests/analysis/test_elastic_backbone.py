@@ -1,4 +1,4 @@
-"""The Bouc-Wen backbone from the device's elastic elements (issue 15 item 2): torque = g(angle) + z with
+"""The Bouc-Wen backbone from the device's elastic elements: torque = g(angle) + z with
 g the element fit's springs, held fixed while z is fitted.
 
 Data: a known torsion spring and bungee (the elastic torque G of the absolute angle) plus a known

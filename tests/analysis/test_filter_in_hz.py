@@ -1,4 +1,4 @@
-"""The processing filter is recorded and shown in Hz with its order and type (issue 15 item 7)."""
+"""The processing filter is recorded and shown in Hz with its order and type."""
 
 from __future__ import annotations
 

@@ -1,12 +1,19 @@
-"""Filtering several signals together (analysis/filters.py `filter_zero_phase_together`, issue 20) gives
-each exactly what filtering it alone gives: the stored processed loops do not change by a bit."""
+"""Filtering several signals together (analysis/filters.py `filter_zero_phase_together`) gives each exactly
+what filtering it alone gives; sections that are not a filter are refused with the reason; the brace-off
+command smoothing (4th order, a cut-off of 1 % of Nyquist) keeps a constant and removes a fast wiggle
+without lag."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from protocol_runner.analysis.filters import design_lowpass, filter_zero_phase, filter_zero_phase_together
+from protocol_runner.analysis.filters import (
+    design_lowpass,
+    filter_zero_phase,
+    filter_zero_phase_together,
+    lowpass,
+)
 from protocol_runner.analysis.validation import AnalysisError
 
 
@@ -29,3 +36,18 @@ def test_signals_of_different_lengths_are_refused_by_name() -> None:
         filter_zero_phase_together([np.zeros(500), np.zeros(400)], sos, names=["angle", "torque"])
     with pytest.raises(AnalysisError, match="torque: 10 samples are too few"):
         filter_zero_phase_together([np.zeros(500), np.zeros(10)], sos, names=["angle", "torque"])
+
+
+def test_sections_that_are_not_a_filter_are_refused() -> None:
+    with pytest.raises(AnalysisError, match="second-order sections"):
+        filter_zero_phase_together([np.zeros(500)], np.ones((2, 5)), names=["angle"])
+    with pytest.raises(AnalysisError, match=r"section 0 has 2\.0"):
+        filter_zero_phase_together([np.zeros(500)], 2.0 * design_lowpass(), names=["angle"])
+
+
+def test_a_constant_passes_unchanged_and_a_fast_wiggle_is_removed() -> None:
+    assert np.allclose(lowpass(np.full(3000, 42.5), order=4, cutoff=0.01), 42.5, rtol=0, atol=1e-9)
+    t = np.arange(20_000) / 1000.0
+    slow, fast = 30.0 * np.sin(2 * np.pi * 0.3 * t), 2.0 * np.sin(2 * np.pi * 60.0 * t)
+    out = lowpass(slow + fast, order=4, cutoff=0.01)
+    assert np.max(np.abs(out - slow)[1000:-1000]) < 0.05  # 60 Hz far above the 5 Hz cut-off, no lag

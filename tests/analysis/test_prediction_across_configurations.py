@@ -1,4 +1,4 @@
-"""Model prediction across configurations (issue 15 item 8): a fit on one configuration predicts another
+"""Model prediction across configurations: a fit on one configuration predicts another
 with the same elements at another speed, and the protocol declares the pairs."""
 
 from __future__ import annotations

@@ -126,7 +126,7 @@ def test_rig_runner_brings_the_1khz_angle_onto_the_command_ticks() -> None:
 
 def test_flat_brace_on_recording_is_an_analysis_error_not_a_crash() -> None:
     """A flat brace-on output (stuck joint) leaves nothing to scale: a clear AnalysisError, not a
-    ZeroDivisionError from the collapsed input (issue 14, finding 8)."""
+    ZeroDivisionError from the collapsed input."""
     t = np.arange(0.0, 40.0, 1.0 / RATE_HZ)
     flat = 65.0 + 1e-12 * np.sin(2.0 * np.pi * t / 8.0)  # flat to float precision after filtering
     rng = np.random.default_rng(0)

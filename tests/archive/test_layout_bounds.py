@@ -1,6 +1,6 @@
 """A crafted archive declaring a 10^12-element dataset gets a clear exit 2 naming it, after bounded work
 (archive/layout.py): shapes are checked against the layout before anything is read, by --verify, the
-report, --reprocess and --export-mat (issue 14, finding 7)."""
+report, --reprocess and --export-mat."""
 
 from __future__ import annotations
 

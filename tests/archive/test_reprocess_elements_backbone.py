@@ -1,4 +1,4 @@
-"""`--reprocess` with `fits.bouc_wen.backbone: elements` (issue 15 item 2) on the knee dry run: every
+"""`--reprocess` with `fits.bouc_wen.backbone: elements` on the knee dry run: every
 Bouc-Wen fit records which backbone it used, and where the device has elastic elements that is the
 element fit's springs (the shipped protocol keeps the polynomial default)."""
 

@@ -1,4 +1,4 @@
-"""The simulated rig reproduces the qualitative findings of thesis Chapter 5 (DESIGN.md "The DAQ simulator").
+"""The simulated rig reproduces the qualitative findings of thesis Chapter 5.
 
 Trials are run end to end through `Rig` with the sinusoids of thesis Appendix A (Eq 24-25):
 mean + amp·sin(2πt/p) with p = 2π·amp / v_max, v_max = 50 deg/s (full) or 25 deg/s (half), for 3.5

@@ -1,4 +1,4 @@
-"""Facts about the safety envelope (DESIGN.md "Reliability rules")."""
+"""Facts about the safety envelope."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The DAQ simulator behaves like the rig (DESIGN.md "The DAQ simulator"), end to end through `Rig`.
+"""The DAQ simulator behaves like the rig, end to end through `Rig`.
 
 Each test states a physical or contractual fact of the thesis (§2.4.2 lag, Table 3 torque limit, §3.3.1
 start-up transition, §2.5 calibration) or of the DAQ interfaces, and would fail if the model were wrong.
@@ -125,7 +125,7 @@ def test_start_up_transition_emerges_from_the_lag(knee: JointConfig) -> None:
 
 
 def test_same_seed_and_step_give_identical_data_another_step_other_noise(knee: JointConfig) -> None:
-    """DESIGN.md: every random draw comes from a generator seeded by (session seed, step id), so a resumed
+    """Every random draw comes from a generator seeded by (session seed, step id), so a resumed
     session reproduces an uninterrupted one bit for bit."""
     command = hold(60.0, 1.0)
     sim_a = SimulatedRig(knee, seed=11, params=KNEE_PARAMS)
@@ -167,11 +167,14 @@ def test_data_do_not_depend_on_how_long_the_session_has_run(knee: JointConfig) -
 
 
 def test_data_do_not_depend_on_how_often_the_scan_is_read(knee: JointConfig) -> None:
-    """The plant integrates lazily up to the clock on a fixed grid: reading the scan every millisecond or
-    once a second yields the same rows (so a realtime or a differently paced loop sees the same rig)."""
+    """The plant integrates lazily on a fixed grid: reading the scan every millisecond with every row
+    handed over as soon as it is due (as in real time), or in the simulated board's 1 s transfers read
+    every millisecond or once a second, yields the same rows (so a realtime or a differently paced loop
+    sees the same rig)."""
 
-    def acquire(read_every_s: float) -> np.ndarray:
+    def acquire(read_every_s: float, transfer_s: float) -> tuple[np.ndarray, int]:
         sim = SimulatedRig(knee, seed=21, params=KNEE_PARAMS)
+        sim.ai.transfer_s = transfer_s
         sim.begin_step("chunks")
         sim.ai.start_scan([8, 20, 3], INPUT_RATE_HZ)
         blocks = []
@@ -182,12 +185,51 @@ def test_data_do_not_depend_on_how_often_the_scan_is_read(knee: JointConfig) -> 
                 sim.clock.sleep_until(min(t_next, sim.clock.now_s() + read_every_s))
                 blocks.append(sim.ai.read_available().codes)
         blocks.append(sim.ai.stop_scan().codes)
-        return np.concatenate(blocks)
+        return np.concatenate(blocks), sum(b.shape[0] > 0 for b in blocks)
 
-    fine = acquire(0.001)
-    coarse = acquire(1.0)
-    assert fine.shape == coarse.shape == (3001, 3)
+    fine, fine_reads = acquire(0.001, 0.0)
+    transfers, transfer_reads = acquire(0.001, 1.0)
+    coarse, _ = acquire(1.0, 1.0)
+    assert fine.shape == transfers.shape == coarse.shape == (3001, 3)
+    assert np.array_equal(fine, transfers)
     assert np.array_equal(fine, coarse)
+    assert fine_reads == 3000 and transfer_reads == 4  # rows 0-1, then every ms / 3 transfers and the rest
+    assert np.ptp(fine[:, 0]) > 100  # the joint moved: not a comparison of constants
+
+
+def test_the_scan_hands_its_rows_over_in_whole_transfers(knee: JointConfig) -> None:
+    """In simulated time the DT9814 stand-in hands over 1 s of rows at a time, as a USB board hands over
+    whole packets, and the rest when the scan stops; in real time every row as soon as it is due."""
+    sim = SimulatedRig(knee, seed=3, params=KNEE_PARAMS)
+    sim.begin_step("transfers")
+    sim.ai.start_scan([8, 20], INPUT_RATE_HZ)  # row i at i ms
+    sizes = []
+    for t_s in (0.5, 1.0, 1.5, 2.3):
+        sim.clock.sleep_until(t_s)
+        sizes.append(sim.ai.read_available().n_samples)
+    last = sim.ai.stop_scan()
+    assert sizes == [0, 1000, 0, 1000]
+    assert last.n_samples == 301 and last.t_s[-1] == pytest.approx(2.3)
+    assert SimulatedRig(knee, realtime=True).ai.transfer_s == 0.0
+
+
+def test_a_dry_run_is_the_rigs_paced_loop_in_simulated_time(knee: JointConfig) -> None:
+    """The rig drives the simulated boards through its own paced loop: one USB-3105 write per sample at
+    its scheduled time (the simulated clock jumps there, so no tick is late), every row of the scan
+    recorded, the clock one tick past the last write at the end."""
+    sim = SimulatedRig(knee, seed=5, params=KNEE_PARAMS)
+    rig = sim.make_rig()
+    sim.clock.advance(7.25)
+    command = 65.0 + 40.0 * np.sin(np.arange(450) / 30.0)
+    _, _, _, rec = run(sim, rig, command, "paced")
+    t, channel, code = sim.ao.records()
+    writes = channel == knee.output_channel
+    schedule = rec.t0_s + np.arange(451) * (1.0 / OUTPUT_RATE_HZ)
+    np.testing.assert_array_equal(t[writes][1:], schedule[:450])  # after the channel's set-up
+    np.testing.assert_array_equal(code[writes][1:], rec.command_codes)
+    assert np.all(rec.tick_lateness_s == 0.0)
+    assert rec.n_samples == 4501  # 4.5 s at 1 kHz, both ends included
+    assert sim.clock.now_s() == schedule[450]
 
 
 def test_brace_on_and_brace_off_trials_differ(knee: JointConfig) -> None:
@@ -349,7 +391,7 @@ def test_unloaded_joint_is_exactly_a_first_order_lag() -> None:
 
 
 def test_torque_limit_comes_from_the_joint_not_from_the_knee() -> None:
-    """Nothing may assume the knee (DESIGN.md): an elbow (Table 3: -39.6..31 N·m) carrying the default
+    """Nothing may assume the knee: an elbow (Table 3: -39.6..31 N·m) carrying the default
     shank weight cannot lift it to 90°; it stalls where gravity + friction reach its own 31 N·m."""
     elbow = JointConfig(
         name="elbow",

@@ -1,5 +1,5 @@
 """The fit's divergence checks stop at the first diverged sample, and the evaluations it would make twice
-are made once (issue 20): the fitted parameters, errors, intervals and held-out errors are those of the
+are made once: the fitted parameters, errors, intervals and held-out errors are those of the
 long way, bit for bit.
 
 The long way (as the fit ran before): every start check integrates every trial to the end by the torque

@@ -1,4 +1,4 @@
-"""The weak-identification mark (issue 15 item 3): it follows whether the data determine each parameter
+"""The weak-identification mark: it follows whether the data determine each parameter
 within its plausible range, not whether an interval happens to touch a bound."""
 
 from __future__ import annotations

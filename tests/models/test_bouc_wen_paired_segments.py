@@ -1,7 +1,7 @@
-"""The refined sensitivity kernel integrates a fit's trials three or two at a time, their Heun substeps
-interleaved (issue 20): each trial's torque, derivatives and divergence must be bit for bit what integrating
-that trial alone gives, whatever the trials' lengths, their number (three at a time, four as two pairs, a
-last one alone), zero crossings, divergence (held at the bound or NaN) and the rows compared."""
+"""The refined kernels integrate all of a fit's trials in one call, each from its own starting torque: each
+trial's torque, derivatives and divergence must be bit for bit what integrating that trial alone gives,
+whatever the trials' lengths, their number, zero crossings, divergence (held at the bound or NaN) and the
+rows compared."""
 
 from __future__ import annotations
 
@@ -73,9 +73,8 @@ def test_trials_integrated_together_are_bit_for_bit_each_trial_alone(n_trials: i
 
 
 def test_a_check_that_stops_at_divergence_reports_the_first_in_trial_order() -> None:
-    """With `stop`, the index returned is the first diverged sample in trial order, even when a later
-    trial of a pair diverges first in the interleaved integration (a short fast one beside a long slow
-    one), and -1 when none diverges."""
+    """With `stop`, the index returned is the first diverged sample in trial order (a short fast trial that
+    diverges within a few samples beside a long slow one), and -1 when none diverges."""
     rng = np.random.default_rng(7)
     slow = _trial(rng, 120, 6.0)  # small excursion: diverges late, if at all
     fast = np.linspace(0.0, 60.0, 30)  # one long push: diverges within a few samples
@@ -105,9 +104,9 @@ def _plain(xs, z0s, shape, bound, freeze, stop):
 def test_the_kernel_without_derivatives_gives_each_trial_alone_bit_for_bit(
     n_trials: int, freeze: bool
 ) -> None:
-    """The kernel without derivatives (evaluations, the 4x-finer check) integrates the trials three or two
-    at a time too: each trial's torque and the first diverged index are those of the trial alone, with
-    or without stopping at the first divergence."""
+    """The kernel without derivatives (evaluations, the 4x-finer check) takes several trials too: each
+    trial's torque and the first diverged index are those of the trial alone, with or without stopping at
+    the first divergence."""
     rng = np.random.default_rng(10 + n_trials)
     xs = [_trial(rng, int(rng.integers(40, 90)), 30.0 + 5.0 * k) for k in range(n_trials)]
     z0s = [0.5 * (-1) ** k for k in range(n_trials)]

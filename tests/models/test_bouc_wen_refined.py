@@ -1,4 +1,4 @@
-"""Step-independent integration of the Bouc-Wen state (issue 15 item 1): the same parameters give the same
+"""Step-independent integration of the Bouc-Wen state: the same parameters give the same
 torque at any sampling rate, a fit describes the joint rather than the integrator, and the thesis's literal
 Eq 23 recursion stays available."""
 
@@ -71,8 +71,8 @@ def test_the_thesis_form_recovers_figure57_from_eq23_data() -> None:
 
 def test_fit_of_a_range_of_motion_stop_loop_holds_at_4x_finer_integration() -> None:
     """Configuration 1's dry-run loop (range-of-motion stops, nearly vertical branches): the default fit's
-    RMSE and its 4x-finer re-simulation agree within 2 %.  The Eq 23 fit of the same loop does not (the
-    issue's finding: 7.9 -> 30.3 N*m)."""
+    RMSE and its 4x-finer re-simulation agree within 2 %.  The Eq 23 fit of the same loop does not
+    (7.9 -> 30.3 N*m)."""
     x, y = rom_stop_loop()
     result = fit_trials([(x, y)], starts=4)
     assert not result.diverged

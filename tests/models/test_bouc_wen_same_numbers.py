@@ -1,6 +1,5 @@
-"""The fit's shortcuts give the numbers of the long way (issue 20 item 5, issue 15 performance): the fused
-residual-and-Jacobian evaluation, the Jacobian at the compared rows only and the solver's reuse of the start
-check are exact; the early stops of the polish and the last solve change the RMSE, and the held-out fits'
+"""The fit's shortcuts give the numbers of the long way: the fused residual-and-Jacobian evaluation, the
+Jacobian at the compared rows only and the solver's reuse of the start check are exact; the early stops of the polish and the last solve change the RMSE, and the held-out fits'
 end on the turning-point copy the held-out errors, by less than their documented tolerances."""
 
 from __future__ import annotations
@@ -77,10 +76,10 @@ def test_the_jacobian_at_the_compared_rows_is_those_rows_of_the_full_one() -> No
 def test_the_early_stops_keep_the_rmse_within_their_tolerance(monkeypatch: pytest.MonkeyPatch) -> None:
     """Against a polish on the mid-size copy run to its step tolerance (polish_ftol None) and a last solve
     run to a relative cost change of 1e-8: the fit's RMSE within 1e-4 (POLISH_FTOL and FINAL_FTOL 1e-5),
-    with no more residual evaluations. With the knee campaign's 8 starts: with 4, on the fifteenth
-    session's machine (AMD EPYC, AVX2, no AVX-512), both procedures end in local optima 15 % above the one
-    8 starts find, 2.856 and 2.847 N*m, which then differ by 0.33 % (docs/analysis.md, fifteenth session),
-    a comparison of two basins rather than of the early stops."""
+    with no more residual evaluations. With the knee campaign's 8 starts: with 4, on an AVX2 processor
+    without AVX-512, both procedures end in local optima 15 % above the one 8 starts find, 2.856 and
+    2.847 N*m, which then differ by 0.33 % (docs/analysis.md), a comparison of two basins rather than of
+    the early stops."""
     segments = _loop_halves()
     fast = fit_trials(segments, starts=8, backbone_degree=9)
     monkeypatch.setattr(fitting, "FINAL_FTOL", 1e-8)
@@ -119,9 +118,10 @@ def test_held_out_fits_ending_on_the_turning_point_copy_keep_the_held_out_errors
 def test_a_start_that_needs_no_contraction_is_evaluated_once_by_its_solve(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    """The start check of Problem.stabilise is fused and made at the point least_squares starts from (a
-    start on a bound is moved inside), so the solver's first evaluation is that check: the problem's
-    residual evaluations are exactly the solver's, and the solve ends where one without the reuse does."""
+    """The start check of Problem.stabilise is fused, so for a start strictly inside the bounds the
+    solver's first evaluation is that check: the problem's residual evaluations are exactly the solver's.
+    A start on a bound is moved inside by the solver and evaluated there once more. Either way the solve
+    ends where one without the reuse does."""
     from protocol_runner.models.bouc_wen import problem as bw_problem
 
     counts: list[int] = []
@@ -133,13 +133,16 @@ def test_a_start_that_needs_no_contraction_is_evaluated_once_by_its_solve(
         return res
 
     monkeypatch.setattr(bw_problem, "least_squares", counting)
-    problem = _path(3000)
-    u0 = np.array([1.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])  # n on its lower bound: a straight line
-    u, cost, _, _ = problem.solve(u0, max_nfev=4, tol=1e-8)
-    assert problem.nfev == counts[0]
-    # the same solve with every evaluation made afresh
-    fresh = _path(3000)
-    monkeypatch.setattr(fresh, "_solver_residuals", fresh.residuals)
-    u_fresh, cost_fresh, _, _ = fresh.solve(u0, max_nfev=4, tol=1e-8)
-    assert fresh.nfev == counts[1] + 1
-    assert np.array_equal(u, u_fresh) and cost == cost_fresh
+    inside = np.array([1.0, 1.2, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])
+    on_bound = np.array([1.0, 0.5, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0])  # n on its lower bound: a straight line
+    for u0, extra in ((inside, 0), (on_bound, 1)):
+        counts.clear()
+        problem = _path(3000)
+        u, cost, _, _ = problem.solve(u0, max_nfev=4, tol=1e-8)
+        assert problem.nfev == counts[0] + extra
+        # the same solve with every evaluation made afresh
+        fresh = _path(3000)
+        monkeypatch.setattr(fresh, "_solver_residuals", fresh.residuals)
+        u_fresh, cost_fresh, _, _ = fresh.solve(u0, max_nfev=4, tol=1e-8)
+        assert fresh.nfev == counts[1] + 1
+        assert np.array_equal(u, u_fresh) and cost == cost_fresh

@@ -1,4 +1,4 @@
-"""BLAS threads while a fit runs (issue 20 item 4): held at one by threadpoolctl inside the fit, whatever
+"""BLAS threads while a fit runs: held at one by threadpoolctl inside the fit, whatever
 the caller set, and the caller's setting restored afterwards - even though numpy was imported long before
 (here by pytest's collection), which is where environment variables set at import time do nothing."""
 

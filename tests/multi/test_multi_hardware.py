@@ -1,4 +1,4 @@
-"""Several joints on one set of boards (issue 12): the USB-3105 bytes of a three-channel tick, per-joint
+"""Several joints on one set of boards: the USB-3105 bytes of a three-channel tick, per-joint
 safety refusal before any write, every joint parked on a stop, and every commanded sample of every joint
 inside that joint's envelope (a property over random motions and stop times)."""
 

@@ -1,4 +1,4 @@
-"""Multi-joint protocols (issue 12): `joints:`, per-joint trajectories and devices, the plan contract, and
+"""Multi-joint protocols: `joints:`, per-joint trajectories and devices, the plan contract, and
 the bad inputs refused before anything moves (exit 2 naming file, line, column and joint)."""
 
 from __future__ import annotations

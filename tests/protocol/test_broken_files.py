@@ -166,7 +166,7 @@ CASES = [
         r"sets\[0\]\.configurations\[0\]\.key: input should be a valid integer \(got True\)",
         "{key: true, run: 1,",
     ),
-    # --- issue 11 "Bad input" -------------------------------------------------------------------------
+    # --- bad input -----------------------------------------------------------------------------------------
     (
         "unknown element type",
         lambda t: t.replace("type: rom_stops", "type: rom_stop"),

@@ -1,4 +1,4 @@
-"""protocols/elbow_example.yaml, the campaign written from docs/protocol.md alone (issue 11 item 8): it
+"""protocols/elbow_example.yaml, the campaign written from docs/protocol.md alone: it
 validates, plans and dry-runs, the doc shows it in full, and each mistake a test engineer makes in it gets
 the one located line the doc's "Errors" table promises (exit 2, no traceback)."""
 
@@ -74,7 +74,7 @@ def test_elbow_dry_run_loses_the_brake_and_damper_energy_per_cycle(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """Configurations 1 (brake only) and 4 (brake and damper), 20 deg/s peak over 20-110 deg: the brake
-    loses 4*T*A per cycle, the damper pi*c*omega*A^2 more (issue 11 item 3's element facts)."""
+    loses 4*T*A per cycle, the damper pi*c*omega*A^2 more (the elements' facts)."""
     session = tmp_path / "s"
     assert main([str(ELBOW), "--dry-run", "--yes", "--only", "1,4", "--session", str(session)]) == 0
     capsys.readouterr()

@@ -1,5 +1,5 @@
 """File-trajectory configurations (24-26, a subject's motion) are the motion file: no robot range or
-speed level applies to them, and the plan commands the file's own duration (issue 11)."""
+speed level applies to them, and the plan commands the file's own duration."""
 
 from __future__ import annotations
 

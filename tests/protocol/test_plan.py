@@ -91,7 +91,7 @@ def test_every_row_of_table_5_is_expanded(plan: Plan) -> None:
         assert s.quantity("friction", "friction_nm") == FRICTION_NM[fric]
         assert s.quantity("stiffness", "stiffness_n_per_mm") == STIFFNESS[stiff]
         if profile == "human":
-            # a subject's motion file is the trajectory: no robot range or speed level applies (issue 11)
+            # a subject's motion file is the trajectory: no robot range or speed level applies
             assert t.trajectory.profile == "file" and t.trajectory.source is not None
             assert s.level("robot_rom") is None and s.level("speed") is None
         else:
@@ -206,7 +206,7 @@ def test_plan_json_contract_shape(plan: Plan) -> None:
         trial
     )
     assert isinstance(trial["configuration"], int) and trial["brace"] in ("on", "off")
-    # one entry per declared factor: {"level": label, its quantities} (issue 11, docs/protocol.md)
+    # one entry per declared factor: {"level": label, its quantities} (docs/protocol.md)
     assert trial["settings"]["brace_rom"] == {"level": "R3", "range_deg": [0.0, 130.0]}
     assert trial["settings"]["friction"] == {"level": "2", "friction_nm": 3.75, "screw_turns": 0.75}
     assert list(trial["settings"]) == ["brace_rom", "robot_rom", "friction", "stiffness", "speed", "preload"]

@@ -1,4 +1,4 @@
-"""Preflight (issue 14, findings 6, 7, 11): `--validate` runs exactly the run's checks, hostile files get
+"""Preflight: `--validate` runs exactly the run's checks, hostile files get
 bounded work and one located message (exit 2), and no session folder is created when preflight fails."""
 
 from __future__ import annotations

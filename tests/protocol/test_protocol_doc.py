@@ -1,4 +1,4 @@
-"""docs/protocol.md is the language's complete reference (issue 11 item 8): every element type and
+"""docs/protocol.md is the language's complete reference: every element type and
 parameter, trajectory kind, unit suffix, generator and top-level key is documented there."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from pathlib import Path
 
 from protocol_runner.models.elements import ELEMENT_TYPES
 from protocol_runner.protocol.schema import Protocol, SetSpec
-from protocol_runner.protocol.trajectory_specs import TRAJECTORY_KINDS
+from protocol_runner.protocol.trajectory_specs import kind_names
 from protocol_runner.protocol.units import UNIT_SUFFIXES
 
 DOC = (Path(__file__).resolve().parents[2] / "docs" / "protocol.md").read_text(encoding="utf-8")
@@ -22,7 +22,7 @@ def test_every_element_type_and_parameter_is_documented_with_an_example() -> Non
 
 
 def test_every_trajectory_kind_unit_suffix_and_generator_is_documented() -> None:
-    for kind in TRAJECTORY_KINDS:
+    for kind in kind_names():
         assert f"kind: {kind}" in DOC, kind
     for suffix in UNIT_SUFFIXES:
         assert f"`{suffix}`" in DOC, suffix

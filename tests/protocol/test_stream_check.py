@@ -1,4 +1,4 @@
-"""The plan-time check of every motion's complete commanded stream (issue 14, finding 2).
+"""The plan-time check of every motion's complete commanded stream.
 
 knee_phase1's motions pass it; what the old runner sent (a parking ramp to the first sample, the
 trajectory, a parking ramp from the last) breaks the acceleration limit at every sinusoid start; protocols

@@ -1,4 +1,4 @@
-"""Every trajectory kind built from its spec, sampled, and checked against the joint's limits (issue 11 item 4).
+"""Every trajectory kind built from its spec, sampled, and checked against the joint's limits.
 
 Facts: the sinusoid's peak speed is `speed_deg_s` (Eq 25) and its period follows; the triangle moves at
 constant speed between corners whose acceleration is the corner limit, reaching the range's ends; the ramped

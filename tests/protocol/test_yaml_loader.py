@@ -1,4 +1,4 @@
-"""Protocol and rig files are read by libyaml when PyYAML has it (issue 20: the pure-Python reader took most
+"""Protocol and rig files are read by libyaml when PyYAML has it (the pure-Python reader took most
 of a second of the start-up); what is read, the line of every key, and every message about a bad file are
 exactly those of the pure-Python loader."""
 

@@ -1,4 +1,4 @@
-"""ankle_phase2's declared expectations (issue 13 item 1), decided by a dry run of the ankle campaign.
+"""ankle_phase2's declared expectations, decided by a dry run of the ankle campaign.
 
 The ankle declares physical statements of its brace: the bungee's stiffness steepens the torque-angle
 slope; the brake adds a loss that grows with its level at each speed and is the same at both speeds (per

@@ -1,4 +1,4 @@
-"""`--compare` decides each quantity on its own (issue 13 item 6): energy per cycle and range reached, B minus
+"""`--compare` decides each quantity on its own: energy per cycle and range reached, B minus
 A on trial means with Welch intervals, each verdict at p < 0.025 (Bonferroni over the two quantities), and
 the page names the quantity each verdict is about."""
 

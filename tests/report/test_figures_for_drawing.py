@@ -1,5 +1,5 @@
 """`figure_plan.for_drawing`: the data handed to another process for some figures draws exactly the same
-figures, and leaves out the raw recordings no asked figure reads (issue 20: the report's last figures
+figures, and leaves out the raw recordings no asked figure reads (the report's last figures
 reach the session's workers sooner)."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """`render_html` with figures drawn elsewhere (the session's workers) renders the page while they draw and
-puts the images in their places afterwards (issue 20): the text must be exactly that of a render with the
+puts the images in their places afterwards: the text must be exactly that of a render with the
 images, and a missing figure must be reported as a render with it missing reports it."""
 
 from __future__ import annotations

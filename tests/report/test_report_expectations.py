@@ -1,4 +1,4 @@
-"""Expectations declared in a protocol's YAML, decided by the one generic evaluator (issue 13 items 1-2)."""
+"""Expectations declared in a protocol's YAML, decided by the one generic evaluator."""
 
 from __future__ import annotations
 

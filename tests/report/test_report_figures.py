@@ -1,4 +1,5 @@
-"""Figures: PNG data URIs, reuse of canvases without leaking state, serial and parallel drawing agree."""
+"""Figures: PNG data URIs at the report's resolution, each independent of the figures drawn before it, and
+the same whether drawn serially or on worker processes."""
 
 from __future__ import annotations
 
@@ -6,8 +7,8 @@ import base64
 import struct
 from pathlib import Path
 
-from protocol_runner.report.canvas import DPI
 from protocol_runner.report.comparison_values import comparison_axis
+from protocol_runner.report.drawing import DPI
 from protocol_runner.report.figures import (
     bouc_wen_figure,
     energy_bars_figure,
@@ -44,17 +45,17 @@ def test_hysteresis_figure_is_a_small_png_at_report_resolution(small_archive: Pa
     assert (width, height) == (round(4.6 * DPI), round(3.3 * DPI))
 
 
-def test_reused_canvas_does_not_leak_one_figure_into_the_next(small_archive: Path) -> None:
+def test_a_figure_does_not_depend_on_the_figures_drawn_before_it(small_archive: Path) -> None:
     a, b = _config(small_archive, 4), _config(small_archive, 7)
     first = hysteresis_figure(a)
     other = hysteresis_figure(b)
-    energy_cycles_figure(b)  # same canvas kind, different content and axis limits
+    energy_cycles_figure(b)  # same layout, different content and axis limits
     again = hysteresis_figure(a)
     assert first == again
     assert first != other
 
 
-def test_two_panel_figures_reuse_cleanly(small_archive: Path) -> None:
+def test_a_two_panel_figure_is_drawn_again_byte_for_byte(small_archive: Path) -> None:
     a, b = _config(small_archive, 5), _config(small_archive, 6)
     first = bouc_wen_figure(a)
     bouc_wen_figure(b)
@@ -134,16 +135,16 @@ def test_energy_figure_puts_each_configuration_at_its_factor_value(small_archive
 
 def _drawn(monkeypatch, draw) -> object:
     """The matplotlib Figure a figure function draws (captured before it becomes a PNG)."""
-    from protocol_runner.report import canvas, figures, figures_compare
+    from protocol_runner.report import drawing, figures, figures_compare
 
     captured = []
-    real = canvas.to_data_uri
+    real = drawing.to_data_uri
 
     def keep(fig):
         captured.append(fig)
         return real(fig)
 
-    for module in (canvas, figures, figures_compare):
+    for module in (drawing, figures, figures_compare):
         monkeypatch.setattr(module, "to_data_uri", keep)
     draw()
     return captured[-1]

@@ -1,4 +1,4 @@
-"""Statistics across configurations inside one report (issue 13 item 3): adjacent differences of energy per
+"""Statistics across configurations inside one report: adjacent differences of energy per
 cycle with Welch intervals for each declared comparison, and the repeatability of a DECLARED group of
 identical configurations (`report.repeatability`), both on trial means, checked against scipy.stats."""
 

@@ -1,4 +1,4 @@
-"""`--export`: tidy CSV tables whose rows reproduce the report's trial-level intervals (issue 13 item 5)."""
+"""`--export`: tidy CSV tables whose rows reproduce the report's trial-level intervals."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Analysis failures (issue 14, finding 8): a processing step that cannot be done on the recorded data stops
+"""Analysis failures: a processing step that cannot be done on the recorded data stops
 the session with one message naming configuration, trial and step and saying what to do; it does not
 claim that a plain resume helps, because a resume fails the same way."""
 
@@ -64,7 +64,7 @@ def test_brace_off_trial_failure_names_its_trial_and_the_recording_it_follows(
     from protocol_runner.analysis.validation import AnalysisError
     from protocol_runner.protocol.loader import find_protocol, load_protocol
     from protocol_runner.protocol.plan import TrialStep, expand
-    from protocol_runner.steps import failures
+    from protocol_runner.steps import failures, registry
     from protocol_runner.steps.context import StepContext
 
     loaded = load_protocol(find_protocol("knee_phase1.yaml"))
@@ -75,7 +75,7 @@ def test_brace_off_trial_failure_names_its_trial_and_the_recording_it_follows(
     def flat(step: TrialStep, ctx: StepContext) -> None:
         raise AnalysisError("input_deg does not move (range 2e-12 deg)")
 
-    monkeypatch.setitem(failures.STEP_KINDS, "trial", flat)
+    monkeypatch.setitem(registry.STEP_KINDS, "trial", registry.StepKind(flat))
     ctx = StepContext(loaded, plan, None, None, tmp_path / "s" / "units", None, lambda: False, None)  # type: ignore[arg-type]
     with pytest.raises(failures.AnalysisStepFailed) as info:
         failures.run_step(step, ctx)

@@ -1,5 +1,5 @@
 """A brace-off trial takes its brace-on twin's recording from memory when the same process ran the twin
-(issue 20: it used to read the unit back from disk), and that memory is exactly what the unit stores: the
+(it used to read the unit back from disk), and that memory is exactly what the unit stores: the
 same dtypes and the same bits, so the brace-off input, and every sample after it, is unchanged."""
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The archive records every sample a dry run commanded - approach, trajectory and exit, with its time - and
-every one of them is inside the protocol's envelope, junctions included (issue 14, finding 2)."""
+every one of them is inside the protocol's envelope, junctions included."""
 
 from __future__ import annotations
 

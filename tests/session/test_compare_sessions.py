@@ -1,4 +1,4 @@
-"""`--compare`: two dry runs side by side (issue 13 item 6) and `--export` of a real session.
+"""`--compare`: two dry runs side by side and `--export` of a real session.
 
 Three short dry runs of the friction set (configurations 4-7) of a copy of knee_phase1 with fewer periods
 and no fits (seconds each): baseline (seed 0), a second seed, and a stiffer brake (levels 1-3 at 1.6 times

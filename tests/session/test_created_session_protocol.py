@@ -1,4 +1,4 @@
-"""A new session runs the protocol it was created from without reading it back (issue 20: the start-up read
+"""A new session runs the protocol it was created from without reading it back (the start-up read
 and checked it twice); what it runs must be exactly what a resume reads back from the session's copy."""
 
 from __future__ import annotations

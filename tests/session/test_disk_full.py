@@ -1,6 +1,6 @@
 """A full disk (ENOSPC from the writer) inside a unit write, consolidation, report writing and session
 creation: one clear message and exit 130, the joint parked, no partial file, every complete unit kept, and
-once space is freed the session resumes to an archive identical to an uninterrupted run (issue 14,
+once space is freed the session resumes to an archive identical to an uninterrupted run (
 finding 4). The last test fills a real (tmpfs) file system where the machine allows mounting one."""
 
 from __future__ import annotations
@@ -19,7 +19,6 @@ import h5py
 import pytest
 
 from protocol_runner.archive import consolidate as consolidate_module
-from protocol_runner.archive import h5util
 from protocol_runner.cli import main
 from protocol_runner.hardware.rig import Rig
 from protocol_runner.session import setup as session_setup
@@ -84,8 +83,8 @@ def test_enospc_inside_a_unit_write(
     parks: list[str],
 ) -> None:
     session = tmp_path / "s"
-    # the 25th compressed dataset: inside the third trial's unit, after some of its datasets were written
-    monkeypatch.setattr(h5util, "_write_chunks", after(25, h5util._write_chunks))
+    # the 38th dataset: inside the third trial's unit, after some of its datasets were written
+    monkeypatch.setattr(h5py.Group, "create_dataset", after(38, h5py.Group.create_dataset))
     code = main([*RUN, "--session", str(session)])
     err = capsys.readouterr().err
     stopped_cleanly(code, err, session)

@@ -1,4 +1,4 @@
-"""Operator prompts on the terminal (issue 14, finding 5): protocol text is shown exactly as written (rich
+"""Operator prompts on the terminal: protocol text is shown exactly as written (rich
 markup is never interpreted), and a physical confirmation needs an explicit answer: Enter alone is no "yes"."""
 
 from __future__ import annotations

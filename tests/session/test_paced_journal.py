@@ -2,7 +2,7 @@
 step that moves the joint starts, so that a crash or a power cut during that step cannot make a resume
 record a finished trial again (a review found the last trial's unit on disk but not journaled for the
 whole of the next trial: a kill -9 then redid it). A dry run that is not paced keeps writing in the
-background while the next trial simulates (issue 20)."""
+background while the next trial simulates."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The report at the end of a session (session/reporting.py) has the analysis workers draw the figures not
-drawn ahead and compute the model predictions; the report looks exactly as one the session makes itself,
+"""The report at the end of a session (session/reporting.py) has the analysis workers draw the figures and
+compute the model predictions; the report looks exactly as one the session makes itself,
 and when the workers are gone it makes everything itself."""
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ def _text(html: str, folder: Path) -> str:
 def _report(folder: Path, call: reporting.Call | None) -> str:
     folder.mkdir()
     archive = write_archive(folder / "archive.h5", small_spec())
-    return reporting.render_report(folder, archive, None, call).read_text(encoding="utf-8")
+    return reporting.render_report(folder, archive, call).read_text(encoding="utf-8")
 
 
 def _inline(called: Called) -> reporting.Call:
@@ -124,16 +124,15 @@ from tests.report.report_archive_builder import small_spec, write_archive
 folder = Path(sys.argv[1])
 archive = write_archive(folder / "archive.h5", small_spec())
 with ProcessPoolExecutor(1, mp_context=get_context("spawn")) as workers:
-    reporting.start_warm_up(drawing=False)
-    report = reporting.render_report(folder, archive, None, workers.submit)
+    report = reporting.render_report(folder, archive, workers.submit)
 assert report.is_file() and "data:image/png" in report.read_text(encoding="utf-8")
 print(sorted({m.split(".")[0] for m in sys.modules}))
 """
 
 
 def test_the_session_that_has_its_report_drawn_by_the_workers_never_loads_matplotlib(tmp_path: Path) -> None:
-    """The saving of issue 20 pinned: the session process at its end only reads, assembles and writes; the
-    drawing library (a quarter of a second to import) stays in the workers."""
+    """The session process at its end only reads, assembles and writes; the drawing library (a quarter of a
+    second to import) stays in the workers."""
     repo = Path(__file__).resolve().parents[2]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(repo / "src"), str(repo)])}
     done = subprocess.run(
@@ -142,105 +141,6 @@ def test_the_session_that_has_its_report_drawn_by_the_workers_never_loads_matplo
     loaded = done.stdout.strip().splitlines()[-1]
     assert "'jinja2'" in loaded and "'h5py'" in loaded  # it did read and render
     assert "'matplotlib'" not in loaded and "'PIL'" not in loaded
-
-
-def _hand_outs(
-    folder: Path, monkeypatch: Any, prepare: Callable[[Path], None]
-) -> tuple[list[str], list[list[str]]]:
-    """The figures handed to the workers before the figure cache is read, and the jobs handed out after."""
-    from protocol_runner.report import figure_plan
-
-    folder.mkdir()
-    archive = write_archive(folder / "archive.h5", small_spec())
-    prepare(archive)
-    events: list[tuple[str, tuple[str, ...]]] = []
-    real = figure_plan._cached
-
-    def cache_read(data: Any) -> dict[str, str]:
-        events.append(("cache", ()))
-        return real(data)
-
-    monkeypatch.setattr(figure_plan, "_cached", cache_read)
-    inline = _inline([])
-
-    def call(fn: Callable[..., Any], *args: Any) -> Future[Any]:
-        if fn.__name__ == "_draw":
-            events.append(("_draw", tuple(args[1])))
-        return inline(fn, *args)
-
-    html = reporting.render_report(folder, archive, None, call).read_text(encoding="utf-8")
-    assert len(_images(html)) == len(figure_ids(load_report_data(archive, verify=False)))
-    cache_at = events.index(("cache", ()))
-    before = [task for name, tasks in events[:cache_at] if name == "_draw" for task in tasks]
-    after = [list(tasks) for name, tasks in events[cache_at:] if name == "_draw"]
-    return before, after
-
-
-def test_the_figures_surely_not_drawn_ahead_are_handed_out_before_the_figure_cache_is_read(
-    tmp_path: Path, monkeypatch: Any
-) -> None:
-    """What the report surely draws goes to the workers before the figure cache is read (reading it takes a
-    few hundredths of a second): every figure but the configurations' own, and the own figures of those
-    the cache has no entry for. A configuration whose entry holds figures of other data is found out by
-    the cache read and drawn after it, in at most two jobs; one whose entry is good is not drawn. Each
-    figure is handed out once."""
-    from protocol_runner.report import figure_cache, figure_plan
-
-    def nothing_drawn_ahead(archive: Path) -> None:
-        pass
-
-    before, after = _hand_outs(tmp_path / "none", monkeypatch, nothing_drawn_ahead)
-    every = figure_ids(load_report_data(tmp_path / "none" / "archive.h5", verify=False))
-    assert sorted(before) == sorted(every) and after == []
-
-    def good_and_stale(archive: Path) -> None:
-        data = load_report_data(archive, verify=False)
-        cache = figure_cache.cache_dir_of(str(archive))
-        good, stale = data.configurations[:2]
-        figure_cache.save(
-            cache,
-            good,
-            {fid: "data:image/png;base64,AA==" for fid, _, _ in figure_plan.configuration_jobs(good)},
-        )
-        figure_cache.save(
-            cache,
-            stale,
-            {fid: "data:image/png;base64,AA==" for fid, _, _ in figure_plan.configuration_jobs(stale)},
-        )
-        entry = figure_cache._path(cache, stale)
-        entry.write_text(entry.read_text().replace('"fingerprint": "', '"fingerprint": "0'))
-
-    before, after = _hand_outs(tmp_path / "cached", monkeypatch, good_and_stale)
-    data = load_report_data(tmp_path / "cached" / "archive.h5", verify=False)
-    good, stale = ({fid for fid, _, _ in figure_plan.configuration_jobs(c)} for c in data.configurations[:2])
-    every = set(figure_ids(data))
-    assert good and stale and not (good | stale) & set(before)
-    assert sorted(before) == sorted(every - good - stale)
-    assert 1 <= len(after) <= 2 and sorted(t for tasks in after for t in tasks) == sorted(stale)
-
-
-def test_the_interpreter_switches_threads_promptly_only_while_the_report_is_made(
-    tmp_path: Path, monkeypatch: Any
-) -> None:
-    """While the report renders, Python's thread switch interval is at most SWITCH_INTERVAL_S (so the pool's
-    threads feeding the workers are not held up by the page render); before and after it is the caller's."""
-    import sys
-
-    from protocol_runner.report import render
-
-    seen: list[float] = []
-    real_render = render._render
-
-    def page(*args: Any, **kwargs: Any) -> str:
-        seen.append(sys.getswitchinterval())
-        return real_render(*args, **kwargs)
-
-    monkeypatch.setattr(render, "_render", page)
-    before = sys.getswitchinterval()
-    assert before > reporting.SWITCH_INTERVAL_S
-    _report(tmp_path / "w", _inline([]))
-    assert seen and all(s <= reporting.SWITCH_INTERVAL_S for s in seen)
-    assert sys.getswitchinterval() == before
 
 
 def test_the_verdicts_are_written_after_the_figures_are_handed_out_and_the_predictions_have_read_the_archive(

@@ -1,4 +1,4 @@
-"""Resume never silently redoes or rewrites recorded work (issue 14, "Small"): a finished session is left as
+"""Resume never silently redoes or rewrites recorded work: a finished session is left as
 it is, a missing journal is refused (unless --force, recorded), --seed/--only cannot change a session;
 progress counts every step including the report; a DT9814 protocol is refused saying what to do."""
 

@@ -1,4 +1,4 @@
-"""Resuming inside a set (issue 14, findings 1 and 3): the rig's physical state is set up and recorded.
+"""Resuming inside a set: the rig's physical state is set up and recorded.
 
 The set's calibration re-check runs with the brace off, as the set's first check did (with the brace still
 fitted its springs slow the step response and the re-check failed: exit 4); the operator is asked to take

@@ -1,4 +1,4 @@
-"""What a resume trusts (issue 14, findings 9 and 10): session.json is checked field by field, and every
+"""What a resume trusts: session.json is checked field by field, and every
 file the protocol references is hashed at creation and checked on resume (a change is refused, naming the
 file, unless accepted with --force, which the archive records)."""
 

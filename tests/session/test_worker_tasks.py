@@ -1,6 +1,6 @@
 """An analysis worker receives the session's protocol and plan once, when it starts, and each task only
 names its steps (session/workers.py): the knee's protocol and plan are 0.16 MB pickled, which every one of
-its 28 tasks used to carry."""
+its 28 tasks would otherwise carry."""
 
 from __future__ import annotations
 
@@ -40,7 +40,6 @@ def test_the_protocol_and_plan_reach_a_worker_once_and_its_tasks_use_them(
     loaded = load_protocol(KNEE)
     plan = expand(loaded)
     monkeypatch.setattr(workers, "ProcessPoolExecutor", _RecordingPool)
-    monkeypatch.setattr(workers, "start_worker_server", lambda: None)
     pool = workers.AnalysisPool(loaded, plan, tmp_path, SimpleNamespace(units={}))  # type: ignore[arg-type]
     processes = [s for s in plan.steps if isinstance(s, ProcessStep)][:3]
     for step in processes:
@@ -55,10 +54,10 @@ def test_the_protocol_and_plan_reach_a_worker_once_and_its_tasks_use_them(
     # in a worker started so, a task runs its steps with that protocol and plan
     ran: list[tuple[Any, ...]] = []
     monkeypatch.setattr(workers, "worker_init", lambda: None)  # not this test process's signals
-    monkeypatch.setattr(workers, "run_analysis_steps", lambda *a: ran.append(a) or ([], None))
+    monkeypatch.setattr(workers, "run_analysis_steps", lambda *a: ran.append(a) or [])
     made.initializer(*pickle.loads(pickle.dumps(made.initargs)))
     fn, args = made.tasks[0]
-    assert fn(*args) == ([], None)
+    assert fn(*args) == []
     (got,) = ran
     assert got[0] == loaded and got[1].steps == plan.steps
     assert got[2:] == (tmp_path, (processes[0].id, f"fit:k{processes[0].configuration:02d}"))

@@ -120,16 +120,15 @@ def test_every_registered_step_function_is_a_function_of_the_steps_package() -> 
     """The registry names its functions (their modules are imported when a step of the kind first runs):
     each name must be one, and the names follow the kinds (a misspelt name fails here, not in a session)."""
     from protocol_runner.steps import calibration_check, multi_calibration, multi_trial, process, trial
-    from protocol_runner.steps.registry import ONE_JOINT, SEVERAL_JOINTS, step_function
 
-    assert set(ONE_JOINT) == set(STEP_KINDS) >= set(SEVERAL_JOINTS)
-    assert step_function("calibration_check.run") is calibration_check.run
-    assert step_function("multi_calibration.run") is multi_calibration.run
-    assert step_function("trial.run") is trial.run
-    assert step_function("process.run") is process.run
-    assert step_function("fit.run") is fit.run
-    assert step_function("multi_trial.run_fit") is multi_trial.run_fit
-    assert step_function("compare.run") is compare.run
-    assert step_function("checklist.run") is checklist.run
-    for name in [*ONE_JOINT.values(), *SEVERAL_JOINTS.values()]:
-        assert callable(step_function(name))
+    assert STEP_KINDS["calibration_check"].function(multi_joint=False) is calibration_check.run
+    assert STEP_KINDS["calibration_check"].function(multi_joint=True) is multi_calibration.run
+    assert STEP_KINDS["trial"].function(multi_joint=False) is trial.run
+    assert STEP_KINDS["trial"].function(multi_joint=True) is multi_trial.run_trial
+    assert STEP_KINDS["process"].function(multi_joint=False) is process.run
+    assert STEP_KINDS["fit"].function(multi_joint=False) is fit.run
+    assert STEP_KINDS["fit"].function(multi_joint=True) is multi_trial.run_fit
+    assert STEP_KINDS["compare"].function(multi_joint=True) is compare.run  # one function for any joints
+    assert STEP_KINDS["operator_checklist"].function(multi_joint=True) is checklist.run
+    for entry in STEP_KINDS.values():
+        assert callable(entry.function(multi_joint=False)) and callable(entry.function(multi_joint=True))

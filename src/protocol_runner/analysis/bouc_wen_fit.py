@@ -1,5 +1,5 @@
 """Fit one configuration's centred trials with the generalised Bouc-Wen model and gather the evidence a
-modeller needs to trust it (issue 15): the fit (step-independent integration, its 4x-finer check and its
+modeller needs to trust it: the fit (step-independent integration, its 4x-finer check and its
 convergence record), leave-one-trial-out errors, parameter intervals, and the model's loop energy beside the
 data's.  Pure: arrays in, numbers out (the fit step and ``--reprocess`` store them)."""
 

@@ -158,25 +158,11 @@ class BranchCurves:
         return inside
 
 
-DIRECT_BINS_MAX = 1_000_000
-"""Span of bin numbers up to which `_binned_curve` counts bins in an array of that length (sorting the
-bin numbers beyond: a span so wide means angles far outside any joint's range)."""
-
-
 def _binned_curve(
     angle: FloatArray, torque: FloatArray, bin_width_deg: float
 ) -> tuple[FloatArray, FloatArray]:
     """Mean angle and torque of the samples in each occupied angle bin, in increasing angle order."""
     bins = np.floor(angle / bin_width_deg).astype(np.int64)
-    if bins.size and int(bins.max()) - int(bins.min()) < DIRECT_BINS_MAX:
-        # bins counted directly (no sort): bincount adds each bin's samples in sample order, as below
-        index = bins - bins.min()
-        counts = np.bincount(index)
-        occupied = counts > 0
-        counts = counts[occupied]
-        mean_angle = np.bincount(index, weights=angle)[occupied] / counts
-        mean_torque = np.bincount(index, weights=torque)[occupied] / counts
-        return mean_angle, mean_torque
     _, inverse, counts = np.unique(bins, return_inverse=True, return_counts=True)
     mean_angle = np.bincount(inverse, weights=angle) / counts
     mean_torque = np.bincount(inverse, weights=torque) / counts

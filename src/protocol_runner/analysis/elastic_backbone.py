@@ -1,4 +1,4 @@
-"""The Bouc-Wen backbone from the device's declared elastic elements (issue 15 item 2).
+"""The Bouc-Wen backbone from the device's declared elastic elements.
 
 ``torque = g(angle) + z`` (thesis Eq 19-23 for ``z``): with ``backbone: elements`` the elastic part ``g``
 is the sum of the device's angle-only torques (springs, bungees, masses' gravity; thesis §6.1) with the

@@ -5,10 +5,9 @@ campaign used a 10th-order Butterworth with a cut-off of 10 % of the Nyquist fre
 real cut-off frequency and the maximum frequency of the signal, ½ the sampling frequency", §3.2 note).
 
 Here the filter is designed as second-order sections (numerically sound at order 10, where the
-transfer-function form is not) and applied forward and backward (`sosfiltfilt`), so the filtered signal
-has no phase lag (the compiled pass of `butterworth.zero_phase_pass`, bit for bit scipy's `sosfiltfilt`
-with odd padding): angle and torque stay synchronised, which the equal-angle subtraction and the
-hysteresis loops depend on. The forward-backward pass squares the magnitude response (the effective
+transfer-function form is not) and applied forward and backward (scipy's `sosfiltfilt`, odd padding), so
+the filtered signal has no phase lag: angle and torque stay synchronised, which the equal-angle subtraction
+and the hysteresis loops depend on. The forward-backward pass squares the magnitude response (the effective
 order doubles; the -3 dB point of one pass becomes the -6 dB point).
 """
 
@@ -21,7 +20,6 @@ import numpy as np
 import numpy.typing as npt
 from scipy import signal
 
-from protocol_runner.analysis.butterworth import padding, sections_zi, zero_phase_pass
 from protocol_runner.analysis.processing_settings import FILTER_KINDS as FILTER_KINDS
 from protocol_runner.analysis.processing_settings import FilterKind as FilterKind
 from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal
@@ -39,8 +37,7 @@ def design_lowpass(
     (thesis: 10 % = 0.1). `ripple_db` is the pass-band ripple of the Chebyshev type I filter (ignored for
     Butterworth). The sections are normalised to unit gain at DC. Raises `AnalysisError` for an unknown
     kind, order < 1, a cut-off outside (0, 1) or a non-positive ripple. Each design is made once per
-    process (every trial of a campaign uses the same few: scipy's design took a tenth of the processing's
-    time) and handed out as a new array, the same bits every time."""
+    process (every trial of a campaign uses the same few) and handed out as a new array."""
     return np.array(_designed(kind, order, cutoff, ripple_db))
 
 
@@ -77,7 +74,7 @@ def padding_length(sos: npt.ArrayLike) -> int:
 
     A signal must be longer than this to be filtered.
     """
-    return padding(sos)
+    return 3 * (2 * np.atleast_2d(np.asarray(sos)).shape[0] + 1)
 
 
 def filter_zero_phase(values: npt.ArrayLike, sos: npt.ArrayLike, *, name: str = "signal") -> FloatArray:
@@ -88,10 +85,8 @@ def filter_zero_phase(values: npt.ArrayLike, sos: npt.ArrayLike, *, name: str = 
 def filter_zero_phase_together(
     signals: Sequence[npt.ArrayLike], sos: npt.ArrayLike, *, names: Sequence[str]
 ) -> list[FloatArray]:
-    """`filter_zero_phase` of several signals of one length (a trial's angle and torque): the filter's
-    start-up state is computed once for all, and each signal is bit for bit what it gives filtered alone.
-    The pass is the compiled one of `butterworth.zero_phase_pass`, which gives exactly what scipy's
-    `sosfiltfilt` with odd padding gives for these sections, in 40 % of its time (issue 20)."""
+    """`filter_zero_phase` of several signals of one length (a trial's angle and torque), each checked
+    before any is filtered; each result is C-contiguous float64."""
     xs = [as_signal(name, values) for name, values in zip(names, signals, strict=True)]
     sections = np.ascontiguousarray(np.atleast_2d(np.asarray(sos, dtype=np.float64)))
     if sections.ndim != 2 or sections.shape[1] != 6:
@@ -112,8 +107,7 @@ def filter_zero_phase_together(
             )
     if len({x.shape[0] for x in xs}) > 1:
         raise AnalysisError(f"{', '.join(names)} must have the same length to be filtered together")
-    zi = sections_zi(sections)
-    return [zero_phase_pass(x, sections, zi, pad) for x in xs]
+    return [np.ascontiguousarray(signal.sosfiltfilt(sections, x, padtype="odd", padlen=pad)) for x in xs]
 
 
 def lowpass(

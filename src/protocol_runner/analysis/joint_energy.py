@@ -1,4 +1,4 @@
-"""The energy lost per cycle by several joints moved together (issue 12): the sum over the joints.
+"""The energy lost per cycle by several joints moved together: the sum over the joints.
 
 Each joint's cycles are found on its own angle (Eq 10-12 per joint); a gait-like motion gives every joint
 the same number of complete cycles per trial, but the transition removal can leave one joint a cycle

@@ -1,5 +1,5 @@
 """Analysis as a service: "process and fit this configuration from these archived arrays" in one pure
-function, `analyse_configuration` (issue 17 item 2).
+function, `analyse_configuration`.
 
 The processing steps of a session and `--reprocess` both go through it, so a re-processing with unchanged
 settings reproduces the session's numbers bit for bit:

@@ -25,19 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy import special
-
-
-def t_quantile(q: float, dof: float) -> float:
-    """Student's t quantile: what `scipy.stats.t.ppf(q, dof)` gives, from `scipy.special` (whose import
-    is a small part of scipy.stats': the session renders the report; issue 20)."""
-    return float(special.stdtrit(dof, q))
-
-
-def t_sf(x: float, dof: float) -> float:
-    """Student's t survival function: what `scipy.stats.t.sf(x, dof)` gives (`t_quantile`'s note)."""
-    return float(special.stdtr(dof, -x))
-
+from scipy import stats
 
 #: Confidence level of every interval in reports and exports.
 CONFIDENCE = 0.95
@@ -133,7 +121,7 @@ def t_interval(values: npt.ArrayLike, confidence: float = CONFIDENCE) -> TInterv
     if n < 2:
         return TInterval(1, mean, math.nan, math.nan, math.nan, confidence)
     sd = float(arr.std(ddof=1))
-    half = t_quantile(0.5 + confidence / 2.0, n - 1) * sd / math.sqrt(n)
+    half = float(stats.t.ppf(0.5 + confidence / 2.0, n - 1)) * sd / math.sqrt(n)
     return TInterval(n, mean, sd, mean - half, mean + half, confidence)
 
 
@@ -158,8 +146,8 @@ def welch_interval(a: npt.ArrayLike, b: npt.ArrayLike, confidence: float = CONFI
         return WelchInterval(diff, diff, diff, math.inf, 1.0 if diff == 0.0 else 0.0, confidence)
     dof = se2**2 / (vx**2 / (x.size - 1) + vy**2 / (y.size - 1))
     se = math.sqrt(se2)
-    half = t_quantile(0.5 + confidence / 2.0, dof) * se
-    p_value = float(2.0 * t_sf(abs(diff) / se, dof))
+    half = float(stats.t.ppf(0.5 + confidence / 2.0, dof)) * se
+    p_value = float(2.0 * stats.t.sf(abs(diff) / se, dof))
     return WelchInterval(diff, diff - half, diff + half, dof, p_value, confidence)
 
 
@@ -186,8 +174,8 @@ def contrast_interval(
         return WelchInterval(value, value, value, math.inf, 1.0 if value == 0.0 else 0.0, confidence)
     dof = variance**2 / sum(v * v / (x.size - 1) for v, (_, x) in zip(parts, groups, strict=True))
     se = math.sqrt(variance)
-    half = t_quantile(0.5 + confidence / 2.0, dof) * se
-    p_value = float(2.0 * t_sf(abs(value) / se, dof))
+    half = float(stats.t.ppf(0.5 + confidence / 2.0, dof)) * se
+    p_value = float(2.0 * stats.t.sf(abs(value) / se, dof))
     return WelchInterval(value, value - half, value + half, dof, p_value, confidence)
 
 

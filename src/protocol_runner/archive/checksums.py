@@ -27,7 +27,6 @@ import numpy.typing as npt
 from h5py import h5a, h5o
 
 from .attrs import CHECKSUM_MARKER, DIGEST
-from .h5fast import set_attr
 
 DIGEST_ATTR = DIGEST
 MARKER_ATTR = CHECKSUM_MARKER
@@ -66,18 +65,18 @@ def seal(ds: h5py.Dataset, values: npt.ArrayLike | str | list[str]) -> None:
     if h5py.check_string_dtype(ds.dtype) is not None:
         items = [values] if isinstance(values, str) else list(np.asarray(values, dtype=object).reshape(-1))
         encoded = [v.encode("utf-8") if isinstance(v, str) else bytes(v) for v in items]
-        set_attr(ds, DIGEST_ATTR, text_digest(encoded, ds.shape))
+        ds.attrs[DIGEST_ATTR] = text_digest(encoded, ds.shape)
     else:
-        set_attr(ds, DIGEST_ATTR, numeric_digest(np.asarray(values, dtype=ds.dtype).reshape(ds.shape)))
+        ds.attrs[DIGEST_ATTR] = numeric_digest(np.asarray(values, dtype=ds.dtype).reshape(ds.shape))
 
 
 def seal_values(ds: h5py.Dataset, values: npt.NDArray[Any]) -> None:
     """`seal` for `values` that are exactly what `ds` was created from (numbers, or the fixed-length byte
     strings of a text dataset): the digest needs neither `ds`'s type nor its shape read back."""
     if values.dtype.kind == "S":
-        set_attr(ds, DIGEST_ATTR, text_digest([bytes(v) for v in values.reshape(-1).tolist()], values.shape))
+        ds.attrs[DIGEST_ATTR] = text_digest([bytes(v) for v in values.reshape(-1).tolist()], values.shape)
     else:
-        set_attr(ds, DIGEST_ATTR, numeric_digest(values))
+        ds.attrs[DIGEST_ATTR] = numeric_digest(values)
 
 
 def digest_of_stored(ds: h5py.Dataset) -> str:

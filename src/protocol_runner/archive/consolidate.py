@@ -63,7 +63,7 @@ _MEMORY_TYPES: dict[bytes, tuple[np.dtype[Any], h5t.TypeID]] = {}  # HDF5 type's
 
 # The merge works on HDF5's identifiers (h5py's low-level API), not on h5py's groups and attribute
 # managers: their objects, `in` and `[]` lookups cost more than the HDF5 calls they make, and a knee session's
-# merge visits about 1,000 groups and 3,000 attributes (issue 20). Names are bytes, visited in name order.
+# merge visits about 1,000 groups and 3,000 attributes. Names are bytes, visited in name order.
 
 
 def _link_names(group: h5g.GroupID) -> list[bytes]:

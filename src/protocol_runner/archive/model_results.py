@@ -11,7 +11,6 @@ from typing import TYPE_CHECKING, Any
 import h5py
 import numpy as np
 
-from .fast_read import read_values
 from .h5util import put_attrs
 from .paths import CONFIGURATIONS, FITS, PROCESSED
 from .results import Fill
@@ -125,7 +124,7 @@ def read_processed_trials(trials: h5py.Group) -> list[tuple[np.ndarray, np.ndarr
     out = []
     for n in sorted(trials, key=int):
         g = trials[n][PROCESSED]
-        out.append(tuple(read_values(g[k]) for k in ("time_s", "angle_deg", "brace_torque_nm")))
+        out.append(tuple(np.asarray(g[k][()], dtype=np.float64) for k in ("time_s", "angle_deg", "brace_torque_nm")))
     return out  # type: ignore[return-value]
 
 

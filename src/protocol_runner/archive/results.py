@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING, Any
 import h5py
 import numpy as np
 
-from .fast_read import read_values
 from .h5util import SIGNAL, put_attrs
 from .paths import CONFIGURATIONS, FITS, PROCESSED, TRIALS, put_dataset
 
@@ -38,11 +37,11 @@ def read_recording(g: h5py.Group) -> Recording:
     from ..analysis.pipeline import Recording  # read by the processing, which has loaded it
 
     return Recording(
-        time_s=read_values(g["time_s"]),
-        angle_deg=read_values(g["angle_deg"]),
-        torque_nm=read_values(g["torque_nm"]),
-        command_deg=read_values(g["command_deg"]),
-        command_time_s=read_values(g["command_time_s"]),
+        time_s=g["time_s"][()],
+        angle_deg=g["angle_deg"][()],
+        torque_nm=g["torque_nm"][()],
+        command_deg=g["command_deg"][()],
+        command_time_s=g["command_time_s"][()],
     )
 
 
@@ -52,7 +51,7 @@ def read_processed_loops(trials: h5py.Group) -> list[tuple[np.ndarray, np.ndarra
     loops = []
     for n in sorted(trials, key=int):
         g = trials[n][PROCESSED]
-        loops.append((read_values(g["angle_deg"]), read_values(g["brace_torque_nm"])))
+        loops.append((g["angle_deg"][()], g["brace_torque_nm"][()]))
     return loops
 
 
@@ -154,7 +153,7 @@ def _interim_spring_group(fits: h5py.Group, fit: ElementFit) -> None:
 
 
 def evidence_attrs(result: BoucWenFit, energy: LoopEnergy) -> dict[str, object]:
-    """The attributes that let a modeller judge the fit (issue 15; units in docs/archive.md)."""
+    """The attributes that let a modeller judge the fit (units in docs/archive.md)."""
     return {
         "scheme": result.scheme,
         "rmse_refined_nm": float(result.rmse_refined_nm),

@@ -1,4 +1,4 @@
-"""Atomic unit files: one HDF5 file per finished step (DESIGN.md "Reliability rules").
+"""Atomic unit files: one HDF5 file per finished step.
 
 A unit is a fragment of the final archive (its groups sit at the paths they will have in `archive.h5`).
 It is written to `<name>.h5.partial`, closed, fsynced, renamed to `<name>.h5`, and the directory fsynced;

@@ -1,5 +1,5 @@
 """Several joints on one set of boards: every joint's output in the same output tick, every joint's angle
-and torque in one input scan (issue 12; thesis §2.3: the boards control "the 12 joints ... simultaneously").
+and torque in one input scan (thesis §2.3: the boards control "the 12 joints ... simultaneously").
 
 `MultiRig.send` is `Rig.send` for a (ticks x joints) command: per tick one synchronous update of every
 driven joint's channel (`AnalogOutput.write_volts_sync`: on the USB-3105 each channel's AOUT with the

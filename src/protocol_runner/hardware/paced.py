@@ -5,10 +5,11 @@ tick k sleep until t0 + k / output_rate_hz, write, record the write time; read t
 `READ_EVERY_TICKS` ticks and poll the stop request there; after the last tick wait one more tick and stop
 the scan. On a stop request `on_stop(written)`, if given, returns the samples to send next in the same loop
 (no pause: the output would hold), then `Interrupted` is raised. An error or an interruption carries what
-was recorded so far (`partial_recording`).
+was recorded so far (`partial_recording`). The live monitor (`tap`) is shown every block read, the one
+`stop_scan` returns included.
 
-In simulated time (`ScheduledBlockIO`, the DAQ simulator's block path) up to `BLOCK_S` of the same samples
-go in one call, read at the block's last write as the per-tick loop reads (`block_end`).
+The hardware bench and a dry run run this same loop: the DAQ simulator's boards satisfy the same
+interfaces, and its clock jumps instead of sleeping.
 
 The loop does as little as possible per tick: conversions are done on whole arrays before and after, the
 schedule is precomputed, and results go into preallocated lists.
@@ -19,7 +20,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import ClassVar, Generic, Protocol, TypeVar
+from typing import ClassVar, Generic, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -33,51 +34,6 @@ RecordingT = TypeVar("RecordingT")
 
 READ_EVERY_TICKS = 10
 """Output ticks between two reads of the input scan (100 ms at 100 Hz: 100 rows per read at 1 kHz)."""
-
-BLOCK_S = 10.0
-"""The most robot time one block of the simulator's block path covers: a stop request is seen within it
-(about 10 ms of wall time in a dry run). The data do not depend on it (the rows are read as the per-tick loop
-reads them); a longer block only means fewer calls: 1 s blocks cost ~9,000 calls of ~0.15 ms of Python
-around the compiled one for the knee campaign."""
-
-
-class ScheduledBlockIO(Protocol):
-    """Boards that take a block of scheduled writes and read the scan at its last one in one call — the
-    DAQ simulator in simulated time (`SimulatedRig.send_block`). Real boards are paced tick by tick."""
-
-    @property
-    def accepts_scheduled_blocks(self) -> bool: ...
-
-    def drives(self, ao: object, ai: object) -> bool: ...
-
-    def send_block(
-        self, channel: int, times_s: FloatArray, volts: FloatArray
-    ) -> tuple[npt.NDArray[np.int64], ScanBlock]: ...
-
-
-def block_end(start: int, n: int, block_ticks: int, stop_requested: StopRequested | None) -> tuple[int, bool]:
-    """The end of the block path's next block from tick `start` (of `n`) and whether a stop was requested
-    there. `stop_requested` is polled, in order, at each READ_EVERY_TICKS boundary the per-tick loop polls
-    (after ticks start + 10, start + 20, ...), up to `block_ticks` ahead, before the block is simulated; the
-    block ends at the first boundary that asks for a stop. So a stop takes effect after the same sample as
-    in the per-tick loop (for a request that depends on the polls, not on the samples), and a signal is
-    seen within one block.
-
-    A flag whose answer does not depend on how often it is asked (`POLLED_AS_FLAG` true, as the session's
-    `StopFlag`: an event that a signal sets) is asked once, at the block's first boundary: asking it again
-    microseconds later at the next boundaries could only see a signal that arrived meanwhile, which the next
-    block sees as well. That saves ~90,000 polls in a knee dry run."""
-    end = start
-    limit = min(start + block_ticks, n)
-    if stop_requested is not None and getattr(stop_requested, "POLLED_AS_FLAG", False) and end < limit:
-        if stop_requested():
-            return min(end + READ_EVERY_TICKS, n), True
-        return limit, False
-    while end < limit:
-        end = min(end + READ_EVERY_TICKS, n)
-        if stop_requested is not None and stop_requested():
-            return end, True
-    return end, False
 
 
 def schedule_s(t0: float, n: int, dt: float) -> list[float]:
@@ -162,10 +118,6 @@ class PacedLoop(Generic[RecordingT]):
         """What the monitor shows of a scan block."""
         return block
 
-    def _block_output(self) -> tuple[ScheduledBlockIO, int] | None:
-        """The block path and the channel it drives, when it may be used now (never by default)."""
-        return None
-
     def _note_written(self, cmd: FloatArray, written: int) -> None:
         """After an aborted loop: the first `written` commands were written."""
         raise NotImplementedError
@@ -211,27 +163,16 @@ class PacedLoop(Generic[RecordingT]):
         tap = self.tap
         if tap is not None:
             tap.start(where, self._monitored_command(cmd), t0)
-        block_out = self._block_output()
-        block_ticks = max(READ_EVERY_TICKS, int(rate * BLOCK_S) // READ_EVERY_TICKS * READ_EVERY_TICKS)
         try:
             start = 0
             while start < n:
-                if block_out is None:  # the paced loop, tick by tick (real boards, --realtime)
-                    end = min(start + READ_EVERY_TICKS, n)
-                    for k in range(start, end):
-                        sleep_until(schedule[k])
-                        actual[k] = now()
-                        codes[k] = write(k)
-                    append(read())
-                    stop_now = not stopped and stop_requested is not None and stop_requested()
-                else:  # simulated time: up to BLOCK_S of the same samples in one call (see block_end)
-                    io, channel = block_out
-                    end, stop_now = block_end(start, n, block_ticks, None if stopped else stop_requested)
-                    times = schedule[start:end]
-                    block_codes, scan = io.send_block(channel, np.asarray(times), volts[start:end])
-                    codes[start:end] = block_codes.tolist()
-                    actual[start:end] = times  # each sample written at its time: what now() reads
-                    append(scan)  # read at the block's last write, as the per-tick loop reads
+                end = min(start + READ_EVERY_TICKS, n)
+                for k in range(start, end):
+                    sleep_until(schedule[k])
+                    actual[k] = now()
+                    codes[k] = write(k)
+                append(read())
+                stop_now = not stopped and stop_requested is not None and stop_requested()
                 start = end
                 if tap is not None:
                     tap.scan(self._monitored_scan(blocks[-1]))
@@ -260,11 +201,15 @@ class PacedLoop(Generic[RecordingT]):
             self._note_written(cmd, written)
             with contextlib.suppress(Exception):  # the original error matters more than a failing stop
                 append(self.ai.stop_scan())
+                if tap is not None:
+                    tap.scan(self._monitored_scan(blocks[-1]))
             # keep the data recorded so far with the error (a board that vanished mid-trial: the session
             # archives it as a failed trial)
             with contextlib.suppress(Exception):
                 exc.partial_recording = self._recording(loop, where, partial=True)  # type: ignore[attr-defined]
             raise
         append(self.ai.stop_scan())
+        if tap is not None:  # the rows a board hands over when it stops (the simulator's last transfer)
+            tap.scan(self._monitored_scan(blocks[-1]))
         self._note_written(cmd, n)
         return self._recording(loop, where, partial=False)

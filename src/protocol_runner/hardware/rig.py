@@ -1,6 +1,6 @@
 """The rig: one joint's analog output, analog input scan and clock, bound to its channels and calibration.
 
-`Rig.run_trajectory` is the acquisition loop (thesis §2.4-2.5, DESIGN.md "Data flow"); trials and checks
+`Rig.run_trajectory` is the acquisition loop (thesis §2.4-2.5); trials and checks
 send through `hardware/motion.py`, which adds the approach and the exit in the same loop (`Rig.send`):
 
 1. safety envelope (`hardware/safety.py`) on the whole trajectory — a violation raises before any write;
@@ -15,7 +15,7 @@ send through `hardware/motion.py`, which adds the approach and the exit in the s
 
 Times in a `TrialRecording` count from t0, the clock reading just after the scan started (the first output
 tick is scheduled at t0). `tick_lateness_s[k]` is the clock reading just before write k minus its schedule:
-the output jitter DESIGN.md asks to record per trial.
+the output jitter recorded per trial.
 
 The loop does as little as possible per tick: all conversions are done on whole arrays before and after,
 the schedule is precomputed, and results go into preallocated lists.
@@ -36,10 +36,8 @@ from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
 from protocol_runner.hardware.joint import JointConfig as JointConfig
 from protocol_runner.hardware.joint import StopRequested
 from protocol_runner.hardware.joint import TrialRecording as TrialRecording
-from protocol_runner.hardware.paced import BLOCK_S as BLOCK_S
 from protocol_runner.hardware.paced import READ_EVERY_TICKS as READ_EVERY_TICKS
-from protocol_runner.hardware.paced import Loop, PacedLoop, ScheduledBlockIO, input_time_base_s
-from protocol_runner.hardware.paced import block_end as block_end
+from protocol_runner.hardware.paced import Loop, PacedLoop, input_time_base_s
 from protocol_runner.hardware.safety import SafetyLimits, check_trajectory, parking_ramp_deg
 
 FloatArray = npt.NDArray[np.float64]
@@ -64,8 +62,6 @@ class Rig(PacedLoop[TrialRecording]):
     )
     # The live monitor's sampler (--monitor): shown each scan block as it is read; None costs nothing.
     tap: LoopTap | None = field(default=None, init=False)
-    # The simulator's block path (set by `SimulatedRig.make_rig`); None on the hardware bench.
-    block_io: ScheduledBlockIO | None = field(default=None, init=False)
 
     @property
     def scan_channels(self) -> tuple[int, int]:
@@ -165,14 +161,6 @@ class Rig(PacedLoop[TrialRecording]):
     def _tick_writer(self, volts: FloatArray) -> Callable[[int], object]:
         write, channel, volts_list = self.ao.write_volts, self.joint.output_channel, volts.tolist()
         return lambda k: write(channel, volts_list[k])
-
-    def _block_output(self) -> tuple[ScheduledBlockIO, int] | None:
-        """The block path, when the boards offer one, take scheduled blocks now, and are the rig's boards
-        (a board replaced or wrapped since, e.g. by fault injection, is driven tick by tick)."""
-        io = self.block_io
-        if io is not None and io.accepts_scheduled_blocks is True and io.drives(self.ao, self.ai):
-            return io, self.joint.output_channel
-        return None
 
     def _note_written(self, cmd: FloatArray, written: int) -> None:
         if written > 0:

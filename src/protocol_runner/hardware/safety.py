@@ -1,4 +1,4 @@
-"""Safety envelope for everything sent to the robot (DESIGN.md "Reliability rules").
+"""Safety envelope for everything sent to the robot.
 
 A commanded trajectory is checked as a whole *before* anything is written to the boards:
 

@@ -1,5 +1,12 @@
 """The Plan's data: one frozen dataclass per step kind, and the Plan (steps in execution order, by id).
 
+Each kind's class declares, in one place, what the rest of the program needs to know of it: what it does
+(`describe`, a line of `run-protocol --plan`), the earlier steps whose units it reads (`inputs`: a resume
+that redoes one of them redoes this step too), whether it uses the rig or sets it up (`uses_rig`: a resume
+asks for the rig's state before the first such step) and whether it only reads finished units, so that it
+may run in an analysis worker beside the trials (`background`). The function that runs a step of the kind
+is registered in `steps/registry.py`.
+
 A step's JSON (`run-protocol --plan --json`, the journal) is its fields in declaration order after `id` and
 `kind`: tuples as lists, records by their own `to_json`, None left out; a kind adds or renames keys only
 where its JSON differs from its fields (the trajectories of a multi-joint step, a trial's device).
@@ -9,11 +16,14 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 from .plan_trajectory import Trajectory
 from .settings import Settings
+from .step_ids import step_id
+from .trajectory_specs import trajectory_kind
 
 
 def _plain(value: Any) -> Any:
@@ -26,12 +36,25 @@ def _plain(value: Any) -> Any:
 
 
 @dataclass(frozen=True)
-class Step:
+class Step(ABC):
     id: str
     kind: str
 
     #: fields a kind writes itself (or not at all) in its `to_json`
     _NOT_PLAIN: ClassVar[tuple[str, ...]] = ()
+    #: a step of the kind moves the joint or sets the rig up (a resume asks for the rig's state first)
+    uses_rig: ClassVar[bool] = False
+    #: a step of the kind only reads finished units: it may run in an analysis worker beside the trials
+    background: ClassVar[bool] = False
+
+    @abstractmethod
+    def describe(self) -> str:
+        """What the step does: its line in the plan table (`run-protocol --plan`)."""
+
+    def inputs(self) -> tuple[str, ...]:
+        """The ids of the earlier steps whose units this step reads: a resume that redoes one of them (its
+        unit was lost) redoes this step too, from the new unit."""
+        return ()
 
     def to_json(self) -> dict[str, Any]:
         out: dict[str, Any] = {"id": self.id, "kind": self.kind}
@@ -69,6 +92,11 @@ class CalibrationCheckStep(Step):
     joint_trajectories: JointTrajectories = ()
 
     _NOT_PLAIN: ClassVar[tuple[str, ...]] = _TRAJECTORY_FIELDS
+    uses_rig: ClassVar[bool] = True
+
+    def describe(self) -> str:
+        step_deg = dict(self.trajectory.params).get("step_deg", 0.0)
+        return f"set {self.set}: {step_deg:g} deg step check {self.when}"
 
     def joints_names(self) -> tuple[str, ...]:
         """The joints checked one after the other (multi-joint; empty for one joint)."""
@@ -93,6 +121,11 @@ class ChecklistStep(Step):
     configuration: int | None = None
     settings: Settings | None = None
 
+    uses_rig: ClassVar[bool] = True
+
+    def describe(self) -> str:
+        return self.title
+
 
 @dataclass(frozen=True)
 class TrialStep(Step):
@@ -108,6 +141,19 @@ class TrialStep(Step):
     joint_trajectories: JointTrajectories = ()
 
     _NOT_PLAIN: ClassVar[tuple[str, ...]] = (*_TRAJECTORY_FIELDS, "twin")
+    uses_rig: ClassVar[bool] = True
+
+    def describe(self) -> str:
+        traj = trajectory_kind(self.trajectory.profile).describe(self.trajectory)
+        extra = f"  (input from {self.twin})" if self.twin else ""
+        return (
+            f"config {self.configuration:>2} run {self.run:>2} trial {self.trial} brace {self.brace:<3}  "
+            f"{' '.join(f.level for _, f in self.settings.factors)}  {traj}{extra}"
+        )
+
+    def inputs(self) -> tuple[str, ...]:
+        """A brace-off trial commands what its brace-on twin measured."""
+        return (self.twin,) if self.twin is not None else ()
 
     @property
     def joints(self) -> tuple[str, ...]:
@@ -133,12 +179,30 @@ class ProcessStep(Step):
     configuration: int
     trials: tuple[tuple[str, str], ...]  # (brace-on id, brace-off id) per trial
 
+    background: ClassVar[bool] = True
+
+    def describe(self) -> str:
+        return f"config {self.configuration}: transition, filter, equal-angle subtraction, cycles, energy"
+
+    def inputs(self) -> tuple[str, ...]:
+        """Both trials of each pair."""
+        return tuple(i for pair in self.trials for i in pair)
+
 
 @dataclass(frozen=True)
 class FitStep(Step):
     set: str
     configuration: int
     models: tuple[str, ...]
+
+    background: ClassVar[bool] = True
+
+    def describe(self) -> str:
+        return f"config {self.configuration}: fit {', '.join(self.models)}"
+
+    def inputs(self) -> tuple[str, ...]:
+        """The configuration's processing (the loops it stored)."""
+        return (step_id("process", key=self.configuration),)
 
 
 @dataclass(frozen=True)
@@ -157,10 +221,20 @@ class Comparison:
 class CompareStep(Comparison, Step):
     """The comparison of a protocol's `report.comparisons` entry (its fields after `id` and `kind`)."""
 
+    def describe(self) -> str:
+        return f"{self.title} (§{self.section}): configurations {', '.join(map(str, self.configurations))}"
+
+    def inputs(self) -> tuple[str, ...]:
+        """The processing of each of its configurations."""
+        return tuple(step_id("process", key=key) for key in self.configurations)
+
 
 @dataclass(frozen=True)
 class ReportStep(Step):
-    pass
+    """The session's end: the archive consolidated, then the HTML report (the runner's own step)."""
+
+    def describe(self) -> str:
+        return "HTML report"
 
 
 @dataclass(frozen=True)

@@ -2,42 +2,7 @@
 
 from __future__ import annotations
 
-from .plan import (
-    CalibrationCheckStep,
-    ChecklistStep,
-    CompareStep,
-    FitStep,
-    Plan,
-    ProcessStep,
-    Step,
-    TrialStep,
-)
-
-
-def _describe(step: Step) -> str:
-    if isinstance(step, TrialStep):
-        tr = step.trajectory
-        if tr.profile == "sinusoid":
-            traj = f"{tr.mean_deg:g}+{tr.amplitude_deg:g}*sin(2*pi*t/{tr.period_s:.2f})"
-        else:
-            traj = f"{tr.profile} {tr.source or ''}".strip()
-        extra = f"  (input from {step.twin})" if step.twin else ""
-        return (
-            f"config {step.configuration:>2} run {step.run:>2} trial {step.trial} brace {step.brace:<3}  "
-            f"{' '.join(f.level for _, f in step.settings.factors)}  {traj}{extra}"
-        )
-    if isinstance(step, CalibrationCheckStep):
-        step_deg = dict(step.trajectory.params).get("step_deg", 0.0)
-        return f"set {step.set}: {step_deg:g} deg step check {step.when}"
-    if isinstance(step, ChecklistStep):
-        return step.title
-    if isinstance(step, ProcessStep):
-        return f"config {step.configuration}: transition, filter, equal-angle subtraction, cycles, energy"
-    if isinstance(step, FitStep):
-        return f"config {step.configuration}: fit {', '.join(step.models)}"
-    if isinstance(step, CompareStep):
-        return f"{step.title} (§{step.section}): configurations {', '.join(map(str, step.configurations))}"
-    return "HTML report"
+from .plan import Plan, TrialStep
 
 
 def format_matrix_table(plan: Plan) -> list[str]:
@@ -80,7 +45,7 @@ def format_plan_table(plan: Plan) -> str:
     lines.append(f"{'-' * 4}  {'-' * width}  {'-' * 18}  {'-' * 8}  {'-' * 40}")
     for i, step in enumerate(plan.steps, start=1):
         t = f"{step.robot_time_s:8.1f}" if step.robot_time_s else " " * 8
-        lines.append(f"{i:>4}  {step.id:<{width}}  {step.kind:<18}  {t}  {_describe(step)}")
+        lines.append(f"{i:>4}  {step.id:<{width}}  {step.kind:<18}  {t}  {step.describe()}")
     trials = [s for s in plan.steps if isinstance(s, TrialStep)]
     configs = sorted({s.configuration for s in trials})
     lines.append("")

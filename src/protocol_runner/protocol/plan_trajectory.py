@@ -1,8 +1,9 @@
-"""What a trial commands, as the plan records it: the `Trajectory` (JSON shape of the plan contract) and
-how a configuration's, or the calibration step's, is derived from the protocol.
+"""What a trial commands, as the plan records it: the `Trajectory` (JSON shape of the plan contract,
+protocol/trajectory_record.py) and how a configuration's, or the calibration step's, is derived from the
+protocol.
 
-`build_trajectory` turns a named `TrajectorySpec` (protocol/trajectory_specs.py) and the values of its bound
-fields into a `Trajectory`; its JSON is {"profile": kind, "name": name, the kind's fields resolved,
+`build_trajectory` resolves the bound fields of a named `TrajectorySpec` (protocol/trajectory_specs.py) and
+has its kind build the `Trajectory`; its JSON is {"profile": kind, "name": name, the kind's fields resolved,
 "duration_s"} (a sinusoid also keeps mean_deg, amplitude_deg and period_s; a file keeps `source`, the
 file as written, plus the angle `column` read and its `origin`). `protocol/sampling.py` samples any of
 them.
@@ -11,64 +12,13 @@ them.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 from ..errors import InvalidInput
 from ..hardware.safety import SafetyLimits
-from .paths import OutsideFolder, confined_path
-from .trajectories import load_trajectory_file, sinusoid_period_s, triangle_period_s
-from .trajectory_specs import (
-    BINDABLE_FIELDS,
-    FileSpec,
-    HoldSpec,
-    IdentificationSpec,
-    RampedStepSpec,
-    SinusoidSpec,
-    TrajectorySpec,
-    TriangleSpec,
-)
-
-ParamValue = float | str | tuple[float, ...]
-Quantity = float | tuple[float, ...]
-
-
-@dataclass(frozen=True)
-class Trajectory:
-    """What to command during a trial (JSON shape of the plan contract)."""
-
-    profile: str
-    duration_s: float
-    mean_deg: float | None = None
-    amplitude_deg: float | None = None
-    period_s: float | None = None
-    source: str | None = None
-    params: tuple[tuple[str, ParamValue], ...] = ()
-    name: str | None = None  # the protocol's name for it (build_trajectory)
-
-    def param(self, field: str) -> ParamValue:
-        """The value of a kind field (`KeyError` if it has none)."""
-        return dict(self.params)[field]
-
-    def number(self, field: str) -> float:
-        """The value of a numeric kind field (`KeyError` if it has none, `TypeError` if not a number)."""
-        value = self.param(field)
-        if isinstance(value, str | tuple):
-            raise TypeError(f"trajectory field {field} is not a number: {value!r}")
-        return float(value)
-
-    def to_json(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"profile": self.profile}
-        if self.name is not None:
-            out["name"] = self.name
-        if self.profile == "sinusoid":
-            out.update(mean_deg=self.mean_deg, amplitude_deg=self.amplitude_deg, period_s=self.period_s)
-        if self.source is not None:
-            out["source"] = self.source
-        out.update({k: list(v) if isinstance(v, tuple) else v for k, v in self.params})
-        out["duration_s"] = self.duration_s
-        return out
+from .trajectory_record import ParamValue as ParamValue
+from .trajectory_record import Trajectory as Trajectory
+from .trajectory_specs import Quantity, TrajectorySpec
 
 
 def build_trajectory(
@@ -84,113 +34,13 @@ def build_trajectory(
     (field -> the resolved factor quantity). A file is read from `base_dir` (its angle column: `joint`'s,
     else `angle_deg`); a triangle without `corner_accel_deg_s2` turns at `limits.max_accel_deg_s2`.
     `InvalidInput` names the trajectory and the field."""
-    fields = _resolve(name, spec, values)
-    where = f"trajectory {name!r}"
-    if isinstance(spec, SinusoidSpec):
-        lo, hi = _pair(fields["range_deg"])
-        speed = _num(fields["speed_deg_s"])
-        amplitude = (hi - lo) / 2.0
-        period = sinusoid_period_s(amplitude, speed)  # Eq 25
-        return Trajectory(
-            profile="sinusoid",
-            name=name,
-            mean_deg=(hi + lo) / 2.0,
-            amplitude_deg=amplitude,
-            period_s=period,
-            params=(("range_deg", (lo, hi)), ("speed_deg_s", speed), ("periods", spec.periods)),
-            duration_s=spec.periods * period,
-        )
-    if isinstance(spec, TriangleSpec):
-        lo, hi = _pair(fields["range_deg"])
-        speed = _num(fields["speed_deg_s"])
-        given = fields.get("corner_accel_deg_s2")
-        if given is not None:
-            accel = _num(given)
-        elif limits is not None:
-            accel = limits.max_accel_deg_s2
-        else:
-            raise InvalidInput(
-                f"{where}: corner_accel_deg_s2 is not given and no joint acceleration limit is known"
-            )
-        if hi - lo < speed * speed / accel:
-            raise InvalidInput(
-                f"{where}: speed_deg_s {speed:g} deg/s cannot be reached within range_deg [{lo:g}, {hi:g}] "
-                f"with corners at {accel:g} deg/s² (it needs a range of at least speed²/accel = "
-                f"{speed * speed / accel:.4g} deg)"
-            )
-        return Trajectory(
-            profile="triangle",
-            name=name,
-            params=(
-                ("range_deg", (lo, hi)),
-                ("speed_deg_s", speed),
-                ("cycles", spec.cycles),
-                ("corner_accel_deg_s2", accel),
-            ),
-            duration_s=spec.cycles * triangle_period_s(hi - lo, speed, accel),
-        )
-    if isinstance(spec, FileSpec):
-        try:
-            path = confined_path(base_dir, spec.file)
-        except OutsideFolder as exc:
-            raise InvalidInput(f"{where}: file: {exc}") from None
-        try:
-            data = load_trajectory_file(path, joint)
-        except InvalidInput as exc:
-            raise InvalidInput(f"{where}: {exc.message}") from None
-        origin = spec.origin or (data.header.splitlines()[0] if data.header else "")
-        if not origin:
-            raise InvalidInput(
-                f"{where}: file {spec.file}: state where the motion comes from, in comment lines (#) before "
-                "the column row or as `origin:` in the protocol"
-            )
-        return Trajectory(
-            profile="file",
-            name=name,
-            source=spec.file,
-            params=(("column", data.column), ("origin", origin)),
-            duration_s=data.duration_s,
-        )
-    if isinstance(spec, IdentificationSpec):
-        lo, hi = _pair(fields["range_deg"])
-        return Trajectory(
-            profile="identification",
-            name=name,
-            params=(
-                ("min_deg", lo),
-                ("max_deg", hi),
-                ("repetition_s", spec.repetition_s),
-                ("initial_period_s", spec.initial_period_s),
-                ("final_period_s", spec.final_period_s),
-            ),
-            duration_s=spec.total_s,
-        )
-    if isinstance(spec, RampedStepSpec):
-        return Trajectory(
-            profile="ramped_step",
-            name=name,
-            params=(
-                ("from_deg", _num(fields["from_deg"])),
-                ("step_deg", _num(fields["step_deg"])),
-                ("settle_s", spec.settle_s),
-                ("ramp_s", spec.ramp_s),
-                ("hold_s", spec.hold_s),
-            ),
-            duration_s=spec.settle_s + spec.ramp_s + spec.hold_s,
-        )
-    assert isinstance(spec, HoldSpec)
-    return Trajectory(
-        profile="hold",
-        name=name,
-        params=(("angle_deg", _num(fields["angle_deg"])),),
-        duration_s=spec.duration_s,
-    )
+    return spec.build(name, _resolve(name, spec, values), base_dir, joint, limits)
 
 
 def _resolve(name: str, spec: TrajectorySpec, values: Mapping[str, Quantity]) -> dict[str, Quantity | None]:
     """Each bindable field's value: its constant, or the resolved value of its binding (checked)."""
     out: dict[str, Quantity | None] = {}
-    for field in BINDABLE_FIELDS[spec.kind]:
+    for field in type(spec).bindable:
         written = getattr(spec, field)
         if not isinstance(written, str):
             out[field] = written
@@ -210,13 +60,3 @@ def _resolve(name: str, spec: TrajectorySpec, values: Mapping[str, Quantity]) ->
             raise InvalidInput(f"{what} must be greater than 0, got {value:g}")
         out[field] = value
     return out
-
-
-def _pair(value: Quantity | None) -> tuple[float, float]:
-    assert isinstance(value, tuple) and len(value) == 2
-    return float(value[0]), float(value[1])
-
-
-def _num(value: Quantity | None) -> float:
-    assert isinstance(value, float | int)
-    return float(value)

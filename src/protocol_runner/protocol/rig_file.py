@@ -143,7 +143,7 @@ def simulator_fields() -> tuple[str, ...]:
     return tuple(f.name for f in dataclasses.fields(SimulatorParams))
 
 
-# Board rates (Hz): the output is paced by software, one command per tick (DESIGN.md: 100 Hz); the input
+# Board rates (Hz): the output is paced by software, one command per tick (100 Hz); the input
 # scans at least 10 times a second so that a calibration step's 0.6 s ramp is sampled, and its two channels
 # (angle, torque) at most 50,000 samples/s in all (the DT9814's limit; a faster rate failed only at the run).
 BOARD_RATES_HZ = {"output": (1.0, 1000.0), "input": (10.0, 25000.0)}

@@ -13,15 +13,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ..errors import InvalidInput
-from .plan_trajectory import Trajectory
-from .trajectories import (
-    calibration_step_deg,
-    hold_deg,
-    identification_deg,
-    load_trajectory_file,
-    sinusoid_deg,
-    triangle_deg,
-)
+from .trajectory_record import Trajectory
+from .trajectory_specs import trajectory_kind
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -51,37 +44,8 @@ def sample_times_s(trajectory: Trajectory, rate_hz: float) -> FloatArray:
 
 
 def sample_trajectory(trajectory: Trajectory, rate_hz: float, base_dir: Path) -> FloatArray:
-    """Real joint angles, one per output tick (`sample_times_s`); files are read from `base_dir`."""
-    t = sample_times_s(trajectory, rate_hz)
-    p = dict(trajectory.params)
-    num = trajectory.number
-
-    kind = trajectory.profile
-    if kind == "sinusoid":
-        assert (
-            trajectory.mean_deg is not None and trajectory.amplitude_deg is not None and trajectory.period_s
-        )
-        return sinusoid_deg(t, trajectory.mean_deg, trajectory.amplitude_deg, trajectory.period_s)
-    if kind in ("human", "file"):
-        assert trajectory.source is not None
-        column = p.get("column")  # the angle column build_trajectory chose (None: a version-1 `human`)
-        joint = column if isinstance(column, str) else None
-        return load_trajectory_file(base_dir / trajectory.source, joint).at(t)
-    if kind == "identification":
-        return identification_deg(
-            t,
-            num("min_deg"),
-            num("max_deg"),
-            num("repetition_s"),
-            num("initial_period_s"),
-            num("final_period_s"),
-        )
-    if kind in ("step", "ramped_step"):
-        return calibration_step_deg(t, num("from_deg"), num("step_deg"), num("settle_s"), num("ramp_s"))
-    if kind == "triangle":
-        span = p["range_deg"]
-        assert isinstance(span, tuple)
-        return triangle_deg(t, span[0], span[1], num("speed_deg_s"), num("corner_accel_deg_s2"))
-    if kind == "hold":
-        return hold_deg(t, num("angle_deg"))
-    raise ValueError(f"unknown trajectory profile {kind!r}")
+    """Real joint angles, one per output tick (`sample_times_s`), as its kind samples them; files are read
+    from `base_dir`."""
+    return trajectory_kind(trajectory.profile).sample(
+        trajectory, sample_times_s(trajectory, rate_hz), base_dir
+    )

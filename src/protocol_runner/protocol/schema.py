@@ -63,7 +63,7 @@ from protocol_runner.protocol.schema_rig import (  # noqa: F401  (re-exported)
     SafetyOverride,
     SafetySpec,
 )
-from protocol_runner.protocol.trajectory_specs import RampedStepFields, TrajectorySpec
+from protocol_runner.protocol.trajectory_specs import RampedStepFields, TrajectorySpec, holds_trajectories
 
 # ------------------------------------------------------------------------------------ trajectories
 
@@ -240,3 +240,6 @@ class Protocol(_Model):
     def profile_of(self, cfg: ConfigurationSpec) -> str:
         """The kind of a configuration's trajectory (sinusoid, file, ...)."""
         return self.trajectories[cfg.trajectory].kind
+
+
+holds_trajectories(Protocol)  # rebuilt when a trajectory kind is registered

@@ -1,6 +1,10 @@
-"""The protocol's trajectory kinds as pydantic models (`trajectories:` of a schema_version 2 protocol).
+"""The protocol's trajectory kinds (`trajectories:` of a schema_version 2 protocol), and their registry.
 
-One model per kind, told apart by `kind` (a discriminated union, unknown kinds and keys refused):
+One pydantic model per kind, told apart by `kind` (a discriminated union of the registered kinds, unknown
+kinds and keys refused). Each kind's model declares everything about the kind in one place: its fields
+(which may be bound to factor quantities: `bindable`), how it becomes the plan's `Trajectory` (`build`),
+its samples at the output rate (`sample`) and its plan-time limit checks by field (`check_limits`). The
+kinds are registered in `TRAJECTORY_KINDS` (`register_trajectory_kind` adds one):
 
 - `sinusoid`: Eq 24 from a range and a peak speed; the period follows from Eq 25 (p = 2*pi*A / v_peak).
 - `triangle`: constant speed between the range's ends, turned round at a limited acceleration.
@@ -11,19 +15,46 @@ One model per kind, told apart by `kind` (a discriminated union, unknown kinds a
 - `hold`: one angle held.
 
 A field typed `float | str` (or `RangePair | str`) may be BOUND to a factor quantity: a string
-`"<factor>.<quantity>"` takes the value of that quantity in each configuration's level (issue 11, spec A).
+`"<factor>.<quantity>"` takes the value of that quantity in each configuration's level.
 `trajectory_bindings` lists them; `plan_trajectory.build_trajectory` takes their resolved values. Every other
 field is a constant. Numbers are finite (no .inf / .nan); times and speeds are positive.
+
+`per_joint` is not a motion of its own: it gives each joint of a multi-joint protocol one of the kinds.
 """
 
 from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable
-from typing import Annotated, Generic, Literal, TypeVar
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Annotated, Any, ClassVar, Generic, Literal, Protocol, TypeVar, get_args
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, field_validator
+import numpy as np
+import numpy.typing as npt
+from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, GetCoreSchemaHandler, field_validator
+from pydantic_core import CoreSchema, core_schema
+
+from ..errors import InvalidInput
+from ..hardware.safety import SafetyLimits
+from .paths import OutsideFolder, confined_path
+from .trajectories import (
+    calibration_step_deg,
+    calibration_step_peak_accel_deg_s2,
+    calibration_step_peak_speed_deg_s,
+    hold_deg,
+    identification_deg,
+    load_trajectory_file,
+    sinusoid_deg,
+    sinusoid_peak_accel_deg_s2,
+    sinusoid_period_s,
+    triangle_deg,
+    triangle_period_s,
+)
+from .trajectory_record import Trajectory
+
+FloatArray = npt.NDArray[np.float64]
+Quantity = float | tuple[float, ...]
 
 BINDING_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_\-]*\.[A-Za-z][A-Za-z0-9_]*$")
 """A binding: `<factor>.<quantity>` (a factor name as the protocol declares it, a quantity key)."""
@@ -80,13 +111,74 @@ BindableRange = Annotated[RangePair | str, BeforeValidator(_binding_or("a range 
 """A range [low, high] (low < high), or a binding."""
 
 
-class _Spec(BaseModel):
+class LimitCheck(Protocol):
+    """What a kind's `check_limits` reports to (`trajectory_limits.py` implements it): each call names the
+    protocol FIELD that sets the value, so that the message says what to change."""
+
+    def range(self, field: str, lo: float, hi: float, what: str = "") -> None:
+        """[lo, hi] deg must lie inside the joint's range."""
+
+    def rate(self, field: str, value: float, what: str) -> None:
+        """`value` deg/s must not exceed the joint's rate limit."""
+
+    def accel(self, field: str, value: float, what: str) -> None:
+        """`value` deg/s² must not exceed the joint's acceleration limit."""
+
+    def samples(self, field: str) -> None:
+        """The trajectory's samples at the output rate (the very samples sent) must stay inside the envelope:
+        for a kind without a closed form."""
+
+    @property
+    def problems(self) -> list[tuple[str, str]]:
+        """(field, message) of every limit broken so far."""
+
+
+class TrajectoryKindSpec(BaseModel):
+    """A trajectory kind: its model's fields are the protocol's keys (`kind` a literal naming the kind); the
+    class declares the rest."""
+
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
+    kind: str
     description: str = ""
 
+    #: the fields that may be bound to a factor quantity (the binding's quantity must carry the field's
+    #: unit suffix: `speed_deg_s` binds to a `..._deg_s` quantity)
+    bindable: ClassVar[tuple[str, ...]] = ()
+    #: the field that sets how long it lasts: named when the trajectory is too long to sample
+    length_field: ClassVar[str] = "duration_s"
 
-class SinusoidSpec(_Spec):
+    def build(
+        self,
+        name: str,
+        fields: Mapping[str, Quantity | None],
+        base_dir: Path,
+        joint: str | None,
+        limits: SafetyLimits | None,
+    ) -> Trajectory:
+        """The plan's `Trajectory` named `name`, the bindable fields taking the values `fields` (resolved: a
+        bound field's factor quantity, or the constant written); a file is read from `base_dir` (`joint`'s
+        column); `limits` are the joint's. `InvalidInput` names the trajectory and the field."""
+        raise NotImplementedError(f"trajectory kind {self.kind!r} has no build")
+
+    @staticmethod
+    def sample(trajectory: Trajectory, time_s: FloatArray, base_dir: Path) -> FloatArray:
+        """The joint angles at `time_s` (the output ticks, `sampling.sample_times_s`)."""
+        raise NotImplementedError(f"trajectory kind {trajectory.profile!r} has no sample")
+
+    @staticmethod
+    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
+        """Report to `check` what the joint's limits must allow, field by field (a closed form where the
+        kind has one, else `check.samples`)."""
+        check.samples(trajectory.profile)
+
+    @staticmethod
+    def describe(trajectory: Trajectory) -> str:
+        """The trajectory in a line of `--plan`."""
+        return f"{trajectory.profile} {trajectory.source or ''}".strip()
+
+
+class SinusoidSpec(TrajectoryKindSpec):
     """Eq 24: angle = mean + amplitude * sin(2*pi*t/p), mean and amplitude from `range_deg`; its peak
     speed is amplitude * 2*pi/p (Eq 25) = `speed_deg_s`, so p = 2*pi*amplitude / speed_deg_s.
     Starts at the mean, moving up; lasts `periods` periods."""
@@ -96,8 +188,55 @@ class SinusoidSpec(_Spec):
     speed_deg_s: BindablePositive
     periods: float = Field(gt=0)
 
+    bindable: ClassVar[tuple[str, ...]] = ("range_deg", "speed_deg_s")
+    length_field: ClassVar[str] = "periods"
 
-class TriangleSpec(_Spec):
+    def build(
+        self,
+        name: str,
+        fields: Mapping[str, Quantity | None],
+        base_dir: Path,
+        joint: str | None,
+        limits: SafetyLimits | None,
+    ) -> Trajectory:
+        lo, hi = _pair(fields["range_deg"])
+        speed = _num(fields["speed_deg_s"])
+        amplitude = (hi - lo) / 2.0
+        period = sinusoid_period_s(amplitude, speed)  # Eq 25
+        return Trajectory(
+            profile="sinusoid",
+            name=name,
+            mean_deg=(hi + lo) / 2.0,
+            amplitude_deg=amplitude,
+            period_s=period,
+            params=(("range_deg", (lo, hi)), ("speed_deg_s", speed), ("periods", self.periods)),
+            duration_s=self.periods * period,
+        )
+
+    @staticmethod
+    def sample(trajectory: Trajectory, time_s: FloatArray, base_dir: Path) -> FloatArray:
+        mean, amplitude, period = _sine(trajectory)
+        return sinusoid_deg(time_s, mean, amplitude, period)
+
+    @staticmethod
+    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
+        """Its range inside the joint's; peak speed `speed_deg_s` = 2*pi*A/p (Eq 25) under the rate limit;
+        peak acceleration A*(2*pi/p)^2 = speed^2/A under the acceleration limit."""
+        mean, a, period = _sine(trajectory)
+        speed = 2.0 * math.pi * a / period  # Eq 25
+        check.range("range_deg", mean - a, mean + a)
+        check.rate("speed_deg_s", speed, "its peak speed (Eq 25)")
+        check.accel(
+            "speed_deg_s", sinusoid_peak_accel_deg_s2(a, speed), "its peak acceleration speed²/amplitude"
+        )
+
+    @staticmethod
+    def describe(trajectory: Trajectory) -> str:
+        mean, amplitude, period = _sine(trajectory)
+        return f"{mean:g}+{amplitude:g}*sin(2*pi*t/{period:.2f})"
+
+
+class TriangleSpec(TrajectoryKindSpec):
     """Constant speed `speed_deg_s` between the ends of `range_deg`, turned round at the ends at the
     constant acceleration `corner_accel_deg_s2` (default: the joint's acceleration limit). Starts and ends
     at rest at the low end; a cycle is low -> high -> low, `cycles` may be a whole or a half number."""
@@ -115,8 +254,67 @@ class TriangleSpec(_Spec):
             raise ValueError(f"must be a whole or half number of cycles (low -> high -> low), got {value:g}")
         return value
 
+    bindable: ClassVar[tuple[str, ...]] = ("range_deg", "speed_deg_s", "corner_accel_deg_s2")
+    length_field: ClassVar[str] = "cycles"
 
-class FileSpec(_Spec):
+    def build(
+        self,
+        name: str,
+        fields: Mapping[str, Quantity | None],
+        base_dir: Path,
+        joint: str | None,
+        limits: SafetyLimits | None,
+    ) -> Trajectory:
+        """Without `corner_accel_deg_s2` it turns at the joint's acceleration limit."""
+        where = f"trajectory {name!r}"
+        lo, hi = _pair(fields["range_deg"])
+        speed = _num(fields["speed_deg_s"])
+        given = fields.get("corner_accel_deg_s2")
+        if given is not None:
+            accel = _num(given)
+        elif limits is not None:
+            accel = limits.max_accel_deg_s2
+        else:
+            raise InvalidInput(
+                f"{where}: corner_accel_deg_s2 is not given and no joint acceleration limit is known"
+            )
+        if hi - lo < speed * speed / accel:
+            raise InvalidInput(
+                f"{where}: speed_deg_s {speed:g} deg/s cannot be reached within range_deg [{lo:g}, {hi:g}] "
+                f"with corners at {accel:g} deg/s² (it needs a range of at least speed²/accel = "
+                f"{speed * speed / accel:.4g} deg)"
+            )
+        return Trajectory(
+            profile="triangle",
+            name=name,
+            params=(
+                ("range_deg", (lo, hi)),
+                ("speed_deg_s", speed),
+                ("cycles", self.cycles),
+                ("corner_accel_deg_s2", accel),
+            ),
+            duration_s=self.cycles * triangle_period_s(hi - lo, speed, accel),
+        )
+
+    @staticmethod
+    def sample(trajectory: Trajectory, time_s: FloatArray, base_dir: Path) -> FloatArray:
+        lo, hi = _pair(trajectory.param("range_deg"))
+        num = trajectory.number
+        return triangle_deg(time_s, lo, hi, num("speed_deg_s"), num("corner_accel_deg_s2"))
+
+    @staticmethod
+    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
+        """Range; `speed_deg_s` (its peak speed) under the rate limit; `corner_accel_deg_s2` (its peak
+        acceleration) under the acceleration limit."""
+        lo, hi = _pair(trajectory.param("range_deg"))
+        check.range("range_deg", lo, hi)
+        check.rate("speed_deg_s", trajectory.number("speed_deg_s"), "its constant speed")
+        check.accel(
+            "corner_accel_deg_s2", trajectory.number("corner_accel_deg_s2"), "its corners' acceleration"
+        )
+
+
+class FileSpec(TrajectoryKindSpec):
     """An angle-vs-time file, relative to the protocol's folder: a CSV whose comment lines (`#`) state
     where the motion comes from, then a column row with `time_s` and one angle column per joint (named
     by the joint, or `angle_deg` for a single joint), then numbers; or a MATLAB .mat with those variables.
@@ -126,8 +324,55 @@ class FileSpec(_Spec):
     file: str = Field(min_length=1)
     origin: str = ""
 
+    length_field: ClassVar[str] = "file"
 
-class IdentificationSpec(_Spec):
+    def build(
+        self,
+        name: str,
+        fields: Mapping[str, Quantity | None],
+        base_dir: Path,
+        joint: str | None,
+        limits: SafetyLimits | None,
+    ) -> Trajectory:
+        """The file read from `base_dir`: `joint`'s angle column, else `angle_deg`."""
+        where = f"trajectory {name!r}"
+        try:
+            path = confined_path(base_dir, self.file)
+        except OutsideFolder as exc:
+            raise InvalidInput(f"{where}: file: {exc}") from None
+        try:
+            data = load_trajectory_file(path, joint)
+        except InvalidInput as exc:
+            raise InvalidInput(f"{where}: {exc.message}") from None
+        origin = self.origin or (data.header.splitlines()[0] if data.header else "")
+        if not origin:
+            raise InvalidInput(
+                f"{where}: file {self.file}: state where the motion comes from, in comment lines (#) before "
+                "the column row or as `origin:` in the protocol"
+            )
+        return Trajectory(
+            profile="file",
+            name=name,
+            source=self.file,
+            params=(("column", data.column), ("origin", origin)),
+            duration_s=data.duration_s,
+        )
+
+    @staticmethod
+    def sample(trajectory: Trajectory, time_s: FloatArray, base_dir: Path) -> FloatArray:
+        assert trajectory.source is not None
+        column = dict(trajectory.params).get("column")  # the angle column `build` chose
+        return load_trajectory_file(
+            base_dir / trajectory.source, column if isinstance(column, str) else None
+        ).at(time_s)
+
+    @staticmethod
+    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
+        """No closed form: its samples at the output rate."""
+        check.samples("file")
+
+
+class IdentificationSpec(TrajectoryKindSpec):
     """The Eq 4-7 identification motion (Figure 25) between the ends of `range_deg`, repeated every
     `repetition_s` (odd repeats backwards: no jump), its carrier period going from `initial_period_s` to
     `final_period_s` (Eq 5); lasts `total_s`. See `trajectories.identification_deg`."""
@@ -138,6 +383,49 @@ class IdentificationSpec(_Spec):
     repetition_s: float = Field(gt=0)
     initial_period_s: float = Field(gt=0)
     final_period_s: float = Field(gt=0)
+
+    bindable: ClassVar[tuple[str, ...]] = ("range_deg",)
+
+    def build(
+        self,
+        name: str,
+        fields: Mapping[str, Quantity | None],
+        base_dir: Path,
+        joint: str | None,
+        limits: SafetyLimits | None,
+    ) -> Trajectory:
+        lo, hi = _pair(fields["range_deg"])
+        return Trajectory(
+            profile="identification",
+            name=name,
+            params=(
+                ("min_deg", lo),
+                ("max_deg", hi),
+                ("repetition_s", self.repetition_s),
+                ("initial_period_s", self.initial_period_s),
+                ("final_period_s", self.final_period_s),
+            ),
+            duration_s=self.total_s,
+        )
+
+    @staticmethod
+    def sample(trajectory: Trajectory, time_s: FloatArray, base_dir: Path) -> FloatArray:
+        num = trajectory.number
+        return identification_deg(
+            time_s,
+            num("min_deg"),
+            num("max_deg"),
+            num("repetition_s"),
+            num("initial_period_s"),
+            num("final_period_s"),
+        )
+
+    @staticmethod
+    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
+        """Its range; then, no closed form: its samples at the output rate (the last, fastest period)."""
+        check.range("range_deg", trajectory.number("min_deg"), trajectory.number("max_deg"))
+        if not check.problems:
+            check.samples("final_period_s")
 
 
 Angle = TypeVar("Angle")
@@ -155,29 +443,126 @@ class RampedStepFields(BaseModel, Generic[Angle]):
     settle_s: float = Field(gt=0)
 
 
-class RampedStepSpec(RampedStepFields[BindableFloat], _Spec):
+class RampedStepSpec(RampedStepFields[BindableFloat], TrajectoryKindSpec):
     """A ramped step (RampedStepFields) as a trajectory. `ramp_s = 0` would be a true step: the plan-time
     check refuses it (over any rate limit)."""
 
     kind: Literal["ramped_step"]
 
+    bindable: ClassVar[tuple[str, ...]] = ("from_deg", "step_deg")
 
-class HoldSpec(_Spec):
+    def build(
+        self,
+        name: str,
+        fields: Mapping[str, Quantity | None],
+        base_dir: Path,
+        joint: str | None,
+        limits: SafetyLimits | None,
+    ) -> Trajectory:
+        return Trajectory(
+            profile="ramped_step",
+            name=name,
+            params=(
+                ("from_deg", _num(fields["from_deg"])),
+                ("step_deg", _num(fields["step_deg"])),
+                ("settle_s", self.settle_s),
+                ("ramp_s", self.ramp_s),
+                ("hold_s", self.hold_s),
+            ),
+            duration_s=self.settle_s + self.ramp_s + self.hold_s,
+        )
+
+    @staticmethod
+    def sample(trajectory: Trajectory, time_s: FloatArray, base_dir: Path) -> FloatArray:
+        num = trajectory.number
+        return calibration_step_deg(time_s, num("from_deg"), num("step_deg"), num("settle_s"), num("ramp_s"))
+
+    @staticmethod
+    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
+        """`from_deg` and `from_deg + step_deg` inside the range; the raised cosine's peak speed
+        pi/2*step/ramp and peak acceleration pi^2/2*step/ramp^2 within the limits (else `ramp_s` is too
+        short)."""
+        start, step, ramp = (trajectory.number(f) for f in ("from_deg", "step_deg", "ramp_s"))
+        check.range("from_deg", start, start)
+        check.range(
+            "step_deg", start + step, start + step, f"the step's end from_deg + step_deg = {start + step:g}"
+        )
+        check.rate(
+            "ramp_s", calibration_step_peak_speed_deg_s(step, ramp), "the ramp's peak speed pi/2*step/ramp"
+        )
+        check.accel(
+            "ramp_s",
+            calibration_step_peak_accel_deg_s2(step, ramp),
+            "the ramp's peak acceleration pi²/2*step/ramp²",
+        )
+
+
+class HoldSpec(TrajectoryKindSpec):
     """`angle_deg` held for `duration_s`."""
 
     kind: Literal["hold"]
     angle_deg: BindableFloat
     duration_s: float = Field(gt=0)
 
+    bindable: ClassVar[tuple[str, ...]] = ("angle_deg",)
 
-JointTrajectorySpec = Annotated[
-    SinusoidSpec | TriangleSpec | FileSpec | IdentificationSpec | RampedStepSpec | HoldSpec,
-    Field(discriminator="kind"),
-]
-"""The motion of one joint."""
+    def build(
+        self,
+        name: str,
+        fields: Mapping[str, Quantity | None],
+        base_dir: Path,
+        joint: str | None,
+        limits: SafetyLimits | None,
+    ) -> Trajectory:
+        return Trajectory(
+            profile="hold",
+            name=name,
+            params=(("angle_deg", _num(fields["angle_deg"])),),
+            duration_s=self.duration_s,
+        )
+
+    @staticmethod
+    def sample(trajectory: Trajectory, time_s: FloatArray, base_dir: Path) -> FloatArray:
+        return hold_deg(time_s, trajectory.number("angle_deg"))
+
+    @staticmethod
+    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
+        """`angle_deg` inside the range."""
+        angle = trajectory.number("angle_deg")
+        check.range("angle_deg", angle, angle)
 
 
-class PerJointSpec(_Spec):
+TRAJECTORY_KINDS: dict[str, type[TrajectoryKindSpec]] = {
+    "sinusoid": SinusoidSpec,
+    "triangle": TriangleSpec,
+    "file": FileSpec,
+    "identification": IdentificationSpec,
+    "ramped_step": RampedStepSpec,
+    "hold": HoldSpec,
+}
+"""The registry of trajectory kinds: kind -> its model. `register_trajectory_kind` adds one."""
+
+
+class _RegisteredKinds:
+    """A trajectory's pydantic schema: the registered kinds told apart by `kind` (and `per_joint` for a
+    protocol's trajectories), built when a model that holds trajectories is built, or rebuilt."""
+
+    def __init__(self, *, per_joint: bool) -> None:
+        self.per_joint = per_joint
+
+    def __get_pydantic_core_schema__(self, source: Any, handler: GetCoreSchemaHandler) -> CoreSchema:
+        kinds: dict[str, type[TrajectoryKindSpec]] = dict(TRAJECTORY_KINDS)
+        if self.per_joint:
+            kinds["per_joint"] = PerJointSpec
+        choices: dict[str | int, CoreSchema] = {k: handler.generate_schema(m) for k, m in kinds.items()}
+        return core_schema.tagged_union_schema(choices, discriminator="kind")
+
+
+JointTrajectorySpec = Annotated[TrajectoryKindSpec, _RegisteredKinds(per_joint=False)]
+"""The motion of one joint: one of the registered kinds."""
+
+
+class PerJointSpec(TrajectoryKindSpec):
     """A multi-joint protocol's motion given joint by joint: `joints: {<joint>: <a trajectory of any
     other kind>}`, one entry per driven joint. The joints share the trial's time: every entry must last
     the same number of output ticks."""
@@ -186,31 +571,55 @@ class PerJointSpec(_Spec):
     joints: Annotated[dict[str, JointTrajectorySpec], Field(min_length=1)]
 
 
-TrajectorySpec = Annotated[
-    SinusoidSpec | TriangleSpec | FileSpec | IdentificationSpec | RampedStepSpec | HoldSpec | PerJointSpec,
-    Field(discriminator="kind"),
-]
-TRAJECTORY_KINDS: tuple[str, ...] = (
-    "sinusoid",
-    "triangle",
-    "file",
-    "identification",
-    "ramped_step",
-    "hold",
-    "per_joint",
-)
+TrajectorySpec = Annotated[TrajectoryKindSpec, _RegisteredKinds(per_joint=True)]
+"""A protocol's trajectory: one of the registered kinds, or `per_joint`."""
 
-BINDABLE_FIELDS: dict[str, tuple[str, ...]] = {
-    "sinusoid": ("range_deg", "speed_deg_s"),
-    "triangle": ("range_deg", "speed_deg_s", "corner_accel_deg_s2"),
-    "file": (),
-    "identification": ("range_deg",),
-    "ramped_step": ("from_deg", "step_deg"),
-    "hold": ("angle_deg",),
-    "per_joint": (),
-}
-"""The fields of each kind that may be bound to a factor quantity (the binding's quantity must carry the
-field's unit suffix: `speed_deg_s` binds to a `..._deg_s` quantity)."""
+_HOLDING_TRAJECTORIES: list[type[BaseModel]] = [PerJointSpec]
+"""The models whose schema holds trajectories (`holds_trajectories`), in build order."""
+
+
+def holds_trajectories(model: type[BaseModel]) -> None:
+    """Declare that `model`'s schema holds trajectories: it is rebuilt when the registry changes."""
+    _HOLDING_TRAJECTORIES.append(model)
+
+
+def kind_name(spec: type[TrajectoryKindSpec]) -> str:
+    """The kind a model declares (its `kind` literal)."""
+    (name,) = get_args(spec.model_fields["kind"].annotation)
+    return str(name)
+
+
+def register_trajectory_kind(spec: type[TrajectoryKindSpec]) -> None:
+    """Add a trajectory kind: protocols may use it from now on (a kind already registered is refused)."""
+    name = kind_name(spec)
+    if name in TRAJECTORY_KINDS or name == "per_joint":
+        raise ValueError(f"trajectory kind {name!r} is already registered")
+    TRAJECTORY_KINDS[name] = spec
+    _rebuild()
+
+
+def deregister_trajectory_kind(name: str) -> None:
+    """Remove a kind added by `register_trajectory_kind`."""
+    del TRAJECTORY_KINDS[name]
+    _rebuild()
+
+
+def _rebuild() -> None:
+    for model in _HOLDING_TRAJECTORIES:
+        model.model_rebuild(force=True)
+
+
+def trajectory_kind(profile: str) -> type[TrajectoryKindSpec]:
+    """The registered kind of a plan trajectory's `profile` (`ValueError` for an unknown one)."""
+    found = TRAJECTORY_KINDS.get(profile)
+    if found is None:
+        raise ValueError(f"unknown trajectory profile {profile!r}")
+    return found
+
+
+def kind_names() -> tuple[str, ...]:
+    """Every `kind` a protocol's trajectory may have: the registered kinds and `per_joint`."""
+    return (*TRAJECTORY_KINDS, "per_joint")
 
 
 def joint_spec(spec: TrajectorySpec, joint: str) -> tuple[TrajectorySpec, tuple[str, ...]]:
@@ -229,8 +638,25 @@ def trajectory_bindings(spec: TrajectorySpec) -> dict[str, str]:
         for joint, entry in spec.joints.items():
             out.update({f"joints.{joint}.{k}": v for k, v in trajectory_bindings(entry).items()})
         return out
-    for field in BINDABLE_FIELDS[spec.kind]:
+    for field in type(spec).bindable:
         value = getattr(spec, field)
         if isinstance(value, str):
             out[field] = value
     return out
+
+
+def _sine(trajectory: Trajectory) -> tuple[float, float, float]:
+    """A sinusoid's mean, amplitude and period."""
+    mean, amplitude, period = trajectory.mean_deg, trajectory.amplitude_deg, trajectory.period_s
+    assert mean is not None and amplitude is not None and period
+    return mean, amplitude, period
+
+
+def _pair(value: object) -> tuple[float, float]:
+    assert isinstance(value, tuple) and len(value) == 2
+    return float(value[0]), float(value[1])
+
+
+def _num(value: object) -> float:
+    assert isinstance(value, float | int)
+    return float(value)

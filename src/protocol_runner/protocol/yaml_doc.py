@@ -230,12 +230,13 @@ def _one_message(messages: list[str]) -> str:
 def _without_kind_tag(loc: Loc) -> Loc:
     """Drop the tag pydantic puts in a discriminated union's error path (`trajectories.sine.sinusoid.x`
     -> `trajectories.sine.x`): it is not a key of the file."""
-    from .trajectory_specs import TRAJECTORY_KINDS
+    from .trajectory_specs import kind_names
 
+    kinds = kind_names()
     return tuple(
         part
         for i, part in enumerate(loc)
-        if not (i >= 2 and loc[i - 2] in ("trajectories", "joints") and part in TRAJECTORY_KINDS)
+        if not (i >= 2 and loc[i - 2] in ("trajectories", "joints") and part in kinds)
     )
 
 

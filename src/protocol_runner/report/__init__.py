@@ -5,7 +5,7 @@
     findings.py  evaluate_expectations(data): the protocol's expectations decided on the data
     citations.py declared_citations(text): what the protocol cites beside each report part
     figures.py   render_figures(data): matplotlib (Agg) figures as PNG data URIs
-    parallel.py  map_in_processes(...): forked workers with a serial fallback
+    parallel.py  map_in_processes(...): worker processes with a serial fallback
     render.py    generate_report(archive, output=None), render_report(data, output): jinja2 -> one HTML file
 
 Kept free of imports so that `protocol_runner.report.load` does not pull in matplotlib.

@@ -3,8 +3,8 @@ process that only assembles the report (the session at its end, its figures draw
 never loads the drawing code.
 
 `figure_jobs(data)` lists every figure as (id, kind, arguments), in document order; `report.figures` draws
-a job by its kind. `assemble_figures(data)` takes the figures drawn ahead from the figure cache and has the
-rest drawn: elsewhere (`draw`), or by the caller's process and processes forked from it (`here`).
+a job by its kind. `assemble_figures(data)` has them drawn: elsewhere (`draw`), or by the caller's process
+and worker processes (`here`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TypeAlias
 
-from protocol_runner.report.figure_cache import cache_dir_of, has_entry, lookup
 from protocol_runner.report.model import Comparison, Configuration, ReportData
 
 FigureJob: TypeAlias = tuple[str, str, tuple[object, ...]]
@@ -60,8 +59,7 @@ def figure_jobs(data: ReportData) -> list[FigureJob]:
 
 
 def configuration_jobs(cfg: Configuration) -> list[FigureJob]:
-    """The figures of one configuration (none before its first trial); they read only the fields listed
-    in `figure_cache.FIGURE_FIELDS`."""
+    """The figures of one configuration (none before its first trial)."""
     if not cfg.trials:
         return []
     base = f"fig-config-{cfg.key}"
@@ -147,60 +145,27 @@ def slug(text: str) -> str:
     return out or "x"
 
 
-def _cached(data: ReportData) -> dict[str, str]:
-    """The configuration figures drawn ahead (figure_cache.py) from exactly the data of `data`."""
-    if not data.session.archive_path:
-        return {}
-    cache_dir = cache_dir_of(data.session.archive_path)
-    if not cache_dir.is_dir():
-        return {}
-    images: dict[str, str] = {}
-    for cfg in data.configurations:
-        images.update(lookup(cache_dir, cfg) or {})
-    return images
-
-
-def surely_drawn(data: ReportData) -> list[str]:
-    """Ids of figures `assemble_figures` will surely have drawn for `data`, in document order, known without
-    reading the figure cache (which takes a few hundredths of a second): every figure but the
-    configurations' own (`configuration_jobs`, the only ones drawn ahead), and the own figures of the
-    configurations the cache has no entry for (one analysed in an earlier run, or whose drawing failed)."""
-    cache_dir = cache_dir_of(data.session.archive_path) if data.session.archive_path else None
-    own = {
-        figure_id
-        for cfg in data.configurations
-        if cache_dir is not None and has_entry(cache_dir, cfg)
-        for figure_id, _, _ in configuration_jobs(cfg)
-    }
-    return [figure_id for figure_id in figure_ids(data) if figure_id not in own]
-
-
-def _not_in(cached: dict[str, str], every: list[str]) -> list[str]:
-    return [figure_id for figure_id in every if figure_id not in cached]
-
-
 HereDrawer: TypeAlias = Callable[[ReportData, list[str], int], list[Drawn]]
-"""Draws the figures of the given ids of the data in this process (or with workers > 1 on processes forked
-from it): `figures.draw_here`."""
+"""Draws the figures of the given ids of the data in this process (or with workers > 1 on that many worker
+processes): `figures.draw_here`."""
 
 
 def assemble_figures(
     data: ReportData, workers: int | None, *, draw: FigureDrawer | None, here: HereDrawer
 ) -> FigureSet:
-    """Every figure of the report: those drawn ahead for this data taken from the figure cache, the rest
-    drawn by `draw` (elsewhere: the session's analysis workers, which have matplotlib loaded and warm), or
-    else by `here` with `workers` (None: `default_workers`)."""
-    cached = _cached(data)
+    """Every figure of the report, drawn by `draw` (elsewhere: the session's analysis workers), or else by
+    `here` with `workers` (None: `default_workers`)."""
     every = figure_ids(data)
-    todo = _not_in(cached, every)
-    results = draw(data, todo) if draw is not None and todo else None
+    results = draw(data, every) if draw is not None and every else None
     if results is None:
-        results = here(data, todo, default_workers(len(todo)) if workers is None else workers) if todo else []
+        results = (
+            here(data, every, default_workers(len(every)) if workers is None else workers) if every else []
+        )
     drawn = {figure_id: (uri, error) for figure_id, uri, error in results}
     images: dict[str, str] = {}
     missing: dict[str, str] = {}
     for figure_id in every:  # document order
-        uri, error = (cached[figure_id], None) if figure_id in cached else drawn[figure_id]
+        uri, error = drawn[figure_id]
         if uri is not None:
             images[figure_id] = uri
         else:

@@ -11,7 +11,7 @@ loops' midline as in §6.1.5 (Figures 52-53) and the Bouc-Wen model against the 
 
 Which figures there are, and `render_figures(data)`, which has them all drawn and returns a `FigureSet`
 mapping figure ids (used as HTML element ids) to data URIs, are in `figure_plan` (no matplotlib); here each
-kind of figure is drawn (`DRAW`), by this process or by processes forked from it (`draw_here`).
+kind of figure is drawn (`DRAW`), by this process or by worker processes (`draw_here`).
 """
 
 from __future__ import annotations
@@ -23,17 +23,16 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from matplotlib.ticker import MaxNLocator
 
-from protocol_runner.report.canvas import (
+from protocol_runner.report.drawing import (
     ANGLE_LABEL,
     COLORS,
     ENERGY_LABEL,
-    LAYOUTS,
     TIME_LABEL,
     TORQUE_LABEL,
-    canvas_axes,
     empty,
     finish,
     legend,
+    new_figure,
     style,
     to_data_uri,
 )
@@ -59,7 +58,7 @@ from protocol_runner.report.parallel import map_in_processes
 
 def hysteresis_figure(cfg: Configuration) -> str:
     """Brace torque against angle, every trial (Appendix B), with the fitted elastic model if any."""
-    fig, (ax,) = canvas_axes("single")
+    fig, (ax,) = new_figure("single")
     drawn = False
     for i, trial in enumerate(cfg.trials):
         if trial.processed is None:
@@ -83,7 +82,7 @@ def hysteresis_figure(cfg: Configuration) -> str:
 
 def time_series_figure(cfg: Configuration) -> str:
     """Angle and torque against time for trial 1, brace on and brace off (thesis §4.3)."""
-    fig, (ax_a, ax_t) = canvas_axes("double")
+    fig, (ax_a, ax_t) = new_figure("double")
     trial = next((t for t in cfg.trials if t.brace_on is not None or t.brace_off is not None), None)
     if trial is None:
         empty(ax_a, "no trial")
@@ -115,7 +114,7 @@ def time_series_figure(cfg: Configuration) -> str:
 
 def energy_cycles_figure(cfg: Configuration) -> str:
     """Energy lost per complete cycle (Eq 10-12), each trial in its colour, with the mean ± std band."""
-    fig, (ax,) = canvas_axes("single")
+    fig, (ax,) = new_figure("single")
     e = cfg.energy_loss_j
     if e.size == 0:
         empty(ax, "no complete cycle")
@@ -140,7 +139,7 @@ def energy_cycles_figure(cfg: Configuration) -> str:
 
 def bouc_wen_figure(cfg: Configuration) -> str:
     """Bouc-Wen model against the centred data: loop overlay (Fig 57) and torque per sample (Fig 58)."""
-    fig, (ax_l, ax_s) = canvas_axes("double")
+    fig, (ax_l, ax_s) = new_figure("double")
     bw = cfg.bouc_wen
     if bw is None or bw.angle_deg.size == 0:
         empty(ax_l, "no Bouc-Wen fit")
@@ -162,7 +161,7 @@ def bouc_wen_figure(cfg: Configuration) -> str:
 
 def calibration_figure(set_name: str, checks: Sequence[CalibrationCheck]) -> str:
     """The calibration step responses of one set, before and after (Appendix A "Calibration")."""
-    fig, (ax,) = canvas_axes("single")
+    fig, (ax,) = new_figure("single")
     for i, check in enumerate(checks):
         color = COLORS[i % len(COLORS)]
         ax.plot(check.time_s, check.angle_deg, lw=0.9, color=color, label=f"{check.when}: {check.verdict}")
@@ -223,16 +222,15 @@ def render_figures(
     data: ReportData, workers: int | None = None, *, draw: FigureDrawer | None = None
 ) -> FigureSet:
     """Draw every figure of the report (those drawn ahead for this data are taken from the figure cache).
-    `draw` draws them elsewhere; else `workers` > 1 draws on that many forked processes."""
+    `draw` draws them elsewhere; else `workers` > 1 draws on that many worker processes."""
     return assemble_figures(data, workers, draw=draw, here=draw_here)
 
 
 def draw_here(data: ReportData, task_ids: list[str], workers: int) -> list[Drawn]:
     """The figures `task_ids` of `data` drawn by this process, or with `workers` > 1 (and enough figures)
-    on that many processes forked from it."""
+    on that many worker processes (`parallel.map_in_processes`)."""
     results: list[Drawn] | None = None
     if workers > 1 and len(task_ids) >= 8:
-        warm_up()
         # small chunks keep both workers busy: two-panel figures cost about twice a one-panel one
         results = map_in_processes(
             _run_one, task_ids, workers, initializer=_init_worker, initargs=(data,), chunksize=4
@@ -259,16 +257,3 @@ def _safe(task_id: str, task: Callable[[], str]) -> Drawn:
         return task_id, task(), None
     except (ValueError, TypeError, IndexError, FloatingPointError) as exc:  # bad data never kills the report
         return task_id, None, f"{type(exc).__name__}: {exc}"
-
-
-@functools.cache
-def warm_up() -> None:
-    """Create every canvas and render text once per process (the session's warm-up thread may have done it
-    already), so that forked workers inherit warm font caches."""
-    for kind in LAYOUTS:
-        fig, axes = canvas_axes(kind)
-        for ax in axes:
-            ax.plot([0.0, 1.0], [0.0, 1.0], label="warm-up")
-            style(ax, ANGLE_LABEL, TORQUE_LABEL, "warm-up 0123456789")
-            legend(ax)
-        to_data_uri(fig)

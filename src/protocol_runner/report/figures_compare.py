@@ -13,18 +13,18 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from matplotlib.axes import Axes
 
-from protocol_runner.report.canvas import (
+from protocol_runner.report.comparison_values import comparison_axis
+from protocol_runner.report.drawing import (
     ANGLE_LABEL,
     COLORS,
     ENERGY_LABEL,
     TORQUE_LABEL,
-    canvas_axes,
     empty,
     finish,
+    new_figure,
     style,
     to_data_uri,
 )
-from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.figure_plan import configurations_of as configurations_of
 from protocol_runner.report.figure_plan import fitted_elements_differ as fitted_elements_differ
 from protocol_runner.report.model import Comparison, Configuration, ReportData
@@ -58,7 +58,7 @@ def _references(ax: Axes, data: ReportData) -> None:
 def comparison_overlay_figure(data: ReportData, comparison: Comparison) -> str:
     """Loops of the compared configurations overlaid (thesis Figures 32-37), first trial each, with the
     archive's reference datasets as dots."""
-    fig, (ax,) = canvas_axes("single")
+    fig, (ax,) = new_figure("single")
     configs = configurations_of(data, comparison.configurations)
     axis = comparison_axis(comparison, configs)
     drawn = _overlay_loops(ax, configs, axis.config_label)
@@ -76,7 +76,7 @@ def energy_bars_figure(data: ReportData, comparison: Comparison) -> str:
     A scalar axis quantity with a distinct value per configuration gives a numeric axis (points with error
     bars, each marked with its configuration key); otherwise one bar per configuration, labelled with the
     level and quantity, its key written at the bar's foot."""
-    fig, (ax,) = canvas_axes("bars")
+    fig, (ax,) = new_figure("bars")
     cfgs = [c for c in configurations_of(data, comparison.configurations) if c.energy_loss_j.size]
     axis = comparison_axis(comparison, configurations_of(data, comparison.configurations))
     if not cfgs:
@@ -102,7 +102,6 @@ def energy_bars_figure(data: ReportData, comparison: Comparison) -> str:
             ax.annotate(str(c.key), (xv, m), textcoords="offset points", xytext=(4, 4), fontsize=6.5)
         ax.set_xticks(sorted(xs))
         ax.tick_params(axis="x", labelsize=6.5)
-        ax.xaxis.set_label_coords(0.5, -0.11)
     else:
         x = np.arange(len(cfgs))
         ax.bar(
@@ -116,7 +115,6 @@ def energy_bars_figure(data: ReportData, comparison: Comparison) -> str:
         for xi, c in zip(x, cfgs, strict=True):
             ax.text(float(xi), 0.0, str(c.key), ha="center", va="bottom", fontsize=6.5, color="white")
         ax.set_xticks(x, [axis.tick_label(c) for c in cfgs], fontsize=5.5)
-        ax.xaxis.set_label_coords(0.5, -0.2)  # below the two-line tick labels
     ax.set_ylim(bottom=0.0)
     style(ax, axis.label, ENERGY_LABEL, _energy_title(comparison.title))
     return to_data_uri(fig)
@@ -128,7 +126,7 @@ def _energy_title(title: str) -> str:
 
 def reference_figure(data: ReportData) -> str:
     """The archive's reference datasets (e.g. a reference suit's measurements, thesis §5.6, Figure 38)."""
-    fig, (ax,) = canvas_axes("single")
+    fig, (ax,) = new_figure("single")
     _references(ax, data)
     if not data.references:
         empty(ax, "no reference dataset")
@@ -139,7 +137,7 @@ def element_fit_figure(data: ReportData, comparison: Comparison) -> str:
     """The fitted elastic elements against the loops' midline for each compared configuration: solid with
     dots the midline data (the fit's target), dashed the model on it. A configuration whose fit does not
     apply (e.g. no elastic element) is named in the key as not fitted."""
-    fig, (ax,) = canvas_axes("single")
+    fig, (ax,) = new_figure("single")
     configs = configurations_of(data, comparison.configurations)
     axis = comparison_axis(comparison, configs)
     drawn = False

@@ -10,8 +10,6 @@ from typing import Any, TypeVar
 import h5py
 import numpy as np
 
-from protocol_runner.archive.fast_read import read_values
-
 #: Most points drawn per line: the processed data is low-pass filtered (thesis §4.4), so ~250 points per
 #: sinusoid cycle of a 65 s, 8-cycle trial still draw it exactly at report resolution.
 MAX_PLOT_POINTS = 2000
@@ -114,7 +112,7 @@ def read_only(arr: np.ndarray) -> np.ndarray:
 def float_ds(group: h5py.Group, name: str) -> np.ndarray:
     if name not in group:
         return read_only(np.empty(0))
-    return np.asarray(read_values(group[name]), dtype=float).reshape(-1)
+    return np.asarray(group[name][()], dtype=float).reshape(-1)
 
 
 Record = TypeVar("Record")

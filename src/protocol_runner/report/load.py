@@ -52,7 +52,7 @@ def load_report_data(
 ) -> ReportData:
     """Read the archive at `path` (a file, or a session directory holding `archive.h5`).
 
-    `workers` > 1 reads the configurations on that many forked processes (decompressing a full
+    `workers` > 1 reads the configurations on that many worker processes (decompressing a full
     campaign's trials is most of the load time); None picks 2 for large archives on a multi-core machine.
     Raises `InvalidInput` when the file is missing, not HDF5, truncated or corrupt, not a protocol-runner
     archive (no root attribute `protocol_sha256`), lacks the `/configurations` group, or holds a dataset
@@ -72,7 +72,7 @@ def load_report_data(
     try:
         with h5py.File(archive, "r") as h5:
             names = check_root(h5, archive)
-        # the file is closed before forking: HDF5 handles must not be shared across a fork
+        # the file is closed before the workers start: HDF5 handles must not be shared with a forked process
         ahead = [cfg for name, cfg in (known or {}).items() if name in names]
         rest = [name for name in names if name not in (known or {})]
         configurations = _load_configurations(archive, rest, workers, verify, ahead)

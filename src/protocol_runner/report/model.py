@@ -1,6 +1,6 @@
 """What the report shows: immutable data read from one archive (docs/archive.md), nothing else.
 
-The report is regenerated from an archive alone (DESIGN.md "Data flow"), so everything a figure, a table
+The report is regenerated from an archive alone, so everything a figure, a table
 or a finding needs is gathered here once by `protocol_runner.report.load.load_report_data`. Plot series
 are already decimated (a processed trial is smooth after the pipeline's low-pass filter, thesis §4.4),
 while summary numbers (angle range, torque-angle slope) are computed from the full-rate data.
@@ -171,7 +171,7 @@ class BoucWenFit(FittedCurve):
     beta_std: tuple[float, ...]
     cv_rmse_nm: tuple[float, ...]
     n_starts: int
-    # the evidence of issue 15 (absent from older archives: NaN / empty / False)
+    # the fit's evidence (absent from older archives: NaN / empty / False)
     rmse_refined_nm: float = float("nan")
     optimizer_status: int = 0
     cost_spread: float = float("nan")

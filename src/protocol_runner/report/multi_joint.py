@@ -1,4 +1,4 @@
-"""The report's "Joints" section for a multi-joint archive (issue 12): per configuration, each joint's
+"""The report's "Joints" section for a multi-joint archive: per configuration, each joint's
 brace torque against angle (its processed loops), a joint-angle phase plot of the first two driven joints
 (e.g. hip against knee over the motion, brace on), and the energy lost per cycle per joint and for the
 whole set of joints (the sum over joints, `total_energy_loss_j`); one bar chart of energy per joint and
@@ -79,7 +79,7 @@ def _figure(n_panels: int) -> tuple[Figure, list[Axes]]:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from .canvas import DPI
+    from .drawing import DPI
 
     fig = Figure(figsize=(3.0 * n_panels + 0.4, 3.0), dpi=DPI)
     FigureCanvasAgg(fig)
@@ -90,7 +90,7 @@ def _figure(n_panels: int) -> tuple[Figure, list[Axes]]:
 
 
 def _loops(cfg: h5py.Group, joints: tuple[str, ...]) -> str:
-    from .canvas import ANGLE_LABEL, COLORS, TORQUE_LABEL, style, to_data_uri
+    from .drawing import ANGLE_LABEL, COLORS, TORQUE_LABEL, style, to_data_uri
 
     fig, axes = _figure(len(joints))
     for ax, joint in zip(axes, joints, strict=True):
@@ -107,7 +107,7 @@ def _loops(cfg: h5py.Group, joints: tuple[str, ...]) -> str:
 
 
 def _phase(cfg: h5py.Group, joints: tuple[str, ...]) -> str:
-    from .canvas import COLORS, style, to_data_uri
+    from .drawing import COLORS, style, to_data_uri
 
     fig, axes = _figure(1)
     ax = axes[0]
@@ -126,7 +126,7 @@ def _phase(cfg: h5py.Group, joints: tuple[str, ...]) -> str:
 
 
 def _energy_bars(configs: list[JointConfiguration], joints: tuple[str, ...]) -> str:
-    from .canvas import COLORS, ENERGY_LABEL, style, to_data_uri
+    from .drawing import COLORS, ENERGY_LABEL, style, to_data_uri
 
     fig, axes = _figure(1)
     ax = axes[0]

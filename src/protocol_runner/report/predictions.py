@@ -146,13 +146,6 @@ def predict_rmse(
     return math.sqrt(sq / count) if count else math.nan
 
 
-def warm_up() -> None:
-    """Load the compiled model simulation (numba's cache) that `predict_rmse` runs, ahead of a report."""
-    from ..models.bouc_wen import BoucWenParams, simulate
-
-    simulate(np.array([0.0, 1.0, 0.0]), BoucWenParams.from_array([1.0, 1.0, 0.1, 0.1, 0.0, 0.0, 0.0, 0.0]))
-
-
 def _device(cfg: h5py.Group) -> tuple[Element, ...]:
     from ..models.elements import build_device
 

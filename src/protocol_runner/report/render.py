@@ -206,11 +206,6 @@ def _draw_here(data: ReportData, task_ids: list[str], workers: int) -> list[Draw
     return draw_here(data, task_ids, workers)
 
 
-def warm_up() -> None:
-    """Compile the report's template ahead of a report (0.1 s; the environment keeps it)."""
-    _environment().get_template(TEMPLATE)
-
-
 @functools.cache
 def _environment() -> jinja2.Environment:
     """The report's template environment, one per process: it keeps the compiled template."""

@@ -7,9 +7,9 @@ from collections.abc import Mapping
 from pathlib import Path
 
 from ..analysis.reference import load_reference_dataset
-from ..archive.consolidate import ArchiveMeta, Draft, consolidate, draft
+from ..archive.consolidate import ArchiveMeta, consolidate
 from ..archive.paths import configuration_name
-from ..archive.units import UnitRecord, checked_unit_files
+from ..archive.units import checked_unit_files
 from ..protocol.loader import LoadedProtocol
 from ..protocol.plan import Plan, TrialStep
 from ..protocol.step_ids import step_id as make_step_id
@@ -39,44 +39,6 @@ def configuration_attrs(plan: Plan, done: Mapping[str, object]) -> dict[str, dic
     return out
 
 
-class ArchiveDraft:
-    """The session's journaled units merged into `archive.h5.partial` ahead of its end (while it waits for
-    its last analyses), so that consolidation only adds the units journaled since. Each unit is checked
-    against its journaled sha256 before it is merged, as consolidation would; a draft whose units are not
-    the first of the journal's at the end (a unit redone, one failed) is left aside and consolidation starts
-    afresh. Any error here only drops the draft: consolidation meets it again and reports it."""
-
-    def __init__(self, session_dir: Path, journal: Journal) -> None:
-        self.units_dir = session_dir / "units"
-        self.archive = session_dir / ARCHIVE_NAME
-        self.journal = journal
-        self.records: tuple[UnitRecord, ...] = ()
-        self.draft: Draft | None = None
-
-    def update(self) -> None:
-        """Merge the units journaled since the last update into the draft."""
-        records = tuple(self.journal.units.values())
-        if self.journal.failed or records == self.records:
-            return
-        previous = self.draft if records[: len(self.records)] == self.records else None
-        new = records[len(self.records) :] if previous is not None else records
-        self.draft, self.records = None, ()
-        try:
-            files = (previous.files if previous is not None else ()) + tuple(
-                checked_unit_files(self.units_dir, new)
-            )
-            self.draft, self.records = draft(self.archive, files, previous), records
-        except Exception:  # an optimisation: consolidation does it all and meets the error itself
-            return
-
-    def lead(self, records: list[UnitRecord]) -> tuple[Draft | None, list[Path]]:
-        """The draft (if its units are the first of `records`) and the files of the records after it."""
-        n = len(self.records)
-        if self.draft is None or tuple(records[:n]) != self.records:
-            return None, []
-        return self.draft, list(self.draft.files)
-
-
 def consolidate_session(
     session_dir: Path,
     info: SessionInfo,
@@ -84,14 +46,11 @@ def consolidate_session(
     plan: Plan,
     journal: Journal,
     status: str,
-    ahead: ArchiveDraft | None = None,
 ) -> Path:
     """The session's finished (and failed-but-kept) units, checked, into `archive.h5` with the session's
-    metadata; the units already merged in `ahead`'s draft are not read again."""
+    metadata."""
     records = list(journal.units.values()) + list(journal.failed.values())
-    started, files = ahead.lead(records) if ahead is not None else (None, [])
-    done = len(ahead.records) if ahead is not None and started is not None else 0
-    files += checked_unit_files(session_dir / "units", records[done:])
+    files = checked_unit_files(session_dir / "units", records)
     root = {
         "protocol_name": info.protocol_name,
         "protocol_sha256": loaded.sha256,
@@ -115,7 +74,7 @@ def consolidate_session(
         configuration_attrs=configuration_attrs(plan, journal.units),
         reference=reference_dataset(loaded),
     )
-    return consolidate(session_dir / ARCHIVE_NAME, files, meta, started)
+    return consolidate(session_dir / ARCHIVE_NAME, files, meta)
 
 
 def reference_dataset(loaded: LoadedProtocol) -> tuple[str, str, object, object] | None:

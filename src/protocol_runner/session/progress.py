@@ -9,7 +9,6 @@ from __future__ import annotations
 import logging
 import sys
 import time
-from collections.abc import Container, Sequence
 from pathlib import Path
 
 from ..archive.diskfull import QuietFileHandler
@@ -67,7 +66,6 @@ class Progress:
         self._file.setFormatter(logging.Formatter("%(asctime)s %(message)s"))
         self.logger.addHandler(self._file)
         self.quiet = quiet
-        self._held: list[tuple[Step, str, tuple[str, ...]]] = []  # lines waiting for the units they read
         self._rich = None
         self._task = None
         if not quiet and sys.stderr.isatty():
@@ -105,24 +103,9 @@ class Progress:
         if self._rich is not None and self._task is not None:
             self._rich.update(self._task, description=describe(step), eta=self._eta())
 
-    def step_finished(
-        self, step: Step, summary: str, *, after: Sequence[str] = (), background: bool = False
-    ) -> None:
-        """The step's line. With `after` (units the step read that are not journaled yet: a comparison made
-        while the analyses it read are still running), the line is held until :meth:`release` is told those
-        units are journaled, so that no line comes before the lines of what it was made from; the session's
-        next lines wait behind it, those of `background` steps (the analyses, journaled as their workers
-        end) do not. Lines are numbered as they are printed."""
-        if after or (self._held and not background):
-            self._held.append((step, summary, tuple(after)))
-            return
+    def step_finished(self, step: Step, summary: str) -> None:
+        """The step's line (its unit is journaled). Lines are numbered as they are printed."""
         self._line(step, summary)
-
-    def release(self, journaled: Container[str], *, every: bool = False) -> None:
-        """Print the held lines whose units are in `journaled` now, in order (`every`: all of them)."""
-        while self._held and (every or all(u in journaled for u in self._held[0][2])):
-            step, summary, _ = self._held.pop(0)
-            self._line(step, summary)
 
     def _line(self, step: Step, summary: str) -> None:
         self.n_done += 1
@@ -137,7 +120,6 @@ class Progress:
             print(line, file=sys.stderr, flush=True)
 
     def close(self) -> None:
-        self.release((), every=True)  # nothing said is lost, whatever ended the session
         if self._rich is not None:
             self._rich.stop()
         self.logger.removeHandler(self._file)

@@ -18,18 +18,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
 from ..archive.units import fsync_path, unit_is_complete
-from ..protocol.plan import (
-    CalibrationCheckStep,
-    ChecklistStep,
-    CompareStep,
-    FitStep,
-    Plan,
-    ProcessStep,
-    Step,
-    TrialStep,
-    calibration_id,
-)
-from ..protocol.step_ids import step_id as make_step_id
+from ..protocol.plan import CalibrationCheckStep, ChecklistStep, Plan, Step, TrialStep, calibration_id
 from .journal import Journal
 from .resume_checks import not_in_plan, started_as
 from .setup import SessionInfo, changed_files
@@ -123,38 +112,23 @@ def set_aside(path: Path) -> Path | None:
 
 def first_rig_step(plan: Plan, done: set[str]) -> Step | None:
     """The first step still to run that uses the rig or sets it up (analysis steps need no physical state)."""
-    rig_kinds = (TrialStep, CalibrationCheckStep, ChecklistStep)
-    return next((s for s in plan.steps if s.id not in done and isinstance(s, rig_kinds)), None)
+    return next((s for s in plan.steps if s.id not in done and s.uses_rig), None)
 
 
 def derived_from(plan: Plan, redone: set[str]) -> dict[str, str]:
     """Each step whose unit was computed from a step in `redone`, directly or through others, with the redone
     step it comes from: a brace-off trial follows its brace-on twin's measured output, the processing reads
-    both trials of each pair, the fit reads the processing, a comparison the processings. On the rig a
-    redone trial is a new recording, so everything made from the old one is made again."""
+    both trials of each pair, the fit reads the processing, a comparison the processings (each kind's
+    `inputs`). On the rig a redone trial is a new recording, so everything made from the old one is made
+    again."""
     origin = dict.fromkeys(redone, "")
     for step in plan.steps:  # in plan order: every step comes after the steps it reads
         if step.id in origin:
             continue
-        source = next((origin[i] or i for i in _inputs(step) if i in origin), None)
+        source = next((origin[i] or i for i in step.inputs() if i in origin), None)
         if source is not None:
             origin[step.id] = source
     return {step_id: source for step_id, source in origin.items() if step_id not in redone}
-
-
-def _inputs(step: Step) -> list[str]:
-    """The steps whose units `step` reads (derived_from)."""
-    from ..steps.compare import units_read
-
-    if isinstance(step, TrialStep) and step.twin is not None:
-        return [step.twin]
-    if isinstance(step, ProcessStep):
-        return [i for pair in step.trials for i in pair]
-    if isinstance(step, FitStep):
-        return [make_step_id("process", key=step.configuration)]
-    if isinstance(step, CompareStep):
-        return units_read(step)
-    return []
 
 
 def prepare_resume(runner: Runner, ctx: StepContext, progress: Progress) -> None:

@@ -38,10 +38,6 @@ def sigint_blocked() -> Iterator[None]:
 
 
 class StopFlag:
-    POLLED_AS_FLAG = True
-    """Asking twice in a row answers the same unless a signal arrived in between: the simulator's block path
-    asks once per block (`hardware.paced.block_end`)."""
-
     def __init__(self) -> None:
         self._event = threading.Event()
         self.signal_name = ""

@@ -10,14 +10,16 @@ recorded either way in `/calibration/<set>/<when>`.
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import h5py
 import numpy as np
 import numpy.typing as npt
+from scipy.optimize import minimize_scalar
+from scipy.signal import lfilter
 
-from ..analysis.step_response import first_order_response, golden_section_min
 from ..analysis.transition import command_on_input_base
 from ..archive.attrs import STEP_ID, STEP_RESPONSE
 from ..archive.h5util import put_attrs
@@ -33,7 +35,7 @@ from .recording import put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]
 TAU_BOUNDS_S = (0.02, 2.0)  # the time constants searched
-TAU_WIDTH_S = 1e-5  # the search's final bracket (analysis/step_response.py)
+TAU_TOLERANCE_S = 1e-5  # the bounded search's absolute tolerance on tau
 
 
 @dataclass(frozen=True)
@@ -103,8 +105,18 @@ def analyse_step(
     """Settled angle over the last `settle_window_s`, its error, and the time constant that best fits the
     response to the commanded move (least squares over tau in [0.02, 2] s)."""
     settled, sse = step_fit(time_s, command_deg, angle_deg, settle_window_s)
-    tau = golden_section_min(sse, TAU_BOUNDS_S[0], TAU_BOUNDS_S[1], TAU_WIDTH_S)
+    found = minimize_scalar(sse, bounds=TAU_BOUNDS_S, method="bounded", options={"xatol": TAU_TOLERANCE_S})
+    tau = float(found.x)
     return StepResponse(settled_deg=settled, settle_error_deg=abs(settled - target_deg), time_constant_s=tau)
+
+
+def first_order_response(command_deg: FloatArray, dt_s: float, tau_s: float, y0_deg: float) -> FloatArray:
+    """The first-order lag ``tau dy/dt = c - y`` (thesis §2.4.2) at each sample of `command_deg`, the
+    command held over each `dt_s` (its exact discretisation ``y[i+1] = a y[i] + (1 - a) c[i]``,
+    ``a = exp(-dt / tau)``), from ``y[0] = y0_deg``."""
+    a = math.exp(-dt_s / tau_s)
+    y, _ = lfilter([1.0 - a], [1.0, -a], command_deg, zi=[a * y0_deg])
+    return np.concatenate(([y0_deg], y[:-1]))
 
 
 def step_fit(

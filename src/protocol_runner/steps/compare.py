@@ -8,17 +8,11 @@ from ..archive.h5util import put_attrs
 from ..archive.paths import comparison_path, configuration_path
 from ..archive.results import comparison_values
 from ..protocol.plan import CompareStep
-from ..protocol.step_ids import step_id
 from .context import StepContext, StepOutcome
 
 
-def units_read(step: CompareStep) -> list[str]:
-    """The units a comparison reads: the processing of each of its configurations."""
-    return [step_id("process", key=key) for key in step.configurations]
-
-
 def run(step: CompareStep, ctx: StepContext) -> StepOutcome:
-    files = [ctx.unit(unit) for unit in units_read(step)]
+    files = [ctx.unit(unit) for unit in step.inputs()]
     try:
         values = comparison_values(
             [f[configuration_path(k)] for f, k in zip(files, step.configurations, strict=True)]

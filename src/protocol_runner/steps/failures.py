@@ -15,7 +15,7 @@ from ..analysis.validation import AnalysisError
 from ..errors import InvalidInput
 from ..protocol.plan import FitStep, ProcessStep, Step, TrialStep
 from .context import StepContext, StepOutcome
-from .registry import STEP_KINDS
+from .registry import run_function
 
 
 class AnalysisStepFailed(InvalidInput):
@@ -27,7 +27,7 @@ class AnalysisStepFailed(InvalidInput):
 def run_step(step: Step, ctx: StepContext) -> StepOutcome:
     """Run one step; an `AnalysisError` becomes `AnalysisStepFailed` naming the step and what to do."""
     try:
-        return STEP_KINDS[step.kind](step, ctx)
+        return run_function(step.kind, ctx.loaded.protocol.multi_joint)(step, ctx)
     except AnalysisError as exc:
         raise AnalysisStepFailed(explain(step, exc.message, ctx)) from None
 

@@ -1,4 +1,4 @@
-"""Trial and processing steps of a multi-joint protocol (`joints: [...]`, issue 12).
+"""Trial and processing steps of a multi-joint protocol (`joints: [...]`).
 
 Trial: every driven joint's trajectory is sampled at the output rate and sent in ONE paced loop (one
 synchronous output update per tick for all joints, one input scan of every joint's angle and torque:

@@ -1,13 +1,17 @@
-"""The step kinds, registered in one visible place: plan step kind -> the function that runs it.
+"""The step kinds, registered in one visible place: plan step kind -> the code that runs a step of it.
 
-Each function takes the step and the StepContext and returns a StepOutcome (how to write its unit).
-The report step is the runner's own (it consolidates the archive first): see session/runner.py.
+A kind's plan record (`protocol/plan_steps.py`) declares what it does, what it reads, whether it uses the
+rig and whether it runs in an analysis worker; its entry here names the function that runs it, and the one
+that runs it when a protocol with `joints:` drives several joints, where that differs. Each function takes
+the step and the StepContext and returns a StepOutcome (how to write its unit). The report step is the
+runner's own (it consolidates the archive first): see session/runner.py.
 """
 
 from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any
 
 from .context import StepContext, StepOutcome
@@ -15,42 +19,54 @@ from .context import StepContext, StepOutcome
 StepFunction = Callable[[Any, StepContext], StepOutcome]
 
 
-#: Step kind -> the function that runs it ("module.function" of this package) ...
-ONE_JOINT = {
-    "calibration_check": "calibration_check.run",
-    "operator_checklist": "checklist.run",
-    "trial": "trial.run",
-    "process": "process.run",
-    "fit": "fit.run",
-    "compare": "compare.run",
-}
-#: ... and where a protocol with `joints:` drives several joints, for the kinds that differ
-SEVERAL_JOINTS = {
-    "calibration_check": "multi_calibration.run",
-    "trial": "multi_trial.run_trial",
-    "process": "multi_trial.run_process",
-    "fit": "multi_trial.run_fit",
+@dataclass(frozen=True)
+class StepKind:
+    """How a step of a kind runs: `run` for one joint, `several_joints` for a protocol with `joints:` (None:
+    `run` drives every joint). Each is a function, or the name "module.function" of one of this package's
+    modules, imported when a step of the kind first runs: so the session process never loads what only
+    the analysis workers run (the processing and the fits: scipy's signal, optimisation and statistics)."""
+
+    run: str | StepFunction
+    several_joints: str | StepFunction | None = None
+
+    def function(self, multi_joint: bool) -> StepFunction:
+        """The function that runs a step of this kind, for one joint or several."""
+        chosen = self.several_joints if multi_joint and self.several_joints is not None else self.run
+        return step_function(chosen) if isinstance(chosen, str) else chosen
+
+
+STEP_KINDS: dict[str, StepKind] = {
+    "calibration_check": StepKind("calibration_check.run", several_joints="multi_calibration.run"),
+    "operator_checklist": StepKind("checklist.run"),
+    "trial": StepKind("trial.run", several_joints="multi_trial.run_trial"),
+    "process": StepKind("process.run", several_joints="multi_trial.run_process"),
+    "fit": StepKind("fit.run", several_joints="multi_trial.run_fit"),
+    "compare": StepKind("compare.run"),
 }
 
 
 def step_function(name: str) -> StepFunction:
-    """The function `name` ("module.function") of this package, importing its module: a step kind's module
-    is imported when a step of that kind first runs, so the session process never loads what only the
-    analysis workers run (the processing and the fits: scipy's signal, optimisation and statistics)."""
+    """The function `name` ("module.function") of this package, importing its module."""
     module, function = name.split(".")
     found: StepFunction = getattr(importlib.import_module(f"{__package__}.{module}"), function)
     return found
 
 
-def _by_joints(single: str, several: str) -> StepFunction:
-    """One joint's step function, or the multi-joint one for a protocol with `joints:`."""
-
-    def run(step: Any, ctx: StepContext) -> StepOutcome:
-        return step_function(several if ctx.loaded.protocol.multi_joint else single)(step, ctx)
-
-    return run
+def register(kind: str, entry: StepKind) -> None:
+    """Add a step kind (a kind already registered is refused: remove it first)."""
+    if kind in STEP_KINDS:
+        raise ValueError(f"step kind {kind!r} is already registered")
+    STEP_KINDS[kind] = entry
 
 
-STEP_KINDS: dict[str, StepFunction] = {
-    kind: _by_joints(name, SEVERAL_JOINTS.get(kind, name)) for kind, name in ONE_JOINT.items()
-}
+def deregister(kind: str) -> None:
+    """Remove a step kind added by `register`."""
+    del STEP_KINDS[kind]
+
+
+def run_function(kind: str, multi_joint: bool) -> StepFunction:
+    """The function that runs a step of `kind` (`LookupError` for a kind nobody registered)."""
+    entry = STEP_KINDS.get(kind)
+    if entry is None:
+        raise LookupError(f"no step kind {kind!r} is registered (steps/registry.py)")
+    return entry.function(multi_joint)

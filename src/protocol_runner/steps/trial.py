@@ -16,7 +16,7 @@ import h5py
 import numpy as np
 import numpy.typing as npt
 
-from ..analysis.butterworth import butterworth_sos, zero_phase
+from ..analysis.filters import lowpass
 from ..analysis.scaling import ScalingResult, scale_brace_off_input
 from ..analysis.transition import command_on_input_base, transition_index
 from ..archive.attrs import ATTRIBUTES, FACTORS, STATUS, STEP_ID
@@ -127,11 +127,12 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
     # The brace-on output becomes the brace-off input. It is smoothed first (zero-phase, 4th order at
     # COMMAND_SMOOTHING_HZ): the joint's 0.2 s lag passes nothing above ~1 Hz, and the sensor noise and
     # the corners where the brace's stops bite would otherwise break the acceleration envelope.
-    # (the filter `analysis.filters.lowpass` makes with scipy, computed without it: analysis/butterworth.py)
     nyquist = 0.5 * rig.joint.input_rate_hz
-    smooth = zero_phase(
+    smooth = lowpass(
         on.angle_deg,
-        butterworth_sos(COMMAND_SMOOTHING_ORDER, COMMAND_SMOOTHING_HZ / nyquist),
+        kind="butterworth",
+        order=COMMAND_SMOOTHING_ORDER,
+        cutoff=COMMAND_SMOOTHING_HZ / nyquist,
         name=f"{step.twin} angle_deg",
     )
     cmd_in = command_on_input_base(on.command_time_s, on.command_deg, on.time_s)

@@ -1,5 +1,5 @@
 """The DAQ simulator: boards that satisfy `hardware.interfaces` wired to a physical model of an RSST joint
-and the device under test, composed from its elements (DESIGN.md "The DAQ simulator"; docs/simulator.md)."""
+and the device under test, composed from its elements (docs/simulator.md)."""
 
 from protocol_runner.hardware.simulator.daq import SimulatedAnalogInput, SimulatedRig, step_seed
 from protocol_runner.hardware.simulator.output import SimulatedAnalogOutput, SimulatedClock

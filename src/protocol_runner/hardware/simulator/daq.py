@@ -1,7 +1,7 @@
 """The DAQ simulator: a clock, an analog output and an analog input scan that satisfy
 `hardware.interfaces` and drive a physical model of the rig (`plant.py`) instead of the RSST.
 
-Signal path, mirroring the real rig (DESIGN.md "The DAQ simulator", thesis §2.4-2.5):
+Signal path, mirroring the real rig (thesis §2.4-2.5):
 
     Rig ── volts ──▶ SimulatedAnalogOutput: USB-3105 16-bit code, recorded with its time
         ──▶ the robot's VME reads the code's volts ──▶ Eq 2 (the inverse of Eq 1) over the joint range
@@ -12,7 +12,7 @@ Signal path, mirroring the real rig (DESIGN.md "The DAQ simulator", thesis §2.4
 
 so that, after the rig applies its calibration tables, measured ≈ real. With no table the robot is linear.
 
-Determinism (DESIGN.md): `SimulatedRig.begin_step(step_id)` reseeds the noise generator from
+Determinism: `SimulatedRig.begin_step(step_id)` reseeds the noise generator from
 sha256(session seed, step id), puts the joint at rest at the park angle and restarts the plant's time grid
 at the current clock. The plant advances on a fixed grid whatever the pattern of reads, commands take effect
 from the first grid step at or after their write time, and noise is drawn row by row, so the same seed and
@@ -40,21 +40,17 @@ from protocol_runner.hardware.conversions import (
     torque_to_volts,
     volts_to_angle,
 )
-from protocol_runner.hardware.interfaces import ScanBlock
-from protocol_runner.hardware.simulator.block import BLOCK_NAN, BLOCK_OK
 from protocol_runner.hardware.simulator.device import ComposedDevice
 from protocol_runner.hardware.simulator.kernels import GRID_TOL, ROLE_ANGLE, ROLE_TORQUE
 from protocol_runner.hardware.simulator.output import (
-    AO_CHANNELS,
     SimulatedAnalogOutput,
     SimulatedClock,
-    check_channel,
 )
 from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, SimulatorParams
 from protocol_runner.hardware.simulator.plant import JointPlant
 from protocol_runner.hardware.simulator.scan import AI_CHANNELS as AI_CHANNELS
 from protocol_runner.hardware.simulator.scan import AI_MAX_RATE_HZ as AI_MAX_RATE_HZ
-from protocol_runner.hardware.simulator.scan import ScanState, SimulatedAnalogInput
+from protocol_runner.hardware.simulator.scan import SimulatedAnalogInput
 
 if TYPE_CHECKING:
     from protocol_runner.hardware.calibration import CalibrationTable
@@ -81,7 +77,14 @@ def step_seed(seed: int, step_id: str) -> int:
 class _RigModel:
     """The simulated robot behind the boards: command decoding, the plant, sensors and noise."""
 
-    def __init__(self, joint: JointConfig, params: SimulatorParams, seed: int, clock: SimulatedClock) -> None:
+    def __init__(
+        self,
+        joint: JointConfig,
+        params: SimulatorParams,
+        seed: int,
+        clock: SimulatedClock,
+        output: SimulatedAnalogOutput,
+    ) -> None:
         self.joint = joint
         self.params = params
         self.seed = int(seed)
@@ -89,7 +92,8 @@ class _RigModel:
         self.range_deg = (float(joint.range_deg[0]), float(joint.range_deg[1]))
         self.torque_range_nm = (float(joint.torque_range_nm[0]), float(joint.torque_range_nm[1]))
         self.plant = JointPlant(params, self.range_deg, self.torque_range_nm)
-        self._push = self.plant.push_command
+        self._output = output
+        output.listen(self.on_writes)
         self._output_channel = joint.output_channel
         self._inv_dt = 1.0 / params.plant_step_s
         self.command_nonlinearity: CalibrationTable | None = (
@@ -103,12 +107,11 @@ class _RigModel:
         )
         # What the robot does with each of the 65536 output codes: code -> volts (USB-3105) -> Eq 2 over the
         # joint range -> the robot's own nonlinearity (inverse of the command table). Tabulated once, so a
-        # write costs a list look-up.
+        # write costs a look-up.
         input_deg = volts_to_angle(ao16_code_to_volts(np.arange(65536)), self.range_deg)
         if self.command_nonlinearity is not None:
             input_deg = self.command_nonlinearity(input_deg)
-        self.target_by_code: list[float] = input_deg.tolist()
-        self._target_by_code_arr = np.ascontiguousarray(input_deg, dtype=np.float64)
+        self.target_by_code = np.ascontiguousarray(input_deg, dtype=np.float64)
         # The sensor chains, real value -> the robot's sensor nonlinearity (inverse of the protocol's output
         # table) -> Eq 1 / Eq 3 inverted -> volts, are piecewise linear: tabulate them on the table's knots
         # (plus two far knots that carry the tables' linear extrapolation) so a read costs one np.interp.
@@ -163,46 +166,12 @@ class _RigModel:
         self.origin_s = self.clock.now_s()
         self.plant.reset(self.joint.limits.park_angle_deg)
 
-    def on_write(self, t_s: float, channel: int, code: int) -> None:  # hot path: one call per output tick
-        if channel == self._output_channel:
-            self._push(math.ceil((t_s - self.origin_s) * self._inv_dt - GRID_TOL), self.target_by_code[code])
-
-    def send_block(
-        self, times_s: FloatArray, volts: FloatArray, channel: int, scan: ScanState | None
-    ) -> tuple[npt.NDArray[np.int64], FloatArray, npt.NDArray[np.int32], FloatArray]:
-        """The block path: writes at `times_s` on `channel` (their codes and, on the joint's output channel,
-        their commands, exactly as `on_write` per write) and, if `scan` runs, its rows due at the last
-        write — one compiled call (`block.send_and_scan`). Returns (codes, row times, row codes, row
-        volts); InvalidInput (nothing changed) for NaN volts or writes out of time order."""
-        now_s = float(times_s[-1])
-        n_ch = len(scan.channels) if scan is not None else 0
-        first_row, n_rows, t0_s, rate_hz = 0, 0, 0.0, 1.0
-        if scan is not None:
-            self._scan_roles(scan.channels)
-            first_row, n_rows, t0_s, rate_hz = scan.rows_read, scan.rows_due(now_s), scan.t0_s, scan.rate_hz
-            step_end = math.floor((now_s - self.origin_s) * self._inv_dt + GRID_TOL)
-        else:
-            step_end = self.plant.step  # nothing read: integrated at the next read, as per write
-        noise = self._noise(n_rows * n_ch)
-        decode = (self._target_by_code_arr, self.origin_s, int(channel == self._output_channel))
-        codes, status, t_s, row_codes, row_volts, any_nan = self.plant.send_and_scan(
-            times_s,
-            volts,
-            decode,
-            step_end,
-            (t0_s, self.origin_s, rate_hz, first_row, n_rows),
-            self._sensors,
-            noise,
-            _AI12,
-        )
-        if status == BLOCK_NAN:
-            raise InvalidInput("USB-3105 (simulated): cannot output NaN volts")
-        if status != BLOCK_OK:
-            raise ValueError("commands must be pushed in time order")
-        if any_nan:
-            raise InvalidInput("cannot convert NaN volts to an analog input code")
-        self._noise_pos += row_codes.shape[0] * n_ch
-        return codes, t_s, row_codes, row_volts
+    def on_writes(self, t_s: FloatArray, channel: npt.NDArray[np.int64], code: npt.NDArray[np.int64]) -> None:
+        """The output updates written since the robot last looked (`SimulatedAnalogOutput.deliver`): those
+        on the joint's channel become commands held from the first grid step at or after their time."""
+        mine = channel == self._output_channel
+        steps = np.ceil((t_s[mine] - self.origin_s) * self._inv_dt - GRID_TOL).astype(np.int64)
+        self.plant.push_commands(steps, self.target_by_code[code[mine]])
 
     def _scan_roles(self, channels: Sequence[int]) -> tuple[npt.NDArray[np.int64], FloatArray]:
         """Per scanned channel: what it carries (0 nothing, 1 angle, 2 torque) and its noise in volts."""
@@ -229,17 +198,24 @@ class _RigModel:
         return self._noise_buf[self._noise_pos : self._noise_pos + count]
 
     def acquire(
-        self, t0_s: float, rate_hz: float, first_row: int, n_rows: int, channels: Sequence[int], now_s: float
+        self,
+        t0_s: float,
+        rate_hz: float,
+        first_row: int,
+        n_rows: int,
+        channels: Sequence[int],
+        until_s: float,
     ) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray]:
-        """Integrate up to `now_s` and return (times, codes, volts) of scan rows first_row .. + n_rows - 1
+        """Integrate up to `until_s` and return (times, codes, volts) of scan rows first_row .. + n_rows - 1
         (row i at t0 + i / rate) — the leading part of them whose grid step has been reached (all, unless
-        the last ones fall inside the current step). Codes and volts are the DT9814's (12-bit ±10 V:
+        the last ones fall after `until_s`). Codes and volts are the DT9814's (12-bit ±10 V:
         `conversions.volts_to_ai12_code` / `ai12_code_to_volts`), computed in the plant's kernel."""
+        self._output.deliver()  # the commands written so far
         self._scan_roles(channels)  # refreshes self._sensors for this channel list
         n_ch = len(channels)
         noise = self._noise(n_rows * n_ch)
         t_s, codes, volts, any_nan = self.plant.scan(
-            math.floor((now_s - self.origin_s) * self._inv_dt + GRID_TOL),
+            math.floor((until_s - self.origin_s) * self._inv_dt + GRID_TOL),
             (t0_s, self.origin_s, rate_hz, first_row, n_rows),
             self._sensors,
             noise,
@@ -264,15 +240,13 @@ class SimulatedRig:
         seed: int = 0,
         params: SimulatorParams = DEFAULT_PARAMS,
         realtime: bool = False,
-        scheduled_blocks: bool = True,
     ) -> None:
         self.joint = joint
         self.seed = int(seed)
         self.params = params
         self.clock = SimulatedClock(realtime=realtime)
-        self._model = _RigModel(joint, params, self.seed, self.clock)
-        self.ao = SimulatedAnalogOutput(self.clock, listener=self._model.on_write)
-        self.scheduled_blocks = scheduled_blocks
+        self.ao = SimulatedAnalogOutput(self.clock)
+        self._model = _RigModel(joint, params, self.seed, self.clock, self.ao)
         self.ai = SimulatedAnalogInput(self._model, self.clock)
         self.begin_step("")
 
@@ -304,44 +278,8 @@ class SimulatedRig:
         bad element parameter."""
         self._model.plant.set_device(elements)
 
-    @property
-    def accepts_scheduled_blocks(self) -> bool:
-        """True when `send_block` may stand for the paced loop: simulated (not wall-clock) time."""
-        return self.scheduled_blocks and not self.clock.realtime
-
-    def drives(self, ao: object, ai: object) -> bool:
-        """Whether `ao` and `ai` are this simulator's own boards (the block path drives nothing else)."""
-        return ao is self.ao and ai is self.ai
-
-    def send_block(
-        self, channel: int, times_s: FloatArray, volts: FloatArray
-    ) -> tuple[npt.NDArray[np.int64], ScanBlock]:
-        """The rig's block path (`hardware/rig.py`): the writes a paced loop makes at `times_s` (sorted, none
-        before the clock), sample i at times_s[i], then a read of the input scan at the last one — the same
-        codes, records, commands and rows as one `ao.write_volts` per sample at its time followed by
-        `ai.read_available`, in one compiled call (`block.py`). The clock ends at the last time. All or
-        nothing: NaN volts or a time before the clock raise before anything is written."""
-        if not self.accepts_scheduled_blocks:
-            raise InvalidInput("DAQ simulator: scheduled blocks need simulated time")
-        ch = check_channel(channel, AO_CHANNELS, "USB-3105 (simulated)")
-        t = np.ascontiguousarray(times_s, dtype=np.float64)
-        v = np.ascontiguousarray(volts, dtype=np.float64)
-        if t.ndim != 1 or t.shape != v.shape:
-            raise InvalidInput(f"DAQ simulator: {t.shape} write times for {v.shape} volts")
-        if t.size == 0:
-            return np.zeros(0, dtype=np.int64), self.ai.read_available()
-        if t[0] < self.clock.now_s() or not bool(np.all(t[1:] >= t[:-1])):
-            raise InvalidInput("DAQ simulator: a block's writes must be in time order, not in the past")
-        codes, block = self.ai.read_after_writes(t, v, ch)
-        self.clock.sleep_until(float(t[-1]))
-        self.ao.record_block(t, ch, codes)
-        return codes, block
-
     def make_rig(self) -> Rig:
-        """A `hardware.rig.Rig` bound to this simulator's boards and clock, with its block path
-        (`send_block`) offered for simulated time."""
+        """A `hardware.rig.Rig` bound to this simulator's boards and clock."""
         from protocol_runner.hardware.rig import Rig
 
-        rig = Rig(self.joint, self.ao, self.ai, self.clock)
-        rig.block_io = self
-        return rig
+        return Rig(self.joint, self.ao, self.ai, self.clock)

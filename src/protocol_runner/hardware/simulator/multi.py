@@ -121,16 +121,11 @@ class MultiSimulatedRig:
             raise InvalidInput("the simulated joints of one rig need the same plant_step_s")
         self.joints = tuple(joints)
         self.clock = SimulatedClock(realtime=realtime)
+        self.ao = SimulatedAnalogOutput(self.clock)
         self.models = tuple(
-            _RigModel(j, p, joint_seed(seed, j.name), self.clock) for j, p in zip(joints, params, strict=True)
+            _RigModel(j, p, joint_seed(seed, j.name), self.clock, self.ao)
+            for j, p in zip(joints, params, strict=True)
         )
-        listeners = [m.on_write for m in self.models]
-
-        def on_write(t_s: float, channel: int, code: int) -> None:
-            for listen in listeners:
-                listen(t_s, channel, code)
-
-        self.ao = SimulatedAnalogOutput(self.clock, listener=on_write)
         self.ai = _MultiInput(self.models, self.clock)
         self.begin_step("")
 

@@ -73,26 +73,45 @@ def _ao_code(volts: float) -> int:
 
 
 class SimulatedAnalogOutput:
-    """A USB-3105 stand-in: quantises volts to its 16-bit ±10 V ideal code (clamped), records every update
-    as (time, channel, code) and hands it to `listener` (the simulated robot). The block path
-    (`SimulatedRig.send_block`) computes its codes in the compiled call and records them here."""
+    """A USB-3105 stand-in: quantises volts to its 16-bit ±10 V ideal code (clamped) and records every
+    update as (time, channel, code). The simulated robot (`listen`) reads the updates written since it last
+    looked when it is about to move (`deliver`, before every integration): a write costs a few list
+    appends, and the robot decodes a whole read's worth of them at once."""
 
-    def __init__(
-        self, clock: SimulatedClock, *, listener: Callable[[float, int, int], None] | None = None
-    ) -> None:
+    def __init__(self, clock: SimulatedClock) -> None:
         self._clock = clock
-        self._listener = listener
+        self._listeners: list[Callable[[FloatArray, IntArray, IntArray], None]] = []
         self._t: list[float] = []
         self._channel: list[int] = []
         self._code: list[int] = []
+        self._delivered = 0
         self._closed = False
+
+    def listen(self, listener: Callable[[FloatArray, IntArray, IntArray], None]) -> None:
+        """Hand `listener` every update from now on, as (time_s, channel, code) arrays (`deliver`)."""
+        self._listeners.append(listener)
+
+    def deliver(self) -> None:
+        """Hand the updates recorded since the last delivery to the listeners, in time order."""
+        first = self._delivered
+        if first == len(self._t):
+            return
+        self._delivered = len(self._t)
+        t, channel, code = self._arrays(first)
+        for listener in self._listeners:
+            listener(t, channel, code)
+
+    def _arrays(self, first: int) -> tuple[FloatArray, IntArray, IntArray]:
+        return (
+            np.asarray(self._t[first:], dtype=np.float64),
+            np.asarray(self._channel[first:], dtype=np.int64),
+            np.asarray(self._code[first:], dtype=np.int64),
+        )
 
     def _emit(self, t_s: float, channel: int, code: int) -> None:
         self._t.append(t_s)
         self._channel.append(channel)
         self._code.append(code)
-        if self._listener is not None:
-            self._listener(t_s, channel, code)
 
     def configure_channel(self, channel: int) -> None:
         """±10 V range; like the real board this also drives the output to 0 V (code 32768)."""
@@ -110,20 +129,10 @@ class SimulatedAnalogOutput:
             code = round(k)
         else:
             code = _ao_code(volts)
-        t_s = self._clock.now_s()
-        self._t.append(t_s)
+        self._t.append(self._clock.now_s())
         self._channel.append(ch)
         self._code.append(code)
-        if self._listener is not None:
-            self._listener(t_s, ch, code)
         return code
-
-    def record_block(self, times_s: FloatArray, channel: int, codes: IntArray) -> None:
-        """Record writes already made (and handed to the robot) by the block path (`SimulatedRig.send_block`)."""
-        n = int(times_s.shape[0])
-        self._t.extend(times_s.tolist())
-        self._channel.extend([channel] * n)
-        self._code.extend(codes.tolist())
 
     def write_volts_sync(self, volts_by_channel: Mapping[int, float]) -> dict[int, int]:
         t_s = self._clock.now_s()
@@ -137,16 +146,15 @@ class SimulatedAnalogOutput:
 
     def records(self) -> tuple[FloatArray, npt.NDArray[np.int64], npt.NDArray[np.int64]]:
         """Every update since the last `clear_records`: (time_s, channel, code) arrays."""
-        return (
-            np.asarray(self._t, dtype=np.float64),
-            np.asarray(self._channel, dtype=np.int64),
-            np.asarray(self._code, dtype=np.int64),
-        )
+        return self._arrays(0)
 
     def clear_records(self) -> None:
+        """Deliver what the listeners have not read yet, then forget every update."""
+        self.deliver()
         self._t.clear()
         self._channel.clear()
         self._code.clear()
+        self._delivered = 0
 
     def close(self) -> None:
         self._closed = True

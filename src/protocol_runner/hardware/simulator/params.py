@@ -1,5 +1,5 @@
 """The ROBOT side of the DAQ simulator's rig model: the servo, the joint's own loads, the sensors and the
-numerics (DESIGN.md "The DAQ simulator"; docs/simulator.md explains the model).
+numerics (docs/simulator.md explains the model).
 
 The device under test is not here: it arrives as composed elements (`SimulatedRig.set_device`,
 `models.elements`), with its parameters from the protocol. The defaults below are generic (a bare joint
@@ -96,7 +96,7 @@ class SimulatorParams:
 
 
 # Where the work of a simulated trial grows with a parameter (steps per second, table entries), its range:
-# the defaults are well inside, and the ends keep a trial's work and memory bounded (issue 11, "bounded").
+# the defaults are well inside, and the ends keep a trial's work and memory bounded.
 BOUNDS = {
     "plant_step_s": (1.0e-5, 0.01),  # integration grid: 100 kHz at most (the default is 2 kHz)
     "lag_time_constant_s": (1.0e-3, 10.0),

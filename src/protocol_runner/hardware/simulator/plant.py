@@ -1,6 +1,6 @@
 """The rig's physics: an RSST joint (hydraulic position servo) and the device under test, integrated by numba.
 
-Model (DESIGN.md "The DAQ simulator"; every constant is in `params.py`; docs/simulator.md):
+Model (every constant is in `params.py`; docs/simulator.md):
 
 Servo (thesis §2.2, §2.4.2). The hydraulic boards run a PD position loop whose complete response is a
 first-order lag of about 0.2 s. A hydraulic actuator is a flow (speed) source: its valve opens in
@@ -36,7 +36,6 @@ from collections.abc import Sequence
 import numpy as np
 import numpy.typing as npt
 
-from protocol_runner.hardware.simulator.block import BLOCK_OK, Decode, send_and_scan
 from protocol_runner.hardware.simulator.device import ComposedDevice, as_elements, compose
 from protocol_runner.hardware.simulator.kernels import (
     I_CMD,
@@ -144,10 +143,6 @@ class JointPlant:
         self._cmd_step = np.zeros(1024, dtype=np.int64)
         self._cmd_target = np.zeros(1024, dtype=np.float64)
         self._n_cmd = 0
-        self._integrated_step = 0
-        self._pending_step: list[int] = []
-        self._pending_target: list[float] = []
-        self._last_cmd_step = 0
         self.set_device(None)
         self.reset(0.5 * (self.range_deg[0] + self.range_deg[1]))
 
@@ -183,11 +178,7 @@ class JointPlant:
         self._z_brakes[:] = 0.0
         self._state[S_ANGLE] = self._rest_angle_deg(float(angle_deg))
         self._istate[:] = 0
-        self._integrated_step = 0
         self._n_cmd = 0
-        self._pending_step.clear()
-        self._pending_target.clear()
-        self._last_cmd_step = 0
         self.push_command(0, float(angle_deg))
         self._refresh_load()
 
@@ -240,30 +231,25 @@ class JointPlant:
         """The load torque the actuator holds now (what the load cell sees)."""
         return float(self._state[S_LOAD])
 
-    def push_command(self, step: int, target_deg: float) -> None:  # hot path: one call per output write
-        """Hold `target_deg` (a real angle) from grid step `step` on. Steps must not go backwards; a step
-        already integrated past is applied from the current step; of several commands for the same step the
-        last one holds. (Queued in Python lists, moved into the kernel's arrays at the next `advance`.)"""
-        if step < self._integrated_step:
-            step = self._integrated_step
-        last = self._pending_step[-1] if self._pending_step else self._last_cmd_step
-        if step < last:
-            raise ValueError("commands must be pushed in time order")
-        self._pending_step.append(step)
-        self._pending_target.append(target_deg)
+    def push_command(self, step: int, target_deg: float) -> None:
+        """Hold `target_deg` (a real angle) from grid step `step` on (see `push_commands`)."""
+        self.push_commands(np.array([step], dtype=np.int64), np.array([target_deg], dtype=np.float64))
 
-    def _flush_commands(self) -> None:
-        n_new = len(self._pending_step)
+    def push_commands(self, steps: IntArray, targets_deg: FloatArray) -> None:
+        """Hold targets_deg[i] (real angles) from grid step steps[i] on. Steps must not go backwards; a step
+        already integrated past is applied from the current step; of several commands for the same step
+        the last one holds."""
+        n_new = int(steps.shape[0])
         if n_new == 0:
             return
+        steps = np.maximum(steps, self._istate[I_STEP])
+        last = self._cmd_step[self._n_cmd - 1] if self._n_cmd else 0
+        if steps[0] < last or bool(np.any(steps[1:] < steps[:-1])):
+            raise ValueError("commands must be pushed in time order")
         n_keep = self._reserve(n_new)
-        needed = n_keep + n_new
-        self._cmd_step[n_keep:needed] = self._pending_step
-        self._cmd_target[n_keep:needed] = self._pending_target
-        self._n_cmd = needed
-        self._last_cmd_step = self._pending_step[-1]
-        self._pending_step.clear()
-        self._pending_target.clear()
+        self._cmd_step[n_keep : n_keep + n_new] = steps
+        self._cmd_target[n_keep : n_keep + n_new] = targets_deg
+        self._n_cmd = n_keep + n_new
 
     def _reserve(self, n_new: int) -> int:
         """Room for `n_new` more commands in the kernel's arrays; returns how many are kept. Commands before
@@ -282,41 +268,13 @@ class JointPlant:
             self._cmd_target = np.concatenate([self._cmd_target[:n_keep], np.zeros(size - n_keep)])
         return n_keep
 
-    def send_and_scan(
-        self,
-        times_s: FloatArray,
-        volts: FloatArray,
-        decode: Decode,
-        step_end: int,
-        scan: ScanWindow,
-        sensors: Sensors,
-        noise: FloatArray,
-        adc: Adc,
-    ) -> tuple[IntArray, int, FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
-        """The block path (`block.send_and_scan`): the output codes of writes at `times_s`, their commands
-        held from their grid steps, then the `scan` window's rows read after integrating to `step_end`.
-        Returns (codes, status, row times, row codes, row volts, any NaN)."""
-        self._flush_commands()
-        self._reserve(times_s.shape[0])
-        joint, commands, timing, rows = self._window(step_end, scan)
-        codes, n_cmd, status, t_s, row_codes, row_volts, any_nan = send_and_scan(
-            joint, commands, (times_s, volts), decode, timing, rows, sensors, noise, adc
-        )
-        if status == BLOCK_OK:
-            self._n_cmd = int(n_cmd)
-            self._last_cmd_step = int(self._cmd_step[n_cmd - 1]) if n_cmd > 0 else 0
-            self._integrated_step = int(self._istate[I_STEP])
-        return codes, int(status), t_s, row_codes, row_volts, bool(any_nan)
-
     def advance_rows(
         self, step_end: int, scan: ScanWindow, sensors: Sensors, noise: FloatArray
     ) -> FloatArray:
         """Integrate to `step_end` and return the telemetry volts of the `scan` window's rows (see
         `integrate_rows`); `sensors` = (roles, noise volts, angle knots, their volts, torque knots, their
         volts); `noise` holds at least n_rows × channels standard normals, consumed row by row."""
-        volts = integrate_rows(*self._window(step_end, scan), sensors, noise)
-        self._integrated_step = int(self._istate[I_STEP])
-        return volts
+        return integrate_rows(*self._window(step_end, scan), sensors, noise)
 
     def scan(
         self, step_end: int, scan: ScanWindow, sensors: Sensors, noise: FloatArray, adc: Adc
@@ -324,14 +282,11 @@ class JointPlant:
         """`advance_rows` followed by the input board's quantisation (see `scan_rows`); `adc` = (volts per
         code, lowest code, highest code). Returns (row times, codes, their volts, whether any volts were
         NaN)."""
-        out = scan_rows(*self._window(step_end, scan), sensors, noise, adc)
-        self._integrated_step = int(self._istate[I_STEP])
-        return out
+        return scan_rows(*self._window(step_end, scan), sensors, noise, adc)
 
     def _window(self, step_end: int, scan: ScanWindow) -> tuple[Joint, Commands, FloatArray, IntArray]:
         """The kernels' (joint, commands, timing, rows) records for reading the `scan` window's rows after
-        integrating to `step_end`, with the queued commands moved into the kernel's arrays first."""
-        self._flush_commands()
+        integrating to `step_end`."""
         t0_s, origin_s, rate_hz, first_row, n_rows = scan
         timing = np.empty(N_TIMING, dtype=np.float64)
         timing[T_START], timing[T_ORIGIN], timing[T_RATE] = float(t0_s), float(origin_s), float(rate_hz)
@@ -346,12 +301,10 @@ class JointPlant:
     def advance(self, step_end: int, sample_step: IntArray) -> tuple[FloatArray, FloatArray]:
         """Integrate to grid step `step_end`; return (real angle, load torque) at each of the sorted
         `sample_step` that is <= step_end (the prefix of `sample_step` that could be sampled)."""
-        self._flush_commands()
         n = sample_step.shape[0]
         angle = np.empty(n, dtype=np.float64)
         torque = np.empty(n, dtype=np.float64)
         commands = (self._cmd_step, self._cmd_target)
         steps = np.ascontiguousarray(sample_step, dtype=np.int64)
         got = integrate(self._joint(), commands, self._n_cmd, int(step_end), steps, angle, torque)
-        self._integrated_step = int(self._istate[I_STEP])
         return angle[:got], torque[:got]

@@ -1,5 +1,5 @@
 """The simulator's DT9814 stand-in: a hardware-paced scan whose reads integrate the simulated robot up to
-the clock (`daq._RigModel.acquire`), and the block path's read after a block of writes (`send_block`)."""
+the rows they hand over (`daq._RigModel.acquire`)."""
 
 from __future__ import annotations
 
@@ -20,44 +20,62 @@ AI_CHANNELS = 24
 """DT9814-10V: 24 analog inputs (thesis §2.3)."""
 AI_MAX_RATE_HZ = 50_000.0
 """DT9814 maximum aggregate rate (thesis §2.3)."""
+TRANSFER_S = 1.0
+"""In simulated time the board hands its rows over in transfers of this much scan time, as a USB board
+hands over whole packets: a read before a transfer is complete returns no rows, `stop_scan` returns the
+rest. The rows do not depend on it (the plant is integrated on a fixed grid whatever the reads); it sets
+how many compiled calls a dry run makes: one per second of scan instead of one per read of the rig's loop
+(every 100 ms). In real time (`--realtime`) every row is handed over as soon as it is due
+(`SimulatedAnalogInput.transfer_s` = 0)."""
 
 
 class RobotModel(Protocol):
     """What the scan reads from: the simulated robot (`daq._RigModel`)."""
 
     def acquire(
-        self, t0_s: float, rate_hz: float, first_row: int, n_rows: int, channels: Sequence[int], now_s: float
+        self,
+        t0_s: float,
+        rate_hz: float,
+        first_row: int,
+        n_rows: int,
+        channels: Sequence[int],
+        until_s: float,
     ) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray]: ...
-
-    def send_block(
-        self, times_s: FloatArray, volts: FloatArray, channel: int, scan: ScanState | None
-    ) -> tuple[npt.NDArray[np.int64], FloatArray, npt.NDArray[np.int32], FloatArray]: ...
 
 
 class ScanState:
     """A running hardware-paced scan: its channels, rate, start and rows handed out so far."""
 
-    def __init__(self, channels: tuple[int, ...], rate_hz: float, t0_s: float) -> None:
+    def __init__(self, channels: tuple[int, ...], rate_hz: float, t0_s: float, transfer_rows: int) -> None:
         self.channels = channels
         self.rate_hz = rate_hz
         self.t0_s = t0_s
+        self.transfer_rows = transfer_rows
         self.rows_read = 0
+        self.empty = ScanBlock.empty(len(channels))
 
     def rows_due(self, now_s: float) -> int:
         """Rows acquired by `now_s` and not yet read (row i at t0 + i / rate; the first at t0)."""
         n_due = math.floor((now_s - self.t0_s) * self.rate_hz + 1e-9) + 1
         return max(0, n_due - self.rows_read)
 
+    def row_time_s(self, row: int) -> float:
+        """When row `row` was acquired (the plant kernel's arithmetic: t0 + row / rate)."""
+        return self.t0_s + row / self.rate_hz
+
 
 class SimulatedAnalogInput:
     """A DT9814 stand-in: a hardware-paced scan of 12-bit ±10 V two's-complement codes. Reading it
-    integrates the simulated robot up to the clock (lazily) and returns the rows acquired since."""
+    integrates the simulated robot (lazily) up to the rows it hands over: the complete transfers
+    (`transfer_s`; in real time every row) acquired since the last read."""
 
     def __init__(self, model: RobotModel, clock: SimulatedClock) -> None:
         self._model = model
         self._clock = clock
         self._channels: tuple[int, ...] = ()
         self._scan: ScanState | None = None
+        self.transfer_s = 0.0 if clock.realtime else TRANSFER_S
+        """Scan time per transfer, for the scans started from now on (0: every row as soon as it is due)."""
 
     @property
     def resolution_bits(self) -> int:
@@ -73,37 +91,35 @@ class SimulatedAnalogInput:
                 f"all channels, got {rate_hz!r} Hz x {len(chans)} channels"
             )
         self._channels = chans
-        self._scan = ScanState(chans, float(rate_hz), self._clock.now_s())
+        transfer_rows = max(1, round(self.transfer_s * rate_hz))
+        self._scan = ScanState(chans, float(rate_hz), self._clock.now_s(), transfer_rows)
 
-    def _read(self, now_s: float) -> ScanBlock:
+    def _read(self, *, last: bool) -> ScanBlock:
+        """The rows due and not read yet: whole transfers only, unless this is the `last` read."""
         scan = self._scan
         if scan is None:
             return ScanBlock.empty(len(self._channels))
-        n_rows = scan.rows_due(now_s)
+        n_rows = scan.rows_due(self._clock.now_s())
+        if not last:
+            n_rows -= n_rows % scan.transfer_rows
         if n_rows <= 0:
-            return ScanBlock.empty(len(self._channels))
+            return scan.empty
         t_s, codes, volts = self._model.acquire(
-            scan.t0_s, scan.rate_hz, scan.rows_read, n_rows, scan.channels, now_s
+            scan.t0_s,
+            scan.rate_hz,
+            scan.rows_read,
+            n_rows,
+            scan.channels,
+            scan.row_time_s(scan.rows_read + n_rows - 1),
         )
         scan.rows_read += codes.shape[0]
         return ScanBlock(t_s=t_s, codes=codes, volts=volts)
 
-    def read_after_writes(
-        self, times_s: FloatArray, volts: FloatArray, channel: int
-    ) -> tuple[npt.NDArray[np.int64], ScanBlock]:
-        """The block path's half on this board: the writes' codes, and the rows due at the last write."""
-        scan = self._scan
-        codes, t_s, row_codes, row_volts = self._model.send_block(times_s, volts, channel, scan)
-        if scan is None:
-            return codes, ScanBlock.empty(len(self._channels))
-        scan.rows_read += row_codes.shape[0]
-        return codes, ScanBlock(t_s=t_s, codes=row_codes, volts=row_volts)
-
     def read_available(self) -> ScanBlock:
-        return self._read(self._clock.now_s())
+        return self._read(last=False)
 
     def stop_scan(self) -> ScanBlock:
-        block = self._read(self._clock.now_s())
+        block = self._read(last=True)
         self._scan = None
         return block
 

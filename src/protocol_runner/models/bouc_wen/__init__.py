@@ -41,7 +41,7 @@ lot on the initial conditions"; this implementation starts from the thesis's dat
 from an equation-error least-squares guess, and from quasi-random points spread over the parameter bounds,
 and keeps the best optimum, so the result does not depend on any single starting point.
 
-Evidence (issue 15): every fit reports ``rmse_refined_nm`` (4x finer integration), a convergence record
+Evidence: every fit reports ``rmse_refined_nm`` (4x finer integration), a convergence record
 (:class:`BoucWenFit` ``status``, ``start_rmse_nm``, ``cost_spread``); :func:`cross_validate` leaves each
 trial out of its own fit; :mod:`.identifiability` profiles n and marks weakly identified fits.
 

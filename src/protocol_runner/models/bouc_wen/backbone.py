@@ -1,11 +1,11 @@
-"""The elastic backbone of a joint's loop: ``torque = g(angle) + z`` (issue 15 item 2).
+"""The elastic backbone of a joint's loop: ``torque = g(angle) + z``.
 
 The thesis models the whole torque as the hysteretic state (``torque = z``), so a spring's elastic torque
 and a brake's friction are forced into one hysteresis and the parameters cannot be compared across
 configurations.  Here the elastic part is a smooth function of the angle alone, fitted first, and the
 Bouc-Wen state describes what is left.
 
-Until the campaign declares its device elements (springs, bungees, stops: issue 11), ``g`` is generic: a
+Unless the campaign declares its device elements (springs, bungees, stops), ``g`` is generic: a
 polynomial of the angle (degree 9 by default, in ``u = angle / angle_scale`` so that it is well
 conditioned) fitted by least squares to every sample of every trial.  On a cyclic loop the least-squares
 curve runs midway between the loading and unloading branches: the loop's midline, which carries no

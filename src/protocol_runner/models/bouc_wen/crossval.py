@@ -1,4 +1,4 @@
-"""Leave-one-trial-out cross-validation of the Bouc-Wen fit: the trial is the unit (issue 15 item 5)."""
+"""Leave-one-trial-out cross-validation of the Bouc-Wen fit: the trial is the unit."""
 
 from __future__ import annotations
 
@@ -37,9 +37,9 @@ def cross_validate(
     computed from the held-out trial enters it.  It ends with its polish (to a relative cost change of
     ``HELD_OUT_FTOL``) on the mid-size copy of the other trials that keeps their angle's turning points
     (:func:`.copies.turning_point_copy`), not with a last solve on the fitted samples: its held-out error
-    is within 1 % of the full procedure's (docs/analysis.md), at about a third of the cost.  A parameter the other trials cannot determine (e.g. a
-    Table 4 phase only the held-out trial visits) then stays where the other trials leave it, and the
-    held-out error shows it.
+    is within 1 % of the full procedure's (docs/analysis.md), at about a third of the cost.  A parameter
+    the other trials cannot determine (e.g. a Table 4 phase only the held-out trial visits) then stays
+    where the other trials leave it, and the held-out error shows it.
 
     backbone_degree: as in :func:`.fit_trials`; each held-out fit then fits its backbone on the other
         trials too, and the held-out prediction is ``g(angle) + z``.

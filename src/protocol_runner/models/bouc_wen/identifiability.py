@@ -1,4 +1,4 @@
-"""Parameter intervals of a Bouc-Wen fit and the "weakly identified" mark (issue 15 item 3).
+"""Parameter intervals of a Bouc-Wen fit and the "weakly identified" mark.
 
 Intervals (95 %):
 

@@ -1,27 +1,15 @@
 """Compiled kernels of the Bouc-Wen state over the angle samples (thesis §6.2.3, Eq 20-23): the literal
-Eq 23 recursion and the step-independent integration described in :mod:`.schemes`, each with or without
-its forward sensitivities ``d z / d theta`` (theta = A, n, beta1..6).
+Eq 23 recursion and the step-independent integration of Eq 20-22 described in :mod:`.schemes`, each with
+or without its forward sensitivities ``d z / d theta`` (theta = A, n, beta1..6).
 
-In this order: the pieces of the rate both schemes share (signs, Psi, ``|z|^n``, inlined), one Eq 23
-step, the Heun substeps of the refined scheme along one straight piece of angle (without derivatives, and
-with them carried as eight scalars rather than arrays: about 9 % less time per fit, the same bits), and one
-loop over segments
-and samples (:func:`_sweep`) that serves all four kernels, selected by two flags (a branch per sample that
-costs nothing measurable: the per-piece call and the loop are as fast as the four separate kernels they
-replace; a further layer of numba ``inline="always"`` around the Heun piece made the sensitivity kernel
-about 1.5 times slower, so there is none).  The refined sensitivity kernel, the fits' innermost work, integrates the
-trials three or two at a time (:func:`_sweep_lanes`), and so does the kernel without derivatives (the
-same sweep, flagged): each substep waits on a logarithm and an exponential of the one before, so
-independent trials' substeps interleaved keep the processor busy while each waits (two trials: about 10 %
-less time over 1,500 recorded fit calls; three together instead of two and then the third alone: 20-25 %
-less for a three-trial call; every operation of each trial the same, so the same bits as one trial after
-the other). The lanes are written out, not factored into inlined helpers: helpers returning a lane's state
-as tuples made the three-lane kernel slower than two lanes and a single trial. A third lane left empty
-costs nothing measurable, so two trials run in the same code with lane c off. The entry kernels take arrays and three small tuples (the
-shape parameters, the limits, the sensitivity outputs), unpacked once into the positional arguments of
-the compiled internals; numba compiles them once (cached on disk; all compiled code is in this one file,
-longer than the usual module for that reason, because numba's cache of a function does not notice a change
-in another file).
+In this order: the pieces of the rate both schemes share (signs, Psi of Eq 22, ``|z|^n``, inlined), one
+Eq 23 step, the Heun substeps of the refined scheme along one straight piece of angle (without
+derivatives, and with them carried as eight scalars), and one loop over segments and samples
+(:func:`_sweep`) that serves all four kernels, selected by two flags.  The segments (trials) are
+integrated one after the other, each from its own starting torque.  The entry kernels take arrays and three
+small tuples (the shape parameters, the limits, the sensitivity outputs), unpacked once into the positional
+arguments of the compiled internals.  numba compiles them once and caches them on disk; all compiled code
+is in this one file because numba's cache of a function does not notice a change in another file.
 """
 
 from __future__ import annotations
@@ -154,8 +142,8 @@ def _rate(z, A, n, beta, sd, sx):  # pragma: no cover - compiled
 @njit(cache=True)
 def _rate_sens(z, A, n, terms, sd, sx, s0, s1, s2, s3, s4, s5, s6, s7):  # pragma: no cover - compiled
     """F(z) and the eight ``dF/dtheta + dF/dz S`` from the state terms at ``z`` (:func:`_state_terms`) and
-    the sensitivities ``S = (s0, ..., s7)``, as a tuple: this is the innermost work of every fit, and
-    scalars in registers (not arrays in memory) make the sensitivity kernel about 9 % faster, bit for bit."""
+    the sensitivities ``S = (s0, ..., s7)``, as a tuple (the innermost work of every fit: scalars that
+    stay in registers rather than an array in memory)."""
     sz, psi, g, lz = terms
     az = abs(z)
     fz = -n * g / az * sz * psi if az > 0.0 else 0.0
@@ -191,6 +179,42 @@ def _piece(xa, xb, zi, A, n, beta, bound, max_step):  # pragma: no cover - compi
     return zi
 
 
+@njit(inline="always")
+def _sens_substep(zi, h, A, n, beta, sd, sx, terms, S):  # pragma: no cover - compiled
+    """One Heun substep with derivatives (:func:`_piece_sens`), the sensitivities as an 8-tuple."""
+    s0, s1, s2, s3, s4, s5, s6, s7 = S
+    k1, a0, a1, a2, a3, a4, a5, a6, a7 = _rate_sens(zi, A, n, terms, sd, sx, s0, s1, s2, s3, s4, s5, s6, s7)
+    z2 = zi + h * k1
+    k2, b0, b1, b2, b3, b4, b5, b6, b7 = _rate_sens(
+        z2,
+        A,
+        n,
+        _state_terms(z2, n, beta, sd, sx),
+        sd,
+        sx,
+        s0 + h * a0,
+        s1 + h * a1,
+        s2 + h * a2,
+        s3 + h * a3,
+        s4 + h * a4,
+        s5 + h * a5,
+        s6 + h * a6,
+        s7 + h * a7,
+    )
+    half = 0.5 * h
+    out = (
+        s0 + half * (a0 + b0),
+        s1 + half * (a1 + b1),
+        s2 + half * (a2 + b2),
+        s3 + half * (a3 + b3),
+        s4 + half * (a4 + b4),
+        s5 + half * (a5 + b5),
+        s6 + half * (a6 + b6),
+        s7 + half * (a7 + b7),
+    )
+    return zi + half * (k1 + k2), out
+
+
 @njit(cache=True)
 def _piece_sens(xa, xb, zi, A, n, beta, bound, max_step, S):  # pragma: no cover - compiled
     """:func:`_piece` carrying the derivatives ``S = d z / d theta`` along (updated in place at the end;
@@ -214,7 +238,7 @@ def _piece_sens(xa, xb, zi, A, n, beta, bound, max_step, S):  # pragma: no cover
 
 @njit(cache=True)
 def project_row(sens, T, dz, row):  # pragma: no cover - compiled
-    """``dz[row, :] = sens @ T``: one row of the chain-rule Jacobian (``sens`` an array or an 8-tuple)."""
+    """``dz[row, :] = sens @ T``: one row of the chain-rule Jacobian."""
     for c in range(8):
         acc = 0.0
         for k in range(8):
@@ -292,301 +316,6 @@ def _sweep(
     return first_bad
 
 
-@njit(inline="always")
-def _sens_substep(zi, h, A, n, beta, sd, sx, terms, S):  # pragma: no cover - compiled
-    """One Heun substep with derivatives (:func:`_piece_sens`, :func:`_sens_pieces`), the sensitivities as
-    an 8-tuple."""
-    s0, s1, s2, s3, s4, s5, s6, s7 = S
-    k1, a0, a1, a2, a3, a4, a5, a6, a7 = _rate_sens(zi, A, n, terms, sd, sx, s0, s1, s2, s3, s4, s5, s6, s7)
-    z2 = zi + h * k1
-    k2, b0, b1, b2, b3, b4, b5, b6, b7 = _rate_sens(
-        z2,
-        A,
-        n,
-        _state_terms(z2, n, beta, sd, sx),
-        sd,
-        sx,
-        s0 + h * a0,
-        s1 + h * a1,
-        s2 + h * a2,
-        s3 + h * a3,
-        s4 + h * a4,
-        s5 + h * a5,
-        s6 + h * a6,
-        s7 + h * a7,
-    )
-    half = 0.5 * h
-    out = (
-        s0 + half * (a0 + b0),
-        s1 + half * (a1 + b1),
-        s2 + half * (a2 + b2),
-        s3 + half * (a3 + b3),
-        s4 + half * (a4 + b4),
-        s5 + half * (a5 + b5),
-        s6 + half * (a6 + b6),
-        s7 + half * (a7 + b7),
-    )
-    return zi + half * (k1 + k2), out
-
-
-@njit(cache=True)
-def _lane_start(seg_index, seg, z0, z, dz, rows):  # pragma: no cover - compiled
-    """A lane starting segment ``seg_index``: its first sample's state written, its first row (the
-    sensitivities there are zero) and the index of the next row to project."""
-    i0 = seg[seg_index]
-    z[i0] = z0[seg_index]
-    r = np.searchsorted(rows, i0)
-    if r < rows.size and rows[r] == i0:
-        dz[r, :] = 0.0
-        r += 1
-    return r
-
-
-@njit(inline="always")
-def _sens_pieces(
-    xa_a, xb_a, za, Sa, on_a, xa_b, xb_b, zb, Sb, on_b, xa_c, xb_c, zc, Sc, on_c, A, n, beta, bound, max_step
-):  # pragma: no cover - compiled
-    """The Heun substeps of one straight angle piece in each of up to three lanes (``on_*``: whether the
-    lane has a piece), interleaved substep by substep: the lanes' independent chains of logarithms and
-    exponentials overlap in the processor, and each lane's operations are exactly those of
-    :func:`_piece_sens`. Returns every lane's state and sensitivities."""
-    stiff_step = max_step * STIFF_STEP / DEFAULT_MAX_STEP_DEG
-    ma = mb = mc = 0
-    ha = hb = hc = 0.0
-    sda = sxa = sdb = sxb = sdc = sxc = 0.0
-    ta = tb = tc = (0.0, 0.0, 0.0, 0.0)
-    if on_a:
-        d = xb_a - xa_a
-        sda = sgn(d)
-        sxa = sgn(xa_a + 0.5 * d)
-        ma, _, ta = _substeps(d, za, A, n, beta, sda, sxa, max_step, stiff_step)
-        ha = d / ma
-    if on_b:
-        d = xb_b - xa_b
-        sdb = sgn(d)
-        sxb = sgn(xa_b + 0.5 * d)
-        mb, _, tb = _substeps(d, zb, A, n, beta, sdb, sxb, max_step, stiff_step)
-        hb = d / mb
-    if on_c:
-        d = xb_c - xa_c
-        sdc = sgn(d)
-        sxc = sgn(xa_c + 0.5 * d)
-        mc, _, tc = _substeps(d, zc, A, n, beta, sdc, sxc, max_step, stiff_step)
-        hc = d / mc
-    ja = 0
-    jb = 0
-    jc = 0
-    while ja < ma or jb < mb or jc < mc:
-        if ja < ma:
-            if ja > 0:
-                ta = _state_terms(za, n, beta, sda, sxa)
-            za, Sa = _sens_substep(za, ha, A, n, beta, sda, sxa, ta, Sa)
-            ja += 1
-            if not abs(za) <= bound:
-                ma = ja
-        if jb < mb:
-            if jb > 0:
-                tb = _state_terms(zb, n, beta, sdb, sxb)
-            zb, Sb = _sens_substep(zb, hb, A, n, beta, sdb, sxb, tb, Sb)
-            jb += 1
-            if not abs(zb) <= bound:
-                mb = jb
-        if jc < mc:
-            if jc > 0:
-                tc = _state_terms(zc, n, beta, sdc, sxc)
-            zc, Sc = _sens_substep(zc, hc, A, n, beta, sdc, sxc, tc, Sc)
-            jc += 1
-            if not abs(zc) <= bound:
-                mc = jc
-    return za, Sa, zb, Sb, zc, Sc
-
-
-@njit(cache=True)
-def _sweep_lanes(
-    x, seg, sa, lanes, z0, A, n, beta, bound, freeze, max_step, stop, z, dz, T, rows, sensitivities
-):  # pragma: no cover
-    """:func:`_sweep` (refined; with ``sensitivities``, their rows too) of the ``lanes`` (2 or 3) segments
-    from ``sa`` on together, sample by sample, their Heun substeps interleaved (:func:`_sens_pieces`, or
-    :func:`_plain_pieces` without sensitivities, the lanes then carrying zero sensitivities and ``rows``
-    empty): bit for bit the outputs of the one-segment-after-the-other sweep. Returns the first diverged
-    sample in segment order or -1; with ``stop``, as soon as that is known (a lane that diverges stops the
-    lanes after it)."""
-    zero8 = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    dead8 = zero8 if freeze else (np.nan, np.nan, np.nan, np.nan, np.nan, np.nan, np.nan, np.nan)
-    sb = sa + 1
-    ra = _lane_start(sa, seg, z0, z, dz, rows)
-    rb = _lane_start(sb, seg, z0, z, dz, rows)
-    ia, enda = seg[sa], seg[sa + 1] - 1
-    ib, endb = seg[sb], seg[sb + 1] - 1
-    za = z0[sa]
-    zb = z0[sb]
-    rc = ic = endc = 0  # lane c: none unless three lanes
-    zc = 0.0
-    if lanes == 3:
-        rc = _lane_start(sa + 2, seg, z0, z, dz, rows)
-        ic, endc = seg[sa + 2], seg[sa + 3] - 1
-        zc = z0[sa + 2]
-    Sa = zero8
-    Sb = zero8
-    Sc = zero8
-    dead_a = dead_b = dead_c = False
-    bad_a = bad_b = bad_c = -1
-    while ia < enda or ib < endb or ic < endc:
-        live_a = ia < enda
-        live_b = ib < endb
-        live_c = ic < endc
-        # the first part of each lane's sample interval (cut at x = 0 where the angle crosses it)
-        on_a = on_b = on_c = False
-        xa_a = xm_a = xb_a = 0.0
-        xa_b = xm_b = xb_b = 0.0
-        xa_c = xm_c = xb_c = 0.0
-        if live_a and not dead_a:
-            xa_a = x[ia]
-            xb_a = x[ia + 1]
-            if xa_a != xb_a:
-                xm_a = 0.0 if xa_a * xb_a < 0.0 else xb_a
-                on_a = True
-        if live_b and not dead_b:
-            xa_b = x[ib]
-            xb_b = x[ib + 1]
-            if xa_b != xb_b:
-                xm_b = 0.0 if xa_b * xb_b < 0.0 else xb_b
-                on_b = True
-        if live_c and not dead_c:
-            xa_c = x[ic]
-            xb_c = x[ic + 1]
-            if xa_c != xb_c:
-                xm_c = 0.0 if xa_c * xb_c < 0.0 else xb_c
-                on_c = True
-        if on_a or on_b or on_c:
-            if sensitivities:
-                za, Sa, zb, Sb, zc, Sc = _sens_pieces(
-                    xa_a, xm_a, za, Sa, on_a, xa_b, xm_b, zb, Sb, on_b, xa_c, xm_c, zc, Sc, on_c,
-                    A, n, beta, bound, max_step,
-                )  # fmt: skip
-            else:
-                za, zb, zc = _plain_pieces(
-                    xa_a, xm_a, za, on_a, xa_b, xm_b, zb, on_b, xa_c, xm_c, zc, on_c,
-                    A, n, beta, bound, max_step,
-                )  # fmt: skip
-            # the second part, where the first crossed x = 0 and stayed within range
-            on_a = on_a and xm_a != xb_a and abs(za) <= bound
-            on_b = on_b and xm_b != xb_b and abs(zb) <= bound
-            on_c = on_c and xm_c != xb_c and abs(zc) <= bound
-            if (on_a or on_b or on_c) and sensitivities:
-                za, Sa, zb, Sb, zc, Sc = _sens_pieces(
-                    xm_a, xb_a, za, Sa, on_a, xm_b, xb_b, zb, Sb, on_b, xm_c, xb_c, zc, Sc, on_c,
-                    A, n, beta, bound, max_step,
-                )  # fmt: skip
-            elif on_a or on_b or on_c:
-                za, zb, zc = _plain_pieces(
-                    xm_a, xb_a, za, on_a, xm_b, xb_b, zb, on_b, xm_c, xb_c, zc, on_c,
-                    A, n, beta, bound, max_step,
-                )  # fmt: skip
-        if live_a:
-            if not dead_a and not abs(za) <= bound:
-                bad_a = ia + 1
-                if stop:
-                    return bad_a
-                dead_a = True
-                za = held(za, bound, freeze)
-                Sa = dead8
-            z[ia + 1] = za
-            if ra < rows.size and rows[ra] == ia + 1:
-                project_row(Sa, T, dz, ra)
-                ra += 1
-            ia += 1
-        if live_b:
-            if not dead_b and not abs(zb) <= bound:
-                bad_b = ib + 1
-                dead_b = True
-                zb = held(zb, bound, freeze)
-                Sb = dead8
-                if stop:
-                    endb = ib  # only sa (earlier) may still give an earlier index: sc need not go on
-                    endc = ic
-            z[ib + 1] = zb
-            if rb < rows.size and rows[rb] == ib + 1:
-                project_row(Sb, T, dz, rb)
-                rb += 1
-            ib += 1
-        if live_c:
-            if not dead_c and not abs(zc) <= bound:
-                bad_c = ic + 1
-                dead_c = True
-                zc = held(zc, bound, freeze)
-                Sc = dead8
-                if stop:
-                    endc = ic
-            z[ic + 1] = zc
-            if rc < rows.size and rows[rc] == ic + 1:
-                project_row(Sc, T, dz, rc)
-                rc += 1
-            ic += 1
-    if bad_a >= 0:
-        return bad_a
-    return bad_b if bad_b >= 0 else bad_c
-
-
-@njit(inline="always")
-def _plain_pieces(
-    xa_a, xb_a, za, on_a, xa_b, xb_b, zb, on_b, xa_c, xb_c, zc, on_c, A, n, beta, bound, max_step
-):  # pragma: no cover - compiled
-    """The Heun substeps of one straight angle piece in each of up to three lanes (``on_*``: whether the
-    lane has a piece), without derivatives, interleaved substep by substep: each lane's operations are
-    exactly those of :func:`_piece`."""
-    stiff_step = max_step * STIFF_STEP / DEFAULT_MAX_STEP_DEG
-    ma = mb = mc = 0
-    ha = hb = hc = 0.0
-    ka = kb = kc = 0.0
-    sda = sxa = sdb = sxb = sdc = sxc = 0.0
-    if on_a:
-        d = xb_a - xa_a
-        sda = sgn(d)
-        sxa = sgn(xa_a + 0.5 * d)
-        ma, ka, _ = _substeps(d, za, A, n, beta, sda, sxa, max_step, stiff_step)
-        ha = d / ma
-    if on_b:
-        d = xb_b - xa_b
-        sdb = sgn(d)
-        sxb = sgn(xa_b + 0.5 * d)
-        mb, kb, _ = _substeps(d, zb, A, n, beta, sdb, sxb, max_step, stiff_step)
-        hb = d / mb
-    if on_c:
-        d = xb_c - xa_c
-        sdc = sgn(d)
-        sxc = sgn(xa_c + 0.5 * d)
-        mc, kc, _ = _substeps(d, zc, A, n, beta, sdc, sxc, max_step, stiff_step)
-        hc = d / mc
-    ja = jb = jc = 0
-    while ja < ma or jb < mb or jc < mc:
-        if ja < ma:
-            if ja > 0:
-                ka = _rate(za, A, n, beta, sda, sxa)
-            k2 = _rate(za + ha * ka, A, n, beta, sda, sxa)
-            za = za + 0.5 * ha * (ka + k2)
-            ja += 1
-            if not abs(za) <= bound:
-                ma = ja
-        if jb < mb:
-            if jb > 0:
-                kb = _rate(zb, A, n, beta, sdb, sxb)
-            k2 = _rate(zb + hb * kb, A, n, beta, sdb, sxb)
-            zb = zb + 0.5 * hb * (kb + k2)
-            jb += 1
-            if not abs(zb) <= bound:
-                mb = jb
-        if jc < mc:
-            if jc > 0:
-                kc = _rate(zc, A, n, beta, sdc, sxc)
-            k2 = _rate(zc + hc * kc, A, n, beta, sdc, sxc)
-            zc = zc + 0.5 * hc * (kc + k2)
-            jc += 1
-            if not abs(zc) <= bound:
-                mc = jc
-    return za, zb, zc
-
-
 # The entry points take three small records (tuples, unpacked once here at the top of the compiled code):
 # shape = (A, n, beta) with beta a float64 array of 6; limits = (bound, freeze, max_step, stop) (max_step
 # unused by Eq 23); sens = (dz, T, rows) for the kernels with derivatives (see :func:`_sweep`).
@@ -611,54 +340,21 @@ def sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover 
 
 
 @njit(cache=True)
-def _sweep_refined(
-    x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows, sensitivities
-):  # pragma: no cover
-    """The refined :func:`_sweep` (with or without ``sensitivities``) of every segment: three at a time,
-    four left as two pairs, two left as a pair (:func:`_sweep_lanes`), one alone; the same bits as one
-    after the other, and the first diverged sample in segment order (with ``stop``, at once)."""
-    n_seg = seg.size - 1
-    first_bad = -1
-    s = 0
-    while s < n_seg:
-        left = n_seg - s
-        if left >= 2:
-            lanes = 3 if left >= 3 and left != 4 else 2
-            bad = _sweep_lanes(
-                x, seg, s, lanes, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows, sensitivities
-            )
-            s += lanes
-        else:
-            bad = _sweep(
-                x, seg[s:], z0[s:], A, n, beta, bound, freeze, step, stop, z, dz, T, rows, True, sensitivities
-            )
-            s += 1
-        if bad >= 0:
-            if stop:
-                return bad
-            if first_bad < 0:
-                first_bad = bad
-    return first_bad
-
-
-@njit(cache=True)
 def heun_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
-    """The step-independent integration (:mod:`.schemes`) over the segments (see :func:`_sweep`), several
-    at a time (:func:`_sweep_refined`)."""
+    """The step-independent integration (:mod:`.schemes`) over the segments (see :func:`_sweep`)."""
     A, n, beta = shape
     bound, freeze, step, stop = limits
     dz, rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)  # none
-    return _sweep_refined(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, IDENTITY8, rows, False)
+    return _sweep(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, IDENTITY8, rows, True, False)
 
 
 @njit(cache=True)
 def heun_sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover - compiled
-    """:func:`heun_kernel` and the exact derivatives of its scheme at ``rows`` (see :func:`_sweep`), several
-    segments at a time (:func:`_sweep_refined`)."""
+    """:func:`heun_kernel` and the exact derivatives of its scheme at ``rows`` (see :func:`_sweep`)."""
     A, n, beta = shape
     bound, freeze, step, stop = limits
     dz, T, rows = sens
-    return _sweep_refined(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows, True)
+    return _sweep(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows, True, True)
 
 
 @njit(cache=True)

@@ -28,8 +28,8 @@ class FitKeywords(TypedDict, total=False):
 
 POLISH_FTOL = 1e-5
 """The polish on the mid-size copy ends once a step lowers its cost by less than this fraction, as the last
-solve on the fitted samples does (``fitting.FINAL_FTOL``): run to ``polish_tol`` instead, the fits took 6-8 %
-more CPU for RMSEs within 3e-5 relative on the knee dry run (docs/analysis.md)."""
+solve on the fitted samples does (``fitting.FINAL_FTOL``): cheaper than running to ``polish_tol``, and the
+RMSEs stay within 3e-5 relative of that on the knee dry run (docs/analysis.md)."""
 
 
 @dataclass(frozen=True)

@@ -10,10 +10,6 @@ import numpy as np
 import numpy.typing as npt
 from scipy.optimize import least_squares
 
-# what least_squares does to its start (scipy-private, in every scipy this package allows; the solve
-# evaluates the start there so that the solver's first evaluation is the cached one)
-from scipy.optimize._lsq.common import make_strictly_feasible
-
 from .kernels import IDENTITY8, gram, sum_sq_diff
 from .params import EQ25_BETA_MATRIX, BoucWenParams, FloatArray, phase_values
 from .records import BoucWenBounds
@@ -167,20 +163,13 @@ class Problem:
         stays within range.  From inside the divergent region no gradient points back out, so without
         this a local solve from such a start stalls on the penalty plateau.  Each check stops at the first
         divergence (:meth:`diverges`).  Inside a solve (``fused``) the checks also give the Jacobian: the
-        start that passes is then the solver's first evaluation, not made again (when it lies inside the
-        bounds, where the solver starts: the first check is made at the point the solver moves a start on a
-        bound to)."""
+        start that passes is then the solver's first evaluation, not made again (when it lies strictly
+        inside the bounds; the solver moves a start on a bound slightly inside and evaluates it there)."""
         centre = u.copy()
         centre[0] = min(max(1.0, self.lower[0]), self.upper[0])
         centre[2:] = 0.0
         v = u.copy()
-        fused = self.fused
-        if fused:
-            first = make_strictly_feasible(v, self.lower, self.upper)
-            if not self.diverges(first):
-                return first
-            v = centre + 0.5 * (v - centre)
-        for _ in range(60 - fused):
+        for _ in range(60):
             if not self.diverges(v):
                 return v
             v = centre + 0.5 * (v - centre)

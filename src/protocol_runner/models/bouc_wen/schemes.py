@@ -150,8 +150,8 @@ def run_trials(
 ) -> tuple[list[FloatArray], int]:
     """Several trials in one call, each from its own ``z0`` (no derivatives): each trial's torque (views
     of one array) and the first diverged index over all of them (in the joint samples) or -1. Each
-    trial's torque is bit for bit :func:`run_trial`'s (the kernels integrate segments independently; the
-    refined one two or three at a time, :func:`.kernels.heun_kernel`)."""
+    trial's torque is bit for bit :func:`run_trial`'s (the kernels integrate the segments one after the
+    other, each from its own start)."""
     seg = segment_starts(xs)
     x = np.concatenate(xs) if xs else np.empty(0)
     z = np.empty_like(x)

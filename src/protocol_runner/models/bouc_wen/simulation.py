@@ -97,9 +97,8 @@ def simulate_trials(
     z0s: Sequence[float],
     **options: Unpack[SimulateKeywords],
 ) -> list[FloatArray]:
-    """:func:`simulate` of several trials, each from its own ``z0``, in one call of the kernel (which
-    integrates the refined scheme's trials three or two at a time): each torque bit for bit
-    :func:`simulate`'s for that trial."""
+    """:func:`simulate` of several trials, each from its own ``z0``, in one call of the kernel: each torque
+    bit for bit :func:`simulate`'s for that trial."""
     if len(xs_deg) != len(z0s):
         raise InvalidInput(f"{len(xs_deg)} trials but {len(z0s)} starting torques")
     xs = [as_angle(x, f"trial {k} angle") for k, x in enumerate(xs_deg)]

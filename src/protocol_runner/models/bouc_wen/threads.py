@@ -1,4 +1,4 @@
-"""Single-threaded BLAS while a Bouc-Wen fit runs (issue 20 item 4).
+"""Single-threaded BLAS while a Bouc-Wen fit runs.
 
 The solver's linear algebra works on tall, 8-column Jacobians (an SVD per trust-region step, products):
 too little work per call to share between threads, so a multi-threaded BLAS spends each call handing work
