@@ -10,7 +10,15 @@ import numpy as np
 
 from protocol_runner.analysis.model_comparison import compare_models
 from protocol_runner.analysis.model_fit import fit_element_model
-from protocol_runner.models.element_model import Motion, layout, model_torque_nm, transfer
+from protocol_runner.models.element_model import (
+    Motion,
+    Stacked,
+    layout,
+    model_torque_nm,
+    stacked_torque_nm,
+    torque_jacobian,
+    transfer,
+)
 from protocol_runner.models.elements import build_device
 
 TRUTH = {
@@ -121,3 +129,21 @@ def test_the_comparison_flags_a_model_whose_loop_energy_is_off() -> None:
     assert rows["dahl"].energy_flag  # no damper: the reduced model misses its energy at two speeds
     assert rows["elements"].bic < rows["dahl"].bic
     assert rows["elements"].heldout_rmse_nm < rows["dahl"].heldout_rmse_nm
+
+
+def test_the_model_jacobian_is_the_derivative_of_the_model_torque() -> None:
+    """Every column of `torque_jacobian` (exact for the friction sum and the damper, a difference of one
+    element's torque for an elastic parameter) matches a central difference of the whole model torque."""
+    device = _device(brakes=(0.5, 0.2))
+    lay = layout(device)
+    stacked = Stacked.of(_motions(_trials(device, np.random.default_rng(3), trials=2)))
+    values = dict(lay.declared)
+    jac = torque_jacobian(lay, values, stacked, np.ones(len(lay.free)))
+    for j, key in enumerate(lay.free):
+        h = 1e-5 * max(1.0, abs(values[key]))
+        up = stacked_torque_nm(lay, {**values, key: values[key] + h}, stacked)
+        down = stacked_torque_nm(lay, {**values, key: values[key] - h}, stacked)
+        numeric = (up - down) / (2.0 * h)
+        scale = float(np.max(np.abs(numeric)))
+        assert scale > 0.0, key
+        assert float(np.max(np.abs(jac[:, j] - numeric))) < 1e-5 * scale + 1e-9, key

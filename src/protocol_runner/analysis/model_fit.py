@@ -28,7 +28,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import OptimizeResult, least_squares
 from scipy.special import stdtrit
 
 from ..models.element_model import (
@@ -36,14 +36,17 @@ from ..models.element_model import (
     Key,
     ModelLayout,
     Motion,
-    model_torque_nm,
+    Stacked,
     param_spec_key,
+    stacked_torque_nm,
+    torque_jacobian,
 )
 from ..models.element_types import ELEMENT_TYPES
 from .energy import energy_per_cycle
 
 COVER_LIMIT = 0.5  # an interval covering more of the plausible range than this: unidentified
 DEFAULT_TRANSITION_BOUNDS = (0.01, 30.0)
+FIT_TOL = 1e-7  # least_squares ftol and xtol of the fit
 
 
 @dataclass(frozen=True)
@@ -175,27 +178,61 @@ def _starts(lay: ModelLayout, motions: Sequence[Motion]) -> list[FloatArray]:
     return starts
 
 
+@dataclass(frozen=True)
+class Problem:
+    """The least-squares problem of a layout on some trials: residuals and Jacobian over the compared
+    samples, and the parameters' bounds."""
+
+    lay: ModelLayout
+    stacked: Stacked
+    lower: FloatArray
+    upper: FloatArray
+
+    @staticmethod
+    def of(lay: ModelLayout, motions: Sequence[Motion]) -> Problem:
+        lower = np.array([_bounds(lay, key)[0] for key in lay.free])
+        upper = np.array([_bounds(lay, key)[1] for key in lay.free])
+        return Problem(lay, Stacked.of(motions), lower, upper)
+
+    def residual(self, x: FloatArray) -> FloatArray:
+        s = self.stacked
+        return (stacked_torque_nm(self.lay, self.lay.values(x), s) - s.torque_nm)[s.compared]
+
+    def jacobian(self, x: FloatArray) -> FloatArray:
+        sign = np.where(x + 1e-6 * np.maximum(1.0, np.abs(x)) > self.upper, -1.0, 1.0)
+        return torque_jacobian(self.lay, self.lay.values(x), self.stacked, sign)[self.stacked.compared]
+
+    def solve(self, x0: FloatArray, tol: float, max_nfev: int | None = None) -> OptimizeResult:
+        return least_squares(
+            self.residual,
+            np.clip(x0, self.lower, self.upper),
+            jac=self.jacobian,
+            bounds=(self.lower, self.upper),
+            x_scale="jac",
+            ftol=tol,
+            xtol=tol,
+            max_nfev=max_nfev,
+        )
+
+
 def fit_element_model(motions: Sequence[Motion], lay: ModelLayout) -> ElementModelFit:
     """Fit `lay`'s free parameters to every sample of `motions` (the configuration's trials)."""
-    y = np.concatenate([m.torque_nm[m.settled :] for m in motions])
+    problem = Problem.of(lay, motions)
+    s = problem.stacked
+    y = s.torque_nm[s.compared]
     edges = np.concatenate([[0], np.cumsum([m.torque_nm.size - m.settled for m in motions])]).astype(np.int64)
 
     def predict(x: FloatArray) -> list[FloatArray]:
-        values = lay.values(x)
-        return [model_torque_nm(lay, values, m) for m in motions]
+        return s.split(stacked_torque_nm(lay, lay.values(x), s))
 
-    def residual(x: FloatArray) -> FloatArray:
-        return np.concatenate([t[m.settled :] for t, m in zip(predict(x), motions, strict=True)]) - y
-
+    residual = problem.residual
     k = len(lay.free)
     x_best = np.zeros(0)
     jac = np.zeros((y.size, 0))
     if k:
-        lower = np.array([_bounds(lay, key)[0] for key in lay.free])
-        upper = np.array([_bounds(lay, key)[1] for key in lay.free])
         best_cost = math.inf
         for x0 in _starts(lay, motions):
-            sol = least_squares(residual, x0, bounds=(lower, upper), x_scale="jac", ftol=1e-7, xtol=1e-7)
+            sol = problem.solve(x0, FIT_TOL)
             if sol.cost < best_cost:
                 best_cost, x_best, jac = float(sol.cost), np.asarray(sol.x), np.asarray(sol.jac)
     models = tuple(predict(x_best))

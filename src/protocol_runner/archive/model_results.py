@@ -18,6 +18,7 @@ from .results import Fill
 if TYPE_CHECKING:
     from ..analysis.model_comparison import ModelComparison
     from ..analysis.model_fit import ElementModelFit
+    from ..models.elements import Element
 
 ELEMENT_MODEL = "element_model"
 MODELS = "models"
@@ -118,13 +119,29 @@ def read_element_model(g: h5py.Group) -> list[dict[str, Any]]:
     return out
 
 
+def stored_device(cfg: h5py.Group, joint: str = "") -> tuple[Element, ...]:
+    """The device a configuration group declares (its `device_json`), or the elements one joint of it
+    carries (those naming no joint or that joint); empty when it declares none."""
+    from ..models.elements import build_device
+
+    if "device_json" not in cfg.attrs:
+        return ()
+    items = json.loads(str(cfg.attrs["device_json"]))
+    kept = [d for d in items if not joint or d.get("joint", "") in ("", joint)]
+    for d in kept:
+        d.pop("joint", None)
+    return build_device([(d.pop("name"), d.pop("type"), d) for d in kept])
+
+
 def read_processed_trials(trials: h5py.Group) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Each trial's stored processed `(time_s, angle_deg, brace_torque_nm)` under a `trials` group, in
     trial order: the element model's input (it needs the time for the speed)."""
     out = []
     for n in sorted(trials, key=int):
         g = trials[n][PROCESSED]
-        out.append(tuple(np.asarray(g[k][()], dtype=np.float64) for k in ("time_s", "angle_deg", "brace_torque_nm")))
+        out.append(
+            tuple(np.asarray(g[k][()], dtype=np.float64) for k in ("time_s", "angle_deg", "brace_torque_nm"))
+        )
     return out  # type: ignore[return-value]
 
 

@@ -20,6 +20,7 @@ fit), the friction sum's torque and transition, the damper sum's coefficient; `v
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -33,6 +34,7 @@ from .element_types import ELEMENT_TYPES
 from .elements import Element
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
 Key = tuple[str, str]  # (element, parameter)
 
 FRICTION_PARAMS = ("torque_nm", "transition_deg")
@@ -41,35 +43,48 @@ SETTLE_DEG = 5.0  # travel at a trial's start left out of the fit (`Motion.settl
 
 
 @njit(cache=True)
-def dahl_friction_nm(
+def unit_dahl_friction(
     angle_deg: FloatArray,
     speed_deg_s: FloatArray,
-    torque_nm: float,
+    edges: IntArray,
     transition_deg: float,
     excess_ratio: float,
     stribeck_speed_deg_s: float,
-) -> FloatArray:
-    """The Dahl friction torque along a sampled motion (`element_torques.dahl_update` between samples,
-    level with the Stribeck excess at each sample's speed), started sliding in the first move's sense."""
+) -> tuple[FloatArray, FloatArray]:
+    """The Dahl friction of a unit torque level along sampled motions placed end to end (trial i is
+    samples edges[i]:edges[i+1]), and its derivative with respect to `transition_deg`.
+
+    Between samples the state follows `element_torques.dahl_update` towards the level with the Stribeck
+    excess at the sample's speed; each trial starts sliding in its first move's sense. The state is linear
+    in the level (it starts at ±level and relaxes towards ±level), so a level T gives T times the first
+    array: one integration serves every torque and the torque's Jacobian column."""
     n = angle_deg.shape[0]
     out = np.zeros(n)
-    if n == 0 or torque_nm <= 0.0:
-        return out
-    z = 0.0
-    for i in range(1, n):
-        if angle_deg[i] != angle_deg[0]:
-            z = torque_nm if angle_deg[i] > angle_deg[0] else -torque_nm
-            break
-    out[0] = z
-    for i in range(1, n):
-        step = angle_deg[i] - angle_deg[i - 1]
-        vs = speed_deg_s[i] / stribeck_speed_deg_s
-        level = torque_nm * (1.0 + excess_ratio * math.exp(-vs * vs))
-        if step != 0.0:
-            target = level if step > 0.0 else -level
-            z = target + (z - target) * math.exp(-abs(step) / transition_deg)
-        out[i] = z
-    return out
+    d_out = np.zeros(n)
+    for t in range(edges.shape[0] - 1):
+        a, b = edges[t], edges[t + 1]
+        if b <= a:
+            continue
+        z = 0.0
+        dz = 0.0
+        for i in range(a + 1, b):
+            if angle_deg[i] != angle_deg[a]:
+                z = 1.0 if angle_deg[i] > angle_deg[a] else -1.0
+                break
+        out[a] = z
+        for i in range(a + 1, b):
+            step = angle_deg[i] - angle_deg[i - 1]
+            if step != 0.0:
+                vs = speed_deg_s[i] / stribeck_speed_deg_s
+                level = 1.0 + excess_ratio * math.exp(-vs * vs)
+                target = level if step > 0.0 else -level
+                decay = math.exp(-abs(step) / transition_deg)
+                # d/d(transition) of target + (z - target) * decay
+                dz = (z - target) * decay * abs(step) / (transition_deg * transition_deg) + decay * dz
+                z = target + (z - target) * decay
+            out[i] = z
+            d_out[i] = dz
+    return out, d_out
 
 
 def stops_torque_nm(e: Element, angle_deg: FloatArray) -> FloatArray:
@@ -120,6 +135,37 @@ class Motion:
         if k == 1:
             return self
         return Motion(self.angle_deg[::k], self.speed_deg_s[::k], self.torque_nm[::k], -(-self.settled // k))
+
+
+@dataclass(frozen=True)
+class Stacked:
+    """Several trials' motions end to end, as the fit evaluates them (one call per element for all trials).
+    Trial i is samples edges[i]:edges[i+1]; `compared` marks the samples a fit compares (each trial's
+    from its `settled` on)."""
+
+    angle_deg: FloatArray
+    speed_deg_s: FloatArray
+    torque_nm: FloatArray
+    edges: IntArray
+    compared: npt.NDArray[np.bool_]
+
+    @staticmethod
+    def of(motions: Sequence[Motion]) -> Stacked:
+        sizes = [m.angle_deg.size for m in motions]
+        edges = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+        compared = np.ones(int(edges[-1]), dtype=bool)
+        for m, start in zip(motions, edges[:-1], strict=False):
+            compared[start : start + m.settled] = False
+
+        def joined(name: str) -> FloatArray:
+            arrays = [getattr(m, name) for m in motions]
+            return np.concatenate(arrays) if arrays else np.zeros(0)
+
+        return Stacked(joined("angle_deg"), joined("speed_deg_s"), joined("torque_nm"), edges, compared)
+
+    def split(self, values: FloatArray) -> list[FloatArray]:
+        """`values` (one per sample) cut back into trials."""
+        return [values[a:b] for a, b in itertools.pairwise(self.edges)]
 
 
 @dataclass(frozen=True)
@@ -226,23 +272,80 @@ def elastic_torque_nm(lay: ModelLayout, values: Mapping[Key, float], angle_deg: 
     return total
 
 
-def model_torque_nm(
-    lay: ModelLayout, values: Mapping[Key, float], motion: Motion, *, friction: bool = True
-) -> FloatArray:
-    """The model's torque at every sample of `motion` (module docstring)."""
-    torque = elastic_torque_nm(lay, values, motion.angle_deg)
-    if friction and lay.friction_members:
-        torque += dahl_friction_nm(
-            motion.angle_deg,
-            motion.speed_deg_s,
-            max(values[(lay.friction_name, "torque_nm")], 0.0),
-            max(values[(lay.friction_name, "transition_deg")], 1e-6),
+def friction_values(lay: ModelLayout, values: Mapping[Key, float]) -> tuple[float, float]:
+    """The friction sum's (torque_nm, transition_deg) as the model uses them (kept >= 0 and > 0)."""
+    return (
+        max(values[(lay.friction_name, "torque_nm")], 0.0),
+        max(values[(lay.friction_name, "transition_deg")], 1e-6),
+    )
+
+
+def stacked_torque_nm(lay: ModelLayout, values: Mapping[Key, float], stacked: Stacked) -> FloatArray:
+    """The model's torque at every sample of `stacked` (module docstring)."""
+    torque = elastic_torque_nm(lay, values, stacked.angle_deg)
+    if lay.friction_members:
+        level, transition = friction_values(lay, values)
+        unit, _ = unit_dahl_friction(
+            stacked.angle_deg,
+            stacked.speed_deg_s,
+            stacked.edges,
+            transition,
             lay.excess_ratio,
             lay.stribeck_speed_deg_s,
         )
+        torque += level * unit
     if lay.damper_members:
-        torque += values[(lay.damper_name, DAMPER_PARAM)] * motion.speed_deg_s
+        torque += values[(lay.damper_name, DAMPER_PARAM)] * stacked.speed_deg_s
     return torque
+
+
+def model_torque_nm(lay: ModelLayout, values: Mapping[Key, float], motion: Motion) -> FloatArray:
+    """The model's torque at every sample of one trial's `motion` (module docstring)."""
+    return stacked_torque_nm(lay, values, Stacked.of([motion]))
+
+
+def torque_jacobian(
+    lay: ModelLayout, values: Mapping[Key, float], stacked: Stacked, step_sign: FloatArray
+) -> FloatArray:
+    """d(model torque)/d(free parameter) at every sample of `stacked`, one column per `lay.free` entry.
+
+    Exact for the friction sum (the level's column is the unit-level friction; the transition's is the
+    integrated derivative, `unit_dahl_friction`) and the damper sum (the speed). An elastic parameter's
+    column is a forward difference of that element's torque alone, the step sqrt(machine epsilon) ·
+    max(1, |value|) times `step_sign` (-1 where a step up would leave the parameter's bounds)."""
+    n = stacked.angle_deg.size
+    jac = np.empty((n, len(lay.free)))
+    elastic: dict[str, list[int]] = {}
+    unit = d_unit = np.zeros(0)
+    level = 0.0
+    for j, (name, param) in enumerate(lay.free):
+        if lay.friction_members and name == lay.friction_name:
+            if unit.size != n:
+                level, transition = friction_values(lay, values)
+                unit, d_unit = unit_dahl_friction(
+                    stacked.angle_deg,
+                    stacked.speed_deg_s,
+                    stacked.edges,
+                    transition,
+                    lay.excess_ratio,
+                    lay.stribeck_speed_deg_s,
+                )
+            jac[:, j] = unit if param == "torque_nm" else level * d_unit
+        elif lay.damper_members and name == lay.damper_name:
+            jac[:, j] = stacked.speed_deg_s
+        else:
+            elastic.setdefault(name, []).append(j)
+    rel = math.sqrt(float(np.finfo(np.float64).eps))
+    for name, columns in elastic.items():
+        e = next(el for el in lay.elements if el.name == name)
+        current = {p: values[(name, p)] for p in e.fit if (name, p) in values}
+        base = static_torque_nm(e.replace(**current), stacked.angle_deg)
+        for j in columns:
+            param = lay.free[j][1]
+            stepped = current[param] + rel * max(1.0, abs(current[param])) * step_sign[j]
+            moved = static_torque_nm(e.replace(**{**current, param: stepped}), stacked.angle_deg)
+            jac[:, j] = (moved - base) / (stepped - current[param])
+    return jac
 
 
 MULTIPLICATIVE_UNITS = ("_nm", "_n_per_mm", "_nm_per_deg", "_nm_s_per_deg")

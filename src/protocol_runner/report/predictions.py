@@ -25,13 +25,12 @@ import h5py
 import numpy as np
 import yaml
 
-from ..archive.model_results import strings
+from ..archive.model_results import stored_device, strings
 from .declared import protocol_document
 
 if TYPE_CHECKING:
     from ..models.bouc_wen import BoucWenParams
     from ..models.bouc_wen.backbone import Backbone, FixedBackbone
-    from ..models.elements import Element
 
 
 @dataclass(frozen=True)
@@ -146,13 +145,6 @@ def predict_rmse(
     return math.sqrt(sq / count) if count else math.nan
 
 
-def _device(cfg: h5py.Group) -> tuple[Element, ...]:
-    from ..models.elements import build_device
-
-    items = json.loads(str(cfg.attrs["device_json"]))
-    return build_device([(d.pop("name"), d.pop("type"), d) for d in items])
-
-
 def reproducibility(configs: h5py.Group) -> dict[tuple[str, str], float]:
     """Per fitted parameter, the standard deviation of its fitted value across the configurations that
     declare the same value for it (pooled over the declared values shared by two or more): how far a
@@ -166,7 +158,7 @@ def reproducibility(configs: h5py.Group) -> dict[tuple[str, str], float]:
         g = cfg.get("fits/element_model")
         if g is None or "device_json" not in cfg.attrs:
             continue
-        declared = layout(_device(cfg)).declared
+        declared = layout(stored_device(cfg)).declared
         fitted = json.loads(str(g.attrs["values_json"]))
         for key in strings(g, "parameters"):
             element, param = key.rsplit(".", 1)
@@ -202,7 +194,7 @@ def element_prediction(
     cov = np.asarray(g.attrs["covariance"], dtype=np.float64).reshape(x.size, x.size)
     # the configuration-to-configuration spread of each parameter adds to A's own fit uncertainty
     cov = cov + np.diag(np.array([(spread or {}).get(k, 0.0) ** 2 for k in names]))
-    lay_a, lay_b = layout(_device(src)), layout(_device(dst))
+    lay_a, lay_b = layout(stored_device(src)), layout(stored_device(dst))
     motions = motions_of(read_processed_trials(dst["trials"]))
 
     def run(fitted: dict) -> list[np.ndarray]:
