@@ -106,7 +106,7 @@ def export_model_tables(archive: Path, protocol_text: str, output_dir: Path) -> 
                 for row in read_element_model(owner["fits/element_model"]):
                     elements.append([key, joint, *(row[c] for c in ELEMENT_COLUMNS[2:])])
     rows: list[list[object]] = []
-    for p in predictions(archive, protocol_text):
+    for p in predictions(archive, protocol_text, figures=False):
         e = p.element
         if e is not None:
             rows.append(

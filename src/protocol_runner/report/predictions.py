@@ -17,7 +17,7 @@ from __future__ import annotations
 import itertools
 import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -45,6 +45,7 @@ class Prediction:
     own_rmse_nm: float  # the predicted configuration's own Bouc-Wen fit, for scale
     reason: str = ""  # why there is no Bouc-Wen number
     element: ElementPrediction | None = None  # the element model's prediction, when A has one
+    figure: str = ""  # B's measured loop and the element model's prediction (a PNG data URI), when drawn
 
 
 @dataclass(frozen=True)
@@ -226,7 +227,18 @@ def element_prediction(
     )
 
 
-def predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
+def predictions(archive: Path, protocol_text: str, *, figures: bool = True) -> tuple[Prediction, ...]:
+    """The declared predictions of `archive`, each with its figure (`report.figures_predictions`) when
+    `figures` and the element model predicted it."""
+    made = _predictions(archive, protocol_text)
+    if not figures or not any(p.element is not None for p in made):
+        return made
+    from .figures_predictions import prediction_figure  # matplotlib: only where the figures are drawn
+
+    return tuple(replace(p, figure=prediction_figure(p)) if p.element is not None else p for p in made)
+
+
+def _predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
     pairs = declared_pairs(protocol_text)
     if not pairs:
         return ()
