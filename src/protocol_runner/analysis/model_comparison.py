@@ -34,7 +34,7 @@ from scipy.special import stdtrit
 from ..models.element_model import FloatArray, ModelLayout, Motion, layout, model_torque_nm
 from ..models.elements import Element
 from .energy import energy_per_cycle
-from .model_fit import ElementModelFit, Problem, fit_element_model, mean_energy_j
+from .model_fit import ElementModelFit, Problem, fit_element_model, mean_energy_j, sum_of_squares
 
 ENERGY_FLAG = 0.03  # |model - data| / data above this: flagged
 MODELS = ("elements", "dahl", "bouc_wen")
@@ -217,7 +217,7 @@ def _bouc_wen_row(result: object, n_eff: float) -> ModelRow:
     k = 8 + len(coef)
     r = np.concatenate([z - y for (_, y), z in zip(segments, models, strict=True)])
     n = r.size
-    sse = float(r @ r) if np.all(np.isfinite(r)) else math.nan
+    sse = sum_of_squares(r) if np.all(np.isfinite(r)) else math.nan
     cv = [float(v) for v in result.cv_rmse_nm]  # type: ignore[attr-defined]
     heldout = math.sqrt(float(np.mean(np.square(cv)))) if cv else math.nan
     aic, bic = _information(sse, n, n_eff, k)

@@ -237,7 +237,7 @@ def fit_element_model(motions: Sequence[Motion], lay: ModelLayout) -> ElementMod
                 best_cost, x_best, jac = float(sol.cost), np.asarray(sol.x), np.asarray(sol.jac)
     models = tuple(predict(x_best))
     r = residual(x_best)
-    sse = float(r @ r)
+    sse = sum_of_squares(r)
     n = y.size
     n_eff = effective_samples(r, edges)
     dof = max(n_eff - k, 1.0)
@@ -284,6 +284,13 @@ def fit_element_model(motions: Sequence[Motion], lay: ModelLayout) -> ElementMod
         sse=sse,
         models=models,
     )
+
+
+def sum_of_squares(r: FloatArray) -> float:
+    """Σ r², correctly rounded (math.fsum): the same bits for the same values wherever the array lies in
+    memory (a BLAS dot product's last bits may depend on the alignment), so that the fit step and
+    `--reprocess` store the same AIC and BIC."""
+    return math.fsum(np.square(np.asarray(r, dtype=np.float64)).tolist())
 
 
 def mean_energy_j(motions: Sequence[Motion], torques: Sequence[FloatArray]) -> float:

@@ -6,6 +6,7 @@ docs/archive.md; numbers from `analysis.model_comparison`."""
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import h5py
@@ -145,6 +146,21 @@ def read_processed_trials(trials: h5py.Group) -> list[tuple[np.ndarray, np.ndarr
     return out  # type: ignore[return-value]
 
 
+def compare_owner(owner: h5py.Group, device: Sequence[object], bouc_wen: object | None) -> ModelComparison:
+    """The model comparison (`analysis.model_comparison.compare_stored`) of the processed trials stored under
+    `owner` (a configuration group, or a joint's) with its `device`, written under `owner` (its old
+    comparison groups replaced): what `--reprocess` redoes after the Bouc-Wen fit, as the fit step did."""
+    from ..analysis.model_comparison import compare_stored
+
+    comparison = compare_stored(read_processed_trials(owner["trials"]), device, bouc_wen)
+    fits = owner.require_group(FITS)
+    for stale in (ELEMENT_MODEL, MODELS):
+        if stale in fits:
+            del fits[stale]
+    write_comparison(owner, comparison)
+    return comparison
+
+
 def comparison_fill(name: str, before: Fill, comparison: ModelComparison) -> Fill:
     """`before` (the Bouc-Wen fit's fill), then the comparison's groups under `configurations/<name>`."""
 
@@ -153,3 +169,19 @@ def comparison_fill(name: str, before: Fill, comparison: ModelComparison) -> Fil
         write_comparison(f.require_group(f"{CONFIGURATIONS}/{name}"), comparison)
 
     return fill
+
+
+PREDICTIONS = "predictions"
+
+
+def write_predictions(f: h5py.File, rows: list[dict[str, Any]]) -> None:
+    """(Re)write `/predictions`: one group `from_<A>_to_<B>` (with `_<joint>` for one joint of a
+    several-joint configuration) per declared prediction, its numbers as attributes (`prediction` in
+    `attrs.ATTRIBUTES`; NaN where a number does not exist)."""
+    if PREDICTIONS in f:
+        del f[PREDICTIONS]
+    root = f.create_group(PREDICTIONS)
+    for row in rows:
+        name = f"from_{row['fit_configuration']}_to_{row['predict_configuration']}"
+        name += f"_{row['joint']}" if row["joint"] else ""
+        put_attrs(root.require_group(name), "prediction", row)

@@ -271,3 +271,41 @@ def _predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
             reason = "" if math.isfinite(rmse) else "diverges"
             out.append(Prediction(fit_key, predict_key, note, rmse, own, reason, element))
     return tuple(out)
+
+
+def prediction_row(p: Prediction) -> dict[str, object]:
+    """A prediction's numbers as `/predictions` stores them (`archive.model_results.write_predictions`)."""
+    e = p.element
+    nan = math.nan
+    return {
+        "fit_configuration": p.fit_key,
+        "predict_configuration": p.predict_key,
+        "joint": "",
+        "note": p.note,
+        "element_rmse_nm": e.rmse_nm if e else nan,
+        "energy_predicted_j": e.energy_predicted_j if e else nan,
+        "energy_predicted_ci95_low_j": e.energy_predicted_ci95_low_j if e else nan,
+        "energy_predicted_ci95_high_j": e.energy_predicted_ci95_high_j if e else nan,
+        "energy_measured_j": e.energy_measured_j if e else nan,
+        "bouc_wen_rmse_nm": p.rmse_nm,
+        "bouc_wen_own_rmse_nm": p.own_rmse_nm,
+        "reason": p.reason,
+    }
+
+
+def record_predictions(archive: Path, made: tuple[Prediction, ...] | None = None) -> int:
+    """(Re)write the archive's `/predictions` from its declared pairs (`made`: already computed from this
+    archive); return how many. Nothing is written for an archive that declares none."""
+    from ..archive.model_results import write_predictions
+
+    if made is None:
+        from .h5read import scalar_str
+
+        with h5py.File(archive, "r") as h5:
+            text = scalar_str(h5["protocol"]) if "protocol" in h5 else ""
+        made = predictions(archive, text, figures=False)
+    if not made:
+        return 0
+    with h5py.File(archive, "a") as h5:
+        write_predictions(h5, [prediction_row(p) for p in made])
+    return len(made)
