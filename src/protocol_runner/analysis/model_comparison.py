@@ -88,6 +88,7 @@ class ModelComparison:
     reduced_fit: ElementModelFit | None
     bouc_wen_functionals: tuple[Functional, ...] = ()
     motions: tuple[Motion, ...] = field(default=(), repr=False)
+    bouc_wen_identified: tuple[bool, ...] = ()  # A, n, β1-β6: not named by the fit's weak reasons
 
 
 def motions_of(trials: Sequence[tuple[FloatArray, FloatArray, FloatArray]]) -> tuple[Motion, ...]:
@@ -202,10 +203,20 @@ def compare_models(
         _row("dahl", motions, reduced, full.n_eff, e_data),
     ]
     functionals: tuple[Functional, ...] = ()
+    identified: tuple[bool, ...] = ()
     if bouc_wen is not None:
         rows.append(_bouc_wen_row(bouc_wen, full.n_eff))
         functionals = bouc_wen_functionals(bouc_wen.segments, bouc_wen.model_torque_nm)  # type: ignore[attr-defined]
-    return ModelComparison(tuple(rows), full, reduced, functionals, motions)
+        identified = bouc_wen_identified(bouc_wen.fit.weak_reasons)  # type: ignore[attr-defined]
+    return ModelComparison(tuple(rows), full, reduced, functionals, motions, identified)
+
+
+def bouc_wen_identified(weak_reasons: Sequence[str]) -> tuple[bool, ...]:
+    """Per Bouc-Wen parameter (A, n, β1-β6), whether the fit's identification check leaves it out of its
+    weak reasons (each reason starts with the parameter's dimensionless name: `a` for A, `psi'k` for βk)."""
+    from ..models.bouc_wen.identifiability import DIMENSIONLESS_NAMES
+
+    return tuple(not any(r.startswith(f"{name}:") for r in weak_reasons) for name in DIMENSIONLESS_NAMES)
 
 
 def _bouc_wen_row(result: object, n_eff: float) -> ModelRow:

@@ -164,6 +164,7 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
         "functional_value",
         "functional_ci95_low",
         "functional_ci95_high",
+        "bouc_wen_identified",
     ),
     "prediction": (
         "fit_configuration",

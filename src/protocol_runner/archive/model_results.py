@@ -62,6 +62,7 @@ def models_attrs(comparison: ModelComparison) -> dict[str, Any]:
         "functional_value": [x.value for x in f],
         "functional_ci95_low": [x.ci95_low for x in f],
         "functional_ci95_high": [x.ci95_high for x in f],
+        "bouc_wen_identified": [int(v) for v in comparison.bouc_wen_identified],
     }
 
 
