@@ -27,12 +27,12 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the tests' knee 
 from tests.knee_device import KNEE_PARAMS, knee_brace
 from tests.knee_rig import knee_joint_config
 
+from protocol_runner.hardware.joint import TrialRecording
 from protocol_runner.hardware.motion import run_motion
-from protocol_runner.hardware.rig import TrialRecording
-from protocol_runner.hardware.simulator import SimulatedRig
-from protocol_runner.protocol.plan import Trajectory
+from protocol_runner.hardware.simulator.daq import SimulatedRig
 from protocol_runner.protocol.sampling import sample_trajectory
 from protocol_runner.protocol.trajectories import sinusoid_period_s
+from protocol_runner.protocol.trajectory_record import Trajectory
 
 
 def trial(cmd: np.ndarray) -> tuple[float, float, float, TrialRecording]:

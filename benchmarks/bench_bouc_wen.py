@@ -45,11 +45,13 @@ from scipy.optimize import least_squares
 from threadpoolctl import threadpool_info, threadpool_limits
 
 from protocol_runner.analysis.bouc_wen_fit import fit_configuration
-from protocol_runner.models import bouc_wen as bw
-from protocol_runner.models.bouc_wen import BoucWenParams, fit_trials, simulate
 from protocol_runner.models.bouc_wen import fitting as bw_fitting
 from protocol_runner.models.bouc_wen import kernels as bw_kernels
 from protocol_runner.models.bouc_wen import starts as bw_starts
+from protocol_runner.models.bouc_wen.fitting import fit_trials
+from protocol_runner.models.bouc_wen.params import BoucWenParams
+from protocol_runner.models.bouc_wen.records import BoucWenFit
+from protocol_runner.models.bouc_wen.simulation import simulate
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 RATE_HZ = 1000.0
@@ -171,10 +173,10 @@ def run(args: argparse.Namespace) -> int:
     (t_ours, ours_out), (t_base, base_out), (t_f56, f56_out) = timings[:3]
     (t_eq23, eq23_out), (t_config, config_out), (t_cv, cv_out) = timings[3:]
     assert isinstance(cv_out, tuple)
-    assert isinstance(eq23_out, bw.BoucWenFit) and isinstance(config_out, tuple)
-    config_fit: bw.BoucWenFit = config_out[0]
+    assert isinstance(eq23_out, BoucWenFit) and isinstance(config_out, tuple)
+    config_fit: BoucWenFit = config_out[0]
     ours = ours_out
-    assert isinstance(ours, bw.BoucWenFit) and ours.stride == stride
+    assert isinstance(ours, BoucWenFit) and ours.stride == stride
     assert isinstance(base_out, tuple) and isinstance(f56_out, tuple)
     base_params: BoucWenParams = base_out[0]
     base_nfev: int = base_out[1]

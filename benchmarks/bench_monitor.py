@@ -28,8 +28,9 @@ import time
 import numpy as np
 
 from bench_realtime import SPIN_S, knee_joint, sensor, summarise
-from protocol_runner.hardware.fakeusb import FakeBackend, make_usb3105
+from protocol_runner.hardware.fakeusb.backend import FakeBackend
 from protocol_runner.hardware.fakeusb.usb1608fs import make_usb1608fs
+from protocol_runner.hardware.fakeusb.usb3105 import make_usb3105
 from protocol_runner.hardware.interfaces import ScanBlock
 from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.usb1608fs import Usb1608FsPlus

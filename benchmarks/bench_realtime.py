@@ -29,9 +29,11 @@ from collections.abc import Callable
 import numpy as np
 
 from protocol_runner.hardware.conversions import RSST_JOINTS
-from protocol_runner.hardware.fakeusb import FakeBackend, make_usb3105
+from protocol_runner.hardware.fakeusb.backend import FakeBackend
 from protocol_runner.hardware.fakeusb.usb1608fs import make_usb1608fs
-from protocol_runner.hardware.rig import JointConfig, Rig
+from protocol_runner.hardware.fakeusb.usb3105 import make_usb3105
+from protocol_runner.hardware.joint import JointConfig
+from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.usb1608fs import Usb1608FsPlus
 from protocol_runner.hardware.usb3105 import Usb3105

@@ -26,7 +26,7 @@ sys.path.insert(0, str(ROOT))
 
 from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, write_archive  # noqa: E402
 
-from protocol_runner.report.figures import default_workers, figure_ids  # noqa: E402
+from protocol_runner.report.figure_plan import default_workers, figure_ids  # noqa: E402
 from protocol_runner.report.load import load_report_data  # noqa: E402
 from protocol_runner.report.render import generate_report  # noqa: E402
 

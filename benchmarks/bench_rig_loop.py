@@ -19,7 +19,8 @@ import numpy as np
 
 from protocol_runner.hardware.conversions import RSST_JOINTS
 from protocol_runner.hardware.interfaces import ScanBlock
-from protocol_runner.hardware.rig import JointConfig, Rig
+from protocol_runner.hardware.joint import JointConfig
+from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyLimits
 
 N_TICKS = 6500  # one 65 s trial at 100 Hz

@@ -31,8 +31,8 @@ sys.path.insert(0, str(ROOT))
 from tests.knee_device import KNEE_PARAMS, knee_brace  # noqa: E402
 from tests.knee_rig import knee_joint_config  # noqa: E402
 
-from protocol_runner.hardware.rig import JointConfig  # noqa: E402
-from protocol_runner.hardware.simulator import SimulatedRig  # noqa: E402
+from protocol_runner.hardware.joint import JointConfig  # noqa: E402
+from protocol_runner.hardware.simulator.daq import SimulatedRig  # noqa: E402
 from protocol_runner.hardware.simulator.plant import JointPlant  # noqa: E402
 
 TRIAL_S = 65.0

@@ -8,7 +8,7 @@ tests/hardware/data/knee_brace_baseline.npz; docs/simulator.md says which thesis
 
 from __future__ import annotations
 
-from protocol_runner.hardware.simulator import SimulatorParams
+from protocol_runner.hardware.simulator.params import SimulatorParams
 from protocol_runner.models.spring import SpringGeometry
 
 KNEE_SIMULATOR = {

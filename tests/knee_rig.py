@@ -9,7 +9,7 @@ are required arguments.
 from __future__ import annotations
 
 from protocol_runner.hardware.calibration import CalibrationTable
-from protocol_runner.hardware.rig import JointConfig
+from protocol_runner.hardware.joint import JointConfig
 from protocol_runner.hardware.safety import SafetyLimits
 
 KNEE_RANGE_DEG = (0.0, 130.0)  # thesis Eq 1, Table 3

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import yaml
 
-from protocol_runner.models.elements import ELEMENT_TYPES
+from protocol_runner.models.element_types import ELEMENT_TYPES
 
 # the source tree of this checkout (the installed copy may be elsewhere: a wheel in site-packages)
 REPO = Path(__file__).resolve().parents[1]

@@ -16,11 +16,11 @@ if TYPE_CHECKING:
     from collections.abc import Iterable
 
     from .monitor.service import Monitor
-    from .protocol.loader import LoadedProtocol
+    from .protocol.loaded import LoadedProtocol
     from .protocol.only import KeySelection
-    from .session.operator import Operator
     from .session.setup import SessionInfo
     from .steps.context import Bench
+    from .steps.operator import Operator
 
 
 def _say(message: str) -> None:

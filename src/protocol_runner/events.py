@@ -11,7 +11,7 @@ from collections.abc import Collection, Mapping
 from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
-    from .protocol.plan import Plan, Step
+    from .protocol.plan_steps import Plan, Step
 
 
 class Publisher(Protocol):

@@ -21,11 +21,11 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from .protocol.loader import LoadedProtocol
+from .protocol.loaded import LoadedProtocol
 from .protocol.only import KeySelection
-from .protocol.plan import Plan, expand
-from .protocol.plan_steps import ProcessStep, TrialStep
-from .protocol.plan_trajectory import Trajectory
+from .protocol.plan import expand
+from .protocol.plan_steps import Plan, ProcessStep, TrialStep
+from .protocol.trajectory_record import Trajectory
 
 
 def preflight(loaded: LoadedProtocol, only: KeySelection | Iterable[int] | None = None) -> Plan:

@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from protocol_runner.models.bouc_wen import BoucWenParams, simulate
+from protocol_runner.models.bouc_wen.params import BoucWenParams
+from protocol_runner.models.bouc_wen.simulation import simulate
 
 HYSTERESIS = BoucWenParams(A=2.0, n=1.0, beta=(0.5, 0.0, 0.0, 0.0, 0.0, 0.0))  # saturates at 4 N*m
 SPRING = [("torsion", "torsion_spring", {"stiffness_nm_per_deg": 0.1, "neutral_deg": 0.0})]

@@ -10,8 +10,10 @@ import pytest
 from protocol_runner.analysis.bouc_wen_fit import fit_configuration, loop_energy, model_torques
 from protocol_runner.analysis.service import bouc_wen_result
 from protocol_runner.archive.results import bouc_wen_fill
-from protocol_runner.models.bouc_wen import BoucWenParams, fit_trials, simulate
+from protocol_runner.models.bouc_wen.fitting import fit_trials
 from protocol_runner.models.bouc_wen.identifiability import identify
+from protocol_runner.models.bouc_wen.params import BoucWenParams
+from protocol_runner.models.bouc_wen.simulation import simulate
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 # saturates on loading in every phase (psi = 0.08 at positive angles, 0.02 at negative ones): stable from

@@ -17,8 +17,10 @@ from protocol_runner.analysis.bouc_wen_fit import (
     loop_energy,
     model_torques,
 )
-from protocol_runner.models.bouc_wen import BoucWenFit, BoucWenParams, simulate
 from protocol_runner.models.bouc_wen.backbone import Backbone, FixedBackbone
+from protocol_runner.models.bouc_wen.params import BoucWenParams
+from protocol_runner.models.bouc_wen.records import BoucWenFit
+from protocol_runner.models.bouc_wen.simulation import simulate
 
 # saturates on loading in every phase: a stable loop from any state (as in test_bouc_wen_evidence.py)
 STABLE = BoucWenParams(A=0.3, n=1.2, beta=(0.05, 0.0, 0.0, 0.0, 0.0, 0.03))

@@ -8,7 +8,8 @@ import pytest
 
 from protocol_runner.analysis.element_fit import fit_elements, model_torque_nm
 from protocol_runner.analysis.pipeline import Recording, TrialPair, process_configuration
-from protocol_runner.hardware.simulator import SimulatedRig, SimulatorParams
+from protocol_runner.hardware.simulator.daq import SimulatedRig
+from protocol_runner.hardware.simulator.params import SimulatorParams
 from protocol_runner.models.elements import build_device
 
 from ..knee_rig import knee_joint_config

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import h5py
 
-from protocol_runner.analysis.pipeline import ProcessingSettings
+from protocol_runner.analysis.processing_settings import ProcessingSettings
 from protocol_runner.report.load_configuration import _filter_text
 
 

@@ -14,17 +14,12 @@ import numpy as np
 import pytest
 
 from protocol_runner.analysis.filters import lowpass
-from protocol_runner.analysis.pipeline import (
-    ConfigurationResult,
-    ProcessingSettings,
-    Recording,
-    TrialPair,
-    process_configuration,
-)
+from protocol_runner.analysis.pipeline import ConfigurationResult, Recording, TrialPair, process_configuration
+from protocol_runner.analysis.processing_settings import ProcessingSettings
 from protocol_runner.analysis.scaling import rig_runner, scale_brace_off_input
 from protocol_runner.analysis.transition import command_on_input_base, transition_index
-from protocol_runner.hardware.rig import JointConfig, TrialRecording
-from protocol_runner.hardware.simulator import SimulatedRig
+from protocol_runner.hardware.joint import JointConfig, TrialRecording
+from protocol_runner.hardware.simulator.daq import SimulatedRig
 
 from ..knee_device import KNEE_MAX_PRELOAD_MM as DEFAULT_MAX_PRELOAD_MM
 from ..knee_device import KNEE_PARAMS, knee_brace, lever_spring

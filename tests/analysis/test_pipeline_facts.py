@@ -8,7 +8,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from protocol_runner.analysis.pipeline import ProcessingSettings, Recording, TrialPair, process_configuration
+from protocol_runner.analysis.centring import complete_cycles_span
+from protocol_runner.analysis.pipeline import Recording, TrialPair, process_configuration
+from protocol_runner.analysis.processing_settings import ProcessingSettings
 from protocol_runner.errors import InvalidInput
 
 from ..knee_device import lever_spring
@@ -71,8 +73,9 @@ def test_an_uncentred_loop_is_the_processed_loop_with_zero_means() -> None:
     np.testing.assert_array_equal(trial.centred.angle_deg, trial.angle_deg)
     np.testing.assert_array_equal(trial.centred.torque_nm, trial.brace_torque_nm)
     centred = process_configuration([TrialPair(on, off)]).trials[0].centred
-    assert centred.mean_angle_deg == pytest.approx(float(np.mean(trial.angle_deg)))
-    assert centred.mean_torque_nm == pytest.approx(float(np.mean(trial.brace_torque_nm)))
+    cycles = complete_cycles_span(trial.angle_deg)  # the means over the complete cycles
+    assert centred.mean_angle_deg == pytest.approx(float(np.mean(trial.angle_deg[cycles])))
+    assert centred.mean_torque_nm == pytest.approx(float(np.mean(trial.brace_torque_nm[cycles])))
 
 
 def test_an_element_fit_the_loop_cannot_support_is_not_applicable_with_the_reason() -> None:
@@ -145,9 +148,10 @@ def test_a_loop_with_undefined_brace_torques_keeps_only_the_defined_samples(cent
         np.testing.assert_array_equal(loop.angle_deg, angle)
         np.testing.assert_array_equal(loop.torque_nm, torque)
     else:
-        assert loop.mean_angle_deg == pytest.approx(float(np.mean(angle)))
-        assert loop.mean_torque_nm == pytest.approx(float(np.mean(torque)))
-        np.testing.assert_allclose(loop.angle_deg, angle - np.mean(angle))
+        cycles = complete_cycles_span(angle)  # the means over the complete cycles of the defined samples
+        assert loop.mean_angle_deg == pytest.approx(float(np.mean(angle[cycles])))
+        assert loop.mean_torque_nm == pytest.approx(float(np.mean(torque[cycles])))
+        np.testing.assert_allclose(loop.angle_deg, angle - np.mean(angle[cycles]))
 
 
 def test_an_equal_time_subtraction_leaves_the_brace_torque() -> None:

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from protocol_runner.analysis.pipeline import ProcessingSettings, Recording, TrialPair
+from protocol_runner.analysis.pipeline import Recording, TrialPair
+from protocol_runner.analysis.processing_settings import ProcessingSettings
 from protocol_runner.errors import InvalidInput
 
 

@@ -10,7 +10,8 @@ import pytest
 from protocol_runner.analysis.bouc_wen_fit import fit_configuration
 from protocol_runner.analysis.service import bouc_wen_result
 from protocol_runner.archive.results import bouc_wen_fill
-from protocol_runner.models.bouc_wen import BoucWenParams, simulate
+from protocol_runner.models.bouc_wen.params import BoucWenParams
+from protocol_runner.models.bouc_wen.simulation import simulate
 from protocol_runner.report.predictions import declared_pairs, predictions
 
 STABLE = BoucWenParams(A=0.3, n=1.2, beta=(0.05, 0.0, 0.0, 0.0, 0.0, 0.03))

@@ -119,12 +119,12 @@ def test_a_target_or_setting_that_leaves_nothing_to_do_is_a_user_error(kwargs: d
         scale_brace_off_input(_command(), run=lambda v: v, **args)
 
 
-def test_a_single_iteration_is_allowed_and_the_default_tolerance_is_one_degree() -> None:
+def test_a_single_iteration_is_allowed_and_the_default_tolerance_is_a_tenth_of_a_degree() -> None:
     u = _command()
     target = (float(u.min()), float(u.max()))
-    one = scale_brace_off_input(u, target, lambda v: v + 1.5, max_iterations=1)
-    assert len(one.history) == 1 and not one.converged  # 1.5 deg off: outside the default 1 deg
-    assert scale_brace_off_input(u, target, lambda v: v + 0.9, max_iterations=1).converged
+    one = scale_brace_off_input(u, target, lambda v: v + 0.15, max_iterations=1)
+    assert len(one.history) == 1 and not one.converged  # 0.15 deg off: outside the default 0.1 deg
+    assert scale_brace_off_input(u, target, lambda v: v + 0.09, max_iterations=1).converged
 
 
 def test_an_output_that_does_not_move_after_the_transition_is_a_user_error() -> None:

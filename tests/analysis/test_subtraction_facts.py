@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from protocol_runner.analysis.pipeline import ProcessingSettings
+from protocol_runner.analysis.processing_settings import ProcessingSettings
 from protocol_runner.analysis.subtraction import (
     robot_torque_at_equal_angle,
     subtract_equal_angle,

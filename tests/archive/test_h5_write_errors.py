@@ -11,8 +11,9 @@ import h5py
 import numpy as np
 import pytest
 
+from protocol_runner.archive.diskfull import DiskFull
 from protocol_runner.archive.h5_write_errors import checked_h5_write
-from protocol_runner.archive.units import DiskFull, write_unit
+from protocol_runner.archive.units import write_unit
 
 
 class _FreedWithAFailedWrite:

@@ -18,8 +18,8 @@ from functools import cache
 
 import numpy as np
 
-from protocol_runner.hardware.rig import JointConfig
-from protocol_runner.hardware.simulator import SimulatedRig
+from protocol_runner.hardware.joint import JointConfig
+from protocol_runner.hardware.simulator.daq import SimulatedRig
 
 from ..knee_device import KNEE_PARAMS, knee_brace
 from ..knee_rig import knee_joint_config

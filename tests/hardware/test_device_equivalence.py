@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from protocol_runner.hardware.conversions import AI12_VOLTS_PER_CODE, angle_to_volts, torque_to_volts
-from protocol_runner.hardware.simulator import SimulatedRig
+from protocol_runner.hardware.simulator.daq import SimulatedRig
 
 from ..knee_device import KNEE_PARAMS, knee_brace
 from ..knee_rig import knee_joint_config

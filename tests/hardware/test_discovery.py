@@ -9,9 +9,11 @@ import pytest
 
 from protocol_runner.errors import HardwareUnavailable, InvalidInput
 from protocol_runner.hardware.discovery import NOTHING_FOUND, format_report, hardware_check
-from protocol_runner.hardware.fakeusb import FakeBackend, Faults, make_usb3105
+from protocol_runner.hardware.fakeusb.backend import FakeBackend
+from protocol_runner.hardware.fakeusb.device import Faults
 from protocol_runner.hardware.fakeusb.dt9814 import make_dt9814
 from protocol_runner.hardware.fakeusb.usb1608fs import make_usb1608fs
+from protocol_runner.hardware.fakeusb.usb3105 import make_usb3105
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
 from protocol_runner.hardware.rig_boards import open_rig_boards
 from protocol_runner.hardware.usb1608fs import Usb1608FsPlus

@@ -9,7 +9,8 @@ import pytest
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.dt9814 import Dt9814, Dt9814Settings, code12_to_volts, sign_extend_12
-from protocol_runner.hardware.fakeusb import FakeBackend, Faults
+from protocol_runner.hardware.fakeusb.backend import FakeBackend
+from protocol_runner.hardware.fakeusb.device import Faults
 from protocol_runner.hardware.fakeusb.dt9814 import make_dt9814
 from protocol_runner.hardware.usb_common import BoardIoError, BoardNotFound, BoardTimeout, DeviceGone
 

@@ -19,7 +19,8 @@ from protocol_runner.hardware.conversions import (
     volts_to_torque,
 )
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock, ScanBlock
-from protocol_runner.hardware.rig import JointConfig, Rig, TrialRecording
+from protocol_runner.hardware.joint import JointConfig, TrialRecording
+from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyLimits, SafetyViolation
 
 SHIPPED = Path(__file__).resolve().parents[2] / "protocols" / "calibration"

@@ -19,14 +19,12 @@ from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.calibration import CalibrationTable
 from protocol_runner.hardware.conversions import volts_to_angle, volts_to_ao16_code
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
-from protocol_runner.hardware.rig import JointConfig, Rig
+from protocol_runner.hardware.joint import JointConfig
+from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyLimits
-from protocol_runner.hardware.simulator import (
-    SimulatedClock,
-    SimulatedRig,
-    SimulatorParams,
-    step_seed,
-)
+from protocol_runner.hardware.simulator.daq import SimulatedRig, step_seed
+from protocol_runner.hardware.simulator.output import SimulatedClock
+from protocol_runner.hardware.simulator.params import SimulatorParams
 from protocol_runner.hardware.simulator.plant import JointPlant
 
 from ..knee_device import KNEE_PARAMS, knee_brace
@@ -432,7 +430,7 @@ import hashlib, sys
 import numpy as np
 sys.path.insert(0, sys.argv[1])
 from tests.hardware.test_simulator import KNEE_PARAMS, hold, knee_joint, run
-from protocol_runner.hardware.simulator import SimulatedRig
+from protocol_runner.hardware.simulator.daq import SimulatedRig
 sim = SimulatedRig(knee_joint(), seed=5, params=KNEE_PARAMS)
 rec = run(sim, sim.make_rig(), hold(50.0, 0.3), "set2/trial3")[3]
 print(hashlib.sha256(rec.angle_codes.tobytes() + rec.torque_codes.tobytes()).hexdigest())

@@ -27,9 +27,9 @@ from protocol_runner.hardware.stream import (
     build_stream,
     check_stream,
 )
-from protocol_runner.protocol.plan import Trajectory
 from protocol_runner.protocol.sampling import sample_trajectory
 from protocol_runner.protocol.trajectories import TrajectoryFile, sinusoid_period_s
+from protocol_runner.protocol.trajectory_record import Trajectory
 
 REL_TOL = 1e-9  # the limits' own tolerance (hardware/safety.py): a ramp at exactly the limit passes
 KINDS = ("sinusoid", "human", "identification", "step", "hold")
@@ -218,9 +218,10 @@ def test_a_dry_run_sends_exactly_the_checked_stream_or_nothing(data: st.DataObje
     all when the plan is refused."""
     from protocol_runner.errors import Interrupted
     from protocol_runner.hardware.conversions import volts_to_ao16_code
+    from protocol_runner.hardware.joint import JointConfig
     from protocol_runner.hardware.motion import run_motion
-    from protocol_runner.hardware.rig import READ_EVERY_TICKS, JointConfig
-    from protocol_runner.hardware.simulator import SimulatedRig
+    from protocol_runner.hardware.paced import READ_EVERY_TICKS
+    from protocol_runner.hardware.simulator.daq import SimulatedRig
 
     limits, rate_hz = data.draw(rig_limits())
     _, cmd = data.draw(trajectories(limits, rate_hz, ("sinusoid", "step", "hold", "human")))

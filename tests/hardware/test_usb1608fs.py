@@ -10,15 +10,13 @@ import numpy.typing as npt
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.hardware.fakeusb import FakeBackend, Faults
+from protocol_runner.hardware.fakeusb.backend import FakeBackend
+from protocol_runner.hardware.fakeusb.device import Faults
 from protocol_runner.hardware.fakeusb.usb1608fs import ManualClock, Usb1608FsModel, make_usb1608fs
 from protocol_runner.hardware.interfaces import AnalogInput, ScanBlock
 from protocol_runner.hardware.multiboard import MultiBoardInput
-from protocol_runner.hardware.usb1608fs import (
-    Usb1608FsPlus,
-    open_all_1608fs,
-    pacer_period,
-)
+from protocol_runner.hardware.usb1608fs import Usb1608FsPlus, open_all_1608fs
+from protocol_runner.hardware.usb1608fs_protocol import pacer_period
 from protocol_runner.hardware.usb_common import BoardNotFound, BoardPermissionDenied, DeviceGone, ScanOverrun
 
 

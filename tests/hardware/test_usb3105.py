@@ -10,16 +10,12 @@ import pytest
 import usb.core
 
 from protocol_runner.errors import EXIT_HARDWARE_UNAVAILABLE, HardwareUnavailable, InvalidInput
-from protocol_runner.hardware.fakeusb import FakeBackend, Faults, make_usb3105
-from protocol_runner.hardware.fakeusb.usb3105 import Usb3105Model
+from protocol_runner.hardware.fakeusb.backend import FakeBackend
+from protocol_runner.hardware.fakeusb.device import Faults
+from protocol_runner.hardware.fakeusb.usb3105 import Usb3105Model, make_usb3105
 from protocol_runner.hardware.interfaces import AnalogOutput
-from protocol_runner.hardware.usb3105 import (
-    ChannelCalibration,
-    ChannelNotConfigured,
-    Usb3105,
-    Usb3105Settings,
-    calibrated_code,
-)
+from protocol_runner.hardware.usb3105 import ChannelNotConfigured, Usb3105, Usb3105Settings
+from protocol_runner.hardware.usb3105_calibration import ChannelCalibration, calibrated_code
 from protocol_runner.hardware.usb_common import (
     UDEV_RULE_FILENAME,
     BoardBusy,

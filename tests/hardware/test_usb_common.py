@@ -11,9 +11,10 @@ import usb.core
 import usb.util
 
 from protocol_runner.errors import EXIT_HARDWARE_UNAVAILABLE, HardwareUnavailable
-from protocol_runner.hardware import discovery, dt9814, usb1608fs, usb3105
-from protocol_runner.hardware.fakeusb import FakeBackend, make_usb3105
+from protocol_runner.hardware import discovery, dt9814, usb1608fs, usb1608fs_protocol, usb3105
+from protocol_runner.hardware.fakeusb.backend import FakeBackend
 from protocol_runner.hardware.fakeusb.usb1608fs import make_usb1608fs
+from protocol_runner.hardware.fakeusb.usb3105 import make_usb3105
 from protocol_runner.hardware.interfaces import Clock
 from protocol_runner.hardware.usb_common import (
     DT_VENDOR_ID,
@@ -62,7 +63,7 @@ def test_the_shipped_udev_rule_is_the_generated_one_and_covers_every_driver() ->
     rules = [line for line in text.splitlines() if line and not line.startswith("#")]
     ids = {(line.split('idVendor}=="')[1][:4], [*line.split('idProduct}=="'), ""][1][:4]) for line in rules}
     assert (f"{MCC_VENDOR_ID:04x}", f"{usb3105.PRODUCT_ID:04x}") in ids
-    assert (f"{MCC_VENDOR_ID:04x}", f"{usb1608fs.PRODUCT_ID:04x}") in ids
+    assert (f"{MCC_VENDOR_ID:04x}", f"{usb1608fs_protocol.PRODUCT_ID:04x}") in ids
     assert (f"{DT_VENDOR_ID:04x}", "") in ids  # DT9814: product id unknown, so the whole vendor
     assert all('MODE="0660"' in r and 'TAG+="uaccess"' in r for r in rules)
 

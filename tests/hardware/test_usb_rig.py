@@ -8,11 +8,13 @@ import numpy.typing as npt
 import pytest
 
 from protocol_runner.hardware.conversions import RSST_JOINTS, angle_to_volts
-from protocol_runner.hardware.fakeusb import FakeBackend, Faults, make_usb3105
+from protocol_runner.hardware.fakeusb.backend import FakeBackend
+from protocol_runner.hardware.fakeusb.device import Faults
 from protocol_runner.hardware.fakeusb.usb1608fs import ManualClock, Usb1608FsModel, make_usb1608fs
-from protocol_runner.hardware.fakeusb.usb3105 import Usb3105Model
+from protocol_runner.hardware.fakeusb.usb3105 import Usb3105Model, make_usb3105
+from protocol_runner.hardware.joint import JointConfig
 from protocol_runner.hardware.multiboard import MultiBoardInput
-from protocol_runner.hardware.rig import JointConfig, Rig
+from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.usb1608fs import open_all_1608fs
 from protocol_runner.hardware.usb3105 import Usb3105

@@ -11,24 +11,21 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.bouc_wen import (
-    DEFAULT_BOUNDS,
+from protocol_runner.models.bouc_wen import fitting as bw_fitting
+from protocol_runner.models.bouc_wen.crossval import cross_validate
+from protocol_runner.models.bouc_wen.fitting import fit, fit_trials
+from protocol_runner.models.bouc_wen.params import (
     EQ24_PHASE_MATRIX,
     EQ25_BETA_MATRIX,
     PARAM_NAMES,
-    BoucWenFit,
     BoucWenParams,
     betas_from_phases,
-    cross_validate,
-    fit,
-    fit_trials,
     phase_of_samples,
     phase_values,
-    simulate,
-    simulate_sensitivity,
 )
-from protocol_runner.models.bouc_wen import fitting as bw_fitting
 from protocol_runner.models.bouc_wen.problem import FitScale, Problem, Samples
+from protocol_runner.models.bouc_wen.records import DEFAULT_BOUNDS, BoucWenFit
+from protocol_runner.models.bouc_wen.simulation import simulate, simulate_sensitivity
 
 # Figure 57 / 58: knee joint, K_spring = 13 N/mm, braking torque 3.75 N*m.
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))

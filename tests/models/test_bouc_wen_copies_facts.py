@@ -7,8 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from protocol_runner.models.bouc_wen import BoucWenParams, simulate
 from protocol_runner.models.bouc_wen.copies import decimate, turning_point_copy
+from protocol_runner.models.bouc_wen.params import BoucWenParams
+from protocol_runner.models.bouc_wen.simulation import simulate
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 

@@ -16,9 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from protocol_runner.models.bouc_wen import BoucWenParams, cross_validate, fit_trials, fitting, simulate
+from protocol_runner.models.bouc_wen import copies, fitting
 from protocol_runner.models.bouc_wen import problem as bw_problem
+from protocol_runner.models.bouc_wen.crossval import cross_validate
+from protocol_runner.models.bouc_wen.fitting import fit_trials
 from protocol_runner.models.bouc_wen.identifiability import identify
+from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.problem import (
     FitScale,
     Problem,
@@ -28,6 +31,7 @@ from protocol_runner.models.bouc_wen.problem import (
 )
 from protocol_runner.models.bouc_wen.records import DEFAULT_BOUNDS
 from protocol_runner.models.bouc_wen.schemes import BoucWenShape, Integration, Sensitivity, run_scheme
+from protocol_runner.models.bouc_wen.simulation import simulate
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 # Psi < 0 in every phase: |z| grows without bound once |z|^n outweighs A (a divergent parameter set)
@@ -178,10 +182,10 @@ def test_the_errors_on_every_sample_come_from_the_fitted_path_only_when_it_is_ev
     rmse, r2, per, diverged = evaluate(trials, fit.params, bound)
     assert (fit.rmse_nm, fit.r2, fit.trial_rmse_nm, fit.diverged) == (rmse, r2, per, diverged)
     # a decimated copy's torque is not every sample's, nor is another scheme's or substep's
-    x, y, seg, _ = fitting.decimate(trials, 600)
+    x, y, seg, _ = copies.decimate(trials, 600)
     scale = FitScale(fit.angle_scale_deg, fit.torque_scale_nm)
     assert trial_torques(Problem(Samples(x, y, seg), DEFAULT_BOUNDS, scale), trials, "refined") is None
-    x, y, seg, _ = fitting.decimate(trials, None)
+    x, y, seg, _ = copies.decimate(trials, None)
     assert trial_torques(Problem(Samples(x, y, seg), DEFAULT_BOUNDS, scale), trials, "refined") is not None
     assert trial_torques(Problem(Samples(x, y, seg), DEFAULT_BOUNDS, scale), trials, "eq23") is None
     coarse = Problem(Samples(x, y, seg), DEFAULT_BOUNDS, scale, max_step_deg=0.5)

@@ -8,9 +8,12 @@ import math
 import numpy as np
 import pytest
 
-from protocol_runner.models.bouc_wen import BoucWenBounds, BoucWenParams, fit_trials, simulate
+from protocol_runner.models.bouc_wen.fitting import fit_trials
 from protocol_runner.models.bouc_wen.identifiability import identify, weak_reasons
+from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.problem import FitScale, Problem, Samples
+from protocol_runner.models.bouc_wen.records import BoucWenBounds
+from protocol_runner.models.bouc_wen.simulation import simulate
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 PERIOD_S = 8.17

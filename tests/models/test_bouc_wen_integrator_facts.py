@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.bouc_wen import BoucWenParams, simulate, simulate_sensitivity
+from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.schemes import (
     EQ23,
     REFINED,
@@ -22,6 +22,7 @@ from protocol_runner.models.bouc_wen.schemes import (
     check_scheme,
     run_scheme,
 )
+from protocol_runner.models.bouc_wen.simulation import simulate, simulate_sensitivity
 
 Arr = np.ndarray
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import re
 from dataclasses import fields
 
-from protocol_runner.models.bouc_wen import fit
 from protocol_runner.models.bouc_wen import fitting as bw_fitting
+from protocol_runner.models.bouc_wen.fitting import fit
 from protocol_runner.models.bouc_wen.options import POLISH_FTOL, FitKeywords, FitOptions
 from protocol_runner.models.bouc_wen.records import DEFAULT_BOUNDS
 

@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.bouc_wen import BoucWenParams, simulate
 from protocol_runner.models.bouc_wen.kernels import IDENTITY8, heun_kernel, heun_sensitivity_kernel
-from protocol_runner.models.bouc_wen.simulation import simulate_trials
+from protocol_runner.models.bouc_wen.params import BoucWenParams
+from protocol_runner.models.bouc_wen.simulation import simulate, simulate_trials
 
 SHAPE = (1.2, 1.4, np.array([0.3, 0.1, -0.05, 0.4, 0.2, -0.1]))
 STEEP = (1.2, 1.4, np.array([-0.9, 0.0, 0.0, -0.9, 0.0, 0.0]))  # |z| grows without limit: diverges

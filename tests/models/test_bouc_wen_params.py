@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.bouc_wen import BoucWenParams, betas_from_phases, phase_values
+from protocol_runner.models.bouc_wen.params import BoucWenParams, betas_from_phases, phase_values
 
 NOT_A_NUMBER: Any = "stiff"
 NOT_A_SEQUENCE: Any = 3.0

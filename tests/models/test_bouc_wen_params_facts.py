@@ -9,12 +9,14 @@ import numpy as np
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.bouc_wen import BoucWenParams, betas_from_phases, phase_values
 from protocol_runner.models.bouc_wen.params import (
     EQ24_PHASE_MATRIX,
     EQ25_BETA_MATRIX,
     PARAM_NAMES,
+    BoucWenParams,
+    betas_from_phases,
     phase_of_samples,
+    phase_values,
 )
 
 # Table 4: phase k -> (sgn x, sgn dx, sgn z)

@@ -8,7 +8,7 @@ import math
 
 import numpy as np
 
-from protocol_runner.models.bouc_wen import BoucWenBounds, BoucWenParams, simulate, simulate_sensitivity
+from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.problem import (
     FitScale,
     Problem,
@@ -17,6 +17,8 @@ from protocol_runner.models.bouc_wen.problem import (
     jacobian_std,
     param_std,
 )
+from protocol_runner.models.bouc_wen.records import BoucWenBounds
+from protocol_runner.models.bouc_wen.simulation import simulate, simulate_sensitivity
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.bouc_wen import BoucWenParams
+from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.records import DEFAULT_BOUNDS, BoucWenBounds, BoucWenFit
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))

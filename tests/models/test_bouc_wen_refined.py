@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.bouc_wen import BoucWenParams, fit, fit_trials, simulate
-from protocol_runner.models.bouc_wen.simulation import refine_angle, simulate_refined
+from protocol_runner.models.bouc_wen.fitting import fit, fit_trials
+from protocol_runner.models.bouc_wen.params import BoucWenParams
+from protocol_runner.models.bouc_wen.simulation import refine_angle, simulate, simulate_refined
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 PERIOD_S = 8.17

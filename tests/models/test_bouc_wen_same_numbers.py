@@ -10,9 +10,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from protocol_runner.models.bouc_wen import DEFAULT_BOUNDS, cross_validate, crossval, fit_trials, fitting
-from protocol_runner.models.bouc_wen.fitting import _path_problem, decimate
+from protocol_runner.models.bouc_wen import crossval, fitting
+from protocol_runner.models.bouc_wen.copies import _path_problem, decimate
+from protocol_runner.models.bouc_wen.crossval import cross_validate
+from protocol_runner.models.bouc_wen.fitting import fit_trials
 from protocol_runner.models.bouc_wen.problem import FitScale, Problem, Samples
+from protocol_runner.models.bouc_wen.records import DEFAULT_BOUNDS
 from protocol_runner.models.bouc_wen.schemes import (
     BoucWenShape,
     Integration,

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.bouc_wen import BoucWenParams, simulate, simulate_sensitivity
+from protocol_runner.models.bouc_wen.params import BoucWenParams
+from protocol_runner.models.bouc_wen.simulation import simulate, simulate_sensitivity
 
 P = BoucWenParams(A=0.3, n=1.2, beta=(0.01, 0.1, -0.1, -0.05, 0.09, 0.0))
 

@@ -8,9 +8,12 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info, threadpool_limits
 
-from protocol_runner.models.bouc_wen import BoucWenParams, cross_validate, fit_trials, simulate
+from protocol_runner.models.bouc_wen.crossval import cross_validate
+from protocol_runner.models.bouc_wen.fitting import fit_trials
 from protocol_runner.models.bouc_wen.identifiability import identify
+from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.problem import Problem
+from protocol_runner.models.bouc_wen.simulation import simulate
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 

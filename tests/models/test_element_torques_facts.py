@@ -17,7 +17,8 @@ from protocol_runner.models.element_torques import (
     stribeck_level_nm,
     viscous_torque_nm,
 )
-from protocol_runner.models.elements import ELEMENT_TYPES, build_element
+from protocol_runner.models.element_types import ELEMENT_TYPES
+from protocol_runner.models.elements import build_element
 
 from ..knee_device import lever_spring
 

@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.elements import ELEMENT_TYPES, ElementType, build_element
+from protocol_runner.models.element_types import ELEMENT_TYPES, ElementType
+from protocol_runner.models.elements import build_element
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
 PROTOCOL_DOC = (DOCS / "protocol.md").read_text(encoding="utf-8")

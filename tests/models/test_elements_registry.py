@@ -7,7 +7,8 @@ import re
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.elements import ELEMENT_TYPES, build_device, build_element
+from protocol_runner.models.element_types import ELEMENT_TYPES
+from protocol_runner.models.elements import build_device, build_element
 
 UNIT_SUFFIXES = (
     "_deg_s2", "_deg_s", "_deg", "_rad", "_nm_s_per_deg", "_nm_per_deg", "_nm_per_rad", "_nm", "_n_per_mm",

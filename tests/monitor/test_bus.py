@@ -17,7 +17,7 @@ from protocol_runner.monitor.journal_tail import JournalTail
 from protocol_runner.monitor.live import MonitoredOperator
 from protocol_runner.monitor.service import Monitor
 from protocol_runner.monitor.state import TRACE_WINDOW_S
-from protocol_runner.protocol.plan import ChecklistStep
+from protocol_runner.protocol.plan_steps import ChecklistStep
 from protocol_runner.session.journal import Journal
 
 from .sse import Stream, status

@@ -9,7 +9,7 @@ import pytest
 
 from protocol_runner.hardware.calibration import CalibrationTable
 from protocol_runner.hardware.interfaces import ScanBlock
-from protocol_runner.hardware.rig import TrialRecording
+from protocol_runner.hardware.joint import TrialRecording
 from protocol_runner.hardware.simulator.daq import SimulatedRig
 from protocol_runner.monitor.samples import SampleTap, phase_of
 

@@ -14,7 +14,8 @@ import pytest
 from protocol_runner.commands import resume, run
 from protocol_runner.monitor.service import Monitor
 from protocol_runner.protocol.loader import find_protocol, load_protocol
-from protocol_runner.protocol.plan import Plan, expand
+from protocol_runner.protocol.plan import expand
+from protocol_runner.protocol.plan_steps import Plan
 
 from ..session.conftest import ONLY, SEED, assert_same_data
 from .sse import Stream, status

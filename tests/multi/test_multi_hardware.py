@@ -12,8 +12,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from protocol_runner.errors import Interrupted
-from protocol_runner.hardware.fakeusb import FakeBackend, make_usb3105
-from protocol_runner.hardware.fakeusb.usb3105 import AOUT, AOUT_SYNC
+from protocol_runner.hardware.fakeusb.backend import FakeBackend
+from protocol_runner.hardware.fakeusb.usb3105 import AOUT, AOUT_SYNC, make_usb3105
 from protocol_runner.hardware.multi_rig import MultiRig, run_multi_motion
 from protocol_runner.hardware.multi_stream import build_multi_stream
 from protocol_runner.hardware.safety import SafetyViolation

@@ -11,7 +11,8 @@ import pytest
 
 from protocol_runner.cli import main
 from protocol_runner.protocol.loader import load_protocol
-from protocol_runner.protocol.plan import TrialStep, expand
+from protocol_runner.protocol.plan import expand
+from protocol_runner.protocol.plan_steps import TrialStep
 
 REPO = Path(__file__).resolve().parents[2]
 LEG = REPO / "protocols" / "leg_phase2.yaml"

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from protocol_runner.archive import units as units_module
-from protocol_runner.archive.units import DiskFull
+from protocol_runner.archive.diskfull import DiskFull
 from protocol_runner.commands import resume, run
 
 from ..session.conftest import assert_same_data

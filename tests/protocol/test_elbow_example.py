@@ -73,14 +73,16 @@ def test_elbow_plan_json_binds_the_device_and_pairs_every_trial_with_a_brace_off
 def test_elbow_dry_run_loses_the_brake_and_damper_energy_per_cycle(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    """Configurations 1 (brake only) and 4 (brake and damper), 20 deg/s peak over 20-110 deg: the brake
-    loses 4*T*A per cycle, the damper pi*c*omega*A^2 more (the elements' facts)."""
+    """Configurations 1 (brake only) and 4 (brake and damper), 20 deg/s peak over 20-110 deg: the brake, a
+    Dahl friction of level T relaxing over x0, loses 4*T*(A - x0*(1 - exp(-2A/x0))) per cycle (4*T*A less
+    the rounded reversals), the damper pi*c*omega*A^2 more (the elements' facts)."""
     session = tmp_path / "s"
     assert main([str(ELBOW), "--dry-run", "--yes", "--only", "1,4", "--session", str(session)]) == 0
     capsys.readouterr()
     amplitude_rad = math.radians(45.0)
     omega = 20.0 / 45.0  # peak speed / amplitude (Eq 25)
-    brake_j = 4 * 0.5 * amplitude_rad
+    transition_rad = math.radians(2.0)
+    brake_j = 4 * 0.5 * (amplitude_rad - transition_rad * (1 - math.exp(-2 * amplitude_rad / transition_rad)))
     damper_j = math.pi * math.degrees(0.02) * omega * amplitude_rad**2
     with h5py.File(session / "archive.h5", "r") as h5:
         e1 = float(h5["configurations/config_01/energy_loss_j"].attrs["mean_j"])

@@ -4,7 +4,8 @@ speed level applies to them, and the plan commands the file's own duration."""
 from __future__ import annotations
 
 from protocol_runner.protocol.loader import load_protocol
-from protocol_runner.protocol.plan import TrialStep, expand
+from protocol_runner.protocol.plan import expand
+from protocol_runner.protocol.plan_steps import TrialStep
 from protocol_runner.protocol.trajectories import load_trajectory_file
 
 from .test_plan import KNEE

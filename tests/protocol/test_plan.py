@@ -11,13 +11,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from protocol_runner.protocol.loader import load_protocol
-from protocol_runner.protocol.plan import (
-    CalibrationCheckStep,
-    ChecklistStep,
-    Plan,
-    TrialStep,
-    expand,
-)
+from protocol_runner.protocol.plan import expand
+from protocol_runner.protocol.plan_steps import CalibrationCheckStep, ChecklistStep, Plan, TrialStep
 from protocol_runner.protocol.trajectories import sinusoid_deg, sinusoid_period_s
 
 REPO = Path(__file__).resolve().parents[2]

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from protocol_runner.analysis.pipeline import ProcessingSettings
+from protocol_runner.analysis.processing_settings import ProcessingSettings
 from protocol_runner.errors import InvalidInput
 from protocol_runner.protocol.loader import load_protocol
 from protocol_runner.protocol.processing import SECTION_PATHS, processing_settings
@@ -17,7 +17,7 @@ ANKLE = Path(__file__).resolve().parents[2] / "protocols" / "ankle_phase2.yaml"
 SHIPPED = (
     "  transition: {tolerance_deg: 5.0, points: 3}\n"
     "  filter: {kind: butterworth, order: 10, cutoff: 0.10}\n"
-    "  brace_off_scaling: {tolerance_deg: 1.0, max_iterations: 4}\n"
+    "  brace_off_scaling: {tolerance_deg: 0.1, max_iterations: 6}\n"
     "  subtraction: equal_angle\n"
     "  centre_for_fit: true\n"
 )

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from protocol_runner.models.elements import ELEMENT_TYPES
+from protocol_runner.models.element_types import ELEMENT_TYPES
 from protocol_runner.protocol.schema import Protocol, SetSpec
 from protocol_runner.protocol.trajectory_specs import kind_names
 from protocol_runner.protocol.units import UNIT_SUFFIXES

@@ -19,7 +19,8 @@ from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.safety import SafetyViolation, check_trajectory, parking_ramp_deg
 from protocol_runner.hardware.stream import build_stream, check_stream
 from protocol_runner.protocol.loader import load_protocol
-from protocol_runner.protocol.plan import CalibrationCheckStep, TrialStep, expand
+from protocol_runner.protocol.plan import expand
+from protocol_runner.protocol.plan_steps import CalibrationCheckStep, TrialStep
 from protocol_runner.protocol.sampling import sample_trajectory
 from protocol_runner.session.rigs import joint_config
 

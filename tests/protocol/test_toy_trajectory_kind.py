@@ -20,7 +20,8 @@ from protocol_runner.commands import run
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.protocol.loader import find_protocol, load_protocol
-from protocol_runner.protocol.plan import TrialStep, expand
+from protocol_runner.protocol.plan import expand
+from protocol_runner.protocol.plan_steps import TrialStep
 from protocol_runner.protocol.plan_table import format_plan_table
 from protocol_runner.protocol.trajectory_record import Trajectory
 from protocol_runner.protocol.trajectory_specs import (

@@ -19,7 +19,7 @@ from pydantic import TypeAdapter
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.stream import build_stream, check_stream
-from protocol_runner.protocol.plan_trajectory import Quantity, Trajectory, build_trajectory
+from protocol_runner.protocol.plan_trajectory import build_trajectory
 from protocol_runner.protocol.sampling import sample_trajectory
 from protocol_runner.protocol.trajectories import (
     calibration_step_peak_accel_deg_s2,
@@ -27,7 +27,8 @@ from protocol_runner.protocol.trajectories import (
     sinusoid_deg,
 )
 from protocol_runner.protocol.trajectory_limits import trajectory_limit_problems
-from protocol_runner.protocol.trajectory_specs import TrajectorySpec, trajectory_bindings
+from protocol_runner.protocol.trajectory_record import Trajectory
+from protocol_runner.protocol.trajectory_specs import Quantity, TrajectorySpec, trajectory_bindings
 
 SPEC: TypeAdapter[TrajectorySpec] = TypeAdapter(TrajectorySpec)
 LIMITS = SafetyLimits(
@@ -374,7 +375,8 @@ def test_the_migrated_knee_protocol_commands_todays_samples() -> None:
     with the range of its robot_rom level and the period of Eq 25 from its speed level (the Table 6
     periods), over 8 periods; the calibration step is the 20 -> 65 deg raised cosine over 0.6 s."""
     from protocol_runner.protocol.loader import load_protocol
-    from protocol_runner.protocol.plan import CalibrationCheckStep, TrialStep, expand
+    from protocol_runner.protocol.plan import expand
+    from protocol_runner.protocol.plan_steps import CalibrationCheckStep, TrialStep
     from protocol_runner.protocol.trajectories import calibration_step_deg, sinusoid_deg
 
     from .test_plan import ROM_DEG, SPEED, TABLE_5

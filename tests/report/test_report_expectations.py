@@ -1,4 +1,6 @@
-"""Expectations declared in a protocol's YAML, decided by the one generic evaluator."""
+"""Expectations declared in a protocol's YAML, decided by the one generic evaluator: the knee's Chapter 5
+statements on data built like the thesis, the verdict table with Holm-adjusted p-values, the archive's
+record, and the declarations the schema refuses."""
 
 from __future__ import annotations
 
@@ -10,11 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from markupsafe import escape
 from pydantic import ValidationError
 
 from protocol_runner.protocol.expectations import ExpectationSpec, check_expectations
 from protocol_runner.report.evaluate import evaluate_expectation
-from protocol_runner.report.findings import declared_expectations, evaluate_expectations
+from protocol_runner.report.findings import TUNED_LABEL, declared_expectations, evaluate_expectations
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import ReportData
@@ -109,7 +112,8 @@ def test_reversed_trend_is_not_met_and_the_numbers_are_shown(tmp_path: Path) -> 
     data = load_report_data(_archive(tmp_path, configs, _knee_text()), workers=1)
     verdict = next(v for v in evaluate_expectations(data).verdicts if v.spec.id == "energy_friction")
     assert verdict.verdict == "not met"
-    assert "not every step goes the stated way" in verdict.reason
+    assert "8.02 > 5.96 > 4.01 > 3.01 J" in verdict.reason  # the signs the data show
+    assert verdict.reason.count("(fails)") == 3  # every step goes the other way
     assert [e.key for e in verdict.evidence] == [4, 5, 6, 7]
     assert verdict.evidence[0].mean == pytest.approx(8.0, rel=0.05)
 
@@ -128,8 +132,8 @@ def test_one_trial_is_not_evaluable(tmp_path: Path) -> None:
         ("greater", {"value": 5.0}, "met"),
         ("greater", {"value": 7.0}, "not met"),
         ("less", {"value": 7.0}, "met"),
-        ("equal", {"value": 6.2, "tolerance": 0.5}, "met"),
-        ("equal", {"value": 6.2, "tolerance": 0.05}, "not met"),
+        ("equal", {"value": 6.2, "margin": 0.5}, "met"),
+        ("equal", {"value": 6.2, "margin": 0.05}, "not met"),
         ("inside", {"interval": [5.0, 7.0]}, "met"),
         ("inside", {"interval": [6.5, 7.0]}, "not met"),
     ],
@@ -167,7 +171,9 @@ def test_no_trend_is_met_by_a_zigzag_and_not_by_a_clear_rise(tmp_path: Path) -> 
     ("fields", "message"),
     [
         ({"relation": "greater"}, "exactly one of `than`"),
-        ({"relation": "equal", "value": 1.0}, "needs `tolerance`"),
+        ({"relation": "equal", "value": 1.0}, "needs `margin`"),
+        ({"relation": "no_trend"}, "needs `margin`"),
+        ({"relation": "greater", "value": 1.0, "margin": 1.0}, "takes no `margin`"),
         ({"relation": "inside"}, "needs `interval"),
         ({"relation": "increasing", "configurations": [1]}, "two or more configurations"),
         ({"relation": "inside", "interval": [5, 1]}, "low < high"),
@@ -204,8 +210,19 @@ def test_report_rows_carry_ids_verdicts_and_the_dry_run_honesty_label(
     by_id = {i: (v, body) for i, v, body in rows}
     assert by_id["energy_friction"][0] == "met"
     assert by_id["stiffness_slope"][0] == "not-evaluable"
-    assert "simulated rig tuned to this finding" in by_id["k2_upper_limit"][1]
-    assert "simulated rig tuned to this finding" not in by_id["energy_friction"][1]
+    assert TUNED_LABEL in by_id["k2_upper_limit"][1]
+    assert TUNED_LABEL not in by_id["energy_friction"][1]
+    # the servo lag chosen for the simulator is named beside the verdict it decides
+    assert f"{TUNED_LABEL} (lag_time_constant_s)" in by_id["speed_range"][1]
+    # p and the Holm-adjusted p beside each verdict; the family is the evaluable expectations
+    verdicts = {v.spec.id: v for v in evaluate_expectations(thesis_data).verdicts}
+    family = sum(v.verdict != "not evaluable" for v in verdicts.values())
+    assert f"The family is this campaign's\n{family} evaluable expectations" in html
+    friction = verdicts["energy_friction"]
+    cells = re.findall(r'<td class="num">([^<]*)</td>', by_id["energy_friction"][1])
+    assert cells == [escape(friction.p_text), escape(friction.p_adjusted_text)]
+    assert friction.family == family and friction.p_adjusted >= friction.p_value
+    assert re.findall(r'<td class="num">([^<]*)</td>', by_id["stiffness_slope"][1]) == ["—", "—"]
 
 
 def test_a_robot_session_carries_no_honesty_label(tmp_path: Path) -> None:
@@ -213,7 +230,7 @@ def test_a_robot_session_carries_no_honesty_label(tmp_path: Path) -> None:
     path = _archive(tmp_path, configs, _knee_text(), mode="robot")
     html = generate_report(path, tmp_path / "report.html", workers=1).read_text(encoding="utf-8")
     assert 'data-expectation="k2_upper_limit" data-verdict="met"' in html
-    assert "simulated rig tuned to this finding" not in html
+    assert TUNED_LABEL not in html
 
 
 def test_verdicts_are_recorded_in_the_archive_with_checksummed_evidence(tmp_path: Path) -> None:
@@ -244,8 +261,8 @@ def test_verdicts_are_recorded_in_the_archive_with_checksummed_evidence(tmp_path
     ("old", "new", "needle"),
     [
         (
-            "    configurations: [4, 5, 6, 7]\n  - id: stiffness_slope",
-            "    configurations: [4, 5, 6, 77]\n  - id: stiffness_slope",
+            "    configurations: [4, 5, 6, 7]\n  - id: energy_friction_per_degree",
+            "    configurations: [4, 5, 6, 77]\n  - id: energy_friction_per_degree",
             "no configuration has key 77",
         ),
         (
@@ -289,7 +306,7 @@ _ADDED = {
     "baseline": [1],
     "than": [6],
     "than_baseline": [2],
-    "tolerance": 0.7,
+    "margin": 0.7,
 }
 
 
@@ -308,9 +325,9 @@ def test_a_difference_of_differences_decides_a_speed_independent_added_loss(
     value = v[5].mean() - v[1].mean() - v[6].mean() + v[2].mean()
     var = [x.var(ddof=1) / x.size for x in v.values()]
     dof = sum(var) ** 2 / sum(s**2 / (x.size - 1) for s, x in zip(var, v.values(), strict=True))
-    half = stats.t.ppf(0.975, dof) * np.sqrt(sum(var))
+    half = stats.t.ppf(0.95, dof) * np.sqrt(sum(var))  # the 90 % interval of the TOST at 0.05
     shown = re.search(
-        r"^\(5 minus 1\) minus \(6 minus 2\): ([-\d.e]+) J, 95 % Welch-Satterthwaite interval "
+        r"^\(5 minus 1\) minus \(6 minus 2\): ([-\d.e]+) J, 90 % Welch-Satterthwaite interval "
         r"\[([-\d.e]+), ([-\d.e]+)\] J",
         verdict.reason,
     )
@@ -330,14 +347,14 @@ def test_what_a_setting_adds_over_its_baseline_compares_with_a_value(tmp_path: P
     assert evaluate_expectation(more, data).verdict == "met"
     assert evaluate_expectation(less, data).verdict == "not met"  # adds 6 J, not more than 6.5
     reason = evaluate_expectation(more, data).reason
-    assert reason.startswith("configuration 5 minus 1: 5.9") and "95 % Welch interval" in reason
+    assert reason.startswith("configuration 5 minus 1: 5.9") and "90 % Welch interval" in reason
 
 
 @pytest.mark.parametrize(
     ("fields", "message"),
     [
         ({"relation": "increasing", "baseline": [1, 1]}, "takes no `baseline`"),
-        ({"relation": "equal", "tolerance": 1, "value": 0, "baseline": [1]}, "as many configurations"),
+        ({"relation": "equal", "margin": 1, "value": 0, "baseline": [1]}, "as many configurations"),
         ({"relation": "greater", "value": 0, "than_baseline": [1, 1]}, "`than_baseline` needs `than`"),
         ({"relation": "greater", "than": [3, 4], "than_baseline": [1]}, "as many configurations as `than`"),
     ],

@@ -7,18 +7,19 @@ import base64
 import struct
 from pathlib import Path
 
+from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.drawing import DPI
+from protocol_runner.report.figure_plan import figure_ids
 from protocol_runner.report.figures import (
     bouc_wen_figure,
-    energy_bars_figure,
     energy_cycles_figure,
-    figure_ids,
     hysteresis_figure,
     render_figures,
 )
+from protocol_runner.report.figures_compare import energy_bars_figure
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.model import Comparison, Configuration
+from protocol_runner.report.model import Configuration
 
 
 def _png(uri: str) -> bytes:
@@ -181,7 +182,8 @@ def test_energy_cycles_figure_draws_every_cycle_and_the_mean(small_archive: Path
 def test_element_fits_are_drawn_for_the_comparisons_that_change_a_fitted_element(
     tmp_path: Path, monkeypatch
 ) -> None:
-    from protocol_runner.report.figures import element_fit_figure, model_comparisons
+    from protocol_runner.report.figure_plan import model_comparisons
+    from protocol_runner.report.figures_compare import element_fit_figure
     from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, write_archive
 
     keys = (4, 5, 6, 7, 14, 17, 20, 23)

@@ -75,11 +75,12 @@ def test_section_column_appears_only_when_an_expectation_has_a_section(small_arc
     head = "name: knee_synthetic\njoint: knee_flexion\nexpectations:\n"
     bare = head + EXPECTATION.format(id="a", section="")
     table = _expectations_table(bare, small_archive)
-    assert "<th>§</th>" not in table and table.count("<td") == 3  # statement, evidence, verdict
+    # statement, evidence, p, Holm-adjusted p, verdict
+    assert "<th>§</th>" not in table and table.count("<td") == 5
     with_section = bare + EXPECTATION.format(id="b", section='    section: "5.3"\n')
     table = _expectations_table(with_section, small_archive)
     assert "<th>§</th>" in table and "<td>5.3</td>" in table
-    assert table.count("<td") == 8  # both rows keep four cells, the first with an empty section
+    assert table.count("<td") == 12  # both rows keep six cells, the first with an empty section
 
 
 def test_a_fit_that_does_not_apply_lists_nothing_fitted_with_its_reason(tmp_path: Path) -> None:

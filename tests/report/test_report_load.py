@@ -9,14 +9,11 @@ import h5py
 import numpy as np
 import pytest
 
+from protocol_runner.analysis.reference import load_reference_dataset
+from protocol_runner.archive.verify import validate_archive
 from protocol_runner.errors import InvalidInput
-from protocol_runner.report.load import (
-    MAX_PLOT_POINTS,
-    decimate_for_plot,
-    load_reference_dataset,
-    load_report_data,
-    validate_archive,
-)
+from protocol_runner.report.h5read import MAX_PLOT_POINTS, decimate_for_plot
+from protocol_runner.report.load import load_report_data
 from tests.report.report_archive_builder import (
     FACTORS,
     FRICTION_ENERGY_J,

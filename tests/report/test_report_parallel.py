@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 from protocol_runner.report import parallel
-from protocol_runner.report.figures import figure_ids, render_figures
+from protocol_runner.report.figure_plan import figure_ids
+from protocol_runner.report.figures import render_figures
 from protocol_runner.report.load import load_report_data
 
 

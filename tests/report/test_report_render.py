@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.report.figures import figure_ids
+from protocol_runner.report.figure_plan import figure_ids
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.render import SECTIONS, generate_report, render_report
 from tests.report.report_archive_builder import ArchiveSpec, small_spec, write_archive

@@ -63,7 +63,8 @@ def test_brace_off_trial_failure_names_its_trial_and_the_recording_it_follows(
     analysis fails, the message names the trial and the brace-on recording to check."""
     from protocol_runner.analysis.validation import AnalysisError
     from protocol_runner.protocol.loader import find_protocol, load_protocol
-    from protocol_runner.protocol.plan import TrialStep, expand
+    from protocol_runner.protocol.plan import expand
+    from protocol_runner.protocol.plan_steps import TrialStep
     from protocol_runner.steps import failures, registry
     from protocol_runner.steps.context import StepContext
 

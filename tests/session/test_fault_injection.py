@@ -17,7 +17,7 @@ import h5py
 import pytest
 
 from protocol_runner.archive import units as units_module
-from protocol_runner.archive.units import DiskFull
+from protocol_runner.archive.diskfull import DiskFull
 from protocol_runner.commands import resume
 from protocol_runner.errors import StoppedByCheck
 from protocol_runner.session.journal import Journal

@@ -9,7 +9,7 @@ import pytest
 from rich.console import Console
 
 from protocol_runner.errors import Interrupted
-from protocol_runner.protocol.plan import ChecklistStep
+from protocol_runner.protocol.plan_steps import ChecklistStep
 from protocol_runner.session.operator import ConsoleOperator
 
 ITEMS = (

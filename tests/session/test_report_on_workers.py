@@ -14,7 +14,7 @@ from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 from typing import Any
 
-from protocol_runner.report.figures import figure_ids
+from protocol_runner.report.figure_plan import figure_ids
 from protocol_runner.report.load import load_report_data
 from protocol_runner.session import reporting
 from tests.report.report_archive_builder import small_spec, write_archive

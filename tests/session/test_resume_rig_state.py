@@ -18,12 +18,14 @@ from protocol_runner.commands import resume
 from protocol_runner.errors import Interrupted
 from protocol_runner.hardware.simulator.device import ComposedDevice
 from protocol_runner.protocol.loader import find_protocol, load_protocol
-from protocol_runner.protocol.plan import ChecklistStep, expand
+from protocol_runner.protocol.plan import expand
+from protocol_runner.protocol.plan_steps import ChecklistStep
 from protocol_runner.session import runner as runner_module
 from protocol_runner.session.journal import Journal
-from protocol_runner.session.operator import Answer, AutoOperator
+from protocol_runner.session.operator import AutoOperator
 from protocol_runner.session.rigs import SimulatedBench
 from protocol_runner.session.signals import StopFlag
+from protocol_runner.steps.operator import Answer
 
 from .conftest import ONLY, assert_same_data, run_dry
 

@@ -10,8 +10,10 @@ from pathlib import Path
 from types import SimpleNamespace
 from typing import Any, ClassVar
 
-from protocol_runner.protocol.loader import LoadedProtocol, load_protocol
-from protocol_runner.protocol.plan import Plan, ProcessStep, expand
+from protocol_runner.protocol.loaded import LoadedProtocol
+from protocol_runner.protocol.loader import load_protocol
+from protocol_runner.protocol.plan import expand
+from protocol_runner.protocol.plan_steps import Plan, ProcessStep
 from protocol_runner.session import workers
 
 KNEE = Path(__file__).resolve().parents[2] / "protocols" / "knee_phase1.yaml"

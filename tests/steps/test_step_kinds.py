@@ -12,7 +12,7 @@ import pytest
 
 from protocol_runner.archive.results import comparison_values
 from protocol_runner.archive.units import unit_path, write_unit
-from protocol_runner.protocol.plan import ChecklistStep, CompareStep, FitStep
+from protocol_runner.protocol.plan_steps import ChecklistStep, CompareStep, FitStep
 from protocol_runner.session.operator import AutoOperator
 from protocol_runner.steps import checklist, compare, fit
 from protocol_runner.steps.context import StepContext

@@ -15,7 +15,7 @@ import pytest
 from protocol_runner.archive.h5util import group_name
 from protocol_runner.archive.paths import configuration_path
 from protocol_runner.protocol.loader import find_protocol, load_protocol
-from protocol_runner.protocol.plan import Plan, Step, TrialStep
+from protocol_runner.protocol.plan_steps import Plan, Step, TrialStep
 from protocol_runner.protocol.plan_table import format_plan_table
 from protocol_runner.session.journal import Journal
 from protocol_runner.session.operator import AutoOperator

@@ -11,9 +11,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..models.bouc_wen import BoucWenFit, BoucWenParams, cross_validate, fit_trials
 from ..models.bouc_wen.backbone import BackboneFactory
+from ..models.bouc_wen.crossval import cross_validate
+from ..models.bouc_wen.fitting import fit_trials
 from ..models.bouc_wen.identifiability import identify
+from ..models.bouc_wen.params import BoucWenParams
+from ..models.bouc_wen.records import BoucWenFit
 from ..models.bouc_wen.simulation import simulate_trials
 from .energy import energy_per_cycle
 

@@ -3,6 +3,13 @@
 The knee's loops are not centred on the origin (there are no negative angles), so before the Bouc-Wen
 fit "all the values were subtracted of the trial average". Centring is per trial: the trial's mean angle
 and mean torque are subtracted and kept, so the loop can be put back in place.
+
+The means are taken over the trial's complete cycles (`cycles.complete_cycles`: from the first upward
+crossing of the mean angle to the last), not over the whole record. A record holds a non-integer number
+of cycles after a start-up transition whose cut depends on the noise (§3.3.1), so its whole-record mean
+moves with where it starts and stops: two trials of one configuration would be centred up to degrees and
+N·m apart, and a model fitted to one would miss the others by that offset. A record with no complete
+cycle is centred on the mean of all its samples.
 """
 
 from __future__ import annotations
@@ -11,12 +18,13 @@ from dataclasses import dataclass
 
 import numpy.typing as npt
 
+from protocol_runner.analysis.cycles import complete_cycles
 from protocol_runner.analysis.validation import FloatArray, as_signal, same_length
 
 
 @dataclass(frozen=True)
 class CentredLoop:
-    """A trial's angle and torque with their trial means removed (thesis §6.2.3)."""
+    """A trial's angle and torque with their means over its complete cycles removed (thesis §6.2.3)."""
 
     angle_deg: FloatArray
     torque_nm: FloatArray
@@ -24,13 +32,24 @@ class CentredLoop:
     mean_torque_nm: float
 
 
+def complete_cycles_span(angle_deg: npt.ArrayLike) -> slice:
+    """The samples from the start of a trial's first complete cycle to the end of its last (the whole
+    trial when it has none)."""
+    cycles = complete_cycles(angle_deg)
+    if not cycles:
+        return slice(None)
+    return slice(cycles[0][0], cycles[-1][1])
+
+
 def centre(angle_deg: npt.ArrayLike, torque_nm: npt.ArrayLike) -> CentredLoop:
-    """Subtract the trial mean from angle and torque (thesis §6.2.3 note); both results have zero mean."""
+    """Subtract the trial's mean angle and torque over its complete cycles (`complete_cycles_span`) from
+    every sample (thesis §6.2.3 note); the loop keeps all its samples, only moved."""
     a = as_signal("angle_deg", angle_deg)
     t = as_signal("torque_nm", torque_nm)
     same_length(angle_deg=a, torque_nm=t)
-    mean_a = float(a.mean())
-    mean_t = float(t.mean())
+    span = complete_cycles_span(a)
+    mean_a = float(a[span].mean())
+    mean_t = float(t[span].mean())
     return CentredLoop(
         angle_deg=a - mean_a, torque_nm=t - mean_t, mean_angle_deg=mean_a, mean_torque_nm=mean_t
     )

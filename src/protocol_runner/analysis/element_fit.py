@@ -30,7 +30,8 @@ from scipy.optimize import least_squares
 from protocol_runner.analysis.branches import branch_curves
 from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal, same_length
 from protocol_runner.models.element_torques import has_static_torque, static_torque_nm
-from protocol_runner.models.elements import ELEMENT_TYPES, Element, build_device
+from protocol_runner.models.element_types import ELEMENT_TYPES
+from protocol_runner.models.elements import Element, build_device
 
 FitTarget = Literal["branch_mean", "all_samples"]
 

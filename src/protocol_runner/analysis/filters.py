@@ -20,8 +20,7 @@ import numpy as np
 import numpy.typing as npt
 from scipy import signal
 
-from protocol_runner.analysis.processing_settings import FILTER_KINDS as FILTER_KINDS
-from protocol_runner.analysis.processing_settings import FilterKind as FilterKind
+from protocol_runner.analysis.processing_settings import FILTER_KINDS, FilterKind
 from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal
 
 

@@ -9,8 +9,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from ..models.bouc_wen import BoucWenFit
 from ..models.bouc_wen.backbone import zero_backbone
+from ..models.bouc_wen.records import BoucWenFit
 from .bouc_wen_fit import fit_configuration
 from .centring import centre
 from .elastic_backbone import elements_backbone_factory

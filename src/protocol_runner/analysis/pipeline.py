@@ -27,9 +27,7 @@ from protocol_runner.analysis.centring import CentredLoop, centre
 from protocol_runner.analysis.element_fit import ElementFit, fit_elements, not_applicable
 from protocol_runner.analysis.energy import EnergySummary, energy_per_cycle, summarize_energy
 from protocol_runner.analysis.filters import design_lowpass, filter_zero_phase_together
-from protocol_runner.analysis.processing_settings import Centring as Centring
-from protocol_runner.analysis.processing_settings import ProcessingSettings as ProcessingSettings
-from protocol_runner.analysis.processing_settings import Subtraction as Subtraction
+from protocol_runner.analysis.processing_settings import ProcessingSettings
 from protocol_runner.analysis.subtraction import robot_torque_at_equal_angle, subtract_equal_time
 from protocol_runner.analysis.transition import (
     TrialSegment,

@@ -10,21 +10,25 @@ range. Eq 8 gives the scale:
 and the thesis found the new brace-off input "by the following iterative procedure" (Eq 9), whose text is
 lost; only its note survives ("index 0 corresponds to the transition point"). The procedure here:
 
+The "range" of a trial is the range of its cycles (`cycle_range`): the mean level of its confirmed
+maxima and of its confirmed minima (`branches.turning_points`), so the approach from the park angle and
+the start-up before the first reversal, which can lie well outside the cycles, do not count. A trial with
+fewer than one maximum and one minimum falls back to the extremes of its samples.
+
 Write the input as an affine image of the original trajectory u(t) (the first brace-off input):
-input_k(t) = c_k + s_k · (u(t) - c_u) with c_u the mid-range of u, s_0 = 1, c_0 = c_u. Each iteration runs
-the robot with input_k, cuts the transition (§3.3.1: index 0 is the transition point), and measures the
-output range [m_k, M_k]. With the brace-on target range [m*, M*]:
+input_k(t) = c_k + s_k · (u(t) - c_u) with c_u the mid-range of u's cycles, s_0 = 1, c_0 = c_u. Each
+iteration runs the robot with input_k, cuts the transition (§3.3.1: index 0 is the transition point), and
+measures the cycle range [m_k, M_k] of the output. With the brace-on cycle range [m*, M*]:
 
     scale_k   = (M* - m*) / (M_k - m_k)                    (Eq 8, on the current brace-off output)
     s_{k+1}   = s_k · scale_k                              (amplitude correction)
-    g_k       = (M_k - m_k) / (max input_k - min input_k)  (the plant's observed range gain)
+    g_k       = (M_k - m_k) / (cycle range of input_k)     (the plant's observed range gain)
     c_{k+1}   = c_k + ((M* + m*) - (M_k + m_k)) / (2 g_k)  (mid-range correction, a Newton step)
 
-until both ends of the output range are within `tolerance_deg` of the target (error
-max(|M_k - M*|, |m_k - m*|)) or `max_iterations` runs were made. For a plant that is affine in amplitude
-and offset (a linear lag plus gain and offset) the amplitude is right after one correction and the
-mid-range after one or two (the lag's start-up shifts the measured mid-range a little with the amplitude);
-a saturating plant needs a few more. g_k is clipped to [0.2, 5] so a stalled run cannot blow the step up.
+until both cycle levels are within `tolerance_deg` of the target (error max(|M_k - M*|, |m_k - m*|)) or
+`max_iterations` runs were made. For a plant that is affine in amplitude and offset (a linear lag plus
+gain and offset) the amplitude is right after one correction and the mid-range after one or two; a
+saturating plant needs a few more. g_k is clipped to [0.2, 5] so a stalled run cannot blow the step up.
 The input is kept inside `input_limits_deg` (the joint's safety range) by clipping; a target that cannot
 be reached inside it ends without convergence (`converged=False`), and the best iteration is returned.
 """
@@ -38,6 +42,7 @@ from typing import Protocol
 import numpy as np
 import numpy.typing as npt
 
+from protocol_runner.analysis.branches import turning_points
 from protocol_runner.analysis.transition import transition_index
 from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal, same_length
 
@@ -55,13 +60,46 @@ def range_scale(angle_on_deg: npt.ArrayLike, angle_off_deg: npt.ArrayLike) -> fl
     return float(on.max() - on.min()) / span_off
 
 
+def cycle_range(angle_deg: npt.ArrayLike, reversal_deg: float = 1.0) -> tuple[float, float]:
+    """(min, max) of a trial's cycles: the mean of its confirmed minima and of its confirmed maxima.
+
+    Turning points are those of `branches.turning_points` (a reversal of at least `reversal_deg`), so the
+    samples before the first reversal (the approach, the start-up) and after the last (the stop) set
+    neither level. With fewer than one maximum and one minimum, the extremes of all samples.
+    """
+    x = as_signal("angle_deg", angle_deg)
+    turns = turning_points(x, reversal_deg)
+    if turns.size < 2:
+        return float(x.min()), float(x.max())
+    levels = x[turns]
+    first_is_max = levels[0] > levels[1]
+    maxima = levels[0 if first_is_max else 1 :: 2]
+    minima = levels[1 if first_is_max else 0 :: 2]
+    return float(minima.mean()), float(maxima.mean())
+
+
+def lag_input(time_s: npt.ArrayLike, output_deg: npt.ArrayLike, time_constant_s: float) -> FloatArray:
+    """The input u whose first-order-lag response is `output_deg`: u = y + tau * dy/dt (thesis §2.4.2).
+
+    The servo follows its command as tau * dy/dt + y = u; feeding it the brace-on output y itself (what
+    §3.3.2 prescribes) would return y lagged and attenuated once more, with its own speed profile.
+    `output_deg` should be smooth (its derivative is taken by central differences).
+    """
+    t = as_signal("time_s", time_s, min_length=2)
+    y = as_signal("output_deg", output_deg, min_length=2)
+    same_length(time_s=t, output_deg=y)
+    if not time_constant_s >= 0:
+        raise AnalysisError(f"the servo time constant must not be negative, got {time_constant_s} s")
+    return y + time_constant_s * np.gradient(y, t)
+
+
 @dataclass(frozen=True)
 class ScalingIteration:
     """One brace-off run of the scaling procedure."""
 
     iteration: int  # 0 = the unscaled input
     input_range_deg: tuple[float, float]  # (min, max) of the input that was run
-    output_range_deg: tuple[float, float]  # (min, max) of its output from the transition point on
+    output_range_deg: tuple[float, float]  # cycle range (`cycle_range`) of its output after the transition
     scale: float  # Eq 8 scale of this output against the target
     range_error_deg: float  # max(|out_min - target_min|, |out_max - target_max|)
     transition_index: int
@@ -100,18 +138,20 @@ def scale_brace_off_input(
     target_range_deg: tuple[float, float],
     run: Callable[[FloatArray], FloatArray],
     *,
-    tolerance_deg: float = 1.0,
+    tolerance_deg: float = 0.1,
     max_iterations: int = 6,
     transition_tolerance_deg: float = 5.0,
     transition_points: int = 3,
     input_limits_deg: tuple[float, float] | None = None,
+    reversal_deg: float = 1.0,
 ) -> ScalingResult:
     """Iterate the brace-off input until its output range matches the brace-on output range (§3.3.2).
 
     `run(input_deg)` runs the robot without the brace and returns the measured angle on the same time
     base as `input_deg` (one value per input sample; see `rig_runner` for a rig). `target_range_deg` is
-    (min, max) of the brace-on output from its transition point on. The output range of each run is
-    measured from its own transition point (`transition_index` against that run's input). Up to
+    the cycle range (`cycle_range`) of the brace-on output from its transition point on. The cycle range
+    of each run is measured from its own transition point (`transition_index` against that run's input),
+    turning points confirmed by a reversal of `reversal_deg`. Up to
     `max_iterations` runs are made (the first with `input_deg` unchanged); see the module docstring for
     the update rule (Eq 8 applied to amplitude, plus a mid-range correction). Returns the input of the
     best run, whether it met `tolerance_deg`, and the history.
@@ -132,6 +172,8 @@ def scale_brace_off_input(
             f"input_deg does not move (range {float(u.max() - u.min()):.3g} deg): a flat recording cannot "
             "be followed; check the brace-on recording it comes from"
         )
+    u_lo, u_hi = cycle_range(u, reversal_deg)
+    u_mid = 0.5 * (u_lo + u_hi)
     shape = u - u_mid
     centre, amplitude = u_mid, 1.0
     history: list[ScalingIteration] = []
@@ -141,8 +183,9 @@ def scale_brace_off_input(
         trial_input = centre + amplitude * shape
         if input_limits_deg is not None:
             trial_input = np.clip(trial_input, input_limits_deg[0], input_limits_deg[1])
-        input_span = float(trial_input.max() - trial_input.min())
-        if not input_span > 0:  # nothing to run: the iteration has lost the trajectory's shape
+        if (
+            not float(trial_input.max() - trial_input.min()) > 0
+        ):  # nothing to run: the iteration has lost the trajectory's shape
             raise AnalysisError(
                 f"scaling iteration {k}: the scaled brace-off input is constant at {float(trial_input[0]):.1f} "
                 f"deg (clipped to the joint's limits, or the target range {lo_t:.1f}-{hi_t:.1f} deg is too "
@@ -151,8 +194,7 @@ def scale_brace_off_input(
         measured = as_signal("measured angle returned by run()", run(trial_input.copy()))
         same_length(input_deg=trial_input, measured_deg=measured)
         start = transition_index(trial_input, measured, transition_tolerance_deg, transition_points)
-        out = measured[start:]
-        lo_k, hi_k = float(out.min()), float(out.max())
+        lo_k, hi_k = cycle_range(measured[start:], reversal_deg)
         span_k = hi_k - lo_k
         if not span_k > 0:
             raise AnalysisError(
@@ -174,8 +216,9 @@ def scale_brace_off_input(
         if error <= tolerance_deg:
             converged = True
             break
-        amplitude *= scale
+        input_span = amplitude * (u_hi - u_lo)  # the cycle range of this run's input (before clipping)
         gain = float(np.clip(span_k / input_span, 0.2, 5.0))
+        amplitude *= scale
         centre += 0.5 * ((hi_t + lo_t) - (hi_k + lo_k)) / gain
     best = min(range(len(history)), key=lambda i: history[i].range_error_deg)
     return ScalingResult(

@@ -30,17 +30,12 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from ..models.bouc_wen import BoucWenFit
+from ..models.bouc_wen.records import BoucWenFit
 from .bouc_wen_fit import LoopEnergy, loop_energy, model_torques
 from .joint_energy import total_energy_per_cycle
 from .loops import centred_loop, fit_loops
-from .pipeline import (
-    ConfigurationResult,
-    ProcessedTrial,
-    ProcessingSettings,
-    TrialPair,
-    process_configuration,
-)
+from .pipeline import ConfigurationResult, ProcessedTrial, TrialPair, process_configuration
+from .processing_settings import ProcessingSettings
 from .validation import SIGNAL, FloatArray
 
 Loop = tuple[np.ndarray, np.ndarray]

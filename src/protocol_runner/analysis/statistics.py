@@ -13,8 +13,13 @@ Public API:
     TInterval, t_interval(values, confidence=0.95)
     WelchInterval, welch_interval(a, b, confidence=0.95)
     contrast_interval(terms, confidence=0.95)   (a weighted sum of means, e.g. a difference of differences)
+    p_above(estimate, ref), p_below(estimate, ref)   (one-sided t-tests of an interval's estimate)
+    holm(p_values)   (Holm step-down adjusted p-values of one family)
     Repeatability, repeatability(groups)
     coefficient_of_variation(values)
+
+Decisions (report/evaluate.py) are taken at the family-wise level `ALPHA`: one-sided tests for a stated
+direction, two one-sided tests (TOST) for an equivalence within a margin, Holm across a family.
 """
 
 from __future__ import annotations
@@ -29,6 +34,9 @@ from scipy import stats
 
 #: Confidence level of every interval in reports and exports.
 CONFIDENCE = 0.95
+
+#: Family-wise significance level of the report's decisions (expectations, differences).
+ALPHA = 0.05
 
 
 class _Bounds:
@@ -46,6 +54,21 @@ class _Bounds:
     def significant(self) -> bool:
         """True when the interval excludes zero (NaN bounds: False)."""
         return bool(self.low > 0.0 or self.high < 0.0)
+
+
+class _Estimate(_Bounds):
+    """A t-based estimate (`difference`) with its interval and degrees of freedom."""
+
+    difference: float
+    dof: float
+    confidence: float
+
+    @property
+    def standard_error(self) -> float:
+        """The estimate's standard error, from the interval's half width (0 for constant groups)."""
+        if self.half_width == 0.0:
+            return 0.0
+        return self.half_width / float(stats.t.ppf(0.5 + self.confidence / 2.0, self.dof))
 
 
 @dataclass(frozen=True)
@@ -68,7 +91,7 @@ class TInterval(_Bounds):
 
 
 @dataclass(frozen=True)
-class WelchInterval(_Bounds):
+class WelchInterval(_Estimate):
     """Difference `b - a` of two means with its Welch t-interval and p-value."""
 
     difference: float
@@ -87,7 +110,23 @@ class Repeatability:
     units: int
     grand_mean: float
     between_cv: float
-    icc: float
+    icc: float  # the ANOVA estimate as computed: negative when the sets agree less than chance would
+
+    @property
+    def icc_shown(self) -> float:
+        """The ICC as reported: a negative estimate is shown as 0 (a correlation of a variance share
+        cannot be below 0; the estimate is negative when the within-set spread exceeds the between-set)."""
+        return max(0.0, self.icc) if math.isfinite(self.icc) else math.nan
+
+    @property
+    def icc_note(self) -> str:
+        """Why the shown ICC differs from the estimate ("" when it does not)."""
+        if math.isfinite(self.icc) and self.icc < 0.0:
+            return (
+                f"negative estimate ({self.icc:.2f}) shown as 0: the sets' means differ no more than "
+                "their trials do (no between-set variance beyond chance)"
+            )
+        return ""
 
 
 def _finite(values: npt.ArrayLike) -> np.ndarray:
@@ -177,6 +216,44 @@ def contrast_interval(
     half = float(stats.t.ppf(0.5 + confidence / 2.0, dof)) * se
     p_value = float(2.0 * stats.t.sf(abs(value) / se, dof))
     return WelchInterval(value, value - half, value + half, dof, p_value, confidence)
+
+
+def _one_sided(estimate: _Estimate, shift: float) -> float:
+    """P(T >= shift / se) under the null: the p-value of "the true value exceeds the estimate minus shift"."""
+    se = estimate.standard_error
+    if not (math.isfinite(shift) and math.isfinite(se)):
+        return math.nan
+    if se == 0.0:
+        return 0.0 if shift > 0.0 else 1.0
+    return float(stats.t.sf(shift / se, estimate.dof))
+
+
+def p_above(estimate: _Estimate, ref: float = 0.0) -> float:
+    """One-sided p-value of "the true value is above `ref`" (H0: at most `ref`); NaN when undefined."""
+    return _one_sided(estimate, estimate.difference - ref)
+
+
+def p_below(estimate: _Estimate, ref: float = 0.0) -> float:
+    """One-sided p-value of "the true value is below `ref`" (H0: at least `ref`); NaN when undefined."""
+    return _one_sided(estimate, ref - estimate.difference)
+
+
+def holm(p_values: Sequence[float]) -> list[float]:
+    """Holm's step-down adjusted p-values of one family, in the given order (capped at 1, monotone in the
+    sorted order). A NaN p-value is not a member of the family and stays NaN.
+
+    Sorted ascending, the i-th of m p-values (i from 0) is multiplied by m - i; each adjusted value is the
+    running maximum of these, so rejecting when the adjusted p is at most alpha is Holm's procedure: the
+    family-wise error rate is at most alpha under any dependence between the tests.
+    """
+    members = sorted((p, i) for i, p in enumerate(p_values) if math.isfinite(p))
+    m = len(members)
+    out = [math.nan] * len(p_values)
+    running = 0.0
+    for rank, (p, i) in enumerate(members):
+        running = max(running, min(1.0, (m - rank) * p))
+        out[i] = running
+    return out
 
 
 def repeatability(groups: Sequence[npt.ArrayLike]) -> Repeatability:

@@ -213,7 +213,11 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
         "declaration",
         "verdict",
         "reason",
+        "p_value",
+        "p_adjusted",
+        "family",
         "simulator_tuned",
+        "depends_on_simulator",
         "dry_run",
     ),
 }

@@ -17,7 +17,8 @@ import h5py
 
 from ..analysis.service import analyse_configuration
 from ..errors import InvalidInput
-from ..protocol.loader import LoadedProtocol, find_protocol, load_protocol, parse_protocol_text
+from ..protocol.loaded import LoadedProtocol
+from ..protocol.loader import find_protocol, load_protocol, parse_protocol_text
 from ..protocol.processing import bouc_wen_settings, element_fit_enabled, processing_settings
 from .attrs import CONFIGURATIONS as CONFIGURATIONS_ATTR
 from .attrs import DEVICE_JSON, FILENAME

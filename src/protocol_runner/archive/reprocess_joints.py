@@ -9,7 +9,8 @@ from collections.abc import Sequence
 
 import h5py
 
-from ..analysis.pipeline import ProcessingSettings, TrialPair
+from ..analysis.pipeline import TrialPair
+from ..analysis.processing_settings import ProcessingSettings
 from ..analysis.service import BoucWenSettings, analyse_joints
 from ..errors import InvalidInput
 from .attrs import JOINTS as JOINTS_ATTR

@@ -20,9 +20,10 @@ from .paths import CONFIGURATIONS, FITS, PROCESSED, TRIALS, put_dataset
 if TYPE_CHECKING:  # the session writes trial units through this module: it never loads the analysis
     from ..analysis.bouc_wen_fit import LoopEnergy
     from ..analysis.element_fit import ElementFit
-    from ..analysis.pipeline import ProcessingSettings, Recording
+    from ..analysis.pipeline import Recording
+    from ..analysis.processing_settings import ProcessingSettings
     from ..analysis.service import BoucWenResult, ConfigurationAnalysis
-    from ..models.bouc_wen import BoucWenFit
+    from ..models.bouc_wen.records import BoucWenFit
 
 #: Writes one step's results into an open unit file.
 Fill = Callable[[h5py.File], None]

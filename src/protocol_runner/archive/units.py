@@ -20,8 +20,7 @@ import h5py
 from ..errors import InvalidInput
 from .attrs import UNIT_COMPLETE, UNIT_STEP_ID
 from .checksums import mark, seal_missing
-from .diskfull import DiskFull as DiskFull  # re-exported: the unit writer's error
-from .diskfull import is_disk_full, resume_hint
+from .diskfull import DiskFull, is_disk_full, resume_hint
 from .h5_write_errors import checked_h5_write
 from .h5util import group_name
 

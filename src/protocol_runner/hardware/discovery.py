@@ -21,7 +21,7 @@ from typing import Any, NamedTuple, Protocol
 import usb.core
 
 from protocol_runner.errors import EXIT_HARDWARE_UNAVAILABLE, HardwareUnavailable, InvalidInput
-from protocol_runner.hardware import usb1608fs, usb3105
+from protocol_runner.hardware import usb1608fs_protocol, usb3105
 from protocol_runner.hardware.dt9814 import KIND as DT9814_KIND
 from protocol_runner.hardware.dt9814 import Dt9814, Dt9814Settings
 from protocol_runner.hardware.usb1608fs import Usb1608FsPlus
@@ -238,9 +238,11 @@ def hardware_check(
         boards,
         problems,
     )
-    ai_serials = _serials(MCC_VENDOR_ID, usb1608fs.PRODUCT_ID, usb1608fs.KIND, backend, problems)
+    ai_serials = _serials(
+        MCC_VENDOR_ID, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND, backend, problems
+    )
     next_ai = _survey(
-        BoardKind(usb1608fs.KIND, ANALOG_INPUT, usb1608fs.N_CHANNELS),
+        BoardKind(usb1608fs_protocol.KIND, ANALOG_INPUT, usb1608fs_protocol.N_CHANNELS),
         [partial(Usb1608FsPlus.open, serial=s, backend=backend) for s in ai_serials],
         0,
         blink_count,

@@ -17,8 +17,8 @@ from dataclasses import replace
 import numpy as np
 import numpy.typing as npt
 
-from protocol_runner.hardware.joint import StopRequested
-from protocol_runner.hardware.rig import Rig, TrialRecording
+from protocol_runner.hardware.joint import StopRequested, TrialRecording
+from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import check_trajectory
 from protocol_runner.hardware.stream import TRAJECTORY, CommandStream, build_stream, check_stream
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.interfaces import AnalogInput, ScanBlock
-from protocol_runner.hardware.usb1608fs import N_CHANNELS
+from protocol_runner.hardware.usb1608fs_protocol import N_CHANNELS
 
 log = logging.getLogger(__name__)
 

@@ -33,10 +33,7 @@ import numpy.typing as npt
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock, LoopTap, ScanBlock
-from protocol_runner.hardware.joint import JointConfig as JointConfig
-from protocol_runner.hardware.joint import StopRequested
-from protocol_runner.hardware.joint import TrialRecording as TrialRecording
-from protocol_runner.hardware.paced import READ_EVERY_TICKS as READ_EVERY_TICKS
+from protocol_runner.hardware.joint import JointConfig, StopRequested, TrialRecording
 from protocol_runner.hardware.paced import Loop, PacedLoop, input_time_base_s
 from protocol_runner.hardware.safety import SafetyLimits, check_trajectory, parking_ramp_deg
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 from typing import Any, Protocol
 
 from protocol_runner.errors import HardwareUnavailable, InvalidInput
-from protocol_runner.hardware import usb1608fs
+from protocol_runner.hardware import usb1608fs_protocol
 from protocol_runner.hardware.multiboard import MultiBoardInput
 from protocol_runner.hardware.usb1608fs import open_all_1608fs
 from protocol_runner.hardware.usb3105 import Usb3105
@@ -77,7 +77,7 @@ def open_rig_boards(
                 ai.close()
                 raise BoardNotFound(
                     f"the protocol reads the {name} on input channel {ch}, but the {len(boards)} "
-                    f"{usb1608fs.KIND} board(s) attached give channels 0-{ai.n_channels - 1} (8 per board). "
+                    f"{usb1608fs_protocol.KIND} board(s) attached give channels 0-{ai.n_channels - 1} (8 per board). "
                     "Connect the missing boards, or rehearse with --dry-run."
                 )
     except BaseException:

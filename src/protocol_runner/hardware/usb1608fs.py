@@ -31,20 +31,20 @@ from protocol_runner.hardware.usb1608fs_protocol import (
     CMD_CAL_MEMORY,
     CMD_SERIAL,
     CMD_STATUS,
+    KIND,
     MAX_RATE_HZ,
+    N_CHANNELS,
     N_RANGES,
     PACER_CLOCK_HZ,
+    PRODUCT_ID,
     RANGE_PM10V,
     REQ_IN,
     REQ_OUT,
     STATUS_OVERRUN,
     codes_to_volts_pm10,
+    pacer_period,
     pacer_rate_hz,
 )
-from protocol_runner.hardware.usb1608fs_protocol import KIND as KIND
-from protocol_runner.hardware.usb1608fs_protocol import N_CHANNELS as N_CHANNELS
-from protocol_runner.hardware.usb1608fs_protocol import PRODUCT_ID as PRODUCT_ID
-from protocol_runner.hardware.usb1608fs_protocol import pacer_period as pacer_period
 from protocol_runner.hardware.usb_board import InPipeSettings, OpenedBoard
 from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,

@@ -31,11 +31,12 @@ import usb.core
 import usb.util
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.hardware.usb3105_calibration import IDENTITY_CALIBRATION as IDENTITY_CALIBRATION
-from protocol_runner.hardware.usb3105_calibration import ChannelCalibration as ChannelCalibration
-from protocol_runner.hardware.usb3105_calibration import calibrated_code as calibrated_code
-from protocol_runner.hardware.usb3105_calibration import ideal_code_pm10v as ideal_code_pm10v
-from protocol_runner.hardware.usb3105_calibration import parse_calibration as parse_calibration
+from protocol_runner.hardware.usb3105_calibration import (
+    IDENTITY_CALIBRATION,
+    ChannelCalibration,
+    calibrated_code,
+    parse_calibration,
+)
 from protocol_runner.hardware.usb_board import InPipeSettings, OpenedBoard
 from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,

@@ -190,8 +190,9 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "coulomb_brake",
             "dry friction of constant level with rounded reversals (a Dahl state: the torque relaxes to "
             "±level over transition_deg of travel) and a Stribeck excess at low sliding speed: level = "
-            "torque · (1 + static_excess_ratio · exp(-(speed / stribeck_speed)²)). Loses 4·T·A per cycle of "
-            "amplitude A (rad). Brakes with equal smoothing share one state in the simulator",
+            "torque · (1 + static_excess_ratio · exp(-(speed / stribeck_speed)²)). Loses "
+            "4·T·(A − x0·(1 − exp(−2A/x0))) per cycle of amplitude A (x0 the transition, both in rad): "
+            "4·T·A less the rounded reversals. Brakes with equal smoothing share one state in the simulator",
             "dissipative",
             {
                 "torque_nm": _p("_nm", "friction torque while sliding fast", bounds=_NONNEG),

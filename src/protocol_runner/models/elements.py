@@ -1,8 +1,8 @@
 """The device under test as composed physical elements: a protocol's `device:` lists elements, each built
 here with every parameter checked against its type and the defaults filled in.
 
-The element types and their parameters are the registry of `models.element_types` (re-exported here:
-`ELEMENT_TYPES`, `ElementType`, `ParamSpec`); each type's torque equation lives once, in
+The element types and their parameters are the registry of `models.element_types` (`ELEMENT_TYPES`,
+`ElementType`, `ParamSpec`); each type's torque equation lives once, in
 `models.element_torques`; docs/protocol.md and docs/simulator.md describe the types for a test engineer.
 
 Sign convention (as `models.spring`): a positive torque is the torque the robot must apply towards +angle;
@@ -17,21 +17,9 @@ from dataclasses import dataclass, field
 
 from protocol_runner.errors import InvalidInput
 
-from .element_types import ELEMENT_TYPES, ElementKind, ElementType, ParamSpec, Shape
+from .element_types import ELEMENT_TYPES, ElementKind, ParamSpec
 
 ParamValue = float | tuple[float, ...] | str | tuple[str, ...]
-
-__all__ = [
-    "ELEMENT_TYPES",
-    "Element",
-    "ElementKind",
-    "ElementType",
-    "ParamSpec",
-    "ParamValue",
-    "Shape",
-    "build_device",
-    "build_element",
-]
 
 
 @dataclass(frozen=True)

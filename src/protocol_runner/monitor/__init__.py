@@ -1,6 +1,6 @@
 """The live monitor (`--monitor [HOST:]PORT`): a read-only page that shows a running session.
 
-    publisher.py     what the runner and steps call (a null version without a monitor)
+    ../events.py     what the runner and steps call, `Publisher` (`NULL_PUBLISHER` without a monitor)
     samples.py       the output loop's tap: decimated angle/torque samples (~20 Hz)
     bus.py           non-blocking publish, a pump thread, bounded per-client queues
     state.py         what a page connecting mid-session receives first
@@ -13,9 +13,3 @@
 
 Messages are documented in docs/monitor.md.
 """
-
-from __future__ import annotations
-
-from ..events import NULL_PUBLISHER, NullPublisher, Publisher
-
-__all__ = ["NULL_PUBLISHER", "NullPublisher", "Publisher"]  # the server: monitor.service.Monitor

@@ -11,7 +11,7 @@ import time
 from collections.abc import Callable, Collection, Mapping
 from typing import TYPE_CHECKING, Any, TypeVar
 
-from ..protocol.plan import ChecklistStep, Plan, Step, TrialStep
+from ..protocol.plan_steps import ChecklistStep, Plan, Step, TrialStep
 from ..session.progress import describe
 from .bus import EventBus
 from .samples import SampleTap
@@ -19,7 +19,7 @@ from .samples import SampleTap
 T = TypeVar("T")
 
 if TYPE_CHECKING:
-    from ..session.operator import Answer, Operator
+    from ..steps.operator import Answer, Operator
 
 
 def step_fields(step: Step) -> dict[str, Any]:

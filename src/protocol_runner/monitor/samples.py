@@ -24,7 +24,7 @@ import numpy.typing as npt
 
 if TYPE_CHECKING:
     from ..hardware.interfaces import ScanBlock
-    from ..hardware.rig import JointConfig
+    from ..hardware.joint import JointConfig
 
 SAMPLE_RATE_HZ = 20.0
 """Points per second of scan time sent to the page (the issue asks for about 20 Hz)."""

@@ -28,10 +28,10 @@ from .samples import SAMPLE_RATE_HZ, SampleTap
 from .server import MonitorServer
 
 if TYPE_CHECKING:
-    from ..protocol.plan import Plan
-    from ..session.operator import Operator
+    from ..protocol.plan_steps import Plan
     from ..session.setup import SessionInfo
     from ..steps.context import Bench
+    from ..steps.operator import Operator
     from .publisher import Publisher
 
 

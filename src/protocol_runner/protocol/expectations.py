@@ -6,7 +6,7 @@ from __future__ import annotations
 from collections.abc import Iterator, Mapping, Sequence
 from typing import Annotated, Literal
 
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, StrictInt, model_validator
+from pydantic import AliasChoices, BaseModel, BeforeValidator, ConfigDict, Field, StrictInt, model_validator
 
 from .only import key_spans
 
@@ -43,10 +43,19 @@ class ExpectationSpec(BaseModel):
     baseline: list[StrictInt] | None = None  # pairwise with `configurations`: each minus its baseline
     than_baseline: list[StrictInt] | None = None  # pairwise with `than`: each minus its baseline
     value: float | None = None
-    tolerance: float | None = Field(default=None, gt=0)
+    # equivalence margin of `equal` / `no_trend`, in the metric's unit; `tolerance` is its older name
+    margin: float | None = Field(default=None, gt=0, validation_alias=AliasChoices("margin", "tolerance"))
     interval: _Pair | None = None
     min_trials: StrictInt = Field(default=2, ge=2, le=50)
+    engages: Annotated[str, Field(min_length=1)] | None = None  # a device element the statement is about
     simulator_tuned: bool = False
+    depends_on_simulator: list[Annotated[str, Field(min_length=1)]] = Field(default_factory=list)
+    tuned: str = ""  # free text: which simulator choice the verdict follows from
+
+    @property
+    def depends_on_tuning(self) -> bool:
+        """True when the declaration says a simulator value was chosen to reproduce this statement."""
+        return self.simulator_tuned or bool(self.depends_on_simulator) or bool(self.tuned.strip())
 
     @model_validator(mode="after")
     def _relation_fields(self) -> ExpectationSpec:
@@ -72,8 +81,13 @@ class ExpectationSpec(BaseModel):
                 raise ValueError("`than_baseline` needs `than`")
             if len(self.than_baseline) != len(self.than):
                 raise ValueError("`than_baseline` must list as many configurations as `than` (pairwise)")
-        if r == "equal" and self.tolerance is None:
-            raise ValueError("relation equal needs `tolerance` (in the metric's unit)")
+        if r in ("equal", "no_trend") and self.margin is None:
+            raise ValueError(
+                f"relation {r} needs `margin` (in the metric's unit): the largest difference that still "
+                "counts as equal, decided by an equivalence test"
+            )
+        if r not in ("equal", "no_trend") and self.margin is not None:
+            raise ValueError(f"relation {r} takes no `margin` (equal and no_trend do)")
         if r == "inside":
             if self.interval is None:
                 raise ValueError("relation inside needs `interval: [low, high]`")

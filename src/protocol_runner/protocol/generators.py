@@ -18,8 +18,14 @@ import math
 from collections.abc import Iterator
 
 from .loaded import Loc
-from .schema import Protocol
-from .schema_matrix import ConfigurationSpec, FullFactorialSpec, OneFactorAtATimeSpec, SetSpec, _GeneratorSpec
+from .schema import (
+    ConfigurationSpec,
+    FullFactorialSpec,
+    OneFactorAtATimeSpec,
+    Protocol,
+    SetSpec,
+    _GeneratorSpec,
+)
 
 Problem = tuple[Loc, str]
 Rows = list[dict[str, str]]

@@ -20,13 +20,10 @@ from ..errors import InvalidInput
 from ..resources import packaged_protocols_dir
 from .booleans import boolean_numbers
 from .generators import expand_generators
-from .loaded import LoadedProtocol as LoadedProtocol
-from .loaded import Loc as Loc
-from .loaded import RigSource, line_for
+from .loaded import LoadedProtocol, RigSource, line_for
 from .rig_file import find_rig, load_rig, parse_rig_text, resolve_rig, resolve_rigs
 from .schema import Protocol
 from .validate import cross_check
-from .yaml_doc import format_loc as format_loc
 from .yaml_doc import format_problems, huge_numbers, parse_yaml, validation_problems
 from .yaml_limits import MAX_PROTOCOL_BYTES, check_size
 

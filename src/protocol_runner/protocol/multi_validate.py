@@ -18,9 +18,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from ..errors import InvalidInput
-from ..models.elements import ELEMENT_TYPES
-from .plan_trajectory import Trajectory
+from ..models.element_types import ELEMENT_TYPES
 from .resolve import BindingError, calibration_trajectory, configuration_trajectories, resolve_settings
+from .trajectory_record import Trajectory
 
 if TYPE_CHECKING:
     from .loaded import LoadedProtocol, Loc

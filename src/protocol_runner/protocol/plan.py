@@ -36,14 +36,16 @@ from .plan_steps import (
     Step,
     TrialStep,
 )
-from .plan_trajectory import Trajectory as Trajectory
-from .resolve import calibration_trajectory as calibration_trajectory
-from .resolve import configuration_trajectories, configuration_trajectory, resolve_settings
+from .resolve import (
+    calibration_trajectory,
+    configuration_trajectories,
+    configuration_trajectory,
+    resolve_settings,
+)
 from .schema import ConfigurationSpec, Protocol, SetSpec
 from .settings import Settings
-from .step_ids import calibration_id as calibration_id
-from .step_ids import step_id
-from .step_ids import trial_id as trial_id
+from .step_ids import calibration_id, step_id, trial_id
+from .trajectory_record import Trajectory
 from .units import unit_text
 
 # -------------------------------------------------------------------------------------- expansion

@@ -20,9 +20,9 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from .plan_trajectory import Trajectory
 from .settings import Settings
 from .step_ids import step_id
+from .trajectory_record import Trajectory
 from .trajectory_specs import trajectory_kind
 
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .plan import Plan, TrialStep
+from .plan_steps import Plan, TrialStep
 
 
 def format_matrix_table(plan: Plan) -> list[str]:

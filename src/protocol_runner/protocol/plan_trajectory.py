@@ -16,8 +16,7 @@ from pathlib import Path
 
 from ..errors import InvalidInput
 from ..hardware.safety import SafetyLimits
-from .trajectory_record import ParamValue as ParamValue
-from .trajectory_record import Trajectory as Trajectory
+from .trajectory_record import Trajectory
 from .trajectory_specs import Quantity, TrajectorySpec
 
 

@@ -24,8 +24,19 @@ from ..tables import read_table_text
 from .booleans import boolean_numbers
 from .loaded import Loc
 from .paths import OutsideFolder, confined_path
-from .schema_base import Identifier, RangePair, _check_range, _Model
-from .schema_rig import InputSpec, JointSpec, OutputSpec, RigOverrides, RigSpec, SafetyOverride, SafetySpec
+from .schema import (
+    Identifier,
+    InputSpec,
+    JointSpec,
+    OutputSpec,
+    RangePair,
+    RigOverrides,
+    RigSpec,
+    SafetyOverride,
+    SafetySpec,
+    _check_range,
+    _Model,
+)
 from .yaml_doc import format_problems, huge_numbers, parse_yaml, validation_problems
 
 Problem = tuple[Loc, str]

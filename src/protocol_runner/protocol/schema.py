@@ -5,67 +5,425 @@ trajectories are whatever the file declares (docs/protocol.md is the reference).
 (levels that exist, bindings whose units match, ranges inside the joint's range, unique keys, ...) live in
 `protocol/validate.py` and `protocol/resolve.py` so that each error can name the exact field and line.
 
-The parts live by idea: schema_base (strict model, shared field types), schema_device (factors, device),
-schema_matrix (sets and configurations), schema_rig (resolved rig), schema_report (report section), and
-trajectory_specs (trajectory kinds); this module holds the calibration check, processing, fits and the
-whole `Protocol`, and re-exports the parts' public names.
+In order: the strict base model and the shared field types; the resolved rig (rig file + joint +
+overrides, docs/protocol.md "Rig"); the factors (levels and their quantities, with units) and the device
+under test (its elements, per driven joint); the test matrix (sets of configurations, as explicit rows or
+as generators expanded by `protocol/generators.py`); the `report:` section; the calibration check,
+processing and fits; and the whole `Protocol`. The trajectory kinds are `protocol/trajectory_specs.py`.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal
 
-from pydantic import Discriminator, Field, PrivateAttr, Tag, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Discriminator,
+    Field,
+    PrivateAttr,
+    StrictInt,
+    Tag,
+    field_validator,
+    model_validator,
+)
 
-from protocol_runner.protocol.expectations import ExpectationSpec
-from protocol_runner.protocol.schema_base import (  # noqa: F401  (re-exported)
-    Identifier,
-    LevelName,
-    RangePair,
-    _check_range,
-    _Model,
-)
-from protocol_runner.protocol.schema_device import (  # noqa: F401  (re-exported)
-    RESERVED_LEVEL_KEYS,
-    DeviceSpec,
-    ElementSpec,
-    Factor,
-    JointDeviceSpec,
-    LevelSpec,
-    Quantity,
-)
-from protocol_runner.protocol.schema_matrix import (  # noqa: F401  (re-exported)
-    RESERVED_CONFIGURATION_KEYS,
-    ConfigurationSpec,
-    FullFactorialSpec,
-    LevelChoice,
-    LevelList,
-    OneFactorAtATimeSpec,
-    SetSpec,
-    TrajectoryByLevel,
-    _GeneratorSpec,
-)
-from protocol_runner.protocol.schema_report import (  # noqa: F401  (re-exported)
-    CitationsSpec,
-    ComparisonSpec,
-    PredictionSpec,
-    ReportSpec,
-)
-from protocol_runner.protocol.schema_rig import (  # noqa: F401  (re-exported)
-    BoltTorque,
-    CalibrationTablesSpec,
-    InputSpec,
-    JointOverride,
-    JointSpec,
-    OutputSpec,
-    RigOverrides,
-    RigSpec,
-    SafetyOverride,
-    SafetySpec,
-)
+from protocol_runner.protocol.expectations import ExpectationSpec, RepeatabilitySpec
 from protocol_runner.protocol.trajectory_specs import RampedStepFields, TrajectorySpec, holds_trajectories
+from protocol_runner.protocol.units import compound_unit_problem, known_suffixes, unit_suffix
 
-# ------------------------------------------------------------------------------------ trajectories
+# -------------------------------------------------------------------------------------------- base
+
+
+def _int_to_str(value: object) -> object:
+    """Level names may be written as bare numbers in YAML (`friction: 2`): treat them as names."""
+    if isinstance(value, int) and not isinstance(value, bool):
+        return str(value)
+    return value
+
+
+def _str_keys(value: object) -> object:
+    """A mapping whose keys are level names: bare-number keys become names."""
+    if isinstance(value, dict):
+        return {_int_to_str(k): v for k, v in value.items()}
+    return value
+
+
+LevelName = Annotated[str, BeforeValidator(_int_to_str)]
+Identifier = Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_\-]*$", max_length=64)]
+
+
+class _Model(BaseModel):
+    # .inf / .nan are refused in every number field: no limit, range or time may be infinite or undefined
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+def _check_range(value: tuple[float, float]) -> tuple[float, float]:
+    lo, hi = value
+    if not lo < hi:
+        raise ValueError(f"range must be [low, high] with low < high, got [{lo:g}, {hi:g}]")
+    return value
+
+
+RangePair = Annotated[tuple[float, float], BeforeValidator(lambda v: tuple(v) if isinstance(v, list) else v)]
+
+
+# --------------------------------------------------------------------------------------------- rig
+# The resolved rig (rig file + joint + rig_overrides, protocol/rig_file.py): what `protocol.rig` returns.
+
+
+class JointSpec(_Model):
+    name: Identifier
+    description: str = ""
+    rsst_joint: int | None = Field(default=None, ge=1)
+    range_deg: RangePair
+    torque_range_nm: RangePair
+
+    _range = field_validator("range_deg", "torque_range_nm")(_check_range)
+
+
+class OutputSpec(_Model):
+    board: str
+    channel: int = Field(ge=0)
+    rate_hz: float = Field(gt=0, le=1000)
+    volts_range: RangePair = (-10.0, 10.0)
+    serial: str | None = None
+
+    _range = field_validator("volts_range")(_check_range)
+
+
+class InputSpec(_Model):
+    board: str
+    angle_channel: int = Field(ge=0)
+    torque_channel: int = Field(ge=0)
+    rate_hz: float = Field(gt=0, le=50000)
+    volts_range: RangePair = (-10.0, 10.0)
+    serials: list[str] = Field(default_factory=list)
+    dt9814_product_id: int | None = Field(default=None, ge=0, le=0xFFFF)
+
+    _range = field_validator("volts_range")(_check_range)
+
+
+class CalibrationTablesSpec(_Model):
+    command_table: str | None = None
+    angle_table: str | None = None
+    torque_table: str | None = None
+
+
+class SafetySpec(_Model):
+    max_rate_deg_s: float = Field(gt=0)
+    max_accel_deg_s2: float = Field(gt=0)
+    park_angle_deg: float
+    park_rate_deg_s: float = Field(gt=0)
+
+
+class RigSpec(_Model):
+    robot: str
+    joint: JointSpec
+    output: OutputSpec
+    input: InputSpec
+    calibration: CalibrationTablesSpec = CalibrationTablesSpec()
+    safety: SafetySpec
+    time_constant_s: float = Field(gt=0)
+    simulator: tuple[tuple[str, float], ...] = ()  # the joint's simulator parameters (rig file)
+    rig_file: str = ""
+    rig_sha256: str = ""
+
+
+class SafetyOverride(_Model):
+    max_rate_deg_s: float | None = Field(default=None, gt=0)
+    max_accel_deg_s2: float | None = Field(default=None, gt=0)
+    park_angle_deg: float | None = None
+    park_rate_deg_s: float | None = Field(default=None, gt=0)
+
+
+class JointOverride(_Model):
+    calibration: CalibrationTablesSpec = CalibrationTablesSpec()
+    safety: SafetyOverride | None = None
+    range_deg: RangePair | None = None
+
+    _range = field_validator("range_deg")(lambda v: v if v is None else _check_range(v))
+
+
+class RigOverrides(_Model):
+    input_board: str | None = None
+    input_serials: list[str] | None = None
+    joints: dict[str, JointOverride] = Field(default_factory=dict)
+
+
+class BoltTorque(_Model):
+    bolts: str
+    torque_ft_lb: float = Field(gt=0)
+
+
+# ----------------------------------------------------------------------------------------- factors
+
+RESERVED_LEVEL_KEYS = ("same_as", "description", "setup")
+Quantity = float | tuple[float, ...]
+
+
+def _quantity_value(name: str, value: object) -> Quantity:
+    if isinstance(value, bool) or not isinstance(value, int | float | list | tuple):
+        raise ValueError(f"quantity {name!r} must be a number or a list of numbers, got {value!r}")
+    if isinstance(value, list | tuple):
+        items = [_quantity_value(name, v) for v in value]
+        if not items or any(isinstance(v, tuple) for v in items):
+            raise ValueError(f"quantity {name!r} must be a number or a flat list of numbers, got {value!r}")
+        if name.endswith("range_deg") and not (len(items) == 2 and items[0] < items[1]):  # type: ignore[operator]
+            raise ValueError(f"{name} must be [low, high] with low < high, got {value!r}")
+        return tuple(float(v) for v in items)  # type: ignore[arg-type]
+    number = float(value)
+    if not math.isfinite(number):
+        raise ValueError(f"quantity {name!r} must be finite, got {value!r}")
+    return number
+
+
+class LevelSpec(_Model):
+    """One level of a factor: quantities (keys ending with a unit suffix, protocol/units.py), or
+    `same_as` another level of the same factor; `description` and `setup` (operator checklist text)."""
+
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+
+    same_as: LevelName | None = None
+    description: str = ""
+    setup: str = ""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _quantities(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        out = dict(data)
+        for key, value in data.items():
+            if key in RESERVED_LEVEL_KEYS:
+                continue
+            if unit_suffix(str(key)) is None:
+                raise ValueError(
+                    f"{key!r}: a quantity's name must end with a unit suffix ({known_suffixes()}); "
+                    f"reserved keys: {', '.join(RESERVED_LEVEL_KEYS)}"
+                )
+            compound = compound_unit_problem(str(key))
+            if compound is not None:
+                raise ValueError(compound)
+            out[key] = _quantity_value(str(key), value)
+        return out
+
+    @property
+    def quantities(self) -> tuple[tuple[str, Quantity], ...]:
+        return tuple((k, v) for k, v in (self.model_extra or {}).items())
+
+
+Factor = Annotated[dict[str, LevelSpec], BeforeValidator(_str_keys), Field(min_length=1)]
+
+# ------------------------------------------------------------------------------------------- device
+
+
+class ElementSpec(_Model):
+    """One element of the device: `name`, `type` (models/element_types.py ELEMENT_TYPES) and its parameters,
+    each a constant or a binding "<factor>.<quantity>" (checked in protocol/resolve.py)."""
+
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+
+    name: Identifier
+    type: str
+
+    @property
+    def params(self) -> dict[str, Any]:
+        return dict(self.model_extra or {})
+
+
+class JointDeviceSpec(_Model):
+    """The elements one driven joint carries (a multi-joint protocol's `device.joints.<joint>`)."""
+
+    description: str = ""
+    elements: list[ElementSpec] = Field(min_length=1)
+
+
+class DeviceSpec(_Model):
+    """The device under test: `elements` (one driven joint), or `joints: {<joint>: {elements: [...]}}`
+    (a multi-joint protocol: each driven joint its own elements; a joint may carry none)."""
+
+    name: str = ""
+    description: str = ""
+    elements: list[ElementSpec] = Field(default_factory=list)
+    joints: dict[Identifier, JointDeviceSpec] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _one_form(self) -> Any:
+        if bool(self.elements) == bool(self.joints):
+            raise ValueError("give exactly one of `elements` (one joint) and `joints` (elements per joint)")
+        return self
+
+    def located_elements(self) -> list[tuple[str, tuple[str | int, ...], ElementSpec]]:
+        """(joint or "", YAML location, element) for every element, in file order."""
+        if self.elements:
+            return [("", ("device", "elements", i), el) for i, el in enumerate(self.elements)]
+        return [
+            (joint, ("device", "joints", joint, "elements", i), el)
+            for joint, spec in self.joints.items()
+            for i, el in enumerate(spec.elements)
+        ]
+
+
+# ------------------------------------------------------------------------------------- test matrix
+
+RESERVED_CONFIGURATION_KEYS = ("key", "run", "trajectory", "trials", "description")
+MAX_KEY = 999_999  # a configuration's key and run number: ample for any matrix, and an integer every
+# archive attribute, table and MATLAB field holds (a key of 10^23 passed validation, then crashed the run)
+
+
+def _levels_as_str(data: Any) -> Any:
+    if isinstance(data, dict):
+        return {k: (v if k in RESERVED_CONFIGURATION_KEYS else _int_to_str(v)) for k, v in data.items()}
+    return data
+
+
+class ConfigurationSpec(_Model):
+    """An explicit row: reserved keys, and `<factor>: <level label>` for the factors it sets."""
+
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+
+    key: StrictInt = Field(ge=1, le=MAX_KEY)
+    run: StrictInt = Field(ge=1, le=MAX_KEY)
+    trajectory: Identifier
+    trials: StrictInt = Field(ge=1, le=50)
+    description: str = ""
+
+    @model_validator(mode="before")
+    @classmethod
+    def _labels(cls, data: Any) -> Any:
+        data = _levels_as_str(data)
+        if isinstance(data, dict):
+            for k, v in data.items():
+                if k not in RESERVED_CONFIGURATION_KEYS and not isinstance(v, str):
+                    raise ValueError(f"{k}: a factor's level label, got {v!r}")
+        return data
+
+    @property
+    def levels(self) -> dict[str, str]:
+        """factor -> level label, as written."""
+        return {k: str(v) for k, v in (self.model_extra or {}).items()}
+
+
+LevelList = Annotated[list[LevelName], Field(min_length=1)]
+LevelChoice = LevelList | Literal["all"]
+
+
+class TrajectoryByLevel(_Model):
+    factor: Identifier
+    levels: Annotated[dict[str, Identifier], BeforeValidator(_str_keys)]
+
+
+class _GeneratorSpec(_Model):
+    trajectory: Identifier | None = None
+    trajectory_by_level: TrajectoryByLevel | None = None
+    trials: StrictInt = Field(ge=1, le=50)
+    description: str = ""
+
+    @model_validator(mode="after")
+    def _one_trajectory(self) -> Any:
+        if (self.trajectory is None) == (self.trajectory_by_level is None):
+            raise ValueError("give exactly one of `trajectory` and `trajectory_by_level`")
+        return self
+
+
+class FullFactorialSpec(_GeneratorSpec):
+    """Every combination of the listed factors' levels (`all` = every declared level, in declaration
+    order; the LAST factor varies fastest), each with the `fixed` levels."""
+
+    factors: Annotated[dict[Identifier, LevelChoice], Field(min_length=1)]
+    fixed: Annotated[dict[Identifier, LevelName], BeforeValidator(_str_keys)] = Field(default_factory=dict)
+
+
+class OneFactorAtATimeSpec(_GeneratorSpec):
+    """The baseline, then each factor of `vary` set to each of its listed levels in turn (the others at
+    the baseline). A listed level equal to the baseline's is skipped (the baseline is already there)."""
+
+    baseline: Annotated[dict[Identifier, LevelName], BeforeValidator(_str_keys)] = Field(min_length=1)
+    vary: Annotated[dict[Identifier, LevelList], Field(min_length=1)]
+    include_baseline: bool = True
+
+
+class SetSpec(_Model):
+    name: Identifier
+    condition: str
+    configurations: list[ConfigurationSpec] = Field(default_factory=list)
+    full_factorial: FullFactorialSpec | None = None
+    one_factor_at_a_time: OneFactorAtATimeSpec | None = None
+
+    @model_validator(mode="after")
+    def _something(self) -> Any:
+        if not self.configurations and self.full_factorial is None and self.one_factor_at_a_time is None:
+            raise ValueError("a set needs `configurations`, `full_factorial` or `one_factor_at_a_time`")
+        return self
+
+
+# ------------------------------------------------------------------------------------------ report
+
+
+def _pair(value: object) -> object:
+    return tuple(value) if isinstance(value, list) else value
+
+
+class ComparisonSpec(_Model):
+    name: Identifier
+    parameter: Identifier  # a declared factor, or "trajectory" (checked in validate.py)
+    section: str = ""
+    title: str
+    configurations: list[StrictInt] = Field(min_length=2)
+    # explicit (a, b) pairs for the Differences table (b minus a), e.g. a paired design; else adjacent ones
+    pairs: list[Annotated[tuple[StrictInt, StrictInt], BeforeValidator(_pair)]] | None = Field(
+        default=None, min_length=1
+    )
+
+    @model_validator(mode="after")
+    def _pairs_compared(self) -> ComparisonSpec:
+        for a, b in self.pairs or ():
+            for key in (a, b):
+                if key not in self.configurations:
+                    raise ValueError(
+                        f"pair ({a}, {b}): configuration {key} is not in this comparison's configurations"
+                    )
+            if a == b:
+                raise ValueError(f"pair ({a}, {b}) compares a configuration with itself")
+        return self
+
+
+class PredictionSpec(_Model):
+    """A Bouc-Wen model fitted on configuration `fit` predicts configuration `predict` (the same device
+    elements at another speed or range); the report gives the prediction's RMSE."""
+
+    fit: StrictInt
+    predict: StrictInt
+    note: str = ""
+
+
+class CitationsSpec(_Model):
+    """Where a source (e.g. a thesis) shows what a part of the report shows: each text is printed beside
+    that part ("as <text>"). All optional: a campaign that reproduces no source cites nothing."""
+
+    configurations: str = ""  # the per-configuration loops
+    comparisons: str = ""  # the overlaid loops of each comparison
+    energy: str = ""  # energy per cycle against the compared factor
+    reference: str = ""  # the reference datasets
+    models: str = ""  # the models section as a whole
+    elements: str = ""  # the elastic elements fitted to the loops' midline
+    bouc_wen: str = ""  # the Bouc-Wen model against the data
+    matrix: str = ""  # the test matrix
+    calibration: str = ""  # the calibration step checks
+
+
+class ReportSpec(_Model):
+    reference_dataset: str | None = None
+    citations: CitationsSpec = CitationsSpec()
+    comparisons: list[ComparisonSpec] = Field(default_factory=list)
+    predictions: list[PredictionSpec] = Field(default_factory=list)
+    repeatability: list[RepeatabilitySpec] = Field(default_factory=list)
+
+
+# ------------------------------------------------------------------------------- calibration check
 
 
 class CalibrationStepSpec(RampedStepFields[float], _Model):

@@ -17,9 +17,9 @@ from ..errors import InvalidInput
 from ..hardware.calibration import CalibrationTable, load_calibration_table
 from ..hardware.safety import SafetyLimits, SafetyViolation, check_trajectory
 from ..hardware.stream import build_stream, check_stream
-from .plan_trajectory import Trajectory
 from .sampling import sample_trajectory, samples_problem
 from .schema import RigSpec
+from .trajectory_record import Trajectory
 
 if TYPE_CHECKING:
     from .loaded import LoadedProtocol, Loc

@@ -15,11 +15,10 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import InvalidInput
-from ..models.elements import ELEMENT_TYPES
+from ..models.element_types import ELEMENT_TYPES
 from .expectations import check_expectations, check_repeatability
 from .only import key_spans
 from .paths import OutsideFolder, confined_path
-from .plan_trajectory import Trajectory
 from .resolve import (
     BindingError,
     calibration_trajectory,
@@ -29,6 +28,7 @@ from .resolve import (
 )
 from .schema import CalibrationStepSpec, Protocol
 from .trajectories import calibration_step_peak_speed_deg_s
+from .trajectory_record import Trajectory
 
 if TYPE_CHECKING:
     from .loaded import LoadedProtocol, Loc

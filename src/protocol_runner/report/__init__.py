@@ -1,7 +1,7 @@
 """The HTML report, regenerated from an archive alone (docs/report.md).
 
     model.py     ReportData: frozen dataclasses holding everything the report shows
-    load.py      load_report_data(path), validate_archive(path), load_reference_dataset(path)
+    load.py      load_report_data(path) (checked by archive/verify.py)
     findings.py  evaluate_expectations(data): the protocol's expectations decided on the data
     citations.py declared_citations(text): what the protocol cites beside each report part
     figures.py   render_figures(data): matplotlib (Agg) figures as PNG data URIs

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from matplotlib.figure import Figure
 
-from protocol_runner.report.figures import to_data_uri
+from protocol_runner.report.drawing import to_data_uri
 from protocol_runner.report.model import Configuration
 
 

@@ -18,7 +18,8 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from protocol_runner.report.model import Comparison, Configuration
+from protocol_runner.protocol.plan_steps import Comparison
+from protocol_runner.report.model import Configuration
 from protocol_runner.report.settings_view import (
     TRAJECTORY,
     axis_label,

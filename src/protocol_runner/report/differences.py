@@ -1,14 +1,16 @@
 """Within-report statistics that involve several configurations, the trial as the unit.
 
-- Differences: for each declared comparison, the energy per cycle of each configuration minus the one
-  before it in the comparison's declared order (adjacent differences), with the 95 % Welch interval on
-  trial means (`analysis.statistics.welch_interval`).
+- Differences: for each declared comparison, the energy per cycle of configuration b minus configuration a
+  for each of its declared `pairs` (a, b), in their order (a paired design: 12 against 1, 13 against 2),
+  or else each configuration minus the one before it in the declared order (adjacent differences); with
+  the 95 % Welch interval on trial means (`analysis.statistics.welch_interval`) and its two-sided p-value,
+  Holm-adjusted over the differences of that comparison (one table, one family).
 - Repeatability: for each group the protocol declares in `report.repeatability` (configurations with
   identical settings run in different sets, checked by `--validate`), the between-set coefficient of
   variation of the configurations' means and the one-way random-effects ICC(1) of their trial means
   (`analysis.statistics.repeatability`).
 
-Public API: adjacent_differences(data, comparison), declared_repeatability(data)
+Public API: declared_differences(data, comparison), declared_repeatability(data)
 """
 
 from __future__ import annotations
@@ -16,34 +18,72 @@ from __future__ import annotations
 from dataclasses import dataclass
 from itertools import pairwise
 
-from protocol_runner.analysis.statistics import Repeatability, WelchInterval, welch_interval
+from protocol_runner.analysis.statistics import ALPHA, Repeatability, WelchInterval, holm, welch_interval
 from protocol_runner.protocol.expectations import RepeatabilitySpec
+from protocol_runner.protocol.plan_steps import Comparison
+from protocol_runner.protocol.schema import ComparisonSpec
 from protocol_runner.report.declared import declared_entries
+from protocol_runner.report.evaluate import format_p
 from protocol_runner.report.headline import group_repeatability
 from protocol_runner.report.metrics import trial_values
-from protocol_runner.report.model import Comparison, ReportData
+from protocol_runner.report.model import ReportData
 
 
 @dataclass(frozen=True)
 class Difference:
-    """Energy per cycle of configuration `key` minus configuration `base` (J), trial means."""
+    """Energy per cycle of configuration `key` minus configuration `base` (J), trial means; `p_adjusted`
+    is the Holm-adjusted p-value over the comparison's differences."""
 
     base: int
     key: int
     energy: WelchInterval
     trials: tuple[int, int]  # trials of base, of key
+    p_adjusted: float
+
+    @property
+    def label(self) -> str:
+        """The subtraction, as the table names it: "13 minus 2"."""
+        return f"{self.key} minus {self.base}"
+
+    @property
+    def p_text(self) -> str:
+        """The unadjusted two-sided p-value as printed."""
+        return format_p(self.energy.p_value)
+
+    @property
+    def p_adjusted_text(self) -> str:
+        """The Holm-adjusted p-value as printed."""
+        return format_p(self.p_adjusted)
+
+    @property
+    def significant(self) -> bool:
+        """True when the Holm-adjusted p-value is at most ALPHA (the adjusted interval excludes zero)."""
+        return bool(self.p_adjusted <= ALPHA)
 
 
-def adjacent_differences(data: ReportData, comparison: Comparison) -> tuple[Difference, ...]:
-    """Each present configuration of `comparison` minus the present one before it, in declared order."""
-    present = [k for k in comparison.configurations if data.configuration(k) is not None]
-    out = []
-    for base, key in pairwise(dict.fromkeys(present)):
+def declared_pairs(data: ReportData, comparison: Comparison) -> tuple[tuple[int, int], ...] | None:
+    """The (a, b) pairs the archived protocol declares for `comparison` (None when it declares none)."""
+    specs, _ = declared_entries(data.protocol_text, ("report", "comparisons"), ComparisonSpec)
+    spec = next((s for s in specs if s.name == comparison.name), None)
+    return None if spec is None or spec.pairs is None else tuple(spec.pairs)
+
+
+def declared_differences(data: ReportData, comparison: Comparison) -> tuple[Difference, ...]:
+    """b minus a for each declared pair (a, b) of `comparison` whose configurations are both present, in
+    the declared order; without pairs, each present configuration minus the present one before it."""
+    pairs = declared_pairs(data, comparison)
+    if pairs is None:
+        present = [k for k in comparison.configurations if data.configuration(k) is not None]
+        pairs = tuple(pairwise(dict.fromkeys(present)))
+    rows: list[tuple[int, int, WelchInterval, tuple[int, int]]] = []
+    for base, key in pairs:
         cb, ck = data.configuration(base), data.configuration(key)
-        assert cb is not None and ck is not None  # filtered above
+        if cb is None or ck is None:
+            continue
         a, b = trial_values(cb, "energy_per_cycle"), trial_values(ck, "energy_per_cycle")
-        out.append(Difference(base, key, welch_interval(a, b), (len(a), len(b))))
-    return tuple(out)
+        rows.append((base, key, welch_interval(a, b), (len(a), len(b))))
+    adjusted = holm([w.p_value for _, _, w, _ in rows])
+    return tuple(Difference(*row, p_adjusted=p) for row, p in zip(rows, adjusted, strict=True))
 
 
 @dataclass(frozen=True)

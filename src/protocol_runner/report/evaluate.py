@@ -1,16 +1,26 @@
 """One generic evaluator: a declared expectation and an archive's data give a verdict with its numbers.
 
-Decision rule (docs/protocol.md "Expectations"), always on trial values (one per trial, the experimental
-unit) with 95 % intervals (`analysis.statistics`):
+Decision rules (docs/protocol.md "Expectations"), always on trial values (one per trial, the experimental
+unit). Every rule is a test with a p-value at level `ALPHA` (0.05); the interval printed beside each
+statement is the two-sided (1 - 2 ALPHA) = 90 % interval, whose bound is the one-sided 95 % bound the
+test uses, so "the interval lies above zero" and "p <= 0.05" say the same thing before adjustment:
 
-- every configuration involved needs `min_trials` trials with the metric, else `not evaluable`;
-- `increasing` / `decreasing`: the means move the stated way at every step of the stated order, and the
-  Welch interval of last minus first excludes zero on that side;
-- `no_trend`: neither `increasing` nor `decreasing` is met;
-- `greater` / `less` than configurations (`than`, pairwise): each Welch interval of the difference lies
-  wholly above (below) zero; than a `value`: each t-interval of the mean lies wholly above (below) it;
-- `equal` within `tolerance`: each interval (difference, or mean minus `value`) lies inside ±tolerance;
-- `inside` `[low, high]` (two-sided): each configuration's t-interval of the mean lies inside it.
+- every configuration involved needs `min_trials` trials with the metric, else `not evaluable`; so does a
+  statement about a device element (`engages`) the measured angles never reach;
+- `increasing` / `decreasing`: EVERY adjacent step of the stated order must go the stated way, each by a
+  one-sided Welch test (b minus a above zero, or below); the statement is the conjunction of its steps,
+  so its p-value is the largest step p (an intersection-union test: no adjustment within it is needed);
+- `greater` / `less`: each statement (a Welch difference with `than`, a contrast with `baseline`, a
+  t-test against `value`) one-sided above (below) its reference; p is the largest;
+- `equal` within `margin`: each difference (or mean minus `value`) is shown equivalent by two one-sided
+  tests (TOST): it is above -margin and below +margin, i.e. its 90 % interval lies inside ±margin;
+- `no_trend` within `margin`: every pair of the configurations is equivalent within ±margin (TOST):
+  no difference between any two exceeds the margin. Absence of a significant trend is not evidence of
+  none; a margin says how flat "no trend" must be, and enough trials must show it;
+- `inside` `[low, high]`: each configuration's mean is above `low` and below `high` (TOST on its mean).
+
+`evaluate_all` takes the campaign's evaluable expectations as one family and adjusts their p-values by
+Holm's step-down method; an expectation is `met` when its adjusted p-value is at most `ALPHA`.
 
 With `baseline` (and `than_baseline`), each configuration's value is its mean minus its baseline's: what a
 setting adds over a baseline. The interval is then the Welch-Satterthwaite interval of the contrast
@@ -20,23 +30,30 @@ both speeds".
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from itertools import pairwise
+from itertools import combinations, pairwise
 
 from protocol_runner.analysis.statistics import (
+    ALPHA,
     TInterval,
     WelchInterval,
     contrast_interval,
+    holm,
+    p_above,
+    p_below,
     t_interval,
-    welch_interval,
 )
 from protocol_runner.protocol.expectations import ExpectationSpec
 from protocol_runner.report.metrics import LABELS, UNITS, trial_values
-from protocol_runner.report.model import ReportData
+from protocol_runner.report.model import Configuration, ReportData
 
 MET, NOT_MET, NOT_EVALUABLE = "met", "not met", "not evaluable"
+
+#: Confidence of the interval printed beside a one-sided or equivalence test at level ALPHA.
+TEST_CONFIDENCE = 1.0 - 2.0 * ALPHA
 
 
 @dataclass(frozen=True)
@@ -52,12 +69,18 @@ class Evidence:
 
 @dataclass(frozen=True)
 class Verdict:
-    """The outcome of one expectation, with the numbers that decided it."""
+    """The outcome of one expectation, with the numbers that decided it.
+
+    `p_value` is the expectation's own test; `p_adjusted` is Holm's over the `family` evaluable
+    expectations it was decided with (NaN when not evaluable)."""
 
     spec: ExpectationSpec
     verdict: str
     reason: str
     evidence: tuple[Evidence, ...]
+    p_value: float = math.nan
+    p_adjusted: float = math.nan
+    family: int = 0
 
     @property
     def css(self) -> str:
@@ -69,9 +92,26 @@ class Verdict:
         """The metric's unit."""
         return UNITS[self.spec.metric]
 
+    @property
+    def p_text(self) -> str:
+        """The unadjusted p-value as printed."""
+        return format_p(self.p_value)
+
+    @property
+    def p_adjusted_text(self) -> str:
+        """The Holm-adjusted p-value as printed ("—" when not evaluable)."""
+        return format_p(self.p_adjusted)
+
 
 def _fmt(value: float) -> str:
     return f"{value:.3g}" if abs(value) < 1 else f"{value:.2f}" if abs(value) < 100 else f"{value:.1f}"
+
+
+def format_p(p: float) -> str:
+    """A p-value as the report prints it: "< 0.001", three significant digits, "—" when undefined."""
+    if not math.isfinite(p):
+        return "—"
+    return "< 0.001" if p < 0.001 else f"{p:.3g}"
 
 
 def _ival(low: float, high: float, unit: str) -> str:
@@ -89,7 +129,14 @@ def metric_label(spec: ExpectationSpec) -> str:
 
 
 def evaluate_expectation(spec: ExpectationSpec, data: ReportData) -> Verdict:
-    """The verdict of `spec` on `data` (never raises for missing data: `not evaluable` says why)."""
+    """The verdict of `spec` on `data` alone, as a family of one (never raises for missing data:
+    `not evaluable` says why). `evaluate_all` decides a campaign's expectations together."""
+    v = _tested(spec, data)
+    return v if v.verdict == NOT_EVALUABLE else _adjusted(v, v.p_value, 1)
+
+
+def _tested(spec: ExpectationSpec, data: ReportData) -> Verdict:
+    """`spec` tested on `data`: its p-value and numbers, not yet decided (or `not evaluable`)."""
     unit = UNITS[spec.metric]
     keys = list(
         dict.fromkeys(
@@ -109,6 +156,7 @@ def evaluate_expectation(spec: ExpectationSpec, data: ReportData) -> Verdict:
         intervals[key] = t_interval(vals)
     evidence = tuple(Evidence(k, i.n, i.mean, i.low, i.high) for k, i in intervals.items())
     short = [k for k in keys if intervals[k].n < spec.min_trials]
+    problems: list[str] = []
     if short:
         parts = [
             f"configuration {k} is not in this archive"
@@ -117,71 +165,204 @@ def evaluate_expectation(spec: ExpectationSpec, data: ReportData) -> Verdict:
             f"with {metric_label(spec)}"
             for k in short
         ]
-        need = f"the rule needs {spec.min_trials} per configuration"
-        return Verdict(spec, NOT_EVALUABLE, "; ".join(parts) + f" ({need}).", evidence)
-    met, reason = _decide(spec, values, intervals, unit)
-    return Verdict(spec, MET if met else NOT_MET, reason, evidence)
+        problems.append("; ".join(parts) + f" (the rule needs {spec.min_trials} per configuration).")
+    unreached = _unreached(spec, data)
+    if unreached:
+        problems.append(unreached)
+    if problems:
+        return Verdict(spec, NOT_EVALUABLE, " ".join(problems), evidence)
+    p, reason = _decide(spec, values, intervals, unit)
+    p = p if math.isfinite(p) else 1.0  # an undefined test never supports the statement
+    return Verdict(spec, NOT_MET, reason, evidence, p)
+
+
+def _adjusted(v: Verdict, p_adjusted: float, family: int) -> Verdict:
+    met = p_adjusted <= ALPHA
+    if family > 1:
+        how = f"Holm-adjusted over {family} expectations {format_p(p_adjusted)}"
+    else:
+        how = "a family of one, not adjusted"
+    tail = f"; p {format_p(v.p_value)} ({how}): {MET if met else NOT_MET} at {ALPHA:g}"
+    return dataclasses.replace(
+        v, verdict=MET if met else NOT_MET, reason=v.reason + tail, p_adjusted=p_adjusted, family=family
+    )
 
 
 def evaluate_all(specs: Sequence[ExpectationSpec], data: ReportData) -> tuple[Verdict, ...]:
-    """Every declared expectation's verdict, in declaration order."""
-    return tuple(evaluate_expectation(s, data) for s in specs)
+    """Every declared expectation's verdict, in declaration order: the evaluable ones are one family whose
+    p-values are Holm-adjusted; each is met when its adjusted p-value is at most `ALPHA`."""
+    tested = [_tested(s, data) for s in specs]
+    raw = [v.p_value if v.verdict != NOT_EVALUABLE else math.nan for v in tested]
+    family = sum(math.isfinite(p) for p in raw)
+    return tuple(
+        v if v.verdict == NOT_EVALUABLE else _adjusted(v, p_adj, family)
+        for v, p_adj in zip(tested, holm(raw), strict=True)
+    )
+
+
+def _end_of(spec: ExpectationSpec) -> str:
+    """Which end of a range the statement is about: "low", "high" or "either"."""
+    if spec.metric == "angle_percentile" and spec.percentile is not None:
+        return "low" if spec.percentile < 50 else "high"
+    return "either"
+
+
+def _extremes(cfg: Configuration) -> tuple[float, float]:
+    """The lowest and highest angle the configuration's brace-on trials reached (deg)."""
+    if math.isfinite(cfg.angle_min_deg) and math.isfinite(cfg.angle_max_deg):
+        return cfg.angle_min_deg, cfg.angle_max_deg
+    angles = [
+        t.processed.angle_deg for t in cfg.trials if t.processed is not None and t.processed.angle_deg.size
+    ]
+    if not angles:
+        return math.nan, math.nan
+    return min(float(a.min()) for a in angles), max(float(a.max()) for a in angles)
+
+
+def _unreached(spec: ExpectationSpec, data: ReportData) -> str:
+    """Why a statement about a device element (`engages`) cannot be decided: a configuration without the
+    element, an element without a `range_deg` to reach, or measured angles that never reach it ("" when
+    every configuration reaches it)."""
+    if spec.engages is None:
+        return ""
+    end = _end_of(spec)
+    problems: list[str] = []
+    for key in spec.configurations:
+        cfg = data.configuration(key)
+        if cfg is None:
+            continue
+        element = cfg.settings.element(spec.engages)
+        if element is None:
+            problems.append(f"configuration {key} has no device element {spec.engages!r}")
+            continue
+        limits = dict(element.params).get("range_deg")
+        if not (isinstance(limits, tuple) and len(limits) == 2):
+            problems.append(
+                f"device element {spec.engages!r} ({element.type}) of configuration {key} has no range_deg "
+                "that the measured angle could reach"
+            )
+            continue
+        lo, hi = float(limits[0]), float(limits[1])
+        low, high = _extremes(cfg)
+        reached_low, reached_high = low <= lo, high >= hi
+        reached = {"low": reached_low, "high": reached_high, "either": reached_low or reached_high}[end]
+        if not reached:
+            problems.append(
+                f"configuration {key}'s measured angle spans [{_fmt(low)}, {_fmt(high)}] deg and never reaches "
+                f"the {'' if end == 'either' else end + ' '}end of {spec.engages!r} "
+                f"([{lo:g}, {hi:g}] deg)"
+            )
+    if not problems:
+        return ""
+    return "; ".join(problems) + f": the statement is about {spec.engages!r}, which these data never engage."
+
+
+def _sign(a: float, b: float) -> str:
+    return " < " if a < b else " > " if a > b else " = "
+
+
+def _ordered(keys: Sequence[int], intervals: dict[int, TInterval], unit: str) -> str:
+    """The means in the stated order, each pair joined by the comparison the data show."""
+    means = [intervals[k].mean for k in keys]
+    text = _fmt(means[0])
+    for a, b in pairwise(means):
+        text += _sign(a, b) + _fmt(b)
+    return f"means in the stated order ({', '.join(str(k) for k in keys)}): {text} {unit}"
+
+
+def _one_sided(w: WelchInterval, sign: float, ref: float) -> float:
+    return p_above(w, ref) if sign > 0 else p_below(w, ref)
+
+
+def _tost(w: WelchInterval, centre: float, margin: float) -> float:
+    return max(p_above(w, centre - margin), p_below(w, centre + margin))
 
 
 def _trend(
-    spec: ExpectationSpec,
-    values: dict[int, tuple[float, ...]],
-    intervals: dict[int, TInterval],
-    sign: float,
-    unit: str,
-) -> tuple[bool, str]:
-    order = spec.configurations
-    means = [intervals[k].mean for k in order]
-    steps = all(sign * (b - a) > 0 for a, b in pairwise(means))
-    end: WelchInterval = welch_interval(values[order[0]], values[order[-1]])
-    ends = (end.low > 0) if sign > 0 else (end.high < 0)
-    arrow = " < " if sign > 0 else " > "
+    spec: ExpectationSpec, values: dict[int, tuple[float, ...]], intervals: dict[int, TInterval], unit: str
+) -> tuple[float, str]:
+    sign = 1.0 if spec.relation == "increasing" else -1.0
+    order = list(dict.fromkeys(spec.configurations))
+    parts: list[str] = []
+    ps: list[float] = []
+    for a, b in pairwise(order):
+        w = contrast_interval([(-1.0, values[a]), (1.0, values[b])], TEST_CONFIDENCE)
+        p = _one_sided(w, sign, 0.0)
+        ps.append(p)
+        fails = "" if p <= ALPHA else " (fails)"
+        parts.append(
+            f"{b} minus {a}: {_fmt(w.difference)} {unit}, 90 % Welch interval {_ival(w.low, w.high, unit)}, "
+            f"one-sided p {format_p(p)}{fails}"
+        )
+    way = "above" if sign > 0 else "below"
     text = (
-        f"means in order {arrow.join(_fmt(m) for m in means)} {unit}; configuration {order[-1]} minus "
-        f"{order[0]}: {_fmt(end.difference)} {unit}, 95 % Welch interval {_ival(end.low, end.high, unit)}"
+        f"{_ordered(order, intervals, unit)}; {'; '.join(parts)} "
+        f"(every step must lie {way} zero, one-sided Welch; the largest step p decides)"
     )
-    if not steps:
-        text += "; not every step goes the stated way"
-    elif not ends:
-        text += "; the interval does not exclude zero"
-    return steps and ends, text
+    return max(ps, default=math.nan), text
+
+
+def _no_trend(
+    spec: ExpectationSpec, values: dict[int, tuple[float, ...]], intervals: dict[int, TInterval], unit: str
+) -> tuple[float, str]:
+    margin = spec.margin or 0.0
+    order = list(dict.fromkeys(spec.configurations))
+    parts: list[str] = []
+    ps: list[float] = []
+    for a, b in combinations(order, 2):
+        w = contrast_interval([(-1.0, values[a]), (1.0, values[b])], TEST_CONFIDENCE)
+        p = _tost(w, 0.0, margin)
+        ps.append(p)
+        fails = "" if p <= ALPHA else " (fails)"
+        parts.append(
+            f"{b} minus {a}: {_fmt(w.difference)} {unit}, 90 % Welch interval {_ival(w.low, w.high, unit)}, "
+            f"TOST p {format_p(p)}{fails}"
+        )
+    text = (
+        f"{_ordered(order, intervals, unit)}; {'; '.join(parts)} "
+        f"(every pair's 90 % interval must lie inside ±{margin:g} {unit}: two one-sided Welch tests)"
+    )
+    return max(ps, default=math.nan), text
 
 
 def _decide(
     spec: ExpectationSpec, values: dict[int, tuple[float, ...]], intervals: dict[int, TInterval], unit: str
-) -> tuple[bool, str]:
+) -> tuple[float, str]:
+    """The expectation's p-value (the largest of its statements') and the text of its numbers."""
     r = spec.relation
     if r in ("increasing", "decreasing"):
-        return _trend(spec, values, intervals, 1.0 if r == "increasing" else -1.0, unit)
+        return _trend(spec, values, intervals, unit)
     if r == "no_trend":
-        up, up_text = _trend(spec, values, intervals, 1.0, unit)
-        down, _ = _trend(spec, values, intervals, -1.0, unit)
-        return not (up or down), up_text.split(";")[0] + (
-            "; a clear trend" if up or down else "; no step-by-step trend with an interval excluding zero"
-        )
+        return _no_trend(spec, values, intervals, unit)
     parts: list[str] = []
-    ok = True
+    ps: list[float] = []
     for i, key in enumerate(spec.configurations):
         terms, name = _terms(spec, i, key)
+        w = contrast_interval([(wt, values[k]) for wt, k in terms], TEST_CONFIDENCE)
         if len(terms) == 1:
-            ti = intervals[key]
-            low, high = ti.low, ti.high
-            subject = f"configuration {key}: mean {_fmt(ti.mean)} {unit}, 95 % interval"
+            subject = f"configuration {key}: mean {_fmt(w.difference)} {unit}, 90 % interval"
         else:
-            c = contrast_interval([(w, values[k]) for w, k in terms])
-            low, high = c.low, c.high
             kind = "Welch" if len(terms) == 2 else "Welch-Satterthwaite"
-            subject = f"{name}: {_fmt(c.difference)} {unit}, 95 % {kind} interval"
+            subject = f"{name}: {_fmt(w.difference)} {unit}, 90 % {kind} interval"
         ref = 0.0 if spec.than is not None else spec.value or 0.0
-        this_ok = _holds(spec, low, high, ref)
-        ok = ok and this_ok
-        parts.append(f"{subject} {_ival(low, high, unit)}{'' if this_ok else ' (fails)'}")
-    return ok, "; ".join(parts) + _criterion(spec, unit)
+        p, test = _statement_p(spec, w, ref)
+        ps.append(p)
+        parts.append(
+            f"{subject} {_ival(w.low, w.high, unit)}, {test} p {format_p(p)}{'' if p <= ALPHA else ' (fails)'}"
+        )
+    return max(ps, default=math.nan), "; ".join(parts) + _criterion(spec, unit)
+
+
+def _statement_p(spec: ExpectationSpec, w: WelchInterval, ref: float) -> tuple[float, str]:
+    r = spec.relation
+    if r == "greater":
+        return p_above(w, ref), "one-sided"
+    if r == "less":
+        return p_below(w, ref), "one-sided"
+    if r == "equal":
+        return _tost(w, ref, spec.margin or 0.0), "TOST"
+    lo, hi = spec.interval or (math.nan, math.nan)
+    return max(p_above(w, lo), p_below(w, hi)), "TOST"
 
 
 def _terms(spec: ExpectationSpec, i: int, key: int) -> tuple[list[tuple[float, int]], str]:
@@ -204,28 +385,12 @@ def _terms(spec: ExpectationSpec, i: int, key: int) -> tuple[list[tuple[float, i
     return terms, name
 
 
-def _holds(spec: ExpectationSpec, low: float, high: float, ref: float) -> bool:
-    if not (math.isfinite(low) and math.isfinite(high)):
-        return False
-    r = spec.relation
-    if r == "greater":
-        return low > ref
-    if r == "less":
-        return high < ref
-    if r == "equal":
-        tol = spec.tolerance or 0.0
-        return ref - tol <= low and high <= ref + tol
-    lo, hi = spec.interval or (math.nan, math.nan)
-    return lo <= low and high <= hi
-
-
 def _criterion(spec: ExpectationSpec, unit: str) -> str:
     r = spec.relation
     if r == "inside" and spec.interval is not None:
-        return f" (must lie inside [{spec.interval[0]:g}, {spec.interval[1]:g}] {unit})"
-    if r == "equal":
-        target = "zero" if spec.than is not None else f"{spec.value:g} {unit}"
-        return f" (must lie within {spec.tolerance:g} {unit} of {target})"
-    side = "above" if r == "greater" else "below"
+        return f" (the 90 % interval must lie inside [{spec.interval[0]:g}, {spec.interval[1]:g}] {unit})"
     target = "zero" if spec.than is not None else f"{spec.value:g} {unit}"
-    return f" (must lie wholly {side} {target})"
+    if r == "equal":
+        return f" (the 90 % interval must lie within ±{spec.margin:g} {unit} of {target}: TOST)"
+    side = "above" if r == "greater" else "below"
+    return f" (the 90 % interval must lie wholly {side} {target}: one-sided test)"

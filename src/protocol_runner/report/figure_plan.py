@@ -15,7 +15,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TypeAlias
 
-from protocol_runner.report.model import Comparison, Configuration, ReportData
+from protocol_runner.protocol.plan_steps import Comparison
+from protocol_runner.report.model import Configuration, ReportData
 
 FigureJob: TypeAlias = tuple[str, str, tuple[object, ...]]
 """A figure: its id (an HTML element id), its kind (`figures.DRAW`) and the arguments to draw it."""

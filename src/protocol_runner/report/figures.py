@@ -36,14 +36,14 @@ from protocol_runner.report.drawing import (
     style,
     to_data_uri,
 )
-from protocol_runner.report.figure_plan import Drawn, assemble_figures, configuration_jobs, figure_jobs
-from protocol_runner.report.figure_plan import FigureDrawer as FigureDrawer
-from protocol_runner.report.figure_plan import FigureSet as FigureSet
-from protocol_runner.report.figure_plan import default_workers as default_workers
-from protocol_runner.report.figure_plan import distinct_comparisons as distinct_comparisons
-from protocol_runner.report.figure_plan import figure_ids as figure_ids
-from protocol_runner.report.figure_plan import model_comparisons as model_comparisons
-from protocol_runner.report.figure_plan import slug as slug
+from protocol_runner.report.figure_plan import (
+    Drawn,
+    FigureDrawer,
+    FigureSet,
+    assemble_figures,
+    configuration_jobs,
+    figure_jobs,
+)
 from protocol_runner.report.figures_compare import (
     comparison_overlay_figure,
     element_fit_figure,

@@ -13,6 +13,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 from matplotlib.axes import Axes
 
+from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.drawing import (
     ANGLE_LABEL,
@@ -25,9 +26,8 @@ from protocol_runner.report.drawing import (
     style,
     to_data_uri,
 )
-from protocol_runner.report.figure_plan import configurations_of as configurations_of
-from protocol_runner.report.figure_plan import fitted_elements_differ as fitted_elements_differ
-from protocol_runner.report.model import Comparison, Configuration, ReportData
+from protocol_runner.report.figure_plan import configurations_of
+from protocol_runner.report.model import Configuration, ReportData
 
 # ----------------------------------------------------------------------------------------- comparisons
 

@@ -15,8 +15,8 @@ from protocol_runner.report.declared import declared_entries
 from protocol_runner.report.evaluate import Verdict, evaluate_all
 from protocol_runner.report.model import ReportData
 
-#: Label shown beside a verdict the dry-run simulator was tuned to reproduce.
-TUNED_LABEL = "simulated rig tuned to this finding"
+#: Label shown beside a dry run's verdict that follows from a simulator value chosen to reproduce it.
+TUNED_LABEL = "depends on a simulator value chosen to reproduce it"
 
 
 @dataclass(frozen=True)
@@ -28,8 +28,17 @@ class Expectations:
     dry_run: bool
 
     def tuned(self, verdict: Verdict) -> bool:
-        """True when the report must say the simulator was tuned to this finding (dry runs only)."""
-        return self.dry_run and verdict.spec.simulator_tuned
+        """True when the report must say the verdict depends on a simulator value chosen to reproduce it
+        (dry runs only; `simulator_tuned`, `depends_on_simulator` or `tuned` declared)."""
+        return self.dry_run and verdict.spec.depends_on_tuning
+
+    def tuned_detail(self, verdict: Verdict) -> str:
+        """What the declaration names as chosen: the simulator values, then its `tuned` note ("" if none)."""
+        if not self.tuned(verdict):
+            return ""
+        return "; ".join(
+            p for p in (", ".join(verdict.spec.depends_on_simulator), verdict.spec.tuned.strip()) if p
+        )
 
 
 def declared_expectations(protocol_text: str) -> tuple[tuple[ExpectationSpec, ...], tuple[str, ...]]:

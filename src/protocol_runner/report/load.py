@@ -6,8 +6,7 @@ archive of an unfinished session (root `status` other than "complete") loads nor
 marks it incomplete.
 
 The session-wide groups are read by `load_session.py`, each configuration by `load_configuration.py`,
-with the small attribute readers of `h5read.py`. `load_reference_dataset` (the EMU comparison of thesis
-§5.6; `analysis/reference.py`) and `validate_archive` (`archive/verify.py`) stay importable from here.
+with the small attribute readers of `h5read.py`; the checks are `archive/verify.py`'s.
 """
 
 from __future__ import annotations
@@ -18,7 +17,6 @@ from pathlib import Path
 
 import h5py
 
-from protocol_runner.analysis.reference import load_reference_dataset as load_reference_dataset
 from protocol_runner.archive.verify import (
     Checker,
     check_root,
@@ -26,11 +24,8 @@ from protocol_runner.archive.verify import (
     require_hdf5,
     resolve_archive,
 )
-from protocol_runner.archive.verify import validate_archive as validate_archive  # its former home
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.declared import declared_count
-from protocol_runner.report.h5read import MAX_PLOT_POINTS as MAX_PLOT_POINTS
-from protocol_runner.report.h5read import decimate_for_plot as decimate_for_plot
 from protocol_runner.report.h5read import scalar_str
 from protocol_runner.report.load_configuration import read_configuration
 from protocol_runner.report.load_session import (

@@ -8,6 +8,8 @@ from pathlib import Path
 
 import h5py
 
+from protocol_runner.analysis.reference import ReferenceDataset
+from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.report.h5read import (
     MAX_PLOT_POINTS,
     attr_floats,
@@ -19,14 +21,7 @@ from protocol_runner.report.h5read import (
     read_record,
     subgroups,
 )
-from protocol_runner.report.model import (
-    CalibrationCheck,
-    ChecklistAnswer,
-    Comparison,
-    ReferenceDataset,
-    SessionEvent,
-    SessionInfo,
-)
+from protocol_runner.report.model import CalibrationCheck, ChecklistAnswer, SessionEvent, SessionInfo
 
 
 def read_session(h5: h5py.File, archive: Path) -> SessionInfo:

@@ -15,9 +15,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..analysis.reference import FloatArray
-from ..analysis.reference import ReferenceDataset as ReferenceDataset  # read by validate and report
-from ..protocol.plan_steps import Comparison as Comparison  # the plan's record, read back from /comparisons
+from ..analysis.reference import FloatArray, ReferenceDataset
+from ..protocol.plan_steps import Comparison
 from .settings_view import DeviceElement, Quantity, SettingsView
 
 

@@ -29,8 +29,8 @@ from ..archive.model_results import stored_device, strings
 from .declared import protocol_document
 
 if TYPE_CHECKING:
-    from ..models.bouc_wen import BoucWenParams
     from ..models.bouc_wen.backbone import Backbone, FixedBackbone
+    from ..models.bouc_wen.params import BoucWenParams
 
 
 @dataclass(frozen=True)
@@ -97,8 +97,8 @@ def declared_pairs(protocol_text: str) -> list[tuple[int, int, str]]:
 
 
 def _model(g: h5py.Group) -> tuple[BoucWenParams, Backbone | FixedBackbone | None]:
-    from ..models.bouc_wen import BoucWenParams
     from ..models.bouc_wen.backbone import Backbone, FixedBackbone
+    from ..models.bouc_wen.params import BoucWenParams
 
     a = g.attrs
     values = [float(a["A"]), float(a["n"]), *(float(b) for b in np.asarray(a["beta"]).ravel())]
@@ -131,7 +131,7 @@ def predict_rmse(
 ) -> float:
     """RMSE of the model on the given trials, each started at its own first torque (step-independent
     integration, so the stored plotting samples of the loops serve as well as every sample)."""
-    from ..models.bouc_wen import simulate
+    from ..models.bouc_wen.simulation import simulate
 
     sq = 0.0
     count = 0

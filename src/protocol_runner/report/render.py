@@ -25,10 +25,12 @@ import jinja2
 from markupsafe import Markup, escape
 
 from protocol_runner import __version__
+from protocol_runner.analysis.reference import load_reference_dataset
+from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.report.citations import declared_citations
 from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.declared import declared_text
-from protocol_runner.report.differences import adjacent_differences, declared_repeatability
+from protocol_runner.report.differences import declared_differences, declared_repeatability
 from protocol_runner.report.figure_plan import (
     Drawn,
     FigureDrawer,
@@ -43,8 +45,8 @@ from protocol_runner.report.findings import TUNED_LABEL, evaluate_expectations
 from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.html_file import checked_output, template_environment, write_atomically
 from protocol_runner.report.limits_text import limits_text
-from protocol_runner.report.load import load_reference_dataset, load_report_data
-from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Comparison, Configuration, ReportData
+from protocol_runner.report.load import load_report_data
+from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Configuration, ReportData
 from protocol_runner.report.multi_joint import joints_section
 from protocol_runner.report.settings_view import format_quantity
 
@@ -318,7 +320,7 @@ def _context(
         "protocol_title": declared_text(data.protocol_text, "title"),
         "protocol_description": declared_text(data.protocol_text, "description"),
         "repeatability": declared_repeatability(data),
-        "differences_of": lambda comp: adjacent_differences(data, comp),
+        "differences_of": lambda comp: declared_differences(data, comp),
         "limits_text": limits_text,
         "generated_utc": generated_utc,
         "software_version": __version__,

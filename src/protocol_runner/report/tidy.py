@@ -8,7 +8,10 @@ torque was undefined). `brace` is `on-off`: every value is the brace's own torqu
 brace-off at equal angles (§3.3).
 
 `trials.csv`: one row per trial with its cycle count, mean and within-trial standard deviation of the
-energy per cycle, and the angle range and peak torque of its processed data.
+energy per cycle, the angle range and peak torque of its processed data, and how well its brace-off twin
+matched it: `brace_off_scaling_error_deg` (the kept run's cycle-range error, docs/analysis.md §3),
+`brace_off_scaling_runs` (robot runs the scaling made), `brace_off_scaling_converged` and
+`clipped_fraction` (share of brace-on samples beyond the brace-off range, given its nearest torque, §4).
 
 `configurations.csv`: one row per configuration with its settings (profile, trajectory name, then one column
 per declared factor holding its level label and one per factor quantity, `<factor>.<quantity>`, the unit in
@@ -62,6 +65,10 @@ TRIAL_COLUMNS = (
     "angle_min_deg",
     "angle_max_deg",
     "torque_peak_nm",
+    "brace_off_scaling_error_deg",
+    "brace_off_scaling_runs",
+    "brace_off_scaling_converged",
+    "clipped_fraction",
 )
 STAT_COLUMNS = (
     "trials",
@@ -111,6 +118,26 @@ def _processed(h5: h5py.File, cfg: Configuration, trial: int) -> tuple[np.ndarra
     return angle[:n], torque[:n]
 
 
+def _brace_off_match(h5: h5py.File, cfg: Configuration, trial: int) -> list[object]:
+    """The trial's scaling error (deg) and runs, whether it converged, and its clipped fraction; empty
+    cells for what the archive does not hold (an equal-time subtraction, a multi-joint trial)."""
+    base = f"configurations/{cfg.name}/trials/{trial}"
+    error: float | None = None
+    runs: int | None = None
+    converged: bool | None = None
+    scaling = f"{base}/brace_off/scaling"
+    if scaling in h5 and "range_error_deg" in h5[scaling]:
+        g = h5[scaling]
+        errors = np.asarray(g["range_error_deg"][()], dtype=float)
+        kept = int(g.attrs.get("kept_iteration", int(np.argmin(errors)) + 1))
+        error, runs = float(errors[kept - 1]), int(errors.size)
+        converged = bool(g.attrs.get("converged", False))
+    clipped: float | None = None
+    if f"{base}/processed" in h5 and "coverage" in h5[f"{base}/processed"].attrs:
+        clipped = 1.0 - float(h5[f"{base}/processed"].attrs["coverage"])
+    return [error, runs, converged, clipped]
+
+
 def _cycle_geometry(
     signal: tuple[np.ndarray, np.ndarray] | None, n_cycles: int
 ) -> list[tuple[float, float, float]]:
@@ -152,7 +179,8 @@ def _rows(h5: h5py.File, data: ReportData) -> tuple[list[list[object]], list[lis
                 peak = float(np.nanmax(np.abs(signal[1])))
             mean = float(own.mean()) if own.size else math.nan
             sd = float(own.std(ddof=1)) if own.size > 1 else math.nan
-            trials.append([cfg.key, cfg.set_name, number, int(own.size), mean, sd, lo, hi, peak])
+            match = _brace_off_match(h5, cfg, number)
+            trials.append([cfg.key, cfg.set_name, number, int(own.size), mean, sd, lo, hi, peak, *match])
     return cycles, trials
 
 

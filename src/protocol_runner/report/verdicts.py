@@ -6,6 +6,8 @@ them from the archived protocol text and data, so a stored verdict never disagre
 report of the same archive. Each expectation is a group `/expectations/<id>` whose attributes give the
 declaration and the outcome, and whose `evidence` text dataset (sealed with its checksum) is a JSON list,
 one object per configuration: key, trials, mean, 95 % interval low and high (null when undefined), unit.
+The attributes `p_value` and `p_adjusted` give the expectation's own test and its Holm adjustment over the
+`family` evaluable expectations (both absent, and `family` 0, when not evaluable).
 """
 
 from __future__ import annotations
@@ -54,7 +56,14 @@ def record_verdicts(archive: Path, data: ReportData | None = None) -> int:
                     "declaration": v.spec.model_dump_json(exclude_none=True),
                     "verdict": v.verdict,
                     "reason": v.reason,
-                    "simulator_tuned": int(v.spec.simulator_tuned),  # 0/1: numbers export as doubles
+                    **{
+                        k: p
+                        for k, p in (("p_value", v.p_value), ("p_adjusted", v.p_adjusted))
+                        if math.isfinite(p)
+                    },
+                    "family": v.family,
+                    "simulator_tuned": int(v.spec.depends_on_tuning),  # 0/1: numbers export as doubles
+                    "depends_on_simulator": json.dumps(v.spec.depends_on_simulator),
                     "dry_run": int(result.dry_run),
                 },
             )

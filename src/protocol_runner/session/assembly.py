@@ -10,8 +10,8 @@ from ..analysis.reference import load_reference_dataset
 from ..archive.consolidate import ArchiveMeta, consolidate
 from ..archive.paths import configuration_name
 from ..archive.units import checked_unit_files
-from ..protocol.loader import LoadedProtocol
-from ..protocol.plan import Plan, TrialStep
+from ..protocol.loaded import LoadedProtocol
+from ..protocol.plan_steps import Plan, TrialStep
 from ..protocol.step_ids import step_id as make_step_id
 from .journal import Journal, utc_now
 from .setup import SessionInfo

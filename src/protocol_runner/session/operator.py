@@ -11,9 +11,8 @@ import sys
 from typing import Any, TextIO
 
 from ..errors import Interrupted, InvalidInput
-from ..protocol.plan import ChecklistStep
-from ..steps.operator import Answer as Answer
-from ..steps.operator import Operator as Operator
+from ..protocol.plan_steps import ChecklistStep
+from ..steps.operator import Answer
 from .journal import utc_now
 
 ANSWERS = {"y": "y", "yes": "y", "n": "n", "no": "n", "q": "q", "quit": "q"}  # nothing else counts

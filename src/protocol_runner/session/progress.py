@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ..archive.diskfull import QuietFileHandler
 from ..events import NULL_PUBLISHER, Publisher
-from ..protocol.plan import CalibrationCheckStep, Plan, Step, TrialStep
+from ..protocol.plan_steps import CalibrationCheckStep, Plan, Step, TrialStep
 
 
 def _fmt_s(seconds: float) -> str:

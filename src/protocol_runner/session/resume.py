@@ -18,7 +18,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
 from ..archive.units import fsync_path, unit_is_complete
-from ..protocol.plan import CalibrationCheckStep, ChecklistStep, Plan, Step, TrialStep, calibration_id
+from ..protocol.plan_steps import CalibrationCheckStep, ChecklistStep, Plan, Step, TrialStep
+from ..protocol.step_ids import calibration_id
 from .journal import Journal
 from .resume_checks import not_in_plan, started_as
 from .setup import SessionInfo, changed_files

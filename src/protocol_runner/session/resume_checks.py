@@ -12,7 +12,8 @@ from typing import TYPE_CHECKING
 
 from ..archive.units import unit_is_complete, unit_path
 from ..errors import InvalidInput
-from ..protocol.plan import Plan, calibration_id
+from ..protocol.plan_steps import Plan
+from ..protocol.step_ids import calibration_id
 from .journal import Journal, inspect_journal
 from .setup import SessionInfo
 

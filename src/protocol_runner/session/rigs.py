@@ -7,9 +7,10 @@ from typing import TYPE_CHECKING, cast
 
 from ..errors import HardwareUnavailable
 from ..hardware.calibration import CalibrationTable, load_calibration_table
+from ..hardware.joint import JointConfig
 from ..hardware.multi_rig import MultiRig
-from ..hardware.rig import JointConfig, Rig
-from ..protocol.loader import LoadedProtocol
+from ..hardware.rig import Rig
+from ..protocol.loaded import LoadedProtocol
 from ..protocol.schema import RigSpec
 from ..protocol.settings import Settings
 from ..protocol.stream_check import safety_limits

@@ -28,14 +28,15 @@ from ..archive.diskfull import DiskFull, disk_full_error, is_disk_full
 from ..archive.units import write_unit
 from ..errors import Interrupted, StoppedByCheck, UserError, file_system_refusal
 from ..events import NULL_PUBLISHER, Publisher
-from ..protocol.loader import LoadedProtocol
-from ..protocol.plan import Plan, Step
-from ..steps.context import Bench, StepContext, StepOutcome, processing_settings
+from ..protocol.loaded import LoadedProtocol
+from ..protocol.plan_steps import Plan, Step
+from ..protocol.processing import processing_settings
+from ..steps.context import Bench, StepContext, StepOutcome
 from ..steps.failures import run_step
+from ..steps.operator import Operator
 from .assembly import consolidate_session
 from .journal import Journal
 from .lock import session_lock
-from .operator import Operator
 from .progress import Progress
 from .reporting import render_report
 from .resume import prepare_resume

@@ -26,9 +26,11 @@ from .. import __version__
 from ..archive.diskfull import creates_session_directory
 from ..archive.units import fsync_path, sha256_of
 from ..errors import InvalidInput
-from ..protocol.loader import LoadedProtocol, load_protocol
+from ..protocol.loaded import LoadedProtocol
+from ..protocol.loader import load_protocol
 from ..protocol.paths import is_stored_with_session
-from ..protocol.plan import Plan, expand
+from ..protocol.plan import expand
+from ..protocol.plan_steps import Plan
 from ..protocol.rig_file import is_rig_path
 from ..protocol.trajectory_specs import FileSpec
 

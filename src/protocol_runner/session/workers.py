@@ -29,8 +29,8 @@ from pathlib import Path
 from typing import TypeVar
 
 from ..archive.units import UnitRecord, write_unit
-from ..protocol.loader import LoadedProtocol
-from ..protocol.plan import Plan, ProcessStep, Step
+from ..protocol.loaded import LoadedProtocol
+from ..protocol.plan_steps import Plan, ProcessStep, Step
 from ..protocol.processing import processing_settings
 from ..protocol.step_ids import step_id as make_step_id
 from ..steps.context import StepContext

@@ -24,13 +24,15 @@ from ..analysis.transition import command_on_input_base
 from ..archive.attrs import STEP_ID, STEP_RESPONSE
 from ..archive.h5util import put_attrs
 from ..archive.paths import calibration_path
+from ..archive.results import Fill
 from ..errors import StoppedByCheck
+from ..hardware.joint import TrialRecording
 from ..hardware.motion import run_motion
-from ..hardware.rig import TrialRecording
-from ..protocol.plan import CalibrationCheckStep, calibration_id
+from ..protocol.plan_steps import CalibrationCheckStep
 from ..protocol.sampling import sample_trajectory
 from ..protocol.schema import CalibrationCheckSpec
-from .context import Fill, StepContext, StepOutcome
+from ..protocol.step_ids import calibration_id
+from .context import StepContext, StepOutcome
 from .recording import put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]

@@ -6,7 +6,7 @@ from __future__ import annotations
 import h5py
 
 from ..archive.h5util import group_name, put_attrs
-from ..protocol.plan import ChecklistStep
+from ..protocol.plan_steps import ChecklistStep
 from .context import StepContext, StepOutcome
 
 

@@ -7,7 +7,7 @@ import h5py
 from ..archive.h5util import put_attrs
 from ..archive.paths import comparison_path, configuration_path
 from ..archive.results import comparison_values
-from ..protocol.plan import CompareStep
+from ..protocol.plan_steps import CompareStep
 from .context import StepContext, StepOutcome
 
 

@@ -18,9 +18,8 @@ from ..archive.units import open_unit
 from ..errors import UserError
 from ..events import NULL_PUBLISHER, Publisher
 from ..hardware.rig import Rig
-from ..protocol.loader import LoadedProtocol
-from ..protocol.plan import Plan, TrialStep
-from ..protocol.processing import processing_settings as processing_settings
+from ..protocol.loaded import LoadedProtocol
+from ..protocol.plan_steps import Plan, TrialStep
 from ..protocol.settings import Settings
 from .operator import Operator
 

@@ -13,7 +13,7 @@ import re
 
 from ..analysis.validation import AnalysisError
 from ..errors import InvalidInput
-from ..protocol.plan import FitStep, ProcessStep, Step, TrialStep
+from ..protocol.plan_steps import FitStep, ProcessStep, Step, TrialStep
 from .context import StepContext, StepOutcome
 from .registry import run_function
 

@@ -14,7 +14,7 @@ from ..analysis.service import fit_stored_loops
 from ..archive.model_results import comparison_fill, read_processed_trials
 from ..archive.paths import configuration_name, trials_path
 from ..archive.results import bouc_wen_fill, read_processed_loops
-from ..protocol.plan import FitStep
+from ..protocol.plan_steps import FitStep
 from ..protocol.processing import bouc_wen_settings, element_fit_enabled
 from ..protocol.step_ids import step_id
 from .context import StepContext, StepOutcome

@@ -20,12 +20,14 @@ from ..archive.attrs import JOINT, STEP_ID
 from ..archive.attrs import JOINTS as JOINTS_ATTR
 from ..archive.h5util import put_attrs
 from ..archive.paths import calibration_path, joint_path
+from ..archive.results import Fill
+from ..hardware.joint import TrialRecording
 from ..hardware.motion import run_motion
-from ..hardware.rig import TrialRecording
-from ..protocol.plan import CalibrationCheckStep, calibration_id
+from ..protocol.plan_steps import CalibrationCheckStep
 from ..protocol.sampling import sample_trajectory
+from ..protocol.step_ids import calibration_id
 from .calibration_check import StepResponse, analyse_step, check_verdict, response_problems
-from .context import Fill, StepContext, StepOutcome
+from .context import StepContext, StepOutcome
 from .multi_trial import multi_rig
 from .recording import put_commands, put_scan
 

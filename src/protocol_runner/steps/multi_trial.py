@@ -41,9 +41,9 @@ from ..archive.paths import (
 )
 from ..archive.results import Fill, bouc_wen_fill, processed_fill, read_processed_loops, read_recording
 from ..errors import HardwareUnavailable
+from ..hardware.joint import TrialRecording
 from ..hardware.multi_rig import MultiRig, run_multi_motion
-from ..hardware.rig import TrialRecording
-from ..protocol.plan import FitStep, ProcessStep, TrialStep
+from ..protocol.plan_steps import FitStep, ProcessStep, TrialStep
 from ..protocol.processing import bouc_wen_settings, element_fit_enabled
 from ..protocol.sampling import sample_trajectory
 from ..protocol.step_ids import step_id

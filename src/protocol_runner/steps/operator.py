@@ -9,7 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
-from ..protocol.plan import ChecklistStep
+from ..protocol.plan_steps import ChecklistStep
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from ..analysis.pipeline import TrialPair
 from ..analysis.service import analyse_configuration
 from ..archive.paths import configuration_name, recording_path
 from ..archive.results import processed_fill, read_recording
-from ..protocol.plan import ProcessStep
+from ..protocol.plan_steps import ProcessStep
 from ..protocol.processing import element_fit_enabled
 from .context import StepContext, StepOutcome
 

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..archive.h5util import SIGNAL, put, put_attrs
 from ..archive.paths import put_dataset
-from ..hardware.rig import TrialRecording
+from ..hardware.joint import TrialRecording
 from ..hardware.stream import SEGMENT_NAMES
 
 

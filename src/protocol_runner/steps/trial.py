@@ -1,9 +1,11 @@
 """Trial step: trajectory -> safety envelope -> 100 Hz output while acquiring inputs at 1 kHz.
 
 Brace-on trials command the plan's trajectory. A brace-off trial commands the brace-on trial's measured
-output (thesis §3.3.2: only then are torques compared at the same angles), rescaled by the Eq 8 iteration
-(analysis/scaling.py) until its output range matches the brace-on output range; every iteration is a
-robot run and is recorded (`brace_off/scaling`). Raw codes and converted values are kept.
+output (thesis §3.3.2: only then are torques compared at the same angles) through the inverse of the
+servo's first-order lag (§2.4.2, `analysis.scaling.lag_input`, so that the brace-off run follows it in
+time, not only in range), rescaled by the Eq 8 iteration (analysis/scaling.py) until its cycles' turning
+points match the brace-on cycles' within the protocol's tolerance; every iteration is a robot run and is
+recorded (`brace_off/scaling`). Raw codes and converted values are kept.
 """
 
 from __future__ import annotations
@@ -17,17 +19,18 @@ import numpy as np
 import numpy.typing as npt
 
 from ..analysis.filters import lowpass
-from ..analysis.scaling import ScalingResult, scale_brace_off_input
+from ..analysis.scaling import ScalingResult, cycle_range, lag_input, scale_brace_off_input
 from ..analysis.transition import command_on_input_base, transition_index
 from ..archive.attrs import ATTRIBUTES, FACTORS, STATUS, STEP_ID
 from ..archive.h5util import SIGNAL, put, put_attrs
 from ..archive.paths import configuration_path, recording_path
 from ..errors import HardwareUnavailable
+from ..hardware.joint import TrialRecording
 from ..hardware.motion import run_motion
-from ..hardware.rig import TrialRecording
-from ..protocol.plan import Trajectory, TrialStep
+from ..protocol.plan_steps import TrialStep
 from ..protocol.sampling import sample_trajectory
 from ..protocol.settings import configuration_attributes
+from ..protocol.trajectory_record import Trajectory
 from .context import StepContext, StepOutcome
 from .recording import put_commands, put_scan
 
@@ -116,7 +119,11 @@ def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
         f"angle {lo:.0f}..{hi:.0f} deg, torque {np.min(rec.torque_nm):.0f}..{np.max(rec.torque_nm):.0f} N*m"
     )
     if scaling is not None:
-        summary += f", scaling {len(scaling.history)} run(s){'' if scaling.converged else ' (not converged)'}"
+        error = scaling.best.range_error_deg
+        summary += f", scaling {len(scaling.history)} run(s), cycle range error {error:.2f} deg"
+        if not scaling.converged:
+            tolerance = ctx.loaded.protocol.processing.brace_off_scaling.tolerance_deg
+            summary += f" (NOT within {tolerance:g} deg: kept, flagged in trials.csv)"
     return StepOutcome(fill, summary)
 
 
@@ -140,9 +147,14 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
     # from the transition point on (§3.3.2: "index 0 corresponds to the transition point"); the rig moves
     # from its park angle to the first sample exactly as a brace-on trial does (its own transition)
     t_after = on.time_s[start:] - on.time_s[start]
-    ticks = np.arange(0.0, float(t_after[-1]), 1.0 / rig.joint.output_rate_hz)
-    u = np.interp(ticks, t_after, smooth[start:])
-    target = (float(np.min(smooth[start:])), float(np.max(smooth[start:])))
+    # the input whose output is the brace-on output: the servo's first-order lag inverted (§2.4.2). Its
+    # last time constant is not sent: that input would only act after the brace-on recording ends, and
+    # there the derivative of the smoothed angle carries the filter's edge.
+    tau = ctx.loaded.protocol.rig.time_constant_s
+    ticks = np.arange(0.0, float(t_after[-1]) - tau, 1.0 / rig.joint.output_rate_hz)
+    u = np.interp(ticks, t_after, lag_input(t_after, smooth[start:], tau))
+    # the range to match is that of the brace-on cycles (their turning points), not of the approach
+    target = cycle_range(smooth[start:], proc.reversal_deg)
     recordings: list[TrialRecording] = []
 
     def run_once(input_deg: FloatArray) -> FloatArray:
@@ -151,7 +163,15 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
             rig, input_deg, where=f"{step.id} (scaling run {k + 1})", stop_requested=ctx.stop_requested
         )
         recordings.append(rec)
-        return np.interp(rec.command_time_s, rec.input_time_s, rec.angle_deg)
+        # smoothed as the target was, so that both turning-point levels are free of the sensor noise
+        angle = lowpass(
+            np.asarray(rec.angle_deg, dtype=np.float64),
+            kind="butterworth",
+            order=COMMAND_SMOOTHING_ORDER,
+            cutoff=COMMAND_SMOOTHING_HZ / nyquist,
+            name=f"{step.id} angle_deg",
+        )
+        return np.interp(rec.command_time_s, rec.input_time_s, angle)
 
     scaling_spec = ctx.loaded.protocol.processing.brace_off_scaling
     result = scale_brace_off_input(
@@ -163,6 +183,7 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
         transition_tolerance_deg=proc.transition_tolerance_deg,
         transition_points=proc.transition_points,
         input_limits_deg=rig.joint.limits.range_deg,
+        reversal_deg=proc.reversal_deg,
     )
     return recordings[result.best.iteration], result
 

@@ -48,13 +48,12 @@ from protocol_runner.hardware.simulator.output import (
 )
 from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, SimulatorParams
 from protocol_runner.hardware.simulator.plant import JointPlant
-from protocol_runner.hardware.simulator.scan import AI_CHANNELS as AI_CHANNELS
-from protocol_runner.hardware.simulator.scan import AI_MAX_RATE_HZ as AI_MAX_RATE_HZ
 from protocol_runner.hardware.simulator.scan import SimulatedAnalogInput
 
 if TYPE_CHECKING:
     from protocol_runner.hardware.calibration import CalibrationTable
-    from protocol_runner.hardware.rig import JointConfig, Rig
+    from protocol_runner.hardware.joint import JointConfig
+    from protocol_runner.hardware.rig import Rig
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -21,9 +21,10 @@ from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.interfaces import ScanBlock
 from protocol_runner.hardware.joint import JointConfig
 from protocol_runner.hardware.multi_rig import MultiRig
-from protocol_runner.hardware.simulator.daq import AI_CHANNELS, AI_MAX_RATE_HZ, _RigModel
+from protocol_runner.hardware.simulator.daq import _RigModel
 from protocol_runner.hardware.simulator.output import SimulatedAnalogOutput, SimulatedClock, check_channel
 from protocol_runner.hardware.simulator.params import SimulatorParams
+from protocol_runner.hardware.simulator.scan import AI_CHANNELS, AI_MAX_RATE_HZ
 
 
 def joint_seed(seed: int, joint: str) -> int:

@@ -10,7 +10,7 @@ import numpy as np
 import numpy.typing as npt
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.hardware.usb3105 import IDENTITY_CALIBRATION, calibrated_code
+from protocol_runner.hardware.usb3105_calibration import IDENTITY_CALIBRATION, calibrated_code
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -63,7 +63,7 @@ def check_channel(channel: int, n_channels: int, board: str) -> int:
 
 def _ao_code(volts: float) -> int:
     """The code a USB-3105 sends for `volts` on the ±10 V range with ideal calibration: the board driver's
-    own scalar rule (`usb3105.calibrated_code`, equal to `conversions.volts_to_ao16_code`)."""
+    own scalar rule (`usb3105_calibration.calibrated_code`, equal to `conversions.volts_to_ao16_code`)."""
     v = float(volts)
     if math.isnan(v):
         raise InvalidInput("USB-3105 (simulated): cannot output NaN volts")

@@ -44,7 +44,8 @@ import numpy.typing as npt
 from scipy.optimize import least_squares
 
 from .backbone import hysteretic_part
-from .fitting import _validate_segments, decimate
+from .copies import decimate
+from .fitting import _validate_segments
 from .params import FloatArray
 from .problem import FitScale, Problem, Samples, jacobian_std, param_std
 from .records import BoucWenFit
