@@ -41,7 +41,13 @@ def test_the_figure_draws_the_measured_loop_then_the_predicted_one(monkeypatch) 
     monkeypatch.setattr(drawing, "to_data_uri", keep)
     p = _prediction()
     assert p.element is not None
-    uri = prediction_figure(p)
+    uri = prediction_figure(
+        p.fit_key,
+        p.predict_key,
+        p.element.angle_deg,
+        p.element.measured_torque_nm,
+        p.element.predicted_torque_nm,
+    )
     assert uri.startswith("data:image/png;base64,")
     (ax,) = captured[-1].axes
     measured, predicted = ax.get_lines()
@@ -57,7 +63,7 @@ def test_no_element_model_draws_no_curve(monkeypatch) -> None:  # type: ignore[n
     captured = []
     real = drawing.to_data_uri
     monkeypatch.setattr(drawing, "to_data_uri", lambda fig: captured.append(fig) or real(fig))
-    prediction_figure(Prediction(12, 14, "", 0.5, 0.4))
+    prediction_figure(12, 14, [], [], [])
     (ax,) = captured[-1].axes
     assert ax.get_lines() == []
 

@@ -5,35 +5,44 @@ of B, drawn on a new Figure like every report figure (`report.drawing`), where t
 
 from __future__ import annotations
 
+import numpy as np
+import numpy.typing as npt
+
 from protocol_runner.report.drawing import ANGLE_LABEL, COLORS, TORQUE_LABEL, empty, finish, new_figure
-from protocol_runner.report.predictions import Prediction
 
 MEASURED_COLOR = COLORS[0]
 PREDICTED_COLOR = COLORS[1]
 
 
-def prediction_figure(p: Prediction) -> str:
-    """B's measured loop (solid, blue) and the element model's predicted loop (dashed, red), drawn in
-    that order: the prediction over the data it is judged against."""
+def prediction_figure(
+    fit_key: int,
+    predict_key: int,
+    angle_deg: npt.ArrayLike,
+    measured_torque_nm: npt.ArrayLike,
+    predicted_torque_nm: npt.ArrayLike,
+) -> str:
+    """Configuration `predict_key`'s measured loop (solid, blue) and the loop the element model fitted on
+    `fit_key` predicts (dashed, red), drawn in that order: the prediction over the data it is judged
+    against."""
     fig, (ax,) = new_figure("single")
-    e = p.element
-    if e is None or e.angle_deg.size == 0:
-        empty(ax, f"no element model of configuration {p.fit_key}")
+    angle = np.asarray(angle_deg, dtype=np.float64)
+    if angle.size == 0:
+        empty(ax, f"no element model of configuration {fit_key}")
     else:
         ax.plot(
-            e.angle_deg,
-            e.measured_torque_nm,
+            angle,
+            measured_torque_nm,
             lw=0.7,
             color=MEASURED_COLOR,
-            label=f"measured, configuration {p.predict_key}",
+            label=f"measured, configuration {predict_key}",
         )
         ax.plot(
-            e.angle_deg,
-            e.predicted_torque_nm,
+            angle,
+            predicted_torque_nm,
             lw=0.9,
             ls="--",
             color=PREDICTED_COLOR,
-            label=f"element model fitted on {p.fit_key}",
+            label=f"element model fitted on {fit_key}",
         )
-    title = f"Configuration {p.predict_key} predicted from {p.fit_key}"
+    title = f"Configuration {predict_key} predicted from {fit_key}"
     return finish(fig, ax, ANGLE_LABEL, TORQUE_LABEL, title)

@@ -235,7 +235,21 @@ def predictions(archive: Path, protocol_text: str, *, figures: bool = True) -> t
         return made
     from .figures_predictions import prediction_figure  # matplotlib: only where the figures are drawn
 
-    return tuple(replace(p, figure=prediction_figure(p)) if p.element is not None else p for p in made)
+    return tuple(
+        replace(
+            p,
+            figure=prediction_figure(
+                p.fit_key,
+                p.predict_key,
+                p.element.angle_deg,
+                p.element.measured_torque_nm,
+                p.element.predicted_torque_nm,
+            ),
+        )
+        if p.element is not None
+        else p
+        for p in made
+    )
 
 
 def _predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
