@@ -90,6 +90,7 @@ ATTRIBUTE_SECTIONS = {
     "elements": SECTIONS["elements"],
     "element_model": _line_with("| `fits/element_model`"),
     "models": _line_with("| `fits/models`"),
+    "prediction": _line_with("| `/predictions`"),
     "spring": SECTIONS["spring"],
     "reference": SECTIONS["reference"],
     "comparison": _between("## `/comparisons/<name>`", "## `/expectations"),

@@ -6,6 +6,7 @@ docs/archive.md; numbers from `analysis.model_comparison`."""
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -178,11 +179,12 @@ PREDICTIONS = "predictions"
 def write_predictions(f: h5py.File, rows: list[dict[str, Any]]) -> None:
     """(Re)write `/predictions`: one group `from_<A>_to_<B>` (with `_<joint>` for one joint of a
     several-joint configuration) per declared prediction, its numbers as attributes (`prediction` in
-    `attrs.ATTRIBUTES`; NaN where a number does not exist)."""
+    `attrs.ATTRIBUTES`; absent where a number does not exist)."""
     if PREDICTIONS in f:
         del f[PREDICTIONS]
     root = f.create_group(PREDICTIONS)
     for row in rows:
         name = f"from_{row['fit_configuration']}_to_{row['predict_configuration']}"
         name += f"_{row['joint']}" if row["joint"] else ""
-        put_attrs(root.require_group(name), "prediction", row)
+        kept = {k: v for k, v in row.items() if not (isinstance(v, float) and not math.isfinite(v))}
+        put_attrs(root.require_group(name), "prediction", kept)
