@@ -30,7 +30,7 @@ def test_parameters_print_their_interval_or_unidentified_and_never_a_standard_er
         parameter_identified=(True, False, *(True,) * 6),
         functionals=(("loop energy per cycle", "J", 12.5, 12.0, 13.0),),
     )
-    assert "[1.0000, 2.0000]" in str(_parameter_cell(bw, 0))
+    assert "[1.0000,<br>2.0000]" in str(_parameter_cell(bw, 0))
     assert "unidentified" in str(_parameter_cell(bw, 1)) and "[" not in str(_parameter_cell(bw, 1))
     configurations = tuple(
         dataclasses.replace(c, bouc_wen=bw) if c is cfg else c for c in data.configurations

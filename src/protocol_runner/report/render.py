@@ -331,9 +331,9 @@ def _context(
 
 
 def _parameter_cell(fit: BoucWenFit, index: int, digits: int = 4) -> Markup:
-    """A Bouc-Wen parameter (0: A, 1: n, 2-7: β1-β6) with its 95 % interval on a second line, or
-    "unidentified" there when the data do not identify it (an interval covering most of its plausible
-    range says nothing about the joint); the value alone when neither is recorded."""
+    """A Bouc-Wen parameter (0: A, 1: n, 2-7: β1-β6) with its 95 % interval on the next two lines (the
+    table stays narrow), or "unidentified" there when the data do not identify it (an interval covering
+    most of its plausible range says nothing about the joint); the value alone when neither is recorded."""
     values = (fit.A, fit.n, *fit.beta)
     if index >= len(values) or not math.isfinite(values[index]):
         return Markup("—")
@@ -347,7 +347,7 @@ def _parameter_cell(fit: BoucWenFit, index: int, digits: int = 4) -> Markup:
                 value
                 + Markup('<br><span class="se">[')
                 + escape(_num(low, digits))
-                + Markup(", ")
+                + Markup(",<br>")
                 + escape(_num(high, digits))
                 + Markup("]</span>")
             )
