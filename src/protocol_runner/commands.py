@@ -233,6 +233,9 @@ def _report(
         from .report.verdicts import record_verdicts
 
         record_verdicts(archive)  # the verdicts follow the reprocessed data
+        from .report.predictions import record_predictions
+
+        record_predictions(archive)  # and so do the predictions
         _result(f"reprocessed archive: {archive}")
         if output is None:
             output = archive.with_suffix(".html")

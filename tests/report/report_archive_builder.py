@@ -342,6 +342,9 @@ def write_archive(path: Path, spec: ArchiveSpec) -> Path:
                 bw.attrs["A_std"] = 0.01
                 bw.attrs["n_std"] = 0.05
                 bw.attrs["beta_std"] = np.full(6, 0.002)
+                theta = np.asarray([0.2823, 1.2065, 0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036])
+                bw.attrs["param_interval_low"] = theta - 1.96 * np.asarray([0.01, 0.05, *[0.002] * 6])
+                bw.attrs["param_interval_high"] = theta + 1.96 * np.asarray([0.01, 0.05, *[0.002] * 6])
                 bw.attrs["cv_rmse_nm"] = np.full(max(n_trials_written, 1), 0.9)
                 bw.attrs["n_starts"] = 8
                 x = (angle - angle.mean())[::20]

@@ -114,5 +114,9 @@ def test_bouc_wen_parameters_carry_their_units(small_report: str) -> None:
     table = _section(small_report, '<table class="bouc-wen">', "</table>")
     assert '<th rowspan="2">A (N·m/deg)</th>' in table
     assert "β1 – β6 (N·m<sup>1−n</sup>/deg)" in table
-    # each estimate shows its standard error on a second line of the same cell
-    assert re.search(r'<td class="num">-?\d+\.\d{4}<br><span class="se">± \d+\.\d{4}</span></td>', table)
+    # each estimate shows its 95 % interval (or "unidentified") on a second line of the same cell, never a ±
+    assert re.search(
+        r'<td class="num">-?\d+\.\d{4}<br><span class="se">\[-?\d+\.\d{4},<br>-?\d+\.\d{4}\]</span></td>',
+        table,
+    )
+    assert "±" not in table

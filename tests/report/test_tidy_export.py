@@ -77,11 +77,14 @@ def test_trials_and_configurations_reproduce_the_report_intervals(
         assert row["brace_rom.range_deg"] == "0.0;130.0"
 
 
-def test_cli_export_writes_the_three_tables(small_archive: Path, tmp_path: Path) -> None:
+def test_cli_export_writes_the_six_tables(small_archive: Path, tmp_path: Path) -> None:
     assert main(["--export", str(small_archive), "--output", str(tmp_path / "out")]) == 0
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
         "configurations.csv",
         "cycles.csv",
+        "elements.csv",
+        "models.csv",
+        "predictions.csv",
         "trials.csv",
     ]
 

@@ -25,6 +25,7 @@ from .attrs import DEVICE_JSON, FILENAME
 from .attrs import JOINTS as JOINTS_ATTR
 from .checksums import is_marked, seal_attributes, seal_missing
 from .h5util import attr_str, put_attrs, text_of
+from .model_results import PREDICTIONS, compare_owner
 from .outputs import create_binary, refuse_special, temporary_beside, terminated_as_interrupt
 from .paths import FITS, TRIALS, configuration_name
 from .reprocess_joints import complete_pairs, reprocess_joints
@@ -143,6 +144,10 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
         processed_fill(name, analysis, settings)(f)
         if analysis.bouc_wen is not None:
             bouc_wen_fill(name, analysis.bouc_wen)(f)
+            if elements:  # the model comparison, as the fit step makes it
+                compare_owner(cfg, archived_device(cfg), analysis.bouc_wen)
+    if PREDICTIONS in f:  # made from the old fits: `report.predictions.record_predictions` makes them anew
+        del f[PREDICTIONS]
     for comp in f.get("comparisons", {}).values():
         names = [configuration_name(int(k)) for k in comp.attrs[CONFIGURATIONS_ATTR]]
         groups = [f["configurations"][n] for n in names if n in f["configurations"]]

@@ -16,6 +16,7 @@ from ..errors import InvalidInput
 from .attrs import JOINTS as JOINTS_ATTR
 from .attrs import STATUS
 from .h5util import attr_str, attr_strs, put
+from .model_results import compare_owner
 from .paths import JOINTS, PROCESSED, TRIALS, joint_path
 from .results import bouc_wen_fill, processed_fill, read_recording
 
@@ -88,5 +89,7 @@ def reprocess_joints(
         processed_fill(joint_path(name, joint), one, settings)(f)
         if one.bouc_wen is not None:
             bouc_wen_fill(joint_path(name, joint), one.bouc_wen)(f)
+            if elements:  # the model comparison of the joint, as the fit step makes it
+                compare_owner(cfg[f"{JOINTS}/{joint}"], joint_device(device, joint), one.bouc_wen)
     put(cfg, "total_energy_loss_j", analysis.total_energy_loss_j, "J")
     put(cfg, "total_energy_cycle_trial", analysis.total_energy_cycle_trial, "1")

@@ -39,6 +39,7 @@ class ParamSpec:
     shape: Shape = "number"
     fit_starts: tuple[float, ...] = ()
     fit_scale: float = 1.0
+    plausible: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -69,8 +70,9 @@ def _p(
     shape: Shape = "number",
     starts: tuple[float, ...] = (),
     scale: float = 1.0,
+    plausible: tuple[float, float] | None = None,
 ) -> ParamSpec:
-    return ParamSpec(unit, default, fittable, bounds, doc, shape, starts, scale)
+    return ParamSpec(unit, default, fittable, bounds, doc, shape, starts, scale, plausible)
 
 
 def _fit_param(default_fit: tuple[str, ...]) -> ParamSpec:
@@ -116,6 +118,7 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
                     bounds=(0.0, 100.0),
                     starts=(10.0, 60.0),
                     scale=10.0,
+                    plausible=(0.0, 100.0),
                 ),
                 "zero_offset_deg": _p(
                     "_deg",
@@ -125,6 +128,7 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
                     bounds=(-40.0, 40.0),
                     starts=(-15.0, 15.0),
                     scale=10.0,
+                    plausible=(-40.0, 40.0),
                 ),
                 "a_m": _p(
                     "_m",
@@ -197,6 +201,7 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
                     "travel over which the friction reverses (Dahl σ = torque / this)",
                     1.0,
                     bounds=(1e-6, 90.0),
+                    plausible=(0.01, 30.0),
                 ),
                 "static_excess_ratio": _p(
                     "_ratio",
@@ -213,7 +218,9 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "viscous_damper",
             "viscous damping: torque = damping · speed. Loses π·c·ω·A² per cycle (c per rad)",
             "dissipative",
-            {"damping_nm_s_per_deg": _p("_nm_s_per_deg", "damping coefficient", bounds=_NONNEG)},
+            {
+                "damping_nm_s_per_deg": _p("_nm_s_per_deg", "damping coefficient", bounds=_NONNEG)
+            },
         ),
         ElementType(
             "rom_stops",

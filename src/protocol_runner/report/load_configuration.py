@@ -11,6 +11,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from protocol_runner.archive.model_results import strings
 from protocol_runner.report.h5read import (
     attr_bool,
     attr_float,
@@ -186,7 +187,23 @@ def _summary(angles: list[np.ndarray], torques: list[np.ndarray]) -> tuple[float
 
 
 def _read_bouc_wen(grp: h5py.Group) -> BoucWenFit:
-    return read_record(BoucWenFit, grp)
+    models = grp.parent.get("models")
+    if not isinstance(models, h5py.Group):
+        return read_record(BoucWenFit, grp, parameter_identified=(), functionals=())
+    values = [
+        np.atleast_1d(np.asarray(models.attrs.get(k, []), dtype=np.float64))
+        for k in ("functional_value", "functional_ci95_low", "functional_ci95_high")
+    ]
+    functionals = tuple(
+        (name, unit, float(v), float(lo), float(hi))
+        for name, unit, v, lo, hi in zip(
+            strings(models, "functional"), strings(models, "functional_unit"), *values, strict=True
+        )
+    )
+    flags = np.atleast_1d(np.asarray(models.attrs.get("bouc_wen_identified", []), dtype=np.int64))
+    return read_record(
+        BoucWenFit, grp, parameter_identified=tuple(bool(v) for v in flags), functionals=functionals
+    )
 
 
 def _filter_text(attrs: h5py.AttributeManager) -> str:

@@ -196,6 +196,12 @@ class BoucWenFit(FittedCurve):
     data_energy_j: float = float("nan")
     model_dissipates: bool = True
     backbone: str = "none"  # "polynomial": torque = g(angle) + z
+    param_interval_low: tuple[float, ...] = ()  # 95 % intervals of A, n, β1-β6
+    param_interval_high: tuple[float, ...] = ()
+    # from the model comparison (`fits/models`), when it ran: which of A, n, β1-β6 the data identify, and
+    # what the loops determine: (name, unit, value, 95 % low, 95 % high) per functional
+    parameter_identified: tuple[bool, ...] = ()
+    functionals: tuple[tuple[str, str, float, float, float], ...] = ()
 
     @property
     def cv_rmse_mean_nm(self) -> float:

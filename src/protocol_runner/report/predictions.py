@@ -1,13 +1,23 @@
-"""Model prediction across configurations: the Bouc-Wen model fitted on one configuration
-predicts another with the same device elements at another speed or range.  The pairs are declared in the
-protocol (`report.predictions`); the numbers come from the archive alone: the fitted configuration's
-parameters (and backbone) and the predicted configuration's centred loops stored with its own fit."""
+"""Model prediction across configurations: configuration B predicted from a model fitted on A. The pairs
+are declared in the protocol (`report.predictions`); the numbers come from the archive alone.
+
+* The element model (physics): A's fitted element parameters (`fits/element_model`) carried to B with the
+  declared change A -> B (`models.element_model.transfer`: a parameter declared equal keeps A's fitted
+  value, a changed torque/stiffness/damping takes the declared factor, a changed angle or length the
+  declared shift), then run along B's recorded motion (its processed trials). Gives the RMSE against B's
+  measured torque and the energy per cycle with a 95 % interval propagated from A's parameter covariance
+  plus the parameter's configuration-to-configuration spread across the campaign (`reproducibility`:
+  configurations declaring the same value of it) — PREDICTION_DRAWS parameter sets drawn from that
+  covariance, the 2.5 and 97.5 percentiles of their energies — beside B's measured energy per cycle.
+* The generalised Bouc-Wen model: A's parameters and backbone on B's centred loops (its RMSE), for
+  comparison: a polynomial backbone and the Bouc-Wen state do not extrapolate to another range."""
 
 from __future__ import annotations
 
 import itertools
+import json
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -15,6 +25,7 @@ import h5py
 import numpy as np
 import yaml
 
+from ..archive.model_results import stored_device, strings
 from .declared import protocol_document
 
 if TYPE_CHECKING:
@@ -30,9 +41,40 @@ class Prediction:
     fit_key: int
     predict_key: int
     note: str
-    rmse_nm: float  # the fitted configuration's model on the predicted configuration's loops
-    own_rmse_nm: float  # the predicted configuration's own fit, for scale
-    reason: str = ""  # why there is no number
+    rmse_nm: float  # the fitted configuration's Bouc-Wen model on the predicted configuration's loops
+    own_rmse_nm: float  # the predicted configuration's own Bouc-Wen fit, for scale
+    reason: str = ""  # why there is no Bouc-Wen number
+    element: ElementPrediction | None = None  # the element model's prediction, when A has one
+    figure: str = ""  # B's measured loop and the element model's prediction (a PNG data URI), when drawn
+
+
+@dataclass(frozen=True)
+class ElementPrediction:
+    """The element model fitted on A run on B's motion (module docstring)."""
+
+    rmse_nm: float
+    energy_predicted_j: float
+    energy_predicted_ci95_low_j: float
+    energy_predicted_ci95_high_j: float
+    energy_measured_j: float
+    angle_deg: np.ndarray  # B's first trial: angle, measured and predicted torque (the overlay)
+    measured_torque_nm: np.ndarray
+    predicted_torque_nm: np.ndarray
+
+    @property
+    def energy_error(self) -> float:
+        return (self.energy_predicted_j - self.energy_measured_j) / self.energy_measured_j
+
+    @property
+    def covers(self) -> bool:
+        """The interval covers the measured energy."""
+        return bool(
+            self.energy_predicted_ci95_low_j <= self.energy_measured_j <= self.energy_predicted_ci95_high_j
+        )
+
+
+PREDICTION_DRAWS = 100
+OVERLAY_POINTS = 1500
 
 
 def declared_pairs(protocol_text: str) -> list[tuple[int, int, str]]:
@@ -104,7 +146,113 @@ def predict_rmse(
     return math.sqrt(sq / count) if count else math.nan
 
 
-def predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
+def reproducibility(configs: h5py.Group) -> dict[tuple[str, str], float]:
+    """Per fitted parameter, the standard deviation of its fitted value across the configurations that
+    declare the same value for it (pooled over the declared values shared by two or more): how far a
+    brake set to the same level, a spring with the same preload, ... lands from one configuration to the
+    next, beyond a configuration's own fit uncertainty."""
+    from ..models.element_model import layout
+
+    groups: dict[tuple[tuple[str, str], float], list[float]] = {}
+    for name in configs:
+        cfg = configs[name]
+        g = cfg.get("fits/element_model")
+        if g is None or "device_json" not in cfg.attrs:
+            continue
+        declared = layout(stored_device(cfg)).declared
+        fitted = json.loads(str(g.attrs["values_json"]))
+        for key in strings(g, "parameters"):
+            element, param = key.rsplit(".", 1)
+            k = (element, param)
+            if k in declared and key in fitted:
+                groups.setdefault((k, declared[k]), []).append(float(fitted[key]))
+    sq: dict[tuple[str, str], float] = {}
+    dof: dict[tuple[str, str], int] = {}
+    for (k, _), values in groups.items():
+        if len(values) >= 2:
+            v = np.asarray(values)
+            sq[k] = sq.get(k, 0.0) + float(np.sum((v - v.mean()) ** 2))
+            dof[k] = dof.get(k, 0) + v.size - 1
+    return {k: math.sqrt(sq[k] / dof[k]) for k in sq}
+
+
+def element_prediction(
+    src: h5py.Group, dst: h5py.Group, spread: dict[tuple[str, str], float] | None = None
+) -> ElementPrediction | None:
+    """The element model fitted on configuration group `src` predicting configuration group `dst`
+    (None when `src` has no element model or either has no declared device)."""
+    from ..analysis.model_comparison import motions_of
+    from ..analysis.model_fit import mean_energy_j
+    from ..archive.model_results import read_processed_trials
+    from ..models.element_model import layout, model_torque_nm, transfer
+
+    g = src.get("fits/element_model")
+    if g is None or "device_json" not in src.attrs or "device_json" not in dst.attrs or "trials" not in dst:
+        return None
+    values = {tuple(k.rsplit(".", 1)): float(v) for k, v in json.loads(str(g.attrs["values_json"])).items()}
+    names = [(p.rsplit(".", 1)[0], p.rsplit(".", 1)[1]) for p in strings(g, "parameters")]
+    x = np.asarray(g.attrs["value"], dtype=np.float64).ravel()
+    cov = np.asarray(g.attrs["covariance"], dtype=np.float64).reshape(x.size, x.size)
+    # the configuration-to-configuration spread of each parameter adds to A's own fit uncertainty
+    cov = cov + np.diag(np.array([(spread or {}).get(k, 0.0) ** 2 for k in names]))
+    lay_a, lay_b = layout(stored_device(src)), layout(stored_device(dst))
+    motions = motions_of(read_processed_trials(dst["trials"]))
+
+    def run(fitted: dict) -> list[np.ndarray]:
+        vb = transfer(lay_a, lay_b, fitted)
+        return [model_torque_nm(lay_b, vb, m) for m in motions]
+
+    predicted = run(values)
+    r = np.concatenate([(p - m.torque_nm)[m.settled :] for p, m in zip(predicted, motions, strict=True)])
+    energy = mean_energy_j(motions, predicted)
+    low = high = math.nan
+    if x.size and np.all(np.isfinite(cov)):
+        rng = np.random.default_rng(0)
+        draws = rng.multivariate_normal(x, cov, size=PREDICTION_DRAWS, check_valid="ignore")
+        energies = [
+            mean_energy_j(motions, run({**values, **dict(zip(names, d, strict=True))})) for d in draws
+        ]
+        low, high = (float(v) for v in np.nanpercentile(energies, [2.5, 97.5]))
+    first = motions[0]
+    stride = max(1, first.angle_deg.size // OVERLAY_POINTS)
+    return ElementPrediction(
+        rmse_nm=float(np.sqrt(np.mean(r * r))) if r.size else math.nan,
+        energy_predicted_j=energy,
+        energy_predicted_ci95_low_j=low,
+        energy_predicted_ci95_high_j=high,
+        energy_measured_j=mean_energy_j(motions, [m.torque_nm for m in motions]),
+        angle_deg=first.angle_deg[::stride],
+        measured_torque_nm=first.torque_nm[::stride],
+        predicted_torque_nm=predicted[0][::stride],
+    )
+
+
+def predictions(archive: Path, protocol_text: str, *, figures: bool = True) -> tuple[Prediction, ...]:
+    """The declared predictions of `archive`, each with its figure (`report.figures_predictions`) when
+    `figures` and the element model predicted it."""
+    made = _predictions(archive, protocol_text)
+    if not figures or not any(p.element is not None for p in made):
+        return made
+    from .figures_predictions import prediction_figure  # matplotlib: only where the figures are drawn
+
+    return tuple(
+        replace(
+            p,
+            figure=prediction_figure(
+                p.fit_key,
+                p.predict_key,
+                p.element.angle_deg,
+                p.element.measured_torque_nm,
+                p.element.predicted_torque_nm,
+            ),
+        )
+        if p.element is not None
+        else p
+        for p in made
+    )
+
+
+def _predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
     pairs = declared_pairs(protocol_text)
     if not pairs:
         return ()
@@ -114,17 +262,64 @@ def predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
     except OSError:
         return ()
     with h5:
+        spread = reproducibility(h5["configurations"]) if "configurations" in h5 else {}
         for fit_key, predict_key, note in pairs:
+            cfg_a = h5.get(f"configurations/config_{fit_key:02d}")
+            cfg_b = h5.get(f"configurations/config_{predict_key:02d}")
+            element = (
+                element_prediction(cfg_a, cfg_b, spread) if cfg_a is not None and cfg_b is not None else None
+            )
             src = h5.get(f"configurations/config_{fit_key:02d}/fits/bouc_wen")
             dst = h5.get(f"configurations/config_{predict_key:02d}/fits/bouc_wen")
             if src is None or dst is None:
                 missing = fit_key if src is None else predict_key
-                out.append(Prediction(fit_key, predict_key, note, math.nan, math.nan, f"no fit of {missing}"))
+                out.append(
+                    Prediction(
+                        fit_key, predict_key, note, math.nan, math.nan, f"no fit of {missing}", element
+                    )
+                )
                 continue
             params, backbone = _model(src)
             rmse = predict_rmse(params, backbone, _segments(dst))
             own = float(dst.attrs.get("rmse_nm", math.nan))
-            out.append(
-                Prediction(fit_key, predict_key, note, rmse, own, "" if math.isfinite(rmse) else "diverges")
-            )
+            reason = "" if math.isfinite(rmse) else "diverges"
+            out.append(Prediction(fit_key, predict_key, note, rmse, own, reason, element))
     return tuple(out)
+
+
+def prediction_row(p: Prediction) -> dict[str, object]:
+    """A prediction's numbers as `/predictions` stores them (`archive.model_results.write_predictions`)."""
+    e = p.element
+    nan = math.nan
+    return {
+        "fit_configuration": p.fit_key,
+        "predict_configuration": p.predict_key,
+        "joint": "",
+        "note": p.note,
+        "element_rmse_nm": e.rmse_nm if e else nan,
+        "energy_predicted_j": e.energy_predicted_j if e else nan,
+        "energy_predicted_ci95_low_j": e.energy_predicted_ci95_low_j if e else nan,
+        "energy_predicted_ci95_high_j": e.energy_predicted_ci95_high_j if e else nan,
+        "energy_measured_j": e.energy_measured_j if e else nan,
+        "bouc_wen_rmse_nm": p.rmse_nm,
+        "bouc_wen_own_rmse_nm": p.own_rmse_nm,
+        "reason": p.reason,
+    }
+
+
+def record_predictions(archive: Path, made: tuple[Prediction, ...] | None = None) -> int:
+    """(Re)write the archive's `/predictions` from its declared pairs (`made`: already computed from this
+    archive); return how many. Nothing is written for an archive that declares none."""
+    from ..archive.model_results import write_predictions
+
+    if made is None:
+        from .h5read import scalar_str
+
+        with h5py.File(archive, "r") as h5:
+            text = scalar_str(h5["protocol"]) if "protocol" in h5 else ""
+        made = predictions(archive, text, figures=False)
+    if not made:
+        return 0
+    with h5py.File(archive, "a") as h5:
+        write_predictions(h5, [prediction_row(p) for p in made])
+    return len(made)

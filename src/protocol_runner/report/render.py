@@ -326,30 +326,32 @@ def _context(
         "software_version": __version__,
         "verdict_class": _verdict_class,
         "configs_of": lambda comp: _configs(data, comp),
-        "beta_cell": _beta_cell,
-        "estimate": _estimate,
+        "parameter_cell": _parameter_cell,
     }
 
 
-def _estimate(value: float, std: float, digits: int = 4) -> Markup:
-    """A fitted value with its standard error on a second line (keeps wide parameter tables narrow)."""
-    if not math.isfinite(value):
+def _parameter_cell(fit: BoucWenFit, index: int, digits: int = 4) -> Markup:
+    """A Bouc-Wen parameter (0: A, 1: n, 2-7: β1-β6) with its 95 % interval on the next two lines (the
+    table stays narrow), or "unidentified" there when the data do not identify it (an interval covering
+    most of its plausible range says nothing about the joint); the value alone when neither is recorded."""
+    values = (fit.A, fit.n, *fit.beta)
+    if index >= len(values) or not math.isfinite(values[index]):
         return Markup("—")
-    if not math.isfinite(std):
-        return escape(_num(value, digits))
-    return (
-        escape(_num(value, digits))
-        + Markup('<br><span class="se">± ')
-        + escape(_num(std, digits))
-        + Markup("</span>")
-    )
-
-
-def _beta_cell(fit: BoucWenFit, index: int) -> Markup:
-    if index >= len(fit.beta):
-        return Markup("—")
-    std = fit.beta_std[index] if index < len(fit.beta_std) else math.nan
-    return _estimate(fit.beta[index], std)
+    value = escape(_num(values[index], digits))
+    if index < len(fit.parameter_identified) and not fit.parameter_identified[index]:
+        return value + Markup('<br><span class="se">unidentified</span>')
+    if index < min(len(fit.param_interval_low), len(fit.param_interval_high)):
+        low, high = fit.param_interval_low[index], fit.param_interval_high[index]
+        if math.isfinite(low) and math.isfinite(high):
+            return (
+                value
+                + Markup('<br><span class="se">[')
+                + escape(_num(low, digits))
+                + Markup(",<br>")
+                + escape(_num(high, digits))
+                + Markup("]</span>")
+            )
+    return value
 
 
 def _configs(data: ReportData, comparison: Comparison | None) -> list[Configuration]:

@@ -19,6 +19,9 @@ the quantity's suffix; a list such as a range [lo, hi] is written `lo;hi`), tria
 trial means with its 95 % t-interval and between-trial CV (`report.headline`, the numbers of the report's
 summary table), the angle reached and the Bouc-Wen fit quality.
 
+`models.csv`, `elements.csv`, `predictions.csv`: the model comparison, the element model's parameters
+with their intervals and the declared predictions (`report.model_tables`).
+
 Public API: export_tables(archive, output_dir) -> tuple[Path, ...]
 """
 
@@ -43,6 +46,7 @@ from protocol_runner.errors import InvalidInput
 from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.model import BraceOffMatch, Configuration, ReportData
+from protocol_runner.report.model_tables import model_tables
 
 if TYPE_CHECKING:
     from protocol_runner.protocol.only import KeySelection
@@ -241,7 +245,8 @@ def _configuration_rows(data: ReportData) -> tuple[list[str], list[list[object]]
 
 
 def export_tables(archive: Path, output_dir: Path, *, only: KeySelection | None = None) -> tuple[Path, ...]:
-    """Write cycles.csv, trials.csv and configurations.csv of `archive` into `output_dir`; return them.
+    """Write cycles.csv, trials.csv, configurations.csv and the model tables (models.csv, elements.csv,
+    predictions.csv: `report.model_tables`) of `archive` into `output_dir`; return them.
     With `only` (`--only`), the rows of those configuration keys alone.
 
     Raises `InvalidInput` for an unreadable archive, a key of `only` the archive does not hold, or an
@@ -257,8 +262,15 @@ def export_tables(archive: Path, output_dir: Path, *, only: KeySelection | None 
             data, configurations=tuple(c for c in data.configurations if c.key in keys)
         )
     output_dir.mkdir(parents=True, exist_ok=True)
-    for name in ("cycles.csv", "trials.csv", "configurations.csv"):  # all refused before any is written
-        refuse_special(output_dir / name, "--export")
+    models = model_tables(Path(data.session.archive_path), data.protocol_text)
+    if only is not None:  # rows of the kept configurations (a prediction: from or to one of them)
+        kept = {c.key for c in data.configurations}
+        models = tuple(
+            (name, columns, [r for r in rows if r[0] in kept or (name == "predictions.csv" and r[1] in kept)])
+            for name, columns, rows in models
+        )
+    for name in ("cycles.csv", "trials.csv", "configurations.csv", *(m[0] for m in models)):
+        refuse_special(output_dir / name, "--export")  # all refused before any is written
     with h5py.File(data.session.archive_path, "r") as h5:
         cycles, trials = _rows(h5, data)
     columns, configurations = _configuration_rows(data)
@@ -266,4 +278,5 @@ def export_tables(archive: Path, output_dir: Path, *, only: KeySelection | None 
         _write(output_dir / "cycles.csv", CYCLE_COLUMNS, cycles),
         _write(output_dir / "trials.csv", TRIAL_COLUMNS, trials),
         _write(output_dir / "configurations.csv", columns, configurations),
+        *(_write(output_dir / name, columns, rows) for name, columns, rows in models),
     )

@@ -33,6 +33,7 @@ def render_report(session_dir: Path, archive: Path, call: Call | None = None) ->
     """Render the session's report next to its archive (`call`: runs work on the analysis workers, which
     then draw the figures and compute the predictions); a full disk is a `DiskFull` with the resume hint."""
     from ..report.load import load_report_data
+    from ..report.predictions import record_predictions
     from ..report.render import render_report as render  # here: only the report step needs jinja
     from ..report.verdicts import record_verdicts
 
@@ -47,12 +48,14 @@ def render_report(session_dir: Path, archive: Path, call: Call | None = None) ->
             # workers have read the archive for the predictions (it is not written while it is read)
             aside.predictions_read()
         record_verdicts(archive, data)  # /expectations: the declared expectations and their verdicts
+        made = aside.predicted() if aside is not None else _predictions(archive, data.protocol_text)
+        record_predictions(archive, made)  # /predictions: the declared predictions' numbers
         return render(
             data,
             session_dir / REPORT_NAME,
             workers=min(2, os.cpu_count() or 1),
             draw=aside.draw if aside is not None else None,
-            predicted=aside.predicted if aside is not None else None,
+            predicted=lambda: made,
         )
     except OSError as exc:
         if not is_disk_full(exc):

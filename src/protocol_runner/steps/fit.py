@@ -9,7 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..analysis.model_comparison import compare_stored
 from ..analysis.service import fit_stored_loops
+from ..archive.model_results import comparison_fill, read_processed_trials
 from ..archive.paths import configuration_name, trials_path
 from ..archive.results import bouc_wen_fill, read_processed_loops
 from ..protocol.plan_steps import FitStep
@@ -23,6 +25,11 @@ def run(step: FitStep, ctx: StepContext) -> StepOutcome:
         return StepOutcome(None, "no Bouc-Wen fit asked")
     with ctx.unit(step_id("process", key=step.configuration)) as f:
         loops = read_processed_loops(f[trials_path(step.configuration)])
+        trials = (
+            read_processed_trials(f[trials_path(step.configuration)])
+            if element_fit_enabled(ctx.loaded)
+            else []
+        )
     device = ctx.trial_step(step.configuration).settings.device if element_fit_enabled(ctx.loaded) else None
     bouc_wen = fit_stored_loops(
         loops, bouc_wen_settings(ctx.loaded), list(device) if device is not None else None
@@ -31,4 +38,8 @@ def run(step: FitStep, ctx: StepContext) -> StepOutcome:
     summary = f"Bouc-Wen RMSE {result.rmse_nm:.2f} N*m, R2 {result.r2:.3f}"
     if bouc_wen.cv_rmse_nm:
         summary += f", cross-validated RMSE {np.mean(bouc_wen.cv_rmse_nm):.2f} N*m"
-    return StepOutcome(bouc_wen_fill(configuration_name(step.configuration), bouc_wen), summary)
+    fill = bouc_wen_fill(configuration_name(step.configuration), bouc_wen)
+    if device is not None:  # the model comparison: element model, reduced Dahl model, Bouc-Wen
+        comparison = compare_stored(trials, device, bouc_wen)
+        fill = comparison_fill(configuration_name(step.configuration), fill, comparison)
+    return StepOutcome(fill, summary)

@@ -177,8 +177,11 @@ def _devices(ctx: StepContext, cfg_step: TrialStep) -> dict[str, Sequence[object
 
 def run_fit(step: FitStep, ctx: StepContext) -> StepOutcome:
     """The Bouc-Wen fit per joint (`analysis.service.fit_stored_loops` on that joint's stored processed
-    loops) for every driven joint that carries device elements; written under `joints/<joint>/fits/bouc_wen`."""
+    loops) for every driven joint that carries device elements; written under `joints/<joint>/fits/bouc_wen`,
+with the joint's model comparison (`fits/element_model`, `fits/models`) when the element fit is on."""
+    from ..analysis.model_comparison import compare_stored  # loaded where it runs (an analysis worker)
     from ..analysis.service import fit_stored_loops  # the fit: loaded where it runs (an analysis worker)
+    from ..archive.model_results import comparison_fill, read_processed_trials
 
     if "bouc_wen" not in step.models:
         return StepOutcome(None, "no Bouc-Wen fit asked")
@@ -188,13 +191,23 @@ def run_fit(step: FitStep, ctx: StepContext) -> StepOutcome:
     with ctx.unit(step_id("process", key=step.configuration)) as f:
         cfg = f[configuration_path(step.configuration)]
         loops = {j: read_processed_loops(f[f"{joint_path(cfg.name, j)}/{TRIALS}"]) for j in fitted}
+        devices = _devices(ctx, cfg_step)
+        trials = {  # the model comparison's input, where the element fit is on
+            j: read_processed_trials(f[f"{joint_path(cfg.name, j)}/{TRIALS}"])
+            for j in fitted
+            if devices[j] is not None
+        }
     settings = bouc_wen_settings(ctx.loaded)
-    devices = _devices(ctx, cfg_step)
     fills: list[Fill] = []
     parts: list[str] = []
     for joint, raw in loops.items():
         bouc_wen = fit_stored_loops(raw, settings, devices[joint])
-        fills.append(bouc_wen_fill(joint_path(name, joint), bouc_wen))
+        fill_one = bouc_wen_fill(joint_path(name, joint), bouc_wen)
+        device = devices[joint]
+        if device is not None:  # the model comparison of the joint: element model, reduced Dahl, Bouc-Wen
+            comparison = compare_stored(trials[joint], device, bouc_wen)
+            fill_one = comparison_fill(joint_path(name, joint), fill_one, comparison)
+        fills.append(fill_one)
         parts.append(f"{joint} RMSE {bouc_wen.fit.rmse_nm:.2f} N*m, R2 {bouc_wen.fit.r2:.3f}")
 
     def fill(f: h5py.File) -> None:

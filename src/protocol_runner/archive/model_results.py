@@ -1,0 +1,190 @@
+"""The archive's model-comparison groups of a configuration (or of one joint of it): `fits/element_model`
+(every declared element's fitted parameters with 95 % intervals, the identification mark and the
+covariance) and `fits/models` (the comparison table and the Bouc-Wen functionals). Layout in
+docs/archive.md; numbers from `analysis.model_comparison`."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import h5py
+import numpy as np
+
+from .h5util import put_attrs
+from .paths import CONFIGURATIONS, FITS, PROCESSED
+from .results import Fill
+
+if TYPE_CHECKING:
+    from ..analysis.model_comparison import ModelComparison
+    from ..analysis.model_fit import ElementModelFit
+    from ..models.elements import Element
+
+ELEMENT_MODEL = "element_model"
+MODELS = "models"
+
+
+def element_model_attrs(fit: ElementModelFit) -> dict[str, Any]:
+    est = fit.estimates
+    return {
+        "parameters": [f"{e.element}.{e.parameter}" for e in est],
+        "value": [e.value for e in est],
+        "ci95_low": [e.ci95_low for e in est],
+        "ci95_high": [e.ci95_high for e in est],
+        "identified": [int(e.identified) for e in est],
+        "plausible_low": [e.plausible[0] for e in est],
+        "plausible_high": [e.plausible[1] for e in est],
+        "notes": json.dumps([e.note for e in est]),
+        "covariance": [float(v) for v in np.asarray(fit.covariance).ravel()],
+        "values_json": json.dumps({f"{k[0]}.{k[1]}": float(v) for k, v in fit.values.items()}),
+        "rmse_nm": float(fit.rmse_nm),
+        "n_samples": int(fit.n_samples),
+        "n_eff": float(fit.n_eff),
+    }
+
+
+def models_attrs(comparison: ModelComparison) -> dict[str, Any]:
+    rows = comparison.rows
+    f = comparison.bouc_wen_functionals
+    return {
+        "model": [r.model for r in rows],
+        "k": [int(r.k) for r in rows],
+        "rmse_nm": [float(r.rmse_nm) for r in rows],
+        "heldout_rmse_nm": [float(r.heldout_rmse_nm) for r in rows],
+        "aic": [float(r.aic) for r in rows],
+        "bic": [float(r.bic) for r in rows],
+        "energy_model_j": [float(r.energy_model_j) for r in rows],
+        "energy_data_j": [float(r.energy_data_j) for r in rows],
+        "energy_flag": [int(r.energy_flag) for r in rows],
+        "functional": [x.name for x in f],
+        "functional_unit": [x.unit for x in f],
+        "functional_value": [x.value for x in f],
+        "functional_ci95_low": [x.ci95_low for x in f],
+        "functional_ci95_high": [x.ci95_high for x in f],
+        "bouc_wen_identified": [int(v) for v in comparison.bouc_wen_identified],
+    }
+
+
+def write_comparison(owner: h5py.Group, comparison: ModelComparison) -> None:
+    """`fits/element_model` and `fits/models` under `owner` (a configuration group, or a joint's)."""
+    fits = owner.require_group(FITS)
+    if comparison.element_fit is not None:
+        put_attrs(
+            fits.create_group(ELEMENT_MODEL), ELEMENT_MODEL, element_model_attrs(comparison.element_fit)
+        )
+    put_attrs(fits.create_group(MODELS), MODELS, models_attrs(comparison))
+
+
+def strings(g: h5py.Group, key: str) -> list[str]:
+    """A list-of-strings attribute written by `write_comparison` (stored as a JSON list)."""
+    value = g.attrs.get(key, "[]")
+    value = value.decode("utf-8") if isinstance(value, bytes) else value
+    if isinstance(value, str):
+        out = json.loads(value) if value.startswith("[") else [value]
+        return [str(v) for v in out]
+    return [v.decode("utf-8") if isinstance(v, bytes) else str(v) for v in np.atleast_1d(value)]
+
+
+def _list(g: h5py.Group, key: str) -> list[Any]:
+    return [float(v) for v in np.atleast_1d(np.asarray(g.attrs.get(key, []), dtype=np.float64))]
+
+
+def read_models(g: h5py.Group) -> list[dict[str, Any]]:
+    """The rows of a `fits/models` group, one dict per model (the export's models.csv columns)."""
+    names = strings(g, "model")
+    columns = ("k", "rmse_nm", "heldout_rmse_nm", "aic", "bic", "energy_model_j", "energy_data_j")
+    values = {c: _list(g, c) for c in columns}
+    return [
+        {"model": m, **{c: (int(values[c][i]) if c == "k" else values[c][i]) for c in columns}}
+        for i, m in enumerate(names)
+    ]
+
+
+def read_element_model(g: h5py.Group) -> list[dict[str, Any]]:
+    """The rows of a `fits/element_model` group: element, parameter, value, interval, identified."""
+    out = []
+    params = strings(g, "parameters")
+    value, low, high, ident = (_list(g, k) for k in ("value", "ci95_low", "ci95_high", "identified"))
+    for i, p in enumerate(params):
+        element, parameter = str(p).rsplit(".", 1)
+        out.append(
+            {
+                "element": element,
+                "parameter": parameter,
+                "value": float(value[i]),
+                "ci95_low": float(low[i]),
+                "ci95_high": float(high[i]),
+                "identified": bool(ident[i]),
+            }
+        )
+    return out
+
+
+def stored_device(cfg: h5py.Group, joint: str = "") -> tuple[Element, ...]:
+    """The device a configuration group declares (its `device_json`), or the elements one joint of it
+    carries (those naming no joint or that joint); empty when it declares none."""
+    from ..models.elements import build_device
+
+    if "device_json" not in cfg.attrs:
+        return ()
+    items = json.loads(str(cfg.attrs["device_json"]))
+    kept = [d for d in items if not joint or d.get("joint", "") in ("", joint)]
+    for d in kept:
+        d.pop("joint", None)
+    return build_device([(d.pop("name"), d.pop("type"), d) for d in kept])
+
+
+def read_processed_trials(trials: h5py.Group) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Each trial's stored processed `(time_s, angle_deg, brace_torque_nm)` under a `trials` group, in
+    trial order: the element model's input (it needs the time for the speed)."""
+    out = []
+    for n in sorted(trials, key=int):
+        g = trials[n][PROCESSED]
+        out.append(
+            tuple(np.asarray(g[k][()], dtype=np.float64) for k in ("time_s", "angle_deg", "brace_torque_nm"))
+        )
+    return out  # type: ignore[return-value]
+
+
+def compare_owner(owner: h5py.Group, device: Sequence[object], bouc_wen: object | None) -> ModelComparison:
+    """The model comparison (`analysis.model_comparison.compare_stored`) of the processed trials stored under
+    `owner` (a configuration group, or a joint's) with its `device`, written under `owner` (its old
+    comparison groups replaced): what `--reprocess` redoes after the Bouc-Wen fit, as the fit step did."""
+    from ..analysis.model_comparison import compare_stored
+
+    comparison = compare_stored(read_processed_trials(owner["trials"]), device, bouc_wen)
+    fits = owner.require_group(FITS)
+    for stale in (ELEMENT_MODEL, MODELS):
+        if stale in fits:
+            del fits[stale]
+    write_comparison(owner, comparison)
+    return comparison
+
+
+def comparison_fill(name: str, before: Fill, comparison: ModelComparison) -> Fill:
+    """`before` (the Bouc-Wen fit's fill), then the comparison's groups under `configurations/<name>`."""
+
+    def fill(f: h5py.File) -> None:
+        before(f)
+        write_comparison(f.require_group(f"{CONFIGURATIONS}/{name}"), comparison)
+
+    return fill
+
+
+PREDICTIONS = "predictions"
+
+
+def write_predictions(f: h5py.File, rows: list[dict[str, Any]]) -> None:
+    """(Re)write `/predictions`: one group `from_<A>_to_<B>` (with `_<joint>` for one joint of a
+    several-joint configuration) per declared prediction, its numbers as attributes (`prediction` in
+    `attrs.ATTRIBUTES`; absent where a number does not exist)."""
+    if PREDICTIONS in f:
+        del f[PREDICTIONS]
+    root = f.create_group(PREDICTIONS)
+    for row in rows:
+        name = f"from_{row['fit_configuration']}_to_{row['predict_configuration']}"
+        name += f"_{row['joint']}" if row["joint"] else ""
+        kept = {k: v for k, v in row.items() if not (isinstance(v, float) and not math.isfinite(v))}
+        put_attrs(root.require_group(name), "prediction", kept)
