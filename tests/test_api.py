@@ -31,7 +31,10 @@ def test_the_documented_example_runs_as_written(
     assert re.fullmatch(
         r"configuration 1 \(.+\): [1-9]\d* cycles, mean energy lost \d+\.\d{3} J per cycle", out[2]
     )
-    assert out[3] == "again.html ['cycles.csv', 'trials.csv', 'configurations.csv']"
+    assert out[3] == (
+        "again.html ['cycles.csv', 'trials.csv', 'configurations.csv', 'models.csv', 'elements.csv', "
+        "'predictions.csv']"
+    )
     for name in ("archive.h5", "report.html", "again.html", "tables/cycles.csv"):
         assert (session / name).is_file(), name
 

@@ -26,7 +26,8 @@ def test_report_export_and_compare_print_their_outcome_on_stdout(
     assert out == f"report: {tmp_path / 'r.html'}\n" and "report:" not in err
     assert main(["--export", str(archive), "--output", str(tmp_path / "t")]) == 0
     out, err = capsys.readouterr()
-    assert out == f"wrote cycles.csv, trials.csv, configurations.csv to {tmp_path / 't'}\n", out
+    tables = "cycles.csv, trials.csv, configurations.csv, models.csv, elements.csv, predictions.csv"
+    assert out == f"wrote {tables} to {tmp_path / 't'}\n", out
     assert "wrote" not in err
     assert main(["--compare", str(archive), str(archive), "--output", str(tmp_path / "c.html")]) == 0
     out, err = capsys.readouterr()

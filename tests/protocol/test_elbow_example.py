@@ -88,7 +88,9 @@ def test_elbow_dry_run_loses_the_brake_and_damper_energy_per_cycle(
         e1 = float(h5["configurations/config_01/energy_loss_j"].attrs["mean_j"])
         e4 = float(h5["configurations/config_04/energy_loss_j"].attrs["mean_j"])
     assert e1 == pytest.approx(brake_j, rel=0.05)
-    assert e4 - e1 == pytest.approx(damper_j, rel=0.05)
+    # the simulator's between-trial spread (device dissipation CV 3 %, robot friction 5 %) puts about 6 % of
+    # sampling error on a difference of two 3-trial means
+    assert e4 - e1 == pytest.approx(damper_j, rel=0.12)
     # no expectation of this campaign is simulator-tuned: the dry-run note must not claim thesis findings
     html = (session / "report.html").read_text(encoding="utf-8")
     note = html[html.index('id="dry-run-note"') :].split("</p>", 1)[0]

@@ -76,12 +76,21 @@ def _rows(html: str) -> dict[str, tuple[str, str]]:
     return {i: (v, body) for i, v, body in rows}
 
 
+# the two equivalence statements cannot be shown with 3 trials a side once the simulator's between-trial
+# spread (robot friction CV 5 %, device 3 %) is on: the 90 % interval of a difference of differences of four
+# 3-trial means is wider than the +-0.7 J (+-0.005 J/deg) margin even when the true difference is nil
+UNDECIDABLE_WITH_3_TRIALS = {"brake_loss_speed_free", "brake_loss_per_degree"}
+
+
 def test_a_dry_run_meets_the_brake_and_bungee_statements_with_the_honesty_label(ankle_report: str) -> None:
     rows = _rows(ankle_report)
-    assert {i: rows[i][0] for i in PHYSICAL} == dict.fromkeys(PHYSICAL, "met")
-    for i in PHYSICAL:
+    expected = {i: "not-met" if i in UNDECIDABLE_WITH_3_TRIALS else "met" for i in PHYSICAL}
+    assert {i: rows[i][0] for i in PHYSICAL} == expected
+    for i in PHYSICAL - UNDECIDABLE_WITH_3_TRIALS:
         verdict_cell = re.findall(r"<td class=\"ok\">(.*?)</td>", rows[i][1], re.S)
         assert verdict_cell and TUNED_LABEL in verdict_cell[-1]  # beside the verdict
+    for i in UNDECIDABLE_WITH_3_TRIALS:
+        assert TUNED_LABEL in rows[i][1]
     added = rows["brake_loss_speed_free"][1]
     assert "(5 minus 1) minus (6 minus 2)" in added and "Welch-Satterthwaite interval" in added
     # the stops statement names configurations 11 and 17, not run here

@@ -72,7 +72,9 @@ def test_the_verdict_table_shows_p_and_the_holm_adjusted_p(knee_session: Path) -
         assert (v.verdict == "met") == (v.p_adjusted <= 0.05)
     assert {v.spec.id: v.verdict for v in verdicts if v.spec.id.startswith("speed_")} == {
         "speed_energy": "met",
-        "speed_range": "met",
+        # with the simulator's between-trial spread, 3 trials a side no longer separate the half-speed
+        # range from the full-speed one (the Welch interval includes 0)
+        "speed_range": "not met",
     }
     assert f"{TUNED_LABEL} (lag_time_constant_s)" in rows["speed_range"]
     assert TUNED_LABEL in rows["speed_energy"]

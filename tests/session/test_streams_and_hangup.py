@@ -23,7 +23,7 @@ import h5py
 import pytest
 
 posix_only = pytest.mark.skipif(os.name == "nt", reason="POSIX signals and shell redirections")
-SHORT = ["elbow_example.yaml", "--dry-run", "--yes", "--seed", "7", "--only", "1"]
+SHORT = ["elbow_example.yaml", "--dry-run", "--seed", "7", "--only", "1"]
 CLI = [sys.executable, "-m", "protocol_runner.cli"]
 
 

@@ -56,7 +56,6 @@ def test_dry_run_report_export_and_verify_without_posix_extras(tmp_path: Path) -
         site,
         "elbow_example.yaml",
         "--dry-run",
-        "--yes",
         "--seed",
         "7",
         "--only",

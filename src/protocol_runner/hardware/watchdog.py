@@ -20,16 +20,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 import numpy.typing as npt
 
 from protocol_runner.errors import InvalidInput, WatchdogTripped
 from protocol_runner.hardware.interfaces import ScanBlock
-
-if TYPE_CHECKING:
-    from protocol_runner.hardware.joint import JointConfig
 
 FloatArray = npt.NDArray[np.float64]
 TORQUE_ROUNDING = 1e-6  # a fraction of the torque range: single-precision rounding of a reading at an end
@@ -79,11 +76,25 @@ def watchdog_limits(
     )
 
 
+class WatchedJoint(Protocol):
+    """What the watchdog reads of a joint (`hardware.joint.JointConfig`)."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def watchdog(self) -> WatchdogLimits | None: ...
+
+    def angle_from_volts(self, volts: npt.ArrayLike) -> FloatArray: ...
+
+    def torque_from_volts(self, volts: npt.ArrayLike) -> FloatArray: ...
+
+
 class LoopWatch:
     """One paced loop's watchdog: `check` each scan block as it is read. Joint k's angle and torque are
     scan columns 2k and 2k+1, its command column k of the loop's commands (a 1-D command: one joint)."""
 
-    def __init__(self, joints: Sequence[JointConfig], t0: float, output_rate_hz: float, where: str) -> None:
+    def __init__(self, joints: Sequence[WatchedJoint], t0: float, output_rate_hz: float, where: str) -> None:
         self.watched = [(k, j, j.watchdog) for k, j in enumerate(joints) if j.watchdog is not None]
         self.t0 = t0
         self.rate_hz = output_rate_hz
