@@ -151,10 +151,11 @@ class Runner:
             self._await_analyses(progress)
             return self._finish(progress, skipped)
         except Interrupted as exc:
-            self._stopped("interrupted", exc.message, progress)
-            raise Interrupted(
-                f"{exc.message}. The session is resumable: run-protocol --resume {self.dir}"
-            ) from None
+            message = exc.message
+            if self.stop() and self.stop.signal_name not in message:  # stopped inside a motion: say by what
+                message = f"{message} ({self.stop.signal_name})"
+            self._stopped("interrupted", message, progress)
+            raise Interrupted(f"{message}. The session is resumable: run-protocol --resume {self.dir}") from None
         except KeyboardInterrupt:
             self.pool.kill()
             with contextlib.suppress(Exception):
