@@ -127,3 +127,25 @@ def test_a_writer_cannot_write_an_attribute_the_layout_does_not_name(tmp_path: P
         assert list(g.attrs) == []  # refused before anything is written
         put_attrs(g, "elements", {"rmse_nm": 0.5}, dynamic={"springs.max_preload_mm": 3.0})
         assert dict(g.attrs) == {"rmse_nm": 0.5, "springs.max_preload_mm": 3.0}
+
+
+def test_joint_groups_read_both_layouts(tmp_path) -> None:
+    """A group keyed by joint gives its joints in the order its `joints` attribute lists them; a group of an
+    archive written before groups were keyed by joint is its one joint's part, named by the root attribute."""
+    import h5py
+    import numpy as np
+
+    from protocol_runner.archive.paths import joint_groups
+
+    with h5py.File(tmp_path / "a.h5", "w") as f:
+        old = f.create_group("old")
+        old.create_dataset("energy_loss_j", data=[1.0])
+        new = f.create_group("new")
+        new.attrs["joints"] = np.array(["hip", "knee"], dtype=h5py.string_dtype())
+        new.create_group("joints/knee")
+        new.create_group("joints/hip")
+        assert [(n, g.name) for n, g in joint_groups(old, "knee_flexion")] == [("knee_flexion", "/old")]
+        assert [(n, g.name) for n, g in joint_groups(new, "hip, knee")] == [
+            ("hip", "/new/joints/hip"),
+            ("knee", "/new/joints/knee"),
+        ]

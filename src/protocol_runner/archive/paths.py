@@ -90,6 +90,18 @@ def joint_path(group: str, joint: str) -> str:
     return f"{group}/{JOINTS}/{joint}"
 
 
+def joint_groups(group: h5py.Group, archive_joints: str) -> list[tuple[str, h5py.Group]]:
+    """Each joint's part of a trial, configuration, comparison or calibration group, in channel order:
+    `(joint, group)` per child of its `joints/` group. A group written without one (an archive of a single
+    joint made before every group was keyed by joint) is read as the part of its one joint: the root
+    attribute `joint` (`archive_joints`) names it, and the group itself holds that joint's datasets."""
+    if JOINTS in group:
+        children = group[JOINTS]
+        order = [str(name) for name in group.attrs.get(JOINTS, ())] or list(children)
+        return [(name, children[name]) for name in order if name in children]
+    return [(archive_joints.split(",")[0].strip(), group)]
+
+
 def put_dataset(
     group: h5py.Group, kind: str, name: str, data: npt.ArrayLike, *, dtype: npt.DTypeLike | None = None
 ) -> h5py.Dataset:
