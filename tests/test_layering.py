@@ -34,6 +34,7 @@ LAYERS: dict[str, int] = {
     "session": 7,
     "monitor": 8,
     "preflight": 8,
+    "power_plan": 8,
     "commands": 9,
     "cli": 10,
     "api": 10,

@@ -51,6 +51,8 @@ modes:
       check every dataset against its checksum; exit 2 naming each damaged one
   run-protocol --plan PROTOCOL [--json] [--only KEYS]
       print the expanded plan (steps in execution order with their stable ids)
+  run-protocol --plan PROTOCOL --power SESSION|--power-cv CV [--power-effect FRACTION]
+      trials per configuration each expectation needs for 80 % power, and those the plan cannot decide
   run-protocol --validate PROTOCOL
       check a protocol file and report every problem with file, line and field
   run-protocol --hardware-check [PROTOCOL]
@@ -69,6 +71,7 @@ examples:
   run-protocol knee_phase1.yaml --dry-run --only 4,5,6,7 just the friction configurations
   run-protocol knee_phase1.yaml --monitor 8765          watch it live at http://127.0.0.1:8765/
   run-protocol --plan knee_phase1.yaml --json > plan.json
+  run-protocol --plan knee_phase1.yaml --power sessions/knee_phase1-20261121T101500Z
   run-protocol --validate my_campaign.yaml
   run-protocol --resume sessions/knee_phase1-20261121T101500Z
   run-protocol --report sessions/knee_phase1-20261121T101500Z/archive.h5 --output report.html
@@ -124,6 +127,31 @@ _OPTIONS: tuple[tuple[str, str, str | None, str], ...] = (
     ("output", "--protocol-file", "PROTOCOL", "with --reprocess: take processing settings from this file"),
     ("output", "--export-mat", "DIR", "with --report: write the archive as .mat files (docs/matlab.md)"),
 )
+# --plan --power: the trials per configuration each expectation needs (power_plan.py)
+_OPTIONS += (
+    (
+        "output",
+        "--power",
+        "SESSION",
+        "with --plan: the trials per configuration each expectation needs for 80 %% power, from the "
+        "between-trial spread in SESSION (a session directory or archive of the same protocol)",
+    ),
+    (
+        "output",
+        "--power-cv",
+        "CV",
+        "with --plan, instead of --power: assume this between-trial coefficient of variation in every "
+        "configuration (e.g. 0.05)",
+    ),
+    (
+        "output",
+        "--power-effect",
+        "FRACTION",
+        "with --power or --power-cv: plan each difference statement for a true difference of this fraction "
+        "of its configurations' level (with --power-cv by default 0.05)",
+    ),
+)
+
 _OPTION_EXTRAS: dict[str, dict[str, Any]] = {
     # what a row of _OPTIONS cannot say (these win over the row)
     "--compare": {"metavar": ("A", "B"), "nargs": 2},
@@ -132,6 +160,8 @@ _OPTION_EXTRAS: dict[str, dict[str, Any]] = {
     "--plan": {"nargs": "?", "const": ""},
     "--validate": {"nargs": "?", "const": ""},
     "--seed": {"type": int},
+    "--power-cv": {"type": float},
+    "--power-effect": {"type": float},
 }
 
 
@@ -233,6 +263,9 @@ FLAG_MODES: dict[str, tuple[str, ...]] = {
     "--reprocess": ("--report",),
     "--protocol-file": ("--report",),
     "--export-mat": ("--report",),
+    "--power": ("--plan",),
+    "--power-cv": ("--plan",),
+    "--power-effect": ("--plan",),
 }
 
 
@@ -280,7 +313,32 @@ def check_flags(args: argparse.Namespace) -> str:
         raise InvalidInput("--realtime paces the simulator: use it with --dry-run")
     if args.protocol_file is not None and not args.reprocess:
         raise InvalidInput("--protocol-file gives the settings --reprocess uses: add --reprocess")
+    _check_power_flags(args)
     return mode
+
+
+def _check_power_flags(args: argparse.Namespace) -> None:
+    """`--power SESSION` or `--power-cv CV` (one of them), `--power-effect` only with one, no `--json`."""
+    if args.power is not None and args.power_cv is not None:
+        raise InvalidInput(
+            "--power and --power-cv are two sources of the between-trial spread: give one (--power SESSION "
+            "measures it, --power-cv assumes it)"
+        )
+    planning = args.power is not None or args.power_cv is not None
+    if args.power_effect is not None and not planning:
+        raise InvalidInput(
+            "--power-effect is the effect a trial count is planned for: add --power or --power-cv"
+        )
+    if planning and args.json:
+        raise InvalidInput("--json is the format of the plan, not of the trial counts: drop --json")
+    for flag, value, most in (
+        ("--power-cv", args.power_cv, 1.0),
+        ("--power-effect", args.power_effect, 10.0),
+    ):
+        if value is not None and not 0.0 < value <= most:
+            raise InvalidInput(
+                f"{flag} {value:g}: give a fraction of the mean, above 0 and at most {most:g} (0.05 for 5 %)"
+            )
 
 
 def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
@@ -292,6 +350,16 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         return EXIT_OK
     if mode == "--plan":
         args.plan = _mode_protocol("--plan", args.plan, args.protocol)
+        if args.power is not None or args.power_cv is not None:
+            from .commands import power_plan
+
+            return power_plan(
+                args.plan,
+                session=Path(args.power) if args.power is not None else None,
+                cv=args.power_cv,
+                effect_ratio=args.power_effect,
+                only=parse_only(args.only),
+            )
         return _cmd_plan(args)
     if mode == "--validate":
         args.validate = _mode_protocol("--validate", args.validate, args.protocol)

@@ -424,3 +424,36 @@ def compare(a: Path, b: Path, output: Path | None) -> int:
     render_comparison(result, out)
     _result(f"comparison: {out}")
     return EXIT_OK
+
+
+def power_plan(
+    protocol: str,
+    *,
+    session: Path | None,
+    cv: float | None,
+    effect_ratio: float | None,
+    only: KeySelection | None = None,
+) -> int:
+    """`--plan PROTOCOL --power SESSION` (or `--power-cv CV`): the trials per configuration each declared
+    expectation needs for 80 % power, and which the plan's trials cannot decide (power_plan.py)."""
+    from .power_plan import Spread, check_session, plan_power
+    from .preflight import preflight
+    from .protocol.loader import find_protocol, load_protocol
+
+    path = find_protocol(protocol)
+    loaded = load_protocol(path, display_name=protocol if Path(protocol).exists() else str(path))
+    plan = preflight(loaded, only=only)
+    if not loaded.protocol.expectations:
+        raise InvalidInput(f"{protocol} declares no expectations: there is no statement to plan trials for")
+    if session is not None:
+        from .report.load import load_report_data
+
+        data = load_report_data(session)  # a missing, foreign or damaged archive: InvalidInput naming it
+        warning = check_session(data, loaded, session)
+        if warning:
+            _say(warning)
+        spread = Spread(data=data, effect_ratio=effect_ratio)
+    else:
+        spread = Spread(cv=cv, effect_ratio=effect_ratio)
+    print(plan_power(loaded, plan, spread).text())
+    return EXIT_OK
