@@ -24,7 +24,6 @@ from protocol_runner.report.load import load_report_data
 from protocol_runner.report.metrics import trial_values
 
 PROTOCOLS = Path(__file__).resolve().parents[1] / "protocols"
-BASELINE = Path("/work/baseline2/knee_phase1")  # a seeded dry run (--seed 7) of knee_phase1, if present
 KNEE_IDS = [
     e["id"] for e in yaml.safe_load((PROTOCOLS / "knee_phase1.yaml").read_text("utf-8"))["expectations"]
 ]
@@ -35,8 +34,6 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope="module")
 def knee_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    if (BASELINE / "archive.h5").is_file():
-        return BASELINE
     root = tmp_path_factory.mktemp("knee")
     folder = root / "protocol"
     folder.mkdir()
