@@ -38,6 +38,7 @@ from .model_fit import ElementModelFit, Problem, fit_element_model, mean_energy_
 
 ENERGY_FLAG = 0.03  # |model - data| / data above this: flagged
 MODELS = ("elements", "dahl", "bouc_wen")
+MOTION_STEP_DEG = 1.0  # the fit samples each trial at about this much travel (median step)
 HELDOUT_TOL = 1e-3  # least_squares ftol and xtol of the held-out refits (module docstring)
 
 
@@ -92,8 +93,9 @@ class ModelComparison:
 
 
 def motions_of(trials: Sequence[tuple[FloatArray, FloatArray, FloatArray]]) -> tuple[Motion, ...]:
-    """The fit's view of stored processed trials `(time_s, angle_deg, brace_torque_nm)`."""
-    return tuple(Motion.from_samples(t, a, y).decimated() for t, a, y in trials)
+    """The fit's view of stored processed trials `(time_s, angle_deg, brace_torque_nm)`: sampled at
+    about one degree of travel (`Motion.from_samples`)."""
+    return tuple(Motion.from_samples(t, a, y, max_step_deg=MOTION_STEP_DEG) for t, a, y in trials)
 
 
 def reduced_layout(elements: Sequence[Element], angle_deg: FloatArray) -> ModelLayout:
