@@ -19,7 +19,13 @@ from protocol_runner.hardware.mcculw_boards import McculwApi, McculwUsb1608Fs, M
 from protocol_runner.hardware.multiboard import MultiBoardInput
 from protocol_runner.hardware.rig_boards import open_rig_boards
 from protocol_runner.hardware.uldaq_boards import UldaqUsb1608Fs, UldaqUsb3105
-from protocol_runner.hardware.usb_common import BoardNotFound, DeviceGone, ScanOverrun
+from protocol_runner.hardware.usb_common import (
+    BoardBusy,
+    BoardIoError,
+    BoardNotFound,
+    DeviceGone,
+    ScanOverrun,
+)
 from protocol_runner.hardware.vendor_common import VendorLibraryMissing, contiguous_runs, volts_to_code_pm10
 from protocol_runner.protocol.loader import find_protocol, load_protocol
 from protocol_runner.resources import packaged_rigs_dir
@@ -368,3 +374,24 @@ def test_sample_row_times_follow_the_rate_the_library_set() -> None:
     block = ai.read_available()
     assert ai.scan_rate_hz == 333.3 and math.isclose(block.t_s[1] - block.t_s[0], 1 / 333.3)
     ai.close()
+
+
+def test_mcculw_a_scan_that_does_not_start_frees_its_buffer_and_says_the_uls_message() -> None:
+    clock = StepClock()
+    api, ul = mcculw_api([ain_board("AI1", ramp)], clock)
+    ai = McculwUsb1608Fs.open(clock=clock, api=api)
+    ul.fail("a_in_scan", 26)
+    with pytest.raises(
+        BoardIoError, match=r"starting the scan: fake UL error 26 \(Universal Library error 26\)"
+    ):
+        ai.start_scan([0, 1], RATE_HZ)
+    assert ul.buffers == {} and ai.read_available().n_samples == 0
+    ai.close()
+
+
+def test_uldaq_a_board_held_by_another_program_is_busy_and_released_again() -> None:
+    lib = fake_uldaq.make_fake_uldaq([aout_board("AO1")], StepClock())
+    lib.fail("connect", lib.ULError.USB_INTERFACE_CLAIMED)
+    with pytest.raises(BoardBusy, match="another program is using it"):
+        UldaqUsb3105.open(lib=lib)
+    assert lib.names("AO1") == ["DaqDevice", "connect", "release"]

@@ -252,9 +252,13 @@ class VendorScanInput(ABC):
         self._columns = np.array([c - low for c in chans], dtype=np.intp)
         self._rows_emitted = 0
         before = self.clock.now_s()
-        self._rate_hz = float(
-            self._call("starting the scan", lambda: self._start_scan(low, high, rows, rate_hz))
-        )
+        try:
+            self._rate_hz = float(
+                self._call("starting the scan", lambda: self._start_scan(low, high, rows, rate_hz))
+            )
+        except BaseException:
+            self._abandon()  # a buffer allocated for a scan that did not start is freed
+            raise
         after = self.clock.now_s()
         self._t0 = 0.5 * (before + after)
         self._ring = ScanRing(self.name, rows * width, width, self._copy)
