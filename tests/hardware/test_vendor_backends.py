@@ -395,3 +395,18 @@ def test_uldaq_a_board_held_by_another_program_is_busy_and_released_again() -> N
     with pytest.raises(BoardBusy, match="another program is using it"):
         UldaqUsb3105.open(lib=lib)
     assert lib.names("AO1") == ["DaqDevice", "connect", "release"]
+
+
+def test_a_vendor_package_that_cannot_load_its_library_is_a_plain_error(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    from protocol_runner.hardware import vendor_common
+
+    def import_failing(name: str) -> Any:
+        raise OSError("libuldaq.so: cannot open shared object file")
+
+    monkeypatch.setattr(vendor_common.importlib, "import_module", import_failing)
+    with pytest.raises(
+        VendorLibraryMissing, match=r"installed but could not load MCC's libuldaq \(OSError: libuldaq"
+    ):
+        UldaqUsb3105.open()

@@ -34,9 +34,6 @@ T = TypeVar("T")
 CODES_PER_VOLT_PM10 = 32768.0 / 10.0
 VOLTS_PM10 = (-10.0, 10.0)
 
-BACKENDS = ("pyusb", "uldaq", "mcculw")
-"""The `backend:` a rig file's board may name (default pyusb)."""
-
 
 class VendorLibraryMissing(InvalidInput):
     """A rig file names a vendor backend whose library is not installed (exit 2: a setup choice to fix)."""
@@ -46,7 +43,8 @@ def import_vendor(module: str, backend: str, native: str) -> ModuleType:
     """Import MCC's Python package for `backend` (``uldaq`` or ``mcculw``), or say how to install it.
 
     `native` names the system library the Python package loads when imported (libuldaq, the UL's
-    cbw64.dll): a package that imports but cannot load it raises OSError, which gets its own message.
+    cbw64.dll): a package that is installed but fails to import (that library missing, or mcculw on a
+    system other than Windows) gets its own message.
     """
     try:
         return importlib.import_module(module)
@@ -56,7 +54,7 @@ def import_vendor(module: str, backend: str, native: str) -> ModuleType:
             f"Install it with: pip install protocol-runner[{backend}] (and {native}: docs/hardware.md, "
             '"The path to the rig"), or set backend: pyusb for this board in the rig file.'
         ) from None
-    except OSError as exc:
+    except Exception as exc:  # the package's own import failed: OSError, or NameError off Windows
         raise VendorLibraryMissing(
             f"the rig file selects backend: {backend}: the Python package {backend!r} is installed but could "
             f'not load {native} ({exc}). Install {native} (docs/hardware.md, "The path to the rig"), or '
