@@ -57,8 +57,8 @@ def import_vendor(module: str, backend: str, native: str) -> ModuleType:
     except Exception as exc:  # the package's own import failed: OSError, or NameError off Windows
         raise VendorLibraryMissing(
             f"the rig file selects backend: {backend}: the Python package {backend!r} is installed but could "
-            f'not load {native} ({type(exc).__name__}: {exc}). Install {native} (docs/hardware.md, "The path to the rig"), or '
-            "set backend: pyusb for this board in the rig file."
+            f"not load {native} ({type(exc).__name__}: {exc}). Install {native} (docs/hardware.md, "
+            '"The path to the rig"), or set backend: pyusb for this board in the rig file.'
         ) from None
 
 
