@@ -405,6 +405,7 @@ def test_a_vendor_package_that_cannot_load_its_library_is_a_plain_error(
     def import_failing(name: str) -> Any:
         raise OSError("libuldaq.so: cannot open shared object file")
 
+    monkeypatch.setitem(sys.modules, "uldaq", fake_uldaq.make_fake_uldaq([], StepClock()))  # installed
     monkeypatch.setattr(vendor_common.importlib, "import_module", import_failing)
     with pytest.raises(
         VendorLibraryMissing, match=r"installed but could not load MCC's libuldaq \(OSError: libuldaq"

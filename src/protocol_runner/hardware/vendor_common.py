@@ -11,9 +11,11 @@ scale as the pyusb drivers' codes (`usb1608fs_protocol.codes_to_volts_pm10`).
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import logging
 import math
 import operator
+import sys
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Mapping, Sequence
 from functools import partial
@@ -46,20 +48,27 @@ def import_vendor(module: str, backend: str, native: str) -> ModuleType:
     cbw64.dll): a package that is installed but fails to import (that library missing, or mcculw on a
     system other than Windows) gets its own message.
     """
-    try:
-        return importlib.import_module(module)
-    except ModuleNotFoundError:
+    if not _installed(backend):
         raise VendorLibraryMissing(
             f"the rig file selects backend: {backend}, but the Python package {backend!r} is not installed. "
             f"Install it with: pip install protocol-runner[{backend}] (and {native}: docs/hardware.md, "
             '"The path to the rig"), or set backend: pyusb for this board in the rig file.'
-        ) from None
+        )
+    try:
+        return importlib.import_module(module)
     except Exception as exc:  # the package's own import failed: OSError, or NameError off Windows
         raise VendorLibraryMissing(
             f"the rig file selects backend: {backend}: the Python package {backend!r} is installed but could "
             f"not load {native} ({type(exc).__name__}: {exc}). Install {native} (docs/hardware.md, "
             '"The path to the rig"), or set backend: pyusb for this board in the rig file.'
         ) from None
+
+
+def _installed(package: str) -> bool:
+    """Whether `package` is imported already or can be found, without importing it."""
+    if package in sys.modules:
+        return sys.modules[package] is not None
+    return importlib.util.find_spec(package) is not None
 
 
 def volts_to_code_pm10(volts: float) -> int:

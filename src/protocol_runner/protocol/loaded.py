@@ -20,7 +20,7 @@ class RigSource:
     shown: str
     text: str
     sha256: str
-    path: Path | None = None
+    path: Path | None = field(default=None, compare=False)  # where it was read (messages only)
     lines: dict[Loc, int] = field(default_factory=dict, repr=False, compare=False)
 
 
