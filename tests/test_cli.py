@@ -4,14 +4,17 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import shlex
 import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from protocol_runner.cli import main, parse_only
+from protocol_runner.cli import RUN, build_parser, check_flags, main, parse_only
 from protocol_runner.errors import InvalidInput
+from protocol_runner.protocol.loader import find_protocol
 
 
 def run_cli(*args: str, cwd: Path) -> subprocess.CompletedProcess[str]:
@@ -51,8 +54,42 @@ def test_help_explains_every_mode_with_an_example(capsys: pytest.CaptureFixture[
         assert mode in out
 
 
+def help_examples() -> list[list[str]]:
+    """The commands of the examples section of --help, as argument lists (without `run-protocol` and a
+    shell redirection)."""
+    epilog = build_parser().epilog or ""
+    section = epilog.split("examples:\n", 1)[1].split("\n\n", 1)[0]
+    commands = [re.split(r"\s{2,}", line.strip())[0] for line in section.splitlines()]
+    assert all(c.startswith("run-protocol ") for c in commands)
+    return [shlex.split(c)[1:] for c in commands]
+
+
+def test_every_help_example_works_as_written(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """No example touches the rig (a run is always --dry-run), every protocol it names is found, every
+    session it reads was made by an earlier example, and each passes the flag checks; the quick ones run."""
+    monkeypatch.chdir(tmp_path)
+    sessions: set[str] = set()
+    for argv in help_examples():
+        argv = argv[: argv.index(">")] if ">" in argv else argv
+        args = build_parser().parse_args(argv)
+        mode = check_flags(args)
+        if mode == RUN:
+            assert args.dry_run, f"`run-protocol {' '.join(argv)}` would drive the rig"
+        for name in (args.protocol, args.plan, args.validate):
+            if name:
+                assert find_protocol(name).is_file()
+        if args.session:
+            sessions.add(args.session)
+        for read in (args.resume, args.report):
+            if read:
+                assert any(read == s or read.startswith(f"{s}/") for s in sessions), read
+        if mode in ("--validate", "--plan"):
+            assert main(argv) == 0
+
+
 def test_running_without_boards_exits_3_with_a_plain_message(tmp_path: Path) -> None:
-    done = run_cli("knee_phase1.yaml", "--session", str(tmp_path / "s"), cwd=tmp_path)
+    # ankle_phase2 records with USB-1608FS-Plus boards (knee_phase1's DT9814 is refused before looking)
+    done = run_cli("ankle_phase2.yaml", "--session", str(tmp_path / "s"), cwd=tmp_path)
     assert done.returncode == 3
     assert "--dry-run" in done.stderr and "Traceback" not in done.stderr
     assert not (tmp_path / "s").exists()  # nothing is created before the boards are found

@@ -67,14 +67,14 @@ not apply to the mode is refused (exit 2).
 
 EPILOG = """\
 examples:
-  run-protocol knee_phase1.yaml --dry-run                full rehearsal: archive.h5 + report.html
-  run-protocol knee_phase1.yaml --dry-run --only 4,5,6,7 just the friction configurations
-  run-protocol knee_phase1.yaml --monitor 8765          watch it live at http://127.0.0.1:8765/
+  run-protocol knee_phase1.yaml --dry-run --session sessions/knee   full rehearsal: archive.h5 + report.html
+  run-protocol knee_phase1.yaml --dry-run --only 4,5,6,7            just the friction configurations
+  run-protocol knee_phase1.yaml --dry-run --monitor 8765            watch it live at http://127.0.0.1:8765/
   run-protocol --plan knee_phase1.yaml --json > plan.json
-  run-protocol --plan knee_phase1.yaml --power sessions/knee_phase1-20261121T101500Z
-  run-protocol --validate my_campaign.yaml
-  run-protocol --resume sessions/knee_phase1-20261121T101500Z
-  run-protocol --report sessions/knee_phase1-20261121T101500Z/archive.h5 --output report.html
+  run-protocol --plan knee_phase1.yaml --power sessions/knee        trials each expectation needs
+  run-protocol --validate knee_phase1.yaml
+  run-protocol --resume sessions/knee                                continue it after an interruption
+  run-protocol --report sessions/knee/archive.h5 --output report.html
 
 exit status: 0 done, 2 invalid input (or a damaged archive), 3 hardware unavailable, 4 stopped by a
 safety or calibration check, 130 interrupted or disk full (the session is resumable with --resume).

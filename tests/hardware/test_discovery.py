@@ -115,13 +115,16 @@ def rig_spec(
     board: str = "usb1608fs", angle: int = 8, torque: int = 20, serials: list[str] | None = None
 ) -> Any:
     return SimpleNamespace(
-        output=SimpleNamespace(board="usb3105", channel=8, serial=None, volts_range=(-10.0, 10.0)),
+        output=SimpleNamespace(
+            board="usb3105", channel=8, serial=None, volts_range=(-10.0, 10.0), backend="pyusb"
+        ),
         input=SimpleNamespace(
             board=board,
             angle_channel=angle,
             torque_channel=torque,
             serials=serials or [],
             volts_range=(-10.0, 10.0),
+            backend="pyusb",
         ),
     )
 

@@ -12,6 +12,7 @@ import pytest
 
 from protocol_runner.cli import main
 from protocol_runner.protocol.loader import find_protocol
+from protocol_runner.resources import packaged_rigs_dir
 from protocol_runner.session.journal import Journal
 
 from .conftest import ONLY, SEED, copy_session
@@ -141,14 +142,35 @@ def test_progress_counts_the_report_step(reference_archive: Path) -> None:
     assert done == total
 
 
-def test_dt9814_protocol_is_refused_saying_where_and_what_to_do(
+def test_dt9814_protocol_is_refused_naming_the_file_line_and_key_that_choose_it(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
+    # knee_phase1 chooses the DT9814 itself: rig_overrides.input_board
     session = tmp_path / "hw"
-    assert main(["knee_phase1.yaml", "--session", str(session)]) == 3
+    protocol = find_protocol("knee_phase1.yaml")
+    line = 1 + protocol.read_text().splitlines().index(
+        "  input_board: dt9814                # DT9814-10V, 12 bit, +-10 V (§2.3)"
+    )
+    assert main(["knee_phase1.yaml", "--session", str(session)]) == 2
     err = capsys.readouterr().err
-    assert f"{find_protocol('knee_phase1.yaml')} line " in err and "rig.input.board" in err
-    assert "usb1608fs" in err and "USB-1608FS-Plus" in err and "--dry-run" in err
+    assert err.startswith(f"run-protocol: {protocol} line {line}: rig_overrides.input_board is dt9814."), err
+    assert "rig_overrides.input_board: usb1608fs" in err and "USB-1608FS-Plus" in err and "--dry-run" in err
+    assert not session.exists() and "Traceback" not in err
+
+
+def test_dt9814_of_the_rig_file_is_refused_naming_the_rig_file_line_and_key(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    # elbow_example takes the rig file's input board: rigs/rsst.yaml `input_board: dt9814`
+    session = tmp_path / "hw"
+    rig = packaged_rigs_dir() / "rsst.yaml"
+    line = 1 + next(
+        i for i, t in enumerate(rig.read_text().splitlines()) if t.startswith("input_board: dt9814")
+    )
+    assert main(["elbow_example.yaml", "--session", str(session)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"run-protocol: {rig} line {line}: input_board is dt9814."), err
+    assert "rig_overrides: {input_board: usb1608fs}" in err
     assert not session.exists() and "Traceback" not in err
 
 

@@ -14,11 +14,14 @@ Loc = tuple[str | int, ...]
 @dataclass(frozen=True)
 class RigSource:
     """The rig file a protocol was checked against: its name in messages (`rigs/rsst.yaml`, `lab_rig.yaml`),
-    its text exactly as read (archived as /rig) and that text's sha256."""
+    its text exactly as read (archived as /rig), that text's sha256, the file it was read from and the
+    line of every key (for messages that point into it)."""
 
     shown: str
     text: str
     sha256: str
+    path: Path | None = field(default=None, compare=False)  # where it was read (messages only)
+    lines: dict[Loc, int] = field(default_factory=dict, repr=False, compare=False)
 
 
 @dataclass(frozen=True)

@@ -135,7 +135,9 @@ def parse_protocol_text(
     if problems:
         raise InvalidInput(format_problems(shown, lines, problems))
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
-    rig_source = RigSource(loaded_rig.shown, loaded_rig.text, loaded_rig.sha256)
+    rig_source = RigSource(
+        loaded_rig.shown, loaded_rig.text, loaded_rig.sha256, loaded_rig.path, dict(loaded_rig.lines)
+    )
     loaded = LoadedProtocol(protocol, path, text, sha, lines, shown, rig_source)
 
     problems = cross_check(loaded, check_files=check_files, generated=origins)

@@ -25,6 +25,7 @@ from .booleans import boolean_numbers
 from .loaded import Loc
 from .paths import OutsideFolder, confined_path
 from .schema import (
+    Backend,
     Identifier,
     InputSpec,
     JointSpec,
@@ -57,6 +58,8 @@ class BoardSpec(_Model):
     product_id: int | None = Field(default=None, ge=0, le=0xFFFF)
     # an output board's time for one output report (a tick of N joints sends N + 1: docs/hardware.md)
     report_time_s: float | None = Field(default=None, gt=0, le=1)
+    # which library drives the board: pyusb (this package's drivers), MCC's uldaq or mcculw
+    backend: Backend = "pyusb"
 
     _range = field_validator("volts_range")(_check_range)
 
@@ -214,6 +217,13 @@ def check_rig_file(rig: RigFile) -> list[Problem]:
             elif bounded := bound_problem(param, value):
                 problems.append(((*where, "simulator", param), bounded))
     for name, board in rig.boards.items():
+        if name == "dt9814" and board.backend != "pyusb":
+            problems.append(
+                (
+                    ("boards", name, "backend"),
+                    f"MCC's {board.backend} does not drive the DT9814; only the pyusb backend knows it",
+                )
+            )
         if board.role == "output" and board.report_time_s is None:
             problems.append(
                 (
@@ -395,6 +405,7 @@ def resolve_rig(
             volts_range=out_board.volts_range,
             serial=out_board.serials[0] if out_board.serials else None,
             report_time_s=out_board.report_time_s,
+            backend=out_board.backend,
         ),
         input=InputSpec(
             board=input_name,
@@ -404,6 +415,7 @@ def resolve_rig(
             volts_range=in_board.volts_range,
             serials=list(overrides.input_serials or in_board.serials),
             dt9814_product_id=in_board.product_id,
+            backend=in_board.backend,
         ),
         calibration=over.calibration if over is not None else RigSpec.model_fields["calibration"].default,
         safety=SafetySpec(**safety),

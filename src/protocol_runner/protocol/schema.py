@@ -84,13 +84,20 @@ class JointSpec(_Model):
     _range = field_validator("range_deg", "torque_range_nm")(_check_range)
 
 
+Backend = Literal["pyusb", "uldaq", "mcculw"]
+"""Which library drives a board: pyusb (the drivers of this package), MCC's uldaq or mcculw."""
+
+
 class OutputSpec(_Model):
     board: str
     channel: int = Field(ge=0)
-    rate_hz: float = Field(gt=0, le=1000)  # the protocol's output rate (the board's, or lowered by rig_overrides)
+    rate_hz: float = Field(
+        gt=0, le=1000
+    )  # the protocol's output rate (the board's, or lowered by rig_overrides)
     volts_range: RangePair = (-10.0, 10.0)
     serial: str | None = None
     report_time_s: float | None = Field(default=None, gt=0)  # one output report on the wire (rig file)
+    backend: Backend = "pyusb"  # the rig file's board: which library drives it (docs/hardware.md)
 
     _range = field_validator("volts_range")(_check_range)
 
@@ -103,6 +110,7 @@ class InputSpec(_Model):
     volts_range: RangePair = (-10.0, 10.0)
     serials: list[str] = Field(default_factory=list)
     dt9814_product_id: int | None = Field(default=None, ge=0, le=0xFFFF)
+    backend: Backend = "pyusb"
 
     _range = field_validator("volts_range")(_check_range)
 

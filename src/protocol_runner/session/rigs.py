@@ -5,22 +5,25 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, cast
 
-from ..errors import HardwareUnavailable
+from ..errors import HardwareUnavailable, InvalidInput
 from ..hardware.calibration import CalibrationTable, load_calibration_table
 from ..hardware.joint import JointConfig
 from ..hardware.multi_rig import MultiRig
 from ..hardware.rig import Rig
 from ..hardware.watchdog import watchdog_limits
-from ..protocol.loaded import LoadedProtocol
+from ..protocol.loaded import LoadedProtocol, line_for
 from ..protocol.schema import RigSpec
 from ..protocol.settings import Settings
 from ..protocol.step_ids import trial_of
 from ..protocol.stream_check import safety_limits
 
 if TYPE_CHECKING:
+    from ..hardware.interfaces import AnalogOutput
+    from ..hardware.multiboard import MultiBoardInput
     from ..hardware.simulator.daq import SimulatedRig
     from ..hardware.simulator.multi import MultiSimulatedRig
     from ..hardware.simulator.params import SimulatorParams
+    from ..hardware.usb_common import MonotonicClock
 
 
 def _table(base: Path, name: str | None) -> CalibrationTable | None:
@@ -165,40 +168,62 @@ class HardwareBench:
 
 
 def refuse_unsupported_input(loaded: LoadedProtocol) -> None:
-    """A protocol naming the DT9814 as its input board: say where, why, and what to do instead (exit 3)."""
+    """A protocol whose input board is the DT9814: say which file, line and key choose it, why it cannot
+    run, and what to do instead (InvalidInput, exit 2: a choice in the files, fixed by editing them)."""
     rig_spec = loaded.protocol.rig
     if rig_spec.input.board != "dt9814":
         return
-    line = loaded.line_of(("rig", "input", "board"))
-    where = f"{loaded.path}" + (f" line {line}" if line else "")
-    raise HardwareUnavailable(
-        f"{where}: rig.input.board is dt9814. protocol-runner cannot record with a DT9814 on Linux: the only "
-        "known protocol for it (the DT9812's, UNVERIFIED for the DT9814) has no hardware-paced scan and reaches "
-        "8 channels, so there is no opt-in to try it. To run on the rig: connect the inputs to three MCC "
-        "USB-1608FS-Plus boards (board k gives channels 8k to 8k+7, so the channel numbers stay), copy the "
-        "protocol's folder and set rig.input.board: usb1608fs in the copy (docs/hardware.md, \"Opening the "
-        'rig from a protocol"); check the boards with run-protocol --hardware-check COPY. Or rehearse '
-        "with --dry-run."
+    if loaded.protocol.rig_overrides.input_board is not None:  # the protocol overrides the rig file
+        key = "rig_overrides.input_board"
+        where = _at(str(loaded.path), line_for(loaded.lines, ("rig_overrides", "input_board")))
+        fix = f"set {key}: usb1608fs in the copy"
+    else:  # the rig file's own choice
+        source = loaded.rig_source
+        key = "input_board"
+        where = _at(str(source.path or source.shown), line_for(source.lines, ("input_board",)))
+        fix = (
+            "add rig_overrides: {input_board: usb1608fs} to the copy (or set input_board: usb1608fs in a "
+            "copy of the rig file it names)"
+        )
+    raise InvalidInput(
+        f"{where}: {key} is dt9814. protocol-runner cannot record with a DT9814: the only known protocol for "
+        "it (the DT9812's, UNVERIFIED for the DT9814) has no hardware-paced scan and reaches 8 channels, so "
+        "there is no opt-in to try it. To run on the rig: connect the inputs to three MCC USB-1608FS-Plus "
+        "boards (board k gives channels 8k to 8k+7, so the channel numbers stay), copy the protocol's folder "
+        f'and {fix} (docs/hardware.md, "The path to the rig"); check the boards with run-protocol '
+        "--hardware-check COPY. Or rehearse with --dry-run."
     )
+
+
+def _at(path: str, line: int | None) -> str:
+    return f"{path} line {line}" if line else path
+
+
+def _open_boards(loaded: LoadedProtocol) -> tuple[AnalogOutput, MultiBoardInput, MonotonicClock]:
+    """The boards of the protocol's rig section; a vendor library the rig file selects but that is not
+    installed is named with the rig file."""
+    # here: only a hardware run needs the USB drivers (and a vendor library only when selected)
+    from ..hardware.rig_boards import open_rig_boards
+    from ..hardware.vendor_common import VendorLibraryMissing
+
+    try:
+        return open_rig_boards(loaded.protocol.rig)
+    except VendorLibraryMissing as exc:
+        raise VendorLibraryMissing(f"{loaded.rig_source.shown}: {exc.message}") from None
 
 
 def open_hardware_rig(loaded: LoadedProtocol) -> Rig:
     """Open the boards the protocol names; HardwareUnavailable (exit 3) with a plain message if absent."""
     refuse_unsupported_input(loaded)
-    rig_spec = loaded.protocol.rig
-    from ..hardware.rig_boards import open_rig_boards  # here: only a hardware run needs the USB drivers
-
-    ao, ai, clock = open_rig_boards(rig_spec)
+    ao, ai, clock = _open_boards(loaded)
     return Rig(joint_config(loaded), ao, ai, clock)
 
 
 def open_hardware_multi_rig(loaded: LoadedProtocol) -> MultiRig:
     """Open the boards once for every driven joint (one output board, one scan)."""
     refuse_unsupported_input(loaded)
-    from ..hardware.rig_boards import open_rig_boards
-
     p = loaded.protocol
-    ao, ai, clock = open_rig_boards(p.rig)
+    ao, ai, clock = _open_boards(loaded)
     for spec in p.rigs[1:]:  # the channels of the other joints exist on the boards opened
         n_in = getattr(ai, "n_channels", None)
         if n_in is not None and max(spec.input.angle_channel, spec.input.torque_channel) >= n_in:

@@ -1,0 +1,449 @@
+"""What the vendor-library backends (`uldaq_boards.py`, `mcculw_boards.py`) share: loading MCC's library
+lazily with a plain message when it is missing, the ±10 V code of a voltage, the grouping of output
+channels into the contiguous runs a synchronous update takes, and the reader of a continuous scan's
+circular buffer.
+
+Both libraries apply the boards' calibration themselves and hand back volts: the codes these backends
+report are the ideal 16-bit codes of those volts on the ±10 V range (``k = 32768 + 3276.8 V``), the same
+scale as the pyusb drivers' codes (`usb1608fs_protocol.codes_to_volts_pm10`).
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import logging
+import math
+import operator
+import sys
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping, Sequence
+from functools import partial
+from types import ModuleType
+from typing import Self, TypeVar
+
+import numpy as np
+import numpy.typing as npt
+
+from protocol_runner.errors import HardwareUnavailable, InvalidInput
+from protocol_runner.hardware import usb1608fs_protocol, usb3105
+from protocol_runner.hardware.interfaces import Clock, ScanBlock
+from protocol_runner.hardware.usb_common import BoardIoError, ScanOverrun
+
+log = logging.getLogger(__name__)
+T = TypeVar("T")
+
+CODES_PER_VOLT_PM10 = 32768.0 / 10.0
+VOLTS_PM10 = (-10.0, 10.0)
+
+
+class VendorLibraryMissing(InvalidInput):
+    """A rig file names a vendor backend whose library is not installed (exit 2: a setup choice to fix)."""
+
+
+def import_vendor(module: str, backend: str, native: str) -> ModuleType:
+    """Import MCC's Python package for `backend` (``uldaq`` or ``mcculw``), or say how to install it.
+
+    `native` names the system library the Python package loads when imported (libuldaq, the UL's
+    cbw64.dll): a package that is installed but fails to import (that library missing, or mcculw on a
+    system other than Windows) gets its own message.
+    """
+    if not _installed(backend):
+        raise VendorLibraryMissing(
+            f"the rig file selects backend: {backend}, but the Python package {backend!r} is not installed. "
+            f"Install it with: pip install protocol-runner[{backend}] (and {native}: docs/hardware.md, "
+            '"The path to the rig"), or set backend: pyusb for this board in the rig file.'
+        )
+    try:
+        return importlib.import_module(module)
+    except Exception as exc:  # the package's own import failed: OSError, or NameError off Windows
+        raise VendorLibraryMissing(
+            f"the rig file selects backend: {backend}: the Python package {backend!r} is installed but could "
+            f"not load {native} ({type(exc).__name__}: {exc}). Install {native} (docs/hardware.md, "
+            '"The path to the rig"), or set backend: pyusb for this board in the rig file.'
+        ) from None
+
+
+def _installed(package: str) -> bool:
+    """Whether `package` is imported already or can be found, without importing it."""
+    if package in sys.modules:
+        return sys.modules[package] is not None
+    return importlib.util.find_spec(package) is not None
+
+
+def volts_to_code_pm10(volts: float) -> int:
+    """The ideal 16-bit code of `volts` on the ±10 V range, clamped to 0..65535."""
+    return int(min(65535, max(0, round(32768.0 + CODES_PER_VOLT_PM10 * volts))))
+
+
+def codes_of_volts_pm10(volts: npt.NDArray[np.float64]) -> npt.NDArray[np.int32]:
+    """`volts_to_code_pm10` of every element."""
+    return np.clip(np.rint(32768.0 + CODES_PER_VOLT_PM10 * volts), 0, 65535).astype(np.int32)
+
+
+def checked_volts(channel: int, volts: float) -> float:
+    """A finite output voltage, clamped to ±10 V (as the pyusb driver clamps its code)."""
+    volts = float(volts)
+    if not math.isfinite(volts):
+        raise InvalidInput(f"output channel {channel}: volts must be a finite number, got {volts!r}")
+    return min(VOLTS_PM10[1], max(VOLTS_PM10[0], volts))
+
+
+def contiguous_runs(channels: Sequence[int]) -> list[list[int]]:
+    """Sorted channels split into runs of consecutive numbers: ``[8, 9, 11] -> [[8, 9], [11]]``.
+
+    Both libraries update a contiguous channel range together (uldaq `a_out_list`, mcculw `a_out_scan`
+    with SIMULTANEOUS); a channel between two driven ones belongs to another joint and is never written.
+    """
+    runs: list[list[int]] = []
+    for ch in sorted(channels):
+        if runs and ch == runs[-1][-1] + 1:
+            runs[-1].append(ch)
+        else:
+            runs.append([ch])
+    return runs
+
+
+def check_scan_channels(kind: str, channels: Sequence[int], n_channels: int, rate_hz: float) -> list[int]:
+    """The scan's channels as ints, refused when empty, repeated or outside the board, or at a bad rate."""
+    chans = [int(c) for c in channels]
+    if not chans:
+        raise InvalidInput(f"{kind}: give at least one input channel to scan")
+    if len(set(chans)) != len(chans) or any(not 0 <= c < n_channels for c in chans):
+        raise InvalidInput(f"{kind}: scan channels must be distinct numbers 0-{n_channels - 1}; got {chans}")
+    if not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise InvalidInput(
+            f"{kind}: the scan rate must be a positive number of rows per second; got {rate_hz!r}"
+        )
+    return chans
+
+
+class ScanRing:
+    """The rows of a continuous scan taken out of the library's circular buffer in order.
+
+    The library writes sample ``k`` of the scan (counting from 0 at the start, channels interleaved) at
+    buffer position ``k mod size``. `take(total)` returns the complete rows among the samples up to
+    `total` that were not taken yet. When more than a buffer's worth arrived since the last take, the
+    oldest were overwritten before they were read: that is a `ScanOverrun`, never silently lost rows.
+    `copy(first, count)` copies `count` samples from buffer position `first` (never across the end).
+    """
+
+    def __init__(
+        self,
+        name: str,
+        size: int,
+        n_columns: int,
+        copy: Callable[[int, int], npt.NDArray[np.float64]],
+    ) -> None:
+        self.name = name
+        self.size = size
+        self.n_columns = n_columns
+        self._copy = copy
+        self.taken = 0  # samples taken so far (whole rows only)
+
+    def take(self, total: int) -> npt.NDArray[np.float64]:
+        """The new complete rows, shape (rows, n_columns), in scan order."""
+        total -= total % self.n_columns
+        new = total - self.taken
+        if new < 0:
+            raise ScanOverrun(
+                f"the {self.name} reported {total} samples after {self.taken} were read; the scan count went "
+                "backwards. Unplug and replug the board, then redo the trial."
+            )
+        if new > self.size:
+            raise ScanOverrun(
+                f"the {self.name} scan overran its buffer: {new} samples arrived since the last read, the "
+                f"buffer holds {self.size}. The computer did not read the data fast enough: close other "
+                "programs or lower the input rate; the trial is marked failed and can be redone."
+            )
+        if new == 0:
+            return np.zeros((0, self.n_columns))
+        start = self.taken % self.size
+        first = min(new, self.size - start)
+        parts = [self._copy(start, first)]
+        if new > first:  # the samples wrapped round the end of the buffer
+            parts.append(self._copy(0, new - first))
+        self.taken = total
+        return np.concatenate(parts).reshape(-1, self.n_columns)
+
+
+class VendorScanInput(ABC):
+    """An `AnalogInput` over a vendor library's continuous background scan (one board, 8 channels ±10 V).
+
+    The libraries scan a contiguous channel range ``low..high``: the scan covers the lowest to the highest
+    channel asked for and keeps the asked ones, in the asked order. Row ``i`` is at ``t0 + i / rate``,
+    ``rate`` being the rate the library reports it set and ``t0`` the clock around the call that started
+    the scan. The scan's circular buffer holds `buffer_s` seconds: a read later than that is a
+    `ScanOverrun`. A failure while reading stops the scan before the error goes on; `stop_scan` and
+    `close` stop it too.
+
+    A backend implements `_start_scan` (start it, return the rate set), `_scan_status` (running?,
+    samples transferred so far), `_stop`, `_copy` (samples out of the buffer), `_free_buffer`, `_release`
+    and `_map_error` (its library's exception to a `HardwareUnavailable`, or None for any other).
+    """
+
+    kind = usb1608fs_protocol.KIND
+    n_channels = usb1608fs_protocol.N_CHANNELS
+    channels_per_board = usb1608fs_protocol.N_CHANNELS
+    status_after_stop = True
+    """Whether the scan status still counts the samples after the stop (then they are collected too)."""
+
+    def __init__(self, name: str, serial: str, clock: Clock, buffer_s: float) -> None:
+        self.name = name
+        self._serial = serial
+        self.clock = clock
+        self.buffer_s = buffer_s
+        self._scanning = False
+        self._closed = False
+        self._columns: npt.NDArray[np.intp] = np.zeros(0, dtype=np.intp)
+        self._rate_hz = 0.0
+        self._t0 = 0.0
+        self._rows_emitted = 0
+        self._ring: ScanRing | None = None
+
+    # ---- the backend's part ------------------------------------------------------------------------
+    @abstractmethod
+    def _start_scan(self, low: int, high: int, rows: int, rate_hz: float) -> float: ...
+
+    @abstractmethod
+    def _scan_status(self) -> tuple[bool, int]: ...
+
+    @abstractmethod
+    def _stop(self) -> None: ...
+
+    @abstractmethod
+    def _copy(self, first: int, count: int) -> npt.NDArray[np.float64]: ...
+
+    @abstractmethod
+    def _free_buffer(self) -> None: ...
+
+    @abstractmethod
+    def _release(self) -> None: ...
+
+    @abstractmethod
+    def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None: ...
+
+    # ---- AnalogInput -------------------------------------------------------------------------------
+    @property
+    def serial(self) -> str:
+        return self._serial
+
+    @property
+    def resolution_bits(self) -> int:
+        return 16
+
+    @property
+    def scan_rate_hz(self) -> float:
+        """The rate the library set (it may differ a little from the one asked for)."""
+        return self._rate_hz
+
+    def _call(self, action: str, fn: Callable[[], T]) -> T:
+        try:
+            return fn()
+        except Exception as exc:
+            mapped = self._map_error(exc, action)
+            if mapped is None:
+                raise
+            raise mapped from exc
+
+    def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
+        """Start a continuous scan of `channels` (0-7, any order) at `rate_hz` rows per second."""
+        chans = check_scan_channels(self.kind, channels, self.n_channels, rate_hz)
+        if self._closed:
+            raise InvalidInput(f"the {self.name} is closed; open it again")
+        if self._scanning:
+            raise InvalidInput(f"the {self.name} is already scanning; stop_scan() first")
+        low, high = min(chans), max(chans)
+        width = high - low + 1
+        rows = max(1, math.ceil(rate_hz * self.buffer_s))
+        self._columns = np.array([c - low for c in chans], dtype=np.intp)
+        self._rows_emitted = 0
+        before = self.clock.now_s()
+        try:
+            self._rate_hz = float(
+                self._call("starting the scan", lambda: self._start_scan(low, high, rows, rate_hz))
+            )
+        except BaseException:
+            self._abandon()  # a buffer allocated for a scan that did not start is freed
+            raise
+        after = self.clock.now_s()
+        self._t0 = 0.5 * (before + after)
+        self._ring = ScanRing(self.name, rows * width, width, self._copy)
+        self._scanning = True
+
+    def _block(self, rows: npt.NDArray[np.float64]) -> ScanBlock:
+        volts = np.ascontiguousarray(rows[:, self._columns])
+        n = volts.shape[0]
+        t_s = self._t0 + (self._rows_emitted + np.arange(n, dtype=np.float64)) / self._rate_hz
+        self._rows_emitted += n
+        return ScanBlock(t_s=t_s, codes=codes_of_volts_pm10(volts), volts=volts)
+
+    def _take(self, *, stopping: bool = False) -> npt.NDArray[np.float64]:
+        assert self._ring is not None
+        running, total = self._call("reading the scan status", self._scan_status)
+        rows = self._ring.take(total)
+        if not running and not stopping:
+            raise BoardIoError(
+                f"the {self.name} scan stopped by itself after {self._ring.taken} samples; "
+                "unplug and replug the board, then redo the trial."
+            )
+        return rows
+
+    def read_available(self) -> ScanBlock:
+        """Every complete row acquired since the last call (calibrated volts, their codes, times)."""
+        if not self._scanning:
+            return ScanBlock.empty(len(self._columns))
+        try:
+            rows = self._take()
+        except BaseException:
+            self._abandon()
+            raise
+        return self._block(rows)
+
+    def stop_scan(self) -> ScanBlock:
+        """Stop the scan and return the rows not read yet."""
+        if not self._scanning:
+            return ScanBlock.empty(len(self._columns))
+        try:
+            rows = [self._take(stopping=True)]
+            self._call("stopping the scan", self._stop)
+            if self.status_after_stop:
+                rows.append(self._take(stopping=True))  # what the library moved in while it stopped
+        except BaseException:
+            self._abandon()
+            raise
+        self._scanning = False
+        self._call("freeing the scan buffer", self._free_buffer)
+        return self._block(np.concatenate(rows))
+
+    def _abandon(self) -> None:
+        """Stop the scan after a failure, never hiding the failure."""
+        self._scanning = False
+        for what in (self._stop, self._free_buffer):
+            try:
+                what()
+            except Exception:
+                log.warning("%s: could not stop the scan after a failure", self.name)
+
+    def close(self) -> None:
+        """Stop a running scan and let the board go (idempotent)."""
+        if self._closed:
+            return
+        if self._scanning:
+            self._abandon()
+        self._closed = True
+        self._call("closing the board", self._release)
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class VendorAnalogOutput(ABC):
+    """An `AnalogOutput` over a vendor library (the USB-3105: 16 channels, ±10 V, software-paced).
+
+    `configure_channel` writes 0 V on the ±10 V range once (the library sends the board's range command,
+    which also drives the pin to 0 V); writing an unconfigured channel is refused, as with the pyusb
+    driver. `write_volts_sync` updates each contiguous run of channels together (`contiguous_runs`).
+    The codes returned are the ideal codes of the volts written (the library applies the calibration).
+    A backend implements `_write`, `_write_run`, `_release` and `_map_error`.
+    """
+
+    kind = usb3105.KIND
+    n_channels = usb3105.N_CHANNELS
+
+    def __init__(self, name: str, serial: str) -> None:
+        self.name = name
+        self._serial = serial
+        self._configured: set[int] = set()
+        self._closed = False
+
+    @abstractmethod
+    def _write(self, channel: int, volts: float) -> None: ...
+
+    @abstractmethod
+    def _write_run(self, low: int, volts: Sequence[float]) -> None: ...
+
+    @abstractmethod
+    def _release(self) -> None: ...
+
+    @abstractmethod
+    def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None: ...
+
+    @property
+    def serial(self) -> str:
+        return self._serial
+
+    @property
+    def configured_channels(self) -> frozenset[int]:
+        return frozenset(self._configured)
+
+    def _call(self, action: str, fn: Callable[[], T]) -> T:
+        if self._closed:
+            raise BoardIoError(f"the {self.name} is closed; open it again")
+        try:
+            return fn()
+        except Exception as exc:
+            mapped = self._map_error(exc, action)
+            if mapped is None:
+                raise
+            raise mapped from exc
+
+    def _check_channel(self, channel: int) -> int:
+        try:
+            ch = operator.index(channel)
+        except TypeError:
+            ch = -1
+        if not 0 <= ch < self.n_channels:
+            raise InvalidInput(
+                f"the {self.kind} has output channels 0-{self.n_channels - 1}; got {channel!r}"
+            )
+        return ch
+
+    def _checked(self, channel: int, volts: float) -> float:
+        ch = self._check_channel(channel)
+        if ch not in self._configured:
+            raise InvalidInput(
+                f"output channel {ch} of the {self.name} is not configured: call configure_channel() once "
+                "before writing (it sets +-10 V and drives the pin to 0 V)"
+            )
+        return checked_volts(ch, volts)
+
+    def configure_channel(self, channel: int) -> None:
+        """Set `channel` to ±10 V and 0 V. This drives the pin to 0 V: call once before a run."""
+        ch = self._check_channel(channel)
+        self._call(f"configuring output channel {ch}", lambda: self._write(ch, 0.0))
+        self._configured.add(ch)
+
+    def write_volts(self, channel: int, volts: float) -> int:
+        """Output `volts` on `channel` now; return its ±10 V code."""
+        v = self._checked(channel, volts)
+        self._call(f"writing output channel {channel}", lambda: self._write(channel, v))
+        return volts_to_code_pm10(v)
+
+    def write_volts_sync(self, volts_by_channel: Mapping[int, float]) -> dict[int, int]:
+        """Output several channels: each contiguous run of channels updated together."""
+        volts = {ch: self._checked(ch, v) for ch, v in volts_by_channel.items()}
+        for run in contiguous_runs(list(volts)):
+            self._call(
+                f"writing output channels {run[0]}-{run[-1]}",
+                partial(self._write_run, run[0], [volts[ch] for ch in run]),
+            )
+        return {ch: volts_to_code_pm10(v) for ch, v in volts.items()}
+
+    def close(self) -> None:
+        """Let the board go (idempotent); the outputs keep their last value."""
+        if self._closed:
+            return
+        try:
+            self._call("closing the board", self._release)
+        finally:
+            self._closed = True
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
