@@ -212,6 +212,18 @@ def test_sync_write_holds_each_channel_then_latches_once() -> None:
     ao.close()
 
 
+def test_a_board_left_as_sync_slave_is_made_master_when_opened() -> None:
+    """A slave ignores AOUT_SYNC: several joints' held updates would never reach the pins."""
+    model = make_usb3105()
+    assert not model.sync_master  # the fake powers up as a board another program left as slave
+    ao = open_board(model)
+    assert bytes([0x43, 0]) in model.reports and model.sync_master
+    ao.configure_channel(2)
+    codes = ao.write_volts_sync({2: 3.0})
+    assert model.codes[2] == codes[2] == ideal_code(3.0)
+    ao.close()
+
+
 def test_held_values_do_not_reach_the_pins_before_the_sync() -> None:
     model = make_usb3105()
     ao = open_board(model)

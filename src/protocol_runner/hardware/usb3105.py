@@ -152,6 +152,9 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
         bad = [ch for ch, c in enumerate(self.calibration) if not c.valid]
         if bad:
             log.warning("%s: no valid calibration for channels %s; using slope 1, offset 0", self.name, bad)
+        # AOUT_SYNC latches the held outputs only on a sync master; a board left as slave (by another
+        # program, or its jumper) would hold every joint's update of a several-joint tick for ever
+        self.set_sync_master(True)
 
     def _active_configuration(self) -> Any:
         try:

@@ -68,7 +68,7 @@ class Usb3105Model(FakeUsbDevice):
         self.codes: list[int] = [0] * N_CHANNELS
         self.ranges: list[int | None] = [None] * N_CHANNELS
         self.held: dict[int, int] = {}
-        self.sync_master = True
+        self.sync_master = False  # as a board left as slave: the driver must make it master
         self.blinks = 0
         self.resets = 0
         self.reports: list[bytes] = []
