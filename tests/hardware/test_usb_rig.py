@@ -13,7 +13,7 @@ from protocol_runner.hardware.fakeusb.device import Faults
 from protocol_runner.hardware.fakeusb.usb1608fs import ManualClock, Usb1608FsModel, make_usb1608fs
 from protocol_runner.hardware.fakeusb.usb3105 import Usb3105Model, make_usb3105
 from protocol_runner.hardware.joint import JointConfig
-from protocol_runner.hardware.multiboard import MultiBoardInput
+from protocol_runner.hardware.board_group import BoardGroup
 from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.usb1608fs import open_all_1608fs
@@ -66,7 +66,7 @@ def build() -> tuple[Rig, Usb3105Model, list[Usb1608FsModel], ManualClock]:
     backend = FakeBackend(ao_model, *ai_models)
     clock = SimClock(manual)
     ao = Usb3105.open(backend=backend)
-    ai = MultiBoardInput(open_all_1608fs(backend=backend, clock=clock))
+    ai = BoardGroup(open_all_1608fs(backend=backend, clock=clock))
     return Rig(joint(), ao, ai, clock), ao_model, ai_models, manual
 
 

@@ -1,5 +1,5 @@
 """Open the USB boards a protocol's `rig` section names: the analog output, the input boards joined as one
-`MultiBoardInput`, and the real clock (docs/hardware.md, "Opening the rig from a protocol")."""
+`BoardGroup`, and the real clock (docs/hardware.md, "Opening the rig from a protocol")."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from typing import Any, Protocol
 
 from protocol_runner.errors import HardwareUnavailable, InvalidInput
 from protocol_runner.hardware import usb1608fs_protocol
-from protocol_runner.hardware.multiboard import MultiBoardInput
+from protocol_runner.hardware.board_group import BoardGroup
 from protocol_runner.hardware.usb1608fs import open_all_1608fs
 from protocol_runner.hardware.usb3105 import Usb3105
 from protocol_runner.hardware.usb_common import BoardNotFound, MonotonicClock
@@ -45,12 +45,12 @@ class _RigSpec(Protocol):
 
 def open_rig_boards(
     rig_spec: _RigSpec, backend: Any | None = None, *, clock: MonotonicClock | None = None
-) -> tuple[Usb3105, MultiBoardInput, MonotonicClock]:
+) -> tuple[Usb3105, BoardGroup, MonotonicClock]:
     """Open the boards a protocol's ``rig`` section names: (analog output, analog input, real clock).
 
     Output: the USB-3105 with ``output.serial`` (or the first one). Input: ``board: usb1608fs`` opens the
     USB-1608FS-Plus boards listed in ``input.serials`` (in that order; empty = every attached board in
-    serial order) as one `MultiBoardInput`. ``board: dt9814`` is refused with a plain message: the only
+    serial order) as one `BoardGroup`. ``board: dt9814`` is refused with a plain message: the only
     known DT9814 protocol (comedi's DT9812) has no hardware-paced scan and addresses 8 channels.
     Raises `HardwareUnavailable` (exit 3) naming what is missing; nothing stays open on failure.
     """
@@ -71,7 +71,7 @@ def open_rig_boards(
     ao = Usb3105.open(serial=out_spec.serial, backend=backend)
     try:
         boards = open_all_1608fs(in_spec.serials or None, backend, clock=clock)
-        ai = MultiBoardInput(boards)
+        ai = BoardGroup(boards)
         for name, ch in (("angle", in_spec.angle_channel), ("torque", in_spec.torque_channel)):
             if ch >= ai.n_channels:
                 ai.close()
