@@ -37,12 +37,12 @@ from protocol_runner.protocol.trajectory_record import Trajectory
 
 def trial(cmd: np.ndarray) -> tuple[float, float, float, TrialRecording]:
     joint = knee_joint_config(max_rate_deg_s=120.0, max_accel_deg_s2=2000.0)
-    sim = SimulatedRig(joint, seed=2007, params=KNEE_PARAMS)
+    sim = SimulatedRig([joint], seed=2007, params=KNEE_PARAMS)
     sim.set_device(knee_brace((40.0, 90.0), 3.75, 13.0, 3))
     rig = sim.make_rig()
     sim.begin_step("bench")
     c0, w0 = time.process_time(), time.perf_counter()
-    rec = run_motion(rig, cmd, where="bench")
+    rec = run_motion(rig, [cmd], where="bench")[0]
     return time.process_time() - c0, time.perf_counter() - w0, sim.clock.now_s(), rec
 
 

@@ -64,7 +64,7 @@ def one_trial(seconds: float, monitor: Monitor | None) -> np.ndarray:
     ao = Usb3105.open(backend=backend)
     ai = Usb1608FsPlus.open(backend=backend, clock=clock)
     try:
-        rig = Rig(knee_joint(), ao, ai, clock)
+        rig = Rig([knee_joint()], ao, ai, clock)
         if monitor is not None:
             tap = SampleTap(rig.joint, monitor.bus.publish_samples)
             tap.step = "bench"
@@ -73,7 +73,7 @@ def one_trial(seconds: float, monitor: Monitor | None) -> np.ndarray:
             rig.loop_context = realtime_priority  # as the hardware bench runs it
         t = np.arange(round(seconds * 100.0)) / 100.0
         command = 65.0 + 40.0 * np.sin(2 * np.pi * t / 8.17)
-        return rig.run_trajectory(command, where="bench").tick_lateness_s
+        return rig.run_trajectory([command], where="bench")[0].tick_lateness_s
     finally:
         ao.close()
         ai.close()

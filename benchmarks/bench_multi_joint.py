@@ -3,7 +3,7 @@ leg campaign's dry-run wall time against the robot time it simulates.
 
 Jitter: the paced loop runs on the simulator's real-time clock (`realtime=True`: it sleeps until each
 tick, as on the rig) for DURATION_S of a gait-like motion, once with hip, knee and ankle (one synchronous
-update of three channels per tick, `MultiRig`) and once with the knee alone (`Rig`, one write per tick),
+update of three channels per tick) and once with the knee alone (one write per tick), both through `Rig`,
 alternating REPEATS times; it prints the tick lateness (write time minus schedule) p50/p99/max of each.
 Dry run: `run-protocol protocols/leg_phase2.yaml --dry-run` in-process, wall time and simulated robot time.
 
@@ -20,9 +20,7 @@ import numpy as np
 
 from protocol_runner.commands import run
 from protocol_runner.hardware.motion import run_motion
-from protocol_runner.hardware.multi_rig import run_multi_motion
 from protocol_runner.hardware.simulator.daq import SimulatedRig
-from protocol_runner.hardware.simulator.multi import MultiSimulatedRig
 from protocol_runner.hardware.simulator.params import SimulatorParams
 from protocol_runner.protocol.loader import load_protocol
 from protocol_runner.session.rigs import joint_config
@@ -54,10 +52,10 @@ def main() -> None:
     n = int(DURATION_S * 100)
     three, one = [], []
     for _ in range(REPEATS):
-        multi = MultiSimulatedRig(joints, params, seed=1, realtime=True)
-        three.append(run_multi_motion(multi.make_rig(), _motion(n), where="bench")[0].tick_lateness_s)
-        single = SimulatedRig(joints[1], seed=1, params=params[1], realtime=True)
-        one.append(run_motion(single.make_rig(), _motion(n)[1], where="bench").tick_lateness_s)
+        multi = SimulatedRig(joints, params=params, seed=1, realtime=True)
+        three.append(run_motion(multi.make_rig(), _motion(n), where="bench")[0].tick_lateness_s)
+        single = SimulatedRig(joints[1:2], seed=1, params=params[1], realtime=True)
+        one.append(run_motion(single.make_rig(), _motion(n)[1:2], where="bench")[0].tick_lateness_s)
     print(
         f"tick lateness, 3 joints (one synchronous update of 3 channels per tick): {_stats(np.concatenate(three))}"
     )

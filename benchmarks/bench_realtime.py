@@ -70,11 +70,11 @@ def one_trial(seconds: float, spin_s: float) -> tuple[np.ndarray, int, int]:
     ao = Usb3105.open(backend=backend)
     ai = Usb1608FsPlus.open(backend=backend, clock=clock)
     try:
-        rig = Rig(knee_joint(), ao, ai, clock)
+        rig = Rig([knee_joint()], ao, ai, clock)
         n = round(seconds * 100.0)
         t = np.arange(n) / 100.0
         command = 65.0 + 40.0 * np.sin(2 * np.pi * t / 8.17)
-        rec = rig.run_trajectory(command, where="bench")
+        rec = rig.run_trajectory([command], where="bench")[0]
         return rec.tick_lateness_s, rec.n_samples, len(ao_model.reports_with_command(0x14))
     finally:
         ao.close()

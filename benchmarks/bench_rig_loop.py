@@ -89,9 +89,9 @@ def main() -> None:
 
     rig_times = []
     for _ in range(REPEATS):
-        rig = Rig(joint, NullAO(), NullAI(), NullClock())
+        rig = Rig([joint], NullAO(), NullAI(), NullClock())
         start = time.perf_counter()
-        rig.run_trajectory(command, where="bench")
+        rig.run_trajectory([command], where="bench")
         rig_times.append(time.perf_counter() - start)
 
     base_times = []

@@ -84,7 +84,7 @@ def bench_kernel() -> int:
     return int(angle.shape[0])
 
 
-_BOARDS = SimulatedRig(knee(), seed=1, params=KNEE_PARAMS)
+_BOARDS = SimulatedRig([knee()], seed=1, params=KNEE_PARAMS)
 _BOARDS.set_device(BRACE)
 _VOLTS = (-10.0 + 20.0 * COMMAND_DEG / 130.0).tolist()
 
@@ -120,13 +120,13 @@ def main() -> None:
         n = bench_boards(every)
         print(line(label, n, *median_s(lambda every=every: bench_boards(every), repeats)))  # type: ignore[misc]
 
-    sim = SimulatedRig(knee(), seed=1, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee()], seed=1, params=KNEE_PARAMS)
     sim.set_device(BRACE)
     rig = sim.make_rig()
 
     def whole_trial() -> int:
         sim.begin_step("bench-trial")
-        return rig.run_trajectory(COMMAND_DEG, where="bench-trial").n_samples
+        return rig.run_trajectory([COMMAND_DEG], where="bench-trial")[0].n_samples
 
     n = whole_trial()
     wall, cpu = median_s(whole_trial, repeats)

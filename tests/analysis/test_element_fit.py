@@ -78,10 +78,10 @@ def test_elements_simulated_on_a_generic_joint_are_recovered_through_the_process
     command = 65.0 + 45.0 * np.sin(2 * np.pi * t / (2 * np.pi * 45.0 / 40.0))
     recordings = []
     for dev in (device(TRUE["torsion"], TRUE["cord"]), None):
-        sim = SimulatedRig(joint, seed=11, params=params)
+        sim = SimulatedRig([joint], seed=11, params=params)
         sim.set_device(dev)
         sim.begin_step(f"fit/{dev is None}")
-        r = sim.make_rig().run_trajectory(command, where="fit")
+        r = sim.make_rig().run_trajectory([command], where="fit")[0]
         recordings.append(
             Recording(r.input_time_s, r.angle_deg, r.torque_nm, r.command_deg, r.command_time_s)
         )

@@ -44,10 +44,10 @@ def _command() -> np.ndarray:
 
 
 def _run(command: np.ndarray, brace: list | None, step_id: str) -> TrialRecording:
-    sim = SimulatedRig(_joint(), seed=7, params=PARAMS)
+    sim = SimulatedRig([_joint()], seed=7, params=PARAMS)
     sim.set_device(brace)
     sim.begin_step(step_id)
-    return sim.make_rig().run_trajectory(command, where=step_id)
+    return sim.make_rig().run_trajectory([command], where=step_id)[0]
 
 
 def _recording(r: TrialRecording) -> Recording:

@@ -64,12 +64,12 @@ def sinusoid(rom_deg: tuple[float, float], speed_deg_s: float) -> tuple[np.ndarr
 @cache
 def trial(robot_rom: tuple[float, float], speed_deg_s: float, brace: Brace | None) -> Trial:
     """One trial through the Rig (cached: brace-off runs are shared between tests)."""
-    sim = SimulatedRig(knee_joint(), seed=2007, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee_joint()], seed=2007, params=KNEE_PARAMS)
     sim.set_device(None if brace is None else knee_brace(*brace))
     command, period = sinusoid(robot_rom, speed_deg_s)
     step_id = f"{robot_rom}/{speed_deg_s}/{brace}"
     sim.begin_step(step_id)
-    rec = sim.make_rig().run_trajectory(command, where=step_id)
+    rec = sim.make_rig().run_trajectory([command], where=step_id)[0]
     return Trial(rec.input_time_s, rec.angle_deg, rec.torque_nm, period)
 
 

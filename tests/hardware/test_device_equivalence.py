@@ -31,10 +31,10 @@ def test_the_knee_brace_from_elements_gives_the_recorded_samples_exactly(case: s
     joint = knee_joint_config(max_rate_deg_s=1000.0, max_accel_deg_s2=100_000.0)
     t = np.arange(900) / 100.0
     command = 65.0 + 55.0 * np.sin(2 * np.pi * t / (2 * np.pi * 55.0 / 50.0))
-    sim = SimulatedRig(joint, seed=2007, params=KNEE_PARAMS)
+    sim = SimulatedRig([joint], seed=2007, params=KNEE_PARAMS)
     sim.set_device(CASES[case])
     sim.begin_step(f"baseline/{case}")
-    rec = sim.make_rig().run_trajectory(command, where=case)
+    rec = sim.make_rig().run_trajectory([command], where=case)[0]
     angle = np.rint(angle_to_volts(rec.angle_deg, joint.range_deg) / AI12_VOLTS_PER_CODE).astype(np.int16)
     torque = np.rint(torque_to_volts(rec.torque_nm, joint.torque_range_nm) / AI12_VOLTS_PER_CODE).astype(
         np.int16

@@ -38,7 +38,7 @@ def sinusoid(seconds: float = 6.0) -> np.ndarray:
 def test_a_sinusoid_starts_and_ends_within_the_acceleration_limit_in_one_loop() -> None:
     rig, ao, ai, _ = make_rig()
     cmd = sinusoid()
-    rec = run_motion(rig, cmd, where="trial:k01:on:1")
+    rec = run_motion(rig, [cmd], where="trial:k01:on:1")[0]
     sent = written_deg(ao)
     # one scan, one loop: no pause between approach, trajectory and exit (a pause holds the output)
     assert ai.stops == 1 and len(ai.started) == 1
@@ -51,7 +51,7 @@ def test_a_sinusoid_starts_and_ends_within_the_acceleration_limit_in_one_loop() 
     assert np.max(np.abs(np.diff(held))) * RATE_HZ <= LIMITS.max_rate_deg_s
     assert sent[0] == pytest.approx(LIMITS.park_angle_deg, abs=1e-3)
     assert sent[-1] == pytest.approx(LIMITS.park_angle_deg, abs=1e-3)
-    assert rig.last_command_deg == LIMITS.park_angle_deg
+    assert rig.last_command_deg[0] == LIMITS.park_angle_deg
     # the recording is the trajectory part, on a bare run's time base
     np.testing.assert_array_equal(rec.command_deg, cmd)
     np.testing.assert_allclose(rec.command_time_s, np.arange(cmd.size) / RATE_HZ, atol=1e-12)
@@ -69,9 +69,9 @@ def test_a_sinusoid_starts_and_ends_within_the_acceleration_limit_in_one_loop() 
 def test_the_approach_arrives_with_the_trajectory_s_starting_velocity() -> None:
     rig, _, _, _ = make_rig()
     cmd = sinusoid(2.0)
-    stream = plan_motion(rig, cmd)
+    stream = plan_motion(rig, [cmd])
     i = stream.first
-    arriving = (stream.command_deg[i] - stream.command_deg[i - 1]) * RATE_HZ
+    arriving = (stream.streams[0].command_deg[i] - stream.streams[0].command_deg[i - 1]) * RATE_HZ
     leaving = (cmd[1] - cmd[0]) * RATE_HZ
     assert leaving == pytest.approx(50.0, rel=1e-3)
     assert abs(arriving - leaving) * RATE_HZ <= LIMITS.max_accel_deg_s2 * (1 + 1e-9)
@@ -80,7 +80,7 @@ def test_the_approach_arrives_with_the_trajectory_s_starting_velocity() -> None:
 def test_a_stop_mid_trajectory_brakes_within_the_limit_then_parks() -> None:
     rig, ao, ai, _ = make_rig()
     cmd = sinusoid()
-    stream = plan_motion(rig, cmd)
+    stream = plan_motion(rig, [cmd])
     k = (
         stream.first // 10 + 5
     ) * 10  # the stop is seen at the read after sample k - 1 (50 ms into the trial)
@@ -91,18 +91,18 @@ def test_a_stop_mid_trajectory_brakes_within_the_limit_then_parks() -> None:
         return polls["n"] == k // 10
 
     with pytest.raises(Interrupted, match="stopped on request") as info:
-        run_motion(rig, cmd, where="trial:k01:on:2", stop_requested=stop_mid_trajectory)
+        run_motion(rig, [cmd], where="trial:k01:on:2", stop_requested=stop_mid_trajectory)
     sent = written_deg(ao)
     # the first k samples as planned, then (same loop, no pause) the brake and the parking ramp
-    np.testing.assert_allclose(sent[:k], stream.command_deg[:k], atol=130 / 65535)
+    np.testing.assert_allclose(sent[:k], stream.streams[0].command_deg[:k], atol=130 / 65535)
     assert sent.size > k and ai.stops == 1
-    speed_at_stop = abs(stream.command_deg[k - 1] - stream.command_deg[k - 2]) * RATE_HZ
+    speed_at_stop = abs(stream.streams[0].command_deg[k - 1] - stream.streams[0].command_deg[k - 2]) * RATE_HZ
     assert speed_at_stop > 45.0  # it was moving at about the sinusoid's peak speed
     held = np.concatenate([sent, [sent[-1]]])
     assert peak_accel(held) <= LIMITS.max_accel_deg_s2 * (1 + 1e-6)  # 16-bit codes: a little rounding
     assert np.max(np.abs(np.diff(held))) * RATE_HZ <= LIMITS.max_rate_deg_s
-    assert rig.last_command_deg == LIMITS.park_angle_deg
-    partial = info.value.partial_recording  # type: ignore[attr-defined]
+    assert rig.last_command_deg[0] == LIMITS.park_angle_deg
+    partial = info.value.partial_recording[0]  # type: ignore[attr-defined]
     assert STOP in set(partial.stream_segment.tolist())
     assert partial.stream_deg[-1] == LIMITS.park_angle_deg
 
@@ -113,7 +113,7 @@ def test_a_stream_that_cannot_be_stopped_in_range_is_refused_before_any_write() 
     rig, ao, ai, _ = make_rig()
     cmd = np.linspace(0.0, 30.0, 31)  # 0 -> 30 deg at 100 deg/s from the joint's lower limit
     with pytest.raises(SafetyViolation, match=r"approach") as info:
-        run_motion(rig, cmd, where="step-9")
+        run_motion(rig, [cmd], where="step-9")
     assert info.value.limit == "joint angle" and info.value.exit_code == 4
     assert ao.writes == [] and ai.started == []
 
@@ -121,10 +121,10 @@ def test_a_stream_that_cannot_be_stopped_in_range_is_refused_before_any_write() 
 def test_a_board_failure_keeps_the_trajectory_part_written_so_far() -> None:
     rig, _, _, _ = make_rig(fail_at_write=250)
     cmd = sinusoid()
-    first = plan_motion(rig, cmd).first
+    first = plan_motion(rig, [cmd]).first
     with pytest.raises(OSError) as info:
-        run_motion(rig, cmd, where="t")
-    partial = info.value.partial_recording  # type: ignore[attr-defined]
+        run_motion(rig, [cmd], where="t")
+    partial = info.value.partial_recording[0]  # type: ignore[attr-defined]
     assert partial.n_ticks == 250 - first
     np.testing.assert_array_equal(partial.command_deg, cmd[: 250 - first])
     assert partial.stream_deg.size == 250

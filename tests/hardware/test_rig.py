@@ -152,7 +152,7 @@ def make_rig(
     clock = FakeClock(late_s)
     ao = RecordingAO(clock, fail_at_write)
     ai = EchoAI(clock, ao)
-    return Rig(joint or make_joint(), ao, ai, clock), ao, ai, clock
+    return Rig([joint or make_joint()], ao, ai, clock), ao, ai, clock
 
 
 def ramp_deg(lo: float, hi: float, n: int) -> np.ndarray:
@@ -167,7 +167,7 @@ def test_fakes_satisfy_the_interfaces() -> None:
 def test_codes_and_volts_follow_eq1_and_the_usb3105_format() -> None:
     rig, ao, _, _ = make_rig()
     cmd = ramp_deg(10.0, 120.0, 300)
-    rec = rig.run_trajectory(cmd, where="t1")
+    rec = rig.run_trajectory([cmd], where="t1")[0]
     expected_volts = angle_to_volts(cmd, KNEE.range_deg)
     np.testing.assert_allclose(rec.command_volts, expected_volts)
     np.testing.assert_array_equal(rec.command_codes, volts_to_ao16_code(expected_volts))
@@ -179,7 +179,7 @@ def test_codes_and_volts_follow_eq1_and_the_usb3105_format() -> None:
 def test_time_base_of_output_ticks_and_input_rows() -> None:
     rig, ao, ai, _ = make_rig()
     n = 250
-    rec = rig.run_trajectory(np.full(n, 40.0), where="t1")
+    rec = rig.run_trajectory([np.full(n, 40.0)], where="t1")[0]
     assert ai.started == [((8, 9), 1000.0)]
     np.testing.assert_allclose(rec.command_time_s, np.arange(n) / 100.0, atol=1e-9)
     write_times = np.array([w[0] for w in ao.writes]) - rec.t0_s
@@ -194,14 +194,14 @@ def test_time_base_of_output_ticks_and_input_rows() -> None:
 
 def test_lateness_is_write_time_minus_schedule() -> None:
     rig, _, _, _ = make_rig(late_s=4e-4)
-    rec = rig.run_trajectory(np.full(50, 40.0), where="t1")
+    rec = rig.run_trajectory([np.full(50, 40.0)], where="t1")[0]
     np.testing.assert_allclose(rec.tick_lateness_s[1:], 4e-4, atol=1e-9)
 
 
 def test_telemetry_goes_through_eq2_eq3() -> None:
     rig, _, _, _ = make_rig()
     cmd = ramp_deg(30.0, 90.0, 200)
-    rec = rig.run_trajectory(cmd, where="t1")
+    rec = rig.run_trajectory([cmd], where="t1")[0]
     # Each input row sees the command of the last tick written before it.
     tick_of_row = np.minimum(np.floor(rec.input_time_s * 100.0 + 1e-9).astype(int), cmd.size - 1)
     np.testing.assert_allclose(rec.angle_deg, cmd[tick_of_row], atol=130.0 / 4096)
@@ -220,7 +220,7 @@ def test_calibration_tables_are_applied_on_both_sides() -> None:
     )
     rig, _, _, _ = make_rig(joint)
     cmd = ramp_deg(5.0, 125.0, 400)
-    rec = rig.run_trajectory(cmd, where="t1")
+    rec = rig.run_trajectory([cmd], where="t1")[0]
     np.testing.assert_allclose(rec.command_volts, angle_to_volts(command_table(cmd), KNEE.range_deg))
     assert np.max(np.abs(rec.command_volts - angle_to_volts(cmd, KNEE.range_deg))) > 0.2  # LUT did something
     tick_of_row = np.minimum(np.floor(rec.input_time_s * 100.0 + 1e-9).astype(int), cmd.size - 1)
@@ -233,7 +233,7 @@ def test_safety_rejection_happens_before_anything_is_sent() -> None:
     rig, ao, ai, _ = make_rig()
     cmd = ramp_deg(40.0, 131.0, 300)
     with pytest.raises(SafetyViolation, match="step-7") as info:
-        rig.run_trajectory(cmd, where="step-7")
+        rig.run_trajectory([cmd], where="step-7")
     assert info.value.limit == "joint angle"
     assert ao.writes == [] and ao.configured == [] and ai.started == []
 
@@ -242,20 +242,20 @@ def test_command_table_pushing_past_10_volts_is_rejected() -> None:
     table = CalibrationTable(np.array([0.0, 130.0]), np.array([5.0, 135.0]), "real_deg", "input_deg")
     rig, ao, _, _ = make_rig(make_joint(command_table=table))
     with pytest.raises(SafetyViolation, match="voltage"):
-        rig.run_trajectory(ramp_deg(60.0, 128.0, 200), where="s")
+        rig.run_trajectory([ramp_deg(60.0, 128.0, 200)], where="s")
     assert ao.writes == []
 
 
 def test_park_ramps_to_the_park_angle_from_the_last_command() -> None:
     rig, ao, _, _ = make_rig()
-    rig.run_trajectory(ramp_deg(60.0, 100.0, 100), where="t1")
+    rig.run_trajectory([ramp_deg(60.0, 100.0, 100)], where="t1")
     n_before = len(ao.writes)
-    rec = rig.park()
+    rec = rig.park()[0]
     assert rec.command_deg[0] == pytest.approx(100.0)
     assert rec.command_deg[-1] == LIMITS.park_angle_deg
     assert ao.writes[-1][2] == pytest.approx(float(angle_to_volts(LIMITS.park_angle_deg, KNEE.range_deg)))
     assert len(ao.writes) - n_before == rec.n_ticks
-    assert rig.last_command_deg == LIMITS.park_angle_deg
+    assert rig.last_command_deg[0] == LIMITS.park_angle_deg
     assert np.max(np.abs(np.diff(rec.command_deg))) * 100.0 <= LIMITS.park_rate_deg_s + 1e-9
 
 
@@ -263,7 +263,7 @@ def test_park_without_a_previous_command_measures_the_angle() -> None:
     """After configure_channel the output is 0 V, i.e. mid-range (65° for the knee)."""
     rig, _, _, _ = make_rig()
     rig.prepare()
-    rec = rig.park()
+    rec = rig.park()[0]
     assert rec.command_deg[0] == pytest.approx(65.0, abs=0.05)
     assert rec.command_deg[-1] == LIMITS.park_angle_deg
 
@@ -271,8 +271,8 @@ def test_park_without_a_previous_command_measures_the_angle() -> None:
 def test_prepare_configures_the_channel_once() -> None:
     rig, ao, _, _ = make_rig()
     rig.prepare()
-    rig.run_trajectory(np.full(20, 40.0), where="a")
-    rig.run_trajectory(np.full(20, 40.0), where="b")
+    rig.run_trajectory([np.full(20, 40.0)], where="a")
+    rig.run_trajectory([np.full(20, 40.0)], where="b")
     assert ao.configured == [3]
 
 
@@ -286,24 +286,24 @@ def test_stop_request_stops_the_scan_and_remembers_the_last_write() -> None:
 
     cmd = ramp_deg(30.0, 60.0, 500)
     with pytest.raises(Interrupted, match="trial-3"):
-        rig.run_trajectory(cmd, where="trial-3", stop_requested=stop_after_three_reads)
+        rig.run_trajectory([cmd], where="trial-3", stop_requested=stop_after_three_reads)
     assert len(ao.writes) == 30
     assert ai.stops == 1
-    assert rig.last_command_deg == pytest.approx(cmd[29])
+    assert rig.last_command_deg[0] == pytest.approx(cmd[29])
 
 
 def test_board_failure_mid_trial_stops_the_scan_and_propagates() -> None:
     rig, _, ai, _ = make_rig(fail_at_write=42)
     cmd = ramp_deg(30.0, 60.0, 100)
     with pytest.raises(OSError, match="No such device"):
-        rig.run_trajectory(cmd, where="t")
+        rig.run_trajectory([cmd], where="t")
     assert ai.stops == 1
-    assert rig.last_command_deg == pytest.approx(cmd[41])
+    assert rig.last_command_deg[0] == pytest.approx(cmd[41])
 
 
 def test_recording_is_consistent() -> None:
     rig, _, _, _ = make_rig()
-    rec = rig.run_trajectory(np.full(37, 40.0), where="w")
+    rec = rig.run_trajectory([np.full(37, 40.0)], where="w")[0]
     assert isinstance(rec, TrialRecording)
     assert rec.where == "w" and rec.n_ticks == 37
     for name in ("command_deg", "command_volts", "command_codes", "tick_lateness_s"):

@@ -58,12 +58,12 @@ def hold(angle_deg: float, duration_s: float) -> np.ndarray:
 
 def run(sim: SimulatedRig, rig: Rig, command_deg: np.ndarray, step_id: str = "step") -> tuple:
     sim.begin_step(step_id)
-    rec = rig.run_trajectory(command_deg, where=step_id)
+    rec = rig.run_trajectory([command_deg], where=step_id)[0]
     return rec.input_time_s, rec.angle_deg, rec.torque_nm, rec
 
 
 def test_simulated_boards_satisfy_the_daq_interfaces(knee: JointConfig) -> None:
-    sim = SimulatedRig(knee, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee], params=KNEE_PARAMS)
     assert isinstance(sim.clock, Clock)
     assert isinstance(sim.ao, AnalogOutput)
     assert isinstance(sim.ai, AnalogInput)
@@ -75,7 +75,7 @@ def test_step_response_is_a_first_order_lag_of_0_2_s(knee: JointConfig) -> None:
     """Thesis §2.4.2: the joint follows a step as a first-order lag with a 0.2 s time constant. The 45°
     calibration step (Appendix A) from the 20° park angle, brace off: the 63 % time is 0.2 ± 0.05 s and the
     joint settles at the command."""
-    sim = SimulatedRig(knee, seed=3, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee], seed=3, params=KNEE_PARAMS)
     t, angle, _, _ = run(sim, sim.make_rig(), hold(PARK_DEG + 45.0, 2.0))
     reached = np.flatnonzero(angle >= PARK_DEG + 0.632 * 45.0)
     t63 = t[reached[0]]
@@ -91,7 +91,7 @@ def test_joint_stalls_where_the_load_reaches_the_torque_limit(knee: JointConfig)
     past that point". The stiffest springs at the most preload load the joint beyond the limit well before
     130°: commanded to 130° it stops short and the load cell reads the limit; without the brace the same
     command is reached."""
-    sim = SimulatedRig(knee, seed=4, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee], seed=4, params=KNEE_PARAMS)
     rig = sim.make_rig()
     sim.set_device(knee_brace((0.0, 130.0), 6.25, 20.0, 1))
     t, angle, torque, _ = run(sim, rig, hold(130.0, 4.0), "stall")
@@ -99,7 +99,7 @@ def test_joint_stalls_where_the_load_reaches_the_torque_limit(knee: JointConfig)
     assert np.max(angle) < 100.0
     assert np.ptp(angle[late]) < 1.0  # stopped, not creeping on
     assert abs(np.mean(torque[late]) - KNEE_TORQUE_LIMIT_NM) < 1.5
-    assert sim.plant.load_nm <= KNEE_TORQUE_LIMIT_NM * 1.01  # the actuator never holds more than its limit
+    assert sim.plant().load_nm <= KNEE_TORQUE_LIMIT_NM * 1.01  # the actuator never holds more than its limit
 
     sim.set_device(None)
     t, angle, torque, _ = run(sim, rig, hold(130.0, 4.0), "free")
@@ -110,7 +110,7 @@ def test_joint_stalls_where_the_load_reaches_the_torque_limit(knee: JointConfig)
 def test_start_up_transition_emerges_from_the_lag(knee: JointConfig) -> None:
     """Thesis §3.3.1: each trial starts with the leg at its park position while the trajectory starts
     elsewhere, so the recording begins with a transition before the joint follows the command."""
-    sim = SimulatedRig(knee, seed=5, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee], seed=5, params=KNEE_PARAMS)
     p = 2.0 * np.pi * 65.0 / 50.0
     tk = np.arange(round(1.5 * p * OUTPUT_RATE_HZ)) / OUTPUT_RATE_HZ
     command = 65.0 + 65.0 * np.sin(2.0 * np.pi * tk / p)  # starts at 65°, the leg is at 20°
@@ -126,18 +126,18 @@ def test_same_seed_and_step_give_identical_data_another_step_other_noise(knee: J
     """Every random draw comes from a generator seeded by (session seed, step id), so a resumed
     session reproduces an uninterrupted one bit for bit."""
     command = hold(60.0, 1.0)
-    sim_a = SimulatedRig(knee, seed=11, params=KNEE_PARAMS)
+    sim_a = SimulatedRig([knee], seed=11, params=KNEE_PARAMS)
     rig_a = sim_a.make_rig()
     _, _, _, first = run(sim_a, rig_a, command, "set1/trial1")
     _, _, _, other_step = run(sim_a, rig_a, command, "set1/trial2")
     sim_b = SimulatedRig(
-        knee, seed=11, params=KNEE_PARAMS
+        [knee], seed=11, params=KNEE_PARAMS
     )  # a fresh process, after unrelated work in another step
     _, _, _, _ = run(sim_b, sim_b.make_rig(), hold(90.0, 0.5), "set0/warm-up")
     _, _, _, again = run(sim_b, sim_b.make_rig(), command, "set1/trial1")
     other_seed = run(
-        SimulatedRig(knee, seed=12, params=KNEE_PARAMS),
-        SimulatedRig(knee, seed=12, params=KNEE_PARAMS).make_rig(),
+        SimulatedRig([knee], seed=12, params=KNEE_PARAMS),
+        SimulatedRig([knee], seed=12, params=KNEE_PARAMS).make_rig(),
         command,
         "x",
     )[3]
@@ -155,9 +155,9 @@ def test_data_do_not_depend_on_how_long_the_session_has_run(knee: JointConfig) -
     """A resumed session's clock starts afresh while the uninterrupted one has run for hours: the step's
     data must not depend on the clock's absolute value (float rounding of write and row times)."""
     command = 65.0 + 40.0 * np.sin(np.arange(300) / 30.0)
-    fresh = SimulatedRig(knee, seed=13, params=KNEE_PARAMS)
+    fresh = SimulatedRig([knee], seed=13, params=KNEE_PARAMS)
     _, _, _, a = run(fresh, fresh.make_rig(), command, "k4/on/2")
-    late = SimulatedRig(knee, seed=13, params=KNEE_PARAMS)
+    late = SimulatedRig([knee], seed=13, params=KNEE_PARAMS)
     late.clock.sleep_until(3 * 3600.0 + 0.123456789)
     _, _, _, b = run(late, late.make_rig(), command, "k4/on/2")
     assert np.array_equal(a.angle_codes, b.angle_codes)
@@ -171,7 +171,7 @@ def test_data_do_not_depend_on_how_often_the_scan_is_read(knee: JointConfig) -> 
     sees the same rig)."""
 
     def acquire(read_every_s: float, transfer_s: float) -> tuple[np.ndarray, int]:
-        sim = SimulatedRig(knee, seed=21, params=KNEE_PARAMS)
+        sim = SimulatedRig([knee], seed=21, params=KNEE_PARAMS)
         sim.ai.transfer_s = transfer_s
         sim.begin_step("chunks")
         sim.ai.start_scan([8, 20, 3], INPUT_RATE_HZ)
@@ -198,7 +198,7 @@ def test_data_do_not_depend_on_how_often_the_scan_is_read(knee: JointConfig) -> 
 def test_the_scan_hands_its_rows_over_in_whole_transfers(knee: JointConfig) -> None:
     """In simulated time the DT9814 stand-in hands over 1 s of rows at a time, as a USB board hands over
     whole packets, and the rest when the scan stops; in real time every row as soon as it is due."""
-    sim = SimulatedRig(knee, seed=3, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee], seed=3, params=KNEE_PARAMS)
     sim.begin_step("transfers")
     sim.ai.start_scan([8, 20], INPUT_RATE_HZ)  # row i at i ms
     sizes = []
@@ -208,14 +208,14 @@ def test_the_scan_hands_its_rows_over_in_whole_transfers(knee: JointConfig) -> N
     last = sim.ai.stop_scan()
     assert sizes == [0, 1000, 0, 1000]
     assert last.n_samples == 301 and last.t_s[-1] == pytest.approx(2.3)
-    assert SimulatedRig(knee, realtime=True).ai.transfer_s == 0.0
+    assert SimulatedRig([knee], realtime=True).ai.transfer_s == 0.0
 
 
 def test_a_dry_run_is_the_rigs_paced_loop_in_simulated_time(knee: JointConfig) -> None:
     """The rig drives the simulated boards through its own paced loop: one USB-3105 write per sample at
     its scheduled time (the simulated clock jumps there, so no tick is late), every row of the scan
     recorded, the clock one tick past the last write at the end."""
-    sim = SimulatedRig(knee, seed=5, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee], seed=5, params=KNEE_PARAMS)
     rig = sim.make_rig()
     sim.clock.advance(7.25)
     command = 65.0 + 40.0 * np.sin(np.arange(450) / 30.0)
@@ -233,7 +233,7 @@ def test_a_dry_run_is_the_rigs_paced_loop_in_simulated_time(knee: JointConfig) -
 def test_brace_on_and_brace_off_trials_differ(knee: JointConfig) -> None:
     """The brace's springs and brake add torque that resists flexion (thesis §5, Figure 36): with the
     medium spring fitted the joint needs clearly more torque at 90° than the bare robot."""
-    sim = SimulatedRig(knee, seed=6, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee], seed=6, params=KNEE_PARAMS)
     rig = sim.make_rig()
     _, _, torque_off, _ = run(sim, rig, hold(90.0, 2.0), "off")
     sim.set_device(knee_brace((0.0, 130.0), 3.75, 13.0))
@@ -254,17 +254,17 @@ def test_calibration_tables_make_measured_match_real() -> None:
     torque_table = CalibrationTable(torque_out, 0.95 * torque_out, "output_nm", "real_nm")
     joint = knee_joint(command_table=command_table, angle_table=angle_table, torque_table=torque_table)
     quiet = replace(KNEE_PARAMS, angle_noise_deg=0.0, torque_noise_nm=0.0)
-    sim = SimulatedRig(joint, seed=1, params=quiet)
+    sim = SimulatedRig([joint], seed=1, params=quiet)
     _, angle, torque, rec = run(sim, sim.make_rig(), hold(65.0, 2.0), "lut")
-    assert abs(sim.plant.angle_deg - 65.0) < 0.3  # the robot went where the table asked
-    assert abs(angle[-1] - sim.plant.angle_deg) < 0.1  # 12-bit LSB is 0.032°
-    assert abs(torque[-1] - sim.plant.load_nm) < 0.1
+    assert abs(sim.plant().angle_deg - 65.0) < 0.3  # the robot went where the table asked
+    assert abs(angle[-1] - sim.plant().angle_deg) < 0.1  # 12-bit LSB is 0.032°
+    assert abs(torque[-1] - sim.plant().load_nm) < 0.1
     raw_eq2 = float(volts_to_angle(rec.angle_volts[-1], joint.range_deg))
     assert abs(raw_eq2 - angle[-1]) > 3.0  # the sensor's own nonlinearity is really there
 
 
 def test_analog_output_quantises_like_a_usb_3105(knee: JointConfig) -> None:
-    sim = SimulatedRig(knee, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee], params=KNEE_PARAMS)
     assert sim.ao.write_volts(8, 0.0) == 32768
     assert sim.ao.write_volts(8, 10.0) == 65535  # full scale is +9.99969 V
     assert sim.ao.write_volts(8, -12.0) == 0  # clamped
@@ -280,7 +280,7 @@ def test_analog_output_quantises_like_a_usb_3105(knee: JointConfig) -> None:
 
 def test_analog_input_gives_12_bit_twos_complement_codes(knee: JointConfig) -> None:
     """DT9814: V = 20 code / 4096, codes -2048..2047; unconnected channels read about 0 V."""
-    sim = SimulatedRig(knee, seed=2, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee], seed=2, params=KNEE_PARAMS)
     sim.begin_step("codes")
     sim.ai.start_scan([8, 20, 0], INPUT_RATE_HZ)
     sim.clock.sleep_until(sim.clock.now_s() + 0.5)
@@ -312,7 +312,7 @@ def test_simulated_clock_jumps_and_realtime_clock_sleeps() -> None:
 
 
 def test_set_device_rejects_impossible_elements_naming_the_parameter(knee: JointConfig) -> None:
-    sim = SimulatedRig(knee, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee], params=KNEE_PARAMS)
     with pytest.raises(InvalidInput, match=r"'stops'.*'range_deg'"):
         sim.set_device(knee_brace((90.0, 40.0), 0.0, 0.0))
     with pytest.raises(InvalidInput, match=r"'brake'.*'torque_nm'"):
@@ -325,7 +325,7 @@ def test_set_device_rejects_impossible_elements_naming_the_parameter(knee: Joint
     ]
     with pytest.raises(InvalidInput, match="one rom_stops"):
         sim.set_device(two_stops)
-    assert sim.device is None
+    assert sim.device() is None
     with pytest.raises(InvalidInput, match="lag_time_constant_s"):
         SimulatorParams(lag_time_constant_s=0.0)
 
@@ -334,7 +334,7 @@ def test_bare_robot_shows_its_own_hysteresis(knee: JointConfig) -> None:
     """Thesis §5: "all graphs show hysteresis of the joint. This is an artifact of the robot": brace off,
     a sinusoid's torque is higher while flexing than while extending at the same angle, so the loop
     encloses positive energy."""
-    sim = SimulatedRig(knee, seed=8, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee], seed=8, params=KNEE_PARAMS)
     p = 2.0 * np.pi * 45.0 / 50.0
     tk = np.arange(round(3 * p * OUTPUT_RATE_HZ)) / OUTPUT_RATE_HZ
     t, angle, torque, _ = run(sim, sim.make_rig(), 65.0 + 45.0 * np.sin(2.0 * np.pi * tk / p), "bare")
@@ -363,7 +363,7 @@ def test_docs_list_every_parameter_with_its_value() -> None:
 
 @cache
 def _ao_sim() -> SimulatedRig:
-    return SimulatedRig(knee_joint(), params=KNEE_PARAMS)
+    return SimulatedRig([knee_joint()], params=KNEE_PARAMS)
 
 
 @settings(max_examples=300, deadline=None)
@@ -406,7 +406,7 @@ def test_torque_limit_comes_from_the_joint_not_from_the_knee() -> None:
             park_rate_deg_s=30.0,
         ),
     )
-    sim = SimulatedRig(elbow, seed=9, params=KNEE_PARAMS)
+    sim = SimulatedRig([elbow], seed=9, params=KNEE_PARAMS)
     t, angle, torque, _ = run(sim, sim.make_rig(), hold(90.0, 4.0), "elbow")
     late = t > 3.0
     assert np.mean(angle[late]) < 70.0
@@ -415,11 +415,11 @@ def test_torque_limit_comes_from_the_joint_not_from_the_knee() -> None:
 
 def test_realtime_clock_paces_a_short_trial(knee: JointConfig) -> None:
     """`--realtime`: the same run, paced by the wall clock (a 0.2 s trial takes at least 0.2 s)."""
-    sim = SimulatedRig(knee, seed=10, realtime=True, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee], seed=10, realtime=True, params=KNEE_PARAMS)
     rig = sim.make_rig()
     sim.begin_step("rt")
     wall = time.monotonic()
-    rec = rig.run_trajectory(hold(25.0, 0.2), where="rt")
+    rec = rig.run_trajectory([hold(25.0, 0.2)], where="rt")[0]
     assert time.monotonic() - wall >= 0.2
     assert rec.n_samples >= 200
     assert abs(rec.angle_deg[0] - PARK_DEG) < 1.0
@@ -431,7 +431,7 @@ import numpy as np
 sys.path.insert(0, sys.argv[1])
 from tests.hardware.test_simulator import KNEE_PARAMS, hold, knee_joint, run
 from protocol_runner.hardware.simulator.daq import SimulatedRig
-sim = SimulatedRig(knee_joint(), seed=5, params=KNEE_PARAMS)
+sim = SimulatedRig([knee_joint()], seed=5, params=KNEE_PARAMS)
 rec = run(sim, sim.make_rig(), hold(50.0, 0.3), "set2/trial3")[3]
 print(hashlib.sha256(rec.angle_codes.tobytes() + rec.torque_codes.tobytes()).hexdigest())
 """
@@ -445,7 +445,7 @@ def test_data_are_reproducible_in_another_process() -> None:
     import sys
     from pathlib import Path
 
-    sim = SimulatedRig(knee_joint(), seed=5, params=KNEE_PARAMS)
+    sim = SimulatedRig([knee_joint()], seed=5, params=KNEE_PARAMS)
     rec = run(sim, sim.make_rig(), hold(50.0, 0.3), "set2/trial3")[3]
     here = hashlib.sha256(rec.angle_codes.tobytes() + rec.torque_codes.tobytes()).hexdigest()
     env = dict(os.environ, PYTHONHASHSEED="12345")
@@ -546,7 +546,7 @@ def test_scan_noise_is_the_step_stream_in_order_whatever_the_block_sizes(knee: J
     size, partly consumed (rows not yet due), read into a reused array, give the numbers one draw gives."""
     from protocol_runner.hardware.simulator.daq import NOISE_BLOCK, step_seed
 
-    model = SimulatedRig(knee, seed=11, params=KNEE_PARAMS)._model
+    model = SimulatedRig([knee], seed=11, params=KNEE_PARAMS).models[0]
     model.begin_step("set1/trial1")
     pick = np.random.default_rng(0)
     consumed = []

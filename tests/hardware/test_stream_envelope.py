@@ -212,32 +212,52 @@ def test_limits_too_small_to_move_the_joint_are_refused_with_bounded_work(
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data())
-def test_a_dry_run_sends_exactly_the_checked_stream_or_nothing(data: st.DataObject) -> None:
-    """In a dry run the rig's paced loop drives the simulated boards: what reaches the simulated board is,
-    sample for sample, the checked stream up to a random stop and then its checked stop tail - or nothing at
-    all when the plan is refused."""
+def test_a_dry_run_sends_exactly_the_checked_streams_or_nothing(data: st.DataObject) -> None:
+    """In a dry run the rig's paced loop drives the simulated boards: what reaches the simulated board on
+    each joint's channel (one joint or several), sample for sample, is that joint's checked stream up to a
+    random stop and then its checked stop tail, every sample inside that joint's range, rate and
+    acceleration limits - or nothing at all on any channel when a joint's plan is refused. Parking the rig
+    afterwards from random angles sends only samples inside the limits too."""
     from protocol_runner.errors import Interrupted
     from protocol_runner.hardware.conversions import volts_to_ao16_code
     from protocol_runner.hardware.joint import JointConfig
     from protocol_runner.hardware.motion import run_motion
     from protocol_runner.hardware.paced import READ_EVERY_TICKS
     from protocol_runner.hardware.simulator.daq import SimulatedRig
+    from protocol_runner.hardware.stream import build_motion_stream, check_motion_stream
 
+    n_joints = data.draw(st.integers(1, 3), label="joints")
     limits, rate_hz = data.draw(rig_limits())
-    _, cmd = data.draw(trajectories(limits, rate_hz, ("sinusoid", "step", "hold", "human")))
-    joint = JointConfig(
-        name="joint",
-        range_deg=(0.0, 130.0),
-        torque_range_nm=(-84.8, 84.8),
-        output_channel=0,
-        angle_input_channel=0,
-        torque_input_channel=1,
-        output_rate_hz=rate_hz,
-        limits=limits,
-    )
-    sim = SimulatedRig(joint, seed=1)
+    all_limits = [limits] + [data.draw(rig_limits())[0] for _ in range(n_joints - 1)]
+    cmds = [
+        data.draw(trajectories(lim, rate_hz, ("sinusoid", "step", "hold", "human")))[1] for lim in all_limits
+    ]
+    n = min(c.size for c in cmds)  # the joints share the trial's time
+    cmds = [c[:n] for c in cmds]
+    joints = [
+        JointConfig(
+            name=f"joint{k}",
+            range_deg=(0.0, 130.0),
+            torque_range_nm=(-84.8, 84.8),
+            output_channel=k,
+            angle_input_channel=2 * k,
+            torque_input_channel=2 * k + 1,
+            output_rate_hz=rate_hz,
+            limits=lim,
+        )
+        for k, lim in enumerate(all_limits)
+    ]
+    sim = SimulatedRig(joints, seed=1)
     rig = sim.make_rig()
-    stream = plan(cmd, limits, rate_hz)
+    stream = build_motion_stream(rig.names, cmds, all_limits, rate_hz)
+    tables, ranges = [None] * n_joints, [j.range_deg for j in joints]
+    try:
+        check_motion_stream(
+            stream, all_limits, where="property", command_tables=tables, volts_ranges_deg=ranges
+        )
+        refused = False
+    except SafetyViolation:
+        refused = True
     polls_until_stop = data.draw(st.integers(1, 1000), label="polls before a stop request")
     polls = {"n": 0}
 
@@ -246,17 +266,33 @@ def test_a_dry_run_sends_exactly_the_checked_stream_or_nothing(data: st.DataObje
         return polls["n"] >= polls_until_stop
 
     try:
-        run_motion(rig, cmd, where="property", stop_requested=stop)
+        run_motion(rig, cmds, where="property", stop_requested=stop)
     except SafetyViolation:
-        assert isinstance(stream, SafetyViolation)
+        assert refused
         assert sim.ao.records()[0].size == 0  # refused before anything was written
         return
     except Interrupted:
         pass
-    assert isinstance(stream, CommandStream)
-    written = min(polls_until_stop * READ_EVERY_TICKS, stream.command_deg.size)
-    tail, _ = stream.stop_after(written, limits) if written < stream.command_deg.size else (np.zeros(0), None)
-    expected = np.concatenate([stream.command_deg[:written], tail])
+    assert not refused
+    full = stream.command_deg()
+    written = min(polls_until_stop * READ_EVERY_TICKS, full.shape[0])
+    tail, _ = stream.stop_after(written, all_limits) if written < full.shape[0] else (full[:0], None)
+    expected = np.concatenate([full[:written], tail])
     _, channel, code = sim.ao.records()
-    sent = code[channel == 0][1:]  # after the channel's configuration (0 V)
-    np.testing.assert_array_equal(sent, volts_to_ao16_code(joint.command_to_volts(expected)))
+    for k, j in enumerate(joints):
+        assert_within(np.concatenate([[j.limits.park_angle_deg], expected[:, k]]), j.limits, rate_hz)
+        sent = code[channel == k][1:]  # after the channel's configuration (0 V)
+        np.testing.assert_array_equal(sent, volts_to_ao16_code(j.command_to_volts(expected[:, k])))
+
+    # parking from anywhere in the range: every joint's ramp stays inside its limits
+    starts = [data.draw(st.floats(*lim.range_deg), label="park from") for lim in all_limits]
+    sim.ao.clear_records()
+    parks = rig.park(from_deg=starts)
+    _, channel, code = sim.ao.records()
+    for k, (j, rec) in enumerate(zip(joints, parks, strict=True)):
+        ramp = rec.command_deg
+        assert_within(
+            np.concatenate([[starts[k]], ramp, [ramp[-1]]]), j.limits, rate_hz
+        )  # at rest at both ends
+        assert ramp[-1] == j.limits.park_angle_deg
+        np.testing.assert_array_equal(code[channel == k], volts_to_ao16_code(j.command_to_volts(ramp)))

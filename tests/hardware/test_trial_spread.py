@@ -29,7 +29,7 @@ SPREAD = replace(
 
 def frictions(sim: SimulatedRig) -> tuple[float, float, float, float]:
     """(robot Coulomb N·m, robot viscous, first brake group's torque, device damping) the plant uses now."""
-    p, brakes = sim.plant._p, sim.plant._brakes
+    p, brakes = sim.plant()._p, sim.plant()._brakes
     return (
         float(p[P_ROBOT_F]),
         float(p[P_ROBOT_VISC]),
@@ -52,7 +52,7 @@ def test_the_factors_have_mean_one_and_the_declared_spread() -> None:
 def test_no_spread_leaves_every_value_exactly_as_declared() -> None:
     """CVs of 0 (the defaults): every trial has exactly the declared friction (multiplied by 1.0)."""
     assert trial_factors(KNEE_PARAMS, np.random.default_rng(5)) == (1.0, 1.0, 1.0)
-    sim = SimulatedRig(KNEE, seed=3, params=KNEE_PARAMS)
+    sim = SimulatedRig([KNEE], seed=3, params=KNEE_PARAMS)
     sim.set_device(knee_brace((0.0, 130.0), 3.75, 13.0))
     sim.begin_step("trial:k01:on:1", "trial:k01:on:1")
     assert frictions(sim)[:2] == (2.5, 0.03)
@@ -62,7 +62,7 @@ def test_no_spread_leaves_every_value_exactly_as_declared() -> None:
 def test_a_trial_and_its_brace_off_twin_see_the_same_draw_other_trials_another() -> None:
     on, off, other = trial_id(4, "on", 2), trial_id(4, "off", 2), trial_id(4, "on", 3)
     assert trial_of(off) == on and trial_of(on) == on and trial_of("cal:A:before") == "cal:A:before"
-    sim = SimulatedRig(KNEE, seed=7, params=SPREAD)
+    sim = SimulatedRig([KNEE], seed=7, params=SPREAD)
     sim.set_device(knee_brace((0.0, 130.0), 3.75, 13.0))
     sim.begin_step(on, trial_of(on))
     brace_on = frictions(sim)
@@ -81,29 +81,29 @@ def test_the_draw_depends_on_the_seed_and_trial_only() -> None:
     """A resume (a fresh simulator that ran other steps first, with the device fitted after begin_step)
     gives the same values as the uninterrupted run; another seed gives others."""
     device = knee_brace((0.0, 130.0), 3.75, 13.0)
-    a = SimulatedRig(KNEE, seed=7, params=SPREAD)
+    a = SimulatedRig([KNEE], seed=7, params=SPREAD)
     a.set_device(device)
     a.begin_step("trial:k02:on:1", "trial:k02:on:1")
-    b = SimulatedRig(KNEE, seed=7, params=SPREAD)
+    b = SimulatedRig([KNEE], seed=7, params=SPREAD)
     b.begin_step("cal:A:before")
     b.begin_step("trial:k02:on:1", "trial:k02:on:1")
     b.set_device(device)
-    c = SimulatedRig(KNEE, seed=8, params=SPREAD)
+    c = SimulatedRig([KNEE], seed=8, params=SPREAD)
     c.set_device(device)
     c.begin_step("trial:k02:on:1", "trial:k02:on:1")
     assert frictions(a) == frictions(b) != frictions(c)
 
 
 def test_the_spread_scales_dampers_but_not_springs() -> None:
-    sim = SimulatedRig(KNEE, seed=7, params=SPREAD)
+    sim = SimulatedRig([KNEE], seed=7, params=SPREAD)
     damper = ("damper", "viscous_damper", {"damping_nm_s_per_deg": 0.1})
     sim.set_device([*knee_brace((0.0, 130.0), 3.75, 13.0), damper])
-    table = sim.plant._table.copy()
+    table = sim.plant()._table.copy()
     sim.begin_step("t", "t")
     factor = trial_factors(SPREAD, np.random.default_rng(_spread_seed(7, "t")))[2]
     assert frictions(sim)[3] == pytest.approx(0.1 * factor, rel=1e-12)
     assert frictions(sim)[2] == pytest.approx(4.5 * factor, rel=1e-12)
-    assert np.array_equal(sim.plant._table, table)
+    assert np.array_equal(sim.plant()._table, table)
 
 
 def _spread_seed(seed: int, trial: str) -> int:

@@ -1,4 +1,4 @@
-"""USB-1608FS-Plus driver and MultiBoardInput, through pyusb against the fake board on a manual clock."""
+"""USB-1608FS-Plus driver and BoardGroup, through pyusb against the fake board on a manual clock."""
 
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ import numpy.typing as npt
 import pytest
 
 from protocol_runner.errors import InvalidInput
+from protocol_runner.hardware.board_group import BoardGroup
 from protocol_runner.hardware.fakeusb.backend import FakeBackend
 from protocol_runner.hardware.fakeusb.device import Faults
 from protocol_runner.hardware.fakeusb.usb1608fs import ManualClock, Usb1608FsModel, make_usb1608fs
 from protocol_runner.hardware.interfaces import AnalogInput, ScanBlock
-from protocol_runner.hardware.multiboard import MultiBoardInput
 from protocol_runner.hardware.usb1608fs import Usb1608FsPlus, open_all_1608fs
 from protocol_runner.hardware.usb1608fs_protocol import pacer_period
 from protocol_runner.hardware.usb_common import BoardNotFound, BoardPermissionDenied, DeviceGone, ScanOverrun
@@ -267,7 +267,7 @@ def test_open_all_sorts_boards_by_serial() -> None:
 def test_multi_board_maps_global_channels_and_merges_rows() -> None:
     clock = ManualClock()
     backend, _ = three_boards(clock)
-    multi = MultiBoardInput(open_all_1608fs(backend=backend, clock=RigClock(clock)))
+    multi = BoardGroup(open_all_1608fs(backend=backend, clock=RigClock(clock)))
     assert multi.n_channels == 24
     assert multi.locate(20) == (2, 4)
     assert isinstance(multi, AnalogInput)
@@ -317,7 +317,7 @@ def test_multi_board_waits_for_the_slowest_board() -> None:
             pass
 
     fast, slow = Canned([5, 5, 2]), Canned([2, 3, 10])
-    multi = MultiBoardInput([fast, slow], channels_per_board=8)
+    multi = BoardGroup([fast, slow], channels_per_board=8)
     multi.start_scan([0, 9], 100.0)
     b1 = multi.read_available()
     assert b1.n_samples == 2
@@ -334,7 +334,7 @@ def test_multi_board_waits_for_the_slowest_board() -> None:
 def test_multi_board_rejects_missing_channels() -> None:
     clock = ManualClock()
     backend, _ = three_boards(clock)
-    multi = MultiBoardInput(open_all_1608fs(backend=backend, clock=RigClock(clock)))
+    multi = BoardGroup(open_all_1608fs(backend=backend, clock=RigClock(clock)))
     with pytest.raises(InvalidInput, match="0-23"):
         multi.start_scan([24], 1000.0)
     multi.close()

@@ -7,13 +7,13 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 
+from protocol_runner.hardware.board_group import BoardGroup
 from protocol_runner.hardware.conversions import RSST_JOINTS, angle_to_volts
 from protocol_runner.hardware.fakeusb.backend import FakeBackend
 from protocol_runner.hardware.fakeusb.device import Faults
 from protocol_runner.hardware.fakeusb.usb1608fs import ManualClock, Usb1608FsModel, make_usb1608fs
 from protocol_runner.hardware.fakeusb.usb3105 import Usb3105Model, make_usb3105
 from protocol_runner.hardware.joint import JointConfig
-from protocol_runner.hardware.multiboard import MultiBoardInput
 from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.usb1608fs import open_all_1608fs
@@ -66,14 +66,14 @@ def build() -> tuple[Rig, Usb3105Model, list[Usb1608FsModel], ManualClock]:
     backend = FakeBackend(ao_model, *ai_models)
     clock = SimClock(manual)
     ao = Usb3105.open(backend=backend)
-    ai = MultiBoardInput(open_all_1608fs(backend=backend, clock=clock))
-    return Rig(joint(), ao, ai, clock), ao_model, ai_models, manual
+    ai = BoardGroup(open_all_1608fs(backend=backend, clock=clock))
+    return Rig([joint()], ao, ai, clock), ao_model, ai_models, manual
 
 
 def test_codes_recorded_are_the_codes_on_the_wire() -> None:
     rig, ao_model, _, _ = build()
     command = 40.0 + 20.0 * np.sin(2 * np.pi * np.arange(500) / 100.0 / 5.0)
-    rec = rig.run_trajectory(command, where="test")
+    rec = rig.run_trajectory([command], where="test")[0]
     aouts = ao_model.reports_with_command(0x14)
     wire = np.array([r[2] | (r[3] << 8) for r in aouts if r[1] == 8])
     np.testing.assert_array_equal(rec.command_codes, wire)
@@ -84,7 +84,7 @@ def test_codes_recorded_are_the_codes_on_the_wire() -> None:
 
 def test_telemetry_comes_back_from_the_right_global_channels() -> None:
     rig, _, _, _ = build()
-    rec = rig.run_trajectory(np.full(300, 40.0), where="test")
+    rec = rig.run_trajectory([np.full(300, 40.0)], where="test")[0]
     assert rec.n_samples == pytest.approx(3000, abs=20)  # 1 kHz over the 3 s trial (+ one tick)
     np.testing.assert_allclose(rec.angle_deg, 50.0, atol=0.01)  # Eq 2 of the angle channel
     t_abs = rec.input_time_s + rec.t0_s
@@ -96,5 +96,5 @@ def test_board_unplugged_mid_trial_raises_device_gone() -> None:
     rig, ao_model, _, _ = build()
     ao_model.faults = Faults(vanish_after_transfers=ao_model.transfer_count + 150)
     with pytest.raises(DeviceGone):
-        rig.run_trajectory(np.full(500, 40.0), where="test")
-    assert rig.last_command_deg == 40.0  # the rig knows what was last written, for parking
+        rig.run_trajectory([np.full(500, 40.0)], where="test")
+    assert rig.last_command_deg[0] == 40.0  # the rig knows what was last written, for parking

@@ -14,9 +14,9 @@ import pytest
 
 from protocol_runner.cli import main
 from protocol_runner.errors import InvalidInput
+from protocol_runner.hardware.board_group import BoardGroup
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput
 from protocol_runner.hardware.mcculw_boards import McculwApi, McculwUsb1608Fs, McculwUsb3105
-from protocol_runner.hardware.multiboard import MultiBoardInput
 from protocol_runner.hardware.rig_boards import open_rig_boards
 from protocol_runner.hardware.uldaq_boards import UldaqUsb1608Fs, UldaqUsb3105
 from protocol_runner.hardware.usb_common import (
@@ -307,7 +307,7 @@ def test_a_rig_file_selecting_uldaq_opens_its_boards_through_uldaq(
     )
     monkeypatch.setitem(sys.modules, "uldaq", lib)
     ao, ai, _ = open_rig_boards(spec, clock=clock)  # type: ignore[arg-type]
-    assert isinstance(ao, UldaqUsb3105) and isinstance(ai, MultiBoardInput)
+    assert isinstance(ao, UldaqUsb3105) and isinstance(ai, BoardGroup)
     assert [b.serial for b in ai.boards] == ["AI1", "AI2", "AI3"] and ai.n_channels == 24
     assert all(isinstance(b, UldaqUsb1608Fs) for b in ai.boards)
     ai.start_scan([spec.input.angle_channel, spec.input.torque_channel], RATE_HZ)  # elbow: 3 and 15

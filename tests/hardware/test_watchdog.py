@@ -33,7 +33,7 @@ def knee(torque_margin: float = 1.0) -> SimulatedRig:
         max_tracking_error_s=MAX_ERROR_S,
         lag_s=LAG_S,
     )
-    sim = SimulatedRig(replace(joint, watchdog=watch), seed=3)
+    sim = SimulatedRig([replace(joint, watchdog=watch)], seed=3)
     # the simulated board hands its rows over in 1 s transfers; the rig's board hands them over at once:
     # give every read its rows, as on the rig
     sim.ai.transfer_s = 0.0
@@ -52,7 +52,7 @@ def stops(lo_deg: float, hi_deg: float) -> list[tuple[str, str, dict[str, object
 
 def test_without_a_fault_the_motion_runs_to_its_end() -> None:
     sim = knee()
-    rec = run_motion(sim.make_rig(), sine_deg(), where="trial")
+    rec = run_motion(sim.make_rig(), [sine_deg()], where="trial")[0]
     assert rec.command_deg.size == sine_deg().size
     assert np.max(rec.angle_deg) > 75.0
 
@@ -65,7 +65,7 @@ def test_a_joint_that_stops_following_is_stopped_within_the_declared_time(
     sim.set_device(stops(lo_deg, hi_deg))
     rig = sim.make_rig()
     with pytest.raises(WatchdogTripped) as caught:
-        run_motion(rig, sine_deg(), where="trial")
+        run_motion(rig, [sine_deg()], where="trial")
     exc = caught.value
     assert exc.exit_code == EXIT_STOPPED_BY_CHECK
     assert (exc.joint, exc.quantity) == ("knee", "tracking error")
@@ -74,7 +74,7 @@ def test_a_joint_that_stops_following_is_stopped_within_the_declared_time(
     # from the recorded data: the fault's onset is the first sample whose tracking error (angle minus the
     # command delayed by the lag) exceeds the limit; the brake starts at most the declared time plus one
     # scan read later
-    rec = exc.partial_recording  # type: ignore[attr-defined]
+    rec = exc.partial_recording[0]  # type: ignore[attr-defined]
     dt = 1.0 / rec.output_rate_hz
     delayed = np.interp(rec.input_time_s - LAG_S, rec.stream_time_s, rec.stream_deg, left=rec.stream_deg[0])
     beyond = np.abs(rec.angle_deg - delayed) > MAX_ERROR_DEG
@@ -85,19 +85,19 @@ def test_a_joint_that_stops_following_is_stopped_within_the_declared_time(
     assert onset_s <= brake_s <= onset_s + MAX_ERROR_S + READ_EVERY_TICKS * dt + 2 * dt
     # the joint was parked in the same loop: the last command is the park angle
     assert rec.stream_deg[-1] == pytest.approx(KNEE_PARK_DEG)
-    assert rig.last_command_deg == pytest.approx(KNEE_PARK_DEG)
+    assert rig.last_command_deg[0] == pytest.approx(KNEE_PARK_DEG)
     # the stop's samples are never watched: parking a jammed joint does not trip again
     rig.park()
     # and once the fault is removed the same motion completes
     sim.set_device(None)
-    run_motion(rig, sine_deg(), where="trial (again)")
+    run_motion(rig, [sine_deg()], where="trial (again)")
 
 
 def test_a_torque_beyond_its_margin_is_stopped() -> None:
     sim = knee(torque_margin=0.5)
     sim.set_device(stops(10.0, 50.0))
     with pytest.raises(WatchdogTripped) as caught:
-        run_motion(sim.make_rig(), sine_deg(), where="trial")
+        run_motion(sim.make_rig(), [sine_deg()], where="trial")
     exc = caught.value
     assert (exc.joint, exc.quantity) == ("knee", "torque")
     assert abs(exc.value) > 0.5 * KNEE_TORQUE_LIMIT_NM

@@ -26,7 +26,7 @@ def knee() -> Any:
 
 
 def trial(tap: SampleTap | None, seed: int = 11) -> TrialRecording:
-    sim = SimulatedRig(knee(), seed=seed)
+    sim = SimulatedRig([knee()], seed=seed)
     rig = sim.make_rig()
     rig.tap = tap
     sim.begin_step("trial:x")
@@ -34,7 +34,7 @@ def trial(tap: SampleTap | None, seed: int = 11) -> TrialRecording:
     cmd = 20.0 + 35.0 * (1 - np.cos(2 * np.pi * np.arange(0.0, 6.0, 0.01) / 3.0))
     if tap is not None:
         tap.step = "trial:x"
-    return rig.run_trajectory(cmd, where="trial:x")
+    return rig.run_trajectory([cmd], where="trial:x")[0]
 
 
 def test_points_are_20_hz_and_equal_to_what_is_recorded() -> None:

@@ -13,8 +13,8 @@ import numpy as np
 import pytest
 
 from protocol_runner.cli import main
-from protocol_runner.hardware.multi_rig import run_multi_motion
-from protocol_runner.hardware.simulator.multi import MultiSimulatedRig
+from protocol_runner.hardware.motion import run_motion
+from protocol_runner.hardware.simulator.daq import SimulatedRig
 from protocol_runner.hardware.simulator.params import SimulatorParams
 from protocol_runner.protocol.loader import load_protocol
 from protocol_runner.protocol.plan import TrialStep, expand
@@ -278,9 +278,9 @@ def test_the_paced_loop_writes_one_tick_per_lowered_period() -> None:
     loaded = load_protocol(REPO / "protocols" / "leg_phase2.yaml")
     joints = [dataclasses.replace(joint_config(loaded, r), output_rate_hz=50.0) for r in loaded.protocol.rigs]
     params = [SimulatorParams(**dict(r.simulator)) for r in loaded.protocol.rigs]
-    sim = MultiSimulatedRig(joints, params, seed=1)
+    sim = SimulatedRig(joints, params=params, seed=1)
     hold = [np.full(100, j.limits.park_angle_deg) for j in joints]  # 2 s at 50 Hz
-    recs = run_multi_motion(sim.make_rig(), hold, where="trial")
+    recs = run_motion(sim.make_rig(), hold, where="trial")
     assert {rec.output_rate_hz for rec in recs} == {50.0}
     written_s, channel, _code = sim.ao.records()  # the simulated board's writes, on its clock
     for j in joints:

@@ -14,12 +14,12 @@ from hypothesis import strategies as st
 from protocol_runner.errors import Interrupted
 from protocol_runner.hardware.fakeusb.backend import FakeBackend
 from protocol_runner.hardware.fakeusb.usb3105 import AOUT, AOUT_SYNC, make_usb3105
-from protocol_runner.hardware.multi_rig import MultiRig, run_multi_motion
-from protocol_runner.hardware.multi_stream import build_multi_stream
+from protocol_runner.hardware.motion import run_motion
+from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyViolation
-from protocol_runner.hardware.simulator.multi import MultiSimulatedRig
+from protocol_runner.hardware.simulator.daq import SimulatedRig
 from protocol_runner.hardware.simulator.params import SimulatorParams
-from protocol_runner.hardware.stream import STOP, TRAJECTORY
+from protocol_runner.hardware.stream import STOP, TRAJECTORY, build_motion_stream
 from protocol_runner.hardware.usb3105 import Usb3105
 from protocol_runner.protocol.loader import load_protocol
 from protocol_runner.session.rigs import joint_config
@@ -31,8 +31,8 @@ PARAMS = [SimulatorParams(**dict(r.simulator)) for r in LEG.protocol.rigs]
 RATE = 100.0
 
 
-def _sim(seed: int = 3) -> MultiSimulatedRig:
-    return MultiSimulatedRig(JOINTS, PARAMS, seed=seed)
+def _sim(seed: int = 3) -> SimulatedRig:
+    return SimulatedRig(JOINTS, params=PARAMS, seed=seed)
 
 
 def _gait(n: int) -> list[np.ndarray]:
@@ -48,7 +48,7 @@ def test_one_tick_of_three_joints_is_three_held_writes_latched_by_one_sync_on_th
     sim = _sim()
     model = make_usb3105()
     ao = Usb3105.open(backend=FakeBackend(model))
-    rig = MultiRig(JOINTS, ao, sim.ai, sim.clock)
+    rig = Rig(JOINTS, ao, sim.ai, sim.clock)
     rig.prepare()
     model.reports.clear()
     recs = rig.send(np.array([[30.0, 60.0, -10.0], [31.0, 61.0, -9.0]]), where="t", stop_requested=None)
@@ -75,7 +75,7 @@ def test_a_violation_on_one_joint_is_refused_before_any_write_naming_it() -> Non
     hip, knee, ankle = _gait(800)
     ankle = ankle - 40.0  # reaches -48 deg: outside the ankle's [-45, 30]
     with pytest.raises(SafetyViolation, match="joint ankle_flexion"):
-        run_multi_motion(rig, [hip, knee, ankle], where="trial")
+        run_motion(rig, [hip, knee, ankle], where="trial")
     assert sim.ao.records()[0].size == 0  # nothing was sent to any joint
 
 
@@ -89,9 +89,9 @@ def test_a_stop_request_brakes_and_parks_every_joint_in_the_same_loop() -> None:
         return reads["n"] > 25
 
     with pytest.raises(Interrupted) as caught:
-        run_multi_motion(rig, _gait(1200), where="trial", stop_requested=stop)
+        run_motion(rig, _gait(1200), where="trial", stop_requested=stop)
     parks = [j.limits.park_angle_deg for j in JOINTS]
-    assert rig.last_command_deg() == pytest.approx(parks)
+    assert rig.last_command_deg == pytest.approx(parks)
     partial = caught.value.partial_recording  # type: ignore[attr-defined]
     for rec, j in zip(partial, JOINTS, strict=True):
         assert (rec.stream_segment == STOP).any()
@@ -112,9 +112,8 @@ def test_a_stop_request_brakes_and_parks_every_joint_in_the_same_loop() -> None:
 def test_park_moves_every_joint_to_its_park_angle_together() -> None:
     sim = _sim()
     rig = sim.make_rig()
-    run_multi_motion(rig, _gait(300), where="trial")
-    rig._last = [60.0, 100.0, 20.0]  # as if left elsewhere
-    recs = rig.park(where="park")
+    run_motion(rig, _gait(300), where="trial")
+    recs = rig.park(from_deg=[60.0, 100.0, 20.0], where="park")  # as if left elsewhere
     assert [r.command_deg[-1] for r in recs] == pytest.approx([j.limits.park_angle_deg for j in JOINTS])
     assert len({r.command_deg.size for r in recs}) == 1  # sent together, one tick each
 
@@ -143,9 +142,9 @@ def test_every_sample_of_every_joint_stays_inside_that_joints_envelope(
         w = 2 * np.pi / max(period_s, 2 * np.pi * a * half / (0.9 * j.limits.max_rate_deg_s))
         w = min(w, np.sqrt(0.9 * j.limits.max_accel_deg_s2 / (a * half)))
         trajectories.append(mid + 0.95 * a * half * np.sin(w * t + ph))
-    stream = build_multi_stream([j.name for j in JOINTS], trajectories, [j.limits for j in JOINTS], RATE)
+    stream = build_motion_stream([j.name for j in JOINTS], trajectories, [j.limits for j in JOINTS], RATE)
     cmd = stream.command_deg()
-    written = min(stop_at, stream.n_ticks)
+    written = min(stop_at, cmd.shape[0])
     tail, _ = stream.stop_after(written, [j.limits for j in JOINTS])
     stopped = np.concatenate([cmd[:written], tail]) if written else cmd[:0]
     assert (stream.segment()[stream.first] == TRAJECTORY).all()  # every joint's first sample on one tick

@@ -53,7 +53,7 @@ def brace_at_each_step(monkeypatch: pytest.MonkeyPatch) -> list[tuple[str, Compo
     real = SimulatedBench.begin_step
 
     def begin_step(self: SimulatedBench, step_id: str) -> None:
-        seen.append((step_id, self.sim.device))
+        seen.append((step_id, self.sim.device()))
         real(self, step_id)
 
     monkeypatch.setattr(SimulatedBench, "begin_step", begin_step)

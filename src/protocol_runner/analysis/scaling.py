@@ -242,7 +242,8 @@ class RecordingLike(Protocol):
 
 
 def rig_runner(run_trajectory: Callable[[FloatArray], RecordingLike]) -> Callable[[FloatArray], FloatArray]:
-    """Adapt a rig (`lambda cmd: rig.run_trajectory(cmd, where=...)`) to the `run` of `scale_brace_off_input`.
+    """Adapt a one-joint rig (`lambda cmd: rig.run_trajectory([cmd], where=...)[0]`) to the `run` of
+    `scale_brace_off_input`.
 
     The recording's 1 kHz angle is brought onto the 100 Hz command ticks by linear interpolation, so the
     returned angle has one value per commanded sample.

@@ -4,7 +4,7 @@ Channel numbering (the numbers the protocol file uses, all from 0):
 
 - analog outputs: the USB-3105 boards in serial-number order, 16 channels each (board k: 16k..16k+15);
 - analog inputs: the USB-1608FS-Plus boards in serial-number order, 8 channels each, then any DT9814
-  (UNVERIFIED protocol; `Dt9814Settings.n_channels` each). This is the numbering `MultiBoardInput` uses.
+  (UNVERIFIED protocol; `Dt9814Settings.n_channels` each). This is the numbering `BoardGroup` uses.
 
 Each USB-3105 is also timed: `timing_reports` single-channel writes of 0 V on its highest channel that no
 joint of the rig file is wired to, giving the time one output report takes, printed beside the rig file's

@@ -4,7 +4,7 @@
 no protocol document and no Linux driver for it. The code speaks the protocol of its sibling, the DT9812,
 as the Linux comedi driver implements it, and every fact that might differ is a setting
 (`Dt9814Settings`); opening a board logs a warning saying so. For 24 channels on Linux with a known
-protocol, use the USB-1608FS-Plus (`hardware/usb1608fs.py`, `MultiBoardInput`).
+protocol, use the USB-1608FS-Plus (`hardware/usb1608fs.py`, `BoardGroup`).
 
 DT9812 facts used:
 

@@ -109,7 +109,9 @@ class AnalogInput(Protocol):
 
 class LoopTap(Protocol):
     """Watches the paced output loop for the live monitor (`monitor/samples.py`): told where a run starts
-    and handed each scan block as the loop reads it. Both calls return within microseconds and never raise."""
+    (with the first joint's commanded angles, one per tick) and handed each scan block as the loop reads
+    it, with every joint's columns (joint k's angle in column 2k, its torque in 2k + 1). Both calls return
+    within microseconds and never raise."""
 
     def start(self, where: str, command_deg: npt.NDArray[np.float64], t0_s: float) -> None: ...
 

@@ -217,7 +217,7 @@ class McculwUsb3105(VendorAnalogOutput):
 
 class McculwUsb1608Fs(VendorScanInput):
     """One USB-1608FS-Plus through mcculw. Use `McculwUsb1608Fs.open(serial=None, clock=None)`;
-    `open_all_mcculw_1608fs` opens several for `MultiBoardInput`."""
+    `open_all_mcculw_1608fs` opens several for `BoardGroup`."""
 
     status_after_stop = False  # stop_background clears the UL's scan variables
 

@@ -1,17 +1,20 @@
-"""Sending a planned motion: approach + trajectory + exit in one paced loop, checked as a whole first.
+"""Sending a planned motion: every joint's approach + trajectory + exit in one paced loop, checked first.
 
-`run_motion(rig, trajectory_deg, ...)` builds the stream (`hardware/stream.py`) from where the rig left
-the joint, runs `check_stream` on it (exit 4 before any write if it leaves the envelope, the stop from every
-sample included), sends it in one loop, and returns the recording of the trajectory part only, on the same
-time base as a bare `Rig.run_trajectory` (time 0 = the first trajectory tick), with the whole commanded
-stream attached (`stream_time_s`, `stream_deg`, `stream_segment`) for the archive.
+`run_motion(rig, commands_deg, ...)` builds each joint's stream (`hardware/stream.py`) from where the rig
+left it, aligned on the first trajectory tick, runs the check of every joint's stream against that joint's
+envelope (exit 4 before any write if one leaves it, the stop from every sample included), sends them in one
+loop, and returns each joint's recording of the trajectory part only, on the same time base as a bare
+`Rig.run_trajectory` (time 0 = the first trajectory tick), with its whole commanded stream attached
+(`stream_time_s`, `stream_deg`, `stream_segment`) for the archive.
 
-A stop request during the approach or the trajectory sends the brake and the parking ramp from the last
-written sample in the same loop, then raises `Interrupted`; during the exit the exit simply finishes.
+A stop request (Ctrl-C, the watchdog) during the approach or the trajectory sends every joint's brake and
+parking ramp from its last written sample in the same loop, then raises `Interrupted`; during the exit the
+exit simply finishes.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -20,73 +23,94 @@ import numpy.typing as npt
 from protocol_runner.hardware.joint import StopRequested, TrialRecording
 from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import check_trajectory
-from protocol_runner.hardware.stream import TRAJECTORY, CommandStream, build_stream, check_stream
+from protocol_runner.hardware.stream import (
+    TRAJECTORY,
+    MotionStream,
+    build_motion_stream,
+    check_motion_stream,
+)
 
 FloatArray = npt.NDArray[np.float64]
 
 
-def plan_motion(rig: Rig, trajectory_deg: npt.ArrayLike) -> CommandStream:
-    """The stream the rig will send for `trajectory_deg`: from the last commanded angle (the park angle if
-    nothing was sent yet: every step starts and ends parked) at rest."""
-    joint = rig.joint
-    return build_stream(trajectory_deg, joint.limits, joint.output_rate_hz, from_deg=rig.last_command_deg)
+def plan_motion(rig: Rig, commands_deg: Sequence[npt.ArrayLike]) -> MotionStream:
+    """The streams the rig will send for `commands_deg` (one trajectory per joint): each from its last
+    commanded angle (its park angle if nothing was sent yet: every step starts and ends parked) at rest."""
+    return build_motion_stream(
+        rig.names,
+        commands_deg,
+        [j.limits for j in rig.joints],
+        rig.output_rate_hz,
+        from_deg=rig.last_command_deg,
+    )
 
 
 def run_motion(
     rig: Rig,
-    trajectory_deg: npt.ArrayLike,
+    commands_deg: Sequence[npt.ArrayLike],
     *,
     where: str,
     stop_requested: StopRequested | None = None,
-) -> TrialRecording:
-    """Plan, check and send one motion; return the trajectory part of its recording."""
-    return run_stream(rig, plan_motion(rig, trajectory_deg), where=where, stop_requested=stop_requested)
+) -> tuple[TrialRecording, ...]:
+    """Plan, check and send one motion; return the trajectory part of each joint's recording."""
+    return run_stream(rig, plan_motion(rig, commands_deg), where=where, stop_requested=stop_requested)
 
 
 def run_stream(
     rig: Rig,
-    stream: CommandStream,
+    stream: MotionStream,
     *,
     where: str,
     stop_requested: StopRequested | None = None,
-) -> TrialRecording:
-    """Check the whole stream (and its first sample against where the joint was left), then send it."""
-    joint = rig.joint
-    table, volts_range = joint.command_table, joint.range_deg
-    check_stream(stream, joint.limits, where=where, command_table=table, volts_range_deg=volts_range)
-    here = rig.last_command_deg
-    if here is not None:  # the junction with what was sent before
-        check_trajectory(
-            stream.command_deg[:3], stream.rate_hz, joint.limits, where=f"{where} (start)", initial_deg=here
-        )
-    segments: list[npt.NDArray[np.int8]] = [stream.segment]
+) -> tuple[TrialRecording, ...]:
+    """Check every joint's stream (and its first sample against where the joint was left), then send."""
+    joints = rig.joints
+    limits = [j.limits for j in joints]
+    check_motion_stream(
+        stream,
+        limits,
+        where=where,
+        command_tables=[j.command_table for j in joints],
+        volts_ranges_deg=[j.range_deg for j in joints],
+    )
+    for k, (j, here) in enumerate(zip(joints, rig.last_command_deg, strict=True)):
+        if here is not None:  # the junction with what was sent before
+            check_trajectory(
+                stream.streams[k].command_deg[:3],
+                stream.rate_hz,
+                j.limits,
+                where=rig.where_of(f"{where} (start)", j),
+                initial_deg=here,
+            )
+    segments = [stream.segment()]
 
     def on_stop(written: int) -> FloatArray:
-        tail, codes = stream.stop_after(written, joint.limits)
-        # defence in depth: check_stream has already checked the stop from every sample
-        junction = stream.command_deg[max(0, written - 2) : written]
-        check_trajectory(
-            np.concatenate([junction, tail]),
-            stream.rate_hz,
-            joint.limits,
-            where=where,
-            command_table=table,
-            volts_range_deg=volts_range,
-        )
-        segments[0] = np.concatenate([stream.segment[:written], codes])
+        tail, codes = stream.stop_after(written, limits)
+        for k, j in enumerate(joints):  # defence in depth: check_motion_stream checked every stop
+            junction = stream.streams[k].command_deg[max(0, written - 2) : written]
+            check_trajectory(
+                np.concatenate([junction, tail[:, k]]),
+                stream.rate_hz,
+                j.limits,
+                where=rig.where_of(where, j),
+                command_table=j.command_table,
+                volts_range_deg=j.range_deg,
+            )
+        segments[0] = np.concatenate([segments[0][:written], codes])
         return tail
+
+    def parts(recs: tuple[TrialRecording, ...]) -> tuple[TrialRecording, ...]:
+        return tuple(trajectory_part(r, segments[0][:, k], stream.first) for k, r in enumerate(recs))
 
     try:
         with rig.loop_context():
-            rec = rig.send(
-                stream.command_deg.copy(), where=where, stop_requested=stop_requested, on_stop=on_stop
-            )
+            recs = rig.send(stream.command_deg(), where=where, stop_requested=stop_requested, on_stop=on_stop)
     except BaseException as exc:
         partial = getattr(exc, "partial_recording", None)
-        if isinstance(partial, TrialRecording):
-            exc.partial_recording = trajectory_part(partial, segments[0], stream.first)  # type: ignore[attr-defined]
+        if isinstance(partial, tuple):
+            exc.partial_recording = parts(partial)  # type: ignore[attr-defined]
         raise
-    return trajectory_part(rec, segments[0], stream.first)
+    return parts(recs)
 
 
 def trajectory_part(rec: TrialRecording, segment: npt.NDArray[np.int8], first: int) -> TrialRecording:

@@ -1,12 +1,13 @@
-"""The paced loop both rigs run (`Rig`: one joint; `MultiRig`: several joints on one set of boards).
+"""The paced loop the rig runs (`hardware/rig.py`: one joint or several on one set of boards).
 
 Start the input scan ([angle channel, torque channel] per joint at the input rate), then for each output
 tick k sleep until t0 + k / output_rate_hz, write, record the write time; read the scan every
 `READ_EVERY_TICKS` ticks and poll the stop request there; after the last tick wait one more tick and stop
 the scan. On a stop request `on_stop(written)`, if given, returns the samples to send next in the same loop
 (no pause: the output would hold), then `Interrupted` is raised. An error or an interruption carries what
-was recorded so far (`partial_recording`). The live monitor (`tap`) is shown every block read, the one
-`stop_scan` returns included.
+was recorded so far (`partial_recording`). The live monitor (`tap`) is started with the first joint's
+commands (restarted on the samples a stop sends, shown as parking) and shown every block read, the one
+`stop_scan` returns included, with every joint's columns.
 
 The watchdog (`hardware/watchdog.py`) checks every block as it is read: a measured signal beyond its limit
 stops the loop as a stop request does (`on_stop`'s brake and park in the same loop), then the watchdog's
@@ -92,8 +93,6 @@ class PacedLoop(Generic[RecordingT]):
     clock: Clock
     tap: LoopTap | None
     UNWRITTEN: ClassVar[object]
-    SHOWS_PARK: ClassVar[bool]
-    """Whether the monitor is restarted on the samples a stop sends (shown as parking)."""
 
     # ---- what a rig supplies ------------------------------------------------------------------------
     @property
@@ -120,14 +119,6 @@ class PacedLoop(Generic[RecordingT]):
         """Writes tick k of `volts` and returns its code(s)."""
         raise NotImplementedError
 
-    def _monitored_command(self, cmd: FloatArray) -> FloatArray:
-        """What the monitor shows of the commands."""
-        return cmd
-
-    def _monitored_scan(self, block: ScanBlock) -> ScanBlock:
-        """What the monitor shows of a scan block."""
-        return block
-
     def _note_written(self, cmd: FloatArray, written: int) -> None:
         """After an aborted loop: the first `written` commands were written."""
         raise NotImplementedError
@@ -146,7 +137,7 @@ class PacedLoop(Generic[RecordingT]):
         on_stop: OnStop | None = None,
         watch: bool = True,
     ) -> RecordingT:
-        """The paced loop over samples already checked (ticks first). On a stop request `on_stop(written)`,
+        """The paced loop over samples already checked (ticks x joints). On a stop request `on_stop(written)`,
         if given, returns the samples to send next in the same loop; then `Interrupted` carries the whole
         recording. `watch`: run the watchdog on the measured signals (a tripped watchdog stops the loop
         the same way, then raises its `WatchdogTripped`)."""
@@ -176,7 +167,7 @@ class PacedLoop(Generic[RecordingT]):
         tripped: WatchdogTripped | None = None
         tap = self.tap
         if tap is not None:
-            tap.start(where, self._monitored_command(cmd), t0)
+            tap.start(where, np.ascontiguousarray(cmd[:, 0]), t0)
         try:
             start = 0
             while start < n:
@@ -193,7 +184,7 @@ class PacedLoop(Generic[RecordingT]):
                 )
                 start = end
                 if tap is not None:
-                    tap.scan(self._monitored_scan(blocks[-1]))
+                    tap.scan(blocks[-1])
                 if stop_now:
                     stopped = f"{where}: stopped on request at t = {schedule[end - 1] - t0:.2f} s"
                     if on_stop is None:
@@ -209,8 +200,8 @@ class PacedLoop(Generic[RecordingT]):
                     actual[end:] = [0.0] * (n - end)
                     schedule = schedule_s(t0, n, dt)
                     loop.cmd, loop.volts, loop.schedule = cmd, volts, schedule
-                    if tap is not None and self.SHOWS_PARK:
-                        tap.start(f"{where} (park)", self._monitored_command(cmd), t0)
+                    if tap is not None:
+                        tap.start(f"{where} (park)", np.ascontiguousarray(cmd[:, 0]), t0)
             sleep_until(schedule[n])  # one more tick: the scan covers the response to the last command
             if stopped:
                 raise tripped or Interrupted(stopped)
@@ -220,7 +211,7 @@ class PacedLoop(Generic[RecordingT]):
             with contextlib.suppress(Exception):  # the original error matters more than a failing stop
                 append(self.ai.stop_scan())
                 if tap is not None:
-                    tap.scan(self._monitored_scan(blocks[-1]))
+                    tap.scan(blocks[-1])
             # keep the data recorded so far with the error (a board that vanished mid-trial: the session
             # archives it as a failed trial)
             with contextlib.suppress(Exception):
@@ -228,6 +219,6 @@ class PacedLoop(Generic[RecordingT]):
             raise
         append(self.ai.stop_scan())
         if tap is not None:  # the rows a board hands over when it stops (the simulator's last transfer)
-            tap.scan(self._monitored_scan(blocks[-1]))
+            tap.scan(blocks[-1])
         self._note_written(cmd, n)
         return self._recording(loop, where, partial=False)

@@ -1,21 +1,26 @@
-"""The rig: one joint's analog output, analog input scan and clock, bound to its channels and calibration.
+"""The rig: an analog output, an analog input scan and a clock bound to the joints they drive (channel
+order), with each joint's channels and calibration. One joint (the knee campaign) is a rig of one joint.
 
-`Rig.run_trajectory` is the acquisition loop (thesis §2.4-2.5); trials and checks
-send through `hardware/motion.py`, which adds the approach and the exit in the same loop (`Rig.send`):
+`Rig.run_trajectory` is the acquisition loop (thesis §2.4-2.5); trials and checks send through
+`hardware/motion.py`, which adds every joint's approach and exit in the same loop (`Rig.send`):
 
-1. safety envelope (`hardware/safety.py`) on the whole trajectory — a violation raises before any write;
+1. safety envelope (`hardware/safety.py`) on every joint's samples - a violation raises before any write;
 2. command look-up table, real -> input angle (thesis §2.5.1);
 3. Eq 1, angle -> volts over the joint's range; clamp to ±10 V;
-4. the paced loop (`hardware/paced.py`, shared with `MultiRig`): start the input scan ([angle channel,
-   torque channel] at `input_rate_hz`), then for each output tick k sleep until t0 + k / output_rate_hz,
-   write the volts, record the write time; read the scan every `READ_EVERY_TICKS` ticks; after the last
-   tick wait one more tick and stop the scan;
+4. the paced loop (`hardware/paced.py`): start the input scan ([angle_0, torque_0, angle_1, torque_1, ...]
+   at the input rate), then for each output tick k sleep until t0 + k / output_rate_hz, write every joint's
+   volts, record the write time; read the scan every `READ_EVERY_TICKS` ticks; after the last tick wait one
+   more tick and stop the scan. One joint: one `write_volts` per tick; several: one synchronous update of
+   every joint's channel per tick (`AnalogOutput.write_volts_sync`: on the USB-3105 each channel's AOUT with
+   the "wait for sync" flag, then one AOUT_SYNC that latches them together, thesis §2.3: the boards control
+   "the 12 joints ... simultaneously");
 5. telemetry: the scan's volts -> Eq 2 (angle) and Eq 3 (torque) -> the angle and torque look-up tables
    (output -> real, thesis §2.5.1-2.5.2).
 
-Times in a `TrialRecording` count from t0, the clock reading just after the scan started (the first output
-tick is scheduled at t0). `tick_lateness_s[k]` is the clock reading just before write k minus its schedule:
-the output jitter recorded per trial.
+The recording is one `TrialRecording` per joint, all on the same time base (the same command and input
+times, the same tick lateness). Times count from t0, the clock reading just after the scan started (the
+first output tick is scheduled at t0). `tick_lateness_s[k]` is the clock reading just before write k minus
+its schedule: the output jitter recorded per trial.
 
 The loop does as little as possible per tick: all conversions are done on whole arrays before and after,
 the schedule is precomputed, and results go into preallocated lists.
@@ -24,8 +29,8 @@ the schedule is precomputed, and results go into preallocated lists.
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Callable
-from dataclasses import dataclass, field
+from collections.abc import Callable, Sequence
+from dataclasses import replace
 from typing import ClassVar
 
 import numpy as np
@@ -35,176 +40,246 @@ from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock, LoopTap, ScanBlock
 from protocol_runner.hardware.joint import JointConfig, StopRequested, TrialRecording
 from protocol_runner.hardware.paced import Loop, PacedLoop, input_time_base_s
-from protocol_runner.hardware.safety import SafetyLimits, check_trajectory, parking_ramp_deg
+from protocol_runner.hardware.safety import check_trajectory, parking_ramp_deg
 
 FloatArray = npt.NDArray[np.float64]
 
-N_SCAN_CHANNELS = 2
-"""Scan order: column 0 = angle channel, column 1 = torque channel."""
 
+class Rig(PacedLoop[tuple[TrialRecording, ...]]):
+    """Binds one analog output, one analog input and a clock to one or several joints (channel order)."""
 
-@dataclass(eq=False)
-class Rig(PacedLoop[TrialRecording]):
-    """Binds an analog output, an analog input and a clock to one joint (`JointConfig`)."""
-
-    joint: JointConfig
-    ao: AnalogOutput
-    ai: AnalogInput
-    clock: Clock
-    _prepared: bool = field(default=False, init=False)
-    _last_command_deg: float | None = field(default=None, init=False)
-    # Entered around every paced loop; the hardware bench sets it to real-time scheduling.
-    loop_context: Callable[[], contextlib.AbstractContextManager[object]] = field(
-        default=contextlib.nullcontext, init=False
-    )
-    # The live monitor's sampler (--monitor): shown each scan block as it is read; None costs nothing.
-    tap: LoopTap | None = field(default=None, init=False)
+    def __init__(
+        self, joints: Sequence[JointConfig], ao: AnalogOutput, ai: AnalogInput, clock: Clock
+    ) -> None:
+        if not joints:
+            raise InvalidInput("a rig needs at least one joint")
+        rates = {(j.output_rate_hz, j.input_rate_hz) for j in joints}
+        if len(rates) != 1:
+            shown = ", ".join(f"{j.name} {j.output_rate_hz:g}/{j.input_rate_hz:g} Hz" for j in joints)
+            raise InvalidInput(f"the joints of one rig share its output and input rates, got {shown}")
+        used: dict[int, str] = {}
+        for j in joints:
+            for ch in (j.angle_input_channel, j.torque_input_channel):
+                if ch in used:
+                    raise InvalidInput(f"input channel {ch} is both {used[ch]}'s and {j.name}'s")
+                used[ch] = j.name
+        outputs: dict[int, str] = {}
+        for j in joints:
+            if j.output_channel in outputs:
+                raise InvalidInput(
+                    f"output channel {j.output_channel} is both {outputs[j.output_channel]}'s and {j.name}'s"
+                )
+            outputs[j.output_channel] = j.name
+        self.joints = tuple(joints)
+        self.ao, self.ai, self.clock = ao, ai, clock
+        self.output_rate_hz, self.input_rate_hz = rates.pop()
+        self._prepared = False
+        self._last: list[float | None] = [None] * len(self.joints)
+        # Entered around every paced loop; the hardware bench sets it to real-time scheduling.
+        self.loop_context: Callable[[], contextlib.AbstractContextManager[object]] = contextlib.nullcontext
+        # The live monitor's sampler (--monitor): shown each scan block as it is read; None costs nothing.
+        self.tap: LoopTap | None = None
 
     @property
-    def watched_joints(self) -> tuple[JointConfig]:
-        return (self.joint,)
+    def names(self) -> tuple[str, ...]:
+        return tuple(j.name for j in self.joints)
 
     @property
-    def scan_channels(self) -> tuple[int, int]:
-        return (self.joint.angle_input_channel, self.joint.torque_input_channel)
+    def watched_joints(self) -> tuple[JointConfig, ...]:
+        return self.joints
 
     @property
-    def last_command_deg(self) -> float | None:
-        """The last real angle written to the joint (None before any write)."""
-        return self._last_command_deg
+    def scan_channels(self) -> tuple[int, ...]:
+        return tuple(ch for j in self.joints for ch in (j.angle_input_channel, j.torque_input_channel))
+
+    @property
+    def last_command_deg(self) -> tuple[float | None, ...]:
+        """The last real angle written to each joint (None before any write)."""
+        return tuple(self._last)
 
     def prepare(self) -> None:
-        """Configure the output channel (±10 V). Once per rig: on a USB-3105 this also drives the output
-        to 0 V, i.e. the middle of the joint's Eq 1 range. `run_trajectory` calls it if needed."""
+        """Configure every joint's output channel (±10 V) once per rig: on a USB-3105 this also drives it to
+        0 V, i.e. the middle of the joint's Eq 1 range. `send` calls it if needed."""
         if not self._prepared:
-            self.ao.configure_channel(self.joint.output_channel)
+            for j in self.joints:
+                self.ao.configure_channel(j.output_channel)
             self._prepared = True
+
+    def single(self, name: str) -> Rig:
+        """A rig of joint `name` alone on the same boards (its calibration check): the others hold their last
+        output. Call `note_single` after using it."""
+        k = self.names.index(name)
+        rig = Rig((self.joints[k],), self.ao, self.ai, self.clock)
+        self.prepare()
+        rig._prepared = True
+        rig._last = [self._last[k]]
+        rig.loop_context = self.loop_context
+        return rig
+
+    def note_single(self, name: str, rig: Rig) -> None:
+        """Take over where the rig `single(name)` left its joint."""
+        self._last[self.names.index(name)] = rig._last[0]
 
     def run_trajectory(
         self,
-        command_deg: npt.ArrayLike,
+        commands_deg: Sequence[npt.ArrayLike],
         *,
         where: str,
         stop_requested: StopRequested | None = None,
-    ) -> TrialRecording:
-        """Send `command_deg` (real joint angles, one per output tick) and record the telemetry.
+    ) -> tuple[TrialRecording, ...]:
+        """Send `commands_deg` (one array of real joint angles per joint, one per output tick, as many each)
+        and record the telemetry.
 
-        Raises SafetyViolation (exit 4) before any write if the trajectory leaves the envelope.
+        Raises SafetyViolation (exit 4) before any write if a joint's samples leave its envelope.
         `stop_requested`, polled at every scan read (~10 ticks), lets a signal handler stop the trial at a
-        safe point: the scan is stopped and `Interrupted` raised (the caller then parks the joint).
+        safe point: the scan is stopped and `Interrupted` raised (the caller then parks the joints).
         """
-        joint = self.joint
-        cmd = np.array(command_deg, dtype=np.float64)
-        check_trajectory(
-            cmd,
-            joint.output_rate_hz,
-            joint.limits,
-            where=where,
-            command_table=joint.command_table,
-            volts_range_deg=joint.range_deg,
-        )
+        cmd = self._columns(commands_deg)
+        for k, j in enumerate(self.joints):
+            check_trajectory(
+                cmd[:, k],
+                self.output_rate_hz,
+                j.limits,
+                where=self.where_of(where, j),
+                command_table=j.command_table,
+                volts_range_deg=j.range_deg,
+            )
         with self.loop_context():
             return self.send(cmd, where=where, stop_requested=stop_requested)
 
-    def park(self, *, from_deg: float | None = None, where: str = "park") -> TrialRecording:
-        """Ramp the joint to `limits.park_angle_deg` at `limits.park_rate_deg_s` (trapezoidal, within the
-        acceleration limit). Starts from `from_deg`, else the last commanded angle, else the measured one.
-        """
-        limits = self.joint.limits
-        start = from_deg if from_deg is not None else self._last_command_deg
-        if start is None:
-            start = self.read_angle_deg()
-        ramp = parking_ramp_deg(start, limits, self.joint.output_rate_hz)
-        # A joint found outside the range must still be parkable: widen the range to the start point only.
-        lo, hi = limits.range_deg
-        eq1_lo, eq1_hi = self.joint.range_deg
-        widened = SafetyLimits(
-            range_deg=(max(min(lo, start), eq1_lo), min(max(hi, start), eq1_hi)),
-            max_rate_deg_s=limits.max_rate_deg_s,
-            max_accel_deg_s2=limits.max_accel_deg_s2,
-            park_angle_deg=limits.park_angle_deg,
-            park_rate_deg_s=limits.park_rate_deg_s,
-        )
-        ramp = np.clip(ramp, widened.range_deg[0], widened.range_deg[1])
-        check_trajectory(
-            ramp,
-            self.joint.output_rate_hz,
-            widened,
-            where=where,
-            command_table=self.joint.command_table,
-            volts_range_deg=self.joint.range_deg,
-        )
+    def park(
+        self, *, from_deg: Sequence[float | None] | None = None, where: str = "park"
+    ) -> tuple[TrialRecording, ...]:
+        """Ramp every joint to its `limits.park_angle_deg` at its `limits.park_rate_deg_s` (trapezoidal,
+        within the acceleration limit), together. Each starts from `from_deg`, else its last commanded angle,
+        else its measured one."""
+        given = list(from_deg) if from_deg is not None else [None] * len(self.joints)
+        known = [f if f is not None else last for f, last in zip(given, self._last, strict=True)]
+        measured = self.read_angles_deg() if None in known else (0.0,) * len(known)
+        starts = [float(m if s is None else s) for s, m in zip(known, measured, strict=True)]
+        ramps = [
+            parking_ramp_deg(s, j.limits, self.output_rate_hz)
+            for s, j in zip(starts, self.joints, strict=True)
+        ]
+        n = max(r.size for r in ramps)
+        cmd = np.stack([np.concatenate([r, np.full(n - r.size, r[-1])]) for r in ramps], axis=1)
+        for k, j in enumerate(self.joints):
+            # a joint found outside the range must still be parkable: widen the range to the start point only
+            lo, hi = j.limits.range_deg
+            widened = replace(
+                j.limits,
+                range_deg=(max(min(lo, starts[k]), j.range_deg[0]), min(max(hi, starts[k]), j.range_deg[1])),
+            )
+            cmd[:, k] = np.clip(cmd[:, k], *widened.range_deg)
+            check_trajectory(
+                cmd[:, k],
+                self.output_rate_hz,
+                widened,
+                where=self.where_of(where, j),
+                command_table=j.command_table,
+                volts_range_deg=j.range_deg,
+            )
         with self.loop_context():
-            return self.send(ramp, where=where, stop_requested=None, watch=False)
+            return self.send(cmd, where=where, stop_requested=None, watch=False)
 
-    def read_angle_deg(self, duration_s: float = 0.05) -> float:
-        """Measure the joint's current real angle: a short scan, averaged (Eq 2 + angle look-up table)."""
-        self.ai.start_scan(self.scan_channels, self.joint.input_rate_hz)
+    def read_angles_deg(self, duration_s: float = 0.05) -> tuple[float, ...]:
+        """Measure every joint's current real angle: a short scan, averaged (Eq 2 + angle look-up table)."""
+        self.ai.start_scan(self.scan_channels, self.input_rate_hz)
         try:
             self.clock.sleep_until(self.clock.now_s() + duration_s)
         finally:
             block = self.ai.stop_scan()
         if block.n_samples == 0:
-            raise InvalidInput("could not measure the joint angle: the input scan returned no samples")
-        return float(np.mean(self.joint.angle_from_volts(block.volts[:, 0])))
+            raise InvalidInput("could not measure the joint angles: the input scan returned no samples")
+        return tuple(
+            float(np.mean(j.angle_from_volts(block.volts[:, 2 * k]))) for k, j in enumerate(self.joints)
+        )
 
-    # ---- the paced loop (`PacedLoop.send`) for one joint ------------------------------------------------
-    UNWRITTEN: ClassVar[object] = -1
-    SHOWS_PARK: ClassVar[bool] = True
+    def _columns(self, commands_deg: Sequence[npt.ArrayLike]) -> FloatArray:
+        """(ticks, joints) from one array per joint."""
+        arrays = [np.asarray(c, dtype=np.float64) for c in commands_deg]
+        if len(arrays) != len(self.joints) or len({a.shape for a in arrays}) != 1 or arrays[0].ndim != 1:
+            shown = ", ".join(str(a.shape) for a in arrays)
+            raise InvalidInput(
+                f"the rig drives {len(self.joints)} joint(s) ({', '.join(self.names)}): give one 1-D array "
+                f"of angles per joint, as many samples each; got shapes {shown or 'none'}"
+            )
+        return np.stack(arrays, axis=1)
+
+    def where_of(self, where: str, joint: JointConfig) -> str:
+        """`where`, naming the joint when the rig drives several."""
+        return where if len(self.joints) == 1 else f"{where}, joint {joint.name}"
+
+    # ---- the paced loop (`PacedLoop.send`) ----------------------------------------------------------
+    UNWRITTEN: ClassVar[object] = None
 
     @property
     def rates_hz(self) -> tuple[float, float]:
-        return (self.joint.output_rate_hz, self.joint.input_rate_hz)
+        return (self.output_rate_hz, self.input_rate_hz)
 
     def _command_volts(self, cmd: FloatArray) -> FloatArray:
-        return self.joint.command_to_volts(cmd)
+        return np.stack([j.command_to_volts(cmd[:, k]) for k, j in enumerate(self.joints)], axis=1)
 
     def _tick_writer(self, volts: FloatArray) -> Callable[[int], object]:
-        write, channel, volts_list = self.ao.write_volts, self.joint.output_channel, volts.tolist()
-        return lambda k: write(channel, volts_list[k])
+        if len(self.joints) == 1:  # one board write per tick: nothing to latch together
+            write, channel, column = self.ao.write_volts, self.joints[0].output_channel, volts[:, 0].tolist()
+            return lambda k: write(channel, column[k])
+        channels = [j.output_channel for j in self.joints]
+        rows: list[dict[int, float]] = [dict(zip(channels, r, strict=True)) for r in volts.tolist()]
+        write_sync = self.ao.write_volts_sync
+        return lambda k: write_sync(rows[k])
 
     def _note_written(self, cmd: FloatArray, written: int) -> None:
-        if written > 0:
-            self._last_command_deg = float(cmd[written - 1])
+        if written:
+            self._last = [float(v) for v in cmd[written - 1]]
 
-    def _recording(self, loop: Loop, where: str, *, partial: bool) -> TrialRecording:
-        """The recording of the samples written (commands, their volts and codes, each tick's lateness)
-        and the rows scanned (angle in column 0, torque in 1), in the joint's units; `partial`: what an
-        aborted trial recorded before it stopped."""
-        joint = self.joint
-        scan = ScanBlock.concatenate(loop.blocks, N_SCAN_CHANNELS)
-        if partial:
-            n = loop.written(self.UNWRITTEN)
-            input_time_s = np.arange(scan.t_s.shape[0], dtype=np.float64) / joint.input_rate_hz
-            dt = 1.0 / joint.output_rate_hz
-            lateness_s = np.asarray(loop.actual[:n], dtype=np.float64) - (loop.t0 + np.arange(n) * dt)
-        else:
-            n = loop.n
-            if scan.codes.ndim != 2 or scan.codes.shape[1] != N_SCAN_CHANNELS:
-                raise InvalidInput(
-                    f"{where}: the input board returned codes of shape {scan.codes.shape}, "
-                    f"expected {N_SCAN_CHANNELS} columns"
-                )
-            input_time_s = input_time_base_s(scan, loop.t0, joint.input_rate_hz)
-            schedule = np.asarray(loop.schedule[:n], dtype=np.float64)
-            lateness_s = np.asarray(loop.actual, dtype=np.float64) - schedule
-        angle_volts = np.ascontiguousarray(scan.volts[:, 0], dtype=np.float64)
-        torque_volts = np.ascontiguousarray(scan.volts[:, 1], dtype=np.float64)
-        return TrialRecording(
-            command_time_s=np.arange(n, dtype=np.float64) * (1.0 / joint.output_rate_hz),
-            command_deg=loop.cmd[:n],
-            command_volts=loop.volts[:n],
-            command_codes=np.asarray(loop.codes[:n], dtype=np.int32),
-            input_time_s=input_time_s,
-            angle_codes=np.ascontiguousarray(scan.codes[:, 0], dtype=np.int32),
-            torque_codes=np.ascontiguousarray(scan.codes[:, 1], dtype=np.int32),
-            angle_volts=angle_volts,
-            torque_volts=torque_volts,
-            angle_deg=joint.angle_from_volts(angle_volts),
-            torque_nm=joint.torque_from_volts(torque_volts),
-            tick_lateness_s=lateness_s,
-            where=where,
-            t0_s=loop.t0,
-            output_rate_hz=joint.output_rate_hz,
-            input_rate_hz=joint.input_rate_hz,
+    def _command_codes(self, codes: list[object], k: int) -> npt.NDArray[np.int32]:
+        """Joint k's output codes of the ticks written."""
+        if len(self.joints) == 1:
+            return np.asarray(codes, dtype=np.int32)
+        channel = self.joints[k].output_channel
+        return np.asarray([c[channel] for c in codes], dtype=np.int32)  # type: ignore[index]
+
+    def _recording(self, loop: Loop, where: str, *, partial: bool) -> tuple[TrialRecording, ...]:
+        """Each joint's recording of the samples written (commands, their volts and codes, each tick's
+        lateness) and of its scan columns (angle 2k, torque 2k+1), in its units, all on the same time base;
+        `partial`: what an aborted loop recorded before it stopped."""
+        n = loop.written(self.UNWRITTEN) if partial else loop.n
+        n_columns = 2 * len(self.joints)
+        scan = ScanBlock.concatenate(loop.blocks, n_columns)
+        if scan.codes.ndim != 2 or scan.codes.shape[1] != n_columns:
+            raise InvalidInput(
+                f"{where}: the input board returned codes of shape {scan.codes.shape}, "
+                f"expected {n_columns} columns"
+            )
+        input_time_s = input_time_base_s(scan, loop.t0, self.input_rate_hz)
+        dt = 1.0 / self.output_rate_hz
+        lateness_s = np.asarray(loop.actual[:n], dtype=np.float64) - np.asarray(
+            loop.schedule[:n], dtype=np.float64
         )
+        command_time_s = np.arange(n, dtype=np.float64) * dt
+        out = []
+        for k, j in enumerate(self.joints):
+            angle_volts = np.ascontiguousarray(scan.volts[:, 2 * k], dtype=np.float64)
+            torque_volts = np.ascontiguousarray(scan.volts[:, 2 * k + 1], dtype=np.float64)
+            out.append(
+                TrialRecording(
+                    command_time_s=command_time_s,
+                    command_deg=np.ascontiguousarray(loop.cmd[:n, k]),
+                    command_volts=np.ascontiguousarray(loop.volts[:n, k]),
+                    command_codes=self._command_codes(loop.codes[:n], k),
+                    input_time_s=input_time_s,
+                    angle_codes=np.ascontiguousarray(scan.codes[:, 2 * k], dtype=np.int32),
+                    torque_codes=np.ascontiguousarray(scan.codes[:, 2 * k + 1], dtype=np.int32),
+                    angle_volts=angle_volts,
+                    torque_volts=torque_volts,
+                    angle_deg=j.angle_from_volts(angle_volts),
+                    torque_nm=j.torque_from_volts(torque_volts),
+                    tick_lateness_s=lateness_s,
+                    where=self.where_of(where, j),
+                    t0_s=loop.t0,
+                    output_rate_hz=self.output_rate_hz,
+                    input_rate_hz=self.input_rate_hz,
+                )
+            )
+        return tuple(out)

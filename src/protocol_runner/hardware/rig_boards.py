@@ -1,5 +1,5 @@
 """Open the boards a protocol's `rig` section names: the analog output, the input boards joined as one
-`MultiBoardInput`, and the real clock (docs/hardware.md, "Opening the rig from a protocol").
+`BoardGroup`, and the real clock (docs/hardware.md, "Opening the rig from a protocol").
 
 Each board is driven by the library its rig file entry names (`backend:`): pyusb (this package's
 drivers, the default), MCC's uldaq (Linux, macOS) or mcculw (Windows). The vendor libraries are imported
@@ -12,8 +12,8 @@ from typing import Any, Protocol
 
 from protocol_runner.errors import HardwareUnavailable, InvalidInput
 from protocol_runner.hardware import usb1608fs_protocol
+from protocol_runner.hardware.board_group import BoardGroup
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput
-from protocol_runner.hardware.multiboard import MultiBoardInput
 from protocol_runner.hardware.usb_common import BoardNotFound, MonotonicClock
 
 
@@ -83,12 +83,12 @@ def open_inputs(spec: _InputSpec, usb_backend: Any | None, clock: MonotonicClock
 
 def open_rig_boards(
     rig_spec: _RigSpec, backend: Any | None = None, *, clock: MonotonicClock | None = None
-) -> tuple[AnalogOutput, MultiBoardInput, MonotonicClock]:
+) -> tuple[AnalogOutput, BoardGroup, MonotonicClock]:
     """Open the boards a protocol's ``rig`` section names: (analog output, analog input, real clock).
 
     Output: the USB-3105 with ``output.serial`` (or the first one). Input: ``board: usb1608fs`` opens the
     USB-1608FS-Plus boards listed in ``input.serials`` (in that order; empty = every attached board in
-    serial order) as one `MultiBoardInput`. Each through its rig file entry's ``backend`` (pyusb, uldaq,
+    serial order) as one `BoardGroup`. Each through its rig file entry's ``backend`` (pyusb, uldaq,
     mcculw); `backend` here is the pyusb backend object (None: the system libusb; tests pass the fake).
     ``board: dt9814`` is refused: the only known DT9814 protocol (comedi's DT9812) has no hardware-paced
     scan and addresses 8 channels (the CLI says where the file chooses it before opening anything).
@@ -112,7 +112,7 @@ def open_rig_boards(
     ao = open_output(out_spec, backend)
     try:
         boards = open_inputs(in_spec, backend, clock)
-        ai = MultiBoardInput(boards)
+        ai = BoardGroup(boards)
         for name, ch in (("angle", in_spec.angle_channel), ("torque", in_spec.torque_channel)):
             if ch >= ai.n_channels:
                 ai.close()

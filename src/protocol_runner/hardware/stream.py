@@ -17,12 +17,23 @@ samples within the limit stops sooner, so a brake never goes further than the tr
 The approach is the exit run backwards in time (reversing a stream keeps |rate| and |acceleration|), so one
 construction serves both junctions. `check_stream` runs the envelope over the whole stream (rate and
 acceleration across both junctions) and over the stop from every sample before the exit; the plan-time
-preflight (`protocol/stream_check.py`) and the rig (`Rig.run_stream`) both call it.
+preflight (`protocol/stream_check.py`) and the rig's motions (`hardware/motion.py`) both call it.
+
+A motion drives every joint of the rig: `build_motion_stream` gives each joint its own stream, then aligns
+them so that every joint's first trajectory sample falls on the same output tick: a joint whose approach is
+shorter waits at rest where it is (samples repeated before its approach), a joint whose exit is shorter
+rests at its park angle (samples repeated after its exit). Resting repeats a sample, so it adds no rate or
+acceleration: every joint's aligned stream stays within that joint's envelope exactly when its own stream
+does, which `check_motion_stream` verifies joint by joint. A stop requested after `written` ticks stops
+EVERY joint: each brakes from its own last position and velocity at its own acceleration limit and ramps to
+its own park angle; the tails are padded to the longest with each joint resting where its tail ends. With
+one joint all of this is that joint's own stream.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -233,3 +244,114 @@ def check_stream(
             time_s=float(times[i]),
             units=exc.units,
         ) from None
+
+
+@dataclass(frozen=True)
+class MotionStream:
+    """Aligned streams (equal length, same first trajectory tick), one per joint in channel order."""
+
+    joints: tuple[str, ...]
+    streams: tuple[CommandStream, ...]
+
+    @property
+    def rate_hz(self) -> float:
+        return self.streams[0].rate_hz
+
+    @property
+    def first(self) -> int:
+        return self.streams[0].first
+
+    def command_deg(self) -> FloatArray:
+        """(ticks, joints): every joint's angle per output tick."""
+        return np.stack([s.command_deg for s in self.streams], axis=1)
+
+    def segment(self) -> npt.NDArray[np.int8]:
+        """(ticks, joints): every joint's segment code per tick."""
+        return np.stack([s.segment for s in self.streams], axis=1)
+
+    def stop_after(
+        self, written: int, limits: Sequence[SafetyLimits]
+    ) -> tuple[FloatArray, npt.NDArray[np.int8]]:
+        """(ticks, joints) samples and segment codes that stop every joint after `written` ticks: each
+        joint's own brake and parking ramp (`CommandStream.stop_after`), padded to the longest at rest."""
+        tails = [s.stop_after(written, lim) for s, lim in zip(self.streams, limits, strict=True)]
+        n = max(t.size for t, _ in tails)
+        if n == 0:
+            return np.zeros((0, len(self.streams))), np.zeros((0, len(self.streams)), dtype=np.int8)
+        cols, codes = [], []
+        for s, (tail, code) in zip(self.streams, tails, strict=True):
+            rest = float(tail[-1]) if tail.size else float(s.command_deg[max(written, 1) - 1])
+            pad = n - tail.size
+            cols.append(np.concatenate([tail, np.full(pad, rest)]))
+            last = int(code[-1]) if code.size else STOP
+            codes.append(np.concatenate([code, np.full(pad, last, dtype=np.int8)]).astype(np.int8))
+        return np.stack(cols, axis=1), np.stack(codes, axis=1)
+
+
+def build_motion_stream(
+    joints: Sequence[str],
+    trajectories_deg: Sequence[npt.ArrayLike],
+    limits: Sequence[SafetyLimits],
+    rate_hz: float,
+    *,
+    from_deg: Sequence[float | None] | None = None,
+) -> MotionStream:
+    """Each joint's stream (`build_stream`) aligned on the first trajectory tick. The trajectories must
+    have the same number of samples (the joints share the trial's time)."""
+    arrays = [np.asarray(t, dtype=np.float64) for t in trajectories_deg]
+    if len(arrays) != len(joints):
+        raise InvalidInput(
+            f"a motion of {len(joints)} joint(s) ({', '.join(joints)}) needs one trajectory per joint, "
+            f"got {len(arrays)}"
+        )
+    if len({a.size for a in arrays}) != 1:
+        shown = ", ".join(f"{j} {a.size}" for j, a in zip(joints, arrays, strict=True))
+        raise InvalidInput(f"the joints of a motion must have as many samples each, got {shown}")
+    starts = list(from_deg) if from_deg is not None else [None] * len(arrays)
+    own = [
+        build_stream(a, lim, rate_hz, from_deg=f) for a, lim, f in zip(arrays, limits, starts, strict=True)
+    ]
+    lead = max(s.first for s in own)
+    tail = max(s.segment.size - s.exit_start for s in own)
+    aligned = []
+    for s in own:
+        before = lead - s.first
+        after = tail - (s.segment.size - s.exit_start)
+        cmd = np.concatenate(
+            [np.full(before, s.command_deg[0]), s.command_deg, np.full(after, s.command_deg[-1])]
+        )
+        seg = np.concatenate(
+            [np.full(before, APPROACH, dtype=np.int8), s.segment, np.full(after, EXIT, dtype=np.int8)]
+        )
+        aligned.append(CommandStream(cmd, seg.astype(np.int8), float(rate_hz)))
+    return MotionStream(tuple(joints), tuple(aligned))
+
+
+def check_motion_stream(
+    stream: MotionStream,
+    limits: Sequence[SafetyLimits],
+    *,
+    where: str,
+    command_tables: Sequence[CalibrationTable | None],
+    volts_ranges_deg: Sequence[tuple[float, float]],
+) -> None:
+    """`check_stream` for every joint against its own envelope; with several joints the violation names
+    the joint."""
+    several = len(stream.streams) > 1
+    for joint, s, lim, table, vr in zip(
+        stream.joints, stream.streams, limits, command_tables, volts_ranges_deg, strict=True
+    ):
+        try:
+            check_stream(s, lim, where=where, command_table=table, volts_range_deg=vr)
+        except SafetyViolation as exc:
+            if not several:
+                raise
+            raise SafetyViolation(
+                where=f"{exc.where}, joint {joint}",
+                limit=exc.limit,
+                value=exc.value,
+                limit_value=exc.limit_value,
+                index=exc.index,
+                time_s=exc.time_s,
+                units=exc.units,
+            ) from None

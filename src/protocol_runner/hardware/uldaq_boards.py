@@ -162,7 +162,7 @@ class UldaqUsb3105(VendorAnalogOutput):
 
 class UldaqUsb1608Fs(VendorScanInput):
     """One USB-1608FS-Plus through uldaq. Use `UldaqUsb1608Fs.open(serial=None, clock=None)`;
-    `open_all_uldaq_1608fs` opens several for `MultiBoardInput`."""
+    `open_all_uldaq_1608fs` opens several for `BoardGroup`."""
 
     def __init__(self, lib: ModuleType, device: Any, serial: str, clock: Clock, buffer_s: float) -> None:
         super().__init__(f"{usb1608fs_protocol.KIND} serial {serial} (uldaq)", serial, clock, buffer_s)

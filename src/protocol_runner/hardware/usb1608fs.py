@@ -1,4 +1,4 @@
-"""MCC USB-1608FS-Plus analog input over pyusb (satisfies `interfaces.AnalogInput`); `multiboard.py` joins
+"""MCC USB-1608FS-Plus analog input over pyusb (satisfies `interfaces.AnalogInput`); `board_group.py` joins
 several boards into one 24-channel (or wider) input, `usb1608fs_protocol.py` holds the USB protocol.
 
 Sample times are not sent by the board: row ``i`` is at ``t0 + i / rate`` where ``rate`` is the rate the

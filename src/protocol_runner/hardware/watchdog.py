@@ -92,7 +92,7 @@ class WatchedJoint(Protocol):
 
 class LoopWatch:
     """One paced loop's watchdog: `check` each scan block as it is read. Joint k's angle and torque are
-    scan columns 2k and 2k+1, its command column k of the loop's commands (a 1-D command: one joint)."""
+    scan columns 2k and 2k+1, its command column k of the loop's (ticks x joints) commands."""
 
     def __init__(self, joints: Sequence[WatchedJoint], t0: float, output_rate_hz: float, where: str) -> None:
         self.watched = [(k, j, j.watchdog) for k, j in enumerate(joints) if j.watchdog is not None]
@@ -110,7 +110,7 @@ class LoopWatch:
         t = np.asarray(block.t_s, dtype=np.float64) - self.t0
         found: list[WatchdogTripped] = []
         for k, joint, limits in self.watched:
-            column = cmd if cmd.ndim == 1 else cmd[:, k]
+            column = cmd[:, k]
             torque = joint.torque_from_volts(block.volts[:, 2 * k + 1])
             lo, hi = limits.torque_limits_nm
             # the telemetry saturates at the range's ends (Eq 3 maps +-10 V onto it): a reading AT an end,

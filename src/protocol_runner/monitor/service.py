@@ -108,7 +108,7 @@ class Monitor:
         """Hook the session up; returns the runner's publisher and the operator to use."""
         publisher = LivePublisher(self.bus)
         rig = bench.rig
-        tap = SampleTap(rig.joint, self.bus.publish_samples)
+        tap = SampleTap(rig.joints[0], self.bus.publish_samples)
         rig.tap = tap
         publisher.taps.append(tap)
         self.bus.add_source(JournalTail(session_dir / "journal.jsonl"))
@@ -121,7 +121,7 @@ class Monitor:
                 "seed": info.seed,
                 "only": list(info.only),
                 "resumed": resumed,
-                "joints": [rig.joint.name],
+                "joints": [rig.joints[0].name],
                 "steps": len(plan.steps),
                 "sample_rate_hz": SAMPLE_RATE_HZ,
             }

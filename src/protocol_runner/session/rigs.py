@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, cast
+from typing import TYPE_CHECKING
 
 from ..errors import HardwareUnavailable, InvalidInput
 from ..hardware.calibration import CalibrationTable, load_calibration_table
 from ..hardware.joint import JointConfig
-from ..hardware.multi_rig import MultiRig
 from ..hardware.rig import Rig
 from ..hardware.watchdog import watchdog_limits
 from ..protocol.loaded import LoadedProtocol, line_for
@@ -18,10 +17,8 @@ from ..protocol.step_ids import trial_of
 from ..protocol.stream_check import safety_limits
 
 if TYPE_CHECKING:
+    from ..hardware.board_group import BoardGroup
     from ..hardware.interfaces import AnalogOutput
-    from ..hardware.multiboard import MultiBoardInput
-    from ..hardware.simulator.daq import SimulatedRig
-    from ..hardware.simulator.multi import MultiSimulatedRig
     from ..hardware.simulator.params import SimulatorParams
     from ..hardware.usb_common import MonotonicClock
 
@@ -61,8 +58,14 @@ def joint_config(loaded: LoadedProtocol, rig: RigSpec | None = None) -> JointCon
     )
 
 
+def joint_configs(loaded: LoadedProtocol) -> list[JointConfig]:
+    """Every joint the protocol drives, in channel order (the protocol's own joint without `joints:`)."""
+    p = loaded.protocol
+    return [joint_config(loaded, r) for r in p.rigs] if p.multi_joint else [joint_config(loaded)]
+
+
 class SimulatedBench:
-    """The dry-run bench: the simulated rig (the joint's `simulator:` values from the rig file) plus the
+    """The dry-run bench: the simulated rig (each joint's `simulator:` values from its rig file) plus the
     simulated operator's hands on the device."""
 
     def __init__(
@@ -77,60 +80,30 @@ class SimulatedBench:
         from ..hardware.simulator.params import SimulatorParams
 
         self.paced = realtime  # like the robot: runner.py then saves each unit before the next motion
-        self.multi: MultiRig | None = None
-        self.multi_sim: MultiSimulatedRig | None = None
-        self.rig: Rig
-        self.sim: SimulatedRig | MultiSimulatedRig
         p = loaded.protocol
-        if p.multi_joint:
-            from ..hardware.simulator.multi import MultiSimulatedRig
-
-            self.multi_sim = MultiSimulatedRig(
-                [joint_config(loaded, r) for r in p.rigs],
-                [SimulatorParams(**dict(r.simulator)) for r in p.rigs],
-                seed=seed,
-                realtime=realtime,
-            )
-            self.multi = self.multi_sim.make_rig()
-            self.sim = self.multi_sim  # its `clock` gives the simulated robot time (session/runner.py)
-            # the session itself only parks through `rig` (`park(where=...)`), which MultiRig provides;
-            # steps reach the joints through `multi` (steps/multi_trial.py)
-            self.rig = cast(Rig, self.multi)
-            self.mode = "dry-run"
-            return
+        specs = p.rigs if p.multi_joint else [p.rig]
         self.sim = SimulatedRig(
-            joint_config(loaded),
+            joint_configs(loaded),
             seed=seed,
-            params=params or SimulatorParams(**dict(loaded.protocol.rig.simulator)),
+            params=params or [SimulatorParams(**dict(r.simulator)) for r in specs],
             realtime=realtime,
         )
-        self.rig = self.sim.make_rig()
+        self.rig: Rig = self.sim.make_rig()
         self.mode = "dry-run"
 
     def begin_step(self, step_id: str) -> None:
         """The simulated rig starts step `step_id`; a brace-off trial draws the same friction spread as
         its brace-on twin (the robot it subtracts is the one that ran the brace-on trial)."""
-        trial = trial_of(step_id)
-        if self.multi_sim is not None:
-            self.multi_sim.begin_step(step_id, trial)
-            return
-        self.sim.begin_step(step_id, trial)
+        self.sim.begin_step(step_id, trial_of(step_id))
 
     def fit_brace(self, settings: Settings | None) -> None:
-        """The simulated operator fits the configuration's device (its resolved elements), or removes it
-        (every joint's, in a multi-joint protocol)."""
-        if self.multi_sim is not None:
-            for joint in self.multi_sim.joints:
-                elements = settings.device_of(joint.name) if settings is not None else ()
-                self.multi_sim.set_device(joint.name, elements or None)
-            return
-        cast("SimulatedRig", self.sim).set_device(None if settings is None else settings.device)
+        """The simulated operator fits the configuration's device (its resolved elements) to every joint, or
+        removes it."""
+        for joint in self.sim.joints:
+            elements = settings.device_of(joint.name) if settings is not None else None
+            self.sim.set_device(elements, joint=joint.name)
 
     def close(self) -> None:
-        if self.multi_sim is not None:
-            self.multi_sim.ao.close()
-            self.multi_sim.ai.close()
-            return
         self.sim.ao.close()
         self.sim.ai.close()
 
@@ -143,13 +116,6 @@ class HardwareBench:
 
         self.mode = "hardware"
         self.paced = True
-        self.rig: Rig
-        self.multi: MultiRig | None = None
-        if loaded.protocol.multi_joint:
-            self.multi = open_hardware_multi_rig(loaded)
-            self.multi.loop_context = realtime_priority
-            self.rig = cast(Rig, self.multi)  # the session parks through `rig` (see SimulatedBench)
-            return
         self.rig = open_hardware_rig(loaded)
         # the 100 Hz loop under SCHED_FIFO when allowed (tick jitter p99 < 1 ms needs it on a busy machine)
         self.rig.loop_context = realtime_priority
@@ -199,7 +165,7 @@ def _at(path: str, line: int | None) -> str:
     return f"{path} line {line}" if line else path
 
 
-def _open_boards(loaded: LoadedProtocol) -> tuple[AnalogOutput, MultiBoardInput, MonotonicClock]:
+def _open_boards(loaded: LoadedProtocol) -> tuple[AnalogOutput, BoardGroup, MonotonicClock]:
     """The boards of the protocol's rig section; a vendor library the rig file selects but that is not
     installed is named with the rig file."""
     # here: only a hardware run needs the USB drivers (and a vendor library only when selected)
@@ -213,22 +179,16 @@ def _open_boards(loaded: LoadedProtocol) -> tuple[AnalogOutput, MultiBoardInput,
 
 
 def open_hardware_rig(loaded: LoadedProtocol) -> Rig:
-    """Open the boards the protocol names; HardwareUnavailable (exit 3) with a plain message if absent."""
-    refuse_unsupported_input(loaded)
-    ao, ai, clock = _open_boards(loaded)
-    return Rig(joint_config(loaded), ao, ai, clock)
-
-
-def open_hardware_multi_rig(loaded: LoadedProtocol) -> MultiRig:
-    """Open the boards once for every driven joint (one output board, one scan)."""
+    """Open the boards the protocol names once for every driven joint (one output board, one scan);
+    HardwareUnavailable (exit 3) with a plain message if absent."""
     refuse_unsupported_input(loaded)
     p = loaded.protocol
     ao, ai, clock = _open_boards(loaded)
-    for spec in p.rigs[1:]:  # the channels of the other joints exist on the boards opened
+    for spec in p.rigs[1:] if p.multi_joint else []:  # the channels of the other joints exist on the boards
         n_in = getattr(ai, "n_channels", None)
         if n_in is not None and max(spec.input.angle_channel, spec.input.torque_channel) >= n_in:
             raise HardwareUnavailable(
                 f"{spec.joint.name}: input channels {spec.input.angle_channel}, {spec.input.torque_channel} "
                 f"are not on the {n_in} channels of the input boards attached"
             )
-    return MultiRig([joint_config(loaded, r) for r in p.rigs], ao, ai, clock)
+    return Rig(joint_configs(loaded), ao, ai, clock)

@@ -167,13 +167,11 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
     """Run the step and judge it; `record_as` is the id the unit is stored under (resume checks differ)."""
     rig = ctx.bench.rig
     ctx.bench.begin_step(record_as)
-    cmd = sample_trajectory(step.trajectory, rig.joint.output_rate_hz, ctx.loaded.base_dir)
-    rec = run_motion(rig, cmd, where=record_as, stop_requested=ctx.stop_requested)
+    cmd = sample_trajectory(step.trajectory, rig.output_rate_hz, ctx.loaded.base_dir)
+    rec = run_motion(rig, [cmd], where=record_as, stop_requested=ctx.stop_requested)[0]
     target = step.trajectory.number("from_deg") + step.trajectory.number("step_deg")
     limits = ctx.loaded.protocol.calibration_check
-    settle_window = min(
-        1.0, float(ctx.loaded.protocol.calibration_step_of(ctx.bench.rig.joint.name).hold_s) / 2
-    )
+    settle_window = min(1.0, float(ctx.loaded.protocol.calibration_step_of(rig.joints[0].name).hold_s) / 2)
     cmd_in = command_on_input_base(rec.command_time_s, rec.command_deg, rec.input_time_s)
     resp = analyse_step(rec.input_time_s, cmd_in, rec.angle_deg, target, settle_window)
     problems = response_problems(resp, limits, _before_response(ctx, step) if when != "before" else None)

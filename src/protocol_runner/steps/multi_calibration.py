@@ -46,7 +46,9 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
     for joint, traj in step.joint_trajectories:
         single = rig.single(joint)
         cmd = sample_trajectory(traj, rig.output_rate_hz, ctx.loaded.base_dir)
-        rec = run_motion(single, cmd, where=f"{record_as}, joint {joint}", stop_requested=ctx.stop_requested)
+        rec = run_motion(
+            single, [cmd], where=f"{record_as}, joint {joint}", stop_requested=ctx.stop_requested
+        )[0]
         rig.note_single(joint, single)
         target = traj.number("from_deg") + traj.number("step_deg")
         window = min(1.0, float(p.calibration_step_of(joint).hold_s) / 2)

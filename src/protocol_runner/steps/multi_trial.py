@@ -2,7 +2,7 @@
 
 Trial: every driven joint's trajectory is sampled at the output rate and sent in ONE paced loop (one
 synchronous output update per tick for all joints, one input scan of every joint's angle and torque:
-`hardware/multi_rig.py`); each joint's stream is checked against its own envelope before anything moves,
+`hardware/rig.py`); each joint's stream is checked against its own envelope before anything moves,
 and a stop request brakes and parks every joint. A brace-off trial replays the brace-on trial's commanded
 motion (every joint's samples, as sent) without the device: the same multi-joint motion, so the torques
 are compared at the same commanded angles (the single-joint Eq 8 rescaling of the measured output,
@@ -42,7 +42,8 @@ from ..archive.paths import (
 from ..archive.results import Fill, bouc_wen_fill, processed_fill, read_processed_loops, read_recording
 from ..errors import HardwareUnavailable
 from ..hardware.joint import TrialRecording
-from ..hardware.multi_rig import MultiRig, run_multi_motion
+from ..hardware.motion import run_motion
+from ..hardware.rig import Rig
 from ..protocol.plan_steps import FitStep, ProcessStep, TrialStep
 from ..protocol.processing import bouc_wen_settings, element_fit_enabled
 from ..protocol.sampling import sample_trajectory
@@ -54,11 +55,8 @@ from .trial import configuration_group_attributes, put_configuration, recording_
 FloatArray = npt.NDArray[np.float64]
 
 
-def multi_rig(ctx: StepContext) -> MultiRig:
-    rig = getattr(ctx.bench, "multi", None)
-    if not isinstance(rig, MultiRig):
-        raise HardwareUnavailable("this bench drives one joint; the protocol drives several (joints: ...)")
-    return rig
+def multi_rig(ctx: StepContext) -> Rig:
+    return ctx.bench.rig
 
 
 def run_trial(step: TrialStep, ctx: StepContext) -> StepOutcome:
@@ -71,7 +69,7 @@ def run_trial(step: TrialStep, ctx: StepContext) -> StepOutcome:
     else:
         commands = _brace_on_commands(step, ctx)
     try:
-        recs = run_multi_motion(rig, commands, where=step.id, stop_requested=ctx.stop_requested)
+        recs = run_motion(rig, commands, where=step.id, stop_requested=ctx.stop_requested)
     except HardwareUnavailable as exc:
         partial = getattr(exc, "partial_recording", None)
         if not isinstance(partial, tuple):

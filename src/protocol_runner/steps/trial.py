@@ -41,7 +41,7 @@ COMMAND_SMOOTHING_ORDER = 4
 
 def command_deg(trajectory: Trajectory, ctx: StepContext) -> FloatArray:
     """Sample a plan trajectory at the output rate (real joint angles, one per tick)."""
-    return sample_trajectory(trajectory, ctx.bench.rig.joint.output_rate_hz, ctx.loaded.base_dir)
+    return sample_trajectory(trajectory, ctx.bench.rig.output_rate_hz, ctx.loaded.base_dir)
 
 
 @dataclass(frozen=True)
@@ -100,11 +100,11 @@ def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
     try:
         if step.brace == "on":
             cmd = command_deg(step.trajectory, ctx)
-            rec = run_motion(rig, cmd, where=step.id, stop_requested=ctx.stop_requested)
+            rec = run_motion(rig, [cmd], where=step.id, stop_requested=ctx.stop_requested)[0]
         else:
             rec, scaling = _run_brace_off(step, ctx)
     except HardwareUnavailable as exc:
-        partial = getattr(exc, "partial_recording", None)
+        partial = (getattr(exc, "partial_recording", None) or (None,))[0]
         if partial is None:
             raise
         # A board failed mid-trial (e.g. unplugged): keep what was recorded as a failed trial (it is redone
@@ -134,7 +134,7 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
     # The brace-on output becomes the brace-off input. It is smoothed first (zero-phase, 4th order at
     # COMMAND_SMOOTHING_HZ): the joint's 0.2 s lag passes nothing above ~1 Hz, and the sensor noise and
     # the corners where the brace's stops bite would otherwise break the acceleration envelope.
-    nyquist = 0.5 * rig.joint.input_rate_hz
+    nyquist = 0.5 * rig.input_rate_hz
     smooth = lowpass(
         on.angle_deg,
         kind="butterworth",
@@ -151,7 +151,7 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
     # last time constant is not sent: that input would only act after the brace-on recording ends, and
     # there the derivative of the smoothed angle carries the filter's edge.
     tau = ctx.loaded.protocol.rig.time_constant_s
-    ticks = np.arange(0.0, float(t_after[-1]) - tau, 1.0 / rig.joint.output_rate_hz)
+    ticks = np.arange(0.0, float(t_after[-1]) - tau, 1.0 / rig.output_rate_hz)
     u = np.interp(ticks, t_after, lag_input(t_after, smooth[start:], tau))
     # the range to match is that of the brace-on cycles (their turning points), not of the approach
     target = cycle_range(smooth[start:], proc.reversal_deg)
@@ -160,8 +160,8 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
     def run_once(input_deg: FloatArray) -> FloatArray:
         k = len(recordings)
         rec = run_motion(
-            rig, input_deg, where=f"{step.id} (scaling run {k + 1})", stop_requested=ctx.stop_requested
-        )
+            rig, [input_deg], where=f"{step.id} (scaling run {k + 1})", stop_requested=ctx.stop_requested
+        )[0]
         recordings.append(rec)
         # smoothed as the target was, so that both turning-point levels are free of the sensor noise
         angle = lowpass(
@@ -182,7 +182,7 @@ def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, S
         max_iterations=scaling_spec.max_iterations,
         transition_tolerance_deg=proc.transition_tolerance_deg,
         transition_points=proc.transition_points,
-        input_limits_deg=rig.joint.limits.range_deg,
+        input_limits_deg=rig.joints[0].limits.range_deg,
         reversal_deg=proc.reversal_deg,
     )
     return recordings[result.best.iteration], result

@@ -1,7 +1,7 @@
 """The DAQ simulator: a clock, an analog output and an analog input scan that satisfy
-`hardware.interfaces` and drive a physical model of the rig (`plant.py`) instead of the RSST.
+`hardware.interfaces` and drive a physical model of each joint of the rig (`plant.py`) instead of the RSST.
 
-Signal path, mirroring the real rig (thesis §2.4-2.5):
+Signal path, mirroring the real rig (thesis §2.4-2.5), per joint:
 
     Rig ── volts ──▶ SimulatedAnalogOutput: USB-3105 16-bit code, recorded with its time
         ──▶ the robot's VME reads the code's volts ──▶ Eq 2 (the inverse of Eq 1) over the joint range
@@ -12,12 +12,20 @@ Signal path, mirroring the real rig (thesis §2.4-2.5):
 
 so that, after the rig applies its calibration tables, measured ≈ real. With no table the robot is linear.
 
-Determinism: `SimulatedRig.begin_step(step_id, trial)` reseeds the noise generator from
-sha256(session seed, step id), draws the trial's friction spread from sha256(session seed, trial), puts the joint at rest at the park angle and restarts the plant's time grid
-at the current clock. The plant advances on a fixed grid whatever the pattern of reads, commands take effect
-from the first grid step at or after their write time, and noise is drawn row by row, so the same seed and
-step id give identical arrays however often the scan is read. (`realtime=True` paces with the wall clock;
-write times then jitter, so only simulated time is bit-for-bit reproducible.)
+Several joints share one clock, one USB-3105 stand-in and one scan, and are simulated INDEPENDENTLY: each
+plant sees only its own channel's commands and its own device; no coupling through the leg's kinematic
+chain (thesis §1.3) is modelled. Every output write reaches every joint's model; each acts only on its own
+channel, at the write's time.
+
+Determinism: `SimulatedRig.begin_step(step_id, trial)` reseeds each joint's noise generator from
+sha256(joint seed, step id), draws the trial's friction spread from sha256(joint seed, trial), puts the
+joint at rest at the park angle and restarts the plant's time grid at the current clock. The joint seed is
+the session seed on a rig of one joint; on a rig of several each joint's is drawn from (session seed, joint
+name) (`joint_seed`), so the joints' noises are not copies of each other. The plant advances on a fixed grid
+whatever the pattern of reads, commands take effect from the first grid step at or after their write time,
+and noise is drawn row by row, so the same seed and step id give identical arrays however often the scan is
+read. (`realtime=True` paces with the wall clock; write times then jitter, so only simulated time is
+bit-for-bit reproducible.)
 """
 
 from __future__ import annotations
@@ -73,6 +81,12 @@ def step_seed(seed: int, step_id: str) -> int:
     return int.from_bytes(digest[:16], "little")
 
 
+def joint_seed(seed: int, joint: str) -> int:
+    """The seed of one joint's model on a rig of several joints: sha256 of the session seed and the joint's
+    name (64 bits)."""
+    return int.from_bytes(hashlib.sha256(f"{int(seed)}\x1fjoint\x1f{joint}".encode()).digest()[:8], "little")
+
+
 def spread_seed(seed: int, trial: str) -> int:
     """The seed of a trial's between-trial spread (`params.trial_factors`): `step_seed` of the session seed
     and the trial's name with a suffix, so that it is not the noise stream of any step."""
@@ -101,6 +115,7 @@ class _RigModel:
         output.listen(self.on_writes)
         self._output_channel = joint.output_channel
         self._inv_dt = 1.0 / params.plant_step_s
+        self.channels = (joint.angle_input_channel, joint.torque_input_channel)
         self.command_nonlinearity: CalibrationTable | None = (
             joint.command_table.inverse() if joint.command_table is not None else None
         )
@@ -235,60 +250,80 @@ class _RigModel:
 
 
 class SimulatedRig:
-    """The rig in a box for dry runs: a simulated clock, USB-3105 and DT9814 wired to a model of the RSST
-    joint named by `joint` (its ranges, channels, calibration tables and park angle) with or without a
-    device under test (`set_device`). Hand `make_rig()` to the steps exactly as the hardware rig would
-    be."""
+    """The rig in a box for dry runs: a simulated clock, USB-3105 and DT9814 wired to a model of each RSST
+    joint named by `joints` (its ranges, channels, calibration tables and park angle; `params`: one for
+    every joint or one per joint) with or without a device under test (`set_device`). Hand `make_rig()` to
+    the steps exactly as the hardware rig would be."""
 
     def __init__(
         self,
-        joint: JointConfig,
+        joints: Sequence[JointConfig],
         *,
         seed: int = 0,
-        params: SimulatorParams = DEFAULT_PARAMS,
+        params: SimulatorParams | Sequence[SimulatorParams] = DEFAULT_PARAMS,
         realtime: bool = False,
     ) -> None:
-        self.joint = joint
+        self.joints = tuple(joints)
+        if not self.joints:
+            raise InvalidInput("a simulated rig needs at least one joint")
+        each = [params] * len(self.joints) if isinstance(params, SimulatorParams) else list(params)
+        if len(each) != len(self.joints):
+            raise InvalidInput(f"{len(self.joints)} simulated joints need as many simulator parameter sets")
+        if len({p.plant_step_s for p in each}) != 1:
+            raise InvalidInput("the simulated joints of one rig need the same plant_step_s")
         self.seed = int(seed)
-        self.params = params
         self.clock = SimulatedClock(realtime=realtime)
         self.ao = SimulatedAnalogOutput(self.clock)
-        self._model = _RigModel(joint, params, self.seed, self.clock, self.ao)
-        self.ai = SimulatedAnalogInput(self._model, self.clock)
+        several = len(self.joints) > 1
+        self.models = tuple(
+            _RigModel(j, p, joint_seed(self.seed, j.name) if several else self.seed, self.clock, self.ao)
+            for j, p in zip(self.joints, each, strict=True)
+        )
+        self.ai = SimulatedAnalogInput(self.models, self.clock)
         self.begin_step("")
 
-    @property
-    def plant(self) -> JointPlant:
-        """The physical model (its real angle and load, for tests and diagnostics)."""
-        return self._model.plant
+    def _model(self, joint: str | None) -> _RigModel:
+        if joint is None:
+            if len(self.models) != 1:
+                raise InvalidInput(f"name the joint: the simulated rig has {len(self.models)}")
+            return self.models[0]
+        names = [j.name for j in self.joints]
+        if joint not in names:
+            raise InvalidInput(f"the simulated rig has no joint {joint!r} (it has {', '.join(names)})")
+        return self.models[names.index(joint)]
 
-    @property
-    def device(self) -> ComposedDevice | None:
-        """The device as fitted (its elements and how the plant composed them), or None."""
-        return self._model.plant.device
+    def plant(self, joint: str | None = None) -> JointPlant:
+        """The physical model of `joint` (the only one when None): its real angle and load, for tests and
+        diagnostics."""
+        return self._model(joint).plant
+
+    def device(self, joint: str | None = None) -> ComposedDevice | None:
+        """The device fitted to `joint` (the only one when None) as the plant composed it, or None."""
+        return self._model(joint).plant.device
 
     @property
     def step_id(self) -> str:
-        return self._model.step_id
+        return self.models[0].step_id
 
     def begin_step(self, step_id: str, trial: str | None = None) -> None:
-        """Start step `step_id`: reseed the noise from (seed, step id), draw the between-trial spread of
-        the friction terms from (seed, `trial`; the step id without one), put the joint at rest at the park
-        angle with its friction states relaxed, restart the plant's time grid now and clear the output
-        records. The device stays as fitted. Steps that name the same `trial` (a brace-on trial and its
-        brace-off twin) see the same robot and device friction."""
+        """Start step `step_id`: for every joint, reseed the noise from (its seed, step id), draw the
+        between-trial spread of the friction terms from (its seed, `trial`; the step id without one), put it
+        at rest at its park angle with its friction states relaxed, restart the plant's time grid now; clear
+        the output records. The devices stay as fitted. Steps that name the same `trial` (a brace-on trial
+        and its brace-off twin) see the same robot and device friction."""
         self.ao.clear_records()
-        self._model.begin_step(step_id, trial)
+        for m in self.models:
+            m.begin_step(step_id, trial)
 
-    def set_device(self, elements: Sequence[object] | None) -> None:
-        """The operator fits the device under test made of `elements` (or removes it, with None): objects
-        with .name, .type and .params (a mapping or (key, value) pairs, e.g. the protocol's resolved
-        ElementSetting), (name, type, params) tuples, or `models.elements.Element`. InvalidInput names a
-        bad element parameter."""
-        self._model.plant.set_device(elements)
+    def set_device(self, elements: Sequence[object] | None, *, joint: str | None = None) -> None:
+        """The operator fits the device under test made of `elements` to `joint` (the only one when None),
+        or removes it (with None): objects with .name, .type and .params (a mapping or (key, value) pairs,
+        e.g. the protocol's resolved ElementSetting), (name, type, params) tuples, or
+        `models.elements.Element`. InvalidInput names a bad element parameter."""
+        self._model(joint).plant.set_device(elements)
 
     def make_rig(self) -> Rig:
         """A `hardware.rig.Rig` bound to this simulator's boards and clock."""
         from protocol_runner.hardware.rig import Rig
 
-        return Rig(self.joint, self.ao, self.ai, self.clock)
+        return Rig(self.joints, self.ao, self.ai, self.clock)

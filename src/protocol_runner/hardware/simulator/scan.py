@@ -1,5 +1,6 @@
-"""The simulator's DT9814 stand-in: a hardware-paced scan whose reads integrate the simulated robot up to
-the rows they hand over (`daq._RigModel.acquire`)."""
+"""The simulator's DT9814 stand-in: a hardware-paced scan whose reads integrate the simulated robot joints up
+to the rows they hand over (`daq._RigModel.acquire`): each joint's model fills its own angle and torque
+columns; a scanned channel no joint is wired to carries the first joint's idle-channel noise."""
 
 from __future__ import annotations
 
@@ -30,7 +31,12 @@ how many compiled calls a dry run makes: one per second of scan instead of one p
 
 
 class RobotModel(Protocol):
-    """What the scan reads from: the simulated robot (`daq._RigModel`)."""
+    """What the scan reads from: one simulated robot joint (`daq._RigModel`)."""
+
+    @property
+    def channels(self) -> tuple[int, int]:
+        """Its (angle, torque) input channels."""
+        ...
 
     def acquire(
         self,
@@ -69,10 +75,12 @@ class SimulatedAnalogInput:
     integrates the simulated robot (lazily) up to the rows it hands over: the complete transfers
     (`transfer_s`; in real time every row) acquired since the last read."""
 
-    def __init__(self, model: RobotModel, clock: SimulatedClock) -> None:
-        self._model = model
+    def __init__(self, models: Sequence[RobotModel], clock: SimulatedClock) -> None:
+        self._models = tuple(models)
         self._clock = clock
         self._channels: tuple[int, ...] = ()
+        # per model reading this scan: its channels and their columns
+        self._plan: list[tuple[RobotModel, tuple[int, ...], list[int]]] = []
         self._scan: ScanState | None = None
         self.transfer_s = 0.0 if clock.realtime else TRANSFER_S
         """Scan time per transfer, for the scans started from now on (0: every row as soon as it is due)."""
@@ -91,6 +99,16 @@ class SimulatedAnalogInput:
                 f"all channels, got {rate_hz!r} Hz x {len(chans)} channels"
             )
         self._channels = chans
+        owner = [next((m for m in self._models if c in m.channels), self._models[0]) for c in chans]
+        self._plan = [
+            (
+                m,
+                tuple(c for c, o in zip(chans, owner, strict=True) if o is m),
+                [i for i, o in enumerate(owner) if o is m],
+            )
+            for m in self._models
+            if m in owner
+        ]
         transfer_rows = max(1, round(self.transfer_s * rate_hz))
         self._scan = ScanState(chans, float(rate_hz), self._clock.now_s(), transfer_rows)
 
@@ -104,14 +122,25 @@ class SimulatedAnalogInput:
             n_rows -= n_rows % scan.transfer_rows
         if n_rows <= 0:
             return scan.empty
-        t_s, codes, volts = self._model.acquire(
-            scan.t0_s,
-            scan.rate_hz,
-            scan.rows_read,
-            n_rows,
-            scan.channels,
-            scan.row_time_s(scan.rows_read + n_rows - 1),
-        )
+        until_s = scan.row_time_s(scan.rows_read + n_rows - 1)
+        parts = [
+            m.acquire(scan.t0_s, scan.rate_hz, scan.rows_read, n_rows, chans, until_s)
+            for m, chans, _ in self._plan
+        ]
+        if len(parts) == 1:  # one joint's model reads every column, in scan order
+            t_s, codes, volts = parts[0]
+        else:
+            rows = {p[1].shape[0] for p in parts}
+            if len(rows) != 1:
+                raise InvalidInput(
+                    "simulated joints on different integration grids (give them one plant_step_s)"
+                )
+            t_s = parts[0][0]
+            codes = np.zeros((rows.pop(), len(scan.channels)), dtype=np.int32)
+            volts = np.zeros(codes.shape, dtype=np.float64)
+            for (_, _, cols), (_, c, v) in zip(self._plan, parts, strict=True):
+                codes[:, cols] = c
+                volts[:, cols] = v
         scan.rows_read += codes.shape[0]
         return ScanBlock(t_s=t_s, codes=codes, volts=volts)
 

@@ -15,7 +15,7 @@ from protocol_runner.hardware.usb1608fs_protocol import N_CHANNELS
 log = logging.getLogger(__name__)
 
 
-class MultiBoardInput:
+class BoardGroup:
     """Several input boards seen as one `AnalogInput` with global channel numbers.
 
     Global channel ``g`` is local channel ``g % channels_per_board`` of board ``g // channels_per_board``
@@ -33,7 +33,7 @@ class MultiBoardInput:
 
     def __init__(self, boards: Sequence[AnalogInput], channels_per_board: int = N_CHANNELS) -> None:
         if not boards:
-            raise InvalidInput("MultiBoardInput needs at least one board")
+            raise InvalidInput("BoardGroup needs at least one board")
         self.boards = list(boards)
         self.channels_per_board = channels_per_board
         self._active: list[int] = []
@@ -134,7 +134,7 @@ class MultiBoardInput:
             raise errors[0]
         block = self._emit(final=True)
         if self.dropped_rows:
-            log.info("MultiBoardInput: dropped %d unmatched trailing rows", self.dropped_rows)
+            log.info("BoardGroup: dropped %d unmatched trailing rows", self.dropped_rows)
         self._active = []
         return block
 
