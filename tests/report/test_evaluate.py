@@ -22,6 +22,7 @@ def cfg(key: int, trial_means: list[float]) -> Configuration:
     return Configuration(
         name=f"config_{key}",
         key=key,
+        joint="j",
         run=key,
         set_name="s",
         condition="",

@@ -57,6 +57,7 @@ def config(
     return Configuration(
         name="config_1",
         key=1,
+        joint="j",
         run=1,
         set_name="s",
         condition="",

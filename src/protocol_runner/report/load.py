@@ -25,7 +25,7 @@ from protocol_runner.archive.verify import (
 )
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.declared import declared_count
-from protocol_runner.report.h5read import scalar_str
+from protocol_runner.report.h5read import attr_str, scalar_str
 from protocol_runner.report.load_configuration import read_configuration
 from protocol_runner.report.load_session import (
     read_calibration,
@@ -33,7 +33,7 @@ from protocol_runner.report.load_session import (
     read_references,
     read_session,
 )
-from protocol_runner.report.model import Configuration, ReportData
+from protocol_runner.report.model import Configuration, JointsTotal, ReportData
 from protocol_runner.report.parallel import map_in_processes
 
 
@@ -61,50 +61,65 @@ def load_report_data(
         with h5py.File(archive, "r") as h5:
             names = check_root(h5, archive)
         # the file is closed before the workers start: HDF5 handles must not be shared with a forked process
-        configurations = _load_configurations(archive, names, workers, verify)
+        configurations, totals = _load_configurations(archive, names, workers, verify)
         with h5py.File(archive, "r") as h5:
             if verify:  # the root's and every other group's attributes and datasets (configurations: above)
                 checker = Checker.of(h5, archive)
                 checker.check_tree(h5, skip=("configurations",))
                 checker.check_attributes(h5["configurations"])
-            return _read(h5, archive, configurations)
+            return _read(h5, archive, configurations, totals)
     except InvalidInput:
         raise
     except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:
         raise corrupt(archive, exc) from exc
 
 
-def _load_chunk(archive: Path, names: list[str], verify: bool = True) -> list[Configuration]:
+Loaded = tuple[list[Configuration], JointsTotal | None]
+"""A configuration group as read: one `Configuration` per joint, and the energy of all its joints together."""
+
+
+def _load_chunk(archive: Path, names: list[str], verify: bool = True) -> list[Loaded]:
     with h5py.File(archive, "r") as h5:
         checker = Checker.of(h5, archive) if verify else None
+        joints = attr_str(h5.attrs, "joint")
         out = []
         for name in names:
             if checker is not None:  # all of it, read or not: damage is named
                 checker.check_tree(h5["configurations"][name])
-            out.append(read_configuration(name, h5["configurations"][name]))
+            out.append(read_configuration(name, h5["configurations"][name], joints))
         return out
 
 
 def _load_configurations(
     archive: Path, names: list[str], workers: int | None, verify: bool
-) -> tuple[Configuration, ...]:
+) -> tuple[tuple[Configuration, ...], tuple[JointsTotal, ...]]:
+    """Every configuration group's joints, in key order (and channel order within a key), and the totals."""
     if workers is None:
         workers = 2 if len(names) >= 12 and (os.cpu_count() or 1) >= 2 else 1
-    configs: list[Configuration] | None = None
+    loaded: list[Loaded] | None = None
     if workers > 1 and len(names) >= 2:
-        parts = map_in_processes(_load_one, [(archive, name, verify) for name in names], workers, chunksize=2)
-        configs = parts
-    if configs is None:
-        configs = _load_chunk(archive, names, verify)
-    return tuple(sorted(configs, key=lambda c: c.key))
+        loaded = map_in_processes(
+            _load_one, [(archive, name, verify) for name in names], workers, chunksize=2
+        )
+    if loaded is None:
+        loaded = _load_chunk(archive, names, verify)
+    loaded.sort(key=lambda item: item[0][0].key if item[0] else item[1].key if item[1] else 0)
+    configurations = tuple(cfg for configs, _ in loaded for cfg in configs)
+    totals = tuple(total for _, total in loaded if total is not None)
+    return configurations, totals
 
 
-def _load_one(item: tuple[Path, str, bool]) -> Configuration:
+def _load_one(item: tuple[Path, str, bool]) -> Loaded:
     archive, name, verify = item
     return _load_chunk(archive, [name], verify)[0]
 
 
-def _read(h5: h5py.File, archive: Path, configurations: tuple[Configuration, ...]) -> ReportData:
+def _read(
+    h5: h5py.File,
+    archive: Path,
+    configurations: tuple[Configuration, ...],
+    totals: tuple[JointsTotal, ...],
+) -> ReportData:
     session = read_session(h5, archive)
     calibration = read_calibration(h5)
     comparisons = read_comparisons(h5)
@@ -128,4 +143,6 @@ def _read(h5: h5py.File, archive: Path, configurations: tuple[Configuration, ...
         references=references,
         protocol_text=protocol_text,
         notes=tuple(notes),
+        joints=session.joints or tuple(dict.fromkeys(cfg.joint for cfg in configurations)),
+        totals=totals,
     )

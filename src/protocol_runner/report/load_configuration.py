@@ -1,9 +1,10 @@
-"""One configuration group of an archive, for the report: trials, processed loops, energies and fits
-(docs/archive.md)."""
+"""One configuration group of an archive, for the report: per joint, its trials, processed loops, energies
+and fits, and the energy of all joints together (docs/archive.md, "Several joints"). Every per-joint group
+is read through `archive.paths.joint_groups`, so a single-joint archive written without a `joints/` level
+reads as one joint."""
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Mapping
 from typing import Any
@@ -12,12 +13,14 @@ import h5py
 import numpy as np
 
 from protocol_runner.archive.model_results import strings
+from protocol_runner.archive.paths import JOINTS, joint_groups
 from protocol_runner.report.h5read import (
     attr_bool,
     attr_float,
     attr_int,
     attr_str,
     decimate_for_plot,
+    decode,
     float_ds,
     read_only,
     read_record,
@@ -28,6 +31,7 @@ from protocol_runner.report.model import (
     BraceOffMatch,
     Configuration,
     ElementFit,
+    JointsTotal,
     ProcessedTrial,
     Recording,
     Trial,
@@ -35,82 +39,137 @@ from protocol_runner.report.model import (
 from protocol_runner.report.settings_view import elements_from_json, settings_from_attrs
 
 
-def _read_recording(grp: h5py.Group) -> Recording:
-    return read_record(Recording, grp)
+def _read_recording(joint: h5py.Group, shared: h5py.Group) -> Recording:
+    """One joint's recording: its own group `joint` (the brace group itself for a single-joint archive),
+    with the time base and the output loop's lateness of the trial's `shared` brace group where the joint's
+    group does not repeat them."""
+    given: dict[str, Any] = {
+        name: decimate_for_plot(float_ds(shared, name))
+        for name in ("time_s", "command_time_s")
+        if name not in joint
+    }
+    if "tick_lateness_p99_s" not in joint.attrs:
+        given["tick_lateness_p99_s"] = attr_float(shared.attrs, "tick_lateness_p99_s")
+    return read_record(Recording, joint, **given)
 
 
-def _trial_numbers(trials: h5py.Group) -> list[tuple[int, str]]:
-    numbered: list[tuple[int, str]] = []
-    for name in trials:
-        try:
-            numbered.append((int(name), name))
-        except ValueError:
-            continue
+def _trial_numbers(*trials: h5py.Group | None) -> list[tuple[int, str]]:
+    numbered: set[tuple[int, str]] = set()
+    for group in trials:
+        for name in group or ():
+            try:
+                numbered.add((int(name), name))
+            except ValueError:
+                continue
     return sorted(numbered)
 
 
-def read_configuration(name: str, grp: h5py.Group) -> Configuration:
+def read_configuration(
+    name: str, grp: h5py.Group, archive_joints: str
+) -> tuple[list[Configuration], JointsTotal | None]:
+    """Configuration group `grp` (`name`) as one `Configuration` per joint, in channel order, and the energy
+    of all its joints together when it drives several. `archive_joints` is the root attribute `joint`: it
+    names the joint of a group written without a `joints/` level (`archive.paths.joint_groups`)."""
+    parts: list[tuple[str, h5py.Group | None]] = list(joint_groups(grp, archive_joints))
+    if JOINTS not in grp and JOINTS in grp.attrs:  # several joints, none processed yet: their recordings
+        parts = [(str(j), None) for j in decode(np.atleast_1d(grp.attrs[JOINTS]))]
+    configs = [_read_joint(name, grp, joint, results, archive_joints) for joint, results in parts]
+    total = None
+    if "total_energy_loss_j" in grp:
+        energy = float_ds(grp, "total_energy_loss_j")
+        total = JointsTotal(
+            key=configs[0].key if configs else group_fields(name, grp.attrs, 0)["key"],
+            energy_loss_j=read_only(energy),
+            energy_cycle_trial=read_only(_cycle_trials(grp, "total_energy_cycle_trial", energy.size)),
+        )
+    return configs, total
+
+
+def _cycle_trials(grp: h5py.Group, name: str, n_cycles: int) -> np.ndarray:
+    """The trial of each cycle (dataset `name`), zeros when it does not match the `n_cycles` energies."""
+    cycle_trial = float_ds(grp, name)
+    return cycle_trial if cycle_trial.size == n_cycles else np.zeros(n_cycles)
+
+
+def _joint_part(group: h5py.Group, joint: str, archive_joints: str) -> h5py.Group | None:
+    """Joint `joint`'s part of `group` (a trial's brace group), None when it has none."""
+    return next((g for j, g in joint_groups(group, archive_joints) if j == joint), None)
+
+
+def _read_joint(
+    name: str, grp: h5py.Group, joint: str, results: h5py.Group | None, archive_joints: str
+) -> Configuration:
+    """Joint `joint`'s part of configuration group `grp`: its recordings from the trial groups `grp/trials`,
+    its processing from `results` (`grp/joints/<joint>`, or `grp` itself for a single-joint archive; None
+    before it is processed)."""
     trials: list[Trial] = []
     angles: list[np.ndarray] = []
     torques: list[np.ndarray] = []
     raw_loaded = False
     trajectory_json = ""
-    if "trials" in grp:
-        trials_grp = grp["trials"]
-        for number, tname in _trial_numbers(trials_grp):
-            tgrp = trials_grp[tname]
-            on = off = None
-            sides = [side for side in ("brace_on", "brace_off") if side in tgrp]
-            has_raw = bool(sides)
-            # Only the first recorded trial's raw data is plotted (angle/torque vs time): reading and
-            # decompressing the others would dominate the report's regeneration time.
-            if has_raw and not raw_loaded:
-                if "brace_on" in sides:
-                    trajectory_json = attr_str(tgrp["brace_on"].attrs, "trajectory")
-                on = _read_recording(tgrp["brace_on"]) if "brace_on" in sides else None
-                off = _read_recording(tgrp["brace_off"]) if "brace_off" in sides else None
-                raw_loaded = True
-            processed = None
-            if "processed" in tgrp:
-                pgrp = tgrp["processed"]
-                angle = float_ds(pgrp, "angle_deg")
-                torque = float_ds(pgrp, "brace_torque_nm")
-                n = min(angle.size, torque.size)
-                angle, torque = angle[:n], torque[:n]
-                angles.append(angle)
-                torques.append(torque)
-                processed = ProcessedTrial(
-                    angle_deg=decimate_for_plot(angle),
-                    brace_torque_nm=decimate_for_plot(torque),
-                    subtraction=attr_str(pgrp.attrs, "subtraction", "equal_angle"),
-                    filter_text=_filter_text(pgrp.attrs),
-                    range_deg=range_of(angle, torque),
-                    slope_nm_per_deg=slope_of(angle, torque),
-                    peak_nm=peak_of(angle, torque),
-                )
-            trials.append(
-                Trial(
-                    number=number,
-                    brace_on=on,
-                    brace_off=off,
-                    processed=processed,
-                    recorded=has_raw,
-                    match=brace_off_match(tgrp),
-                )
+    raw_trials = grp.get("trials")
+    processed_trials = results.get("trials") if results is not None else None
+    for number, tname in _trial_numbers(raw_trials, processed_trials):
+        tgrp = raw_trials.get(tname) if raw_trials is not None else None
+        sides = {
+            side: part
+            for side in ("brace_on", "brace_off")
+            if tgrp is not None and side in tgrp
+            if (part := _joint_part(tgrp[side], joint, archive_joints)) is not None
+        }
+        on = off = None
+        # Only the first recorded trial's raw data is plotted (angle/torque vs time): reading and
+        # decompressing the others would dominate the report's regeneration time.
+        if sides and not raw_loaded:
+            assert tgrp is not None
+            if "brace_on" in sides:
+                trajectory_json = attr_str(sides["brace_on"].attrs, "trajectory")
+                on = _read_recording(sides["brace_on"], tgrp["brace_on"])
+            if "brace_off" in sides:
+                off = _read_recording(sides["brace_off"], tgrp["brace_off"])
+            raw_loaded = True
+        ptrial = processed_trials.get(tname) if processed_trials is not None else None
+        pgrp = ptrial.get("processed") if ptrial is not None else None
+        processed = None
+        if pgrp is not None:
+            angle = float_ds(pgrp, "angle_deg")
+            torque = float_ds(pgrp, "brace_torque_nm")
+            n = min(angle.size, torque.size)
+            angle, torque = angle[:n], torque[:n]
+            angles.append(angle)
+            torques.append(torque)
+            processed = ProcessedTrial(
+                angle_deg=decimate_for_plot(angle),
+                brace_torque_nm=decimate_for_plot(torque),
+                subtraction=attr_str(pgrp.attrs, "subtraction", "equal_angle"),
+                filter_text=_filter_text(pgrp.attrs),
+                range_deg=range_of(angle, torque),
+                slope_nm_per_deg=slope_of(angle, torque),
+                peak_nm=peak_of(angle, torque),
             )
+        trials.append(
+            Trial(
+                number=number,
+                brace_on=on,
+                brace_off=off,
+                processed=processed,
+                recorded=bool(sides),
+                match=brace_off_match(sides.get("brace_off"), pgrp),
+            )
+        )
     angle_min, angle_max, slope = _summary(angles, torques)
-    energy = float_ds(grp, "energy_loss_j")
-    cycle_trial = float_ds(grp, "energy_cycle_trial")
-    if cycle_trial.size != energy.size:
-        cycle_trial = np.zeros(energy.size)
+    fits = results if results is not None else {}
+    energy = float_ds(results, "energy_loss_j") if results is not None else read_only(np.empty(0))
+    cycle_trial = _cycle_trials(results, "energy_cycle_trial", energy.size) if results is not None else energy
     return Configuration(
         name=name,
+        joint=joint,
         **group_fields(name, grp.attrs, len(trials)),
         trials=tuple(trials),
         energy_loss_j=read_only(energy),
         energy_cycle_trial=read_only(cycle_trial),
-        bouc_wen=_read_bouc_wen(grp["fits/bouc_wen"]) if "fits/bouc_wen" in grp else None,
-        element_fit=_read_element_fit(grp["fits/elements"], name) if "fits/elements" in grp else None,
+        bouc_wen=_read_bouc_wen(fits["fits/bouc_wen"]) if "fits/bouc_wen" in fits else None,
+        element_fit=_read_element_fit(fits["fits/elements"], name) if "fits/elements" in fits else None,
         angle_min_deg=angle_min,
         angle_max_deg=angle_max,
         torque_slope_nm_per_deg=slope,
@@ -118,22 +177,23 @@ def read_configuration(name: str, grp: h5py.Group) -> Configuration:
     )
 
 
-def brace_off_match(trial: h5py.Group) -> BraceOffMatch:
-    """How well the brace-off twin of the trial stored in `trial` (`trials/<n>`) matched it: the kept
-    scaling run's error and the runs (`brace_off/scaling`), whether it converged, and the clipped fraction
-    (1 - `processed` @coverage). The report's per-trial table and trials.csv both read it here."""
+def brace_off_match(brace_off: h5py.Group | None, processed: h5py.Group | None) -> BraceOffMatch:
+    """How well one joint's brace-off twin matched its trial: the kept scaling run's error and the runs
+    (`scaling/` of the joint's brace-off group `brace_off`), whether it converged, and the clipped fraction
+    (1 - the joint's `processed` @coverage). The report's per-trial table and trials.csv both read it
+    here."""
     error: float | None = None
     runs: int | None = None
     converged: bool | None = None
-    if "brace_off/scaling" in trial and "range_error_deg" in trial["brace_off/scaling"]:
-        g = trial["brace_off/scaling"]
+    if brace_off is not None and "scaling" in brace_off and "range_error_deg" in brace_off["scaling"]:
+        g = brace_off["scaling"]
         errors = np.asarray(g["range_error_deg"][()], dtype=float)
         kept = attr_int(g.attrs, "kept_iteration", int(np.argmin(errors)) + 1)
         error, runs = float(errors[kept - 1]), int(errors.size)
         converged = attr_bool(g.attrs, "converged", False)
     clipped: float | None = None
-    if "processed" in trial and "coverage" in trial["processed"].attrs:
-        clipped = 1.0 - attr_float(trial["processed"].attrs, "coverage")
+    if processed is not None and "coverage" in processed.attrs:
+        clipped = 1.0 - attr_float(processed.attrs, "coverage")
     return BraceOffMatch(error, runs, converged, clipped)
 
 
@@ -150,11 +210,6 @@ def group_fields(name: str, attrs: Mapping[str, Any], n_trials: int) -> dict[str
         "n_trials_planned": attr_int(attrs, "n_trials", n_trials),
         "settings": settings_from_attrs(attrs, f"configuration {name}"),
     }
-
-
-def with_group_attrs(cfg: Configuration, attrs: Mapping[str, Any]) -> Configuration:
-    """`cfg` as read from a group whose own attributes are `attrs` (its members unchanged)."""
-    return dataclasses.replace(cfg, **group_fields(cfg.name, attrs, len(cfg.trials)))
 
 
 def _key_from_name(name: str) -> int:

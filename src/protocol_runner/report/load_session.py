@@ -9,6 +9,7 @@ from pathlib import Path
 import h5py
 
 from protocol_runner.analysis.reference import ReferenceDataset
+from protocol_runner.archive.paths import joint_groups
 from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.report.h5read import (
     MAX_PLOT_POINTS,
@@ -106,19 +107,25 @@ def _readable_value(value: object) -> str:
 
 
 def read_calibration(h5: h5py.File) -> tuple[CalibrationCheck, ...]:
+    """Every calibration check, one per joint (`archive.paths.joint_groups`: a check of several joints holds
+    one group per joint, each with its own verdict; the limits are the check's)."""
+    archive_joints = attr_str(h5.attrs, "joint")
     checks = [
         read_record(
             CalibrationCheck,
-            grp,
+            part,
             set_name=set_name,
             when=when,
-            verdict=attr_str(grp.attrs, "verdict", "unknown"),
+            joint=joint,
+            verdict=attr_str(part.attrs, "verdict", "unknown"),
+            limits=attr_str(part.attrs, "limits", attr_str(grp.attrs, "limits")),
         )
         for set_name, set_grp in subgroups(h5, "calibration")
         for when, grp in subgroups(set_grp)
+        for joint, part in joint_groups(grp, archive_joints)
     ]
     order = {"before": 0, "after": 2}
-    checks.sort(key=lambda c: (c.set_name, order.get(c.when, 1), c.when))
+    checks.sort(key=lambda c: (c.set_name, order.get(c.when, 1), c.when))  # stable: channel order kept
     return tuple(checks)
 
 

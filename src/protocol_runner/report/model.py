@@ -74,6 +74,11 @@ class SessionInfo:
         return self.status == "complete"
 
     @property
+    def joints(self) -> tuple[str, ...]:
+        """The driven joints, in channel order (the root attribute `joint`, comma-separated)."""
+        return tuple(j.strip() for j in self.joint.split(",") if j.strip())
+
+    @property
     def interruptions(self) -> tuple[SessionEvent, ...]:
         """The interruption and resume events, in the order they happened."""
         return tuple(e for e in self.events if e.kind in ("interrupted", "resumed"))
@@ -81,10 +86,12 @@ class SessionInfo:
 
 @dataclass(frozen=True)
 class CalibrationCheck:
-    """A calibration step response (`/calibration/<set>/<when>`, Appendix A "Calibration": a 45° step)."""
+    """One joint's calibration step response (`/calibration/<set>/<when>`, or its `joints/<joint>` with
+    several joints; Appendix A "Calibration": a 45° step)."""
 
     set_name: str
     when: str
+    joint: str
     step_id: str
     verdict: str
     step_deg: float
@@ -131,7 +138,7 @@ class BraceOffMatch:
     the kept scaling run's cycle-range error (deg), the robot runs the scaling made, whether the error is
     within the protocol's tolerance, and the clipped fraction (share of brace-on samples beyond the
     brace-off range, 1 - the processed data's `coverage`). None where the archive holds no value (an
-    equal-time subtraction, a multi-joint trial, a trial not processed)."""
+    equal-time subtraction, a brace-off twin replayed without scaling, a trial not processed)."""
 
     scaling_error_deg: float | None = None
     scaling_runs: int | None = None
@@ -233,10 +240,13 @@ class ElementFit(FittedCurve):
 
 @dataclass(frozen=True)
 class Configuration:
-    """One row of the test matrix (Appendix A, Table 5) with its trials and results."""
+    """One joint's part of one row of the test matrix (Appendix A, Table 5): the row's identity and
+    settings, and that joint's trials and results. A configuration driving several joints is one
+    `Configuration` per joint, each with the same key."""
 
     name: str
     key: int
+    joint: str
     run: int
     set_name: str
     condition: str
@@ -281,8 +291,33 @@ class Configuration:
 
 
 @dataclass(frozen=True)
+class JointsTotal:
+    """The energy lost per cycle by all the driven joints of a configuration together (its
+    `total_energy_loss_j` and `total_energy_cycle_trial`, docs/archive.md "Several joints": for each trial,
+    the sum over the joints of their k-th complete cycle's energy)."""
+
+    key: int
+    energy_loss_j: FloatArray
+    energy_cycle_trial: FloatArray
+
+    @property
+    def energy_mean_j(self) -> float:
+        """Mean energy lost per cycle by all joints together, over every cycle of every trial; NaN if none."""
+        return energy_mean_std_j(self.energy_loss_j)[0]
+
+    @property
+    def energy_std_j(self) -> float:
+        """Sample standard deviation of that energy per cycle (spread across cycles and trials)."""
+        return energy_mean_std_j(self.energy_loss_j)[1]
+
+
+@dataclass(frozen=True)
 class ReportData:
-    """Everything the report shows, read from one archive."""
+    """Everything the report shows, read from one archive.
+
+    `configurations` holds one `Configuration` per configuration and driven joint, in key order and, within
+    a key, in the joints' channel order (`joints`); `totals` the energy of all joints together of each
+    configuration driving several joints (none for a single joint)."""
 
     session: SessionInfo
     configurations: tuple[Configuration, ...]
@@ -291,10 +326,38 @@ class ReportData:
     references: tuple[ReferenceDataset, ...] = ()
     protocol_text: str = ""
     notes: tuple[str, ...] = field(default=())
+    joints: tuple[str, ...] = ()
+    totals: tuple[JointsTotal, ...] = ()
 
-    def configuration(self, key: int) -> Configuration | None:
-        """The configuration with matrix key `key`, or None if the archive has none."""
-        return next((cfg for cfg in self.configurations if cfg.key == key), None)
+    @property
+    def multi_joint(self) -> bool:
+        """True when the archive drives several joints (its figures and tables are then per joint)."""
+        return len(self.joints) > 1
+
+    @property
+    def keys(self) -> tuple[int, ...]:
+        """The configuration keys, in order, each once."""
+        return tuple(dict.fromkeys(cfg.key for cfg in self.configurations))
+
+    def configuration(self, key: int, joint: str | None = None) -> Configuration | None:
+        """The part of configuration `key` of joint `joint` (None: of its first driven joint, the only one
+        of a single-joint archive), or None if the archive has none."""
+        return next(
+            (cfg for cfg in self.configurations if cfg.key == key and joint in (None, cfg.joint)), None
+        )
+
+    def joint_configurations(self, key: int) -> tuple[Configuration, ...]:
+        """Every joint's part of configuration `key`, in channel order (empty if the archive has none)."""
+        return tuple(cfg for cfg in self.configurations if cfg.key == key)
+
+    def of_joint(self, joint: str) -> tuple[Configuration, ...]:
+        """Joint `joint`'s part of every configuration, in key order."""
+        return tuple(cfg for cfg in self.configurations if cfg.joint == joint)
+
+    def total(self, key: int) -> JointsTotal | None:
+        """The energy of all joints together of configuration `key`, or None (a single joint, or none
+        recorded)."""
+        return next((t for t in self.totals if t.key == key), None)
 
     def comparison(self, name: str) -> Comparison | None:
         """The comparison called `name`, or None."""

@@ -11,6 +11,7 @@ Public API:
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 import re
@@ -97,15 +98,7 @@ def generate_report(
     data = load_report_data(archive_path, workers=workers)
     if reference is not None:
         ref = load_reference_dataset(Path(reference))
-        data = ReportData(
-            session=data.session,
-            configurations=data.configurations,
-            calibration=data.calibration,
-            comparisons=data.comparisons,
-            references=(*data.references, ref),
-            protocol_text=data.protocol_text,
-            notes=data.notes,
-        )
+        data = dataclasses.replace(data, references=(*data.references, ref))
     if output is None:
         output = Path(data.session.archive_path).parent / "report.html"
     return render_report(data, Path(output), workers=workers)
