@@ -118,7 +118,10 @@ def check_expectations(
         if joints and spec.joint is not None and spec.joint not in joints:
             close = difflib.get_close_matches(spec.joint, list(joints), n=1, cutoff=0.75)
             hint = f"; did you mean {close[0]!r}?" if close else ""
-            yield ("expectations", i, "joint"), f"{spec.joint!r} is not one of the driven joints ({shown}){hint}"
+            yield (
+                ("expectations", i, "joint"),
+                f"{spec.joint!r} is not one of the driven joints ({shown}){hint}",
+            )
         if several and spec.joint is None and spec.joints is None:
             yield (
                 ("expectations", i),
