@@ -24,10 +24,18 @@ compressed; MATLAB's and Octave's `load` read them). Types, names and orientatio
                     and curves (angle_deg, torque_nm, model_torque_nm), when fitted
     calibration     struct: the calibration records of the configuration's set (before, after, resume_n)
 
+These are a configuration of one joint's, whatever the archive's layout (its groups keyed by joint or
+not: `archive.paths.joint_groups`). A configuration of several joints has them per joint in
+`joints.<joint>` (trial_n with that joint's processed data and recordings, its energies, fits and
+calibration records), and at the top what the joints share: trial_n with each recording's attributes and
+common time base, total_energy_loss_j (with total_energy_mean_j, total_energy_std_j) and calibration
+(each record's verdict over the joints).
+
 `session.mat`: meta, units, and every root member of the archive but the configurations: protocol (text)
 and protocol_filename, rig (text) and rig_filename, plan (JSON text), session (events: cell of JSON lines; checklists), calibration
 (every set), comparisons, reference; and configurations: a summary struct per configuration (its
-attributes, energy_mean_j, energy_std_j, energy_cycles and the name of its file).
+attributes, energy_mean_j, energy_std_j, energy_cycles and the name of its file; of several joints, those
+per joint in joints.<joint> and total_energy_mean_j, total_energy_std_j, total_energy_cycles).
 """
 
 from __future__ import annotations
