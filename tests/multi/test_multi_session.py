@@ -142,41 +142,6 @@ def test_resume_inside_the_multi_joint_set_is_bit_identical(
         assert "joints" in f["calibration/leg/resume_1"]  # the extra check on resuming: per joint too
 
 
-def test_the_report_has_a_joints_section_with_energy_per_joint_and_in_total(reference: Path) -> None:
-    from protocol_runner.report.multi_joint import joints_section
-
-    html = (reference.parent / "report.html").read_text(encoding="utf-8")
-    assert '<section id="joints">' in html and 'id="joints-config-2"' in html
-    assert '<a href="#joints">Joints</a>' in html or 'href="#joints"' in html
-    section = joints_section(reference)
-    assert section is not None and section.joints == tuple(JOINTS)
-    (cfg,) = section.configurations
-    with h5py.File(reference, "r") as f:
-        total = f["configurations/config_02/total_energy_loss_j"][:]
-    assert cfg.total.mean_j == pytest.approx(float(np.mean(total)))
-    assert cfg.total.mean_j == pytest.approx(sum(e.mean_j for e in cfg.energies), rel=0.05)
-    assert cfg.phase_uri.startswith("data:image/png;base64,") and cfg.loops_uri != cfg.phase_uri
-
-
-def test_a_single_joint_archive_has_no_joints_section(tmp_path: Path) -> None:
-    from protocol_runner.report.multi_joint import joints_section
-
-    session = tmp_path / "knee"
-    code = run(
-        str(REPO / "protocols" / "ankle_phase2.yaml"),
-        dry_run=True,
-        session=session,
-        seed=1,
-        yes=True,
-        only=[2],
-        realtime=False,
-        quiet=True,
-    )
-    assert code == 0
-    assert joints_section(session / "archive.h5") is None
-    assert 'id="joints"' not in (session / "report.html").read_text(encoding="utf-8")
-
-
 def test_reprocess_of_a_multi_joint_archive_reproduces_the_sessions_numbers(
     reference: Path, tmp_path: Path
 ) -> None:

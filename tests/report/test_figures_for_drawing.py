@@ -16,7 +16,7 @@ def test_figures_drawn_from_the_slimmed_data_are_the_same_bytes(small_archive: P
     data = load_report_data(small_archive, verify=False)
     ids = figure_ids(data)
     first = data.configurations[0]
-    own = [job_id for job_id, _, _ in configuration_jobs(first)]
+    own = [job_id for job_id, _, _ in configuration_jobs([first])]
     others = [i for i in ids if not i.startswith("fig-config-")]
     assert own and others  # a configuration's figures and cross-configuration ones are both exercised
     for chunk in (own + others, others, ids[::3]):
@@ -30,7 +30,7 @@ def test_recordings_are_kept_only_for_the_configurations_whose_own_figures_are_a
     data = load_report_data(small_archive, verify=False)
     first, *rest = data.configurations
     assert rest and any(t.brace_on is not None for c in data.configurations for t in c.trials)
-    own = [job_id for job_id, _, _ in configuration_jobs(first)]
+    own = [job_id for job_id, _, _ in configuration_jobs([first])]
     slim = for_drawing(data, own)
     assert slim.configurations[0] == first  # the same object: nothing dropped
     for cfg in slim.configurations[1:]:

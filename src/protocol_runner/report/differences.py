@@ -2,7 +2,8 @@
 
 - Differences: for each declared comparison, the energy per cycle of configuration b minus configuration a
   for each of its declared `pairs` (a, b), in their order (a paired design: 12 against 1, 13 against 2),
-  or else each configuration minus the one before it in the declared order (adjacent differences); with
+  or else each configuration minus the one before it in the declared order (adjacent differences), for
+  each joint (and all joints together) when there are several; with
   the 95 % Welch interval on trial means (`analysis.statistics.welch_interval`) and its two-sided p-value,
   Holm-adjusted over the differences of that comparison (one table, one family).
 - Repeatability: for each group the protocol declares in `report.repeatability` (configurations with
@@ -24,7 +25,7 @@ from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.protocol.schema import ComparisonSpec
 from protocol_runner.report.declared import declared_entries
 from protocol_runner.report.evaluate import format_p
-from protocol_runner.report.headline import group_repeatability
+from protocol_runner.report.headline import ALL_JOINTS, campaign_stats, group_repeatability
 from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import ReportData
 
@@ -39,6 +40,7 @@ class Difference:
     energy: WelchInterval
     trials: tuple[int, int]  # trials of base, of key
     p_adjusted: float
+    joint: str = ""  # with several joints: the joint, or "all joints" together
 
     @property
     def label(self) -> str:
@@ -70,20 +72,37 @@ def declared_pairs(data: ReportData, comparison: Comparison) -> tuple[tuple[int,
 
 def declared_differences(data: ReportData, comparison: Comparison) -> tuple[Difference, ...]:
     """b minus a for each declared pair (a, b) of `comparison` whose configurations are both present, in
-    the declared order; without pairs, each present configuration minus the present one before it."""
+    the declared order; without pairs, each present configuration minus the present one before it. With
+    several joints, these for each joint in channel order and then for all joints together; the Holm
+    adjustment is over every row (one table, one family)."""
     pairs = declared_pairs(data, comparison)
     if pairs is None:
         present = [k for k in comparison.configurations if data.configuration(k) is not None]
         pairs = tuple(pairwise(dict.fromkeys(present)))
-    rows: list[tuple[int, int, WelchInterval, tuple[int, int]]] = []
-    for base, key in pairs:
-        cb, ck = data.configuration(base), data.configuration(key)
-        if cb is None or ck is None:
-            continue
-        a, b = trial_values(cb, "energy_per_cycle"), trial_values(ck, "energy_per_cycle")
-        rows.append((base, key, welch_interval(a, b), (len(a), len(b))))
-    adjusted = holm([w.p_value for _, _, w, _ in rows])
-    return tuple(Difference(*row, p_adjusted=p) for row, p in zip(rows, adjusted, strict=True))
+    rows: list[tuple[int, int, WelchInterval, tuple[int, int], str]] = []
+    for joint in data.joints if data.multi_joint else ("",):
+        for base, key in pairs:
+            a, b = _trial_energies(data, base, joint), _trial_energies(data, key, joint)
+            if a is not None and b is not None:
+                rows.append((base, key, welch_interval(a, b), (len(a), len(b)), joint))
+    if data.multi_joint and data.totals:
+        for base, key in pairs:
+            ta, tb = campaign_stats(data, base), campaign_stats(data, key)
+            if ta is not None and tb is not None:
+                a, b = ta.trial_energy_j, tb.trial_energy_j
+                rows.append((base, key, welch_interval(a, b), (len(a), len(b)), ALL_JOINTS))
+    adjusted = holm([w.p_value for _, _, w, _, _ in rows])
+    return tuple(
+        Difference(base, key, w, trials, p_adjusted=p, joint=joint)
+        for (base, key, w, trials, joint), p in zip(rows, adjusted, strict=True)
+    )
+
+
+def _trial_energies(data: ReportData, key: int, joint: str) -> tuple[float, ...] | None:
+    """Joint `joint`'s ("": the only joint's) energy per cycle of each trial of configuration `key`, or None
+    when the archive does not hold it."""
+    cfg = data.configuration(key, joint or None)
+    return None if cfg is None else trial_values(cfg, "energy_per_cycle")
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import base64
 import io
+import math
 import textwrap
+from typing import Any
 
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
@@ -78,9 +80,24 @@ def legend(ax: Axes) -> None:
     and never over a line (loc="best" inside the axes moves from figure to figure and can hide data). In a
     two-panel figure it is the key of both panels, which draw the same series in the same colours."""
     handles, labels = ax.get_legend_handles_labels()
+    _key(ax.get_figure(), handles, labels)
+
+
+def grid_legend(axes: list[Axes]) -> None:
+    """`legend` of a grid of panels (`new_grid`): the key of every panel's labelled artists, each label
+    once (the panels draw the same series in the same colours; a series some panels lack, such as a fit
+    only some joints have, is still in it)."""
+    seen: dict[str, Any] = {}
+    for ax in axes:
+        for handle, label in zip(*ax.get_legend_handles_labels(), strict=True):
+            seen.setdefault(label, handle)
+    if axes:
+        _key(axes[0].get_figure(), list(seen.values()), list(seen))
+
+
+def _key(fig: object, handles: list[Any], labels: list[str]) -> None:
     if not handles:
         return
-    fig = ax.get_figure()
     assert isinstance(fig, Figure)
     boxes = [a.get_position() for a in fig.axes]
     right, top = max(b.x1 for b in boxes), max(b.y1 for b in boxes)
@@ -99,6 +116,46 @@ def legend(ax: Axes) -> None:
         handlelength=1.6,
         labelspacing=0.35,
     )
+
+
+PANEL_IN = (2.6, 2.2)  # one panel of a grid: width and height in inches, its labels and title included
+PANEL_MARGINS_IN = (0.55, 0.45, 0.2, 0.35)  # inside a panel, around its axes: left, bottom, right, top
+KEY_IN = 1.5  # right of a grid: the colour key
+GRID_COLUMNS = 4  # panels per row: four joints' panels, or two joints' pairs of panels
+LABEL_SIZE = 8.0  # a grid panel's axis labels (points)
+
+
+def new_grid(n_panels: int, columns: int) -> tuple[Figure, list[Axes]]:
+    """A new figure of `n_panels` small panels (one joint's each, or two per joint), `columns` per row and
+    rows as many as needed, in reading order, with room for the colour key at the right (`grid_legend`):
+    small multiples, each panel as legible at twelve joints as at two."""
+    columns = max(1, min(columns, n_panels))
+    rows = max(1, math.ceil(n_panels / columns))
+    panel_w, panel_h = PANEL_IN
+    left, bottom, right, top = PANEL_MARGINS_IN
+    width_in, height_in = columns * panel_w + KEY_IN, rows * panel_h
+    fig = Figure(figsize=(width_in, height_in), dpi=DPI)
+    axes = []
+    for k in range(n_panels):
+        row, column = divmod(k, columns)
+        rect = (
+            (column * panel_w + left) / width_in,
+            ((rows - 1 - row) * panel_h + bottom) / height_in,
+            (panel_w - left - right) / width_in,
+            (panel_h - bottom - top) / height_in,
+        )
+        ax = fig.add_axes(rect)
+        ax.xaxis.set_major_locator(MaxNLocator(nbins=4))
+        ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
+        axes.append(ax)
+    return fig, axes
+
+
+def panel_style(ax: Axes, xlabel: str, ylabel: str, title: str) -> None:
+    """`style` for a grid panel: the same, with axis labels sized to the panel."""
+    style(ax, xlabel, ylabel, title)
+    ax.xaxis.label.set_fontsize(LABEL_SIZE)
+    ax.yaxis.label.set_fontsize(LABEL_SIZE)
 
 
 def finish(fig: Figure, ax: Axes, xlabel: str, ylabel: str, title: str) -> str:

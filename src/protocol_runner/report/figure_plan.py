@@ -47,8 +47,8 @@ def figure_jobs(data: ReportData) -> list[FigureJob]:
     for set_name in sorted({c.set_name for c in data.calibration}):
         checks = [c for c in data.calibration if c.set_name == set_name]
         jobs.append((f"fig-calibration-{slug(set_name)}", "calibration", (set_name, checks)))
-    for cfg in data.configurations:
-        jobs.extend(configuration_jobs(cfg))
+    for key in data.keys:
+        jobs.extend(configuration_jobs(data.joint_configurations(key)))
     for comp in distinct_comparisons(data):
         jobs.append((f"fig-comparison-{slug(comp.name)}-overlay", "comparison_overlay", (data, comp)))
         jobs.append((f"fig-comparison-{slug(comp.name)}-energy", "energy_bars", (data, comp)))
@@ -59,13 +59,17 @@ def figure_jobs(data: ReportData) -> list[FigureJob]:
     return jobs
 
 
-def configuration_jobs(cfg: Configuration) -> list[FigureJob]:
-    """The figures of one configuration (none before its first trial)."""
-    if not cfg.trials:
+def configuration_jobs(cfgs: Sequence[Configuration]) -> list[FigureJob]:
+    """The figures of one configuration, from its joints' parts `cfgs` (one for a single joint; none before
+    its first trial): each kind drawn for every joint, and with several joints the first two joints' angles
+    against each other."""
+    if not cfgs or not any(cfg.trials for cfg in cfgs):
         return []
-    base = f"fig-config-{cfg.key}"
-    kinds = ["hysteresis", "time", "energy"] + (["boucwen"] if cfg.bouc_wen is not None else [])
-    return [(f"{base}-{kind}", kind, (cfg,)) for kind in kinds]
+    base = f"fig-config-{cfgs[0].key}"
+    kinds = ["hysteresis", "time", "energy"]
+    kinds += ["phase"] if len(cfgs) > 1 else []
+    kinds += ["boucwen"] if any(cfg.bouc_wen is not None for cfg in cfgs) else []
+    return [(f"{base}-{kind}", kind, (tuple(cfgs),)) for kind in kinds]
 
 
 def for_drawing(data: ReportData, figure_ids: Sequence[str]) -> ReportData:
@@ -74,9 +78,14 @@ def for_drawing(data: ReportData, figure_ids: Sequence[str]) -> ReportData:
     they are left out of every configuration none of whose own figures is asked for. They are half of a
     knee report's data: the report's last figures reach the session's workers in half the time."""
     wanted = set(figure_ids)
+    kept = {
+        key
+        for key in data.keys
+        if any(job_id in wanted for job_id, _, _ in configuration_jobs(data.joint_configurations(key)))
+    }
     configurations = tuple(
         cfg
-        if any(job_id in wanted for job_id, _, _ in configuration_jobs(cfg))
+        if cfg.key in kept
         else dataclasses.replace(
             cfg, trials=tuple(dataclasses.replace(t, brace_on=None, brace_off=None) for t in cfg.trials)
         )
@@ -90,8 +99,15 @@ def figure_ids(data: ReportData) -> list[str]:
     return [figure_id for figure_id, _, _ in figure_jobs(data)]
 
 
-def configurations_of(data: ReportData, keys: Sequence[int]) -> list[Configuration]:
-    return [c for k in keys if (c := data.configuration(k)) is not None]
+def configurations_of(data: ReportData, keys: Sequence[int], joint: str | None = None) -> list[Configuration]:
+    """Joint `joint`'s part (None: the first joint's) of each configuration `keys` the archive holds."""
+    return [c for k in keys if (c := data.configuration(k, joint)) is not None]
+
+
+def figure_joints(data: ReportData) -> tuple[str | None, ...]:
+    """The joints a cross-configuration figure draws a panel for: each driven joint when there are several,
+    else the one joint (None: whichever the configurations hold)."""
+    return data.joints if data.multi_joint else (None,)
 
 
 def distinct_comparisons(data: ReportData) -> list[Comparison]:
@@ -109,12 +125,15 @@ def distinct_comparisons(data: ReportData) -> list[Comparison]:
 
 
 def model_comparisons(data: ReportData) -> list[Comparison]:
-    """The comparisons that change a fitted elastic element (`fitted_elements_differ`): the elastic model
-    against the midline for each (as thesis Figures 52-53)."""
+    """The comparisons that change a fitted elastic element of some joint (`fitted_elements_differ`): the
+    elastic model against the midline for each (as thesis Figures 52-53)."""
     return [
         comp
         for comp in distinct_comparisons(data)
-        if fitted_elements_differ(configurations_of(data, comp.configurations))
+        if any(
+            fitted_elements_differ(configurations_of(data, comp.configurations, joint))
+            for joint in figure_joints(data)
+        )
     ]
 
 

@@ -21,18 +21,23 @@ import math
 from collections.abc import Callable, Sequence
 
 import numpy as np
+from matplotlib.axes import Axes
 from matplotlib.ticker import MaxNLocator
 
 from protocol_runner.report.drawing import (
     ANGLE_LABEL,
     COLORS,
     ENERGY_LABEL,
+    GRID_COLUMNS,
     TIME_LABEL,
     TORQUE_LABEL,
     empty,
     finish,
+    grid_legend,
     legend,
     new_figure,
+    new_grid,
+    panel_style,
     style,
     to_data_uri,
 )
@@ -41,7 +46,6 @@ from protocol_runner.report.figure_plan import (
     FigureDrawer,
     FigureSet,
     assemble_figures,
-    configuration_jobs,
     figure_jobs,
 )
 from protocol_runner.report.figures_compare import (
@@ -50,15 +54,25 @@ from protocol_runner.report.figures_compare import (
     energy_bars_figure,
     reference_figure,
 )
-from protocol_runner.report.model import CalibrationCheck, Configuration, ReportData
+from protocol_runner.report.model import CalibrationCheck, Configuration, ReportData, Trial
 from protocol_runner.report.parallel import map_in_processes
 
 # ------------------------------------------------------------------------------------ per configuration
+# Each kind is drawn from the configuration's joints (`figure_plan.configuration_jobs`): one joint's figure
+# as the single-joint report has always drawn it, several joints' as a grid of panels, one (or a pair) per
+# joint, each panel drawn as the single joint's figure draws its axes.
 
 
 def hysteresis_figure(cfg: Configuration) -> str:
     """Brace torque against angle, every trial (Appendix B), with the fitted elastic model if any."""
     fig, (ax,) = new_figure("single")
+    if not _loops(ax, cfg):
+        empty(ax, "no processed trial")
+    return finish(fig, ax, ANGLE_LABEL, TORQUE_LABEL, f"Configuration {cfg.key}: brace torque vs angle")
+
+
+def _loops(ax: Axes, cfg: Configuration) -> bool:
+    """Every processed trial's loop and the drawable elastic fit on `ax`; False when no trial is processed."""
     drawn = False
     for i, trial in enumerate(cfg.trials):
         if trial.processed is None:
@@ -75,36 +89,13 @@ def hysteresis_figure(cfg: Configuration) -> str:
     fit = cfg.element_fit
     if fit is not None and fit.drawable:
         ax.plot(fit.angle_deg, fit.model_torque_nm, "k--", lw=0.9, label="elastic model (fit)")
-    if not drawn:
-        empty(ax, "no processed trial")
-    return finish(fig, ax, ANGLE_LABEL, TORQUE_LABEL, f"Configuration {cfg.key}: brace torque vs angle")
+    return drawn
 
 
 def time_series_figure(cfg: Configuration) -> str:
     """Angle and torque against time for trial 1, brace on and brace off (thesis §4.3)."""
     fig, (ax_a, ax_t) = new_figure("double")
-    trial = next((t for t in cfg.trials if t.brace_on is not None or t.brace_off is not None), None)
-    if trial is None:
-        empty(ax_a, "no trial")
-        empty(ax_t, "no trial")
-    else:
-        for rec, name, color in (
-            (trial.brace_on, "brace on", COLORS[0]),
-            (trial.brace_off, "brace off", COLORS[1]),
-        ):
-            if rec is None:
-                continue
-            ax_a.plot(rec.time_s, rec.angle_deg, lw=0.6, color=color, label=name)
-            ax_t.plot(rec.time_s, rec.torque_nm, lw=0.6, color=color, label=name)
-        if trial.brace_on is not None and trial.brace_on.command_deg.size:
-            ax_a.plot(
-                trial.brace_on.command_time_s,
-                trial.brace_on.command_deg,
-                ":",
-                lw=0.8,
-                color="k",
-                label="command",
-            )
+    trial = _traces(ax_a, ax_t, cfg)
     number = trial.number if trial is not None else 1
     style(ax_a, TIME_LABEL, ANGLE_LABEL, f"Angle, trial {number}")
     style(ax_t, TIME_LABEL, TORQUE_LABEL, f"Joint torque, trial {number}")
@@ -112,74 +103,205 @@ def time_series_figure(cfg: Configuration) -> str:
     return to_data_uri(fig)
 
 
+def _traces(ax_a: Axes, ax_t: Axes, cfg: Configuration) -> Trial | None:
+    """The first recorded trial's angle (with the command) and torque against time, brace on and off."""
+    trial = next((t for t in cfg.trials if t.brace_on is not None or t.brace_off is not None), None)
+    if trial is None:
+        empty(ax_a, "no trial")
+        empty(ax_t, "no trial")
+        return None
+    for rec, name, color in (
+        (trial.brace_on, "brace on", COLORS[0]),
+        (trial.brace_off, "brace off", COLORS[1]),
+    ):
+        if rec is None:
+            continue
+        ax_a.plot(rec.time_s, rec.angle_deg, lw=0.6, color=color, label=name)
+        ax_t.plot(rec.time_s, rec.torque_nm, lw=0.6, color=color, label=name)
+    if trial.brace_on is not None and trial.brace_on.command_deg.size:
+        ax_a.plot(
+            trial.brace_on.command_time_s,
+            trial.brace_on.command_deg,
+            ":",
+            lw=0.8,
+            color="k",
+            label="command",
+        )
+    return trial
+
+
 def energy_cycles_figure(cfg: Configuration) -> str:
     """Energy lost per complete cycle (Eq 10-12), each trial in its colour, with the mean ± std band."""
     fig, (ax,) = new_figure("single")
+    _cycles(ax, cfg, mean_label=True)
+    title = f"Configuration {cfg.key}: energy lost per cycle"
+    return finish(fig, ax, "Cycle (all trials in order)", ENERGY_LABEL, title)
+
+
+def _cycles(ax: Axes, cfg: Configuration, *, mean_label: bool) -> None:
+    """Each cycle's energy, coloured by trial, with the mean (in the key when `mean_label`) ± std band."""
     e = cfg.energy_loss_j
     if e.size == 0:
         empty(ax, "no complete cycle")
-    else:
-        trials = cfg.energy_cycle_trial
-        index = np.arange(1, e.size + 1)
-        for i, number in enumerate(sorted(set(trials.tolist()))):
-            sel = trials == number
-            ax.plot(
-                index[sel], e[sel], "o", ms=3.5, color=COLORS[i % len(COLORS)], label=f"trial {int(number)}"
-            )
-        mean, std = cfg.energy_mean_j, cfg.energy_std_j
-        ax.axhline(mean, color="k", lw=0.8, label=f"mean {mean:.2f} J")
-        if math.isfinite(std):
-            ax.axhspan(mean - std, mean + std, color="k", alpha=0.08, lw=0)
-        ax.xaxis.set_major_locator(MaxNLocator(nbins=5, integer=True))  # cycles are counted: 1, 2, 3
-        top = float(np.nanmax(e)) if np.isfinite(e).any() else 1.0
-        ax.set_ylim(0.0, max(top, mean + (std if math.isfinite(std) else 0.0)) * 1.15 or 1.0)
-    title = f"Configuration {cfg.key}: energy lost per cycle"
-    return finish(fig, ax, "Cycle (all trials in order)", ENERGY_LABEL, title)
+        return
+    trials = cfg.energy_cycle_trial
+    index = np.arange(1, e.size + 1)
+    for i, number in enumerate(sorted(set(trials.tolist()))):
+        sel = trials == number
+        ax.plot(index[sel], e[sel], "o", ms=3.5, color=COLORS[i % len(COLORS)], label=f"trial {int(number)}")
+    mean, std = cfg.energy_mean_j, cfg.energy_std_j
+    ax.axhline(mean, color="k", lw=0.8, label=f"mean {mean:.2f} J" if mean_label else "mean")
+    if math.isfinite(std):
+        ax.axhspan(mean - std, mean + std, color="k", alpha=0.08, lw=0)
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=5, integer=True))  # cycles are counted: 1, 2, 3
+    top = float(np.nanmax(e)) if np.isfinite(e).any() else 1.0
+    ax.set_ylim(0.0, max(top, mean + (std if math.isfinite(std) else 0.0)) * 1.15 or 1.0)
 
 
 def bouc_wen_figure(cfg: Configuration) -> str:
     """Bouc-Wen model against the centred data: loop overlay (Fig 57) and torque per sample (Fig 58)."""
     fig, (ax_l, ax_s) = new_figure("double")
-    bw = cfg.bouc_wen
-    if bw is None or bw.angle_deg.size == 0:
-        empty(ax_l, "no Bouc-Wen fit")
-        empty(ax_s, "no Bouc-Wen fit")
-    else:
-        ax_l.plot(bw.angle_deg, bw.torque_nm, lw=0.7, color=COLORS[0], label="data")
-        ax_l.plot(bw.angle_deg, bw.model_torque_nm, lw=0.7, color=COLORS[1], label="model")
-        sample = np.arange(bw.torque_nm.size)
-        ax_s.plot(sample, bw.torque_nm, lw=0.7, color=COLORS[0], label="data")
-        ax_s.plot(sample, bw.model_torque_nm, lw=0.7, color=COLORS[1], label="model")
+    _bouc_wen(ax_l, ax_s, cfg)
     style(ax_l, "Centred angle (deg)", "Centred torque (N·m)", "Hysteresis: model vs data")
     style(ax_s, "Sample (decimated)", "Centred torque (N·m)", "Torque: model vs data")
     legend(ax_l)
     return to_data_uri(fig)
 
 
+def _bouc_wen(ax_l: Axes, ax_s: Axes, cfg: Configuration) -> None:
+    bw = cfg.bouc_wen
+    if bw is None or bw.angle_deg.size == 0:
+        empty(ax_l, "no Bouc-Wen fit")
+        empty(ax_s, "no Bouc-Wen fit")
+        return
+    ax_l.plot(bw.angle_deg, bw.torque_nm, lw=0.7, color=COLORS[0], label="data")
+    ax_l.plot(bw.angle_deg, bw.model_torque_nm, lw=0.7, color=COLORS[1], label="model")
+    sample = np.arange(bw.torque_nm.size)
+    ax_s.plot(sample, bw.torque_nm, lw=0.7, color=COLORS[0], label="data")
+    ax_s.plot(sample, bw.model_torque_nm, lw=0.7, color=COLORS[1], label="model")
+
+
+# --------------------------------------------------------------------------------- several joints: grids
+
+
+def joints_hysteresis_figure(cfgs: Sequence[Configuration]) -> str:
+    """`hysteresis_figure` of each joint, one panel per joint."""
+    fig, axes = new_grid(len(cfgs), GRID_COLUMNS)
+    for ax, cfg in zip(axes, cfgs, strict=True):
+        if not _loops(ax, cfg):
+            empty(ax, "no processed trial")
+        panel_style(ax, ANGLE_LABEL, TORQUE_LABEL, cfg.joint)
+    grid_legend(axes)
+    return to_data_uri(fig)
+
+
+def joints_time_figure(cfgs: Sequence[Configuration]) -> str:
+    """`time_series_figure` of each joint: its angle and its torque, side by side, per joint."""
+    fig, axes = new_grid(2 * len(cfgs), GRID_COLUMNS)
+    for k, cfg in enumerate(cfgs):
+        ax_a, ax_t = axes[2 * k], axes[2 * k + 1]
+        trial = _traces(ax_a, ax_t, cfg)
+        number = trial.number if trial is not None else 1
+        panel_style(ax_a, TIME_LABEL, ANGLE_LABEL, f"{cfg.joint}: angle, trial {number}")
+        panel_style(ax_t, TIME_LABEL, TORQUE_LABEL, f"{cfg.joint}: torque, trial {number}")
+    grid_legend(axes)
+    return to_data_uri(fig)
+
+
+def joints_energy_figure(cfgs: Sequence[Configuration]) -> str:
+    """`energy_cycles_figure` of each joint, one panel per joint, its mean in the panel's title."""
+    fig, axes = new_grid(len(cfgs), GRID_COLUMNS)
+    for ax, cfg in zip(axes, cfgs, strict=True):
+        _cycles(ax, cfg, mean_label=False)
+        mean = f": mean {cfg.energy_mean_j:.2f} J" if math.isfinite(cfg.energy_mean_j) else ""
+        panel_style(ax, "Cycle", ENERGY_LABEL, f"{cfg.joint}{mean}")
+    grid_legend(axes)
+    return to_data_uri(fig)
+
+
+def joints_bouc_wen_figure(cfgs: Sequence[Configuration]) -> str:
+    """`bouc_wen_figure` of each joint with a Bouc-Wen fit: its loop and its torque per sample, per joint."""
+    fitted = [cfg for cfg in cfgs if cfg.bouc_wen is not None]
+    fig, axes = new_grid(2 * len(fitted), GRID_COLUMNS)
+    for k, cfg in enumerate(fitted):
+        ax_l, ax_s = axes[2 * k], axes[2 * k + 1]
+        _bouc_wen(ax_l, ax_s, cfg)
+        panel_style(ax_l, "Centred angle (deg)", "Centred torque (N·m)", f"{cfg.joint}: loop")
+        panel_style(ax_s, "Sample (decimated)", "Centred torque (N·m)", f"{cfg.joint}: per sample")
+    grid_legend(axes)
+    return to_data_uri(fig)
+
+
+def phase_figure(cfgs: Sequence[Configuration]) -> str:
+    """The angle of the first driven joint against the second's over the first recorded trial, brace on:
+    measured and commanded (the motion's coordination, e.g. hip against knee)."""
+    fig, (ax,) = new_figure("single")
+    x_cfg, y_cfg = cfgs[0], cfgs[1]
+    trial = next((t for t in x_cfg.trials if t.brace_on is not None), None)
+    other = next((t for t in y_cfg.trials if trial is not None and t.number == trial.number), None)
+    if trial is None or other is None or trial.brace_on is None or other.brace_on is None:
+        empty(ax, "no trial")
+        number = 1
+    else:
+        x, y = trial.brace_on, other.brace_on
+        n = min(x.angle_deg.size, y.angle_deg.size)
+        ax.plot(x.angle_deg[:n], y.angle_deg[:n], lw=0.6, color=COLORS[0], label="measured")
+        m = min(x.command_deg.size, y.command_deg.size)
+        ax.plot(x.command_deg[:m], y.command_deg[:m], ":", lw=0.8, color="k", label="command")
+        number = trial.number
+    title = f"{x_cfg.joint} against {y_cfg.joint}, trial {number}, brace on"
+    return finish(fig, ax, f"{x_cfg.joint} angle (deg)", f"{y_cfg.joint} angle (deg)", title)
+
+
+def per_joint(
+    one: Callable[[Configuration], str], several: Callable[[Sequence[Configuration]], str]
+) -> Callable[[Sequence[Configuration]], str]:
+    """A figure of a configuration's joints: `one` of its only joint, else `several`."""
+
+    def draw(cfgs: Sequence[Configuration]) -> str:
+        return one(cfgs[0]) if len(cfgs) == 1 else several(cfgs)
+
+    return draw
+
+
 # ---------------------------------------------------------------------------------------- calibration
 
 
 def calibration_figure(set_name: str, checks: Sequence[CalibrationCheck]) -> str:
-    """The calibration step responses of one set, before and after (Appendix A "Calibration")."""
+    """The calibration step responses of one set, before and after (Appendix A "Calibration"); with several
+    joints, one panel per joint."""
+    joints = list(dict.fromkeys(c.joint for c in checks))
+    if len(joints) > 1:
+        fig, axes = new_grid(len(joints), GRID_COLUMNS)
+        for ax, joint in zip(axes, joints, strict=True):
+            _steps(ax, [c for c in checks if c.joint == joint])
+            panel_style(ax, TIME_LABEL, ANGLE_LABEL, joint)
+        grid_legend(axes)
+        return to_data_uri(fig)
     fig, (ax,) = new_figure("single")
+    _steps(ax, checks)
+    if not checks:
+        empty(ax, "no calibration check")
+    return finish(fig, ax, TIME_LABEL, ANGLE_LABEL, f"Set {set_name}: step responses (dotted: command)")
+
+
+def _steps(ax: Axes, checks: Sequence[CalibrationCheck]) -> None:
     for i, check in enumerate(checks):
         color = COLORS[i % len(COLORS)]
         ax.plot(check.time_s, check.angle_deg, lw=0.9, color=color, label=f"{check.when}: {check.verdict}")
         if check.command_deg.size:
             ax.plot(check.command_time_s, check.command_deg, ":", lw=0.8, color=color)
-    if not checks:
-        empty(ax, "no calibration check")
-    return finish(fig, ax, TIME_LABEL, ANGLE_LABEL, f"Set {set_name}: step responses (dotted: command)")
 
 
 # ---------------------------------------------------------------------------------------------- driver
 
 DRAW: dict[str, Callable[..., str]] = {
     "calibration": calibration_figure,
-    "hysteresis": hysteresis_figure,
-    "time": time_series_figure,
-    "energy": energy_cycles_figure,
-    "boucwen": bouc_wen_figure,
+    "hysteresis": per_joint(hysteresis_figure, joints_hysteresis_figure),
+    "time": per_joint(time_series_figure, joints_time_figure),
+    "energy": per_joint(energy_cycles_figure, joints_energy_figure),
+    "boucwen": per_joint(bouc_wen_figure, joints_bouc_wen_figure),
+    "phase": phase_figure,
     "comparison_overlay": comparison_overlay_figure,
     "energy_bars": energy_bars_figure,
     "reference": reference_figure,
@@ -190,22 +312,6 @@ DRAW: dict[str, Callable[..., str]] = {
 
 def _tasks(data: ReportData) -> list[tuple[str, Callable[[], str]]]:
     return [(figure_id, _bind(DRAW[kind], *args)) for figure_id, kind, args in figure_jobs(data)]
-
-
-def configuration_tasks(cfg: Configuration) -> list[tuple[str, Callable[[], str]]]:
-    """The figures of one configuration (`figure_plan.configuration_jobs`), ready to draw."""
-    return [(figure_id, _bind(DRAW[kind], *args)) for figure_id, kind, args in configuration_jobs(cfg)]
-
-
-def draw_configuration(cfg: Configuration) -> dict[str, str] | None:
-    """Every figure of `cfg` as id -> data URI, or None if one of them cannot be drawn."""
-    images: dict[str, str] = {}
-    for task_id, task in configuration_tasks(cfg):
-        _, uri, _ = _safe(task_id, task)
-        if uri is None:
-            return None
-        images[task_id] = uri
-    return images
 
 
 def _bind(fn: Callable[..., str], *args: object) -> Callable[[], str]:

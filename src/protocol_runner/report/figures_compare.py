@@ -12,17 +12,26 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 from matplotlib.axes import Axes
+from matplotlib.figure import Figure
 
 from protocol_runner.protocol.plan_steps import Comparison
-from protocol_runner.report.comparison_values import comparison_axis
+from protocol_runner.report import drawing
+from protocol_runner.report.comparison_values import ComparisonAxis, comparison_axis
 from protocol_runner.report.drawing import (
     ANGLE_LABEL,
     COLORS,
+    DPI,
     ENERGY_LABEL,
+    GRID_COLUMNS,
+    KEY_IN,
     TORQUE_LABEL,
     empty,
     finish,
+    grid_legend,
+    legend,
     new_figure,
+    new_grid,
+    panel_style,
     style,
     to_data_uri,
 )
@@ -57,10 +66,21 @@ def _references(ax: Axes, data: ReportData) -> None:
 
 def comparison_overlay_figure(data: ReportData, comparison: Comparison) -> str:
     """Loops of the compared configurations overlaid (thesis Figures 32-37), first trial each, with the
-    archive's reference datasets as dots."""
-    fig, (ax,) = new_figure("single")
+    archive's reference datasets as dots; with several joints, one panel per joint (no reference: a
+    reference dataset is one joint's)."""
     configs = configurations_of(data, comparison.configurations)
     axis = comparison_axis(comparison, configs)
+    if data.multi_joint:
+        fig, axes = new_grid(len(data.joints), GRID_COLUMNS)
+        for ax, joint in zip(axes, data.joints, strict=True):
+            if not _overlay_loops(
+                ax, configurations_of(data, comparison.configurations, joint), axis.config_label
+            ):
+                empty(ax, "no data")
+            panel_style(ax, ANGLE_LABEL, TORQUE_LABEL, joint)
+        grid_legend(axes)
+        return drawing.to_data_uri(fig)
+    fig, (ax,) = new_figure("single")
     drawn = _overlay_loops(ax, configs, axis.config_label)
     _references(ax, data)
     if not drawn:
@@ -76,6 +96,8 @@ def energy_bars_figure(data: ReportData, comparison: Comparison) -> str:
     A scalar axis quantity with a distinct value per configuration gives a numeric axis (points with error
     bars, each marked with its configuration key); otherwise one bar per configuration, labelled with the
     level and quantity, its key written at the bar's foot."""
+    if data.multi_joint:
+        return joints_energy_bars_figure(data, comparison)
     fig, (ax,) = new_figure("bars")
     cfgs = [c for c in configurations_of(data, comparison.configurations) if c.energy_loss_j.size]
     axis = comparison_axis(comparison, configurations_of(data, comparison.configurations))
@@ -124,6 +146,45 @@ def _energy_title(title: str) -> str:
     return title if title.lower().startswith("energy") else f"Energy loss: {title}"
 
 
+ALL_JOINTS = "all joints"
+
+
+def joints_energy_bars_figure(data: ReportData, comparison: Comparison) -> str:
+    """The energy per cycle (mean ± one standard deviation) of each compared configuration, grouped by
+    joint, and of all joints together (`total_energy_loss_j`) last: one bar per configuration in each
+    group, in the same colour in every group."""
+    configs = configurations_of(data, comparison.configurations)
+    axis = comparison_axis(comparison, configs)
+    groups = [*data.joints, ALL_JOINTS]
+    bar_w = 0.8 / max(1, len(configs))
+    width_in = min(11.0, 1.2 + 0.2 * len(groups) * (len(configs) + 1) + KEY_IN)
+    fig = Figure(figsize=(max(width_in, 5.6), 3.4), dpi=DPI)
+    key_share = KEY_IN / fig.get_figwidth()
+    ax = fig.add_axes((0.75 / fig.get_figwidth(), 0.3, 1.0 - key_share - 0.95 / fig.get_figwidth(), 0.6))
+    x = np.arange(len(groups))
+    for i, cfg in enumerate(configs):
+        energies = [data.configuration(cfg.key, joint) for joint in data.joints]
+        means = [e.energy_mean_j if e is not None else math.nan for e in energies]
+        stds = [e.energy_std_j if e is not None else math.nan for e in energies]
+        total = data.total(cfg.key)
+        means.append(total.energy_mean_j if total is not None else math.nan)
+        stds.append(total.energy_std_j if total is not None else math.nan)
+        ax.bar(
+            x + (i - (len(configs) - 1) / 2) * bar_w,
+            np.nan_to_num(means),
+            width=bar_w,
+            yerr=np.nan_to_num(stds),
+            capsize=2,
+            color=COLORS[i % len(COLORS)],
+            label=axis.config_label(cfg),
+        )
+    ax.set_xticks(x, groups, rotation=30, ha="right", fontsize=6.5)
+    ax.set_ylim(bottom=0.0)
+    style(ax, "", ENERGY_LABEL, "Energy per cycle, per joint and all joints together")
+    legend(ax)
+    return drawing.to_data_uri(fig)
+
+
 def reference_figure(data: ReportData) -> str:
     """The archive's reference datasets (e.g. a reference suit's measurements, thesis §5.6, Figure 38)."""
     fig, (ax,) = new_figure("single")
@@ -136,10 +197,30 @@ def reference_figure(data: ReportData) -> str:
 def element_fit_figure(data: ReportData, comparison: Comparison) -> str:
     """The fitted elastic elements against the loops' midline for each compared configuration: solid with
     dots the midline data (the fit's target), dashed the model on it. A configuration whose fit does not
-    apply (e.g. no elastic element) is named in the key as not fitted."""
-    fig, (ax,) = new_figure("single")
+    apply (e.g. no elastic element) is named in the key as not fitted. With several joints, one panel per
+    joint that has an element fit."""
     configs = configurations_of(data, comparison.configurations)
     axis = comparison_axis(comparison, configs)
+    if data.multi_joint:
+        joints = [
+            joint
+            for joint in data.joints
+            if any(
+                c.element_fit is not None for c in configurations_of(data, comparison.configurations, joint)
+            )
+        ]
+        fig, axes = new_grid(len(joints), GRID_COLUMNS)
+        for ax, joint in zip(axes, joints, strict=True):
+            _element_fits(ax, configurations_of(data, comparison.configurations, joint), axis, note=False)
+            panel_style(ax, ANGLE_LABEL, TORQUE_LABEL, joint)
+        grid_legend(axes)
+        return drawing.to_data_uri(fig)
+    fig, (ax,) = new_figure("single")
+    _element_fits(ax, configs, axis, note=True)
+    return finish(fig, ax, ANGLE_LABEL, TORQUE_LABEL, f"Elastic model vs midline: {comparison.title}")
+
+
+def _element_fits(ax: Axes, configs: Sequence[Configuration], axis: ComparisonAxis, *, note: bool) -> None:
     drawn = False
     for i, cfg in enumerate(configs):
         fit = cfg.element_fit
@@ -164,12 +245,12 @@ def element_fit_figure(data: ReportData, comparison: Comparison) -> str:
             "--",
             lw=1.2,
             color=color,
-            label=f"{axis.config_label(cfg)}, RMSE {fit.rmse_nm:.2f} N·m",
+            label=f"{axis.config_label(cfg)}, RMSE {fit.rmse_nm:.2f} N·m" if note else axis.config_label(cfg),
         )
         drawn = True
     if not drawn:
         empty(ax, "no applicable element fit")
-    else:
+    elif note:
         ax.text(
             0.98,
             0.03,
@@ -180,4 +261,3 @@ def element_fit_figure(data: ReportData, comparison: Comparison) -> str:
             fontsize=6.5,
             color="#444444",
         )
-    return finish(fig, ax, ANGLE_LABEL, TORQUE_LABEL, f"Elastic model vs midline: {comparison.title}")

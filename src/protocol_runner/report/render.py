@@ -43,12 +43,11 @@ from protocol_runner.report.figure_plan import (
     slug,
 )
 from protocol_runner.report.findings import TUNED_LABEL, evaluate_expectations
-from protocol_runner.report.headline import configuration_stats
+from protocol_runner.report.headline import ALL_JOINTS, ConfigurationStats, campaign_stats, headline_stats
 from protocol_runner.report.html_file import checked_output, template_environment, write_atomically
 from protocol_runner.report.limits_text import limits_text
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Configuration, ReportData
-from protocol_runner.report.multi_joint import joints_section
+from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Configuration, JointsTotal, ReportData
 from protocol_runner.report.settings_view import format_quantity
 
 if TYPE_CHECKING:
@@ -70,6 +69,62 @@ SECTIONS: tuple[tuple[str, str], ...] = (
     ("session", "Session details"),
     ("protocol", "Protocol as run"),
 )
+
+
+@dataclass(frozen=True)
+class _ConfigurationView:
+    """One configuration as the page shows it: its joints' parts (one for a single joint), the headline
+    statistics of each joint (and of all joints together, last, with several), the trials recorded, and
+    the energy of the configuration as a whole (its one joint's, or all joints' together)."""
+
+    first: Configuration
+    joints: tuple[Configuration, ...]
+    stats: tuple[ConfigurationStats, ...]
+    recorded: int
+    energy: Configuration | JointsTotal | None
+
+    @property
+    def key(self) -> int:
+        return self.first.key
+
+
+def configuration_views(data: ReportData) -> list[_ConfigurationView]:
+    """Every configuration of `data` in key order, as the summary, the configurations and the test matrix
+    show it."""
+    views = []
+    for key in data.keys:
+        cfgs = data.joint_configurations(key)
+        views.append(
+            _ConfigurationView(
+                first=cfgs[0],
+                joints=cfgs,
+                stats=headline_stats(data, key),
+                recorded=sum(1 for t in cfgs[0].trials if t.recorded),
+                energy=data.total(key) if data.multi_joint else cfgs[0],
+            )
+        )
+    return views
+
+
+@dataclass(frozen=True)
+class _JointCount:
+    """A joint's (or all joints' together) trials analysed and complete cycles over the campaign."""
+
+    joint: str
+    trials: int
+    cycles: int
+
+
+def joint_counts(data: ReportData) -> list[_JointCount]:
+    """With several joints, each joint's trials analysed and cycles summed over the configurations, then
+    all joints' together; nothing for a single joint (the summary's own counts are that joint's)."""
+    if not data.multi_joint:
+        return []
+    rows = []
+    for joint in (*data.joints, ALL_JOINTS):
+        stats = [s for key in data.keys for s in headline_stats(data, key) if s.joint == joint]
+        rows.append(_JointCount(joint, sum(s.trials for s in stats), sum(s.cycles for s in stats)))
+    return rows
 
 
 @dataclass(frozen=True)
@@ -187,11 +242,6 @@ def _render(
     data: ReportData, figures: FigureSet, generated_utc: str, predicted: Callable[[], tuple[Prediction, ...]]
 ) -> str:
     context = _context(data, figures, generated_utc, predicted())
-    joints = joints_section(Path(data.session.archive_path)) if data.session.archive_path else None
-    context["joints_section"] = joints
-    if joints is not None:  # a multi-joint archive: the "Joints" section after the configurations
-        at = [s for s, _ in SECTIONS].index("comparisons")
-        context["sections"] = (*SECTIONS[:at], ("joints", "Joints"), *SECTIONS[at:])
     return str(_environment().get_template(TEMPLATE).render(**context))
 
 
@@ -291,6 +341,8 @@ def _context(
         )
     overlay_comparisons = distinct_comparisons(data)
     expectations = evaluate_expectations(data)
+    views = configuration_views(data)
+    campaign = [s for key in data.keys if (s := campaign_stats(data, key)) is not None]
     return {
         "data": data,
         "session": data.session,
@@ -300,6 +352,10 @@ def _context(
         "comparisons": overlay_comparisons,
         "model_comparisons": model_comparisons(data),
         "fitted": [c for c in data.configurations if c.bouc_wen is not None],
+        "multi": data.multi_joint,
+        "views": views,
+        "joint_counts": joint_counts(data),
+        "campaign": campaign,
         "predictions": predicted,
         "element_fitted": [c for c in data.configurations if c.element_fit is not None],
         "factor_names": factor_names(data),
@@ -308,7 +364,7 @@ def _context(
         "expectations": expectations,
         "cite": declared_citations(data.protocol_text),
         "tuned_label": TUNED_LABEL,
-        "headline": [configuration_stats(c) for c in data.configurations],
+        "headline": [s for v in views for s in v.stats],
         "varying": varying_levels(data),
         "protocol_title": declared_text(data.protocol_text, "title"),
         "protocol_description": declared_text(data.protocol_text, "description"),
@@ -318,7 +374,8 @@ def _context(
         "generated_utc": generated_utc,
         "software_version": __version__,
         "verdict_class": _verdict_class,
-        "configs_of": lambda comp: _configs(data, comp),
+        "configs_of": lambda comp, joint=None: _configs(data, comp, joint),
+        "total_of": data.total,
         "parameter_cell": _parameter_cell,
     }
 
@@ -347,10 +404,12 @@ def _parameter_cell(fit: BoucWenFit, index: int, digits: int = 4) -> Markup:
     return value
 
 
-def _configs(data: ReportData, comparison: Comparison | None) -> list[Configuration]:
+def _configs(
+    data: ReportData, comparison: Comparison | None, joint: str | None = None
+) -> list[Configuration]:
     if comparison is None:
         return []
-    return [c for k in comparison.configurations if (c := data.configuration(k)) is not None]
+    return [c for k in comparison.configurations if (c := data.configuration(k, joint)) is not None]
 
 
 def _verdict_class(verdict: str) -> str:
