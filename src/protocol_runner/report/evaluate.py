@@ -51,6 +51,7 @@ from protocol_runner.analysis.statistics import (
     t_interval,
 )
 from protocol_runner.protocol.expectations import ExpectationSpec
+from protocol_runner.protocol.only import key_spans
 from protocol_runner.report.metrics import LABELS, UNITS, trial_values
 from protocol_runner.report.model import Configuration, ReportData
 from protocol_runner.report.settings_view import DeviceElement
@@ -163,9 +164,6 @@ def _why_short(data: ReportData, key: int, joint: str, n: int, spec: Expectation
     cfg = data.configuration(key, joint)
     if cfg is None:
         if not any(c.key == key for c in data.configurations):
-            only = data.session.only
-            if only and key not in only:
-                return f"configuration {key} was not run (the session ran only {', '.join(map(str, only))})"
             return f"configuration {key} is not in this archive"
         return f"configuration {key} has no data of joint {joint}"
     if cfg.status == "not run":
@@ -206,7 +204,17 @@ def _tested(spec: ExpectationSpec, data: ReportData, joint: str) -> Verdict:
     short = [k for k in keys if intervals[k].n < spec.min_trials]
     problems: list[str] = []
     if short:
-        parts = [_why_short(data, k, joint, intervals[k].n, spec) for k in short]
+        only = data.session.only
+        left_out = [
+            k for k in short if only and k not in only and not any(c.key == k for c in data.configurations)
+        ]
+        parts = [_why_short(data, k, joint, intervals[k].n, spec) for k in short if k not in left_out]
+        if left_out:
+            many = len(left_out) > 1
+            parts.append(
+                f"configuration{'s' if many else ''} {', '.join(map(str, left_out))} {'were' if many else 'was'} "
+                f"not run (the session ran only {key_spans(only)})"
+            )
         problems.append("; ".join(parts) + f" (the rule needs {spec.min_trials} per configuration).")
     unreached = _unreached(spec, data, joint)
     if unreached:
