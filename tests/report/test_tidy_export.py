@@ -113,9 +113,15 @@ def test_configurations_csv_has_a_column_per_declared_factor_and_quantity_in_ord
     for factor in FACTORS:  # declaration order, each level column followed by its quantities
         expected.append(factor)
         expected.extend(f"{factor}.{q}" for q in factor_settings(4)[factor] if q != "level")
-    assert header[:4] == ["configuration", "set", "profile", "trajectory"]
-    assert header[4 : 4 + len(expected)] == expected
-    assert header[4 + len(expected)] == "trials"
+    assert header[:5] == ["configuration", "set", "joint", "profile", "trajectory"]
+    assert header[5 : 5 + len(expected)] == expected
+    assert header[5 + len(expected)] == "trials"
+
+
+def test_every_table_names_the_one_joint_of_a_single_joint_archive(tables: Path) -> None:
+    for name in ("cycles.csv", "trials.csv", "configurations.csv"):
+        rows = _rows(tables / name)
+        assert rows and {r["joint"] for r in rows} == {"knee_flexion"}, name
 
 
 def test_the_reports_per_trial_table_shows_the_brace_off_match_of_trials_csv(

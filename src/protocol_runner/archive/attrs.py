@@ -223,6 +223,8 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
         "simulator_tuned",
         "depends_on_simulator",
         "dry_run",
+        JOINTS,
+        JOINT,
     ),
 }
 

@@ -134,11 +134,13 @@ def attrs_struct(obj: h5py.HLObject, where: str, skip: tuple[str, ...] = ()) -> 
     return out
 
 
-def group_struct(group: h5py.Group, units: Units, where: str) -> dict[str, Any]:
-    """A group as a struct: its attributes, its datasets (as arrays) and its subgroups (as structs).
-    `where` names the archive in error messages."""
+def group_struct(group: h5py.Group, units: Units, where: str, skip: tuple[str, ...] = ()) -> dict[str, Any]:
+    """A group as a struct: its attributes, its datasets (as arrays) and its subgroups (as structs), but
+    the members named in `skip`. `where` names the archive in error messages."""
     out = attrs_struct(group, where)
     for name, obj in group.items():
+        if name in skip:
+            continue
         if isinstance(obj, h5py.Dataset):
             field = put_field(out, name, dataset_value(obj, where))
             units.add(field, obj)

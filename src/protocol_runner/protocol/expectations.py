@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Iterator, Mapping, Sequence
 from typing import Annotated, Literal
 
@@ -47,6 +48,10 @@ class ExpectationSpec(BaseModel):
     margin: float | None = Field(default=None, gt=0, validation_alias=AliasChoices("margin", "tolerance"))
     interval: _Pair | None = None
     min_trials: StrictInt = Field(default=2, ge=2, le=50)
+    # which driven joint's data decide it: one joint, or every driven joint, each on its own (a campaign of
+    # one joint needs neither)
+    joint: Annotated[str, Field(pattern=r"^[A-Za-z][A-Za-z0-9_\-]*$", max_length=64)] | None = None
+    joints: Literal["all"] | None = None
     engages: Annotated[str, Field(min_length=1)] | None = None  # a device element the statement is about
     simulator_tuned: bool = False
     depends_on_simulator: list[Annotated[str, Field(min_length=1)]] = Field(default_factory=list)
@@ -60,6 +65,8 @@ class ExpectationSpec(BaseModel):
     @model_validator(mode="after")
     def _relation_fields(self) -> ExpectationSpec:
         r = self.relation
+        if self.joint is not None and self.joints is not None:
+            raise ValueError("give at most one of `joint` (one joint) and `joints: all` (each joint)")
         if self.metric == "angle_percentile" and self.percentile is None:
             raise ValueError("metric angle_percentile needs `percentile` (0-100)")
         if self.metric == "hysteresis_width" and self.angle_deg is None:
@@ -97,14 +104,30 @@ class ExpectationSpec(BaseModel):
 
 
 def check_expectations(
-    specs: Sequence[ExpectationSpec], keys: set[int]
+    specs: Sequence[ExpectationSpec], keys: set[int], joints: Sequence[str] = (), *, several: bool = False
 ) -> Iterator[tuple[tuple[str | int, ...], str]]:
-    """(location, message) for duplicate ids and configuration keys the matrix does not have."""
+    """(location, message) for duplicate ids, configuration keys the matrix does not have, a `joint` that is
+    not driven (`joints`: the driven joints, channel order) and, in a campaign driving several joints
+    (`several`), an expectation that names neither `joint` nor `joints: all`."""
     seen: set[str] = set()
+    shown = ", ".join(joints)
     for i, spec in enumerate(specs):
         if spec.id in seen:
             yield ("expectations", i, "id"), f"expectation id {spec.id!r} is used twice"
         seen.add(spec.id)
+        if joints and spec.joint is not None and spec.joint not in joints:
+            close = difflib.get_close_matches(spec.joint, list(joints), n=1, cutoff=0.75)
+            hint = f"; did you mean {close[0]!r}?" if close else ""
+            yield (
+                ("expectations", i, "joint"),
+                f"{spec.joint!r} is not one of the driven joints ({shown}){hint}",
+            )
+        if several and spec.joint is None and spec.joints is None:
+            yield (
+                ("expectations", i),
+                f"this campaign drives {len(joints)} joints ({shown}): say which joint's data decide "
+                f"expectation {spec.id!r}, `joint: <one of them>`, or `joints: all` to decide it for each joint",
+            )
         for field in ("configurations", "than", "baseline", "than_baseline"):
             for j, key in enumerate(getattr(spec, field) or ()):
                 if key not in keys:

@@ -67,7 +67,8 @@ def _cross_check(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc,
     if check_files:
         problems += list(_check_files(p, loaded.base_dir))
     problems += list(_check_report(p))
-    problems += list(check_expectations(p.expectations, {c.key for _, c in p.configurations()}))
+    keys = {c.key for _, c in p.configurations()}
+    problems += list(check_expectations(p.expectations, keys, p.driven_joints, several=len(p.driven_joints) > 1))
     settings = {c.key: {"trajectory": c.trajectory, **c.levels} for _, c in p.configurations()}
     problems += list(check_repeatability(p.report.repeatability, settings))
     problems += list(_check_output_budget(p))

@@ -7,8 +7,10 @@ larger brake torque in the level's quantities) still pairs with the baseline and
 factor quantity (`<factor>.<quantity>`) and device parameter (`device.<element>.<parameter>`) that differs.
 Several identical configurations on each side pair in key order.
 
-Per matched pair: energy per cycle and range reached, B minus A, on trial values (the trial is the
-unit) with a 95 % Welch interval and its p-value. Each quantity has its own verdict, decided at the
+Per matched pair of configurations and per joint both drive (the one joint of a single-joint archive,
+whatever its layout): energy per cycle and range reached, B minus A, on trial values (the trial is the
+unit) with a 95 % Welch interval and its p-value; for configurations driving several joints also the
+energy per cycle of all the joints together (`total_energy_loss_j`; no range: "—"). Each quantity has its own verdict, decided at the
 Bonferroni level for two quantities (p < 0.025, i.e. its 97.5 % interval excludes zero), so that a pair
 of identical configurations is called different (on either quantity) at most 5 % of the time; the pair
 differs when either quantity does, and the verdict names which. Inputs with no configuration in common
@@ -24,19 +26,22 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from protocol_runner.analysis.statistics import WelchInterval, welch_interval
+from protocol_runner.analysis.statistics import WelchInterval, trial_means, welch_interval
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.compare_figure import overlay_figure
 from protocol_runner.report.html_file import checked_output, template_environment, write_atomically
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.metrics import trial_values
-from protocol_runner.report.model import Configuration, ReportData
+from protocol_runner.report.model import Configuration, JointsTotal, ReportData
 
 TEMPLATE = "compare.html.j2"
 
 #: The two compared quantities and the per-quantity significance level (Bonferroni: 0.05 / 2).
 QUANTITIES = ("energy per cycle", "range reached")
 ALPHA_EACH = 0.05 / len(QUANTITIES)
+
+#: A pair's `joint` when it compares all the joints of a configuration together (their total energy).
+TOTAL = "total"
 
 
 def differs(w: WelchInterval) -> bool:
@@ -46,13 +51,21 @@ def differs(w: WelchInterval) -> bool:
 
 @dataclass(frozen=True)
 class Pair:
-    """One configuration of A matched with one of B, and their differences (B minus A)."""
+    """One joint of a configuration of A matched with the same joint of one of B, and their differences
+    (B minus A); with `joint` TOTAL, all the joints together (`a` and `b` are then the first joint's part,
+    for the configuration's key and settings, and `range` is undefined)."""
 
     a: Configuration
     b: Configuration
     energy: WelchInterval
     range: WelchInterval
     changed: tuple[tuple[str, str, str], ...]  # (setting, value in A, value in B) where they differ
+    joint: str = ""
+
+    @property
+    def total(self) -> bool:
+        """True when the pair compares all the joints of its configurations together."""
+        return self.joint == TOTAL
 
     @property
     def energy_differs(self) -> bool:
@@ -101,25 +114,38 @@ class SessionComparison:
         return _unmatched(self.b, {p.b.key for p in self.pairs})
 
     @property
+    def n_configurations(self) -> int:
+        """Matched pairs of configurations (each compared per joint, and in total for several joints)."""
+        return len({(p.a.key, p.b.key) for p in self.pairs})
+
+    @property
     def n_significant(self) -> int:
-        """Pairs that differ significantly in energy per cycle or range reached."""
+        """Pairs (per joint, and totals) that differ significantly in energy per cycle or range reached."""
         return sum(p.significant for p in self.pairs)
 
     def table(self) -> str:
-        """The printed table: one line per matched pair."""
+        """The printed table: one line per matched pair and joint (and total)."""
+        width = max([5, *(len(p.joint) for p in self.pairs)])
         head = (
-            f"{'A':>4} {'B':>4}  {'energy B-A (J)':>15} {'95 % interval':>20} {'p':>6}  "
+            f"{'A':>4} {'B':>4}  {'joint':<{width}}  {'energy B-A (J)':>15} {'95 % interval':>20} {'p':>6}  "
             f"{'range B-A (deg)':>15} {'95 % interval':>20} {'p':>6}  differs in"
         )
         lines = [head]
         for p in self.pairs:
             lines.append(
-                f"{p.a.key:>4} {p.b.key:>4}  {_num(p.energy.difference):>15} {_ival(p.energy):>20} "
-                f"{_p(p.energy):>6}  {_num(p.range.difference):>15} {_ival(p.range):>20} {_p(p.range):>6}  "
-                f"{p.verdict}"
+                f"{p.a.key:>4} {p.b.key:>4}  {p.joint:<{width}}  {_num(p.energy.difference):>15} "
+                f"{_ival(p.energy):>20} {_p(p.energy):>6}  {_num(p.range.difference):>15} "
+                f"{'—' if p.total else _ival(p.range):>20} "
+                f"{_p(p.range):>6}  {p.verdict}"
             )
+        n = self.n_configurations
+        per_joint = (
+            ""
+            if len(self.pairs) == n
+            else f" ({len(self.pairs)} comparisons: per joint, and all joints together)"
+        )
         lines.append(
-            f"{len(self.pairs)} matched configurations, {self.n_significant} differ in energy per cycle or "
+            f"{n} matched configurations{per_joint}, {self.n_significant} differ in energy per cycle or "
             f"range reached (each at p < {ALPHA_EACH:g}); "
             f"unmatched: A {list(self.only_a) or 'none'}, B {list(self.only_b) or 'none'}"
         )
@@ -127,7 +153,7 @@ class SessionComparison:
 
 
 def _unmatched(data: ReportData, matched: set[int]) -> tuple[int, ...]:
-    return tuple(sorted(c.key for c in data.configurations if c.key not in matched))
+    return tuple(sorted(k for k in data.keys if k not in matched))
 
 
 def _num(value: float) -> str:
@@ -214,14 +240,19 @@ def _text(value: object) -> str:
     return str(value)
 
 
+def _firsts(data: ReportData) -> list[Configuration]:
+    """Each configuration once (its first joint's part: the settings are the configuration's), in key order."""
+    return sorted((c for c in map(data.configuration, data.keys) if c is not None), key=lambda c: c.key)
+
+
 def match(a: ReportData, b: ReportData) -> tuple[tuple[Configuration, Configuration], ...]:
-    """Pairs (A, B) with equal signatures (several identical ones pair in key order); the configurations
-    left over are `SessionComparison.only_a` / `only_b`."""
+    """Pairs (A, B) of configurations (each its first joint's part) with equal signatures (several identical
+    ones pair in key order); the configurations left over are `SessionComparison.only_a` / `only_b`."""
     groups_b: dict[tuple[tuple[str, str], ...], list[Configuration]] = {}
-    for cfg in sorted(b.configurations, key=lambda c: c.key):
+    for cfg in _firsts(b):
         groups_b.setdefault(signature(cfg), []).append(cfg)
     pairs = []
-    for cfg in sorted(a.configurations, key=lambda c: c.key):
+    for cfg in _firsts(a):
         candidates = groups_b.get(signature(cfg))
         if candidates:
             same_key = next((c for c in candidates if c.key == cfg.key), candidates[0])
@@ -238,17 +269,40 @@ def compare_data(a: ReportData, b: ReportData) -> SessionComparison:
             f"{a.session.archive_path} and {b.session.archive_path} have no configuration with the same "
             "settings (trajectory and level labels): nothing to compare"
         )
-    pairs = tuple(
-        Pair(
-            ca,
-            cb,
-            welch_interval(trial_values(ca, "energy_per_cycle"), trial_values(cb, "energy_per_cycle")),
-            welch_interval(trial_values(ca, "range_reached"), trial_values(cb, "range_reached")),
-            _changed(ca, cb),
-        )
-        for ca, cb in matched
-    )
-    return SessionComparison(a, b, pairs)
+    pairs: list[Pair] = []
+    for ca, cb in matched:
+        changed = _changed(ca, cb)
+        joints_b = {c.joint: c for c in b.joint_configurations(cb.key)}
+        for ja in a.joint_configurations(ca.key):
+            jb = joints_b.get(ja.joint)
+            if jb is not None:
+                pairs.append(
+                    Pair(
+                        ja,
+                        jb,
+                        welch_interval(
+                            trial_values(ja, "energy_per_cycle"), trial_values(jb, "energy_per_cycle")
+                        ),
+                        welch_interval(trial_values(ja, "range_reached"), trial_values(jb, "range_reached")),
+                        changed,
+                        ja.joint,
+                    )
+                )
+        ta, tb = a.total(ca.key), b.total(cb.key)
+        several = len(a.joint_configurations(ca.key)) > 1 and len(b.joint_configurations(cb.key)) > 1
+        if several and ta is not None and tb is not None:
+            no_range = welch_interval((), ())
+            pairs.append(
+                Pair(ca, cb, welch_interval(_trial_energy(ta), _trial_energy(tb)), no_range, changed, TOTAL)
+            )
+    return SessionComparison(a, b, tuple(pairs))
+
+
+def _trial_energy(total: JointsTotal) -> tuple[float, ...]:
+    """Each trial's energy per cycle of all the joints together (the mean of its cycles' totals)."""
+    if total.energy_cycle_trial.size != total.energy_loss_j.size:
+        return ()
+    return tuple(trial_means(total.energy_loss_j, total.energy_cycle_trial)[1].tolist())
 
 
 def compare_archives(a: Path, b: Path) -> SessionComparison:
@@ -260,11 +314,13 @@ def render_comparison(result: SessionComparison, output: Path) -> Path:
     """Write the comparison page (self-contained HTML, overlaid loops inline) to `output`."""
     output = checked_output(output, "Comparison", "compare.html")
     env = template_environment()
-    figures = {(p.a.key, p.b.key): overlay_figure(p.a, p.b) for p in result.pairs}
+    figures = {
+        (p.a.key, p.b.key, p.joint): None if p.total else overlay_figure(p.a, p.b) for p in result.pairs
+    }
     # the template's number formats and the per-quantity significance level
     helpers = {"fmt": _num, "ival": _ival, "pval": _p, "alpha": ALPHA_EACH}
     html = env.get_template(TEMPLATE).render(
-        result=result, figure_of=lambda p: figures[(p.a.key, p.b.key)], **helpers
+        result=result, figure_of=lambda p: figures[(p.a.key, p.b.key, p.joint)], **helpers
     )
     write_atomically(output, html)
     return output

@@ -5,8 +5,12 @@ unit). Every rule is a test with a p-value at level `ALPHA` (0.05); the interval
 statement is the two-sided (1 - 2 ALPHA) = 90 % interval, whose bound is the one-sided 95 % bound the
 test uses, so "the interval lies above zero" and "p <= 0.05" say the same thing before adjustment:
 
-- every configuration involved needs `min_trials` trials with the metric, else `not evaluable`; so does a
-  statement about a device element (`engages`) the measured angles never reach;
+- every configuration involved needs `min_trials` trials with the metric, else `not evaluable` with the
+  true reason (the configuration is not in the archive, was not run, has no processed trial of the joint,
+  or too few trials with the metric); so does a statement about a device element (`engages`) the measured
+  angles never reach;
+- the data are one joint's: the campaign's only joint, the declared `joint`, or with `joints: all` each
+  driven joint in turn, each a verdict of its own (`Verdict.joint`) and a member of the family below;
 - `increasing` / `decreasing`: EVERY adjacent step of the stated order must go the stated way, each by a
   one-sided Welch test (b minus a above zero, or below); the statement is the conjunction of its steps,
   so its p-value is the largest step p (an intersection-union test: no adjustment within it is needed);
@@ -47,8 +51,10 @@ from protocol_runner.analysis.statistics import (
     t_interval,
 )
 from protocol_runner.protocol.expectations import ExpectationSpec
+from protocol_runner.protocol.only import key_spans
 from protocol_runner.report.metrics import LABELS, UNITS, trial_values
 from protocol_runner.report.model import Configuration, ReportData
+from protocol_runner.report.settings_view import DeviceElement
 
 MET, NOT_MET, NOT_EVALUABLE = "met", "not met", "not evaluable"
 
@@ -81,6 +87,7 @@ class Verdict:
     p_value: float = math.nan
     p_adjusted: float = math.nan
     family: int = 0
+    joint: str = ""  # the joint whose data decided it ("" when the archive says none)
 
     @property
     def css(self) -> str:
@@ -130,23 +137,62 @@ def metric_label(spec: ExpectationSpec) -> str:
 
 def evaluate_expectation(spec: ExpectationSpec, data: ReportData) -> Verdict:
     """The verdict of `spec` on `data` alone, as a family of one (never raises for missing data:
-    `not evaluable` says why). `evaluate_all` decides a campaign's expectations together."""
-    v = _tested(spec, data)
+    `not evaluable` says why); of `joints: all`, the first driven joint's (`evaluate_all` gives each joint's).
+    `evaluate_all` decides a campaign's expectations together."""
+    v = _tested(spec, data, joints_of(spec, data)[0])
     return v if v.verdict == NOT_EVALUABLE else _adjusted(v, v.p_value, 1)
 
 
-def _tested(spec: ExpectationSpec, data: ReportData) -> Verdict:
-    """`spec` tested on `data`: its p-value and numbers, not yet decided (or `not evaluable`)."""
+def joints_of(spec: ExpectationSpec, data: ReportData) -> tuple[str, ...]:
+    """The joints `spec` is decided for, one verdict each: its `joint`, every joint of the archive for
+    `joints: all`, else the archive's joints when it has one ("" when it names several: not evaluable)."""
+    if spec.joint is not None:
+        return (spec.joint,)
+    if spec.joints == "all":
+        return _joints(data) or ("",)
+    return _joints(data) if len(_joints(data)) == 1 else ("",)
+
+
+def _joints(data: ReportData) -> tuple[str, ...]:
+    """The archive's joints in channel order (of data built without them, its configurations')."""
+    return data.joints or tuple(dict.fromkeys(c.joint for c in data.configurations))
+
+
+def _why_short(data: ReportData, key: int, joint: str, n: int, spec: ExpectationSpec) -> str:
+    """Why configuration `key` gave `joint` only `n` trial values of the metric: absent from the archive,
+    not run, no data of that joint, no processed trial, or too few trials with the metric."""
+    cfg = data.configuration(key, joint)
+    if cfg is None:
+        if not any(c.key == key for c in data.configurations):
+            return f"configuration {key} is not in this archive"
+        return f"configuration {key} has no data of joint {joint}"
+    if cfg.status == "not run":
+        return f"configuration {key} was not run"
+    recorded = sum(t.recorded for t in cfg.trials)
+    if not n and recorded and not any(t.processed is not None for t in cfg.trials):
+        return f"configuration {key} has {recorded} recorded trial{_s(recorded)}, none processed"
+    return f"configuration {key} has {n or 'no'} trial{_s(n)} with {metric_label(spec)}"
+
+
+def _s(n: int) -> str:
+    return "" if n == 1 else "s"
+
+
+def _tested(spec: ExpectationSpec, data: ReportData, joint: str) -> Verdict:
+    """`spec` tested on `joint`'s data of `data`: its p-value and numbers, not yet decided (or `not
+    evaluable`)."""
     unit = UNITS[spec.metric]
     keys = list(
         dict.fromkeys(
             [*spec.configurations, *(spec.baseline or []), *(spec.than or []), *(spec.than_baseline or [])]
         )
     )
+    if joint not in _joints(data):
+        return Verdict(spec, NOT_EVALUABLE, _no_joint(spec, data), (), joint=joint)
     values: dict[int, tuple[float, ...]] = {}
     intervals: dict[int, TInterval] = {}
     for key in keys:
-        cfg = data.configuration(key)
+        cfg = data.configuration(key, joint)
         vals = (
             ()
             if cfg is None
@@ -158,22 +204,39 @@ def _tested(spec: ExpectationSpec, data: ReportData) -> Verdict:
     short = [k for k in keys if intervals[k].n < spec.min_trials]
     problems: list[str] = []
     if short:
-        parts = [
-            f"configuration {k} is not in this archive"
-            if data.configuration(k) is None
-            else f"configuration {k} has {intervals[k].n or 'no'} trial{'' if intervals[k].n == 1 else 's'} "
-            f"with {metric_label(spec)}"
-            for k in short
+        only = data.session.only
+        left_out = [
+            k for k in short if only and k not in only and not any(c.key == k for c in data.configurations)
         ]
+        parts = [_why_short(data, k, joint, intervals[k].n, spec) for k in short if k not in left_out]
+        if left_out:
+            many = len(left_out) > 1
+            parts.append(
+                f"configuration{'s' if many else ''} {', '.join(map(str, left_out))} {'were' if many else 'was'} "
+                f"not run (the session ran only {key_spans(only)})"
+            )
         problems.append("; ".join(parts) + f" (the rule needs {spec.min_trials} per configuration).")
-    unreached = _unreached(spec, data)
+    unreached = _unreached(spec, data, joint)
     if unreached:
         problems.append(unreached)
+    whose = f"joint {joint}: " if len(_joints(data)) > 1 else ""  # which joint's data, when there is a choice
     if problems:
-        return Verdict(spec, NOT_EVALUABLE, " ".join(problems), evidence)
+        return Verdict(spec, NOT_EVALUABLE, whose + " ".join(problems), evidence, joint=joint)
     p, reason = _decide(spec, values, intervals, unit)
     p = p if math.isfinite(p) else 1.0  # an undefined test never supports the statement
-    return Verdict(spec, NOT_MET, reason, evidence, p)
+    return Verdict(spec, NOT_MET, whose + reason, evidence, p, joint=joint)
+
+
+def _no_joint(spec: ExpectationSpec, data: ReportData) -> str:
+    """Why no joint's data can decide `spec`: the joint it names is not in the archive, or it names none
+    and the archive holds several."""
+    shown = ", ".join(_joints(data)) or "none"
+    if spec.joint is not None:
+        return f"joint {spec.joint} is not in this archive (its joints: {shown})."
+    return (
+        f"this archive holds several joints ({shown}) and the expectation names none: "
+        "declare `joint: <one of them>` or `joints: all`."
+    )
 
 
 def _adjusted(v: Verdict, p_adjusted: float, family: int) -> Verdict:
@@ -189,9 +252,10 @@ def _adjusted(v: Verdict, p_adjusted: float, family: int) -> Verdict:
 
 
 def evaluate_all(specs: Sequence[ExpectationSpec], data: ReportData) -> tuple[Verdict, ...]:
-    """Every declared expectation's verdict, in declaration order: the evaluable ones are one family whose
-    p-values are Holm-adjusted; each is met when its adjusted p-value is at most `ALPHA`."""
-    tested = [_tested(s, data) for s in specs]
+    """Every declared expectation's verdicts, in declaration order (one per joint it is decided for, in
+    the archive's joint order): the evaluable ones are one family whose p-values are Holm-adjusted; each is
+    met when its adjusted p-value is at most `ALPHA`."""
+    tested = [_tested(s, data, joint) for s in specs for joint in joints_of(s, data)]
     raw = [v.p_value if v.verdict != NOT_EVALUABLE else math.nan for v in tested]
     family = sum(math.isfinite(p) for p in raw)
     return tuple(
@@ -219,19 +283,19 @@ def _extremes(cfg: Configuration) -> tuple[float, float]:
     return min(float(a.min()) for a in angles), max(float(a.max()) for a in angles)
 
 
-def _unreached(spec: ExpectationSpec, data: ReportData) -> str:
-    """Why a statement about a device element (`engages`) cannot be decided: a configuration without the
-    element, an element without a `range_deg` to reach, or measured angles that never reach it ("" when
-    every configuration reaches it)."""
+def _unreached(spec: ExpectationSpec, data: ReportData, joint: str) -> str:
+    """Why a statement about a device element (`engages`) cannot be decided on `joint`'s data: a
+    configuration without the element on that joint, an element without a `range_deg` to reach, or measured
+    angles that never reach it ("" when every configuration reaches it)."""
     if spec.engages is None:
         return ""
     end = _end_of(spec)
     problems: list[str] = []
     for key in spec.configurations:
-        cfg = data.configuration(key)
+        cfg = data.configuration(key, joint)
         if cfg is None:
             continue
-        element = cfg.settings.element(spec.engages)
+        element = _element(cfg, spec.engages, joint)
         if element is None:
             problems.append(f"configuration {key} has no device element {spec.engages!r}")
             continue
@@ -255,6 +319,14 @@ def _unreached(spec: ExpectationSpec, data: ReportData) -> str:
     if not problems:
         return ""
     return "; ".join(problems) + f": the statement is about {spec.engages!r}, which these data never engage."
+
+
+def _element(cfg: Configuration, name: str, joint: str) -> DeviceElement | None:
+    """The device element `name` that `joint` carries (of a device of one joint, its element `name`)."""
+    return next(
+        (e for e in cfg.settings.device if e.name == name and dict(e.params).get("joint", joint) == joint),
+        None,
+    )
 
 
 def _sign(a: float, b: float) -> str:

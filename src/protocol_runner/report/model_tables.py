@@ -12,7 +12,8 @@ as their sum, e.g. element `brake+hinge`).
 to_configuration, joint, model, rmse_nm, energy_predicted_j, energy_predicted_ci95_low_j,
 energy_predicted_ci95_high_j, energy_measured_j (`report.predictions`; the Bouc-Wen row has its RMSE only).
 
-A single-joint archive has an empty `joint` column; a multi-joint one names the joint.
+The `joint` column names the joint of each row, as in the other tables of `--export` (`report.tidy`); a
+prediction's is the archive's joint (predictions are made for a single joint).
 """
 
 from __future__ import annotations
@@ -24,6 +25,8 @@ from pathlib import Path
 import h5py
 
 from ..archive.model_results import read_element_model, read_models
+from ..archive.paths import joint_groups
+from .h5read import attr_str
 
 MODEL_COLUMNS = (
     "configuration",
@@ -65,15 +68,12 @@ def _owners(h5: h5py.File) -> Iterator[tuple[int, str, h5py.Group]]:
     configs = h5.get("configurations")
     if not isinstance(configs, h5py.Group):
         return
+    archive_joints = attr_str(h5.attrs, "joint")
     for name in sorted(configs):
         cfg = configs[name]
         key = int(cfg.attrs.get("key", int(name.rsplit("_", 1)[-1])))
-        joints = cfg.get("joints")
-        if isinstance(joints, h5py.Group):
-            for joint in joints:
-                yield key, str(joint), joints[joint]
-        else:
-            yield key, "", cfg
+        for joint, group in joint_groups(cfg, archive_joints):
+            yield key, joint, group
 
 
 Table = tuple[str, Sequence[str], list[list[object]]]
@@ -87,6 +87,7 @@ def model_tables(archive: Path, protocol_text: str) -> tuple[Table, ...]:
     models: list[list[object]] = []
     elements: list[list[object]] = []
     with h5py.File(archive, "r") as h5:
+        archive_joint = attr_str(h5.attrs, "joint").split(",")[0].strip()
         for key, joint, owner in _owners(h5):
             if "fits/models" in owner:
                 for row in read_models(owner["fits/models"]):
@@ -102,7 +103,7 @@ def model_tables(archive: Path, protocol_text: str) -> tuple[Table, ...]:
                 [
                     p.fit_key,
                     p.predict_key,
-                    "",
+                    archive_joint,
                     "elements",
                     e.rmse_nm,
                     e.energy_predicted_j,
@@ -112,7 +113,17 @@ def model_tables(archive: Path, protocol_text: str) -> tuple[Table, ...]:
                 ]
             )
         rows.append(
-            [p.fit_key, p.predict_key, "", "bouc_wen", p.rmse_nm, math.nan, math.nan, math.nan, math.nan]
+            [
+                p.fit_key,
+                p.predict_key,
+                archive_joint,
+                "bouc_wen",
+                p.rmse_nm,
+                math.nan,
+                math.nan,
+                math.nan,
+                math.nan,
+            ]
         )
     return (
         ("models.csv", MODEL_COLUMNS, models),

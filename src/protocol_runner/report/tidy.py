@@ -1,5 +1,9 @@
 """Tidy CSV tables of an archive: one row per cycle, per trial and per configuration, units in the names.
 
+Every table has a `joint` column and holds every driven joint's rows: an archive of several joints
+(docs/archive.md "Several joints") gives one row per configuration, trial or cycle AND joint, each from
+that joint's own data (`configurations/<name>/joints/<joint>`); an archive of one joint names it.
+
 `cycles.csv`: configuration, set, trial, brace, joint, cycle, energy_j, angle_min_deg, angle_max_deg,
 torque_peak_nm. The energy is the archived `energy_loss_j` (Eq 10-12); the angle and torque columns come
 from the trial's archived processed data cut into the same complete cycles (`analysis.cycles`), and are
@@ -7,13 +11,13 @@ left empty when that cut does not give the archived number of cycles (e.g. cycle
 torque was undefined). `brace` is `on-off`: every value is the brace's own torque, brace-on minus
 brace-off at equal angles (§3.3).
 
-`trials.csv`: one row per trial with its cycle count, mean and within-trial standard deviation of the
+`trials.csv`: one row per trial (and joint) with its cycle count, mean and within-trial standard deviation of the
 energy per cycle, the angle range and peak torque of its processed data, and how well its brace-off twin
 matched it: `brace_off_scaling_error_deg` (the kept run's cycle-range error, docs/analysis.md §3),
 `brace_off_scaling_runs` (robot runs the scaling made), `brace_off_scaling_converged` and
 `clipped_fraction` (share of brace-on samples beyond the brace-off range, given its nearest torque, §4).
 
-`configurations.csv`: one row per configuration with its settings (profile, trajectory name, then one column
+`configurations.csv`: one row per configuration (and joint) with its settings (profile, trajectory name, then one column
 per declared factor holding its level label and one per factor quantity, `<factor>.<quantity>`, the unit in
 the quantity's suffix; a list such as a range [lo, hi] is written `lo;hi`), trials, cycles, the mean of
 trial means with its 95 % t-interval and between-trial CV (`report.headline`, the numbers of the report's
@@ -42,6 +46,7 @@ from protocol_runner.analysis.cycles import complete_cycles
 from protocol_runner.analysis.validation import AnalysisError
 from protocol_runner.archive.diskfull import DiskFull, is_disk_full
 from protocol_runner.archive.outputs import create_new, refuse_special, temporary_beside
+from protocol_runner.archive.paths import joint_groups
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.load import load_report_data
@@ -66,6 +71,7 @@ CYCLE_COLUMNS = (
 TRIAL_COLUMNS = (
     "configuration",
     "set",
+    "joint",
     "trial",
     "cycles",
     "energy_mean_j",
@@ -145,11 +151,18 @@ def _write(path: Path, columns: Sequence[str], rows: Iterable[Sequence[object]])
     return path
 
 
-def _processed(h5: h5py.File, cfg: Configuration, trial: int) -> tuple[np.ndarray, np.ndarray] | None:
-    path = f"configurations/{cfg.name}/trials/{trial}/processed"
-    if path not in h5:
+def _processed(
+    h5: h5py.File, cfg: Configuration, trial: int, archive_joints: str
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The processed angle and brace torque of `cfg`'s joint in trial `trial`, or None."""
+    group = h5.get(f"configurations/{cfg.name}")
+    if not isinstance(group, h5py.Group):
         return None
-    grp = h5[path]
+    own = dict(joint_groups(group, archive_joints)).get(cfg.joint)
+    path = f"trials/{trial}/processed"
+    if own is None or path not in own:
+        return None
+    grp = own[path]
     if "angle_deg" not in grp or "brace_torque_nm" not in grp:
         return None
     angle = np.asarray(grp["angle_deg"][()], dtype=float)
@@ -188,12 +201,10 @@ def _rows(h5: h5py.File, data: ReportData) -> tuple[list[list[object]], list[lis
         matches = {t.number: t.match for t in cfg.trials}  # read by load_configuration.brace_off_match
         for number in numbers:
             own = energy[ids == number] if ids.size == energy.size else np.empty(0)
-            signal = _processed(h5, cfg, number)
+            signal = _processed(h5, cfg, number, data.session.joint)
             geometry = _cycle_geometry(signal, own.size)
             for i, (e, geo) in enumerate(zip(own, geometry, strict=True), start=1):
-                cycles.append(
-                    [cfg.key, cfg.set_name, number, "on-off", data.session.joint, i, float(e), *geo]
-                )
+                cycles.append([cfg.key, cfg.set_name, number, "on-off", cfg.joint, i, float(e), *geo])
             lo = hi = peak = math.nan
             if signal is not None and signal[0].size:
                 lo, hi = float(np.nanmin(signal[0])), float(np.nanmax(signal[0]))
@@ -202,7 +213,9 @@ def _rows(h5: h5py.File, data: ReportData) -> tuple[list[list[object]], list[lis
             sd = float(own.std(ddof=1)) if own.size > 1 else math.nan
             m = matches.get(number, BraceOffMatch())
             match = [m.scaling_error_deg, m.scaling_runs, m.scaling_converged, m.clipped_fraction]
-            trials.append([cfg.key, cfg.set_name, number, int(own.size), mean, sd, lo, hi, peak, *match])
+            trials.append(
+                [cfg.key, cfg.set_name, cfg.joint, number, int(own.size), mean, sd, lo, hi, peak, *match]
+            )
     return cycles, trials
 
 
@@ -217,7 +230,7 @@ def setting_columns(data: ReportData) -> list[str]:
 
 def _configuration_rows(data: ReportData) -> tuple[list[str], list[list[object]]]:
     setting_names = setting_columns(data)
-    columns = ["configuration", "set", "profile", "trajectory", *setting_names, *STAT_COLUMNS]
+    columns = ["configuration", "set", "joint", "profile", "trajectory", *setting_names, *STAT_COLUMNS]
     rows: list[list[object]] = []
     for cfg in data.configurations:
         s = configuration_stats(cfg)
@@ -226,6 +239,7 @@ def _configuration_rows(data: ReportData) -> tuple[list[str], list[list[object]]
             [
                 cfg.key,
                 cfg.set_name,
+                cfg.joint,
                 cfg.profile,
                 cfg.settings.trajectory,
                 *(flat.get(name) for name in setting_names),

@@ -8,6 +8,11 @@ declaration and the outcome, and whose `evidence` text dataset (sealed with its 
 one object per configuration: key, trials, mean, 95 % interval low and high (null when undefined), unit.
 The attributes `p_value` and `p_adjusted` give the expectation's own test and its Holm adjustment over the
 `family` evaluable expectations (both absent, and `family` 0, when not evaluable).
+
+An expectation that names `joint` or `joints: all` is decided per joint: its group holds the declaration
+and `joints` (the joints it was decided for), and each joint's verdict, numbers and evidence are in
+`joints/<joint>` (attribute `joint`), the layout of every group keyed by joint (`archive.paths.joint_groups`
+reads both forms).
 """
 
 from __future__ import annotations
@@ -18,10 +23,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import h5py
+import numpy as np
 
 from protocol_runner.archive.h5util import put_attrs, put_text
+from protocol_runner.archive.paths import JOINTS
 
 if TYPE_CHECKING:
+    from protocol_runner.report.evaluate import Verdict
     from protocol_runner.report.model import ReportData
 
 
@@ -42,41 +50,58 @@ def record_verdicts(archive: Path, data: ReportData | None = None) -> int:
         root = h5.create_group("expectations")
         put_attrs(root, "expectations", {"problems": json.dumps(list(result.problems))})
         for v in result.verdicts:
-            grp = root.create_group(v.spec.id)
-            put_attrs(
-                grp,
-                "expectation",
-                {
-                    "text": v.spec.text,
-                    "section": v.spec.section,
-                    "metric": v.spec.metric,
-                    "unit": v.unit,
-                    "relation": v.spec.relation,
-                    "configurations": json.dumps(v.spec.configurations),
-                    "declaration": v.spec.model_dump_json(exclude_none=True),
-                    "verdict": v.verdict,
-                    "reason": v.reason,
-                    **{
-                        k: p
-                        for k, p in (("p_value", v.p_value), ("p_adjusted", v.p_adjusted))
-                        if math.isfinite(p)
-                    },
-                    "family": v.family,
-                    "simulator_tuned": int(v.spec.depends_on_tuning),  # 0/1: numbers export as doubles
-                    "depends_on_simulator": json.dumps(v.spec.depends_on_simulator),
-                    "dry_run": int(result.dry_run),
-                },
-            )
-            rows = [
-                {
-                    "key": e.key,
-                    "trials": e.n,
-                    "mean": _finite(e.mean),
-                    "ci95_low": _finite(e.low),
-                    "ci95_high": _finite(e.high),
-                    "unit": v.unit,
-                }
-                for e in v.evidence
-            ]
-            put_text(grp, "evidence", json.dumps(rows))
+            keyed = (v.spec.joint is not None or v.spec.joints is not None) and bool(v.joint)
+            if v.spec.id not in root:
+                grp = root.create_group(v.spec.id)
+                joints = [w.joint for w in result.verdicts if w.spec.id == v.spec.id]
+                put_attrs(grp, "expectation", _declaration(v, result.dry_run, joints if keyed else None))
+            grp = root[v.spec.id]
+            if keyed:
+                grp = grp.require_group(JOINTS).create_group(v.joint)
+                put_attrs(grp, "expectation", {"joint": v.joint})
+            _outcome(grp, v)
     return len(result.verdicts)
+
+
+def _declaration(v: Verdict, dry_run: bool, joints: list[str] | None) -> dict[str, object]:
+    """The attributes of an expectation's group that its declaration gives (and `joints` when it is
+    decided per joint)."""
+    return {
+        "text": v.spec.text,
+        "section": v.spec.section,
+        "metric": v.spec.metric,
+        "unit": v.unit,
+        "relation": v.spec.relation,
+        "configurations": json.dumps(v.spec.configurations),
+        "declaration": v.spec.model_dump_json(exclude_none=True),
+        "simulator_tuned": int(v.spec.depends_on_tuning),  # 0/1: numbers export as doubles
+        "depends_on_simulator": json.dumps(v.spec.depends_on_simulator),
+        "dry_run": int(dry_run),
+        **({JOINTS: np.array(joints, dtype=h5py.string_dtype())} if joints is not None else {}),
+    }
+
+
+def _outcome(grp: h5py.Group, v: Verdict) -> None:
+    """The verdict, its numbers and its evidence, in `grp` (the expectation's group or its joint's)."""
+    put_attrs(
+        grp,
+        "expectation",
+        {
+            "verdict": v.verdict,
+            "reason": v.reason,
+            **{k: p for k, p in (("p_value", v.p_value), ("p_adjusted", v.p_adjusted)) if math.isfinite(p)},
+            "family": v.family,
+        },
+    )
+    rows = [
+        {
+            "key": e.key,
+            "trials": e.n,
+            "mean": _finite(e.mean),
+            "ci95_low": _finite(e.low),
+            "ci95_high": _finite(e.high),
+            "unit": v.unit,
+        }
+        for e in v.evidence
+    ]
+    put_text(grp, "evidence", json.dumps(rows))
