@@ -205,6 +205,7 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
         "energy_std_j",
         "energy_cycles",
         "max_angle_deg",
+        JOINTS,
     ),
     "expectations": ("problems",),
     "expectation": (

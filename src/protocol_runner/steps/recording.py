@@ -1,16 +1,66 @@
-"""Writing a rig recording (raw codes and converted values) into a unit: shared by trials and checks."""
+"""Driving the campaign's joints and writing a rig recording (raw codes and converted values) into a unit:
+shared by trials and checks."""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 
 import h5py
 import numpy as np
+import numpy.typing as npt
 
 from ..archive.h5util import SIGNAL, put, put_attrs
 from ..archive.paths import put_dataset
-from ..hardware.joint import TrialRecording
+from ..hardware.joint import JointConfig, TrialRecording
+from ..hardware.motion import run_motion
+from ..hardware.multi_rig import run_multi_motion
 from ..hardware.stream import SEGMENT_NAMES
+from ..protocol.plan_steps import CalibrationCheckStep, TrialStep
+from ..protocol.trajectory_record import Trajectory
+from .context import StepContext
+
+
+def joint_trajectories(
+    step: TrialStep | CalibrationCheckStep, ctx: StepContext
+) -> tuple[tuple[str, Trajectory], ...]:
+    """Each driven joint's trajectory of a step, in channel order (one joint: the step's trajectory)."""
+    if step.joint_trajectories:
+        return step.joint_trajectories
+    return ((ctx.loaded.protocol.driven_joints[0], step.trajectory),)
+
+
+def bench_joints(ctx: StepContext) -> tuple[JointConfig, ...]:
+    """The driven joints' configurations (limits, rates), in channel order."""
+    multi = getattr(ctx.bench, "multi", None)
+    return tuple(multi.joints) if multi is not None else (ctx.bench.rig.joint,)
+
+
+def drive(ctx: StepContext, commands: Sequence[npt.ArrayLike], where: str) -> tuple[TrialRecording, ...]:
+    """One motion of every driven joint (`commands` in channel order, as many samples each): each joint's
+    recording on the shared time base. A board failure's partial recording is a tuple likewise."""
+    multi = getattr(ctx.bench, "multi", None)
+    if multi is not None:
+        return run_multi_motion(multi, commands, where=where, stop_requested=ctx.stop_requested)
+    try:
+        return (run_motion(ctx.bench.rig, commands[0], where=where, stop_requested=ctx.stop_requested),)
+    except BaseException as exc:
+        partial = getattr(exc, "partial_recording", None)
+        if isinstance(partial, TrialRecording):
+            exc.partial_recording = (partial,)  # type: ignore[attr-defined]
+        raise
+
+
+def drive_joint(ctx: StepContext, joint: str, command: npt.ArrayLike, where: str) -> TrialRecording:
+    """A motion of `joint` alone (its calibration step); any other driven joint holds its last output."""
+    multi = getattr(ctx.bench, "multi", None)
+    if multi is None:
+        return run_motion(ctx.bench.rig, command, where=where, stop_requested=ctx.stop_requested)
+    single = multi.single(joint)
+    try:
+        return run_motion(single, command, where=where, stop_requested=ctx.stop_requested)
+    finally:
+        multi.note_single(joint, single)
 
 
 def put_scan(g: h5py.Group, rec: TrialRecording) -> None:
