@@ -91,7 +91,7 @@ class SimulatedBench:
             self.multi = self.multi_sim.make_rig()
             self.sim = self.multi_sim  # its `clock` gives the simulated robot time (session/runner.py)
             # the session itself only parks through `rig` (`park(where=...)`), which MultiRig provides;
-            # steps reach the joints through `multi` (steps/multi_trial.py)
+            # steps reach the joints through `multi` (steps/recording.py `drive`)
             self.rig = cast(Rig, self.multi)
             self.mode = "dry-run"
             return
