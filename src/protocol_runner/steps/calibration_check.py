@@ -192,27 +192,15 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
         message = "; ".join(f"joint {r.joint}: {', '.join(r.problems)}" for r in results if r.problems)
         what = "calibration of the joint(s) named"
     verdict, stop = check_verdict(ctx, record_as, message, what)
-    ctx.monitor.verdict(
-        record_as,
-        verdict,
-        {
-            "set": step.set,
-            "when": when,
-            **{
-                f"{r.joint}.{name}" if len(results) > 1 else name: round(value, digits)
-                for r in results
-                for name, value, digits in (
-                    ("settle_error_deg", r.response.settle_error_deg, 3),
-                    ("time_constant_s", r.response.time_constant_s, 4),
-                )
-            },
-            "message": message,
-        },
-    )
+    named = [(r, f"{r.joint} " if len(results) > 1 else "") for r in results]  # several joints: named
+    numbers: dict[str, object] = {}
+    for r, who in named:
+        numbers[f"{who.strip()}.settle_error_deg".lstrip(".")] = round(r.response.settle_error_deg, 3)
+        numbers[f"{who.strip()}.time_constant_s".lstrip(".")] = round(r.response.time_constant_s, 4)
+    ctx.monitor.verdict(record_as, verdict, {"set": step.set, "when": when, **numbers, "message": message})
     summary = f"{verdict}: " + ", ".join(
-        f"{r.joint + ' ' if len(results) > 1 else ''}settle error {r.response.settle_error_deg:.2f} deg, "
-        f"tau {r.response.time_constant_s:.3f} s"
-        for r in results
+        f"{who}settle error {r.response.settle_error_deg:.2f} deg, tau {r.response.time_constant_s:.3f} s"
+        for r, who in named
     )
     fill = _fill(step.set, when, record_as, results, verdict, message, limits.model_dump())
     return StepOutcome(fill, summary, stop)
