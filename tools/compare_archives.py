@@ -1,6 +1,6 @@
 """Compare two archives (or two session directories) value by value.
 
-    python tools/compare_archives.py A B [--ignore-attr NAME ...] [--rtol R]
+    python tools/compare_archives.py A B [--ignore-attr NAME ...] [--rtol R] [--as-joints]
 
 Walks every group and dataset of both archives and reports each path that exists in one only, each
 dataset whose shape, dtype or values differ, and each attribute that differs. Wall-clock attributes
@@ -8,6 +8,12 @@ dataset whose shape, dtype or values differ, and each attribute that differs. Wa
 ignored, because a rerun of the same seeded campaign cannot reproduce them; so are the `sha256`
 attributes of datasets whose values are equal (compression or chunking may legitimately differ).
 Values are compared exactly (NaN equals NaN) unless `--rtol` is given.
+
+With `--as-joints`, A is an archive of one joint written before every group was keyed by joint and B one
+keyed by joint (docs/archive.md): each path of B is read as the path of A it keys (`joints/<joint>`
+removed, `joints/<joint>/trials/<n>/processed` as `trials/<n>/processed`, `total_energy_*` as
+`energy_*`), and groups and attributes that only name the joints (`joints`, `joint`) are layout keys; it
+prints "same values apart from layout keys" when nothing else differs.
 
 Exit 0 when the archives hold the same values, 1 when they differ, 2 on a usage error. Used to show
 that a refactoring changes no recorded or computed number.
@@ -17,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 from pathlib import Path
 from typing import Any
@@ -108,22 +115,86 @@ def compare(a_path: Path, b_path: Path, ignore: set[str], rtol: float = 0.0) -> 
     return out
 
 
+LAYOUT_ATTRS = {"joints", "joint"}
+_PROCESSED = re.compile(r"^(configurations/[^/]+)/joints/[^/]+/trials/([^/]+)/processed")
+_JOINT = re.compile(r"/joints/[^/]+(?=/|$)")
+_TOTAL = re.compile(r"^(configurations/[^/]+)/total_(energy_loss_j|energy_cycle_trial)$")
+
+
+def unkey(path: str) -> str:
+    """The path of a single-joint archive written before every group was keyed by joint that the
+    joint-keyed `path` holds (`joints/<joint>/` removed; a configuration's totals are its one joint's)."""
+    path = _TOTAL.sub(r"\1/\2", path)
+    path = _PROCESSED.sub(r"\1/trials/\2/processed", path)
+    return _JOINT.sub("", path, count=1)
+
+
+def compare_as_joints(a_path: Path, b_path: Path, ignore: set[str], rtol: float = 0.0) -> list[str]:
+    """Every difference between a single-joint archive A of the former layout and B keyed by joint, each
+    path of B read as the path of A it keys (`unkey`)."""
+    out: list[str] = []
+    with h5py.File(a_path, "r") as fa, h5py.File(b_path, "r") as fb:
+        ia, ib = _collect(fa), _collect(fb)
+        seen: set[str] = set()
+        covered: set[tuple[str, str]] = set()
+        for name in sorted(ib):
+            ob, old = ib[name], unkey(name)
+            if old not in ia:
+                if not (isinstance(ob, h5py.Group) and name.endswith("/joints")):
+                    out.append(f"only in B: {name}")
+                continue
+            seen.add(old)
+            oa = ia[old]
+            if isinstance(oa, h5py.Dataset) != isinstance(ob, h5py.Dataset):
+                out.append(f"kind differs: {name} (A: {old})")
+                continue
+            if isinstance(oa, h5py.Dataset):
+                assert isinstance(ob, h5py.Dataset)
+                if oa.shape != ob.shape:
+                    out.append(f"shape differs: {name} {ob.shape} vs A {old} {oa.shape}")
+                elif not _equal(oa[()], ob[()], rtol):
+                    out.append(f"values differ: {name} (A: {old})")
+            for key in sorted(ob.attrs):
+                if _ignored(key, ignore):
+                    continue
+                if key in oa.attrs:
+                    covered.add((old, key))
+                    if not _equal(oa.attrs[key], ob.attrs[key], rtol):
+                        out.append(f"attribute differs: {name} @{key}: {ob.attrs[key]!r} vs A {oa.attrs[key]!r}")
+                elif key not in LAYOUT_ATTRS:
+                    out.append(f"attribute only in B: {name} @{key}")
+        for name in sorted(set(ia) - seen):
+            out.append(f"only in A: {name}")
+        for name in sorted(seen):
+            for key in sorted(ia[name].attrs):
+                if not _ignored(key, ignore) and (name, key) not in covered:
+                    out.append(f"attribute only in A: {name} @{key}")
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("a", type=Path)
     parser.add_argument("b", type=Path)
     parser.add_argument("--ignore-attr", action="append", default=[], help="an attribute name to ignore")
     parser.add_argument("--rtol", type=float, default=0.0, help="relative tolerance for floats (default exact)")
+    parser.add_argument(
+        "--as-joints",
+        action="store_true",
+        help="A is a single-joint archive of the former layout, B keyed by joint: compare apart from layout keys",
+    )
     args = parser.parse_args(argv)
     a, b = _archive_path(args.a), _archive_path(args.b)
     for p in (a, b):
         if not p.is_file():
             print(f"error: {p} is not an archive", file=sys.stderr)
             return 2
-    diffs = compare(a, b, set(args.ignore_attr), args.rtol)
+    ignore = set(args.ignore_attr) | ({"attribute_sha256"} if args.as_joints else set())
+    diffs = (compare_as_joints if args.as_joints else compare)(a, b, ignore, args.rtol)
     for line in diffs:
         print(line)
-    print(f"{len(diffs)} differences" if diffs else "same values")
+    same = "same values apart from layout keys" if args.as_joints else "same values"
+    print(f"{len(diffs)} differences" if diffs else same)
     return 1 if diffs else 0
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from protocol_runner.analysis.scaling import range_scale, scale_brace_off_input
+from protocol_runner.analysis.scaling import range_scale, scale_brace_off_input, scale_brace_off_inputs
 from protocol_runner.analysis.validation import AnalysisError
 
 from .synth import sine_command
@@ -157,3 +157,28 @@ def test_an_input_moving_by_less_than_a_billionth_of_its_level_is_flat(level_deg
         scale_brace_off_input(level_deg + 2.5e-8 * wave, (20.0, 110.0), lambda x: x, max_iterations=1)
     moving = scale_brace_off_input(level_deg + 5e-7 * wave, (20.0, 110.0), lambda x: x, max_iterations=1)
     assert moving.history[0].output_range_deg[1] > moving.history[0].output_range_deg[0]
+
+
+def test_joints_run_together_are_scaled_each_by_its_own_factor_and_a_matched_joint_keeps_its_input() -> None:
+    """Two joints in one robot run per iteration: the first already follows its target (output = input),
+    the second has a gain of 0.5 and an offset of 10 deg. The first keeps its input while the second is
+    corrected (Eq 8 amplitude, mid-range step), both end within the tolerance, and one run is kept for both."""
+    u = _command()
+    runs: list[list[np.ndarray]] = []
+
+    def robot(inputs: list[np.ndarray]) -> list[np.ndarray]:
+        runs.append([x.copy() for x in inputs])
+        return [inputs[0].copy(), 10.0 + 0.5 * inputs[1]]
+
+    lo, hi = float(u.min()), float(u.max())
+    results = scale_brace_off_inputs(
+        [u, u], [(lo, hi), (40.0, 80.0)], robot, tolerance_deg=1e-6, transition_tolerance_deg=200.0
+    )
+    first, second = results
+    assert len(runs) == 2
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])  # the matched joint kept its input
+    assert not np.array_equal(runs[0][1], runs[1][1])  # the other was scaled
+    assert first.history[0].range_error_deg <= 1e-6 and second.history[0].range_error_deg > 1.0
+    assert first.converged and second.converged and first.kept == second.kept == 1
+    assert second.best.output_range_deg == pytest.approx((40.0, 80.0), abs=1e-6)
+    np.testing.assert_array_equal(second.input_deg, runs[1][1])

@@ -20,10 +20,10 @@ def test_no_device_loses_under_a_tenth_of_a_joule_per_cycle(tmp_path: Path) -> N
     assert main([str(SHOULDER), "--dry-run", "--seed", "7", "--session", str(session)]) == 0
     with h5py.File(session / "archive.h5") as f:
         energy = {
-            k: float(np.mean(f[f"configurations/config_{k:02d}/energy_loss_j"][()])) for k in (1, 2, 3, 4)
+            k: float(np.mean(f[f"configurations/config_{k:02d}/joints/shoulder_flexion/energy_loss_j"][()])) for k in (1, 2, 3, 4)
         }
         for k in (1, 2, 3, 4):  # every twin matched its brace-on cycles within the 0.1 deg tolerance
-            scaling = f[f"configurations/config_{k:02d}/trials/1/brace_off/scaling"]
+            scaling = f[f"configurations/config_{k:02d}/trials/1/brace_off/joints/shoulder_flexion/scaling"]
             assert bool(scaling.attrs["converged"])
             assert float(np.min(scaling["range_error_deg"][()])) <= 0.1
     # 1, 2: no device at 20 and 40 deg/s; 3, 4: the 0.05 N*m*s/deg damper (2.1 and 4.2 J on a sharp triangle)

@@ -17,8 +17,8 @@ from protocol_runner.archive.verify import Checker
 from protocol_runner.cli import main
 from protocol_runner.errors import InvalidInput
 
-RAW = "/configurations/config_12/trials/2/brace_on/torque_nm"  # a raw trial signal, gzip-compressed chunks
-ENERGY = "/configurations/config_12/energy_loss_j"  # a few values, stored uncompressed
+RAW = "/configurations/config_12/trials/2/brace_on/joints/knee_flexion/torque_nm"  # a raw trial signal, gzip-compressed chunks
+ENERGY = "/configurations/config_12/joints/knee_flexion/energy_loss_j"  # a few values, stored uncompressed
 
 
 def flip_bit(path: Path, offset: int, bit: int = 4) -> None:

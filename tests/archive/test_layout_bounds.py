@@ -17,7 +17,7 @@ from protocol_runner.archive.layout import HARD_CAP, MARGIN_S, MAX_INPUT_RATE_HZ
 from protocol_runner.cli import main
 from protocol_runner.protocol.schema import InputSpec
 
-TARGET = "configurations/config_12/trials/1/brace_on/angle_deg"  # read by the report and by --reprocess
+TARGET = "configurations/config_12/trials/1/brace_on/joints/knee_flexion/angle_deg"  # read by the report and by --reprocess
 
 
 def craft(path: Path, name: str, **create: object) -> None:

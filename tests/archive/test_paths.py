@@ -27,7 +27,7 @@ def _line_with(text: str) -> str:
 SECTIONS = {
     "recording": _between("### `trials/<n>/brace_on`", "### `trials/<n>/processed`"),
     "processed": _between("### `trials/<n>/processed`", "### Results"),
-    "configuration": _line_with("`energy_loss_j`"),
+    "configuration": _line_with("| `energy_loss_j` (J)"),
     "bouc_wen": _line_with("| `fits/bouc_wen`"),
     "spring": _line_with("| `fits/spring`"),
     "elements": _line_with("| `fits/elements`"),
@@ -67,7 +67,6 @@ def test_every_group_path_is_documented() -> None:
     assert [p for p in suffixes + roots if f"`{p}`" not in DOC] == []
 
 
-SEVERAL = DOC[DOC.index("## Several joints") :]
 ATTRIBUTE_SECTIONS = {
     "root": _between("## Root", "| dataset | meaning |"),
     "dataset": _between("# The archive", "## Root") + _between("## Checksums", "## Bounds"),
@@ -76,15 +75,13 @@ ATTRIBUTE_SECTIONS = {
     "rig": _line_with("| `/rig`"),
     "unit": _between("The session directory's unit files", "## `/calibration"),
     "checklist": _line_with("| `/session/checklists/<step>`"),
-    "calibration": _between("## `/calibration/<set>/<when>`", "## `/configurations") + SEVERAL,
-    "calibration_joint": SEVERAL[SEVERAL.index("`/calibration/<set>/<when>` has attributes") :],
-    "configuration": _between("## `/configurations/<name>`", "### `trials") + SEVERAL,
-    "recording": _between("### `trials/<n>/brace_on`", "`brace_off` also has `scaling/`") + SEVERAL,
-    "recording_joint": _between(
-        "`trials/<n>/brace_on` and `trials/<n>/brace_off` hold the SHARED", "Processing per joint"
-    ),
-    "scaling": _between("`brace_off` also has `scaling/`", "Every trial group and every"),
-    "stream": _between("Every trial group and every", "### `trials/<n>/processed`"),
+    "calibration": _between("## `/calibration/<set>/<when>`", "One group `joints/<joint>` per joint"),
+    "calibration_joint": _between("One group `joints/<joint>` per joint", "## `/configurations"),
+    "configuration": _between("## `/configurations/<name>`", "### `trials"),
+    "recording": _between("Attributes of the trial group", "Attributes of `joints/<joint>`"),
+    "recording_joint": _between("Attributes of `joints/<joint>`", "In a `brace_off` trial"),
+    "scaling": _between("In a `brace_off` trial", "Every `joints/<joint>` of a trial"),
+    "stream": _between("Every `joints/<joint>` of a trial", "### `trials/<n>/processed`"),
     "processed": SECTIONS["processed"],
     "energy_loss": SECTIONS["configuration"],
     "bouc_wen": SECTIONS["bouc_wen"],

@@ -33,9 +33,9 @@ def test_reprocess_with_the_elements_backbone_records_it_per_fit(
     seen = []
     with h5py.File(out, "r") as f:
         for name, cfg in f["configurations"].items():
-            if "fits/bouc_wen" not in cfg:
+            if "joints/knee_flexion/fits/bouc_wen" not in cfg:
                 continue
-            a = cfg["fits/bouc_wen"].attrs
+            a = cfg["joints/knee_flexion/fits/bouc_wen"].attrs
             kind = str(a["backbone"])
             note = str(a["backbone_note"])
             seen.append(kind)

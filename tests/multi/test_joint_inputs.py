@@ -177,6 +177,25 @@ def test_a_per_joint_trajectory_missing_a_joint_is_refused_at_its_joints(
     )
 
 
+def test_a_trajectory_file_without_a_driven_joints_column_is_refused_at_its_column_row(
+    workdir: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A `file` trajectory of several joints needs one angle column per driven joint: the file's column row
+    is named, and the configuration that uses it, before anything moves."""
+    csv = workdir / "trajectories" / "leg_gait_slow_synthetic.csv"
+    lines = csv.read_text(encoding="utf-8").splitlines()
+    header = next(i for i, ln in enumerate(lines) if ln.startswith("time_s,"))
+    assert lines[header] == "time_s,hip_flexion,knee_flexion,ankle_flexion"
+    kept = [ln if ln.startswith("#") else ",".join(ln.split(",")[:3]) for ln in lines]  # no ankle column
+    csv.write_text("\n".join(kept) + "\n", encoding="utf-8")
+    err = _refused(workdir, LEG_TEXT, capsys)
+    assert (
+        f"trajectories/leg_gait_slow_synthetic.csv:{header + 1}: the column row must name `time_s` and "
+        "`ankle_flexion`" in err
+    )
+    assert "joint ankle_flexion: trajectory 'gait_slow'" in err and "Traceback" not in err
+
+
 def test_a_per_joint_trajectory_naming_an_undriven_joint_is_refused_at_that_entry(
     workdir: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

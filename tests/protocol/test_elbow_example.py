@@ -85,8 +85,8 @@ def test_elbow_dry_run_loses_the_brake_and_damper_energy_per_cycle(
     brake_j = 4 * 0.5 * (amplitude_rad - transition_rad * (1 - math.exp(-2 * amplitude_rad / transition_rad)))
     damper_j = math.pi * math.degrees(0.02) * omega * amplitude_rad**2
     with h5py.File(session / "archive.h5", "r") as h5:
-        e1 = float(h5["configurations/config_01/energy_loss_j"].attrs["mean_j"])
-        e4 = float(h5["configurations/config_04/energy_loss_j"].attrs["mean_j"])
+        e1 = float(h5["configurations/config_01/joints/elbow_flexion/energy_loss_j"].attrs["mean_j"])
+        e4 = float(h5["configurations/config_04/joints/elbow_flexion/energy_loss_j"].attrs["mean_j"])
     assert e1 == pytest.approx(brake_j, rel=0.05)
     # the simulator's between-trial spread (device dissipation CV 3 %, robot friction 5 %) puts about 6 % of
     # sampling error on a difference of two 3-trial means

@@ -142,7 +142,7 @@ def test_a_registered_trajectory_kind_is_planned_checked_and_commanded(
     with h5py.File(session / "archive.h5", "r") as f:
         config = f[f"configurations/config_{KEY:02d}"]
         assert config.attrs["profile"] == "cosine_wave"
-        command = config["trials/1/brace_on/command_deg"][:]
+        command = config["trials/1/brace_on/joints/elbow_flexion/command_deg"][:]
         assert command.min() >= 20.0 - 1e-9 and command.max() <= 110.0 + 1e-9
         assert command.max() > 109.9  # it reached the top of its range
         assert f.attrs["status"] == "complete"

@@ -22,7 +22,7 @@ def _damaged(reference_archive: Path, tmp_path: Path) -> Path:
     shutil.copy(reference_archive, archive)
     with h5py.File(archive, "a") as h5:
         name = sorted(h5["configurations"])[0]
-        trials = h5["configurations"][name]["trials"]
+        trials = h5["configurations"][name]["joints/knee_flexion/trials"]
         ds = trials[sorted(trials)[0]]["processed"]["angle_deg"]
         values = ds[()]
         ds[:4] = values[:4] + np.float32(1.0)

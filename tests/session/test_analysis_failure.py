@@ -26,7 +26,7 @@ def flatten_brace_on_trial(session: Path, trial: int) -> None:
     step_id = f"trial:k{KEY:02d}:on:{trial}"
     path = unit_path(session / "units", step_id)
     with h5py.File(path, "r+") as f:
-        g = f[f"configurations/config_{KEY:02d}/trials/{trial}/brace_on"]
+        g = f[f"configurations/config_{KEY:02d}/trials/{trial}/brace_on/joints/knee_flexion"]
         flat = np.zeros(g["angle_deg"].shape)  # a dead angle sensor: 0 V -> 0 deg, far from the command
         del g["angle_deg"]
         put(g, "angle_deg", flat, "deg", dtype=SIGNAL)

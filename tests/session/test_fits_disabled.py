@@ -31,4 +31,6 @@ def test_without_bouc_wen_configurations_complete(tmp_path: Path) -> None:
     with h5py.File(session / "archive.h5", "r") as f:
         cfg = f["configurations/config_12"]
         assert cfg.attrs["status"] == "complete"
-        assert "bouc_wen" not in cfg["fits"] and "spring" in cfg["fits"]
+        assert (
+            "bouc_wen" not in cfg["joints/knee_flexion/fits"] and "spring" in cfg["joints/knee_flexion/fits"]
+        )

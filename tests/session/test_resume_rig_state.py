@@ -100,8 +100,8 @@ def test_resume_inside_a_spring_set_rechecks_brace_off_then_refits(
     fitted = steps["trial:k12:on:2"]
     assert spring_stiffness(fitted) > 0  # and the brace was refitted after it
     with h5py.File(session / "archive.h5", "r") as f:
-        before = f[f"calibration/{SET}/before"].attrs
-        again = f[f"calibration/{SET}/resume_1"].attrs
+        before = f[f"calibration/{SET}/before/joints/knee_flexion"].attrs
+        again = f[f"calibration/{SET}/resume_1/joints/knee_flexion"].attrs
         assert again["verdict"] == "pass"
         # same condition, same joint: the time constant agrees far inside the protocol's 0.05 s
         assert abs(float(again["time_constant_s"]) - float(before["time_constant_s"])) < 0.01

@@ -34,13 +34,26 @@ def _context(units_dir: Path, **parts: object) -> StepContext:
     return StepContext(**base)  # type: ignore[arg-type]
 
 
-def _processed_unit(units_dir: Path, key: int, energies: list[float], max_angle: float) -> None:
+def _processed_unit(
+    units_dir: Path, key: int, energies: list[float], max_angle: float, joints: tuple[str, ...] = ("knee",)
+) -> None:
+    """A process unit keyed by joint: each joint's energies are `energies` times its position (1, 2, ...),
+    their total is written beside them."""
+
     def fill(f: h5py.File) -> None:
         cfg = f.require_group(f"configurations/config_{key:02d}")
-        cfg["energy_loss_j"] = np.asarray(energies)
-        cfg["trials/1/processed/angle_deg"] = np.linspace(-max_angle, max_angle, 11)
+        for k, joint in enumerate(joints, start=1):
+            part = cfg.require_group(f"joints/{joint}")
+            part["energy_loss_j"] = k * np.asarray(energies)
+            part["trials/1/processed/angle_deg"] = np.linspace(-max_angle, max_angle, 11) / k
+        cfg["total_energy_loss_j"] = sum(range(1, len(joints) + 1)) * np.asarray(energies)
+        cfg.attrs["joints"] = list(joints)
 
     write_unit(units_dir, f"process:k{key:02d}", fill)
+
+
+def _campaign(*joints: str) -> SimpleNamespace:
+    return SimpleNamespace(protocol=SimpleNamespace(driven_joints=joints))
 
 
 def _written(outcome_fill, tmp_path: Path) -> h5py.File:
@@ -68,9 +81,11 @@ def test_compare_writes_mean_sample_std_count_and_largest_angle_of_each_configur
         section="5.1",
         configurations=(1, 2),
     )
-    outcome = compare.run(step, _context(units))
+    outcome = compare.run(step, _context(units, loaded=_campaign("knee")))
     with _written(outcome.fill, tmp_path) as f:
-        g = f["comparisons/speed"]
+        assert list(f["comparisons/speed"].attrs["joints"]) == ["knee"]
+        assert "energy_mean_j" not in f["comparisons/speed"].attrs  # one joint: its values are the joint's
+        g = f["comparisons/speed/joints/knee"]
         assert list(g.attrs["configurations"]) == [1, 2]
         assert list(g.attrs["energy_mean_j"]) == [2.0, 5.0]
         assert g.attrs["energy_std_j"][0] == pytest.approx(1.0)  # sample std (ddof = 1) of 1, 2, 3
@@ -80,11 +95,35 @@ def test_compare_writes_mean_sample_std_count_and_largest_angle_of_each_configur
     assert outcome.summary == "1: 2.00 J, 2: 5.00 J"
 
 
+def test_compare_of_several_joints_compares_each_joint_and_their_total(tmp_path: Path) -> None:
+    units = tmp_path / "units"
+    _processed_unit(units, 1, [1.0, 2.0, 3.0], 40.0, joints=("hip", "knee"))
+    _processed_unit(units, 2, [5.0], 60.0, joints=("hip", "knee"))
+    step = CompareStep(
+        id="compare:speed",
+        kind="compare",
+        name="speed",
+        parameter="speed",
+        title="Speed",
+        section="5.1",
+        configurations=(1, 2),
+    )
+    outcome = compare.run(step, _context(units, loaded=_campaign("hip", "knee")))
+    with _written(outcome.fill, tmp_path) as f:
+        g = f["comparisons/speed"]
+        assert list(g.attrs["joints"]) == ["hip", "knee"]
+        assert list(g.attrs["energy_mean_j"]) == [6.0, 15.0]  # the totals: hip's plus twice as much
+        assert list(g["joints/hip"].attrs["energy_mean_j"]) == [2.0, 5.0]
+        assert list(g["joints/knee"].attrs["energy_mean_j"]) == [4.0, 10.0]
+        assert list(g["joints/knee"].attrs["max_angle_deg"]) == [20.0, 30.0]
+    assert outcome.summary == "1: 6.00 J, 2: 15.00 J"
+
+
 def test_compare_of_a_configuration_without_cycles_gives_nan_not_zero(tmp_path: Path) -> None:
     units = tmp_path / "units"
     _processed_unit(units, 3, [], 10.0)
     with h5py.File(unit_path(units, "process:k03"), "r") as f:
-        values = comparison_values([f["configurations/config_03"]])
+        values = comparison_values([f["configurations/config_03/joints/knee"]])
     assert np.isnan(values["energy_mean_j"][0]) and values["energy_cycles"] == [0]
 
 
@@ -119,16 +158,11 @@ def test_fit_step_without_bouc_wen_writes_nothing(tmp_path: Path) -> None:
 def test_every_registered_step_function_is_a_function_of_the_steps_package() -> None:
     """The registry names its functions (their modules are imported when a step of the kind first runs):
     each name must be one, and the names follow the kinds (a misspelt name fails here, not in a session)."""
-    from protocol_runner.steps import calibration_check, multi_calibration, multi_trial, process, trial
+    from protocol_runner.steps import calibration_check, process, trial
 
-    assert STEP_KINDS["calibration_check"].function(multi_joint=False) is calibration_check.run
-    assert STEP_KINDS["calibration_check"].function(multi_joint=True) is multi_calibration.run
-    assert STEP_KINDS["trial"].function(multi_joint=False) is trial.run
-    assert STEP_KINDS["trial"].function(multi_joint=True) is multi_trial.run_trial
-    assert STEP_KINDS["process"].function(multi_joint=False) is process.run
-    assert STEP_KINDS["fit"].function(multi_joint=False) is fit.run
-    assert STEP_KINDS["fit"].function(multi_joint=True) is multi_trial.run_fit
-    assert STEP_KINDS["compare"].function(multi_joint=True) is compare.run  # one function for any joints
-    assert STEP_KINDS["operator_checklist"].function(multi_joint=True) is checklist.run
-    for entry in STEP_KINDS.values():
-        assert callable(entry.function(multi_joint=False)) and callable(entry.function(multi_joint=True))
+    assert STEP_KINDS["calibration_check"].function() is calibration_check.run
+    assert STEP_KINDS["trial"].function() is trial.run
+    assert STEP_KINDS["process"].function() is process.run
+    assert STEP_KINDS["fit"].function() is fit.run
+    assert STEP_KINDS["compare"].function() is compare.run
+    assert STEP_KINDS["operator_checklist"].function() is checklist.run

@@ -131,7 +131,7 @@ def test_a_kind_nobody_registered_is_refused_by_name(note_kind: None) -> None:
     registry.deregister("note")
     try:
         with pytest.raises(LookupError, match="no step kind 'note' is registered"):
-            registry.run_function("note", multi_joint=False)
+            registry.run_function("note")
         with pytest.raises(ValueError, match="already registered"):
             registry.register("trial", registry.StepKind(run_note))
     finally:

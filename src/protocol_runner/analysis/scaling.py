@@ -35,7 +35,7 @@ be reached inside it ends without convergence (`converged=False`), and the best 
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -107,17 +107,19 @@ class ScalingIteration:
 
 @dataclass(frozen=True)
 class ScalingResult:
-    """Outcome of `scale_brace_off_input`: the input to use, its output, and every iteration."""
+    """Outcome of `scale_brace_off_input` for one joint: the input to use, its output, and every iteration."""
 
-    input_deg: FloatArray  # the input of the best iteration (smallest range error)
+    input_deg: FloatArray  # the input of the kept iteration
     output_deg: FloatArray  # what `run` returned for it
-    converged: bool
+    converged: bool  # the kept iteration is within the tolerance
     history: tuple[ScalingIteration, ...]
     target_range_deg: tuple[float, float]
+    kept: int  # the index in `history` of the kept iteration
 
     @property
     def best(self) -> ScalingIteration:
-        return min(self.history, key=lambda it: it.range_error_deg)
+        """The kept iteration: for one joint the one with the smallest range error."""
+        return self.history[self.kept]
 
     def history_arrays(self) -> dict[str, npt.NDArray[np.float64] | npt.NDArray[np.int64]]:
         """The history as the archive's `brace_off/scaling/` datasets (docs/archive.md): `iteration`,
@@ -156,78 +158,159 @@ def scale_brace_off_input(
     the update rule (Eq 8 applied to amplitude, plus a mid-range correction). Returns the input of the
     best run, whether it met `tolerance_deg`, and the history.
     """
-    u = as_signal("input_deg", input_deg, min_length=2)
-    lo_t, hi_t = float(target_range_deg[0]), float(target_range_deg[1])
-    if not (np.isfinite(lo_t) and np.isfinite(hi_t) and hi_t > lo_t):
-        raise AnalysisError(f"target range must be (min, max) with max > min, got {target_range_deg}")
-    if not tolerance_deg > 0:
-        raise AnalysisError(f"scaling tolerance must be positive, got {tolerance_deg} deg")
-    if max_iterations < 1:
-        raise AnalysisError(f"scaling needs at least one iteration, got {max_iterations}")
-    if input_limits_deg is not None and not input_limits_deg[1] > input_limits_deg[0]:
-        raise AnalysisError(f"input limits must be (min, max) with max > min, got {input_limits_deg}")
-    u_mid = 0.5 * float(u.max() + u.min())
-    if not float(u.max() - u.min()) > _FLAT_DEG * (1.0 + abs(u_mid)):
-        raise AnalysisError(
-            f"input_deg does not move (range {float(u.max() - u.min()):.3g} deg): a flat recording cannot "
-            "be followed; check the brace-on recording it comes from"
-        )
-    u_lo, u_hi = cycle_range(u, reversal_deg)
-    u_mid = 0.5 * (u_lo + u_hi)
-    shape = u - u_mid
-    centre, amplitude = u_mid, 1.0
-    history: list[ScalingIteration] = []
-    runs: list[tuple[FloatArray, FloatArray]] = []
-    converged = False
-    for k in range(max_iterations):
-        trial_input = centre + amplitude * shape
-        if input_limits_deg is not None:
-            trial_input = np.clip(trial_input, input_limits_deg[0], input_limits_deg[1])
-        if (
-            not float(trial_input.max() - trial_input.min()) > 0
-        ):  # nothing to run: the iteration has lost the trajectory's shape
+    (result,) = scale_brace_off_inputs(
+        [input_deg],
+        [target_range_deg],
+        lambda inputs: [run(inputs[0])],
+        tolerance_deg=tolerance_deg,
+        max_iterations=max_iterations,
+        transition_tolerance_deg=transition_tolerance_deg,
+        transition_points=transition_points,
+        input_limits_deg=[input_limits_deg],
+        reversal_deg=reversal_deg,
+    )
+    return result
+
+
+class _JointScaling:
+    """One joint's state in the iteration: its input's shape, centre and amplitude, and its runs."""
+
+    def __init__(
+        self,
+        input_deg: npt.ArrayLike,
+        target_range_deg: tuple[float, float],
+        limits_deg: tuple[float, float] | None,
+        reversal_deg: float,
+    ) -> None:
+        u = as_signal("input_deg", input_deg, min_length=2)
+        lo_t, hi_t = float(target_range_deg[0]), float(target_range_deg[1])
+        if not (np.isfinite(lo_t) and np.isfinite(hi_t) and hi_t > lo_t):
+            raise AnalysisError(f"target range must be (min, max) with max > min, got {target_range_deg}")
+        if limits_deg is not None and not limits_deg[1] > limits_deg[0]:
+            raise AnalysisError(f"input limits must be (min, max) with max > min, got {limits_deg}")
+        u_mid = 0.5 * float(u.max() + u.min())
+        if not float(u.max() - u.min()) > _FLAT_DEG * (1.0 + abs(u_mid)):
+            raise AnalysisError(
+                f"input_deg does not move (range {float(u.max() - u.min()):.3g} deg): a flat recording cannot "
+                "be followed; check the brace-on recording it comes from"
+            )
+        self.u_lo, self.u_hi = cycle_range(u, reversal_deg)
+        u_mid = 0.5 * (self.u_lo + self.u_hi)
+        self.shape = u - u_mid
+        self.centre, self.amplitude = u_mid, 1.0
+        self.target = (lo_t, hi_t)
+        self.limits = limits_deg
+        self.history: list[ScalingIteration] = []
+        self.runs: list[tuple[FloatArray, FloatArray]] = []
+
+    def next_input(self, k: int) -> FloatArray:
+        trial_input = self.centre + self.amplitude * self.shape
+        if self.limits is not None:
+            trial_input = np.clip(trial_input, self.limits[0], self.limits[1])
+        if not float(trial_input.max() - trial_input.min()) > 0:  # the iteration lost the trajectory's shape
+            lo_t, hi_t = self.target
             raise AnalysisError(
                 f"scaling iteration {k}: the scaled brace-off input is constant at {float(trial_input[0]):.1f} "
                 f"deg (clipped to the joint's limits, or the target range {lo_t:.1f}-{hi_t:.1f} deg is too "
                 "small to follow); check the brace-on recording"
             )
-        measured = as_signal("measured angle returned by run()", run(trial_input.copy()))
+        return trial_input
+
+    def record(
+        self,
+        k: int,
+        trial_input: FloatArray,
+        returned: npt.ArrayLike,
+        transition: tuple[float, int],
+        reversal_deg: float,
+    ) -> float:
+        """Measure run `k`'s output cycle range; return its range error."""
+        measured = as_signal("measured angle returned by run()", returned)
         same_length(input_deg=trial_input, measured_deg=measured)
-        start = transition_index(trial_input, measured, transition_tolerance_deg, transition_points)
+        start = transition_index(trial_input, measured, *transition)
         lo_k, hi_k = cycle_range(measured[start:], reversal_deg)
-        span_k = hi_k - lo_k
-        if not span_k > 0:
+        if not hi_k - lo_k > 0:
             raise AnalysisError(
                 f"scaling iteration {k}: the brace-off output does not move after the transition"
             )
-        scale = (hi_t - lo_t) / span_k
-        error = max(abs(lo_k - lo_t), abs(hi_k - hi_t))
-        history.append(
+        lo_t, hi_t = self.target
+        self.history.append(
             ScalingIteration(
                 iteration=k,
                 input_range_deg=(float(trial_input.min()), float(trial_input.max())),
                 output_range_deg=(lo_k, hi_k),
-                scale=scale,
-                range_error_deg=error,
+                scale=(hi_t - lo_t) / (hi_k - lo_k),
+                range_error_deg=max(abs(lo_k - lo_t), abs(hi_k - hi_t)),
                 transition_index=start,
             )
         )
-        runs.append((trial_input, measured))
-        if error <= tolerance_deg:
-            converged = True
+        self.runs.append((trial_input, measured))
+        return self.history[-1].range_error_deg
+
+    def correct(self) -> None:
+        """The next input from the last run (module docstring): Eq 8 on the amplitude, a Newton step on the
+        mid-range."""
+        last = self.history[-1]
+        (lo_t, hi_t), (lo_k, hi_k) = self.target, last.output_range_deg
+        input_span = self.amplitude * (
+            self.u_hi - self.u_lo
+        )  # the cycle range of the run's input (unclipped)
+        gain = float(np.clip((hi_k - lo_k) / input_span, 0.2, 5.0))
+        self.amplitude *= last.scale
+        self.centre += 0.5 * ((hi_t + lo_t) - (hi_k + lo_k)) / gain
+
+    def result(self, kept: int, tolerance_deg: float) -> ScalingResult:
+        return ScalingResult(
+            input_deg=self.runs[kept][0],
+            output_deg=self.runs[kept][1],
+            converged=self.history[kept].range_error_deg <= tolerance_deg,
+            history=tuple(self.history),
+            target_range_deg=self.target,
+            kept=kept,
+        )
+
+
+def scale_brace_off_inputs(
+    inputs_deg: Sequence[npt.ArrayLike],
+    target_ranges_deg: Sequence[tuple[float, float]],
+    run: Callable[[list[FloatArray]], Sequence[npt.ArrayLike]],
+    *,
+    tolerance_deg: float = 0.1,
+    max_iterations: int = 6,
+    transition_tolerance_deg: float = 5.0,
+    transition_points: int = 3,
+    input_limits_deg: Sequence[tuple[float, float] | None] | None = None,
+    reversal_deg: float = 1.0,
+) -> tuple[ScalingResult, ...]:
+    """`scale_brace_off_input` for several joints moved together: `run(inputs)` runs them in one robot
+    motion and returns each joint's measured angle. Each joint's input is corrected by its own Eq 8 scale
+    and mid-range step until that joint's cycle range is within `tolerance_deg` of its target; a joint
+    once matched keeps its input while the others are corrected. The iteration ends when every joint has
+    matched, or after `max_iterations` runs. The run kept for every joint is the one whose largest range
+    error over the joints is smallest (for one joint: its smallest range error)."""
+    if not tolerance_deg > 0:
+        raise AnalysisError(f"scaling tolerance must be positive, got {tolerance_deg} deg")
+    if max_iterations < 1:
+        raise AnalysisError(f"scaling needs at least one iteration, got {max_iterations}")
+    limits = list(input_limits_deg) if input_limits_deg is not None else [None] * len(inputs_deg)
+    joints = [
+        _JointScaling(u, target, lim, reversal_deg)
+        for u, target, lim in zip(inputs_deg, target_ranges_deg, limits, strict=True)
+    ]
+    matched = [False] * len(joints)
+    for k in range(max_iterations):
+        trial_inputs = [j.next_input(k) for j in joints]
+        measured = run([x.copy() for x in trial_inputs])
+        for n, (j, x, m) in enumerate(zip(joints, trial_inputs, measured, strict=True)):
+            error = j.record(k, x, m, (transition_tolerance_deg, transition_points), reversal_deg)
+            matched[n] = matched[n] or error <= tolerance_deg
+        if all(matched):
             break
-        input_span = amplitude * (u_hi - u_lo)  # the cycle range of this run's input (before clipping)
-        gain = float(np.clip(span_k / input_span, 0.2, 5.0))
-        amplitude *= scale
-        centre += 0.5 * ((hi_t + lo_t) - (hi_k + lo_k)) / gain
-    best = min(range(len(history)), key=lambda i: history[i].range_error_deg)
-    return ScalingResult(
-        input_deg=runs[best][0],
-        output_deg=runs[best][1],
-        converged=converged,
-        history=tuple(history),
-        target_range_deg=(lo_t, hi_t),
-    )
+        for j, done in zip(joints, matched, strict=True):
+            if not done:
+                j.correct()
+    kept = min(range(len(joints[0].history)), key=lambda i: max(j.history[i].range_error_deg for j in joints))
+    return tuple(j.result(kept, tolerance_deg) for j in joints)
 
 
 class RecordingLike(Protocol):

@@ -60,7 +60,7 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
     "rig": (FILENAME,),
     "unit": (UNIT_STEP_ID, UNIT_COMPLETE),
     "checklist": (STEP_ID, "title", "items", "brace", "answer", "answered_utc", "automatic"),
-    "calibration": (STEP_ID, "verdict", "step_deg", *STEP_RESPONSE, "limits", "message", JOINTS),
+    "calibration": (STEP_ID, "verdict", "limits", "message", JOINTS),
     "calibration_joint": (JOINT, "verdict", "step_deg", *STEP_RESPONSE, "message"),
     "configuration": (
         "key",
@@ -205,6 +205,7 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
         "energy_std_j",
         "energy_cycles",
         "max_angle_deg",
+        JOINTS,
     ),
     "expectations": ("problems",),
     "expectation": (

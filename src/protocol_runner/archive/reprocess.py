@@ -11,25 +11,38 @@ from __future__ import annotations
 import json
 import os
 import shutil
+from collections.abc import Sequence
 from pathlib import Path
 
 import h5py
+import numpy as np
 
-from ..analysis.service import analyse_configuration
+from ..analysis.pipeline import TrialPair
+from ..analysis.processing_settings import ProcessingSettings
+from ..analysis.service import BoucWenSettings, analyse_joints
 from ..errors import InvalidInput
 from ..protocol.loaded import LoadedProtocol
 from ..protocol.loader import find_protocol, load_protocol, parse_protocol_text
 from ..protocol.processing import bouc_wen_settings, element_fit_enabled, processing_settings
 from .attrs import CONFIGURATIONS as CONFIGURATIONS_ATTR
-from .attrs import DEVICE_JSON, FILENAME
+from .attrs import DEVICE_JSON, FILENAME, JOINT, STATUS
 from .attrs import JOINTS as JOINTS_ATTR
 from .checksums import is_marked, seal_attributes, seal_missing
-from .h5util import attr_str, put_attrs, text_of
+from .h5util import attr_str, attr_strs, put, put_attrs, text_of
 from .model_results import PREDICTIONS, compare_owner
 from .outputs import create_binary, refuse_special, temporary_beside, terminated_as_interrupt
-from .paths import FITS, TRIALS, configuration_name
-from .reprocess_joints import complete_pairs, reprocess_joints
-from .results import bouc_wen_fill, comparison_values, processed_fill
+from .paths import (
+    COMPARISONS,
+    CONFIGURATIONS,
+    FITS,
+    JOINTS,
+    PROCESSED,
+    TRIALS,
+    configuration_name,
+    joint_groups,
+    joint_path,
+)
+from .results import bouc_wen_fill, comparison_values, processed_fill, read_recording
 from .verify import validate_archive
 
 
@@ -121,39 +134,128 @@ def archived_device(cfg: h5py.Group) -> list[tuple[str, str, dict[str, object]]]
 
 def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
     """Redo what the session's process, fit and compare steps did, from the raw trials in `f`, with the
-    same function (`analysis.service.analyse_configuration`), so that unchanged settings reproduce the
-    session's values exactly."""
+    same function (`analysis.service.analyse_joints`), so that unchanged settings reproduce the session's
+    values exactly. The results are written keyed by joint (docs/archive.md) whatever layout the raw
+    trials have: an archive of one joint written before every group was keyed by joint is read as its one
+    joint's (`paths.joint_groups`)."""
     settings = processing_settings(loaded)
     fit = bouc_wen_settings(loaded) if loaded.protocol.fits.bouc_wen.enabled else None
     elements = element_fit_enabled(loaded)
-    for name, cfg in f["configurations"].items():
-        if TRIALS not in cfg:
-            continue
-        if JOINTS_ATTR in cfg.attrs:  # several joints driven together: processed joint by joint
-            reprocess_joints(f, name, archived_device(cfg), settings, fit, elements=elements)
-            continue
-        pairs = complete_pairs(cfg, name)
-        for stale in ("energy_loss_j", "energy_cycle_trial", FITS):
-            if stale in cfg:
-                del cfg[stale]
-        if not pairs:
-            continue
-        analysis = analyse_configuration(
-            pairs, settings, fit, device=archived_device(cfg) if elements else None
-        )
-        processed_fill(name, analysis, settings)(f)
-        if analysis.bouc_wen is not None:
-            bouc_wen_fill(name, analysis.bouc_wen)(f)
-            if elements:  # the model comparison, as the fit step makes it
-                compare_owner(cfg, archived_device(cfg), analysis.bouc_wen)
+    archive_joints = attr_str(f, JOINT, "")
+    for name, cfg in f[CONFIGURATIONS].items():
+        if TRIALS in cfg:
+            _reprocess_configuration(cfg, name, archive_joints, settings, fit, elements=elements)
     if PREDICTIONS in f:  # made from the old fits: `report.predictions.record_predictions` makes them anew
         del f[PREDICTIONS]
-    for comp in f.get("comparisons", {}).values():
-        names = [configuration_name(int(k)) for k in comp.attrs[CONFIGURATIONS_ATTR]]
-        groups = [f["configurations"][n] for n in names if n in f["configurations"]]
-        if len(groups) == len(names):
-            put_attrs(comp, "comparison", comparison_values(groups))
-        else:  # never leave numbers from the old processing beside the new
-            for key in ("energy_mean_j", "energy_std_j", "energy_cycles", "max_angle_deg"):
-                if key in comp.attrs:
-                    del comp.attrs[key]
+    for comp in f.get(COMPARISONS, {}).values():
+        _recompare(f, comp, archive_joints)
+
+
+def complete_pairs(cfg: h5py.Group, name: str, joint: str, archive_joints: str) -> list[TrialPair]:
+    """The raw trial pairs of `joint` in configuration group `cfg`, without the trials a board failure cut
+    short. A trial whose raw data lack a dataset is named."""
+    pairs = []
+    trials = cfg[TRIALS]
+    for n in sorted(trials, key=int):
+        g = trials[n]
+        braces = ("brace_on", "brace_off")
+        if not all(b in g and attr_str(g[b], STATUS, "complete") == "complete" for b in braces):
+            continue
+        try:
+            on, off = (read_recording(dict(joint_groups(g[b], archive_joints))[joint]) for b in braces)
+            pairs.append(TrialPair(on, off, trial=int(n)))
+        except KeyError as exc:
+            raise InvalidInput(
+                f"{name}/{TRIALS}/{n} ({joint}): the raw data lack {exc}; cannot reprocess"
+            ) from None
+    return pairs
+
+
+Device = list[tuple[str, str, dict[str, object]]]
+
+
+def joint_device(device: Device, joint: str) -> Device:
+    """The elements of an archived device that `joint` carries (those naming no joint or that joint),
+    without their `joint` parameter."""
+    return [
+        (n, t, {k: v for k, v in p.items() if k != JOINT})
+        for n, t, p in device
+        if p.get(JOINT, "") in ("", joint)
+    ]
+
+
+def _reprocess_configuration(
+    cfg: h5py.Group,
+    name: str,
+    archive_joints: str,
+    settings: ProcessingSettings,
+    fit: BoucWenSettings | None,
+    *,
+    elements: bool,
+) -> None:
+    """Redo one configuration's processing (its old results removed first) and the Bouc-Wen fit (`fit`,
+    None when off) of each joint carrying elements of its archived device (every joint when none does);
+    `elements`: whether the element fit is on."""
+    joints = attr_strs(cfg, JOINTS_ATTR) or [j.strip() for j in archive_joints.split(",")]
+    for stale in (
+        "energy_loss_j",
+        "energy_cycle_trial",
+        FITS,
+        JOINTS,
+        "total_energy_loss_j",
+        "total_energy_cycle_trial",
+    ):
+        if stale in cfg:
+            del cfg[stale]
+    for trial in cfg[TRIALS].values():
+        if PROCESSED in trial:  # the processing of an archive written before results were keyed by joint
+            del trial[PROCESSED]
+    device = archived_device(cfg)
+    recordings = [(joint, complete_pairs(cfg, name, joint, archive_joints)) for joint in joints]
+    if not all(pairs for _, pairs in recordings):
+        return
+    carrying = sorted({str(p[JOINT]) for _, _, p in device if p.get(JOINT)})
+    fitted = [j for j in joints if j in carrying] or joints
+    devices: dict[str, Sequence[object] | None] = {
+        j: joint_device(device, j) if elements and j in fitted else None for j in joints
+    }
+    analysis = analyse_joints(recordings, settings, fit, devices=devices, fitted_joints=fitted)
+    for joint, one in zip(analysis.joints, analysis.analyses, strict=True):
+        processed_fill(joint_path(name, joint), one, settings)(cfg.file)
+        device_j = devices[joint]
+        if one.bouc_wen is not None:
+            bouc_wen_fill(joint_path(name, joint), one.bouc_wen)(cfg.file)
+            if device_j is not None:  # the model comparison of the joint, as the fit step makes it
+                compare_owner(cfg[f"{JOINTS}/{joint}"], device_j, one.bouc_wen)
+    put(cfg, "total_energy_loss_j", analysis.total_energy_loss_j, "J")
+    put(cfg, "total_energy_cycle_trial", analysis.total_energy_cycle_trial, "1")
+    cfg.attrs[JOINTS_ATTR] = np.array(joints, dtype=h5py.string_dtype())
+
+
+_VALUES = ("energy_mean_j", "energy_std_j", "energy_cycles", "max_angle_deg")
+
+
+def _recompare(f: h5py.File, comp: h5py.Group, archive_joints: str) -> None:
+    """A comparison made again from the new results (`steps/compare.py`): per joint under `joints/<joint>`,
+    and for several joints of their total at the group's root; never numbers from the old processing
+    beside the new."""
+    names = [configuration_name(int(k)) for k in comp.attrs[CONFIGURATIONS_ATTR]]
+    groups = [f[CONFIGURATIONS][n] for n in names if n in f[CONFIGURATIONS]]
+    joints = [j.strip() for j in archive_joints.split(",")]
+    identity: dict[str, object] = {
+        k: attr_str(comp, k) for k in ("parameter", "section", "title") if k in comp.attrs
+    }
+    identity[CONFIGURATIONS_ATTR] = [int(k) for k in comp.attrs[CONFIGURATIONS_ATTR]]
+    for key in _VALUES:
+        if key in comp.attrs:
+            del comp.attrs[key]
+    if JOINTS in comp:
+        del comp[JOINTS]
+    comp.attrs[JOINTS_ATTR] = np.array(joints, dtype=h5py.string_dtype())
+    complete = len(groups) == len(names) and all(JOINTS in g for g in groups)
+    for joint in joints:
+        g = comp.create_group(f"{JOINTS}/{joint}")
+        values = comparison_values([g_cfg[JOINTS][joint] for g_cfg in groups]) if complete else {}
+        put_attrs(g, "comparison", {**identity, **values})
+    if complete and len(joints) > 1:
+        put_attrs(comp, "comparison", comparison_values(groups))

@@ -211,10 +211,8 @@ def prepare_resume(runner: Runner, ctx: StepContext, progress: Progress) -> None
         j.event("calibration_rerun", f"{record_as} before continuing set {set_name} at {first.id}")
         progress.info(f"resuming inside set {set_name}: re-running its calibration check first ({record_as})")
         # the check's module imported when it runs, as the registry does (steps/registry.py)
-        if ctx.loaded.protocol.multi_joint:
-            from ..steps.multi_calibration import run_check
-        else:
-            from ..steps.calibration_check import run_check
+        from ..steps.calibration_check import run_check
+
         outcome = run_check(check, ctx, record_as=record_as, when=f"resume_{k}")
         runner.record(record_as, outcome)
         progress.info(f"{record_as}: {outcome.summary}")

@@ -1,10 +1,12 @@
-"""Calibration check (Appendix A "Calibration"): a 45 deg step before and after every set.
+"""Calibration check (Appendix A "Calibration"): a 45 deg step before and after every set, of each driven
+joint inside its own range, one joint after the other (the others hold where they rest).
 
 The response is compared with a first-order lag (thesis §2.4.2: tau = 0.2 s): the settle error (final
 angle vs target) and the fitted time constant must lie within the protocol's `calibration_check`
 limits; the "after" check must also agree with the set's "before" check (drift of the settled angle and
-change of tau). A failing check stops the session (exit 4) unless the operator accepts it; the verdict is
-recorded either way in `/calibration/<set>/<when>`.
+change of tau), joint by joint. A failing check (a failure names the joint when there are several) stops
+the session (exit 4) unless the operator accepts it; the verdict is recorded either way in
+`/calibration/<set>/<when>` (the worst of the joints'), each joint's check in its `joints/<joint>`.
 """
 
 from __future__ import annotations
@@ -21,19 +23,19 @@ from scipy.optimize import minimize_scalar
 from scipy.signal import lfilter
 
 from ..analysis.transition import command_on_input_base
-from ..archive.attrs import STEP_ID, STEP_RESPONSE
+from ..archive.attrs import JOINT, STEP_ID, STEP_RESPONSE
+from ..archive.attrs import JOINTS as JOINTS_ATTR
 from ..archive.h5util import put_attrs
-from ..archive.paths import calibration_path
+from ..archive.paths import calibration_path, joint_groups, joint_path
 from ..archive.results import Fill
 from ..errors import StoppedByCheck
 from ..hardware.joint import TrialRecording
-from ..hardware.motion import run_motion
 from ..protocol.plan_steps import CalibrationCheckStep
 from ..protocol.sampling import sample_trajectory
 from ..protocol.schema import CalibrationCheckSpec
 from ..protocol.step_ids import calibration_id
 from .context import StepContext, StepOutcome
-from .recording import put_commands, put_scan
+from .recording import drive_joint, joint_trajectories, put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]
 TAU_BOUNDS_S = (0.02, 2.0)  # the time constants searched
@@ -164,42 +166,43 @@ def step_fit(
 
 
 def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, when: str) -> StepOutcome:
-    """Run the step and judge it; `record_as` is the id the unit is stored under (resume checks differ)."""
-    rig = ctx.bench.rig
+    """Run each driven joint's step, one joint after the other, and judge them; `record_as` is the id the
+    unit is stored under (resume checks differ)."""
+    p = ctx.loaded.protocol
+    limits = p.calibration_check
     ctx.bench.begin_step(record_as)
-    cmd = sample_trajectory(step.trajectory, rig.output_rate_hz, ctx.loaded.base_dir)
-    rec = run_motion(rig, [cmd], where=record_as, stop_requested=ctx.stop_requested)[0]
-    target = step.trajectory.number("from_deg") + step.trajectory.number("step_deg")
-    limits = ctx.loaded.protocol.calibration_check
-    settle_window = min(1.0, float(ctx.loaded.protocol.calibration_step_of(rig.joints[0].name).hold_s) / 2)
-    cmd_in = command_on_input_base(rec.command_time_s, rec.command_deg, rec.input_time_s)
-    resp = analyse_step(rec.input_time_s, cmd_in, rec.angle_deg, target, settle_window)
-    problems = response_problems(resp, limits, _before_response(ctx, step) if when != "before" else None)
-    message = "; ".join(problems)
-    verdict, stop = check_verdict(ctx, record_as, message, "calibration")
-    ctx.monitor.verdict(
-        record_as,
-        verdict,
-        {
-            "set": step.set,
-            "when": when,
-            "settle_error_deg": round(resp.settle_error_deg, 3),
-            "time_constant_s": round(resp.time_constant_s, 4),
-            "message": message,
-        },
+    joints = joint_trajectories(step, ctx)
+    before = _before_responses(ctx, step, [j for j, _ in joints]) if when != "before" else {}
+    rate = ctx.bench.rig.output_rate_hz
+    results: list[_Checked] = []
+    for joint, traj in joints:
+        cmd = sample_trajectory(traj, rate, ctx.loaded.base_dir)
+        where = record_as if len(joints) == 1 else f"{record_as}, joint {joint}"
+        rec = drive_joint(ctx, joint, cmd, where)
+        target = traj.number("from_deg") + traj.number("step_deg")
+        settle_window = min(1.0, float(p.calibration_step_of(joint).hold_s) / 2)
+        cmd_in = command_on_input_base(rec.command_time_s, rec.command_deg, rec.input_time_s)
+        resp = analyse_step(rec.input_time_s, cmd_in, rec.angle_deg, target, settle_window)
+        problems = response_problems(resp, limits, before.get(joint))
+        results.append(_Checked(joint, rec, resp, problems, traj.number("step_deg")))
+    if len(results) == 1:
+        message = "; ".join(results[0].problems)
+        what = "calibration"
+    else:
+        message = "; ".join(f"joint {r.joint}: {', '.join(r.problems)}" for r in results if r.problems)
+        what = "calibration of the joint(s) named"
+    verdict, stop = check_verdict(ctx, record_as, message, what)
+    named = [(r, f"{r.joint} " if len(results) > 1 else "") for r in results]  # several joints: named
+    numbers: dict[str, object] = {}
+    for r, who in named:
+        numbers[f"{who.strip()}.settle_error_deg".lstrip(".")] = round(r.response.settle_error_deg, 3)
+        numbers[f"{who.strip()}.time_constant_s".lstrip(".")] = round(r.response.time_constant_s, 4)
+    ctx.monitor.verdict(record_as, verdict, {"set": step.set, "when": when, **numbers, "message": message})
+    summary = f"{verdict}: " + ", ".join(
+        f"{who}settle error {r.response.settle_error_deg:.2f} deg, tau {r.response.time_constant_s:.3f} s"
+        for r, who in named
     )
-    fill = _fill(
-        step.set,
-        when,
-        record_as,
-        rec,
-        resp,
-        verdict,
-        message,
-        limits.model_dump(),
-        step.trajectory.number("step_deg"),
-    )
-    summary = f"{verdict}: settle error {resp.settle_error_deg:.2f} deg, tau {resp.time_constant_s:.3f} s"
+    fill = _fill(step.set, when, record_as, results, verdict, message, limits.model_dump())
     return StepOutcome(fill, summary, stop)
 
 
@@ -207,40 +210,60 @@ def run(step: CalibrationCheckStep, ctx: StepContext) -> StepOutcome:
     return run_check(step, ctx, record_as=step.id, when=step.when)
 
 
-def _before_response(ctx: StepContext, step: CalibrationCheckStep) -> StepResponse | None:
+@dataclass(frozen=True)
+class _Checked:
+    """One joint's check: its recording, its response and what is wrong with it."""
+
+    joint: str
+    rec: TrialRecording
+    response: StepResponse
+    problems: list[str]
+    step_deg: float
+
+
+def _before_responses(
+    ctx: StepContext, step: CalibrationCheckStep, joints: list[str]
+) -> dict[str, StepResponse]:
+    """Each joint's response in the set's "before" check (none when it has not run)."""
     before_id = calibration_id(step.set, "before")
     if before_id not in ctx.journal.units:
-        return None
+        return {}
     with ctx.unit(before_id) as f:
-        return StepResponse.read(f[calibration_path(step.set, "before")])
+        parts = joint_groups(f[calibration_path(step.set, "before")], ",".join(joints))
+        return {joint: StepResponse.read(g) for joint, g in parts}
 
 
 def _fill(
     set_name: str,
     when: str,
     step_id: str,
-    rec: TrialRecording,
-    resp: StepResponse,
+    results: list[_Checked],
     verdict: str,
     message: str,
     limits: dict[str, object],
-    step_deg: float,
 ) -> Fill:
     def fill(f: h5py.File) -> None:
         g = f.create_group(calibration_path(set_name, when))
-        put_scan(g, rec)
-        put_commands(g, rec, full=False)
         put_attrs(
             g,
             "calibration",
-            {
-                STEP_ID: step_id,
-                "verdict": verdict,
-                "step_deg": step_deg,
-                **resp.attrs(),
-                "limits": json.dumps(limits),
-                "message": message,
-            },
+            {STEP_ID: step_id, "verdict": verdict, "message": message, "limits": json.dumps(limits)},
         )
+        g.attrs[JOINTS_ATTR] = np.array([r.joint for r in results], dtype=h5py.string_dtype())
+        for r in results:
+            jg = f.create_group(joint_path(g.name, r.joint))
+            put_scan(jg, r.rec)
+            put_commands(jg, r.rec, full=False)
+            put_attrs(
+                jg,
+                "calibration_joint",
+                {
+                    JOINT: r.joint,
+                    "verdict": "fail" if r.problems else "pass",
+                    "step_deg": r.step_deg,
+                    **r.response.attrs(),
+                    "message": "; ".join(r.problems),
+                },
+            )
 
     return fill

@@ -27,7 +27,7 @@ class AnalysisStepFailed(InvalidInput):
 def run_step(step: Step, ctx: StepContext) -> StepOutcome:
     """Run one step; an `AnalysisError` becomes `AnalysisStepFailed` naming the step and what to do."""
     try:
-        return run_function(step.kind, ctx.loaded.protocol.multi_joint)(step, ctx)
+        return run_function(step.kind)(step, ctx)
     except AnalysisError as exc:
         raise AnalysisStepFailed(explain(step, exc.message, ctx)) from None
 

@@ -1,16 +1,55 @@
-"""Writing a rig recording (raw codes and converted values) into a unit: shared by trials and checks."""
+"""Driving the campaign's joints and writing a rig recording (raw codes and converted values) into a unit:
+shared by trials and checks."""
 
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 
 import h5py
 import numpy as np
+import numpy.typing as npt
 
 from ..archive.h5util import SIGNAL, put, put_attrs
 from ..archive.paths import put_dataset
-from ..hardware.joint import TrialRecording
+from ..hardware.joint import JointConfig, TrialRecording
+from ..hardware.motion import run_motion
 from ..hardware.stream import SEGMENT_NAMES
+from ..protocol.plan_steps import CalibrationCheckStep, TrialStep
+from ..protocol.trajectory_record import Trajectory
+from .context import StepContext
+
+
+def joint_trajectories(
+    step: TrialStep | CalibrationCheckStep, ctx: StepContext
+) -> tuple[tuple[str, Trajectory], ...]:
+    """Each driven joint's trajectory of a step, in channel order (one joint: the step's trajectory)."""
+    if step.joint_trajectories:
+        return step.joint_trajectories
+    return ((ctx.loaded.protocol.driven_joints[0], step.trajectory),)
+
+
+def bench_joints(ctx: StepContext) -> tuple[JointConfig, ...]:
+    """The driven joints' configurations (limits, rates), in channel order."""
+    return tuple(ctx.bench.rig.joints)
+
+
+def drive(ctx: StepContext, commands: Sequence[npt.ArrayLike], where: str) -> tuple[TrialRecording, ...]:
+    """One motion of every driven joint (`commands` in channel order, as many samples each): each joint's
+    recording on the shared time base. A board failure's partial recording is a tuple likewise."""
+    return run_motion(ctx.bench.rig, commands, where=where, stop_requested=ctx.stop_requested)
+
+
+def drive_joint(ctx: StepContext, joint: str, command: npt.ArrayLike, where: str) -> TrialRecording:
+    """A motion of `joint` alone (its calibration step); any other driven joint holds its last output."""
+    rig = ctx.bench.rig
+    if len(rig.joints) == 1:
+        return run_motion(rig, [command], where=where, stop_requested=ctx.stop_requested)[0]
+    single = rig.single(joint)
+    try:
+        return run_motion(single, [command], where=where, stop_requested=ctx.stop_requested)[0]
+    finally:
+        rig.note_single(joint, single)
 
 
 def put_scan(g: h5py.Group, rec: TrialRecording) -> None:

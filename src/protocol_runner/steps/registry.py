@@ -1,9 +1,8 @@
 """The step kinds, registered in one visible place: plan step kind -> the code that runs a step of it.
 
 A kind's plan record (`protocol/plan_steps.py`) declares what it does, what it reads, whether it uses the
-rig and whether it runs in an analysis worker; its entry here names the function that runs it, and the one
-that runs it when a protocol with `joints:` drives several joints, where that differs. Each function takes
-the step and the StepContext and returns a StepOutcome (how to write its unit). The report step is the
+rig and whether it runs in an analysis worker; its entry here names the function that runs it, for one
+driven joint or several. Each function takes the step and the StepContext and returns a StepOutcome (how to write its unit). The report step is the
 runner's own (it consolidates the archive first): see session/runner.py.
 """
 
@@ -21,26 +20,24 @@ StepFunction = Callable[[Any, StepContext], StepOutcome]
 
 @dataclass(frozen=True)
 class StepKind:
-    """How a step of a kind runs: `run` for one joint, `several_joints` for a protocol with `joints:` (None:
-    `run` drives every joint). Each is a function, or the name "module.function" of one of this package's
-    modules, imported when a step of the kind first runs: so the session process never loads what only
-    the analysis workers run (the processing and the fits: scipy's signal, optimisation and statistics)."""
+    """How a step of a kind runs: `run`, a function, or the name "module.function" of one of this
+    package's modules, imported when a step of the kind first runs: so the session process never loads
+    what only the analysis workers run (the processing and the fits: scipy's signal, optimisation and
+    statistics)."""
 
     run: str | StepFunction
-    several_joints: str | StepFunction | None = None
 
-    def function(self, multi_joint: bool) -> StepFunction:
-        """The function that runs a step of this kind, for one joint or several."""
-        chosen = self.several_joints if multi_joint and self.several_joints is not None else self.run
-        return step_function(chosen) if isinstance(chosen, str) else chosen
+    def function(self) -> StepFunction:
+        """The function that runs a step of this kind."""
+        return step_function(self.run) if isinstance(self.run, str) else self.run
 
 
 STEP_KINDS: dict[str, StepKind] = {
-    "calibration_check": StepKind("calibration_check.run", several_joints="multi_calibration.run"),
+    "calibration_check": StepKind("calibration_check.run"),
     "operator_checklist": StepKind("checklist.run"),
-    "trial": StepKind("trial.run", several_joints="multi_trial.run_trial"),
-    "process": StepKind("process.run", several_joints="multi_trial.run_process"),
-    "fit": StepKind("fit.run", several_joints="multi_trial.run_fit"),
+    "trial": StepKind("trial.run"),
+    "process": StepKind("process.run"),
+    "fit": StepKind("fit.run"),
     "compare": StepKind("compare.run"),
 }
 
@@ -64,9 +61,9 @@ def deregister(kind: str) -> None:
     del STEP_KINDS[kind]
 
 
-def run_function(kind: str, multi_joint: bool) -> StepFunction:
+def run_function(kind: str) -> StepFunction:
     """The function that runs a step of `kind` (`LookupError` for a kind nobody registered)."""
     entry = STEP_KINDS.get(kind)
     if entry is None:
         raise LookupError(f"no step kind {kind!r} is registered (steps/registry.py)")
-    return entry.function(multi_joint)
+    return entry.function()

@@ -1,11 +1,16 @@
-"""Trial step: trajectory -> safety envelope -> 100 Hz output while acquiring inputs at 1 kHz.
+"""Trial step: every driven joint's trajectory -> its safety envelope -> one 100 Hz output update of every
+joint per tick while acquiring every joint's inputs at 1 kHz (one scan).
 
-Brace-on trials command the plan's trajectory. A brace-off trial commands the brace-on trial's measured
-output (thesis §3.3.2: only then are torques compared at the same angles) through the inverse of the
-servo's first-order lag (§2.4.2, `analysis.scaling.lag_input`, so that the brace-off run follows it in
-time, not only in range), rescaled by the Eq 8 iteration (analysis/scaling.py) until its cycles' turning
-points match the brace-on cycles' within the protocol's tolerance; every iteration is a robot run and is
-recorded (`brace_off/scaling`). Raw codes and converted values are kept.
+Brace-on trials command the plan's trajectories. A brace-off trial commands each joint's brace-on
+measured output (thesis §3.3.2: only then are torques compared at the same angles) through the inverse of
+that joint's servo lag (§2.4.2, `analysis.scaling.lag_input`, so that the brace-off run follows it in
+time, not only in range), rescaled by the Eq 8 iteration (`analysis.scaling.scale_brace_off_inputs`)
+until each joint's cycle turning points match its brace-on cycles' within the protocol's tolerance; every
+iteration is one robot run of every joint and is recorded (`joints/<joint>/scaling`). Raw codes and
+converted values are kept.
+
+Unit layout (docs/archive.md): `trials/<n>/brace_<b>` holds the shared time base (`time_s`,
+`command_time_s`, `tick_lateness_s`) and one group per joint `joints/<joint>` with that joint's recording.
 """
 
 from __future__ import annotations
@@ -19,43 +24,39 @@ import numpy as np
 import numpy.typing as npt
 
 from ..analysis.filters import lowpass
-from ..analysis.scaling import ScalingResult, cycle_range, lag_input, scale_brace_off_input
+from ..analysis.scaling import ScalingResult, cycle_range, lag_input, scale_brace_off_inputs
 from ..analysis.transition import command_on_input_base, transition_index
-from ..archive.attrs import ATTRIBUTES, FACTORS, STATUS, STEP_ID
+from ..archive.attrs import ATTRIBUTES, FACTORS, JOINT, STATUS, STEP_ID
+from ..archive.attrs import JOINTS as JOINTS_ATTR
 from ..archive.h5util import SIGNAL, put, put_attrs
-from ..archive.paths import configuration_path, recording_path
+from ..archive.paths import configuration_path, joint_groups, joint_path, put_dataset, recording_path
 from ..errors import HardwareUnavailable
 from ..hardware.joint import TrialRecording
-from ..hardware.motion import run_motion
 from ..protocol.plan_steps import TrialStep
 from ..protocol.sampling import sample_trajectory
 from ..protocol.settings import configuration_attributes
-from ..protocol.trajectory_record import Trajectory
 from .context import StepContext, StepOutcome
-from .recording import put_commands, put_scan
+from .recording import bench_joints, drive, joint_trajectories, put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]
 COMMAND_SMOOTHING_HZ = 5.0
 COMMAND_SMOOTHING_ORDER = 4
 
 
-def command_deg(trajectory: Trajectory, ctx: StepContext) -> FloatArray:
-    """Sample a plan trajectory at the output rate (real joint angles, one per tick)."""
-    return sample_trajectory(trajectory, ctx.bench.rig.output_rate_hz, ctx.loaded.base_dir)
-
-
 @dataclass(frozen=True)
 class _BraceOn:
+    """A brace-on recording: the shared time base and each joint's angle and command, in channel order."""
+
     time_s: FloatArray
-    angle_deg: FloatArray
     command_time_s: FloatArray
-    command_deg: FloatArray
+    angle_deg: tuple[FloatArray, ...]
+    command_deg: tuple[FloatArray, ...]
 
 
 KEPT_BRACE_ON_MAX = 32
-"""Brace-on recordings kept in memory at most (each holds a trial's scan, ~1 MB; a set of four configurations
-of three trials has 12 of them before its first brace-off trial). Beyond it the oldest are dropped: their
-twins read the unit."""
+"""Brace-on recordings kept in memory at most (each holds a trial's scan, ~1 MB per joint; a set of four
+configurations of three trials has 12 of them before its first brace-off trial). Beyond it the oldest are
+dropped: their twins read the unit."""
 
 _kept_brace_on: dict[tuple[str, str], _BraceOn] = {}
 """(units folder, brace-on step id) -> that trial's recording exactly as its unit stores it (`put_scan`,
@@ -64,16 +65,16 @@ reads it, so the twin does not read the unit back from disk. A twin run by anoth
 after the memory was dropped, reads the unit."""
 
 
-def _keep_brace_on(ctx: StepContext, step: TrialStep, rec: TrialRecording) -> None:
+def _keep_brace_on(ctx: StepContext, step: TrialStep, recs: tuple[TrialRecording, ...]) -> None:
     if not any(isinstance(s, TrialStep) and s.twin == step.id for s in ctx.plan.steps):
         return  # no brace-off trial follows this one
     if len(_kept_brace_on) >= KEPT_BRACE_ON_MAX:
         del _kept_brace_on[next(iter(_kept_brace_on))]  # the oldest
     _kept_brace_on[(str(ctx.units_dir), step.id)] = _BraceOn(
-        np.asarray(rec.input_time_s),
-        np.asarray(rec.angle_deg, dtype=SIGNAL),
-        np.asarray(rec.command_time_s),
-        np.asarray(rec.command_deg),
+        np.asarray(recs[0].input_time_s),
+        np.asarray(recs[0].command_time_s),
+        tuple(np.asarray(r.angle_deg, dtype=SIGNAL) for r in recs),
+        tuple(np.asarray(r.command_deg) for r in recs),
     )
 
 
@@ -83,109 +84,140 @@ def _read_brace_on(ctx: StepContext, step: TrialStep) -> _BraceOn:
     if kept is not None:
         return kept
     with ctx.unit(step.twin) as f:
-        return brace_on_in_unit(f, step)
+        return brace_on_in_unit(f, step, [j for j, _ in joint_trajectories(step, ctx)])
 
 
-def brace_on_in_unit(f: h5py.File, step: TrialStep) -> _BraceOn:
-    """The recording of the brace-on trial of `step` (a trial of either brace) as its unit `f` stores it."""
+def brace_on_in_unit(f: h5py.File, step: TrialStep, joints: list[str]) -> _BraceOn:
+    """The recording of the brace-on trial of `step` (a trial of either brace) of the driven `joints` as
+    its unit `f` stores it."""
     g = f[recording_path(step.configuration, step.trial, "on")]
-    return _BraceOn(g["time_s"][:], g["angle_deg"][:], g["command_time_s"][:], g["command_deg"][:])
+    parts = dict(joint_groups(g, ",".join(joints)))
+    return _BraceOn(
+        g["time_s"][:],
+        g["command_time_s"][:],
+        tuple(parts[j]["angle_deg"][:] for j in joints),
+        tuple(parts[j]["command_deg"][:] for j in joints),
+    )
 
 
 def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
-    rig = ctx.bench.rig
     ctx.bench.fit_brace(step.settings if step.brace == "on" else None)
     ctx.bench.begin_step(step.id)
-    scaling: ScalingResult | None = None
+    joints = joint_trajectories(step, ctx)
+    names = [j for j, _ in joints]
+    scaling: tuple[ScalingResult, ...] | None = None
     try:
         if step.brace == "on":
-            cmd = command_deg(step.trajectory, ctx)
-            rec = run_motion(rig, [cmd], where=step.id, stop_requested=ctx.stop_requested)[0]
+            rate = ctx.bench.rig.output_rate_hz
+            commands = [sample_trajectory(t, rate, ctx.loaded.base_dir) for _, t in joints]
+            recs = drive(ctx, commands, step.id)
         else:
-            rec, scaling = _run_brace_off(step, ctx)
+            recs, scaling = _run_brace_off(step, ctx, names)
     except HardwareUnavailable as exc:
         partial = (getattr(exc, "partial_recording", None) or (None,))[0]
         if partial is None:
             raise
         # A board failed mid-trial (e.g. unplugged): keep what was recorded as a failed trial (it is redone
-        # on resume), then stop the session; the runner parks the joint if the output board still answers.
-        summary = f"failed after {partial.input_time_s.size} samples: {exc.message}"
+        # on resume), then stop the session; the runner parks the joints if the output board still answers.
+        summary = f"failed after {partial[0].input_time_s.size} samples: {exc.message}"
         return StepOutcome(_fill(step, ctx, partial, None, status="failed"), summary, stop=exc)
-    fill = _fill(step, ctx, rec, scaling)
+    fill = _fill(step, ctx, recs, scaling)
     if step.brace == "on":
-        _keep_brace_on(ctx, step, rec)
-    lo, hi = float(np.min(rec.angle_deg)), float(np.max(rec.angle_deg))
-    summary = (
-        f"angle {lo:.0f}..{hi:.0f} deg, torque {np.min(rec.torque_nm):.0f}..{np.max(rec.torque_nm):.0f} N*m"
+        _keep_brace_on(ctx, step, recs)
+    who = [f"{j} " if len(names) > 1 else "" for j in names]
+    summary = ", ".join(
+        f"{w}angle {np.min(r.angle_deg):.0f}..{np.max(r.angle_deg):.0f} deg, "
+        f"torque {np.min(r.torque_nm):.0f}..{np.max(r.torque_nm):.0f} N*m"
+        for w, r in zip(who, recs, strict=True)
     )
     if scaling is not None:
-        error = scaling.best.range_error_deg
-        summary += f", scaling {len(scaling.history)} run(s), cycle range error {error:.2f} deg"
-        if not scaling.converged:
+        errors = ", ".join(f"{w}{s.best.range_error_deg:.2f} deg" for w, s in zip(who, scaling, strict=True))
+        summary += f", scaling {len(scaling[0].history)} run(s), cycle range error {errors}"
+        if not all(s.converged for s in scaling):
             tolerance = ctx.loaded.protocol.processing.brace_off_scaling.tolerance_deg
             summary += f" (NOT within {tolerance:g} deg: kept, flagged in trials.csv)"
     return StepOutcome(fill, summary)
 
 
-def _run_brace_off(step: TrialStep, ctx: StepContext) -> tuple[TrialRecording, ScalingResult]:
-    rig = ctx.bench.rig
-    proc = ctx.processing
-    on = _read_brace_on(ctx, step)
-    # The brace-on output becomes the brace-off input. It is smoothed first (zero-phase, 4th order at
-    # COMMAND_SMOOTHING_HZ): the joint's 0.2 s lag passes nothing above ~1 Hz, and the sensor noise and
-    # the corners where the brace's stops bite would otherwise break the acceleration envelope.
-    nyquist = 0.5 * rig.input_rate_hz
-    smooth = lowpass(
-        on.angle_deg,
+def _smoothed(angle_deg: npt.ArrayLike, input_rate_hz: float, name: str) -> FloatArray:
+    """An angle low-passed as a brace-off command is made of it (zero-phase, COMMAND_SMOOTHING_ORDER at
+    COMMAND_SMOOTHING_HZ)."""
+    return lowpass(
+        angle_deg,
         kind="butterworth",
         order=COMMAND_SMOOTHING_ORDER,
-        cutoff=COMMAND_SMOOTHING_HZ / nyquist,
-        name=f"{step.twin} angle_deg",
+        cutoff=COMMAND_SMOOTHING_HZ / (0.5 * input_rate_hz),
+        name=name,
     )
-    cmd_in = command_on_input_base(on.command_time_s, on.command_deg, on.time_s)
-    start = transition_index(cmd_in, on.angle_deg, proc.transition_tolerance_deg, proc.transition_points)
-    # from the transition point on (§3.3.2: "index 0 corresponds to the transition point"); the rig moves
-    # from its park angle to the first sample exactly as a brace-on trial does (its own transition)
+
+
+def _run_brace_off(
+    step: TrialStep, ctx: StepContext, joints: list[str]
+) -> tuple[tuple[TrialRecording, ...], tuple[ScalingResult, ...]]:
+    configs = bench_joints(ctx)
+    proc = ctx.processing
+    on = _read_brace_on(ctx, step)
+    input_rate = configs[0].input_rate_hz
+    label = [f" {j}" if len(joints) > 1 else "" for j in joints]
+    # Each joint's brace-on output becomes its brace-off input. It is smoothed first (zero-phase, 4th order
+    # at COMMAND_SMOOTHING_HZ): the joint's 0.2 s lag passes nothing above ~1 Hz, and the sensor noise and
+    # the corners where the brace's stops bite would otherwise break the acceleration envelope.
+    smooth = [
+        _smoothed(a, input_rate, f"{step.twin}{w} angle_deg")
+        for a, w in zip(on.angle_deg, label, strict=True)
+    ]
+    # from the transition point on (§3.3.2: "index 0 corresponds to the transition point"), the latest of
+    # the joints' so that they stay together in time; the rig moves from its park angles to the first
+    # samples exactly as a brace-on trial does (its own transition)
+    start = max(
+        transition_index(
+            command_on_input_base(on.command_time_s, c, on.time_s),
+            a,
+            proc.transition_tolerance_deg,
+            proc.transition_points,
+        )
+        for c, a in zip(on.command_deg, on.angle_deg, strict=True)
+    )
     t_after = on.time_s[start:] - on.time_s[start]
-    # the input whose output is the brace-on output: the servo's first-order lag inverted (§2.4.2). Its
+    # the input whose output is the brace-on output: each servo's first-order lag inverted (§2.4.2). Its
     # last time constant is not sent: that input would only act after the brace-on recording ends, and
     # there the derivative of the smoothed angle carries the filter's edge.
-    tau = ctx.loaded.protocol.rig.time_constant_s
-    ticks = np.arange(0.0, float(t_after[-1]) - tau, 1.0 / rig.output_rate_hz)
-    u = np.interp(ticks, t_after, lag_input(t_after, smooth[start:], tau))
+    taus = [ctx.loaded.protocol.rig_of(j).time_constant_s for j in joints]
+    ticks = np.arange(0.0, float(t_after[-1]) - max(taus), 1.0 / configs[0].output_rate_hz)
+    inputs = [
+        np.interp(ticks, t_after, lag_input(t_after, s[start:], tau))
+        for s, tau in zip(smooth, taus, strict=True)
+    ]
     # the range to match is that of the brace-on cycles (their turning points), not of the approach
-    target = cycle_range(smooth[start:], proc.reversal_deg)
-    recordings: list[TrialRecording] = []
+    targets = [cycle_range(s[start:], proc.reversal_deg) for s in smooth]
+    runs: list[tuple[TrialRecording, ...]] = []
 
-    def run_once(input_deg: FloatArray) -> FloatArray:
-        k = len(recordings)
-        rec = run_motion(
-            rig, [input_deg], where=f"{step.id} (scaling run {k + 1})", stop_requested=ctx.stop_requested
-        )[0]
-        recordings.append(rec)
+    def run_once(inputs_deg: list[FloatArray]) -> list[FloatArray]:
+        recs = drive(ctx, inputs_deg, f"{step.id} (scaling run {len(runs) + 1})")
+        runs.append(recs)
         # smoothed as the target was, so that both turning-point levels are free of the sensor noise
-        angle = lowpass(
-            np.asarray(rec.angle_deg, dtype=np.float64),
-            kind="butterworth",
-            order=COMMAND_SMOOTHING_ORDER,
-            cutoff=COMMAND_SMOOTHING_HZ / nyquist,
-            name=f"{step.id} angle_deg",
-        )
-        return np.interp(rec.command_time_s, rec.input_time_s, angle)
+        return [
+            np.interp(
+                r.command_time_s,
+                r.input_time_s,
+                _smoothed(np.asarray(r.angle_deg, dtype=np.float64), input_rate, f"{step.id}{w} angle_deg"),
+            )
+            for r, w in zip(recs, label, strict=True)
+        ]
 
     scaling_spec = ctx.loaded.protocol.processing.brace_off_scaling
-    result = scale_brace_off_input(
-        u,
-        target,
+    results = scale_brace_off_inputs(
+        inputs,
+        targets,
         run_once,
         tolerance_deg=scaling_spec.tolerance_deg,
         max_iterations=scaling_spec.max_iterations,
         transition_tolerance_deg=proc.transition_tolerance_deg,
         transition_points=proc.transition_points,
-        input_limits_deg=rig.joints[0].limits.range_deg,
+        input_limits_deg=[c.limits.range_deg for c in configs],
         reversal_deg=proc.reversal_deg,
     )
-    return recordings[result.best.iteration], result
+    return runs[results[0].kept], results
 
 
 def configuration_group_attributes(step: TrialStep, ctx: StepContext) -> dict[str, Any]:
@@ -231,37 +263,54 @@ def recording_attrs(
 def _fill(
     step: TrialStep,
     ctx: StepContext,
-    rec: TrialRecording,
-    scaling: ScalingResult | None,
+    recs: tuple[TrialRecording, ...],
+    scaling: tuple[ScalingResult, ...] | None,
     *,
     status: str = "complete",
 ):
     cfg_attrs = configuration_group_attributes(step, ctx)
-    lateness = rec.tick_lateness_s
+    joints = joint_trajectories(step, ctx)
+    names = np.array([j for j, _ in joints], dtype=h5py.string_dtype())
+    shared = recs[0]
+    lateness = shared.tick_lateness_s
+    trajectory = json.dumps(
+        step.trajectory.to_json() if not step.joint_trajectories else {j: t.to_json() for j, t in joints}
+    )
 
     def fill(f: h5py.File) -> None:
-        put_configuration(f, step.configuration, cfg_attrs)
+        cfg = put_configuration(f, step.configuration, cfg_attrs)
+        cfg.attrs[JOINTS_ATTR] = names
         g = f.create_group(recording_path(step.configuration, step.trial, step.brace))
-        put_scan(g, rec)
-        put_commands(g, rec, full=True)
-        trajectory = json.dumps(step.trajectory.to_json())
-        put_attrs(g, "recording", recording_attrs(step, status, trajectory, lateness, rec.input_time_s))
-        if scaling is not None:
-            s = g.create_group("scaling")
-            h = scaling.history
-            put(s, "iteration", [it.iteration + 1 for it in h], "1")
-            put(s, "scale", [it.scale for it in h], "1")
-            put(s, "input_range_deg", [list(it.input_range_deg) for it in h], "deg")
-            put(s, "output_range_deg", [list(it.output_range_deg) for it in h], "deg")
-            put(s, "range_error_deg", [it.range_error_deg for it in h], "deg")
-            put_attrs(
-                s,
-                "scaling",
-                {
-                    "converged": bool(scaling.converged),
-                    "target_range_deg": list(scaling.target_range_deg),
-                    "kept_iteration": scaling.best.iteration + 1,
-                },
-            )
+        put_dataset(g, "recording", "time_s", shared.input_time_s)
+        put_dataset(g, "recording", "command_time_s", shared.command_time_s)
+        put_dataset(g, "recording", "tick_lateness_s", lateness)
+        put_attrs(g, "recording", recording_attrs(step, status, trajectory, lateness, shared.input_time_s))
+        g.attrs[JOINTS_ATTR] = names
+        for k, ((joint, traj), rec) in enumerate(zip(joints, recs, strict=True)):
+            jg = f.create_group(joint_path(g.name, joint))
+            put_scan(jg, rec)
+            put_commands(jg, rec, full=True)
+            put_attrs(jg, "recording_joint", {JOINT: joint, "trajectory": json.dumps(traj.to_json())})
+            if scaling is not None:
+                put_scaling(jg.create_group("scaling"), scaling[k])
 
     return fill
+
+
+def put_scaling(s: h5py.Group, scaling: ScalingResult) -> None:
+    """A joint's `scaling/` group: the Eq 8 iterations of its brace-off input (docs/archive.md)."""
+    h = scaling.history
+    put(s, "iteration", [it.iteration + 1 for it in h], "1")
+    put(s, "scale", [it.scale for it in h], "1")
+    put(s, "input_range_deg", [list(it.input_range_deg) for it in h], "deg")
+    put(s, "output_range_deg", [list(it.output_range_deg) for it in h], "deg")
+    put(s, "range_error_deg", [it.range_error_deg for it in h], "deg")
+    put_attrs(
+        s,
+        "scaling",
+        {
+            "converged": bool(scaling.converged),
+            "target_range_deg": list(scaling.target_range_deg),
+            "kept_iteration": scaling.best.iteration + 1,
+        },
+    )
