@@ -425,14 +425,23 @@ def entry() -> None:
     output and log flushed, as after a kill, which loses nothing: every finished unit is on disk and
     journaled, and a temporary file is removed or redone by the resume (docs/session.md). So it does after a
     second Ctrl-C, which may have left the analysis workers' pool waiting for ever on what the interrupt
-    broke (the pool's thread is joined at exit)."""
+    broke (the pool's thread is joined at exit).
+
+    Once `main` has returned, SIGINT is ignored: the interpreter's teardown (the worker pool's shutdown,
+    HDF5 and the imported modules' finalisation) takes a moment, and Python resets SIGINT to the default
+    action during it, so a Ctrl-C there would end the process with signal 2 (exit -2, no message) after
+    the session had already finished (or stopped) and said so."""
     one_blas_thread()
     from .session.signals import exit_at_once_after_second_sigint, stopped_at_once
     from .session.streams import flush_standard_streams, reopen_missing_standard_streams
 
     reopen_missing_standard_streams()  # `2>&-`: the null device, not the next file opened, as descriptor 2
     exit_at_once_after_second_sigint()
-    code = main()
+    try:
+        code = main()
+    except KeyboardInterrupt:  # a Ctrl-C in the instant `main` returned
+        code = EXIT_INTERRUPTED
+    on_the_way_out()  # the exit status is decided: a Ctrl-C during the teardown is ignored from here on
     flush_standard_streams()  # a pipe whose reader ended: no "Exception ignored" at exit
     if _ENDED_BY_A_FULL_DISK.is_set() or stopped_at_once():
         logging.shutdown()
