@@ -15,7 +15,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from . import __version__
 from .errors import (
     EXIT_INTERRUPTED,
     EXIT_INVALID_INPUT,
@@ -151,6 +150,8 @@ def build_parser() -> argparse.ArgumentParser:
     for group, flag, metavar, help_text in _OPTIONS:
         kind: dict[str, Any] = {"action": "store_true"} if metavar is None else {"metavar": metavar}
         groups[group].add_argument(flag, help=help_text, **(kind | _OPTION_EXTRAS.get(flag, {})))
+    from . import __version__  # here: reading the package's metadata takes a moment (see __init__)
+
     parser.add_argument("--version", action="version", version=f"protocol-runner {__version__}")
     return parser
 
