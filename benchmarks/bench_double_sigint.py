@@ -26,7 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
-ARGS = ["elbow_example.yaml", "--dry-run", "--yes", "--seed", "7", "--only", "1"]
+ARGS = ["elbow_example.yaml", "--dry-run", "--seed", "7", "--only", "1"]
 
 
 def start(session: Path, err: Path) -> subprocess.Popen[bytes]:

@@ -66,7 +66,7 @@ def one_trial(seconds: float, monitor: Monitor | None) -> np.ndarray:
     try:
         rig = Rig([knee_joint()], ao, ai, clock)
         if monitor is not None:
-            tap = SampleTap(rig.joint, monitor.bus.publish_samples)
+            tap = SampleTap((rig.joint,), monitor.bus.publish_samples)
             tap.step = "bench"
             rig.tap = tap
         if FIFO:
@@ -103,7 +103,7 @@ def watched_trial(seconds: float, n_clients: int | None) -> tuple[np.ndarray, in
 def tap_cost_us(n: int = 2000) -> float:
     """Median µs of one SampleTap.scan on a 100-row block (what the loop pays per read with a monitor)."""
     joint = knee_joint()
-    tap = SampleTap(joint, lambda msg: None)
+    tap = SampleTap((joint,), lambda msg: None)
     tap.start("bench", np.full(1000, 65.0), 0.0)
     times = []
     for k in range(n):

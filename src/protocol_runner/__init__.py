@@ -10,8 +10,6 @@ loads neither numpy nor numba.
 
 # BLAS threads: the model fits hold BLAS at one thread while they run (threadpoolctl,
 # models/bouc_wen/threads.py), whenever numpy was imported; nothing is set here at import time.
-from importlib.metadata import PackageNotFoundError, version
-
 from .api import export, load_protocol, open_archive, run, write_report
 from .numba_cache import point_numba_at_the_user_cache
 
@@ -19,9 +17,21 @@ from .numba_cache import point_numba_at_the_user_cache
 # can import it, so the compiled kernels are cached in the user's cache directory (numba_cache.py)
 point_numba_at_the_user_cache()
 
-try:
-    __version__ = version("protocol-runner")
-except PackageNotFoundError:  # running from a source tree that is not installed
-    __version__ = "0.0.0+source"
+
+def __getattr__(name: str) -> str:
+    """`__version__`, read from the installed package's metadata when first asked for: importing
+    `importlib.metadata` takes about 0.1 s, which `run-protocol` would otherwise spend importing itself,
+    before it can turn a Ctrl-C into a clean exit 130."""
+    if name != "__version__":
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        value = version("protocol-runner")
+    except PackageNotFoundError:  # running from a source tree that is not installed
+        value = "0.0.0+source"
+    globals()["__version__"] = value
+    return value
+
 
 __all__ = ["__version__", "export", "load_protocol", "open_archive", "run", "write_report"]

@@ -15,7 +15,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from . import __version__
 from .errors import (
     EXIT_INTERRUPTED,
     EXIT_INVALID_INPUT,
@@ -181,6 +180,8 @@ def build_parser() -> argparse.ArgumentParser:
     for group, flag, metavar, help_text in _OPTIONS:
         kind: dict[str, Any] = {"action": "store_true"} if metavar is None else {"metavar": metavar}
         groups[group].add_argument(flag, help=help_text, **(kind | _OPTION_EXTRAS.get(flag, {})))
+    from . import __version__  # here: reading the package's metadata takes a moment (see __init__)
+
     parser.add_argument("--version", action="version", version=f"protocol-runner {__version__}")
     return parser
 
@@ -194,6 +195,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     _ENDED_BY_A_FULL_DISK.clear()
+    _ENDED_BY_AN_INTERRUPT.clear()
     try:
         return _dispatch(parser, args)
     except UserError as exc:
@@ -219,12 +221,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_INTERRUPTED
     except KeyboardInterrupt:
         on_the_way_out()
+        _ENDED_BY_AN_INTERRUPT.set()
         say("run-protocol: interrupted")
         return EXIT_INTERRUPTED
     except Exception as exc:
         if not _caused_by_an_interrupt(exc):
             raise
         on_the_way_out()  # a Ctrl-C inside an import (an extension then says "initialization failed")
+        _ENDED_BY_AN_INTERRUPT.set()
         say("run-protocol: interrupted")
         return EXIT_INTERRUPTED
 
@@ -493,22 +497,37 @@ def entry() -> None:
     output and log flushed, as after a kill, which loses nothing: every finished unit is on disk and
     journaled, and a temporary file is removed or redone by the resume (docs/session.md). So it does after a
     second Ctrl-C, which may have left the analysis workers' pool waiting for ever on what the interrupt
-    broke (the pool's thread is joined at exit)."""
+    broke (the pool's thread is joined at exit), and after any Ctrl-C that raised KeyboardInterrupt here
+    (one during the start-up, before the session's own handling is installed): under `python -m`, CPython
+    ends a process at exit by the signal itself (exit -2, no message) if a KeyboardInterrupt passed through
+    a string `exec` on its way, even one handled afterwards, and the imports run many (dataclasses and
+    named tuples build their methods that way).
+
+    Once `main` has returned, SIGINT is ignored: the interpreter's teardown (the worker pool's shutdown,
+    HDF5 and the imported modules' finalisation) takes a moment, and Python resets SIGINT to the default
+    action during it, so a Ctrl-C there would end the process with signal 2 (exit -2, no message) after
+    the session had already finished (or stopped) and said so."""
     one_blas_thread()
     from .session.signals import exit_at_once_after_second_sigint, stopped_at_once
     from .session.streams import flush_standard_streams, reopen_missing_standard_streams
 
     reopen_missing_standard_streams()  # `2>&-`: the null device, not the next file opened, as descriptor 2
     exit_at_once_after_second_sigint()
-    code = main()
+    try:
+        code = main()
+    except KeyboardInterrupt:  # a Ctrl-C in the instant `main` returned
+        code = EXIT_INTERRUPTED
+        _ENDED_BY_AN_INTERRUPT.set()
+    on_the_way_out()  # the exit status is decided: a Ctrl-C during the teardown is ignored from here on
     flush_standard_streams()  # a pipe whose reader ended: no "Exception ignored" at exit
-    if _ENDED_BY_A_FULL_DISK.is_set() or stopped_at_once():
+    if _ENDED_BY_A_FULL_DISK.is_set() or _ENDED_BY_AN_INTERRUPT.is_set() or stopped_at_once():
         logging.shutdown()
         os._exit(code)
     sys.exit(code)
 
 
 _ENDED_BY_A_FULL_DISK = threading.Event()  # set by `main` when a session stopped on a full disk
+_ENDED_BY_AN_INTERRUPT = threading.Event()  # set when a Ctrl-C raised KeyboardInterrupt in this process
 
 
 def one_blas_thread() -> None:

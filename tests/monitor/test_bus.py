@@ -33,10 +33,10 @@ def drain(client: Client) -> list[dict[str, Any]]:
     return out
 
 
-def samples(where: str, t: float, n: int = 2, step: str = "s") -> dict[str, Any]:
+def samples(where: str, t: float, n: int = 2, step: str = "s", joint: str = "j") -> dict[str, Any]:
     pts = [[t + 0.05 * i, 1.0, 2.0, 3.0] for i in range(n)]
     phase = "run" if "(" not in where else "park"
-    return {"type": "samples", "step": step, "joint": "j", "where": where, "phase": phase, "points": pts}
+    return {"type": "samples", "step": step, "joint": joint, "where": where, "phase": phase, "points": pts}
 
 
 def test_a_client_that_stops_reading_is_dropped_and_publishing_never_waits() -> None:
@@ -120,6 +120,28 @@ def test_bursts_merge_per_run_keep_the_latest_points_and_never_cross_a_step() ->
     assert len(first) == MAX_MERGED_POINTS and bus.trimmed_points == MAX_MERGED_POINTS
     assert first[-1][0] == pytest.approx((n - 1) * 0.1 + 0.05)  # the newest kept
     assert got[2]["where"] == "trial:b"
+
+
+def test_the_joints_alternating_samples_merge_per_joint_and_a_late_page_gets_every_joint() -> None:
+    bus = EventBus()
+    client = bus.subscribe()
+    drain(client)
+    for k in range(50):  # one message per joint and scan read, as the tap of a two-joint rig sends them
+        bus.publish_samples(samples("trial:a", k * 0.1, joint="hip"))
+        bus.publish_samples(samples("trial:a", k * 0.1, joint="knee"))
+    bus.cycle()
+    got = drain(client)
+    assert [m["joint"] for m in got] == ["hip", "knee"]  # one merged message per joint, nothing lost
+    assert all(len(m["points"]) == 100 for m in got)
+    for k in range(50, 400):  # 40 s of the run, longer than the trace window
+        bus.publish_samples(samples("trial:a", k * 0.1, joint="hip"))
+        bus.publish_samples(samples("trial:a", k * 0.1, joint="knee"))
+        bus.cycle()
+    replay = [m for m in drain(bus.subscribe()) if m["type"] == "samples"]
+    for joint in ("hip", "knee"):
+        times = [p[0] for m in replay if m["joint"] == joint for p in m["points"]]
+        assert len(times) == 800 and times == sorted(times)  # the whole current run of each joint
+    assert len(replay) < 10  # in a few chunks, not one per message
 
 
 def test_a_page_connecting_mid_run_gets_the_window_and_the_whole_current_run() -> None:

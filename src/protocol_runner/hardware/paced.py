@@ -167,7 +167,7 @@ class PacedLoop(Generic[RecordingT]):
         tripped: WatchdogTripped | None = None
         tap = self.tap
         if tap is not None:
-            tap.start(where, np.ascontiguousarray(cmd[:, 0]), t0)
+            tap.start(where, cmd, t0)
         try:
             start = 0
             while start < n:
@@ -201,7 +201,7 @@ class PacedLoop(Generic[RecordingT]):
                     schedule = schedule_s(t0, n, dt)
                     loop.cmd, loop.volts, loop.schedule = cmd, volts, schedule
                     if tap is not None:
-                        tap.start(f"{where} (park)", np.ascontiguousarray(cmd[:, 0]), t0)
+                        tap.start(f"{where} (park)", cmd, t0)
             sleep_until(schedule[n])  # one more tick: the scan covers the response to the last command
             if stopped:
                 raise tripped or Interrupted(stopped)

@@ -2,9 +2,9 @@
 
 `publish` and `publish_samples` are what the session calls: a deque append (and, for the rare control
 messages, setting an event), never a lock held by anyone else, never I/O. A pump thread wakes every
-`INTERVAL_S` (or at once for a control message), merges consecutive samples of the same run, numbers and
-encodes each message once, updates the `SessionState` and hands the encoded frame to every client's
-bounded queue. A client whose queue is full (it stopped reading, or reads slower than the session
+`INTERVAL_S` (or at once for a control message), merges the samples of each joint's run queued between
+two control messages, numbers and encodes each message once, updates the `SessionState` and hands the
+encoded frame to every client's bounded queue. A client whose queue is full (it stopped reading, or reads slower than the session
 publishes) is dropped: its socket is shut down and its handler thread ends; nobody waits for it.
 
 When the pump falls behind (a dry run in simulated time publishes far faster than any page can draw),
@@ -151,20 +151,23 @@ class EventBus:
         """Deliver what the sources and the session queued since the last cycle, in order."""
         self._poll_sources()
         items: list[dict[str, Any]] = []
+        # the samples messages since the last control message, by (joint, run): the joints' messages
+        # alternate, each is merged with its own joint's
+        open_runs: dict[tuple[str, str], dict[str, Any]] = {}
         while self._inbox:
             msg = self._inbox.popleft()
-            last = items[-1] if items else None
-            if (
-                last is not None
-                and msg.get("type") == "samples"
-                and last.get("type") == "samples"
-                and last["joint"] == msg["joint"]
-                and last["where"] == msg["where"]
-            ):
+            if msg.get("type") != "samples":
+                open_runs.clear()
+                items.append(msg)
+                continue
+            key = (str(msg["joint"]), str(msg["where"]))
+            last = open_runs.get(key)
+            if last is not None:
                 merged = last["points"] + msg["points"]
                 self.trimmed_points += max(0, len(merged) - MAX_MERGED_POINTS)
                 last["points"] = merged[-MAX_MERGED_POINTS:]
                 continue
+            open_runs[key] = msg
             items.append(msg)
         for msg in items:
             if msg.get("type") == "session_end":

@@ -1,11 +1,14 @@
-"""The sampler the output loop feeds (`Rig.tap`): decimated angle and torque for the live traces.
+"""The sampler the output loop feeds (`Rig.tap`): decimated angle and torque of every driven joint for the
+live traces.
 
-At every scan read (every 10 output ticks, 100 ms at 100 Hz) the rig hands the block it just read to
-`SampleTap.scan`. The tap keeps one row every 1/`SAMPLE_RATE_HZ` seconds of scan time (2 rows of the 100
-a read brings at 1 kHz), converts only those rows (Eq 2/3 and the look-up tables, as the recording will
-be), pairs them with the angle commanded at that moment, and queues one `samples` message on the bus.
-That is a few numpy operations on 2-element arrays and one deque append per read: about 20 µs every
-100 ms, inside the slack before the next tick. Anything unexpected disables the tap; it never raises into
+At every scan read (every 10 output ticks, 100 ms at 100 Hz) the rig hands the block it just read (every
+channel of the scan) to `SampleTap.scan`. The tap keeps one row every 1/`SAMPLE_RATE_HZ` seconds of scan
+time (2 rows of the 100 a read brings at 1 kHz), takes each joint's angle and torque columns (found from
+the joint's input channels in the scan's channel order), converts only those rows (Eq 2/3 and the
+look-up tables, as the recording will be), pairs them with the angle commanded to that joint at that
+moment, and queues one `samples` message per joint on the bus. That is a few numpy operations on
+2-element arrays and one deque append per joint and read: about 20 µs per joint every 100 ms, inside the
+slack before the next tick. Anything unexpected disables the tap; it never raises into
 the loop.
 
 Times are the rig clock's seconds (continuous over approach, run and park, and from step to step); in a
@@ -16,7 +19,7 @@ rig's pace.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -40,32 +43,59 @@ def phase_of(where: str) -> str:
 
 
 class SampleTap:
-    """A `hardware.interfaces.LoopTap` that publishes decimated samples of one joint."""
+    """A `hardware.interfaces.LoopTap` that publishes decimated samples of every driven joint: one `samples`
+    message per joint and scan read.
+
+    `joints` in the rig's command column order; `scan_channels` the scan's channels in column order (the
+    rig's `scan_channels`; by default [angle, torque] of each joint in turn): a joint's angle and torque
+    columns are where its `angle_input_channel` and `torque_input_channel` sit in the scan. A block without
+    a joint's columns (a loop that shows only some of its joints) gives no samples of that joint. The
+    commands the loop starts with are ticks x joints, or the first joint's alone (ticks): the other joints
+    then have no commanded angle (null in the points)."""
 
     def __init__(
         self,
-        joint: JointConfig,
+        joints: Sequence[JointConfig],
         sink: Callable[[dict[str, Any]], None],
         *,
+        scan_channels: Sequence[int] | None = None,
         rate_hz: float = SAMPLE_RATE_HZ,
     ) -> None:
-        self.joint = joint
+        if not joints:
+            raise ValueError("a sample tap needs at least one joint")
+        self.joints = tuple(joints)
         self.sink = sink
         self.step = ""  # the current step's id (set by the publisher at each step start)
         self.enabled = True
         self.error = ""
+        channels = list(
+            scan_channels
+            if scan_channels is not None
+            else [ch for j in self.joints for ch in (j.angle_input_channel, j.torque_input_channel)]
+        )
+        # per joint: (its angle column, its torque column) in the scan
+        self._columns = [
+            (channels.index(j.angle_input_channel), channels.index(j.torque_input_channel))
+            for j in self.joints
+        ]
+        first = self.joints[0]
         self._period = 1.0 / rate_hz
-        self._in_rate = float(joint.input_rate_hz)
-        self._out_rate = float(joint.output_rate_hz)
+        self._in_rate = float(first.input_rate_hz)
+        self._out_rate = float(first.output_rate_hz)
         self._stride = max(1, round(self._in_rate / rate_hz))
-        self._cmd: npt.NDArray[np.float64] = np.zeros(1)
+        self._cmd: npt.NDArray[np.float64] = np.zeros((1, 1))
         self._t0 = 0.0
         self._next = -math.inf
         self._where = ""
         self._phase = "run"
 
+    @property
+    def names(self) -> tuple[str, ...]:
+        return tuple(j.name for j in self.joints)
+
     def start(self, where: str, command_deg: npt.NDArray[np.float64], t0_s: float) -> None:
-        self._cmd = command_deg if command_deg.shape[0] else np.zeros(1)
+        cmd = command_deg.reshape(command_deg.shape[0], -1)  # ticks x (joints, or the first joint)
+        self._cmd = cmd if cmd.shape[0] else np.zeros((1, cmd.shape[1]))
         self._t0 = t0_s
         self._next = -math.inf
         self._where = where
@@ -91,19 +121,25 @@ class SampleTap:
             return
         ts = t[i :: self._stride]
         volts = block.volts[i :: self._stride]
-        angle = self.joint.angle_from_volts(volts[:, 0])
-        torque = self.joint.torque_from_volts(volts[:, 1])
+        if volts.ndim != 2 or volts.shape[1] < 2:
+            raise ValueError(f"a scan block of {volts.shape[1] if volts.ndim == 2 else 0} column(s)")
         tick = ((ts - self._t0) * self._out_rate).astype(np.int64)
         np.clip(tick, 0, self._cmd.shape[0] - 1, out=tick)
-        points = np.round(np.column_stack((ts, self._cmd[tick], angle, torque)), 3)
         self._next = float(ts[-1]) + self._period
-        self.sink(
-            {
-                "type": "samples",
-                "step": self.step,
-                "joint": self.joint.name,
-                "where": self._where,
-                "phase": self._phase,
-                "points": points.tolist(),
-            }
-        )
+        for k, (joint, (a, q)) in enumerate(zip(self.joints, self._columns, strict=True)):
+            if max(a, q) >= volts.shape[1]:
+                continue  # the loop shows no column of this joint
+            angle = joint.angle_from_volts(volts[:, a])
+            torque = joint.torque_from_volts(volts[:, q])
+            cmd = self._cmd[tick, k] if k < self._cmd.shape[1] else np.full(ts.shape[0], np.nan)
+            points = np.round(np.column_stack((ts, cmd, angle, torque)), 3)
+            self.sink(
+                {
+                    "type": "samples",
+                    "step": self.step,
+                    "joint": joint.name,
+                    "where": self._where,
+                    "phase": self._phase,
+                    "points": points.tolist(),
+                }
+            )

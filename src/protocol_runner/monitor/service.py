@@ -4,9 +4,9 @@
 naming it, before the session folder is created, so a session never runs without the monitor it was
 asked for. The URL is announced on the terminal with a random token, printed only there: on a host that is
 not loopback it is the page's only key; on loopback it is optional and keeps places on a crowded monitor.
-`attach` hooks the rig's loop (`Rig.tap`), the journal's events, the operator's prompts and the runner's
-publisher; leaving the `with` block publishes `session_end` (complete, or why it stopped), gives the
-pages a moment to receive it, and stops the server.
+`attach` hooks the rig's loop (`Rig.tap`: samples of every driven joint), the journal's events, the
+operator's prompts and the runner's publisher; leaving the `with` block publishes `session_end` (complete,
+or why it stopped), gives the pages a moment to receive it, and stops the server.
 """
 
 from __future__ import annotations
@@ -108,7 +108,7 @@ class Monitor:
         """Hook the session up; returns the runner's publisher and the operator to use."""
         publisher = LivePublisher(self.bus)
         rig = bench.rig
-        tap = SampleTap(rig.joints[0], self.bus.publish_samples)
+        tap = SampleTap(tuple(rig.joints), self.bus.publish_samples, scan_channels=rig.scan_channels)
         rig.tap = tap
         publisher.taps.append(tap)
         self.bus.add_source(JournalTail(session_dir / "journal.jsonl"))
@@ -121,7 +121,7 @@ class Monitor:
                 "seed": info.seed,
                 "only": list(info.only),
                 "resumed": resumed,
-                "joints": [rig.joints[0].name],
+                "joints": list(tap.names),
                 "steps": len(plan.steps),
                 "sample_rate_hz": SAMPLE_RATE_HZ,
             }

@@ -52,7 +52,7 @@ def encode_samples(msg: dict[str, Any]) -> tuple[str, str]:
 
 @dataclass
 class _Chunk:
-    """Consecutive samples of one joint and one run, merged."""
+    """Consecutive samples of one joint and one run, merged (other joints' samples may come between)."""
 
     joint: str
     where: str
@@ -90,6 +90,7 @@ class SessionState:
         self._chunks: list[_Chunk] = []
         self._latest_t: dict[str, float] = {}
         self._current_run: dict[str, str] = {}
+        self._open: dict[str, _Chunk] = {}  # each joint's newest chunk
 
     def apply(self, msg: dict[str, Any], points_json: str | None = None) -> None:
         self.n_messages += 1
@@ -142,13 +143,8 @@ class SessionState:
         if msg.get("phase") == "run":
             self._current_run[joint] = where
         fragment = points_json[1:-1]
-        last = self._chunks[-1] if self._chunks else None
-        if (
-            last is not None
-            and last.joint == joint
-            and last.where == where
-            and last.n_points + len(points) <= MAX_CHUNK_POINTS
-        ):
+        last = self._open.get(joint)  # the joints' samples alternate: each joint's own chunk grows
+        if last is not None and last.where == where and last.n_points + len(points) <= MAX_CHUNK_POINTS:
             last.fragments.append(fragment)
             last.n_points += len(points)
             last.t_last = t_last
@@ -157,6 +153,7 @@ class SessionState:
             chunk.fragments.append(fragment)
             chunk.n_points = len(points)
             self._chunks.append(chunk)
+            self._open[joint] = chunk
         self._prune()
 
     def _prune(self) -> None:
@@ -169,3 +166,4 @@ class SessionState:
         while total > MAX_REPLAY_POINTS and len(kept) > 1:
             total -= kept.pop(0).n_points
         self._chunks = kept
+        self._open = {j: c for j, c in self._open.items() if any(c is k for k in kept)}

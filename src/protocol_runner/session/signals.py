@@ -56,8 +56,9 @@ def exit_at_once_after_second_sigint() -> None:
 
 
 def on_the_way_out() -> None:
-    """The `run-protocol` process is ending after an interrupt: another Ctrl-C now would only kill it with
-    a traceback (exit -2 instead of 130), so it is ignored."""
+    """The `run-protocol` process is ending (after an interrupt, or with its exit status decided): another
+    Ctrl-C now would only kill it, with a traceback or by the signal itself once the interpreter's teardown
+    has reset SIGINT (exit -2 instead of its status), so it is ignored."""
     if _deadline.is_set() and threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 

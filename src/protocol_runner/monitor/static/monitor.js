@@ -8,7 +8,7 @@
   const MAX_LOOP = 20000;
   const KEPT = { verdicts: 12, events: 30 };
   const S = {
-    joints: new Map(), windowS: 15, messages: 0, points: 0, frames: 0, ended: null, dirty: false,
+    joints: new Map(), selected: null, wanted: null, windowS: 15, messages: 0, points: 0, frames: 0, ended: null, dirty: false,
     progress: null, progressAt: 0, source: null,
   };
 
@@ -50,30 +50,67 @@
   }
 
   // ---------------------------------------------------------------------------------- the joints
+  // Every driven joint has a small angle/torque panel (shown when there are several: small multiples);
+  // one joint, the selected one, is enlarged below them with its torque-angle loop. Clicking a small
+  // panel, or the selector, chooses the joint to enlarge.
   function joint(name) {
     let j = S.joints.get(name);
     if (j) return j;
-    const card = el("div", "card joint");
-    card.appendChild(el("h2", null, "joint " + name + ": last " + S.windowS + " s, and the torque-angle loop of the run"));
-    const plots = el("div", "plots");
-    const traces = el("canvas", "traces");
-    const loop = el("canvas", "loop");
-    traces.setAttribute("data-joint", name);
-    loop.setAttribute("data-joint", name);
-    plots.append(traces, loop);
-    const legend = el("div", "legend");
-    for (const [cls, label] of [["cmd", "commanded angle"], ["angle", "measured angle"], ["torque", "torque"]]) {
-      const item = el("span");
-      item.append(el("span", "swatch " + cls), document.createTextNode(label));
-      legend.appendChild(item);
-    }
-    const where = el("span", "muted");
-    legend.appendChild(where);
-    card.append(plots, legend);
-    $("joints").appendChild(card);
-    j = { name, t: [], cmd: [], angle: [], torque: [], loop: [], loopWhere: null, traces, loopCanvas: loop, where };
+    const mini = el("button", "mini");
+    mini.type = "button";
+    mini.setAttribute("data-joint", name);
+    mini.setAttribute("aria-pressed", "false");
+    mini.title = "enlarge " + name;
+    const head = el("div", "mini-head");
+    const now = el("span", "mini-now");
+    head.append(el("span", "mini-name", name), now);
+    const canvas = el("canvas", "mini-traces");
+    canvas.setAttribute("data-joint", name);
+    mini.append(head, canvas);
+    mini.addEventListener("click", () => choose(name));
+    $("minis").appendChild(mini);
+    const option = el("option", null, name);
+    option.value = name;
+    $("joint-select").appendChild(option);
+    j = { name, t: [], cmd: [], angle: [], torque: [], loop: [], loopWhere: null, where: "", mini, miniCanvas: canvas, now };
     S.joints.set(name, j);
+    const many = S.joints.size > 1;
+    $("minis").hidden = !many;
+    $("joint-pick").hidden = !many;
+    setData("joints", S.joints.size);
+    if (S.selected === null || name === S.wanted) select(name);
     return j;
+  }
+
+  function select(name) {
+    const j = S.joints.get(name);
+    if (!j) return;
+    S.selected = name;
+    for (const other of S.joints.values()) other.mini.setAttribute("aria-pressed", String(other === j));
+    $("focus").hidden = false;
+    $("focus-name").textContent = "joint " + name;
+    $("joint-select").value = name;
+    $("focus-traces").setAttribute("data-joint", name);
+    $("focus-loop").setAttribute("data-joint", name);
+    $("focus-where").textContent = j.where;
+    setData("selected", name);
+    S.dirty = true;
+  }
+
+  function choose(name) {
+    S.wanted = name; // kept when the page reconnects and the joints are shown anew
+    select(name);
+  }
+
+  function clearJoints() {
+    S.joints.clear();
+    S.selected = null;
+    $("minis").replaceChildren();
+    $("joint-select").replaceChildren();
+    $("minis").hidden = true;
+    $("joint-pick").hidden = true;
+    $("focus").hidden = true;
+    setData("joints", 0);
   }
 
   function addSamples(m) {
@@ -92,16 +129,21 @@
       if (cut > 0) for (const a of [j.t, j.cmd, j.angle, j.torque]) a.splice(0, cut);
       setData("last-t", last.toFixed(3));
     }
-    j.where.textContent = m.where ? "· " + m.where + " (" + m.phase + ")" : "";
+    j.where = m.where ? "· " + m.where + " (" + m.phase + ")" : "";
+    if (j.name === S.selected) $("focus-where").textContent = j.where;
+    if (pts.length) {
+      const p = pts[pts.length - 1];
+      j.now.textContent = (p[2] === null ? "?" : p[2].toFixed(1)) + " deg · " + (p[3] === null ? "?" : p[3].toFixed(1)) + " N·m";
+    }
     S.points += pts.length;
     setData("points", S.points);
     S.dirty = true;
   }
 
   // ------------------------------------------------------------------------------------ drawing
-  function prepare(canvas) {
+  function prepare(canvas, small) {
     const dpr = window.devicePixelRatio || 1;
-    const w = Math.max(200, canvas.clientWidth), h = Math.max(150, canvas.clientHeight);
+    const w = Math.max(small ? 120 : 200, canvas.clientWidth), h = Math.max(small ? 90 : 150, canvas.clientHeight);
     if (canvas.width !== Math.round(w * dpr) || canvas.height !== Math.round(h * dpr)) {
       canvas.width = Math.round(w * dpr);
       canvas.height = Math.round(h * dpr);
@@ -113,24 +155,28 @@
     return { ctx, w, h };
   }
 
-  function axes(ctx, box, xr, yr, xlabel, ylabel, xfmt) {
+  function axes(ctx, box, xr, yr, xlabel, ylabel, xfmt, yticks) {
     const { x0, y0, w, h } = box;
     ctx.strokeStyle = "#e3e7ee"; ctx.fillStyle = "#667085"; ctx.lineWidth = 1;
     ctx.textAlign = "right"; ctx.textBaseline = "middle";
-    for (const v of niceTicks(yr[0], yr[1], 4)) {
+    for (const v of niceTicks(yr[0], yr[1], yticks || 4)) {
       const y = y0 + h - ((v - yr[0]) / (yr[1] - yr[0])) * h;
       ctx.beginPath(); ctx.moveTo(x0, y); ctx.lineTo(x0 + w, y); ctx.stroke();
       ctx.fillText(String(+v.toFixed(2)), x0 - 4, y);
     }
     ctx.textAlign = "center"; ctx.textBaseline = "top";
-    for (const v of niceTicks(xr[0], xr[1], 6)) {
+    for (const v of niceTicks(xr[0], xr[1], yticks ? 2 * yticks - 1 : 6)) {
       const x = x0 + ((v - xr[0]) / (xr[1] - xr[0])) * w;
       ctx.beginPath(); ctx.moveTo(x, y0); ctx.lineTo(x, y0 + h); ctx.stroke();
       ctx.fillText(xfmt ? xfmt(v) : String(+v.toFixed(2)), x, y0 + h + 3);
     }
     ctx.strokeStyle = "#b8c0cc"; ctx.strokeRect(x0, y0, w, h);
-    ctx.save(); ctx.translate(x0 - 34, y0 + h / 2); ctx.rotate(-Math.PI / 2);
-    ctx.textAlign = "center"; ctx.textBaseline = "bottom"; ctx.fillText(ylabel, 0, 0); ctx.restore();
+    if (yticks) { // a small panel: its unit inside the panel's top left corner
+      ctx.textAlign = "left"; ctx.textBaseline = "top"; ctx.fillText(ylabel, x0 + 3, y0 + 2);
+    } else {
+      ctx.save(); ctx.translate(x0 - 34, y0 + h / 2); ctx.rotate(-Math.PI / 2);
+      ctx.textAlign = "center"; ctx.textBaseline = "bottom"; ctx.fillText(ylabel, 0, 0); ctx.restore();
+    }
     if (xlabel) { ctx.textAlign = "right"; ctx.textBaseline = "bottom"; ctx.fillText(xlabel, x0 + w, y0 - 2); }
   }
 
@@ -149,26 +195,27 @@
     ctx.stroke(); ctx.setLineDash([]);
   }
 
-  function drawTraces(j) {
-    const { ctx, w, h } = prepare(j.traces);
+  function drawTraces(canvas, j, small) {
+    const { ctx, w, h } = prepare(canvas, small);
     const last = j.t.length ? j.t[j.t.length - 1] : 0;
     const xr = [last - S.windowS, last];
-    const left = 48, gap = 26, panel = (h - 20 - gap - 18) / 2;
-    const top = { x0: left, y0: 14, w: w - left - 10, h: panel };
-    const bottom = { x0: left, y0: 14 + panel + gap, w: w - left - 10, h: panel };
+    const left = small ? 30 : 48, gap = small ? 18 : 26, panel = (h - 20 - gap - (small ? 12 : 18)) / 2;
+    const top = { x0: left, y0: small ? 6 : 14, w: w - left - (small ? 6 : 10), h: panel };
+    const bottom = { x0: left, y0: top.y0 + panel + gap, w: top.w, h: panel };
     const rel = (v) => (v - last).toFixed(0) + " s";
     const visible = (a) => a.filter((_, i) => j.t[i] >= xr[0]);
     const ar = range([visible(j.cmd), visible(j.angle)], 5);
     const tr = range([visible(j.torque)], 2);
-    axes(ctx, top, xr, ar, "", "angle (deg)", rel);
-    axes(ctx, bottom, xr, tr, "", "torque (N·m)", rel);
+    const ticks = small ? 2 : undefined; // a small panel: fewer ticks, its unit inside
+    axes(ctx, top, xr, ar, "", small ? "deg" : "angle (deg)", rel, ticks);
+    axes(ctx, bottom, xr, tr, "", small ? "N·m" : "torque (N·m)", rel, ticks);
     line(ctx, top, xr, ar, j.t, j.cmd, "#8a94a6", [5, 4]);
     line(ctx, top, xr, ar, j.t, j.angle, "#1f6fd1");
     line(ctx, bottom, xr, tr, j.t, j.torque, "#d9480f");
   }
 
-  function drawLoop(j) {
-    const { ctx, w, h } = prepare(j.loopCanvas);
+  function drawLoop(canvas, j) {
+    const { ctx, w, h } = prepare(canvas);
     const box = { x0: 48, y0: 14, w: w - 58, h: h - 38 };
     const xs = j.loop.map((p) => p[0]), ys = j.loop.map((p) => p[1]);
     const xr = range([xs], 5), yr = range([ys], 2);
@@ -186,7 +233,9 @@
   function frame() {
     if (S.dirty) {
       S.dirty = false;
-      for (const j of S.joints.values()) { drawTraces(j); drawLoop(j); }
+      if (S.joints.size > 1) for (const j of S.joints.values()) drawTraces(j.miniCanvas, j, true);
+      const j = S.joints.get(S.selected);
+      if (j) { drawTraces($("focus-traces"), j, false); drawLoop($("focus-loop"), j); }
       S.frames += 1;
       setData("frames", S.frames);
     }
@@ -281,11 +330,11 @@
     switch (m.type) {
       case "hello": {
         const s = m.snapshot || {};
-        for (const j of S.joints.values()) j.traces.parentElement.parentElement.remove();
-        S.joints.clear();
+        clearJoints();
         $("verdicts").tBodies[0].replaceChildren();
         $("events").replaceChildren();
         S.windowS = s.trace_window_s || S.windowS;
+        $("focus-window").textContent = String(S.windowS);
         showSession(s.session); showStep(s.step); showProgress(s.progress);
         for (const v of s.verdicts || []) addVerdict(v);
         for (const e of s.events || []) addEvent(e.kind, e.detail, BAD_EVENTS.has(e.kind));
@@ -329,6 +378,7 @@
     };
   }
 
+  $("joint-select").addEventListener("change", (ev) => choose(ev.target.value));
   setInterval(tickEta, 1000);
   window.requestAnimationFrame(frame);
   connect();
