@@ -103,7 +103,7 @@ def model_tables(archive: Path, protocol_text: str) -> tuple[Table, ...]:
                 [
                     p.fit_key,
                     p.predict_key,
-                    archive_joint,
+                    p.joint or archive_joint,
                     "elements",
                     e.rmse_nm,
                     e.energy_predicted_j,
@@ -116,7 +116,7 @@ def model_tables(archive: Path, protocol_text: str) -> tuple[Table, ...]:
             [
                 p.fit_key,
                 p.predict_key,
-                archive_joint,
+                p.joint or archive_joint,
                 "bouc_wen",
                 p.rmse_nm,
                 math.nan,

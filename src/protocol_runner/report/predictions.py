@@ -26,6 +26,7 @@ import numpy as np
 import yaml
 
 from ..archive.model_results import stored_device, strings
+from ..archive.paths import joint_groups
 from .declared import protocol_document
 
 if TYPE_CHECKING:
@@ -46,6 +47,7 @@ class Prediction:
     reason: str = ""  # why there is no Bouc-Wen number
     element: ElementPrediction | None = None  # the element model's prediction, when A has one
     figure: str = ""  # B's measured loop and the element model's prediction (a PNG data URI), when drawn
+    joint: str = ""  # the joint whose data both models were fitted to and predict
 
 
 @dataclass(frozen=True)
@@ -146,7 +148,7 @@ def predict_rmse(
     return math.sqrt(sq / count) if count else math.nan
 
 
-def reproducibility(configs: h5py.Group) -> dict[tuple[str, str], float]:
+def reproducibility(configs: h5py.Group, archive_joints: str) -> dict[tuple[str, str], float]:
     """Per fitted parameter, the standard deviation of its fitted value across the configurations that
     declare the same value for it (pooled over the declared values shared by two or more): how far a
     brake set to the same level, a spring with the same preload, ... lands from one configuration to the
@@ -154,12 +156,16 @@ def reproducibility(configs: h5py.Group) -> dict[tuple[str, str], float]:
     from ..models.element_model import layout
 
     groups: dict[tuple[tuple[str, str], float], list[float]] = {}
-    for name in configs:
-        cfg = configs[name]
-        g = cfg.get("fits/element_model")
+    parts = [
+        (configs[name], joint, part)
+        for name in configs
+        for joint, part in joint_groups(configs[name], archive_joints)
+    ]
+    for cfg, joint, part in parts:
+        g = part.get("fits/element_model")
         if g is None or "device_json" not in cfg.attrs:
             continue
-        declared = layout(stored_device(cfg)).declared
+        declared = layout(stored_device(cfg, joint)).declared
         fitted = json.loads(str(g.attrs["values_json"]))
         for key in strings(g, "parameters"):
             element, param = key.rsplit(".", 1)
@@ -177,17 +183,31 @@ def reproducibility(configs: h5py.Group) -> dict[tuple[str, str], float]:
 
 
 def element_prediction(
-    src: h5py.Group, dst: h5py.Group, spread: dict[tuple[str, str], float] | None = None
+    src: h5py.Group,
+    dst: h5py.Group,
+    spread: dict[tuple[str, str], float] | None = None,
+    *,
+    joint: str = "",
+    src_part: h5py.Group | None = None,
+    dst_part: h5py.Group | None = None,
 ) -> ElementPrediction | None:
-    """The element model fitted on configuration group `src` predicting configuration group `dst`
-    (None when `src` has no element model or either has no declared device)."""
+    """The element model fitted on configuration group `src` predicting configuration group `dst`, for
+    `joint` (its part of each group: `src_part`, `dst_part`; the groups themselves when not given); None
+    when `src` has no element model or either has no declared device."""
     from ..analysis.model_comparison import motions_of
     from ..analysis.model_fit import mean_energy_j
     from ..archive.model_results import read_processed_trials
     from ..models.element_model import layout, model_torque_nm, transfer
 
-    g = src.get("fits/element_model")
-    if g is None or "device_json" not in src.attrs or "device_json" not in dst.attrs or "trials" not in dst:
+    src_part = src if src_part is None else src_part
+    dst_part = dst if dst_part is None else dst_part
+    g = src_part.get("fits/element_model")
+    if (
+        g is None
+        or "device_json" not in src.attrs
+        or "device_json" not in dst.attrs
+        or "trials" not in dst_part
+    ):
         return None
     values = {tuple(k.rsplit(".", 1)): float(v) for k, v in json.loads(str(g.attrs["values_json"])).items()}
     names = [(p.rsplit(".", 1)[0], p.rsplit(".", 1)[1]) for p in strings(g, "parameters")]
@@ -195,8 +215,8 @@ def element_prediction(
     cov = np.asarray(g.attrs["covariance"], dtype=np.float64).reshape(x.size, x.size)
     # the configuration-to-configuration spread of each parameter adds to A's own fit uncertainty
     cov = cov + np.diag(np.array([(spread or {}).get(k, 0.0) ** 2 for k in names]))
-    lay_a, lay_b = layout(stored_device(src)), layout(stored_device(dst))
-    motions = motions_of(read_processed_trials(dst["trials"]))
+    lay_a, lay_b = layout(stored_device(src, joint)), layout(stored_device(dst, joint))
+    motions = motions_of(read_processed_trials(dst_part["trials"]))
 
     def run(fitted: dict) -> list[np.ndarray]:
         vb = transfer(lay_a, lay_b, fitted)
@@ -262,28 +282,41 @@ def _predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
     except OSError:
         return ()
     with h5:
-        spread = reproducibility(h5["configurations"]) if "configurations" in h5 else {}
+        joints = str(h5.attrs.get("joint", ""))
+        spread = reproducibility(h5["configurations"], joints) if "configurations" in h5 else {}
         for fit_key, predict_key, note in pairs:
             cfg_a = h5.get(f"configurations/config_{fit_key:02d}")
             cfg_b = h5.get(f"configurations/config_{predict_key:02d}")
-            element = (
-                element_prediction(cfg_a, cfg_b, spread) if cfg_a is not None and cfg_b is not None else None
-            )
-            src = h5.get(f"configurations/config_{fit_key:02d}/fits/bouc_wen")
-            dst = h5.get(f"configurations/config_{predict_key:02d}/fits/bouc_wen")
-            if src is None or dst is None:
-                missing = fit_key if src is None else predict_key
-                out.append(
-                    Prediction(
-                        fit_key, predict_key, note, math.nan, math.nan, f"no fit of {missing}", element
-                    )
-                )
+            if cfg_a is None or cfg_b is None:
+                missing = fit_key if cfg_a is None else predict_key
+                out.append(Prediction(fit_key, predict_key, note, math.nan, math.nan, f"no fit of {missing}"))
                 continue
-            params, backbone = _model(src)
-            rmse = predict_rmse(params, backbone, _segments(dst))
-            own = float(dst.attrs.get("rmse_nm", math.nan))
-            reason = "" if math.isfinite(rmse) else "diverges"
-            out.append(Prediction(fit_key, predict_key, note, rmse, own, reason, element))
+            parts_b = dict(joint_groups(cfg_b, joints))
+            parts_a = joint_groups(cfg_a, joints)
+            for name, part_a in parts_a:
+                joint = name if len(parts_a) > 1 else ""  # named where the configuration has several
+                part_b = parts_b.get(name)
+                element = (
+                    element_prediction(cfg_a, cfg_b, spread, joint=name, src_part=part_a, dst_part=part_b)
+                    if part_b is not None
+                    else None
+                )
+                src = part_a.get("fits/bouc_wen")
+                dst = part_b.get("fits/bouc_wen") if part_b is not None else None
+                if src is None or dst is None:
+                    missing = fit_key if src is None else predict_key
+                    reason = f"no fit of {missing}"
+                    out.append(
+                        Prediction(
+                            fit_key, predict_key, note, math.nan, math.nan, reason, element, joint=joint
+                        )
+                    )
+                    continue
+                params, backbone = _model(src)
+                rmse = predict_rmse(params, backbone, _segments(dst))
+                own = float(dst.attrs.get("rmse_nm", math.nan))
+                reason = "" if math.isfinite(rmse) else "diverges"
+                out.append(Prediction(fit_key, predict_key, note, rmse, own, reason, element, joint=joint))
     return tuple(out)
 
 
@@ -294,7 +327,7 @@ def prediction_row(p: Prediction) -> dict[str, object]:
     return {
         "fit_configuration": p.fit_key,
         "predict_configuration": p.predict_key,
-        "joint": "",
+        "joint": p.joint,
         "note": p.note,
         "element_rmse_nm": e.rmse_nm if e else nan,
         "energy_predicted_j": e.energy_predicted_j if e else nan,
