@@ -5,13 +5,19 @@ Jitter: the paced loop runs on the simulator's real-time clock (`realtime=True`:
 tick, as on the rig) for DURATION_S of a gait-like motion, once with hip, knee and ankle (one synchronous
 update of three channels per tick) and once with the knee alone (one write per tick), both through `Rig`,
 alternating REPEATS times; it prints the tick lateness (write time minus schedule) p50/p99/max of each.
-Dry run: `run-protocol protocols/leg_phase2.yaml --dry-run` in-process, wall time and simulated robot time.
+Dry runs: each protocol given (default leg_phase2 and suit_phase4, the whole suit's twelve joints) dry-run
+in-process REPEATS times: the median wall time, the session process's CPU time (not its analysis workers') and the
+simulated robot time.
 
-Run: python benchmarks/bench_multi_joint.py   (about 1 minute: the jitter runs take real time)
+Run: python benchmarks/bench_multi_joint.py [--protocol leg_phase2 ...] [--repeats N] [--no-jitter]
+(the jitter runs take real time, about 20 s; a suit dry run a few minutes)
 """
 
 from __future__ import annotations
 
+import argparse
+import resource
+import statistics
 import tempfile
 import time
 from pathlib import Path
@@ -45,7 +51,34 @@ def _stats(x: np.ndarray) -> str:
     return f"p50 {np.percentile(ms, 50):.3f} ms, p99 {np.percentile(ms, 99):.3f} ms, max {ms.max():.3f} ms"
 
 
-def main() -> None:
+def _cpu_s() -> float:
+    """CPU time of this process: the session's own (the rig loop, the simulator, the archive); the analysis
+    workers' is not counted (they are the fork server's children, not this process's)."""
+    own = resource.getrusage(resource.RUSAGE_SELF)
+    return own.ru_utime + own.ru_stime
+
+
+def dry_run(protocol: Path) -> tuple[int, float, float, str]:
+    """One seeded dry run of `protocol`: exit code, wall s, session CPU s, robot time text."""
+    with tempfile.TemporaryDirectory() as tmp:
+        start, cpu = time.perf_counter(), _cpu_s()
+        code = run(
+            str(protocol),
+            dry_run=True,
+            session=Path(tmp) / "s",
+            seed=1,
+            yes=True,
+            only=None,
+            realtime=False,
+            quiet=True,
+        )
+        wall, cpu = time.perf_counter() - start, _cpu_s() - cpu
+        journal = (Path(tmp) / "s" / "journal.jsonl").read_text()
+        robot = journal.split("s of robot time simulated")[0].rsplit("; ", 1)[-1].strip()
+    return code, wall, cpu, robot
+
+
+def jitter() -> None:
     loaded = load_protocol(LEG)
     joints = [joint_config(loaded, r) for r in loaded.protocol.rigs]
     params = [SimulatorParams(**dict(r.simulator)) for r in loaded.protocol.rigs]
@@ -62,22 +95,25 @@ def main() -> None:
     print(
         f"tick lateness, 1 joint  (one write per tick):                          {_stats(np.concatenate(one))}"
     )
-    with tempfile.TemporaryDirectory() as tmp:
-        start = time.perf_counter()
-        code = run(
-            str(LEG),
-            dry_run=True,
-            session=Path(tmp) / "s",
-            seed=1,
-            yes=True,
-            only=None,
-            realtime=False,
-            quiet=True,
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--protocol", action="append", help="a shipped protocol's name (repeatable)")
+    parser.add_argument("--repeats", type=int, default=1)
+    parser.add_argument("--no-jitter", action="store_true")
+    args = parser.parse_args()
+    if not args.no_jitter:
+        jitter()
+    for name in args.protocol or ["leg_phase2", "suit_phase4"]:
+        runs = [dry_run(REPO / "protocols" / f"{name}.yaml") for _ in range(args.repeats)]
+        codes = {r[0] for r in runs}
+        wall = statistics.median(r[1] for r in runs)
+        cpu = statistics.median(r[2] for r in runs)
+        print(
+            f"{name} dry run: exit {sorted(codes)}, median of {len(runs)}: {wall:.1f} s wall, {cpu:.1f} s CPU "
+            f"for {runs[0][3]} s of simulated robot time"
         )
-        wall = time.perf_counter() - start
-        journal = (Path(tmp) / "s" / "journal.jsonl").read_text()
-        robot = journal.split("s of robot time simulated")[0].rsplit("; ", 1)[-1].strip()
-    print(f"leg_phase2 dry run: exit {code}, {wall:.1f} s wall for {robot} s of simulated robot time")
 
 
 if __name__ == "__main__":
