@@ -8,10 +8,15 @@ new archive next to the old one; the old one is never modified. Raw data are cop
 
 from __future__ import annotations
 
+import contextlib
 import json
+import multiprocessing
 import os
 import shutil
-from collections.abc import Sequence
+from collections import deque
+from collections.abc import Iterator, Sequence
+from concurrent.futures import Future, ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import h5py
@@ -19,7 +24,7 @@ import numpy as np
 
 from ..analysis.pipeline import TrialPair
 from ..analysis.processing_settings import ProcessingSettings
-from ..analysis.service import BoucWenSettings, analyse_joints
+from ..analysis.service import BoucWenSettings, JointsAnalysis, analyse_joints
 from ..errors import InvalidInput
 from ..protocol.loaded import LoadedProtocol
 from ..protocol.loader import find_protocol, load_protocol, parse_protocol_text
@@ -142,9 +147,17 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
     fit = bouc_wen_settings(loaded) if loaded.protocol.fits.bouc_wen.enabled else None
     elements = element_fit_enabled(loaded)
     archive_joints = attr_str(f, JOINT, "")
-    for name, cfg in f[CONFIGURATIONS].items():
-        if TRIALS in cfg:
-            _reprocess_configuration(cfg, name, archive_joints, settings, fit, elements=elements)
+    with _analysis_pool() as pool:
+        running: deque[tuple[h5py.Group, str, _Job, Future[JointsAnalysis] | None]] = deque()
+        for name, cfg in f[CONFIGURATIONS].items():
+            job = _prepare(cfg, name, archive_joints, elements=elements) if TRIALS in cfg else None
+            if job is None:
+                continue
+            running.append((cfg, name, job, pool.submit(_analyse, job, settings, fit) if pool else None))
+            while len(running) > ANALYSES_AHEAD or (running and pool is None):
+                _store(*running.popleft(), settings, fit)
+        while running:
+            _store(*running.popleft(), settings, fit)
     if PREDICTIONS in f:  # made from the old fits: `report.predictions.record_predictions` makes them anew
         del f[PREDICTIONS]
     for comp in f.get(COMPARISONS, {}).values():
@@ -184,18 +197,42 @@ def joint_device(device: Device, joint: str) -> Device:
     ]
 
 
-def _reprocess_configuration(
-    cfg: h5py.Group,
-    name: str,
-    archive_joints: str,
-    settings: ProcessingSettings,
-    fit: BoucWenSettings | None,
-    *,
-    elements: bool,
-) -> None:
-    """Redo one configuration's processing (its old results removed first) and the Bouc-Wen fit (`fit`,
-    None when off) of each joint carrying elements of its archived device (every joint when none does);
-    `elements`: whether the element fit is on."""
+ANALYSES_AHEAD = 2
+"""Configurations analysed in worker processes while the results of earlier ones are written (each holds
+one configuration's recordings in memory, about 10 MB a trial)."""
+
+
+@contextlib.contextmanager
+def _analysis_pool() -> Iterator[ProcessPoolExecutor | None]:
+    """Two processes for the analyses (the processing and the Bouc-Wen fits are independent per
+    configuration and take most of the time); None where no process can be started: the caller then
+    analyses each configuration itself. Started by the fork server where the platform has one, else spawned
+    (never forked from this process, which has the archive open)."""
+    methods = multiprocessing.get_all_start_methods()
+    context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
+    try:
+        pool = ProcessPoolExecutor(max_workers=ANALYSES_AHEAD, mp_context=context)
+    except (OSError, NotImplementedError):
+        yield None
+        return
+    with pool:
+        yield pool
+
+
+@dataclass(frozen=True)
+class _Job:
+    """What one configuration's analysis needs, read from the archive: each joint's complete trial pairs
+    (channel order), each joint's device (None: no element fit) and the joints the Bouc-Wen fit covers."""
+
+    joints: list[str]
+    recordings: list[tuple[str, list[TrialPair]]]
+    devices: dict[str, Sequence[object] | None]
+    fitted: list[str]
+
+
+def _prepare(cfg: h5py.Group, name: str, archive_joints: str, *, elements: bool) -> _Job | None:
+    """Remove a configuration's old results and read what its analysis needs (None when a joint has no
+    complete trial pair: the configuration is left without results)."""
     joints = attr_strs(cfg, JOINTS_ATTR) or [j.strip() for j in archive_joints.split(",")]
     for stale in (
         "energy_loss_j",
@@ -213,23 +250,42 @@ def _reprocess_configuration(
     device = archived_device(cfg)
     recordings = [(joint, complete_pairs(cfg, name, joint, archive_joints)) for joint in joints]
     if not all(pairs for _, pairs in recordings):
-        return
+        return None
     carrying = sorted({str(p[JOINT]) for _, _, p in device if p.get(JOINT)})
     fitted = [j for j in joints if j in carrying] or joints
     devices: dict[str, Sequence[object] | None] = {
         j: joint_device(device, j) if elements and j in fitted else None for j in joints
     }
-    analysis = analyse_joints(recordings, settings, fit, devices=devices, fitted_joints=fitted)
+    return _Job(joints, recordings, devices, fitted)
+
+
+def _analyse(job: _Job, settings: ProcessingSettings, fit: BoucWenSettings | None) -> JointsAnalysis:
+    """One configuration's processing and Bouc-Wen fits (`analysis.service.analyse_joints`): a pure
+    function of the job, run in a worker process."""
+    return analyse_joints(job.recordings, settings, fit, devices=job.devices, fitted_joints=job.fitted)
+
+
+def _store(
+    cfg: h5py.Group,
+    name: str,
+    job: _Job,
+    running: Future[JointsAnalysis] | None,
+    settings: ProcessingSettings,
+    fit: BoucWenSettings | None,
+) -> None:
+    """Write one configuration's new results (its analysis from the worker, or made here without one):
+    each joint's processing and Bouc-Wen fit, its model comparison as the fit step makes it, the total."""
+    analysis = running.result() if running is not None else _analyse(job, settings, fit)
     for joint, one in zip(analysis.joints, analysis.analyses, strict=True):
         processed_fill(joint_path(name, joint), one, settings)(cfg.file)
-        device_j = devices[joint]
+        device_j = job.devices[joint]
         if one.bouc_wen is not None:
             bouc_wen_fill(joint_path(name, joint), one.bouc_wen)(cfg.file)
             if device_j is not None:  # the model comparison of the joint, as the fit step makes it
                 compare_owner(cfg[f"{JOINTS}/{joint}"], device_j, one.bouc_wen)
     put(cfg, "total_energy_loss_j", analysis.total_energy_loss_j, "J")
     put(cfg, "total_energy_cycle_trial", analysis.total_energy_cycle_trial, "1")
-    cfg.attrs[JOINTS_ATTR] = np.array(joints, dtype=h5py.string_dtype())
+    cfg.attrs[JOINTS_ATTR] = np.array(job.joints, dtype=h5py.string_dtype())
 
 
 _VALUES = ("energy_mean_j", "energy_std_j", "energy_cycles", "max_angle_deg")
