@@ -44,7 +44,7 @@ def jam(monkeypatch: pytest.MonkeyPatch) -> None:
     def jammed(self: SimulatedBench, step_id: str) -> None:
         begin_step(self, step_id)
         if step_id == JAMMED:
-            park = float(self.rig.joint.limits.park_angle_deg)
+            park = float(self.rig.joints[0].limits.park_angle_deg)
             stops = [park - JAM_HALF_WIDTH_DEG, park + JAM_HALF_WIDTH_DEG]
             cast("SimulatedRig", self.sim).set_device(
                 [("jam", "rom_stops", {"range_deg": stops, "stop_stiffness_nm_per_deg": 40.0})]
@@ -82,7 +82,7 @@ def test_a_jam_stops_the_motion_within_the_declared_time_and_resume_finishes(
     # that plus the watchdog's lateness: it sees the samples when the loop reads them, every
     # READ_EVERY_TICKS ticks on the rig, and in a dry run when the simulated board hands them over (whole
     # transfers of TRANSFER_S of scan time, docs/hardware.md), plus a tick
-    rec = exc.partial_recording  # type: ignore[attr-defined]
+    (rec,) = exc.partial_recording  # type: ignore[attr-defined]  # one recording per driven joint
     dt = 1.0 / rec.output_rate_hz
     delayed = np.interp(
         rec.input_time_s - rig.time_constant_s, rec.stream_time_s, rec.stream_deg, left=rec.stream_deg[0]

@@ -205,7 +205,7 @@ def consolidate(
         _fsync_file(partial)
         os.replace(partial, archive)
         _fsync_dir(archive.parent)
-    except OSError as exc:
+    except (OSError, RuntimeError) as exc:  # HDF5 reports some refused writes as RuntimeError
         partial.unlink(missing_ok=True)
         if is_disk_full(exc):
             raise DiskFull(f"disk full while writing {archive}. {resume_hint(archive.parent)}") from None

@@ -5,7 +5,7 @@ tick k sleep until t0 + k / output_rate_hz, write, record the write time; read t
 `READ_EVERY_TICKS` ticks and poll the stop request there; after the last tick wait one more tick and stop
 the scan. On a stop request `on_stop(written)`, if given, returns the samples to send next in the same loop
 (no pause: the output would hold), then `Interrupted` is raised. An error or an interruption carries what
-was recorded so far (`partial_recording`). The live monitor (`tap`) is started with the first joint's
+was recorded so far (`partial_recording`). The live monitor (`tap`) is started with every joint's
 commands (restarted on the samples a stop sends, shown as parking) and shown every block read, the one
 `stop_scan` returns included, with every joint's columns.
 

@@ -75,7 +75,7 @@ def read_configuration(
         parts = [(str(j), None) for j in decode(np.atleast_1d(grp.attrs[JOINTS]))]
     configs = [_read_joint(name, grp, joint, results, archive_joints) for joint, results in parts]
     total = None
-    if "total_energy_loss_j" in grp:
+    if "total_energy_loss_j" in grp and len(configs) > 1:  # one joint: its own energy is the total
         energy = float_ds(grp, "total_energy_loss_j")
         total = JointsTotal(
             key=configs[0].key if configs else group_fields(name, grp.attrs, 0)["key"],

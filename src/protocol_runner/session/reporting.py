@@ -47,9 +47,15 @@ def render_report(session_dir: Path, archive: Path, call: Call | None = None) ->
             # the figures are handed out first and the verdicts written while they are drawn, once the
             # workers have read the archive for the predictions (it is not written while it is read)
             aside.predictions_read()
-        record_verdicts(archive, data)  # /expectations: the declared expectations and their verdicts
-        made = aside.predicted() if aside is not None else _predictions(archive, data.protocol_text)
-        record_predictions(archive, made)  # /predictions: the declared predictions' numbers
+        try:
+            record_verdicts(archive, data)  # /expectations: the declared expectations and their verdicts
+            made = aside.predicted() if aside is not None else _predictions(archive, data.protocol_text)
+            record_predictions(archive, made)  # /predictions: the declared predictions' numbers
+        except (OSError, RuntimeError) as exc:  # HDF5 reports some refused writes as RuntimeError
+            if not is_disk_full(exc):
+                raise
+            what = f"the verdicts and predictions into {archive}"
+            raise DiskFull(f"disk full while saving {what}. {resume_hint(session_dir)}") from None
         return render(
             data,
             session_dir / REPORT_NAME,

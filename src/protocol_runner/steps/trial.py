@@ -114,8 +114,8 @@ def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
         else:
             recs, scaling = _run_brace_off(step, ctx, names)
     except HardwareUnavailable as exc:
-        partial = (getattr(exc, "partial_recording", None) or (None,))[0]
-        if partial is None:
+        partial = getattr(exc, "partial_recording", None)  # one recording per joint, as far as it got
+        if not partial:
             raise
         # A board failed mid-trial (e.g. unplugged): keep what was recorded as a failed trial (it is redone
         # on resume), then stop the session; the runner parks the joints if the output board still answers.
