@@ -14,10 +14,14 @@ import pytest
 from scipy.io import loadmat
 
 from protocol_runner.archive.attrs import ATTRIBUTE_DIGESTS, ATTRIBUTE_MARKER
-from protocol_runner.archive.checksums import seal_attributes_of
+from protocol_runner.archive.checksums import seal_attributes, seal_attributes_of
 from protocol_runner.archive.export import export_mat
+from protocol_runner.archive.h5util import put_attrs
 from protocol_runner.archive.matlab import matlab_name, put_field
+from protocol_runner.archive.results import comparison_values
 from protocol_runner.cli import main
+
+from .former_layout import to_former_layout
 
 MATLAB_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,62}$")
 
@@ -44,12 +48,19 @@ def _get(m: dict[str, Any], fields: list[str]) -> Any:
     return value
 
 
+#: For one joint the configuration's total over the joints is that joint's energy per cycle (docs/archive.md),
+#: exported once.
+ONE_JOINT_TOTALS = {"total_energy_loss_j": "energy_loss_j", "total_energy_cycle_trial": "energy_cycle_trial"}
+
+
 def _where(path: str) -> tuple[str, list[str]]:
-    """Where docs/matlab.md says the archive object at `path` is exported: (file, struct fields)."""
-    parts = path.strip("/").split("/")
+    """Where docs/matlab.md says the archive object at `path` of an archive of one joint is exported:
+    (file, struct fields). The joint's part of a group keyed by joint (`<group>/joints/<joint>/...`) is in
+    the group's struct itself, as in an archive written before groups were keyed by joint."""
+    parts = re.sub(r"/joints(/[^/]+)?(?=/|$)", "", "/" + path.strip("/")).strip("/").split("/")
     if parts[0] != "configurations":
         return "session.mat", [matlab_name(p) for p in parts]
-    cfg, rest = parts[1], parts[2:]
+    cfg, rest = parts[1], [ONE_JOINT_TOTALS.get(p, p) for p in parts[2:]]
     if rest[:1] == ["trials"]:
         trial = f"trial_{rest[1]}"
         return f"{cfg}.mat", [trial, *(rest[3:] if rest[2:3] == ["processed"] else rest[2:])]
@@ -102,7 +113,7 @@ def test_every_dataset_is_exported_with_its_value_and_unit(exported: tuple[Path,
             datasets = _datasets(group)
             assert datasets
             for name, ds in datasets:
-                path = ["calibration", when, *name.split("/")]
+                path = ["calibration", *_where(f"calibration/set/{when}/{name}")[1][2:]]
                 _assert_same(_get(cfg, path), ds[()], f"calibration {when}/{name}")
     assert checked > 80  # raw, processed, fits, calibration, protocol, plan, events
 
@@ -134,7 +145,7 @@ def test_every_attribute_is_exported_with_indices_made_one_based(exported: tuple
                 _assert_same(getattr(struct, matlab_name(key)), value, f"{name}@{key}")
 
         f.visititems(visit)
-        cfg = f["configurations/config_12"]
+        cfg = f["configurations/config_12/joints/knee_flexion"]
         assert {"transition_index0_on", "transition_index0_off"} <= set(cfg["trials/1/processed"].attrs)
         mat = files["config_12.mat"]
         assert mat["energy_mean_j"] == cfg["energy_loss_j"].attrs["mean_j"]
@@ -198,12 +209,65 @@ def _all_names(f: h5py.File) -> list[str]:
     return names
 
 
+def _leaves(value: Any, path: str = "") -> dict[str, Any]:
+    """Every non-struct value of a loaded .mat variable, by its dotted path."""
+    if hasattr(value, "_fieldnames"):
+        found: dict[str, Any] = {}
+        for name in value._fieldnames:
+            found.update(_leaves(getattr(value, name), f"{path}.{name}"))
+        return found
+    return {path: value}
+
+
+def _add_comparison(path: Path) -> None:
+    """A comparison of configuration 12 with itself, written as the session's compare step writes one."""
+    with h5py.File(path, "r+") as f:
+        part = f["configurations/config_12/joints/knee_flexion"]
+        identity = {"parameter": "rom", "section": "5.7.2", "title": "itself", "configurations": [12, 12]}
+        group = f.create_group("comparisons/itself")
+        put_attrs(group, "comparison", identity)
+        group.attrs["joints"] = np.array(["knee_flexion"], dtype=h5py.string_dtype())
+        values = comparison_values([part, part])
+        put_attrs(group.create_group("joints/knee_flexion"), "comparison", {**identity, **values})
+        seal_attributes(f)
+
+
+def test_an_archive_of_the_former_layout_exports_the_same_structure(
+    exported: tuple[Path, Path], tmp_path: Path
+) -> None:
+    """One joint, whatever the layout: the archive keyed by joint and the same archive in the layout written
+    before (no `joints/` groups) give the same fields with the same values in every file (the configuration,
+    its calibration records, the session's calibration and comparisons); the one keyed by joint adds only
+    the attributes naming its joint (`joint`, `joints`)."""
+    keyed, former = tmp_path / "keyed" / "archive.h5", tmp_path / "former" / "archive.h5"
+    keyed.parent.mkdir()
+    former.parent.mkdir()
+    shutil.copyfile(exported[0], keyed)
+    _add_comparison(keyed)
+    shutil.copyfile(keyed, former)
+    to_former_layout(former)
+    export_mat(keyed, keyed.parent / "mat")
+    export_mat(former, former.parent / "mat")
+    for file in ("config_12.mat", "session.mat"):
+        new, old = _load(keyed.parent / "mat" / file), _load(former.parent / "mat" / file)
+        variables = sorted(k for k in old if not k.startswith("__"))
+        assert sorted(k for k in new if not k.startswith("__")) == variables
+        for variable in variables:
+            a, b = _leaves(new[variable], variable), _leaves(old[variable], variable)
+            assert set(b) <= set(a), (file, sorted(set(b) - set(a)))
+            extra = {path.rsplit(".", 1)[-1] for path in set(a) - set(b)}
+            assert extra <= {"joint", "joints"}, (file, sorted(set(a) - set(b)))
+            for path, value in b.items():
+                _assert_same(a[path], value, f"{file}: {path}")
+
+
 def test_old_archives_transition_index_and_big_integers(exported: tuple[Path, Path], tmp_path: Path) -> None:
-    """An archive written before the `_index0` rename and the fixed-length text is exported the same; a seed
-    beyond 2**53 stays exact."""
+    """An archive written before groups were keyed by joint, before the `_index0` rename and the
+    fixed-length text is exported the same; a seed beyond 2**53 stays exact."""
     archive, out = exported
     old = tmp_path / "old.h5"
     shutil.copyfile(archive, old)
+    to_former_layout(old)
     with h5py.File(old, "r+") as f:
         g = f["configurations/config_12/trials/1/processed"]
         g.attrs["transition_index_on"] = g.attrs.pop("transition_index0_on")
@@ -262,7 +326,7 @@ def test_bad_input_exits_2_with_one_clear_line(
         if fault == "foreign":
             del f.attrs["protocol_sha256"]
         elif fault == "units_conflict":
-            ds = f["configurations/config_12/trials/2/brace_on/angle_deg"]
+            ds = f["configurations/config_12/trials/2/brace_on/joints/knee_flexion/angle_deg"]
             ds.attrs["units"] = "rad"
             seal_attributes_of(ds, ["units"])  # as a writer would have recorded it: not a damaged file
         elif fault == "compound":

@@ -133,7 +133,7 @@ def test_the_documented_octave_recipe_gives_the_archive_numbers(session_dir: Pat
     script = "set(0, 'defaultfigurevisible', 'off');\n" + "\n".join(blocks) + "print('-dpng', 'loop.png');\n"
     out = _octave(script, session_dir)
     with h5py.File(session_dir / "archive.h5", "r") as f:
-        cfg = f["configurations/config_12"]
+        cfg = f["configurations/config_12/joints/knee_flexion"]
         energy = cfg["energy_loss_j"]
         n_processed = cfg["trials/1/processed/angle_deg"].shape[0]
         mean_j, std_j = energy.attrs["mean_j"], energy.attrs["std_j"]

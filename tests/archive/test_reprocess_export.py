@@ -78,7 +78,7 @@ def test_export_mat_writes_each_configuration(archive_alone: Path, tmp_path: Pat
     assert [p.name for p in files] == ["config_12.mat", "session.mat"]
     m = loadmat(files[0], squeeze_me=True, struct_as_record=False)
     with h5py.File(archive_alone, "r") as f:
-        cfg = f["configurations/config_12"]
+        cfg = f["configurations/config_12/joints/knee_flexion"]  # one joint's data: at the file's top
         assert int(m["configuration"].key) == 12
         np.testing.assert_allclose(m["energy_loss_j"], cfg["energy_loss_j"][:])
         np.testing.assert_allclose(

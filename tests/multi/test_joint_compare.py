@@ -15,6 +15,7 @@ from scipy import stats
 
 from protocol_runner.report.compare import TOTAL, compare_archives, render_comparison
 
+from ..archive.former_layout import to_former_layout
 from .conftest import LEG_JOINTS
 
 
@@ -52,21 +53,13 @@ def test_each_joint_and_the_total_is_compared(leg_archive: Path, tmp_path: Path)
 def test_a_single_joint_archive_pairs_with_its_joint_keyed_twin(
     reference_archive: Path, tmp_path: Path
 ) -> None:
-    """The same data, one archive without `joints/` (written before every group was keyed by joint) and
-    one with it: every number of the comparison is the same as the archive's with itself."""
-    keyed = tmp_path / "keyed.h5"
-    shutil.copyfile(reference_archive, keyed)
-    with h5py.File(keyed, "a") as f:
-        joint = f.attrs["joint"]
-        for cfg in f["configurations"].values():
-            part = cfg.create_group(f"joints/{joint}")
-            for member in ("energy_loss_j", "energy_cycle_trial", "fits"):
-                if member in cfg:
-                    f.move(f"{cfg.name}/{member}", f"{part.name}/{member}")
-            for n in list(cfg["trials"]):
-                f.move(f"{cfg.name}/trials/{n}/processed", f"{part.name}/trials/{n}/processed")
+    """The same data, one archive keyed by joint and one without `joints/` (the layout written before every
+    group was keyed by joint): every number of the comparison is the same as the archive's with itself."""
+    former = tmp_path / "former.h5"
+    shutil.copyfile(reference_archive, former)
+    to_former_layout(former)
     itself = compare_archives(reference_archive, reference_archive)
-    across = compare_archives(reference_archive, keyed)
+    across = compare_archives(former, reference_archive)
     assert (
         [(p.a.key, p.joint) for p in across.pairs]
         == [(p.a.key, p.joint) for p in itself.pairs]

@@ -25,16 +25,19 @@ compressed; MATLAB's and Octave's `load` read them). Types, names and orientatio
     calibration     struct: the calibration records of the configuration's set (before, after, resume_n)
 
 These are a configuration of one joint's, whatever the archive's layout (its groups keyed by joint or
-not: `archive.paths.joint_groups`). A configuration of several joints has them per joint in
+not: `archive.paths.joint_groups`): the joint's part of each group is merged into the group's struct, and
+the configuration's total over the joints (for one joint, the joint's energy_loss_j) is not repeated, so
+both layouts give the same fields. A configuration of several joints has them per joint in
 `joints.<joint>` (trial_n with that joint's processed data and recordings, its energies, fits and
 calibration records), and at the top what the joints share: trial_n with each recording's attributes and
 common time base, total_energy_loss_j (with total_energy_mean_j, total_energy_std_j) and calibration
 (each record's verdict over the joints).
 
 `session.mat`: meta, units, and every root member of the archive but the configurations: protocol (text)
-and protocol_filename, rig (text) and rig_filename, plan (JSON text), session (events: cell of JSON lines; checklists), calibration
-(every set), comparisons, reference; and configurations: a summary struct per configuration (its
-attributes, energy_mean_j, energy_std_j, energy_cycles and the name of its file; of several joints, those
+and protocol_filename, rig (text) and rig_filename, plan (JSON text), session (events: cell of JSON lines;
+checklists), calibration (every set), comparisons, reference (a calibration record or comparison of one
+joint with its joint's part merged in, as in config_NN.mat; of several, keyed by joint as in the archive);
+and configurations: a summary struct per configuration (its attributes, energy_mean_j, energy_std_j, energy_cycles and the name of its file; of several joints, those
 per joint in joints.<joint> and total_energy_mean_j, total_energy_std_j, total_energy_cycles).
 """
 
@@ -63,7 +66,7 @@ from .matlab import (
     text,
 )
 from .outputs import create_binary, refuse_special, temporary_beside
-from .paths import JOINTS, joint_groups
+from .paths import CALIBRATION, COMPARISONS, CONFIGURATIONS, JOINTS, joint_groups
 from .verify import validate_archive  # clear messages for foreign or damaged files
 
 SESSION_FILE = "session"
@@ -301,10 +304,13 @@ def _energy_summary(group: h5py.Group, dataset: str, prefix: str, where: str) ->
 def _session(f: h5py.File, meta: dict[str, Any], summary: dict[str, Any], where: str) -> dict[str, Any]:
     units = Units(where)
     content: dict[str, Any] = {"meta": meta}
+    archive_joints = text(f.attrs.get("joint", ""))
     for name, obj in f.items():
-        if name == "configurations":
+        if name == CONFIGURATIONS:
             continue
-        if isinstance(obj, h5py.Group):
+        if name in (CALIBRATION, COMPARISONS) and isinstance(obj, h5py.Group):
+            put_field(content, name, _keyed_groups(obj, archive_joints, units, where))
+        elif isinstance(obj, h5py.Group):
             put_field(content, name, group_struct(obj, units, where))
         elif isinstance(obj, h5py.Dataset):
             field = put_field(content, name, dataset_value(obj, where))
@@ -317,6 +323,26 @@ def _session(f: h5py.File, meta: dict[str, Any], summary: dict[str, Any], where:
     content["configurations"] = summary
     content["units"] = units.struct()
     return content
+
+
+def _keyed_groups(group: h5py.Group, archive_joints: str, units: Units, where: str) -> dict[str, Any]:
+    """`/calibration` (its records `<set>/<when>`) or `/comparisons` (`<name>`) for `session.mat`: a group
+    keyed by joint as in the archive (`joints.<joint>`) when it holds several joints, and of one joint with
+    that joint's datasets and attributes merged into it, as in `config_NN.mat` (the same fields whatever the
+    archive's layout)."""
+    out = attrs_struct(group, where)
+    for name, obj in group.items():
+        if not isinstance(obj, h5py.Group):
+            continue
+        if group.name == f"/{CALIBRATION}":  # a set: its records
+            put_field(out, name, _keyed_groups(obj, archive_joints, units, where))
+            continue
+        parts = joint_groups(obj, archive_joints)
+        if len(parts) == 1:
+            put_field(out, name, _part_struct(obj, parts[0][0], archive_joints, units, where, shared=True))
+        else:
+            put_field(out, name, group_struct(obj, units, where))
+    return out
 
 
 def _save(path: Path, content: dict[str, Any]) -> Path:
