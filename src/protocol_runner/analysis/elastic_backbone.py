@@ -21,6 +21,8 @@ closely; a difference ``da`` between a trial's mean angle and ``a`` shifts its `
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -36,6 +38,19 @@ def _finite(trial: Trial) -> Trial:
     torque = np.asarray(trial[1], dtype=np.float64)
     keep = np.isfinite(torque)  # as the centred loops (analysis.loops.centred_loop)
     return angle[keep], torque[keep]
+
+
+@dataclass(frozen=True)
+class ShiftedElements:
+    """The fitted elements' torque as ``g`` of the centred angle: ``g(x) = T(x + offset_deg) - offset_nm``
+    (a class, not a closure, so that a fit made in a worker process can be sent back)."""
+
+    elements: tuple[Any, ...]
+    offset_deg: float
+    offset_nm: float
+
+    def __call__(self, x: np.ndarray) -> np.ndarray:
+        return np.asarray(model_torque_nm(self.elements, x + self.offset_deg) - self.offset_nm)
 
 
 def elements_backbone_factory(trials: Sequence[Trial], device: Sequence[object]) -> BackboneFactory:
@@ -63,7 +78,7 @@ def elements_backbone_factory(trials: Sequence[Trial], device: Sequence[object])
         offset_nm = float(np.mean([np.mean(model_torque_nm(elements, a)) for a, _ in chosen]))
         fitted = ", ".join(f"{e}.{p} = {v:.6g}" for e, p, v in fit.fitted) or "no free parameter"
         return FixedBackbone(
-            torque_nm=lambda x: model_torque_nm(elements, x + offset_deg) - offset_nm,
+            torque_nm=ShiftedElements(tuple(elements), offset_deg, offset_nm),
             kind="elements",
             note=f"device elements, {fit.reason} ({fitted}); centred at {offset_deg:.6g} deg",
         )

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..analysis.pipeline import TrialPair
 from ..analysis.processing_settings import ProcessingSettings
-from ..analysis.service import BoucWenSettings, JointsAnalysis, analyse_joints
+from ..analysis.service import JointsAnalysis, analyse_joints
 from ..errors import InvalidInput
 from ..protocol.loaded import LoadedProtocol
 from ..protocol.loader import find_protocol, load_protocol, parse_protocol_text
@@ -144,7 +144,6 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
     trials have: an archive of one joint written before every group was keyed by joint is read as its one
     joint's (`paths.joint_groups`)."""
     settings = processing_settings(loaded)
-    fit = bouc_wen_settings(loaded) if loaded.protocol.fits.bouc_wen.enabled else None
     elements = element_fit_enabled(loaded)
     archive_joints = attr_str(f, JOINT, "")
     with _analysis_pool() as pool:
@@ -153,11 +152,11 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
             job = _prepare(cfg, name, archive_joints, elements=elements) if TRIALS in cfg else None
             if job is None:
                 continue
-            running.append((cfg, name, job, pool.submit(_analyse, job, settings, fit) if pool else None))
+            running.append((cfg, name, job, pool.submit(_analyse, job, loaded) if pool else None))
             while len(running) > ANALYSES_AHEAD or (running and pool is None):
-                _store(*running.popleft(), settings, fit)
+                _store(*running.popleft(), loaded, settings)
         while running:
-            _store(*running.popleft(), settings, fit)
+            _store(*running.popleft(), loaded, settings)
     if PREDICTIONS in f:  # made from the old fits: `report.predictions.record_predictions` makes them anew
         del f[PREDICTIONS]
     for comp in f.get(COMPARISONS, {}).values():
@@ -259,9 +258,12 @@ def _prepare(cfg: h5py.Group, name: str, archive_joints: str, *, elements: bool)
     return _Job(joints, recordings, devices, fitted)
 
 
-def _analyse(job: _Job, settings: ProcessingSettings, fit: BoucWenSettings | None) -> JointsAnalysis:
-    """One configuration's processing and Bouc-Wen fits (`analysis.service.analyse_joints`): a pure
-    function of the job, run in a worker process."""
+def _analyse(job: _Job, loaded: LoadedProtocol) -> JointsAnalysis:
+    """One configuration's processing and Bouc-Wen fits (`analysis.service.analyse_joints`) with the
+    settings of `loaded`, run in a worker process (the settings are made there: a backbone's model
+    factory is a closure, which cannot be sent to it)."""
+    settings = processing_settings(loaded)
+    fit = bouc_wen_settings(loaded) if loaded.protocol.fits.bouc_wen.enabled else None
     return analyse_joints(job.recordings, settings, fit, devices=job.devices, fitted_joints=job.fitted)
 
 
@@ -270,12 +272,12 @@ def _store(
     name: str,
     job: _Job,
     running: Future[JointsAnalysis] | None,
+    loaded: LoadedProtocol,
     settings: ProcessingSettings,
-    fit: BoucWenSettings | None,
 ) -> None:
     """Write one configuration's new results (its analysis from the worker, or made here without one):
     each joint's processing and Bouc-Wen fit, its model comparison as the fit step makes it, the total."""
-    analysis = running.result() if running is not None else _analyse(job, settings, fit)
+    analysis = running.result() if running is not None else _analyse(job, loaded)
     for joint, one in zip(analysis.joints, analysis.analyses, strict=True):
         processed_fill(joint_path(name, joint), one, settings)(cfg.file)
         device_j = job.devices[joint]
