@@ -54,20 +54,21 @@ class NullAO:
 
 
 class NullAI:
-    _EMPTY = ScanBlock.empty(2)
+    def __init__(self) -> None:
+        self._empty = ScanBlock.empty(2)
 
     @property
     def resolution_bits(self) -> int:
         return 12
 
     def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
-        pass
+        self._empty = ScanBlock.empty(len(channels))
 
     def read_available(self) -> ScanBlock:
-        return self._EMPTY
+        return self._empty
 
     def stop_scan(self) -> ScanBlock:
-        return self._EMPTY
+        return self._empty
 
     def close(self) -> None:
         pass

@@ -13,65 +13,18 @@ from __future__ import annotations
 
 import statistics
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
+from bench_rig_loop import NullAI, NullAO, NullClock  # the do-nothing boards
 from protocol_runner.hardware.conversions import RSST_JOINTS
-from protocol_runner.hardware.interfaces import ScanBlock
 from protocol_runner.hardware.joint import JointConfig
 from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyLimits
 
 N_TICKS = 6500  # one 65 s trial at 100 Hz
 REPEATS = 7
-
-
-class NullClock:
-    def __init__(self) -> None:
-        self.t = 0.0
-
-    def now_s(self) -> float:
-        return self.t
-
-    def sleep_until(self, t_s: float) -> None:
-        if t_s > self.t:
-            self.t = t_s
-
-
-class NullAO:
-    def configure_channel(self, channel: int) -> None:
-        pass
-
-    def write_volts(self, channel: int, volts: float) -> int:
-        return 32768
-
-    def write_volts_sync(self, volts_by_channel: Mapping[int, float]) -> dict[int, int]:
-        return dict.fromkeys(volts_by_channel, 32768)
-
-    def close(self) -> None:
-        pass
-
-
-class NullAI:
-    def __init__(self) -> None:
-        self._empty = ScanBlock.empty(2)
-
-    @property
-    def resolution_bits(self) -> int:
-        return 12
-
-    def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
-        self._empty = ScanBlock.empty(len(channels))
-
-    def read_available(self) -> ScanBlock:
-        return self._empty
-
-    def stop_scan(self) -> ScanBlock:
-        return self._empty
-
-    def close(self) -> None:
-        pass
 
 
 def rsst_joints() -> list[JointConfig]:
