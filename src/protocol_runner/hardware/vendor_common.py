@@ -167,7 +167,37 @@ class ScanRing:
         return np.concatenate(parts).reshape(-1, self.n_columns)
 
 
-class VendorScanInput(ABC):
+class VendorBoard(ABC):
+    """What both vendor boards share: a name and serial, and each library call made through `_call`, which
+    turns the library's exception into the `HardwareUnavailable` its backend's `_map_error` names (an
+    exception it does not recognise is raised as it is)."""
+
+    def __init__(self, name: str, serial: str) -> None:
+        self.name = name
+        self._serial = serial
+        self._closed = False
+
+    @abstractmethod
+    def _release(self) -> None: ...
+
+    @abstractmethod
+    def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None: ...
+
+    @property
+    def serial(self) -> str:
+        return self._serial
+
+    def _call(self, action: str, fn: Callable[[], T]) -> T:
+        try:
+            return fn()
+        except Exception as exc:
+            mapped = self._map_error(exc, action)
+            if mapped is None:
+                raise
+            raise mapped from exc
+
+
+class VendorScanInput(VendorBoard):
     """An `AnalogInput` over a vendor library's continuous background scan (one board, 8 channels ±10 V).
 
     The libraries scan a contiguous channel range ``low..high``: the scan covers the lowest to the highest
@@ -189,12 +219,10 @@ class VendorScanInput(ABC):
     """Whether the scan status still counts the samples after the stop (then they are collected too)."""
 
     def __init__(self, name: str, serial: str, clock: Clock, buffer_s: float) -> None:
-        self.name = name
-        self._serial = serial
+        super().__init__(name, serial)
         self.clock = clock
         self.buffer_s = buffer_s
         self._scanning = False
-        self._closed = False
         self._columns: npt.NDArray[np.intp] = np.zeros(0, dtype=np.intp)
         self._rate_hz = 0.0
         self._t0 = 0.0
@@ -217,17 +245,7 @@ class VendorScanInput(ABC):
     @abstractmethod
     def _free_buffer(self) -> None: ...
 
-    @abstractmethod
-    def _release(self) -> None: ...
-
-    @abstractmethod
-    def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None: ...
-
     # ---- AnalogInput -------------------------------------------------------------------------------
-    @property
-    def serial(self) -> str:
-        return self._serial
-
     @property
     def resolution_bits(self) -> int:
         return 16
@@ -236,15 +254,6 @@ class VendorScanInput(ABC):
     def scan_rate_hz(self) -> float:
         """The rate the library set (it may differ a little from the one asked for)."""
         return self._rate_hz
-
-    def _call(self, action: str, fn: Callable[[], T]) -> T:
-        try:
-            return fn()
-        except Exception as exc:
-            mapped = self._map_error(exc, action)
-            if mapped is None:
-                raise
-            raise mapped from exc
 
     def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
         """Start a continuous scan of `channels` (0-7, any order) at `rate_hz` rows per second."""
@@ -341,7 +350,7 @@ class VendorScanInput(ABC):
         self.close()
 
 
-class VendorAnalogOutput(ABC):
+class VendorAnalogOutput(VendorBoard):
     """An `AnalogOutput` over a vendor library (the USB-3105: 16 channels, ±10 V, software-paced).
 
     `configure_channel` writes 0 V on the ±10 V range once (the library sends the board's range command,
@@ -355,26 +364,14 @@ class VendorAnalogOutput(ABC):
     n_channels = usb3105.N_CHANNELS
 
     def __init__(self, name: str, serial: str) -> None:
-        self.name = name
-        self._serial = serial
+        super().__init__(name, serial)
         self._configured: set[int] = set()
-        self._closed = False
 
     @abstractmethod
     def _write(self, channel: int, volts: float) -> None: ...
 
     @abstractmethod
     def _write_run(self, low: int, volts: Sequence[float]) -> None: ...
-
-    @abstractmethod
-    def _release(self) -> None: ...
-
-    @abstractmethod
-    def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None: ...
-
-    @property
-    def serial(self) -> str:
-        return self._serial
 
     @property
     def configured_channels(self) -> frozenset[int]:
@@ -383,13 +380,7 @@ class VendorAnalogOutput(ABC):
     def _call(self, action: str, fn: Callable[[], T]) -> T:
         if self._closed:
             raise BoardIoError(f"the {self.name} is closed; open it again")
-        try:
-            return fn()
-        except Exception as exc:
-            mapped = self._map_error(exc, action)
-            if mapped is None:
-                raise
-            raise mapped from exc
+        return super()._call(action, fn)
 
     def _check_channel(self, channel: int) -> int:
         try:
