@@ -228,8 +228,10 @@ def _report(
     archive = _archive_of(path, locked=True)
     if reprocess:
         from .archive.reprocess import reprocess_archive
+        from .session.workers import analysis_pool
 
-        archive = reprocess_archive(archive, protocol_file=protocol_file)
+        with analysis_pool() as pool:
+            archive = reprocess_archive(archive, protocol_file=protocol_file, pool=pool)
         from .report.verdicts import record_verdicts
 
         record_verdicts(archive)  # the verdicts follow the reprocessed data

@@ -8,14 +8,12 @@ new archive next to the old one; the old one is never modified. Raw data are cop
 
 from __future__ import annotations
 
-import contextlib
 import json
-import multiprocessing
 import os
 import shutil
 from collections import deque
-from collections.abc import Iterator, Sequence
-from concurrent.futures import Future, ProcessPoolExecutor
+from collections.abc import Sequence
+from concurrent.futures import Executor, Future
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -78,27 +76,36 @@ def new_archive_path(archive: Path) -> Path:
     return candidate
 
 
-def reprocess_archive(archive: Path, *, protocol_file: str | None = None, output: Path | None = None) -> Path:
+def reprocess_archive(
+    archive: Path,
+    *,
+    protocol_file: str | None = None,
+    output: Path | None = None,
+    pool: Executor | None = None,
+) -> Path:
     """Write the reprocessed copy of `archive` (to `output`, default `new_archive_path`) and return its path.
 
     The copy is made under a temporary name beside it, with the umask's permissions like any file the
     program writes, and renamed when complete; it is removed whatever stops the work (an error, Ctrl-C,
     SIGTERM), so no partial archive is ever left behind. An `output` that is not a regular file (a link, a
-    device, a FIFO) is refused (archive/outputs.py)."""
+    device, a FIFO) is refused (archive/outputs.py). With `pool`, the configurations are analysed on its
+    worker processes, two ahead of the one whose results are written (in order, the same values)."""
     validate_archive(archive)  # every dataset and attribute within bounds and intact, or a message naming it
     out = output or new_archive_path(archive)
     refuse_special(out, "--reprocess output")
     partial = temporary_beside(out)
     with terminated_as_interrupt():
         try:
-            _write_reprocessed(archive, partial, protocol_file)
+            _write_reprocessed(archive, partial, protocol_file, pool)
             os.replace(partial, out)
         finally:
             partial.unlink(missing_ok=True)
     return out
 
 
-def _write_reprocessed(archive: Path, partial: Path, protocol_file: str | None) -> None:
+def _write_reprocessed(
+    archive: Path, partial: Path, protocol_file: str | None, pool: Executor | None
+) -> None:
     with create_binary(partial) as fh, archive.open("rb") as src:
         shutil.copyfileobj(src, fh)
     with h5py.File(partial, "r+") as f:
@@ -106,7 +113,7 @@ def _write_reprocessed(archive: Path, partial: Path, protocol_file: str | None) 
         settings_source = archived
         if protocol_file is not None:
             settings_source = load_protocol(find_protocol(protocol_file), check_files=False)
-        _reprocess(f, settings_source)
+        _reprocess(f, settings_source, pool)
         if is_marked(f):
             seal_missing(f)  # the new results carry checksums like everything else
         put_attrs(
@@ -137,7 +144,7 @@ def archived_device(cfg: h5py.Group) -> list[tuple[str, str, dict[str, object]]]
     return [(str(e.pop("name")), str(e.pop("type")), e) for e in doc]
 
 
-def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
+def _reprocess(f: h5py.File, loaded: LoadedProtocol, pool: Executor | None) -> None:
     """Redo what the session's process, fit and compare steps did, from the raw trials in `f`, with the
     same function (`analysis.service.analyse_joints`), so that unchanged settings reproduce the session's
     values exactly. The results are written keyed by joint (docs/archive.md) whatever layout the raw
@@ -146,17 +153,16 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol) -> None:
     settings = processing_settings(loaded)
     elements = element_fit_enabled(loaded)
     archive_joints = attr_str(f, JOINT, "")
-    with _analysis_pool() as pool:
-        running: deque[tuple[h5py.Group, str, _Job, Future[JointsAnalysis] | None]] = deque()
-        for name, cfg in f[CONFIGURATIONS].items():
-            job = _prepare(cfg, name, archive_joints, elements=elements) if TRIALS in cfg else None
-            if job is None:
-                continue
-            running.append((cfg, name, job, pool.submit(_analyse, job, loaded) if pool else None))
-            while len(running) > ANALYSES_AHEAD or (running and pool is None):
-                _store(*running.popleft(), loaded, settings)
-        while running:
+    running: deque[tuple[h5py.Group, str, _Job, Future[JointsAnalysis] | None]] = deque()
+    for name, cfg in f[CONFIGURATIONS].items():
+        job = _prepare(cfg, name, archive_joints, elements=elements) if TRIALS in cfg else None
+        if job is None:
+            continue
+        running.append((cfg, name, job, pool.submit(_analyse, job, loaded) if pool else None))
+        while len(running) > ANALYSES_AHEAD or (running and pool is None):
             _store(*running.popleft(), loaded, settings)
+    while running:
+        _store(*running.popleft(), loaded, settings)
     if PREDICTIONS in f:  # made from the old fits: `report.predictions.record_predictions` makes them anew
         del f[PREDICTIONS]
     for comp in f.get(COMPARISONS, {}).values():
@@ -197,25 +203,8 @@ def joint_device(device: Device, joint: str) -> Device:
 
 
 ANALYSES_AHEAD = 2
-"""Configurations analysed in worker processes while the results of earlier ones are written (each holds
-one configuration's recordings in memory, about 10 MB a trial)."""
-
-
-@contextlib.contextmanager
-def _analysis_pool() -> Iterator[ProcessPoolExecutor | None]:
-    """Two processes for the analyses (the processing and the Bouc-Wen fits are independent per
-    configuration and take most of the time); None where no process can be started: the caller then
-    analyses each configuration itself. Started by the fork server where the platform has one, else spawned
-    (never forked from this process, which has the archive open)."""
-    methods = multiprocessing.get_all_start_methods()
-    context = multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
-    try:
-        pool = ProcessPoolExecutor(max_workers=ANALYSES_AHEAD, mp_context=context)
-    except (OSError, NotImplementedError):
-        yield None
-        return
-    with pool:
-        yield pool
+"""Configurations handed to the worker processes ahead of the one being written (each holds one
+configuration's recordings in memory, about 10 MB a trial)."""
 
 
 @dataclass(frozen=True)

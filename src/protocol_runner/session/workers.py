@@ -22,7 +22,7 @@ import os
 import signal
 import threading
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import wait as futures_wait
 from concurrent.futures.process import BrokenProcessPool
@@ -56,6 +56,18 @@ def worker_context() -> multiprocessing.context.BaseContext:
     context = multiprocessing.get_context("forkserver")
     context.set_forkserver_preload(list(PRELOADED))
     return context
+
+
+@contextlib.contextmanager
+def analysis_pool() -> Iterator[ProcessPoolExecutor]:
+    """Worker processes for analyses outside a session (`--report --reprocess`), started as the session's
+    are (`worker_context`, `worker_init`: SIGINT left to the main process, BLAS on one thread)."""
+    with sigint_blocked():
+        pool = ProcessPoolExecutor(
+            max_workers=min(2, os.cpu_count() or 1), mp_context=worker_context(), initializer=worker_init
+        )
+    with pool:
+        yield pool
 
 
 def worker_init() -> None:
