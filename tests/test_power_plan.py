@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import re
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -19,9 +18,10 @@ import yaml
 from scipy import stats
 
 from protocol_runner.cli import main
-from protocol_runner.commands import run
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.metrics import trial_values
+
+from .short_knee import short_knee_session
 
 PROTOCOLS = Path(__file__).resolve().parents[1] / "protocols"
 KNEE_IDS = [
@@ -34,29 +34,7 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope="module")
 def knee_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    root = tmp_path_factory.mktemp("knee")
-    folder = root / "protocol"
-    folder.mkdir()
-    doc = yaml.safe_load((PROTOCOLS / "knee_phase1.yaml").read_text(encoding="utf-8"))
-    doc["trajectories"]["sine"]["periods"] = 3
-    doc["fits"] = {"bouc_wen": {"enabled": False}}
-    for sub in ("calibration", "trajectories"):
-        if (PROTOCOLS / sub).is_dir():
-            shutil.copytree(PROTOCOLS / sub, folder / sub)
-    (folder / "knee_phase1.yaml").write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
-    session = root / "session"
-    code = run(
-        str(folder / "knee_phase1.yaml"),
-        dry_run=True,
-        session=session,
-        seed=7,
-        yes=True,
-        only=None,
-        realtime=False,
-        quiet=True,
-    )
-    assert code == 0
-    return session
+    return short_knee_session(tmp_path_factory.mktemp("knee"), None)
 
 
 @pytest.fixture(scope="module")

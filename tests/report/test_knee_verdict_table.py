@@ -11,17 +11,16 @@ from __future__ import annotations
 
 import math
 import re
-import shutil
 from pathlib import Path
 
 import h5py
 import pytest
-import yaml
 
 from protocol_runner.analysis.statistics import holm
-from protocol_runner.commands import run
 from protocol_runner.report.findings import TUNED_LABEL, evaluate_expectations
 from protocol_runner.report.load import load_report_data
+
+from ..short_knee import short_knee_session
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
 ONLY = [4, 5, 10, 11]
@@ -31,23 +30,7 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope="module")
 def knee_session(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    root = tmp_path_factory.mktemp("knee")
-    folder = root / "protocol"
-    folder.mkdir()
-    doc = yaml.safe_load((PROTOCOLS / "knee_phase1.yaml").read_text(encoding="utf-8"))
-    doc["trajectories"]["sine"]["periods"] = 3
-    doc["fits"] = {"bouc_wen": {"enabled": False}}
-    for sub in ("calibration", "trajectories"):
-        if (PROTOCOLS / sub).is_dir():
-            shutil.copytree(PROTOCOLS / sub, folder / sub)
-    path = folder / "knee_phase1.yaml"
-    path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
-    session = root / "session"
-    code = run(
-        str(path), dry_run=True, session=session, seed=7, yes=True, only=ONLY, realtime=False, quiet=True
-    )
-    assert code == 0
-    return session
+    return short_knee_session(tmp_path_factory.mktemp("knee"), ONLY)
 
 
 def test_the_verdict_table_shows_p_and_the_holm_adjusted_p(knee_session: Path) -> None:
