@@ -105,8 +105,9 @@ def baseline_fit(
     z = np.empty_like(xs)
 
     def residuals(theta: np.ndarray) -> np.ndarray:
-        bw_kernels.recursion_kernel(
-            xs, seg, z0, (theta[0], theta[1], theta[2:]), (bound, True, 0.0, False), z
+        shape = (theta[0], theta[1], theta[2:])
+        bw_kernels.kernel(
+            xs, seg, z0, shape, (bound, True, 0.0, False), z, bw_kernels.NO_SENSITIVITY, False, False
         )
         return z - ys
 
