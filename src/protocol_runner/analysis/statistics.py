@@ -108,6 +108,16 @@ class Repeatability:
         cannot be below 0; the estimate is negative when the within-set spread exceeds the between-set)."""
         return max(0.0, self.icc) if math.isfinite(self.icc) else math.nan
 
+    @property
+    def icc_note(self) -> str:
+        """Why the shown ICC differs from the estimate ("" when it does not)."""
+        if math.isfinite(self.icc) and self.icc < 0.0:
+            return (
+                f"negative estimate ({self.icc:.2f}) shown as 0: the sets' means differ no more than "
+                "their trials do (no between-set variance beyond chance)"
+            )
+        return ""
+
 
 def _finite(values: npt.ArrayLike) -> np.ndarray:
     arr = np.asarray(values, dtype=float).ravel()
