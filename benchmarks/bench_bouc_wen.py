@@ -24,7 +24,7 @@ returns it, with R^2 and the parameter uncertainties; the baseline computes it a
 compilation is excluded (warm-up first).  The fitters take turns within each repeat so that changes in the
 machine's load hit both alike.
 
-BLAS threads: the fits hold BLAS at one thread while they run (threadpoolctl, models/bouc_wen/threads.py);
+BLAS threads: the fits hold BLAS at one thread while they run (threadpoolctl, models/bouc_wen/fitting.py);
 this script also holds the plain baseline at one thread (threadpoolctl), unless ``--blas-default``.
 
 Run: ``python benchmarks/bench_bouc_wen.py [--repeats 5] [--blas-default] [--full]``
@@ -47,7 +47,6 @@ from threadpoolctl import threadpool_info, threadpool_limits
 from protocol_runner.analysis.bouc_wen_fit import fit_configuration
 from protocol_runner.models.bouc_wen import fitting as bw_fitting
 from protocol_runner.models.bouc_wen import kernels as bw_kernels
-from protocol_runner.models.bouc_wen import starts as bw_starts
 from protocol_runner.models.bouc_wen.fitting import fit_trials
 from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.records import BoucWenFit
@@ -105,8 +104,9 @@ def baseline_fit(
     z = np.empty_like(xs)
 
     def residuals(theta: np.ndarray) -> np.ndarray:
-        bw_kernels.recursion_kernel(
-            xs, seg, z0, (theta[0], theta[1], theta[2:]), (bound, True, 0.0, False), z
+        shape = (theta[0], theta[1], theta[2:])
+        bw_kernels.kernel(
+            xs, seg, z0, shape, (bound, True, 0.0, False), z, bw_kernels.NO_SENSITIVITY, False, False
         )
         return z - ys
 
@@ -157,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
     stride = ours0.stride
     # for information: the thesis's own procedure, Figure 56's data-driven start + the same plain solver
     xs, ys, seg, _ = bw_fitting.decimate(segments, max(x[:: stride[0]].size for x, _ in segments))
-    fig56 = bw_starts.thesis_start(xs, ys, seg)
+    fig56 = bw_fitting.thesis_start(xs, ys, seg)
     fit_configuration(segments, cross_validate_trials=False)  # warm-up of the identifiability kernels
     timings = timed_interleaved(
         [

@@ -82,18 +82,16 @@ REPORT_SCIENCE = {
 MODEL_SCIENCE = {
     "models/bouc_wen/backbone.py": "tests/models/test_bouc_wen_backbone_facts.py",
     "models/bouc_wen/copies.py": "tests/models/test_bouc_wen_copies_facts.py",
-    "models/bouc_wen/crossval.py": "tests/models/test_bouc_wen_crossval_facts.py tests/models/test_bouc_wen_facts.py",
     "models/bouc_wen/kernels.py": "tests/models/test_bouc_wen_integrator_facts.py tests/models/test_bouc_wen_kernels.py",
     "models/bouc_wen/schemes.py": "tests/models/test_bouc_wen_integrator_facts.py",
     "models/bouc_wen/identifiability.py": "tests/models/test_bouc_wen_identifiability*.py",
-    "models/bouc_wen/fitting.py": "tests/models/test_bouc_wen_fitting*.py tests/models/test_bouc_wen_facts.py",
+    "models/bouc_wen/fitting.py": "tests/models/test_bouc_wen_fitting*.py tests/models/test_bouc_wen_facts.py "
+    "tests/models/test_bouc_wen_crossval_facts.py tests/models/test_bouc_wen_starts*.py "
+    "tests/models/test_bouc_wen_threads*.py tests/models/test_bouc_wen_options*.py",
     "models/bouc_wen/params.py": "tests/models/test_bouc_wen_params*.py",
     "models/bouc_wen/problem.py": "tests/models/test_bouc_wen_problem*.py tests/models/test_bouc_wen_facts.py",
     "models/bouc_wen/simulation.py": "tests/models/test_bouc_wen_simulation*.py tests/models/test_bouc_wen_refined.py",
-    "models/bouc_wen/starts.py": "tests/models/test_bouc_wen_starts*.py",
-    "models/bouc_wen/threads.py": "tests/models/test_bouc_wen_threads*.py",
     "models/bouc_wen/records.py": "tests/models/test_bouc_wen_records*.py",
-    "models/bouc_wen/options.py": "tests/models/test_bouc_wen_options*.py tests/models/test_bouc_wen_fitting.py",
     # the element registry and its types: the registry's contract and documentation tests (seconds)
     "models/element_types.py": "tests/models/test_elements_*.py",
     "models/elements.py": "tests/models/test_elements_*.py",

@@ -9,7 +9,7 @@ loads neither numpy nor numba.
 """
 
 # BLAS threads: the model fits hold BLAS at one thread while they run (threadpoolctl,
-# models/bouc_wen/threads.py), whenever numpy was imported; nothing is set here at import time.
+# models/bouc_wen/fitting.py), whenever numpy was imported; nothing is set here at import time.
 from .api import export, load_protocol, open_archive, run, write_report
 from .numba_cache import point_numba_at_the_user_cache
 

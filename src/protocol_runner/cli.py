@@ -538,7 +538,7 @@ def one_blas_thread() -> None:
     work, for about 0.1 s of CPU each after it starts and after every fork: 0.2 s at the session's start-up
     and more in the fork server and each worker, on a two-core machine whose other core the workers need.
     Nothing of this program's gains from more: the session's own BLAS calls are small, and the model fits
-    hold BLAS at one thread while they run anyway (threadpoolctl, models/bouc_wen/threads.py). It is read
+    hold BLAS at one thread while they run anyway (threadpoolctl, models/bouc_wen/fitting.py). It is read
     by OpenBLAS when it loads, so it is set here, before anything imports numpy (checked by a test); a
     program calling `main(argv)` keeps its own setting."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")

@@ -47,16 +47,16 @@ def test_a_held_out_trial_that_differs_from_the_others_raises_its_held_out_error
 def test_a_held_out_trial_never_enters_its_own_fit(monkeypatch: pytest.MonkeyPatch) -> None:
     """Every held-out fit sees only the other trials' samples and starts from points computed from them:
     no warm start from the fit on all trials (which was fitted on the held-out trial too)."""
-    from protocol_runner.models.bouc_wen import crossval
+    from protocol_runner.models.bouc_wen import fitting
 
     seen: list[tuple[list[int], object]] = []
-    real = crossval.fitted_params
+    real = fitting.fitted_params
 
     def spy(segments, options):  # type: ignore[no-untyped-def]
         seen.append(([round(float(y[1]) * 1e6) for _, y in segments], options.initial))
         return real(segments, options)
 
-    monkeypatch.setattr(crossval, "fitted_params", spy)
+    monkeypatch.setattr(fitting, "fitted_params", spy)
     xs = [sinusoid(2, 25.0, phase) for phase in (0.0, 0.3, 0.6)]
     segments = [(x, noisy(x, STABLE, k)) for k, x in enumerate(xs)]
     marks = [round(float(y[1]) * 1e6) for _, y in segments]

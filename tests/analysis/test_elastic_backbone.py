@@ -10,12 +10,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from protocol_runner.analysis.bouc_wen_fit import centred_loop, fit_loops
 from protocol_runner.analysis.elastic_backbone import elements_backbone_factory
 from protocol_runner.analysis.element_fit import model_torque_nm
-from protocol_runner.analysis.loops import centred_loop, fit_loops
 from protocol_runner.archive.results import backbone_attrs
 from protocol_runner.models.bouc_wen.backbone import FixedBackbone
-from protocol_runner.models.bouc_wen.crossval import cross_validate
+from protocol_runner.models.bouc_wen.fitting import cross_validate
 from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.simulation import simulate
 from protocol_runner.models.elements import build_device

@@ -1,4 +1,4 @@
-"""Facts about the Bouc-Wen fit of a configuration's centred loops (analysis/loops.py): the centred loop has
+"""Facts about the Bouc-Wen fit of a configuration's centred loops (analysis/bouc_wen_fit.py): the centred loop has
 zero mean angle and torque and drops undefined torque samples; the backbone is the device's elastic
 elements when asked (whatever polynomial degree is set), zero when the element fit is disabled, and the
 polynomial midline otherwise."""
@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from protocol_runner.analysis.loops import centred_loop, fit_loops
+from protocol_runner.analysis.bouc_wen_fit import centred_loop, fit_loops
 from protocol_runner.models.bouc_wen.backbone import Backbone, FixedBackbone
 
 from .synthetic_loops import SPRING, spring_and_loop_trials

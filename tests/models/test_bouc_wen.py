@@ -12,8 +12,7 @@ from hypothesis import strategies as st
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.models.bouc_wen import fitting as bw_fitting
-from protocol_runner.models.bouc_wen.crossval import cross_validate
-from protocol_runner.models.bouc_wen.fitting import fit, fit_trials
+from protocol_runner.models.bouc_wen.fitting import cross_validate, fit, fit_trials
 from protocol_runner.models.bouc_wen.params import (
     EQ24_PHASE_MATRIX,
     EQ25_BETA_MATRIX,

@@ -1,4 +1,4 @@
-"""Facts of leave-one-trial-out cross-validation (models/bouc_wen/crossval.py): it measures the published fit
+"""Facts of leave-one-trial-out cross-validation (models/bouc_wen/fitting.py): it measures the published fit
 procedure on trials it never saw, each held-out trial is predicted from its own first torque by a model of
 the other trials alone, and a prediction that diverges is scored like the fitter scores one."""
 
@@ -12,8 +12,7 @@ import pytest
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.models.bouc_wen.backbone import FixedBackbone
-from protocol_runner.models.bouc_wen.crossval import cross_validate
-from protocol_runner.models.bouc_wen.fitting import fit_trials
+from protocol_runner.models.bouc_wen.fitting import cross_validate, fit_trials
 from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.simulation import simulate
 

@@ -18,8 +18,7 @@ import pytest
 
 from protocol_runner.models.bouc_wen import copies, fitting
 from protocol_runner.models.bouc_wen import problem as bw_problem
-from protocol_runner.models.bouc_wen.crossval import cross_validate
-from protocol_runner.models.bouc_wen.fitting import fit_trials
+from protocol_runner.models.bouc_wen.fitting import cross_validate, fit_trials
 from protocol_runner.models.bouc_wen.identifiability import identify
 from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.problem import (

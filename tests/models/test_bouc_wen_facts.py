@@ -8,8 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from protocol_runner.models.bouc_wen.crossval import cross_validate
-from protocol_runner.models.bouc_wen.fitting import fit_trials
+from protocol_runner.models.bouc_wen.fitting import cross_validate, fit_trials
 from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.simulation import simulate
 

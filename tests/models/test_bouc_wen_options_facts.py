@@ -7,8 +7,7 @@ import re
 from dataclasses import fields
 
 from protocol_runner.models.bouc_wen import fitting as bw_fitting
-from protocol_runner.models.bouc_wen.fitting import fit
-from protocol_runner.models.bouc_wen.options import POLISH_FTOL, FitKeywords, FitOptions
+from protocol_runner.models.bouc_wen.fitting import POLISH_FTOL, FitKeywords, FitOptions, fit
 from protocol_runner.models.bouc_wen.records import DEFAULT_BOUNDS
 
 

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.models.bouc_wen.kernels import IDENTITY8, heun_kernel, heun_sensitivity_kernel
+from protocol_runner.models.bouc_wen.kernels import IDENTITY8, NO_SENSITIVITY, kernel
 from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.simulation import simulate, simulate_trials
 
@@ -32,9 +32,7 @@ def _run(xs, z0s, shape, bound, freeze, stop, rows_every, T):
     rows = np.arange(0, x.size, rows_every, dtype=np.int64)
     z = np.full(x.size, 7.0)
     dz = np.full((rows.size, 8), 3.0)
-    bad = heun_sensitivity_kernel(
-        x, seg, np.asarray(z0s), shape, (bound, freeze, 0.25, stop), z, (dz, T, rows)
-    )
+    bad = kernel(x, seg, np.asarray(z0s), shape, (bound, freeze, 0.25, stop), z, (dz, T, rows), True, True)
     return bad, z, dz, seg, rows
 
 
@@ -95,7 +93,8 @@ def _plain(xs, z0s, shape, bound, freeze, stop):
     x = np.concatenate(xs)
     seg = np.concatenate([[0], np.cumsum([len(v) for v in xs])]).astype(np.int64)
     z = np.full(x.size, 7.0)
-    bad = heun_kernel(x, seg, np.asarray(z0s, dtype=np.float64), shape, (bound, freeze, 0.25, stop), z)
+    limits = (bound, freeze, 0.25, stop)
+    bad = kernel(x, seg, np.asarray(z0s, dtype=np.float64), shape, limits, z, NO_SENSITIVITY, True, False)
     return bad, z, seg
 
 

@@ -10,10 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from protocol_runner.models.bouc_wen import crossval, fitting
+from protocol_runner.models.bouc_wen import fitting
 from protocol_runner.models.bouc_wen.copies import _path_problem, decimate
-from protocol_runner.models.bouc_wen.crossval import cross_validate
-from protocol_runner.models.bouc_wen.fitting import fit_trials
+from protocol_runner.models.bouc_wen.fitting import cross_validate, fit_trials
 from protocol_runner.models.bouc_wen.problem import FitScale, Problem, Samples
 from protocol_runner.models.bouc_wen.records import DEFAULT_BOUNDS
 from protocol_runner.models.bouc_wen.schemes import (
@@ -102,9 +101,9 @@ def test_held_out_fits_ending_on_the_turning_point_copy_keep_the_held_out_errors
     most over the 60 held-out trials of the knee dry run, median 1.8e-4)."""
     segments = _loop_halves()
     fast_cv = cross_validate(segments, starts=1, backbone_degree=9)
-    fitted_params = crossval.fitted_params
+    fitted_params = fitting.fitted_params
     monkeypatch.setattr(
-        crossval,
+        fitting,
         "fitted_params",
         lambda s, o: fitted_params(s, replace(o, polish_ftol=None, final_solve=True)),
     )
@@ -112,7 +111,7 @@ def test_held_out_fits_ending_on_the_turning_point_copy_keep_the_held_out_errors
     full_cv = np.array(cross_validate(segments, starts=1, backbone_degree=9))
     np.testing.assert_allclose(fast_cv, full_cv, rtol=1e-2)
     # the turning points make it close: ending on the plain decimated copy misses by more than twice as much
-    monkeypatch.setattr(crossval, "fitted_params", fitted_params)
+    monkeypatch.setattr(fitting, "fitted_params", fitted_params)
     monkeypatch.setattr(fitting, "turning_point_copy", lambda s, m: Samples(*decimate(s, m)[:3]))
     plain_cv = cross_validate(segments, starts=1, backbone_degree=9)
     assert np.max(np.abs(plain_cv / full_cv - 1.0)) > 2.0 * np.max(np.abs(fast_cv / full_cv - 1.0))

@@ -6,9 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from protocol_runner.models.bouc_wen.fitting import equation_error_start, thesis_start
 from protocol_runner.models.bouc_wen.params import BoucWenParams, phase_of_samples
 from protocol_runner.models.bouc_wen.simulation import simulate
-from protocol_runner.models.bouc_wen.starts import equation_error_start, thesis_start
 
 BETA = (0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036)
 

@@ -22,8 +22,9 @@ from ..knee_device import STIFFNESS_N_PER_MM
 KNEE = {"max_preload_mm": DEFAULT_MAX_PRELOAD_MM, "geometry": THESIS_GEOMETRY}
 
 
-def spring_deflection_m(angle, geometry=THESIS_GEOMETRY):  # type: ignore[no-untyped-def]
-    return spring.spring_deflection_m(angle, geometry)
+def spring_deflection_m(angle):  # type: ignore[no-untyped-def]
+    """Eq 16 as the force shows it: F / K minus the initial load (a 1 N/mm spring with a positive preload)."""
+    return spring_force_n(angle, 1.0, 1) / 1e3 - spring_initial_load_m(1)
 
 
 def spring_initial_load_m(n, max_preload_mm=DEFAULT_MAX_PRELOAD_MM, geometry=THESIS_GEOMETRY):  # type: ignore[no-untyped-def]

@@ -1,7 +1,8 @@
 """Fit one configuration's centred trials with the generalised Bouc-Wen model and gather the evidence a
 modeller needs to trust it: the fit (step-independent integration, its 4x-finer check and its
 convergence record), leave-one-trial-out errors, parameter intervals, and the model's loop energy beside the
-data's.  Pure: arrays in, numbers out (the fit step and ``--reprocess`` store them)."""
+data's.  Pure: arrays in, numbers out (the fit step and ``--reprocess`` both fit through :func:`fit_loops`,
+so they give the same numbers)."""
 
 from __future__ import annotations
 
@@ -11,13 +12,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..models.bouc_wen.backbone import BackboneFactory
-from ..models.bouc_wen.crossval import cross_validate
-from ..models.bouc_wen.fitting import fit_trials
+from ..models.bouc_wen.backbone import BackboneFactory, zero_backbone
+from ..models.bouc_wen.fitting import cross_validate, fit_trials
 from ..models.bouc_wen.identifiability import identify
 from ..models.bouc_wen.params import BoucWenParams
 from ..models.bouc_wen.records import BoucWenFit
 from ..models.bouc_wen.simulation import simulate_trials
+from .centring import centre
+from .elastic_backbone import elements_backbone_factory
 from .energy import energy_per_cycle
 
 Segment = tuple[np.ndarray, np.ndarray]
@@ -100,4 +102,42 @@ def loop_energy(segments: Sequence[Segment], models: Sequence[np.ndarray]) -> Lo
     return LoopEnergy(
         model_j=float(np.mean(m)) if m.size else math.nan,
         data_j=float(np.mean(d)) if d.size else math.nan,
+    )
+
+
+def centred_loop(angle_deg: np.ndarray, torque_nm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A processed trial centred on (0, 0) (§6.2.3 note), undefined samples dropped."""
+    keep = np.isfinite(torque_nm)
+    loop = centre(angle_deg[keep], torque_nm[keep])
+    return loop.angle_deg, loop.torque_nm
+
+
+def fit_loops(
+    segments: list[tuple[np.ndarray, np.ndarray]],
+    *,
+    starts: int,
+    cross_validated: bool,
+    backbone_degree: int | None,
+    elements: tuple[Sequence[tuple[np.ndarray, np.ndarray]], Sequence[object] | None] | None = None,
+) -> tuple[BoucWenFit, list[float]]:
+    """The joint fit over a configuration's trials (with intervals), and leave-one-trial-out RMSEs when
+    asked and possible (:func:`.bouc_wen_fit.fit_configuration`); ``backbone_degree`` None is the thesis
+    form torque = z.  ``elements``: the backbone from the device's elastic elements instead
+    (:mod:`.elastic_backbone`): each trial's processed, uncentred ``(angle_deg, brace_torque_nm)`` in the
+    order of ``segments``, and the device (None when the element fit is disabled: then ``g = 0``)."""
+    factory = None
+    if elements is not None:
+        raw, device = elements
+        factory = (
+            elements_backbone_factory(raw, device)
+            if device is not None
+            else (lambda _: zero_backbone("not applicable: the element fit is disabled"))
+        )
+        backbone_degree = None
+    return fit_configuration(
+        segments,
+        starts=starts,
+        cross_validate_trials=cross_validated,
+        backbone_degree=backbone_degree,
+        backbone_factory=factory,
     )

@@ -95,16 +95,13 @@ def branch_labels(angle_deg: npt.ArrayLike, reversal_deg: float = 1.0) -> npt.ND
 
 
 def complete_branches(angle_deg: npt.ArrayLike, reversal_deg: float = 1.0) -> slice:
-    """The samples of a trial's complete branches: from its first confirmed turning point to its last.
+    """The samples of a trial's complete branches: from its first confirmed turning point to its last
+    (every sample with fewer than two turning points).
 
-    A trial starts from rest and ends by stopping: the partial branch before the first turning point
-    carries the start-up torque (the joint accelerated, static friction broken away) and the one after
-    the last the stop, at whatever angles the motion started and ended. Averaged into a brace-off
-    reference, they would put that transient into every cycle of the brace loop at those angles
-    (the thesis's transition criterion, five degrees of the command, is often met at the first sample and
-    does not remove it). With fewer than two turning points (less than one cycle) every sample is kept.
-    Label the branches on the whole trial (`branch_labels`), then take this part of samples and labels:
-    labelled on its own, the part's first sample (a turning point) would change branch.
+    The partial branches before and after carry the start-up and the stop; averaged into a brace-off
+    reference they would put that transient into every cycle of the brace loop at those angles. Label the
+    branches on the whole trial (`branch_labels`) before taking this part: labelled on its own, the part's
+    first sample (a turning point) would change branch.
     """
     turns = turning_points(angle_deg, reversal_deg)
     if turns.size < 2:

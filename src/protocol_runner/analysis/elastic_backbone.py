@@ -36,7 +36,7 @@ Trial = tuple[np.ndarray, np.ndarray]
 def _finite(trial: Trial) -> Trial:
     angle = np.asarray(trial[0], dtype=np.float64)
     torque = np.asarray(trial[1], dtype=np.float64)
-    keep = np.isfinite(torque)  # as the centred loops (analysis.loops.centred_loop)
+    keep = np.isfinite(torque)  # as the centred loops (analysis.bouc_wen_fit.centred_loop)
     return angle[keep], torque[keep]
 
 

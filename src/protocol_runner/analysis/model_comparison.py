@@ -1,25 +1,16 @@
-"""Model comparison of one configuration (and joint): the element model, a reduced hysteresis model and
-the generalised Bouc-Wen model, side by side on the same trials.
+"""Model comparison of one configuration (and joint), side by side on the same trials (docs/analysis.md
+§10): ``elements`` (the element model, `analysis.model_fit`), ``dahl`` (the elastic elements plus a plain
+Dahl friction: what a two-parameter hysteresis adds to the springs) and ``bouc_wen`` (the fit step's
+generalised Bouc-Wen model with its backbone; k counts its eight parameters and the backbone's
+coefficients).
 
-* ``elements``: every declared element with its free parameters fitted, the brakes as one Dahl friction
-  (torque and transition), the dampers as one coefficient (`models.element_model`, `analysis.model_fit`).
-* ``dahl``: the reduced hysteresis — the elastic elements (fitted as above) plus a plain Dahl friction
-  (no Stribeck excess), nothing else: what a two-parameter hysteresis adds to the springs.
-* ``bouc_wen``: the generalised Bouc-Wen model with its backbone as fitted by the fit step (its own
-  centred loops); k counts its eight parameters and the backbone's coefficients.
-
-For each: k, RMSE, held-out RMSE with the trial as the unit (each trial predicted by the model refitted on
-the others, from the fit on every trial, to HELDOUT_TOL: within 3e-4 relative of refits run to 1e-10 on
-the seeded knee campaign, docs/analysis.md; the Bouc-Wen one is the fit's own leave-one-trial-out
-cross-validation when it ran, else absent), AIC = n_eff ln(SSE / n) + 2k and BIC = n_eff ln(SSE / n) + k ln(n_eff), with n_eff the
-element model's effective sample size (`model_fit.effective_samples`) for every model of the
-configuration so that the differences compare, and the loop energy per cycle of the model and of the
-data, flagged when they differ by more than ENERGY_FLAG (3 %).
-
-The Bouc-Wen parameters are mostly unidentified on these loops; what the loops do determine is reported
-instead, each with a 95 % interval from its spread over the trials (t distribution, trial as the unit):
-the model's loop energy per cycle, its half-width (energy over twice the angle span: the mean half-height
-of the loop, N·m) and its backbone slope (least-squares slope of the model torque against the angle).
+For each: k, RMSE, held-out RMSE with the trial as the unit (element-model refits start from the fit on
+every trial and stop at HELDOUT_TOL; the Bouc-Wen one is the fit's own cross-validation), AIC = n_eff
+ln(SSE / n) + 2k and BIC = n_eff ln(SSE / n) + k ln(n_eff) with the element model's n_eff for every model
+(so that the differences compare), and the model's and data's loop energy per cycle (flagged beyond
+ENERGY_FLAG). For the mostly unidentified Bouc-Wen parameters, what the loops do determine is reported
+instead, each with a 95 % t-interval over the trials: the model's loop energy per cycle, its half-width
+(energy over twice the angle span, N·m) and its backbone slope.
 """
 
 from __future__ import annotations

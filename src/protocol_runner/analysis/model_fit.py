@@ -1,23 +1,12 @@
 """Least-squares fit of the device's element model (`models.element_model`) to a configuration's processed
-trials, with 95 % intervals that allow for correlated residuals, and the identification mark.
+trials, with 95 % intervals that allow for correlated residuals, and the identification mark
+(docs/analysis.md §10).
 
-Fit: bounded least squares (scipy `least_squares`) over every sample of every trial, from the declared
-values and a few other starts, keeping the best.
-
-Intervals: the residuals of a filtered loop are strongly autocorrelated, so n samples carry far fewer
-than n independent errors. The effective sample size is the AR(1) one, ``n_eff = n (1 - ρ) / (1 + ρ)``
-with ρ the residuals' lag-1 autocorrelation within each trial (`models.bouc_wen.identifiability.
-effective_samples`, the same as the Bouc-Wen intervals'). The covariance is the Gauss-Newton one,
-``s² (JᵀJ)⁻¹`` with ``s² = SSR / (n_eff - k)``, scaled by ``n / n_eff``; the 95 % interval is
-``θ ± t(0.975, n_eff - k) σ``. Correlations come from the same covariance.
-
-Identification: each parameter has a plausible range (its registry `plausible`, else its bounds when
-finite, else a range from the data's scale: a torque up to twice the largest measured torque, a damping
-up to that over the largest speed, a stiffness up to that over the angle range, an angle within one
-angle range of the angles reached). A parameter is
-*unidentified* when its 95 % interval covers more than half of that range, or is not finite (the data do
-not determine it, typically two parameters trading off, |correlation| near 1); its value is then printed
-with two significant figures.
+Fit: bounded least squares over every sample of every trial, from the declared values and a few other
+starts, keeping the best. Intervals: the Gauss-Newton covariance ``s² (JᵀJ)⁻¹`` with ``s² = SSR / (n_eff -
+k)``, scaled by ``n / n_eff`` (`effective_samples`: a filtered loop's residuals are strongly
+autocorrelated); the 95 % interval is ``θ ± t(0.975, n_eff - k) σ``. A parameter is *unidentified* when its
+interval covers more than `COVER_LIMIT` of its plausible range (`plausible_range`) or is not finite.
 """
 
 from __future__ import annotations

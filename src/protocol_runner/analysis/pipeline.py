@@ -11,8 +11,8 @@ For each trial pair (the brace-on recording and its brace-off counterpart):
    `centring`) for the Bouc-Wen fit, which the caller runs (`models.bouc_wen`).
 
 Then, over all trials: every cycle's energy in trial order, their summary, and the fit of the device's
-elastic elements (§6.1, `element_fit`) when the configuration's device is given. `process_configuration` is a pure function:
-arrays in, dataclasses of arrays out; it reads and writes nothing.
+elastic elements (§6.1, `element_fit`) when the configuration's device is given. Pure: arrays in,
+dataclasses of arrays out.
 """
 
 from __future__ import annotations
@@ -208,15 +208,11 @@ def process_configuration(
     *,
     device: Sequence[object] | None = None,
 ) -> ConfigurationResult:
-    """Process every trial pair of one configuration and pool the results (thesis §3-§6.1).
-
-    Returns per-trial processed loops (`trials[i].angle_deg`, `.brace_torque_nm`: the archive's
-    `trials/<n>/processed`), `energy_loss_j` (every complete cycle of every trial, in trial order, with
-    `energy_cycle_trial`), its summary, each trial's centred loop (`centred_segments`, for the Bouc-Wen
-    fit the caller runs), and the fit of the device's elastic elements when `device` (the configuration's
-    resolved elements: `models.elements.Element`s or ElementSetting-like objects) is given — "not
-    applicable", with the reason, for a device with nothing to fit or a loop that cannot support a fit.
-    Raises `AnalysisError` (an `InvalidInput`) naming the trial when a step cannot be done.
+    """Process every trial pair of one configuration and pool the results (thesis §3-§6.1, module
+    docstring). `device` (the configuration's resolved elements: `models.elements.Element`s or
+    ElementSetting-like objects) asks for the element fit, "not applicable" with the reason for a device
+    with nothing to fit or a loop that cannot support one. Raises `AnalysisError` naming the trial when a
+    step cannot be done.
     """
     settings = settings if settings is not None else ProcessingSettings()
     if not trials:

@@ -37,7 +37,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from scipy import optimize, stats
+from scipy import stats
 
 #: Power a plan asks for: the probability that a true statement is decided (met).
 POWER_TARGET = 0.8
@@ -152,20 +152,3 @@ def trials_needed(
         mid = (low + high) // 2
         low, high = (low, mid) if enough(mid) else (mid, high)
     return high
-
-
-def detectable_effect(sd_terms: Sequence[float], n: int, alpha: float, target: float = POWER_TARGET) -> float:
-    """The smallest true contrast, in the unit of `sd_terms`, that a one-sided test at level `alpha` detects
-    with power `target` from `n` trials per configuration (e.g. two configurations of SD 1 and n = 3:
-    3.07 at alpha 0.025, the two-sided 0.05 test's side)."""
-    scale = standard_error(sd_terms, n)
-    if scale == 0.0:
-        return 0.0
-
-    def short(effect: float) -> float:
-        return part_power(OneSided(effect, tuple(sd_terms)), n, alpha) - target
-
-    high = scale
-    while short(high) < 0.0:
-        high *= 2.0
-    return float(optimize.brentq(short, 0.0, high, xtol=1e-10 * scale))

@@ -1,36 +1,19 @@
-"""Brace-off input scaling (thesis §3.3.2, Eq 8, and a replacement for the lost Eq 9).
+"""Brace-off input scaling (thesis §3.3.2, Eq 8, and a replacement for the lost Eq 9; docs/analysis.md §3).
 
-To compare torques at the same angles, the brace-off trial should sweep the same output angles as the
-brace-on trial. Its input is therefore rescaled so that its output range matches the brace-on output
-range. Eq 8 gives the scale:
-
-    Scale = (Max_angle_with_joint - Min_angle_with_joint)
-            / (Max_angle_without_joint - Min_angle_without_joint)
-
-and the thesis found the new brace-off input "by the following iterative procedure" (Eq 9), whose text is
-lost; only its note survives ("index 0 corresponds to the transition point"). The procedure here:
-
-The "range" of a trial is the range of its cycles (`cycle_range`): the mean level of its confirmed
-maxima and of its confirmed minima (`branches.turning_points`), so the approach from the park angle and
-the start-up before the first reversal, which can lie well outside the cycles, do not count. A trial with
-fewer than one maximum and one minimum falls back to the extremes of its samples.
-
-Write the input as an affine image of the original trajectory u(t) (the first brace-off input):
-input_k(t) = c_k + s_k · (u(t) - c_u) with c_u the mid-range of u's cycles, s_0 = 1, c_0 = c_u. Each
-iteration runs the robot with input_k, cuts the transition (§3.3.1: index 0 is the transition point), and
-measures the cycle range [m_k, M_k] of the output. With the brace-on cycle range [m*, M*]:
+The brace-off trial should sweep the brace-on trial's output angles, measured as cycle ranges
+(`cycle_range`). Its input is an affine image of the original trajectory u(t): input_k = c_k + s_k ·
+(u(t) - c_u), c_u the mid-range of u's cycles, s_0 = 1, c_0 = c_u. Each iteration runs the robot with
+input_k, cuts the transition (§3.3.1: index 0 is the transition point) and measures the cycle range
+[m_k, M_k] of the output. With the brace-on cycle range [m*, M*]:
 
     scale_k   = (M* - m*) / (M_k - m_k)                    (Eq 8, on the current brace-off output)
     s_{k+1}   = s_k · scale_k                              (amplitude correction)
-    g_k       = (M_k - m_k) / (cycle range of input_k)     (the plant's observed range gain)
+    g_k       = (M_k - m_k) / (cycle range of input_k)     (the plant's observed range gain, in [0.2, 5])
     c_{k+1}   = c_k + ((M* + m*) - (M_k + m_k)) / (2 g_k)  (mid-range correction, a Newton step)
 
-until both cycle levels are within `tolerance_deg` of the target (error max(|M_k - M*|, |m_k - m*|)) or
-`max_iterations` runs were made. For a plant that is affine in amplitude and offset (a linear lag plus
-gain and offset) the amplitude is right after one correction and the mid-range after one or two; a
-saturating plant needs a few more. g_k is clipped to [0.2, 5] so a stalled run cannot blow the step up.
-The input is kept inside `input_limits_deg` (the joint's safety range) by clipping; a target that cannot
-be reached inside it ends without convergence (`converged=False`), and the best iteration is returned.
+until both cycle levels are within `tolerance_deg` of the target or `max_iterations` runs were made; the
+best iteration is kept. The input is clipped to `input_limits_deg` (the joint's safety range), so a target
+that cannot be reached inside it ends without convergence (`converged=False`).
 """
 
 from __future__ import annotations
@@ -147,16 +130,12 @@ def scale_brace_off_input(
     input_limits_deg: tuple[float, float] | None = None,
     reversal_deg: float = 1.0,
 ) -> ScalingResult:
-    """Iterate the brace-off input until its output range matches the brace-on output range (§3.3.2).
+    """Iterate the brace-off input until its output's cycle range matches `target_range_deg`, the brace-on
+    output's from its transition point on (§3.3.2, module docstring).
 
-    `run(input_deg)` runs the robot without the brace and returns the measured angle on the same time
-    base as `input_deg` (one value per input sample; see `rig_runner` for a rig). `target_range_deg` is
-    the cycle range (`cycle_range`) of the brace-on output from its transition point on. The cycle range
-    of each run is measured from its own transition point (`transition_index` against that run's input),
-    turning points confirmed by a reversal of `reversal_deg`. Up to
-    `max_iterations` runs are made (the first with `input_deg` unchanged); see the module docstring for
-    the update rule (Eq 8 applied to amplitude, plus a mid-range correction). Returns the input of the
-    best run, whether it met `tolerance_deg`, and the history.
+    `run(input_deg)` runs the robot without the brace and returns the measured angle on the time base of
+    `input_deg` (see `rig_runner` for a rig). Each run's cycle range is measured from its own transition
+    point, turning points confirmed by a reversal of `reversal_deg`.
     """
     (result,) = scale_brace_off_inputs(
         [input_deg],
@@ -252,9 +231,7 @@ class _JointScaling:
         mid-range."""
         last = self.history[-1]
         (lo_t, hi_t), (lo_k, hi_k) = self.target, last.output_range_deg
-        input_span = self.amplitude * (
-            self.u_hi - self.u_lo
-        )  # the cycle range of the run's input (unclipped)
+        input_span = self.amplitude * (self.u_hi - self.u_lo)  # the run's input's cycle range (unclipped)
         gain = float(np.clip((hi_k - lo_k) / input_span, 0.2, 5.0))
         self.amplitude *= last.scale
         self.centre += 0.5 * ((hi_t + lo_t) - (hi_k + lo_k)) / gain
@@ -283,11 +260,8 @@ def scale_brace_off_inputs(
     reversal_deg: float = 1.0,
 ) -> tuple[ScalingResult, ...]:
     """`scale_brace_off_input` for several joints moved together: `run(inputs)` runs them in one robot
-    motion and returns each joint's measured angle. Each joint's input is corrected by its own Eq 8 scale
-    and mid-range step until that joint's cycle range is within `tolerance_deg` of its target; a joint
-    once matched keeps its input while the others are corrected. The iteration ends when every joint has
-    matched, or after `max_iterations` runs. The run kept for every joint is the one whose largest range
-    error over the joints is smallest (for one joint: its smallest range error)."""
+    motion and returns each joint's measured angle. A joint once matched keeps its input while the others
+    are corrected; the run kept for every joint is the one whose largest range error is smallest."""
     if not tolerance_deg > 0:
         raise AnalysisError(f"scaling tolerance must be positive, got {tolerance_deg} deg")
     if max_iterations < 1:

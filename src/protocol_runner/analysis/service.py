@@ -1,24 +1,12 @@
 """Analysis as a service: "process and fit this configuration from these archived arrays" in one pure
-function, `analyse_configuration`.
+function, `analyse_configuration` (docs/analysis.md): `pipeline.process_configuration`, the processed loops
+as they are stored (`stored_trial`: decimated to `PROCESSED_RATE_HZ`, float32) and, when asked, the
+Bouc-Wen fit of those stored loops (`fit_stored_loops`).
 
-The processing steps of a session and `--reprocess` both go through it, so a re-processing with unchanged
-settings reproduces the session's numbers bit for bit:
-
-1. `pipeline.process_configuration`: transition removal (§3.3.1), zero-phase filtering (§3.2, §4.4),
-   equal-angle subtraction (§3.3, §5.6), energy per cycle (§5.7, Eq 10-12), element fit (§6.1);
-2. the processed loops as they are stored (`stored_trials`: decimated to `PROCESSED_RATE_HZ`, float32);
-3. the Bouc-Wen fit (§6.2, Eq 19-25) of those stored loops, centred per trial (§6.2.3 note), with the
-   model's torque and loop energy beside the data's (`fit_stored_loops`).
-
-A session runs 1-2 in its process step and 3 in its fit step (separate units, resumable), the fit step
-reading back what the process step stored; `--reprocess` runs all three in one call. Step 3 takes the
-stored (decimated, float32) loops in both cases, which is why they are part of the result.
-
-Several joints moved together (`analyse_joints`): each joint's trials go through `analyse_configuration`
-with that joint's device, and the leg's total energy per cycle is summed over the joints
-(`joint_energy.total_energy_per_cycle`).
-
-Pure: numpy arrays and settings in, dataclasses out; nothing here knows steps, sessions or files.
+A session runs the first two in its process step and the fit in its fit step, reading back what the
+process step stored; `--reprocess` runs all three in one call. Both fit the stored (decimated, float32)
+loops, so a re-processing with unchanged settings reproduces the session's numbers bit for bit.
+`analyse_joints` does it per joint of several joints moved together and sums their energy per cycle.
 """
 
 from __future__ import annotations
@@ -31,9 +19,8 @@ import numpy as np
 import numpy.typing as npt
 
 from ..models.bouc_wen.records import BoucWenFit
-from .bouc_wen_fit import LoopEnergy, loop_energy, model_torques
+from .bouc_wen_fit import LoopEnergy, centred_loop, fit_loops, loop_energy, model_torques
 from .joint_energy import total_energy_per_cycle
-from .loops import centred_loop, fit_loops
 from .pipeline import ConfigurationResult, ProcessedTrial, TrialPair, process_configuration
 from .processing_settings import ProcessingSettings
 from .validation import SIGNAL, FloatArray

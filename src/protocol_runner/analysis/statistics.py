@@ -8,16 +8,6 @@ a Welch interval (unequal variances, Welch-Satterthwaite degrees of freedom). Re
 configurations with identical settings run in different sets is the between-configuration CV and the
 one-way random-effects intraclass correlation ICC(1) of the trial means.
 
-Public API:
-    trial_means(values, trial_ids) -> (trial numbers, means)
-    TInterval, t_interval(values, confidence=0.95)
-    WelchInterval, welch_interval(a, b, confidence=0.95)
-    contrast_interval(terms, confidence=0.95)   (a weighted sum of means, e.g. a difference of differences)
-    p_above(estimate, ref), p_below(estimate, ref)   (one-sided t-tests of an interval's estimate)
-    holm(p_values)   (Holm step-down adjusted p-values of one family)
-    Repeatability, repeatability(groups)
-    coefficient_of_variation(values)
-
 Decisions (report/evaluate.py) are taken at the family-wise level `ALPHA`: one-sided tests for a stated
 direction, two one-sided tests (TOST) for an equivalence within a margin, Holm across a family.
 """

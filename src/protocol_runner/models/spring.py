@@ -1,29 +1,10 @@
 """Physical model of the knee brace springs (thesis §6.1, Eq 13-18) — geometry reconstructed here.
 
-The thesis prints Eq 15-16 garbled (the radius of the lower attachment's circle reads
-``sqrt((a cos α + b)² + (b sin α)²)`` and Eq 16 has a stray ``t``). The geometry below is a
-**reconstruction** from the description of Figures 47-50, chosen so that it reproduces every stated fact:
-the spring is shortest (its force smallest) at θ = α = 20° (Figure 50), its deflection grows on both sides,
-and the torque of Eq 13 (with λ from Eq 18) is zero at 20° and grows with bending (Figure 51).
-The full derivation, with a sketch, is in ``docs/hardware-model.md``. In short::
-
-            O ───────────────────────────▶ -y        (horizontal)
-            │╲  ╲
-            │ ╲     ╲
-            │α ╲  a     ╲   θ
-            │   U           ╲
-            │    ╲ ·             ╲         r = a + b
-            │     ╲   ·               ╲
-            │      ╲     · spring U→A      ╲
-            │       ╲       ·  (length b+δ)     ╲
-            ▼ x      A0        · · · · · · · · · · A
-       (vertical)
-          O : the brace's axis of rotation
-          U : upper spring attachment, |OU| = a, at angle α from the vertical (fixed)
-          A : lower spring attachment, |OA| = r = a + b, at angle θ (the bending angle) from the vertical;
-              it turns with the shank about O
-          A0: where A is at θ = α: the spring (length b) lies on the ray OU and its line passes through O,
-              so it is shortest and has no lever arm (zero torque)
+The thesis prints Eq 15-16 garbled; the geometry below is a **reconstruction** (derivation and sketch in
+docs/hardware-model.md §1) that reproduces every stated fact: the spring is shortest at θ = α = 20°
+(Figure 50), its deflection grows on both sides, and the torque of Eq 13 is zero at 20° and grows with
+bending (Figure 51). O is the axis, U the upper attachment (|OU| = a, at α from the vertical), A the lower
+one (|OA| = r = a + b, at the bending angle θ); at θ = α the spring (length b) lies on the ray OU::
 
     O = (0, 0),  U = (a cos α, -a sin α),  A = (r cos θ, -r sin θ)        (Eq 15, with r = a + b)
     length L(θ) = |A - U| = sqrt(r² + a² - 2 a r cos(θ - α))
@@ -31,25 +12,13 @@ The full derivation, with a sketch, is in ``docs/hardware-model.md``. In short::
     λ = atan2(y_A + a sin α, x_A - a cos α)                                (Eq 18; atan2 for the quadrant)
     T = -n_springs * F * a * sin(λ + α) = n_springs * F * a * r * sin(θ - α) / L     (Eq 13)
 
-At θ = α the spring line passes through O, so it has no lever arm: the zero-torque angle is α = 20°
-("the joint was adjusted to cross the zero torque value at an angle of 20°", thesis §5). Choosing
-r = a + b makes b the spring's length at that angle (the undeflected length), so the screw preload of
-Eq 17 is the only tension there. The thesis's printed radius would instead give a residual 7.7 mm
-extension at 20°, mostly equivalent to a larger ``max_preload_mm`` (itself a chosen or fitted value).
+Sign convention (docs/hardware-model.md): a positive torque is the torque the robot must apply in the
+flexion (+angle) direction; Eq 13 has exactly this sign with the geometry above.
 
-Sign convention (docs/hardware-model.md, notes/apis.md): a positive torque is the torque the robot must
-apply in the flexion (+angle) direction, i.e. the brace resists flexion with positive torque above its
-zero-torque angle and resists extension (negative torque) below it. Eq 13 has exactly this sign with the
-geometry above.
-
-Force (Eq 14): F = K (Initial_Load + δ), K in N/mm, lengths in mm. The springs are extension springs: a
-slack spring (negative extension, only possible with a preload chosen below zero) pulls with zero force.
-Initial load (Eq 17): Initial_Load = Max_Preload - c * preload_angle_step * π/180 * n, for screw position
-n = 1..5 (n = 0 would be the maximum preload; the load falls as n grows).
-
-The knee brace's numbers (a = 0.03 m, b = 0.19 m, c = 0.055 m, α = 20°, a 2.73° screw step, two
-springs, and the chosen Max_Preload of 32 mm) are the `lever_spring` element's parameters in
-protocols/knee_phase1.yaml (`models.elements`); nothing here defaults to them.
+Force (Eq 14): F = K (Initial_Load + δ), K in N/mm, lengths in mm; an extension spring that is slack (only
+possible with a preload below zero) pulls with zero force. Initial load (Eq 17): Initial_Load =
+Max_Preload - c * preload_angle_step * π/180 * n for screw position n (n = 0 would be the maximum preload).
+The knee brace's numbers are the `lever_spring` element's parameters in protocols/knee_phase1.yaml.
 """
 
 from __future__ import annotations
@@ -122,17 +91,6 @@ def _attachment_geometry(
     return x_a, y_a, length
 
 
-def spring_deflection_m(angle_deg: ArrayLike, geometry: SpringGeometry) -> FloatArray:
-    """Spring extension beyond its undeflected length b at brace angle θ (Eq 15-16, reconstructed).
-
-    δ(θ) = sqrt(r² + a² - 2 a r cos(θ - α)) - b with r = a + b: zero at θ = α, growing on both sides.
-    Vectorised over `angle_deg`; returns metres.
-    """
-    _, _, length = _attachment_geometry(angle_deg, geometry)
-    result: FloatArray = length - geometry.b_m
-    return result
-
-
 def _check_preload_position(preload_position: float) -> float:
     ok = not isinstance(preload_position, bool) and isinstance(preload_position, int | float | np.integer)
     if not ok or preload_position < 0 or preload_position != round(preload_position):
@@ -183,7 +141,7 @@ def _force_n(
     length_m: FloatArray,
 ) -> FloatArray:
     """Eq 14 from the spring length (`_attachment_geometry`): K (Initial_Load + δ), no push."""
-    deflection_m: FloatArray = length_m - geometry.b_m  # Eq 16 (`spring_deflection_m`)
+    deflection_m: FloatArray = length_m - geometry.b_m  # Eq 16
     extension_m = spring_initial_load_m(preload_position, max_preload_mm, geometry) + deflection_m
     force: FloatArray = stiffness_n_per_mm * 1e3 * np.maximum(extension_m, 0.0)
     return force

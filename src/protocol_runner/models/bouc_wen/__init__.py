@@ -34,28 +34,11 @@ Units and conventions:
 * The thesis centres each trial on (0, 0) before fitting (note under Table 4).  :func:`fit` does *not*
   centre: the caller (the analysis pipeline) does, and the model is fitted to the samples exactly as given.
 
-Fitting (§6.2.3, Figure 56) minimises the squared difference between measured and simulated torque with
-``scipy.optimize.least_squares`` and an analytic Jacobian obtained by differentiating Eq 23 (forward
-sensitivities, computed in the same numba pass as the torque).  §6.2.5 notes that the thesis fit "depends a
-lot on the initial conditions"; this implementation starts from the thesis's data-driven guess (Figure 56),
-from an equation-error least-squares guess, and from quasi-random points spread over the parameter bounds,
-and keeps the best optimum, so the result does not depend on any single starting point.
-
-Evidence: every fit reports ``rmse_refined_nm`` (4x finer integration), a convergence record
-(:class:`BoucWenFit` ``status``, ``start_rmse_nm``, ``cost_spread``); :func:`cross_validate` leaves each
-trial out of its own fit; :mod:`.identifiability` profiles n and marks weakly identified fits.
-
-Performance: the numba kernels are compiled once (cached on disk); see ``benchmarks/bench_bouc_wen.py``.
-During a solve each residual evaluation also yields the Jacobian (the sensitivity kernel computes the same
-torque bit for bit), which the solver then reads for free when it accepts the step; the Jacobian is
-projected only at the compared (decimated) samples; a solve's first evaluation is its start check; the
-last solve, started close to its optimum, stops once a step lowers the cost by less than 1e-5 of it, which
-moves the RMSE by less than 1e-4 (tested).  A held-out fit of :func:`cross_validate` computes no record and
-ends with its polish on a mid-size copy that keeps the angle's turning points (:mod:`.copies`; held-out
-errors within 1 % of the full procedure, tested, docs/analysis.md).  The solver's linear algebra on the tall
-8-column Jacobian (SVD, products) goes through BLAS, whose worker threads make each call cost milliseconds
-when the cores are busy, so :func:`fit_trials`, :func:`cross_validate` and
-:func:`.identifiability.identify` hold BLAS at one thread while they run (threadpoolctl, :mod:`.threads`).
-This module keeps its own tall-matrix work (Jacobian chain rule, Gram matrix, sums of squares) in numba
-loops for the same reason.
+Fitting (§6.2.3, Figure 56, :mod:`.fitting`) minimises the squared difference between measured and
+simulated torque with ``scipy.optimize.least_squares`` and the analytic Jacobian (forward sensitivities,
+computed in the same numba pass as the torque), from the thesis's data-driven guess, an equation-error
+guess and quasi-random starts, keeping the best optimum (§6.2.5: the thesis fit "depends a lot on the
+initial conditions").  Evidence: ``rmse_refined_nm`` (4x finer integration), the convergence record of
+:class:`.records.BoucWenFit`, :func:`.fitting.cross_validate` and :mod:`.identifiability`.  What keeps the
+fits cheap, and the tolerances of its early stops, is in docs/analysis.md (Performance).
 """

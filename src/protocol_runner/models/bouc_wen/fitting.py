@@ -1,22 +1,24 @@
 """Fitting the generalised Bouc-Wen model to trials by multi-start least squares (thesis §6.2.3,
-Figure 56); leave-one-trial-out cross-validation."""
+Figure 56): the options, the data-driven starts, the multi-start solve and leave-one-trial-out
+cross-validation (the trial is the unit)."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-from dataclasses import replace
-from typing import NamedTuple, Unpack
+import functools
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, replace
+from typing import NamedTuple, ParamSpec, TypedDict, TypeVar, Unpack
 
 import numpy as np
 import numpy.typing as npt
 from scipy.stats import qmc
+from threadpoolctl import ThreadpoolController
 
 from protocol_runner.errors import InvalidInput
 
 from .backbone import AnyBackbone, BackboneFactory, fit_backbone, hysteretic_part
 from .copies import _path_problem, decimate, turning_point_copy
-from .options import FitKeywords, FitOptions
-from .params import BoucWenParams, FloatArray
+from .params import BoucWenParams, FloatArray, phase_of_samples
 from .problem import (
     _POLISH_NFEV,
     _SCREEN_SAMPLES,
@@ -31,11 +33,89 @@ from .problem import (
     scores,
     trial_torques,
 )
-from .records import FULL_REFIT_R2, BoucWenFit
+from .records import DEFAULT_BOUNDS, FULL_REFIT_R2, BoucWenBounds, BoucWenFit
 from .schemes import EQ23, REFINED, check_scheme
 from .simulation import as_angle
-from .starts import equation_error_start, thesis_start
-from .threads import blas_single_threaded
+
+P = ParamSpec("P")
+R = TypeVar("R")
+_controller: ThreadpoolController | None = None
+
+
+def blas_single_threaded(fn: Callable[P, R]) -> Callable[P, R]:
+    """Run ``fn`` with every loaded BLAS at one thread, the caller's limits restored after.  The solver's
+    linear algebra on tall 8-column Jacobians is too little work per call to share between threads: a
+    multi-threaded BLAS spends each call handing work back and forth and, on a loaded machine,
+    oversubscribes the cores.  threadpoolctl limits the libraries at run time (environment variables such
+    as ``OPENBLAS_NUM_THREADS`` act only when a library loads); its one controller per process is made at
+    the first fit, after numpy and scipy have loaded their BLAS (finding the libraries takes milliseconds)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
+        global _controller
+        if _controller is None:
+            _controller = ThreadpoolController()
+        with _controller.limit(limits=1, user_api="blas"):
+            return fn(*args, **kwargs)
+
+    return wrapper
+
+
+class FitKeywords(TypedDict, total=False):
+    """The keywords of :func:`.fit`, :func:`.fit_trials` and :func:`.cross_validate` (meaning and defaults:
+    :class:`FitOptions`)."""
+
+    starts: int
+    initial: BoucWenParams | Sequence[BoucWenParams] | None
+    data_starts: bool
+    bounds: BoucWenBounds
+    seed: int
+    max_samples_per_trial: int | None
+    polish: int
+    scheme: str
+
+
+POLISH_FTOL = 1e-5
+"""The polish on the mid-size copy ends once a step lowers its cost by less than this fraction, as the last
+solve on the fitted samples does (``FINAL_FTOL``): cheaper than running to ``polish_tol``, and the
+RMSEs stay within 3e-5 relative of that on the knee dry run (docs/analysis.md)."""
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """How one multi-start fit runs (see :func:`.fit` for the procedure).
+
+    starts: quasi-random (scrambled Halton, seeded by ``seed``) starting points spread over ``bounds``, in
+        addition to the data-driven ones.
+    initial: extra starting point(s) of your own.
+    data_starts: include the thesis's Figure 56 start (A = 1, n = 1, per-phase typical Psi through Eq 25)
+        and an equation-error least-squares start.
+    bounds: see :class:`.BoucWenBounds` (relative to the data's angle and torque scales).
+    max_samples_per_trial: each trial longer than this is decimated by a uniform stride before fitting
+        (``None``: never).
+    polish: how many of the best short fits are refined to full convergence.
+    scheme: ``"refined"`` (step-independent) or ``"eq23"`` (the thesis's literal recursion).
+    polish_tol: step and gradient tolerance of the refinement.
+    polish_ftol: relative cost decrease that ends the polish on the mid-size copy (``None``: ``polish_tol``);
+        ``POLISH_FTOL`` by default, the early stop of the last solve that follows it (tolerance:
+        docs/analysis.md, tests/models/test_bouc_wen_same_numbers.py).
+    final_solve: False ends the refined scheme's fit with the polish on a mid-size copy that keeps the
+        angle's turning points (:func:`.copies.turning_point_copy`) instead of a last solve on the fitted
+        samples: the held-out fits of :func:`.cross_validate` (tolerance in docs/analysis.md).
+    """
+
+    starts: int = 4
+    initial: BoucWenParams | Sequence[BoucWenParams] | None = None
+    data_starts: bool = True
+    bounds: BoucWenBounds = DEFAULT_BOUNDS
+    seed: int = 0
+    max_samples_per_trial: int | None = 8000
+    polish: int = 1
+    scheme: str = REFINED
+    polish_tol: float = 1e-10
+    polish_ftol: float | None = POLISH_FTOL
+    final_solve: bool = True
+
 
 _MID_SAMPLES = 1500  # samples per trial of the copy on which the refined scheme's polish starts
 _FINAL_NFEV = 40  # then at most this many residual evaluations on the fitted samples,
@@ -83,6 +163,78 @@ def backbone_for(
     if degree is not None:
         return fit_backbone(segments, degree)
     return None if factory is None else factory(indices)
+
+
+def thesis_start(x: FloatArray, y: FloatArray, seg: npt.NDArray[np.int64]) -> BoucWenParams:
+    """Figure 56 initial guess: A = 1, n = 1 and, for each Table 4 phase, the typical ``Psi`` obtained by
+    solving Eq 23 for ``Psi`` on every step where it is defined (``(A - dz/dx) / |z|^n``), then Eq 25.
+
+    The thesis averages; the median is used here so that noise on steep steps does not dominate.
+    """
+    A0, n0 = 1.0, 1.0
+    psi = np.zeros(6)
+    per_phase: list[list[FloatArray]] = [[] for _ in range(6)]
+    for s in range(seg.size - 1):
+        xs = x[seg[s] : seg[s + 1]]
+        ys = y[seg[s] : seg[s + 1]]
+        if xs.size < 2:
+            continue
+        phase = phase_of_samples(xs, ys)
+        d = np.diff(xs)
+        ok = (phase > 0) & (d != 0.0) & (ys[:-1] != 0.0)
+        est = (A0 - np.diff(ys)[ok] / d[ok]) / np.abs(ys[:-1][ok]) ** n0
+        ph = phase[ok]
+        for k in range(6):
+            per_phase[k].append(est[ph == k + 1])
+    for k in range(6):
+        vals = np.concatenate(per_phase[k]) if per_phase[k] else np.empty(0)
+        vals = vals[np.isfinite(vals)]
+        psi[k] = float(np.median(vals)) if vals.size else 0.0
+    return BoucWenParams.from_phases(A0, n0, psi)
+
+
+def equation_error_start(
+    x: FloatArray, y: FloatArray, seg: npt.NDArray[np.int64], n_grid: FloatArray
+) -> BoucWenParams | None:
+    """Equation-error guess: with the measured torque on the right-hand side of Eq 23, the step
+    ``y_{i+1} - y_i = d_i A - d_i |y_i|^n (s_i . beta)`` is linear in (A, beta) for a given n; solve it by
+    linear least squares on a grid of n and keep the best."""
+    rows: list[FloatArray] = []
+    rhs: list[FloatArray] = []
+    for s in range(seg.size - 1):
+        xs = x[seg[s] : seg[s + 1]]
+        ys = y[seg[s] : seg[s + 1]]
+        if xs.size < 2:
+            continue
+        d = np.diff(xs)
+        xi = xs[:-1]
+        zi = ys[:-1]
+        sd, sx, sz = np.sign(d), np.sign(xi), np.sign(zi)
+        sig = np.stack([sd * sz, sd * sx, sx * sz, sd, sz, sx], axis=1)
+        keep = d != 0.0
+        rows.append(np.column_stack([d, np.abs(zi), sig * d[:, None]])[keep])
+        rhs.append(np.diff(ys)[keep])
+    if not rows:
+        return None
+    base = np.concatenate(rows)
+    b = np.concatenate(rhs)
+    if b.size < 8:
+        return None
+    best: tuple[float, BoucWenParams] | None = None
+    absz = base[:, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for n in n_grid:
+            g = np.where(absz > 0.0, absz**n, 0.0)
+            M = np.column_stack([base[:, 0], -g[:, None] * base[:, 2:]])
+            coef, *_ = np.linalg.lstsq(M, b, rcond=None)
+            if not np.all(np.isfinite(coef)):
+                continue
+            r = M @ coef - b
+            sse = float(r @ r)
+            cand = BoucWenParams(A=max(coef[0], 0.0), n=float(n), beta=tuple(coef[1:]))
+            if best is None or sse < best[0]:
+                best = (sse, cand)
+    return None if best is None else best[1]
 
 
 def _diverges_when_decimated(u: FloatArray, screen: Problem, problem: Problem) -> bool:
@@ -364,3 +516,55 @@ def fit_trials(
         rmse_refined_nm=refined_rmse(checked, result.params, bound, settings.scheme),
         backbone=backbone,
     )
+
+
+HELD_OUT_FTOL = 1e-5  # a held-out fit's polish (its last solve) ends once a step lowers its cost by less
+# than this fraction (tolerance of the held-out errors: docs/analysis.md, tests/models/test_bouc_wen_same_numbers.py)
+
+
+@blas_single_threaded
+def cross_validate(
+    segments: Sequence[tuple[npt.ArrayLike, npt.ArrayLike]],
+    *,
+    backbone_degree: int | None = None,
+    backbone_factory: BackboneFactory | None = None,
+    **options: Unpack[FitKeywords],
+) -> list[float]:
+    """Leave-one-trial-out RMSE (N*m): for each trial, fit the others and predict the held-out trial from
+    its own first torque.  Needs at least two trials.
+
+    Each held-out fit is a multi-start fit of its own (the Figure 56 and equation-error starts computed on
+    the other trials, plus ``starts`` quasi-random ones; options as in :func:`.fit_trials`): nothing
+    computed from the held-out trial enters it.  It ends with its polish (to a relative cost change of
+    ``HELD_OUT_FTOL``) on the mid-size copy of the other trials that keeps their angle's turning points
+    (:func:`.copies.turning_point_copy`), not with a last solve on the fitted samples: its held-out error
+    is within 1 % of the full procedure's (docs/analysis.md), at about a third of the cost.  A parameter
+    the other trials cannot determine (e.g. a Table 4 phase only the held-out trial visits) then stays
+    where the other trials leave it, and the held-out error shows it.
+
+    backbone_degree: as in :func:`.fit_trials`; each held-out fit then fits its backbone on the other
+        trials too, and the held-out prediction is ``g(angle) + z``.
+    backbone_factory: as in :func:`.fit_trials`; called with the other trials' indices for each held-out
+        fit (a factory that fits ``g`` fits it on those trials only).
+    initial: extra start(s) for every held-out fit.  It must not have been fitted on the held-out trial
+        (a fit on all trials would carry the held-out trial into its own test); ``None`` by default.
+    """
+    checked = _validate_segments(segments)
+    if len(checked) < 2:
+        raise InvalidInput(f"cross-validation needs at least 2 trials, got {len(checked)}")
+    held_out_fit = replace(
+        FitOptions(**options), polish_tol=1e-8, polish_ftol=HELD_OUT_FTOL, final_solve=False
+    )
+    errors: list[float] = []
+    for k, (x, y) in enumerate(checked):
+        others = [s for j, s in enumerate(checked) if j != k]
+        indices = [j for j in range(len(checked)) if j != k]
+        backbone = backbone_for(others, indices, backbone_degree, backbone_factory)
+        if backbone is not None:
+            others = hysteretic_part(others, backbone)
+            x, y = hysteretic_part([(x, y)], backbone)[0]
+        params = fitted_params(others, held_out_fit)
+        scale = max(float(np.max(np.abs(y))), max(float(np.max(np.abs(yy))) for _, yy in others))
+        rmse, _, _, _ = evaluate([(x, y)], params, DIVERGENCE_FACTOR * scale, held_out_fit.scheme)
+        errors.append(rmse)
+    return errors

@@ -45,12 +45,11 @@ from scipy.optimize import least_squares
 
 from .backbone import hysteretic_part
 from .copies import decimate
-from .fitting import _validate_segments
+from .fitting import _validate_segments, blas_single_threaded
 from .params import FloatArray
 from .problem import FitScale, Problem, Samples, jacobian_std, param_std
 from .records import BoucWenFit
 from .schemes import REFINED
-from .threads import blas_single_threaded
 
 CHI2_1_95 = 3.841458820694124  # 95 % quantile of chi-square with one degree of freedom
 PROFILE_SAMPLES = 400  # samples per trial of the copy on which n is profiled

@@ -5,10 +5,9 @@ or without its forward sensitivities ``d z / d theta`` (theta = A, n, beta1..6).
 In this order: the pieces of the rate both schemes share (signs, Psi of Eq 22, ``|z|^n``, inlined), one
 Eq 23 step, the Heun substeps of the refined scheme along one straight piece of angle (without
 derivatives, and with them carried as eight scalars), and one loop over segments and samples
-(:func:`_sweep`) that serves all four kernels, selected by two flags.  The segments (trials) are
-integrated one after the other, each from its own starting torque.  The entry kernels take arrays and three
-small tuples (the shape parameters, the limits, the sensitivity outputs), unpacked once into the positional
-arguments of the compiled internals.  numba compiles them once and caches them on disk; all compiled code
+(:func:`_sweep`, entered by :func:`kernel`) that serves both schemes with or without derivatives,
+selected by two flags.  The segments (trials) are integrated one after the other, each from its own
+starting torque.  numba compiles them once and caches them on disk; all compiled code
 is in this one file because numba's cache of a function does not notice a change in another file.
 """
 
@@ -320,45 +319,19 @@ def _sweep(
     return first_bad
 
 
-# The entry points take three small records (tuples, unpacked once here at the top of the compiled code):
-# shape = (A, n, beta) with beta a float64 array of 6; limits = (bound, freeze, max_step, stop) (max_step
-# unused by Eq 23); sens = (dz, T, rows) for the kernels with derivatives (see :func:`_sweep`).
+NO_SENSITIVITY = (np.empty((0, 8)), IDENTITY8, np.empty(0, dtype=np.int64))  # sens of a kernel call without
 
 
 @njit(cache=CACHE)
-def recursion_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
-    """Eq 23 over the segments (see :func:`_sweep`): writes ``z``, returns the first diverged index or -1."""
-    A, n, beta = shape
-    bound, freeze, _, stop = limits
-    dz, rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)  # none
-    return _sweep(x, seg, z0, A, n, beta, bound, freeze, 0.0, stop, z, dz, IDENTITY8, rows, False, False)
-
-
-@njit(cache=CACHE)
-def sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover - compiled
-    """Eq 23 and its exact derivatives at ``rows`` (see :func:`_sweep`, :func:`eq23_step_sens`)."""
-    A, n, beta = shape
-    bound, freeze, _, stop = limits
-    dz, T, rows = sens
-    return _sweep(x, seg, z0, A, n, beta, bound, freeze, 0.0, stop, z, dz, T, rows, False, True)
-
-
-@njit(cache=CACHE)
-def heun_kernel(x, seg, z0, shape, limits, z):  # pragma: no cover - compiled
-    """The step-independent integration (:mod:`.schemes`) over the segments (see :func:`_sweep`)."""
-    A, n, beta = shape
-    bound, freeze, step, stop = limits
-    dz, rows = np.empty((0, 8)), np.empty(0, dtype=np.int64)  # none
-    return _sweep(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, IDENTITY8, rows, True, False)
-
-
-@njit(cache=CACHE)
-def heun_sensitivity_kernel(x, seg, z0, shape, limits, z, sens):  # pragma: no cover - compiled
-    """:func:`heun_kernel` and the exact derivatives of its scheme at ``rows`` (see :func:`_sweep`)."""
+def kernel(x, seg, z0, shape, limits, z, sens, refined, sensitivities):  # pragma: no cover - compiled
+    """:func:`_sweep` (Eq 23, or ``refined``; with ``sensitivities`` also the derivatives) with its
+    arguments in three small records, unpacked here once: ``shape = (A, n, beta)`` with beta a float64
+    array of 6; ``limits = (bound, freeze, max_step, stop)`` (max_step unused by Eq 23); ``sens = (dz, T,
+    rows)`` (:data:`NO_SENSITIVITY` without derivatives)."""
     A, n, beta = shape
     bound, freeze, step, stop = limits
     dz, T, rows = sens
-    return _sweep(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows, True, True)
+    return _sweep(x, seg, z0, A, n, beta, bound, freeze, step, stop, z, dz, T, rows, refined, sensitivities)
 
 
 @njit(cache=CACHE)

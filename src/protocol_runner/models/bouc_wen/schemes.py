@@ -34,14 +34,7 @@ import numpy.typing as npt
 
 from protocol_runner.errors import InvalidInput
 
-from .kernels import (
-    DEFAULT_MAX_STEP_DEG,
-    IDENTITY8,
-    heun_kernel,
-    heun_sensitivity_kernel,
-    recursion_kernel,
-    sensitivity_kernel,
-)
+from .kernels import DEFAULT_MAX_STEP_DEG, IDENTITY8, NO_SENSITIVITY, kernel
 from .params import BoucWenParams, FloatArray
 
 IntArray = npt.NDArray[np.int64]
@@ -105,19 +98,16 @@ def run_scheme(
 ) -> int:
     """Torque into ``z`` over the segments ``x[seg[s]:seg[s+1]]``, each started at ``z0[s]``; with a
     ``sensitivity``, also its derivatives.  Returns the index of the first diverged sample or -1 (see
-    :func:`.kernels._sweep`).  The records are unpacked here, once, into the compiled kernels' plain
-    arguments."""
+    :func:`.kernels._sweep`)."""
     scheme = integration.scheme
     step = check_scheme(scheme, integration.max_step_deg)
     shape_rec = (shape.A, shape.n, np.asarray(shape.beta, dtype=np.float64))
     limits = (integration.bound, integration.freeze, step, integration.stop_at_divergence)
-    if sensitivity is None:
-        kernel = recursion_kernel if scheme == EQ23 else heun_kernel
-        return int(kernel(x, seg, z0, shape_rec, limits, z))
-    dz, T, rows = sensitivity
-    sens = (dz, T, np.arange(x.size, dtype=np.int64) if rows is None else rows)
-    sens_kernel = sensitivity_kernel if scheme == EQ23 else heun_sensitivity_kernel
-    return int(sens_kernel(x, seg, z0, shape_rec, limits, z, sens))
+    sens = NO_SENSITIVITY
+    if sensitivity is not None:
+        dz, T, rows = sensitivity
+        sens = (dz, T, np.arange(x.size, dtype=np.int64) if rows is None else rows)
+    return int(kernel(x, seg, z0, shape_rec, limits, z, sens, scheme == REFINED, sensitivity is not None))
 
 
 def run_trial(
