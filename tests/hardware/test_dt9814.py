@@ -9,10 +9,10 @@ import pytest
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.dt9814 import Dt9814, Dt9814Settings, code12_to_volts, sign_extend_12
-from protocol_runner.hardware.fakeusb.backend import FakeBackend
-from protocol_runner.hardware.fakeusb.device import Faults
-from protocol_runner.hardware.fakeusb.dt9814 import make_dt9814
 from protocol_runner.hardware.usb_common import BoardIoError, BoardNotFound, BoardTimeout, DeviceGone
+from tests.fakeusb.backend import FakeBackend
+from tests.fakeusb.device import Faults
+from tests.fakeusb.dt9814 import make_dt9814
 
 
 def test_conversion_is_twos_complement_20_v_over_4096() -> None:
