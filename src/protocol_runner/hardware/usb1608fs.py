@@ -21,6 +21,7 @@ import numpy.typing as npt
 import usb.core
 
 from protocol_runner.errors import InvalidInput
+from protocol_runner.hardware.conversions import ai16_code_to_volts
 from protocol_runner.hardware.interfaces import Clock, ScanBlock
 from protocol_runner.hardware.usb1608fs_protocol import (
     CMD_AIN_CLR_FIFO,
@@ -41,7 +42,6 @@ from protocol_runner.hardware.usb1608fs_protocol import (
     REQ_IN,
     REQ_OUT,
     STATUS_OVERRUN,
-    codes_to_volts_pm10,
     pacer_period,
     pacer_rate_hz,
 )
@@ -212,11 +212,6 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
     def resolution_bits(self) -> int:
         return 16
 
-    @property
-    def scan_rate_hz(self) -> float:
-        """The rate the pacer really runs at (after rounding the pacer register)."""
-        return self._rate_hz
-
     def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
         """Start a continuous hardware-paced scan of `channels` (0-7, any order) at `rate_hz` rows/s."""
         chans = [int(c) for c in channels]
@@ -333,7 +328,7 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
         codes = np.clip(corrected, 0, 65535).astype(np.int32)[:, self._order]
         t_s = self._t0 + (self._rows_emitted + np.arange(nrows, dtype=np.float64)) / self._rate_hz
         self._rows_emitted += nrows
-        return ScanBlock(t_s=t_s, codes=np.ascontiguousarray(codes), volts=codes_to_volts_pm10(codes))
+        return ScanBlock(t_s=t_s, codes=np.ascontiguousarray(codes), volts=ai16_code_to_volts(codes))
 
     def read_available(self) -> ScanBlock:
         """Every complete row received since the last call (calibrated codes, volts, times)."""
