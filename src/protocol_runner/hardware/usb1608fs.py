@@ -9,6 +9,7 @@ UNVERIFIED on hardware: the calibration-memory address layout and that wValue ca
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import struct
@@ -372,12 +373,7 @@ def open_all_1608fs(
         if not serials:
             ids = f"VID 0x{MCC_VENDOR_ID:04X} PID 0x{PRODUCT_ID:04X}"
             select_device([], None, KIND, ids)  # raises the not-found error
-    boards: list[Usb1608FsPlus] = []
-    try:
-        for s in serials:
-            boards.append(Usb1608FsPlus.open(s, backend, clock=clock, settings=settings))
-    except BaseException:
-        for b in boards:
-            b.close()
-        raise
+    with contextlib.ExitStack() as opened:  # a board that fails to open closes those opened before it
+        boards = [opened.enter_context(Usb1608FsPlus.open(s, backend, clock=clock, settings=settings)) for s in serials]
+        opened.pop_all()
     return boards

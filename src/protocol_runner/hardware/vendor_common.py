@@ -172,6 +172,15 @@ class VendorBoard(ABC):
     @abstractmethod
     def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None: ...
 
+    @abstractmethod
+    def close(self) -> None: ...
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
     @property
     def serial(self) -> str:
         return self._serial
@@ -327,12 +336,6 @@ class VendorScanInput(VendorBoard):
         self._closed = True
         self._call("closing the board", self._release)
 
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
 
 class VendorAnalogOutput(VendorBoard):
     """An `AnalogOutput` over a vendor library (the USB-3105: 16 channels, ±10 V, software-paced).
@@ -412,9 +415,3 @@ class VendorAnalogOutput(VendorBoard):
             self._call("closing the board", self._release)
         finally:
             self._closed = True
-
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
