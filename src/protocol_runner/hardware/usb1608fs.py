@@ -54,6 +54,7 @@ from protocol_runner.hardware.usb_common import (
     MonotonicClock,
     ScanOverrun,
     bcd_to_text,
+    check_scan_channels,
     claim_interface,
     find_board,
     find_devices,
@@ -215,14 +216,8 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
 
     def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
         """Start a continuous hardware-paced scan of `channels` (0-7, any order) at `rate_hz` rows/s."""
-        chans = [int(c) for c in channels]
-        if not chans:
-            raise InvalidInput(f"{KIND}: give at least one input channel to scan")
-        if len(set(chans)) != len(chans) or any(not 0 <= c < N_CHANNELS for c in chans):
-            raise InvalidInput(
-                f"{KIND}: scan channels must be distinct numbers 0-{N_CHANNELS - 1}; got {chans}"
-            )
-        if not (math.isfinite(rate_hz) and PACER_CLOCK_HZ / 2**32 < rate_hz <= MAX_RATE_HZ):
+        chans = check_scan_channels(KIND, channels, N_CHANNELS, rate_hz)
+        if not PACER_CLOCK_HZ / 2**32 < rate_hz <= MAX_RATE_HZ:
             raise InvalidInput(f"{KIND}: scan rate must be between 0.01 Hz and 100 kHz; got {rate_hz!r}")
         if self._scanning:
             raise InvalidInput(f"the {self.name} is already scanning; stop_scan() first")

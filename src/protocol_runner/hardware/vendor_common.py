@@ -29,7 +29,7 @@ from protocol_runner.errors import HardwareUnavailable, InvalidInput
 from protocol_runner.hardware import usb1608fs_protocol, usb3105
 from protocol_runner.hardware.conversions import VOLTS_RANGE, volts_to_ai16_code, volts_to_ao16_code
 from protocol_runner.hardware.interfaces import Clock, ScanBlock
-from protocol_runner.hardware.usb_common import BoardIoError, ScanOverrun
+from protocol_runner.hardware.usb_common import BoardIoError, ScanOverrun, check_scan_channels
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -91,20 +91,6 @@ def contiguous_runs(channels: Sequence[int]) -> list[list[int]]:
         else:
             runs.append([ch])
     return runs
-
-
-def check_scan_channels(kind: str, channels: Sequence[int], n_channels: int, rate_hz: float) -> list[int]:
-    """The scan's channels as ints, refused when empty, repeated or outside the board, or at a bad rate."""
-    chans = [int(c) for c in channels]
-    if not chans:
-        raise InvalidInput(f"{kind}: give at least one input channel to scan")
-    if len(set(chans)) != len(chans) or any(not 0 <= c < n_channels for c in chans):
-        raise InvalidInput(f"{kind}: scan channels must be distinct numbers 0-{n_channels - 1}; got {chans}")
-    if not (math.isfinite(rate_hz) and rate_hz > 0):
-        raise InvalidInput(
-            f"{kind}: the scan rate must be a positive number of rows per second; got {rate_hz!r}"
-        )
-    return chans
 
 
 class ScanRing:
