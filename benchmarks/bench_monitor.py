@@ -24,20 +24,25 @@ import statistics
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from bench_realtime import SPIN_S, knee_joint, sensor, summarise
-from protocol_runner.hardware.fakeusb.backend import FakeBackend
-from protocol_runner.hardware.fakeusb.usb1608fs import make_usb1608fs
-from protocol_runner.hardware.fakeusb.usb3105 import make_usb3105
-from protocol_runner.hardware.interfaces import ScanBlock
-from protocol_runner.hardware.rig import Rig
-from protocol_runner.hardware.usb1608fs import Usb1608FsPlus
-from protocol_runner.hardware.usb3105 import Usb3105
-from protocol_runner.hardware.usb_common import MonotonicClock, realtime_priority
-from protocol_runner.monitor.samples import SampleTap
-from protocol_runner.monitor.service import Monitor
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # the fake boards live in tests/fakeusb
+
+from tests.fakeusb.backend import FakeBackend  # noqa: E402
+from tests.fakeusb.usb1608fs import make_usb1608fs  # noqa: E402
+from tests.fakeusb.usb3105 import make_usb3105  # noqa: E402
+
+from bench_realtime import SPIN_S, knee_joint, sensor, summarise  # noqa: E402
+from protocol_runner.hardware.interfaces import ScanBlock  # noqa: E402
+from protocol_runner.hardware.rig import Rig  # noqa: E402
+from protocol_runner.hardware.usb1608fs import Usb1608FsPlus  # noqa: E402
+from protocol_runner.hardware.usb3105 import Usb3105  # noqa: E402
+from protocol_runner.hardware.usb_common import MonotonicClock, realtime_priority  # noqa: E402
+from protocol_runner.monitor.samples import SampleTap  # noqa: E402
+from protocol_runner.monitor.service import Monitor  # noqa: E402
 
 FIFO = False  # --fifo: the loop under SCHED_FIFO, as the hardware bench runs it (when allowed)
 

@@ -23,21 +23,27 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
+import sys
 import time
 from collections.abc import Callable
+from pathlib import Path
 
 import numpy as np
 
-from protocol_runner.hardware.conversions import RSST_JOINTS
-from protocol_runner.hardware.fakeusb.backend import FakeBackend
-from protocol_runner.hardware.fakeusb.usb1608fs import make_usb1608fs
-from protocol_runner.hardware.fakeusb.usb3105 import make_usb3105
-from protocol_runner.hardware.joint import JointConfig
-from protocol_runner.hardware.rig import Rig
-from protocol_runner.hardware.safety import SafetyLimits
-from protocol_runner.hardware.usb1608fs import Usb1608FsPlus
-from protocol_runner.hardware.usb3105 import Usb3105
-from protocol_runner.hardware.usb_common import MonotonicClock, realtime_priority
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))  # the fake boards live in tests/fakeusb
+
+from tests.fakeusb.backend import FakeBackend  # noqa: E402
+from tests.fakeusb.usb1608fs import make_usb1608fs  # noqa: E402
+from tests.fakeusb.usb3105 import make_usb3105  # noqa: E402
+
+from protocol_runner.hardware.conversions import RSST_JOINTS  # noqa: E402
+from protocol_runner.hardware.joint import JointConfig  # noqa: E402
+from protocol_runner.hardware.rig import Rig  # noqa: E402
+from protocol_runner.hardware.safety import SafetyLimits  # noqa: E402
+from protocol_runner.hardware.usb1608fs import Usb1608FsPlus  # noqa: E402
+from protocol_runner.hardware.usb3105 import Usb3105  # noqa: E402
+from protocol_runner.hardware.usb_common import MonotonicClock, realtime_priority  # noqa: E402
 
 SPIN_S = 0.0005  # MonotonicClock polls the last 0.5 ms before each tick
 

@@ -14,7 +14,6 @@ from protocol_runner.hardware.conversions import (
     ai16_code_to_volts,
     angle_to_volts,
     ao16_code_to_volts,
-    rsst_joint_by_name,
     torque_to_volts,
     volts_to_ai12_code,
     volts_to_ai16_code,
@@ -43,12 +42,6 @@ def test_all_twelve_joints_from_tables_1_to_3() -> None:
     for joint in RSST_JOINTS.values():
         assert joint.range_deg[0] < joint.range_deg[1]
         assert joint.torque_range_nm[0] < joint.torque_range_nm[1]
-
-
-def test_joint_lookup_by_name() -> None:
-    assert rsst_joint_by_name("knee_flexion") is KNEE
-    with pytest.raises(InvalidInput, match="unknown RSST joint"):
-        rsst_joint_by_name("tail wag")
 
 
 @pytest.mark.parametrize(("angle", "volts"), [(0.0, -10.0), (130.0, 10.0), (65.0, 0.0), (32.5, -5.0)])

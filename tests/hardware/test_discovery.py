@@ -9,16 +9,16 @@ import pytest
 
 from protocol_runner.errors import HardwareUnavailable, InvalidInput
 from protocol_runner.hardware.discovery import NOTHING_FOUND, OutputTiming, format_report, hardware_check
-from protocol_runner.hardware.fakeusb.backend import FakeBackend
-from protocol_runner.hardware.fakeusb.device import Faults
-from protocol_runner.hardware.fakeusb.dt9814 import make_dt9814
-from protocol_runner.hardware.fakeusb.usb1608fs import ManualClock, make_usb1608fs
-from protocol_runner.hardware.fakeusb.usb3105 import AOUT, make_usb3105
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
 from protocol_runner.hardware.rig_boards import open_rig_boards
 from protocol_runner.hardware.usb1608fs import Usb1608FsPlus
 from protocol_runner.hardware.usb_common import UDEV_RULE_FILENAME
 from protocol_runner.protocol.rig_file import output_timing, shipped_rig
+from tests.fakeusb.backend import FakeBackend
+from tests.fakeusb.device import Faults
+from tests.fakeusb.dt9814 import make_dt9814
+from tests.fakeusb.usb1608fs import ManualClock, make_usb1608fs
+from tests.fakeusb.usb3105 import AOUT, make_usb3105
 
 RSST_TIMING = output_timing(shipped_rig("rsst"))
 

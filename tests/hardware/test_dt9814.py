@@ -8,17 +8,18 @@ import struct
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.hardware.dt9814 import Dt9814, Dt9814Settings, code12_to_volts, sign_extend_12
-from protocol_runner.hardware.fakeusb.backend import FakeBackend
-from protocol_runner.hardware.fakeusb.device import Faults
-from protocol_runner.hardware.fakeusb.dt9814 import make_dt9814
+from protocol_runner.hardware.conversions import ai12_code_to_volts
+from protocol_runner.hardware.dt9814 import Dt9814, Dt9814Settings, sign_extend_12
 from protocol_runner.hardware.usb_common import BoardIoError, BoardNotFound, BoardTimeout, DeviceGone
+from tests.fakeusb.backend import FakeBackend
+from tests.fakeusb.device import Faults
+from tests.fakeusb.dt9814 import make_dt9814
 
 
 def test_conversion_is_twos_complement_20_v_over_4096() -> None:
-    assert code12_to_volts(2047) == pytest.approx(9.99512, abs=1e-5)
-    assert code12_to_volts(-2048) == -10.0
-    assert code12_to_volts(1) == pytest.approx(4.883e-3, abs=1e-6)
+    assert ai12_code_to_volts(2047) == pytest.approx(9.99512, abs=1e-5)
+    assert ai12_code_to_volts(-2048) == -10.0
+    assert ai12_code_to_volts(1) == pytest.approx(4.883e-3, abs=1e-6)
     assert sign_extend_12(0x800) == -2048
     assert sign_extend_12(0x7FF) == 2047
     assert sign_extend_12(0xFFF) == -1

@@ -222,7 +222,7 @@ def test_a_dry_run_sends_exactly_the_checked_streams_or_nothing(data: st.DataObj
     from protocol_runner.hardware.conversions import volts_to_ao16_code
     from protocol_runner.hardware.joint import JointConfig
     from protocol_runner.hardware.motion import run_motion
-    from protocol_runner.hardware.paced import READ_EVERY_TICKS
+    from protocol_runner.hardware.rig import READ_EVERY_TICKS
     from protocol_runner.hardware.simulator.daq import SimulatedRig
     from protocol_runner.hardware.stream import build_motion_stream, check_motion_stream
 

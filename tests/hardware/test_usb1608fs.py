@@ -11,13 +11,13 @@ import pytest
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.board_group import BoardGroup
-from protocol_runner.hardware.fakeusb.backend import FakeBackend
-from protocol_runner.hardware.fakeusb.device import Faults
-from protocol_runner.hardware.fakeusb.usb1608fs import ManualClock, Usb1608FsModel, make_usb1608fs
 from protocol_runner.hardware.interfaces import AnalogInput, ScanBlock
 from protocol_runner.hardware.usb1608fs import Usb1608FsPlus, open_all_1608fs
 from protocol_runner.hardware.usb1608fs_protocol import pacer_period
 from protocol_runner.hardware.usb_common import BoardNotFound, BoardPermissionDenied, DeviceGone, ScanOverrun
+from tests.fakeusb.backend import FakeBackend
+from tests.fakeusb.device import Faults
+from tests.fakeusb.usb1608fs import ManualClock, Usb1608FsModel, make_usb1608fs
 
 
 class RigClock:

@@ -10,9 +10,6 @@ import pytest
 import usb.core
 
 from protocol_runner.errors import EXIT_HARDWARE_UNAVAILABLE, HardwareUnavailable, InvalidInput
-from protocol_runner.hardware.fakeusb.backend import FakeBackend
-from protocol_runner.hardware.fakeusb.device import Faults
-from protocol_runner.hardware.fakeusb.usb3105 import Usb3105Model, make_usb3105
 from protocol_runner.hardware.interfaces import AnalogOutput
 from protocol_runner.hardware.usb3105 import ChannelNotConfigured, Usb3105, Usb3105Settings
 from protocol_runner.hardware.usb3105_calibration import ChannelCalibration, calibrated_code
@@ -25,6 +22,9 @@ from protocol_runner.hardware.usb_common import (
     DeviceGone,
     UnexpectedReply,
 )
+from tests.fakeusb.backend import FakeBackend
+from tests.fakeusb.device import Faults
+from tests.fakeusb.usb3105 import Usb3105Model, make_usb3105
 
 
 def open_board(model: Usb3105Model, settings: Usb3105Settings | None = None) -> Usb3105:

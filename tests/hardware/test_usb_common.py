@@ -12,9 +12,6 @@ import usb.util
 
 from protocol_runner.errors import EXIT_HARDWARE_UNAVAILABLE, HardwareUnavailable
 from protocol_runner.hardware import discovery, dt9814, usb1608fs, usb1608fs_protocol, usb3105
-from protocol_runner.hardware.fakeusb.backend import FakeBackend
-from protocol_runner.hardware.fakeusb.usb1608fs import make_usb1608fs
-from protocol_runner.hardware.fakeusb.usb3105 import make_usb3105
 from protocol_runner.hardware.interfaces import Clock
 from protocol_runner.hardware.usb_common import (
     DT_VENDOR_ID,
@@ -32,6 +29,9 @@ from protocol_runner.hardware.usb_common import (
     realtime_priority,
     udev_rule_text,
 )
+from tests.fakeusb.backend import FakeBackend
+from tests.fakeusb.usb1608fs import make_usb1608fs
+from tests.fakeusb.usb3105 import make_usb3105
 
 RULE_FILE = Path(__file__).resolve().parents[2] / "packaging" / "udev" / UDEV_RULE_FILENAME
 

@@ -9,16 +9,16 @@ import pytest
 
 from protocol_runner.hardware.board_group import BoardGroup
 from protocol_runner.hardware.conversions import RSST_JOINTS, angle_to_volts
-from protocol_runner.hardware.fakeusb.backend import FakeBackend
-from protocol_runner.hardware.fakeusb.device import Faults
-from protocol_runner.hardware.fakeusb.usb1608fs import ManualClock, Usb1608FsModel, make_usb1608fs
-from protocol_runner.hardware.fakeusb.usb3105 import Usb3105Model, make_usb3105
 from protocol_runner.hardware.joint import JointConfig
 from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.usb1608fs import open_all_1608fs
 from protocol_runner.hardware.usb3105 import Usb3105
 from protocol_runner.hardware.usb_common import DeviceGone
+from tests.fakeusb.backend import FakeBackend
+from tests.fakeusb.device import Faults
+from tests.fakeusb.usb1608fs import ManualClock, Usb1608FsModel, make_usb1608fs
+from tests.fakeusb.usb3105 import Usb3105Model, make_usb3105
 
 KNEE = RSST_JOINTS[9]
 

@@ -12,7 +12,7 @@ import pytest
 
 from protocol_runner.errors import EXIT_STOPPED_BY_CHECK, WatchdogTripped
 from protocol_runner.hardware.motion import run_motion
-from protocol_runner.hardware.paced import READ_EVERY_TICKS
+from protocol_runner.hardware.rig import READ_EVERY_TICKS
 from protocol_runner.hardware.simulator.daq import SimulatedRig
 from protocol_runner.hardware.stream import STOP
 from protocol_runner.hardware.watchdog import watchdog_limits

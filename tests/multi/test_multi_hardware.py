@@ -12,8 +12,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from protocol_runner.errors import Interrupted
-from protocol_runner.hardware.fakeusb.backend import FakeBackend
-from protocol_runner.hardware.fakeusb.usb3105 import AOUT, AOUT_SYNC, make_usb3105
 from protocol_runner.hardware.motion import run_motion
 from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyViolation
@@ -23,6 +21,8 @@ from protocol_runner.hardware.stream import STOP, TRAJECTORY, build_motion_strea
 from protocol_runner.hardware.usb3105 import Usb3105
 from protocol_runner.protocol.loader import load_protocol
 from protocol_runner.session.rigs import joint_config
+from tests.fakeusb.backend import FakeBackend
+from tests.fakeusb.usb3105 import AOUT, AOUT_SYNC, make_usb3105
 
 REPO = Path(__file__).resolve().parents[2]
 LEG = load_protocol(REPO / "protocols" / "leg_phase2.yaml")

@@ -20,7 +20,7 @@ import pytest
 
 from protocol_runner.commands import resume, run, verify
 from protocol_runner.errors import EXIT_STOPPED_BY_CHECK, WatchdogTripped
-from protocol_runner.hardware.paced import READ_EVERY_TICKS
+from protocol_runner.hardware.rig import READ_EVERY_TICKS
 from protocol_runner.hardware.simulator.daq import SimulatedRig
 from protocol_runner.hardware.simulator.scan import TRANSFER_S
 from protocol_runner.hardware.stream import STOP, TRAJECTORY

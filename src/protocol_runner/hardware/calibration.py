@@ -70,10 +70,6 @@ class CalibrationTable:
     def n_points(self) -> int:
         return int(self.x.shape[0])
 
-    @property
-    def increasing(self) -> bool:
-        return bool(self.y[-1] > self.y[0])
-
     def __call__(self, x: npt.ArrayLike) -> FloatArray:
         """Map `x` through the table: linear interpolation inside, linear extrapolation outside."""
         values = np.asarray(x, dtype=np.float64)
@@ -116,11 +112,6 @@ def _table_problem(x: FloatArray, y: FloatArray) -> str | None:
     if not ((dy > 0).all() or (dy < 0).all()):
         return "y must be strictly monotonic (all increasing or all decreasing) so the table can be inverted"
     return None
-
-
-def identity_table(lo: float, hi: float, x_name: str, y_name: str) -> CalibrationTable:
-    """A two-point identity table over [lo, hi] (no calibration)."""
-    return CalibrationTable(np.array([lo, hi]), np.array([lo, hi]), x_name, y_name, source="identity")
 
 
 def load_calibration_table(path: Path | str) -> CalibrationTable:

@@ -70,16 +70,6 @@ RSST_JOINTS: dict[int, RsstJoint] = {
 """The 12 actuated RSST joints by number (thesis Tables 1, 2 and 3)."""
 
 
-def rsst_joint_by_name(name: str) -> RsstJoint:
-    """Look a joint up by its Table 1 description, case- and separator-insensitively ("knee_flexion")."""
-    key = name.strip().lower().replace("_", " ").replace("-", " ")
-    for joint in RSST_JOINTS.values():
-        if joint.name.lower() == key:
-            return joint
-    known = ", ".join(j.name for j in RSST_JOINTS.values())
-    raise InvalidInput(f"unknown RSST joint {name!r}; known joints: {known}")
-
-
 def _check_range(pair: tuple[float, float], what: str) -> tuple[float, float]:
     lo, hi = float(pair[0]), float(pair[1])
     if not (np.isfinite(lo) and np.isfinite(hi) and hi > lo):

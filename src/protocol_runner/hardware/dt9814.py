@@ -32,6 +32,7 @@ import usb.core
 import usb.util
 
 from protocol_runner.errors import InvalidInput
+from protocol_runner.hardware.conversions import ai12_code_to_volts
 from protocol_runner.hardware.usb_board import OpenedBoard, TransportSettings
 from protocol_runner.hardware.usb_common import (
     DRY_RUN_HINT,
@@ -83,11 +84,6 @@ class Dt9814Settings(TransportSettings):
     mux_shift: int = 5
     gain_bits: int = 0x01  # gain 1 on the +-10 V board: the amplifier runs at x2 behind a x0.5 front end
     conversion_retries: int = 3
-
-
-def code12_to_volts(code: int) -> float:
-    """12-bit two's complement +-10 V: ``V = 20 * code / 4096``."""
-    return 20.0 * code / 4096.0
 
 
 def sign_extend_12(raw: int) -> int:
@@ -250,7 +246,7 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
 
     def read_volts(self, channel: int) -> float:
         """One sample of `channel` in volts (``20 * code / 4096``)."""
-        return code12_to_volts(self.read_code(channel))
+        return float(ai12_code_to_volts(self.read_code(channel)))
 
     # ---- information ---------------------------------------------------------------------------------
     @property
@@ -268,4 +264,4 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
         """The DT9812 protocol has no LED command: nothing to do (kept for a uniform board API)."""
 
 
-__all__ = ["Dt9814", "Dt9814Info", "Dt9814Settings", "code12_to_volts", "sign_extend_12"]
+__all__ = ["Dt9814", "Dt9814Info", "Dt9814Settings", "sign_extend_12"]

@@ -33,6 +33,7 @@ UNVERIFIED on hardware: tested only against a fake of this API (`tests/hardware/
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import importlib
 from collections.abc import Sequence
@@ -318,12 +319,7 @@ def open_all_mcculw_1608fs(
         serials = list_serials(api, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND)
     if not serials:
         create_board(api, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND, None)  # raises not found
-    boards: list[McculwUsb1608Fs] = []
-    try:
-        for s in serials:
-            boards.append(McculwUsb1608Fs.open(s, clock=clock, api=api))
-    except BaseException:
-        for b in boards:
-            b.close()
-        raise
+    with contextlib.ExitStack() as opened:  # a board that fails to open closes those opened before it
+        boards = [opened.enter_context(McculwUsb1608Fs.open(s, clock=clock, api=api)) for s in serials]
+        opened.pop_all()
     return boards

@@ -7,15 +7,24 @@ order), with each joint's channels and calibration. One joint (the knee campaign
 1. safety envelope (`hardware/safety.py`) on every joint's samples - a violation raises before any write;
 2. command look-up table, real -> input angle (thesis §2.5.1);
 3. Eq 1, angle -> volts over the joint's range; clamp to ±10 V;
-4. the paced loop (`hardware/paced.py`): start the input scan ([angle_0, torque_0, angle_1, torque_1, ...]
-   at the input rate), then for each output tick k sleep until t0 + k / output_rate_hz, write every joint's
-   volts, record the write time; read the scan every `READ_EVERY_TICKS` ticks; after the last tick wait one
-   more tick and stop the scan. One joint: one `write_volts` per tick; several: one synchronous update of
-   every joint's channel per tick (`AnalogOutput.write_volts_sync`: on the USB-3105 each channel's AOUT with
+4. the paced loop (`Rig.send`): start the input scan ([angle_0, torque_0, angle_1, torque_1, ...] at
+   the input rate), then for each output tick k sleep until t0 + k / output_rate_hz, write every joint's
+   volts, record the write time; read the scan (and poll the stop request) every `READ_EVERY_TICKS` ticks;
+   after the last tick wait one more tick and stop the scan. One joint: one `write_volts` per tick;
+   several: one synchronous update of every joint's channel per tick (`AnalogOutput.write_volts_sync`: on the USB-3105 each channel's AOUT with
    the "wait for sync" flag, then one AOUT_SYNC that latches them together, thesis §2.3: the boards control
    "the 12 joints ... simultaneously");
 5. telemetry: the scan's volts -> Eq 2 (angle) and Eq 3 (torque) -> the angle and torque look-up tables
    (output -> real, thesis §2.5.1-2.5.2).
+
+On a stop request `on_stop(written)`, if given, returns the samples to send next in the same loop (no
+pause: the output would hold), then `Interrupted` is raised. The watchdog (`hardware/watchdog.py`) checks
+every block as it is read: a measured signal beyond its limit stops the loop as a stop request does, then
+its `WatchdogTripped` (exit 4) is raised instead; parking is not watched. An error or an interruption
+carries what was recorded so far (`partial_recording`). The live monitor (`tap`) is started with every
+joint's commands (restarted on the samples a stop sends, shown as parking) and shown every block read.
+The hardware bench and a dry run run this same loop: the DAQ simulator's boards satisfy the same
+interfaces, and its clock jumps instead of sleeping.
 
 The recording is one `TrialRecording` per joint, all on the same time base (the same command and input
 times, the same tick lateness). Times count from t0, the clock reading just after the scan started (the
@@ -30,22 +39,58 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable, Sequence
-from dataclasses import replace
-from typing import ClassVar
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
 
-from protocol_runner.errors import InvalidInput
+from protocol_runner.errors import Interrupted, InvalidInput, WatchdogTripped
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock, LoopTap, ScanBlock
-from protocol_runner.hardware.joint import JointConfig, StopRequested, TrialRecording
-from protocol_runner.hardware.paced import Loop, PacedLoop, input_time_base_s
+from protocol_runner.hardware.joint import JointConfig, OnStop, StopRequested, TrialRecording
 from protocol_runner.hardware.safety import check_trajectory, parking_ramp_deg
+from protocol_runner.hardware.watchdog import LoopWatch
 
 FloatArray = npt.NDArray[np.float64]
 
+READ_EVERY_TICKS = 10
+"""Output ticks between two reads of the input scan (100 ms at 100 Hz: 100 rows per read at 1 kHz)."""
 
-class Rig(PacedLoop[tuple[TrialRecording, ...]]):
+
+def schedule_s(t0: float, n: int, dt: float) -> list[float]:
+    """The write times of ticks 0..n (tick n: one more tick, when the scan stops)."""
+    times: list[float] = (t0 + np.arange(n + 1, dtype=np.float64) * dt).tolist()
+    return times
+
+
+def input_time_base_s(scan: ScanBlock, t0: float, input_rate_hz: float) -> FloatArray:
+    """Input row times relative to t0 from sample indices (both boards are paced: output by the schedule,
+    input by the scan clock), so they do not depend on where the clock stood: a trial recorded at another
+    moment has bit-identical time bases. The scan's start offset is kept to 1 us."""
+    n_in = int(scan.t_s.shape[0])
+    offset = round((float(scan.t_s[0]) - t0) * 1e6) / 1e6 if n_in else 0.0
+    times: FloatArray = offset + np.arange(n_in, dtype=np.float64) / input_rate_hz
+    return times
+
+
+@dataclass(eq=False)
+class Loop:
+    """One loop's samples as far as they go: the commands (ticks first), their volts and codes (None where
+    not written yet), the write times, the schedule, the scan blocks read and t0."""
+
+    cmd: FloatArray
+    volts: FloatArray
+    codes: list[object]
+    actual: list[float]
+    schedule: list[float]
+    blocks: list[ScanBlock]
+    t0: float
+
+    def written(self) -> int:
+        """How many ticks were written (the first unwritten code, else all)."""
+        return self.codes.index(None) if None in self.codes else len(self.codes)
+
+
+class Rig:
     """Binds one analog output, one analog input and a clock to one or several joints (channel order)."""
 
     def __init__(
@@ -83,10 +128,6 @@ class Rig(PacedLoop[tuple[TrialRecording, ...]]):
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(j.name for j in self.joints)
-
-    @property
-    def watched_joints(self) -> tuple[JointConfig, ...]:
-        return self.joints
 
     @property
     def scan_channels(self) -> tuple[int, ...]:
@@ -210,17 +251,105 @@ class Rig(PacedLoop[tuple[TrialRecording, ...]]):
         """`where`, naming the joint when the rig drives several."""
         return where if len(self.joints) == 1 else f"{where}, joint {joint.name}"
 
-    # ---- the paced loop (`PacedLoop.send`) ----------------------------------------------------------
-    UNWRITTEN: ClassVar[object] = None
+    # ---- the paced loop ---------------------------------------------------------------------------------
+    def send(
+        self,
+        cmd: FloatArray,
+        *,
+        where: str,
+        stop_requested: StopRequested | None,
+        on_stop: OnStop | None = None,
+        watch: bool = True,
+    ) -> tuple[TrialRecording, ...]:
+        """The paced loop over samples already checked (ticks x joints). On a stop request `on_stop(written)`,
+        if given, returns the samples to send next in the same loop; then `Interrupted` carries the whole
+        recording. `watch`: run the watchdog on the measured signals (a tripped watchdog stops the loop
+        the same way, then raises its `WatchdogTripped`)."""
+        cmd = np.asarray(cmd, dtype=np.float64)
+        volts = self._command_volts(cmd)
+        self.prepare()
+        n = int(cmd.shape[0])
+        dt = 1.0 / self.output_rate_hz
+        write = self._tick_writer(volts)
+        codes: list[object] = [None] * n
+        actual: list[float] = [0.0] * n
+        blocks: list[ScanBlock] = []
 
-    @property
-    def rates_hz(self) -> tuple[float, float]:
-        return (self.output_rate_hz, self.input_rate_hz)
+        # Bind everything the loop touches to locals: attribute lookups cost more than the work itself.
+        sleep_until = self.clock.sleep_until
+        now = self.clock.now_s
+        read = self.ai.read_available
+        append = blocks.append
+
+        self.ai.start_scan(self.scan_channels, self.input_rate_hz)
+        t0 = now()
+        schedule = schedule_s(t0, n, dt)
+        loop = Loop(cmd, volts, codes, actual, schedule, blocks, t0)
+        stopped = ""
+        watchdog = LoopWatch(self.joints, t0, self.output_rate_hz, where) if watch else None
+        tripped: WatchdogTripped | None = None
+        tap = self.tap
+        if tap is not None:
+            tap.start(where, cmd, t0)
+        try:
+            start = 0
+            while start < n:
+                end = min(start + READ_EVERY_TICKS, n)
+                for k in range(start, end):
+                    sleep_until(schedule[k])
+                    actual[k] = now()
+                    codes[k] = write(k)
+                append(read())
+                if watchdog is not None and not stopped:
+                    tripped = watchdog.check(blocks[-1], cmd, end)
+                stop_now = not stopped and (
+                    tripped is not None or (stop_requested is not None and stop_requested())
+                )
+                start = end
+                if tap is not None:
+                    tap.scan(blocks[-1])
+                if stop_now:
+                    stopped = f"{where}: stopped on request at t = {schedule[end - 1] - t0:.2f} s"
+                    if on_stop is None:
+                        raise tripped or Interrupted(stopped)
+                    # continue in the same loop with what the stop sends (no pause: the output would hold)
+                    tail = on_stop(end)
+                    tail_volts = self._command_volts(tail)
+                    cmd = np.concatenate([cmd[:end], tail])
+                    volts = np.concatenate([volts[:end], tail_volts])
+                    # only the tail is prepared for writing (between two ticks, while the robot moves)
+                    write, n = _from_tick(self._tick_writer(tail_volts), end), int(cmd.shape[0])
+                    codes[end:] = [None] * (n - end)
+                    actual[end:] = [0.0] * (n - end)
+                    schedule = schedule_s(t0, n, dt)
+                    loop.cmd, loop.volts, loop.schedule = cmd, volts, schedule
+                    if tap is not None:
+                        tap.start(f"{where} (park)", cmd, t0)
+            sleep_until(schedule[n])  # one more tick: the scan covers the response to the last command
+            if stopped:
+                raise tripped or Interrupted(stopped)
+        except BaseException as exc:
+            self._note_written(cmd, loop.written())
+            with contextlib.suppress(Exception):  # the original error matters more than a failing stop
+                append(self.ai.stop_scan())
+                if tap is not None:
+                    tap.scan(blocks[-1])
+            # keep the data recorded so far with the error (a board that vanished mid-trial: the session
+            # archives it as a failed trial)
+            with contextlib.suppress(Exception):
+                exc.partial_recording = self._recording(loop, where, partial=True)  # type: ignore[attr-defined]
+            raise
+        append(self.ai.stop_scan())
+        if tap is not None:  # the rows a board hands over when it stops (the simulator's last transfer)
+            tap.scan(blocks[-1])
+        self._note_written(cmd, n)
+        return self._recording(loop, where, partial=False)
 
     def _command_volts(self, cmd: FloatArray) -> FloatArray:
         return np.stack([j.command_to_volts(cmd[:, k]) for k, j in enumerate(self.joints)], axis=1)
 
     def _tick_writer(self, volts: FloatArray) -> Callable[[int], object]:
+        """Writes tick k of `volts` and returns its code(s)."""
         if len(self.joints) == 1:  # one board write per tick: nothing to latch together
             write, channel, column = self.ao.write_volts, self.joints[0].output_channel, volts[:, 0].tolist()
             return lambda k: write(channel, column[k])
@@ -244,7 +373,7 @@ class Rig(PacedLoop[tuple[TrialRecording, ...]]):
         """Each joint's recording of the samples written (commands, their volts and codes, each tick's
         lateness) and of its scan columns (angle 2k, torque 2k+1), in its units, all on the same time base;
         `partial`: what an aborted loop recorded before it stopped."""
-        n = loop.written(self.UNWRITTEN) if partial else loop.n
+        n = loop.written() if partial else int(loop.cmd.shape[0])
         n_columns = 2 * len(self.joints)
         scan = ScanBlock.concatenate(loop.blocks, n_columns)
         if scan.codes.ndim != 2 or scan.codes.shape[1] != n_columns:
@@ -283,3 +412,8 @@ class Rig(PacedLoop[tuple[TrialRecording, ...]]):
                 )
             )
         return tuple(out)
+
+
+def _from_tick(write: Callable[[int], object], first: int) -> Callable[[int], object]:
+    """`write` (of samples indexed from 0) for ticks numbered from `first`."""
+    return lambda k: write(k - first)

@@ -23,6 +23,7 @@ UNVERIFIED on hardware: tested only against a fake of this API (`tests/hardware/
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Sequence
 from types import ModuleType
 from typing import Any
@@ -238,12 +239,7 @@ def open_all_uldaq_1608fs(
         ]
         if not serials:
             pick_descriptor(lib, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND, None)  # not found
-    boards: list[UldaqUsb1608Fs] = []
-    try:
-        for s in serials:
-            boards.append(UldaqUsb1608Fs.open(s, clock=clock, lib=lib))
-    except BaseException:
-        for b in boards:
-            b.close()
-        raise
+    with contextlib.ExitStack() as opened:  # a board that fails to open closes those opened before it
+        boards = [opened.enter_context(UldaqUsb1608Fs.open(s, clock=clock, lib=lib)) for s in serials]
+        opened.pop_all()
     return boards

@@ -9,6 +9,7 @@ UNVERIFIED on hardware: the calibration-memory address layout and that wValue ca
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import struct
@@ -21,6 +22,7 @@ import numpy.typing as npt
 import usb.core
 
 from protocol_runner.errors import InvalidInput
+from protocol_runner.hardware.conversions import ai16_code_to_volts
 from protocol_runner.hardware.interfaces import Clock, ScanBlock
 from protocol_runner.hardware.usb1608fs_protocol import (
     CMD_AIN_CLR_FIFO,
@@ -41,7 +43,6 @@ from protocol_runner.hardware.usb1608fs_protocol import (
     REQ_IN,
     REQ_OUT,
     STATUS_OVERRUN,
-    codes_to_volts_pm10,
     pacer_period,
     pacer_rate_hz,
 )
@@ -53,6 +54,7 @@ from protocol_runner.hardware.usb_common import (
     MonotonicClock,
     ScanOverrun,
     bcd_to_text,
+    check_scan_channels,
     claim_interface,
     find_board,
     find_devices,
@@ -212,21 +214,10 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
     def resolution_bits(self) -> int:
         return 16
 
-    @property
-    def scan_rate_hz(self) -> float:
-        """The rate the pacer really runs at (after rounding the pacer register)."""
-        return self._rate_hz
-
     def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
         """Start a continuous hardware-paced scan of `channels` (0-7, any order) at `rate_hz` rows/s."""
-        chans = [int(c) for c in channels]
-        if not chans:
-            raise InvalidInput(f"{KIND}: give at least one input channel to scan")
-        if len(set(chans)) != len(chans) or any(not 0 <= c < N_CHANNELS for c in chans):
-            raise InvalidInput(
-                f"{KIND}: scan channels must be distinct numbers 0-{N_CHANNELS - 1}; got {chans}"
-            )
-        if not (math.isfinite(rate_hz) and PACER_CLOCK_HZ / 2**32 < rate_hz <= MAX_RATE_HZ):
+        chans = check_scan_channels(KIND, channels, N_CHANNELS, rate_hz)
+        if not PACER_CLOCK_HZ / 2**32 < rate_hz <= MAX_RATE_HZ:
             raise InvalidInput(f"{KIND}: scan rate must be between 0.01 Hz and 100 kHz; got {rate_hz!r}")
         if self._scanning:
             raise InvalidInput(f"the {self.name} is already scanning; stop_scan() first")
@@ -333,7 +324,7 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
         codes = np.clip(corrected, 0, 65535).astype(np.int32)[:, self._order]
         t_s = self._t0 + (self._rows_emitted + np.arange(nrows, dtype=np.float64)) / self._rate_hz
         self._rows_emitted += nrows
-        return ScanBlock(t_s=t_s, codes=np.ascontiguousarray(codes), volts=codes_to_volts_pm10(codes))
+        return ScanBlock(t_s=t_s, codes=np.ascontiguousarray(codes), volts=ai16_code_to_volts(codes))
 
     def read_available(self) -> ScanBlock:
         """Every complete row received since the last call (calibrated codes, volts, times)."""
@@ -377,12 +368,7 @@ def open_all_1608fs(
         if not serials:
             ids = f"VID 0x{MCC_VENDOR_ID:04X} PID 0x{PRODUCT_ID:04X}"
             select_device([], None, KIND, ids)  # raises the not-found error
-    boards: list[Usb1608FsPlus] = []
-    try:
-        for s in serials:
-            boards.append(Usb1608FsPlus.open(s, backend, clock=clock, settings=settings))
-    except BaseException:
-        for b in boards:
-            b.close()
-        raise
+    with contextlib.ExitStack() as opened:  # a board that fails to open closes those opened before it
+        boards = [opened.enter_context(Usb1608FsPlus.open(s, backend, clock=clock, settings=settings)) for s in serials]
+        opened.pop_all()
     return boards

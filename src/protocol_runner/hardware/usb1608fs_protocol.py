@@ -1,5 +1,5 @@
 """The USB-1608FS-Plus's USB protocol facts (from public sources; docs/hardware.md): ids, commands,
-status bits, the pacer clock and the code-to-volts conversion of its +-10 V range.
+status bits and the pacer clock (its +-10 V codes: `conversions.ai16_code_to_volts`).
 
 Protocol (reference "USB facts"; vendor control transfers bmRequestType 0xC0 in / 0x40 out, wIndex 0):
 
@@ -14,9 +14,6 @@ Protocol (reference "USB facts"; vendor control transfers bmRequestType 0xC0 in 
 """
 
 from __future__ import annotations
-
-import numpy as np
-import numpy.typing as npt
 
 PRODUCT_ID = 0x00EA
 KIND = "USB-1608FS-Plus"
@@ -37,7 +34,6 @@ CMD_BLINK_LED = 0x41
 CMD_STATUS = 0x44
 CMD_SERIAL = 0x48
 
-STATUS_RUNNING = 0x02
 STATUS_OVERRUN = 0x04
 
 
@@ -50,7 +46,3 @@ def pacer_rate_hz(pacer: int) -> float:
     """The row rate a pacer register value really gives: ``40 MHz / (pacer + 1)``."""
     return PACER_CLOCK_HZ / (pacer + 1)
 
-
-def codes_to_volts_pm10(codes: npt.NDArray[np.int32]) -> npt.NDArray[np.float64]:
-    """+-10 V range: ``V = (k - 32768) * 10 / 32768``."""
-    return (codes.astype(np.float64) - 32768.0) * (10.0 / 32768.0)

@@ -262,10 +262,6 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
         self._send(bytes((CMD_AOUT_CONFIG, channel, RANGE_PM10V)), f"configuring output channel {channel}")
         self._configured.add(channel)
 
-    @property
-    def configured_channels(self) -> frozenset[int]:
-        return frozenset(self._configured)
-
     def code_for(self, channel: int, volts: float) -> int:
         """The calibrated code `write_volts` would send (no I/O)."""
         self._check_channel(channel)

@@ -21,16 +21,17 @@ from __future__ import annotations
 import contextlib
 import errno as errno_codes
 import logging
+import math
 import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import usb.core
 import usb.util
 
-from protocol_runner.errors import HardwareUnavailable
+from protocol_runner.errors import HardwareUnavailable, InvalidInput
 
 UDEV_RULE_FILENAME = "60-protocol-runner-daq.rules"
 """The udev rule shipped in `packaging/udev/` that lets a non-root user open the boards."""
@@ -288,6 +289,20 @@ def release_device(device: usb.core.Device, interface: int) -> None:
         usb.util.release_interface(device, interface)
     with contextlib.suppress(usb.core.USBError, ValueError):
         usb.util.dispose_resources(device)
+
+
+def check_scan_channels(kind: str, channels: Sequence[int], n_channels: int, rate_hz: float) -> list[int]:
+    """The scan's channels as ints, refused when empty, repeated or outside the board, or at a bad rate."""
+    chans = [int(c) for c in channels]
+    if not chans:
+        raise InvalidInput(f"{kind}: give at least one input channel to scan")
+    if len(set(chans)) != len(chans) or any(not 0 <= c < n_channels for c in chans):
+        raise InvalidInput(f"{kind}: scan channels must be distinct numbers 0-{n_channels - 1}; got {chans}")
+    if not (math.isfinite(rate_hz) and rate_hz > 0):
+        raise InvalidInput(
+            f"{kind}: the scan rate must be a positive number of rows per second; got {rate_hz!r}"
+        )
+    return chans
 
 
 def bcd_to_text(bcd: int) -> str:

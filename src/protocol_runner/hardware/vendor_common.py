@@ -4,8 +4,8 @@ channels into the contiguous runs a synchronous update takes, and the reader of 
 circular buffer.
 
 Both libraries apply the boards' calibration themselves and hand back volts: the codes these backends
-report are the ideal 16-bit codes of those volts on the ±10 V range (``k = 32768 + 3276.8 V``), the same
-scale as the pyusb drivers' codes (`usb1608fs_protocol.codes_to_volts_pm10`).
+report are the ideal 16-bit codes of those volts on the ±10 V range (``k = 32768 + 3276.8 V``,
+`conversions.volts_to_ao16_code` / `volts_to_ai16_code`), the same scale as the pyusb drivers' codes.
 """
 
 from __future__ import annotations
@@ -27,14 +27,13 @@ import numpy.typing as npt
 
 from protocol_runner.errors import HardwareUnavailable, InvalidInput
 from protocol_runner.hardware import usb1608fs_protocol, usb3105
+from protocol_runner.hardware.conversions import VOLTS_RANGE, volts_to_ai16_code, volts_to_ao16_code
 from protocol_runner.hardware.interfaces import Clock, ScanBlock
-from protocol_runner.hardware.usb_common import BoardIoError, ScanOverrun
+from protocol_runner.hardware.usb_common import BoardIoError, ScanOverrun, check_scan_channels
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
 
-CODES_PER_VOLT_PM10 = 32768.0 / 10.0
-VOLTS_PM10 = (-10.0, 10.0)
 
 
 class VendorLibraryMissing(InvalidInput):
@@ -71,22 +70,12 @@ def _installed(package: str) -> bool:
     return importlib.util.find_spec(package) is not None
 
 
-def volts_to_code_pm10(volts: float) -> int:
-    """The ideal 16-bit code of `volts` on the ±10 V range, clamped to 0..65535."""
-    return int(min(65535, max(0, round(32768.0 + CODES_PER_VOLT_PM10 * volts))))
-
-
-def codes_of_volts_pm10(volts: npt.NDArray[np.float64]) -> npt.NDArray[np.int32]:
-    """`volts_to_code_pm10` of every element."""
-    return np.clip(np.rint(32768.0 + CODES_PER_VOLT_PM10 * volts), 0, 65535).astype(np.int32)
-
-
 def checked_volts(channel: int, volts: float) -> float:
     """A finite output voltage, clamped to ±10 V (as the pyusb driver clamps its code)."""
     volts = float(volts)
     if not math.isfinite(volts):
         raise InvalidInput(f"output channel {channel}: volts must be a finite number, got {volts!r}")
-    return min(VOLTS_PM10[1], max(VOLTS_PM10[0], volts))
+    return min(VOLTS_RANGE[1], max(VOLTS_RANGE[0], volts))
 
 
 def contiguous_runs(channels: Sequence[int]) -> list[list[int]]:
@@ -102,20 +91,6 @@ def contiguous_runs(channels: Sequence[int]) -> list[list[int]]:
         else:
             runs.append([ch])
     return runs
-
-
-def check_scan_channels(kind: str, channels: Sequence[int], n_channels: int, rate_hz: float) -> list[int]:
-    """The scan's channels as ints, refused when empty, repeated or outside the board, or at a bad rate."""
-    chans = [int(c) for c in channels]
-    if not chans:
-        raise InvalidInput(f"{kind}: give at least one input channel to scan")
-    if len(set(chans)) != len(chans) or any(not 0 <= c < n_channels for c in chans):
-        raise InvalidInput(f"{kind}: scan channels must be distinct numbers 0-{n_channels - 1}; got {chans}")
-    if not (math.isfinite(rate_hz) and rate_hz > 0):
-        raise InvalidInput(
-            f"{kind}: the scan rate must be a positive number of rows per second; got {rate_hz!r}"
-        )
-    return chans
 
 
 class ScanRing:
@@ -182,6 +157,15 @@ class VendorBoard(ABC):
 
     @abstractmethod
     def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None: ...
+
+    @abstractmethod
+    def close(self) -> None: ...
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
     @property
     def serial(self) -> str:
@@ -250,11 +234,6 @@ class VendorScanInput(VendorBoard):
     def resolution_bits(self) -> int:
         return 16
 
-    @property
-    def scan_rate_hz(self) -> float:
-        """The rate the library set (it may differ a little from the one asked for)."""
-        return self._rate_hz
-
     def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
         """Start a continuous scan of `channels` (0-7, any order) at `rate_hz` rows per second."""
         chans = check_scan_channels(self.kind, channels, self.n_channels, rate_hz)
@@ -285,7 +264,7 @@ class VendorScanInput(VendorBoard):
         n = volts.shape[0]
         t_s = self._t0 + (self._rows_emitted + np.arange(n, dtype=np.float64)) / self._rate_hz
         self._rows_emitted += n
-        return ScanBlock(t_s=t_s, codes=codes_of_volts_pm10(volts), volts=volts)
+        return ScanBlock(t_s=t_s, codes=volts_to_ai16_code(volts), volts=volts)
 
     def _take(self, *, stopping: bool = False) -> npt.NDArray[np.float64]:
         assert self._ring is not None
@@ -343,12 +322,6 @@ class VendorScanInput(VendorBoard):
         self._closed = True
         self._call("closing the board", self._release)
 
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
 
 class VendorAnalogOutput(VendorBoard):
     """An `AnalogOutput` over a vendor library (the USB-3105: 16 channels, ±10 V, software-paced).
@@ -372,10 +345,6 @@ class VendorAnalogOutput(VendorBoard):
 
     @abstractmethod
     def _write_run(self, low: int, volts: Sequence[float]) -> None: ...
-
-    @property
-    def configured_channels(self) -> frozenset[int]:
-        return frozenset(self._configured)
 
     def _call(self, action: str, fn: Callable[[], T]) -> T:
         if self._closed:
@@ -412,7 +381,7 @@ class VendorAnalogOutput(VendorBoard):
         """Output `volts` on `channel` now; return its ±10 V code."""
         v = self._checked(channel, volts)
         self._call(f"writing output channel {channel}", lambda: self._write(channel, v))
-        return volts_to_code_pm10(v)
+        return int(volts_to_ao16_code(v))
 
     def write_volts_sync(self, volts_by_channel: Mapping[int, float]) -> dict[int, int]:
         """Output several channels: each contiguous run of channels updated together."""
@@ -422,7 +391,7 @@ class VendorAnalogOutput(VendorBoard):
                 f"writing output channels {run[0]}-{run[-1]}",
                 partial(self._write_run, run[0], [volts[ch] for ch in run]),
             )
-        return {ch: volts_to_code_pm10(v) for ch, v in volts.items()}
+        return {ch: int(volts_to_ao16_code(v)) for ch, v in volts.items()}
 
     def close(self) -> None:
         """Let the board go (idempotent); the outputs keep their last value."""
@@ -432,9 +401,3 @@ class VendorAnalogOutput(VendorBoard):
             self._call("closing the board", self._release)
         finally:
             self._closed = True
-
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -1,8 +1,8 @@
 """The watchdog on MEASURED signals: the safety envelope (`hardware/safety.py`) checks what is commanded
 before anything is written; the watchdog checks what the joint does while it moves.
 
-The paced loop (`hardware/paced.py`) hands it every scan block as it reads it (every `READ_EVERY_TICKS`
-output ticks, 100 ms). For every watched joint it checks, row by row:
+The paced loop (`Rig.send`, `hardware/rig.py`) hands it every scan block as it reads it (every
+`READ_EVERY_TICKS` output ticks, 100 ms). For every watched joint it checks, row by row:
 
 1. the measured torque (Eq 3 and the torque look-up table) inside `torque_limits_nm`, the joint's torque
    range scaled by the protocol's `torque_margin` (1.0: the range itself);

@@ -18,8 +18,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-from protocol_runner.hardware.fakeusb.descriptors import ENDPOINT_INTERRUPT, UsbIdentity, single_interface
-from protocol_runner.hardware.fakeusb.device import FakeUsbDevice, Faults, Setup, Stall
+from tests.fakeusb.descriptors import ENDPOINT_INTERRUPT, UsbIdentity, single_interface
+from tests.fakeusb.device import FakeUsbDevice, Faults, Setup, Stall
 
 N_CHANNELS = 16
 MEMORY_SIZE = 0x400

@@ -19,8 +19,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import ClassVar
 
-from protocol_runner.hardware.fakeusb.descriptors import ENDPOINT_BULK, UsbIdentity, single_interface
-from protocol_runner.hardware.fakeusb.device import FakeUsbDevice, Faults, Stall
+from tests.fakeusb.descriptors import ENDPOINT_BULK, UsbIdentity, single_interface
+from tests.fakeusb.device import FakeUsbDevice, Faults, Stall
 
 BOARD_INFO_ADDR = 0xFBFF
 

@@ -19,8 +19,8 @@ from collections.abc import Iterator
 import usb.backend
 import usb.core
 
-from protocol_runner.hardware.fakeusb.descriptors import Descriptor, descriptor
-from protocol_runner.hardware.fakeusb.device import (
+from tests.fakeusb.descriptors import Descriptor, descriptor
+from tests.fakeusb.device import (
     FakeUsbDevice,
     Setup,
     Stall,

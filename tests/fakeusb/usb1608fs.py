@@ -21,8 +21,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from protocol_runner.hardware.fakeusb.descriptors import ENDPOINT_BULK, UsbIdentity, single_interface
-from protocol_runner.hardware.fakeusb.device import FakeUsbDevice, Faults, Setup, Stall
+from tests.fakeusb.descriptors import ENDPOINT_BULK, UsbIdentity, single_interface
+from tests.fakeusb.device import FakeUsbDevice, Faults, Setup, Stall
 
 N_CHANNELS = 8
 N_RANGES = 8

@@ -1,7 +1,7 @@
 """Fake USB for tests and benchmarks: a pyusb backend (`FakeBackend`) and byte-level board models.
 
-    from protocol_runner.hardware.fakeusb.backend import FakeBackend
-    from protocol_runner.hardware.fakeusb.usb3105 import make_usb3105
+    from tests.fakeusb.backend import FakeBackend
+    from tests.fakeusb.usb3105 import make_usb3105
 
     board = make_usb3105(serial="01A2B3C4")
     ao = Usb3105.open(backend=FakeBackend(board))

@@ -9,7 +9,7 @@ from typing import Any, ClassVar, Self
 
 import usb.core
 
-from protocol_runner.hardware.fakeusb.descriptors import EndpointSpec, InterfaceSpec, UsbIdentity
+from tests.fakeusb.descriptors import EndpointSpec, InterfaceSpec, UsbIdentity
 
 LIBUSB_ERROR_ACCESS = -3
 LIBUSB_ERROR_NO_DEVICE = -4
