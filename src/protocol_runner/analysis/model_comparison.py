@@ -115,7 +115,7 @@ def heldout_rmse_nm(motions: Sequence[Motion], fit: ElementModelFit) -> float:
             x = np.asarray(
                 Problem.of(lay, [o for j, o in enumerate(motions) if j != i]).solve(x0, HELDOUT_TOL).x
             )
-        r = (model_torque_nm(lay, lay.values(x), m) - m.torque_nm)[m.settled :]
+        r = (model_torque_nm(lay, lay.values(x), m) - m.torque_nm)[m.compared]
         sq += float(r @ r)
         count += r.size
     return math.sqrt(sq / count) if count else math.nan

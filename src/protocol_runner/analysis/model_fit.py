@@ -209,7 +209,7 @@ def fit_element_model(motions: Sequence[Motion], lay: ModelLayout) -> ElementMod
     problem = Problem.of(lay, motions)
     s = problem.stacked
     y = s.torque_nm[s.compared]
-    edges = np.concatenate([[0], np.cumsum([m.torque_nm.size - m.settled for m in motions])]).astype(np.int64)
+    edges = np.concatenate([[0], np.cumsum([np.count_nonzero(m.compared) for m in motions])]).astype(np.int64)
 
     def predict(x: FloatArray) -> list[FloatArray]:
         return s.split(stacked_torque_nm(lay, lay.values(x), s))

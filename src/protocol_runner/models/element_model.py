@@ -29,6 +29,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
+from ..analysis.branches import turning_points
 from .element_torques import has_static_torque, static_torque_nm
 from .element_types import ELEMENT_TYPES
 from .elements import Element
@@ -40,6 +41,11 @@ Key = tuple[str, str]  # (element, parameter)
 FRICTION_PARAMS = ("torque_nm", "transition_deg")
 DAMPER_PARAM = "damping_nm_s_per_deg"
 SETTLE_DEG = 5.0  # travel at a trial's start left out of the fit (`Motion.settled`)
+# Travel after each turning point left out of the fit (`Motion.compared`): there the robot's own friction
+# is reversing, and the equal-angle subtraction, whose brace-off branch curves are means over 0.5 deg bins
+# that start at the turning point, cannot follow its steepest part (`analysis.subtraction`). Also the
+# branches' reversal threshold (`analysis.branches`, 1 deg).
+REVERSAL_SKIP_DEG = 1.0
 
 
 @njit(cache=True)
@@ -107,12 +113,20 @@ def stops_torque_nm(e: Element, angle_deg: FloatArray) -> FloatArray:
 class Motion:
     """One trial's motion and measured torque, in sample order. `settled`: the first sample the fit
     compares (after SETTLE_DEG of travel: the friction state at a trial's start is unknown, and the
-    filtered loop's first samples carry the filter's edge)."""
+    filtered loop's first samples carry the filter's edge). `reversing`: samples within
+    REVERSAL_SKIP_DEG of travel after a turning point, not compared either (None: none)."""
 
     angle_deg: FloatArray
     speed_deg_s: FloatArray
     torque_nm: FloatArray
     settled: int = 0
+    reversing: npt.NDArray[np.bool_] | None = None
+
+    @property
+    def compared(self) -> npt.NDArray[np.bool_]:
+        """The samples a fit compares: from `settled` on, except those `reversing`."""
+        keep = np.arange(self.angle_deg.size) >= self.settled
+        return keep if self.reversing is None else keep & ~self.reversing
 
     @staticmethod
     def from_samples(
@@ -130,7 +144,16 @@ class Motion:
         the kept samples (`numpy.gradient`), so over the same stride as the friction state's steps: a
         difference over single samples turns the angle sensor's noise into speed noise (about 4 deg/s on
         a 200 Hz loop low-passed at 50 Hz, a fifth of a 20 deg/s motion's peak speed), and noise in the
-        damper's regressor biases its coefficient toward zero, the brake taking up its torque."""
+        damper's regressor biases its coefficient toward zero, the brake taking up its torque.
+
+        The samples within REVERSAL_SKIP_DEG of travel after each turning point (`analysis.branches.
+        turning_points` at that threshold) are marked `reversing`. There the loop still holds part of the
+        robot's friction reversal: the brace-off curve's first bin averages the reversal's steepest part,
+        and brace-on angles beyond that bin's mean angle take its torque (0.5 N·m off just after the
+        turn with a 2.5 N·m robot friction, even for identical motions). That error sits at the lowest
+        speeds of every cycle, where a damper gives least torque and a brake its full torque: fitted, it
+        moved about 15 % of a damper's coefficient into the brake
+        (tests/models/test_element_model_reversals.py)."""
         t = np.asarray(time_s, dtype=np.float64)
         a = np.asarray(angle_deg, dtype=np.float64)
         y = np.asarray(torque_nm, dtype=np.float64)
@@ -139,20 +162,26 @@ class Motion:
         travel = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(a)))])
         settled = int(np.searchsorted(travel, SETTLE_DEG))
         settled = settled if settled < a.size - 2 else 0
+        reversing = np.zeros(a.size, dtype=bool)
+        if a.size >= 3:
+            ends = [*turning_points(a, REVERSAL_SKIP_DEG).tolist(), a.size]
+            for start, stop in itertools.pairwise(ends):
+                travel = np.maximum.accumulate(np.abs(a[start:stop] - a[start]))
+                reversing[start : start + int(np.searchsorted(travel, REVERSAL_SKIP_DEG))] = True
         k = 1
         if max_step_deg is not None and a.size >= 2:
             median = float(np.median(np.abs(np.diff(a))))
             k = max(1, int(max_step_deg / median)) if median > 0 else 1
         t, a, y = t[::k], a[::k], y[::k]
         v = np.gradient(a, t) if a.size >= 2 else np.zeros_like(a)
-        return Motion(a, v, y, -(-settled // k))
+        return Motion(a, v, y, -(-settled // k), reversing[::k])
 
 
 @dataclass(frozen=True)
 class Stacked:
     """Several trials' motions end to end, as the fit evaluates them (one call per element for all trials).
     Trial i is samples edges[i]:edges[i+1]; `compared` marks the samples a fit compares (each trial's
-    from its `settled` on)."""
+    `Motion.compared`)."""
 
     angle_deg: FloatArray
     speed_deg_s: FloatArray
@@ -166,7 +195,7 @@ class Stacked:
         edges = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
         compared = np.ones(int(edges[-1]), dtype=bool)
         for m, start in zip(motions, edges[:-1], strict=False):
-            compared[start : start + m.settled] = False
+            compared[start : start + m.angle_deg.size] = m.compared
 
         def joined(name: str) -> FloatArray:
             arrays = [getattr(m, name) for m in motions]
