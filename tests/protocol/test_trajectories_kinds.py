@@ -19,7 +19,6 @@ from pydantic import TypeAdapter
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.stream import build_stream, check_stream
-from protocol_runner.protocol.plan_trajectory import build_trajectory
 from protocol_runner.protocol.sampling import sample_trajectory
 from protocol_runner.protocol.trajectories import (
     calibration_step_peak_accel_deg_s2,
@@ -28,7 +27,12 @@ from protocol_runner.protocol.trajectories import (
 )
 from protocol_runner.protocol.trajectory_limits import trajectory_limit_problems
 from protocol_runner.protocol.trajectory_record import Trajectory
-from protocol_runner.protocol.trajectory_specs import Quantity, TrajectorySpec, trajectory_bindings
+from protocol_runner.protocol.trajectory_specs import (
+    Quantity,
+    TrajectorySpec,
+    build_trajectory,
+    trajectory_bindings,
+)
 
 SPEC: TypeAdapter[TrajectorySpec] = TypeAdapter(TrajectorySpec)
 LIMITS = SafetyLimits(

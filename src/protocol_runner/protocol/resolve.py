@@ -20,11 +20,17 @@ import numpy as np
 from ..errors import InvalidInput
 from ..models.element_types import ELEMENT_TYPES
 from ..models.elements import build_element
-from .plan_trajectory import build_trajectory
 from .schema import ConfigurationSpec, Protocol
 from .settings import ElementSetting, FactorSetting, Quantity, Settings
 from .trajectory_record import Trajectory
-from .trajectory_specs import PerJointSpec, RampedStepSpec, is_binding, joint_spec, trajectory_bindings
+from .trajectory_specs import (
+    PerJointSpec,
+    RampedStepSpec,
+    build_trajectory,
+    is_binding,
+    joint_spec,
+    trajectory_bindings,
+)
 from .units import unit_suffix
 from .yaml_doc import format_loc
 
