@@ -4,7 +4,7 @@ parameters and its trajectory's fields bound to those levels' quantities (docs/p
 `check_bindings` reports every binding problem of the protocol with its location (an undeclared factor, a
 quantity whose unit suffix differs from the parameter's, an unknown element type or parameter, a level
 lacking the bound quantity, a configuration that leaves a bound factor unset). `resolve_settings` and
-`configuration_trajectory` assume a protocol that passed those checks.
+`configuration_motion` assume a protocol that passed those checks.
 """
 
 from __future__ import annotations
@@ -144,12 +144,10 @@ def resolve_settings(p: Protocol, cfg: ConfigurationSpec) -> Settings:
 
 
 def trajectory_values(
-    p: Protocol, settings: Settings, cfg: ConfigurationSpec, joint: str | None = None
+    p: Protocol, settings: Settings, cfg: ConfigurationSpec, joint: str
 ) -> dict[str, Quantity]:
     """The bound fields' values of the configuration's trajectory (of `joint`'s entry of a `per_joint`)."""
-    spec, prefix = (
-        joint_spec(p.trajectories[cfg.trajectory], joint) if joint else (p.trajectories[cfg.trajectory], ())
-    )
+    spec, prefix = joint_spec(p.trajectories[cfg.trajectory], joint)
     factors = dict(settings.factors)
     return {
         field: _bound_value(factors, binding, ("trajectories", cfg.trajectory, *prefix, field), cfg)
@@ -157,39 +155,40 @@ def trajectory_values(
     }
 
 
-def configuration_trajectories(
+def configuration_motion(
     loaded: LoadedProtocol, cfg: ConfigurationSpec, settings: Settings
 ) -> tuple[tuple[str, Trajectory], ...]:
-    """A multi-joint configuration's motion: (joint, trajectory) per driven joint in channel order, all
-    lasting the same number of output ticks (InvalidInput naming the joint otherwise)."""
+    """What a configuration commands: (joint, trajectory) per driven joint in channel order. The joints
+    of a protocol that names `joints:` each need their motion (`per_joint`, or a file with a column per
+    joint), all lasting the same number of output ticks; InvalidInput (naming the joint) or BindingError
+    if it cannot be built."""
     from .stream_check import safety_limits
 
     p = loaded.protocol
     name = cfg.trajectory
     spec = p.trajectories[name]
-    if not isinstance(spec, PerJointSpec) and spec.kind != "file":
+    if p.multi_joint and not isinstance(spec, PerJointSpec) and spec.kind != "file":
         raise InvalidInput(
             f"trajectory {name!r} ({spec.kind}): a multi-joint trial needs each joint's motion: give "
             "`kind: per_joint` with one entry per driven joint, or a `file` with one angle column per joint"
         )
+    if not p.multi_joint and isinstance(spec, PerJointSpec):
+        raise InvalidInput(
+            f"trajectory {name!r}: kind per_joint needs a multi-joint protocol (`joints: [...]`)"
+        )
     out: list[tuple[str, Trajectory]] = []
     for joint in p.driven_joints:
-        entry, _ = joint_spec(spec, joint)
-        rig = p.rig_of(joint)
+        values = trajectory_values(p, settings, cfg, joint)
+        limits = safety_limits(p.rig_of(joint))
         try:
             traj = build_trajectory(
-                name,
-                entry,
-                trajectory_values(p, settings, cfg, joint),
-                loaded.base_dir,
-                joint=joint,
-                limits=safety_limits(rig),
+                name, joint_spec(spec, joint)[0], values, loaded.base_dir, joint=joint, limits=limits
             )
         except InvalidInput as exc:
-            raise InvalidInput(f"joint {joint}: {exc.message}") from None
+            raise InvalidInput(f"joint {joint}: {exc.message}" if p.multi_joint else exc.message) from None
         out.append((joint, traj))
     rate = p.rig.output.rate_hz
-    ticks = {j: len(np.arange(0.0, t.duration_s, 1.0 / rate)) for j, t in out}
+    ticks = {j: len(np.arange(0.0, t.duration_s, 1.0 / rate)) for j, t in out} if len(out) > 1 else {}
     if len(set(ticks.values())) > 1:
         shown = ", ".join(f"{j} {n} ({dict(out)[j].duration_s:g} s)" for j, n in ticks.items())
         raise InvalidInput(
@@ -197,38 +196,6 @@ def configuration_trajectories(
             f"numbers of output ticks at {rate:g} Hz: {shown}"
         )
     return tuple(out)
-
-
-def configuration_motion(
-    loaded: LoadedProtocol, cfg: ConfigurationSpec, settings: Settings
-) -> tuple[tuple[str, Trajectory], ...]:
-    """(joint, trajectory) for every driven joint: `configuration_trajectories` of a protocol that names
-    `joints:`, else the one joint's `configuration_trajectory`."""
-    if loaded.protocol.multi_joint:
-        return configuration_trajectories(loaded, cfg, settings)
-    return ((loaded.protocol.rig.joint.name, configuration_trajectory(loaded, cfg, settings)),)
-
-
-def configuration_trajectory(
-    loaded: LoadedProtocol, cfg: ConfigurationSpec, settings: Settings
-) -> Trajectory:
-    """The trajectory a configuration commands (InvalidInput/BindingError if it cannot be built)."""
-    from .stream_check import safety_limits
-
-    p = loaded.protocol
-    spec = p.trajectories[cfg.trajectory]
-    if isinstance(spec, PerJointSpec):
-        raise InvalidInput(
-            f"trajectory {cfg.trajectory!r}: kind per_joint needs a multi-joint protocol (`joints: [...]`)"
-        )
-    return build_trajectory(
-        cfg.trajectory,
-        spec,
-        trajectory_values(p, settings, cfg),
-        loaded.base_dir,
-        joint=p.rig.joint.name,
-        limits=safety_limits(p.rig),
-    )
 
 
 def calibration_trajectory(p: Protocol, joint: str | None = None) -> Trajectory:
