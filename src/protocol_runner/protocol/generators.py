@@ -28,7 +28,6 @@ from .schema import (
 )
 
 Problem = tuple[Loc, str]
-Rows = list[dict[str, str]]
 
 
 def expand_generators(p: Protocol) -> tuple[Protocol, list[Problem], dict[Loc, Loc]]:

@@ -41,9 +41,6 @@ class LoadedProtocol:
         """Relative paths in the protocol (trajectory and calibration files) are relative to this."""
         return self.path.parent
 
-    def line_of(self, loc: Loc) -> int | None:
-        return line_for(self.lines, loc)
-
 
 def line_for(lines: dict[Loc, int], loc: Loc) -> int | None:
     loc = clean_loc(loc)

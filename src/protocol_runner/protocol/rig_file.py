@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
-from pydantic import Field, ValidationError, field_validator
+from pydantic import Field, ValidationError
 
 from ..errors import InvalidInput
 from ..resources import packaged_rigs_dir
@@ -38,7 +38,6 @@ from .schema import (
     SafetySpec,
     WatchdogOverride,
     WatchdogSpec,
-    _check_range,
     _Model,
 )
 from .yaml_doc import format_problems, huge_numbers, parse_yaml, validation_problems
@@ -61,8 +60,6 @@ class BoardSpec(_Model):
     report_time_s: float | None = Field(default=None, gt=0, le=1)
     # which library drives the board: pyusb (this package's drivers), MCC's uldaq or mcculw
     backend: Backend = "pyusb"
-
-    _range = field_validator("volts_range")(_check_range)
 
 
 class JointSafety(SafetyOverride):
@@ -88,8 +85,6 @@ class RigJoint(_Model):
     time_constant_s: float | None = Field(default=None, gt=0)
     safety: JointSafety = JointSafety()
     simulator: dict[str, float] = Field(default_factory=dict)
-
-    _range = field_validator("range_deg", "torque_range_nm")(_check_range)
 
 
 class RigFile(_Model):

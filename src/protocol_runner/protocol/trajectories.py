@@ -313,8 +313,3 @@ def _load_mat(path: Path, angle_names: tuple[str, ...]) -> tuple[FloatArray, Flo
         raise InvalidInput(f"{path}: `{time_name}` and `{angle_name}` have different lengths")
     header = str(contents.get("description", contents.get("__header__", b"")))
     return time_s, angle_deg, header, angle_name
-
-
-def max_speed_deg_s(time_s: FloatArray, angle_deg: FloatArray) -> float:
-    """Largest |d angle / dt| of a sampled trajectory (first differences)."""
-    return float(np.max(np.abs(np.diff(angle_deg) / np.diff(time_s)))) if len(time_s) > 1 else 0.0
