@@ -58,22 +58,20 @@ def cross_check(
 
 def _cross_check(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc, Loc]) -> list[Problem]:
     p = loaded.protocol
-    problems: list[Problem] = []
-    problems += list(_check_factors(p))
-    problems += list(_check_matrix(p))
-    problems += list(check_bindings(p))
-    problems += list(_check_calibration_step(p))
-    if check_files:
-        problems += list(_check_files(p, loaded.base_dir))
-    problems += list(_check_report(p))
     keys = {c.key for _, c in p.configurations()}
-    problems += list(check_expectations(p.expectations, keys, p.driven_joints, several=len(p.driven_joints) > 1))
     settings = {c.key: {"trajectory": c.trajectory, **c.levels} for _, c in p.configurations()}
-    problems += list(check_repeatability(p.report.repeatability, settings))
-    problems += list(_check_output_budget(p))
-    if problems:
-        return problems
-    return _check_motions(loaded, check_files, generated)
+    problems = [
+        *_check_factors(p),
+        *_check_matrix(p),
+        *check_bindings(p),
+        *_check_calibration_step(p),
+        *(_check_files(p, loaded.base_dir) if check_files else ()),
+        *_check_report(p),
+        *check_expectations(p.expectations, keys, p.driven_joints, several=len(p.driven_joints) > 1),
+        *check_repeatability(p.report.repeatability, settings),
+        *_check_output_budget(p),
+    ]
+    return problems or _check_motions(loaded, check_files, generated)
 
 
 def _check_motions(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc, Loc]) -> list[Problem]:
@@ -86,8 +84,15 @@ def _check_motions(loaded: LoadedProtocol, check_files: bool, generated: dict[Lo
 
     p = loaded.protocol
     problems: list[Problem] = []
+    per_joint = not isinstance(p.calibration_step, CalibrationStepSpec)
     motions: dict[str, list[Motion]] = {
-        j: [(("calibration_step",), _calibration_what(p, j), calibration_trajectory(p, j))]
+        j: [
+            (
+                ("calibration_step", *((j,) if per_joint else ())),
+                _calibration_what(p, j),
+                calibration_trajectory(p, j),
+            )
+        ]
         for j in p.driven_joints
     }
     per_configuration: dict[tuple[Loc, str], list[tuple[str, int]]] = {}
@@ -184,22 +189,12 @@ def _limit_problems(loaded: LoadedProtocol, motions: list[Motion], joint: str = 
     p = loaded.protocol
     limits = safety_limits(p.rig)
     out: dict[tuple[Loc, str], list[tuple[str, int]]] = {}
-    for where, what, traj in motions:
-        name = traj.name or ""
-        spec = p.trajectories.get(name)
-        prefix: tuple[str, ...] = ()
-        if spec is not None and joint:
-            spec, prefix = joint_spec(spec, joint)
-        calibration = what.startswith("the calibration step")
-        bindings = trajectory_bindings(spec) if spec is not None and not calibration else {}
-        base: Loc = (
-            (
-                "calibration_step",
-                *((joint,) if joint and not isinstance(p.calibration_step, CalibrationStepSpec) else ()),
-            )
-            if calibration
-            else ("trajectories", name, *prefix)
-        )
+    for where, _, traj in motions:
+        calibration = where[0] == "calibration_step"
+        base, bindings = where, {}
+        if not calibration:
+            spec, prefix = joint_spec(p.trajectories[str(traj.name)], joint)
+            base, bindings = ("trajectories", str(traj.name), *prefix), trajectory_bindings(spec)
         for field, message in trajectory_limit_problems(
             traj, limits, p.rig.output.rate_hz, loaded.base_dir, bindings
         ):
@@ -334,18 +329,14 @@ def _park_against_stops(p: Protocol, joint: str, elements: tuple[ElementSetting,
         rng = dict(el.params).get("range_deg")
         if ELEMENT_TYPES[el.type].kind != "stop" or not isinstance(rng, tuple) or rng[0] <= park <= rng[1]:
             continue
-        if p.multi_joint:
-            yield (
-                f"joint {joint}'s park angle {park:g} deg is outside the stops {_fmt_range(rng)} of its "
-                f"element {el.name!r}: between trials the joint would rest against a stop (choose "
-                f"rig_overrides.joints.{joint}.safety.park_angle_deg inside every stop range)"
-            )
-        else:
-            yield (
-                f"the park angle {park:g} deg is outside the stops "
-                f"{_fmt_range(rng)} of element {el.name!r}: between trials the joint would rest "
-                "against a stop (choose rig_overrides...safety.park_angle_deg inside every stop range)"
-            )
+        whose, its, joints = (
+            (f"joint {joint}'s", "its ", f"joints.{joint}.") if p.multi_joint else ("the", "", "..")
+        )
+        yield (
+            f"{whose} park angle {park:g} deg is outside the stops {_fmt_range(rng)} of {its}element "
+            f"{el.name!r}: between trials the joint would rest against a stop (choose "
+            f"rig_overrides.{joints}safety.park_angle_deg inside every stop range)"
+        )
 
 
 def _check_calibration_step(p: Protocol) -> Iterator[Problem]:
