@@ -157,7 +157,7 @@ def _check_generator(p: Protocol, gen: _GeneratorSpec, loc: Loc) -> Iterator[Pro
             named.setdefault(f, []).extend(((*loc, "vary", f, j), lv) for j, lv in enumerate(levels))
     for f, items in named.items():
         if f not in p.factors:
-            where = items[0][0][: len(loc) + 2] if items else (*loc, _section(gen), f)
+            where = items[0][0][: len(loc) + 2] if items else (*loc, "factors", f)  # `all` of a factorial
             yield where, f"unknown factor {f!r} (declared: {', '.join(p.factors) or 'none'})"
             continue
         for where, lv in items:
@@ -191,7 +191,3 @@ def _used_levels(p: Protocol, gen: _GeneratorSpec, factor: str) -> list[str]:
         return _levels(p, factor, gen.factors[factor])
     assert isinstance(gen, OneFactorAtATimeSpec)
     return list(dict.fromkeys([gen.baseline[factor], *gen.vary.get(factor, [])]))
-
-
-def _section(gen: _GeneratorSpec) -> str:
-    return "factors" if isinstance(gen, FullFactorialSpec) else "baseline"

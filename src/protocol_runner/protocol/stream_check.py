@@ -39,11 +39,7 @@ def check_streams(
     """(location, message) for every motion (location, what, trajectory) whose stream is unsafe."""
     p = loaded.protocol
     rig = p.rig
-    try:
-        limits = safety_limits(rig)
-    except InvalidInput as exc:
-        yield ("joint",), exc.message
-        return
+    limits = safety_limits(rig)
     table: CalibrationTable | None = None
     if check_files and rig.calibration.command_table is not None:
         try:

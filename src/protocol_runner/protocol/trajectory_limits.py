@@ -54,17 +54,11 @@ class _Checker:
         rate_hz: float,
         base_dir: Path,
     ) -> None:
-        self.trajectory = trajectory
-        self.rate_hz = rate_hz
-        self.base_dir = base_dir
-        self.limits = limits
-        self.bindings = bindings
+        self.trajectory, self.limits, self.bindings = trajectory, limits, bindings
+        self.rate_hz, self.base_dir = rate_hz, base_dir
         name = f" {trajectory.name!r}" if trajectory.name else ""
         what = f" {trajectory.source}" if trajectory.source else ""
         self.where = f"trajectory{name} ({trajectory.profile}{what})"
-        self.source = trajectory.source
-        column = dict(trajectory.params).get("column")
-        self.column = column if isinstance(column, str) else None
         self.problems: list[Problem] = []
 
     def _say(self, field: str, text: str) -> None:
@@ -116,10 +110,11 @@ class _Checker:
 
     def _file_row(self, time_s: float, base_dir: Path) -> str:
         """`, <file> line N column C` of the row nearest `time_s` (empty when not a readable CSV)."""
-        if self.source is None or not self.source.lower().endswith((".csv", ".txt")):
+        source = self.trajectory.source
+        if source is None or not source.lower().endswith((".csv", ".txt")):
             return ""
         try:
-            table = parse_header_table(read_table_text(base_dir / self.source, "trajectory file"))
+            table = parse_header_table(read_table_text(base_dir / source, "trajectory file"))
         except InvalidInput:
             return ""
         names = [c.lower() for c in table.header.cells] if table.header is not None else []
@@ -134,5 +129,5 @@ class _Checker:
                 best = (abs(t - time_s), row.line)
         if best is None:
             return ""
-        column = f" column {self.column}" if self.column else ""
-        return f"; {self.source} line {best[1]}{column}"
+        column = dict(self.trajectory.params).get("column")
+        return f"; {source} line {best[1]}" + (f" column {column}" if isinstance(column, str) else "")

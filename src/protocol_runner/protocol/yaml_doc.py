@@ -182,9 +182,7 @@ def validation_problems(exc: ValidationError, root: type[BaseModel]) -> list[tup
     The alternatives of a union at one field are one message ("a valid list or 'all' (got 'al')")."""
     merged: dict[Loc, list[str]] = {}
     for e in exc.errors():
-        merged.setdefault(_without_union_member(_without_kind_tag(tuple(e["loc"]))), []).append(
-            _pydantic_message(e, root)
-        )
+        merged.setdefault(_file_loc(tuple(e["loc"])), []).append(_pydantic_message(e, root))
     return _unknown_before_missing([(loc, _one_message(messages)) for loc, messages in merged.items()])
 
 
@@ -207,14 +205,18 @@ def _unknown_before_missing(problems: list[tuple[Loc, str]]) -> list[tuple[Loc, 
     return out
 
 
-def _without_union_member(loc: Loc) -> Loc:
-    """Drop the member pydantic names in a plain union's error path (`factors.damper.list[str]`), and the
-    tags of the schema's own discriminated forms (`calibration_step.<one step>.hold_s`): no file key has
-    either shape."""
+def _file_loc(loc: Loc) -> Loc:
+    """`loc` without what pydantic adds to an error path that is no key of the file: the member of a plain
+    union (`factors.damper.list[str]`), the tags of the schema's own discriminated forms
+    (`calibration_step.<one step>.hold_s`) and a trajectory's kind (`trajectories.sine.sinusoid.x`)."""
+    from .trajectory_specs import kind_names
+
+    kinds = kind_names()
     return tuple(
         p
-        for p in loc
+        for i, p in enumerate(loc)
         if not (isinstance(p, str) and ("[" in p or p.startswith("literal") or (p[:1], p[-1:]) == ("<", ">")))
+        and not (i >= 2 and loc[i - 2] in ("trajectories", "joints") and p in kinds)
     )
 
 
@@ -225,19 +227,6 @@ def _one_message(messages: list[str]) -> str:
     got = [m[m.rindex(" (got ") :] if m.endswith(")") and " (got " in m else "" for m in messages]
     bodies = [m[len(prefix) : len(m) - len(g)] for m, g in zip(messages, got, strict=True)]
     return prefix + " or ".join(dict.fromkeys(bodies)) + (got[0] if len(set(got)) == 1 else "")
-
-
-def _without_kind_tag(loc: Loc) -> Loc:
-    """Drop the tag pydantic puts in a discriminated union's error path (`trajectories.sine.sinusoid.x`
-    -> `trajectories.sine.x`): it is not a key of the file."""
-    from .trajectory_specs import kind_names
-
-    kinds = kind_names()
-    return tuple(
-        part
-        for i, part in enumerate(loc)
-        if not (i >= 2 and loc[i - 2] in ("trajectories", "joints") and part in kinds)
-    )
 
 
 def yaml_error(shown: str, exc: yaml.YAMLError, text: str = "") -> str:
@@ -293,7 +282,7 @@ def _pydantic_message(err: Any, root: type[BaseModel]) -> str:
     if kind == "missing":
         return MISSING_FIELD
     if kind == "model_type":  # pydantic names its class: say what the file should hold there
-        keys = _allowed_keys(root, _without_union_member(tuple(err["loc"])))
+        keys = _allowed_keys(root, _file_loc(tuple(err["loc"])))
         shown = f" with keys {', '.join(keys)}" if keys else ""
         return f"input should be a mapping{shown} (got {value!r})"
     if kind == "union_tag_invalid":
