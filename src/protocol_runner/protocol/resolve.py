@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import difflib
 import re
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -261,29 +261,30 @@ def _check_joints_named(p: Protocol) -> Iterator[Problem]:
     """A device of several driven joints is declared per joint, for driven joints only; a `per_joint`
     trajectory has an entry for every driven joint and for no other."""
     driven = p.driven_joints
-    shown = ", ".join(driven)
     if p.device is not None and p.device.elements and len(driven) > 1:
         yield (
             ("device", "elements"),
-            f"this campaign drives {len(driven)} joints ({shown}): a flat `elements` list would put every "
-            "element on every joint; give each joint its own under `device.joints.<joint>.elements`",
+            f"this campaign drives {len(driven)} joints ({', '.join(driven)}): a flat `elements` list would "
+            "put every element on every joint; give each joint its own under `device.joints.<joint>.elements`",
         )
     if p.device is not None:
-        for joint in p.device.joints:
-            if joint not in driven:
-                yield ("device", "joints", joint), f"{joint!r} is not one of the driven joints ({shown})"
+        yield from joints_named(("device", "joints"), p.device.joints, driven)
     for name, spec in p.trajectories.items():
-        if not isinstance(spec, PerJointSpec) or not p.multi_joint:
-            continue
-        missing = [j for j in driven if j not in spec.joints]
-        if missing:
-            yield (
-                ("trajectories", name, "joints"),
-                f"no entry for driven joint(s) {', '.join(missing)} (joints: {shown})",
-            )
-        for joint in spec.joints:
-            if joint not in driven:
-                yield ("trajectories", name, "joints", joint), f"{joint!r} is not driven (joints: {shown})"
+        if isinstance(spec, PerJointSpec) and p.multi_joint:
+            yield from joints_named(("trajectories", name, "joints"), spec.joints, driven, "entry")
+
+
+def joints_named(loc: Loc, named: Iterable[str], driven: Sequence[str], each: str = "") -> Iterator[Problem]:
+    """The keys `named` of the mapping at `loc` against the driven joints: every key that is not one, and,
+    when every driven joint needs `each` (its entry, its calibration step), the driven joints missing."""
+    named = list(named)
+    shown = ", ".join(driven)
+    for joint in named:
+        if joint not in driven:
+            yield (*loc, joint), f"{joint!r} is not one of the driven joints ({shown})"
+    missing = [j for j in driven if j not in named]
+    if each and missing:
+        yield loc, f"no {each} for driven joint(s) {', '.join(missing)} (joints: {shown})"
 
 
 def _did_you_mean(word: str, known: Iterable[str]) -> str:

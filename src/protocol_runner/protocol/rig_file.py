@@ -25,6 +25,7 @@ from ..tables import read_table_text
 from .booleans import boolean_numbers
 from .loaded import Loc
 from .paths import OutsideFolder, confined_path
+from .resolve import joints_named
 from .schema import (
     Backend,
     Identifier,
@@ -427,14 +428,7 @@ def resolve_rigs(
         problems += [((("joints", i) if loc == ("joint",) and multi else loc), msg) for loc, msg in found]
         if spec is not None:
             specs.append(spec)
-    problems += [
-        (
-            ("rig_overrides", "joints", name),
-            f"{name!r} is not one of the driven joints ({', '.join(joint_names)})",
-        )
-        for name in overrides.joints
-        if name not in joint_names
-    ]
+    problems += joints_named(("rig_overrides", "joints"), overrides.joints, joint_names)
     if problems:  # a shared override's problem (the output rate) once, not once per joint
         return (), list(dict.fromkeys(problems))
     used: dict[tuple[str, int], str] = {}

@@ -31,6 +31,7 @@ from .resolve import (
     calibration_trajectory,
     check_bindings,
     configuration_motion,
+    joints_named,
     resolve_settings,
 )
 from .schema import CalibrationStepSpec, Protocol
@@ -346,16 +347,11 @@ def _check_calibration_step(p: Protocol) -> Iterator[Problem]:
         return
     if per_joint:
         assert isinstance(p.calibration_step, dict)
-        for name in p.calibration_step:
-            if name not in p.driven_joints:
-                yield (
-                    ("calibration_step", name),
-                    f"{name!r} is not driven (joints: {', '.join(p.driven_joints)})",
-                )
-        for name in p.driven_joints:
-            if name not in p.calibration_step:
-                yield ("calibration_step",), f"no calibration step for driven joint {name!r}"
-        if any(j not in p.calibration_step for j in p.driven_joints):
+        missing = list(
+            joints_named(("calibration_step",), p.calibration_step, p.driven_joints, "calibration step")
+        )
+        yield from missing
+        if missing:
             return
     for name in p.driven_joints:  # its range, rate and acceleration: checked with the motions
         step = p.calibration_step_of(name)
