@@ -7,7 +7,7 @@ mistake (paths use 0-based list indices, as in JSON paths).
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any, get_origin
 
 import yaml
@@ -70,35 +70,30 @@ def parse_yaml(text: str, shown: str) -> tuple[Any, dict[Loc, int]]:
     if duplicates:
         loc, line = duplicates[0]
         raise InvalidInput(f"{shown}:{line}: {format_loc(loc)}: duplicate key (each key may appear once)")
-    control = _control_character(data, ())
-    if control is not None:
-        where, code = control
-        at = line_for(lines, where)
-        raise InvalidInput(
-            f"{shown}:{at or '?'}: {_escaped(format_loc(where))}: control character U+{code:04X} in a text (terminal "
-            "escape sequences and the like are refused: a label is printed on the operator's terminal)"
-        )
+    for where, value in _scalars(data):  # the first key or text holding a control character
+        code = next((ord(c) for c in value if _is_control(c)), None) if isinstance(value, str) else None
+        if code is not None:
+            raise InvalidInput(
+                f"{shown}:{line_for(lines, where) or '?'}: {_escaped(format_loc(where))}: control character "
+                f"U+{code:04X} in a text (terminal escape sequences and the like are refused: a label is "
+                "printed on the operator's terminal)"
+            )
     return data, lines
 
 
-def _control_character(value: object, loc: Loc) -> tuple[Loc, int] | None:
-    """The first key or text holding a control character other than tab and newline, and its code."""
-    if isinstance(value, str):
-        code = next((ord(c) for c in value if _is_control(c)), None)
-        return None if code is None else (loc, code)
+def _scalars(value: object, loc: Loc = ()) -> Iterator[tuple[Loc, object]]:
+    """Every text key and every scalar of a document, with its place, in document order."""
     if isinstance(value, dict):
         for key, item in value.items():
             here = (*loc, str(key))
-            found = _control_character(key, here) if isinstance(key, str) else None
-            found = found or _control_character(item, here)
-            if found is not None:
-                return found
+            if isinstance(key, str):
+                yield here, key
+            yield from _scalars(item, here)
     elif isinstance(value, list):
         for i, item in enumerate(value):
-            found = _control_character(item, (*loc, i))
-            if found is not None:
-                return found
-    return None
+            yield from _scalars(item, (*loc, i))
+    else:
+        yield loc, value
 
 
 MAX_MAGNITUDE = 1e9
@@ -107,31 +102,25 @@ it in the units its field names (rates are at most tens of kHz, times hours, key
 bound keeps every later computation (a squared speed, a sample count) finite."""
 
 
-def huge_numbers(value: object, loc: Loc = ()) -> list[tuple[Loc, str]]:
+def huge_numbers(document: object) -> list[tuple[Loc, str]]:
     """The first number beyond `MAX_MAGNITUDE` in the document, as a problem at its place (checked after
     the schema, whose own bound on a field, where it has one, is the clearer message)."""
-    if isinstance(value, int | float) and not isinstance(value, bool) and abs(value) > MAX_MAGNITUDE:
-        text = str(value)
-        shown = (
-            f"{value:.6g}"
-            if isinstance(value, float)
-            else text
-            if len(text) <= 15
-            else f"a {len(text)}-digit number"
-        )
-        return [
-            (
-                loc,
-                f"{shown} is beyond the {MAX_MAGNITUDE:.0e} any number of a campaign may be (check its unit and exponent)",
+    for loc, value in _scalars(document):
+        if isinstance(value, int | float) and not isinstance(value, bool) and abs(value) > MAX_MAGNITUDE:
+            text = str(value)
+            shown = (
+                f"{value:.6g}"
+                if isinstance(value, float)
+                else text
+                if len(text) <= 15
+                else f"a {len(text)}-digit number"
             )
-        ]
-    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
-    for key, item in items:
-        found = huge_numbers(
-            item, (*loc, key if isinstance(key, int) and isinstance(value, list) else str(key))
-        )
-        if found:
-            return found
+            return [
+                (
+                    loc,
+                    f"{shown} is beyond the {MAX_MAGNITUDE:.0e} any number of a campaign may be (check its unit and exponent)",
+                )
+            ]
     return []
 
 
