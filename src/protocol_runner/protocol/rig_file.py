@@ -30,6 +30,7 @@ from .schema import (
     Backend,
     Identifier,
     InputSpec,
+    JointOverride,
     JointSpec,
     OutputSpec,
     RangePair,
@@ -63,14 +64,9 @@ class BoardSpec(_Model):
     backend: Backend = "pyusb"
 
 
-class JointSafety(SafetyOverride):
-    """A rig file's safety limits of a joint (or its joints' defaults): the fields of a protocol's
-    `rig_overrides` safety, each optional; the merge with the defaults is `_merged_safety`."""
-
-
 class JointDefaults(_Model):
     time_constant_s: float = Field(gt=0)
-    safety: JointSafety = JointSafety()
+    safety: SafetyOverride = SafetyOverride()
     simulator: dict[str, float] = Field(default_factory=dict)
     watchdog: WatchdogOverride | None = None
 
@@ -84,7 +80,7 @@ class RigJoint(_Model):
     angle_channel: int = Field(ge=0)
     torque_channel: int = Field(ge=0)
     time_constant_s: float | None = Field(default=None, gt=0)
-    safety: JointSafety = JointSafety()
+    safety: SafetyOverride = SafetyOverride()
     simulator: dict[str, float] = Field(default_factory=dict)
 
 
@@ -269,10 +265,10 @@ def check_rig_file(rig: RigFile) -> Iterator[Problem]:
             )
 
 
-def _merged_safety(rig: RigFile, joint: RigJoint) -> JointSafety:
+def _merged_safety(rig: RigFile, joint: RigJoint) -> SafetyOverride:
     base = rig.joint_defaults.safety.model_dump()
     base.update({k: v for k, v in joint.safety.model_dump().items() if v is not None})
-    return JointSafety(**base)
+    return SafetyOverride(**base)
 
 
 def _fmt(rng: tuple[float, float]) -> str:
@@ -286,81 +282,67 @@ def resolve_rig(
     (problems located in the PROTOCOL: `joint`, `rig_overrides...`; `resolve_rigs` checks which joints
     the overrides name)."""
     rig = loaded.rig
-    problems: list[Problem] = []
     joint = rig.joints.get(joint_name)
     if joint is None:
         return None, [
             (("joint",), f"no joint {joint_name!r} on rig {rig.robot} (joints: {', '.join(rig.joints)})")
         ]
-    over = overrides.joints.get(joint_name)
     input_name = overrides.input_board or rig.input_board
     in_board = rig.boards.get(input_name)
     if in_board is None or in_board.role != "input":
-        inputs = [n for n, b in rig.boards.items() if b.role == "input"]
-        problems.append(
-            (("rig_overrides", "input_board"), f"not an input board of the rig (inputs: {', '.join(inputs)})")
-        )
-        return None, problems
-    safety = _merged_safety(rig, joint).model_dump()
-    range_deg = joint.range_deg
+        inputs = ", ".join(n for n, b in rig.boards.items() if b.role == "input")
+        return None, [(("rig_overrides", "input_board"), f"not an input board of the rig (inputs: {inputs})")]
+    over = overrides.joints.get(joint_name) or JointOverride()
     loc: Loc = ("rig_overrides", "joints", joint_name)
-    if over is not None:
-        if over.range_deg is not None:
-            if not (joint.range_deg[0] <= over.range_deg[0] and over.range_deg[1] <= joint.range_deg[1]):
-                problems.append(
-                    (
-                        (*loc, "range_deg"),
-                        f"{_fmt(over.range_deg)} is wider than the rig's {_fmt(joint.range_deg)} "
-                        f"({loaded.shown}, thesis Table 2)",
-                    )
+    problems: list[Problem] = []
+    range_deg = joint.range_deg
+    if over.range_deg is not None:
+        if joint.range_deg[0] <= over.range_deg[0] and over.range_deg[1] <= joint.range_deg[1]:
+            range_deg = over.range_deg
+        else:
+            problems.append(
+                (
+                    (*loc, "range_deg"),
+                    f"{_fmt(over.range_deg)} is wider than the rig's {_fmt(joint.range_deg)} "
+                    f"({loaded.shown}, thesis Table 2)",
                 )
-            else:
-                range_deg = over.range_deg
-        if over.safety is not None:
-            for fld in ("max_rate_deg_s", "max_accel_deg_s2", "park_rate_deg_s"):
-                value = getattr(over.safety, fld)
-                if value is None:
-                    continue
-                if value > safety[fld]:
-                    problems.append(
-                        (
-                            (*loc, "safety", fld),
-                            f"{value:g} is above the rig's {safety[fld]:g} ({loaded.shown}): "
-                            "overrides may only tighten",
-                        )
-                    )
-                else:
-                    safety[fld] = value
-            if over.safety.park_angle_deg is not None:
-                safety["park_angle_deg"] = over.safety.park_angle_deg
+            )
+    safety = _merged_safety(rig, joint).model_dump()
+    for fld, value in (over.safety or SafetyOverride()).model_dump().items():
+        if value is not None and fld != "park_angle_deg" and value > safety[fld]:
+            problems.append(
+                (
+                    (*loc, "safety", fld),
+                    f"{value:g} is above the rig's {safety[fld]:g} ({loaded.shown}): overrides may only tighten",
+                )
+            )
+        elif value is not None:
+            safety[fld] = value
     if not range_deg[0] <= safety["park_angle_deg"] <= range_deg[1]:
         problems.append(
             (
-                (*loc, "safety", "park_angle_deg") if over and over.safety else ("joint",),
+                (*loc, "safety", "park_angle_deg") if over.safety else ("joint",),
                 f"park angle {safety['park_angle_deg']:g} deg is outside the joint's range {_fmt(range_deg)}",
             )
         )
     out_board = rig.boards[rig.output_board]
-    output_rate_hz = out_board.rate_hz
-    if overrides.output_rate_hz is not None:
-        low = BOARD_RATES_HZ["output"][0]
-        if overrides.output_rate_hz > out_board.rate_hz:
-            problems.append(
-                (
-                    ("rig_overrides", "output_rate_hz"),
-                    f"{overrides.output_rate_hz:g} Hz is above the output board {rig.output_board}'s "
-                    f"rate_hz {out_board.rate_hz:g} ({loaded.shown}): overrides may only lower it",
-                )
+    output_rate_hz = overrides.output_rate_hz or out_board.rate_hz
+    low = BOARD_RATES_HZ["output"][0]
+    if output_rate_hz > out_board.rate_hz:
+        problems.append(
+            (
+                ("rig_overrides", "output_rate_hz"),
+                f"{output_rate_hz:g} Hz is above the output board {rig.output_board}'s "
+                f"rate_hz {out_board.rate_hz:g} ({loaded.shown}): overrides may only lower it",
             )
-        elif overrides.output_rate_hz < low:
-            problems.append(
-                (
-                    ("rig_overrides", "output_rate_hz"),
-                    f"an output rate must be at least {low:g} Hz, got {overrides.output_rate_hz:g}",
-                )
+        )
+    elif output_rate_hz < low:
+        problems.append(
+            (
+                ("rig_overrides", "output_rate_hz"),
+                f"an output rate must be at least {low:g} Hz, got {output_rate_hz:g}",
             )
-        else:
-            output_rate_hz = overrides.output_rate_hz
+        )
     if problems:
         return None, problems
     simulator = dict(rig.joint_defaults.simulator)
@@ -393,7 +375,7 @@ def resolve_rig(
             dt9814_product_id=in_board.product_id,
             backend=in_board.backend,
         ),
-        calibration=over.calibration if over is not None else RigSpec.model_fields["calibration"].default,
+        calibration=over.calibration,
         safety=SafetySpec(**safety),
         time_constant_s=joint.time_constant_s or rig.joint_defaults.time_constant_s,
         simulator=tuple(simulator.items()),
