@@ -53,11 +53,7 @@ def cross_check(
 ) -> list[Problem]:
     """Every problem as (location, message). `generated` maps a generated row's location to its
     generator's: a generated row is not in the file, so its problems are located at the generator."""
-    problems = _cross_check(loaded, check_files, generated or {})
-    return [((generated or {}).get(loc[:4], loc), message) for loc, message in problems]
-
-
-def _cross_check(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc, Loc]) -> list[Problem]:
+    generated = generated or {}
     p = loaded.protocol
     keys = {c.key for _, c in p.configurations()}
     settings = {c.key: {"trajectory": c.trajectory, **c.levels} for _, c in p.configurations()}
@@ -72,7 +68,8 @@ def _cross_check(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc,
         *check_repeatability(p.report.repeatability, settings),
         *_check_output_budget(p),
     ]
-    return problems or _check_motions(loaded, check_files, generated)
+    problems = problems or _check_motions(loaded, check_files, generated)
+    return [(generated.get(loc[:4], loc), message) for loc, message in problems]
 
 
 def _check_motions(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc, Loc]) -> list[Problem]:
@@ -84,18 +81,13 @@ def _check_motions(loaded: LoadedProtocol, check_files: bool, generated: dict[Lo
     from .stream_check import check_streams
 
     p = loaded.protocol
-    problems: list[Problem] = []
     per_joint = not isinstance(p.calibration_step, CalibrationStepSpec)
-    motions: dict[str, list[Motion]] = {
-        j: [
-            (
-                ("calibration_step", *((j,) if per_joint else ())),
-                _calibration_what(p, j),
-                calibration_trajectory(p, j),
-            )
+    motions: dict[str, list[Motion]] = {}
+    for j in p.driven_joints:
+        what = f"the calibration step of joint {j}" if p.multi_joint else "the calibration step"
+        motions[j] = [
+            (("calibration_step", *((j,) if per_joint else ())), what, calibration_trajectory(p, j))
         ]
-        for j in p.driven_joints
-    }
     per_configuration: dict[tuple[Loc, str], list[tuple[str, int]]] = {}
     for loc, message, item in _resolve_configurations(loaded, check_files):
         if message:
@@ -106,20 +98,20 @@ def _check_motions(loaded: LoadedProtocol, check_files: bool, generated: dict[Lo
             joint, motion = item
             motions[joint].append(motion)
     all_keys = {c.key for _, c in p.configurations()}
-    problems += [
+    problems = [
         (loc, f"{message} ({_which_configurations(where, all_keys)})")
         for (loc, message), where in per_configuration.items()
     ]
     if problems:
         return problems
     for joint in p.driven_joints:  # each trajectory field against the joint's range, rate and acceleration
-        named = joint if p.multi_joint else ""
-        problems += _limit_problems(_joint_view(loaded, joint), motions[joint], named)
+        problems += _limit_problems(
+            _joint_view(loaded, joint), motions[joint], joint if p.multi_joint else ""
+        )
     if problems:
         return problems
     for joint in p.driven_joints:  # every motion's complete commanded stream, approach and exit included
-        view = _joint_view(loaded, joint)
-        problems += list(check_streams(view, motions[joint], check_files=check_files))
+        problems += check_streams(_joint_view(loaded, joint), motions[joint], check_files=check_files)
     return problems
 
 
@@ -129,10 +121,6 @@ def _joint_view(loaded: LoadedProtocol, joint: str) -> LoadedProtocol:
     if len(p.rigs) == 1:
         return loaded
     return dataclasses.replace(loaded, protocol=p.with_rigs((p.rig_of(joint),)))
-
-
-def _calibration_what(p: Protocol, joint: str) -> str:
-    return f"the calibration step of joint {joint}" if p.multi_joint else "the calibration step"
 
 
 def output_budget(n_joints: int, report_time_s: float, rate_hz: float) -> tuple[float, float, int]:
