@@ -40,13 +40,10 @@ def expand_generators(p: Protocol) -> tuple[Protocol, list[Problem], dict[Loc, L
     origins: dict[Loc, Loc] = {}
     count_so_far = len(explicit)
     if count_so_far > MAX_CONFIGURATIONS:
-        problems.append(
-            (
-                ("sets",),
-                f"{count_so_far:,} configurations, more than the {MAX_CONFIGURATIONS:,} a protocol may have",
-            )
+        too_many = (
+            f"{count_so_far:,} configurations, more than the {MAX_CONFIGURATIONS:,} a protocol may have"
         )
-        return p, problems, origins
+        return p, [(("sets",), too_many)], origins
     sets: list[SetSpec] = []
     for i, s in enumerate(p.sets):
         rows: list[ConfigurationSpec] = list(s.configurations)
@@ -75,18 +72,11 @@ def expand_generators(p: Protocol) -> tuple[Protocol, list[Problem], dict[Loc, L
             count_so_far += count
             levels = _full_factorial(p, gen) if isinstance(gen, FullFactorialSpec) else _ofat(gen)
             for combo in levels:
-                trajectory = _trajectory(gen, combo)
                 origins[("sets", i, "configurations", len(rows))] = loc
+                row = {"key": next_key, "run": next_run, "trajectory": _trajectory(gen, combo)}
                 rows.append(
                     ConfigurationSpec.model_validate(
-                        {
-                            "key": next_key,
-                            "run": next_run,
-                            "trajectory": trajectory,
-                            "trials": gen.trials,
-                            "description": gen.description,
-                            **combo,
-                        }
+                        {**row, "trials": gen.trials, "description": gen.description, **combo}
                     )
                 )
                 next_key += 1

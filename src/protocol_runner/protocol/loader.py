@@ -20,7 +20,7 @@ from ..errors import InvalidInput
 from ..resources import packaged_protocols_dir
 from .booleans import boolean_numbers
 from .generators import expand_generators
-from .loaded import LoadedProtocol, RigSource, line_for
+from .loaded import LoadedProtocol, line_for
 from .rig_file import find_rig, load_rig, parse_rig_text, resolve_rigs
 from .schema import Protocol
 from .validate import cross_check
@@ -132,10 +132,7 @@ def parse_protocol_text(
     if problems:
         raise InvalidInput(format_problems(shown, lines, problems))
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
-    rig_source = RigSource(
-        loaded_rig.shown, loaded_rig.text, loaded_rig.sha256, loaded_rig.path, dict(loaded_rig.lines)
-    )
-    loaded = LoadedProtocol(protocol, path, text, sha, lines, shown, rig_source)
+    loaded = LoadedProtocol(protocol, path, text, sha, lines, shown, loaded_rig)
 
     problems = cross_check(loaded, check_files=check_files, generated=origins)
     if problems:

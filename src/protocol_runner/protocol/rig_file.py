@@ -23,7 +23,7 @@ from ..errors import InvalidInput
 from ..resources import packaged_rigs_dir
 from ..tables import read_table_text
 from .booleans import boolean_numbers
-from .loaded import Loc
+from .loaded import Loc, RigSource
 from .paths import OutsideFolder, confined_path
 from .resolve import joints_named
 from .schema import (
@@ -95,14 +95,11 @@ class RigFile(_Model):
     joints: dict[Identifier, RigJoint] = Field(min_length=1)
 
 
-@dataclass(frozen=True)
-class LoadedRig:
-    rig: RigFile
-    path: Path
-    shown: str
-    sha256: str
-    lines: dict[Loc, int] = field(default_factory=dict, repr=False, compare=False)
-    text: str = field(default="", repr=False, compare=False)  # the file exactly as read (archived as /rig)
+@dataclass(frozen=True, kw_only=True)
+class LoadedRig(RigSource):
+    """A checked rig file: its source, and the rig it declares."""
+
+    rig: RigFile = field(repr=False, compare=False)
 
 
 def is_rig_path(name_or_path: str) -> bool:
