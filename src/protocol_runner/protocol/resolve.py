@@ -110,16 +110,16 @@ def resolve_device(
             if named is not None and is_binding(bound):
                 raise _bound_value_error(p, factors, str(bound), (*loc, named), exc.message) from None
             raise BindingError((*loc, named) if named else loc, exc.message) from None
-        params: list[tuple[str, Quantity | str]] = []
-        for key, v in built.params.items():
-            if isinstance(v, tuple) and all(isinstance(x, str) for x in v):
-                params.append((key, ",".join(str(x) for x in v)))
-            elif isinstance(v, tuple):
-                params.append((key, tuple(float(x) for x in v)))
-            else:
-                params.append((key, v))
-        out.append(ElementSetting(name=el.name, type=el.type, params=tuple(params), joint=joint))
+        params = tuple((key, _setting_value(v)) for key, v in built.params.items())
+        out.append(ElementSetting(name=el.name, type=el.type, params=params, joint=joint))
     return tuple(out)
+
+
+def _setting_value(value: Any) -> Quantity | str:
+    """An element parameter as the settings keep it: words joined by commas, numbers as floats."""
+    if isinstance(value, tuple):
+        return ",".join(value) if all(isinstance(x, str) for x in value) else tuple(float(x) for x in value)
+    return value
 
 
 def _bound_value_error(

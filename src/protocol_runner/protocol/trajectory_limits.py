@@ -17,6 +17,7 @@ from ..errors import InvalidInput
 from ..hardware.safety import SafetyLimits, SafetyViolation, check_trajectory
 from ..tables import parse_header_table, read_table_text
 from .sampling import sample_trajectory, samples_problem
+from .stream_check import allowed
 from .trajectory_record import Trajectory
 from .trajectory_specs import trajectory_kind
 
@@ -97,15 +98,10 @@ class _Checker:
         try:
             check_trajectory(samples, rate_hz, self.limits, where="trajectory")
         except SafetyViolation as exc:
-            bound = (
-                f"{exc.limit_value[0]:g} to {exc.limit_value[1]:g}"
-                if isinstance(exc.limit_value, tuple)
-                else f"±{exc.limit_value:g}"
-            )
             self._say(
                 field,
                 f"its {exc.limit} reaches {exc.value:.4g} {exc.units} at t = {exc.time_s:.2f} s (sampled at "
-                f"{rate_hz:g} Hz{self._file_row(exc.time_s, base_dir)}), the joint allows {bound} {exc.units}",
+                f"{rate_hz:g} Hz{self._file_row(exc.time_s, base_dir)}), the joint allows {allowed(exc)}",
             )
 
     def _file_row(self, time_s: float, base_dir: Path) -> str:
