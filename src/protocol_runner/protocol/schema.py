@@ -308,12 +308,6 @@ MAX_KEY = 999_999  # a configuration's key and run number: ample for any matrix,
 # archive attribute, table and MATLAB field holds (a key of 10^23 passed validation, then crashed the run)
 
 
-def _levels_as_str(data: Any) -> Any:
-    if isinstance(data, dict):
-        return {k: (v if k in RESERVED_CONFIGURATION_KEYS else _int_to_str(v)) for k, v in data.items()}
-    return data
-
-
 class ConfigurationSpec(_Model):
     """An explicit row: reserved keys, and `<factor>: <level label>` for the factors it sets."""
 
@@ -328,8 +322,8 @@ class ConfigurationSpec(_Model):
     @model_validator(mode="before")
     @classmethod
     def _labels(cls, data: Any) -> Any:
-        data = _levels_as_str(data)
         if isinstance(data, dict):
+            data = {k: (v if k in RESERVED_CONFIGURATION_KEYS else _int_to_str(v)) for k, v in data.items()}
             for k, v in data.items():
                 if k not in RESERVED_CONFIGURATION_KEYS and not isinstance(v, str):
                     raise ValueError(f"{k}: a factor's level label, got {v!r}")

@@ -167,7 +167,7 @@ class TrajectoryKindSpec(BaseModel):
 
     @staticmethod
     def sample(trajectory: Trajectory, time_s: FloatArray, base_dir: Path) -> FloatArray:
-        """The joint angles at `time_s` (the output ticks, `sampling.sample_times_s`)."""
+        """The joint angles at `time_s` (the output ticks, `sampling.sample_trajectory`)."""
         raise NotImplementedError(f"trajectory kind {trajectory.profile!r} has no sample")
 
     @staticmethod
