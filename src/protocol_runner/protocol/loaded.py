@@ -43,20 +43,9 @@ class LoadedProtocol:
 
 
 def line_for(lines: dict[Loc, int], loc: Loc) -> int | None:
-    loc = clean_loc(loc)
     while True:
         if loc in lines:
             return lines[loc]
         if not loc:
             return None
         loc = loc[:-1]
-
-
-def clean_loc(loc: Loc) -> Loc:
-    """Drop pydantic's internal location tags (union members, validator names)."""
-    out: list[str | int] = []
-    for part in loc:
-        if isinstance(part, str) and ("[" in part or part in {"str", "int", "float", "bool", "none", "list"}):
-            continue
-        out.append(part)
-    return tuple(out)

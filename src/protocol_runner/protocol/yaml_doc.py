@@ -14,7 +14,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from ..errors import InvalidInput
-from .loaded import Loc, clean_loc, line_for
+from .loaded import Loc, line_for
 from .yaml_limits import check_size, check_yaml_limits
 
 MAX_ERRORS_SHOWN = 8
@@ -160,7 +160,7 @@ def format_problems(shown: str, lines: dict[Loc, int], problems: Sequence[tuple[
     for loc, message in problems[:MAX_ERRORS_SHOWN]:
         line = line_for(lines, loc)
         where = f"{shown}:{line}" if line else shown
-        rows.append(f"{where}: {format_loc(clean_loc(loc))}: {message}")
+        rows.append(f"{where}: {format_loc(loc)}: {message}")
     if len(problems) > MAX_ERRORS_SHOWN:
         rows.append(f"(and {len(problems) - MAX_ERRORS_SHOWN} more problems)")
     return "\n".join(rows)
@@ -196,15 +196,18 @@ def _unknown_before_missing(problems: list[tuple[Loc, str]]) -> list[tuple[Loc, 
 
 def _file_loc(loc: Loc) -> Loc:
     """`loc` without what pydantic adds to an error path that is no key of the file: the member of a plain
-    union (`factors.damper.list[str]`), the tags of the schema's own discriminated forms
+    union (`factors.damper.list[str]`, `...float`), the tags of the schema's own discriminated forms
     (`calibration_step.<one step>.hold_s`) and a trajectory's kind (`trajectories.sine.sinusoid.x`)."""
     from .trajectory_specs import kind_names
 
-    kinds = kind_names()
+    kinds, members = kind_names(), {"str", "int", "float", "bool", "none", "list"}
     return tuple(
         p
         for i, p in enumerate(loc)
-        if not (isinstance(p, str) and ("[" in p or p.startswith("literal") or (p[:1], p[-1:]) == ("<", ">")))
+        if not (
+            isinstance(p, str)
+            and ("[" in p or p in members or p.startswith("literal") or p[:1] + p[-1:] == "<>")
+        )
         and not (i >= 2 and loc[i - 2] in ("trajectories", "joints") and p in kinds)
     )
 
@@ -298,7 +301,7 @@ def _allowed_keys(root: type[BaseModel], loc: Loc) -> list[str]:
     """The keys of the model at `loc` (for "unknown key" hints)."""
     model: Any = root
     skip_user_key = False
-    for part in clean_loc(loc):
+    for part in _file_loc(loc):
         if isinstance(part, int):
             continue
         if skip_user_key:  # a key chosen by the user in a dict of models (level names, trajectory names)
