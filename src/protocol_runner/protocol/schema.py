@@ -304,8 +304,7 @@ class DeviceSpec(_Model):
 # ------------------------------------------------------------------------------------- test matrix
 
 RESERVED_CONFIGURATION_KEYS = ("key", "run", "trajectory", "trials", "description")
-MAX_KEY = 999_999  # a configuration's key and run number: ample for any matrix, and an integer every
-# archive attribute, table and MATLAB field holds (a key of 10^23 passed validation, then crashed the run)
+MAX_KEY = 999_999  # a key or run number: ample, and an integer every archive attribute and MATLAB field holds
 
 
 class ConfigurationSpec(_Model):

@@ -39,13 +39,14 @@ def trajectory_limit_problems(
     too_long = samples_problem(trajectory, rate_hz)
     if too_long:  # before anything is sampled: the work and memory of the checks below are bounded
         return [(kind.length_field, too_long)]
-    check = _Checker(trajectory, limits, dict(bindings or {}), rate_hz, base_dir)
+    check = LimitCheck(trajectory, limits, dict(bindings or {}), rate_hz, base_dir)
     kind.check_limits(trajectory, check)
     return check.problems
 
 
-class _Checker:
-    """The `LimitCheck` a kind reports to: each broken limit becomes a (field, message) problem."""
+class LimitCheck:
+    """What a kind's `check_limits` reports to: each call names the protocol FIELD that sets the value, so
+    that the message says what to change; each broken limit becomes a (field, message) in `problems`."""
 
     def __init__(
         self,
@@ -67,6 +68,7 @@ class _Checker:
         self.problems.append((field, f"{self.where}: {field}{bound}: {text}"))
 
     def range(self, field: str, lo: float, hi: float, what: str = "") -> None:
+        """[lo, hi] deg must lie inside the joint's range."""
         jlo, jhi = self.limits.range_deg
         tol = 1e-9
         if lo < jlo - tol or hi > jhi + tol:
@@ -91,8 +93,9 @@ class _Checker:
             )
 
     def samples(self, field: str) -> None:
-        """The sampled trajectory's range, rate and acceleration (first and second differences); for a
-        file, the line and column of the file row nearest the worst sample."""
+        """The samples at the output rate (the very samples sent) inside the envelope, for a kind without a
+        closed form: their range, rate and acceleration (first and second differences); for a file, the
+        line and column of the file row nearest the worst sample."""
         rate_hz, base_dir = self.rate_hz, self.base_dir
         samples = sample_trajectory(self.trajectory, rate_hz, base_dir)
         try:

@@ -3,7 +3,8 @@
 One pydantic model per kind, told apart by `kind` (a discriminated union of the registered kinds, unknown
 kinds and keys refused). Each kind's model declares everything about the kind in one place: its fields
 (which may be bound to factor quantities: `bindable`), how it becomes the plan's `Trajectory` (`build`),
-its samples at the output rate (`sample`) and its plan-time limit checks by field (`check_limits`). The
+its samples at the output rate (`sample`) and its plan-time limit checks by field (`check_limits`, reported
+to `trajectory_limits.LimitCheck`). The
 kinds are registered in `TRAJECTORY_KINDS` (`register_trajectory_kind` adds one); docs/protocol.md
 describes each.
 
@@ -23,7 +24,7 @@ import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, ClassVar, Generic, Literal, Protocol, TypeVar, get_args
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Generic, Literal, TypeVar, get_args
 
 import numpy as np
 import numpy.typing as npt
@@ -47,6 +48,9 @@ from .trajectories import (
     triangle_period_s,
 )
 from .trajectory_record import Trajectory
+
+if TYPE_CHECKING:
+    from .trajectory_limits import LimitCheck
 
 FloatArray = npt.NDArray[np.float64]
 Quantity = float | tuple[float, ...]
@@ -105,28 +109,6 @@ BindablePositive = Annotated[float | str, BeforeValidator(_binding_or("a positiv
 """A positive number, or a binding."""
 BindableRange = Annotated[RangePair | str, BeforeValidator(_binding_or("a range [low, high]", _range))]
 """A range [low, high] (low < high), or a binding."""
-
-
-class LimitCheck(Protocol):
-    """What a kind's `check_limits` reports to (`trajectory_limits.py` implements it): each call names the
-    protocol FIELD that sets the value, so that the message says what to change."""
-
-    def range(self, field: str, lo: float, hi: float, what: str = "") -> None:
-        """[lo, hi] deg must lie inside the joint's range."""
-
-    def rate(self, field: str, value: float, what: str) -> None:
-        """`value` deg/s must not exceed the joint's rate limit."""
-
-    def accel(self, field: str, value: float, what: str) -> None:
-        """`value` deg/s² must not exceed the joint's acceleration limit."""
-
-    def samples(self, field: str) -> None:
-        """The samples at the output rate (the very samples sent) must stay inside the envelope: for a
-        kind without a closed form."""
-
-    @property
-    def problems(self) -> list[tuple[str, str]]:
-        """(field, message) of every limit broken so far."""
 
 
 @dataclass(frozen=True)
@@ -215,8 +197,6 @@ class SinusoidSpec(TrajectoryKindSpec):
 
     @staticmethod
     def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
-        """Its range inside the joint's; peak speed `speed_deg_s` = 2*pi*A/p (Eq 25) under the rate limit;
-        peak acceleration A*(2*pi/p)^2 = speed^2/A under the acceleration limit."""
         mean, a, period = _sine(trajectory)
         speed = 2.0 * math.pi * a / period  # Eq 25
         check.range("range_deg", mean - a, mean + a)
@@ -290,8 +270,6 @@ class TriangleSpec(TrajectoryKindSpec):
 
     @staticmethod
     def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
-        """Range; `speed_deg_s` (its peak speed) under the rate limit; `corner_accel_deg_s2` (its peak
-        acceleration) under the acceleration limit."""
         lo, hi = _pair(trajectory.param("range_deg"))
         check.range("range_deg", lo, hi)
         check.rate("speed_deg_s", trajectory.number("speed_deg_s"), "its constant speed")
@@ -420,9 +398,6 @@ class RampedStepSpec(RampedStepFields[BindableFloat], TrajectoryKindSpec):
 
     @staticmethod
     def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
-        """`from_deg` and `from_deg + step_deg` inside the range; the raised cosine's peak speed
-        pi/2*step/ramp and peak acceleration pi^2/2*step/ramp^2 within the limits (else `ramp_s` is too
-        short)."""
         start, step, ramp = (trajectory.number(f) for f in ("from_deg", "step_deg", "ramp_s"))
         check.range("from_deg", start, start)
         check.range(
@@ -457,7 +432,6 @@ class HoldSpec(TrajectoryKindSpec):
 
     @staticmethod
     def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
-        """`angle_deg` inside the range."""
         angle = trajectory.number("angle_deg")
         check.range("angle_deg", angle, angle)
 
