@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -354,18 +354,24 @@ def _check_calibration_step(p: Protocol) -> Iterator[Problem]:
 def _check_files(p: Protocol, base: Path) -> Iterator[Problem]:
     """Referenced tables and datasets: confined to the protocol's folder (protocol/paths.py), then loaded.
     (Trajectory files are read when their trajectory is built.)"""
+    from ..analysis.reference import load_reference_dataset
+    from ..hardware.calibration import load_calibration_table
+
     for rig in p.rigs:
         for field in ("command_table", "angle_table", "torque_table"):
             rel = getattr(rig.calibration, field)
             if rel is not None:
                 loc: Loc = ("rig_overrides", "joints", rig.joint.name, "calibration", field)
-                yield from _check_loadable(loc, base, rel, "calibration table")
+                yield from _check_loadable(loc, base, rel, "calibration table", load_calibration_table)
     ref = p.report.reference_dataset
     if ref is not None:
-        yield from _check_loadable(("report", "reference_dataset"), base, ref, "reference dataset")
+        loc = ("report", "reference_dataset")
+        yield from _check_loadable(loc, base, ref, "reference dataset", load_reference_dataset)
 
 
-def _check_loadable(loc: Loc, base: Path, rel: str, what: str) -> Iterator[Problem]:
+def _check_loadable(
+    loc: Loc, base: Path, rel: str, what: str, load: Callable[[Path], object]
+) -> Iterator[Problem]:
     try:
         path = confined_path(base, rel)
     except OutsideFolder as exc:
@@ -373,24 +379,11 @@ def _check_loadable(loc: Loc, base: Path, rel: str, what: str) -> Iterator[Probl
         return
     if not path.is_file():
         there = os.path.lexists(path)  # a FIFO, a device, a directory or a dangling link: not "not found"
-        yield (
-            loc,
-            (
-                f"{what} {rel} is not a regular file ({path})"
-                if there
-                else f"{what} {rel} not found (looked in {path.parent})"
-            ),
-        )
+        found = f"is not a regular file ({path})" if there else f"not found (looked in {path.parent})"
+        yield loc, f"{what} {rel} {found}"
         return
     try:
-        if what == "calibration table":
-            from ..hardware.calibration import load_calibration_table
-
-            load_calibration_table(path)
-        else:
-            from ..analysis.reference import load_reference_dataset
-
-            load_reference_dataset(path)
+        load(path)
     except InvalidInput as exc:
         yield loc, _relative_message(exc.message, base)
 

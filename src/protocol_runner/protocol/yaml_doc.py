@@ -309,7 +309,7 @@ def _allowed_keys(root: type[BaseModel], loc: Loc) -> list[str]:
             continue
         if not (isinstance(model, type) and issubclass(model, BaseModel)):
             return []
-        info = _field_by_key(model, str(part))
+        info = next((f for name, f in model.model_fields.items() if (f.alias or name) == part), None)
         if info is None:
             return []
         skip_user_key = get_origin(info.annotation) is dict
@@ -317,13 +317,6 @@ def _allowed_keys(root: type[BaseModel], loc: Loc) -> list[str]:
     if isinstance(model, type) and issubclass(model, BaseModel):
         return [info.alias or name for name, info in model.model_fields.items()]
     return []
-
-
-def _field_by_key(model: type[BaseModel], key: str) -> Any:
-    for name, info in model.model_fields.items():
-        if (info.alias or name) == key:
-            return info
-    return None
 
 
 def _model_in(annotation: Any) -> Any:
