@@ -96,16 +96,9 @@ def expand(loaded: LoadedProtocol, only: KeySelection | Iterable[int] | None = N
     for comp in p.report.comparisons:
         keys = tuple(k for k in comp.configurations if k in chosen)
         if len(keys) >= 2:
+            fields = comp.model_dump(include={"name", "parameter", "title", "section"})
             steps.append(
-                CompareStep(
-                    id=step_id("compare", comp.name),
-                    kind="compare",
-                    name=comp.name,
-                    parameter=comp.parameter,
-                    title=comp.title,
-                    section=comp.section,
-                    configurations=keys,
-                )
+                CompareStep(id=step_id("compare", comp.name), kind="compare", configurations=keys, **fields)
             )
     steps.append(ReportStep(id=step_id("report"), kind="report"))
     return Plan(
