@@ -570,16 +570,11 @@ def _bound(name: str, field: str, binding: str, values: Mapping[str, Quantity]) 
         raise InvalidInput(
             f"trajectory {name!r}: {field} is bound to {binding} but no value was given for it"
         )
-    value = values[field]
-    what = f"trajectory {name!r}: {field} (bound to {binding})"
-    if field == "range_deg":
-        if not (isinstance(value, tuple) and len(value) == 2 and value[0] < value[1]):
-            raise InvalidInput(f"{what} needs a range [low, high] with low < high, got {value!r}")
-    elif not isinstance(value, float | int) or isinstance(value, bool):
-        raise InvalidInput(f"{what} needs a number, got {value!r}")
-    elif field in ("speed_deg_s", "corner_accel_deg_s2") and not value > 0:
-        raise InvalidInput(f"{what} must be greater than 0, got {value:g}")
-    return value
+    check = _range if field == "range_deg" else _number(field in ("speed_deg_s", "corner_accel_deg_s2"))
+    try:
+        return check(values[field])  # type: ignore[return-value]
+    except ValueError as exc:
+        raise InvalidInput(f"trajectory {name!r}: {field} (bound to {binding}): {exc}") from None
 
 
 def _sine(trajectory: Trajectory) -> tuple[float, float, float]:
