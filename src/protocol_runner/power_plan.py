@@ -239,16 +239,13 @@ def _plan_one(
     test = _test_name(spec)
     try:
         stats = _session_stats(spec, spread.data, keys) if spread.data is not None else {}
-        parts: list[Part] = []
-        bases: list[tuple[str, str]] = []
-        for terms, name in _statements(spec):
-            part, basis = _part(spec, terms, name, spread, stats)
-            parts.append(part)
-            bases.append((name, basis))
+        parts = [(name, *_part(spec, terms, name, spread, stats)) for terms, name in _statements(spec)]
     except _CannotPlan as why:
         return PlannedExpectation(spec, test, "", None, n_planned, str(why))
-    needed = trials_needed(parts, alpha_each, least=spec.min_trials)
-    return PlannedExpectation(spec, test, _joined(bases), needed, n_planned)
+    needed = trials_needed([part for _, part, _ in parts], alpha_each, least=spec.min_trials)
+    return PlannedExpectation(
+        spec, test, _joined([(name, basis) for name, _, basis in parts]), needed, n_planned
+    )
 
 
 def _joined(bases: Sequence[tuple[str, str]]) -> str:
@@ -318,12 +315,13 @@ def _part(
         basis = f"{_fmt(observed)} {unit} in SESSION"
     if not effect > 0.0:
         reference = f"{spec.value:g} {unit}" if spec.value is not None else "0"
-        raise _CannotPlan(
-            f"{name} is {_fmt(observed)} {unit} in SESSION, not {way} {reference}: no effect in the stated "
-            "direction to plan for (give --power-effect FRACTION to plan for an effect of that size)"
-            if spec.value is None
-            else f"{name} is {_fmt(observed)} {unit} in SESSION, not {way} {reference}: no distance to plan for"
+        why = (
+            "no distance to plan for"
+            if spec.value is not None
+            else "no effect in the stated direction to plan for (give --power-effect FRACTION to plan for an "
+            "effect of that size)"
         )
+        raise _CannotPlan(f"{name} is {_fmt(observed)} {unit} in SESSION, not {way} {reference}: {why}")
     return OneSided(effect, sd_terms), f"{basis}; {sds}"
 
 

@@ -44,29 +44,24 @@ def preflight_warnings(loaded: LoadedProtocol, plan: Plan) -> list[str]:
 
     processed = {s.configuration for s in plan.steps if isinstance(s, ProcessStep)}
     settings = processing_settings(loaded)
-    rates = {rig.joint.name: rig.output.rate_hz for rig in loaded.protocol.rigs}
-    first_rate = loaded.protocol.rigs[0].output.rate_hz
+    rate_hz = loaded.protocol.rig.output.rate_hz  # one output board: every joint's rate
     empty: dict[tuple[str, str], tuple[Trajectory, list[int]]] = {}
-    counted: dict[tuple[Trajectory, str], int] = {}  # by the motion itself: a bound field may differ
+    counted: dict[Trajectory, int] = {}  # by the motion itself: a bound field may differ
     for step in plan.steps:
         if not (isinstance(step, TrialStep) and step.brace == "on" and step.configuration in processed):
             continue
         for joint, trajectory in step.joint_trajectories or (("", step.trajectory),):
-            motion = (trajectory.name or trajectory.profile, joint)
-            if (trajectory, joint) not in counted:
-                angle = sample_trajectory(trajectory, rates.get(joint, first_rate), loaded.base_dir)
-                counted[(trajectory, joint)] = (
-                    len(
-                        complete_cycles(
-                            angle,
-                            hysteresis_deg=settings.cycle_hysteresis_deg,
-                            reference=settings.cycle_reference,
-                        )
-                    )
+            if trajectory not in counted:
+                angle = sample_trajectory(trajectory, rate_hz, loaded.base_dir)
+                hysteresis, reference = settings.cycle_hysteresis_deg, settings.cycle_reference
+                cycles = (
+                    complete_cycles(angle, hysteresis_deg=hysteresis, reference=reference)
                     if angle.size >= 3
-                    else 0
+                    else []
                 )
-            if counted[(trajectory, joint)] == 0:
+                counted[trajectory] = len(cycles)
+            if counted[trajectory] == 0:
+                motion = (trajectory.name or trajectory.profile, joint)
                 empty.setdefault(motion, (trajectory, []))[1].append(step.configuration)
     problems = []
     for (traj_name, joint), (trajectory, keys) in empty.items():

@@ -204,7 +204,7 @@ def test_a_per_joint_trajectory_naming_an_undriven_joint_is_refused_at_that_entr
     err = _refused(workdir, text, capsys)
     line = _line(text, "      elbow_flexion:")
     assert (
-        f"bad.yaml:{line}: trajectories.sit_to_stand.joints.elbow_flexion: 'elbow_flexion' is not driven"
+        f"bad.yaml:{line}: trajectories.sit_to_stand.joints.elbow_flexion: 'elbow_flexion' is not one of the driven joints"
         in err
     )
 

@@ -281,7 +281,8 @@ def test_a_negative_range_reads_unambiguously_in_the_checklist() -> None:
     plan = expand(load_protocol(ankle))
     shown = [
         i.split("range_deg = ", 1)[1]
-        for c in plan.of_kind(ChecklistStep)
+        for c in plan.steps
+        if isinstance(c, ChecklistStep)
         for i in c.items
         if "range_deg = " in i
     ]

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 import shutil
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator
 from pathlib import Path
 from typing import ClassVar, Literal
 
@@ -18,17 +18,17 @@ from pydantic import Field
 
 from protocol_runner.commands import run
 from protocol_runner.errors import InvalidInput
-from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.protocol.loader import find_protocol, load_protocol
 from protocol_runner.protocol.plan import expand
 from protocol_runner.protocol.plan_steps import TrialStep
 from protocol_runner.protocol.plan_table import format_plan_table
+from protocol_runner.protocol.trajectory_limits import LimitCheck
 from protocol_runner.protocol.trajectory_record import Trajectory
 from protocol_runner.protocol.trajectory_specs import (
     BindableRange,
+    BuildContext,
+    Fields,
     FloatArray,
-    LimitCheck,
-    Quantity,
     TrajectoryKindSpec,
     deregister_trajectory_kind,
     register_trajectory_kind,
@@ -49,19 +49,11 @@ class CosineWaveSpec(TrajectoryKindSpec):
     bindable: ClassVar[tuple[str, ...]] = ("range_deg",)
     length_field: ClassVar[str] = "cycles"
 
-    def build(
-        self,
-        name: str,
-        fields: Mapping[str, Quantity | None],
-        base_dir: Path,
-        joint: str | None,
-        limits: SafetyLimits | None,
-    ) -> Trajectory:
+    def build(self, fields: Fields, at: BuildContext) -> Trajectory:
         span = fields["range_deg"]
         assert isinstance(span, tuple)
         return Trajectory(
             profile="cosine_wave",
-            name=name,
             params=(("range_deg", span), ("period_s", self.period_s)),
             duration_s=self.cycles * self.period_s,
         )

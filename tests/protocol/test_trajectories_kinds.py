@@ -19,7 +19,6 @@ from pydantic import TypeAdapter
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.stream import build_stream, check_stream
-from protocol_runner.protocol.plan_trajectory import build_trajectory
 from protocol_runner.protocol.sampling import sample_trajectory
 from protocol_runner.protocol.trajectories import (
     calibration_step_peak_accel_deg_s2,
@@ -28,7 +27,12 @@ from protocol_runner.protocol.trajectories import (
 )
 from protocol_runner.protocol.trajectory_limits import trajectory_limit_problems
 from protocol_runner.protocol.trajectory_record import Trajectory
-from protocol_runner.protocol.trajectory_specs import Quantity, TrajectorySpec, trajectory_bindings
+from protocol_runner.protocol.trajectory_specs import (
+    Quantity,
+    TrajectorySpec,
+    build_trajectory,
+    trajectory_bindings,
+)
 
 SPEC: TypeAdapter[TrajectorySpec] = TypeAdapter(TrajectorySpec)
 LIMITS = SafetyLimits(
@@ -360,12 +364,12 @@ def test_bound_fields_need_a_value_of_the_right_shape() -> None:
     doc = {"kind": "sinusoid", "range_deg": "rom.range_deg", "speed_deg_s": "speed.speed_deg_s", "periods": 1}
     with pytest.raises(InvalidInput, match=r"range_deg is bound to rom.range_deg but no value"):
         build(doc, {"speed_deg_s": 10.0})
-    with pytest.raises(InvalidInput, match=r"speed_deg_s \(bound to speed.speed_deg_s\) needs a number"):
+    with pytest.raises(InvalidInput, match=r"speed_deg_s \(bound to speed.speed_deg_s\): expected a number"):
         build(doc, {"range_deg": (0.0, 10.0), "speed_deg_s": (1.0, 2.0)})
-    with pytest.raises(InvalidInput, match=r"range_deg \(bound to rom.range_deg\) needs a range"):
+    with pytest.raises(InvalidInput, match=r"range_deg \(bound to rom.range_deg\): expected a range"):
         build(doc, {"range_deg": 10.0, "speed_deg_s": 10.0})
     with pytest.raises(
-        InvalidInput, match=r"speed_deg_s \(bound to speed.speed_deg_s\) must be greater than 0"
+        InvalidInput, match=r"speed_deg_s \(bound to speed.speed_deg_s\): must be greater than 0"
     ):
         build(doc, {"range_deg": (0.0, 10.0), "speed_deg_s": 0.0})
 

@@ -28,7 +28,6 @@ from .schema import (
 )
 
 Problem = tuple[Loc, str]
-Rows = list[dict[str, str]]
 
 
 def expand_generators(p: Protocol) -> tuple[Protocol, list[Problem], dict[Loc, Loc]]:
@@ -41,13 +40,10 @@ def expand_generators(p: Protocol) -> tuple[Protocol, list[Problem], dict[Loc, L
     origins: dict[Loc, Loc] = {}
     count_so_far = len(explicit)
     if count_so_far > MAX_CONFIGURATIONS:
-        problems.append(
-            (
-                ("sets",),
-                f"{count_so_far:,} configurations, more than the {MAX_CONFIGURATIONS:,} a protocol may have",
-            )
+        too_many = (
+            f"{count_so_far:,} configurations, more than the {MAX_CONFIGURATIONS:,} a protocol may have"
         )
-        return p, problems, origins
+        return p, [(("sets",), too_many)], origins
     sets: list[SetSpec] = []
     for i, s in enumerate(p.sets):
         rows: list[ConfigurationSpec] = list(s.configurations)
@@ -76,18 +72,11 @@ def expand_generators(p: Protocol) -> tuple[Protocol, list[Problem], dict[Loc, L
             count_so_far += count
             levels = _full_factorial(p, gen) if isinstance(gen, FullFactorialSpec) else _ofat(gen)
             for combo in levels:
-                trajectory = _trajectory(gen, combo)
                 origins[("sets", i, "configurations", len(rows))] = loc
+                row = {"key": next_key, "run": next_run, "trajectory": _trajectory(gen, combo)}
                 rows.append(
                     ConfigurationSpec.model_validate(
-                        {
-                            "key": next_key,
-                            "run": next_run,
-                            "trajectory": trajectory,
-                            "trials": gen.trials,
-                            "description": gen.description,
-                            **combo,
-                        }
+                        {**row, "trials": gen.trials, "description": gen.description, **combo}
                     )
                 )
                 next_key += 1
@@ -158,7 +147,7 @@ def _check_generator(p: Protocol, gen: _GeneratorSpec, loc: Loc) -> Iterator[Pro
             named.setdefault(f, []).extend(((*loc, "vary", f, j), lv) for j, lv in enumerate(levels))
     for f, items in named.items():
         if f not in p.factors:
-            where = items[0][0][: len(loc) + 2] if items else (*loc, _section(gen), f)
+            where = items[0][0][: len(loc) + 2] if items else (*loc, "factors", f)  # `all` of a factorial
             yield where, f"unknown factor {f!r} (declared: {', '.join(p.factors) or 'none'})"
             continue
         for where, lv in items:
@@ -192,7 +181,3 @@ def _used_levels(p: Protocol, gen: _GeneratorSpec, factor: str) -> list[str]:
         return _levels(p, factor, gen.factors[factor])
     assert isinstance(gen, OneFactorAtATimeSpec)
     return list(dict.fromkeys([gen.baseline[factor], *gen.vary.get(factor, [])]))
-
-
-def _section(gen: _GeneratorSpec) -> str:
-    return "factors" if isinstance(gen, FullFactorialSpec) else "baseline"

@@ -41,25 +41,11 @@ class LoadedProtocol:
         """Relative paths in the protocol (trajectory and calibration files) are relative to this."""
         return self.path.parent
 
-    def line_of(self, loc: Loc) -> int | None:
-        return line_for(self.lines, loc)
-
 
 def line_for(lines: dict[Loc, int], loc: Loc) -> int | None:
-    loc = clean_loc(loc)
     while True:
         if loc in lines:
             return lines[loc]
         if not loc:
             return None
         loc = loc[:-1]
-
-
-def clean_loc(loc: Loc) -> Loc:
-    """Drop pydantic's internal location tags (union members, validator names)."""
-    out: list[str | int] = []
-    for part in loc:
-        if isinstance(part, str) and ("[" in part or part in {"str", "int", "float", "bool", "none", "list"}):
-            continue
-        out.append(part)
-    return tuple(out)

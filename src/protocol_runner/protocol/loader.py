@@ -20,8 +20,8 @@ from ..errors import InvalidInput
 from ..resources import packaged_protocols_dir
 from .booleans import boolean_numbers
 from .generators import expand_generators
-from .loaded import LoadedProtocol, RigSource, line_for
-from .rig_file import find_rig, load_rig, parse_rig_text, resolve_rig, resolve_rigs
+from .loaded import LoadedProtocol, line_for
+from .rig_file import find_rig, load_rig, parse_rig_text, resolve_rigs
 from .schema import Protocol
 from .validate import cross_check
 from .yaml_doc import format_problems, huge_numbers, parse_yaml, validation_problems
@@ -120,11 +120,8 @@ def parse_protocol_text(
         except InvalidInput as exc:
             raise InvalidInput(format_problems(shown, lines, [(("rig",), exc.message)])) from None
         loaded_rig = load_rig(rig_path, shown=_rig_shown(protocol.rig_name, rig_path))
-    if protocol.joints is not None:
-        rigs, problems = resolve_rigs(loaded_rig, protocol.joints, protocol.rig_overrides)
-    else:
-        rig, problems = resolve_rig(loaded_rig, str(protocol.joint), protocol.rig_overrides)
-        rigs = (rig,) if rig is not None else ()
+    joints, overrides = list(protocol.driven_joints), protocol.rig_overrides
+    rigs, problems = resolve_rigs(loaded_rig, joints, overrides, multi=protocol.multi_joint)
     if not rigs:
         raise InvalidInput(format_problems(shown, lines, problems))
     protocol, problems, origins = expand_generators(protocol.with_rigs(rigs))
@@ -135,10 +132,7 @@ def parse_protocol_text(
     if problems:
         raise InvalidInput(format_problems(shown, lines, problems))
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
-    rig_source = RigSource(
-        loaded_rig.shown, loaded_rig.text, loaded_rig.sha256, loaded_rig.path, dict(loaded_rig.lines)
-    )
-    loaded = LoadedProtocol(protocol, path, text, sha, lines, shown, rig_source)
+    loaded = LoadedProtocol(protocol, path, text, sha, lines, shown, loaded_rig)
 
     problems = cross_check(loaded, check_files=check_files, generated=origins)
     if problems:

@@ -36,12 +36,7 @@ from .plan_steps import (
     Step,
     TrialStep,
 )
-from .resolve import (
-    calibration_trajectory,
-    configuration_trajectories,
-    configuration_trajectory,
-    resolve_settings,
-)
+from .resolve import calibration_trajectory, configuration_motion, resolve_settings
 from .schema import ConfigurationSpec, Protocol, SetSpec
 from .settings import Settings
 from .step_ids import calibration_id, step_id, trial_id
@@ -101,16 +96,9 @@ def expand(loaded: LoadedProtocol, only: KeySelection | Iterable[int] | None = N
     for comp in p.report.comparisons:
         keys = tuple(k for k in comp.configurations if k in chosen)
         if len(keys) >= 2:
+            fields = comp.model_dump(include={"name", "parameter", "title", "section"})
             steps.append(
-                CompareStep(
-                    id=step_id("compare", comp.name),
-                    kind="compare",
-                    name=comp.name,
-                    parameter=comp.parameter,
-                    title=comp.title,
-                    section=comp.section,
-                    configurations=keys,
-                )
+                CompareStep(id=step_id("compare", comp.name), kind="compare", configurations=keys, **fields)
             )
     steps.append(ReportStep(id=step_id("report"), kind="report"))
     return Plan(
@@ -129,8 +117,7 @@ def _trial(
     s: SetSpec, cfg: ConfigurationSpec, st: Settings, motion: JointTrajectories, brace: str, n: int
 ) -> TrialStep:
     """Trial n of a configuration; a brace-off trial names its brace-on twin (its input comes from it).
-    `motion`: the trajectory ("", t) of a single-joint protocol, or (joint, t) per driven joint."""
-    trajectory = motion[0][1]
+    `motion`: (joint, trajectory) per driven joint of a multi-joint protocol, else ("", trajectory)."""
     return TrialStep(
         id=trial_id(cfg.key, brace, n),
         kind="trial",
@@ -140,7 +127,7 @@ def _trial(
         trial=n,
         brace=brace,
         settings=st,
-        trajectory=trajectory,
+        trajectory=motion[0][1],
         twin=trial_id(cfg.key, "on", n) if brace == "off" else None,
         joint_trajectories=motion if motion[0][0] else (),
     )
@@ -166,11 +153,7 @@ def _expand_set(
     steps: list[Step] = [calibration_check("before")]
     resolved = [(c, resolve_settings(p, c)) for c in cfgs]
     trajectories: dict[int, JointTrajectories] = {
-        c.key: (
-            configuration_trajectories(loaded, c, st)
-            if p.multi_joint
-            else (("", configuration_trajectory(loaded, c, st)),)
-        )
+        c.key: tuple((j if p.multi_joint else "", t) for j, t in configuration_motion(loaded, c, st))
         for c, st in resolved
     }
     device = p.device.name if p.device is not None and p.device.name else "device"

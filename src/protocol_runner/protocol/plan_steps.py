@@ -98,10 +98,6 @@ class CalibrationCheckStep(Step):
         step_deg = dict(self.trajectory.params).get("step_deg", 0.0)
         return f"set {self.set}: {step_deg:g} deg step check {self.when}"
 
-    def joints_names(self) -> tuple[str, ...]:
-        """The joints checked one after the other (multi-joint; empty for one joint)."""
-        return tuple(j for j, _ in self.joint_trajectories)
-
     def to_json(self) -> dict[str, Any]:
         return {**super().to_json(), **_trajectory_json(self.trajectory, self.joint_trajectories)}
 
@@ -267,6 +263,3 @@ class Plan:
     @property
     def robot_time_s(self) -> float:
         return sum(s.robot_time_s for s in self.steps)
-
-    def of_kind(self, kind: type[Step]) -> list[Any]:
-        return [s for s in self.steps if isinstance(s, kind)]

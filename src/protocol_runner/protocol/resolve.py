@@ -4,14 +4,14 @@ parameters and its trajectory's fields bound to those levels' quantities (docs/p
 `check_bindings` reports every binding problem of the protocol with its location (an undeclared factor, a
 quantity whose unit suffix differs from the parameter's, an unknown element type or parameter, a level
 lacking the bound quantity, a configuration that leaves a bound factor unset). `resolve_settings` and
-`configuration_trajectory` assume a protocol that passed those checks.
+`configuration_motion` assume a protocol that passed those checks.
 """
 
 from __future__ import annotations
 
 import difflib
 import re
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -20,11 +20,17 @@ import numpy as np
 from ..errors import InvalidInput
 from ..models.element_types import ELEMENT_TYPES
 from ..models.elements import build_element
-from .plan_trajectory import build_trajectory
 from .schema import ConfigurationSpec, Protocol
 from .settings import ElementSetting, FactorSetting, Quantity, Settings
 from .trajectory_record import Trajectory
-from .trajectory_specs import PerJointSpec, RampedStepSpec, is_binding, joint_spec, trajectory_bindings
+from .trajectory_specs import (
+    PerJointSpec,
+    RampedStepSpec,
+    build_trajectory,
+    is_binding,
+    joint_spec,
+    trajectory_bindings,
+)
 from .units import unit_suffix
 from .yaml_doc import format_loc
 
@@ -104,16 +110,16 @@ def resolve_device(
             if named is not None and is_binding(bound):
                 raise _bound_value_error(p, factors, str(bound), (*loc, named), exc.message) from None
             raise BindingError((*loc, named) if named else loc, exc.message) from None
-        params: list[tuple[str, Quantity | str]] = []
-        for key, v in built.params.items():
-            if isinstance(v, tuple) and all(isinstance(x, str) for x in v):
-                params.append((key, ",".join(str(x) for x in v)))
-            elif isinstance(v, tuple):
-                params.append((key, tuple(float(x) for x in v)))
-            else:
-                params.append((key, v))
-        out.append(ElementSetting(name=el.name, type=el.type, params=tuple(params), joint=joint))
+        params = tuple((key, _setting_value(v)) for key, v in built.params.items())
+        out.append(ElementSetting(name=el.name, type=el.type, params=params, joint=joint))
     return tuple(out)
+
+
+def _setting_value(value: Any) -> Quantity | str:
+    """An element parameter as the settings keep it: words joined by commas, numbers as floats."""
+    if isinstance(value, tuple):
+        return ",".join(value) if all(isinstance(x, str) for x in value) else tuple(float(x) for x in value)
+    return value
 
 
 def _bound_value_error(
@@ -138,12 +144,10 @@ def resolve_settings(p: Protocol, cfg: ConfigurationSpec) -> Settings:
 
 
 def trajectory_values(
-    p: Protocol, settings: Settings, cfg: ConfigurationSpec, joint: str | None = None
+    p: Protocol, settings: Settings, cfg: ConfigurationSpec, joint: str
 ) -> dict[str, Quantity]:
     """The bound fields' values of the configuration's trajectory (of `joint`'s entry of a `per_joint`)."""
-    spec, prefix = (
-        joint_spec(p.trajectories[cfg.trajectory], joint) if joint else (p.trajectories[cfg.trajectory], ())
-    )
+    spec, prefix = joint_spec(p.trajectories[cfg.trajectory], joint)
     factors = dict(settings.factors)
     return {
         field: _bound_value(factors, binding, ("trajectories", cfg.trajectory, *prefix, field), cfg)
@@ -151,39 +155,40 @@ def trajectory_values(
     }
 
 
-def configuration_trajectories(
+def configuration_motion(
     loaded: LoadedProtocol, cfg: ConfigurationSpec, settings: Settings
 ) -> tuple[tuple[str, Trajectory], ...]:
-    """A multi-joint configuration's motion: (joint, trajectory) per driven joint in channel order, all
-    lasting the same number of output ticks (InvalidInput naming the joint otherwise)."""
+    """What a configuration commands: (joint, trajectory) per driven joint in channel order. The joints
+    of a protocol that names `joints:` each need their motion (`per_joint`, or a file with a column per
+    joint), all lasting the same number of output ticks; InvalidInput (naming the joint) or BindingError
+    if it cannot be built."""
     from .stream_check import safety_limits
 
     p = loaded.protocol
     name = cfg.trajectory
     spec = p.trajectories[name]
-    if not isinstance(spec, PerJointSpec) and spec.kind != "file":
+    if p.multi_joint and not isinstance(spec, PerJointSpec) and spec.kind != "file":
         raise InvalidInput(
             f"trajectory {name!r} ({spec.kind}): a multi-joint trial needs each joint's motion: give "
             "`kind: per_joint` with one entry per driven joint, or a `file` with one angle column per joint"
         )
+    if not p.multi_joint and isinstance(spec, PerJointSpec):
+        raise InvalidInput(
+            f"trajectory {name!r}: kind per_joint needs a multi-joint protocol (`joints: [...]`)"
+        )
     out: list[tuple[str, Trajectory]] = []
     for joint in p.driven_joints:
-        entry, _ = joint_spec(spec, joint)
-        rig = p.rig_of(joint)
+        values = trajectory_values(p, settings, cfg, joint)
+        limits = safety_limits(p.rig_of(joint))
         try:
             traj = build_trajectory(
-                name,
-                entry,
-                trajectory_values(p, settings, cfg, joint),
-                loaded.base_dir,
-                joint=joint,
-                limits=safety_limits(rig),
+                name, joint_spec(spec, joint)[0], values, loaded.base_dir, joint=joint, limits=limits
             )
         except InvalidInput as exc:
-            raise InvalidInput(f"joint {joint}: {exc.message}") from None
+            raise InvalidInput(f"joint {joint}: {exc.message}" if p.multi_joint else exc.message) from None
         out.append((joint, traj))
     rate = p.rig.output.rate_hz
-    ticks = {j: len(np.arange(0.0, t.duration_s, 1.0 / rate)) for j, t in out}
+    ticks = {j: len(np.arange(0.0, t.duration_s, 1.0 / rate)) for j, t in out} if len(out) > 1 else {}
     if len(set(ticks.values())) > 1:
         shown = ", ".join(f"{j} {n} ({dict(out)[j].duration_s:g} s)" for j, n in ticks.items())
         raise InvalidInput(
@@ -191,38 +196,6 @@ def configuration_trajectories(
             f"numbers of output ticks at {rate:g} Hz: {shown}"
         )
     return tuple(out)
-
-
-def configuration_motion(
-    loaded: LoadedProtocol, cfg: ConfigurationSpec, settings: Settings
-) -> tuple[tuple[str, Trajectory], ...]:
-    """(joint, trajectory) for every driven joint: `configuration_trajectories` of a protocol that names
-    `joints:`, else the one joint's `configuration_trajectory`."""
-    if loaded.protocol.multi_joint:
-        return configuration_trajectories(loaded, cfg, settings)
-    return ((loaded.protocol.rig.joint.name, configuration_trajectory(loaded, cfg, settings)),)
-
-
-def configuration_trajectory(
-    loaded: LoadedProtocol, cfg: ConfigurationSpec, settings: Settings
-) -> Trajectory:
-    """The trajectory a configuration commands (InvalidInput/BindingError if it cannot be built)."""
-    from .stream_check import safety_limits
-
-    p = loaded.protocol
-    spec = p.trajectories[cfg.trajectory]
-    if isinstance(spec, PerJointSpec):
-        raise InvalidInput(
-            f"trajectory {cfg.trajectory!r}: kind per_joint needs a multi-joint protocol (`joints: [...]`)"
-        )
-    return build_trajectory(
-        cfg.trajectory,
-        spec,
-        trajectory_values(p, settings, cfg),
-        loaded.base_dir,
-        joint=p.rig.joint.name,
-        limits=safety_limits(p.rig),
-    )
 
 
 def calibration_trajectory(p: Protocol, joint: str | None = None) -> Trajectory:
@@ -288,29 +261,30 @@ def _check_joints_named(p: Protocol) -> Iterator[Problem]:
     """A device of several driven joints is declared per joint, for driven joints only; a `per_joint`
     trajectory has an entry for every driven joint and for no other."""
     driven = p.driven_joints
-    shown = ", ".join(driven)
     if p.device is not None and p.device.elements and len(driven) > 1:
         yield (
             ("device", "elements"),
-            f"this campaign drives {len(driven)} joints ({shown}): a flat `elements` list would put every "
-            "element on every joint; give each joint its own under `device.joints.<joint>.elements`",
+            f"this campaign drives {len(driven)} joints ({', '.join(driven)}): a flat `elements` list would "
+            "put every element on every joint; give each joint its own under `device.joints.<joint>.elements`",
         )
     if p.device is not None:
-        for joint in p.device.joints:
-            if joint not in driven:
-                yield ("device", "joints", joint), f"{joint!r} is not one of the driven joints ({shown})"
+        yield from joints_named(("device", "joints"), p.device.joints, driven)
     for name, spec in p.trajectories.items():
-        if not isinstance(spec, PerJointSpec) or not p.multi_joint:
-            continue
-        missing = [j for j in driven if j not in spec.joints]
-        if missing:
-            yield (
-                ("trajectories", name, "joints"),
-                f"no entry for driven joint(s) {', '.join(missing)} (joints: {shown})",
-            )
-        for joint in spec.joints:
-            if joint not in driven:
-                yield ("trajectories", name, "joints", joint), f"{joint!r} is not driven (joints: {shown})"
+        if isinstance(spec, PerJointSpec) and p.multi_joint:
+            yield from joints_named(("trajectories", name, "joints"), spec.joints, driven, "entry")
+
+
+def joints_named(loc: Loc, named: Iterable[str], driven: Sequence[str], each: str = "") -> Iterator[Problem]:
+    """The keys `named` of the mapping at `loc` against the driven joints: every key that is not one, and,
+    when every driven joint needs `each` (its entry, its calibration step), the driven joints missing."""
+    named = list(named)
+    shown = ", ".join(driven)
+    for joint in named:
+        if joint not in driven:
+            yield (*loc, joint), f"{joint!r} is not one of the driven joints ({shown})"
+    missing = [j for j in driven if j not in named]
+    if each and missing:
+        yield loc, f"no {each} for driven joint(s) {', '.join(missing)} (joints: {shown})"
 
 
 def _did_you_mean(word: str, known: Iterable[str]) -> str:

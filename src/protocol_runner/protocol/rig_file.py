@@ -1,8 +1,8 @@
 """Rig files (`src/protocol_runner/rigs/*.yaml`): a robot's joints, boards and channels, and the per-joint
 dynamics and simulator parameters, shared by every protocol that names the rig (`rig: rsst`).
 
-A protocol names a rig (a shipped name, or a path relative to its folder) and a joint; `resolve_rig`
-merges the joint with the rig's `joint_defaults` and the protocol's `rig_overrides` into the `RigSpec`
+A protocol names a rig (a shipped name, or a path relative to its folder) and its joints; `resolve_rig`
+merges each joint with the rig's `joint_defaults` and the protocol's `rig_overrides` into the `RigSpec`
 the rest of the runner reads (`protocol.rig.joint`, `.output`, `.input`, `.safety`, `.simulator`, ...).
 Mistakes in the rig file (an unknown key, a bad range, two joints on one channel, an unknown simulator
 parameter) name the rig file, its line and the field.
@@ -12,22 +12,25 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
-from pydantic import Field, ValidationError, field_validator
+from pydantic import Field, ValidationError
 
 from ..errors import InvalidInput
 from ..resources import packaged_rigs_dir
 from ..tables import read_table_text
 from .booleans import boolean_numbers
-from .loaded import Loc
+from .loaded import Loc, RigSource
 from .paths import OutsideFolder, confined_path
+from .resolve import joints_named
 from .schema import (
     Backend,
     Identifier,
     InputSpec,
+    JointOverride,
     JointSpec,
     OutputSpec,
     RangePair,
@@ -37,7 +40,6 @@ from .schema import (
     SafetySpec,
     WatchdogOverride,
     WatchdogSpec,
-    _check_range,
     _Model,
 )
 from .yaml_doc import format_problems, huge_numbers, parse_yaml, validation_problems
@@ -61,17 +63,10 @@ class BoardSpec(_Model):
     # which library drives the board: pyusb (this package's drivers), MCC's uldaq or mcculw
     backend: Backend = "pyusb"
 
-    _range = field_validator("volts_range")(_check_range)
-
-
-class JointSafety(SafetyOverride):
-    """A rig file's safety limits of a joint (or its joints' defaults): the fields of a protocol's
-    `rig_overrides` safety, each optional; the merge with the defaults is `_merged_safety`."""
-
 
 class JointDefaults(_Model):
     time_constant_s: float = Field(gt=0)
-    safety: JointSafety = JointSafety()
+    safety: SafetyOverride = SafetyOverride()
     simulator: dict[str, float] = Field(default_factory=dict)
     watchdog: WatchdogOverride | None = None
 
@@ -85,10 +80,8 @@ class RigJoint(_Model):
     angle_channel: int = Field(ge=0)
     torque_channel: int = Field(ge=0)
     time_constant_s: float | None = Field(default=None, gt=0)
-    safety: JointSafety = JointSafety()
+    safety: SafetyOverride = SafetyOverride()
     simulator: dict[str, float] = Field(default_factory=dict)
-
-    _range = field_validator("range_deg", "torque_range_nm")(_check_range)
 
 
 class RigFile(_Model):
@@ -102,14 +95,11 @@ class RigFile(_Model):
     joints: dict[Identifier, RigJoint] = Field(min_length=1)
 
 
-@dataclass(frozen=True)
-class LoadedRig:
-    rig: RigFile
-    path: Path
-    shown: str
-    sha256: str
-    lines: dict[Loc, int] = field(default_factory=dict, repr=False, compare=False)
-    text: str = field(default="", repr=False, compare=False)  # the file exactly as read (archived as /rig)
+@dataclass(frozen=True, kw_only=True)
+class LoadedRig(RigSource):
+    """A checked rig file: its source, and the rig it declares."""
+
+    rig: RigFile = field(repr=False, compare=False)
 
 
 def is_rig_path(name_or_path: str) -> bool:
@@ -151,7 +141,7 @@ def parse_rig_text(text: str, path: Path, shown: str) -> LoadedRig:
         rig = RigFile.model_validate(data)
     except ValidationError as exc:
         raise InvalidInput(format_problems(shown, lines, validation_problems(exc, RigFile))) from None
-    problems = boolean_numbers(rig, data) or huge_numbers(data) or check_rig_file(rig)
+    problems = boolean_numbers(rig, data) or huge_numbers(data) or list(check_rig_file(rig))
     if problems:
         raise InvalidInput(format_problems(shown, lines, problems))
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
@@ -187,17 +177,16 @@ def simulator_fields() -> tuple[str, ...]:
 BOARD_RATES_HZ = {"output": (1.0, 1000.0), "input": (10.0, 25000.0)}
 
 
-def check_rig_file(rig: RigFile) -> list[Problem]:
+def check_rig_file(rig: RigFile) -> Iterator[Problem]:
     from ..hardware.simulator.params import bound_problem
 
-    problems: list[Problem] = []
     for key, role in (("output_board", "output"), ("input_board", "input")):
         name = getattr(rig, key)
         board = rig.boards.get(name)
         if board is None:
-            problems.append(((key,), f"unknown board {name!r} (boards: {', '.join(rig.boards)})"))
+            yield (key,), f"unknown board {name!r} (boards: {', '.join(rig.boards)})"
         elif board.role != role:
-            problems.append(((key,), f"board {name!r} is an {board.role} board"))
+            yield (key,), f"board {name!r} is an {board.role} board"
     out_channels = max((b.channels for b in rig.boards.values() if b.role == "output"), default=0)
     in_channels = min((b.channels for b in rig.boards.values() if b.role == "input"), default=0)
     allowed = simulator_fields()
@@ -208,91 +197,75 @@ def check_rig_file(rig: RigFile) -> list[Problem]:
     ):
         for param, value in values.items():
             if param not in allowed:
-                problems.append(
-                    (
-                        (*where, "simulator", param),
-                        f"unknown simulator parameter (known: {', '.join(allowed)})",
-                    )
+                yield (
+                    (*where, "simulator", param),
+                    f"unknown simulator parameter (known: {', '.join(allowed)})",
                 )
             elif bounded := bound_problem(param, value):
-                problems.append(((*where, "simulator", param), bounded))
+                yield (*where, "simulator", param), bounded
     for name, board in rig.boards.items():
         if name == "dt9814" and board.backend != "pyusb":
-            problems.append(
-                (
-                    ("boards", name, "backend"),
-                    f"MCC's {board.backend} does not drive the DT9814; only the pyusb backend knows it",
-                )
+            yield (
+                ("boards", name, "backend"),
+                f"MCC's {board.backend} does not drive the DT9814; only the pyusb backend knows it",
             )
         if board.role == "output" and board.report_time_s is None:
-            problems.append(
-                (
-                    ("boards", name),
-                    "an output board states report_time_s, the time one output report takes (a tick of "
-                    "N joints sends N + 1 reports); measure it with run-protocol --hardware-check",
-                )
+            yield (
+                ("boards", name),
+                "an output board states report_time_s, the time one output report takes (a tick of "
+                "N joints sends N + 1 reports); measure it with run-protocol --hardware-check",
             )
         low, high = BOARD_RATES_HZ[board.role]
         if not low <= board.rate_hz <= high:
-            problems.append(
-                (
-                    ("boards", name, "rate_hz"),
-                    f"an {board.role} board's rate must lie in [{low:g}, {high:g}] Hz, got {board.rate_hz:g}",
-                )
-            )
-    for name, j in rig.joints.items():
-        lo, hi = j.torque_range_nm
-        if not lo < 0.0 < hi:
-            problems.append(
-                (
-                    ("joints", name, "torque_range_nm"),
-                    f"the load cell's range must include 0 N·m (a joint at rest reads 0), got [{lo:g}, {hi:g}]",
-                )
+            yield (
+                ("boards", name, "rate_hz"),
+                f"an {board.role} board's rate must lie in [{low:g}, {high:g}] Hz, got {board.rate_hz:g}",
             )
     numbers: dict[int, str] = {}
     outputs: dict[int, str] = {}
     inputs: dict[int, str] = {}
     for name, j in rig.joints.items():
         loc: Loc = ("joints", name)
+        lo, hi = j.torque_range_nm
+        if not lo < 0.0 < hi:
+            yield (
+                (*loc, "torque_range_nm"),
+                f"the load cell's range must include 0 N·m (a joint at rest reads 0), got [{lo:g}, {hi:g}]",
+            )
         if j.number in numbers:
-            problems.append(((*loc, "number"), f"joint number {j.number} is already {numbers[j.number]}'s"))
+            yield (*loc, "number"), f"joint number {j.number} is already {numbers[j.number]}'s"
         numbers.setdefault(j.number, name)
         if j.output_channel >= out_channels:
-            problems.append(((*loc, "output_channel"), f"the output board has channels 0-{out_channels - 1}"))
+            yield (*loc, "output_channel"), f"the output board has channels 0-{out_channels - 1}"
         elif j.output_channel in outputs:
-            problems.append(
-                (
-                    (*loc, "output_channel"),
-                    f"output channel {j.output_channel} is already {outputs[j.output_channel]}'s",
-                )
+            yield (
+                (*loc, "output_channel"),
+                f"output channel {j.output_channel} is already {outputs[j.output_channel]}'s",
             )
         outputs.setdefault(j.output_channel, name)
         for fld in ("angle_channel", "torque_channel"):
             ch = getattr(j, fld)
             if ch >= in_channels:
-                problems.append(((*loc, fld), f"the input boards have channels 0-{in_channels - 1}"))
+                yield (*loc, fld), f"the input boards have channels 0-{in_channels - 1}"
             elif ch in inputs:
-                problems.append(((*loc, fld), f"input channel {ch} is already used by {inputs[ch]}"))
+                yield (*loc, fld), f"input channel {ch} is already used by {inputs[ch]}"
             inputs.setdefault(ch, f"{name}.{fld}")
         safety = _merged_safety(rig, j)
         for fld in ("max_rate_deg_s", "max_accel_deg_s2", "park_angle_deg", "park_rate_deg_s"):
             if getattr(safety, fld) is None:
-                problems.append(((*loc, "safety", fld), "missing (here or in joint_defaults.safety)"))
+                yield (*loc, "safety", fld), "missing (here or in joint_defaults.safety)"
         park = safety.park_angle_deg
         if park is not None and not j.range_deg[0] <= park <= j.range_deg[1]:
-            problems.append(
-                (
-                    (*loc, "safety", "park_angle_deg"),
-                    f"{park:g} deg is outside the joint's range_deg {_fmt(j.range_deg)}",
-                )
+            yield (
+                (*loc, "safety", "park_angle_deg"),
+                f"{park:g} deg is outside the joint's range_deg {_fmt(j.range_deg)}",
             )
-    return problems
 
 
-def _merged_safety(rig: RigFile, joint: RigJoint) -> JointSafety:
+def _merged_safety(rig: RigFile, joint: RigJoint) -> SafetyOverride:
     base = rig.joint_defaults.safety.model_dump()
     base.update({k: v for k, v in joint.safety.model_dump().items() if v is not None})
-    return JointSafety(**base)
+    return SafetyOverride(**base)
 
 
 def _fmt(rng: tuple[float, float]) -> str:
@@ -302,89 +275,71 @@ def _fmt(rng: tuple[float, float]) -> str:
 def resolve_rig(
     loaded: LoadedRig, joint_name: str, overrides: RigOverrides
 ) -> tuple[RigSpec | None, list[Problem]]:
-    """The protocol's RigSpec: the rig file's joint merged with its defaults and the protocol's overrides
-    (problems located in the PROTOCOL: `joint`, `rig_overrides...`)."""
+    """A driven joint's RigSpec: the rig file's joint merged with its defaults and the protocol's overrides
+    (problems located in the PROTOCOL: `joint`, `rig_overrides...`; `resolve_rigs` checks which joints
+    the overrides name)."""
     rig = loaded.rig
-    problems: list[Problem] = []
     joint = rig.joints.get(joint_name)
     if joint is None:
         return None, [
             (("joint",), f"no joint {joint_name!r} on rig {rig.robot} (joints: {', '.join(rig.joints)})")
         ]
-    for name in overrides.joints:
-        if name != joint_name:
-            problems.append(
-                (("rig_overrides", "joints", name), f"the protocol drives {joint_name!r}, not {name!r}")
-            )
-    over = overrides.joints.get(joint_name)
     input_name = overrides.input_board or rig.input_board
     in_board = rig.boards.get(input_name)
     if in_board is None or in_board.role != "input":
-        inputs = [n for n, b in rig.boards.items() if b.role == "input"]
-        problems.append(
-            (("rig_overrides", "input_board"), f"not an input board of the rig (inputs: {', '.join(inputs)})")
-        )
-        return None, problems
-    safety = _merged_safety(rig, joint).model_dump()
-    range_deg = joint.range_deg
+        inputs = ", ".join(n for n, b in rig.boards.items() if b.role == "input")
+        return None, [(("rig_overrides", "input_board"), f"not an input board of the rig (inputs: {inputs})")]
+    over = overrides.joints.get(joint_name) or JointOverride()
     loc: Loc = ("rig_overrides", "joints", joint_name)
-    if over is not None:
-        if over.range_deg is not None:
-            if not (joint.range_deg[0] <= over.range_deg[0] and over.range_deg[1] <= joint.range_deg[1]):
-                problems.append(
-                    (
-                        (*loc, "range_deg"),
-                        f"{_fmt(over.range_deg)} is wider than the rig's {_fmt(joint.range_deg)} "
-                        f"({loaded.shown}, thesis Table 2)",
-                    )
+    problems: list[Problem] = []
+    range_deg = joint.range_deg
+    if over.range_deg is not None:
+        if joint.range_deg[0] <= over.range_deg[0] and over.range_deg[1] <= joint.range_deg[1]:
+            range_deg = over.range_deg
+        else:
+            problems.append(
+                (
+                    (*loc, "range_deg"),
+                    f"{_fmt(over.range_deg)} is wider than the rig's {_fmt(joint.range_deg)} "
+                    f"({loaded.shown}, thesis Table 2)",
                 )
-            else:
-                range_deg = over.range_deg
-        if over.safety is not None:
-            for fld in ("max_rate_deg_s", "max_accel_deg_s2", "park_rate_deg_s"):
-                value = getattr(over.safety, fld)
-                if value is None:
-                    continue
-                if value > safety[fld]:
-                    problems.append(
-                        (
-                            (*loc, "safety", fld),
-                            f"{value:g} is above the rig's {safety[fld]:g} ({loaded.shown}): "
-                            "overrides may only tighten",
-                        )
-                    )
-                else:
-                    safety[fld] = value
-            if over.safety.park_angle_deg is not None:
-                safety["park_angle_deg"] = over.safety.park_angle_deg
+            )
+    safety = _merged_safety(rig, joint).model_dump()
+    for fld, value in (over.safety or SafetyOverride()).model_dump().items():
+        if value is not None and fld != "park_angle_deg" and value > safety[fld]:
+            problems.append(
+                (
+                    (*loc, "safety", fld),
+                    f"{value:g} is above the rig's {safety[fld]:g} ({loaded.shown}): overrides may only tighten",
+                )
+            )
+        elif value is not None:
+            safety[fld] = value
     if not range_deg[0] <= safety["park_angle_deg"] <= range_deg[1]:
         problems.append(
             (
-                (*loc, "safety", "park_angle_deg") if over and over.safety else ("joint",),
+                (*loc, "safety", "park_angle_deg") if over.safety else ("joint",),
                 f"park angle {safety['park_angle_deg']:g} deg is outside the joint's range {_fmt(range_deg)}",
             )
         )
     out_board = rig.boards[rig.output_board]
-    output_rate_hz = out_board.rate_hz
-    if overrides.output_rate_hz is not None:
-        low = BOARD_RATES_HZ["output"][0]
-        if overrides.output_rate_hz > out_board.rate_hz:
-            problems.append(
-                (
-                    ("rig_overrides", "output_rate_hz"),
-                    f"{overrides.output_rate_hz:g} Hz is above the output board {rig.output_board}'s "
-                    f"rate_hz {out_board.rate_hz:g} ({loaded.shown}): overrides may only lower it",
-                )
+    output_rate_hz = overrides.output_rate_hz or out_board.rate_hz
+    low = BOARD_RATES_HZ["output"][0]
+    if output_rate_hz > out_board.rate_hz:
+        problems.append(
+            (
+                ("rig_overrides", "output_rate_hz"),
+                f"{output_rate_hz:g} Hz is above the output board {rig.output_board}'s "
+                f"rate_hz {out_board.rate_hz:g} ({loaded.shown}): overrides may only lower it",
             )
-        elif overrides.output_rate_hz < low:
-            problems.append(
-                (
-                    ("rig_overrides", "output_rate_hz"),
-                    f"an output rate must be at least {low:g} Hz, got {overrides.output_rate_hz:g}",
-                )
+        )
+    elif output_rate_hz < low:
+        problems.append(
+            (
+                ("rig_overrides", "output_rate_hz"),
+                f"an output rate must be at least {low:g} Hz, got {output_rate_hz:g}",
             )
-        else:
-            output_rate_hz = overrides.output_rate_hz
+        )
     if problems:
         return None, problems
     simulator = dict(rig.joint_defaults.simulator)
@@ -417,7 +372,7 @@ def resolve_rig(
             dt9814_product_id=in_board.product_id,
             backend=in_board.backend,
         ),
-        calibration=over.calibration if over is not None else RigSpec.model_fields["calibration"].default,
+        calibration=over.calibration,
         safety=SafetySpec(**safety),
         time_constant_s=joint.time_constant_s or rig.joint_defaults.time_constant_s,
         simulator=tuple(simulator.items()),
@@ -429,12 +384,12 @@ def resolve_rig(
 
 
 def resolve_rigs(
-    loaded: LoadedRig, joint_names: list[str], overrides: RigOverrides
+    loaded: LoadedRig, joint_names: list[str], overrides: RigOverrides, *, multi: bool = True
 ) -> tuple[tuple[RigSpec, ...], list[Problem]]:
-    """A multi-joint protocol's rigs (`joints: [...]`): each driven joint resolved as `resolve_rig` does
-    with its own `rig_overrides.joints.<joint>`, in output channel order. Problems are located at
-    `joints[i]` or `rig_overrides.joints.<joint>...`; two driven joints sharing an output or input channel
-    are refused naming both."""
+    """The driven joints' rigs (`joints: [...]`, or `joint:` when not `multi`): each resolved as
+    `resolve_rig` does with its own `rig_overrides.joints.<joint>`, in output channel order. Problems are
+    located at `joints[i]` (or `joint`) or `rig_overrides.joints.<joint>...`; two driven joints sharing an
+    output or input channel are refused naming both."""
     problems: list[Problem] = []
     for i, name in enumerate(joint_names):
         if name in joint_names[:i]:
@@ -443,23 +398,16 @@ def resolve_rigs(
             )
     if problems:
         return (), problems
-    for name in overrides.joints:
-        if name not in joint_names:
-            problems.append(
-                (
-                    ("rig_overrides", "joints", name),
-                    f"{name!r} is not one of the driven joints ({', '.join(joint_names)})",
-                )
-            )
     specs: list[RigSpec] = []
     for i, name in enumerate(joint_names):
         own = overrides.model_copy(
             update={"joints": {k: v for k, v in overrides.joints.items() if k == name}}
         )
         spec, found = resolve_rig(loaded, name, own)
-        problems += [((("joints", i) if loc == ("joint",) else loc), msg) for loc, msg in found]
+        problems += [((("joints", i) if loc == ("joint",) and multi else loc), msg) for loc, msg in found]
         if spec is not None:
             specs.append(spec)
+    problems += joints_named(("rig_overrides", "joints"), overrides.joints, joint_names)
     if problems:  # a shared override's problem (the output rate) once, not once per joint
         return (), list(dict.fromkeys(problems))
     used: dict[tuple[str, int], str] = {}
@@ -471,13 +419,12 @@ def resolve_rigs(
         ):
             other = used.get((kind, ch))
             if other is not None and other != spec.joint.name:
+                where = ("joints", joint_names.index(spec.joint.name))
                 problems.append(
                     (
-                        ("joints", joint_names.index(spec.joint.name)),
+                        where,
                         f"{spec.joint.name} and {other} use the same {kind} channel {ch} ({loaded.shown})",
                     )
                 )
             used[(kind, ch)] = spec.joint.name
-    if problems:
-        return (), problems
-    return tuple(sorted(specs, key=lambda s: s.output.channel)), []
+    return ((), problems) if problems else (tuple(sorted(specs, key=lambda s: s.output.channel)), [])

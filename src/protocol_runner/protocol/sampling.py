@@ -34,18 +34,12 @@ def samples_problem(trajectory: Trajectory, rate_hz: float) -> str:
     )
 
 
-def sample_times_s(trajectory: Trajectory, rate_hz: float) -> FloatArray:
-    """The output ticks of a trajectory: t = 0, 1/rate, ... < duration_s. `InvalidInput` for one of more
-    than MAX_COMMAND_SAMPLES (the protocol's checks refuse it first, naming its field)."""
+def sample_trajectory(trajectory: Trajectory, rate_hz: float, base_dir: Path) -> FloatArray:
+    """Real joint angles, one per output tick (t = 0, 1/rate, ... < duration_s), as its kind samples them;
+    files are read from `base_dir`. `InvalidInput` for more than MAX_COMMAND_SAMPLES (the protocol's checks
+    refuse it first, naming its field)."""
     too_long = samples_problem(trajectory, rate_hz)
     if too_long:
         raise InvalidInput(f"trajectory {trajectory.name or trajectory.profile!r}: {too_long}")
-    return np.arange(0.0, trajectory.duration_s, 1.0 / rate_hz)
-
-
-def sample_trajectory(trajectory: Trajectory, rate_hz: float, base_dir: Path) -> FloatArray:
-    """Real joint angles, one per output tick (`sample_times_s`), as its kind samples them; files are read
-    from `base_dir`."""
-    return trajectory_kind(trajectory.profile).sample(
-        trajectory, sample_times_s(trajectory, rate_hz), base_dir
-    )
+    time_s = np.arange(0.0, trajectory.duration_s, 1.0 / rate_hz)
+    return trajectory_kind(trajectory.profile).sample(trajectory, time_s, base_dir)

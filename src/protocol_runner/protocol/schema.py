@@ -18,6 +18,7 @@ import math
 from typing import Annotated, Any, Literal
 
 from pydantic import (
+    AfterValidator,
     BaseModel,
     BeforeValidator,
     ConfigDict,
@@ -26,7 +27,6 @@ from pydantic import (
     PrivateAttr,
     StrictInt,
     Tag,
-    field_validator,
     model_validator,
 )
 
@@ -60,6 +60,10 @@ class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
+def _as_tuple(value: object) -> object:
+    return tuple(value) if isinstance(value, list) else value
+
+
 def _check_range(value: tuple[float, float]) -> tuple[float, float]:
     lo, hi = value
     if not lo < hi:
@@ -67,7 +71,8 @@ def _check_range(value: tuple[float, float]) -> tuple[float, float]:
     return value
 
 
-RangePair = Annotated[tuple[float, float], BeforeValidator(lambda v: tuple(v) if isinstance(v, list) else v)]
+RangePair = Annotated[tuple[float, float], BeforeValidator(_as_tuple), AfterValidator(_check_range)]
+"""[low, high] with low < high."""
 
 
 # --------------------------------------------------------------------------------------------- rig
@@ -80,8 +85,6 @@ class JointSpec(_Model):
     rsst_joint: int | None = Field(default=None, ge=1)
     range_deg: RangePair
     torque_range_nm: RangePair
-
-    _range = field_validator("range_deg", "torque_range_nm")(_check_range)
 
 
 Backend = Literal["pyusb", "uldaq", "mcculw"]
@@ -99,8 +102,6 @@ class OutputSpec(_Model):
     report_time_s: float | None = Field(default=None, gt=0)  # one output report on the wire (rig file)
     backend: Backend = "pyusb"  # the rig file's board: which library drives it (docs/hardware.md)
 
-    _range = field_validator("volts_range")(_check_range)
-
 
 class InputSpec(_Model):
     board: str
@@ -111,8 +112,6 @@ class InputSpec(_Model):
     serials: list[str] = Field(default_factory=list)
     dt9814_product_id: int | None = Field(default=None, ge=0, le=0xFFFF)
     backend: Backend = "pyusb"
-
-    _range = field_validator("volts_range")(_check_range)
 
 
 class CalibrationTablesSpec(_Model):
@@ -179,8 +178,6 @@ class JointOverride(_Model):
     calibration: CalibrationTablesSpec = CalibrationTablesSpec()
     safety: SafetyOverride | None = None
     range_deg: RangePair | None = None
-
-    _range = field_validator("range_deg")(lambda v: v if v is None else _check_range(v))
 
 
 class RigOverrides(_Model):
@@ -307,14 +304,7 @@ class DeviceSpec(_Model):
 # ------------------------------------------------------------------------------------- test matrix
 
 RESERVED_CONFIGURATION_KEYS = ("key", "run", "trajectory", "trials", "description")
-MAX_KEY = 999_999  # a configuration's key and run number: ample for any matrix, and an integer every
-# archive attribute, table and MATLAB field holds (a key of 10^23 passed validation, then crashed the run)
-
-
-def _levels_as_str(data: Any) -> Any:
-    if isinstance(data, dict):
-        return {k: (v if k in RESERVED_CONFIGURATION_KEYS else _int_to_str(v)) for k, v in data.items()}
-    return data
+MAX_KEY = 999_999  # a key or run number: ample, and an integer every archive attribute and MATLAB field holds
 
 
 class ConfigurationSpec(_Model):
@@ -331,8 +321,8 @@ class ConfigurationSpec(_Model):
     @model_validator(mode="before")
     @classmethod
     def _labels(cls, data: Any) -> Any:
-        data = _levels_as_str(data)
         if isinstance(data, dict):
+            data = {k: (v if k in RESERVED_CONFIGURATION_KEYS else _int_to_str(v)) for k, v in data.items()}
             for k, v in data.items():
                 if k not in RESERVED_CONFIGURATION_KEYS and not isinstance(v, str):
                     raise ValueError(f"{k}: a factor's level label, got {v!r}")
@@ -400,10 +390,6 @@ class SetSpec(_Model):
 # ------------------------------------------------------------------------------------------ report
 
 
-def _pair(value: object) -> object:
-    return tuple(value) if isinstance(value, list) else value
-
-
 class ComparisonSpec(_Model):
     name: Identifier
     parameter: Identifier  # a declared factor, or "trajectory" (checked in validate.py)
@@ -411,7 +397,7 @@ class ComparisonSpec(_Model):
     title: str
     configurations: list[StrictInt] = Field(min_length=2)
     # explicit (a, b) pairs for the Differences table (b minus a), e.g. a paired design; else adjacent ones
-    pairs: list[Annotated[tuple[StrictInt, StrictInt], BeforeValidator(_pair)]] | None = Field(
+    pairs: list[Annotated[tuple[StrictInt, StrictInt], BeforeValidator(_as_tuple)]] | None = Field(
         default=None, min_length=1
     )
 
@@ -475,8 +461,6 @@ class CalibrationCheckSpec(_Model):
     time_constant_s: RangePair
     max_drift_deg: float = Field(gt=0)
     max_time_constant_change_s: float = Field(gt=0)
-
-    _range = field_validator("time_constant_s")(_check_range)
 
 
 # ---------------------------------------------------------------------------------- processing, fits
@@ -591,9 +575,7 @@ class Protocol(_Model):
     def rig(self) -> RigSpec:
         """The resolved rig of the driven joint (set by the loader); of a multi-joint protocol, the first
         driven joint's in channel order (`rigs` has every joint's)."""
-        if not self._rigs:
-            raise RuntimeError("the protocol's rig has not been resolved (load it with protocol.loader)")
-        return self._rigs[0]
+        return self.rigs[0]
 
     @property
     def rigs(self) -> tuple[RigSpec, ...]:
@@ -616,9 +598,6 @@ class Protocol(_Model):
         """The calibration step of a joint (the single `calibration_step`, or its entry per joint)."""
         step = self.calibration_step
         return step if isinstance(step, CalibrationStepSpec) else step[joint]
-
-    def with_rig(self, rig: RigSpec) -> Protocol:
-        return self.with_rigs((rig,))
 
     def with_rigs(self, rigs: tuple[RigSpec, ...]) -> Protocol:
         out = self.model_copy()

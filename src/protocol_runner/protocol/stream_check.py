@@ -39,11 +39,7 @@ def check_streams(
     """(location, message) for every motion (location, what, trajectory) whose stream is unsafe."""
     p = loaded.protocol
     rig = p.rig
-    try:
-        limits = safety_limits(rig)
-    except InvalidInput as exc:
-        yield ("joint",), exc.message
-        return
+    limits = safety_limits(rig)
     table: CalibrationTable | None = None
     if check_files and rig.calibration.command_table is not None:
         try:
@@ -83,14 +79,15 @@ def _problem(
         part = exc.where.removeprefix("stream").strip(" ()")
         return (
             f"its commanded stream ({part}) breaks rig.safety: {exc.limit} {exc.value:.4g} {exc.units} "
-            f"at t = {exc.time_s:.2f} s from the trajectory's start, allowed {_bound(exc)}"
+            f"at t = {exc.time_s:.2f} s from the trajectory's start, allowed {allowed(exc)}"
         )
     except InvalidInput as exc:
         return exc.message
     return None
 
 
-def _bound(exc: SafetyViolation) -> str:
+def allowed(exc: SafetyViolation) -> str:
+    """What the broken limit allows, with its unit."""
     if isinstance(exc.limit_value, tuple):
         return f"{exc.limit_value[0]:g} to {exc.limit_value[1]:g} {exc.units}"
     return f"±{exc.limit_value:g} {exc.units}"

@@ -1,18 +1,10 @@
-"""Trajectories of the protocol (thesis Appendix A and §3.1.1): pure functions of time.
+"""Trajectories of the protocol (thesis Appendix A and §3.1.1): pure functions of time, and trajectory files.
 
-- Sinusoid (Eq 24): angle = mean + amplitude * sin(2*pi*t/p); its maximum speed is amplitude * 2*pi/p
-  (Eq 25), so for a range and a maximum speed the period is p = 2*pi*amplitude / max_speed. The periods of
-  Table 6 (8.17, 16.34, 3.14, 5.65, 6.91, 13.82 s) follow from this; they are never typed in.
-- Triangle: constant speed between the ends of a range, turned round at a constant acceleration
-  (`triangle_deg`): a cycle lasts 2*range/speed + 2*speed/accel.
-- Files: angle-vs-time recordings (CSV or MATLAB .mat, one angle column per joint), see
-  `load_trajectory_file`.
-- Model identification (Eq 4-7): an exponential envelope times cos^2 with a period that changes linearly.
-- The calibration step (Appendix A "Calibration"): a 45 deg step, as a raised-cosine move whose length
-  the protocol sets (0.6 s in knee_phase1.yaml: 118 deg/s and 616 deg/s² at most). Every sample sent must
-  satisfy the rig's envelope, so the step is never sent as a jump: a `ramp_s` too short for the rate or
-  acceleration limit (0 included) is refused at plan time. The time-constant fit models the response to
-  the commanded move, so the ramp does not bias tau (steps/calibration_check.py).
+The sinusoid's period follows from a range and a peak speed (Eq 25), so the periods of Table 6 (8.17,
+16.34, 3.14, 5.65, 6.91, 13.82 s) are never typed in. Every sample sent must satisfy the rig's envelope,
+so the calibration step (Appendix A "Calibration") is a raised-cosine move, never a jump: a `ramp_s` too
+short for the rate or acceleration limit (0 included) is refused at plan time. The time-constant fit
+models the response to the commanded move, so the ramp does not bias tau (steps/calibration_check.py).
 """
 
 from __future__ import annotations
@@ -313,8 +305,3 @@ def _load_mat(path: Path, angle_names: tuple[str, ...]) -> tuple[FloatArray, Flo
         raise InvalidInput(f"{path}: `{time_name}` and `{angle_name}` have different lengths")
     header = str(contents.get("description", contents.get("__header__", b"")))
     return time_s, angle_deg, header, angle_name
-
-
-def max_speed_deg_s(time_s: FloatArray, angle_deg: FloatArray) -> float:
-    """Largest |d angle / dt| of a sampled trajectory (first differences)."""
-    return float(np.max(np.abs(np.diff(angle_deg) / np.diff(time_s)))) if len(time_s) > 1 else 0.0

@@ -17,6 +17,7 @@ from ..errors import InvalidInput
 from ..hardware.safety import SafetyLimits, SafetyViolation, check_trajectory
 from ..tables import parse_header_table, read_table_text
 from .sampling import sample_trajectory, samples_problem
+from .stream_check import allowed
 from .trajectory_record import Trajectory
 from .trajectory_specs import trajectory_kind
 
@@ -38,13 +39,14 @@ def trajectory_limit_problems(
     too_long = samples_problem(trajectory, rate_hz)
     if too_long:  # before anything is sampled: the work and memory of the checks below are bounded
         return [(kind.length_field, too_long)]
-    check = _Checker(trajectory, limits, dict(bindings or {}), rate_hz, base_dir)
+    check = LimitCheck(trajectory, limits, dict(bindings or {}), rate_hz, base_dir)
     kind.check_limits(trajectory, check)
     return check.problems
 
 
-class _Checker:
-    """The `LimitCheck` a kind reports to: each broken limit becomes a (field, message) problem."""
+class LimitCheck:
+    """What a kind's `check_limits` reports to: each call names the protocol FIELD that sets the value, so
+    that the message says what to change; each broken limit becomes a (field, message) in `problems`."""
 
     def __init__(
         self,
@@ -54,17 +56,11 @@ class _Checker:
         rate_hz: float,
         base_dir: Path,
     ) -> None:
-        self.trajectory = trajectory
-        self.rate_hz = rate_hz
-        self.base_dir = base_dir
-        self.limits = limits
-        self.bindings = bindings
+        self.trajectory, self.limits, self.bindings = trajectory, limits, bindings
+        self.rate_hz, self.base_dir = rate_hz, base_dir
         name = f" {trajectory.name!r}" if trajectory.name else ""
         what = f" {trajectory.source}" if trajectory.source else ""
         self.where = f"trajectory{name} ({trajectory.profile}{what})"
-        self.source = trajectory.source
-        column = dict(trajectory.params).get("column")
-        self.column = column if isinstance(column, str) else None
         self.problems: list[Problem] = []
 
     def _say(self, field: str, text: str) -> None:
@@ -72,6 +68,7 @@ class _Checker:
         self.problems.append((field, f"{self.where}: {field}{bound}: {text}"))
 
     def range(self, field: str, lo: float, hi: float, what: str = "") -> None:
+        """[lo, hi] deg must lie inside the joint's range."""
         jlo, jhi = self.limits.range_deg
         tol = 1e-9
         if lo < jlo - tol or hi > jhi + tol:
@@ -96,30 +93,27 @@ class _Checker:
             )
 
     def samples(self, field: str) -> None:
-        """The sampled trajectory's range, rate and acceleration (first and second differences); for a
-        file, the line and column of the file row nearest the worst sample."""
+        """The samples at the output rate (the very samples sent) inside the envelope, for a kind without a
+        closed form: their range, rate and acceleration (first and second differences); for a file, the
+        line and column of the file row nearest the worst sample."""
         rate_hz, base_dir = self.rate_hz, self.base_dir
         samples = sample_trajectory(self.trajectory, rate_hz, base_dir)
         try:
             check_trajectory(samples, rate_hz, self.limits, where="trajectory")
         except SafetyViolation as exc:
-            bound = (
-                f"{exc.limit_value[0]:g} to {exc.limit_value[1]:g}"
-                if isinstance(exc.limit_value, tuple)
-                else f"±{exc.limit_value:g}"
-            )
             self._say(
                 field,
                 f"its {exc.limit} reaches {exc.value:.4g} {exc.units} at t = {exc.time_s:.2f} s (sampled at "
-                f"{rate_hz:g} Hz{self._file_row(exc.time_s, base_dir)}), the joint allows {bound} {exc.units}",
+                f"{rate_hz:g} Hz{self._file_row(exc.time_s, base_dir)}), the joint allows {allowed(exc)}",
             )
 
     def _file_row(self, time_s: float, base_dir: Path) -> str:
         """`, <file> line N column C` of the row nearest `time_s` (empty when not a readable CSV)."""
-        if self.source is None or not self.source.lower().endswith((".csv", ".txt")):
+        source = self.trajectory.source
+        if source is None or not source.lower().endswith((".csv", ".txt")):
             return ""
         try:
-            table = parse_header_table(read_table_text(base_dir / self.source, "trajectory file"))
+            table = parse_header_table(read_table_text(base_dir / source, "trajectory file"))
         except InvalidInput:
             return ""
         names = [c.lower() for c in table.header.cells] if table.header is not None else []
@@ -134,5 +128,5 @@ class _Checker:
                 best = (abs(t - time_s), row.line)
         if best is None:
             return ""
-        column = f" column {self.column}" if self.column else ""
-        return f"; {self.source} line {best[1]}{column}"
+        column = dict(self.trajectory.params).get("column")
+        return f"; {source} line {best[1]}" + (f" column {column}" if isinstance(column, str) else "")

@@ -3,32 +3,28 @@
 One pydantic model per kind, told apart by `kind` (a discriminated union of the registered kinds, unknown
 kinds and keys refused). Each kind's model declares everything about the kind in one place: its fields
 (which may be bound to factor quantities: `bindable`), how it becomes the plan's `Trajectory` (`build`),
-its samples at the output rate (`sample`) and its plan-time limit checks by field (`check_limits`). The
-kinds are registered in `TRAJECTORY_KINDS` (`register_trajectory_kind` adds one):
-
-- `sinusoid`: Eq 24 from a range and a peak speed; the period follows from Eq 25 (p = 2*pi*A / v_peak).
-- `triangle`: constant speed between the range's ends, turned round at a limited acceleration.
-- `file`: an angle-vs-time CSV (or .mat) recorded elsewhere, its origin stated.
-- `identification`: the Eq 4-7 motion (exponential envelope times cos^2, changing period), as rebuilt in
-  `trajectories.identification_deg`.
-- `ramped_step`: hold, a raised-cosine move by `step_deg`, hold (the calibration step of Appendix A).
-- `hold`: one angle held.
+its samples at the output rate (`sample`) and its plan-time limit checks by field (`check_limits`, reported
+to `trajectory_limits.LimitCheck`). The
+kinds are registered in `TRAJECTORY_KINDS` (`register_trajectory_kind` adds one); docs/protocol.md
+describes each.
 
 A field typed `float | str` (or `RangePair | str`) may be BOUND to a factor quantity: a string
 `"<factor>.<quantity>"` takes the value of that quantity in each configuration's level.
-`trajectory_bindings` lists them; `plan_trajectory.build_trajectory` takes their resolved values. Every other
-field is a constant. Numbers are finite (no .inf / .nan); times and speeds are positive.
+`trajectory_bindings` lists them; `build_trajectory` takes their resolved values. Every other field is a
+constant. Numbers are finite (no .inf / .nan); times and speeds are positive.
 
 `per_joint` is not a motion of its own: it gives each joint of a multi-joint protocol one of the kinds.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import re
 from collections.abc import Callable, Mapping
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, ClassVar, Generic, Literal, Protocol, TypeVar, get_args
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Generic, Literal, TypeVar, get_args
 
 import numpy as np
 import numpy.typing as npt
@@ -53,8 +49,12 @@ from .trajectories import (
 )
 from .trajectory_record import Trajectory
 
+if TYPE_CHECKING:
+    from .trajectory_limits import LimitCheck
+
 FloatArray = npt.NDArray[np.float64]
 Quantity = float | tuple[float, ...]
+Fields = Mapping[str, Quantity | None]
 
 BINDING_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_\-]*\.[A-Za-z][A-Za-z0-9_]*$")
 """A binding: `<factor>.<quantity>` (a factor name as the protocol declares it, a quantity key)."""
@@ -111,26 +111,19 @@ BindableRange = Annotated[RangePair | str, BeforeValidator(_binding_or("a range 
 """A range [low, high] (low < high), or a binding."""
 
 
-class LimitCheck(Protocol):
-    """What a kind's `check_limits` reports to (`trajectory_limits.py` implements it): each call names the
-    protocol FIELD that sets the value, so that the message says what to change."""
+@dataclass(frozen=True)
+class BuildContext:
+    """What a kind's `build` may need besides its fields: the trajectory's name (for messages), the folder
+    a file is read from, the joint (a file's angle column) and the joint's limits."""
 
-    def range(self, field: str, lo: float, hi: float, what: str = "") -> None:
-        """[lo, hi] deg must lie inside the joint's range."""
-
-    def rate(self, field: str, value: float, what: str) -> None:
-        """`value` deg/s must not exceed the joint's rate limit."""
-
-    def accel(self, field: str, value: float, what: str) -> None:
-        """`value` deg/s² must not exceed the joint's acceleration limit."""
-
-    def samples(self, field: str) -> None:
-        """The trajectory's samples at the output rate (the very samples sent) must stay inside the envelope:
-        for a kind without a closed form."""
+    name: str
+    base_dir: Path
+    joint: str | None = None
+    limits: SafetyLimits | None = None
 
     @property
-    def problems(self) -> list[tuple[str, str]]:
-        """(field, message) of every limit broken so far."""
+    def where(self) -> str:
+        return f"trajectory {self.name!r}"
 
 
 class TrajectoryKindSpec(BaseModel):
@@ -148,22 +141,15 @@ class TrajectoryKindSpec(BaseModel):
     #: the field that sets how long it lasts: named when the trajectory is too long to sample
     length_field: ClassVar[str] = "duration_s"
 
-    def build(
-        self,
-        name: str,
-        fields: Mapping[str, Quantity | None],
-        base_dir: Path,
-        joint: str | None,
-        limits: SafetyLimits | None,
-    ) -> Trajectory:
-        """The plan's `Trajectory` named `name`, the bindable fields taking the values `fields` (resolved: a
-        bound field's factor quantity, or the constant written); a file is read from `base_dir` (`joint`'s
-        column); `limits` are the joint's. `InvalidInput` names the trajectory and the field."""
+    def build(self, fields: Fields, at: BuildContext) -> Trajectory:
+        """The plan's `Trajectory` (`build_trajectory` names it), the bindable fields taking the values
+        `fields` (a bound field's factor quantity, or the constant written). `InvalidInput` names the
+        trajectory and the field."""
         raise NotImplementedError(f"trajectory kind {self.kind!r} has no build")
 
     @staticmethod
     def sample(trajectory: Trajectory, time_s: FloatArray, base_dir: Path) -> FloatArray:
-        """The joint angles at `time_s` (the output ticks, `sampling.sample_times_s`)."""
+        """The joint angles at `time_s` (the output ticks, `sampling.sample_trajectory`)."""
         raise NotImplementedError(f"trajectory kind {trajectory.profile!r} has no sample")
 
     @staticmethod
@@ -191,21 +177,13 @@ class SinusoidSpec(TrajectoryKindSpec):
     bindable: ClassVar[tuple[str, ...]] = ("range_deg", "speed_deg_s")
     length_field: ClassVar[str] = "periods"
 
-    def build(
-        self,
-        name: str,
-        fields: Mapping[str, Quantity | None],
-        base_dir: Path,
-        joint: str | None,
-        limits: SafetyLimits | None,
-    ) -> Trajectory:
+    def build(self, fields: Fields, at: BuildContext) -> Trajectory:
         lo, hi = _pair(fields["range_deg"])
         speed = _num(fields["speed_deg_s"])
         amplitude = (hi - lo) / 2.0
         period = sinusoid_period_s(amplitude, speed)  # Eq 25
         return Trajectory(
             profile="sinusoid",
-            name=name,
             mean_deg=(hi + lo) / 2.0,
             amplitude_deg=amplitude,
             period_s=period,
@@ -215,13 +193,10 @@ class SinusoidSpec(TrajectoryKindSpec):
 
     @staticmethod
     def sample(trajectory: Trajectory, time_s: FloatArray, base_dir: Path) -> FloatArray:
-        mean, amplitude, period = _sine(trajectory)
-        return sinusoid_deg(time_s, mean, amplitude, period)
+        return sinusoid_deg(time_s, *_sine(trajectory))
 
     @staticmethod
     def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
-        """Its range inside the joint's; peak speed `speed_deg_s` = 2*pi*A/p (Eq 25) under the rate limit;
-        peak acceleration A*(2*pi/p)^2 = speed^2/A under the acceleration limit."""
         mean, a, period = _sine(trajectory)
         speed = 2.0 * math.pi * a / period  # Eq 25
         check.range("range_deg", mean - a, mean + a)
@@ -257,36 +232,27 @@ class TriangleSpec(TrajectoryKindSpec):
     bindable: ClassVar[tuple[str, ...]] = ("range_deg", "speed_deg_s", "corner_accel_deg_s2")
     length_field: ClassVar[str] = "cycles"
 
-    def build(
-        self,
-        name: str,
-        fields: Mapping[str, Quantity | None],
-        base_dir: Path,
-        joint: str | None,
-        limits: SafetyLimits | None,
-    ) -> Trajectory:
+    def build(self, fields: Fields, at: BuildContext) -> Trajectory:
         """Without `corner_accel_deg_s2` it turns at the joint's acceleration limit."""
-        where = f"trajectory {name!r}"
         lo, hi = _pair(fields["range_deg"])
         speed = _num(fields["speed_deg_s"])
         given = fields.get("corner_accel_deg_s2")
         if given is not None:
             accel = _num(given)
-        elif limits is not None:
-            accel = limits.max_accel_deg_s2
+        elif at.limits is not None:
+            accel = at.limits.max_accel_deg_s2
         else:
             raise InvalidInput(
-                f"{where}: corner_accel_deg_s2 is not given and no joint acceleration limit is known"
+                f"{at.where}: corner_accel_deg_s2 is not given and no joint acceleration limit is known"
             )
         if hi - lo < speed * speed / accel:
             raise InvalidInput(
-                f"{where}: speed_deg_s {speed:g} deg/s cannot be reached within range_deg [{lo:g}, {hi:g}] "
+                f"{at.where}: speed_deg_s {speed:g} deg/s cannot be reached within range_deg [{lo:g}, {hi:g}] "
                 f"with corners at {accel:g} deg/s² (it needs a range of at least speed²/accel = "
                 f"{speed * speed / accel:.4g} deg)"
             )
         return Trajectory(
             profile="triangle",
-            name=name,
             params=(
                 ("range_deg", (lo, hi)),
                 ("speed_deg_s", speed),
@@ -304,8 +270,6 @@ class TriangleSpec(TrajectoryKindSpec):
 
     @staticmethod
     def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
-        """Range; `speed_deg_s` (its peak speed) under the rate limit; `corner_accel_deg_s2` (its peak
-        acceleration) under the acceleration limit."""
         lo, hi = _pair(trajectory.param("range_deg"))
         check.range("range_deg", lo, hi)
         check.rate("speed_deg_s", trajectory.number("speed_deg_s"), "its constant speed")
@@ -326,33 +290,22 @@ class FileSpec(TrajectoryKindSpec):
 
     length_field: ClassVar[str] = "file"
 
-    def build(
-        self,
-        name: str,
-        fields: Mapping[str, Quantity | None],
-        base_dir: Path,
-        joint: str | None,
-        limits: SafetyLimits | None,
-    ) -> Trajectory:
-        """The file read from `base_dir`: `joint`'s angle column, else `angle_deg`."""
-        where = f"trajectory {name!r}"
+    def build(self, fields: Fields, at: BuildContext) -> Trajectory:
+        """The file read from `at.base_dir`: the joint's angle column, else `angle_deg`."""
         try:
-            path = confined_path(base_dir, self.file)
+            data = load_trajectory_file(confined_path(at.base_dir, self.file), at.joint)
         except OutsideFolder as exc:
-            raise InvalidInput(f"{where}: file: {exc}") from None
-        try:
-            data = load_trajectory_file(path, joint)
+            raise InvalidInput(f"{at.where}: file: {exc}") from None
         except InvalidInput as exc:
-            raise InvalidInput(f"{where}: {exc.message}") from None
+            raise InvalidInput(f"{at.where}: {exc.message}") from None
         origin = self.origin or (data.header.splitlines()[0] if data.header else "")
         if not origin:
             raise InvalidInput(
-                f"{where}: file {self.file}: state where the motion comes from, in comment lines (#) before "
-                "the column row or as `origin:` in the protocol"
+                f"{at.where}: file {self.file}: state where the motion comes from, in comment lines (#) "
+                "before the column row or as `origin:` in the protocol"
             )
         return Trajectory(
             profile="file",
-            name=name,
             source=self.file,
             params=(("column", data.column), ("origin", origin)),
             duration_s=data.duration_s,
@@ -365,11 +318,6 @@ class FileSpec(TrajectoryKindSpec):
         return load_trajectory_file(
             base_dir / trajectory.source, column if isinstance(column, str) else None
         ).at(time_s)
-
-    @staticmethod
-    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
-        """No closed form: its samples at the output rate."""
-        check.samples("file")
 
 
 class IdentificationSpec(TrajectoryKindSpec):
@@ -386,39 +334,18 @@ class IdentificationSpec(TrajectoryKindSpec):
 
     bindable: ClassVar[tuple[str, ...]] = ("range_deg",)
 
-    def build(
-        self,
-        name: str,
-        fields: Mapping[str, Quantity | None],
-        base_dir: Path,
-        joint: str | None,
-        limits: SafetyLimits | None,
-    ) -> Trajectory:
+    def build(self, fields: Fields, at: BuildContext) -> Trajectory:
         lo, hi = _pair(fields["range_deg"])
+        periods = ("repetition_s", "initial_period_s", "final_period_s")
         return Trajectory(
             profile="identification",
-            name=name,
-            params=(
-                ("min_deg", lo),
-                ("max_deg", hi),
-                ("repetition_s", self.repetition_s),
-                ("initial_period_s", self.initial_period_s),
-                ("final_period_s", self.final_period_s),
-            ),
+            params=(("min_deg", lo), ("max_deg", hi), *((f, getattr(self, f)) for f in periods)),
             duration_s=self.total_s,
         )
 
     @staticmethod
     def sample(trajectory: Trajectory, time_s: FloatArray, base_dir: Path) -> FloatArray:
-        num = trajectory.number
-        return identification_deg(
-            time_s,
-            num("min_deg"),
-            num("max_deg"),
-            num("repetition_s"),
-            num("initial_period_s"),
-            num("final_period_s"),
-        )
+        return identification_deg(time_s, *(trajectory.number(f) for f, _ in trajectory.params))
 
     @staticmethod
     def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
@@ -451,17 +378,9 @@ class RampedStepSpec(RampedStepFields[BindableFloat], TrajectoryKindSpec):
 
     bindable: ClassVar[tuple[str, ...]] = ("from_deg", "step_deg")
 
-    def build(
-        self,
-        name: str,
-        fields: Mapping[str, Quantity | None],
-        base_dir: Path,
-        joint: str | None,
-        limits: SafetyLimits | None,
-    ) -> Trajectory:
+    def build(self, fields: Fields, at: BuildContext) -> Trajectory:
         return Trajectory(
             profile="ramped_step",
-            name=name,
             params=(
                 ("from_deg", _num(fields["from_deg"])),
                 ("step_deg", _num(fields["step_deg"])),
@@ -479,9 +398,6 @@ class RampedStepSpec(RampedStepFields[BindableFloat], TrajectoryKindSpec):
 
     @staticmethod
     def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
-        """`from_deg` and `from_deg + step_deg` inside the range; the raised cosine's peak speed
-        pi/2*step/ramp and peak acceleration pi^2/2*step/ramp^2 within the limits (else `ramp_s` is too
-        short)."""
         start, step, ramp = (trajectory.number(f) for f in ("from_deg", "step_deg", "ramp_s"))
         check.range("from_deg", start, start)
         check.range(
@@ -506,20 +422,9 @@ class HoldSpec(TrajectoryKindSpec):
 
     bindable: ClassVar[tuple[str, ...]] = ("angle_deg",)
 
-    def build(
-        self,
-        name: str,
-        fields: Mapping[str, Quantity | None],
-        base_dir: Path,
-        joint: str | None,
-        limits: SafetyLimits | None,
-    ) -> Trajectory:
-        return Trajectory(
-            profile="hold",
-            name=name,
-            params=(("angle_deg", _num(fields["angle_deg"])),),
-            duration_s=self.duration_s,
-        )
+    def build(self, fields: Fields, at: BuildContext) -> Trajectory:
+        params = (("angle_deg", _num(fields["angle_deg"])),)
+        return Trajectory(profile="hold", params=params, duration_s=self.duration_s)
 
     @staticmethod
     def sample(trajectory: Trajectory, time_s: FloatArray, base_dir: Path) -> FloatArray:
@@ -527,7 +432,6 @@ class HoldSpec(TrajectoryKindSpec):
 
     @staticmethod
     def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
-        """`angle_deg` inside the range."""
         angle = trajectory.number("angle_deg")
         check.range("angle_deg", angle, angle)
 
@@ -583,18 +487,12 @@ def holds_trajectories(model: type[BaseModel]) -> None:
     _HOLDING_TRAJECTORIES.append(model)
 
 
-def kind_name(spec: type[TrajectoryKindSpec]) -> str:
-    """The kind a model declares (its `kind` literal)."""
-    (name,) = get_args(spec.model_fields["kind"].annotation)
-    return str(name)
-
-
 def register_trajectory_kind(spec: type[TrajectoryKindSpec]) -> None:
     """Add a trajectory kind: protocols may use it from now on (a kind already registered is refused)."""
-    name = kind_name(spec)
+    (name,) = get_args(spec.model_fields["kind"].annotation)
     if name in TRAJECTORY_KINDS or name == "per_joint":
         raise ValueError(f"trajectory kind {name!r} is already registered")
-    TRAJECTORY_KINDS[name] = spec
+    TRAJECTORY_KINDS[str(name)] = spec
     _rebuild()
 
 
@@ -643,6 +541,40 @@ def trajectory_bindings(spec: TrajectorySpec) -> dict[str, str]:
         if isinstance(value, str):
             out[field] = value
     return out
+
+
+def build_trajectory(
+    name: str,
+    spec: TrajectorySpec,
+    values: Mapping[str, Quantity],
+    base_dir: Path,
+    *,
+    joint: str | None = None,
+    limits: SafetyLimits | None = None,
+) -> Trajectory:
+    """The trajectory `name` commands: `spec`'s kind builds it, each bound field taking its value from
+    `values` (field -> the resolved factor quantity, checked here). A file is read from `base_dir` (its
+    angle column: `joint`'s, else `angle_deg`); a triangle without `corner_accel_deg_s2` turns at
+    `limits.max_accel_deg_s2`. `InvalidInput` names the trajectory and the field."""
+    fields: dict[str, Quantity | None] = {}
+    for field in type(spec).bindable:
+        written = getattr(spec, field)
+        fields[field] = written if not isinstance(written, str) else _bound(name, field, written, values)
+    built = spec.build(fields, BuildContext(name, base_dir, joint, limits))
+    return dataclasses.replace(built, name=name)
+
+
+def _bound(name: str, field: str, binding: str, values: Mapping[str, Quantity]) -> Quantity:
+    """The resolved value of a bound field, checked as the field checks a constant."""
+    if field not in values:
+        raise InvalidInput(
+            f"trajectory {name!r}: {field} is bound to {binding} but no value was given for it"
+        )
+    check = _range if field == "range_deg" else _number(field in ("speed_deg_s", "corner_accel_deg_s2"))
+    try:
+        return check(values[field])  # type: ignore[return-value]
+    except ValueError as exc:
+        raise InvalidInput(f"trajectory {name!r}: {field} (bound to {binding}): {exc}") from None
 
 
 def _sine(trajectory: Trajectory) -> tuple[float, float, float]:

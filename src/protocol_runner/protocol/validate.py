@@ -17,7 +17,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -31,11 +31,11 @@ from .resolve import (
     calibration_trajectory,
     check_bindings,
     configuration_motion,
+    joints_named,
     resolve_settings,
 )
 from .schema import CalibrationStepSpec, Protocol
 from .settings import ElementSetting
-from .trajectories import calibration_step_peak_speed_deg_s
 from .trajectory_record import Trajectory
 
 if TYPE_CHECKING:
@@ -53,28 +53,23 @@ def cross_check(
 ) -> list[Problem]:
     """Every problem as (location, message). `generated` maps a generated row's location to its
     generator's: a generated row is not in the file, so its problems are located at the generator."""
-    problems = _cross_check(loaded, check_files, generated or {})
-    return [((generated or {}).get(loc[:4], loc), message) for loc, message in problems]
-
-
-def _cross_check(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc, Loc]) -> list[Problem]:
+    generated = generated or {}
     p = loaded.protocol
-    problems: list[Problem] = []
-    problems += list(_check_factors(p))
-    problems += list(_check_matrix(p))
-    problems += list(check_bindings(p))
-    problems += list(_check_calibration_step(p))
-    if check_files:
-        problems += list(_check_files(p, loaded.base_dir))
-    problems += list(_check_report(p))
     keys = {c.key for _, c in p.configurations()}
-    problems += list(check_expectations(p.expectations, keys, p.driven_joints, several=len(p.driven_joints) > 1))
     settings = {c.key: {"trajectory": c.trajectory, **c.levels} for _, c in p.configurations()}
-    problems += list(check_repeatability(p.report.repeatability, settings))
-    problems += list(_check_output_budget(p))
-    if problems:
-        return problems
-    return _check_motions(loaded, check_files, generated)
+    problems = [
+        *_check_factors(p),
+        *_check_matrix(p),
+        *check_bindings(p),
+        *_check_calibration_step(p),
+        *(_check_files(p, loaded.base_dir) if check_files else ()),
+        *_check_report(p),
+        *check_expectations(p.expectations, keys, p.driven_joints, several=len(p.driven_joints) > 1),
+        *check_repeatability(p.report.repeatability, settings),
+        *_check_output_budget(p),
+    ]
+    problems = problems or _check_motions(loaded, check_files, generated)
+    return [(generated.get(loc[:4], loc), message) for loc, message in problems]
 
 
 def _check_motions(loaded: LoadedProtocol, check_files: bool, generated: dict[Loc, Loc]) -> list[Problem]:
@@ -86,11 +81,13 @@ def _check_motions(loaded: LoadedProtocol, check_files: bool, generated: dict[Lo
     from .stream_check import check_streams
 
     p = loaded.protocol
-    problems: list[Problem] = []
-    motions: dict[str, list[Motion]] = {
-        j: [(("calibration_step",), _calibration_what(p, j), calibration_trajectory(p, j))]
-        for j in p.driven_joints
-    }
+    per_joint = not isinstance(p.calibration_step, CalibrationStepSpec)
+    motions: dict[str, list[Motion]] = {}
+    for j in p.driven_joints:
+        what = f"the calibration step of joint {j}" if p.multi_joint else "the calibration step"
+        motions[j] = [
+            (("calibration_step", *((j,) if per_joint else ())), what, calibration_trajectory(p, j))
+        ]
     per_configuration: dict[tuple[Loc, str], list[tuple[str, int]]] = {}
     for loc, message, item in _resolve_configurations(loaded, check_files):
         if message:
@@ -101,20 +98,20 @@ def _check_motions(loaded: LoadedProtocol, check_files: bool, generated: dict[Lo
             joint, motion = item
             motions[joint].append(motion)
     all_keys = {c.key for _, c in p.configurations()}
-    problems += [
+    problems = [
         (loc, f"{message} ({_which_configurations(where, all_keys)})")
         for (loc, message), where in per_configuration.items()
     ]
     if problems:
         return problems
     for joint in p.driven_joints:  # each trajectory field against the joint's range, rate and acceleration
-        named = joint if p.multi_joint else ""
-        problems += _limit_problems(_joint_view(loaded, joint), motions[joint], named)
+        problems += _limit_problems(
+            _joint_view(loaded, joint), motions[joint], joint if p.multi_joint else ""
+        )
     if problems:
         return problems
     for joint in p.driven_joints:  # every motion's complete commanded stream, approach and exit included
-        view = _joint_view(loaded, joint)
-        problems += list(check_streams(view, motions[joint], check_files=check_files))
+        problems += check_streams(_joint_view(loaded, joint), motions[joint], check_files=check_files)
     return problems
 
 
@@ -124,10 +121,6 @@ def _joint_view(loaded: LoadedProtocol, joint: str) -> LoadedProtocol:
     if len(p.rigs) == 1:
         return loaded
     return dataclasses.replace(loaded, protocol=p.with_rigs((p.rig_of(joint),)))
-
-
-def _calibration_what(p: Protocol, joint: str) -> str:
-    return f"the calibration step of joint {joint}" if p.multi_joint else "the calibration step"
 
 
 def output_budget(n_joints: int, report_time_s: float, rate_hz: float) -> tuple[float, float, int]:
@@ -185,22 +178,12 @@ def _limit_problems(loaded: LoadedProtocol, motions: list[Motion], joint: str = 
     p = loaded.protocol
     limits = safety_limits(p.rig)
     out: dict[tuple[Loc, str], list[tuple[str, int]]] = {}
-    for where, what, traj in motions:
-        name = traj.name or ""
-        spec = p.trajectories.get(name)
-        prefix: tuple[str, ...] = ()
-        if spec is not None and joint:
-            spec, prefix = joint_spec(spec, joint)
-        calibration = what.startswith("the calibration step")
-        bindings = trajectory_bindings(spec) if spec is not None and not calibration else {}
-        base: Loc = (
-            (
-                "calibration_step",
-                *((joint,) if joint and not isinstance(p.calibration_step, CalibrationStepSpec) else ()),
-            )
-            if calibration
-            else ("trajectories", name, *prefix)
-        )
+    for where, _, traj in motions:
+        calibration = where[0] == "calibration_step"
+        base, bindings = where, {}
+        if not calibration:
+            spec, prefix = joint_spec(p.trajectories[str(traj.name)], joint)
+            base, bindings = ("trajectories", str(traj.name), *prefix), trajectory_bindings(spec)
         for field, message in trajectory_limit_problems(
             traj, limits, p.rig.output.rate_hz, loaded.base_dir, bindings
         ):
@@ -335,18 +318,14 @@ def _park_against_stops(p: Protocol, joint: str, elements: tuple[ElementSetting,
         rng = dict(el.params).get("range_deg")
         if ELEMENT_TYPES[el.type].kind != "stop" or not isinstance(rng, tuple) or rng[0] <= park <= rng[1]:
             continue
-        if p.multi_joint:
-            yield (
-                f"joint {joint}'s park angle {park:g} deg is outside the stops {_fmt_range(rng)} of its "
-                f"element {el.name!r}: between trials the joint would rest against a stop (choose "
-                f"rig_overrides.joints.{joint}.safety.park_angle_deg inside every stop range)"
-            )
-        else:
-            yield (
-                f"the park angle {park:g} deg is outside the stops "
-                f"{_fmt_range(rng)} of element {el.name!r}: between trials the joint would rest "
-                "against a stop (choose rig_overrides...safety.park_angle_deg inside every stop range)"
-            )
+        whose, its, joints = (
+            (f"joint {joint}'s", "its ", f"joints.{joint}.") if p.multi_joint else ("the", "", "..")
+        )
+        yield (
+            f"{whose} park angle {park:g} deg is outside the stops {_fmt_range(rng)} of {its}element "
+            f"{el.name!r}: between trials the joint would rest against a stop (choose "
+            f"rig_overrides.{joints}safety.park_angle_deg inside every stop range)"
+        )
 
 
 def _check_calibration_step(p: Protocol) -> Iterator[Problem]:
@@ -356,61 +335,43 @@ def _check_calibration_step(p: Protocol) -> Iterator[Problem]:
         return
     if per_joint:
         assert isinstance(p.calibration_step, dict)
-        for name in p.calibration_step:
-            if name not in p.driven_joints:
-                yield (
-                    ("calibration_step", name),
-                    f"{name!r} is not driven (joints: {', '.join(p.driven_joints)})",
-                )
-        for name in p.driven_joints:
-            if name not in p.calibration_step:
-                yield ("calibration_step",), f"no calibration step for driven joint {name!r}"
-        if any(j not in p.calibration_step for j in p.driven_joints):
+        missing = list(
+            joints_named(("calibration_step",), p.calibration_step, p.driven_joints, "calibration step")
+        )
+        yield from missing
+        if missing:
             return
-    for rig in p.rigs:
-        name = rig.joint.name
-        joint = rig.joint.range_deg
+    for name in p.driven_joints:  # its range, rate and acceleration: checked with the motions
         step = p.calibration_step_of(name)
-        base: Loc = ("calibration_step", name) if per_joint else ("calibration_step",)
-        whose = f"joint {name}'s" if p.multi_joint else "the joint's"
-        for value, field in ((step.from_deg, "from_deg"), (step.from_deg + step.step_deg, "step_deg")):
-            if not joint[0] <= value <= joint[1]:
-                yield (
-                    (*base, field),
-                    f"the calibration step reaches {value:g} deg, outside {whose} range {_fmt_range(joint)}",
-                )
         if abs(step.step_deg) < p.calibration_check.min_step_deg:
             yield (
-                (*base, "step_deg"),
+                ("calibration_step", *((name,) if per_joint else ()), "step_deg"),
                 f"a {step.step_deg:g} deg step is smaller than calibration_check.min_step_deg = "
                 f"{p.calibration_check.min_step_deg:g} deg: its response would be noise, not a time constant",
-            )
-        peak = calibration_step_peak_speed_deg_s(step.step_deg, step.ramp_s)
-        if peak > rig.safety.max_rate_deg_s:
-            yield (
-                (*base, "ramp_s"),
-                (
-                    f"a {abs(step.step_deg):g} deg step over {step.ramp_s:g} s peaks at {peak:.0f} deg/s, "
-                    f"above {whose} rate limit max_rate_deg_s = {rig.safety.max_rate_deg_s:g}; lengthen ramp_s"
-                ),
             )
 
 
 def _check_files(p: Protocol, base: Path) -> Iterator[Problem]:
     """Referenced tables and datasets: confined to the protocol's folder (protocol/paths.py), then loaded.
     (Trajectory files are read when their trajectory is built.)"""
+    from ..analysis.reference import load_reference_dataset
+    from ..hardware.calibration import load_calibration_table
+
     for rig in p.rigs:
         for field in ("command_table", "angle_table", "torque_table"):
             rel = getattr(rig.calibration, field)
             if rel is not None:
                 loc: Loc = ("rig_overrides", "joints", rig.joint.name, "calibration", field)
-                yield from _check_loadable(loc, base, rel, "calibration table")
+                yield from _check_loadable(loc, base, rel, "calibration table", load_calibration_table)
     ref = p.report.reference_dataset
     if ref is not None:
-        yield from _check_loadable(("report", "reference_dataset"), base, ref, "reference dataset")
+        loc = ("report", "reference_dataset")
+        yield from _check_loadable(loc, base, ref, "reference dataset", load_reference_dataset)
 
 
-def _check_loadable(loc: Loc, base: Path, rel: str, what: str) -> Iterator[Problem]:
+def _check_loadable(
+    loc: Loc, base: Path, rel: str, what: str, load: Callable[[Path], object]
+) -> Iterator[Problem]:
     try:
         path = confined_path(base, rel)
     except OutsideFolder as exc:
@@ -418,24 +379,11 @@ def _check_loadable(loc: Loc, base: Path, rel: str, what: str) -> Iterator[Probl
         return
     if not path.is_file():
         there = os.path.lexists(path)  # a FIFO, a device, a directory or a dangling link: not "not found"
-        yield (
-            loc,
-            (
-                f"{what} {rel} is not a regular file ({path})"
-                if there
-                else f"{what} {rel} not found (looked in {path.parent})"
-            ),
-        )
+        found = f"is not a regular file ({path})" if there else f"not found (looked in {path.parent})"
+        yield loc, f"{what} {rel} {found}"
         return
     try:
-        if what == "calibration table":
-            from ..hardware.calibration import load_calibration_table
-
-            load_calibration_table(path)
-        else:
-            from ..analysis.reference import load_reference_dataset
-
-            load_reference_dataset(path)
+        load(path)
     except InvalidInput as exc:
         yield loc, _relative_message(exc.message, base)
 

@@ -7,14 +7,14 @@ mistake (paths use 0-based list indices, as in JSON paths).
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any, get_origin
 
 import yaml
 from pydantic import BaseModel, ValidationError
 
 from ..errors import InvalidInput
-from .loaded import Loc, clean_loc, line_for
+from .loaded import Loc, line_for
 from .yaml_limits import check_size, check_yaml_limits
 
 MAX_ERRORS_SHOWN = 8
@@ -70,35 +70,30 @@ def parse_yaml(text: str, shown: str) -> tuple[Any, dict[Loc, int]]:
     if duplicates:
         loc, line = duplicates[0]
         raise InvalidInput(f"{shown}:{line}: {format_loc(loc)}: duplicate key (each key may appear once)")
-    control = _control_character(data, ())
-    if control is not None:
-        where, code = control
-        at = line_for(lines, where)
-        raise InvalidInput(
-            f"{shown}:{at or '?'}: {_escaped(format_loc(where))}: control character U+{code:04X} in a text (terminal "
-            "escape sequences and the like are refused: a label is printed on the operator's terminal)"
-        )
+    for where, value in _scalars(data):  # the first key or text holding a control character
+        code = next((ord(c) for c in value if _is_control(c)), None) if isinstance(value, str) else None
+        if code is not None:
+            raise InvalidInput(
+                f"{shown}:{line_for(lines, where) or '?'}: {_escaped(format_loc(where))}: control character "
+                f"U+{code:04X} in a text (terminal escape sequences and the like are refused: a label is "
+                "printed on the operator's terminal)"
+            )
     return data, lines
 
 
-def _control_character(value: object, loc: Loc) -> tuple[Loc, int] | None:
-    """The first key or text holding a control character other than tab and newline, and its code."""
-    if isinstance(value, str):
-        code = next((ord(c) for c in value if _is_control(c)), None)
-        return None if code is None else (loc, code)
+def _scalars(value: object, loc: Loc = ()) -> Iterator[tuple[Loc, object]]:
+    """Every text key and every scalar of a document, with its place, in document order."""
     if isinstance(value, dict):
         for key, item in value.items():
             here = (*loc, str(key))
-            found = _control_character(key, here) if isinstance(key, str) else None
-            found = found or _control_character(item, here)
-            if found is not None:
-                return found
+            if isinstance(key, str):
+                yield here, key
+            yield from _scalars(item, here)
     elif isinstance(value, list):
         for i, item in enumerate(value):
-            found = _control_character(item, (*loc, i))
-            if found is not None:
-                return found
-    return None
+            yield from _scalars(item, (*loc, i))
+    else:
+        yield loc, value
 
 
 MAX_MAGNITUDE = 1e9
@@ -107,31 +102,25 @@ it in the units its field names (rates are at most tens of kHz, times hours, key
 bound keeps every later computation (a squared speed, a sample count) finite."""
 
 
-def huge_numbers(value: object, loc: Loc = ()) -> list[tuple[Loc, str]]:
+def huge_numbers(document: object) -> list[tuple[Loc, str]]:
     """The first number beyond `MAX_MAGNITUDE` in the document, as a problem at its place (checked after
     the schema, whose own bound on a field, where it has one, is the clearer message)."""
-    if isinstance(value, int | float) and not isinstance(value, bool) and abs(value) > MAX_MAGNITUDE:
-        text = str(value)
-        shown = (
-            f"{value:.6g}"
-            if isinstance(value, float)
-            else text
-            if len(text) <= 15
-            else f"a {len(text)}-digit number"
-        )
-        return [
-            (
-                loc,
-                f"{shown} is beyond the {MAX_MAGNITUDE:.0e} any number of a campaign may be (check its unit and exponent)",
+    for loc, value in _scalars(document):
+        if isinstance(value, int | float) and not isinstance(value, bool) and abs(value) > MAX_MAGNITUDE:
+            text = str(value)
+            shown = (
+                f"{value:.6g}"
+                if isinstance(value, float)
+                else text
+                if len(text) <= 15
+                else f"a {len(text)}-digit number"
             )
-        ]
-    items = value.items() if isinstance(value, dict) else enumerate(value) if isinstance(value, list) else ()
-    for key, item in items:
-        found = huge_numbers(
-            item, (*loc, key if isinstance(key, int) and isinstance(value, list) else str(key))
-        )
-        if found:
-            return found
+            return [
+                (
+                    loc,
+                    f"{shown} is beyond the {MAX_MAGNITUDE:.0e} any number of a campaign may be (check its unit and exponent)",
+                )
+            ]
     return []
 
 
@@ -171,7 +160,7 @@ def format_problems(shown: str, lines: dict[Loc, int], problems: Sequence[tuple[
     for loc, message in problems[:MAX_ERRORS_SHOWN]:
         line = line_for(lines, loc)
         where = f"{shown}:{line}" if line else shown
-        rows.append(f"{where}: {format_loc(clean_loc(loc))}: {message}")
+        rows.append(f"{where}: {format_loc(loc)}: {message}")
     if len(problems) > MAX_ERRORS_SHOWN:
         rows.append(f"(and {len(problems) - MAX_ERRORS_SHOWN} more problems)")
     return "\n".join(rows)
@@ -182,9 +171,7 @@ def validation_problems(exc: ValidationError, root: type[BaseModel]) -> list[tup
     The alternatives of a union at one field are one message ("a valid list or 'all' (got 'al')")."""
     merged: dict[Loc, list[str]] = {}
     for e in exc.errors():
-        merged.setdefault(_without_union_member(_without_kind_tag(tuple(e["loc"]))), []).append(
-            _pydantic_message(e, root)
-        )
+        merged.setdefault(_file_loc(tuple(e["loc"])), []).append(_pydantic_message(e, root))
     return _unknown_before_missing([(loc, _one_message(messages)) for loc, messages in merged.items()])
 
 
@@ -207,14 +194,21 @@ def _unknown_before_missing(problems: list[tuple[Loc, str]]) -> list[tuple[Loc, 
     return out
 
 
-def _without_union_member(loc: Loc) -> Loc:
-    """Drop the member pydantic names in a plain union's error path (`factors.damper.list[str]`), and the
-    tags of the schema's own discriminated forms (`calibration_step.<one step>.hold_s`): no file key has
-    either shape."""
+def _file_loc(loc: Loc) -> Loc:
+    """`loc` without what pydantic adds to an error path that is no key of the file: the member of a plain
+    union (`factors.damper.list[str]`, `...float`), the tags of the schema's own discriminated forms
+    (`calibration_step.<one step>.hold_s`) and a trajectory's kind (`trajectories.sine.sinusoid.x`)."""
+    from .trajectory_specs import kind_names
+
+    kinds, members = kind_names(), {"str", "int", "float", "bool", "none", "list"}
     return tuple(
         p
-        for p in loc
-        if not (isinstance(p, str) and ("[" in p or p.startswith("literal") or (p[:1], p[-1:]) == ("<", ">")))
+        for i, p in enumerate(loc)
+        if not (
+            isinstance(p, str)
+            and ("[" in p or p in members or p.startswith("literal") or p[:1] + p[-1:] == "<>")
+        )
+        and not (i >= 2 and loc[i - 2] in ("trajectories", "joints") and p in kinds)
     )
 
 
@@ -225,19 +219,6 @@ def _one_message(messages: list[str]) -> str:
     got = [m[m.rindex(" (got ") :] if m.endswith(")") and " (got " in m else "" for m in messages]
     bodies = [m[len(prefix) : len(m) - len(g)] for m, g in zip(messages, got, strict=True)]
     return prefix + " or ".join(dict.fromkeys(bodies)) + (got[0] if len(set(got)) == 1 else "")
-
-
-def _without_kind_tag(loc: Loc) -> Loc:
-    """Drop the tag pydantic puts in a discriminated union's error path (`trajectories.sine.sinusoid.x`
-    -> `trajectories.sine.x`): it is not a key of the file."""
-    from .trajectory_specs import kind_names
-
-    kinds = kind_names()
-    return tuple(
-        part
-        for i, part in enumerate(loc)
-        if not (i >= 2 and loc[i - 2] in ("trajectories", "joints") and part in kinds)
-    )
 
 
 def yaml_error(shown: str, exc: yaml.YAMLError, text: str = "") -> str:
@@ -293,7 +274,7 @@ def _pydantic_message(err: Any, root: type[BaseModel]) -> str:
     if kind == "missing":
         return MISSING_FIELD
     if kind == "model_type":  # pydantic names its class: say what the file should hold there
-        keys = _allowed_keys(root, _without_union_member(tuple(err["loc"])))
+        keys = _allowed_keys(root, _file_loc(tuple(err["loc"])))
         shown = f" with keys {', '.join(keys)}" if keys else ""
         return f"input should be a mapping{shown} (got {value!r})"
     if kind == "union_tag_invalid":
@@ -320,7 +301,7 @@ def _allowed_keys(root: type[BaseModel], loc: Loc) -> list[str]:
     """The keys of the model at `loc` (for "unknown key" hints)."""
     model: Any = root
     skip_user_key = False
-    for part in clean_loc(loc):
+    for part in _file_loc(loc):
         if isinstance(part, int):
             continue
         if skip_user_key:  # a key chosen by the user in a dict of models (level names, trajectory names)
@@ -328,7 +309,7 @@ def _allowed_keys(root: type[BaseModel], loc: Loc) -> list[str]:
             continue
         if not (isinstance(model, type) and issubclass(model, BaseModel)):
             return []
-        info = _field_by_key(model, str(part))
+        info = next((f for name, f in model.model_fields.items() if (f.alias or name) == part), None)
         if info is None:
             return []
         skip_user_key = get_origin(info.annotation) is dict
@@ -336,13 +317,6 @@ def _allowed_keys(root: type[BaseModel], loc: Loc) -> list[str]:
     if isinstance(model, type) and issubclass(model, BaseModel):
         return [info.alias or name for name, info in model.model_fields.items()]
     return []
-
-
-def _field_by_key(model: type[BaseModel], key: str) -> Any:
-    for name, info in model.model_fields.items():
-        if (info.alias or name) == key:
-            return info
-    return None
 
 
 def _model_in(annotation: Any) -> Any:
