@@ -6,12 +6,8 @@ write fails (a full disk), h5py cannot raise from a deallocator: Python prints "
 'h5py._objects.ObjectID.__dealloc__'" with a traceback on stderr (`sys.unraisablehook`) and the program goes
 on. The file's writer never learns of it: if space comes back meanwhile (another writer of the session gave
 up and removed its partial file), the file is closed normally and could be taken as complete with the
-failed write's bytes missing. Seen with a worker's unit on a tmpfs that filled up while the session's
-archive draft grew (tests/session/test_disk_full.py, about one run in four under load).
-
-h5py's deallocator (Cython, full tracebacks) also prints the traceback itself before it calls the hook, through
-`sys.excepthook`; seen under load in the same test, as a "Traceback ..." on the terminal beside the clean
-disk-full message. While a file is watched, that print is caught the same way.
+failed write's bytes missing. h5py's deallocator also prints the traceback itself, through
+`sys.excepthook`, before it calls the hook: while a file is watched, that print is caught the same way.
 
 `checked_h5_write(path)` collects those errors for the file at `path` (HDF5 names the file in the
 message of a failed write) instead of printing them, and raises the first once the block that writes (and
