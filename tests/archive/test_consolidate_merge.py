@@ -56,7 +56,8 @@ def test_later_units_attributes_win_and_repeats_are_kept(tmp_path: Path) -> None
 def test_the_archive_declares_checksums_only_when_every_unit_had_them(tmp_path: Path) -> None:
     """A session begun before checksums existed and resumed after: its old units have none, so the
     archive does not claim them (the report then reads it with the bounds checked only)."""
-    from protocol_runner.archive.checksums import MARKER_ATTR, mark
+    from protocol_runner.archive.attrs import CHECKSUM_MARKER
+    from protocol_runner.archive.checksums import mark
     from protocol_runner.archive.consolidate import ArchiveMeta, consolidate
     from protocol_runner.archive.h5util import put
     from protocol_runner.report.load import load_report_data
@@ -76,9 +77,9 @@ def test_the_archive_declares_checksums_only_when_every_unit_had_them(tmp_path: 
     new = consolidate(tmp_path / "new.h5", [unit("1", summed=True), unit("2", summed=True)], meta)
     mixed = consolidate(tmp_path / "mixed.h5", [unit("3", summed=False), unit("4", summed=True)], meta)
     with h5py.File(new, "r") as f:
-        assert f.attrs[MARKER_ATTR] == "sha256"
+        assert f.attrs[CHECKSUM_MARKER] == "sha256"
     with h5py.File(mixed, "r") as f:
-        assert MARKER_ATTR not in f.attrs
+        assert CHECKSUM_MARKER not in f.attrs
     assert len(load_report_data(mixed).configurations[0].trials) == 2
 
 

@@ -123,7 +123,7 @@ def test_enospc_while_consolidating(
     parks: list[str],
 ) -> None:
     session = tmp_path / "s"
-    monkeypatch.setattr(consolidate_module, "put_lines", enospc)  # after every unit was merged
+    monkeypatch.setattr(consolidate_module, "put_text", enospc)  # after every unit was merged
     code = main([*RUN, "--session", str(session)])
     err = capsys.readouterr().err
     stopped_cleanly(code, err, session)

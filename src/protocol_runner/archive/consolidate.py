@@ -18,12 +18,13 @@ import h5py
 from h5py import h5a, h5f, h5g, h5o, h5p, h5s
 
 from .. import __version__
-from .attrs import ATTRIBUTE_DIGESTS, ATTRIBUTE_MARKER, ATTRIBUTES, FILENAME, ONLY
-from .checksums import MARKER_ATTR, is_marked, mark, read_attr, seal_attributes
+from .attrs import ATTRIBUTE_DIGESTS, ATTRIBUTE_MARKER, ATTRIBUTES, CHECKSUM_MARKER, FILENAME, ONLY
+from .checksums import is_marked, mark, read_attr, seal_attributes
 from .diskfull import DiskFull, is_disk_full, resume_hint
 from .h5_write_errors import checked_h5_write
-from .h5util import SCHEMA_VERSION, put, put_attrs, put_lines, put_text
-from .units import _fsync_dir, _fsync_file
+from .h5util import SCHEMA_VERSION, put, put_attrs, put_text
+from .paths import REFERENCE
+from .units import fsync_path
 
 
 @dataclass(frozen=True)
@@ -48,7 +49,7 @@ class ArchiveMeta:
 
 #: The units' own root attributes, and their attribute checksums (the archive's are recorded from the
 #: merged values, `_write`): not copied into the archive.
-_UNIT_ONLY = frozenset((*ATTRIBUTES["unit"], MARKER_ATTR, ATTRIBUTE_MARKER, ATTRIBUTE_DIGESTS))
+_UNIT_ONLY = frozenset((*ATTRIBUTES["unit"], CHECKSUM_MARKER, ATTRIBUTE_MARKER, ATTRIBUTE_DIGESTS))
 _UNIT_ONLY_NAMES = frozenset(name.encode("utf-8") for name in _UNIT_ONLY)
 _LCPL = h5p.create(h5p.LINK_CREATE)  # what h5py's `Group.copy` creates the copy's link with
 _LCPL.set_create_intermediate_group(True)
@@ -127,9 +128,9 @@ def consolidate(archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta) ->
     try:
         with checked_h5_write(partial):  # writes h5py could only print (a full disk) fail it too
             _write(partial, list(unit_files), meta)
-        _fsync_file(partial)
+        fsync_path(partial)
         os.replace(partial, archive)
-        _fsync_dir(archive.parent)
+        fsync_path(archive.parent)
     except (OSError, RuntimeError) as exc:  # HDF5 reports some refused writes as RuntimeError
         partial.unlink(missing_ok=True)
         if is_disk_full(exc):
@@ -152,10 +153,10 @@ def _write(partial: Path, unit_files: list[Path], meta: ArchiveMeta) -> None:
             ds = put_text(out, "rig", meta.rig_text)
             put_attrs(ds, "rig", {FILENAME: meta.rig_filename})
         put_text(out, "plan", meta.plan_json)
-        put_lines(out.require_group("session"), "events", list(meta.events))
+        put_text(out.require_group("session"), "events", list(meta.events))
         if meta.reference is not None:
             name, source, angle_deg, torque_nm = meta.reference
-            ref = out.require_group(f"reference/{name}")
+            ref = out.require_group(f"{REFERENCE}/{name}")
             put(ref, "angle_deg", angle_deg, "deg")
             put(ref, "torque_nm", torque_nm, "N*m")
             put_attrs(ref, "reference", {"source": source, "title": name})

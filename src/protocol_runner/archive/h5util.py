@@ -77,10 +77,6 @@ def put_text(group: h5py.Group, name: str, text: str | list[str]) -> h5py.Datase
     return ds
 
 
-def put_lines(group: h5py.Group, name: str, lines: list[str]) -> h5py.Dataset:
-    return put_text(group, name, lines)
-
-
 def set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:
     """Attributes as HDF5/MATLAB-friendly types: str, int, float, bool, numeric arrays; dicts as JSON."""
     for key, value in attrs.items():

@@ -19,7 +19,7 @@ from pathlib import Path
 import h5py
 
 from ..errors import InvalidInput, short
-from .attrs import UNIT_STEP_ID
+from .attrs import UNIT_COMPLETE, UNIT_STEP_ID
 from .checksums import (
     attributes_marked,
     digest_of_stored,
@@ -29,7 +29,6 @@ from .checksums import (
     stored_attribute_digests,
 )
 from .layout import check_layout, element_cap
-from .units import COMPLETE_ATTR
 
 ROOT_MARKER = "protocol_sha256"
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -260,7 +259,7 @@ def _verify_file(file: Path, verdict: Verdict) -> int:
         require_hdf5(file)
         with h5py.File(file, "r") as h5:
             if UNIT_STEP_ID in h5.attrs:  # a unit: a fragment of the archive, no root of its own
-                if not h5.attrs.get(COMPLETE_ATTR, False):
+                if not h5.attrs.get(UNIT_COMPLETE, False):
                     raise InvalidInput(f"{file}: not a complete unit (resume redoes its step)")
             else:
                 check_root(h5, file)
