@@ -79,7 +79,6 @@ class SimulatedBench:
         from ..hardware.simulator.daq import SimulatedRig
         from ..hardware.simulator.params import SimulatorParams
 
-        self.paced = realtime  # like the robot: runner.py then saves each unit before the next motion
         p = loaded.protocol
         specs = p.rigs if p.multi_joint else [p.rig]
         self.sim = SimulatedRig(
@@ -115,7 +114,6 @@ class HardwareBench:
         from ..hardware.usb_common import realtime_priority
 
         self.mode = "hardware"
-        self.paced = True
         self.rig = open_hardware_rig(loaded)
         # the 100 Hz loop under SCHED_FIFO when allowed (tick jitter p99 < 1 ms needs it on a busy machine)
         self.rig.loop_context = realtime_priority
