@@ -15,34 +15,18 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING
 
 from ..archive.units import fsync_path, unit_is_complete
 from ..protocol.plan_steps import CalibrationCheckStep, ChecklistStep, Plan, Step, TrialStep
 from ..protocol.step_ids import calibration_id
-from .journal import Journal
 from .resume_checks import not_in_plan, started_as
-from .setup import SessionInfo, changed_files
+from .setup import changed_files
 
 if TYPE_CHECKING:
-    from ..steps.context import Bench, StepContext, StepOutcome
-    from ..steps.operator import Operator
+    from ..steps.context import StepContext
     from .progress import Progress
-
-
-class Runner(Protocol):
-    """What resuming needs of the session runner (`session.runner.Runner`)."""
-
-    dir: Path
-    info: SessionInfo
-    plan: Plan
-    bench: Bench
-    operator: Operator
-    journal: Journal
-    units_dir: Path
-    protocol_changed: bool
-
-    def record(self, step_id: str, outcome: StepOutcome) -> None: ...
+    from .runner import Runner
 
 
 # the rig's state at the start of a session, before any checklist: nothing fitted to the joint
