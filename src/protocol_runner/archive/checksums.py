@@ -122,9 +122,8 @@ _RECORD = ATTRIBUTE_DIGESTS.encode("ascii")
 _EMPTY = hashlib.sha256(b"empty\n").hexdigest()
 _MEMORY_TYPES: dict[bytes, tuple[np.dtype[Any], h5t.TypeID]] = {}  # HDF5 type's encoding -> `read_attr`'s
 
-# The attributes are read and written on HDF5's identifiers (h5py's low-level API), as consolidation merges
-# them: an archive has about 3,600 objects and 10,000 attributes, and h5py's objects and attribute managers
-# cost several times the HDF5 calls they make.
+# Attributes are read and written on HDF5's identifiers, as consolidation merges them: an archive has about
+# 10,000, and h5py's attribute managers cost several times the HDF5 calls they make.
 
 
 def read_attr(attr: h5a.AttrID) -> tuple[npt.NDArray[Any], h5t.TypeID]:
@@ -162,17 +161,19 @@ def _stored_digest(oid: h5o.ObjectID, name: bytes) -> str:
     return attribute_digest(read_attr(attr)[0])
 
 
-def _names(oid: h5o.ObjectID) -> list[bytes]:
+def attribute_names(oid: h5o.ObjectID) -> list[bytes]:
     names: list[bytes] = []
     h5a.iterate(oid, names.append)  # append returns None: iteration goes on
     return names
 
 
+def _digests(oid: h5o.ObjectID) -> dict[str, str]:
+    return {k.decode("utf-8"): _stored_digest(oid, k) for k in attribute_names(oid) if k not in _UNSUMMED}
+
+
 def stored_attribute_digests(obj: h5py.HLObject) -> dict[str, str]:
     """The digest of each attribute of `obj` that `attribute_sha256` covers, from its stored value."""
-    return {
-        name.decode("utf-8"): _stored_digest(obj.id, name) for name in _names(obj.id) if name not in _UNSUMMED
-    }
+    return _digests(obj.id)
 
 
 def recorded_attribute_digests(obj: h5py.HLObject) -> dict[str, str] | None:
@@ -207,7 +208,7 @@ def seal_attributes_of(obj: h5py.HLObject, names: Iterable[str] | None = None) -
     if names is None:
         _record(obj.id, stored_attribute_digests(obj))
         return
-    present = {name.decode("utf-8") for name in _names(obj.id)}
+    present = {name.decode("utf-8") for name in attribute_names(obj.id)}
     digests = {k: v for k, v in (recorded_attribute_digests(obj) or {}).items() if k in present}
     for name in names:
         if name not in UNSUMMED_ATTRS:
@@ -226,9 +227,7 @@ def seal_attributes(f: h5py.File) -> int:
     count = 0
     for name in names:
         obj = h5o.open(f.id, name)
-        digests = {
-            key.decode("utf-8"): _stored_digest(obj, key) for key in _names(obj) if key not in _UNSUMMED
-        }
+        digests = _digests(obj)
         count += len(digests)
         _record(obj, digests)
     return count

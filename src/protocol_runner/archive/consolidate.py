@@ -19,7 +19,7 @@ from h5py import h5a, h5f, h5g, h5o, h5p, h5s
 
 from .. import __version__
 from .attrs import ATTRIBUTE_DIGESTS, ATTRIBUTE_MARKER, ATTRIBUTES, CHECKSUM_MARKER, FILENAME, ONLY
-from .checksums import is_marked, mark, read_attr, seal_attributes
+from .checksums import attribute_names, is_marked, mark, read_attr, seal_attributes
 from .diskfull import DiskFull, is_disk_full, resume_hint
 from .h5_write_errors import checked_h5_write
 from .h5util import SCHEMA_VERSION, put, put_attrs, put_text
@@ -56,20 +56,13 @@ _LCPL.set_create_intermediate_group(True)
 _FAPL = h5p.create(h5p.FILE_ACCESS)  # a unit opened as `h5py.File(path, "r")` would be
 _FAPL.set_libver_bounds(h5f.LIBVER_EARLIEST, h5f.LIBVER_LATEST)
 
-# The merge works on HDF5's identifiers (h5py's low-level API), not on h5py's groups and attribute
-# managers: their objects, `in` and `[]` lookups cost more than the HDF5 calls they make, and a knee session's
-# merge visits about 1,000 groups and 3,000 attributes. Names are bytes, visited in name order.
+# The merge works on HDF5's identifiers (h5py's low-level API): h5py's objects and lookups cost more than
+# the HDF5 calls they make, and a knee session's merge visits about 1,000 groups and 3,000 attributes.
 
 
 def _link_names(group: h5g.GroupID) -> list[bytes]:
     names: list[bytes] = []
     group.links.iterate(names.append)  # append returns None: iteration goes on
-    return names
-
-
-def _attr_names(obj: h5g.GroupID) -> list[bytes]:
-    names: list[bytes] = []
-    h5a.iterate(obj, names.append)
     return names
 
 
@@ -88,10 +81,9 @@ def _copy_attr(src: h5g.GroupID, dst: h5g.GroupID, name: bytes) -> None:
 def _merge_under(src: h5g.GroupID, dst: h5g.GroupID) -> None:
     """Add to `dst` what `src` holds and `dst` does not. Everything in `dst` came from units later in
     the plan than `src` (consolidation merges last to first), and a later unit's value wins: an attribute
-    or member `dst` already has is left as it is without reading `src`'s (every trial unit repeats its
-    configuration's attributes, and reading them was most of the merging time); only a group both hold is
-    merged in turn (a later unit's dataset where an earlier one has a group replaces it whole)."""
-    for key in _attr_names(src):
+    or member `dst` already has is left as it is, unread; only a group both hold is merged in turn (a
+    later unit's dataset where an earlier one has a group replaces it whole)."""
+    for key in attribute_names(src):
         if key not in _UNIT_ONLY_NAMES and not h5a.exists(dst, key):
             _copy_attr(src, dst, key)
     for name in _link_names(src):

@@ -1,13 +1,10 @@
 """Is this file an intact protocol-runner archive? Clear answers for foreign, damaged or hostile files.
 
-- `Checker`: each dataset's layout (archive/layout.py) is checked before it is read, then its values
-  against its recorded checksum (archive/checksums.py), and each object's attributes against theirs. The
-  report checks every dataset and attribute with it before using any, and refuses a damaged one by name
-  (exit 2).
-- `validate_archive`: the path names an HDF5 file with the archive's root marker and `/configurations`,
-  and every dataset passes `Checker` (used by `--reprocess` and `--export-mat` before they read).
-- `verify_path`: `run-protocol --verify SESSION_DIR|ARCHIVE.h5`, every dataset of the archive (and of a
-  session's units), listing every damaged one.
+- `Checker`: each dataset's layout (archive/layout.py) before it is read, then its values against its
+  recorded checksum, and each object's attributes against theirs (the report checks everything with it).
+- `validate_archive`: an HDF5 file with the archive's root marker and `/configurations`, every dataset
+  passing `Checker` (`--reprocess` and `--export-mat` call it before they read).
+- `verify_path`: `run-protocol --verify SESSION_DIR|ARCHIVE.h5`, listing every damaged dataset.
 """
 
 from __future__ import annotations
@@ -102,11 +99,9 @@ def validate_archive(path: Path) -> Path:
 
 @dataclass
 class Checker:
-    """Checks datasets of one open file: layout first, then the checksum; and every object's attributes
-    against their checksums. `strict` (the file declares dataset checksums) makes a dataset without one an
-    error, `attrs_strict` (it declares attribute checksums) an attribute without one; otherwise (an archive
-    written before them) only the layout is checked, and the attributes are counted as unsummed. Without
-    `digests` only the layout is checked (see `load_report_data`)."""
+    """Checks datasets of one open file (layout, then checksum) and every object's attributes. `strict`
+    (the file declares dataset checksums) makes a dataset without one an error, `attrs_strict` an attribute
+    without one; otherwise they are counted as unsummed. Without `digests` only the layout is checked."""
 
     label: str
     cap: int
