@@ -50,11 +50,7 @@ class StoppedByCheck(UserError):
 
 class WatchdogTripped(StoppedByCheck):
     """A measured signal left its watchdog limit while the joint moved (`hardware/watchdog.py`): the trial
-    was braked and parked, and is not kept; `--resume` redoes it (exit 4).
-
-    Attributes: where (step), joint, quantity ("torque" or "tracking error"), value, limit (its text),
-    units, time_s (the sample's time from the start of the motion).
-    """
+    was braked and parked, and is not kept; `--resume` redoes it (exit 4)."""
 
     def __init__(
         self, *, where: str, joint: str, quantity: str, value: float, limit: str, units: str, time_s: float
