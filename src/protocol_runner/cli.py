@@ -353,52 +353,40 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         return EXIT_OK
     if mode == "--plan":
         args.plan = _mode_protocol("--plan", args.plan, args.protocol)
-        if args.power is not None or args.power_cv is not None:
-            from .commands import power_plan
-
-            return power_plan(
-                args.plan,
-                session=Path(args.power) if args.power is not None else None,
-                cv=args.power_cv,
-                effect_ratio=args.power_effect,
-                only=parse_only(args.only),
-            )
-        return _cmd_plan(args)
+        if args.power is None and args.power_cv is None:
+            return _cmd_plan(args)
     if mode == "--validate":
         args.validate = _mode_protocol("--validate", args.validate, args.protocol)
         return _cmd_validate(args)
-    if mode == "--hardware-check":
-        from .commands import hardware_check
+    from . import commands  # the other modes' actions
 
+    output = Path(args.output) if args.output else None
+    if mode == "--plan":
+        return commands.power_plan(
+            args.plan,
+            session=Path(args.power) if args.power is not None else None,
+            cv=args.power_cv,
+            effect_ratio=args.power_effect,
+            only=parse_only(args.only),
+        )
+    if mode == "--hardware-check":
         if args.hardware_check and args.protocol:
             _mode_protocol("--hardware-check", args.hardware_check, args.protocol)  # refuses two protocols
-        return hardware_check(args.hardware_check or args.protocol or None)
+        return commands.hardware_check(args.hardware_check or args.protocol or None)
     if mode == "--report":
-        from .commands import report
-
-        return report(
+        return commands.report(
             Path(args.report),
-            output=Path(args.output) if args.output else None,
+            output=output,
             reprocess=args.reprocess,
             protocol_file=args.protocol_file,
             export_mat=Path(args.export_mat) if args.export_mat else None,
         )
     if mode == "--export":
-        from .commands import export
-
-        return export(
-            Path(args.export), Path(args.output) if args.output else None, only=parse_only(args.only)
-        )
+        return commands.export(Path(args.export), output, only=parse_only(args.only))
     if mode == "--compare":
-        from .commands import compare
-
-        return compare(
-            Path(args.compare[0]), Path(args.compare[1]), Path(args.output) if args.output else None
-        )
+        return commands.compare(Path(args.compare[0]), Path(args.compare[1]), output)
     if mode == "--verify":
-        from .commands import verify
-
-        return verify(Path(args.verify))
+        return commands.verify(Path(args.verify))
     if args.monitor is not None and (args.resume is not None or args.protocol is not None):
         from .monitor.service import Monitor
 
@@ -408,10 +396,10 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
 
 
 def _run_or_resume(parser: argparse.ArgumentParser, args: argparse.Namespace, monitor: Monitor | None) -> int:
-    if args.resume is not None:
-        from .commands import resume
+    from . import commands
 
-        return resume(
+    if args.resume is not None:
+        return commands.resume(
             Path(args.resume),
             yes=args.yes,
             force=args.force,
@@ -426,9 +414,7 @@ def _run_or_resume(parser: argparse.ArgumentParser, args: argparse.Namespace, mo
         return EXIT_INVALID_INPUT
     if args.seed is not None and not 0 <= args.seed < 2**63:
         raise InvalidInput(f"--seed: {args.seed} is out of range (0 to 2**63 - 1)")
-    from .commands import run
-
-    return run(
+    return commands.run(
         args.protocol,
         dry_run=args.dry_run,
         session=Path(args.session) if args.session else None,

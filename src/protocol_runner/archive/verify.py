@@ -277,11 +277,9 @@ def _verify_file(file: Path, verdict: Verdict) -> int:
         unsummed_attrs = ""
         if checker.attrs_unsummed:  # written before attribute checksums: its results' attributes unverifiable
             which = (
-                f"{checker.attrs_unsummed} of its attributes carry"
-                if checker.attrs_checked
-                else ("its attributes carry")
+                f"{checker.attrs_unsummed} of its attributes" if checker.attrs_checked else "its attributes"
             )
-            unsummed_attrs = f"; {which} no checksum (written before attribute checksums)"
+            unsummed_attrs = f"; {which} carry no checksum (written before attribute checksums)"
         verdict.lines.append(
             f"{file}: {checker.checked} datasets{attributes}, every checksum matches{unsummed}{unsummed_attrs}"
         )
