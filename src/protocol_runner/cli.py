@@ -21,6 +21,7 @@ from .errors import (
     EXIT_OK,
     InvalidInput,
     UserError,
+    causes,
     file_system_refusal,
 )
 from .protocol.only import KeySelection
@@ -224,24 +225,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         say("run-protocol: interrupted")
         return EXIT_INTERRUPTED
     except Exception as exc:
-        if not _caused_by_an_interrupt(exc):
+        if not any(isinstance(e, KeyboardInterrupt) for e in causes(exc)):
             raise
         on_the_way_out()  # a Ctrl-C inside an import (an extension then says "initialization failed")
         _ENDED_BY_AN_INTERRUPT.set()
         say("run-protocol: interrupted")
         return EXIT_INTERRUPTED
-
-
-def _caused_by_an_interrupt(exc: BaseException) -> bool:
-    """Whether a KeyboardInterrupt is in the chain of causes of `exc`."""
-    seen: set[int] = set()
-    link: BaseException | None = exc
-    while link is not None and id(link) not in seen:
-        if isinstance(link, KeyboardInterrupt):
-            return True
-        seen.add(id(link))
-        link = link.__cause__ or link.__context__
-    return False
 
 
 RUN = "a run"

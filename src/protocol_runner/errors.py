@@ -6,6 +6,7 @@ Anything raised as a `UserError` is printed by the CLI as one short paragraph, n
 from __future__ import annotations
 
 import errno
+from collections.abc import Iterator
 from pathlib import Path
 
 EXIT_OK = 0
@@ -68,6 +69,16 @@ class Interrupted(UserError):
     """The session was interrupted by a signal; it is resumable (exit 130)."""
 
     exit_code = EXIT_INTERRUPTED
+
+
+def causes(exc: BaseException) -> Iterator[BaseException]:
+    """`exc`, then the exceptions it was raised from or while handling, each once."""
+    seen: set[int] = set()
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        seen.add(id(link))
+        yield link
+        link = link.__cause__ or link.__context__
 
 
 def short(exc: BaseException) -> str:

@@ -15,18 +15,34 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 from ..archive.units import fsync_path, unit_is_complete
 from ..protocol.plan_steps import CalibrationCheckStep, ChecklistStep, Plan, Step, TrialStep
 from ..protocol.step_ids import calibration_id
+from .journal import Journal
 from .resume_checks import not_in_plan, started_as
-from .setup import changed_files
+from .setup import SessionInfo, changed_files
 
 if TYPE_CHECKING:
-    from ..steps.context import StepContext
+    from ..steps.context import Bench, StepContext, StepOutcome
+    from ..steps.operator import Operator
     from .progress import Progress
-    from .runner import Runner
+
+
+class Runner(Protocol):
+    """What resuming needs of the session runner (`session.runner.Runner`, which imports this module)."""
+
+    dir: Path
+    info: SessionInfo
+    plan: Plan
+    bench: Bench
+    operator: Operator
+    journal: Journal
+    units_dir: Path
+    protocol_changed: bool
+
+    def record(self, step_id: str, outcome: StepOutcome) -> None: ...
 
 
 # the rig's state at the start of a session, before any checklist: nothing fitted to the joint
