@@ -25,13 +25,7 @@ SIGNAL = STORED_SIGNAL  # measured and processed signals (the analysis fits the 
 
 
 def put(
-    group: h5py.Group,
-    name: str,
-    data: npt.ArrayLike,
-    units: str,
-    *,
-    dtype: npt.DTypeLike | None = None,
-    compress: bool = True,
+    group: h5py.Group, name: str, data: npt.ArrayLike, units: str, *, dtype: npt.DTypeLike | None = None
 ) -> h5py.Dataset:
     """Write a numeric dataset with its `units` attribute and its checksum, replacing one of that name.
     Arrays of more than COMPRESS_ABOVE elements are stored with HDF5's standard byte-shuffle and gzip
@@ -40,7 +34,7 @@ def put(
     if name in group:
         del group[name]
     filters: dict[str, Any] = {}
-    if compress and arr.size > COMPRESS_ABOVE:
+    if arr.size > COMPRESS_ABOVE:
         filters = {"compression": "gzip", "compression_opts": GZIP_LEVEL, "shuffle": True}
         if arr.ndim == 1:
             filters["chunks"] = (min(arr.shape[0], max(1, CHUNK_BYTES // max(1, arr.itemsize))),)

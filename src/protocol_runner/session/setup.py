@@ -66,9 +66,8 @@ class SessionInfo:
         return json.dumps(d, indent=2)
 
 
-def default_session_dir(protocol_name: str, cwd: Path | None = None) -> Path:
-    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
-    return (cwd or Path.cwd()) / "sessions" / f"{protocol_name}-{stamp}"
+def default_session_dir(protocol_name: str) -> Path:
+    return Path.cwd() / "sessions" / f"{protocol_name}-{datetime.now(UTC).strftime('%Y%m%dT%H%M%SZ')}"
 
 
 def referenced_files(loaded: LoadedProtocol) -> list[str]:
