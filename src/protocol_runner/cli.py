@@ -21,6 +21,7 @@ from .errors import (
     EXIT_OK,
     InvalidInput,
     UserError,
+    causes,
     file_system_refusal,
 )
 from .protocol.only import KeySelection
@@ -29,6 +30,8 @@ from .session.streams import say
 
 if TYPE_CHECKING:
     from .monitor.service import Monitor
+    from .protocol.loaded import LoadedProtocol
+    from .protocol.plan_steps import Plan
 
 DESCRIPTION = """\
 Run a declarative test protocol for space-suit joint testing on the RSST robot.
@@ -125,9 +128,6 @@ _OPTIONS: tuple[tuple[str, str, str | None, str], ...] = (
     ("output", "--reprocess", None, "with --report: redo processing and fits from raw data"),
     ("output", "--protocol-file", "PROTOCOL", "with --reprocess: take processing settings from this file"),
     ("output", "--export-mat", "DIR", "with --report: write the archive as .mat files (docs/matlab.md)"),
-)
-# --plan --power: the trials per configuration each expectation needs (power_plan.py)
-_OPTIONS += (
     (
         "output",
         "--power",
@@ -225,24 +225,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         say("run-protocol: interrupted")
         return EXIT_INTERRUPTED
     except Exception as exc:
-        if not _caused_by_an_interrupt(exc):
+        if not any(isinstance(e, KeyboardInterrupt) for e in causes(exc)):
             raise
         on_the_way_out()  # a Ctrl-C inside an import (an extension then says "initialization failed")
         _ENDED_BY_AN_INTERRUPT.set()
         say("run-protocol: interrupted")
         return EXIT_INTERRUPTED
-
-
-def _caused_by_an_interrupt(exc: BaseException) -> bool:
-    """Whether a KeyboardInterrupt is in the chain of causes of `exc`."""
-    seen: set[int] = set()
-    link: BaseException | None = exc
-    while link is not None and id(link) not in seen:
-        if isinstance(link, KeyboardInterrupt):
-            return True
-        seen.add(id(link))
-        link = link.__cause__ or link.__context__
-    return False
 
 
 RUN = "a run"
@@ -354,52 +342,40 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
         return EXIT_OK
     if mode == "--plan":
         args.plan = _mode_protocol("--plan", args.plan, args.protocol)
-        if args.power is not None or args.power_cv is not None:
-            from .commands import power_plan
-
-            return power_plan(
-                args.plan,
-                session=Path(args.power) if args.power is not None else None,
-                cv=args.power_cv,
-                effect_ratio=args.power_effect,
-                only=parse_only(args.only),
-            )
-        return _cmd_plan(args)
+        if args.power is None and args.power_cv is None:
+            return _cmd_plan(args)
     if mode == "--validate":
         args.validate = _mode_protocol("--validate", args.validate, args.protocol)
         return _cmd_validate(args)
-    if mode == "--hardware-check":
-        from .commands import hardware_check
+    from . import commands  # the other modes' actions
 
+    output = Path(args.output) if args.output else None
+    if mode == "--plan":
+        return commands.power_plan(
+            args.plan,
+            session=Path(args.power) if args.power is not None else None,
+            cv=args.power_cv,
+            effect_ratio=args.power_effect,
+            only=parse_only(args.only),
+        )
+    if mode == "--hardware-check":
         if args.hardware_check and args.protocol:
             _mode_protocol("--hardware-check", args.hardware_check, args.protocol)  # refuses two protocols
-        return hardware_check(args.hardware_check or args.protocol or None)
+        return commands.hardware_check(args.hardware_check or args.protocol or None)
     if mode == "--report":
-        from .commands import report
-
-        return report(
+        return commands.report(
             Path(args.report),
-            output=Path(args.output) if args.output else None,
+            output=output,
             reprocess=args.reprocess,
             protocol_file=args.protocol_file,
             export_mat=Path(args.export_mat) if args.export_mat else None,
         )
     if mode == "--export":
-        from .commands import export
-
-        return export(
-            Path(args.export), Path(args.output) if args.output else None, only=parse_only(args.only)
-        )
+        return commands.export(Path(args.export), output, only=parse_only(args.only))
     if mode == "--compare":
-        from .commands import compare
-
-        return compare(
-            Path(args.compare[0]), Path(args.compare[1]), Path(args.output) if args.output else None
-        )
+        return commands.compare(Path(args.compare[0]), Path(args.compare[1]), output)
     if mode == "--verify":
-        from .commands import verify
-
-        return verify(Path(args.verify))
+        return commands.verify(Path(args.verify))
     if args.monitor is not None and (args.resume is not None or args.protocol is not None):
         from .monitor.service import Monitor
 
@@ -409,10 +385,10 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
 
 
 def _run_or_resume(parser: argparse.ArgumentParser, args: argparse.Namespace, monitor: Monitor | None) -> int:
-    if args.resume is not None:
-        from .commands import resume
+    from . import commands
 
-        return resume(
+    if args.resume is not None:
+        return commands.resume(
             Path(args.resume),
             yes=args.yes,
             force=args.force,
@@ -427,9 +403,7 @@ def _run_or_resume(parser: argparse.ArgumentParser, args: argparse.Namespace, mo
         return EXIT_INVALID_INPUT
     if args.seed is not None and not 0 <= args.seed < 2**63:
         raise InvalidInput(f"--seed: {args.seed} is out of range (0 to 2**63 - 1)")
-    from .commands import run
-
-    return run(
+    return commands.run(
         args.protocol,
         dry_run=args.dry_run,
         session=Path(args.session) if args.session else None,
@@ -450,16 +424,24 @@ def _mode_protocol(flag: str, given: str, positional: str | None) -> str:
     return given or str(positional)
 
 
-def _cmd_validate(args: argparse.Namespace) -> int:
+def _preflighted(name: str, only: KeySelection | None = None) -> tuple[Path, LoadedProtocol, Plan]:
+    """The protocol `name` loaded and checked exactly as a run checks it before it creates a session (its
+    warnings printed on standard error), with its plan."""
     from .preflight import preflight, preflight_warnings
     from .protocol.loader import find_protocol, load_protocol
-    from .protocol.plan_table import robot_time_text
 
-    path = find_protocol(args.validate)
-    loaded = load_protocol(path, display_name=args.validate if Path(args.validate).exists() else str(path))
-    plan = preflight(loaded)  # exactly the run's checks before it creates a session
+    path = find_protocol(name)
+    loaded = load_protocol(path, display_name=name if Path(name).exists() else str(path))
+    plan = preflight(loaded, only=only)
     for warning in preflight_warnings(loaded, plan):
         print(warning, file=sys.stderr)
+    return path, loaded, plan
+
+
+def _cmd_validate(args: argparse.Namespace) -> int:
+    from .protocol.plan_table import robot_time_text
+
+    path, loaded, plan = _preflighted(args.validate)
     trials = sum(1 for s in plan.steps if s.kind == "trial")
     n_cfg = len(loaded.protocol.configurations())
     print(
@@ -471,15 +453,9 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
-    from .preflight import preflight, preflight_warnings
-    from .protocol.loader import find_protocol, load_protocol
     from .protocol.plan_table import format_plan_table
 
-    path = find_protocol(args.plan)
-    loaded = load_protocol(path, display_name=args.plan if Path(args.plan).exists() else str(path))
-    plan = preflight(loaded, only=parse_only(args.only))
-    for warning in preflight_warnings(loaded, plan):
-        print(warning, file=sys.stderr)
+    _, _, plan = _preflighted(args.plan, parse_only(args.only))
     if args.json:
         sys.stdout.write(plan.dumps() + "\n")
     else:
@@ -491,22 +467,13 @@ def entry() -> None:
     """The `run-protocol` command (and `python -m protocol_runner.cli`): `main` on the process's arguments,
     its status the process's exit status. Callers in their own process use `main(argv)`.
 
-    After a session stopped on a full disk, HDF5 may still hold a file whose close failed for lack of
-    space, and the interpreter's teardown closing it again crashes the process (a segmentation fault, exit
-    139 instead of 130: `--only 15,16,17` on a 3 MB file system). So the process then ends at once, its
-    output and log flushed, as after a kill, which loses nothing: every finished unit is on disk and
-    journaled, and a temporary file is removed or redone by the resume (docs/session.md). So it does after a
-    second Ctrl-C, which may have left the analysis workers' pool waiting for ever on what the interrupt
-    broke (the pool's thread is joined at exit), and after any Ctrl-C that raised KeyboardInterrupt here
-    (one during the start-up, before the session's own handling is installed): under `python -m`, CPython
-    ends a process at exit by the signal itself (exit -2, no message) if a KeyboardInterrupt passed through
-    a string `exec` on its way, even one handled afterwards, and the imports run many (dataclasses and
-    named tuples build their methods that way).
-
-    Once `main` has returned, SIGINT is ignored: the interpreter's teardown (the worker pool's shutdown,
-    HDF5 and the imported modules' finalisation) takes a moment, and Python resets SIGINT to the default
-    action during it, so a Ctrl-C there would end the process with signal 2 (exit -2, no message) after
-    the session had already finished (or stopped) and said so."""
+    After a full disk, a second Ctrl-C or any Ctrl-C that reached here, the process ends at once
+    (`os._exit`), its output and log flushed, as after a kill, which loses nothing (every finished unit is
+    on disk and journaled): the interpreter's teardown would otherwise close again an HDF5 file whose close
+    failed (a segmentation fault), wait for ever on a worker pool the interrupt broke, or end the process
+    by the signal itself (exit -2) because a KeyboardInterrupt passed through an `exec` during the imports.
+    Once `main` has returned, SIGINT is ignored: a Ctrl-C during the teardown would otherwise end the
+    process with signal 2 after the session had finished (or stopped) and said so."""
     one_blas_thread()
     from .session.signals import exit_at_once_after_second_sigint, stopped_at_once
     from .session.streams import flush_standard_streams, reopen_missing_standard_streams
@@ -531,16 +498,10 @@ _ENDED_BY_AN_INTERRUPT = threading.Event()  # set when a Ctrl-C raised KeyboardI
 
 
 def one_blas_thread() -> None:
-    """Have OpenBLAS start with one thread in this process and the processes it starts (the analysis
-    workers), unless the environment already says how many (`OPENBLAS_NUM_THREADS` is kept as set).
-
-    numpy and scipy each load their own OpenBLAS, which starts a pool of threads that spin, waiting for
-    work, for about 0.1 s of CPU each after it starts and after every fork: 0.2 s at the session's start-up
-    and more in the fork server and each worker, on a two-core machine whose other core the workers need.
-    Nothing of this program's gains from more: the session's own BLAS calls are small, and the model fits
-    hold BLAS at one thread while they run anyway (threadpoolctl, models/bouc_wen/fitting.py). It is read
-    by OpenBLAS when it loads, so it is set here, before anything imports numpy (checked by a test); a
-    program calling `main(argv)` keeps its own setting."""
+    """Have OpenBLAS start with one thread in this process and the analysis workers, unless
+    `OPENBLAS_NUM_THREADS` is set: its idle threads spin for about 0.1 s of CPU after every start and fork,
+    and nothing here gains from more (the model fits hold BLAS at one thread anyway). OpenBLAS reads it when
+    it loads, so it is set before anything imports numpy; a program calling `main(argv)` keeps its own."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 

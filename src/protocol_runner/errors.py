@@ -6,6 +6,7 @@ Anything raised as a `UserError` is printed by the CLI as one short paragraph, n
 from __future__ import annotations
 
 import errno
+from collections.abc import Iterator
 from pathlib import Path
 
 EXIT_OK = 0
@@ -50,11 +51,7 @@ class StoppedByCheck(UserError):
 
 class WatchdogTripped(StoppedByCheck):
     """A measured signal left its watchdog limit while the joint moved (`hardware/watchdog.py`): the trial
-    was braked and parked, and is not kept; `--resume` redoes it (exit 4).
-
-    Attributes: where (step), joint, quantity ("torque" or "tracking error"), value, limit (its text),
-    units, time_s (the sample's time from the start of the motion).
-    """
+    was braked and parked, and is not kept; `--resume` redoes it (exit 4)."""
 
     def __init__(
         self, *, where: str, joint: str, quantity: str, value: float, limit: str, units: str, time_s: float
@@ -72,6 +69,16 @@ class Interrupted(UserError):
     """The session was interrupted by a signal; it is resumable (exit 130)."""
 
     exit_code = EXIT_INTERRUPTED
+
+
+def causes(exc: BaseException) -> Iterator[BaseException]:
+    """`exc`, then the exceptions it was raised from or while handling, each once."""
+    seen: set[int] = set()
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        seen.add(id(link))
+        yield link
+        link = link.__cause__ or link.__context__
 
 
 def short(exc: BaseException) -> str:

@@ -1,15 +1,10 @@
 """Where numba keeps the compiled kernels between runs: the user's cache directory.
 
-numba caches a compiled function beside its source (`__pycache__`) or in its own user-wide directory, and
-when neither is writable - a read-only install run by a user without a writable home - its
-`@njit(cache=True)` raises at import ("cannot cache function ...: no locator available"). So the package
-points numba at `<user cache directory>/protocol-runner/numba` (`NUMBA_CACHE_DIR`, read by numba when it is
-first imported: the package's `__init__` sets it, before any module imports numba; a `NUMBA_CACHE_DIR`
-already set is kept), and the modules with compiled kernels ask `cache_enabled()` whether to cache at all:
-when that directory is not writable they compile in every run instead, after one warning line.
-
-The user cache directory is `$XDG_CACHE_HOME` (default `~/.cache`) on Linux, `~/Library/Caches` on macOS
-and `%LOCALAPPDATA%` on Windows. `PROTOCOL_RUNNER_NUMBA_CACHE=0` turns the cache off.
+Where numba's own rules find no writable place (a read-only install, no writable home), its
+`@njit(cache=True)` raises at import. So the package's `__init__` points `NUMBA_CACHE_DIR` (unless set)
+at `<user cache directory>/protocol-runner/numba` before any module imports numba, and the modules with
+compiled kernels ask `cache_enabled()` whether to cache at all: when that directory is not writable they
+compile in every run instead, after one warning line. `PROTOCOL_RUNNER_NUMBA_CACHE=0` turns the cache off.
 """
 
 from __future__ import annotations

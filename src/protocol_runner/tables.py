@@ -89,10 +89,8 @@ its size in memory, so a larger file is refused before it is read."""
 
 
 def read_table_text(path: Path, what: str, max_bytes: int = MAX_TABLE_BYTES) -> str:
-    """The file's UTF-8 text (a leading byte-order mark, as spreadsheets write, removed); `InvalidInput`
-    "<what> <path>: file not found", "...: not a regular file", "...: N bytes, more than ..." or "...: cannot
-    read it (...)". A FIFO or a device is refused unread (its
-    read would wait forever, or never end)."""
+    """The file's UTF-8 text (a leading byte-order mark removed), or `InvalidInput` naming `what` and
+    `path`. A FIFO or a device is refused unread (its read would wait forever, or never end)."""
     try:
         info = path.stat()
     except FileNotFoundError:

@@ -11,8 +11,9 @@ import h5py
 import numpy as np
 import pytest
 
-from protocol_runner.archive.checksums import DIGEST_ATTR, MARKER_ATTR, digest_of_stored
-from protocol_runner.archive.h5util import put, put_lines, put_text
+from protocol_runner.archive.attrs import CHECKSUM_MARKER, DIGEST
+from protocol_runner.archive.checksums import digest_of_stored
+from protocol_runner.archive.h5util import put, put_text
 from protocol_runner.archive.verify import Checker
 from protocol_runner.cli import main
 from protocol_runner.errors import InvalidInput
@@ -55,13 +56,13 @@ def test_every_dataset_of_a_session_archive_has_a_matching_checksum(
     reference_archive: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
     with h5py.File(reference_archive, "r") as f:
-        assert f.attrs[MARKER_ATTR] == "sha256"
+        assert f.attrs[CHECKSUM_MARKER] == "sha256"
         datasets: list[h5py.Dataset] = []
         f.visititems(lambda _, obj: datasets.append(obj) if isinstance(obj, h5py.Dataset) else None)
         kinds = {("text" if h5py.check_string_dtype(ds.dtype) else ds.dtype.kind) for ds in datasets}
         assert {"text", "f", "i", "u"} <= kinds  # strings, floats, ADC and DAC codes
         for ds in datasets:
-            assert ds.attrs[DIGEST_ATTR] == digest_of_stored(ds), ds.name
+            assert ds.attrs[DIGEST] == digest_of_stored(ds), ds.name
     assert main(["--verify", str(reference_archive)]) == 0
     out = capsys.readouterr().out
     assert f"{len(datasets)} datasets and " in out and "attributes, every checksum matches" in out
@@ -120,7 +121,7 @@ def test_a_flipped_bit_in_the_protocol_text_is_named(
         lambda g: put(g, "x", np.array([1, 2, 3], dtype=np.int32), "counts"),  # tiny, contiguous
         lambda g: put(g, "x", np.linspace(0.0, 1.0, 5000), "s"),  # chunked, gzip
         lambda g: put_text(g, "x", "some text: é"),
-        lambda g: put_lines(g, "x", ["a", "bb", ""]),
+        lambda g: put_text(g, "x", ["a", "bb", ""]),
     ],
     ids=["scalar", "tiny", "compressed", "text", "lines"],
 )
@@ -131,10 +132,10 @@ def test_each_kind_of_dataset_detects_any_changed_value(tmp_path: Path, write) -
         checker = Checker("u.h5", cap=10**6, strict=True)
         checker.check(ds)  # intact
         if h5py.check_string_dtype(ds.dtype):
-            recorded = ds.attrs[DIGEST_ATTR]
+            recorded = ds.attrs[DIGEST]
             del f["x"]
             ds = f.create_dataset("x", data="some text: e", dtype=h5py.string_dtype())
-            ds.attrs[DIGEST_ATTR] = recorded
+            ds.attrs[DIGEST] = recorded
         else:
             value = ds[()]
             changed = np.array(value, copy=True)
@@ -150,14 +151,14 @@ def test_the_checksum_is_of_the_values_not_of_how_they_are_stored(tmp_path: Path
     an archive still passes --verify."""
     values = np.round(np.sin(np.arange(20_000) / 300.0) * 4096) / 4096  # a quantised signal
     with h5py.File(tmp_path / "u.h5", "w") as f:
-        recorded = put(f, "x", values, "deg", dtype=np.float32).attrs[DIGEST_ATTR]
+        recorded = put(f, "x", values, "deg", dtype=np.float32).attrs[DIGEST]
         checker = Checker("u.h5", cap=10**6, strict=True)
         for name, layout in {
             "unshuffled": {"chunks": (8192,), "compression": "gzip", "compression_opts": 6},
             "contiguous": {},
         }.items():
             ds = f.create_dataset(name, data=values.astype(np.float32), **layout)
-            ds.attrs[DIGEST_ATTR] = recorded
+            ds.attrs[DIGEST] = recorded
             checker.check(ds)
 
 
@@ -199,8 +200,8 @@ def test_a_unit_seals_datasets_written_without_the_archive_helpers(tmp_path: Pat
     record = write_unit(tmp_path, "trial:k01:on:1", fill)
     with h5py.File(tmp_path / record.file, "r") as f:
         ds = f["configurations/config_01/extra"]
-        assert ds.attrs[DIGEST_ATTR] == digest_of_stored(ds)
-        assert f.attrs[MARKER_ATTR] == "sha256"
+        assert ds.attrs[DIGEST] == digest_of_stored(ds)
+        assert f.attrs[CHECKSUM_MARKER] == "sha256"
 
 
 def test_reprocessing_keeps_every_dataset_checksummed(

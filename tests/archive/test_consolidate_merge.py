@@ -11,7 +11,7 @@ import numpy as np
 
 from protocol_runner.archive.consolidate import merge_units
 
-ROOT = {  # the root attributes of a test archive (also tests/archive/test_consolidate_draft.py)
+ROOT = {  # the root attributes of a test archive
     "protocol_name": "p",
     "protocol_sha256": "0" * 64,
     "mode": "dry-run",
@@ -56,7 +56,8 @@ def test_later_units_attributes_win_and_repeats_are_kept(tmp_path: Path) -> None
 def test_the_archive_declares_checksums_only_when_every_unit_had_them(tmp_path: Path) -> None:
     """A session begun before checksums existed and resumed after: its old units have none, so the
     archive does not claim them (the report then reads it with the bounds checked only)."""
-    from protocol_runner.archive.checksums import MARKER_ATTR, mark
+    from protocol_runner.archive.attrs import CHECKSUM_MARKER
+    from protocol_runner.archive.checksums import mark
     from protocol_runner.archive.consolidate import ArchiveMeta, consolidate
     from protocol_runner.archive.h5util import put
     from protocol_runner.report.load import load_report_data
@@ -76,9 +77,9 @@ def test_the_archive_declares_checksums_only_when_every_unit_had_them(tmp_path: 
     new = consolidate(tmp_path / "new.h5", [unit("1", summed=True), unit("2", summed=True)], meta)
     mixed = consolidate(tmp_path / "mixed.h5", [unit("3", summed=False), unit("4", summed=True)], meta)
     with h5py.File(new, "r") as f:
-        assert f.attrs[MARKER_ATTR] == "sha256"
+        assert f.attrs[CHECKSUM_MARKER] == "sha256"
     with h5py.File(mixed, "r") as f:
-        assert MARKER_ATTR not in f.attrs
+        assert CHECKSUM_MARKER not in f.attrs
     assert len(load_report_data(mixed).configurations[0].trials) == 2
 
 
@@ -99,8 +100,7 @@ def _attr_types(obj: h5py.HLObject) -> dict[str, tuple[bytes, object]]:
 
 def test_an_attribute_is_copied_with_the_type_and_values_h5py_would_write(tmp_path: Path) -> None:
     """Consolidation copies a unit's attributes through HDF5 directly: every kind a unit holds (text,
-    numbers, booleans, arrays of them, empty ones) arrives as `archive.attrs[k] = unit.attrs[k]` writes it,
-    whether it is added under later units (`merge_units`) or over earlier ones (`add_units`)."""
+    numbers, booleans, arrays of them, empty ones) arrives as `archive.attrs[k] = unit.attrs[k]` writes it."""
     values: dict[str, object] = {
         "text": "brace on, Ø 12 mm",
         "texts": np.array(["a", "bé", ""], dtype=h5py.string_dtype()),
@@ -124,24 +124,15 @@ def test_an_attribute_is_copied_with_the_type_and_values_h5py_would_write(tmp_pa
         for name in src.attrs:
             dst.attrs[name] = src.attrs[name]
         expected = _attr_types(dst)
-    from protocol_runner.archive.consolidate import add_units
-
     with h5py.File(tmp_path / "under.h5", "w") as out:
         merge_units(out, [unit])
-        assert _attr_types(out["configurations/config_01"]) == expected
-    with h5py.File(tmp_path / "over.h5", "w") as out:
-        out.require_group("configurations/config_01").attrs.update({k: "earlier" for k in values})
-        add_units(out, [unit])
         assert _attr_types(out["configurations/config_01"]) == expected
     assert len(expected) == len(values)
 
 
 def test_a_later_units_dataset_replaces_an_earlier_units_group_whole(tmp_path: Path) -> None:
     """Copying the units over one another in plan order, a later unit's dataset takes the place of an
-    earlier unit's group of the same name: none of the group's attributes or members remain, the same when
-    the later unit is merged first (`merge_units`, last to first) or copied over a draft (`add_units`)."""
-    from protocol_runner.archive.consolidate import add_units
-
+    earlier unit's group of the same name: none of the group's attributes or members remain."""
     earlier, later = tmp_path / "earlier.h5", tmp_path / "later.h5"
     with h5py.File(earlier, "w") as f:
         grp = f.require_group("configurations/config_01/summary")
@@ -150,14 +141,9 @@ def test_a_later_units_dataset_replaces_an_earlier_units_group_whole(tmp_path: P
         f["configurations/config_01"].attrs["kept"] = "only in the earlier unit"
     with h5py.File(later, "w") as f:
         f.create_dataset("configurations/config_01/summary", data=[2.0, 3.0]).attrs["units"] = "J"
-    for how in ("under", "over"):
-        with h5py.File(tmp_path / f"{how}.h5", "w") as out:
-            if how == "under":
-                merge_units(out, [earlier, later])
-            else:
-                add_units(out, [earlier])
-                add_units(out, [later])
-            summary = out["configurations/config_01/summary"]
-            assert isinstance(summary, h5py.Dataset) and summary[()].tolist() == [2.0, 3.0]
-            assert dict(summary.attrs) == {"units": "J"}, how  # the group's "note" not carried over
-            assert out["configurations/config_01"].attrs["kept"] == "only in the earlier unit"
+    with h5py.File(tmp_path / "merged.h5", "w") as out:
+        merge_units(out, [earlier, later])
+        summary = out["configurations/config_01/summary"]
+        assert isinstance(summary, h5py.Dataset) and summary[()].tolist() == [2.0, 3.0]
+        assert dict(summary.attrs) == {"units": "J"}  # the group's "note" not carried over
+        assert out["configurations/config_01"].attrs["kept"] == "only in the earlier unit"

@@ -1,5 +1,5 @@
 """archive/h5_write_errors.py: a write that h5py can only print (from an object's deallocator, a full disk)
-fails the unit, the draft or the archive being written instead of being printed and forgotten."""
+fails the unit or the archive being written instead of being printed and forgotten."""
 
 from __future__ import annotations
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from protocol_runner.archive.export import export_mat
-from protocol_runner.archive.h5util import put_lines, put_text, text_of
+from protocol_runner.archive.h5util import put_text, text_of
 
 REPO = Path(__file__).resolve().parents[2]
 OCTAVE = shutil.which("octave-cli") or shutil.which("octave")
@@ -46,8 +46,8 @@ def test_every_dataset_is_numeric_or_a_fixed_length_ascii_string(reference_archi
 def test_text_keeps_its_utf8_characters_and_an_empty_list_stays_readable(tmp_path: Path) -> None:
     with h5py.File(tmp_path / "t.h5", "w") as f:
         put_text(f, "text", "flexion 0-130 \u00b0 (\u00a72.3)\n")
-        put_lines(f, "lines", ["a", "\u00fcber"])
-        put_lines(f, "none", [])
+        put_text(f, "lines", ["a", "\u00fcber"])
+        put_text(f, "none", [])
     with h5py.File(tmp_path / "t.h5", "r") as f:
         assert text_of(f["text"]) == "flexion 0-130 \u00b0 (\u00a72.3)\n"
         assert [b.decode() for b in f["lines"][()]] == ["a", "\u00fcber"]

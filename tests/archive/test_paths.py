@@ -52,10 +52,10 @@ def test_every_group_path_is_documented() -> None:
     suffixes = [
         paths.recording_path(1, "<n>", "on")[len(base) + 1 :],
         paths.recording_path(1, "<n>", "off")[len(base) + 1 :],
-        paths.processed_path(1, "<n>")[len(base) + 1 :],
-        paths.fits_path(1)[len(base) + 1 :] + "/bouc_wen",
-        paths.fits_path(1)[len(base) + 1 :] + "/spring",
-        paths.fits_path(1)[len(base) + 1 :] + "/elements",
+        f"{paths.TRIALS}/<n>/{paths.PROCESSED}",
+        f"{paths.FITS}/bouc_wen",
+        f"{paths.FITS}/spring",
+        f"{paths.FITS}/elements",
     ]
     roots = [
         "/" + paths.calibration_path("<set>", "<when>"),

@@ -207,9 +207,6 @@ class Person:
     def accept_failed_check(self, message: str) -> bool:
         raise Interrupted("stopped by the operator")
 
-    def confirm(self, question: str) -> bool:
-        return True
-
 
 def test_operator_prompts_show_a_waiting_banner_until_answered() -> None:
     bus = EventBus()

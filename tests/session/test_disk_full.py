@@ -123,7 +123,7 @@ def test_enospc_while_consolidating(
     parks: list[str],
 ) -> None:
     session = tmp_path / "s"
-    monkeypatch.setattr(consolidate_module, "put_lines", enospc)  # after every unit was merged
+    monkeypatch.setattr(consolidate_module, "put_text", enospc)  # after every unit was merged
     code = main([*RUN, "--session", str(session)])
     err = capsys.readouterr().err
     stopped_cleanly(code, err, session)
@@ -254,10 +254,8 @@ def test_a_really_full_disk_then_resume_gives_the_same_archive(
 ) -> None:
     """The file system's size is chosen from the uninterrupted run's files so that it fills up in the
     middle of the units, of the archive, or of the report. Sized for the archive, it may also fill while a
-    worker writes one of the last units: the session's archive draft (merged from the units while the last
-    analyses run) takes its space before the units are all written. That unit's write then fails, and says
-    so, as any unit's does (before archive/h5_write_errors.py, h5py printed the failed write and the unit
-    was kept)."""
+    worker writes one of the last units: that unit's write then fails, and says so, as any unit's does
+    (archive/h5_write_errors.py)."""
     ref = reference_archive.parent
     units = _footprint_kb(list((ref / "units").iterdir()))
     archive = _footprint_kb([ref / "archive.h5"])

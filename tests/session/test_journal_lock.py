@@ -20,11 +20,12 @@ def test_a_record_appended_after_a_torn_line_is_kept(tmp_path: Path) -> None:
     data = path.read_bytes()
     path.write_bytes(data[:-20])  # a crash in the middle of the last append
     again = Journal(path)
-    assert again.torn_lines == 1 and "trial:k01:on:1" in again.units
+    assert path.read_bytes().endswith(b"\n") and again.damaged_lines == 0  # the torn tail is cut off
+    assert "trial:k01:on:1" in again.units
     again.event("resumed")
     third = Journal(path)
     assert [e.kind for e in third.events] == ["resumed"]  # the torn "started" is gone, "resumed" is whole
-    assert third.torn_lines == 0
+    assert third.damaged_lines == 0
 
 
 def test_foreign_lines_are_ignored_not_fatal(tmp_path: Path) -> None:
@@ -33,7 +34,7 @@ def test_foreign_lines_are_ignored_not_fatal(tmp_path: Path) -> None:
         '{"record": "unit", "step_id": "x"}\n[1, 2]\n"text"\n{"record": "event", "t_utc": "t", "kind": "started"}\n'
     )
     j = Journal(path)
-    assert j.units == {} and [e.kind for e in j.events] == ["started"] and j.torn_lines == 3
+    assert j.units == {} and [e.kind for e in j.events] == ["started"] and j.damaged_lines == 3
 
 
 def test_a_session_directory_is_locked_while_in_use(tmp_path: Path) -> None:

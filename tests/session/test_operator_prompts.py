@@ -55,9 +55,6 @@ def test_enter_alone_then_end_of_input_stops_instead_of_confirming() -> None:
     op, _ = operator("\n")
     with pytest.raises(Interrupted):
         op.checklist(checklist())
-    op, _ = operator("\n")
-    with pytest.raises(Interrupted):
-        op.confirm("Brace off?")
 
 
 def test_q_stops_and_n_shows_the_list_again() -> None:

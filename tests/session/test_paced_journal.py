@@ -1,8 +1,6 @@
-"""On the robot (or in a real-time rehearsal) a step lasts a minute: every unit is journaled before the next
-step that moves the joint starts, so that a crash or a power cut during that step cannot make a resume
-record a finished trial again (a review found the last trial's unit on disk but not journaled for the
-whole of the next trial: a kill -9 then redid it). A dry run that is not paced keeps writing in the
-background while the next trial simulates."""
+"""On the robot a step lasts a minute: every unit is journaled before the next step that moves the joint
+starts, so that a crash or a power cut during that step cannot make a resume record a finished trial
+again."""
 
 from __future__ import annotations
 
@@ -11,7 +9,6 @@ from pathlib import Path
 
 import pytest
 
-from protocol_runner.session import rigs
 from protocol_runner.session import runner as runner_module
 
 from .conftest import run_dry
@@ -30,17 +27,10 @@ def _journaled(session: Path) -> set[str]:
     }
 
 
-def test_a_paced_session_journals_every_unit_before_the_next_motion(
+def test_a_session_journals_every_unit_before_the_next_motion(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     session = tmp_path / "s"
-    real_init = rigs.SimulatedBench.__init__
-
-    def paced(self: rigs.SimulatedBench, *args: object, **kwargs: object) -> None:
-        real_init(self, *args, **kwargs)  # type: ignore[arg-type]
-        self.paced = True  # as --realtime says; the simulator itself is not slowed down here
-
-    monkeypatch.setattr(rigs.SimulatedBench, "__init__", paced)
     seen: list[tuple[str, set[str]]] = []
     real_run_step = runner_module.run_step
 

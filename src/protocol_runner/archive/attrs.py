@@ -25,13 +25,9 @@ STATUS = "status"
 JOINTS = "joints"
 JOINT = "joint"
 FACTORS = "factors"
-SETTINGS_JSON = "settings_json"
 DEVICE_JSON = "device_json"
 CONFIGURATIONS = "configurations"  # a comparison's configuration keys
-SETTLED_DEG = "settled_deg"
-SETTLE_ERROR_DEG = "settle_error_deg"
-TIME_CONSTANT_S = "time_constant_s"
-STEP_RESPONSE = (SETTLED_DEG, SETTLE_ERROR_DEG, TIME_CONSTANT_S)  # a calibration check's measured response
+STEP_RESPONSE = ("settled_deg", "settle_error_deg", "time_constant_s")  # a calibration check's response
 
 #: Attributes of each kind of object, in the order docs/archive.md lists them.
 ATTRIBUTES: dict[str, tuple[str, ...]] = {
@@ -70,7 +66,7 @@ ATTRIBUTES: dict[str, tuple[str, ...]] = {
         "profile",
         "trajectory_name",
         FACTORS,
-        SETTINGS_JSON,
+        "settings_json",
         DEVICE_JSON,
         "n_trials",
         STATUS,

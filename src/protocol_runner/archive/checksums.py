@@ -1,27 +1,13 @@
-"""A SHA-256 checksum on every dataset of units and archives (docs/archive.md, "Checksums").
+"""A SHA-256 checksum on every dataset of units and archives, and on every object's attributes
+(docs/archive.md, "Checksums", gives the digest's bytes).
 
-Each dataset carries an attribute `sha256`: the hex SHA-256 of its type, shape and values, computed from
-the values when they are written. Reading the values back and hashing them again proves that neither the
-stored bytes (raw or compressed chunks) nor the dataset's type and shape changed since: one flipped bit
-anywhere in them changes the digest. This works the same for scalar, tiny, string and compressed
-datasets, unlike HDF5's fletcher32 filter (chunked datasets only; it leaves strings unprotected).
-
-The digest of a dataset is SHA-256 over a header line and the values:
-
-    numeric (bool, int, uint, float):  b"<kind><itemsize>:<shape>\\n" then the values in C order as
-                                       little-endian bytes; kind is one of b, i, u, f
-    strings (UTF-8 text):              b"s:<shape>\\n" then per element its UTF-8 byte length as an
-                                       8-byte little-endian integer followed by the bytes
-
-where <shape> is the dimensions joined by "," (empty for a scalar), e.g. b"f4:65000\\n".
-
-Attributes carry the fitted values, verdicts, statuses, counts and versions, so they are checksummed too:
-each object (the root, a group, a dataset) with attributes has one more, `attribute_sha256`, a JSON object
-giving for each of its other attributes the same digest of the attribute's value as read (a dataset's own
-`sha256` is left out: its values check it). They are recorded when a file is finished (`seal_attributes`,
-from the values its writer has just stored), and by `h5util.put_attrs` for attributes written into a
-finished file afterwards (the verdicts); the root attribute `attribute_checksums` says every object has
-them.
+Each dataset carries an attribute `sha256`, the digest of its type, shape and values computed from the
+values when they are written: reading them back and hashing again proves that neither the stored bytes
+(raw or compressed chunks) nor the type and shape changed, for scalar, string and compressed datasets
+alike (HDF5's fletcher32 filter covers chunked datasets only). Each object with attributes has one more,
+`attribute_sha256`, a JSON object of the digests of its other attributes, recorded when a file is
+finished (`seal_attributes`) and by `h5util.put_attrs` for attributes written into a finished file later
+(the verdicts).
 """
 
 from __future__ import annotations
@@ -38,9 +24,6 @@ from h5py import h5a, h5o, h5s, h5t
 
 from .attrs import ATTRIBUTE_DIGESTS, ATTRIBUTE_MARKER, CHECKSUM_MARKER, DIGEST
 
-DIGEST_ATTR = DIGEST
-MARKER_ATTR = CHECKSUM_MARKER
-"""Root attribute of units and archives whose every dataset has a `sha256` attribute (value "sha256")."""
 MARKER_VALUE = "sha256"
 NUMERIC_KINDS = "biuf"
 
@@ -70,40 +53,25 @@ def text_digest(elements: list[bytes], shape: tuple[int, ...]) -> str:
     return h.hexdigest()
 
 
-def seal(ds: h5py.Dataset, values: npt.ArrayLike | str | list[str]) -> None:
-    """Record the digest of `values`, the content just written to `ds`, on `ds`."""
-    if h5py.check_string_dtype(ds.dtype) is not None:
-        items = [values] if isinstance(values, str) else list(np.asarray(values, dtype=object).reshape(-1))
-        encoded = [v.encode("utf-8") if isinstance(v, str) else bytes(v) for v in items]
-        ds.attrs[DIGEST_ATTR] = text_digest(encoded, ds.shape)
-    else:
-        ds.attrs[DIGEST_ATTR] = numeric_digest(np.asarray(values, dtype=ds.dtype).reshape(ds.shape))
-
-
 def seal_values(ds: h5py.Dataset, values: npt.NDArray[Any]) -> None:
-    """`seal` for `values` that are exactly what `ds` was created from (numbers, or the fixed-length byte
-    strings of a text dataset): the digest needs neither `ds`'s type nor its shape read back."""
+    """Record on `ds` the digest of `values`, exactly what `ds` was created from (numbers, or the
+    fixed-length byte strings of a text dataset): the digest needs neither `ds`'s type nor its shape read
+    back."""
     if values.dtype.kind == "S":
-        ds.attrs[DIGEST_ATTR] = text_digest([bytes(v) for v in values.reshape(-1).tolist()], values.shape)
+        ds.attrs[DIGEST] = text_digest([bytes(v) for v in values.reshape(-1).tolist()], values.shape)
     else:
-        ds.attrs[DIGEST_ATTR] = numeric_digest(values)
+        ds.attrs[DIGEST] = numeric_digest(values)
 
 
 def digest_of_stored(ds: h5py.Dataset) -> str:
     """Read `ds` and compute the digest of what is stored now (the caller has bounded its size).
 
     Raises TypeError for a type the archive never holds (compound, reference, opaque, ...)."""
-    if h5py.check_string_dtype(ds.dtype) is not None or ds.dtype.kind == "S":
-        raw = ds[()]
-        items = [raw] if ds.shape == () else list(np.asarray(raw, dtype=object).reshape(-1))
-        return text_digest([v if isinstance(v, bytes) else str(v).encode("utf-8") for v in items], ds.shape)
-    if ds.dtype.kind not in NUMERIC_KINDS:
-        raise TypeError(f"unexpected type {ds.dtype}")
-    return numeric_digest(np.asarray(ds[()]))
+    return attribute_digest(ds[()])  # h5py reads a dataset's values as it reads an attribute's
 
 
 def recorded_digest(ds: h5py.Dataset) -> str | None:
-    value = ds.attrs.get(DIGEST_ATTR)
+    value = ds.attrs.get(DIGEST)
     if value is None:
         return None
     return value.decode("ascii", errors="replace") if isinstance(value, bytes) else str(value)
@@ -115,7 +83,7 @@ def seal_missing(f: h5py.File) -> int:
 
     Walks the file with HDF5's own visit and asks HDF5 whether each dataset has the attribute, so a unit
     whose datasets were all sealed when written opens none of them here."""
-    digest = DIGEST_ATTR.encode("ascii")
+    digest = DIGEST.encode("ascii")
     missing: list[bytes] = []
 
     def check(name: bytes, info: Any) -> None:
@@ -125,32 +93,31 @@ def seal_missing(f: h5py.File) -> int:
     h5o.visit(f.id, check, info=True)
     for name in missing:
         ds = f[name.decode("utf-8", errors="surrogateescape")]
-        ds.attrs[DIGEST_ATTR] = digest_of_stored(ds)
+        ds.attrs[DIGEST] = digest_of_stored(ds)
     return len(missing)
 
 
 def mark(f: h5py.File) -> None:
     """Declare that every dataset of `f` carries a checksum."""
-    f.attrs[MARKER_ATTR] = MARKER_VALUE
+    f.attrs[CHECKSUM_MARKER] = MARKER_VALUE
 
 
 def is_marked(f: h5py.File) -> bool:
-    value = f.attrs.get(MARKER_ATTR)
+    value = f.attrs.get(CHECKSUM_MARKER)
     return (value.decode() if isinstance(value, bytes) else value) == MARKER_VALUE
 
 
 # ------------------------------------------------------------------------------------------- attributes
 
-UNSUMMED_ATTRS = frozenset((DIGEST_ATTR, ATTRIBUTE_DIGESTS))
+UNSUMMED_ATTRS = frozenset((DIGEST, ATTRIBUTE_DIGESTS))
 """Attributes no `attribute_sha256` covers: a dataset's checksum (its values check it) and the record itself."""
 _UNSUMMED = frozenset(name.encode("ascii") for name in UNSUMMED_ATTRS)
 _RECORD = ATTRIBUTE_DIGESTS.encode("ascii")
 _EMPTY = hashlib.sha256(b"empty\n").hexdigest()
 _MEMORY_TYPES: dict[bytes, tuple[np.dtype[Any], h5t.TypeID]] = {}  # HDF5 type's encoding -> `read_attr`'s
 
-# The attributes are read and written on HDF5's identifiers (h5py's low-level API), as consolidation merges
-# them: an archive has about 3,600 objects and 10,000 attributes, and h5py's objects and attribute managers
-# cost several times the HDF5 calls they make.
+# Attributes are read and written on HDF5's identifiers, as consolidation merges them: an archive has about
+# 10,000, and h5py's attribute managers cost several times the HDF5 calls they make.
 
 
 def read_attr(attr: h5a.AttrID) -> tuple[npt.NDArray[Any], h5t.TypeID]:
@@ -188,17 +155,19 @@ def _stored_digest(oid: h5o.ObjectID, name: bytes) -> str:
     return attribute_digest(read_attr(attr)[0])
 
 
-def _names(oid: h5o.ObjectID) -> list[bytes]:
+def attribute_names(oid: h5o.ObjectID) -> list[bytes]:
     names: list[bytes] = []
     h5a.iterate(oid, names.append)  # append returns None: iteration goes on
     return names
 
 
+def _digests(oid: h5o.ObjectID) -> dict[str, str]:
+    return {k.decode("utf-8"): _stored_digest(oid, k) for k in attribute_names(oid) if k not in _UNSUMMED}
+
+
 def stored_attribute_digests(obj: h5py.HLObject) -> dict[str, str]:
     """The digest of each attribute of `obj` that `attribute_sha256` covers, from its stored value."""
-    return {
-        name.decode("utf-8"): _stored_digest(obj.id, name) for name in _names(obj.id) if name not in _UNSUMMED
-    }
+    return _digests(obj.id)
 
 
 def recorded_attribute_digests(obj: h5py.HLObject) -> dict[str, str] | None:
@@ -233,7 +202,7 @@ def seal_attributes_of(obj: h5py.HLObject, names: Iterable[str] | None = None) -
     if names is None:
         _record(obj.id, stored_attribute_digests(obj))
         return
-    present = {name.decode("utf-8") for name in _names(obj.id)}
+    present = {name.decode("utf-8") for name in attribute_names(obj.id)}
     digests = {k: v for k, v in (recorded_attribute_digests(obj) or {}).items() if k in present}
     for name in names:
         if name not in UNSUMMED_ATTRS:
@@ -252,9 +221,7 @@ def seal_attributes(f: h5py.File) -> int:
     count = 0
     for name in names:
         obj = h5o.open(f.id, name)
-        digests = {
-            key.decode("utf-8"): _stored_digest(obj, key) for key in _names(obj) if key not in _UNSUMMED
-        }
+        digests = _digests(obj)
         count += len(digests)
         _record(obj, digests)
     return count

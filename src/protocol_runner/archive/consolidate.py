@@ -1,19 +1,15 @@
 """Consolidation: merge every completed unit into one self-contained `archive.h5` (docs/archive.md).
 
 Units are fragments of the archive at their final paths; consolidation merges them into
-`archive.h5.partial` as copying them over one another in plan order would (`merge_units`), adds the root provenance, `/protocol`, `/plan`, `/session/events` and each
-configuration's status, then renames atomically. Rerunning it gives the same archive content.
-
-A session may merge the units it already has ahead of its end (`draft`, while it waits for its last
-analyses): `archive.h5.partial` then holds them, and `consolidate` only adds the units that came later,
-each copied over what is there, before it writes the metadata and renames. The partial file has no
-`status` and is never renamed before the metadata is written: it is never taken for an archive.
+`archive.h5.partial` as copying them over one another in plan order would (`merge_units`), adds the root
+provenance, `/protocol`, `/plan`, `/session/events` and each configuration's status, then renames
+atomically. Rerunning it gives the same archive content.
 """
 
 from __future__ import annotations
 
 import os
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,12 +18,13 @@ import h5py
 from h5py import h5a, h5f, h5g, h5o, h5p, h5s
 
 from .. import __version__
-from .attrs import ATTRIBUTE_DIGESTS, ATTRIBUTE_MARKER, ATTRIBUTES, FILENAME, ONLY
-from .checksums import MARKER_ATTR, is_marked, mark, read_attr, seal_attributes
+from .attrs import ATTRIBUTE_DIGESTS, ATTRIBUTE_MARKER, ATTRIBUTES, CHECKSUM_MARKER, FILENAME, ONLY
+from .checksums import attribute_names, is_marked, mark, read_attr, seal_attributes
 from .diskfull import DiskFull, is_disk_full, resume_hint
 from .h5_write_errors import checked_h5_write
-from .h5util import SCHEMA_VERSION, put, put_attrs, put_lines, put_text
-from .units import _fsync_dir, _fsync_file
+from .h5util import SCHEMA_VERSION, put, put_attrs, put_text
+from .paths import REFERENCE
+from .units import fsync_path
 
 
 @dataclass(frozen=True)
@@ -52,27 +49,20 @@ class ArchiveMeta:
 
 #: The units' own root attributes, and their attribute checksums (the archive's are recorded from the
 #: merged values, `_write`): not copied into the archive.
-_UNIT_ONLY = frozenset((*ATTRIBUTES["unit"], MARKER_ATTR, ATTRIBUTE_MARKER, ATTRIBUTE_DIGESTS))
+_UNIT_ONLY = frozenset((*ATTRIBUTES["unit"], CHECKSUM_MARKER, ATTRIBUTE_MARKER, ATTRIBUTE_DIGESTS))
 _UNIT_ONLY_NAMES = frozenset(name.encode("utf-8") for name in _UNIT_ONLY)
 _LCPL = h5p.create(h5p.LINK_CREATE)  # what h5py's `Group.copy` creates the copy's link with
 _LCPL.set_create_intermediate_group(True)
 _FAPL = h5p.create(h5p.FILE_ACCESS)  # a unit opened as `h5py.File(path, "r")` would be
 _FAPL.set_libver_bounds(h5f.LIBVER_EARLIEST, h5f.LIBVER_LATEST)
 
-# The merge works on HDF5's identifiers (h5py's low-level API), not on h5py's groups and attribute
-# managers: their objects, `in` and `[]` lookups cost more than the HDF5 calls they make, and a knee session's
-# merge visits about 1,000 groups and 3,000 attributes. Names are bytes, visited in name order.
+# The merge works on HDF5's identifiers (h5py's low-level API): h5py's objects and lookups cost more than
+# the HDF5 calls they make, and a knee session's merge visits about 1,000 groups and 3,000 attributes.
 
 
 def _link_names(group: h5g.GroupID) -> list[bytes]:
     names: list[bytes] = []
     group.links.iterate(names.append)  # append returns None: iteration goes on
-    return names
-
-
-def _attr_names(obj: h5g.GroupID) -> list[bytes]:
-    names: list[bytes] = []
-    h5a.iterate(obj, names.append)
     return names
 
 
@@ -91,10 +81,9 @@ def _copy_attr(src: h5g.GroupID, dst: h5g.GroupID, name: bytes) -> None:
 def _merge_under(src: h5g.GroupID, dst: h5g.GroupID) -> None:
     """Add to `dst` what `src` holds and `dst` does not. Everything in `dst` came from units later in
     the plan than `src` (consolidation merges last to first), and a later unit's value wins: an attribute
-    or member `dst` already has is left as it is without reading `src`'s (every trial unit repeats its
-    configuration's attributes, and reading them was most of the merging time); only a group both hold is
-    merged in turn (a later unit's dataset where an earlier one has a group replaces it whole)."""
-    for key in _attr_names(src):
+    or member `dst` already has is left as it is, unread; only a group both hold is merged in turn (a
+    later unit's dataset where an earlier one has a group replaces it whole)."""
+    for key in attribute_names(src):
         if key not in _UNIT_ONLY_NAMES and not h5a.exists(dst, key):
             _copy_attr(src, dst, key)
     for name in _link_names(src):
@@ -108,103 +97,32 @@ def _merge_under(src: h5g.GroupID, dst: h5g.GroupID) -> None:
                 _merge_under(theirs, ours)
 
 
-def _merge_files(
-    out: h5py.Group, unit_files: Iterable[Path], merge: Callable[[h5g.GroupID, h5g.GroupID], None]
-) -> bool:
-    """Each unit's root merged into `out` by `merge`, in the order given; whether every unit carried
-    checksums (units written before checksums existed, in a session resumed across versions, did not)."""
+def merge_units(out: h5py.Group, unit_files: Iterable[Path]) -> bool:
+    """Merge the units into `out` as if each were copied over the ones before it (in plan order, a later
+    unit's attribute or dataset replacing an earlier one's), by adding them last to first without
+    replacing anything; whether every unit carried checksums (units written before checksums existed, in a
+    session resumed across versions, did not)."""
     summed = True
-    for path in unit_files:
+    for path in reversed(list(unit_files)):
         unit = h5f.open(os.fsencode(path), h5f.ACC_RDONLY, fapl=_FAPL)
         try:
             summed = summed and is_marked(h5py.File(unit))  # the unit's identifier, as h5py's file
-            merge(unit, out.id)
+            _merge_under(unit, out.id)
         finally:
             unit.close()
     return summed
 
 
-def merge_units(out: h5py.Group, unit_files: Iterable[Path]) -> bool:
-    """Merge the units into `out` as if each were copied over the ones before it (in plan order, a later
-    unit's attribute or dataset replacing an earlier one's), by adding them last to first without
-    replacing anything; whether every unit carried checksums."""
-    return _merge_files(out, reversed(list(unit_files)), _merge_under)
-
-
-def _merge_over(src: h5g.GroupID, dst: h5g.GroupID) -> None:
-    """Copy `src` over `dst`: `src` comes later in the plan than everything in `dst`, so its attributes and
-    members replace those of the same name (a group merged into a group of the same name)."""
-    for key in _attr_names(src):
-        if key not in _UNIT_ONLY_NAMES:
-            if h5a.exists(dst, key):
-                h5a.delete(dst, key)
-            _copy_attr(src, dst, key)
-    for name in _link_names(src):
-        if dst.links.exists(name):
-            theirs = h5o.open(src, name)
-            if isinstance(theirs, h5g.GroupID):
-                ours = h5o.open(dst, name)
-                if isinstance(ours, h5g.GroupID):
-                    _merge_over(theirs, ours)
-                    continue
-            dst.unlink(name)
-        h5o.copy(src, name, dst, name, None, _LCPL)
-
-
-def add_units(out: h5py.Group, unit_files: Iterable[Path]) -> bool:
-    """Copy the units over `out` one after the other (each later in the plan than what `out` holds);
-    whether every unit carried checksums."""
-    return _merge_files(out, unit_files, _merge_over)
-
-
-@dataclass(frozen=True)
-class Draft:
-    """`archive.h5.partial` written ahead: the merge of `files` (in plan order), without any metadata."""
-
-    path: Path
-    files: tuple[Path, ...]
-    summed: bool  # every unit merged so far carried checksums
-
-    def leads(self, unit_files: list[Path]) -> bool:
-        """Whether the draft's units are the first of `unit_files` and its file is still there."""
-        n = len(self.files)
-        return tuple(unit_files[:n]) == self.files and self.path.is_file()
-
-
-def draft(archive: Path, unit_files: Iterable[Path], previous: Draft | None = None) -> Draft:
-    """Merge the units into `archive`'s partial file ahead of consolidation: only those after `previous`'s
-    when it leads them, else all of them afresh. On any error (or an interruption) the partial file is
-    removed and the error raised: a draft is an optimisation, `consolidate` then starts afresh."""
-    files = list(unit_files)
-    partial = archive.with_name(archive.name + ".partial")
-    try:
-        with checked_h5_write(partial):  # writes h5py could only print (a full disk) fail the draft
-            if previous is not None and previous.leads(files):
-                with h5py.File(partial, "r+") as out:
-                    summed = add_units(out, files[len(previous.files) :]) and previous.summed
-            else:
-                partial.unlink(missing_ok=True)
-                with h5py.File(partial, "w") as out:
-                    summed = merge_units(out, files)
-        _fsync_file(partial)  # its bytes on disk now: the final fsync then flushes only what is added
-    except BaseException:
-        partial.unlink(missing_ok=True)
-        raise
-    return Draft(partial, tuple(files), summed)
-
-
-def consolidate(
-    archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta, ahead: Draft | None = None
-) -> Path:
-    """Write `archive` from the units (adding to the draft `ahead` the units after its own when it leads
-    them); on a full disk raise `DiskFull`, leaving the previous archive (if any) and no partial file behind."""
+def consolidate(archive: Path, unit_files: Iterable[Path], meta: ArchiveMeta) -> Path:
+    """Write `archive` from the units; on a full disk raise `DiskFull`, leaving the previous archive (if
+    any) and no partial file behind."""
     partial = archive.with_name(archive.name + ".partial")
     try:
         with checked_h5_write(partial):  # writes h5py could only print (a full disk) fail it too
-            _write(partial, list(unit_files), meta, ahead)
-        _fsync_file(partial)
+            _write(partial, list(unit_files), meta)
+        fsync_path(partial)
         os.replace(partial, archive)
-        _fsync_dir(archive.parent)
+        fsync_path(archive.parent)
     except (OSError, RuntimeError) as exc:  # HDF5 reports some refused writes as RuntimeError
         partial.unlink(missing_ok=True)
         if is_disk_full(exc):
@@ -213,15 +131,10 @@ def consolidate(
     return archive
 
 
-def _write(partial: Path, unit_files: list[Path], meta: ArchiveMeta, ahead: Draft | None) -> None:
-    done = ahead.files if ahead is not None and ahead.path == partial and ahead.leads(unit_files) else None
-    if done is None:
-        partial.unlink(missing_ok=True)
-    with h5py.File(partial, "w" if done is None else "r+") as out:
-        if done is None:
-            summed = merge_units(out, unit_files)
-        else:  # the draft's units are in: the later ones copied over them
-            summed = add_units(out, unit_files[len(done) :]) and bool(ahead and ahead.summed)
+def _write(partial: Path, unit_files: list[Path], meta: ArchiveMeta) -> None:
+    partial.unlink(missing_ok=True)
+    with h5py.File(partial, "w") as out:
+        summed = merge_units(out, unit_files)
         put_attrs(
             out, "root", {**meta.root, "schema_version": SCHEMA_VERSION, "software_version": __version__}
         )
@@ -232,10 +145,10 @@ def _write(partial: Path, unit_files: list[Path], meta: ArchiveMeta, ahead: Draf
             ds = put_text(out, "rig", meta.rig_text)
             put_attrs(ds, "rig", {FILENAME: meta.rig_filename})
         put_text(out, "plan", meta.plan_json)
-        put_lines(out.require_group("session"), "events", list(meta.events))
+        put_text(out.require_group("session"), "events", list(meta.events))
         if meta.reference is not None:
             name, source, angle_deg, torque_nm = meta.reference
-            ref = out.require_group(f"reference/{name}")
+            ref = out.require_group(f"{REFERENCE}/{name}")
             put(ref, "angle_deg", angle_deg, "deg")
             put(ref, "torque_nm", torque_nm, "N*m")
             put_attrs(ref, "reference", {"source": source, "title": name})

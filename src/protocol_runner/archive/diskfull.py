@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import ParamSpec, TypeVar
 
-from ..errors import EXIT_INTERRUPTED, InvalidInput, UserError
+from ..errors import EXIT_INTERRUPTED, InvalidInput, UserError, causes
 
 _FULL = (errno.ENOSPC, errno.EDQUOT)
 P = ParamSpec("P")
@@ -32,20 +32,12 @@ class DiskFull(UserError):
 
 def is_disk_full(exc: BaseException) -> bool:
     """Whether `exc` is (or was caused by) a write refused for lack of space or quota."""
-    seen: set[int] = set()
-    current: BaseException | None = exc
-    while current is not None and id(current) not in seen:
-        seen.add(id(current))
-        if isinstance(current, DiskFull):
-            return True
-        if isinstance(current, OSError) and (
-            current.errno in _FULL or "No space left on device" in str(current)
-        ):
-            return True
-        if isinstance(current, RuntimeError) and _hdf5_out_of_space(str(current)):
-            return True
-        current = current.__cause__ or current.__context__
-    return False
+    return any(
+        isinstance(e, DiskFull)
+        or (isinstance(e, OSError) and (e.errno in _FULL or "No space left on device" in str(e)))
+        or (isinstance(e, RuntimeError) and _hdf5_out_of_space(str(e)))
+        for e in causes(exc)
+    )
 
 
 def _hdf5_out_of_space(message: str) -> bool:

@@ -1,44 +1,11 @@
-"""`run-protocol --report ARCHIVE --export-mat DIR`: the archive as MATLAB 5 `.mat` files (docs/matlab.md).
+"""`run-protocol --report ARCHIVE --export-mat DIR`: the archive as MATLAB 5 `.mat` files, one per
+configuration (`config_NN.mat`) and one for the session (`session.mat`); their variables are listed in
+docs/matlab.md, the naming and type rules are archive/matlab.py's.
 
-One file per configuration, `config_NN.mat`, and one for the session, `session.mat` (scipy.io.savemat,
-compressed; MATLAB's and Octave's `load` read them). Types, names and orientation: archive/matlab.py.
-
-`config_NN.mat`:
-
-    meta            struct: the archive's root attributes (protocol_name, protocol_sha256, software_version,
-                    schema_version, seed, mode, status, joint, only, created_utc, finished_utc), operator,
-                    archive (file name), exported_by
-    units           struct: the unit of every array in the file, by field name (units.angle_deg = 'deg')
-    configuration   struct of the configuration's attributes (key, run, set, status, factors, each declared
-                    factor's level label, each factor quantity `<factor>.<quantity>` as `<factor>__<quantity>`,
-                    settings_json, device_json, trajectory_name)
-    trial_n         struct per trial n: the processed data (time_s, angle_deg, brace_torque_nm) with the
-                    processed group's attributes, and the raw recordings as structs brace_on and brace_off
-                    (time_s, angle_deg, torque_nm, *_codes, command_*, tick_lateness_s, attributes;
-                    brace_off.scaling: the brace-off scaling iterations)
-    energy_loss_j   energy lost per complete cycle (J); energy_cycle_trial: each cycle's trial number;
-                    energy_mean_j, energy_std_j
-    bouc_wen        struct: parameters (A, n, beta, rmse_nm, r2, ...) and fitted curves (angle_deg,
-                    torque_nm, model_torque_nm, segment_lengths), when fitted
-    elements        struct: the element fit (fitted `<element>.<param>` as `<element>__<param>`, rmse_nm, ...)
-                    and curves (angle_deg, torque_nm, model_torque_nm), when fitted
-    calibration     struct: the calibration records of the configuration's set (before, after, resume_n)
-
-These are a configuration of one joint's, whatever the archive's layout (its groups keyed by joint or
-not: `archive.paths.joint_groups`): the joint's part of each group is merged into the group's struct, and
-the configuration's total over the joints (for one joint, the joint's energy_loss_j) is not repeated, so
-both layouts give the same fields. A configuration of several joints has them per joint in
-`joints.<joint>` (trial_n with that joint's processed data and recordings, its energies, fits and
-calibration records), and at the top what the joints share: trial_n with each recording's attributes and
-common time base, total_energy_loss_j (with total_energy_mean_j, total_energy_std_j) and calibration
-(each record's verdict over the joints).
-
-`session.mat`: meta, units, and every root member of the archive but the configurations: protocol (text)
-and protocol_filename, rig (text) and rig_filename, plan (JSON text), session (events: cell of JSON lines;
-checklists), calibration (every set), comparisons, reference (a calibration record or comparison of one
-joint with its joint's part merged in, as in config_NN.mat; of several, keyed by joint as in the archive);
-and configurations: a summary struct per configuration (its attributes, energy_mean_j, energy_std_j, energy_cycles and the name of its file; of several joints, those
-per joint in joints.<joint> and total_energy_mean_j, total_energy_std_j, total_energy_cycles).
+A configuration of one joint has its fields at the top level whatever the archive's layout (its groups
+keyed by joint or not: `archive.paths.joint_groups`): the joint's part of each group is merged into the
+group's struct. A configuration of several joints has them per joint in `joints.<joint>`, and what the
+joints share at the top.
 """
 
 from __future__ import annotations
@@ -66,7 +33,7 @@ from .matlab import (
     text,
 )
 from .outputs import create_binary, refuse_special, temporary_beside
-from .paths import CALIBRATION, COMPARISONS, CONFIGURATIONS, JOINTS, joint_groups
+from .paths import CALIBRATION, CHECKLISTS, COMPARISONS, CONFIGURATIONS, JOINTS, joint_groups
 from .verify import validate_archive  # clear messages for foreign or damaged files
 
 SESSION_FILE = "session"
@@ -109,7 +76,7 @@ def _meta(f: h5py.File, archive: Path) -> dict[str, Any]:
 
 def _operator(f: h5py.File) -> str:
     """Who answered the operator checklists, as far as the archive says (it records no person's name)."""
-    checklists = f.get("session/checklists")
+    checklists = f.get(CHECKLISTS)
     if not isinstance(checklists, h5py.Group):
         return ""
     automatic = [

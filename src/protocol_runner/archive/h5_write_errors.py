@@ -1,24 +1,16 @@
 """Write errors that h5py can only print: collected for the file being written, so that its writer fails.
 
-When the last reference to an h5py object (a dataset, a group) goes, h5py closes its HDF5 identifier in the
-object's deallocator, and HDF5 may then write the object's cached data or metadata to the file. If that
-write fails (a full disk), h5py cannot raise from a deallocator: Python prints "Exception ignored in:
-'h5py._objects.ObjectID.__dealloc__'" with a traceback on stderr (`sys.unraisablehook`) and the program goes
-on. The file's writer never learns of it: if space comes back meanwhile (another writer of the session gave
-up and removed its partial file), the file is closed normally and could be taken as complete with the
-failed write's bytes missing. Seen with a worker's unit on a tmpfs that filled up while the session's
-archive draft grew (tests/session/test_disk_full.py, about one run in four under load).
-
-h5py's deallocator (Cython, full tracebacks) also prints the traceback itself before it calls the hook, through
-`sys.excepthook`; seen under load in the same test, as a "Traceback ..." on the terminal beside the clean
-disk-full message. While a file is watched, that print is caught the same way.
+When the last reference to an h5py object goes, h5py closes its HDF5 identifier in the deallocator, and
+HDF5 may then write cached data to the file. If that write fails (a full disk), h5py cannot raise: Python
+prints "Exception ignored in ..." (`sys.unraisablehook`; h5py also prints the traceback through
+`sys.excepthook`) and goes on, and if space comes back meanwhile the file is closed normally and could be
+taken as complete with the failed write's bytes missing.
 
 `checked_h5_write(path)` collects those errors for the file at `path` (HDF5 names the file in the
-message of a failed write) instead of printing them, and raises the first once the block that writes (and
-closes) the file has ended, as an `OSError` like any write error. When the block raises instead, the
-objects its frames held are freed before the exception leaves (their errors collected, not printed: the
-block's own error is the one that counts). Errors about other files, and every other unraisable exception,
-go to the hook that was in place.
+message) instead of printing them, and raises the first as an `OSError` once the block that writes and
+closes the file has ended. When the block raises instead, the objects its frames held are freed first
+(their errors collected: the block's own error is the one that counts). Errors about other files, and
+every other unraisable exception, go to the hook that was in place.
 """
 
 from __future__ import annotations
@@ -75,11 +67,9 @@ def _print_hook(kind: Any, value: BaseException, tb: Any) -> None:
 @contextlib.contextmanager
 def collected_write_errors(path: Path) -> Iterator[list[BaseException]]:
     """While the caller writes the HDF5 file at `path` (opened by that name): the errors h5py could not
-    raise for it, in the yielded list (empty when all went well; check it after closing the file). The
-    hooks (`sys.unraisablehook`, and `sys.excepthook` for h5py's own print) are in place only while some file
-    is being written (the first writer puts them in, the last one takes them out if nothing replaced them
-    meanwhile); every other unraisable exception or print goes on to the hook
-    that was in place (the session's stop flag has one)."""
+    raise for it, in the yielded list (check it after closing the file). The hooks are in place only while
+    some file is being written (the first writer puts them in, the last one takes them out if nothing
+    replaced them meanwhile)."""
     key = str(path)
     errors: list[BaseException] = []
     with _lock:

@@ -25,26 +25,16 @@ SIGNAL = STORED_SIGNAL  # measured and processed signals (the analysis fits the 
 
 
 def put(
-    group: h5py.Group,
-    name: str,
-    data: npt.ArrayLike,
-    units: str,
-    *,
-    dtype: npt.DTypeLike | None = None,
-    compress: bool = True,
+    group: h5py.Group, name: str, data: npt.ArrayLike, units: str, *, dtype: npt.DTypeLike | None = None
 ) -> h5py.Dataset:
-    """Write a numeric dataset with its `units` attribute (docs/archive.md: every numeric dataset has one),
-    replacing one of that name.
-
+    """Write a numeric dataset with its `units` attribute and its checksum, replacing one of that name.
     Arrays of more than COMPRESS_ABOVE elements are stored with HDF5's standard byte-shuffle and gzip
-    filters (h5py, HDFView and MATLAB read them without plug-ins); 1-D ones in chunks of about CHUNK_BYTES.
-    The layout depends only on the data, never on when or where it is written. Like every dataset, it
-    carries the sha256 checksum of its values (archive/checksums.py)."""
+    filters (read without plug-ins); 1-D ones in chunks of about CHUNK_BYTES."""
     arr = np.asarray(data, dtype=dtype) if dtype is not None else np.asarray(data)
     if name in group:
         del group[name]
     filters: dict[str, Any] = {}
-    if compress and arr.size > COMPRESS_ABOVE:
+    if arr.size > COMPRESS_ABOVE:
         filters = {"compression": "gzip", "compression_opts": GZIP_LEVEL, "shuffle": True}
         if arr.ndim == 1:
             filters["chunks"] = (min(arr.shape[0], max(1, CHUNK_BYTES // max(1, arr.itemsize))),)
@@ -55,12 +45,9 @@ def put(
 
 
 def fixed_text(text: str | list[str]) -> npt.NDArray[np.bytes_]:
-    """`text` (one string, or a list of lines) as fixed-length byte strings of its UTF-8 encoding.
-
-    The archive's text datasets use this type because GNU Octave's built-in `load` reads it: Octave
-    cannot read variable-length strings nor the HDF5 UTF-8 character set, and one unreadable dataset
-    stops its `load` for the rest of the file (docs/matlab.md). An empty list is stored as one empty
-    line: Octave cannot read a string array of length 0."""
+    """`text` (one string, or a list of lines) as fixed-length byte strings of its UTF-8 encoding: the type
+    GNU Octave's `load` reads (not variable-length strings nor the UTF-8 character set, docs/matlab.md).
+    An empty list is one empty line: Octave cannot read a string array of length 0."""
     if isinstance(text, str):
         return np.array(text.encode("utf-8"), dtype="S")
     encoded = [line.encode("utf-8") for line in text] or [b""]
@@ -75,10 +62,6 @@ def put_text(group: h5py.Group, name: str, text: str | list[str]) -> h5py.Datase
     ds = group.create_dataset(name, data=data)
     seal_values(ds, data)
     return ds
-
-
-def put_lines(group: h5py.Group, name: str, lines: list[str]) -> h5py.Dataset:
-    return put_text(group, name, lines)
 
 
 def set_attrs(obj: h5py.HLObject, attrs: Mapping[str, Any]) -> None:
@@ -101,11 +84,9 @@ def put_attrs(
 ) -> None:
     """Set the attributes `attrs` of an object of `kind` (a key of `attrs.ATTRIBUTES`) and the per-campaign
     ones in `dynamic` (only for a kind of `attrs.DYNAMIC`); a name the layout does not give that kind of
-    object is a bug, refused before anything is written.
-
-    In a file already finished with attribute checksums (the verdicts written into an archive), the digests
-    of the attributes written are recorded at once (archive/checksums.py); a file being written gets them
-    all when it is finished (`checksums.seal_attributes`)."""
+    object is a bug, refused before anything is written. In a file already finished with attribute
+    checksums (the verdicts), their digests are recorded at once; a file being written gets them all when
+    it is finished (`checksums.seal_attributes`)."""
     unknown = sorted(set(attrs) - set(ATTRIBUTES[kind]))
     if unknown or (dynamic and kind not in DYNAMIC):
         raise ValueError(f"archive layout: a {kind} has no attribute {', '.join(unknown) or 'per campaign'}")

@@ -1,13 +1,6 @@
-"""Bounds on what a dataset of an archive or unit may declare, checked before any of it is read.
-
-A hostile or damaged file can declare a dataset of 10^12 elements (chunked, nothing stored: HDF5 fills it
-in on reading) and make a reader allocate terabytes. Every reader of the archive therefore checks each
-dataset's type, rank, element count and chunk size against these bounds first (docs/archive.md, "Bounds"):
-
-- types: numbers (bool, integers, floats) or UTF-8 strings; rank at most 2;
-- elements: at most what the longest step of the archive's plan could record at the highest input rate a
-  protocol may declare, plus MARGIN_S of approach, park and settling at that rate, and never more than
-  HARD_CAP (one hour at that rate), however long the plan claims a step is.
+"""Bounds on what a dataset of an archive or unit may declare, checked before any of it is read
+(docs/archive.md, "Bounds"): a damaged or hostile file can declare a dataset of 10^12 elements (chunked,
+nothing stored: HDF5 fills it in on reading) and make a reader allocate terabytes.
 """
 
 from __future__ import annotations

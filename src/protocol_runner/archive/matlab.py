@@ -1,21 +1,8 @@
-"""Archive groups as MATLAB structs for the `.mat` export (docs/matlab.md states these rules for users).
-
-- Names: every variable and struct field is a valid MATLAB identifier (letters, digits and `_`, starting
-  with a letter, at most 63 characters): a `.` becomes `__` (a configuration's factor quantity
-  `<factor>.<quantity>` -> `<factor>__<quantity>`: `friction.friction_nm` -> `friction__friction_nm`),
-  other characters become `_`, a name not starting with a letter gets a prefix (trial group `1` ->
-  `trial_1`), and a name already taken in the struct gets `_2`, `_3`...
-- Numbers: double, whatever the archive stores (float32 signals, int64 attributes, int32 and uint16
-  codes), so that arithmetic never silently rounds to integers; an integer that a double cannot hold
-  exactly stays int64. Booleans are logical.
-- Orientation: 1-D arrays are columns (N x 1); 2-D arrays keep the archive's row-major shape (the
-  scaling history's `input_range_deg` is n x 2: one row per iteration, columns low and high end).
-- Indices: an attribute named `..._index0_...` (0-based, as stored) is exported as `..._index1_...`
-  plus one, ready for MATLAB indexing. Archives written before the rename have `transition_index_on` and
-  `transition_index_off` (also 0-based): they are exported the same way.
-- Text: char; a list of texts: a cell array of char (column).
-- Units: the `units` attribute of every exported dataset goes into one flat struct `units` keyed by the
-  field name (a name has one unit throughout the archive: docs/archive.md).
+"""Archive groups as MATLAB structs for the `.mat` export, by the rules docs/matlab.md states for users:
+valid MATLAB names (`.` -> `__`, a prefix for a name not starting with a letter, `_2`, `_3`... for a name
+taken), numbers as double (an integer a double cannot hold exactly stays int64), 1-D arrays as columns,
+`..._index0_...` attributes exported 1-based as `..._index1_...`, text as char or a cell column, and one
+flat `units` struct keyed by field name.
 """
 
 from __future__ import annotations

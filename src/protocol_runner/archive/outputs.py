@@ -1,12 +1,10 @@
 """Files the program writes outside a session (the report and comparison pages, `--export`'s CSV tables,
 `--export-mat`'s .mat files, `--reprocess`'s new archive): only ever regular files.
 
-Each is written under a temporary name beside it and renamed over its path, and a rename replaces
-whatever has that name. So before anything is written the path is examined with `os.lstat`, which does
-not follow a symbolic link: a path that exists and is not a regular file (a symbolic link, a device such
-as /dev/null, a FIFO, a socket, a directory) is refused by name (exit 2) instead of being replaced by a
-regular file. The temporary file is created with O_EXCL, so it is never opened through a link either, and
-with the usual permissions (the umask), and it is removed whatever stops the write.
+Each is written under a temporary name beside it and renamed over its path, which replaces whatever has
+that name: so a path that exists and is not a regular file (by `os.lstat`: a symbolic link, a device, a
+FIFO, a socket, a directory) is refused by name (exit 2) first. The temporary file is created with O_EXCL
+(never through a link) and removed whatever stops the write.
 """
 
 from __future__ import annotations

@@ -68,14 +68,6 @@ def recording_path(key: int, trial: int | str, brace: str) -> str:
     return f"{trial_path(key, trial)}/brace_{brace}"
 
 
-def processed_path(key: int, trial: int | str) -> str:
-    return f"{trial_path(key, trial)}/{PROCESSED}"
-
-
-def fits_path(key: int) -> str:
-    return f"{configuration_path(key)}/{FITS}"
-
-
 def comparison_path(name: str) -> str:
     return f"{COMPARISONS}/{name}"
 

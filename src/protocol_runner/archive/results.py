@@ -75,12 +75,6 @@ def processed_fill(name: str, analysis: ConfigurationAnalysis, settings: Process
                     "sample_rate_hz": s.sample_rate_hz,
                     "decimation": s.decimation,
                     "energy_cycles_j": [float(e) for e in t.energy_j],
-                },
-            )
-            put_attrs(
-                g,
-                "processed",
-                {
                     "transition_index0_on": int(t.transition_index_on),
                     "transition_index0_off": int(t.transition_index_off),
                     "subtraction": settings.subtraction,
@@ -125,7 +119,7 @@ def element_fit_fill(fits: h5py.Group, fit: ElementFit) -> None:
 
 
 def _interim_spring_group(fits: h5py.Group, fit: ElementFit) -> None:
-    """INTERIM until the report reads `fits/elements` (helper REPORT): the former `fits/spring` group,
+    """The former `fits/spring` group (docs/archive.md: INTERIM until the report reads `fits/elements`),
     for a device with exactly one lever spring."""
     springs = [e for e in fit.elements if e.type == "lever_spring"]
     if len(springs) != 1 and fit.applicable:
@@ -234,9 +228,9 @@ def bouc_wen_fill(name: str, bouc_wen: BoucWenResult) -> Fill:
                 "n_starts": int(result.n_starts),
                 "converged": bool(result.converged),
                 "diverged": bool(result.diverged),
+                **evidence_attrs(result, energy),
             },
         )
-        put_attrs(g, "bouc_wen", evidence_attrs(result, energy))
         put_dataset(g, "bouc_wen", "angle_deg", np.concatenate(angles))
         put_dataset(g, "bouc_wen", "torque_nm", np.concatenate(torques))
         put_dataset(g, "bouc_wen", "model_torque_nm", np.concatenate(models))

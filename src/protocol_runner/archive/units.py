@@ -24,8 +24,6 @@ from .diskfull import DiskFull, is_disk_full, resume_hint
 from .h5_write_errors import checked_h5_write
 from .h5util import group_name
 
-COMPLETE_ATTR = UNIT_COMPLETE
-
 
 @dataclass(frozen=True)
 class UnitRecord:
@@ -39,15 +37,10 @@ def unit_path(units_dir: Path, step_id: str) -> Path:
     return units_dir / f"{group_name(step_id)}.h5"
 
 
-DIRECTORY_FSYNC = os.name != "nt"
-"""Whether a directory can be opened and fsynced, making a rename into it durable: POSIX systems (Linux,
-macOS). Windows cannot open a directory with `os.open`; NTFS journals the rename itself."""
-
-
 def fsync_path(path: Path) -> None:
-    """Flush a file's or a directory's entry (after a rename into it) to the disk (a directory: where the
-    platform can, `DIRECTORY_FSYNC`)."""
-    if not DIRECTORY_FSYNC and path.is_dir():
+    """Flush a file's or a directory's entry (after a rename into it) to the disk. Windows cannot open a
+    directory with `os.open` (NTFS journals the rename itself): a directory is flushed on POSIX only."""
+    if os.name == "nt" and path.is_dir():
         return
     # Windows flushes only a handle opened for writing (FlushFileBuffers); POSIX any descriptor
     fd = os.open(path, os.O_RDWR if os.name == "nt" else os.O_RDONLY)
@@ -59,10 +52,6 @@ def fsync_path(path: Path) -> None:
 
 def _fsync_file(path: Path) -> None:
     """A unit file's flush (its own name: the fault-injection tests fail these, not the directory's)."""
-    fsync_path(path)
-
-
-def _fsync_dir(path: Path) -> None:
     fsync_path(path)
 
 
@@ -87,12 +76,12 @@ def write_unit(units_dir: Path, step_id: str, fill: Callable[[h5py.File], None])
             f.attrs[UNIT_STEP_ID] = step_id
             seal_missing(f)  # datasets written without archive/h5util.py get their checksum too
             mark(f)
-            f.attrs[COMPLETE_ATTR] = True
+            f.attrs[UNIT_COMPLETE] = True
             seal_attributes(f)  # every attribute written, by whatever code, gets its checksum
         _fsync_file(partial)
         digest = sha256_of(partial)
         os.replace(partial, final)
-        _fsync_dir(units_dir)
+        fsync_path(units_dir)
     except BaseException as exc:  # never leave a partial file behind: a fill's bug, a full disk, Ctrl-C
         with contextlib.suppress(OSError):
             partial.unlink()
@@ -113,7 +102,7 @@ def unit_is_complete(units_dir: Path, record: UnitRecord) -> bool:
         return False
     try:
         with h5py.File(path, "r") as f:
-            return bool(f.attrs.get(COMPLETE_ATTR, False)) and f.attrs.get(UNIT_STEP_ID) == record.step_id
+            return bool(f.attrs.get(UNIT_COMPLETE, False)) and f.attrs.get(UNIT_STEP_ID) == record.step_id
     except (OSError, KeyError):
         return False
 

@@ -1,13 +1,10 @@
 """Is this file an intact protocol-runner archive? Clear answers for foreign, damaged or hostile files.
 
-- `Checker`: each dataset's layout (archive/layout.py) is checked before it is read, then its values
-  against its recorded checksum (archive/checksums.py), and each object's attributes against theirs. The
-  report checks every dataset and attribute with it before using any, and refuses a damaged one by name
-  (exit 2).
-- `validate_archive`: the path names an HDF5 file with the archive's root marker and `/configurations`,
-  and every dataset passes `Checker` (used by `--reprocess` and `--export-mat` before they read).
-- `verify_path`: `run-protocol --verify SESSION_DIR|ARCHIVE.h5`, every dataset of the archive (and of a
-  session's units), listing every damaged one.
+- `Checker`: each dataset's layout (archive/layout.py) before it is read, then its values against its
+  recorded checksum, and each object's attributes against theirs (the report checks everything with it).
+- `validate_archive`: an HDF5 file with the archive's root marker and `/configurations`, every dataset
+  passing `Checker` (`--reprocess` and `--export-mat` call it before they read).
+- `verify_path`: `run-protocol --verify SESSION_DIR|ARCHIVE.h5`, listing every damaged dataset.
 """
 
 from __future__ import annotations
@@ -19,7 +16,7 @@ from pathlib import Path
 import h5py
 
 from ..errors import InvalidInput, short
-from .attrs import UNIT_STEP_ID
+from .attrs import UNIT_COMPLETE, UNIT_STEP_ID
 from .checksums import (
     attributes_marked,
     digest_of_stored,
@@ -29,7 +26,6 @@ from .checksums import (
     stored_attribute_digests,
 )
 from .layout import check_layout, element_cap
-from .units import COMPLETE_ATTR
 
 ROOT_MARKER = "protocol_sha256"
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -103,11 +99,9 @@ def validate_archive(path: Path) -> Path:
 
 @dataclass
 class Checker:
-    """Checks datasets of one open file: layout first, then the checksum; and every object's attributes
-    against their checksums. `strict` (the file declares dataset checksums) makes a dataset without one an
-    error, `attrs_strict` (it declares attribute checksums) an attribute without one; otherwise (an archive
-    written before them) only the layout is checked, and the attributes are counted as unsummed. Without
-    `digests` only the layout is checked (see `load_report_data`)."""
+    """Checks datasets of one open file (layout, then checksum) and every object's attributes. `strict`
+    (the file declares dataset checksums) makes a dataset without one an error, `attrs_strict` an attribute
+    without one; otherwise they are counted as unsummed. Without `digests` only the layout is checked."""
 
     label: str
     cap: int
@@ -260,7 +254,7 @@ def _verify_file(file: Path, verdict: Verdict) -> int:
         require_hdf5(file)
         with h5py.File(file, "r") as h5:
             if UNIT_STEP_ID in h5.attrs:  # a unit: a fragment of the archive, no root of its own
-                if not h5.attrs.get(COMPLETE_ATTR, False):
+                if not h5.attrs.get(UNIT_COMPLETE, False):
                     raise InvalidInput(f"{file}: not a complete unit (resume redoes its step)")
             else:
                 check_root(h5, file)
@@ -283,11 +277,9 @@ def _verify_file(file: Path, verdict: Verdict) -> int:
         unsummed_attrs = ""
         if checker.attrs_unsummed:  # written before attribute checksums: its results' attributes unverifiable
             which = (
-                f"{checker.attrs_unsummed} of its attributes carry"
-                if checker.attrs_checked
-                else ("its attributes carry")
+                f"{checker.attrs_unsummed} of its attributes" if checker.attrs_checked else "its attributes"
             )
-            unsummed_attrs = f"; {which} no checksum (written before attribute checksums)"
+            unsummed_attrs = f"; {which} carry no checksum (written before attribute checksums)"
         verdict.lines.append(
             f"{file}: {checker.checked} datasets{attributes}, every checksum matches{unsummed}{unsummed_attrs}"
         )

@@ -138,6 +138,3 @@ class MonitoredOperator:
 
     def accept_failed_check(self, message: str) -> bool:
         return self._ask("failed_check", message, lambda: self.inner.accept_failed_check(message))
-
-    def confirm(self, question: str) -> bool:
-        return self._ask("confirm", question, lambda: self.inner.confirm(question))

@@ -34,7 +34,7 @@ class Event:
 
 
 MAX_JOURNAL_BYTES = 256 * 2**20  # far above any campaign's journal (the knee's: about 100 kB)
-_NOT_A_RECORD = (
+_NOT_A_RECORD = (  # what reading a line that is not a record raises (damaged, foreign, nested too deep)
     json.JSONDecodeError,
     KeyError,
     TypeError,
@@ -66,9 +66,6 @@ def _unit_record(rec: dict[str, Any]) -> UnitRecord:
     if not isinstance(size, int) or isinstance(size, bool) or size < 0:
         raise TypeError("not a size")
     return UnitRecord(_text(rec, "step_id"), file, sha256, size)
-
-
-"""What reading a line that is not a journal record raises (damaged, foreign, or nested too deep)."""
 
 
 def _unusable(path: Path) -> str:
@@ -123,12 +120,9 @@ class Journal:
     def __init__(self, path: Path) -> None:
         self.path = path
         self.units: dict[str, UnitRecord] = {}  # complete units: skipped on resume
-        self.failed: dict[
-            str, UnitRecord
-        ] = {}  # kept in the archive (e.g. a failed check) but redone on resume
+        # kept in the archive (e.g. a failed check) but redone on resume
+        self.failed: dict[str, UnitRecord] = {}
         self.events: list[Event] = []
-        self.answers: dict[str, dict[str, Any]] = {}
-        self.torn_lines = 0
         self.damaged_lines = 0  # lines read that are not records (the torn tail, cut off first, aside)
         refuse_link(path)  # appended to: never through a link (session/lock.py)
         if path.exists():
@@ -149,7 +143,6 @@ class Journal:
             f.truncate(keep)
             f.flush()
             os.fsync(f.fileno())
-        self.torn_lines += 1
 
     def _read(self) -> None:
         with self.path.open("r", encoding="utf-8", errors="replace") as f:
@@ -161,8 +154,7 @@ class Journal:
                     rec = json.loads(line)
                     self._apply(rec)
                 except _NOT_A_RECORD:
-                    self.torn_lines += 1  # damaged or foreign line: ignored, never a complete unit
-                    self.damaged_lines += 1
+                    self.damaged_lines += 1  # damaged or foreign line: ignored, never a complete unit
 
     def _apply(self, rec: dict[str, Any]) -> None:
         kind = rec.get("record")

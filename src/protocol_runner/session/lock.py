@@ -1,16 +1,14 @@
 """One process per session directory: an exclusive, non-blocking lock held while a run writes to it; and
 the refusal of session files that are symbolic links.
 
-Two `--resume` of the same session, or `--report DIR` assembling or rendering the archive of a session
-that is still running, would otherwise write the same files. The lock is `filelock`'s (an OS lock on
-`<session>/.lock`: `flock` on Linux and macOS, `LockFileEx`/`msvcrt.locking` on Windows), so it dies with its
-process: a crash or `kill -9` releases it. The holder's PID is written to `<session>/.lock.pid` (not into
-the lock file, which some filelock versions truncate when they try to take it), for the refusal message.
+Two `--resume` of the same session, or `--report DIR` on a session still running, would otherwise write
+the same files. The lock is `filelock`'s OS lock on `<session>/.lock`, so a crash or `kill -9` releases
+it; the holder's PID is in `<session>/.lock.pid` (some filelock versions truncate the lock file), for the
+refusal message.
 
-The session's own files (`.lock`, `.lock.pid`, `journal.jsonl`, `session.log`, `units/`) are never
-followed through a symbolic link: a link planted there would otherwise have its target truncated,
-appended to or filled with units. A session whose files are links is refused with exit 2, naming the
-path (the session directory itself may be a link: it is the user's choice of where sessions live).
+The session's own files (`SESSION_FILES`) are never followed through a symbolic link, which would have its
+target truncated, appended to or filled with units: a session whose files are links is refused with exit
+2, naming the path (the session directory itself may be a link).
 """
 
 from __future__ import annotations
@@ -70,11 +68,8 @@ def open_nofollow(path: Path, flags: int, mode: int = 0o644) -> int:
 @contextlib.contextmanager
 def session_lock(directory: Path) -> Iterator[None]:
     """Hold the session's lock, or raise `InvalidInput` naming the holder's PID when another process has it.
-
-    filelock opens the lock file by name, and versions before 3.20.1 follow a symbolic link there and
-    truncate its target. So the lock file is checked not to be a link just before filelock opens it
-    (`refuse_session_links`), and a link is refused instead of being handed to filelock; later versions
-    also open it with O_NOFOLLOW, which closes the moment between the check and the opening."""
+    The lock file is checked not to be a link just before filelock opens it: versions before 3.20.1 follow
+    one and truncate its target (later ones open it with O_NOFOLLOW)."""
     refuse_session_links(directory)
     lock = FileLock(str(directory / LOCK_NAME))
     try:

@@ -29,9 +29,6 @@ class AutoOperator:
     def accept_failed_check(self, message: str) -> bool:
         return False
 
-    def confirm(self, question: str) -> bool:
-        return True
-
 
 class ConsoleOperator:
     """Asks on the terminal. Without a terminal it refuses to guess: use --yes or --dry-run.
@@ -81,11 +78,4 @@ class ConsoleOperator:
             reply = self._ask("Accept this result and continue? (y/n; q = stop here, resumable)")
         if reply == "q":
             raise Interrupted("stopped by the operator after a failed calibration check")
-        return reply == "y"
-
-    def confirm(self, question: str) -> bool:
-        with display_paused():
-            reply = self._ask(question + " (y/n; q = stop, resumable)")
-        if reply == "q":
-            raise Interrupted("stopped by the operator")
         return reply == "y"

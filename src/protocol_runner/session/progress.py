@@ -164,9 +164,6 @@ class Progress:
 
     def step_finished(self, step: Step, summary: str) -> None:
         """The step's line (its unit is journaled). Lines are numbered as they are printed."""
-        self._line(step, summary)
-
-    def _line(self, step: Step, summary: str) -> None:
         self.n_done += 1
         self.robot_done_s += step.robot_time_s
         if self._rate_from is None:  # the rate is learnt from the steps after this first one

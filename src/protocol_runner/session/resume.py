@@ -31,7 +31,7 @@ if TYPE_CHECKING:
 
 
 class Runner(Protocol):
-    """What resuming needs of the session runner (`session.runner.Runner`)."""
+    """What resuming needs of the session runner (`session.runner.Runner`, which imports this module)."""
 
     dir: Path
     info: SessionInfo

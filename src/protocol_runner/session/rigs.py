@@ -17,10 +17,7 @@ from ..protocol.step_ids import trial_of
 from ..protocol.stream_check import safety_limits
 
 if TYPE_CHECKING:
-    from ..hardware.board_group import BoardGroup
-    from ..hardware.interfaces import AnalogOutput
     from ..hardware.simulator.params import SimulatorParams
-    from ..hardware.usb_common import MonotonicClock
 
 
 def _table(base: Path, name: str | None) -> CalibrationTable | None:
@@ -79,7 +76,6 @@ class SimulatedBench:
         from ..hardware.simulator.daq import SimulatedRig
         from ..hardware.simulator.params import SimulatorParams
 
-        self.paced = realtime  # like the robot: runner.py then saves each unit before the next motion
         p = loaded.protocol
         specs = p.rigs if p.multi_joint else [p.rig]
         self.sim = SimulatedRig(
@@ -115,7 +111,6 @@ class HardwareBench:
         from ..hardware.usb_common import realtime_priority
 
         self.mode = "hardware"
-        self.paced = True
         self.rig = open_hardware_rig(loaded)
         # the 100 Hz loop under SCHED_FIFO when allowed (tick jitter p99 < 1 ms needs it on a busy machine)
         self.rig.loop_context = realtime_priority
@@ -165,25 +160,20 @@ def _at(path: str, line: int | None) -> str:
     return f"{path} line {line}" if line else path
 
 
-def _open_boards(loaded: LoadedProtocol) -> tuple[AnalogOutput, BoardGroup, MonotonicClock]:
-    """The boards of the protocol's rig section; a vendor library the rig file selects but that is not
-    installed is named with the rig file."""
+def open_hardware_rig(loaded: LoadedProtocol) -> Rig:
+    """Open the boards the protocol names once for every driven joint (one output board, one scan);
+    HardwareUnavailable (exit 3) with a plain message if absent, naming the rig file for a vendor library
+    it selects that is not installed."""
     # here: only a hardware run needs the USB drivers (and a vendor library only when selected)
     from ..hardware.rig_boards import open_rig_boards
     from ..hardware.vendor_common import VendorLibraryMissing
 
-    try:
-        return open_rig_boards(loaded.protocol.rig)
-    except VendorLibraryMissing as exc:
-        raise VendorLibraryMissing(f"{loaded.rig_source.shown}: {exc.message}") from None
-
-
-def open_hardware_rig(loaded: LoadedProtocol) -> Rig:
-    """Open the boards the protocol names once for every driven joint (one output board, one scan);
-    HardwareUnavailable (exit 3) with a plain message if absent."""
     refuse_unsupported_input(loaded)
     p = loaded.protocol
-    ao, ai, clock = _open_boards(loaded)
+    try:
+        ao, ai, clock = open_rig_boards(p.rig)
+    except VendorLibraryMissing as exc:
+        raise VendorLibraryMissing(f"{loaded.rig_source.shown}: {exc.message}") from None
     for spec in p.rigs[1:] if p.multi_joint else []:  # the channels of the other joints exist on the boards
         n_in = getattr(ai, "n_channels", None)
         if n_in is not None and max(spec.input.angle_channel, spec.input.torque_channel) >= n_in:

@@ -11,8 +11,8 @@ stop) the units are consolidated into `archive.h5`, and the report is rendered.
 One thing runs beside the loop: on a machine with two cores or more, the analysis steps (processing and
 fits, which only read finished units) run in a worker process (`workers.py`) while the loop goes on with
 the next configuration's trials; the loop journals each one once its unit is on disk, and waits for all of
-them before a comparison or the report reads them. Resuming is in `resume.py`, archive assembly in
-`assembly.py`, the report in `reporting.py`.
+them before a comparison or the report reads them. Resuming is in `resume.py`, the report in
+`reporting.py`; the archive is assembled here (`Runner.consolidate`).
 """
 
 from __future__ import annotations
@@ -20,23 +20,26 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
 
+from ..analysis.reference import load_reference_dataset
+from ..archive.consolidate import ArchiveMeta, consolidate
 from ..archive.diskfull import DiskFull, disk_full_error, is_disk_full
-from ..archive.units import write_unit
+from ..archive.paths import configuration_name
+from ..archive.units import checked_unit_files, write_unit
 from ..errors import Interrupted, StoppedByCheck, UserError, file_system_refusal
 from ..events import NULL_PUBLISHER, Publisher
 from ..protocol.loaded import LoadedProtocol
-from ..protocol.plan_steps import Plan, Step
+from ..protocol.plan_steps import Plan, Step, TrialStep
 from ..protocol.processing import processing_settings
+from ..protocol.step_ids import step_id as make_step_id
 from ..steps.context import Bench, StepContext, StepOutcome
 from ..steps.failures import run_step
 from ..steps.operator import Operator
-from .assembly import consolidate_session
-from .journal import Journal
+from .journal import Journal, utc_now
 from .lock import refuse_session_links, session_lock
 from .progress import Progress
 from .reporting import render_report
@@ -273,4 +276,60 @@ class Runner:
         return RunResult("complete", archive, report, self.steps_run, skipped, self.rechecks)
 
     def consolidate(self, status: str) -> Path:
-        return consolidate_session(self.dir, self.info, self.loaded, self.plan, self.journal, status)
+        """The session's finished (and failed-but-kept) units, checked, into `archive.h5` with the
+        session's metadata."""
+        records = list(self.journal.units.values()) + list(self.journal.failed.values())
+        files = checked_unit_files(self.units_dir, records)
+        root = {
+            "protocol_name": self.info.protocol_name,
+            "protocol_sha256": self.loaded.sha256,
+            "rig_sha256": self.loaded.rig_source.sha256,
+            "mode": self.info.mode,
+            "seed": int(self.info.seed),
+            "created_utc": self.info.created_utc,
+            "finished_utc": utc_now(),
+            "status": status,
+            "joint": ",".join(self.loaded.protocol.driven_joints),
+        }
+        meta = ArchiveMeta(
+            root=root,
+            protocol_text=self.loaded.text,
+            protocol_filename=self.loaded.path.name,
+            rig_text=self.loaded.rig_source.text,
+            rig_filename=self.loaded.rig_source.shown,
+            plan_json=json.dumps(self.plan.to_json()),
+            only=self.info.only,
+            events=tuple(json.dumps(e.to_json()) for e in self.journal.events),
+            configuration_attrs=configuration_attrs(self.plan, self.journal.units),
+            reference=reference_dataset(self.loaded),
+        )
+        return consolidate(self.dir / "archive.h5", files, meta)
+
+
+def configuration_attrs(plan: Plan, done: Mapping[str, object]) -> dict[str, dict[str, object]]:
+    """Per configuration group: its key, number of trials and status (complete, partial, not run)."""
+    out: dict[str, dict[str, object]] = {}
+    for step in plan.steps:
+        if not isinstance(step, TrialStep):
+            continue
+        name = configuration_name(step.configuration)
+        entry = out.setdefault(name, {"key": step.configuration, "n_trials": 0, "_any": False})
+        if step.brace == "on":
+            entry["n_trials"] = int(entry["n_trials"]) + 1  # type: ignore[call-overload]
+        entry["_any"] = bool(entry["_any"]) or step.id in done
+    for entry in out.values():
+        key = int(entry["key"])  # type: ignore[call-overload]
+        fit, process = make_step_id("fit", key=key), make_step_id("process", key=key)
+        fitted = fit in done or (process in done and fit not in plan._index)
+        entry["status"] = "complete" if fitted else ("partial" if entry.pop("_any") else "not run")
+        entry.pop("_any", None)
+    return out
+
+
+def reference_dataset(loaded: LoadedProtocol) -> tuple[str, str, object, object] | None:
+    """The protocol's EMU reference dataset (§5.6), copied into the archive so the report needs nothing else."""
+    rel = loaded.protocol.report.reference_dataset
+    if rel is None:
+        return None
+    ref = load_reference_dataset(loaded.base_dir / rel)
+    return (Path(rel).stem, rel, ref.angle_deg, ref.torque_nm)

@@ -1,25 +1,19 @@
 """SIGINT/SIGTERM/SIGHUP: stop at the next safe point; a second SIGINT stops at once.
 
 The first signal sets a flag that the runner checks between steps and the rig's loop polls during a
-trial (~every 100 ms); the session then parks the joint, writes its journal and exits 130, resumable.
-SIGHUP (the terminal or the SSH connection closed) is one of them where the platform has it: the joint
-is parked and the stop journaled as for Ctrl-C, the lines that can no longer be shown going to session.log.
-A second SIGINT raises KeyboardInterrupt immediately: only complete units stay behind (units are atomic).
-In the `run-protocol` process (`exit_at_once_after_second_sigint`), it also arms a deadline: if the
-process has not ended `EXIT_DEADLINE_S` later, whatever it is waiting for (a worker, the pool's threads),
-it ends itself with exit 130.
+trial (~every 100 ms); the session then parks the joint, writes its journal and exits 130, resumable
+(SIGHUP, a closed terminal, too: the lines that can no longer be shown go to session.log). A second
+SIGINT raises KeyboardInterrupt at once (units are atomic: only complete ones stay behind) and, in the
+`run-protocol` process, ends the process with exit 130 `EXIT_DEADLINE_S` later if it is still waiting
+for something (a worker, the pool's threads).
 
-Ctrl-C on a terminal signals the whole process group, worker processes included: `sigint_blocked` keeps
-SIGINT blocked while a worker is started, so the worker inherits the block (and then ignores SIGINT) instead
-of dying with a traceback while it is still importing; the parent receives the signal once unblocked. Where
-threads cannot block signals (Windows: no `signal.pthread_sigmask`), it does nothing: a worker then ignores
-SIGINT from its start-up function on (`workers.worker_init`), and a Windows console's Ctrl-C reaches the
-session process through its handler.
+Ctrl-C on a terminal signals the whole process group: `sigint_blocked` keeps SIGINT blocked while a worker
+is started, so the worker inherits the block instead of dying with a traceback while it imports (Windows
+has no `signal.pthread_sigmask`: its workers ignore SIGINT from `workers.worker_init` on).
 
-A Python signal handler runs between any two bytecodes of the main thread, also inside a weakref callback
-or a `__del__`, where an exception cannot propagate: Python prints "Exception ignored in ..." with a
-traceback and drops it. While installed, the stop flag catches such a dropped KeyboardInterrupt and
-delivers it again a moment later (`_thread.interrupt_main`), where it can unwind the session.
+A KeyboardInterrupt raised by the handler inside a weakref callback or a `__del__` cannot propagate (Python
+prints "Exception ignored in ..." and drops it): while installed, the stop flag catches it and delivers it
+again a moment later (`_thread.interrupt_main`), where it can unwind the session.
 """
 
 from __future__ import annotations

@@ -117,9 +117,7 @@ def analyse_step(
     """Settled angle over the last `settle_window_s`, its error, and the time constant that best fits the
     response to the commanded move (least squares over tau in [0.02, 2] s); NaN when the joint's move does
     not stand out of the noise of its held angle (`MOVE_OVER_NOISE`)."""
-    settled, sse = step_fit(time_s, command_deg, angle_deg, settle_window_s)
-    dt = float(np.median(np.diff(time_s)))
-    start = float(np.mean(angle_deg[: max(1, int(0.2 / dt))]))  # as step_fit's y0
+    settled, start, sse = step_fit(time_s, command_deg, angle_deg, settle_window_s)
     if abs(settled - start) < MOVE_OVER_NOISE * held_noise_deg(time_s, angle_deg, settle_window_s):
         return StepResponse(
             settled_deg=settled, settle_error_deg=abs(settled - target_deg), time_constant_s=math.nan
@@ -146,9 +144,10 @@ def first_order_response(command_deg: FloatArray, dt_s: float, tau_s: float, y0_
 
 def step_fit(
     time_s: FloatArray, command_deg: FloatArray, angle_deg: FloatArray, settle_window_s: float
-) -> tuple[float, Callable[[float], float]]:
-    """The settled angle (mean over the last `settle_window_s`) and the squared error of the first-order
-    model with time constant tau, the function `analyse_step` minimises."""
+) -> tuple[float, float, Callable[[float], float]]:
+    """The settled angle (mean over the last `settle_window_s`), the starting angle (mean over the first
+    0.2 s) and the squared error of the first-order model with time constant tau, the function
+    `analyse_step` minimises."""
     dt = float(np.median(np.diff(time_s)))
     settled = float(np.mean(angle_deg[time_s >= time_s[-1] - settle_window_s]))
     y0 = float(np.mean(angle_deg[: max(1, int(0.2 / dt))]))
@@ -162,7 +161,7 @@ def step_fit(
             model = y0 + (model - y0) * (settled - y0) / span
         return float(np.sum((angle_deg - model) ** 2))
 
-    return settled, sse
+    return settled, y0, sse
 
 
 def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, when: str) -> StepOutcome:

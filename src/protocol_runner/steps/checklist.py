@@ -6,6 +6,7 @@ from __future__ import annotations
 import h5py
 
 from ..archive.h5util import group_name, put_attrs
+from ..archive.paths import CHECKLISTS
 from ..protocol.plan_steps import ChecklistStep
 from .context import StepContext, StepOutcome
 
@@ -16,7 +17,7 @@ def run(step: ChecklistStep, ctx: StepContext) -> StepOutcome:
     ctx.bench.fit_brace(step.settings if step.brace == "on" else None)
 
     def fill(f: h5py.File) -> None:
-        g = f.require_group("session/checklists").create_group(group_name(step.id))
+        g = f.require_group(CHECKLISTS).create_group(group_name(step.id))
         put_attrs(
             g,
             "checklist",

@@ -36,7 +36,6 @@ class Bench(Protocol):
 
     rig: Rig
     mode: str
-    paced: bool  # moves in real time (the robot, or --realtime): the session saves each unit before a motion
 
     def begin_step(self, step_id: str) -> None: ...
 

@@ -1,4 +1,4 @@
-"""What a step may ask the operator at the rig: a checklist, a decision on a failed check, a yes/no.
+"""What a step may ask the operator at the rig: a checklist, or a decision on a failed check.
 
 The session supplies the implementation (`session.operator`: automatic or on the terminal; the live
 monitor wraps it); steps see only this interface.
@@ -23,5 +23,3 @@ class Operator(Protocol):
     def checklist(self, step: ChecklistStep) -> Answer: ...
 
     def accept_failed_check(self, message: str) -> bool: ...
-
-    def confirm(self, question: str) -> bool: ...

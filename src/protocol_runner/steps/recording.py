@@ -12,7 +12,7 @@ import numpy.typing as npt
 
 from ..archive.h5util import SIGNAL, put, put_attrs
 from ..archive.paths import put_dataset
-from ..hardware.joint import JointConfig, TrialRecording
+from ..hardware.joint import TrialRecording
 from ..hardware.motion import run_motion
 from ..hardware.stream import SEGMENT_NAMES
 from ..protocol.plan_steps import CalibrationCheckStep, TrialStep
@@ -27,11 +27,6 @@ def joint_trajectories(
     if step.joint_trajectories:
         return step.joint_trajectories
     return ((ctx.loaded.protocol.driven_joints[0], step.trajectory),)
-
-
-def bench_joints(ctx: StepContext) -> tuple[JointConfig, ...]:
-    """The driven joints' configurations (limits, rates), in channel order."""
-    return tuple(ctx.bench.rig.joints)
 
 
 def drive(ctx: StepContext, commands: Sequence[npt.ArrayLike], where: str) -> tuple[TrialRecording, ...]:

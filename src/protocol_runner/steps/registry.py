@@ -49,18 +49,6 @@ def step_function(name: str) -> StepFunction:
     return found
 
 
-def register(kind: str, entry: StepKind) -> None:
-    """Add a step kind (a kind already registered is refused: remove it first)."""
-    if kind in STEP_KINDS:
-        raise ValueError(f"step kind {kind!r} is already registered")
-    STEP_KINDS[kind] = entry
-
-
-def deregister(kind: str) -> None:
-    """Remove a step kind added by `register`."""
-    del STEP_KINDS[kind]
-
-
 def run_function(kind: str) -> StepFunction:
     """The function that runs a step of `kind` (`LookupError` for a kind nobody registered)."""
     entry = STEP_KINDS.get(kind)

@@ -36,7 +36,7 @@ from ..protocol.plan_steps import TrialStep
 from ..protocol.sampling import sample_trajectory
 from ..protocol.settings import configuration_attributes
 from .context import StepContext, StepOutcome
-from .recording import bench_joints, drive, joint_trajectories, put_commands, put_scan
+from .recording import drive, joint_trajectories, put_commands, put_scan
 
 FloatArray = npt.NDArray[np.float64]
 COMMAND_SMOOTHING_HZ = 5.0
@@ -154,7 +154,7 @@ def _smoothed(angle_deg: npt.ArrayLike, input_rate_hz: float, name: str) -> Floa
 def _run_brace_off(
     step: TrialStep, ctx: StepContext, joints: list[str]
 ) -> tuple[tuple[TrialRecording, ...], tuple[ScalingResult, ...]]:
-    configs = bench_joints(ctx)
+    configs = ctx.bench.rig.joints  # in channel order
     proc = ctx.processing
     on = _read_brace_on(ctx, step)
     input_rate = configs[0].input_rate_hz
