@@ -135,14 +135,6 @@ def metric_label(spec: ExpectationSpec) -> str:
     return label
 
 
-def evaluate_expectation(spec: ExpectationSpec, data: ReportData) -> Verdict:
-    """The verdict of `spec` on `data` alone, as a family of one (never raises for missing data:
-    `not evaluable` says why); of `joints: all`, the first driven joint's (`evaluate_all` gives each joint's).
-    `evaluate_all` decides a campaign's expectations together."""
-    v = _tested(spec, data, joints_of(spec, data)[0])
-    return v if v.verdict == NOT_EVALUABLE else _adjusted(v, v.p_value, 1)
-
-
 def joints_of(spec: ExpectationSpec, data: ReportData) -> tuple[str, ...]:
     """The joints `spec` is decided for, one verdict each: its `joint`, every joint of the archive for
     `joints: all`, else the archive's joints when it has one ("" when it names several: not evaluable)."""
@@ -342,59 +334,36 @@ def _ordered(keys: Sequence[int], intervals: dict[int, TInterval], unit: str) ->
     return f"means in the stated order ({', '.join(str(k) for k in keys)}): {text} {unit}"
 
 
-def _one_sided(w: WelchInterval, sign: float, ref: float) -> float:
-    return p_above(w, ref) if sign > 0 else p_below(w, ref)
-
-
 def _tost(w: WelchInterval, centre: float, margin: float) -> float:
     return max(p_above(w, centre - margin), p_below(w, centre + margin))
 
 
-def _trend(
+def _steps(
     spec: ExpectationSpec, values: dict[int, tuple[float, ...]], intervals: dict[int, TInterval], unit: str
 ) -> tuple[float, str]:
+    """`increasing` / `decreasing`: each adjacent step of the stated order by a one-sided Welch test;
+    `no_trend`: each pair by TOST within ±margin. The largest p decides."""
+    trend = spec.relation != "no_trend"
     sign = 1.0 if spec.relation == "increasing" else -1.0
-    order = list(dict.fromkeys(spec.configurations))
-    parts: list[str] = []
-    ps: list[float] = []
-    for a, b in pairwise(order):
-        w = contrast_interval([(-1.0, values[a]), (1.0, values[b])], TEST_CONFIDENCE)
-        p = _one_sided(w, sign, 0.0)
-        ps.append(p)
-        fails = "" if p <= ALPHA else " (fails)"
-        parts.append(
-            f"{b} minus {a}: {_fmt(w.difference)} {unit}, 90 % Welch interval {_ival(w.low, w.high, unit)}, "
-            f"one-sided p {format_p(p)}{fails}"
-        )
-    way = "above" if sign > 0 else "below"
-    text = (
-        f"{_ordered(order, intervals, unit)}; {'; '.join(parts)} "
-        f"(every step must lie {way} zero, one-sided Welch; the largest step p decides)"
-    )
-    return max(ps, default=math.nan), text
-
-
-def _no_trend(
-    spec: ExpectationSpec, values: dict[int, tuple[float, ...]], intervals: dict[int, TInterval], unit: str
-) -> tuple[float, str]:
     margin = spec.margin or 0.0
     order = list(dict.fromkeys(spec.configurations))
     parts: list[str] = []
     ps: list[float] = []
-    for a, b in combinations(order, 2):
+    for a, b in pairwise(order) if trend else combinations(order, 2):
         w = contrast_interval([(-1.0, values[a]), (1.0, values[b])], TEST_CONFIDENCE)
-        p = _tost(w, 0.0, margin)
+        p = (p_above(w, 0.0) if sign > 0 else p_below(w, 0.0)) if trend else _tost(w, 0.0, margin)
         ps.append(p)
         fails = "" if p <= ALPHA else " (fails)"
         parts.append(
             f"{b} minus {a}: {_fmt(w.difference)} {unit}, 90 % Welch interval {_ival(w.low, w.high, unit)}, "
-            f"TOST p {format_p(p)}{fails}"
+            f"{'one-sided' if trend else 'TOST'} p {format_p(p)}{fails}"
         )
-    text = (
-        f"{_ordered(order, intervals, unit)}; {'; '.join(parts)} "
-        f"(every pair's 90 % interval must lie inside ±{margin:g} {unit}: two one-sided Welch tests)"
-    )
-    return max(ps, default=math.nan), text
+    if trend:
+        way = "above" if sign > 0 else "below"
+        rule = f"every step must lie {way} zero, one-sided Welch; the largest step p decides"
+    else:
+        rule = f"every pair's 90 % interval must lie inside ±{margin:g} {unit}: two one-sided Welch tests"
+    return max(ps, default=math.nan), f"{_ordered(order, intervals, unit)}; {'; '.join(parts)} ({rule})"
 
 
 def _decide(
@@ -402,10 +371,8 @@ def _decide(
 ) -> tuple[float, str]:
     """The expectation's p-value (the largest of its statements') and the text of its numbers."""
     r = spec.relation
-    if r in ("increasing", "decreasing"):
-        return _trend(spec, values, intervals, unit)
-    if r == "no_trend":
-        return _no_trend(spec, values, intervals, unit)
+    if r in ("increasing", "decreasing", "no_trend"):
+        return _steps(spec, values, intervals, unit)
     parts: list[str] = []
     ps: list[float] = []
     for i, key in enumerate(spec.configurations):

@@ -20,12 +20,20 @@ from ..protocol.plan_steps import Comparison
 from .settings_view import DeviceElement, Quantity, SettingsView
 
 
-def energy_mean_std_j(energy_loss_j: FloatArray) -> tuple[float, float]:
-    """The mean energy lost per cycle (Eq 10-12) and its sample standard deviation over the cycles of
-    `energy_loss_j`; the mean is NaN without a cycle and the deviation NaN with fewer than two."""
-    n = energy_loss_j.size
-    mean = float(np.mean(energy_loss_j)) if n else float("nan")
-    return mean, float(np.std(energy_loss_j, ddof=1)) if n > 1 else float("nan")
+class _EnergyPerCycle:
+    """The energy lost per cycle (Eq 10-12) over every cycle of every trial (`energy_loss_j`)."""
+
+    energy_loss_j: FloatArray
+
+    @property
+    def energy_mean_j(self) -> float:
+        """Its mean; NaN without a cycle."""
+        return float(np.mean(self.energy_loss_j)) if self.energy_loss_j.size else float("nan")
+
+    @property
+    def energy_std_j(self) -> float:
+        """Its sample standard deviation (spread across cycles and trials); NaN with fewer than two cycles."""
+        return float(np.std(self.energy_loss_j, ddof=1)) if self.energy_loss_j.size > 1 else float("nan")
 
 
 @dataclass(frozen=True)
@@ -187,9 +195,6 @@ class BoucWenFit(FittedCurve):
     beta: tuple[float, ...]
     rmse_nm: float
     r2: float
-    A_std: float
-    n_std: float
-    beta_std: tuple[float, ...]
     cv_rmse_nm: tuple[float, ...]
     n_starts: int
     # the fit's evidence (absent from older archives: NaN / empty / False)
@@ -209,11 +214,6 @@ class BoucWenFit(FittedCurve):
     # what the loops determine: (name, unit, value, 95 % low, 95 % high) per functional
     parameter_identified: tuple[bool, ...] = ()
     functionals: tuple[tuple[str, str, float, float, float], ...] = ()
-
-    @property
-    def cv_rmse_mean_nm(self) -> float:
-        """Mean held-out-trial RMSE (NaN when there was a single trial)."""
-        return float(np.mean(self.cv_rmse_nm)) if self.cv_rmse_nm else float("nan")
 
 
 @dataclass(frozen=True)
@@ -239,7 +239,7 @@ class ElementFit(FittedCurve):
 
 
 @dataclass(frozen=True)
-class Configuration:
+class Configuration(_EnergyPerCycle):
     """One joint's part of one row of the test matrix (Appendix A, Table 5): the row's identity and
     settings, and that joint's trials and results. A configuration driving several joints is one
     `Configuration` per joint, each with the same key."""
@@ -261,20 +261,7 @@ class Configuration:
     element_fit: ElementFit | None
     angle_min_deg: float
     angle_max_deg: float
-    torque_slope_nm_per_deg: float
-    trajectory_json: str = (
-        ""  # the plan's JSON of the first recorded brace-on trial's trajectory ("" if none)
-    )
-
-    @property
-    def energy_mean_j(self) -> float:
-        """Mean energy lost per cycle over every cycle of every trial (Eq 10-12); NaN if none."""
-        return energy_mean_std_j(self.energy_loss_j)[0]
-
-    @property
-    def energy_std_j(self) -> float:
-        """Sample standard deviation of the energy per cycle (spread across cycles and trials)."""
-        return energy_mean_std_j(self.energy_loss_j)[1]
+    trajectory_json: str = ""  # the plan's JSON of the first recorded brace-on trial's trajectory
 
     @property
     def has_data(self) -> bool:
@@ -291,7 +278,7 @@ class Configuration:
 
 
 @dataclass(frozen=True)
-class JointsTotal:
+class JointsTotal(_EnergyPerCycle):
     """The energy lost per cycle by all the driven joints of a configuration together (its
     `total_energy_loss_j` and `total_energy_cycle_trial`, docs/archive.md "Several joints": for each trial,
     the sum over the joints of their k-th complete cycle's energy)."""
@@ -299,16 +286,6 @@ class JointsTotal:
     key: int
     energy_loss_j: FloatArray
     energy_cycle_trial: FloatArray
-
-    @property
-    def energy_mean_j(self) -> float:
-        """Mean energy lost per cycle by all joints together, over every cycle of every trial; NaN if none."""
-        return energy_mean_std_j(self.energy_loss_j)[0]
-
-    @property
-    def energy_std_j(self) -> float:
-        """Sample standard deviation of that energy per cycle (spread across cycles and trials)."""
-        return energy_mean_std_j(self.energy_loss_j)[1]
 
 
 @dataclass(frozen=True)
@@ -349,10 +326,6 @@ class ReportData:
     def joint_configurations(self, key: int) -> tuple[Configuration, ...]:
         """Every joint's part of configuration `key`, in channel order (empty if the archive has none)."""
         return tuple(cfg for cfg in self.configurations if cfg.key == key)
-
-    def of_joint(self, joint: str) -> tuple[Configuration, ...]:
-        """Joint `joint`'s part of every configuration, in key order."""
-        return tuple(cfg for cfg in self.configurations if cfg.joint == joint)
 
     def total(self, key: int) -> JointsTotal | None:
         """The energy of all joints together of configuration `key`, or None (a single joint, or none
