@@ -23,8 +23,12 @@ the quantity's suffix; a list such as a range [lo, hi] is written `lo;hi`), tria
 trial means with its 95 % t-interval and between-trial CV (`report.headline`, the numbers of the report's
 summary table), the angle reached and the Bouc-Wen fit quality.
 
-`models.csv`, `elements.csv`, `predictions.csv`: the model comparison, the element model's parameters
-with their intervals and the declared predictions (`report.model_tables`).
+`models.csv`: one row per configuration, joint and model (`elements`, `dahl`, `bouc_wen`) of `fits/models`
+(`analysis.model_comparison`). `elements.csv`: one row per fitted element parameter of `fits/element_model`
+with its 95 % interval and whether the data identify it (`analysis.model_fit`; the brakes appear once, as
+their sum, e.g. element `brake+hinge`). `predictions.csv`: one row per declared `report.predictions` pair
+and model (`report.predictions`; the Bouc-Wen row has its RMSE only; the joint of a single joint's
+prediction is the archive's first).
 
 Public API: export_tables(archive, output_dir) -> tuple[Path, ...]
 """
@@ -45,13 +49,15 @@ import numpy as np
 from protocol_runner.analysis.cycles import complete_cycles
 from protocol_runner.analysis.validation import AnalysisError
 from protocol_runner.archive.diskfull import DiskFull, is_disk_full
+from protocol_runner.archive.model_results import read_element_model, read_models
 from protocol_runner.archive.outputs import create_new, refuse_special, temporary_beside
 from protocol_runner.archive.paths import joint_groups
 from protocol_runner.errors import InvalidInput
+from protocol_runner.report.h5read import attr_str
 from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.model import BraceOffMatch, Configuration, ReportData
-from protocol_runner.report.model_tables import model_tables
+from protocol_runner.report.predictions import prediction_row, predictions
 
 if TYPE_CHECKING:
     from protocol_runner.protocol.only import KeySelection
@@ -95,6 +101,40 @@ STAT_COLUMNS = (
     "angle_max_deg",
     "bouc_wen_rmse_nm",
     "bouc_wen_r2",
+)
+
+MODEL_COLUMNS = (
+    "configuration",
+    "joint",
+    "model",
+    "k",
+    "rmse_nm",
+    "heldout_rmse_nm",
+    "aic",
+    "bic",
+    "energy_model_j",
+    "energy_data_j",
+)
+ELEMENT_COLUMNS = (
+    "configuration",
+    "joint",
+    "element",
+    "parameter",
+    "value",
+    "ci95_low",
+    "ci95_high",
+    "identified",
+)
+PREDICTION_COLUMNS = (
+    "from_configuration",
+    "to_configuration",
+    "joint",
+    "model",
+    "rmse_nm",
+    "energy_predicted_j",
+    "energy_predicted_ci95_low_j",
+    "energy_predicted_ci95_high_j",
+    "energy_measured_j",
 )
 
 
@@ -258,9 +298,46 @@ def _configuration_rows(data: ReportData) -> tuple[list[str], list[list[object]]
     return columns, rows
 
 
+Table = tuple[str, Sequence[str], list[list[object]]]
+
+
+def _model_tables(archive: Path, protocol_text: str) -> tuple[Table, ...]:
+    """The rows of models.csv, elements.csv and predictions.csv of `archive`, each as (file name, columns,
+    rows); a number that does not exist is NaN."""
+    models: list[list[object]] = []
+    elements: list[list[object]] = []
+    with h5py.File(archive, "r") as h5:
+        archive_joints = attr_str(h5.attrs, "joint")
+        configs = h5.get("configurations")
+        for name in sorted(configs) if isinstance(configs, h5py.Group) else ():
+            key = int(configs[name].attrs.get("key", int(name.rsplit("_", 1)[-1])))
+            for joint, owner in joint_groups(configs[name], archive_joints):
+                if "fits/models" in owner:
+                    for row in read_models(owner["fits/models"]):
+                        models.append([key, joint, *(row[c] for c in MODEL_COLUMNS[2:])])
+                if "fits/element_model" in owner:
+                    for row in read_element_model(owner["fits/element_model"]):
+                        elements.append([key, joint, *(row[c] for c in ELEMENT_COLUMNS[2:])])
+    archive_joint = archive_joints.split(",")[0].strip()
+    rows: list[list[object]] = []
+    for p in predictions(archive, protocol_text, figures=False):
+        head = [p.fit_key, p.predict_key, p.joint or archive_joint]
+        if p.element is not None:
+            row = prediction_row(p)
+            rows.append(
+                [*head, "elements", row["element_rmse_nm"], *(row[c] for c in PREDICTION_COLUMNS[5:])]
+            )
+        rows.append([*head, "bouc_wen", p.rmse_nm, *[math.nan] * 4])
+    return (
+        ("models.csv", MODEL_COLUMNS, models),
+        ("elements.csv", ELEMENT_COLUMNS, elements),
+        ("predictions.csv", PREDICTION_COLUMNS, rows),
+    )
+
+
 def export_tables(archive: Path, output_dir: Path, *, only: KeySelection | None = None) -> tuple[Path, ...]:
     """Write cycles.csv, trials.csv, configurations.csv and the model tables (models.csv, elements.csv,
-    predictions.csv: `report.model_tables`) of `archive` into `output_dir`; return them.
+    predictions.csv) of `archive` into `output_dir`; return them.
     With `only` (`--only`), the rows of those configuration keys alone.
 
     Raises `InvalidInput` for an unreadable archive, a key of `only` the archive does not hold, or an
@@ -276,7 +353,7 @@ def export_tables(archive: Path, output_dir: Path, *, only: KeySelection | None 
             data, configurations=tuple(c for c in data.configurations if c.key in keys)
         )
     output_dir.mkdir(parents=True, exist_ok=True)
-    models = model_tables(Path(data.session.archive_path), data.protocol_text)
+    models = _model_tables(Path(data.session.archive_path), data.protocol_text)
     if only is not None:  # rows of the kept configurations (a prediction: from or to one of them)
         kept = {c.key for c in data.configurations}
         models = tuple(
