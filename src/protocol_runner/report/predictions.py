@@ -23,11 +23,11 @@ from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
-import yaml
 
 from ..archive.model_results import stored_device, strings
 from ..archive.paths import joint_groups
-from .declared import protocol_document
+from ..protocol.schema import PredictionSpec
+from .declared import declared_entries
 
 if TYPE_CHECKING:
     from ..models.bouc_wen.backbone import Backbone, FixedBackbone
@@ -80,22 +80,9 @@ OVERLAY_POINTS = 1500
 
 
 def declared_pairs(protocol_text: str) -> list[tuple[int, int, str]]:
-    """`report.predictions` of the protocol as run (already validated when it ran)."""
-    try:
-        doc = protocol_document(protocol_text)
-    except yaml.YAMLError:
-        return []
-    report = doc.get("report") if isinstance(doc, dict) else None
-    items = report.get("predictions") if isinstance(report, dict) else None
-    out = []
-    for item in items if isinstance(items, list) else []:
-        if (
-            isinstance(item, dict)
-            and isinstance(item.get("fit"), int)
-            and isinstance(item.get("predict"), int)
-        ):
-            out.append((int(item["fit"]), int(item["predict"]), str(item.get("note", ""))))
-    return out
+    """`report.predictions` of the protocol as run (validated when it ran; an invalid entry is left out)."""
+    specs, _ = declared_entries(protocol_text, ("report", "predictions"), PredictionSpec)
+    return [(s.fit, s.predict, s.note) for s in specs]
 
 
 def _model(g: h5py.Group) -> tuple[BoucWenParams, Backbone | FixedBackbone | None]:

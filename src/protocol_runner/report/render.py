@@ -28,9 +28,8 @@ from markupsafe import Markup, escape
 from protocol_runner import __version__
 from protocol_runner.analysis.reference import load_reference_dataset
 from protocol_runner.protocol.plan_steps import Comparison
-from protocol_runner.report.citations import declared_citations
 from protocol_runner.report.comparison_values import comparison_axis
-from protocol_runner.report.declared import declared_text
+from protocol_runner.report.declared import declared_citations, declared_text
 from protocol_runner.report.differences import declared_differences, declared_repeatability
 from protocol_runner.report.figure_plan import (
     Drawn,
