@@ -127,10 +127,6 @@ class EventBus:
             out["seq"] = self.seq
         return out
 
-    @property
-    def n_clients(self) -> int:
-        return len(self._clients)
-
     # ------------------------------------------------------------------------------------ pump
 
     def start(self) -> None:

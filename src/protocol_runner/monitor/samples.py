@@ -59,7 +59,6 @@ class SampleTap:
         sink: Callable[[dict[str, Any]], None],
         *,
         scan_channels: Sequence[int] | None = None,
-        rate_hz: float = SAMPLE_RATE_HZ,
     ) -> None:
         if not joints:
             raise ValueError("a sample tap needs at least one joint")
@@ -79,10 +78,10 @@ class SampleTap:
             for j in self.joints
         ]
         first = self.joints[0]
-        self._period = 1.0 / rate_hz
+        self._period = 1.0 / SAMPLE_RATE_HZ
         self._in_rate = float(first.input_rate_hz)
         self._out_rate = float(first.output_rate_hz)
-        self._stride = max(1, round(self._in_rate / rate_hz))
+        self._stride = max(1, round(self._in_rate / SAMPLE_RATE_HZ))
         self._cmd: npt.NDArray[np.float64] = np.zeros((1, 1))
         self._t0 = 0.0
         self._next = -math.inf

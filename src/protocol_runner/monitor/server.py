@@ -106,8 +106,6 @@ class MonitorServer(ThreadingHTTPServer):
         bus: EventBus,
         *,
         token: str | None,
-        max_connections: int = MAX_CONNECTIONS,
-        operator_connections: int = OPERATOR_CONNECTIONS,
         max_pending: int = MAX_PENDING,
         request_deadline_s: float = REQUEST_DEADLINE_S,
     ) -> None:
@@ -116,8 +114,6 @@ class MonitorServer(ThreadingHTTPServer):
         self.token = token
         self.token_required = token is not None and not address.loopback
         self.loopback = address.loopback
-        self.max_connections = max_connections
-        self.operator_connections = operator_connections
         self.max_pending = max_pending
         self.request_deadline_s = request_deadline_s
         self.page = Page()
@@ -192,10 +188,10 @@ class MonitorServer(ThreadingHTTPServer):
         """A place to answer a request in: a shared one, else for a token holder one of those kept for
         the token. Yields False (and counts a rejection) when there is none."""
         with self._lock:
-            if self.active < self.max_connections:
+            if self.active < MAX_CONNECTIONS:
                 pool = "shared"
                 self.active += 1
-            elif operator and self.active_operator < self.operator_connections:
+            elif operator and self.active_operator < OPERATOR_CONNECTIONS:
                 pool = "kept"
                 self.active_operator += 1
             else:
@@ -214,8 +210,8 @@ class MonitorServer(ThreadingHTTPServer):
         with self._lock:
             return {
                 "connections": self.active + self.active_operator,
-                "max_connections": self.max_connections,
-                "operator_connections": self.operator_connections,
+                "max_connections": MAX_CONNECTIONS,
+                "operator_connections": OPERATOR_CONNECTIONS,
                 "pending_requests": len(self._pending),
                 "max_pending_requests": self.max_pending,
                 "request_deadline_s": self.request_deadline_s,
@@ -270,7 +266,7 @@ class _Handler(BaseHTTPRequestHandler):
             if not admitted:
                 self._text(
                     503,
-                    f"too many connections to the monitor (limit {srv.max_connections}); the URL printed "
+                    f"too many connections to the monitor (limit {MAX_CONNECTIONS}); the URL printed "
                     "on the session's terminal, with its token, has places kept for it\n",
                 )
             else:

@@ -85,7 +85,6 @@ class SessionState:
         self.ended: dict[str, Any] | None = None
         self.verdicts: deque[dict[str, Any]] = deque(maxlen=KEPT_VERDICTS)
         self.events: deque[dict[str, Any]] = deque(maxlen=KEPT_EVENTS)
-        self.n_messages = 0
         self.n_points = 0
         self._chunks: list[_Chunk] = []
         self._latest_t: dict[str, float] = {}
@@ -93,7 +92,6 @@ class SessionState:
         self._open: dict[str, _Chunk] = {}  # each joint's newest chunk
 
     def apply(self, msg: dict[str, Any], points_json: str | None = None) -> None:
-        self.n_messages += 1
         kind = msg.get("type")
         if kind == "samples" and points_json is not None:
             self._keep_samples(msg, points_json)
