@@ -26,13 +26,14 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from protocol_runner.analysis.statistics import WelchInterval, trial_means, welch_interval
+from protocol_runner.analysis.statistics import WelchInterval, welch_interval
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.compare_figure import overlay_figure
+from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.html_file import checked_output, template_environment, write_atomically
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.metrics import trial_values
-from protocol_runner.report.model import Configuration, JointsTotal, ReportData
+from protocol_runner.report.model import Configuration, ReportData
 
 TEMPLATE = "compare.html.j2"
 
@@ -276,33 +277,17 @@ def compare_data(a: ReportData, b: ReportData) -> SessionComparison:
         for ja in a.joint_configurations(ca.key):
             jb = joints_b.get(ja.joint)
             if jb is not None:
-                pairs.append(
-                    Pair(
-                        ja,
-                        jb,
-                        welch_interval(
-                            trial_values(ja, "energy_per_cycle"), trial_values(jb, "energy_per_cycle")
-                        ),
-                        welch_interval(trial_values(ja, "range_reached"), trial_values(jb, "range_reached")),
-                        changed,
-                        ja.joint,
-                    )
+                energy, reach = (
+                    welch_interval(trial_values(ja, m), trial_values(jb, m))
+                    for m in ("energy_per_cycle", "range_reached")
                 )
+                pairs.append(Pair(ja, jb, energy, reach, changed, ja.joint))
         ta, tb = a.total(ca.key), b.total(cb.key)
         several = len(a.joint_configurations(ca.key)) > 1 and len(b.joint_configurations(cb.key)) > 1
         if several and ta is not None and tb is not None:
-            no_range = welch_interval((), ())
-            pairs.append(
-                Pair(ca, cb, welch_interval(_trial_energy(ta), _trial_energy(tb)), no_range, changed, TOTAL)
-            )
+            ea, eb = configuration_stats(ca, ta).trial_energy_j, configuration_stats(cb, tb).trial_energy_j
+            pairs.append(Pair(ca, cb, welch_interval(ea, eb), welch_interval((), ()), changed, TOTAL))
     return SessionComparison(a, b, tuple(pairs))
-
-
-def _trial_energy(total: JointsTotal) -> tuple[float, ...]:
-    """Each trial's energy per cycle of all the joints together (the mean of its cycles' totals)."""
-    if total.energy_cycle_trial.size != total.energy_loss_j.size:
-        return ()
-    return tuple(trial_means(total.energy_loss_j, total.energy_cycle_trial)[1].tolist())
 
 
 def compare_archives(a: Path, b: Path) -> SessionComparison:
