@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 TRACE_WINDOW_S = 15.0
-"""Seconds of the live traces (the issue asks for the last 10-20 s)."""
+"""Seconds of the live traces."""
 MAX_REPLAY_POINTS = 12_000
 """Bound on the samples kept for a new client (about 10 min of one joint at 20 Hz)."""
 MAX_CHUNK_POINTS = 2_000
