@@ -1,22 +1,11 @@
-"""Two sessions side by side: configurations matched by their settings, differences with Welch intervals.
+"""Two sessions side by side (`--compare`, docs/report.md "Session comparison").
 
 Configurations match when their declared settings agree: the trajectory (its name, or its profile when
-unnamed) and the level label of every declared factor (docs/archive.md `settings_json`), not their matrix
-keys and not the physical values behind the labels, so a session with a stiffer brake (same level labels, a
-larger brake torque in the level's quantities) still pairs with the baseline and shows what changed: every
-factor quantity (`<factor>.<quantity>`) and device parameter (`device.<element>.<parameter>`) that differs.
-Several identical configurations on each side pair in key order.
-
-Per matched pair of configurations and per joint both drive (the one joint of a single-joint archive,
-whatever its layout): energy per cycle and range reached, B minus A, on trial values (the trial is the
-unit) with a 95 % Welch interval and its p-value; for configurations driving several joints also the
-energy per cycle of all the joints together (`total_energy_loss_j`; no range: "—"). Each quantity has its own verdict, decided at the
-Bonferroni level for two quantities (p < 0.025, i.e. its 97.5 % interval excludes zero), so that a pair
-of identical configurations is called different (on either quantity) at most 5 % of the time; the pair
-differs when either quantity does, and the verdict names which. Inputs with no configuration in common
-are incomparable (`InvalidInput`, exit 2).
-
-Public API: compare_archives(a, b) -> SessionComparison; render_comparison(result, output) -> Path
+unnamed) and the level label of every declared factor, not their keys nor the physical values behind the
+labels; a pair lists every physical setting that differs. Per matched pair and per joint both drive (and
+all joints together for several): energy per cycle and range reached, B minus A, on trial values with a
+95 % Welch interval and its p-value, each quantity decided at the Bonferroni level `ALPHA_EACH`. Inputs
+with no configuration in common are incomparable (`InvalidInput`, exit 2).
 """
 
 from __future__ import annotations

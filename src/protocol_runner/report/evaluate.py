@@ -1,35 +1,18 @@
 """One generic evaluator: a declared expectation and an archive's data give a verdict with its numbers.
 
-Decision rules (docs/protocol.md "Expectations"), always on trial values (one per trial, the experimental
-unit). Every rule is a test with a p-value at level `ALPHA` (0.05); the interval printed beside each
-statement is the two-sided (1 - 2 ALPHA) = 90 % interval, whose bound is the one-sided 95 % bound the
-test uses, so "the interval lies above zero" and "p <= 0.05" say the same thing before adjustment:
+The decision rules are docs/protocol.md "Expectations", always on trial values (one per trial, the
+experimental unit), each a test with a p-value at level `ALPHA` (0.05). The interval printed beside each
+statement is the two-sided (1 - 2 ALPHA) = 90 % interval, whose bound is the one-sided 95 % bound the test
+uses, so "the interval lies above zero" and "p <= 0.05" say the same thing before adjustment. A statement
+of several parts (the steps of `increasing`, the pairs of `no_trend`, each configuration) takes the
+largest part's p (an intersection-union test). A configuration without `min_trials` trials with the
+metric, or a statement about a device element (`engages`) the measured angles never reach, is `not
+evaluable` with the true reason. With `baseline` (and `than_baseline`) the value is a Welch-Satterthwaite
+contrast (`analysis.statistics.contrast_interval`), e.g. (5 - 1) - (6 - 2).
 
-- every configuration involved needs `min_trials` trials with the metric, else `not evaluable` with the
-  true reason (the configuration is not in the archive, was not run, has no processed trial of the joint,
-  or too few trials with the metric); so does a statement about a device element (`engages`) the measured
-  angles never reach;
-- the data are one joint's: the campaign's only joint, the declared `joint`, or with `joints: all` each
-  driven joint in turn, each a verdict of its own (`Verdict.joint`) and a member of the family below;
-- `increasing` / `decreasing`: EVERY adjacent step of the stated order must go the stated way, each by a
-  one-sided Welch test (b minus a above zero, or below); the statement is the conjunction of its steps,
-  so its p-value is the largest step p (an intersection-union test: no adjustment within it is needed);
-- `greater` / `less`: each statement (a Welch difference with `than`, a contrast with `baseline`, a
-  t-test against `value`) one-sided above (below) its reference; p is the largest;
-- `equal` within `margin`: each difference (or mean minus `value`) is shown equivalent by two one-sided
-  tests (TOST): it is above -margin and below +margin, i.e. its 90 % interval lies inside ±margin;
-- `no_trend` within `margin`: every pair of the configurations is equivalent within ±margin (TOST):
-  no difference between any two exceeds the margin. Absence of a significant trend is not evidence of
-  none; a margin says how flat "no trend" must be, and enough trials must show it;
-- `inside` `[low, high]`: each configuration's mean is above `low` and below `high` (TOST on its mean).
-
-`evaluate_all` takes the campaign's evaluable expectations as one family and adjusts their p-values by
-Holm's step-down method; an expectation is `met` when its adjusted p-value is at most `ALPHA`.
-
-With `baseline` (and `than_baseline`), each configuration's value is its mean minus its baseline's: what a
-setting adds over a baseline. The interval is then the Welch-Satterthwaite interval of the contrast
-(`analysis.statistics.contrast_interval`), e.g. (5 - 1) - (6 - 2) for "the brake adds the same loss at
-both speeds".
+`evaluate_all` takes the campaign's evaluable expectations (one verdict per joint they are decided for)
+as one family and adjusts their p-values by Holm's step-down method; an expectation is `met` when its
+adjusted p-value is at most `ALPHA`.
 """
 
 from __future__ import annotations

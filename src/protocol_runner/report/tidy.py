@@ -1,36 +1,12 @@
-"""Tidy CSV tables of an archive: one row per cycle, per trial and per configuration, units in the names.
+"""Tidy CSV tables of an archive (`--export`, docs/report.md): one row per cycle, per trial and per
+configuration, and the model tables `models.csv`, `elements.csv` and `predictions.csv`; units in the names.
 
-Every table has a `joint` column and holds every driven joint's rows: an archive of several joints
-(docs/archive.md "Several joints") gives one row per configuration, trial or cycle AND joint, each from
-that joint's own data (`configurations/<name>/joints/<joint>`); an archive of one joint names it.
-
-`cycles.csv`: configuration, set, trial, brace, joint, cycle, energy_j, angle_min_deg, angle_max_deg,
-torque_peak_nm. The energy is the archived `energy_loss_j` (Eq 10-12); the angle and torque columns come
-from the trial's archived processed data cut into the same complete cycles (`analysis.cycles`), and are
-left empty when that cut does not give the archived number of cycles (e.g. cycles dropped where the brace
-torque was undefined). `brace` is `on-off`: every value is the brace's own torque, brace-on minus
-brace-off at equal angles (§3.3).
-
-`trials.csv`: one row per trial (and joint) with its cycle count, mean and within-trial standard deviation of the
-energy per cycle, the angle range and peak torque of its processed data, and how well its brace-off twin
-matched it: `brace_off_scaling_error_deg` (the kept run's cycle-range error, docs/analysis.md §3),
-`brace_off_scaling_runs` (robot runs the scaling made), `brace_off_scaling_converged` and
-`clipped_fraction` (share of brace-on samples beyond the brace-off range, given its nearest torque, §4).
-
-`configurations.csv`: one row per configuration (and joint) with its settings (profile, trajectory name, then one column
-per declared factor holding its level label and one per factor quantity, `<factor>.<quantity>`, the unit in
-the quantity's suffix; a list such as a range [lo, hi] is written `lo;hi`), trials, cycles, the mean of
-trial means with its 95 % t-interval and between-trial CV (`report.headline`, the numbers of the report's
-summary table), the angle reached and the Bouc-Wen fit quality.
-
-`models.csv`: one row per configuration, joint and model (`elements`, `dahl`, `bouc_wen`) of `fits/models`
-(`analysis.model_comparison`). `elements.csv`: one row per fitted element parameter of `fits/element_model`
-with its 95 % interval and whether the data identify it (`analysis.model_fit`; the brakes appear once, as
-their sum, e.g. element `brake+hinge`). `predictions.csv`: one row per declared `report.predictions` pair
-and model (`report.predictions`; the Bouc-Wen row has its RMSE only; the joint of a single joint's
-prediction is the archive's first).
-
-Public API: export_tables(archive, output_dir) -> tuple[Path, ...]
+Every table has a `joint` column and holds every driven joint's rows, each from that joint's own data
+(`archive.paths.joint_groups`). The cycles' energy is the archived `energy_loss_j` (Eq 10-12); their angle
+and torque columns come from the trial's archived processed data cut into the same complete cycles
+(`analysis.cycles`), and are left empty when that cut does not give the archived number of cycles. The
+configurations' statistics are `report.headline`'s, the numbers of the report's summary table; a list
+setting such as a range [lo, hi] is written `lo;hi`.
 """
 
 from __future__ import annotations
