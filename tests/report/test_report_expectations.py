@@ -16,8 +16,13 @@ from markupsafe import escape
 from pydantic import ValidationError
 
 from protocol_runner.protocol.expectations import ExpectationSpec, check_expectations
-from protocol_runner.report.evaluate import Verdict, evaluate_all
-from protocol_runner.report.findings import TUNED_LABEL, declared_expectations, evaluate_expectations
+from protocol_runner.report.evaluate import (
+    TUNED_LABEL,
+    Verdict,
+    declared_expectations,
+    evaluate_all,
+    evaluate_expectations,
+)
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import ReportData
@@ -389,7 +394,7 @@ def test_expectations_are_decided_once_per_data_object(
     different data object (the same archive read again, or data changed with `replace`) is decided anew."""
     import dataclasses
 
-    from protocol_runner.report import findings
+    from protocol_runner.report import evaluate as findings
 
     calls: list[ReportData] = []
     real = findings.evaluate_all

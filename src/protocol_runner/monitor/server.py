@@ -1,24 +1,11 @@
 """The monitor's HTTP server: standard library only, on background threads, read-only.
 
-Serves exactly three things: `/` (the page: HTML with its own CSS and script inlined, all shipped in
-`monitor/static/`), `/events` (the Server-Sent Events stream of `bus.py`) and `/status` (the snapshot as
-JSON). Every other path is 404, every method but GET is refused (501), nothing of the session folder is
-served.
-
-Limits, so that no client can starve the others or the operator:
-
-- A request (request line and headers) must arrive whole within `REQUEST_DEADLINE_S` of its connection
-  being accepted, however its bytes trickle in; then the connection is closed.
-- At most `MAX_PENDING` connections may be waiting for their request at once. A new connection beyond
-  that closes the oldest of them first (the one that has taken longest and still has not sent its
-  request), so a crowd of slow or silent connections is shed instead of locking newcomers out.
-- At most `MAX_CONNECTIONS` requests are answered at once (mostly `/events` streams); one more is
-  answered 503. `OPERATOR_CONNECTIONS` more places are kept for requests that carry the token printed
-  on the session's terminal.
-- A write that blocks for `WRITE_TIMEOUT_S` ends the connection.
-
-On a loopback bind the Host header must name loopback (no DNS rebinding) and the token is optional: it
-only earns the kept places. On any other bind every request needs `?token=` (403 without it).
+Serves exactly `/` (the page, with the CSS and script of `monitor/static/` inlined), `/events` (the
+Server-Sent Events stream of `bus.py`) and `/status` (the snapshot as JSON); every other path is 404, every
+method but GET is refused (501). Its limits, so that no client can starve the others or the operator, are
+docs/monitor.md's: a whole-request deadline, the oldest of too many pending connections shed, a bounded
+number of answered requests with places kept for the token, a write timeout. On a loopback bind the Host
+header must name loopback (no DNS rebinding); on any other bind every request needs `?token=`.
 """
 
 from __future__ import annotations

@@ -1,11 +1,7 @@
 """Read an archive (docs/archive.md) into a `ReportData`, with clear errors for anything that is not one.
 
-`load_report_data(path)` accepts `archive.h5` or the session directory holding it. A corrupt, truncated
-or foreign file, or a dataset outside the layout's bounds or not matching its checksum, raises `protocol_runner.errors.InvalidInput` naming the file and what is wrong; an
-archive of an unfinished session (root `status` other than "complete") loads normally and the report
-marks it incomplete.
-
-The session-wide groups are read here, each configuration by `load_configuration.py`, with the small
+An archive of an unfinished session (root `status` other than "complete") loads normally and the report
+marks it incomplete. The session-wide groups are read here, each configuration by `load_configuration.py`, with the small
 attribute readers of `h5read.py`; the checks are `archive/verify.py`'s.
 """
 
@@ -64,13 +60,12 @@ def load_report_data(
 
     `workers` > 1 reads the configurations on that many worker processes (decompressing a full
     campaign's trials is most of the load time); None picks 2 for large archives on a multi-core machine.
-    Raises `InvalidInput` when the file is missing, not HDF5, truncated or corrupt, not a protocol-runner
-    archive (no root attribute `protocol_sha256`), lacks the `/configurations` group, or holds a dataset
-    outside the layout's bounds or a dataset or attribute whose checksum does not match (archive/verify.py):
-    every dataset and attribute is checked before the report uses anything. `verify=False` reads the datasets without checking them
-    (neither checksums nor bounds): only for an archive this process has just consolidated from units
-    whose sha256 it checked against the journal (the session's own report): every byte of it is then
-    known to be what protocol-runner wrote, within its bounds and matching its checksums.
+    Raises `InvalidInput`, naming the file and what is wrong, when it is missing, not HDF5, truncated or
+    corrupt, not a protocol-runner archive (no root attribute `protocol_sha256`), lacks the
+    `/configurations` group, or holds a dataset outside the layout's bounds or a dataset or attribute
+    whose checksum does not match (archive/verify.py): every one is checked before the report uses
+    anything. `verify=False` checks nothing: only for an archive this process has just consolidated from
+    units whose sha256 it checked against the journal (the session's own report).
     """
     archive = resolve_archive(Path(path))
     require_hdf5(archive)

@@ -54,14 +54,8 @@ def _read_recording(joint: h5py.Group, shared: h5py.Group) -> Recording:
 
 
 def _trial_numbers(*trials: h5py.Group | None) -> list[tuple[int, str]]:
-    numbered: set[tuple[int, str]] = set()
-    for group in trials:
-        for name in group or ():
-            try:
-                numbered.add((int(name), name))
-            except ValueError:
-                continue
-    return sorted(numbered)
+    """(number, name) of every trial group (a name of digits) under any of `trials`, in number order."""
+    return sorted({(int(name), name) for group in trials for name in group or () if name.isdecimal()})
 
 
 def read_configuration(
@@ -78,7 +72,7 @@ def read_configuration(
     if "total_energy_loss_j" in grp and len(configs) > 1:  # one joint: its own energy is the total
         energy = float_ds(grp, "total_energy_loss_j")
         total = JointsTotal(
-            key=configs[0].key if configs else group_fields(name, grp.attrs, 0)["key"],
+            key=configs[0].key,
             energy_loss_j=read_only(energy),
             energy_cycle_trial=read_only(_cycle_trials(grp, "total_energy_cycle_trial", energy.size)),
         )

@@ -32,7 +32,7 @@ def _finite(value: float) -> float | None:
 def record_verdicts(archive: Path, data: ReportData | None = None) -> int:
     """Evaluate `archive`'s declared expectations and (re)write `/expectations`; return how many.
     `data` is the archive as `load_report_data` reads it, when the caller has already read it."""
-    from protocol_runner.report.findings import evaluate_expectations
+    from protocol_runner.report.evaluate import evaluate_expectations
     from protocol_runner.report.load import load_report_data
 
     result = evaluate_expectations(data if data is not None else load_report_data(Path(archive), workers=1))
