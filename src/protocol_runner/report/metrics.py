@@ -1,15 +1,5 @@
-"""The metric library: one value per trial of a configuration (the trial is the experimental unit).
-
-| metric | unit | one value per trial |
-|---|---|---|
-| `energy_per_cycle` | J | mean energy lost per complete cycle (Eq 10-12, `energy_loss_j`) |
-| `energy_per_degree` | J/deg | energy per cycle over the trial's range reached (1st-99th percentile) |
-| `torque_angle_slope` | N·m/deg | least-squares slope of brace torque against angle |
-| `angle_percentile` | deg | the `percentile`-th percentile of the angle reached (99: upper end) |
-| `range_reached` | deg | 99th minus 1st percentile of the angle reached |
-| `peak_torque` | N·m | largest absolute brace torque |
-| `hysteresis_width` | N·m | torque gap between flexion and extension within ±2° of `angle_deg` |
-| `fit_rmse` | N·m | Bouc-Wen held-out-trial RMSE (the fit's RMSE when there was one trial) |
+"""The metric library of docs/protocol.md "Expectations": one value per trial of a configuration (the
+trial is the experimental unit), with `UNITS` and readable `LABELS`.
 
 `range_reached`, `energy_per_degree`, `torque_angle_slope` and `peak_torque` come from every stored sample
 of the trial (computed when the archive is read: `range_of`, `slope_of`, `peak_of`). `angle_percentile` and

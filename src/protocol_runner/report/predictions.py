@@ -1,16 +1,12 @@
-"""Model prediction across configurations: configuration B predicted from a model fitted on A. The pairs
-are declared in the protocol (`report.predictions`); the numbers come from the archive alone.
+"""Model prediction across configurations (docs/analysis.md "Prediction across configurations"):
+configuration B predicted from a model fitted on A, for the pairs the protocol declares
+(`report.predictions`); the numbers come from the archive alone.
 
-* The element model (physics): A's fitted element parameters (`fits/element_model`) carried to B with the
-  declared change A -> B (`models.element_model.transfer`: a parameter declared equal keeps A's fitted
-  value, a changed torque/stiffness/damping takes the declared factor, a changed angle or length the
-  declared shift), then run along B's recorded motion (its processed trials). Gives the RMSE against B's
-  measured torque and the energy per cycle with a 95 % interval propagated from A's parameter covariance
-  plus the parameter's configuration-to-configuration spread across the campaign (`reproducibility`:
-  configurations declaring the same value of it) — PREDICTION_DRAWS parameter sets drawn from that
-  covariance, the 2.5 and 97.5 percentiles of their energies — beside B's measured energy per cycle.
-* The generalised Bouc-Wen model: A's parameters and backbone on B's centred loops (its RMSE), for
-  comparison: a polynomial backbone and the Bouc-Wen state do not extrapolate to another range."""
+* The element model: A's fitted element parameters carried to B with the declared change A -> B
+  (`models.element_model.transfer`), run along B's processed trials: the RMSE against B's measured torque
+  and the energy per cycle with a 95 % interval (PREDICTION_DRAWS parameter sets drawn from A's covariance
+  plus each parameter's spread across the campaign, `reproducibility`).
+* The generalised Bouc-Wen model: A's parameters and backbone on B's centred loops (its RMSE)."""
 
 from __future__ import annotations
 
