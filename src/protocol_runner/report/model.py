@@ -178,11 +178,6 @@ class FittedCurve:
     torque_nm: FloatArray
     model_torque_nm: FloatArray
 
-    @property
-    def has_curve(self) -> bool:
-        """True when there is a model curve to draw (angles and the model's torques)."""
-        return self.angle_deg.size > 0 and self.model_torque_nm.size > 0
-
 
 @dataclass(frozen=True)
 class BoucWenFit(FittedCurve):
@@ -233,8 +228,8 @@ class ElementFit(FittedCurve):
 
     @property
     def drawable(self) -> bool:
-        """True when the fit applies and has a model curve to draw."""
-        return self.applicable and self.has_curve
+        """True when the fit applies and has a model curve to draw (angles and the model's torques)."""
+        return self.applicable and self.angle_deg.size > 0 and self.model_torque_nm.size > 0
 
 
 @dataclass(frozen=True)
@@ -330,7 +325,3 @@ class ReportData:
         """The energy of all joints together of configuration `key`, or None (a single joint, or none
         recorded)."""
         return next((t for t in self.totals if t.key == key), None)
-
-    def comparison(self, name: str) -> Comparison | None:
-        """The comparison called `name`, or None."""
-        return next((comp for comp in self.comparisons if comp.name == name), None)
