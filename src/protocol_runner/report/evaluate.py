@@ -168,16 +168,14 @@ def _tested(spec: ExpectationSpec, data: ReportData, joint: str) -> Verdict:
     if joint not in _joints(data):
         return Verdict(spec, NOT_EVALUABLE, _no_joint(spec, data), (), joint=joint)
     values: dict[int, tuple[float, ...]] = {}
-    intervals: dict[int, TInterval] = {}
     for key in keys:
         cfg = data.configuration(key, joint)
-        vals = (
+        values[key] = (
             ()
             if cfg is None
             else trial_values(cfg, spec.metric, percentile=spec.percentile, angle_deg=spec.angle_deg)
         )
-        values[key] = vals
-        intervals[key] = t_interval(vals)
+    intervals = {key: t_interval(v) for key, v in values.items()}
     evidence = tuple(Evidence(k, i.n, i.mean, i.low, i.high) for k, i in intervals.items())
     short = [k for k in keys if intervals[k].n < spec.min_trials]
     problems: list[str] = []
