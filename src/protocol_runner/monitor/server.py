@@ -43,20 +43,17 @@ def _sha256_source(text: str) -> str:
     return "'sha256-" + base64.b64encode(hashlib.sha256(text.encode()).digest()).decode() + "'"
 
 
-class Page:
-    """The page, assembled once from the packaged assets, with a Content-Security-Policy that allows
-    exactly its own inline style and script and connections to this server only."""
-
-    def __init__(self) -> None:
-        static = resources.files(__package__) / "static"
-        html = (static / "index.html").read_text(encoding="utf-8")
-        css = (static / "monitor.css").read_text(encoding="utf-8")
-        js = (static / "monitor.js").read_text(encoding="utf-8")
-        self.body = html.replace("/*STYLE*/", css).replace("/*SCRIPT*/", js).encode()
-        self.csp = (
-            f"default-src 'none'; script-src {_sha256_source(js)}; style-src {_sha256_source(css)}; "
-            "connect-src 'self'; img-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"
-        )
+def _page() -> tuple[bytes, str]:
+    """The page, assembled from the packaged assets, and a Content-Security-Policy that allows exactly its
+    own inline style and script and connections to this server only."""
+    static = resources.files(__package__) / "static"
+    html = (static / "index.html").read_text(encoding="utf-8")
+    css = (static / "monitor.css").read_text(encoding="utf-8")
+    js = (static / "monitor.js").read_text(encoding="utf-8")
+    return html.replace("/*STYLE*/", css).replace("/*SCRIPT*/", js).encode(), (
+        f"default-src 'none'; script-src {_sha256_source(js)}; style-src {_sha256_source(css)}; "
+        "connect-src 'self'; img-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"
+    )
 
 
 class _DeadlineReader(io.RawIOBase):
@@ -103,7 +100,7 @@ class MonitorServer(ThreadingHTTPServer):
         self.loopback = address.loopback
         self.max_pending = max_pending
         self.request_deadline_s = request_deadline_s
-        self.page = Page()
+        self.page, self.csp = _page()  # assembled once
         self.active = 0  # requests answered, in the shared places
         self.active_operator = 0  # and in the places kept for the token
         self.rejected = 0
@@ -262,7 +259,7 @@ class _Handler(BaseHTTPRequestHandler):
     def _answer(self, path: str) -> None:
         srv = self.server
         if path in ("/", "/index.html"):
-            self._send(200, "text/html; charset=utf-8", srv.page.body, csp=srv.page.csp)
+            self._send(200, "text/html; charset=utf-8", srv.page, csp=srv.csp)
         elif path == "/events":
             self._stream()
         else:
