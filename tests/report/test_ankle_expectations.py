@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from protocol_runner.commands import run
-from protocol_runner.report.findings import TUNED_LABEL
+from protocol_runner.report.evaluate import TUNED_LABEL
 
 PROTOCOLS = Path(__file__).resolve().parents[2] / "protocols"
 ONLY = [1, 2, 3, 4, 5, 6, 7, 8, 13, 14]

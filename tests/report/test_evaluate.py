@@ -11,9 +11,14 @@ import pytest
 from scipy import stats
 
 from protocol_runner.protocol.expectations import ExpectationSpec
-from protocol_runner.report.evaluate import evaluate_all, evaluate_expectation, metric_label
+from protocol_runner.report.evaluate import Verdict, evaluate_all, metric_label
 from protocol_runner.report.model import Configuration, ReportData, SessionInfo, Trial
 from protocol_runner.report.settings_view import DeviceElement, SettingsView
+
+
+def evaluate_expectation(spec: ExpectationSpec, data: ReportData) -> Verdict:
+    """`spec` decided on `data` alone (a single-joint archive: a family of one)."""
+    return evaluate_all([spec], data)[0]
 
 
 def cfg(key: int, trial_means: list[float]) -> Configuration:
@@ -37,7 +42,6 @@ def cfg(key: int, trial_means: list[float]) -> Configuration:
         element_fit=None,
         angle_min_deg=math.nan,
         angle_max_deg=math.nan,
-        torque_slope_nm_per_deg=math.nan,
     )
 
 

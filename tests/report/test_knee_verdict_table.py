@@ -17,7 +17,7 @@ import h5py
 import pytest
 
 from protocol_runner.analysis.statistics import holm
-from protocol_runner.report.findings import TUNED_LABEL, evaluate_expectations
+from protocol_runner.report.evaluate import TUNED_LABEL, evaluate_expectations
 from protocol_runner.report.load import load_report_data
 
 from ..short_knee import short_knee_session

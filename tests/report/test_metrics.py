@@ -8,8 +8,6 @@ torque the band's edge at 100 deg.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
@@ -39,9 +37,6 @@ def fit(rmse: float, cv: tuple[float, ...]) -> BoucWenFit:
         beta=(),
         rmse_nm=rmse,
         r2=0.9,
-        A_std=0.0,
-        n_std=0.0,
-        beta_std=(),
         cv_rmse_nm=cv,
         n_starts=1,
     )
@@ -72,7 +67,6 @@ def config(
         element_fit=None,
         angle_min_deg=LOW,
         angle_max_deg=HIGH,
-        torque_slope_nm_per_deg=math.nan,
     )
 
 

@@ -16,13 +16,24 @@ from markupsafe import escape
 from pydantic import ValidationError
 
 from protocol_runner.protocol.expectations import ExpectationSpec, check_expectations
-from protocol_runner.report.evaluate import evaluate_expectation
-from protocol_runner.report.findings import TUNED_LABEL, declared_expectations, evaluate_expectations
+from protocol_runner.report.evaluate import (
+    TUNED_LABEL,
+    Verdict,
+    declared_expectations,
+    evaluate_all,
+    evaluate_expectations,
+)
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import ReportData
 from protocol_runner.report.render import generate_report
 from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, thesis_like_specs, write_archive
+
+
+def evaluate_expectation(spec: ExpectationSpec, data: ReportData) -> Verdict:
+    """`spec` decided on `data` alone (a single-joint archive: a family of one)."""
+    return evaluate_all([spec], data)[0]
+
 
 KNEE_YAML = Path(__file__).resolve().parents[2] / "protocols" / "knee_phase1.yaml"
 
@@ -383,7 +394,7 @@ def test_expectations_are_decided_once_per_data_object(
     different data object (the same archive read again, or data changed with `replace`) is decided anew."""
     import dataclasses
 
-    from protocol_runner.report import findings
+    from protocol_runner.report import evaluate as findings
 
     calls: list[ReportData] = []
     real = findings.evaluate_all

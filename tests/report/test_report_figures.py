@@ -66,7 +66,7 @@ def test_a_two_panel_figure_is_drawn_again_byte_for_byte(small_archive: Path) ->
 
 def test_bar_chart_after_a_line_chart_restores_numeric_ticks(small_archive: Path) -> None:
     data = load_report_data(small_archive)
-    friction = data.comparison("friction")
+    friction = next(c for c in data.comparisons if c.name == "friction")
     assert friction is not None
     bars = energy_bars_figure(data, friction)
     hysteresis_figure(_config(small_archive, 4))
@@ -124,7 +124,7 @@ def test_a_range_quantity_is_a_label_and_a_scalar_one_a_numeric_axis(tmp_path: P
 
 def test_energy_figure_puts_each_configuration_at_its_factor_value(small_archive: Path, monkeypatch) -> None:
     data = load_report_data(small_archive)
-    friction = data.comparison("friction")
+    friction = next(c for c in data.comparisons if c.name == "friction")
     assert friction is not None
     fig = _drawn(monkeypatch, lambda: energy_bars_figure(data, friction))
     (ax,) = fig.axes
@@ -193,7 +193,7 @@ def test_element_fits_are_drawn_for_the_comparisons_that_change_a_fitted_element
     # the springs (the fitted element) differ only across the stiffness group; the friction group
     # changes the brake, which is not fitted
     assert [c.name for c in model_comparisons(data)] == ["stiffness"]
-    comp = data.comparison("stiffness")
+    comp = next(c for c in data.comparisons if c.name == "stiffness")
     assert comp is not None
     fig = _drawn(monkeypatch, lambda: element_fit_figure(data, comp))
     (ax,) = fig.axes

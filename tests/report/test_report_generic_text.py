@@ -8,8 +8,7 @@ import dataclasses
 import re
 from pathlib import Path
 
-from protocol_runner.report.load import load_report_data
-from protocol_runner.report.load_session import _parse_event
+from protocol_runner.report.load import _parse_event, load_report_data
 from protocol_runner.report.render import render_html
 from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, write_archive
 

@@ -223,7 +223,7 @@ def test_archived_reference_is_drawn_alone_and_on_every_comparison_overlay(
     real = drawing.to_data_uri
     monkeypatch.setattr(drawing, "to_data_uri", lambda fig: drawn.append(fig) or real(fig))
     data = load_report_data(archive)
-    comp = data.comparison("friction")
+    comp = next(c for c in data.comparisons if c.name == "friction")
     assert comp is not None
     figures_compare.comparison_overlay_figure(data, comp)
     labels = [line.get_label() for line in drawn[-1].axes[0].get_lines()]

@@ -16,13 +16,13 @@ from protocol_runner.protocol.settings import (
     Settings,
     configuration_attributes,
 )
+from protocol_runner.protocol.units import unit_suffix
 from protocol_runner.report.settings_view import (
     axis_label,
     format_quantity,
     quantity_title,
     settings_from_attrs,
     unit_label,
-    unit_suffix,
 )
 
 # an invented campaign: nothing here is a knee name, and the reader must not care
@@ -96,7 +96,7 @@ def test_units_come_from_the_longest_matching_suffix() -> None:
     assert unit_suffix("max_accel_deg_s2") == "_deg_s2"
     assert unit_suffix("speed_deg_s") == "_deg_s"
     assert unit_suffix("range_deg") == "_deg"
-    assert unit_suffix("deg") == ""  # a bare unit word names no quantity
+    assert unit_suffix("deg") is None  # a bare unit word names no quantity
     assert unit_label("friction_nm") == "N·m"
     assert unit_label("stiffness_n_per_mm") == "N/mm"
     assert unit_label("preload_index") == ""

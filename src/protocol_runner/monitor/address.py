@@ -15,7 +15,6 @@ from dataclasses import dataclass
 from ..errors import InvalidInput
 
 DEFAULT_HOST = "127.0.0.1"
-DEFAULT_PORT = 8765
 
 _USAGE = "give [HOST:]PORT, e.g. --monitor 8765 or --monitor 127.0.0.1:8765 (IPv6: --monitor [::1]:8765)"
 

@@ -1,16 +1,10 @@
-"""The event bus between the session and the page's clients.
+"""The event bus between the session and the page's clients (docs/monitor.md).
 
 `publish` and `publish_samples` are what the session calls: a deque append (and, for the rare control
-messages, setting an event), never a lock held by anyone else, never I/O. A pump thread wakes every
-`INTERVAL_S` (or at once for a control message), merges the samples of each joint's run queued between
-two control messages, numbers and encodes each message once, updates the `SessionState` and hands the
-encoded frame to every client's bounded queue. A client whose queue is full (it stopped reading, or reads slower than the session
-publishes) is dropped: its socket is shut down and its handler thread ends; nobody waits for it.
-
-When the pump falls behind (a dry run in simulated time publishes far faster than any page can draw),
-samples beyond `SAMPLE_BACKLOG` queued messages are discarded and counted, and a merged burst keeps its
-newest `MAX_MERGED_POINTS`; control messages (steps, progress, verdicts, events, the end) are never
-discarded.
+messages, setting an event), never a lock held by anyone else, never I/O. A pump thread merges the samples
+queued between two control messages, numbers and encodes each message once, updates the `SessionState`
+and hands the encoded frame to every client's bounded queue; a client whose queue is full is dropped, and
+nobody waits for it. When the pump falls behind, samples are discarded and counted; control messages never.
 """
 
 from __future__ import annotations
@@ -126,10 +120,6 @@ class EventBus:
             out["dropped_clients"] = self.dropped_clients
             out["seq"] = self.seq
         return out
-
-    @property
-    def n_clients(self) -> int:
-        return len(self._clients)
 
     # ------------------------------------------------------------------------------------ pump
 

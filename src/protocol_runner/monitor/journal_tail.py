@@ -16,9 +16,9 @@ MAX_READ = 1 << 20
 
 
 class JournalTail:
-    def __init__(self, path: Path, *, from_end: bool = True) -> None:
+    def __init__(self, path: Path) -> None:
         self.path = path
-        self._offset = path.stat().st_size if from_end and path.exists() else 0
+        self._offset = path.stat().st_size if path.exists() else 0  # the past is not replayed
         self._rest = b""
 
     def __call__(self) -> list[dict[str, Any]]:
@@ -39,24 +39,17 @@ class JournalTail:
                 rec = json.loads(line)
             except ValueError:
                 continue
-            if not isinstance(rec, dict):
+            if not isinstance(rec, dict) or rec.get("record") not in ("event", "invalidate"):
                 continue
-            if rec.get("record") == "event":
-                out.append(
-                    {
-                        "type": "event",
-                        "kind": str(rec.get("kind", "")),
-                        "detail": str(rec.get("detail", "")),
-                        "t_utc": str(rec.get("t_utc", "")),
-                    }
-                )
-            elif rec.get("record") == "invalidate":
-                out.append(
-                    {
-                        "type": "event",
-                        "kind": "redo",
-                        "detail": f"{rec.get('step_id', '?')}: {rec.get('why', '')}",
-                        "t_utc": str(rec.get("t_utc", "")),
-                    }
-                )
+            redo = rec["record"] == "invalidate"
+            out.append(
+                {
+                    "type": "event",
+                    "kind": "redo" if redo else str(rec.get("kind", "")),
+                    "detail": f"{rec.get('step_id', '?')}: {rec.get('why', '')}"
+                    if redo
+                    else str(rec.get("detail", "")),
+                    "t_utc": str(rec.get("t_utc", "")),
+                }
+            )
         return out

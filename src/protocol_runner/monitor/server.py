@@ -1,24 +1,11 @@
 """The monitor's HTTP server: standard library only, on background threads, read-only.
 
-Serves exactly three things: `/` (the page: HTML with its own CSS and script inlined, all shipped in
-`monitor/static/`), `/events` (the Server-Sent Events stream of `bus.py`) and `/status` (the snapshot as
-JSON). Every other path is 404, every method but GET is refused (501), nothing of the session folder is
-served.
-
-Limits, so that no client can starve the others or the operator:
-
-- A request (request line and headers) must arrive whole within `REQUEST_DEADLINE_S` of its connection
-  being accepted, however its bytes trickle in; then the connection is closed.
-- At most `MAX_PENDING` connections may be waiting for their request at once. A new connection beyond
-  that closes the oldest of them first (the one that has taken longest and still has not sent its
-  request), so a crowd of slow or silent connections is shed instead of locking newcomers out.
-- At most `MAX_CONNECTIONS` requests are answered at once (mostly `/events` streams); one more is
-  answered 503. `OPERATOR_CONNECTIONS` more places are kept for requests that carry the token printed
-  on the session's terminal.
-- A write that blocks for `WRITE_TIMEOUT_S` ends the connection.
-
-On a loopback bind the Host header must name loopback (no DNS rebinding) and the token is optional: it
-only earns the kept places. On any other bind every request needs `?token=` (403 without it).
+Serves exactly `/` (the page, with the CSS and script of `monitor/static/` inlined), `/events` (the
+Server-Sent Events stream of `bus.py`) and `/status` (the snapshot as JSON); every other path is 404, every
+method but GET is refused (501). Its limits, so that no client can starve the others or the operator, are
+docs/monitor.md's: a whole-request deadline, the oldest of too many pending connections shed, a bounded
+number of answered requests with places kept for the token, a write timeout. On a loopback bind the Host
+header must name loopback (no DNS rebinding); on any other bind every request needs `?token=`.
 """
 
 from __future__ import annotations
@@ -56,20 +43,17 @@ def _sha256_source(text: str) -> str:
     return "'sha256-" + base64.b64encode(hashlib.sha256(text.encode()).digest()).decode() + "'"
 
 
-class Page:
-    """The page, assembled once from the packaged assets, with a Content-Security-Policy that allows
-    exactly its own inline style and script and connections to this server only."""
-
-    def __init__(self) -> None:
-        static = resources.files(__package__) / "static"
-        html = (static / "index.html").read_text(encoding="utf-8")
-        css = (static / "monitor.css").read_text(encoding="utf-8")
-        js = (static / "monitor.js").read_text(encoding="utf-8")
-        self.body = html.replace("/*STYLE*/", css).replace("/*SCRIPT*/", js).encode()
-        self.csp = (
-            f"default-src 'none'; script-src {_sha256_source(js)}; style-src {_sha256_source(css)}; "
-            "connect-src 'self'; img-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"
-        )
+def _page() -> tuple[bytes, str]:
+    """The page, assembled from the packaged assets, and a Content-Security-Policy that allows exactly its
+    own inline style and script and connections to this server only."""
+    static = resources.files(__package__) / "static"
+    html = (static / "index.html").read_text(encoding="utf-8")
+    css = (static / "monitor.css").read_text(encoding="utf-8")
+    js = (static / "monitor.js").read_text(encoding="utf-8")
+    return html.replace("/*STYLE*/", css).replace("/*SCRIPT*/", js).encode(), (
+        f"default-src 'none'; script-src {_sha256_source(js)}; style-src {_sha256_source(css)}; "
+        "connect-src 'self'; img-src 'self'; base-uri 'none'; form-action 'none'; frame-ancestors 'none'"
+    )
 
 
 class _DeadlineReader(io.RawIOBase):
@@ -106,8 +90,6 @@ class MonitorServer(ThreadingHTTPServer):
         bus: EventBus,
         *,
         token: str | None,
-        max_connections: int = MAX_CONNECTIONS,
-        operator_connections: int = OPERATOR_CONNECTIONS,
         max_pending: int = MAX_PENDING,
         request_deadline_s: float = REQUEST_DEADLINE_S,
     ) -> None:
@@ -116,11 +98,9 @@ class MonitorServer(ThreadingHTTPServer):
         self.token = token
         self.token_required = token is not None and not address.loopback
         self.loopback = address.loopback
-        self.max_connections = max_connections
-        self.operator_connections = operator_connections
         self.max_pending = max_pending
         self.request_deadline_s = request_deadline_s
-        self.page = Page()
+        self.page, self.csp = _page()  # assembled once
         self.active = 0  # requests answered, in the shared places
         self.active_operator = 0  # and in the places kept for the token
         self.rejected = 0
@@ -192,10 +172,10 @@ class MonitorServer(ThreadingHTTPServer):
         """A place to answer a request in: a shared one, else for a token holder one of those kept for
         the token. Yields False (and counts a rejection) when there is none."""
         with self._lock:
-            if self.active < self.max_connections:
+            if self.active < MAX_CONNECTIONS:
                 pool = "shared"
                 self.active += 1
-            elif operator and self.active_operator < self.operator_connections:
+            elif operator and self.active_operator < OPERATOR_CONNECTIONS:
                 pool = "kept"
                 self.active_operator += 1
             else:
@@ -214,8 +194,8 @@ class MonitorServer(ThreadingHTTPServer):
         with self._lock:
             return {
                 "connections": self.active + self.active_operator,
-                "max_connections": self.max_connections,
-                "operator_connections": self.operator_connections,
+                "max_connections": MAX_CONNECTIONS,
+                "operator_connections": OPERATOR_CONNECTIONS,
                 "pending_requests": len(self._pending),
                 "max_pending_requests": self.max_pending,
                 "request_deadline_s": self.request_deadline_s,
@@ -270,7 +250,7 @@ class _Handler(BaseHTTPRequestHandler):
             if not admitted:
                 self._text(
                     503,
-                    f"too many connections to the monitor (limit {srv.max_connections}); the URL printed "
+                    f"too many connections to the monitor (limit {MAX_CONNECTIONS}); the URL printed "
                     "on the session's terminal, with its token, has places kept for it\n",
                 )
             else:
@@ -279,7 +259,7 @@ class _Handler(BaseHTTPRequestHandler):
     def _answer(self, path: str) -> None:
         srv = self.server
         if path in ("/", "/index.html"):
-            self._send(200, "text/html; charset=utf-8", srv.page.body, csp=srv.page.csp)
+            self._send(200, "text/html; charset=utf-8", srv.page, csp=srv.csp)
         elif path == "/events":
             self._stream()
         else:

@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 TRACE_WINDOW_S = 15.0
-"""Seconds of the live traces (the issue asks for the last 10-20 s)."""
+"""Seconds of the live traces."""
 MAX_REPLAY_POINTS = 12_000
 """Bound on the samples kept for a new client (about 10 min of one joint at 20 Hz)."""
 MAX_CHUNK_POINTS = 2_000
@@ -85,7 +85,6 @@ class SessionState:
         self.ended: dict[str, Any] | None = None
         self.verdicts: deque[dict[str, Any]] = deque(maxlen=KEPT_VERDICTS)
         self.events: deque[dict[str, Any]] = deque(maxlen=KEPT_EVENTS)
-        self.n_messages = 0
         self.n_points = 0
         self._chunks: list[_Chunk] = []
         self._latest_t: dict[str, float] = {}
@@ -93,7 +92,6 @@ class SessionState:
         self._open: dict[str, _Chunk] = {}  # each joint's newest chunk
 
     def apply(self, msg: dict[str, Any], points_json: str | None = None) -> None:
-        self.n_messages += 1
         kind = msg.get("type")
         if kind == "samples" and points_json is not None:
             self._keep_samples(msg, points_json)

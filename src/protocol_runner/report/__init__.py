@@ -2,8 +2,8 @@
 
     model.py     ReportData: frozen dataclasses holding everything the report shows
     load.py      load_report_data(path) (checked by archive/verify.py)
-    findings.py  evaluate_expectations(data): the protocol's expectations decided on the data
-    citations.py declared_citations(text): what the protocol cites beside each report part
+    evaluate.py  evaluate_expectations(data): the protocol's expectations decided on the data
+    declared.py  declared_citations(text), ...: what the archived protocol declares for the report
     figures.py   render_figures(data): matplotlib (Agg) figures as PNG data URIs
     parallel.py  map_in_processes(...): worker processes with a serial fallback
     render.py    generate_report(archive, output=None), render_report(data, output): jinja2 -> one HTML file

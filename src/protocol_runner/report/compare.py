@@ -1,22 +1,11 @@
-"""Two sessions side by side: configurations matched by their settings, differences with Welch intervals.
+"""Two sessions side by side (`--compare`, docs/report.md "Session comparison").
 
 Configurations match when their declared settings agree: the trajectory (its name, or its profile when
-unnamed) and the level label of every declared factor (docs/archive.md `settings_json`), not their matrix
-keys and not the physical values behind the labels, so a session with a stiffer brake (same level labels, a
-larger brake torque in the level's quantities) still pairs with the baseline and shows what changed: every
-factor quantity (`<factor>.<quantity>`) and device parameter (`device.<element>.<parameter>`) that differs.
-Several identical configurations on each side pair in key order.
-
-Per matched pair of configurations and per joint both drive (the one joint of a single-joint archive,
-whatever its layout): energy per cycle and range reached, B minus A, on trial values (the trial is the
-unit) with a 95 % Welch interval and its p-value; for configurations driving several joints also the
-energy per cycle of all the joints together (`total_energy_loss_j`; no range: "—"). Each quantity has its own verdict, decided at the
-Bonferroni level for two quantities (p < 0.025, i.e. its 97.5 % interval excludes zero), so that a pair
-of identical configurations is called different (on either quantity) at most 5 % of the time; the pair
-differs when either quantity does, and the verdict names which. Inputs with no configuration in common
-are incomparable (`InvalidInput`, exit 2).
-
-Public API: compare_archives(a, b) -> SessionComparison; render_comparison(result, output) -> Path
+unnamed) and the level label of every declared factor, not their keys nor the physical values behind the
+labels; a pair lists every physical setting that differs. Per matched pair and per joint both drive (and
+all joints together for several): energy per cycle and range reached, B minus A, on trial values with a
+95 % Welch interval and its p-value, each quantity decided at the Bonferroni level `ALPHA_EACH`. Inputs
+with no configuration in common are incomparable (`InvalidInput`, exit 2).
 """
 
 from __future__ import annotations
@@ -26,13 +15,14 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from protocol_runner.analysis.statistics import WelchInterval, trial_means, welch_interval
+from protocol_runner.analysis.statistics import WelchInterval, welch_interval
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.compare_figure import overlay_figure
+from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.html_file import checked_output, template_environment, write_atomically
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.metrics import trial_values
-from protocol_runner.report.model import Configuration, JointsTotal, ReportData
+from protocol_runner.report.model import Configuration, ReportData
 
 TEMPLATE = "compare.html.j2"
 
@@ -276,33 +266,17 @@ def compare_data(a: ReportData, b: ReportData) -> SessionComparison:
         for ja in a.joint_configurations(ca.key):
             jb = joints_b.get(ja.joint)
             if jb is not None:
-                pairs.append(
-                    Pair(
-                        ja,
-                        jb,
-                        welch_interval(
-                            trial_values(ja, "energy_per_cycle"), trial_values(jb, "energy_per_cycle")
-                        ),
-                        welch_interval(trial_values(ja, "range_reached"), trial_values(jb, "range_reached")),
-                        changed,
-                        ja.joint,
-                    )
+                energy, reach = (
+                    welch_interval(trial_values(ja, m), trial_values(jb, m))
+                    for m in ("energy_per_cycle", "range_reached")
                 )
+                pairs.append(Pair(ja, jb, energy, reach, changed, ja.joint))
         ta, tb = a.total(ca.key), b.total(cb.key)
         several = len(a.joint_configurations(ca.key)) > 1 and len(b.joint_configurations(cb.key)) > 1
         if several and ta is not None and tb is not None:
-            no_range = welch_interval((), ())
-            pairs.append(
-                Pair(ca, cb, welch_interval(_trial_energy(ta), _trial_energy(tb)), no_range, changed, TOTAL)
-            )
+            ea, eb = configuration_stats(ca, ta).trial_energy_j, configuration_stats(cb, tb).trial_energy_j
+            pairs.append(Pair(ca, cb, welch_interval(ea, eb), welch_interval((), ()), changed, TOTAL))
     return SessionComparison(a, b, tuple(pairs))
-
-
-def _trial_energy(total: JointsTotal) -> tuple[float, ...]:
-    """Each trial's energy per cycle of all the joints together (the mean of its cycles' totals)."""
-    if total.energy_cycle_trial.size != total.energy_loss_j.size:
-        return ()
-    return tuple(trial_means(total.energy_loss_j, total.energy_cycle_trial)[1].tolist())
 
 
 def compare_archives(a: Path, b: Path) -> SessionComparison:

@@ -1,15 +1,8 @@
 """What a declared comparison varies, read from the compared configurations' settings (docs/report.md
-"Comparisons").
-
-A comparison (`/comparisons/<name>`, declared in the protocol's report section) names a `parameter`: a
-declared factor, or "trajectory". Its configurations are labelled by that factor's level label and the
-value of its AXIS QUANTITY: the first quantity of the factor (declaration order) whose value differs
-between the compared configurations (the first quantity when none differs). A scalar quantity is its
-value, which places the configuration on a numeric axis ("3.75 N·m"); a list quantity (a range
-[lo, hi]) is shown as a label ("40–90 deg") on a categorical axis. The figure's axis label is the
-factor, the quantity and the unit from the quantity's suffix. Other factors whose level also differs
-within the comparison are added to each label, so a group that pairs two factors stays readable.
-With "trajectory", the label is the configuration's trajectory name (its profile when unnamed).
+"Comparisons"): the factor's level label and the value of its axis quantity, on a numeric axis when every
+configuration has a finite scalar value of it; other factors whose level also differs within the
+comparison are added to each label. With "trajectory", the label is the configuration's trajectory name
+(its profile when unnamed).
 """
 
 from __future__ import annotations

@@ -3,6 +3,11 @@
 The report is made from the archive alone, so sections such as `expectations:` and `report.repeatability:`
 are parsed again from `/protocol/text`. An archive whose text is not YAML, or an entry that does not
 validate, gives a message instead of an error: the report still renders and says what it could not read.
+
+A campaign that reproduces a source (the knee reproduces the 2007 thesis) names in `report.citations`, per
+report part, where the source shows the same thing ("thesis Figures 41-46"); the report prints it beside
+that part. Nothing is cited unless the protocol says so: an ankle or elbow report shows no knee-thesis
+figure numbers.
 """
 
 from __future__ import annotations
@@ -12,6 +17,8 @@ from typing import Any, TypeVar
 
 import yaml
 from pydantic import BaseModel, ValidationError
+
+from protocol_runner.protocol.schema import CitationsSpec
 
 Spec = TypeVar("Spec", bound=BaseModel)
 
@@ -77,24 +84,36 @@ def declared_entries(
     return tuple(specs), tuple(problems)
 
 
-def declared_text(protocol_text: str, key: str) -> str:
-    """A top-level text of the archived protocol (`title`, `description`); "" when it has none or the text
-    is not readable YAML."""
+def _declared_node(protocol_text: str, path: tuple[str, ...]) -> Any:
+    """The value at `path` (keys from the top) of an archived protocol text; None when it has none or the
+    text is not readable YAML."""
     try:
         node = protocol_document(protocol_text)
     except yaml.YAMLError:
-        return ""
-    value = node.get(key) if isinstance(node, dict) else None
+        return None
+    for key in path:
+        node = node.get(key) if isinstance(node, dict) else None
+    return node
+
+
+def declared_text(protocol_text: str, key: str) -> str:
+    """A top-level text of the archived protocol (`title`, `description`); "" when it has none."""
+    value = _declared_node(protocol_text, (key,))
     return value.strip() if isinstance(value, str) else ""
 
 
 def declared_count(protocol_text: str, path: tuple[str, ...]) -> int:
-    """How many entries the list at `path` of an archived protocol text has (0 when there is none, or the
-    text is not readable YAML)."""
-    try:
-        node = protocol_document(protocol_text)
-    except yaml.YAMLError:
-        return 0
-    for key in path:
-        node = node.get(key) if isinstance(node, dict) else None
+    """How many entries the list at `path` of an archived protocol text has (0 when there is none)."""
+    node = _declared_node(protocol_text, path)
     return len(node) if isinstance(node, list) else 0
+
+
+def declared_citations(protocol_text: str) -> dict[str, str]:
+    """Every report part a protocol can cite (`protocol.schema.CitationsSpec`) mapped to its citation text
+    ("" when none is declared, or the text is unreadable)."""
+    declared = _declared_node(protocol_text, ("report", "citations"))
+    declared = declared if isinstance(declared, dict) else {}
+    return {
+        part: text.strip() if isinstance(text := declared.get(part), str) else ""
+        for part in CitationsSpec.model_fields
+    }

@@ -1,17 +1,11 @@
-"""Within-report statistics that involve several configurations, the trial as the unit.
+"""Within-report statistics that involve several configurations, the trial as the unit (docs/report.md).
 
-- Differences: for each declared comparison, the energy per cycle of configuration b minus configuration a
-  for each of its declared `pairs` (a, b), in their order (a paired design: 12 against 1, 13 against 2),
-  or else each configuration minus the one before it in the declared order (adjacent differences), for
-  each joint (and all joints together) when there are several; with
-  the 95 % Welch interval on trial means (`analysis.statistics.welch_interval`) and its two-sided p-value,
-  Holm-adjusted over the differences of that comparison (one table, one family).
-- Repeatability: for each group the protocol declares in `report.repeatability` (configurations with
-  identical settings run in different sets, checked by `--validate`), the between-set coefficient of
-  variation of the configurations' means and the one-way random-effects ICC(1) of their trial means
-  (`analysis.statistics.repeatability`).
-
-Public API: declared_differences(data, comparison), declared_repeatability(data)
+- Differences: for each declared comparison, configuration b minus configuration a in energy per cycle for
+  each declared pair (a, b), else each configuration minus the one before it, per joint (and all joints
+  together) when there are several; 95 % Welch interval on trial means and its two-sided p-value,
+  Holm-adjusted over the comparison's rows (one table, one family).
+- Repeatability: for each group declared in `report.repeatability`, the between-set CV of the
+  configurations' means and the ICC(1) of their trial means (`analysis.statistics.repeatability`).
 """
 
 from __future__ import annotations

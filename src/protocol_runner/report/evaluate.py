@@ -1,41 +1,26 @@
 """One generic evaluator: a declared expectation and an archive's data give a verdict with its numbers.
 
-Decision rules (docs/protocol.md "Expectations"), always on trial values (one per trial, the experimental
-unit). Every rule is a test with a p-value at level `ALPHA` (0.05); the interval printed beside each
-statement is the two-sided (1 - 2 ALPHA) = 90 % interval, whose bound is the one-sided 95 % bound the
-test uses, so "the interval lies above zero" and "p <= 0.05" say the same thing before adjustment:
+The decision rules are docs/protocol.md "Expectations", always on trial values (one per trial, the
+experimental unit), each a test with a p-value at level `ALPHA` (0.05). The interval printed beside each
+statement is the two-sided (1 - 2 ALPHA) = 90 % interval, whose bound is the one-sided 95 % bound the test
+uses, so "the interval lies above zero" and "p <= 0.05" say the same thing before adjustment. A statement
+of several parts (the steps of `increasing`, the pairs of `no_trend`, each configuration) takes the
+largest part's p (an intersection-union test). A configuration without `min_trials` trials with the
+metric, or a statement about a device element (`engages`) the measured angles never reach, is `not
+evaluable` with the true reason. With `baseline` (and `than_baseline`) the value is a Welch-Satterthwaite
+contrast (`analysis.statistics.contrast_interval`), e.g. (5 - 1) - (6 - 2).
 
-- every configuration involved needs `min_trials` trials with the metric, else `not evaluable` with the
-  true reason (the configuration is not in the archive, was not run, has no processed trial of the joint,
-  or too few trials with the metric); so does a statement about a device element (`engages`) the measured
-  angles never reach;
-- the data are one joint's: the campaign's only joint, the declared `joint`, or with `joints: all` each
-  driven joint in turn, each a verdict of its own (`Verdict.joint`) and a member of the family below;
-- `increasing` / `decreasing`: EVERY adjacent step of the stated order must go the stated way, each by a
-  one-sided Welch test (b minus a above zero, or below); the statement is the conjunction of its steps,
-  so its p-value is the largest step p (an intersection-union test: no adjustment within it is needed);
-- `greater` / `less`: each statement (a Welch difference with `than`, a contrast with `baseline`, a
-  t-test against `value`) one-sided above (below) its reference; p is the largest;
-- `equal` within `margin`: each difference (or mean minus `value`) is shown equivalent by two one-sided
-  tests (TOST): it is above -margin and below +margin, i.e. its 90 % interval lies inside ±margin;
-- `no_trend` within `margin`: every pair of the configurations is equivalent within ±margin (TOST):
-  no difference between any two exceeds the margin. Absence of a significant trend is not evidence of
-  none; a margin says how flat "no trend" must be, and enough trials must show it;
-- `inside` `[low, high]`: each configuration's mean is above `low` and below `high` (TOST on its mean).
-
-`evaluate_all` takes the campaign's evaluable expectations as one family and adjusts their p-values by
-Holm's step-down method; an expectation is `met` when its adjusted p-value is at most `ALPHA`.
-
-With `baseline` (and `than_baseline`), each configuration's value is its mean minus its baseline's: what a
-setting adds over a baseline. The interval is then the Welch-Satterthwaite interval of the contrast
-(`analysis.statistics.contrast_interval`), e.g. (5 - 1) - (6 - 2) for "the brake adds the same loss at
-both speeds".
+`evaluate_all` takes the campaign's evaluable expectations (one verdict per joint they are decided for)
+as one family and adjusts their p-values by Holm's step-down method; an expectation is `met` when its
+adjusted p-value is at most `ALPHA`. `evaluate_expectations` decides the expectations of the protocol as
+archived (`/protocol`): nothing here knows any campaign's configuration key, factor level or threshold.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import combinations, pairwise
@@ -52,6 +37,7 @@ from protocol_runner.analysis.statistics import (
 )
 from protocol_runner.protocol.expectations import ExpectationSpec
 from protocol_runner.protocol.only import key_spans
+from protocol_runner.report.declared import declared_entries
 from protocol_runner.report.metrics import LABELS, UNITS, trial_values
 from protocol_runner.report.model import Configuration, ReportData
 from protocol_runner.report.settings_view import DeviceElement
@@ -135,14 +121,6 @@ def metric_label(spec: ExpectationSpec) -> str:
     return label
 
 
-def evaluate_expectation(spec: ExpectationSpec, data: ReportData) -> Verdict:
-    """The verdict of `spec` on `data` alone, as a family of one (never raises for missing data:
-    `not evaluable` says why); of `joints: all`, the first driven joint's (`evaluate_all` gives each joint's).
-    `evaluate_all` decides a campaign's expectations together."""
-    v = _tested(spec, data, joints_of(spec, data)[0])
-    return v if v.verdict == NOT_EVALUABLE else _adjusted(v, v.p_value, 1)
-
-
 def joints_of(spec: ExpectationSpec, data: ReportData) -> tuple[str, ...]:
     """The joints `spec` is decided for, one verdict each: its `joint`, every joint of the archive for
     `joints: all`, else the archive's joints when it has one ("" when it names several: not evaluable)."""
@@ -190,16 +168,14 @@ def _tested(spec: ExpectationSpec, data: ReportData, joint: str) -> Verdict:
     if joint not in _joints(data):
         return Verdict(spec, NOT_EVALUABLE, _no_joint(spec, data), (), joint=joint)
     values: dict[int, tuple[float, ...]] = {}
-    intervals: dict[int, TInterval] = {}
     for key in keys:
         cfg = data.configuration(key, joint)
-        vals = (
+        values[key] = (
             ()
             if cfg is None
             else trial_values(cfg, spec.metric, percentile=spec.percentile, angle_deg=spec.angle_deg)
         )
-        values[key] = vals
-        intervals[key] = t_interval(vals)
+    intervals = {key: t_interval(v) for key, v in values.items()}
     evidence = tuple(Evidence(k, i.n, i.mean, i.low, i.high) for k, i in intervals.items())
     short = [k for k in keys if intervals[k].n < spec.min_trials]
     problems: list[str] = []
@@ -342,59 +318,36 @@ def _ordered(keys: Sequence[int], intervals: dict[int, TInterval], unit: str) ->
     return f"means in the stated order ({', '.join(str(k) for k in keys)}): {text} {unit}"
 
 
-def _one_sided(w: WelchInterval, sign: float, ref: float) -> float:
-    return p_above(w, ref) if sign > 0 else p_below(w, ref)
-
-
 def _tost(w: WelchInterval, centre: float, margin: float) -> float:
     return max(p_above(w, centre - margin), p_below(w, centre + margin))
 
 
-def _trend(
+def _steps(
     spec: ExpectationSpec, values: dict[int, tuple[float, ...]], intervals: dict[int, TInterval], unit: str
 ) -> tuple[float, str]:
+    """`increasing` / `decreasing`: each adjacent step of the stated order by a one-sided Welch test;
+    `no_trend`: each pair by TOST within ±margin. The largest p decides."""
+    trend = spec.relation != "no_trend"
     sign = 1.0 if spec.relation == "increasing" else -1.0
-    order = list(dict.fromkeys(spec.configurations))
-    parts: list[str] = []
-    ps: list[float] = []
-    for a, b in pairwise(order):
-        w = contrast_interval([(-1.0, values[a]), (1.0, values[b])], TEST_CONFIDENCE)
-        p = _one_sided(w, sign, 0.0)
-        ps.append(p)
-        fails = "" if p <= ALPHA else " (fails)"
-        parts.append(
-            f"{b} minus {a}: {_fmt(w.difference)} {unit}, 90 % Welch interval {_ival(w.low, w.high, unit)}, "
-            f"one-sided p {format_p(p)}{fails}"
-        )
-    way = "above" if sign > 0 else "below"
-    text = (
-        f"{_ordered(order, intervals, unit)}; {'; '.join(parts)} "
-        f"(every step must lie {way} zero, one-sided Welch; the largest step p decides)"
-    )
-    return max(ps, default=math.nan), text
-
-
-def _no_trend(
-    spec: ExpectationSpec, values: dict[int, tuple[float, ...]], intervals: dict[int, TInterval], unit: str
-) -> tuple[float, str]:
     margin = spec.margin or 0.0
     order = list(dict.fromkeys(spec.configurations))
     parts: list[str] = []
     ps: list[float] = []
-    for a, b in combinations(order, 2):
+    for a, b in pairwise(order) if trend else combinations(order, 2):
         w = contrast_interval([(-1.0, values[a]), (1.0, values[b])], TEST_CONFIDENCE)
-        p = _tost(w, 0.0, margin)
+        p = (p_above(w, 0.0) if sign > 0 else p_below(w, 0.0)) if trend else _tost(w, 0.0, margin)
         ps.append(p)
         fails = "" if p <= ALPHA else " (fails)"
         parts.append(
             f"{b} minus {a}: {_fmt(w.difference)} {unit}, 90 % Welch interval {_ival(w.low, w.high, unit)}, "
-            f"TOST p {format_p(p)}{fails}"
+            f"{'one-sided' if trend else 'TOST'} p {format_p(p)}{fails}"
         )
-    text = (
-        f"{_ordered(order, intervals, unit)}; {'; '.join(parts)} "
-        f"(every pair's 90 % interval must lie inside ±{margin:g} {unit}: two one-sided Welch tests)"
-    )
-    return max(ps, default=math.nan), text
+    if trend:
+        way = "above" if sign > 0 else "below"
+        rule = f"every step must lie {way} zero, one-sided Welch; the largest step p decides"
+    else:
+        rule = f"every pair's 90 % interval must lie inside ±{margin:g} {unit}: two one-sided Welch tests"
+    return max(ps, default=math.nan), f"{_ordered(order, intervals, unit)}; {'; '.join(parts)} ({rule})"
 
 
 def _decide(
@@ -402,10 +355,8 @@ def _decide(
 ) -> tuple[float, str]:
     """The expectation's p-value (the largest of its statements') and the text of its numbers."""
     r = spec.relation
-    if r in ("increasing", "decreasing"):
-        return _trend(spec, values, intervals, unit)
-    if r == "no_trend":
-        return _no_trend(spec, values, intervals, unit)
+    if r in ("increasing", "decreasing", "no_trend"):
+        return _steps(spec, values, intervals, unit)
     parts: list[str] = []
     ps: list[float] = []
     for i, key in enumerate(spec.configurations):
@@ -466,3 +417,50 @@ def _criterion(spec: ExpectationSpec, unit: str) -> str:
         return f" (the 90 % interval must lie within ±{spec.margin:g} {unit} of {target}: TOST)"
     side = "above" if r == "greater" else "below"
     return f" (the 90 % interval must lie wholly {side} {target}: one-sided test)"
+
+
+#: Label shown beside a dry run's verdict that follows from a simulator value chosen to reproduce it.
+TUNED_LABEL = "depends on a simulator value chosen to reproduce it"
+
+
+@dataclass(frozen=True)
+class Expectations:
+    """The verdicts of every valid declaration, and one message per declaration that could not be read."""
+
+    verdicts: tuple[Verdict, ...]
+    problems: tuple[str, ...]
+    dry_run: bool
+
+    def tuned(self, verdict: Verdict) -> bool:
+        """True when the report must say the verdict depends on a simulator value chosen to reproduce it
+        (dry runs only; `simulator_tuned`, `depends_on_simulator` or `tuned` declared)."""
+        return self.dry_run and verdict.spec.depends_on_tuning
+
+    def tuned_detail(self, verdict: Verdict) -> str:
+        """What the declaration names as chosen: the simulator values, then its `tuned` note ("" if none)."""
+        if not self.tuned(verdict):
+            return ""
+        return "; ".join(
+            p for p in (", ".join(verdict.spec.depends_on_simulator), verdict.spec.tuned.strip()) if p
+        )
+
+
+def declared_expectations(protocol_text: str) -> tuple[tuple[ExpectationSpec, ...], tuple[str, ...]]:
+    """The `expectations:` of an archived protocol text, and a message per entry that is not valid."""
+    return declared_entries(protocol_text, ("expectations",), ExpectationSpec)
+
+
+def evaluate_expectations(data: ReportData) -> Expectations:
+    """Every declared expectation of `data`'s archived protocol, decided on `data`: once per `data` object
+    (the session's recorded verdicts and its report, rendered next, decide them on the same one; the data
+    are frozen, so the verdicts are the same)."""
+    for seen, result in _LAST:
+        if seen() is data:
+            return result
+    specs, problems = declared_expectations(data.protocol_text)
+    result = Expectations(evaluate_all(specs, data), problems, data.session.mode == "dry-run")
+    _LAST[:] = [(weakref.ref(data), result)]
+    return result
+
+
+_LAST: list[tuple[weakref.ref[ReportData], Expectations]] = []

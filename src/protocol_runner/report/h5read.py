@@ -27,16 +27,12 @@ def decimate_for_plot(values: np.ndarray, max_points: int = MAX_PLOT_POINTS) -> 
 # --------------------------------------------------------------------------------------------- internals
 
 
-def is_group(obj: Any) -> bool:
-    return isinstance(obj, h5py.Group)
-
-
 def subgroups(parent: h5py.Group, path: str = ".") -> list[tuple[str, h5py.Group]]:
     """(name, group) of every group directly under `parent[path]` (default: `parent` itself), in stored
     order; none when the path is absent (datasets beside them are passed over)."""
     if path not in parent:
         return []
-    return [(name, obj) for name, obj in parent[path].items() if is_group(obj)]
+    return [(name, obj) for name, obj in parent[path].items() if isinstance(obj, h5py.Group)]
 
 
 def decode(value: Any) -> Any:

@@ -54,14 +54,8 @@ def _read_recording(joint: h5py.Group, shared: h5py.Group) -> Recording:
 
 
 def _trial_numbers(*trials: h5py.Group | None) -> list[tuple[int, str]]:
-    numbered: set[tuple[int, str]] = set()
-    for group in trials:
-        for name in group or ():
-            try:
-                numbered.add((int(name), name))
-            except ValueError:
-                continue
-    return sorted(numbered)
+    """(number, name) of every trial group (a name of digits) under any of `trials`, in number order."""
+    return sorted({(int(name), name) for group in trials for name in group or () if name.isdecimal()})
 
 
 def read_configuration(
@@ -78,7 +72,7 @@ def read_configuration(
     if "total_energy_loss_j" in grp and len(configs) > 1:  # one joint: its own energy is the total
         energy = float_ds(grp, "total_energy_loss_j")
         total = JointsTotal(
-            key=configs[0].key if configs else group_fields(name, grp.attrs, 0)["key"],
+            key=configs[0].key,
             energy_loss_j=read_only(energy),
             energy_cycle_trial=read_only(_cycle_trials(grp, "total_energy_cycle_trial", energy.size)),
         )
@@ -157,7 +151,7 @@ def _read_joint(
                 match=brace_off_match(sides.get("brace_off"), pgrp),
             )
         )
-    angle_min, angle_max, slope = _summary(angles, torques)
+    angle_min, angle_max = _angle_span(angles, torques)
     fits = results if results is not None else {}
     energy = float_ds(results, "energy_loss_j") if results is not None else read_only(np.empty(0))
     cycle_trial = _cycle_trials(results, "energy_cycle_trial", energy.size) if results is not None else energy
@@ -172,7 +166,6 @@ def _read_joint(
         element_fit=_read_element_fit(fits["fits/elements"], name) if "fits/elements" in fits else None,
         angle_min_deg=angle_min,
         angle_max_deg=angle_max,
-        torque_slope_nm_per_deg=slope,
         trajectory_json=trajectory_json,
     )
 
@@ -217,28 +210,14 @@ def _key_from_name(name: str) -> int:
     return int(digits) if digits else 0
 
 
-def _summary(angles: list[np.ndarray], torques: list[np.ndarray]) -> tuple[float, float, float]:
-    """Angle range reached and least-squares torque-angle slope (N*m/deg) over all processed samples."""
-    # accumulate the sums of the normal equations trial by trial (no concatenated copy)
-    n = sx = sy = sxx = sxy = 0.0
-    lo, hi = math.inf, -math.inf
-    for angle, torque in zip(angles, torques, strict=True):
-        ok = np.isfinite(angle) & np.isfinite(torque)
-        if not ok.all():
-            angle, torque = angle[ok], torque[ok]
-        if angle.size == 0:
-            continue
-        n += angle.size
-        sx += float(angle.sum())
-        sy += float(torque.sum())
-        sxx += float(np.einsum("i,i->", angle, angle))
-        sxy += float(np.einsum("i,i->", angle, torque))
-        lo, hi = min(lo, float(angle.min())), max(hi, float(angle.max()))
-    if n < 2:
-        return float("nan"), float("nan"), float("nan")
-    denom = sxx - sx * sx / n
-    slope = (sxy - sx * sy / n) / denom if denom > 1e-12 * max(sxx, 1.0) else float("nan")
-    return lo, hi, slope
+def _angle_span(angles: list[np.ndarray], torques: list[np.ndarray]) -> tuple[float, float]:
+    """The lowest and highest processed angle reached (deg) over the samples with a finite angle and torque;
+    NaN with fewer than two such samples."""
+    reached = [a[np.isfinite(a) & np.isfinite(t)] for a, t in zip(angles, torques, strict=True)]
+    reached = [a for a in reached if a.size]
+    if sum(a.size for a in reached) < 2:
+        return math.nan, math.nan
+    return min(float(a.min()) for a in reached), max(float(a.max()) for a in reached)
 
 
 def _read_bouc_wen(grp: h5py.Group) -> BoucWenFit:

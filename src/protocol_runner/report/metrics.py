@@ -1,15 +1,5 @@
-"""The metric library: one value per trial of a configuration (the trial is the experimental unit).
-
-| metric | unit | one value per trial |
-|---|---|---|
-| `energy_per_cycle` | J | mean energy lost per complete cycle (Eq 10-12, `energy_loss_j`) |
-| `energy_per_degree` | J/deg | energy per cycle over the trial's range reached (1st-99th percentile) |
-| `torque_angle_slope` | N·m/deg | least-squares slope of brace torque against angle |
-| `angle_percentile` | deg | the `percentile`-th percentile of the angle reached (99: upper end) |
-| `range_reached` | deg | 99th minus 1st percentile of the angle reached |
-| `peak_torque` | N·m | largest absolute brace torque |
-| `hysteresis_width` | N·m | torque gap between flexion and extension within ±2° of `angle_deg` |
-| `fit_rmse` | N·m | Bouc-Wen held-out-trial RMSE (the fit's RMSE when there was one trial) |
+"""The metric library of docs/protocol.md "Expectations": one value per trial of a configuration (the
+trial is the experimental unit), with `UNITS` and readable `LABELS`.
 
 `range_reached`, `energy_per_degree`, `torque_angle_slope` and `peak_torque` come from every stored sample
 of the trial (computed when the archive is read: `range_of`, `slope_of`, `peak_of`). `angle_percentile` and
@@ -81,21 +71,14 @@ def peak_of(angle_deg: np.ndarray, torque_nm: np.ndarray) -> float:
     return float(np.max(np.abs(t))) if t.size else math.nan
 
 
-def _whole(value: float, p: ProcessedTrial, of: Callable[[np.ndarray, np.ndarray], float]) -> float:
-    """The value from every sample when the reader computed it, else from the plotted copy."""
+def _whole(p: ProcessedTrial, name: str, of: Callable[[np.ndarray, np.ndarray], float]) -> float:
+    """`p`'s field `name`, from every sample when the reader computed it, else `of` the plotted copy."""
+    value = getattr(p, name)
     return value if math.isfinite(value) else of(p.angle_deg, p.brace_torque_nm)
 
 
 def _range(p: ProcessedTrial) -> float:
-    return _whole(p.range_deg, p, range_of)
-
-
-def _slope(p: ProcessedTrial) -> float:
-    return _whole(p.slope_nm_per_deg, p, slope_of)
-
-
-def _peak(p: ProcessedTrial) -> float:
-    return _whole(p.peak_nm, p, peak_of)
+    return _whole(p, "range_deg", range_of)
 
 
 def _hysteresis(p: ProcessedTrial, angle_deg: float) -> float:
@@ -129,9 +112,9 @@ def trial_values(
         values = [] if fit is None else list(fit.cv_rmse_nm) or [fit.rmse_nm]
     else:
         per_trial: dict[str, Callable[[ProcessedTrial], float]] = {
-            "torque_angle_slope": _slope,
+            "torque_angle_slope": lambda p: _whole(p, "slope_nm_per_deg", slope_of),
             "range_reached": _range,
-            "peak_torque": _peak,
+            "peak_torque": lambda p: _whole(p, "peak_nm", peak_of),
             "angle_percentile": lambda p: _percentile(p, percentile),
             "hysteresis_width": lambda p: _hysteresis(p, angle_deg if angle_deg is not None else math.nan),
         }

@@ -20,12 +20,20 @@ from ..protocol.plan_steps import Comparison
 from .settings_view import DeviceElement, Quantity, SettingsView
 
 
-def energy_mean_std_j(energy_loss_j: FloatArray) -> tuple[float, float]:
-    """The mean energy lost per cycle (Eq 10-12) and its sample standard deviation over the cycles of
-    `energy_loss_j`; the mean is NaN without a cycle and the deviation NaN with fewer than two."""
-    n = energy_loss_j.size
-    mean = float(np.mean(energy_loss_j)) if n else float("nan")
-    return mean, float(np.std(energy_loss_j, ddof=1)) if n > 1 else float("nan")
+class _EnergyPerCycle:
+    """The energy lost per cycle (Eq 10-12) over every cycle of every trial (`energy_loss_j`)."""
+
+    energy_loss_j: FloatArray
+
+    @property
+    def energy_mean_j(self) -> float:
+        """Its mean; NaN without a cycle."""
+        return float(np.mean(self.energy_loss_j)) if self.energy_loss_j.size else float("nan")
+
+    @property
+    def energy_std_j(self) -> float:
+        """Its sample standard deviation (spread across cycles and trials); NaN with fewer than two cycles."""
+        return float(np.std(self.energy_loss_j, ddof=1)) if self.energy_loss_j.size > 1 else float("nan")
 
 
 @dataclass(frozen=True)
@@ -125,8 +133,7 @@ class ProcessedTrial:
     brace_torque_nm: FloatArray
     subtraction: str
     filter_text: str = ""  # e.g. "Butterworth low-pass, order 10, cut-off 50.0 Hz, zero-phase"
-    # from every stored sample, not the plotted copy (report/metrics.py: a significance test on the copy's
-    # every k-th sample found differences of 0.02 deg the whole data do not show); NaN when not computed
+    # from every stored sample, not the plotted copy (report/metrics.py); NaN when not computed
     range_deg: float = math.nan  # 99th minus 1st percentile of the angle
     slope_nm_per_deg: float = math.nan  # least-squares slope of brace torque against angle
     peak_nm: float = math.nan  # largest absolute brace torque
@@ -171,11 +178,6 @@ class FittedCurve:
     torque_nm: FloatArray
     model_torque_nm: FloatArray
 
-    @property
-    def has_curve(self) -> bool:
-        """True when there is a model curve to draw (angles and the model's torques)."""
-        return self.angle_deg.size > 0 and self.model_torque_nm.size > 0
-
 
 @dataclass(frozen=True)
 class BoucWenFit(FittedCurve):
@@ -187,9 +189,6 @@ class BoucWenFit(FittedCurve):
     beta: tuple[float, ...]
     rmse_nm: float
     r2: float
-    A_std: float
-    n_std: float
-    beta_std: tuple[float, ...]
     cv_rmse_nm: tuple[float, ...]
     n_starts: int
     # the fit's evidence (absent from older archives: NaN / empty / False)
@@ -210,11 +209,6 @@ class BoucWenFit(FittedCurve):
     parameter_identified: tuple[bool, ...] = ()
     functionals: tuple[tuple[str, str, float, float, float], ...] = ()
 
-    @property
-    def cv_rmse_mean_nm(self) -> float:
-        """Mean held-out-trial RMSE (NaN when there was a single trial)."""
-        return float(np.mean(self.cv_rmse_nm)) if self.cv_rmse_nm else float("nan")
-
 
 @dataclass(frozen=True)
 class ElementFit(FittedCurve):
@@ -234,12 +228,12 @@ class ElementFit(FittedCurve):
 
     @property
     def drawable(self) -> bool:
-        """True when the fit applies and has a model curve to draw."""
-        return self.applicable and self.has_curve
+        """True when the fit applies and has a model curve to draw (angles and the model's torques)."""
+        return self.applicable and self.angle_deg.size > 0 and self.model_torque_nm.size > 0
 
 
 @dataclass(frozen=True)
-class Configuration:
+class Configuration(_EnergyPerCycle):
     """One joint's part of one row of the test matrix (Appendix A, Table 5): the row's identity and
     settings, and that joint's trials and results. A configuration driving several joints is one
     `Configuration` per joint, each with the same key."""
@@ -261,20 +255,7 @@ class Configuration:
     element_fit: ElementFit | None
     angle_min_deg: float
     angle_max_deg: float
-    torque_slope_nm_per_deg: float
-    trajectory_json: str = (
-        ""  # the plan's JSON of the first recorded brace-on trial's trajectory ("" if none)
-    )
-
-    @property
-    def energy_mean_j(self) -> float:
-        """Mean energy lost per cycle over every cycle of every trial (Eq 10-12); NaN if none."""
-        return energy_mean_std_j(self.energy_loss_j)[0]
-
-    @property
-    def energy_std_j(self) -> float:
-        """Sample standard deviation of the energy per cycle (spread across cycles and trials)."""
-        return energy_mean_std_j(self.energy_loss_j)[1]
+    trajectory_json: str = ""  # the plan's JSON of the first recorded brace-on trial's trajectory
 
     @property
     def has_data(self) -> bool:
@@ -291,7 +272,7 @@ class Configuration:
 
 
 @dataclass(frozen=True)
-class JointsTotal:
+class JointsTotal(_EnergyPerCycle):
     """The energy lost per cycle by all the driven joints of a configuration together (its
     `total_energy_loss_j` and `total_energy_cycle_trial`, docs/archive.md "Several joints": for each trial,
     the sum over the joints of their k-th complete cycle's energy)."""
@@ -299,16 +280,6 @@ class JointsTotal:
     key: int
     energy_loss_j: FloatArray
     energy_cycle_trial: FloatArray
-
-    @property
-    def energy_mean_j(self) -> float:
-        """Mean energy lost per cycle by all joints together, over every cycle of every trial; NaN if none."""
-        return energy_mean_std_j(self.energy_loss_j)[0]
-
-    @property
-    def energy_std_j(self) -> float:
-        """Sample standard deviation of that energy per cycle (spread across cycles and trials)."""
-        return energy_mean_std_j(self.energy_loss_j)[1]
 
 
 @dataclass(frozen=True)
@@ -350,15 +321,7 @@ class ReportData:
         """Every joint's part of configuration `key`, in channel order (empty if the archive has none)."""
         return tuple(cfg for cfg in self.configurations if cfg.key == key)
 
-    def of_joint(self, joint: str) -> tuple[Configuration, ...]:
-        """Joint `joint`'s part of every configuration, in key order."""
-        return tuple(cfg for cfg in self.configurations if cfg.joint == joint)
-
     def total(self, key: int) -> JointsTotal | None:
         """The energy of all joints together of configuration `key`, or None (a single joint, or none
         recorded)."""
         return next((t for t in self.totals if t.key == key), None)
-
-    def comparison(self, name: str) -> Comparison | None:
-        """The comparison called `name`, or None."""
-        return next((comp for comp in self.comparisons if comp.name == name), None)

@@ -1,16 +1,12 @@
-"""Model prediction across configurations: configuration B predicted from a model fitted on A. The pairs
-are declared in the protocol (`report.predictions`); the numbers come from the archive alone.
+"""Model prediction across configurations (docs/analysis.md "Prediction across configurations"):
+configuration B predicted from a model fitted on A, for the pairs the protocol declares
+(`report.predictions`); the numbers come from the archive alone.
 
-* The element model (physics): A's fitted element parameters (`fits/element_model`) carried to B with the
-  declared change A -> B (`models.element_model.transfer`: a parameter declared equal keeps A's fitted
-  value, a changed torque/stiffness/damping takes the declared factor, a changed angle or length the
-  declared shift), then run along B's recorded motion (its processed trials). Gives the RMSE against B's
-  measured torque and the energy per cycle with a 95 % interval propagated from A's parameter covariance
-  plus the parameter's configuration-to-configuration spread across the campaign (`reproducibility`:
-  configurations declaring the same value of it) — PREDICTION_DRAWS parameter sets drawn from that
-  covariance, the 2.5 and 97.5 percentiles of their energies — beside B's measured energy per cycle.
-* The generalised Bouc-Wen model: A's parameters and backbone on B's centred loops (its RMSE), for
-  comparison: a polynomial backbone and the Bouc-Wen state do not extrapolate to another range."""
+* The element model: A's fitted element parameters carried to B with the declared change A -> B
+  (`models.element_model.transfer`), run along B's processed trials: the RMSE against B's measured torque
+  and the energy per cycle with a 95 % interval (PREDICTION_DRAWS parameter sets drawn from A's covariance
+  plus each parameter's spread across the campaign, `reproducibility`).
+* The generalised Bouc-Wen model: A's parameters and backbone on B's centred loops (its RMSE)."""
 
 from __future__ import annotations
 
@@ -23,11 +19,11 @@ from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
-import yaml
 
 from ..archive.model_results import stored_device, strings
 from ..archive.paths import joint_groups
-from .declared import protocol_document
+from ..protocol.schema import PredictionSpec
+from .declared import declared_entries
 
 if TYPE_CHECKING:
     from ..models.bouc_wen.backbone import Backbone, FixedBackbone
@@ -63,39 +59,15 @@ class ElementPrediction:
     measured_torque_nm: np.ndarray
     predicted_torque_nm: np.ndarray
 
-    @property
-    def energy_error(self) -> float:
-        return (self.energy_predicted_j - self.energy_measured_j) / self.energy_measured_j
-
-    @property
-    def covers(self) -> bool:
-        """The interval covers the measured energy."""
-        return bool(
-            self.energy_predicted_ci95_low_j <= self.energy_measured_j <= self.energy_predicted_ci95_high_j
-        )
-
 
 PREDICTION_DRAWS = 100
 OVERLAY_POINTS = 1500
 
 
 def declared_pairs(protocol_text: str) -> list[tuple[int, int, str]]:
-    """`report.predictions` of the protocol as run (already validated when it ran)."""
-    try:
-        doc = protocol_document(protocol_text)
-    except yaml.YAMLError:
-        return []
-    report = doc.get("report") if isinstance(doc, dict) else None
-    items = report.get("predictions") if isinstance(report, dict) else None
-    out = []
-    for item in items if isinstance(items, list) else []:
-        if (
-            isinstance(item, dict)
-            and isinstance(item.get("fit"), int)
-            and isinstance(item.get("predict"), int)
-        ):
-            out.append((int(item["fit"]), int(item["predict"]), str(item.get("note", ""))))
-    return out
+    """`report.predictions` of the protocol as run (validated when it ran; an invalid entry is left out)."""
+    specs, _ = declared_entries(protocol_text, ("report", "predictions"), PredictionSpec)
+    return [(s.fit, s.predict, s.note) for s in specs]
 
 
 def _model(g: h5py.Group) -> tuple[BoucWenParams, Backbone | FixedBackbone | None]:
@@ -185,22 +157,19 @@ def reproducibility(configs: h5py.Group, archive_joints: str) -> dict[tuple[str,
 def element_prediction(
     src: h5py.Group,
     dst: h5py.Group,
-    spread: dict[tuple[str, str], float] | None = None,
-    *,
-    joint: str = "",
-    src_part: h5py.Group | None = None,
-    dst_part: h5py.Group | None = None,
+    spread: dict[tuple[str, str], float],
+    joint: str,
+    src_part: h5py.Group,
+    dst_part: h5py.Group,
 ) -> ElementPrediction | None:
     """The element model fitted on configuration group `src` predicting configuration group `dst`, for
-    `joint` (its part of each group: `src_part`, `dst_part`; the groups themselves when not given); None
-    when `src` has no element model or either has no declared device."""
+    `joint` (its part of each group: `src_part`, `dst_part`); None when `src` has no element model or
+    either has no declared device."""
     from ..analysis.model_comparison import motions_of
     from ..analysis.model_fit import mean_energy_j
     from ..archive.model_results import read_processed_trials
     from ..models.element_model import layout, model_torque_nm, transfer
 
-    src_part = src if src_part is None else src_part
-    dst_part = dst if dst_part is None else dst_part
     g = src_part.get("fits/element_model")
     if (
         g is None
@@ -214,7 +183,7 @@ def element_prediction(
     x = np.asarray(g.attrs["value"], dtype=np.float64).ravel()
     cov = np.asarray(g.attrs["covariance"], dtype=np.float64).reshape(x.size, x.size)
     # the configuration-to-configuration spread of each parameter adds to A's own fit uncertainty
-    cov = cov + np.diag(np.array([(spread or {}).get(k, 0.0) ** 2 for k in names]))
+    cov = cov + np.diag(np.array([spread.get(k, 0.0) ** 2 for k in names]))
     lay_a, lay_b = layout(stored_device(src, joint)), layout(stored_device(dst, joint))
     motions = motions_of(read_processed_trials(dst_part["trials"]))
 
@@ -255,21 +224,15 @@ def predictions(archive: Path, protocol_text: str, *, figures: bool = True) -> t
         return made
     from .figures_predictions import prediction_figure  # matplotlib: only where the figures are drawn
 
-    return tuple(
-        replace(
-            p,
-            figure=prediction_figure(
-                p.fit_key,
-                p.predict_key,
-                p.element.angle_deg,
-                p.element.measured_torque_nm,
-                p.element.predicted_torque_nm,
-            ),
+    def drawn(p: Prediction, e: ElementPrediction | None) -> Prediction:
+        if e is None:
+            return p
+        figure = prediction_figure(
+            p.fit_key, p.predict_key, e.angle_deg, e.measured_torque_nm, e.predicted_torque_nm
         )
-        if p.element is not None
-        else p
-        for p in made
-    )
+        return replace(p, figure=figure)
+
+    return tuple(drawn(p, p.element) for p in made)
 
 
 def _predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
@@ -296,26 +259,18 @@ def _predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
             for name, part_a in parts_a:
                 joint = name if len(parts_a) > 1 else ""  # named where the configuration has several
                 part_b = parts_b.get(name)
-                element = (
-                    element_prediction(cfg_a, cfg_b, spread, joint=name, src_part=part_a, dst_part=part_b)
-                    if part_b is not None
-                    else None
-                )
+                element = None
+                if part_b is not None:
+                    element = element_prediction(cfg_a, cfg_b, spread, name, part_a, part_b)
                 src = part_a.get("fits/bouc_wen")
                 dst = part_b.get("fits/bouc_wen") if part_b is not None else None
+                rmse = own = math.nan
                 if src is None or dst is None:
-                    missing = fit_key if src is None else predict_key
-                    reason = f"no fit of {missing}"
-                    out.append(
-                        Prediction(
-                            fit_key, predict_key, note, math.nan, math.nan, reason, element, joint=joint
-                        )
-                    )
-                    continue
-                params, backbone = _model(src)
-                rmse = predict_rmse(params, backbone, _segments(dst))
-                own = float(dst.attrs.get("rmse_nm", math.nan))
-                reason = "" if math.isfinite(rmse) else "diverges"
+                    reason = f"no fit of {fit_key if src is None else predict_key}"
+                else:
+                    rmse = predict_rmse(*_model(src), _segments(dst))
+                    own = float(dst.attrs.get("rmse_nm", math.nan))
+                    reason = "" if math.isfinite(rmse) else "diverges"
                 out.append(Prediction(fit_key, predict_key, note, rmse, own, reason, element, joint=joint))
     return tuple(out)
 

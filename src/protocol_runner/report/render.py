@@ -28,10 +28,10 @@ from markupsafe import Markup, escape
 from protocol_runner import __version__
 from protocol_runner.analysis.reference import load_reference_dataset
 from protocol_runner.protocol.plan_steps import Comparison
-from protocol_runner.report.citations import declared_citations
 from protocol_runner.report.comparison_values import comparison_axis
-from protocol_runner.report.declared import declared_text
+from protocol_runner.report.declared import declared_citations, declared_text
 from protocol_runner.report.differences import declared_differences, declared_repeatability
+from protocol_runner.report.evaluate import TUNED_LABEL, evaluate_expectations
 from protocol_runner.report.figure_plan import (
     Drawn,
     FigureDrawer,
@@ -42,7 +42,6 @@ from protocol_runner.report.figure_plan import (
     model_comparisons,
     slug,
 )
-from protocol_runner.report.findings import TUNED_LABEL, evaluate_expectations
 from protocol_runner.report.headline import ALL_JOINTS, ConfigurationStats, campaign_stats, headline_stats
 from protocol_runner.report.html_file import checked_output, template_environment, write_atomically
 from protocol_runner.report.limits_text import limits_text

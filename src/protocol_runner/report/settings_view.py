@@ -20,8 +20,7 @@ from typing import Any
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.protocol.settings import LevelLookup
-from protocol_runner.protocol.units import UNIT_SUFFIXES
-from protocol_runner.protocol.units import unit_suffix as protocol_unit_suffix
+from protocol_runner.protocol.units import UNIT_SUFFIXES, unit_suffix
 
 Quantity = float | tuple[float, ...]
 Param = Quantity | str | tuple[str, ...]  # an element parameter (words for constants and lists such as `fit`)
@@ -39,14 +38,9 @@ UNIT_LABELS: Mapping[str, str] = {suffix: _typeset(unit) for suffix, unit in UNI
 TRAJECTORY = "trajectory"
 
 
-def unit_suffix(name: str) -> str:
-    """The unit suffix of a quantity or parameter name (`friction_nm` -> `_nm`), "" when it has none."""
-    return protocol_unit_suffix(name) or ""
-
-
 def unit_label(name: str) -> str:
     """The unit of `name` as a reader writes it (`stiffness_n_per_mm` -> "N/mm"); "" when dimensionless."""
-    return UNIT_LABELS.get(unit_suffix(name), "")
+    return UNIT_LABELS.get(unit_suffix(name) or "", "")
 
 
 def quantity_title(name: str) -> str:

@@ -1,32 +1,12 @@
-"""Tidy CSV tables of an archive: one row per cycle, per trial and per configuration, units in the names.
+"""Tidy CSV tables of an archive (`--export`, docs/report.md): one row per cycle, per trial and per
+configuration, and the model tables `models.csv`, `elements.csv` and `predictions.csv`; units in the names.
 
-Every table has a `joint` column and holds every driven joint's rows: an archive of several joints
-(docs/archive.md "Several joints") gives one row per configuration, trial or cycle AND joint, each from
-that joint's own data (`configurations/<name>/joints/<joint>`); an archive of one joint names it.
-
-`cycles.csv`: configuration, set, trial, brace, joint, cycle, energy_j, angle_min_deg, angle_max_deg,
-torque_peak_nm. The energy is the archived `energy_loss_j` (Eq 10-12); the angle and torque columns come
-from the trial's archived processed data cut into the same complete cycles (`analysis.cycles`), and are
-left empty when that cut does not give the archived number of cycles (e.g. cycles dropped where the brace
-torque was undefined). `brace` is `on-off`: every value is the brace's own torque, brace-on minus
-brace-off at equal angles (§3.3).
-
-`trials.csv`: one row per trial (and joint) with its cycle count, mean and within-trial standard deviation of the
-energy per cycle, the angle range and peak torque of its processed data, and how well its brace-off twin
-matched it: `brace_off_scaling_error_deg` (the kept run's cycle-range error, docs/analysis.md §3),
-`brace_off_scaling_runs` (robot runs the scaling made), `brace_off_scaling_converged` and
-`clipped_fraction` (share of brace-on samples beyond the brace-off range, given its nearest torque, §4).
-
-`configurations.csv`: one row per configuration (and joint) with its settings (profile, trajectory name, then one column
-per declared factor holding its level label and one per factor quantity, `<factor>.<quantity>`, the unit in
-the quantity's suffix; a list such as a range [lo, hi] is written `lo;hi`), trials, cycles, the mean of
-trial means with its 95 % t-interval and between-trial CV (`report.headline`, the numbers of the report's
-summary table), the angle reached and the Bouc-Wen fit quality.
-
-`models.csv`, `elements.csv`, `predictions.csv`: the model comparison, the element model's parameters
-with their intervals and the declared predictions (`report.model_tables`).
-
-Public API: export_tables(archive, output_dir) -> tuple[Path, ...]
+Every table has a `joint` column and holds every driven joint's rows, each from that joint's own data
+(`archive.paths.joint_groups`). The cycles' energy is the archived `energy_loss_j` (Eq 10-12); their angle
+and torque columns come from the trial's archived processed data cut into the same complete cycles
+(`analysis.cycles`), and are left empty when that cut does not give the archived number of cycles. The
+configurations' statistics are `report.headline`'s, the numbers of the report's summary table; a list
+setting such as a range [lo, hi] is written `lo;hi`.
 """
 
 from __future__ import annotations
@@ -45,13 +25,15 @@ import numpy as np
 from protocol_runner.analysis.cycles import complete_cycles
 from protocol_runner.analysis.validation import AnalysisError
 from protocol_runner.archive.diskfull import DiskFull, is_disk_full
+from protocol_runner.archive.model_results import read_element_model, read_models
 from protocol_runner.archive.outputs import create_new, refuse_special, temporary_beside
 from protocol_runner.archive.paths import joint_groups
 from protocol_runner.errors import InvalidInput
+from protocol_runner.report.h5read import attr_str
 from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.model import BraceOffMatch, Configuration, ReportData
-from protocol_runner.report.model_tables import model_tables
+from protocol_runner.report.predictions import prediction_row, predictions
 
 if TYPE_CHECKING:
     from protocol_runner.protocol.only import KeySelection
@@ -95,6 +77,40 @@ STAT_COLUMNS = (
     "angle_max_deg",
     "bouc_wen_rmse_nm",
     "bouc_wen_r2",
+)
+
+MODEL_COLUMNS = (
+    "configuration",
+    "joint",
+    "model",
+    "k",
+    "rmse_nm",
+    "heldout_rmse_nm",
+    "aic",
+    "bic",
+    "energy_model_j",
+    "energy_data_j",
+)
+ELEMENT_COLUMNS = (
+    "configuration",
+    "joint",
+    "element",
+    "parameter",
+    "value",
+    "ci95_low",
+    "ci95_high",
+    "identified",
+)
+PREDICTION_COLUMNS = (
+    "from_configuration",
+    "to_configuration",
+    "joint",
+    "model",
+    "rmse_nm",
+    "energy_predicted_j",
+    "energy_predicted_ci95_low_j",
+    "energy_predicted_ci95_high_j",
+    "energy_measured_j",
 )
 
 
@@ -258,9 +274,46 @@ def _configuration_rows(data: ReportData) -> tuple[list[str], list[list[object]]
     return columns, rows
 
 
+Table = tuple[str, Sequence[str], list[list[object]]]
+
+
+def _model_tables(archive: Path, protocol_text: str) -> tuple[Table, ...]:
+    """The rows of models.csv, elements.csv and predictions.csv of `archive`, each as (file name, columns,
+    rows); a number that does not exist is NaN."""
+    models: list[list[object]] = []
+    elements: list[list[object]] = []
+    with h5py.File(archive, "r") as h5:
+        archive_joints = attr_str(h5.attrs, "joint")
+        configs = h5.get("configurations")
+        for name in sorted(configs) if isinstance(configs, h5py.Group) else ():
+            key = int(configs[name].attrs.get("key", int(name.rsplit("_", 1)[-1])))
+            for joint, owner in joint_groups(configs[name], archive_joints):
+                if "fits/models" in owner:
+                    for row in read_models(owner["fits/models"]):
+                        models.append([key, joint, *(row[c] for c in MODEL_COLUMNS[2:])])
+                if "fits/element_model" in owner:
+                    for row in read_element_model(owner["fits/element_model"]):
+                        elements.append([key, joint, *(row[c] for c in ELEMENT_COLUMNS[2:])])
+    archive_joint = archive_joints.split(",")[0].strip()
+    rows: list[list[object]] = []
+    for p in predictions(archive, protocol_text, figures=False):
+        head = [p.fit_key, p.predict_key, p.joint or archive_joint]
+        if p.element is not None:
+            row = prediction_row(p)
+            rows.append(
+                [*head, "elements", row["element_rmse_nm"], *(row[c] for c in PREDICTION_COLUMNS[5:])]
+            )
+        rows.append([*head, "bouc_wen", p.rmse_nm, *[math.nan] * 4])
+    return (
+        ("models.csv", MODEL_COLUMNS, models),
+        ("elements.csv", ELEMENT_COLUMNS, elements),
+        ("predictions.csv", PREDICTION_COLUMNS, rows),
+    )
+
+
 def export_tables(archive: Path, output_dir: Path, *, only: KeySelection | None = None) -> tuple[Path, ...]:
     """Write cycles.csv, trials.csv, configurations.csv and the model tables (models.csv, elements.csv,
-    predictions.csv: `report.model_tables`) of `archive` into `output_dir`; return them.
+    predictions.csv) of `archive` into `output_dir`; return them.
     With `only` (`--only`), the rows of those configuration keys alone.
 
     Raises `InvalidInput` for an unreadable archive, a key of `only` the archive does not hold, or an
@@ -276,7 +329,7 @@ def export_tables(archive: Path, output_dir: Path, *, only: KeySelection | None 
             data, configurations=tuple(c for c in data.configurations if c.key in keys)
         )
     output_dir.mkdir(parents=True, exist_ok=True)
-    models = model_tables(Path(data.session.archive_path), data.protocol_text)
+    models = _model_tables(Path(data.session.archive_path), data.protocol_text)
     if only is not None:  # rows of the kept configurations (a prediction: from or to one of them)
         kept = {c.key for c in data.configurations}
         models = tuple(

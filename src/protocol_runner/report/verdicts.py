@@ -3,16 +3,8 @@
 Called once the archive is consolidated (and again after `--reprocess`): the verdicts are decided on the
 archive's own data by the report's evaluator and stored for tools; the report itself always re-decides
 them from the archived protocol text and data, so a stored verdict never disagrees with a regenerated
-report of the same archive. Each expectation is a group `/expectations/<id>` whose attributes give the
-declaration and the outcome, and whose `evidence` text dataset (sealed with its checksum) is a JSON list,
-one object per configuration: key, trials, mean, 95 % interval low and high (null when undefined), unit.
-The attributes `p_value` and `p_adjusted` give the expectation's own test and its Holm adjustment over the
-`family` evaluable expectations (both absent, and `family` 0, when not evaluable).
-
-An expectation that names `joint` or `joints: all` is decided per joint: its group holds the declaration
-and `joints` (the joints it was decided for), and each joint's verdict, numbers and evidence are in
-`joints/<joint>` (attribute `joint`), the layout of every group keyed by joint (`archive.paths.joint_groups`
-reads both forms).
+report of the same archive. An expectation decided per joint keeps each joint's outcome in
+`joints/<joint>` (the layout `archive.paths.joint_groups` reads).
 """
 
 from __future__ import annotations
@@ -40,7 +32,7 @@ def _finite(value: float) -> float | None:
 def record_verdicts(archive: Path, data: ReportData | None = None) -> int:
     """Evaluate `archive`'s declared expectations and (re)write `/expectations`; return how many.
     `data` is the archive as `load_report_data` reads it, when the caller has already read it."""
-    from protocol_runner.report.findings import evaluate_expectations
+    from protocol_runner.report.evaluate import evaluate_expectations
     from protocol_runner.report.load import load_report_data
 
     result = evaluate_expectations(data if data is not None else load_report_data(Path(archive), workers=1))
