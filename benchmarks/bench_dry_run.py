@@ -20,7 +20,6 @@ and how many pairs were faster: steadier than the ratio of the medians when the 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import os
 import shutil
@@ -33,7 +32,7 @@ from pathlib import Path
 
 import h5py
 
-from checkouts import byte_compile
+from checkouts import become_subreaper, byte_compile, orphans_cpu_s
 from machine_probe import probe_s
 
 
@@ -88,34 +87,7 @@ def _run_once(
     code = os.waitstatus_to_exitcode(status)
     if code != 0:
         raise SystemExit(f"the dry run of {checkout or 'this checkout'} failed (exit {code})")
-    return wall, usage.ru_utime + usage.ru_stime + _orphans_cpu_s()
-
-
-def _become_subreaper() -> None:
-    """Linux: processes the run leaves behind (the analysis workers' fork server, which outlives the
-    session by a moment and reaps its own workers) are re-parented to this benchmark instead of init, so
-    that their CPU is counted when `_orphans_cpu_s` reaps them."""
-    with contextlib.suppress(Exception):
-        import ctypes
-
-        pr_set_child_subreaper = 36
-        ctypes.CDLL(None, use_errno=True).prctl(pr_set_child_subreaper, 1)
-
-
-def _orphans_cpu_s(timeout_s: float = 30.0) -> float:
-    """User + system CPU of the run's descendants that outlived it (reaped here, see `_become_subreaper`)."""
-    total = 0.0
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        try:
-            pid, _, usage = os.wait4(-1, os.WNOHANG)
-        except ChildProcessError:
-            break
-        if pid == 0:
-            time.sleep(0.01)
-            continue
-        total += usage.ru_utime + usage.ru_stime
-    return total
+    return wall, usage.ru_utime + usage.ru_stime + orphans_cpu_s()
 
 
 def _summary(walls: list[float], cpus: list[float], robot: float) -> dict[str, object]:
@@ -150,7 +122,7 @@ def main() -> None:
     ap.add_argument("--profile", action="store_true")
     ap.add_argument("--baseline", type=Path, default=None, help="another checkout to time in the same run")
     args = ap.parse_args()
-    _become_subreaper()
+    become_subreaper()
     here = Path(__file__).resolve().parents[1] if args.baseline is not None else None
     checkouts: list[tuple[str, Path | None]] = [("this", here)]
     if args.baseline is not None:

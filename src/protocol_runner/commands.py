@@ -226,29 +226,39 @@ def _report(
     from .report.render import generate_report
 
     archive = _archive_of(path, locked=True)
-    if reprocess:
-        from .archive.reprocess import reprocess_archive
-        from .session.workers import analysis_pool
+    if not reprocess:
+        _export_mat(archive, export_mat)
+        _result(f"report: {generate_report(archive, output)}")
+        return EXIT_OK
+    from .archive.reprocess import reprocess_archive
+    from .report.load import load_report_data
+    from .report.predictions import predictions, record_predictions
+    from .report.render import render_report
+    from .report.verdicts import record_verdicts
+    from .session.workers import analysis_pool
 
-        with analysis_pool() as pool:
-            archive = reprocess_archive(archive, protocol_file=protocol_file, pool=pool)
-        from .report.verdicts import record_verdicts
+    with analysis_pool() as pool:
+        archive = reprocess_archive(archive, protocol_file=protocol_file, pool=pool)
+    # read once, for the verdicts, the predictions and the report (which reads neither /expectations nor
+    # /predictions: it decides them again from the data). Its datasets are not checked again: the archive
+    # it was made from has just been checked, its bytes copied, and this process wrote everything new
+    data = load_report_data(archive, verify=False)
+    record_verdicts(archive, data)  # the verdicts follow the reprocessed data
+    made = predictions(archive, data.protocol_text)
+    record_predictions(archive, made)  # and so do the predictions
+    _result(f"reprocessed archive: {archive}")
+    _export_mat(archive, export_mat)
+    out = render_report(data, output or archive.with_suffix(".html"), predicted=lambda: made)
+    _result(f"report: {out}")
+    return EXIT_OK
 
-        record_verdicts(archive)  # the verdicts follow the reprocessed data
-        from .report.predictions import record_predictions
 
-        record_predictions(archive)  # and so do the predictions
-        _result(f"reprocessed archive: {archive}")
-        if output is None:
-            output = archive.with_suffix(".html")
+def _export_mat(archive: Path, export_mat: Path | None) -> None:
     if export_mat is not None:
         from .archive.export import export_mat as do_export
 
         files = do_export(archive, export_mat)
         _result(f"wrote {len(files)} .mat files to {export_mat}")
-    out = generate_report(archive, output)
-    _result(f"report: {out}")
-    return EXIT_OK
 
 
 def verify(path: Path) -> int:

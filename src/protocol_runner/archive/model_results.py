@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 import h5py
@@ -146,21 +145,6 @@ def read_processed_trials(trials: h5py.Group) -> list[tuple[np.ndarray, np.ndarr
             tuple(np.asarray(g[k][()], dtype=np.float64) for k in ("time_s", "angle_deg", "brace_torque_nm"))
         )
     return out  # type: ignore[return-value]
-
-
-def compare_owner(owner: h5py.Group, device: Sequence[object], bouc_wen: object | None) -> ModelComparison:
-    """The model comparison (`analysis.model_comparison.compare_stored`) of the processed trials stored under
-    `owner` (a configuration group, or a joint's) with its `device`, written under `owner` (its old
-    comparison groups replaced): what `--reprocess` redoes after the Bouc-Wen fit, as the fit step did."""
-    from ..analysis.model_comparison import compare_stored
-
-    comparison = compare_stored(read_processed_trials(owner["trials"]), device, bouc_wen)
-    fits = owner.require_group(FITS)
-    for stale in (ELEMENT_MODEL, MODELS):
-        if stale in fits:
-            del fits[stale]
-    write_comparison(owner, comparison)
-    return comparison
 
 
 def comparison_fill(name: str, before: Fill, comparison: ModelComparison) -> Fill:

@@ -19,7 +19,9 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+import numpy.typing as npt
 
+from ..analysis.model_comparison import ModelComparison, compare_stored
 from ..analysis.pipeline import TrialPair
 from ..analysis.processing_settings import ProcessingSettings
 from ..analysis.service import JointsAnalysis, analyse_joints
@@ -32,7 +34,7 @@ from .attrs import DEVICE_JSON, FILENAME, JOINT, STATUS
 from .attrs import JOINTS as JOINTS_ATTR
 from .checksums import is_marked, seal_attributes, seal_missing
 from .h5util import attr_str, attr_strs, put, put_attrs, text_of
-from .model_results import PREDICTIONS, compare_owner
+from .model_results import PREDICTIONS, write_comparison
 from .outputs import create_binary, refuse_special, temporary_beside, terminated_as_interrupt
 from .paths import (
     COMPARISONS,
@@ -153,7 +155,7 @@ def _reprocess(f: h5py.File, loaded: LoadedProtocol, pool: Executor | None) -> N
     settings = processing_settings(loaded)
     elements = element_fit_enabled(loaded)
     archive_joints = attr_str(f, JOINT, "")
-    running: deque[tuple[h5py.Group, str, _Job, Future[JointsAnalysis] | None]] = deque()
+    running: deque[tuple[h5py.Group, str, _Job, Future[Analysed] | None]] = deque()
     for name, cfg in f[CONFIGURATIONS].items():
         job = _prepare(cfg, name, archive_joints, elements=elements) if TRIALS in cfg else None
         if job is None:
@@ -247,33 +249,51 @@ def _prepare(cfg: h5py.Group, name: str, archive_joints: str, *, elements: bool)
     return _Job(joints, recordings, devices, fitted)
 
 
-def _analyse(job: _Job, loaded: LoadedProtocol) -> JointsAnalysis:
+Analysed = tuple[JointsAnalysis, dict[str, ModelComparison]]
+"""A configuration's analysis and the model comparison of each joint with a device and a Bouc-Wen fit."""
+
+
+def _analyse(job: _Job, loaded: LoadedProtocol) -> Analysed:
     """One configuration's processing and Bouc-Wen fits (`analysis.service.analyse_joints`) with the
-    settings of `loaded`, run in a worker process (the settings are made there: a backbone's model
-    factory is a closure, which cannot be sent to it)."""
+    settings of `loaded`, and each joint's model comparison as the fit step makes it (`compare_stored` of
+    the processed trials as stored: decimated, their signals in the stored precision), run in a worker
+    process (the settings are made there: a backbone's model factory is a closure, which cannot be sent
+    to it)."""
     settings = processing_settings(loaded)
     fit = bouc_wen_settings(loaded) if loaded.protocol.fits.bouc_wen.enabled else None
-    return analyse_joints(job.recordings, settings, fit, devices=job.devices, fitted_joints=job.fitted)
+    analysis = analyse_joints(job.recordings, settings, fit, devices=job.devices, fitted_joints=job.fitted)
+    comparisons = {}
+    for joint, one in zip(analysis.joints, analysis.analyses, strict=True):
+        device = job.devices[joint]
+        if one.bouc_wen is not None and device is not None:
+            stored = [
+                (_float64(s.time_s), _float64(s.angle_deg), _float64(s.brace_torque_nm)) for s in one.stored
+            ]
+            comparisons[joint] = compare_stored(stored, device, one.bouc_wen)
+    return analysis, comparisons
+
+
+def _float64(values: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    return np.asarray(values, dtype=np.float64)
 
 
 def _store(
     cfg: h5py.Group,
     name: str,
     job: _Job,
-    running: Future[JointsAnalysis] | None,
+    running: Future[Analysed] | None,
     loaded: LoadedProtocol,
     settings: ProcessingSettings,
 ) -> None:
     """Write one configuration's new results (its analysis from the worker, or made here without one):
-    each joint's processing and Bouc-Wen fit, its model comparison as the fit step makes it, the total."""
-    analysis = running.result() if running is not None else _analyse(job, loaded)
+    each joint's processing and Bouc-Wen fit, its model comparison, the total."""
+    analysis, comparisons = running.result() if running is not None else _analyse(job, loaded)
     for joint, one in zip(analysis.joints, analysis.analyses, strict=True):
         processed_fill(joint_path(name, joint), one, settings)(cfg.file)
-        device_j = job.devices[joint]
         if one.bouc_wen is not None:
             bouc_wen_fill(joint_path(name, joint), one.bouc_wen)(cfg.file)
-            if device_j is not None:  # the model comparison of the joint, as the fit step makes it
-                compare_owner(cfg[f"{JOINTS}/{joint}"], device_j, one.bouc_wen)
+        if joint in comparisons:
+            write_comparison(cfg[f"{JOINTS}/{joint}"], comparisons[joint])
     put(cfg, "total_energy_loss_j", analysis.total_energy_loss_j, "J")
     put(cfg, "total_energy_cycle_trial", analysis.total_energy_cycle_trial, "1")
     cfg.attrs[JOINTS_ATTR] = np.array(job.joints, dtype=h5py.string_dtype())
