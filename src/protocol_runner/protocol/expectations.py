@@ -68,8 +68,8 @@ class ExpectationSpec(BaseModel):
     @property
     def named_keys(self) -> list[int]:
         """Every configuration key the statement names, each once, in first-named order."""
-        named = [*self.configurations, *(self.baseline or []), *(self.than or []), *(self.than_baseline or [])]
-        return list(dict.fromkeys(named))
+        named = (self.configurations, self.baseline, self.than, self.than_baseline)
+        return list(dict.fromkeys(k for keys in named for k in keys or ()))
 
     @model_validator(mode="after")
     def _relation_fields(self) -> ExpectationSpec:

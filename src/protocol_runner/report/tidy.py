@@ -278,11 +278,9 @@ def _model_tables(archive: Path, protocol_text: str) -> tuple[Table, ...]:
             key = int(configs[name].attrs.get("key", int(name.rsplit("_", 1)[-1])))
             for joint, owner in joint_groups(configs[name], archive_joints):
                 if "fits/models" in owner:
-                    for row in read_models(owner["fits/models"]):
-                        models.append([key, joint, *row])
+                    models += ([key, joint, *r] for r in read_models(owner["fits/models"]))
                 if "fits/element_model" in owner:
-                    for row in read_element_model(owner["fits/element_model"]):
-                        elements.append([key, joint, *row])
+                    elements += ([key, joint, *r] for r in read_element_model(owner["fits/element_model"]))
     archive_joint = archive_joints.split(",")[0].strip()
     rows: list[list[object]] = []
     for p in predictions(archive, protocol_text, figures=False):
