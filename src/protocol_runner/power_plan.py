@@ -27,13 +27,12 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from itertools import combinations, pairwise
 from pathlib import Path
 
 from .analysis.power import MOST_TRIALS, POWER_TARGET, Equivalence, OneSided, Part, trials_needed
 from .analysis.statistics import ALPHA, TInterval, t_interval
 from .errors import InvalidInput
-from .protocol.expectations import ExpectationSpec
+from .protocol.expectations import ExpectationSpec, Terms, statements
 from .protocol.loaded import LoadedProtocol
 from .protocol.plan_steps import Plan, TrialStep
 from .report.metrics import LABELS, UNITS, trial_values
@@ -41,8 +40,6 @@ from .report.model import ReportData
 
 #: The relative effect of a difference statement planned with a coefficient of variation alone.
 DEFAULT_EFFECT_RATIO = 0.05
-
-_Terms = list[tuple[float, int]]
 
 
 @dataclass(frozen=True)
@@ -181,39 +178,6 @@ def plan_power(loaded: LoadedProtocol, plan: Plan, spread: Spread) -> PowerPlan:
     )
 
 
-def _keys(spec: ExpectationSpec) -> list[int]:
-    return list(
-        dict.fromkeys(
-            [*spec.configurations, *(spec.baseline or []), *(spec.than or []), *(spec.than_baseline or [])]
-        )
-    )
-
-
-def _statements(spec: ExpectationSpec) -> list[tuple[_Terms, str]]:
-    """The weighted configurations of each part of `spec` and its name, as the report tests them."""
-    r = spec.relation
-    if r in ("increasing", "decreasing", "no_trend"):
-        order = list(dict.fromkeys(spec.configurations))
-        pairs = pairwise(order) if r != "no_trend" else combinations(order, 2)
-        return [([(-1.0, a), (1.0, b)], f"{b} minus {a}") for a, b in pairs]
-    out: list[tuple[_Terms, str]] = []
-    for i, key in enumerate(spec.configurations):
-        terms: _Terms = [(1.0, key)]
-        name = str(key)
-        if spec.baseline is not None:
-            terms.append((-1.0, spec.baseline[i]))
-            name += f" minus {spec.baseline[i]}"
-        if spec.than is not None:
-            terms.append((-1.0, spec.than[i]))
-            other = str(spec.than[i])
-            if spec.than_baseline is not None:
-                terms.append((1.0, spec.than_baseline[i]))
-                other = f"({other} minus {spec.than_baseline[i]})"
-            name = f"({name}) minus {other}" if len(terms) > 2 else f"{name} minus {other}"
-        out.append((terms, name))
-    return out
-
-
 def _test_name(spec: ExpectationSpec) -> str:
     r = spec.relation
     two_groups = r in ("increasing", "decreasing", "no_trend") or spec.than is not None or spec.baseline
@@ -234,12 +198,12 @@ class _CannotPlan(Exception):
 def _plan_one(
     spec: ExpectationSpec, spread: Spread, alpha_each: float, planned: dict[int, int]
 ) -> PlannedExpectation:
-    keys = _keys(spec)
+    keys = spec.named_keys
     n_planned = min(planned.get(k, 0) for k in keys)
     test = _test_name(spec)
     try:
         stats = _session_stats(spec, spread.data, keys) if spread.data is not None else {}
-        parts = [(name, *_part(spec, terms, name, spread, stats)) for terms, name in _statements(spec)]
+        parts = [(name, *_part(spec, terms, name, spread, stats)) for terms, name in statements(spec)]
     except _CannotPlan as why:
         return PlannedExpectation(spec, test, "", None, n_planned, str(why))
     needed = trials_needed([part for _, part, _ in parts], alpha_each, least=spec.min_trials)
@@ -275,7 +239,7 @@ def _session_stats(spec: ExpectationSpec, data: ReportData, keys: Sequence[int])
 
 
 def _part(
-    spec: ExpectationSpec, terms: _Terms, name: str, spread: Spread, stats: dict[int, TInterval]
+    spec: ExpectationSpec, terms: Terms, name: str, spread: Spread, stats: dict[int, TInterval]
 ) -> tuple[Part, str]:
     """One part's test and the text of what it rests on."""
     unit = UNITS[spec.metric]
@@ -326,7 +290,7 @@ def _part(
 
 
 def _part_from_cv(
-    spec: ExpectationSpec, terms: _Terms, name: str, cv: float, ratio: float
+    spec: ExpectationSpec, terms: Terms, name: str, cv: float, ratio: float
 ) -> tuple[Part, str]:
     """A part with every configuration's SD `cv` times a common level (no session: no means)."""
     unit = UNITS[spec.metric]

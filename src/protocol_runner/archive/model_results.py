@@ -90,35 +90,23 @@ def _list(g: h5py.Group, key: str) -> list[Any]:
     return [float(v) for v in np.atleast_1d(np.asarray(g.attrs.get(key, []), dtype=np.float64))]
 
 
-def read_models(g: h5py.Group) -> list[dict[str, Any]]:
-    """The rows of a `fits/models` group, one dict per model (the export's models.csv columns)."""
-    names = strings(g, "model")
-    columns = ("k", "rmse_nm", "heldout_rmse_nm", "aic", "bic", "energy_model_j", "energy_data_j")
-    values = {c: _list(g, c) for c in columns}
-    return [
-        {"model": m, **{c: (int(values[c][i]) if c == "k" else values[c][i]) for c in columns}}
-        for i, m in enumerate(names)
-    ]
+#: The numbers of each model a `fits/models` group holds, after its name (models.csv's columns).
+MODEL_VALUES = ("k", "rmse_nm", "heldout_rmse_nm", "aic", "bic", "energy_model_j", "energy_data_j")
 
 
-def read_element_model(g: h5py.Group) -> list[dict[str, Any]]:
+def read_models(g: h5py.Group) -> list[list[Any]]:
+    """The rows of a `fits/models` group, one per model: its name, then its `MODEL_VALUES`."""
+    k, *values = (_list(g, c) for c in MODEL_VALUES)
+    return [[m, int(k[i]), *(v[i] for v in values)] for i, m in enumerate(strings(g, "model"))]
+
+
+def read_element_model(g: h5py.Group) -> list[list[Any]]:
     """The rows of a `fits/element_model` group: element, parameter, value, interval, identified."""
-    out = []
-    params = strings(g, "parameters")
     value, low, high, ident = (_list(g, k) for k in ("value", "ci95_low", "ci95_high", "identified"))
-    for i, p in enumerate(params):
-        element, parameter = str(p).rsplit(".", 1)
-        out.append(
-            {
-                "element": element,
-                "parameter": parameter,
-                "value": float(value[i]),
-                "ci95_low": float(low[i]),
-                "ci95_high": float(high[i]),
-                "identified": bool(ident[i]),
-            }
-        )
-    return out
+    return [
+        [*str(p).rsplit(".", 1), value[i], low[i], high[i], bool(ident[i])]
+        for i, p in enumerate(strings(g, "parameters"))
+    ]
 
 
 def stored_device(cfg: h5py.Group, joint: str = "") -> tuple[Element, ...]:

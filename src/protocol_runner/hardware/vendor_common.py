@@ -158,8 +158,19 @@ class VendorBoard(ABC):
     @abstractmethod
     def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None: ...
 
-    @abstractmethod
-    def close(self) -> None: ...
+    def _before_release(self) -> None:
+        """Stop what the board has running before it is let go (nothing by default)."""
+        return None
+
+    def close(self) -> None:
+        """Let the board go (idempotent); an output board's outputs keep their last value."""
+        if self._closed:
+            return
+        self._before_release()
+        try:
+            self._call("closing the board", self._release)
+        finally:
+            self._closed = True
 
     def __enter__(self) -> Self:
         return self
@@ -313,14 +324,9 @@ class VendorScanInput(VendorBoard):
             except Exception:
                 log.warning("%s: could not stop the scan after a failure", self.name)
 
-    def close(self) -> None:
-        """Stop a running scan and let the board go (idempotent)."""
-        if self._closed:
-            return
+    def _before_release(self) -> None:
         if self._scanning:
             self._abandon()
-        self._closed = True
-        self._call("closing the board", self._release)
 
 
 class VendorAnalogOutput(VendorBoard):
@@ -392,12 +398,3 @@ class VendorAnalogOutput(VendorBoard):
                 partial(self._write_run, run[0], [volts[ch] for ch in run]),
             )
         return {ch: int(volts_to_ao16_code(v)) for ch, v in volts.items()}
-
-    def close(self) -> None:
-        """Let the board go (idempotent); the outputs keep their last value."""
-        if self._closed:
-            return
-        try:
-            self._call("closing the board", self._release)
-        finally:
-            self._closed = True

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import difflib
 from collections.abc import Iterator, Mapping, Sequence
+from itertools import combinations, pairwise
 from typing import Annotated, Literal
 
 from pydantic import AliasChoices, BaseModel, BeforeValidator, ConfigDict, Field, StrictInt, model_validator
@@ -23,6 +24,8 @@ MetricName = Literal[
     "hysteresis_width",
     "fit_rmse",
 ]
+
+Terms = list[tuple[float, int]]
 
 _Pair = Annotated[tuple[float, float], BeforeValidator(lambda v: tuple(v) if isinstance(v, list) else v)]
 
@@ -61,6 +64,12 @@ class ExpectationSpec(BaseModel):
     def depends_on_tuning(self) -> bool:
         """True when the declaration says a simulator value was chosen to reproduce this statement."""
         return self.simulator_tuned or bool(self.depends_on_simulator) or bool(self.tuned.strip())
+
+    @property
+    def named_keys(self) -> list[int]:
+        """Every configuration key the statement names, each once, in first-named order."""
+        named = (self.configurations, self.baseline, self.than, self.than_baseline)
+        return list(dict.fromkeys(k for keys in named for k in keys or ()))
 
     @model_validator(mode="after")
     def _relation_fields(self) -> ExpectationSpec:
@@ -101,6 +110,33 @@ class ExpectationSpec(BaseModel):
             if not self.interval[0] < self.interval[1]:
                 raise ValueError("`interval` must be [low, high] with low < high")
         return self
+
+
+def statements(spec: ExpectationSpec) -> list[tuple[Terms, str]]:
+    """The parts `spec` states, each as the weighted configurations whose combined mean is tested and its
+    name ("3 minus 1"): each adjacent step of an increasing/decreasing order, each pair of a no_trend order,
+    else each configuration (minus its `baseline`, minus its `than`, minus that one's `than_baseline`)."""
+    r = spec.relation
+    if r in ("increasing", "decreasing", "no_trend"):
+        order = list(dict.fromkeys(spec.configurations))
+        pairs = pairwise(order) if r != "no_trend" else combinations(order, 2)
+        return [([(-1.0, a), (1.0, b)], f"{b} minus {a}") for a, b in pairs]
+    out: list[tuple[Terms, str]] = []
+    for i, key in enumerate(spec.configurations):
+        terms: Terms = [(1.0, key)]
+        name = str(key)
+        if spec.baseline is not None:
+            terms.append((-1.0, spec.baseline[i]))
+            name += f" minus {spec.baseline[i]}"
+        if spec.than is not None:
+            terms.append((-1.0, spec.than[i]))
+            other = str(spec.than[i])
+            if spec.than_baseline is not None:
+                terms.append((1.0, spec.than_baseline[i]))
+                other = f"({other} minus {spec.than_baseline[i]})"
+            name = f"({name}) minus {other}" if len(terms) > 2 else f"{name} minus {other}"
+        out.append((terms, name))
+    return out
 
 
 def check_expectations(

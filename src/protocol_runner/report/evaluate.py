@@ -23,7 +23,7 @@ import math
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
-from itertools import combinations, pairwise
+from itertools import pairwise
 
 from protocol_runner.analysis.statistics import (
     ALPHA,
@@ -35,7 +35,7 @@ from protocol_runner.analysis.statistics import (
     p_below,
     t_interval,
 )
-from protocol_runner.protocol.expectations import ExpectationSpec
+from protocol_runner.protocol.expectations import ExpectationSpec, statements
 from protocol_runner.protocol.only import key_spans
 from protocol_runner.report.declared import declared_entries
 from protocol_runner.report.metrics import LABELS, UNITS, trial_values
@@ -160,11 +160,7 @@ def _tested(spec: ExpectationSpec, data: ReportData, joint: str) -> Verdict:
     """`spec` tested on `joint`'s data of `data`: its p-value and numbers, not yet decided (or `not
     evaluable`)."""
     unit = UNITS[spec.metric]
-    keys = list(
-        dict.fromkeys(
-            [*spec.configurations, *(spec.baseline or []), *(spec.than or []), *(spec.than_baseline or [])]
-        )
-    )
+    keys = spec.named_keys
     if joint not in _joints(data):
         return Verdict(spec, NOT_EVALUABLE, _no_joint(spec, data), (), joint=joint)
     values: dict[int, tuple[float, ...]] = {}
@@ -330,16 +326,15 @@ def _steps(
     trend = spec.relation != "no_trend"
     sign = 1.0 if spec.relation == "increasing" else -1.0
     margin = spec.margin or 0.0
-    order = list(dict.fromkeys(spec.configurations))
     parts: list[str] = []
     ps: list[float] = []
-    for a, b in pairwise(order) if trend else combinations(order, 2):
-        w = contrast_interval([(-1.0, values[a]), (1.0, values[b])], TEST_CONFIDENCE)
+    for terms, name in statements(spec):
+        w = contrast_interval([(wt, values[k]) for wt, k in terms], TEST_CONFIDENCE)
         p = (p_above(w, 0.0) if sign > 0 else p_below(w, 0.0)) if trend else _tost(w, 0.0, margin)
         ps.append(p)
         fails = "" if p <= ALPHA else " (fails)"
         parts.append(
-            f"{b} minus {a}: {_fmt(w.difference)} {unit}, 90 % Welch interval {_ival(w.low, w.high, unit)}, "
+            f"{name}: {_fmt(w.difference)} {unit}, 90 % Welch interval {_ival(w.low, w.high, unit)}, "
             f"{'one-sided' if trend else 'TOST'} p {format_p(p)}{fails}"
         )
     if trend:
@@ -347,6 +342,7 @@ def _steps(
         rule = f"every step must lie {way} zero, one-sided Welch; the largest step p decides"
     else:
         rule = f"every pair's 90 % interval must lie inside ±{margin:g} {unit}: two one-sided Welch tests"
+    order = list(dict.fromkeys(spec.configurations))
     return max(ps, default=math.nan), f"{_ordered(order, intervals, unit)}; {'; '.join(parts)} ({rule})"
 
 
@@ -359,13 +355,13 @@ def _decide(
         return _steps(spec, values, intervals, unit)
     parts: list[str] = []
     ps: list[float] = []
-    for i, key in enumerate(spec.configurations):
-        terms, name = _terms(spec, i, key)
+    for (terms, name), key in zip(statements(spec), spec.configurations, strict=True):
         w = contrast_interval([(wt, values[k]) for wt, k in terms], TEST_CONFIDENCE)
         if len(terms) == 1:
             subject = f"configuration {key}: mean {_fmt(w.difference)} {unit}, 90 % interval"
         else:
             kind = "Welch" if len(terms) == 2 else "Welch-Satterthwaite"
+            name = name if name.startswith("(") else f"configuration {name}"
             subject = f"{name}: {_fmt(w.difference)} {unit}, 90 % {kind} interval"
         ref = 0.0 if spec.than is not None else spec.value or 0.0
         p, test = _statement_p(spec, w, ref)
@@ -386,26 +382,6 @@ def _statement_p(spec: ExpectationSpec, w: WelchInterval, ref: float) -> tuple[f
         return _tost(w, ref, spec.margin or 0.0), "TOST"
     lo, hi = spec.interval or (math.nan, math.nan)
     return max(p_above(w, lo), p_below(w, hi)), "TOST"
-
-
-def _terms(spec: ExpectationSpec, i: int, key: int) -> tuple[list[tuple[float, int]], str]:
-    """The weighted configurations of the i-th statement and its readable name."""
-    terms: list[tuple[float, int]] = [(1.0, key)]
-    name = f"configuration {key}"
-    if spec.baseline is not None:
-        terms.append((-1.0, spec.baseline[i]))
-        name = f"configuration {key} minus {spec.baseline[i]}"
-    if spec.than is not None:
-        other = spec.than[i]
-        terms.append((-1.0, other))
-        if spec.than_baseline is not None:
-            terms.append((1.0, spec.than_baseline[i]))
-            name = f"({name.removeprefix('configuration ')}) minus ({other} minus {spec.than_baseline[i]})"
-        elif spec.baseline is not None:
-            name = f"({name.removeprefix('configuration ')}) minus {other}"
-        else:
-            name = f"configuration {key} minus {other}"
-    return terms, name
 
 
 def _criterion(spec: ExpectationSpec, unit: str) -> str:

@@ -25,7 +25,7 @@ import numpy as np
 from protocol_runner.analysis.cycles import complete_cycles
 from protocol_runner.analysis.validation import AnalysisError
 from protocol_runner.archive.diskfull import DiskFull, is_disk_full
-from protocol_runner.archive.model_results import read_element_model, read_models
+from protocol_runner.archive.model_results import MODEL_VALUES, read_element_model, read_models
 from protocol_runner.archive.outputs import create_new, refuse_special, temporary_beside
 from protocol_runner.archive.paths import joint_groups
 from protocol_runner.errors import InvalidInput
@@ -79,18 +79,7 @@ STAT_COLUMNS = (
     "bouc_wen_r2",
 )
 
-MODEL_COLUMNS = (
-    "configuration",
-    "joint",
-    "model",
-    "k",
-    "rmse_nm",
-    "heldout_rmse_nm",
-    "aic",
-    "bic",
-    "energy_model_j",
-    "energy_data_j",
-)
+MODEL_COLUMNS = ("configuration", "joint", "model", *MODEL_VALUES)
 ELEMENT_COLUMNS = (
     "configuration",
     "joint",
@@ -289,11 +278,9 @@ def _model_tables(archive: Path, protocol_text: str) -> tuple[Table, ...]:
             key = int(configs[name].attrs.get("key", int(name.rsplit("_", 1)[-1])))
             for joint, owner in joint_groups(configs[name], archive_joints):
                 if "fits/models" in owner:
-                    for row in read_models(owner["fits/models"]):
-                        models.append([key, joint, *(row[c] for c in MODEL_COLUMNS[2:])])
+                    models += ([key, joint, *r] for r in read_models(owner["fits/models"]))
                 if "fits/element_model" in owner:
-                    for row in read_element_model(owner["fits/element_model"]):
-                        elements.append([key, joint, *(row[c] for c in ELEMENT_COLUMNS[2:])])
+                    elements += ([key, joint, *r] for r in read_element_model(owner["fits/element_model"]))
     archive_joint = archive_joints.split(",")[0].strip()
     rows: list[list[object]] = []
     for p in predictions(archive, protocol_text, figures=False):
