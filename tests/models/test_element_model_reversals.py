@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from protocol_runner.analysis.branches import turning_points
 from protocol_runner.analysis.model_fit import fit_element_model
 from protocol_runner.analysis.subtraction import robot_torque_at_equal_angle
 from protocol_runner.models.element_model import Motion, layout
@@ -38,7 +39,7 @@ def subtracted_trial(seed: int) -> Motion:
     on = robot + device + 0.05 * rng.standard_normal(t.size)
     off = robot + 0.05 * rng.standard_normal(t.size)
     subtracted, _ = robot_torque_at_equal_angle(angle, angle, off)
-    return Motion.from_samples(t, angle, on - subtracted, max_step_deg=1.0)
+    return Motion.from_samples(t, angle, on - subtracted, max_step_deg=1.0, turning_points=turning_points)
 
 
 def test_damper_and_brake_recovered_through_the_subtraction() -> None:
@@ -57,7 +58,7 @@ def test_damper_and_brake_recovered_through_the_subtraction() -> None:
 def test_the_first_degree_after_a_turning_point_is_not_compared() -> None:
     t = np.arange(0.0, 2.0 * PERIOD_S, 1.0 / RATE_HZ)
     angle = 65.0 - 45.0 * np.cos(2.0 * np.pi * t / PERIOD_S)
-    m = Motion.from_samples(t, angle, np.zeros_like(t))
+    m = Motion.from_samples(t, angle, np.zeros_like(t), turning_points=turning_points)
     top = int(np.argmax(np.where(t < PERIOD_S, angle, 0.0)))  # the first maximum
     travel = np.abs(angle - angle[top])
     after = (np.arange(angle.size) > top) & (t < PERIOD_S)  # down to the first minimum

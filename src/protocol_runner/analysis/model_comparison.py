@@ -24,6 +24,7 @@ from scipy.special import stdtrit
 
 from ..models.element_model import FloatArray, ModelLayout, Motion, layout, model_torque_nm
 from ..models.elements import Element
+from .branches import turning_points
 from .energy import energy_per_cycle
 from .model_fit import ElementModelFit, Problem, fit_element_model, mean_energy_j, sum_of_squares
 
@@ -85,8 +86,12 @@ class ModelComparison:
 
 def motions_of(trials: Sequence[tuple[FloatArray, FloatArray, FloatArray]]) -> tuple[Motion, ...]:
     """The fit's view of stored processed trials `(time_s, angle_deg, brace_torque_nm)`: sampled at
-    about one degree of travel (`Motion.from_samples`)."""
-    return tuple(Motion.from_samples(t, a, y, max_step_deg=MOTION_STEP_DEG) for t, a, y in trials)
+    about one degree of travel, the samples just after each turning point not compared
+    (`Motion.from_samples`)."""
+    return tuple(
+        Motion.from_samples(t, a, y, max_step_deg=MOTION_STEP_DEG, turning_points=turning_points)
+        for t, a, y in trials
+    )
 
 
 def reduced_layout(elements: Sequence[Element], angle_deg: FloatArray) -> ModelLayout:

@@ -22,14 +22,13 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-from ..analysis.branches import turning_points
 from .element_torques import has_static_torque, static_torque_nm
 from .element_types import ELEMENT_TYPES
 from .elements import Element
@@ -135,6 +134,7 @@ class Motion:
         torque_nm: npt.ArrayLike,
         *,
         max_step_deg: float | None = None,
+        turning_points: Callable[[FloatArray, float], npt.NDArray[np.int64]] | None = None,
     ) -> Motion:
         """The motion of one trial's samples (those with a finite time, angle and torque).
 
@@ -146,8 +146,9 @@ class Motion:
         a 200 Hz loop low-passed at 50 Hz, a fifth of a 20 deg/s motion's peak speed), and noise in the
         damper's regressor biases its coefficient toward zero, the brake taking up its torque.
 
-        The samples within REVERSAL_SKIP_DEG of travel after each turning point (`analysis.branches.
-        turning_points` at that threshold) are marked `reversing`. There the loop still holds part of the
+        `turning_points(angle_deg, reversal_deg)`: the indices of the motion's turning points (the
+        analysis's `branches.turning_points`; None marks none). The samples within REVERSAL_SKIP_DEG of
+        travel after each turning point at that threshold are marked `reversing`. There the loop still holds part of the
         robot's friction reversal: the brace-off curve's first bin averages the reversal's steepest part,
         and brace-on angles beyond that bin's mean angle take its torque (0.5 N·m off just after the
         turn with a 2.5 N·m robot friction, even for identical motions). That error sits at the lowest
@@ -163,7 +164,7 @@ class Motion:
         settled = int(np.searchsorted(travel, SETTLE_DEG))
         settled = settled if settled < a.size - 2 else 0
         reversing = np.zeros(a.size, dtype=bool)
-        if a.size >= 3:
+        if turning_points is not None and a.size >= 3:
             ends = [*turning_points(a, REVERSAL_SKIP_DEG).tolist(), a.size]
             for start, stop in itertools.pairwise(ends):
                 travel = np.maximum.accumulate(np.abs(a[start:stop] - a[start]))
