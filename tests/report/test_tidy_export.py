@@ -169,3 +169,62 @@ def test_cli_export_only_a_key_the_archive_lacks_exits_2_naming_it(
     assert main(["--export", str(small_archive), "--output", str(tmp_path / "out"), "--only", "999"]) == 2
     assert "999" in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_predictions_csv_gives_each_models_angles_and_marks_an_extrapolation(
+    small_archive: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The declared columns first, in their order, then each model's angles: those fitted on (A's) and
+    those predicted (B's), how far B's reach beyond A's, and whether that is an extrapolation."""
+    from protocol_runner.report import tidy
+    from protocol_runner.report.predictions import AngleRanges, ElementPrediction, Prediction
+
+    empty = np.zeros(0)
+    element = ElementPrediction(
+        0.5, 16.7, 15.7, 17.4, 16.1, empty, empty, empty, AngleRanges((41.0, 84.0), (1.0, 109.0))
+    )
+    wide = Prediction(
+        12, 14, "", 91.8, 1.0, "", element, bouc_wen_ranges=AngleRanges((-21.0, 22.0), (-58.0, 50.0))
+    )
+    monkeypatch.setattr(tidy, "predictions", lambda archive, text, figures: (wide,))
+    export_tables(small_archive, tmp_path)
+    with (tmp_path / "predictions.csv").open(encoding="utf-8", newline="") as fh:
+        header = next(csv.reader(fh))
+    assert header == [
+        "from_configuration",
+        "to_configuration",
+        "joint",
+        "model",
+        "rmse_nm",
+        "energy_predicted_j",
+        "energy_predicted_ci95_low_j",
+        "energy_predicted_ci95_high_j",
+        "energy_measured_j",
+        "source_range_low_deg",
+        "source_range_high_deg",
+        "target_range_low_deg",
+        "target_range_high_deg",
+        "beyond_source_deg",
+        "extrapolated",
+    ]
+    elements, bouc_wen = _rows(tmp_path / "predictions.csv")
+    assert (elements["model"], elements["rmse_nm"], elements["energy_predicted_j"]) == (
+        "elements",
+        "0.5",
+        "16.7",
+    )
+    ranges = (
+        "source_range_low_deg",
+        "source_range_high_deg",
+        "target_range_low_deg",
+        "target_range_high_deg",
+    )
+    assert [elements[c] for c in ranges] == ["41.0", "84.0", "1.0", "109.0"]
+    assert (elements["beyond_source_deg"], elements["extrapolated"]) == ("40.0", "True")
+    assert (bouc_wen["model"], bouc_wen["rmse_nm"], bouc_wen["energy_predicted_j"]) == (
+        "bouc_wen",
+        "91.8",
+        "",
+    )
+    assert [bouc_wen[c] for c in ranges] == ["-21.0", "22.0", "-58.0", "50.0"]
+    assert (bouc_wen["beyond_source_deg"], bouc_wen["extrapolated"]) == ("37.0", "True")

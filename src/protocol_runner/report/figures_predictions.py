@@ -12,6 +12,7 @@ from protocol_runner.report.drawing import ANGLE_LABEL, COLORS, TORQUE_LABEL, em
 
 MEASURED_COLOR = COLORS[0]
 PREDICTED_COLOR = COLORS[1]
+FITTED_RANGE_COLOR = "0.9"  # light grey, behind the loops
 
 
 def prediction_figure(
@@ -20,15 +21,20 @@ def prediction_figure(
     angle_deg: npt.ArrayLike,
     measured_torque_nm: npt.ArrayLike,
     predicted_torque_nm: npt.ArrayLike,
+    fitted_range_deg: tuple[float, float] | None = None,
 ) -> str:
     """Configuration `predict_key`'s measured loop (solid, blue) and the loop the element model fitted on
     `fit_key` predicts (dashed, red), drawn in that order: the prediction over the data it is judged
-    against."""
+    against; behind them, shaded grey, the angles the model was fitted on (`fitted_range_deg`, when given):
+    where the loop leaves them, the model extrapolates."""
     fig, (ax,) = new_figure("single")
     angle = np.asarray(angle_deg, dtype=np.float64)
     if angle.size == 0:
         empty(ax, f"no element model of configuration {fit_key}")
     else:
+        if fitted_range_deg is not None:
+            low, high = fitted_range_deg
+            ax.axvspan(low, high, color=FITTED_RANGE_COLOR, zorder=0, label=f"angles fitted on {fit_key}")
         ax.plot(
             angle,
             measured_torque_nm,

@@ -6,7 +6,12 @@ configuration B predicted from a model fitted on A, for the pairs the protocol d
   (`models.element_model.transfer`), run along B's processed trials: the RMSE against B's measured torque
   and the energy per cycle with a 95 % interval (PREDICTION_DRAWS parameter sets drawn from A's covariance
   plus each parameter's spread across the campaign, `reproducibility`).
-* The generalised Bouc-Wen model: A's parameters and backbone on B's centred loops (its RMSE)."""
+* The generalised Bouc-Wen model: A's parameters and backbone on B's centred loops (its RMSE).
+
+Each model's prediction records the angles it was fitted on (A's) and those it runs over (B's): a prediction
+whose B angles reach beyond A's by more than EXTRAPOLATION_SHARE of A's span extrapolates, and says so. Its
+numbers are kept (they are what the model does there), but the Bouc-Wen backbone is a polynomial in the
+angle fitted on A's angles and is not meant to hold outside them, while the element model is physical."""
 
 from __future__ import annotations
 
@@ -30,6 +35,38 @@ if TYPE_CHECKING:
     from ..models.bouc_wen.params import BoucWenParams
 
 
+EXTRAPOLATION_SHARE = 0.05
+"""B's angles may reach this share of A's fitted span beyond it before a prediction extrapolates: a degree
+or two is a loop's ordinary reach from one configuration to the next (and the stored loops are decimated,
+their extremes a little inside the fitted ones), a polynomial's change over it small."""
+
+
+@dataclass(frozen=True)
+class AngleRanges:
+    """The angles (deg, (low, high)) a model was fitted on, configuration A's, and those it predicts, B's."""
+
+    source_deg: tuple[float, float]
+    target_deg: tuple[float, float]
+
+    @property
+    def beyond_source_deg(self) -> float:
+        """How far B's angles reach beyond A's, on the side where they reach farther (0 within A's)."""
+        (a_low, a_high), (b_low, b_high) = self.source_deg, self.target_deg
+        return float(max(0.0, a_low - b_low, b_high - a_high))
+
+    @property
+    def extrapolated(self) -> bool:
+        """B's angles reach beyond A's by more than EXTRAPOLATION_SHARE of A's span."""
+        a_low, a_high = self.source_deg
+        return self.beyond_source_deg > EXTRAPOLATION_SHARE * (a_high - a_low)
+
+
+def angle_range(angles: list[np.ndarray]) -> tuple[float, float]:
+    """(lowest, highest) of the angles of all the given trials (deg)."""
+    both = np.concatenate([np.asarray(a, dtype=np.float64).ravel() for a in angles])
+    return float(np.min(both)), float(np.max(both))
+
+
 @dataclass(frozen=True)
 class Prediction:
     """One declared pair's numbers. (The session unpickles these from the worker that computed them, at
@@ -44,6 +81,44 @@ class Prediction:
     element: ElementPrediction | None = None  # the element model's prediction, when A has one
     figure: str = ""  # B's measured loop and the element model's prediction (a PNG data URI), when drawn
     joint: str = ""  # the joint whose data both models were fitted to and predict
+    bouc_wen_ranges: AngleRanges | None = None  # A's and B's centred loop angles, when both were fitted
+
+    @property
+    def extrapolation_note(self) -> str:
+        """A sentence naming each model that runs beyond the angles it was fitted on, and by how much,
+        with what that means for it; empty when neither does."""
+        e = self.element.ranges if self.element is not None else None
+        said = [
+            f"the {name} runs {r.beyond_source_deg:.1f} deg beyond the angles it was fitted on ({where}: "
+            f"{_range_text(r.source_deg)} on {self.fit_key}, {_range_text(r.target_deg)} on {self.predict_key})"
+            for name, where, r in (
+                ("element model", "joint angle", e),
+                ("Bouc-Wen model", "centred angle", self.bouc_wen_ranges),
+            )
+            if r is not None and r.extrapolated
+        ]
+        if not said:
+            return ""
+        text = (
+            f"Configuration {self.predict_key} predicted from {self.fit_key} extrapolates: {'; '.join(said)}."
+        )
+        if self.bouc_wen_ranges is not None and self.bouc_wen_ranges.extrapolated:
+            rmse = (
+                f"its RMSE of {self.rmse_nm:.2f} N·m ({self.predict_key}'s own fit: {self.own_rmse_nm:.2f} N·m)"
+                if math.isfinite(self.rmse_nm)
+                else "its prediction"
+            )
+            text += (
+                f" The Bouc-Wen backbone is a polynomial fitted on {self.fit_key}'s angles and is not meant to"
+                f" extrapolate: {rmse} is what the polynomial does outside them, not a measure of the model on"
+                " the angles it was fitted on."
+            )
+        if self.element is not None and e is not None and e.extrapolated:
+            text += (
+                " The element model is physical (the declared elements with their geometry), so it carries"
+                f" over to angles outside those it was fitted on (its RMSE: {self.element.rmse_nm:.2f} N·m)."
+            )
+        return text
 
 
 @dataclass(frozen=True)
@@ -58,6 +133,11 @@ class ElementPrediction:
     angle_deg: np.ndarray  # B's first trial: angle, measured and predicted torque (the overlay)
     measured_torque_nm: np.ndarray
     predicted_torque_nm: np.ndarray
+    ranges: AngleRanges | None = None  # A's processed joint angles (the fit's) and B's (the prediction's)
+
+
+def _range_text(r: tuple[float, float]) -> str:
+    return f"[{r[0]:.1f}, {r[1]:.1f}] deg"
 
 
 PREDICTION_DRAWS = 100
@@ -185,7 +265,12 @@ def element_prediction(
     # the configuration-to-configuration spread of each parameter adds to A's own fit uncertainty
     cov = cov + np.diag(np.array([spread.get(k, 0.0) ** 2 for k in names]))
     lay_a, lay_b = layout(stored_device(src, joint)), layout(stored_device(dst, joint))
-    motions = motions_of(read_processed_trials(dst_part["trials"]))
+    trials_b = read_processed_trials(dst_part["trials"])
+    motions = motions_of(trials_b)
+    ranges = None
+    if "trials" in src_part:
+        fitted_angles = [angle for _, angle, _ in read_processed_trials(src_part["trials"])]
+        ranges = AngleRanges(angle_range(fitted_angles), angle_range([angle for _, angle, _ in trials_b]))
 
     def run(fitted: dict) -> list[np.ndarray]:
         vb = transfer(lay_a, lay_b, fitted)
@@ -213,6 +298,7 @@ def element_prediction(
         angle_deg=first.angle_deg[::stride],
         measured_torque_nm=first.torque_nm[::stride],
         predicted_torque_nm=predicted[0][::stride],
+        ranges=ranges,
     )
 
 
@@ -227,8 +313,9 @@ def predictions(archive: Path, protocol_text: str, *, figures: bool = True) -> t
     def drawn(p: Prediction, e: ElementPrediction | None) -> Prediction:
         if e is None:
             return p
+        fitted = e.ranges.source_deg if e.ranges is not None else None
         figure = prediction_figure(
-            p.fit_key, p.predict_key, e.angle_deg, e.measured_torque_nm, e.predicted_torque_nm
+            p.fit_key, p.predict_key, e.angle_deg, e.measured_torque_nm, e.predicted_torque_nm, fitted
         )
         return replace(p, figure=figure)
 
@@ -265,13 +352,30 @@ def _predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
                 src = part_a.get("fits/bouc_wen")
                 dst = part_b.get("fits/bouc_wen") if part_b is not None else None
                 rmse = own = math.nan
+                ranges = None
                 if src is None or dst is None:
                     reason = f"no fit of {fit_key if src is None else predict_key}"
                 else:
-                    rmse = predict_rmse(*_model(src), _segments(dst))
+                    segments = _segments(dst)
+                    rmse = predict_rmse(*_model(src), segments)
                     own = float(dst.attrs.get("rmse_nm", math.nan))
                     reason = "" if math.isfinite(rmse) else "diverges"
-                out.append(Prediction(fit_key, predict_key, note, rmse, own, reason, element, joint=joint))
+                    fitted_on = [x for x, _ in _segments(src)]
+                    if fitted_on and segments:
+                        ranges = AngleRanges(angle_range(fitted_on), angle_range([x for x, _ in segments]))
+                out.append(
+                    Prediction(
+                        fit_key,
+                        predict_key,
+                        note,
+                        rmse,
+                        own,
+                        reason,
+                        element,
+                        joint=joint,
+                        bouc_wen_ranges=ranges,
+                    )
+                )
     return tuple(out)
 
 
@@ -292,6 +396,18 @@ def prediction_row(p: Prediction) -> dict[str, object]:
         "bouc_wen_rmse_nm": p.rmse_nm,
         "bouc_wen_own_rmse_nm": p.own_rmse_nm,
         "reason": p.reason,
+        **_ranges_row("element", e.ranges if e else None),
+        **_ranges_row("bouc_wen", p.bouc_wen_ranges),
+    }
+
+
+def _ranges_row(model: str, r: AngleRanges | None) -> dict[str, object]:
+    """A model's angle ranges as `/predictions` stores them (None: not stored)."""
+    return {
+        f"{model}_source_range_deg": list(r.source_deg) if r else None,
+        f"{model}_target_range_deg": list(r.target_deg) if r else None,
+        f"{model}_beyond_source_deg": r.beyond_source_deg if r else math.nan,
+        f"{model}_extrapolated": r.extrapolated if r else None,
     }
 
 

@@ -33,7 +33,7 @@ from protocol_runner.report.h5read import attr_str
 from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.model import BraceOffMatch, Configuration, ReportData
-from protocol_runner.report.predictions import prediction_row, predictions
+from protocol_runner.report.predictions import AngleRanges, prediction_row, predictions
 
 if TYPE_CHECKING:
     from protocol_runner.protocol.only import KeySelection
@@ -100,6 +100,12 @@ PREDICTION_COLUMNS = (
     "energy_predicted_ci95_low_j",
     "energy_predicted_ci95_high_j",
     "energy_measured_j",
+    "source_range_low_deg",
+    "source_range_high_deg",
+    "target_range_low_deg",
+    "target_range_high_deg",
+    "beyond_source_deg",
+    "extrapolated",
 )
 
 
@@ -266,6 +272,13 @@ def _configuration_rows(data: ReportData) -> tuple[list[str], list[list[object]]
 Table = tuple[str, Sequence[str], list[list[object]]]
 
 
+def _ranges(r: AngleRanges | None) -> list[object]:
+    """A model's angle range columns of predictions.csv (empty when it has none)."""
+    if r is None:
+        return [math.nan] * 5 + [None]
+    return [*r.source_deg, *r.target_deg, r.beyond_source_deg, r.extrapolated]
+
+
 def _model_tables(archive: Path, protocol_text: str) -> tuple[Table, ...]:
     """The rows of models.csv, elements.csv and predictions.csv of `archive`, each as (file name, columns,
     rows); a number that does not exist is NaN."""
@@ -283,14 +296,21 @@ def _model_tables(archive: Path, protocol_text: str) -> tuple[Table, ...]:
                     elements += ([key, joint, *r] for r in read_element_model(owner["fits/element_model"]))
     archive_joint = archive_joints.split(",")[0].strip()
     rows: list[list[object]] = []
+    energies = PREDICTION_COLUMNS[5:9]
     for p in predictions(archive, protocol_text, figures=False):
         head = [p.fit_key, p.predict_key, p.joint or archive_joint]
         if p.element is not None:
             row = prediction_row(p)
             rows.append(
-                [*head, "elements", row["element_rmse_nm"], *(row[c] for c in PREDICTION_COLUMNS[5:])]
+                [
+                    *head,
+                    "elements",
+                    row["element_rmse_nm"],
+                    *(row[c] for c in energies),
+                    *_ranges(p.element.ranges),
+                ]
             )
-        rows.append([*head, "bouc_wen", p.rmse_nm, *[math.nan] * 4])
+        rows.append([*head, "bouc_wen", p.rmse_nm, *[math.nan] * len(energies), *_ranges(p.bouc_wen_ranges)])
     return (
         ("models.csv", MODEL_COLUMNS, models),
         ("elements.csv", ELEMENT_COLUMNS, elements),
