@@ -110,3 +110,11 @@ def test_the_cli_prints_every_joint(per_joint_leg: Path, capsys: pytest.CaptureF
     assert main(["--plan", str(per_joint_leg)]) == 0
     out = capsys.readouterr().out
     assert "knee_flexion: 55+35*sin(" in out and "ankle_flexion: 0+10*sin(" in out
+
+
+def test_counts_of_one_read_in_the_singular(capsys: pytest.CaptureFixture[str]) -> None:
+    """`--only 2` plans one configuration, and leg_phase2 has one set: not "1 configurations", "1 sets"."""
+    assert main(["--plan", str(REPO / "protocols" / "knee_phase1.yaml"), "--only", "2"]) == 0
+    assert "6 trials over 1 configuration;" in capsys.readouterr().out
+    assert main(["--validate", str(REPO / "protocols" / "leg_phase2.yaml")]) == 0
+    assert "leg_phase2: 1 set, 3 configurations, 18 trials, 32 steps," in capsys.readouterr().out

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from .plan_steps import Plan, TrialStep
+from .wording import counted
 
 
 def format_matrix_table(plan: Plan) -> list[str]:
@@ -62,7 +63,8 @@ def format_plan_table(plan: Plan) -> str:
     configs = sorted({s.configuration for s in trials})
     lines.append("")
     lines.append(
-        f"{len(plan.steps)} steps: {len(trials)} trials over {len(configs)} configurations; "
+        f"{counted(len(plan.steps), 'step')}: {counted(len(trials), 'trial')} over "
+        f"{counted(len(configs), 'configuration')}; "
         f"about {plan.robot_time_s / 60:.0f} min of robot motion (brace-off scaling iterations add more)."
     )
     return "\n".join(lines)
