@@ -440,14 +440,24 @@ def _preflighted(name: str, only: KeySelection | None = None) -> tuple[Path, Loa
 
 def _cmd_validate(args: argparse.Namespace) -> int:
     from .protocol.plan_table import robot_time_text
+    from .protocol.validate import unused_trajectories
+    from .protocol.wording import counted
 
     path, loaded, plan = _preflighted(args.validate)
+    p = loaded.protocol
     trials = sum(1 for s in plan.steps if s.kind == "trial")
-    n_cfg = len(loaded.protocol.configurations())
+    unused = unused_trajectories(p)
+    declared = (  # checked all the same (protocol/validate.py); may be a set forgotten
+        f"Declared but used by no configuration: {counted(len(unused), 'trajectory', 'trajectories')} "
+        f"({', '.join(unused)}). "
+        if unused
+        else ""
+    )
     print(
-        f"{path}: valid. {loaded.protocol.name}: {len(loaded.protocol.sets)} sets, {n_cfg} configurations, "
-        f"{trials} trials, {len(plan)} steps, about {robot_time_text(plan.robot_time_s)} of robot time. "
-        f"sha256 {loaded.sha256[:16]}..."
+        f"{path}: valid. {p.name}: {counted(len(p.sets), 'set')}, "
+        f"{counted(len(p.configurations()), 'configuration')}, {counted(trials, 'trial')}, "
+        f"{counted(len(plan), 'step')}, about {robot_time_text(plan.robot_time_s)} of robot time. "
+        f"{declared}sha256 {loaded.sha256[:16]}..."
     )
     return EXIT_OK
 

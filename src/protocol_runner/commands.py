@@ -83,6 +83,7 @@ def run_loaded(
     `sessions/<name>-<UTC time>/`): the run behind `run-protocol PROTOCOL`, its outcome returned."""
     from .preflight import preflight, preflight_warnings
     from .protocol.plan_table import robot_time_text
+    from .protocol.wording import counted
     from .session.runner import Runner
     from .session.setup import create_session, created_session_protocol, default_session_dir
 
@@ -116,7 +117,8 @@ def run_loaded(
     robot = robot_time_text(plan.robot_time_s)
     if not quiet:
         _say(
-            f"session {directory}: {loaded.protocol.name}, {len(plan)} steps, about {robot} of robot motion "
+            f"session {directory}: {loaded.protocol.name}, {counted(len(plan), 'step')}, about {robot} of robot "
+            "motion "
             f"({info.mode}, seed {info.seed})"
         )
         if dry_run:

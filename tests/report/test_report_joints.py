@@ -93,7 +93,7 @@ def test_the_summary_counts_trials_and_cycles_per_joint_and_all_joints_together(
         row = table.split(f'data-joint="{joint}"', 1)[1].split("</tr>", 1)[0]
         assert _cell_numbers(row) == ["3", str(n)]  # 3 trials analysed, its own cycles
     lead = html.split('<section id="summary">', 1)[1].split("</p>", 1)[0]
-    assert f"1 configurations,\n3 trials, {cycles['all joints']} cycles of all\n3 joints together" in lead
+    assert f"1 configuration,\n3 trials, {cycles['all joints']} cycles of all\n3 joints together" in lead
     for joint in (*JOINTS, "all joints"):  # the headline: a row per joint, and the total
         row = html.split(f'id="headline-2-{joint.replace("_", "-").replace(" ", "-")}"', 1)[1].split("</tr>")[
             0

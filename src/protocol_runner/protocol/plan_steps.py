@@ -1,7 +1,8 @@
 """The Plan's data: one frozen dataclass per step kind, and the Plan (steps in execution order, by id).
 
 Each kind's class declares, in one place, what the rest of the program needs to know of it: what it does
-(`describe`, a line of `run-protocol --plan`), the earlier steps whose units it reads (`inputs`: a resume
+(`describe`, its line of `run-protocol --plan`, with a line per joint below it when a multi-joint step's
+joints do not fit on one), the earlier steps whose units it reads (`inputs`: a resume
 that redoes one of them redoes this step too), whether it uses the rig or sets it up (`uses_rig`: a resume
 asks for the rig's state before the first such step) and whether it only reads finished units, so that it
 may run in an analysis worker beside the trials (`background`). The function that runs a step of the kind
@@ -49,7 +50,8 @@ class Step(ABC):
 
     @abstractmethod
     def describe(self) -> str:
-        """What the step does: its line in the plan table (`run-protocol --plan`)."""
+        """What the step does: its line in the plan table (`run-protocol --plan`), and any further lines
+        (after a newline) shown below it, indented under the first."""
 
     def inputs(self) -> tuple[str, ...]:
         """The ids of the earlier steps whose units this step reads: a resume that redoes one of them (its
@@ -72,8 +74,35 @@ class Step(ABC):
 
 JointTrajectories = tuple[tuple[str, Trajectory], ...]
 """(joint, trajectory) per driven joint of a multi-joint protocol, in channel order."""
+JointTexts = tuple[tuple[str, str], ...]
+"""(joint, text) per driven joint, in channel order."""
 
 _TRAJECTORY_FIELDS = ("trajectory", "joint_trajectories")
+
+JOINTS_INLINE_WIDTH = 100
+"""The longest per-joint text a plan-table line holds; a longer one is shown a line per joint below it."""
+
+
+def _with_joints(line: str, what: JointTexts, after: str = "", *, group: bool = True) -> str:
+    """`line`, what each driven joint does, then `after`, for the plan table: the "joint: what" parts on
+    the line when short, else one part per line below it (the lines separated by newlines). With `group`,
+    joints doing the same thing are named together ("every joint" when all do); without, each joint in
+    channel order."""
+    if group:
+        joints_of: dict[str, list[str]] = {}
+        for joint, text in what:
+            joints_of.setdefault(text, []).append(joint)
+        every = len(what) > 1
+        parts = [
+            f"{'every joint' if every and len(js) == len(what) else ', '.join(js)}: {text}"
+            for text, js in joints_of.items()
+        ]
+    else:
+        parts = [f"{joint}: {text}" for joint, text in what]
+    inline = "; ".join(parts)
+    if len(inline) <= JOINTS_INLINE_WIDTH:
+        return f"{line}{inline}{after}"
+    return "\n".join([f"{line}per joint below{after}", *parts])
 
 
 def _trajectory_json(trajectory: Trajectory, per_joint: JointTrajectories) -> dict[str, Any]:
@@ -95,8 +124,17 @@ class CalibrationCheckStep(Step):
     uses_rig: ClassVar[bool] = True
 
     def describe(self) -> str:
-        step_deg = dict(self.trajectory.params).get("step_deg", 0.0)
-        return f"set {self.set}: {step_deg:g} deg step check {self.when}"
+        """The step of the joint (single joint), or each joint's step from its start angle, one joint after
+        the other (multi-joint)."""
+        if not self.joint_trajectories:
+            step_deg = dict(self.trajectory.params).get("step_deg", 0.0)
+            return f"set {self.set}: {step_deg:g} deg step check {self.when}"
+        steps = tuple(
+            (j, f"{t.number('step_deg'):g} deg step from {t.number('from_deg'):g} deg")
+            for j, t in self.joint_trajectories
+        )
+        line = f"set {self.set}: step check {self.when}, one joint after the other: "
+        return _with_joints(line, steps, group=False)
 
     def to_json(self) -> dict[str, Any]:
         return {**super().to_json(), **_trajectory_json(self.trajectory, self.joint_trajectories)}
@@ -140,12 +178,17 @@ class TrialStep(Step):
     uses_rig: ClassVar[bool] = True
 
     def describe(self) -> str:
-        traj = trajectory_kind(self.trajectory.profile).describe(self.trajectory)
-        extra = f"  (input from {self.twin})" if self.twin else ""
-        return (
+        """The trial, its levels and its motion: its trajectory's, or every driven joint's (multi-joint)."""
+        line = (
             f"config {self.configuration:>2} run {self.run:>2} trial {self.trial} brace {self.brace:<3}  "
-            f"{' '.join(f.level for _, f in self.settings.factors)}  {traj}{extra}"
+            f"{' '.join(f.level for _, f in self.settings.factors)}  "
         )
+        extra = f"  (input from {self.twin})" if self.twin else ""
+        motions = self.joint_trajectories or (("", self.trajectory),)
+        described = tuple((j, trajectory_kind(t.profile).describe(t)) for j, t in motions)
+        if not self.joint_trajectories:
+            return f"{line}{described[0][1]}{extra}"
+        return _with_joints(line, described, extra)
 
     def inputs(self) -> tuple[str, ...]:
         """A brace-off trial commands what its brace-on twin measured."""

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from .plan_steps import Plan, TrialStep
+from .wording import counted
 
 
 def format_matrix_table(plan: Plan) -> list[str]:
@@ -25,7 +26,7 @@ def format_matrix_table(plan: Plan) -> list[str]:
             str(st.run),
             st.set,
             *[st.settings.level(f) or "-" for f in factors],
-            f"{st.trajectory.name or st.trajectory.profile} ({st.trajectory.profile})",
+            f"{st.trajectory.name or st.trajectory.profile} ({_kinds(st)})",
             str(trials[k]),
         ]
         for k, st in rows.items()
@@ -37,20 +38,33 @@ def format_matrix_table(plan: Plan) -> list[str]:
     return out
 
 
+def _kinds(step: TrialStep) -> str:
+    """The trajectory kind(s) a trial commands: its trajectory's, or its joints' (multi-joint)."""
+    motions = step.joint_trajectories or (("", step.trajectory),)
+    return ", ".join(dict.fromkeys(t.profile for _, t in motions))
+
+
 def format_plan_table(plan: Plan) -> str:
     width = max(len(s.id) for s in plan.steps)
     lines = [f"Plan of {plan.protocol_name} (sha256 {plan.protocol_sha256[:16]}...)", ""]
+    joints = next((s.joints for s in plan.steps if isinstance(s, TrialStep)), ())
+    if joints:
+        lines += [f"Driven joints ({len(joints)}, in channel order): {', '.join(joints)}", ""]
     lines += ["Test matrix:", *format_matrix_table(plan), "", "Steps:"]
     lines.append(f"{'#':>4}  {'id':<{width}}  {'kind':<18}  {'robot s':>8}  what")
     lines.append(f"{'-' * 4}  {'-' * width}  {'-' * 18}  {'-' * 8}  {'-' * 40}")
+    below = " " * (4 + 2 + width + 2 + 18 + 2 + 8 + 2 + 2)  # under the step's "what", indented
     for i, step in enumerate(plan.steps, start=1):
         t = f"{step.robot_time_s:8.1f}" if step.robot_time_s else " " * 8
-        lines.append(f"{i:>4}  {step.id:<{width}}  {step.kind:<18}  {t}  {step.describe()}")
+        first, *more = step.describe().split("\n")
+        lines.append(f"{i:>4}  {step.id:<{width}}  {step.kind:<18}  {t}  {first}")
+        lines += [below + line for line in more]
     trials = [s for s in plan.steps if isinstance(s, TrialStep)]
     configs = sorted({s.configuration for s in trials})
     lines.append("")
     lines.append(
-        f"{len(plan.steps)} steps: {len(trials)} trials over {len(configs)} configurations; "
+        f"{counted(len(plan.steps), 'step')}: {counted(len(trials), 'trial')} over "
+        f"{counted(len(configs), 'configuration')}; "
         f"about {plan.robot_time_s / 60:.0f} min of robot motion (brace-off scaling iterations add more)."
     )
     return "\n".join(lines)

@@ -544,6 +544,13 @@ def joint_spec(spec: TrajectorySpec, joint: str) -> tuple[TrajectorySpec, tuple[
     return spec, ()
 
 
+def trajectory_files(spec: TrajectorySpec) -> list[str]:
+    """The files a trajectory reads, as written: a file's, or those of a `per_joint` trajectory's entries."""
+    if isinstance(spec, PerJointSpec):
+        return [f for entry in spec.joints.values() for f in trajectory_files(entry)]
+    return [spec.file] if isinstance(spec, FileSpec) else []
+
+
 def trajectory_bindings(spec: TrajectorySpec) -> dict[str, str]:
     """field -> "<factor>.<quantity>" for every field of `spec` bound to a factor quantity (a `per_joint`
     spec: `joints.<joint>.<field>` for its entries)."""

@@ -5,7 +5,8 @@ Checks: factor levels and their aliases; every configuration's factors, levels a
 bindings and the device's and trajectories' joints (protocol/resolve.py); range quantities inside the
 joint's range; range-of-motion stops that hold the park angle; keys, run numbers and names unique;
 referenced files inside the protocol's folder, present and loadable; one tick's output reports within the
-tick (`output_budget`); every motion's commanded stream inside the joint's envelope (stream_check.py).
+tick (`output_budget`); every motion's commanded stream inside the joint's envelope (stream_check.py); a
+trajectory no configuration uses, as far as it can be built without one.
 
 A campaign of one joint (`joint:`) is a campaign whose only driven joint is that joint: the motion checks
 iterate over the driven joints, each on its own view of the protocol (its rig, range and safety limits),
@@ -63,6 +64,7 @@ def cross_check(
         *check_bindings(p),
         *_check_calibration_step(p),
         *(_check_files(p, loaded.base_dir) if check_files else ()),
+        *_check_unused_trajectories(loaded, check_files),
         *_check_report(p),
         *check_expectations(p.expectations, keys, p.driven_joints, several=len(p.driven_joints) > 1),
         *check_repeatability(p.report.repeatability, settings),
@@ -367,6 +369,56 @@ def _check_files(p: Protocol, base: Path) -> Iterator[Problem]:
     if ref is not None:
         loc = ("report", "reference_dataset")
         yield from _check_loadable(loc, base, ref, "reference dataset", load_reference_dataset)
+
+
+def unused_trajectories(p: Protocol) -> list[str]:
+    """The declared trajectories that no configuration uses, in declaration order."""
+    used = {c.trajectory for _, c in p.configurations()}
+    return [name for name in p.trajectories if name not in used]
+
+
+def _check_unused_trajectories(loaded: LoadedProtocol, check_files: bool) -> Iterator[Problem]:
+    """A trajectory that no configuration uses never runs, yet it is part of the protocol and the session
+    stores its file: each of its entries whose fields are all constants is built for every driven joint as
+    a configuration would build it (a file inside the protocol's folder, present, readable, with the
+    joint's angle column; a triangle's speed reachable within its range; ...) and checked field by field
+    against the joint's range, rate and acceleration, located at the entry (a file's build problems at
+    its `file`). An entry with a bound field needs a configuration's levels: its bindings are checked
+    with every other (`check_bindings`)."""
+    from .stream_check import safety_limits
+    from .trajectory_limits import trajectory_limit_problems
+    from .trajectory_specs import FileSpec, PerJointSpec, build_trajectory, joint_spec, trajectory_bindings
+
+    p = loaded.protocol
+    found: dict[Problem, list[str]] = {}  # -> the joints it was built for ("" for a per_joint entry)
+    for name in unused_trajectories(p):
+        spec = p.trajectories[name]
+        for joint in p.driven_joints:
+            if isinstance(spec, PerJointSpec) and joint not in spec.joints:
+                continue  # refused at its `joints` (check_bindings)
+            entry, prefix = joint_spec(spec, joint)
+            is_file = isinstance(entry, FileSpec)
+            if trajectory_bindings(entry) or (is_file and not check_files):
+                continue
+            where: Loc = ("trajectories", name, *prefix)
+            limits = safety_limits(p.rig_of(joint))
+            try:
+                built = build_trajectory(name, entry, {}, loaded.base_dir, joint=joint, limits=limits)
+            except InvalidInput as exc:
+                problems = [(("file",) if is_file else (), _relative_message(exc.message, loaded.base_dir))]
+            else:
+                rate_hz = p.rig.output.rate_hz
+                problems = [
+                    ((field,), message)
+                    for field, message in trajectory_limit_problems(built, limits, rate_hz, loaded.base_dir)
+                ]
+            for field, message in problems:
+                found.setdefault(((*where, *field), message), []).append("" if prefix else joint)
+    for (loc, message), joints in found.items():
+        # a multi-joint protocol's shared entry that fails for some joints only: name them
+        some = [j for j in joints if j]
+        of_joints = p.multi_joint and some and len(some) < len(p.driven_joints)
+        yield loc, (f"joint {', '.join(some)}: {message}" if of_joints else message)
 
 
 def _check_loadable(

@@ -28,6 +28,7 @@ from markupsafe import Markup, escape
 from protocol_runner import __version__
 from protocol_runner.analysis.reference import load_reference_dataset
 from protocol_runner.protocol.plan_steps import Comparison
+from protocol_runner.protocol.wording import counted
 from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.declared import declared_citations, declared_text
 from protocol_runner.report.differences import declared_differences, declared_repeatability
@@ -259,6 +260,7 @@ def _environment() -> jinja2.Environment:
     env.filters["slug"] = slug
     env.filters["factor"] = _factor_text
     env.filters["ci"] = _ci
+    env.filters["counted"] = counted
     return env
 
 

@@ -36,6 +36,7 @@ from ..protocol.loaded import LoadedProtocol
 from ..protocol.plan_steps import Plan, Step, TrialStep
 from ..protocol.processing import processing_settings
 from ..protocol.step_ids import step_id as make_step_id
+from ..protocol.wording import counted
 from ..steps.context import Bench, StepContext, StepOutcome
 from ..steps.failures import run_step
 from ..steps.operator import Operator
@@ -264,7 +265,7 @@ class Runner:
         robot = f"; {clock.now_s():.1f} s of robot time simulated" if clock is not None else ""
         if self.plan.steps and self.plan.steps[-1].kind == "report":
             self.steps_run += 1  # written below
-        self.journal.event("finished", f"{self.steps_run} steps run, {skipped} skipped{robot}")
+        self.journal.event("finished", f"{counted(self.steps_run, 'step')} run, {skipped} skipped{robot}")
         archive = self.consolidate("complete")
         call = self.pool.call if self.pool.running else None  # the idle workers draw the figures
         report = render_report(self.dir, archive, call)

@@ -37,7 +37,7 @@ from ..protocol.paths import is_stored_with_session
 from ..protocol.plan import expand
 from ..protocol.plan_steps import Plan
 from ..protocol.rig_file import is_rig_path
-from ..protocol.trajectory_specs import FileSpec
+from ..protocol.trajectory_specs import trajectory_files
 
 SESSION_FILE = "session.json"
 
@@ -72,7 +72,7 @@ def default_session_dir(protocol_name: str) -> Path:
 
 def referenced_files(loaded: LoadedProtocol) -> list[str]:
     p = loaded.protocol
-    files = [spec.file for spec in p.trajectories.values() if isinstance(spec, FileSpec)]
+    files = list(dict.fromkeys(f for spec in p.trajectories.values() for f in trajectory_files(spec)))
     files += [
         f
         for f in (

@@ -23,6 +23,7 @@ from ..archive.paths import configuration_name, configuration_path, joint_path, 
 from ..archive.results import processed_fill, read_recording
 from ..protocol.plan_steps import ProcessStep, TrialStep
 from ..protocol.processing import element_fit_enabled
+from ..protocol.wording import counted
 from .context import StepContext, StepOutcome
 from .recording import joint_trajectories
 
@@ -61,7 +62,7 @@ def run(step: ProcessStep, ctx: StepContext) -> StepOutcome:
     if len(joints) == 1:
         energy = analysis.analyses[0].processed.energy
         summary = (
-            f"{energy.n} cycles, energy {energy.mean_j:.2f} +- {energy.std_j:.2f} J"
+            f"{counted(energy.n, 'cycle')}, energy {energy.mean_j:.2f} +- {energy.std_j:.2f} J"
             if energy.n
             else "no complete cycle"
         )
@@ -72,7 +73,7 @@ def run(step: ProcessStep, ctx: StepContext) -> StepOutcome:
             if a.processed.energy.n
         ]
         mean = f"{float(np.mean(total)):.2f} J" if total.size else "none"
-        summary = ", ".join([f"{total.size} cycles", *parts, f"total {mean}"])
+        summary = ", ".join([counted(total.size, "cycle"), *parts, f"total {mean}"])
     return StepOutcome(fill, summary)
 
 

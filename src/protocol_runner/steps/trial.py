@@ -35,6 +35,7 @@ from ..hardware.joint import TrialRecording
 from ..protocol.plan_steps import TrialStep
 from ..protocol.sampling import sample_trajectory
 from ..protocol.settings import configuration_attributes
+from ..protocol.wording import counted
 from .context import StepContext, StepOutcome
 from .recording import drive, joint_trajectories, put_commands, put_scan
 
@@ -132,7 +133,7 @@ def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
     )
     if scaling is not None:
         errors = ", ".join(f"{w}{s.best.range_error_deg:.2f} deg" for w, s in zip(who, scaling, strict=True))
-        summary += f", scaling {len(scaling[0].history)} run(s), cycle range error {errors}"
+        summary += f", scaling {counted(len(scaling[0].history), 'run')}, cycle range error {errors}"
         if not all(s.converged for s in scaling):
             tolerance = ctx.loaded.protocol.processing.brace_off_scaling.tolerance_deg
             summary += f" (NOT within {tolerance:g} deg: kept, flagged in trials.csv)"
