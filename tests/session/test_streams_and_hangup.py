@@ -44,6 +44,13 @@ def _wait_for_first_unit(session: Path, proc: subprocess.Popen[bytes], what: Pat
         time.sleep(0.01)
 
 
+def _hangup_stops() -> None:
+    """In the child: SIGHUP as a terminal delivers it. A test run under `nohup` inherits SIGHUP ignored,
+    and the program keeps an ignored SIGHUP ignored (`nohup run-protocol ...` is meant to survive a closed
+    terminal), so without this the hang-up would not reach it."""
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
+
+
 def _archive_status(session: Path) -> str:
     with h5py.File(session / "archive.h5", "r") as f:
         return str(f.attrs["status"])
@@ -53,7 +60,12 @@ def _archive_status(session: Path) -> str:
 def test_sighup_stops_at_the_next_safe_point_journaled_and_resumable(tmp_path: Path) -> None:
     session, err = tmp_path / "s", tmp_path / "stderr.txt"
     with err.open("wb") as f:  # --realtime: the campaign is still moving when the terminal closes
-        proc = subprocess.Popen([*CLI, *SHORT, "--realtime", "--session", str(session)], stderr=f, env=_env())
+        proc = subprocess.Popen(
+            [*CLI, *SHORT, "--realtime", "--session", str(session)],
+            stderr=f,
+            env=_env(),
+            preexec_fn=_hangup_stops,
+        )
     try:
         _wait_for_first_unit(session, proc, err)
         proc.send_signal(signal.SIGHUP)
