@@ -6,7 +6,9 @@ Fit: bounded least squares over every sample of every trial, from the declared v
 starts, keeping the best. Intervals: the Gauss-Newton covariance ``s² (JᵀJ)⁻¹`` with ``s² = SSR / (n_eff -
 k)``, scaled by ``n / n_eff`` (`effective_samples`: a filtered loop's residuals are strongly
 autocorrelated); the 95 % interval is ``θ ± t(0.975, n_eff - k) σ``. A parameter is *unidentified* when its
-interval covers more than `COVER_LIMIT` of its plausible range (`plausible_range`) or is not finite.
+interval covers more than `COVER_LIMIT` of its plausible range (`plausible_range`) or is not finite. Two
+estimates correlated at `CONFOUNDED` or more in magnitude are noted as confounded, whatever their intervals:
+the data determine their combined torque, not each (a damper on a motion of constant speed acts as a brake).
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from ..models.element_types import ELEMENT_TYPES
 from .energy import energy_per_cycle
 
 COVER_LIMIT = 0.5  # an interval covering more of the plausible range than this: unidentified
+CONFOUNDED = 0.99  # |correlation| of two estimates at or above this: the data barely tell them apart
 DEFAULT_TRANSITION_BOUNDS = (0.01, 30.0)
 FIT_TOL = 1e-7  # least_squares ftol and xtol of the fit
 
@@ -256,6 +259,14 @@ def fit_element_model(motions: Sequence[Motion], lay: ModelLayout) -> ElementMod
             )
         elif key[0] == lay.damper_name and len(lay.damper_members) > 1:
             note = f"sum of {', '.join(lay.damper_members)}"
+        confounded = [
+            f"{other[0]}.{other[1]} (r = {corr[j, m]:+.3f})"
+            for m, other in enumerate(lay.free)
+            if m != j and abs(corr[j, m]) >= CONFOUNDED
+        ]
+        if confounded:
+            said = f"confounded with {', '.join(confounded)}: only their combined torque is determined"
+            note = f"{note}; {said}" if note else said
         estimates.append(
             ParameterEstimate(
                 key[0], key[1], float(x_best[j]), float(lo), float(hi), (lo_p, hi_p), identified, note

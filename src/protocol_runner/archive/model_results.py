@@ -101,11 +101,21 @@ def read_models(g: h5py.Group) -> list[list[Any]]:
 
 
 def read_element_model(g: h5py.Group) -> list[list[Any]]:
-    """The rows of a `fits/element_model` group: element, parameter, value, interval, identified."""
+    """The rows of a `fits/element_model` group: element, parameter, value, interval, identified, note
+    (empty where an archive records none)."""
     value, low, high, ident = (_list(g, k) for k in ("value", "ci95_low", "ci95_high", "identified"))
+    names = strings(g, "parameters")
+    notes = strings(g, "notes")
     return [
-        [*str(p).rsplit(".", 1), value[i], low[i], high[i], bool(ident[i])]
-        for i, p in enumerate(strings(g, "parameters"))
+        [
+            *str(p).rsplit(".", 1),
+            value[i],
+            low[i],
+            high[i],
+            bool(ident[i]),
+            notes[i] if i < len(notes) else "",
+        ]
+        for i, p in enumerate(names)
     ]
 
 

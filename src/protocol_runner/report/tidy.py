@@ -89,6 +89,7 @@ ELEMENT_COLUMNS = (
     "ci95_low",
     "ci95_high",
     "identified",
+    "note",
 )
 PREDICTION_COLUMNS = (
     "from_configuration",
