@@ -4,6 +4,7 @@ trial's motion per joint and each joint's calibration step, readable for twelve 
 from __future__ import annotations
 
 import re
+import shutil
 from pathlib import Path
 
 import pytest
@@ -47,7 +48,7 @@ def _step_lines(table: str, step_id: str) -> list[str]:
 def per_joint_leg(tmp_path: Path) -> Path:
     """leg_phase2 whose sit-to-stand motion is a sinusoid of its own per joint (same period)."""
     assert SIT in LEG_TEXT
-    (tmp_path / "trajectories").symlink_to(REPO / "protocols" / "trajectories")
+    shutil.copytree(REPO / "protocols" / "trajectories", tmp_path / "trajectories")  # inside its folder
     path = tmp_path / "leg_per_joint.yaml"
     path.write_text(LEG_TEXT.replace(SIT, PER_JOINT), encoding="utf-8")
     return path

@@ -4,6 +4,7 @@ included: its trials read them from the session's copy of the protocol."""
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 from protocol_runner.protocol.loader import load_protocol
@@ -24,7 +25,7 @@ def test_a_per_joint_trajectorys_files_are_stored_with_the_session(tmp_path: Pat
     )
     folder = tmp_path / "campaign"
     folder.mkdir()
-    (folder / "trajectories").symlink_to(REPO / "protocols" / "trajectories")
+    shutil.copytree(REPO / "protocols" / "trajectories", folder / "trajectories")  # inside its folder
     path = folder / "leg.yaml"
     path.write_text(
         LEG_TEXT.replace(f"  sit_to_stand: {{kind: file, file: {SIT}}}", per_joint), encoding="utf-8"
