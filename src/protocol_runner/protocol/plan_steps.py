@@ -300,6 +300,10 @@ class Plan:
     def step(self, step_id: str) -> Step:
         return self.steps[self._index[step_id]]
 
+    def __contains__(self, step_id: object) -> bool:
+        """Whether the plan has a step of this id."""
+        return step_id in self._index
+
     def __len__(self) -> int:
         return len(self.steps)
 

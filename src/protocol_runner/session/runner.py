@@ -321,7 +321,7 @@ def configuration_attrs(plan: Plan, done: Mapping[str, object]) -> dict[str, dic
     for entry in out.values():
         key = int(entry["key"])  # type: ignore[call-overload]
         fit, process = make_step_id("fit", key=key), make_step_id("process", key=key)
-        fitted = fit in done or (process in done and fit not in plan._index)
+        fitted = fit in done or (process in done and fit not in plan)
         entry["status"] = "complete" if fitted else ("partial" if entry.pop("_any") else "not run")
         entry.pop("_any", None)
     return out

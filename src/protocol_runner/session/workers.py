@@ -166,7 +166,7 @@ class AnalysisPool:
         chain = [step]
         if isinstance(step, ProcessStep):
             fit = make_step_id("fit", key=step.configuration)
-            if fit in self.plan._index and fit not in self.journal.units:
+            if fit in self.plan and fit not in self.journal.units:
                 chain.append(self.plan.step(fit))
         self.submitted.update(s.id for s in chain)
         if self._pool is None:
