@@ -21,6 +21,7 @@ from pathlib import Path
 import h5py
 import pytest
 
+from protocol_runner.archive.outputs import terminated_as_interrupt
 from protocol_runner.archive.reprocess import new_archive_path, reprocess_archive
 from protocol_runner.cli import main
 from protocol_runner.errors import InvalidInput
@@ -154,6 +155,25 @@ def test_sigterm_during_reprocess_leaves_no_copy_behind(reference_archive: Path,
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 130, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["archive.h5"]
+
+
+class _SignalledWhileFinalised:
+    """Sends this process SIGTERM from its finaliser and is still inside it when the handler runs."""
+
+    def __del__(self) -> None:
+        os.kill(os.getpid(), signal.SIGTERM)
+        for _ in range(10_000):  # the handler's KeyboardInterrupt is raised here, where Python drops it
+            pass
+
+
+@pytest.mark.skipif(os.name == "nt", reason="POSIX signals")
+def test_a_sigterm_that_lands_in_a_finaliser_still_interrupts_the_block() -> None:
+    with pytest.raises(KeyboardInterrupt), terminated_as_interrupt():
+        finalised = _SignalledWhileFinalised()
+        del finalised
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:  # without the redelivery the block runs on to its end
+            time.sleep(0.001)
 
 
 def test_a_full_disk_during_export_leaves_no_partial_file(
