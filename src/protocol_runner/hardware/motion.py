@@ -86,16 +86,9 @@ def run_stream(
 
     def on_stop(written: int) -> FloatArray:
         tail, codes = stream.stop_after(written, limits)
-        for k, j in enumerate(joints):  # defence in depth: check_motion_stream checked every stop
+        for k in range(len(joints)):  # defence in depth: check_motion_stream checked every stop
             junction = stream.streams[k].command_deg[max(0, written - 2) : written]
-            check_trajectory(
-                np.concatenate([junction, tail[:, k]]),
-                stream.rate_hz,
-                j.limits,
-                where=rig.where_of(where, j),
-                command_table=j.command_table,
-                volts_range_deg=j.range_deg,
-            )
+            rig.check(k, np.concatenate([junction, tail[:, k]]), where)
         segments[0] = np.concatenate([segments[0][:written], codes])
         return tail
 

@@ -47,7 +47,7 @@ import numpy.typing as npt
 from protocol_runner.errors import Interrupted, InvalidInput, WatchdogTripped
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock, LoopTap, ScanBlock
 from protocol_runner.hardware.joint import JointConfig, OnStop, StopRequested, TrialRecording
-from protocol_runner.hardware.safety import check_trajectory, parking_ramp_deg
+from protocol_runner.hardware.safety import SafetyLimits, check_trajectory, parking_ramp_deg
 from protocol_runner.hardware.watchdog import LoopWatch
 
 FloatArray = npt.NDArray[np.float64]
@@ -102,19 +102,16 @@ class Rig:
         if len(rates) != 1:
             shown = ", ".join(f"{j.name} {j.output_rate_hz:g}/{j.input_rate_hz:g} Hz" for j in joints)
             raise InvalidInput(f"the joints of one rig share its output and input rates, got {shown}")
-        used: dict[int, str] = {}
+        used: dict[tuple[str, int], str] = {}
         for j in joints:
-            for ch in (j.angle_input_channel, j.torque_input_channel):
-                if ch in used:
-                    raise InvalidInput(f"input channel {ch} is both {used[ch]}'s and {j.name}'s")
-                used[ch] = j.name
-        outputs: dict[int, str] = {}
-        for j in joints:
-            if j.output_channel in outputs:
-                raise InvalidInput(
-                    f"output channel {j.output_channel} is both {outputs[j.output_channel]}'s and {j.name}'s"
-                )
-            outputs[j.output_channel] = j.name
+            for kind, ch in (
+                ("input", j.angle_input_channel),
+                ("input", j.torque_input_channel),
+                ("output", j.output_channel),
+            ):
+                if (kind, ch) in used:
+                    raise InvalidInput(f"{kind} channel {ch} is both {used[kind, ch]}'s and {j.name}'s")
+                used[kind, ch] = j.name
         self.joints = tuple(joints)
         self.ao, self.ai, self.clock = ao, ai, clock
         self.output_rate_hz, self.input_rate_hz = rates.pop()
@@ -176,15 +173,8 @@ class Rig:
         safe point: the scan is stopped and `Interrupted` raised (the caller then parks the joints).
         """
         cmd = self._columns(commands_deg)
-        for k, j in enumerate(self.joints):
-            check_trajectory(
-                cmd[:, k],
-                self.output_rate_hz,
-                j.limits,
-                where=self.where_of(where, j),
-                command_table=j.command_table,
-                volts_range_deg=j.range_deg,
-            )
+        for k in range(len(self.joints)):
+            self.check(k, cmd[:, k], where)
         with self.loop_context():
             return self.send(cmd, where=where, stop_requested=stop_requested)
 
@@ -212,14 +202,7 @@ class Rig:
                 range_deg=(max(min(lo, starts[k]), j.range_deg[0]), min(max(hi, starts[k]), j.range_deg[1])),
             )
             cmd[:, k] = np.clip(cmd[:, k], *widened.range_deg)
-            check_trajectory(
-                cmd[:, k],
-                self.output_rate_hz,
-                widened,
-                where=self.where_of(where, j),
-                command_table=j.command_table,
-                volts_range_deg=j.range_deg,
-            )
+            self.check(k, cmd[:, k], where, widened)
         with self.loop_context():
             return self.send(cmd, where=where, stop_requested=None, watch=False)
 
@@ -250,6 +233,19 @@ class Rig:
     def where_of(self, where: str, joint: JointConfig) -> str:
         """`where`, naming the joint when the rig drives several."""
         return where if len(self.joints) == 1 else f"{where}, joint {joint.name}"
+
+    def check(self, k: int, command_deg: FloatArray, where: str, limits: SafetyLimits | None = None) -> None:
+        """`check_trajectory` of joint k's samples against its envelope (or `limits`), its command table
+        and Eq 1 range included."""
+        j = self.joints[k]
+        check_trajectory(
+            command_deg,
+            self.output_rate_hz,
+            limits or j.limits,
+            where=self.where_of(where, j),
+            command_table=j.command_table,
+            volts_range_deg=j.range_deg,
+        )
 
     # ---- the paced loop ---------------------------------------------------------------------------------
     def send(
@@ -318,7 +314,7 @@ class Rig:
                     cmd = np.concatenate([cmd[:end], tail])
                     volts = np.concatenate([volts[:end], tail_volts])
                     # only the tail is prepared for writing (between two ticks, while the robot moves)
-                    write, n = _from_tick(self._tick_writer(tail_volts), end), int(cmd.shape[0])
+                    write, n = self._tick_writer(tail_volts, first=end), int(cmd.shape[0])
                     codes[end:] = [None] * (n - end)
                     actual[end:] = [0.0] * (n - end)
                     schedule = schedule_s(t0, n, dt)
@@ -348,15 +344,15 @@ class Rig:
     def _command_volts(self, cmd: FloatArray) -> FloatArray:
         return np.stack([j.command_to_volts(cmd[:, k]) for k, j in enumerate(self.joints)], axis=1)
 
-    def _tick_writer(self, volts: FloatArray) -> Callable[[int], object]:
-        """Writes tick k of `volts` and returns its code(s)."""
+    def _tick_writer(self, volts: FloatArray, first: int = 0) -> Callable[[int], object]:
+        """Writes tick k (row k - `first` of `volts`) and returns its code(s)."""
         if len(self.joints) == 1:  # one board write per tick: nothing to latch together
             write, channel, column = self.ao.write_volts, self.joints[0].output_channel, volts[:, 0].tolist()
-            return lambda k: write(channel, column[k])
+            return lambda k: write(channel, column[k - first])
         channels = [j.output_channel for j in self.joints]
         rows: list[dict[int, float]] = [dict(zip(channels, r, strict=True)) for r in volts.tolist()]
         write_sync = self.ao.write_volts_sync
-        return lambda k: write_sync(rows[k])
+        return lambda k: write_sync(rows[k - first])
 
     def _note_written(self, cmd: FloatArray, written: int) -> None:
         if written:
@@ -412,8 +408,3 @@ class Rig:
                 )
             )
         return tuple(out)
-
-
-def _from_tick(write: Callable[[int], object], first: int) -> Callable[[int], object]:
-    """`write` (of samples indexed from 0) for ticks numbered from `first`."""
-    return lambda k: write(k - first)

@@ -212,15 +212,8 @@ def check_stream(
         )
     except SafetyViolation as exc:
         i = min(exc.index, stream.segment.size - 1)
-        raise SafetyViolation(
-            where=f"{where} ({SEGMENT_NAMES[int(stream.segment[i])]})",
-            limit=exc.limit,
-            value=exc.value,
-            limit_value=exc.limit_value,
-            index=exc.index - stream.first,
-            time_s=float(times[i]),
-            units=exc.units,
-        ) from None
+        where_ = f"{where} ({SEGMENT_NAMES[int(stream.segment[i])]})"
+        raise replace(exc, where=where_, index=exc.index - stream.first, time_s=float(times[i])) from None
     stops = stop_points_deg(stream, limits)
     try:
         check_trajectory(
@@ -235,15 +228,8 @@ def check_stream(
     except SafetyViolation as exc:
         i = exc.index
         segment = SEGMENT_NAMES[int(stream.segment[i])]
-        raise SafetyViolation(
-            where=f"{where} (a stop requested during the {segment} brakes to {exc.value:.6g} {exc.units})",
-            limit=exc.limit,
-            value=exc.value,
-            limit_value=exc.limit_value,
-            index=i - stream.first,
-            time_s=float(times[i]),
-            units=exc.units,
-        ) from None
+        where_ = f"{where} (a stop requested during the {segment} brakes to {exc.value:.6g} {exc.units})"
+        raise replace(exc, where=where_, index=i - stream.first, time_s=float(times[i])) from None
 
 
 @dataclass(frozen=True)
@@ -346,12 +332,4 @@ def check_motion_stream(
         except SafetyViolation as exc:
             if not several:
                 raise
-            raise SafetyViolation(
-                where=f"{exc.where}, joint {joint}",
-                limit=exc.limit,
-                value=exc.value,
-                limit_value=exc.limit_value,
-                index=exc.index,
-                time_s=exc.time_s,
-                units=exc.units,
-            ) from None
+            raise replace(exc, where=f"{exc.where}, joint {joint}") from None
