@@ -40,10 +40,10 @@ from protocol_runner.hardware.usb_common import (
     BoardIoError,
     BoardNotFound,
     BoardTimeout,
-    bcd_to_text,
     claim_interface,
     find_devices,
     map_usb_error,
+    no_board,
 )
 
 log = logging.getLogger(__name__)
@@ -132,7 +132,7 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
         ids = f"VID 0x{DT_VENDOR_ID:04X} {pid}"
         devices = find_devices(DT_VENDOR_ID, settings.product_id, backend, KIND)
         if not devices:
-            raise BoardNotFound(f"no {KIND} found ({ids}); is it plugged in? {DRY_RUN_HINT}")
+            raise no_board(KIND, ids)
         seen: list[str] = []
         for dev in devices:
             board = cls.from_device(dev, settings)
@@ -187,15 +187,11 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
         return self.endpoints[2]
 
     def _command(self, opcode: int, payload: bytes, reply_size: int, action: str) -> bytes:
-        if self._closed:
-            raise BoardIoError(f"the {self.name} is closed; open it again")
-        try:
-            self._dev.write(self.command_out, build_command(opcode, payload), self.settings.timeout_ms)
-            if reply_size == 0:
-                return b""
-            reply = bytes(self._dev.read(self.command_in, reply_size, self.settings.timeout_ms))
-        except usb.core.USBError as exc:
-            raise map_usb_error(exc, self.name, action) from exc
+        timeout_ms = self.settings.timeout_ms
+        self._usb(action, self._dev.write, self.command_out, build_command(opcode, payload), timeout_ms)
+        if reply_size == 0:
+            return b""
+        reply = bytes(self._usb(action, self._dev.read, self.command_in, reply_size, timeout_ms))
         if len(reply) != reply_size:
             raise BoardIoError(
                 f"the {self.name} returned {len(reply)} of {reply_size} bytes while {action} "
@@ -252,10 +248,6 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
     @property
     def serial(self) -> str:
         return str(self.info.serial_number)
-
-    @property
-    def firmware(self) -> str:
-        return bcd_to_text(int(self._dev.bcdDevice))
 
     def calibration_summary(self) -> str:
         return "no calibration read (DT9812 protocol: none known)"

@@ -43,7 +43,6 @@ from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,
     BoardIoError,
     UnexpectedReply,
-    bcd_to_text,
     claim_interface,
     find_board,
     map_usb_error,
@@ -183,22 +182,12 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
     # Wire helpers
     # ------------------------------------------------------------------------------------------------
     def _send(self, report: bytes, action: str) -> None:
-        if self._closed:
-            raise BoardIoError(f"the {self.name} is closed; open it again")
-        try:
-            if self.uses_set_report:
-                self._dev.ctrl_transfer(
-                    HID_SET_REPORT_REQUEST_TYPE,
-                    HID_SET_REPORT,
-                    HID_REPORT_TYPE_OUTPUT | report[0],
-                    self.settings.interface,
-                    report,
-                    self.settings.timeout_ms,
-                )
-            else:
-                self._dev.write(self.settings.out_endpoint, report, self.settings.timeout_ms)
-        except usb.core.USBError as exc:
-            raise map_usb_error(exc, self.name, action) from exc
+        s = self.settings
+        if self.uses_set_report:
+            request = HID_SET_REPORT_REQUEST_TYPE, HID_SET_REPORT, HID_REPORT_TYPE_OUTPUT | report[0]
+            self._usb(action, self._dev.ctrl_transfer, *request, s.interface, report, s.timeout_ms)
+        else:
+            self._usb(action, self._dev.write, s.out_endpoint, report, s.timeout_ms)
 
     def _query(self, report: bytes, action: str) -> bytes:
         """Send a command and return its reply (byte 0 checked against the command code)."""
@@ -315,19 +304,9 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
     def serial(self) -> str:
         return self._serial
 
-    @property
-    def firmware_bcd(self) -> int:
-        return int(self._dev.bcdDevice)
-
-    @property
-    def firmware(self) -> str:
-        """Firmware version from bcdDevice, e.g. ``"1.02"``."""
-        return bcd_to_text(self.firmware_bcd)
-
     def blink(self, count: int = 5) -> None:
         """Blink the board's LED `count` times (to find it on the rig)."""
-        if not 0 < count < 256:
-            raise InvalidInput(f"blink count must be 1-255, got {count}")
+        self._check_blink(count)
         self._send(bytes((CMD_BLINK_LED, count)), "blinking the LED")
 
     def get_status(self) -> int:

@@ -25,7 +25,6 @@ import math
 import os
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import usb.core
@@ -177,14 +176,6 @@ def usb_call(board: str, action: str, fn: Callable[..., T], *args: Any, **kwargs
 # --------------------------------------------------------------------------------------------------------
 
 
-@dataclass(frozen=True)
-class FoundDevice:
-    """A matching USB device and its serial number (None when it could not be read)."""
-
-    device: usb.core.Device
-    serial: str | None
-
-
 def find_devices(
     vendor_id: int, product_id: int | None, backend: Any | None, board_kind: str
 ) -> list[usb.core.Device]:
@@ -221,33 +212,9 @@ def read_serial(device: usb.core.Device, board_kind: str) -> str:
     return (serial or "").strip("\x00 ")
 
 
-def select_device(
-    devices: list[usb.core.Device],
-    serial: str | None,
-    board_kind: str,
-    ids: str,
-    serial_reader: Callable[[usb.core.Device], str] | None = None,
-) -> FoundDevice:
-    """Pick the device with `serial` (or the first one when `serial` is None); clear error otherwise.
-
-    `ids` is the id text for the not-found message, e.g. ``"VID 0x09DB PID 0x009E"``.
-    `serial_reader` reads a device's serial (default: the USB string descriptor).
-    """
-    reader = serial_reader or (lambda d: read_serial(d, board_kind))
-    if not devices:
-        raise BoardNotFound(f"no {board_kind} found ({ids}); is it plugged in? {DRY_RUN_HINT}")
-    if serial is None:
-        return FoundDevice(devices[0], None)
-    seen: list[str] = []
-    for dev in devices:
-        found = reader(dev)
-        if found == serial:
-            return FoundDevice(dev, found)
-        seen.append(found)
-    raise BoardNotFound(
-        f"no {board_kind} with serial {serial!r} found ({ids}); attached: "
-        f"{', '.join(repr(s) for s in seen)}. Check the serial in the protocol file, or {DRY_RUN_HINT}"
-    )
+def no_board(board_kind: str, ids: str) -> BoardNotFound:
+    """The error for no attached board of a kind; `ids` is the id text, e.g. ``"VID 0x09DB PID 0x009E"``."""
+    return BoardNotFound(f"no {board_kind} found ({ids}); is it plugged in? {DRY_RUN_HINT}")
 
 
 def find_board(
@@ -259,9 +226,30 @@ def find_board(
     `serial`), `NoUsbBackend`, or the mapped USB error met while listing or reading the serial.
     """
     ids = f"VID 0x{vendor_id:04X} PID 0x{product_id:04X}"
-    found = select_device(find_devices(vendor_id, product_id, backend, board_kind), serial, board_kind, ids)
-    usb_serial = found.serial if found.serial is not None else read_serial(found.device, board_kind)
-    return found.device, usb_serial
+    devices = find_devices(vendor_id, product_id, backend, board_kind)
+    if not devices:
+        raise no_board(board_kind, ids)
+    seen: list[str] = []
+    for dev in devices:
+        found = read_serial(dev, board_kind)
+        if serial is None or found == serial:
+            return dev, found
+        seen.append(found)
+    raise BoardNotFound(
+        f"no {board_kind} with serial {serial!r} found ({ids}); attached: "
+        f"{', '.join(repr(s) for s in seen)}. Check the serial in the protocol file, or {DRY_RUN_HINT}"
+    )
+
+
+BoardT = TypeVar("BoardT", bound=contextlib.AbstractContextManager[Any])
+
+
+def open_each(open_one: Callable[[str], BoardT], serials: Sequence[str]) -> list[BoardT]:
+    """The board of each serial, opened in order; one that fails to open closes those opened before it."""
+    with contextlib.ExitStack() as opened:
+        boards = [opened.enter_context(open_one(s)) for s in serials]
+        opened.pop_all()
+    return boards
 
 
 def claim_interface(device: usb.core.Device, interface: int, board: str) -> bool:

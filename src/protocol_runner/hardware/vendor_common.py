@@ -17,10 +17,10 @@ import math
 import operator
 import sys
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from functools import partial
 from types import ModuleType
-from typing import Self, TypeVar
+from typing import Any, Self, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -29,11 +29,16 @@ from protocol_runner.errors import HardwareUnavailable, InvalidInput
 from protocol_runner.hardware import usb1608fs_protocol, usb3105
 from protocol_runner.hardware.conversions import VOLTS_RANGE, volts_to_ai16_code, volts_to_ao16_code
 from protocol_runner.hardware.interfaces import Clock, ScanBlock
-from protocol_runner.hardware.usb_common import BoardIoError, ScanOverrun, check_scan_channels
+from protocol_runner.hardware.usb_common import (
+    DRY_RUN_HINT,
+    BoardIoError,
+    BoardNotFound,
+    ScanOverrun,
+    check_scan_channels,
+)
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
-
 
 
 class VendorLibraryMissing(InvalidInput):
@@ -68,6 +73,25 @@ def _installed(package: str) -> bool:
     if package in sys.modules:
         return sys.modules[package] is not None
     return importlib.util.find_spec(package) is not None
+
+
+def of_kind(found: Iterable[Any], product_id: int) -> list[Any]:
+    """The library's device descriptors of one board kind (USB product id), sorted by serial number."""
+    return sorted((d for d in found if int(d.product_id) == product_id), key=lambda d: str(d.unique_id))
+
+
+def pick(found: list[Any], serial: str | None, kind: str, library: str, hint: str) -> Any:
+    """The descriptor with `serial` (or the first); `BoardNotFound` naming what `library` saw otherwise,
+    with `hint` of what to check."""
+    for d in found:
+        if serial is None or str(d.unique_id) == serial:
+            return d
+    seen = ", ".join(str(d.unique_id) for d in found) or "none"
+    wanted = f" with serial {serial}" if serial else ""
+    raise BoardNotFound(
+        f"{library} found no {kind}{wanted} (boards of that kind attached: {seen}); is it {hint}? "
+        f"{DRY_RUN_HINT}"
+    )
 
 
 def checked_volts(channel: int, volts: float) -> float:
@@ -142,21 +166,28 @@ class ScanRing:
         return np.concatenate(parts).reshape(-1, self.n_columns)
 
 
-class VendorBoard(ABC):
+class VendorBoard:
     """What both vendor boards share: a name and serial, and each library call made through `_call`, which
-    turns the library's exception into the `HardwareUnavailable` its backend's `_map_error` names (an
-    exception it does not recognise is raised as it is)."""
+    turns the library's exception into the `HardwareUnavailable` the backend's `map_error(exc, action)`
+    names (an exception it does not recognise is raised as it is). The backend also gives how to let the
+    board go (`release`) and to flash its LED (`flash_led(count)`)."""
 
-    def __init__(self, name: str, serial: str) -> None:
+    def __init__(
+        self,
+        name: str,
+        serial: str,
+        *,
+        release: Callable[[], None],
+        map_error: Callable[[Exception, str], HardwareUnavailable | None],
+        flash_led: Callable[[int], None],
+    ) -> None:
         self.name = name
         self._serial = serial
         self._closed = False
+        self._release, self._map_error, self._flash_led = release, map_error, flash_led
 
-    @abstractmethod
-    def _release(self) -> None: ...
-
-    @abstractmethod
-    def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None: ...
+    def blink(self, count: int = 5) -> None:
+        self._call("blinking the LED", lambda: self._flash_led(count))
 
     def _before_release(self) -> None:
         """Stop what the board has running before it is let go (nothing by default)."""
@@ -192,7 +223,7 @@ class VendorBoard(ABC):
             raise mapped from exc
 
 
-class VendorScanInput(VendorBoard):
+class VendorScanInput(VendorBoard, ABC):
     """An `AnalogInput` over a vendor library's continuous background scan (one board, 8 channels ±10 V).
 
     The libraries scan a contiguous channel range ``low..high``: the scan covers the lowest to the highest
@@ -203,8 +234,7 @@ class VendorScanInput(VendorBoard):
     `close` stop it too.
 
     A backend implements `_start_scan` (start it, return the rate set), `_scan_status` (running?,
-    samples transferred so far), `_stop`, `_copy` (samples out of the buffer), `_free_buffer`, `_release`
-    and `_map_error` (its library's exception to a `HardwareUnavailable`, or None for any other).
+    samples transferred so far), `_stop`, `_copy` (samples out of the buffer) and `_free_buffer`.
     """
 
     kind = usb1608fs_protocol.KIND
@@ -213,8 +243,8 @@ class VendorScanInput(VendorBoard):
     status_after_stop = True
     """Whether the scan status still counts the samples after the stop (then they are collected too)."""
 
-    def __init__(self, name: str, serial: str, clock: Clock, buffer_s: float) -> None:
-        super().__init__(name, serial)
+    def __init__(self, name: str, serial: str, clock: Clock, buffer_s: float, **backend: Any) -> None:
+        super().__init__(name, serial, **backend)
         self.clock = clock
         self.buffer_s = buffer_s
         self._scanning = False
@@ -329,21 +359,21 @@ class VendorScanInput(VendorBoard):
             self._abandon()
 
 
-class VendorAnalogOutput(VendorBoard):
+class VendorAnalogOutput(VendorBoard, ABC):
     """An `AnalogOutput` over a vendor library (the USB-3105: 16 channels, ±10 V, software-paced).
 
     `configure_channel` writes 0 V on the ±10 V range once (the library sends the board's range command,
     which also drives the pin to 0 V); writing an unconfigured channel is refused, as with the pyusb
     driver. `write_volts_sync` updates each contiguous run of channels together (`contiguous_runs`).
     The codes returned are the ideal codes of the volts written (the library applies the calibration).
-    A backend implements `_write`, `_write_run`, `_release` and `_map_error`.
+    A backend implements `_write` and `_write_run`.
     """
 
     kind = usb3105.KIND
     n_channels = usb3105.N_CHANNELS
 
-    def __init__(self, name: str, serial: str) -> None:
-        super().__init__(name, serial)
+    def __init__(self, name: str, serial: str, **backend: Any) -> None:
+        super().__init__(name, serial, **backend)
         self._configured: set[int] = set()
 
     @abstractmethod
