@@ -231,7 +231,7 @@ class _RigModel:
         """Integrate up to `until_s` and return (times, codes, volts) of scan rows first_row .. + n_rows - 1
         (row i at t0 + i / rate) — the leading part of them whose grid step has been reached (all, unless
         the last ones fall after `until_s`). Codes and volts are the DT9814's (12-bit ±10 V:
-        `conversions.volts_to_ai12_code` / `ai12_code_to_volts`), computed in the plant's kernel."""
+        `conversions.ai12_code_to_volts`), computed in the plant's kernel."""
         self._output.deliver()  # the commands written so far
         self._scan_roles(channels)  # refreshes self._sensors for this channel list
         n_ch = len(channels)

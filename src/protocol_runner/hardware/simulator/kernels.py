@@ -209,7 +209,6 @@ def integrate(
     return j
 
 
-ROLE_NONE = 0
 ROLE_ANGLE = 1
 ROLE_TORQUE = 2
 GRID_TOL = 1e-6
@@ -310,9 +309,8 @@ def scan_rows(
     """`integrate_rows`, then what the input board makes of those volts, in the same compiled call (one
     read of the scan costs one kernel call): each row's time t0 + i / rate, the ADC code
     rint(V / volts_per_code) clamped to min_code..max_code (`adc` = (volts_per_code, min_code,
-    max_code)), and the code's volts code · volts_per_code — the same arithmetic as
-    `conversions.volts_to_ai12_code` / `ai12_code_to_volts`. Returns (t_s, codes, volts, any_nan); with
-    any_nan the codes are meaningless (the caller raises)."""
+    max_code)), and the code's volts code · volts_per_code (the DT9814's: `conversions.ai12_code_to_volts`).
+    Returns (t_s, codes, volts, any_nan); with any_nan the codes are meaningless (the caller raises)."""
     volts_per_code, min_code, max_code = adc
     t0_s = timing[T_START]
     rate_hz = timing[T_RATE]
