@@ -26,6 +26,7 @@ from protocol_runner.hardware.simulator.daq import SimulatedRig, step_seed
 from protocol_runner.hardware.simulator.output import SimulatedClock
 from protocol_runner.hardware.simulator.params import SimulatorParams
 from protocol_runner.hardware.simulator.plant import JointPlant
+from tests.rsst_reference import volts_to_ai12_code
 
 from ..knee_device import KNEE_PARAMS, knee_brace
 from ..knee_rig import KNEE_PARK_DEG, KNEE_TORQUE_LIMIT_NM, knee_joint_config
@@ -506,13 +507,12 @@ def test_low_angle_bump_grows_with_speed_and_shrinks_with_spring_force() -> None
 def test_fused_scan_kernel_quantises_like_the_dt9814_conversions() -> None:
     """One scan read runs integration, sensor chain and ADC in a single kernel (`JointPlant.scan`); its
     codes, volts and row times must be exactly the two-step path's: `advance_rows` volts through
-    `conversions.volts_to_ai12_code` / `ai12_code_to_volts`, rows at t0 + i / rate (DT9814, §2.3)."""
+    the DT9814's `volts_to_ai12_code` / `ai12_code_to_volts`, rows at t0 + i / rate (DT9814, §2.3)."""
     from protocol_runner.hardware.conversions import (
         AI12_MAX_CODE,
         AI12_MIN_CODE,
         AI12_VOLTS_PER_CODE,
         ai12_code_to_volts,
-        volts_to_ai12_code,
     )
 
     plants = []
