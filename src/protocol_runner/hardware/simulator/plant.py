@@ -234,20 +234,14 @@ class JointPlant:
             self._cmd_target = np.concatenate([self._cmd_target[:n_keep], np.zeros(size - n_keep)])
         return n_keep
 
-    def advance_rows(
-        self, step_end: int, scan: ScanWindow, sensors: Sensors, noise: FloatArray
-    ) -> FloatArray:
-        """Integrate to `step_end` and return the telemetry volts of the `scan` window's rows (see
-        `kernels.integrate_rows`); `sensors` = (roles, noise volts, angle knots, their volts, torque knots, their
-        volts); `noise` holds at least n_rows × channels standard normals, consumed row by row."""
-        return K.integrate_rows(*self._window(step_end, scan), sensors, noise)
-
     def scan(
         self, step_end: int, scan: ScanWindow, sensors: Sensors, noise: FloatArray, adc: Adc
     ) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
-        """`advance_rows` followed by the input board's quantisation (see `kernels.scan_rows`); `adc` = (volts per
-        code, lowest code, highest code). Returns (row times, codes, their volts, whether any volts were
-        NaN)."""
+        """Integrate to `step_end` and read the `scan` window's rows as the input board does
+        (`kernels.scan_rows`): `sensors` = (roles, noise volts, angle knots, their volts, torque knots, their
+        volts); `noise` holds at least n_rows × channels standard normals, consumed row by row; `adc` =
+        (volts per code, lowest code, highest code). Returns (row times, codes, their volts, whether any
+        volts were NaN)."""
         return K.scan_rows(*self._window(step_end, scan), sensors, noise, adc)
 
     def _window(self, step_end: int, scan: ScanWindow) -> tuple[Joint, Commands, FloatArray, IntArray]:
