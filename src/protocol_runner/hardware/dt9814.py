@@ -177,7 +177,6 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
                 f"{', '.join(f'0x{d:04X}' for d in accepted)} (Dt9814Settings.accepted_device_ids)"
             )
 
-    # ---- the command pipe ------------------------------------------------------------------------
     @property
     def command_out(self) -> int:
         return self.endpoints[1]
@@ -214,7 +213,6 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
         payload = bytes([len(triples)]) + b"".join(bytes(t) for t in triples)
         self._command(OP_RMW_MULTI_BYTE_REG, payload, 0, "writing registers")
 
-    # ---- analog input ------------------------------------------------------------------------------
     @property
     def resolution_bits(self) -> int:
         return 12
@@ -244,7 +242,6 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
         """One sample of `channel` in volts (``20 * code / 4096``)."""
         return float(ai12_code_to_volts(self.read_code(channel)))
 
-    # ---- information ---------------------------------------------------------------------------------
     @property
     def serial(self) -> str:
         return str(self.info.serial_number)

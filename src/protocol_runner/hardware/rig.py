@@ -247,7 +247,6 @@ class Rig:
             volts_range_deg=j.range_deg,
         )
 
-    # ---- the paced loop ---------------------------------------------------------------------------------
     def send(
         self,
         cmd: FloatArray,

@@ -113,7 +113,6 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
         self._slope = np.ones(0)
         self._intercept = np.zeros(0)
 
-    # ------------------------------------------------------------------------------------------------
     @classmethod
     def open(
         cls,
@@ -154,7 +153,6 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
                 "%s: calibration memory holds implausible values; using slope 1, intercept 0", self.name
             )
 
-    # ---- wire helpers ----------------------------------------------------------------------------
     def _ctrl_in(self, request: int, value: int, length: int, action: str) -> Any:
         return self._usb(
             action, self._dev.ctrl_transfer, REQ_IN, request, value, 0, length, self.settings.timeout_ms
@@ -168,7 +166,6 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
         raw = bytes(self._ctrl_in(CMD_STATUS, 0, 2, "reading the status"))
         return int.from_bytes(raw[:2].ljust(2, b"\x00"), "little")
 
-    # ---- information -----------------------------------------------------------------------------
     @property
     def serial(self) -> str:
         return self._board_serial
@@ -187,7 +184,6 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
             f"{min(inter):+.1f}..{max(inter):+.1f} counts{state}"
         )
 
-    # ---- AnalogInput -----------------------------------------------------------------------------
     @property
     def resolution_bits(self) -> int:
         return 16

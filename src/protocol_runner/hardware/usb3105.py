@@ -111,9 +111,6 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
         self.uses_set_report = False
         self.kernel_driver_detached = False
 
-    # ------------------------------------------------------------------------------------------------
-    # Opening
-    # ------------------------------------------------------------------------------------------------
     @classmethod
     def open(
         cls, serial: str | None = None, backend: Any | None = None, *, settings: Usb3105Settings | None = None
@@ -178,9 +175,6 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
             n += 1
         return n
 
-    # ------------------------------------------------------------------------------------------------
-    # Wire helpers
-    # ------------------------------------------------------------------------------------------------
     def _send(self, report: bytes, action: str) -> None:
         s = self.settings
         if self.uses_set_report:
@@ -206,12 +200,13 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
             "Unplug and replug the board, then retry."
         )
 
-    def read_memory(self, address: int, count: int) -> bytes:
-        """Read `count` bytes of board memory from `address` (MEM_READ, in chunks of at most 62 bytes)."""
-        out = bytearray()
-        while len(out) < count:
-            n = min(MEM_READ_MAX, count - len(out))
-            addr = address + len(out)
+    def _read_calibration(self) -> tuple[ChannelCalibration, ...]:
+        """Every channel's (slope, offset) from board memory (MEM_READ, in chunks of at most 62 bytes)."""
+        span = CAL_STRIDE * (N_CHANNELS - 1) + 8
+        mem = bytearray()
+        while len(mem) < span:
+            n = min(MEM_READ_MAX, span - len(mem))
+            addr = CAL_BASE_PM10V + len(mem)
             reply = self._query(
                 bytes((CMD_MEM_READ, addr & 0xFF, (addr >> 8) & 0xFF, 0, n)), "reading calibration memory"
             )
@@ -221,21 +216,11 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
                     f"the {self.name} returned {len(data)} of {n} memory bytes at 0x{addr:04X}; "
                     "unplug and replug the board"
                 )
-            out += data
-        return bytes(out)
+            mem += data
+        return tuple(
+            parse_calibration(*struct.unpack_from("<ff", mem, CAL_STRIDE * ch)) for ch in range(N_CHANNELS)
+        )
 
-    def _read_calibration(self) -> tuple[ChannelCalibration, ...]:
-        span = CAL_STRIDE * (N_CHANNELS - 1) + 8
-        mem = self.read_memory(CAL_BASE_PM10V, span)
-        cals = []
-        for ch in range(N_CHANNELS):
-            slope, offset = struct.unpack_from("<ff", mem, CAL_STRIDE * ch)
-            cals.append(parse_calibration(slope, offset))
-        return tuple(cals)
-
-    # ------------------------------------------------------------------------------------------------
-    # AnalogOutput
-    # ------------------------------------------------------------------------------------------------
     def _check_channel(self, channel: int) -> None:
         try:
             ok = 0 <= operator.index(channel) < N_CHANNELS
@@ -251,22 +236,18 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
         self._send(bytes((CMD_AOUT_CONFIG, channel, RANGE_PM10V)), f"configuring output channel {channel}")
         self._configured.add(channel)
 
-    def code_for(self, channel: int, volts: float) -> int:
-        """The calibrated code `write_volts` would send (no I/O)."""
-        self._check_channel(channel)
-        volts = float(volts)
-        if not math.isfinite(volts):
-            raise InvalidInput(f"output channel {channel}: volts must be a finite number, got {volts!r}")
-        return calibrated_code(volts, self.calibration[channel])
-
     def _checked_code(self, channel: int, volts: float) -> int:
+        """The calibrated code to send for `volts` on a configured `channel`."""
         if channel not in self._configured:
             self._check_channel(channel)
             raise ChannelNotConfigured(
                 f"output channel {channel} of the {self.name} is not configured: call "
                 "configure_channel() once before writing (it sets +-10 V and drives the pin to 0 V)"
             )
-        return self.code_for(channel, volts)
+        volts = float(volts)
+        if not math.isfinite(volts):
+            raise InvalidInput(f"output channel {channel}: volts must be a finite number, got {volts!r}")
+        return calibrated_code(volts, self.calibration[channel])
 
     def write_volts(self, channel: int, volts: float) -> int:
         """Output `volts` on `channel` now (AOUT, update 0); return the calibrated code sent."""
@@ -297,9 +278,6 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
             self.write_volts(channel, 0.0)
         return (clock() - start_s) / n_reports
 
-    # ------------------------------------------------------------------------------------------------
-    # Board information
-    # ------------------------------------------------------------------------------------------------
     @property
     def serial(self) -> str:
         return self._serial
@@ -328,10 +306,6 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
             f"+-10 V calibration for {len(valid)}/{N_CHANNELS} channels: slope {min(slopes):.5f}.."
             f"{max(slopes):.5f}, offset {min(offsets):+.1f}..{max(offsets):+.1f} counts"
         )
-
-    # ------------------------------------------------------------------------------------------------
-    # Closing
-    # ------------------------------------------------------------------------------------------------
 
     def __repr__(self) -> str:
         return f"Usb3105(serial={self._serial!r}, firmware={self.firmware!r})"

@@ -78,11 +78,6 @@ def udev_rule_text() -> str:
     return "\n".join(lines) + "\n"
 
 
-# --------------------------------------------------------------------------------------------------------
-# Errors (all HardwareUnavailable: exit 3)
-# --------------------------------------------------------------------------------------------------------
-
-
 class BoardNotFound(HardwareUnavailable):
     """No board with the wanted vendor/product id (and serial) is attached."""
 
@@ -120,11 +115,6 @@ class ScanOverrun(HardwareUnavailable):
 
 class NoUsbBackend(HardwareUnavailable):
     """pyusb found no libusb library on this computer."""
-
-
-# --------------------------------------------------------------------------------------------------------
-# Error mapping
-# --------------------------------------------------------------------------------------------------------
 
 
 def map_usb_error(exc: BaseException, board: str, action: str) -> HardwareUnavailable:
@@ -169,11 +159,6 @@ def usb_call(board: str, action: str, fn: Callable[..., T], *args: Any, **kwargs
         return fn(*args, **kwargs)
     except usb.core.USBError as exc:
         raise map_usb_error(exc, board, action) from exc
-
-
-# --------------------------------------------------------------------------------------------------------
-# Finding and claiming devices
-# --------------------------------------------------------------------------------------------------------
 
 
 def find_devices(
@@ -296,11 +281,6 @@ def check_scan_channels(kind: str, channels: Sequence[int], n_channels: int, rat
 def bcd_to_text(bcd: int) -> str:
     """USB bcdDevice (binary-coded decimal major.minor) as text: 0x0102 -> ``"1.02"``."""
     return f"{(bcd >> 8) & 0xFF:x}.{bcd & 0xFF:02x}"
-
-
-# --------------------------------------------------------------------------------------------------------
-# Real clock
-# --------------------------------------------------------------------------------------------------------
 
 
 class MonotonicClock:

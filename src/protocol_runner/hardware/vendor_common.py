@@ -254,7 +254,6 @@ class VendorScanInput(VendorBoard, ABC):
         self._rows_emitted = 0
         self._ring: ScanRing | None = None
 
-    # ---- the backend's part ------------------------------------------------------------------------
     @abstractmethod
     def _start_scan(self, low: int, high: int, rows: int, rate_hz: float) -> float: ...
 
@@ -270,7 +269,6 @@ class VendorScanInput(VendorBoard, ABC):
     @abstractmethod
     def _free_buffer(self) -> None: ...
 
-    # ---- AnalogInput -------------------------------------------------------------------------------
     @property
     def resolution_bits(self) -> int:
         return 16
