@@ -117,55 +117,6 @@ def contiguous_runs(channels: Sequence[int]) -> list[list[int]]:
     return runs
 
 
-class ScanRing:
-    """The rows of a continuous scan taken out of the library's circular buffer in order.
-
-    The library writes sample ``k`` of the scan (counting from 0 at the start, channels interleaved) at
-    buffer position ``k mod size``. `take(total)` returns the complete rows among the samples up to
-    `total` that were not taken yet. When more than a buffer's worth arrived since the last take, the
-    oldest were overwritten before they were read: that is a `ScanOverrun`, never silently lost rows.
-    `copy(first, count)` copies `count` samples from buffer position `first` (never across the end).
-    """
-
-    def __init__(
-        self,
-        name: str,
-        size: int,
-        n_columns: int,
-        copy: Callable[[int, int], npt.NDArray[np.float64]],
-    ) -> None:
-        self.name = name
-        self.size = size
-        self.n_columns = n_columns
-        self._copy = copy
-        self.taken = 0  # samples taken so far (whole rows only)
-
-    def take(self, total: int) -> npt.NDArray[np.float64]:
-        """The new complete rows, shape (rows, n_columns), in scan order."""
-        total -= total % self.n_columns
-        new = total - self.taken
-        if new < 0:
-            raise ScanOverrun(
-                f"the {self.name} reported {total} samples after {self.taken} were read; the scan count went "
-                "backwards. Unplug and replug the board, then redo the trial."
-            )
-        if new > self.size:
-            raise ScanOverrun(
-                f"the {self.name} scan overran its buffer: {new} samples arrived since the last read, the "
-                f"buffer holds {self.size}. The computer did not read the data fast enough: close other "
-                "programs or lower the input rate; the trial is marked failed and can be redone."
-            )
-        if new == 0:
-            return np.zeros((0, self.n_columns))
-        start = self.taken % self.size
-        first = min(new, self.size - start)
-        parts = [self._copy(start, first)]
-        if new > first:  # the samples wrapped round the end of the buffer
-            parts.append(self._copy(0, new - first))
-        self.taken = total
-        return np.concatenate(parts).reshape(-1, self.n_columns)
-
-
 class VendorBoard:
     """What both vendor boards share: a name and serial, and each library call made through `_call`, which
     turns the library's exception into the `HardwareUnavailable` the backend's `map_error(exc, action)`
@@ -234,7 +185,8 @@ class VendorScanInput(VendorBoard, ABC):
     `close` stop it too.
 
     A backend implements `_start_scan` (start it, return the rate set), `_scan_status` (running?,
-    samples transferred so far), `_stop`, `_copy` (samples out of the buffer) and `_free_buffer`.
+    samples transferred so far), `_stop`, `_copy(first, count)` (`count` samples from buffer position
+    `first`, never across its end) and `_free_buffer`.
     """
 
     kind = usb1608fs_protocol.KIND
@@ -252,7 +204,9 @@ class VendorScanInput(VendorBoard, ABC):
         self._rate_hz = 0.0
         self._t0 = 0.0
         self._rows_emitted = 0
-        self._ring: ScanRing | None = None
+        self._ring_size = 0  # samples the circular buffer holds
+        self._width = 0  # samples per buffer row (the channels low..high)
+        self._taken = 0  # samples taken out of it so far (whole rows only)
 
     @abstractmethod
     def _start_scan(self, low: int, high: int, rows: int, rate_hz: float) -> float: ...
@@ -295,7 +249,7 @@ class VendorScanInput(VendorBoard, ABC):
             raise
         after = self.clock.now_s()
         self._t0 = 0.5 * (before + after)
-        self._ring = ScanRing(self.name, rows * width, width, self._copy)
+        self._ring_size, self._width, self._taken = rows * width, width, 0
         self._scanning = True
 
     def _block(self, rows: npt.NDArray[np.float64]) -> ScanBlock:
@@ -306,15 +260,45 @@ class VendorScanInput(VendorBoard, ABC):
         return ScanBlock(t_s=t_s, codes=volts_to_ai16_code(volts), volts=volts)
 
     def _take(self, *, stopping: bool = False) -> npt.NDArray[np.float64]:
-        assert self._ring is not None
         running, total = self._call("reading the scan status", self._scan_status)
-        rows = self._ring.take(total)
+        rows = self._new_rows(total)
         if not running and not stopping:
             raise BoardIoError(
-                f"the {self.name} scan stopped by itself after {self._ring.taken} samples; "
+                f"the {self.name} scan stopped by itself after {self._taken} samples; "
                 "unplug and replug the board, then redo the trial."
             )
         return rows
+
+    def _new_rows(self, total: int) -> npt.NDArray[np.float64]:
+        """The complete rows, shape (rows, width), among the first `total` samples of the scan that were
+        not taken yet, out of the circular buffer in order.
+
+        The library writes sample ``k`` of the scan (counting from 0 at the start, channels interleaved) at
+        buffer position ``k mod size``. When more than a buffer's worth arrived since the last take, the
+        oldest were overwritten before they were read: that is a `ScanOverrun`, never silently lost rows.
+        """
+        total -= total % self._width
+        new = total - self._taken
+        if new < 0:
+            raise ScanOverrun(
+                f"the {self.name} reported {total} samples after {self._taken} were read; the scan count went "
+                "backwards. Unplug and replug the board, then redo the trial."
+            )
+        if new > self._ring_size:
+            raise ScanOverrun(
+                f"the {self.name} scan overran its buffer: {new} samples arrived since the last read, the "
+                f"buffer holds {self._ring_size}. The computer did not read the data fast enough: close other "
+                "programs or lower the input rate; the trial is marked failed and can be redone."
+            )
+        if new == 0:
+            return np.zeros((0, self._width))
+        start = self._taken % self._ring_size
+        first = min(new, self._ring_size - start)
+        parts = [self._copy(start, first)]
+        if new > first:  # the samples wrapped round the end of the buffer
+            parts.append(self._copy(0, new - first))
+        self._taken = total
+        return np.concatenate(parts).reshape(-1, self._width)
 
     def read_available(self) -> ScanBlock:
         """Every complete row acquired since the last call (calibrated volts, their codes, times)."""

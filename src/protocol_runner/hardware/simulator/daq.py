@@ -124,32 +124,26 @@ class _RigModel:
         self._output_channel = joint.output_channel
         self._inv_dt = 1.0 / params.plant_step_s
         self.channels = (joint.angle_input_channel, joint.torque_input_channel)
-        self.command_nonlinearity: CalibrationTable | None = (
-            joint.command_table.inverse() if joint.command_table is not None else None
-        )
-        self.angle_nonlinearity: CalibrationTable | None = (
-            joint.angle_table.inverse() if joint.angle_table is not None else None
-        )
-        self.torque_nonlinearity: CalibrationTable | None = (
-            joint.torque_table.inverse() if joint.torque_table is not None else None
+        # the robot's own nonlinearities: the inverses of the protocol's calibration tables
+        command_nl, angle_nl, torque_nl = (
+            None if t is None else t.inverse()
+            for t in (joint.command_table, joint.angle_table, joint.torque_table)
         )
         # What the robot does with each of the 65536 output codes: code -> volts (USB-3105) -> Eq 2 over the
         # joint range -> the robot's own nonlinearity (inverse of the command table). Tabulated once, so a
         # write costs a look-up.
         input_deg = volts_to_angle(ao16_code_to_volts(np.arange(65536)), self.range_deg)
-        if self.command_nonlinearity is not None:
-            input_deg = self.command_nonlinearity(input_deg)
+        if command_nl is not None:
+            input_deg = command_nl(input_deg)
         self.target_by_code = np.ascontiguousarray(input_deg, dtype=np.float64)
         # The sensor chains, real value -> the robot's sensor nonlinearity (inverse of the protocol's output
         # table) -> Eq 1 / Eq 3 inverted -> volts, are piecewise linear: tabulate them on the table's knots
         # (plus two far knots that carry the tables' linear extrapolation) so a read costs one np.interp.
-        self.angle_knots, self.angle_knot_volts = self._sensor_chain(
-            self.angle_nonlinearity, self.range_deg, lambda x: angle_to_volts(x, self.range_deg)
+        angle_chain = self._sensor_chain(
+            angle_nl, self.range_deg, lambda x: angle_to_volts(x, self.range_deg)
         )
-        self.torque_knots, self.torque_knot_volts = self._sensor_chain(
-            self.torque_nonlinearity,
-            self.torque_range_nm,
-            lambda x: torque_to_volts(x, self.torque_range_nm),
+        torque_chain = self._sensor_chain(
+            torque_nl, self.torque_range_nm, lambda x: torque_to_volts(x, self.torque_range_nm)
         )
         volts_span = 20.0
         self.angle_noise_v = params.angle_noise_deg * volts_span / (self.range_deg[1] - self.range_deg[0])
@@ -159,13 +153,10 @@ class _RigModel:
         self._sensors = (
             np.zeros(0, dtype=np.int64),
             np.zeros(0, dtype=np.float64),
-            self.angle_knots,
-            self.angle_knot_volts,
-            self.torque_knots,
-            self.torque_knot_volts,
+            *angle_chain,
+            *torque_chain,
         )
         self._roles_key: tuple[int, ...] = ()
-        self._roles = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float64))
         self.origin_s = 0.0
         self.step_id = ""
         self.rng = np.random.default_rng(step_seed(self.seed, ""))
@@ -203,8 +194,9 @@ class _RigModel:
         steps = np.ceil((t_s[mine] - self.origin_s) * self._inv_dt - GRID_TOL).astype(np.int64)
         self.plant.push_commands(steps, self.target_by_code[code[mine]])
 
-    def _scan_roles(self, channels: Sequence[int]) -> tuple[npt.NDArray[np.int64], FloatArray]:
-        """Per scanned channel: what it carries (0 nothing, 1 angle, 2 torque) and its noise in volts."""
+    def _scan_roles(self, channels: Sequence[int]) -> None:
+        """Per scanned channel, what it carries (0 nothing, 1 angle, 2 torque) and its noise in volts, into
+        the sensors record the kernel reads."""
         key = tuple(channels)
         if key != self._roles_key:
             roles = np.zeros(len(key), dtype=np.int64)
@@ -214,9 +206,8 @@ class _RigModel:
                     roles[j], scales[j] = ROLE_ANGLE, self.angle_noise_v
                 elif ch == self.joint.torque_input_channel:
                     roles[j], scales[j] = ROLE_TORQUE, self.torque_noise_v
-            self._roles_key, self._roles = key, (roles, scales)
+            self._roles_key = key
             self._sensors = (roles, scales, *self._sensors[2:])
-        return self._roles
 
     def _noise(self, count: int) -> FloatArray:
         """The next `count` standard normals of the step's stream (drawn from the generator in blocks)."""
@@ -241,7 +232,7 @@ class _RigModel:
         the last ones fall after `until_s`). Codes and volts are the DT9814's (12-bit ±10 V:
         `conversions.ai12_code_to_volts`), computed in the plant's kernel."""
         self._output.deliver()  # the commands written so far
-        self._scan_roles(channels)  # refreshes self._sensors for this channel list
+        self._scan_roles(channels)
         n_ch = len(channels)
         noise = self._noise(n_rows * n_ch)
         t_s, codes, volts, any_nan = self.plant.scan(
