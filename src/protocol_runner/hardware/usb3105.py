@@ -20,8 +20,6 @@ HID SET_REPORT on the control pipe (0x21, 0x09, 0x0200 | report id, interface).
 from __future__ import annotations
 
 import logging
-import math
-import operator
 import struct
 import time
 from collections.abc import Callable, Mapping
@@ -45,7 +43,9 @@ from protocol_runner.hardware.usb_common import (
     UnexpectedReply,
     claim_interface,
     find_board,
+    finite_volts,
     map_usb_error,
+    output_channel,
     usb_call,
 )
 
@@ -221,33 +221,21 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
             parse_calibration(*struct.unpack_from("<ff", mem, CAL_STRIDE * ch)) for ch in range(N_CHANNELS)
         )
 
-    def _check_channel(self, channel: int) -> None:
-        try:
-            ok = 0 <= operator.index(channel) < N_CHANNELS
-        except TypeError:
-            ok = False
-        if not ok:
-            raise InvalidInput(f"the {KIND} has output channels 0-{N_CHANNELS - 1}; got {channel!r}")
-
     def configure_channel(self, channel: int) -> None:
         """Set `channel` to +-10 V (AOUT_CONFIG). This drives the pin to 0 V: call once before a run."""
-        self._check_channel(channel)
-        channel = operator.index(channel)
+        channel = output_channel(KIND, channel, N_CHANNELS)
         self._send(bytes((CMD_AOUT_CONFIG, channel, RANGE_PM10V)), f"configuring output channel {channel}")
         self._configured.add(channel)
 
     def _checked_code(self, channel: int, volts: float) -> int:
         """The calibrated code to send for `volts` on a configured `channel`."""
         if channel not in self._configured:
-            self._check_channel(channel)
+            output_channel(KIND, channel, N_CHANNELS)
             raise ChannelNotConfigured(
                 f"output channel {channel} of the {self.name} is not configured: call "
                 "configure_channel() once before writing (it sets +-10 V and drives the pin to 0 V)"
             )
-        volts = float(volts)
-        if not math.isfinite(volts):
-            raise InvalidInput(f"output channel {channel}: volts must be a finite number, got {volts!r}")
-        return calibrated_code(volts, self.calibration[channel])
+        return calibrated_code(finite_volts(channel, volts), self.calibration[channel])
 
     def write_volts(self, channel: int, volts: float) -> int:
         """Output `volts` on `channel` now (AOUT, update 0); return the calibrated code sent."""

@@ -22,6 +22,7 @@ import contextlib
 import errno as errno_codes
 import logging
 import math
+import operator
 import os
 import time
 from collections.abc import Callable, Iterator, Sequence
@@ -276,6 +277,25 @@ def check_scan_channels(kind: str, channels: Sequence[int], n_channels: int, rat
             f"{kind}: the scan rate must be a positive number of rows per second; got {rate_hz!r}"
         )
     return chans
+
+
+def output_channel(kind: str, channel: int, n_channels: int) -> int:
+    """`channel` as an int, refused unless it is one of the output board's channels 0..n_channels - 1."""
+    try:
+        ch = operator.index(channel)
+    except TypeError:
+        ch = -1
+    if not 0 <= ch < n_channels:
+        raise InvalidInput(f"the {kind} has output channels 0-{n_channels - 1}; got {channel!r}")
+    return ch
+
+
+def finite_volts(channel: int, volts: float) -> float:
+    """`volts` as a float, refused unless finite."""
+    volts = float(volts)
+    if not math.isfinite(volts):
+        raise InvalidInput(f"output channel {channel}: volts must be a finite number, got {volts!r}")
+    return volts
 
 
 def bcd_to_text(bcd: int) -> str:

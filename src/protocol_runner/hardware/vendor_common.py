@@ -14,7 +14,6 @@ import importlib
 import importlib.util
 import logging
 import math
-import operator
 import sys
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Mapping, Sequence
@@ -35,6 +34,8 @@ from protocol_runner.hardware.usb_common import (
     BoardNotFound,
     ScanOverrun,
     check_scan_channels,
+    finite_volts,
+    output_channel,
 )
 
 log = logging.getLogger(__name__)
@@ -96,10 +97,7 @@ def pick(found: list[Any], serial: str | None, kind: str, library: str, hint: st
 
 def checked_volts(channel: int, volts: float) -> float:
     """A finite output voltage, clamped to ±10 V (as the pyusb driver clamps its code)."""
-    volts = float(volts)
-    if not math.isfinite(volts):
-        raise InvalidInput(f"output channel {channel}: volts must be a finite number, got {volts!r}")
-    return min(VOLTS_RANGE[1], max(VOLTS_RANGE[0], volts))
+    return min(VOLTS_RANGE[1], max(VOLTS_RANGE[0], finite_volts(channel, volts)))
 
 
 def contiguous_runs(channels: Sequence[int]) -> list[list[int]]:
@@ -369,19 +367,8 @@ class VendorAnalogOutput(VendorBoard, ABC):
             raise BoardIoError(f"the {self.name} is closed; open it again")
         return super()._call(action, fn)
 
-    def _check_channel(self, channel: int) -> int:
-        try:
-            ch = operator.index(channel)
-        except TypeError:
-            ch = -1
-        if not 0 <= ch < self.n_channels:
-            raise InvalidInput(
-                f"the {self.kind} has output channels 0-{self.n_channels - 1}; got {channel!r}"
-            )
-        return ch
-
     def _checked(self, channel: int, volts: float) -> float:
-        ch = self._check_channel(channel)
+        ch = output_channel(self.kind, channel, self.n_channels)
         if ch not in self._configured:
             raise InvalidInput(
                 f"output channel {ch} of the {self.name} is not configured: call configure_channel() once "
@@ -391,7 +378,7 @@ class VendorAnalogOutput(VendorBoard, ABC):
 
     def configure_channel(self, channel: int) -> None:
         """Set `channel` to ±10 V and 0 V. This drives the pin to 0 V: call once before a run."""
-        ch = self._check_channel(channel)
+        ch = output_channel(self.kind, channel, self.n_channels)
         self._call(f"configuring output channel {ch}", lambda: self._write(ch, 0.0))
         self._configured.add(ch)
 

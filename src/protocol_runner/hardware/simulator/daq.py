@@ -12,20 +12,16 @@ Signal path, mirroring the real rig (thesis §2.4-2.5), per joint:
 
 so that, after the rig applies its calibration tables, measured ≈ real. With no table the robot is linear.
 
-Several joints share one clock, one USB-3105 stand-in and one scan, and are simulated INDEPENDENTLY: each
-plant sees only its own channel's commands and its own device; no coupling through the leg's kinematic
-chain (thesis §1.3) is modelled. Every output write reaches every joint's model; each acts only on its own
-channel, at the write's time.
+Several joints share one clock, one USB-3105 stand-in and one scan, and are simulated independently: each
+plant acts only on its own channel's writes, at their time, and sees only its own device.
 
-Determinism: `SimulatedRig.begin_step(step_id, trial)` reseeds each joint's noise generator from
-sha256(joint seed, step id), draws the trial's friction spread from sha256(joint seed, trial), puts the
-joint at rest at the park angle and restarts the plant's time grid at the current clock. The joint seed is
-the session seed on a rig of one joint; on a rig of several each joint's is drawn from (session seed, joint
-name) (`joint_seed`), so the joints' noises are not copies of each other. The plant advances on a fixed grid
-whatever the pattern of reads, commands take effect from the first grid step at or after their write time,
-and noise is drawn row by row, so the same seed and step id give identical arrays however often the scan is
-read. (`realtime=True` paces with the wall clock; write times then jitter, so only simulated time is
-bit-for-bit reproducible.)
+Determinism (docs/simulator.md, "Determinism"): `SimulatedRig.begin_step(step_id, trial)` reseeds each
+joint's noise from sha256(joint seed, step id), draws the trial's friction spread from sha256(joint seed,
+trial), rests the joint at its park angle and restarts the plant's grid at the clock. The joint seed is the
+session seed on a rig of one joint, `joint_seed` of (session seed, joint name) on a rig of several. Fixed
+grid, commands from the first grid step at or after their write, noise drawn row by row: the same seed and
+step id give identical arrays however often the scan is read (in simulated time; `realtime=True` paces with
+the wall clock and its write times jitter).
 """
 
 from __future__ import annotations

@@ -1,32 +1,16 @@
 """The rig's physics: an RSST joint (hydraulic position servo) and the device under test, integrated by numba.
+docs/simulator.md ("The joint", "Loads") states the model; every constant is in `params.py`.
 
-Model (every constant is in `params.py`; docs/simulator.md):
-
-Servo (thesis §2.2, §2.4.2). The hydraulic boards run a PD position loop whose complete response is a
-first-order lag of about 0.2 s. A hydraulic actuator is a flow (speed) source: its valve opens in
-proportion to the position error e = target - angle, and the flow through the orifice is proportional to
-sqrt(supply pressure - load pressure). So the joint speed is
+The joint is a flow (speed) source whose speed collapses as the load nears its torque limit τ_limit (the
+joint's Eq 3 range in the direction it pushes, thesis Table 3, §5), with e = target - angle:
 
     dθ/dt = (e / τ) · g(1 - τ_load / τ_limit),     g(x) = x / sqrt(|x| + ε) · sqrt(1 + ε)
 
-with τ_limit the actuator's torque limit in the direction it pushes (Table 3: ±84.8 N·m for the knee,
-taken from the joint's torque range). Unloaded it is exactly the first-order lag; as the load approaches
-the limit the speed collapses to zero (the joint stalls where the load reaches the limit, thesis §5), and
-a load beyond the limit back-drives the joint (plus a relief term for loads beyond the limit with no
-error). The torque the load cell reports is the load the actuator holds (inertia neglected: at the
-test speeds J·dω/dt is well under 1 N·m).
-
-Loads, in the sign convention of `models.spring` (positive = the robot must push towards flexion):
-
-- shank gravity: G · sin(θ - θ_0) (the robot stands: the straight knee hangs);
-- robot friction: a Dahl state z_r (Coulomb level F_r, rounded reversals) + viscous c·dθ/dt;
-- the device (when fitted), composed from its elements by `device.compose` (equations in
-  `models.element_torques`): elastic elements and masses as one precomputed angle table, Coulomb brakes as
-  Dahl states whose level has a Stribeck excess at low speed, viscous dampers, range-of-motion stops with
-  misalignment slack then a stiff end (§5.2), and the simulator-tuned cuff shift (§5.1, §5.4).
-
-The integrator is explicit Euler on a fixed grid (`plant_step_s`); Dahl states use the exact exponential
-update over each step, so they are unconditionally stable. Everything inside is deterministic.
+plus a relief term for a load beyond the limit. The load, in the sign convention of `models.spring`
+(positive = the robot must push towards flexion), is the segment's gravity G · sin(θ - θ_0), the robot's
+friction (a Dahl state z_r + viscous c·dθ/dt) and the device's elements as `device.compose` groups them
+(equations in `models.element_torques`). Explicit Euler on a fixed grid (`plant_step_s`); the Dahl states
+use the exact exponential update over each step, so they are unconditionally stable. Deterministic.
 """
 
 from __future__ import annotations
