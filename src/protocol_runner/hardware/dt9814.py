@@ -92,13 +92,6 @@ def sign_extend_12(raw: int) -> int:
     return raw - 0x1000 if raw & 0x0800 else raw
 
 
-def build_command(opcode: int, payload: bytes) -> bytes:
-    """A 32-byte command: u32 LE opcode, payload, zero padding."""
-    if len(payload) > COMMAND_SIZE - 4:
-        raise ValueError(f"DT9812 command payload too long ({len(payload)} bytes)")
-    return struct.pack("<I", opcode) + payload + bytes(COMMAND_SIZE - 4 - len(payload))
-
-
 @dataclass(frozen=True)
 class Dt9814Info:
     """Board identity read from flash."""
@@ -187,7 +180,8 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
 
     def _command(self, opcode: int, payload: bytes, reply_size: int, action: str) -> bytes:
         timeout_ms = self.settings.timeout_ms
-        self._usb(action, self._dev.write, self.command_out, build_command(opcode, payload), timeout_ms)
+        command = struct.pack("<I", opcode) + payload.ljust(COMMAND_SIZE - 4, b"\x00")  # exactly 32 bytes
+        self._usb(action, self._dev.write, self.command_out, command, timeout_ms)
         if reply_size == 0:
             return b""
         reply = bytes(self._usb(action, self._dev.read, self.command_in, reply_size, timeout_ms))
@@ -251,6 +245,3 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
 
     def blink(self, count: int = 5) -> None:
         """The DT9812 protocol has no LED command: nothing to do (kept for a uniform board API)."""
-
-
-__all__ = ["Dt9814", "Dt9814Info", "Dt9814Settings", "sign_extend_12"]

@@ -121,11 +121,6 @@ def _inventory(api: McculwApi, product_id: int, kind: str) -> list[Any]:
         raise _mapped(api, exc, f"{kind} search", "listing the boards") from exc
 
 
-def list_serials(api: McculwApi, product_id: int, kind: str) -> list[str]:
-    """The serial numbers of every attached board of one kind, sorted."""
-    return [str(d.unique_id) for d in _inventory(api, product_id, kind)]
-
-
 def create_board(api: McculwApi, product_id: int, kind: str, serial: str | None) -> tuple[int, str]:
     """Find the board with `serial` (or the first by serial number) and add it to the UL: (board number,
     serial). `BoardNotFound` names the serials seen."""
@@ -305,7 +300,8 @@ def open_all_mcculw_1608fs(
     api = api or load_mcculw()
     clock = clock or MonotonicClock()
     if not serials:
-        serials = list_serials(api, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND)
+        found = _inventory(api, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND)
+        serials = [str(d.unique_id) for d in found]
     if not serials:
         create_board(api, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND, None)  # raises not found
     return open_each(partial(McculwUsb1608Fs.open, clock=clock, api=api), serials)
