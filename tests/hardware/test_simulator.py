@@ -218,7 +218,7 @@ def test_a_dry_run_is_the_rigs_paced_loop_in_simulated_time(knee: JointConfig) -
     recorded, the clock one tick past the last write at the end."""
     sim = SimulatedRig([knee], seed=5, params=KNEE_PARAMS)
     rig = sim.make_rig()
-    sim.clock.advance(7.25)
+    sim.clock.sleep_until(sim.clock.now_s() + 7.25)
     command = 65.0 + 40.0 * np.sin(np.arange(450) / 30.0)
     _, _, _, rec = run(sim, rig, command, "paced")
     t, channel, code = sim.ao.records()

@@ -5,16 +5,15 @@ order), with each joint's channels and calibration. One joint (the knee campaign
 `hardware/motion.py`, which adds every joint's approach and exit in the same loop (`Rig.send`):
 
 1. safety envelope (`hardware/safety.py`) on every joint's samples - a violation raises before any write;
-2. command look-up table, real -> input angle (thesis §2.5.1);
-3. Eq 1, angle -> volts over the joint's range; clamp to ±10 V;
-4. the paced loop (`Rig.send`): start the input scan ([angle_0, torque_0, angle_1, torque_1, ...] at
-   the input rate), then for each output tick k sleep until t0 + k / output_rate_hz, write every joint's
-   volts, record the write time; read the scan (and poll the stop request) every `READ_EVERY_TICKS` ticks;
-   after the last tick wait one more tick and stop the scan. One joint: one `write_volts` per tick;
-   several: one synchronous update of every joint's channel per tick (`AnalogOutput.write_volts_sync`: on the USB-3105 each channel's AOUT with
-   the "wait for sync" flag, then one AOUT_SYNC that latches them together, thesis §2.3: the boards control
-   "the 12 joints ... simultaneously");
-5. telemetry: the scan's volts -> Eq 2 (angle) and Eq 3 (torque) -> the angle and torque look-up tables
+2. command look-up table, real -> input angle (thesis §2.5.1); Eq 1, angle -> volts over the joint's
+   range; clamp to ±10 V;
+3. the paced loop (`Rig.send`): start the input scan ([angle_0, torque_0, angle_1, torque_1, ...] at
+   the input rate), then for each output tick k sleep until t0 + k / output_rate_hz and write every joint's
+   volts: one joint, one `write_volts`; several, one synchronous update (`write_volts_sync`: on the
+   USB-3105 each channel's AOUT held, then one AOUT_SYNC latching them together, thesis §2.3: the boards
+   control "the 12 joints ... simultaneously"). Read the scan (and poll the stop request) every
+   `READ_EVERY_TICKS` ticks; after the last tick wait one more tick and stop the scan;
+4. telemetry: the scan's volts -> Eq 2 (angle) and Eq 3 (torque) -> the angle and torque look-up tables
    (output -> real, thesis §2.5.1-2.5.2).
 
 On a stop request `on_stop(written)`, if given, returns the samples to send next in the same loop (no
@@ -23,16 +22,12 @@ every block as it is read: a measured signal beyond its limit stops the loop as 
 its `WatchdogTripped` (exit 4) is raised instead; parking is not watched. An error or an interruption
 carries what was recorded so far (`partial_recording`). The live monitor (`tap`) is started with every
 joint's commands (restarted on the samples a stop sends, shown as parking) and shown every block read.
-The hardware bench and a dry run run this same loop: the DAQ simulator's boards satisfy the same
-interfaces, and its clock jumps instead of sleeping.
+The DAQ simulator's boards satisfy the same interfaces (its clock jumps instead of sleeping), so a dry run
+runs this same loop.
 
-The recording is one `TrialRecording` per joint, all on the same time base (the same command and input
-times, the same tick lateness). Times count from t0, the clock reading just after the scan started (the
-first output tick is scheduled at t0). `tick_lateness_s[k]` is the clock reading just before write k minus
-its schedule: the output jitter recorded per trial.
-
-The loop does as little as possible per tick: all conversions are done on whole arrays before and after,
-the schedule is precomputed, and results go into preallocated lists.
+The recording is one `TrialRecording` per joint, all on the same time base. Times count from t0, the clock
+reading just after the scan started (the first output tick is scheduled at t0); `tick_lateness_s[k]`, the
+clock just before write k minus its schedule, is the output jitter recorded per trial.
 """
 
 from __future__ import annotations
