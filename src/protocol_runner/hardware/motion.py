@@ -52,18 +52,9 @@ def run_motion(
     where: str,
     stop_requested: StopRequested | None = None,
 ) -> tuple[TrialRecording, ...]:
-    """Plan, check and send one motion; return the trajectory part of each joint's recording."""
-    return run_stream(rig, plan_motion(rig, commands_deg), where=where, stop_requested=stop_requested)
-
-
-def run_stream(
-    rig: Rig,
-    stream: MotionStream,
-    *,
-    where: str,
-    stop_requested: StopRequested | None = None,
-) -> tuple[TrialRecording, ...]:
-    """Check every joint's stream (and its first sample against where the joint was left), then send."""
+    """Plan one motion, check every joint's stream (and its first sample against where the joint was left),
+    send it; return the trajectory part of each joint's recording."""
+    stream = plan_motion(rig, commands_deg)
     joints = rig.joints
     limits = [j.limits for j in joints]
     check_motion_stream(
