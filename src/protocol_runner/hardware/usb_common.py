@@ -1,19 +1,11 @@
-"""What the USB drivers share: the error types (all exit status 3), pyusb error mapping, device lookup,
-interface claiming, and a real monotonic clock.
+"""What the USB drivers share: the error types, pyusb error mapping, device lookup, interface claiming,
+the output channel and volts checks, and a real monotonic clock.
 
-Every USB failure reaches the user as a `protocol_runner.errors.HardwareUnavailable` subclass whose
-message names the board and says what to do about it. The libusb backend reports failures as
-`usb.core.USBError` with an `errno`; the numbers below are the Linux ones libusb maps to:
-
-=====  ===============================  ==========================
-errno  libusb meaning                   error raised here
-=====  ===============================  ==========================
-13     LIBUSB_ERROR_ACCESS              `BoardPermissionDenied`
-16     LIBUSB_ERROR_BUSY                `BoardBusy`
-19     LIBUSB_ERROR_NO_DEVICE           `DeviceGone`
-110    LIBUSB_ERROR_TIMEOUT             `BoardTimeout`
-other  anything else                    `BoardIoError`
-=====  ===============================  ==========================
+Every USB failure reaches the user as a `protocol_runner.errors.HardwareUnavailable` subclass (exit status
+3) whose message names the board and says what to do about it. `map_usb_error` maps the `errno` of
+libusb's `usb.core.USBError` (the Linux numbers: 13 access, 16 busy, 19 no device, 110 timeout; docs/
+hardware.md, "Errors") to `BoardPermissionDenied`, `BoardBusy`, `DeviceGone`, `BoardTimeout`, and
+anything else to `BoardIoError`.
 """
 
 from __future__ import annotations
