@@ -1,18 +1,9 @@
 """The protocol's trajectory kinds (`trajectories:` of a schema_version 2 protocol), and their registry.
 
-One pydantic model per kind, told apart by `kind` (a discriminated union of the registered kinds, unknown
-kinds and keys refused). Each kind's model declares everything about the kind in one place: its fields
-(which may be bound to factor quantities: `bindable`), how it becomes the plan's `Trajectory` (`build`),
-its samples at the output rate (`sample`) and its plan-time limit checks by field (`check_limits`, reported
-to `trajectory_limits.LimitCheck`). The
-kinds are registered in `TRAJECTORY_KINDS` (`register_trajectory_kind` adds one); docs/protocol.md
-describes each.
-
-A field typed `float | str` (or `RangePair | str`) may be BOUND to a factor quantity: a string
-`"<factor>.<quantity>"` takes the value of that quantity in each configuration's level.
-`trajectory_bindings` lists them; `build_trajectory` takes their resolved values. Every other field is a
-constant. Numbers are finite (no .inf / .nan); times and speeds are positive.
-
+One pydantic model per kind, told apart by `kind`, declares everything about the kind (docs/architecture.md
+"a trajectory kind"); `TRAJECTORY_KINDS` registers them. A field typed `float | str` (or `RangePair | str`)
+may be BOUND to a factor quantity: a string `"<factor>.<quantity>"` takes the value of that quantity in each
+configuration's level (`trajectory_bindings` lists them; `build_trajectory` takes their resolved values).
 `per_joint` is not a motion of its own: it gives each joint of a multi-joint protocol one of the kinds.
 """
 
@@ -24,7 +15,7 @@ import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Annotated, Any, ClassVar, Generic, Literal, Protocol, TypeVar, get_args
+from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Generic, Literal, TypeVar, get_args
 
 import numpy as np
 import numpy.typing as npt
@@ -49,27 +40,12 @@ from .trajectories import (
 )
 from .trajectory_record import Trajectory
 
+if TYPE_CHECKING:
+    from .stream_check import LimitCheck
+
 FloatArray = npt.NDArray[np.float64]
 Quantity = float | tuple[float, ...]
 Fields = Mapping[str, Quantity | None]
-
-
-class LimitReport(Protocol):
-    """What a kind's `check_limits` reports to (`trajectory_limits.LimitCheck`): each call names the
-    protocol FIELD that sets the value, so that the message says what to change."""
-
-    def range(self, field: str, lo: float, hi: float, what: str = "") -> None: ...
-
-    def rate(self, field: str, value: float, what: str) -> None: ...
-
-    def accel(self, field: str, value: float, what: str) -> None: ...
-
-    def samples(self, field: str) -> None: ...
-
-    @property
-    def problems(self) -> list[tuple[str, str]]:
-        """(field, message) of every limit broken so far."""
-        ...
 
 
 BINDING_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_\-]*\.[A-Za-z][A-Za-z0-9_]*$")
@@ -169,7 +145,7 @@ class TrajectoryKindSpec(BaseModel):
         raise NotImplementedError(f"trajectory kind {trajectory.profile!r} has no sample")
 
     @staticmethod
-    def check_limits(trajectory: Trajectory, check: LimitReport) -> None:
+    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
         """Report to `check` what the joint's limits must allow, field by field (a closed form where the
         kind has one, else `check.samples`)."""
         check.samples(trajectory.profile)
@@ -212,7 +188,7 @@ class SinusoidSpec(TrajectoryKindSpec):
         return sinusoid_deg(time_s, *_sine(trajectory))
 
     @staticmethod
-    def check_limits(trajectory: Trajectory, check: LimitReport) -> None:
+    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
         mean, a, period = _sine(trajectory)
         speed = 2.0 * math.pi * a / period  # Eq 25
         check.range("range_deg", mean - a, mean + a)
@@ -285,7 +261,7 @@ class TriangleSpec(TrajectoryKindSpec):
         return triangle_deg(time_s, lo, hi, num("speed_deg_s"), num("corner_accel_deg_s2"))
 
     @staticmethod
-    def check_limits(trajectory: Trajectory, check: LimitReport) -> None:
+    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
         lo, hi = _pair(trajectory.param("range_deg"))
         check.range("range_deg", lo, hi)
         check.rate("speed_deg_s", trajectory.number("speed_deg_s"), "its constant speed")
@@ -364,7 +340,7 @@ class IdentificationSpec(TrajectoryKindSpec):
         return identification_deg(time_s, *(trajectory.number(f) for f, _ in trajectory.params))
 
     @staticmethod
-    def check_limits(trajectory: Trajectory, check: LimitReport) -> None:
+    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
         """Its range; then, no closed form: its samples at the output rate (the last, fastest period)."""
         check.range("range_deg", trajectory.number("min_deg"), trajectory.number("max_deg"))
         if not check.problems:
@@ -413,7 +389,7 @@ class RampedStepSpec(RampedStepFields[BindableFloat], TrajectoryKindSpec):
         return calibration_step_deg(time_s, num("from_deg"), num("step_deg"), num("settle_s"), num("ramp_s"))
 
     @staticmethod
-    def check_limits(trajectory: Trajectory, check: LimitReport) -> None:
+    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
         start, step, ramp = (trajectory.number(f) for f in ("from_deg", "step_deg", "ramp_s"))
         check.range("from_deg", start, start)
         check.range(
@@ -447,7 +423,7 @@ class HoldSpec(TrajectoryKindSpec):
         return hold_deg(time_s, trajectory.number("angle_deg"))
 
     @staticmethod
-    def check_limits(trajectory: Trajectory, check: LimitReport) -> None:
+    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
         angle = trajectory.number("angle_deg")
         check.range("angle_deg", angle, angle)
 

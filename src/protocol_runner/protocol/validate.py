@@ -37,7 +37,9 @@ from .resolve import (
 )
 from .schema import CalibrationStepSpec, Protocol
 from .settings import ElementSetting
+from .stream_check import check_streams, safety_limits, trajectory_limit_problems
 from .trajectory_record import Trajectory
+from .trajectory_specs import FileSpec, PerJointSpec, build_trajectory, joint_spec, trajectory_bindings
 
 if TYPE_CHECKING:
     from .loaded import LoadedProtocol, Loc
@@ -80,8 +82,6 @@ def _check_motions(loaded: LoadedProtocol, check_files: bool, generated: dict[Lo
     rate and acceleration, and as complete commanded streams (approach from its park angle, exit, a stop
     after any sample), on that joint's view of the protocol. A configuration's problems that share a
     location and message are one line naming the configurations."""
-    from .stream_check import check_streams
-
     p = loaded.protocol
     per_joint = not isinstance(p.calibration_step, CalibrationStepSpec)
     motions: dict[str, list[Motion]] = {}
@@ -173,10 +173,6 @@ def _which_configurations(where: list[tuple[str, int]], all_keys: set[int]) -> s
 def _limit_problems(loaded: LoadedProtocol, motions: list[Motion], joint: str = "") -> list[Problem]:
     """The field of the trajectory (or of the calibration step) that breaks a limit, once per message
     (`joint`: of a multi-joint protocol, whose `loaded` is that joint's view)."""
-    from .stream_check import safety_limits
-    from .trajectory_limits import trajectory_limit_problems
-    from .trajectory_specs import joint_spec, trajectory_bindings
-
     p = loaded.protocol
     limits = safety_limits(p.rig)
     out: dict[tuple[Loc, str], list[tuple[str, int]]] = {}
@@ -385,10 +381,6 @@ def _check_unused_trajectories(loaded: LoadedProtocol, check_files: bool) -> Ite
     against the joint's range, rate and acceleration, located at the entry (a file's build problems at
     its `file`). An entry with a bound field needs a configuration's levels: its bindings are checked
     with every other (`check_bindings`)."""
-    from .stream_check import safety_limits
-    from .trajectory_limits import trajectory_limit_problems
-    from .trajectory_specs import FileSpec, PerJointSpec, build_trajectory, joint_spec, trajectory_bindings
-
     p = loaded.protocol
     found: dict[Problem, list[str]] = {}  # -> the joints it was built for ("" for a per_joint entry)
     for name in unused_trajectories(p):
