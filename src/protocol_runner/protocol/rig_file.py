@@ -17,12 +17,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
-from pydantic import Field, ValidationError
+from pydantic import Field
 
 from ..errors import InvalidInput
 from ..resources import packaged_rigs_dir
 from ..tables import read_table_text
-from .booleans import boolean_numbers
 from .loaded import Loc, RigSource
 from .paths import OutsideFolder, confined_path
 from .resolve import joints_named
@@ -42,7 +41,7 @@ from .schema import (
     WatchdogSpec,
     _Model,
 )
-from .yaml_doc import format_problems, huge_numbers, parse_yaml, validation_problems
+from .yaml_doc import format_problems, parse_yaml, validated
 
 if TYPE_CHECKING:
     from ..hardware.discovery import OutputTiming
@@ -137,11 +136,8 @@ def parse_rig_text(text: str, path: Path, shown: str) -> LoadedRig:
     data, lines = parse_yaml(text, shown)
     if not isinstance(data, dict):
         raise InvalidInput(f"{shown}:1: a rig file is a mapping (schema_version, robot, boards, joints, ...)")
-    try:
-        rig = RigFile.model_validate(data)
-    except ValidationError as exc:
-        raise InvalidInput(format_problems(shown, lines, validation_problems(exc, RigFile))) from None
-    problems = boolean_numbers(rig, data) or huge_numbers(data) or list(check_rig_file(rig))
+    rig = validated(RigFile, data, shown, lines)
+    problems = list(check_rig_file(rig))
     if problems:
         raise InvalidInput(format_problems(shown, lines, problems))
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()

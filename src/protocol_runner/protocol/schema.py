@@ -4,12 +4,7 @@ Nothing here names a campaign: factors, their levels and quantities, the device'
 trajectories are whatever the file declares (docs/protocol.md is the reference). Cross-field checks
 (levels that exist, bindings whose units match, ranges inside the joint's range, unique keys, ...) live in
 `protocol/validate.py` and `protocol/resolve.py` so that each error can name the exact field and line.
-
-In order: the strict base model and the shared field types; the resolved rig (rig file + joint +
-overrides, docs/protocol.md "Rig"); the factors (levels and their quantities, with units) and the device
-under test (its elements, per driven joint); the test matrix (sets of configurations, as explicit rows or
-as generators expanded by `protocol/generators.py`); the `report:` section; the calibration check,
-processing and fits; and the whole `Protocol`. The trajectory kinds are `protocol/trajectory_specs.py`.
+The trajectory kinds are `protocol/trajectory_specs.py`.
 """
 
 from __future__ import annotations

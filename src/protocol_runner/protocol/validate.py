@@ -1,12 +1,5 @@
-"""Cross-field checks of a protocol that the schema alone cannot express.
-
-Each check returns (location, message) pairs so the loader can name the file line of the offending field.
-Checks: factor levels and their aliases; every configuration's factors, levels and trajectory exist;
-bindings and the device's and trajectories' joints (protocol/resolve.py); range quantities inside the
-joint's range; range-of-motion stops that hold the park angle; keys, run numbers and names unique;
-referenced files inside the protocol's folder, present and loadable; one tick's output reports within the
-tick (`output_budget`); every motion's commanded stream inside the joint's envelope (stream_check.py); a
-trajectory no configuration uses, as far as it can be built without one.
+"""Cross-field checks of a protocol that the schema alone cannot express (docs/protocol.md "What is
+checked"); each returns (location, message) pairs so the loader can name the file line of the field.
 
 A campaign of one joint (`joint:`) is a campaign whose only driven joint is that joint: the motion checks
 iterate over the driven joints, each on its own view of the protocol (its rig, range and safety limits),
