@@ -160,13 +160,6 @@ def shipped_rig(name: str) -> LoadedRig:
     return load_rig(find_rig(name, packaged_rigs_dir()), shown=f"rigs/{name}.yaml")
 
 
-def simulator_fields() -> tuple[str, ...]:
-    """The names a joint's `simulator:` mapping may use: the fields of the simulator's parameters."""
-    from ..hardware.simulator.params import SimulatorParams
-
-    return tuple(f.name for f in dataclasses.fields(SimulatorParams))
-
-
 # Board rates (Hz): the output is paced by software, one command per tick (100 Hz); the input
 # scans at least 10 times a second so that a calibration step's 0.6 s ramp is sampled, and its two channels
 # (angle, torque) at most 50,000 samples/s in all (the DT9814's limit; a faster rate failed only at the run).
@@ -174,7 +167,7 @@ BOARD_RATES_HZ = {"output": (1.0, 1000.0), "input": (10.0, 25000.0)}
 
 
 def check_rig_file(rig: RigFile) -> Iterator[Problem]:
-    from ..hardware.simulator.params import bound_problem
+    from ..hardware.simulator.params import SimulatorParams, bound_problem
 
     for key, role in (("output_board", "output"), ("input_board", "input")):
         name = getattr(rig, key)
@@ -185,7 +178,7 @@ def check_rig_file(rig: RigFile) -> Iterator[Problem]:
             yield (key,), f"board {name!r} is an {board.role} board"
     out_channels = max((b.channels for b in rig.boards.values() if b.role == "output"), default=0)
     in_channels = min((b.channels for b in rig.boards.values() if b.role == "input"), default=0)
-    allowed = simulator_fields()
+    allowed = tuple(f.name for f in dataclasses.fields(SimulatorParams))
     where: Loc
     for where, values in (
         (("joint_defaults",), rig.joint_defaults.simulator),
@@ -247,8 +240,8 @@ def check_rig_file(rig: RigFile) -> Iterator[Problem]:
                 yield (*loc, fld), f"input channel {ch} is already used by {inputs[ch]}"
             inputs.setdefault(ch, f"{name}.{fld}")
         safety = _merged_safety(rig, j)
-        for fld in ("max_rate_deg_s", "max_accel_deg_s2", "park_angle_deg", "park_rate_deg_s"):
-            if getattr(safety, fld) is None:
+        for fld, value in safety.model_dump().items():
+            if value is None:
                 yield (*loc, "safety", fld), "missing (here or in joint_defaults.safety)"
         park = safety.park_angle_deg
         if park is not None and not j.range_deg[0] <= park <= j.range_deg[1]:
@@ -288,58 +281,40 @@ def resolve_rig(
     over = overrides.joints.get(joint_name) or JointOverride()
     loc: Loc = ("rig_overrides", "joints", joint_name)
     problems: list[Problem] = []
-    range_deg = joint.range_deg
-    if over.range_deg is not None:
-        if joint.range_deg[0] <= over.range_deg[0] and over.range_deg[1] <= joint.range_deg[1]:
-            range_deg = over.range_deg
-        else:
-            problems.append(
-                (
-                    (*loc, "range_deg"),
-                    f"{_fmt(over.range_deg)} is wider than the rig's {_fmt(joint.range_deg)} "
-                    f"({loaded.shown}, thesis Table 2)",
-                )
-            )
+    range_deg = over.range_deg or joint.range_deg
+    if not (joint.range_deg[0] <= range_deg[0] and range_deg[1] <= joint.range_deg[1]):
+        wider = f"{_fmt(range_deg)} is wider than the rig's {_fmt(joint.range_deg)}"
+        problems.append(((*loc, "range_deg"), f"{wider} ({loaded.shown}, thesis Table 2)"))
+        range_deg = joint.range_deg  # the park angle is checked against the rig's range
     safety = _merged_safety(rig, joint).model_dump()
     for fld, value in (over.safety or SafetyOverride()).model_dump().items():
         if value is not None and fld != "park_angle_deg" and value > safety[fld]:
-            problems.append(
-                (
-                    (*loc, "safety", fld),
-                    f"{value:g} is above the rig's {safety[fld]:g} ({loaded.shown}): overrides may only tighten",
-                )
+            above = (
+                f"{value:g} is above the rig's {safety[fld]:g} ({loaded.shown}): overrides may only tighten"
             )
+            problems.append(((*loc, "safety", fld), above))
         elif value is not None:
             safety[fld] = value
     if not range_deg[0] <= safety["park_angle_deg"] <= range_deg[1]:
-        problems.append(
-            (
-                (*loc, "safety", "park_angle_deg") if over.safety else ("joint",),
-                f"park angle {safety['park_angle_deg']:g} deg is outside the joint's range {_fmt(range_deg)}",
-            )
+        outside = (
+            f"park angle {safety['park_angle_deg']:g} deg is outside the joint's range {_fmt(range_deg)}"
         )
+        problems.append((((*loc, "safety", "park_angle_deg") if over.safety else ("joint",)), outside))
     out_board = rig.boards[rig.output_board]
     output_rate_hz = overrides.output_rate_hz or out_board.rate_hz
     low = BOARD_RATES_HZ["output"][0]
     if output_rate_hz > out_board.rate_hz:
-        problems.append(
-            (
-                ("rig_overrides", "output_rate_hz"),
-                f"{output_rate_hz:g} Hz is above the output board {rig.output_board}'s "
-                f"rate_hz {out_board.rate_hz:g} ({loaded.shown}): overrides may only lower it",
-            )
+        above = (
+            f"{output_rate_hz:g} Hz is above the output board {rig.output_board}'s rate_hz "
+            f"{out_board.rate_hz:g} ({loaded.shown}): overrides may only lower it"
         )
+        problems.append((("rig_overrides", "output_rate_hz"), above))
     elif output_rate_hz < low:
-        problems.append(
-            (
-                ("rig_overrides", "output_rate_hz"),
-                f"an output rate must be at least {low:g} Hz, got {output_rate_hz:g}",
-            )
-        )
+        below = f"an output rate must be at least {low:g} Hz, got {output_rate_hz:g}"
+        problems.append((("rig_overrides", "output_rate_hz"), below))
     if problems:
         return None, problems
-    simulator = dict(rig.joint_defaults.simulator)
-    simulator.update(joint.simulator)
+    simulator = {**rig.joint_defaults.simulator, **joint.simulator}
     spec = RigSpec(
         robot=rig.robot,
         joint=JointSpec(
@@ -353,20 +328,16 @@ def resolve_rig(
             board=rig.output_board,
             channel=joint.output_channel,
             rate_hz=output_rate_hz,
-            volts_range=out_board.volts_range,
             serial=out_board.serials[0] if out_board.serials else None,
-            report_time_s=out_board.report_time_s,
-            backend=out_board.backend,
+            **out_board.model_dump(include={"volts_range", "report_time_s", "backend"}),
         ),
         input=InputSpec(
             board=input_name,
             angle_channel=joint.angle_channel,
             torque_channel=joint.torque_channel,
-            rate_hz=in_board.rate_hz,
-            volts_range=in_board.volts_range,
             serials=list(overrides.input_serials or in_board.serials),
             dt9814_product_id=in_board.product_id,
-            backend=in_board.backend,
+            **in_board.model_dump(include={"rate_hz", "volts_range", "backend"}),
         ),
         calibration=over.calibration,
         safety=SafetySpec(**safety),
