@@ -17,7 +17,7 @@ import itertools
 import math
 from collections.abc import Iterator
 
-from .loaded import Loc
+from .loaded import Loc, Problem
 from .schema import (
     ConfigurationSpec,
     FullFactorialSpec,
@@ -26,8 +26,6 @@ from .schema import (
     SetSpec,
     _GeneratorSpec,
 )
-
-Problem = tuple[Loc, str]
 
 
 def expand_generators(p: Protocol) -> tuple[Protocol, list[Problem], dict[Loc, Loc]]:

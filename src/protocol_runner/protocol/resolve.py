@@ -35,9 +35,7 @@ from .units import unit_suffix
 from .yaml_doc import format_loc
 
 if TYPE_CHECKING:
-    from .loaded import LoadedProtocol, Loc
-
-Problem = tuple["Loc", str]
+    from .loaded import LoadedProtocol, Loc, Problem
 
 
 class BindingError(Exception):

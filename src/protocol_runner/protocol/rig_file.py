@@ -22,7 +22,7 @@ from pydantic import Field
 from ..errors import InvalidInput
 from ..resources import packaged_rigs_dir
 from ..tables import read_table_text
-from .loaded import Loc, RigSource
+from .loaded import Loc, Problem, RigSource
 from .paths import OutsideFolder, confined_path
 from .resolve import joints_named
 from .schema import (
@@ -45,8 +45,6 @@ from .yaml_doc import format_problems, parse_yaml, validated
 
 if TYPE_CHECKING:
     from ..hardware.discovery import OutputTiming
-
-Problem = tuple[Loc, str]
 
 
 class BoardSpec(_Model):

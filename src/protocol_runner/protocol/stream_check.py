@@ -31,9 +31,7 @@ from .trajectory_record import Trajectory
 from .trajectory_specs import trajectory_kind
 
 if TYPE_CHECKING:
-    from .loaded import LoadedProtocol, Loc
-
-Problem = tuple["Loc", str]
+    from .loaded import LoadedProtocol, Loc, Problem
 
 
 def safety_limits(rig: RigSpec) -> SafetyLimits:

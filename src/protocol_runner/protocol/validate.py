@@ -13,7 +13,7 @@ import math
 import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from ..errors import InvalidInput
 from ..models.element_types import ELEMENT_TYPES
@@ -28,16 +28,15 @@ from .resolve import (
     joints_named,
     resolve_settings,
 )
-from .schema import CalibrationStepSpec, Protocol
+from .schema import CalibrationStepSpec, ConfigurationSpec, Protocol
 from .settings import ElementSetting
 from .stream_check import check_streams, safety_limits, trajectory_limit_problems
 from .trajectory_record import Trajectory
 from .trajectory_specs import FileSpec, PerJointSpec, build_trajectory, joint_spec, trajectory_bindings
 
 if TYPE_CHECKING:
-    from .loaded import LoadedProtocol, Loc
+    from .loaded import LoadedProtocol, Loc, Problem
 
-Problem = tuple["Loc", str]
 Motion = tuple["Loc", str, Trajectory]
 
 TRAJECTORY_PARAMETER = "trajectory"
@@ -84,14 +83,16 @@ def _check_motions(loaded: LoadedProtocol, check_files: bool, generated: dict[Lo
             (("calibration_step", *((j,) if per_joint else ())), what, calibration_trajectory(p, j))
         ]
     per_configuration: dict[tuple[Loc, str], list[tuple[str, int]]] = {}
-    for loc, message, item in _resolve_configurations(loaded, check_files):
-        if message:
-            set_index, key = item
-            where = generated.get(loc[:4], loc)
-            per_configuration.setdefault((where, message), []).append((p.sets[set_index].name, key))
-        else:
-            joint, motion = item
-            motions[joint].append(motion)
+    for i, s in enumerate(p.sets):
+        for row, cfg in enumerate(s.configurations):
+            loc: Loc = ("sets", i, "configurations", row)
+            found, built = _configuration_motion(loaded, cfg, loc, check_files)
+            for where, message in found:
+                where = generated.get(where[:4], where)
+                per_configuration.setdefault((where, message), []).append((s.name, cfg.key))
+            for joint, traj in built:
+                what = f"configuration {cfg.key}" + (f", joint {joint}" if p.multi_joint else "")
+                motions[joint].append((loc, what, traj))
     all_keys = {c.key for _, c in p.configurations()}
     problems = [
         (loc, f"{message} ({_which_configurations(where, all_keys)})")
@@ -271,35 +272,27 @@ def _check_matrix(p: Protocol) -> Iterator[Problem]:
                 yield (*loc, "trajectory"), f"unknown trajectory {cfg.trajectory!r} (known: {known})"
 
 
-def _resolve_configurations(loaded: LoadedProtocol, check_files: bool) -> Iterator[tuple[Loc, str, Any]]:
-    """Per configuration: (location, message, (set index, key)) for a problem, or, per driven joint,
-    (location, "", (joint, motion))."""
+def _configuration_motion(
+    loaded: LoadedProtocol, cfg: ConfigurationSpec, loc: Loc, check_files: bool
+) -> tuple[list[Problem], tuple[tuple[str, Trajectory], ...]]:
+    """A configuration's problems (its bindings, a park angle against a stop it carries, its motion), and
+    its motion per driven joint when that could be built."""
     p = loaded.protocol
-    for i, s in enumerate(p.sets):
-        for j, cfg in enumerate(s.configurations):
-            loc: Loc = ("sets", i, "configurations", j)
-            which = (i, cfg.key)
-            try:
-                st = resolve_settings(p, cfg)
-            except BindingError as exc:
-                yield exc.loc, exc.message, which
-                continue
-            for joint in p.driven_joints:
-                for message in _park_against_stops(p, joint, st.device_of(joint)):
-                    yield loc, message, which
-            if p.profile_of(cfg) == "file" and not check_files:
-                continue
-            try:
-                per_joint = configuration_motion(loaded, cfg, st)
-            except BindingError as exc:
-                yield exc.loc, exc.message, which
-                continue
-            except InvalidInput as exc:
-                yield (*loc, "trajectory"), _relative_message(exc.message, loaded.base_dir), which
-                continue
-            for joint, traj in per_joint:
-                what = f"configuration {cfg.key}" + (f", joint {joint}" if p.multi_joint else "")
-                yield loc, "", (joint, (loc, what, traj))
+    try:
+        st = resolve_settings(p, cfg)
+    except BindingError as exc:
+        return [(exc.loc, exc.message)], ()
+    found = [
+        (loc, m) for joint in p.driven_joints for m in _park_against_stops(p, joint, st.device_of(joint))
+    ]
+    if p.profile_of(cfg) == "file" and not check_files:
+        return found, ()
+    try:
+        return found, configuration_motion(loaded, cfg, st)
+    except BindingError as exc:
+        return [*found, (exc.loc, exc.message)], ()
+    except InvalidInput as exc:
+        return [*found, ((*loc, "trajectory"), _relative_message(exc.message, loaded.base_dir))], ()
 
 
 def _park_against_stops(p: Protocol, joint: str, elements: tuple[ElementSetting, ...]) -> Iterator[str]:
