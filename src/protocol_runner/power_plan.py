@@ -75,12 +75,6 @@ class PlannedExpectation:
         """True when the planned trials reach the needed count in every configuration involved."""
         return self.needed is not None and self.planned >= self.needed
 
-    @property
-    def needed_text(self) -> str:
-        if self.needed is not None:
-            return str(self.needed)
-        return "-" if self.problem else f">{MOST_TRIALS}"
-
 
 @dataclass(frozen=True)
 class PowerPlan:
@@ -108,9 +102,10 @@ class PowerPlan:
         lines.append(f"{'expectation':<{width}}  needed  planned  outcome         test: basis")
         for p in self.expectations:
             outcome = "decides" if p.decides else "cannot plan" if p.problem else "CANNOT DECIDE"
+            needed = str(p.needed) if p.needed is not None else "-" if p.problem else f">{MOST_TRIALS}"
             basis = p.problem or p.basis
             lines.append(
-                f"{p.spec.id:<{width}}  {p.needed_text:>6}  {p.planned:>7}  {outcome:<14}  {p.test}: {basis}"
+                f"{p.spec.id:<{width}}  {needed:>6}  {p.planned:>7}  {outcome:<14}  {p.test}: {basis}"
             )
         short = [p.spec.id for p in self.expectations if not p.decides and not p.problem]
         unplanned = [p.spec.id for p in self.expectations if p.problem]

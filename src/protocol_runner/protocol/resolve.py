@@ -62,15 +62,10 @@ def resolve_factor(p: Protocol, factor: str, label: str) -> FactorSetting:
     )
 
 
-def _split(binding: str) -> tuple[str, str]:
-    factor, quantity = binding.split(".", 1)
-    return factor, quantity
-
-
 def _bound_value(
     factors: Mapping[str, FactorSetting], binding: str, loc: Loc, cfg: ConfigurationSpec
 ) -> Quantity:
-    factor, quantity = _split(binding)
+    factor, quantity = binding.split(".", 1)
     setting = factors.get(factor)
     if setting is None:
         raise BindingError(
@@ -125,7 +120,7 @@ def _bound_value_error(
 ) -> BindingError:
     """A bound parameter's value is out of its element's bounds: the error names the level's quantity,
     where the value is written (the `same_as` target for an alias), and the parameter that binds it."""
-    factor, quantity = _split(binding)
+    factor, quantity = binding.split(".", 1)
     label = factors[factor].level
     target = p.factors[factor][label].same_as or label
     return BindingError(
@@ -291,7 +286,7 @@ def _did_you_mean(word: str, known: Iterable[str]) -> str:
 
 
 def _check_binding(p: Protocol, binding: str, unit: str, loc: Loc) -> Iterator[Problem]:
-    factor, quantity = _split(binding)
+    factor, quantity = binding.split(".", 1)
     if factor not in p.factors:
         yield (
             loc,

@@ -15,7 +15,7 @@ import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Generic, Literal, TypeVar, get_args
+from typing import Annotated, Any, ClassVar, Generic, Literal, Protocol, TypeVar, get_args
 
 import numpy as np
 import numpy.typing as npt
@@ -40,12 +40,21 @@ from .trajectories import (
 )
 from .trajectory_record import Trajectory
 
-if TYPE_CHECKING:
-    from .stream_check import LimitCheck
-
 FloatArray = npt.NDArray[np.float64]
 Quantity = float | tuple[float, ...]
 Fields = Mapping[str, Quantity | None]
+
+
+class LimitReport(Protocol):
+    """What a kind's `check_limits` reports to (`stream_check.LimitCheck`), each call naming the protocol
+    FIELD that sets the value; `problems` holds (field, message) of every limit broken so far."""
+
+    def range(self, field: str, lo: float, hi: float, what: str = "") -> None: ...
+    def rate(self, field: str, value: float, what: str) -> None: ...
+    def accel(self, field: str, value: float, what: str) -> None: ...
+    def samples(self, field: str) -> None: ...
+    @property
+    def problems(self) -> list[tuple[str, str]]: ...
 
 
 BINDING_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_\-]*\.[A-Za-z][A-Za-z0-9_]*$")
@@ -145,7 +154,7 @@ class TrajectoryKindSpec(BaseModel):
         raise NotImplementedError(f"trajectory kind {trajectory.profile!r} has no sample")
 
     @staticmethod
-    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
+    def check_limits(trajectory: Trajectory, check: LimitReport) -> None:
         """Report to `check` what the joint's limits must allow, field by field (a closed form where the
         kind has one, else `check.samples`)."""
         check.samples(trajectory.profile)
@@ -188,7 +197,7 @@ class SinusoidSpec(TrajectoryKindSpec):
         return sinusoid_deg(time_s, *_sine(trajectory))
 
     @staticmethod
-    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
+    def check_limits(trajectory: Trajectory, check: LimitReport) -> None:
         mean, a, period = _sine(trajectory)
         speed = 2.0 * math.pi * a / period  # Eq 25
         check.range("range_deg", mean - a, mean + a)
@@ -261,7 +270,7 @@ class TriangleSpec(TrajectoryKindSpec):
         return triangle_deg(time_s, lo, hi, num("speed_deg_s"), num("corner_accel_deg_s2"))
 
     @staticmethod
-    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
+    def check_limits(trajectory: Trajectory, check: LimitReport) -> None:
         lo, hi = _pair(trajectory.param("range_deg"))
         check.range("range_deg", lo, hi)
         check.rate("speed_deg_s", trajectory.number("speed_deg_s"), "its constant speed")
@@ -340,7 +349,7 @@ class IdentificationSpec(TrajectoryKindSpec):
         return identification_deg(time_s, *(trajectory.number(f) for f, _ in trajectory.params))
 
     @staticmethod
-    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
+    def check_limits(trajectory: Trajectory, check: LimitReport) -> None:
         """Its range; then, no closed form: its samples at the output rate (the last, fastest period)."""
         check.range("range_deg", trajectory.number("min_deg"), trajectory.number("max_deg"))
         if not check.problems:
@@ -389,7 +398,7 @@ class RampedStepSpec(RampedStepFields[BindableFloat], TrajectoryKindSpec):
         return calibration_step_deg(time_s, num("from_deg"), num("step_deg"), num("settle_s"), num("ramp_s"))
 
     @staticmethod
-    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
+    def check_limits(trajectory: Trajectory, check: LimitReport) -> None:
         start, step, ramp = (trajectory.number(f) for f in ("from_deg", "step_deg", "ramp_s"))
         check.range("from_deg", start, start)
         check.range(
@@ -423,7 +432,7 @@ class HoldSpec(TrajectoryKindSpec):
         return hold_deg(time_s, trajectory.number("angle_deg"))
 
     @staticmethod
-    def check_limits(trajectory: Trajectory, check: LimitCheck) -> None:
+    def check_limits(trajectory: Trajectory, check: LimitReport) -> None:
         angle = trajectory.number("angle_deg")
         check.range("angle_deg", angle, angle)
 
