@@ -193,15 +193,8 @@ def configuration_motion(
 
 def calibration_trajectory(p: Protocol, joint: str | None = None) -> Trajectory:
     """The calibration check's ramped step (of `joint`, default the first driven joint)."""
-    s = p.calibration_step_of(joint or p.driven_joints[0])
-    spec = RampedStepSpec(
-        kind="ramped_step",
-        from_deg=s.from_deg,
-        step_deg=s.step_deg,
-        ramp_s=s.ramp_s,
-        hold_s=s.hold_s,
-        settle_s=s.settle_s,
-    )
+    step = p.calibration_step_of(joint or p.driven_joints[0])
+    spec = RampedStepSpec(kind="ramped_step", **step.model_dump())
     return build_trajectory("calibration_step", spec, {}, Path("."))
 
 

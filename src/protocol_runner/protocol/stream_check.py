@@ -16,6 +16,7 @@ come from brace-on measurements; the rig checks them before sending.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -57,7 +58,7 @@ def check_streams(
     for loc, name, traj in motions:
         key = repr(traj.to_json())
         if key not in verdicts:
-            verdicts[key] = _problem(traj, loaded, limits, table, rig.output.rate_hz, rig.joint.range_deg)
+            verdicts[key] = _problem(traj, loaded, limits, table)
         message = verdicts[key]
         if message is not None:
             what = (
@@ -71,9 +72,8 @@ def _problem(
     loaded: LoadedProtocol,
     limits: SafetyLimits,
     table: CalibrationTable | None,
-    rate_hz: float,
-    volts_range_deg: tuple[float, float],
 ) -> str | None:
+    rate_hz = loaded.protocol.rig.output.rate_hz
     too_long = samples_problem(traj, rate_hz)
     if too_long:
         return too_long
@@ -81,7 +81,7 @@ def _problem(
         samples = sample_trajectory(traj, rate_hz, loaded.base_dir)
         check_trajectory(samples, rate_hz, limits, where="stream (trajectory)")
         stream = build_stream(samples, limits, rate_hz)
-        check_stream(stream, limits, where="stream", command_table=table, volts_range_deg=volts_range_deg)
+        check_stream(stream, limits, where="stream", command_table=table, volts_range_deg=limits.range_deg)
     except SafetyViolation as exc:
         part = exc.where.removeprefix("stream").strip(" ()")
         return (
@@ -116,33 +116,30 @@ def trajectory_limit_problems(
     too_long = samples_problem(trajectory, rate_hz)
     if too_long:  # before anything is sampled: the work and memory of the checks below are bounded
         return [(kind.length_field, too_long)]
-    check = LimitCheck(trajectory, limits, dict(bindings or {}), rate_hz, base_dir)
+    check = LimitCheck(trajectory, limits, bindings or {}, rate_hz, base_dir)
     kind.check_limits(trajectory, check)
     return check.problems
 
 
+@dataclasses.dataclass
 class LimitCheck:
     """What a kind's `check_limits` reports to: each call names the protocol FIELD that sets the value, so
     that the message says what to change; each broken limit becomes a (field, message) in `problems`."""
 
-    def __init__(
-        self,
-        trajectory: Trajectory,
-        limits: SafetyLimits,
-        bindings: dict[str, str],
-        rate_hz: float,
-        base_dir: Path,
-    ) -> None:
-        self.trajectory, self.limits, self.bindings = trajectory, limits, bindings
-        self.rate_hz, self.base_dir = rate_hz, base_dir
-        name = f" {trajectory.name!r}" if trajectory.name else ""
-        what = f" {trajectory.source}" if trajectory.source else ""
-        self.where = f"trajectory{name} ({trajectory.profile}{what})"
-        self.problems: list[tuple[str, str]] = []
+    trajectory: Trajectory
+    limits: SafetyLimits
+    bindings: Mapping[str, str]  # field -> "factor.quantity", named in the messages of bound fields
+    rate_hz: float
+    base_dir: Path
+    problems: list[tuple[str, str]] = dataclasses.field(default_factory=list)
 
     def _say(self, field: str, text: str) -> None:
+        t = self.trajectory
+        where = (
+            f"trajectory{f' {t.name!r}' if t.name else ''} ({t.profile}{f' {t.source}' if t.source else ''})"
+        )
         bound = f" (bound to {self.bindings[field]})" if field in self.bindings else ""
-        self.problems.append((field, f"{self.where}: {field}{bound}: {text}"))
+        self.problems.append((field, f"{where}: {field}{bound}: {text}"))
 
     def range(self, field: str, lo: float, hi: float, what: str = "") -> None:
         """[lo, hi] deg must lie inside the joint's range."""
