@@ -9,7 +9,9 @@ The trajectory kinds are `protocol/trajectory_specs.py`.
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -609,3 +611,26 @@ class Protocol(_Model):
 
 
 holds_trajectories(Protocol)  # rebuilt when a trajectory kind is registered
+
+
+# The protocol file's JSON Schema, for editors (docs/protocol.md "Editor set-up"): generated from the models
+# above, so it cannot drift from what `--validate` accepts field by field; cross-field checks are left to
+# `--validate`. A copy ships in the package; `run-protocol --schema` prints the same text.
+
+SCHEMA_FILE = Path(__file__).resolve().parent.parent / "schemas" / "protocol.schema.json"
+"""The schema as shipped with the package."""
+
+
+def protocol_json_schema() -> dict[str, Any]:
+    """The JSON Schema (draft 2020-12) of a protocol file."""
+    schema = Protocol.model_json_schema()
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": "protocol-runner campaign file",
+        **{k: v for k, v in schema.items() if k != "title"},
+    }
+
+
+def protocol_json_schema_text() -> str:
+    """The schema as the text shipped and printed (sorted keys, two-space indent, a final newline)."""
+    return json.dumps(protocol_json_schema(), indent=2, sort_keys=True, ensure_ascii=False) + "\n"
