@@ -43,8 +43,6 @@ from .step_ids import calibration_id, step_id, trial_id
 from .trajectory_record import Trajectory
 from .units import unit_text
 
-# -------------------------------------------------------------------------------------- expansion
-
 
 def _quantity_text(name: str, value: float | tuple[float, ...]) -> str:
     unit = unit_text(name)

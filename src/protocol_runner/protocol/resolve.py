@@ -198,9 +198,6 @@ def calibration_trajectory(p: Protocol, joint: str | None = None) -> Trajectory:
     return build_trajectory("calibration_step", spec, {}, Path("."))
 
 
-# ------------------------------------------------------------------------------------------ checks
-
-
 def check_bindings(p: Protocol) -> Iterator[Problem]:
     """Static checks of every binding and element (before any configuration is resolved), of the device's
     form (elements per joint when several joints are driven) and of `per_joint` trajectories' joints."""

@@ -31,8 +31,6 @@ from protocol_runner.protocol.expectations import ExpectationSpec, Repeatability
 from protocol_runner.protocol.trajectory_specs import RampedStepFields, TrajectorySpec, holds_trajectories
 from protocol_runner.protocol.units import compound_unit_problem, known_suffixes, unit_suffix
 
-# -------------------------------------------------------------------------------------------- base
-
 
 def _int_to_str(value: object) -> object:
     """Level names may be written as bare numbers in YAML (`friction: 2`): treat them as names."""
@@ -70,10 +68,6 @@ def _check_range(value: tuple[float, float]) -> tuple[float, float]:
 
 RangePair = Annotated[tuple[float, float], BeforeValidator(_as_tuple), AfterValidator(_check_range)]
 """[low, high] with low < high."""
-
-
-# --------------------------------------------------------------------------------------------- rig
-# The resolved rig (rig file + joint + rig_overrides, protocol/rig_file.py): what `protocol.rig` returns.
 
 
 class JointSpec(_Model):
@@ -151,6 +145,8 @@ class WatchdogSpec(_Model):
 
 
 class RigSpec(_Model):
+    """A driven joint's resolved rig (rig file + joint + rig_overrides, protocol/rig_file.py)."""
+
     robot: str
     joint: JointSpec
     output: OutputSpec
@@ -188,8 +184,6 @@ class BoltTorque(_Model):
     bolts: str
     torque_ft_lb: float = Field(gt=0)
 
-
-# ----------------------------------------------------------------------------------------- factors
 
 RESERVED_LEVEL_KEYS = ("same_as", "description", "setup")
 Quantity = float | tuple[float, ...]
@@ -248,8 +242,6 @@ class LevelSpec(_Model):
 
 Factor = Annotated[dict[str, LevelSpec], BeforeValidator(_str_keys), Field(min_length=1)]
 
-# ------------------------------------------------------------------------------------------- device
-
 
 class ElementSpec(_Model):
     """One element of the device: `name`, `type` (models/element_types.py ELEMENT_TYPES) and its parameters,
@@ -297,8 +289,6 @@ class DeviceSpec(_Model):
             for i, el in enumerate(spec.elements)
         ]
 
-
-# ------------------------------------------------------------------------------------- test matrix
 
 RESERVED_CONFIGURATION_KEYS = ("key", "run", "trajectory", "trials", "description")
 MAX_KEY = 999_999  # a key or run number: ample, and an integer every archive attribute and MATLAB field holds
@@ -384,9 +374,6 @@ class SetSpec(_Model):
         return self
 
 
-# ------------------------------------------------------------------------------------------ report
-
-
 class ComparisonSpec(_Model):
     name: Identifier
     parameter: Identifier  # a declared factor, or "trajectory" (checked in validate.py)
@@ -443,9 +430,6 @@ class ReportSpec(_Model):
     repeatability: list[RepeatabilitySpec] = Field(default_factory=list)
 
 
-# ------------------------------------------------------------------------------- calibration check
-
-
 class CalibrationStepSpec(RampedStepFields[float], _Model):
     """The calibration check's move (a ramped step, thesis Appendix A "Calibration"), in numbers."""
 
@@ -458,9 +442,6 @@ class CalibrationCheckSpec(_Model):
     time_constant_s: RangePair
     max_drift_deg: float = Field(gt=0)
     max_time_constant_change_s: float = Field(gt=0)
-
-
-# ---------------------------------------------------------------------------------- processing, fits
 
 
 class TransitionSpec(_Model):
