@@ -85,9 +85,8 @@ Backend = Literal["pyusb", "uldaq", "mcculw"]
 class OutputSpec(_Model):
     board: str
     channel: int = Field(ge=0)
-    rate_hz: float = Field(
-        gt=0, le=1000
-    )  # the protocol's output rate (the board's, or lowered by rig_overrides)
+    # the protocol's output rate (the board's, or lowered by rig_overrides)
+    rate_hz: float = Field(gt=0, le=1000)
     volts_range: RangePair = (-10.0, 10.0)
     serial: str | None = None
     report_time_s: float | None = Field(default=None, gt=0)  # one output report on the wire (rig file)

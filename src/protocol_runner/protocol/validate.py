@@ -360,13 +360,10 @@ def unused_trajectories(p: Protocol) -> list[str]:
 
 
 def _check_unused_trajectories(loaded: LoadedProtocol, check_files: bool) -> Iterator[Problem]:
-    """A trajectory that no configuration uses never runs, yet it is part of the protocol and the session
-    stores its file: each of its entries whose fields are all constants is built for every driven joint as
-    a configuration would build it (a file inside the protocol's folder, present, readable, with the
-    joint's angle column; a triangle's speed reachable within its range; ...) and checked field by field
-    against the joint's range, rate and acceleration, located at the entry (a file's build problems at
-    its `file`). An entry with a bound field needs a configuration's levels: its bindings are checked
-    with every other (`check_bindings`)."""
+    """A trajectory that no configuration uses (docs/protocol.md "What is checked"): each of its entries
+    whose fields are all constants is built for every driven joint as a configuration would build it and
+    checked field by field, located at the entry (a file's build problems at its `file`). An entry with a
+    bound field needs a configuration's levels: its bindings are checked with every other."""
     p = loaded.protocol
     found: dict[Problem, list[str]] = {}  # -> the joints it was built for ("" for a per_joint entry)
     for name in unused_trajectories(p):
