@@ -104,19 +104,6 @@ class ScalingResult:
         """The kept iteration: for one joint the one with the smallest range error."""
         return self.history[self.kept]
 
-    def history_arrays(self) -> dict[str, npt.NDArray[np.float64] | npt.NDArray[np.int64]]:
-        """The history as the archive's `brace_off/scaling/` datasets (docs/archive.md): `iteration`,
-        `scale`, `input_range_deg` (n x 2), `output_range_deg` (n x 2), `range_error_deg`,
-        `transition_index`."""
-        return {
-            "iteration": np.array([it.iteration for it in self.history], dtype=np.int64),
-            "scale": np.array([it.scale for it in self.history], dtype=np.float64),
-            "input_range_deg": np.array([it.input_range_deg for it in self.history], dtype=np.float64),
-            "output_range_deg": np.array([it.output_range_deg for it in self.history], dtype=np.float64),
-            "range_error_deg": np.array([it.range_error_deg for it in self.history], dtype=np.float64),
-            "transition_index": np.array([it.transition_index for it in self.history], dtype=np.int64),
-        }
-
 
 def scale_brace_off_input(
     input_deg: npt.ArrayLike,

@@ -313,27 +313,23 @@ def elastic_torque_nm(lay: ModelLayout, values: Mapping[Key, float], angle_deg: 
     return total
 
 
-def friction_values(lay: ModelLayout, values: Mapping[Key, float]) -> tuple[float, float]:
-    """The friction sum's (torque_nm, transition_deg) as the model uses them (kept >= 0 and > 0)."""
-    return (
-        max(values[(lay.friction_name, "torque_nm")], 0.0),
-        max(values[(lay.friction_name, "transition_deg")], 1e-6),
-    )
+def unit_friction(
+    lay: ModelLayout, values: Mapping[Key, float], stacked: Stacked
+) -> tuple[float, FloatArray, FloatArray]:
+    """The friction sum's level (kept >= 0; its transition > 0), its unit-level friction along `stacked`
+    and that friction's derivative by the transition (`unit_dahl_friction`)."""
+    level = max(values[(lay.friction_name, "torque_nm")], 0.0)
+    transition = max(values[(lay.friction_name, "transition_deg")], 1e-6)
+    args = (stacked.edges, transition, lay.excess_ratio, lay.stribeck_speed_deg_s)
+    unit, d_unit = unit_dahl_friction(stacked.angle_deg, stacked.speed_deg_s, *args)
+    return level, unit, d_unit
 
 
 def stacked_torque_nm(lay: ModelLayout, values: Mapping[Key, float], stacked: Stacked) -> FloatArray:
     """The model's torque at every sample of `stacked` (module docstring)."""
     torque = elastic_torque_nm(lay, values, stacked.angle_deg)
     if lay.friction_members:
-        level, transition = friction_values(lay, values)
-        unit, _ = unit_dahl_friction(
-            stacked.angle_deg,
-            stacked.speed_deg_s,
-            stacked.edges,
-            transition,
-            lay.excess_ratio,
-            lay.stribeck_speed_deg_s,
-        )
+        level, unit, _ = unit_friction(lay, values, stacked)
         torque += level * unit
     if lay.damper_members:
         torque += values[(lay.damper_name, DAMPER_PARAM)] * stacked.speed_deg_s
@@ -362,15 +358,7 @@ def torque_jacobian(
     for j, (name, param) in enumerate(lay.free):
         if lay.friction_members and name == lay.friction_name:
             if unit.size != n:
-                level, transition = friction_values(lay, values)
-                unit, d_unit = unit_dahl_friction(
-                    stacked.angle_deg,
-                    stacked.speed_deg_s,
-                    stacked.edges,
-                    transition,
-                    lay.excess_ratio,
-                    lay.stribeck_speed_deg_s,
-                )
+                level, unit, d_unit = unit_friction(lay, values, stacked)
             jac[:, j] = unit if param == "torque_nm" else level * d_unit
         elif lay.damper_members and name == lay.damper_name:
             jac[:, j] = stacked.speed_deg_s
