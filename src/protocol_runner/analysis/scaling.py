@@ -287,11 +287,7 @@ class RecordingLike(Protocol):
 
 def rig_runner(run_trajectory: Callable[[FloatArray], RecordingLike]) -> Callable[[FloatArray], FloatArray]:
     """Adapt a one-joint rig (`lambda cmd: rig.run_trajectory([cmd], where=...)[0]`) to the `run` of
-    `scale_brace_off_input`.
-
-    The recording's 1 kHz angle is brought onto the 100 Hz command ticks by linear interpolation, so the
-    returned angle has one value per commanded sample.
-    """
+    `scale_brace_off_input`: the recording's angle linearly interpolated onto the command ticks."""
 
     def run(input_deg: FloatArray) -> FloatArray:
         rec = run_trajectory(input_deg)

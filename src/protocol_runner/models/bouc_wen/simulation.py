@@ -66,11 +66,9 @@ def simulate(
 ) -> FloatArray:
     """Torque (N*m) predicted by the generalised Bouc-Wen model over the angle samples ``x_deg`` (degrees).
 
-    scheme: ``"refined"`` (default) integrates Eq 20-22 along the angle taken as piecewise linear between
-        samples, with substeps of at most ``max_step_deg`` (default 0.1 deg) and shorter where the loop
-        saturates (:mod:`.schemes`): the result does not depend on the sampling rate, and it is the
-        model :func:`fit` fits.  ``"eq23"`` is the thesis's literal recursion (Eq 23, one explicit Euler
-        step per sample, ``sgn(0) = 0``), whose torque changes with the sampling rate.
+    scheme: ``"refined"`` (default, the model :func:`fit` fits) integrates Eq 20-22 along the piecewise
+        linear angle independently of the sampling rate; ``"eq23"`` is the thesis's literal recursion
+        (Eq 23, one explicit Euler step per sample, ``sgn(0) = 0``); see :mod:`.schemes`.
 
     ``z[0] = z0`` and the output has the length of ``x_deg``.  If the recursion diverges (|z| exceeds
     ``bound_nm`` or stops being finite, which unstable parameter sets do) the remaining samples are NaN;
