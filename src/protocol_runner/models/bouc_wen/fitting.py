@@ -429,9 +429,11 @@ def fit(
     trials: lengths of consecutive trials making up ``x_deg``/``torque_nm`` (summing to its length), each
         restarting the recursion at its own first torque; ``None``: one trial (:func:`fit_trials` takes a
         list of segments).
-    options: see :class:`.FitOptions`.  With the refined scheme the integration follows the angle between
-        the kept samples, so decimating smooth data only drops residuals; with ``scheme="eq23"`` the
-        explicit-Euler error grows with the angle step.  RMSE and R^2 are on every given sample.
+    options: starts, initial, data_starts, bounds, seed, max_samples_per_trial (default 8000), polish and
+        scheme (default ``"refined"``), see :class:`.FitOptions`.  With the refined scheme the integration
+        follows the angle between the kept samples, so decimating smooth data only drops residuals; with
+        ``scheme="eq23"`` the explicit-Euler error grows with the angle step.  RMSE and R^2 are on every
+        given sample.
 
     Procedure: every start gets a short trust-region solve (``scipy.optimize.least_squares``, analytic
     Jacobian, bounds) on a coarse copy of the data (at most 400 samples per trial); the best ``polish``
