@@ -1,12 +1,9 @@
-"""Trial-level statistics: the trial is the experimental unit, not the cycle.
+"""Trial-level statistics: the trial is the experimental unit, not the cycle (cycles within one trial share
+mounting, warm-up and brake state).
 
-Cycles within one trial are not independent repeats (same mounting, same warm-up, same brake state), so
-every interval here is computed on trial means: a configuration's energy per cycle is the mean of its
-trial means, with a two-sided Student t-interval over trials (n - 1 degrees of freedom) and the
-between-trial coefficient of variation. Two configurations differ by the difference of their means with
-a Welch interval (unequal variances, Welch-Satterthwaite degrees of freedom). Repeatability of a group of
-configurations with identical settings run in different sets is the between-configuration CV and the
-one-way random-effects intraclass correlation ICC(1) of the trial means.
+A configuration's energy per cycle is the mean of its trial means with a Student t-interval over trials;
+two configurations differ with a Welch interval; repeatability of identical configurations run in
+different sets is their between-configuration CV and the ICC(1) of the trial means.
 
 Decisions (report/evaluate.py) are taken at the family-wise level `ALPHA`: one-sided tests for a stated
 direction, two one-sided tests (TOST) for an equivalence within a margin, Holm across a family.
