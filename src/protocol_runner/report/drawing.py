@@ -8,8 +8,10 @@ import base64
 import io
 import math
 import textwrap
+from contextlib import AbstractContextManager
 from typing import Any
 
+from matplotlib import rc_context
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
@@ -51,18 +53,30 @@ def to_data_uri(fig: Figure) -> str:
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-GRID_LINEWIDTH = 0.4
-GRID_ALPHA = 0.5
 TICK_LABEL_SIZE = 7.0
+STYLE = {
+    "axes.grid": True,
+    "grid.linewidth": 0.4,
+    "grid.alpha": 0.5,
+    "xtick.labelsize": TICK_LABEL_SIZE,
+    "ytick.labelsize": TICK_LABEL_SIZE,
+}
+"""Every figure's light grid and small tick labels: matplotlib settings in force while a figure is built and
+rendered (`styled`), so that each axis makes its ticks with them; a figure may still size its own tick
+labels (a comparison's long level names)."""
+
+
+def styled() -> AbstractContextManager[None]:
+    """`STYLE` in force (`with styled():`, or `@styled()` on a function that builds and renders a figure),
+    the caller's matplotlib settings restored after."""
+    return rc_context(STYLE)
 
 
 def style(ax: Axes, xlabel: str, ylabel: str, title: str | None = None) -> None:
-    """Axis labels, a small title just above the axes, a light grid and small tick labels."""
+    """Axis labels and a small title just above the axes (the grid and tick labels: `STYLE`)."""
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title or "", fontsize=8.5, y=1.01)
-    ax.grid(True, linewidth=GRID_LINEWIDTH, alpha=GRID_ALPHA)
-    ax.tick_params(labelsize=TICK_LABEL_SIZE)
 
 
 def empty(ax: Axes, text: str) -> None:
