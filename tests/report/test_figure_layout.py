@@ -82,3 +82,27 @@ def test_figures_are_drawn_at_100_pixels_per_inch_or_more() -> None:
     width_px, height_px = struct.unpack(">II", png[16:24])  # the PNG's IHDR chunk
     width_in, height_in = fig.get_size_inches()
     assert width_px / width_in >= 100 and height_px / height_in >= 100
+
+
+def test_report_style_draws_a_light_grid_and_small_tick_labels_and_restores_the_callers_settings() -> None:
+    """Inside `styled()` the axes are made with the report's grid (thin, half transparent) and tick labels
+    of TICK_LABEL_SIZE; a tick label a figure sizes itself keeps its size; afterwards the caller's matplotlib
+    settings are back (no grid by default)."""
+    import matplotlib
+
+    from protocol_runner.report.drawing import STYLE, TICK_LABEL_SIZE, styled
+
+    before = matplotlib.rcParams["axes.grid"]
+    with styled():
+        fig, (ax,) = new_figure("bars")
+        ax.bar([0, 1], [3.0, 4.0])
+        ax.set_xticks([0, 1], ["a long level name", "another"], fontsize=5.5)
+        style(ax, "level", "Energy per cycle (J)")
+        FigureCanvasAgg(fig).draw()
+        grid = [line for line in ax.yaxis.get_gridlines() if line.get_visible()]
+        assert grid, "no visible grid line"
+        assert all(line.get_linewidth() == STYLE["grid.linewidth"] for line in grid)
+        assert all(line.get_alpha() == STYLE["grid.alpha"] for line in grid)
+        assert {t.get_fontsize() for t in ax.get_yticklabels()} == {TICK_LABEL_SIZE}
+        assert {t.get_fontsize() for t in ax.get_xticklabels()} == {5.5}
+    assert matplotlib.rcParams["axes.grid"] == before
