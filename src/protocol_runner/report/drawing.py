@@ -60,10 +60,12 @@ STYLE = {
     "grid.alpha": 0.5,
     "xtick.labelsize": TICK_LABEL_SIZE,
     "ytick.labelsize": TICK_LABEL_SIZE,
+    "text.hinting": "no_hinting",
 }
 """Every figure's light grid and small tick labels: matplotlib settings in force while a figure is built and
 rendered (`styled`), so that each axis makes its ticks with them; a figure may still size its own tick
-labels (a comparison's long level names)."""
+labels (a comparison's long level names). Text is drawn without FreeType's hinting (as matplotlib's own
+image tests draw it): the same pixels whatever the FreeType version, and text costs less to draw."""
 
 
 def styled() -> AbstractContextManager[None]:
