@@ -84,25 +84,23 @@ def test_figures_are_drawn_at_100_pixels_per_inch_or_more() -> None:
     assert width_px / width_in >= 100 and height_px / height_in >= 100
 
 
-def test_report_style_draws_a_light_grid_and_small_tick_labels_and_restores_the_callers_settings() -> None:
-    """Inside `styled()` the axes are made with the report's grid (thin, half transparent) and tick labels
-    of TICK_LABEL_SIZE; a tick label a figure sizes itself keeps its size; afterwards the caller's matplotlib
-    settings are back (no grid by default)."""
+def test_axes_have_a_light_grid_and_small_tick_labels_and_a_figures_own_label_size_holds() -> None:
+    """Every axes of the report is made with a thin, half-transparent grid and tick labels of
+    TICK_LABEL_SIZE; a tick label a figure sizes itself (a comparison's level names) keeps its size after
+    the axes are styled and the figure rendered; rendering leaves the caller's matplotlib settings alone."""
     import matplotlib
 
-    from protocol_runner.report.drawing import STYLE, TICK_LABEL_SIZE, styled
+    from protocol_runner.report.drawing import GRID_ALPHA, GRID_LINEWIDTH, TICK_LABEL_SIZE
 
-    before = matplotlib.rcParams["axes.grid"]
-    with styled():
-        fig, (ax,) = new_figure("bars")
-        ax.bar([0, 1], [3.0, 4.0])
-        ax.set_xticks([0, 1], ["a long level name", "another"], fontsize=5.5)
-        style(ax, "level", "Energy per cycle (J)")
-        FigureCanvasAgg(fig).draw()
-        grid = [line for line in ax.yaxis.get_gridlines() if line.get_visible()]
-        assert grid, "no visible grid line"
-        assert all(line.get_linewidth() == STYLE["grid.linewidth"] for line in grid)
-        assert all(line.get_alpha() == STYLE["grid.alpha"] for line in grid)
-        assert {t.get_fontsize() for t in ax.get_yticklabels()} == {TICK_LABEL_SIZE}
-        assert {t.get_fontsize() for t in ax.get_xticklabels()} == {5.5}
-    assert matplotlib.rcParams["axes.grid"] == before
+    before = dict(matplotlib.rcParams)
+    fig, (ax,) = new_figure("bars")
+    ax.bar([0, 1], [3.0, 4.0])
+    ax.set_xticks([0, 1], ["a long level name", "another"], fontsize=5.5)
+    style(ax, "level", "Energy per cycle (J)")
+    to_data_uri(fig)
+    grid = [line for line in ax.yaxis.get_gridlines() if line.get_visible()]
+    assert len(grid) >= 2, "no visible grid lines"
+    assert {(line.get_linewidth(), line.get_alpha()) for line in grid} == {(GRID_LINEWIDTH, GRID_ALPHA)}
+    assert {t.get_fontsize() for t in ax.get_yticklabels()} == {TICK_LABEL_SIZE}
+    assert {t.get_fontsize() for t in ax.get_xticklabels()} == {5.5}
+    assert dict(matplotlib.rcParams) == before

@@ -2,19 +2,10 @@
 
 from __future__ import annotations
 
-from protocol_runner.report.drawing import (
-    ANGLE_LABEL,
-    TORQUE_LABEL,
-    legend,
-    new_figure,
-    style,
-    styled,
-    to_data_uri,
-)
+from protocol_runner.report.drawing import ANGLE_LABEL, TORQUE_LABEL, legend, new_figure, style, to_data_uri
 from protocol_runner.report.model import Configuration
 
 
-@styled()
 def overlay_figure(a: Configuration, b: Configuration) -> str | None:
     """Brace torque against angle, every processed trial of A (blue) and B (red); None without data."""
     if not (a.has_data or b.has_data):

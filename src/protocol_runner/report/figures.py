@@ -39,7 +39,6 @@ from protocol_runner.report.drawing import (
     new_grid,
     panel_style,
     style,
-    styled,
     to_data_uri,
 )
 from protocol_runner.report.figure_plan import (
@@ -361,7 +360,6 @@ def _run_one(task_id: str) -> Drawn:
 
 def _safe(task_id: str, task: Callable[[], str]) -> Drawn:
     try:
-        with styled():
-            return task_id, task(), None
+        return task_id, task(), None
     except (ValueError, TypeError, IndexError, FloatingPointError) as exc:  # bad data never kills the report
         return task_id, None, f"{type(exc).__name__}: {exc}"

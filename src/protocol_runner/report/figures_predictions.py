@@ -8,22 +8,13 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from protocol_runner.report.drawing import (
-    ANGLE_LABEL,
-    COLORS,
-    TORQUE_LABEL,
-    empty,
-    finish,
-    new_figure,
-    styled,
-)
+from protocol_runner.report.drawing import ANGLE_LABEL, COLORS, TORQUE_LABEL, empty, finish, new_figure
 
 MEASURED_COLOR = COLORS[0]
 PREDICTED_COLOR = COLORS[1]
 FITTED_RANGE_COLOR = "0.9"  # light grey, behind the loops
 
 
-@styled()
 def prediction_figure(
     fit_key: int,
     predict_key: int,
