@@ -1,14 +1,9 @@
-"""Loading and unloading branches of a cyclic angle signal (used by thesis §3.3 equal-angle subtraction).
+"""Loading and unloading branches of a cyclic angle signal (thesis §3.3 equal-angle subtraction).
 
-A hysteresis loop has two torques at each angle: one while the joint flexes (loading, angle increasing)
-and one while it extends (unloading, angle decreasing). Comparing torques "at the same angle" therefore
-means at the same angle *on the same branch*.
-
-Branches are found from the turning points of the angle, detected with a reversal threshold (a
-"zig-zag" detector): a maximum is confirmed only once the angle has fallen `reversal_deg` below it, and a
-minimum once the angle has risen `reversal_deg` above it. Noise smaller than the threshold therefore never
-splits a branch, unlike the sign of a raw sample-to-sample derivative. Samples from a minimum up to the
-next maximum are loading (+1); from a maximum down to the next minimum, unloading (-1).
+"The same angle" means the same angle on the same branch: loading (angle increasing, +1) or unloading
+(decreasing, -1). Turning points come from a zig-zag detector: an extremum is confirmed once the angle has
+moved `reversal_deg` back from it, so noise below the threshold never splits a branch (docs/analysis.md
+"4. Equal-angle subtraction").
 """
 
 from __future__ import annotations
@@ -27,11 +22,8 @@ Outside = Literal["clip", "nan"]
 
 
 def turning_points(angle_deg: npt.ArrayLike, reversal_deg: float = 1.0) -> npt.NDArray[np.int64]:
-    """Indices of the confirmed extrema of `angle_deg`, alternating maxima and minima, in time order.
-
-    An extremum counts only when the angle later moves back from it by at least `reversal_deg`; the
-    first and last samples are not turning points.
-    """
+    """Indices of the confirmed extrema of `angle_deg` (the angle later moves back `reversal_deg` from
+    them), alternating maxima and minima in time order; never the first or last sample."""
     x = as_signal("angle_deg", angle_deg)
     if not reversal_deg > 0:
         raise AnalysisError(f"branch reversal threshold must be positive, got {reversal_deg} deg")
@@ -95,13 +87,9 @@ def branch_labels(angle_deg: npt.ArrayLike, reversal_deg: float = 1.0) -> npt.ND
 
 
 def complete_branches(angle_deg: npt.ArrayLike, reversal_deg: float = 1.0) -> slice:
-    """The samples of a trial's complete branches: from its first confirmed turning point to its last
-    (every sample with fewer than two turning points).
-
-    The partial branches before and after carry the start-up and the stop; averaged into a brace-off
-    reference they would put that transient into every cycle of the brace loop at those angles. Label the
-    branches on the whole trial (`branch_labels`) before taking this part: labelled on its own, the part's
-    first sample (a turning point) would change branch.
+    """The samples from a trial's first confirmed turning point to its last (all with fewer than two),
+    leaving out the start-up and the stop. Label the branches on the whole trial before taking this part:
+    labelled on its own, its first sample (a turning point) would change branch.
     """
     turns = turning_points(angle_deg, reversal_deg)
     if turns.size < 2:
@@ -121,11 +109,8 @@ class BranchCurves:
     def torque_at(
         self, angle_deg: npt.ArrayLike, branch: npt.ArrayLike, outside: Outside = "clip"
     ) -> FloatArray:
-        """Torque at each (angle, branch) by linear interpolation along that branch's curve.
-
-        Angles outside a branch's covered range get the torque at its nearest end (`outside="clip"`) or
-        NaN (`outside="nan"`).
-        """
+        """Torque at each (angle, branch) by linear interpolation along that branch's curve; outside its
+        covered range, the torque at its nearest end (`outside="clip"`) or NaN (`"nan"`)."""
         a = as_signal("angle_deg", angle_deg)
         b = np.asarray(branch)
         if b.shape != a.shape:
@@ -174,11 +159,9 @@ def branch_curves(
     reversal_deg: float = 1.0,
     labels: npt.ArrayLike | None = None,
 ) -> BranchCurves:
-    """Per-branch angle -> torque curves of a multi-cycle trial.
-
-    Samples are split into loading and unloading (`branch_labels`, or the given `labels`), then binned by
-    angle (`bin_width_deg`); each bin contributes one point: the mean angle and mean torque of all its
-    samples, over all cycles. Raises `AnalysisError` when a branch has fewer than two bins.
+    """Per-branch angle -> torque curves of a multi-cycle trial: samples split by branch (`branch_labels`
+    or the given `labels`), one point per `bin_width_deg` angle bin (mean angle and mean torque over all
+    cycles). Raises `AnalysisError` when a branch has fewer than two bins.
     """
     a = as_signal("angle_deg", angle_deg)
     t = as_signal("torque_nm", torque_nm)

@@ -1,14 +1,8 @@
-"""Zero-phase low-pass filtering of angle and torque (thesis §3.2, §4.4).
+"""Zero-phase low-pass filtering of angle and torque (thesis §3.2, §4.4; docs/analysis.md "2. Filters").
 
-The thesis offers a Butterworth or a Chebyshev (type I) filter, with user-chosen order and cut-off; the
-campaign used a 10th-order Butterworth with a cut-off of 10 % of the Nyquist frequency ("the ratio of the
-real cut-off frequency and the maximum frequency of the signal, ½ the sampling frequency", §3.2 note).
-
-Here the filter is designed as second-order sections (numerically sound at order 10, where the
-transfer-function form is not) and applied forward and backward (scipy's `sosfiltfilt`, odd padding), so
-the filtered signal has no phase lag: angle and torque stay synchronised, which the equal-angle subtraction
-and the hysteresis loops depend on. The forward-backward pass squares the magnitude response (the effective
-order doubles; the -3 dB point of one pass becomes the -6 dB point).
+Second-order sections (sound at order 10, where the transfer-function form is not), applied forward and
+backward (`sosfiltfilt`, odd padding): no phase lag between angle and torque, which the equal-angle
+subtraction and the loops depend on; the magnitude response is squared (-3 dB of one pass becomes -6 dB).
 """
 
 from __future__ import annotations
@@ -30,20 +24,18 @@ def design_lowpass(
     cutoff: float = 0.1,
     ripple_db: float = 0.5,
 ) -> FloatArray:
-    """Second-order sections of a digital low-pass filter (thesis §3.2).
+    """Second-order sections of a digital low-pass filter with unit DC gain (thesis §3.2).
 
-    `cutoff` is the normalised cut-off: a fraction of the Nyquist frequency, strictly between 0 and 1
-    (thesis: 10 % = 0.1). `ripple_db` is the pass-band ripple of the Chebyshev type I filter (ignored for
-    Butterworth). The sections are normalised to unit gain at DC. Raises `AnalysisError` for an unknown
-    kind, order < 1, a cut-off outside (0, 1) or a non-positive ripple. Each design is made once per
-    process (every trial of a campaign uses the same few) and handed out as a new array."""
+    `cutoff` is a fraction of the Nyquist frequency in (0, 1) (thesis: 0.1); `ripple_db` is the Chebyshev
+    type I pass-band ripple (ignored for Butterworth). Raises `AnalysisError` for an unknown kind, order < 1,
+    a cut-off outside (0, 1) or a non-positive ripple. Each design is made once per process and handed out
+    as a new array."""
     return np.array(_designed(kind, order, cutoff, ripple_db))
 
 
 @functools.lru_cache(maxsize=64)
 def _designed(kind: FilterKind, order: int, cutoff: float, ripple_db: float) -> FloatArray:
-    """`design_lowpass`'s sections, made once per set of arguments and kept read-only. The DC rescaling
-    matters for an even-order Chebyshev, whose DC gain is otherwise the bottom of the ripple."""
+    """`design_lowpass`'s sections, made once per set of arguments and kept read-only."""
     if kind not in FILTER_KINDS:
         raise AnalysisError(f"unknown filter kind {kind!r}: use one of {', '.join(FILTER_KINDS)}")
     if isinstance(order, bool) or int(order) != order or order < 1:
@@ -69,10 +61,8 @@ def _designed(kind: FilterKind, order: int, cutoff: float, ripple_db: float) -> 
 
 
 def padding_length(sos: npt.ArrayLike) -> int:
-    """Samples of odd extension added at each end by the zero-phase filter (3 x (2 x sections + 1)).
-
-    A signal must be longer than this to be filtered.
-    """
+    """Samples of odd extension added at each end by the zero-phase filter (3 x (2 x sections + 1)); a
+    signal must be longer than this to be filtered."""
     return 3 * (2 * np.atleast_2d(np.asarray(sos)).shape[0] + 1)
 
 

@@ -1,18 +1,9 @@
-"""Processing of one configuration's trials: the thesis's procedure end to end (§3.2-3.3, §4.4, §5.7, §6.1).
+"""Processing of one configuration's trials, the thesis's procedure end to end (§3.2-3.3, §4.4, §5.7, §6.1).
 
-For each trial pair (the brace-on recording and its brace-off counterpart):
-
-1. bring the command onto the input time base (`transition.command_on_input_base`) if it has its own;
-2. cut the start-up transition of each recording (§3.3.1, `transition.remove_transition`);
-3. low-pass filter angle and torque, zero phase (§3.2, §4.4, `filters`);
-4. subtract the robot's torque at equal angles on the same branch (§3.3, §5.6, `subtraction`), or at
-   equal times if the settings ask for the (wrong, §5.6) comparison method;
-5. energy lost per complete cycle (§5.7, Eq 10-12, `energy`), and the trial's centred loop (§6.2.3 note,
-   `centring`) for the Bouc-Wen fit, which the caller runs (`models.bouc_wen`).
-
-Then, over all trials: every cycle's energy in trial order, their summary, and the fit of the device's
-elastic elements (§6.1, `element_fit`) when the configuration's device is given. Pure: arrays in,
-dataclasses of arrays out.
+Per trial pair: command onto the input time base, transition cut, zero-phase filtering, subtraction of the
+robot's torque (equal angle, or equal time for comparison), energy per complete cycle and the centred loop;
+then, over all trials, the pooled energies and the element fit. The steps and their order are described in
+docs/analysis.md ("The pipeline"). Pure: arrays in, dataclasses of arrays out.
 """
 
 from __future__ import annotations
@@ -35,6 +26,8 @@ from protocol_runner.analysis.transition import (
     remove_transition,
 )
 from protocol_runner.analysis.validation import AnalysisError, FloatArray, as_signal, same_length
+
+QUANTITIES = ("angle_deg", "torque_nm")  # the filtered signals of each recording
 
 
 @dataclass(frozen=True)
@@ -124,15 +117,11 @@ def process_trial(pair: TrialPair, settings: ProcessingSettings) -> ProcessedTri
     sos = design_lowpass(
         settings.filter_kind, settings.filter_order, settings.filter_cutoff, settings.chebyshev_ripple_db
     )
-    angle_on, torque_on = filter_zero_phase_together(
-        [on.angle_deg, on.torque_nm],
-        sos,
-        names=[f"trial {pair.trial} brace-on angle_deg", f"trial {pair.trial} brace-on torque_nm"],
-    )
-    angle_off, torque_off = filter_zero_phase_together(
-        [off.angle_deg, off.torque_nm],
-        sos,
-        names=[f"trial {pair.trial} brace-off angle_deg", f"trial {pair.trial} brace-off torque_nm"],
+    (angle_on, torque_on), (angle_off, torque_off) = (
+        filter_zero_phase_together(
+            [seg.angle_deg, seg.torque_nm], sos, names=[f"trial {pair.trial} {side} {q}" for q in QUANTITIES]
+        )
+        for seg, side in ((on, "brace-on"), (off, "brace-off"))
     )
     if settings.subtraction == "equal_angle":
         try:
@@ -151,14 +140,8 @@ def process_trial(pair: TrialPair, settings: ProcessingSettings) -> ProcessedTri
         robot = torque_on - subtract_equal_time(on.time_s, torque_on, off.time_s, torque_off)
         coverage = 1.0
     brace = torque_on - robot
+    energy = _energy_of_covered(angle_on, brace, settings)
     finite = np.isfinite(brace)
-    if np.all(finite):
-        energy = energy_per_cycle(
-            angle_on, brace, hysteresis_deg=settings.cycle_hysteresis_deg, reference=settings.cycle_reference
-        )
-    else:
-        # outside="nan": only complete cycles inside stretches where the brace torque is defined count.
-        energy = _energy_of_covered(angle_on, brace, settings)
     kept = (angle_on[finite], brace[finite])
     loop = centre(*kept) if settings.centring == "trial_mean" else CentredLoop(*kept, 0.0, 0.0)
     return ProcessedTrial(
@@ -176,7 +159,8 @@ def process_trial(pair: TrialPair, settings: ProcessingSettings) -> ProcessedTri
 
 
 def _energy_of_covered(angle: FloatArray, brace: FloatArray, settings: ProcessingSettings) -> FloatArray:
-    """Energy of the complete cycles lying wholly in stretches where the brace torque is defined."""
+    """Energy of the complete cycles lying wholly in stretches where the brace torque is defined (all of
+    the trial unless outside="nan" left samples undefined)."""
     finite = np.isfinite(brace)
     edges = np.flatnonzero(np.diff(np.concatenate(([0], finite.astype(np.int8), [0]))))
     parts: list[FloatArray] = []

@@ -1,12 +1,8 @@
-"""Removal of the robot's own torque: brace-on torque minus brace-off torque (thesis §3.3, §5.6).
+"""Removal of the robot's own torque: brace-on minus brace-off torque (thesis §3.3, §5.6).
 
-The robot's weight, friction and hysteresis are present in every trial. The brace's own torque is the
-brace-on torque minus the torque the bare robot needs *at the same angle, moving the same way*. The two
-trials do not reach the same angles at the same times — with the brace fitted the joint lags more and
-stalls at the robot's torque limit (±84.8 N·m, thesis §5) — so subtracting at equal times (what Schmidt did,
-§5.6) compares the robot's torque at one angle with the brace-on torque at another, and mixes the robot's
-gravity torque into the "brace" loop. `subtract_equal_angle` is the thesis's method; `subtract_equal_time`
-is kept for comparison only.
+The brace's torque is the brace-on torque minus the bare robot's torque *at the same angle, moving the same
+way*: `subtract_equal_angle`. Subtracting at equal times (`subtract_equal_time`, what §5.6 criticises) is
+kept for comparison only; docs/analysis.md "4. Equal-angle subtraction" explains why it is wrong.
 """
 
 from __future__ import annotations
@@ -37,14 +33,11 @@ def robot_torque_at_equal_angle(
 ) -> tuple[FloatArray, npt.NDArray[np.bool_]]:
     """The bare robot's torque at each brace-on sample's angle and branch, and where that was covered.
 
-    The brace-off trial (many cycles) is reduced to one angle -> torque curve per branch (`branch_curves`:
-    mean torque per `bin_width_deg` angle bin over its complete branches, `complete_branches`: the partial
-    branch of its start from rest and of its stop are left out, so that their transient torque is not
-    subtracted from every brace-on cycle at those angles); each brace-on sample is labelled
-    loading/unloading (`branch_labels`, reversal threshold `reversal_deg`, best on filtered data) and
-    looks up its branch's curve by linear interpolation. Brace-on angles outside the brace-off branch's
-    range take the nearest end value (`outside="clip"`, the default) or NaN (`outside="nan"`); the second
-    returned array is True where the angle was inside the range.
+    The brace-off trial's complete branches (`complete_branches`: the start from rest and the stop left
+    out, so their transient is not subtracted from every brace-on cycle) become one binned curve per branch
+    (`branch_curves`); each brace-on sample, labelled by `branch_labels`, interpolates its branch's curve.
+    Angles outside a branch's range take its nearest end value (`outside="clip"`) or NaN (`"nan"`); the
+    second array is True where the angle was inside the range.
     """
     a_on = as_signal("angle_on_deg", angle_on_deg)
     a_off, t_off = signal_pair("angle_off_deg", angle_off_deg, "torque_off_nm", torque_off_nm)
@@ -71,12 +64,8 @@ def subtract_equal_angle(
     torque_off_nm: npt.ArrayLike,
     **options: Unpack[EqualAngleOptions],
 ) -> FloatArray:
-    """Brace torque = brace-on torque - brace-off torque at the same angle on the same branch (thesis §3.3).
-
-    Returns one value per brace-on sample (same length as `angle_on_deg`). See
-    `robot_torque_at_equal_angle` for the branch logic and the `outside` rule (default: clip to the
-    nearest covered angle; "nan" marks such samples NaN instead).
-    """
+    """Brace torque = brace-on torque - brace-off torque at the same angle on the same branch (thesis §3.3),
+    one value per brace-on sample (`robot_torque_at_equal_angle` gives the branch and `outside` rules)."""
     a_on, t_on = signal_pair("angle_on_deg", angle_on_deg, "torque_on_nm", torque_on_nm)
     a_off, t_off = signal_pair("angle_off_deg", angle_off_deg, "torque_off_nm", torque_off_nm)
     robot, _ = robot_torque_at_equal_angle(a_on, a_off, t_off, **options)
@@ -89,13 +78,9 @@ def subtract_equal_time(
     time_off_s: npt.ArrayLike,
     torque_off_nm: npt.ArrayLike,
 ) -> FloatArray:
-    """Brace-on minus brace-off torque at equal time since each trial's start (§5.6; comparison only).
-
-    Times are taken relative to each trial's first sample (pass both trials from their transition point
-    on); the brace-off torque is linearly interpolated at the brace-on times and held at its ends. This
-    is the method the thesis criticises in §5.6: the two trials are not at the same angle at the same
-    time, so it is wrong whenever their angle histories differ.
-    """
+    """Brace-on minus brace-off torque at equal time since each trial's first sample (§5.6; comparison
+    only: wrong whenever the two angle histories differ). The brace-off torque is linearly interpolated at
+    the brace-on times and held at its ends."""
     t_on, q_on = signal_pair("time_on_s", time_on_s, "torque_on_nm", torque_on_nm)
     t_off, q_off = signal_pair("time_off_s", time_off_s, "torque_off_nm", torque_off_nm)
     if t_off.shape[0] > 1 and not np.all(np.diff(t_off) > 0):

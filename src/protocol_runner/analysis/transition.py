@@ -1,13 +1,8 @@
-"""Start-up transition detection and removal (thesis §3.3.1, §4.4).
+"""Start-up transition detection and removal (thesis §3.3.1, §4.4; docs/analysis.md "1. Transition").
 
-Recording starts with the trajectory, while the joint is still moving from where it was parked to the
-trajectory's first point: the sensors show a transition that has to be cut off before analysis. The
-thesis finds the transition point by comparing the commanded trajectory with the measured angle and
-taking the first point where their difference is within five degrees for three consecutive points.
-
-The command is written at the output rate (100 Hz) and the angle read at the input rate (1 kHz), so the
-command is first brought onto the input time base with `command_on_input_base` (zero-order hold, which is
-what the DAC does, or linear interpolation).
+Recording starts while the joint still moves from where it was parked to the trajectory's first point; the
+transition point is the first where the measured angle is within five degrees of the command for three
+consecutive points. The command (100 Hz output ticks) is first brought onto the input time base (1 kHz).
 """
 
 from __future__ import annotations
@@ -29,12 +24,10 @@ def command_on_input_base(
     input_time_s: npt.ArrayLike,
     method: Resampling = "hold",
 ) -> FloatArray:
-    """Resample the commanded angle (output ticks) onto the input sample times.
+    """Resample the commanded angle (output ticks, strictly increasing) onto the input sample times.
 
-    `method="hold"` is a zero-order hold: at time t the command is the last tick written at or before t
-    (what the analog output actually holds between ticks); input samples before the first tick get the
-    first tick's value. `method="linear"` interpolates linearly between ticks and holds the end values
-    outside them. Tick times must be strictly increasing.
+    `"hold"`: zero-order hold, the last tick at or before t (what the analog output holds; the first tick
+    before it). `"linear"`: linear interpolation, end values held outside the ticks.
     """
     t_cmd = as_signal("command_time_s", command_time_s)
     cmd = as_signal("command_deg", command_deg)
@@ -56,12 +49,8 @@ def transition_index(
     tolerance_deg: float = 5.0,
     points: int = 3,
 ) -> int:
-    """Index of the first sample after the start-up transition (thesis §3.3.1).
-
-    The transition point is the first index i such that |measured - command| <= `tolerance_deg` at the
-    `points` consecutive samples i, i+1, ..., i+points-1 (thesis: five degrees, three points). Both arrays
-    must be on the same time base (see `command_on_input_base`). Raises `AnalysisError` when the measured
-    angle never follows the command that closely.
+    """The first index i with |measured - command| <= `tolerance_deg` at samples i ... i+points-1 (thesis
+    §3.3.1: five degrees, three points), both on one time base. Raises `AnalysisError` when there is none.
     """
     cmd = as_signal("command_deg", command_deg)
     meas = as_signal("measured_deg", measured_deg)
@@ -106,12 +95,8 @@ def remove_transition(
     tolerance_deg: float = 5.0,
     points: int = 3,
 ) -> TrialSegment:
-    """Cut the start-up transition off a trial (thesis §3.3.1).
-
-    All four arrays are on the input time base (`command_deg` resampled with `command_on_input_base`).
-    The returned segment starts at `transition_index(command_deg, angle_deg, tolerance_deg, points)`;
-    its `time_s` keeps the original clock (not re-zeroed).
-    """
+    """The trial (all four arrays on the input time base) from its `transition_index` on; `time_s` keeps
+    the original clock."""
     t = as_signal("time_s", time_s)
     cmd = as_signal("command_deg", command_deg)
     angle = as_signal("angle_deg", angle_deg)
