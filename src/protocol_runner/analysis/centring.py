@@ -1,15 +1,8 @@
-"""Centring of a hysteresis loop on (0, 0) (thesis §6.2.3 note).
+"""Centring of a hysteresis loop on (0, 0) (thesis §6.2.3 note; docs/analysis.md "5. Centring").
 
-The knee's loops are not centred on the origin (there are no negative angles), so before the Bouc-Wen
-fit "all the values were subtracted of the trial average". Centring is per trial: the trial's mean angle
-and mean torque are subtracted and kept, so the loop can be put back in place.
-
-The means are taken over the trial's complete cycles (`cycles.complete_cycles`: from the first upward
-crossing of the mean angle to the last), not over the whole record. A record holds a non-integer number
-of cycles after a start-up transition whose cut depends on the noise (§3.3.1), so its whole-record mean
-moves with where it starts and stops: two trials of one configuration would be centred up to degrees and
-N·m apart, and a model fitted to one would miss the others by that offset. A record with no complete
-cycle is centred on the mean of all its samples.
+Per trial, the mean angle and mean torque over its complete cycles (not the whole record, whose mean moves
+with where the noise-dependent transition cut starts it) are subtracted and kept, so the loop can be put
+back in place. A record with no complete cycle is centred on the mean of all its samples.
 """
 
 from __future__ import annotations

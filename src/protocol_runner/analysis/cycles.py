@@ -1,14 +1,8 @@
-"""Identification of complete cycles in a multi-cycle trial (thesis §5.7.1).
+"""Identification of complete cycles in a multi-cycle trial (thesis §5.7.1; docs/analysis.md "6. Cycles").
 
-The thesis counts crossings between the angle and a linear fit of it: a cycle spans two crossings and
-ends at the third. Here a complete cycle runs from one *upward* crossing of the reference level (the
-trial's mean angle, or its linear trend) to the next upward crossing. Two things make this robust:
-
-- hysteresis (a Schmitt trigger): after an upward crossing, another upward crossing only counts once the
-  angle has gone below `reference - hysteresis` in between, so noise wiggling around the reference never
-  creates extra cycles;
-- only complete cycles are returned: data before the first upward crossing and after the last one (the
-  partial first and last cycles) are left out.
+A complete cycle runs from one *upward* crossing of the reference level (the trial's mean angle, or its
+linear trend) to the next, counted with hysteresis (a Schmitt trigger) so that noise around the reference
+never creates extra cycles; the partial first and last cycles are left out.
 """
 
 from __future__ import annotations
@@ -44,12 +38,9 @@ def upward_crossings(
     hysteresis_deg: float | None = None,
     reference: Reference = "mean",
 ) -> npt.NDArray[np.int64]:
-    """Index of the first sample at/above the reference after each hysteresis-qualified upward crossing.
-
-    An upward crossing counts when the angle, having been below `reference - hysteresis_deg`, rises to
-    `reference + hysteresis_deg`; its index is the sample where it last passed the reference itself on the
-    way up. `hysteresis_deg=None` uses 10 % of the robust peak-to-peak range (1st-99th percentile)
-    of the angle about the reference (so a drift does not inflate it).
+    """Per upward crossing (below `reference - hysteresis_deg`, then above `reference + hysteresis_deg`),
+    the sample where the angle last passed the reference itself on the way up. `hysteresis_deg=None`: 10 %
+    of the 1st-99th percentile range of the angle about the reference (a drift does not inflate it).
     """
     x = as_signal("angle_deg", angle_deg)
     ref = reference_level(x, reference)
@@ -88,11 +79,7 @@ def complete_cycles(
     hysteresis_deg: float | None = None,
     reference: Reference = "mean",
 ) -> list[tuple[int, int]]:
-    """(start, stop) sample indices of every complete cycle (thesis §5.7.1).
-
-    A complete cycle runs from one upward crossing of the reference to the next (`upward_crossings`);
-    `angle_deg[start:stop + 1]` holds the cycle, both ends at or just above the reference. Partial first
-    and last cycles are not returned.
-    """
+    """(start, stop) of every complete cycle, from one `upward_crossings` index to the next (thesis
+    §5.7.1): `angle_deg[start:stop + 1]` holds the cycle, both ends at or just above the reference."""
     ups = upward_crossings(angle_deg, hysteresis_deg=hysteresis_deg, reference=reference)
     return [(int(a), int(b)) for a, b in itertools.pairwise(ups.tolist())]

@@ -1,14 +1,10 @@
-"""Energy lost per cycle of the brace (thesis §5.7, Eq 10-12).
+"""Energy lost per cycle of the brace (thesis §5.7, Eq 10-12; docs/analysis.md "7. Energy per cycle").
 
-E = ∮ T dθ (Eq 10) over one complete cycle, integrated with the trapezoid rule over the samples (Eq 11),
-with the angle in degrees converted by π/180 to give joules (Eq 12).
-
-Sign: for a loop whose loading torque (angle increasing) is above its unloading torque — traversed
-clockwise in the (angle, torque) plane, as a dissipative joint is — the integral is positive: positive
-values are energy dissipated per cycle. A cycle starts and ends at upward crossings of the mean angle
-(`cycles.complete_cycles`), so its two ends are less than one sample step apart; the trapezoid sum is
-closed by the segment from the last sample back to the first. The result is then exactly the area of the
-sampled loop (the shoelace formula): independent of any constant torque offset and of an angle shift.
+E = ∮ T dθ (Eq 10) over one complete cycle, by the trapezoid rule over the samples (Eq 11), degrees
+converted by π/180 to give joules (Eq 12). Positive values are energy dissipated: a clockwise loop in the
+(angle, torque) plane, loading torque above unloading. The sum is closed by the segment from the last
+sample back to the first, which makes it exactly the area of the sampled loop (the shoelace formula),
+independent of a constant torque offset and of an angle shift.
 """
 
 from __future__ import annotations
@@ -50,12 +46,8 @@ def energy_per_cycle(
     hysteresis_deg: float | None = None,
     reference: Reference = "mean",
 ) -> FloatArray:
-    """Energy lost in each complete cycle of a trial, in joules (thesis §5.7, Eq 10-12).
-
-    Cycles come from `cycles.complete_cycles` (upward crossings of the mean angle, with hysteresis;
-    partial first and last cycles are not counted); each is integrated with `cycle_energy_j`. Returns an
-    empty array when the trial holds no complete cycle.
-    """
+    """Energy lost in each complete cycle (`cycles.complete_cycles`) of a trial, in joules (thesis §5.7,
+    Eq 10-12); empty when the trial holds no complete cycle."""
     a = as_signal("angle_deg", angle_deg)
     t = as_signal("torque_nm", torque_nm)
     same_length(angle_deg=a, torque_nm=t)

@@ -1,31 +1,22 @@
-"""Statistical power of the report's tests, and the trials per configuration a statement needs.
+"""Statistical power of the report's tests, and the trials per configuration a statement needs
+(docs/protocol.md "Power").
 
-The report decides a declared expectation (report/evaluate.py) on trial values, the trial being the
-experimental unit, with one-sided Welch tests of a contrast (a difference of two configurations' means, a
-difference of differences, or one configuration's mean against a value: one-sample t) or with two one-sided
-tests (TOST) of equivalence within a margin or inside an interval. Planning asks the converse: with `n`
-trials in every configuration, how likely is the test to decide the statement when it is true?
+The report decides an expectation on trial values with one-sided Welch tests of a contrast, or with two
+one-sided tests (TOST) of equivalence. A contrast C = sum(w_i mu_i) estimated from `n` trials per
+configuration has se = sqrt(sum(w_i^2 sigma_i^2) / n) and Welch-Satterthwaite df = (n - 1) (sum v_i)^2 /
+sum v_i^2, v_i = w_i^2 sigma_i^2; its t statistic is noncentral t with noncentrality effect / se (Cohen 1988,
+ch. 2; Welch 1947, Satterthwaite 1946), so:
 
-A contrast C = sum(w_i mu_i) of configurations with between-trial standard deviations sigma_i, estimated
-from `n` trials each, has standard error se = sqrt(sum(w_i^2 sigma_i^2) / n) and Welch-Satterthwaite degrees
-of freedom df = (n - 1) (sum v_i)^2 / sum v_i^2 with v_i = w_i^2 sigma_i^2 (one configuration: n - 1; two
-of equal spread: 2 (n - 1), Student's pooled test). Its t statistic follows a noncentral t distribution with
-df degrees of freedom and noncentrality lambda = effect / se (Cohen 1988, ch. 2; Welch 1947, Satterthwaite
-1946 for df), so:
+- one-sided test at level alpha of an effect delta > 0: power = P(T' > t_(1-alpha, df)), T' ~ nct(df, delta / se);
+- TOST of a true value theta inside (low, high) (Schuirmann 1987): power >= P(T1 > t) + P(T2 > t) - 1, with
+  T1 ~ nct(df, (theta - low) / se), T2 ~ nct(df, (high - theta) / se) (Bonferroni's inequality: a lower
+  bound, close when the power is high);
+- a statement of several parts holds only when every part does (intersection-union): power >= 1 - sum(1 -
+  power_i).
 
-- one-sided test at level alpha of an effect delta > 0 in the stated direction:
-  power = P(T' > t_(1-alpha, df)), T' ~ nct(df, delta / se);
-- TOST at level alpha of a true value theta inside (low, high) (Schuirmann 1987): it decides when both
-  one-sided tests reject; power >= P(T1 > t) + P(T2 > t) - 1, with T1 ~ nct(df, (theta - low) / se) and
-  T2 ~ nct(df, (high - theta) / se) (Bonferroni's inequality P(A and B) >= P(A) + P(B) - 1: a lower bound,
-  close when the power is high; the exact value needs the joint law of the two statistics, Owen's Q);
-- a statement of several parts (steps of a trend, pairs, pairwise statements) holds only when every part
-  does (an intersection-union test); its power is at least 1 - sum(1 - power_i) by the same inequality.
-
-The degrees of freedom are the Satterthwaite value of the planning SDs. The report's Welch test estimates
-them from the trials, lower, so with few trials and a small alpha its real power is below the computed one
-(two configurations of equal SD: 0.76 instead of 0.80 at 6 trials and alpha 0.0028): a computed count of a
-few trials is the least that could decide a statement. Only the ratio of SDs and effects matters.
+The report's Welch test estimates df from the trials, lower than the planning SDs' value, so with few
+trials and a small alpha its real power is below the computed one (0.76 instead of 0.80 at 6 trials, two
+configurations of equal SD, alpha 0.0028): a computed count is the least that could decide a statement.
 """
 
 from __future__ import annotations

@@ -1,12 +1,9 @@
-"""Analysis as a service: "process and fit this configuration from these archived arrays" in one pure
-function, `analyse_configuration` (docs/analysis.md): `pipeline.process_configuration`, the processed loops
-as they are stored (`stored_trial`: decimated to `PROCESSED_RATE_HZ`, float32) and, when asked, the
-Bouc-Wen fit of those stored loops (`fit_stored_loops`).
-
-A session runs the first two in its process step and the fit in its fit step, reading back what the
-process step stored; `--reprocess` runs all three in one call. Both fit the stored (decimated, float32)
-loops, so a re-processing with unchanged settings reproduces the session's numbers bit for bit.
-`analyse_joints` does it per joint of several joints moved together and sums their energy per cycle.
+"""Analysis as a service (docs/analysis.md "One configuration's whole analysis"): `analyse_configuration`
+runs `pipeline.process_configuration`, stores the processed loops (`stored_trial`: decimated to
+`PROCESSED_RATE_HZ`, float32) and, when asked, fits the Bouc-Wen model to those stored loops
+(`fit_stored_loops`). A session's fit step and `--reprocess` both fit the stored loops, so a re-processing
+with unchanged settings reproduces the session's numbers bit for bit. `analyse_joints` does it per joint of
+several joints moved together and sums their energy per cycle.
 """
 
 from __future__ import annotations

@@ -1,11 +1,7 @@
-"""The registry of element types of a device under test (a spring on a lever, a torsion spring, a bungee,
-a brake, a damper, range-of-motion stops, a mass, a simulator-tuned cuff shift) and their parameters.
-
-Each element type declares its parameters here — name, unit suffix, default (or required), whether the
-element fit may estimate it, its allowed interval — so that the protocol loader can check a campaign file
-against this table, the simulator can compose the elements into its plant, and the element fit knows what
-it may estimate.  A device's elements are built and checked against this table in :mod:`.elements`; each
-type's torque equation lives once, in :mod:`.element_torques`.
+"""The registry of element types of a device under test and their parameters (name, unit suffix, default,
+fittable, allowed interval): what the protocol loader checks a campaign file against, the simulator composes
+and the element fit may estimate. Elements are built in :mod:`.elements`; each type's torque equation lives
+in :mod:`.element_torques`; docs/protocol.md and docs/simulator.md describe the types for a test engineer.
 """
 
 from __future__ import annotations

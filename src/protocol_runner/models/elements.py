@@ -1,12 +1,7 @@
-"""The device under test as composed physical elements: a protocol's `device:` lists elements, each built
-here with every parameter checked against its type and the defaults filled in.
+"""The device under test as composed physical elements: each of a protocol's `device:` elements built with
+every parameter checked against its type (`element_types.ELEMENT_TYPES`) and the defaults filled in.
 
-The element types and their parameters are the registry of `models.element_types` (`ELEMENT_TYPES`,
-`ElementType`, `ParamSpec`); each type's torque equation lives once, in
-`models.element_torques`; docs/protocol.md and docs/simulator.md describe the types for a test engineer.
-
-Sign convention (as `models.spring`): a positive torque is the torque the robot must apply towards +angle;
-an element that resists motion above its rest angle gives positive torque there.
+Sign convention (as `models.spring`): a positive torque is the torque the robot must apply towards +angle.
 """
 
 from __future__ import annotations
@@ -54,10 +49,8 @@ class Element:
         return tuple(str(v) for v in value)
 
     def replace(self, **values: float) -> Element:
-        """A copy with some numeric parameters changed (the fit's trial values), checked like the rest.
-
-        Only the changed values are checked again (the others were when this element was built): the
-        element fit calls this for every trial point of its optimizer."""
+        """A copy with some numeric parameters changed (the fit's trial values); only those are checked
+        again (the element fit calls this for every trial point of its optimizer)."""
         etype = ELEMENT_TYPES[self.type]
         params = dict(self.params)
         for key, value in values.items():
@@ -124,11 +117,8 @@ def _check_value(where: str, spec: ParamSpec, value: object, fittable: Sequence[
 
 
 def build_element(name: str, type_: str, params: Mapping[str, object]) -> Element:
-    """Check one element's parameters against its type and fill in the defaults.
-
-    Raises InvalidInput naming the element and the parameter: an unknown type, an unknown parameter, a
-    missing required one, a value of the wrong shape or outside its interval.
-    """
+    """Check one element's parameters against its type and fill in the defaults. Raises InvalidInput
+    naming the element and the parameter (unknown type or parameter, missing, wrong shape, out of bounds)."""
     etype = ELEMENT_TYPES.get(type_)
     if etype is None:
         raise InvalidInput(

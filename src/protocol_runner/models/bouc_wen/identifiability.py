@@ -1,36 +1,19 @@
-"""Parameter intervals of a Bouc-Wen fit and the "weakly identified" mark.
+"""Parameter intervals of a Bouc-Wen fit and the "weakly identified" mark (docs/analysis.md §9,
+"Intervals and identifiability", gives the reasons and the tests).
 
-Intervals (95 %):
-
-* The exponent n is profiled over its whole range: on a grid of n values from the fitted n outward to
-  each bound (2, 10, 30, 60 and 100 % of the way, stopping where the profile leaves the interval), the
-  other seven parameters are refitted with n held fixed, giving the profile ``SSE(n)``.  The interval is
-  where ``m_eff ln(SSE(n) / SSE_min) <= 3.84`` (chi-square, one degree of freedom, Gaussian errors of
-  unknown variance). A refit that ends above that limit is continued (``CROSSING_NFEV`` more evaluations)
-  before it ends the interval: one that merely ran out of evaluations would cut the interval short.
-* The other parameters get Wald intervals, ``theta +- 1.96 sigma``, with sigma from the Jacobian at the
-  optimum (:func:`.problem.param_std`); that sigma (n's too) becomes the fit's ``param_std``, so that the
-  standard errors shown beside the parameters are the ones the intervals use.
-* Filtered data have strongly correlated residuals, so ``m`` samples carry far less than ``m`` independent
-  errors.  ``m_eff = m (1 - rho) / (1 + rho)`` with ``rho`` the residuals' lag-1 autocorrelation (the
-  AR(1) effective sample size) is used in both: the profile threshold and sigma scaled by
+* n is profiled from the fitted n toward each bound (`PROFILE_STEPS`), the other seven parameters refitted
+  with n fixed; its 95 % interval is where ``m_eff ln(SSE(n) / SSE_min) <= 3.84`` (chi-square, one degree
+  of freedom). A refit ending above that limit is continued (``CROSSING_NFEV``) before it ends the interval.
+* The others get Wald intervals ``theta +- 1.96 sigma``, sigma from the Jacobian at the optimum; that sigma
+  becomes the fit's ``param_std``.
+* Filtered residuals are correlated: ``m_eff = m (1 - rho) / (1 + rho)`` (rho their lag-1
+  autocorrelation, the AR(1) effective sample size) sets the profile threshold and scales sigma by
   ``sqrt(m / m_eff)``.
 
-The mark.  Each parameter is judged in the dimensionless form in which its bounds are set
-(:class:`.problem.BoucWenBounds`): ``a = A X / Z`` (the stiffness just after a reversal, in units of the
-loop's mean secant slope Z/X), n, and the six Table 4 phase values ``psi'_k`` (Eq 24: how fast the loop
-bends toward saturation in phase k, in units of the loop's own scales).  Their bounds are the physically
-plausible range of each.  A fit is *weakly identified* when, for some parameter, the data leave more than
-half of that plausible range open: its 95 % interval (the set of values whose best fit raises the RMSE by
-less than the noise can tell, so the parameter's effect on the loop is what decides) covers more than
-``COVER_LIMIT`` of the range, or no finite interval exists (a direction the data do not determine at all,
-e.g. a phase never visited).  A value at a bound with a narrow interval (say n = 0.5 with interval
-0.5-0.59: the data want a sharper loop than the bounds allow, and say so clearly) is *not* weak: the
-interval shows it.
-
-Consequences: a loop with no hysteresis (the phase values have no effect, their intervals cover their
-ranges) is weak; a loop that never reaches its knees (a small excitation, where ``|z|^n`` hardly changes and
-n's profile is flat) is weak with n named; a rich excitation of a Bouc-Wen joint is identified.
+Weak: each parameter is judged in the dimensionless form whose bounds are its plausible range
+(:class:`.problem.BoucWenBounds`: ``a = A X / Z``, n and the six Table 4 phase values ``psi'_k``, Eq 24);
+a fit is weak when some 95 % interval covers more than ``COVER_LIMIT`` of that range, or is not finite.
+A value at a bound with a narrow interval is not weak.
 """
 
 from __future__ import annotations

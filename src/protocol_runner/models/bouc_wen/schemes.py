@@ -1,27 +1,16 @@
 """The two integration schemes of the Bouc-Wen state, selected by name (compiled in :mod:`.kernels`).
 
-* ``"refined"`` (the default everywhere): Eq 20-22 integrated along the piecewise-linear angle with
-  bounded, state-dependent substeps (below); the torque does not depend on the sampling rate.
+* ``"refined"`` (the default everywhere): the angle piecewise linear between samples, and Eq 20 with the
+  shape function of Eq 22, ``dz/dx = A - |z|^n Psi(sgn dx, sgn x, sgn z)``, integrated along it by Heun's
+  method on ``m = ceil(|dx| max(1 / h, |dF/dz| / (STIFF_STEP h / DEFAULT_MAX_STEP_DEG)))`` substeps per
+  interval (``h = max_step_deg``, at most ``MAX_SUBSTEPS``; shorter where the loop saturates, ``|dF/dz| =
+  n |z|^(n-1) |Psi|``), each interval cut exactly where the angle crosses 0 (``sgn x`` switches Psi). The
+  substeps depend on the angle path and the state, not the sampling rate: the torque does not either.
 * ``"eq23"``: the thesis's literal recursion, one explicit Euler step per sample (Eq 23); its torque
   changes with the sampling rate.
 
-The refined scheme: the angle is taken as piecewise linear between samples and the differential equation
-of Eq 20 with the shape function of Eq 22, ``dz/dx = A - |z|^n Psi(sgn dx, sgn x, sgn z)``, is integrated
-along it with Heun's second-order method (explicit trapezoidal rule) on substeps of the angle:
-
-* each sample interval ``x_i -> x_{i+1}`` is cut into ``m`` equal substeps with
-  ``m = ceil(|dx| max(1 / h, |dF/dz| / (STIFF_STEP h / DEFAULT_MAX_STEP_DEG)))``, ``h = max_step_deg``
-  (at most ``MAX_SUBSTEPS``): no substep longer than ``max_step_deg`` and, where the loop saturates
-  (``|dF/dz| = n |z|^(n-1) |Psi|`` large), short enough to stay well inside the method's stability region;
-* an interval on which the angle crosses 0 is cut there exactly (``sgn x`` switches Psi, and the torque's
-  rate jumps by ``|z|^n`` times the change of Psi); within a piece ``sgn dx`` and ``sgn x`` are constant
-  and ``sgn z`` is that of each stage's own torque (the rate is continuous across z = 0, where
-  ``|z|^n = 0``);
-* the substep count depends on the angle path and the state, not on the sampling rate: the same parameters
-  give the same torque (to the scheme's accuracy) whether the angle is sampled at 200 Hz or 1 kHz.
-
-The sensitivities ``d z / d theta`` (theta = A, n, beta1..6) are those of the discrete scheme (exact
-derivatives of what is computed, so the optimiser's Jacobian matches its residuals).
+The sensitivities ``dz/dtheta`` (theta = A, n, beta1..6) are exact derivatives of the discrete scheme, so
+the optimiser's Jacobian matches its residuals. docs/analysis.md §9 ("Integration") gives the reasons.
 """
 
 from __future__ import annotations
