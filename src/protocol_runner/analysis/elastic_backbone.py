@@ -1,21 +1,12 @@
-"""The Bouc-Wen backbone from the device's declared elastic elements.
+"""The Bouc-Wen backbone from the device's declared elastic elements (``backbone: elements``; docs/analysis.md
+§9 gives the reasons and the tests).
 
-``torque = g(angle) + z`` (thesis Eq 19-23 for ``z``): with ``backbone: elements`` the elastic part ``g``
-is the sum of the device's angle-only torques (springs, bungees, masses' gravity; thesis §6.1) with the
-parameters the element fit estimates from the loops' midline (:mod:`.element_fit`), and the Bouc-Wen
-state describes what is left.  ``g`` is held fixed during the Bouc-Wen fit.
-
-The element fit is refitted on exactly the trials a Bouc-Wen fit may use (the factory takes their
-indices), so a trial held out by cross-validation never enters its own backbone; the element fit is a
-few small least-squares solves on the branch midline, cheap beside the Bouc-Wen fit.
-
-The Bouc-Wen fit works on loops centred per trial on (0, 0) (thesis §6.2.3 note), while the elements
-are functions of the absolute angle.  In centred coordinates ``g(x) = G(x + a) - c`` where ``a`` is the
-mean of the fitted trials' mean angles and ``c`` the mean of ``G`` over their samples, so ``g`` is
-centred like the torque.  Trials of one configuration repeat the same motion, so their mean angles agree
-closely; a difference ``da`` between a trial's mean angle and ``a`` shifts its ``g`` by about
-``G' da``.  A device with no elastic element, or an element fit that is not applicable, gives ``g = 0``
-(the thesis form torque = z) and the reason is recorded with the fit.
+``torque = g(angle) + z``: ``g`` is the sum of the device's angle-only torques with the parameters the
+element fit estimates from the loops' midline (:mod:`.element_fit`), refitted on exactly the trials a fit
+may use (a held-out trial never enters its own backbone) and held fixed during the Bouc-Wen fit. The loops
+are centred per trial, the elements are functions of the absolute angle: ``g(x) = G(x + a) - c`` with ``a``
+the mean of the fitted trials' mean angles and ``c`` the mean of ``G`` over their samples. No elastic
+element, or an element fit that is not applicable, gives ``g = 0`` with the reason recorded.
 """
 
 from __future__ import annotations
@@ -55,10 +46,8 @@ class ShiftedElements:
 
 def elements_backbone_factory(trials: Sequence[Trial], device: Sequence[object]) -> BackboneFactory:
     """A factory of the elements backbone: given the indices of the trials a fit may use, the element fit
-    on those trials' processed (uncentred) loops, as ``g`` of the centred angle (module docstring).
-
-    trials: each trial's processed ``(angle_deg, brace_torque_nm)``, in the order of the fit's segments.
-    device: the configuration's device (``models.elements.Element`` or ElementSetting-like objects)."""
+    on those trials' processed, uncentred ``(angle_deg, brace_torque_nm)`` (``trials``, in the order of the
+    fit's segments) as ``g`` of the centred angle. ``device``: ``Element`` or ElementSetting-like objects."""
     loops = [_finite(t) for t in trials]
 
     def factory(indices: Sequence[int]) -> FixedBackbone:

@@ -1,19 +1,12 @@
-"""Fit of the device's elastic elements to a processed loop (thesis §6.1, generalised to any device).
+"""Fit of the device's elastic elements to a processed loop (thesis §6.1, generalised to any device;
+docs/analysis.md "8. Element fit").
 
-The device's angle-only torques (its elastic elements — lever springs, torsion springs, bungees — plus the
-gravity of its masses, equations in `models.element_torques`) are compared with the loop. The free
-parameters are each elastic element's `fit` list (default: the type's `default_fit`; for the knee's lever
-spring Max_Preload of Eq 17 and the zero-torque offset, §6.1.6). They are estimated by bounded least
-squares (scipy `least_squares`) from several starts, keeping the best; every other parameter is the
-configuration's value.
-
-The elements have no friction or hysteresis (§6.1.5: "all that can be compared is the general trend"), so
-the target is the loop's *midline*, the mean of the loading and unloading branches at each angle
-(`target="branch_mean"`, the default): a symmetric friction torque cancels there and the fit does not
-depend on how long the joint dwelt at each angle; `trim_deg` (5°) at each end are left out, where the
-friction is still reversing. `target="all_samples"` fits every sample instead. A device with no elastic
-element, or whose elastic elements give no torque (a spring of stiffness 0), has nothing to fit: the
-result says "not applicable" and why.
+The model is the sum of the device's angle-only torques (elastic elements and the gravity of masses,
+`models.element_torques`); its free parameters are each elastic element's `fit` list, estimated by bounded
+least squares from several starts, every other parameter the configuration's value. The elements have no
+friction, so the default target is the loop's *midline* (`target="branch_mean"`, a symmetric friction
+cancels there) less `trim_deg` at each end; `"all_samples"` fits every sample. A device with nothing to fit
+gives a "not applicable" result with the reason.
 """
 
 from __future__ import annotations

@@ -1,16 +1,12 @@
-"""Model comparison of one configuration (and joint), side by side on the same trials (docs/analysis.md
-§10): ``elements`` (the element model, `analysis.model_fit`), ``dahl`` (the elastic elements plus a plain
-Dahl friction: what a two-parameter hysteresis adds to the springs) and ``bouc_wen`` (the fit step's
-generalised Bouc-Wen model with its backbone; k counts its eight parameters and the backbone's
+"""Model comparison of one configuration (and joint) on the same trials (docs/analysis.md §10):
+``elements`` (the element model, `analysis.model_fit`), ``dahl`` (the elastic elements plus one plain Dahl
+friction) and ``bouc_wen`` (the fit step's model; k counts its eight parameters and the backbone's
 coefficients).
 
-For each: k, RMSE, held-out RMSE with the trial as the unit (element-model refits start from the fit on
-every trial and stop at HELDOUT_TOL; the Bouc-Wen one is the fit's own cross-validation), AIC = n_eff
-ln(SSE / n) + 2k and BIC = n_eff ln(SSE / n) + k ln(n_eff) with the element model's n_eff for every model
-(so that the differences compare), and the model's and data's loop energy per cycle (flagged beyond
-ENERGY_FLAG). For the mostly unidentified Bouc-Wen parameters, what the loops do determine is reported
-instead, each with a 95 % t-interval over the trials: the model's loop energy per cycle, its half-width
-(energy over twice the angle span, N·m) and its backbone slope.
+Per model: k, RMSE, held-out RMSE with the trial as the unit, AIC = n_eff ln(SSE / n) + 2k and BIC = n_eff
+ln(SSE / n) + k ln(n_eff) (the element model's n_eff for every model, so the differences compare) and the
+loop energy per cycle beside the data's (flagged beyond ENERGY_FLAG). For the Bouc-Wen model, what the loops
+do determine, each with a 95 % t-interval over the trials: loop energy, half-width and backbone slope.
 """
 
 from __future__ import annotations
@@ -31,7 +27,7 @@ from .model_fit import ElementModelFit, Problem, fit_element_model, mean_energy_
 ENERGY_FLAG = 0.03  # |model - data| / data above this: flagged
 MODELS = ("elements", "dahl", "bouc_wen")
 MOTION_STEP_DEG = 1.0  # the fit samples each trial at about this much travel (median step)
-HELDOUT_TOL = 1e-3  # least_squares ftol and xtol of the held-out refits (module docstring)
+HELDOUT_TOL = 1e-3  # least_squares ftol and xtol of the held-out refits
 
 
 @dataclass(frozen=True)
@@ -107,7 +103,7 @@ def reduced_layout(elements: Sequence[Element], angle_deg: FloatArray) -> ModelL
 
 def heldout_rmse_nm(motions: Sequence[Motion], fit: ElementModelFit) -> float:
     """Leave one trial out: each trial predicted by the model refitted on the others (NaN for one trial).
-    Each refit starts from the fit on every trial and stops at HELDOUT_TOL (module docstring)."""
+    Each refit starts from the fit on every trial and stops at HELDOUT_TOL."""
     if len(motions) < 2:
         return math.nan
     lay = fit.layout
@@ -172,14 +168,14 @@ def bouc_wen_functionals(
         span_rad = math.radians(float(np.ptp(x)))
         half.append(e / (2.0 * span_rad) if span_rad > 0 else math.nan)
         slope.append(float(np.polyfit(x, z, 1)[0]))
-    out = []
-    for name, unit, values in (
-        ("loop energy per cycle", "J", energy),
-        ("loop half-width", "N*m", half),
-        ("backbone slope", "N*m/deg", slope),
-    ):
-        out.append(Functional(name, unit, *_interval(values)))
-    return tuple(out)
+    return tuple(
+        Functional(name, unit, *_interval(values))
+        for name, unit, values in (
+            ("loop energy per cycle", "J", energy),
+            ("loop half-width", "N*m", half),
+            ("backbone slope", "N*m/deg", slope),
+        )
+    )
 
 
 def compare_models(
