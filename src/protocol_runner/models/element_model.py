@@ -1,21 +1,14 @@
-"""The device's elements as a physical model of a measured loop: the torque every declared element gives
-along a recorded motion, elastic and dissipative alike.
-
-The torque at each sample of a trial (angle θ, speed v from the sample times) is
+"""The device's elements as a physical model of a measured loop (docs/analysis.md §10): at each sample of a
+trial (angle θ, speed v)
 
     τ = Σ angle-only torques (elastic elements, masses' gravity)  +  range-of-motion stops
         + F  (one Dahl friction state for all Coulomb brakes together)  +  c · v  (all dampers together)
 
-with every equation from :mod:`.element_torques`. The brakes act on one hinge and slide together, so the
-loop only shows the *sum* of their friction torques: the model has one friction term, named after every
-brake it stands for ("brake+hinge"), whose level is the sum of their torques and whose transition and
-Stribeck excess are the torque-weighted means of theirs (the simulator's shared state when they share
-their smoothing, as the campaigns declare). The dampers are summed likewise. The simulator-tuned cuff
-shift (kind "artefact") has no physical counterpart and is left out.
-
-A :class:`ModelLayout` says which parameters are free: each elastic element's `fit` list (as the elastic
-fit), the friction sum's torque and transition, the damper sum's coefficient; `values` maps
-(element, parameter) to a number for the torque functions.
+with every equation from :mod:`.element_torques`. Brakes on one hinge slide together, so the loop shows only
+the *sum* of their torques: one friction term named after them all ("brake+hinge"), its level their sum,
+its transition and Stribeck excess their torque-weighted means; dampers are summed likewise; the cuff shift
+(an artefact) is left out. A :class:`ModelLayout` says which parameters are free; `values` maps (element,
+parameter) to a number for the torque functions.
 """
 
 from __future__ import annotations
@@ -137,15 +130,10 @@ class Motion:
 
         `max_step_deg`: keep every k-th sample only, k the largest keeping the median angle step within
         it (the Dahl update is exact over any monotone step); None keeps every sample. The speed is the
-        central difference of the angle over the kept samples: over single samples the angle sensor's
-        noise becomes speed noise, which biases the damper's coefficient toward zero.
-
-        `turning_points(angle_deg, reversal_deg)`: the indices of the motion's turning points (the
-        analysis's `branches.turning_points`; None marks none). The samples within REVERSAL_SKIP_DEG of
-        travel after each are marked `reversing`: there the equal-angle subtraction cannot follow the
-        robot's own friction reversal (its brace-off curve's first bin averages the reversal's steepest
-        part), an error at the lowest speeds of every cycle that, fitted, moves a damper's torque into
-        the brake."""
+        central difference over the kept samples (over single samples the sensor noise biases a damper's
+        coefficient toward zero). `turning_points(angle_deg, reversal_deg)` (`branches.turning_points`;
+        None marks none): the samples within REVERSAL_SKIP_DEG of travel after each are `reversing`, where
+        the equal-angle subtraction cannot follow the robot's own friction reversal."""
         t = np.asarray(time_s, dtype=np.float64)
         a = np.asarray(angle_deg, dtype=np.float64)
         y = np.asarray(torque_nm, dtype=np.float64)
