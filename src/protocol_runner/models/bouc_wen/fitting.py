@@ -421,26 +421,18 @@ def fit(
     trials: Sequence[int] | None = None,
     **options: Unpack[FitKeywords],
 ) -> BoucWenFit:
-    """Fit the generalised Bouc-Wen model (Eq 20-23) to angle/torque samples by least squares (§6.2.3).
+    """Fit the generalised Bouc-Wen model (Eq 20-23) to angle/torque samples by least squares (§6.2.3),
+    as given (no centring: do it before calling), the recursion started at ``z0 = torque_nm[0]``.
 
-    The samples are fitted as given - no centring here (the thesis centres each trial on (0, 0) first,
-    note under Table 4; do that before calling).  The recursion starts at ``z0 = torque_nm[0]``.
+    trials: lengths of consecutive trials making up the samples, each restarting the recursion at its own
+        first torque; ``None``: one trial. options: see :class:`.FitOptions`. RMSE and R^2 are on every
+        given sample; with the refined scheme decimation only drops residuals, never the angle path.
 
-    trials: lengths of consecutive trials making up ``x_deg``/``torque_nm`` (summing to its length), each
-        restarting the recursion at its own first torque; ``None``: one trial (:func:`fit_trials` takes a
-        list of segments).
-    options: starts, initial, data_starts, bounds, seed, max_samples_per_trial (default 8000), polish and
-        scheme (default ``"refined"``), see :class:`.FitOptions`.  With the refined scheme the integration
-        follows the angle between the kept samples, so decimating smooth data only drops residuals; with
-        ``scheme="eq23"`` the explicit-Euler error grows with the angle step.  RMSE and R^2 are on every
-        given sample.
-
-    Procedure: every start gets a short trust-region solve (``scipy.optimize.least_squares``, analytic
-    Jacobian, bounds) on a coarse copy of the data (at most 400 samples per trial); the best ``polish``
-    distinct ones are refined on the fitted samples and the lowest cost wins (on every sample when the best
-    start's Eq 23 recursion diverges only on the decimated samples).  A start whose recursion diverges is
-    first pulled toward a straight line of the loop's mean slope until it no longer does; during the solve
-    a diverged torque is held at 10x the data's torque scale, a large finite penalty.
+    Procedure (docs/analysis.md §9): a short trust-region solve (``least_squares``, analytic Jacobian,
+    bounds) from every start on a coarse copy (at most 400 samples per trial); the best ``polish``
+    distinct ones refined on the fitted samples, the lowest cost wins. A start whose recursion diverges is
+    first pulled toward a straight line of the loop's mean slope; during the solve a diverged torque is
+    held at 10x the data's torque scale, a large finite penalty.
     """
     x = as_angle(x_deg)
     y = as_angle(torque_nm, "torque_nm")
@@ -467,19 +459,17 @@ def fit_trials(
     backbone_factory: BackboneFactory | None = None,
     **options: Unpack[FitKeywords],
 ) -> BoucWenFit:
-    """Fit one model jointly to several trials ``[(angle_deg, torque_nm), ...]`` of one configuration.
-
-    Each trial starts its own Eq 23 recursion at its own first torque.  Options as in :func:`fit`.
+    """Fit one model jointly to several trials ``[(angle_deg, torque_nm), ...]`` of one configuration,
+    each started at its own first torque. Options as in :func:`fit`.
 
     backbone_degree: ``None`` fits the thesis form ``torque = z``; an integer fits ``torque = g(angle) + z``
-        with ``g`` a polynomial of that degree through every sample (:mod:`.backbone`), then the Bouc-Wen
-        state to what is left; the result's ``backbone`` holds ``g`` and its errors are of the whole torque.
-    backbone_factory: instead of a polynomial, ``g`` given from outside and held fixed (e.g. the device's
-        elastic elements, :class:`.backbone.FixedBackbone`), called with the indices of all the trials.
+        with ``g`` a polynomial of that degree (:mod:`.backbone`) and the state on what is left; the
+        result's ``backbone`` holds ``g`` and its errors are of the whole torque.
+    backbone_factory: ``g`` given instead and held fixed (:class:`.backbone.FixedBackbone`), called with the
+        indices of all the trials.
 
-    Decimation guard (``scheme="eq23"`` only): where a fit on decimated samples does not carry over to
-    every sample (R^2 below FULL_REFIT_R2 or divergence, e.g. at a range-of-motion stop), it is redone on
-    every sample and the better of the two (by RMSE on every sample) is returned.
+    With ``scheme="eq23"``, a fit on decimated samples that does not carry over to every sample (R^2 below
+    FULL_REFIT_R2 or divergence) is redone on every sample, and the better by RMSE is returned.
     """
     checked = _validate_segments(segments)
     backbone = backbone_for(checked, range(len(checked)), backbone_degree, backbone_factory)
@@ -514,22 +504,13 @@ def cross_validate(
     backbone_factory: BackboneFactory | None = None,
     **options: Unpack[FitKeywords],
 ) -> list[float]:
-    """Leave-one-trial-out RMSE (N*m): for each trial, fit the others and predict the held-out trial from
-    its own first torque.  Needs at least two trials.
-
-    Each held-out fit is a multi-start fit of its own on the other trials (options as in
-    :func:`.fit_trials`): nothing computed from the held-out trial enters it.  It ends with its polish (to
-    ``HELD_OUT_FTOL``) on the mid-size copy of the other trials that keeps their angle's turning points,
-    not with a last solve on the fitted samples (within 1 % of the full procedure's held-out error,
-    docs/analysis.md).  A parameter only the held-out trial determines stays where the other trials leave
-    it, and the held-out error shows it.
-
-    backbone_degree: as in :func:`.fit_trials`; each held-out fit then fits its backbone on the other
-        trials too, and the held-out prediction is ``g(angle) + z``.
-    backbone_factory: as in :func:`.fit_trials`; called with the other trials' indices for each held-out
-        fit (a factory that fits ``g`` fits it on those trials only).
-    initial: extra start(s) for every held-out fit.  It must not have been fitted on the held-out trial
-        (a fit on all trials would carry the held-out trial into its own test); ``None`` by default.
+    """Leave-one-trial-out RMSE (N*m) of at least two trials: for each, a multi-start fit of its own on
+    the other trials (options as in :func:`.fit_trials`; nothing from the held-out trial enters it, its
+    backbone included: a factory is called with the other trials' indices) predicts it from its own first
+    torque. Each held-out fit ends with its polish (to ``HELD_OUT_FTOL``) on the mid-size copy of the
+    other trials that keeps their turning points, without a last solve on the fitted samples (within 1 %
+    of the full procedure's held-out error, docs/analysis.md §9). ``initial`` must not have been fitted
+    on the held-out trial (a fit on all trials would carry it into its own test).
     """
     checked = _validate_segments(segments)
     if len(checked) < 2:
