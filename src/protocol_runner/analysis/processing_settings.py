@@ -1,6 +1,5 @@
-"""Every choice of the processing (thesis §3.2, §3.3.1, §4.4), in a module of its own: a plain dataclass
-that whoever hands settings to the processing (the session, the protocol loader) imports without loading
-the processing itself (`pipeline`: scipy's signal and optimisation packages)."""
+"""Every choice of the processing (thesis §3.2, §3.3.1, §4.4): a plain dataclass that the session and the
+protocol loader import without loading the processing itself (scipy's signal and optimisation packages)."""
 
 from __future__ import annotations
 
@@ -21,6 +20,15 @@ FilterKind = Literal["butterworth", "chebyshev"]
 FILTER_KINDS: tuple[str, ...] = ("butterworth", "chebyshev")
 Subtraction = Literal["equal_angle", "equal_time"]
 Centring = Literal["trial_mean", "none"]
+CHOICES: dict[str, tuple[str, ...]] = {  # the settings that name one of a few methods, and their names
+    "command_resampling": ("hold", "linear"),
+    "filter_kind": FILTER_KINDS,
+    "subtraction": ("equal_angle", "equal_time"),
+    "outside": ("clip", "nan"),
+    "cycle_reference": ("mean", "linear"),
+    "centring": ("trial_mean", "none"),
+    "element_fit_target": ("branch_mean", "all_samples"),
+}
 
 
 @dataclass(frozen=True)
@@ -53,14 +61,14 @@ class ProcessingSettings:
         def bad(field_name: str, why: str) -> InvalidInput:
             return InvalidInput(f"processing settings: {field_name} {why}, got {getattr(self, field_name)!r}")
 
-        if not self.transition_tolerance_deg > 0:
-            raise bad("transition_tolerance_deg", "must be positive")
+        for name in ("transition_tolerance_deg", "chebyshev_ripple_db", "bin_width_deg", "reversal_deg"):
+            if not getattr(self, name) > 0:
+                raise bad(name, "must be positive")
+        for name, allowed in CHOICES.items():
+            if getattr(self, name) not in allowed:
+                raise bad(name, "must be " + " or ".join(map(repr, allowed)))
         if isinstance(self.transition_points, bool) or self.transition_points < 1:
             raise bad("transition_points", "must be a whole number >= 1")
-        if self.command_resampling not in ("hold", "linear"):
-            raise bad("command_resampling", "must be 'hold' or 'linear'")
-        if self.filter_kind not in FILTER_KINDS:
-            raise bad("filter_kind", f"must be one of {', '.join(FILTER_KINDS)}")
         if (
             isinstance(self.filter_order, bool)
             or not isinstance(self.filter_order, int | np.integer)
@@ -69,24 +77,8 @@ class ProcessingSettings:
             raise bad("filter_order", "must be a whole number >= 1")
         if not 0 < self.filter_cutoff < 1:
             raise bad("filter_cutoff", "must be a fraction of the Nyquist frequency strictly between 0 and 1")
-        if not self.chebyshev_ripple_db > 0:
-            raise bad("chebyshev_ripple_db", "must be positive")
-        if self.subtraction not in ("equal_angle", "equal_time"):
-            raise bad("subtraction", "must be 'equal_angle' or 'equal_time'")
-        if not self.bin_width_deg > 0:
-            raise bad("bin_width_deg", "must be positive")
-        if not self.reversal_deg > 0:
-            raise bad("reversal_deg", "must be positive")
-        if self.outside not in ("clip", "nan"):
-            raise bad("outside", "must be 'clip' or 'nan'")
-        if self.cycle_reference not in ("mean", "linear"):
-            raise bad("cycle_reference", "must be 'mean' or 'linear'")
         if self.cycle_hysteresis_deg is not None and not self.cycle_hysteresis_deg >= 0:
             raise bad("cycle_hysteresis_deg", "must be >= 0 (or None for automatic)")
-        if self.centring not in ("trial_mean", "none"):
-            raise bad("centring", "must be 'trial_mean' or 'none'")
-        if self.element_fit_target not in ("branch_mean", "all_samples"):
-            raise bad("element_fit_target", "must be 'branch_mean' or 'all_samples'")
 
     def filter_description(self, sample_rate_hz: float | None = None) -> dict[str, Any]:
         """The filter settings as a plain dict (for the archive's `filter` JSON attribute); with the input

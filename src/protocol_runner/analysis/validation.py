@@ -1,10 +1,6 @@
-"""Input checks shared by the analysis functions, and the error they raise.
-
-Analysis runs on archived data with settings from the protocol file; when the two do not fit (a trial
-shorter than the filter's padding, a transition that is never reached, a brace-off trial without a
-loading branch, ...) the user gets an `AnalysisError` naming the quantity and the reason, never a
-traceback. `AnalysisError` is an `InvalidInput` (exit status 2): the archive or the settings are wrong for
-the requested processing.
+"""Input checks shared by the analysis functions, and the error they raise: an `AnalysisError` (an
+`InvalidInput`, exit status 2) naming the quantity and the reason when the archived data and the protocol's
+settings do not allow a step (a trial shorter than the filter's padding, a transition never reached, ...).
 """
 
 from __future__ import annotations
@@ -27,10 +23,8 @@ class AnalysisError(InvalidInput):
 def as_signal(
     name: str, values: npt.ArrayLike, *, min_length: int = 1, allow_nan: bool = False
 ) -> FloatArray:
-    """Return `values` as a 1-D float64 array, or raise `AnalysisError` naming `name`.
-
-    Checks: one dimension, at least `min_length` samples, and (unless `allow_nan`) only finite values.
-    """
+    """`values` as a 1-D float64 array of at least `min_length` samples, finite unless `allow_nan`, or
+    `AnalysisError` naming `name`."""
     try:
         array = np.asarray(values, dtype=np.float64)
     except (TypeError, ValueError) as exc:
