@@ -1,8 +1,8 @@
-"""Fit one configuration's centred trials with the generalised Bouc-Wen model and gather the evidence a
-modeller needs to trust it: the fit (step-independent integration, its 4x-finer check and its
-convergence record), leave-one-trial-out errors, parameter intervals, and the model's loop energy beside the
-data's.  Pure: arrays in, numbers out (the fit step and ``--reprocess`` both fit through :func:`fit_loops`,
-so they give the same numbers)."""
+"""Fit one configuration's centred trials with the generalised Bouc-Wen model, with the evidence a modeller
+needs to trust it (docs/analysis.md §9): the fit and its convergence record, leave-one-trial-out errors,
+parameter intervals, and the model's loop energy beside the data's. Pure: the fit step and ``--reprocess``
+both fit through :func:`fit_loops`, so they give the same numbers.
+"""
 
 from __future__ import annotations
 

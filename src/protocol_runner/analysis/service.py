@@ -25,19 +25,16 @@ from .validation import SIGNAL, FloatArray
 Loop = tuple[np.ndarray, np.ndarray]
 Backbone = Literal["polynomial", "elements", "none"]
 
-#: The processed loops are stored at this rate: they are low-passed far below 100 Hz (thesis filter: 10 % of
-#: the 500 Hz Nyquist frequency, order 10), so nothing is lost, and a campaign's archive stays < 100 MB.
-#: Energies and the element fit are computed before this decimation, at the full input rate.
+#: The processed loops are stored at this rate (low-passed far below 100 Hz, so nothing is lost; energies
+#: and the element fit are computed before this decimation, at the full input rate).
 PROCESSED_RATE_HZ = 200.0
 
 
 @dataclass(frozen=True)
 class BoucWenSettings:
-    """How the Bouc-Wen model is fitted (the protocol's `fits.bouc_wen`, minus whether it runs at all).
-
-    backbone: torque = g(angle) + z with g a polynomial of degree `backbone_degree` ("polynomial"), the
-    device's elastic elements ("elements"; g = 0 when the element fit is off) or g = 0 ("none", the thesis
-    form torque = z)."""
+    """How the Bouc-Wen model is fitted (the protocol's `fits.bouc_wen`): `backbone` g of torque = g(angle)
+    + z is a polynomial of degree `backbone_degree`, the device's elastic elements (g = 0 when the element
+    fit is off) or "none" (the thesis form torque = z)."""
 
     starts: int = 8
     cross_validate: bool = True

@@ -1,15 +1,9 @@
 """Trial-level statistics: the trial is the experimental unit, not the cycle (cycles within one trial share
-mounting, warm-up and brake state).
-
-A configuration's energy per cycle is the mean of its trial means with a Student t-interval over trials;
-two configurations differ with a Welch interval; repeatability of identical configurations run in
-different sets is their between-configuration CV and the ICC(1) of the trial means.
-
-Decisions (report/evaluate.py) are taken at the family-wise level `ALPHA`: one-sided tests for a stated
-direction, two one-sided tests (TOST) for an equivalence within a margin, Holm across a family.
-
-Student t quantiles and tails are `scipy.special.stdtrit` and `stdtr`, the functions `scipy.stats.t`
-computes them with (the same numbers), without importing all of `scipy.stats` into every report.
+mounting, warm-up and brake state). Means with Student t-intervals over trials, Welch intervals of
+differences and contrasts, the repeatability of identical configurations (between-configuration CV and
+ICC(1)), one-sided p-values and Holm's adjustment for the report's decisions (report/evaluate.py) at the
+family-wise level `ALPHA`. Student t quantiles and tails are `scipy.special.stdtrit` and `stdtr`, what
+`scipy.stats.t` computes them with, without importing all of `scipy.stats` into every report.
 """
 
 from __future__ import annotations

@@ -1,22 +1,13 @@
-"""The elastic backbone of a joint's loop: ``torque = g(angle) + z``.
+"""The elastic backbone of a joint's loop: ``torque = g(angle) + z`` (docs/analysis.md §9, "Backbone plus
+hysteresis").
 
-The thesis models the whole torque as the hysteretic state (``torque = z``), so a spring's elastic torque
-and a brake's friction are forced into one hysteresis and the parameters cannot be compared across
-configurations.  Here the elastic part is a smooth function of the angle alone, fitted first, and the
-Bouc-Wen state describes what is left.
-
-Unless the campaign declares its device elements (springs, bungees, stops), ``g`` is generic: a
-polynomial of the angle (degree 9 by default, in ``u = angle / angle_scale`` so that it is well
-conditioned) fitted by least squares to every sample of every trial.  On a cyclic loop the least-squares
-curve runs midway between the loading and unloading branches: the loop's midline, which carries no
-energy (``g`` is a function of the angle, so its loop integral is zero); all the loss stays in ``z``.
-Degree 9 follows the range-of-motion stops of the knee dry runs (nearly vertical ends) that lower degrees
-cannot; it is not meant to extrapolate beyond the fitted angle range.
-
-A :class:`FixedBackbone` is a ``g`` given from outside as a function of the angle (the device's declared
-elastic elements with their fitted parameters, thesis §6.1, built by the analysis layer); it stays fixed
-while the Bouc-Wen state is fitted.  A :data:`BackboneFactory` builds one from the indices of the trials a
-fit may use, so that a held-out trial never enters its own backbone (cross-validation).
+The elastic part is a smooth function of the angle alone, fitted first, and the Bouc-Wen state describes
+what is left (the thesis's ``torque = z`` forces a spring and a brake into one hysteresis). By default ``g``
+is a polynomial of ``u = angle / angle_scale`` (degree 9: it follows range-of-motion stops) fitted by least
+squares to every sample: the loop's midline, which encloses no energy, so all the loss stays in ``z``. A
+:class:`FixedBackbone` is a ``g`` given from outside (the device's elastic elements), held fixed; a
+:data:`BackboneFactory` builds one from the indices of the trials a fit may use, so that a held-out trial
+never enters its own backbone.
 """
 
 from __future__ import annotations
