@@ -99,11 +99,8 @@ def _check_preload_position(preload_position: float) -> float:
 
 
 def spring_initial_load_m(preload_position: float, max_preload_mm: float, geometry: SpringGeometry) -> float:
-    """Initial spring extension set by the preload screw (Eq 17), in metres.
-
-    Initial_Load = Max_Preload - c * preload_angle_step * π/180 * n, n = `preload_position` (a whole
-    number >= 0; the knee brace has positions 1 = most preload .. 5). Can be negative for a small `max_preload_mm` (the spring is then slack near α).
-    """
+    """Initial spring extension set by the preload screw (Eq 17), in metres, for screw position n =
+    `preload_position` (a whole number >= 0); negative for a small `max_preload_mm` (slack near α)."""
     n = _check_preload_position(preload_position)
     if not math.isfinite(max_preload_mm):
         raise InvalidInput(f"max_preload_mm must be finite, got {max_preload_mm!r}")
@@ -118,11 +115,8 @@ def spring_force_n(
     max_preload_mm: float,
     geometry: SpringGeometry,
 ) -> FloatArray:
-    """Tension of one spring at brace angle θ (Eq 14): F = K (Initial_Load + δ(θ)), in newtons.
-
-    `stiffness_n_per_mm` is K in N/mm (0 = no spring, K0). Extension springs cannot push: a negative
-    extension gives zero force. Vectorised over `angle_deg`.
-    """
+    """Tension of one spring at brace angle θ (Eq 14), in newtons; K in N/mm (0 = no spring, K0); an
+    extension spring cannot push. Vectorised over `angle_deg`."""
     _check_stiffness(stiffness_n_per_mm)
     _, _, length = _attachment_geometry(angle_deg, geometry)
     return _force_n(stiffness_n_per_mm, preload_position, max_preload_mm, geometry, length)
@@ -156,13 +150,10 @@ def spring_torque_nm(
     geometry: SpringGeometry,
     zero_offset_deg: float = 0.0,
 ) -> FloatArray:
-    """Torque of the brace springs about the joint axis at joint angle `angle_deg` (Eq 13, 14, 18), N·m.
-
-    T = -n_springs * F * a * (cos λ sin α + sin λ cos α), λ from Eq 18 (evaluated with atan2 so that the
-    quadrant is right beyond θ ≈ 90°). Positive = the robot must push in flexion (the brace resists
-    flexion above the zero-torque angle). `zero_offset_deg` shifts the curve: the brace angle is
-    θ = angle_deg - zero_offset_deg, so the zero-torque angle becomes α + zero_offset_deg (thesis §6.1.6:
-    the zero crossing moves when the springs change). Stiffness 0 (K0) gives zeros. Vectorised.
+    """Torque of the brace springs about the joint axis at joint angle `angle_deg` (Eq 13, 14, 18), N·m,
+    positive where the robot must push in flexion. The brace angle is θ = angle_deg - zero_offset_deg, so
+    the zero-torque angle is α + zero_offset_deg (thesis §6.1.6: it moves when the springs change).
+    Stiffness 0 (K0) gives zeros. Vectorised.
     """
     if not math.isfinite(zero_offset_deg):
         raise InvalidInput(f"zero_offset_deg must be finite, got {zero_offset_deg!r}")
