@@ -425,8 +425,10 @@ def fit(
     as given (no centring: do it before calling), the recursion started at ``z0 = torque_nm[0]``.
 
     trials: lengths of consecutive trials making up the samples, each restarting the recursion at its own
-        first torque; ``None``: one trial. options: see :class:`.FitOptions`. RMSE and R^2 are on every
-        given sample; with the refined scheme decimation only drops residuals, never the angle path.
+        first torque; ``None``: one trial.
+    options: starts, initial, data_starts, bounds, seed, max_samples_per_trial (default 8000), polish and
+        scheme (default ``"refined"``), see :class:`.FitOptions`. RMSE and R^2 are on every given sample;
+        with the refined scheme decimation only drops residuals, never the angle path.
 
     Procedure (docs/analysis.md §9): a short trust-region solve (``least_squares``, analytic Jacobian,
     bounds) from every start on a coarse copy (at most 400 samples per trial); the best ``polish``
