@@ -20,7 +20,6 @@ never clamps: a value outside the calibrated span stays visible, and the map sta
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,7 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.tables import parse_header_table, read_table_text
+from protocol_runner.tables import finite_numbers, parse_header_table, read_table_text
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -134,12 +133,7 @@ def load_calibration_table(path: Path | str) -> CalibrationTable:
                 )
             header = cells
             continue
-        try:
-            xv, yv = float(cells[0]), float(cells[1])
-        except ValueError:
-            raise InvalidInput(f"{where}: not a number: {line!r}") from None
-        if not (math.isfinite(xv) and math.isfinite(yv)):
-            raise InvalidInput(f"{where}: values must be finite numbers, found {line!r}")
+        xv, yv = finite_numbers(row, where)
         if xs:
             if xv <= xs[-1]:
                 raise InvalidInput(
