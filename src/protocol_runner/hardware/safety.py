@@ -1,13 +1,7 @@
-"""Safety envelope for everything sent to the robot (docs/hardware-model.md §4).
-
-`check_trajectory` checks a commanded trajectory as a whole *before* anything is written: every sample
-finite and inside the protocol's joint range; rate (first difference × output rate) within
-`max_rate_deg_s`; acceleration (second difference × rate²) within `max_accel_deg_s2`; optionally the volts
-after the command look-up table (thesis §2.5.1) and Eq 1 within ±10 V. A violation raises `SafetyViolation`
-(a `StoppedByCheck`, exit status 4) naming the step, the limit, the worst value, its sample index and time.
-`clamp_volts` is the second line of defence at the output; `parking_ramp_deg` moves the joint to its rest
-angle within the rate and acceleration limits. The move to the first sample is checked only with
-`initial_deg`: trials and calibration checks send whole streams (`hardware/stream.py`), junctions included.
+"""Safety envelope for everything sent to the robot (docs/hardware-model.md §4 states the checks, their
+order and the parking ramp). `check_trajectory` refuses a commanded trajectory as a whole *before* anything
+is written, with a `SafetyViolation` (exit status 4); `clamp_volts` is the second line of defence at the
+output. Trials and calibration checks send whole streams (`hardware/stream.py`), junctions included.
 """
 
 from __future__ import annotations

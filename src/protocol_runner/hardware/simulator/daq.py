@@ -1,27 +1,14 @@
 """The DAQ simulator: a clock, an analog output and an analog input scan that satisfy
 `hardware.interfaces` and drive a physical model of each joint of the rig (`plant.py`) instead of the RSST.
 
-Signal path, mirroring the real rig (thesis §2.4-2.5), per joint:
+The signal path mirrors the real rig (docs/simulator.md, "Command path" and "Sensors"): the USB-3105's code
+-> Eq 2 -> the inverse of the command table -> `JointPlant` -> the inverses of the angle and torque tables
+-> Eq 1 / Eq 3 inverted -> volts + noise -> DT9814 codes, so that after the rig's calibration tables
+measured ≈ real. Several joints share one clock, one USB-3105 stand-in and one scan, and are simulated
+independently: each plant acts only on its own channel's writes and sees only its own device.
 
-    Rig ── volts ──▶ SimulatedAnalogOutput: USB-3105 16-bit code, recorded with its time
-        ──▶ the robot's VME reads the code's volts ──▶ Eq 2 (the inverse of Eq 1) over the joint range
-        ──▶ the robot's own nonlinearity (the inverse of the protocol's command table, thesis §2.5.1)
-        ──▶ JointPlant (servo + loads), integrated lazily up to the clock when the scan is read
-        ──▶ real angle / load torque ──▶ the robot's sensor nonlinearity (inverses of the angle and torque
-            tables) ──▶ Eq 1 / Eq 3 inverted ──▶ volts + noise ──▶ DT9814 12-bit ±10 V codes at the scan rate
-
-so that, after the rig applies its calibration tables, measured ≈ real. With no table the robot is linear.
-
-Several joints share one clock, one USB-3105 stand-in and one scan, and are simulated independently: each
-plant acts only on its own channel's writes, at their time, and sees only its own device.
-
-Determinism (docs/simulator.md, "Determinism"): `SimulatedRig.begin_step(step_id, trial)` reseeds each
-joint's noise from sha256(joint seed, step id), draws the trial's friction spread from sha256(joint seed,
-trial), rests the joint at its park angle and restarts the plant's grid at the clock. The joint seed is the
-session seed on a rig of one joint, `joint_seed` of (session seed, joint name) on a rig of several. Fixed
-grid, commands from the first grid step at or after their write, noise drawn row by row: the same seed and
-step id give identical arrays however often the scan is read (in simulated time; `realtime=True` paces with
-the wall clock and its write times jitter).
+The same seed and step id give identical arrays however often the scan is read (docs/simulator.md,
+"Determinism"; `realtime=True` paces with the wall clock and its write times jitter).
 """
 
 from __future__ import annotations
