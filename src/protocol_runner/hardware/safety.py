@@ -27,14 +27,9 @@ MAX_RAMP_SAMPLES = 1_000_000
 
 @dataclass(frozen=True)
 class SafetyLimits:
-    """The envelope a commanded trajectory must stay inside.
-
-    range_deg: (min, max) joint angle allowed (from the protocol; may be narrower than the Eq 1 range).
-    max_rate_deg_s: largest |angular rate| allowed between consecutive output samples.
-    max_accel_deg_s2: largest |angular acceleration| (second difference) allowed.
-    park_angle_deg: the rest angle the joint is parked at (inside range_deg).
-    park_rate_deg_s: cruising rate of the parking ramp (<= max_rate_deg_s).
-    """
+    """The envelope a commanded trajectory must stay inside: `range_deg` (may be narrower than the Eq 1
+    range), the largest |rate| and |acceleration| between output samples, and the parking ramp's rest angle
+    (inside the range) and cruising rate (<= max_rate_deg_s)."""
 
     range_deg: tuple[float, float]
     max_rate_deg_s: float

@@ -27,13 +27,9 @@ TORQUE_ROUNDING = 1e-6  # a fraction of the torque range: single-precision round
 
 @dataclass(frozen=True)
 class WatchdogLimits:
-    """What the watchdog allows one joint while it moves.
-
-    torque_limits_nm: (min, max) measured torque allowed.
-    max_tracking_error_deg: largest |measured angle - command delayed by lag_s| allowed ...
-    max_tracking_error_s: ... for longer than this.
-    lag_s: the servo lag the command is delayed by before it is compared with the measured angle.
-    """
+    """What the watchdog allows one joint while it moves: the measured torque within `torque_limits_nm`;
+    |measured angle - command delayed by `lag_s`| beyond `max_tracking_error_deg` for at most
+    `max_tracking_error_s`."""
 
     torque_limits_nm: tuple[float, float]
     max_tracking_error_deg: float

@@ -396,20 +396,16 @@ class SimulatedRig:
         return self.models[0].step_id
 
     def begin_step(self, step_id: str, trial: str | None = None) -> None:
-        """Start step `step_id`: for every joint, reseed the noise from (its seed, step id), draw the
-        between-trial spread of the friction terms from (its seed, `trial`; the step id without one), put it
-        at rest at its park angle with its friction states relaxed, restart the plant's time grid now; clear
-        the output records. The devices stay as fitted. Steps that name the same `trial` (a brace-on trial
-        and its brace-off twin) see the same robot and device friction."""
+        """Start step `step_id` (docs/simulator.md, API): every joint reseeded from (its seed, step id), its
+        friction spread drawn from (its seed, `trial`), at rest at its park angle. Steps that name the same
+        `trial` (a brace-on trial and its brace-off twin) see the same robot and device friction."""
         self.ao.clear_records()
         for m in self.models:
             m.begin_step(step_id, trial)
 
     def set_device(self, elements: Sequence[object] | None, *, joint: str | None = None) -> None:
         """The operator fits the device under test made of `elements` to `joint` (the only one when None),
-        or removes it (with None): objects with .name, .type and .params (a mapping or (key, value) pairs,
-        e.g. the protocol's resolved ElementSetting), (name, type, params) tuples, or
-        `models.elements.Element`. InvalidInput names a bad element parameter."""
+        or removes it (with None); the forms `elements` may take: docs/simulator.md, API."""
         self._model(joint).plant.set_device(elements)
 
     def make_rig(self) -> Rig:
