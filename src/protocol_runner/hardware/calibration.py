@@ -1,11 +1,5 @@
-"""Calibration look-up tables (thesis §2.5, docs/hardware-model.md §3): piecewise-linear, strictly monotonic
-maps loaded from CSV.
-
-Per joint: the *command* table ``real_deg -> input_deg``, applied before sending; the *angle* table
-``output_deg -> real_deg`` and the *torque* table ``output_nm -> real_nm``, applied to telemetry. They are
-built from calibration observations (α_input commanded, α_real read on the joint's marked scale, α_output
-shown by the computer) by `build_table_from_observations`, or ``python -m
-protocol_runner.hardware.calibration_build build OBS.csv --out-dir DIR``.
+"""Calibration look-up tables (thesis §2.5; docs/hardware-model.md §3 gives the three tables per joint and
+how to build them): piecewise-linear, strictly monotonic maps loaded from CSV.
 
 CSV format (read by `load_calibration_table`, written by `write_calibration_table`)::
 
@@ -107,12 +101,8 @@ def _table_problem(x: FloatArray, y: FloatArray) -> str | None:
 
 
 def load_calibration_table(path: Path | str) -> CalibrationTable:
-    """Read a calibration table CSV (format in the module docstring).
-
-    Raises InvalidInput naming the file and line for: a missing/unreadable file, a missing or malformed
-    header, a row without exactly two values, a bad number, NaN/inf, x not strictly increasing, y not
-    strictly monotonic, fewer than two points.
-    """
+    """Read a calibration table CSV (format in the module docstring); InvalidInput naming the file and the
+    line of whatever breaks that format."""
     p = Path(path)
     text = read_table_text(p, "calibration table")
 
@@ -165,10 +155,8 @@ def _is_number(text: str) -> bool:
 
 
 def write_calibration_table(path: Path | str, table: CalibrationTable, comment: str) -> Path:
-    """Write `table` as a CSV that `load_calibration_table` reads back exactly (values written with repr).
-
-    `comment` becomes '#' lines at the top (one per line of text). Returns the path written.
-    """
+    """Write `table` as a CSV that `load_calibration_table` reads back exactly (values written with repr),
+    `comment` as '#' lines at the top. Returns the path written."""
     p = Path(path)
     comment_lines = [f"# {line}".rstrip() for line in comment.splitlines()] if comment else []
     rows = [f"{table.x_name},{table.y_name}"]

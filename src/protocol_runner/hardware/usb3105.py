@@ -107,12 +107,9 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
     def open(
         cls, serial: str | None = None, backend: Any | None = None, *, settings: Usb3105Settings | None = None
     ) -> Usb3105:
-        """Find the board (VID 0x09DB PID 0x009E, optionally by serial), claim it, drain stale reports and
-        read the calibration. `backend` is passed to `usb.core.find` (None: the system libusb).
-
-        Raises a `HardwareUnavailable` subclass naming the board and the cure (not found, busy,
-        permission denied, timeout, gone).
-        """
+        """Find the board (optionally by serial), claim it, drain stale reports and read the calibration.
+        `backend` is passed to `usb.core.find` (None: the system libusb). A `HardwareUnavailable` subclass
+        names the board and the cure."""
         device, board_serial = find_board(MCC_VENDOR_ID, PRODUCT_ID, serial, backend, KIND)
         return cls(device, board_serial, settings or Usb3105Settings())._set_up()
 
