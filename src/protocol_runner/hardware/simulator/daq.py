@@ -54,11 +54,8 @@ AI_CHANNELS = 24
 AI_MAX_RATE_HZ = 50_000.0
 """DT9814 maximum aggregate rate (thesis §2.3)."""
 TRANSFER_S = 1.0
-"""In simulated time the board hands its rows over in transfers of this much scan time, as a USB board
-hands over whole packets: a read before a transfer is complete returns no rows, `stop_scan` returns the
-rest. The rows do not depend on it (the plant is integrated on a fixed grid whatever the reads); it sets
-how many compiled calls a dry run makes: one per second of scan instead of one per read of the rig's loop
-(every 100 ms). In real time (`--realtime`) every row is handed over as soon as it is due
+"""Scan time per transfer of rows in simulated time (docs/simulator.md, "The dry-run loop"): one compiled
+call per transfer; the rows do not depend on it. In real time every row is handed over when due
 (`SimulatedAnalogInput.transfer_s` = 0)."""
 NOISE_BLOCK = 8192
 """Standard normals drawn from the step's generator at a time; rows consume them in order, so the values a
