@@ -81,8 +81,6 @@ SIGNED = ("gravity_zero_angle_deg",)  # the parameters that may be negative
 def bound_problem(name: str, value: float) -> str:
     """What is wrong with `value` for simulator parameter `name` ("" if nothing): outside its BOUNDS, or
     negative where only SIGNED ones may be."""
-    if not isinstance(value, int | float):
-        return ""
     low_high = BOUNDS.get(name)
     if low_high is None:
         return f"must be >= 0, got {value!r}" if value < 0.0 and name not in SIGNED else ""
