@@ -10,6 +10,7 @@ keeping each line's number for those messages.
 from __future__ import annotations
 
 import csv
+import math
 import stat
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -80,6 +81,17 @@ def number_columns(
         for column, value in zip(out, values, strict=True):
             column.append(value)
     return out
+
+
+def finite_numbers(row: Row, where: str) -> list[float]:
+    """The row's cells as finite numbers, or `InvalidInput` starting with `where` (the file and line)."""
+    try:
+        values = [float(c) for c in row.cells]
+    except ValueError:
+        raise InvalidInput(f"{where}: not a number: {row.text!r}") from None
+    if not all(math.isfinite(v) for v in values):
+        raise InvalidInput(f"{where}: values must be finite numbers, found {row.text!r}")
+    return values
 
 
 MAX_TABLE_BYTES = 64 * 2**20

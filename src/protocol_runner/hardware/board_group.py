@@ -22,12 +22,10 @@ class BoardGroup:
     (boards in the order given; `open_all_1608fs` sorts them by serial number). Three USB-1608FS-Plus
     give channels 0-23.
 
-    Alignment assumption: each board's pacer runs from its own crystal, started by its own AIN_SCAN_START a
-    few milliseconds apart. Row ``i`` of every board is taken as simultaneous, with the time of board 0's
-    row ``i``. The error is the start skew (typically 1-3 ms) plus the crystal drift (at most ~100 ppm
-    between boards: 6.5 ms over a 65 s trial). For tighter alignment wire board 0's SYNC output to the
-    others' SYNC inputs (external pacing, not implemented here). Rows that only some boards have delivered
-    wait for the others; at `stop_scan` the rows beyond the shortest board are dropped (`dropped_rows`).
+    Row ``i`` of every board is taken as simultaneous, with the time of board 0's row ``i`` (the alignment
+    assumption and its error: docs/hardware.md, "USB-1608FS-Plus"). Rows that only some boards have
+    delivered wait for the others; at `stop_scan` the rows beyond the shortest board are dropped
+    (`dropped_rows`).
     """
 
     def __init__(self, boards: Sequence[AnalogInput], channels_per_board: int = N_CHANNELS) -> None:

@@ -1,11 +1,5 @@
-"""Calibration look-up tables (thesis §2.5, docs/hardware-model.md §3): piecewise-linear, strictly monotonic
-maps loaded from CSV.
-
-Per joint: the *command* table ``real_deg -> input_deg``, applied before sending; the *angle* table
-``output_deg -> real_deg`` and the *torque* table ``output_nm -> real_nm``, applied to telemetry. They are
-built from calibration observations (α_input commanded, α_real read on the joint's marked scale, α_output
-shown by the computer) by `build_table_from_observations`, or ``python -m
-protocol_runner.hardware.calibration_build build OBS.csv --out-dir DIR``.
+"""Calibration look-up tables (thesis §2.5; docs/hardware-model.md §3 gives the three tables per joint and
+how to build them): piecewise-linear, strictly monotonic maps loaded from CSV.
 
 CSV format (read by `load_calibration_table`, written by `write_calibration_table`)::
 
@@ -20,7 +14,6 @@ never clamps: a value outside the calibrated span stays visible, and the map sta
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -28,7 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.tables import parse_header_table, read_table_text
+from protocol_runner.tables import finite_numbers, parse_header_table, read_table_text
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -108,12 +101,8 @@ def _table_problem(x: FloatArray, y: FloatArray) -> str | None:
 
 
 def load_calibration_table(path: Path | str) -> CalibrationTable:
-    """Read a calibration table CSV (format in the module docstring).
-
-    Raises InvalidInput naming the file and line for: a missing/unreadable file, a missing or malformed
-    header, a row without exactly two values, a bad number, NaN/inf, x not strictly increasing, y not
-    strictly monotonic, fewer than two points.
-    """
+    """Read a calibration table CSV (format in the module docstring); InvalidInput naming the file and the
+    line of whatever breaks that format."""
     p = Path(path)
     text = read_table_text(p, "calibration table")
 
@@ -134,12 +123,7 @@ def load_calibration_table(path: Path | str) -> CalibrationTable:
                 )
             header = cells
             continue
-        try:
-            xv, yv = float(cells[0]), float(cells[1])
-        except ValueError:
-            raise InvalidInput(f"{where}: not a number: {line!r}") from None
-        if not (math.isfinite(xv) and math.isfinite(yv)):
-            raise InvalidInput(f"{where}: values must be finite numbers, found {line!r}")
+        xv, yv = finite_numbers(row, where)
         if xs:
             if xv <= xs[-1]:
                 raise InvalidInput(
@@ -171,10 +155,8 @@ def _is_number(text: str) -> bool:
 
 
 def write_calibration_table(path: Path | str, table: CalibrationTable, comment: str) -> Path:
-    """Write `table` as a CSV that `load_calibration_table` reads back exactly (values written with repr).
-
-    `comment` becomes '#' lines at the top (one per line of text). Returns the path written.
-    """
+    """Write `table` as a CSV that `load_calibration_table` reads back exactly (values written with repr),
+    `comment` as '#' lines at the top. Returns the path written."""
     p = Path(path)
     comment_lines = [f"# {line}".rstrip() for line in comment.splitlines()] if comment else []
     rows = [f"{table.x_name},{table.y_name}"]

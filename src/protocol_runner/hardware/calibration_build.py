@@ -6,7 +6,6 @@ Command line: ``python -m protocol_runner.hardware.calibration_build build OBSER
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -21,7 +20,7 @@ from protocol_runner.hardware.calibration import (
     build_torque_table_from_observations,
     write_calibration_table,
 )
-from protocol_runner.tables import parse_header_table, read_table_text
+from protocol_runner.tables import finite_numbers, parse_header_table, read_table_text
 
 ANGLE_COLUMNS = ("input_deg", "real_deg", "output_deg")
 TORQUE_COLUMNS = ("real_nm", "output_nm")
@@ -43,18 +42,10 @@ def _read_observations(path: Path) -> dict[str, FloatArray]:
     header = list(table.header.cells)
     rows: list[list[float]] = []
     for row in table.rows:
-        lineno, cells, line = row.line, row.cells, row.text
-        if len(cells) != len(header):
-            raise InvalidInput(
-                f"observations {path}, line {lineno}: expected {len(header)} values, found {len(cells)}"
-            )
-        try:
-            values = [float(c) for c in cells]
-        except ValueError:
-            raise InvalidInput(f"observations {path}, line {lineno}: not a number: {line!r}") from None
-        if not all(math.isfinite(v) for v in values):
-            raise InvalidInput(f"observations {path}, line {lineno}: values must be finite: {line!r}")
-        rows.append(values)
+        where = f"observations {path}, line {row.line}"
+        if len(row.cells) != len(header):
+            raise InvalidInput(f"{where}: expected {len(header)} values, found {len(row.cells)}")
+        rows.append(finite_numbers(row, where))
     data = np.array(rows, dtype=np.float64).reshape(len(rows), len(header))
     return {name: data[:, i] for i, name in enumerate(header)}
 

@@ -1,14 +1,9 @@
 """`run-protocol --hardware-check`: list the DAQ boards attached, blink their LEDs, check required channels.
 
-Channel numbering (the numbers the protocol file uses, all from 0):
-
-- analog outputs: the USB-3105 boards in serial-number order, 16 channels each (board k: 16k..16k+15);
-- analog inputs: the USB-1608FS-Plus boards in serial-number order, 8 channels each, then any DT9814
-  (UNVERIFIED protocol; `Dt9814Settings.n_channels` each). This is the numbering `BoardGroup` uses.
-
-Each USB-3105 is also timed: `timing_reports` single-channel writes of 0 V on its highest channel that no
-joint of the rig file is wired to, giving the time one output report takes, printed beside the rig file's
-`report_time_s` (a tick of N joints sends N + 1 reports: docs/hardware.md).
+Channels are numbered as `BoardGroup` numbers them (docs/hardware.md, "Channel numbering"): the boards of a
+role in serial-number order, then any DT9814. Each USB-3105 is also timed: `timing_reports` single-channel
+writes of 0 V on its highest channel that no joint of the rig file is wired to, printed beside the rig
+file's `report_time_s` (docs/hardware.md, "The output report time").
 
 `hardware_check` never raises for a board it cannot open: the failure becomes a `BoardProblem` with the
 driver's plain message (busy, permission denied with the udev rule to install, ...).

@@ -1,24 +1,11 @@
 """Data Translation DT9814 analog input over pyusb — UNVERIFIED.
 
-**Nothing in this module has been checked against a DT9814.** Data Translation publishes no product id,
-no protocol document and no Linux driver for it. The code speaks the protocol of its sibling, the DT9812,
-as the Linux comedi driver implements it, and every fact that might differ is a setting
-(`Dt9814Settings`); opening a board logs a warning saying so. For 24 channels on Linux with a known
-protocol, use the USB-1608FS-Plus (`hardware/usb1608fs.py`, `BoardGroup`).
-
-DT9812 facts used:
-
-- USB vendor id 0x0867; product id configurable (`Dt9814Settings.product_id`, None = any DT device).
-- One interface with five bulk endpoints, in descriptor order: message-IN, command-OUT, command-IN,
-  stream-OUT, stream-IN (taken by position, not by address).
-- Every command is exactly 32 bytes: u32 LE opcode then payload, written to command-OUT; replies are read
-  from command-IN. Opcode 1 reads flash: ``u16 count, u16 address`` with address ``0xFBFF + offset``:
-  offset 1 vendor id (u16), 3 product id (u16), 5 device id (u16), 7 serial (u32).
-- One analog sample = opcode 7 (read-modify-write registers: gain in ADC0CF, channel mux in P1 bits 5-7,
-  start conversion in ADC0CN) then opcode 4 (read ADC0CN, ADC0H, ADC0L): two USB round trips per sample,
-  so software-paced and well under 1 kHz. This module therefore offers single reads (`read_code`), not
-  the hardware-paced `AnalogInput` scan.
-- Conversion, 12-bit +-10 V two's complement: ``V = 20 * code / 4096`` (LSB 4.883 mV).
+**Nothing in this module has been checked against a DT9814**: Data Translation publishes no product id, no
+protocol document and no Linux driver for it. The code speaks the DT9812 protocol of the Linux comedi
+driver (docs/hardware.md, "DT9814", lists the facts used); every fact that might differ is a setting
+(`Dt9814Settings`), and opening a board logs a warning saying so. A sample takes two USB round trips, so
+the board offers single reads (`read_code`), not the hardware-paced `AnalogInput` scan; for 24 channels on
+Linux with a known protocol, use the USB-1608FS-Plus (`BoardGroup`).
 """
 
 from __future__ import annotations

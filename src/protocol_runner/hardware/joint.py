@@ -27,18 +27,10 @@ OnStop = Callable[[int], FloatArray]
 
 @dataclass(frozen=True, kw_only=True)
 class JointConfig:
-    """One joint as the protocol defines it: Eq 1-3 ranges (thesis Tables 2-3), channels, rates,
-    calibration tables (thesis §2.5) and the safety envelope.
-
-    range_deg: Eq 1-2 Minimum/Maximum_Position (the angle that maps to -10/+10 V).
-    torque_range_nm: Eq 3 Minimum/Maximum_Torque.
-    output_channel: analog output channel commanding the joint.
-    angle_input_channel, torque_input_channel: analog input channels of the joint's telemetry.
-    command_table: real_deg -> input_deg, applied before Eq 1 (None = identity).
-    angle_table: output_deg -> real_deg, applied after Eq 2 (None = identity).
-    torque_table: output_nm -> real_nm, applied after Eq 3 (None = identity).
-    watchdog: what the measured signals may do while the joint moves (None = not watched).
-    """
+    """One joint as the protocol defines it: Eq 1-3 ranges (thesis Tables 2-3: `range_deg` maps onto
+    -10/+10 V, `torque_range_nm` is Eq 3's), channels, rates, calibration tables (thesis §2.5: `command_table`
+    real -> input angle before Eq 1, `angle_table` and `torque_table` output -> real after Eq 2 / Eq 3; None =
+    identity), the safety envelope and the watchdog (None = not watched)."""
 
     name: str
     range_deg: tuple[float, float]

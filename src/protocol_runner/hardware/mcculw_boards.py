@@ -2,31 +2,12 @@
 (the `mcculw` Python package over cbw64.dll, installed with InstaCal / MCC DAQ software), behind the same
 interfaces as the pyusb drivers.
 
-Install: ``pip install protocol-runner[mcculw]`` and MCC's DAQ software (docs/hardware.md). The package is
-imported only when a rig file selects this backend.
-
-Calls made (mcculw's Python API, `mcculw.ul` and `mcculw.enums`):
-
-- finding: ``ul.ignore_instacal()`` once (boards are found by the program, not InstaCal's cb.cfg);
-  ``ul.get_daq_device_inventory(InterfaceType.USB)``, the descriptors whose ``product_id`` is the
-  board's (0x9E USB-3105, 0xEA USB-1608FS-Plus), chosen by ``unique_id`` (the serial);
-  ``ul.create_daq_device(board_num, descriptor)``; closing: ``ul.release_daq_device(board_num)``.
-- output: ``ul.set_config(InfoType.BOARDINFO, board_num, 0, BoardInfo.SYNCMODE, 0)`` when opening
-  (0 = sync master, so that a simultaneous update latches); ``ul.from_eng_units(board_num,
-  ULRange.BIP10VOLTS, volts)`` -> code, ``ul.a_out(board_num, ch, ULRange.BIP10VOLTS, code)``; several
-  channels, per contiguous run: ``ul.win_buf_alloc(n)``, ``ul.win_array_to_buf(codes, memhandle, 0, n)``,
-  ``ul.a_out_scan(board_num, low, high, n, rate, ULRange.BIP10VOLTS, memhandle,
-  ScanOptions.SIMULTANEOUS)``, ``ul.win_buf_free(memhandle)``.
-- input: ``ul.scaled_win_buf_alloc(rows * width)``; ``ul.a_in_scan(board_num, low, high, rows * width,
-  rate, ULRange.BIP10VOLTS, memhandle, ScanOptions.BACKGROUND | CONTINUOUS | SCALEDATA)`` (returns the
-  rate set; the UL takes an integer rate); ``ul.get_status(board_num, FunctionType.AIFUNCTION)`` ->
-  (status, cur_count, cur_index), ``cur_index`` being the start of the last complete row in the
-  circular buffer; ``ul.scaled_win_buf_to_array(memhandle, array, first, count)``;
-  ``ul.stop_background(board_num, FunctionType.AIFUNCTION)``; ``ul.win_buf_free(memhandle)``.
-
-The UL's ``cur_count`` behaves differently from board to board in a continuous scan, so the samples are
-counted from ``cur_index``'s progress; a read later than one buffer (10 s by the host clock) cannot be
-counted and is a `ScanOverrun`.
+Install: ``pip install protocol-runner[mcculw]`` and MCC's DAQ software. The package is imported only when
+a rig file selects this backend. docs/hardware.md ("What the vendor backends do") states the calls made.
+Boards are found by the program (``ul.ignore_instacal()``), not from InstaCal's cb.cfg. The UL's
+``cur_count`` behaves differently from board to board in a continuous scan, so the samples are counted
+from ``cur_index``'s progress (the start of the last complete row in the circular buffer); a read later
+than one buffer (10 s by the host clock) cannot be counted and is a `ScanOverrun`.
 
 UNVERIFIED on hardware: tested only against a fake of this API (`tests/hardware/fake_mcculw.py`).
 """

@@ -1,20 +1,12 @@
 """The rig: an analog output, an analog input scan and a clock bound to the joints they drive (channel
 order), with each joint's channels and calibration. One joint (the knee campaign) is a rig of one joint.
 
-`Rig.run_trajectory` is the acquisition loop (thesis §2.4-2.5); trials and checks send through
-`hardware/motion.py`, which adds every joint's approach and exit in the same loop (`Rig.send`):
-
-1. safety envelope (`hardware/safety.py`) on every joint's samples - a violation raises before any write;
-2. command look-up table, real -> input angle (thesis §2.5.1); Eq 1, angle -> volts over the joint's
-   range; clamp to ±10 V;
-3. the paced loop (`Rig.send`): start the input scan ([angle_0, torque_0, angle_1, torque_1, ...] at
-   the input rate), then for each output tick k sleep until t0 + k / output_rate_hz and write every joint's
-   volts: one joint, one `write_volts`; several, one synchronous update (`write_volts_sync`: on the
-   USB-3105 each channel's AOUT held, then one AOUT_SYNC latching them together, thesis §2.3: the boards
-   control "the 12 joints ... simultaneously"). Read the scan (and poll the stop request) every
-   `READ_EVERY_TICKS` ticks; after the last tick wait one more tick and stop the scan;
-4. telemetry: the scan's volts -> Eq 2 (angle) and Eq 3 (torque) -> the angle and torque look-up tables
-   (output -> real, thesis §2.5.1-2.5.2).
+`Rig.run_trajectory` is the acquisition loop (thesis §2.4-2.5; its timing: docs/hardware-model.md §5);
+trials and checks send through `hardware/motion.py`, which adds every joint's approach and exit in the same
+loop (`Rig.send`): the safety envelope on every joint's samples before any write; the command look-up table,
+Eq 1 and the ±10 V clamp; the paced loop, one `write_volts` per tick for one joint, one synchronous update
+(`write_volts_sync`: one AOUT_SYNC latches them together, thesis §2.3) for several, reading the scan and
+polling the stop request every `READ_EVERY_TICKS` ticks; then Eq 2 / Eq 3 and the angle and torque tables.
 
 On a stop request `on_stop(written)`, if given, returns the samples to send next in the same loop (no
 pause: the output would hold), then `Interrupted` is raised. The watchdog (`hardware/watchdog.py`) checks
@@ -22,12 +14,8 @@ every block as it is read: a measured signal beyond its limit stops the loop as 
 its `WatchdogTripped` (exit 4) is raised instead; parking is not watched. An error or an interruption
 carries what was recorded so far (`partial_recording`). The live monitor (`tap`) is started with every
 joint's commands (restarted on the samples a stop sends, shown as parking) and shown every block read.
-The DAQ simulator's boards satisfy the same interfaces (its clock jumps instead of sleeping), so a dry run
-runs this same loop.
-
-The recording is one `TrialRecording` per joint, all on the same time base. Times count from t0, the clock
-reading just after the scan started (the first output tick is scheduled at t0); `tick_lateness_s[k]`, the
-clock just before write k minus its schedule, is the output jitter recorded per trial.
+The recording is one `TrialRecording` per joint, all on the same time base (t0, the clock just after the
+scan started, is the first tick's schedule).
 """
 
 from __future__ import annotations

@@ -1,13 +1,7 @@
-"""Safety envelope for everything sent to the robot (docs/hardware-model.md §4).
-
-`check_trajectory` checks a commanded trajectory as a whole *before* anything is written: every sample
-finite and inside the protocol's joint range; rate (first difference × output rate) within
-`max_rate_deg_s`; acceleration (second difference × rate²) within `max_accel_deg_s2`; optionally the volts
-after the command look-up table (thesis §2.5.1) and Eq 1 within ±10 V. A violation raises `SafetyViolation`
-(a `StoppedByCheck`, exit status 4) naming the step, the limit, the worst value, its sample index and time.
-`clamp_volts` is the second line of defence at the output; `parking_ramp_deg` moves the joint to its rest
-angle within the rate and acceleration limits. The move to the first sample is checked only with
-`initial_deg`: trials and calibration checks send whole streams (`hardware/stream.py`), junctions included.
+"""Safety envelope for everything sent to the robot (docs/hardware-model.md §4 states the checks, their
+order and the parking ramp). `check_trajectory` refuses a commanded trajectory as a whole *before* anything
+is written, with a `SafetyViolation` (exit status 4); `clamp_volts` is the second line of defence at the
+output. Trials and calibration checks send whole streams (`hardware/stream.py`), junctions included.
 """
 
 from __future__ import annotations
@@ -33,14 +27,9 @@ MAX_RAMP_SAMPLES = 1_000_000
 
 @dataclass(frozen=True)
 class SafetyLimits:
-    """The envelope a commanded trajectory must stay inside.
-
-    range_deg: (min, max) joint angle allowed (from the protocol; may be narrower than the Eq 1 range).
-    max_rate_deg_s: largest |angular rate| allowed between consecutive output samples.
-    max_accel_deg_s2: largest |angular acceleration| (second difference) allowed.
-    park_angle_deg: the rest angle the joint is parked at (inside range_deg).
-    park_rate_deg_s: cruising rate of the parking ramp (<= max_rate_deg_s).
-    """
+    """The envelope a commanded trajectory must stay inside: `range_deg` (may be narrower than the Eq 1
+    range), the largest |rate| and |acceleration| between output samples, and the parking ramp's rest angle
+    (inside the range) and cruising rate (<= max_rate_deg_s)."""
 
     range_deg: tuple[float, float]
     max_rate_deg_s: float

@@ -1,23 +1,16 @@
-"""The complete commanded stream of one motion: approach, trajectory, exit - and a stop from any sample
-(docs/hardware-model.md, "The complete commanded stream").
-
-Everything sent during a trial or a calibration check is one stream in one paced loop (a pause would hold
-the output, i.e. stop a moving joint at once). The **approach** runs from rest at the park angle to the
-trajectory's first sample, arriving with its starting velocity; the **trajectory** is sent unchanged; the
-**exit** brakes at the acceleration limit from the last sample's position and velocity, then follows the
-parking ramp (`safety.parking_ramp_deg`) to the park angle. A **stop** requested at any sample replaces the
-rest of the stream with the same exit from that sample. Braking at the full limit is the shortest stop, so
-a brake never goes further than the trajectory itself could; the approach is the exit run backwards in time
-(reversal keeps |rate| and |acceleration|), so one construction serves both junctions. `check_stream` runs
-the envelope over the whole stream and over the stop from every sample before the exit; the plan-time
-preflight (`protocol/stream_check.py`) and the rig's motions (`hardware/motion.py`) both call it.
+"""The complete commanded stream of one motion: approach, trajectory, exit - and a stop from any sample.
+docs/hardware-model.md ("The complete commanded stream") states the segments and why every junction stays
+within the limits (the approach is the exit run backwards in time; braking at the full limit is the
+shortest stop). `check_stream` runs the envelope over the whole stream and over the stop from every sample
+before the exit; the plan-time preflight (`protocol/stream_check.py`) and the rig's motions
+(`hardware/motion.py`) both call it.
 
 A motion drives every joint of the rig: `build_motion_stream` aligns the joints' streams so that every first
 trajectory sample falls on the same tick (a shorter approach waits at rest where it starts, a shorter exit
 rests at its park angle). Resting repeats a sample and adds no rate or acceleration, so each aligned stream
 is within its joint's envelope exactly when its own stream is (`check_motion_stream`). A stop after
 `written` ticks stops EVERY joint, each braking from its own last position and velocity to its own park
-angle, the tails padded to the longest at rest. With one joint all of this is that joint's own stream.
+angle, the tails padded to the longest at rest.
 """
 
 from __future__ import annotations

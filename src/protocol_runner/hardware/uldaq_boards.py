@@ -1,22 +1,9 @@
 """`backend: uldaq`: the USB-3105 and the USB-1608FS-Plus through MCC's Universal Library for Linux and
 macOS (the `uldaq` Python package over libuldaq), behind the same interfaces as the pyusb drivers.
 
-Install: ``pip install protocol-runner[uldaq]`` and libuldaq itself (docs/hardware.md). The package is
-imported only when a rig file selects this backend.
-
-Calls made (uldaq's Python API):
-
-- finding: ``get_daq_device_inventory(InterfaceType.USB)``, the descriptors whose ``product_id`` is the
-  board's USB product id (0x9E USB-3105, 0xEA USB-1608FS-Plus), chosen by ``unique_id`` (the serial);
-  ``DaqDevice(descriptor)``, ``connect()``; closing: ``disconnect()``, ``release()``.
-- output: ``get_ao_device()``; ``get_config().set_sync_mode(AOutSyncMode.MASTER)`` when opening (so that
-  a simultaneous update latches); ``a_out(ch, Range.BIP10VOLTS, AOutFlag.DEFAULT, volts)``; several
-  channels: ``a_out_list(low, high, [Range.BIP10VOLTS] * n, AOutListFlag.SIMULTANEOUS, volts)`` per
-  contiguous run.
-- input: ``get_ai_device()``; ``create_float_buffer(width, rows)``; ``a_in_scan(low, high,
-  AiInputMode.SINGLE_ENDED, Range.BIP10VOLTS, rows, rate, ScanOption.CONTINUOUS, AInScanFlag.DEFAULT,
-  buffer)`` (returns the rate set); ``get_scan_status()`` -> (ScanStatus, TransferStatus) whose
-  ``current_total_count`` counts the samples written into the circular buffer; ``scan_stop()``.
+Install: ``pip install protocol-runner[uldaq]`` and libuldaq itself. The package is imported only when a
+rig file selects this backend. docs/hardware.md ("What the vendor backends do") states the calls made; the
+scan's rows are counted from ``get_scan_status()``'s ``current_total_count``.
 
 UNVERIFIED on hardware: tested only against a fake of this API (`tests/hardware/fake_uldaq.py`).
 """

@@ -197,14 +197,11 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
             raise InvalidInput(f"the {self.name} is already scanning; stop_scan() first")
         pacer = pacer_period(rate_hz)
         ascending = sorted(chans)
-        mask = 0
-        for c in ascending:
-            mask |= 1 << c
+        mask = sum(1 << c for c in ascending)  # the channels are distinct (check_scan_channels)
         self._channels = chans
         self._order = np.array([ascending.index(c) for c in chans], dtype=np.intp)
-        cal = [self.calibration[RANGE_PM10V][c] for c in ascending]
-        self._slope = np.array([c[0] for c in cal])
-        self._intercept = np.array([c[1] for c in cal])
+        cal = np.array([self.calibration[RANGE_PM10V][c] for c in ascending]).reshape(-1, 2)
+        self._slope, self._intercept = cal[:, 0], cal[:, 1]
         self._rate_hz = pacer_rate_hz(pacer)
         self._pending = bytearray()
         self._bytes_received = 0

@@ -1,16 +1,8 @@
-"""The USB-1608FS-Plus's USB protocol facts (from public sources; docs/hardware.md): ids, commands,
-status bits and the pacer clock (its +-10 V codes: `conversions.ai16_code_to_volts`).
-
-Protocol (reference "USB facts"; vendor control transfers bmRequestType 0xC0 in / 0x40 out, wIndex 0):
-
-- ``0x14`` AIN_CONFIG (out): 8 range bytes, one per channel (0 = +-10 V).
-- ``0x11`` AIN_SCAN_START (out): ``<u32 count (0 = continuous), u32 pacer = 40 MHz / rate - 1, u8 channel
-  mask, u8 options>``; rows come in ascending channel order.
-- ``0x12`` AIN_SCAN_STOP, ``0x15`` AIN_CLR_FIFO (out); ``0x44`` STATUS (in, u16: bit 1 running, bit 2
-  overrun; an overrun stalls the bulk pipe); ``0x48`` serial (in, 8 ASCII bytes); ``0x41`` blink (out).
-- ``0x30`` calibration memory (in, wValue = address): float32 LE (slope, intercept) for every range and
-  channel, ranges outer, channels inner, from address 0; ``calibrated = raw * slope + intercept``.
-- Scan data: bulk IN 0x81, 64-byte packets of LE u16 codes; +-10 V: ``V = (k - 32768) * 10 / 32768``.
+"""The USB-1608FS-Plus's USB protocol facts (from public sources; docs/hardware.md, "USB-1608FS-Plus"):
+ids, commands, status bits and the pacer clock (its +-10 V codes: `conversions.ai16_code_to_volts`).
+Vendor control transfers (bmRequestType 0xC0 in / 0x40 out, wIndex 0); scan data on bulk IN 0x81 in 64-byte
+packets of LE u16 codes, rows in ascending channel order. The calibration memory (CMD_CAL_MEMORY, wValue =
+address) holds float32 LE (slope, intercept) for every range and channel, ranges outer, from address 0.
 """
 
 from __future__ import annotations

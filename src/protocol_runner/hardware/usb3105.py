@@ -1,20 +1,12 @@
 """MCC USB-3105 analog output board over pyusb (satisfies `interfaces.AnalogOutput`).
 
-The USB-3105 is a HID-class device: every command is an output report whose first byte is the command
-code (it doubles as the report id); replies come back as input reports ``[command, data...]`` on the
-interrupt IN endpoint. Facts used (docs/hardware.md, reference "USB facts"):
-
-- VID 0x09DB, PID 0x009E; serial number = USB iSerialNumber; firmware = bcdDevice.
-- ``AOUT_CONFIG [0x1C, ch, range]`` (range 1 = +-10 V) also drives the pin to 0 V: it is sent once per
-  channel by `configure_channel`, never by `write_volts`.
-- ``AOUT [0x14, ch, lo, hi, update]`` (update 0 = now, 1 = wait for sync) and ``AOUT_SYNC [0x15]``.
-- ``MEM_READ [0x30, addr lo, addr hi, 0, count <= 62]`` -> ``[0x30, data...]``; the +-10 V calibration of
-  channel ch is float32 LE (slope, offset) at ``0x108 + 0x10 * ch``; ``code = round(slope * k + offset)``
-  with the ideal code ``k = 32768 + 3276.8 * V`` (clamped to 0..65535).
+A HID-class device: every command is an output report whose first byte is the command code (it doubles as
+the report id); replies come back as input reports ``[command, data...]`` on the interrupt IN endpoint.
+docs/hardware.md ("USB-3105") lists the commands, the calibration memory layout and the code rule used.
 
 UNVERIFIED on hardware: the endpoint addresses (interrupt OUT 0x01, IN 0x81). They are settings
 (`Usb3105Settings`); when the configured OUT endpoint is absent from the descriptor, reports go through
-HID SET_REPORT on the control pipe (0x21, 0x09, 0x0200 | report id, interface).
+HID SET_REPORT on the control pipe.
 """
 
 from __future__ import annotations
@@ -115,12 +107,9 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
     def open(
         cls, serial: str | None = None, backend: Any | None = None, *, settings: Usb3105Settings | None = None
     ) -> Usb3105:
-        """Find the board (VID 0x09DB PID 0x009E, optionally by serial), claim it, drain stale reports and
-        read the calibration. `backend` is passed to `usb.core.find` (None: the system libusb).
-
-        Raises a `HardwareUnavailable` subclass naming the board and the cure (not found, busy,
-        permission denied, timeout, gone).
-        """
+        """Find the board (optionally by serial), claim it, drain stale reports and read the calibration.
+        `backend` is passed to `usb.core.find` (None: the system libusb). A `HardwareUnavailable` subclass
+        names the board and the cure."""
         device, board_serial = find_board(MCC_VENDOR_ID, PRODUCT_ID, serial, backend, KIND)
         return cls(device, board_serial, settings or Usb3105Settings())._set_up()
 

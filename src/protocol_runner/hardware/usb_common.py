@@ -2,10 +2,8 @@
 the output channel and volts checks, and a real monotonic clock.
 
 Every USB failure reaches the user as a `protocol_runner.errors.HardwareUnavailable` subclass (exit status
-3) whose message names the board and says what to do about it. `map_usb_error` maps the `errno` of
-libusb's `usb.core.USBError` (the Linux numbers: 13 access, 16 busy, 19 no device, 110 timeout; docs/
-hardware.md, "Errors") to `BoardPermissionDenied`, `BoardBusy`, `DeviceGone`, `BoardTimeout`, and
-anything else to `BoardIoError`.
+3) whose message names the board and says what to do about it; `map_usb_error` maps libusb's errno
+(docs/hardware.md, "Errors", has the table).
 """
 
 from __future__ import annotations

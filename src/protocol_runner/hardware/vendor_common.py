@@ -101,11 +101,7 @@ def checked_volts(channel: int, volts: float) -> float:
 
 
 def contiguous_runs(channels: Sequence[int]) -> list[list[int]]:
-    """Sorted channels split into runs of consecutive numbers: ``[8, 9, 11] -> [[8, 9], [11]]``.
-
-    Both libraries update a contiguous channel range together (uldaq `a_out_list`, mcculw `a_out_scan`
-    with SIMULTANEOUS); a channel between two driven ones belongs to another joint and is never written.
-    """
+    """Sorted channels split into runs of consecutive numbers: ``[8, 9, 11] -> [[8, 9], [11]]``."""
     runs: list[list[int]] = []
     for ch in sorted(channels):
         if runs and ch == runs[-1][-1] + 1:
@@ -173,14 +169,10 @@ class VendorBoard:
 
 
 class VendorScanInput(VendorBoard, ABC):
-    """An `AnalogInput` over a vendor library's continuous background scan (one board, 8 channels ±10 V).
-
-    The libraries scan a contiguous channel range ``low..high``: the scan covers the lowest to the highest
-    channel asked for and keeps the asked ones, in the asked order. Row ``i`` is at ``t0 + i / rate``,
-    ``rate`` being the rate the library reports it set and ``t0`` the clock around the call that started
-    the scan. The scan's circular buffer holds `buffer_s` seconds: a read later than that is a
-    `ScanOverrun`. A failure while reading stops the scan before the error goes on; `stop_scan` and
-    `close` stop it too.
+    """An `AnalogInput` over a vendor library's continuous background scan (one board, 8 channels ±10 V),
+    as docs/hardware.md ("What the vendor backends do") states: the scan covers the lowest to the highest
+    channel asked for and keeps the asked ones, in the asked order; a read later than its `buffer_s` circular
+    buffer is a `ScanOverrun`; a failure while reading, `stop_scan` and `close` stop the scan.
 
     A backend implements `_start_scan` (start it, return the rate set), `_scan_status` (running?,
     samples transferred so far), `_stop`, `_copy(first, count)` (`count` samples from buffer position
@@ -340,13 +332,9 @@ class VendorScanInput(VendorBoard, ABC):
 
 
 class VendorAnalogOutput(VendorBoard, ABC):
-    """An `AnalogOutput` over a vendor library (the USB-3105: 16 channels, ±10 V, software-paced).
-
-    `configure_channel` writes 0 V on the ±10 V range once (the library sends the board's range command,
-    which also drives the pin to 0 V); writing an unconfigured channel is refused, as with the pyusb
-    driver. `write_volts_sync` updates each contiguous run of channels together (`contiguous_runs`).
-    The codes returned are the ideal codes of the volts written (the library applies the calibration).
-    A backend implements `_write` and `_write_run`.
+    """An `AnalogOutput` over a vendor library (the USB-3105: 16 channels, ±10 V, software-paced; what it
+    sends: docs/hardware.md, "What the vendor backends do"). Writing a channel `configure_channel` has not
+    set is refused, as with the pyusb driver. A backend implements `_write` and `_write_run`.
     """
 
     kind = usb3105.KIND

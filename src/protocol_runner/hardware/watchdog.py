@@ -1,18 +1,10 @@
-"""The watchdog on MEASURED signals: the safety envelope (`hardware/safety.py`) checks what is commanded
-before anything is written; the watchdog checks what the joint does while it moves.
-
-The paced loop (`Rig.send`, `hardware/rig.py`) hands it every scan block as it reads it (every
-`READ_EVERY_TICKS` output ticks, 100 ms). For every watched joint it checks, row by row:
-
-1. the measured torque (Eq 3 and the torque look-up table) inside `torque_limits_nm`, the joint's torque
-   range scaled by the protocol's `torque_margin` (1.0: the range itself);
-2. the tracking error, the measured angle minus the command delayed by the servo lag (`lag_s`, the rig's
-   time constant: a first-order lag follows a ramp by exactly rate x tau), within
-   `max_tracking_error_deg` - a longer excursion than `max_tracking_error_s` trips it (a jammed brace, a
-   misplaced stop: the joint no longer follows the command).
-
-The first row that breaks a check is returned as `WatchdogTripped` (exit 4): the loop then stops the trial
-through the stop path a stop request takes (brake and park in the same loop) and raises it.
+"""The watchdog on MEASURED signals (docs/hardware.md, "The watchdog on measured signals"): the safety
+envelope (`hardware/safety.py`) checks what is commanded before anything is written; the watchdog checks,
+row by row of every scan block the paced loop reads, what the joint does while it moves: the measured
+torque within `torque_limits_nm`, and the measured angle within `max_tracking_error_deg` of the command
+delayed by the servo lag (`lag_s`: a first-order lag follows a ramp by exactly rate x tau) for at most
+`max_tracking_error_s`. The first row that breaks a check is returned as `WatchdogTripped` (exit 4): the loop
+then stops the trial through the stop path a stop request takes (brake and park in the same loop).
 """
 
 from __future__ import annotations
@@ -20,6 +12,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Protocol
 
 import numpy as np
@@ -34,13 +27,9 @@ TORQUE_ROUNDING = 1e-6  # a fraction of the torque range: single-precision round
 
 @dataclass(frozen=True)
 class WatchdogLimits:
-    """What the watchdog allows one joint while it moves.
-
-    torque_limits_nm: (min, max) measured torque allowed.
-    max_tracking_error_deg: largest |measured angle - command delayed by lag_s| allowed ...
-    max_tracking_error_s: ... for longer than this.
-    lag_s: the servo lag the command is delayed by before it is compared with the measured angle.
-    """
+    """What the watchdog allows one joint while it moves: the measured torque within `torque_limits_nm`;
+    |measured angle - command delayed by `lag_s`| beyond `max_tracking_error_deg` for at most
+    `max_tracking_error_s`."""
 
     torque_limits_nm: tuple[float, float]
     max_tracking_error_deg: float
@@ -117,15 +106,15 @@ class LoopWatch:
             # up to the single-precision rounding of the stored codes, is the joint at its limit, not beyond
             slack = TORQUE_ROUNDING * (hi - lo)
             out = np.flatnonzero((torque < lo - slack) | (torque > hi + slack))
+            trip = partial(WatchdogTripped, where=self.where, joint=joint.name)
             if out.size:
                 i = int(out[0])
+                limit = f"{lo:g} to {hi:g} N·m"
                 found.append(
-                    WatchdogTripped(
-                        where=self.where,
-                        joint=joint.name,
+                    trip(
                         quantity="torque",
                         value=float(torque[i]),
-                        limit=f"{lo:g} to {hi:g} N·m",
+                        limit=limit,
                         units="N·m",
                         time_s=float(t[i]),
                     )
@@ -147,16 +136,16 @@ class LoopWatch:
             late = np.flatnonzero(exceed & (t - onset >= limits.max_tracking_error_s))
             if late.size:
                 i = int(late[0])
+                limit = (
+                    f"±{limits.max_tracking_error_deg:g} deg for at most {limits.max_tracking_error_s:g} s"
+                )
                 found.append(
-                    WatchdogTripped(
-                        where=self.where,
-                        joint=joint.name,
+                    trip(
                         quantity="tracking error",
                         value=float(error[i]),
-                        limit=f"±{limits.max_tracking_error_deg:g} deg for at most "
-                        f"{limits.max_tracking_error_s:g} s",
+                        limit=limit,
                         units="deg",
-                        time_s=float(t[i]),
+                        time_s=t[i],
                     )
                 )
         return min(found, key=lambda e: e.time_s) if found else None

@@ -1,14 +1,7 @@
-"""Matrix generators: a set's configurations written as a rule instead of rows (docs/protocol.md).
-
-- `full_factorial`: the cross product of the listed factors' levels (the last factor varies fastest),
-  each combination with the `fixed` levels;
-- `one_factor_at_a_time`: the baseline, then each `vary` factor at each of its listed levels in turn, the
-  other factors at the baseline.
-
-Generated configurations are appended to their set's explicit rows. Their keys and test-run numbers
-continue after the largest key and run of the protocol's explicit rows, in generation order (sets in file
-order), so the same file always gives the same matrix. A generator's trajectory is `trajectory` or, per
-level of one factor, `trajectory_by_level`.
+"""Matrix generators: a set's configurations written as a rule instead of rows (`full_factorial`,
+`one_factor_at_a_time`; docs/protocol.md states both). Generated configurations are appended to their set's
+explicit rows; their keys and test-run numbers continue after the largest key and run of the protocol's
+explicit rows, in generation order (sets in file order), so the same file always gives the same matrix.
 """
 
 from __future__ import annotations

@@ -1,17 +1,7 @@
-"""Expansion of a protocol into a Plan: plain immutable data, ordered as executed, with stable step ids.
-
-Order (thesis Appendix A "Data collection": the brace is removed only after each set):
-
-    for each set, in test-run order:
-        calibration check before (45 deg step)
-        for each configuration: operator checklist (brace settings), brace-on trials 1..n
-        operator checklist: remove the brace
-        for each configuration: brace-off trials 1..n (input derived at run time from the brace-on output,
-                                §3.3.2), each the twin of the brace-on trial with the same number
-        calibration check after
-        for each configuration: processing, then model fits      (results as soon as the data exist)
-    cross-configuration comparisons
-    report
+"""Expansion of a protocol into a Plan: plain immutable data, ordered as executed, with stable step ids
+(docs/protocol.md, "Plan and step ids", gives the order: per set the calibration check, each configuration's
+checklist and brace-on trials, the brace removed, their brace-off twins, the calibration check again,
+processing and fits; then comparisons and the report; thesis Appendix A "Data collection").
 
 Step ids are the resume keys: they depend only on the protocol's names and keys, never on time or on
 `--only`, so the same step has the same id in every run.

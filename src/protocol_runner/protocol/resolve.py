@@ -62,9 +62,7 @@ def resolve_factor(p: Protocol, factor: str, label: str) -> FactorSetting:
     )
 
 
-def _bound_value(
-    factors: Mapping[str, FactorSetting], binding: str, loc: Loc, cfg: ConfigurationSpec
-) -> Quantity:
+def _bound_value(factors: Mapping[str, FactorSetting], binding: str, loc: Loc) -> Quantity:
     factor, quantity = binding.split(".", 1)
     setting = factors.get(factor)
     if setting is None:
@@ -83,9 +81,7 @@ def _bound_value(
     return value
 
 
-def resolve_device(
-    p: Protocol, factors: Mapping[str, FactorSetting], cfg: ConfigurationSpec
-) -> tuple[ElementSetting, ...]:
+def resolve_device(p: Protocol, factors: Mapping[str, FactorSetting]) -> tuple[ElementSetting, ...]:
     """Every element with its parameters resolved and checked (defaults filled in, models/elements.py)."""
     if p.device is None:
         return ()
@@ -93,7 +89,7 @@ def resolve_device(
     for joint, loc, el in p.device.located_elements():
         values: dict[str, Any] = {}
         for param, value in el.params.items():
-            values[param] = _bound_value(factors, value, (*loc, param), cfg) if is_binding(value) else value
+            values[param] = _bound_value(factors, value, (*loc, param)) if is_binding(value) else value
         try:
             built = build_element(el.name, el.type, values)
         except InvalidInput as exc:
@@ -133,19 +129,7 @@ def resolve_settings(p: Protocol, cfg: ConfigurationSpec) -> Settings:
     """The configuration's factors (declaration order) and its resolved device. Raises BindingError."""
     labels = cfg.levels
     factors = [(f, resolve_factor(p, f, labels[f])) for f in p.factors if f in labels]
-    return Settings(factors=tuple(factors), device=resolve_device(p, dict(factors), cfg))
-
-
-def trajectory_values(
-    p: Protocol, settings: Settings, cfg: ConfigurationSpec, joint: str
-) -> dict[str, Quantity]:
-    """The bound fields' values of the configuration's trajectory (of `joint`'s entry of a `per_joint`)."""
-    spec, prefix = joint_spec(p.trajectories[cfg.trajectory], joint)
-    factors = dict(settings.factors)
-    return {
-        field: _bound_value(factors, binding, ("trajectories", cfg.trajectory, *prefix, field), cfg)
-        for field, binding in trajectory_bindings(spec).items()
-    }
+    return Settings(factors=tuple(factors), device=resolve_device(p, dict(factors)))
 
 
 def configuration_motion(
@@ -170,13 +154,16 @@ def configuration_motion(
             f"trajectory {name!r}: kind per_joint needs a multi-joint protocol (`joints: [...]`)"
         )
     out: list[tuple[str, Trajectory]] = []
+    factors = dict(settings.factors)
     for joint in p.driven_joints:
-        values = trajectory_values(p, settings, cfg, joint)
+        entry, prefix = joint_spec(spec, joint)  # the bound fields' values: of `joint`'s entry of a per_joint
+        values = {
+            field: _bound_value(factors, binding, ("trajectories", name, *prefix, field))
+            for field, binding in trajectory_bindings(entry).items()
+        }
         limits = safety_limits(p.rig_of(joint))
         try:
-            traj = build_trajectory(
-                name, joint_spec(spec, joint)[0], values, loaded.base_dir, joint=joint, limits=limits
-            )
+            traj = build_trajectory(name, entry, values, loaded.base_dir, joint=joint, limits=limits)
         except InvalidInput as exc:
             raise InvalidInput(f"joint {joint}: {exc.message}" if p.multi_joint else exc.message) from None
         out.append((joint, traj))

@@ -353,8 +353,8 @@ def resolve_rigs(
 ) -> tuple[tuple[RigSpec, ...], list[Problem]]:
     """The driven joints' rigs (`joints: [...]`, or `joint:` when not `multi`): each resolved as
     `resolve_rig` does with its own `rig_overrides.joints.<joint>`, in output channel order. Problems are
-    located at `joints[i]` (or `joint`) or `rig_overrides.joints.<joint>...`; two driven joints sharing an
-    output or input channel are refused naming both."""
+    located at `joints[i]` (or `joint`) or `rig_overrides.joints.<joint>...`. No two of them share a channel:
+    `check_rig_file` refuses a rig file whose joints do, and overrides do not move channels."""
     problems: list[Problem] = []
     for i, name in enumerate(joint_names):
         if name in joint_names[:i]:
@@ -375,21 +375,4 @@ def resolve_rigs(
     problems += joints_named(("rig_overrides", "joints"), overrides.joints, joint_names)
     if problems:  # a shared override's problem (the output rate) once, not once per joint
         return (), list(dict.fromkeys(problems))
-    used: dict[tuple[str, int], str] = {}
-    for spec in specs:
-        for kind, ch in (
-            ("output", spec.output.channel),
-            ("input", spec.input.angle_channel),
-            ("input", spec.input.torque_channel),
-        ):
-            other = used.get((kind, ch))
-            if other is not None and other != spec.joint.name:
-                where = ("joints", joint_names.index(spec.joint.name))
-                problems.append(
-                    (
-                        where,
-                        f"{spec.joint.name} and {other} use the same {kind} channel {ch} ({loaded.shown})",
-                    )
-                )
-            used[(kind, ch)] = spec.joint.name
-    return ((), problems) if problems else (tuple(sorted(specs, key=lambda s: s.output.channel)), [])
+    return tuple(sorted(specs, key=lambda s: s.output.channel)), []

@@ -2,16 +2,14 @@
 
 First, by field (`trajectory_limit_problems`): which FIELD of which trajectory breaks the joint's range, rate
 or acceleration, so the test engineer knows what to change. Each kind says what to check (`check_limits` of
-its model, protocol/trajectory_specs.py): a closed form where it has one (a sinusoid's peak speed and
-acceleration, a ramp's, a range), else its samples at the output rate (`sampling.sample_trajectory`), first
-and second differences as `hardware/safety.py` does.
+its model, protocol/trajectory_specs.py): a closed form where it has one, else its samples at the output
+rate (`sampling.sample_trajectory`), differenced as `hardware/safety.py` does.
 
-Then the complete commanded stream (`check_streams`) of each configuration's trajectory and the calibration
-step - approach from the park angle, the trajectory sampled at the output rate, exit to the park angle - and
-a stop after any of its samples, against `rig.safety` and the joint's range (`hardware/stream.py`: range,
-±10 V after the command table, rate and acceleration across the junctions). A protocol whose stream breaks
-the envelope is refused before anything is created (exit 2), naming the configuration. Brace-off commands
-come from brace-on measurements; the rig checks them before sending.
+Then the complete commanded stream (`check_streams`, `hardware/stream.py`; docs/hardware-model.md, "The
+complete commanded stream") of each configuration's trajectory and the calibration step, and a stop after
+any of its samples: a protocol whose stream breaks the envelope is refused before anything is created
+(exit 2), naming the configuration. Brace-off commands come from brace-on measurements; the rig checks them
+before sending.
 """
 
 from __future__ import annotations

@@ -1,27 +1,14 @@
 """The DAQ simulator: a clock, an analog output and an analog input scan that satisfy
 `hardware.interfaces` and drive a physical model of each joint of the rig (`plant.py`) instead of the RSST.
 
-Signal path, mirroring the real rig (thesis §2.4-2.5), per joint:
+The signal path mirrors the real rig (docs/simulator.md, "Command path" and "Sensors"): the USB-3105's code
+-> Eq 2 -> the inverse of the command table -> `JointPlant` -> the inverses of the angle and torque tables
+-> Eq 1 / Eq 3 inverted -> volts + noise -> DT9814 codes, so that after the rig's calibration tables
+measured ≈ real. Several joints share one clock, one USB-3105 stand-in and one scan, and are simulated
+independently: each plant acts only on its own channel's writes and sees only its own device.
 
-    Rig ── volts ──▶ SimulatedAnalogOutput: USB-3105 16-bit code, recorded with its time
-        ──▶ the robot's VME reads the code's volts ──▶ Eq 2 (the inverse of Eq 1) over the joint range
-        ──▶ the robot's own nonlinearity (the inverse of the protocol's command table, thesis §2.5.1)
-        ──▶ JointPlant (servo + loads), integrated lazily up to the clock when the scan is read
-        ──▶ real angle / load torque ──▶ the robot's sensor nonlinearity (inverses of the angle and torque
-            tables) ──▶ Eq 1 / Eq 3 inverted ──▶ volts + noise ──▶ DT9814 12-bit ±10 V codes at the scan rate
-
-so that, after the rig applies its calibration tables, measured ≈ real. With no table the robot is linear.
-
-Several joints share one clock, one USB-3105 stand-in and one scan, and are simulated independently: each
-plant acts only on its own channel's writes, at their time, and sees only its own device.
-
-Determinism (docs/simulator.md, "Determinism"): `SimulatedRig.begin_step(step_id, trial)` reseeds each
-joint's noise from sha256(joint seed, step id), draws the trial's friction spread from sha256(joint seed,
-trial), rests the joint at its park angle and restarts the plant's grid at the clock. The joint seed is the
-session seed on a rig of one joint, `joint_seed` of (session seed, joint name) on a rig of several. Fixed
-grid, commands from the first grid step at or after their write, noise drawn row by row: the same seed and
-step id give identical arrays however often the scan is read (in simulated time; `realtime=True` paces with
-the wall clock and its write times jitter).
+The same seed and step id give identical arrays however often the scan is read (docs/simulator.md,
+"Determinism"; `realtime=True` paces with the wall clock and its write times jitter).
 """
 
 from __future__ import annotations
@@ -67,11 +54,8 @@ AI_CHANNELS = 24
 AI_MAX_RATE_HZ = 50_000.0
 """DT9814 maximum aggregate rate (thesis §2.3)."""
 TRANSFER_S = 1.0
-"""In simulated time the board hands its rows over in transfers of this much scan time, as a USB board
-hands over whole packets: a read before a transfer is complete returns no rows, `stop_scan` returns the
-rest. The rows do not depend on it (the plant is integrated on a fixed grid whatever the reads); it sets
-how many compiled calls a dry run makes: one per second of scan instead of one per read of the rig's loop
-(every 100 ms). In real time (`--realtime`) every row is handed over as soon as it is due
+"""Scan time per transfer of rows in simulated time (docs/simulator.md, "The dry-run loop"): one compiled
+call per transfer; the rows do not depend on it. In real time every row is handed over when due
 (`SimulatedAnalogInput.transfer_s` = 0)."""
 NOISE_BLOCK = 8192
 """Standard normals drawn from the step's generator at a time; rows consume them in order, so the values a
@@ -409,20 +393,16 @@ class SimulatedRig:
         return self.models[0].step_id
 
     def begin_step(self, step_id: str, trial: str | None = None) -> None:
-        """Start step `step_id`: for every joint, reseed the noise from (its seed, step id), draw the
-        between-trial spread of the friction terms from (its seed, `trial`; the step id without one), put it
-        at rest at its park angle with its friction states relaxed, restart the plant's time grid now; clear
-        the output records. The devices stay as fitted. Steps that name the same `trial` (a brace-on trial
-        and its brace-off twin) see the same robot and device friction."""
+        """Start step `step_id` (docs/simulator.md, API): every joint reseeded from (its seed, step id), its
+        friction spread drawn from (its seed, `trial`), at rest at its park angle. Steps that name the same
+        `trial` (a brace-on trial and its brace-off twin) see the same robot and device friction."""
         self.ao.clear_records()
         for m in self.models:
             m.begin_step(step_id, trial)
 
     def set_device(self, elements: Sequence[object] | None, *, joint: str | None = None) -> None:
         """The operator fits the device under test made of `elements` to `joint` (the only one when None),
-        or removes it (with None): objects with .name, .type and .params (a mapping or (key, value) pairs,
-        e.g. the protocol's resolved ElementSetting), (name, type, params) tuples, or
-        `models.elements.Element`. InvalidInput names a bad element parameter."""
+        or removes it (with None); the forms `elements` may take: docs/simulator.md, API."""
         self._model(joint).plant.set_device(elements)
 
     def make_rig(self) -> Rig:

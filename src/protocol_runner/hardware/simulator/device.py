@@ -1,18 +1,8 @@
 """The device under test as the simulated plant sees it: the protocol's elements (`models.elements`)
-composed into the compiled kernel's inputs.
-
-- elastic elements and masses (torques that depend on the angle alone) are summed, in declaration order,
-  into one torque-vs-angle table (`models.element_torques.static_torque_nm`, every `spring_table_step_deg`
-  over the joint range widened by 60° on both sides), linearly interpolated by the kernel;
-- Coulomb brakes are grouped by their smoothing (transition, Stribeck excess and speed): a group's torques
-  are summed and it has one Dahl state (brakes that share their smoothing are one friction surface as far
-  as the equations go);
-- viscous dampers are summed;
-- one `rom_stops` element at most, and one `cuff_shift` at most (its height set by the lever springs'
-  force, `element_torques.cuff_shift_height_nm`).
-
-A mass element contributes its gravity torque; its inertia is neglected like the robot's own (the joint is
-a speed source, docs/simulator.md).
+composed into the compiled kernel's inputs, each type as docs/simulator.md ("Loads") tabulates it: the
+angle-only torques summed into one table, Coulomb brakes grouped by their smoothing (one Dahl state per
+group), dampers summed, one `rom_stops` and one `cuff_shift` at most. A mass element contributes its
+gravity torque; its inertia is neglected like the robot's own (the joint is a speed source).
 """
 
 from __future__ import annotations

@@ -23,82 +23,33 @@ from protocol_runner.errors import InvalidInput
 
 @dataclass(frozen=True)
 class SimulatorParams:
-    """The rig model's constants (see the module docstring; docs/simulator.md has the same table)."""
+    """The rig model's constants. docs/simulator.md ("Parameters") gives each one's meaning, its knee value
+    and the source or finding behind it; the servo law that `valve_regularisation` (ε) and
+    `relief_speed_deg_s_per_nm` enter is stated there too."""
 
-    # --- integration -------------------------------------------------------------------------------------
+    # integration: 2 kHz, half the 1 kHz scan period, stable with 40 N·m/deg stops under explicit Euler
     plant_step_s: float = 0.0005
-    """Fixed integration step (2 kHz). Half the 1 kHz scan period, so that stiff range-of-motion stops
-    (40 N·m/deg) integrate stably with explicit Euler; samples are taken on this grid."""
-
-    # --- the robot joint: hydraulic position servo (thesis §2.2, §2.4.2) ---------------------------------
+    # the robot joint: hydraulic position servo (thesis §2.2, §2.4.2), first-order lag of the unloaded joint
     lag_time_constant_s: float = 0.2
-    """Time constant of the unloaded servo (first-order lag, valve flow proportional to position error).
-    The thesis measured 0.2 s on the loaded joint (§2.4.2, Figures 18-19). A joint whose segment weight
-    slows its calibration step gets a shorter unloaded value from the rig file (the knee: 0.17 s gives the
-    measured 0.2 s on its loaded 45° step, tests/hardware/test_simulator.py fits it)."""
-
     valve_regularisation: float = 0.02
-    """The actuator's speed is scaled by the valve's pressure-flow law g(x) = x/sqrt(|x| + ε)·sqrt(1 + ε),
-    x = 1 - load/limit (orifice flow ∝ sqrt(supply - load pressure); it falls to zero at the torque limit
-    and reverses beyond it). ε rounds the square root's infinite slope at the stall point so that explicit
-    integration does not chatter. Pure numerics: any value 0.005-0.05 behaves the same."""
-
     relief_speed_deg_s_per_nm: float = 5.0
-    """When the load exceeds the torque limit (e.g. a stiff stop pressed by a still command) the actuator
-    yields like a relief valve: it is back-driven at this speed per N·m of excess. Numerics: large enough to
-    keep the load at the limit, small enough to be stable with the stiffest stop."""
-
-    # --- loads of the bare robot (present in every trial) ------------------------------------------------
+    # loads of the bare robot, present in every trial: gravity = gravity_torque_max_nm · sin(angle - zero)
     gravity_torque_max_nm: float = 0.0
-    """m·g·l of the segment the joint carries: the gravity torque where the segment is horizontal. The
-    rig file gives each joint's (the knee's shank: 35.5 N·m, see docs/simulator.md for the finding it
-    pins)."""
-
     gravity_zero_angle_deg: float = 0.0
-    """Joint angle at which the segment hangs vertically (no gravity torque); gravity torque =
-    gravity_torque_max_nm · sin(angle - this)."""
-
-    robot_friction_nm: float = 0.0
-    """Coulomb friction of the robot's own actuator and seals (a Dahl hysteresis state, thesis §5: the
-    hysteresis every graph shows is "an artifact of the robot"). Per joint, from the rig file."""
-
+    robot_friction_nm: float = 0.0  # Coulomb (Dahl state, σ = F / transition)
     robot_friction_transition_deg: float = 1.5
-    """Displacement over which the robot's friction state relaxes to a new direction (Dahl σ = F / this):
-    rounded loop corners as in the thesis's hysteresis plots (Appendix B)."""
-
     robot_viscous_nm_per_deg_s: float = 0.0
-    """Viscous friction of the actuator (hydraulic fluid), N·m per deg/s. Per joint, from the rig file."""
-
-    spring_table_step_deg: float = 0.25
-    """Resolution of the precomputed torque-vs-angle table of the device's elastic elements and masses
-    (`models.element_torques.static_torque_nm`, linearly interpolated in the integrator). Below 0.01 N·m
-    error on the knee brace's springs."""
-
-    # --- sensors (thesis §2.2, §3.2) ---------------------------------------------------------------------
+    spring_table_step_deg: float = 0.25  # the device's torque-vs-angle table (`models.element_torques`)
+    # sensors (thesis §2.2, §3.2): white noise, 1σ
     angle_noise_deg: float = 0.1
-    """White noise on the potentiometer telemetry, 1σ. About 3 LSB of the 12-bit DT9814 on the knee's
-    0-130° range. Chosen."""
-
     torque_noise_nm: float = 0.8
-    """White noise on the load-cell telemetry, 1σ. Thesis §3.2: "the data output from the robot is very
-    noisy" — the torque needs the 10th-order Butterworth filter of §4.4. Chosen."""
-
-    idle_channel_noise_v: float = 0.005
-    """Noise on scanned channels that carry no simulated signal (about 1 LSB)."""
-
-    # --- between-trial spread (a rig is not the same from one trial to the next) ---------------------------
+    idle_channel_noise_v: float = 0.005  # channels that carry no simulated signal
+    # between-trial spread: coefficients of variation of the robot's Coulomb and viscous friction and of the
+    # device's brakes and dampers (one factor for all; its springs, masses and stops do not vary), each
+    # drawn once per trial by `trial_factors`; 0 = every trial the same
     trial_spread_robot_friction_cv: float = 0.0
-    """Coefficient of variation between trials of the robot's Coulomb friction (`robot_friction_nm`):
-    each trial multiplies it by a factor drawn once for the trial (`trial_factors`). 0 = every trial the
-    same. Per joint, from the rig file."""
-
     trial_spread_robot_viscous_cv: float = 0.0
-    """The same for the robot's viscous friction (`robot_viscous_nm_per_deg_s`)."""
-
     trial_spread_device_friction_cv: float = 0.0
-    """The same for the device's dissipative elements (its Coulomb brakes' torques and its viscous dampers,
-    one factor for all of them): the brace as fitted for that trial. Its springs, masses and stops do not
-    vary (their parameters are set by parts, not by fitting)."""
 
     def __post_init__(self) -> None:
         for f in fields(self):
@@ -130,8 +81,6 @@ SIGNED = ("gravity_zero_angle_deg",)  # the parameters that may be negative
 def bound_problem(name: str, value: float) -> str:
     """What is wrong with `value` for simulator parameter `name` ("" if nothing): outside its BOUNDS, or
     negative where only SIGNED ones may be."""
-    if not isinstance(value, int | float):
-        return ""
     low_high = BOUNDS.get(name)
     if low_high is None:
         return f"must be >= 0, got {value!r}" if value < 0.0 and name not in SIGNED else ""

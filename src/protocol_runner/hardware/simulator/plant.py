@@ -1,16 +1,8 @@
 """The rig's physics: an RSST joint (hydraulic position servo) and the device under test, integrated by numba.
-docs/simulator.md ("The joint", "Loads") states the model; every constant is in `params.py`.
-
-The joint is a flow (speed) source whose speed collapses as the load nears its torque limit τ_limit (the
-joint's Eq 3 range in the direction it pushes, thesis Table 3, §5), with e = target - angle:
-
-    dθ/dt = (e / τ) · g(1 - τ_load / τ_limit),     g(x) = x / sqrt(|x| + ε) · sqrt(1 + ε)
-
-plus a relief term for a load beyond the limit. The load, in the sign convention of `models.spring`
-(positive = the robot must push towards flexion), is the segment's gravity G · sin(θ - θ_0), the robot's
-friction (a Dahl state z_r + viscous c·dθ/dt) and the device's elements as `device.compose` groups them
-(equations in `models.element_torques`). Explicit Euler on a fixed grid (`plant_step_s`); the Dahl states
-use the exact exponential update over each step, so they are unconditionally stable. Deterministic.
+docs/simulator.md ("The joint", "Loads", "Integration") states the model; every constant is in `params.py`.
+Loads are in the sign convention of `models.spring` (positive = the robot must push towards flexion).
+Explicit Euler on a fixed grid (`plant_step_s`); the Dahl states use the exact exponential update over each
+step, so they are unconditionally stable. Deterministic.
 """
 
 from __future__ import annotations
