@@ -65,11 +65,11 @@ def _print_hook(kind: Any, value: BaseException, tb: Any) -> None:
 
 
 @contextlib.contextmanager
-def collected_write_errors(path: Path) -> Iterator[list[BaseException]]:
-    """While the caller writes the HDF5 file at `path` (opened by that name): the errors h5py could not
-    raise for it, in the yielded list (check it after closing the file). The hooks are in place only while
-    some file is being written (the first writer puts them in, the last one takes them out if nothing
-    replaced them meanwhile)."""
+def checked_h5_write(path: Path) -> Iterator[None]:
+    """Around the writing (opening to closing) of the HDF5 file at `path`, opened by that name: a write
+    h5py could only print fails the block, raised as an `OSError` (its `errno` ENOSPC for a full disk,
+    which `diskfull.is_disk_full` recognises). The hooks are in place only while some file is being
+    written (the first writer puts them in, the last one takes them out if nothing replaced them)."""
     key = str(path)
     errors: list[BaseException] = []
     with _lock:
@@ -81,7 +81,11 @@ def collected_write_errors(path: Path) -> Iterator[list[BaseException]]:
             sys.excepthook = _print_hook
         _watched[key] = errors
     try:
-        yield errors
+        try:
+            yield
+        except BaseException as exc:
+            traceback.clear_frames(exc.__traceback__)  # free the h5py objects they hold, errors collected
+            raise
     finally:
         with _lock:
             if _watched.get(key) is errors:
@@ -92,26 +96,7 @@ def collected_write_errors(path: Path) -> Iterator[list[BaseException]]:
             if not _watched and sys.excepthook is _print_hook and _forward_print:
                 sys.excepthook = _forward_print[0]
                 _forward_print.clear()
-
-
-def raise_collected(errors: list[BaseException], path: Path) -> None:
-    """Raise the first error `collected_write_errors` met writing `path`, as an `OSError` (its `errno` ENOSPC
-    for a full disk, which `diskfull.is_disk_full` recognises); nothing when there was none."""
-    if not errors:
-        return
-    text = str(errors[0])
-    full = "errno = 28" in text or "No space left on device" in text
-    raise OSError(28 if full else 5, f"writing {path} failed: {text}", str(path))
-
-
-@contextlib.contextmanager
-def checked_h5_write(path: Path) -> Iterator[None]:
-    """Around the writing (opening to closing) of the HDF5 file at `path`: a write h5py could only print
-    fails the block (module notes)."""
-    with collected_write_errors(path) as errors:
-        try:
-            yield
-        except BaseException as exc:
-            traceback.clear_frames(exc.__traceback__)  # free the h5py objects they hold, errors collected
-            raise
-        raise_collected(errors, path)
+    if errors:
+        text = str(errors[0])
+        full = "errno = 28" in text or "No space left on device" in text
+        raise OSError(28 if full else 5, f"writing {path} failed: {text}", str(path))

@@ -161,9 +161,7 @@ class Runner:
             self._stopped("interrupted", message, progress)
             raise Interrupted(f"{message}. The session is resumable: run-protocol --resume {self.dir}") from None
         except KeyboardInterrupt:
-            self.pool.kill()
-            with contextlib.suppress(Exception):
-                self.journal.event("interrupted", "stopped at once (second Ctrl-C)")
+            self._stopped_at_once()
             raise Interrupted(
                 f"stopped at once; every finished step is kept. Resume with: run-protocol --resume {self.dir}"
             ) from None
@@ -245,12 +243,16 @@ class Runner:
             try:
                 action()
             except KeyboardInterrupt:
-                self.pool.kill()
-                with contextlib.suppress(Exception):
-                    self.journal.event("interrupted", "stopped at once (second Ctrl-C)")
+                self._stopped_at_once()
                 return
             except Exception:  # a stop must get through every action it can
                 continue
+
+    def _stopped_at_once(self) -> None:
+        """A second Ctrl-C: end the analyses now and journal it if possible (--resume redoes the rest)."""
+        self.pool.kill()
+        with contextlib.suppress(Exception):
+            self.journal.event("interrupted", "stopped at once (second Ctrl-C)")
 
     def _disk_full(self, exc: Exception) -> DiskFull:
         """Park, journal the stop if there is room for it, and the error to raise (archive/diskfull.py)."""
