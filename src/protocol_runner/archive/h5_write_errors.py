@@ -2,15 +2,13 @@
 
 When the last reference to an h5py object goes, h5py closes its HDF5 identifier in the deallocator, and
 HDF5 may then write cached data to the file. If that write fails (a full disk), h5py cannot raise: Python
-prints "Exception ignored in ..." (`sys.unraisablehook`; h5py also prints the traceback through
-`sys.excepthook`) and goes on, and if space comes back meanwhile the file is closed normally and could be
+only prints it (`sys.unraisablehook`, and h5py through `sys.excepthook`), and the file could later be
 taken as complete with the failed write's bytes missing.
 
 `checked_h5_write(path)` collects those errors for the file at `path` (HDF5 names the file in the
-message) instead of printing them, and raises the first as an `OSError` once the block that writes and
-closes the file has ended. When the block raises instead, the objects its frames held are freed first
-(their errors collected: the block's own error is the one that counts). Errors about other files, and
-every other unraisable exception, go to the hook that was in place.
+message) and raises the first once the block that writes and closes the file has ended. When the block
+raises instead, its own error is the one that counts. Errors about other files, and every other
+unraisable exception, go to the hook that was in place.
 """
 
 from __future__ import annotations

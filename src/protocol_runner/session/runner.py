@@ -1,18 +1,14 @@
 """The runner: executes a plan's steps against a bench, one atomic unit per finished step.
 
-The session is one loop over the plan's steps: skip a step the journal lists as complete; run the step
-(steps/registry.py); write its unit (archive/units.py: written, fsynced, renamed into place); journal it.
-Every unit is therefore on disk and journaled before the next step moves the joint, so a crash or a kill
-loses at most the step under way. A resume skips journaled units whose files verify, redoes corrupt or
-partial ones, and sets the rig up for the step it continues with (session/resume.py). SIGINT/SIGTERM stop
-at the next safe point, park the joint, and exit 130 with the session resumable. At the end (and at every
-stop) the units are consolidated into `archive.h5`, and the report is rendered.
+One loop over the plan's steps: skip a step the journal lists as complete; run the step; write its unit
+(archive/units.py: written, fsynced, renamed into place); journal it. Every unit is on disk and journaled
+before the next step moves the joint, so a crash or a kill loses at most the step under way. SIGINT/SIGTERM
+stop at the next safe point, park the joint, and exit 130 with the session resumable (`resume.py`). At the
+end (and at every stop) the units are consolidated into `archive.h5`, and the report is rendered.
 
-One thing runs beside the loop: on a machine with two cores or more, the analysis steps (processing and
-fits, which only read finished units) run in a worker process (`workers.py`) while the loop goes on with
-the next configuration's trials; the loop journals each one once its unit is on disk, and waits for all of
-them before a comparison or the report reads them. Resuming is in `resume.py`, the report in
-`reporting.py`; the archive is assembled here (`Runner.consolidate`).
+With two cores or more, the analysis steps (which only read finished units) run in a worker process
+(`workers.py`) while the loop goes on with the next trials; the loop journals each once its unit is on
+disk, and waits for all of them before a comparison or the report reads them.
 """
 
 from __future__ import annotations
@@ -73,8 +69,6 @@ class Runner:
         resumed: bool = False,
         protocol_changed: bool = False,
         quiet: bool = False,
-        stop: StopFlag | None = None,
-        background: bool | None = None,
         publisher: Publisher = NULL_PUBLISHER,
     ) -> None:
         self.dir = session_dir
@@ -89,11 +83,11 @@ class Runner:
         self.units_dir = session_dir / "units"
         refuse_session_links(session_dir)  # lock, journal, log, units: never written through a link
         self.journal = Journal(session_dir / "journal.jsonl")
-        self.stop = stop or StopFlag()
+        self.stop = StopFlag()
         self.steps_run = 0
         self.rechecks = 0
         self._planned = {step.id for step in plan.steps}
-        self.background = background if background is not None else (os.cpu_count() or 1) >= 2
+        self.background = (os.cpu_count() or 1) >= 2
         self.pool = AnalysisPool(loaded, plan, self.units_dir, self.journal)
         self.publisher = publisher  # the live monitor (--monitor): told of every step through `progress`
 
@@ -248,8 +242,7 @@ class Runner:
             except Exception:  # a stop must get through every action it can
                 continue
 
-    def _stopped_at_once(self) -> None:
-        """A second Ctrl-C: end the analyses now and journal it if possible (--resume redoes the rest)."""
+    def _stopped_at_once(self) -> None:  # a second Ctrl-C
         self.pool.kill()
         with contextlib.suppress(Exception):
             self.journal.event("interrupted", "stopped at once (second Ctrl-C)")

@@ -62,12 +62,18 @@ def worker_context() -> multiprocessing.context.BaseContext:
 def analysis_pool() -> Iterator[ProcessPoolExecutor]:
     """Worker processes for analyses outside a session (`--report --reprocess`), started as the session's
     are (`worker_context`, `worker_init`: SIGINT left to the main process, BLAS on one thread)."""
-    with sigint_blocked():
-        pool = ProcessPoolExecutor(
-            max_workers=min(2, os.cpu_count() or 1), mp_context=worker_context(), initializer=worker_init
-        )
-    with pool:
+    with _new_pool(worker_init) as pool:
         yield pool
+
+
+def _new_pool(initializer: Callable[..., None], *initargs: object) -> ProcessPoolExecutor:
+    with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
+        return ProcessPoolExecutor(
+            max_workers=min(2, os.cpu_count() or 1),
+            mp_context=worker_context(),
+            initializer=initializer,
+            initargs=initargs,
+        )
 
 
 def worker_init() -> None:
@@ -170,13 +176,7 @@ class AnalysisPool:
                 chain.append(self.plan.step(fit))
         self.submitted.update(s.id for s in chain)
         if self._pool is None:
-            with sigint_blocked():
-                self._pool = ProcessPoolExecutor(
-                    max_workers=min(2, os.cpu_count() or 1),
-                    mp_context=worker_context(),
-                    initializer=_start_worker,
-                    initargs=(self.loaded, self.plan),
-                )
+            self._pool = _new_pool(_start_worker, self.loaded, self.plan)
         # blocked again: creating the pool may start multiprocessing's resource tracker, which unblocks
         # SIGINT in this thread once it has started it; the workers (and the fork server) start here
         with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
@@ -193,12 +193,16 @@ class AnalysisPool:
             if still or not future.done():  # journaled in submission order
                 still.append((chain, future))
                 continue
-            results = future.result()  # a worker's error is raised here, in the main process
-            for step, (record, summary, raised) in zip(chain, results, strict=True):
-                if record is not None:
-                    self.journal.unit_done(record)
-                finished(step, summary + self._warnings_text(raised))
+            self._journal(chain, future.result(), finished)  # a worker's error is raised here
         self._pending = still
+
+    def _journal(
+        self, chain: tuple[Step, ...], results: Results, finished: Callable[[Step, str], None]
+    ) -> None:
+        for step, (record, summary, raised) in zip(chain, results, strict=True):
+            if record is not None:
+                self.journal.unit_done(record)
+            finished(step, summary + self._warnings_text(raised))
 
     def _warnings_text(self, raised: Warned) -> str:
         """What a step's line adds for the warnings it raised (the line goes to session.log and the
@@ -230,11 +234,6 @@ class AnalysisPool:
             except (BrokenProcessPool, RuntimeError):  # a worker died, or the pool is shut down
                 return None
 
-    @property
-    def busy(self) -> bool:
-        """Whether analyses are running (not journaled yet)."""
-        return bool(self._pending)
-
     def shutdown(self, finished: Callable[[Step, str], None]) -> None:
         """On any exit: keep the background steps that complete, drop those not started (redone on resume)."""
         if self._pool is None:
@@ -249,10 +248,7 @@ class AnalysisPool:
             if future.cancelled() or future.exception() is not None:
                 continue
             with contextlib.suppress(Exception):
-                for step, (record, summary, raised) in zip(chain, future.result(), strict=True):
-                    if record is not None:
-                        self.journal.unit_done(record)
-                    finished(step, summary + self._warnings_text(raised))
+                self._journal(chain, future.result(), finished)
         self._pending.clear()
         self._pool = None
 

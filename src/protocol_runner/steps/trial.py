@@ -28,7 +28,7 @@ from ..analysis.scaling import ScalingResult, cycle_range, lag_input, scale_brac
 from ..analysis.transition import command_on_input_base, transition_index
 from ..archive.attrs import ATTRIBUTES, FACTORS, JOINT, STATUS, STEP_ID
 from ..archive.attrs import JOINTS as JOINTS_ATTR
-from ..archive.h5util import SIGNAL, put, put_attrs
+from ..archive.h5util import put, put_attrs
 from ..archive.paths import configuration_path, joint_groups, joint_path, put_dataset, recording_path
 from ..errors import HardwareUnavailable
 from ..hardware.joint import TrialRecording
@@ -54,51 +54,19 @@ class _BraceOn:
     command_deg: tuple[FloatArray, ...]
 
 
-KEPT_BRACE_ON_MAX = 32
-"""Brace-on recordings kept in memory at most (each holds a trial's scan, ~1 MB per joint; a set of four
-configurations of three trials has 12 of them before its first brace-off trial). Beyond it the oldest are
-dropped: their twins read the unit."""
-
-_kept_brace_on: dict[tuple[str, str], _BraceOn] = {}
-"""(units folder, brace-on step id) -> that trial's recording exactly as its unit stores it (`put_scan`,
-`put_commands`: the angle at the stored precision), kept by the process that ran it until its brace-off twin
-reads it, so the twin does not read the unit back from disk. A twin run by another process (a resume), or
-after the memory was dropped, reads the unit."""
-
-
-def _keep_brace_on(ctx: StepContext, step: TrialStep, recs: tuple[TrialRecording, ...]) -> None:
-    if not any(isinstance(s, TrialStep) and s.twin == step.id for s in ctx.plan.steps):
-        return  # no brace-off trial follows this one
-    if len(_kept_brace_on) >= KEPT_BRACE_ON_MAX:
-        del _kept_brace_on[next(iter(_kept_brace_on))]  # the oldest
-    _kept_brace_on[(str(ctx.units_dir), step.id)] = _BraceOn(
-        np.asarray(recs[0].input_time_s),
-        np.asarray(recs[0].command_time_s),
-        tuple(np.asarray(r.angle_deg, dtype=SIGNAL) for r in recs),
-        tuple(np.asarray(r.command_deg) for r in recs),
-    )
-
-
 def _read_brace_on(ctx: StepContext, step: TrialStep) -> _BraceOn:
+    """The brace-on twin's recording of the brace-off trial `step`, as its unit stores it."""
     assert step.twin is not None
-    kept = _kept_brace_on.pop((str(ctx.units_dir), step.twin), None)
-    if kept is not None:
-        return kept
+    joints = [j for j, _ in joint_trajectories(step, ctx)]
     with ctx.unit(step.twin) as f:
-        return brace_on_in_unit(f, step, [j for j, _ in joint_trajectories(step, ctx)])
-
-
-def brace_on_in_unit(f: h5py.File, step: TrialStep, joints: list[str]) -> _BraceOn:
-    """The recording of the brace-on trial of `step` (a trial of either brace) of the driven `joints` as
-    its unit `f` stores it."""
-    g = f[recording_path(step.configuration, step.trial, "on")]
-    parts = dict(joint_groups(g, ",".join(joints)))
-    return _BraceOn(
-        g["time_s"][:],
-        g["command_time_s"][:],
-        tuple(parts[j]["angle_deg"][:] for j in joints),
-        tuple(parts[j]["command_deg"][:] for j in joints),
-    )
+        g = f[recording_path(step.configuration, step.trial, "on")]
+        parts = dict(joint_groups(g, ",".join(joints)))
+        return _BraceOn(
+            g["time_s"][:],
+            g["command_time_s"][:],
+            tuple(parts[j]["angle_deg"][:] for j in joints),
+            tuple(parts[j]["command_deg"][:] for j in joints),
+        )
 
 
 def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
@@ -123,8 +91,6 @@ def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
         summary = f"failed after {partial[0].input_time_s.size} samples: {exc.message}"
         return StepOutcome(_fill(step, ctx, partial, None, status="failed"), summary, stop=exc)
     fill = _fill(step, ctx, recs, scaling)
-    if step.brace == "on":
-        _keep_brace_on(ctx, step, recs)
     who = [f"{j} " if len(names) > 1 else "" for j in names]
     summary = ", ".join(
         f"{w}angle {np.min(r.angle_deg):.0f}..{np.max(r.angle_deg):.0f} deg, "
