@@ -486,9 +486,8 @@ _ENDED_BY_AN_INTERRUPT = threading.Event()  # set when a Ctrl-C raised KeyboardI
 
 def one_blas_thread() -> None:
     """Have OpenBLAS start with one thread in this process and the analysis workers, unless
-    `OPENBLAS_NUM_THREADS` is set: its idle threads spin for about 0.1 s of CPU after every start and fork,
-    and nothing here gains from more (the model fits hold BLAS at one thread anyway). OpenBLAS reads it when
-    it loads, so it is set before anything imports numpy; a program calling `main(argv)` keeps its own."""
+    `OPENBLAS_NUM_THREADS` is set: its idle threads spin after every start and fork, and nothing here gains
+    from more. Set before anything imports numpy; a program calling `main(argv)` keeps its own."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 

@@ -289,9 +289,8 @@ def _journaled_units_missing(session_dir: Path) -> list[str]:
 
 
 def _html_output(path: Path | None) -> None:
-    """Refuse an `--output` that would overwrite a file which is not an HTML page (a session's archive,
-    unit, journal or session.json given by mistake): a report or a comparison replaces only its own kind, and
-    only a regular file (never a link, a device or a FIFO: archive/outputs.py)."""
+    """Refuse an `--output` that would overwrite a file which is not an HTML page (an archive or a journal
+    given by mistake), or is not a regular file (archive/outputs.py)."""
     if path is None:
         return
     from .archive.outputs import refuse_special
@@ -314,11 +313,9 @@ def _html_output(path: Path | None) -> None:
 @contextlib.contextmanager
 def _session_held(path: Path) -> Iterator[None]:
     """Hold the lock of the session that `path` (a session directory, or an archive in one) belongs to, so
-    that a report is never rendered from an archive that a running `--resume` is about to replace, nor
-    written beside its newer archive after it: while a run or a resume holds the session, `--report` is
-    refused (exit 2, naming its PID; that run writes its own report when it ends), and a resume started
-    while a report is being rendered is refused likewise. A session folder where no lock can be created
-    (read-only media) is read without one: nothing can be writing to it there."""
+    that a report is never rendered from an archive a running `--resume` is about to replace: while a run
+    holds the session, `--report` is refused (exit 2, naming its PID), and the reverse. A session folder
+    where no lock can be created (read-only media) is read without one: nothing can be writing to it."""
     from .session.lock import session_lock
 
     folder = path if path.is_dir() else path.parent
@@ -419,7 +416,7 @@ def power_plan(
     only: KeySelection | None = None,
 ) -> int:
     """`--plan PROTOCOL --power SESSION` (or `--power-cv CV`): the trials per configuration each declared
-    expectation needs for 80 % power, and which the plan's trials cannot decide (power_plan.py)."""
+    expectation needs for 80 % power (power_plan.py)."""
     from .power_plan import Spread, check_session, plan_power
     from .preflight import preflight
 

@@ -1,8 +1,8 @@
 """The session journal: an append-only JSON-lines file, fsynced after every record.
 
 A unit is journaled as complete only after its file was atomically written (archive/units.py). Events
-(started, interrupted, resumed, ...) are journaled too and end up in the archive's `/session/events`.
-A crash can leave a torn last line: it is ignored on reading (it never described a complete unit).
+(started, interrupted, resumed, ...) end up in the archive's `/session/events`. A crash can leave a torn
+last line: it is ignored on reading (it never described a complete unit).
 """
 
 from __future__ import annotations

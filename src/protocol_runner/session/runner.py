@@ -16,7 +16,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
@@ -118,6 +118,11 @@ class Runner:
             monitor=self.publisher,
         )
         skipped = 0
+
+        def analysed(step: Step, summary: str) -> None:  # an analysis the workers ran is journaled
+            self.steps_run += 1
+            progress.step_finished(step, summary)
+
         try:
             if self.resumed:
                 prepare_resume(self, ctx, progress)  # session/resume.py
@@ -125,7 +130,7 @@ class Runner:
                 self.journal.event("started", f"{self.info.mode}, seed {self.info.seed}")
                 self.journal.event("referenced_files", json.dumps(self.info.files_sha256, sort_keys=True))
             for step in self.plan.steps:
-                self.pool.collect(self._finished(progress))  # journal the analyses finished meanwhile
+                self.pool.collect(analysed)  # journal the analyses finished meanwhile
                 if step.id in self.journal.units:
                     skipped += 1
                     continue
@@ -137,7 +142,7 @@ class Runner:
                     self.pool.submit(step)  # the units it reads are journaled: on disk
                     continue
                 if step.kind in ("compare", "report"):
-                    self._await_analyses(progress)  # what they read
+                    self.pool.collect(analysed, wait=True)  # what they read
                     if self.stop():  # a Ctrl-C while the last analyses ran: stop here, as announced
                         raise Interrupted(f"stopped before {step.id} ({self.stop.signal_name})")
                 if step.kind == "report":
@@ -146,7 +151,7 @@ class Runner:
                 outcome = run_step(step, ctx)
                 self.record(step.id, outcome)
                 progress.step_finished(step, outcome.summary)
-            self._await_analyses(progress)
+            self.pool.collect(analysed, wait=True)
             return self._finish(progress, skipped)
         except Interrupted as exc:
             message = exc.message
@@ -195,17 +200,6 @@ class Runner:
             progress.close()
             with contextlib.suppress(Exception):
                 self.bench.close()
-
-    def _finished(self, progress: Progress) -> Callable[[Step, str], None]:
-        def finished(step: Step, summary: str) -> None:
-            self.steps_run += 1
-            progress.step_finished(step, summary)
-
-        return finished
-
-    def _await_analyses(self, progress: Progress) -> None:
-        """Wait until every analysis handed to the workers is journaled."""
-        self.pool.collect(self._finished(progress), wait=True)
 
     def record(self, step_id: str, outcome: StepOutcome) -> None:
         """Write the step's unit and journal it; a step that stops the session has its unit written and

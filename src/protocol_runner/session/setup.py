@@ -22,7 +22,7 @@ import json
 import os
 import re
 import shutil
-from dataclasses import asdict, dataclass, field
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from datetime import UTC, datetime
 from pathlib import Path, PurePosixPath
 from typing import Any
@@ -73,15 +73,8 @@ def default_session_dir(protocol_name: str) -> Path:
 def referenced_files(loaded: LoadedProtocol) -> list[str]:
     p = loaded.protocol
     files = list(dict.fromkeys(f for spec in p.trajectories.values() for f in trajectory_files(spec)))
-    files += [
-        f
-        for f in (
-            p.rig.calibration.command_table,
-            p.rig.calibration.angle_table,
-            p.rig.calibration.torque_table,
-        )
-        if f
-    ]
+    cal = p.rig.calibration
+    files += [f for f in (cal.command_table, cal.angle_table, cal.torque_table) if f]
     if p.report.reference_dataset:
         files.append(p.report.reference_dataset)
     if is_rig_path(p.rig_name):  # a lab's own rig file beside the protocol: the session keeps its copy
@@ -253,18 +246,8 @@ MAX_SEED = 2**63 - 1
 MAX_BYTES = 1 << 20  # a session file is a few hundred bytes
 _SHA256 = re.compile(r"[0-9a-f]{64}")
 
-REQUIRED = (
-    "protocol_name",
-    "protocol_sha256",
-    "protocol_file",
-    "original_path",
-    "mode",
-    "seed",
-    "created_utc",
-    "only",
-    "software_version",
-)
-OPTIONAL = ("realtime", "files_sha256", "rig_sha256")
+REQUIRED = tuple(f.name for f in fields(SessionInfo) if f.default is MISSING and f.default_factory is MISSING)
+OPTIONAL = tuple(f.name for f in fields(SessionInfo) if f.name not in REQUIRED)
 
 
 def _inside(rel: object) -> bool:

@@ -1,16 +1,13 @@
 """The analysis worker pool: processing and fit steps run in a worker process beside the trials.
 
-Steps that only read finished units (never the rig) run, on a machine with two cores or more, in a
-worker process while the main process goes on with the next configuration's trials. A worker writes the
-step's unit (write, fsync, rename); the main process journals it once the task has ended, so a step is
-journaled, like any step, only once its unit is on disk. A stop waits for the analyses in progress and
+A worker writes the step's unit (write, fsync, rename); the main process journals it once the task has
+ended, so a step is journaled only once its unit is on disk. A stop waits for the analyses in progress and
 redoes the rest on resume.
 
-Workers are started by multiprocessing's own start methods (`worker_context`): from a fork server where
-the platform has one, else spawned. Everything a worker runs is a module-level function and every argument
-is pickled, so that both work alike. A worker ignores SIGINT (the session decides when to stop), runs BLAS
-on one thread (two workers share the cores with the session) and ends as soon as the session process ends,
-even one killed with -9: a resume may start at once, and no worker may still be writing units then.
+Workers are forked from a fork server where the platform has one, else spawned (`worker_context`); every
+argument is pickled, so that both work alike. A worker ignores SIGINT (the session decides when to stop),
+runs BLAS on one thread and ends as soon as the session process ends, even one killed with -9: a resume
+may start at once, and no worker may still be writing units then.
 """
 
 from __future__ import annotations
@@ -103,9 +100,8 @@ _SESSION: list[tuple[LoadedProtocol, Plan]] = []
 
 
 def _start_worker(loaded: LoadedProtocol, plan: Plan) -> None:
-    """A worker's start (`worker_init`), keeping the session's protocol and plan for every task it runs: they
-    reach each worker once, with the worker, instead of with each of its tasks (about 0.16 MB pickled for
-    the knee)."""
+    """A worker's start (`worker_init`), keeping the session's protocol and plan for every task it runs (sent
+    once per worker instead of with each task)."""
     worker_init()
     _SESSION[:] = [(loaded, plan)]
 
@@ -143,7 +139,7 @@ def run_analysis_steps(
 
 def warning_kinds(caught: list[warnings.WarningMessage]) -> Warned:
     """The kinds of the warnings a step raised (category, message, where), each once with how often, in
-    the order first raised: a worker's stderr reaches no one, so they travel back with the step."""
+    the order first raised (a worker's stderr reaches no one)."""
     counts: dict[str, int] = {}
     for w in caught:
         where = Path(w.filename)
@@ -205,9 +201,8 @@ class AnalysisPool:
             finished(step, summary + self._warnings_text(raised))
 
     def _warnings_text(self, raised: Warned) -> str:
-        """What a step's line adds for the warnings it raised (the line goes to session.log and the
-        progress output): each kind in full the first time the session meets it, after that its category
-        only."""
+        """What a step's line adds for the warnings it raised: each kind in full the first time the session
+        meets it, after that its category only."""
         parts: list[str] = []
         for kind, count in raised:
             times = f" ({count} times)" if count > 1 else ""

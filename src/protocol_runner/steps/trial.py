@@ -3,14 +3,10 @@ joint per tick while acquiring every joint's inputs at 1 kHz (one scan).
 
 Brace-on trials command the plan's trajectories. A brace-off trial commands each joint's brace-on
 measured output (thesis §3.3.2: only then are torques compared at the same angles) through the inverse of
-that joint's servo lag (§2.4.2, `analysis.scaling.lag_input`, so that the brace-off run follows it in
-time, not only in range), rescaled by the Eq 8 iteration (`analysis.scaling.scale_brace_off_inputs`)
-until each joint's cycle turning points match its brace-on cycles' within the protocol's tolerance; every
-iteration is one robot run of every joint and is recorded (`joints/<joint>/scaling`). Raw codes and
-converted values are kept.
-
-Unit layout (docs/archive.md): `trials/<n>/brace_<b>` holds the shared time base (`time_s`,
-`command_time_s`, `tick_lateness_s`) and one group per joint `joints/<joint>` with that joint's recording.
+that joint's servo lag (§2.4.2, `analysis.scaling.lag_input`), rescaled by the Eq 8 iteration
+(`analysis.scaling.scale_brace_off_inputs`) until each joint's cycle turning points match its brace-on
+cycles' within the protocol's tolerance; every iteration is one robot run and is recorded
+(`joints/<joint>/scaling`). Unit layout: docs/archive.md.
 """
 
 from __future__ import annotations
