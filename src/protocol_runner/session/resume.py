@@ -9,6 +9,7 @@ Every answer is journaled (kind `operator_answer`) and so reaches the archive's 
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from pathlib import Path
@@ -134,34 +135,29 @@ def prepare_resume(runner: Runner, ctx: StepContext, progress: Progress) -> None
     had_journal = bool(j.events or j.units or j.failed)
     detail = "protocol text or rig file changed; accepted with --force" if runner.protocol_changed else ""
     j.event("resumed", detail)
+    override = functools.partial(j.event, "operator_override")  # what --force let through
     if runner.protocol_changed:
-        j.event("operator_override", "resumed with a changed protocol or rig file (--force)")
+        override("resumed with a changed protocol or rig file (--force)")
     changes = changed_files(runner.dir, runner.info)
     if changes:
-        j.event("operator_override", f"resumed with changed referenced files (--force): {', '.join(changes)}")
+        override(f"resumed with changed referenced files (--force): {', '.join(changes)}")
     if not had_journal and any(runner.units_dir.glob("*.h5")):
-        j.event(
-            "operator_override",
-            "journal.jsonl was missing or held no record; resumed with --force: every step is redone",
-        )
+        override("journal.jsonl was missing or held no record; resumed with --force: every step is redone")
     elif j.damaged_lines:
-        j.event(
-            "operator_override",
+        override(
             f"journal.jsonl had {j.damaged_lines} damaged line(s), ignored; resumed with --force: the steps they "
-            "recorded are redone",
+            "recorded are redone"
         )
     began = started_as(j)
     if began is not None and began != (runner.info.mode, runner.info.seed):  # only with --force
-        j.event(
-            "operator_override",
+        override(
             f"resumed with --force as {runner.info.mode}, seed {runner.info.seed}, although the session began "
-            f"as {began[0]}, seed {began[1]}",
+            f"as {began[0]}, seed {began[1]}"
         )
     strangers = not_in_plan(runner.plan, j)
     if strangers:  # only with --force (resume_preflight refuses them otherwise)
-        j.event(
-            "operator_override",
-            f"resumed with --force although the journal records steps the plan does not have: {', '.join(strangers)}",
+        override(
+            f"resumed with --force although the journal records steps the plan does not have: {', '.join(strangers)}"
         )
     redone: set[str] = set()
     for step_id, record in list(j.units.items()):
