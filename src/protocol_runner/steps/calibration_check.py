@@ -118,16 +118,12 @@ def analyse_step(
     not stand out of the noise of its held angle (`MOVE_OVER_NOISE`)."""
     settled, start, sse = step_fit(time_s, command_deg, angle_deg, settle_window_s)
     tau = math.nan
-    if not abs(settled - start) < MOVE_OVER_NOISE * held_noise_deg(time_s, angle_deg, settle_window_s):
+    # the held angle's standard deviation: the sensor noise and the servo's dither a move must stand out of
+    held_noise_deg = float(np.std(angle_deg[time_s >= time_s[-1] - settle_window_s]))
+    if not abs(settled - start) < MOVE_OVER_NOISE * held_noise_deg:
         options = {"xatol": TAU_TOLERANCE_S}
         tau = float(minimize_scalar(sse, bounds=TAU_BOUNDS_S, method="bounded", options=options).x)
     return StepResponse(settled_deg=settled, settle_error_deg=abs(settled - target_deg), time_constant_s=tau)
-
-
-def held_noise_deg(time_s: FloatArray, angle_deg: FloatArray, settle_window_s: float) -> float:
-    """The standard deviation of the angle held over the last `settle_window_s`: the sensor noise and the
-    servo's dither a move must stand out of."""
-    return float(np.std(angle_deg[time_s >= time_s[-1] - settle_window_s]))
 
 
 def first_order_response(command_deg: FloatArray, dt_s: float, tau_s: float, y0_deg: float) -> FloatArray:

@@ -26,6 +26,7 @@ from ..archive.attrs import ATTRIBUTES, FACTORS, JOINT, STATUS, STEP_ID
 from ..archive.attrs import JOINTS as JOINTS_ATTR
 from ..archive.h5util import put, put_attrs
 from ..archive.paths import configuration_path, joint_groups, joint_path, put_dataset, recording_path
+from ..archive.results import Fill
 from ..errors import HardwareUnavailable
 from ..hardware.joint import TrialRecording
 from ..protocol.plan_steps import TrialStep
@@ -183,9 +184,17 @@ def _run_brace_off(
     return runs[results[0].kept], results
 
 
-def configuration_group_attributes(step: TrialStep, ctx: StepContext) -> dict[str, Any]:
-    """The `/configurations/<name>` attributes (docs/archive.md): identity, trajectory and settings."""
-    return {
+def _fill(
+    step: TrialStep,
+    ctx: StepContext,
+    recs: tuple[TrialRecording, ...],
+    scaling: tuple[ScalingResult, ...] | None,
+    *,
+    status: str = "complete",
+) -> Fill:
+    """The trial's unit (docs/archive.md): its `/configurations/<name>` attributes (identity, trajectory and
+    settings: the layout's own names, and per factor its level and quantities) and its recording."""
+    attrs: dict[str, Any] = {
         "key": step.configuration,
         "run": step.run,
         "set": step.set,
@@ -194,44 +203,7 @@ def configuration_group_attributes(step: TrialStep, ctx: StepContext) -> dict[st
         "trajectory_name": step.trajectory.name or step.trajectory.profile,
         **configuration_attributes(step.settings),
     }
-
-
-def put_configuration(f: h5py.File, key: int, attrs: dict[str, Any]) -> h5py.Group:
-    """The `/configurations/<name>` group with its attributes (`configuration_group_attributes`): the
-    layout's own names, and per factor its level and quantities."""
-    cfg = f.require_group(configuration_path(key))
     own = ATTRIBUTES["configuration"]
-    fixed = {k: v for k, v in attrs.items() if k in own and k != FACTORS}
-    put_attrs(cfg, "configuration", fixed, dynamic={k: v for k, v in attrs.items() if k not in own})
-    cfg.attrs[FACTORS] = np.array(attrs[FACTORS], dtype=h5py.string_dtype())
-    return cfg
-
-
-def recording_attrs(
-    step: TrialStep, status: str, trajectory_json: str, lateness_s: FloatArray, input_time_s: FloatArray
-) -> dict[str, Any]:
-    """The attributes of a `trials/<n>/brace_<b>` group (docs/archive.md)."""
-    return {
-        STEP_ID: step.id,
-        "brace": step.brace,
-        STATUS: status,
-        "trajectory": trajectory_json,
-        "tick_lateness_p99_s": float(np.percentile(lateness_s, 99)) if lateness_s.size else 0.0,
-        "tick_lateness_max_s": float(np.max(lateness_s)) if lateness_s.size else 0.0,
-        # output-to-input alignment: when the first input row was taken, relative to the first tick
-        "input_start_offset_s": float(input_time_s[0]) if input_time_s.size else 0.0,
-    }
-
-
-def _fill(
-    step: TrialStep,
-    ctx: StepContext,
-    recs: tuple[TrialRecording, ...],
-    scaling: tuple[ScalingResult, ...] | None,
-    *,
-    status: str = "complete",
-):
-    cfg_attrs = configuration_group_attributes(step, ctx)
     joints = joint_trajectories(step, ctx)
     names = np.array([j for j, _ in joints], dtype=h5py.string_dtype())
     shared = recs[0]
@@ -239,15 +211,28 @@ def _fill(
     trajectory = json.dumps(
         step.trajectory.to_json() if not step.joint_trajectories else {j: t.to_json() for j, t in joints}
     )
+    recording = {
+        STEP_ID: step.id,
+        "brace": step.brace,
+        STATUS: status,
+        "trajectory": trajectory,
+        "tick_lateness_p99_s": float(np.percentile(lateness, 99)) if lateness.size else 0.0,
+        "tick_lateness_max_s": float(np.max(lateness)) if lateness.size else 0.0,
+        # output-to-input alignment: when the first input row was taken, relative to the first tick
+        "input_start_offset_s": float(shared.input_time_s[0]) if shared.input_time_s.size else 0.0,
+    }
 
     def fill(f: h5py.File) -> None:
-        cfg = put_configuration(f, step.configuration, cfg_attrs)
+        cfg = f.require_group(configuration_path(step.configuration))
+        fixed = {k: v for k, v in attrs.items() if k in own and k != FACTORS}
+        put_attrs(cfg, "configuration", fixed, dynamic={k: v for k, v in attrs.items() if k not in own})
+        cfg.attrs[FACTORS] = np.array(attrs[FACTORS], dtype=h5py.string_dtype())
         cfg.attrs[JOINTS_ATTR] = names
         g = f.create_group(recording_path(step.configuration, step.trial, step.brace))
         put_dataset(g, "recording", "time_s", shared.input_time_s)
         put_dataset(g, "recording", "command_time_s", shared.command_time_s)
         put_dataset(g, "recording", "tick_lateness_s", lateness)
-        put_attrs(g, "recording", recording_attrs(step, status, trajectory, lateness, shared.input_time_s))
+        put_attrs(g, "recording", recording)
         g.attrs[JOINTS_ATTR] = names
         for k, ((joint, traj), rec) in enumerate(zip(joints, recs, strict=True)):
             jg = f.create_group(joint_path(g.name, joint))
