@@ -8,8 +8,6 @@ From Python (docs/api.md): `load_protocol`, `run`, `open_archive`, `write_report
 loads neither numpy nor numba.
 """
 
-# BLAS threads: the model fits hold BLAS at one thread while they run (threadpoolctl,
-# models/bouc_wen/fitting.py), whenever numpy was imported; nothing is set here at import time.
 from .api import export, load_protocol, open_archive, run, write_report
 from .numba_cache import point_numba_at_the_user_cache
 
@@ -19,9 +17,8 @@ point_numba_at_the_user_cache()
 
 
 def __getattr__(name: str) -> str:
-    """`__version__`, read from the installed package's metadata when first asked for: importing
-    `importlib.metadata` takes about 0.1 s, which `run-protocol` would otherwise spend importing itself,
-    before it can turn a Ctrl-C into a clean exit 130."""
+    """`__version__`, read from the installed package's metadata when first asked for (importing
+    `importlib.metadata` takes about 0.1 s, which `run-protocol` does not spend at start)."""
     if name != "__version__":
         raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
     from importlib.metadata import PackageNotFoundError, version

@@ -9,7 +9,6 @@ line's own actions (`commands.py`), re-exported by `protocol_runner` (the report
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -26,15 +25,9 @@ def load_protocol(protocol: str | Path) -> LoadedProtocol:
     creates a session; warnings are printed on standard error). `protocol` is a path, or a bare file name
     looked up in `./protocols/` and then among the shipped protocols. Returns the validated protocol
     (`.protocol` the model, `.path`, `.sha256`)."""
-    from .preflight import preflight, preflight_warnings
-    from .protocol.loader import find_protocol
-    from .protocol.loader import load_protocol as load
+    from .commands import preflighted
 
-    path = find_protocol(str(protocol))
-    loaded = load(path, display_name=str(protocol) if Path(protocol).exists() else str(path))
-    for warning in preflight_warnings(loaded, preflight(loaded)):
-        print(warning, file=sys.stderr)
-    return loaded
+    return preflighted(str(protocol))[0]
 
 
 def run(

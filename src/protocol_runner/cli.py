@@ -30,8 +30,6 @@ from .session.streams import say
 
 if TYPE_CHECKING:
     from .monitor.service import Monitor
-    from .protocol.loaded import LoadedProtocol
-    from .protocol.plan_steps import Plan
 
 DESCRIPTION = """\
 Run a declarative test protocol for space-suit joint testing on the RSST robot.
@@ -219,15 +217,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             "some space, then run the command again (a session continues with run-protocol --resume DIR)"
         )
         return EXIT_INTERRUPTED
-    except KeyboardInterrupt:
-        on_the_way_out()
-        _ENDED_BY_AN_INTERRUPT.set()
-        say("run-protocol: interrupted")
-        return EXIT_INTERRUPTED
-    except Exception as exc:
+    except BaseException as exc:  # a Ctrl-C, also one inside an import ("initialization failed")
         if not any(isinstance(e, KeyboardInterrupt) for e in causes(exc)):
             raise
-        on_the_way_out()  # a Ctrl-C inside an import (an extension then says "initialization failed")
+        on_the_way_out()
         _ENDED_BY_AN_INTERRUPT.set()
         say("run-protocol: interrupted")
         return EXIT_INTERRUPTED
@@ -424,26 +417,13 @@ def _mode_protocol(flag: str, given: str, positional: str | None) -> str:
     return given or str(positional)
 
 
-def _preflighted(name: str, only: KeySelection | None = None) -> tuple[Path, LoadedProtocol, Plan]:
-    """The protocol `name` loaded and checked exactly as a run checks it before it creates a session (its
-    warnings printed on standard error), with its plan."""
-    from .preflight import preflight, preflight_warnings
-    from .protocol.loader import find_protocol, load_protocol
-
-    path = find_protocol(name)
-    loaded = load_protocol(path, display_name=name if Path(name).exists() else str(path))
-    plan = preflight(loaded, only=only)
-    for warning in preflight_warnings(loaded, plan):
-        print(warning, file=sys.stderr)
-    return path, loaded, plan
-
-
 def _cmd_validate(args: argparse.Namespace) -> int:
+    from .commands import preflighted
     from .protocol.plan_table import robot_time_text
     from .protocol.validate import unused_trajectories
     from .protocol.wording import counted
 
-    path, loaded, plan = _preflighted(args.validate)
+    loaded, plan = preflighted(args.validate)
     p = loaded.protocol
     trials = sum(1 for s in plan.steps if s.kind == "trial")
     unused = unused_trajectories(p)
@@ -454,7 +434,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         else ""
     )
     print(
-        f"{path}: valid. {p.name}: {counted(len(p.sets), 'set')}, "
+        f"{loaded.path}: valid. {p.name}: {counted(len(p.sets), 'set')}, "
         f"{counted(len(p.configurations()), 'configuration')}, {counted(trials, 'trial')}, "
         f"{counted(len(plan), 'step')}, about {robot_time_text(plan.robot_time_s)} of robot time. "
         f"{declared}sha256 {loaded.sha256[:16]}..."
@@ -463,9 +443,10 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 
 def _cmd_plan(args: argparse.Namespace) -> int:
+    from .commands import preflighted
     from .protocol.plan_table import format_plan_table
 
-    _, _, plan = _preflighted(args.plan, parse_only(args.only))
+    _, plan = preflighted(args.plan, parse_only(args.only))
     if args.json:
         sys.stdout.write(plan.dumps() + "\n")
     else:
@@ -474,16 +455,12 @@ def _cmd_plan(args: argparse.Namespace) -> int:
 
 
 def entry() -> None:
-    """The `run-protocol` command (and `python -m protocol_runner.cli`): `main` on the process's arguments,
-    its status the process's exit status. Callers in their own process use `main(argv)`.
+    """The `run-protocol` command: `main` on the process's arguments, its status the exit status.
 
-    After a full disk, a second Ctrl-C or any Ctrl-C that reached here, the process ends at once
-    (`os._exit`), its output and log flushed, as after a kill, which loses nothing (every finished unit is
-    on disk and journaled): the interpreter's teardown would otherwise close again an HDF5 file whose close
-    failed (a segmentation fault), wait for ever on a worker pool the interrupt broke, or end the process
-    by the signal itself (exit -2) because a KeyboardInterrupt passed through an `exec` during the imports.
-    Once `main` has returned, SIGINT is ignored: a Ctrl-C during the teardown would otherwise end the
-    process with signal 2 after the session had finished (or stopped) and said so."""
+    After a full disk or a Ctrl-C the process ends at once (`os._exit`), its output and log flushed, which
+    loses nothing (every finished unit is on disk and journaled): the interpreter's teardown could close
+    again an HDF5 file whose close failed (a segmentation fault), wait for ever on a worker pool the
+    interrupt broke, or end by the signal itself (exit -2). Once `main` has returned, SIGINT is ignored."""
     one_blas_thread()
     from .session.signals import exit_at_once_after_second_sigint, stopped_at_once
     from .session.streams import flush_standard_streams, reopen_missing_standard_streams
@@ -509,9 +486,8 @@ _ENDED_BY_AN_INTERRUPT = threading.Event()  # set when a Ctrl-C raised KeyboardI
 
 def one_blas_thread() -> None:
     """Have OpenBLAS start with one thread in this process and the analysis workers, unless
-    `OPENBLAS_NUM_THREADS` is set: its idle threads spin for about 0.1 s of CPU after every start and fork,
-    and nothing here gains from more (the model fits hold BLAS at one thread anyway). OpenBLAS reads it when
-    it loads, so it is set before anything imports numpy; a program calling `main(argv)` keeps its own."""
+    `OPENBLAS_NUM_THREADS` is set: its idle threads spin after every start and fork, and nothing here gains
+    from more. Set before anything imports numpy; a program calling `main(argv)` keeps its own."""
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 

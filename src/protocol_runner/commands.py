@@ -6,8 +6,9 @@ Each returns the process exit status; user mistakes raise `UserError` subclasses
 from __future__ import annotations
 
 import contextlib
+import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from .errors import EXIT_HARDWARE_UNAVAILABLE, EXIT_OK, InvalidInput
 from .events import NULL_PUBLISHER, Publisher
@@ -19,50 +20,43 @@ if TYPE_CHECKING:
     from .monitor.service import Monitor
     from .protocol.loaded import LoadedProtocol
     from .protocol.only import KeySelection
+    from .protocol.plan_steps import Plan
     from .session.runner import RunResult
     from .session.setup import SessionInfo
     from .steps.context import Bench
     from .steps.operator import Operator
 
 
-def _say(message: str) -> None:
-    say(message)  # a stream gone (closed terminal, ended pipe) drops the line: session/streams.py
-
-
 def _result(message: str) -> None:
     """The command's outcome, on standard output (progress and prompts are on standard error), so that
-    `run-protocol ... > out` keeps the line naming the archive and the report. A path that is not valid
-    UTF-8 is shown with U+FFFD where its odd byte is (a UTF-8 standard output cannot carry the byte)."""
+    `run-protocol ... > out` keeps the line naming the archive and the report."""
     say(message, stdout=True)
 
 
-def run(
-    protocol: str,
-    *,
-    dry_run: bool,
-    session: Path | None,
-    seed: int | None,
-    yes: bool,
-    only: KeySelection | Iterable[int] | None,
-    realtime: bool,
-    quiet: bool = False,
-    monitor: Monitor | None = None,
-) -> int:
+def load_named(name: str) -> LoadedProtocol:
+    """The protocol file `name` (a path, or a bare file name looked up in ./protocols/ and then among the
+    shipped protocols), loaded and checked."""
     from .protocol.loader import find_protocol, load_protocol
 
-    path = find_protocol(protocol)
-    loaded = load_protocol(path, display_name=protocol if Path(protocol).exists() else str(path))
-    result = run_loaded(
-        loaded,
-        dry_run=dry_run,
-        session=session,
-        seed=seed,
-        yes=yes,
-        only=only,
-        realtime=realtime,
-        quiet=quiet,
-        monitor=monitor,
-    )
+    path = find_protocol(name)
+    return load_protocol(path, display_name=name if Path(name).exists() else str(path))
+
+
+def preflighted(name: str, only: KeySelection | None = None) -> tuple[LoadedProtocol, Plan]:
+    """The protocol `name` loaded and checked exactly as a run checks it before it creates a session (its
+    warnings printed on standard error), with its plan."""
+    from .preflight import preflight, preflight_warnings
+
+    loaded = load_named(name)
+    plan = preflight(loaded, only=only)
+    for warning in preflight_warnings(loaded, plan):
+        print(warning, file=sys.stderr)
+    return loaded, plan
+
+
+def run(protocol: str, **options: Any) -> int:
+    """`run-protocol PROTOCOL`: `run_loaded` on the protocol file `protocol` (`options` are its own)."""
+    result = run_loaded(load_named(protocol), **options)
     _result(f"done: {result.archive}" + (f" and {result.report}" if result.report else ""))
     return EXIT_OK
 
@@ -89,7 +83,7 @@ def run_loaded(
 
     planned = preflight(loaded, only=only)  # everything --validate checks, before anything is created
     for warning in preflight_warnings(loaded, planned):
-        _say(warning)
+        say(warning)
     if realtime and not dry_run:
         raise InvalidInput("--realtime paces the simulator: use it with --dry-run")
     if dry_run:
@@ -114,20 +108,17 @@ def run_loaded(
     )
     stored, plan = created_session_protocol(directory, info, loaded), planned  # not read again
     bench = _bench(stored, info) if dry_run else hardware
-    robot = robot_time_text(plan.robot_time_s)
     if not quiet:
-        _say(
-            f"session {directory}: {loaded.protocol.name}, {counted(len(plan), 'step')}, about {robot} of robot "
-            "motion "
-            f"({info.mode}, seed {info.seed})"
+        say(
+            f"session {directory}: {loaded.protocol.name}, {counted(len(plan), 'step')}, about "
+            f"{robot_time_text(plan.robot_time_s)} of robot motion ({info.mode}, seed {info.seed})"
         )
         if dry_run:
             from .numba_cache import cache_enabled, will_compile
 
             if will_compile():
                 when = "first run only" if cache_enabled() else "in every run: no cache"
-                _say(f"compiling the simulator's kernels ({when})...")
-    operator = _operator(dry_run or yes)
+                say(f"compiling the simulator's kernels ({when})...")
     publisher: Publisher = NULL_PUBLISHER
     if monitor is not None:
         publisher, operator = monitor.attach(directory, info, plan, bench, operator)
@@ -162,6 +153,7 @@ def resume(
     only: KeySelection | None = None,
     monitor: Monitor | None = None,
 ) -> int:
+    from .protocol.wording import counted
     from .session.lock import refuse_session_links
     from .session.resume_checks import check_resume_arguments, resume_preflight
     from .session.runner import Runner
@@ -173,14 +165,14 @@ def resume(
     loaded, plan, changed = load_session_protocol(session_dir, info, force=force)
     complete = resume_preflight(session_dir, plan, force=force, info=info)
     if complete is not None:
-        _say(complete)
+        say(complete)
         return EXIT_OK
     bench = _bench(loaded, info)
     operator = _operator(info.mode == "dry-run" or yes)
     publisher: Publisher = NULL_PUBLISHER
     if monitor is not None:
         publisher, operator = monitor.attach(session_dir, info, plan, bench, operator, resumed=True)
-    _say(f"resuming {session_dir}: {info.protocol_name} ({info.mode}, seed {info.seed})")
+    say(f"resuming {session_dir}: {info.protocol_name} ({info.mode}, seed {info.seed})")
     result = Runner(
         session_dir,
         info,
@@ -193,16 +185,10 @@ def resume(
         quiet=quiet,
         publisher=publisher,
     ).run()
+    rechecks = f", {counted(result.rechecks, 'calibration re-check')}" if result.rechecks else ""
     _result(
-        f"done: {result.steps_run} step{'s' if result.steps_run != 1 else ''} run, {result.steps_skipped} "
-        "already complete"
-        + (
-            f", {result.rechecks} calibration re-check{'s' if result.rechecks != 1 else ''}"
-            if result.rechecks
-            else ""
-        )
-        + f"; {result.archive}"
-        + (f" and {result.report}" if result.report else "")
+        f"done: {counted(result.steps_run, 'step')} run, {result.steps_skipped} already complete{rechecks}; "
+        f"{result.archive}" + (f" and {result.report}" if result.report else "")
     )
     return EXIT_OK
 
@@ -303,9 +289,8 @@ def _journaled_units_missing(session_dir: Path) -> list[str]:
 
 
 def _html_output(path: Path | None) -> None:
-    """Refuse an `--output` that would overwrite a file which is not an HTML page (a session's archive,
-    unit, journal or session.json given by mistake): a report or a comparison replaces only its own kind, and
-    only a regular file (never a link, a device or a FIFO: archive/outputs.py)."""
+    """Refuse an `--output` that would overwrite a file which is not an HTML page (an archive or a journal
+    given by mistake), or is not a regular file (archive/outputs.py)."""
     if path is None:
         return
     from .archive.outputs import refuse_special
@@ -328,11 +313,9 @@ def _html_output(path: Path | None) -> None:
 @contextlib.contextmanager
 def _session_held(path: Path) -> Iterator[None]:
     """Hold the lock of the session that `path` (a session directory, or an archive in one) belongs to, so
-    that a report is never rendered from an archive that a running `--resume` is about to replace, nor
-    written beside its newer archive after it: while a run or a resume holds the session, `--report` is
-    refused (exit 2, naming its PID; that run writes its own report when it ends), and a resume started
-    while a report is being rendered is refused likewise. A session folder where no lock can be created
-    (read-only media) is read without one: nothing can be writing to it there."""
+    that a report is never rendered from an archive a running `--resume` is about to replace: while a run
+    holds the session, `--report` is refused (exit 2, naming its PID), and the reverse. A session folder
+    where no lock can be created (read-only media) is read without one: nothing can be writing to it."""
     from .session.lock import session_lock
 
     folder = path if path.is_dir() else path.parent
@@ -370,25 +353,9 @@ def _consolidate_unfinished(session_dir: Path, *, locked: bool = False) -> Path:
             return archive
         info = read_session_info(session_dir)
         loaded, plan, _ = load_session_protocol(session_dir, info, force=True)
-        runner = Runner(session_dir, info, loaded, plan, _NoBench(), _operator(True), quiet=True)  # type: ignore[arg-type]
+        # no bench, no operator: no step runs, the archive is only assembled
+        runner = Runner(session_dir, info, loaded, plan, None, None, quiet=True)  # type: ignore[arg-type]
         return runner.consolidate("incomplete")
-
-
-class _NoBench:
-    """Stands in for a rig when only the archive is assembled (no step runs)."""
-
-    mode = "none"
-    paced = False
-    rig = None
-
-    def begin_step(self, step_id: str) -> None:
-        return None
-
-    def fit_brace(self, settings: object) -> None:
-        return None
-
-    def close(self) -> None:
-        return None
 
 
 def hardware_check(protocol: str | None) -> int:
@@ -449,13 +416,11 @@ def power_plan(
     only: KeySelection | None = None,
 ) -> int:
     """`--plan PROTOCOL --power SESSION` (or `--power-cv CV`): the trials per configuration each declared
-    expectation needs for 80 % power, and which the plan's trials cannot decide (power_plan.py)."""
+    expectation needs for 80 % power (power_plan.py)."""
     from .power_plan import Spread, check_session, plan_power
     from .preflight import preflight
-    from .protocol.loader import find_protocol, load_protocol
 
-    path = find_protocol(protocol)
-    loaded = load_protocol(path, display_name=protocol if Path(protocol).exists() else str(path))
+    loaded = load_named(protocol)
     plan = preflight(loaded, only=only)
     if not loaded.protocol.expectations:
         raise InvalidInput(f"{protocol} declares no expectations: there is no statement to plan trials for")
@@ -465,7 +430,7 @@ def power_plan(
         data = load_report_data(session)  # a missing, foreign or damaged archive: InvalidInput naming it
         warning = check_session(data, loaded, session)
         if warning:
-            _say(warning)
+            say(warning)
         spread = Spread(data=data, effect_ratio=effect_ratio)
     else:
         spread = Spread(cv=cv, effect_ratio=effect_ratio)

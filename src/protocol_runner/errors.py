@@ -34,8 +34,6 @@ class UserError(Exception):
 class InvalidInput(UserError):
     """A protocol file, an argument or an archive is wrong (exit 2)."""
 
-    exit_code = EXIT_INVALID_INPUT
-
 
 class HardwareUnavailable(UserError):
     """The DAQ boards are absent, busy, or not permitted (exit 3)."""

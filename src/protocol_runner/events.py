@@ -33,17 +33,13 @@ class Publisher(Protocol):
 class NullPublisher:
     """No monitor: every call does nothing."""
 
-    def begin(self, plan: Plan, done: Collection[str]) -> None:
-        return None
+    def begin(self, plan: Plan, done: Collection[str]) -> None: ...
 
-    def step_start(self, step: Step) -> None:
-        return None
+    def step_start(self, step: Step) -> None: ...
 
-    def step_end(self, step: Step, summary: str) -> None:
-        return None
+    def step_end(self, step: Step, summary: str) -> None: ...
 
-    def verdict(self, step_id: str, verdict: str, detail: Mapping[str, object]) -> None:
-        return None
+    def verdict(self, step_id: str, verdict: str, detail: Mapping[str, object]) -> None: ...
 
 
 NULL_PUBLISHER = NullPublisher()

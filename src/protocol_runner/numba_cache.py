@@ -1,10 +1,9 @@
 """Where numba keeps the compiled kernels between runs: the user's cache directory.
 
-Where numba's own rules find no writable place (a read-only install, no writable home), its
-`@njit(cache=True)` raises at import. So the package's `__init__` points `NUMBA_CACHE_DIR` (unless set)
-at `<user cache directory>/protocol-runner/numba` before any module imports numba, and the modules with
-compiled kernels ask `cache_enabled()` whether to cache at all: when that directory is not writable they
-compile in every run instead, after one warning line. `PROTOCOL_RUNNER_NUMBA_CACHE=0` turns the cache off.
+The package's `__init__` points `NUMBA_CACHE_DIR` (unless set) at `<user cache directory>/protocol-runner/
+numba` before any module imports numba, and the modules with compiled kernels ask `cache_enabled()`
+whether to cache at all: when that directory is not writable (numba's `cache=True` would raise at import)
+they compile in every run instead, after one warning line. `PROTOCOL_RUNNER_NUMBA_CACHE=0` turns it off.
 """
 
 from __future__ import annotations

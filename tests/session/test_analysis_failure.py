@@ -76,7 +76,7 @@ def test_brace_off_trial_failure_names_its_trial_and_the_recording_it_follows(
     def flat(step: TrialStep, ctx: StepContext) -> None:
         raise AnalysisError("input_deg does not move (range 2e-12 deg)")
 
-    monkeypatch.setitem(registry.STEP_KINDS, "trial", registry.StepKind(flat))
+    monkeypatch.setitem(registry.STEP_KINDS, "trial", flat)
     ctx = StepContext(loaded, plan, None, None, tmp_path / "s" / "units", None, lambda: False, None)  # type: ignore[arg-type]
     with pytest.raises(failures.AnalysisStepFailed) as info:
         failures.run_step(step, ctx)

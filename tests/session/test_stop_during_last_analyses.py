@@ -14,6 +14,7 @@ import pytest
 from protocol_runner.commands import resume
 from protocol_runner.errors import Interrupted
 from protocol_runner.session import runner as runner_module
+from protocol_runner.session import workers
 from protocol_runner.session.journal import Journal
 from protocol_runner.session.signals import StopFlag
 
@@ -25,14 +26,15 @@ def test_a_stop_while_the_last_analyses_run_stops_before_the_report(
 ) -> None:
     session = tmp_path / "s"
     flag = StopFlag()
-    real_await = runner_module.Runner._await_analyses
+    real_collect = workers.AnalysisPool.collect
 
-    def await_analyses(self: runner_module.Runner, progress) -> None:  # type: ignore[no-untyped-def]
-        real_await(self, progress)  # the session waited for its last analyses: Ctrl-C meanwhile
-        flag.request("SIGINT")
+    def collect(self: workers.AnalysisPool, finished, *, wait: bool = False) -> None:  # type: ignore[no-untyped-def]
+        real_collect(self, finished, wait=wait)
+        if wait:  # the session waited for its last analyses: Ctrl-C meanwhile
+            flag.request("SIGINT")
 
     with monkeypatch.context() as m:
-        m.setattr(runner_module.Runner, "_await_analyses", await_analyses)
+        m.setattr(workers.AnalysisPool, "collect", collect)
         m.setattr(runner_module, "StopFlag", lambda: flag)
         with pytest.raises(Interrupted) as info:
             run_dry(session)

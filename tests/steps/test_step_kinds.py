@@ -16,7 +16,7 @@ from protocol_runner.protocol.plan_steps import ChecklistStep, CompareStep, FitS
 from protocol_runner.session.operator import AutoOperator
 from protocol_runner.steps import checklist, compare, fit
 from protocol_runner.steps.context import StepContext
-from protocol_runner.steps.registry import STEP_KINDS
+from protocol_runner.steps.registry import STEP_KINDS, run_function
 
 
 def _context(units_dir: Path, **parts: object) -> StepContext:
@@ -160,9 +160,9 @@ def test_every_registered_step_function_is_a_function_of_the_steps_package() -> 
     each name must be one, and the names follow the kinds (a misspelt name fails here, not in a session)."""
     from protocol_runner.steps import calibration_check, process, trial
 
-    assert STEP_KINDS["calibration_check"].function() is calibration_check.run
-    assert STEP_KINDS["trial"].function() is trial.run
-    assert STEP_KINDS["process"].function() is process.run
-    assert STEP_KINDS["fit"].function() is fit.run
-    assert STEP_KINDS["compare"].function() is compare.run
-    assert STEP_KINDS["operator_checklist"].function() is checklist.run
+    assert run_function("calibration_check") is calibration_check.run
+    assert run_function("trial") is trial.run
+    assert run_function("process") is process.run
+    assert run_function("fit") is fit.run
+    assert run_function("compare") is compare.run
+    assert run_function("operator_checklist") is checklist.run

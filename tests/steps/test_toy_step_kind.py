@@ -65,7 +65,7 @@ def run_note(step: NoteStep, ctx: StepContext) -> StepOutcome:
 
 @pytest.fixture
 def note_kind(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(registry.STEP_KINDS, "note", registry.StepKind(run_note))
+    monkeypatch.setitem(registry.STEP_KINDS, "note", run_note)
 
 
 def with_notes(plan: Plan) -> Plan:

@@ -1,10 +1,8 @@
 """The archive layout's attribute names: which attributes each kind of object of `archive.h5` (and of the
 unit files) carries (docs/archive.md, which tests/archive/test_paths.py checks against this module).
 
-Writers go through `h5util.put_attrs(obj, kind, {...})`, which refuses a name this layout does not give that kind
-of object, so nothing is written that the documentation does not describe; readers use the constants
-below for the names they read by hand. Per-campaign names (a configuration's `<factor>` and
-`<factor>.<quantity>`, a fitted element's `<element>.<parameter>`) are declared as such and passed in
+Writers go through `h5util.put_attrs(obj, kind, {...})`, which refuses a name this layout does not give
+that kind of object; readers use the constants below. Per-campaign names (`DYNAMIC`) are passed in
 `dynamic`.
 """
 

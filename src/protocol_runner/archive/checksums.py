@@ -1,13 +1,11 @@
 """A SHA-256 checksum on every dataset of units and archives, and on every object's attributes
 (docs/archive.md, "Checksums", gives the digest's bytes).
 
-Each dataset carries an attribute `sha256`, the digest of its type, shape and values computed from the
-values when they are written: reading them back and hashing again proves that neither the stored bytes
-(raw or compressed chunks) nor the type and shape changed, for scalar, string and compressed datasets
-alike (HDF5's fletcher32 filter covers chunked datasets only). Each object with attributes has one more,
-`attribute_sha256`, a JSON object of the digests of its other attributes, recorded when a file is
-finished (`seal_attributes`) and by `h5util.put_attrs` for attributes written into a finished file later
-(the verdicts).
+Each dataset carries an attribute `sha256`, the digest of its type, shape and values computed when they
+are written: hashing them again proves that neither the stored bytes nor the type and shape changed, for
+scalar, string and compressed datasets alike. Each object with attributes has one more, `attribute_sha256`,
+a JSON object of the digests of its other attributes, recorded when a file is finished (`seal_attributes`)
+and by `h5util.put_attrs` for attributes written into a finished file later (the verdicts).
 """
 
 from __future__ import annotations
@@ -79,10 +77,8 @@ def recorded_digest(ds: h5py.Dataset) -> str | None:
 
 def seal_missing(f: h5py.File) -> int:
     """Record the digest of every dataset of `f` written without one (by code other than archive/h5util.py),
-    from its stored values; the number sealed. Run before a file is marked, so the mark holds.
-
-    Walks the file with HDF5's own visit and asks HDF5 whether each dataset has the attribute, so a unit
-    whose datasets were all sealed when written opens none of them here."""
+    from its stored values; the number sealed. Run before a file is marked, so the mark holds. Opens only
+    the datasets without the attribute."""
     digest = DIGEST.encode("ascii")
     missing: list[bytes] = []
 
@@ -213,8 +209,7 @@ def seal_attributes_of(obj: h5py.HLObject, names: Iterable[str] | None = None) -
 def seal_attributes(f: h5py.File) -> int:
     """Record the digests of every attribute of every object of `f` from the values stored now, and mark
     `f` as carrying them; the number of attributes sealed. Called by the writer of a unit, an archive or a
-    reprocessed archive as it finishes the file: what it reads back is what it has just written (the units
-    an archive is merged from were checked against the sha256 the journal recorded for each file)."""
+    reprocessed archive as it finishes the file (what it reads back is what it has just written)."""
     f.attrs[ATTRIBUTE_MARKER] = MARKER_VALUE
     names: list[bytes] = [b"."]
     h5o.visit(f.id, names.append)  # every object once, by one of its paths

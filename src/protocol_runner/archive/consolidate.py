@@ -1,9 +1,9 @@
 """Consolidation: merge every completed unit into one self-contained `archive.h5` (docs/archive.md).
 
-Units are fragments of the archive at their final paths; consolidation merges them into
-`archive.h5.partial` as copying them over one another in plan order would (`merge_units`), adds the root
-provenance, `/protocol`, `/plan`, `/session/events` and each configuration's status, then renames
-atomically. Rerunning it gives the same archive content.
+Units are fragments of the archive at their final paths; they are merged into `archive.h5.partial` as
+copying them over one another in plan order would (`merge_units`), with the root provenance, `/protocol`,
+`/plan`, `/session/events` and each configuration's status, then renamed. Rerunning it gives the same
+archive content.
 """
 
 from __future__ import annotations
@@ -31,8 +31,7 @@ from .units import fsync_path
 class ArchiveMeta:
     """What a session adds to its units' content when it consolidates them."""
 
-    #: the session's root attributes (docs/archive.md "Root": `protocol_name`, `protocol_sha256`, `mode`,
-    #: `seed`, `created_utc`, `finished_utc`, `status`, `joint`); the layout and software versions are added
+    #: the session's root attributes (docs/archive.md "Root"); the layout and software versions are added
     root: Mapping[str, Any]
     protocol_text: str
     protocol_filename: str

@@ -2,10 +2,9 @@
 configuration (`config_NN.mat`) and one for the session (`session.mat`); their variables are listed in
 docs/matlab.md, the naming and type rules are archive/matlab.py's.
 
-A configuration of one joint has its fields at the top level whatever the archive's layout (its groups
-keyed by joint or not: `archive.paths.joint_groups`): the joint's part of each group is merged into the
-group's struct. A configuration of several joints has them per joint in `joints.<joint>`, and what the
-joints share at the top.
+A configuration of one joint has its fields at the top level whatever the archive's layout (the joint's
+part of each group merged into the group's struct); one of several joints has them per joint in
+`joints.<joint>`, and what the joints share at the top.
 """
 
 from __future__ import annotations
@@ -95,9 +94,8 @@ def _trial_order(name: str) -> tuple[int, int, str]:
 
 def _configuration(f: h5py.File, cfg: h5py.Group, meta: dict[str, Any], where: str) -> dict[str, Any]:
     """A configuration's variables: of a single joint at the top level (`trial_1`, `energy_loss_j`,
-    `bouc_wen`, `calibration`, ...), whatever the archive's layout; of several joints, each joint's under
-    `joints.<joint>` and what they share (the trials' common time base, the total energy, the calibration
-    verdicts) at the top."""
+    `bouc_wen`, `calibration`, ...); of several joints, each joint's under `joints.<joint>` and what they
+    share at the top."""
     units = Units(where)
     content: dict[str, Any] = {"meta": meta, "configuration": attrs_struct(cfg, where)}
     archive_joints = text(f.attrs.get("joint", ""))
@@ -293,10 +291,9 @@ def _session(f: h5py.File, meta: dict[str, Any], summary: dict[str, Any], where:
 
 
 def _keyed_groups(group: h5py.Group, archive_joints: str, units: Units, where: str) -> dict[str, Any]:
-    """`/calibration` (its records `<set>/<when>`) or `/comparisons` (`<name>`) for `session.mat`: a group
-    keyed by joint as in the archive (`joints.<joint>`) when it holds several joints, and of one joint with
-    that joint's datasets and attributes merged into it, as in `config_NN.mat` (the same fields whatever the
-    archive's layout)."""
+    """`/calibration` (its records `<set>/<when>`) or `/comparisons` (`<name>`) for `session.mat`: keyed by
+    joint (`joints.<joint>`) when it holds several joints, else that joint's part merged into it, as in
+    `config_NN.mat`."""
     out = attrs_struct(group, where)
     for name, obj in group.items():
         if not isinstance(obj, h5py.Group):

@@ -2,15 +2,13 @@
 
 When the last reference to an h5py object goes, h5py closes its HDF5 identifier in the deallocator, and
 HDF5 may then write cached data to the file. If that write fails (a full disk), h5py cannot raise: Python
-prints "Exception ignored in ..." (`sys.unraisablehook`; h5py also prints the traceback through
-`sys.excepthook`) and goes on, and if space comes back meanwhile the file is closed normally and could be
+only prints it (`sys.unraisablehook`, and h5py through `sys.excepthook`), and the file could later be
 taken as complete with the failed write's bytes missing.
 
 `checked_h5_write(path)` collects those errors for the file at `path` (HDF5 names the file in the
-message) instead of printing them, and raises the first as an `OSError` once the block that writes and
-closes the file has ended. When the block raises instead, the objects its frames held are freed first
-(their errors collected: the block's own error is the one that counts). Errors about other files, and
-every other unraisable exception, go to the hook that was in place.
+message) and raises the first once the block that writes and closes the file has ended. When the block
+raises instead, its own error is the one that counts. Errors about other files, and every other
+unraisable exception, go to the hook that was in place.
 """
 
 from __future__ import annotations
@@ -65,11 +63,11 @@ def _print_hook(kind: Any, value: BaseException, tb: Any) -> None:
 
 
 @contextlib.contextmanager
-def collected_write_errors(path: Path) -> Iterator[list[BaseException]]:
-    """While the caller writes the HDF5 file at `path` (opened by that name): the errors h5py could not
-    raise for it, in the yielded list (check it after closing the file). The hooks are in place only while
-    some file is being written (the first writer puts them in, the last one takes them out if nothing
-    replaced them meanwhile)."""
+def checked_h5_write(path: Path) -> Iterator[None]:
+    """Around the writing (opening to closing) of the HDF5 file at `path`, opened by that name: a write
+    h5py could only print fails the block, raised as an `OSError` (its `errno` ENOSPC for a full disk,
+    which `diskfull.is_disk_full` recognises). The hooks are in place only while some file is being
+    written (the first writer puts them in, the last one takes them out if nothing replaced them)."""
     key = str(path)
     errors: list[BaseException] = []
     with _lock:
@@ -81,7 +79,11 @@ def collected_write_errors(path: Path) -> Iterator[list[BaseException]]:
             sys.excepthook = _print_hook
         _watched[key] = errors
     try:
-        yield errors
+        try:
+            yield
+        except BaseException as exc:
+            traceback.clear_frames(exc.__traceback__)  # free the h5py objects they hold, errors collected
+            raise
     finally:
         with _lock:
             if _watched.get(key) is errors:
@@ -92,26 +94,7 @@ def collected_write_errors(path: Path) -> Iterator[list[BaseException]]:
             if not _watched and sys.excepthook is _print_hook and _forward_print:
                 sys.excepthook = _forward_print[0]
                 _forward_print.clear()
-
-
-def raise_collected(errors: list[BaseException], path: Path) -> None:
-    """Raise the first error `collected_write_errors` met writing `path`, as an `OSError` (its `errno` ENOSPC
-    for a full disk, which `diskfull.is_disk_full` recognises); nothing when there was none."""
-    if not errors:
-        return
-    text = str(errors[0])
-    full = "errno = 28" in text or "No space left on device" in text
-    raise OSError(28 if full else 5, f"writing {path} failed: {text}", str(path))
-
-
-@contextlib.contextmanager
-def checked_h5_write(path: Path) -> Iterator[None]:
-    """Around the writing (opening to closing) of the HDF5 file at `path`: a write h5py could only print
-    fails the block (module notes)."""
-    with collected_write_errors(path) as errors:
-        try:
-            yield
-        except BaseException as exc:
-            traceback.clear_frames(exc.__traceback__)  # free the h5py objects they hold, errors collected
-            raise
-        raise_collected(errors, path)
+    if errors:
+        text = str(errors[0])
+        full = "errno = 28" in text or "No space left on device" in text
+        raise OSError(28 if full else 5, f"writing {path} failed: {text}", str(path))

@@ -85,8 +85,7 @@ def put_attrs(
     """Set the attributes `attrs` of an object of `kind` (a key of `attrs.ATTRIBUTES`) and the per-campaign
     ones in `dynamic` (only for a kind of `attrs.DYNAMIC`); a name the layout does not give that kind of
     object is a bug, refused before anything is written. In a file already finished with attribute
-    checksums (the verdicts), their digests are recorded at once; a file being written gets them all when
-    it is finished (`checksums.seal_attributes`)."""
+    checksums, their digests are recorded at once."""
     unknown = sorted(set(attrs) - set(ATTRIBUTES[kind]))
     if unknown or (dynamic and kind not in DYNAMIC):
         raise ValueError(f"archive layout: a {kind} has no attribute {', '.join(unknown) or 'per campaign'}")

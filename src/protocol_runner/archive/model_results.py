@@ -1,7 +1,5 @@
 """The archive's model-comparison groups of a configuration (or of one joint of it): `fits/element_model`
-(every declared element's fitted parameters with 95 % intervals, the identification mark and the
-covariance) and `fits/models` (the comparison table and the Bouc-Wen functionals). Layout in
-docs/archive.md; numbers from `analysis.model_comparison`."""
+and `fits/models` (docs/archive.md; numbers from `analysis.model_comparison`), and `/predictions`."""
 
 from __future__ import annotations
 

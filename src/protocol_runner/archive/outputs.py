@@ -1,10 +1,9 @@
-"""Files the program writes outside a session (the report and comparison pages, `--export`'s CSV tables,
-`--export-mat`'s .mat files, `--reprocess`'s new archive): only ever regular files.
+"""Files the program writes outside a session (report and comparison pages, CSV tables, .mat files,
+`--reprocess`'s new archive): only ever regular files.
 
-Each is written under a temporary name beside it and renamed over its path, which replaces whatever has
-that name: so a path that exists and is not a regular file (by `os.lstat`: a symbolic link, a device, a
-FIFO, a socket, a directory) is refused by name (exit 2) first. The temporary file is created with O_EXCL
-(never through a link) and removed whatever stops the write.
+Each is written under a temporary name beside it (created with O_EXCL: never through a link, removed
+whatever stops the write) and renamed over its path, so a path that exists and is not a regular file (by
+`os.lstat`) is refused by name (exit 2) first.
 """
 
 from __future__ import annotations
@@ -79,9 +78,8 @@ def terminated_as_interrupt() -> Iterator[None]:
         raise KeyboardInterrupt
 
     def swallowed(unraisable: sys.UnraisableHookArgs) -> None:
-        # Raised while Python ran a finaliser or a weakref callback, the KeyboardInterrupt is only printed
-        # there and the block would go on to the end: deliver the SIGTERM again, from a thread a moment
-        # later, so that it lands in the block's own code.
+        # a KeyboardInterrupt raised in a finaliser or a weakref callback is only printed: deliver the
+        # SIGTERM again a moment later, so that it lands in the block's own code
         if isinstance(unraisable.exc_value, KeyboardInterrupt):
             again = threading.Timer(0.01, os.kill, (os.getpid(), signal.SIGTERM))
             again.daemon = True

@@ -1,9 +1,6 @@
 """The archive layout's names: every group path of `archive.h5` (and of the unit files, which hold the
 same paths), and the datasets of each kind of group with their units (docs/archive.md, which
-tests/archive/test_paths.py checks against this module).
-
-Writers and readers build paths with these functions instead of by hand; `put_dataset` writes a dataset
-with the unit this layout gives it.
+tests/archive/test_paths.py checks against this module). `put_dataset` writes a dataset with its unit.
 """
 
 from __future__ import annotations
@@ -84,9 +81,8 @@ def joint_path(group: str, joint: str) -> str:
 
 def joint_groups(group: h5py.Group, archive_joints: str) -> list[tuple[str, h5py.Group]]:
     """Each joint's part of a trial, configuration, comparison or calibration group, in channel order:
-    `(joint, group)` per child of its `joints/` group. A group written without one (an archive of a single
-    joint made before every group was keyed by joint) is read as the part of its one joint: the root
-    attribute `joint` (`archive_joints`) names it, and the group itself holds that joint's datasets."""
+    `(joint, group)` per child of its `joints/` group. A group without one (an older single-joint archive)
+    is the part of the joint the root attribute `joint` (`archive_joints`) names."""
     if JOINTS in group:
         children = group[JOINTS]
         order = [str(name) for name in group.attrs.get(JOINTS, ())] or list(children)

@@ -1,9 +1,8 @@
 """`run-protocol --report ARCHIVE --reprocess`: redo processing and fits from an archive's raw data.
 
-No rig and no session directory are needed: the raw trials, the protocol text and the plan are in the
-archive. The processing and fit settings come from the archived protocol, or from a given protocol file
-(only its `processing` and `fits` sections are used; the acquisition stays what it was). The result is a
-new archive next to the old one; the old one is never modified. Raw data are copied unchanged.
+The processing and fit settings come from the archived protocol, or from a given protocol file (only its
+`processing` and `fits` sections are used). The result is a new archive next to the old one, the raw data
+copied unchanged; the old one is never modified.
 """
 
 from __future__ import annotations
@@ -87,11 +86,10 @@ def reprocess_archive(
 ) -> Path:
     """Write the reprocessed copy of `archive` (to `output`, default `new_archive_path`) and return its path.
 
-    The copy is made under a temporary name beside it, with the umask's permissions like any file the
-    program writes, and renamed when complete; it is removed whatever stops the work (an error, Ctrl-C,
-    SIGTERM), so no partial archive is ever left behind. An `output` that is not a regular file (a link, a
-    device, a FIFO) is refused (archive/outputs.py). With `pool`, the configurations are analysed on its
-    worker processes, two ahead of the one whose results are written (in order, the same values)."""
+    The copy is written under a temporary name and renamed when complete; it is removed whatever stops the
+    work (an error, Ctrl-C, SIGTERM). An `output` that is not a regular file is refused (archive/outputs.py).
+    With `pool`, the configurations are analysed on its workers, `ANALYSES_AHEAD` ahead of the one whose
+    results are written (in order, the same values)."""
     validate_archive(archive)  # every dataset and attribute within bounds and intact, or a message naming it
     out = output or new_archive_path(archive)
     refuse_special(out, "--reprocess output")
@@ -149,9 +147,8 @@ def archived_device(cfg: h5py.Group) -> list[tuple[str, str, dict[str, object]]]
 def _reprocess(f: h5py.File, loaded: LoadedProtocol, pool: Executor | None) -> None:
     """Redo what the session's process, fit and compare steps did, from the raw trials in `f`, with the
     same function (`analysis.service.analyse_joints`), so that unchanged settings reproduce the session's
-    values exactly. The results are written keyed by joint (docs/archive.md) whatever layout the raw
-    trials have: an archive of one joint written before every group was keyed by joint is read as its one
-    joint's (`paths.joint_groups`)."""
+    values exactly. The results are written keyed by joint whatever layout the raw trials have
+    (`paths.joint_groups`)."""
     settings = processing_settings(loaded)
     elements = element_fit_enabled(loaded)
     archive_joints = attr_str(f, JOINT, "")
@@ -254,11 +251,9 @@ Analysed = tuple[JointsAnalysis, dict[str, ModelComparison]]
 
 
 def _analyse(job: _Job, loaded: LoadedProtocol) -> Analysed:
-    """One configuration's processing and Bouc-Wen fits (`analysis.service.analyse_joints`) with the
-    settings of `loaded`, and each joint's model comparison as the fit step makes it (`compare_stored` of
-    the processed trials as stored: decimated, their signals in the stored precision), run in a worker
-    process (the settings are made there: a backbone's model factory is a closure, which cannot be sent
-    to it)."""
+    """One configuration's processing and Bouc-Wen fits with the settings of `loaded`, and each joint's
+    model comparison as the fit step makes it (`compare_stored` of the processed trials as stored), run in
+    a worker (the settings are made there: a backbone's model factory is a closure, which cannot be sent)."""
     settings = processing_settings(loaded)
     fit = bouc_wen_settings(loaded) if loaded.protocol.fits.bouc_wen.enabled else None
     analysis = analyse_joints(job.recordings, settings, fit, devices=job.devices, fitted_joints=job.fitted)
@@ -303,9 +298,8 @@ _VALUES = ("energy_mean_j", "energy_std_j", "energy_cycles", "max_angle_deg")
 
 
 def _recompare(f: h5py.File, comp: h5py.Group, archive_joints: str) -> None:
-    """A comparison made again from the new results (`steps/compare.py`): per joint under `joints/<joint>`,
-    and for several joints of their total at the group's root; never numbers from the old processing
-    beside the new."""
+    """A comparison made again from the new results, as `steps/compare.py` makes it (never numbers from the
+    old processing beside the new)."""
     names = [configuration_name(int(k)) for k in comp.attrs[CONFIGURATIONS_ATTR]]
     groups = [f[CONFIGURATIONS][n] for n in names if n in f[CONFIGURATIONS]]
     joints = [j.strip() for j in archive_joints.split(",")]

@@ -18,7 +18,6 @@ from .h5util import SIGNAL, put_attrs
 from .paths import CONFIGURATIONS, FITS, PROCESSED, TRIALS, put_dataset
 
 if TYPE_CHECKING:  # the session writes trial units through this module: it never loads the analysis
-    from ..analysis.bouc_wen_fit import LoopEnergy
     from ..analysis.element_fit import ElementFit
     from ..analysis.pipeline import Recording
     from ..analysis.processing_settings import ProcessingSettings
@@ -147,27 +146,6 @@ def _interim_spring_group(fits: h5py.Group, fit: ElementFit) -> None:
     put_dataset(g, "spring", "model_torque_nm", fit.model_torque_nm)
 
 
-def evidence_attrs(result: BoucWenFit, energy: LoopEnergy) -> dict[str, object]:
-    """The attributes that let a modeller judge the fit (units in docs/archive.md)."""
-    return {
-        "scheme": result.scheme,
-        "rmse_refined_nm": float(result.rmse_refined_nm),
-        "optimizer_status": int(result.status),
-        "optimizer_message": result.message,
-        "start_rmse_nm": [float(v) for v in result.start_rmse_nm],
-        "cost_spread": float(result.cost_spread),
-        "n_interval": [float(v) for v in result.n_interval],
-        "param_interval_low": [float(v) for v in result.param_interval_low],
-        "param_interval_high": [float(v) for v in result.param_interval_high],
-        "weakly_identified": bool(result.weakly_identified),
-        "weak_reasons": "; ".join(result.weak_reasons),
-        "model_energy_j": float(energy.model_j),
-        "data_energy_j": float(energy.data_j),
-        "model_dissipates": bool(energy.model_dissipates),
-        **backbone_attrs(result),
-    }
-
-
 def backbone_attrs(result: BoucWenFit) -> dict[str, object]:
     """What ``g`` in torque = g(angle) + z is: ``none`` (g = 0, with the reason in ``backbone_note`` when
     one was asked for), ``polynomial`` (its coefficients) or ``elements`` (the device's elastic elements
@@ -228,7 +206,22 @@ def bouc_wen_fill(name: str, bouc_wen: BoucWenResult) -> Fill:
                 "n_starts": int(result.n_starts),
                 "converged": bool(result.converged),
                 "diverged": bool(result.diverged),
-                **evidence_attrs(result, energy),
+                # the evidence that lets a modeller judge the fit
+                "scheme": result.scheme,
+                "rmse_refined_nm": float(result.rmse_refined_nm),
+                "optimizer_status": int(result.status),
+                "optimizer_message": result.message,
+                "start_rmse_nm": [float(v) for v in result.start_rmse_nm],
+                "cost_spread": float(result.cost_spread),
+                "n_interval": [float(v) for v in result.n_interval],
+                "param_interval_low": [float(v) for v in result.param_interval_low],
+                "param_interval_high": [float(v) for v in result.param_interval_high],
+                "weakly_identified": bool(result.weakly_identified),
+                "weak_reasons": "; ".join(result.weak_reasons),
+                "model_energy_j": float(energy.model_j),
+                "data_energy_j": float(energy.data_j),
+                "model_dissipates": bool(energy.model_dissipates),
+                **backbone_attrs(result),
             },
         )
         put_dataset(g, "bouc_wen", "angle_deg", np.concatenate(angles))

@@ -2,8 +2,8 @@
 
 A unit is a fragment of the final archive (its groups sit at the paths they will have in `archive.h5`).
 It is written to `<name>.h5.partial`, closed, fsynced, renamed to `<name>.h5`, and the directory fsynced;
-only then may the caller journal it as complete. Its sha256 is returned so a resume can tell a complete
-unit from a truncated or foreign one. "The file exists" never means "complete".
+only then may the caller journal it as complete, with its sha256, so that a resume can tell a complete
+unit from a truncated or foreign one.
 """
 
 from __future__ import annotations

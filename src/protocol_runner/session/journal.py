@@ -1,8 +1,8 @@
 """The session journal: an append-only JSON-lines file, fsynced after every record.
 
 A unit is journaled as complete only after its file was atomically written (archive/units.py). Events
-(started, interrupted, resumed, ...) are journaled too and end up in the archive's `/session/events`.
-A crash can leave a torn last line: it is ignored on reading (it never described a complete unit).
+(started, interrupted, resumed, ...) end up in the archive's `/session/events`. A crash can leave a torn
+last line: it is ignored on reading (it never described a complete unit).
 """
 
 from __future__ import annotations
@@ -90,10 +90,9 @@ class JournalDamage:
 
 
 def inspect_journal(path: Path) -> JournalDamage:
-    """Read the journal at `path` without repairing it: its records, and the lines before the last one that
-    are not records. A crash or a power cut can damage only the line being appended, the last one; any
-    other damaged line means the file was damaged or edited. Raises `OSError` for a file that is not a
-    regular file or is larger than MAX_JOURNAL_BYTES."""
+    """Read the journal at `path` without repairing it: its records, and the lines before the last one (the
+    only one a crash can tear) that are not records. `OSError` for a file that is not a regular file or is
+    larger than MAX_JOURNAL_BYTES."""
     reason = _unusable(path)
     if reason:
         raise OSError(reason)

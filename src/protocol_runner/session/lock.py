@@ -1,14 +1,10 @@
 """One process per session directory: an exclusive, non-blocking lock held while a run writes to it; and
 the refusal of session files that are symbolic links.
 
-Two `--resume` of the same session, or `--report DIR` on a session still running, would otherwise write
-the same files. The lock is `filelock`'s OS lock on `<session>/.lock`, so a crash or `kill -9` releases
-it; the holder's PID is in `<session>/.lock.pid` (some filelock versions truncate the lock file), for the
-refusal message.
-
-The session's own files (`SESSION_FILES`) are never followed through a symbolic link, which would have its
-target truncated, appended to or filled with units: a session whose files are links is refused with exit
-2, naming the path (the session directory itself may be a link).
+The lock is `filelock`'s OS lock on `<session>/.lock`, so a crash or `kill -9` releases it; the holder's
+PID is in `<session>/.lock.pid`, for the refusal message. The session's own files (`SESSION_FILES`) are
+never followed through a symbolic link, which would have its target written: a session whose files are
+links is refused with exit 2, naming the path (the session directory itself may be a link).
 """
 
 from __future__ import annotations

@@ -1,9 +1,7 @@
 """Operator prompts: the checklists a person works through at the rig, and decisions on failed checks.
 
-`AutoOperator` answers for a dry run or `--yes` (checklists done; a failed calibration check is NOT
-accepted automatically: safety first). `ConsoleOperator` asks on the terminal with rich: protocol text
-shown verbatim, explicit answers only. While a question waits for its answer, the live progress display
-is paused (`progress.display_paused`), so that it never draws over the question or the operator's typing.
+`AutoOperator` answers for a dry run or `--yes` (a failed calibration check is NOT accepted automatically:
+safety first). `ConsoleOperator` asks on the terminal, the live progress display paused meanwhile.
 """
 
 from __future__ import annotations
@@ -31,10 +29,8 @@ class AutoOperator:
 
 
 class ConsoleOperator:
-    """Asks on the terminal. Without a terminal it refuses to guess: use --yes or --dry-run.
-
-    Text from the protocol is shown exactly as written (never read as rich markup: `[K3]` stays `[K3]`),
-    and a question is answered only by an explicit y, n or q: Enter alone asks again."""
+    """Asks on the terminal (without one it refuses to guess). Text from the protocol is shown exactly as
+    written (never read as rich markup), and only an explicit y, n or q answers: Enter alone asks again."""
 
     def __init__(self, console: Any = None, stdin: TextIO | None = None) -> None:
         if stdin is None and not sys.stdin.isatty():

@@ -1,11 +1,10 @@
 """Progress of a session: a rich display on a terminal, plain log lines otherwise, a log file, and the
-live monitor's publisher (`--monitor`; a null one otherwise).
+live monitor's publisher (`--monitor`).
 
-Shows the set, configuration and trial, and the ETA in robot time and in wall time. Every line shown is
-in `session.log` too: a line that cannot be shown (the terminal closed, a pipe whose reader ended) is
-dropped from the screen and the session goes on (`streams.py`). While an operator prompt waits for an
-answer on the terminal, the live display is paused (`display_paused`): it redraws about ten times a second
-and would otherwise draw over the question and the operator's typing.
+Shows the set, configuration and trial, and the ETA in robot and wall time. Every line shown is in
+`session.log` too, so a line that cannot be shown is dropped from the screen (`streams.py`). While an
+operator prompt waits on the terminal, the live display is paused (`display_paused`) so that it does not
+draw over the question.
 """
 
 from __future__ import annotations
@@ -141,9 +140,8 @@ class Progress:
 
     def _eta(self) -> str:
         """Robot time left, and the wall time it will take at the wall-per-robot-second rate of the steps
-        finished since the first one of this process: the first includes the one-time start-up (numba
-        loading or, on the first run, compiling the simulator's kernels: a minute for a few seconds of
-        simulation), which would make the whole campaign look hours long. "?" until that rate is known."""
+        finished after this process's first (which includes the one-time start-up: compiling the
+        simulator's kernels); "?" until that rate is known."""
         remaining_robot = self.total_robot_s - self.robot_done_s
         wall = float("nan")
         if self._rate_from is not None and self.robot_done_s > self._rate_from[1]:

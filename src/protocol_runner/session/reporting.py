@@ -1,8 +1,6 @@
-"""Report triggering: the HTML report rendered from the session's archive at the end of a session.
-
-When the analysis workers are running (`workers.AnalysisPool`), they draw the report's figures and compute
-the model predictions at the end, when they are idle: the session process then only reads, assembles and
-writes the HTML, and never loads the drawing library.
+"""The HTML report rendered from the session's archive at the end of a session. When the analysis
+workers are running, they draw the figures and compute the predictions: the session process then never
+loads the drawing library.
 """
 
 from __future__ import annotations

@@ -1,17 +1,15 @@
 """Resuming a session: what the rig must look like before the first step, and the set's calibration re-check.
 
-The software cannot see the rig's physical state (brace on or off, which spring, preload, brake, ROM stops):
-after a stop a person may have changed anything. So before the first step that uses the rig, a resume asks
-the operator for the state that step needs, exactly as the plan's last checklist before it set it up (a
-checklist as the first step asks for itself). When the session stopped inside a set, the set's calibration
-check is run again first, in the condition the plan gives calibration checks (the state at the set's
-"before" check: the brace off); the operator is asked to set that up, and afterwards to restore the state
-the next step needs. Every answer is journaled (kind `operator_answer`, JSON detail) and so reaches the
-archive's `/session/events`. In a dry run or with --yes the answers are given automatically, and recorded.
+The software cannot see the rig's physical state (brace, spring, preload, brake, ROM stops), which a person
+may have changed after a stop. So before the first step that uses the rig, a resume asks the operator for
+the state that step needs, as the plan's last checklist before it set it up. When the session stopped
+inside a set, the set's calibration check is run again first, in the state of the set's "before" check.
+Every answer is journaled (kind `operator_answer`) and so reaches the archive's `/session/events`.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from pathlib import Path
@@ -97,9 +95,8 @@ def ask_state(runner: Runner, source: ChecklistStep | None, prompt_id: str, purp
 
 def set_aside(path: Path) -> Path | None:
     """Move a unit file that no longer matches its journal out of the redone step's way, as
-    `<name>.replaced-<n>` beside it (not a unit: no `.h5` ending), so that the redo does not overwrite
-    it: whatever it holds (a hand-edited journal may be what is wrong) is kept. None when there is no
-    file."""
+    `<name>.replaced-<n>` beside it (not a unit: no `.h5` ending), so that whatever it holds is kept. None
+    when there is no file."""
     if not path.is_file():
         return None
     n = 1
@@ -117,11 +114,9 @@ def first_rig_step(plan: Plan, done: set[str]) -> Step | None:
 
 
 def derived_from(plan: Plan, redone: set[str]) -> dict[str, str]:
-    """Each step whose unit was computed from a step in `redone`, directly or through others, with the redone
-    step it comes from: a brace-off trial follows its brace-on twin's measured output, the processing reads
-    both trials of each pair, the fit reads the processing, a comparison the processings (each kind's
-    `inputs`). On the rig a redone trial is a new recording, so everything made from the old one is made
-    again."""
+    """Each step whose unit was computed from a step in `redone`, directly or through others (each kind's
+    `inputs`), with the redone step it comes from: a redone trial is a new recording, so everything made
+    from the old one is made again."""
     origin = dict.fromkeys(redone, "")
     for step in plan.steps:  # in plan order: every step comes after the steps it reads
         if step.id in origin:
@@ -140,34 +135,29 @@ def prepare_resume(runner: Runner, ctx: StepContext, progress: Progress) -> None
     had_journal = bool(j.events or j.units or j.failed)
     detail = "protocol text or rig file changed; accepted with --force" if runner.protocol_changed else ""
     j.event("resumed", detail)
+    override = functools.partial(j.event, "operator_override")  # what --force let through
     if runner.protocol_changed:
-        j.event("operator_override", "resumed with a changed protocol or rig file (--force)")
+        override("resumed with a changed protocol or rig file (--force)")
     changes = changed_files(runner.dir, runner.info)
     if changes:
-        j.event("operator_override", f"resumed with changed referenced files (--force): {', '.join(changes)}")
+        override(f"resumed with changed referenced files (--force): {', '.join(changes)}")
     if not had_journal and any(runner.units_dir.glob("*.h5")):
-        j.event(
-            "operator_override",
-            "journal.jsonl was missing or held no record; resumed with --force: every step is redone",
-        )
+        override("journal.jsonl was missing or held no record; resumed with --force: every step is redone")
     elif j.damaged_lines:
-        j.event(
-            "operator_override",
+        override(
             f"journal.jsonl had {j.damaged_lines} damaged line(s), ignored; resumed with --force: the steps they "
-            "recorded are redone",
+            "recorded are redone"
         )
     began = started_as(j)
     if began is not None and began != (runner.info.mode, runner.info.seed):  # only with --force
-        j.event(
-            "operator_override",
+        override(
             f"resumed with --force as {runner.info.mode}, seed {runner.info.seed}, although the session began "
-            f"as {began[0]}, seed {began[1]}",
+            f"as {began[0]}, seed {began[1]}"
         )
     strangers = not_in_plan(runner.plan, j)
     if strangers:  # only with --force (resume_preflight refuses them otherwise)
-        j.event(
-            "operator_override",
-            f"resumed with --force although the journal records steps the plan does not have: {', '.join(strangers)}",
+        override(
+            f"resumed with --force although the journal records steps the plan does not have: {', '.join(strangers)}"
         )
     redone: set[str] = set()
     for step_id, record in list(j.units.items()):

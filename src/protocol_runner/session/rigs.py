@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from ..errors import HardwareUnavailable, InvalidInput
 from ..hardware.calibration import CalibrationTable, load_calibration_table
@@ -15,9 +14,6 @@ from ..protocol.schema import RigSpec
 from ..protocol.settings import Settings
 from ..protocol.step_ids import trial_of
 from ..protocol.stream_check import safety_limits
-
-if TYPE_CHECKING:
-    from ..hardware.simulator.params import SimulatorParams
 
 
 def _table(base: Path, name: str | None) -> CalibrationTable | None:
@@ -65,14 +61,7 @@ class SimulatedBench:
     """The dry-run bench: the simulated rig (each joint's `simulator:` values from its rig file) plus the
     simulated operator's hands on the device."""
 
-    def __init__(
-        self,
-        loaded: LoadedProtocol,
-        *,
-        seed: int,
-        realtime: bool = False,
-        params: SimulatorParams | None = None,
-    ) -> None:
+    def __init__(self, loaded: LoadedProtocol, *, seed: int, realtime: bool = False) -> None:
         from ..hardware.simulator.daq import SimulatedRig
         from ..hardware.simulator.params import SimulatorParams
 
@@ -81,7 +70,7 @@ class SimulatedBench:
         self.sim = SimulatedRig(
             joint_configs(loaded),
             seed=seed,
-            params=params or [SimulatorParams(**dict(r.simulator)) for r in specs],
+            params=[SimulatorParams(**dict(r.simulator)) for r in specs],
             realtime=realtime,
         )
         self.rig: Rig = self.sim.make_rig()

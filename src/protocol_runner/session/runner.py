@@ -1,18 +1,14 @@
 """The runner: executes a plan's steps against a bench, one atomic unit per finished step.
 
-The session is one loop over the plan's steps: skip a step the journal lists as complete; run the step
-(steps/registry.py); write its unit (archive/units.py: written, fsynced, renamed into place); journal it.
-Every unit is therefore on disk and journaled before the next step moves the joint, so a crash or a kill
-loses at most the step under way. A resume skips journaled units whose files verify, redoes corrupt or
-partial ones, and sets the rig up for the step it continues with (session/resume.py). SIGINT/SIGTERM stop
-at the next safe point, park the joint, and exit 130 with the session resumable. At the end (and at every
-stop) the units are consolidated into `archive.h5`, and the report is rendered.
+One loop over the plan's steps: skip a step the journal lists as complete; run the step; write its unit
+(archive/units.py: written, fsynced, renamed into place); journal it. Every unit is on disk and journaled
+before the next step moves the joint, so a crash or a kill loses at most the step under way. SIGINT/SIGTERM
+stop at the next safe point, park the joint, and exit 130 with the session resumable (`resume.py`). At the
+end (and at every stop) the units are consolidated into `archive.h5`, and the report is rendered.
 
-One thing runs beside the loop: on a machine with two cores or more, the analysis steps (processing and
-fits, which only read finished units) run in a worker process (`workers.py`) while the loop goes on with
-the next configuration's trials; the loop journals each one once its unit is on disk, and waits for all of
-them before a comparison or the report reads them. Resuming is in `resume.py`, the report in
-`reporting.py`; the archive is assembled here (`Runner.consolidate`).
+With two cores or more, the analysis steps (which only read finished units) run in a worker process
+(`workers.py`) while the loop goes on with the next trials; the loop journals each once its unit is on
+disk, and waits for all of them before a comparison or the report reads them.
 """
 
 from __future__ import annotations
@@ -20,7 +16,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass
 from pathlib import Path
@@ -73,8 +69,6 @@ class Runner:
         resumed: bool = False,
         protocol_changed: bool = False,
         quiet: bool = False,
-        stop: StopFlag | None = None,
-        background: bool | None = None,
         publisher: Publisher = NULL_PUBLISHER,
     ) -> None:
         self.dir = session_dir
@@ -89,11 +83,11 @@ class Runner:
         self.units_dir = session_dir / "units"
         refuse_session_links(session_dir)  # lock, journal, log, units: never written through a link
         self.journal = Journal(session_dir / "journal.jsonl")
-        self.stop = stop or StopFlag()
+        self.stop = StopFlag()
         self.steps_run = 0
         self.rechecks = 0
         self._planned = {step.id for step in plan.steps}
-        self.background = background if background is not None else (os.cpu_count() or 1) >= 2
+        self.background = (os.cpu_count() or 1) >= 2
         self.pool = AnalysisPool(loaded, plan, self.units_dir, self.journal)
         self.publisher = publisher  # the live monitor (--monitor): told of every step through `progress`
 
@@ -124,6 +118,11 @@ class Runner:
             monitor=self.publisher,
         )
         skipped = 0
+
+        def analysed(step: Step, summary: str) -> None:  # an analysis the workers ran is journaled
+            self.steps_run += 1
+            progress.step_finished(step, summary)
+
         try:
             if self.resumed:
                 prepare_resume(self, ctx, progress)  # session/resume.py
@@ -131,7 +130,7 @@ class Runner:
                 self.journal.event("started", f"{self.info.mode}, seed {self.info.seed}")
                 self.journal.event("referenced_files", json.dumps(self.info.files_sha256, sort_keys=True))
             for step in self.plan.steps:
-                self.pool.collect(self._finished(progress))  # journal the analyses finished meanwhile
+                self.pool.collect(analysed)  # journal the analyses finished meanwhile
                 if step.id in self.journal.units:
                     skipped += 1
                     continue
@@ -143,7 +142,7 @@ class Runner:
                     self.pool.submit(step)  # the units it reads are journaled: on disk
                     continue
                 if step.kind in ("compare", "report"):
-                    self._await_analyses(progress)  # what they read
+                    self.pool.collect(analysed, wait=True)  # what they read
                     if self.stop():  # a Ctrl-C while the last analyses ran: stop here, as announced
                         raise Interrupted(f"stopped before {step.id} ({self.stop.signal_name})")
                 if step.kind == "report":
@@ -152,7 +151,7 @@ class Runner:
                 outcome = run_step(step, ctx)
                 self.record(step.id, outcome)
                 progress.step_finished(step, outcome.summary)
-            self._await_analyses(progress)
+            self.pool.collect(analysed, wait=True)
             return self._finish(progress, skipped)
         except Interrupted as exc:
             message = exc.message
@@ -161,9 +160,7 @@ class Runner:
             self._stopped("interrupted", message, progress)
             raise Interrupted(f"{message}. The session is resumable: run-protocol --resume {self.dir}") from None
         except KeyboardInterrupt:
-            self.pool.kill()
-            with contextlib.suppress(Exception):
-                self.journal.event("interrupted", "stopped at once (second Ctrl-C)")
+            self._stopped_at_once()
             raise Interrupted(
                 f"stopped at once; every finished step is kept. Resume with: run-protocol --resume {self.dir}"
             ) from None
@@ -204,17 +201,6 @@ class Runner:
             with contextlib.suppress(Exception):
                 self.bench.close()
 
-    def _finished(self, progress: Progress) -> Callable[[Step, str], None]:
-        def finished(step: Step, summary: str) -> None:
-            self.steps_run += 1
-            progress.step_finished(step, summary)
-
-        return finished
-
-    def _await_analyses(self, progress: Progress) -> None:
-        """Wait until every analysis handed to the workers is journaled."""
-        self.pool.collect(self._finished(progress), wait=True)
-
     def record(self, step_id: str, outcome: StepOutcome) -> None:
         """Write the step's unit and journal it; a step that stops the session has its unit written and
         journaled before the stop is raised."""
@@ -245,12 +231,15 @@ class Runner:
             try:
                 action()
             except KeyboardInterrupt:
-                self.pool.kill()
-                with contextlib.suppress(Exception):
-                    self.journal.event("interrupted", "stopped at once (second Ctrl-C)")
+                self._stopped_at_once()
                 return
             except Exception:  # a stop must get through every action it can
                 continue
+
+    def _stopped_at_once(self) -> None:  # a second Ctrl-C
+        self.pool.kill()
+        with contextlib.suppress(Exception):
+            self.journal.event("interrupted", "stopped at once (second Ctrl-C)")
 
     def _disk_full(self, exc: Exception) -> DiskFull:
         """Park, journal the stop if there is room for it, and the error to raise (archive/diskfull.py)."""

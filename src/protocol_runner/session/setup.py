@@ -10,25 +10,25 @@
     <session>/report.html         the report
 
 Resume re-expands the protocol stored here, so it works even if the original file moved or changed. A
-damaged or hand-edited session.json gets one clear error naming the field (exit 2), never a traceback,
-and never a session run with a value no run could have written (a negative seed, an unknown mode treated
-as hardware, a protocol path outside the session directory).
+damaged or hand-edited session.json gets one clear error naming the field (exit 2), never a session run
+with a value no run could have written.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import os
 import re
 import shutil
-from dataclasses import asdict, dataclass, field
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from datetime import UTC, datetime
 from pathlib import Path, PurePosixPath
 from typing import Any
 
 from .. import __version__
-from ..archive.diskfull import creates_session_directory
+from ..archive.diskfull import DiskFull, is_disk_full
 from ..archive.units import fsync_path, sha256_of
 from ..errors import InvalidInput
 from ..protocol.loaded import LoadedProtocol
@@ -73,15 +73,8 @@ def default_session_dir(protocol_name: str) -> Path:
 def referenced_files(loaded: LoadedProtocol) -> list[str]:
     p = loaded.protocol
     files = list(dict.fromkeys(f for spec in p.trajectories.values() for f in trajectory_files(spec)))
-    files += [
-        f
-        for f in (
-            p.rig.calibration.command_table,
-            p.rig.calibration.angle_table,
-            p.rig.calibration.torque_table,
-        )
-        if f
-    ]
+    cal = p.rig.calibration
+    files += [f for f in (cal.command_table, cal.angle_table, cal.torque_table) if f]
     if p.report.reference_dataset:
         files.append(p.report.reference_dataset)
     if is_rig_path(p.rig_name):  # a lab's own rig file beside the protocol: the session keeps its copy
@@ -89,57 +82,87 @@ def referenced_files(loaded: LoadedProtocol) -> list[str]:
     return files
 
 
-@creates_session_directory  # a full disk or a write error leaves no half-made session behind
 def create_session(
     directory: Path, loaded: LoadedProtocol, *, mode: str, seed: int, only: tuple[int, ...], realtime: bool
 ) -> SessionInfo:
-    if directory.exists() and not directory.is_dir():
-        raise InvalidInput(f"--session {directory}: is a file, not a directory")
-    if (directory / SESSION_FILE).exists():
-        raise InvalidInput(
-            f"{directory} already holds a session; continue it with: run-protocol --resume {directory}"
-        )
-    if directory.exists() and any(directory.iterdir()):
-        raise InvalidInput(f"{directory} exists and is not empty; choose another --session directory")
-    proto_dir = directory / "protocol"
+    """Create the session directory with its protocol copies and session.json. If it fails writing (a full
+    disk, no permission), what it wrote is removed, so that no half-made session is left behind, and one
+    clear error is raised."""
+    existed = directory.exists()
     try:
-        proto_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise InvalidInput(
-            f"--session {directory}: cannot create the session directory ({exc.strerror})"
-        ) from None
-    (directory / "units").mkdir(exist_ok=True)
-    target = proto_dir / loaded.path.name
-    target.write_text(loaded.text, encoding="utf-8")
-    hashes: dict[str, str] = {}
-    for rel in referenced_files(loaded):
-        if not is_stored_with_session(rel):
-            continue  # an absolute path into the shipped protocols (protocol/paths.py): read from there
-        src = loaded.base_dir / rel
-        dst = proto_dir / rel
-        if not dst.resolve().is_relative_to(proto_dir.resolve()):
+        was_empty = not existed or (directory.is_dir() and not any(directory.iterdir()))
+    except OSError:
+        was_empty = False
+    try:
+        if directory.exists() and not directory.is_dir():
+            raise InvalidInput(f"--session {directory}: is a file, not a directory")
+        if (directory / SESSION_FILE).exists():
             raise InvalidInput(
-                f"{loaded.path.name}: referenced file {rel} lies outside the protocol's folder"
+                f"{directory} already holds a session; continue it with: run-protocol --resume {directory}"
             )
-        dst.parent.mkdir(parents=True, exist_ok=True)
-        shutil.copy2(src, dst)
-        hashes[rel] = sha256_of(dst)
-    info = SessionInfo(
-        protocol_name=loaded.protocol.name,
-        protocol_sha256=loaded.sha256,
-        protocol_file=str(target.relative_to(directory)),
-        original_path=str(loaded.path),
-        mode=mode,
-        seed=seed,
-        created_utc=datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
-        only=only,
-        software_version=__version__,
-        realtime=realtime,
-        files_sha256=hashes,
-        rig_sha256=loaded.rig_source.sha256,
-    )
-    write_session_info(directory, info)
-    return info
+        if directory.exists() and any(directory.iterdir()):
+            raise InvalidInput(f"{directory} exists and is not empty; choose another --session directory")
+        proto_dir = directory / "protocol"
+        try:
+            proto_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise InvalidInput(
+                f"--session {directory}: cannot create the session directory ({exc.strerror})"
+            ) from None
+        (directory / "units").mkdir(exist_ok=True)
+        target = proto_dir / loaded.path.name
+        target.write_text(loaded.text, encoding="utf-8")
+        hashes: dict[str, str] = {}
+        for rel in referenced_files(loaded):
+            if not is_stored_with_session(rel):
+                continue  # an absolute path into the shipped protocols (protocol/paths.py): read from there
+            src = loaded.base_dir / rel
+            dst = proto_dir / rel
+            if not dst.resolve().is_relative_to(proto_dir.resolve()):
+                raise InvalidInput(
+                    f"{loaded.path.name}: referenced file {rel} lies outside the protocol's folder"
+                )
+            dst.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(src, dst)
+            hashes[rel] = sha256_of(dst)
+        info = SessionInfo(
+            protocol_name=loaded.protocol.name,
+            protocol_sha256=loaded.sha256,
+            protocol_file=str(target.relative_to(directory)),
+            original_path=str(loaded.path),
+            mode=mode,
+            seed=seed,
+            created_utc=datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%SZ"),
+            only=only,
+            software_version=__version__,
+            realtime=realtime,
+            files_sha256=hashes,
+            rig_sha256=loaded.rig_source.sha256,
+        )
+        write_session_info(directory, info)
+        return info
+    except OSError as exc:
+        if was_empty:  # only what this call wrote is removed
+            with contextlib.suppress(OSError):
+                _remove_contents(directory, keep=existed)
+        if is_disk_full(exc):
+            raise DiskFull(
+                f"disk full while creating the session {directory}: nothing was recorded. "
+                "Free some space, then run the same command again."
+            ) from None
+        what = f"{exc.strerror}: {exc.filename}" if exc.strerror and exc.filename else (exc.strerror or exc)
+        raise InvalidInput(f"--session {directory}: cannot create the session ({what})") from None
+
+
+def _remove_contents(directory: Path, *, keep: bool) -> None:
+    if not keep:
+        shutil.rmtree(directory)
+        return
+    for child in directory.iterdir():
+        if child.is_dir() and not child.is_symlink():
+            shutil.rmtree(child)
+        else:
+            child.unlink()
 
 
 def write_session_info(directory: Path, info: SessionInfo) -> None:
@@ -177,10 +200,8 @@ def changed_files(directory: Path, info: SessionInfo) -> list[str]:
 
 
 def created_session_protocol(directory: Path, info: SessionInfo, loaded: LoadedProtocol) -> LoadedProtocol:
-    """The protocol of a session `create_session` has just made from `loaded`, as `load_session_protocol`
-    would read it back: the same validated protocol, named by its copy in <session>/protocol/ (that copy
-    and the copies of its referenced files are byte for byte what `loaded` was read and checked from, so
-    reading and checking them again would give the same result; a resume does read them again)."""
+    """The protocol of a session `create_session` has just made from `loaded`, named by its copy in
+    <session>/protocol/ (byte for byte what `loaded` was read and checked from, so not read again)."""
     path = directory / info.protocol_file
     return dataclasses.replace(loaded, path=path, shown=str(path))
 
@@ -225,18 +246,8 @@ MAX_SEED = 2**63 - 1
 MAX_BYTES = 1 << 20  # a session file is a few hundred bytes
 _SHA256 = re.compile(r"[0-9a-f]{64}")
 
-REQUIRED = (
-    "protocol_name",
-    "protocol_sha256",
-    "protocol_file",
-    "original_path",
-    "mode",
-    "seed",
-    "created_utc",
-    "only",
-    "software_version",
-)
-OPTIONAL = ("realtime", "files_sha256", "rig_sha256")
+REQUIRED = tuple(f.name for f in fields(SessionInfo) if f.default is MISSING and f.default_factory is MISSING)
+OPTIONAL = tuple(f.name for f in fields(SessionInfo) if f.name not in REQUIRED)
 
 
 def _inside(rel: object) -> bool:

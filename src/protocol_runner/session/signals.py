@@ -1,19 +1,15 @@
 """SIGINT/SIGTERM/SIGHUP: stop at the next safe point; a second SIGINT stops at once.
 
 The first signal sets a flag that the runner checks between steps and the rig's loop polls during a
-trial (~every 100 ms); the session then parks the joint, writes its journal and exits 130, resumable
-(SIGHUP, a closed terminal, too: the lines that can no longer be shown go to session.log). A second
-SIGINT raises KeyboardInterrupt at once (units are atomic: only complete ones stay behind) and, in the
-`run-protocol` process, ends the process with exit 130 `EXIT_DEADLINE_S` later if it is still waiting
-for something (a worker, the pool's threads).
+trial; the session then parks the joint, writes its journal and exits 130, resumable. A second SIGINT
+raises KeyboardInterrupt at once (units are atomic) and, in the `run-protocol` process, ends the process
+with exit 130 `EXIT_DEADLINE_S` later if it is still waiting for something (a worker, the pool's threads).
 
 Ctrl-C on a terminal signals the whole process group: `sigint_blocked` keeps SIGINT blocked while a worker
-is started, so the worker inherits the block instead of dying with a traceback while it imports (Windows
-has no `signal.pthread_sigmask`: its workers ignore SIGINT from `workers.worker_init` on).
+is started, so the worker inherits the block instead of dying while it imports.
 
 A KeyboardInterrupt raised by the handler inside a weakref callback or a `__del__` cannot propagate (Python
-prints "Exception ignored in ..." and drops it): while installed, the stop flag catches it and delivers it
-again a moment later (`_thread.interrupt_main`), where it can unwind the session.
+only prints it): while installed, the stop flag delivers it again a moment later (`_thread.interrupt_main`).
 """
 
 from __future__ import annotations
@@ -50,9 +46,8 @@ def exit_at_once_after_second_sigint() -> None:
 
 
 def on_the_way_out() -> None:
-    """The `run-protocol` process is ending (after an interrupt, or with its exit status decided): another
-    Ctrl-C now would only kill it, with a traceback or by the signal itself once the interpreter's teardown
-    has reset SIGINT (exit -2 instead of its status), so it is ignored."""
+    """The `run-protocol` process is ending, its exit status decided: another Ctrl-C would only kill it
+    (with a traceback, or exit -2 instead of its status), so it is ignored."""
     if _deadline.is_set() and threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
 
@@ -125,8 +120,8 @@ class StopFlag:
         sys.unraisablehook = self._unraisable
 
     def uninstall(self) -> None:
-        """Restore the previous handlers; after a stop by signal, ignore SIGINT and SIGHUP instead: the
-        process is on its way out, and another Ctrl-C during its exit would only print a traceback."""
+        """Restore the previous handlers; after a stop by signal, ignore SIGINT and SIGHUP instead (the
+        process is on its way out)."""
         for sig, handler in self._previous.items():
             stopping = self._signalled and sig != signal.SIGTERM
             signal.signal(sig, signal.SIG_IGN if stopping else handler)

@@ -1,11 +1,9 @@
 """Standard output and standard error that go away never stop a campaign.
 
-A terminal closed under a running session (SSH dropped), a pipe whose reader ended (`run-protocol ... 2>&1
-| head -2`), or a stream closed before the start (`2>&-`) makes a write raise (BrokenPipeError, EIO) or
-leaves Python without `sys.stderr` at all. A progress line or a message that cannot be shown is not worth
-stopping the joint mid-campaign: every progress line is in `session.log` too, so `say` drops a line it
-cannot write, and points the stream's descriptor at the null device so that later writes (and the final
-flush at exit) succeed silently instead of raising again.
+A terminal closed under a running session, a pipe whose reader ended, or a stream closed before the start
+(`2>&-`) makes a write raise or leaves Python without `sys.stderr`. Every progress line is in
+`session.log` too, so `say` drops a line it cannot write, and points the stream's descriptor at the null
+device so that later writes (and the final flush at exit) succeed silently.
 """
 
 from __future__ import annotations

@@ -1,16 +1,13 @@
 """The analysis worker pool: processing and fit steps run in a worker process beside the trials.
 
-Steps that only read finished units (never the rig) run, on a machine with two cores or more, in a
-worker process while the main process goes on with the next configuration's trials. A worker writes the
-step's unit (write, fsync, rename); the main process journals it once the task has ended, so a step is
-journaled, like any step, only once its unit is on disk. A stop waits for the analyses in progress and
+A worker writes the step's unit (write, fsync, rename); the main process journals it once the task has
+ended, so a step is journaled only once its unit is on disk. A stop waits for the analyses in progress and
 redoes the rest on resume.
 
-Workers are started by multiprocessing's own start methods (`worker_context`): from a fork server where
-the platform has one, else spawned. Everything a worker runs is a module-level function and every argument
-is pickled, so that both work alike. A worker ignores SIGINT (the session decides when to stop), runs BLAS
-on one thread (two workers share the cores with the session) and ends as soon as the session process ends,
-even one killed with -9: a resume may start at once, and no worker may still be writing units then.
+Workers are forked from a fork server where the platform has one, else spawned (`worker_context`); every
+argument is pickled, so that both work alike. A worker ignores SIGINT (the session decides when to stop),
+runs BLAS on one thread and ends as soon as the session process ends, even one killed with -9: a resume
+may start at once, and no worker may still be writing units then.
 """
 
 from __future__ import annotations
@@ -62,12 +59,18 @@ def worker_context() -> multiprocessing.context.BaseContext:
 def analysis_pool() -> Iterator[ProcessPoolExecutor]:
     """Worker processes for analyses outside a session (`--report --reprocess`), started as the session's
     are (`worker_context`, `worker_init`: SIGINT left to the main process, BLAS on one thread)."""
-    with sigint_blocked():
-        pool = ProcessPoolExecutor(
-            max_workers=min(2, os.cpu_count() or 1), mp_context=worker_context(), initializer=worker_init
-        )
-    with pool:
+    with _new_pool(worker_init) as pool:
         yield pool
+
+
+def _new_pool(initializer: Callable[..., None], *initargs: object) -> ProcessPoolExecutor:
+    with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
+        return ProcessPoolExecutor(
+            max_workers=min(2, os.cpu_count() or 1),
+            mp_context=worker_context(),
+            initializer=initializer,
+            initargs=initargs,
+        )
 
 
 def worker_init() -> None:
@@ -97,9 +100,8 @@ _SESSION: list[tuple[LoadedProtocol, Plan]] = []
 
 
 def _start_worker(loaded: LoadedProtocol, plan: Plan) -> None:
-    """A worker's start (`worker_init`), keeping the session's protocol and plan for every task it runs: they
-    reach each worker once, with the worker, instead of with each of its tasks (about 0.16 MB pickled for
-    the knee)."""
+    """A worker's start (`worker_init`), keeping the session's protocol and plan for every task it runs (sent
+    once per worker instead of with each task)."""
     worker_init()
     _SESSION[:] = [(loaded, plan)]
 
@@ -137,7 +139,7 @@ def run_analysis_steps(
 
 def warning_kinds(caught: list[warnings.WarningMessage]) -> Warned:
     """The kinds of the warnings a step raised (category, message, where), each once with how often, in
-    the order first raised: a worker's stderr reaches no one, so they travel back with the step."""
+    the order first raised (a worker's stderr reaches no one)."""
     counts: dict[str, int] = {}
     for w in caught:
         where = Path(w.filename)
@@ -170,13 +172,7 @@ class AnalysisPool:
                 chain.append(self.plan.step(fit))
         self.submitted.update(s.id for s in chain)
         if self._pool is None:
-            with sigint_blocked():
-                self._pool = ProcessPoolExecutor(
-                    max_workers=min(2, os.cpu_count() or 1),
-                    mp_context=worker_context(),
-                    initializer=_start_worker,
-                    initargs=(self.loaded, self.plan),
-                )
+            self._pool = _new_pool(_start_worker, self.loaded, self.plan)
         # blocked again: creating the pool may start multiprocessing's resource tracker, which unblocks
         # SIGINT in this thread once it has started it; the workers (and the fork server) start here
         with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
@@ -193,17 +189,20 @@ class AnalysisPool:
             if still or not future.done():  # journaled in submission order
                 still.append((chain, future))
                 continue
-            results = future.result()  # a worker's error is raised here, in the main process
-            for step, (record, summary, raised) in zip(chain, results, strict=True):
-                if record is not None:
-                    self.journal.unit_done(record)
-                finished(step, summary + self._warnings_text(raised))
+            self._journal(chain, future.result(), finished)  # a worker's error is raised here
         self._pending = still
 
+    def _journal(
+        self, chain: tuple[Step, ...], results: Results, finished: Callable[[Step, str], None]
+    ) -> None:
+        for step, (record, summary, raised) in zip(chain, results, strict=True):
+            if record is not None:
+                self.journal.unit_done(record)
+            finished(step, summary + self._warnings_text(raised))
+
     def _warnings_text(self, raised: Warned) -> str:
-        """What a step's line adds for the warnings it raised (the line goes to session.log and the
-        progress output): each kind in full the first time the session meets it, after that its category
-        only."""
+        """What a step's line adds for the warnings it raised: each kind in full the first time the session
+        meets it, after that its category only."""
         parts: list[str] = []
         for kind, count in raised:
             times = f" ({count} times)" if count > 1 else ""
@@ -230,11 +229,6 @@ class AnalysisPool:
             except (BrokenProcessPool, RuntimeError):  # a worker died, or the pool is shut down
                 return None
 
-    @property
-    def busy(self) -> bool:
-        """Whether analyses are running (not journaled yet)."""
-        return bool(self._pending)
-
     def shutdown(self, finished: Callable[[Step, str], None]) -> None:
         """On any exit: keep the background steps that complete, drop those not started (redone on resume)."""
         if self._pool is None:
@@ -249,10 +243,7 @@ class AnalysisPool:
             if future.cancelled() or future.exception() is not None:
                 continue
             with contextlib.suppress(Exception):
-                for step, (record, summary, raised) in zip(chain, future.result(), strict=True):
-                    if record is not None:
-                        self.journal.unit_done(record)
-                    finished(step, summary + self._warnings_text(raised))
+                self._journal(chain, future.result(), finished)
         self._pending.clear()
         self._pool = None
 

@@ -1,12 +1,11 @@
 """Calibration check (Appendix A "Calibration"): a 45 deg step before and after every set, of each driven
 joint inside its own range, one joint after the other (the others hold where they rest).
 
-The response is compared with a first-order lag (thesis §2.4.2: tau = 0.2 s): the settle error (final
-angle vs target) and the fitted time constant must lie within the protocol's `calibration_check`
-limits; the "after" check must also agree with the set's "before" check (drift of the settled angle and
-change of tau), joint by joint. A failing check (a failure names the joint when there are several) stops
-the session (exit 4) unless the operator accepts it; the verdict is recorded either way in
-`/calibration/<set>/<when>` (the worst of the joints'), each joint's check in its `joints/<joint>`.
+The response is compared with a first-order lag (thesis §2.4.2: tau = 0.2 s): the settle error and the
+fitted time constant must lie within the protocol's `calibration_check` limits, and the "after" check
+must agree with the set's "before" check (drift of the settled angle, change of tau), joint by joint. A
+failing check stops the session (exit 4) unless the operator accepts it; the verdict is recorded either
+way in `/calibration/<set>/<when>`, each joint's check in its `joints/<joint>`.
 """
 
 from __future__ import annotations
@@ -118,19 +117,13 @@ def analyse_step(
     response to the commanded move (least squares over tau in [0.02, 2] s); NaN when the joint's move does
     not stand out of the noise of its held angle (`MOVE_OVER_NOISE`)."""
     settled, start, sse = step_fit(time_s, command_deg, angle_deg, settle_window_s)
-    if abs(settled - start) < MOVE_OVER_NOISE * held_noise_deg(time_s, angle_deg, settle_window_s):
-        return StepResponse(
-            settled_deg=settled, settle_error_deg=abs(settled - target_deg), time_constant_s=math.nan
-        )
-    found = minimize_scalar(sse, bounds=TAU_BOUNDS_S, method="bounded", options={"xatol": TAU_TOLERANCE_S})
-    tau = float(found.x)
+    tau = math.nan
+    # the held angle's standard deviation: the sensor noise and the servo's dither a move must stand out of
+    held_noise_deg = float(np.std(angle_deg[time_s >= time_s[-1] - settle_window_s]))
+    if not abs(settled - start) < MOVE_OVER_NOISE * held_noise_deg:
+        options = {"xatol": TAU_TOLERANCE_S}
+        tau = float(minimize_scalar(sse, bounds=TAU_BOUNDS_S, method="bounded", options=options).x)
     return StepResponse(settled_deg=settled, settle_error_deg=abs(settled - target_deg), time_constant_s=tau)
-
-
-def held_noise_deg(time_s: FloatArray, angle_deg: FloatArray, settle_window_s: float) -> float:
-    """The standard deviation of the angle held over the last `settle_window_s`: the sensor noise and the
-    servo's dither a move must stand out of."""
-    return float(np.std(angle_deg[time_s >= time_s[-1] - settle_window_s]))
 
 
 def first_order_response(command_deg: FloatArray, dt_s: float, tau_s: float, y0_deg: float) -> FloatArray:

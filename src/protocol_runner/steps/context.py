@@ -1,7 +1,5 @@
-"""What every step receives: the protocol, the plan, the bench (rig), the operator, the units, the journal.
-
-Passed explicitly to each step's `run(step, ctx)`; nothing is reached through globals.
-"""
+"""What every step's `run(step, ctx)` receives: the protocol, the plan, the bench (rig), the operator, the
+units, the journal."""
 
 from __future__ import annotations
 

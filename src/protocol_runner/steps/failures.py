@@ -1,10 +1,8 @@
 """An analysis that cannot be done reaches the user as one message naming configuration, trial and step.
 
-Analysis runs on recorded data (processing and fits in worker processes, the brace-off input derived from
-the brace-on recording in the trial step). When the data or the processing settings do not allow it,
-the analysis raises `AnalysisError`; `run_step` turns that into `AnalysisStepFailed`, whose message says
-where it happened and what the user can do. Redoing such a step on the same data fails the same way, so
-the message does not promise that a plain resume helps (the runner adds no "resumable" line).
+When the recorded data or the processing settings do not allow an analysis, it raises `AnalysisError`;
+`run_step` turns that into `AnalysisStepFailed`, whose message says where it happened and what the user
+can do. Redoing the step on the same data fails the same way, so the runner adds no "resumable" line.
 """
 
 from __future__ import annotations

@@ -1,12 +1,8 @@
 """Fit step: the generalised Bouc-Wen model (§6.2, Eq 19-25) on each fitted joint's processed, centred
 loops of a configuration, jointly over its trials, with leave-one-trial-out cross-validation when it has
 several trials; with the element fit on, also the joint's model comparison (`fits/element_model`,
-`fits/models`).
-
-It reads the loops the processing step stored (`joints/<joint>/trials/<n>/processed`) and fits them with
-`analysis.service.fit_stored_loops`, the function `--reprocess` reaches through `analyse_joints`, so both
-give the same numbers. (The elastic elements are fitted by the processing step, which has the branch
-curves at hand.)"""
+`fits/models`). It fits the loops the processing step stored with `analysis.service.fit_stored_loops`,
+which `--reprocess` reaches too, so both give the same numbers."""
 
 from __future__ import annotations
 

@@ -1,8 +1,5 @@
-"""What a step may ask the operator at the rig: a checklist, or a decision on a failed check.
-
-The session supplies the implementation (`session.operator`: automatic or on the terminal; the live
-monitor wraps it); steps see only this interface.
-"""
+"""What a step may ask the operator at the rig: a checklist, or a decision on a failed check (implemented
+by `session.operator`; the live monitor wraps it)."""
 
 from __future__ import annotations
 

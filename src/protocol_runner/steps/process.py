@@ -1,11 +1,10 @@
 """Processing step: one configuration's archived trials -> each joint's device torque, energy, element fit.
 
-Reads the trial units (never the rig), then per driven joint `analysis.service.analyse_joints` (without
-the Bouc-Wen fit, which is the fit step's) with the elements that joint carries: transition removal
-(§3.3.1), zero-phase filtering (§3.2), equal-angle subtraction of the brace-off torque (§3.3, §5.6), cycles
-and energy per cycle (Eq 10-12), the fit of the joint's elastic elements (§6.1), and the processed loops as
-stored under `configurations/<name>/joints/<joint>/`; the configuration's `total_energy_loss_j` sums the
-joints' k-th complete cycles of each trial (for one joint: its own energy per cycle).
+Per driven joint `analysis.service.analyse_joints` (without the Bouc-Wen fit, the fit step's) with the
+elements that joint carries: transition removal (§3.3.1), zero-phase filtering (§3.2), equal-angle
+subtraction of the brace-off torque (§3.3, §5.6), cycles and energy per cycle (Eq 10-12), the fit of the
+joint's elastic elements (§6.1); the configuration's `total_energy_loss_j` sums the joints' k-th complete
+cycles of each trial.
 """
 
 from __future__ import annotations

@@ -3,14 +3,10 @@ joint per tick while acquiring every joint's inputs at 1 kHz (one scan).
 
 Brace-on trials command the plan's trajectories. A brace-off trial commands each joint's brace-on
 measured output (thesis §3.3.2: only then are torques compared at the same angles) through the inverse of
-that joint's servo lag (§2.4.2, `analysis.scaling.lag_input`, so that the brace-off run follows it in
-time, not only in range), rescaled by the Eq 8 iteration (`analysis.scaling.scale_brace_off_inputs`)
-until each joint's cycle turning points match its brace-on cycles' within the protocol's tolerance; every
-iteration is one robot run of every joint and is recorded (`joints/<joint>/scaling`). Raw codes and
-converted values are kept.
-
-Unit layout (docs/archive.md): `trials/<n>/brace_<b>` holds the shared time base (`time_s`,
-`command_time_s`, `tick_lateness_s`) and one group per joint `joints/<joint>` with that joint's recording.
+that joint's servo lag (§2.4.2, `analysis.scaling.lag_input`), rescaled by the Eq 8 iteration
+(`analysis.scaling.scale_brace_off_inputs`) until each joint's cycle turning points match its brace-on
+cycles' within the protocol's tolerance; every iteration is one robot run and is recorded
+(`joints/<joint>/scaling`). Unit layout: docs/archive.md.
 """
 
 from __future__ import annotations
@@ -28,8 +24,9 @@ from ..analysis.scaling import ScalingResult, cycle_range, lag_input, scale_brac
 from ..analysis.transition import command_on_input_base, transition_index
 from ..archive.attrs import ATTRIBUTES, FACTORS, JOINT, STATUS, STEP_ID
 from ..archive.attrs import JOINTS as JOINTS_ATTR
-from ..archive.h5util import SIGNAL, put, put_attrs
+from ..archive.h5util import put, put_attrs
 from ..archive.paths import configuration_path, joint_groups, joint_path, put_dataset, recording_path
+from ..archive.results import Fill
 from ..errors import HardwareUnavailable
 from ..hardware.joint import TrialRecording
 from ..protocol.plan_steps import TrialStep
@@ -54,51 +51,19 @@ class _BraceOn:
     command_deg: tuple[FloatArray, ...]
 
 
-KEPT_BRACE_ON_MAX = 32
-"""Brace-on recordings kept in memory at most (each holds a trial's scan, ~1 MB per joint; a set of four
-configurations of three trials has 12 of them before its first brace-off trial). Beyond it the oldest are
-dropped: their twins read the unit."""
-
-_kept_brace_on: dict[tuple[str, str], _BraceOn] = {}
-"""(units folder, brace-on step id) -> that trial's recording exactly as its unit stores it (`put_scan`,
-`put_commands`: the angle at the stored precision), kept by the process that ran it until its brace-off twin
-reads it, so the twin does not read the unit back from disk. A twin run by another process (a resume), or
-after the memory was dropped, reads the unit."""
-
-
-def _keep_brace_on(ctx: StepContext, step: TrialStep, recs: tuple[TrialRecording, ...]) -> None:
-    if not any(isinstance(s, TrialStep) and s.twin == step.id for s in ctx.plan.steps):
-        return  # no brace-off trial follows this one
-    if len(_kept_brace_on) >= KEPT_BRACE_ON_MAX:
-        del _kept_brace_on[next(iter(_kept_brace_on))]  # the oldest
-    _kept_brace_on[(str(ctx.units_dir), step.id)] = _BraceOn(
-        np.asarray(recs[0].input_time_s),
-        np.asarray(recs[0].command_time_s),
-        tuple(np.asarray(r.angle_deg, dtype=SIGNAL) for r in recs),
-        tuple(np.asarray(r.command_deg) for r in recs),
-    )
-
-
 def _read_brace_on(ctx: StepContext, step: TrialStep) -> _BraceOn:
+    """The brace-on twin's recording of the brace-off trial `step`, as its unit stores it."""
     assert step.twin is not None
-    kept = _kept_brace_on.pop((str(ctx.units_dir), step.twin), None)
-    if kept is not None:
-        return kept
+    joints = [j for j, _ in joint_trajectories(step, ctx)]
     with ctx.unit(step.twin) as f:
-        return brace_on_in_unit(f, step, [j for j, _ in joint_trajectories(step, ctx)])
-
-
-def brace_on_in_unit(f: h5py.File, step: TrialStep, joints: list[str]) -> _BraceOn:
-    """The recording of the brace-on trial of `step` (a trial of either brace) of the driven `joints` as
-    its unit `f` stores it."""
-    g = f[recording_path(step.configuration, step.trial, "on")]
-    parts = dict(joint_groups(g, ",".join(joints)))
-    return _BraceOn(
-        g["time_s"][:],
-        g["command_time_s"][:],
-        tuple(parts[j]["angle_deg"][:] for j in joints),
-        tuple(parts[j]["command_deg"][:] for j in joints),
-    )
+        g = f[recording_path(step.configuration, step.trial, "on")]
+        parts = dict(joint_groups(g, ",".join(joints)))
+        return _BraceOn(
+            g["time_s"][:],
+            g["command_time_s"][:],
+            tuple(parts[j]["angle_deg"][:] for j in joints),
+            tuple(parts[j]["command_deg"][:] for j in joints),
+        )
 
 
 def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
@@ -123,8 +88,6 @@ def run(step: TrialStep, ctx: StepContext) -> StepOutcome:
         summary = f"failed after {partial[0].input_time_s.size} samples: {exc.message}"
         return StepOutcome(_fill(step, ctx, partial, None, status="failed"), summary, stop=exc)
     fill = _fill(step, ctx, recs, scaling)
-    if step.brace == "on":
-        _keep_brace_on(ctx, step, recs)
     who = [f"{j} " if len(names) > 1 else "" for j in names]
     summary = ", ".join(
         f"{w}angle {np.min(r.angle_deg):.0f}..{np.max(r.angle_deg):.0f} deg, "
@@ -221,9 +184,17 @@ def _run_brace_off(
     return runs[results[0].kept], results
 
 
-def configuration_group_attributes(step: TrialStep, ctx: StepContext) -> dict[str, Any]:
-    """The `/configurations/<name>` attributes (docs/archive.md): identity, trajectory and settings."""
-    return {
+def _fill(
+    step: TrialStep,
+    ctx: StepContext,
+    recs: tuple[TrialRecording, ...],
+    scaling: tuple[ScalingResult, ...] | None,
+    *,
+    status: str = "complete",
+) -> Fill:
+    """The trial's unit (docs/archive.md): its `/configurations/<name>` attributes (identity, trajectory and
+    settings: the layout's own names, and per factor its level and quantities) and its recording."""
+    attrs: dict[str, Any] = {
         "key": step.configuration,
         "run": step.run,
         "set": step.set,
@@ -232,44 +203,7 @@ def configuration_group_attributes(step: TrialStep, ctx: StepContext) -> dict[st
         "trajectory_name": step.trajectory.name or step.trajectory.profile,
         **configuration_attributes(step.settings),
     }
-
-
-def put_configuration(f: h5py.File, key: int, attrs: dict[str, Any]) -> h5py.Group:
-    """The `/configurations/<name>` group with its attributes (`configuration_group_attributes`): the
-    layout's own names, and per factor its level and quantities."""
-    cfg = f.require_group(configuration_path(key))
     own = ATTRIBUTES["configuration"]
-    fixed = {k: v for k, v in attrs.items() if k in own and k != FACTORS}
-    put_attrs(cfg, "configuration", fixed, dynamic={k: v for k, v in attrs.items() if k not in own})
-    cfg.attrs[FACTORS] = np.array(attrs[FACTORS], dtype=h5py.string_dtype())
-    return cfg
-
-
-def recording_attrs(
-    step: TrialStep, status: str, trajectory_json: str, lateness_s: FloatArray, input_time_s: FloatArray
-) -> dict[str, Any]:
-    """The attributes of a `trials/<n>/brace_<b>` group (docs/archive.md)."""
-    return {
-        STEP_ID: step.id,
-        "brace": step.brace,
-        STATUS: status,
-        "trajectory": trajectory_json,
-        "tick_lateness_p99_s": float(np.percentile(lateness_s, 99)) if lateness_s.size else 0.0,
-        "tick_lateness_max_s": float(np.max(lateness_s)) if lateness_s.size else 0.0,
-        # output-to-input alignment: when the first input row was taken, relative to the first tick
-        "input_start_offset_s": float(input_time_s[0]) if input_time_s.size else 0.0,
-    }
-
-
-def _fill(
-    step: TrialStep,
-    ctx: StepContext,
-    recs: tuple[TrialRecording, ...],
-    scaling: tuple[ScalingResult, ...] | None,
-    *,
-    status: str = "complete",
-):
-    cfg_attrs = configuration_group_attributes(step, ctx)
     joints = joint_trajectories(step, ctx)
     names = np.array([j for j, _ in joints], dtype=h5py.string_dtype())
     shared = recs[0]
@@ -277,15 +211,28 @@ def _fill(
     trajectory = json.dumps(
         step.trajectory.to_json() if not step.joint_trajectories else {j: t.to_json() for j, t in joints}
     )
+    recording = {
+        STEP_ID: step.id,
+        "brace": step.brace,
+        STATUS: status,
+        "trajectory": trajectory,
+        "tick_lateness_p99_s": float(np.percentile(lateness, 99)) if lateness.size else 0.0,
+        "tick_lateness_max_s": float(np.max(lateness)) if lateness.size else 0.0,
+        # output-to-input alignment: when the first input row was taken, relative to the first tick
+        "input_start_offset_s": float(shared.input_time_s[0]) if shared.input_time_s.size else 0.0,
+    }
 
     def fill(f: h5py.File) -> None:
-        cfg = put_configuration(f, step.configuration, cfg_attrs)
+        cfg = f.require_group(configuration_path(step.configuration))
+        fixed = {k: v for k, v in attrs.items() if k in own and k != FACTORS}
+        put_attrs(cfg, "configuration", fixed, dynamic={k: v for k, v in attrs.items() if k not in own})
+        cfg.attrs[FACTORS] = np.array(attrs[FACTORS], dtype=h5py.string_dtype())
         cfg.attrs[JOINTS_ATTR] = names
         g = f.create_group(recording_path(step.configuration, step.trial, step.brace))
         put_dataset(g, "recording", "time_s", shared.input_time_s)
         put_dataset(g, "recording", "command_time_s", shared.command_time_s)
         put_dataset(g, "recording", "tick_lateness_s", lateness)
-        put_attrs(g, "recording", recording_attrs(step, status, trajectory, lateness, shared.input_time_s))
+        put_attrs(g, "recording", recording)
         g.attrs[JOINTS_ATTR] = names
         for k, ((joint, traj), rec) in enumerate(zip(joints, recs, strict=True)):
             jg = f.create_group(joint_path(g.name, joint))
