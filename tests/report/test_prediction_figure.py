@@ -13,7 +13,7 @@ import pytest
 from matplotlib.colors import to_hex
 
 from protocol_runner.report import drawing
-from protocol_runner.report.figures_predictions import (
+from protocol_runner.report.figures import (
     FITTED_RANGE_COLOR,
     MEASURED_COLOR,
     PREDICTED_COLOR,

@@ -13,11 +13,11 @@ from protocol_runner.report.drawing import DPI, LAYOUTS
 from protocol_runner.report.figure_plan import figure_ids
 from protocol_runner.report.figures import (
     bouc_wen_figure,
+    energy_bars_figure,
     energy_cycles_figure,
     hysteresis_figure,
     render_figures,
 )
-from protocol_runner.report.figures_compare import energy_bars_figure
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.model import Configuration
 
@@ -137,7 +137,7 @@ def test_energy_figure_puts_each_configuration_at_its_factor_value(small_archive
 
 def _drawn(monkeypatch, draw) -> object:
     """The matplotlib Figure a figure function draws (captured before it becomes a PNG)."""
-    from protocol_runner.report import drawing, figures, figures_compare
+    from protocol_runner.report import drawing, figures
 
     captured = []
     real = drawing.to_data_uri
@@ -146,7 +146,7 @@ def _drawn(monkeypatch, draw) -> object:
         captured.append(fig)
         return real(fig)
 
-    for module in (drawing, figures, figures_compare):
+    for module in (drawing, figures):
         monkeypatch.setattr(module, "to_data_uri", keep)
     draw()
     return captured[-1]
@@ -184,7 +184,7 @@ def test_element_fits_are_drawn_for_the_comparisons_that_change_a_fitted_element
     tmp_path: Path, monkeypatch
 ) -> None:
     from protocol_runner.report.figure_plan import model_comparisons
-    from protocol_runner.report.figures_compare import element_fit_figure
+    from protocol_runner.report.figures import element_fit_figure
     from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, write_archive
 
     keys = (4, 5, 6, 7, 14, 17, 20, 23)

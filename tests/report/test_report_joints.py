@@ -14,7 +14,7 @@ import pytest
 from matplotlib.figure import Figure
 
 from protocol_runner.commands import run
-from protocol_runner.report import drawing, figures, figures_compare
+from protocol_runner.report import drawing, figures
 from protocol_runner.report.figure_plan import figure_jobs
 from protocol_runner.report.load import load_report_data
 
@@ -49,7 +49,7 @@ def _drawn(monkeypatch: pytest.MonkeyPatch, draw: Callable[[], str]) -> Figure:
         captured.append(fig)
         return real(fig)
 
-    for module in (drawing, figures, figures_compare):
+    for module in (drawing, figures):
         monkeypatch.setattr(module, "to_data_uri", keep)
     draw()
     return captured[-1]

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from protocol_runner.analysis.statistics import WelchInterval, welch_interval
 from protocol_runner.errors import InvalidInput
-from protocol_runner.report.compare_figure import overlay_figure
+from protocol_runner.report.figures import overlay_figure
 from protocol_runner.report.headline import configuration_stats
 from protocol_runner.report.html_file import checked_output, template_environment, write_atomically
 from protocol_runner.report.load import load_report_data

@@ -303,12 +303,12 @@ def element_prediction(
 
 
 def predictions(archive: Path, protocol_text: str, *, figures: bool = True) -> tuple[Prediction, ...]:
-    """The declared predictions of `archive`, each with its figure (`report.figures_predictions`) when
+    """The declared predictions of `archive`, each with its figure (`report.figures.prediction_figure`) when
     `figures` and the element model predicted it."""
     made = _predictions(archive, protocol_text)
     if not figures or not any(p.element is not None for p in made):
         return made
-    from .figures_predictions import prediction_figure  # matplotlib: only where the figures are drawn
+    from .figures import prediction_figure  # matplotlib: only where the figures are drawn
 
     def drawn(p: Prediction, e: ElementPrediction | None) -> Prediction:
         if e is None:
