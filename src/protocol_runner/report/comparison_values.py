@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from protocol_runner.protocol.plan_steps import Comparison
-from protocol_runner.report.model import Configuration
+from protocol_runner.report.model import Configuration, factor_names
 from protocol_runner.report.settings_view import (
     TRAJECTORY,
     axis_label,
@@ -77,10 +77,9 @@ def _differs(values: Sequence[object]) -> bool:
 def comparison_axis(comparison: Comparison, configs: Sequence[Configuration]) -> ComparisonAxis:
     """The axis of `comparison` over `configs` (its configurations present in the archive)."""
     parameter = comparison.parameter
-    factors: list[str] = []
-    for cfg in configs:
-        factors.extend(f for f in cfg.settings.factor_names() if f not in factors)
-    others = tuple(f for f in factors if f != parameter and _differs([cfg.level(f) for cfg in configs]))
+    others = tuple(
+        f for f in factor_names(configs) if f != parameter and _differs([cfg.level(f) for cfg in configs])
+    )
     if parameter == TRAJECTORY:
         return ComparisonAxis(parameter, "", False, "trajectory", others)
     names: list[str] = []

@@ -18,7 +18,6 @@ from protocol_runner.protocol.expectations import RepeatabilitySpec
 from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.protocol.schema import ComparisonSpec
 from protocol_runner.report.declared import declared_entries
-from protocol_runner.report.evaluate import format_p
 from protocol_runner.report.headline import ALL_JOINTS, campaign_stats, group_repeatability
 from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import ReportData
@@ -40,16 +39,6 @@ class Difference:
     def label(self) -> str:
         """The subtraction, as the table names it: "13 minus 2"."""
         return f"{self.key} minus {self.base}"
-
-    @property
-    def p_text(self) -> str:
-        """The unadjusted two-sided p-value as printed."""
-        return format_p(self.energy.p_value)
-
-    @property
-    def p_adjusted_text(self) -> str:
-        """The Holm-adjusted p-value as printed."""
-        return format_p(self.p_adjusted)
 
     @property
     def significant(self) -> bool:

@@ -85,16 +85,6 @@ class Verdict:
         """The metric's unit."""
         return UNITS[self.spec.metric]
 
-    @property
-    def p_text(self) -> str:
-        """The unadjusted p-value as printed."""
-        return format_p(self.p_value)
-
-    @property
-    def p_adjusted_text(self) -> str:
-        """The Holm-adjusted p-value as printed ("—" when not evaluable)."""
-        return format_p(self.p_adjusted)
-
 
 def _fmt(value: float) -> str:
     return f"{value:.3g}" if abs(value) < 1 else f"{value:.2f}" if abs(value) < 100 else f"{value:.1f}"

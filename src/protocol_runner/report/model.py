@@ -11,6 +11,7 @@ Arrays are numpy arrays marked read-only; units are in the field names.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -269,6 +270,14 @@ class Configuration(_EnergyPerCycle):
     def quantity(self, factor: str, name: str) -> Quantity | None:
         """The value of `factor`'s quantity `name` (a number, or a tuple for a list), or None."""
         return self.settings.quantity(factor, name)
+
+
+def factor_names(configurations: Sequence[Configuration]) -> list[str]:
+    """Every declared factor any of `configurations` sets, in declaration order (first seen first)."""
+    names: list[str] = []
+    for cfg in configurations:
+        names.extend(f for f in cfg.settings.factor_names() if f not in names)
+    return names
 
 
 @dataclass(frozen=True)

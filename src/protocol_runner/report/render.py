@@ -3,10 +3,6 @@
 The file references nothing outside itself: figures are PNG data URIs, the CSS is inline, links are
 in-page anchors only; it prints (`@media print`) and reads offline. Regenerating it from the same archive
 gives the same bytes except the generation time, which is one element (`id="generated-utc"`).
-
-Public API:
-    render_report(data, output, *, generated_utc=None, workers=None, draw=None, predicted=None) -> Path
-    generate_report(archive_path, output=None, *, reference=None, workers=None) -> Path
 """
 
 from __future__ import annotations
@@ -15,7 +11,7 @@ import dataclasses
 import functools
 import math
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from datetime import UTC, datetime
@@ -27,27 +23,27 @@ from markupsafe import Markup, escape
 
 from protocol_runner import __version__
 from protocol_runner.analysis.reference import load_reference_dataset
-from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.protocol.wording import counted
 from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.declared import declared_citations, declared_text
 from protocol_runner.report.differences import declared_differences, declared_repeatability
-from protocol_runner.report.evaluate import TUNED_LABEL, evaluate_expectations
+from protocol_runner.report.evaluate import TUNED_LABEL, evaluate_expectations, format_p
 from protocol_runner.report.figure_plan import (
     Drawn,
     FigureDrawer,
     FigureSet,
     assemble_figures,
+    configurations_of,
     distinct_comparisons,
     figure_ids,
     model_comparisons,
     slug,
 )
-from protocol_runner.report.headline import ALL_JOINTS, ConfigurationStats, campaign_stats, headline_stats
+from protocol_runner.report.headline import ConfigurationStats, campaign_stats, headline_stats
 from protocol_runner.report.html_file import checked_output, template_environment, write_atomically
 from protocol_runner.report.limits_text import limits_text
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Configuration, JointsTotal, ReportData
+from protocol_runner.report.model import BoucWenFit, Configuration, JointsTotal, ReportData, factor_names
 from protocol_runner.report.settings_view import format_quantity
 
 if TYPE_CHECKING:
@@ -83,10 +79,6 @@ class _ConfigurationView:
     recorded: int
     energy: Configuration | JointsTotal | None
 
-    @property
-    def key(self) -> int:
-        return self.first.key
-
 
 def configuration_views(data: ReportData) -> list[_ConfigurationView]:
     """Every configuration of `data` in key order, as the summary, the configurations and the test matrix
@@ -104,34 +96,6 @@ def configuration_views(data: ReportData) -> list[_ConfigurationView]:
             )
         )
     return views
-
-
-@dataclass(frozen=True)
-class _JointCount:
-    """A joint's (or all joints' together) trials analysed and complete cycles over the campaign."""
-
-    joint: str
-    trials: int
-    cycles: int
-
-
-def joint_counts(data: ReportData) -> list[_JointCount]:
-    """With several joints, each joint's trials analysed and cycles summed over the configurations, then
-    all joints' together; nothing for a single joint (the summary's own counts are that joint's)."""
-    if not data.multi_joint:
-        return []
-    rows = []
-    for joint in (*data.joints, ALL_JOINTS):
-        stats = [s for key in data.keys for s in headline_stats(data, key) if s.joint == joint]
-        rows.append(_JointCount(joint, sum(s.trials for s in stats), sum(s.cycles for s in stats)))
-    return rows
-
-
-@dataclass(frozen=True)
-class _CalibrationSet:
-    name: str
-    figure_id: str
-    checks: tuple[CalibrationCheck, ...]
 
 
 def generate_report(
@@ -233,8 +197,7 @@ _ESCAPED = "&<>\"'"  # what the template's autoescape (markupsafe.escape) replac
 
 def _needs_escaping(text: str) -> bool:
     """Whether autoescaping would change `text` (`escape(text) != text`), without building the escaped copy
-    (a data URI is base64 text, which it never changes): five substring searches, 0.3 ms for the knee's
-    7 MB of images where a regular expression took 14 ms."""
+    (a data URI is base64 text, which it never changes)."""
     return any(character in text for character in _ESCAPED)
 
 
@@ -261,6 +224,7 @@ def _environment() -> jinja2.Environment:
     env.filters["factor"] = _factor_text
     env.filters["ci"] = _ci
     env.filters["counted"] = counted
+    env.filters["p"] = format_p
     return env
 
 
@@ -296,18 +260,6 @@ def _factor_text(cfg: Configuration, factor: str) -> str:
     return setting.text() if setting is not None else "—"
 
 
-def factor_names(data: ReportData) -> list[str]:
-    """Every declared factor any configuration sets, in declaration order (first seen first)."""
-    return _factor_names_of(data.configurations)
-
-
-def _factor_names_of(configurations: Sequence[Configuration]) -> list[str]:
-    names: list[str] = []
-    for cfg in configurations:
-        names.extend(f for f in cfg.settings.factor_names() if f not in names)
-    return names
-
-
 def varying_levels(data: ReportData) -> dict[int, str]:
     """Per configuration key, what sets it apart in its set: the level of each factor (and the trajectory)
     that differs between the set's configurations, e.g. "bungee stiff, brake light"; "" for a set of one
@@ -317,7 +269,7 @@ def varying_levels(data: ReportData) -> dict[int, str]:
         by_set.setdefault(cfg.set_name, []).append(cfg)
     out: dict[int, str] = {}
     for configs in by_set.values():
-        names = _factor_names_of(configs)
+        names = factor_names(configs)
         varying = [n for n in names if len({c.level(n) for c in configs}) > 1]
         moves = len({c.settings.trajectory or c.profile for c in configs}) > 1
         for c in configs:
@@ -331,17 +283,6 @@ def varying_levels(data: ReportData) -> dict[int, str]:
 def _context(
     data: ReportData, figures: FigureSet, generated_utc: str, predicted: tuple[Prediction, ...]
 ) -> dict[str, object]:
-    calibration_sets = []
-    for set_name in sorted({c.set_name for c in data.calibration}):
-        calibration_sets.append(
-            _CalibrationSet(
-                name=set_name,
-                figure_id=f"fig-calibration-{slug(set_name)}",
-                checks=tuple(c for c in data.calibration if c.set_name == set_name),
-            )
-        )
-    overlay_comparisons = distinct_comparisons(data)
-    expectations = evaluate_expectations(data)
     views = configuration_views(data)
     campaign = [s for key in data.keys if (s := campaign_stats(data, key)) is not None]
     return {
@@ -349,20 +290,18 @@ def _context(
         "session": data.session,
         "sections": SECTIONS,
         "figures": figures,
-        "calibration_sets": calibration_sets,
-        "comparisons": overlay_comparisons,
+        "comparisons": distinct_comparisons(data),
         "model_comparisons": model_comparisons(data),
         "fitted": [c for c in data.configurations if c.bouc_wen is not None],
         "multi": data.multi_joint,
         "views": views,
-        "joint_counts": joint_counts(data),
         "campaign": campaign,
         "predictions": predicted,
         "element_fitted": [c for c in data.configurations if c.element_fit is not None],
-        "factor_names": factor_names(data),
+        "factor_names": factor_names(data.configurations),
         "quantity": format_quantity,
-        "axis_of": lambda comp: comparison_axis(comp, _configs(data, comp)),
-        "expectations": expectations,
+        "axis_of": lambda comp: comparison_axis(comp, configurations_of(data, comp.configurations)),
+        "expectations": evaluate_expectations(data),
         "cite": declared_citations(data.protocol_text),
         "tuned_label": TUNED_LABEL,
         "headline": [s for v in views for s in v.stats],
@@ -374,8 +313,7 @@ def _context(
         "limits_text": limits_text,
         "generated_utc": generated_utc,
         "software_version": __version__,
-        "verdict_class": _verdict_class,
-        "configs_of": lambda comp, joint=None: _configs(data, comp, joint),
+        "configs_of": lambda comp, joint=None: configurations_of(data, comp.configurations, joint),
         "total_of": data.total,
         "parameter_cell": _parameter_cell,
     }
@@ -403,15 +341,3 @@ def _parameter_cell(fit: BoucWenFit, index: int, digits: int = 4) -> Markup:
                 + Markup("]</span>")
             )
     return value
-
-
-def _configs(
-    data: ReportData, comparison: Comparison | None, joint: str | None = None
-) -> list[Configuration]:
-    if comparison is None:
-        return []
-    return [c for k in comparison.configurations if (c := data.configuration(k, joint)) is not None]
-
-
-def _verdict_class(verdict: str) -> str:
-    return {"pass": "ok", "fail": "bad", "accepted": "warn"}.get(verdict, "warn")
