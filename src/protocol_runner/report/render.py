@@ -1,4 +1,6 @@
-"""Render a `ReportData` as one self-contained HTML file (jinja2, autoescaped, figures inline).
+"""Render a `ReportData` as one self-contained HTML file (jinja2, autoescaped, figures inline); the
+template environment, the output path's checks and the atomic write are shared with the comparison page
+(`compare.py`).
 
 The file references nothing outside itself: figures are PNG data URIs, the CSS is inline, links are
 in-page anchors only; it prints (`@media print`) and reads offline. Regenerating it from the same archive
@@ -9,7 +11,9 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import math
+import os
 import re
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
@@ -23,6 +27,8 @@ from markupsafe import Markup, escape
 
 from protocol_runner import __version__
 from protocol_runner.analysis.reference import load_reference_dataset
+from protocol_runner.archive.outputs import create_new, refuse_special, temporary_beside
+from protocol_runner.errors import InvalidInput
 from protocol_runner.protocol.wording import counted
 from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.declared import declared_citations, declared_text
@@ -40,11 +46,10 @@ from protocol_runner.report.figure_plan import (
     slug,
 )
 from protocol_runner.report.headline import ConfigurationStats, campaign_stats, headline_stats
-from protocol_runner.report.html_file import checked_output, template_environment, write_atomically
-from protocol_runner.report.limits_text import limits_text
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.model import BoucWenFit, Configuration, JointsTotal, ReportData, factor_names
 from protocol_runner.report.settings_view import format_quantity
+from protocol_runner.resources import templates_dir
 
 if TYPE_CHECKING:
     from protocol_runner.report.predictions import Prediction
@@ -214,6 +219,48 @@ def _draw_here(data: ReportData, task_ids: list[str], workers: int) -> list[Draw
     return draw_here(data, task_ids, workers)
 
 
+def template_environment(*, keep_trailing_newline: bool = False) -> jinja2.Environment:
+    """The package's templates: HTML-escaped, every variable required, block tags without stray lines."""
+    return jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(templates_dir())),
+        autoescape=True,
+        undefined=jinja2.StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=keep_trailing_newline,
+    )
+
+
+def checked_output(output: Path, page: str, example: str) -> Path:
+    """`output` as a Path, or InvalidInput when it is a directory, exists and is not a regular file (a
+    symbolic link, a device, a FIFO: archive/outputs.py), or its folder does not exist (`page` names the
+    page in the message, `example` is a file name to suggest)."""
+    output = Path(output)
+    if output.is_dir() and not output.is_symlink():
+        raise InvalidInput(f"{page} output {output} is a directory; give a file name such as {example}.")
+    refuse_special(output, f"{page} output")
+    if not output.parent.is_dir():
+        raise InvalidInput(f"{page} output directory {output.parent} does not exist.")
+    return output
+
+
+def write_atomically(output: Path, text: str) -> None:
+    """Write `text` to `output` through a temporary file and a rename: a reader never sees half a page.
+
+    A path that is not valid UTF-8 (a session directory named with a byte of another encoding) shows in the
+    page with U+FFFD where that byte was: the page itself is always valid UTF-8."""
+    refuse_special(output, "output")  # checked again just before the write: never replaced by a rename
+    page = text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+    tmp = temporary_beside(output)
+    try:
+        with create_new(tmp) as fh:
+            fh.write(page)
+        os.replace(tmp, output)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
 @functools.cache
 def _environment() -> jinja2.Environment:
     """The report's template environment, one per process: it keeps the compiled template."""
@@ -341,3 +388,35 @@ def _parameter_cell(fit: BoucWenFit, index: int, digits: int = 4) -> Markup:
                 + Markup("]</span>")
             )
     return value
+
+
+_PHRASES: dict[str, str] = {
+    "max_settle_error_deg": "settle error ≤ {v} deg",
+    "settle_error_deg": "settle error ≤ {v} deg",
+    "max_drift_deg": "drift within the set ≤ {v} deg",
+    "max_time_constant_change_s": "time-constant change within the set ≤ {v} s",
+}
+
+
+def _number(value: object) -> str:
+    return f"{value:g}" if isinstance(value, int | float) and not isinstance(value, bool) else str(value)
+
+
+def limits_text(raw: str) -> str:
+    """E.g. `{"max_settle_error_deg": 3.0, "time_constant_s": [0.1, 0.35]}` ->
+    "settle error ≤ 3 deg; time constant 0.1-0.35 s". Text that is not a JSON object is returned as is."""
+    try:
+        limits = json.loads(raw) if raw else {}
+    except ValueError:
+        return raw
+    if not isinstance(limits, dict):
+        return raw
+    parts: list[str] = []
+    for name, value in limits.items():
+        if name == "time_constant_s" and isinstance(value, list) and len(value) == 2:
+            parts.append(f"time constant {_number(value[0])}-{_number(value[1])} s")
+        elif name in _PHRASES:
+            parts.append(_PHRASES[name].format(v=_number(value)))
+        else:
+            parts.append(f"{name.replace('_', ' ')} {_number(value)}")
+    return "; ".join(parts) if parts else "none recorded"
