@@ -51,18 +51,13 @@ def to_data_uri(fig: Figure) -> str:
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
-GRID_LINEWIDTH = 0.4
-GRID_ALPHA = 0.5
-TICK_LABEL_SIZE = 7.0
-
-
 def style(ax: Axes, xlabel: str, ylabel: str, title: str | None = None) -> None:
     """Axis labels, a small title just above the axes, a light grid and small tick labels."""
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title or "", fontsize=8.5, y=1.01)
-    ax.grid(True, linewidth=GRID_LINEWIDTH, alpha=GRID_ALPHA)
-    ax.tick_params(labelsize=TICK_LABEL_SIZE)
+    ax.grid(True, linewidth=0.4, alpha=0.5)
+    ax.tick_params(labelsize=7.0)
 
 
 def empty(ax: Axes, text: str) -> None:

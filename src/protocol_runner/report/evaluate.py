@@ -37,6 +37,7 @@ from protocol_runner.analysis.statistics import (
 )
 from protocol_runner.protocol.expectations import ExpectationSpec, statements
 from protocol_runner.protocol.only import key_spans
+from protocol_runner.protocol.wording import counted
 from protocol_runner.report.declared import declared_entries
 from protocol_runner.report.metrics import LABELS, UNITS, trial_values
 from protocol_runner.report.model import Configuration, ReportData
@@ -138,12 +139,8 @@ def _why_short(data: ReportData, key: int, joint: str, n: int, spec: Expectation
         return f"configuration {key} was not run"
     recorded = sum(t.recorded for t in cfg.trials)
     if not n and recorded and not any(t.processed is not None for t in cfg.trials):
-        return f"configuration {key} has {recorded} recorded trial{_s(recorded)}, none processed"
-    return f"configuration {key} has {n or 'no'} trial{_s(n)} with {metric_label(spec)}"
-
-
-def _s(n: int) -> str:
-    return "" if n == 1 else "s"
+        return f"configuration {key} has {counted(recorded, 'recorded trial')}, none processed"
+    return f"configuration {key} has {counted(n, 'trial') if n else 'no trials'} with {metric_label(spec)}"
 
 
 def _tested(spec: ExpectationSpec, data: ReportData, joint: str) -> Verdict:
@@ -226,13 +223,6 @@ def evaluate_all(specs: Sequence[ExpectationSpec], data: ReportData) -> tuple[Ve
     )
 
 
-def _end_of(spec: ExpectationSpec) -> str:
-    """Which end of a range the statement is about: "low", "high" or "either"."""
-    if spec.metric == "angle_percentile" and spec.percentile is not None:
-        return "low" if spec.percentile < 50 else "high"
-    return "either"
-
-
 def _extremes(cfg: Configuration) -> tuple[float, float]:
     """The lowest and highest angle the configuration's brace-on trials reached (deg)."""
     if math.isfinite(cfg.angle_min_deg) and math.isfinite(cfg.angle_max_deg):
@@ -251,7 +241,9 @@ def _unreached(spec: ExpectationSpec, data: ReportData, joint: str) -> str:
     angles that never reach it ("" when every configuration reaches it)."""
     if spec.engages is None:
         return ""
-    end = _end_of(spec)
+    end = "either"  # which end of the element's range the statement is about
+    if spec.metric == "angle_percentile" and spec.percentile is not None:
+        end = "low" if spec.percentile < 50 else "high"
     problems: list[str] = []
     for key in spec.configurations:
         cfg = data.configuration(key, joint)
@@ -283,25 +275,21 @@ def _unreached(spec: ExpectationSpec, data: ReportData, joint: str) -> str:
     return "; ".join(problems) + f": the statement is about {spec.engages!r}, which these data never engage."
 
 
+def _ordered(keys: Sequence[int], intervals: dict[int, TInterval], unit: str) -> str:
+    """The means in the stated order, each pair joined by the comparison the data show."""
+    means = [intervals[k].mean for k in keys]
+    text = _fmt(means[0])
+    for a, b in pairwise(means):
+        text += (" < " if a < b else " > " if a > b else " = ") + _fmt(b)
+    return f"means in the stated order ({', '.join(str(k) for k in keys)}): {text} {unit}"
+
+
 def _element(cfg: Configuration, name: str, joint: str) -> DeviceElement | None:
     """The device element `name` that `joint` carries (of a device of one joint, its element `name`)."""
     return next(
         (e for e in cfg.settings.device if e.name == name and dict(e.params).get("joint", joint) == joint),
         None,
     )
-
-
-def _sign(a: float, b: float) -> str:
-    return " < " if a < b else " > " if a > b else " = "
-
-
-def _ordered(keys: Sequence[int], intervals: dict[int, TInterval], unit: str) -> str:
-    """The means in the stated order, each pair joined by the comparison the data show."""
-    means = [intervals[k].mean for k in keys]
-    text = _fmt(means[0])
-    for a, b in pairwise(means):
-        text += _sign(a, b) + _fmt(b)
-    return f"means in the stated order ({', '.join(str(k) for k in keys)}): {text} {unit}"
 
 
 def _tost(w: WelchInterval, centre: float, margin: float) -> float:

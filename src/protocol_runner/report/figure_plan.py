@@ -104,12 +104,6 @@ def configurations_of(data: ReportData, keys: Sequence[int], joint: str | None =
     return [c for k in keys if (c := data.configuration(k, joint)) is not None]
 
 
-def figure_joints(data: ReportData) -> tuple[str | None, ...]:
-    """The joints a cross-configuration figure draws a panel for: each driven joint when there are several,
-    else the one joint (None: whichever the configurations hold)."""
-    return data.joints if data.multi_joint else (None,)
-
-
 def distinct_comparisons(data: ReportData) -> list[Comparison]:
     """Declared comparisons drawn as overlays and energy figures: those with a configuration present,
     each set of configurations once (a protocol may list the same keys under two sections)."""
@@ -132,7 +126,7 @@ def model_comparisons(data: ReportData) -> list[Comparison]:
         for comp in distinct_comparisons(data)
         if any(
             fitted_elements_differ(configurations_of(data, comp.configurations, joint))
-            for joint in figure_joints(data)
+            for joint in (data.joints if data.multi_joint else (None,))
         )
     ]
 
