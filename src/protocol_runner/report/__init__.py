@@ -4,7 +4,7 @@
     load.py      load_report_data(path) (checked by archive/verify.py)
     evaluate.py  evaluate_expectations(data): the protocol's expectations decided on the data
     declared.py  declared_citations(text), ...: what the archived protocol declares for the report
-    figures.py   render_figures(data): matplotlib (Agg) figures as PNG data URIs
+    figures.py   draw_here(data, ids, workers): matplotlib (Agg) figures as PNG data URIs
     parallel.py  map_in_processes(...): worker processes with a serial fallback
     render.py    generate_report(archive, output=None), render_report(data, output): jinja2 -> one HTML file
 

@@ -1,18 +1,15 @@
 """The report's figures: matplotlib (Agg, no pyplot state) rendered to PNG data URIs.
 
-Every figure function takes report data and returns a `data:image/png;base64,...` string. Units and
-axis labels are the same everywhere: angle in degrees, torque in N·m, time in seconds, energy in joules.
-The figures follow the thesis: hysteresis loops as in Appendix B, and for each comparison the protocol
-declares, overlaid loops as in §5.1-5.5 (Figures 32-37) and the energy per cycle against the compared
-factor as in §5.7.2 (Figures 41-46, here with error bars: ± one standard deviation across cycles and
-trials); the archive's reference datasets (§5.6, Figure 38); the fitted elastic elements against the
-loops' midline as in §6.1.5 (Figures 52-53) and the Bouc-Wen model against the data as in §6.2.4
-(Figures 57-58). A comparison's labels and axes come from `comparison_values.comparison_axis`: nothing
-here knows a factor's name. Also drawn here: a declared prediction's loops (`report.predictions`) and a
-session comparison's overlaid loops (`report.compare`).
+Every figure function returns a `data:image/png;base64,...` string; angle in degrees, torque in N·m, time
+in seconds, energy in joules everywhere. They follow the thesis: hysteresis loops (Appendix B), per declared
+comparison the overlaid loops (§5.1-5.5, Figures 32-37) and the energy per cycle against the compared factor
+(§5.7.2, Figures 41-46, ± one standard deviation across cycles and trials), the reference datasets (§5.6,
+Figure 38), the elastic elements against the loops' midline (§6.1.5, Figures 52-53) and the Bouc-Wen model
+against the data (§6.2.4, Figures 57-58); also a declared prediction's loops and a session comparison's.
+A comparison's labels and axes are `comparison_values.comparison_axis`'s: nothing here knows a factor.
 
-Which figures there are is `figure_plan`'s (no matplotlib); here each kind of figure is drawn (`DRAW`), by
-this process or by worker processes (`draw_here`).
+Which figures there are is `figure_plan`'s (no matplotlib); here each kind is drawn (`DRAW`), by this
+process or by worker processes (`draw_here`).
 """
 
 from __future__ import annotations
@@ -50,9 +47,6 @@ from protocol_runner.report.drawing import (
 )
 from protocol_runner.report.figure_plan import (
     Drawn,
-    FigureDrawer,
-    FigureSet,
-    assemble_figures,
     configurations_of,
     figure_jobs,
 )
@@ -61,9 +55,8 @@ from protocol_runner.report.model import CalibrationCheck, Configuration, Report
 from protocol_runner.report.parallel import map_in_processes
 
 # ------------------------------------------------------------------------------------ per configuration
-# Each kind is drawn from the configuration's joints (`figure_plan.configuration_jobs`): one joint's figure
-# as the single-joint report has always drawn it, several joints' as a grid of panels, one (or a pair) per
-# joint, each panel drawn as the single joint's figure draws its axes.
+# One joint's figure, or for several joints a grid of panels, one (or a pair) per joint, each drawn as the
+# single joint's figure draws its axes.
 
 
 def hysteresis_figure(cfg: Configuration) -> str:
@@ -519,9 +512,7 @@ def _element_fits(ax: Axes, configs: Sequence[Configuration], axis: ComparisonAx
 
 
 # ---------------------------------------------------------------------------------------- predictions
-# For each declared prediction (`report.predictions`): configuration B's measured loop and the loop the
-# element model fitted on A predicts for it, one trial of B, drawn where the predictions are computed
-# (`report.predictions.predictions`: the session's analysis workers at the end of a session).
+# Drawn where the predictions are computed (`report.predictions.predictions`).
 
 MEASURED_COLOR = COLORS[0]
 PREDICTED_COLOR = COLORS[1]
@@ -619,14 +610,6 @@ def draw_figures(data: ReportData, task_ids: list[str]) -> list[Drawn]:
     """The figures `task_ids` of `data`, in order (run by a process that draws for another)."""
     tasks = dict(_tasks(data))
     return [_safe(task_id, tasks[task_id]) for task_id in task_ids]
-
-
-def render_figures(
-    data: ReportData, workers: int | None = None, *, draw: FigureDrawer | None = None
-) -> FigureSet:
-    """Draw every figure of the report (those drawn ahead for this data are taken from the figure cache).
-    `draw` draws them elsewhere; else `workers` > 1 draws on that many worker processes."""
-    return assemble_figures(data, workers, draw=draw, here=draw_here)
 
 
 def draw_here(data: ReportData, task_ids: list[str], workers: int) -> list[Drawn]:

@@ -17,7 +17,6 @@ import os
 import re
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -45,9 +44,9 @@ from protocol_runner.report.figure_plan import (
     model_comparisons,
     slug,
 )
-from protocol_runner.report.headline import ConfigurationStats, campaign_stats, headline_stats
+from protocol_runner.report.headline import campaign_stats, headline_stats
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.model import BoucWenFit, Configuration, JointsTotal, ReportData, factor_names
+from protocol_runner.report.model import BoucWenFit, Configuration, ReportData, factor_names
 from protocol_runner.report.settings_view import format_quantity
 from protocol_runner.resources import templates_dir
 
@@ -70,37 +69,6 @@ SECTIONS: tuple[tuple[str, str], ...] = (
     ("session", "Session details"),
     ("protocol", "Protocol as run"),
 )
-
-
-@dataclass(frozen=True)
-class _ConfigurationView:
-    """One configuration as the page shows it: its joints' parts (one for a single joint), the headline
-    statistics of each joint (and of all joints together, last, with several), the trials recorded, and
-    the energy of the configuration as a whole (its one joint's, or all joints' together)."""
-
-    first: Configuration
-    joints: tuple[Configuration, ...]
-    stats: tuple[ConfigurationStats, ...]
-    recorded: int
-    energy: Configuration | JointsTotal | None
-
-
-def configuration_views(data: ReportData) -> list[_ConfigurationView]:
-    """Every configuration of `data` in key order, as the summary, the configurations and the test matrix
-    show it."""
-    views = []
-    for key in data.keys:
-        cfgs = data.joint_configurations(key)
-        views.append(
-            _ConfigurationView(
-                first=cfgs[0],
-                joints=cfgs,
-                stats=headline_stats(data, key),
-                recorded=sum(1 for t in cfgs[0].trials if t.recorded),
-                energy=data.total(key) if data.multi_joint else cfgs[0],
-            )
-        )
-    return views
 
 
 def generate_report(
@@ -330,7 +298,9 @@ def varying_levels(data: ReportData) -> dict[int, str]:
 def _context(
     data: ReportData, figures: FigureSet, generated_utc: str, predicted: tuple[Prediction, ...]
 ) -> dict[str, object]:
-    views = configuration_views(data)
+    # every configuration in key order: its joints' parts and the headline statistics of each joint (and
+    # of all joints together, last, with several)
+    views = [(data.joint_configurations(key), headline_stats(data, key)) for key in data.keys]
     campaign = [s for key in data.keys if (s := campaign_stats(data, key)) is not None]
     return {
         "data": data,
@@ -351,7 +321,7 @@ def _context(
         "expectations": evaluate_expectations(data),
         "cite": declared_citations(data.protocol_text),
         "tuned_label": TUNED_LABEL,
-        "headline": [s for v in views for s in v.stats],
+        "headline": [s for _, stats in views for s in stats],
         "varying": varying_levels(data),
         "protocol_title": declared_text(data.protocol_text, "title"),
         "protocol_description": declared_text(data.protocol_text, "description"),
