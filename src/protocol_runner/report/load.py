@@ -280,13 +280,8 @@ def _read_comparisons(h5: h5py.File) -> tuple[Comparison, ...]:
 
 
 def _section_key(section: str) -> tuple[int, ...]:
-    parts: list[int] = []
-    for piece in section.replace("§", "").split("."):
-        try:
-            parts.append(int(piece))
-        except ValueError:
-            parts.append(999)
-    return tuple(parts) if parts else (999,)
+    """A section such as "§5.1" as numbers to sort by (999 for a part that is not one)."""
+    return tuple(int(p) if p.strip().isdecimal() else 999 for p in section.replace("§", "").split("."))
 
 
 def _read_references(h5: h5py.File) -> tuple[ReferenceDataset, ...]:
