@@ -1,11 +1,7 @@
-"""What the report shows: immutable data read from one archive (docs/archive.md), nothing else.
-
-The report is regenerated from an archive alone, so everything a figure, a table
-or a finding needs is gathered here once by `protocol_runner.report.load.load_report_data`. Plot series
-are already decimated (a processed trial is smooth after the pipeline's low-pass filter, thesis §4.4),
-while summary numbers (angle range, torque-angle slope) are computed from the full-rate data.
-
-Arrays are numpy arrays marked read-only; units are in the field names.
+"""What the report shows: immutable data read from one archive (docs/archive.md) by
+`load.load_report_data`, nothing else. Plot series are decimated (a processed trial is smooth after the
+pipeline's low-pass filter, thesis §4.4); summary numbers (angle range, torque-angle slope) come from the
+full-rate data. Arrays are read-only numpy arrays; units are in the field names.
 """
 
 from __future__ import annotations
@@ -159,8 +155,7 @@ class Trial:
     """Trial `number` of a configuration: its brace-on and brace-off runs and the processed result.
 
     `brace_on`/`brace_off` are read only for the configuration's first recorded trial (the one plotted
-    against time); `recorded` says whether the archive holds this trial's raw data at all.
-    """
+    against time); `recorded`: the archive holds this trial's raw data."""
 
     number: int
     brace_on: Recording | None
@@ -213,11 +208,9 @@ class BoucWenFit(FittedCurve):
 
 @dataclass(frozen=True)
 class ElementFit(FittedCurve):
-    """The device's elastic elements fitted to the loops' midline (`fits/elements`, docs/archive.md).
-
-    `parameters` are the fitted values by archive name `<element>.<parameter>` (the unit in the
-    parameter's suffix); `elements` the fitted elements with every parameter; the curve is the
-    midline data (`torque_nm`) and the model (`model_torque_nm`) against `angle_deg`."""
+    """The device's elastic elements fitted to the loops' midline (`fits/elements`, docs/archive.md):
+    `parameters` by archive name `<element>.<parameter>` (the unit in its suffix), `elements` with every
+    parameter; the curve is the midline data (`torque_nm`) and the model against `angle_deg`."""
 
     applicable: bool
     reason: str
@@ -293,11 +286,9 @@ class JointsTotal(_EnergyPerCycle):
 
 @dataclass(frozen=True)
 class ReportData:
-    """Everything the report shows, read from one archive.
-
-    `configurations` holds one `Configuration` per configuration and driven joint, in key order and, within
-    a key, in the joints' channel order (`joints`); `totals` the energy of all joints together of each
-    configuration driving several joints (none for a single joint)."""
+    """Everything the report shows, read from one archive: one `Configuration` per configuration and driven
+    joint, in key order and, within a key, in the joints' channel order (`joints`); `totals`, the energy of
+    all joints together of each configuration driving several joints (none for a single joint)."""
 
     session: SessionInfo
     configurations: tuple[Configuration, ...]
@@ -331,6 +322,5 @@ class ReportData:
         return tuple(cfg for cfg in self.configurations if cfg.key == key)
 
     def total(self, key: int) -> JointsTotal | None:
-        """The energy of all joints together of configuration `key`, or None (a single joint, or none
-        recorded)."""
+        """The energy of all joints together of configuration `key`, or None (a single joint, or none)."""
         return next((t for t in self.totals if t.key == key), None)

@@ -78,13 +78,10 @@ def generate_report(
     reference: Path | None = None,
     workers: int | None = None,
 ) -> Path:
-    """Read `archive_path` (archive.h5 or its session directory) and write the HTML report.
-
-    `output` defaults to `report.html` next to the archive. `reference` is an optional EMU dataset
-    (CSV or .mat, see docs/report.md) added to those stored in the archive. `workers` is the number of
-    processes reading the archive and drawing figures (None: 2 for a large archive on 2+ cores, else 1).
-    Returns the report's path.
-    Raises `InvalidInput` for an unreadable archive or reference file.
+    """Read `archive_path` (archive.h5 or its session directory), write the HTML report (by default
+    `report.html` beside the archive) and return its path. `reference`: an EMU dataset (CSV or .mat,
+    docs/report.md) added to the archive's; `workers`: processes reading the archive and drawing figures
+    (None: 2 for a large archive on 2+ cores, else 1). `InvalidInput` for an unreadable archive or reference.
     """
     archive_path = Path(archive_path)
     data = load_report_data(archive_path, workers=workers)
