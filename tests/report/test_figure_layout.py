@@ -12,7 +12,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.transforms import Bbox
 
-from protocol_runner.report.drawing import (
+from protocol_runner.report.figures import (
     ANGLE_LABEL,
     COLORS,
     TIME_LABEL,

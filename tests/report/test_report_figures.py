@@ -9,9 +9,10 @@ from pathlib import Path
 
 from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.report.comparison_values import comparison_axis
-from protocol_runner.report.drawing import DPI, LAYOUTS
 from protocol_runner.report.figure_plan import assemble_figures, figure_ids
 from protocol_runner.report.figures import (
+    DPI,
+    LAYOUTS,
     bouc_wen_figure,
     draw_here,
     energy_bars_figure,
@@ -137,17 +138,16 @@ def test_energy_figure_puts_each_configuration_at_its_factor_value(small_archive
 
 def _drawn(monkeypatch, draw) -> object:
     """The matplotlib Figure a figure function draws (captured before it becomes a PNG)."""
-    from protocol_runner.report import drawing, figures
+    from protocol_runner.report import figures
 
     captured = []
-    real = drawing.to_data_uri
+    real = figures.to_data_uri
 
     def keep(fig):
         captured.append(fig)
         return real(fig)
 
-    for module in (drawing, figures):
-        monkeypatch.setattr(module, "to_data_uri", keep)
+    monkeypatch.setattr(figures, "to_data_uri", keep)
     draw()
     return captured[-1]
 
