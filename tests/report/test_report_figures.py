@@ -8,8 +8,7 @@ import struct
 from pathlib import Path
 
 from protocol_runner.protocol.plan_steps import Comparison
-from protocol_runner.report.comparison_values import comparison_axis
-from protocol_runner.report.figure_plan import assemble_figures, figure_ids
+from protocol_runner.report.figure_plan import assemble_figures, comparison_axis, figure_ids
 from protocol_runner.report.figures import (
     DPI,
     LAYOUTS,

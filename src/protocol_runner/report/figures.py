@@ -6,7 +6,7 @@ comparison the overlaid loops (§5.1-5.5, Figures 32-37) and the energy per cycl
 (§5.7.2, Figures 41-46, ± one standard deviation across cycles and trials), the reference datasets (§5.6,
 Figure 38), the elastic elements against the loops' midline (§6.1.5, Figures 52-53) and the Bouc-Wen model
 against the data (§6.2.4, Figures 57-58); also a declared prediction's loops and a session comparison's.
-A comparison's labels and axes are `comparison_values.comparison_axis`'s: nothing here knows a factor.
+A comparison's labels and axes are `figure_plan.comparison_axis`'s: nothing here knows a factor.
 
 Which figures there are is `figure_plan`'s (no matplotlib); here each kind is drawn (`DRAW`, with the
 drawing kit below: layouts, labels, colours, colour key, PNG data URI), by this process or by worker
@@ -30,8 +30,13 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
 from protocol_runner.protocol.plan_steps import Comparison
-from protocol_runner.report.comparison_values import ComparisonAxis, comparison_axis
-from protocol_runner.report.figure_plan import Drawn, configurations_of, figure_jobs
+from protocol_runner.report.figure_plan import (
+    ComparisonAxis,
+    Drawn,
+    comparison_axis,
+    configurations_of,
+    figure_jobs,
+)
 from protocol_runner.report.headline import ALL_JOINTS
 from protocol_runner.report.model import CalibrationCheck, Configuration, ReportData, Trial
 from protocol_runner.report.parallel import map_in_processes

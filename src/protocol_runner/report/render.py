@@ -29,7 +29,6 @@ from protocol_runner.analysis.reference import load_reference_dataset
 from protocol_runner.archive.outputs import create_new, refuse_special, temporary_beside
 from protocol_runner.errors import InvalidInput
 from protocol_runner.protocol.wording import counted
-from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.declared import declared_citations, declared_text
 from protocol_runner.report.differences import declared_differences, declared_repeatability
 from protocol_runner.report.evaluate import TUNED_LABEL, evaluate_expectations, format_p
@@ -38,6 +37,7 @@ from protocol_runner.report.figure_plan import (
     FigureDrawer,
     FigureSet,
     assemble_figures,
+    comparison_axis,
     configurations_of,
     distinct_comparisons,
     figure_ids,
