@@ -77,11 +77,6 @@ class Verdict:
     joint: str = ""  # the joint whose data decided it ("" when the archive says none)
 
     @property
-    def css(self) -> str:
-        """`met`, `not-met` or `not-evaluable` (HTML attribute form)."""
-        return self.verdict.replace(" ", "-")
-
-    @property
     def unit(self) -> str:
         """The metric's unit."""
         return UNITS[self.spec.metric]

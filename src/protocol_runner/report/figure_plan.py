@@ -44,10 +44,6 @@ class FigureSet:
     images: dict[str, str] = field(default_factory=dict)
     missing: dict[str, str] = field(default_factory=dict)
 
-    def get(self, figure_id: str) -> str | None:
-        """The data URI of `figure_id`, or None."""
-        return self.images.get(figure_id)
-
 
 def figure_jobs(data: ReportData) -> list[FigureJob]:
     """Every figure the report shows for `data`, in document order."""

@@ -233,7 +233,6 @@ def _environment() -> jinja2.Environment:
     env.filters["num"] = _num
     env.filters["pm"] = _pm
     env.filters["slug"] = slug
-    env.filters["factor"] = _factor_text
     env.filters["ci"] = _ci
     env.filters["counted"] = counted
     env.filters["p"] = format_p
@@ -264,12 +263,6 @@ def _ci(low: float, high: float, digits: int = 2) -> str:
     if not (math.isfinite(low) and math.isfinite(high)):
         return "—"
     return f"[{low:.{digits}f}, {high:.{digits}f}]"
-
-
-def _factor_text(cfg: Configuration, factor: str) -> str:
-    """A test-matrix cell: the factor's level label and its quantities with units, "—" when not set."""
-    setting = cfg.settings.factor(factor)
-    return setting.text() if setting is not None else "—"
 
 
 def varying_levels(data: ReportData) -> dict[int, str]:
