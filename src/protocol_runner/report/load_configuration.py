@@ -1,7 +1,5 @@
-"""One configuration group of an archive, for the report: per joint, its trials, processed loops, energies
-and fits, and the energy of all joints together (docs/archive.md, "Several joints"). Every per-joint group
-is read through `archive.paths.joint_groups`, so a single-joint archive written without a `joints/` level
-reads as one joint."""
+"""One configuration group of an archive, for the report: per joint (`archive.paths.joint_groups`), its
+trials, processed loops, energies and fits, and the energy of all joints together (docs/archive.md)."""
 
 from __future__ import annotations
 

@@ -1,13 +1,10 @@
 """A configuration's declared settings as the archive stores them, for everything in the report.
 
-The archive's configuration group (docs/archive.md "Configurations") carries `factors` (the factor names
-in declaration order), `settings_json` ({"<factor>": {"level": label, <quantity>: value, ...}}),
-`device_json` ([{"name", "type", <parameter>: value, ...}]) and `trajectory_name`, plus the same
-settings flattened (`<factor>` = level label, `<factor>.<quantity>` = value). The report reads the JSON
-forms (they keep the declaration order) and never assumes any factor, level or quantity name: a
-quantity's unit comes from its name's suffix (`friction_nm` -> N·m, `range_deg` -> deg).
-
-An archive without these attributes (written before factors were declared) gives empty settings.
+The report reads the configuration group's `settings_json` ({"<factor>": {"level": label, <quantity>:
+value, ...}}), `device_json` ([{"name", "type", <parameter>: value, ...}]) and `trajectory_name`
+(docs/archive.md "Configurations"; the JSON keeps the declaration order; without them, empty settings) and
+never assumes any factor, level or quantity name: a quantity's unit comes from its name's suffix
+(`friction_nm` -> N·m).
 """
 
 from __future__ import annotations
