@@ -78,9 +78,8 @@ def configuration_jobs(cfgs: Sequence[Configuration]) -> list[FigureJob]:
 
 def for_drawing(data: ReportData, figure_ids: Sequence[str]) -> ReportData:
     """`data` as the figures `figure_ids` read it, for handing to another process: a configuration's raw
-    recordings (its first trial's brace-on and brace-off runs) are read only by its own time figure, so
-    they are left out of every configuration none of whose own figures is asked for. They are half of a
-    knee report's data: the report's last figures reach the session's workers in half the time."""
+    recordings (its first trial's brace-on and brace-off runs, half of a knee report's data) are read only
+    by its own time figure, so they are left out of every configuration none of whose figures is asked for."""
     wanted = set(figure_ids)
     kept = {
         key

@@ -138,11 +138,10 @@ class ProcessedTrial:
 
 @dataclass(frozen=True)
 class BraceOffMatch:
-    """How well a trial's brace-off twin matched it (docs/analysis.md §3-4), as the archive stores it:
-    the kept scaling run's cycle-range error (deg), the robot runs the scaling made, whether the error is
-    within the protocol's tolerance, and the clipped fraction (share of brace-on samples beyond the
-    brace-off range, 1 - the processed data's `coverage`). None where the archive holds no value (an
-    equal-time subtraction, a brace-off twin replayed without scaling, a trial not processed)."""
+    """How well a trial's brace-off twin matched it (docs/analysis.md §3-4): the kept scaling run's
+    cycle-range error (deg), the robot runs the scaling made, whether the error is within the protocol's
+    tolerance, and the clipped fraction (1 - the processed data's `coverage`); None where the archive holds
+    no value (an equal-time subtraction, a twin replayed without scaling, a trial not processed)."""
 
     scaling_error_deg: float | None = None
     scaling_runs: int | None = None
