@@ -291,67 +291,49 @@ def _tost(w: WelchInterval, centre: float, margin: float) -> float:
     return max(p_above(w, centre - margin), p_below(w, centre + margin))
 
 
-def _steps(
-    spec: ExpectationSpec, values: dict[int, tuple[float, ...]], intervals: dict[int, TInterval], unit: str
-) -> tuple[float, str]:
-    """`increasing` / `decreasing`: each adjacent step of the stated order by a one-sided Welch test;
-    `no_trend`: each pair by TOST within ±margin. The largest p decides."""
-    trend = spec.relation != "no_trend"
-    sign = 1.0 if spec.relation == "increasing" else -1.0
-    margin = spec.margin or 0.0
-    parts: list[str] = []
-    ps: list[float] = []
-    for terms, name in statements(spec):
-        w = contrast_interval([(wt, values[k]) for wt, k in terms], TEST_CONFIDENCE)
-        p = (p_above(w, 0.0) if sign > 0 else p_below(w, 0.0)) if trend else _tost(w, 0.0, margin)
-        ps.append(p)
-        fails = "" if p <= ALPHA else " (fails)"
-        parts.append(
-            f"{name}: {_fmt(w.difference)} {unit}, 90 % Welch interval {_ival(w.low, w.high, unit)}, "
-            f"{'one-sided' if trend else 'TOST'} p {format_p(p)}{fails}"
-        )
-    if trend:
-        way = "above" if sign > 0 else "below"
-        rule = f"every step must lie {way} zero, one-sided Welch; the largest step p decides"
-    else:
-        rule = f"every pair's 90 % interval must lie inside ±{margin:g} {unit}: two one-sided Welch tests"
-    order = list(dict.fromkeys(spec.configurations))
-    return max(ps, default=math.nan), f"{_ordered(order, intervals, unit)}; {'; '.join(parts)} ({rule})"
-
-
 def _decide(
     spec: ExpectationSpec, values: dict[int, tuple[float, ...]], intervals: dict[int, TInterval], unit: str
 ) -> tuple[float, str]:
-    """The expectation's p-value (the largest of its statements') and the text of its numbers."""
-    r = spec.relation
-    if r in ("increasing", "decreasing", "no_trend"):
-        return _steps(spec, values, intervals, unit)
+    """The expectation's p-value (the largest of its statements') and the text of its numbers. The steps of
+    `increasing` / `decreasing` are each a one-sided Welch test, the pairs of `no_trend` each a TOST within
+    ±margin; the other relations test each configuration (or its contrast) against the stated value."""
+    steps = spec.relation in ("increasing", "decreasing", "no_trend")
     parts: list[str] = []
     ps: list[float] = []
-    for (terms, name), key in zip(statements(spec), spec.configurations, strict=True):
+    for i, (terms, name) in enumerate(statements(spec)):
         w = contrast_interval([(wt, values[k]) for wt, k in terms], TEST_CONFIDENCE)
         if len(terms) == 1:
-            subject = f"configuration {key}: mean {_fmt(w.difference)} {unit}, 90 % interval"
+            subject = (
+                f"configuration {spec.configurations[i]}: mean {_fmt(w.difference)} {unit}, 90 % interval"
+            )
         else:
             kind = "Welch" if len(terms) == 2 else "Welch-Satterthwaite"
-            name = name if name.startswith("(") else f"configuration {name}"
+            name = name if steps or name.startswith("(") else f"configuration {name}"
             subject = f"{name}: {_fmt(w.difference)} {unit}, 90 % {kind} interval"
-        ref = 0.0 if spec.than is not None else spec.value or 0.0
+        ref = 0.0 if steps or spec.than is not None else spec.value or 0.0
         p, test = _statement_p(spec, w, ref)
         ps.append(p)
         parts.append(
             f"{subject} {_ival(w.low, w.high, unit)}, {test} p {format_p(p)}{'' if p <= ALPHA else ' (fails)'}"
         )
-    return max(ps, default=math.nan), "; ".join(parts) + _criterion(spec, unit)
+    if not steps:
+        return max(ps, default=math.nan), "; ".join(parts) + _criterion(spec, unit)
+    if spec.relation == "no_trend":
+        rule = f"every pair's 90 % interval must lie inside ±{spec.margin or 0.0:g} {unit}: two one-sided Welch tests"
+    else:
+        way = "above" if spec.relation == "increasing" else "below"
+        rule = f"every step must lie {way} zero, one-sided Welch; the largest step p decides"
+    order = list(dict.fromkeys(spec.configurations))
+    return max(ps, default=math.nan), f"{_ordered(order, intervals, unit)}; {'; '.join(parts)} ({rule})"
 
 
 def _statement_p(spec: ExpectationSpec, w: WelchInterval, ref: float) -> tuple[float, str]:
     r = spec.relation
-    if r == "greater":
+    if r in ("greater", "increasing"):
         return p_above(w, ref), "one-sided"
-    if r == "less":
+    if r in ("less", "decreasing"):
         return p_below(w, ref), "one-sided"
-    if r == "equal":
+    if r in ("equal", "no_trend"):
         return _tost(w, ref, spec.margin or 0.0), "TOST"
     lo, hi = spec.interval or (math.nan, math.nan)
     return max(p_above(w, lo), p_below(w, hi)), "TOST"
