@@ -87,7 +87,7 @@ def test_a_flag_that_does_not_apply_is_refused_naming_flag_and_command(
 
 
 def test_schema_prints_the_shipped_schema(capsys: pytest.CaptureFixture[str]) -> None:
-    from protocol_runner.protocol.json_schema import SCHEMA_FILE
+    from protocol_runner.protocol.schema import SCHEMA_FILE
 
     assert main(["--schema"]) == 0
     assert capsys.readouterr().out == SCHEMA_FILE.read_text(encoding="utf-8")

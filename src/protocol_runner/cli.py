@@ -336,7 +336,7 @@ def _check_power_flags(args: argparse.Namespace) -> None:
 def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     mode = check_flags(args)
     if mode == "--schema":
-        from .protocol.json_schema import protocol_json_schema_text
+        from .protocol.schema import protocol_json_schema_text
 
         sys.stdout.write(protocol_json_schema_text())
         return EXIT_OK

@@ -1,25 +1,9 @@
 """How many trials per configuration each declared expectation needs (`run-protocol --plan FILE --power`).
 
-For every expectation of a protocol, the plan gives the smallest number of trials per configuration with
-which the report's own test of it (report/evaluate.py: one-sided Welch tests, TOST) decides it with 80 %
-power, and whether the protocol's planned trials reach that number. The power is computed by
-`analysis.power` (noncentral t) at the most stringent level of the report's Holm adjustment, alpha / m
-for m declared expectations: the level the smallest p-value of the family is compared with, so a count
-planned there has its power whatever the other expectations' p-values.
-
-What a count rests on:
-
-- the between-trial spread of each configuration: the standard deviation of its trial values of the
-  expectation's metric (the trial is the unit) in a previous SESSION of the same protocol, or, with
-  `--power-cv`, that coefficient of variation times a level common to the configurations compared;
-- the effect: for an equivalence (`equal`, `no_trend`) its margin with a true difference of 0; for `inside`
-  the distance from the true value to the interval's bounds (the true value: SESSION's, or with a CV the
-  interval's centre); for a statement against a `value` the distance from SESSION's value to it; for a
-  difference (`than`, `increasing`, `decreasing`) the difference SESSION shows, or with `--power-effect`
-  that fraction of the configurations' level (with a CV, `--power-effect`, by default 5 %).
-
-A statement that cannot be planned (a configuration SESSION lacks or has one trial of, an effect SESSION
-shows the other way, a margin in the metric's unit that a CV alone cannot scale) says why.
+The smallest count with which the report's own test of each expectation (report/evaluate.py) decides it
+with 80 % power (`analysis.power`), at the most stringent level of the report's Holm adjustment, alpha / m;
+the spread and effect come from a previous SESSION or an assumed CV. docs/protocol.md "Trials needed"
+says what a count rests on and when a statement cannot be planned.
 """
 
 from __future__ import annotations
@@ -91,12 +75,6 @@ class PlannedExpectation:
         """True when the planned trials reach the needed count in every configuration involved."""
         return self.needed is not None and self.planned >= self.needed
 
-    @property
-    def needed_text(self) -> str:
-        if self.needed is not None:
-            return str(self.needed)
-        return "-" if self.problem else f">{MOST_TRIALS}"
-
 
 @dataclass(frozen=True)
 class PowerPlan:
@@ -124,9 +102,10 @@ class PowerPlan:
         lines.append(f"{'expectation':<{width}}  needed  planned  outcome         test: basis")
         for p in self.expectations:
             outcome = "decides" if p.decides else "cannot plan" if p.problem else "CANNOT DECIDE"
+            needed = str(p.needed) if p.needed is not None else "-" if p.problem else f">{MOST_TRIALS}"
             basis = p.problem or p.basis
             lines.append(
-                f"{p.spec.id:<{width}}  {p.needed_text:>6}  {p.planned:>7}  {outcome:<14}  {p.test}: {basis}"
+                f"{p.spec.id:<{width}}  {needed:>6}  {p.planned:>7}  {outcome:<14}  {p.test}: {basis}"
             )
         short = [p.spec.id for p in self.expectations if not p.decides and not p.problem]
         unplanned = [p.spec.id for p in self.expectations if p.problem]

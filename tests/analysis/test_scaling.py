@@ -63,19 +63,6 @@ def test_iteration_converges_on_a_lagging_saturating_plant() -> None:
     )
 
 
-def test_history_arrays_for_the_archive() -> None:
-    result = scale_brace_off_input(
-        _command(), (30.0, 95.0), lagged_plant, max_iterations=3, tolerance_deg=1e-6
-    )
-    arrays = result.history_arrays()
-    n = len(result.history)
-    assert n == 3
-    assert arrays["iteration"].tolist() == [0, 1, 2]
-    assert arrays["input_range_deg"].shape == arrays["output_range_deg"].shape == (n, 2)
-    np.testing.assert_array_equal(arrays["range_error_deg"], [it.range_error_deg for it in result.history])
-    np.testing.assert_array_equal(arrays["output_range_deg"][1], result.history[1].output_range_deg)
-
-
 def test_an_affine_lag_plant_converges_in_few_runs() -> None:
     def plant(u: np.ndarray) -> np.ndarray:
         return 3.0 + 0.8 * first_order_lag(u, 1.0 / RATE_HZ, 0.2, u[0])

@@ -9,18 +9,17 @@ from hypothesis import strategies as st
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.conversions import (
-    RSST_JOINTS,
     ai12_code_to_volts,
     ai16_code_to_volts,
     angle_to_volts,
     ao16_code_to_volts,
     torque_to_volts,
-    volts_to_ai12_code,
     volts_to_ai16_code,
     volts_to_angle,
     volts_to_ao16_code,
     volts_to_torque,
 )
+from tests.rsst_reference import RSST_JOINTS, volts_to_ai12_code
 
 KNEE = RSST_JOINTS[9]
 AO_LSB = 1.0 / 3276.8

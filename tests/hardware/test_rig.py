@@ -11,10 +11,8 @@ import pytest
 from protocol_runner.errors import Interrupted, InvalidInput
 from protocol_runner.hardware.calibration import CalibrationTable, load_calibration_table
 from protocol_runner.hardware.conversions import (
-    RSST_JOINTS,
     ai12_code_to_volts,
     angle_to_volts,
-    volts_to_ai12_code,
     volts_to_ao16_code,
     volts_to_torque,
 )
@@ -22,6 +20,7 @@ from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock
 from protocol_runner.hardware.joint import JointConfig, TrialRecording
 from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyLimits, SafetyViolation
+from tests.rsst_reference import RSST_JOINTS, volts_to_ai12_code
 
 SHIPPED = Path(__file__).resolve().parents[2] / "protocols" / "calibration"
 KNEE = RSST_JOINTS[9]

@@ -26,6 +26,7 @@ from protocol_runner.hardware.simulator.daq import SimulatedRig, step_seed
 from protocol_runner.hardware.simulator.output import SimulatedClock
 from protocol_runner.hardware.simulator.params import SimulatorParams
 from protocol_runner.hardware.simulator.plant import JointPlant
+from tests.rsst_reference import volts_to_ai12_code
 
 from ..knee_device import KNEE_PARAMS, knee_brace
 from ..knee_rig import KNEE_PARK_DEG, KNEE_TORQUE_LIMIT_NM, knee_joint_config
@@ -217,7 +218,7 @@ def test_a_dry_run_is_the_rigs_paced_loop_in_simulated_time(knee: JointConfig) -
     recorded, the clock one tick past the last write at the end."""
     sim = SimulatedRig([knee], seed=5, params=KNEE_PARAMS)
     rig = sim.make_rig()
-    sim.clock.advance(7.25)
+    sim.clock.sleep_until(sim.clock.now_s() + 7.25)
     command = 65.0 + 40.0 * np.sin(np.arange(450) / 30.0)
     _, _, _, rec = run(sim, rig, command, "paced")
     t, channel, code = sim.ao.records()
@@ -505,14 +506,14 @@ def test_low_angle_bump_grows_with_speed_and_shrinks_with_spring_force() -> None
 
 def test_fused_scan_kernel_quantises_like_the_dt9814_conversions() -> None:
     """One scan read runs integration, sensor chain and ADC in a single kernel (`JointPlant.scan`); its
-    codes, volts and row times must be exactly the two-step path's: `advance_rows` volts through
-    `conversions.volts_to_ai12_code` / `ai12_code_to_volts`, rows at t0 + i / rate (DT9814, §2.3)."""
+    codes, volts and row times must be exactly the step-by-step path's: the plant's angle and torque on
+    each row's grid step through the tabulated sensor chain plus noise, then the DT9814's
+    `volts_to_ai12_code` / `ai12_code_to_volts`, rows at t0 + i / rate (DT9814, §2.3)."""
     from protocol_runner.hardware.conversions import (
         AI12_MAX_CODE,
         AI12_MIN_CODE,
         AI12_VOLTS_PER_CODE,
         ai12_code_to_volts,
-        volts_to_ai12_code,
     )
 
     plants = []
@@ -529,15 +530,21 @@ def test_fused_scan_kernel_quantises_like_the_dt9814_conversions() -> None:
     sensors = (roles, scales, knots, knots * 20.0 / 130.0, knots, knots * 10.0 / 84.8)
     noise = np.random.default_rng(3).standard_normal(3 * 1500) * 3.0
     t0, origin, rate = 0.25, 0.0, 1000.0
-    raw = plants[0].advance_rows(3000, (t0, origin, rate, 7, 1500), sensors, noise)
+    row_t = t0 + np.arange(7, 7 + 1500, dtype=np.float64) / rate
+    steps = np.maximum(np.floor((row_t - origin) / KNEE_PARAMS.plant_step_s + 1e-6), 0).astype(np.int64)
+    angle, torque = plants[0].advance(3000, steps)
+    n = angle.shape[0]
+    chain = np.column_stack([np.interp(angle, knots, sensors[3]), np.interp(torque, knots, sensors[5])])
+    raw = noise[: 3 * n].reshape(n, 3) * scales
+    raw[:, :2] += chain
     t_s, codes, volts, any_nan = plants[1].scan(
         3000, (t0, origin, rate, 7, 1500), sensors, noise, (AI12_VOLTS_PER_CODE, AI12_MIN_CODE, AI12_MAX_CODE)
     )
     assert not any_nan
-    assert raw.shape == codes.shape == volts.shape and 0 < raw.shape[0] < 1500  # only rows reached
+    assert raw.shape == codes.shape == volts.shape and 0 < n < 1500  # only rows reached
     assert np.array_equal(codes, volts_to_ai12_code(raw)) and codes.dtype == np.int32
     assert np.array_equal(volts, ai12_code_to_volts(codes))
-    assert np.array_equal(t_s, t0 + np.arange(7, 7 + raw.shape[0], dtype=np.float64) / rate)
+    assert np.array_equal(t_s, row_t[:n])
     assert np.ptp(codes[:, 0]) > 100  # the joint really moved: not a comparison of constants
 
 

@@ -8,7 +8,7 @@ import numpy.typing as npt
 import pytest
 
 from protocol_runner.hardware.board_group import BoardGroup
-from protocol_runner.hardware.conversions import RSST_JOINTS, angle_to_volts
+from protocol_runner.hardware.conversions import angle_to_volts
 from protocol_runner.hardware.joint import JointConfig
 from protocol_runner.hardware.rig import Rig
 from protocol_runner.hardware.safety import SafetyLimits
@@ -19,6 +19,7 @@ from tests.fakeusb.backend import FakeBackend
 from tests.fakeusb.device import Faults
 from tests.fakeusb.usb1608fs import ManualClock, Usb1608FsModel, make_usb1608fs
 from tests.fakeusb.usb3105 import Usb3105Model, make_usb3105
+from tests.rsst_reference import RSST_JOINTS
 
 KNEE = RSST_JOINTS[9]
 

@@ -24,7 +24,8 @@ from protocol_runner.models.bouc_wen.params import (
 )
 from protocol_runner.models.bouc_wen.problem import FitScale, Problem, Samples
 from protocol_runner.models.bouc_wen.records import DEFAULT_BOUNDS, BoucWenFit
-from protocol_runner.models.bouc_wen.simulation import simulate, simulate_sensitivity
+from protocol_runner.models.bouc_wen.simulation import simulate
+from tests.models.sensitivity import simulate_sensitivity
 
 # Figure 57 / 58: knee joint, K_spring = 13 N/mm, braking torque 3.75 N*m.
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))

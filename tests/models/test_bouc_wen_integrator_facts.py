@@ -22,7 +22,8 @@ from protocol_runner.models.bouc_wen.schemes import (
     check_scheme,
     run_scheme,
 )
-from protocol_runner.models.bouc_wen.simulation import simulate, simulate_sensitivity
+from protocol_runner.models.bouc_wen.simulation import simulate
+from tests.models.sensitivity import simulate_sensitivity
 
 Arr = np.ndarray
 

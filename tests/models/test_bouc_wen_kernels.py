@@ -10,7 +10,8 @@ from protocol_runner.models.bouc_wen.params import BoucWenParams
 from protocol_runner.models.bouc_wen.problem import FitScale, Problem, Samples
 from protocol_runner.models.bouc_wen.records import DEFAULT_BOUNDS
 from protocol_runner.models.bouc_wen.schemes import BoucWenShape, Integration, run_scheme
-from protocol_runner.models.bouc_wen.simulation import simulate, simulate_sensitivity
+from protocol_runner.models.bouc_wen.simulation import simulate
+from tests.models.sensitivity import simulate_sensitivity
 
 LINE = BoucWenParams(A=1.0, n=1.0, beta=(0.0,) * 6)
 

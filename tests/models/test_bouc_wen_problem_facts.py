@@ -18,7 +18,8 @@ from protocol_runner.models.bouc_wen.problem import (
     param_std,
 )
 from protocol_runner.models.bouc_wen.records import BoucWenBounds
-from protocol_runner.models.bouc_wen.simulation import simulate, simulate_sensitivity
+from protocol_runner.models.bouc_wen.simulation import simulate
+from tests.models.sensitivity import simulate_sensitivity
 
 FIG57 = BoucWenParams(A=0.2823, n=1.2065, beta=(0.013, 0.145, -0.1359, -0.0879, 0.0935, -0.0036))
 

@@ -3,12 +3,15 @@ anything else is InvalidInput naming the defect."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.models.bouc_wen.params import BoucWenParams
-from protocol_runner.models.bouc_wen.simulation import simulate, simulate_sensitivity
+from protocol_runner.models.bouc_wen.simulation import simulate
+from tests.models.sensitivity import simulate_sensitivity
 
 P = BoucWenParams(A=0.3, n=1.2, beta=(0.01, 0.1, -0.1, -0.05, 0.09, 0.0))
 
@@ -99,12 +102,13 @@ def test_refining_puts_factor_minus_one_linear_samples_between_each_pair() -> No
 
 
 def test_the_refined_check_is_by_default_the_4x_finer_integration() -> None:
-    """simulate_refined (the rmse_refined_nm check) by default: the angle 4 times finer, substeps 4 times
-    shorter than the default 0.1 deg, the torque read at the given samples."""
-    from protocol_runner.models.bouc_wen.simulation import refine_angle, simulate_refined
+    """The rmse_refined_nm check by default: the angle 4 times finer, substeps 4 times shorter than the
+    default 0.1 deg, the torque compared at the given samples."""
+    from protocol_runner.models.bouc_wen.problem import refined_rmse
+    from protocol_runner.models.bouc_wen.simulation import refine_angle
 
     x = 50.0 * np.sin(np.linspace(0.0, 6.0, 40))
-    expected = simulate(refine_angle(x, 4), P, 0.5, max_step_deg=0.025)[::4]
-    np.testing.assert_array_equal(simulate_refined(x, P, 0.5), expected)
+    y = np.cos(np.linspace(0.0, 6.0, 40))
+    fine = simulate(refine_angle(x, 4), P, y[0], max_step_deg=0.025)[::4]
+    assert refined_rmse([(x, y)], P, 1e6) == pytest.approx(math.sqrt(float(np.sum((fine - y) ** 2)) / y.size))
     np.testing.assert_array_equal(refine_angle(x), refine_angle(x, 4))
-    assert simulate_refined(x, P)[0] == 0.0  # from zero torque by default, as simulate

@@ -11,7 +11,6 @@ from protocol_runner.models.element_torques import (
     dahl_update,
     has_static_torque,
     lever_spring_force_n,
-    mass_inertia_kg_m2,
     rom_stops_torque_nm,
     static_torque_nm,
     stribeck_level_nm,
@@ -153,11 +152,6 @@ def test_the_lever_springs_torque_is_the_tension_times_its_lever_arm() -> None:
 def test_a_torsion_spring_is_linear_about_its_neutral_angle() -> None:
     spring = build_element("t", "torsion_spring", {"stiffness_nm_per_deg": 0.4, "neutral_deg": 35.0})
     np.testing.assert_allclose(static_torque_nm(spring, np.array([35.0, 45.0, 25.0])), [0.0, 4.0, -4.0])
-
-
-def test_a_point_mass_has_the_inertia_m_l_squared() -> None:
-    assert mass_inertia_kg_m2(3.0, 0.2) == pytest.approx(0.12, rel=1e-12)
-    assert mass_inertia_kg_m2(2.0, 0.5) == pytest.approx(0.5, rel=1e-12)
 
 
 @pytest.mark.parametrize(

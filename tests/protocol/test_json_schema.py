@@ -7,7 +7,7 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from protocol_runner.protocol.json_schema import SCHEMA_FILE, protocol_json_schema, protocol_json_schema_text
+from protocol_runner.protocol.schema import SCHEMA_FILE, protocol_json_schema, protocol_json_schema_text
 from protocol_runner.protocol.yaml_doc import parse_yaml
 
 REPO = Path(__file__).resolve().parents[2]

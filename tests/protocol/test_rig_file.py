@@ -10,11 +10,11 @@ from pathlib import Path
 import pytest
 
 from protocol_runner.errors import InvalidInput
-from protocol_runner.hardware.conversions import RSST_JOINTS
 from protocol_runner.hardware.simulator.params import SimulatorParams
 from protocol_runner.protocol.rig_file import find_rig, load_rig, resolve_rig
 from protocol_runner.protocol.schema import RigOverrides
 from protocol_runner.resources import packaged_rigs_dir
+from tests.rsst_reference import RSST_JOINTS
 
 RSST = packaged_rigs_dir() / "rsst.yaml"
 

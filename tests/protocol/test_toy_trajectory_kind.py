@@ -22,7 +22,7 @@ from protocol_runner.protocol.loader import find_protocol, load_protocol
 from protocol_runner.protocol.plan import expand
 from protocol_runner.protocol.plan_steps import TrialStep
 from protocol_runner.protocol.plan_table import format_plan_table
-from protocol_runner.protocol.trajectory_limits import LimitCheck
+from protocol_runner.protocol.stream_check import LimitCheck
 from protocol_runner.protocol.trajectory_record import Trajectory
 from protocol_runner.protocol.trajectory_specs import (
     BindableRange,

@@ -20,12 +20,12 @@ from protocol_runner.errors import InvalidInput
 from protocol_runner.hardware.safety import SafetyLimits
 from protocol_runner.hardware.stream import build_stream, check_stream
 from protocol_runner.protocol.sampling import sample_trajectory
+from protocol_runner.protocol.stream_check import trajectory_limit_problems
 from protocol_runner.protocol.trajectories import (
     calibration_step_peak_accel_deg_s2,
     calibration_step_peak_speed_deg_s,
     sinusoid_deg,
 )
-from protocol_runner.protocol.trajectory_limits import trajectory_limit_problems
 from protocol_runner.protocol.trajectory_record import Trajectory
 from protocol_runner.protocol.trajectory_specs import (
     Quantity,

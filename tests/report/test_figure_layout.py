@@ -82,3 +82,25 @@ def test_figures_are_drawn_at_100_pixels_per_inch_or_more() -> None:
     width_px, height_px = struct.unpack(">II", png[16:24])  # the PNG's IHDR chunk
     width_in, height_in = fig.get_size_inches()
     assert width_px / width_in >= 100 and height_px / height_in >= 100
+
+
+def test_axes_have_a_light_grid_and_small_tick_labels_and_a_figures_own_label_size_holds() -> None:
+    """Every axes of the report is made with a thin, half-transparent grid and tick labels of
+    TICK_LABEL_SIZE; a tick label a figure sizes itself (a comparison's level names) keeps its size after
+    the axes are styled and the figure rendered; rendering leaves the caller's matplotlib settings alone."""
+    import matplotlib
+
+    from protocol_runner.report.figures import GRID_ALPHA, GRID_LINEWIDTH, TICK_LABEL_SIZE
+
+    before = dict(matplotlib.rcParams)
+    fig, (ax,) = new_figure("bars")
+    ax.bar([0, 1], [3.0, 4.0])
+    ax.set_xticks([0, 1], ["a long level name", "another"], fontsize=5.5)
+    style(ax, "level", "Energy per cycle (J)")
+    to_data_uri(fig)
+    grid = [line for line in ax.yaxis.get_gridlines() if line.get_visible()]
+    assert len(grid) >= 2, "no visible grid lines"
+    assert {(line.get_linewidth(), line.get_alpha()) for line in grid} == {(GRID_LINEWIDTH, GRID_ALPHA)}
+    assert {t.get_fontsize() for t in ax.get_yticklabels()} == {TICK_LABEL_SIZE}
+    assert {t.get_fontsize() for t in ax.get_xticklabels()} == {5.5}
+    assert dict(matplotlib.rcParams) == before

@@ -21,8 +21,7 @@ import pytest
 from protocol_runner.commands import resume, run, verify
 from protocol_runner.errors import EXIT_STOPPED_BY_CHECK, WatchdogTripped
 from protocol_runner.hardware.rig import READ_EVERY_TICKS
-from protocol_runner.hardware.simulator.daq import SimulatedRig
-from protocol_runner.hardware.simulator.scan import TRANSFER_S
+from protocol_runner.hardware.simulator.daq import TRANSFER_S, SimulatedRig
 from protocol_runner.hardware.stream import STOP, TRAJECTORY
 from protocol_runner.protocol.loader import find_protocol, load_protocol
 from protocol_runner.protocol.plan import expand

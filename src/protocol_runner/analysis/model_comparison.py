@@ -78,7 +78,6 @@ class ModelComparison:
 
     rows: tuple[ModelRow, ...]
     element_fit: ElementModelFit | None
-    reduced_fit: ElementModelFit | None
     bouc_wen_functionals: tuple[Functional, ...] = ()
     motions: tuple[Motion, ...] = field(default=(), repr=False)
     bouc_wen_identified: tuple[bool, ...] = ()  # A, n, β1-β6: not named by the fit's weak reasons
@@ -206,7 +205,7 @@ def compare_models(
         rows.append(_bouc_wen_row(bouc_wen, full.n_eff))
         functionals = bouc_wen_functionals(bouc_wen.segments, bouc_wen.model_torque_nm)  # type: ignore[attr-defined]
         identified = bouc_wen_identified(bouc_wen.fit.weak_reasons)  # type: ignore[attr-defined]
-    return ModelComparison(tuple(rows), full, reduced, functionals, motions, identified)
+    return ModelComparison(tuple(rows), full, functionals, motions, identified)
 
 
 def bouc_wen_identified(weak_reasons: Sequence[str]) -> tuple[bool, ...]:

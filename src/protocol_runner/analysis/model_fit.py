@@ -149,25 +149,21 @@ def _half_height_nm(motions: Sequence[Motion]) -> float:
 
 
 def _starts(lay: ModelLayout, motions: Sequence[Motion]) -> list[FloatArray]:
-    base = []
-    for key in lay.free:
-        lo, hi = _bounds(lay, key)
-        base.append(min(max(lay.declared[key], lo), hi))
-    starts = [np.array(base)]
-    options: list[tuple[int, float]] = []
-    for j, key in enumerate(lay.free):
-        etype, param = param_spec_key(lay, key)
-        spec = ELEMENT_TYPES[etype].parameters[param]
-        lo, hi = _bounds(lay, key)
-        if param == "torque_nm" and spec.unit == "_nm" and etype == "coulomb_brake":
-            # half the loops' mean height at mid-angle, the friction level of a Coulomb loop
-            options.append((j, min(max(_half_height_nm(motions), lo), hi)))
-    if options:
-        x = np.array(base)
-        for j, v in options:
-            x[j] = v
-        starts.append(x)
-    return starts
+    """The declared values; and, with a brake, the same with its torque at half the loops' mean height at
+    mid-angle (the friction level of a Coulomb loop)."""
+    bounds = [_bounds(lay, key) for key in lay.free]
+    base = np.array(
+        [min(max(lay.declared[key], lo), hi) for key, (lo, hi) in zip(lay.free, bounds, strict=True)]
+    )
+    brakes = [
+        j for j, key in enumerate(lay.free) if param_spec_key(lay, key) == ("coulomb_brake", "torque_nm")
+    ]
+    if not brakes:
+        return [base]
+    other = base.copy()
+    for j in brakes:
+        other[j] = min(max(_half_height_nm(motions), bounds[j][0]), bounds[j][1])
+    return [base, other]
 
 
 @dataclass(frozen=True)

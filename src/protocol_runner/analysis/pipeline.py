@@ -156,20 +156,11 @@ def process_trial(pair: TrialPair, settings: ProcessingSettings) -> ProcessedTri
         energy = energy_per_cycle(
             angle_on, brace, hysteresis_deg=settings.cycle_hysteresis_deg, reference=settings.cycle_reference
         )
-        loop = (
-            centre(angle_on, brace)
-            if settings.centring == "trial_mean"
-            else CentredLoop(angle_on, brace, 0.0, 0.0)
-        )
     else:
         # outside="nan": only complete cycles inside stretches where the brace torque is defined count.
         energy = _energy_of_covered(angle_on, brace, settings)
-        kept = centre(angle_on[finite], brace[finite])
-        loop = (
-            kept
-            if settings.centring == "trial_mean"
-            else CentredLoop(angle_on[finite], brace[finite], 0.0, 0.0)
-        )
+    kept = (angle_on[finite], brace[finite])
+    loop = centre(*kept) if settings.centring == "trial_mean" else CentredLoop(*kept, 0.0, 0.0)
     return ProcessedTrial(
         trial=pair.trial,
         time_s=on.time_s,

@@ -22,13 +22,10 @@ df degrees of freedom and noncentrality lambda = effect / se (Cohen 1988, ch. 2;
 - a statement of several parts (steps of a trend, pairs, pairwise statements) holds only when every part
   does (an intersection-union test); its power is at least 1 - sum(1 - power_i) by the same inequality.
 
-The degrees of freedom are the Satterthwaite value of the planning SDs, the textbook approximation (with
-equal SDs it is Student's 2 (n - 1), e.g. Cohen's tables). The report's Welch test estimates its degrees of
-freedom from the trials, and they are lower, so with few trials and a small alpha its real power is below
-the computed one (simulated, two configurations of equal SD: 0.76 instead of 0.80 at 6 trials and alpha
-0.0028, 0.55 at 3 trials; 0.79 at 10). A computed count of a few trials is therefore the least that could
-decide a statement (one or two more may be needed), and a planned count below it cannot. Standard
-deviations and effects are in the metric's unit; only their ratio matters.
+The degrees of freedom are the Satterthwaite value of the planning SDs. The report's Welch test estimates
+them from the trials, lower, so with few trials and a small alpha its real power is below the computed one
+(two configurations of equal SD: 0.76 instead of 0.80 at 6 trials and alpha 0.0028): a computed count of a
+few trials is the least that could decide a statement. Only the ratio of SDs and effects matters.
 """
 
 from __future__ import annotations

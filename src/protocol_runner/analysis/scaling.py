@@ -104,19 +104,6 @@ class ScalingResult:
         """The kept iteration: for one joint the one with the smallest range error."""
         return self.history[self.kept]
 
-    def history_arrays(self) -> dict[str, npt.NDArray[np.float64] | npt.NDArray[np.int64]]:
-        """The history as the archive's `brace_off/scaling/` datasets (docs/archive.md): `iteration`,
-        `scale`, `input_range_deg` (n x 2), `output_range_deg` (n x 2), `range_error_deg`,
-        `transition_index`."""
-        return {
-            "iteration": np.array([it.iteration for it in self.history], dtype=np.int64),
-            "scale": np.array([it.scale for it in self.history], dtype=np.float64),
-            "input_range_deg": np.array([it.input_range_deg for it in self.history], dtype=np.float64),
-            "output_range_deg": np.array([it.output_range_deg for it in self.history], dtype=np.float64),
-            "range_error_deg": np.array([it.range_error_deg for it in self.history], dtype=np.float64),
-            "transition_index": np.array([it.transition_index for it in self.history], dtype=np.int64),
-        }
-
 
 def scale_brace_off_input(
     input_deg: npt.ArrayLike,
@@ -300,11 +287,7 @@ class RecordingLike(Protocol):
 
 def rig_runner(run_trajectory: Callable[[FloatArray], RecordingLike]) -> Callable[[FloatArray], FloatArray]:
     """Adapt a one-joint rig (`lambda cmd: rig.run_trajectory([cmd], where=...)[0]`) to the `run` of
-    `scale_brace_off_input`.
-
-    The recording's 1 kHz angle is brought onto the 100 Hz command ticks by linear interpolation, so the
-    returned angle has one value per commanded sample.
-    """
+    `scale_brace_off_input`: the recording's angle linearly interpolated onto the command ticks."""
 
     def run(input_deg: FloatArray) -> FloatArray:
         rec = run_trajectory(input_deg)

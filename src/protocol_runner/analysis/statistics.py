@@ -1,15 +1,15 @@
-"""Trial-level statistics: the trial is the experimental unit, not the cycle.
+"""Trial-level statistics: the trial is the experimental unit, not the cycle (cycles within one trial share
+mounting, warm-up and brake state).
 
-Cycles within one trial are not independent repeats (same mounting, same warm-up, same brake state), so
-every interval here is computed on trial means: a configuration's energy per cycle is the mean of its
-trial means, with a two-sided Student t-interval over trials (n - 1 degrees of freedom) and the
-between-trial coefficient of variation. Two configurations differ by the difference of their means with
-a Welch interval (unequal variances, Welch-Satterthwaite degrees of freedom). Repeatability of a group of
-configurations with identical settings run in different sets is the between-configuration CV and the
-one-way random-effects intraclass correlation ICC(1) of the trial means.
+A configuration's energy per cycle is the mean of its trial means with a Student t-interval over trials;
+two configurations differ with a Welch interval; repeatability of identical configurations run in
+different sets is their between-configuration CV and the ICC(1) of the trial means.
 
 Decisions (report/evaluate.py) are taken at the family-wise level `ALPHA`: one-sided tests for a stated
 direction, two one-sided tests (TOST) for an equivalence within a margin, Holm across a family.
+
+Student t quantiles and tails are `scipy.special.stdtrit` and `stdtr`, the functions `scipy.stats.t`
+computes them with (the same numbers), without importing all of `scipy.stats` into every report.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy import stats
+from scipy import special
 
 #: Confidence level of every interval in reports and exports.
 CONFIDENCE = 0.95
@@ -58,7 +58,7 @@ class _Estimate(_Bounds):
         """The estimate's standard error, from the interval's half width (0 for constant groups)."""
         if self.half_width == 0.0:
             return 0.0
-        return self.half_width / float(stats.t.ppf(0.5 + self.confidence / 2.0, self.dof))
+        return self.half_width / float(special.stdtrit(self.dof, 0.5 + self.confidence / 2.0))
 
 
 @dataclass(frozen=True)
@@ -150,7 +150,7 @@ def t_interval(values: npt.ArrayLike, confidence: float = CONFIDENCE) -> TInterv
     if n < 2:
         return TInterval(1, mean, math.nan, math.nan, math.nan, confidence)
     sd = float(arr.std(ddof=1))
-    half = float(stats.t.ppf(0.5 + confidence / 2.0, n - 1)) * sd / math.sqrt(n)
+    half = float(special.stdtrit(n - 1, 0.5 + confidence / 2.0)) * sd / math.sqrt(n)
     return TInterval(n, mean, sd, mean - half, mean + half, confidence)
 
 
@@ -175,8 +175,8 @@ def welch_interval(a: npt.ArrayLike, b: npt.ArrayLike, confidence: float = CONFI
         return WelchInterval(diff, diff, diff, math.inf, 1.0 if diff == 0.0 else 0.0, confidence)
     dof = se2**2 / (vx**2 / (x.size - 1) + vy**2 / (y.size - 1))
     se = math.sqrt(se2)
-    half = float(stats.t.ppf(0.5 + confidence / 2.0, dof)) * se
-    p_value = float(2.0 * stats.t.sf(abs(diff) / se, dof))
+    half = float(special.stdtrit(dof, 0.5 + confidence / 2.0)) * se
+    p_value = float(2.0 * special.stdtr(dof, -(abs(diff) / se)))
     return WelchInterval(diff, diff - half, diff + half, dof, p_value, confidence)
 
 
@@ -203,8 +203,8 @@ def contrast_interval(
         return WelchInterval(value, value, value, math.inf, 1.0 if value == 0.0 else 0.0, confidence)
     dof = variance**2 / sum(v * v / (x.size - 1) for v, (_, x) in zip(parts, groups, strict=True))
     se = math.sqrt(variance)
-    half = float(stats.t.ppf(0.5 + confidence / 2.0, dof)) * se
-    p_value = float(2.0 * stats.t.sf(abs(value) / se, dof))
+    half = float(special.stdtrit(dof, 0.5 + confidence / 2.0)) * se
+    p_value = float(2.0 * special.stdtr(dof, -(abs(value) / se)))
     return WelchInterval(value, value - half, value + half, dof, p_value, confidence)
 
 
@@ -215,7 +215,7 @@ def _one_sided(estimate: _Estimate, shift: float) -> float:
         return math.nan
     if se == 0.0:
         return 0.0 if shift > 0.0 else 1.0
-    return float(stats.t.sf(shift / se, estimate.dof))
+    return float(special.stdtr(estimate.dof, -(shift / se)))
 
 
 def p_above(estimate: _Estimate, ref: float = 0.0) -> float:

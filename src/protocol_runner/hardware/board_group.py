@@ -24,11 +24,10 @@ class BoardGroup:
 
     Alignment assumption: each board's pacer runs from its own crystal, started by its own AIN_SCAN_START a
     few milliseconds apart. Row ``i`` of every board is taken as simultaneous, with the time of board 0's
-    row ``i``. The error is the start skew (`start_skew_s`, measured from the boards' own start times,
-    typically 1-3 ms) plus the crystal drift (at most ~100 ppm between boards: 6.5 ms over a 65 s trial).
-    For tighter alignment wire board 0's SYNC output to the others' SYNC inputs (external pacing, not
-    implemented here). Rows that only some boards have delivered wait for the others; at `stop_scan` the
-    rows beyond the shortest board are dropped (`dropped_rows`).
+    row ``i``. The error is the start skew (typically 1-3 ms) plus the crystal drift (at most ~100 ppm
+    between boards: 6.5 ms over a 65 s trial). For tighter alignment wire board 0's SYNC output to the
+    others' SYNC inputs (external pacing, not implemented here). Rows that only some boards have delivered
+    wait for the others; at `stop_scan` the rows beyond the shortest board are dropped (`dropped_rows`).
     """
 
     def __init__(self, boards: Sequence[AnalogInput], channels_per_board: int = N_CHANNELS) -> None:
@@ -40,8 +39,6 @@ class BoardGroup:
         self._columns: list[tuple[int, int]] = []  # per requested channel: (board index, column in board)
         self._buffers: dict[int, list[ScanBlock]] = {}
         self._n_channels = 0
-        self._first_t: dict[int, float] = {}
-        self.start_skew_s = 0.0
         self.dropped_rows = 0
 
     @property
@@ -75,9 +72,7 @@ class BoardGroup:
         self._active = sorted(per_board)
         self._buffers = {b: [] for b in self._active}
         self._n_channels = len(chans)
-        self._first_t = {}
         self.dropped_rows = 0
-        self.start_skew_s = 0.0
         started: list[int] = []
         try:
             for b in self._active:
@@ -91,11 +86,6 @@ class BoardGroup:
     def _collect(self, b: int, block: ScanBlock) -> None:
         if block.n_samples:
             self._buffers[b].append(block)
-            if b not in self._first_t:
-                self._first_t[b] = float(block.t_s[0])
-                if len(self._first_t) == len(self._active):
-                    ts = list(self._first_t.values())
-                    self.start_skew_s = max(ts) - min(ts)
 
     def _emit(self, final: bool) -> ScanBlock:
         merged = {b: ScanBlock.concatenate(self._buffers[b], 0) for b in self._active if self._buffers[b]}

@@ -1,17 +1,11 @@
-"""Calibration look-up tables (thesis §2.5): piecewise-linear, strictly monotonic maps loaded from CSV.
+"""Calibration look-up tables (thesis §2.5, docs/hardware-model.md §3): piecewise-linear, strictly monotonic
+maps loaded from CSV.
 
-The thesis calibrates each joint with two angle tables and one torque table (§2.5.1-2.5.2):
-
-- the *command* table, applied before sending: input = real angle wanted, output = angle to command
-  (``real_deg -> input_deg``);
-- the *angle* table, applied to telemetry: input = angle the computer shows, output = real angle
-  (``output_deg -> real_deg``);
-- the *torque* table, applied to telemetry: ``output_nm -> real_nm``.
-
-Tables are built from observations: command an angle (α_input), read the real angle on the joint's
-marked scale (α_real) and the angle the computer shows (α_output), then invert the relations
-(`build_table_from_observations`). ``python -m protocol_runner.hardware.calibration_build build OBS.csv
---out-dir DIR`` does that from a CSV of observations and writes the tables.
+Per joint: the *command* table ``real_deg -> input_deg``, applied before sending; the *angle* table
+``output_deg -> real_deg`` and the *torque* table ``output_nm -> real_nm``, applied to telemetry. They are
+built from calibration observations (α_input commanded, α_real read on the joint's marked scale, α_output
+shown by the computer) by `build_table_from_observations`, or ``python -m
+protocol_runner.hardware.calibration_build build OBS.csv --out-dir DIR``.
 
 CSV format (read by `load_calibration_table`, written by `write_calibration_table`)::
 
@@ -20,9 +14,8 @@ CSV format (read by `load_calibration_table`, written by `write_calibration_tabl
     0.0,0.0                     <- at least two rows of finite numbers, x strictly increasing,
     5.0,3.21                       y strictly monotonic (so the table can be inverted)
 
-Between points the table interpolates linearly; beyond its first/last point it extrapolates linearly
-with the end segments (it never clamps: a value outside the calibrated span stays visible, and the map
-stays invertible). Keep tables spanning the whole joint range so extrapolation is rare.
+Between points the table interpolates linearly; beyond its ends it extrapolates with the end segments (it
+never clamps: a value outside the calibrated span stays visible, and the map stays invertible).
 """
 
 from __future__ import annotations

@@ -15,6 +15,7 @@ import numpy as np
 
 from protocol_runner.errors import InvalidInput, UserError, make_output_dir
 from protocol_runner.hardware.calibration import (
+    CalibrationTable,
     FloatArray,
     build_table_from_observations,
     build_torque_table_from_observations,
@@ -24,6 +25,13 @@ from protocol_runner.tables import parse_header_table, read_table_text
 
 ANGLE_COLUMNS = ("input_deg", "real_deg", "output_deg")
 TORQUE_COLUMNS = ("real_nm", "output_nm")
+COMMENTS = {  # the first line of each table written
+    "command": "Command look-up table (thesis §2.5.1): real joint angle wanted (deg) -> angle to command (deg).",
+    "angle": "Angle telemetry look-up table (thesis §2.5.1): angle shown by the computer (deg) -> real "
+    "joint angle (deg).",
+    "torque": "Torque telemetry look-up table (thesis §2.5.2): torque shown by the computer (N*m) -> real "
+    "torque (N*m).",
+}
 
 
 def _read_observations(path: Path) -> dict[str, FloatArray]:
@@ -69,38 +77,19 @@ def build_tables_from_file(observations: Path, out_dir: Path, prefix: str | None
         )
     make_output_dir(out_dir, "output directory")
     src = str(observations)
-    written: list[Path] = []
+    tables: dict[str, CalibrationTable] = {}
     if has_angle:
-        command, angle = build_table_from_observations(
+        tables["command"], tables["angle"] = build_table_from_observations(
             columns["input_deg"], columns["real_deg"], columns["output_deg"], source=src
         )
-        written.append(
-            write_calibration_table(
-                out_dir / f"{name}_command.csv",
-                command,
-                "Command look-up table (thesis §2.5.1): real joint angle wanted (deg) -> angle to command "
-                f"(deg).\nBuilt from {src}.",
-            )
-        )
-        written.append(
-            write_calibration_table(
-                out_dir / f"{name}_angle.csv",
-                angle,
-                f"Angle telemetry look-up table (thesis §2.5.1): angle shown by the computer (deg) -> real "
-                f"joint angle (deg).\nBuilt from {src}.",
-            )
-        )
     if has_torque:
-        torque = build_torque_table_from_observations(columns["real_nm"], columns["output_nm"], source=src)
-        written.append(
-            write_calibration_table(
-                out_dir / f"{name}_torque.csv",
-                torque,
-                f"Torque telemetry look-up table (thesis §2.5.2): torque shown by the computer (N*m) -> real "
-                f"torque (N*m).\nBuilt from {src}.",
-            )
+        tables["torque"] = build_torque_table_from_observations(
+            columns["real_nm"], columns["output_nm"], source=src
         )
-    return written
+    return [
+        write_calibration_table(out_dir / f"{name}_{kind}.csv", table, f"{COMMENTS[kind]}\nBuilt from {src}.")
+        for kind, table in tables.items()
+    ]
 
 
 def _parser() -> argparse.ArgumentParser:

@@ -14,7 +14,6 @@ job of `hardware/safety.py`. Only the code conversions clamp, because a board ca
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -37,37 +36,6 @@ AI12_VOLTS_PER_CODE = 20.0 / 4096.0  # DT9814 ±10 V: LSB = 4.883 mV
 AI16_ZERO_CODE = 32768
 AI16_VOLTS_PER_CODE = 10.0 / 32768.0  # USB-1608FS-Plus ±10 V: LSB = 305.2 µV
 AI16_MAX_CODE = 65535
-
-
-@dataclass(frozen=True)
-class RsstJoint:
-    """One actuated RSST joint (thesis Tables 1-3): its number, name, Eq 1-2 angle range and Eq 3
-    torque range."""
-
-    number: int
-    name: str
-    range_deg: tuple[float, float]
-    torque_range_nm: tuple[float, float]
-
-
-RSST_JOINTS: dict[int, RsstJoint] = {
-    j.number: j
-    for j in (
-        RsstJoint(1, "Shoulder Flexion", (-15.0, 180.0), (-45.2, 39.6)),
-        RsstJoint(2, "Shoulder Abduction", (0.0, 90.0), (-45.2, 39.6)),
-        RsstJoint(3, "Humerus Rotation", (-90.0, 90.0), (-28.3, 28.3)),
-        RsstJoint(4, "Elbow Flexion", (0.0, 130.0), (-39.6, 31.0)),
-        RsstJoint(5, "Wrist Rotation", (-90.0, 90.0), (-102.0, 56.5)),
-        RsstJoint(6, "Hip Flexion", (0.0, 100.0), (-147.0, 147.0)),
-        RsstJoint(7, "Hip Abduction", (0.0, 45.0), (-45.2, 226.0)),
-        RsstJoint(8, "Thigh rotation", (-22.0, 22.0), (-56.5, 56.5)),
-        RsstJoint(9, "Knee Flexion", (0.0, 130.0), (-84.8, 84.8)),
-        RsstJoint(10, "Ankle Rotation", (-20.0, 20.0), (-56.5, 56.5)),
-        RsstJoint(11, "Ankle Flexion", (-45.0, 30.0), (-79.1, 79.1)),
-        RsstJoint(12, "Ankle Inversion", (-20.0, 20.0), (-56.5, 56.5)),
-    )
-}
-"""The 12 actuated RSST joints by number (thesis Tables 1, 2 and 3)."""
 
 
 def _check_range(pair: tuple[float, float], what: str) -> tuple[float, float]:
@@ -137,16 +105,6 @@ def ao16_code_to_volts(code: ArrayLike) -> FloatArray:
     """Volts of a USB-3105 ±10 V code: V = (k - 32768) / 3276.8."""
     k = np.asarray(code, dtype=np.float64)
     result: FloatArray = (k - AO16_ZERO_CODE) / AO16_CODES_PER_VOLT
-    return result
-
-
-def volts_to_ai12_code(volts: ArrayLike) -> npt.NDArray[np.int32]:
-    """DT9814 12-bit ±10 V two's-complement code: round(V * 4096 / 20), clamped to -2048..2047."""
-    v = np.asarray(volts, dtype=np.float64)
-    if np.isnan(v).any():
-        raise InvalidInput("cannot convert NaN volts to an analog input code")
-    k = np.rint(v / AI12_VOLTS_PER_CODE)
-    result: npt.NDArray[np.int32] = np.clip(k, AI12_MIN_CODE, AI12_MAX_CODE).astype(np.int32)
     return result
 
 

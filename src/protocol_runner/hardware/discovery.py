@@ -22,7 +22,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from functools import partial
-from typing import Any, NamedTuple, Protocol
+from typing import Any
 
 import usb.core
 
@@ -101,15 +101,11 @@ class BoardProblem:
 
 @dataclass(frozen=True)
 class ChannelCheck:
-    """Whether a required channel exists, and where."""
+    """Whether a required channel exists, and where (`board` None: it does not)."""
 
     role: str
     channel: int
     board: BoardInfo | None
-
-    @property
-    def available(self) -> bool:
-        return self.board is not None
 
 
 @dataclass(frozen=True)
@@ -125,18 +121,7 @@ class HardwareReport:
     @property
     def ok(self) -> bool:
         """True when boards were found, none failed, and every required channel exists."""
-        return bool(self.boards) and not self.problems and all(c.available for c in self.checks)
-
-
-class _Board(Protocol):
-    @property
-    def serial(self) -> str: ...
-    @property
-    def firmware(self) -> str: ...
-
-    def calibration_summary(self) -> str: ...
-    def blink(self, count: int = ...) -> None: ...
-    def close(self) -> None: ...
+        return bool(self.boards) and not self.problems and all(c.board is not None for c in self.checks)
 
 
 def _role_label(role: str) -> str:
@@ -178,33 +163,20 @@ def _serials(
     return sorted(serials)
 
 
-class BoardKind(NamedTuple):
-    """What the survey says of every board of one kind: its name, channel role and channel count, a note,
-    and whether it has an LED to blink."""
-
-    kind: str
-    role: str
-    n_channels: int
-    note: str = ""
-    can_blink: bool = True
-
-
-Timer = Callable[[Any, int], tuple[float | None, int | None]]
-"""(opened board, its first global channel) -> (measured report time, the board channel it used)."""
-
-
 def _survey(
-    board_kind: BoardKind,
-    openers: Sequence[Callable[[], _Board]],
-    first_channel: int,
+    kind: str,
+    role: str,
+    n_channels: int,
+    openers: Sequence[Callable[[], Any]],
     blink_count: int,
     boards: list[BoardInfo],
     problems: list[BoardProblem],
-    timer: Timer | None = None,
-) -> int:
-    """Open each board, describe it, blink it, time it (`timer`), close it. Returns the next free global
-    channel."""
-    kind, role, n_channels, note, can_blink = board_kind
+    timer: Callable[[Any, int], tuple[float | None, int | None]] | None = None,
+    note: str = "",
+) -> None:
+    """Open each board, describe it, blink it (the DT9814 has no LED command), time it (`timer`: (board,
+    its first global channel) -> (report time, the board channel used)), close it. A board's global
+    channels follow those of the boards of its role found before it."""
     for opener in openers:
         try:
             board = opener()
@@ -212,10 +184,10 @@ def _survey(
             problems.append(BoardProblem(kind, exc.message))
             continue
         try:
-            blinked = False
-            if blink_count > 0 and can_blink:
+            first_channel = sum(b.n_channels for b in boards if b.role == role)
+            blinked = blink_count > 0 and kind != DT9814_KIND
+            if blinked:
                 board.blink(blink_count)
-                blinked = True
             measured, timing_channel = timer(board, first_channel) if timer else (None, None)
             boards.append(
                 BoardInfo(
@@ -232,12 +204,10 @@ def _survey(
                     timing_channel=timing_channel,
                 )
             )
-            first_channel += n_channels
         except HardwareUnavailable as exc:
             problems.append(BoardProblem(kind, exc.message))
         finally:
             board.close()
-    return first_channel
 
 
 def hardware_check(
@@ -278,27 +248,13 @@ def hardware_check(
         missing = tuple(ChannelCheck(role, ch, None) for role, chans in needed.items() for ch in chans)
         return HardwareReport((), (BoardProblem("USB", exc.message),), missing, timing)
 
-    ao_serials = _serials(MCC_VENDOR_ID, usb3105.PRODUCT_ID, usb3105.KIND, backend, problems)
-    _survey(
-        BoardKind(usb3105.KIND, ANALOG_OUTPUT, usb3105.N_CHANNELS),
-        [partial(Usb3105.open, serial=s, backend=backend) for s in ao_serials],
-        0,
-        blink_count,
-        boards,
-        problems,
-        time_reports,
-    )
-    ai_serials = _serials(
-        MCC_VENDOR_ID, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND, backend, problems
-    )
-    next_ai = _survey(
-        BoardKind(usb1608fs_protocol.KIND, ANALOG_INPUT, usb1608fs_protocol.N_CHANNELS),
-        [partial(Usb1608FsPlus.open, serial=s, backend=backend) for s in ai_serials],
-        0,
-        blink_count,
-        boards,
-        problems,
-    )
+    for board_cls, facts, role, timer in (
+        (Usb3105, usb3105, ANALOG_OUTPUT, time_reports),
+        (Usb1608FsPlus, usb1608fs_protocol, ANALOG_INPUT, None),
+    ):
+        serials = _serials(MCC_VENDOR_ID, facts.PRODUCT_ID, facts.KIND, backend, problems)
+        openers = [partial(board_cls.open, serial=s, backend=backend) for s in serials]
+        _survey(facts.KIND, role, facts.N_CHANNELS, openers, blink_count, boards, problems, timer)
     dt_settings = dt9814_settings or Dt9814Settings()
     try:
         dt_devices: list[usb.core.Device] = find_devices(
@@ -306,20 +262,15 @@ def hardware_check(
         )
     except HardwareUnavailable:
         dt_devices = []  # the missing-libusb problem is already reported above
-    dt_kind = BoardKind(
+    _survey(
         DT9814_KIND,
         ANALOG_INPUT,
         dt_settings.n_channels,
-        note="UNVERIFIED protocol (DT9812 family); no LED command",
-        can_blink=False,
-    )
-    _survey(
-        dt_kind,
         [partial(Dt9814.from_device, d, dt_settings) for d in dt_devices],
-        next_ai,
         blink_count,
         boards,
         problems,
+        note="UNVERIFIED protocol (DT9812 family); no LED command",
     )
 
     checks: list[ChannelCheck] = []

@@ -40,10 +40,10 @@ from protocol_runner.hardware.usb_common import (
     BoardIoError,
     BoardNotFound,
     BoardTimeout,
-    bcd_to_text,
     claim_interface,
     find_devices,
     map_usb_error,
+    no_board,
 )
 
 log = logging.getLogger(__name__)
@@ -92,13 +92,6 @@ def sign_extend_12(raw: int) -> int:
     return raw - 0x1000 if raw & 0x0800 else raw
 
 
-def build_command(opcode: int, payload: bytes) -> bytes:
-    """A 32-byte command: u32 LE opcode, payload, zero padding."""
-    if len(payload) > COMMAND_SIZE - 4:
-        raise ValueError(f"DT9812 command payload too long ({len(payload)} bytes)")
-    return struct.pack("<I", opcode) + payload + bytes(COMMAND_SIZE - 4 - len(payload))
-
-
 @dataclass(frozen=True)
 class Dt9814Info:
     """Board identity read from flash."""
@@ -132,7 +125,7 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
         ids = f"VID 0x{DT_VENDOR_ID:04X} {pid}"
         devices = find_devices(DT_VENDOR_ID, settings.product_id, backend, KIND)
         if not devices:
-            raise BoardNotFound(f"no {KIND} found ({ids}); is it plugged in? {DRY_RUN_HINT}")
+            raise no_board(KIND, ids)
         seen: list[str] = []
         for dev in devices:
             board = cls.from_device(dev, settings)
@@ -177,7 +170,6 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
                 f"{', '.join(f'0x{d:04X}' for d in accepted)} (Dt9814Settings.accepted_device_ids)"
             )
 
-    # ---- the command pipe ------------------------------------------------------------------------
     @property
     def command_out(self) -> int:
         return self.endpoints[1]
@@ -187,15 +179,12 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
         return self.endpoints[2]
 
     def _command(self, opcode: int, payload: bytes, reply_size: int, action: str) -> bytes:
-        if self._closed:
-            raise BoardIoError(f"the {self.name} is closed; open it again")
-        try:
-            self._dev.write(self.command_out, build_command(opcode, payload), self.settings.timeout_ms)
-            if reply_size == 0:
-                return b""
-            reply = bytes(self._dev.read(self.command_in, reply_size, self.settings.timeout_ms))
-        except usb.core.USBError as exc:
-            raise map_usb_error(exc, self.name, action) from exc
+        timeout_ms = self.settings.timeout_ms
+        command = struct.pack("<I", opcode) + payload.ljust(COMMAND_SIZE - 4, b"\x00")  # exactly 32 bytes
+        self._usb(action, self._dev.write, self.command_out, command, timeout_ms)
+        if reply_size == 0:
+            return b""
+        reply = bytes(self._usb(action, self._dev.read, self.command_in, reply_size, timeout_ms))
         if len(reply) != reply_size:
             raise BoardIoError(
                 f"the {self.name} returned {len(reply)} of {reply_size} bytes while {action} "
@@ -218,7 +207,6 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
         payload = bytes([len(triples)]) + b"".join(bytes(t) for t in triples)
         self._command(OP_RMW_MULTI_BYTE_REG, payload, 0, "writing registers")
 
-    # ---- analog input ------------------------------------------------------------------------------
     @property
     def resolution_bits(self) -> int:
         return 12
@@ -248,20 +236,12 @@ class Dt9814(OpenedBoard[Dt9814Settings]):
         """One sample of `channel` in volts (``20 * code / 4096``)."""
         return float(ai12_code_to_volts(self.read_code(channel)))
 
-    # ---- information ---------------------------------------------------------------------------------
     @property
     def serial(self) -> str:
         return str(self.info.serial_number)
-
-    @property
-    def firmware(self) -> str:
-        return bcd_to_text(int(self._dev.bcdDevice))
 
     def calibration_summary(self) -> str:
         return "no calibration read (DT9812 protocol: none known)"
 
     def blink(self, count: int = 5) -> None:
         """The DT9812 protocol has no LED command: nothing to do (kept for a uniform board API)."""
-
-
-__all__ = ["Dt9814", "Dt9814Info", "Dt9814Settings", "sign_extend_12"]

@@ -33,11 +33,11 @@ UNVERIFIED on hardware: tested only against a fake of this API (`tests/hardware/
 
 from __future__ import annotations
 
-import contextlib
 import ctypes
 import importlib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -47,13 +47,18 @@ from protocol_runner.errors import HardwareUnavailable
 from protocol_runner.hardware import usb1608fs_protocol, usb3105
 from protocol_runner.hardware.interfaces import Clock
 from protocol_runner.hardware.usb_common import (
-    DRY_RUN_HINT,
     BoardIoError,
-    BoardNotFound,
     MonotonicClock,
     ScanOverrun,
+    open_each,
 )
-from protocol_runner.hardware.vendor_common import VendorAnalogOutput, VendorScanInput, import_vendor
+from protocol_runner.hardware.vendor_common import (
+    VendorAnalogOutput,
+    VendorScanInput,
+    import_vendor,
+    of_kind,
+    pick,
+)
 
 BACKEND = "mcculw"
 SCAN_BUFFER_S = 10.0
@@ -111,29 +116,16 @@ def _inventory(api: McculwApi, product_id: int, kind: str) -> list[Any]:
         if not api.instacal_ignored:
             ul.ignore_instacal()
             api.instacal_ignored = True
-        found = ul.get_daq_device_inventory(enums.InterfaceType.USB)
+        return of_kind(ul.get_daq_device_inventory(enums.InterfaceType.USB), product_id)
     except Exception as exc:
         raise _mapped(api, exc, f"{kind} search", "listing the boards") from exc
-    return sorted((d for d in found if int(d.product_id) == product_id), key=lambda d: str(d.unique_id))
-
-
-def list_serials(api: McculwApi, product_id: int, kind: str) -> list[str]:
-    """The serial numbers of every attached board of one kind, sorted."""
-    return [str(d.unique_id) for d in _inventory(api, product_id, kind)]
 
 
 def create_board(api: McculwApi, product_id: int, kind: str, serial: str | None) -> tuple[int, str]:
     """Find the board with `serial` (or the first by serial number) and add it to the UL: (board number,
     serial). `BoardNotFound` names the serials seen."""
-    boards = _inventory(api, product_id, kind)
-    descriptor = next((d for d in boards if serial is None or str(d.unique_id) == serial), None)
-    if descriptor is None:
-        seen = ", ".join(str(d.unique_id) for d in boards) or "none"
-        wanted = f" with serial {serial}" if serial else ""
-        raise BoardNotFound(
-            f"the Universal Library found no {kind}{wanted} (boards of that kind attached: {seen}); is it "
-            f"plugged in and its driver installed (InstaCal lists it)? {DRY_RUN_HINT}"
-        )
+    hint = "plugged in and its driver installed (InstaCal lists it)"
+    descriptor = pick(_inventory(api, product_id, kind), serial, kind, "the Universal Library", hint)
     num = api.take_board_num()
     try:
         api.ul.create_daq_device(num, descriptor)
@@ -143,18 +135,29 @@ def create_board(api: McculwApi, product_id: int, kind: str, serial: str | None)
     return num, str(descriptor.unique_id)
 
 
-def release_board(api: McculwApi, board_num: int) -> None:
-    try:
-        api.ul.release_daq_device(board_num)
-    finally:
-        api.board_nums.discard(board_num)
+def backend(api: McculwApi, board_num: int, name: str) -> dict[str, Any]:
+    """A board added to the UL's part of a `VendorBoard`: releasing it, its errors, its LED (the UL's
+    flash_led takes no count)."""
+
+    def release() -> None:
+        try:
+            api.ul.release_daq_device(board_num)
+        finally:
+            api.board_nums.discard(board_num)
+
+    return {
+        "release": release,
+        "map_error": lambda exc, action: map_error(api, exc, name, action),
+        "flash_led": lambda _count: api.ul.flash_led(board_num),
+    }
 
 
 class McculwUsb3105(VendorAnalogOutput):
     """The USB-3105 through mcculw. Use `McculwUsb3105.open(serial=None)`."""
 
     def __init__(self, api: McculwApi, board_num: int, serial: str) -> None:
-        super().__init__(f"{usb3105.KIND} serial {serial} (mcculw board {board_num})", serial)
+        name = f"{usb3105.KIND} serial {serial} (mcculw board {board_num})"
+        super().__init__(name, serial, **backend(api, board_num, name))
         self.api = api
         self.board_num = board_num
 
@@ -175,10 +178,6 @@ class McculwUsb3105(VendorAnalogOutput):
             board.close()
             raise
         return board
-
-    def blink(self, count: int = 5) -> None:
-        """Flash the LED (the UL's flash_led takes no count)."""
-        self._call("blinking the LED", lambda: self.api.ul.flash_led(self.board_num))
 
     def _code(self, volts: float) -> int:
         return int(self.api.ul.from_eng_units(self.board_num, self.api.enums.ULRange.BIP10VOLTS, volts))
@@ -209,12 +208,6 @@ class McculwUsb3105(VendorAnalogOutput):
         finally:
             ul.win_buf_free(memhandle)
 
-    def _release(self) -> None:
-        release_board(self.api, self.board_num)
-
-    def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None:
-        return map_error(self.api, exc, self.name, action)
-
 
 class McculwUsb1608Fs(VendorScanInput):
     """One USB-1608FS-Plus through mcculw. Use `McculwUsb1608Fs.open(serial=None, clock=None)`;
@@ -224,7 +217,7 @@ class McculwUsb1608Fs(VendorScanInput):
 
     def __init__(self, api: McculwApi, board_num: int, serial: str, clock: Clock, buffer_s: float) -> None:
         name = f"{usb1608fs_protocol.KIND} serial {serial} (mcculw board {board_num})"
-        super().__init__(name, serial, clock, buffer_s)
+        super().__init__(name, serial, clock, buffer_s, **backend(api, board_num, name))
         self.api = api
         self.board_num = board_num
         self._memhandle: Any = None
@@ -246,9 +239,6 @@ class McculwUsb1608Fs(VendorScanInput):
         api = api or load_mcculw()
         num, board_serial = create_board(api, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND, serial)
         return cls(api, num, board_serial, clock or MonotonicClock(), buffer_s)
-
-    def blink(self, count: int = 5) -> None:
-        self._call("blinking the LED", lambda: self.api.ul.flash_led(self.board_num))
 
     def _start_scan(self, low: int, high: int, rows: int, rate_hz: float) -> float:
         ul, enums = self.api.ul, self.api.enums
@@ -302,12 +292,6 @@ class McculwUsb1608Fs(VendorScanInput):
             handle, self._memhandle = self._memhandle, None
             self.api.ul.win_buf_free(handle)
 
-    def _release(self) -> None:
-        release_board(self.api, self.board_num)
-
-    def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None:
-        return map_error(self.api, exc, self.name, action)
-
 
 def open_all_mcculw_1608fs(
     serials: Sequence[str] | None = None, *, clock: Clock | None = None, api: McculwApi | None = None
@@ -316,10 +300,8 @@ def open_all_mcculw_1608fs(
     api = api or load_mcculw()
     clock = clock or MonotonicClock()
     if not serials:
-        serials = list_serials(api, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND)
+        found = _inventory(api, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND)
+        serials = [str(d.unique_id) for d in found]
     if not serials:
         create_board(api, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND, None)  # raises not found
-    with contextlib.ExitStack() as opened:  # a board that fails to open closes those opened before it
-        boards = [opened.enter_context(McculwUsb1608Fs.open(s, clock=clock, api=api)) for s in serials]
-        opened.pop_all()
-    return boards
+    return open_each(partial(McculwUsb1608Fs.open, clock=clock, api=api), serials)

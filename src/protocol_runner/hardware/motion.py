@@ -52,18 +52,9 @@ def run_motion(
     where: str,
     stop_requested: StopRequested | None = None,
 ) -> tuple[TrialRecording, ...]:
-    """Plan, check and send one motion; return the trajectory part of each joint's recording."""
-    return run_stream(rig, plan_motion(rig, commands_deg), where=where, stop_requested=stop_requested)
-
-
-def run_stream(
-    rig: Rig,
-    stream: MotionStream,
-    *,
-    where: str,
-    stop_requested: StopRequested | None = None,
-) -> tuple[TrialRecording, ...]:
-    """Check every joint's stream (and its first sample against where the joint was left), then send."""
+    """Plan one motion, check every joint's stream (and its first sample against where the joint was left),
+    send it; return the trajectory part of each joint's recording."""
+    stream = plan_motion(rig, commands_deg)
     joints = rig.joints
     limits = [j.limits for j in joints]
     check_motion_stream(
@@ -86,16 +77,9 @@ def run_stream(
 
     def on_stop(written: int) -> FloatArray:
         tail, codes = stream.stop_after(written, limits)
-        for k, j in enumerate(joints):  # defence in depth: check_motion_stream checked every stop
+        for k in range(len(joints)):  # defence in depth: check_motion_stream checked every stop
             junction = stream.streams[k].command_deg[max(0, written - 2) : written]
-            check_trajectory(
-                np.concatenate([junction, tail[:, k]]),
-                stream.rate_hz,
-                j.limits,
-                where=rig.where_of(where, j),
-                command_table=j.command_table,
-                volts_range_deg=j.range_deg,
-            )
+            rig.check(k, np.concatenate([junction, tail[:, k]]), where)
         segments[0] = np.concatenate([segments[0][:written], codes])
         return tail
 

@@ -5,16 +5,15 @@ order), with each joint's channels and calibration. One joint (the knee campaign
 `hardware/motion.py`, which adds every joint's approach and exit in the same loop (`Rig.send`):
 
 1. safety envelope (`hardware/safety.py`) on every joint's samples - a violation raises before any write;
-2. command look-up table, real -> input angle (thesis §2.5.1);
-3. Eq 1, angle -> volts over the joint's range; clamp to ±10 V;
-4. the paced loop (`Rig.send`): start the input scan ([angle_0, torque_0, angle_1, torque_1, ...] at
-   the input rate), then for each output tick k sleep until t0 + k / output_rate_hz, write every joint's
-   volts, record the write time; read the scan (and poll the stop request) every `READ_EVERY_TICKS` ticks;
-   after the last tick wait one more tick and stop the scan. One joint: one `write_volts` per tick;
-   several: one synchronous update of every joint's channel per tick (`AnalogOutput.write_volts_sync`: on the USB-3105 each channel's AOUT with
-   the "wait for sync" flag, then one AOUT_SYNC that latches them together, thesis §2.3: the boards control
-   "the 12 joints ... simultaneously");
-5. telemetry: the scan's volts -> Eq 2 (angle) and Eq 3 (torque) -> the angle and torque look-up tables
+2. command look-up table, real -> input angle (thesis §2.5.1); Eq 1, angle -> volts over the joint's
+   range; clamp to ±10 V;
+3. the paced loop (`Rig.send`): start the input scan ([angle_0, torque_0, angle_1, torque_1, ...] at
+   the input rate), then for each output tick k sleep until t0 + k / output_rate_hz and write every joint's
+   volts: one joint, one `write_volts`; several, one synchronous update (`write_volts_sync`: on the
+   USB-3105 each channel's AOUT held, then one AOUT_SYNC latching them together, thesis §2.3: the boards
+   control "the 12 joints ... simultaneously"). Read the scan (and poll the stop request) every
+   `READ_EVERY_TICKS` ticks; after the last tick wait one more tick and stop the scan;
+4. telemetry: the scan's volts -> Eq 2 (angle) and Eq 3 (torque) -> the angle and torque look-up tables
    (output -> real, thesis §2.5.1-2.5.2).
 
 On a stop request `on_stop(written)`, if given, returns the samples to send next in the same loop (no
@@ -23,16 +22,12 @@ every block as it is read: a measured signal beyond its limit stops the loop as 
 its `WatchdogTripped` (exit 4) is raised instead; parking is not watched. An error or an interruption
 carries what was recorded so far (`partial_recording`). The live monitor (`tap`) is started with every
 joint's commands (restarted on the samples a stop sends, shown as parking) and shown every block read.
-The hardware bench and a dry run run this same loop: the DAQ simulator's boards satisfy the same
-interfaces, and its clock jumps instead of sleeping.
+The DAQ simulator's boards satisfy the same interfaces (its clock jumps instead of sleeping), so a dry run
+runs this same loop.
 
-The recording is one `TrialRecording` per joint, all on the same time base (the same command and input
-times, the same tick lateness). Times count from t0, the clock reading just after the scan started (the
-first output tick is scheduled at t0). `tick_lateness_s[k]` is the clock reading just before write k minus
-its schedule: the output jitter recorded per trial.
-
-The loop does as little as possible per tick: all conversions are done on whole arrays before and after,
-the schedule is precomputed, and results go into preallocated lists.
+The recording is one `TrialRecording` per joint, all on the same time base. Times count from t0, the clock
+reading just after the scan started (the first output tick is scheduled at t0); `tick_lateness_s[k]`, the
+clock just before write k minus its schedule, is the output jitter recorded per trial.
 """
 
 from __future__ import annotations
@@ -47,7 +42,7 @@ import numpy.typing as npt
 from protocol_runner.errors import Interrupted, InvalidInput, WatchdogTripped
 from protocol_runner.hardware.interfaces import AnalogInput, AnalogOutput, Clock, LoopTap, ScanBlock
 from protocol_runner.hardware.joint import JointConfig, OnStop, StopRequested, TrialRecording
-from protocol_runner.hardware.safety import check_trajectory, parking_ramp_deg
+from protocol_runner.hardware.safety import SafetyLimits, check_trajectory, parking_ramp_deg
 from protocol_runner.hardware.watchdog import LoopWatch
 
 FloatArray = npt.NDArray[np.float64]
@@ -102,19 +97,16 @@ class Rig:
         if len(rates) != 1:
             shown = ", ".join(f"{j.name} {j.output_rate_hz:g}/{j.input_rate_hz:g} Hz" for j in joints)
             raise InvalidInput(f"the joints of one rig share its output and input rates, got {shown}")
-        used: dict[int, str] = {}
+        used: dict[tuple[str, int], str] = {}
         for j in joints:
-            for ch in (j.angle_input_channel, j.torque_input_channel):
-                if ch in used:
-                    raise InvalidInput(f"input channel {ch} is both {used[ch]}'s and {j.name}'s")
-                used[ch] = j.name
-        outputs: dict[int, str] = {}
-        for j in joints:
-            if j.output_channel in outputs:
-                raise InvalidInput(
-                    f"output channel {j.output_channel} is both {outputs[j.output_channel]}'s and {j.name}'s"
-                )
-            outputs[j.output_channel] = j.name
+            for kind, ch in (
+                ("input", j.angle_input_channel),
+                ("input", j.torque_input_channel),
+                ("output", j.output_channel),
+            ):
+                if (kind, ch) in used:
+                    raise InvalidInput(f"{kind} channel {ch} is both {used[kind, ch]}'s and {j.name}'s")
+                used[kind, ch] = j.name
         self.joints = tuple(joints)
         self.ao, self.ai, self.clock = ao, ai, clock
         self.output_rate_hz, self.input_rate_hz = rates.pop()
@@ -176,15 +168,8 @@ class Rig:
         safe point: the scan is stopped and `Interrupted` raised (the caller then parks the joints).
         """
         cmd = self._columns(commands_deg)
-        for k, j in enumerate(self.joints):
-            check_trajectory(
-                cmd[:, k],
-                self.output_rate_hz,
-                j.limits,
-                where=self.where_of(where, j),
-                command_table=j.command_table,
-                volts_range_deg=j.range_deg,
-            )
+        for k in range(len(self.joints)):
+            self.check(k, cmd[:, k], where)
         with self.loop_context():
             return self.send(cmd, where=where, stop_requested=stop_requested)
 
@@ -212,14 +197,7 @@ class Rig:
                 range_deg=(max(min(lo, starts[k]), j.range_deg[0]), min(max(hi, starts[k]), j.range_deg[1])),
             )
             cmd[:, k] = np.clip(cmd[:, k], *widened.range_deg)
-            check_trajectory(
-                cmd[:, k],
-                self.output_rate_hz,
-                widened,
-                where=self.where_of(where, j),
-                command_table=j.command_table,
-                volts_range_deg=j.range_deg,
-            )
+            self.check(k, cmd[:, k], where, widened)
         with self.loop_context():
             return self.send(cmd, where=where, stop_requested=None, watch=False)
 
@@ -251,7 +229,19 @@ class Rig:
         """`where`, naming the joint when the rig drives several."""
         return where if len(self.joints) == 1 else f"{where}, joint {joint.name}"
 
-    # ---- the paced loop ---------------------------------------------------------------------------------
+    def check(self, k: int, command_deg: FloatArray, where: str, limits: SafetyLimits | None = None) -> None:
+        """`check_trajectory` of joint k's samples against its envelope (or `limits`), its command table
+        and Eq 1 range included."""
+        j = self.joints[k]
+        check_trajectory(
+            command_deg,
+            self.output_rate_hz,
+            limits or j.limits,
+            where=self.where_of(where, j),
+            command_table=j.command_table,
+            volts_range_deg=j.range_deg,
+        )
+
     def send(
         self,
         cmd: FloatArray,
@@ -318,7 +308,7 @@ class Rig:
                     cmd = np.concatenate([cmd[:end], tail])
                     volts = np.concatenate([volts[:end], tail_volts])
                     # only the tail is prepared for writing (between two ticks, while the robot moves)
-                    write, n = _from_tick(self._tick_writer(tail_volts), end), int(cmd.shape[0])
+                    write, n = self._tick_writer(tail_volts, first=end), int(cmd.shape[0])
                     codes[end:] = [None] * (n - end)
                     actual[end:] = [0.0] * (n - end)
                     schedule = schedule_s(t0, n, dt)
@@ -348,15 +338,15 @@ class Rig:
     def _command_volts(self, cmd: FloatArray) -> FloatArray:
         return np.stack([j.command_to_volts(cmd[:, k]) for k, j in enumerate(self.joints)], axis=1)
 
-    def _tick_writer(self, volts: FloatArray) -> Callable[[int], object]:
-        """Writes tick k of `volts` and returns its code(s)."""
+    def _tick_writer(self, volts: FloatArray, first: int = 0) -> Callable[[int], object]:
+        """Writes tick k (row k - `first` of `volts`) and returns its code(s)."""
         if len(self.joints) == 1:  # one board write per tick: nothing to latch together
             write, channel, column = self.ao.write_volts, self.joints[0].output_channel, volts[:, 0].tolist()
-            return lambda k: write(channel, column[k])
+            return lambda k: write(channel, column[k - first])
         channels = [j.output_channel for j in self.joints]
         rows: list[dict[int, float]] = [dict(zip(channels, r, strict=True)) for r in volts.tolist()]
         write_sync = self.ao.write_volts_sync
-        return lambda k: write_sync(rows[k])
+        return lambda k: write_sync(rows[k - first])
 
     def _note_written(self, cmd: FloatArray, written: int) -> None:
         if written:
@@ -412,8 +402,3 @@ class Rig:
                 )
             )
         return tuple(out)
-
-
-def _from_tick(write: Callable[[int], object], first: int) -> Callable[[int], object]:
-    """`write` (of samples indexed from 0) for ticks numbered from `first`."""
-    return lambda k: write(k - first)

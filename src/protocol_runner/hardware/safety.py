@@ -1,19 +1,13 @@
-"""Safety envelope for everything sent to the robot.
+"""Safety envelope for everything sent to the robot (docs/hardware-model.md §4).
 
-A commanded trajectory is checked as a whole *before* anything is written to the boards:
-
-1. every sample finite and inside the joint range from the protocol (`SafetyLimits.range_deg`);
-2. rate, the first difference times the output rate, within `max_rate_deg_s`;
-3. acceleration, the second difference times the rate squared, within `max_accel_deg_s2`;
-4. optionally, the volts it becomes after the command look-up table (thesis §2.5.1) and Eq 1 within ±10 V.
-
-A violation raises `SafetyViolation` (a `StoppedByCheck`, exit status 4) naming the step, the limit, the worst
-value, its sample index and time. `clamp_volts` is the second line of defence at the output; the parking
-ramp (`parking_ramp_deg`) moves the joint to its rest angle within the rate and acceleration limits.
-
-The move from wherever the joint is to the first sample is not part of the trajectory; pass `initial_deg`
-to check it too. Trials and calibration checks never send a bare trajectory: `hardware/stream.py` adds the
-approach and the exit (and a stop from any sample) and checks the whole stream, junctions included.
+`check_trajectory` checks a commanded trajectory as a whole *before* anything is written: every sample
+finite and inside the protocol's joint range; rate (first difference × output rate) within
+`max_rate_deg_s`; acceleration (second difference × rate²) within `max_accel_deg_s2`; optionally the volts
+after the command look-up table (thesis §2.5.1) and Eq 1 within ±10 V. A violation raises `SafetyViolation`
+(a `StoppedByCheck`, exit status 4) naming the step, the limit, the worst value, its sample index and time.
+`clamp_volts` is the second line of defence at the output; `parking_ramp_deg` moves the joint to its rest
+angle within the rate and acceleration limits. The move to the first sample is checked only with
+`initial_deg`: trials and calibration checks send whole streams (`hardware/stream.py`), junctions included.
 """
 
 from __future__ import annotations

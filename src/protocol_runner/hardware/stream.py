@@ -1,33 +1,23 @@
-"""The complete commanded stream of one motion: approach, trajectory, exit - and a stop from any sample.
+"""The complete commanded stream of one motion: approach, trajectory, exit - and a stop from any sample
+(docs/hardware-model.md, "The complete commanded stream").
 
-Everything the output board is sent during a trial or a calibration check is one stream, sent in one paced
-loop (a pause between two parts would hold the output, i.e. stop a moving joint at once):
-
-- **approach**: from where the joint rests (the park angle) to the trajectory's first sample, arriving
-  with the trajectory's own starting velocity (a sinusoid starts at its peak speed);
-- **trajectory**: the samples of the trial, unchanged (the analysis uses these, thesis §3.3.1 transition
-  included);
-- **exit**: from the last sample and its velocity, braking at the acceleration limit to rest, then the
-  parking ramp (`safety.parking_ramp_deg`) to the park angle.
-
-A **stop** requested at any sample (Ctrl-C, a safety stop) replaces the rest of the stream with the same
-exit from that sample's position and velocity. Braking runs at the full acceleration limit: no sequence of
-samples within the limit stops sooner, so a brake never goes further than the trajectory itself could.
-
-The approach is the exit run backwards in time (reversing a stream keeps |rate| and |acceleration|), so one
-construction serves both junctions. `check_stream` runs the envelope over the whole stream (rate and
-acceleration across both junctions) and over the stop from every sample before the exit; the plan-time
+Everything sent during a trial or a calibration check is one stream in one paced loop (a pause would hold
+the output, i.e. stop a moving joint at once). The **approach** runs from rest at the park angle to the
+trajectory's first sample, arriving with its starting velocity; the **trajectory** is sent unchanged; the
+**exit** brakes at the acceleration limit from the last sample's position and velocity, then follows the
+parking ramp (`safety.parking_ramp_deg`) to the park angle. A **stop** requested at any sample replaces the
+rest of the stream with the same exit from that sample. Braking at the full limit is the shortest stop, so
+a brake never goes further than the trajectory itself could; the approach is the exit run backwards in time
+(reversal keeps |rate| and |acceleration|), so one construction serves both junctions. `check_stream` runs
+the envelope over the whole stream and over the stop from every sample before the exit; the plan-time
 preflight (`protocol/stream_check.py`) and the rig's motions (`hardware/motion.py`) both call it.
 
-A motion drives every joint of the rig: `build_motion_stream` gives each joint its own stream, then aligns
-them so that every joint's first trajectory sample falls on the same output tick: a joint whose approach is
-shorter waits at rest where it is (samples repeated before its approach), a joint whose exit is shorter
-rests at its park angle (samples repeated after its exit). Resting repeats a sample, so it adds no rate or
-acceleration: every joint's aligned stream stays within that joint's envelope exactly when its own stream
-does, which `check_motion_stream` verifies joint by joint. A stop requested after `written` ticks stops
-EVERY joint: each brakes from its own last position and velocity at its own acceleration limit and ramps to
-its own park angle; the tails are padded to the longest with each joint resting where its tail ends. With
-one joint all of this is that joint's own stream.
+A motion drives every joint of the rig: `build_motion_stream` aligns the joints' streams so that every first
+trajectory sample falls on the same tick (a shorter approach waits at rest where it starts, a shorter exit
+rests at its park angle). Resting repeats a sample and adds no rate or acceleration, so each aligned stream
+is within its joint's envelope exactly when its own stream is (`check_motion_stream`). A stop after
+`written` ticks stops EVERY joint, each braking from its own last position and velocity to its own park
+angle, the tails padded to the longest at rest. With one joint all of this is that joint's own stream.
 """
 
 from __future__ import annotations
@@ -212,15 +202,8 @@ def check_stream(
         )
     except SafetyViolation as exc:
         i = min(exc.index, stream.segment.size - 1)
-        raise SafetyViolation(
-            where=f"{where} ({SEGMENT_NAMES[int(stream.segment[i])]})",
-            limit=exc.limit,
-            value=exc.value,
-            limit_value=exc.limit_value,
-            index=exc.index - stream.first,
-            time_s=float(times[i]),
-            units=exc.units,
-        ) from None
+        where_ = f"{where} ({SEGMENT_NAMES[int(stream.segment[i])]})"
+        raise replace(exc, where=where_, index=exc.index - stream.first, time_s=float(times[i])) from None
     stops = stop_points_deg(stream, limits)
     try:
         check_trajectory(
@@ -235,15 +218,8 @@ def check_stream(
     except SafetyViolation as exc:
         i = exc.index
         segment = SEGMENT_NAMES[int(stream.segment[i])]
-        raise SafetyViolation(
-            where=f"{where} (a stop requested during the {segment} brakes to {exc.value:.6g} {exc.units})",
-            limit=exc.limit,
-            value=exc.value,
-            limit_value=exc.limit_value,
-            index=i - stream.first,
-            time_s=float(times[i]),
-            units=exc.units,
-        ) from None
+        where_ = f"{where} (a stop requested during the {segment} brakes to {exc.value:.6g} {exc.units})"
+        raise replace(exc, where=where_, index=i - stream.first, time_s=float(times[i])) from None
 
 
 @dataclass(frozen=True)
@@ -346,12 +322,4 @@ def check_motion_stream(
         except SafetyViolation as exc:
             if not several:
                 raise
-            raise SafetyViolation(
-                where=f"{exc.where}, joint {joint}",
-                limit=exc.limit,
-                value=exc.value,
-                limit_value=exc.limit_value,
-                index=exc.index,
-                time_s=exc.time_s,
-                units=exc.units,
-            ) from None
+            raise replace(exc, where=f"{exc.where}, joint {joint}") from None

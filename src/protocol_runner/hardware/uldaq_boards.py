@@ -23,8 +23,8 @@ UNVERIFIED on hardware: tested only against a fake of this API (`tests/hardware/
 
 from __future__ import annotations
 
-import contextlib
 from collections.abc import Sequence
+from functools import partial
 from types import ModuleType
 from typing import Any
 
@@ -35,17 +35,22 @@ from protocol_runner.errors import HardwareUnavailable
 from protocol_runner.hardware import usb1608fs_protocol, usb3105
 from protocol_runner.hardware.interfaces import Clock
 from protocol_runner.hardware.usb_common import (
-    DRY_RUN_HINT,
     BoardBusy,
     BoardIoError,
-    BoardNotFound,
     BoardPermissionDenied,
     BoardTimeout,
     DeviceGone,
     MonotonicClock,
     ScanOverrun,
+    open_each,
 )
-from protocol_runner.hardware.vendor_common import VendorAnalogOutput, VendorScanInput, import_vendor
+from protocol_runner.hardware.vendor_common import (
+    VendorAnalogOutput,
+    VendorScanInput,
+    import_vendor,
+    of_kind,
+    pick,
+)
 
 BACKEND = "uldaq"
 SCAN_BUFFER_S = 10.0
@@ -80,24 +85,14 @@ def map_error(lib: ModuleType, exc: Exception, name: str, action: str) -> Hardwa
 def find_descriptors(lib: ModuleType, product_id: int, kind: str) -> list[Any]:
     """The descriptors of every attached board of one kind, sorted by serial number."""
     try:
-        found = lib.get_daq_device_inventory(lib.InterfaceType.USB)
+        return of_kind(lib.get_daq_device_inventory(lib.InterfaceType.USB), product_id)
     except lib.ULException as exc:
         raise map_error(lib, exc, f"{kind} search", "listing the boards") or exc from exc
-    return sorted((d for d in found if int(d.product_id) == product_id), key=lambda d: str(d.unique_id))
 
 
 def pick_descriptor(lib: ModuleType, product_id: int, kind: str, serial: str | None) -> Any:
     """The board with `serial` (or the first by serial number); `BoardNotFound` naming what was seen."""
-    found = find_descriptors(lib, product_id, kind)
-    for d in found:
-        if serial is None or str(d.unique_id) == serial:
-            return d
-    seen = ", ".join(str(d.unique_id) for d in found) or "none"
-    wanted = f" with serial {serial}" if serial else ""
-    raise BoardNotFound(
-        f"uldaq found no {kind}{wanted} (boards of that kind attached: {seen}); is it plugged in? "
-        f"{DRY_RUN_HINT}"
-    )
+    return pick(find_descriptors(lib, product_id, kind), serial, kind, "uldaq", "plugged in")
 
 
 def connect(lib: ModuleType, descriptor: Any, name: str) -> Any:
@@ -111,19 +106,29 @@ def connect(lib: ModuleType, descriptor: Any, name: str) -> Any:
     return device
 
 
-def let_go(device: Any) -> None:
-    """Disconnect and release a `DaqDevice`."""
-    try:
-        device.disconnect()
-    finally:
-        device.release()
+def backend(lib: ModuleType, device: Any, name: str) -> dict[str, Any]:
+    """A connected `DaqDevice`'s part of a `VendorBoard`: letting it go (disconnect, release), its errors,
+    its LED."""
+
+    def release() -> None:
+        try:
+            device.disconnect()
+        finally:
+            device.release()
+
+    return {
+        "release": release,
+        "map_error": lambda exc, action: map_error(lib, exc, name, action),
+        "flash_led": device.flash_led,
+    }
 
 
 class UldaqUsb3105(VendorAnalogOutput):
     """The USB-3105 through uldaq. Use `UldaqUsb3105.open(serial=None)`."""
 
     def __init__(self, lib: ModuleType, device: Any, serial: str) -> None:
-        super().__init__(f"{usb3105.KIND} serial {serial} (uldaq)", serial)
+        name = f"{usb3105.KIND} serial {serial} (uldaq)"
+        super().__init__(name, serial, **backend(lib, device, name))
         self.lib = lib
         self.device = device
         self.ao = device.get_ao_device()
@@ -143,9 +148,6 @@ class UldaqUsb3105(VendorAnalogOutput):
             raise
         return board
 
-    def blink(self, count: int = 5) -> None:
-        self._call("blinking the LED", lambda: self.device.flash_led(count))
-
     def _write(self, channel: int, volts: float) -> None:
         self.ao.a_out(channel, self.lib.Range.BIP10VOLTS, self.lib.AOutFlag.DEFAULT, volts)
 
@@ -154,19 +156,14 @@ class UldaqUsb3105(VendorAnalogOutput):
         ranges = [self.lib.Range.BIP10VOLTS] * n
         self.ao.a_out_list(low, low + n - 1, ranges, self.lib.AOutListFlag.SIMULTANEOUS, list(volts))
 
-    def _release(self) -> None:
-        let_go(self.device)
-
-    def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None:
-        return map_error(self.lib, exc, self.name, action)
-
 
 class UldaqUsb1608Fs(VendorScanInput):
     """One USB-1608FS-Plus through uldaq. Use `UldaqUsb1608Fs.open(serial=None, clock=None)`;
     `open_all_uldaq_1608fs` opens several for `BoardGroup`."""
 
     def __init__(self, lib: ModuleType, device: Any, serial: str, clock: Clock, buffer_s: float) -> None:
-        super().__init__(f"{usb1608fs_protocol.KIND} serial {serial} (uldaq)", serial, clock, buffer_s)
+        name = f"{usb1608fs_protocol.KIND} serial {serial} (uldaq)"
+        super().__init__(name, serial, clock, buffer_s, **backend(lib, device, name))
         self.lib = lib
         self.device = device
         self.ai = device.get_ai_device()
@@ -185,9 +182,6 @@ class UldaqUsb1608Fs(VendorScanInput):
         descriptor = pick_descriptor(lib, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND, serial)
         device = connect(lib, descriptor, usb1608fs_protocol.KIND)
         return cls(lib, device, str(descriptor.unique_id), clock or MonotonicClock(), buffer_s)
-
-    def blink(self, count: int = 5) -> None:
-        self._call("blinking the LED", lambda: self.device.flash_led(count))
 
     def _start_scan(self, low: int, high: int, rows: int, rate_hz: float) -> float:
         lib = self.lib
@@ -219,12 +213,6 @@ class UldaqUsb1608Fs(VendorScanInput):
     def _free_buffer(self) -> None:
         self._buffer = None  # a ctypes array: Python frees it
 
-    def _release(self) -> None:
-        let_go(self.device)
-
-    def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None:
-        return map_error(self.lib, exc, self.name, action)
-
 
 def open_all_uldaq_1608fs(
     serials: Sequence[str] | None = None, *, clock: Clock | None = None, lib: ModuleType | None = None
@@ -239,7 +227,4 @@ def open_all_uldaq_1608fs(
         ]
         if not serials:
             pick_descriptor(lib, usb1608fs_protocol.PRODUCT_ID, usb1608fs_protocol.KIND, None)  # not found
-    with contextlib.ExitStack() as opened:  # a board that fails to open closes those opened before it
-        boards = [opened.enter_context(UldaqUsb1608Fs.open(s, clock=clock, lib=lib)) for s in serials]
-        opened.pop_all()
-    return boards
+    return open_each(partial(UldaqUsb1608Fs.open, clock=clock, lib=lib), serials)

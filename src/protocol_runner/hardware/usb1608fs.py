@@ -9,12 +9,12 @@ UNVERIFIED on hardware: the calibration-memory address layout and that wValue ca
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -46,21 +46,21 @@ from protocol_runner.hardware.usb1608fs_protocol import (
     pacer_period,
     pacer_rate_hz,
 )
+from protocol_runner.hardware.usb3105_calibration import parse_calibration
 from protocol_runner.hardware.usb_board import InPipeSettings, OpenedBoard
 from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,
-    BoardIoError,
     BoardTimeout,
     MonotonicClock,
     ScanOverrun,
-    bcd_to_text,
     check_scan_channels,
     claim_interface,
     find_board,
     find_devices,
     map_usb_error,
+    no_board,
+    open_each,
     read_serial,
-    select_device,
 )
 
 log = logging.getLogger(__name__)
@@ -113,7 +113,6 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
         self._slope = np.ones(0)
         self._intercept = np.zeros(0)
 
-    # ------------------------------------------------------------------------------------------------
     @classmethod
     def open(
         cls,
@@ -143,60 +142,36 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
             chunk = min(64, n - len(mem))
             addr = self.settings.cal_address + len(mem)
             mem += bytes(self._ctrl_in(CMD_CAL_MEMORY, addr, chunk, "reading calibration memory"))
-        valid = True
-        for rng in range(N_RANGES):
-            for ch in range(N_CHANNELS):
-                slope, intercept = struct.unpack_from("<ff", mem, (rng * N_CHANNELS + ch) * 8)
-                if (
-                    math.isfinite(slope)
-                    and math.isfinite(intercept)
-                    and 0.8 < slope < 1.2
-                    and abs(intercept) < 4096
-                ):
-                    self.calibration[rng][ch] = (float(slope), float(intercept))
-                else:
-                    valid = False
-                    self.calibration[rng][ch] = (1.0, 0.0)
-        self.calibration_valid = valid
-        if not valid:
+        pairs = [parse_calibration(*p) for p in struct.iter_unpack("<ff", bytes(mem))]
+        self.calibration = [
+            [(c.slope, c.offset) for c in pairs[rng * N_CHANNELS : (rng + 1) * N_CHANNELS]]
+            for rng in range(N_RANGES)
+        ]
+        self.calibration_valid = all(c.valid for c in pairs)
+        if not self.calibration_valid:
             log.warning(
                 "%s: calibration memory holds implausible values; using slope 1, intercept 0", self.name
             )
 
-    # ---- wire helpers ----------------------------------------------------------------------------
     def _ctrl_in(self, request: int, value: int, length: int, action: str) -> Any:
-        if self._closed:
-            raise BoardIoError(f"the {self.name} is closed; open it again")
-        try:
-            return self._dev.ctrl_transfer(REQ_IN, request, value, 0, length, self.settings.timeout_ms)
-        except usb.core.USBError as exc:
-            raise map_usb_error(exc, self.name, action) from exc
+        return self._usb(
+            action, self._dev.ctrl_transfer, REQ_IN, request, value, 0, length, self.settings.timeout_ms
+        )
 
-    def _ctrl_out(self, request: int, data: bytes, action: str, value: int = 0) -> None:
-        if self._closed:
-            raise BoardIoError(f"the {self.name} is closed; open it again")
-        try:
-            self._dev.ctrl_transfer(REQ_OUT, request, value, 0, data, self.settings.timeout_ms)
-        except usb.core.USBError as exc:
-            raise map_usb_error(exc, self.name, action) from exc
+    def _ctrl_out(self, request: int, data: bytes, action: str) -> None:
+        self._usb(action, self._dev.ctrl_transfer, REQ_OUT, request, 0, 0, data, self.settings.timeout_ms)
 
     def status(self) -> int:
         """STATUS word (bit 1 running, bit 2 overrun)."""
         raw = bytes(self._ctrl_in(CMD_STATUS, 0, 2, "reading the status"))
         return int.from_bytes(raw[:2].ljust(2, b"\x00"), "little")
 
-    # ---- information -----------------------------------------------------------------------------
     @property
     def serial(self) -> str:
         return self._board_serial
 
-    @property
-    def firmware(self) -> str:
-        return bcd_to_text(int(self._dev.bcdDevice))
-
     def blink(self, count: int = 5) -> None:
-        if not 0 < count < 256:
-            raise InvalidInput(f"blink count must be 1-255, got {count}")
+        self._check_blink(count)
         self._ctrl_out(CMD_BLINK_LED, bytes((count,)), "blinking the LED")
 
     def calibration_summary(self) -> str:
@@ -209,7 +184,6 @@ class Usb1608FsPlus(OpenedBoard[Usb1608FsSettings]):
             f"{min(inter):+.1f}..{max(inter):+.1f} counts{state}"
         )
 
-    # ---- AnalogInput -----------------------------------------------------------------------------
     @property
     def resolution_bits(self) -> int:
         return 16
@@ -366,9 +340,5 @@ def open_all_1608fs(
         devices = find_devices(MCC_VENDOR_ID, PRODUCT_ID, backend, KIND)
         serials = sorted(read_serial(d, KIND) for d in devices)
         if not serials:
-            ids = f"VID 0x{MCC_VENDOR_ID:04X} PID 0x{PRODUCT_ID:04X}"
-            select_device([], None, KIND, ids)  # raises the not-found error
-    with contextlib.ExitStack() as opened:  # a board that fails to open closes those opened before it
-        boards = [opened.enter_context(Usb1608FsPlus.open(s, backend, clock=clock, settings=settings)) for s in serials]
-        opened.pop_all()
-    return boards
+            raise no_board(KIND, f"VID 0x{MCC_VENDOR_ID:04X} PID 0x{PRODUCT_ID:04X}")
+    return open_each(partial(Usb1608FsPlus.open, backend=backend, clock=clock, settings=settings), serials)

@@ -45,4 +45,3 @@ def pacer_period(rate_hz: float) -> int:
 def pacer_rate_hz(pacer: int) -> float:
     """The row rate a pacer register value really gives: ``40 MHz / (pacer + 1)``."""
     return PACER_CLOCK_HZ / (pacer + 1)
-

@@ -20,8 +20,6 @@ HID SET_REPORT on the control pipe (0x21, 0x09, 0x0200 | report id, interface).
 from __future__ import annotations
 
 import logging
-import math
-import operator
 import struct
 import time
 from collections.abc import Callable, Mapping
@@ -43,10 +41,11 @@ from protocol_runner.hardware.usb_common import (
     MCC_VENDOR_ID,
     BoardIoError,
     UnexpectedReply,
-    bcd_to_text,
     claim_interface,
     find_board,
+    finite_volts,
     map_usb_error,
+    output_channel,
     usb_call,
 )
 
@@ -112,9 +111,6 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
         self.uses_set_report = False
         self.kernel_driver_detached = False
 
-    # ------------------------------------------------------------------------------------------------
-    # Opening
-    # ------------------------------------------------------------------------------------------------
     @classmethod
     def open(
         cls, serial: str | None = None, backend: Any | None = None, *, settings: Usb3105Settings | None = None
@@ -179,26 +175,13 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
             n += 1
         return n
 
-    # ------------------------------------------------------------------------------------------------
-    # Wire helpers
-    # ------------------------------------------------------------------------------------------------
     def _send(self, report: bytes, action: str) -> None:
-        if self._closed:
-            raise BoardIoError(f"the {self.name} is closed; open it again")
-        try:
-            if self.uses_set_report:
-                self._dev.ctrl_transfer(
-                    HID_SET_REPORT_REQUEST_TYPE,
-                    HID_SET_REPORT,
-                    HID_REPORT_TYPE_OUTPUT | report[0],
-                    self.settings.interface,
-                    report,
-                    self.settings.timeout_ms,
-                )
-            else:
-                self._dev.write(self.settings.out_endpoint, report, self.settings.timeout_ms)
-        except usb.core.USBError as exc:
-            raise map_usb_error(exc, self.name, action) from exc
+        s = self.settings
+        if self.uses_set_report:
+            request = HID_SET_REPORT_REQUEST_TYPE, HID_SET_REPORT, HID_REPORT_TYPE_OUTPUT | report[0]
+            self._usb(action, self._dev.ctrl_transfer, *request, s.interface, report, s.timeout_ms)
+        else:
+            self._usb(action, self._dev.write, s.out_endpoint, report, s.timeout_ms)
 
     def _query(self, report: bytes, action: str) -> bytes:
         """Send a command and return its reply (byte 0 checked against the command code)."""
@@ -217,12 +200,13 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
             "Unplug and replug the board, then retry."
         )
 
-    def read_memory(self, address: int, count: int) -> bytes:
-        """Read `count` bytes of board memory from `address` (MEM_READ, in chunks of at most 62 bytes)."""
-        out = bytearray()
-        while len(out) < count:
-            n = min(MEM_READ_MAX, count - len(out))
-            addr = address + len(out)
+    def _read_calibration(self) -> tuple[ChannelCalibration, ...]:
+        """Every channel's (slope, offset) from board memory (MEM_READ, in chunks of at most 62 bytes)."""
+        span = CAL_STRIDE * (N_CHANNELS - 1) + 8
+        mem = bytearray()
+        while len(mem) < span:
+            n = min(MEM_READ_MAX, span - len(mem))
+            addr = CAL_BASE_PM10V + len(mem)
             reply = self._query(
                 bytes((CMD_MEM_READ, addr & 0xFF, (addr >> 8) & 0xFF, 0, n)), "reading calibration memory"
             )
@@ -232,52 +216,26 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
                     f"the {self.name} returned {len(data)} of {n} memory bytes at 0x{addr:04X}; "
                     "unplug and replug the board"
                 )
-            out += data
-        return bytes(out)
-
-    def _read_calibration(self) -> tuple[ChannelCalibration, ...]:
-        span = CAL_STRIDE * (N_CHANNELS - 1) + 8
-        mem = self.read_memory(CAL_BASE_PM10V, span)
-        cals = []
-        for ch in range(N_CHANNELS):
-            slope, offset = struct.unpack_from("<ff", mem, CAL_STRIDE * ch)
-            cals.append(parse_calibration(slope, offset))
-        return tuple(cals)
-
-    # ------------------------------------------------------------------------------------------------
-    # AnalogOutput
-    # ------------------------------------------------------------------------------------------------
-    def _check_channel(self, channel: int) -> None:
-        try:
-            ok = 0 <= operator.index(channel) < N_CHANNELS
-        except TypeError:
-            ok = False
-        if not ok:
-            raise InvalidInput(f"the {KIND} has output channels 0-{N_CHANNELS - 1}; got {channel!r}")
+            mem += data
+        return tuple(
+            parse_calibration(*struct.unpack_from("<ff", mem, CAL_STRIDE * ch)) for ch in range(N_CHANNELS)
+        )
 
     def configure_channel(self, channel: int) -> None:
         """Set `channel` to +-10 V (AOUT_CONFIG). This drives the pin to 0 V: call once before a run."""
-        self._check_channel(channel)
-        channel = operator.index(channel)
+        channel = output_channel(KIND, channel, N_CHANNELS)
         self._send(bytes((CMD_AOUT_CONFIG, channel, RANGE_PM10V)), f"configuring output channel {channel}")
         self._configured.add(channel)
 
-    def code_for(self, channel: int, volts: float) -> int:
-        """The calibrated code `write_volts` would send (no I/O)."""
-        self._check_channel(channel)
-        volts = float(volts)
-        if not math.isfinite(volts):
-            raise InvalidInput(f"output channel {channel}: volts must be a finite number, got {volts!r}")
-        return calibrated_code(volts, self.calibration[channel])
-
     def _checked_code(self, channel: int, volts: float) -> int:
+        """The calibrated code to send for `volts` on a configured `channel`."""
         if channel not in self._configured:
-            self._check_channel(channel)
+            output_channel(KIND, channel, N_CHANNELS)
             raise ChannelNotConfigured(
                 f"output channel {channel} of the {self.name} is not configured: call "
                 "configure_channel() once before writing (it sets +-10 V and drives the pin to 0 V)"
             )
-        return self.code_for(channel, volts)
+        return calibrated_code(finite_volts(channel, volts), self.calibration[channel])
 
     def write_volts(self, channel: int, volts: float) -> int:
         """Output `volts` on `channel` now (AOUT, update 0); return the calibrated code sent."""
@@ -308,26 +266,13 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
             self.write_volts(channel, 0.0)
         return (clock() - start_s) / n_reports
 
-    # ------------------------------------------------------------------------------------------------
-    # Board information
-    # ------------------------------------------------------------------------------------------------
     @property
     def serial(self) -> str:
         return self._serial
 
-    @property
-    def firmware_bcd(self) -> int:
-        return int(self._dev.bcdDevice)
-
-    @property
-    def firmware(self) -> str:
-        """Firmware version from bcdDevice, e.g. ``"1.02"``."""
-        return bcd_to_text(self.firmware_bcd)
-
     def blink(self, count: int = 5) -> None:
         """Blink the board's LED `count` times (to find it on the rig)."""
-        if not 0 < count < 256:
-            raise InvalidInput(f"blink count must be 1-255, got {count}")
+        self._check_blink(count)
         self._send(bytes((CMD_BLINK_LED, count)), "blinking the LED")
 
     def get_status(self) -> int:
@@ -349,10 +294,6 @@ class Usb3105(OpenedBoard[Usb3105Settings]):
             f"+-10 V calibration for {len(valid)}/{N_CHANNELS} channels: slope {min(slopes):.5f}.."
             f"{max(slopes):.5f}, offset {min(offsets):+.1f}..{max(offsets):+.1f} counts"
         )
-
-    # ------------------------------------------------------------------------------------------------
-    # Closing
-    # ------------------------------------------------------------------------------------------------
 
     def __repr__(self) -> str:
         return f"Usb3105(serial={self._serial!r}, firmware={self.firmware!r})"

@@ -23,19 +23,10 @@ class ChannelCalibration:
 IDENTITY_CALIBRATION = ChannelCalibration(1.0, 0.0, valid=False)
 
 
-def ideal_code_pm10v(volts: float) -> float:
-    """Ideal (uncalibrated, unrounded) +-10 V code: ``k = 32768 + 3276.8 * V``."""
-    return 32768.0 + 3276.8 * volts
-
-
 def calibrated_code(volts: float, cal: ChannelCalibration) -> int:
-    """The 16-bit code to send for `volts` on the +-10 V range: ``round(slope * k + offset)``, 0..65535."""
-    code = round(cal.slope * ideal_code_pm10v(volts) + cal.offset)
-    if code < 0:
-        return 0
-    if code > 65535:
-        return 65535
-    return code
+    """The 16-bit code to send for `volts` on the +-10 V range: ``round(slope * k + offset)``, 0..65535,
+    with the ideal code ``k = 32768 + 3276.8 * V``."""
+    return min(65535, max(0, round(cal.slope * (32768.0 + 3276.8 * volts) + cal.offset)))
 
 
 def parse_calibration(slope: float, offset: float) -> ChannelCalibration:

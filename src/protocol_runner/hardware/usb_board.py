@@ -5,11 +5,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from types import TracebackType
-from typing import Generic, Self, TypeVar
+from typing import Any, Generic, Self, TypeVar
 
 import usb.core
 
-from protocol_runner.hardware.usb_common import release_device
+from protocol_runner.errors import InvalidInput
+from protocol_runner.hardware.usb_common import BoardIoError, bcd_to_text, release_device, usb_call
 
 
 @dataclass(frozen=True)
@@ -37,11 +38,29 @@ SettingsT = TypeVar("SettingsT", bound=TransportSettings)
 class OpenedBoard(Generic[SettingsT]):
     """The closing every opened USB board shares: `close` releases the claimed interface once (idempotent;
     a board whose `_before_release` stops something running overrides that hook), and ``with board:``
-    closes it on the way out. A board sets `_dev`, `settings` and ``_closed = False`` when it opens."""
+    closes it on the way out. A board sets `_dev`, `settings`, `name` and ``_closed = False`` when it
+    opens."""
 
     _dev: usb.core.Device
     settings: SettingsT
+    name: str
     _closed: bool
+
+    def _usb(self, action: str, fn: Any, *args: Any) -> Any:
+        """One pyusb call on the open board, its failure mapped (`usb_call`)."""
+        if self._closed:
+            raise BoardIoError(f"the {self.name} is closed; open it again")
+        return usb_call(self.name, action, fn, *args)
+
+    @property
+    def firmware(self) -> str:
+        """Firmware version from bcdDevice, e.g. ``"1.02"``."""
+        return bcd_to_text(int(self._dev.bcdDevice))
+
+    @staticmethod
+    def _check_blink(count: int) -> None:
+        if not 0 < count < 256:
+            raise InvalidInput(f"blink count must be 1-255, got {count}")
 
     def _setup(self) -> None:
         """Claim and configure the freshly opened board, read its calibration (each driver's own)."""

@@ -1,19 +1,11 @@
-"""What the USB drivers share: the error types (all exit status 3), pyusb error mapping, device lookup,
-interface claiming, and a real monotonic clock.
+"""What the USB drivers share: the error types, pyusb error mapping, device lookup, interface claiming,
+the output channel and volts checks, and a real monotonic clock.
 
-Every USB failure reaches the user as a `protocol_runner.errors.HardwareUnavailable` subclass whose
-message names the board and says what to do about it. The libusb backend reports failures as
-`usb.core.USBError` with an `errno`; the numbers below are the Linux ones libusb maps to:
-
-=====  ===============================  ==========================
-errno  libusb meaning                   error raised here
-=====  ===============================  ==========================
-13     LIBUSB_ERROR_ACCESS              `BoardPermissionDenied`
-16     LIBUSB_ERROR_BUSY                `BoardBusy`
-19     LIBUSB_ERROR_NO_DEVICE           `DeviceGone`
-110    LIBUSB_ERROR_TIMEOUT             `BoardTimeout`
-other  anything else                    `BoardIoError`
-=====  ===============================  ==========================
+Every USB failure reaches the user as a `protocol_runner.errors.HardwareUnavailable` subclass (exit status
+3) whose message names the board and says what to do about it. `map_usb_error` maps the `errno` of
+libusb's `usb.core.USBError` (the Linux numbers: 13 access, 16 busy, 19 no device, 110 timeout; docs/
+hardware.md, "Errors") to `BoardPermissionDenied`, `BoardBusy`, `DeviceGone`, `BoardTimeout`, and
+anything else to `BoardIoError`.
 """
 
 from __future__ import annotations
@@ -22,10 +14,10 @@ import contextlib
 import errno as errno_codes
 import logging
 import math
+import operator
 import os
 import time
 from collections.abc import Callable, Iterator, Sequence
-from dataclasses import dataclass
 from typing import Any, TypeVar
 
 import usb.core
@@ -79,11 +71,6 @@ def udev_rule_text() -> str:
     return "\n".join(lines) + "\n"
 
 
-# --------------------------------------------------------------------------------------------------------
-# Errors (all HardwareUnavailable: exit 3)
-# --------------------------------------------------------------------------------------------------------
-
-
 class BoardNotFound(HardwareUnavailable):
     """No board with the wanted vendor/product id (and serial) is attached."""
 
@@ -121,11 +108,6 @@ class ScanOverrun(HardwareUnavailable):
 
 class NoUsbBackend(HardwareUnavailable):
     """pyusb found no libusb library on this computer."""
-
-
-# --------------------------------------------------------------------------------------------------------
-# Error mapping
-# --------------------------------------------------------------------------------------------------------
 
 
 def map_usb_error(exc: BaseException, board: str, action: str) -> HardwareUnavailable:
@@ -172,19 +154,6 @@ def usb_call(board: str, action: str, fn: Callable[..., T], *args: Any, **kwargs
         raise map_usb_error(exc, board, action) from exc
 
 
-# --------------------------------------------------------------------------------------------------------
-# Finding and claiming devices
-# --------------------------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class FoundDevice:
-    """A matching USB device and its serial number (None when it could not be read)."""
-
-    device: usb.core.Device
-    serial: str | None
-
-
 def find_devices(
     vendor_id: int, product_id: int | None, backend: Any | None, board_kind: str
 ) -> list[usb.core.Device]:
@@ -221,33 +190,9 @@ def read_serial(device: usb.core.Device, board_kind: str) -> str:
     return (serial or "").strip("\x00 ")
 
 
-def select_device(
-    devices: list[usb.core.Device],
-    serial: str | None,
-    board_kind: str,
-    ids: str,
-    serial_reader: Callable[[usb.core.Device], str] | None = None,
-) -> FoundDevice:
-    """Pick the device with `serial` (or the first one when `serial` is None); clear error otherwise.
-
-    `ids` is the id text for the not-found message, e.g. ``"VID 0x09DB PID 0x009E"``.
-    `serial_reader` reads a device's serial (default: the USB string descriptor).
-    """
-    reader = serial_reader or (lambda d: read_serial(d, board_kind))
-    if not devices:
-        raise BoardNotFound(f"no {board_kind} found ({ids}); is it plugged in? {DRY_RUN_HINT}")
-    if serial is None:
-        return FoundDevice(devices[0], None)
-    seen: list[str] = []
-    for dev in devices:
-        found = reader(dev)
-        if found == serial:
-            return FoundDevice(dev, found)
-        seen.append(found)
-    raise BoardNotFound(
-        f"no {board_kind} with serial {serial!r} found ({ids}); attached: "
-        f"{', '.join(repr(s) for s in seen)}. Check the serial in the protocol file, or {DRY_RUN_HINT}"
-    )
+def no_board(board_kind: str, ids: str) -> BoardNotFound:
+    """The error for no attached board of a kind; `ids` is the id text, e.g. ``"VID 0x09DB PID 0x009E"``."""
+    return BoardNotFound(f"no {board_kind} found ({ids}); is it plugged in? {DRY_RUN_HINT}")
 
 
 def find_board(
@@ -259,9 +204,30 @@ def find_board(
     `serial`), `NoUsbBackend`, or the mapped USB error met while listing or reading the serial.
     """
     ids = f"VID 0x{vendor_id:04X} PID 0x{product_id:04X}"
-    found = select_device(find_devices(vendor_id, product_id, backend, board_kind), serial, board_kind, ids)
-    usb_serial = found.serial if found.serial is not None else read_serial(found.device, board_kind)
-    return found.device, usb_serial
+    devices = find_devices(vendor_id, product_id, backend, board_kind)
+    if not devices:
+        raise no_board(board_kind, ids)
+    seen: list[str] = []
+    for dev in devices:
+        found = read_serial(dev, board_kind)
+        if serial is None or found == serial:
+            return dev, found
+        seen.append(found)
+    raise BoardNotFound(
+        f"no {board_kind} with serial {serial!r} found ({ids}); attached: "
+        f"{', '.join(repr(s) for s in seen)}. Check the serial in the protocol file, or {DRY_RUN_HINT}"
+    )
+
+
+BoardT = TypeVar("BoardT", bound=contextlib.AbstractContextManager[Any])
+
+
+def open_each(open_one: Callable[[str], BoardT], serials: Sequence[str]) -> list[BoardT]:
+    """The board of each serial, opened in order; one that fails to open closes those opened before it."""
+    with contextlib.ExitStack() as opened:
+        boards = [opened.enter_context(open_one(s)) for s in serials]
+        opened.pop_all()
+    return boards
 
 
 def claim_interface(device: usb.core.Device, interface: int, board: str) -> bool:
@@ -305,14 +271,28 @@ def check_scan_channels(kind: str, channels: Sequence[int], n_channels: int, rat
     return chans
 
 
+def output_channel(kind: str, channel: int, n_channels: int) -> int:
+    """`channel` as an int, refused unless it is one of the output board's channels 0..n_channels - 1."""
+    try:
+        ch = operator.index(channel)
+    except TypeError:
+        ch = -1
+    if not 0 <= ch < n_channels:
+        raise InvalidInput(f"the {kind} has output channels 0-{n_channels - 1}; got {channel!r}")
+    return ch
+
+
+def finite_volts(channel: int, volts: float) -> float:
+    """`volts` as a float, refused unless finite."""
+    volts = float(volts)
+    if not math.isfinite(volts):
+        raise InvalidInput(f"output channel {channel}: volts must be a finite number, got {volts!r}")
+    return volts
+
+
 def bcd_to_text(bcd: int) -> str:
     """USB bcdDevice (binary-coded decimal major.minor) as text: 0x0102 -> ``"1.02"``."""
     return f"{(bcd >> 8) & 0xFF:x}.{bcd & 0xFF:02x}"
-
-
-# --------------------------------------------------------------------------------------------------------
-# Real clock
-# --------------------------------------------------------------------------------------------------------
 
 
 class MonotonicClock:

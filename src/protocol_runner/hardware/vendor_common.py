@@ -14,13 +14,12 @@ import importlib
 import importlib.util
 import logging
 import math
-import operator
 import sys
 from abc import ABC, abstractmethod
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from functools import partial
 from types import ModuleType
-from typing import Self, TypeVar
+from typing import Any, Self, TypeVar
 
 import numpy as np
 import numpy.typing as npt
@@ -29,11 +28,18 @@ from protocol_runner.errors import HardwareUnavailable, InvalidInput
 from protocol_runner.hardware import usb1608fs_protocol, usb3105
 from protocol_runner.hardware.conversions import VOLTS_RANGE, volts_to_ai16_code, volts_to_ao16_code
 from protocol_runner.hardware.interfaces import Clock, ScanBlock
-from protocol_runner.hardware.usb_common import BoardIoError, ScanOverrun, check_scan_channels
+from protocol_runner.hardware.usb_common import (
+    DRY_RUN_HINT,
+    BoardIoError,
+    BoardNotFound,
+    ScanOverrun,
+    check_scan_channels,
+    finite_volts,
+    output_channel,
+)
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
-
 
 
 class VendorLibraryMissing(InvalidInput):
@@ -70,12 +76,28 @@ def _installed(package: str) -> bool:
     return importlib.util.find_spec(package) is not None
 
 
+def of_kind(found: Iterable[Any], product_id: int) -> list[Any]:
+    """The library's device descriptors of one board kind (USB product id), sorted by serial number."""
+    return sorted((d for d in found if int(d.product_id) == product_id), key=lambda d: str(d.unique_id))
+
+
+def pick(found: list[Any], serial: str | None, kind: str, library: str, hint: str) -> Any:
+    """The descriptor with `serial` (or the first); `BoardNotFound` naming what `library` saw otherwise,
+    with `hint` of what to check."""
+    for d in found:
+        if serial is None or str(d.unique_id) == serial:
+            return d
+    seen = ", ".join(str(d.unique_id) for d in found) or "none"
+    wanted = f" with serial {serial}" if serial else ""
+    raise BoardNotFound(
+        f"{library} found no {kind}{wanted} (boards of that kind attached: {seen}); is it {hint}? "
+        f"{DRY_RUN_HINT}"
+    )
+
+
 def checked_volts(channel: int, volts: float) -> float:
     """A finite output voltage, clamped to ±10 V (as the pyusb driver clamps its code)."""
-    volts = float(volts)
-    if not math.isfinite(volts):
-        raise InvalidInput(f"output channel {channel}: volts must be a finite number, got {volts!r}")
-    return min(VOLTS_RANGE[1], max(VOLTS_RANGE[0], volts))
+    return min(VOLTS_RANGE[1], max(VOLTS_RANGE[0], finite_volts(channel, volts)))
 
 
 def contiguous_runs(channels: Sequence[int]) -> list[list[int]]:
@@ -93,70 +115,28 @@ def contiguous_runs(channels: Sequence[int]) -> list[list[int]]:
     return runs
 
 
-class ScanRing:
-    """The rows of a continuous scan taken out of the library's circular buffer in order.
-
-    The library writes sample ``k`` of the scan (counting from 0 at the start, channels interleaved) at
-    buffer position ``k mod size``. `take(total)` returns the complete rows among the samples up to
-    `total` that were not taken yet. When more than a buffer's worth arrived since the last take, the
-    oldest were overwritten before they were read: that is a `ScanOverrun`, never silently lost rows.
-    `copy(first, count)` copies `count` samples from buffer position `first` (never across the end).
-    """
+class VendorBoard:
+    """What both vendor boards share: a name and serial, and each library call made through `_call`, which
+    turns the library's exception into the `HardwareUnavailable` the backend's `map_error(exc, action)`
+    names (an exception it does not recognise is raised as it is). The backend also gives how to let the
+    board go (`release`) and to flash its LED (`flash_led(count)`)."""
 
     def __init__(
         self,
         name: str,
-        size: int,
-        n_columns: int,
-        copy: Callable[[int, int], npt.NDArray[np.float64]],
+        serial: str,
+        *,
+        release: Callable[[], None],
+        map_error: Callable[[Exception, str], HardwareUnavailable | None],
+        flash_led: Callable[[int], None],
     ) -> None:
-        self.name = name
-        self.size = size
-        self.n_columns = n_columns
-        self._copy = copy
-        self.taken = 0  # samples taken so far (whole rows only)
-
-    def take(self, total: int) -> npt.NDArray[np.float64]:
-        """The new complete rows, shape (rows, n_columns), in scan order."""
-        total -= total % self.n_columns
-        new = total - self.taken
-        if new < 0:
-            raise ScanOverrun(
-                f"the {self.name} reported {total} samples after {self.taken} were read; the scan count went "
-                "backwards. Unplug and replug the board, then redo the trial."
-            )
-        if new > self.size:
-            raise ScanOverrun(
-                f"the {self.name} scan overran its buffer: {new} samples arrived since the last read, the "
-                f"buffer holds {self.size}. The computer did not read the data fast enough: close other "
-                "programs or lower the input rate; the trial is marked failed and can be redone."
-            )
-        if new == 0:
-            return np.zeros((0, self.n_columns))
-        start = self.taken % self.size
-        first = min(new, self.size - start)
-        parts = [self._copy(start, first)]
-        if new > first:  # the samples wrapped round the end of the buffer
-            parts.append(self._copy(0, new - first))
-        self.taken = total
-        return np.concatenate(parts).reshape(-1, self.n_columns)
-
-
-class VendorBoard(ABC):
-    """What both vendor boards share: a name and serial, and each library call made through `_call`, which
-    turns the library's exception into the `HardwareUnavailable` its backend's `_map_error` names (an
-    exception it does not recognise is raised as it is)."""
-
-    def __init__(self, name: str, serial: str) -> None:
         self.name = name
         self._serial = serial
         self._closed = False
+        self._release, self._map_error, self._flash_led = release, map_error, flash_led
 
-    @abstractmethod
-    def _release(self) -> None: ...
-
-    @abstractmethod
-    def _map_error(self, exc: Exception, action: str) -> HardwareUnavailable | None: ...
+    def blink(self, count: int = 5) -> None:
+        self._call("blinking the LED", lambda: self._flash_led(count))
 
     def _before_release(self) -> None:
         """Stop what the board has running before it is let go (nothing by default)."""
@@ -192,7 +172,7 @@ class VendorBoard(ABC):
             raise mapped from exc
 
 
-class VendorScanInput(VendorBoard):
+class VendorScanInput(VendorBoard, ABC):
     """An `AnalogInput` over a vendor library's continuous background scan (one board, 8 channels ±10 V).
 
     The libraries scan a contiguous channel range ``low..high``: the scan covers the lowest to the highest
@@ -203,8 +183,8 @@ class VendorScanInput(VendorBoard):
     `close` stop it too.
 
     A backend implements `_start_scan` (start it, return the rate set), `_scan_status` (running?,
-    samples transferred so far), `_stop`, `_copy` (samples out of the buffer), `_free_buffer`, `_release`
-    and `_map_error` (its library's exception to a `HardwareUnavailable`, or None for any other).
+    samples transferred so far), `_stop`, `_copy(first, count)` (`count` samples from buffer position
+    `first`, never across its end) and `_free_buffer`.
     """
 
     kind = usb1608fs_protocol.KIND
@@ -213,8 +193,8 @@ class VendorScanInput(VendorBoard):
     status_after_stop = True
     """Whether the scan status still counts the samples after the stop (then they are collected too)."""
 
-    def __init__(self, name: str, serial: str, clock: Clock, buffer_s: float) -> None:
-        super().__init__(name, serial)
+    def __init__(self, name: str, serial: str, clock: Clock, buffer_s: float, **backend: Any) -> None:
+        super().__init__(name, serial, **backend)
         self.clock = clock
         self.buffer_s = buffer_s
         self._scanning = False
@@ -222,9 +202,10 @@ class VendorScanInput(VendorBoard):
         self._rate_hz = 0.0
         self._t0 = 0.0
         self._rows_emitted = 0
-        self._ring: ScanRing | None = None
+        self._ring_size = 0  # samples the circular buffer holds
+        self._width = 0  # samples per buffer row (the channels low..high)
+        self._taken = 0  # samples taken out of it so far (whole rows only)
 
-    # ---- the backend's part ------------------------------------------------------------------------
     @abstractmethod
     def _start_scan(self, low: int, high: int, rows: int, rate_hz: float) -> float: ...
 
@@ -240,7 +221,6 @@ class VendorScanInput(VendorBoard):
     @abstractmethod
     def _free_buffer(self) -> None: ...
 
-    # ---- AnalogInput -------------------------------------------------------------------------------
     @property
     def resolution_bits(self) -> int:
         return 16
@@ -267,7 +247,7 @@ class VendorScanInput(VendorBoard):
             raise
         after = self.clock.now_s()
         self._t0 = 0.5 * (before + after)
-        self._ring = ScanRing(self.name, rows * width, width, self._copy)
+        self._ring_size, self._width, self._taken = rows * width, width, 0
         self._scanning = True
 
     def _block(self, rows: npt.NDArray[np.float64]) -> ScanBlock:
@@ -278,15 +258,45 @@ class VendorScanInput(VendorBoard):
         return ScanBlock(t_s=t_s, codes=volts_to_ai16_code(volts), volts=volts)
 
     def _take(self, *, stopping: bool = False) -> npt.NDArray[np.float64]:
-        assert self._ring is not None
         running, total = self._call("reading the scan status", self._scan_status)
-        rows = self._ring.take(total)
+        rows = self._new_rows(total)
         if not running and not stopping:
             raise BoardIoError(
-                f"the {self.name} scan stopped by itself after {self._ring.taken} samples; "
+                f"the {self.name} scan stopped by itself after {self._taken} samples; "
                 "unplug and replug the board, then redo the trial."
             )
         return rows
+
+    def _new_rows(self, total: int) -> npt.NDArray[np.float64]:
+        """The complete rows, shape (rows, width), among the first `total` samples of the scan that were
+        not taken yet, out of the circular buffer in order.
+
+        The library writes sample ``k`` of the scan (counting from 0 at the start, channels interleaved) at
+        buffer position ``k mod size``. When more than a buffer's worth arrived since the last take, the
+        oldest were overwritten before they were read: that is a `ScanOverrun`, never silently lost rows.
+        """
+        total -= total % self._width
+        new = total - self._taken
+        if new < 0:
+            raise ScanOverrun(
+                f"the {self.name} reported {total} samples after {self._taken} were read; the scan count went "
+                "backwards. Unplug and replug the board, then redo the trial."
+            )
+        if new > self._ring_size:
+            raise ScanOverrun(
+                f"the {self.name} scan overran its buffer: {new} samples arrived since the last read, the "
+                f"buffer holds {self._ring_size}. The computer did not read the data fast enough: close other "
+                "programs or lower the input rate; the trial is marked failed and can be redone."
+            )
+        if new == 0:
+            return np.zeros((0, self._width))
+        start = self._taken % self._ring_size
+        first = min(new, self._ring_size - start)
+        parts = [self._copy(start, first)]
+        if new > first:  # the samples wrapped round the end of the buffer
+            parts.append(self._copy(0, new - first))
+        self._taken = total
+        return np.concatenate(parts).reshape(-1, self._width)
 
     def read_available(self) -> ScanBlock:
         """Every complete row acquired since the last call (calibrated volts, their codes, times)."""
@@ -329,21 +339,21 @@ class VendorScanInput(VendorBoard):
             self._abandon()
 
 
-class VendorAnalogOutput(VendorBoard):
+class VendorAnalogOutput(VendorBoard, ABC):
     """An `AnalogOutput` over a vendor library (the USB-3105: 16 channels, ±10 V, software-paced).
 
     `configure_channel` writes 0 V on the ±10 V range once (the library sends the board's range command,
     which also drives the pin to 0 V); writing an unconfigured channel is refused, as with the pyusb
     driver. `write_volts_sync` updates each contiguous run of channels together (`contiguous_runs`).
     The codes returned are the ideal codes of the volts written (the library applies the calibration).
-    A backend implements `_write`, `_write_run`, `_release` and `_map_error`.
+    A backend implements `_write` and `_write_run`.
     """
 
     kind = usb3105.KIND
     n_channels = usb3105.N_CHANNELS
 
-    def __init__(self, name: str, serial: str) -> None:
-        super().__init__(name, serial)
+    def __init__(self, name: str, serial: str, **backend: Any) -> None:
+        super().__init__(name, serial, **backend)
         self._configured: set[int] = set()
 
     @abstractmethod
@@ -357,19 +367,8 @@ class VendorAnalogOutput(VendorBoard):
             raise BoardIoError(f"the {self.name} is closed; open it again")
         return super()._call(action, fn)
 
-    def _check_channel(self, channel: int) -> int:
-        try:
-            ch = operator.index(channel)
-        except TypeError:
-            ch = -1
-        if not 0 <= ch < self.n_channels:
-            raise InvalidInput(
-                f"the {self.kind} has output channels 0-{self.n_channels - 1}; got {channel!r}"
-            )
-        return ch
-
     def _checked(self, channel: int, volts: float) -> float:
-        ch = self._check_channel(channel)
+        ch = output_channel(self.kind, channel, self.n_channels)
         if ch not in self._configured:
             raise InvalidInput(
                 f"output channel {ch} of the {self.name} is not configured: call configure_channel() once "
@@ -379,7 +378,7 @@ class VendorAnalogOutput(VendorBoard):
 
     def configure_channel(self, channel: int) -> None:
         """Set `channel` to ±10 V and 0 V. This drives the pin to 0 V: call once before a run."""
-        ch = self._check_channel(channel)
+        ch = output_channel(self.kind, channel, self.n_channels)
         self._call(f"configuring output channel {ch}", lambda: self._write(ch, 0.0))
         self._configured.add(ch)
 

@@ -40,10 +40,8 @@ Key = tuple[str, str]  # (element, parameter)
 FRICTION_PARAMS = ("torque_nm", "transition_deg")
 DAMPER_PARAM = "damping_nm_s_per_deg"
 SETTLE_DEG = 5.0  # travel at a trial's start left out of the fit (`Motion.settled`)
-# Travel after each turning point left out of the fit (`Motion.compared`): there the robot's own friction
-# is reversing, and the equal-angle subtraction, whose brace-off branch curves are means over 0.5 deg bins
-# that start at the turning point, cannot follow its steepest part (`analysis.subtraction`). Also the
-# branches' reversal threshold (`analysis.branches`, 1 deg).
+# Travel after each turning point left out of the fit (`Motion.from_samples`), also the branches' reversal
+# threshold (`analysis.branches`)
 REVERSAL_SKIP_DEG = 1.0
 
 
@@ -61,8 +59,7 @@ def unit_dahl_friction(
 
     Between samples the state follows `element_torques.dahl_update` towards the level with the Stribeck
     excess at the sample's speed; each trial starts sliding in its first move's sense. The state is linear
-    in the level (it starts at ±level and relaxes towards ±level), so a level T gives T times the first
-    array: one integration serves every torque and the torque's Jacobian column."""
+    in the level, so a level T gives T times the first array."""
     n = angle_deg.shape[0]
     out = np.zeros(n)
     d_out = np.zeros(n)
@@ -139,22 +136,16 @@ class Motion:
         """The motion of one trial's samples (those with a finite time, angle and torque).
 
         `max_step_deg`: keep every k-th sample only, k the largest keeping the median angle step within
-        it (the Dahl update is exact over any monotone step, so a coarser sampling of a smooth motion
-        changes little); None keeps every sample. The speed is the central difference of the angle over
-        the kept samples (`numpy.gradient`), so over the same stride as the friction state's steps: a
-        difference over single samples turns the angle sensor's noise into speed noise (about 4 deg/s on
-        a 200 Hz loop low-passed at 50 Hz, a fifth of a 20 deg/s motion's peak speed), and noise in the
-        damper's regressor biases its coefficient toward zero, the brake taking up its torque.
+        it (the Dahl update is exact over any monotone step); None keeps every sample. The speed is the
+        central difference of the angle over the kept samples: over single samples the angle sensor's
+        noise becomes speed noise, which biases the damper's coefficient toward zero.
 
         `turning_points(angle_deg, reversal_deg)`: the indices of the motion's turning points (the
         analysis's `branches.turning_points`; None marks none). The samples within REVERSAL_SKIP_DEG of
-        travel after each turning point at that threshold are marked `reversing`. There the loop still holds part of the
-        robot's friction reversal: the brace-off curve's first bin averages the reversal's steepest part,
-        and brace-on angles beyond that bin's mean angle take its torque (0.5 N·m off just after the
-        turn with a 2.5 N·m robot friction, even for identical motions). That error sits at the lowest
-        speeds of every cycle, where a damper gives least torque and a brake its full torque: fitted, it
-        moved about 15 % of a damper's coefficient into the brake
-        (tests/models/test_element_model_reversals.py)."""
+        travel after each are marked `reversing`: there the equal-angle subtraction cannot follow the
+        robot's own friction reversal (its brace-off curve's first bin averages the reversal's steepest
+        part), an error at the lowest speeds of every cycle that, fitted, moves a damper's torque into
+        the brake."""
         t = np.asarray(time_s, dtype=np.float64)
         a = np.asarray(angle_deg, dtype=np.float64)
         y = np.asarray(torque_nm, dtype=np.float64)
@@ -313,27 +304,23 @@ def elastic_torque_nm(lay: ModelLayout, values: Mapping[Key, float], angle_deg: 
     return total
 
 
-def friction_values(lay: ModelLayout, values: Mapping[Key, float]) -> tuple[float, float]:
-    """The friction sum's (torque_nm, transition_deg) as the model uses them (kept >= 0 and > 0)."""
-    return (
-        max(values[(lay.friction_name, "torque_nm")], 0.0),
-        max(values[(lay.friction_name, "transition_deg")], 1e-6),
-    )
+def unit_friction(
+    lay: ModelLayout, values: Mapping[Key, float], stacked: Stacked
+) -> tuple[float, FloatArray, FloatArray]:
+    """The friction sum's level (kept >= 0; its transition > 0), its unit-level friction along `stacked`
+    and that friction's derivative by the transition (`unit_dahl_friction`)."""
+    level = max(values[(lay.friction_name, "torque_nm")], 0.0)
+    transition = max(values[(lay.friction_name, "transition_deg")], 1e-6)
+    args = (stacked.edges, transition, lay.excess_ratio, lay.stribeck_speed_deg_s)
+    unit, d_unit = unit_dahl_friction(stacked.angle_deg, stacked.speed_deg_s, *args)
+    return level, unit, d_unit
 
 
 def stacked_torque_nm(lay: ModelLayout, values: Mapping[Key, float], stacked: Stacked) -> FloatArray:
     """The model's torque at every sample of `stacked` (module docstring)."""
     torque = elastic_torque_nm(lay, values, stacked.angle_deg)
     if lay.friction_members:
-        level, transition = friction_values(lay, values)
-        unit, _ = unit_dahl_friction(
-            stacked.angle_deg,
-            stacked.speed_deg_s,
-            stacked.edges,
-            transition,
-            lay.excess_ratio,
-            lay.stribeck_speed_deg_s,
-        )
+        level, unit, _ = unit_friction(lay, values, stacked)
         torque += level * unit
     if lay.damper_members:
         torque += values[(lay.damper_name, DAMPER_PARAM)] * stacked.speed_deg_s
@@ -362,15 +349,7 @@ def torque_jacobian(
     for j, (name, param) in enumerate(lay.free):
         if lay.friction_members and name == lay.friction_name:
             if unit.size != n:
-                level, transition = friction_values(lay, values)
-                unit, d_unit = unit_dahl_friction(
-                    stacked.angle_deg,
-                    stacked.speed_deg_s,
-                    stacked.edges,
-                    transition,
-                    lay.excess_ratio,
-                    lay.stribeck_speed_deg_s,
-                )
+                level, unit, d_unit = unit_friction(lay, values, stacked)
             jac[:, j] = unit if param == "torque_nm" else level * d_unit
         elif lay.damper_members and name == lay.damper_name:
             jac[:, j] = stacked.speed_deg_s

@@ -86,11 +86,6 @@ def mass_gravity_torque_nm(
     return mass_kg * STANDARD_GRAVITY_M_S2 * lever_m * np.sin(theta)
 
 
-def mass_inertia_kg_m2(mass_kg: float, lever_m: float) -> float:
-    """Moment of inertia of a point mass about the axis: m·l² (the torque J·dω/dt, ω in rad/s)."""
-    return mass_kg * lever_m * lever_m
-
-
 def static_torque_nm(e: Element, angle_deg: npt.ArrayLike) -> FloatArray:
     """The torque of an element that depends on the angle alone: elastic elements and a mass's gravity.
     What the simulator tabulates and the element fit models."""

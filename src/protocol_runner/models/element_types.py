@@ -218,9 +218,7 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "viscous_damper",
             "viscous damping: torque = damping · speed. Loses π·c·ω·A² per cycle (c per rad)",
             "dissipative",
-            {
-                "damping_nm_s_per_deg": _p("_nm_s_per_deg", "damping coefficient", bounds=_NONNEG)
-            },
+            {"damping_nm_s_per_deg": _p("_nm_s_per_deg", "damping coefficient", bounds=_NONNEG)},
         ),
         ElementType(
             "rom_stops",

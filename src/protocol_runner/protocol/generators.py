@@ -17,7 +17,7 @@ import itertools
 import math
 from collections.abc import Iterator
 
-from .loaded import Loc
+from .loaded import Loc, Problem
 from .schema import (
     ConfigurationSpec,
     FullFactorialSpec,
@@ -26,8 +26,6 @@ from .schema import (
     SetSpec,
     _GeneratorSpec,
 )
-
-Problem = tuple[Loc, str]
 
 
 def expand_generators(p: Protocol) -> tuple[Protocol, list[Problem], dict[Loc, Loc]]:
@@ -162,22 +160,13 @@ def _check_generator(p: Protocol, gen: _GeneratorSpec, loc: Loc) -> Iterator[Pro
         for lv, name in by.levels.items():
             if name not in p.trajectories:
                 yield (*tloc, "levels", lv), f"unknown trajectory {name!r} (known: {known})"
-        varied = set(gen.factors) | set(gen.fixed) if isinstance(gen, FullFactorialSpec) else set()
-        if isinstance(gen, OneFactorAtATimeSpec):
-            varied = set(gen.baseline)
+        varied = set(gen.baseline) if isinstance(gen, OneFactorAtATimeSpec) else set(named)
         if by.factor not in varied:
             yield (*tloc, "factor"), f"{by.factor!r} is not one of this generator's factors"
-        elif by.factor in p.factors:
-            used = _used_levels(p, gen, by.factor)
+        elif (
+            by.factor in p.factors
+        ):  # the levels it uses (`all`: every level); an unknown one is reported above
+            used = dict.fromkeys(lv for _, lv in named[by.factor]) or p.factors[by.factor]
             for lv in used:
-                if lv not in by.levels and lv in p.factors[by.factor]:  # an unknown level is reported above
+                if lv not in by.levels and lv in p.factors[by.factor]:
                     yield (*tloc, "levels"), f"no trajectory for level {lv!r} of {by.factor}"
-
-
-def _used_levels(p: Protocol, gen: _GeneratorSpec, factor: str) -> list[str]:
-    if isinstance(gen, FullFactorialSpec):
-        if factor in gen.fixed:
-            return [gen.fixed[factor]]
-        return _levels(p, factor, gen.factors[factor])
-    assert isinstance(gen, OneFactorAtATimeSpec)
-    return list(dict.fromkeys([gen.baseline[factor], *gen.vary.get(factor, [])]))

@@ -9,6 +9,8 @@ from .schema import Protocol
 
 #: A place in the protocol document: keys and list indices from the root.
 Loc = tuple[str | int, ...]
+#: A user's mistake: where it is, and what is wrong there.
+Problem = tuple[Loc, str]
 
 
 @dataclass(frozen=True)

@@ -14,17 +14,14 @@ from __future__ import annotations
 import hashlib
 from pathlib import Path
 
-from pydantic import ValidationError
-
 from ..errors import InvalidInput
 from ..resources import packaged_protocols_dir
-from .booleans import boolean_numbers
 from .generators import expand_generators
 from .loaded import LoadedProtocol, line_for
 from .rig_file import find_rig, load_rig, parse_rig_text, resolve_rigs
 from .schema import Protocol
 from .validate import cross_check
-from .yaml_doc import format_problems, huge_numbers, parse_yaml, validation_problems
+from .yaml_doc import format_problems, parse_yaml, validated
 from .yaml_limits import MAX_PROTOCOL_BYTES, check_size
 
 
@@ -104,13 +101,7 @@ def parse_protocol_text(
             "`levels:`) is no longer read; declare `factors:`, `device:` and named `trajectories:` as in "
             "schema_version 2 (docs/protocol.md; protocols/knee_phase1.yaml is the knee campaign in it)"
         )
-    try:
-        protocol = Protocol.model_validate(data)
-    except ValidationError as exc:
-        raise InvalidInput(format_problems(shown, lines, validation_problems(exc, Protocol))) from None
-    booleans = boolean_numbers(protocol, data) or huge_numbers(data)
-    if booleans:
-        raise InvalidInput(format_problems(shown, lines, booleans))
+    protocol = validated(Protocol, data, shown, lines)
     base_dir = path.parent
     if rig_text is not None:  # the rig file's text as archived with the run (`--reprocess`)
         loaded_rig = parse_rig_text(rig_text, base_dir / protocol.rig_name, f"{shown} (archived rig)")

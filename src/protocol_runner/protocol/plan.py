@@ -43,8 +43,6 @@ from .step_ids import calibration_id, step_id, trial_id
 from .trajectory_record import Trajectory
 from .units import unit_text
 
-# -------------------------------------------------------------------------------------- expansion
-
 
 def _quantity_text(name: str, value: float | tuple[float, ...]) -> str:
     unit = unit_text(name)
@@ -84,7 +82,9 @@ def expand(loaded: LoadedProtocol, only: KeySelection | Iterable[int] | None = N
     all_keys = [c.key for _, c in p.configurations()]
     selected: set[int] | None = None
     if only is not None:
-        chosen_keys = only if isinstance(only, KeySelection) else _as_selection(only)
+        chosen_keys = (
+            only if isinstance(only, KeySelection) else KeySelection(tuple((int(k), int(k)) for k in only))
+        )
         selected = set(chosen_keys.select(all_keys, loaded.path.name))
     steps: list[Step] = []
     cal_traj = calibration_trajectory(p)
@@ -107,10 +107,6 @@ def expand(loaded: LoadedProtocol, only: KeySelection | Iterable[int] | None = N
         steps=tuple(steps),
         only=tuple(sorted(selected)) if selected is not None else (),
     )
-
-
-def _as_selection(keys: Iterable[int]) -> KeySelection:
-    return KeySelection(tuple((int(k), int(k)) for k in keys))
 
 
 def _trial(

@@ -1,16 +1,11 @@
 """The Plan's data: one frozen dataclass per step kind, and the Plan (steps in execution order, by id).
 
-Each kind's class declares, in one place, what the rest of the program needs to know of it: what it does
-(`describe`, its line of `run-protocol --plan`, with a line per joint below it when a multi-joint step's
-joints do not fit on one), the earlier steps whose units it reads (`inputs`: a resume
-that redoes one of them redoes this step too), whether it uses the rig or sets it up (`uses_rig`: a resume
-asks for the rig's state before the first such step) and whether it only reads finished units, so that it
-may run in an analysis worker beside the trials (`background`). The function that runs a step of the kind
-is registered in `steps/registry.py`.
-
-A step's JSON (`run-protocol --plan --json`, the journal) is its fields in declaration order after `id` and
-`kind`: tuples as lists, records by their own `to_json`, None left out; a kind adds or renames keys only
-where its JSON differs from its fields (the trajectories of a multi-joint step, a trial's device).
+Each kind's class declares what the rest of the program needs to know of it (`describe`, `inputs`,
+`uses_rig`, `background`: docs/architecture.md "a step kind"); the function that runs it is registered in
+`steps/registry.py`. A step's JSON (`run-protocol --plan --json`, the journal) is its fields in declaration
+order after `id` and `kind`: tuples as lists, records by their own `to_json`, None left out; a kind adds or
+renames keys only where its JSON differs from its fields (the trajectories of a multi-joint step, a trial's
+device).
 """
 
 from __future__ import annotations

@@ -9,16 +9,14 @@ from .wording import counted
 def format_matrix_table(plan: Plan) -> list[str]:
     """The expanded test matrix: one row per configuration, one column per declared factor."""
     rows: dict[int, TrialStep] = {}
+    trials: dict[int, int] = {}
     for step in plan.steps:
         if isinstance(step, TrialStep) and step.brace == "on":
             rows.setdefault(step.configuration, step)
+            trials[step.configuration] = trials.get(step.configuration, 0) + 1
     factors: list[str] = []
     for step in rows.values():
         factors += [f for f, _ in step.settings.factors if f not in factors]
-    trials = {
-        k: sum(1 for s in plan.steps if isinstance(s, TrialStep) and s.configuration == k and s.brace == "on")
-        for k in rows
-    }
     header = ["key", "run", "set", *factors, "trajectory", "trials"]
     body = [
         [

@@ -35,9 +35,7 @@ from .units import unit_suffix
 from .yaml_doc import format_loc
 
 if TYPE_CHECKING:
-    from .loaded import LoadedProtocol, Loc
-
-Problem = tuple["Loc", str]
+    from .loaded import LoadedProtocol, Loc, Problem
 
 
 class BindingError(Exception):
@@ -64,15 +62,10 @@ def resolve_factor(p: Protocol, factor: str, label: str) -> FactorSetting:
     )
 
 
-def _split(binding: str) -> tuple[str, str]:
-    factor, quantity = binding.split(".", 1)
-    return factor, quantity
-
-
 def _bound_value(
     factors: Mapping[str, FactorSetting], binding: str, loc: Loc, cfg: ConfigurationSpec
 ) -> Quantity:
-    factor, quantity = _split(binding)
+    factor, quantity = binding.split(".", 1)
     setting = factors.get(factor)
     if setting is None:
         raise BindingError(
@@ -127,7 +120,7 @@ def _bound_value_error(
 ) -> BindingError:
     """A bound parameter's value is out of its element's bounds: the error names the level's quantity,
     where the value is written (the `same_as` target for an alias), and the parameter that binds it."""
-    factor, quantity = _split(binding)
+    factor, quantity = binding.split(".", 1)
     label = factors[factor].level
     target = p.factors[factor][label].same_as or label
     return BindingError(
@@ -200,19 +193,9 @@ def configuration_motion(
 
 def calibration_trajectory(p: Protocol, joint: str | None = None) -> Trajectory:
     """The calibration check's ramped step (of `joint`, default the first driven joint)."""
-    s = p.calibration_step_of(joint or p.driven_joints[0])
-    spec = RampedStepSpec(
-        kind="ramped_step",
-        from_deg=s.from_deg,
-        step_deg=s.step_deg,
-        ramp_s=s.ramp_s,
-        hold_s=s.hold_s,
-        settle_s=s.settle_s,
-    )
+    step = p.calibration_step_of(joint or p.driven_joints[0])
+    spec = RampedStepSpec(kind="ramped_step", **step.model_dump())
     return build_trajectory("calibration_step", spec, {}, Path("."))
-
-
-# ------------------------------------------------------------------------------------------ checks
 
 
 def check_bindings(p: Protocol) -> Iterator[Problem]:
@@ -293,7 +276,7 @@ def _did_you_mean(word: str, known: Iterable[str]) -> str:
 
 
 def _check_binding(p: Protocol, binding: str, unit: str, loc: Loc) -> Iterator[Problem]:
-    factor, quantity = _split(binding)
+    factor, quantity = binding.split(".", 1)
     if factor not in p.factors:
         yield (
             loc,

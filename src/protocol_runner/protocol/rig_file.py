@@ -17,13 +17,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Literal
 
-from pydantic import Field, ValidationError
+from pydantic import Field
 
 from ..errors import InvalidInput
 from ..resources import packaged_rigs_dir
 from ..tables import read_table_text
-from .booleans import boolean_numbers
-from .loaded import Loc, RigSource
+from .loaded import Loc, Problem, RigSource
 from .paths import OutsideFolder, confined_path
 from .resolve import joints_named
 from .schema import (
@@ -42,12 +41,10 @@ from .schema import (
     WatchdogSpec,
     _Model,
 )
-from .yaml_doc import format_problems, huge_numbers, parse_yaml, validation_problems
+from .yaml_doc import format_problems, parse_yaml, validated
 
 if TYPE_CHECKING:
     from ..hardware.discovery import OutputTiming
-
-Problem = tuple[Loc, str]
 
 
 class BoardSpec(_Model):
@@ -137,11 +134,8 @@ def parse_rig_text(text: str, path: Path, shown: str) -> LoadedRig:
     data, lines = parse_yaml(text, shown)
     if not isinstance(data, dict):
         raise InvalidInput(f"{shown}:1: a rig file is a mapping (schema_version, robot, boards, joints, ...)")
-    try:
-        rig = RigFile.model_validate(data)
-    except ValidationError as exc:
-        raise InvalidInput(format_problems(shown, lines, validation_problems(exc, RigFile))) from None
-    problems = boolean_numbers(rig, data) or huge_numbers(data) or list(check_rig_file(rig))
+    rig = validated(RigFile, data, shown, lines)
+    problems = list(check_rig_file(rig))
     if problems:
         raise InvalidInput(format_problems(shown, lines, problems))
     sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
@@ -164,13 +158,6 @@ def shipped_rig(name: str) -> LoadedRig:
     return load_rig(find_rig(name, packaged_rigs_dir()), shown=f"rigs/{name}.yaml")
 
 
-def simulator_fields() -> tuple[str, ...]:
-    """The names a joint's `simulator:` mapping may use: the fields of the simulator's parameters."""
-    from ..hardware.simulator.params import SimulatorParams
-
-    return tuple(f.name for f in dataclasses.fields(SimulatorParams))
-
-
 # Board rates (Hz): the output is paced by software, one command per tick (100 Hz); the input
 # scans at least 10 times a second so that a calibration step's 0.6 s ramp is sampled, and its two channels
 # (angle, torque) at most 50,000 samples/s in all (the DT9814's limit; a faster rate failed only at the run).
@@ -178,7 +165,7 @@ BOARD_RATES_HZ = {"output": (1.0, 1000.0), "input": (10.0, 25000.0)}
 
 
 def check_rig_file(rig: RigFile) -> Iterator[Problem]:
-    from ..hardware.simulator.params import bound_problem
+    from ..hardware.simulator.params import SimulatorParams, bound_problem
 
     for key, role in (("output_board", "output"), ("input_board", "input")):
         name = getattr(rig, key)
@@ -189,7 +176,7 @@ def check_rig_file(rig: RigFile) -> Iterator[Problem]:
             yield (key,), f"board {name!r} is an {board.role} board"
     out_channels = max((b.channels for b in rig.boards.values() if b.role == "output"), default=0)
     in_channels = min((b.channels for b in rig.boards.values() if b.role == "input"), default=0)
-    allowed = simulator_fields()
+    allowed = tuple(f.name for f in dataclasses.fields(SimulatorParams))
     where: Loc
     for where, values in (
         (("joint_defaults",), rig.joint_defaults.simulator),
@@ -251,8 +238,8 @@ def check_rig_file(rig: RigFile) -> Iterator[Problem]:
                 yield (*loc, fld), f"input channel {ch} is already used by {inputs[ch]}"
             inputs.setdefault(ch, f"{name}.{fld}")
         safety = _merged_safety(rig, j)
-        for fld in ("max_rate_deg_s", "max_accel_deg_s2", "park_angle_deg", "park_rate_deg_s"):
-            if getattr(safety, fld) is None:
+        for fld, value in safety.model_dump().items():
+            if value is None:
                 yield (*loc, "safety", fld), "missing (here or in joint_defaults.safety)"
         park = safety.park_angle_deg
         if park is not None and not j.range_deg[0] <= park <= j.range_deg[1]:
@@ -292,58 +279,40 @@ def resolve_rig(
     over = overrides.joints.get(joint_name) or JointOverride()
     loc: Loc = ("rig_overrides", "joints", joint_name)
     problems: list[Problem] = []
-    range_deg = joint.range_deg
-    if over.range_deg is not None:
-        if joint.range_deg[0] <= over.range_deg[0] and over.range_deg[1] <= joint.range_deg[1]:
-            range_deg = over.range_deg
-        else:
-            problems.append(
-                (
-                    (*loc, "range_deg"),
-                    f"{_fmt(over.range_deg)} is wider than the rig's {_fmt(joint.range_deg)} "
-                    f"({loaded.shown}, thesis Table 2)",
-                )
-            )
+    range_deg = over.range_deg or joint.range_deg
+    if not (joint.range_deg[0] <= range_deg[0] and range_deg[1] <= joint.range_deg[1]):
+        wider = f"{_fmt(range_deg)} is wider than the rig's {_fmt(joint.range_deg)}"
+        problems.append(((*loc, "range_deg"), f"{wider} ({loaded.shown}, thesis Table 2)"))
+        range_deg = joint.range_deg  # the park angle is checked against the rig's range
     safety = _merged_safety(rig, joint).model_dump()
     for fld, value in (over.safety or SafetyOverride()).model_dump().items():
         if value is not None and fld != "park_angle_deg" and value > safety[fld]:
-            problems.append(
-                (
-                    (*loc, "safety", fld),
-                    f"{value:g} is above the rig's {safety[fld]:g} ({loaded.shown}): overrides may only tighten",
-                )
+            above = (
+                f"{value:g} is above the rig's {safety[fld]:g} ({loaded.shown}): overrides may only tighten"
             )
+            problems.append(((*loc, "safety", fld), above))
         elif value is not None:
             safety[fld] = value
     if not range_deg[0] <= safety["park_angle_deg"] <= range_deg[1]:
-        problems.append(
-            (
-                (*loc, "safety", "park_angle_deg") if over.safety else ("joint",),
-                f"park angle {safety['park_angle_deg']:g} deg is outside the joint's range {_fmt(range_deg)}",
-            )
+        outside = (
+            f"park angle {safety['park_angle_deg']:g} deg is outside the joint's range {_fmt(range_deg)}"
         )
+        problems.append((((*loc, "safety", "park_angle_deg") if over.safety else ("joint",)), outside))
     out_board = rig.boards[rig.output_board]
     output_rate_hz = overrides.output_rate_hz or out_board.rate_hz
     low = BOARD_RATES_HZ["output"][0]
     if output_rate_hz > out_board.rate_hz:
-        problems.append(
-            (
-                ("rig_overrides", "output_rate_hz"),
-                f"{output_rate_hz:g} Hz is above the output board {rig.output_board}'s "
-                f"rate_hz {out_board.rate_hz:g} ({loaded.shown}): overrides may only lower it",
-            )
+        above = (
+            f"{output_rate_hz:g} Hz is above the output board {rig.output_board}'s rate_hz "
+            f"{out_board.rate_hz:g} ({loaded.shown}): overrides may only lower it"
         )
+        problems.append((("rig_overrides", "output_rate_hz"), above))
     elif output_rate_hz < low:
-        problems.append(
-            (
-                ("rig_overrides", "output_rate_hz"),
-                f"an output rate must be at least {low:g} Hz, got {output_rate_hz:g}",
-            )
-        )
+        below = f"an output rate must be at least {low:g} Hz, got {output_rate_hz:g}"
+        problems.append((("rig_overrides", "output_rate_hz"), below))
     if problems:
         return None, problems
-    simulator = dict(rig.joint_defaults.simulator)
-    simulator.update(joint.simulator)
+    simulator = {**rig.joint_defaults.simulator, **joint.simulator}
     spec = RigSpec(
         robot=rig.robot,
         joint=JointSpec(
@@ -357,20 +326,16 @@ def resolve_rig(
             board=rig.output_board,
             channel=joint.output_channel,
             rate_hz=output_rate_hz,
-            volts_range=out_board.volts_range,
             serial=out_board.serials[0] if out_board.serials else None,
-            report_time_s=out_board.report_time_s,
-            backend=out_board.backend,
+            **out_board.model_dump(include={"volts_range", "report_time_s", "backend"}),
         ),
         input=InputSpec(
             board=input_name,
             angle_channel=joint.angle_channel,
             torque_channel=joint.torque_channel,
-            rate_hz=in_board.rate_hz,
-            volts_range=in_board.volts_range,
             serials=list(overrides.input_serials or in_board.serials),
             dt9814_product_id=in_board.product_id,
-            backend=in_board.backend,
+            **in_board.model_dump(include={"rate_hz", "volts_range", "backend"}),
         ),
         calibration=over.calibration,
         safety=SafetySpec(**safety),

@@ -1,7 +1,7 @@
 """A plan trajectory sampled at the output rate: the samples a trial or calibration check commands.
 
 One function for the run (steps/trial.py, steps/calibration_check.py) and the plan-time envelope check
-(protocol/stream_check.py, protocol/trajectory_limits.py), so all of them see exactly the same samples:
+(protocol/stream_check.py), so all of them see exactly the same samples:
 one per output tick, t = 0, 1/rate, ... < duration_s.
 """
 

@@ -4,17 +4,14 @@ Nothing here names a campaign: factors, their levels and quantities, the device'
 trajectories are whatever the file declares (docs/protocol.md is the reference). Cross-field checks
 (levels that exist, bindings whose units match, ranges inside the joint's range, unique keys, ...) live in
 `protocol/validate.py` and `protocol/resolve.py` so that each error can name the exact field and line.
-
-In order: the strict base model and the shared field types; the resolved rig (rig file + joint +
-overrides, docs/protocol.md "Rig"); the factors (levels and their quantities, with units) and the device
-under test (its elements, per driven joint); the test matrix (sets of configurations, as explicit rows or
-as generators expanded by `protocol/generators.py`); the `report:` section; the calibration check,
-processing and fits; and the whole `Protocol`. The trajectory kinds are `protocol/trajectory_specs.py`.
+The trajectory kinds are `protocol/trajectory_specs.py`.
 """
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 from typing import Annotated, Any, Literal
 
 from pydantic import (
@@ -33,8 +30,6 @@ from pydantic import (
 from protocol_runner.protocol.expectations import ExpectationSpec, RepeatabilitySpec
 from protocol_runner.protocol.trajectory_specs import RampedStepFields, TrajectorySpec, holds_trajectories
 from protocol_runner.protocol.units import compound_unit_problem, known_suffixes, unit_suffix
-
-# -------------------------------------------------------------------------------------------- base
 
 
 def _int_to_str(value: object) -> object:
@@ -75,10 +70,6 @@ RangePair = Annotated[tuple[float, float], BeforeValidator(_as_tuple), AfterVali
 """[low, high] with low < high."""
 
 
-# --------------------------------------------------------------------------------------------- rig
-# The resolved rig (rig file + joint + rig_overrides, protocol/rig_file.py): what `protocol.rig` returns.
-
-
 class JointSpec(_Model):
     name: Identifier
     description: str = ""
@@ -94,9 +85,8 @@ Backend = Literal["pyusb", "uldaq", "mcculw"]
 class OutputSpec(_Model):
     board: str
     channel: int = Field(ge=0)
-    rate_hz: float = Field(
-        gt=0, le=1000
-    )  # the protocol's output rate (the board's, or lowered by rig_overrides)
+    # the protocol's output rate (the board's, or lowered by rig_overrides)
+    rate_hz: float = Field(gt=0, le=1000)
     volts_range: RangePair = (-10.0, 10.0)
     serial: str | None = None
     report_time_s: float | None = Field(default=None, gt=0)  # one output report on the wire (rig file)
@@ -154,6 +144,8 @@ class WatchdogSpec(_Model):
 
 
 class RigSpec(_Model):
+    """A driven joint's resolved rig (rig file + joint + rig_overrides, protocol/rig_file.py)."""
+
     robot: str
     joint: JointSpec
     output: OutputSpec
@@ -191,8 +183,6 @@ class BoltTorque(_Model):
     bolts: str
     torque_ft_lb: float = Field(gt=0)
 
-
-# ----------------------------------------------------------------------------------------- factors
 
 RESERVED_LEVEL_KEYS = ("same_as", "description", "setup")
 Quantity = float | tuple[float, ...]
@@ -251,8 +241,6 @@ class LevelSpec(_Model):
 
 Factor = Annotated[dict[str, LevelSpec], BeforeValidator(_str_keys), Field(min_length=1)]
 
-# ------------------------------------------------------------------------------------------- device
-
 
 class ElementSpec(_Model):
     """One element of the device: `name`, `type` (models/element_types.py ELEMENT_TYPES) and its parameters,
@@ -300,8 +288,6 @@ class DeviceSpec(_Model):
             for i, el in enumerate(spec.elements)
         ]
 
-
-# ------------------------------------------------------------------------------------- test matrix
 
 RESERVED_CONFIGURATION_KEYS = ("key", "run", "trajectory", "trials", "description")
 MAX_KEY = 999_999  # a key or run number: ample, and an integer every archive attribute and MATLAB field holds
@@ -387,9 +373,6 @@ class SetSpec(_Model):
         return self
 
 
-# ------------------------------------------------------------------------------------------ report
-
-
 class ComparisonSpec(_Model):
     name: Identifier
     parameter: Identifier  # a declared factor, or "trajectory" (checked in validate.py)
@@ -446,9 +429,6 @@ class ReportSpec(_Model):
     repeatability: list[RepeatabilitySpec] = Field(default_factory=list)
 
 
-# ------------------------------------------------------------------------------- calibration check
-
-
 class CalibrationStepSpec(RampedStepFields[float], _Model):
     """The calibration check's move (a ramped step, thesis Appendix A "Calibration"), in numbers."""
 
@@ -461,9 +441,6 @@ class CalibrationCheckSpec(_Model):
     time_constant_s: RangePair
     max_drift_deg: float = Field(gt=0)
     max_time_constant_change_s: float = Field(gt=0)
-
-
-# ---------------------------------------------------------------------------------- processing, fits
 
 
 class TransitionSpec(_Model):
@@ -614,3 +591,26 @@ class Protocol(_Model):
 
 
 holds_trajectories(Protocol)  # rebuilt when a trajectory kind is registered
+
+
+# The protocol file's JSON Schema, for editors (docs/protocol.md "Editor set-up"): generated from the models
+# above, so it cannot drift from what `--validate` accepts field by field; cross-field checks are left to
+# `--validate`. A copy ships in the package; `run-protocol --schema` prints the same text.
+
+SCHEMA_FILE = Path(__file__).resolve().parent.parent / "schemas" / "protocol.schema.json"
+"""The schema as shipped with the package."""
+
+
+def protocol_json_schema() -> dict[str, Any]:
+    """The JSON Schema (draft 2020-12) of a protocol file."""
+    schema = Protocol.model_json_schema()
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "title": "protocol-runner campaign file",
+        **{k: v for k, v in schema.items() if k != "title"},
+    }
+
+
+def protocol_json_schema_text() -> str:
+    """The schema as the text shipped and printed (sorted keys, two-space indent, a final newline)."""
+    return json.dumps(protocol_json_schema(), indent=2, sort_keys=True, ensure_ascii=False) + "\n"

@@ -1,18 +1,9 @@
 """The protocol's trajectory kinds (`trajectories:` of a schema_version 2 protocol), and their registry.
 
-One pydantic model per kind, told apart by `kind` (a discriminated union of the registered kinds, unknown
-kinds and keys refused). Each kind's model declares everything about the kind in one place: its fields
-(which may be bound to factor quantities: `bindable`), how it becomes the plan's `Trajectory` (`build`),
-its samples at the output rate (`sample`) and its plan-time limit checks by field (`check_limits`, reported
-to `trajectory_limits.LimitCheck`). The
-kinds are registered in `TRAJECTORY_KINDS` (`register_trajectory_kind` adds one); docs/protocol.md
-describes each.
-
-A field typed `float | str` (or `RangePair | str`) may be BOUND to a factor quantity: a string
-`"<factor>.<quantity>"` takes the value of that quantity in each configuration's level.
-`trajectory_bindings` lists them; `build_trajectory` takes their resolved values. Every other field is a
-constant. Numbers are finite (no .inf / .nan); times and speeds are positive.
-
+One pydantic model per kind, told apart by `kind`, declares everything about the kind (docs/architecture.md
+"a trajectory kind"); `TRAJECTORY_KINDS` registers them. A field typed `float | str` (or `RangePair | str`)
+may be BOUND to a factor quantity: a string `"<factor>.<quantity>"` takes the value of that quantity in each
+configuration's level (`trajectory_bindings` lists them; `build_trajectory` takes their resolved values).
 `per_joint` is not a motion of its own: it gives each joint of a multi-joint protocol one of the kinds.
 """
 
@@ -55,21 +46,15 @@ Fields = Mapping[str, Quantity | None]
 
 
 class LimitReport(Protocol):
-    """What a kind's `check_limits` reports to (`trajectory_limits.LimitCheck`): each call names the
-    protocol FIELD that sets the value, so that the message says what to change."""
+    """What a kind's `check_limits` reports to (`stream_check.LimitCheck`), each call naming the protocol
+    FIELD that sets the value; `problems` holds (field, message) of every limit broken so far."""
 
     def range(self, field: str, lo: float, hi: float, what: str = "") -> None: ...
-
     def rate(self, field: str, value: float, what: str) -> None: ...
-
     def accel(self, field: str, value: float, what: str) -> None: ...
-
     def samples(self, field: str) -> None: ...
-
     @property
-    def problems(self) -> list[tuple[str, str]]:
-        """(field, message) of every limit broken so far."""
-        ...
+    def problems(self) -> list[tuple[str, str]]: ...
 
 
 BINDING_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_\-]*\.[A-Za-z][A-Za-z0-9_]*$")

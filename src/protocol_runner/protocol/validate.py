@@ -1,12 +1,5 @@
-"""Cross-field checks of a protocol that the schema alone cannot express.
-
-Each check returns (location, message) pairs so the loader can name the file line of the offending field.
-Checks: factor levels and their aliases; every configuration's factors, levels and trajectory exist;
-bindings and the device's and trajectories' joints (protocol/resolve.py); range quantities inside the
-joint's range; range-of-motion stops that hold the park angle; keys, run numbers and names unique;
-referenced files inside the protocol's folder, present and loadable; one tick's output reports within the
-tick (`output_budget`); every motion's commanded stream inside the joint's envelope (stream_check.py); a
-trajectory no configuration uses, as far as it can be built without one.
+"""Cross-field checks of a protocol that the schema alone cannot express (docs/protocol.md "What is
+checked"); each returns (location, message) pairs so the loader can name the file line of the field.
 
 A campaign of one joint (`joint:`) is a campaign whose only driven joint is that joint: the motion checks
 iterate over the driven joints, each on its own view of the protocol (its rig, range and safety limits),
@@ -20,7 +13,7 @@ import math
 import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 from ..errors import InvalidInput
 from ..models.element_types import ELEMENT_TYPES
@@ -35,14 +28,15 @@ from .resolve import (
     joints_named,
     resolve_settings,
 )
-from .schema import CalibrationStepSpec, Protocol
+from .schema import CalibrationStepSpec, ConfigurationSpec, Protocol
 from .settings import ElementSetting
+from .stream_check import check_streams, safety_limits, trajectory_limit_problems
 from .trajectory_record import Trajectory
+from .trajectory_specs import FileSpec, PerJointSpec, build_trajectory, joint_spec, trajectory_bindings
 
 if TYPE_CHECKING:
-    from .loaded import LoadedProtocol, Loc
+    from .loaded import LoadedProtocol, Loc, Problem
 
-Problem = tuple["Loc", str]
 Motion = tuple["Loc", str, Trajectory]
 
 TRAJECTORY_PARAMETER = "trajectory"
@@ -80,8 +74,6 @@ def _check_motions(loaded: LoadedProtocol, check_files: bool, generated: dict[Lo
     rate and acceleration, and as complete commanded streams (approach from its park angle, exit, a stop
     after any sample), on that joint's view of the protocol. A configuration's problems that share a
     location and message are one line naming the configurations."""
-    from .stream_check import check_streams
-
     p = loaded.protocol
     per_joint = not isinstance(p.calibration_step, CalibrationStepSpec)
     motions: dict[str, list[Motion]] = {}
@@ -91,14 +83,16 @@ def _check_motions(loaded: LoadedProtocol, check_files: bool, generated: dict[Lo
             (("calibration_step", *((j,) if per_joint else ())), what, calibration_trajectory(p, j))
         ]
     per_configuration: dict[tuple[Loc, str], list[tuple[str, int]]] = {}
-    for loc, message, item in _resolve_configurations(loaded, check_files):
-        if message:
-            set_index, key = item
-            where = generated.get(loc[:4], loc)
-            per_configuration.setdefault((where, message), []).append((p.sets[set_index].name, key))
-        else:
-            joint, motion = item
-            motions[joint].append(motion)
+    for i, s in enumerate(p.sets):
+        for row, cfg in enumerate(s.configurations):
+            loc: Loc = ("sets", i, "configurations", row)
+            found, built = _configuration_motion(loaded, cfg, loc, check_files)
+            for where, message in found:
+                where = generated.get(where[:4], where)
+                per_configuration.setdefault((where, message), []).append((s.name, cfg.key))
+            for joint, traj in built:
+                what = f"configuration {cfg.key}" + (f", joint {joint}" if p.multi_joint else "")
+                motions[joint].append((loc, what, traj))
     all_keys = {c.key for _, c in p.configurations()}
     problems = [
         (loc, f"{message} ({_which_configurations(where, all_keys)})")
@@ -173,10 +167,6 @@ def _which_configurations(where: list[tuple[str, int]], all_keys: set[int]) -> s
 def _limit_problems(loaded: LoadedProtocol, motions: list[Motion], joint: str = "") -> list[Problem]:
     """The field of the trajectory (or of the calibration step) that breaks a limit, once per message
     (`joint`: of a multi-joint protocol, whose `loaded` is that joint's view)."""
-    from .stream_check import safety_limits
-    from .trajectory_limits import trajectory_limit_problems
-    from .trajectory_specs import joint_spec, trajectory_bindings
-
     p = loaded.protocol
     limits = safety_limits(p.rig)
     out: dict[tuple[Loc, str], list[tuple[str, int]]] = {}
@@ -282,35 +272,27 @@ def _check_matrix(p: Protocol) -> Iterator[Problem]:
                 yield (*loc, "trajectory"), f"unknown trajectory {cfg.trajectory!r} (known: {known})"
 
 
-def _resolve_configurations(loaded: LoadedProtocol, check_files: bool) -> Iterator[tuple[Loc, str, Any]]:
-    """Per configuration: (location, message, (set index, key)) for a problem, or, per driven joint,
-    (location, "", (joint, motion))."""
+def _configuration_motion(
+    loaded: LoadedProtocol, cfg: ConfigurationSpec, loc: Loc, check_files: bool
+) -> tuple[list[Problem], tuple[tuple[str, Trajectory], ...]]:
+    """A configuration's problems (its bindings, a park angle against a stop it carries, its motion), and
+    its motion per driven joint when that could be built."""
     p = loaded.protocol
-    for i, s in enumerate(p.sets):
-        for j, cfg in enumerate(s.configurations):
-            loc: Loc = ("sets", i, "configurations", j)
-            which = (i, cfg.key)
-            try:
-                st = resolve_settings(p, cfg)
-            except BindingError as exc:
-                yield exc.loc, exc.message, which
-                continue
-            for joint in p.driven_joints:
-                for message in _park_against_stops(p, joint, st.device_of(joint)):
-                    yield loc, message, which
-            if p.profile_of(cfg) == "file" and not check_files:
-                continue
-            try:
-                per_joint = configuration_motion(loaded, cfg, st)
-            except BindingError as exc:
-                yield exc.loc, exc.message, which
-                continue
-            except InvalidInput as exc:
-                yield (*loc, "trajectory"), _relative_message(exc.message, loaded.base_dir), which
-                continue
-            for joint, traj in per_joint:
-                what = f"configuration {cfg.key}" + (f", joint {joint}" if p.multi_joint else "")
-                yield loc, "", (joint, (loc, what, traj))
+    try:
+        st = resolve_settings(p, cfg)
+    except BindingError as exc:
+        return [(exc.loc, exc.message)], ()
+    found = [
+        (loc, m) for joint in p.driven_joints for m in _park_against_stops(p, joint, st.device_of(joint))
+    ]
+    if p.profile_of(cfg) == "file" and not check_files:
+        return found, ()
+    try:
+        return found, configuration_motion(loaded, cfg, st)
+    except BindingError as exc:
+        return [*found, (exc.loc, exc.message)], ()
+    except InvalidInput as exc:
+        return [*found, ((*loc, "trajectory"), _relative_message(exc.message, loaded.base_dir))], ()
 
 
 def _park_against_stops(p: Protocol, joint: str, elements: tuple[ElementSetting, ...]) -> Iterator[str]:
@@ -378,17 +360,10 @@ def unused_trajectories(p: Protocol) -> list[str]:
 
 
 def _check_unused_trajectories(loaded: LoadedProtocol, check_files: bool) -> Iterator[Problem]:
-    """A trajectory that no configuration uses never runs, yet it is part of the protocol and the session
-    stores its file: each of its entries whose fields are all constants is built for every driven joint as
-    a configuration would build it (a file inside the protocol's folder, present, readable, with the
-    joint's angle column; a triangle's speed reachable within its range; ...) and checked field by field
-    against the joint's range, rate and acceleration, located at the entry (a file's build problems at
-    its `file`). An entry with a bound field needs a configuration's levels: its bindings are checked
-    with every other (`check_bindings`)."""
-    from .stream_check import safety_limits
-    from .trajectory_limits import trajectory_limit_problems
-    from .trajectory_specs import FileSpec, PerJointSpec, build_trajectory, joint_spec, trajectory_bindings
-
+    """A trajectory that no configuration uses (docs/protocol.md "What is checked"): each of its entries
+    whose fields are all constants is built for every driven joint as a configuration would build it and
+    checked field by field, located at the entry (a file's build problems at its `file`). An entry with a
+    bound field needs a configuration's levels: its bindings are checked with every other."""
     p = loaded.protocol
     found: dict[Problem, list[str]] = {}  # -> the joints it was built for ("" for a per_joint entry)
     for name in unused_trajectories(p):

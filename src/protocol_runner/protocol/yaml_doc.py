@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Iterator, Sequence
-from typing import Any, get_origin
+from typing import Any, TypeVar, get_args, get_origin
 
 import yaml
 from pydantic import BaseModel, ValidationError
@@ -30,20 +30,14 @@ class SafeLoader(yaml.SafeLoader):
     """`yaml.SafeLoader`, with numbers like `2e1` read as numbers (YAML 1.2)."""
 
 
-SafeLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_1_2, list("-+0123456789"))
+FAST_LOADER: Any = type("FastLoader", (yaml.CSafeLoader,), {}) if hasattr(yaml, "CSafeLoader") else None
+"""libyaml's safe loader when PyYAML was built with it (10-20x faster than the pure-Python one), with the
+same YAML 1.2 numbers. It reads a document exactly as `SafeLoader` does; a document it refuses is read
+again by the pure-Python loader, whose messages (and their line numbers) are the ones shown."""
 
-_C_LOADER: Any = getattr(yaml, "CSafeLoader", None)
-if _C_LOADER is not None:
-
-    class _FastLoader(_C_LOADER):
-        """libyaml's safe loader, with numbers like `2e1` read as numbers (YAML 1.2)."""
-
-    _FastLoader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_1_2, list("-+0123456789"))
-
-FAST_LOADER: Any = _FastLoader if _C_LOADER is not None else None
-"""libyaml's safe loader when PyYAML was built with it (10-20x faster than the pure-Python one). It reads a
-document exactly as `yaml.SafeLoader` does; a document it refuses is read again by the pure-Python loader,
-whose messages (and their line numbers) are the ones shown."""
+for _loader in (SafeLoader, FAST_LOADER):
+    if _loader is not None:
+        _loader.add_implicit_resolver("tag:yaml.org,2002:float", _FLOAT_1_2, list("-+0123456789"))
 
 
 def parse_yaml(text: str, shown: str) -> tuple[Any, dict[Loc, int]]:
@@ -102,26 +96,37 @@ it in the units its field names (rates are at most tens of kHz, times hours, key
 bound keeps every later computation (a squared speed, a sample count) finite."""
 
 
-def huge_numbers(document: object) -> list[tuple[Loc, str]]:
+def _huge_numbers(document: object) -> list[tuple[Loc, str]]:
     """The first number beyond `MAX_MAGNITUDE` in the document, as a problem at its place (checked after
     the schema, whose own bound on a field, where it has one, is the clearer message)."""
     for loc, value in _scalars(document):
         if isinstance(value, int | float) and not isinstance(value, bool) and abs(value) > MAX_MAGNITUDE:
-            text = str(value)
-            shown = (
-                f"{value:.6g}"
-                if isinstance(value, float)
-                else text
-                if len(text) <= 15
-                else f"a {len(text)}-digit number"
-            )
+            text = f"{value:.6g}" if isinstance(value, float) else str(value)
+            shown = text if len(text) <= 15 else f"a {len(text)}-digit number"
             return [
                 (
                     loc,
-                    f"{shown} is beyond the {MAX_MAGNITUDE:.0e} any number of a campaign may be (check its unit and exponent)",
+                    f"{shown} is beyond the {MAX_MAGNITUDE:.0e} any number of a campaign may be (check its "
+                    "unit and exponent)",
                 )
             ]
     return []
+
+
+Model = TypeVar("Model", bound=BaseModel)
+
+
+def validated(model: type[Model], data: object, shown: str, lines: dict[Loc, int]) -> Model:
+    """`data` validated as `model`, then refused where it gives a boolean for a number or a number beyond
+    `MAX_MAGNITUDE`; InvalidInput naming `shown`, the line and the field."""
+    try:
+        out = model.model_validate(data)
+    except ValidationError as exc:
+        raise InvalidInput(format_problems(shown, lines, validation_problems(exc, model))) from None
+    problems = boolean_numbers(out, data) or _huge_numbers(data)
+    if problems:
+        raise InvalidInput(format_problems(shown, lines, problems))
+    return out
 
 
 def _escaped(text: str) -> str:
@@ -327,3 +332,74 @@ def _model_in(annotation: Any) -> Any:
         if found is not None:
             return found
     return None
+
+
+# Booleans where the schema wants numbers: YAML reads `yes`, `no`, `on`, `off`, `true` and `false` as booleans,
+# and pydantic takes one for 1 or 0 in a number field (`periods: yes` became 1 period). After a file validates,
+# `boolean_numbers` walks the validated model beside the file's data and names every number field (alone, or
+# an item of its list or mapping) the file gave a boolean. Fields that may hold a boolean are left alone.
+
+BOOLEAN_MESSAGE = "expected a number, got {value!r} (YAML reads yes, no, on, off, true and false as booleans)"
+
+
+def boolean_numbers(model: BaseModel, data: object, loc: Loc = ()) -> list[tuple[Loc, str]]:
+    """(location, message) of every number field of `model` (and of the models inside it) that `data`,
+    the mapping it was validated from, gives as a boolean."""
+    if not isinstance(data, dict):
+        return []
+    out: list[tuple[Loc, str]] = []
+    for name, field in type(model).model_fields.items():
+        key = field.alias or name
+        if key not in data:
+            continue
+        raw, value, here = data[key], getattr(model, name), (*loc, key)
+        if _numbers_not_booleans(field.annotation):
+            out += [(where, BOOLEAN_MESSAGE.format(value=b)) for where, b in _booleans(raw, here)]
+        else:
+            out += _inside(value, raw, here)
+    return out
+
+
+def _inside(value: object, raw: object, loc: Loc) -> list[tuple[Loc, str]]:
+    """The models held by a field's value (a model, or a list or mapping of them), each against its data."""
+    if isinstance(value, BaseModel):
+        return boolean_numbers(value, raw, loc)
+    out: list[tuple[Loc, str]] = []
+    if isinstance(value, list | tuple) and isinstance(raw, list) and len(raw) == len(value):
+        for i, (v, r) in enumerate(zip(value, raw, strict=True)):
+            out += _inside(v, r, (*loc, i))
+    elif isinstance(value, dict) and isinstance(raw, dict):
+        by_text = {str(k): k for k in raw}
+        for k, v in value.items():
+            if str(k) in by_text:
+                out += _inside(v, raw[by_text[str(k)]], (*loc, str(k)))
+    return out
+
+
+def _booleans(raw: object, loc: Loc) -> list[tuple[Loc, bool]]:
+    if isinstance(raw, bool):
+        return [(loc, raw)]
+    if isinstance(raw, list):
+        return [((*loc, i), v) for i, v in enumerate(raw) if isinstance(v, bool)]
+    if isinstance(raw, dict):
+        return [((*loc, str(k)), v) for k, v in raw.items() if isinstance(v, bool)]
+    return []
+
+
+def _kinds(annotation: object) -> set[object]:
+    """The plain types an annotation is made of (through unions, Annotated, containers; a Literal's
+    booleans count as bool)."""
+    out: set[object] = {annotation} if isinstance(annotation, type) or annotation is Any else set()
+    if isinstance(annotation, bool):
+        out.add(bool)
+    for arg in get_args(annotation):
+        out |= _kinds(arg)
+    return out
+
+
+def _numbers_not_booleans(annotation: object) -> bool:
+    """Whether a field of this annotation holds plain numbers (no booleans, no models, nothing at all)."""
+    kinds = _kinds(annotation)
+    if kinds & {bool, Any, object} or any(isinstance(k, type) and issubclass(k, BaseModel) for k in kinds):
+        return False
+    return bool(kinds & {float, int})

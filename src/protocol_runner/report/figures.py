@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
+from matplotlib import rc_context
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
@@ -62,33 +63,45 @@ as fractions of the figure). "single" and "double" leave the figure's right part
 (`legend`), outside the data; "bars" has none."""
 
 
+GRID_LINEWIDTH = 0.4
+GRID_ALPHA = 0.5
+TICK_LABEL_SIZE = 7.0
+
+
 def new_figure(kind: str) -> tuple[Figure, list[Axes]]:
-    """A new figure of the layout `kind` (`LAYOUTS`) and its axes, each with at most five tick intervals."""
+    """A new figure of the layout `kind` (`LAYOUTS`) and its axes (`new_axes`)."""
     width_in, height_in, rects = LAYOUTS[kind]
     fig = Figure(figsize=(width_in, height_in), dpi=DPI)
-    axes = [fig.add_axes(rect) for rect in rects]
-    for ax in axes:
-        ax.xaxis.set_major_locator(MaxNLocator(nbins=5))
-        ax.yaxis.set_major_locator(MaxNLocator(nbins=5))
-    return fig, axes
+    return fig, [new_axes(fig, rect, 5) for rect in rects]
+
+
+def new_axes(fig: Figure, rect: tuple[float, float, float, float], nbins: int) -> Axes:
+    """Axes of `fig` at `rect` with at most `nbins` tick intervals, a light grid and small tick labels, set
+    before any tick is made so that each is made with them (a figure may still size its own tick labels)."""
+    ax = fig.add_axes(rect)
+    ax.xaxis.set_major_locator(MaxNLocator(nbins=nbins))
+    ax.yaxis.set_major_locator(MaxNLocator(nbins=nbins))
+    ax.grid(True, linewidth=GRID_LINEWIDTH, alpha=GRID_ALPHA)
+    ax.tick_params(labelsize=TICK_LABEL_SIZE)
+    return ax
 
 
 def to_data_uri(fig: Figure) -> str:
     """Encode `fig` as a PNG data URI at the report's resolution (deterministic: no timestamp or software
     tag in the PNG; zlib level 1, which writes the flat plot images several times faster than the default
-    level for a slightly larger file)."""
+    level for a slightly larger file). Text is drawn without FreeType's hinting, as matplotlib's own image
+    tests draw it: the same pixels whatever the FreeType version, and text costs less to draw."""
     buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None}, pil_kwargs={"compress_level": 1})
+    with rc_context({"text.hinting": "no_hinting"}):
+        fig.savefig(buf, format="png", dpi=DPI, metadata={"Software": None}, pil_kwargs={"compress_level": 1})
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
 
 
 def style(ax: Axes, xlabel: str, ylabel: str, title: str | None = None) -> None:
-    """Axis labels, a small title just above the axes, a light grid and small tick labels."""
+    """Axis labels and a small title just above the axes (the grid and tick labels: `new_axes`)."""
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title or "", fontsize=8.5, y=1.01)
-    ax.grid(True, linewidth=0.4, alpha=0.5)
-    ax.tick_params(labelsize=7.0)
 
 
 def empty(ax: Axes, text: str) -> None:
@@ -170,10 +183,7 @@ def new_grid(n_panels: int, columns: int) -> tuple[Figure, list[Axes]]:
             (panel_w - left - right) / width_in,
             (panel_h - bottom - top) / height_in,
         )
-        ax = fig.add_axes(rect)
-        ax.xaxis.set_major_locator(MaxNLocator(nbins=4))
-        ax.yaxis.set_major_locator(MaxNLocator(nbins=4))
-        axes.append(ax)
+        axes.append(new_axes(fig, rect, 4))
     return fig, axes
 
 

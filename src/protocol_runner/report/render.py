@@ -16,7 +16,8 @@ import math
 import os
 import re
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -90,7 +91,21 @@ def generate_report(
         data = dataclasses.replace(data, references=(*data.references, ref))
     if output is None:
         output = Path(data.session.archive_path).parent / "report.html"
-    return render_report(data, Path(output), workers=workers)
+    from protocol_runner.report.predictions import predictions  # the compiled model: only run here
+
+    archive = Path(data.session.archive_path)
+    # the predictions (read from the archive, checked above) are made on a process of their own while the
+    # figures are drawn; made here instead when no process can be started
+    with ProcessPoolExecutor(1) as aside:
+        made = aside.submit(predictions, archive, data.protocol_text)
+
+        def predicted() -> tuple[Prediction, ...]:
+            try:
+                return made.result()
+            except BrokenProcessPool:
+                return predictions(archive, data.protocol_text)
+
+        return render_report(data, Path(output), workers=workers, predicted=predicted)
 
 
 def render_report(

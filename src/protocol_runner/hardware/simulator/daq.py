@@ -12,20 +12,16 @@ Signal path, mirroring the real rig (thesis §2.4-2.5), per joint:
 
 so that, after the rig applies its calibration tables, measured ≈ real. With no table the robot is linear.
 
-Several joints share one clock, one USB-3105 stand-in and one scan, and are simulated INDEPENDENTLY: each
-plant sees only its own channel's commands and its own device; no coupling through the leg's kinematic
-chain (thesis §1.3) is modelled. Every output write reaches every joint's model; each acts only on its own
-channel, at the write's time.
+Several joints share one clock, one USB-3105 stand-in and one scan, and are simulated independently: each
+plant acts only on its own channel's writes, at their time, and sees only its own device.
 
-Determinism: `SimulatedRig.begin_step(step_id, trial)` reseeds each joint's noise generator from
-sha256(joint seed, step id), draws the trial's friction spread from sha256(joint seed, trial), puts the
-joint at rest at the park angle and restarts the plant's time grid at the current clock. The joint seed is
-the session seed on a rig of one joint; on a rig of several each joint's is drawn from (session seed, joint
-name) (`joint_seed`), so the joints' noises are not copies of each other. The plant advances on a fixed grid
-whatever the pattern of reads, commands take effect from the first grid step at or after their write time,
-and noise is drawn row by row, so the same seed and step id give identical arrays however often the scan is
-read. (`realtime=True` paces with the wall clock; write times then jitter, so only simulated time is
-bit-for-bit reproducible.)
+Determinism (docs/simulator.md, "Determinism"): `SimulatedRig.begin_step(step_id, trial)` reseeds each
+joint's noise from sha256(joint seed, step id), draws the trial's friction spread from sha256(joint seed,
+trial), rests the joint at its park angle and restarts the plant's grid at the clock. The joint seed is the
+session seed on a rig of one joint, `joint_seed` of (session seed, joint name) on a rig of several. Fixed
+grid, commands from the first grid step at or after their write, noise drawn row by row: the same seed and
+step id give identical arrays however often the scan is read (in simulated time; `realtime=True` paces with
+the wall clock and its write times jitter).
 """
 
 from __future__ import annotations
@@ -48,15 +44,12 @@ from protocol_runner.hardware.conversions import (
     torque_to_volts,
     volts_to_angle,
 )
+from protocol_runner.hardware.interfaces import ScanBlock
 from protocol_runner.hardware.simulator.device import ComposedDevice
 from protocol_runner.hardware.simulator.kernels import GRID_TOL, ROLE_ANGLE, ROLE_TORQUE
-from protocol_runner.hardware.simulator.output import (
-    SimulatedAnalogOutput,
-    SimulatedClock,
-)
+from protocol_runner.hardware.simulator.output import SimulatedAnalogOutput, SimulatedClock, check_channel
 from protocol_runner.hardware.simulator.params import DEFAULT_PARAMS, SimulatorParams, trial_factors
 from protocol_runner.hardware.simulator.plant import JointPlant
-from protocol_runner.hardware.simulator.scan import SimulatedAnalogInput
 
 if TYPE_CHECKING:
     from protocol_runner.hardware.calibration import CalibrationTable
@@ -67,8 +60,19 @@ FloatArray = npt.NDArray[np.float64]
 
 
 _AI12 = (AI12_VOLTS_PER_CODE, AI12_MIN_CODE, AI12_MAX_CODE)
-"""The DT9814's 12-bit ±10 V two's-complement quantisation, as `plant.scan_rows` applies it."""
+"""The DT9814's 12-bit ±10 V two's-complement quantisation, as `kernels.scan_rows` applies it."""
 
+AI_CHANNELS = 24
+"""DT9814-10V: 24 analog inputs (thesis §2.3)."""
+AI_MAX_RATE_HZ = 50_000.0
+"""DT9814 maximum aggregate rate (thesis §2.3)."""
+TRANSFER_S = 1.0
+"""In simulated time the board hands its rows over in transfers of this much scan time, as a USB board
+hands over whole packets: a read before a transfer is complete returns no rows, `stop_scan` returns the
+rest. The rows do not depend on it (the plant is integrated on a fixed grid whatever the reads); it sets
+how many compiled calls a dry run makes: one per second of scan instead of one per read of the rig's loop
+(every 100 ms). In real time (`--realtime`) every row is handed over as soon as it is due
+(`SimulatedAnalogInput.transfer_s` = 0)."""
 NOISE_BLOCK = 8192
 """Standard normals drawn from the step's generator at a time; rows consume them in order, so the values a
 row gets do not depend on how the scan is read."""
@@ -116,32 +120,26 @@ class _RigModel:
         self._output_channel = joint.output_channel
         self._inv_dt = 1.0 / params.plant_step_s
         self.channels = (joint.angle_input_channel, joint.torque_input_channel)
-        self.command_nonlinearity: CalibrationTable | None = (
-            joint.command_table.inverse() if joint.command_table is not None else None
-        )
-        self.angle_nonlinearity: CalibrationTable | None = (
-            joint.angle_table.inverse() if joint.angle_table is not None else None
-        )
-        self.torque_nonlinearity: CalibrationTable | None = (
-            joint.torque_table.inverse() if joint.torque_table is not None else None
+        # the robot's own nonlinearities: the inverses of the protocol's calibration tables
+        command_nl, angle_nl, torque_nl = (
+            None if t is None else t.inverse()
+            for t in (joint.command_table, joint.angle_table, joint.torque_table)
         )
         # What the robot does with each of the 65536 output codes: code -> volts (USB-3105) -> Eq 2 over the
         # joint range -> the robot's own nonlinearity (inverse of the command table). Tabulated once, so a
         # write costs a look-up.
         input_deg = volts_to_angle(ao16_code_to_volts(np.arange(65536)), self.range_deg)
-        if self.command_nonlinearity is not None:
-            input_deg = self.command_nonlinearity(input_deg)
+        if command_nl is not None:
+            input_deg = command_nl(input_deg)
         self.target_by_code = np.ascontiguousarray(input_deg, dtype=np.float64)
         # The sensor chains, real value -> the robot's sensor nonlinearity (inverse of the protocol's output
         # table) -> Eq 1 / Eq 3 inverted -> volts, are piecewise linear: tabulate them on the table's knots
         # (plus two far knots that carry the tables' linear extrapolation) so a read costs one np.interp.
-        self.angle_knots, self.angle_knot_volts = self._sensor_chain(
-            self.angle_nonlinearity, self.range_deg, lambda x: angle_to_volts(x, self.range_deg)
+        angle_chain = self._sensor_chain(
+            angle_nl, self.range_deg, lambda x: angle_to_volts(x, self.range_deg)
         )
-        self.torque_knots, self.torque_knot_volts = self._sensor_chain(
-            self.torque_nonlinearity,
-            self.torque_range_nm,
-            lambda x: torque_to_volts(x, self.torque_range_nm),
+        torque_chain = self._sensor_chain(
+            torque_nl, self.torque_range_nm, lambda x: torque_to_volts(x, self.torque_range_nm)
         )
         volts_span = 20.0
         self.angle_noise_v = params.angle_noise_deg * volts_span / (self.range_deg[1] - self.range_deg[0])
@@ -151,13 +149,10 @@ class _RigModel:
         self._sensors = (
             np.zeros(0, dtype=np.int64),
             np.zeros(0, dtype=np.float64),
-            self.angle_knots,
-            self.angle_knot_volts,
-            self.torque_knots,
-            self.torque_knot_volts,
+            *angle_chain,
+            *torque_chain,
         )
         self._roles_key: tuple[int, ...] = ()
-        self._roles = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.float64))
         self.origin_s = 0.0
         self.step_id = ""
         self.rng = np.random.default_rng(step_seed(self.seed, ""))
@@ -195,8 +190,9 @@ class _RigModel:
         steps = np.ceil((t_s[mine] - self.origin_s) * self._inv_dt - GRID_TOL).astype(np.int64)
         self.plant.push_commands(steps, self.target_by_code[code[mine]])
 
-    def _scan_roles(self, channels: Sequence[int]) -> tuple[npt.NDArray[np.int64], FloatArray]:
-        """Per scanned channel: what it carries (0 nothing, 1 angle, 2 torque) and its noise in volts."""
+    def _scan_roles(self, channels: Sequence[int]) -> None:
+        """Per scanned channel, what it carries (0 nothing, 1 angle, 2 torque) and its noise in volts, into
+        the sensors record the kernel reads."""
         key = tuple(channels)
         if key != self._roles_key:
             roles = np.zeros(len(key), dtype=np.int64)
@@ -206,9 +202,8 @@ class _RigModel:
                     roles[j], scales[j] = ROLE_ANGLE, self.angle_noise_v
                 elif ch == self.joint.torque_input_channel:
                     roles[j], scales[j] = ROLE_TORQUE, self.torque_noise_v
-            self._roles_key, self._roles = key, (roles, scales)
+            self._roles_key = key
             self._sensors = (roles, scales, *self._sensors[2:])
-        return self._roles
 
     def _noise(self, count: int) -> FloatArray:
         """The next `count` standard normals of the step's stream (drawn from the generator in blocks)."""
@@ -231,9 +226,9 @@ class _RigModel:
         """Integrate up to `until_s` and return (times, codes, volts) of scan rows first_row .. + n_rows - 1
         (row i at t0 + i / rate) — the leading part of them whose grid step has been reached (all, unless
         the last ones fall after `until_s`). Codes and volts are the DT9814's (12-bit ±10 V:
-        `conversions.volts_to_ai12_code` / `ai12_code_to_volts`), computed in the plant's kernel."""
+        `conversions.ai12_code_to_volts`), computed in the plant's kernel."""
         self._output.deliver()  # the commands written so far
-        self._scan_roles(channels)  # refreshes self._sensors for this channel list
+        self._scan_roles(channels)
         n_ch = len(channels)
         noise = self._noise(n_rows * n_ch)
         t_s, codes, volts, any_nan = self.plant.scan(
@@ -247,6 +242,114 @@ class _RigModel:
             raise InvalidInput("cannot convert NaN volts to an analog input code")
         self._noise_pos += codes.shape[0] * n_ch
         return t_s, codes, volts
+
+
+class ScanState:
+    """A running hardware-paced scan: its channels, rate, start and rows handed out so far."""
+
+    def __init__(self, channels: tuple[int, ...], rate_hz: float, t0_s: float, transfer_rows: int) -> None:
+        self.channels = channels
+        self.rate_hz = rate_hz
+        self.t0_s = t0_s
+        self.transfer_rows = transfer_rows
+        self.rows_read = 0
+        self.empty = ScanBlock.empty(len(channels))
+
+    def rows_due(self, now_s: float) -> int:
+        """Rows acquired by `now_s` and not yet read (row i at t0 + i / rate; the first at t0)."""
+        n_due = math.floor((now_s - self.t0_s) * self.rate_hz + 1e-9) + 1
+        return max(0, n_due - self.rows_read)
+
+    def row_time_s(self, row: int) -> float:
+        """When row `row` was acquired (the plant kernel's arithmetic: t0 + row / rate)."""
+        return self.t0_s + row / self.rate_hz
+
+
+class SimulatedAnalogInput:
+    """A DT9814 stand-in: a hardware-paced scan of 12-bit ±10 V two's-complement codes. Reading it
+    integrates the simulated robot (lazily) up to the rows it hands over: the complete transfers
+    (`transfer_s`; in real time every row) acquired since the last read. Each joint's model fills its own
+    angle and torque columns; a channel no joint is wired to carries the first joint's idle-channel noise."""
+
+    def __init__(self, models: Sequence[_RigModel], clock: SimulatedClock) -> None:
+        self._models = tuple(models)
+        self._clock = clock
+        self._channels: tuple[int, ...] = ()
+        # per model reading this scan: its channels and their columns
+        self._plan: list[tuple[_RigModel, tuple[int, ...], list[int]]] = []
+        self._scan: ScanState | None = None
+        self.transfer_s = 0.0 if clock.realtime else TRANSFER_S
+        """Scan time per transfer, for the scans started from now on (0: every row as soon as it is due)."""
+
+    @property
+    def resolution_bits(self) -> int:
+        return 12
+
+    def start_scan(self, channels: Sequence[int], rate_hz: float) -> None:
+        if len(channels) == 0:
+            raise InvalidInput("DT9814 (simulated): a scan needs at least one channel")
+        chans = tuple(check_channel(c, AI_CHANNELS, "DT9814 (simulated)") for c in channels)
+        if not (math.isfinite(rate_hz) and 0.0 < rate_hz * len(chans) <= AI_MAX_RATE_HZ):
+            raise InvalidInput(
+                f"DT9814 (simulated): scan rate must be > 0 and at most {AI_MAX_RATE_HZ:g} samples/s over "
+                f"all channels, got {rate_hz!r} Hz x {len(chans)} channels"
+            )
+        self._channels = chans
+        owner = [next((m for m in self._models if c in m.channels), self._models[0]) for c in chans]
+        self._plan = [
+            (
+                m,
+                tuple(c for c, o in zip(chans, owner, strict=True) if o is m),
+                [i for i, o in enumerate(owner) if o is m],
+            )
+            for m in self._models
+            if m in owner
+        ]
+        transfer_rows = max(1, round(self.transfer_s * rate_hz))
+        self._scan = ScanState(chans, float(rate_hz), self._clock.now_s(), transfer_rows)
+
+    def _read(self, *, last: bool) -> ScanBlock:
+        """The rows due and not read yet: whole transfers only, unless this is the `last` read."""
+        scan = self._scan
+        if scan is None:
+            return ScanBlock.empty(len(self._channels))
+        n_rows = scan.rows_due(self._clock.now_s())
+        if not last:
+            n_rows -= n_rows % scan.transfer_rows
+        if n_rows <= 0:
+            return scan.empty
+        until_s = scan.row_time_s(scan.rows_read + n_rows - 1)
+        parts = [
+            m.acquire(scan.t0_s, scan.rate_hz, scan.rows_read, n_rows, chans, until_s)
+            for m, chans, _ in self._plan
+        ]
+        if len(parts) == 1:  # one joint's model reads every column, in scan order
+            t_s, codes, volts = parts[0]
+        else:
+            rows = {p[1].shape[0] for p in parts}
+            if len(rows) != 1:
+                raise InvalidInput(
+                    "simulated joints on different integration grids (give them one plant_step_s)"
+                )
+            t_s = parts[0][0]
+            codes = np.zeros((rows.pop(), len(scan.channels)), dtype=np.int32)
+            volts = np.zeros(codes.shape, dtype=np.float64)
+            for (_, _, cols), (_, c, v) in zip(self._plan, parts, strict=True):
+                codes[:, cols] = c
+                volts[:, cols] = v
+        scan.rows_read += codes.shape[0]
+        return ScanBlock(t_s=t_s, codes=codes, volts=volts)
+
+    def read_available(self) -> ScanBlock:
+        return self._read(last=False)
+
+    def stop_scan(self) -> ScanBlock:
+        block = self._read(last=True)
+        self._scan = None
+        return block
+
+    def close(self) -> None:
+        self._scan = None
 
 
 class SimulatedRig:

@@ -18,6 +18,7 @@ a speed source, docs/simulator.md).
 from __future__ import annotations
 
 import math
+from collections import defaultdict
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -80,22 +81,13 @@ def compose(
         for e in static:
             table = table + static_torque_nm(e, angles)
         table = np.ascontiguousarray(table, dtype=np.float64)
-    groups: dict[tuple[float, float, float], float] = {}
+    smoothing = ("transition_deg", "static_excess_ratio", "stribeck_speed_deg_s")
+    groups: dict[tuple[float, ...], float] = defaultdict(float)
     for e in elements:
         if e.type == "coulomb_brake":
-            key = (
-                e.number("transition_deg"),
-                e.number("static_excess_ratio"),
-                e.number("stribeck_speed_deg_s"),
-            )
-            groups[key] = groups[key] + e.number("torque_nm") if key in groups else e.number("torque_nm")
-    brakes = np.zeros((len(groups), N_BRAKE_COLS), dtype=np.float64)
-    for row, ((transition, excess, speed), torque) in enumerate(groups.items()):
-        brakes[row] = (torque, transition, excess, speed)
-    damping = 0.0
-    for e in elements:
-        if e.type == "viscous_damper":
-            damping += e.number("damping_nm_s_per_deg")
+            groups[tuple(e.number(k) for k in smoothing)] += e.number("torque_nm")
+    brakes = np.array([(t, *key) for key, t in groups.items()], dtype=np.float64).reshape(-1, N_BRAKE_COLS)
+    damping = sum((e.number("damping_nm_s_per_deg") for e in elements if e.type == "viscous_damper"), 0.0)
     stops_el = _single(elements, "rom_stops")
     stops = None
     if stops_el is not None:

@@ -3,8 +3,7 @@ and the input board's quantisation, in one call per scan read. The physics they 
 in `plant.py` (and docs/simulator.md); `JointPlant` holds their state and calls them.
 
 Kernels take records, not long argument lists: the joint `(state, istate, parameters, angle table,
-brakes, brake states)`,
-the command history, a scan's `timing` (float64) and `rows` (int64) arrays read through the named
+brakes, brake states)`, the command history, a scan's `timing` (float64) and `rows` (int64) arrays read through the named
 index constants below, the sensor chain and the ADC.
 
 They release the GIL (`nogil=True`): while the main thread simulates, the process's other threads (the
@@ -209,43 +208,11 @@ def integrate(
     return j
 
 
-ROLE_NONE = 0
 ROLE_ANGLE = 1
 ROLE_TORQUE = 2
 GRID_TOL = 1e-6
 """Grid rounding tolerance, in grid steps: absorbs the float error of (t - origin) / dt so that a write or
 a sample exactly on a grid point lands on it whatever the clock's absolute value."""
-
-
-@njit(cache=CACHE, nogil=True)
-def telemetry_volts(
-    angle_deg: FloatArray,
-    torque_nm: FloatArray,
-    roles: IntArray,
-    noise_v: FloatArray,
-    angle_knots: FloatArray,
-    angle_knot_volts: FloatArray,
-    torque_knots: FloatArray,
-    torque_knot_volts: FloatArray,
-    noise: FloatArray,
-) -> FloatArray:
-    """Volts on each scanned channel (row-major, n × channels): the sensor chain of the channel's role,
-    tabulated piecewise linear (angle or torque -> volts), plus `noise_v[j]` × the flat standard-normal
-    `noise` (consumed row by row)."""
-    n = angle_deg.shape[0]
-    n_ch = roles.shape[0]
-    a_v = np.interp(angle_deg, angle_knots, angle_knot_volts)
-    t_v = np.interp(torque_nm, torque_knots, torque_knot_volts)
-    out = np.empty((n, n_ch), dtype=np.float64)
-    for i in range(n):
-        for j in range(n_ch):
-            v = noise_v[j] * noise[i * n_ch + j]
-            if roles[j] == ROLE_ANGLE:
-                v += a_v[i]
-            elif roles[j] == ROLE_TORQUE:
-                v += t_v[i]
-            out[i, j] = v
-    return out
 
 
 # A scan request handed to the compiled kernels: its times (float64) and its counts (int64), by index.
@@ -261,43 +228,6 @@ N_ROWS_REC = 4
 
 
 @njit(cache=CACHE, nogil=True)
-def integrate_rows(
-    joint: Joint, commands: Commands, timing: FloatArray, rows: IntArray, sensors: Sensors, noise: FloatArray
-) -> FloatArray:
-    """`integrate` up to grid step rows[R_STEP_END] for scan rows rows[R_FIRST] .. + rows[R_COUNT] - 1 of
-    a scan started at timing[T_START] at timing[T_RATE] (row i at t0 + i / rate, sampled on grid step
-    floor((t - origin) / dt)), then `telemetry_volts`. Returns the volts of the rows whose step was
-    reached (a leading part)."""
-    p = joint[2]
-    roles, noise_v, angle_knots, angle_knot_volts, torque_knots, torque_knot_volts = sensors
-    t0_s = timing[T_START]
-    origin_s = timing[T_ORIGIN]
-    rate_hz = timing[T_RATE]
-    first_row = rows[R_FIRST]
-    n_rows = rows[R_COUNT]
-    inv_dt = 1.0 / p[P_DT]
-    steps = np.empty(n_rows, dtype=np.int64)
-    for i in range(n_rows):
-        t = t0_s + (first_row + i) / rate_hz
-        k = math.floor((t - origin_s) * inv_dt + GRID_TOL)
-        steps[i] = k if k > 0 else 0
-    angle = np.empty(n_rows, dtype=np.float64)
-    torque = np.empty(n_rows, dtype=np.float64)
-    got = integrate(joint, commands, rows[R_N_CMD], rows[R_STEP_END], steps, angle, torque)
-    return telemetry_volts(
-        angle[:got],
-        torque[:got],
-        roles,
-        noise_v,
-        angle_knots,
-        angle_knot_volts,
-        torque_knots,
-        torque_knot_volts,
-        noise,
-    )
-
-
-@njit(cache=CACHE, nogil=True)
 def scan_rows(
     joint: Joint,
     commands: Commands,
@@ -307,19 +237,35 @@ def scan_rows(
     noise: FloatArray,
     adc: Adc,
 ) -> tuple[FloatArray, npt.NDArray[np.int32], FloatArray, bool]:
-    """`integrate_rows`, then what the input board makes of those volts, in the same compiled call (one
-    read of the scan costs one kernel call): each row's time t0 + i / rate, the ADC code
+    """One read of the scan in one compiled call: `integrate` up to grid step rows[R_STEP_END] for scan rows
+    rows[R_FIRST] .. + rows[R_COUNT] - 1 of a scan started at timing[T_START] at timing[T_RATE] (row i at
+    t0 + i / rate, sampled on grid step floor((t - origin) / dt)); each scanned channel's volts, the sensor
+    chain of its role tabulated piecewise linear (angle or torque -> volts) plus `noise_v[j]` × the flat
+    standard-normal `noise` (consumed row by row); then what the input board makes of them: the ADC code
     rint(V / volts_per_code) clamped to min_code..max_code (`adc` = (volts_per_code, min_code,
-    max_code)), and the code's volts code · volts_per_code — the same arithmetic as
-    `conversions.volts_to_ai12_code` / `ai12_code_to_volts`. Returns (t_s, codes, volts, any_nan); with
+    max_code)) and the code's volts code · volts_per_code (the DT9814's: `conversions.ai12_code_to_volts`).
+    Returns (t_s, codes, volts, any_nan) of the rows whose step was reached (a leading part); with
     any_nan the codes are meaningless (the caller raises)."""
+    p = joint[2]
+    roles, noise_v, angle_knots, angle_knot_volts, torque_knots, torque_knot_volts = sensors
     volts_per_code, min_code, max_code = adc
     t0_s = timing[T_START]
+    origin_s = timing[T_ORIGIN]
     rate_hz = timing[T_RATE]
     first_row = rows[R_FIRST]
-    raw = integrate_rows(joint, commands, timing, rows, sensors, noise)
-    got = raw.shape[0]
-    n_ch = raw.shape[1]
+    n_rows = rows[R_COUNT]
+    inv_dt = 1.0 / p[P_DT]
+    steps = np.empty(n_rows, dtype=np.int64)
+    for i in range(n_rows):
+        t = t0_s + (first_row + i) / rate_hz
+        step = math.floor((t - origin_s) * inv_dt + GRID_TOL)
+        steps[i] = step if step > 0 else 0
+    angle = np.empty(n_rows, dtype=np.float64)
+    torque = np.empty(n_rows, dtype=np.float64)
+    got = integrate(joint, commands, rows[R_N_CMD], rows[R_STEP_END], steps, angle, torque)
+    a_v = np.interp(angle[:got], angle_knots, angle_knot_volts)
+    t_v = np.interp(torque[:got], torque_knots, torque_knot_volts)
+    n_ch = roles.shape[0]
     t_s = np.empty(got, dtype=np.float64)
     codes = np.empty((got, n_ch), dtype=np.int32)
     volts = np.empty((got, n_ch), dtype=np.float64)
@@ -329,7 +275,11 @@ def scan_rows(
     for i in range(got):
         t_s[i] = t0_s + float(first_row + i) / rate_hz
         for j in range(n_ch):
-            v = raw[i, j]
+            v = noise_v[j] * noise[i * n_ch + j]
+            if roles[j] == ROLE_ANGLE:
+                v += a_v[i]
+            elif roles[j] == ROLE_TORQUE:
+                v += t_v[i]
             if math.isnan(v):
                 any_nan = True
                 codes[i, j] = 0

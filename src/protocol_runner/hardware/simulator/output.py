@@ -44,10 +44,6 @@ class SimulatedClock:
         elif t_s > self._now_s:
             self._now_s = float(t_s)
 
-    def advance(self, dt_s: float) -> None:
-        """Let `dt_s` seconds pass (jump, or sleep in real time)."""
-        self.sleep_until(self.now_s() + max(0.0, dt_s))
-
 
 def check_channel(channel: int, n_channels: int, board: str) -> int:
     if type(channel) is int and 0 <= channel < n_channels:

@@ -105,10 +105,9 @@ class SimulatorParams:
             value = getattr(self, f.name)
             if not (isinstance(value, int | float) and math.isfinite(value)):
                 raise InvalidInput(f"simulator parameter {f.name} must be a finite number, got {value!r}")
-        for name, value in ((f.name, getattr(self, f.name)) for f in fields(self)):
-            problem = bound_problem(name, value)
+            problem = bound_problem(f.name, value)
             if problem:
-                raise InvalidInput(f"simulator parameter {name} {problem}")
+                raise InvalidInput(f"simulator parameter {f.name} {problem}")
 
 
 # Where the work of a simulated trial grows with a parameter (steps per second, table entries), its range:

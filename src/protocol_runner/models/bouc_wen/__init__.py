@@ -32,13 +32,8 @@ Units and conventions:
 * The model depends only on the angle path, not on time (it is rate-independent); decimating smooth data
   for the fit keeps every sample's angle path and drops residuals only (see :func:`fit`).
 * The thesis centres each trial on (0, 0) before fitting (note under Table 4).  :func:`fit` does *not*
-  centre: the caller (the analysis pipeline) does, and the model is fitted to the samples exactly as given.
+  centre: the caller (the analysis pipeline) does.
 
-Fitting (§6.2.3, Figure 56, :mod:`.fitting`) minimises the squared difference between measured and
-simulated torque with ``scipy.optimize.least_squares`` and the analytic Jacobian (forward sensitivities,
-computed in the same numba pass as the torque), from the thesis's data-driven guess, an equation-error
-guess and quasi-random starts, keeping the best optimum (§6.2.5: the thesis fit "depends a lot on the
-initial conditions").  Evidence: ``rmse_refined_nm`` (4x finer integration), the convergence record of
-:class:`.records.BoucWenFit`, :func:`.fitting.cross_validate` and :mod:`.identifiability`.  What keeps the
-fits cheap, and the tolerances of its early stops, is in docs/analysis.md (Performance).
+Fitting (§6.2.3, Figure 56) is in :mod:`.fitting`: least squares with the analytic Jacobian from several
+starts, keeping the best optimum (§6.2.5: the thesis fit "depends a lot on the initial conditions").
 """

@@ -5,7 +5,7 @@ cross-validation (the trial is the unit)."""
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from typing import NamedTuple, ParamSpec, TypedDict, TypeVar, Unpack
 
@@ -43,12 +43,10 @@ _controller: ThreadpoolController | None = None
 
 
 def blas_single_threaded(fn: Callable[P, R]) -> Callable[P, R]:
-    """Run ``fn`` with every loaded BLAS at one thread, the caller's limits restored after.  The solver's
-    linear algebra on tall 8-column Jacobians is too little work per call to share between threads: a
-    multi-threaded BLAS spends each call handing work back and forth and, on a loaded machine,
-    oversubscribes the cores.  threadpoolctl limits the libraries at run time (environment variables such
-    as ``OPENBLAS_NUM_THREADS`` act only when a library loads); its one controller per process is made at
-    the first fit, after numpy and scipy have loaded their BLAS (finding the libraries takes milliseconds)."""
+    """Run ``fn`` with every loaded BLAS at one thread, the caller's limits restored after: the solver's
+    linear algebra on tall 8-column Jacobians is too little work per call to share between threads.  The
+    one threadpoolctl controller per process is made at the first fit, once numpy and scipy have loaded
+    their BLAS (environment variables such as ``OPENBLAS_NUM_THREADS`` act only when a library loads)."""
 
     @functools.wraps(fn)
     def wrapper(*args: P.args, **kwargs: P.kwargs) -> R:
@@ -75,10 +73,7 @@ class FitKeywords(TypedDict, total=False):
     scheme: str
 
 
-POLISH_FTOL = 1e-5
-"""The polish on the mid-size copy ends once a step lowers its cost by less than this fraction, as the last
-solve on the fitted samples does (``FINAL_FTOL``): cheaper than running to ``polish_tol``, and the
-RMSEs stay within 3e-5 relative of that on the knee dry run (docs/analysis.md)."""
+POLISH_FTOL = 1e-5  # the polish on the mid-size copy ends at this relative cost decrease (docs/analysis.md)
 
 
 @dataclass(frozen=True)
@@ -96,12 +91,10 @@ class FitOptions:
     polish: how many of the best short fits are refined to full convergence.
     scheme: ``"refined"`` (step-independent) or ``"eq23"`` (the thesis's literal recursion).
     polish_tol: step and gradient tolerance of the refinement.
-    polish_ftol: relative cost decrease that ends the polish on the mid-size copy (``None``: ``polish_tol``);
-        ``POLISH_FTOL`` by default, the early stop of the last solve that follows it (tolerance:
-        docs/analysis.md, tests/models/test_bouc_wen_same_numbers.py).
+    polish_ftol: relative cost decrease that ends the polish on the mid-size copy (``None``: ``polish_tol``).
     final_solve: False ends the refined scheme's fit with the polish on a mid-size copy that keeps the
         angle's turning points (:func:`.copies.turning_point_copy`) instead of a last solve on the fitted
-        samples: the held-out fits of :func:`.cross_validate` (tolerance in docs/analysis.md).
+        samples (the held-out fits of :func:`.cross_validate`).
     """
 
     starts: int = 4
@@ -165,20 +158,23 @@ def backbone_for(
     return None if factory is None else factory(indices)
 
 
-def thesis_start(x: FloatArray, y: FloatArray, seg: npt.NDArray[np.int64]) -> BoucWenParams:
-    """Figure 56 initial guess: A = 1, n = 1 and, for each Table 4 phase, the typical ``Psi`` obtained by
-    solving Eq 23 for ``Psi`` on every step where it is defined (``(A - dz/dx) / |z|^n``), then Eq 25.
+def _trials(
+    x: FloatArray, y: FloatArray, seg: npt.NDArray[np.int64]
+) -> Iterator[tuple[FloatArray, FloatArray]]:
+    """Each trial of the concatenated samples that has a step."""
+    for s in range(seg.size - 1):
+        if seg[s + 1] - seg[s] >= 2:
+            yield x[seg[s] : seg[s + 1]], y[seg[s] : seg[s + 1]]
 
-    The thesis averages; the median is used here so that noise on steep steps does not dominate.
-    """
+
+def thesis_start(x: FloatArray, y: FloatArray, seg: npt.NDArray[np.int64]) -> BoucWenParams:
+    """Figure 56 initial guess: A = 1, n = 1 and, for each Table 4 phase, the median (the thesis averages;
+    noise on steep steps must not dominate) ``Psi`` of Eq 23 solved for it on every step where it is
+    defined (``(A - dz/dx) / |z|^n``), then Eq 25."""
     A0, n0 = 1.0, 1.0
     psi = np.zeros(6)
     per_phase: list[list[FloatArray]] = [[] for _ in range(6)]
-    for s in range(seg.size - 1):
-        xs = x[seg[s] : seg[s + 1]]
-        ys = y[seg[s] : seg[s + 1]]
-        if xs.size < 2:
-            continue
+    for xs, ys in _trials(x, y, seg):
         phase = phase_of_samples(xs, ys)
         d = np.diff(xs)
         ok = (phase > 0) & (d != 0.0) & (ys[:-1] != 0.0)
@@ -201,11 +197,7 @@ def equation_error_start(
     linear least squares on a grid of n and keep the best."""
     rows: list[FloatArray] = []
     rhs: list[FloatArray] = []
-    for s in range(seg.size - 1):
-        xs = x[seg[s] : seg[s + 1]]
-        ys = y[seg[s] : seg[s + 1]]
-        if xs.size < 2:
-            continue
+    for xs, ys in _trials(x, y, seg):
         d = np.diff(xs)
         xi = xs[:-1]
         zi = ys[:-1]
@@ -383,8 +375,7 @@ def _solve_segments(segments: list[tuple[FloatArray, FloatArray]], options: FitO
 
 
 def fitted_params(segments: list[tuple[FloatArray, FloatArray]], options: FitOptions) -> BoucWenParams:
-    """The parameters :func:`_fit_segments` finds, without its record (uncertainties, errors on every
-    sample): what a held-out fit of :func:`.cross_validate` needs."""
+    """The parameters :func:`_fit_segments` finds, without its record: a held-out fit's."""
     solved = _solve_segments(segments, options)
     return solved.problem.params(solved.u)
 
@@ -435,24 +426,21 @@ def fit(
     The samples are fitted as given - no centring here (the thesis centres each trial on (0, 0) first,
     note under Table 4; do that before calling).  The recursion starts at ``z0 = torque_nm[0]``.
 
-    trials: lengths of consecutive trials making up ``x_deg``/``torque_nm`` (they must sum to its length);
-        each trial restarts the recursion at its own first torque, so concatenation adds no fake jump.
-        ``None`` means one trial.  :func:`fit_trials` takes a list of segments instead.
+    trials: lengths of consecutive trials making up ``x_deg``/``torque_nm`` (summing to its length), each
+        restarting the recursion at its own first torque; ``None``: one trial (:func:`fit_trials` takes a
+        list of segments).
     options: starts, initial, data_starts, bounds, seed, max_samples_per_trial (default 8000), polish and
         scheme (default ``"refined"``), see :class:`.FitOptions`.  With the refined scheme the integration
-        follows the angle between the kept samples (piecewise linear), so decimating smooth (already
-        filtered) data only drops residuals; with ``scheme="eq23"`` the explicit-Euler error grows with the
-        angle step.  RMSE and R^2 are always reported on every given sample, ``rmse_refined_nm`` too (4x
-        finer integration).
+        follows the angle between the kept samples, so decimating smooth data only drops residuals; with
+        ``scheme="eq23"`` the explicit-Euler error grows with the angle step.  RMSE and R^2 are on every
+        given sample.
 
     Procedure: every start gets a short trust-region solve (``scipy.optimize.least_squares``, analytic
     Jacobian, bounds) on a coarse copy of the data (at most 400 samples per trial); the best ``polish``
-    distinct ones are refined on the fitted samples and the lowest cost wins.  If the best start's recursion
-    stays bounded on the coarse copy but diverges on the decimated samples (explicit-Euler steps too long
-    for the loop: range-of-motion stops), the refinement runs on every sample instead.  A start whose
-    recursion diverges is first pulled toward a straight line of the loop's mean slope until it no longer
-    does.  Unstable parameter sets met during the solve are not errors: the simulated torque is held at
-    10x the data's torque scale from the divergence on, a large finite penalty.
+    distinct ones are refined on the fitted samples and the lowest cost wins (on every sample when the best
+    start's Eq 23 recursion diverges only on the decimated samples).  A start whose recursion diverges is
+    first pulled toward a straight line of the loop's mean slope until it no longer does; during the solve
+    a diverged torque is held at 10x the data's torque scale, a large finite penalty.
     """
     x = as_angle(x_deg)
     y = as_angle(torque_nm, "torque_nm")
@@ -489,12 +477,9 @@ def fit_trials(
     backbone_factory: instead of a polynomial, ``g`` given from outside and held fixed (e.g. the device's
         elastic elements, :class:`.backbone.FixedBackbone`), called with the indices of all the trials.
 
-    Decimation guard (``scheme="eq23"`` only; the refined integration does not depend on the sampling):
-    a loop on which the best start already diverges when decimated is polished on every
-    sample from the start (see :func:`fit`).  Where a fit on decimated samples does not carry over to every
-    sample (R^2 below FULL_REFIT_R2 or divergence, e.g. a range-of-motion stop that makes the loop nearly
-    vertical, where explicit Euler steps of a few degrees misbehave), the fit is redone on every sample and
-    the better of the two (by RMSE on every sample) is returned.
+    Decimation guard (``scheme="eq23"`` only): where a fit on decimated samples does not carry over to
+    every sample (R^2 below FULL_REFIT_R2 or divergence, e.g. at a range-of-motion stop), it is redone on
+    every sample and the better of the two (by RMSE on every sample) is returned.
     """
     checked = _validate_segments(segments)
     backbone = backbone_for(checked, range(len(checked)), backbone_degree, backbone_factory)
@@ -518,8 +503,7 @@ def fit_trials(
     )
 
 
-HELD_OUT_FTOL = 1e-5  # a held-out fit's polish (its last solve) ends once a step lowers its cost by less
-# than this fraction (tolerance of the held-out errors: docs/analysis.md, tests/models/test_bouc_wen_same_numbers.py)
+HELD_OUT_FTOL = 1e-5  # a held-out fit's polish ends at this relative cost decrease (docs/analysis.md)
 
 
 @blas_single_threaded
@@ -533,14 +517,12 @@ def cross_validate(
     """Leave-one-trial-out RMSE (N*m): for each trial, fit the others and predict the held-out trial from
     its own first torque.  Needs at least two trials.
 
-    Each held-out fit is a multi-start fit of its own (the Figure 56 and equation-error starts computed on
-    the other trials, plus ``starts`` quasi-random ones; options as in :func:`.fit_trials`): nothing
-    computed from the held-out trial enters it.  It ends with its polish (to a relative cost change of
-    ``HELD_OUT_FTOL``) on the mid-size copy of the other trials that keeps their angle's turning points
-    (:func:`.copies.turning_point_copy`), not with a last solve on the fitted samples: its held-out error
-    is within 1 % of the full procedure's (docs/analysis.md), at about a third of the cost.  A parameter
-    the other trials cannot determine (e.g. a Table 4 phase only the held-out trial visits) then stays
-    where the other trials leave it, and the held-out error shows it.
+    Each held-out fit is a multi-start fit of its own on the other trials (options as in
+    :func:`.fit_trials`): nothing computed from the held-out trial enters it.  It ends with its polish (to
+    ``HELD_OUT_FTOL``) on the mid-size copy of the other trials that keeps their angle's turning points,
+    not with a last solve on the fitted samples (within 1 % of the full procedure's held-out error,
+    docs/analysis.md).  A parameter only the held-out trial determines stays where the other trials leave
+    it, and the held-out error shows it.
 
     backbone_degree: as in :func:`.fit_trials`; each held-out fit then fits its backbone on the other
         trials too, and the held-out prediction is ``g(angle) + z``.

@@ -2,13 +2,10 @@
 Eq 23 recursion and the step-independent integration of Eq 20-22 described in :mod:`.schemes`, each with
 or without its forward sensitivities ``d z / d theta`` (theta = A, n, beta1..6).
 
-In this order: the pieces of the rate both schemes share (signs, Psi of Eq 22, ``|z|^n``, inlined), one
-Eq 23 step, the Heun substeps of the refined scheme along one straight piece of angle (without
-derivatives, and with them carried as eight scalars), and one loop over segments and samples
-(:func:`_sweep`, entered by :func:`kernel`) that serves both schemes with or without derivatives,
-selected by two flags.  The segments (trials) are integrated one after the other, each from its own
-starting torque.  numba compiles them once and caches them on disk; all compiled code
-is in this one file because numba's cache of a function does not notice a change in another file.
+One loop over segments and samples (:func:`_sweep`, entered by :func:`kernel`) serves both schemes with or
+without derivatives; the segments (trials) are integrated one after the other, each from its own starting
+torque.  All compiled code is in this one file: numba's cache of a function does not notice a change in
+another file.
 """
 
 from __future__ import annotations

@@ -87,11 +87,8 @@ class Problem:
         self.z = np.empty_like(x)
         self.nfev = 0
         self.diverged_at = -1
-        # During a solve every residual evaluation also computes the Jacobian (the sensitivity kernel gives
-        # the very same torque, bit for bit, in about 1.5 times the work of the torque alone); the solver
-        # asks for the Jacobian at the point it has just evaluated whenever it accepts a step, which then
-        # costs nothing; so do the start checks of its stabilisation (the one that passes is the solver's
-        # first evaluation).  Outside a solve (the checks between stages) residuals are the torque alone.
+        # During a solve every residual evaluation also computes the Jacobian (the same torque bit for bit,
+        # at 1.5 times the work), which the solver asks for at the point it has just evaluated.
         self.fused = False
         self._cached: tuple[FloatArray, FloatArray, FloatArray] | None = None  # u, Jacobian, residuals
 
@@ -160,11 +157,8 @@ class Problem:
     def stabilise(self, u: FloatArray) -> FloatArray:
         """Contract a start whose recursion diverges toward the neutral point ``a = 1, psi' = 0`` (a
         straight line of the loop's mean slope, which cannot diverge) by halving the distance until it
-        stays within range.  From inside the divergent region no gradient points back out, so without
-        this a local solve from such a start stalls on the penalty plateau.  Each check stops at the first
-        divergence (:meth:`diverges`).  Inside a solve (``fused``) the checks also give the Jacobian: the
-        start that passes is then the solver's first evaluation, not made again (when it lies strictly
-        inside the bounds; the solver moves a start on a bound slightly inside and evaluates it there)."""
+        stays within range: from inside the divergent region no gradient points back out.  Inside a solve
+        (``fused``) the check that passes is the solver's first evaluation."""
         centre = u.copy()
         centre[0] = min(max(1.0, self.lower[0]), self.upper[0])
         centre[2:] = 0.0

@@ -68,16 +68,12 @@ class BoucWenFit:
     params: best-fitting parameters (physical units, see :class:`BoucWenParams`).
     rmse_nm: root-mean-square torque error over every given sample of every trial, with each trial's
         recursion started at its own first torque.
-    r2: coefficient of determination over the same samples, of the torque the Bouc-Wen state models: with a
-        backbone (``torque = g(angle) + z``) that is the torque left after ``g`` (the residuals, and so
-        ``rmse_nm``, are the same as the whole torque's; the whole torque's R^2 is higher, ``g`` explaining
-        most of its variance).
+    r2: coefficient of determination over the same samples, of the torque the Bouc-Wen state models (with
+        a backbone ``torque = g(angle) + z``, the torque left after ``g``).
     param_std: 1-sigma uncertainties of (A, n, beta1..6) from the Jacobian at the optimum,
         ``sqrt(diag(s^2 (J^T J)^-1))`` on the fitted samples; ``inf`` for a direction the data cannot
-        determine (e.g. a Table 4 phase never visited).  Filtered data has correlated residuals, which makes
-        these optimistic: :func:`.identifiability.identify` (which the pipeline runs) replaces them with
-        the sigma of its Wald intervals, which allows for that correlation (10-100 times larger on the
-        knee's loops).
+        determine (e.g. a Table 4 phase never visited).  Optimistic for correlated residuals:
+        :func:`.identifiability.identify` (which the pipeline runs) replaces them with its Wald sigmas.
     n_starts: number of starting points tried; converged: the final local solve met its tolerance;
     diverged: the fitted model's recursion left the data's torque range by a factor 10 on the given samples.
     trial_rmse_nm: RMSE of each trial; n_samples: samples given; n_samples_fitted: samples the optimiser
@@ -86,9 +82,8 @@ class BoucWenFit:
     message: the final least-squares solver's termination message; status: its status code
         (``scipy.optimize.least_squares``: 1-4 converged by gtol/ftol/xtol/both, 0 evaluation limit).
     scheme: the integration the fit used (``"refined"`` or ``"eq23"``, see :func:`simulate`).
-    rmse_refined_nm: the same parameters re-simulated with 4x finer integration (angle samples interpolated
-        4x finer, substeps 4x shorter) and compared at the given samples; agrees with ``rmse_nm`` for a
-        fit that describes the joint rather than the integrator.
+    rmse_refined_nm: the same parameters re-simulated with 4x finer integration, compared at the given
+        samples; agrees with ``rmse_nm`` for a fit that describes the joint rather than the integrator.
     start_rmse_nm: each start's RMSE (N*m, on the screening copy after its short solve), best first;
         polished_rmse_nm: the RMSE on the fitted samples of each start refined to convergence.
     n_interval, param_interval_low/high, weakly_identified, weak_reasons: see

@@ -29,7 +29,7 @@ def as_angle(x_deg: npt.ArrayLike, name: str = "x_deg") -> FloatArray:
 
 
 class SimulateKeywords(TypedDict, total=False):
-    """The options of :func:`simulate` and :func:`simulate_sensitivity`.
+    """The options of :func:`simulate` and :func:`simulate_trials`.
 
     bound_nm: |z| beyond which the state counts as diverged (default ``DEFAULT_SIMULATION_BOUND_NM``).
     scheme: ``"refined"`` (default) or ``"eq23"``, see :func:`simulate`.
@@ -61,34 +61,21 @@ def _integration(options: SimulateKeywords) -> Integration:
     return Integration(scheme, bound, False, step)
 
 
-def _run(
-    x_deg: npt.ArrayLike, params: BoucWenParams, z0: float, options: SimulateKeywords, sensitivities: bool
-) -> tuple[FloatArray, FloatArray | None]:
-    """The torque of one trial from ``z0`` (divergence: NaN from there on) and, when asked, ``dz/dtheta``."""
-    x = as_angle(x_deg)
-    z0f = _start(z0)
-    integration = _integration(options)
-    dz = np.empty((x.size, 8)) if sensitivities else None
-    z, _ = run_trial(x, params, z0f, integration, dz)
-    return z, dz
-
-
 def simulate(
     x_deg: npt.ArrayLike, params: BoucWenParams, z0: float = 0.0, **options: Unpack[SimulateKeywords]
 ) -> FloatArray:
     """Torque (N*m) predicted by the generalised Bouc-Wen model over the angle samples ``x_deg`` (degrees).
 
-    scheme: ``"refined"`` (default) integrates Eq 20-22 along the angle taken as piecewise linear between
-        samples, with substeps of at most ``max_step_deg`` (default 0.1 deg) and shorter where the loop
-        saturates (:mod:`.schemes`): the result does not depend on the sampling rate, and it is the
-        model :func:`fit` fits.  ``"eq23"`` is the thesis's literal recursion (Eq 23, one explicit Euler
-        step per sample, ``sgn(0) = 0``), whose torque changes with the sampling rate.
+    scheme: ``"refined"`` (default, the model :func:`fit` fits) integrates Eq 20-22 along the piecewise
+        linear angle independently of the sampling rate; ``"eq23"`` is the thesis's literal recursion
+        (Eq 23, one explicit Euler step per sample, ``sgn(0) = 0``); see :mod:`.schemes`.
 
     ``z[0] = z0`` and the output has the length of ``x_deg``.  If the recursion diverges (|z| exceeds
     ``bound_nm`` or stops being finite, which unstable parameter sets do) the remaining samples are NaN;
     ``np.isnan(z[-1])`` is the divergence flag.
     """
-    return _run(x_deg, params, z0, options, False)[0]
+    z, _ = run_trial(as_angle(x_deg), params, _start(z0), _integration(options))
+    return z
 
 
 def simulate_trials(
@@ -107,19 +94,6 @@ def simulate_trials(
     return torques
 
 
-def simulate_sensitivity(
-    x_deg: npt.ArrayLike, params: BoucWenParams, z0: float = 0.0, **options: Unpack[SimulateKeywords]
-) -> tuple[FloatArray, FloatArray]:
-    """Torque (as :func:`simulate`) and its analytic Jacobian ``dz/dtheta`` (shape ``(len(x), 8)``) in one pass.
-
-    Columns follow :data:`PARAM_NAMES` (A, n, beta1..beta6); ``z0`` is held fixed so row 0 is zero.
-    Diverged samples are NaN in both outputs, as in :func:`simulate`.
-    """
-    z, dz = _run(x_deg, params, z0, options, True)
-    assert dz is not None
-    return z, dz
-
-
 def refine_angle(x_deg: npt.ArrayLike, factor: int = 4) -> FloatArray:
     """The angle samples with ``factor - 1`` linearly interpolated samples between each pair; the
     original samples are at indices ``0, factor, 2 factor, ...``."""
@@ -128,19 +102,3 @@ def refine_angle(x_deg: npt.ArrayLike, factor: int = 4) -> FloatArray:
         raise InvalidInput(f"factor must be >= 1, got {factor}")
     t = np.arange((x.size - 1) * factor + 1) / factor
     return np.interp(t, np.arange(x.size), x)
-
-
-def simulate_refined(
-    x_deg: npt.ArrayLike,
-    params: BoucWenParams,
-    z0: float = 0.0,
-    *,
-    factor: int = 4,
-    **options: Unpack[SimulateKeywords],
-) -> FloatArray:
-    """:func:`simulate` with the same parameters and ``factor``-times finer integration: the angle samples
-    interpolated ``factor`` times finer, every substep ``factor`` times shorter, and the torque read back at
-    the original samples (the check that a fit describes the joint, not the integrator)."""
-    fine = options.copy()
-    fine["max_step_deg"] = check_scheme(options.get("scheme", REFINED), options.get("max_step_deg")) / factor
-    return simulate(refine_angle(x_deg, factor), params, z0, **fine)[::factor]
