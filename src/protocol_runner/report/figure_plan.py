@@ -1,6 +1,5 @@
-"""Which figures the report shows, and where they are drawn: light on purpose (no matplotlib), so that a
-process that only assembles the report (the session at its end, its figures drawn by the analysis workers)
-never loads the drawing code.
+"""Which figures the report shows, and where they are drawn: no matplotlib, so that a process that only
+assembles the report (the session at its end) never loads the drawing code.
 
 What a declared comparison varies (docs/report.md "Comparisons", `comparison_axis`) is read from the
 compared configurations' settings: the factor's level label and the value of its axis quantity, on a
