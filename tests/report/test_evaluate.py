@@ -11,7 +11,7 @@ import pytest
 from scipy import stats
 
 from protocol_runner.protocol.expectations import ExpectationSpec
-from protocol_runner.report.evaluate import Verdict, evaluate_all, metric_label
+from protocol_runner.report.evaluate import Verdict, evaluate_all, format_p, metric_label
 from protocol_runner.report.model import Configuration, ReportData, SessionInfo, Trial
 from protocol_runner.report.settings_view import DeviceElement, SettingsView
 
@@ -69,7 +69,7 @@ RISING = data(c1=[1.0, 1.2, 1.1], c2=[2.0, 2.2, 2.1], c3=[3.0, 3.2, 3.1])
 
 def test_increasing_is_met_when_every_adjacent_step_rises_significantly() -> None:
     v = evaluate_expectation(spec(relation="increasing", configurations=[1, 2, 3]), RISING)
-    assert (v.verdict, v.css, v.unit) == ("met", "met", "J")
+    assert (v.verdict, v.unit) == ("met", "J")
     lo, hi = welch90([2.0, 2.2, 2.1], [1.0, 1.2, 1.1])
     assert v.reason.startswith(
         f"means in the stated order (1, 2, 3): 1.10 < 2.10 < 3.10 J; 2 minus 1: 1.00 J, 90 % Welch interval "
@@ -273,15 +273,15 @@ def test_holm_across_the_campaign_decides_and_is_shown() -> None:
     assert [v.verdict for v in together] == ["met", "not met", "not met", "not evaluable"]
     assert [v.p_adjusted for v in together[:3]] == [pytest.approx(p) for p in (3e-4, 0.06, 0.06)]
     assert [v.family for v in together] == [3, 3, 3, 0]
-    assert math.isnan(together[3].p_adjusted) and together[3].p_adjusted_text == "—"
+    assert math.isnan(together[3].p_adjusted) and format_p(together[3].p_adjusted) == "—"
     assert together[1].reason.endswith("; p 0.03 (Holm-adjusted over 3 expectations 0.06): not met at 0.05")
-    assert (together[0].p_text, together[1].p_adjusted_text) == ("< 0.001", "0.06")
+    assert (format_p(together[0].p_value), format_p(together[1].p_adjusted)) == ("< 0.001", "0.06")
 
 
 def test_missing_and_short_configurations_are_not_evaluable_with_the_reason() -> None:
     d = data(c1=[1.0, 1.2], c2=[2.0])
     v = evaluate_expectation(spec(relation="increasing", configurations=[1, 2, 9]), d)
-    assert v.verdict == "not evaluable" and v.css == "not-evaluable"
+    assert v.verdict == "not evaluable"
     assert v.reason == (
         "configuration 2 has 1 trial with energy per cycle; configuration 9 is not in this archive "
         "(the rule needs 2 per configuration)."

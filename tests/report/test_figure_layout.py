@@ -12,7 +12,7 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.transforms import Bbox
 
-from protocol_runner.report.drawing import (
+from protocol_runner.report.figures import (
     ANGLE_LABEL,
     COLORS,
     TIME_LABEL,
@@ -90,7 +90,7 @@ def test_axes_have_a_light_grid_and_small_tick_labels_and_a_figures_own_label_si
     the axes are styled and the figure rendered; rendering leaves the caller's matplotlib settings alone."""
     import matplotlib
 
-    from protocol_runner.report.drawing import GRID_ALPHA, GRID_LINEWIDTH, TICK_LABEL_SIZE
+    from protocol_runner.report.figures import GRID_ALPHA, GRID_LINEWIDTH, TICK_LABEL_SIZE
 
     before = dict(matplotlib.rcParams)
     fig, (ax,) = new_figure("bars")

@@ -17,7 +17,7 @@ import h5py
 import pytest
 
 from protocol_runner.analysis.statistics import holm
-from protocol_runner.report.evaluate import TUNED_LABEL, evaluate_expectations
+from protocol_runner.report.evaluate import TUNED_LABEL, evaluate_expectations, format_p
 from protocol_runner.report.load import load_report_data
 
 from ..short_knee import short_knee_session
@@ -51,7 +51,9 @@ def test_the_verdict_table_shows_p_and_the_holm_adjusted_p(knee_session: Path) -
     )
     for v in verdicts:
         cells = re.findall(r'<td class="num">([^<]*)</td>', rows[v.spec.id])
-        assert [c.replace("&lt;", "<") for c in cells] == [v.p_text, v.p_adjusted_text], v.spec.id
+        assert [c.replace("&lt;", "<") for c in cells] == [format_p(v.p_value), format_p(v.p_adjusted)], (
+            v.spec.id
+        )
         assert (v.verdict == "met") == (v.p_adjusted <= 0.05)
     assert {v.spec.id: v.verdict for v in verdicts if v.spec.id.startswith("speed_")} == {
         "speed_energy": "met",

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from matplotlib.colors import to_hex
 
-from protocol_runner.report import drawing
-from protocol_runner.report.figures_predictions import (
+from protocol_runner.report import figures
+from protocol_runner.report.figures import (
     FITTED_RANGE_COLOR,
     MEASURED_COLOR,
     PREDICTED_COLOR,
@@ -42,13 +42,13 @@ def _prediction() -> Prediction:
 
 def test_the_figure_draws_the_measured_loop_then_the_predicted_one(monkeypatch) -> None:  # type: ignore[no-untyped-def]
     captured = []
-    real = drawing.to_data_uri
+    real = figures.to_data_uri
 
     def keep(fig):  # type: ignore[no-untyped-def]
         captured.append(fig)
         return real(fig)
 
-    monkeypatch.setattr(drawing, "to_data_uri", keep)
+    monkeypatch.setattr(figures, "to_data_uri", keep)
     p = _prediction()
     assert p.element is not None
     uri = prediction_figure(
@@ -71,8 +71,8 @@ def test_the_figure_draws_the_measured_loop_then_the_predicted_one(monkeypatch) 
 
 def test_no_element_model_draws_no_curve(monkeypatch) -> None:  # type: ignore[no-untyped-def]
     captured = []
-    real = drawing.to_data_uri
-    monkeypatch.setattr(drawing, "to_data_uri", lambda fig: captured.append(fig) or real(fig))
+    real = figures.to_data_uri
+    monkeypatch.setattr(figures, "to_data_uri", lambda fig: captured.append(fig) or real(fig))
     prediction_figure(12, 14, [], [], [])
     (ax,) = captured[-1].axes
     assert ax.get_lines() == []
@@ -104,8 +104,8 @@ def test_the_report_shows_each_prediction_figure_with_its_energies_in_the_captio
 
 def test_the_figure_shades_the_angles_the_model_was_fitted_on(monkeypatch) -> None:  # type: ignore[no-untyped-def]
     captured = []
-    real = drawing.to_data_uri
-    monkeypatch.setattr(drawing, "to_data_uri", lambda fig: captured.append(fig) or real(fig))
+    real = figures.to_data_uri
+    monkeypatch.setattr(figures, "to_data_uri", lambda fig: captured.append(fig) or real(fig))
     e = _prediction().element
     assert e is not None
     prediction_figure(12, 14, e.angle_deg, e.measured_torque_nm, e.predicted_torque_nm, (40.9, 84.5))

@@ -22,6 +22,7 @@ from protocol_runner.report.evaluate import (
     declared_expectations,
     evaluate_all,
     evaluate_expectations,
+    format_p,
 )
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.metrics import trial_values
@@ -231,7 +232,7 @@ def test_report_rows_carry_ids_verdicts_and_the_dry_run_honesty_label(
     assert f"The family is this campaign's\n{family} evaluable expectations" in html
     friction = verdicts["energy_friction"]
     cells = re.findall(r'<td class="num">([^<]*)</td>', by_id["energy_friction"][1])
-    assert cells == [escape(friction.p_text), escape(friction.p_adjusted_text)]
+    assert cells == [escape(format_p(friction.p_value)), escape(format_p(friction.p_adjusted))]
     assert friction.family == family and friction.p_adjusted >= friction.p_value
     assert re.findall(r'<td class="num">([^<]*)</td>', by_id["stiffness_slope"][1]) == ["—", "—"]
 

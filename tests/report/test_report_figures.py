@@ -8,16 +8,16 @@ import struct
 from pathlib import Path
 
 from protocol_runner.protocol.plan_steps import Comparison
-from protocol_runner.report.comparison_values import comparison_axis
-from protocol_runner.report.drawing import DPI, LAYOUTS
-from protocol_runner.report.figure_plan import figure_ids
+from protocol_runner.report.figure_plan import assemble_figures, comparison_axis, figure_ids
 from protocol_runner.report.figures import (
+    DPI,
+    LAYOUTS,
     bouc_wen_figure,
+    draw_here,
+    energy_bars_figure,
     energy_cycles_figure,
     hysteresis_figure,
-    render_figures,
 )
-from protocol_runner.report.figures_compare import energy_bars_figure
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.model import Configuration
 
@@ -75,8 +75,8 @@ def test_bar_chart_after_a_line_chart_restores_numeric_ticks(small_archive: Path
 
 def test_serial_and_parallel_rendering_give_identical_images(small_archive: Path) -> None:
     data = load_report_data(small_archive)
-    serial = render_figures(data, workers=1)
-    parallel = render_figures(data, workers=2)
+    serial = assemble_figures(data, 1, draw=None, here=draw_here)
+    parallel = assemble_figures(data, 2, draw=None, here=draw_here)
     assert serial.missing == {} and parallel.missing == {}
     assert set(serial.images) == set(figure_ids(data))
     assert serial.images == parallel.images
@@ -137,17 +137,16 @@ def test_energy_figure_puts_each_configuration_at_its_factor_value(small_archive
 
 def _drawn(monkeypatch, draw) -> object:
     """The matplotlib Figure a figure function draws (captured before it becomes a PNG)."""
-    from protocol_runner.report import drawing, figures, figures_compare
+    from protocol_runner.report import figures
 
     captured = []
-    real = drawing.to_data_uri
+    real = figures.to_data_uri
 
     def keep(fig):
         captured.append(fig)
         return real(fig)
 
-    for module in (drawing, figures, figures_compare):
-        monkeypatch.setattr(module, "to_data_uri", keep)
+    monkeypatch.setattr(figures, "to_data_uri", keep)
     draw()
     return captured[-1]
 
@@ -184,7 +183,7 @@ def test_element_fits_are_drawn_for_the_comparisons_that_change_a_fitted_element
     tmp_path: Path, monkeypatch
 ) -> None:
     from protocol_runner.report.figure_plan import model_comparisons
-    from protocol_runner.report.figures_compare import element_fit_figure
+    from protocol_runner.report.figures import element_fit_figure
     from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, write_archive
 
     keys = (4, 5, 6, 7, 14, 17, 20, 23)

@@ -14,7 +14,7 @@ import pytest
 from matplotlib.figure import Figure
 
 from protocol_runner.commands import run
-from protocol_runner.report import drawing, figures, figures_compare
+from protocol_runner.report import figures
 from protocol_runner.report.figure_plan import figure_jobs
 from protocol_runner.report.load import load_report_data
 
@@ -43,14 +43,13 @@ def leg(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def _drawn(monkeypatch: pytest.MonkeyPatch, draw: Callable[[], str]) -> Figure:
     """The matplotlib Figure a figure function draws (captured before it becomes a PNG)."""
     captured: list[Figure] = []
-    real = drawing.to_data_uri
+    real = figures.to_data_uri
 
     def keep(fig: Figure) -> str:
         captured.append(fig)
         return real(fig)
 
-    for module in (drawing, figures, figures_compare):
-        monkeypatch.setattr(module, "to_data_uri", keep)
+    monkeypatch.setattr(figures, "to_data_uri", keep)
     draw()
     return captured[-1]
 

@@ -212,7 +212,7 @@ def test_reference_section_says_when_there_is_no_reference(small_report: str) ->
 def test_archived_reference_is_drawn_alone_and_on_every_comparison_overlay(
     tmp_path: Path, monkeypatch
 ) -> None:
-    from protocol_runner.report import drawing, figures_compare
+    from protocol_runner.report import figures
 
     spec = small_spec(duration_s=9.0, reference=True)
     archive = write_archive(tmp_path / "archive.h5", spec)
@@ -220,12 +220,12 @@ def test_archived_reference_is_drawn_alone_and_on_every_comparison_overlay(
     assert 'id="reference-none"' not in html
     assert "Schmidt EMU data" in html and 'id="fig-reference"' in html
     drawn = []
-    real = drawing.to_data_uri
-    monkeypatch.setattr(drawing, "to_data_uri", lambda fig: drawn.append(fig) or real(fig))
+    real = figures.to_data_uri
+    monkeypatch.setattr(figures, "to_data_uri", lambda fig: drawn.append(fig) or real(fig))
     data = load_report_data(archive)
     comp = next(c for c in data.comparisons if c.name == "friction")
     assert comp is not None
-    figures_compare.comparison_overlay_figure(data, comp)
+    figures.comparison_overlay_figure(data, comp)
     labels = [line.get_label() for line in drawn[-1].axes[0].get_lines()]
     assert labels.count("Schmidt EMU data") == 1 and len(labels) == 5  # four loops and the reference
 

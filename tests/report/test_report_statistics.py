@@ -17,6 +17,7 @@ from scipy import stats
 from protocol_runner.errors import InvalidInput
 from protocol_runner.protocol.loader import load_protocol
 from protocol_runner.report.differences import declared_differences, declared_repeatability
+from protocol_runner.report.evaluate import format_p
 from protocol_runner.report.load import load_report_data
 from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import ReportData
@@ -86,7 +87,7 @@ def test_the_report_prints_one_differences_table_per_comparison(
     for (_, _, flag, body), d in zip(rows, declared_differences(data, friction), strict=True):
         assert f"[{d.energy.low:.2f}, {d.energy.high:.2f}]" in body
         assert f"<td>{d.key} minus {d.base}</td>" in body
-        assert f'<td class="num">{d.p_adjusted_text}</td>' in body  # the Holm-adjusted p beside p
+        assert f'<td class="num">{format_p(d.p_adjusted)}</td>' in body  # the Holm-adjusted p beside p
         assert flag == ("yes" if d.p_adjusted <= 0.05 else "no")
     assert "The family is the differences of one table" in small_report
 

@@ -1,14 +1,12 @@
 """The sampler the output loop feeds (`Rig.tap`): decimated angle and torque of every driven joint for the
 live traces.
 
-At every scan read (every 10 output ticks, 100 ms at 100 Hz) the rig hands the block it just read (every
-channel of the scan) to `SampleTap.scan`. The tap keeps one row every 1/`SAMPLE_RATE_HZ` seconds of scan
-time (2 rows of the 100 a read brings at 1 kHz), takes each joint's angle and torque columns (found from
-the joint's input channels in the scan's channel order), converts only those rows (Eq 2/3 and the
-look-up tables, as the recording will be), pairs them with the angle commanded to that joint at that
-moment, and queues one `samples` message per joint on the bus: a few numpy operations on 2-element arrays
-and one deque append per joint and read, inside the slack before the next tick. Anything unexpected
-disables the tap; it never raises into the loop.
+At every scan read (every 10 output ticks) the rig hands the block it just read to `SampleTap.scan`. The
+tap keeps one row every 1/`SAMPLE_RATE_HZ` seconds of scan time, converts only those rows of each joint's
+angle and torque columns (Eq 2/3 and the look-up tables, as the recording will be), pairs them with the
+angle commanded to that joint, and queues one `samples` message per joint on the bus: a few numpy
+operations and one deque append per joint and read, inside the slack before the next tick. Anything
+unexpected disables the tap; it never raises into the loop.
 
 Times are the rig clock's seconds (continuous over approach, run and park, and from step to step); in a
 dry run in simulated time they advance in bursts far faster than the wall clock, with `--realtime` at the

@@ -1,13 +1,9 @@
 """Entries a protocol declares for the report, read back from the protocol text archived with the session.
 
-The report is made from the archive alone, so sections such as `expectations:` and `report.repeatability:`
-are parsed again from `/protocol/text`. An archive whose text is not YAML, or an entry that does not
-validate, gives a message instead of an error: the report still renders and says what it could not read.
-
-A campaign that reproduces a source (the knee reproduces the 2007 thesis) names in `report.citations`, per
-report part, where the source shows the same thing ("thesis Figures 41-46"); the report prints it beside
-that part. Nothing is cited unless the protocol says so: an ankle or elbow report shows no knee-thesis
-figure numbers.
+Sections such as `expectations:` and `report.repeatability:` are parsed again from `/protocol/text`. A text
+that is not YAML, or an entry that does not validate, gives a message instead of an error: the report still
+renders and says what it could not read. `report.citations` names, per report part, where a reproduced
+source shows the same thing ("thesis Figures 41-46"); nothing is cited unless the protocol says so.
 """
 
 from __future__ import annotations
@@ -25,13 +21,10 @@ Spec = TypeVar("Spec", bound=BaseModel)
 
 @functools.lru_cache(maxsize=4)
 def protocol_document(protocol_text: str) -> Any:
-    """The archived protocol text parsed as YAML, once per text (the expectations, the repeatability groups,
-    the citations and the predictions each read it); None for an empty text. Raises `yaml.YAMLError`, also
-    for a text over the protocol loader's limits (size, nesting, aliases, numbers' length: an archive can
-    be anyone's file) or one it cannot construct.
-
-    Read-only: every caller shares the one parsed document. It is read as the protocol loader reads a file
-    (protocol/yaml_doc.py: libyaml when installed, the pure-Python parser for a text libyaml rejects)."""
+    """The archived protocol text parsed as YAML, once per text, as the protocol loader reads a file
+    (protocol/yaml_doc.py); None for an empty text. Read-only: every caller shares the one document.
+    Raises `yaml.YAMLError`, also for a text over the loader's limits (size, nesting, aliases, numbers'
+    length: an archive can be anyone's file) or one it cannot construct."""
     from protocol_runner.errors import InvalidInput
     from protocol_runner.protocol.yaml_doc import FAST_LOADER, SafeLoader
     from protocol_runner.protocol.yaml_limits import check_size, check_yaml_limits

@@ -13,13 +13,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 from itertools import pairwise
 
-from protocol_runner.analysis.statistics import ALPHA, Repeatability, WelchInterval, holm, welch_interval
+from protocol_runner.analysis.statistics import (
+    ALPHA,
+    Repeatability,
+    WelchInterval,
+    holm,
+    repeatability,
+    welch_interval,
+)
 from protocol_runner.protocol.expectations import RepeatabilitySpec
 from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.protocol.schema import ComparisonSpec
 from protocol_runner.report.declared import declared_entries
-from protocol_runner.report.evaluate import format_p
-from protocol_runner.report.headline import ALL_JOINTS, campaign_stats, group_repeatability
+from protocol_runner.report.headline import ALL_JOINTS, campaign_stats
 from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import ReportData
 
@@ -42,26 +48,9 @@ class Difference:
         return f"{self.key} minus {self.base}"
 
     @property
-    def p_text(self) -> str:
-        """The unadjusted two-sided p-value as printed."""
-        return format_p(self.energy.p_value)
-
-    @property
-    def p_adjusted_text(self) -> str:
-        """The Holm-adjusted p-value as printed."""
-        return format_p(self.p_adjusted)
-
-    @property
     def significant(self) -> bool:
         """True when the Holm-adjusted p-value is at most ALPHA (the adjusted interval excludes zero)."""
         return bool(self.p_adjusted <= ALPHA)
-
-
-def declared_pairs(data: ReportData, comparison: Comparison) -> tuple[tuple[int, int], ...] | None:
-    """The (a, b) pairs the archived protocol declares for `comparison` (None when it declares none)."""
-    specs, _ = declared_entries(data.protocol_text, ("report", "comparisons"), ComparisonSpec)
-    spec = next((s for s in specs if s.name == comparison.name), None)
-    return None if spec is None or spec.pairs is None else tuple(spec.pairs)
 
 
 def declared_differences(data: ReportData, comparison: Comparison) -> tuple[Difference, ...]:
@@ -69,7 +58,8 @@ def declared_differences(data: ReportData, comparison: Comparison) -> tuple[Diff
     the declared order; without pairs, each present configuration minus the present one before it. With
     several joints, these for each joint in channel order and then for all joints together; the Holm
     adjustment is over every row (one table, one family)."""
-    pairs = declared_pairs(data, comparison)
+    specs, _ = declared_entries(data.protocol_text, ("report", "comparisons"), ComparisonSpec)
+    pairs = next((tuple(s.pairs) for s in specs if s.name == comparison.name and s.pairs is not None), None)
     if pairs is None:
         present = [k for k in comparison.configurations if data.configuration(k) is not None]
         pairs = tuple(pairwise(dict.fromkeys(present)))
@@ -117,5 +107,7 @@ def declared_repeatability(data: ReportData) -> tuple[tuple[RepeatabilityGroup, 
         keys = tuple(dict.fromkeys(spec.configurations))
         present = tuple(k for k in keys if data.configuration(k) is not None)
         missing = tuple(k for k in keys if k not in present)
-        groups.append(RepeatabilityGroup(spec, present, missing, group_repeatability(data, present)))
+        # the trial means of all joints together with several (`campaign_stats`)
+        units = [s.trial_energy_j for k in present if (s := campaign_stats(data, k)) is not None]
+        groups.append(RepeatabilityGroup(spec, present, missing, repeatability(units)))
     return tuple(groups), problems

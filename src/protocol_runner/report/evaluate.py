@@ -37,6 +37,7 @@ from protocol_runner.analysis.statistics import (
 )
 from protocol_runner.protocol.expectations import ExpectationSpec, statements
 from protocol_runner.protocol.only import key_spans
+from protocol_runner.protocol.wording import counted
 from protocol_runner.report.declared import declared_entries
 from protocol_runner.report.metrics import LABELS, UNITS, trial_values
 from protocol_runner.report.model import Configuration, ReportData
@@ -76,24 +77,9 @@ class Verdict:
     joint: str = ""  # the joint whose data decided it ("" when the archive says none)
 
     @property
-    def css(self) -> str:
-        """`met`, `not-met` or `not-evaluable` (HTML attribute form)."""
-        return self.verdict.replace(" ", "-")
-
-    @property
     def unit(self) -> str:
         """The metric's unit."""
         return UNITS[self.spec.metric]
-
-    @property
-    def p_text(self) -> str:
-        """The unadjusted p-value as printed."""
-        return format_p(self.p_value)
-
-    @property
-    def p_adjusted_text(self) -> str:
-        """The Holm-adjusted p-value as printed ("—" when not evaluable)."""
-        return format_p(self.p_adjusted)
 
 
 def _fmt(value: float) -> str:
@@ -148,12 +134,8 @@ def _why_short(data: ReportData, key: int, joint: str, n: int, spec: Expectation
         return f"configuration {key} was not run"
     recorded = sum(t.recorded for t in cfg.trials)
     if not n and recorded and not any(t.processed is not None for t in cfg.trials):
-        return f"configuration {key} has {recorded} recorded trial{_s(recorded)}, none processed"
-    return f"configuration {key} has {n or 'no'} trial{_s(n)} with {metric_label(spec)}"
-
-
-def _s(n: int) -> str:
-    return "" if n == 1 else "s"
+        return f"configuration {key} has {counted(recorded, 'recorded trial')}, none processed"
+    return f"configuration {key} has {counted(n, 'trial') if n else 'no trials'} with {metric_label(spec)}"
 
 
 def _tested(spec: ExpectationSpec, data: ReportData, joint: str) -> Verdict:
@@ -236,13 +218,6 @@ def evaluate_all(specs: Sequence[ExpectationSpec], data: ReportData) -> tuple[Ve
     )
 
 
-def _end_of(spec: ExpectationSpec) -> str:
-    """Which end of a range the statement is about: "low", "high" or "either"."""
-    if spec.metric == "angle_percentile" and spec.percentile is not None:
-        return "low" if spec.percentile < 50 else "high"
-    return "either"
-
-
 def _extremes(cfg: Configuration) -> tuple[float, float]:
     """The lowest and highest angle the configuration's brace-on trials reached (deg)."""
     if math.isfinite(cfg.angle_min_deg) and math.isfinite(cfg.angle_max_deg):
@@ -261,7 +236,9 @@ def _unreached(spec: ExpectationSpec, data: ReportData, joint: str) -> str:
     angles that never reach it ("" when every configuration reaches it)."""
     if spec.engages is None:
         return ""
-    end = _end_of(spec)
+    end = "either"  # which end of the element's range the statement is about
+    if spec.metric == "angle_percentile" and spec.percentile is not None:
+        end = "low" if spec.percentile < 50 else "high"
     problems: list[str] = []
     for key in spec.configurations:
         cfg = data.configuration(key, joint)
@@ -293,6 +270,15 @@ def _unreached(spec: ExpectationSpec, data: ReportData, joint: str) -> str:
     return "; ".join(problems) + f": the statement is about {spec.engages!r}, which these data never engage."
 
 
+def _ordered(keys: Sequence[int], intervals: dict[int, TInterval], unit: str) -> str:
+    """The means in the stated order, each pair joined by the comparison the data show."""
+    means = [intervals[k].mean for k in keys]
+    text = _fmt(means[0])
+    for a, b in pairwise(means):
+        text += (" < " if a < b else " > " if a > b else " = ") + _fmt(b)
+    return f"means in the stated order ({', '.join(str(k) for k in keys)}): {text} {unit}"
+
+
 def _element(cfg: Configuration, name: str, joint: str) -> DeviceElement | None:
     """The device element `name` that `joint` carries (of a device of one joint, its element `name`)."""
     return next(
@@ -301,84 +287,53 @@ def _element(cfg: Configuration, name: str, joint: str) -> DeviceElement | None:
     )
 
 
-def _sign(a: float, b: float) -> str:
-    return " < " if a < b else " > " if a > b else " = "
-
-
-def _ordered(keys: Sequence[int], intervals: dict[int, TInterval], unit: str) -> str:
-    """The means in the stated order, each pair joined by the comparison the data show."""
-    means = [intervals[k].mean for k in keys]
-    text = _fmt(means[0])
-    for a, b in pairwise(means):
-        text += _sign(a, b) + _fmt(b)
-    return f"means in the stated order ({', '.join(str(k) for k in keys)}): {text} {unit}"
-
-
 def _tost(w: WelchInterval, centre: float, margin: float) -> float:
     return max(p_above(w, centre - margin), p_below(w, centre + margin))
-
-
-def _steps(
-    spec: ExpectationSpec, values: dict[int, tuple[float, ...]], intervals: dict[int, TInterval], unit: str
-) -> tuple[float, str]:
-    """`increasing` / `decreasing`: each adjacent step of the stated order by a one-sided Welch test;
-    `no_trend`: each pair by TOST within ±margin. The largest p decides."""
-    trend = spec.relation != "no_trend"
-    sign = 1.0 if spec.relation == "increasing" else -1.0
-    margin = spec.margin or 0.0
-    parts: list[str] = []
-    ps: list[float] = []
-    for terms, name in statements(spec):
-        w = contrast_interval([(wt, values[k]) for wt, k in terms], TEST_CONFIDENCE)
-        p = (p_above(w, 0.0) if sign > 0 else p_below(w, 0.0)) if trend else _tost(w, 0.0, margin)
-        ps.append(p)
-        fails = "" if p <= ALPHA else " (fails)"
-        parts.append(
-            f"{name}: {_fmt(w.difference)} {unit}, 90 % Welch interval {_ival(w.low, w.high, unit)}, "
-            f"{'one-sided' if trend else 'TOST'} p {format_p(p)}{fails}"
-        )
-    if trend:
-        way = "above" if sign > 0 else "below"
-        rule = f"every step must lie {way} zero, one-sided Welch; the largest step p decides"
-    else:
-        rule = f"every pair's 90 % interval must lie inside ±{margin:g} {unit}: two one-sided Welch tests"
-    order = list(dict.fromkeys(spec.configurations))
-    return max(ps, default=math.nan), f"{_ordered(order, intervals, unit)}; {'; '.join(parts)} ({rule})"
 
 
 def _decide(
     spec: ExpectationSpec, values: dict[int, tuple[float, ...]], intervals: dict[int, TInterval], unit: str
 ) -> tuple[float, str]:
-    """The expectation's p-value (the largest of its statements') and the text of its numbers."""
-    r = spec.relation
-    if r in ("increasing", "decreasing", "no_trend"):
-        return _steps(spec, values, intervals, unit)
+    """The expectation's p-value (the largest of its statements') and the text of its numbers. The steps of
+    `increasing` / `decreasing` are each a one-sided Welch test, the pairs of `no_trend` each a TOST within
+    ±margin; the other relations test each configuration (or its contrast) against the stated value."""
+    steps = spec.relation in ("increasing", "decreasing", "no_trend")
     parts: list[str] = []
     ps: list[float] = []
-    for (terms, name), key in zip(statements(spec), spec.configurations, strict=True):
+    for i, (terms, name) in enumerate(statements(spec)):
         w = contrast_interval([(wt, values[k]) for wt, k in terms], TEST_CONFIDENCE)
         if len(terms) == 1:
-            subject = f"configuration {key}: mean {_fmt(w.difference)} {unit}, 90 % interval"
+            subject = (
+                f"configuration {spec.configurations[i]}: mean {_fmt(w.difference)} {unit}, 90 % interval"
+            )
         else:
             kind = "Welch" if len(terms) == 2 else "Welch-Satterthwaite"
-            name = name if name.startswith("(") else f"configuration {name}"
+            name = name if steps or name.startswith("(") else f"configuration {name}"
             subject = f"{name}: {_fmt(w.difference)} {unit}, 90 % {kind} interval"
-        ref = 0.0 if spec.than is not None else spec.value or 0.0
+        ref = 0.0 if steps or spec.than is not None else spec.value or 0.0
         p, test = _statement_p(spec, w, ref)
         ps.append(p)
         parts.append(
             f"{subject} {_ival(w.low, w.high, unit)}, {test} p {format_p(p)}{'' if p <= ALPHA else ' (fails)'}"
         )
-    return max(ps, default=math.nan), "; ".join(parts) + _criterion(spec, unit)
+    if not steps:
+        return max(ps, default=math.nan), "; ".join(parts) + _criterion(spec, unit)
+    if spec.relation == "no_trend":
+        rule = f"every pair's 90 % interval must lie inside ±{spec.margin or 0.0:g} {unit}: two one-sided Welch tests"
+    else:
+        way = "above" if spec.relation == "increasing" else "below"
+        rule = f"every step must lie {way} zero, one-sided Welch; the largest step p decides"
+    order = list(dict.fromkeys(spec.configurations))
+    return max(ps, default=math.nan), f"{_ordered(order, intervals, unit)}; {'; '.join(parts)} ({rule})"
 
 
 def _statement_p(spec: ExpectationSpec, w: WelchInterval, ref: float) -> tuple[float, str]:
     r = spec.relation
-    if r == "greater":
+    if r in ("greater", "increasing"):
         return p_above(w, ref), "one-sided"
-    if r == "less":
+    if r in ("less", "decreasing"):
         return p_below(w, ref), "one-sided"
-    if r == "equal":
+    if r in ("equal", "no_trend"):
         return _tost(w, ref, spec.margin or 0.0), "TOST"
     lo, hi = spec.interval or (math.nan, math.nan)
     return max(p_above(w, lo), p_below(w, hi)), "TOST"

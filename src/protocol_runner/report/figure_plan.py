@@ -1,6 +1,11 @@
-"""Which figures the report shows, and where they are drawn: light on purpose (no matplotlib), so that a
-process that only assembles the report (the session at its end, its figures drawn by the analysis workers)
-never loads the drawing code.
+"""Which figures the report shows, and where they are drawn: no matplotlib, so that a process that only
+assembles the report (the session at its end) never loads the drawing code.
+
+What a declared comparison varies (docs/report.md "Comparisons", `comparison_axis`) is read from the
+compared configurations' settings: the factor's level label and the value of its axis quantity, on a
+numeric axis when every configuration has a finite scalar value of it; other factors whose level also
+differs within the comparison are added to each label. With "trajectory", the label is the configuration's
+trajectory name (its profile when unnamed).
 
 `figure_jobs(data)` lists every figure as (id, kind, arguments), in document order; `report.figures` draws
 a job by its kind. `assemble_figures(data)` has them drawn: elsewhere (`draw`), or by the caller's process
@@ -10,13 +15,15 @@ and worker processes (`here`).
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TypeAlias
 
 from protocol_runner.protocol.plan_steps import Comparison
-from protocol_runner.report.model import Configuration, ReportData
+from protocol_runner.report.model import Configuration, ReportData, factor_names
+from protocol_runner.report.settings_view import TRAJECTORY, axis_label, format_quantity
 
 FigureJob: TypeAlias = tuple[str, str, tuple[object, ...]]
 """A figure: its id (an HTML element id), its kind (`figures.DRAW`) and the arguments to draw it."""
@@ -35,10 +42,6 @@ class FigureSet:
 
     images: dict[str, str] = field(default_factory=dict)
     missing: dict[str, str] = field(default_factory=dict)
-
-    def get(self, figure_id: str) -> str | None:
-        """The data URI of `figure_id`, or None."""
-        return self.images.get(figure_id)
 
 
 def figure_jobs(data: ReportData) -> list[FigureJob]:
@@ -74,9 +77,8 @@ def configuration_jobs(cfgs: Sequence[Configuration]) -> list[FigureJob]:
 
 def for_drawing(data: ReportData, figure_ids: Sequence[str]) -> ReportData:
     """`data` as the figures `figure_ids` read it, for handing to another process: a configuration's raw
-    recordings (its first trial's brace-on and brace-off runs) are read only by its own time figure, so
-    they are left out of every configuration none of whose own figures is asked for. They are half of a
-    knee report's data: the report's last figures reach the session's workers in half the time."""
+    recordings (its first trial's brace-on and brace-off runs, half of a knee report's data) are read only
+    by its own time figure, so they are left out of every configuration none of whose figures is asked for."""
     wanted = set(figure_ids)
     kept = {
         key
@@ -104,12 +106,6 @@ def configurations_of(data: ReportData, keys: Sequence[int], joint: str | None =
     return [c for k in keys if (c := data.configuration(k, joint)) is not None]
 
 
-def figure_joints(data: ReportData) -> tuple[str | None, ...]:
-    """The joints a cross-configuration figure draws a panel for: each driven joint when there are several,
-    else the one joint (None: whichever the configurations hold)."""
-    return data.joints if data.multi_joint else (None,)
-
-
 def distinct_comparisons(data: ReportData) -> list[Comparison]:
     """Declared comparisons drawn as overlays and energy figures: those with a configuration present,
     each set of configurations once (a protocol may list the same keys under two sections)."""
@@ -132,7 +128,7 @@ def model_comparisons(data: ReportData) -> list[Comparison]:
         for comp in distinct_comparisons(data)
         if any(
             fitted_elements_differ(configurations_of(data, comp.configurations, joint))
-            for joint in figure_joints(data)
+            for joint in (data.joints if data.multi_joint else (None,))
         )
     ]
 
@@ -198,3 +194,78 @@ def default_workers(n_tasks: int) -> int:
     if n_tasks < 40:
         return 1
     return max(1, min(2, os.cpu_count() or 1))
+
+
+@dataclass(frozen=True)
+class ComparisonAxis:
+    """How a comparison's configurations are placed and labelled."""
+
+    parameter: str
+    quantity: str  # the factor's axis quantity ("" for "trajectory" or a factor without quantities)
+    numeric: bool  # True when every configuration has a finite scalar value of `quantity`
+    label: str  # axis label with the unit
+    others: tuple[str, ...]  # other factors whose level differs within the comparison
+
+    def value(self, cfg: Configuration) -> float:
+        """The configuration's numeric x value (NaN when the axis is not numeric)."""
+        if not self.numeric:
+            return math.nan
+        v = cfg.quantity(self.parameter, self.quantity)
+        return float(v) if isinstance(v, float) else math.nan
+
+    def value_text(self, cfg: Configuration) -> str:
+        """The configuration's value on this axis as text: level label and quantity with its unit."""
+        if self.parameter == TRAJECTORY:
+            return cfg.settings.trajectory or cfg.profile
+        level = cfg.level(self.parameter)
+        if level is None:
+            return ""
+        if not self.quantity:
+            return level
+        v = cfg.quantity(self.parameter, self.quantity)
+        return f"{level} ({format_quantity(self.quantity, v)})" if v is not None else level
+
+    def tick_label(self, cfg: Configuration) -> str:
+        """A short two-line bar label: the level (and the other differing factors' levels), then the axis
+        quantity's value with its unit (the bar itself carries the configuration key)."""
+        if self.parameter == TRAJECTORY:
+            head, value = self.value_text(cfg), ""
+        else:
+            head = cfg.level(self.parameter) or ""
+            v = cfg.quantity(self.parameter, self.quantity) if self.quantity else None
+            value = format_quantity(self.quantity, v) if v is not None else ""
+        others = " · ".join(str(cfg.level(f)) for f in self.others if cfg.level(f) is not None)
+        first = " · ".join(p for p in (head, others) if p) or f"config {cfg.key}"
+        return f"{first}\n{value}" if value else first
+
+    def config_label(self, cfg: Configuration) -> str:
+        """Legend or tick text: key, the compared value, then the other differing factors' levels."""
+        parts = [self.value_text(cfg)]
+        parts.extend(f"{f} {cfg.level(f)}" for f in self.others if cfg.level(f) is not None)
+        text = ", ".join(p for p in parts if p)
+        return f"{cfg.key}: {text}" if text else f"config {cfg.key}"
+
+
+def _differs(values: Sequence[object]) -> bool:
+    return len({repr(v) for v in values}) > 1
+
+
+def comparison_axis(comparison: Comparison, configs: Sequence[Configuration]) -> ComparisonAxis:
+    """The axis of `comparison` over `configs` (its configurations present in the archive)."""
+    parameter = comparison.parameter
+    others = tuple(
+        f for f in factor_names(configs) if f != parameter and _differs([cfg.level(f) for cfg in configs])
+    )
+    if parameter == TRAJECTORY:
+        return ComparisonAxis(parameter, "", False, "trajectory", others)
+    names: list[str] = []
+    for cfg in configs:
+        setting = cfg.settings.factor(parameter)
+        if setting is not None:
+            names.extend(q for q, _ in setting.quantities if q not in names)
+    if not names:
+        return ComparisonAxis(parameter, "", False, parameter, others)
+    quantity = next((q for q in names if _differs([cfg.quantity(parameter, q) for cfg in configs])), names[0])
+    values = [cfg.quantity(parameter, quantity) for cfg in configs]
+    numeric = bool(values) and all(isinstance(v, float) and math.isfinite(v) for v in values)
+    return ComparisonAxis(parameter, quantity, numeric, axis_label(parameter, quantity), others)

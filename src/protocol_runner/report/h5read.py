@@ -24,9 +24,6 @@ def decimate_for_plot(values: np.ndarray, max_points: int = MAX_PLOT_POINTS) -> 
     return read_only(arr[::stride])
 
 
-# --------------------------------------------------------------------------------------------- internals
-
-
 def subgroups(parent: h5py.Group, path: str = ".") -> list[tuple[str, h5py.Group]]:
     """(name, group) of every group directly under `parent[path]` (default: `parent` itself), in stored
     order; none when the path is absent (datasets beside them are passed over)."""

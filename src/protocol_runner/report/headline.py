@@ -3,10 +3,8 @@
 One `ConfigurationStats` per configuration and joint (and, with several joints, one of all joints
 together, from `total_energy_loss_j`): trials and cycles analysed, energy per cycle as the mean of
 trial means with its 95 % t-interval and between-trial CV (`analysis.statistics`), the angle range
-reached, and the Bouc-Wen fit quality. `group_repeatability` gives the between-set CV and ICC of a group of
-configurations the protocol declares identical (`report.repeatability`, read by `report.differences`).
-The report's summary table, the tidy CSV exports and the session comparison all read these, so they print
-the same intervals.
+reached, and the Bouc-Wen fit quality. The report's summary table, the tidy CSV exports and the session
+comparison all read these, so they print the same intervals.
 """
 
 from __future__ import annotations
@@ -17,9 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from protocol_runner.analysis.statistics import (
-    Repeatability,
     TInterval,
-    repeatability,
     t_interval,
     trial_means,
 )
@@ -95,14 +91,3 @@ def campaign_stats(data: ReportData, key: int) -> ConfigurationStats | None:
     if not rows or (data.multi_joint and rows[-1].joint != ALL_JOINTS):
         return None
     return rows[-1] if data.multi_joint else rows[0]
-
-
-def group_repeatability(data: ReportData, keys: tuple[int, ...]) -> Repeatability:
-    """Between-configuration CV and ICC(1) of the trial means of the configurations `keys` (with several
-    joints, of all joints together)."""
-    units = []
-    for key in keys:
-        stats = campaign_stats(data, key)
-        if stats is not None:
-            units.append(stats.trial_energy_j)
-    return repeatability(units)

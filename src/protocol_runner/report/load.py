@@ -1,8 +1,7 @@
 """Read an archive (docs/archive.md) into a `ReportData`, with clear errors for anything that is not one.
 
-An archive of an unfinished session (root `status` other than "complete") loads normally and the report
-marks it incomplete. The session-wide groups are read here, each configuration by `load_configuration.py`, with the small
-attribute readers of `h5read.py`; the checks are `archive/verify.py`'s.
+An unfinished session's archive loads normally (the report marks it incomplete). The session-wide groups
+are read here, each configuration by `load_configuration.py`; the checks are `archive/verify.py`'s.
 """
 
 from __future__ import annotations
@@ -240,8 +239,8 @@ def _readable_value(value: object) -> str:
 
 
 def _read_calibration(h5: h5py.File) -> tuple[CalibrationCheck, ...]:
-    """Every calibration check, one per joint (`archive.paths.joint_groups`: a check of several joints holds
-    one group per joint, each with its own verdict; the limits are the check's)."""
+    """Every calibration check, one per joint (a check of several joints holds one group per joint, each
+    with its own verdict; the limits are the check's)."""
     archive_joints = attr_str(h5.attrs, "joint")
     checks = [
         read_record(
@@ -280,13 +279,8 @@ def _read_comparisons(h5: h5py.File) -> tuple[Comparison, ...]:
 
 
 def _section_key(section: str) -> tuple[int, ...]:
-    parts: list[int] = []
-    for piece in section.replace("§", "").split("."):
-        try:
-            parts.append(int(piece))
-        except ValueError:
-            parts.append(999)
-    return tuple(parts) if parts else (999,)
+    """A section such as "§5.1" as numbers to sort by (999 for a part that is not one)."""
+    return tuple(int(p) if p.strip().isdecimal() else 999 for p in section.replace("§", "").split("."))
 
 
 def _read_references(h5: h5py.File) -> tuple[ReferenceDataset, ...]:

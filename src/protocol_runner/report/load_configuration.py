@@ -1,12 +1,9 @@
-"""One configuration group of an archive, for the report: per joint, its trials, processed loops, energies
-and fits, and the energy of all joints together (docs/archive.md, "Several joints"). Every per-joint group
-is read through `archive.paths.joint_groups`, so a single-joint archive written without a `joints/` level
-reads as one joint."""
+"""One configuration group of an archive, for the report: per joint (`archive.paths.joint_groups`), its
+trials, processed loops, energies and fits, and the energy of all joints together (docs/archive.md)."""
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from typing import Any
 
 import h5py
@@ -85,11 +82,6 @@ def _cycle_trials(grp: h5py.Group, name: str, n_cycles: int) -> np.ndarray:
     return cycle_trial if cycle_trial.size == n_cycles else np.zeros(n_cycles)
 
 
-def _joint_part(group: h5py.Group, joint: str, archive_joints: str) -> h5py.Group | None:
-    """Joint `joint`'s part of `group` (a trial's brace group), None when it has none."""
-    return next((g for j, g in joint_groups(group, archive_joints) if j == joint), None)
-
-
 def _read_joint(
     name: str, grp: h5py.Group, joint: str, results: h5py.Group | None, archive_joints: str
 ) -> Configuration:
@@ -109,7 +101,7 @@ def _read_joint(
             side: part
             for side in ("brace_on", "brace_off")
             if tgrp is not None and side in tgrp
-            if (part := _joint_part(tgrp[side], joint, archive_joints)) is not None
+            if (part := dict(joint_groups(tgrp[side], archive_joints)).get(joint)) is not None
         }
         on = off = None
         # Only the first recorded trial's raw data is plotted (angle/torque vs time): reading and
@@ -155,10 +147,19 @@ def _read_joint(
     fits = results if results is not None else {}
     energy = float_ds(results, "energy_loss_j") if results is not None else read_only(np.empty(0))
     cycle_trial = _cycle_trials(results, "energy_cycle_trial", energy.size) if results is not None else energy
+    attrs = grp.attrs
+    digits = "".join(ch for ch in name if ch.isdigit())
     return Configuration(
         name=name,
+        key=attr_int(attrs, "key", int(digits) if digits else 0),
         joint=joint,
-        **group_fields(name, grp.attrs, len(trials)),
+        run=attr_int(attrs, "run", 0),
+        set_name=attr_str(attrs, "set"),
+        condition=attr_str(attrs, "condition"),
+        profile=attr_str(attrs, "profile"),
+        status=attr_str(attrs, "status", "complete" if trials else "not run"),
+        n_trials_planned=attr_int(attrs, "n_trials", len(trials)),
+        settings=settings_from_attrs(attrs, f"configuration {name}"),
         trials=tuple(trials),
         energy_loss_j=read_only(energy),
         energy_cycle_trial=read_only(cycle_trial),
@@ -188,26 +189,6 @@ def brace_off_match(brace_off: h5py.Group | None, processed: h5py.Group | None) 
     if processed is not None and "coverage" in processed.attrs:
         clipped = 1.0 - attr_float(processed.attrs, "coverage")
     return BraceOffMatch(error, runs, converged, clipped)
-
-
-def group_fields(name: str, attrs: Mapping[str, Any], n_trials: int) -> dict[str, Any]:
-    """The `Configuration` fields read from the group's own attributes `attrs` (its identity, status and
-    settings), the group holding `n_trials` trials; every other field is read from its members."""
-    return {
-        "key": attr_int(attrs, "key", _key_from_name(name)),
-        "run": attr_int(attrs, "run", 0),
-        "set_name": attr_str(attrs, "set"),
-        "condition": attr_str(attrs, "condition"),
-        "profile": attr_str(attrs, "profile"),
-        "status": attr_str(attrs, "status", "complete" if n_trials else "not run"),
-        "n_trials_planned": attr_int(attrs, "n_trials", n_trials),
-        "settings": settings_from_attrs(attrs, f"configuration {name}"),
-    }
-
-
-def _key_from_name(name: str) -> int:
-    digits = "".join(ch for ch in name if ch.isdigit())
-    return int(digits) if digits else 0
 
 
 def _angle_span(angles: list[np.ndarray], torques: list[np.ndarray]) -> tuple[float, float]:

@@ -1,16 +1,13 @@
-"""What the report shows: immutable data read from one archive (docs/archive.md), nothing else.
-
-The report is regenerated from an archive alone, so everything a figure, a table
-or a finding needs is gathered here once by `protocol_runner.report.load.load_report_data`. Plot series
-are already decimated (a processed trial is smooth after the pipeline's low-pass filter, thesis §4.4),
-while summary numbers (angle range, torque-angle slope) are computed from the full-rate data.
-
-Arrays are numpy arrays marked read-only; units are in the field names.
+"""What the report shows: immutable data read from one archive (docs/archive.md) by
+`load.load_report_data`, nothing else. Plot series are decimated (a processed trial is smooth after the
+pipeline's low-pass filter, thesis §4.4); summary numbers (angle range, torque-angle slope) come from the
+full-rate data. Arrays are read-only numpy arrays; units are in the field names.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -141,11 +138,10 @@ class ProcessedTrial:
 
 @dataclass(frozen=True)
 class BraceOffMatch:
-    """How well a trial's brace-off twin matched it (docs/analysis.md §3-4), as the archive stores it:
-    the kept scaling run's cycle-range error (deg), the robot runs the scaling made, whether the error is
-    within the protocol's tolerance, and the clipped fraction (share of brace-on samples beyond the
-    brace-off range, 1 - the processed data's `coverage`). None where the archive holds no value (an
-    equal-time subtraction, a brace-off twin replayed without scaling, a trial not processed)."""
+    """How well a trial's brace-off twin matched it (docs/analysis.md §3-4): the kept scaling run's
+    cycle-range error (deg), the robot runs the scaling made, whether the error is within the protocol's
+    tolerance, and the clipped fraction (1 - the processed data's `coverage`); None where the archive holds
+    no value (an equal-time subtraction, a twin replayed without scaling, a trial not processed)."""
 
     scaling_error_deg: float | None = None
     scaling_runs: int | None = None
@@ -158,8 +154,7 @@ class Trial:
     """Trial `number` of a configuration: its brace-on and brace-off runs and the processed result.
 
     `brace_on`/`brace_off` are read only for the configuration's first recorded trial (the one plotted
-    against time); `recorded` says whether the archive holds this trial's raw data at all.
-    """
+    against time); `recorded`: the archive holds this trial's raw data."""
 
     number: int
     brace_on: Recording | None
@@ -212,11 +207,9 @@ class BoucWenFit(FittedCurve):
 
 @dataclass(frozen=True)
 class ElementFit(FittedCurve):
-    """The device's elastic elements fitted to the loops' midline (`fits/elements`, docs/archive.md).
-
-    `parameters` are the fitted values by archive name `<element>.<parameter>` (the unit in the
-    parameter's suffix); `elements` the fitted elements with every parameter; the curve is the
-    midline data (`torque_nm`) and the model (`model_torque_nm`) against `angle_deg`."""
+    """The device's elastic elements fitted to the loops' midline (`fits/elements`, docs/archive.md):
+    `parameters` by archive name `<element>.<parameter>` (the unit in its suffix), `elements` with every
+    parameter; the curve is the midline data (`torque_nm`) and the model against `angle_deg`."""
 
     applicable: bool
     reason: str
@@ -271,6 +264,14 @@ class Configuration(_EnergyPerCycle):
         return self.settings.quantity(factor, name)
 
 
+def factor_names(configurations: Sequence[Configuration]) -> list[str]:
+    """Every declared factor any of `configurations` sets, in declaration order (first seen first)."""
+    names: list[str] = []
+    for cfg in configurations:
+        names.extend(f for f in cfg.settings.factor_names() if f not in names)
+    return names
+
+
 @dataclass(frozen=True)
 class JointsTotal(_EnergyPerCycle):
     """The energy lost per cycle by all the driven joints of a configuration together (its
@@ -284,11 +285,9 @@ class JointsTotal(_EnergyPerCycle):
 
 @dataclass(frozen=True)
 class ReportData:
-    """Everything the report shows, read from one archive.
-
-    `configurations` holds one `Configuration` per configuration and driven joint, in key order and, within
-    a key, in the joints' channel order (`joints`); `totals` the energy of all joints together of each
-    configuration driving several joints (none for a single joint)."""
+    """Everything the report shows, read from one archive: one `Configuration` per configuration and driven
+    joint, in key order and, within a key, in the joints' channel order (`joints`); `totals`, the energy of
+    all joints together of each configuration driving several joints (none for a single joint)."""
 
     session: SessionInfo
     configurations: tuple[Configuration, ...]
@@ -322,6 +321,5 @@ class ReportData:
         return tuple(cfg for cfg in self.configurations if cfg.key == key)
 
     def total(self, key: int) -> JointsTotal | None:
-        """The energy of all joints together of configuration `key`, or None (a single joint, or none
-        recorded)."""
+        """The energy of all joints together of configuration `key`, or None (a single joint, or none)."""
         return next((t for t in self.totals if t.key == key), None)

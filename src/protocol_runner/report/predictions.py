@@ -1,6 +1,6 @@
 """Model prediction across configurations (docs/analysis.md "Prediction across configurations"):
 configuration B predicted from a model fitted on A, for the pairs the protocol declares
-(`report.predictions`); the numbers come from the archive alone.
+(`report.predictions`), from the archive alone.
 
 * The element model: A's fitted element parameters carried to B with the declared change A -> B
   (`models.element_model.transfer`), run along B's processed trials: the RMSE against B's measured torque
@@ -8,10 +8,9 @@ configuration B predicted from a model fitted on A, for the pairs the protocol d
   plus each parameter's spread across the campaign, `reproducibility`).
 * The generalised Bouc-Wen model: A's parameters and backbone on B's centred loops (its RMSE).
 
-Each model's prediction records the angles it was fitted on (A's) and those it runs over (B's): a prediction
-whose B angles reach beyond A's by more than EXTRAPOLATION_SHARE of A's span extrapolates, and says so. Its
-numbers are kept (they are what the model does there), but the Bouc-Wen backbone is a polynomial in the
-angle fitted on A's angles and is not meant to hold outside them, while the element model is physical."""
+A prediction whose B angles reach beyond A's by more than EXTRAPOLATION_SHARE of A's span extrapolates and
+says so; its numbers are kept, but the Bouc-Wen backbone (a polynomial fitted on A's angles) is not meant to
+hold outside them, while the element model is physical."""
 
 from __future__ import annotations
 
@@ -38,7 +37,7 @@ if TYPE_CHECKING:
 EXTRAPOLATION_SHARE = 0.05
 """B's angles may reach this share of A's fitted span beyond it before a prediction extrapolates: a degree
 or two is a loop's ordinary reach from one configuration to the next (and the stored loops are decimated,
-their extremes a little inside the fitted ones), a polynomial's change over it small."""
+their extremes a little inside the fitted ones)."""
 
 
 @dataclass(frozen=True)
@@ -69,8 +68,8 @@ def angle_range(angles: list[np.ndarray]) -> tuple[float, float]:
 
 @dataclass(frozen=True)
 class Prediction:
-    """One declared pair's numbers. (The session unpickles these from the worker that computed them, at
-    the end: this module imports the compiled model only where it runs it, not with the class.)"""
+    """One declared pair's numbers (unpickled by the session from the worker that computed them: the
+    compiled model is imported only where it runs)."""
 
     fit_key: int
     predict_key: int
@@ -183,8 +182,8 @@ def predict_rmse(
     backbone: Backbone | FixedBackbone | None,
     segments: list[tuple[np.ndarray, np.ndarray]],
 ) -> float:
-    """RMSE of the model on the given trials, each started at its own first torque (step-independent
-    integration, so the stored plotting samples of the loops serve as well as every sample)."""
+    """RMSE of the model on the given trials, each started at its own first torque (the integration is
+    step-independent: the stored plotting samples serve as well as every sample)."""
     from ..models.bouc_wen.simulation import simulate
 
     sq = 0.0
@@ -202,9 +201,8 @@ def predict_rmse(
 
 def reproducibility(configs: h5py.Group, archive_joints: str) -> dict[tuple[str, str], float]:
     """Per fitted parameter, the standard deviation of its fitted value across the configurations that
-    declare the same value for it (pooled over the declared values shared by two or more): how far a
-    brake set to the same level, a spring with the same preload, ... lands from one configuration to the
-    next, beyond a configuration's own fit uncertainty."""
+    declare the same value for it (pooled over the declared values shared by two or more): how far the same
+    setting lands from one configuration to the next, beyond a configuration's own fit uncertainty."""
     from ..models.element_model import layout
 
     groups: dict[tuple[tuple[str, str], float], list[float]] = {}
@@ -303,12 +301,12 @@ def element_prediction(
 
 
 def predictions(archive: Path, protocol_text: str, *, figures: bool = True) -> tuple[Prediction, ...]:
-    """The declared predictions of `archive`, each with its figure (`report.figures_predictions`) when
+    """The declared predictions of `archive`, each with its figure (`report.figures.prediction_figure`) when
     `figures` and the element model predicted it."""
     made = _predictions(archive, protocol_text)
     if not figures or not any(p.element is not None for p in made):
         return made
-    from .figures_predictions import prediction_figure  # matplotlib: only where the figures are drawn
+    from .figures import prediction_figure  # matplotlib: only where the figures are drawn
 
     def drawn(p: Prediction, e: ElementPrediction | None) -> Prediction:
         if e is None:
@@ -402,7 +400,6 @@ def prediction_row(p: Prediction) -> dict[str, object]:
 
 
 def _ranges_row(model: str, r: AngleRanges | None) -> dict[str, object]:
-    """A model's angle ranges as `/predictions` stores them (None: not stored)."""
     return {
         f"{model}_source_range_deg": list(r.source_deg) if r else None,
         f"{model}_target_range_deg": list(r.target_deg) if r else None,

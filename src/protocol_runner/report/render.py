@@ -1,24 +1,23 @@
-"""Render a `ReportData` as one self-contained HTML file (jinja2, autoescaped, figures inline).
+"""Render a `ReportData` as one self-contained HTML file (jinja2, autoescaped, figures inline); the
+template environment, the output path's checks and the atomic write are shared with the comparison page
+(`compare.py`).
 
 The file references nothing outside itself: figures are PNG data URIs, the CSS is inline, links are
 in-page anchors only; it prints (`@media print`) and reads offline. Regenerating it from the same archive
 gives the same bytes except the generation time, which is one element (`id="generated-utc"`).
-
-Public API:
-    render_report(data, output, *, generated_utc=None, workers=None, draw=None, predicted=None) -> Path
-    generate_report(archive_path, output=None, *, reference=None, workers=None) -> Path
 """
 
 from __future__ import annotations
 
 import dataclasses
 import functools
+import json
 import math
+import os
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -28,28 +27,29 @@ from markupsafe import Markup, escape
 
 from protocol_runner import __version__
 from protocol_runner.analysis.reference import load_reference_dataset
-from protocol_runner.protocol.plan_steps import Comparison
+from protocol_runner.archive.outputs import create_new, refuse_special, temporary_beside
+from protocol_runner.errors import InvalidInput
 from protocol_runner.protocol.wording import counted
-from protocol_runner.report.comparison_values import comparison_axis
 from protocol_runner.report.declared import declared_citations, declared_text
 from protocol_runner.report.differences import declared_differences, declared_repeatability
-from protocol_runner.report.evaluate import TUNED_LABEL, evaluate_expectations
+from protocol_runner.report.evaluate import TUNED_LABEL, evaluate_expectations, format_p
 from protocol_runner.report.figure_plan import (
     Drawn,
     FigureDrawer,
     FigureSet,
     assemble_figures,
+    comparison_axis,
+    configurations_of,
     distinct_comparisons,
     figure_ids,
     model_comparisons,
     slug,
 )
-from protocol_runner.report.headline import ALL_JOINTS, ConfigurationStats, campaign_stats, headline_stats
-from protocol_runner.report.html_file import checked_output, template_environment, write_atomically
-from protocol_runner.report.limits_text import limits_text
+from protocol_runner.report.headline import campaign_stats, headline_stats
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.model import BoucWenFit, CalibrationCheck, Configuration, JointsTotal, ReportData
+from protocol_runner.report.model import BoucWenFit, Configuration, ReportData, factor_names
 from protocol_runner.report.settings_view import format_quantity
+from protocol_runner.resources import templates_dir
 
 if TYPE_CHECKING:
     from protocol_runner.report.predictions import Prediction
@@ -72,69 +72,6 @@ SECTIONS: tuple[tuple[str, str], ...] = (
 )
 
 
-@dataclass(frozen=True)
-class _ConfigurationView:
-    """One configuration as the page shows it: its joints' parts (one for a single joint), the headline
-    statistics of each joint (and of all joints together, last, with several), the trials recorded, and
-    the energy of the configuration as a whole (its one joint's, or all joints' together)."""
-
-    first: Configuration
-    joints: tuple[Configuration, ...]
-    stats: tuple[ConfigurationStats, ...]
-    recorded: int
-    energy: Configuration | JointsTotal | None
-
-    @property
-    def key(self) -> int:
-        return self.first.key
-
-
-def configuration_views(data: ReportData) -> list[_ConfigurationView]:
-    """Every configuration of `data` in key order, as the summary, the configurations and the test matrix
-    show it."""
-    views = []
-    for key in data.keys:
-        cfgs = data.joint_configurations(key)
-        views.append(
-            _ConfigurationView(
-                first=cfgs[0],
-                joints=cfgs,
-                stats=headline_stats(data, key),
-                recorded=sum(1 for t in cfgs[0].trials if t.recorded),
-                energy=data.total(key) if data.multi_joint else cfgs[0],
-            )
-        )
-    return views
-
-
-@dataclass(frozen=True)
-class _JointCount:
-    """A joint's (or all joints' together) trials analysed and complete cycles over the campaign."""
-
-    joint: str
-    trials: int
-    cycles: int
-
-
-def joint_counts(data: ReportData) -> list[_JointCount]:
-    """With several joints, each joint's trials analysed and cycles summed over the configurations, then
-    all joints' together; nothing for a single joint (the summary's own counts are that joint's)."""
-    if not data.multi_joint:
-        return []
-    rows = []
-    for joint in (*data.joints, ALL_JOINTS):
-        stats = [s for key in data.keys for s in headline_stats(data, key) if s.joint == joint]
-        rows.append(_JointCount(joint, sum(s.trials for s in stats), sum(s.cycles for s in stats)))
-    return rows
-
-
-@dataclass(frozen=True)
-class _CalibrationSet:
-    name: str
-    figure_id: str
-    checks: tuple[CalibrationCheck, ...]
-
-
 def generate_report(
     archive_path: Path,
     output: Path | None = None,
@@ -142,13 +79,10 @@ def generate_report(
     reference: Path | None = None,
     workers: int | None = None,
 ) -> Path:
-    """Read `archive_path` (archive.h5 or its session directory) and write the HTML report.
-
-    `output` defaults to `report.html` next to the archive. `reference` is an optional EMU dataset
-    (CSV or .mat, see docs/report.md) added to those stored in the archive. `workers` is the number of
-    processes reading the archive and drawing figures (None: 2 for a large archive on 2+ cores, else 1).
-    Returns the report's path.
-    Raises `InvalidInput` for an unreadable archive or reference file.
+    """Read `archive_path` (archive.h5 or its session directory), write the HTML report (by default
+    `report.html` beside the archive) and return its path. `reference`: an EMU dataset (CSV or .mat,
+    docs/report.md) added to the archive's; `workers`: processes reading the archive and drawing figures
+    (None: 2 for a large archive on 2+ cores, else 1). `InvalidInput` for an unreadable archive or reference.
     """
     archive_path = Path(archive_path)
     data = load_report_data(archive_path, workers=workers)
@@ -248,8 +182,7 @@ _ESCAPED = "&<>\"'"  # what the template's autoescape (markupsafe.escape) replac
 
 def _needs_escaping(text: str) -> bool:
     """Whether autoescaping would change `text` (`escape(text) != text`), without building the escaped copy
-    (a data URI is base64 text, which it never changes): five substring searches, 0.3 ms for the knee's
-    7 MB of images where a regular expression took 14 ms."""
+    (a data URI is base64 text, which it never changes)."""
     return any(character in text for character in _ESCAPED)
 
 
@@ -266,6 +199,48 @@ def _draw_here(data: ReportData, task_ids: list[str], workers: int) -> list[Draw
     return draw_here(data, task_ids, workers)
 
 
+def template_environment(*, keep_trailing_newline: bool = False) -> jinja2.Environment:
+    """The package's templates: HTML-escaped, every variable required, block tags without stray lines."""
+    return jinja2.Environment(
+        loader=jinja2.FileSystemLoader(str(templates_dir())),
+        autoescape=True,
+        undefined=jinja2.StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+        keep_trailing_newline=keep_trailing_newline,
+    )
+
+
+def checked_output(output: Path, page: str, example: str) -> Path:
+    """`output` as a Path, or InvalidInput when it is a directory, exists and is not a regular file (a
+    symbolic link, a device, a FIFO: archive/outputs.py), or its folder does not exist (`page` names the
+    page in the message, `example` is a file name to suggest)."""
+    output = Path(output)
+    if output.is_dir() and not output.is_symlink():
+        raise InvalidInput(f"{page} output {output} is a directory; give a file name such as {example}.")
+    refuse_special(output, f"{page} output")
+    if not output.parent.is_dir():
+        raise InvalidInput(f"{page} output directory {output.parent} does not exist.")
+    return output
+
+
+def write_atomically(output: Path, text: str) -> None:
+    """Write `text` to `output` through a temporary file and a rename: a reader never sees half a page.
+
+    A path that is not valid UTF-8 (a session directory named with a byte of another encoding) shows in the
+    page with U+FFFD where that byte was: the page itself is always valid UTF-8."""
+    refuse_special(output, "output")  # checked again just before the write: never replaced by a rename
+    page = text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+    tmp = temporary_beside(output)
+    try:
+        with create_new(tmp) as fh:
+            fh.write(page)
+        os.replace(tmp, output)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
 @functools.cache
 def _environment() -> jinja2.Environment:
     """The report's template environment, one per process: it keeps the compiled template."""
@@ -273,9 +248,9 @@ def _environment() -> jinja2.Environment:
     env.filters["num"] = _num
     env.filters["pm"] = _pm
     env.filters["slug"] = slug
-    env.filters["factor"] = _factor_text
     env.filters["ci"] = _ci
     env.filters["counted"] = counted
+    env.filters["p"] = format_p
     return env
 
 
@@ -305,24 +280,6 @@ def _ci(low: float, high: float, digits: int = 2) -> str:
     return f"[{low:.{digits}f}, {high:.{digits}f}]"
 
 
-def _factor_text(cfg: Configuration, factor: str) -> str:
-    """A test-matrix cell: the factor's level label and its quantities with units, "—" when not set."""
-    setting = cfg.settings.factor(factor)
-    return setting.text() if setting is not None else "—"
-
-
-def factor_names(data: ReportData) -> list[str]:
-    """Every declared factor any configuration sets, in declaration order (first seen first)."""
-    return _factor_names_of(data.configurations)
-
-
-def _factor_names_of(configurations: Sequence[Configuration]) -> list[str]:
-    names: list[str] = []
-    for cfg in configurations:
-        names.extend(f for f in cfg.settings.factor_names() if f not in names)
-    return names
-
-
 def varying_levels(data: ReportData) -> dict[int, str]:
     """Per configuration key, what sets it apart in its set: the level of each factor (and the trajectory)
     that differs between the set's configurations, e.g. "bungee stiff, brake light"; "" for a set of one
@@ -332,7 +289,7 @@ def varying_levels(data: ReportData) -> dict[int, str]:
         by_set.setdefault(cfg.set_name, []).append(cfg)
     out: dict[int, str] = {}
     for configs in by_set.values():
-        names = _factor_names_of(configs)
+        names = factor_names(configs)
         varying = [n for n in names if len({c.level(n) for c in configs}) > 1]
         moves = len({c.settings.trajectory or c.profile for c in configs}) > 1
         for c in configs:
@@ -346,41 +303,30 @@ def varying_levels(data: ReportData) -> dict[int, str]:
 def _context(
     data: ReportData, figures: FigureSet, generated_utc: str, predicted: tuple[Prediction, ...]
 ) -> dict[str, object]:
-    calibration_sets = []
-    for set_name in sorted({c.set_name for c in data.calibration}):
-        calibration_sets.append(
-            _CalibrationSet(
-                name=set_name,
-                figure_id=f"fig-calibration-{slug(set_name)}",
-                checks=tuple(c for c in data.calibration if c.set_name == set_name),
-            )
-        )
-    overlay_comparisons = distinct_comparisons(data)
-    expectations = evaluate_expectations(data)
-    views = configuration_views(data)
+    # every configuration in key order: its joints' parts and the headline statistics of each joint (and
+    # of all joints together, last, with several)
+    views = [(data.joint_configurations(key), headline_stats(data, key)) for key in data.keys]
     campaign = [s for key in data.keys if (s := campaign_stats(data, key)) is not None]
     return {
         "data": data,
         "session": data.session,
         "sections": SECTIONS,
         "figures": figures,
-        "calibration_sets": calibration_sets,
-        "comparisons": overlay_comparisons,
+        "comparisons": distinct_comparisons(data),
         "model_comparisons": model_comparisons(data),
         "fitted": [c for c in data.configurations if c.bouc_wen is not None],
         "multi": data.multi_joint,
         "views": views,
-        "joint_counts": joint_counts(data),
         "campaign": campaign,
         "predictions": predicted,
         "element_fitted": [c for c in data.configurations if c.element_fit is not None],
-        "factor_names": factor_names(data),
+        "factor_names": factor_names(data.configurations),
         "quantity": format_quantity,
-        "axis_of": lambda comp: comparison_axis(comp, _configs(data, comp)),
-        "expectations": expectations,
+        "axis_of": lambda comp: comparison_axis(comp, configurations_of(data, comp.configurations)),
+        "expectations": evaluate_expectations(data),
         "cite": declared_citations(data.protocol_text),
         "tuned_label": TUNED_LABEL,
-        "headline": [s for v in views for s in v.stats],
+        "headline": [s for _, stats in views for s in stats],
         "varying": varying_levels(data),
         "protocol_title": declared_text(data.protocol_text, "title"),
         "protocol_description": declared_text(data.protocol_text, "description"),
@@ -389,8 +335,7 @@ def _context(
         "limits_text": limits_text,
         "generated_utc": generated_utc,
         "software_version": __version__,
-        "verdict_class": _verdict_class,
-        "configs_of": lambda comp, joint=None: _configs(data, comp, joint),
+        "configs_of": lambda comp, joint=None: configurations_of(data, comp.configurations, joint),
         "total_of": data.total,
         "parameter_cell": _parameter_cell,
     }
@@ -420,13 +365,33 @@ def _parameter_cell(fit: BoucWenFit, index: int, digits: int = 4) -> Markup:
     return value
 
 
-def _configs(
-    data: ReportData, comparison: Comparison | None, joint: str | None = None
-) -> list[Configuration]:
-    if comparison is None:
-        return []
-    return [c for k in comparison.configurations if (c := data.configuration(k, joint)) is not None]
+_PHRASES: dict[str, str] = {
+    "max_settle_error_deg": "settle error ≤ {v} deg",
+    "settle_error_deg": "settle error ≤ {v} deg",
+    "max_drift_deg": "drift within the set ≤ {v} deg",
+    "max_time_constant_change_s": "time-constant change within the set ≤ {v} s",
+}
 
 
-def _verdict_class(verdict: str) -> str:
-    return {"pass": "ok", "fail": "bad", "accepted": "warn"}.get(verdict, "warn")
+def _number(value: object) -> str:
+    return f"{value:g}" if isinstance(value, int | float) and not isinstance(value, bool) else str(value)
+
+
+def limits_text(raw: str) -> str:
+    """E.g. `{"max_settle_error_deg": 3.0, "time_constant_s": [0.1, 0.35]}` ->
+    "settle error ≤ 3 deg; time constant 0.1-0.35 s". Text that is not a JSON object is returned as is."""
+    try:
+        limits = json.loads(raw) if raw else {}
+    except ValueError:
+        return raw
+    if not isinstance(limits, dict):
+        return raw
+    parts: list[str] = []
+    for name, value in limits.items():
+        if name == "time_constant_s" and isinstance(value, list) and len(value) == 2:
+            parts.append(f"time constant {_number(value[0])}-{_number(value[1])} s")
+        elif name in _PHRASES:
+            parts.append(_PHRASES[name].format(v=_number(value)))
+        else:
+            parts.append(f"{name.replace('_', ' ')} {_number(value)}")
+    return "; ".join(parts) if parts else "none recorded"

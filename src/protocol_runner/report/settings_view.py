@@ -1,13 +1,10 @@
 """A configuration's declared settings as the archive stores them, for everything in the report.
 
-The archive's configuration group (docs/archive.md "Configurations") carries `factors` (the factor names
-in declaration order), `settings_json` ({"<factor>": {"level": label, <quantity>: value, ...}}),
-`device_json` ([{"name", "type", <parameter>: value, ...}]) and `trajectory_name`, plus the same
-settings flattened (`<factor>` = level label, `<factor>.<quantity>` = value). The report reads the JSON
-forms (they keep the declaration order) and never assumes any factor, level or quantity name: a
-quantity's unit comes from its name's suffix (`friction_nm` -> N·m, `range_deg` -> deg).
-
-An archive without these attributes (written before factors were declared) gives empty settings.
+The report reads the configuration group's `settings_json` ({"<factor>": {"level": label, <quantity>:
+value, ...}}), `device_json` ([{"name", "type", <parameter>: value, ...}]) and `trajectory_name`
+(docs/archive.md "Configurations"; the JSON keeps the declaration order; without them, empty settings) and
+never assumes any factor, level or quantity name: a quantity's unit comes from its name's suffix
+(`friction_nm` -> N·m).
 """
 
 from __future__ import annotations
@@ -21,6 +18,7 @@ from typing import Any
 from protocol_runner.errors import InvalidInput
 from protocol_runner.protocol.settings import LevelLookup
 from protocol_runner.protocol.units import UNIT_SUFFIXES, unit_suffix
+from protocol_runner.report.h5read import attr_str
 
 Quantity = float | tuple[float, ...]
 Param = Quantity | str | tuple[str, ...]  # an element parameter (words for constants and lists such as `fit`)
@@ -169,17 +167,9 @@ def _param(value: Any) -> Param:
     return json.dumps(value)
 
 
-def _text(value: Any) -> str:
-    if isinstance(value, bytes):
-        return value.decode("utf-8", errors="replace")
-    if hasattr(value, "tolist") and not isinstance(value, str):
-        return _text(value.tolist())
-    return str(value)
-
-
 def _json(attrs: Mapping[str, Any], name: str, where: str) -> Any:
     try:
-        return json.loads(_text(attrs[name]))
+        return json.loads(attr_str(attrs, name))
     except json.JSONDecodeError as exc:
         raise InvalidInput(f"{where}: attribute {name} is not valid JSON ({exc.msg})") from None
 
@@ -213,8 +203,7 @@ def settings_from_attrs(attrs: Mapping[str, Any], where: str) -> SettingsView:
                 raise InvalidInput(f"{where}: device_json[{i}] must be an object with 'name' and 'type'")
             params = tuple((str(k), _param(v)) for k, v in entry.items() if k not in ("name", "type"))
             device.append(DeviceElement(str(entry["name"]), str(entry["type"]), params))
-    trajectory = _text(attrs["trajectory_name"]) if "trajectory_name" in attrs else ""
-    return SettingsView(tuple(factors), tuple(device), trajectory)
+    return SettingsView(tuple(factors), tuple(device), attr_str(attrs, "trajectory_name"))
 
 
 def elements_from_json(text: str, where: str) -> tuple[DeviceElement, ...]:

@@ -1,12 +1,11 @@
 """Tidy CSV tables of an archive (`--export`, docs/report.md): one row per cycle, per trial and per
 configuration, and the model tables `models.csv`, `elements.csv` and `predictions.csv`; units in the names.
 
-Every table has a `joint` column and holds every driven joint's rows, each from that joint's own data
-(`archive.paths.joint_groups`). The cycles' energy is the archived `energy_loss_j` (Eq 10-12); their angle
-and torque columns come from the trial's archived processed data cut into the same complete cycles
-(`analysis.cycles`), and are left empty when that cut does not give the archived number of cycles. The
-configurations' statistics are `report.headline`'s, the numbers of the report's summary table; a list
-setting such as a range [lo, hi] is written `lo;hi`.
+Every table has a `joint` column and holds every driven joint's rows, each from that joint's own data. The
+cycles' energy is the archived `energy_loss_j` (Eq 10-12); their angle and torque columns come from the
+trial's processed data cut into the same complete cycles (`analysis.cycles`), empty when that cut does not
+give the archived number of cycles. The configurations' statistics are the report summary's
+(`report.headline`); a list setting such as a range [lo, hi] is written `lo;hi`.
 """
 
 from __future__ import annotations

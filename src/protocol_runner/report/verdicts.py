@@ -1,10 +1,8 @@
 """Record the declared expectations and their verdicts in an archive (`/expectations`, docs/archive.md).
 
-Called once the archive is consolidated (and again after `--reprocess`): the verdicts are decided on the
-archive's own data by the report's evaluator and stored for tools; the report itself always re-decides
-them from the archived protocol text and data, so a stored verdict never disagrees with a regenerated
-report of the same archive. An expectation decided per joint keeps each joint's outcome in
-`joints/<joint>` (the layout `archive.paths.joint_groups` reads).
+Called once the archive is consolidated (and again after `--reprocess`): decided on the archive's own data
+by the report's evaluator, which the report itself re-runs, so a stored verdict never disagrees with a
+regenerated report. An expectation decided per joint keeps each joint's outcome in `joints/<joint>`.
 """
 
 from __future__ import annotations
