@@ -8,12 +8,12 @@ import struct
 from pathlib import Path
 
 from protocol_runner.protocol.plan_steps import Comparison
-from protocol_runner.report.figure_plan import assemble_figures, comparison_axis, figure_ids
+from protocol_runner.report.figure_plan import comparison_axis, figure_ids
 from protocol_runner.report.figures import (
     DPI,
     LAYOUTS,
+    assemble_figures,
     bouc_wen_figure,
-    draw_here,
     energy_bars_figure,
     energy_cycles_figure,
     hysteresis_figure,
@@ -75,8 +75,8 @@ def test_bar_chart_after_a_line_chart_restores_numeric_ticks(small_archive: Path
 
 def test_serial_and_parallel_rendering_give_identical_images(small_archive: Path) -> None:
     data = load_report_data(small_archive)
-    serial = assemble_figures(data, 1, draw=None, here=draw_here)
-    parallel = assemble_figures(data, 2, draw=None, here=draw_here)
+    serial = assemble_figures(data, 1)
+    parallel = assemble_figures(data, 2)
     assert serial.missing == {} and parallel.missing == {}
     assert set(serial.images) == set(figure_ids(data))
     assert serial.images == parallel.images

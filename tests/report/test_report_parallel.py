@@ -7,8 +7,8 @@ from pathlib import Path
 import pytest
 
 from protocol_runner.report import parallel
-from protocol_runner.report.figure_plan import assemble_figures, figure_ids
-from protocol_runner.report.figures import draw_here
+from protocol_runner.report.figure_plan import figure_ids
+from protocol_runner.report.figures import assemble_figures
 from protocol_runner.report.load import load_report_data
 
 
@@ -40,5 +40,5 @@ def test_without_worker_processes_the_report_is_read_and_drawn_serially(
     monkeypatch.setattr(parallel, "ProcessPoolExecutor", no_processes)
     assert parallel.map_in_processes(_square, [1, 2], 2) is None
     data = load_report_data(small_archive, workers=2)
-    figures = assemble_figures(data, 2, draw=None, here=draw_here)
+    figures = assemble_figures(data, 2)
     assert figures.missing == {} and set(figures.images) == set(figure_ids(data))

@@ -14,10 +14,9 @@ and worker processes (`here`).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TypeAlias
 
@@ -30,10 +29,6 @@ FigureJob: TypeAlias = tuple[str, str, tuple[object, ...]]
 
 Drawn: TypeAlias = tuple[str, str | None, str | None]
 """A drawn figure: its id, its data URI (None if it could not be drawn) and why not."""
-
-FigureDrawer: TypeAlias = Callable[[ReportData, list[str]], list[Drawn] | None]
-"""Draws the figures of the given ids of the data elsewhere (the session's analysis workers), in order;
-None if it could not (they are then drawn here)."""
 
 
 @dataclass(frozen=True)
@@ -73,27 +68,6 @@ def configuration_jobs(cfgs: Sequence[Configuration]) -> list[FigureJob]:
     kinds += ["phase"] if len(cfgs) > 1 else []
     kinds += ["boucwen"] if any(cfg.bouc_wen is not None for cfg in cfgs) else []
     return [(f"{base}-{kind}", kind, (tuple(cfgs),)) for kind in kinds]
-
-
-def for_drawing(data: ReportData, figure_ids: Sequence[str]) -> ReportData:
-    """`data` as the figures `figure_ids` read it, for handing to another process: a configuration's raw
-    recordings (its first trial's brace-on and brace-off runs, half of a knee report's data) are read only
-    by its own time figure, so they are left out of every configuration none of whose figures is asked for."""
-    wanted = set(figure_ids)
-    kept = {
-        key
-        for key in data.keys
-        if any(job_id in wanted for job_id, _, _ in configuration_jobs(data.joint_configurations(key)))
-    }
-    configurations = tuple(
-        cfg
-        if cfg.key in kept
-        else dataclasses.replace(
-            cfg, trials=tuple(dataclasses.replace(t, brace_on=None, brace_off=None) for t in cfg.trials)
-        )
-        for cfg in data.configurations
-    )
-    return dataclasses.replace(data, configurations=configurations)
 
 
 def figure_ids(data: ReportData) -> list[str]:
@@ -159,34 +133,6 @@ def slug(text: str) -> str:
     """An HTML-id-safe version of `text`."""
     out = "".join(ch if ch.isalnum() else "-" for ch in text.lower()).strip("-")
     return out or "x"
-
-
-HereDrawer: TypeAlias = Callable[[ReportData, list[str], int], list[Drawn]]
-"""Draws the figures of the given ids of the data in this process (or with workers > 1 on that many worker
-processes): `figures.draw_here`."""
-
-
-def assemble_figures(
-    data: ReportData, workers: int | None, *, draw: FigureDrawer | None, here: HereDrawer
-) -> FigureSet:
-    """Every figure of the report, drawn by `draw` (elsewhere: the session's analysis workers), or else by
-    `here` with `workers` (None: `default_workers`)."""
-    every = figure_ids(data)
-    results = draw(data, every) if draw is not None and every else None
-    if results is None:
-        results = (
-            here(data, every, default_workers(len(every)) if workers is None else workers) if every else []
-        )
-    drawn = {figure_id: (uri, error) for figure_id, uri, error in results}
-    images: dict[str, str] = {}
-    missing: dict[str, str] = {}
-    for figure_id in every:  # document order
-        uri, error = drawn[figure_id]
-        if uri is not None:
-            images[figure_id] = uri
-        else:
-            missing[figure_id] = error or "not drawn"
-    return FigureSet(images=images, missing=missing)
 
 
 def default_workers(n_tasks: int) -> int:

@@ -10,7 +10,7 @@ A comparison's labels and axes are `figure_plan.comparison_axis`'s: nothing here
 
 Which figures there are is `figure_plan`'s (no matplotlib); here each kind is drawn (`DRAW`, with the
 drawing kit below: layouts, labels, colours, colour key, PNG data URI), by this process or by worker
-processes (`draw_here`).
+processes (`assemble_figures`).
 """
 
 from __future__ import annotations
@@ -34,8 +34,11 @@ from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.report.figure_plan import (
     ComparisonAxis,
     Drawn,
+    FigureSet,
     comparison_axis,
     configurations_of,
+    default_workers,
+    figure_ids,
     figure_jobs,
 )
 from protocol_runner.report.headline import ALL_JOINTS
@@ -754,24 +757,27 @@ def _tasks(data: ReportData) -> list[tuple[str, Callable[[], str]]]:
     return [(figure_id, functools.partial(DRAW[kind], *args)) for figure_id, kind, args in figure_jobs(data)]
 
 
-def draw_figures(data: ReportData, task_ids: list[str]) -> list[Drawn]:
-    """The figures `task_ids` of `data`, in order (run by a process that draws for another)."""
-    tasks = dict(_tasks(data))
-    return [_safe(task_id, tasks[task_id]) for task_id in task_ids]
-
-
-def draw_here(data: ReportData, task_ids: list[str], workers: int) -> list[Drawn]:
-    """The figures `task_ids` of `data` drawn by this process, or with `workers` > 1 (and enough figures)
-    on that many worker processes (`parallel.map_in_processes`)."""
+def assemble_figures(data: ReportData, workers: int | None = None) -> FigureSet:
+    """Every figure of the report, drawn by this process, or with `workers` > 1 (None: `default_workers`)
+    on that many worker processes (`parallel.map_in_processes`); a figure that cannot be drawn is missing,
+    with the reason."""
+    every = figure_ids(data)
+    n_workers = default_workers(len(every)) if workers is None else workers
     results: list[Drawn] | None = None
-    if workers > 1 and len(task_ids) >= 8:
+    if n_workers > 1 and len(every) >= 8:
         # small chunks keep both workers busy: two-panel figures cost about twice a one-panel one
         results = map_in_processes(
-            _run_one, task_ids, workers, initializer=_init_worker, initargs=(data,), chunksize=4
+            _run_one, every, n_workers, initializer=_init_worker, initargs=(data,), chunksize=4
         )
     if results is None:
-        results = draw_figures(data, task_ids)
-    return results
+        tasks = dict(_tasks(data))
+        results = [_safe(figure_id, tasks[figure_id]) for figure_id in every]
+    drawn = {figure_id: (uri, error) for figure_id, uri, error in results}
+    images = {figure_id: uri for figure_id in every if (uri := drawn[figure_id][0]) is not None}
+    missing = {
+        figure_id: drawn[figure_id][1] or "not drawn" for figure_id in every if figure_id not in images
+    }
+    return FigureSet(images=images, missing=missing)
 
 
 _WORKER_TASKS: dict[str, Callable[[], str]] = {}

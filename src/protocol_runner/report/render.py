@@ -14,9 +14,8 @@ import functools
 import json
 import math
 import os
-import re
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor, ThreadPoolExecutor
+from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from datetime import UTC, datetime
 from pathlib import Path
@@ -34,14 +33,10 @@ from protocol_runner.report.declared import declared_citations, declared_text
 from protocol_runner.report.differences import declared_differences, declared_repeatability
 from protocol_runner.report.evaluate import TUNED_LABEL, evaluate_expectations, format_p
 from protocol_runner.report.figure_plan import (
-    Drawn,
-    FigureDrawer,
     FigureSet,
-    assemble_figures,
     comparison_axis,
     configurations_of,
     distinct_comparisons,
-    figure_ids,
     model_comparisons,
     slug,
 )
@@ -114,15 +109,11 @@ def render_report(
     *,
     generated_utc: str | None = None,
     workers: int | None = None,
-    draw: FigureDrawer | None = None,
     predicted: Callable[[], tuple[Prediction, ...]] | None = None,
 ) -> Path:
     """Write the report of `data` to `output` atomically (temporary file + rename); return `output`.
-
-    `draw` draws the figures not drawn ahead elsewhere and `predicted` gives the model predictions computed
-    elsewhere (both: the session's analysis workers, `session/reporting.py`); by default they are made here.
-    """
-    html = render_html(data, generated_utc=generated_utc, workers=workers, draw=draw, predicted=predicted)
+    `predicted` gives the model predictions when they are computed elsewhere (by default: here)."""
+    html = render_html(data, generated_utc=generated_utc, workers=workers, predicted=predicted)
     output = checked_output(output, "Report", "report.html")
     write_atomically(output, html)
     return output
@@ -133,57 +124,19 @@ def render_html(
     *,
     generated_utc: str | None = None,
     workers: int | None = None,
-    draw: FigureDrawer | None = None,
     predicted: Callable[[], tuple[Prediction, ...]] | None = None,
 ) -> str:
-    """The report of `data` as an HTML string (`draw`, `predicted`: as `render_report`).
-
-    When `draw` draws the figures elsewhere, the page is rendered meanwhile with a stand-in for each image
-    and the images put in their places once drawn: the very text a render with the images gives (a data
-    URI needs no escaping, checked), or that render itself if a figure is missing."""
+    """The report of `data` as an HTML string, its figures drawn with `workers` (`figures.assemble_figures`;
+    `predicted`: as `render_report`)."""
     if generated_utc is None:
         generated_utc = datetime.now(UTC).replace(microsecond=0).isoformat().replace("+00:00", "Z")
     if predicted is None:
         from protocol_runner.report.predictions import predictions  # the compiled model: only run here
 
         predicted = functools.partial(predictions, Path(data.session.archive_path), data.protocol_text)
-    if draw is None:
-        return _render(
-            data, assemble_figures(data, workers, draw=None, here=_draw_here), generated_utc, predicted
-        )
-    ids = figure_ids(data)
-    stand_ins = {figure_id: f"@@figure-{k}@@" for k, figure_id in enumerate(ids)}
-    with ThreadPoolExecutor(1, thread_name_prefix="report-figures") as pool:  # waits on the workers
-        pending = pool.submit(assemble_figures, data, workers, draw=draw, here=_draw_here)
-        page = _render(data, FigureSet(images=stand_ins), generated_utc, predicted)
-        # while the figures are drawn: the page between its stand-ins, each stand-in met once
-        parts = _STAND_IN.split(page)  # text, figure number, text, ..., text
-        placed = (
-            [ids[int(k)] for k in parts[1::2]]
-            if sorted(map(int, parts[1::2])) == list(range(len(ids)))
-            else None
-        )
-        figures = pending.result()
-    images = figures.images
-    if (
-        placed is None
-        or figures.missing
-        or set(images) != set(ids)
-        or any(map(_needs_escaping, images.values()))
-    ):
-        return _render(data, figures, generated_utc, predicted)
-    parts[1::2] = [images[figure_id] for figure_id in placed]
-    return "".join(parts)
+    from protocol_runner.report.figures import assemble_figures  # matplotlib: only where figures are drawn
 
-
-_STAND_IN = re.compile(r"@@figure-(\d+)@@")
-_ESCAPED = "&<>\"'"  # what the template's autoescape (markupsafe.escape) replaces
-
-
-def _needs_escaping(text: str) -> bool:
-    """Whether autoescaping would change `text` (`escape(text) != text`), without building the escaped copy
-    (a data URI is base64 text, which it never changes)."""
-    return any(character in text for character in _ESCAPED)
+    return _render(data, assemble_figures(data, workers), generated_utc, predicted)
 
 
 def _render(
@@ -191,12 +144,6 @@ def _render(
 ) -> str:
     context = _context(data, figures, generated_utc, predicted())
     return str(_environment().get_template(TEMPLATE).render(**context))
-
-
-def _draw_here(data: ReportData, task_ids: list[str], workers: int) -> list[Drawn]:
-    from protocol_runner.report.figures import draw_here  # matplotlib: only where the figures are drawn
-
-    return draw_here(data, task_ids, workers)
 
 
 def template_environment(*, keep_trailing_newline: bool = False) -> jinja2.Environment:

@@ -256,8 +256,8 @@ class Runner:
             self.steps_run += 1  # written below
         self.journal.event("finished", f"{counted(self.steps_run, 'step')} run, {skipped} skipped{robot}")
         archive = self.consolidate("complete")
-        call = self.pool.call if self.pool.running else None  # the idle workers draw the figures
-        report = render_report(self.dir, archive, call)
+        self.pool.shutdown(progress.step_finished)  # every analysis is journaled: the workers are done
+        report = render_report(self.dir, archive)
         if self.plan.steps and self.plan.steps[-1].kind == "report":
             progress.step_finished(self.plan.steps[-1], "archive and report written")
         progress.info(f"archive: {archive}")

@@ -22,9 +22,7 @@ import warnings
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import wait as futures_wait
-from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
-from typing import TypeVar
 
 from ..archive.units import UnitRecord, write_unit
 from ..protocol.loaded import LoadedProtocol
@@ -42,7 +40,6 @@ PRELOADED = ("protocol_runner.steps.registry", "protocol_runner.analysis.service
 Warned = tuple[tuple[str, int], ...]  # (warning kind, how often), in the order first raised
 Results = list[tuple[UnitRecord | None, str, Warned]]
 """A task's units, summaries and the warnings each step raised (`warning_kinds`), in step order."""
-T = TypeVar("T")
 
 
 def worker_context() -> multiprocessing.context.BaseContext:
@@ -217,17 +214,6 @@ class AnalysisPool:
     def running(self) -> bool:
         """Whether the workers are started."""
         return self._pool is not None
-
-    def call(self, fn: Callable[..., T], /, *args: object) -> Future[T] | None:
-        """`fn(*args)` on a worker, if the workers are started and still there (None otherwise: the caller
-        runs it itself). For work outside the steps (the report's figures at the end); not journaled."""
-        if self._pool is None:
-            return None
-        with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
-            try:
-                return self._pool.submit(fn, *args)
-            except (BrokenProcessPool, RuntimeError):  # a worker died, or the pool is shut down
-                return None
 
     def shutdown(self, finished: Callable[[Step, str], None]) -> None:
         """On any exit: keep the background steps that complete, drop those not started (redone on resume)."""
