@@ -1,5 +1,5 @@
 """Statistical power of the report's tests, and the trials per configuration a statement needs
-(docs/protocol.md "Power").
+(docs/protocol.md "Trials needed").
 
 The report decides an expectation on trial values with one-sided Welch tests of a contrast, or with two
 one-sided tests (TOST) of equivalence. A contrast C = sum(w_i mu_i) estimated from `n` trials per
