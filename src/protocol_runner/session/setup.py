@@ -284,13 +284,9 @@ def parse_session_file(path: Any) -> dict[str, Any]:
         raise InvalidInput(f"{path}: damaged session file (a number too long to read)") from None
     if not isinstance(d, dict):
         raise InvalidInput(f"{path}: damaged session file (expected a JSON object of fields)")
-    check_session_fields(d, str(path))
-    return d
 
-
-def check_session_fields(d: dict[str, Any], where: str) -> None:
     def bad(field: str, why: str) -> InvalidInput:
-        return InvalidInput(f"{where}: field {field!r} {why}")
+        return InvalidInput(f"{path}: field {field!r} {why}")
 
     missing = [k for k in REQUIRED if k not in d]
     if missing:
@@ -332,3 +328,4 @@ def check_session_fields(d: dict[str, Any], where: str) -> None:
     rig = d.get("rig_sha256", "")
     if not isinstance(rig, str) or (rig and not _SHA256.fullmatch(rig)):
         raise bad("rig_sha256", f"must be empty or 64 lower-case hex digits, got {rig!r:.80}")
+    return d
