@@ -144,7 +144,14 @@ def create_session(
     except OSError as exc:
         if was_empty:  # only what this call wrote is removed
             with contextlib.suppress(OSError):
-                _remove_contents(directory, keep=existed)
+                if not existed:
+                    shutil.rmtree(directory)
+                else:
+                    for child in directory.iterdir():
+                        if child.is_dir() and not child.is_symlink():
+                            shutil.rmtree(child)
+                        else:
+                            child.unlink()
         if is_disk_full(exc):
             raise DiskFull(
                 f"disk full while creating the session {directory}: nothing was recorded. "
@@ -152,17 +159,6 @@ def create_session(
             ) from None
         what = f"{exc.strerror}: {exc.filename}" if exc.strerror and exc.filename else (exc.strerror or exc)
         raise InvalidInput(f"--session {directory}: cannot create the session ({what})") from None
-
-
-def _remove_contents(directory: Path, *, keep: bool) -> None:
-    if not keep:
-        shutil.rmtree(directory)
-        return
-    for child in directory.iterdir():
-        if child.is_dir() and not child.is_symlink():
-            shutil.rmtree(child)
-        else:
-            child.unlink()
 
 
 def write_session_info(directory: Path, info: SessionInfo) -> None:
