@@ -58,11 +58,12 @@ def worker_context() -> multiprocessing.context.BaseContext:
 def analysis_pool(initializer: Callable[..., None] | None = None, *initargs: object) -> ProcessPoolExecutor:
     """Worker processes started as `worker_context` says, each running `initializer` (default `worker_init`:
     SIGINT left to the main process, BLAS on one thread); `--report --reprocess` uses the default."""
+    start: Callable[..., None] = initializer or worker_init
     with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
         return ProcessPoolExecutor(
             max_workers=min(2, os.cpu_count() or 1),
             mp_context=worker_context(),
-            initializer=initializer or worker_init,
+            initializer=start,
             initargs=initargs,
         )
 
