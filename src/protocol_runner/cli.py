@@ -298,12 +298,7 @@ def check_flags(args: argparse.Namespace) -> str:
         raise InvalidInput("--realtime paces the simulator: use it with --dry-run")
     if args.protocol_file is not None and not args.reprocess:
         raise InvalidInput("--protocol-file gives the settings --reprocess uses: add --reprocess")
-    _check_power_flags(args)
-    return mode
-
-
-def _check_power_flags(args: argparse.Namespace) -> None:
-    """`--power SESSION` or `--power-cv CV` (one of them), `--power-effect` only with one, no `--json`."""
+    # `--power SESSION` or `--power-cv CV` (one of them), `--power-effect` only with one, no `--json`
     if args.power is not None and args.power_cv is not None:
         raise InvalidInput(
             "--power and --power-cv are two sources of the between-trial spread: give one (--power SESSION "
@@ -324,6 +319,7 @@ def _check_power_flags(args: argparse.Namespace) -> None:
             raise InvalidInput(
                 f"{flag} {value:g}: give a fraction of the mean, above 0 and at most {most:g} (0.05 for 5 %)"
             )
+    return mode
 
 
 def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
@@ -336,7 +332,12 @@ def _dispatch(parser: argparse.ArgumentParser, args: argparse.Namespace) -> int:
     if mode == "--plan":
         args.plan = _mode_protocol("--plan", args.plan, args.protocol)
         if args.power is None and args.power_cv is None:
-            return _cmd_plan(args)
+            from .commands import preflighted
+            from .protocol.plan_table import format_plan_table
+
+            _, plan = preflighted(args.plan, parse_only(args.only))
+            sys.stdout.write((plan.dumps() if args.json else format_plan_table(plan)) + "\n")
+            return EXIT_OK
     if mode == "--validate":
         args.validate = _mode_protocol("--validate", args.validate, args.protocol)
         return _cmd_validate(args)
@@ -439,18 +440,6 @@ def _cmd_validate(args: argparse.Namespace) -> int:
         f"{counted(len(plan), 'step')}, about {robot_time_text(plan.robot_time_s)} of robot time. "
         f"{declared}sha256 {loaded.sha256[:16]}..."
     )
-    return EXIT_OK
-
-
-def _cmd_plan(args: argparse.Namespace) -> int:
-    from .commands import preflighted
-    from .protocol.plan_table import format_plan_table
-
-    _, plan = preflighted(args.plan, parse_only(args.only))
-    if args.json:
-        sys.stdout.write(plan.dumps() + "\n")
-    else:
-        sys.stdout.write(format_plan_table(plan) + "\n")
     return EXIT_OK
 
 

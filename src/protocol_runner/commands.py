@@ -45,10 +45,11 @@ def load_named(name: str) -> LoadedProtocol:
 def preflighted(name: str, only: KeySelection | None = None) -> tuple[LoadedProtocol, Plan]:
     """The protocol `name` loaded and checked exactly as a run checks it before it creates a session (its
     warnings printed on standard error), with its plan."""
-    from .preflight import preflight, preflight_warnings
+    from .preflight import preflight_warnings
+    from .protocol.plan import expand
 
     loaded = load_named(name)
-    plan = preflight(loaded, only=only)
+    plan = expand(loaded, only=only)
     for warning in preflight_warnings(loaded, plan):
         print(warning, file=sys.stderr)
     return loaded, plan
@@ -75,13 +76,14 @@ def run_loaded(
 ) -> RunResult:
     """Run (or with `dry_run` rehearse) a loaded protocol into a new session directory (`session`, or
     `sessions/<name>-<UTC time>/`): the run behind `run-protocol PROTOCOL`, its outcome returned."""
-    from .preflight import preflight, preflight_warnings
+    from .preflight import preflight_warnings
+    from .protocol.plan import expand
     from .protocol.plan_table import robot_time_text
     from .protocol.wording import counted
     from .session.runner import Runner
     from .session.setup import create_session, created_session_protocol, default_session_dir
 
-    planned = preflight(loaded, only=only)  # everything --validate checks, before anything is created
+    planned = expand(loaded, only=only)  # everything --validate checks, before anything is created
     for warning in preflight_warnings(loaded, planned):
         say(warning)
     if realtime and not dry_run:
@@ -418,10 +420,10 @@ def power_plan(
     """`--plan PROTOCOL --power SESSION` (or `--power-cv CV`): the trials per configuration each declared
     expectation needs for 80 % power (power_plan.py)."""
     from .power_plan import Spread, check_session, plan_power
-    from .preflight import preflight
+    from .protocol.plan import expand
 
     loaded = load_named(protocol)
-    plan = preflight(loaded, only=only)
+    plan = expand(loaded, only=only)
     if not loaded.protocol.expectations:
         raise InvalidInput(f"{protocol} declares no expectations: there is no statement to plan trials for")
     if session is not None:

@@ -186,17 +186,13 @@ def _plan_one(
     except _CannotPlan as why:
         return PlannedExpectation(spec, test, "", None, n_planned, str(why))
     needed = trials_needed([part for _, part, _ in parts], alpha_each, least=spec.min_trials)
-    return PlannedExpectation(
-        spec, test, _joined([(name, basis) for name, _, basis in parts]), needed, n_planned
-    )
-
-
-def _joined(bases: Sequence[tuple[str, str]]) -> str:
-    """The parts' bases: "a: x; b: y", or "a, b: x" when every part rests on the same."""
-    texts = {text for _, text in bases}
-    if len(bases) > 1 and len(texts) == 1:
-        return f"{', '.join(name for name, _ in bases)}: each {texts.pop()}"
-    return "; ".join(f"{name}: {text}" for name, text in bases)
+    # the parts' bases: "a: x; b: y", or "a, b: each x" when every part rests on the same
+    texts = {basis for _, _, basis in parts}
+    if len(parts) > 1 and len(texts) == 1:
+        basis = f"{', '.join(name for name, _, _ in parts)}: each {texts.pop()}"
+    else:
+        basis = "; ".join(f"{name}: {text}" for name, _, text in parts)
+    return PlannedExpectation(spec, test, basis, needed, n_planned)
 
 
 def _session_stats(spec: ExpectationSpec, data: ReportData, keys: Sequence[int]) -> dict[int, TInterval]:

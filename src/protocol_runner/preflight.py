@@ -1,8 +1,8 @@
 """Preflight: everything a run checks before it creates its session folder (docs/protocol.md "What is
-checked"). `--validate`, `--plan`, a run and a resume all call `preflight`, so "valid" means "the run will
-start": the protocol loads (protocol/loader.py: limits, schema, cross-field and file checks, every motion's
-commanded stream), `--only` is checked and the plan expanded. A problem is an `InvalidInput` (exit 2)
-naming file, line and field; nothing has been written yet.
+checked"). `--validate`, `--plan`, a run and a resume all load the protocol (protocol/loader.py: limits,
+schema, cross-field and file checks, every motion's commanded stream) and expand its plan with `--only`
+checked (`protocol.plan.expand`) the same way, so "valid" means "the run will start". A problem is an
+`InvalidInput` (exit 2) naming file, line and field; nothing has been written yet.
 
 `preflight_warnings` then names what would run but give the analysis nothing to work on: a processed
 trial whose commanded angle holds no complete cycle (the processing's own cycle rule, `analysis/cycles.py`,
@@ -11,18 +11,9 @@ applied to the commanded samples). `--validate`, `--plan` and a run print them; 
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-
 from .protocol.loaded import LoadedProtocol
-from .protocol.only import KeySelection
-from .protocol.plan import expand
 from .protocol.plan_steps import Plan, ProcessStep, TrialStep
 from .protocol.trajectory_record import Trajectory
-
-
-def preflight(loaded: LoadedProtocol, only: KeySelection | Iterable[int] | None = None) -> Plan:
-    """The run's checks before anything is written (module docstring); returns the plan."""
-    return expand(loaded, only=only)
 
 
 def preflight_warnings(loaded: LoadedProtocol, plan: Plan) -> list[str]:

@@ -12,8 +12,9 @@ import pytest
 
 from protocol_runner.analysis.cycles import complete_cycles
 from protocol_runner.cli import main
-from protocol_runner.preflight import preflight, preflight_warnings
+from protocol_runner.preflight import preflight_warnings
 from protocol_runner.protocol.loader import load_protocol
+from protocol_runner.protocol.plan import expand
 from protocol_runner.protocol.sampling import sample_trajectory
 from protocol_runner.resources import packaged_protocols_dir
 
@@ -34,7 +35,7 @@ def elbow_with(tmp_path: Path, periods: str, triangle_cycles: str = "4") -> Path
 
 def warnings_of(path: Path) -> list[str]:
     loaded = load_protocol(path)
-    return preflight_warnings(loaded, preflight(loaded))
+    return preflight_warnings(loaded, expand(loaded))
 
 
 def test_two_periods_of_a_sinusoid_hold_no_cycle_and_are_named_at_their_field(tmp_path: Path) -> None:
@@ -58,7 +59,7 @@ def test_the_warning_follows_the_processing_rule_on_the_commanded_samples(tmp_pa
     periods - 2 from 3 on (a sinusoid starts at its mean moving up: that crossing has no low side)."""
     for periods in (2, 3, 4, 6):
         loaded = load_protocol(elbow_with(tmp_path, str(periods)))
-        step = next(s for s in preflight(loaded).steps if s.kind == "trial" and s.trajectory.name == "sine")
+        step = next(s for s in expand(loaded).steps if s.kind == "trial" and s.trajectory.name == "sine")
         angle = sample_trajectory(step.trajectory, loaded.protocol.rig.output.rate_hz, loaded.base_dir)
         assert len(complete_cycles(angle)) == periods - 2
         assert bool(warnings_of(elbow_with(tmp_path, str(periods)))) == (periods == 2)

@@ -5,9 +5,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from protocol_runner.preflight import preflight
 from protocol_runner.protocol.loader import load_protocol
 from protocol_runner.protocol.only import KeySelection
+from protocol_runner.protocol.plan import expand
 from protocol_runner.session.setup import create_session, created_session_protocol, load_session_protocol
 
 from .test_rig_provenance import lab_campaign
@@ -15,7 +15,7 @@ from .test_rig_provenance import lab_campaign
 
 def test_the_created_session_protocol_is_the_one_read_back_from_the_session(tmp_path: Path) -> None:
     loaded = load_protocol(lab_campaign(tmp_path / "campaign"))  # a lab rig file and trajectory files
-    planned = preflight(loaded, only=KeySelection(((3, 5),)))
+    planned = expand(loaded, only=KeySelection(((3, 5),)))
     session = tmp_path / "session"
     info = create_session(session, loaded, mode="dry-run", seed=1, only=planned.only, realtime=False)
 

@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from protocol_runner.preflight import preflight
 from protocol_runner.protocol.loader import find_protocol, load_protocol
+from protocol_runner.protocol.plan import expand
 from protocol_runner.session import progress as progress_module
 from protocol_runner.session.progress import Progress
 
@@ -24,7 +24,7 @@ class Clock:
 def test_the_wall_eta_ignores_the_first_steps_start_up(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    plan = preflight(load_protocol(find_protocol("elbow_example.yaml")), only=[1])
+    plan = expand(load_protocol(find_protocol("elbow_example.yaml")), only=[1])
     steps = [s for s in plan.steps if s.robot_time_s > 0][:3]
     assert len(steps) == 3
     clock = Clock()

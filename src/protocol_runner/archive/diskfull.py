@@ -10,13 +10,10 @@ from __future__ import annotations
 import errno
 import logging
 from pathlib import Path
-from typing import ParamSpec, TypeVar
 
 from ..errors import EXIT_INTERRUPTED, UserError, causes
 
 _FULL = (errno.ENOSPC, errno.EDQUOT)
-P = ParamSpec("P")
-R = TypeVar("R")
 
 
 class DiskFull(UserError):
@@ -30,15 +27,14 @@ def is_disk_full(exc: BaseException) -> bool:
     return any(
         isinstance(e, DiskFull)
         or (isinstance(e, OSError) and (e.errno in _FULL or "No space left on device" in str(e)))
+        # HDF5 reports a write refused for lack of space from some calls (closing a file, flushing its
+        # metadata) as a RuntimeError carrying the system's error in its text ("errno = 28, ...")
         or (isinstance(e, RuntimeError) and _hdf5_out_of_space(str(e)))
         for e in causes(exc)
     )
 
 
 def _hdf5_out_of_space(message: str) -> bool:
-    """HDF5 reports a write refused for lack of space from some calls (closing a file, flushing its
-    metadata) as a RuntimeError that carries the system's error in its text ("errno = 28, error message =
-    'No space left on device'"), not as an OSError."""
     return (
         "No space left on device" in message
         or "Disk quota exceeded" in message

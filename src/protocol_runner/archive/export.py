@@ -49,7 +49,10 @@ def export_mat(archive: Path, out_dir: Path) -> list[Path]:
             names = [n for n in configs if isinstance(configs[n], h5py.Group)]
             if not names:
                 raise InvalidInput(f"{archive}: no configurations to export")
-            meta = _meta(f, archive)
+            meta = attrs_struct(f, where)
+            meta.setdefault("operator", _operator(f))
+            meta["archive"] = archive.name
+            meta["exported_by"] = f"protocol-runner {__version__}"
             files: dict[str, str] = {SESSION_FILE: SESSION_FILE}
             summary: dict[str, Any] = {}
             for name in names:
@@ -63,14 +66,6 @@ def export_mat(archive: Path, out_dir: Path) -> list[Path]:
     except (OSError, KeyError, ValueError, TypeError, RuntimeError) as exc:
         raise InvalidInput(f"{archive}: cannot export ({exc}); the archive may be damaged") from None
     return written
-
-
-def _meta(f: h5py.File, archive: Path) -> dict[str, Any]:
-    meta = attrs_struct(f, str(archive))
-    meta.setdefault("operator", _operator(f))
-    meta["archive"] = archive.name
-    meta["exported_by"] = f"protocol-runner {__version__}"
-    return meta
 
 
 def _operator(f: h5py.File) -> str:

@@ -44,21 +44,18 @@ def put(
     return ds
 
 
-def fixed_text(text: str | list[str]) -> npt.NDArray[np.bytes_]:
-    """`text` (one string, or a list of lines) as fixed-length byte strings of its UTF-8 encoding: the type
-    GNU Octave's `load` reads (not variable-length strings nor the UTF-8 character set, docs/matlab.md).
-    An empty list is one empty line: Octave cannot read a string array of length 0."""
-    if isinstance(text, str):
-        return np.array(text.encode("utf-8"), dtype="S")
-    encoded = [line.encode("utf-8") for line in text] or [b""]
-    return np.array(encoded, dtype=f"S{max(1, *(len(b) for b in encoded))}")
-
-
 def put_text(group: h5py.Group, name: str, text: str | list[str]) -> h5py.Dataset:
-    """A text dataset (a scalar for a str, one element per line for a list), sealed with its checksum."""
+    """A text dataset (a scalar for a str, one element per line for a list), sealed with its checksum, as
+    fixed-length byte strings of its UTF-8 encoding: the type GNU Octave's `load` reads (not variable-length
+    strings nor the UTF-8 character set, docs/matlab.md). An empty list is one empty line: Octave cannot read
+    a string array of length 0."""
     if name in group:
         del group[name]
-    data = fixed_text(text)
+    if isinstance(text, str):
+        data = np.array(text.encode("utf-8"), dtype="S")
+    else:
+        encoded = [line.encode("utf-8") for line in text] or [b""]
+        data = np.array(encoded, dtype=f"S{max(1, *(len(b) for b in encoded))}")
     ds = group.create_dataset(name, data=data)
     seal_values(ds, data)
     return ds

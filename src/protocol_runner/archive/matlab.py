@@ -110,11 +110,11 @@ def matlab_value(value: Any, where: str) -> Any:
     raise InvalidInput(f"{where}: values of HDF5 type {arr.dtype} have no MATLAB equivalent; cannot export")
 
 
-def attrs_struct(obj: h5py.HLObject, where: str, skip: tuple[str, ...] = ()) -> dict[str, Any]:
+def attrs_struct(obj: h5py.HLObject, where: str) -> dict[str, Any]:
     """An HDF5 object's attributes as struct fields (indices made 1-based; see `index_base`)."""
     out: dict[str, Any] = {}
     for key, value in obj.attrs.items():
-        if key in skip or key == ATTRIBUTE_DIGESTS:  # the archive's own integrity record, checked before
+        if key == ATTRIBUTE_DIGESTS:  # the archive's own integrity record, checked before
             continue
         name, value = index_base(key, value)
         put_field(out, name, matlab_value(value, f"{where}: {obj.name}@{key}"))

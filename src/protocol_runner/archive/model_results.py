@@ -10,7 +10,9 @@ from typing import TYPE_CHECKING, Any
 import h5py
 import numpy as np
 
-from .h5util import put_attrs
+from ..errors import InvalidInput
+from .attrs import DEVICE_JSON, JOINT
+from .h5util import attr_str, put_attrs
 from .paths import CONFIGURATIONS, FITS, PROCESSED
 from .results import Fill
 
@@ -117,18 +119,41 @@ def read_element_model(g: h5py.Group) -> list[list[Any]]:
     ]
 
 
+Device = list[tuple[str, str, dict[str, object]]]
+
+
+def archived_device(cfg: h5py.Group) -> Device:
+    """The configuration's device as the session resolved it (its `device_json` attribute, docs/archive.md):
+    (name, type, parameters) per element; empty for an archive written before devices were declared (its
+    element fit is then not applicable). A `device_json` that is not the documented list is named."""
+    if DEVICE_JSON not in cfg.attrs:
+        return []
+    where = f"{cfg.file.filename}: {cfg.name}@{DEVICE_JSON}"
+    try:
+        doc = json.loads(attr_str(cfg, DEVICE_JSON, "[]"))
+    except json.JSONDecodeError as exc:
+        raise InvalidInput(f"{where}: not valid JSON ({exc.msg})") from None
+    if not isinstance(doc, list) or not all(isinstance(e, dict) and "name" in e and "type" in e for e in doc):
+        raise InvalidInput(f"{where}: must be a JSON list of elements, each with a name and a type")
+    return [(str(e.pop("name")), str(e.pop("type")), e) for e in doc]
+
+
+def joint_device(device: Device, joint: str) -> Device:
+    """The elements of an archived device that `joint` carries (those naming no joint or that joint; every
+    element when `joint` is ""), without their `joint` parameter."""
+    return [
+        (n, t, {k: v for k, v in p.items() if k != JOINT})
+        for n, t, p in device
+        if not joint or p.get(JOINT, "") in ("", joint)
+    ]
+
+
 def stored_device(cfg: h5py.Group, joint: str = "") -> tuple[Element, ...]:
-    """The device a configuration group declares (its `device_json`), or the elements one joint of it
-    carries (those naming no joint or that joint); empty when it declares none."""
+    """The device a configuration group declares (`archived_device`), or the elements one joint of it
+    carries (`joint_device`); empty when it declares none."""
     from ..models.elements import build_device
 
-    if "device_json" not in cfg.attrs:
-        return ()
-    items = json.loads(str(cfg.attrs["device_json"]))
-    kept = [d for d in items if not joint or d.get("joint", "") in ("", joint)]
-    for d in kept:
-        d.pop("joint", None)
-    return build_device([(d.pop("name"), d.pop("type"), d) for d in kept])
+    return build_device(joint_device(archived_device(cfg), joint))
 
 
 def read_processed_trials(trials: h5py.Group) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:

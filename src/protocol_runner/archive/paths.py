@@ -52,17 +52,9 @@ def configuration_path(key: int) -> str:
     return f"{CONFIGURATIONS}/{configuration_name(key)}"
 
 
-def trials_path(key: int) -> str:
-    return f"{configuration_path(key)}/{TRIALS}"
-
-
-def trial_path(key: int, trial: int | str) -> str:
-    return f"{trials_path(key)}/{trial}"
-
-
 def recording_path(key: int, trial: int | str, brace: str) -> str:
     """`brace` is "on" or "off"."""
-    return f"{trial_path(key, trial)}/brace_{brace}"
+    return f"{configuration_path(key)}/{TRIALS}/{trial}/brace_{brace}"
 
 
 def comparison_path(name: str) -> str:

@@ -29,11 +29,11 @@ from ..protocol.loaded import LoadedProtocol
 from ..protocol.loader import find_protocol, load_protocol, parse_protocol_text
 from ..protocol.processing import bouc_wen_settings, element_fit_enabled, processing_settings
 from .attrs import CONFIGURATIONS as CONFIGURATIONS_ATTR
-from .attrs import DEVICE_JSON, FILENAME, JOINT, STATUS
+from .attrs import FILENAME, JOINT, STATUS
 from .attrs import JOINTS as JOINTS_ATTR
 from .checksums import is_marked, seal_attributes, seal_missing
 from .h5util import attr_str, attr_strs, put, put_attrs, text_of
-from .model_results import PREDICTIONS, write_comparison
+from .model_results import PREDICTIONS, archived_device, joint_device, write_comparison
 from .outputs import create_binary, refuse_special, temporary_beside, terminated_as_interrupt
 from .paths import (
     COMPARISONS,
@@ -128,22 +128,6 @@ def _write_reprocessed(
         seal_attributes(f)  # the new results' attributes, and those copied from the checked archive
 
 
-def archived_device(cfg: h5py.Group) -> list[tuple[str, str, dict[str, object]]]:
-    """The configuration's device as the session resolved it (its `device_json` attribute, docs/archive.md):
-    (name, type, parameters) per element; empty for an archive written before devices were declared (its
-    element fit is then not applicable). A `device_json` that is not the documented list is named."""
-    if DEVICE_JSON not in cfg.attrs:
-        return []
-    where = f"{cfg.file.filename}: {cfg.name}@{DEVICE_JSON}"
-    try:
-        doc = json.loads(attr_str(cfg, DEVICE_JSON, "[]"))
-    except json.JSONDecodeError as exc:
-        raise InvalidInput(f"{where}: not valid JSON ({exc.msg})") from None
-    if not isinstance(doc, list) or not all(isinstance(e, dict) and "name" in e and "type" in e for e in doc):
-        raise InvalidInput(f"{where}: must be a JSON list of elements, each with a name and a type")
-    return [(str(e.pop("name")), str(e.pop("type")), e) for e in doc]
-
-
 def _reprocess(f: h5py.File, loaded: LoadedProtocol, pool: Executor | None) -> None:
     """Redo what the session's process, fit and compare steps did, from the raw trials in `f`, with the
     same function (`analysis.service.analyse_joints`), so that unchanged settings reproduce the session's
@@ -186,19 +170,6 @@ def complete_pairs(cfg: h5py.Group, name: str, joint: str, archive_joints: str) 
                 f"{name}/{TRIALS}/{n} ({joint}): the raw data lack {exc}; cannot reprocess"
             ) from None
     return pairs
-
-
-Device = list[tuple[str, str, dict[str, object]]]
-
-
-def joint_device(device: Device, joint: str) -> Device:
-    """The elements of an archived device that `joint` carries (those naming no joint or that joint),
-    without their `joint` parameter."""
-    return [
-        (n, t, {k: v for k, v in p.items() if k != JOINT})
-        for n, t, p in device
-        if p.get(JOINT, "") in ("", joint)
-    ]
 
 
 ANALYSES_AHEAD = 2

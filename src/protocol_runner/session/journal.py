@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -28,9 +28,6 @@ class Event:
     t_utc: str
     kind: str
     detail: str
-
-    def to_json(self) -> dict[str, str]:
-        return {"t_utc": self.t_utc, "kind": self.kind, "detail": self.detail}
 
 
 MAX_JOURNAL_BYTES = 256 * 2**20  # far above any campaign's journal (the knee's: about 100 kB)
@@ -203,7 +200,7 @@ class Journal:
 
     def event(self, kind: str, detail: str = "") -> Event:
         ev = Event(utc_now(), kind, detail)
-        self._append({"record": "event", **ev.to_json()})
+        self._append({"record": "event", **asdict(ev)})
         return ev
 
     def ended_cleanly(self) -> bool:

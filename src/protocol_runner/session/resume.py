@@ -58,25 +58,20 @@ def describe_state(source: ChecklistStep | None) -> str:
     return f"brace ON, set up for configuration {source.configuration} ({source.settings.summary()})"
 
 
-def state_prompt(source: ChecklistStep | None, prompt_id: str, purpose: str) -> ChecklistStep:
-    """A checklist asking for the state `source` set up (its own items), for a resume."""
-    items = INITIAL_STATE_ITEMS if source is None else source.items
+def ask_state(runner: Runner, source: ChecklistStep | None, prompt_id: str, purpose: str) -> None:
+    """Ask the operator to set the rig up as `source` did (its own items; the initial state without one),
+    record the answer, and (dry run) do it."""
     brace = "off" if source is None else source.brace
-    return ChecklistStep(
+    prompt = ChecklistStep(
         id=prompt_id,
         kind="operator_checklist",
         set=source.set if source is not None else "",
         title=f"Resuming: {purpose}. The rig must be: {describe_state(source)}",
-        items=items,
+        items=INITIAL_STATE_ITEMS if source is None else source.items,
         brace=brace,
         configuration=source.configuration if source is not None else None,
         settings=source.settings if source is not None and brace == "on" else None,
     )
-
-
-def ask_state(runner: Runner, source: ChecklistStep | None, prompt_id: str, purpose: str) -> None:
-    """Ask the operator to set the rig up as `source` did, record the answer, and (dry run) do it."""
-    prompt = state_prompt(source, prompt_id, purpose)
     answer = runner.operator.checklist(prompt)  # "q" raises Interrupted: the session stays resumable
     detail = {
         "prompt": prompt_id,

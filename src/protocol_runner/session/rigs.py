@@ -97,10 +97,29 @@ class HardwareBench:
     """The real rig: USB boards chosen by the protocol's rig section. The operator handles the brace."""
 
     def __init__(self, loaded: LoadedProtocol) -> None:
+        """Open the boards the protocol names once for every driven joint (one output board, one scan);
+        HardwareUnavailable (exit 3) with a plain message if absent, naming the rig file for a vendor
+        library it selects that is not installed."""
+        # here: only a hardware run needs the USB drivers (and a vendor library only when selected)
+        from ..hardware.rig_boards import open_rig_boards
         from ..hardware.usb_common import realtime_priority
+        from ..hardware.vendor_common import VendorLibraryMissing
 
+        refuse_unsupported_input(loaded)
+        p = loaded.protocol
+        try:
+            ao, ai, clock = open_rig_boards(p.rig)
+        except VendorLibraryMissing as exc:
+            raise VendorLibraryMissing(f"{loaded.rig_source.shown}: {exc.message}") from None
+        for spec in p.rigs[1:] if p.multi_joint else []:  # the other joints' channels exist on the boards
+            n_in = getattr(ai, "n_channels", None)
+            if n_in is not None and max(spec.input.angle_channel, spec.input.torque_channel) >= n_in:
+                raise HardwareUnavailable(
+                    f"{spec.joint.name}: input channels {spec.input.angle_channel}, "
+                    f"{spec.input.torque_channel} are not on the {n_in} channels of the input boards attached"
+                )
         self.mode = "hardware"
-        self.rig = open_hardware_rig(loaded)
+        self.rig = Rig(joint_configs(loaded), ao, ai, clock)
         # the 100 Hz loop under SCHED_FIFO when allowed (tick jitter p99 < 1 ms needs it on a busy machine)
         self.rig.loop_context = realtime_priority
 
@@ -147,27 +166,3 @@ def refuse_unsupported_input(loaded: LoadedProtocol) -> None:
 
 def _at(path: str, line: int | None) -> str:
     return f"{path} line {line}" if line else path
-
-
-def open_hardware_rig(loaded: LoadedProtocol) -> Rig:
-    """Open the boards the protocol names once for every driven joint (one output board, one scan);
-    HardwareUnavailable (exit 3) with a plain message if absent, naming the rig file for a vendor library
-    it selects that is not installed."""
-    # here: only a hardware run needs the USB drivers (and a vendor library only when selected)
-    from ..hardware.rig_boards import open_rig_boards
-    from ..hardware.vendor_common import VendorLibraryMissing
-
-    refuse_unsupported_input(loaded)
-    p = loaded.protocol
-    try:
-        ao, ai, clock = open_rig_boards(p.rig)
-    except VendorLibraryMissing as exc:
-        raise VendorLibraryMissing(f"{loaded.rig_source.shown}: {exc.message}") from None
-    for spec in p.rigs[1:] if p.multi_joint else []:  # the channels of the other joints exist on the boards
-        n_in = getattr(ai, "n_channels", None)
-        if n_in is not None and max(spec.input.angle_channel, spec.input.torque_channel) >= n_in:
-            raise HardwareUnavailable(
-                f"{spec.joint.name}: input channels {spec.input.angle_channel}, {spec.input.torque_channel} "
-                f"are not on the {n_in} channels of the input boards attached"
-            )
-    return Rig(joint_configs(loaded), ao, ai, clock)

@@ -18,7 +18,7 @@ import json
 import os
 from collections.abc import Mapping
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 from ..analysis.reference import load_reference_dataset
@@ -289,7 +289,7 @@ class Runner:
             rig_filename=self.loaded.rig_source.shown,
             plan_json=json.dumps(self.plan.to_json()),
             only=self.info.only,
-            events=tuple(json.dumps(e.to_json()) for e in self.journal.events),
+            events=tuple(json.dumps(asdict(e)) for e in self.journal.events),
             configuration_attrs=configuration_attrs(self.plan, self.journal.units),
             reference=reference_dataset(self.loaded),
         )

@@ -144,7 +144,14 @@ def create_session(
     except OSError as exc:
         if was_empty:  # only what this call wrote is removed
             with contextlib.suppress(OSError):
-                _remove_contents(directory, keep=existed)
+                if not existed:
+                    shutil.rmtree(directory)
+                else:
+                    for child in directory.iterdir():
+                        if child.is_dir() and not child.is_symlink():
+                            shutil.rmtree(child)
+                        else:
+                            child.unlink()
         if is_disk_full(exc):
             raise DiskFull(
                 f"disk full while creating the session {directory}: nothing was recorded. "
@@ -152,17 +159,6 @@ def create_session(
             ) from None
         what = f"{exc.strerror}: {exc.filename}" if exc.strerror and exc.filename else (exc.strerror or exc)
         raise InvalidInput(f"--session {directory}: cannot create the session ({what})") from None
-
-
-def _remove_contents(directory: Path, *, keep: bool) -> None:
-    if not keep:
-        shutil.rmtree(directory)
-        return
-    for child in directory.iterdir():
-        if child.is_dir() and not child.is_symlink():
-            shutil.rmtree(child)
-        else:
-            child.unlink()
 
 
 def write_session_info(directory: Path, info: SessionInfo) -> None:
@@ -284,13 +280,9 @@ def parse_session_file(path: Any) -> dict[str, Any]:
         raise InvalidInput(f"{path}: damaged session file (a number too long to read)") from None
     if not isinstance(d, dict):
         raise InvalidInput(f"{path}: damaged session file (expected a JSON object of fields)")
-    check_session_fields(d, str(path))
-    return d
 
-
-def check_session_fields(d: dict[str, Any], where: str) -> None:
     def bad(field: str, why: str) -> InvalidInput:
-        return InvalidInput(f"{where}: field {field!r} {why}")
+        return InvalidInput(f"{path}: field {field!r} {why}")
 
     missing = [k for k in REQUIRED if k not in d]
     if missing:
@@ -332,3 +324,4 @@ def check_session_fields(d: dict[str, Any], where: str) -> None:
     rig = d.get("rig_sha256", "")
     if not isinstance(rig, str) or (rig and not _SHA256.fullmatch(rig)):
         raise bad("rig_sha256", f"must be empty or 64 lower-case hex digits, got {rig!r:.80}")
+    return d

@@ -19,7 +19,7 @@ import os
 import signal
 import threading
 import warnings
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures import wait as futures_wait
 from pathlib import Path
@@ -52,20 +52,15 @@ def worker_context() -> multiprocessing.context.BaseContext:
     return context
 
 
-@contextlib.contextmanager
-def analysis_pool() -> Iterator[ProcessPoolExecutor]:
-    """Worker processes for analyses outside a session (`--report --reprocess`), started as the session's
-    are (`worker_context`, `worker_init`: SIGINT left to the main process, BLAS on one thread)."""
-    with _new_pool(worker_init) as pool:
-        yield pool
-
-
-def _new_pool(initializer: Callable[..., None], *initargs: object) -> ProcessPoolExecutor:
+def analysis_pool(initializer: Callable[..., None] | None = None, *initargs: object) -> ProcessPoolExecutor:
+    """Worker processes started as `worker_context` says, each running `initializer` (default `worker_init`:
+    SIGINT left to the main process, BLAS on one thread); `--report --reprocess` uses the default."""
+    start: Callable[..., None] = initializer or worker_init
     with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C
         return ProcessPoolExecutor(
             max_workers=min(2, os.cpu_count() or 1),
             mp_context=worker_context(),
-            initializer=initializer,
+            initializer=start,
             initargs=initargs,
         )
 
@@ -169,7 +164,7 @@ class AnalysisPool:
                 chain.append(self.plan.step(fit))
         self.submitted.update(s.id for s in chain)
         if self._pool is None:
-            self._pool = _new_pool(_start_worker, self.loaded, self.plan)
+            self._pool = analysis_pool(_start_worker, self.loaded, self.plan)
         # blocked again: creating the pool may start multiprocessing's resource tracker, which unblocks
         # SIGINT in this thread once it has started it; the workers (and the fork server) start here
         with sigint_blocked():  # a worker started here must not die of the terminal's Ctrl-C

@@ -26,7 +26,6 @@ from ..archive.attrs import JOINT, STEP_ID, STEP_RESPONSE
 from ..archive.attrs import JOINTS as JOINTS_ATTR
 from ..archive.h5util import put_attrs
 from ..archive.paths import calibration_path, joint_groups, joint_path
-from ..archive.results import Fill
 from ..errors import StoppedByCheck
 from ..hardware.joint import TrialRecording
 from ..protocol.plan_steps import CalibrationCheckStep
@@ -59,22 +58,6 @@ class StepResponse:
         return dict(
             zip(STEP_RESPONSE, (self.settled_deg, self.settle_error_deg, self.time_constant_s), strict=True)
         )
-
-
-def check_verdict(
-    ctx: StepContext, record_as: str, message: str, what: str
-) -> tuple[str, StoppedByCheck | None]:
-    """ "pass" without a problem (`message` empty); else the operator accepts the failed check ("accepted")
-    or the session stops ("fail", with the error naming `what` to check before --resume)."""
-    if not message:
-        return "pass", None
-    text = f"calibration check {record_as} failed: {message}"
-    if ctx.operator.accept_failed_check(text):
-        return "accepted", None
-    return "fail", StoppedByCheck(
-        f"{text}. The session stopped before the set's trials went on (exit 4). Check the robot's "
-        f"{what}, then continue with --resume (this check is redone first)."
-    )
 
 
 def response_problems(
@@ -183,7 +166,18 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
     else:
         message = "; ".join(f"joint {r.joint}: {', '.join(r.problems)}" for r in results if r.problems)
         what = "calibration of the joint(s) named"
-    verdict, stop = check_verdict(ctx, record_as, message, what)
+    # "pass" without a problem; else the operator accepts the failed check, or the session stops
+    verdict, stop = "pass", None
+    if message:
+        text = f"calibration check {record_as} failed: {message}"
+        if ctx.operator.accept_failed_check(text):
+            verdict = "accepted"
+        else:
+            verdict = "fail"
+            stop = StoppedByCheck(
+                f"{text}. The session stopped before the set's trials went on (exit 4). Check the robot's "
+                f"{what}, then continue with --resume (this check is redone first)."
+            )
     named = [(r, f"{r.joint} " if len(results) > 1 else "") for r in results]  # several joints: named
     numbers: dict[str, object] = {}
     for r, who in named:
@@ -194,7 +188,36 @@ def run_check(step: CalibrationCheckStep, ctx: StepContext, *, record_as: str, w
         f"{who}settle error {r.response.settle_error_deg:.2f} deg, tau {r.response.time_constant_s:.3f} s"
         for r, who in named
     )
-    fill = _fill(step.set, when, record_as, results, verdict, message, limits.model_dump())
+
+    def fill(f: h5py.File) -> None:
+        g = f.create_group(calibration_path(step.set, when))
+        put_attrs(
+            g,
+            "calibration",
+            {
+                STEP_ID: record_as,
+                "verdict": verdict,
+                "message": message,
+                "limits": json.dumps(limits.model_dump()),
+            },
+        )
+        g.attrs[JOINTS_ATTR] = np.array([r.joint for r in results], dtype=h5py.string_dtype())
+        for r in results:
+            jg = f.create_group(joint_path(g.name, r.joint))
+            put_scan(jg, r.rec)
+            put_commands(jg, r.rec, full=False)
+            put_attrs(
+                jg,
+                "calibration_joint",
+                {
+                    JOINT: r.joint,
+                    "verdict": "fail" if r.problems else "pass",
+                    "step_deg": r.step_deg,
+                    **r.response.attrs(),
+                    "message": "; ".join(r.problems),
+                },
+            )
+
     return StepOutcome(fill, summary, stop)
 
 
@@ -223,39 +246,3 @@ def _before_responses(
     with ctx.unit(before_id) as f:
         parts = joint_groups(f[calibration_path(step.set, "before")], ",".join(joints))
         return {joint: StepResponse.read(g) for joint, g in parts}
-
-
-def _fill(
-    set_name: str,
-    when: str,
-    step_id: str,
-    results: list[_Checked],
-    verdict: str,
-    message: str,
-    limits: dict[str, object],
-) -> Fill:
-    def fill(f: h5py.File) -> None:
-        g = f.create_group(calibration_path(set_name, when))
-        put_attrs(
-            g,
-            "calibration",
-            {STEP_ID: step_id, "verdict": verdict, "message": message, "limits": json.dumps(limits)},
-        )
-        g.attrs[JOINTS_ATTR] = np.array([r.joint for r in results], dtype=h5py.string_dtype())
-        for r in results:
-            jg = f.create_group(joint_path(g.name, r.joint))
-            put_scan(jg, r.rec)
-            put_commands(jg, r.rec, full=False)
-            put_attrs(
-                jg,
-                "calibration_joint",
-                {
-                    JOINT: r.joint,
-                    "verdict": "fail" if r.problems else "pass",
-                    "step_deg": r.step_deg,
-                    **r.response.attrs(),
-                    "message": "; ".join(r.problems),
-                },
-            )
-
-    return fill

@@ -32,29 +32,23 @@ def run_step(step: Step, ctx: StepContext) -> StepOutcome:
 
 def explain(step: Step, message: str, ctx: StepContext) -> str:
     session = ctx.units_dir.parent
-    stored = ctx.loaded.path  # the session's own copy of the protocol (session/setup.py)
-    where = _where(step, message)
     if isinstance(step, TrialStep):
         return (
-            f"{where}: {message}\n"
-            f"Every finished recording is kept in {session}. This brace-off trial follows the brace-on "
-            f"recording {step.twin}: check it (run-protocol --report {session} shows it). A resume redoes "
-            "this trial; if that recording is at fault it fails the same way."
+            f"configuration {step.configuration}, trial {step.trial} (brace {step.brace}), step {step.id}: "
+            f"{message}\nEvery finished recording is kept in {session}. This brace-off trial follows the "
+            f"brace-on recording {step.twin}: check it (run-protocol --report {session} shows it). A resume "
+            "redoes this trial; if that recording is at fault it fails the same way."
         )
+    where = f"step {step.id}"
+    if isinstance(step, (ProcessStep, FitStep)):
+        trial = re.search(r"\btrial (\d+)\b", message)
+        which = f"trial {trial.group(1)}" if trial else "all its trials"
+        where = f"configuration {step.configuration}, {which}, {where}"
     return (
         f"{where}: {message}\n"
         f"Every recording is kept in {session}; a resume would redo this step on the same data and fail "
         f"the same way. Look at the raw data (run-protocol --report {session}). If the processing "
-        f"settings do not suit these data, change `processing` in {stored} and resume with --force, or "
-        f"re-analyse the archive: run-protocol --report {session} --reprocess --protocol-file FIXED.yaml"
+        f"settings do not suit these data, change `processing` in {ctx.loaded.path} and resume with "
+        f"--force, or re-analyse the archive: run-protocol --report {session} --reprocess --protocol-file "
+        "FIXED.yaml"
     )
-
-
-def _where(step: Step, message: str) -> str:
-    if isinstance(step, TrialStep):
-        return f"configuration {step.configuration}, trial {step.trial} (brace {step.brace}), step {step.id}"
-    if isinstance(step, (ProcessStep, FitStep)):
-        trial = re.search(r"\btrial (\d+)\b", message)
-        which = f"trial {trial.group(1)}" if trial else "all its trials"
-        return f"configuration {step.configuration}, {which}, step {step.id}"
-    return f"step {step.id}"

@@ -12,7 +12,6 @@ cycles' within the protocol's tolerance; every iteration is one robot run and is
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
 from typing import Any
 
 import h5py
@@ -41,28 +40,21 @@ COMMAND_SMOOTHING_HZ = 5.0
 COMMAND_SMOOTHING_ORDER = 4
 
 
-@dataclass(frozen=True)
-class _BraceOn:
-    """A brace-on recording: the shared time base and each joint's angle and command, in channel order."""
-
-    time_s: FloatArray
-    command_time_s: FloatArray
-    angle_deg: tuple[FloatArray, ...]
-    command_deg: tuple[FloatArray, ...]
-
-
-def _read_brace_on(ctx: StepContext, step: TrialStep) -> _BraceOn:
-    """The brace-on twin's recording of the brace-off trial `step`, as its unit stores it."""
+def _read_brace_on(
+    ctx: StepContext, step: TrialStep
+) -> tuple[FloatArray, FloatArray, list[FloatArray], list[FloatArray]]:
+    """The brace-on twin's recording of the brace-off trial `step`, as its unit stores it: the shared time
+    bases (input, command) and each joint's angle and command, in channel order."""
     assert step.twin is not None
     joints = [j for j, _ in joint_trajectories(step, ctx)]
     with ctx.unit(step.twin) as f:
         g = f[recording_path(step.configuration, step.trial, "on")]
         parts = dict(joint_groups(g, ",".join(joints)))
-        return _BraceOn(
+        return (
             g["time_s"][:],
             g["command_time_s"][:],
-            tuple(parts[j]["angle_deg"][:] for j in joints),
-            tuple(parts[j]["command_deg"][:] for j in joints),
+            [parts[j]["angle_deg"][:] for j in joints],
+            [parts[j]["command_deg"][:] for j in joints],
         )
 
 
@@ -120,29 +112,28 @@ def _run_brace_off(
 ) -> tuple[tuple[TrialRecording, ...], tuple[ScalingResult, ...]]:
     configs = ctx.bench.rig.joints  # in channel order
     proc = ctx.processing
-    on = _read_brace_on(ctx, step)
+    time_s, command_time_s, angles_deg, commands_deg = _read_brace_on(ctx, step)
     input_rate = configs[0].input_rate_hz
     label = [f" {j}" if len(joints) > 1 else "" for j in joints]
     # Each joint's brace-on output becomes its brace-off input. It is smoothed first (zero-phase, 4th order
     # at COMMAND_SMOOTHING_HZ): the joint's 0.2 s lag passes nothing above ~1 Hz, and the sensor noise and
     # the corners where the brace's stops bite would otherwise break the acceleration envelope.
     smooth = [
-        _smoothed(a, input_rate, f"{step.twin}{w} angle_deg")
-        for a, w in zip(on.angle_deg, label, strict=True)
+        _smoothed(a, input_rate, f"{step.twin}{w} angle_deg") for a, w in zip(angles_deg, label, strict=True)
     ]
     # from the transition point on (§3.3.2: "index 0 corresponds to the transition point"), the latest of
     # the joints' so that they stay together in time; the rig moves from its park angles to the first
     # samples exactly as a brace-on trial does (its own transition)
     start = max(
         transition_index(
-            command_on_input_base(on.command_time_s, c, on.time_s),
+            command_on_input_base(command_time_s, c, time_s),
             a,
             proc.transition_tolerance_deg,
             proc.transition_points,
         )
-        for c, a in zip(on.command_deg, on.angle_deg, strict=True)
+        for c, a in zip(commands_deg, angles_deg, strict=True)
     )
-    t_after = on.time_s[start:] - on.time_s[start]
+    t_after = time_s[start:] - time_s[start]
     # the input whose output is the brace-on output: each servo's first-order lag inverted (§2.4.2). Its
     # last time constant is not sent: that input would only act after the brace-on recording ends, and
     # there the derivative of the smoothed angle carries the filter's edge.
