@@ -24,8 +24,8 @@ from protocol_runner.report.evaluate import (
     evaluate_expectations,
     format_p,
 )
+from protocol_runner.report.headline import trial_values
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import ReportData
 from protocol_runner.report.render import generate_report
 from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, thesis_like_specs, write_archive
@@ -249,7 +249,7 @@ def test_verdicts_are_recorded_in_the_archive_with_checksummed_evidence(tmp_path
     import h5py
 
     from protocol_runner.archive.verify import verify_path
-    from protocol_runner.report.verdicts import record_verdicts
+    from protocol_runner.report.evaluate import record_verdicts
 
     configs = [c for c in _thesis_configs() if c.key in (2, 3)]
     path = _archive(tmp_path, configs, _knee_text())

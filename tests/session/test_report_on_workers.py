@@ -150,7 +150,8 @@ def test_the_verdicts_are_written_after_the_figures_are_handed_out_and_the_predi
     workers' predictions, which read the archive, to end (here a worker that takes 0.1 s)."""
     import threading
 
-    from protocol_runner.report import render, verdicts
+    from protocol_runner.report import evaluate as verdicts
+    from protocol_runner.report import render
 
     events: list[str] = []
     real_verdicts, real_render = verdicts.record_verdicts, render._render

@@ -18,9 +18,8 @@ from pathlib import Path
 from protocol_runner.analysis.statistics import WelchInterval, welch_interval
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.figures import overlay_figure
-from protocol_runner.report.headline import configuration_stats
+from protocol_runner.report.headline import configuration_stats, trial_values
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import Configuration, ReportData
 from protocol_runner.report.render import checked_output, template_environment, write_atomically
 

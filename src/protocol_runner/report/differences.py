@@ -25,8 +25,7 @@ from protocol_runner.protocol.expectations import RepeatabilitySpec
 from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.protocol.schema import ComparisonSpec
 from protocol_runner.report.declared import declared_entries
-from protocol_runner.report.headline import ALL_JOINTS, campaign_stats
-from protocol_runner.report.metrics import trial_values
+from protocol_runner.report.headline import ALL_JOINTS, campaign_stats, trial_values
 from protocol_runner.report.model import ReportData
 
 

@@ -14,16 +14,23 @@ contrast (`analysis.statistics.contrast_interval`), e.g. (5 - 1) - (6 - 2).
 as one family and adjusts their p-values by Holm's step-down method; an expectation is `met` when its
 adjusted p-value is at most `ALPHA`. `evaluate_expectations` decides the expectations of the protocol as
 archived (`/protocol`): nothing here knows any campaign's configuration key, factor level or threshold.
+`record_verdicts` stores them in the archive (`/expectations`, docs/archive.md), decided by the very code
+the report re-runs, so a stored verdict never disagrees with a regenerated report.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import pairwise
+from pathlib import Path
+
+import h5py
+import numpy as np
 
 from protocol_runner.analysis.statistics import (
     ALPHA,
@@ -35,11 +42,13 @@ from protocol_runner.analysis.statistics import (
     p_below,
     t_interval,
 )
+from protocol_runner.archive.h5util import put_attrs, put_text
+from protocol_runner.archive.paths import JOINTS
 from protocol_runner.protocol.expectations import ExpectationSpec, statements
 from protocol_runner.protocol.only import key_spans
 from protocol_runner.protocol.wording import counted
 from protocol_runner.report.declared import declared_entries
-from protocol_runner.report.metrics import LABELS, UNITS, trial_values
+from protocol_runner.report.headline import LABELS, UNITS, trial_values
 from protocol_runner.report.model import Configuration, ReportData
 from protocol_runner.report.settings_view import DeviceElement
 
@@ -395,3 +404,76 @@ def evaluate_expectations(data: ReportData) -> Expectations:
 
 
 _LAST: list[tuple[weakref.ref[ReportData], Expectations]] = []
+
+
+def _or_none(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
+def record_verdicts(archive: Path, data: ReportData | None = None) -> int:
+    """Evaluate `archive`'s declared expectations and (re)write `/expectations`; return how many.
+    `data` is the archive as `load_report_data` reads it, when the caller has already read it."""
+    from protocol_runner.report.load import load_report_data
+
+    result = evaluate_expectations(data if data is not None else load_report_data(Path(archive), workers=1))
+    with h5py.File(archive, "a") as h5:
+        if "expectations" in h5:
+            del h5["expectations"]
+        root = h5.create_group("expectations")
+        put_attrs(root, "expectations", {"problems": json.dumps(list(result.problems))})
+        for v in result.verdicts:
+            keyed = (v.spec.joint is not None or v.spec.joints is not None) and bool(v.joint)
+            if v.spec.id not in root:
+                grp = root.create_group(v.spec.id)
+                joints = [w.joint for w in result.verdicts if w.spec.id == v.spec.id]
+                put_attrs(grp, "expectation", _declaration(v, result.dry_run, joints if keyed else None))
+            grp = root[v.spec.id]
+            if keyed:
+                grp = grp.require_group(JOINTS).create_group(v.joint)
+                put_attrs(grp, "expectation", {"joint": v.joint})
+            _outcome(grp, v)
+    return len(result.verdicts)
+
+
+def _declaration(v: Verdict, dry_run: bool, joints: list[str] | None) -> dict[str, object]:
+    """The attributes of an expectation's group that its declaration gives (and `joints` when it is
+    decided per joint)."""
+    return {
+        "text": v.spec.text,
+        "section": v.spec.section,
+        "metric": v.spec.metric,
+        "unit": v.unit,
+        "relation": v.spec.relation,
+        "configurations": json.dumps(v.spec.configurations),
+        "declaration": v.spec.model_dump_json(exclude_none=True),
+        "simulator_tuned": int(v.spec.depends_on_tuning),  # 0/1: numbers export as doubles
+        "depends_on_simulator": json.dumps(v.spec.depends_on_simulator),
+        "dry_run": int(dry_run),
+        **({JOINTS: np.array(joints, dtype=h5py.string_dtype())} if joints is not None else {}),
+    }
+
+
+def _outcome(grp: h5py.Group, v: Verdict) -> None:
+    """The verdict, its numbers and its evidence, in `grp` (the expectation's group or its joint's)."""
+    put_attrs(
+        grp,
+        "expectation",
+        {
+            "verdict": v.verdict,
+            "reason": v.reason,
+            **{k: p for k, p in (("p_value", v.p_value), ("p_adjusted", v.p_adjusted)) if math.isfinite(p)},
+            "family": v.family,
+        },
+    )
+    rows = [
+        {
+            "key": e.key,
+            "trials": e.n,
+            "mean": _or_none(e.mean),
+            "ci95_low": _or_none(e.low),
+            "ci95_high": _or_none(e.high),
+            "unit": v.unit,
+        }
+        for e in v.evidence
+    ]
+    put_text(grp, "evidence", json.dumps(rows))

@@ -22,7 +22,7 @@ from protocol_runner.report.h5read import (
     read_only,
     read_record,
 )
-from protocol_runner.report.metrics import peak_of, range_of, slope_of
+from protocol_runner.report.headline import peak_of, range_of, slope_of
 from protocol_runner.report.model import (
     BoucWenFit,
     BraceOffMatch,

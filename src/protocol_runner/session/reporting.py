@@ -30,10 +30,10 @@ Call = Callable[..., "Future[Any] | None"]
 def render_report(session_dir: Path, archive: Path, call: Call | None = None) -> Path:
     """Render the session's report next to its archive (`call`: runs work on the analysis workers, which
     then draw the figures and compute the predictions); a full disk is a `DiskFull` with the resume hint."""
+    from ..report.evaluate import record_verdicts
     from ..report.load import load_report_data
     from ..report.predictions import record_predictions
     from ..report.render import render_report as render  # here: only the report step needs jinja
-    from ..report.verdicts import record_verdicts
 
     try:
         # read once, for the verdicts and the report: recording the verdicts adds /expectations, which the
