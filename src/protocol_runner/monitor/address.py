@@ -1,9 +1,5 @@
-"""`--monitor [HOST:]PORT`: where the page is served, and whether a token is needed.
-
-Default host 127.0.0.1 (loopback: only this machine can connect). Any host that is not loopback (e.g.
-0.0.0.0, or the machine's LAN address) makes the page reachable from the network, so every request must
-then carry the random token printed on the terminal. Port 0 lets the system pick a free port (the URL
-announced on the terminal names it).
+"""`--monitor [HOST:]PORT` (docs/monitor.md "Address, token, port in use"): default host 127.0.0.1; a host
+that is not loopback needs the token on every request; port 0 lets the system pick.
 """
 
 from __future__ import annotations

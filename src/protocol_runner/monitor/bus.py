@@ -1,10 +1,6 @@
-"""The event bus between the session and the page's clients (docs/monitor.md).
-
-`publish` and `publish_samples` are what the session calls: a deque append (and, for the rare control
-messages, setting an event), never a lock held by anyone else, never I/O. A pump thread merges the samples
-queued between two control messages, numbers and encodes each message once, updates the `SessionState`
-and hands the encoded frame to every client's bounded queue; a client whose queue is full is dropped, and
-nobody waits for it. When the pump falls behind, samples are discarded and counted; control messages never.
+"""The event bus between the session and the page's clients (docs/monitor.md "Never in the way of the
+output loop"): `publish` and `publish_samples` only append to a deque (and set an event), never take a lock
+held by anyone else, never do I/O; a pump thread merges, numbers, encodes and fans out to bounded queues.
 """
 
 from __future__ import annotations
@@ -53,9 +49,8 @@ def frame(text: str, seq: int | None = None) -> bytes:
 
 
 class EventBus:
-    def __init__(self, *, client_queue: int = CLIENT_QUEUE, sample_backlog: int = SAMPLE_BACKLOG) -> None:
+    def __init__(self, *, sample_backlog: int = SAMPLE_BACKLOG) -> None:
         self.state = SessionState()
-        self.client_queue = client_queue
         self.sample_backlog = sample_backlog
         self.dropped_samples = 0
         self.trimmed_points = 0
@@ -93,11 +88,11 @@ class EventBus:
 
     def subscribe(self, sock: socket.socket | None = None) -> Client:
         """A new client: its queue starts with `hello` (the snapshot) and the kept samples."""
-        client = Client(sock, self.client_queue)
+        client = Client(sock, CLIENT_QUEUE)
         with self._lock:
             hello = {"type": "hello", "seq": self.seq, "snapshot": self.snapshot()}
             client.queue.put_nowait(frame(dumps(hello), self.seq))
-            for text in self.state.replay()[-(self.client_queue // 2) :]:
+            for text in self.state.replay()[-(CLIENT_QUEUE // 2) :]:
                 client.queue.put_nowait(frame(text))
             self._clients.append(client)
         return client

@@ -1,8 +1,5 @@
-"""The journal's new events (started, resumed, interrupted, aborted, calibration re-runs, overrides...)
-as `event` messages: the bus polls `JournalTail` every cycle, so the session code needs no extra hook.
-
-Reads only what was appended since the last poll (bounded per poll) and only event and invalidation
-records; a torn or foreign line is skipped, as the journal itself does.
+"""The journal's new event and invalidation records as `event` messages, polled by the bus every cycle
+(a torn or foreign line is skipped, as the journal itself does).
 """
 
 from __future__ import annotations

@@ -1,16 +1,6 @@
 """The sampler the output loop feeds (`Rig.tap`): decimated angle and torque of every driven joint for the
-live traces.
-
-At every scan read (every 10 output ticks) the rig hands the block it just read to `SampleTap.scan`. The
-tap keeps one row every 1/`SAMPLE_RATE_HZ` seconds of scan time, converts only those rows of each joint's
-angle and torque columns (Eq 2/3 and the look-up tables, as the recording will be), pairs them with the
-angle commanded to that joint, and queues one `samples` message per joint on the bus: a few numpy
-operations and one deque append per joint and read, inside the slack before the next tick. Anything
-unexpected disables the tap; it never raises into the loop.
-
-Times are the rig clock's seconds (continuous over approach, run and park, and from step to step); in a
-dry run in simulated time they advance in bursts far faster than the wall clock, with `--realtime` at the
-rig's pace.
+live traces, converted as the recording will be (docs/monitor.md). Anything unexpected disables the tap;
+it never raises into the loop.
 """
 
 from __future__ import annotations
@@ -40,15 +30,11 @@ def phase_of(where: str) -> str:
 
 
 class SampleTap:
-    """A `hardware.interfaces.LoopTap` that publishes decimated samples of every driven joint: one `samples`
-    message per joint and scan read.
+    """A `hardware.interfaces.LoopTap`: one `samples` message per driven joint and scan read.
 
-    `joints` in the rig's command column order; `scan_channels` the scan's channels in column order (the
-    rig's `scan_channels`; by default [angle, torque] of each joint in turn): a joint's angle and torque
-    columns are where its `angle_input_channel` and `torque_input_channel` sit in the scan. A block without
-    a joint's columns (a loop that shows only some of its joints) gives no samples of that joint. The
-    commands the loop starts with are ticks x joints, or the first joint's alone (ticks): the other joints
-    then have no commanded angle (null in the points)."""
+    `joints` in the rig's command column order; `scan_channels` the scan's channels in column order (by
+    default [angle, torque] of each joint in turn). A block without a joint's columns gives no samples of
+    that joint; commands of the first joint alone (ticks, not ticks x joints) leave the others' null."""
 
     def __init__(
         self,

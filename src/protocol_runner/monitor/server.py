@@ -1,11 +1,5 @@
-"""The monitor's HTTP server: standard library only, on background threads, read-only.
-
-Serves exactly `/` (the page, with the CSS and script of `monitor/static/` inlined), `/events` (the
-Server-Sent Events stream of `bus.py`) and `/status` (the snapshot as JSON); every other path is 404, every
-method but GET is refused (501). Its limits, so that no client can starve the others or the operator, are
-docs/monitor.md's: a whole-request deadline, the oldest of too many pending connections shed, a bounded
-number of answered requests with places kept for the token, a write timeout. On a loopback bind the Host
-header must name loopback (no DNS rebinding); on any other bind every request needs `?token=`.
+"""The monitor's HTTP server (standard library only, background threads, read-only): `/`, `/events`
+(Server-Sent Events), `/status`, with docs/monitor.md's address checks and limits.
 """
 
 from __future__ import annotations
@@ -172,23 +166,17 @@ class MonitorServer(ThreadingHTTPServer):
         """A place to answer a request in: a shared one, else for a token holder one of those kept for
         the token. Yields False (and counts a rejection) when there is none."""
         with self._lock:
-            if self.active < MAX_CONNECTIONS:
-                pool = "shared"
-                self.active += 1
-            elif operator and self.active_operator < OPERATOR_CONNECTIONS:
-                pool = "kept"
-                self.active_operator += 1
-            else:
-                pool = ""
-                self.rejected += 1
+            shared = self.active < MAX_CONNECTIONS
+            kept = not shared and operator and self.active_operator < OPERATOR_CONNECTIONS
+            self.active += shared
+            self.active_operator += kept
+            self.rejected += not (shared or kept)
         try:
-            yield bool(pool)
+            yield shared or kept
         finally:
             with self._lock:
-                if pool == "shared":
-                    self.active -= 1
-                elif pool == "kept":
-                    self.active_operator -= 1
+                self.active -= shared
+                self.active_operator -= kept
 
     def counts(self) -> dict[str, Any]:
         with self._lock:

@@ -1,12 +1,5 @@
-"""`--monitor`: open the page's server before the session starts, attach it to the session, end it.
-
-`Monitor.open` binds the port first: a port in use (or any other bind failure) is exit 2 with a message
-naming it, before the session folder is created, so a session never runs without the monitor it was
-asked for. The URL is announced on the terminal with a random token, printed only there: on a host that is
-not loopback it is the page's only key; on loopback it is optional and keeps places on a crowded monitor.
-`attach` hooks the rig's loop (`Rig.tap`: samples of every driven joint), the journal's events, the
-operator's prompts and the runner's publisher; leaving the `with` block publishes `session_end` (complete,
-or why it stopped), gives the pages a moment to receive it, and stops the server.
+"""`--monitor`: open the page's server before the session starts (a bind failure is exit 2 before the
+session folder exists), attach it to the session, publish `session_end` and stop it (docs/monitor.md).
 """
 
 from __future__ import annotations

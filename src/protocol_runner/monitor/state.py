@@ -1,9 +1,6 @@
-"""What a page that connects mid-session needs: the latest message of each kind and the recent samples.
-
-The bus applies every message here (on its own thread, under its lock) after encoding it once. A new
-client then receives `hello` with `snapshot()` followed by `replay()`: the samples of the last
-`TRACE_WINDOW_S` seconds of each joint plus those of each joint's current run (for the torque-angle loop),
-kept as already-encoded JSON fragments so that a connection costs string joins, not re-encoding.
+"""What a page that connects mid-session needs: `hello` with `snapshot()`, then `replay()`, the samples of
+each joint's last `TRACE_WINDOW_S` seconds and current run, kept as encoded JSON fragments (a connection
+costs string joins, not re-encoding).
 """
 
 from __future__ import annotations
@@ -11,7 +8,7 @@ from __future__ import annotations
 import json
 import math
 from collections import deque
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 TRACE_WINDOW_S = 15.0
@@ -60,7 +57,7 @@ class _Chunk:
     phase: str
     t_last: float
     n_points: int
-    fragments: list[str] = field(default_factory=list)
+    fragments: list[str]
 
     def encode(self) -> str:
         head = dumps(
@@ -147,9 +144,8 @@ class SessionState:
             last.n_points += len(points)
             last.t_last = t_last
         else:
-            chunk = _Chunk(joint, where, str(msg.get("step", "")), str(msg.get("phase", "")), t_last, 0)
-            chunk.fragments.append(fragment)
-            chunk.n_points = len(points)
+            step, phase = str(msg.get("step", "")), str(msg.get("phase", ""))
+            chunk = _Chunk(joint, where, step, phase, t_last, len(points), [fragment])
             self._chunks.append(chunk)
             self._open[joint] = chunk
         self._prune()
