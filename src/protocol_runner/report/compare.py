@@ -211,12 +211,8 @@ def _plain(value: object) -> object:
 
 def _changed(a: Configuration, b: Configuration) -> tuple[tuple[str, str, str], ...]:
     pa, pb = _physical(a), _physical(b)
-    out = []
-    for name in sorted(set(pa) | set(pb)):
-        va, vb = pa.get(name), pb.get(name)
-        if va != vb:
-            out.append((name, _text(va), _text(vb)))
-    return tuple(out)
+    names = sorted(set(pa) | set(pb))
+    return tuple((n, _text(pa.get(n)), _text(pb.get(n))) for n in names if pa.get(n) != pb.get(n))
 
 
 def _text(value: object) -> str:

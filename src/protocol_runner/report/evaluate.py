@@ -296,10 +296,6 @@ def _element(cfg: Configuration, name: str, joint: str) -> DeviceElement | None:
     )
 
 
-def _tost(w: WelchInterval, centre: float, margin: float) -> float:
-    return max(p_above(w, centre - margin), p_below(w, centre + margin))
-
-
 def _decide(
     spec: ExpectationSpec, values: dict[int, tuple[float, ...]], intervals: dict[int, TInterval], unit: str
 ) -> tuple[float, str]:
@@ -342,9 +338,10 @@ def _statement_p(spec: ExpectationSpec, w: WelchInterval, ref: float) -> tuple[f
         return p_above(w, ref), "one-sided"
     if r in ("less", "decreasing"):
         return p_below(w, ref), "one-sided"
-    if r in ("equal", "no_trend"):
-        return _tost(w, ref, spec.margin or 0.0), "TOST"
+    margin = spec.margin or 0.0  # equal, no_trend: within ±margin of ref; inside: within the interval
     lo, hi = spec.interval or (math.nan, math.nan)
+    if r in ("equal", "no_trend"):
+        lo, hi = ref - margin, ref + margin
     return max(p_above(w, lo), p_below(w, hi)), "TOST"
 
 

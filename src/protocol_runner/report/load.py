@@ -201,7 +201,7 @@ def _parse_event(line: str) -> SessionEvent | None:
     try:
         obj = json.loads(line)
     except json.JSONDecodeError:
-        return SessionEvent(t_utc="", kind="unparsed", detail=line)
+        obj = None
     if not isinstance(obj, dict):
         return SessionEvent(t_utc="", kind="unparsed", detail=line)
     detail = _readable_detail(obj.get("detail", ""))

@@ -380,17 +380,14 @@ def _predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
 def prediction_row(p: Prediction) -> dict[str, object]:
     """A prediction's numbers as `/predictions` stores them (`archive.model_results.write_predictions`)."""
     e = p.element
-    nan = math.nan
+    energies = ("energy_predicted_j", "energy_predicted_ci95_low_j", "energy_predicted_ci95_high_j")
     return {
         "fit_configuration": p.fit_key,
         "predict_configuration": p.predict_key,
         "joint": p.joint,
         "note": p.note,
-        "element_rmse_nm": e.rmse_nm if e else nan,
-        "energy_predicted_j": e.energy_predicted_j if e else nan,
-        "energy_predicted_ci95_low_j": e.energy_predicted_ci95_low_j if e else nan,
-        "energy_predicted_ci95_high_j": e.energy_predicted_ci95_high_j if e else nan,
-        "energy_measured_j": e.energy_measured_j if e else nan,
+        "element_rmse_nm": e.rmse_nm if e else math.nan,
+        **{name: getattr(e, name) if e else math.nan for name in (*energies, "energy_measured_j")},
         "bouc_wen_rmse_nm": p.rmse_nm,
         "bouc_wen_own_rmse_nm": p.own_rmse_nm,
         "reason": p.reason,
