@@ -1,11 +1,6 @@
-"""Two sessions side by side (`--compare`, docs/report.md "Session comparison").
-
-Configurations match when their declared settings agree: the trajectory (its name, or its profile when
-unnamed) and the level label of every declared factor, not their keys nor the physical values behind the
-labels; a pair lists every physical setting that differs. Per matched pair and per joint both drive (and
-all joints together for several): energy per cycle and range reached, B minus A, on trial values with a
-95 % Welch interval and its p-value, each quantity decided at the Bonferroni level `ALPHA_EACH`. Inputs
-with no configuration in common are incomparable (`InvalidInput`, exit 2).
+"""Two sessions side by side (`--compare`, docs/report.md "Session comparison"): configurations matched
+on their declared settings (trajectory and level labels, not keys), energy per cycle and range reached B
+minus A per joint on trial values, each quantity decided at the Bonferroni level `ALPHA_EACH`.
 """
 
 from __future__ import annotations

@@ -1,21 +1,11 @@
 """One generic evaluator: a declared expectation and an archive's data give a verdict with its numbers.
 
-The decision rules are docs/protocol.md "Expectations", always on trial values (one per trial, the
-experimental unit), each a test with a p-value at level `ALPHA` (0.05). The interval printed beside each
-statement is the two-sided (1 - 2 ALPHA) = 90 % interval, whose bound is the one-sided 95 % bound the test
-uses, so "the interval lies above zero" and "p <= 0.05" say the same thing before adjustment. A statement
-of several parts (the steps of `increasing`, the pairs of `no_trend`, each configuration) takes the
-largest part's p (an intersection-union test). A configuration without `min_trials` trials with the
-metric, or a statement about a device element (`engages`) the measured angles never reach, is `not
-evaluable` with the true reason. With `baseline` (and `than_baseline`) the value is a Welch-Satterthwaite
-contrast (`analysis.statistics.contrast_interval`), e.g. (5 - 1) - (6 - 2).
-
-`evaluate_all` takes the campaign's evaluable expectations (one verdict per joint they are decided for)
-as one family and adjusts their p-values by Holm's step-down method; an expectation is `met` when its
-adjusted p-value is at most `ALPHA`. `evaluate_expectations` decides the expectations of the protocol as
-archived (`/protocol`): nothing here knows any campaign's configuration key, factor level or threshold.
-`record_verdicts` stores them in the archive (`/expectations`, docs/archive.md), decided by the very code
-the report re-runs, so a stored verdict never disagrees with a regenerated report.
+The decision rules are docs/protocol.md "Expectations": tests on trial values (one per trial, the
+experimental unit) at level `ALPHA`, the interval printed beside each statement the 90 % one whose bound is
+the test's one-sided 95 % bound; a statement of several parts takes the largest part's p; the campaign's
+evaluable expectations are one Holm family. Nothing here knows any campaign's configuration key, factor
+level or threshold. `record_verdicts` stores the verdicts in the archive (`/expectations`, docs/archive.md),
+decided by the very code the report re-runs, so a stored verdict never disagrees with a regenerated report.
 """
 
 from __future__ import annotations

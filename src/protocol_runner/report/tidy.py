@@ -1,11 +1,6 @@
-"""Tidy CSV tables of an archive (`--export`, docs/report.md): one row per cycle, per trial and per
-configuration, and the model tables `models.csv`, `elements.csv` and `predictions.csv`; units in the names.
-
-Every table has a `joint` column and holds every driven joint's rows, each from that joint's own data. The
-cycles' energy is the archived `energy_loss_j` (Eq 10-12); their angle and torque columns come from the
-trial's processed data cut into the same complete cycles (`analysis.cycles`), empty when that cut does not
-give the archived number of cycles. The configurations' statistics are the report summary's
-(`report.headline`); a list setting such as a range [lo, hi] is written `lo;hi`.
+"""Tidy CSV tables of an archive (`--export`, docs/report.md "Tidy exports"): cycles, trials and
+configurations (the report summary's statistics, `report.headline`), and the model tables `models.csv`,
+`elements.csv` and `predictions.csv`; units in the names, every driven joint's rows from its own data.
 """
 
 from __future__ import annotations
@@ -126,10 +121,8 @@ def _cell(value: object) -> str:
 
 
 def text_cell(text: str) -> str:
-    """A text cell as a spreadsheet shows it, never runs it: one starting like a formula (`= + - @`, a tab
-    or a carriage return; a level label such as `=HYPERLINK(...)`) gets a leading single quote, as OWASP
-    recommends against CSV injection. Text that is a number (`-1.5`, a level written as text) is kept as
-    it is: a spreadsheet reads it as that number, never as a formula."""
+    """A text cell as a spreadsheet shows it, never runs it: one starting like a formula gets a leading
+    single quote (OWASP, against CSV injection); text that is a number (`-1.5`) is kept as it is."""
     if not text.startswith(FORMULA_STARTS):
         return text
     try:
