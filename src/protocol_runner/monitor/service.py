@@ -14,8 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import EXIT_INTERRUPTED, EXIT_OK, InvalidInput, UserError
 from .address import MonitorAddress, parse_address
-from .bus import EventBus
-from .journal_tail import JournalTail
+from .bus import EventBus, JournalTail
 from .live import LivePublisher, MonitoredOperator
 from .samples import SAMPLE_RATE_HZ, SampleTap
 from .server import MonitorServer
@@ -28,25 +27,20 @@ if TYPE_CHECKING:
     from .publisher import Publisher
 
 
+_BIND_ERRORS = {
+    errno.EADDRINUSE: "port {port} on {host} is already in use; the session was not started. Pick another "
+    "port, e.g. --monitor {host}:{next}",
+    errno.EACCES: "not allowed to listen on port {port} (ports below 1024 need privileges); the session was "
+    "not started. Pick a port from 1024 up, e.g. --monitor 8765",
+    errno.EADDRNOTAVAIL: "{host} is not an address of this machine; the session was not started",
+}
+
+
 def _bind_error(address: MonitorAddress, exc: OSError) -> InvalidInput:
-    where = f"{address.host}:{address.port}"
-    if exc.errno == errno.EADDRINUSE:
-        return InvalidInput(
-            f"--monitor: port {address.port} on {address.host} is already in use; the session was not "
-            f"started. Pick another port, e.g. --monitor {address.host}:{address.port + 1}"
-        )
-    if exc.errno == errno.EACCES:
-        return InvalidInput(
-            f"--monitor: not allowed to listen on port {address.port} (ports below 1024 need privileges); "
-            "the session was not started. Pick a port from 1024 up, e.g. --monitor 8765"
-        )
-    if exc.errno == errno.EADDRNOTAVAIL:
-        return InvalidInput(
-            f"--monitor: {address.host} is not an address of this machine; the session was not started"
-        )
-    return InvalidInput(
-        f"--monitor: cannot listen on {where} ({exc.strerror or exc}); the session was not started"
-    )
+    other = "cannot listen on {host}:{port} ({why}); the session was not started"
+    text = _BIND_ERRORS.get(exc.errno or 0, other)
+    host, port, why = address.host, address.port, exc.strerror or exc
+    return InvalidInput("--monitor: " + text.format(host=host, port=port, next=port + 1, why=why))
 
 
 class Monitor:
