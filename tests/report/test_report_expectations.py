@@ -16,10 +16,10 @@ from markupsafe import escape
 from pydantic import ValidationError
 
 from protocol_runner.protocol.expectations import ExpectationSpec, check_expectations
+from protocol_runner.report.declared import declared_entries
 from protocol_runner.report.evaluate import (
     TUNED_LABEL,
     Verdict,
-    declared_expectations,
     evaluate_all,
     evaluate_expectations,
     format_p,
@@ -75,7 +75,7 @@ def thesis_data(tmp_path_factory: pytest.TempPathFactory) -> ReportData:
 
 
 def test_knee_expectations_come_from_the_archived_yaml(thesis_data: ReportData) -> None:
-    specs, problems = declared_expectations(thesis_data.protocol_text)
+    specs, problems = declared_entries(thesis_data.protocol_text, ("expectations",), ExpectationSpec)
     assert problems == ()
     ids = {s.id for s in specs}
     # every Chapter 5 statement, including those the old code never checked

@@ -372,11 +372,6 @@ class Expectations:
         )
 
 
-def declared_expectations(protocol_text: str) -> tuple[tuple[ExpectationSpec, ...], tuple[str, ...]]:
-    """The `expectations:` of an archived protocol text, and a message per entry that is not valid."""
-    return declared_entries(protocol_text, ("expectations",), ExpectationSpec)
-
-
 def evaluate_expectations(data: ReportData) -> Expectations:
     """Every declared expectation of `data`'s archived protocol, decided on `data`: once per `data` object
     (the session's recorded verdicts and its report, rendered next, decide them on the same one; the data
@@ -384,7 +379,7 @@ def evaluate_expectations(data: ReportData) -> Expectations:
     for seen, result in _LAST:
         if seen() is data:
             return result
-    specs, problems = declared_expectations(data.protocol_text)
+    specs, problems = declared_entries(data.protocol_text, ("expectations",), ExpectationSpec)
     result = Expectations(evaluate_all(specs, data), problems, data.session.mode == "dry-run")
     _LAST[:] = [(weakref.ref(data), result)]
     return result
