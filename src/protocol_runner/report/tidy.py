@@ -202,7 +202,7 @@ def _rows(h5: h5py.File, data: ReportData) -> tuple[list[list[object]], list[lis
         energy = np.asarray(cfg.energy_loss_j, dtype=float)
         ids = np.asarray(cfg.energy_cycle_trial)
         numbers = sorted({t.number for t in cfg.trials} | {int(i) for i in ids})
-        matches = {t.number: t.match for t in cfg.trials}  # read by load_configuration.brace_off_match
+        matches = {t.number: t.match for t in cfg.trials}  # read by load.brace_off_match
         for number in numbers:
             own = energy[ids == number] if ids.size == energy.size else np.empty(0)
             signal = _processed(h5, cfg, number, data.session.joint)
