@@ -5,8 +5,7 @@
     bus.py           non-blocking publish, a pump thread, bounded per-client queues; the journal's events
     state.py         what a page connecting mid-session receives first
     live.py          hook calls -> messages (steps, progress and ETA, verdicts, operator waits)
-    server.py        HTTP on a background thread: /, /events (Server-Sent Events), /status
-    address.py       [HOST:]PORT, loopback or token
+    server.py        HTTP on a background thread: /, /events (Server-Sent Events), /status; [HOST:]PORT
     service.py       open before the session, attach, end
     static/          the page: HTML, CSS and a small canvas script of our own
 

@@ -13,11 +13,10 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
 from ..errors import EXIT_INTERRUPTED, EXIT_OK, InvalidInput, UserError
-from .address import MonitorAddress, parse_address
 from .bus import EventBus, JournalTail
 from .live import LivePublisher, MonitoredOperator
 from .samples import SAMPLE_RATE_HZ, SampleTap
-from .server import MonitorServer
+from .server import MonitorAddress, MonitorServer, parse_address
 
 if TYPE_CHECKING:
     from ..protocol.plan_steps import Plan
