@@ -2,8 +2,8 @@
 
     ../events.py     what the runner and steps call, `Publisher` (`NULL_PUBLISHER` without a monitor)
     samples.py       the output loop's tap: decimated angle/torque samples (~20 Hz)
-    bus.py           non-blocking publish, a pump thread, bounded per-client queues; the journal's events
-    state.py         what a page connecting mid-session receives first
+    bus.py           non-blocking publish, a pump thread, bounded per-client queues; the journal's events;
+                     what a page connecting mid-session receives first
     live.py          hook calls -> messages (steps, progress and ETA, verdicts, operator waits)
     server.py        HTTP on a background thread: /, /events (Server-Sent Events), /status; [HOST:]PORT
     service.py       open before the session, attach, end

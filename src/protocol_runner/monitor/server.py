@@ -25,8 +25,7 @@ from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
 from ..errors import InvalidInput
-from .bus import EventBus
-from .state import dumps
+from .bus import EventBus, dumps
 
 DEFAULT_HOST = "127.0.0.1"
 

@@ -28,11 +28,6 @@ ALPHA_EACH = 0.05 / len(QUANTITIES)
 TOTAL = "total"
 
 
-def differs(w: WelchInterval) -> bool:
-    """True when the difference is significant at `ALPHA_EACH` (an undefined p-value: False)."""
-    return bool(w.p_value < ALPHA_EACH)
-
-
 @dataclass(frozen=True)
 class Pair:
     """One joint of a configuration of A matched with the same joint of one of B, and their differences
@@ -53,13 +48,13 @@ class Pair:
 
     @property
     def energy_differs(self) -> bool:
-        """The energy per cycle differs (p < `ALPHA_EACH`)."""
-        return differs(self.energy)
+        """The energy per cycle differs (p < `ALPHA_EACH`; an undefined p-value: no)."""
+        return bool(self.energy.p_value < ALPHA_EACH)
 
     @property
     def range_differs(self) -> bool:
         """The range reached differs (p < `ALPHA_EACH`)."""
-        return differs(self.range)
+        return bool(self.range.p_value < ALPHA_EACH)
 
     @property
     def significant(self) -> bool:
