@@ -14,8 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import EXIT_INTERRUPTED, EXIT_OK, InvalidInput, UserError
 from .bus import EventBus, JournalTail
-from .live import LivePublisher, MonitoredOperator
-from .samples import SAMPLE_RATE_HZ, SampleTap
+from .live import SAMPLE_RATE_HZ, LivePublisher, MonitoredOperator, SampleTap
 from .server import MonitorAddress, MonitorServer, parse_address
 
 if TYPE_CHECKING:

@@ -394,11 +394,7 @@ def per_joint(
     one: Callable[[Configuration], str], several: Callable[[Sequence[Configuration]], str]
 ) -> Callable[[Sequence[Configuration]], str]:
     """A figure of a configuration's joints: `one` of its only joint, else `several`."""
-
-    def draw(cfgs: Sequence[Configuration]) -> str:
-        return one(cfgs[0]) if len(cfgs) == 1 else several(cfgs)
-
-    return draw
+    return lambda cfgs: one(cfgs[0]) if len(cfgs) == 1 else several(cfgs)
 
 
 # ---------------------------------------------------------------------------------------- calibration
