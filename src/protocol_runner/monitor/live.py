@@ -10,6 +10,7 @@ tap: it never raises into the loop.
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from collections.abc import Callable, Collection, Mapping, Sequence
@@ -249,10 +250,8 @@ class MonitoredOperator:
             self.bus.publish({"type": "operator_wait", "waiting": False})
 
     def checklist(self, step: ChecklistStep) -> Answer:
-        items = list(step.items)
-        return self._ask(
-            "checklist", step.title, lambda: self.inner.checklist(step), step=step.id, items=items
-        )
+        ask = functools.partial(self.inner.checklist, step)
+        return self._ask("checklist", step.title, ask, step=step.id, items=list(step.items))
 
     def accept_failed_check(self, message: str) -> bool:
         return self._ask("failed_check", message, lambda: self.inner.accept_failed_check(message))

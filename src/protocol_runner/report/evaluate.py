@@ -92,10 +92,6 @@ def format_p(p: float) -> str:
     return "< 0.001" if p < 0.001 else f"{p:.3g}"
 
 
-def _ival(low: float, high: float, unit: str) -> str:
-    return f"[{_fmt(low)}, {_fmt(high)}] {unit}"
-
-
 def metric_label(spec: ExpectationSpec) -> str:
     """Readable metric name with its argument, e.g. "angle percentile 99"."""
     label = LABELS[spec.metric]
@@ -308,9 +304,8 @@ def _decide(
         ref = 0.0 if steps or spec.than is not None else spec.value or 0.0
         p, test = _statement_p(spec, w, ref)
         ps.append(p)
-        parts.append(
-            f"{subject} {_ival(w.low, w.high, unit)}, {test} p {format_p(p)}{'' if p <= ALPHA else ' (fails)'}"
-        )
+        fails = "" if p <= ALPHA else " (fails)"
+        parts.append(f"{subject} [{_fmt(w.low)}, {_fmt(w.high)}] {unit}, {test} p {format_p(p)}{fails}")
     if not steps:
         return max(ps, default=math.nan), "; ".join(parts) + _criterion(spec, unit)
     if spec.relation == "no_trend":

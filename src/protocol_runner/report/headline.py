@@ -122,10 +122,6 @@ LABELS: dict[str, str] = {
 HYSTERESIS_WINDOW_DEG = 2.0
 
 
-def _processed(cfg: Configuration) -> list[ProcessedTrial]:
-    return [t.processed for t in cfg.trials if t.processed is not None]
-
-
 def _finite(angle: np.ndarray, torque: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = min(angle.size, torque.size)
     a, t = np.asarray(angle[:n], dtype=float), np.asarray(torque[:n], dtype=float)
@@ -199,7 +195,7 @@ def trial_values(
         }
         if metric not in per_trial:
             raise ValueError(f"unknown metric {metric!r}")
-        values = [per_trial[metric](p) for p in _processed(cfg)]
+        values = [per_trial[metric](t.processed) for t in cfg.trials if t.processed is not None]
     return tuple(float(v) for v in values if math.isfinite(v))
 
 

@@ -223,17 +223,11 @@ def _rows(h5: h5py.File, data: ReportData) -> tuple[list[list[object]], list[lis
     return cycles, trials
 
 
-def setting_columns(data: ReportData) -> list[str]:
-    """One column per declared factor (its level label) followed by one per factor quantity
-    (`<factor>.<quantity>`, the unit in the quantity's suffix), in declaration order, first seen first."""
-    names: list[str] = []
-    for cfg in data.configurations:
-        names.extend(k for k in cfg.settings.flat() if k not in names)
-    return names
-
-
 def _configuration_rows(data: ReportData) -> tuple[list[str], list[list[object]]]:
-    setting_names = setting_columns(data)
+    # per declared factor its level label, then its quantities `<factor>.<quantity>`: first seen first
+    setting_names: list[str] = []
+    for cfg in data.configurations:
+        setting_names.extend(k for k in cfg.settings.flat() if k not in setting_names)
     columns = ["configuration", "set", "joint", "profile", "trajectory", *setting_names, *STAT_COLUMNS]
     rows: list[list[object]] = []
     for cfg in data.configurations:
