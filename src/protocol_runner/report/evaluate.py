@@ -190,10 +190,9 @@ def _no_joint(spec: ExpectationSpec, data: ReportData) -> str:
 
 def _adjusted(v: Verdict, p_adjusted: float, family: int) -> Verdict:
     met = p_adjusted <= ALPHA
+    how = "a family of one, not adjusted"
     if family > 1:
         how = f"Holm-adjusted over {family} expectations {format_p(p_adjusted)}"
-    else:
-        how = "a family of one, not adjusted"
     tail = f"; p {format_p(v.p_value)} ({how}): {MET if met else NOT_MET} at {ALPHA:g}"
     return dataclasses.replace(
         v, verdict=MET if met else NOT_MET, reason=v.reason + tail, p_adjusted=p_adjusted, family=family

@@ -262,10 +262,8 @@ def _num(value: object, digits: int = 2) -> str:
 
 
 def _pm(mean: float, std: float, digits: int = 2) -> str:
-    if not math.isfinite(mean):
-        return "—"
-    if not math.isfinite(std):
-        return _num(mean, digits)
+    if not (math.isfinite(mean) and math.isfinite(std)):
+        return _num(mean, digits)  # "—" for a mean that is not finite
     return f"{mean:.{digits}f} ± {std:.{digits}f}"
 
 
