@@ -255,9 +255,8 @@ class EventBus:
         return client
 
     def unsubscribe(self, client: Client) -> None:
-        with self._lock:
-            if client in self._clients:
-                self._clients.remove(client)
+        with self._lock, contextlib.suppress(ValueError):  # already dropped
+            self._clients.remove(client)
 
     def snapshot(self) -> dict[str, Any]:
         snap = self.state.snapshot()
