@@ -41,7 +41,7 @@ from protocol_runner.hardware.rig import Rig  # noqa: E402
 from protocol_runner.hardware.usb1608fs import Usb1608FsPlus  # noqa: E402
 from protocol_runner.hardware.usb3105 import Usb3105  # noqa: E402
 from protocol_runner.hardware.usb_common import MonotonicClock, realtime_priority  # noqa: E402
-from protocol_runner.monitor.samples import SampleTap  # noqa: E402
+from protocol_runner.monitor.live import SampleTap  # noqa: E402
 from protocol_runner.monitor.service import Monitor  # noqa: E402
 
 FIFO = False  # --fifo: the loop under SCHED_FIFO, as the hardware bench runs it (when allowed)

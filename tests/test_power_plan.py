@@ -18,8 +18,8 @@ import yaml
 from scipy import stats
 
 from protocol_runner.cli import main
+from protocol_runner.report.headline import trial_values
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.metrics import trial_values
 
 from .short_knee import short_knee_session
 

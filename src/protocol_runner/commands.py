@@ -221,10 +221,10 @@ def _report(
         _result(f"report: {generate_report(archive, output)}")
         return EXIT_OK
     from .archive.reprocess import reprocess_archive
+    from .report.evaluate import record_verdicts
     from .report.load import load_report_data
     from .report.predictions import predictions, record_predictions
     from .report.render import render_report
-    from .report.verdicts import record_verdicts
     from .session.workers import analysis_pool
 
     with analysis_pool() as pool:

@@ -19,7 +19,7 @@ from .errors import InvalidInput
 from .protocol.expectations import ExpectationSpec, Terms, statements
 from .protocol.loaded import LoadedProtocol
 from .protocol.plan_steps import Plan, TrialStep
-from .report.metrics import LABELS, UNITS, trial_values
+from .report.headline import LABELS, UNITS, trial_values
 from .report.model import ReportData
 
 #: The relative effect of a difference statement planned with a coefficient of variation alone.

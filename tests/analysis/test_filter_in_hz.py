@@ -5,7 +5,7 @@ from __future__ import annotations
 import h5py
 
 from protocol_runner.analysis.processing_settings import ProcessingSettings
-from protocol_runner.report.load_configuration import _filter_text
+from protocol_runner.report.load import _filter_text
 
 
 def test_cutoff_in_hz_is_the_normalised_cutoff_times_nyquist() -> None:

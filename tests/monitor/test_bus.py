@@ -12,11 +12,16 @@ from typing import Any
 import pytest
 
 from protocol_runner.errors import Interrupted
-from protocol_runner.monitor.bus import CLIENT_QUEUE, MAX_MERGED_POINTS, Client, EventBus
-from protocol_runner.monitor.journal_tail import JournalTail
+from protocol_runner.monitor.bus import (
+    CLIENT_QUEUE,
+    MAX_MERGED_POINTS,
+    TRACE_WINDOW_S,
+    Client,
+    EventBus,
+    JournalTail,
+)
 from protocol_runner.monitor.live import MonitoredOperator
 from protocol_runner.monitor.service import Monitor
-from protocol_runner.monitor.state import TRACE_WINDOW_S
 from protocol_runner.protocol.plan_steps import ChecklistStep
 from protocol_runner.session.journal import Journal
 

@@ -12,7 +12,7 @@ from protocol_runner.hardware.calibration import CalibrationTable
 from protocol_runner.hardware.interfaces import ScanBlock
 from protocol_runner.hardware.joint import TrialRecording
 from protocol_runner.hardware.simulator.daq import SimulatedRig
-from protocol_runner.monitor.samples import SampleTap, phase_of
+from protocol_runner.monitor.live import SampleTap, phase_of
 
 from ..knee_rig import knee_joint_config
 

@@ -17,13 +17,13 @@ from types import TracebackType
 
 import pytest
 
-from protocol_runner.monitor.address import MonitorAddress
 from protocol_runner.monitor.bus import EventBus
 from protocol_runner.monitor.server import (
     MAX_CONNECTIONS,
     MAX_PENDING,
     OPERATOR_CONNECTIONS,
     REQUEST_DEADLINE_S,
+    MonitorAddress,
     MonitorServer,
 )
 from protocol_runner.monitor.service import Monitor

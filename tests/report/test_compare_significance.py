@@ -11,7 +11,7 @@ import pytest
 from scipy import stats
 
 from protocol_runner.report.compare import ALPHA_EACH, compare_archives, render_comparison
-from protocol_runner.report.metrics import trial_values
+from protocol_runner.report.headline import trial_values
 from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, write_archive
 
 BASE = {4: (1.5, (5.0, 109.0)), 5: (2.5, (5.0, 109.0)), 6: (4.0, (5.0, 109.0)), 7: (6.0, (5.0, 109.0))}

@@ -1,4 +1,4 @@
-"""The metric library (report/metrics.py) on hand-made trials whose answers are known: one value per trial.
+"""The metric library (report/headline.py) on hand-made trials whose answers are known: one value per trial.
 
 Each trial is a loop swept at constant speed, up from 10 deg to 100 deg and back down, with brace torque
 `slope * angle + width/2` on the way up and `- width/2` on the way down (a friction band of the given width
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from protocol_runner.report.metrics import HYSTERESIS_WINDOW_DEG, LABELS, UNITS, trial_values
+from protocol_runner.report.headline import HYSTERESIS_WINDOW_DEG, LABELS, UNITS, trial_values
 from protocol_runner.report.model import BoucWenFit, Configuration, ProcessedTrial, Trial
 from protocol_runner.report.settings_view import SettingsView
 

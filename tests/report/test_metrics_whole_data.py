@@ -9,8 +9,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from protocol_runner.report.headline import range_of, trial_values
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.metrics import range_of, trial_values
 from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, write_archive
 
 

@@ -16,16 +16,16 @@ from markupsafe import escape
 from pydantic import ValidationError
 
 from protocol_runner.protocol.expectations import ExpectationSpec, check_expectations
+from protocol_runner.report.declared import declared_entries
 from protocol_runner.report.evaluate import (
     TUNED_LABEL,
     Verdict,
-    declared_expectations,
     evaluate_all,
     evaluate_expectations,
     format_p,
 )
+from protocol_runner.report.headline import trial_values
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import ReportData
 from protocol_runner.report.render import generate_report
 from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, thesis_like_specs, write_archive
@@ -75,7 +75,7 @@ def thesis_data(tmp_path_factory: pytest.TempPathFactory) -> ReportData:
 
 
 def test_knee_expectations_come_from_the_archived_yaml(thesis_data: ReportData) -> None:
-    specs, problems = declared_expectations(thesis_data.protocol_text)
+    specs, problems = declared_entries(thesis_data.protocol_text, ("expectations",), ExpectationSpec)
     assert problems == ()
     ids = {s.id for s in specs}
     # every Chapter 5 statement, including those the old code never checked
@@ -249,7 +249,7 @@ def test_verdicts_are_recorded_in_the_archive_with_checksummed_evidence(tmp_path
     import h5py
 
     from protocol_runner.archive.verify import verify_path
-    from protocol_runner.report.verdicts import record_verdicts
+    from protocol_runner.report.evaluate import record_verdicts
 
     configs = [c for c in _thesis_configs() if c.key in (2, 3)]
     path = _archive(tmp_path, configs, _knee_text())

@@ -18,8 +18,8 @@ from protocol_runner.errors import InvalidInput
 from protocol_runner.protocol.loader import load_protocol
 from protocol_runner.report.differences import declared_differences, declared_repeatability
 from protocol_runner.report.evaluate import format_p
+from protocol_runner.report.headline import trial_values
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import ReportData
 from protocol_runner.report.render import generate_report
 from tests.report.report_archive_builder import ArchiveSpec, ConfigSpec, write_archive

@@ -108,7 +108,7 @@ class AnalogInput(Protocol):
 
 
 class LoopTap(Protocol):
-    """Watches the paced output loop for the live monitor (`monitor/samples.py`): told where a run starts
+    """Watches the paced output loop for the live monitor (`monitor/live.py`): told where a run starts
     (with every joint's commanded angles, ticks x joints) and handed each scan block as the loop reads
     it, with every joint's columns (joint k's angle in column 2k, its torque in 2k + 1). Both calls return
     within microseconds and never raise."""

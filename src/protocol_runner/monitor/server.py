@@ -1,11 +1,6 @@
-"""The monitor's HTTP server: standard library only, on background threads, read-only.
-
-Serves exactly `/` (the page, with the CSS and script of `monitor/static/` inlined), `/events` (the
-Server-Sent Events stream of `bus.py`) and `/status` (the snapshot as JSON); every other path is 404, every
-method but GET is refused (501). Its limits, so that no client can starve the others or the operator, are
-docs/monitor.md's: a whole-request deadline, the oldest of too many pending connections shed, a bounded
-number of answered requests with places kept for the token, a write timeout. On a loopback bind the Host
-header must name loopback (no DNS rebinding); on any other bind every request needs `?token=`.
+"""The monitor's HTTP server (standard library only, background threads, read-only): `/`, `/events`
+(Server-Sent Events), `/status`, with docs/monitor.md's address checks and limits; and its address,
+`--monitor [HOST:]PORT` (default host 127.0.0.1, loopback; port 0: the system picks a free one).
 """
 
 from __future__ import annotations
@@ -15,6 +10,7 @@ import contextlib
 import hashlib
 import hmac
 import io
+import ipaddress
 import queue
 import select
 import socket
@@ -22,14 +18,80 @@ import socketserver
 import threading
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from importlib import resources
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
 
-from .address import MonitorAddress, is_loopback_host_header
-from .bus import EventBus
-from .state import dumps
+from ..errors import InvalidInput
+from .bus import EventBus, dumps
+
+DEFAULT_HOST = "127.0.0.1"
+
+_USAGE = "give [HOST:]PORT, e.g. --monitor 8765 or --monitor 127.0.0.1:8765 (IPv6: --monitor [::1]:8765)"
+
+
+@dataclass(frozen=True)
+class MonitorAddress:
+    host: str
+    port: int
+    family: socket.AddressFamily
+    loopback: bool
+
+    def url_host(self) -> str:
+        """The host as a URL writes it (an unspecified address becomes this machine's name)."""
+        host = self.host
+        if host in ("0.0.0.0", "::", ""):
+            host = socket.gethostname()
+        return f"[{host}]" if ":" in host else host
+
+
+def parse_address(spec: str) -> MonitorAddress:
+    text = spec.strip()
+    if text.startswith("["):
+        host, sep, port_text = text[1:].partition("]:")
+        if not sep:
+            raise InvalidInput(f"--monitor {spec!r}: {_USAGE}")
+    elif text.count(":") == 1:
+        host, port_text = text.split(":")
+    elif ":" in text:
+        raise InvalidInput(f"--monitor {spec!r}: an IPv6 host goes in brackets, e.g. --monitor [::1]:8765")
+    else:
+        host, port_text = DEFAULT_HOST, text
+    host = host.strip() or DEFAULT_HOST
+    try:
+        port = int(port_text)
+    except ValueError:
+        raise InvalidInput(f"--monitor {spec!r}: {port_text!r} is not a port number; {_USAGE}") from None
+    if not 0 <= port <= 65535:
+        raise InvalidInput(
+            f"--monitor {spec!r}: port {port} is out of range (1-65535, or 0 for any free port)"
+        )
+    try:
+        infos = socket.getaddrinfo(host, port, type=socket.SOCK_STREAM)
+    except (socket.gaierror, UnicodeError):
+        raise InvalidInput(f"--monitor {spec!r}: cannot resolve the host {host!r}") from None
+    loopback = all(_is_loopback(str(info[4][0])) for info in infos)
+    return MonitorAddress(host=host, port=port, family=infos[0][0], loopback=loopback)
+
+
+def _is_loopback(address: str) -> bool:
+    try:
+        return ipaddress.ip_address(address.split("%", 1)[0]).is_loopback
+    except ValueError:
+        return False
+
+
+def is_loopback_host_header(value: str) -> bool:
+    """Does an HTTP Host header name this machine's loopback (localhost, 127.x.x.x, [::1])?"""
+    value = value.strip()
+    if value.startswith("["):
+        name = value[1 : value.find("]")] if "]" in value else value[1:]
+    else:
+        name = value.rsplit(":", 1)[0] if value.count(":") == 1 else value
+    return name.lower() == "localhost" or _is_loopback(name)
+
 
 MAX_CONNECTIONS = 16
 OPERATOR_CONNECTIONS = 2
@@ -172,23 +234,17 @@ class MonitorServer(ThreadingHTTPServer):
         """A place to answer a request in: a shared one, else for a token holder one of those kept for
         the token. Yields False (and counts a rejection) when there is none."""
         with self._lock:
-            if self.active < MAX_CONNECTIONS:
-                pool = "shared"
-                self.active += 1
-            elif operator and self.active_operator < OPERATOR_CONNECTIONS:
-                pool = "kept"
-                self.active_operator += 1
-            else:
-                pool = ""
-                self.rejected += 1
+            shared = self.active < MAX_CONNECTIONS
+            kept = not shared and operator and self.active_operator < OPERATOR_CONNECTIONS
+            self.active += shared
+            self.active_operator += kept
+            self.rejected += not (shared or kept)
         try:
-            yield bool(pool)
+            yield shared or kept
         finally:
             with self._lock:
-                if pool == "shared":
-                    self.active -= 1
-                elif pool == "kept":
-                    self.active_operator -= 1
+                self.active -= shared
+                self.active_operator -= kept
 
     def counts(self) -> dict[str, Any]:
         with self._lock:

@@ -1,12 +1,5 @@
-"""`--monitor`: open the page's server before the session starts, attach it to the session, end it.
-
-`Monitor.open` binds the port first: a port in use (or any other bind failure) is exit 2 with a message
-naming it, before the session folder is created, so a session never runs without the monitor it was
-asked for. The URL is announced on the terminal with a random token, printed only there: on a host that is
-not loopback it is the page's only key; on loopback it is optional and keeps places on a crowded monitor.
-`attach` hooks the rig's loop (`Rig.tap`: samples of every driven joint), the journal's events, the
-operator's prompts and the runner's publisher; leaving the `with` block publishes `session_end` (complete,
-or why it stopped), gives the pages a moment to receive it, and stops the server.
+"""`--monitor`: open the page's server before the session starts (a bind failure is exit 2 before the
+session folder exists), attach it to the session, publish `session_end` and stop it (docs/monitor.md).
 """
 
 from __future__ import annotations
@@ -20,12 +13,9 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any
 
 from ..errors import EXIT_INTERRUPTED, EXIT_OK, InvalidInput, UserError
-from .address import MonitorAddress, parse_address
-from .bus import EventBus
-from .journal_tail import JournalTail
-from .live import LivePublisher, MonitoredOperator
-from .samples import SAMPLE_RATE_HZ, SampleTap
-from .server import MonitorServer
+from .bus import EventBus, JournalTail
+from .live import SAMPLE_RATE_HZ, LivePublisher, MonitoredOperator, SampleTap
+from .server import MonitorAddress, MonitorServer, parse_address
 
 if TYPE_CHECKING:
     from ..protocol.plan_steps import Plan
@@ -35,25 +25,20 @@ if TYPE_CHECKING:
     from .publisher import Publisher
 
 
+_BIND_ERRORS = {
+    errno.EADDRINUSE: "port {port} on {host} is already in use; the session was not started. Pick another "
+    "port, e.g. --monitor {host}:{next}",
+    errno.EACCES: "not allowed to listen on port {port} (ports below 1024 need privileges); the session was "
+    "not started. Pick a port from 1024 up, e.g. --monitor 8765",
+    errno.EADDRNOTAVAIL: "{host} is not an address of this machine; the session was not started",
+}
+
+
 def _bind_error(address: MonitorAddress, exc: OSError) -> InvalidInput:
-    where = f"{address.host}:{address.port}"
-    if exc.errno == errno.EADDRINUSE:
-        return InvalidInput(
-            f"--monitor: port {address.port} on {address.host} is already in use; the session was not "
-            f"started. Pick another port, e.g. --monitor {address.host}:{address.port + 1}"
-        )
-    if exc.errno == errno.EACCES:
-        return InvalidInput(
-            f"--monitor: not allowed to listen on port {address.port} (ports below 1024 need privileges); "
-            "the session was not started. Pick a port from 1024 up, e.g. --monitor 8765"
-        )
-    if exc.errno == errno.EADDRNOTAVAIL:
-        return InvalidInput(
-            f"--monitor: {address.host} is not an address of this machine; the session was not started"
-        )
-    return InvalidInput(
-        f"--monitor: cannot listen on {where} ({exc.strerror or exc}); the session was not started"
-    )
+    other = "cannot listen on {host}:{port} ({why}); the session was not started"
+    text = _BIND_ERRORS.get(exc.errno or 0, other)
+    host, port, why = address.host, address.port, exc.strerror or exc
+    return InvalidInput("--monitor: " + text.format(host=host, port=port, next=port + 1, why=why))
 
 
 class Monitor:

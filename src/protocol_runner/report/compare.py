@@ -1,11 +1,6 @@
-"""Two sessions side by side (`--compare`, docs/report.md "Session comparison").
-
-Configurations match when their declared settings agree: the trajectory (its name, or its profile when
-unnamed) and the level label of every declared factor, not their keys nor the physical values behind the
-labels; a pair lists every physical setting that differs. Per matched pair and per joint both drive (and
-all joints together for several): energy per cycle and range reached, B minus A, on trial values with a
-95 % Welch interval and its p-value, each quantity decided at the Bonferroni level `ALPHA_EACH`. Inputs
-with no configuration in common are incomparable (`InvalidInput`, exit 2).
+"""Two sessions side by side (`--compare`, docs/report.md "Session comparison"): configurations matched
+on their declared settings (trajectory and level labels, not keys), energy per cycle and range reached B
+minus A per joint on trial values, each quantity decided at the Bonferroni level `ALPHA_EACH`.
 """
 
 from __future__ import annotations
@@ -18,9 +13,8 @@ from pathlib import Path
 from protocol_runner.analysis.statistics import WelchInterval, welch_interval
 from protocol_runner.errors import InvalidInput
 from protocol_runner.report.figures import overlay_figure
-from protocol_runner.report.headline import configuration_stats
+from protocol_runner.report.headline import configuration_stats, trial_values
 from protocol_runner.report.load import load_report_data
-from protocol_runner.report.metrics import trial_values
 from protocol_runner.report.model import Configuration, ReportData
 from protocol_runner.report.render import checked_output, template_environment, write_atomically
 
@@ -32,11 +26,6 @@ ALPHA_EACH = 0.05 / len(QUANTITIES)
 
 #: A pair's `joint` when it compares all the joints of a configuration together (their total energy).
 TOTAL = "total"
-
-
-def differs(w: WelchInterval) -> bool:
-    """True when the difference is significant at `ALPHA_EACH` (an undefined p-value: False)."""
-    return bool(w.p_value < ALPHA_EACH)
 
 
 @dataclass(frozen=True)
@@ -59,13 +48,13 @@ class Pair:
 
     @property
     def energy_differs(self) -> bool:
-        """The energy per cycle differs (p < `ALPHA_EACH`)."""
-        return differs(self.energy)
+        """The energy per cycle differs (p < `ALPHA_EACH`; an undefined p-value: no)."""
+        return bool(self.energy.p_value < ALPHA_EACH)
 
     @property
     def range_differs(self) -> bool:
         """The range reached differs (p < `ALPHA_EACH`)."""
-        return differs(self.range)
+        return bool(self.range.p_value < ALPHA_EACH)
 
     @property
     def significant(self) -> bool:
@@ -212,12 +201,8 @@ def _plain(value: object) -> object:
 
 def _changed(a: Configuration, b: Configuration) -> tuple[tuple[str, str, str], ...]:
     pa, pb = _physical(a), _physical(b)
-    out = []
-    for name in sorted(set(pa) | set(pb)):
-        va, vb = pa.get(name), pb.get(name)
-        if va != vb:
-            out.append((name, _text(va), _text(vb)))
-    return tuple(out)
+    names = sorted(set(pa) | set(pb))
+    return tuple((n, _text(pa.get(n)), _text(pb.get(n))) for n in names if pa.get(n) != pb.get(n))
 
 
 def _text(value: object) -> str:

@@ -36,9 +36,7 @@ def protocol_document(protocol_text: str) -> Any:
         check_yaml_limits(protocol_text, "the archived protocol", loader=SafeLoader)
     except InvalidInput as exc:
         raise yaml.YAMLError(exc.message) from None
-    for loader in (FAST_LOADER, SafeLoader):
-        if loader is None:
-            continue
+    for loader in (FAST_LOADER or SafeLoader, SafeLoader):  # the pure-Python loader's message on an error
         try:
             return yaml.load(protocol_text, Loader=loader)
         except yaml.YAMLError:

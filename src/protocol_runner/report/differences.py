@@ -1,11 +1,6 @@
-"""Within-report statistics that involve several configurations, the trial as the unit (docs/report.md).
-
-- Differences: for each declared comparison, configuration b minus configuration a in energy per cycle for
-  each declared pair (a, b), else each configuration minus the one before it, per joint (and all joints
-  together) when there are several; 95 % Welch interval on trial means and its two-sided p-value,
-  Holm-adjusted over the comparison's rows (one table, one family).
-- Repeatability: for each group declared in `report.repeatability`, the between-set CV of the
-  configurations' means and the ICC(1) of their trial means (`analysis.statistics.repeatability`).
+"""Within-report statistics over several configurations, the trial as the unit (docs/report.md): the
+differences in energy per cycle within each declared comparison (95 % Welch intervals, Holm-adjusted over
+the comparison's rows), and the between-set CV and ICC(1) of each declared `report.repeatability` group.
 """
 
 from __future__ import annotations
@@ -25,8 +20,7 @@ from protocol_runner.protocol.expectations import RepeatabilitySpec
 from protocol_runner.protocol.plan_steps import Comparison
 from protocol_runner.protocol.schema import ComparisonSpec
 from protocol_runner.report.declared import declared_entries
-from protocol_runner.report.headline import ALL_JOINTS, campaign_stats
-from protocol_runner.report.metrics import trial_values
+from protocol_runner.report.headline import ALL_JOINTS, campaign_stats, trial_values
 from protocol_runner.report.model import ReportData
 
 

@@ -1,29 +1,26 @@
 """One generic evaluator: a declared expectation and an archive's data give a verdict with its numbers.
 
-The decision rules are docs/protocol.md "Expectations", always on trial values (one per trial, the
-experimental unit), each a test with a p-value at level `ALPHA` (0.05). The interval printed beside each
-statement is the two-sided (1 - 2 ALPHA) = 90 % interval, whose bound is the one-sided 95 % bound the test
-uses, so "the interval lies above zero" and "p <= 0.05" say the same thing before adjustment. A statement
-of several parts (the steps of `increasing`, the pairs of `no_trend`, each configuration) takes the
-largest part's p (an intersection-union test). A configuration without `min_trials` trials with the
-metric, or a statement about a device element (`engages`) the measured angles never reach, is `not
-evaluable` with the true reason. With `baseline` (and `than_baseline`) the value is a Welch-Satterthwaite
-contrast (`analysis.statistics.contrast_interval`), e.g. (5 - 1) - (6 - 2).
-
-`evaluate_all` takes the campaign's evaluable expectations (one verdict per joint they are decided for)
-as one family and adjusts their p-values by Holm's step-down method; an expectation is `met` when its
-adjusted p-value is at most `ALPHA`. `evaluate_expectations` decides the expectations of the protocol as
-archived (`/protocol`): nothing here knows any campaign's configuration key, factor level or threshold.
+The decision rules are docs/protocol.md "Expectations": tests on trial values (one per trial, the
+experimental unit) at level `ALPHA`, the interval printed beside each statement the 90 % one whose bound is
+the test's one-sided 95 % bound; a statement of several parts takes the largest part's p; the campaign's
+evaluable expectations are one Holm family. Nothing here knows any campaign's configuration key, factor
+level or threshold. `record_verdicts` stores the verdicts in the archive (`/expectations`, docs/archive.md),
+decided by the very code the report re-runs, so a stored verdict never disagrees with a regenerated report.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import weakref
 from collections.abc import Sequence
 from dataclasses import dataclass
 from itertools import pairwise
+from pathlib import Path
+
+import h5py
+import numpy as np
 
 from protocol_runner.analysis.statistics import (
     ALPHA,
@@ -35,11 +32,13 @@ from protocol_runner.analysis.statistics import (
     p_below,
     t_interval,
 )
+from protocol_runner.archive.h5util import put_attrs, put_text
+from protocol_runner.archive.paths import JOINTS
 from protocol_runner.protocol.expectations import ExpectationSpec, statements
 from protocol_runner.protocol.only import key_spans
 from protocol_runner.protocol.wording import counted
 from protocol_runner.report.declared import declared_entries
-from protocol_runner.report.metrics import LABELS, UNITS, trial_values
+from protocol_runner.report.headline import LABELS, UNITS, trial_values
 from protocol_runner.report.model import Configuration, ReportData
 from protocol_runner.report.settings_view import DeviceElement
 
@@ -91,10 +90,6 @@ def format_p(p: float) -> str:
     if not math.isfinite(p):
         return "—"
     return "< 0.001" if p < 0.001 else f"{p:.3g}"
-
-
-def _ival(low: float, high: float, unit: str) -> str:
-    return f"[{_fmt(low)}, {_fmt(high)}] {unit}"
 
 
 def metric_label(spec: ExpectationSpec) -> str:
@@ -195,10 +190,9 @@ def _no_joint(spec: ExpectationSpec, data: ReportData) -> str:
 
 def _adjusted(v: Verdict, p_adjusted: float, family: int) -> Verdict:
     met = p_adjusted <= ALPHA
+    how = "a family of one, not adjusted"
     if family > 1:
         how = f"Holm-adjusted over {family} expectations {format_p(p_adjusted)}"
-    else:
-        how = "a family of one, not adjusted"
     tail = f"; p {format_p(v.p_value)} ({how}): {MET if met else NOT_MET} at {ALPHA:g}"
     return dataclasses.replace(
         v, verdict=MET if met else NOT_MET, reason=v.reason + tail, p_adjusted=p_adjusted, family=family
@@ -287,10 +281,6 @@ def _element(cfg: Configuration, name: str, joint: str) -> DeviceElement | None:
     )
 
 
-def _tost(w: WelchInterval, centre: float, margin: float) -> float:
-    return max(p_above(w, centre - margin), p_below(w, centre + margin))
-
-
 def _decide(
     spec: ExpectationSpec, values: dict[int, tuple[float, ...]], intervals: dict[int, TInterval], unit: str
 ) -> tuple[float, str]:
@@ -313,9 +303,8 @@ def _decide(
         ref = 0.0 if steps or spec.than is not None else spec.value or 0.0
         p, test = _statement_p(spec, w, ref)
         ps.append(p)
-        parts.append(
-            f"{subject} {_ival(w.low, w.high, unit)}, {test} p {format_p(p)}{'' if p <= ALPHA else ' (fails)'}"
-        )
+        fails = "" if p <= ALPHA else " (fails)"
+        parts.append(f"{subject} [{_fmt(w.low)}, {_fmt(w.high)}] {unit}, {test} p {format_p(p)}{fails}")
     if not steps:
         return max(ps, default=math.nan), "; ".join(parts) + _criterion(spec, unit)
     if spec.relation == "no_trend":
@@ -333,9 +322,10 @@ def _statement_p(spec: ExpectationSpec, w: WelchInterval, ref: float) -> tuple[f
         return p_above(w, ref), "one-sided"
     if r in ("less", "decreasing"):
         return p_below(w, ref), "one-sided"
-    if r in ("equal", "no_trend"):
-        return _tost(w, ref, spec.margin or 0.0), "TOST"
+    margin = spec.margin or 0.0  # equal, no_trend: within ±margin of ref; inside: within the interval
     lo, hi = spec.interval or (math.nan, math.nan)
+    if r in ("equal", "no_trend"):
+        lo, hi = ref - margin, ref + margin
     return max(p_above(w, lo), p_below(w, hi)), "TOST"
 
 
@@ -376,11 +366,6 @@ class Expectations:
         )
 
 
-def declared_expectations(protocol_text: str) -> tuple[tuple[ExpectationSpec, ...], tuple[str, ...]]:
-    """The `expectations:` of an archived protocol text, and a message per entry that is not valid."""
-    return declared_entries(protocol_text, ("expectations",), ExpectationSpec)
-
-
 def evaluate_expectations(data: ReportData) -> Expectations:
     """Every declared expectation of `data`'s archived protocol, decided on `data`: once per `data` object
     (the session's recorded verdicts and its report, rendered next, decide them on the same one; the data
@@ -388,10 +373,83 @@ def evaluate_expectations(data: ReportData) -> Expectations:
     for seen, result in _LAST:
         if seen() is data:
             return result
-    specs, problems = declared_expectations(data.protocol_text)
+    specs, problems = declared_entries(data.protocol_text, ("expectations",), ExpectationSpec)
     result = Expectations(evaluate_all(specs, data), problems, data.session.mode == "dry-run")
     _LAST[:] = [(weakref.ref(data), result)]
     return result
 
 
 _LAST: list[tuple[weakref.ref[ReportData], Expectations]] = []
+
+
+def _or_none(value: float) -> float | None:
+    return value if math.isfinite(value) else None
+
+
+def record_verdicts(archive: Path, data: ReportData | None = None) -> int:
+    """Evaluate `archive`'s declared expectations and (re)write `/expectations`; return how many.
+    `data` is the archive as `load_report_data` reads it, when the caller has already read it."""
+    from protocol_runner.report.load import load_report_data
+
+    result = evaluate_expectations(data if data is not None else load_report_data(Path(archive), workers=1))
+    with h5py.File(archive, "a") as h5:
+        if "expectations" in h5:
+            del h5["expectations"]
+        root = h5.create_group("expectations")
+        put_attrs(root, "expectations", {"problems": json.dumps(list(result.problems))})
+        for v in result.verdicts:
+            keyed = (v.spec.joint is not None or v.spec.joints is not None) and bool(v.joint)
+            if v.spec.id not in root:
+                grp = root.create_group(v.spec.id)
+                joints = [w.joint for w in result.verdicts if w.spec.id == v.spec.id]
+                put_attrs(grp, "expectation", _declaration(v, result.dry_run, joints if keyed else None))
+            grp = root[v.spec.id]
+            if keyed:
+                grp = grp.require_group(JOINTS).create_group(v.joint)
+                put_attrs(grp, "expectation", {"joint": v.joint})
+            _outcome(grp, v)
+    return len(result.verdicts)
+
+
+def _declaration(v: Verdict, dry_run: bool, joints: list[str] | None) -> dict[str, object]:
+    """The attributes of an expectation's group that its declaration gives (and `joints` when it is
+    decided per joint)."""
+    return {
+        "text": v.spec.text,
+        "section": v.spec.section,
+        "metric": v.spec.metric,
+        "unit": v.unit,
+        "relation": v.spec.relation,
+        "configurations": json.dumps(v.spec.configurations),
+        "declaration": v.spec.model_dump_json(exclude_none=True),
+        "simulator_tuned": int(v.spec.depends_on_tuning),  # 0/1: numbers export as doubles
+        "depends_on_simulator": json.dumps(v.spec.depends_on_simulator),
+        "dry_run": int(dry_run),
+        **({JOINTS: np.array(joints, dtype=h5py.string_dtype())} if joints is not None else {}),
+    }
+
+
+def _outcome(grp: h5py.Group, v: Verdict) -> None:
+    """The verdict, its numbers and its evidence, in `grp` (the expectation's group or its joint's)."""
+    put_attrs(
+        grp,
+        "expectation",
+        {
+            "verdict": v.verdict,
+            "reason": v.reason,
+            **{k: p for k, p in (("p_value", v.p_value), ("p_adjusted", v.p_adjusted)) if math.isfinite(p)},
+            "family": v.family,
+        },
+    )
+    rows = [
+        {
+            "key": e.key,
+            "trials": e.n,
+            "mean": _or_none(e.mean),
+            "ci95_low": _or_none(e.low),
+            "ci95_high": _or_none(e.high),
+            "unit": v.unit,
+        }
+        for e in v.evidence
+    ]
+    put_text(grp, "evidence", json.dumps(rows))

@@ -1,16 +1,10 @@
 """The report's figures: matplotlib (Agg, no pyplot state) rendered to PNG data URIs.
 
 Every figure function returns a `data:image/png;base64,...` string; angle in degrees, torque in N·m, time
-in seconds, energy in joules everywhere. They follow the thesis: hysteresis loops (Appendix B), per declared
-comparison the overlaid loops (§5.1-5.5, Figures 32-37) and the energy per cycle against the compared factor
-(§5.7.2, Figures 41-46, ± one standard deviation across cycles and trials), the reference datasets (§5.6,
-Figure 38), the elastic elements against the loops' midline (§6.1.5, Figures 52-53) and the Bouc-Wen model
-against the data (§6.2.4, Figures 57-58); also a declared prediction's loops and a session comparison's.
-A comparison's labels and axes are `figure_plan.comparison_axis`'s: nothing here knows a factor.
-
-Which figures there are is `figure_plan`'s (no matplotlib); here each kind is drawn (`DRAW`, with the
-drawing kit below: layouts, labels, colours, colour key, PNG data URI), by this process or by worker
-processes (`assemble_figures`).
+in seconds, energy in joules everywhere; each names the thesis figure it follows, if any. Which figures
+there are, and a comparison's labels and axes, are `figure_plan`'s (no matplotlib; nothing here knows a
+factor); here each kind is drawn (`DRAW`, with the drawing kit below), here or on worker processes
+(`assemble_figures`).
 """
 
 from __future__ import annotations
@@ -404,11 +398,7 @@ def per_joint(
     one: Callable[[Configuration], str], several: Callable[[Sequence[Configuration]], str]
 ) -> Callable[[Sequence[Configuration]], str]:
     """A figure of a configuration's joints: `one` of its only joint, else `several`."""
-
-    def draw(cfgs: Sequence[Configuration]) -> str:
-        return one(cfgs[0]) if len(cfgs) == 1 else several(cfgs)
-
-    return draw
+    return lambda cfgs: one(cfgs[0]) if len(cfgs) == 1 else several(cfgs)
 
 
 # ---------------------------------------------------------------------------------------- calibration

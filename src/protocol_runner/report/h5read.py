@@ -54,13 +54,8 @@ def attr_str(attrs: h5py.AttributeManager, name: str, default: str = "") -> str:
 
 
 def attr_float(attrs: h5py.AttributeManager, name: str, default: float = float("nan")) -> float:
-    if name not in attrs:
-        return default
-    value = decode(attrs[name])
-    try:
-        return float(np.asarray(value, dtype=float).reshape(-1)[0])
-    except (TypeError, ValueError, IndexError):
-        return default
+    values = attr_floats(attrs, name)  # an array's first value
+    return values[0] if values else default
 
 
 def attr_int(attrs: h5py.AttributeManager, name: str, default: int = 0) -> int:

@@ -130,7 +130,7 @@ class ProcessedTrial:
     brace_torque_nm: FloatArray
     subtraction: str
     filter_text: str = ""  # e.g. "Butterworth low-pass, order 10, cut-off 50.0 Hz, zero-phase"
-    # from every stored sample, not the plotted copy (report/metrics.py); NaN when not computed
+    # from every stored sample, not the plotted copy (report/headline.py); NaN when not computed
     range_deg: float = math.nan  # 99th minus 1st percentile of the angle
     slope_nm_per_deg: float = math.nan  # least-squares slope of brace torque against angle
     peak_nm: float = math.nan  # largest absolute brace torque

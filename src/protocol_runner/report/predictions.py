@@ -1,16 +1,7 @@
-"""Model prediction across configurations (docs/analysis.md "Prediction across configurations"):
-configuration B predicted from a model fitted on A, for the pairs the protocol declares
-(`report.predictions`), from the archive alone.
-
-* The element model: A's fitted element parameters carried to B with the declared change A -> B
-  (`models.element_model.transfer`), run along B's processed trials: the RMSE against B's measured torque
-  and the energy per cycle with a 95 % interval (PREDICTION_DRAWS parameter sets drawn from A's covariance
-  plus each parameter's spread across the campaign, `reproducibility`).
-* The generalised Bouc-Wen model: A's parameters and backbone on B's centred loops (its RMSE).
-
-A prediction whose B angles reach beyond A's by more than EXTRAPOLATION_SHARE of A's span extrapolates and
-says so; its numbers are kept, but the Bouc-Wen backbone (a polynomial fitted on A's angles) is not meant to
-hold outside them, while the element model is physical."""
+"""Model prediction across configurations (docs/analysis.md "Prediction across configurations"), from
+the archive alone: configuration B predicted by the element model and by the Bouc-Wen model fitted on A,
+for the pairs the protocol declares (`report.predictions`); where B's angles reach beyond A's by more than
+EXTRAPOLATION_SHARE of A's span, the prediction extrapolates and says so."""
 
 from __future__ import annotations
 
@@ -35,9 +26,8 @@ if TYPE_CHECKING:
 
 
 EXTRAPOLATION_SHARE = 0.05
-"""B's angles may reach this share of A's fitted span beyond it before a prediction extrapolates: a degree
-or two is a loop's ordinary reach from one configuration to the next (and the stored loops are decimated,
-their extremes a little inside the fitted ones)."""
+"""B's angles may reach this share of A's fitted span beyond it before a prediction extrapolates (a degree
+or two is a loop's ordinary reach from one configuration to the next)."""
 
 
 @dataclass(frozen=True)
@@ -380,17 +370,14 @@ def _predictions(archive: Path, protocol_text: str) -> tuple[Prediction, ...]:
 def prediction_row(p: Prediction) -> dict[str, object]:
     """A prediction's numbers as `/predictions` stores them (`archive.model_results.write_predictions`)."""
     e = p.element
-    nan = math.nan
+    energies = ("energy_predicted_j", "energy_predicted_ci95_low_j", "energy_predicted_ci95_high_j")
     return {
         "fit_configuration": p.fit_key,
         "predict_configuration": p.predict_key,
         "joint": p.joint,
         "note": p.note,
-        "element_rmse_nm": e.rmse_nm if e else nan,
-        "energy_predicted_j": e.energy_predicted_j if e else nan,
-        "energy_predicted_ci95_low_j": e.energy_predicted_ci95_low_j if e else nan,
-        "energy_predicted_ci95_high_j": e.energy_predicted_ci95_high_j if e else nan,
-        "energy_measured_j": e.energy_measured_j if e else nan,
+        "element_rmse_nm": e.rmse_nm if e else math.nan,
+        **{name: getattr(e, name) if e else math.nan for name in (*energies, "energy_measured_j")},
         "bouc_wen_rmse_nm": p.rmse_nm,
         "bouc_wen_own_rmse_nm": p.own_rmse_nm,
         "reason": p.reason,

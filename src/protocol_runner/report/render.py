@@ -192,12 +192,7 @@ def write_atomically(output: Path, text: str) -> None:
 def _environment() -> jinja2.Environment:
     """The report's template environment, one per process: it keeps the compiled template."""
     env = template_environment(keep_trailing_newline=True)
-    env.filters["num"] = _num
-    env.filters["pm"] = _pm
-    env.filters["slug"] = slug
-    env.filters["ci"] = _ci
-    env.filters["counted"] = counted
-    env.filters["p"] = format_p
+    env.filters.update(num=_num, pm=_pm, slug=slug, ci=_ci, counted=counted, p=format_p)
     return env
 
 
@@ -214,10 +209,8 @@ def _num(value: object, digits: int = 2) -> str:
 
 
 def _pm(mean: float, std: float, digits: int = 2) -> str:
-    if not math.isfinite(mean):
-        return "—"
-    if not math.isfinite(std):
-        return _num(mean, digits)
+    if not (math.isfinite(mean) and math.isfinite(std)):
+        return _num(mean, digits)  # "—" for a mean that is not finite
     return f"{mean:.{digits}f} ± {std:.{digits}f}"
 
 
@@ -301,13 +294,8 @@ def _parameter_cell(fit: BoucWenFit, index: int, digits: int = 4) -> Markup:
     if index < min(len(fit.param_interval_low), len(fit.param_interval_high)):
         low, high = fit.param_interval_low[index], fit.param_interval_high[index]
         if math.isfinite(low) and math.isfinite(high):
-            return (
-                value
-                + Markup('<br><span class="se">[')
-                + escape(_num(low, digits))
-                + Markup(",<br>")
-                + escape(_num(high, digits))
-                + Markup("]</span>")
+            return Markup('{}<br><span class="se">[{},<br>{}]</span>').format(
+                value, _num(low, digits), _num(high, digits)
             )
     return value
 

@@ -24,13 +24,9 @@ Quantity = float | tuple[float, ...]
 Param = Quantity | str | tuple[str, ...]  # an element parameter (words for constants and lists such as `fit`)
 
 
-def _typeset(unit: str) -> str:
-    """The protocol's printed unit (`N*m`, `deg/s^2`) as a reader writes it (`N·m`, `deg/s²`)."""
-    return unit.replace("*", "·").replace("^2", "²")
-
-
-#: Display label of each quantity-name unit suffix: the protocol's registry (protocol/units.py), typeset.
-UNIT_LABELS: Mapping[str, str] = {suffix: _typeset(unit) for suffix, unit in UNIT_SUFFIXES.items()}
+#: Display label of each quantity-name unit suffix: the protocol's registry (protocol/units.py) as a reader
+#: writes it (`N*m` -> `N·m`, `deg/s^2` -> `deg/s²`).
+UNIT_LABELS: Mapping[str, str] = {s: u.replace("*", "·").replace("^2", "²") for s, u in UNIT_SUFFIXES.items()}
 
 #: The comparison parameter that compares trajectories rather than a factor's levels.
 TRAJECTORY = "trajectory"

@@ -1,11 +1,6 @@
-"""Tidy CSV tables of an archive (`--export`, docs/report.md): one row per cycle, per trial and per
-configuration, and the model tables `models.csv`, `elements.csv` and `predictions.csv`; units in the names.
-
-Every table has a `joint` column and holds every driven joint's rows, each from that joint's own data. The
-cycles' energy is the archived `energy_loss_j` (Eq 10-12); their angle and torque columns come from the
-trial's processed data cut into the same complete cycles (`analysis.cycles`), empty when that cut does not
-give the archived number of cycles. The configurations' statistics are the report summary's
-(`report.headline`); a list setting such as a range [lo, hi] is written `lo;hi`.
+"""Tidy CSV tables of an archive (`--export`, docs/report.md "Tidy exports"): cycles, trials and
+configurations (the report summary's statistics, `report.headline`), and the model tables `models.csv`,
+`elements.csv` and `predictions.csv`; units in the names, every driven joint's rows from its own data.
 """
 
 from __future__ import annotations
@@ -126,10 +121,8 @@ def _cell(value: object) -> str:
 
 
 def text_cell(text: str) -> str:
-    """A text cell as a spreadsheet shows it, never runs it: one starting like a formula (`= + - @`, a tab
-    or a carriage return; a level label such as `=HYPERLINK(...)`) gets a leading single quote, as OWASP
-    recommends against CSV injection. Text that is a number (`-1.5`, a level written as text) is kept as
-    it is: a spreadsheet reads it as that number, never as a formula."""
+    """A text cell as a spreadsheet shows it, never runs it: one starting like a formula gets a leading
+    single quote (OWASP, against CSV injection); text that is a number (`-1.5`) is kept as it is."""
     if not text.startswith(FORMULA_STARTS):
         return text
     try:
@@ -209,7 +202,7 @@ def _rows(h5: h5py.File, data: ReportData) -> tuple[list[list[object]], list[lis
         energy = np.asarray(cfg.energy_loss_j, dtype=float)
         ids = np.asarray(cfg.energy_cycle_trial)
         numbers = sorted({t.number for t in cfg.trials} | {int(i) for i in ids})
-        matches = {t.number: t.match for t in cfg.trials}  # read by load_configuration.brace_off_match
+        matches = {t.number: t.match for t in cfg.trials}  # read by load.brace_off_match
         for number in numbers:
             own = energy[ids == number] if ids.size == energy.size else np.empty(0)
             signal = _processed(h5, cfg, number, data.session.joint)
@@ -230,17 +223,11 @@ def _rows(h5: h5py.File, data: ReportData) -> tuple[list[list[object]], list[lis
     return cycles, trials
 
 
-def setting_columns(data: ReportData) -> list[str]:
-    """One column per declared factor (its level label) followed by one per factor quantity
-    (`<factor>.<quantity>`, the unit in the quantity's suffix), in declaration order, first seen first."""
-    names: list[str] = []
-    for cfg in data.configurations:
-        names.extend(k for k in cfg.settings.flat() if k not in names)
-    return names
-
-
 def _configuration_rows(data: ReportData) -> tuple[list[str], list[list[object]]]:
-    setting_names = setting_columns(data)
+    # per declared factor its level label, then its quantities `<factor>.<quantity>`: first seen first
+    setting_names: list[str] = []
+    for cfg in data.configurations:
+        setting_names.extend(k for k in cfg.settings.flat() if k not in setting_names)
     columns = ["configuration", "set", "joint", "profile", "trajectory", *setting_names, *STAT_COLUMNS]
     rows: list[list[object]] = []
     for cfg in data.configurations:

@@ -14,10 +14,10 @@ REPORT_NAME = "report.html"
 def render_report(session_dir: Path, archive: Path) -> Path:
     """Record the verdicts and predictions in the session's archive and render its report next to it; a
     full disk is a `DiskFull` with the resume hint."""
+    from ..report.evaluate import record_verdicts
     from ..report.load import load_report_data
     from ..report.predictions import predictions, record_predictions
     from ..report.render import render_report as render  # here: only the report step needs jinja
-    from ..report.verdicts import record_verdicts
 
     try:
         # read once, for the verdicts and the report: recording the verdicts adds /expectations, which the
