@@ -214,31 +214,23 @@ def _joined(elements: Sequence[Element]) -> str:
     return "+".join(e.name for e in elements)
 
 
-def layout(
-    elements: Sequence[Element],
-    *,
-    dissipative: bool = True,
-    elastic_free: bool = True,
-    angle_deg: FloatArray | None = None,
-) -> ModelLayout:
-    """The element model of `elements`. `dissipative` False: the brakes' and dampers' declared values are
-    kept (not free). `elastic_free` False: the elastic elements keep their values. An elastic element
-    that gives no torque over `angle_deg` (a spring of stiffness 0) has nothing to fit and stays fixed."""
+def layout(elements: Sequence[Element], *, angle_deg: FloatArray | None = None) -> ModelLayout:
+    """The element model of `elements`. An elastic element that gives no torque over `angle_deg` (a spring
+    of stiffness 0) has nothing to fit and stays fixed."""
     elements = tuple(e for e in elements if e.kind != "artefact")
     brakes = [e for e in elements if e.type == "coulomb_brake"]
     dampers = [e for e in elements if e.type == "viscous_damper"]
     free: list[Key] = []
     declared: dict[Key, float] = {}
     probe = np.linspace(np.min(angle_deg), np.max(angle_deg), 64) if angle_deg is not None else None
-    if elastic_free:
-        for e in elements:
-            if e.kind != "elastic":
-                continue
-            if probe is not None and not np.any(static_torque_nm(e, probe) != 0.0):
-                continue
-            for p in e.fit:
-                free.append((e.name, p))
-                declared[(e.name, p)] = e.number(p)
+    for e in elements:
+        if e.kind != "elastic":
+            continue
+        if probe is not None and not np.any(static_torque_nm(e, probe) != 0.0):
+            continue
+        for p in e.fit:
+            free.append((e.name, p))
+            declared[(e.name, p)] = e.number(p)
     fname = _joined(brakes)
     total = sum(b.number("torque_nm") for b in brakes)
     weights = [b.number("torque_nm") / total if total > 0 else 1.0 / len(brakes) for b in brakes]
@@ -249,13 +241,11 @@ def layout(
     if brakes:
         declared[(fname, "torque_nm")] = float(total)
         declared[(fname, "transition_deg")] = mean("transition_deg")
-        if dissipative:
-            free += [(fname, p) for p in FRICTION_PARAMS]
+        free += [(fname, p) for p in FRICTION_PARAMS]
     dname = _joined(dampers)
     if dampers:
         declared[(dname, DAMPER_PARAM)] = float(sum(d.number(DAMPER_PARAM) for d in dampers))
-        if dissipative:
-            free.append((dname, DAMPER_PARAM))
+        free.append((dname, DAMPER_PARAM))
     return ModelLayout(
         elements=elements,
         friction_name=fname,
