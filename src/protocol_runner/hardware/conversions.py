@@ -14,7 +14,7 @@ job of `hardware/safety.py`. Only the code conversions clamp, because a board ca
 
 from __future__ import annotations
 
-from typing import Protocol
+from collections.abc import Callable
 
 import numpy as np
 import numpy.typing as npt
@@ -47,47 +47,24 @@ def _check_range(pair: tuple[float, float], what: str) -> tuple[float, float]:
     return lo, hi
 
 
-def _linear_map(
-    values: ArrayLike, src: tuple[str, tuple[float, float]], dst: tuple[str, tuple[float, float]]
-) -> FloatArray:
-    """The straight line through (src_min, dst_min) and (src_max, dst_max) that Eq 1-3 all are; `src` and
-    `dst` are (argument name, (minimum, maximum)), each range checked and named in the error."""
-    x = np.asarray(values, dtype=np.float64)
-    s0, s1 = _check_range(src[1], src[0])
-    d0, d1 = _check_range(dst[1], dst[0])
-    result: FloatArray = d0 + (x - s0) * ((d1 - d0) / (s1 - s0))
-    return result
+def _conversion(joint_name: str, to_volts: bool) -> Callable[[ArrayLike, tuple[float, float]], FloatArray]:
+    """Eq 1-3: the straight line through the ends of the joint's range (the argument `joint_name`, named in
+    the error) and of the volts range, to volts or from volts. Not clamped."""
 
+    def convert(values: ArrayLike, joint_range: tuple[float, float]) -> FloatArray:
+        (s0, s1), (d0, d1) = _check_range(joint_range, joint_name), VOLTS_RANGE
+        if not to_volts:
+            (s0, s1), (d0, d1) = (d0, d1), (s0, s1)
+        result: FloatArray = d0 + (np.asarray(values, dtype=np.float64) - s0) * ((d1 - d0) / (s1 - s0))
+        return result
 
-class LinearConversion(Protocol):
-    """One of Eq 1-3: `values`, the joint's range (degrees or newton-metres), the volts range (±10 V)."""
-
-    def __call__(
-        self, values: ArrayLike, joint_range: tuple[float, float], volts_range: tuple[float, float] = ...
-    ) -> FloatArray: ...
-
-
-def _equation(src: str, dst: str) -> LinearConversion:
-    """The conversion from the range named `src` to the range named `dst`, one of them "volts_range" (the
-    volts side), the other the joint's range (its name is what an error about it says). Not clamped."""
-    joint_name = src if dst == "volts_range" else dst
-
-    def convert(
-        values: ArrayLike, joint_range: tuple[float, float], volts_range: tuple[float, float] = VOLTS_RANGE
-    ) -> FloatArray:
-        ranges = {joint_name: joint_range, "volts_range": volts_range}
-        return _linear_map(values, (src, ranges[src]), (dst, ranges[dst]))
-
-    convert.__doc__ = (
-        f"{src} -> {dst} (thesis Eq 1-3, the straight line through the range ends). Not clamped."
-    )
     return convert
 
 
-angle_to_volts = _equation("range_deg", "volts_range")  # Eq 1: the commanded angle's output volts
-volts_to_angle = _equation("volts_range", "range_deg")  # Eq 2: angle telemetry volts -> joint angle
-volts_to_torque = _equation("volts_range", "torque_range_nm")  # Eq 3: torque telemetry volts -> torque
-torque_to_volts = _equation("torque_range_nm", "volts_range")  # Eq 3 inverted: what the robot outputs
+angle_to_volts = _conversion("range_deg", to_volts=True)  # Eq 1: the commanded angle's output volts
+volts_to_angle = _conversion("range_deg", to_volts=False)  # Eq 2: angle telemetry volts -> joint angle
+volts_to_torque = _conversion("torque_range_nm", to_volts=False)  # Eq 3: torque telemetry volts -> torque
+torque_to_volts = _conversion("torque_range_nm", to_volts=True)  # Eq 3 inverted: what the robot outputs
 
 
 def volts_to_ao16_code(volts: ArrayLike) -> npt.NDArray[np.uint16]:
