@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import KW_ONLY, dataclass
 from typing import Literal
 
 ElementKind = Literal["elastic", "dissipative", "stop", "inertial", "artefact"]
@@ -28,10 +28,11 @@ class ParamSpec:
     """
 
     unit: str
-    default: float | str | None
-    fittable: bool
-    bounds: tuple[float, float] | None
     doc: str
+    default: float | str | None = None
+    _: KW_ONLY
+    fittable: bool = False
+    bounds: tuple[float, float] | None = None
     shape: Shape = "number"
     fit_starts: tuple[float, ...] = ()
     fit_scale: float = 1.0
@@ -56,23 +57,8 @@ class ElementType:
     default_fit: tuple[str, ...] = ()
 
 
-def _p(
-    unit: str,
-    doc: str,
-    default: float | str | None = None,
-    *,
-    fittable: bool = False,
-    bounds: tuple[float, float] | None = None,
-    shape: Shape = "number",
-    starts: tuple[float, ...] = (),
-    scale: float = 1.0,
-    plausible: tuple[float, float] | None = None,
-) -> ParamSpec:
-    return ParamSpec(unit, default, fittable, bounds, doc, shape, starts, scale, plausible)
-
-
 def _fit_param(default_fit: tuple[str, ...]) -> ParamSpec:
-    return _p(
+    return ParamSpec(
         "",
         "the parameters the element fit estimates (a list of this element's fittable parameter names); "
         f"default {', '.join(default_fit)}",
@@ -97,45 +83,51 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "(thesis §6.1, Eq 13-18): zero torque at alpha + zero_offset_deg, growing on both sides",
             "elastic",
             {
-                "stiffness_n_per_mm": _p(
+                "stiffness_n_per_mm": ParamSpec(
                     "_n_per_mm", "spring constant K of one spring (Eq 14); 0 = no spring", bounds=(0.0, 1e4)
                 ),
-                "preload_index": _p(
+                "preload_index": ParamSpec(
                     "_index",
                     "preload screw position n of Eq 17 (0 = Max_Preload; each step lowers the preload)",
                     0.0,
                     bounds=(0.0, 1e3),
                     shape="integer",
                 ),
-                "max_preload_mm": _p(
+                "max_preload_mm": ParamSpec(
                     "_mm",
                     "Max_Preload of Eq 17: spring extension at screw position 0",
                     fittable=True,
                     bounds=(0.0, 100.0),
-                    starts=(10.0, 60.0),
-                    scale=10.0,
+                    fit_starts=(10.0, 60.0),
+                    fit_scale=10.0,
                     plausible=(0.0, 100.0),
                 ),
-                "zero_offset_deg": _p(
+                "zero_offset_deg": ParamSpec(
                     "_deg",
                     "shift of the zero-torque angle from alpha (thesis §6.1.6: it moves with the springs)",
                     0.0,
                     fittable=True,
                     bounds=(-40.0, 40.0),
-                    starts=(-15.0, 15.0),
-                    scale=10.0,
+                    fit_starts=(-15.0, 15.0),
+                    fit_scale=10.0,
                     plausible=(-40.0, 40.0),
                 ),
-                "a_m": _p(
+                "a_m": ParamSpec(
                     "_m",
                     "distance from the axis to the fixed (upper) attachment (Eq 15)",
                     bounds=(1e-9, 10.0),
                 ),
-                "b_m": _p("_m", "spring length at the zero-torque angle (Eq 15-16)", bounds=(1e-9, 10.0)),
-                "c_m": _p("_m", "lever of the preload piece (Eq 17)", 0.0, bounds=(0.0, 10.0)),
-                "alpha_deg": _p("_deg", "angle of the fixed attachment: the zero-torque angle (Eq 13, 15)"),
-                "preload_step_deg": _p("_deg", "angle between two preload screw positions (Eq 17)", 0.0),
-                "count": _p(
+                "b_m": ParamSpec(
+                    "_m", "spring length at the zero-torque angle (Eq 15-16)", bounds=(1e-9, 10.0)
+                ),
+                "c_m": ParamSpec("_m", "lever of the preload piece (Eq 17)", 0.0, bounds=(0.0, 10.0)),
+                "alpha_deg": ParamSpec(
+                    "_deg", "angle of the fixed attachment: the zero-torque angle (Eq 13, 15)"
+                ),
+                "preload_step_deg": ParamSpec(
+                    "_deg", "angle between two preload screw positions (Eq 17)", 0.0
+                ),
+                "count": ParamSpec(
                     "_count",
                     "springs in parallel (the factor 2 of Eq 13)",
                     1.0,
@@ -151,11 +143,11 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "a linear torsion spring: torque = stiffness · (angle - neutral)",
             "elastic",
             {
-                "stiffness_nm_per_deg": _p(
-                    "_nm_per_deg", "torsional stiffness", fittable=True, bounds=(0.0, 1e4), scale=1.0
+                "stiffness_nm_per_deg": ParamSpec(
+                    "_nm_per_deg", "torsional stiffness", fittable=True, bounds=(0.0, 1e4)
                 ),
-                "neutral_deg": _p(
-                    "_deg", "angle of zero torque", fittable=True, bounds=(-720.0, 720.0), scale=10.0
+                "neutral_deg": ParamSpec(
+                    "_deg", "angle of zero torque", fittable=True, bounds=(-720.0, 720.0), fit_scale=10.0
                 ),
                 "fit": _fit_param(_TORSION_FIT),
             },
@@ -167,17 +159,17 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "(angle - slack_deg) there; -1: taut below slack_deg; zero torque on the slack side",
             "elastic",
             {
-                "stiffness_nm_per_deg": _p(
-                    "_nm_per_deg", "stiffness when taut", fittable=True, bounds=(0.0, 1e4), scale=1.0
+                "stiffness_nm_per_deg": ParamSpec(
+                    "_nm_per_deg", "stiffness when taut", fittable=True, bounds=(0.0, 1e4)
                 ),
-                "slack_deg": _p(
+                "slack_deg": ParamSpec(
                     "_deg",
                     "angle at which the cord becomes taut",
                     fittable=True,
                     bounds=(-720.0, 720.0),
-                    scale=10.0,
+                    fit_scale=10.0,
                 ),
-                "direction": _p("", "+1: taut above slack_deg; -1: taut below it", 1.0, shape="sign"),
+                "direction": ParamSpec("", "+1: taut above slack_deg; -1: taut below it", 1.0, shape="sign"),
                 "fit": _fit_param(_BUNGEE_FIT),
             },
             _BUNGEE_FIT,
@@ -191,21 +183,21 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "4·T·A less the rounded reversals. Brakes with equal smoothing share one state in the simulator",
             "dissipative",
             {
-                "torque_nm": _p("_nm", "friction torque while sliding fast", bounds=_NONNEG),
-                "transition_deg": _p(
+                "torque_nm": ParamSpec("_nm", "friction torque while sliding fast", bounds=_NONNEG),
+                "transition_deg": ParamSpec(
                     "_deg",
                     "travel over which the friction reverses (Dahl σ = torque / this)",
                     1.0,
                     bounds=(1e-6, 90.0),
                     plausible=(0.01, 30.0),
                 ),
-                "static_excess_ratio": _p(
+                "static_excess_ratio": ParamSpec(
                     "_ratio",
                     "friction excess at standstill, as a fraction of torque_nm",
                     0.0,
                     bounds=(0.0, 10.0),
                 ),
-                "stribeck_speed_deg_s": _p(
+                "stribeck_speed_deg_s": ParamSpec(
                     "_deg_s", "speed scale of the Stribeck excess", 10.0, bounds=(1e-6, 1e4)
                 ),
             },
@@ -214,7 +206,7 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "viscous_damper",
             "viscous damping: torque = damping · speed. Loses π·c·ω·A² per cycle (c per rad)",
             "dissipative",
-            {"damping_nm_s_per_deg": _p("_nm_s_per_deg", "damping coefficient", bounds=_NONNEG)},
+            {"damping_nm_s_per_deg": ParamSpec("_nm_s_per_deg", "damping coefficient", bounds=_NONNEG)},
         ),
         ElementType(
             "rom_stops",
@@ -222,12 +214,12 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "travel (a misaligned cuff sliding, thesis §5.2), then is stiff",
             "stop",
             {
-                "range_deg": _p("_deg", "the stops [lo, hi]", shape="pair"),
-                "slack_deg": _p("_deg", "soft travel past each stop", 0.0, bounds=(0.0, 360.0)),
-                "slack_stiffness_nm_per_deg": _p(
+                "range_deg": ParamSpec("_deg", "the stops [lo, hi]", shape="pair"),
+                "slack_deg": ParamSpec("_deg", "soft travel past each stop", 0.0, bounds=(0.0, 360.0)),
+                "slack_stiffness_nm_per_deg": ParamSpec(
                     "_nm_per_deg", "stiffness within the slack", 0.0, bounds=_NONNEG
                 ),
-                "stop_stiffness_nm_per_deg": _p(
+                "stop_stiffness_nm_per_deg": ParamSpec(
                     "_nm_per_deg", "stiffness once the slack is used", bounds=_NONNEG
                 ),
             },
@@ -238,9 +230,9 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "(zero where it hangs) and inertia m·l²",
             "inertial",
             {
-                "mass_kg": _p("_kg", "the mass", bounds=_NONNEG),
-                "lever_m": _p("_m", "distance of its centre of mass from the axis", bounds=_NONNEG),
-                "hanging_deg": _p("_deg", "joint angle at which it hangs straight down", 0.0),
+                "mass_kg": ParamSpec("_kg", "the mass", bounds=_NONNEG),
+                "lever_m": ParamSpec("_m", "distance of its centre of mass from the axis", bounds=_NONNEG),
+                "hanging_deg": ParamSpec("_deg", "joint angle at which it hangs straight down", 0.0),
             },
         ),
         ElementType(
@@ -250,11 +242,15 @@ ELEMENT_TYPES: Mapping[str, ElementType] = {
             "reference_force_n / (reference_force_n + the lever springs' force at angle_deg)",
             "artefact",
             {
-                "angle_deg": _p("_deg", "centre of the bump"),
-                "width_deg": _p("_deg", "Gaussian half-width", bounds=(1e-6, 360.0)),
-                "torque_nm": _p("_nm", "height with no spring force at the reference speed", bounds=_NONNEG),
-                "reference_speed_deg_s": _p("_deg_s", "speed of the nominal height", bounds=(1e-6, 1e4)),
-                "reference_force_n": _p(
+                "angle_deg": ParamSpec("_deg", "centre of the bump"),
+                "width_deg": ParamSpec("_deg", "Gaussian half-width", bounds=(1e-6, 360.0)),
+                "torque_nm": ParamSpec(
+                    "_nm", "height with no spring force at the reference speed", bounds=_NONNEG
+                ),
+                "reference_speed_deg_s": ParamSpec(
+                    "_deg_s", "speed of the nominal height", bounds=(1e-6, 1e4)
+                ),
+                "reference_force_n": ParamSpec(
                     "_n", "spring force that halves the bump (0: no bump)", bounds=_NONNEG
                 ),
             },
