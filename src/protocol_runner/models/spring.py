@@ -91,17 +91,13 @@ def _attachment_geometry(
     return x_a, y_a, length
 
 
-def _check_preload_position(preload_position: float) -> float:
-    ok = not isinstance(preload_position, bool) and isinstance(preload_position, int | float | np.integer)
-    if not ok or preload_position < 0 or preload_position != round(preload_position):
-        raise InvalidInput(f"spring preload position must be a whole number >= 0, got {preload_position!r}")
-    return preload_position
-
-
 def spring_initial_load_m(preload_position: float, max_preload_mm: float, geometry: SpringGeometry) -> float:
     """Initial spring extension set by the preload screw (Eq 17), in metres, for screw position n =
     `preload_position` (a whole number >= 0); negative for a small `max_preload_mm` (slack near α)."""
-    n = _check_preload_position(preload_position)
+    n = preload_position
+    ok = not isinstance(n, bool) and isinstance(n, int | float | np.integer)
+    if not ok or n < 0 or n != round(n):
+        raise InvalidInput(f"spring preload position must be a whole number >= 0, got {n!r}")
     if not math.isfinite(max_preload_mm):
         raise InvalidInput(f"max_preload_mm must be finite, got {max_preload_mm!r}")
     return max_preload_mm * 1e-3 - geometry.preload_step_m * n

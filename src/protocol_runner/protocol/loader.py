@@ -110,7 +110,9 @@ def parse_protocol_text(
             rig_path = find_rig(protocol.rig_name, base_dir)
         except InvalidInput as exc:
             raise InvalidInput(format_problems(shown, lines, [(("rig",), exc.message)])) from None
-        loaded_rig = load_rig(rig_path, shown=_rig_shown(protocol.rig_name, rig_path))
+        # messages name a shipped rig by its file name in the package, a path as given
+        shipped = protocol.rig_name == rig_path.stem and "/" not in protocol.rig_name
+        loaded_rig = load_rig(rig_path, shown=f"rigs/{rig_path.name}" if shipped else protocol.rig_name)
     joints, overrides = list(protocol.driven_joints), protocol.rig_overrides
     rigs, problems = resolve_rigs(loaded_rig, joints, overrides, multi=protocol.multi_joint)
     if not rigs:
@@ -129,8 +131,3 @@ def parse_protocol_text(
     if problems:
         raise InvalidInput(format_problems(shown, lines, problems))
     return loaded
-
-
-def _rig_shown(name: str, path: Path) -> str:
-    """How messages name a rig file: a shipped rig by its file name in the package, a path as given."""
-    return f"rigs/{path.name}" if name == path.stem and "/" not in name else name
