@@ -12,7 +12,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import partial
 from typing import Protocol
 
 import numpy as np
@@ -97,7 +96,7 @@ class LoopWatch:
         if not self.watched or block.t_s.shape[0] == 0 or written == 0:
             return None
         t = np.asarray(block.t_s, dtype=np.float64) - self.t0
-        found: list[WatchdogTripped] = []
+        found: list[tuple[float, str, str, float, str, str]] = []  # (time_s, joint, quantity, value, ...)
         for k, joint, limits in self.watched:
             column = cmd[:, k]
             torque = joint.torque_from_volts(block.volts[:, 2 * k + 1])
@@ -106,19 +105,10 @@ class LoopWatch:
             # up to the single-precision rounding of the stored codes, is the joint at its limit, not beyond
             slack = TORQUE_ROUNDING * (hi - lo)
             out = np.flatnonzero((torque < lo - slack) | (torque > hi + slack))
-            trip = partial(WatchdogTripped, where=self.where, joint=joint.name)
             if out.size:
                 i = int(out[0])
                 limit = f"{lo:g} to {hi:g} N·m"
-                found.append(
-                    trip(
-                        quantity="torque",
-                        value=float(torque[i]),
-                        limit=limit,
-                        units="N·m",
-                        time_s=float(t[i]),
-                    )
-                )
+                found.append((float(t[i]), joint.name, "torque", float(torque[i]), limit, "N·m"))
             angle = joint.angle_from_volts(block.volts[:, 2 * k])
             tick = np.clip(np.floor((t - limits.lag_s) * self.rate_hz), 0, written - 1).astype(np.int64)
             error = angle - column[tick]
@@ -139,13 +129,10 @@ class LoopWatch:
                 limit = (
                     f"±{limits.max_tracking_error_deg:g} deg for at most {limits.max_tracking_error_s:g} s"
                 )
-                found.append(
-                    trip(
-                        quantity="tracking error",
-                        value=float(error[i]),
-                        limit=limit,
-                        units="deg",
-                        time_s=t[i],
-                    )
-                )
-        return min(found, key=lambda e: e.time_s) if found else None
+                found.append((float(t[i]), joint.name, "tracking error", float(error[i]), limit, "deg"))
+        if not found:
+            return None
+        when, who, what, value, limit, units = min(found, key=lambda f: f[0])
+        return WatchdogTripped(
+            where=self.where, joint=who, quantity=what, value=value, limit=limit, units=units, time_s=when
+        )
