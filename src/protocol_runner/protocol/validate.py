@@ -244,22 +244,18 @@ def _check_factors(p: Protocol) -> Iterator[Problem]:
 
 def _check_matrix(p: Protocol) -> Iterator[Problem]:
     seen_sets: dict[str, int] = {}
-    seen_keys: dict[int, tuple[int, int]] = {}
-    seen_runs: dict[int, tuple[int, int]] = {}
+    seen: dict[tuple[str, int], tuple[int, int]] = {}  # (field, value) -> its first (set, configuration)
     for i, s in enumerate(p.sets):
         if s.name in seen_sets:
             yield ("sets", i, "name"), f"set name {s.name!r} is already used by sets[{seen_sets[s.name]}]"
         seen_sets.setdefault(s.name, i)
         for j, cfg in enumerate(s.configurations):
             loc: Loc = ("sets", i, "configurations", j)
-            if cfg.key in seen_keys:
-                a, b = seen_keys[cfg.key]
-                yield (*loc, "key"), f"key {cfg.key} is already used by sets[{a}].configurations[{b}]"
-            seen_keys.setdefault(cfg.key, (i, j))
-            if cfg.run in seen_runs:
-                a, b = seen_runs[cfg.run]
-                yield (*loc, "run"), f"test run {cfg.run} is already used by sets[{a}].configurations[{b}]"
-            seen_runs.setdefault(cfg.run, (i, j))
+            for field, what, value in (("key", "key", cfg.key), ("run", "test run", cfg.run)):
+                if (field, value) in seen:
+                    a, b = seen[field, value]
+                    yield (*loc, field), f"{what} {value} is already used by sets[{a}].configurations[{b}]"
+                seen.setdefault((field, value), (i, j))
             for factor, label in cfg.levels.items():
                 levels = p.factors.get(factor)
                 if levels is None:
