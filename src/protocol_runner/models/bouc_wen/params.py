@@ -108,11 +108,6 @@ class BoucWenParams:
         b = betas_from_phases(psi)
         return cls(A=A, n=n, beta=(b[0], b[1], b[2], b[3], b[4], b[5]))
 
-    @property
-    def phases(self) -> FloatArray:
-        """The Table 4 phase values ``psi_1..psi_6`` (Eq 24)."""
-        return phase_values(self.beta)
-
 
 def phase_values(beta: npt.ArrayLike) -> FloatArray:
     """Eq 24 / Table 4: the shape-function value ``psi_k`` in each of the six phases, from the betas."""
