@@ -37,19 +37,6 @@ def lever_geometry(e: Element) -> SpringGeometry:
     )
 
 
-def lever_spring_torque_nm(angle_deg: npt.ArrayLike, e: Element) -> FloatArray:
-    """Eq 13-18 (`models.spring.spring_torque_nm`) with the element's stiffness, screw position,
-    Max_Preload, zero offset and geometry."""
-    return spring_torque_nm(
-        angle_deg,
-        e.number("stiffness_n_per_mm"),
-        e.number("preload_index"),
-        max_preload_mm=e.number("max_preload_mm"),
-        zero_offset_deg=e.number("zero_offset_deg"),
-        geometry=lever_geometry(e),
-    )
-
-
 def lever_spring_force_n(angle_deg: float, e: Element) -> float:
     """Tension of one of the element's springs at `angle_deg` (Eq 14)."""
     force = spring_force_n(
@@ -62,45 +49,33 @@ def lever_spring_force_n(angle_deg: float, e: Element) -> float:
     return float(force)
 
 
-def torsion_spring_torque_nm(
-    angle_deg: npt.ArrayLike, stiffness_nm_per_deg: float, neutral_deg: float
-) -> FloatArray:
-    """A linear torsion spring: k·(θ - θ_neutral)."""
-    return stiffness_nm_per_deg * (np.asarray(angle_deg, dtype=np.float64) - neutral_deg)
-
-
-def bungee_torque_nm(
-    angle_deg: npt.ArrayLike, stiffness_nm_per_deg: float, slack_deg: float, direction: float
-) -> FloatArray:
-    """An elastic cord, tension only: k·(θ - θ_slack) where direction·(θ - θ_slack) > 0, else zero."""
-    stretch = np.asarray(angle_deg, dtype=np.float64) - slack_deg
-    taut = direction * stretch > 0.0
-    return np.where(taut, stiffness_nm_per_deg * stretch, 0.0)
-
-
-def mass_gravity_torque_nm(
-    angle_deg: npt.ArrayLike, mass_kg: float, lever_m: float, hanging_deg: float
-) -> FloatArray:
-    """Gravity torque of a point mass on a lever: m·g·l·sin(θ - θ_hanging), zero where it hangs."""
-    theta = np.radians(np.asarray(angle_deg, dtype=np.float64) - hanging_deg)
-    return mass_kg * STANDARD_GRAVITY_M_S2 * lever_m * np.sin(theta)
-
-
 def static_torque_nm(e: Element, angle_deg: npt.ArrayLike) -> FloatArray:
     """The torque of an element that depends on the angle alone: elastic elements and a mass's gravity.
-    What the simulator tabulates and the element fit models."""
+    What the simulator tabulates and the element fit models.
+
+    lever_spring: Eq 13-18 (`models.spring.spring_torque_nm`) with the element's stiffness, screw position,
+    Max_Preload, zero offset and geometry; torsion_spring: k·(θ - θ_neutral); bungee, tension only:
+    k·(θ - θ_slack) where direction·(θ - θ_slack) > 0, else zero; mass: m·g·l·sin(θ - θ_hanging), zero where
+    it hangs."""
+    x = np.asarray(angle_deg, dtype=np.float64)
+    num = e.number
     if e.type == "lever_spring":
-        return lever_spring_torque_nm(angle_deg, e)
+        return spring_torque_nm(
+            x,
+            num("stiffness_n_per_mm"),
+            num("preload_index"),
+            max_preload_mm=num("max_preload_mm"),
+            zero_offset_deg=num("zero_offset_deg"),
+            geometry=lever_geometry(e),
+        )
     if e.type == "torsion_spring":
-        return torsion_spring_torque_nm(angle_deg, e.number("stiffness_nm_per_deg"), e.number("neutral_deg"))
+        return num("stiffness_nm_per_deg") * (x - num("neutral_deg"))
     if e.type == "bungee":
-        return bungee_torque_nm(
-            angle_deg, e.number("stiffness_nm_per_deg"), e.number("slack_deg"), e.number("direction")
-        )
+        stretch = x - num("slack_deg")
+        return np.where(num("direction") * stretch > 0.0, num("stiffness_nm_per_deg") * stretch, 0.0)
     if e.type == "mass":
-        return mass_gravity_torque_nm(
-            angle_deg, e.number("mass_kg"), e.number("lever_m"), e.number("hanging_deg")
-        )
+        weight_nm = num("mass_kg") * STANDARD_GRAVITY_M_S2 * num("lever_m")
+        return weight_nm * np.sin(np.radians(x - num("hanging_deg")))
     raise ValueError(f"element {e.name!r} ({e.type}) has no angle-only torque")
 
 
