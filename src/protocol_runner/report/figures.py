@@ -207,13 +207,12 @@ def finish(fig: Figure, ax: Axes, xlabel: str, ylabel: str, title: str) -> str:
 def hysteresis_figure(cfg: Configuration) -> str:
     """Brace torque against angle, every trial (Appendix B), with the fitted elastic model if any."""
     fig, (ax,) = new_figure("single")
-    if not _loops(ax, cfg):
-        empty(ax, "no processed trial")
+    _loops(ax, cfg)
     return finish(fig, ax, ANGLE_LABEL, TORQUE_LABEL, f"Configuration {cfg.key}: brace torque vs angle")
 
 
-def _loops(ax: Axes, cfg: Configuration) -> bool:
-    """Every processed trial's loop and the drawable elastic fit on `ax`; False when no trial is processed."""
+def _loops(ax: Axes, cfg: Configuration) -> None:
+    """Every processed trial's loop and the drawable elastic fit on `ax` (a note when no trial is processed)."""
     drawn = False
     for i, trial in enumerate(cfg.trials):
         if trial.processed is None:
@@ -230,7 +229,8 @@ def _loops(ax: Axes, cfg: Configuration) -> bool:
     fit = cfg.element_fit
     if fit is not None and fit.drawable:
         ax.plot(fit.angle_deg, fit.model_torque_nm, "k--", lw=0.9, label="elastic model (fit)")
-    return drawn
+    if not drawn:
+        empty(ax, "no processed trial")
 
 
 def time_series_figure(cfg: Configuration) -> str:
@@ -329,8 +329,7 @@ def joints_hysteresis_figure(cfgs: Sequence[Configuration]) -> str:
     """`hysteresis_figure` of each joint, one panel per joint."""
     fig, axes = new_grid(len(cfgs), GRID_COLUMNS)
     for ax, cfg in zip(axes, cfgs, strict=True):
-        if not _loops(ax, cfg):
-            empty(ax, "no processed trial")
+        _loops(ax, cfg)
         panel_style(ax, ANGLE_LABEL, TORQUE_LABEL, cfg.joint)
     grid_legend(axes)
     return to_data_uri(fig)
