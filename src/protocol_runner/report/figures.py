@@ -40,8 +40,6 @@ from protocol_runner.report.model import CalibrationCheck, Configuration, Report
 from protocol_runner.report.parallel import map_in_processes
 
 # ----------------------------------------------------------------------------------------- drawing kit
-# A new matplotlib `Figure` per figure in one of the report's layouts, the common labels, colours, styling
-# and colour key (outside the data area), and the PNG data URI every figure function returns.
 
 DPI = 100  # a figure's pixels per inch: its text as legible on a laptop's screen as the page's own text
 ANGLE_LABEL = "Angle (deg)"
@@ -200,8 +198,6 @@ def finish(fig: Figure, ax: Axes, xlabel: str, ylabel: str, title: str) -> str:
 
 
 # ------------------------------------------------------------------------------------ per configuration
-# One joint's figure, or for several joints a grid of panels, one (or a pair) per joint, each drawn as the
-# single joint's figure draws its axes.
 
 
 def hysteresis_figure(cfg: Configuration) -> str:
