@@ -1,5 +1,6 @@
-"""A configuration's declared settings as the archive stores them (`settings_json`, `device_json`,
-`trajectory_name`: docs/archive.md "Configurations"; without them, empty settings), for the whole report.
+"""A configuration's declared settings as the archive stores them (`settings_json` and `device_json`, in
+declaration order, and `trajectory_name`: docs/archive.md "Configurations"; without them, empty settings),
+for the whole report.
 
 Nothing here assumes any factor, level or quantity name: a quantity's unit comes from its name's suffix
 (`friction_nm` -> N·m).
