@@ -255,15 +255,9 @@ def _traces(ax_a: Axes, ax_t: Axes, cfg: Configuration) -> Trial | None:
             continue
         ax_a.plot(rec.time_s, rec.angle_deg, lw=0.6, color=color, label=name)
         ax_t.plot(rec.time_s, rec.torque_nm, lw=0.6, color=color, label=name)
-    if trial.brace_on is not None and trial.brace_on.command_deg.size:
-        ax_a.plot(
-            trial.brace_on.command_time_s,
-            trial.brace_on.command_deg,
-            ":",
-            lw=0.8,
-            color="k",
-            label="command",
-        )
+    on = trial.brace_on
+    if on is not None and on.command_deg.size:
+        ax_a.plot(on.command_time_s, on.command_deg, ":", lw=0.8, color="k", label="command")
     return trial
 
 
@@ -432,16 +426,10 @@ def _overlay_loops(ax: Axes, configs: Sequence[Configuration], label: Callable[[
     """The first processed trial of each configuration as a brace-torque loop; False if none had data."""
     drawn = False
     for i, cfg in enumerate(configs):
-        trial = next((t for t in cfg.trials if t.processed is not None), None)
-        if trial is None or trial.processed is None:
+        p = next((t.processed for t in cfg.trials if t.processed is not None), None)
+        if p is None:
             continue
-        ax.plot(
-            trial.processed.angle_deg,
-            trial.processed.brace_torque_nm,
-            lw=0.7,
-            color=COLORS[i % len(COLORS)],
-            label=label(cfg),
-        )
+        ax.plot(p.angle_deg, p.brace_torque_nm, lw=0.7, color=COLORS[i % len(COLORS)], label=label(cfg))
         drawn = True
     return drawn
 
