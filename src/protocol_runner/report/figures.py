@@ -692,12 +692,10 @@ def overlay_figure(a: Configuration, b: Configuration) -> str | None:
     fig, (ax,) = new_figure("single")
     for cfg, color, name in ((a, "#1f77b4", "A"), (b, "#d62728", "B")):
         first = True
-        for trial in cfg.trials:
-            if trial.processed is None:
-                continue
+        for p in (t.processed for t in cfg.trials if t.processed is not None):
             ax.plot(
-                trial.processed.angle_deg,
-                trial.processed.brace_torque_nm,
+                p.angle_deg,
+                p.brace_torque_nm,
                 color=color,
                 linewidth=0.7,
                 alpha=0.8,
