@@ -574,16 +574,11 @@ def element_fit_figure(data: ReportData, comparison: Comparison) -> str:
     configs = configurations_of(data, comparison.configurations)
     axis = comparison_axis(comparison, configs)
     if data.multi_joint:
-        joints = [
-            joint
-            for joint in data.joints
-            if any(
-                c.element_fit is not None for c in configurations_of(data, comparison.configurations, joint)
-            )
-        ]
-        fig, axes = new_grid(len(joints), GRID_COLUMNS)
-        for ax, joint in zip(axes, joints, strict=True):
-            _element_fits(ax, configurations_of(data, comparison.configurations, joint), axis, note=False)
+        by_joint = {joint: configurations_of(data, comparison.configurations, joint) for joint in data.joints}
+        fitted = {joint: cs for joint, cs in by_joint.items() if any(c.element_fit is not None for c in cs)}
+        fig, axes = new_grid(len(fitted), GRID_COLUMNS)
+        for ax, (joint, cs) in zip(axes, fitted.items(), strict=True):
+            _element_fits(ax, cs, axis, note=False)
             panel_style(ax, ANGLE_LABEL, TORQUE_LABEL, joint)
         grid_legend(axes)
         return to_data_uri(fig)
