@@ -448,9 +448,8 @@ def comparison_overlay_figure(data: ReportData, comparison: Comparison) -> str:
     if data.multi_joint:
         fig, axes = new_grid(len(data.joints), GRID_COLUMNS)
         for ax, joint in zip(axes, data.joints, strict=True):
-            if not _overlay_loops(
-                ax, configurations_of(data, comparison.configurations, joint), axis.config_label
-            ):
+            joint_configs = configurations_of(data, comparison.configurations, joint)
+            if not _overlay_loops(ax, joint_configs, axis.config_label):
                 empty(ax, "no data")
             panel_style(ax, ANGLE_LABEL, TORQUE_LABEL, joint)
         grid_legend(axes)
