@@ -205,42 +205,34 @@ def report(
 ) -> int:
     _html_output(output)
     with _session_held(path):
-        return _report(
-            path, output=output, reprocess=reprocess, protocol_file=protocol_file, export_mat=export_mat
-        )
+        from .report.render import generate_report
 
+        archive = _archive_of(path, locked=True)
+        if not reprocess:
+            _export_mat(archive, export_mat)
+            _result(f"report: {generate_report(archive, output)}")
+            return EXIT_OK
+        from .archive.reprocess import reprocess_archive
+        from .report.evaluate import record_verdicts
+        from .report.load import load_report_data
+        from .report.predictions import predictions, record_predictions
+        from .report.render import render_report
+        from .session.workers import analysis_pool
 
-def _report(
-    path: Path, *, output: Path | None, reprocess: bool, protocol_file: str | None, export_mat: Path | None
-) -> int:
-    from .report.render import generate_report
-
-    archive = _archive_of(path, locked=True)
-    if not reprocess:
+        with analysis_pool() as pool:
+            archive = reprocess_archive(archive, protocol_file=protocol_file, pool=pool)
+        # read once, for the verdicts, the predictions and the report (which reads neither /expectations nor
+        # /predictions: it decides them again from the data). Its datasets are not checked again: the archive
+        # it was made from has just been checked, its bytes copied, and this process wrote everything new
+        data = load_report_data(archive, verify=False)
+        record_verdicts(archive, data)  # the verdicts follow the reprocessed data
+        made = predictions(archive, data.protocol_text)
+        record_predictions(archive, made)  # and so do the predictions
+        _result(f"reprocessed archive: {archive}")
         _export_mat(archive, export_mat)
-        _result(f"report: {generate_report(archive, output)}")
+        out = render_report(data, output or archive.with_suffix(".html"), predicted=lambda: made)
+        _result(f"report: {out}")
         return EXIT_OK
-    from .archive.reprocess import reprocess_archive
-    from .report.evaluate import record_verdicts
-    from .report.load import load_report_data
-    from .report.predictions import predictions, record_predictions
-    from .report.render import render_report
-    from .session.workers import analysis_pool
-
-    with analysis_pool() as pool:
-        archive = reprocess_archive(archive, protocol_file=protocol_file, pool=pool)
-    # read once, for the verdicts, the predictions and the report (which reads neither /expectations nor
-    # /predictions: it decides them again from the data). Its datasets are not checked again: the archive
-    # it was made from has just been checked, its bytes copied, and this process wrote everything new
-    data = load_report_data(archive, verify=False)
-    record_verdicts(archive, data)  # the verdicts follow the reprocessed data
-    made = predictions(archive, data.protocol_text)
-    record_predictions(archive, made)  # and so do the predictions
-    _result(f"reprocessed archive: {archive}")
-    _export_mat(archive, export_mat)
-    out = render_report(data, output or archive.with_suffix(".html"), predicted=lambda: made)
-    _result(f"report: {out}")
-    return EXIT_OK
 
 
 def _export_mat(archive: Path, export_mat: Path | None) -> None:

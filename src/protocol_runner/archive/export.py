@@ -1,10 +1,6 @@
 """`run-protocol --report ARCHIVE --export-mat DIR`: the archive as MATLAB 5 `.mat` files, one per
 configuration (`config_NN.mat`) and one for the session (`session.mat`); their variables are listed in
 docs/matlab.md, the naming and type rules are archive/matlab.py's.
-
-A configuration of one joint has its fields at the top level whatever the archive's layout (the joint's
-part of each group merged into the group's struct); one of several joints has them per joint in
-`joints.<joint>`, and what the joints share at the top.
 """
 
 from __future__ import annotations
@@ -89,8 +85,9 @@ def _trial_order(name: str) -> tuple[int, int, str]:
 
 def _configuration(f: h5py.File, cfg: h5py.Group, meta: dict[str, Any], where: str) -> dict[str, Any]:
     """A configuration's variables: of a single joint at the top level (`trial_1`, `energy_loss_j`,
-    `bouc_wen`, `calibration`, ...); of several joints, each joint's under `joints.<joint>` and what they
-    share at the top."""
+    `bouc_wen`, `calibration`, ...) whatever the archive's layout (the joint's part of each group merged
+    into the group's struct); of several joints, each joint's under `joints.<joint>` and what they share
+    at the top."""
     units = Units(where)
     content: dict[str, Any] = {"meta": meta, "configuration": attrs_struct(cfg, where)}
     archive_joints = text(f.attrs.get("joint", ""))

@@ -1,8 +1,6 @@
-"""Archive groups as MATLAB structs for the `.mat` export, by the rules docs/matlab.md states for users:
-valid MATLAB names (`.` -> `__`, a prefix for a name not starting with a letter, `_2`, `_3`... for a name
-taken), numbers as double (an integer a double cannot hold exactly stays int64), 1-D arrays as columns,
-`..._index0_...` attributes exported 1-based as `..._index1_...`, text as char or a cell column, and one
-flat `units` struct keyed by field name.
+"""Archive groups as MATLAB structs for the `.mat` export, by the rules docs/matlab.md states for users
+(valid MATLAB names, numbers as double, 1-D arrays as columns, 1-based indices, text as char or a cell
+column, one flat `units` struct).
 """
 
 from __future__ import annotations

@@ -31,14 +31,8 @@ _BIND_ERRORS = {
     errno.EACCES: "not allowed to listen on port {port} (ports below 1024 need privileges); the session was "
     "not started. Pick a port from 1024 up, e.g. --monitor 8765",
     errno.EADDRNOTAVAIL: "{host} is not an address of this machine; the session was not started",
+    0: "cannot listen on {host}:{port} ({why}); the session was not started",
 }
-
-
-def _bind_error(address: MonitorAddress, exc: OSError) -> InvalidInput:
-    other = "cannot listen on {host}:{port} ({why}); the session was not started"
-    text = _BIND_ERRORS.get(exc.errno or 0, other)
-    host, port, why = address.host, address.port, exc.strerror or exc
-    return InvalidInput("--monitor: " + text.format(host=host, port=port, next=port + 1, why=why))
 
 
 class Monitor:
@@ -56,7 +50,11 @@ class Monitor:
         try:
             server = MonitorServer(address, bus, token=token)
         except OSError as exc:
-            raise _bind_error(address, exc) from None
+            text = _BIND_ERRORS.get(exc.errno or 0, _BIND_ERRORS[0])
+            host, port, why = address.host, address.port, exc.strerror or exc
+            raise InvalidInput(
+                "--monitor: " + text.format(host=host, port=port, next=port + 1, why=why)
+            ) from None
         bus.start()
         server.start()
         monitor = cls(address, bus, server, token)

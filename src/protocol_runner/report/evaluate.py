@@ -1,10 +1,8 @@
 """One generic evaluator: a declared expectation and an archive's data give a verdict with its numbers.
 
-The decision rules are docs/protocol.md "Expectations": tests on trial values (one per trial, the
-experimental unit) at level `ALPHA`, the interval printed beside each statement the 90 % one whose bound is
-the test's one-sided 95 % bound; a statement of several parts takes the largest part's p; the campaign's
-evaluable expectations are one Holm family. Nothing here knows any campaign's configuration key, factor
-level or threshold. `record_verdicts` stores the verdicts in the archive (`/expectations`, docs/archive.md),
+The decision rules are docs/protocol.md "Expectations" (tests on trial values, the experimental unit, at
+level `ALPHA`; one Holm family). Nothing here knows any campaign's configuration key, factor level or
+threshold. `record_verdicts` stores the verdicts in the archive (`/expectations`, docs/archive.md),
 decided by the very code the report re-runs, so a stored verdict never disagrees with a regenerated report.
 """
 

@@ -1,11 +1,8 @@
 """Which figures the report shows, and where they are drawn: no matplotlib, so that a process that only
 assembles the report (the session at its end) never loads the drawing code.
 
-What a declared comparison varies (docs/report.md "Comparisons", `comparison_axis`) is read from the
-compared configurations' settings: the factor's level label and the value of its axis quantity, on a
-numeric axis when every configuration has a finite scalar value of it; other factors whose level also
-differs within the comparison are added to each label. With "trajectory", the label is the configuration's
-trajectory name (its profile when unnamed).
+What a declared comparison varies is read from the compared configurations' settings (`comparison_axis`;
+the labels and axes: docs/report.md "Comparisons").
 
 `figure_jobs(data)` lists every figure as (id, kind, arguments), in document order; `report.figures` draws
 a job by its kind. `assemble_figures(data)` has them drawn: elsewhere (`draw`), or by the caller's process

@@ -40,8 +40,6 @@ from protocol_runner.report.model import CalibrationCheck, Configuration, Report
 from protocol_runner.report.parallel import map_in_processes
 
 # ----------------------------------------------------------------------------------------- drawing kit
-# A new matplotlib `Figure` per figure in one of the report's layouts, the common labels, colours, styling
-# and colour key (outside the data area), and the PNG data URI every figure function returns.
 
 DPI = 100  # a figure's pixels per inch: its text as legible on a laptop's screen as the page's own text
 ANGLE_LABEL = "Angle (deg)"
@@ -200,20 +198,17 @@ def finish(fig: Figure, ax: Axes, xlabel: str, ylabel: str, title: str) -> str:
 
 
 # ------------------------------------------------------------------------------------ per configuration
-# One joint's figure, or for several joints a grid of panels, one (or a pair) per joint, each drawn as the
-# single joint's figure draws its axes.
 
 
 def hysteresis_figure(cfg: Configuration) -> str:
     """Brace torque against angle, every trial (Appendix B), with the fitted elastic model if any."""
     fig, (ax,) = new_figure("single")
-    if not _loops(ax, cfg):
-        empty(ax, "no processed trial")
+    _loops(ax, cfg)
     return finish(fig, ax, ANGLE_LABEL, TORQUE_LABEL, f"Configuration {cfg.key}: brace torque vs angle")
 
 
-def _loops(ax: Axes, cfg: Configuration) -> bool:
-    """Every processed trial's loop and the drawable elastic fit on `ax`; False when no trial is processed."""
+def _loops(ax: Axes, cfg: Configuration) -> None:
+    """Every processed trial's loop and the drawable elastic fit on `ax` (a note when no trial is processed)."""
     drawn = False
     for i, trial in enumerate(cfg.trials):
         if trial.processed is None:
@@ -230,7 +225,8 @@ def _loops(ax: Axes, cfg: Configuration) -> bool:
     fit = cfg.element_fit
     if fit is not None and fit.drawable:
         ax.plot(fit.angle_deg, fit.model_torque_nm, "k--", lw=0.9, label="elastic model (fit)")
-    return drawn
+    if not drawn:
+        empty(ax, "no processed trial")
 
 
 def time_series_figure(cfg: Configuration) -> str:
@@ -259,15 +255,9 @@ def _traces(ax_a: Axes, ax_t: Axes, cfg: Configuration) -> Trial | None:
             continue
         ax_a.plot(rec.time_s, rec.angle_deg, lw=0.6, color=color, label=name)
         ax_t.plot(rec.time_s, rec.torque_nm, lw=0.6, color=color, label=name)
-    if trial.brace_on is not None and trial.brace_on.command_deg.size:
-        ax_a.plot(
-            trial.brace_on.command_time_s,
-            trial.brace_on.command_deg,
-            ":",
-            lw=0.8,
-            color="k",
-            label="command",
-        )
+    on = trial.brace_on
+    if on is not None and on.command_deg.size:
+        ax_a.plot(on.command_time_s, on.command_deg, ":", lw=0.8, color="k", label="command")
     return trial
 
 
@@ -329,8 +319,7 @@ def joints_hysteresis_figure(cfgs: Sequence[Configuration]) -> str:
     """`hysteresis_figure` of each joint, one panel per joint."""
     fig, axes = new_grid(len(cfgs), GRID_COLUMNS)
     for ax, cfg in zip(axes, cfgs, strict=True):
-        if not _loops(ax, cfg):
-            empty(ax, "no processed trial")
+        _loops(ax, cfg)
         panel_style(ax, ANGLE_LABEL, TORQUE_LABEL, cfg.joint)
     grid_legend(axes)
     return to_data_uri(fig)
@@ -437,16 +426,10 @@ def _overlay_loops(ax: Axes, configs: Sequence[Configuration], label: Callable[[
     """The first processed trial of each configuration as a brace-torque loop; False if none had data."""
     drawn = False
     for i, cfg in enumerate(configs):
-        trial = next((t for t in cfg.trials if t.processed is not None), None)
-        if trial is None or trial.processed is None:
+        p = next((t.processed for t in cfg.trials if t.processed is not None), None)
+        if p is None:
             continue
-        ax.plot(
-            trial.processed.angle_deg,
-            trial.processed.brace_torque_nm,
-            lw=0.7,
-            color=COLORS[i % len(COLORS)],
-            label=label(cfg),
-        )
+        ax.plot(p.angle_deg, p.brace_torque_nm, lw=0.7, color=COLORS[i % len(COLORS)], label=label(cfg))
         drawn = True
     return drawn
 
@@ -465,9 +448,8 @@ def comparison_overlay_figure(data: ReportData, comparison: Comparison) -> str:
     if data.multi_joint:
         fig, axes = new_grid(len(data.joints), GRID_COLUMNS)
         for ax, joint in zip(axes, data.joints, strict=True):
-            if not _overlay_loops(
-                ax, configurations_of(data, comparison.configurations, joint), axis.config_label
-            ):
+            joint_configs = configurations_of(data, comparison.configurations, joint)
+            if not _overlay_loops(ax, joint_configs, axis.config_label):
                 empty(ax, "no data")
             panel_style(ax, ANGLE_LABEL, TORQUE_LABEL, joint)
         grid_legend(axes)
@@ -591,16 +573,11 @@ def element_fit_figure(data: ReportData, comparison: Comparison) -> str:
     configs = configurations_of(data, comparison.configurations)
     axis = comparison_axis(comparison, configs)
     if data.multi_joint:
-        joints = [
-            joint
-            for joint in data.joints
-            if any(
-                c.element_fit is not None for c in configurations_of(data, comparison.configurations, joint)
-            )
-        ]
-        fig, axes = new_grid(len(joints), GRID_COLUMNS)
-        for ax, joint in zip(axes, joints, strict=True):
-            _element_fits(ax, configurations_of(data, comparison.configurations, joint), axis, note=False)
+        by_joint = {joint: configurations_of(data, comparison.configurations, joint) for joint in data.joints}
+        fitted = {joint: cs for joint, cs in by_joint.items() if any(c.element_fit is not None for c in cs)}
+        fig, axes = new_grid(len(fitted), GRID_COLUMNS)
+        for ax, (joint, cs) in zip(axes, fitted.items(), strict=True):
+            _element_fits(ax, cs, axis, note=False)
             panel_style(ax, ANGLE_LABEL, TORQUE_LABEL, joint)
         grid_legend(axes)
         return to_data_uri(fig)
@@ -709,12 +686,10 @@ def overlay_figure(a: Configuration, b: Configuration) -> str | None:
     fig, (ax,) = new_figure("single")
     for cfg, color, name in ((a, "#1f77b4", "A"), (b, "#d62728", "B")):
         first = True
-        for trial in cfg.trials:
-            if trial.processed is None:
-                continue
+        for p in (t.processed for t in cfg.trials if t.processed is not None):
             ax.plot(
-                trial.processed.angle_deg,
-                trial.processed.brace_torque_nm,
+                p.angle_deg,
+                p.brace_torque_nm,
                 color=color,
                 linewidth=0.7,
                 alpha=0.8,

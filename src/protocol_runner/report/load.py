@@ -1,9 +1,7 @@
 """Read an archive (docs/archive.md) into a `ReportData`, with clear errors for anything that is not one.
 
-An unfinished session's archive loads normally (the report marks it incomplete). The session-wide groups
-are read first, then each configuration group per joint (`archive.paths.joint_groups`): its trials,
-processed loops, energies and fits, and the energy of all joints together. The checks are
-`archive/verify.py`'s.
+An unfinished session's archive loads normally (the report marks it incomplete). Each configuration group
+is read per joint (`archive.paths.joint_groups`); the checks are `archive/verify.py`'s.
 """
 
 from __future__ import annotations

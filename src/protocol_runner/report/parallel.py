@@ -1,8 +1,7 @@
 """Run report work on worker processes, falling back to the caller when that is not possible.
 
-Reading a full campaign's trials and drawing ~140 figures are CPU-bound and independent per item, so two
-processes on a 2-core machine nearly halve the report's regeneration time. The workers are a
-`ProcessPoolExecutor` with the platform's default start method; if processes cannot be started or the pool
+Reading a campaign's trials and drawing its figures are CPU-bound and independent per item. The workers are
+a `ProcessPoolExecutor` with the platform's default start method; if processes cannot be started or the pool
 breaks, `map_in_processes` returns None and the caller runs serially.
 """
 

@@ -136,13 +136,7 @@ def render_html(
         predicted = functools.partial(predictions, Path(data.session.archive_path), data.protocol_text)
     from protocol_runner.report.figures import assemble_figures  # matplotlib: only where figures are drawn
 
-    return _render(data, assemble_figures(data, workers), generated_utc, predicted)
-
-
-def _render(
-    data: ReportData, figures: FigureSet, generated_utc: str, predicted: Callable[[], tuple[Prediction, ...]]
-) -> str:
-    context = _context(data, figures, generated_utc, predicted())
+    context = _context(data, assemble_figures(data, workers), generated_utc, predicted())
     return str(_environment().get_template(TEMPLATE).render(**context))
 
 

@@ -1,9 +1,8 @@
-"""A configuration's declared settings as the archive stores them, for everything in the report.
+"""A configuration's declared settings as the archive stores them (`settings_json` and `device_json`, in
+declaration order, and `trajectory_name`: docs/archive.md "Configurations"; without them, empty settings),
+for the whole report.
 
-The report reads the configuration group's `settings_json` ({"<factor>": {"level": label, <quantity>:
-value, ...}}), `device_json` ([{"name", "type", <parameter>: value, ...}]) and `trajectory_name`
-(docs/archive.md "Configurations"; the JSON keeps the declaration order; without them, empty settings) and
-never assumes any factor, level or quantity name: a quantity's unit comes from its name's suffix
+Nothing here assumes any factor, level or quantity name: a quantity's unit comes from its name's suffix
 (`friction_nm` -> N·m).
 """
 
