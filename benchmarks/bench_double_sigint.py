@@ -41,7 +41,9 @@ def start(session: Path, err: Path) -> subprocess.Popen[bytes]:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--tries", type=int, default=50)
     parser.add_argument("--timeout", type=float, default=60.0, help="seconds a try may take to end")
     parser.add_argument("--seed", type=int, default=1, help="seed of the random moments")
@@ -56,7 +58,9 @@ def main() -> int:
         proc = start(work / "reference", work / "reference.err")
         code = proc.wait(timeout=600)
         span_s = time.monotonic() - t0
-        print(f"uninterrupted run: exit {code}, {span_s:.1f} s; {args.tries} tries, timeout {args.timeout:.0f} s")
+        print(
+            f"uninterrupted run: exit {code}, {span_s:.1f} s; {args.tries} tries, timeout {args.timeout:.0f} s"
+        )
         codes: collections.Counter[int | str] = collections.Counter()
         tracebacks: list[int] = []
         longest_s = 0.0
@@ -91,7 +95,9 @@ def main() -> int:
             print(f"try {n + 1:2d}: signals at {delay_s:5.2f} s: {outcome}", flush=True)
             shutil.rmtree(session, ignore_errors=True)
         print(f"hung: {codes['hung']} of {args.tries}")
-        print("exit codes: " + ", ".join(f"{k}: {v}" for k, v in sorted(codes.items(), key=str) if k != "hung"))
+        print(
+            "exit codes: " + ", ".join(f"{k}: {v}" for k, v in sorted(codes.items(), key=str) if k != "hung")
+        )
         print(f"tracebacks on stderr: {len(tracebacks)} {tracebacks if tracebacks else ''}")
         print(f"longest time from the second SIGINT to the end: {longest_s:.1f} s")
         return 1 if codes["hung"] or tracebacks else 0

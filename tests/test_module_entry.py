@@ -13,7 +13,13 @@ REPO = Path(__file__).resolve().parents[1]
 
 def test_python_dash_m_runs_the_command() -> None:
     done = subprocess.run(
-        [sys.executable, "-m", "protocol_runner", "--validate", str(REPO / "protocols" / "elbow_example.yaml")],
+        [
+            sys.executable,
+            "-m",
+            "protocol_runner",
+            "--validate",
+            str(REPO / "protocols" / "elbow_example.yaml"),
+        ],
         capture_output=True,
         text=True,
         timeout=120,

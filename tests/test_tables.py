@@ -76,6 +76,7 @@ def test_quoted_cells_are_split_as_csv_and_plain_ones_at_every_comma() -> None:
     table = parse_header_table('name, value\n"a, b", 1\n  c ,2 \n')
     assert [r.cells for r in table.rows] == [("a, b", "1"), ("c", "2")]
 
+
 def test_a_trajectory_saved_with_a_byte_order_mark_reads_as_without(tmp_path: Path) -> None:
     """Spreadsheets save CSV with a UTF-8 byte-order mark; it was read into the first header cell and the
     file refused (its message showing the right header). It is not data."""

@@ -160,7 +160,9 @@ def compare_as_joints(a_path: Path, b_path: Path, ignore: set[str], rtol: float 
                 if key in oa.attrs:
                     covered.add((old, key))
                     if not _equal(oa.attrs[key], ob.attrs[key], rtol):
-                        out.append(f"attribute differs: {name} @{key}: {ob.attrs[key]!r} vs A {oa.attrs[key]!r}")
+                        out.append(
+                            f"attribute differs: {name} @{key}: {ob.attrs[key]!r} vs A {oa.attrs[key]!r}"
+                        )
                 elif key not in LAYOUT_ATTRS:
                     out.append(f"attribute only in B: {name} @{key}")
         for name in sorted(set(ia) - seen):
@@ -177,7 +179,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("a", type=Path)
     parser.add_argument("b", type=Path)
     parser.add_argument("--ignore-attr", action="append", default=[], help="an attribute name to ignore")
-    parser.add_argument("--rtol", type=float, default=0.0, help="relative tolerance for floats (default exact)")
+    parser.add_argument(
+        "--rtol", type=float, default=0.0, help="relative tolerance for floats (default exact)"
+    )
     parser.add_argument(
         "--as-joints",
         action="store_true",

@@ -116,7 +116,9 @@ def check(columns: dict[str, np.ndarray]) -> list[str]:
         speed = np.gradient(angle, 1.0 / RATE_HZ)
         accel = np.gradient(speed, 1.0 / RATE_HZ)
         if not (lo + 2 <= angle.min() and angle.max() <= hi - 2):
-            raise SystemExit(f"{joint}: {angle.min():.1f} to {angle.max():.1f} deg leaves [{lo}, {hi}] - 2 deg")
+            raise SystemExit(
+                f"{joint}: {angle.min():.1f} to {angle.max():.1f} deg leaves [{lo}, {hi}] - 2 deg"
+            )
         if np.abs(speed).max() > MAX_SPEED_DEG_S or np.abs(accel).max() > MAX_ACCEL_DEG_S2:
             raise SystemExit(
                 f"{joint}: peak {np.abs(speed).max():.0f} deg/s, {np.abs(accel).max():.0f} deg/s^2 over the margin"

@@ -20,7 +20,8 @@ def test_no_device_loses_under_a_tenth_of_a_joule_per_cycle(tmp_path: Path) -> N
     assert main([str(SHOULDER), "--dry-run", "--seed", "7", "--session", str(session)]) == 0
     with h5py.File(session / "archive.h5") as f:
         energy = {
-            k: float(np.mean(f[f"configurations/config_{k:02d}/joints/shoulder_flexion/energy_loss_j"][()])) for k in (1, 2, 3, 4)
+            k: float(np.mean(f[f"configurations/config_{k:02d}/joints/shoulder_flexion/energy_loss_j"][()]))
+            for k in (1, 2, 3, 4)
         }
         for k in (1, 2, 3, 4):  # every twin matched its brace-on cycles within the 0.1 deg tolerance
             scaling = f[f"configurations/config_{k:02d}/trials/1/brace_off/joints/shoulder_flexion/scaling"]

@@ -95,7 +95,10 @@ def _complete_without_traceback(session: Path, code: int) -> None:
 def test_a_pipe_whose_reader_ends_after_two_lines_does_not_stop_the_campaign(tmp_path: Path) -> None:
     session = tmp_path / "s"
     proc = subprocess.Popen(
-        [*CLI, *SHORT, "--session", str(session)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, env=_env()
+        [*CLI, *SHORT, "--session", str(session)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        env=_env(),
     )
     assert proc.stdout is not None
     shown = [proc.stdout.readline() for _ in range(2)]  # `| head -2`

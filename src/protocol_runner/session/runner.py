@@ -158,7 +158,9 @@ class Runner:
             if self.stop() and self.stop.signal_name not in message:  # stopped inside a motion: say by what
                 message = f"{message} ({self.stop.signal_name})"
             self._stopped("interrupted", message, progress)
-            raise Interrupted(f"{message}. The session is resumable: run-protocol --resume {self.dir}") from None
+            raise Interrupted(
+                f"{message}. The session is resumable: run-protocol --resume {self.dir}"
+            ) from None
         except KeyboardInterrupt:
             self._stopped_at_once()
             raise Interrupted(
