@@ -215,8 +215,8 @@ def report(
         from .archive.reprocess import reprocess_archive
         from .report.evaluate import record_verdicts
         from .report.load import load_report_data
-        from .report.predictions import predictions, record_predictions
-        from .report.render import render_report
+        from .report.predictions import record_predictions
+        from .report.render import render_with_predictions
         from .session.workers import analysis_pool
 
         with analysis_pool() as pool:
@@ -226,11 +226,11 @@ def report(
         # it was made from has just been checked, its bytes copied, and this process wrote everything new
         data = load_report_data(archive, verify=False)
         record_verdicts(archive, data)  # the verdicts follow the reprocessed data
-        made = predictions(archive, data.protocol_text)
-        record_predictions(archive, made)  # and so do the predictions
         _result(f"reprocessed archive: {archive}")
+        out = render_with_predictions(  # the predictions are recorded too, before the page is written
+            data, output or archive.with_suffix(".html"), record=lambda m: record_predictions(archive, m)
+        )
         _export_mat(archive, export_mat)
-        out = render_report(data, output or archive.with_suffix(".html"), predicted=lambda: made)
         _result(f"report: {out}")
         return EXIT_OK
 

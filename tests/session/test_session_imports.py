@@ -1,5 +1,6 @@
-"""What the session process loads to start: the processing, the fits and the report's drawing run in the
-analysis workers, which import them in their fork server on the other core. The session imports its runner
+"""What the session process loads to start: the processing and the fits run in the analysis workers, which
+import them in their fork server on the other core; the report's figures and predictions are made at the end
+on processes of the report's own. The session imports its runner
 without scipy's signal, optimisation and statistics packages, the Bouc-Wen model or matplotlib; a step kind
 loads its module (and what that needs) when it first runs."""
 
@@ -41,7 +42,7 @@ def test_a_step_kind_loads_its_module_when_it_first_runs() -> None:
 
 
 def test_the_predictions_a_worker_hands_back_load_no_model_in_the_session() -> None:
-    """The session unpickles the workers' `Prediction`s at the end, on its serial tail: their module
+    """The session unpickles the `Prediction`s made on the report's own process at the end: their module
     imports the compiled Bouc-Wen model only where a prediction is computed."""
     loaded = _loaded_after(
         "import pickle\nfrom protocol_runner.report.predictions import Prediction\n"

@@ -79,28 +79,40 @@ def generate_report(
     docs/report.md) added to the archive's; `workers`: processes reading the archive and drawing figures
     (None: 2 for a large archive on 2+ cores, else 1). `InvalidInput` for an unreadable archive or reference.
     """
-    archive_path = Path(archive_path)
     data = load_report_data(archive_path, workers=workers)
     if reference is not None:
         ref = load_reference_dataset(Path(reference))
         data = dataclasses.replace(data, references=(*data.references, ref))
-    if output is None:
-        output = Path(data.session.archive_path).parent / "report.html"
+    output = Path(output or Path(data.session.archive_path).parent / "report.html")
+    return render_with_predictions(data, output, workers=workers)
+
+
+def render_with_predictions(
+    data: ReportData,
+    output: Path,
+    *,
+    workers: int | None = None,
+    record: Callable[[tuple[Prediction, ...]], object] | None = None,
+) -> Path:
+    """`render_report`, with the predictions (from the archive, checked or just written by the caller) made on
+    a process of their own while the figures are drawn (here if none can start); `record(predictions)` runs
+    before the page is written (the session and `--reprocess` store them in the archive)."""
     from protocol_runner.report.predictions import predictions  # the compiled model: only run here
 
     archive = Path(data.session.archive_path)
-    # the predictions (read from the archive, checked above) are made on a process of their own while the
-    # figures are drawn; made here instead when no process can be started
     with ProcessPoolExecutor(1) as aside:
         made = aside.submit(predictions, archive, data.protocol_text)
 
         def predicted() -> tuple[Prediction, ...]:
             try:
-                return made.result()
+                out = made.result()
             except BrokenProcessPool:
-                return predictions(archive, data.protocol_text)
+                out = predictions(archive, data.protocol_text)
+            if record is not None:
+                record(out)
+            return out
 
-        return render_report(data, Path(output), workers=workers, predicted=predicted)
+        return render_report(data, output, workers=workers, predicted=predicted)
 
 
 def render_report(
