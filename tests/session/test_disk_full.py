@@ -21,6 +21,7 @@ import pytest
 from protocol_runner.archive import consolidate as consolidate_module
 from protocol_runner.cli import main
 from protocol_runner.hardware.rig import Rig
+from protocol_runner.report import predictions as predictions_module
 from protocol_runner.session import setup as session_setup
 from protocol_runner.session.journal import Journal
 
@@ -160,6 +161,27 @@ def test_enospc_while_writing_the_report(
     with h5py.File(session / "archive.h5", "r") as f:
         assert f.attrs["status"] == "complete"
     assert main(["--verify", str(session / "archive.h5")]) == 0
+    assert parks[-1] == "park after disk full"
+    monkeypatch.undo()
+    resume_matches(session, reference_archive, capsys)
+
+
+def test_enospc_while_recording_the_predictions(
+    tmp_path: Path,
+    reference_archive: Path,
+    monkeypatch: pytest.MonkeyPatch,
+    capsys: pytest.CaptureFixture[str],
+    parks: list[str],
+) -> None:
+    """The predictions are recorded after the figures are drawn and before the page is written: a full disk
+    then names the predictions, and no report is left (it would show what the archive does not hold)."""
+    session = tmp_path / "s"
+    monkeypatch.setattr(predictions_module, "record_predictions", enospc)
+    code = main([*RUN, "--session", str(session)])
+    err = capsys.readouterr().err
+    stopped_cleanly(code, err, session)
+    assert f"disk full while writing the predictions into {session / 'archive.h5'}" in err
+    assert not (session / "report.html").exists()
     assert parks[-1] == "park after disk full"
     monkeypatch.undo()
     resume_matches(session, reference_archive, capsys)
