@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
+from protocol_runner.models.bouc_wen import identifiability as ident
 from protocol_runner.models.bouc_wen.fitting import fit_trials
 from protocol_runner.models.bouc_wen.identifiability import (
     CHI2_1_95,
@@ -265,3 +266,26 @@ def test_a_better_optimum_met_on_the_profile_becomes_its_minimum(monkeypatch: py
     half = math.sqrt(math.exp(CHI2_1_95 / m_eff) - 1.0)
     assert low == pytest.approx(n_star - half, rel=1e-12)
     assert high > n_hat
+
+
+def test_correlated_residuals_widen_every_interval_by_the_square_root_of_n_over_the_effective_n(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """n residuals worth m_eff independent ones carry m_eff samples' information: each parameter's sigma,
+    and so its Wald interval, is sqrt(n / m_eff) times what independent errors give; with the data worth
+    a ten-thousandth of their number, parameters besides n (whose profile interval is its own) are weak."""
+    segments = _rich_loops()
+    fitted = fit_trials(segments, starts=1)
+
+    def worth(share: float) -> BoucWenFit:
+        monkeypatch.setattr(ident, "effective_samples", lambda r, seg: r.size * share)
+        return identify(segments, fitted)
+
+    independent, quarter, little = worth(1.0), worth(0.25), worth(1e-4)
+    theta = fitted.params.as_array()
+    for k in (0, *range(2, 8)):
+        assert quarter.param_std[k] == pytest.approx(2.0 * independent.param_std[k], rel=1e-9)
+        width = quarter.param_interval_high[k] - theta[k]
+        assert width == pytest.approx(1.96 * 2.0 * independent.param_std[k], rel=1e-9)
+    assert not independent.weakly_identified, independent.weak_reasons
+    assert any(not reason.startswith("n:") for reason in little.weak_reasons), little.weak_reasons
