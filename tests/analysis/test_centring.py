@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from protocol_runner.analysis.centring import centre, complete_cycles_span
+from protocol_runner.analysis.cycles import upward_crossings
 from protocol_runner.analysis.energy import energy_per_cycle
 
 
@@ -51,3 +52,22 @@ def test_a_trial_without_a_complete_cycle_is_centred_on_all_its_samples() -> Non
     torque = np.linspace(-2.0, 4.0, 500)
     loop = centre(angle, torque)
     assert loop.mean_angle_deg == pytest.approx(25.0) and loop.mean_torque_nm == pytest.approx(1.0)
+
+
+def test_the_means_are_taken_from_the_first_upward_crossing_to_the_last() -> None:
+    """4.6 periods starting past a peak: three complete cycles lie between the first upward crossing of the
+    mean and the last. A torque of 100 N*m outside them (a start transient, a stop) moves nothing: the
+    means are those of the complete cycles, every one of them."""
+    t = np.arange(0.0, 4.6 * 2.5, 0.002)
+    angle = 30.0 * np.sin(2 * np.pi * t / 2.5 + 2.0)
+    crossings = upward_crossings(angle)
+    assert crossings.size == 4
+    span = complete_cycles_span(angle)
+    assert (span.start, span.stop) == (crossings[0], crossings[-1])
+    inside = np.zeros(t.size, dtype=bool)
+    inside[span] = True
+    torque = np.where(inside, 3.0 + 8.0 * np.cos(2 * np.pi * t / 2.5), 100.0)
+    loop = centre(angle, torque)
+    assert loop.mean_torque_nm == pytest.approx(float(torque[inside].mean()), abs=1e-12)
+    assert loop.mean_torque_nm == pytest.approx(3.0, abs=0.01)
+    assert loop.mean_angle_deg == pytest.approx(float(angle[inside].mean()), abs=1e-12)

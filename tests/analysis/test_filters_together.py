@@ -39,10 +39,14 @@ def test_signals_of_different_lengths_are_refused_by_name() -> None:
 
 
 def test_sections_that_are_not_a_filter_are_refused() -> None:
-    with pytest.raises(AnalysisError, match="second-order sections"):
-        filter_zero_phase_together([np.zeros(500)], np.ones((2, 5)), names=["angle"])
-    with pytest.raises(AnalysisError, match=r"section 0 has 2\.0"):
-        filter_zero_phase_together([np.zeros(500)], 2.0 * design_lowpass(), names=["angle"])
+    for columns in (5, 7):  # a section is six coefficients, b0 b1 b2 1 a1 a2
+        with pytest.raises(AnalysisError, match="second-order sections"):
+            filter_zero_phase_together([np.zeros(500)], np.ones((2, columns)), names=["angle"])
+    for a0 in (2.0, 0.5):  # not normalised, either way: the first such section is named
+        sections = design_lowpass()
+        sections[1] *= a0
+        with pytest.raises(AnalysisError, match=f"section 1 has {a0}"):
+            filter_zero_phase_together([np.zeros(500)], sections, names=["angle"])
 
 
 def test_a_constant_passes_unchanged_and_a_fast_wiggle_is_removed() -> None:

@@ -10,7 +10,7 @@ import pytest
 
 from protocol_runner.errors import InvalidInput
 from protocol_runner.models.bouc_wen.params import BoucWenParams
-from protocol_runner.models.bouc_wen.simulation import simulate
+from protocol_runner.models.bouc_wen.simulation import simulate, simulate_trials
 from tests.models.sensitivity import simulate_sensitivity
 
 P = BoucWenParams(A=0.3, n=1.2, beta=(0.01, 0.1, -0.1, -0.05, 0.09, 0.0))
@@ -112,3 +112,16 @@ def test_the_refined_check_is_by_default_the_4x_finer_integration() -> None:
     fine = simulate(refine_angle(x, 4), P, y[0], max_step_deg=0.025)[::4]
     assert refined_rmse([(x, y)], P, 1e6) == pytest.approx(math.sqrt(float(np.sum((fine - y) ** 2)) / y.size))
     np.testing.assert_array_equal(refine_angle(x), refine_angle(x, 4))
+
+
+def test_several_trials_are_each_their_own_simulation_and_need_one_start_each() -> None:
+    """Trials of different lengths from their own starting torques, in one call: each is bit for bit what
+    `simulate` gives it alone; a starting torque missing or left over is named, not guessed."""
+    params = P
+    xs = [40.0 * np.sin(np.linspace(0.0, 4 * np.pi, n)) for n in (300, 451)]
+    together = simulate_trials(xs, params, [0.0, -3.5])
+    for x, z0, torque in zip(xs, (0.0, -3.5), together, strict=True):
+        np.testing.assert_array_equal(torque, simulate(x, params, z0))
+    for starts in ([0.0], [0.0, 1.0, 2.0]):
+        with pytest.raises(InvalidInput, match=f"2 trials but {len(starts)} starting torques"):
+            simulate_trials(xs, params, starts)
