@@ -21,6 +21,9 @@ from protocol_runner.models.bouc_wen.schemes import (
     Sensitivity,
     check_scheme,
     run_scheme,
+    run_trial,
+    run_trials,
+    segment_starts,
 )
 from protocol_runner.models.bouc_wen.simulation import simulate
 from tests.models.sensitivity import simulate_sensitivity
@@ -311,3 +314,22 @@ def test_a_state_running_away_before_the_angle_crosses_zero_is_held_with_its_own
         _sensitivities(REFINED, x, seg, np.array([10.0]), 0.1, 2.0, beta, 100.0, True, zs, dz, np.eye(8)) == 1
     )
     np.testing.assert_array_equal(zs, z)
+
+
+@pytest.mark.parametrize("scheme", [REFINED, EQ23])
+def test_trials_integrated_together_are_each_integrated_alone(scheme: str) -> None:
+    """Trials of 1, 200 and 337 samples concatenated: their segments start where the previous ones end
+    (segment_starts: 0, 1, 201, 538), and each trial's torque, from its own start, is bit for bit the
+    trial integrated alone; with no trial, nothing."""
+    params = BoucWenParams(A=0.3, n=1.2, beta=(0.01, 0.1, -0.1, -0.05, 0.09, 0.0))
+    xs = [np.array([5.0]), *(30.0 * np.sin(np.linspace(0.0, 3 * np.pi, n)) for n in (200, 337))]
+    z0s = [1.5, 0.0, -2.0]
+    integration = Integration(scheme, 1e6)
+    assert segment_starts(xs).tolist() == [0, 1, 201, 538]
+    together, bad = run_trials(xs, params, z0s, integration)
+    assert bad == -1 and [t.size for t in together] == [1, 200, 337]
+    for x, z0, torque in zip(xs, z0s, together, strict=True):
+        alone, alone_bad = run_trial(x, params, z0, integration)
+        assert alone_bad == -1
+        np.testing.assert_array_equal(torque, alone)
+    assert run_trials([], params, [], integration)[0] == []
