@@ -134,3 +134,35 @@ def test_the_needed_count_falls_as_the_effect_grows_and_rises_with_the_spread(
     tost = _needed(Equivalence(0.0, -effect, effect, (sd, sd)), alpha)
     assert _needed(Equivalence(0.0, -effect * grow, effect * grow, (sd, sd)), alpha) <= tost
     assert _needed(Equivalence(0.0, -effect, effect, (sd, sd * grow)), alpha) >= tost
+
+
+def test_welch_degrees_of_freedom_exactly() -> None:
+    """(n - 1) (sum v_i)^2 / sum v_i^2 with v_i = s_i^2, to the last digits; no spread at all: n - 1."""
+    assert welch_dof((1.0, 0.5), 5) == pytest.approx(4 * 1.25**2 / 1.0625, rel=1e-12)  # 5.88..., not 5
+    assert welch_dof((0.0, 0.0), 5) == 4.0
+
+
+def test_without_spread_the_sign_of_the_effect_decides() -> None:
+    assert part_power(OneSided(0.1, (0.0, 0.0)), 4, 0.05) == 1.0
+    assert part_power(OneSided(-0.1, (0.0, 0.0)), 4, 0.05) == 0.0
+
+
+def test_two_trials_are_the_fewest_a_power_is_computed_for() -> None:
+    assert 0.0 < part_power(OneSided(1.0, (1.0, 1.0)), 2, 0.05) < 1.0
+    with pytest.raises(ValueError, match="two trials"):
+        part_power(OneSided(1.0, (1.0, 1.0)), 1, 0.05)
+
+
+@pytest.mark.parametrize("true_value", [-2.0, -1.02, -1.0, 1.0, 1.02, 2.0])
+def test_a_true_value_on_or_beyond_either_bound_gives_no_power(true_value: float) -> None:
+    """Not the Bonferroni bound, which is a little above 0 just beyond a bound (-1.02, 1.02): a statement
+    that is false is decided only at the test's size, and a plan cannot count on that."""
+    assert part_power(Equivalence(true_value, -1.0, 1.0, (0.3,)), 50, 0.05) == 0.0
+
+
+@pytest.mark.parametrize("effect", [0.37, 0.5, 0.81, 1.3])
+def test_the_count_is_a_whole_number_of_trials_the_fewest_with_the_power(effect: float) -> None:
+    part = OneSided(effect, (1.0, 0.7))
+    n = trials_needed([part], 0.05)
+    assert isinstance(n, int)
+    assert part_power(part, n, 0.05) >= 0.8 > part_power(part, n - 1, 0.05)
