@@ -16,6 +16,7 @@ from protocol_runner.models.bouc_wen.problem import (
     evaluate,
     jacobian_std,
     param_std,
+    trial_torques,
 )
 from protocol_runner.models.bouc_wen.records import BoucWenBounds
 from protocol_runner.models.bouc_wen.simulation import simulate
@@ -140,3 +141,24 @@ def test_every_residual_evaluation_counts_once_fused_or_not() -> None:
     problem.fused = False
     problem.cost(u)
     assert problem.nfev == 3
+
+
+def test_the_last_integration_is_handed_back_only_for_exactly_its_trials() -> None:
+    """trial_torques: after the problem integrated two trials at the Figure 57 parameters, each trial's
+    torque is `simulate`'s from its first torque; any other set of trials gets None (one fewer,
+    one more, a lower first torque: another recursion), as does another scheme."""
+    x = 60.0 * np.sin(2 * np.pi * np.arange(200) / 160.0)
+    trials = [(x, simulate(x, FIG57, z0=z0)) for z0 in (0.0, 2.0)]
+    xs, ys = np.concatenate([x, x]), np.concatenate([y for _, y in trials])
+    scale = FitScale(60.0, float(np.max(np.abs(ys))))
+    problem = Problem(Samples(xs, ys, np.array([0, 200, 400])), BoucWenBounds(), scale, "refined")
+    problem.residuals(problem.to_u(FIG57))
+    torques = trial_torques(problem, trials, "refined")
+    assert torques is not None
+    for torque, (_, y) in zip(torques, trials, strict=True):
+        np.testing.assert_allclose(torque, y, rtol=0.0, atol=1e-9)  # the parameters went through to_u
+    lowered = [(x, y.copy()) for x, y in trials]
+    lowered[-1][1][0] -= 0.5
+    for other in (trials[:-1], trials + trials[:1], lowered):
+        assert trial_torques(problem, other, "refined") is None
+    assert trial_torques(problem, trials, "eq23") is None
