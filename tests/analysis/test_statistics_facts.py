@@ -13,6 +13,8 @@ from scipy import stats
 
 from protocol_runner.analysis.statistics import (
     contrast_interval,
+    p_above,
+    p_below,
     repeatability,
     t_interval,
     trial_means,
@@ -122,3 +124,41 @@ def test_icc_needs_two_groups_and_replication() -> None:
     for nothing in ([], [[math.nan], []]):
         r = repeatability(nothing)
         assert (r.groups, r.units) == (0, 0) and math.isnan(r.grand_mean) and math.isnan(r.icc)
+
+
+def test_a_contrast_estimate_carries_its_standard_error_and_one_sided_p_values() -> None:
+    """The standard error behind an interval is s / sqrt(n) for one group's mean; "above ref" has the
+    p-value P(T >= (estimate - ref) / se) of Student's t with n - 1 degrees of freedom, and "below ref" its
+    complement; a weight of 2 doubles the estimate and its half width, not its degrees of freedom."""
+    values = np.array([3.1, 2.4, 3.9, 3.3, 2.8, 3.6])
+    n, mean, sd = values.size, float(values.mean()), float(values.std(ddof=1))
+    single = contrast_interval([(1.0, values)])
+    assert single.standard_error == pytest.approx(sd / math.sqrt(n), rel=1e-12)
+    for ref in (0.0, 2.9, 3.5):
+        t = (mean - ref) / (sd / math.sqrt(n))
+        assert p_above(single, ref) == pytest.approx(float(stats.t.sf(t, n - 1)), rel=1e-9)
+        assert p_below(single, ref) == pytest.approx(float(stats.t.cdf(t, n - 1)), rel=1e-9)
+    doubled = contrast_interval([(2.0, values)])
+    assert doubled.difference == pytest.approx(2.0 * mean, rel=1e-12)
+    assert doubled.half_width == pytest.approx(2.0 * single.half_width, rel=1e-12)
+    assert doubled.dof == pytest.approx(n - 1, rel=1e-12)
+
+
+def test_without_spread_a_one_sided_statement_is_decided_by_the_difference_alone() -> None:
+    same = welch_interval([2.0, 2.0, 2.0], [5.0, 5.0])  # difference 3, no spread
+    assert p_above(same, 2.5) == 0.0 and p_below(same, 2.5) == 1.0
+    assert p_above(same, 3.5) == 1.0 and p_below(same, 3.5) == 0.0
+
+
+def test_a_group_without_two_values_has_a_difference_but_no_interval() -> None:
+    one = welch_interval([1.0], [4.0, 6.0])
+    assert one.difference == 4.0 and math.isnan(one.low) and math.isnan(one.high)
+    empty = welch_interval([], [4.0, 6.0])
+    assert math.isnan(empty.difference) and math.isnan(empty.low)
+
+
+def test_a_negative_icc_is_shown_as_zero_with_a_note_and_a_positive_one_as_it_is() -> None:
+    scattered = repeatability([[1.0, 3.0], [1.1, 2.9], [0.9, 3.1]])  # sets alike, trials apart
+    assert scattered.icc < 0.0 and scattered.icc_shown == 0.0 and "shown as 0" in scattered.icc_note
+    clustered = repeatability([[1.0, 1.1], [3.0, 3.1], [5.0, 4.9]])  # sets apart, trials alike
+    assert clustered.icc > 0.9 and clustered.icc_shown == clustered.icc and clustered.icc_note == ""
