@@ -10,6 +10,7 @@ from protocol_runner.analysis.branches import (
     UNLOADING,
     branch_curves,
     branch_labels,
+    complete_branches,
     turning_points,
 )
 from protocol_runner.analysis.validation import AnalysisError
@@ -84,3 +85,16 @@ def test_a_zero_bin_width_is_a_user_error() -> None:
     angle = np.linspace(0.0, 40.0, 50)
     with pytest.raises(AnalysisError, match="bin width must be positive"):
         branch_curves(np.concatenate([angle, angle[::-1]]), np.zeros(100), bin_width_deg=0.0)
+
+
+def test_the_default_reversal_is_one_degree() -> None:
+    """A 1.5 deg fall back confirms a maximum, a 0.5 deg one does not."""
+    x = np.array([0.0, 1.0, 2.0, 3.0, 1.5, 2.5, 2.0, 5.0, 6.0])
+    assert turning_points(x).tolist() == [3, 4]
+    np.testing.assert_array_equal(branch_labels(x), branch_labels(x, 1.0))
+
+
+def test_the_complete_branches_run_from_the_first_turning_point_to_the_last_inclusive() -> None:
+    x = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0, 4.0, 3.0, 2.0, 1.0, 0.0, 1.0, 2.0, 3.0])
+    assert complete_branches(x, 1.0) == slice(5, 11)  # the maximum at 5 through the minimum at 10
+    assert complete_branches(x[:9], 1.0) == slice(None)  # one turning point: no complete branch, all kept
