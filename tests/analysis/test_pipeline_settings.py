@@ -23,6 +23,7 @@ def test_the_smallest_meaningful_values_are_accepted() -> None:
         chebyshev_ripple_db=1e-9,
     )
     assert s.transition_points == 1 and s.cycle_hysteresis_deg == 0.0
+    assert ProcessingSettings(cycle_hysteresis_deg=2.5).cycle_hysteresis_deg == 2.5  # a band, not only none
 
 
 @pytest.mark.parametrize(
@@ -64,3 +65,30 @@ def test_the_chebyshev_ripple_is_described_only_for_a_chebyshev_filter() -> None
 def test_a_pair_without_a_trial_number_is_trial_1() -> None:
     rec = Recording(np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3))
     assert TrialPair(rec, rec).trial == 1  # trials are numbered from 1, as in the archive
+
+
+def test_the_cut_off_in_hz_is_the_fraction_of_nyquist_at_the_rate_filtered() -> None:
+    described = ProcessingSettings().filter_description(333.0)  # 0.1 of a 166.5 Hz Nyquist frequency
+    assert described["cutoff_hz"] == pytest.approx(16.65, rel=1e-12) and described["sample_rate_hz"] == 333.0
+    assert "cutoff_hz" not in ProcessingSettings().filter_description()
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("filter_cutoff", 0.0),
+        ("cycle_hysteresis_deg", -0.1),
+        ("transition_points", 0),
+        ("chebyshev_ripple_db", -1.0),
+    ],
+)
+def test_the_first_value_below_each_limit_is_refused_naming_the_field(field: str, value: object) -> None:
+    with pytest.raises(InvalidInput, match=f"processing settings: {field} "):
+        ProcessingSettings(**{field: value})  # type: ignore[arg-type]
+
+
+def test_a_method_outside_its_choices_is_refused_with_the_choices() -> None:
+    with pytest.raises(
+        InvalidInput, match="subtraction must be 'equal_angle' or 'equal_time', got 'equal_speed'"
+    ):
+        ProcessingSettings(subtraction="equal_speed")  # type: ignore[arg-type]
