@@ -14,6 +14,7 @@ import pytest
 from protocol_runner.analysis.bouc_wen_fit import (
     LoopEnergy,
     fit_configuration,
+    fit_loops,
     loop_energy,
     model_torques,
 )
@@ -172,3 +173,13 @@ def test_every_trial_needs_its_model_torque() -> None:
     x, y = _cycles(2, 1.0)
     with pytest.raises(ValueError):
         loop_energy([(x, y), (x, y)], [y])
+
+
+def test_with_the_element_fit_disabled_the_backbone_is_zero_and_says_why() -> None:
+    """A device given as None (the element fit disabled) fits the thesis form torque = z, whatever
+    polynomial degree was asked, and the fit records the reason."""
+    data = trials(2)
+    fit, _ = fit_loops(data, starts=1, cross_validated=False, backbone_degree=3, elements=(data, None))
+    assert isinstance(fit.backbone, FixedBackbone) and fit.backbone.kind == "none"
+    assert fit.backbone.note == "not applicable: the element fit is disabled"
+    assert np.all(fit.backbone.torque_nm(np.linspace(-60.0, 60.0, 7)) == 0.0)
