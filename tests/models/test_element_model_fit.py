@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
 from protocol_runner.analysis.model_comparison import compare_models, motions_of
 from protocol_runner.analysis.model_fit import fit_element_model
@@ -18,6 +19,7 @@ from protocol_runner.models.element_model import (
     stacked_torque_nm,
     torque_jacobian,
     transfer,
+    unit_dahl_friction,
 )
 from protocol_runner.models.elements import build_device
 
@@ -170,3 +172,41 @@ def test_the_model_jacobian_is_the_derivative_of_the_model_torque() -> None:
         scale = float(np.max(np.abs(numeric)))
         assert scale > 0.0, key
         assert float(np.max(np.abs(jac[:, j] - numeric))) < 1e-5 * scale + 1e-9, key
+
+
+def test_a_declared_shift_of_an_angle_moves_the_fitted_angle_by_it() -> None:
+    """The torsion spring's neutral angle declared 60 deg in A and 70 deg in B: A's fitted 61.5 deg is
+    carried as 71.5 deg (a shift), while a changed stiffness scales (0.1 -> 0.2: A's fitted 0.11 -> 0.22)."""
+    a = _device()
+    b = build_device(
+        [
+            ("torsion", "torsion_spring", {"stiffness_nm_per_deg": 0.2, "neutral_deg": 70.0}),
+            ("damper", "viscous_damper", {"damping_nm_s_per_deg": 0.02}),
+            ("brake", "coulomb_brake", {"torque_nm": 0.5, "transition_deg": 2.0}),
+        ]
+    )
+    fitted = {
+        **layout(a).declared,
+        ("torsion", "neutral_deg"): 61.5,
+        ("torsion", "stiffness_nm_per_deg"): 0.11,
+    }
+    carried = transfer(layout(a), layout(b), fitted)
+    assert carried[("torsion", "neutral_deg")] == pytest.approx(71.5, rel=1e-12)
+    assert carried[("torsion", "stiffness_nm_per_deg")] == pytest.approx(0.22, rel=1e-12)
+
+
+@pytest.mark.parametrize(("start", "sense"), [(1.0, 1.0), (-1.0, -1.0)])
+def test_dahl_friction_starts_sliding_in_its_first_moves_sense(start: float, sense: float) -> None:
+    """A trial that rests for three samples and then moves up (or down) holds the full level in that
+    sense from its first sample: the friction of a motion starting from rest opposes it at once."""
+    angle = np.array([10.0, 10.0, 10.0, 10.0 + start, 10.0 + 2 * start, 10.0 + 3 * start])
+    speed = np.gradient(angle, 0.02)
+    unit, _ = unit_dahl_friction(angle, speed, np.array([0, angle.size]), 2.0, 0.0, 1.0)
+    assert unit[0] == sense and unit[1] == sense and unit[2] == sense
+    assert np.all(np.sign(unit[3:]) == sense)
+
+
+def test_a_trial_that_never_moves_has_no_dahl_friction() -> None:
+    angle = np.full(5, 42.0)
+    unit, _ = unit_dahl_friction(angle, np.zeros(5), np.array([0, 5]), 2.0, 0.0, 1.0)
+    assert np.all(unit == 0.0)
