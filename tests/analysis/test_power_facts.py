@@ -166,3 +166,9 @@ def test_the_count_is_a_whole_number_of_trials_the_fewest_with_the_power(effect:
     n = trials_needed([part], 0.05)
     assert isinstance(n, int)
     assert part_power(part, n, 0.05) >= 0.8 > part_power(part, n - 1, 0.05)
+
+
+def test_a_statement_of_several_weak_parts_has_no_power_not_a_negative_one() -> None:
+    parts = [OneSided(0.3, (1.0, 1.0))] * 3  # each about a fifth at 4 trials: 1 - sum(1 - p_i) < 0
+    assert 0.0 < part_power(parts[0], 4, 0.05) < 0.5
+    assert statement_power(parts, 4, 0.05) == 0.0
