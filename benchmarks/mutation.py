@@ -109,6 +109,9 @@ NARROWED = {
     # test_elastic_backbone.py's cross-validated fit take 10-15 s each, a pass per surviving mutant
     "analysis/element_fit.py": "tests/analysis/test_element_fit_facts.py tests/analysis/test_element_fit_lever*.py",
     "analysis/elastic_backbone.py": "tests/analysis/test_elastic_backbone_facts.py",
+    # the element model's fit and the model comparison are stated with the element model
+    "analysis/model_fit.py": "tests/models/test_element_model_*.py",
+    "analysis/model_comparison.py": "tests/models/test_element_model_*.py",
     # the settings' limits and descriptions are stated where the pipeline takes them
     "analysis/processing_settings.py": "tests/analysis/test_pipeline_settings.py tests/protocol/test_processing_settings.py",
 }
