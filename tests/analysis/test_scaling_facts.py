@@ -112,6 +112,7 @@ def test_the_default_transition_is_the_thesis_three_points_within_five_degrees()
         ({"tolerance_deg": 0.0}, "tolerance must be positive"),
         ({"max_iterations": 0}, "at least one iteration"),
         ({"input_limits_deg": (80.0, 80.0)}, "input limits must be"),  # an empty range to move in
+        ({"input_limits_deg": (90.0, 80.0)}, "input limits must be"),  # or a reversed one
     ],
 )
 def test_a_target_or_setting_that_leaves_nothing_to_do_is_a_user_error(kwargs: dict, message: str) -> None:
