@@ -58,3 +58,18 @@ def test_the_functionals_are_per_trial_values_with_a_t_interval_over_the_trials(
     assert (
         only.value == pytest.approx(per_trial[0]) and math.isnan(only.ci95_low) and math.isnan(only.ci95_high)
     )
+
+
+def test_each_interval_is_the_estimate_plus_minus_t_on_the_effective_dof_times_its_sigma() -> None:
+    """The element fit's RMSE is sqrt(SSE / n); each parameter's 95 % interval is value +- t(0.975,
+    n_eff - k) sqrt(C_jj) of the reported covariance (C already scaled for the residuals' correlation)."""
+    comparison = compare_models(_trials(_device(), np.random.default_rng(6)), _device())
+    fit = comparison.element_fit
+    assert fit is not None
+    assert fit.rmse_nm == math.sqrt(fit.sse / fit.n_samples)
+    k = len(fit.estimates)
+    q = stats.t.ppf(0.975, fit.n_eff - k)
+    for j, estimate in enumerate(fit.estimates):
+        half = q * math.sqrt(fit.covariance[j, j])
+        assert estimate.ci95_high - estimate.value == pytest.approx(half, rel=1e-9)
+        assert estimate.value - estimate.ci95_low == pytest.approx(half, rel=1e-9)
