@@ -9,30 +9,14 @@ import math
 import numpy as np
 
 from protocol_runner.report.headline import ALL_JOINTS, campaign_stats, headline_stats
-from protocol_runner.report.model import Configuration, JointsTotal, ReportData, SessionInfo, Trial
-from protocol_runner.report.settings_view import SettingsView
+from protocol_runner.report.model import Configuration, JointsTotal, ReportData, SessionInfo
+from tests.report.test_evaluate import cfg
 
 
 def joint_part(joint: str, energies: list[float], angles: tuple[float, float]) -> Configuration:
     """Configuration 1's part for `joint`: trial t has one cycle of energy energies[t]."""
-    return Configuration(
-        name="config_1",
-        key=1,
-        joint=joint,
-        run=1,
-        set_name="s",
-        condition="",
-        profile="sinusoid",
-        status="complete",
-        n_trials_planned=len(energies),
-        settings=SettingsView(),
-        trials=tuple(Trial(i + 1, None, None, None) for i in range(len(energies))),
-        energy_loss_j=np.asarray(energies, dtype=float),
-        energy_cycle_trial=np.arange(1, len(energies) + 1, dtype=float),
-        bouc_wen=None,
-        element_fit=None,
-        angle_min_deg=angles[0],
-        angle_max_deg=angles[1],
+    return dataclasses.replace(
+        cfg(1, energies), joint=joint, angle_min_deg=angles[0], angle_max_deg=angles[1]
     )
 
 
